@@ -1,0 +1,57 @@
+"""Data contracts: the table and file schemas every stage of workbench reads and writes.
+
+Schemas are code. Each contract validates lazily and raises one :class:`ContractError`
+listing every violation (column, rows, reason). Units are part of column names. See
+``data_contracts/README.md`` for every column.
+"""
+
+from ._core import Column, ColumnPattern, ContractError, TableContract, Violation, atomic_path
+from .accelerations import (
+    AccelerationRecord,
+    channel_names,
+    read_accelerations,
+    validate_accelerations,
+    write_accelerations,
+)
+from .dship import DEFAULT_DSHIP_MAPPING, DSHIP_LOG, read_dship
+from .tables import (
+    CANONICAL_PREDICTORS,
+    CONTRACTS,
+    FORECAST,
+    MODAL,
+    POLES,
+    PREDICTORS,
+    read_table,
+    shape_columns,
+    shapes_from_frame,
+    shapes_to_frame,
+    write_table,
+)
+
+__all__ = [
+    "CANONICAL_PREDICTORS",
+    "CONTRACTS",
+    "DEFAULT_DSHIP_MAPPING",
+    "DSHIP_LOG",
+    "FORECAST",
+    "MODAL",
+    "POLES",
+    "PREDICTORS",
+    "AccelerationRecord",
+    "Column",
+    "ColumnPattern",
+    "ContractError",
+    "TableContract",
+    "Violation",
+    "atomic_path",
+    "channel_names",
+    "read_accelerations",
+    "read_dship",
+    "read_table",
+    "shape_columns",
+    "shapes_from_frame",
+    "shapes_to_frame",
+    "validate_accelerations",
+    "write_accelerations",
+    "write_table",
+]

@@ -1,0 +1,325 @@
+"""Acceleration records: the canonical ``.npz`` file and readers for MATLAB and CSV files.
+
+A record is one file of the acquisition system (typically 5 minutes): a sample matrix
+``acceleration`` (n_samples x n_channels) in m/s², NaN marking dropouts, the sampling rate,
+the UTC time of the first sample and the channel names.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ._core import ContractError, Violation, atomic_path
+
+__all__ = [
+    "MAX_PLAUSIBLE_ACCELERATION_MS2",
+    "AccelerationRecord",
+    "read_accelerations",
+    "validate_accelerations",
+    "write_accelerations",
+]
+
+#: Largest absolute acceleration accepted as plausible for hull vibration. [m/s²]
+#: Values above it usually mean a unit mix-up (e.g. mm/s² or raw counts).
+MAX_PLAUSIBLE_ACCELERATION_MS2 = 500.0
+
+
+@dataclass(frozen=True)
+class AccelerationRecord:
+    """One acceleration file.
+
+    Parameters
+    ----------
+    acceleration : ndarray, shape (n_samples, n_channels)
+        Accelerations, NaN where a channel dropped out. [m/s²]
+    sampling_rate_hz : float
+        Sampling rate. [Hz]
+    start_time : pandas.Timestamp
+        Time of the first sample. [UTC]
+    channels : tuple of str
+        Channel names, one per column of *acceleration*.
+    """
+
+    acceleration: np.ndarray
+    sampling_rate_hz: float
+    start_time: pd.Timestamp
+    channels: tuple[str, ...]
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.acceleration.shape[0])
+
+    @property
+    def duration(self) -> pd.Timedelta:
+        """Time covered by the samples (n_samples / sampling rate)."""
+        return pd.Timedelta(seconds=self.n_samples / self.sampling_rate_hz)
+
+    @property
+    def end_time(self) -> pd.Timestamp:
+        """Time just after the last sample. [UTC]"""
+        return self.start_time + self.duration
+
+
+def validate_accelerations(
+    record: AccelerationRecord, *, source: str | os.PathLike | None = None
+) -> AccelerationRecord:
+    """Check a record and return it with canonical types (float64 array, UTC timestamp).
+
+    Raises
+    ------
+    ContractError
+        Listing every problem (array shape, sampling rate, channel names, time, units).
+    """
+    problems: list[Violation] = []
+    try:
+        acceleration = np.asarray(record.acceleration, dtype=float)
+    except (TypeError, ValueError):
+        acceleration = None
+        problems.append(Violation("acceleration", "values are not numeric"))
+    if acceleration is not None and acceleration.ndim != 2:
+        problems.append(Violation("acceleration", f"must be 2-D (n_samples x n_channels), got "
+                                  f"{acceleration.ndim}-D"))
+        acceleration = None
+    channels = tuple(str(c) for c in np.atleast_1d(np.asarray(record.channels, dtype=object)))
+    if acceleration is not None:
+        if acceleration.shape[1] != len(channels):
+            problems.append(Violation("channels", f"{len(channels)} names for "
+                                      f"{acceleration.shape[1]} columns of acceleration"))
+        if acceleration.shape[0] < 2:
+            problems.append(Violation("acceleration", f"needs at least 2 samples, got "
+                                      f"{acceleration.shape[0]}"))
+        if np.isinf(acceleration).any():
+            cols = sorted({channels[j] if j < len(channels) else str(j)
+                           for j in np.nonzero(np.isinf(acceleration).any(axis=0))[0]})
+            problems.append(Violation("acceleration", f"infinite values in channel(s) "
+                                      f"{', '.join(cols)}"))
+        with np.errstate(invalid="ignore"):
+            peak = np.nanmax(np.abs(acceleration), axis=0) if acceleration.size else np.array([])
+        implausible = np.nonzero(np.isfinite(peak) & (peak > MAX_PLAUSIBLE_ACCELERATION_MS2))[0]
+        if len(implausible):
+            cols = ", ".join(channels[j] if j < len(channels) else str(j) for j in implausible)
+            problems.append(Violation(
+                "acceleration", f"|a| above {MAX_PLAUSIBLE_ACCELERATION_MS2:g} m/s² in channel(s) "
+                f"{cols}: accelerations must be in m/s² (not mm/s² or counts)"))
+    if len(set(channels)) != len(channels):
+        problems.append(Violation("channels", "channel names must be unique"))
+    try:
+        rate = float(np.asarray(record.sampling_rate_hz).reshape(()))
+    except (TypeError, ValueError):
+        rate = float("nan")
+    if not np.isfinite(rate) or rate <= 0:
+        problems.append(Violation("sampling_rate_hz", f"must be a positive number, got "
+                                  f"{record.sampling_rate_hz!r}"))
+    try:
+        start = pd.Timestamp(record.start_time)
+        start = start.tz_localize("UTC") if start.tzinfo is None else start.tz_convert("UTC")
+        if pd.isna(start):
+            raise ValueError
+    except (TypeError, ValueError):
+        start = None
+        problems.append(Violation("start_time", f"not an ISO-8601 time: {record.start_time!r}"))
+    if problems:
+        raise ContractError(problems, source=source, contract="accelerations")
+    return AccelerationRecord(acceleration, rate, start, channels)
+
+
+def write_accelerations(record: AccelerationRecord, path: str | os.PathLike) -> Path:
+    """Write *record* as the canonical ``.npz`` file (validated, atomic)."""
+    record = validate_accelerations(record)
+    path = Path(path)
+    with atomic_path(path, suffix=".tmp.npz") as tmp:
+        np.savez(
+            tmp,
+            acceleration=record.acceleration,
+            sampling_rate_hz=np.float64(record.sampling_rate_hz),
+            start_time=np.str_(record.start_time.strftime("%Y-%m-%dT%H:%M:%S.%fZ")),
+            channels=np.array(record.channels, dtype=np.str_),
+        )
+    return path
+
+
+def _scalar(value):
+    array = np.asarray(value)
+    if array.dtype.kind in "US" or array.dtype == object:
+        flat = array.ravel()
+        return str(flat[0]) if flat.size else ""
+    return array.reshape(-1)[0] if array.size else np.nan
+
+
+def _read_npz(path: Path) -> AccelerationRecord:
+    with np.load(path, allow_pickle=False) as data:
+        missing = [k for k in ("acceleration", "sampling_rate_hz", "start_time", "channels")
+                   if k not in data.files]
+        if missing:
+            raise ContractError([Violation(k, "array missing from the .npz file") for k in missing],
+                                source=path, contract="accelerations")
+        return AccelerationRecord(
+            data["acceleration"], _scalar(data["sampling_rate_hz"]), _scalar(data["start_time"]),
+            tuple(str(c) for c in data["channels"].ravel()),
+        )
+
+
+def _mat_text(value) -> str:
+    array = np.asarray(value)
+    if array.dtype.kind in "US":
+        return "".join(str(x) for x in array.ravel()) if array.ndim and array.dtype.itemsize <= 4 \
+            else str(array.ravel()[0])
+    if array.dtype.kind in "ui" and array.ndim >= 1:  # HDF5 MATLAB char arrays are uint16
+        return "".join(chr(int(c)) for c in array.ravel())
+    return str(_scalar(array))
+
+
+def _mat_channels(value, n_channels: int) -> tuple[str, ...]:
+    array = np.asarray(value, dtype=object)
+    names: list[str] = []
+    for item in array.ravel():
+        names.append(_mat_text(item).strip())
+    if len(names) == 1 and n_channels > 1:
+        return tuple(f"ch{j + 1:02d}" for j in range(n_channels))
+    return tuple(names)
+
+
+def _read_mat(path: Path, variables: dict[str, str], orientation: str) -> AccelerationRecord:
+    import scipy.io
+
+    with open(path, "rb") as handle:
+        header = handle.read(128)
+    is_hdf5 = b"MATLAB 7.3" in header or header[:8] == b"\x89HDF\r\n\x1a\n"
+    contents: dict[str, object] = {}
+    if is_hdf5:
+        import h5py
+
+        with h5py.File(path, "r") as mat:
+            for key, name in variables.items():
+                if name not in mat:
+                    continue
+                node = mat[name]
+                if isinstance(node, h5py.Dataset) and node.dtype == h5py.ref_dtype:
+                    contents[key] = [np.asarray(mat[ref]) for ref in node[()].ravel()]
+                else:
+                    contents[key] = np.asarray(node[()])
+        # HDF5 stores MATLAB arrays column-major: transpose the 2-D matrix back.
+        if "acceleration" in contents:
+            contents["acceleration"] = np.asarray(contents["acceleration"]).T
+    else:
+        raw = scipy.io.loadmat(path, squeeze_me=False, chars_as_strings=True)
+        for key, name in variables.items():
+            if name in raw:
+                contents[key] = raw[name]
+    missing = [f"{variables[k]} ({k})" for k in variables if k not in contents]
+    if missing:
+        raise ContractError([Violation(m, "variable missing from the MATLAB file") for m in missing],
+                            source=path, contract="accelerations")
+    acceleration = np.asarray(contents["acceleration"], dtype=float)
+    if orientation == "channels_first" or (
+        orientation == "auto" and acceleration.ndim == 2
+        and acceleration.shape[0] < acceleration.shape[1]
+    ):
+        acceleration = acceleration.T
+    channels = contents["channels"]
+    if isinstance(channels, list):
+        names = tuple(_mat_text(c).strip() for c in channels)
+    else:
+        names = _mat_channels(channels, acceleration.shape[1] if acceleration.ndim == 2 else 0)
+    return AccelerationRecord(acceleration, float(_scalar(contents["sampling_rate_hz"])),
+                              _mat_text(contents["start_time"]).strip(), names)
+
+
+def _read_csv(path: Path, time_column: str, sampling_rate_hz: float | None) -> AccelerationRecord:
+    frame = pd.read_csv(path, float_precision="round_trip")
+    if time_column not in frame.columns:
+        raise ContractError([Violation(time_column, "time column is missing")], source=path,
+                            contract="accelerations")
+    times = pd.to_datetime(frame[time_column], utc=True, errors="coerce", format="ISO8601")
+    if times.isna().any():
+        rows = tuple(frame.index[times.isna()][:5].tolist())
+        raise ContractError([Violation(time_column, "not ISO-8601 times", rows,
+                                       int(times.isna().sum()))], source=path,
+                            contract="accelerations")
+    if sampling_rate_hz is None:
+        if len(times) < 2:
+            raise ContractError([Violation(time_column, "needs at least 2 samples")], source=path,
+                                contract="accelerations")
+        step = np.median(np.diff(times.to_numpy()).astype("timedelta64[ns]").astype(float)) / 1e9
+        if not step > 0:
+            raise ContractError([Violation(time_column, "times do not increase")], source=path,
+                                contract="accelerations")
+        sampling_rate_hz = round(1.0 / step, 9)
+    data = frame.drop(columns=[time_column])
+    numeric = data.apply(pd.to_numeric, errors="coerce")
+    bad_columns = [c for c in data.columns if (numeric[c].isna() & data[c].notna()).any()]
+    if bad_columns:
+        raise ContractError([Violation(c, "non-numeric values") for c in bad_columns],
+                            source=path, contract="accelerations")
+    return AccelerationRecord(numeric.to_numpy(dtype=float), sampling_rate_hz, times.iloc[0],
+                              tuple(str(c) for c in data.columns))
+
+
+def read_accelerations(
+    path: str | os.PathLike,
+    *,
+    mat_variables: dict[str, str] | None = None,
+    mat_orientation: str = "auto",
+    csv_time_column: str = "time",
+    csv_sampling_rate_hz: float | None = None,
+) -> AccelerationRecord:
+    """Read an acceleration file: canonical ``.npz``, MATLAB ``.mat`` or ``.csv``.
+
+    Parameters
+    ----------
+    path : path-like
+        The file. The format is chosen by suffix.
+    mat_variables : dict, optional
+        MATLAB variable names for ``acceleration``, ``sampling_rate_hz``, ``start_time``
+        and ``channels`` (defaults: the same names). Both v5 and v7.3 (HDF5) files work.
+    mat_orientation : {"auto", "samples_first", "channels_first"}
+        Layout of the MATLAB matrix; ``auto`` takes the longer dimension as samples.
+    csv_time_column : str
+        CSV column with ISO-8601 sample times; every other column is a channel.
+    csv_sampling_rate_hz : float, optional
+        Sampling rate for CSV files; default: from the median time step. [Hz]
+
+    Raises
+    ------
+    ContractError
+        When the file is missing, unreadable or not a valid record; messages name the file.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if not path.is_file():
+        raise ContractError([Violation(None, "file not found")], source=path,
+                            contract="accelerations")
+    variables = {"acceleration": "acceleration", "sampling_rate_hz": "sampling_rate_hz",
+                 "start_time": "start_time", "channels": "channels"}
+    variables.update(mat_variables or {})
+    try:
+        if suffix == ".npz":
+            record = _read_npz(path)
+        elif suffix == ".mat":
+            record = _read_mat(path, variables, mat_orientation)
+        elif suffix == ".csv":
+            record = _read_csv(path, csv_time_column, csv_sampling_rate_hz)
+        else:
+            raise ContractError([Violation(None, f"unknown acceleration format '{suffix}' "
+                                           "(use .npz, .mat or .csv)")], source=path,
+                                contract="accelerations")
+    except ContractError:
+        raise
+    except Exception as error:  # corrupt archives raise zipfile/OSError/ValueError/...
+        message = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise ContractError([Violation(None, f"cannot read file: {message}")], source=path,
+                            contract="accelerations") from None
+    return validate_accelerations(record, source=path)
+
+
+def channel_names(n_channels: int, prefix: str = "acc") -> tuple[str, ...]:
+    """Default channel names ``acc01``, ``acc02``, ..."""
+    return tuple(f"{prefix}{j + 1:02d}" for j in range(n_channels))
+
+
+__all__ += ["channel_names"]

@@ -1,0 +1,287 @@
+"""The block-level tables every stage reads and writes.
+
+Contracts: :data:`PREDICTORS` (block-averaged ship log), :data:`MODAL` (tracked modal table),
+:data:`POLES` (stabilisation diagrams), :data:`FORECAST` (sliding-model and Kalman
+estimates). Each is a :class:`~data_contracts._core.TableContract`; read and write them with
+:func:`read_table` / :func:`write_table`, which validate and use CSV or Parquet by suffix.
+
+Mode shapes are stored as two float columns per channel, ``shape_re_<channel>`` and
+``shape_im_<channel>``; :func:`shapes_to_frame` and :func:`shapes_from_frame` convert.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ._core import Column, ColumnPattern, ContractError, TableContract, Violation, atomic_path
+
+__all__ = [
+    "CANONICAL_PREDICTORS",
+    "FORECAST",
+    "MODAL",
+    "POLES",
+    "PREDICTORS",
+    "CONTRACTS",
+    "read_table",
+    "shape_columns",
+    "shapes_from_frame",
+    "shapes_to_frame",
+    "write_table",
+]
+
+SHAPE_REGEX = r"shape_(re|im)_(.+)"
+_SHAPES = ColumnPattern(
+    SHAPE_REGEX,
+    "float",
+    "Mode-shape component at a channel: real (`shape_re_<channel>`) and imaginary "
+    "(`shape_im_<channel>`) part. Shapes are normalised to unit Euclidean norm with the "
+    "largest component real and positive.",
+)
+
+_BLOCK = Column("block", "int", "Block number k on the voyage's block grid (block k starts at "
+                "t0 + k * step).", minimum=0)
+_BLOCK_START = Column("block_start", "time", "Start of the block (inclusive), UTC.", unit="UTC")
+_BLOCK_END = Column("block_end", "time", "End of the block (exclusive), UTC.", unit="UTC")
+_MODE = Column("mode", "int", "Mode label (1-based), stable across blocks after tracking.",
+               minimum=1)
+_FREQUENCY = Column("frequency_hz", "float", "Natural frequency.", unit="Hz", minimum=0.0,
+                    maximum=1.0e4)
+_DAMPING = Column(
+    "damping_ratio", "float", "Viscous damping ratio as a fraction of critical damping.",
+    minimum=-1.0, maximum=1.0, hint="damping ratios are fractions: 1.2 % is 0.012",
+)
+
+#: Canonical predictor columns, with their physical bounds used for plausibility checks.
+CANONICAL_PREDICTORS: tuple[Column, ...] = (
+    Column("speed_kn", "float", "Ship speed through water or over ground.", unit="kn",
+           nullable=True, minimum=-5.0, maximum=40.0,
+           hint="speed is in knots; 1 m/s = 1.944 kn"),
+    Column("water_temp_c", "float", "Sea-water temperature.", unit="°C", nullable=True,
+           minimum=-3.0, maximum=40.0, hint="temperatures are in °C, not K"),
+    Column("air_temp_c", "float", "Air temperature.", unit="°C", nullable=True,
+           minimum=-70.0, maximum=60.0, hint="temperatures are in °C, not K"),
+    Column("wind_speed_ms", "float", "Wind speed.", unit="m/s", nullable=True, minimum=0.0,
+           maximum=100.0, hint="wind speed is in m/s; 1 kn = 0.514 m/s"),
+    Column("wind_dir_rel_deg", "float", "Wind direction relative to the bow, clockwise.",
+           unit="deg", nullable=True, minimum=0.0, maximum=360.0),
+)
+
+
+def _end_after_start(frame: pd.DataFrame) -> list[Violation]:
+    bad = (frame["block_end"] <= frame["block_start"]).to_numpy(dtype=bool, na_value=False)
+    if not bad.any():
+        return []
+    rows = tuple(frame.index[bad][:5].tolist())
+    return [Violation("block_end", "block_end must be after block_start", rows, int(bad.sum()))]
+
+
+def _one_start_per_block(frame: pd.DataFrame) -> list[Violation]:
+    starts = frame.groupby("block")["block_start"].nunique()
+    bad_blocks = starts.index[starts > 1]
+    if len(bad_blocks) == 0:
+        return []
+    rows_mask = frame["block"].isin(bad_blocks).to_numpy()
+    rows = tuple(frame.index[rows_mask][:5].tolist())
+    return [Violation("block_start", "one block has several start times", rows,
+                      int(rows_mask.sum()))]
+
+
+def _interval_contains_model(frame: pd.DataFrame) -> list[Violation]:
+    lower = frame["model_lower_hz"].to_numpy(dtype=float)
+    mean = frame["model_frequency_hz"].to_numpy(dtype=float)
+    upper = frame["model_upper_hz"].to_numpy(dtype=float)
+    tol = 1e-9 * np.maximum(1.0, np.abs(mean))
+    with np.errstate(invalid="ignore"):
+        bad = (lower > mean + tol) | (mean > upper + tol)
+    if not bad.any():
+        return []
+    rows = tuple(frame.index[bad][:5].tolist())
+    return [Violation("model_lower_hz, model_upper_hz",
+                      "prediction interval must contain model_frequency_hz", rows, int(bad.sum()))]
+
+
+def _window_order(frame: pd.DataFrame) -> list[Violation]:
+    bad = (frame["window_end_block"] < frame["window_start_block"]).to_numpy(
+        dtype=bool, na_value=False)
+    if not bad.any():
+        return []
+    rows = tuple(frame.index[bad][:5].tolist())
+    return [Violation("window_end_block", "window ends before it starts", rows, int(bad.sum()))]
+
+
+PREDICTORS = TableContract(
+    name="predictors",
+    description="Ship-log predictors averaged over the blocks of the voyage's block grid, "
+    "one row per block. NaN where a block had too little valid data.",
+    columns=(_BLOCK, _BLOCK_START, _BLOCK_END, *CANONICAL_PREDICTORS),
+    unique=("block",),
+    checks=(_end_after_start,),
+)
+
+MODAL = TableContract(
+    name="modal",
+    description="Tracked modal table, long format: one row per block and tracked mode.",
+    columns=(
+        _BLOCK, _BLOCK_START, _BLOCK_END, _MODE, _FREQUENCY, _DAMPING,
+        Column("mac", "float", "MAC (or MACXP) between the block's mode shape and the tracked "
+               "reference shape.", required=False, nullable=True, minimum=0.0, maximum=1.0),
+        Column("model_order", "nullable_int", "Model order the pole was selected at.",
+               required=False, nullable=True, minimum=1),
+    ),
+    patterns=(_SHAPES,),
+    unique=("block", "mode"),
+    checks=(_end_after_start, _one_start_per_block),
+)
+
+POLES = TableContract(
+    name="poles",
+    description="Stabilisation diagrams: one row per identified pole (one per complex-conjugate "
+    "pair, positive imaginary part), per block and model order.",
+    columns=(
+        _BLOCK,
+        Column("model_order", "int", "Model order (state dimension) of the identified system.",
+               minimum=1),
+        _FREQUENCY, _DAMPING,
+        Column("stable", "bool", "Pole is stable in frequency, damping and shape against the "
+               "previous model order."),
+        Column("mpc", "float", "Modal phase collinearity of the shape (1 = real mode).",
+               required=False, nullable=True, minimum=0.0, maximum=1.0 + 1e-9),
+    ),
+    patterns=(_SHAPES,),
+)
+
+FORECAST = TableContract(
+    name="forecast",
+    description="Sliding-model forecasts and Kalman-blended estimates, one row per block, "
+    "mode and option.",
+    columns=(
+        _BLOCK, _BLOCK_START, _MODE,
+        Column("phase", "str", "'train' inside the training window, 'forecast' after it.",
+               allowed=("train", "forecast")),
+        Column("ssi_frequency_hz", "float", "SSI estimate used as measurement (NaN: none).",
+               unit="Hz", nullable=True, minimum=0.0),
+        Column("model_frequency_hz", "float", "Regression-model prediction.", unit="Hz",
+               minimum=0.0),
+        Column("model_lower_hz", "float", "Lower 95 % prediction bound.", unit="Hz"),
+        Column("model_upper_hz", "float", "Upper 95 % prediction bound.", unit="Hz"),
+        Column("kalman_frequency_hz", "float", "Kalman-blended estimate.", unit="Hz",
+               minimum=0.0),
+        Column("kalman_std_hz", "float", "Standard deviation of the Kalman estimate.",
+               unit="Hz", minimum=0.0),
+        Column("option", "str", "A: measurement is the tracked pole; B: nearest pole of the "
+               "stabilisation diagram.", allowed=("A", "B")),
+        Column("window_start_block", "int", "First block of the training window used.",
+               minimum=0),
+        Column("window_end_block", "int", "Last block of the training window used.",
+               minimum=0),
+    ),
+    unique=("block", "mode", "option"),
+    checks=(_interval_contains_model, _window_order),
+)
+
+#: Contracts by the name used on the command line.
+CONTRACTS: dict[str, TableContract] = {
+    c.name: c for c in (PREDICTORS, MODAL, POLES, FORECAST)
+}
+
+
+# --------------------------------------------------------------------------- mode shapes
+def shape_columns(channels: Sequence[str]) -> list[str]:
+    """Column names for the mode shapes of *channels*: all real parts, then imaginary parts."""
+    return [f"shape_re_{c}" for c in channels] + [f"shape_im_{c}" for c in channels]
+
+
+def shapes_to_frame(
+    channels: Sequence[str], mode_shapes: np.ndarray, index: pd.Index | None = None
+) -> pd.DataFrame:
+    """Mode shapes (n_rows x n_channels, complex) as ``shape_re_*``/``shape_im_*`` columns."""
+    shapes = np.atleast_2d(np.asarray(mode_shapes))
+    if shapes.shape[1] != len(channels):
+        raise ValueError(
+            f"mode_shapes has {shapes.shape[1]} channels but {len(channels)} channel names"
+        )
+    data = np.concatenate([shapes.real, shapes.imag], axis=1).astype(float)
+    return pd.DataFrame(data, columns=shape_columns(channels), index=index)
+
+
+def shapes_from_frame(frame: pd.DataFrame) -> tuple[list[str], np.ndarray]:
+    """Channel names and complex mode shapes (n_rows x n_channels) from shape columns.
+
+    Channels keep the order of their ``shape_re_`` columns; a missing imaginary column is
+    read as zero.
+    """
+    channels = [c[len("shape_re_"):] for c in frame.columns if str(c).startswith("shape_re_")]
+    real = frame[[f"shape_re_{c}" for c in channels]].to_numpy(dtype=float)
+    imag = np.zeros_like(real)
+    for j, c in enumerate(channels):
+        if f"shape_im_{c}" in frame.columns:
+            imag[:, j] = frame[f"shape_im_{c}"].to_numpy(dtype=float)
+    return channels, real + 1j * imag
+
+
+# --------------------------------------------------------------------------- file I/O
+def _format_of(path: Path) -> str:
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        return "csv"
+    if suffix in (".parquet", ".pq"):
+        return "parquet"
+    raise ValueError(f"{path}: unknown table format '{suffix}' (use .csv or .parquet)")
+
+
+def read_table(path: str | os.PathLike, contract: TableContract) -> pd.DataFrame:
+    """Read a CSV or Parquet table and validate it against *contract*.
+
+    Raises
+    ------
+    ContractError
+        When the file is missing, unreadable or violates the contract; every message line
+        names the file.
+    """
+    path = Path(path)
+    fmt = _format_of(path)
+    if not path.is_file():
+        raise ContractError([Violation(None, "file not found")], source=path, contract=contract.name)
+    try:
+        if fmt == "csv":
+            frame = pd.read_csv(path, float_precision="round_trip", low_memory=False)
+        else:
+            frame = pd.read_parquet(path)
+    except Exception as error:  # pandas/pyarrow raise many types for unreadable files
+        reason = f"cannot read {fmt.upper()} file: {str(error).splitlines()[0] if str(error) else type(error).__name__}"
+        raise ContractError([Violation(None, reason)], source=path, contract=contract.name) from None
+    return contract.validate(frame, source=path)
+
+
+def write_table(frame: pd.DataFrame, path: str | os.PathLike, contract: TableContract) -> Path:
+    """Validate *frame* and write it atomically as CSV or Parquet (by suffix).
+
+    Times are written as ISO-8601 UTC; floats with the shortest text that reads back to
+    the same double, so a CSV round trip is exact.
+    """
+    path = Path(path)
+    fmt = _format_of(path)
+    table = contract.validate(frame)
+    with atomic_path(path) as tmp:
+        if fmt == "csv":
+            out = table.copy()
+            for column in out.columns:
+                values = out[column]
+                # ISO-8601 with "T" and "Z"; pandas' own format keeps nanoseconds if any.
+                if isinstance(values.dtype, pd.DatetimeTZDtype) and not (
+                    values.dt.nanosecond != 0
+                ).any():
+                    out[column] = values.dt.strftime("%Y-%m-%dT%H:%M:%S.%fZ").where(
+                        values.notna(), "")
+            out.to_csv(tmp, index=False, lineterminator="\n")
+        else:
+            table.to_parquet(tmp, index=False)
+    return path
+
+
+__all__ += ["ContractError"]
