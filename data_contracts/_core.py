@@ -32,6 +32,12 @@ __all__ = [
 
 Kind = Literal["int", "nullable_int", "float", "bool", "time", "str"]
 
+#: pandas < 3 parses CSV floats with a fast approximate parser unless told otherwise;
+#: pandas 3 reads them exactly by default (and deprecates the option).
+CSV_READ_OPTIONS: dict = (
+    {"float_precision": "round_trip"} if int(pd.__version__.split(".")[0]) < 3 else {}
+)
+
 #: How many row labels a violation message shows before summarising the rest.
 _MAX_ROWS_SHOWN = 5
 
@@ -52,8 +58,10 @@ class Violation:
         if self.n_rows:
             shown = ", ".join(str(r) for r in self.rows[:_MAX_ROWS_SHOWN])
             more = self.n_rows - min(self.n_rows, _MAX_ROWS_SHOWN)
-            label = "row" if self.n_rows == 1 else "rows"
-            parts.append(f"{label} {shown}" + (f" (+{more} more)" if more else ""))
+            # rows labelled by the reader itself ("line 7") need no "row" prefix
+            labelled = all(isinstance(r, str) for r in self.rows)
+            label = "" if labelled else ("row " if self.n_rows == 1 else "rows ")
+            parts.append(f"{label}{shown}" + (f" (+{more} more)" if more else ""))
         prefix = ", ".join(parts)
         return f"{prefix}: {self.reason}" if prefix else self.reason
 
@@ -252,7 +260,9 @@ class TableContract:
         for column in self.columns:
             if column.name not in out.columns:
                 if column.required:
-                    problems.append(Violation(column.name, f"required column is missing ({column.description})"))
+                    problems.append(
+                        Violation(column.name, f"required column is missing ({column.description})")
+                    )
                 continue
             problems.extend(self._check_column(out, column, index))
         matched = set(self.column_names)
@@ -341,7 +351,8 @@ def atomic_path(path: str | os.PathLike, *, suffix: str | None = None) -> Iterat
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp_name = tempfile.mkstemp(
-        prefix=f".{target.name}.", suffix=suffix if suffix is not None else ".tmp" + target.suffix,
+        prefix=f".{target.name}.",
+        suffix=suffix if suffix is not None else ".tmp" + target.suffix,
         dir=target.parent,
     )
     os.close(fd)

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ._core import ContractError, Violation, atomic_path
+from ._core import CSV_READ_OPTIONS, ContractError, Violation, atomic_path
 
 __all__ = [
     "MAX_PLAUSIBLE_ACCELERATION_MS2",
@@ -82,30 +82,47 @@ def validate_accelerations(
         acceleration = None
         problems.append(Violation("acceleration", "values are not numeric"))
     if acceleration is not None and acceleration.ndim != 2:
-        problems.append(Violation("acceleration", f"must be 2-D (n_samples x n_channels), got "
-                                  f"{acceleration.ndim}-D"))
+        problems.append(
+            Violation(
+                "acceleration", f"must be 2-D (n_samples x n_channels), got {acceleration.ndim}-D"
+            )
+        )
         acceleration = None
     channels = tuple(str(c) for c in np.atleast_1d(np.asarray(record.channels, dtype=object)))
     if acceleration is not None:
         if acceleration.shape[1] != len(channels):
-            problems.append(Violation("channels", f"{len(channels)} names for "
-                                      f"{acceleration.shape[1]} columns of acceleration"))
+            problems.append(
+                Violation(
+                    "channels",
+                    f"{len(channels)} names for {acceleration.shape[1]} columns of acceleration",
+                )
+            )
         if acceleration.shape[0] < 2:
-            problems.append(Violation("acceleration", f"needs at least 2 samples, got "
-                                      f"{acceleration.shape[0]}"))
+            problems.append(
+                Violation("acceleration", f"needs at least 2 samples, got {acceleration.shape[0]}")
+            )
         if np.isinf(acceleration).any():
-            cols = sorted({channels[j] if j < len(channels) else str(j)
-                           for j in np.nonzero(np.isinf(acceleration).any(axis=0))[0]})
-            problems.append(Violation("acceleration", f"infinite values in channel(s) "
-                                      f"{', '.join(cols)}"))
+            cols = sorted(
+                {
+                    channels[j] if j < len(channels) else str(j)
+                    for j in np.nonzero(np.isinf(acceleration).any(axis=0))[0]
+                }
+            )
+            problems.append(
+                Violation("acceleration", f"infinite values in channel(s) {', '.join(cols)}")
+            )
         with np.errstate(invalid="ignore"):
             peak = np.nanmax(np.abs(acceleration), axis=0) if acceleration.size else np.array([])
         implausible = np.nonzero(np.isfinite(peak) & (peak > MAX_PLAUSIBLE_ACCELERATION_MS2))[0]
         if len(implausible):
             cols = ", ".join(channels[j] if j < len(channels) else str(j) for j in implausible)
-            problems.append(Violation(
-                "acceleration", f"|a| above {MAX_PLAUSIBLE_ACCELERATION_MS2:g} m/s² in channel(s) "
-                f"{cols}: accelerations must be in m/s² (not mm/s² or counts)"))
+            problems.append(
+                Violation(
+                    "acceleration",
+                    f"|a| above {MAX_PLAUSIBLE_ACCELERATION_MS2:g} m/s² in channel(s) "
+                    f"{cols}: accelerations must be in m/s² (not mm/s² or counts)",
+                )
+            )
     if len(set(channels)) != len(channels):
         problems.append(Violation("channels", "channel names must be unique"))
     try:
@@ -113,8 +130,11 @@ def validate_accelerations(
     except (TypeError, ValueError):
         rate = float("nan")
     if not np.isfinite(rate) or rate <= 0:
-        problems.append(Violation("sampling_rate_hz", f"must be a positive number, got "
-                                  f"{record.sampling_rate_hz!r}"))
+        problems.append(
+            Violation(
+                "sampling_rate_hz", f"must be a positive number, got {record.sampling_rate_hz!r}"
+            )
+        )
     try:
         start = pd.Timestamp(record.start_time)
         start = start.tz_localize("UTC") if start.tzinfo is None else start.tz_convert("UTC")
@@ -153,13 +173,21 @@ def _scalar(value):
 
 def _read_npz(path: Path) -> AccelerationRecord:
     with np.load(path, allow_pickle=False) as data:
-        missing = [k for k in ("acceleration", "sampling_rate_hz", "start_time", "channels")
-                   if k not in data.files]
+        missing = [
+            k
+            for k in ("acceleration", "sampling_rate_hz", "start_time", "channels")
+            if k not in data.files
+        ]
         if missing:
-            raise ContractError([Violation(k, "array missing from the .npz file") for k in missing],
-                                source=path, contract="accelerations")
+            raise ContractError(
+                [Violation(k, "array missing from the .npz file") for k in missing],
+                source=path,
+                contract="accelerations",
+            )
         return AccelerationRecord(
-            data["acceleration"], _scalar(data["sampling_rate_hz"]), _scalar(data["start_time"]),
+            data["acceleration"],
+            _scalar(data["sampling_rate_hz"]),
+            _scalar(data["start_time"]),
             tuple(str(c) for c in data["channels"].ravel()),
         )
 
@@ -167,8 +195,11 @@ def _read_npz(path: Path) -> AccelerationRecord:
 def _mat_text(value) -> str:
     array = np.asarray(value)
     if array.dtype.kind in "US":
-        return "".join(str(x) for x in array.ravel()) if array.ndim and array.dtype.itemsize <= 4 \
+        return (
+            "".join(str(x) for x in array.ravel())
+            if array.ndim and array.dtype.itemsize <= 4
             else str(array.ravel()[0])
+        )
     if array.dtype.kind in "ui" and array.ndim >= 1:  # HDF5 MATLAB char arrays are uint16
         return "".join(chr(int(c)) for c in array.ravel())
     return str(_scalar(array))
@@ -213,11 +244,15 @@ def _read_mat(path: Path, variables: dict[str, str], orientation: str) -> Accele
                 contents[key] = raw[name]
     missing = [f"{variables[k]} ({k})" for k in variables if k not in contents]
     if missing:
-        raise ContractError([Violation(m, "variable missing from the MATLAB file") for m in missing],
-                            source=path, contract="accelerations")
+        raise ContractError(
+            [Violation(m, "variable missing from the MATLAB file") for m in missing],
+            source=path,
+            contract="accelerations",
+        )
     acceleration = np.asarray(contents["acceleration"], dtype=float)
     if orientation == "channels_first" or (
-        orientation == "auto" and acceleration.ndim == 2
+        orientation == "auto"
+        and acceleration.ndim == 2
         and acceleration.shape[0] < acceleration.shape[1]
     ):
         acceleration = acceleration.T
@@ -226,38 +261,60 @@ def _read_mat(path: Path, variables: dict[str, str], orientation: str) -> Accele
         names = tuple(_mat_text(c).strip() for c in channels)
     else:
         names = _mat_channels(channels, acceleration.shape[1] if acceleration.ndim == 2 else 0)
-    return AccelerationRecord(acceleration, float(_scalar(contents["sampling_rate_hz"])),
-                              _mat_text(contents["start_time"]).strip(), names)
+    return AccelerationRecord(
+        acceleration,
+        float(_scalar(contents["sampling_rate_hz"])),
+        _mat_text(contents["start_time"]).strip(),
+        names,
+    )
 
 
 def _read_csv(path: Path, time_column: str, sampling_rate_hz: float | None) -> AccelerationRecord:
-    frame = pd.read_csv(path, float_precision="round_trip")
+    frame = pd.read_csv(path, **CSV_READ_OPTIONS)
     if time_column not in frame.columns:
-        raise ContractError([Violation(time_column, "time column is missing")], source=path,
-                            contract="accelerations")
+        raise ContractError(
+            [Violation(time_column, "time column is missing")],
+            source=path,
+            contract="accelerations",
+        )
     times = pd.to_datetime(frame[time_column], utc=True, errors="coerce", format="ISO8601")
     if times.isna().any():
         rows = tuple(frame.index[times.isna()][:5].tolist())
-        raise ContractError([Violation(time_column, "not ISO-8601 times", rows,
-                                       int(times.isna().sum()))], source=path,
-                            contract="accelerations")
+        raise ContractError(
+            [Violation(time_column, "not ISO-8601 times", rows, int(times.isna().sum()))],
+            source=path,
+            contract="accelerations",
+        )
     if sampling_rate_hz is None:
         if len(times) < 2:
-            raise ContractError([Violation(time_column, "needs at least 2 samples")], source=path,
-                                contract="accelerations")
+            raise ContractError(
+                [Violation(time_column, "needs at least 2 samples")],
+                source=path,
+                contract="accelerations",
+            )
         step = np.median(np.diff(times.to_numpy()).astype("timedelta64[ns]").astype(float)) / 1e9
         if not step > 0:
-            raise ContractError([Violation(time_column, "times do not increase")], source=path,
-                                contract="accelerations")
+            raise ContractError(
+                [Violation(time_column, "times do not increase")],
+                source=path,
+                contract="accelerations",
+            )
         sampling_rate_hz = round(1.0 / step, 9)
     data = frame.drop(columns=[time_column])
     numeric = data.apply(pd.to_numeric, errors="coerce")
     bad_columns = [c for c in data.columns if (numeric[c].isna() & data[c].notna()).any()]
     if bad_columns:
-        raise ContractError([Violation(c, "non-numeric values") for c in bad_columns],
-                            source=path, contract="accelerations")
-    return AccelerationRecord(numeric.to_numpy(dtype=float), sampling_rate_hz, times.iloc[0],
-                              tuple(str(c) for c in data.columns))
+        raise ContractError(
+            [Violation(c, "non-numeric values") for c in bad_columns],
+            source=path,
+            contract="accelerations",
+        )
+    return AccelerationRecord(
+        numeric.to_numpy(dtype=float),
+        sampling_rate_hz,
+        times.iloc[0],
+        tuple(str(c) for c in data.columns),
+    )
 
 
 def read_accelerations(
@@ -292,10 +349,15 @@ def read_accelerations(
     path = Path(path)
     suffix = path.suffix.lower()
     if not path.is_file():
-        raise ContractError([Violation(None, "file not found")], source=path,
-                            contract="accelerations")
-    variables = {"acceleration": "acceleration", "sampling_rate_hz": "sampling_rate_hz",
-                 "start_time": "start_time", "channels": "channels"}
+        raise ContractError(
+            [Violation(None, "file not found")], source=path, contract="accelerations"
+        )
+    variables = {
+        "acceleration": "acceleration",
+        "sampling_rate_hz": "sampling_rate_hz",
+        "start_time": "start_time",
+        "channels": "channels",
+    }
     variables.update(mat_variables or {})
     try:
         if suffix == ".npz":
@@ -305,15 +367,22 @@ def read_accelerations(
         elif suffix == ".csv":
             record = _read_csv(path, csv_time_column, csv_sampling_rate_hz)
         else:
-            raise ContractError([Violation(None, f"unknown acceleration format '{suffix}' "
-                                           "(use .npz, .mat or .csv)")], source=path,
-                                contract="accelerations")
+            raise ContractError(
+                [
+                    Violation(
+                        None, f"unknown acceleration format '{suffix}' (use .npz, .mat or .csv)"
+                    )
+                ],
+                source=path,
+                contract="accelerations",
+            )
     except ContractError:
         raise
     except Exception as error:  # corrupt archives raise zipfile/OSError/ValueError/...
         message = str(error).splitlines()[0] if str(error) else type(error).__name__
-        raise ContractError([Violation(None, f"cannot read file: {message}")], source=path,
-                            contract="accelerations") from None
+        raise ContractError(
+            [Violation(None, f"cannot read file: {message}")], source=path, contract="accelerations"
+        ) from None
     return validate_accelerations(record, source=path)
 
 

@@ -35,13 +35,17 @@ __all__ = ["DEFAULT_DSHIP_MAPPING", "DSHIP_LOG", "read_dship"]
 #: Source names (case-insensitive, without the bracketed unit) tried for each canonical
 #: column, in order. Pass your own mapping to :func:`read_dship` for other ships.
 DEFAULT_DSHIP_MAPPING: dict[str, tuple[str, ...]] = {
-    "speed_kn": ("Speed", "SOG", "Speed over ground", "Speed through water", "STW",
-                 "Ship speed"),
+    "speed_kn": ("Speed", "SOG", "Speed over ground", "Speed through water", "STW", "Ship speed"),
     "water_temp_c": ("Temp", "Water temp", "Water temperature", "SST", "Tw", "Temp water"),
     "air_temp_c": ("TTT", "Air temp", "Air temperature", "Ta"),
     "wind_speed_ms": ("ff", "Wind speed", "Wind speed true", "FF"),
-    "wind_dir_rel_deg": ("RelWindDir", "Rel wind dir", "Relative wind direction", "dd rel",
-                         "Wind direction relative"),
+    "wind_dir_rel_deg": (
+        "RelWindDir",
+        "Rel wind dir",
+        "Relative wind direction",
+        "dd rel",
+        "Wind direction relative",
+    ),
 }
 
 TIME_COLUMN_NAMES = ("Date/Time", "DATE/TIME", "Date Time", "Datetime", "time", "Time")
@@ -56,14 +60,26 @@ def _unit_key(unit: str) -> str:
 
 #: Unit conversions into each canonical unit: source unit (normalised) -> function.
 _CONVERSIONS: dict[str, dict[str, object]] = {
-    "speed_kn": {"kn": None, "kt": None, "kts": None, "knots": None, "knot": None,
-                 "m/s": lambda v: v * _KNOT_PER_MS, "ms-1": lambda v: v * _KNOT_PER_MS,
-                 "km/h": lambda v: v / 1.852},
+    "speed_kn": {
+        "kn": None,
+        "kt": None,
+        "kts": None,
+        "knots": None,
+        "knot": None,
+        "m/s": lambda v: v * _KNOT_PER_MS,
+        "ms-1": lambda v: v * _KNOT_PER_MS,
+        "km/h": lambda v: v / 1.852,
+    },
     "water_temp_c": {"°c": None, "c": None, "k": lambda v: v - 273.15},
     "air_temp_c": {"°c": None, "c": None, "k": lambda v: v - 273.15},
-    "wind_speed_ms": {"m/s": None, "ms-1": None, "kn": lambda v: v / _KNOT_PER_MS,
-                      "kt": lambda v: v / _KNOT_PER_MS, "kts": lambda v: v / _KNOT_PER_MS,
-                      "km/h": lambda v: v / 3.6},
+    "wind_speed_ms": {
+        "m/s": None,
+        "ms-1": None,
+        "kn": lambda v: v / _KNOT_PER_MS,
+        "kt": lambda v: v / _KNOT_PER_MS,
+        "kts": lambda v: v / _KNOT_PER_MS,
+        "km/h": lambda v: v / 3.6,
+    },
     "wind_dir_rel_deg": {"°": None, "degrees": None},
 }
 
@@ -171,15 +187,25 @@ def read_dship(
         else:
             raise fail([Violation(None, "the '/*' description block is never closed by '*/'")])
     # (file line number, text) of the non-empty lines after the description block
-    body = [(n + 1, line) for n, line in enumerate(lines[first_data_line:], first_data_line)
-            if line.strip()]
+    body = [
+        (n + 1, line)
+        for n, line in enumerate(lines[first_data_line:], first_data_line)
+        if line.strip()
+    ]
     if not body:
         raise fail([Violation(None, "no header line and no data")])
     header_text = body[0][1]
     sep = separator or max(("\t", ";", ","), key=header_text.count)
     if header_text.count(sep) == 0:
-        raise fail([Violation(None, f"line {body[0][0]}: header has a single column; expected "
-                              "tab- or ';'-separated names")])
+        raise fail(
+            [
+                Violation(
+                    None,
+                    f"line {body[0][0]}: header has a single column; expected "
+                    "tab- or ';'-separated names",
+                )
+            ]
+        )
     headers = [h.strip() for h in header_text.split(sep)]
     rows = body[1:]
     units: list[str | None] = [_split_name(h)[1] for h in headers]
@@ -187,15 +213,24 @@ def read_dship(
 
     if time_column is None:
         lowered = {n.lower(): i for i, n in enumerate(names)}
-        time_index = next((lowered[t.lower()] for t in TIME_COLUMN_NAMES if t.lower() in lowered),
-                          None)
+        time_index = next(
+            (lowered[t.lower()] for t in TIME_COLUMN_NAMES if t.lower() in lowered), None
+        )
         if time_index is None:
-            raise fail([Violation("Date/Time", f"time column is missing (looked for "
-                                  f"{', '.join(TIME_COLUMN_NAMES)})")])
+            raise fail(
+                [
+                    Violation(
+                        "Date/Time",
+                        f"time column is missing (looked for {', '.join(TIME_COLUMN_NAMES)})",
+                    )
+                ]
+            )
     else:
         if time_column not in names and time_column not in headers:
             raise fail([Violation(time_column, "time column is missing")])
-        time_index = names.index(time_column) if time_column in names else headers.index(time_column)
+        time_index = (
+            names.index(time_column) if time_column in names else headers.index(time_column)
+        )
 
     # Raw DSHIP extractions: name row, sensor row, unit row before the data.
     def time_field(line: str) -> str:
@@ -210,10 +245,19 @@ def read_dship(
                 units[j] = bracketed if bracketed is not None else unit_fields[j]
         rows = rows[2:]
     line_numbers = np.array([n for n, _ in rows], dtype=int)
-    table = pd.read_csv(
-        io.StringIO("\n".join(line for _, line in rows)), sep=sep, header=None, dtype=str,
-        keep_default_na=False, names=list(range(len(headers))), engine="python",
-    ) if rows else pd.DataFrame(columns=list(range(len(headers))), dtype=str)
+    table = (
+        pd.read_csv(
+            io.StringIO("\n".join(line for _, line in rows)),
+            sep=sep,
+            header=None,
+            dtype=str,
+            keep_default_na=False,
+            names=list(range(len(headers))),
+            engine="python",
+        )
+        if rows
+        else pd.DataFrame(columns=list(range(len(headers))), dtype=str)
+    )
     if len(table) != len(rows):
         raise fail([Violation(None, "rows could not be split into fields consistently")])
 
@@ -230,19 +274,30 @@ def read_dship(
         shown, n = bad_lines(bad_time)
         problems.append(Violation(headers[time_index], "not an ISO-8601 time", shown, n))
 
-    candidates = {k: (v,) if isinstance(v, str) else tuple(v)
-                  for k, v in {**DEFAULT_DSHIP_MAPPING, **(mapping or {})}.items()}
+    candidates = {
+        k: (v,) if isinstance(v, str) else tuple(v)
+        for k, v in {**DEFAULT_DSHIP_MAPPING, **(mapping or {})}.items()
+    }
     unknown = sorted(set(candidates) - {c.name for c in CANONICAL_PREDICTORS})
     if unknown:
-        raise ValueError(f"mapping has unknown canonical column(s) {', '.join(unknown)}; "
-                         f"known: {', '.join(c.name for c in CANONICAL_PREDICTORS)}")
+        raise ValueError(
+            f"mapping has unknown canonical column(s) {', '.join(unknown)}; "
+            f"known: {', '.join(c.name for c in CANONICAL_PREDICTORS)}"
+        )
     out = pd.DataFrame({"time": times})
     used: set[int] = {time_index}
     absent: list[str] = []
     for column in CANONICAL_PREDICTORS:
         wanted = [w.lower() for w in candidates.get(column.name, ())]
-        index = next((j for w in wanted for j, (h, n) in enumerate(zip(headers, names, strict=True))
-                      if j not in used and (h.lower() == w or n.lower() == w)), None)
+        index = next(
+            (
+                j
+                for w in wanted
+                for j, (h, n) in enumerate(zip(headers, names, strict=True))
+                if j not in used and (h.lower() == w or n.lower() == w)
+            ),
+            None,
+        )
         if index is None:
             absent.append(column.name)
             out[column.name] = np.nan
@@ -257,8 +312,12 @@ def read_dship(
             conversions = _CONVERSIONS[column.name]
             key = _unit_key(unit)
             if key not in conversions:
-                problems.append(Violation(headers[index], f"unit '{unit}' cannot be converted to "
-                                          f"{column.unit} for {column.name}"))
+                problems.append(
+                    Violation(
+                        headers[index],
+                        f"unit '{unit}' cannot be converted to {column.unit} for {column.name}",
+                    )
+                )
             elif conversions[key] is not None:
                 values = conversions[key](values)
         out[column.name] = values
@@ -276,30 +335,45 @@ def read_dship(
         raise fail(problems)
     if absent:
         if len(absent) == len(CANONICAL_PREDICTORS):
-            raise fail([Violation(None, "none of the predictor columns was found (speed, water "
-                                  "and air temperature, wind); pass a column mapping")])
-        warnings.warn(f"{source}: no column for {', '.join(absent)}; filled with NaN",
-                      stacklevel=2)
+            raise fail(
+                [
+                    Violation(
+                        None,
+                        "none of the predictor columns was found (speed, water "
+                        "and air temperature, wind); pass a column mapping",
+                    )
+                ]
+            )
+        warnings.warn(f"{source}: no column for {', '.join(absent)}; filled with NaN", stacklevel=2)
     order = np.argsort(out["time"].to_numpy(), kind="stable")
     if (np.diff(order) < 0).any():
-        warnings.warn(f"{source}: time stamps are not sorted; rows were sorted by time",
-                      stacklevel=2)
+        warnings.warn(
+            f"{source}: time stamps are not sorted; rows were sorted by time", stacklevel=2
+        )
         out = out.iloc[order].reset_index(drop=True)
         line_numbers = line_numbers[order]
     duplicated = out["time"].duplicated(keep="first").to_numpy()
     if duplicated.any():
         first = line_numbers[duplicated][0]
-        warnings.warn(f"{source}: {int(duplicated.sum())} duplicate time stamp(s) (first at line "
-                      f"{first}); kept the first row of each", stacklevel=2)
+        warnings.warn(
+            f"{source}: {int(duplicated.sum())} duplicate time stamp(s) (first at line "
+            f"{first}); kept the first row of each",
+            stacklevel=2,
+        )
         out = out.loc[~duplicated].reset_index(drop=True)
     try:
         return DSHIP_LOG.validate(out, source=source)
     except ContractError as error:
         # Re-label row numbers as file lines for the user.
-        relabelled = [Violation(v.column, v.reason,
-                                tuple(f"line {line_numbers[r]}" for r in v.rows
-                                      if isinstance(r, int | np.integer)), v.n_rows)
-                      for v in error.violations]
+        relabelled = [
+            Violation(
+                v.column,
+                v.reason,
+                tuple(f"line {line_numbers[r]}" for r in v.rows if isinstance(r, int | np.integer)),
+                v.n_rows,
+            )
+            for v in error.violations
+        ]
         raise fail(relabelled) from None
 
 
@@ -307,6 +381,9 @@ def _numbers(cells: pd.Series) -> tuple[np.ndarray, np.ndarray]:
     """Float values of text cells; empty cells are NaN; also a mask of unparseable cells."""
     text = cells.str.strip()
     values = pd.to_numeric(text.where(text != ""), errors="coerce").to_numpy(dtype=float)
-    bad = np.isnan(values) & (text != "").to_numpy() & ~text.str.lower().isin(
-        ["nan", "na", "n/a"]).to_numpy()
+    bad = (
+        np.isnan(values)
+        & (text != "").to_numpy()
+        & ~text.str.lower().isin(["nan", "na", "n/a"]).to_numpy()
+    )
     return values, bad

@@ -18,7 +18,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ._core import Column, ColumnPattern, ContractError, TableContract, Violation, atomic_path
+from ._core import (
+    CSV_READ_OPTIONS,
+    Column,
+    ColumnPattern,
+    ContractError,
+    TableContract,
+    Violation,
+    atomic_path,
+)
 
 __all__ = [
     "CANONICAL_PREDICTORS",
@@ -43,32 +51,80 @@ _SHAPES = ColumnPattern(
     "largest component real and positive.",
 )
 
-_BLOCK = Column("block", "int", "Block number k on the voyage's block grid (block k starts at "
-                "t0 + k * step).", minimum=0)
+_BLOCK = Column(
+    "block",
+    "int",
+    "Block number k on the voyage's block grid (block k starts at t0 + k * step).",
+    minimum=0,
+)
 _BLOCK_START = Column("block_start", "time", "Start of the block (inclusive), UTC.", unit="UTC")
 _BLOCK_END = Column("block_end", "time", "End of the block (exclusive), UTC.", unit="UTC")
-_MODE = Column("mode", "int", "Mode label (1-based), stable across blocks after tracking.",
-               minimum=1)
-_FREQUENCY = Column("frequency_hz", "float", "Natural frequency.", unit="Hz", minimum=0.0,
-                    maximum=1.0e4)
+_MODE = Column(
+    "mode", "int", "Mode label (1-based), stable across blocks after tracking.", minimum=1
+)
+_FREQUENCY = Column(
+    "frequency_hz", "float", "Natural frequency.", unit="Hz", minimum=0.0, maximum=1.0e4
+)
 _DAMPING = Column(
-    "damping_ratio", "float", "Viscous damping ratio as a fraction of critical damping.",
-    minimum=-1.0, maximum=1.0, hint="damping ratios are fractions: 1.2 % is 0.012",
+    "damping_ratio",
+    "float",
+    "Viscous damping ratio as a fraction of critical damping.",
+    minimum=-1.0,
+    maximum=1.0,
+    hint="damping ratios are fractions: 1.2 % is 0.012",
 )
 
 #: Canonical predictor columns, with their physical bounds used for plausibility checks.
 CANONICAL_PREDICTORS: tuple[Column, ...] = (
-    Column("speed_kn", "float", "Ship speed through water or over ground.", unit="kn",
-           nullable=True, minimum=-5.0, maximum=40.0,
-           hint="speed is in knots; 1 m/s = 1.944 kn"),
-    Column("water_temp_c", "float", "Sea-water temperature.", unit="°C", nullable=True,
-           minimum=-3.0, maximum=40.0, hint="temperatures are in °C, not K"),
-    Column("air_temp_c", "float", "Air temperature.", unit="°C", nullable=True,
-           minimum=-70.0, maximum=60.0, hint="temperatures are in °C, not K"),
-    Column("wind_speed_ms", "float", "Wind speed.", unit="m/s", nullable=True, minimum=0.0,
-           maximum=100.0, hint="wind speed is in m/s; 1 kn = 0.514 m/s"),
-    Column("wind_dir_rel_deg", "float", "Wind direction relative to the bow, clockwise.",
-           unit="deg", nullable=True, minimum=0.0, maximum=360.0),
+    Column(
+        "speed_kn",
+        "float",
+        "Ship speed through water or over ground.",
+        unit="kn",
+        nullable=True,
+        minimum=-5.0,
+        maximum=40.0,
+        hint="speed is in knots; 1 m/s = 1.944 kn",
+    ),
+    Column(
+        "water_temp_c",
+        "float",
+        "Sea-water temperature.",
+        unit="°C",
+        nullable=True,
+        minimum=-3.0,
+        maximum=40.0,
+        hint="temperatures are in °C, not K",
+    ),
+    Column(
+        "air_temp_c",
+        "float",
+        "Air temperature.",
+        unit="°C",
+        nullable=True,
+        minimum=-70.0,
+        maximum=60.0,
+        hint="temperatures are in °C, not K",
+    ),
+    Column(
+        "wind_speed_ms",
+        "float",
+        "Wind speed.",
+        unit="m/s",
+        nullable=True,
+        minimum=0.0,
+        maximum=100.0,
+        hint="wind speed is in m/s; 1 kn = 0.514 m/s",
+    ),
+    Column(
+        "wind_dir_rel_deg",
+        "float",
+        "Wind direction relative to the bow, clockwise.",
+        unit="deg",
+        nullable=True,
+        minimum=0.0,
+        maximum=360.0,
+    ),
 )
 
 
@@ -87,8 +143,9 @@ def _one_start_per_block(frame: pd.DataFrame) -> list[Violation]:
         return []
     rows_mask = frame["block"].isin(bad_blocks).to_numpy()
     rows = tuple(frame.index[rows_mask][:5].tolist())
-    return [Violation("block_start", "one block has several start times", rows,
-                      int(rows_mask.sum()))]
+    return [
+        Violation("block_start", "one block has several start times", rows, int(rows_mask.sum()))
+    ]
 
 
 def _interval_contains_model(frame: pd.DataFrame) -> list[Violation]:
@@ -101,13 +158,20 @@ def _interval_contains_model(frame: pd.DataFrame) -> list[Violation]:
     if not bad.any():
         return []
     rows = tuple(frame.index[bad][:5].tolist())
-    return [Violation("model_lower_hz, model_upper_hz",
-                      "prediction interval must contain model_frequency_hz", rows, int(bad.sum()))]
+    return [
+        Violation(
+            "model_lower_hz, model_upper_hz",
+            "prediction interval must contain model_frequency_hz",
+            rows,
+            int(bad.sum()),
+        )
+    ]
 
 
 def _window_order(frame: pd.DataFrame) -> list[Violation]:
     bad = (frame["window_end_block"] < frame["window_start_block"]).to_numpy(
-        dtype=bool, na_value=False)
+        dtype=bool, na_value=False
+    )
     if not bad.any():
         return []
     rows = tuple(frame.index[bad][:5].tolist())
@@ -127,11 +191,29 @@ MODAL = TableContract(
     name="modal",
     description="Tracked modal table, long format: one row per block and tracked mode.",
     columns=(
-        _BLOCK, _BLOCK_START, _BLOCK_END, _MODE, _FREQUENCY, _DAMPING,
-        Column("mac", "float", "MAC (or MACXP) between the block's mode shape and the tracked "
-               "reference shape.", required=False, nullable=True, minimum=0.0, maximum=1.0),
-        Column("model_order", "nullable_int", "Model order the pole was selected at.",
-               required=False, nullable=True, minimum=1),
+        _BLOCK,
+        _BLOCK_START,
+        _BLOCK_END,
+        _MODE,
+        _FREQUENCY,
+        _DAMPING,
+        Column(
+            "mac",
+            "float",
+            "MAC (or MACXP) between the block's mode shape and the tracked reference shape.",
+            required=False,
+            nullable=True,
+            minimum=0.0,
+            maximum=1.0,
+        ),
+        Column(
+            "model_order",
+            "nullable_int",
+            "Model order the pole was selected at.",
+            required=False,
+            nullable=True,
+            minimum=1,
+        ),
     ),
     patterns=(_SHAPES,),
     unique=("block", "mode"),
@@ -144,13 +226,28 @@ POLES = TableContract(
     "pair, positive imaginary part), per block and model order.",
     columns=(
         _BLOCK,
-        Column("model_order", "int", "Model order (state dimension) of the identified system.",
-               minimum=1),
-        _FREQUENCY, _DAMPING,
-        Column("stable", "bool", "Pole is stable in frequency, damping and shape against the "
-               "previous model order."),
-        Column("mpc", "float", "Modal phase collinearity of the shape (1 = real mode).",
-               required=False, nullable=True, minimum=0.0, maximum=1.0 + 1e-9),
+        Column(
+            "model_order",
+            "int",
+            "Model order (state dimension) of the identified system.",
+            minimum=1,
+        ),
+        _FREQUENCY,
+        _DAMPING,
+        Column(
+            "stable",
+            "bool",
+            "Pole is stable in frequency, damping and shape against the previous model order.",
+        ),
+        Column(
+            "mpc",
+            "float",
+            "Modal phase collinearity of the shape (1 = real mode).",
+            required=False,
+            nullable=True,
+            minimum=0.0,
+            maximum=1.0 + 1e-9,
+        ),
     ),
     patterns=(_SHAPES,),
 )
@@ -160,34 +257,51 @@ FORECAST = TableContract(
     description="Sliding-model forecasts and Kalman-blended estimates, one row per block, "
     "mode and option.",
     columns=(
-        _BLOCK, _BLOCK_START, _MODE,
-        Column("phase", "str", "'train' inside the training window, 'forecast' after it.",
-               allowed=("train", "forecast")),
-        Column("ssi_frequency_hz", "float", "SSI estimate used as measurement (NaN: none).",
-               unit="Hz", nullable=True, minimum=0.0),
-        Column("model_frequency_hz", "float", "Regression-model prediction.", unit="Hz",
-               minimum=0.0),
+        _BLOCK,
+        _BLOCK_START,
+        _MODE,
+        Column(
+            "phase",
+            "str",
+            "'train' inside the training window, 'forecast' after it.",
+            allowed=("train", "forecast"),
+        ),
+        Column(
+            "ssi_frequency_hz",
+            "float",
+            "SSI estimate used as measurement (NaN: none).",
+            unit="Hz",
+            nullable=True,
+            minimum=0.0,
+        ),
+        Column(
+            "model_frequency_hz", "float", "Regression-model prediction.", unit="Hz", minimum=0.0
+        ),
         Column("model_lower_hz", "float", "Lower 95 % prediction bound.", unit="Hz"),
         Column("model_upper_hz", "float", "Upper 95 % prediction bound.", unit="Hz"),
-        Column("kalman_frequency_hz", "float", "Kalman-blended estimate.", unit="Hz",
-               minimum=0.0),
-        Column("kalman_std_hz", "float", "Standard deviation of the Kalman estimate.",
-               unit="Hz", minimum=0.0),
-        Column("option", "str", "A: measurement is the tracked pole; B: nearest pole of the "
-               "stabilisation diagram.", allowed=("A", "B")),
-        Column("window_start_block", "int", "First block of the training window used.",
-               minimum=0),
-        Column("window_end_block", "int", "Last block of the training window used.",
-               minimum=0),
+        Column("kalman_frequency_hz", "float", "Kalman-blended estimate.", unit="Hz", minimum=0.0),
+        Column(
+            "kalman_std_hz",
+            "float",
+            "Standard deviation of the Kalman estimate.",
+            unit="Hz",
+            minimum=0.0,
+        ),
+        Column(
+            "option",
+            "str",
+            "A: measurement is the tracked pole; B: nearest pole of the stabilisation diagram.",
+            allowed=("A", "B"),
+        ),
+        Column("window_start_block", "int", "First block of the training window used.", minimum=0),
+        Column("window_end_block", "int", "Last block of the training window used.", minimum=0),
     ),
     unique=("block", "mode", "option"),
     checks=(_interval_contains_model, _window_order),
 )
 
 #: Contracts by the name used on the command line.
-CONTRACTS: dict[str, TableContract] = {
-    c.name: c for c in (PREDICTORS, MODAL, POLES, FORECAST)
-}
+CONTRACTS: dict[str, TableContract] = {c.name: c for c in (PREDICTORS, MODAL, POLES, FORECAST)}
 
 
 # --------------------------------------------------------------------------- mode shapes
@@ -215,7 +329,7 @@ def shapes_from_frame(frame: pd.DataFrame) -> tuple[list[str], np.ndarray]:
     Channels keep the order of their ``shape_re_`` columns; a missing imaginary column is
     read as zero.
     """
-    channels = [c[len("shape_re_"):] for c in frame.columns if str(c).startswith("shape_re_")]
+    channels = [c[len("shape_re_") :] for c in frame.columns if str(c).startswith("shape_re_")]
     real = frame[[f"shape_re_{c}" for c in channels]].to_numpy(dtype=float)
     imag = np.zeros_like(real)
     for j, c in enumerate(channels):
@@ -246,15 +360,19 @@ def read_table(path: str | os.PathLike, contract: TableContract) -> pd.DataFrame
     path = Path(path)
     fmt = _format_of(path)
     if not path.is_file():
-        raise ContractError([Violation(None, "file not found")], source=path, contract=contract.name)
+        raise ContractError(
+            [Violation(None, "file not found")], source=path, contract=contract.name
+        )
     try:
         if fmt == "csv":
-            frame = pd.read_csv(path, float_precision="round_trip", low_memory=False)
+            frame = pd.read_csv(path, low_memory=False, **CSV_READ_OPTIONS)
         else:
             frame = pd.read_parquet(path)
     except Exception as error:  # pandas/pyarrow raise many types for unreadable files
         reason = f"cannot read {fmt.upper()} file: {str(error).splitlines()[0] if str(error) else type(error).__name__}"
-        raise ContractError([Violation(None, reason)], source=path, contract=contract.name) from None
+        raise ContractError(
+            [Violation(None, reason)], source=path, contract=contract.name
+        ) from None
     return contract.validate(frame, source=path)
 
 
@@ -273,11 +391,13 @@ def write_table(frame: pd.DataFrame, path: str | os.PathLike, contract: TableCon
             for column in out.columns:
                 values = out[column]
                 # ISO-8601 with "T" and "Z"; pandas' own format keeps nanoseconds if any.
-                if isinstance(values.dtype, pd.DatetimeTZDtype) and not (
-                    values.dt.nanosecond != 0
-                ).any():
+                if (
+                    isinstance(values.dtype, pd.DatetimeTZDtype)
+                    and not (values.dt.nanosecond != 0).any()
+                ):
                     out[column] = values.dt.strftime("%Y-%m-%dT%H:%M:%S.%fZ").where(
-                        values.notna(), "")
+                        values.notna(), ""
+                    )
             out.to_csv(tmp, index=False, lineterminator="\n")
         else:
             table.to_parquet(tmp, index=False)

@@ -1,0 +1,140 @@
+"""Acceleration files: canonical .npz, MATLAB v5 and v7.3, CSV; every kind of bad record."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+import scipy.io
+
+from data_contracts import (
+    AccelerationRecord,
+    ContractError,
+    read_accelerations,
+    write_accelerations,
+)
+
+START = pd.Timestamp("2026-03-01T12:05:00Z")
+
+
+def record(n_samples: int = 640, n_channels: int = 3) -> AccelerationRecord:
+    rng = np.random.default_rng(0)
+    data = rng.normal(scale=0.05, size=(n_samples, n_channels))
+    data[10:20, 1] = np.nan
+    return AccelerationRecord(
+        data, 64.0, START, tuple(f"acc{j:02d}" for j in range(1, n_channels + 1))
+    )
+
+
+def test_npz_round_trip_keeps_nan_and_time(tmp_path):
+    original = record()
+    back = read_accelerations(write_accelerations(original, tmp_path / "a.npz"))
+    np.testing.assert_array_equal(back.acceleration, original.acceleration)
+    assert back.sampling_rate_hz == 64.0
+    assert back.start_time == START
+    assert back.channels == original.channels
+    assert back.end_time == START + pd.Timedelta(seconds=10)
+
+
+def test_mat_v5_with_custom_variable_names_and_channels_first(tmp_path):
+    original = record()
+    path = tmp_path / "a.mat"
+    scipy.io.savemat(
+        path,
+        {
+            "acc": original.acceleration.T,
+            "fs": 64.0,
+            "t0": "2026-03-01T12:05:00Z",
+            "names": np.array(original.channels, dtype=object),
+        },
+    )
+    back = read_accelerations(
+        path,
+        mat_variables={
+            "acceleration": "acc",
+            "sampling_rate_hz": "fs",
+            "start_time": "t0",
+            "channels": "names",
+        },
+    )
+    np.testing.assert_array_equal(back.acceleration, original.acceleration)
+    assert back.channels == original.channels and back.start_time == START
+
+
+def test_mat_v73_hdf5(tmp_path):
+    h5py = pytest.importorskip("h5py")
+    original = record()
+    path = tmp_path / "a.mat"
+    with h5py.File(path, "w", userblock_size=512) as mat:
+        # MATLAB stores column-major: a samples x channels matrix appears transposed
+        mat["acceleration"] = original.acceleration.T
+        mat["sampling_rate_hz"] = np.array([[64.0]])
+        mat["start_time"] = np.array([ord(c) for c in "2026-03-01T12:05:00Z"], dtype=np.uint16)
+        refs = []
+        for name in original.channels:
+            mat[f"#refs#/{name}"] = np.array([ord(c) for c in name], dtype=np.uint16)
+            refs.append(mat[f"#refs#/{name}"].ref)
+        mat.create_dataset("channels", data=np.array(refs, dtype=h5py.ref_dtype))
+    with open(path, "r+b") as handle:
+        handle.write(b"MATLAB 7.3 MAT-file".ljust(128, b" "))
+    back = read_accelerations(path)
+    np.testing.assert_array_equal(back.acceleration, original.acceleration)
+    assert back.channels == original.channels and back.start_time == START
+
+
+def test_csv_rate_from_time_column(tmp_path):
+    original = record(n_samples=128)
+    times = START + pd.to_timedelta(np.arange(128) / 64.0, unit="s")
+    frame = pd.DataFrame(original.acceleration, columns=list(original.channels))
+    frame.insert(0, "time", times.strftime("%Y-%m-%dT%H:%M:%S.%fZ"))
+    path = tmp_path / "a.csv"
+    frame.to_csv(path, index=False)
+    back = read_accelerations(path)
+    assert back.sampling_rate_hz == 64.0
+    np.testing.assert_allclose(back.acceleration, original.acceleration, rtol=1e-15)
+
+
+@pytest.mark.parametrize(
+    ("change", "reason"),
+    [
+        ({"sampling_rate_hz": 0.0}, "column .sampling_rate_hz.: must be a positive number"),
+        ({"channels": ("a", "b")}, "2 names for 3 columns"),
+        ({"channels": ("a", "a", "b")}, "channel names must be unique"),
+        ({"start_time": "not a time"}, "column .start_time.: not an ISO-8601 time"),
+        ({"acceleration": np.ones(10)}, "must be 2-D"),
+        ({"acceleration": np.full((10, 3), 9810.0)}, "must be in m/s²"),
+    ],
+)
+def test_invalid_records_are_rejected(tmp_path, change, reason):
+    fields = {**record().__dict__, **change}
+    with pytest.raises(ContractError, match=reason):
+        write_accelerations(AccelerationRecord(**fields), tmp_path / "bad.npz")
+    assert not (tmp_path / "bad.npz").exists()
+
+
+def test_unreadable_and_incomplete_files(tmp_path):
+    broken = tmp_path / "broken.npz"
+    broken.write_bytes(b"garbage")
+    with pytest.raises(ContractError, match="broken.npz: cannot read file"):
+        read_accelerations(broken)
+    partial = tmp_path / "partial.npz"
+    np.savez(partial, acceleration=np.zeros((4, 2)))
+    with pytest.raises(ContractError) as caught:
+        read_accelerations(partial)
+    assert len(caught.value.violations) == 3
+    (tmp_path / "x.wav").write_bytes(b"RIFF")
+    with pytest.raises(ContractError, match="unknown acceleration format"):
+        read_accelerations(tmp_path / "x.wav")
+
+
+def test_pickled_npz_is_refused(tmp_path):
+    path = tmp_path / "pickled.npz"
+    np.savez(
+        path,
+        acceleration=np.array([{"evil": 1}], dtype=object),
+        sampling_rate_hz=64.0,
+        start_time="2026-01-01T00:00Z",
+        channels=np.array(["a"]),
+    )
+    with pytest.raises(ContractError, match="cannot read file"):
+        read_accelerations(path)
