@@ -33,8 +33,10 @@ def _add_validate(commands: argparse._SubParsersAction) -> None:
 
     kinds = ["accelerations", "dship", *CONTRACTS]
     parser = commands.add_parser(
-        "validate", help="check a file against a data contract",
-        description="Check FILE against the contract KIND and report every problem.")
+        "validate",
+        help="check a file against a data contract",
+        description="Check FILE against the contract KIND and report every problem.",
+    )
     parser.add_argument("kind", choices=kinds, metavar="KIND", help=f"one of: {', '.join(kinds)}")
     parser.add_argument("file", type=Path, metavar="FILE")
     parser.set_defaults(run=_run_validate)
@@ -47,8 +49,10 @@ def _run_validate(args: argparse.Namespace) -> int:
         warnings.simplefilter("always")
         if args.kind == "accelerations":
             record = read_accelerations(args.file)
-            summary = (f"{record.n_samples} samples x {len(record.channels)} channels at "
-                       f"{record.sampling_rate_hz:g} Hz from {record.start_time.isoformat()}")
+            summary = (
+                f"{record.n_samples} samples x {len(record.channels)} channels at "
+                f"{record.sampling_rate_hz:g} Hz from {record.start_time.isoformat()}"
+            )
         elif args.kind == "dship":
             table = read_dship(args.file)
             summary = f"{len(table)} records, columns {', '.join(table.columns[1:])}"
@@ -63,15 +67,22 @@ def _run_validate(args: argparse.Namespace) -> int:
 
 def _add_simulate(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser(
-        "simulate", help="simulate a demo voyage with known modal parameters",
+        "simulate",
+        help="simulate a demo voyage with known modal parameters",
         description="Write a simulated voyage: 5-minute acceleration files, the DSHIP log, "
-        "ground-truth and noisy tracked modal tables, and pole tables.")
+        "ground-truth and noisy tracked modal tables, and pole tables.",
+    )
     parser.add_argument("--out", type=Path, required=True, metavar="DIR")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--hours", type=float, default=None,
-                        help="voyage length [h] (default: the demo length, 12 h)")
-    parser.add_argument("--no-accelerations", action="store_true",
-                        help="skip the acceleration files (tables only)")
+    parser.add_argument(
+        "--hours",
+        type=float,
+        default=None,
+        help="voyage length [h] (default: the demo length, 12 h)",
+    )
+    parser.add_argument(
+        "--no-accelerations", action="store_true", help="skip the acceleration files (tables only)"
+    )
     parser.set_defaults(run=_run_simulate)
 
 
@@ -80,16 +91,19 @@ def _run_simulate(args: argparse.Namespace) -> int:
 
     if args.hours is not None and args.hours <= 0:
         raise UsageError(f"--hours must be positive, got {args.hours}")
-    result = simulate_voyage(args.out, seed=args.seed, hours=args.hours,
-                             accelerations=not args.no_accelerations)
+    result = simulate_voyage(
+        args.out, seed=args.seed, hours=args.hours, accelerations=not args.no_accelerations
+    )
     print(f"simulated voyage written to {args.out} ({result})")
     return EXIT_OK
 
 
 def _add_demo(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser(
-        "demo", help="run the whole chain on the built-in demo voyage",
-        description="Simulate the demo voyage into reports/demo/ and run every stage on it.")
+        "demo",
+        help="run the whole chain on the built-in demo voyage",
+        description="Simulate the demo voyage into reports/demo/ and run every stage on it.",
+    )
     parser.add_argument("--out", type=Path, default=Path("reports") / "demo", metavar="DIR")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--hours", type=float, default=None)
@@ -116,10 +130,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="workbench",
         description="Hull vibration monitoring: identify, track, model and forecast a ship's "
-        "structural modes from accelerations and the ship's log.")
+        "structural modes from accelerations and the ship's log.",
+    )
     parser.add_argument("--version", action="version", version=f"workbench {__version__}")
-    parser.add_argument("-v", "--verbose", action="store_true",
-                        help="show tracebacks and debug logging")
+    parser.add_argument(
+        "-v", "--verbose", action="store_true", help="show tracebacks and debug logging"
+    )
     commands = parser.add_subparsers(title="commands", metavar="COMMAND")
     for add in COMMANDS:
         add(commands)
@@ -136,8 +152,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not hasattr(args, "run"):
         parser.print_help(sys.stderr)
         return EXIT_USAGE
-    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
-                        format="%(message)s", stream=sys.stderr)
+    logging.basicConfig(
+        level=logging.DEBUG if args.verbose else logging.INFO,
+        format="%(message)s",
+        stream=sys.stderr,
+    )
     try:
         return int(args.run(args) or EXIT_OK)
     except ContractError as error:
