@@ -1,0 +1,112 @@
+"""The block store and the parallel runner: resume, orphan cleanup, block order, Dask path."""
+
+from __future__ import annotations
+
+import sys
+
+import cloudpickle
+import numpy as np
+import pandas as pd
+import pytest
+
+from workbench.errors import WorkbenchError
+from workbench.parallel import BlockOutcome, run_blocks
+from workbench.store import BlockStore
+
+T0 = pd.Timestamp("2026-03-01T23:00Z")  # the blocks straddle midnight: two day partitions
+
+
+class Task:
+    def __init__(self, block: int):
+        self.block = block
+        self.block_start = T0 + pd.Timedelta(minutes=5 * block)
+
+
+def square_block(task: Task) -> BlockOutcome:
+    """A stand-in for identification: deterministic rows per block, some blocks fail."""
+    if task.block % 7 == 3:
+        raise ValueError(f"block {task.block}: too short")
+    rows = pd.DataFrame(
+        {
+            "block": [task.block] * 2,
+            "block_start": [task.block_start] * 2,
+            "model_order": [2, 4],
+            "value": [task.block**2, -task.block],
+        }
+    )
+    return BlockOutcome(
+        task.block,
+        task.block_start,
+        {"poles": rows},
+        notes=("acc03 dropped: kurtosis",) if task.block % 5 == 0 else (),
+    )
+
+
+def test_synchronous_run_stores_everything_in_block_order(tmp_path):
+    store = BlockStore.open(tmp_path, {"method": "test"})
+    summary = run_blocks(
+        (Task(b) for b in range(30)),
+        square_block,
+        store=store,
+        scheduler="synchronous",
+        batch_blocks=8,
+    )
+    assert (summary.processed, summary.skipped) == (26, 4)
+    assert summary.skip_reasons == {f"block {b}: too short": 1 for b in (3, 10, 17, 24)}
+    assert summary.notes == {"acc03 dropped: kurtosis": 5}  # block 10 failed
+    poles = store.read("poles")
+    assert poles["block"].tolist() == sorted(b for b in range(30) if b % 7 != 3 for _ in (0, 1))
+    assert sorted({p.parent.name for p in (tmp_path / "poles").rglob("*.parquet")}) == [
+        "day=2026-03-01",
+        "day=2026-03-02",
+    ]
+    # readable as one hive-partitioned dataset by any Parquet engine
+    assert len(pd.read_parquet(tmp_path / "poles")) == 52
+
+
+def test_resume_skips_done_blocks_and_removes_orphans(tmp_path):
+    store = BlockStore.open(tmp_path, {"method": "test"})
+    run_blocks(
+        (Task(b) for b in range(10)),
+        square_block,
+        store=store,
+        scheduler="synchronous",
+        batch_blocks=4,
+    )
+    # a batch killed after writing its poles but before its blocks file: an orphan
+    orphan = tmp_path / "poles" / "day=2026-03-01" / "b0000099-0000099-deadbeef.parquet"
+    square_block(Task(99)).tables["poles"].to_parquet(orphan)
+    store = BlockStore.open(tmp_path, {"method": "test"})
+    assert not orphan.exists()
+    summary = run_blocks(
+        (Task(b) for b in range(14)), square_block, store=store, scheduler="synchronous"
+    )
+    assert (summary.already_done, summary.processed + summary.skipped) == (10, 4)
+    assert store.read("poles")["block"].nunique() == 12
+    assert store.completed_blocks() == set(range(14))
+
+
+def test_other_parameters_refuse_to_resume(tmp_path):
+    BlockStore.open(tmp_path, {"block_rows": 40})
+    with pytest.raises(
+        WorkbenchError, match=r"store was made with other parameters \(block_rows\)"
+    ):
+        BlockStore.open(tmp_path, {"block_rows": 60})
+
+
+def test_dask_local_cluster_matches_synchronous(tmp_path):
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    sync = BlockStore.open(tmp_path / "sync", {})
+    run_blocks((Task(b) for b in range(24)), square_block, store=sync, scheduler="synchronous")
+    parallel = BlockStore.open(tmp_path / "dask", {})
+    summary = run_blocks(
+        (Task(b) for b in range(24)),
+        square_block,
+        store=parallel,
+        n_workers=2,
+        max_in_flight=3,
+        batch_blocks=5,
+    )
+    assert (summary.processed, summary.skipped) == (21, 3)
+    pd.testing.assert_frame_equal(parallel.read("poles"), sync.read("poles"))
+    np.testing.assert_array_equal(parallel.read("blocks")["block"], np.arange(24))

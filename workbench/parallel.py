@@ -1,0 +1,257 @@
+"""Run independent per-block work in parallel with Dask, into a resumable :class:`BlockStore`.
+
+The same code runs on a local cluster (all cores by default), on an existing
+``dask.distributed`` cluster (``scheduler="tcp://host:8786"``) or in-process
+(``scheduler="synchronous"``, for debugging and tiny jobs). Memory stays bounded: tasks are
+streamed from an iterator with at most ``max_in_flight`` submitted at a time, and finished
+results are flushed to the store in batches.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+import time
+from collections import Counter
+from collections.abc import Callable, Iterable, Mapping
+from contextlib import ExitStack
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+import pandas as pd
+
+from .errors import WorkbenchError
+from .store import BlockStore
+
+__all__ = ["BlockOutcome", "BlockTask", "RunSummary", "run_blocks"]
+
+log = logging.getLogger(__name__)
+
+
+class BlockTask(Protocol):
+    """What :func:`run_blocks` needs of a task: its block number and start time."""
+
+    block: int
+    block_start: pd.Timestamp
+
+
+@dataclass(frozen=True)
+class BlockOutcome:
+    """Result of one block: tables by kind, or a reason why the block was skipped."""
+
+    block: int
+    block_start: pd.Timestamp
+    tables: Mapping[str, pd.DataFrame] = field(default_factory=dict)
+    skipped: str = ""
+    notes: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """What a run did: counts, skip reasons, notes (e.g. faulty channels), timing."""
+
+    processed: int
+    skipped: int
+    already_done: int
+    skip_reasons: Mapping[str, int]
+    notes: Mapping[str, int]
+    seconds: float
+
+    def __str__(self) -> str:
+        lines = [
+            f"{self.processed} block(s) processed, {self.skipped} skipped, "
+            f"{self.already_done} already done, in {self.seconds:.1f} s"
+        ]
+        lines += [f"  skipped ({n}): {reason}" for reason, n in sorted(self.skip_reasons.items())]
+        lines += [f"  note ({n}): {note}" for note, n in sorted(self.notes.items())]
+        return "\n".join(lines)
+
+
+def _guarded(func: Callable[[Any], BlockOutcome], task: Any) -> BlockOutcome:
+    """Run *func*; a failure of one block becomes a skipped block with the reason."""
+    try:
+        return func(task)
+    except (ValueError, WorkbenchError, ArithmeticError, np.linalg.LinAlgError) as error:
+        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+        return BlockOutcome(int(task.block), pd.Timestamp(task.block_start), skipped=reason)
+
+
+def _progress(total: int | None, enabled: bool, description: str):
+    from tqdm.auto import tqdm
+
+    return tqdm(
+        total=total,
+        desc=description,
+        unit="block",
+        disable=not enabled,
+        file=sys.stderr,
+        dynamic_ncols=True,
+        smoothing=0.1,
+    )
+
+
+def run_blocks(
+    tasks: Iterable[Any],
+    func: Callable[[Any], BlockOutcome],
+    *,
+    store: BlockStore,
+    scheduler: str | None = None,
+    n_workers: int | None = None,
+    batch_blocks: int = 64,
+    max_in_flight: int | None = None,
+    total: int | None = None,
+    progress: bool = False,
+    description: str = "blocks",
+) -> RunSummary:
+    """Apply *func* to every task not yet in *store*, in parallel, and store the results.
+
+    Parameters
+    ----------
+    tasks : iterable
+        Objects with ``block`` and ``block_start`` (e.g. the blocks of the block builder),
+        produced lazily; tasks whose block is already in the store are not submitted.
+    func : callable
+        ``func(task) -> BlockOutcome``; must be picklable (a module-level function or a
+        ``functools.partial`` of one). ``ValueError`` and ``LinAlgError`` raised by it mark
+        the block as skipped with the message as reason.
+    store : BlockStore
+        Where results go; also tells which blocks are done (resume).
+    scheduler : str, optional
+        ``None``: a local Dask cluster with *n_workers* processes (default: all cores);
+        ``"synchronous"``: in this process; otherwise the address of a running
+        ``dask.distributed`` scheduler.
+    n_workers : int, optional
+        Worker processes of the local cluster (default ``os.cpu_count()``).
+    batch_blocks : int
+        Blocks per store batch (files written together).
+    max_in_flight : int, optional
+        Tasks submitted but not finished, at most (default 4 per worker). Bounds memory.
+    total : int, optional
+        Number of tasks, for the progress bar.
+    progress : bool
+        Show a progress bar (blocks done, rate, ETA) on stderr.
+
+    Returns
+    -------
+    RunSummary
+    """
+    if batch_blocks < 1:
+        raise ValueError(f"batch_blocks={batch_blocks} must be at least 1")
+    started = time.perf_counter()
+    done = store.completed_blocks()
+    counts: Counter = Counter()
+    skip_reasons: Counter = Counter()
+    notes: Counter = Counter()
+    pending: list[BlockOutcome] = []
+
+    def flush() -> None:
+        if not pending:
+            return
+        blocks = pd.DataFrame(
+            {
+                "block": [o.block for o in pending],
+                "block_start": pd.to_datetime([o.block_start for o in pending], utc=True),
+                "status": ["skipped" if o.skipped else "ok" for o in pending],
+                "reason": [o.skipped for o in pending],
+            }
+        )
+        kinds = sorted({k for o in pending for k in o.tables})
+        results = {}
+        for kind in kinds:
+            frames = [o.tables[kind] for o in pending if kind in o.tables and len(o.tables[kind])]
+            if frames:
+                results[kind] = pd.concat(frames, ignore_index=True)
+        store.write_batch(blocks, results)
+        pending.clear()
+
+    def accept(outcome: BlockOutcome, bar) -> None:
+        if outcome.skipped:
+            counts["skipped"] += 1
+            skip_reasons[outcome.skipped] += 1
+        else:
+            counts["processed"] += 1
+        notes.update(outcome.notes)
+        pending.append(outcome)
+        bar.update(1)
+        if len(pending) >= batch_blocks:
+            flush()
+
+    def remaining() -> Iterable[Any]:
+        for task in tasks:
+            if int(task.block) in done:
+                counts["already_done"] += 1
+                continue
+            yield task
+
+    todo_total = None if total is None else max(total - len(done), 0)
+    with ExitStack() as stack:
+        bar = stack.enter_context(_progress(todo_total, progress, description))
+        try:
+            if scheduler == "synchronous":
+                for task in remaining():
+                    accept(_guarded(func, task), bar)
+            else:
+                client = stack.enter_context(_client(scheduler, n_workers))
+                workers = max(len(client.scheduler_info().get("workers", {})), 1)
+                limit = max_in_flight or 4 * workers
+                _run_distributed(client, remaining(), func, limit, lambda o: accept(o, bar))
+        finally:
+            flush()  # whatever finished is kept, even when interrupted
+    return RunSummary(
+        counts["processed"],
+        counts["skipped"],
+        counts["already_done"],
+        dict(skip_reasons),
+        dict(notes),
+        time.perf_counter() - started,
+    )
+
+
+def _client(scheduler: str | None, n_workers: int | None):
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError as error:  # pragma: no cover - dask is a dependency
+        raise WorkbenchError("parallel processing needs dask[distributed]") from error
+    if scheduler:
+        return Client(scheduler, set_as_default=False)
+    cluster = LocalCluster(
+        n_workers=n_workers or os.cpu_count() or 1,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+        silence_logs=logging.ERROR,
+    )
+    client = Client(cluster, set_as_default=False)
+
+    class _Both:
+        def __enter__(self):
+            return client
+
+        def __exit__(self, *exc):
+            client.close()
+            cluster.close()
+            return False
+
+    return _Both()
+
+
+def _run_distributed(client, tasks: Iterable[Any], func, limit: int, accept) -> None:
+    from dask.distributed import as_completed
+
+    iterator = iter(tasks)
+    first = []
+    for task in iterator:
+        first.append(client.submit(_guarded, func, task, pure=False))
+        if len(first) >= limit:
+            break
+    if not first:
+        return
+    in_flight = as_completed(first, loop=client.loop)
+    for future in in_flight:
+        accept(future.result())
+        future.release()
+        for task in iterator:  # keep at most `limit` tasks in flight
+            in_flight.add(client.submit(_guarded, func, task, pure=False))
+            break
