@@ -1,0 +1,1 @@
+"""Figures and HTML reports; everything is written into a report folder (default reports/)."""
