@@ -29,7 +29,6 @@ def write(tmp_path: Path, text: str, name: str = "log.tab", encoding: str = "utf
     return path
 
 
-@pytest.mark.skipif(not REFERENCE.is_file(), reason="shared reference log not available")
 def test_reference_pangaea_export():
     log = read_dship(REFERENCE)
     assert len(log) == 120
