@@ -1,0 +1,445 @@
+"""The demo voyage: orchestrates profile, ship log, accelerations and tables."""
+
+from __future__ import annotations
+
+import json
+import os
+import warnings
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from data_contracts import (
+    MODAL,
+    POLES,
+    PREDICTORS,
+    AccelerationRecord,
+    atomic_path,
+    shapes_to_frame,
+    write_accelerations,
+    write_table,
+)
+
+from ..dynamics import (
+    ModalState,
+    draw_stationary_state,
+    simulate_modal_response,
+    stationary_covariance,
+)
+from .hull import CHANNELS, MODE_LAWS, REFERENCE_CONDITIONS, mode_shapes, true_modal_parameters
+from .identification import SHAFT_HZ_PER_KN, imitate_identification
+from .profile import operating_profile, write_dship_log
+
+__all__ = ["DEFAULT_HOURS", "VoyageSummary", "simulate_voyage"]
+
+#: Default voyage length. [h]
+DEFAULT_HOURS = 12.0
+#: Sampling rate of the accelerometers. [Hz]
+SAMPLING_RATE_HZ = 64.0
+#: Length of one acceleration file. [s]
+FILE_SECONDS = 300
+#: Block grid of the truth tables: length and step. [s]
+BLOCK_SECONDS = 1200
+BLOCK_STEP_SECONDS = 300
+#: Voyage start.
+START_TIME = pd.Timestamp("2024-03-01T00:00:00Z")
+#: Modal acceleration RMS of each mode at 5 kn (0.5 + 0.1 x speed_kn times this). [m/s²]
+MODE_RMS_MS2 = np.array([0.020, 0.012, 0.015, 0.008, 0.012, 0.010, 0.008])
+#: Sensor noise RMS. [m/s²]
+SENSOR_NOISE_MS2 = 0.001
+#: Shaft-harmonic amplitude at 10 kn (scales with speed²). [m/s²]
+SHAFT_AMPLITUDE_MS2 = 0.008
+#: Channels with short NaN dropouts, and the channel that is dead for an hour.
+DROPOUT_CHANNELS = ("acc07", "acc15")
+DEAD_CHANNEL = "acc12"
+
+
+@dataclass(frozen=True)
+class VoyageSummary:
+    """What :func:`simulate_voyage` wrote.
+
+    Parameters
+    ----------
+    out_dir : Path
+    seed : int
+    hours : float
+        Voyage length. [h]
+    start_time, end_time : pandas.Timestamp
+        Voyage start and end. [UTC]
+    n_blocks : int
+        Blocks of the 20-min / 5-min grid in the truth tables.
+    acceleration_files : tuple of Path
+        5-min ``.npz`` files (empty when accelerations were skipped).
+    dship_log, truth_modal, tracked_modal, poles, truth_predictors, cases, summary_json : Path
+    """
+
+    out_dir: Path
+    seed: int
+    hours: float
+    start_time: pd.Timestamp
+    end_time: pd.Timestamp
+    n_blocks: int
+    acceleration_files: tuple[Path, ...]
+    dship_log: Path
+    truth_modal: Path
+    tracked_modal: Path
+    poles: Path
+    truth_predictors: Path
+    cases: Path
+    summary_json: Path
+
+
+def _shaft_shape() -> np.ndarray:
+    from .hull import SENSORS
+
+    stern = np.array([np.exp(-3.0 * s.position) for s in SENSORS])
+    transverse = np.array([s.direction == "transverse" for s in SENSORS])
+    shape = np.where(transverse, 0.3 * stern, stern)
+    return shape / np.linalg.norm(shape)
+
+
+def _chunk_means(values: np.ndarray, n_chunks: int, per_chunk: int) -> np.ndarray:
+    return values[: n_chunks * per_chunk].reshape(n_chunks, per_chunk, *values.shape[1:]).mean(1)
+
+
+def _iso(time: pd.Timestamp) -> str:
+    return time.strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def simulate_voyage(
+    out_dir: str | os.PathLike,
+    *,
+    seed: int = 0,
+    hours: float | None = None,
+    accelerations: bool = True,
+    progress: Callable[[int, int], None] | None = None,
+) -> VoyageSummary:
+    """Simulate a demo voyage and write all its files into *out_dir*.
+
+    Parameters
+    ----------
+    out_dir : path
+        Output folder (created).
+    seed : int
+        Seed; the same seed gives byte-identical files.
+    hours : float, optional
+        Voyage length, at least 1/3 h, rounded down to whole 5-min files. Default
+        :data:`DEFAULT_HOURS` (12 h).
+    accelerations : bool
+        Write the acceleration files (the slow part); the tables do not depend on it.
+    progress : callable, optional
+        Called as ``progress(files_done, files_total)`` after each acceleration file.
+
+    Returns
+    -------
+    VoyageSummary
+
+    Notes
+    -----
+    Files written:
+
+    * ``accelerations/acc_YYYYmmddTHHMMSSZ.npz``: 5-min records, 19 channels, 64 Hz [m/s²]:
+      response of the 7 modes (:mod:`workbench.dynamics`, white-noise modal forces
+      scaled by 0.5 + 0.1 speed_kn, modal parameters constant within a file at the file
+      mean of the law), shaft harmonic at 0.3 Hz/kn x speed (amplitude 8 mm/s² x
+      (speed/10 kn)², stern-heavy shape), sensor noise 1 mm/s², NaN dropouts (short runs
+      of 0.5-5 s on acc07 and acc15, acc12 dead for 1 h from 40 % of the voyage).
+    * ``dship.tsv``: the ship log (:func:`~workbench.simulate.profile.write_dship_log`).
+    * ``truth_predictors.csv`` (PREDICTORS contract, plus ``elapsed_hours``): block means
+      of the true predictors (wind direction: circular mean).
+    * ``truth_modal.csv`` (MODAL contract): block means of the true modal parameters, true
+      shapes.
+    * ``tracked_modal.csv`` (MODAL) and ``poles.parquet`` (POLES): imitated identification
+      (:func:`~workbench.simulate.identification.imitate_identification`).
+    * ``cases.csv``: case, start, end of the operating stretches.
+    * ``voyage.json``: seed, hours, times, files, law coefficients, defect locations.
+
+    Only one 5-min file of accelerations is in memory at a time.
+    """
+    hours = DEFAULT_HOURS if hours is None else float(hours)
+    n_files = int(np.floor(hours * 3600 / FILE_SECONDS + 1e-9))
+    if n_files < BLOCK_SECONDS // FILE_SECONDS:
+        raise ValueError(f"hours={hours} must be at least {BLOCK_SECONDS / 3600:g} (one block)")
+    hours = n_files * FILE_SECONDS / 3600.0
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    streams = np.random.SeedSequence(seed).spawn(6)
+    profile_rng, log_rng, force_rng, sensor_rng, tracked_rng, poles_rng = (
+        np.random.default_rng(s) for s in streams
+    )
+    start = START_TIME
+    end = start + pd.Timedelta(hours=hours)
+
+    profile = operating_profile(start, hours, rng=profile_rng)
+    truth = profile.predictors
+    dship_path, defects = write_dship_log(profile, out / "dship.tsv", rng=log_rng, seed=seed)
+
+    # modal parameters: law at 1 s, averaged per 5-min file (constant within a file)
+    per_second = true_modal_parameters(truth)
+    file_frequency = _chunk_means(per_second.frequency_hz, n_files, FILE_SECONDS)
+    file_damping = _chunk_means(per_second.damping_ratio, n_files, FILE_SECONDS)
+    file_speed = _chunk_means(truth["speed_kn"].to_numpy(), n_files, FILE_SECONDS)
+
+    # block grid and truth tables
+    per_block = BLOCK_SECONDS // FILE_SECONDS
+    n_blocks = n_files - per_block + 1
+    block_ids = np.arange(n_blocks)
+    block_start = start + pd.to_timedelta(block_ids * BLOCK_STEP_SECONDS, unit="s")
+    blocks = pd.DataFrame(
+        {
+            "block": block_ids,
+            "block_start": block_start,
+            "block_end": block_start + pd.Timedelta(seconds=BLOCK_SECONDS),
+        }
+    )
+    window = np.lib.stride_tricks.sliding_window_view
+    block_frequency = window(file_frequency, per_block, axis=0).mean(-1)
+    block_damping = window(file_damping, per_block, axis=0).mean(-1)
+    predictors = _block_predictors(truth, blocks)
+    shapes = mode_shapes()
+    truth_modal = _modal_frame(blocks, block_frequency, block_damping, shapes)
+    speed_seconds = truth["speed_kn"].to_numpy()
+    speed_windows = np.array(
+        [
+            speed_seconds[b * BLOCK_STEP_SECONDS : b * BLOCK_STEP_SECONDS + BLOCK_SECONDS]
+            for b in block_ids
+        ]
+    )
+    imitation = imitate_identification(
+        blocks,
+        block_frequency,
+        block_damping,
+        shapes,
+        CHANNELS,
+        speed_windows.mean(axis=1),
+        speed_windows.std(axis=1),
+        tracked_rng=tracked_rng,
+        poles_rng=poles_rng,
+    )
+    paths = {
+        "truth_predictors": write_table(predictors, out / "truth_predictors.csv", PREDICTORS),
+        "truth_modal": write_table(truth_modal, out / "truth_modal.csv", MODAL),
+        "tracked_modal": write_table(imitation.tracked, out / "tracked_modal.csv", MODAL),
+        "poles": write_table(imitation.poles, out / "poles.parquet", POLES),
+    }
+    cases = profile.cases.assign(
+        start=profile.cases["start"].map(_iso), end=profile.cases["end"].map(_iso)
+    )
+    with atomic_path(out / "cases.csv") as tmp:
+        cases.to_csv(tmp, index=False, lineterminator="\n")
+
+    dead_start_file = int(np.floor(0.4 * n_files))
+    dead_files = max(1, min(12, n_files // 10))
+    files: list[Path] = []
+    if accelerations:
+        files = _write_accelerations(
+            out / "accelerations",
+            start,
+            truth,
+            file_frequency,
+            file_damping,
+            file_speed,
+            shapes,
+            force_rng,
+            sensor_rng,
+            (dead_start_file, dead_start_file + dead_files),
+            progress,
+        )
+
+    summary = {
+        "seed": int(seed),
+        "hours": hours,
+        "start_time": _iso(start),
+        "end_time": _iso(end),
+        "sampling_rate_hz": SAMPLING_RATE_HZ,
+        "channels": list(CHANNELS),
+        "file_seconds": FILE_SECONDS,
+        "block_seconds": BLOCK_SECONDS,
+        "block_step_seconds": BLOCK_STEP_SECONDS,
+        "n_blocks": int(n_blocks),
+        "files": {
+            "accelerations": [f"accelerations/{p.name}" for p in files],
+            "dship_log": "dship.tsv",
+            "truth_predictors": "truth_predictors.csv",
+            "truth_modal": "truth_modal.csv",
+            "tracked_modal": "tracked_modal.csv",
+            "poles": "poles.parquet",
+            "cases": "cases.csv",
+        },
+        "law": {
+            "reference_conditions": REFERENCE_CONDITIONS,
+            "modes": [asdict(m) for m in MODE_LAWS],
+            "equations": "f = f0 sqrt(k/m); m = 1 + speed_mass*speed_kn/10 - "
+            "fuel_mass_per_hour*elapsed_hours; k = 1 + water_stiffness*(water_temp_c - 2) + "
+            "air_stiffness*(air_temp_c + 2) + speed_water_stiffness*(speed_kn/10)*"
+            "(water_temp_c - 2); zeta = zeta0 (1 + speed_damping*speed_kn/10)",
+        },
+        "shaft_harmonic_hz_per_kn": SHAFT_HZ_PER_KN,
+        "defects": {
+            **defects,
+            "dead_channel": DEAD_CHANNEL,
+            "dead_channel_span": [
+                _iso(start + pd.Timedelta(seconds=dead_start_file * FILE_SECONDS)),
+                _iso(start + pd.Timedelta(seconds=(dead_start_file + dead_files) * FILE_SECONDS)),
+            ],
+            "dropout_channels": list(DROPOUT_CHANNELS),
+            "mislabelled_blocks": list(imitation.mislabelled_blocks),
+            "mislabelled_modes": [3, 4],
+            "weak_mode": 4,
+            "weak_mode_blocks": list(imitation.weak_mode_blocks),
+        },
+    }
+    summary_path = out / "voyage.json"
+    with atomic_path(summary_path) as tmp:
+        tmp.write_text(json.dumps(summary, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
+    return VoyageSummary(
+        out_dir=out,
+        seed=int(seed),
+        hours=hours,
+        start_time=start,
+        end_time=end,
+        n_blocks=int(n_blocks),
+        acceleration_files=tuple(files),
+        dship_log=dship_path,
+        truth_modal=paths["truth_modal"],
+        tracked_modal=paths["tracked_modal"],
+        poles=paths["poles"],
+        truth_predictors=paths["truth_predictors"],
+        cases=out / "cases.csv",
+        summary_json=summary_path,
+    )
+
+
+def _block_predictors(truth: pd.DataFrame, blocks: pd.DataFrame) -> pd.DataFrame:
+    n_blocks = len(blocks)
+    window = np.lib.stride_tricks.sliding_window_view
+    rows = {}
+    for column in ("speed_kn", "water_temp_c", "air_temp_c", "wind_speed_ms", "elapsed_hours"):
+        values = truth[column].to_numpy()
+        rows[column] = window(values, BLOCK_SECONDS)[::BLOCK_STEP_SECONDS][:n_blocks].mean(-1)
+    angle = np.deg2rad(truth["wind_dir_rel_deg"].to_numpy())
+    sin = window(np.sin(angle), BLOCK_SECONDS)[::BLOCK_STEP_SECONDS][:n_blocks].mean(-1)
+    cos = window(np.cos(angle), BLOCK_SECONDS)[::BLOCK_STEP_SECONDS][:n_blocks].mean(-1)
+    rows["wind_dir_rel_deg"] = np.mod(np.rad2deg(np.arctan2(sin, cos)), 360.0)
+    frame = blocks.copy()
+    for column in (
+        "speed_kn",
+        "water_temp_c",
+        "air_temp_c",
+        "wind_speed_ms",
+        "wind_dir_rel_deg",
+        "elapsed_hours",
+    ):
+        frame[column] = rows[column]
+    return frame
+
+
+def _modal_frame(blocks, frequency, damping, shapes) -> pd.DataFrame:
+    n_blocks, n_modes = frequency.shape
+    b = np.repeat(np.arange(n_blocks), n_modes)
+    m = np.tile(np.arange(n_modes), n_blocks)
+    frame = pd.DataFrame(
+        {
+            "block": blocks["block"].to_numpy()[b],
+            "block_start": blocks["block_start"].to_numpy()[b],
+            "block_end": blocks["block_end"].to_numpy()[b],
+            "mode": m + 1,
+            "frequency_hz": frequency[b, m],
+            "damping_ratio": damping[b, m],
+        }
+    )
+    frame["block_start"] = pd.to_datetime(frame["block_start"], utc=True)
+    frame["block_end"] = pd.to_datetime(frame["block_end"], utc=True)
+    return pd.concat([frame, shapes_to_frame(CHANNELS, shapes[m], index=frame.index)], axis=1)
+
+
+def _write_accelerations(
+    folder: Path,
+    start: pd.Timestamp,
+    truth: pd.DataFrame,
+    file_frequency: np.ndarray,
+    file_damping: np.ndarray,
+    file_speed: np.ndarray,
+    shapes: np.ndarray,
+    force_rng: np.random.Generator,
+    sensor_rng: np.random.Generator,
+    dead_files: tuple[int, int],
+    progress,
+) -> list[Path]:
+    folder.mkdir(parents=True, exist_ok=True)
+    n_files = len(file_frequency)
+    n_samples = int(FILE_SECONDS * SAMPLING_RATE_HZ)
+    rate = SAMPLING_RATE_HZ
+    shaft_shape = _shaft_shape()
+    dropout_columns = [CHANNELS.index(c) for c in DROPOUT_CHANNELS]
+    dead_column = CHANNELS.index(DEAD_CHANNEL)
+    speed_seconds = truth["speed_kn"].to_numpy()
+    seconds = np.arange(len(speed_seconds), dtype=float)
+    # modal force std giving the target RMS at 5 kn, per unit of (0.5 + 0.1 speed)
+    unit_rms = np.sqrt(
+        [
+            _acceleration_variance(stationary_covariance(f, z, rate)[0], f, z)
+            for f, z in zip(file_frequency[0], file_damping[0], strict=True)
+        ]
+    )
+    base_std = MODE_RMS_MS2 / unit_rms
+    state: ModalState | None = None
+    shaft_phase = 0.0
+    paths = []
+    for k in range(n_files):
+        level = 0.5 + 0.1 * file_speed[k]
+        if state is None:
+            state = draw_stationary_state(
+                file_frequency[k],
+                file_damping[k],
+                rate,
+                rng=force_rng,
+                excitation_std=base_std * level,
+            )
+        result = simulate_modal_response(
+            file_frequency[k],
+            file_damping[k],
+            shapes,
+            rate,
+            n_samples,
+            rng=force_rng,
+            excitation_std=base_std * level,
+            state=state,
+        )
+        state = result.state
+        acceleration = result.response
+        # shaft harmonic, phase continuous across files
+        t = k * FILE_SECONDS + np.arange(n_samples) / rate
+        speed = np.interp(t, seconds, speed_seconds)
+        phase = shaft_phase + 2 * np.pi * np.cumsum(SHAFT_HZ_PER_KN * speed) / rate
+        shaft_phase = float(np.mod(phase[-1], 2 * np.pi))
+        amplitude = SHAFT_AMPLITUDE_MS2 * (speed / 10.0) ** 2
+        acceleration += (amplitude * np.sin(phase))[:, None] * shaft_shape
+        acceleration += SENSOR_NOISE_MS2 * sensor_rng.standard_normal(acceleration.shape)
+        for column, rate_per_file in zip(dropout_columns, (2.0, 1.0), strict=True):
+            for _ in range(sensor_rng.poisson(rate_per_file)):
+                length = int(sensor_rng.integers(32, 321))
+                first = int(sensor_rng.integers(0, n_samples - length))
+                acceleration[first : first + length, column] = np.nan
+        if dead_files[0] <= k < dead_files[1]:
+            acceleration[:, dead_column] = np.nan
+        file_start = start + pd.Timedelta(seconds=k * FILE_SECONDS)
+        path = folder / f"acc_{file_start.strftime('%Y%m%dT%H%M%SZ')}.npz"
+        with warnings.catch_warnings():
+            # a dead channel is all-NaN on purpose; the validator's nanmax warns about it
+            warnings.filterwarnings("ignore", "All-NaN slice", RuntimeWarning)
+            write_accelerations(AccelerationRecord(acceleration, rate, file_start, CHANNELS), path)
+        paths.append(path)
+        if progress is not None:
+            progress(k + 1, n_files)
+    return paths
+
+
+def _acceleration_variance(covariance: np.ndarray, frequency_hz: float, damping: float) -> float:
+    """Variance of q'' = -ω² q - 2ζω q' + f for unit force variance (see dynamics)."""
+    omega = 2 * np.pi * frequency_hz
+    c = np.array([-(omega**2), -2 * damping * omega])
+    return float(c @ covariance @ c + 1.0)
