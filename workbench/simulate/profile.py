@@ -108,7 +108,7 @@ def operating_profile(
             if case == "stationary":
                 speed[inside] = 0.0
             elif case == "constant_speed":
-                # ramp up over 5 min from the previous speed is folded into the smoothing
+                # speed changes are smoothed over 3 min below
                 speed[inside] = 10.0
             elif case == "alternating":
                 phase = np.mod(tau, ALTERNATION_PERIOD_S) / ALTERNATION_PERIOD_S
