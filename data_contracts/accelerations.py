@@ -111,8 +111,8 @@ def validate_accelerations(
             problems.append(
                 Violation("acceleration", f"infinite values in channel(s) {', '.join(cols)}")
             )
-        with np.errstate(invalid="ignore"):
-            peak = np.nanmax(np.abs(acceleration), axis=0) if acceleration.size else np.array([])
+        finite = np.where(np.isnan(acceleration), 0.0, np.abs(acceleration))  # dead channels
+        peak = finite.max(axis=0) if acceleration.size else np.array([])
         implausible = np.nonzero(np.isfinite(peak) & (peak > MAX_PLAUSIBLE_ACCELERATION_MS2))[0]
         if len(implausible):
             cols = ", ".join(channels[j] if j < len(channels) else str(j) for j in implausible)
