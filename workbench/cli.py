@@ -91,10 +91,15 @@ def _run_simulate(args: argparse.Namespace) -> int:
 
     if args.hours is not None and args.hours <= 0:
         raise UsageError(f"--hours must be positive, got {args.hours}")
-    result = simulate_voyage(
-        args.out, seed=args.seed, hours=args.hours, accelerations=not args.no_accelerations
-    )
-    print(f"simulated voyage written to {args.out} ({result})")
+    from .demo import describe_voyage
+
+    try:
+        voyage = simulate_voyage(
+            args.out, seed=args.seed, hours=args.hours, accelerations=not args.no_accelerations
+        )
+    except ValueError as error:  # e.g. a voyage shorter than one block
+        raise UsageError(str(error)) from None
+    print(f"simulated voyage written to {args.out}: {describe_voyage(voyage)}")
     return EXIT_OK
 
 
