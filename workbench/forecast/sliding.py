@@ -1,0 +1,804 @@
+"""Sliding-window predictive model of modal frequencies with Kalman blending.
+
+For every tracked mode a stepwise regression of the frequency on the block predictors is
+trained on the last ``train_blocks`` blocks and predicts ahead with 95 % prediction bounds;
+a Kalman filter per mode (:mod:`workbench.forecast.kalman`) blends the prediction with the
+SSI estimate of each block.
+
+* method 1: one training window, one long forward prediction of ``horizon`` blocks;
+* method 2: predict ``horizon`` blocks, Kalman-filter them, slide the window forward by
+  ``horizon`` blocks taking the Kalman estimates as the new training targets, refit, repeat
+  to the end of the data.
+
+Measurement options: A, the block's tracked pole (modal table); B, the pole of the block's
+stabilisation diagram nearest the a-priori estimate inside a gate (an automatic modal
+parameter selection).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections import Counter
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+import pandas as pd
+from scipy import stats as _scipy_stats
+
+from .kalman import ModeKalmanBank, process_variance_for_gain, relaxation_factor
+
+__all__ = ["ForecastResult", "ForecastWarning", "WindowModel", "sliding_forecast"]
+
+#: Default forecast horizon per method. [blocks]
+DEFAULT_HORIZON = {1: 34, 2: 4}
+#: Relative floor on the measurement standard deviation, sqrt(R) >= this x frequency. [-]
+_MIN_RELATIVE_STD = 1e-5
+#: Relative measurement standard deviation assumed when a window has too little data to
+#: estimate the scatter and no earlier estimate exists. [-]
+_DEFAULT_RELATIVE_STD = 5e-3
+
+
+class ForecastWarning(UserWarning):
+    """A forecast went on with a fallback (constant or last good model, predict-only steps)."""
+
+
+@dataclass(frozen=True)
+class WindowModel:
+    """The model used for one mode over one training window.
+
+    Parameters
+    ----------
+    mode : int
+        Mode label.
+    window_start_block, window_end_block : int
+        First and last block of the training window.
+    kind : {"stepwise", "constant", "last_good"}
+        Stepwise fit of this window; constant model (mean of the window's targets);
+        the last good stepwise model of an earlier window, reused.
+    terms : tuple of str
+        Model terms (empty for the constant model).
+    coefficients : dict
+        Term -> estimate on normalised predictors (intercept included as the fit names it).
+    n_train : int
+        Training targets available in the window.
+    rmse_hz : float
+        Residual standard deviation of the fit (constant model: of the targets). [Hz]
+    measurement_variance : float
+        R, scatter of the measurements about the model in the window. [Hz²]
+    process_variance : float
+        Q of the Kalman filter for the blocks this window predicts. [Hz²]
+    normalisation : dict
+        Predictor -> (mean, standard deviation) of the window, used to z-score.
+    warning : str
+        Why a fallback was used ("" when none).
+    """
+
+    mode: int
+    window_start_block: int
+    window_end_block: int
+    kind: Literal["stepwise", "constant", "last_good"]
+    terms: tuple[str, ...]
+    coefficients: Mapping[str, float]
+    n_train: int
+    rmse_hz: float
+    measurement_variance: float
+    process_variance: float
+    normalisation: Mapping[str, tuple[float, float]]
+    warning: str = ""
+
+
+@dataclass(frozen=True)
+class ForecastResult:
+    """Output of :func:`sliding_forecast`.
+
+    Parameters
+    ----------
+    table : DataFrame
+        FORECAST contract table plus ``warning`` (str, "" when none) and, for option B,
+        ``selected_model_order`` (Int64) and ``selected_damping_ratio``.
+    warnings : tuple of str
+        Distinct warnings with their counts, also issued as :class:`ForecastWarning`.
+    models : tuple of WindowModel
+        The model of every mode and training window, in order.
+    """
+
+    table: pd.DataFrame
+    warnings: tuple[str, ...] = ()
+    models: tuple[WindowModel, ...] = field(default=())
+
+
+# --------------------------------------------------------------------------- fitted models
+@dataclass
+class _Model:
+    """A fitted window model ready to predict (internal)."""
+
+    kind: str
+    fit: Any  # stepwise fit or None (constant)
+    columns: tuple[str, ...]  # predictor columns the fit saw
+    mean: np.ndarray  # normalisation of those columns
+    scale: np.ndarray
+    level: float = math.nan  # constant model: mean of targets
+    spread: float = math.nan  # constant model: std of targets
+    n_train: int = 0
+    n_params: int = 1
+    rmse: float = math.nan
+
+    def terms(self) -> tuple[str, ...]:
+        return tuple(getattr(self.fit, "terms", ())) if self.fit is not None else ()
+
+
+def _constant_prediction(
+    level: float, spread: float, n: int, n_rows: int, alpha: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Constant model ȳ ± t s sqrt(1 + 1/n): mean, lower, upper, mean-prediction variance."""
+    mean = np.full(n_rows, level)
+    t = float(_scipy_stats.t.ppf(1 - alpha / 2, max(n - 1, 1)))
+    half = t * spread * math.sqrt(1.0 + 1.0 / max(n, 1))
+    return mean, mean - half, mean + half, np.full(n_rows, spread**2 / max(n, 1))
+
+
+def _predict(
+    model: _Model, rows: np.ndarray, alpha: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Mean, lower, upper (prediction interval) and mean-prediction variance on raw *rows*.
+
+    Rows the model cannot predict (a predictor it uses is NaN) are NaN.
+    """
+    n_rows = rows.shape[0]
+    if model.fit is None:
+        return _constant_prediction(model.level, model.spread, model.n_train, n_rows, alpha)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        z = (rows - model.mean) / model.scale
+    frame = pd.DataFrame(z, columns=list(model.columns))
+    try:
+        out = model.fit.predict(frame, interval="prediction", alpha=alpha)
+        mean = np.asarray(out["mean"], dtype=float)
+        lower = np.asarray(out["lower"], dtype=float)
+        upper = np.asarray(out["upper"], dtype=float)
+    except Exception:  # a fit that cannot predict these rows: fall back per row
+        nan = np.full(n_rows, np.nan)
+        return nan, nan.copy(), nan.copy(), nan.copy()
+    # half width h = t sqrt(s² + se²)  =>  se² = (h / t)² - s²
+    dof = max(model.n_train - model.n_params, 1)
+    t = float(_scipy_stats.t.ppf(1 - alpha / 2, dof))
+    with np.errstate(invalid="ignore"):
+        mean_variance = np.maximum(((upper - lower) / (2 * t)) ** 2 - model.rmse**2, 0.0)
+    return mean, lower, upper, mean_variance
+
+
+# --------------------------------------------------------------------------- main function
+def sliding_forecast(
+    modal: pd.DataFrame,
+    predictors: pd.DataFrame,
+    *,
+    poles: pd.DataFrame | None = None,
+    option: Literal["A", "B"] = "A",
+    method: Literal[1, 2] = 1,
+    train_blocks: int = 20,
+    horizon: int | None = None,
+    start_block: int | None = None,
+    end_block: int | None = None,
+    trust: float | None = 0.65,
+    correction_time_blocks: float = 36.0,
+    gate_sigma: float = 3.0,
+    predictor_columns: Sequence[str] | None = None,
+    stepwise_options: Mapping[str, Any] | None = None,
+    min_train_blocks: int | None = None,
+    gap_warning_blocks: int = 12,
+    modes: Sequence[int] | None = None,
+    alpha: float = 0.05,
+) -> ForecastResult:
+    """Sliding stepwise-regression forecast of each mode's frequency, Kalman-blended with SSI.
+
+    Parameters
+    ----------
+    modal : DataFrame
+        Tracked modal table (MODAL contract): block, mode, frequency_hz. Training targets
+        of the first window, and the measurements of option A.
+    predictors : DataFrame
+        Block predictors (PREDICTORS contract; extra numeric columns allowed): block,
+        block_start and predictor columns. Its blocks are the forecast's block grid
+        (consecutive rows are consecutive Kalman steps).
+    poles : DataFrame, optional
+        Stabilisation diagrams (POLES contract: block, model_order, frequency_hz,
+        damping_ratio, stable); required for option B.
+    option : {"A", "B"}
+        Measurement: A, the tracked pole of the block; B, the pole of the block's
+        stabilisation diagram nearest the a-priori estimate inside the gate
+        ``gate_sigma * sqrt(P⁻ + R)`` (stable poles preferred; none inside: predict-only).
+    method : {1, 2}
+        1: one training window, one forward prediction of *horizon* blocks. 2: predict
+        *horizon* blocks, Kalman-filter them, slide the window by *horizon* blocks with the
+        Kalman estimates as new training targets, refit, repeat to *end_block*.
+    train_blocks : int
+        Training window length N. [blocks]
+    horizon : int, optional
+        Blocks predicted per window; default 34 (method 1) or 4 (method 2). [blocks]
+    start_block : int, optional
+        First block of the first training window; default the first block of *predictors*.
+    end_block : int, optional
+        Last block forecast (method 2); default the last block of *predictors*.
+    trust : float or None
+        Steady-state Kalman gain, the weight on the SSI estimate (0.65: 65 % SSI, 35 %
+        model). Q follows from R (:func:`~workbench.forecast.kalman.process_variance_for_gain`).
+        ``None``: data-driven, Q = s_m² (1 - φ²) with s_m² the model's mean-prediction
+        variance over the window's forecast blocks, i.e. the correction's stationary
+        variance equals the model's own uncertainty.
+    correction_time_blocks : float
+        Time constant τ of the Kalman correction, φ = exp(-1/τ); ``inf`` gives the random
+        walk x⁻_k = x⁺_{k-1} + (m_k - m_{k-1}). Default 36 blocks (3 h of 5-min steps).
+        [blocks]
+    gate_sigma : float
+        Option B gate in innovation standard deviations.
+    predictor_columns : sequence of str, optional
+        Candidate predictors; default every numeric column of *predictors* except
+        ``block``.
+    stepwise_options : mapping, optional
+        Keyword arguments for :func:`workbench.stats.stepwise` (``upper``, ``p_enter``...).
+    min_train_blocks : int, optional
+        Fewest valid targets for a stepwise fit (else fallback); default
+        ``max(5, train_blocks // 2)``. A predictor with fewer valid values in the window is
+        left out of that window's candidates.
+    gap_warning_blocks : int
+        Consecutive blocks without a measurement after which rows carry a warning.
+    modes : sequence of int, optional
+        Modes to forecast; default every mode of *modal*.
+    alpha : float
+        1 - confidence of the prediction interval (0.05: 95 %).
+
+    Returns
+    -------
+    ForecastResult
+
+    Warns
+    -----
+    ForecastWarning
+        Once per kind of fallback, with counts (also in the ``warning`` column and
+        :attr:`ForecastResult.warnings`).
+
+    Notes
+    -----
+    *No look-ahead*: each window's predictors are z-scored with that window's mean and
+    standard deviation only, and a window model sees only its own blocks.
+
+    *Kalman blending* per mode (see :mod:`workbench.forecast.kalman`): state = frequency;
+    a-priori x⁻_k = m_k + φ (x⁺_{k-1} - m_{k-1}) with m the current window model's
+    prediction (F = φ, B u = m_k - φ m_{k-1}); P⁻ = φ² P⁺ + Q; update with the SSI estimate
+    z_k (H = 1) in Joseph form. R is the scatter of the block measurements about the window
+    model (residual variance, dof-corrected); Q from *trust* as above. P starts at the
+    steady-state prior of the first window's Q and R. The filter runs through the first
+    training window (phase "train", with the in-sample model) and every forecast block.
+
+    *Fallbacks* (never an exception for data problems): a window with fewer than
+    *min_train_blocks* targets or a failing fit reuses the last good model, else a
+    constant model (window mean ± t s sqrt(1 + 1/n)); constant or mostly-NaN predictors are
+    dropped from the window's candidates; a block whose needed predictor is NaN is
+    predicted by the constant model of the window; a block without a measurement is a
+    predict-only step.
+    """
+    if option not in ("A", "B"):
+        raise ValueError(f"option={option!r} must be 'A' or 'B'")
+    if method not in (1, 2):
+        raise ValueError(f"method={method!r} must be 1 or 2")
+    if option == "B" and poles is None:
+        raise ValueError("option='B' needs poles (the stabilisation diagrams)")
+    train_blocks = int(train_blocks)
+    if train_blocks < 2:
+        raise ValueError(f"train_blocks={train_blocks} must be >= 2")
+    horizon = DEFAULT_HORIZON[method] if horizon is None else int(horizon)
+    if horizon < 1:
+        raise ValueError(f"horizon={horizon} must be >= 1")
+    if trust is not None and not 0.0 < float(trust) < 1.0:
+        raise ValueError(f"trust={trust!r} must be in (0, 1) or None")
+    phi = relaxation_factor(correction_time_blocks)
+    if trust is None and phi == 1.0:
+        raise ValueError("trust=None needs a finite correction_time_blocks")
+    if not gate_sigma > 0:
+        raise ValueError(f"gate_sigma={gate_sigma!r} must be > 0")
+    if not 0.0 < alpha < 1.0:
+        raise ValueError(f"alpha={alpha!r} must be in (0, 1)")
+    min_train = max(5, train_blocks // 2) if min_train_blocks is None else int(min_train_blocks)
+    if not 2 <= min_train <= train_blocks:
+        raise ValueError(f"min_train_blocks={min_train} must be in [2, train_blocks]")
+    for name, frame, needed in (
+        ("modal", modal, ("block", "mode", "frequency_hz")),
+        ("predictors", predictors, ("block", "block_start")),
+    ):
+        missing = [c for c in needed if c not in frame.columns]
+        if missing:
+            raise ValueError(f"{name} lacks column(s) {missing}")
+    from workbench.stats import stepwise  # imported here: the stats stage is optional
+
+    options = dict(stepwise_options or {})
+    notes: Counter[str] = Counter()
+
+    # ---- block grid and predictor matrix
+    grid = predictors.sort_values("block").drop_duplicates("block", keep="last")
+    blocks = grid["block"].to_numpy(dtype=np.int64)
+    block_start = pd.to_datetime(grid["block_start"], utc=True).to_numpy()
+    if predictor_columns is None:
+        predictor_columns = [
+            c
+            for c in grid.columns
+            if c != "block"
+            and pd.api.types.is_numeric_dtype(grid[c].dtype)
+            and not pd.api.types.is_bool_dtype(grid[c].dtype)
+        ]
+    else:
+        missing = [c for c in predictor_columns if c not in grid.columns]
+        if missing:
+            raise ValueError(f"predictor_columns {missing} are not columns of predictors")
+    columns = list(predictor_columns)
+    X_all = (
+        grid[columns].to_numpy(dtype=float, na_value=np.nan)
+        if columns
+        else np.empty((len(grid), 0))
+    )
+    n_blocks = len(blocks)
+
+    # ---- modes, tracked frequencies on the grid
+    mode_labels = (
+        np.array(sorted(int(m) for m in modal["mode"].dropna().unique()))
+        if modes is None
+        else np.asarray(modes, dtype=np.int64)
+    )
+    n_modes = len(mode_labels)
+    if n_modes == 0:
+        raise ValueError("modal has no modes to forecast")
+    tracked = np.full((n_blocks, n_modes), np.nan)
+    rows = np.searchsorted(blocks, modal["block"].to_numpy(dtype=np.int64))
+    rows_ok = (rows < n_blocks) & (
+        blocks[np.minimum(rows, n_blocks - 1)] == modal["block"].to_numpy()
+    )
+    mode_index = {int(m): j for j, m in enumerate(mode_labels)}
+    cols = np.array([mode_index.get(int(m), -1) for m in modal["mode"].to_numpy()])
+    keep = rows_ok & (cols >= 0)
+    tracked[rows[keep], cols[keep]] = modal["frequency_hz"].to_numpy(dtype=float)[keep]
+
+    # ---- poles per grid row (option B)
+    pole_slices = None
+    if option == "B":
+        needed = ("block", "model_order", "frequency_hz", "damping_ratio", "stable")
+        missing = [c for c in needed if c not in poles.columns]
+        if missing:
+            raise ValueError(f"poles lacks column(s) {missing}")
+        order = np.argsort(poles["block"].to_numpy(dtype=np.int64), kind="stable")
+        pole_block = poles["block"].to_numpy(dtype=np.int64)[order]
+        pole_frequency = poles["frequency_hz"].to_numpy(dtype=float)[order]
+        pole_order = poles["model_order"].to_numpy(dtype=float)[order]
+        pole_damping = poles["damping_ratio"].to_numpy(dtype=float)[order]
+        pole_stable = poles["stable"].to_numpy(dtype=bool, na_value=False)[order]
+        lo = np.searchsorted(pole_block, blocks, side="left")
+        hi = np.searchsorted(pole_block, blocks, side="right")
+        pole_slices = (lo, hi)
+
+    # ---- first window
+    if start_block is None:
+        first = 0
+    else:
+        first = int(np.searchsorted(blocks, int(start_block)))
+        if first >= n_blocks or blocks[first] != int(start_block):
+            raise ValueError(f"start_block={start_block} is not a block of predictors")
+    last = n_blocks - 1
+    if end_block is not None:
+        last = int(np.searchsorted(blocks, int(end_block), side="right")) - 1
+    if last - first + 1 < train_blocks + 1:
+        raise ValueError(
+            f"train_blocks={train_blocks} needs at least {train_blocks + 1} blocks from "
+            f"start_block to end_block, got {max(last - first + 1, 0)}"
+        )
+
+    # ---- outputs on the grid (row index) x mode
+    shape = (n_blocks, n_modes)
+    out_phase = np.zeros(shape, dtype=np.int8)  # 0 none, 1 train, 2 forecast
+    out_ssi = np.full(shape, np.nan)
+    out_model = np.full(shape, np.nan)
+    out_lower = np.full(shape, np.nan)
+    out_upper = np.full(shape, np.nan)
+    out_kalman = np.full(shape, np.nan)
+    out_std = np.full(shape, np.nan)
+    out_w0 = np.zeros(shape, dtype=np.int64)
+    out_w1 = np.zeros(shape, dtype=np.int64)
+    out_order = np.full(shape, np.nan)
+    out_damping = np.full(shape, np.nan)
+    out_warning: dict[tuple[int, int], list[str]] = {}
+
+    def warn_rows(row_slice: range | list[int], j: int, message: str, kind: str) -> None:
+        notes[kind] += 1
+        for i in row_slice:
+            out_warning.setdefault((i, j), []).append(message)
+
+    targets = tracked.copy()  # training targets: tracked, then Kalman estimates (method 2)
+    measured = np.full(shape, np.nan)  # measurement used in each block (for R)
+    measured[first : first + train_blocks] = tracked[first : first + train_blocks]
+    bank = ModeKalmanBank(n_modes, transition=phi)
+    last_good: list[_Model | None] = [None] * n_modes
+    last_r = np.full(n_modes, np.nan)
+    previous_model_value = np.full(n_modes, np.nan)  # m_{k-1} under the current model
+    gap = np.zeros(n_modes, dtype=np.int64)
+    models_out: list[WindowModel] = []
+    started = np.zeros(n_modes, dtype=bool)
+
+    window_start = first
+    while True:
+        w0, w1 = window_start, window_start + train_blocks  # training rows [w0, w1)
+        f0 = w1
+        f1 = min(f0 + horizon, last + 1) if method == 2 else min(f0 + horizon, n_blocks)
+        if f0 >= f1:
+            break
+        is_first = w0 == first
+        X_train = X_all[w0:w1]
+        # ---- candidate predictors of this window (enough valid values, not constant)
+        use = []
+        for c, name in enumerate(columns):
+            values = X_train[:, c]
+            valid = np.isfinite(values)
+            if valid.sum() < min_train:
+                notes[f"predictor '{name}' left out: fewer than {min_train} valid values"] += 1
+                continue
+            v = values[valid]
+            if np.ptp(v) <= 1e-12 * max(1.0, float(np.abs(v).max())):
+                notes[f"predictor '{name}' left out: constant in the window"] += 1
+                continue
+            use.append(c)
+        use_names = tuple(columns[c] for c in use)
+        Xw = X_train[:, use]
+        mean = np.nanmean(Xw, axis=0) if use else np.empty(0)
+        scale = np.nanstd(Xw, axis=0, ddof=1) if use else np.empty(0)
+        z_train = pd.DataFrame((Xw - mean) / scale, columns=list(use_names))
+        pred_rows = np.arange(w0, f1)  # training rows then forecast rows
+        window_models: list[_Model | None] = []
+        for j in range(n_modes):
+            y = targets[w0:w1, j]
+            valid_y = np.isfinite(y)
+            n_valid = int(valid_y.sum())
+            model: _Model | None = None
+            reason = ""
+            if n_valid >= min_train and use:
+                try:
+                    with warnings.catch_warnings():
+                        warnings.simplefilter("ignore")
+                        fit = stepwise(z_train, y, **options)
+                    rmse = float(fit.rmse)
+                    n_params = len(getattr(fit, "coefficients", ())) or 1
+                    if not np.isfinite(rmse):
+                        raise ValueError("non-finite rmse")
+                    model = _Model(
+                        "stepwise",
+                        fit,
+                        use_names,
+                        mean,
+                        scale,
+                        n_train=n_valid,
+                        n_params=n_params,
+                        rmse=rmse,
+                    )
+                    last_good[j] = model
+                except Exception as error:  # rank deficiency, singular fits...
+                    reason = f"stepwise fit failed ({type(error).__name__})"
+            elif n_valid < min_train:
+                reason = f"too few valid blocks ({n_valid} < {min_train})"
+            else:
+                reason = "no usable predictor"
+            if model is None and n_valid >= min_train and not use:
+                model = None  # constant model below is the right model here
+            elif model is None and last_good[j] is not None:
+                model = last_good[j]
+                model = _Model(**{**model.__dict__, "kind": "last_good"})
+                reason += ": last good model"
+            if model is None:
+                if n_valid >= 1:
+                    level = float(np.mean(y[valid_y]))
+                    spread = float(np.std(y[valid_y], ddof=1)) if n_valid >= 2 else math.nan
+                elif started[j]:
+                    level, spread = float(bank.state[j]), math.nan
+                    n_valid = 1
+                else:
+                    level = math.nan
+                if not np.isfinite(level):
+                    warn_rows([], j, "", f"mode {mode_labels[j]}: no data yet, no forecast")
+                    window_models.append(None)
+                    continue
+                if not np.isfinite(spread) or spread <= 0:
+                    spread = (
+                        math.sqrt(last_r[j])
+                        if np.isfinite(last_r[j])
+                        else _DEFAULT_RELATIVE_STD * abs(level)
+                    )
+                model = _Model(
+                    "constant",
+                    None,
+                    (),
+                    np.empty(0),
+                    np.empty(0),
+                    level=level,
+                    spread=spread,
+                    n_train=max(n_valid, 1),
+                    n_params=1,
+                    rmse=spread,
+                )
+                if reason:
+                    reason += ": constant model"
+            window_models.append(model)
+
+            # ---- predictions on training + forecast rows
+            rows_X = X_all[pred_rows][:, [columns.index(c) for c in model.columns]]
+            mean_p, lower_p, upper_p, mvar = _predict(model, rows_X, alpha)
+            bad = ~np.isfinite(mean_p)
+            if bad.any():
+                # needed predictor NaN in these blocks: constant model of the window
+                if n_valid >= 1:
+                    level = float(np.mean(y[valid_y]))
+                    spread = float(np.std(y[valid_y], ddof=1)) if n_valid >= 2 else model.rmse
+                else:
+                    level, spread = float(np.nanmean(mean_p)), model.rmse
+                cm, cl, cu, cv = _constant_prediction(
+                    level,
+                    spread if spread > 0 else model.rmse,
+                    max(n_valid, 1),
+                    int(bad.sum()),
+                    alpha,
+                )
+                mean_p[bad], lower_p[bad], upper_p[bad], mvar[bad] = cm, cl, cu, cv
+                bad_rows = pred_rows[bad]
+                shown = bad_rows[bad_rows >= (w0 if is_first else f0)]
+                if shown.size:
+                    warn_rows(
+                        shown.tolist(),
+                        j,
+                        "predictor NaN: constant-model prediction",
+                        "blocks predicted by the constant model (a needed predictor is NaN)",
+                    )
+            n_tr = w1 - w0
+            m_train = mean_p[:n_tr]
+            # ---- R: scatter of the measurements about the model in the window
+            resid = measured[w0:w1, j] - m_train
+            resid = resid[np.isfinite(resid)]
+            dof = resid.size - model.n_params
+            level_hz = float(np.nanmean(np.abs(mean_p)))
+            if dof >= 2:
+                r = float(resid @ resid) / dof
+            elif np.isfinite(last_r[j]):
+                r = float(last_r[j])
+            elif np.isfinite(model.rmse) and model.rmse > 0:
+                r = model.rmse**2
+            else:
+                r = (_DEFAULT_RELATIVE_STD * level_hz) ** 2
+            r = max(r, (_MIN_RELATIVE_STD * level_hz) ** 2)
+            last_r[j] = r
+            # ---- Q: from trust, or the model's own mean-prediction variance
+            if trust is not None:
+                q = process_variance_for_gain(float(trust), r, transition=phi)
+            else:
+                s2 = float(np.nanmean(mvar[n_tr:])) if np.isfinite(mvar[n_tr:]).any() else r
+                q = max(s2, (_MIN_RELATIVE_STD * level_hz) ** 2) * (1.0 - phi * phi)
+            bank.process_variance[j] = q
+            bank.measurement_variance[j] = r
+            if reason:
+                shown_rows = range(w0 if is_first else f0, f1)
+                warn_rows(
+                    shown_rows,
+                    j,
+                    f"window {blocks[w0]}-{blocks[w1 - 1]}: {reason}",
+                    f"windows with a fallback model ({reason.split(' (')[0]})",
+                )
+            models_out.append(
+                WindowModel(
+                    mode=int(mode_labels[j]),
+                    window_start_block=int(blocks[w0]),
+                    window_end_block=int(blocks[w1 - 1]),
+                    kind=model.kind,  # type: ignore[arg-type]
+                    terms=model.terms(),
+                    coefficients=_coefficients(model),
+                    n_train=n_valid,
+                    rmse_hz=float(model.rmse),
+                    measurement_variance=r,
+                    process_variance=q,
+                    normalisation={
+                        c: (float(a), float(b))
+                        for c, a, b in zip(model.columns, model.mean, model.scale, strict=True)
+                    },
+                    warning=reason,
+                )
+            )
+            # ---- store the model track of the rows this window reports
+            report = slice(0, None) if is_first else slice(n_tr, None)
+            rows_rep = pred_rows[report]
+            out_model[rows_rep, j] = mean_p[report]
+            out_lower[rows_rep, j] = lower_p[report]
+            out_upper[rows_rep, j] = upper_p[report]
+            out_w0[rows_rep, j] = blocks[w0]
+            out_w1[rows_rep, j] = blocks[w1 - 1]
+            out_phase[rows_rep, j] = np.where(rows_rep < w1, 1, 2)
+            # m_{k-1} under this window's model for the first reported row's predict step
+            previous_model_value[j] = mean_p[n_tr - 1] if not is_first else math.nan
+
+        # ---- Kalman pass over the reported rows (all modes together)
+        k_first = w0 if is_first else f0
+        for i in range(k_first, f1):
+            model_now = out_model[i]
+            have = np.isfinite(model_now)
+            # B u = m_k - φ m_{k-1}; a mode without m_{k-1} (no model in the last window)
+            # restarts its correction from zero: B u = m_k - φ x⁺_{k-1}, so x⁻ = m_k
+            control = np.where(
+                np.isfinite(previous_model_value),
+                model_now - phi * previous_model_value,
+                model_now - phi * bank.state,
+            )
+            stepping = have & started & np.isfinite(control)
+            if stepping.any():
+                saved_x, saved_p = bank.state.copy(), bank.variance.copy()
+                bank.predict(np.where(stepping, control, 0.0))
+                # modes not stepping keep their state
+                bank.state[~stepping] = saved_x[~stepping]
+                bank.variance[~stepping] = saved_p[~stepping]
+            fresh = have & ~started
+            if fresh.any():
+                idx = np.flatnonzero(fresh)
+                bank.initialise(idx, model_now[idx])
+                started[idx] = True
+            prior_x, prior_p = bank.state.copy(), bank.variance.copy()
+            if option == "A":
+                z = tracked[i].copy()
+            else:
+                z = _select_poles(
+                    i,
+                    pole_slices,
+                    pole_frequency,
+                    pole_order,
+                    pole_damping,
+                    pole_stable,
+                    prior_x,
+                    prior_p + bank.measurement_variance,
+                    gate_sigma,
+                    out_order,
+                    out_damping,
+                )
+            z[~have] = np.nan
+            bank.update(z)
+            measured[i] = z
+            out_ssi[i] = z
+            out_kalman[i] = np.where(have, bank.state, np.nan)
+            out_std[i] = np.where(have, np.sqrt(np.maximum(bank.variance, 0.0)), np.nan)
+            has_z = np.isfinite(z)
+            gap = np.where(has_z, 0, gap + have)
+            for j in np.flatnonzero(have & (gap >= gap_warning_blocks)):
+                warn_rows(
+                    [i],
+                    j,
+                    f"no SSI estimate for {gap[j]} blocks: predict-only",
+                    "rows in a long stretch without SSI estimates (predict-only)",
+                )
+            previous_model_value = np.where(have, model_now, previous_model_value)
+            del prior_x
+        if method == 2:
+            targets[f0:f1] = out_kalman[f0:f1]
+        if method == 1 or f1 > last:
+            break
+        window_start += horizon
+
+    table = _assemble(
+        blocks,
+        block_start,
+        mode_labels,
+        option,
+        out_phase,
+        out_ssi,
+        out_model,
+        out_lower,
+        out_upper,
+        out_kalman,
+        out_std,
+        out_w0,
+        out_w1,
+        out_order,
+        out_damping,
+        out_warning,
+    )
+    messages = tuple(f"{kind} (x{count})" for kind, count in notes.items())
+    for message in messages:
+        warnings.warn(message, ForecastWarning, stacklevel=2)
+    return ForecastResult(table=table, warnings=messages, models=tuple(models_out))
+
+
+def _coefficients(model: _Model) -> dict[str, float]:
+    if model.fit is None:
+        return {"const": float(model.level)}
+    table = getattr(model.fit, "coefficients", None)
+    if isinstance(table, pd.DataFrame) and "estimate" in table.columns:
+        return {str(k): float(v) for k, v in table["estimate"].items()}
+    return {}
+
+
+def _select_poles(
+    i,
+    pole_slices,
+    frequency,
+    order,
+    damping,
+    stable,
+    prior,
+    innovation_variance,
+    gate_sigma,
+    out_order,
+    out_damping,
+) -> np.ndarray:
+    """Option B: nearest pole to each mode's a-priori estimate inside its gate."""
+    n_modes = prior.size
+    z = np.full(n_modes, np.nan)
+    lo, hi = pole_slices[0][i], pole_slices[1][i]
+    if hi <= lo:
+        return z
+    f = frequency[lo:hi]
+    distance = np.abs(f[:, None] - prior[None, :])  # (n_poles, n_modes)
+    with np.errstate(invalid="ignore"):
+        inside = distance <= gate_sigma * np.sqrt(innovation_variance)[None, :]
+    st = stable[lo:hi]
+    for j in range(n_modes):
+        candidates = inside[:, j] & st
+        if not candidates.any():
+            candidates = inside[:, j]
+            if not candidates.any():
+                continue
+        pick = int(np.flatnonzero(candidates)[np.argmin(distance[candidates, j])])
+        z[j] = f[pick]
+        out_order[i, j] = order[lo + pick]
+        out_damping[i, j] = damping[lo + pick]
+    return z
+
+
+def _assemble(
+    blocks,
+    block_start,
+    mode_labels,
+    option,
+    phase,
+    ssi,
+    model,
+    lower,
+    upper,
+    kalman,
+    std,
+    w0,
+    w1,
+    order,
+    damping,
+    warning_map,
+) -> pd.DataFrame:
+    rows, cols = np.nonzero(phase)
+    n = rows.size
+    warning_text = np.full(n, "", dtype=object)
+    if warning_map:
+        position = {(int(r), int(c)): p for p, (r, c) in enumerate(zip(rows, cols, strict=True))}
+        for key, messages in warning_map.items():
+            p = position.get(key)
+            if p is not None:
+                warning_text[p] = "; ".join(dict.fromkeys(m for m in messages if m))
+    frame = pd.DataFrame(
+        {
+            "block": blocks[rows],
+            "block_start": pd.to_datetime(block_start[rows], utc=True),
+            "mode": mode_labels[cols].astype(np.int64),
+            "phase": np.where(phase[rows, cols] == 1, "train", "forecast"),
+            "ssi_frequency_hz": ssi[rows, cols],
+            "model_frequency_hz": model[rows, cols],
+            "model_lower_hz": lower[rows, cols],
+            "model_upper_hz": upper[rows, cols],
+            "kalman_frequency_hz": kalman[rows, cols],
+            "kalman_std_hz": std[rows, cols],
+            "option": option,
+            "window_start_block": w0[rows, cols],
+            "window_end_block": w1[rows, cols],
+        }
+    )
+    if option == "B":
+        frame["selected_model_order"] = pd.array(
+            np.where(np.isfinite(order[rows, cols]), order[rows, cols], np.nan)
+        ).astype("Int64")
+        frame["selected_damping_ratio"] = damping[rows, cols]
+    frame["warning"] = pd.array(warning_text.tolist(), dtype="string")
+    frame = frame.sort_values(["mode", "block"], kind="stable").reset_index(drop=True)
+    return frame
