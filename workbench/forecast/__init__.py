@@ -1,5 +1,21 @@
-"""Sliding-window regression forecasts of modal frequencies and Kalman blending with SSI."""
+"""Sliding-window regression forecasts of modal frequencies and Kalman blending with SSI.
 
+* :func:`sliding_forecast` - stepwise model per mode on a sliding training window,
+  methods 1 (one long forecast) and 2 (refit every *horizon* blocks on Kalman estimates),
+  measurement options A (tracked pole) and B (nearest stabilisation-diagram pole in a gate);
+* :mod:`~workbench.forecast.kalman` - scalar Kalman functions, steady state, trust -> Q;
+* :func:`evaluate_against_truth` - cumulative absolute errors and improvements;
+* :mod:`~workbench.forecast.experiment` - the 5-DOF temperature experiment.
+"""
+
+from .evaluate import evaluate_against_truth
+from .experiment import (
+    ExperimentData,
+    ExperimentResult,
+    chain_natural_frequencies,
+    run_temperature_experiment,
+    simulate_temperature_experiment,
+)
 from .kalman import (
     ModeKalmanBank,
     ScalarKalmanFilter,
@@ -11,15 +27,26 @@ from .kalman import (
     scalar_kalman_update,
     steady_state,
 )
+from .sliding import ForecastResult, ForecastWarning, WindowModel, sliding_forecast
 
 __all__ = [
+    "ExperimentData",
+    "ExperimentResult",
+    "ForecastResult",
+    "ForecastWarning",
     "ModeKalmanBank",
     "ScalarKalmanFilter",
     "ScalarUpdate",
     "SteadyState",
+    "WindowModel",
+    "chain_natural_frequencies",
+    "evaluate_against_truth",
     "process_variance_for_gain",
     "relaxation_factor",
+    "run_temperature_experiment",
     "scalar_kalman_predict",
     "scalar_kalman_update",
+    "simulate_temperature_experiment",
+    "sliding_forecast",
     "steady_state",
 ]

@@ -155,9 +155,9 @@ def _predict(
     frame = pd.DataFrame(z, columns=list(model.columns))
     try:
         out = model.fit.predict(frame, interval="prediction", alpha=alpha)
-        mean = np.asarray(out["mean"], dtype=float)
-        lower = np.asarray(out["lower"], dtype=float)
-        upper = np.asarray(out["upper"], dtype=float)
+        mean = np.array(out["mean"], dtype=float)
+        lower = np.array(out["lower"], dtype=float)
+        upper = np.array(out["upper"], dtype=float)
     except Exception:  # a fit that cannot predict these rows: fall back per row
         nan = np.full(n_rows, np.nan)
         return nan, nan.copy(), nan.copy(), nan.copy()
@@ -379,8 +379,8 @@ def sliding_forecast(
     if start_block is None:
         first = 0
     else:
-        first = int(np.searchsorted(blocks, int(start_block)))
-        if first >= n_blocks or blocks[first] != int(start_block):
+        first = int(np.searchsorted(blocks, start_block))
+        if first >= n_blocks or blocks[first] != start_block:
             raise ValueError(f"start_block={start_block} is not a block of predictors")
     last = n_blocks - 1
     if end_block is not None:
