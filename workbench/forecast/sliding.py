@@ -17,6 +17,7 @@ parameter selection).
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from collections import Counter
@@ -130,29 +131,37 @@ class _Model:
         return tuple(getattr(self.fit, "terms", ())) if self.fit is not None else ()
 
 
+@functools.lru_cache(maxsize=4096)
+def _t_quantile(alpha: float, dof: int) -> float:
+    """Two-sided Student-t quantile t_{1-α/2, dof} (cached: called per window and mode)."""
+    return float(_scipy_stats.t.ppf(1 - alpha / 2, dof))
+
+
 def _constant_prediction(
     level: float, spread: float, n: int, n_rows: int, alpha: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Constant model ȳ ± t s sqrt(1 + 1/n): mean, lower, upper, mean-prediction variance."""
     mean = np.full(n_rows, level)
-    t = float(_scipy_stats.t.ppf(1 - alpha / 2, max(n - 1, 1)))
+    t = _t_quantile(alpha, max(n - 1, 1))
     half = t * spread * math.sqrt(1.0 + 1.0 / max(n, 1))
     return mean, mean - half, mean + half, np.full(n_rows, spread**2 / max(n, 1))
 
 
 def _predict(
-    model: _Model, rows: np.ndarray, alpha: float
+    model: _Model, rows: np.ndarray, alpha: float, frame: pd.DataFrame | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Mean, lower, upper (prediction interval) and mean-prediction variance on raw *rows*.
 
+    *frame*, when given, holds *rows* already z-scored with the model's normalisation.
     Rows the model cannot predict (a predictor it uses is NaN) are NaN.
     """
     n_rows = rows.shape[0]
     if model.fit is None:
         return _constant_prediction(model.level, model.spread, model.n_train, n_rows, alpha)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        z = (rows - model.mean) / model.scale
-    frame = pd.DataFrame(z, columns=list(model.columns))
+    if frame is None:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            z = (rows - model.mean) / model.scale
+        frame = pd.DataFrame(z, columns=list(model.columns))
     try:
         out = model.fit.predict(frame, interval="prediction", alpha=alpha)
         mean = np.array(out["mean"], dtype=float)
@@ -162,8 +171,7 @@ def _predict(
         nan = np.full(n_rows, np.nan)
         return nan, nan.copy(), nan.copy(), nan.copy()
     # half width h = t sqrt(s² + se²)  =>  se² = (h / t)² - s²
-    dof = max(model.n_train - model.n_params, 1)
-    t = float(_scipy_stats.t.ppf(1 - alpha / 2, dof))
+    t = _t_quantile(alpha, max(model.n_train - model.n_params, 1))
     with np.errstate(invalid="ignore"):
         mean_variance = np.maximum(((upper - lower) / (2 * t)) ** 2 - model.rmse**2, 0.0)
     return mean, lower, upper, mean_variance
@@ -451,6 +459,7 @@ def sliding_forecast(
         z_train = pd.DataFrame((Xw - mean) / scale, columns=list(use_names))
         pred_rows = np.arange(w0, f1)  # training rows then forecast rows
         window_models: list[_Model | None] = []
+        window_frame: pd.DataFrame | None = None  # z-scored rows [w0, f1), built once
         for j in range(n_modes):
             y = targets[w0:w1, j]
             valid_y = np.isfinite(y)
@@ -525,8 +534,16 @@ def sliding_forecast(
             window_models.append(model)
 
             # ---- predictions on training + forecast rows
-            rows_X = X_all[pred_rows][:, [columns.index(c) for c in model.columns]]
-            mean_p, lower_p, upper_p, mvar = _predict(model, rows_X, alpha)
+            if model.kind == "stepwise":  # this window's normalisation: shared frame
+                if window_frame is None:
+                    with np.errstate(invalid="ignore", divide="ignore"):
+                        z_rows = (X_all[w0:f1][:, use] - mean) / scale
+                    window_frame = pd.DataFrame(z_rows, columns=list(use_names))
+                rows_X = X_all[w0:f1][:, use]
+                mean_p, lower_p, upper_p, mvar = _predict(model, rows_X, alpha, window_frame)
+            else:
+                rows_X = X_all[w0:f1][:, [columns.index(c) for c in model.columns]]
+                mean_p, lower_p, upper_p, mvar = _predict(model, rows_X, alpha)
             bad = ~np.isfinite(mean_p)
             if bad.any():
                 # needed predictor NaN in these blocks: constant model of the window
@@ -709,7 +726,9 @@ def _coefficients(model: _Model) -> dict[str, float]:
         return {"const": float(model.level)}
     table = getattr(model.fit, "coefficients", None)
     if isinstance(table, pd.DataFrame) and "estimate" in table.columns:
-        return {str(k): float(v) for k, v in table["estimate"].items()}
+        names = table.index.tolist()
+        values = table["estimate"].to_numpy(dtype=float).tolist()
+        return dict(zip(map(str, names), values, strict=True))
     return {}
 
 
