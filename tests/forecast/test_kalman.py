@@ -156,3 +156,15 @@ def test_bank_equals_independent_scalar_filters():
         assert np.allclose(bank.state, [kf.state for kf in filters], rtol=0, atol=1e-12)
         assert np.allclose(bank.variance, [kf.variance for kf in filters], rtol=1e-12)
         assert np.all(bank.variance > 0)
+
+
+def test_bank_mode_not_started_does_not_leak_nan():
+    bank = ModeKalmanBank(3, transition=0.9)
+    bank.set_noise(np.full(3, 1e-4), np.full(3, 1e-3))
+    bank.initialise(np.array([0, 2]), np.array([3.0, 7.0]))
+    x, p = bank.predict(np.array([0.1, 0.2, 0.3]))
+    assert np.isnan(x[1]) and np.isnan(p[1])
+    assert x[0] == pytest.approx(0.9 * 3.0 + 0.1) and x[2] == pytest.approx(0.9 * 7.0 + 0.3)
+    bank.update(np.array([3.0, 5.0, np.nan]))
+    assert np.isfinite(bank.state[[0, 2]]).all() and np.isnan(bank.state[1])
+    assert np.all(bank.variance[[0, 2]] > 0)

@@ -433,20 +433,33 @@ class ModeKalmanBank:
                 self.process_variance[j], self.measurement_variance[j], transition=self.transition
             ).prior_variance
 
-    def predict(self, control: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Predict all modes; returns copies of x⁻ and the diagonal of P⁻.
+    def _active(self, active: np.ndarray | None) -> np.ndarray:
+        ok = np.isfinite(self.state) & np.isfinite(self.variance)
+        return ok if active is None else ok & np.asarray(active, dtype=bool)
+
+    def predict(
+        self, control: np.ndarray, active: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Predict the *active* modes; returns copies of x⁻ and the diagonal of P⁻.
 
         Parameters
         ----------
         control : ndarray, shape (n_modes,)
             B u = m_k - φ m_{k-1} per mode. [Hz]
+        active : ndarray of bool, optional
+            Modes to step (default all started modes); the others keep their state.
         """
-        P = np.diag(self.variance)
-        Q = np.diag(self.process_variance)
-        # x = Fx + Bu ; P = FPF' + Q
-        x, P = _filterpy_predict(self.state, P, F=self._F, Q=Q, u=control, B=self._identity)
-        self.state = np.asarray(x, dtype=float)
-        self.variance = np.diag(P).copy()
+        step = self._active(active) & np.isfinite(control)
+        if step.any():
+            # zeros stand in for inactive modes (NaN x 0 would leak through the products)
+            x0 = np.where(step, self.state, 0.0)
+            P = np.diag(np.where(step, self.variance, 0.0))
+            Q = np.diag(np.where(step, self.process_variance, 0.0))
+            u = np.where(step, control, 0.0)
+            # x = Fx + Bu ; P = FPF' + Q
+            x, P = _filterpy_predict(x0, P, F=self._F, Q=Q, u=u, B=self._identity)
+            self.state = np.where(step, np.asarray(x, dtype=float), self.state)
+            self.variance = np.where(step, np.diag(P), self.variance)
         return self.state.copy(), self.variance.copy()
 
     def update(self, measurement: np.ndarray) -> np.ndarray:
@@ -458,20 +471,24 @@ class ModeKalmanBank:
             Gain K applied to each mode (0 where not measured).
         """
         z = np.asarray(measurement, dtype=float)
-        measured = np.flatnonzero(np.isfinite(z) & np.isfinite(self.state))
+        ok = self._active(None)
+        mask = np.isfinite(z) & ok
+        measured = np.flatnonzero(mask)
         gain = np.zeros(self.n_modes)
         if measured.size == 0:
             return gain
         H = self._identity[measured]
         R = np.diag(self.measurement_variance[measured])
-        P = np.diag(self.variance)
+        # zeros stand in for modes not started (NaN x 0 would leak through the products)
+        x0 = np.where(ok, self.state, 0.0)
+        P = np.diag(np.where(ok, self.variance, 0.0))
         # y = z - Hx ; S = HPH' + R ; K = PH'inv(S) ; x = x + Ky ;
         # P = (I-KH)P(I-KH)' + KRK'   (Joseph form, filterpy.kalman.update)
-        x, P = _filterpy_update(self.state, P, z[measured], R, H=H)
+        x, P = _filterpy_update(x0, P, z[measured], R, H=H)
         # the filters are uncoupled, so K is diagonal: K_j = P⁻_j / (P⁻_j + R_j)
         prior = self.variance[measured]
         gain[measured] = prior / (prior + self.measurement_variance[measured])
-        self.state = np.asarray(x, dtype=float)
         # P stays diagonal (off-diagonal terms are exactly zero for diagonal inputs)
-        self.variance = np.diag(P).copy()
+        self.state = np.where(mask, np.asarray(x, dtype=float), self.state)
+        self.variance = np.where(mask, np.diag(P), self.variance)
         return gain

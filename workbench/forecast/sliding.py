@@ -550,8 +550,12 @@ def sliding_forecast(
                 if n_valid >= 1:
                     level = float(np.mean(y[valid_y]))
                     spread = float(np.std(y[valid_y], ddof=1)) if n_valid >= 2 else model.rmse
+                elif started[j]:
+                    level, spread = float(bank.state[j]), model.rmse
                 else:
-                    level, spread = float(np.nanmean(mean_p)), model.rmse
+                    with warnings.catch_warnings():
+                        warnings.simplefilter("ignore", RuntimeWarning)
+                        level, spread = float(np.nanmean(mean_p)), model.rmse
                 cm, cl, cu, cv = _constant_prediction(
                     level,
                     spread if spread > 0 else model.rmse,
@@ -645,13 +649,7 @@ def sliding_forecast(
                 model_now - phi * previous_model_value,
                 model_now - phi * bank.state,
             )
-            stepping = have & started & np.isfinite(control)
-            if stepping.any():
-                saved_x, saved_p = bank.state.copy(), bank.variance.copy()
-                bank.predict(np.where(stepping, control, 0.0))
-                # modes not stepping keep their state
-                bank.state[~stepping] = saved_x[~stepping]
-                bank.variance[~stepping] = saved_p[~stepping]
+            bank.predict(control, active=have & started)
             fresh = have & ~started
             if fresh.any():
                 idx = np.flatnonzero(fresh)
@@ -691,12 +689,19 @@ def sliding_forecast(
                 )
             previous_model_value = np.where(have, model_now, previous_model_value)
             del prior_x
-        if method == 2:
-            targets[f0:f1] = out_kalman[f0:f1]
+        if method == 2:  # Kalman estimates are the next windows' targets (else tracked)
+            kalman_rows = out_kalman[f0:f1]
+            targets[f0:f1] = np.where(np.isfinite(kalman_rows), kalman_rows, tracked[f0:f1])
         if method == 1 or f1 > last:
             break
         window_start += horizon
 
+    unusable = (out_phase > 0) & ~(np.isfinite(out_model) & np.isfinite(out_kalman))
+    if unusable.any():  # a mode without any data yet: no row rather than a NaN row
+        notes["rows left out: no model value available (mode without data so far)"] += int(
+            unusable.sum()
+        )
+        out_phase[unusable] = 0
     table = _assemble(
         blocks,
         block_start,
