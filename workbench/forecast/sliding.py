@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import functools
 import math
+import re
 import warnings
 from collections import Counter
 from collections.abc import Mapping, Sequence
@@ -35,6 +36,10 @@ __all__ = ["ForecastResult", "ForecastWarning", "WindowModel", "sliding_forecast
 
 #: Default forecast horizon per method. [blocks]
 DEFAULT_HORIZON = {1: 34, 2: 4}
+#: A mode's frequency is plausible within a factor of this of its first window's median.
+_PLAUSIBLE_FACTOR = 2.0
+#: Fewest successive differences for the robust scatter estimate of R.
+_MIN_DIFFERENCES = 5
 #: Relative floor on the measurement standard deviation, sqrt(R) >= this x frequency. [-]
 _MIN_RELATIVE_STD = 1e-5
 #: Relative measurement standard deviation assumed when a window has too little data to
@@ -126,6 +131,7 @@ class _Model:
     n_train: int = 0
     n_params: int = 1
     rmse: float = math.nan
+    used: frozenset = frozenset()  # predictor columns named in the model's terms
 
     def terms(self) -> tuple[str, ...]:
         return tuple(getattr(self.fit, "terms", ())) if self.fit is not None else ()
@@ -147,20 +153,30 @@ def _constant_prediction(
     return mean, mean - half, mean + half, np.full(n_rows, spread**2 / max(n, 1))
 
 
+def _z_scores(rows: np.ndarray, mean: np.ndarray, scale: np.ndarray, limit: float) -> np.ndarray:
+    """z = (x - mean) / scale, clipped to ±limit (NaN stays NaN)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.clip((rows - mean) / scale, -limit, limit)
+
+
 def _predict(
-    model: _Model, rows: np.ndarray, alpha: float, frame: pd.DataFrame | None = None
+    model: _Model,
+    rows: np.ndarray,
+    alpha: float,
+    limit: float,
+    frame: pd.DataFrame | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Mean, lower, upper (prediction interval) and mean-prediction variance on raw *rows*.
 
-    *frame*, when given, holds *rows* already z-scored with the model's normalisation.
-    Rows the model cannot predict (a predictor it uses is NaN) are NaN.
+    *frame*, when given, holds *rows* already z-scored (and clipped to ±*limit*) with the
+    model's normalisation. Rows the model cannot predict (a predictor it uses is NaN) are
+    NaN.
     """
     n_rows = rows.shape[0]
     if model.fit is None:
         return _constant_prediction(model.level, model.spread, model.n_train, n_rows, alpha)
     if frame is None:
-        with np.errstate(invalid="ignore", divide="ignore"):
-            z = (rows - model.mean) / model.scale
+        z = _z_scores(rows, model.mean, model.scale, limit)
         frame = pd.DataFrame(z, columns=list(model.columns))
     try:
         out = model.fit.predict(frame, interval="prediction", alpha=alpha)
@@ -198,6 +214,7 @@ def sliding_forecast(
     gap_warning_blocks: int = 12,
     modes: Sequence[int] | None = None,
     alpha: float = 0.05,
+    extrapolation_limit: float = 4.0,
 ) -> ForecastResult:
     """Sliding stepwise-regression forecast of each mode's frequency, Kalman-blended with SSI.
 
@@ -256,6 +273,10 @@ def sliding_forecast(
         Modes to forecast; default every mode of *modal*.
     alpha : float
         1 - confidence of the prediction interval (0.05: 95 %).
+    extrapolation_limit : float
+        Normalised predictors are clipped to ±this many window standard deviations before
+        prediction, so a long forecast cannot extrapolate a 20-block fit without bound
+        (e.g. a time trend); clipped blocks carry a warning.
 
     Returns
     -------
@@ -276,11 +297,22 @@ def sliding_forecast(
     a-priori x⁻_k = m_k + φ (x⁺_{k-1} - m_{k-1}) with m the current window model's
     prediction (F = φ, B u = m_k - φ m_{k-1}); P⁻ = φ² P⁺ + Q; update with the SSI estimate
     z_k (H = 1) in Joseph form. R is the scatter of the block measurements about the window
-    model (residual variance, dof-corrected); Q from *trust* as above. P starts at the
+    model: the variance of its white part, estimated robustly from successive differences,
+    σ² = (1.4826 MAD(Δr))² / 2 (differencing removes the slowly varying model error, the
+    MAD ignores the odd wrong pole; plain residual variance for fewer than 6 values); Q
+    from *trust* as above. P starts at the
     steady-state prior of the first window's Q and R. The filter runs through the first
     training window (phase "train", with the in-sample model) and every forecast block.
 
-    *Fallbacks* (never an exception for data problems): a window with fewer than
+    *Method 2 targets*: the Kalman estimates of the blocks that had a measurement;
+    predict-only blocks are not training targets (they hold no new information, and
+    re-training on them would feed the model its own extrapolation), so a long stretch
+    without SSI estimates leads to the last good model rather than a self-fed drift.
+
+    *Fallbacks* (never an exception for data problems): a model prediction outside
+    half to twice the mode's level (median of its first training targets) is replaced by
+    the constant model, and a Kalman estimate outside that band restarts the mode's
+    filter at the model (track lost); a window with fewer than
     *min_train_blocks* targets or a failing fit reuses the last good model, else a
     constant model (window mean ± t s sqrt(1 + 1/n)); constant or mostly-NaN predictors are
     dropped from the window's candidates; a block whose needed predictor is NaN is
@@ -306,6 +338,8 @@ def sliding_forecast(
         raise ValueError("trust=None needs a finite correction_time_blocks")
     if not gate_sigma > 0:
         raise ValueError(f"gate_sigma={gate_sigma!r} must be > 0")
+    if not extrapolation_limit > 0:
+        raise ValueError(f"extrapolation_limit={extrapolation_limit!r} must be > 0")
     if not 0.0 < alpha < 1.0:
         raise ValueError(f"alpha={alpha!r} must be in (0, 1)")
     min_train = max(5, train_blocks // 2) if min_train_blocks is None else int(min_train_blocks)
@@ -429,6 +463,7 @@ def sliding_forecast(
     gap = np.zeros(n_modes, dtype=np.int64)
     models_out: list[WindowModel] = []
     started = np.zeros(n_modes, dtype=bool)
+    reference_hz = np.full(n_modes, np.nan)  # first window's median: plausibility band
 
     window_start = first
     while True:
@@ -466,6 +501,8 @@ def sliding_forecast(
             n_valid = int(valid_y.sum())
             model: _Model | None = None
             reason = ""
+            if not np.isfinite(reference_hz[j]) and n_valid >= 1:
+                reference_hz[j] = float(np.median(y[valid_y]))
             if n_valid >= min_train and use:
                 try:
                     with warnings.catch_warnings():
@@ -484,6 +521,7 @@ def sliding_forecast(
                         n_train=n_valid,
                         n_params=n_params,
                         rmse=rmse,
+                        used=_used_columns(fit, use_names),
                     )
                     last_good[j] = model
                 except Exception as error:  # rank deficiency, singular fits...
@@ -535,15 +573,33 @@ def sliding_forecast(
 
             # ---- predictions on training + forecast rows
             if model.kind == "stepwise":  # this window's normalisation: shared frame
-                if window_frame is None:
-                    with np.errstate(invalid="ignore", divide="ignore"):
-                        z_rows = (X_all[w0:f1][:, use] - mean) / scale
-                    window_frame = pd.DataFrame(z_rows, columns=list(use_names))
                 rows_X = X_all[w0:f1][:, use]
-                mean_p, lower_p, upper_p, mvar = _predict(model, rows_X, alpha, window_frame)
+                if window_frame is None:
+                    z_rows = _z_scores(rows_X, mean, scale, extrapolation_limit)
+                    window_frame = pd.DataFrame(z_rows, columns=list(use_names))
+                mean_p, lower_p, upper_p, mvar = _predict(
+                    model, rows_X, alpha, extrapolation_limit, window_frame
+                )
             else:
                 rows_X = X_all[w0:f1][:, [columns.index(c) for c in model.columns]]
-                mean_p, lower_p, upper_p, mvar = _predict(model, rows_X, alpha)
+                mean_p, lower_p, upper_p, mvar = _predict(model, rows_X, alpha, extrapolation_limit)
+            if model.fit is not None:
+                used = [c for c, name in enumerate(model.columns) if name in model.used]
+                if used:
+                    with np.errstate(invalid="ignore", divide="ignore"):
+                        far = np.abs((rows_X[:, used] - model.mean[used]) / model.scale[used])
+                    clipped = pred_rows[(far > extrapolation_limit).any(axis=1)]
+                    clipped = clipped[clipped >= (w0 if is_first else f0)]
+                    if clipped.size:
+                        warn_rows(
+                            clipped.tolist(),
+                            j,
+                            f"predictors beyond ±{extrapolation_limit:g} sd of the window: clipped",
+                            "blocks with predictors far outside the training window (clipped)",
+                        )
+            with np.errstate(invalid="ignore"):
+                implausible = np.isfinite(mean_p) & ~_plausible(mean_p, reference_hz[j])
+            mean_p[implausible] = np.nan  # non-physical: constant model below
             bad = ~np.isfinite(mean_p)
             if bad.any():
                 # needed predictor NaN in these blocks: constant model of the window
@@ -564,15 +620,24 @@ def sliding_forecast(
                     alpha,
                 )
                 mean_p[bad], lower_p[bad], upper_p[bad], mvar[bad] = cm, cl, cu, cv
-                bad_rows = pred_rows[bad]
-                shown = bad_rows[bad_rows >= (w0 if is_first else f0)]
-                if shown.size:
-                    warn_rows(
-                        shown.tolist(),
-                        j,
+                shown_from = w0 if is_first else f0
+                for mask, message, kind in (
+                    (
+                        bad & ~implausible,
                         "predictor NaN: constant-model prediction",
                         "blocks predicted by the constant model (a needed predictor is NaN)",
-                    )
+                    ),
+                    (
+                        implausible,
+                        "model implausible: constant-model prediction",
+                        "blocks predicted by the constant model (model value outside "
+                        f"{1 / _PLAUSIBLE_FACTOR:g}-{_PLAUSIBLE_FACTOR:g} x the mode's level)",
+                    ),
+                ):
+                    shown = pred_rows[mask]
+                    shown = shown[shown >= shown_from]
+                    if shown.size:
+                        warn_rows(shown.tolist(), j, message, kind)
             n_tr = w1 - w0
             m_train = mean_p[:n_tr]
             # ---- R: scatter of the measurements about the model in the window
@@ -580,7 +645,9 @@ def sliding_forecast(
             resid = resid[np.isfinite(resid)]
             dof = resid.size - model.n_params
             level_hz = float(np.nanmean(np.abs(mean_p)))
-            if dof >= 2:
+            if resid.size >= _MIN_DIFFERENCES + 1:
+                r = _white_scatter_variance(resid)
+            elif dof >= 2:
                 r = float(resid @ resid) / dof
             elif np.isfinite(last_r[j]):
                 r = float(last_r[j])
@@ -674,6 +741,17 @@ def sliding_forecast(
                 )
             z[~have] = np.nan
             bank.update(z)
+            lost = have & started & ~_plausible(bank.state, reference_hz)
+            if lost.any():  # track lost (model or measurements far off): restart at model
+                idx = np.flatnonzero(lost)
+                bank.initialise(idx, model_now[idx])
+                for j in idx:
+                    warn_rows(
+                        [i],
+                        j,
+                        "Kalman track implausible: restarted at the model",
+                        "Kalman tracks restarted at the model (estimate implausible)",
+                    )
             measured[i] = z
             out_ssi[i] = z
             out_kalman[i] = np.where(have, bank.state, np.nan)
@@ -689,9 +767,16 @@ def sliding_forecast(
                 )
             previous_model_value = np.where(have, model_now, previous_model_value)
             del prior_x
-        if method == 2:  # Kalman estimates are the next windows' targets (else tracked)
+        if method == 2:
+            # the Kalman estimates of the blocks with a measurement are the next windows'
+            # targets; predict-only blocks carry no new information (re-training on them
+            # would feed the model its own extrapolation), modes not started keep tracked
             kalman_rows = out_kalman[f0:f1]
-            targets[f0:f1] = np.where(np.isfinite(kalman_rows), kalman_rows, tracked[f0:f1])
+            targets[f0:f1] = np.where(
+                np.isfinite(kalman_rows),
+                np.where(np.isfinite(measured[f0:f1]), kalman_rows, np.nan),
+                tracked[f0:f1],
+            )
         if method == 1 or f1 > last:
             break
         window_start += horizon
@@ -724,6 +809,40 @@ def sliding_forecast(
     for message in messages:
         warnings.warn(message, ForecastWarning, stacklevel=2)
     return ForecastResult(table=table, warnings=messages, models=tuple(models_out))
+
+
+def _plausible(frequency: np.ndarray, reference: np.ndarray | float) -> np.ndarray:
+    """f > 0 and, where a reference level is known, ref / c < f < c ref (c = 2)."""
+    f = np.asarray(frequency, dtype=float)
+    ref = np.asarray(reference, dtype=float)
+    with np.errstate(invalid="ignore"):
+        band = (f > ref / _PLAUSIBLE_FACTOR) & (f < ref * _PLAUSIBLE_FACTOR)
+        return (f > 0) & np.where(np.isfinite(ref), band, True)
+
+
+def _white_scatter_variance(residuals: np.ndarray) -> float:
+    """Variance of the white part of *residuals*, robustly, from successive differences.
+
+    Notes
+    -----
+    For r_k = e_k + v_k with e slowly varying (model error) and v white (SSI scatter),
+    Δr_k ≈ Δv_k has variance 2 σ_v². With the MAD as a robust standard deviation,
+    σ_v² = (1.4826 MAD(Δr))² / 2; differencing removes the model error, the MAD ignores
+    the odd mis-selected pole. Falls back to the mean square when the MAD is zero.
+    """
+    differences = np.diff(residuals)
+    mad = float(np.median(np.abs(differences - np.median(differences))))
+    if mad > 0:
+        return (1.4826 * mad) ** 2 / 2.0
+    return float(np.mean(residuals**2))
+
+
+def _used_columns(fit, names: Sequence[str]) -> frozenset:
+    """Predictor columns named in the fit's terms (e.g. "speed_kn:water_temp_c")."""
+    tokens: set[str] = set()
+    for term in getattr(fit, "terms", ()):
+        tokens.update(re.split(r"[^0-9A-Za-z_]+", str(term)))
+    return frozenset(name for name in names if name in tokens)
 
 
 def _coefficients(model: _Model) -> dict[str, float]:
