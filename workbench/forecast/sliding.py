@@ -766,7 +766,6 @@ def sliding_forecast(
                     "rows in a long stretch without SSI estimates (predict-only)",
                 )
             previous_model_value = np.where(have, model_now, previous_model_value)
-            del prior_x
         if method == 2:
             # the Kalman estimates of the blocks with a measurement are the next windows'
             # targets; predict-only blocks carry no new information (re-training on them
