@@ -1,0 +1,494 @@
+"""Mode tracking: give the modes identified block by block labels that stay the same.
+
+A *library* of reference modes (pole and mode shape) is kept. The modes selected in each
+block are assigned to library modes one-to-one by maximising the pole-weighted MAC (MACXP)
+with the Hungarian algorithm; a pair counts only when its MACXP reaches a threshold and the
+frequencies are close. Unmatched modes become *candidates*; a candidate is *born* as a new
+library mode when a matching mode appears again within a few blocks. Library poles and
+shapes follow slow drift by exponential smoothing, so temperature or speed trends do not
+break the track, and a library mode that is not seen for a while keeps its label and is
+picked up again when it returns. Because matching uses shapes as well as poles, two modes
+whose frequencies cross keep their labels.
+
+Blocks may lack channels (faulty channels dropped for that block): shapes are compared on
+the channels both have.
+
+References
+----------
+.. [1] H. W. Kuhn, "The Hungarian method for the assignment problem", Naval Research
+   Logistics Quarterly 2, 1955, 83-97. doi:10.1002/nav.3800020109
+.. [2] P. Vacher, B. Jacquier, A. Bucharles, "Extensions of the MAC criterion to complex
+   modes", Proceedings of ISMA 2010, Leuven, 2713-2725.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import linear_sum_assignment
+
+from data_contracts import MODAL, shape_columns, shapes_from_frame
+
+from .mac import continuous_pole, mac, macxp
+
+__all__ = ["LibraryMode", "ModeTracker", "TrackingOptions", "label_agreement", "track_modes"]
+
+_BLOCK_COLUMNS = ("block", "block_start", "block_end")
+
+
+@dataclass(frozen=True)
+class TrackingOptions:
+    """Parameters of :class:`ModeTracker`.
+
+    Attributes
+    ----------
+    threshold : float
+        Lowest value of the gate criterion for a block mode to join a library mode (or a
+        candidate). [-]
+    gate : {"mac", "macxp"}
+        Criterion the threshold applies to. Among admissible pairs the assignment always
+        maximises MACXP. The default gates on the shape alone (MAC) because MACXP's pole
+        weighting makes it fall quickly with the scatter of SSI estimates: for two
+        identical shapes with damping ζ and a relative frequency difference δ,
+        MACXP ≈ 4ζ²/(4ζ² + δ²), i.e. 0.8 for ζ = δ = 0.5 %, which is within the
+        block-to-block scatter of identified frequencies. Gating on MACXP at 0.9 splits
+        such modes into several labels.
+    frequency_tolerance : float
+        Largest relative frequency difference between a block mode and the library mode it
+        joins. [-]
+    smoothing : float
+        Weight of a new observation in the exponential update of the library pole and shape
+        (0: frozen library, 1: the library is the last observation). [-]
+    confirm_within : int
+        A candidate is born as a library mode when a matching mode appears within this many
+        blocks after it was first seen. [blocks]
+    candidate_lifetime : int
+        Candidates not confirmed within this many blocks are forgotten. [blocks]
+    min_blocks : int
+        Library modes seen in fewer blocks than this at the end are dropped from the table
+        (spurious). [blocks]
+    min_channels : int
+        Fewest channels shared by two shapes for them to be compared. [-]
+    sort_by_frequency : bool
+        Relabel the final modes 1, 2, ... in order of their median frequency.
+    """
+
+    threshold: float = 0.9
+    gate: Literal["mac", "macxp"] = "mac"
+    frequency_tolerance: float = 0.05
+    smoothing: float = 0.2
+    confirm_within: int = 3
+    candidate_lifetime: int = 3
+    min_blocks: int = 3
+    min_channels: int = 3
+    sort_by_frequency: bool = True
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.threshold <= 1.0:
+            raise ValueError(f"threshold={self.threshold} must be in (0, 1]")
+        if self.gate not in ("mac", "macxp"):
+            raise ValueError(f"gate={self.gate!r} must be 'mac' or 'macxp'")
+        if not 0.0 < self.frequency_tolerance < 1.0:
+            raise ValueError(f"frequency_tolerance={self.frequency_tolerance} must be in (0, 1)")
+        if not 0.0 <= self.smoothing <= 1.0:
+            raise ValueError(f"smoothing={self.smoothing} must be in [0, 1]")
+        for name in ("confirm_within", "candidate_lifetime", "min_blocks", "min_channels"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name}={getattr(self, name)} must be at least 1")
+
+
+@dataclass
+class LibraryMode:
+    """A reference mode of the tracker (or a candidate not yet confirmed)."""
+
+    label: int
+    frequency_hz: float
+    damping_ratio: float
+    shape: np.ndarray  # complex, n_channels; NaN where never observed
+    first_block: int
+    last_block: int
+    n_blocks: int = 1
+    frequencies: list[float] = field(default_factory=list)
+    keys: list = field(default_factory=list)  # identifiers of a candidate's observations
+
+    @property
+    def pole(self) -> complex:
+        return complex(continuous_pole(self.frequency_hz, min(max(self.damping_ratio, 1e-4), 0.99)))
+
+
+def _align(shape: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """*shape* times the complex factor that best fits *reference* on their common channels.
+
+    Least squares: ``c = φᴴ φ_ref / φᴴ φ`` over the common channels, so phase and scale match
+    even when the two shapes were normalised over different channel sets.
+    """
+    both = np.isfinite(shape) & np.isfinite(reference)
+    power = np.vdot(shape[both], shape[both]).real
+    if power == 0:
+        return shape
+    return shape * (np.vdot(shape[both], reference[both]) / power)
+
+
+def _normalise(shape: np.ndarray) -> np.ndarray:
+    finite = np.isfinite(shape)
+    norm = np.linalg.norm(shape[finite])
+    if norm == 0:
+        return shape
+    shape = shape / norm
+    largest = np.nanargmax(np.where(finite, np.abs(shape), -1.0))
+    phase = shape[largest] / abs(shape[largest])
+    return shape / phase
+
+
+class ModeTracker:
+    """Assign block modes to a library of reference modes, block after block.
+
+    Parameters
+    ----------
+    n_channels : int
+        Length of the mode shapes (the voyage's channel list; missing channels are NaN).
+    options : TrackingOptions, optional
+    reference : list of (frequency_hz, damping_ratio, shape), optional
+        Initial library (e.g. modes of an earlier voyage). Without it, the library is born
+        from the data.
+
+    Notes
+    -----
+    Score of block mode *i* against library mode *j*: ``MACXP(φ_i, λ_i; φ_j, λ_j)`` on the
+    channels both shapes have, set to 0 when below ``threshold``, when
+    ``|f_i - f_j| > frequency_tolerance * f_j`` or when fewer than ``min_channels`` are
+    shared. The assignment maximises the summed score with the Hungarian algorithm [1]_,
+    so two block modes never take the same label. A library mode that joins is updated as
+    ``f ← (1 - α) f + α f_i`` (same for damping) and ``φ ← normalise((1 - α) φ + α φ_i)``
+    with ``φ_i`` phase-aligned to ``φ`` first (α = ``smoothing``).
+    """
+
+    def __init__(
+        self,
+        n_channels: int,
+        options: TrackingOptions | None = None,
+        reference: Sequence[tuple[float, float, np.ndarray]] | None = None,
+    ):
+        self.n_channels = int(n_channels)
+        self.options = options or TrackingOptions()
+        self.library: list[LibraryMode] = []
+        self.candidates: list[LibraryMode] = []
+        #: (key, label, score) of candidate observations from earlier blocks, assigned when
+        #: the candidate was confirmed; drained by the caller.
+        self.late_assignments: list[tuple[object, int, float]] = []
+        self._next_label = 1
+        for frequency, damping, shape in reference or ():
+            shape = np.asarray(shape, dtype=complex)
+            if shape.shape != (self.n_channels,):
+                raise ValueError(
+                    f"reference shape has {shape.size} channels, expected {self.n_channels}"
+                )
+            self.library.append(self._new_mode(frequency, damping, shape, block=-1, seen=0))
+
+    def _new_mode(self, frequency, damping, shape, block, seen=1) -> LibraryMode:
+        mode = LibraryMode(
+            label=self._next_label,
+            frequency_hz=float(frequency),
+            damping_ratio=float(damping),
+            shape=_normalise(np.asarray(shape, dtype=complex).copy()),
+            first_block=int(block),
+            last_block=int(block),
+            n_blocks=seen,
+        )
+        self._next_label += 1
+        return mode
+
+    def _scores(
+        self, frequency: np.ndarray, damping: np.ndarray, shapes: np.ndarray, modes
+    ) -> np.ndarray:
+        """Score matrix (n_block_modes x len(modes)), 0 where not admissible."""
+        options = self.options
+        scores = np.zeros((len(frequency), len(modes)))
+        if not len(modes) or not len(frequency):
+            return scores
+        block_poles = continuous_pole(frequency, np.clip(damping, 1e-4, 0.99))
+        block_finite = np.isfinite(shapes).all(axis=1)  # channels this block has, all modes
+        for j, mode in enumerate(modes):
+            common = block_finite & np.isfinite(mode.shape)
+            if common.sum() < options.min_channels:
+                continue
+            close = np.abs(frequency - mode.frequency_hz) <= options.frequency_tolerance * (
+                mode.frequency_hz
+            )
+            if not close.any():
+                continue
+            block_shapes = shapes[common][:, close]
+            values = macxp(
+                block_shapes,
+                block_poles[close],
+                mode.shape[common][:, None],
+                np.array([mode.pole]),
+            )[:, 0]
+            gate = values if options.gate == "macxp" else mac(block_shapes, mode.shape[common])
+            values = np.where(gate >= options.threshold, np.maximum(values, 1e-9), 0.0)
+            scores[np.flatnonzero(close), j] = values
+        return scores
+
+    @staticmethod
+    def _assign(scores: np.ndarray) -> list[tuple[int, int, float]]:
+        if scores.size == 0 or not (scores > 0).any():
+            return []
+        rows, cols = linear_sum_assignment(scores, maximize=True)
+        return [
+            (int(r), int(c), float(scores[r, c]))
+            for r, c in zip(rows, cols, strict=True)
+            if scores[r, c] > 0
+        ]
+
+    def _absorb(self, mode: LibraryMode, frequency, damping, shape, block) -> None:
+        alpha = self.options.smoothing
+        mode.frequency_hz = (1 - alpha) * mode.frequency_hz + alpha * float(frequency)
+        mode.damping_ratio = (1 - alpha) * mode.damping_ratio + alpha * float(damping)
+        aligned = _align(np.asarray(shape, dtype=complex), mode.shape)
+        merged = np.where(
+            np.isfinite(mode.shape) & np.isfinite(aligned),
+            (1 - alpha) * mode.shape + alpha * aligned,
+            np.where(np.isfinite(mode.shape), mode.shape, aligned),
+        )
+        mode.shape = _normalise(merged)
+        mode.last_block = int(block)
+        mode.n_blocks += 1
+        mode.frequencies.append(float(frequency))
+
+    def update(
+        self, block: int, frequency_hz, damping_ratio, shapes, keys: Sequence | None = None
+    ) -> list[tuple[int, int, float]]:
+        """Track one block's modes.
+
+        Parameters
+        ----------
+        block : int
+            Block number (blocks must arrive in increasing order).
+        frequency_hz, damping_ratio : array_like, shape (n_modes,)
+        shapes : array_like, complex, shape (n_channels, n_modes)
+            Mode shapes; NaN rows for channels the block does not have.
+
+        Returns
+        -------
+        list of (index, label, macxp)
+            For each block mode that joined a library mode: its column index, the label and
+            the MACXP with the library mode before the update.
+        """
+        frequency = np.asarray(frequency_hz, dtype=float).ravel()
+        keys = list(range(frequency.size)) if keys is None else list(keys)
+        damping = np.asarray(damping_ratio, dtype=float).ravel()
+        shapes = np.asarray(shapes, dtype=complex).reshape(self.n_channels, -1)
+        if shapes.shape[1] != frequency.size or damping.size != frequency.size:
+            raise ValueError(
+                f"block {block}: {frequency.size} frequencies, {damping.size} damping ratios "
+                f"and {shapes.shape[1]} shapes"
+            )
+        usable = np.isfinite(frequency) & np.isfinite(damping) & (frequency > 0)
+        index = np.flatnonzero(usable)
+        frequency, damping, shapes = frequency[usable], damping[usable], shapes[:, usable]
+
+        matches = self._assign(self._scores(frequency, damping, shapes, self.library))
+        assigned = []
+        taken = set()
+        for i, j, score in matches:
+            mode = self.library[j]
+            self._absorb(mode, frequency[i], damping[i], shapes[:, i], block)
+            assigned.append((int(index[i]), mode.label, score))
+            taken.add(i)
+
+        # Unmatched modes: confirm a waiting candidate or become one.
+        rest = [i for i in range(frequency.size) if i not in taken]
+        life = self.options.candidate_lifetime
+        self.candidates = [c for c in self.candidates if block - c.last_block <= life]
+        if rest:
+            sub = np.array(rest)
+            cand_matches = self._assign(
+                self._scores(frequency[sub], damping[sub], shapes[:, sub], self.candidates)
+            )
+            confirmed = set()
+            for r, c, score in cand_matches:
+                candidate = self.candidates[c]
+                if block - candidate.first_block > self.options.confirm_within:
+                    continue
+                i = int(sub[r])
+                self._absorb(candidate, frequency[i], damping[i], shapes[:, i], block)
+                candidate.label = self._next_label
+                self._next_label += 1
+                self.library.append(candidate)
+                assigned.append((int(index[i]), candidate.label, score))
+                self.late_assignments += [(key, candidate.label, score) for key in candidate.keys]
+                confirmed.add(c)
+                taken.add(i)
+            self.candidates = [c for k, c in enumerate(self.candidates) if k not in confirmed]
+            for i in rest:
+                if i in taken:
+                    continue
+                candidate = LibraryMode(
+                    label=0,
+                    frequency_hz=float(frequency[i]),
+                    damping_ratio=float(damping[i]),
+                    shape=_normalise(shapes[:, i].copy()),
+                    first_block=int(block),
+                    last_block=int(block),
+                    frequencies=[float(frequency[i])],
+                    keys=[keys[int(index[i])]],
+                )
+                self.candidates.append(candidate)
+        return sorted(assigned)
+
+
+def _selected_arrays(frame: pd.DataFrame, channels: Sequence[str]):
+    """Frequencies, damping ratios and shapes (n_channels x n) of one block's rows."""
+    _, shapes = shapes_from_frame(frame[[*_shape_cols(channels)]])
+    return (
+        frame["frequency_hz"].to_numpy(dtype=float),
+        frame["damping_ratio"].to_numpy(dtype=float),
+        shapes.T,
+    )
+
+
+def _shape_cols(channels: Iterable[str]) -> list[str]:
+    return shape_columns(list(channels))
+
+
+def track_modes(
+    selected: pd.DataFrame,
+    *,
+    options: TrackingOptions | None = None,
+    reference: pd.DataFrame | None = None,
+) -> pd.DataFrame:
+    """Tracked modal table from the modes selected block by block.
+
+    Parameters
+    ----------
+    selected : DataFrame
+        One row per selected mode and block: ``block``, ``block_start``, ``block_end``,
+        ``frequency_hz``, ``damping_ratio``, optional ``model_order`` and ``mpc``, and mode
+        shape columns ``shape_re_<c>``/``shape_im_<c>`` (NaN for channels a block lacks).
+    options : TrackingOptions, optional
+    reference : DataFrame, optional
+        Initial library: a modal table (its ``mode`` labels are kept; the median of each
+        mode's frequency and damping and the shape of its first row are used).
+
+    Returns
+    -------
+    DataFrame
+        The tracked modal table (MODAL contract): one row per block and tracked mode, with
+        ``mac`` the MACXP against the library mode when it joined.
+    """
+    options = options or TrackingOptions()
+    missing = [
+        c
+        for c in ("block", "block_start", "block_end", "frequency_hz", "damping_ratio")
+        if c not in selected.columns
+    ]
+    if missing:
+        raise ValueError(f"selected modes: missing column(s) {', '.join(missing)}")
+    channels, _ = shapes_from_frame(selected.iloc[:0])
+    if not channels:
+        raise ValueError("selected modes: no mode-shape columns (shape_re_<channel>)")
+    tracker = ModeTracker(len(channels), options, _reference_modes(reference, channels))
+    if reference is not None:
+        tracker._next_label = int(reference["mode"].max()) + 1
+        for mode, label in zip(tracker.library, sorted(reference["mode"].unique()), strict=True):
+            mode.label = int(label)
+
+    frame = selected.sort_values("block", kind="stable").reset_index(drop=True)
+    rows: list[tuple[int, int, float]] = []  # (row in frame, label, macxp)
+    for _, part in frame.groupby("block", sort=True):
+        frequency, damping, shapes = _selected_arrays(part, channels)
+        block = int(part["block"].iat[0])
+        for i, label, score in tracker.update(block, frequency, damping, shapes, part.index):
+            rows.append((int(part.index[i]), label, score))
+        rows += tracker.late_assignments
+        tracker.late_assignments = []
+    return _tracked_table(frame, rows, tracker, channels, options)
+
+
+def _reference_modes(reference: pd.DataFrame | None, channels: Sequence[str]):
+    if reference is None:
+        return None
+    if "mode" not in reference.columns:
+        raise ValueError("reference modal table: missing column 'mode'")
+    ref_channels, shapes = shapes_from_frame(reference)
+    lookup = {c: k for k, c in enumerate(ref_channels)}
+    modes = []
+    positions = np.arange(len(reference))
+    for _, part in reference.assign(_row=positions).groupby("mode", sort=True):
+        first = shapes[int(part["_row"].iat[0])]
+        shape = np.full(len(channels), np.nan, dtype=complex)
+        for k, channel in enumerate(channels):
+            if channel in lookup:
+                shape[k] = first[lookup[channel]]
+        modes.append(
+            (float(part["frequency_hz"].median()), float(part["damping_ratio"].median()), shape)
+        )
+    return modes
+
+
+def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.DataFrame:
+    if not rows:
+        empty = frame.iloc[:0].copy()
+        empty.insert(3, "mode", pd.Series([], dtype="int64"))
+        empty["mac"] = pd.Series([], dtype=float)
+        return MODAL.validate(empty)
+    index = np.array([r[0] for r in rows])
+    table = frame.loc[index].copy()
+    table["mode"] = [r[1] for r in rows]
+    table["mac"] = np.clip([r[2] for r in rows], 0.0, 1.0)
+    counts = table["mode"].value_counts()
+    keep = counts.index[counts >= options.min_blocks]
+    table = table[table["mode"].isin(keep)]
+    if options.sort_by_frequency and len(table):
+        order = table.groupby("mode")["frequency_hz"].median().sort_values().index
+        relabel = {old: new for new, old in enumerate(order, start=1)}
+        table["mode"] = table["mode"].map(relabel).astype("int64")
+    front = ["block", "block_start", "block_end", "mode", "frequency_hz", "damping_ratio", "mac"]
+    if "model_order" in table.columns:
+        front.append("model_order")
+    shape = _shape_cols(channels)
+    rest = [c for c in table.columns if c not in front and c not in shape]
+    table = table[[*front, *rest, *shape]].sort_values(["block", "mode"], kind="stable")
+    return MODAL.validate(table.reset_index(drop=True))
+
+
+def label_agreement(tracked: pd.DataFrame, truth: pd.DataFrame) -> tuple[float, dict[int, int]]:
+    """Share of tracked (block, mode) rows that carry the right label.
+
+    Every tracked row is attributed to the true mode nearest in frequency in the same block.
+    Tracked labels and true modes are then paired one-to-one (Hungarian assignment on the
+    counts of rows they share), so a true mode split over two labels, or two true modes
+    merged under one label, counts the rows of the smaller part as wrong.
+
+    Returns
+    -------
+    agreement : float
+        In [0, 1]; NaN for an empty table.
+    mapping : dict
+        Tracked label -> true mode, for the paired labels.
+    """
+    if tracked.empty:
+        return math.nan, {}
+    truth_wide = truth.pivot(index="block", columns="mode", values="frequency_hz")
+    merged = tracked[["block", "mode", "frequency_hz"]].merge(
+        truth_wide, left_on="block", right_index=True, how="inner"
+    )
+    if merged.empty:
+        return math.nan, {}
+    true_modes = np.array(truth_wide.columns)
+    distances = np.abs(
+        merged[list(true_modes)].to_numpy(dtype=float) - merged["frequency_hz"].to_numpy()[:, None]
+    )
+    nearest = true_modes[np.argmin(np.where(np.isfinite(distances), distances, np.inf), axis=1)]
+    counts = pd.crosstab(merged["mode"].to_numpy(), nearest)
+    rows, cols = linear_sum_assignment(counts.to_numpy(), maximize=True)
+    mapping = {
+        int(counts.index[r]): int(counts.columns[c]) for r, c in zip(rows, cols, strict=True)
+    }
+    correct = sum(int(counts.iat[r, c]) for r, c in zip(rows, cols, strict=True))
+    return correct / len(merged), mapping
