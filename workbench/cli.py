@@ -123,10 +123,256 @@ def _run_demo(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _print_result(result) -> None:
+    for line in result.warnings:
+        print(f"warning: {line}", file=sys.stderr)
+    for line in result.lines:
+        print(line)
+
+
+def _add_predictor_source(parser: argparse.ArgumentParser) -> None:
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument(
+        "--predictors", type=Path, metavar="FILE", help="block predictor table (CSV/Parquet)"
+    )
+    source.add_argument(
+        "--dship",
+        type=Path,
+        metavar="FILE",
+        help="raw DSHIP log, averaged onto the modal table's blocks",
+    )
+
+
+def _predictors_for(args: argparse.Namespace, modal):
+    from .pipeline import load_predictors
+
+    return load_predictors(predictors=args.predictors, dship=args.dship, like=modal)
+
+
+def _add_track(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser(
+        "track",
+        help="track identified modes across blocks -> tracked modal table",
+        description="Give the modes selected block by block (the `selected` table written "
+        "by `workbench identify`) labels that follow each mode through the voyage: "
+        "one-to-one Hungarian assignment to a library of reference modes by MACXP.",
+    )
+    parser.add_argument(
+        "selected", type=Path, metavar="SELECTED", help="selected modes per block (CSV/Parquet)"
+    )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        metavar="FILE",
+        help="tracked modal table to write (.csv or .parquet)",
+    )
+    parser.add_argument(
+        "--reference",
+        type=Path,
+        metavar="FILE",
+        help="modal table whose modes start the library (labels kept)",
+    )
+    parser.add_argument(
+        "--threshold",
+        type=float,
+        default=0.9,
+        help="lowest MAC (or MACXP with --gate macxp) to join a mode",
+    )
+    parser.add_argument("--gate", choices=("mac", "macxp"), default="mac")
+    parser.add_argument(
+        "--frequency-tolerance",
+        type=float,
+        default=0.05,
+        help="largest relative frequency difference to join a mode",
+    )
+    parser.set_defaults(run=_run_track)
+
+
+def _run_track(args: argparse.Namespace) -> int:
+    from .pipeline import run_track
+
+    try:
+        result = run_track(
+            args.selected,
+            args.out,
+            reference=args.reference,
+            threshold=args.threshold,
+            gate=args.gate,
+            frequency_tolerance=args.frequency_tolerance,
+        )
+    except ValueError as error:
+        if isinstance(error, ContractError):
+            raise
+        raise WorkbenchError(f"{args.selected}: {error}") from None
+    _print_result(result)
+    return EXIT_OK
+
+
+def _add_forecast(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser(
+        "forecast",
+        help="sliding regression forecast of each mode, Kalman-blended with SSI",
+        description="Train a stepwise model of each mode's frequency on the last N blocks, "
+        "predict ahead with 95 %% bounds and blend with the SSI estimates by a Kalman filter "
+        "(option A: tracked pole; option B: nearest pole of the stabilisation diagram).",
+    )
+    parser.add_argument(
+        "--modal", type=Path, required=True, metavar="FILE", help="tracked modal table"
+    )
+    _add_predictor_source(parser)
+    parser.add_argument(
+        "--poles",
+        type=Path,
+        metavar="FILE",
+        help="pole table (stabilisation diagrams), needed for option B",
+    )
+    parser.add_argument(
+        "--option",
+        choices=("A", "B", "AB"),
+        default="A",
+        help="measurement option; AB runs both into one table",
+    )
+    parser.add_argument(
+        "--method",
+        type=int,
+        choices=(1, 2),
+        default=2,
+        help="1: one long forecast; 2: predict H blocks, filter, slide, refit",
+    )
+    parser.add_argument(
+        "--train", type=int, default=20, metavar="N", help="training window [blocks]"
+    )
+    parser.add_argument(
+        "--horizon",
+        type=int,
+        default=None,
+        metavar="H",
+        help="blocks per forecast (default 34 for method 1, 4 for method 2)",
+    )
+    parser.add_argument(
+        "--trust",
+        default="0.65",
+        help="steady-state weight on SSI in (0, 1), or 'data' for a Q from "
+        "the model's own prediction variance",
+    )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        metavar="FILE",
+        help="forecast table to write (.csv or .parquet)",
+    )
+    parser.add_argument(
+        "--figures", type=Path, metavar="DIR", help="write one figure per mode into DIR"
+    )
+    parser.add_argument(
+        "--truth",
+        type=Path,
+        metavar="FILE",
+        help="true modal table to draw in the figures (simulations)",
+    )
+    parser.set_defaults(run=_run_forecast)
+
+
+def _parse_trust(text: str) -> float | None:
+    if text.strip().lower() in ("data", "none"):
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise UsageError(f"--trust must be a number in (0, 1) or 'data', got {text!r}") from None
+    if not 0.0 < value < 1.0:
+        raise UsageError(f"--trust must be in (0, 1), got {value}")
+    return value
+
+
+def _run_forecast(args: argparse.Namespace) -> int:
+    from data_contracts import MODAL, POLES, read_table
+
+    from .pipeline import run_forecast
+
+    options = ("A", "B") if args.option == "AB" else (args.option,)
+    if "B" in options and args.poles is None:
+        raise UsageError("option B needs --poles (the stabilisation diagrams)")
+    if args.train < 2:
+        raise UsageError(f"--train must be at least 2 blocks, got {args.train}")
+    trust = _parse_trust(args.trust)
+    modal = read_table(args.modal, MODAL)
+    predictors = _predictors_for(args, modal)
+    poles = read_table(args.poles, POLES) if args.poles is not None else None
+    truth = read_table(args.truth, MODAL) if args.truth is not None else None
+    try:
+        result = run_forecast(
+            modal,
+            predictors,
+            args.out,
+            poles=poles,
+            options=options,
+            method=args.method,
+            train_blocks=args.train,
+            horizon=args.horizon,
+            trust=trust,
+            figures=args.figures,
+            truth=truth,
+        )
+    except ValueError as error:
+        if isinstance(error, ContractError):
+            raise
+        raise WorkbenchError(f"{args.modal}: {error}") from None
+    _print_result(result)
+    return EXIT_OK
+
+
+def _add_evaluate(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser(
+        "evaluate",
+        help="compare SSI, model and Kalman estimates with a true modal table",
+        description="Cumulative absolute error per mode of the SSI-only, model-only and "
+        "Kalman estimates of a forecast table against the truth (e.g. of the demo voyage), "
+        "and the improvement in %%.",
+    )
+    parser.add_argument("--forecast", type=Path, required=True, metavar="FILE")
+    parser.add_argument(
+        "--truth", type=Path, required=True, metavar="FILE", help="true modal table"
+    )
+    parser.add_argument("--phase", choices=("forecast", "train", "all"), default="forecast")
+    parser.add_argument("--out", type=Path, metavar="FILE", help="write the table as CSV")
+    parser.set_defaults(run=_run_evaluate)
+
+
+def _run_evaluate(args: argparse.Namespace) -> int:
+    from data_contracts import FORECAST, MODAL, read_table
+
+    from .pipeline import evaluate_forecast
+
+    forecast = read_table(args.forecast, FORECAST)
+    truth = read_table(args.truth, MODAL)
+    result = evaluate_forecast(
+        forecast, truth, out=args.out, phase=None if args.phase == "all" else args.phase
+    )
+    table = result.tables["evaluation"]
+    columns = [
+        "option",
+        "mode",
+        "n_ssi",
+        "ssi_cumulative_error_hz",
+        "model_cumulative_error_hz",
+        "kalman_cumulative_error_hz",
+        "improvement_vs_ssi_pct",
+    ]
+    print(table[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    _print_result(result)
+    return EXIT_OK
+
+
 #: Subcommands in the order ``--help`` lists them.
 COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_demo,
     _add_simulate,
+    _add_track,
+    _add_forecast,
+    _add_evaluate,
     _add_validate,
 )
 

@@ -1,0 +1,298 @@
+"""The stages of the workflow as file-to-file steps, shared by the CLI and the demo.
+
+Each function reads contract files, calls the library and writes contract files and
+reports atomically; it returns what it wrote so callers can print or link it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import pandas as pd
+
+from data_contracts import (
+    FORECAST,
+    MODAL,
+    POLES,
+    PREDICTORS,
+    atomic_path,
+    read_dship,
+    read_table,
+    write_table,
+)
+
+from .errors import WorkbenchError
+
+__all__ = [
+    "StageResult",
+    "block_grid_of",
+    "evaluate_forecast",
+    "load_predictors",
+    "run_forecast",
+    "run_track",
+]
+
+
+@dataclass
+class StageResult:
+    """Files a stage wrote, headline lines to print, and warnings it raised."""
+
+    files: list[Path] = field(default_factory=list)
+    lines: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    tables: dict[str, pd.DataFrame] = field(default_factory=dict)
+
+
+def block_grid_of(table: pd.DataFrame) -> tuple[pd.Timestamp, float, float]:
+    """Block grid ``(t0, length_s, step_s)`` of a table with block, block_start, block_end.
+
+    Raises
+    ------
+    WorkbenchError
+        If the block starts do not lie on one grid.
+    """
+    blocks = table[["block", "block_start", "block_end"]].drop_duplicates("block")
+    blocks = blocks.sort_values("block")
+    start = pd.to_datetime(blocks["block_start"], utc=True)
+    length = (pd.to_datetime(blocks["block_end"], utc=True) - start).dt.total_seconds()
+    if len(blocks) > 1:
+        steps = start.diff().dt.total_seconds().to_numpy()[1:] / np.diff(blocks["block"])
+        step = float(np.median(steps))
+    else:
+        step = float(length.iat[0]) / 4.0
+    t0 = start.iat[0] - pd.Timedelta(seconds=step * int(blocks["block"].iat[0]))
+    expected = t0 + pd.to_timedelta(blocks["block"].to_numpy() * step, unit="s")
+    off = np.abs((start.to_numpy() - expected.to_numpy()) / np.timedelta64(1, "s")) > 1e-3
+    if off.any():
+        first = int(blocks["block"].to_numpy()[off][0])
+        raise WorkbenchError(f"block {first}: block_start is off the block grid (step {step:g} s)")
+    return t0, float(length.median()), step
+
+
+def load_predictors(
+    *,
+    predictors: str | os.PathLike | None = None,
+    dship: str | os.PathLike | None = None,
+    like: pd.DataFrame | None = None,
+    min_coverage: float = 0.5,
+) -> pd.DataFrame:
+    """Block predictors from a predictor table, or averaged from a DSHIP log.
+
+    Parameters
+    ----------
+    predictors : path, optional
+        A block predictor table (PREDICTORS contract).
+    dship : path, optional
+        A raw DSHIP log; averaged onto the block grid of *like*.
+    like : DataFrame, optional
+        A table with block, block_start, block_end (e.g. the tracked modal table) whose block
+        grid the DSHIP log is averaged onto; its full block range is used.
+    """
+    if (predictors is None) == (dship is None):
+        raise ValueError("give exactly one of predictors and dship")
+    if predictors is not None:
+        return read_table(predictors, PREDICTORS)
+    if like is None:
+        raise ValueError("averaging a DSHIP log needs the blocks of a modal table")
+    from .predictors import block_predictors
+
+    log = read_dship(dship)
+    t0, length_s, step_s = block_grid_of(like)
+    first, last = int(like["block"].min()), int(like["block"].max())
+    from .blocks import BlockGrid
+
+    grid = BlockGrid(t0=t0, length_s=length_s, step_s=step_s)
+    table = block_predictors(
+        log, grid=grid, blocks=np.arange(first, last + 1), min_coverage=min_coverage
+    )
+    return PREDICTORS.validate(table)
+
+
+# --------------------------------------------------------------------------- tracking
+def run_track(
+    selected_path: str | os.PathLike,
+    out: str | os.PathLike,
+    *,
+    reference: str | os.PathLike | None = None,
+    **options: Any,
+) -> StageResult:
+    """Track the modes selected block by block (``selected`` table) into a modal table."""
+    from .sid.tracking import TrackingOptions, track_modes
+
+    selected = _read_any(selected_path)
+    ref = read_table(reference, MODAL) if reference is not None else None
+    tracked = track_modes(selected, options=TrackingOptions(**options), reference=ref)
+    if tracked.empty:
+        raise WorkbenchError(f"{selected_path}: no mode could be tracked")
+    path = write_table(tracked, out, MODAL)
+    result = StageResult(files=[path], tables={"tracked": tracked})
+    counts = tracked.groupby("mode").agg(
+        blocks=("block", "size"), frequency_hz=("frequency_hz", "median")
+    )
+    n_blocks = selected["block"].nunique()
+    result.lines.append(
+        f"{len(counts)} modes tracked over {n_blocks} blocks -> {path}: "
+        + ", ".join(
+            f"{m}: {r.frequency_hz:.3f} Hz ({int(r.blocks)} blocks)" for m, r in counts.iterrows()
+        )
+    )
+    return result
+
+
+def _read_any(path: str | os.PathLike) -> pd.DataFrame:
+    """A table without contract (e.g. selected modes), CSV or Parquet, with UTC times."""
+    path = Path(path)
+    try:
+        if path.suffix.lower() == ".parquet":
+            frame = pd.read_parquet(path)
+        else:
+            frame = pd.read_csv(path)
+    except FileNotFoundError:
+        raise WorkbenchError(f"{path}: no such file") from None
+    except (OSError, ValueError) as error:
+        raise WorkbenchError(f"{path}: unreadable ({str(error).splitlines()[0]})") from None
+    for column in ("block_start", "block_end"):
+        if column in frame.columns:
+            frame[column] = pd.to_datetime(frame[column], utc=True)
+    return frame
+
+
+# --------------------------------------------------------------------------- forecast
+def run_forecast(
+    modal: pd.DataFrame,
+    predictors: pd.DataFrame,
+    out: str | os.PathLike,
+    *,
+    poles: pd.DataFrame | None = None,
+    options: Sequence[Literal["A", "B"]] = ("A",),
+    method: Literal[1, 2] = 2,
+    train_blocks: int = 20,
+    horizon: int | None = None,
+    trust: float | None = 0.65,
+    figures: str | os.PathLike | None = None,
+    truth: pd.DataFrame | None = None,
+    predictor_columns: Sequence[str] | None = None,
+    stepwise_options: Mapping[str, Any] | None = None,
+) -> StageResult:
+    """Sliding forecasts for each option, one forecast table (CSV/Parquet) and figures."""
+    from .forecast import ForecastWarning, sliding_forecast
+
+    result = StageResult()
+    frames = []
+    for option in options:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ForecastWarning)
+            forecast = sliding_forecast(
+                modal,
+                predictors,
+                poles=poles,
+                option=option,
+                method=method,
+                train_blocks=train_blocks,
+                horizon=horizon,
+                trust=trust,
+                predictor_columns=predictor_columns,
+                stepwise_options=stepwise_options,
+            )
+        result.warnings += [
+            f"option {option}: {w.message}"
+            for w in caught
+            if issubclass(w.category, ForecastWarning)
+        ]
+        frames.append(forecast.table)
+    table = pd.concat(frames, ignore_index=True)
+    path = write_table(table, out, FORECAST)
+    result.files.append(path)
+    result.tables["forecast"] = table
+    n_modes = table["mode"].nunique()
+    result.lines.append(
+        f"forecast of {n_modes} modes over {table['block'].nunique()} blocks, option(s) "
+        f"{'/'.join(options)}, method {method}, train {train_blocks} -> {path}"
+    )
+    if figures is not None:
+        from .reporting.forecast_plot import write_forecast_figures
+
+        result.files += write_forecast_figures(table, figures, truth_modal=truth)
+    return result
+
+
+# --------------------------------------------------------------------------- evaluation
+def evaluate_forecast(
+    forecast: pd.DataFrame,
+    truth: pd.DataFrame,
+    *,
+    out: str | os.PathLike | None = None,
+    phase: str | None = "forecast",
+) -> StageResult:
+    """Compare SSI-only, model-only and Kalman estimates with the true frequencies.
+
+    The forecast's mode labels come from tracking; they are first paired with the true
+    modes (:func:`workbench.sid.tracking.label_agreement` on the SSI estimates), so that
+    extra tracked modes (e.g. a shaft harmonic) or a different numbering do not matter.
+    """
+    from .forecast import evaluate_against_truth
+    from .sid.tracking import label_agreement
+
+    measured = forecast.dropna(subset=["ssi_frequency_hz"])
+    pseudo = (
+        measured[["block", "mode", "ssi_frequency_hz"]]
+        .rename(columns={"ssi_frequency_hz": "frequency_hz"})
+        .drop_duplicates(["block", "mode"])
+    )
+    agreement, mapping = label_agreement(pseudo, truth)
+    if not mapping:
+        raise WorkbenchError("no forecast mode could be paired with a true mode")
+    relabelled = forecast[forecast["mode"].isin(mapping)].copy()
+    relabelled["mode"] = relabelled["mode"].map(mapping).astype("int64")
+    table = evaluate_against_truth(relabelled, truth, phase=phase)
+    result = StageResult(tables={"evaluation": table})
+    for option, part in table.groupby("option"):
+        total = part[
+            ["ssi_cumulative_error_hz", "model_cumulative_error_hz", "kalman_cumulative_error_hz"]
+        ].sum()
+        gain = 100.0 * (
+            1.0 - total["kalman_cumulative_error_hz"] / total["ssi_cumulative_error_hz"]
+        )
+        result.lines.append(
+            f"option {option}: cumulative |error| SSI {total['ssi_cumulative_error_hz']:.3f} Hz,"
+            f" model {total['model_cumulative_error_hz']:.3f} Hz, Kalman "
+            f"{total['kalman_cumulative_error_hz']:.3f} Hz -> Kalman {gain:+.1f} % vs SSI"
+        )
+    result.lines.append(
+        f"tracked labels paired with true modes {mapping} ({100 * agreement:.1f} % of "
+        "measured rows agree)"
+    )
+    if out is not None:
+        out = Path(out)
+        with atomic_path(out) as tmp:
+            table.to_csv(tmp, index=False)
+        result.files.append(out)
+    return result
+
+
+def write_json(data: Mapping[str, Any], path: str | os.PathLike) -> Path:
+    """Write *data* as indented JSON, atomically."""
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(data, indent=2, default=_json_default), encoding="utf-8")
+    return path
+
+
+def _json_default(value):
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, pd.Timestamp):
+        return value.isoformat()
+    return str(value)
+
+
+def read_poles(path: str | os.PathLike) -> pd.DataFrame:
+    """A pole table (POLES contract)."""
+    return read_table(path, POLES)
