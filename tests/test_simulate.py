@@ -148,6 +148,11 @@ def test_law_sensitivities_as_documented():
     later = true_modal_parameters(base, elapsed_hours=12.0)
     fuel_effect = later.frequency_hz[0] / reference.frequency_hz[0] - 1
     assert np.all((fuel_effect > 0.003) & (fuel_effect < 0.007))
+    # the burn slows as the tanks empty: a 51-day voyage keeps a positive mass and the
+    # frequencies rise by less than 15 %
+    long = true_modal_parameters(base, elapsed_hours=51 * 24.0)
+    rise = long.frequency_hz[0] / reference.frequency_hz[0] - 1
+    assert np.all(np.isfinite(rise)) and np.all((rise > 0.05) & (rise < 0.15))
 
 
 def test_law_rejects_missing_predictor():

@@ -101,6 +101,9 @@ MODE_LAWS: tuple[ModeLaw, ...] = (
     ModeLaw("T2", 8.3, 0.022, 0.035, 0.0008, -0.0030, -0.0025, 0.0020, 0.20),
 )
 
+#: Time constant of the fuel burn: the burn rate falls as exp(-t / τ_f). [h]
+FUEL_TIME_CONSTANT_H = 240.0
+
 #: Predictor values at which the modes have their reference parameters.
 REFERENCE_CONDITIONS: dict[str, float] = {
     "speed_kn": 0.0,
@@ -166,7 +169,8 @@ def true_modal_parameters(predictors, elapsed_hours=None) -> ModalParameters:
 
     .. math::
 
-        m_m &= 1 + a_m s - b_m t \\quad\\text{(speed adds water mass, fuel burn removes mass)}
+        m_m &= 1 + a_m s - b_m τ_f (1 - e^{-t/τ_f}) \\quad\\text{(speed adds water mass, fuel burn
+        removes mass)}
 
         k_m &= 1 + c_m ΔT_w + d_m ΔT_a + e_m s ΔT_w \\quad\\text{(temperatures soften steel
         and change the water's added stiffness; interaction speed x water)}
@@ -174,7 +178,9 @@ def true_modal_parameters(predictors, elapsed_hours=None) -> ModalParameters:
         f_m &= f_{0,m} \\sqrt{k_m / m_m}, \\qquad ζ_m = ζ_{0,m} (1 + g_m s).
 
     At 10 kn the frequencies drop by 0.1-3 %; 3 °C warmer water lowers them by 0.1-1 %; 12 h
-    of fuel burn raise them by about 0.5 %. Wind does not enter the law (a distractor for
+    of fuel burn raise them by about 0.5 %. Fuel burn slows as the tanks empty (time constant
+    τ_f = :data:`FUEL_TIME_CONSTANT_H`, 10 days), so the mass stays positive on voyages of
+    any length (at most 20-25 % is lost, frequencies rise by at most 12-15 %). Wind does not enter the law (a distractor for
     the statistics). The demo hull is invented; the magnitudes are chosen to be visible
     above an identification scatter of 0.2-0.5 %.
     """
@@ -191,7 +197,8 @@ def true_modal_parameters(predictors, elapsed_hours=None) -> ModalParameters:
         if field != "name"
     }
     s, w, a, t = (v[:, None] for v in (speed, water, air, hours))
-    mass = 1.0 + law["speed_mass"] * s - law["fuel_mass_per_hour"] * t
+    burned = FUEL_TIME_CONSTANT_H * (1.0 - np.exp(-t / FUEL_TIME_CONSTANT_H))
+    mass = 1.0 + law["speed_mass"] * s - law["fuel_mass_per_hour"] * burned
     stiffness = (
         1.0
         + law["water_stiffness"] * w
