@@ -111,14 +111,22 @@ def _add_demo(commands: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--out", type=Path, default=Path("reports") / "demo", metavar="DIR")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--hours", type=float, default=None)
+    parser.add_argument("--hours", type=float, default=None, help="voyage length [h] (default 12)")
+    _add_parallel(parser)
     parser.set_defaults(run=_run_demo)
 
 
 def _run_demo(args: argparse.Namespace) -> int:
     from .demo import run_demo
 
-    summary = run_demo(args.out, seed=args.seed, hours=args.hours)
+    summary = run_demo(
+        args.out,
+        seed=args.seed,
+        hours=args.hours,
+        scheduler=args.scheduler,
+        n_workers=args.workers,
+        progress=not args.quiet,
+    )
     print(summary)
     return EXIT_OK
 
@@ -147,6 +155,147 @@ def _predictors_for(args: argparse.Namespace, modal):
     from .pipeline import load_predictors
 
     return load_predictors(predictors=args.predictors, dship=args.dship, like=modal)
+
+
+def _add_parallel(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group("parallel execution")
+    group.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="address of a running dask.distributed scheduler "
+        "(tcp://host:8786), or 'synchronous' to run in this process; "
+        "default: a local cluster on all cores",
+    )
+    group.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="worker processes of the local cluster (default: all cores)",
+    )
+    group.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _add_identify(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser(
+        "identify",
+        help="SSI of every block of acceleration files -> pole tables, selected modes",
+        description="Cut acceleration files into blocks (default 20 min, 75 %% overlap), "
+        "condition them, run stochastic subspace identification over all model orders, "
+        "mark stable poles and select modes automatically, block by block in parallel. "
+        "Results go to a resumable per-block store: run the same command again after an "
+        "interruption and it carries on.",
+    )
+    parser.add_argument(
+        "inputs",
+        nargs="+",
+        type=Path,
+        metavar="DIR_OR_FILE",
+        help="acceleration files or folders holding them",
+    )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        metavar="DIR",
+        help="folder for poles.parquet, selected.parquet, faults.csv, ...",
+    )
+    parser.add_argument(
+        "--store", type=Path, metavar="DIR", help="per-block store (default OUT/store)"
+    )
+    parser.add_argument(
+        "--method",
+        choices=("cov", "data"),
+        default="cov",
+        help="covariance-driven or data-driven SSI",
+    )
+    parser.add_argument("--block-rows", type=int, default=20, metavar="I")
+    parser.add_argument("--max-order", type=int, default=60, metavar="N")
+    parser.add_argument("--min-order", type=int, default=4, metavar="N")
+    parser.add_argument(
+        "--weighting", choices=("pc", "upc", "cva"), default="pc", help="SSI-data weighting"
+    )
+    parser.add_argument(
+        "--reference", metavar="CH,CH,...", help="reference channels (default: all)"
+    )
+    parser.add_argument(
+        "--rate", type=float, metavar="HZ", help="decimate to this sampling rate first (e.g. 64)"
+    )
+    parser.add_argument(
+        "--band",
+        type=float,
+        nargs=2,
+        default=(2.0, 12.0),
+        metavar=("LOW", "HIGH"),
+        help="band-pass and selection band [Hz]",
+    )
+    parser.add_argument("--no-band", action="store_true", help="no band-pass filter")
+    parser.add_argument("--block-minutes", type=float, default=20.0)
+    parser.add_argument("--step-minutes", type=float, default=5.0)
+    parser.add_argument(
+        "--max-gap",
+        type=float,
+        default=0.0,
+        metavar="S",
+        help="NaN-pad gaps between files up to S seconds inside a block",
+    )
+    parser.add_argument(
+        "--figures",
+        type=int,
+        default=0,
+        metavar="K",
+        help="stabilisation figures of K blocks spread over the voyage",
+    )
+    parser.add_argument(
+        "--batch-blocks",
+        type=int,
+        default=16,
+        metavar="N",
+        help="blocks stored together (an interruption loses at most these)",
+    )
+    _add_parallel(parser)
+    parser.set_defaults(run=_run_identify)
+
+
+def _run_identify(args: argparse.Namespace) -> int:
+    from .identify import IdentifyOptions, identify_voyage
+
+    if args.min_order < 1 or args.max_order < args.min_order:
+        raise UsageError(f"model orders {args.min_order}..{args.max_order} make no sense")
+    try:
+        options = IdentifyOptions(
+            method=args.method,
+            block_rows=args.block_rows,
+            orders=tuple(range(args.min_order, args.max_order + 1, 2)),
+            weighting=args.weighting,
+            reference_channels=tuple(args.reference.split(",")) if args.reference else None,
+            length_s=60.0 * args.block_minutes,
+            step_s=60.0 * args.step_minutes,
+            target_rate_hz=args.rate,
+            band_hz=None if args.no_band else tuple(args.band),
+            max_gap_s=args.max_gap,
+        )
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    result = identify_voyage(
+        args.inputs,
+        args.out,
+        options=options,
+        store_dir=args.store,
+        scheduler=args.scheduler,
+        n_workers=args.workers,
+        progress=not args.quiet,
+        batch_blocks=args.batch_blocks,
+    )
+    for line in result.lines():
+        print(line)
+    if args.figures:
+        from .reporting.stabilisation_plot import write_stabilisation_figures
+
+        for path in write_stabilisation_figures(
+            args.out, args.out / "figures", n_blocks=args.figures
+        ):
+            print(f"figure: {path}")
+    return EXIT_OK
 
 
 def _add_track(commands: argparse._SubParsersAction) -> None:
@@ -370,6 +519,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
 COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_demo,
     _add_simulate,
+    _add_identify,
     _add_track,
     _add_forecast,
     _add_evaluate,

@@ -35,10 +35,14 @@ class DemoSummary:
     def __str__(self) -> str:
         total = sum(self.stage_seconds.values())
         stages = ", ".join(f"{name} {sec:.1f} s" for name, sec in self.stage_seconds.items())
-        return "\n".join([*self.lines,
-                          f"{self.validated} files validated against their contracts",
-                          f"stages: {stages}; total {total:.1f} s",
-                          f"open {self.out_dir / 'index.html'}"])
+        return "\n".join(
+            [
+                *self.lines,
+                f"{self.validated} files validated against their contracts",
+                f"stages: {stages}; total {total:.1f} s",
+                f"open {self.out_dir / 'index.html'}",
+            ]
+        )
 
 
 def _kind_of(path: Path) -> str | None:
@@ -51,15 +55,17 @@ def _kind_of(path: Path) -> str | None:
     for kind in ("forecast", "poles", "predictors"):
         if name.startswith(kind) and path.suffix in (".csv", ".parquet"):
             return kind
-    if path.suffix in (".csv", ".parquet") and ("modal" in name or name.startswith("selected")):
+    if path.suffix in (".csv", ".parquet") and "modal" in name:
         return "modal"
     return None
 
 
 def describe_voyage(voyage) -> str:
     """One line about a simulated voyage."""
-    return (f"{voyage.hours:g} h from {voyage.start_time:%Y-%m-%d %H:%M} UTC, {voyage.n_blocks} "
-            f"blocks, {len(voyage.acceleration_files)} acceleration files, seed {voyage.seed}")
+    return (
+        f"{voyage.hours:g} h from {voyage.start_time:%Y-%m-%d %H:%M} UTC, {voyage.n_blocks} "
+        f"blocks, {len(voyage.acceleration_files)} acceleration files, seed {voyage.seed}"
+    )
 
 
 def validate_folder(root: Path) -> int:
@@ -104,15 +110,30 @@ class _Stages:
         return _Timer()
 
 
-def run_demo(out_dir: str | os.PathLike = Path("reports") / "demo", *, seed: int = 0,
-             hours: float | None = None) -> DemoSummary:
+def run_demo(
+    out_dir: str | os.PathLike = Path("reports") / "demo",
+    *,
+    seed: int = 0,
+    hours: float | None = None,
+    scheduler: str | None = None,
+    n_workers: int | None = None,
+    progress: bool = False,
+) -> DemoSummary:
     """Simulate the demo voyage into *out_dir* and run every stage on it.
+
+    Stages: simulate -> identify (SSI-cov on every block, in parallel) -> track ->
+    predictors (DSHIP log onto the blocks) -> correlate -> fit (stepwise per mode) ->
+    forecast (method 2, options A and B) -> evaluate against the truth -> index page.
 
     Returns
     -------
     DemoSummary
         Stage timings, number of files validated, headline numbers.
     """
+    from data_contracts import PREDICTORS, read_table, write_table
+
+    from .identify import IdentifyOptions, identify_voyage
+    from .pipeline import evaluate_forecast, load_predictors, run_forecast, run_track
     from .simulate import simulate_voyage
 
     out_dir = Path(out_dir)
@@ -120,11 +141,87 @@ def run_demo(out_dir: str | os.PathLike = Path("reports") / "demo", *, seed: int
     summary = DemoSummary(out_dir)
     stage = _Stages(summary)
     voyage_dir = out_dir / "voyage"
+    tables: dict[str, pd.DataFrame] = {}
     with stage("simulate"):
         simulation = simulate_voyage(voyage_dir, seed=seed, hours=hours)
     summary.lines.append(f"simulated voyage: {describe_voyage(simulation)}")
-    tables: dict[str, pd.DataFrame] = {}
+    truth = read_table(simulation.truth_modal, CONTRACTS["modal"])
+
+    identify_dir = out_dir / "identify"
+    with stage("identify"):
+        identified = identify_voyage(
+            [voyage_dir],
+            identify_dir,
+            options=IdentifyOptions(),
+            scheduler=scheduler,
+            n_workers=n_workers,
+            progress=progress,
+        )
+    summary.lines.append(
+        f"identify: {identified.summary.processed} blocks identified, "
+        f"{identified.summary.skipped} skipped, {identified.n_selected} modes selected"
+    )
+
+    tracked_path = out_dir / "tracked_modal.csv"
+    with stage("track"):
+        track = run_track(identify_dir / "selected.parquet", tracked_path)
+    summary.lines += track.lines
+    tracked = track.tables["tracked"]
+    from .sid.tracking import label_agreement
+
+    agreement, mapping = label_agreement(tracked, truth)
+    summary.lines.append(
+        f"tracking: {100 * agreement:.1f} % of tracked (block, mode) pairs carry the true "
+        f"mode's label (labels -> true modes {mapping})"
+    )
+
+    with stage("predictors"):
+        predictors = load_predictors(dship=simulation.dship_log, like=tracked)
+        write_table(predictors, out_dir / "predictors.csv", PREDICTORS)
+
+    with stage("correlate"):
+        from .reporting.correlation import write_correlation_report
+
+        write_correlation_report(
+            tracked, predictors, out_dir / "correlation", cases=simulation.cases
+        )
+    with stage("fit"):
+        from .stats.diagnostics import write_fit_report
+
+        write_fit_report(tracked, predictors, out_dir / "fit")
+
+    poles = read_table(identify_dir / "poles.parquet", CONTRACTS["poles"])
+    with stage("forecast"):
+        forecast = run_forecast(
+            tracked,
+            predictors,
+            out_dir / "forecast.csv",
+            poles=poles,
+            options=("A", "B"),
+            method=2,
+            train_blocks=20,
+            trust=None,
+            figures=out_dir / "forecast",
+            truth=_relabel(truth, mapping),
+        )
+    summary.lines += forecast.lines
+    with stage("evaluate"):
+        evaluation = evaluate_forecast(
+            forecast.tables["forecast"], truth, out=out_dir / "evaluation.csv"
+        )
+    summary.lines += evaluation.lines
+    tables["Forecast against the true frequencies (forecast phase)"] = evaluation.tables[
+        "evaluation"
+    ]
     with stage("validate"):
         summary.validated = validate_folder(out_dir)
     write_index(out_dir, title="workbench demo voyage", summary=[*summary.lines], tables=tables)
     return summary
+
+
+def _relabel(truth: pd.DataFrame, mapping: dict[int, int]) -> pd.DataFrame:
+    """The truth table under the tracked labels (for drawing it beside the forecast)."""
+    inverse = {true: label for label, true in mapping.items()}
+    part = truth[truth["mode"].isin(inverse)].copy()
+    part["mode"] = part["mode"].map(inverse).astype("int64")
+    return part

@@ -100,6 +100,7 @@ def run_blocks(
     scheduler: str | None = None,
     n_workers: int | None = None,
     batch_blocks: int = 64,
+    flush_seconds: float = 30.0,
     max_in_flight: int | None = None,
     total: int | None = None,
     progress: bool = False,
@@ -126,6 +127,9 @@ def run_blocks(
         Worker processes of the local cluster (default ``os.cpu_count()``).
     batch_blocks : int
         Blocks per store batch (files written together).
+    flush_seconds : float
+        A batch is also written when this much time has passed since the last one, so an
+        interrupted slow job loses at most this much work. [s]
     max_in_flight : int, optional
         Tasks submitted but not finished, at most (default 4 per worker). Bounds memory.
     total : int, optional
@@ -145,8 +149,10 @@ def run_blocks(
     skip_reasons: Counter = Counter()
     notes: Counter = Counter()
     pending: list[BlockOutcome] = []
+    last_flush = [time.monotonic()]
 
     def flush() -> None:
+        last_flush[0] = time.monotonic()
         if not pending:
             return
         blocks = pd.DataFrame(
@@ -175,7 +181,7 @@ def run_blocks(
         notes.update(outcome.notes)
         pending.append(outcome)
         bar.update(1)
-        if len(pending) >= batch_blocks:
+        if len(pending) >= batch_blocks or time.monotonic() - last_flush[0] >= flush_seconds:
             flush()
 
     def remaining() -> Iterable[Any]:
