@@ -421,6 +421,13 @@ def _add_forecast(commands: argparse._SubParsersAction) -> None:
         metavar="FILE",
         help="true modal table to draw in the figures (simulations)",
     )
+    parser.add_argument(
+        "--jobs",
+        type=int,
+        default=1,
+        metavar="N",
+        help="processes to spread the modes over (for voyage-length tables)",
+    )
     parser.set_defaults(run=_run_forecast)
 
 
@@ -464,6 +471,7 @@ def _run_forecast(args: argparse.Namespace) -> int:
             trust=trust,
             figures=args.figures,
             truth=truth,
+            n_jobs=args.jobs,
         )
     except ValueError as error:
         if isinstance(error, ContractError):

@@ -139,8 +139,8 @@ def identify_block(
         reason (gap, too few good channels, ...). Raises ValueError for data problems,
         which :func:`~workbench.parallel.run_blocks` records as a skipped block.
     """
-    from .signals import load_block
     from .sid import select_modes, ssi_cov, ssi_data, stabilise
+    from .signals import load_block
 
     data = load_block(
         task.files,

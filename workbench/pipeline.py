@@ -34,6 +34,7 @@ __all__ = [
     "StageResult",
     "block_grid_of",
     "evaluate_forecast",
+    "forecast_modes",
     "load_predictors",
     "run_forecast",
     "run_track",
@@ -165,6 +166,52 @@ def _read_any(path: str | os.PathLike) -> pd.DataFrame:
 
 
 # --------------------------------------------------------------------------- forecast
+def _forecast_part(modal, predictors, modes, kwargs):
+    """One process's share of :func:`forecast_modes` (module level: picklable)."""
+    from .forecast import ForecastWarning, sliding_forecast
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ForecastWarning)
+        result = sliding_forecast(modal, predictors, modes=modes, **kwargs)
+    messages = [str(w.message) for w in caught if issubclass(w.category, ForecastWarning)]
+    return result.table, messages
+
+
+def forecast_modes(
+    modal: pd.DataFrame,
+    predictors: pd.DataFrame,
+    *,
+    n_jobs: int = 1,
+    **kwargs: Any,
+) -> tuple[pd.DataFrame, list[str]]:
+    """:func:`~workbench.forecast.sliding_forecast` with the modes spread over processes.
+
+    Modes are independent (one model and one Kalman filter each), so the table equals that
+    of a single call, whatever *n_jobs*. Returns the forecast table (sorted by block, mode)
+    and the forecast warnings' messages.
+    """
+    modes = kwargs.pop("modes", None)
+    modes = sorted(int(m) for m in (modal["mode"].unique() if modes is None else modes))
+    n_jobs = max(1, min(int(n_jobs), len(modes)))
+    if n_jobs == 1:
+        table, messages = _forecast_part(modal, predictors, modes, kwargs)
+        return table, messages
+    from concurrent.futures import ProcessPoolExecutor
+
+    shares = [modes[k::n_jobs] for k in range(n_jobs)]
+    with ProcessPoolExecutor(max_workers=n_jobs) as pool:
+        futures = [
+            pool.submit(_forecast_part, modal[modal["mode"].isin(share)], predictors, share,
+                        kwargs)
+            for share in shares
+        ]
+        parts = [future.result() for future in futures]
+    table = pd.concat([p[0] for p in parts], ignore_index=True)
+    keys = [c for c in ("block", "mode", "option") if c in table.columns]
+    table = table.sort_values(keys, kind="stable").reset_index(drop=True)
+    return table, [m for p in parts for m in p[1]]
+
+
 def run_forecast(
     modal: pd.DataFrame,
     predictors: pd.DataFrame,
@@ -180,33 +227,28 @@ def run_forecast(
     truth: pd.DataFrame | None = None,
     predictor_columns: Sequence[str] | None = None,
     stepwise_options: Mapping[str, Any] | None = None,
+    n_jobs: int = 1,
 ) -> StageResult:
     """Sliding forecasts for each option, one forecast table (CSV/Parquet) and figures."""
-    from .forecast import ForecastWarning, sliding_forecast
 
     result = StageResult()
     frames = []
     for option in options:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", ForecastWarning)
-            forecast = sliding_forecast(
-                modal,
-                predictors,
-                poles=poles,
-                option=option,
-                method=method,
-                train_blocks=train_blocks,
-                horizon=horizon,
-                trust=trust,
-                predictor_columns=predictor_columns,
-                stepwise_options=stepwise_options,
-            )
-        result.warnings += [
-            f"option {option}: {w.message}"
-            for w in caught
-            if issubclass(w.category, ForecastWarning)
-        ]
-        frames.append(forecast.table)
+        table, messages = forecast_modes(
+            modal,
+            predictors,
+            n_jobs=n_jobs,
+            poles=poles,
+            option=option,
+            method=method,
+            train_blocks=train_blocks,
+            horizon=horizon,
+            trust=trust,
+            predictor_columns=predictor_columns,
+            stepwise_options=stepwise_options,
+        )
+        result.warnings += [f"option {option}: {m}" for m in messages]
+        frames.append(table)
     table = pd.concat(frames, ignore_index=True)
     path = write_table(table, out, FORECAST)
     result.files.append(path)
