@@ -150,17 +150,25 @@ def detrend(x: np.ndarray) -> np.ndarray:
     array, was_1d = _as_2d(x)
     n = array.shape[0]
     finite = np.isfinite(array)
+    t = np.arange(n, dtype=float) - (n - 1) / 2.0  # centred for conditioning
     weight = finite.astype(float)
     values = np.where(finite, array, 0.0)
-    t = np.arange(n, dtype=float) - (n - 1) / 2.0  # centred for conditioning
+    # weighted sums by matrix-vector products (one pass over the data each)
     count = weight.sum(axis=0)
+    sum_t = t @ weight
+    sum_tt = (t * t) @ weight
+    sum_x = values.sum(axis=0)
+    sum_tx = t @ values
     with np.errstate(invalid="ignore", divide="ignore"):
-        t_mean = (weight * t[:, None]).sum(axis=0) / count
-        x_mean = values.sum(axis=0) / count
-        dt = (t[:, None] - t_mean) * weight
-        sxx = (dt * dt).sum(axis=0)
-        slope = np.where(sxx > 0, (dt * (values - x_mean)).sum(axis=0) / sxx, 0.0)
-    trend = x_mean + slope * (t[:, None] - t_mean)
+        t_mean = sum_t / count
+        x_mean = sum_x / count
+        sxx = sum_tt - count * t_mean * t_mean
+        sxy = sum_tx - count * t_mean * x_mean
+        slope = np.where(sxx > 0, sxy / np.where(sxx > 0, sxx, 1.0), 0.0)
+    trend = np.outer(t, slope)
+    trend += x_mean - slope * t_mean
+    if finite.all():
+        return _restore(array - trend, was_1d)
     return _restore(np.where(finite, array - trend, np.nan), was_1d)
 
 

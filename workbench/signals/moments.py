@@ -264,7 +264,8 @@ def faulty_channels(
             if longest[j] > max_nan_run_s:
                 why.append(f"nan run {longest[j]:.1f} s")
             if not variance[j] > flat_variance:
-                why.append(f"flat (variance {variance[j]:.3g})")
+                shown = 0.0 if variance[j] < 1e-30 else variance[j]  # round-off of a constant
+                why.append(f"flat (variance {shown:.3g})")
             elif kurtosis[j] > high:
                 why.append(f"kurtosis {kurtosis[j]:.1f} > {high:g}")
             elif kurtosis[j] < low:

@@ -285,18 +285,20 @@ def _block_files_and_gap(
         before = infos[first - 1].name if first > 0 else "the first file"
         after = infos[first].name if first < len(infos) else "the last file"
         return indices, f"no data (gap between {before} and {after})"
-    # uncovered stretches inside the block: before the first file, between files, after
-    edges = [(start, starts_ns[indices[0]], None, indices[0])]
+    # uncovered stretches inside the block: before the first file, between files, after;
+    # each named by the files on either side (also those just outside the block)
+    first_i, last_i = indices[0], indices[-1]
+    edges = [(start, starts_ns[first_i], first_i - 1, first_i)]
     edges += [(ends_ns[i], starts_ns[i + 1], i, i + 1) for i in indices[:-1]]
-    edges += [(ends_ns[indices[-1]], end, indices[-1], None)]
+    edges += [(ends_ns[last_i], end, last_i, last_i + 1)]
     for gap_start, gap_end, a, b in edges:
         inside = min(gap_end, end) - max(gap_start, start)
         if inside <= half:
             continue
         inside_s = inside / _NS
         if inside_s > max_gap_s + 0.5 / rate:
-            left = infos[a].name if a is not None else "the block start"
-            right = infos[b].name if b is not None else "the block end"
+            left = infos[a].name if a >= 0 else "the start of the data"
+            right = infos[b].name if b < len(infos) else "the end of the data"
             return indices, f"gap of {inside_s:.1f} s between {left} and {right}"
     return indices, ""
 

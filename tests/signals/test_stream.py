@@ -1,0 +1,243 @@
+"""Tests for the streaming block builder (workbench.signals.stream).
+
+On the simulated 1-h demo voyage (12 five-minute files, 19 channels at 64 Hz; acc07 and
+acc15 with short dropouts, acc12 dead in file 4 = 00:20-00:25, see
+workbench/simulate/voyage.py) and on small hand-made files with gaps.
+"""
+
+from __future__ import annotations
+
+import gc
+import weakref
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import signal
+
+from data_contracts import AccelerationRecord, read_accelerations, write_accelerations
+from workbench.blocks import BlockGrid
+from workbench.signals import iter_blocks, load_block, plan_blocks
+from workbench.signals import stream as stream_module
+from workbench.simulate import simulate_voyage
+
+
+@pytest.fixture(scope="module")
+def voyage(tmp_path_factory):
+    return simulate_voyage(tmp_path_factory.mktemp("voyage"), seed=0, hours=1)
+
+
+@pytest.fixture(scope="module")
+def voyage_blocks(voyage):
+    return list(iter_blocks(voyage.acceleration_files))
+
+
+def test_plan_of_a_one_hour_voyage(voyage):
+    files = voyage.acceleration_files
+    assert len(files) == 12
+    plan = plan_blocks(reversed(files))  # any order: sorted by start time
+    assert plan.grid.t0 == voyage.start_time
+    assert plan.sampling_rate_hz == 64.0 and len(plan.channels) == 19
+    # (60 min - 20 min) / 5 min + 1 = 9 blocks, each from 4 five-minute files
+    frame = plan.frame()
+    assert frame["block"].tolist() == list(range(9))
+    assert (frame["n_files"] == 4).all() and (frame["skipped_reason"] == "").all()
+    assert plan.blocks[2].files == tuple(files[2:6])
+    assert plan.blocks[2].block_start == voyage.start_time + pd.Timedelta(minutes=10)
+
+
+def test_blocks_of_the_voyage_drop_the_dead_channel(voyage_blocks):
+    assert [b.block for b in voyage_blocks] == list(range(9))
+    for block in voyage_blocks:
+        assert not block.skipped
+        assert block.acceleration.shape == (76800, len(block.channels))
+        assert np.isfinite(block.acceleration).all()  # short dropouts bridged
+        assert "acc07" in block.channels and "acc15" in block.channels
+        if block.block in (1, 2, 3, 4):  # the blocks containing 00:20-00:25
+            assert len(block.channels) == 18 and "acc12" not in block.channels
+            (channel, reason), *_ = block.dropped
+            assert channel == "acc12" and "nan run 300.0 s" in reason
+            assert any(n.startswith("acc12 dropped: ") for n in block.notes)
+        else:
+            assert len(block.channels) == 19 and block.dropped == ()
+        report = block.channel_report
+        assert report["faulty"].sum() == len(block.dropped)
+
+
+def test_block_samples_are_the_files_samples(voyage, voyage_blocks):
+    files = voyage.acceleration_files
+    raw = np.concatenate([read_accelerations(f).acceleration for f in files[2:6]])
+    block = voyage_blocks[2]
+    assert block.files == tuple(f.name for f in files[2:6])
+    column = block.channels.index("acc01")
+    # detrended exactly as scipy does for a channel without NaN
+    np.testing.assert_allclose(
+        block.acceleration[:, column], signal.detrend(raw[:, 0]), rtol=0, atol=1e-12
+    )
+    plain = next(iter_blocks(files, blocks=[2], detrend=False))
+    np.testing.assert_array_equal(plain.acceleration[:, column], raw[:, 0])
+
+
+def test_load_block_equals_the_streamed_block(voyage, voyage_blocks):
+    plan = plan_blocks(voyage.acceleration_files)
+    one = load_block(plan.blocks[3].files, 3, plan.grid)
+    assert one.channels == voyage_blocks[3].channels
+    assert one.dropped == voyage_blocks[3].dropped
+    np.testing.assert_array_equal(one.acceleration, voyage_blocks[3].acceleration)
+    # a superset of files works too
+    again = load_block(voyage.acceleration_files, 3, plan.grid)
+    np.testing.assert_array_equal(again.acceleration, one.acceleration)
+
+
+def test_selected_blocks_read_only_their_files(voyage, monkeypatch):
+    reads: list[str] = []
+    original = stream_module.read_accelerations
+
+    def counting(path, **options):
+        reads.append(Path(path).name)
+        return original(path, **options)
+
+    monkeypatch.setattr(stream_module, "read_accelerations", counting)
+    blocks = list(iter_blocks(voyage.acceleration_files, blocks=[6, 7, 42]))
+    assert [b.block for b in blocks] == [6, 7, 42]
+    assert reads == [f.name for f in voyage.acceleration_files[6:11]]  # each file once
+    assert blocks[2].skipped and "outside" in blocks[2].skipped_reason
+
+
+def test_memory_is_bounded(voyage, monkeypatch):
+    """At most length / file duration + 1 = 5 files' arrays are alive at any block."""
+    arrays: list[weakref.ref] = []
+    original = stream_module.read_accelerations
+
+    def tracking(path, **options):
+        record = original(path, **options)
+        arrays.append(weakref.ref(record.acceleration))
+        return record
+
+    monkeypatch.setattr(stream_module, "read_accelerations", tracking)
+    peak = 0
+    for block in iter_blocks(voyage.acceleration_files, detrend=False):
+        del block
+        gc.collect()
+        peak = max(peak, sum(ref() is not None for ref in arrays))
+    assert 4 <= peak <= 20 // 5 + 1
+
+
+def test_decimation_and_band_options(voyage):
+    block = next(
+        iter_blocks(voyage.acceleration_files, blocks=[0], target_rate_hz=32.0, band_hz=(2, 12))
+    )
+    assert block.sampling_rate_hz == 32.0
+    assert block.acceleration.shape == (38400, 19)
+    # nothing left below 0.5 Hz: the mean of each channel is ~0 relative to its RMS
+    rms = block.acceleration.std(axis=0)
+    assert (np.abs(block.acceleration.mean(axis=0)) < 0.01 * rms).all()
+
+
+# ----------------------------------------------------------------------------------------
+# hand-made files
+# ----------------------------------------------------------------------------------------
+T0 = pd.Timestamp("2024-05-01T00:00:00Z")
+RATE = 8.0
+CHANNELS = ("a", "b", "c")
+
+
+def _write(
+    folder: Path,
+    start_s: float,
+    seconds: float = 60.0,
+    *,
+    channels=CHANNELS,
+    rate=RATE,
+    name: str | None = None,
+    seed: int = 0,
+) -> Path:
+    rng = np.random.default_rng(seed + int(start_s))
+    n = int(seconds * rate)
+    record = AccelerationRecord(
+        rng.standard_normal((n, len(channels))) * 0.01,
+        rate,
+        T0 + pd.Timedelta(seconds=start_s),
+        tuple(channels),
+    )
+    path = folder / (name or f"f{int(start_s):04d}.npz")
+    return write_accelerations(record, path)
+
+
+@pytest.fixture
+def gappy(tmp_path):
+    """Files [0,60) [60,120) [120,180), gap 2 s, [182,242) [242,302), gap, [600,660)."""
+    return [_write(tmp_path, s) for s in (600, 182, 0, 242, 120, 60)]  # shuffled
+
+
+def test_gaps_skip_blocks_with_the_reason(gappy):
+    grid = BlockGrid(T0, 120, 60)
+    plan = plan_blocks(gappy, grid)
+    reasons = dict(zip(plan.frame()["block"], plan.frame()["skipped_reason"], strict=True))
+    assert list(reasons) == list(range(10))  # blocks inside [0, 660)
+    assert reasons[0] == reasons[1] == ""
+    assert reasons[2] == "gap of 2.0 s between f0120.npz and f0182.npz"
+    assert reasons[3] == "gap of 2.0 s between f0120.npz and f0182.npz"
+    assert reasons[4] == "gap of 58.0 s between f0242.npz and f0600.npz"  # [240,360)
+    assert reasons[6].startswith("no data (gap between f0242.npz and f0600.npz")
+    blocks = list(iter_blocks(gappy, grid=grid))
+    assert [b.skipped for b in blocks] == [False, False] + [True] * 8
+    assert blocks[2].acceleration is None and blocks[2].skipped_reason == reasons[2]
+
+
+def test_short_gaps_are_nan_padded_when_allowed(gappy):
+    grid = BlockGrid(T0, 120, 60)
+    blocks = {b.block: b for b in iter_blocks(gappy, grid=grid, max_gap_s=5.0, detrend=False)}
+    assert not blocks[2].skipped and not blocks[3].skipped and blocks[4].skipped
+    block = blocks[2]
+    assert block.acceleration.shape == (960, 3)
+    assert "gap of 2.0 s NaN-padded" in block.notes
+    assert np.isfinite(block.acceleration).all()
+    # the samples after the gap are the second file's first samples, on time
+    second = read_accelerations(gappy[1]).acceleration  # f0182
+    np.testing.assert_array_equal(block.acceleration[62 * 8 :], second[: 960 - 62 * 8])
+
+
+def test_channel_order_is_unified(tmp_path):
+    files = [
+        _write(tmp_path, 0),
+        _write(tmp_path, 60, channels=("c", "a", "b"), seed=5),
+    ]
+    block = next(iter_blocks(files, grid=BlockGrid(T0, 120, 60), detrend=False))
+    assert block.channels == CHANNELS
+    second = read_accelerations(files[1]).acceleration
+    np.testing.assert_array_equal(block.acceleration[480:, 0], second[:, 1])  # "a"
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"channels": ("a", "b", "d")}, r"f0060\.npz: channels differ .*missing c; extra d"),
+        ({"rate": 16.0}, r"f0060\.npz: sampling rate 16 Hz differs"),
+    ],
+)
+def test_inconsistent_files_are_errors_naming_the_file(tmp_path, kwargs, match):
+    files = [_write(tmp_path, 0), _write(tmp_path, 60, **kwargs)]
+    with pytest.raises(ValueError, match=match):
+        plan_blocks(files)
+    with pytest.raises(ValueError, match=match):
+        iter_blocks(files)
+
+
+def test_overlapping_files_are_an_error(tmp_path):
+    files = [_write(tmp_path, 0), _write(tmp_path, 30)]
+    with pytest.raises(ValueError, match=r"f0030\.npz: starts 30 s before the end of f0000"):
+        plan_blocks(files)
+
+
+def test_all_faulty_block_is_skipped_and_options_are_checked(tmp_path):
+    files = [_write(tmp_path, 0), _write(tmp_path, 60)]
+    grid = BlockGrid(T0, 120, 60)
+    (block,) = iter_blocks(files, grid=grid, fault_options={"kurtosis_limits": (3.5, 10.0)})
+    assert block.skipped and block.skipped_reason == "all channels faulty"
+    assert len(block.dropped) == 3
+    with pytest.raises(TypeError, match="kurtosis_limit"):
+        iter_blocks(files, grid=grid, fault_options={"kurtosis_limit": 5})
+    with pytest.raises(ValueError, match="contradicts"):
+        iter_blocks(files, grid=grid, length_s=600)
