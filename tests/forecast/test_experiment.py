@@ -7,11 +7,6 @@ import math
 import matplotlib
 import pytest
 
-try:  # the stats stage is written concurrently; skip until it has landed
-    from workbench.stats import stepwise  # noqa: F401
-except ImportError:  # pragma: no cover
-    pytest.skip("workbench.stats.stepwise is not available yet", allow_module_level=True)
-
 from workbench.forecast import (
     run_temperature_experiment,
 )

@@ -9,11 +9,6 @@ import numpy as np
 import pandas as pd
 import pytest
 
-try:  # the stats stage is written concurrently; skip until it has landed
-    from workbench.stats import stepwise  # noqa: F401
-except ImportError:  # pragma: no cover
-    pytest.skip("workbench.stats.stepwise is not available yet", allow_module_level=True)
-
 from data_contracts import FORECAST
 from workbench.forecast import ForecastWarning, relaxation_factor, sliding_forecast
 
