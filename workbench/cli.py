@@ -358,6 +358,113 @@ def _run_track(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _add_correlate(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser(
+        "correlate",
+        help="correlation and significance of modes vs predictors -> CSV, figures, HTML",
+        description="Pearson r, two-sided p-value and n for every mode frequency/damping "
+        "and predictor pair (and among predictors), per operating case and stitched; "
+        "flags significant (p < alpha) and useful (|r| >= 0.5 and significant).",
+    )
+    parser.add_argument(
+        "--modal", type=Path, required=True, metavar="FILE", help="tracked modal table"
+    )
+    _add_predictor_source(parser)
+    parser.add_argument(
+        "--cases", type=Path, metavar="FILE", help="operating cases: CSV with case,start,end (UTC)"
+    )
+    parser.add_argument("--alpha", type=float, default=0.05)
+    parser.add_argument(
+        "--correction",
+        choices=("none", "holm", "fdr_bh"),
+        default="none",
+        help="multiple-testing correction of the p-values",
+    )
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR")
+    parser.set_defaults(run=_run_correlate)
+
+
+def _run_correlate(args: argparse.Namespace) -> int:
+    from data_contracts import MODAL, read_table
+
+    from .reporting.correlation import write_correlation_report
+
+    if not 0.0 < args.alpha < 1.0:
+        raise UsageError(f"--alpha must be in (0, 1), got {args.alpha}")
+    modal = read_table(args.modal, MODAL)
+    predictors = _predictors_for(args, modal)
+    try:
+        paths = write_correlation_report(
+            modal,
+            predictors,
+            args.out,
+            cases=args.cases,
+            alpha=args.alpha,
+            correction=None if args.correction == "none" else args.correction,
+        )
+    except ValueError as error:
+        if isinstance(error, ContractError):
+            raise
+        raise WorkbenchError(f"{args.modal}: {error}") from None
+    for name, path in dict(paths).items():
+        print(f"{name}: {path}")
+    return EXIT_OK
+
+
+def _add_fit(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser(
+        "fit",
+        help="stepwise regression with interactions per mode -> summary, coefficients, diagnostics",
+        description="Fit one stepwise linear model (MATLAB stepwiselm semantics: F-test "
+        "entry p < 0.05, removal p > 0.10, two-way interactions, hierarchy) of each mode's "
+        "frequency on the block predictors; write a summary, JSON, a coefficient table and "
+        "residual diagnostics.",
+    )
+    parser.add_argument(
+        "--modal", type=Path, required=True, metavar="FILE", help="tracked modal table"
+    )
+    _add_predictor_source(parser)
+    parser.add_argument("--p-enter", type=float, default=0.05)
+    parser.add_argument("--p-remove", type=float, default=0.10)
+    parser.add_argument(
+        "--upper",
+        default="interactions",
+        help="largest model: constant, linear, interactions, or a formula "
+        "such as 'y ~ speed_kn + water_temp_c + speed_kn:water_temp_c'",
+    )
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR")
+    parser.set_defaults(run=_run_fit)
+
+
+def _run_fit(args: argparse.Namespace) -> int:
+    from data_contracts import MODAL, read_table
+
+    from .stats.diagnostics import write_fit_report
+
+    if not 0.0 < args.p_enter < args.p_remove < 1.0:
+        raise UsageError(
+            f"need 0 < --p-enter < --p-remove < 1, got {args.p_enter} and {args.p_remove}"
+        )
+    modal = read_table(args.modal, MODAL)
+    predictors = _predictors_for(args, modal)
+    try:
+        paths = write_fit_report(
+            modal,
+            predictors,
+            args.out,
+            p_enter=args.p_enter,
+            p_remove=args.p_remove,
+            upper=args.upper,
+        )
+    except ValueError as error:
+        if isinstance(error, ContractError):
+            raise
+        raise WorkbenchError(f"{args.modal}: {error}") from None
+    for name, path in dict(paths).items():
+        print(f"{name}: {path}")
+    return EXIT_OK
+
+
 def _add_forecast(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser(
         "forecast",
@@ -529,6 +636,8 @@ COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_simulate,
     _add_identify,
     _add_track,
+    _add_correlate,
+    _add_fit,
     _add_forecast,
     _add_evaluate,
     _add_validate,
