@@ -1,0 +1,170 @@
+"""Stabilisation diagram: which poles are stable between consecutive model orders.
+
+A pole of model order n is *stable* when the previous order of the diagram (the order
+before n in ``result.orders``) has a pole with
+
+- relative frequency difference |f_n - f_p| / f_p < ``frequency_tol`` (default 1 %),
+- relative damping difference |ζ_n - ζ_p| / ζ_p < ``damping_tol`` (default 5 %),
+- MAC(φ_n, φ_p) > ``mac_min`` (default 0.98),
+
+and positive damping itself (ζ_n > 0 and ζ_p > 0: a growing pole is not physical for a
+passive structure). Poles of the lowest order are never stable (nothing to compare with).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .mac import mac
+
+if TYPE_CHECKING:
+    from .ssi import SSIResult
+
+__all__ = ["StabilityCriteria", "stabilise", "stability_flags"]
+
+
+@dataclass(frozen=True)
+class StabilityCriteria:
+    """Tolerances for calling a pole stable against a pole of the previous model order.
+
+    Parameters
+    ----------
+    frequency_tol : float
+        Largest relative frequency difference |Δf|/f. [-]
+    damping_tol : float
+        Largest relative damping difference |Δζ|/ζ. [-]
+    mac_min : float
+        Smallest MAC between the two shapes. [-]
+    """
+
+    frequency_tol: float = 0.01
+    damping_tol: float = 0.05
+    mac_min: float = 0.98
+
+    def __post_init__(self):
+        for name in ("frequency_tol", "damping_tol"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{name}={value} must be a positive number")
+        if not 0.0 <= self.mac_min <= 1.0:
+            raise ValueError(f"mac_min={self.mac_min} must lie in [0, 1]")
+
+    def matches(
+        self,
+        frequency_a: np.ndarray,
+        damping_a: np.ndarray,
+        shapes_a: np.ndarray,
+        frequency_b: np.ndarray,
+        damping_b: np.ndarray,
+        shapes_b: np.ndarray,
+    ) -> np.ndarray:
+        """Boolean matrix (n_a, n_b): pole a of one order is consistent with pole b of another.
+
+        Relative differences are taken with respect to pole b (the reference order).
+        """
+        frequency_a = np.asarray(frequency_a)[:, None]
+        damping_a = np.asarray(damping_a)[:, None]
+        frequency_b = np.asarray(frequency_b)[None, :]
+        damping_b = np.asarray(damping_b)[None, :]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            close_frequency = np.abs(frequency_a - frequency_b) < self.frequency_tol * frequency_b
+            close_damping = np.abs(damping_a - damping_b) < self.damping_tol * damping_b
+        positive = (damping_a > 0) & (damping_b > 0)
+        candidates = close_frequency & close_damping & positive
+        if not np.any(candidates):
+            return candidates
+        return candidates & (np.atleast_2d(mac(shapes_a, shapes_b)) > self.mac_min)
+
+
+def stability_flags(
+    model_order: np.ndarray,
+    frequency_hz: np.ndarray,
+    damping_ratio: np.ndarray,
+    mode_shapes: np.ndarray,
+    orders: Sequence[int],
+    criteria: StabilityCriteria | None = None,
+) -> np.ndarray:
+    """Stable flag of every pole of a stabilisation diagram.
+
+    Parameters
+    ----------
+    model_order : ndarray of int, shape (n_poles,)
+        Model order of each pole.
+    frequency_hz : ndarray, shape (n_poles,)
+        Natural frequencies. [Hz]
+    damping_ratio : ndarray, shape (n_poles,)
+        Damping ratios. [-]
+    mode_shapes : ndarray of complex, shape (n_channels, n_poles)
+        Mode shapes, column k for pole k. [-]
+    orders : sequence of int
+        The orders of the diagram in increasing order (also those without poles); each
+        order is compared with the one before it in this sequence.
+    criteria : StabilityCriteria, optional
+        Tolerances; defaults Δf < 1 %, Δζ < 5 %, MAC > 0.98.
+
+    Returns
+    -------
+    ndarray of bool, shape (n_poles,)
+    """
+    criteria = criteria or StabilityCriteria()
+    model_order = np.asarray(model_order)
+    stable = np.zeros(model_order.size, dtype=bool)
+    previous: np.ndarray | None = None
+    for order in sorted(int(n) for n in orders):
+        current = np.flatnonzero(model_order == order)
+        if previous is not None and current.size and previous.size:
+            match = criteria.matches(
+                frequency_hz[current],
+                damping_ratio[current],
+                mode_shapes[:, current],
+                frequency_hz[previous],
+                damping_ratio[previous],
+                mode_shapes[:, previous],
+            )
+            stable[current] = match.any(axis=1)
+        previous = current
+    return stable
+
+
+def stabilise(
+    result: SSIResult,
+    *,
+    frequency_tol: float = 0.01,
+    damping_tol: float = 0.05,
+    mac_min: float = 0.98,
+) -> SSIResult:
+    """Recompute the ``stable`` column of an SSI result with other criteria.
+
+    Parameters
+    ----------
+    result : SSIResult
+        Output of :func:`~workbench.sid.ssi.ssi_cov` or :func:`~workbench.sid.ssi.ssi_data`
+        (which already flag poles with the default criteria).
+    frequency_tol : float
+        Largest relative frequency change between consecutive orders. [-]
+    damping_tol : float
+        Largest relative damping change between consecutive orders. [-]
+    mac_min : float
+        Smallest MAC between the shapes at consecutive orders. [-]
+
+    Returns
+    -------
+    SSIResult
+        A copy with the new ``stable`` column and ``criteria``.
+    """
+    criteria = StabilityCriteria(frequency_tol, damping_tol, mac_min)
+    poles = result.poles.copy()
+    poles["stable"] = stability_flags(
+        poles["model_order"].to_numpy(),
+        poles["frequency_hz"].to_numpy(),
+        poles["damping_ratio"].to_numpy(),
+        result.mode_shapes,
+        result.orders,
+        criteria,
+    )
+    return dataclasses.replace(result, poles=poles, criteria=criteria)
