@@ -200,7 +200,7 @@ def run_demo(
             options=("A", "B"),
             method=2,
             train_blocks=20,
-            trust=None,
+            trust=0.65,
             figures=out_dir / "forecast",
             truth=_relabel(truth, mapping),
         )

@@ -194,18 +194,19 @@ def forecast_modes(
     modes = sorted(int(m) for m in (modal["mode"].unique() if modes is None else modes))
     n_jobs = max(1, min(int(n_jobs), len(modes)))
     if n_jobs == 1:
-        table, messages = _forecast_part(modal, predictors, modes, kwargs)
-        return table, messages
-    from concurrent.futures import ProcessPoolExecutor
+        parts = [_forecast_part(modal, predictors, modes, kwargs)]
+    else:
+        from concurrent.futures import ProcessPoolExecutor
 
-    shares = [modes[k::n_jobs] for k in range(n_jobs)]
-    with ProcessPoolExecutor(max_workers=n_jobs) as pool:
-        futures = [
-            pool.submit(_forecast_part, modal[modal["mode"].isin(share)], predictors, share,
-                        kwargs)
-            for share in shares
-        ]
-        parts = [future.result() for future in futures]
+        shares = [modes[k::n_jobs] for k in range(n_jobs)]
+        with ProcessPoolExecutor(max_workers=n_jobs) as pool:
+            futures = [
+                pool.submit(
+                    _forecast_part, modal[modal["mode"].isin(share)], predictors, share, kwargs
+                )
+                for share in shares
+            ]
+            parts = [future.result() for future in futures]
     table = pd.concat([p[0] for p in parts], ignore_index=True)
     keys = [c for c in ("block", "mode", "option") if c in table.columns]
     table = table.sort_values(keys, kind="stable").reset_index(drop=True)

@@ -1,0 +1,63 @@
+"""End-to-end: ``workbench demo`` on a shortened demo voyage, every stage, checked files."""
+
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+from data_contracts import FORECAST, MODAL, PREDICTORS, read_table
+from workbench.cli import main
+
+HOURS = 6.0  # 69 blocks: enough for 20-block training windows and several slides
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo")
+    status = main(["demo", "--out", str(out), "--hours", str(HOURS), "--scheduler",
+                   "synchronous", "--quiet"])
+    assert status == 0
+    return out
+
+
+def test_demo_writes_every_stage(demo):
+    for name in ("index.html", "tracked_modal.csv", "predictors.csv", "forecast.csv",
+                 "evaluation.csv", "identify/poles.parquet", "identify/selected.parquet",
+                 "identify/blocks.csv", "correlation", "fit", "forecast"):
+        assert (demo / name).exists(), name
+    index = (demo / "index.html").read_text(encoding="utf-8")
+    assert "forecast.csv" in index and "tracked_modal.csv" in index
+
+
+def test_demo_tables_follow_their_contracts(demo):
+    tracked = read_table(demo / "tracked_modal.csv", MODAL)
+    read_table(demo / "predictors.csv", PREDICTORS)
+    forecast = read_table(demo / "forecast.csv", FORECAST)
+    assert set(forecast["option"]) == {"A", "B"}
+    assert tracked["mode"].nunique() >= 6
+
+
+def test_demo_tracking_recovers_the_true_modes(demo):
+    from workbench.sid.tracking import label_agreement
+
+    tracked = read_table(demo / "tracked_modal.csv", MODAL)
+    truth = read_table(demo / "voyage" / "truth_modal.csv", MODAL)
+    agreement, mapping = label_agreement(tracked, truth)
+    assert agreement >= 0.95
+    assert len(set(mapping.values())) >= 6
+    # identified frequencies within 1 % of the block truth for the paired labels
+    paired = tracked[tracked["mode"].isin(mapping)].assign(
+        true_mode=lambda t: t["mode"].map(mapping)
+    )
+    merged = paired.merge(truth, left_on=["block", "true_mode"], right_on=["block", "mode"],
+                          suffixes=("", "_true"))
+    error = (merged["frequency_hz"] / merged["frequency_hz_true"] - 1).abs()
+    assert error.median() < 0.005
+
+
+def test_demo_kalman_beats_raw_ssi(demo):
+    evaluation = pd.read_csv(demo / "evaluation.csv")
+    for option, part in evaluation.groupby("option"):
+        ssi = part["ssi_cumulative_error_hz"].sum()
+        kalman = part["kalman_cumulative_error_hz"].sum()
+        assert kalman < ssi, option
