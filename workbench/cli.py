@@ -329,6 +329,7 @@ def _add_track(commands: argparse._SubParsersAction) -> None:
         help="lowest MAC (or MACXP with --gate macxp) to join a mode",
     )
     parser.add_argument("--gate", choices=("mac", "macxp"), default="mac")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument(
         "--frequency-tolerance",
         type=float,
@@ -349,6 +350,7 @@ def _run_track(args: argparse.Namespace) -> int:
             threshold=args.threshold,
             gate=args.gate,
             frequency_tolerance=args.frequency_tolerance,
+            progress=not args.quiet,
         )
     except ValueError as error:
         if isinstance(error, ContractError):
@@ -535,6 +537,7 @@ def _add_forecast(commands: argparse._SubParsersAction) -> None:
         metavar="N",
         help="processes to spread the modes over (for voyage-length tables)",
     )
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(run=_run_forecast)
 
 
@@ -579,6 +582,7 @@ def _run_forecast(args: argparse.Namespace) -> int:
             figures=args.figures,
             truth=truth,
             n_jobs=args.jobs,
+            progress=not args.quiet,
         )
     except ValueError as error:
         if isinstance(error, ContractError):

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -122,6 +123,7 @@ def run_track(
     out: str | os.PathLike,
     *,
     reference: str | os.PathLike | None = None,
+    progress: bool = False,
     **options: Any,
 ) -> StageResult:
     """Track the modes selected block by block (``selected`` table) into a modal table."""
@@ -129,7 +131,9 @@ def run_track(
 
     selected = _read_any(selected_path)
     ref = read_table(reference, MODAL) if reference is not None else None
-    tracked = track_modes(selected, options=TrackingOptions(**options), reference=ref)
+    tracked = track_modes(
+        selected, options=TrackingOptions(**options), reference=ref, progress=progress
+    )
     if tracked.empty:
         raise WorkbenchError(f"{selected_path}: no mode could be tracked")
     path = write_table(tracked, out, MODAL)
@@ -182,6 +186,7 @@ def forecast_modes(
     predictors: pd.DataFrame,
     *,
     n_jobs: int = 1,
+    progress: bool = False,
     **kwargs: Any,
 ) -> tuple[pd.DataFrame, list[str]]:
     """:func:`~workbench.forecast.sliding_forecast` with the modes spread over processes.
@@ -193,20 +198,35 @@ def forecast_modes(
     modes = kwargs.pop("modes", None)
     modes = sorted(int(m) for m in (modal["mode"].unique() if modes is None else modes))
     n_jobs = max(1, min(int(n_jobs), len(modes)))
-    if n_jobs == 1:
-        parts = [_forecast_part(modal, predictors, modes, kwargs)]
-    else:
-        from concurrent.futures import ProcessPoolExecutor
+    from tqdm.auto import tqdm
 
-        shares = [modes[k::n_jobs] for k in range(n_jobs)]
-        with ProcessPoolExecutor(max_workers=n_jobs) as pool:
-            futures = [
-                pool.submit(
-                    _forecast_part, modal[modal["mode"].isin(share)], predictors, share, kwargs
-                )
-                for share in shares
-            ]
-            parts = [future.result() for future in futures]
+    bar = tqdm(
+        total=len(modes),
+        desc="forecast",
+        unit="mode",
+        disable=not progress,
+        file=sys.stderr,
+        dynamic_ncols=True,
+    )
+    with bar:
+        if n_jobs == 1:
+            parts = []
+            for mode in modes:
+                parts.append(_forecast_part(modal, predictors, [mode], kwargs))
+                bar.update(1)
+        else:
+            from concurrent.futures import ProcessPoolExecutor, as_completed
+
+            with ProcessPoolExecutor(max_workers=n_jobs) as pool:
+                futures = [
+                    pool.submit(
+                        _forecast_part, modal[modal["mode"] == mode], predictors, [mode], kwargs
+                    )
+                    for mode in modes
+                ]
+                for _done in as_completed(futures):
+                    bar.update(1)
+                parts = [future.result() for future in futures]
     table = pd.concat([p[0] for p in parts], ignore_index=True)
     keys = [c for c in ("block", "mode", "option") if c in table.columns]
     table = table.sort_values(keys, kind="stable").reset_index(drop=True)
@@ -229,6 +249,7 @@ def run_forecast(
     predictor_columns: Sequence[str] | None = None,
     stepwise_options: Mapping[str, Any] | None = None,
     n_jobs: int = 1,
+    progress: bool = False,
 ) -> StageResult:
     """Sliding forecasts for each option, one forecast table (CSV/Parquet) and figures."""
 
@@ -239,6 +260,7 @@ def run_forecast(
             modal,
             predictors,
             n_jobs=n_jobs,
+            progress=progress,
             poles=poles,
             option=option,
             method=method,

@@ -24,6 +24,7 @@ References
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Literal
@@ -361,6 +362,7 @@ def track_modes(
     *,
     options: TrackingOptions | None = None,
     reference: pd.DataFrame | None = None,
+    progress: bool = False,
 ) -> pd.DataFrame:
     """Tracked modal table from the modes selected block by block.
 
@@ -374,6 +376,8 @@ def track_modes(
     reference : DataFrame, optional
         Initial library: a modal table (its ``mode`` labels are kept; the median of each
         mode's frequency and damping and the shape of its first row are used).
+    progress : bool
+        Progress bar (blocks done, rate, ETA) on stderr.
 
     Returns
     -------
@@ -400,7 +404,19 @@ def track_modes(
 
     frame = selected.sort_values("block", kind="stable").reset_index(drop=True)
     rows: list[tuple[int, int, float]] = []  # (row in frame, label, macxp)
-    for _, part in frame.groupby("block", sort=True):
+    from tqdm.auto import tqdm
+
+    groups = frame.groupby("block", sort=True)
+    bar = tqdm(
+        groups,
+        total=groups.ngroups,
+        desc="track",
+        unit="block",
+        disable=not progress,
+        file=sys.stderr,
+        dynamic_ncols=True,
+    )
+    for _, part in bar:
         frequency, damping, shapes = _selected_arrays(part, channels)
         block = int(part["block"].iat[0])
         for i, label, score in tracker.update(block, frequency, damping, shapes, part.index):
