@@ -1,12 +1,33 @@
 """System identification: stochastic subspace identification, stabilisation, MAC/MACXP.
 
 Layers (bottom up): :mod:`workbench.sid.mac` (MAC and pole-weighted MACXP),
-:mod:`workbench.sid.ssi` (covariance- and data-driven SSI, all model orders from one
-decomposition), :mod:`workbench.sid.stabilisation` (stable poles between consecutive orders),
+:mod:`workbench.sid.modal` (modal parameters of every model order from one observability
+basis), :mod:`workbench.sid.ssi` (covariance- and data-driven SSI),
+:mod:`workbench.sid.stabilisation` (stable poles between consecutive orders),
 :mod:`workbench.sid.selection` (automatic choice of the physical modes of one block),
 :mod:`workbench.sid.tracking` (modes followed across blocks).
 """
 
 from workbench.sid.mac import continuous_pole, mac, macxp
+from workbench.sid.modal import modal_phase_collinearity, normalise_shapes
+from workbench.sid.selection import ModeSelection, select_modes
+from workbench.sid.ssi import SSIResult, SSIWarning, StochasticStateSpace, ssi_cov, ssi_data
+from workbench.sid.stabilisation import StabilityCriteria, stabilise, stability_flags
 
-__all__ = ["continuous_pole", "mac", "macxp"]
+__all__ = [
+    "ModeSelection",
+    "SSIResult",
+    "SSIWarning",
+    "StabilityCriteria",
+    "StochasticStateSpace",
+    "continuous_pole",
+    "mac",
+    "macxp",
+    "modal_phase_collinearity",
+    "normalise_shapes",
+    "select_modes",
+    "ssi_cov",
+    "ssi_data",
+    "stabilise",
+    "stability_flags",
+]

@@ -1,0 +1,138 @@
+"""Tests for workbench.sid.selection: the library-and-descent rule and the hull block."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from data_contracts import MODAL
+from workbench.sid.mac import mac
+from workbench.sid.selection import select_modes
+from workbench.sid.ssi import SSIResult, StochasticStateSpace, ssi_cov, ssi_data
+from workbench.sid.stabilisation import stability_flags
+from workbench.simulate.hull import CHANNELS
+
+
+def _diagram(poles: list[tuple[int, float, float, int]], orders, n_channels=4) -> SSIResult:
+    """An SSIResult from (order, frequency, damping, shape id) rows; shape k is the unit
+    vector e_k, so different ids have MAC 0 and equal ids MAC 1."""
+    order, frequency, damping, shape_id = (np.array(c) for c in zip(*poles, strict=True))
+    shapes = np.eye(n_channels, dtype=complex)[:, shape_id]
+    frame = pd.DataFrame(
+        {
+            "model_order": order.astype(np.int64),
+            "frequency_hz": frequency.astype(float),
+            "damping_ratio": damping.astype(float),
+            "stable": stability_flags(order, frequency, damping, shapes, orders),
+            "mpc": np.ones(len(order)),
+        }
+    )
+    dummy = StochasticStateSpace(
+        np.zeros((2, 2)),
+        np.zeros((n_channels, 2)),
+        np.zeros((2, n_channels)),
+        np.eye(n_channels),
+        (),
+    )
+    return SSIResult(frame, shapes, 64.0, 10, tuple(orders), np.ones(3), (), "synthetic", dummy)
+
+
+ORDERS = list(range(2, 22, 2))  # max order 20: library window 10, 12, 14, 16, 18
+
+
+def test_library_and_descent_rule():
+    rows = []
+    for n in ORDERS:
+        rows.append((n, 3.0 * (1 + 0.001 * np.sin(n)), 0.02, 0))  # mode A: every order
+        if n >= 8:
+            rows.append((n, 5.0, 0.01, 1))  # mode B: from order 8 on
+        if n in (14, 16, 18, 20):
+            rows.append((n, 7.0, 0.03, 2))  # spurious: only 4 orders of the window
+        if n >= 6:
+            rows.append((n, 9.0, 0.0002, 3))  # harmonic: below the damping limit
+    result = _diagram(rows, ORDERS)
+    selection = select_modes(result)
+    assert selection.library_orders == (10, 12, 14, 16, 18)
+    # B is lost at order 6, so the modes are those of order 8
+    assert selection.model_order == 8
+    np.testing.assert_allclose(
+        selection.modes["frequency_hz"], [3.0 * (1 + 0.001 * np.sin(8)), 5.0]
+    )
+    assert (selection.modes["model_order"] == 8).all()
+    assert selection.mode_shapes.shape == (4, 2)
+    rows_back = result.poles.iloc[selection.modes["pole_index"]]
+    np.testing.assert_allclose(rows_back["frequency_hz"], selection.modes["frequency_hz"])
+    # lowering the damping limit lets the harmonic in; it exists from order 6, B from 8
+    with_harmonic = select_modes(result, damping_limits=(0.0, 0.1))
+    assert with_harmonic.model_order == 8 and len(with_harmonic.modes) == 3
+    # a band around A alone: A is present in every order, so the lowest order is selected
+    only_a = select_modes(result, frequency_band=(2.0, 4.0))
+    assert only_a.model_order == 2 and len(only_a.modes) == 1
+
+
+def test_twins_count_once_and_empty_library():
+    rows = []
+    for n in ORDERS:
+        rows.append((n, 4.0, 0.02, 0))
+        if n >= 12:
+            rows.append((n, 4.01, 0.02, 0))  # the same mode split into two poles
+    selection = select_modes(_diagram(rows, ORDERS))
+    assert len(selection.modes) == 1 and selection.model_order == 2
+    empty = select_modes(_diagram([(n, 4.0, 0.5, 0) for n in ORDERS], ORDERS))
+    assert empty.modes.empty and empty.model_order is None
+    assert empty.mode_shapes.shape == (4, 0)
+
+
+def test_bad_arguments():
+    result = _diagram([(n, 4.0, 0.02, 0) for n in ORDERS], ORDERS)
+    with pytest.raises(ValueError, match="library_orders"):
+        select_modes(result, library_orders=10)
+    with pytest.raises(ValueError, match="damping_limits"):
+        select_modes(result, damping_limits=(0.1, 0.01))
+    with pytest.raises(ValueError, match="frequency_band"):
+        select_modes(result, frequency_band=(8.0, 2.0))
+
+
+@pytest.mark.filterwarnings("ignore::workbench.sid.ssi.SSIWarning")
+@pytest.mark.parametrize("method", ["cov", "data"])
+def test_hull_block_selection_returns_the_true_modes(method, hull_block):
+    """One 20-min block of the demo hull: the selection returns exactly the seven modes."""
+    identify = ssi_cov if method == "cov" else ssi_data
+    result = identify(hull_block.acceleration, hull_block.sampling_rate_hz)
+    selection = select_modes(result)
+    modes = selection.modes
+    assert len(modes) == 7
+    frequency_error = modes["frequency_hz"].to_numpy() / hull_block.frequency_hz - 1
+    damping_error = modes["damping_ratio"].to_numpy() / hull_block.damping_ratio - 1
+    macs = np.diag(mac(selection.mode_shapes, hull_block.mode_shapes))
+    assert np.all(np.abs(frequency_error) < 0.005), frequency_error
+    assert np.all(np.abs(damping_error) < 0.20), damping_error
+    assert np.all(macs > 0.99), macs
+    frame = selection.modes_frame(CHANNELS, block=3)
+    assert (frame["block"] == 3).all() and "shape_im_acc19" in frame
+    # the shape columns satisfy the modal contract's shape pattern
+    MODAL.validate(
+        frame.assign(
+            block_start=pd.Timestamp("2024-03-01T00:00Z"),
+            block_end=pd.Timestamp("2024-03-01T00:20Z"),
+            mode=np.arange(1, 8),
+        )
+    )
+
+
+def test_hull_block_with_shaft_harmonic_and_band(hull_block):
+    """A shaft-line harmonic (undamped sinusoid at 3.6 Hz, the demo's 12 kn) is excluded by
+    the damping limits; a band keeps only the modes inside it."""
+    time = np.arange(len(hull_block.acceleration)) / hull_block.sampling_rate_hz
+    stern = np.exp(-3.0 * np.linspace(0, 1, len(CHANNELS)))
+    harmonic = 0.0115 * np.sin(2 * np.pi * 3.6 * time)[:, None] * stern
+    result = ssi_cov(hull_block.acceleration + harmonic, hull_block.sampling_rate_hz)
+    near_harmonic = result.poles[np.abs(result.poles["frequency_hz"] - 3.6) < 0.01]
+    assert len(near_harmonic) > 10 and (near_harmonic["damping_ratio"].abs() < 0.001).all()
+    selection = select_modes(result)
+    np.testing.assert_allclose(selection.modes["frequency_hz"], hull_block.frequency_hz, rtol=0.005)
+    banded = select_modes(result, frequency_band=(4.0, 6.0))
+    np.testing.assert_allclose(
+        banded.modes["frequency_hz"], hull_block.frequency_hz[1:4], rtol=0.005
+    )
