@@ -103,6 +103,12 @@ def _shape_statistics(m2, m3, m4) -> tuple[np.ndarray, np.ndarray]:
     return skewness, kurtosis
 
 
+def _channel_groups(n_samples: int, n_channels: int, max_elements: int = 4_000_000):
+    """Slices of channels holding at most about *max_elements* samples each."""
+    size = max(1, min(n_channels, max_elements // max(n_samples, 1)))
+    return [slice(j, min(j + size, n_channels)) for j in range(0, n_channels, size)]
+
+
 def moments(
     x: np.ndarray,
     sampling_rate_hz: float,
@@ -234,14 +240,21 @@ def faulty_channels(
     if not low < high:
         raise ValueError(f"kurtosis_limits={kurtosis_limits} must be (lower, upper)")
 
-    missing = np.isnan(array)
-    nan_fraction = missing.mean(axis=0) if n_samples else np.ones(n_channels)
+    nan_fraction = np.ones(n_channels)
     longest = np.zeros(n_channels)
-    for j in np.flatnonzero(missing.any(axis=0)):
-        longest[j] = nan_runs(missing[:, j])[1].max() / rate
-    _, _, m2, _, m4 = _central_moments(detrend(array), axis=0)
-    _, kurtosis = _shape_statistics(m2, np.zeros_like(m2), m4)
-    variance = m2
+    variance = np.full(n_channels, np.nan)
+    kurtosis = np.full(n_channels, np.nan)
+    # a few channels at a time: temporaries stay small for long, fast-sampled blocks
+    for group in _channel_groups(n_samples, n_channels):
+        part = array[:, group]
+        missing = np.isnan(part)
+        if n_samples:
+            nan_fraction[group] = missing.mean(axis=0)
+        for j in np.flatnonzero(missing.any(axis=0)):
+            longest[group.start + j] = nan_runs(missing[:, j])[1].max() / rate
+        _, _, m2, _, m4 = _central_moments(detrend(part), axis=0)
+        variance[group] = m2
+        kurtosis[group] = _shape_statistics(m2, np.zeros_like(m2), m4)[1]
 
     usable = np.isfinite(variance) & (variance > flat_variance)
     z = np.full(n_channels, np.nan)

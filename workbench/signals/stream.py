@@ -51,7 +51,7 @@ from data_contracts import AccelerationRecord, read_accelerations
 from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S, BlockGrid, utc_timestamp
 from .conditioning import MAX_INTERPOLATED_NAN_RUN_S, bandpass, decimate, interpolate_nan_runs
 from .conditioning import detrend as linear_detrend
-from .moments import faulty_channels
+from .moments import _channel_groups, faulty_channels
 
 __all__ = [
     "AccelerationBlock",
@@ -518,15 +518,21 @@ def _condition(
             tuple(notes),
             report,
         )
-    x = interpolate_nan_runs(raw[:, ~faulty], rate, max_run_s=options.max_nan_run_s)
-    if options.detrend:
-        x = linear_detrend(x)
-    out_rate = rate
-    if options.target_rate_hz is not None and float(options.target_rate_hz) != rate:
-        x = decimate(x, rate, options.target_rate_hz, max_nan_run_s=options.max_nan_run_s)
-        out_rate = float(options.target_rate_hz)
-    if options.band_hz is not None:
-        x = bandpass(x, out_rate, *options.band_hz, max_nan_run_s=options.max_nan_run_s)
+    kept = np.flatnonzero(~faulty)
+    decimating = options.target_rate_hz is not None and float(options.target_rate_hz) != rate
+    out_rate = float(options.target_rate_hz) if decimating else rate
+    parts = []
+    # channel by channel group: the temporaries of a 2048-Hz block stay small
+    for group in _channel_groups(raw.shape[0], len(kept)):
+        x = interpolate_nan_runs(raw[:, kept[group]], rate, max_run_s=options.max_nan_run_s)
+        if options.detrend:
+            x = linear_detrend(x)
+        if decimating:
+            x = decimate(x, rate, out_rate, max_nan_run_s=options.max_nan_run_s)
+        if options.band_hz is not None:
+            x = bandpass(x, out_rate, *options.band_hz, max_nan_run_s=options.max_nan_run_s)
+        parts.append(x)
+    x = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
     return AccelerationBlock(
         planned.block,
         planned.block_start,
