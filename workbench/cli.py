@@ -289,10 +289,10 @@ def _run_identify(args: argparse.Namespace) -> int:
     for line in result.lines():
         print(line)
     if args.figures:
-        from .reporting.stabilisation_plot import write_stabilisation_figures
+        from .identify import write_block_figures
 
-        for path in write_stabilisation_figures(
-            args.out, args.out / "figures", n_blocks=args.figures
+        for path in write_block_figures(
+            args.inputs, args.out / "figures", options=options, n_blocks=args.figures
         ):
             print(f"figure: {path}")
     return EXIT_OK
@@ -680,10 +680,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help(sys.stderr)
         return EXIT_USAGE
     logging.basicConfig(
-        level=logging.DEBUG if args.verbose else logging.INFO,
+        level=logging.DEBUG if args.verbose else logging.WARNING,
         format="%(message)s",
         stream=sys.stderr,
     )
+    log.setLevel(logging.DEBUG if args.verbose else logging.INFO)
+    for noisy in ("distributed", "tornado", "bokeh", "asyncio"):  # cluster chatter
+        logging.getLogger(noisy).setLevel(logging.DEBUG if args.verbose else logging.ERROR)
     shown = warnings.showwarning
     if not args.verbose:
         warnings.showwarning = _show_warning

@@ -38,10 +38,17 @@ from .errors import WorkbenchError
 from .parallel import BlockOutcome, RunSummary, run_blocks
 from .store import BlockStore
 
-__all__ = ["IdentifyOptions", "IdentifyResult", "identify_block", "identify_voyage"]
+__all__ = [
+    "IdentifyOptions",
+    "IdentifyResult",
+    "identify_block",
+    "identify_voyage",
+    "write_block_figures",
+]
 
-#: Acceleration file suffixes picked up from a folder.
-ACCELERATION_SUFFIXES = (".npz", ".mat", ".csv")
+#: Acceleration file suffixes picked up from a folder (CSV acceleration files must be named
+#: one by one: a voyage folder also holds CSV tables that are not accelerations).
+ACCELERATION_SUFFIXES = (".npz", ".mat")
 
 
 @dataclass(frozen=True)
@@ -127,18 +134,8 @@ class _Task:
     files: tuple
 
 
-def identify_block(
-    task: _Task, *, grid: BlockGrid, channels: Sequence[str], options: IdentifyOptions
-) -> BlockOutcome:
-    """Identify one block: load and condition, SSI over all orders, stabilise, select.
-
-    Returns
-    -------
-    BlockOutcome
-        Tables ``poles``, ``selected``, ``faults``, ``channels``; or skipped with the
-        reason (gap, too few good channels, ...). Raises ValueError for data problems,
-        which :func:`~workbench.parallel.run_blocks` records as a skipped block.
-    """
+def _identify_data(task: _Task, grid: BlockGrid, options: IdentifyOptions):
+    """Conditioned block, SSI result (None if skipped) and mode selection of one block."""
     from .sid import select_modes, ssi_cov, ssi_data, stabilise
     from .signals import load_block
 
@@ -150,21 +147,8 @@ def identify_block(
         band_hz=options.band_hz,
         max_gap_s=options.max_gap_s,
     )
-    start = pd.Timestamp(task.block_start)
-    end = grid.end(task.block)
-    faults = pd.DataFrame(
-        {
-            "block": np.full(len(data.dropped), task.block, dtype="int64"),
-            "block_start": pd.to_datetime([start] * len(data.dropped), utc=True),
-            "channel": [c for c, _ in data.dropped],
-            "reason": [r for _, r in data.dropped],
-        }
-    )
-    notes = tuple(f"channel {c} dropped ({_reason_kind(r)})" for c, r in data.dropped)
     if data.acceleration is None:
-        return BlockOutcome(
-            task.block, start, {"faults": faults}, skipped=data.skipped_reason, notes=notes
-        )
+        return data, None, None
     kept = list(data.channels)
     if len(kept) < 2:
         raise ValueError(f"block {task.block}: only {len(kept)} good channel(s) left")
@@ -196,9 +180,47 @@ def identify_block(
         damping_tol=options.damping_tol,
         mac_min=options.mac_min,
     )
+    selection = select_modes(
+        result,
+        frequency_band=options.band_hz,
+        damping_limits=(0.001, options.max_damping),
+    )
+    return data, result, selection
+
+
+def identify_block(
+    task: _Task, *, grid: BlockGrid, channels: Sequence[str], options: IdentifyOptions
+) -> BlockOutcome:
+    """Identify one block: load and condition, SSI over all orders, stabilise, select.
+
+    Returns
+    -------
+    BlockOutcome
+        Tables ``poles``, ``selected``, ``faults``, ``channels``; or skipped with the
+        reason (gap, too few good channels, ...). Raises ValueError for data problems,
+        which :func:`~workbench.parallel.run_blocks` records as a skipped block.
+    """
+    data, result, selection = _identify_data(task, grid, options)
+    start = pd.Timestamp(task.block_start)
+    end = grid.end(task.block)
+    faults = pd.DataFrame(
+        {
+            "block": np.full(len(data.dropped), task.block, dtype="int64"),
+            "block_start": pd.to_datetime([start] * len(data.dropped), utc=True),
+            "channel": [c for c, _ in data.dropped],
+            "reason": [r for _, r in data.dropped],
+        }
+    )
+    notes = tuple(f"channel {c} dropped ({_reason_kind(r)})" for c, r in data.dropped)
+    if result is None:
+        return BlockOutcome(
+            task.block, start, {"faults": faults}, skipped=data.skipped_reason, notes=notes
+        )
+    kept = list(data.channels)
     poles = _full_channels(result.poles_frame(kept, block=task.block), kept, channels)
-    selected = select_modes(result, band_hz=options.band_hz, max_damping=options.max_damping)
-    selected_frame = _selected_frame(selected, kept, channels, task.block, start, end)
+    selected_frame = _selected_frame(
+        selection.modes_frame(kept), kept, channels, task.block, start, end
+    )
     channel_stats = _channel_statistics(data.acceleration, kept, task.block, start)
     tables = {
         "poles": poles,
@@ -210,9 +232,14 @@ def identify_block(
 
 
 def _reason_kind(reason: str) -> str:
-    """The kind of a fault reason, without numbers (for summary counts)."""
-    words = [w for w in reason.split() if not any(ch.isdigit() for ch in w)]
-    return " ".join(words[:3]) or "faulty"
+    """The kind of a fault reason without its numbers (for summary counts), e.g.
+    ``"nan fraction 1.00 > 0.05"`` -> ``"nan fraction"``."""
+    words = []
+    for word in reason.split():
+        if any(ch.isdigit() for ch in word) or word in (">", "<", "=", "%"):
+            break
+        words.append(word)
+    return " ".join(words) or "faulty"
 
 
 def _full_channels(frame: pd.DataFrame, kept: Sequence[str], channels: Sequence[str]):
@@ -262,14 +289,15 @@ class IdentifyResult:
 
 
 def acceleration_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
-    """Files named by *inputs*: files as given, folders searched for acceleration files."""
+    """Files named by *inputs*: files as given, folders searched (with their subfolders)
+    for ``.npz`` and ``.mat`` acceleration files."""
     found: list[Path] = []
     for item in inputs:
         path = Path(item)
         if path.is_dir():
             found += sorted(
                 p
-                for p in path.iterdir()
+                for p in path.rglob("*")
                 if p.suffix.lower() in ACCELERATION_SUFFIXES and p.is_file()
             )
         elif path.is_file():
@@ -359,6 +387,65 @@ def identify_voyage(
     if selected is not None:
         result.n_selected = len(pd.read_parquet(selected, columns=["block"]))
     return result
+
+
+def write_block_figures(
+    inputs: Iterable[str | os.PathLike],
+    out_dir: str | os.PathLike,
+    *,
+    options: IdentifyOptions | None = None,
+    n_blocks: int = 3,
+    blocks: Sequence[int] | None = None,
+) -> list[Path]:
+    """Stabilisation diagrams (over the CMIF of the block) of a few blocks, as PNG files.
+
+    The blocks are identified again from their files with *options* (the same settings as
+    the stored results give the same diagrams); by default *n_blocks* spread evenly over
+    the voyage, skipping blocks that cannot be identified.
+    """
+    from .reporting.stabilisation_plot import write_stabilisation_figure
+    from .signals import plan_blocks
+
+    options = options or IdentifyOptions()
+    plan = plan_blocks(
+        acceleration_files(inputs),
+        length_s=options.length_s,
+        step_s=options.step_s,
+        max_gap_s=options.max_gap_s,
+    )
+    planned = [p for p in plan.blocks if not p.skipped_reason]
+    if blocks is None:
+        picks = np.unique(np.linspace(0, len(planned) - 1, max(n_blocks, 1)).round().astype(int))
+        chosen = [planned[k] for k in picks] if planned else []
+    else:
+        wanted = {int(b) for b in blocks}
+        chosen = [p for p in planned if int(p.block) in wanted]
+    paths = []
+    for planned_block in chosen:
+        task = _Task(
+            int(planned_block.block),
+            planned_block.block_start,
+            tuple(str(f) for f in planned_block.files),
+        )
+        try:
+            data, result, selection = _identify_data(task, plan.grid, options)
+        except ValueError:
+            continue
+        if result is None:
+            continue
+        path = Path(out_dir) / f"stabilisation_block{task.block:06d}.png"
+        paths.append(
+            write_stabilisation_figure(
+                result,
+                path,
+                data.acceleration,
+                selection=selection,
+                frequency_band=options.band_hz,
+                title=f"Block {task.block} ({pd.Timestamp(task.block_start):%Y-%m-%d %H:%M} "
+                f"UTC), SSI-{options.method}",
+            )
+        )
+    return paths
 
 
 def export_store(store: BlockStore, out_dir: str | os.PathLike, channels: Sequence[str]):
