@@ -241,3 +241,7 @@ def test_all_faulty_block_is_skipped_and_options_are_checked(tmp_path):
         iter_blocks(files, grid=grid, fault_options={"kurtosis_limit": 5})
     with pytest.raises(ValueError, match="contradicts"):
         iter_blocks(files, grid=grid, length_s=600)
+    with pytest.raises(ValueError, match="whole number"):
+        iter_blocks(files, grid=grid, target_rate_hz=3.0)  # 8 Hz / 3 Hz
+    with pytest.raises(ValueError, match="Nyquist"):
+        iter_blocks(files, grid=grid, target_rate_hz=4.0, band_hz=(0.5, 3.0))

@@ -449,6 +449,20 @@ class _Conditioning:
     def max_nan_run_s(self) -> float:
         return float(self.fault_options.get("max_nan_run_s", MAX_INTERPOLATED_NAN_RUN_S))
 
+    def check_rate(self, rate: float) -> None:
+        """Raise now (not at the first block) if decimation or band-pass cannot work."""
+        out_rate = rate
+        if self.target_rate_hz is not None:
+            ratio = rate / float(self.target_rate_hz)
+            if not (ratio >= 1 and abs(ratio - round(ratio)) <= 1e-9 * ratio):
+                raise ValueError(
+                    f"target_rate_hz={self.target_rate_hz:g} must divide the files' sampling "
+                    f"rate {rate:g} Hz by a whole number"
+                )
+            out_rate = float(self.target_rate_hz)
+        if self.band_hz is not None:
+            bandpass(np.zeros((256, 1)), out_rate, *self.band_hz)
+
 
 def _load(info: FileInfo, channels: tuple[str, ...], read_options: Mapping) -> AccelerationRecord:
     record = read_accelerations(info.path, **dict(read_options))
@@ -644,6 +658,7 @@ def iter_blocks(
         max_gap_s=max_gap_s,
         read_options=read_options,
     )
+    options.check_rate(plan.sampling_rate_hz)
     return _stream(plan, options, blocks)
 
 
@@ -731,4 +746,5 @@ def load_block(
             "outside the span of the acceleration files",
         )
     plan = _plan(touching, grid, None, None, max_gap_s)
+    options.check_rate(plan.sampling_rate_hz)
     return next(_stream(plan, options, [k]))
