@@ -473,18 +473,22 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
     return MODAL.validate(table.reset_index(drop=True))
 
 
-def label_agreement(tracked: pd.DataFrame, truth: pd.DataFrame) -> tuple[float, dict[int, int]]:
-    """Share of tracked (block, mode) rows that carry the right label.
+def label_agreement(
+    tracked: pd.DataFrame, truth: pd.DataFrame, *, tolerance: float = 0.03
+) -> tuple[float, dict[int, int]]:
+    """Share of tracked (block, mode) rows of true modes that carry the right label.
 
-    Every tracked row is attributed to the true mode nearest in frequency in the same block.
-    Tracked labels and true modes are then paired one-to-one (Hungarian assignment on the
-    counts of rows they share), so a true mode split over two labels, or two true modes
-    merged under one label, counts the rows of the smaller part as wrong.
+    Every tracked row is attributed to the true mode nearest in frequency in the same
+    block; rows further than *tolerance* (relative) from every true mode are not modes of
+    the structure (a shaft harmonic, a spurious pole) and are left out. Tracked labels and
+    true modes are then paired one-to-one (Hungarian assignment on the counts of rows they
+    share), so a true mode split over two labels, or two true modes merged under one label,
+    counts the rows of the smaller part as wrong.
 
     Returns
     -------
     agreement : float
-        In [0, 1]; NaN for an empty table.
+        In [0, 1]; NaN when no row is near a true mode.
     mapping : dict
         Tracked label -> true mode, for the paired labels.
     """
@@ -497,10 +501,16 @@ def label_agreement(tracked: pd.DataFrame, truth: pd.DataFrame) -> tuple[float, 
     if merged.empty:
         return math.nan, {}
     true_modes = np.array(truth_wide.columns)
-    distances = np.abs(
-        merged[list(true_modes)].to_numpy(dtype=float) - merged["frequency_hz"].to_numpy()[:, None]
-    )
-    nearest = true_modes[np.argmin(np.where(np.isfinite(distances), distances, np.inf), axis=1)]
+    true_frequency = merged[list(true_modes)].to_numpy(dtype=float)
+    distances = np.abs(true_frequency - merged["frequency_hz"].to_numpy()[:, None])
+    distances = np.where(np.isfinite(distances), distances, np.inf)
+    position = np.argmin(distances, axis=1)
+    rows = np.arange(len(merged))
+    near = distances[rows, position] <= tolerance * true_frequency[rows, position]
+    merged = merged[near]
+    if merged.empty:
+        return math.nan, {}
+    nearest = true_modes[position[near]]
     counts = pd.crosstab(merged["mode"].to_numpy(), nearest)
     rows, cols = linear_sum_assignment(counts.to_numpy(), maximize=True)
     mapping = {
