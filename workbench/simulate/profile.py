@@ -225,7 +225,7 @@ def write_dship_log(
     path = Path(path)
     frame = profile.predictors
     n = len(frame)
-    t = frame["elapsed_hours"].to_numpy() * 3600.0
+    t = np.rint(frame["elapsed_hours"].to_numpy() * 3600.0).astype(np.int64)  # whole seconds
     total = max(float(n), 1.0)
     speed = frame["speed_kn"].to_numpy() + 0.1 * rng.standard_normal(n)
     speed = np.abs(speed)
