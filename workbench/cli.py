@@ -537,6 +537,13 @@ def _add_forecast(commands: argparse._SubParsersAction) -> None:
         metavar="N",
         help="processes to spread the modes over (for voyage-length tables)",
     )
+    parser.add_argument(
+        "--min-presence",
+        type=float,
+        default=0.5,
+        metavar="SHARE",
+        help="forecast only modes measured in at least this share of the blocks",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(run=_run_forecast)
 
@@ -583,6 +590,7 @@ def _run_forecast(args: argparse.Namespace) -> int:
             truth=truth,
             n_jobs=args.jobs,
             progress=not args.quiet,
+            min_presence=args.min_presence,
         )
     except ValueError as error:
         if isinstance(error, ContractError):

@@ -250,10 +250,28 @@ def run_forecast(
     stepwise_options: Mapping[str, Any] | None = None,
     n_jobs: int = 1,
     progress: bool = False,
+    min_presence: float = 0.5,
 ) -> StageResult:
-    """Sliding forecasts for each option, one forecast table (CSV/Parquet) and figures."""
+    """Sliding forecasts for each option, one forecast table (CSV/Parquet) and figures.
+
+    Modes measured in fewer than *min_presence* of the blocks (short-lived tracks: a shaft
+    harmonic passing by, spurious poles) are not forecast; a line says which.
+    """
 
     result = StageResult()
+    n_blocks = predictors["block"].nunique()
+    presence = modal.groupby("mode")["block"].nunique() / max(n_blocks, 1)
+    modes = sorted(int(m) for m in presence.index[presence >= min_presence])
+    left_out = sorted(int(m) for m in presence.index[presence < min_presence])
+    if not modes:
+        raise WorkbenchError(
+            f"no mode is measured in at least {100 * min_presence:.0f} % of the blocks"
+        )
+    if left_out:
+        result.lines.append(
+            f"modes {left_out} left out: measured in fewer than {100 * min_presence:.0f} % "
+            "of the blocks"
+        )
     frames = []
     for option in options:
         table, messages = forecast_modes(
@@ -261,6 +279,7 @@ def run_forecast(
             predictors,
             n_jobs=n_jobs,
             progress=progress,
+            modes=modes,
             poles=poles,
             option=option,
             method=method,
