@@ -298,6 +298,17 @@ def _run_identify(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _persistent(modal, min_presence: float):
+    from .pipeline import persistent_modes
+
+    if not 0.0 <= min_presence <= 1.0:
+        raise UsageError(f"--min-presence must be in [0, 1], got {min_presence}")
+    kept, lines = persistent_modes(modal, min_presence)
+    for line in lines:
+        print(line)
+    return kept
+
+
 def _add_track(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser(
         "track",
@@ -382,6 +393,13 @@ def _add_correlate(commands: argparse._SubParsersAction) -> None:
         default="none",
         help="multiple-testing correction of the p-values",
     )
+    parser.add_argument(
+        "--min-presence",
+        type=float,
+        default=0.5,
+        metavar="SHARE",
+        help="only modes measured in at least this share of the blocks",
+    )
     parser.add_argument("--out", type=Path, required=True, metavar="DIR")
     parser.set_defaults(run=_run_correlate)
 
@@ -395,6 +413,7 @@ def _run_correlate(args: argparse.Namespace) -> int:
         raise UsageError(f"--alpha must be in (0, 1), got {args.alpha}")
     modal = read_table(args.modal, MODAL)
     predictors = _predictors_for(args, modal)
+    modal = _persistent(modal, args.min_presence)
     try:
         paths = write_correlation_report(
             modal,
@@ -434,6 +453,13 @@ def _add_fit(commands: argparse._SubParsersAction) -> None:
         help="largest model: constant, linear, interactions, or a formula "
         "such as 'y ~ speed_kn + water_temp_c + speed_kn:water_temp_c'",
     )
+    parser.add_argument(
+        "--min-presence",
+        type=float,
+        default=0.5,
+        metavar="SHARE",
+        help="only modes measured in at least this share of the blocks",
+    )
     parser.add_argument("--out", type=Path, required=True, metavar="DIR")
     parser.set_defaults(run=_run_fit)
 
@@ -449,6 +475,7 @@ def _run_fit(args: argparse.Namespace) -> int:
         )
     modal = read_table(args.modal, MODAL)
     predictors = _predictors_for(args, modal)
+    modal = _persistent(modal, args.min_presence)
     try:
         paths = write_fit_report(
             modal,

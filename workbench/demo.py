@@ -133,7 +133,13 @@ def run_demo(
     from data_contracts import PREDICTORS, read_table, write_table
 
     from .identify import IdentifyOptions, identify_voyage
-    from .pipeline import evaluate_forecast, load_predictors, run_forecast, run_track
+    from .pipeline import (
+        evaluate_forecast,
+        load_predictors,
+        persistent_modes,
+        run_forecast,
+        run_track,
+    )
     from .simulate import simulate_voyage
 
     out_dir = Path(out_dir)

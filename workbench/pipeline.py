@@ -37,6 +37,7 @@ __all__ = [
     "evaluate_forecast",
     "forecast_modes",
     "load_predictors",
+    "persistent_modes",
     "run_forecast",
     "run_track",
 ]
@@ -115,6 +116,45 @@ def load_predictors(
         log, grid=grid, blocks=np.arange(first, last + 1), min_coverage=min_coverage
     )
     return PREDICTORS.validate(table)
+
+
+def persistent_modes(
+    modal: pd.DataFrame, min_presence: float = 0.5, *, n_blocks: int | None = None
+) -> tuple[pd.DataFrame, list[str]]:
+    """Rows of the modes measured in at least *min_presence* of the blocks.
+
+    Short-lived tracks (a shaft harmonic sweeping past with the speed, spurious poles)
+    would each add a column of mostly missing values to correlations and models.
+
+    Returns
+    -------
+    modal : DataFrame
+        The rows of the kept modes.
+    lines : list of str
+        A note naming the modes left out (empty when none).
+
+    Raises
+    ------
+    WorkbenchError
+        When no mode is left.
+    """
+    if not 0.0 <= min_presence <= 1.0:
+        raise ValueError(f"min_presence={min_presence} must be in [0, 1]")
+    n_blocks = n_blocks or modal["block"].nunique()
+    presence = modal.groupby("mode")["block"].nunique() / max(n_blocks, 1)
+    keep = presence.index[presence >= min_presence]
+    left_out = sorted(int(m) for m in presence.index[presence < min_presence])
+    if not len(keep):
+        raise WorkbenchError(
+            f"no mode is measured in at least {100 * min_presence:.0f} % of the blocks"
+        )
+    lines = []
+    if left_out:
+        lines.append(
+            f"modes {left_out} left out: measured in fewer than {100 * min_presence:.0f} % "
+            "of the blocks"
+        )
+    return modal[modal["mode"].isin(keep)], lines
 
 
 # --------------------------------------------------------------------------- tracking
@@ -259,19 +299,9 @@ def run_forecast(
     """
 
     result = StageResult()
-    n_blocks = predictors["block"].nunique()
-    presence = modal.groupby("mode")["block"].nunique() / max(n_blocks, 1)
-    modes = sorted(int(m) for m in presence.index[presence >= min_presence])
-    left_out = sorted(int(m) for m in presence.index[presence < min_presence])
-    if not modes:
-        raise WorkbenchError(
-            f"no mode is measured in at least {100 * min_presence:.0f} % of the blocks"
-        )
-    if left_out:
-        result.lines.append(
-            f"modes {left_out} left out: measured in fewer than {100 * min_presence:.0f} % "
-            "of the blocks"
-        )
+    kept, note = persistent_modes(modal, min_presence, n_blocks=predictors["block"].nunique())
+    modes = sorted(int(m) for m in kept["mode"].unique())
+    result.lines += note
     frames = []
     for option in options:
         table, messages = forecast_modes(
