@@ -185,16 +185,16 @@ def run_demo(
         predictors = load_predictors(dship=simulation.dship_log, like=tracked)
         write_table(predictors, out_dir / "predictors.csv", PREDICTORS)
 
+    modes, note = persistent_modes(tracked, 0.5)
+    summary.lines += note
     with stage("correlate"):
         from .reporting.correlation import write_correlation_report
 
-        write_correlation_report(
-            tracked, predictors, out_dir / "correlation", cases=simulation.cases
-        )
+        write_correlation_report(modes, predictors, out_dir / "correlation", cases=simulation.cases)
     with stage("fit"):
         from .stats.diagnostics import write_fit_report
 
-        write_fit_report(tracked, predictors, out_dir / "fit")
+        write_fit_report(modes, predictors, out_dir / "fit")
 
     poles = read_table(identify_dir / "poles.parquet", CONTRACTS["poles"])
     with stage("forecast"):
