@@ -7,6 +7,10 @@
 * :func:`correlation_table` - Pearson r, p-value and n of every mode quantity against every
   predictor and among predictors, per operating case (:func:`read_cases`), with
   ``significant``/``useful`` flags; :func:`modal_wide` spreads the modal table per block.
+* :func:`fit_modes` - one stepwise model per mode with residual diagnostics
+  (:func:`residual_diagnostics`: Durbin-Watson, Shapiro-Wilk, Jarque-Bera);
+  :func:`coefficient_table` (one column per term, 0 where a term is not in a model) and
+  :func:`fit_statistics_table`.
 """
 
 from .correlation import (
@@ -17,18 +21,28 @@ from .correlation import (
     pairwise_pearson,
     read_cases,
 )
+from .diagnostics import ResidualDiagnostics, durbin_watson, residual_diagnostics
+from .modes import ModeFit, StatsWarning, coefficient_table, fit_modes, fit_statistics_table
 from .stepwise import StepwiseFit, StepwiseRegressor, stepwise
 from .terms import parse_terms
 
 __all__ = [
+    "ModeFit",
+    "ResidualDiagnostics",
+    "StatsWarning",
     "StepwiseFit",
     "StepwiseRegressor",
     "adjust_p_values",
     "case_masks",
+    "coefficient_table",
     "correlation_table",
+    "durbin_watson",
+    "fit_modes",
+    "fit_statistics_table",
     "modal_wide",
     "pairwise_pearson",
     "parse_terms",
     "read_cases",
+    "residual_diagnostics",
     "stepwise",
 ]

@@ -1,0 +1,254 @@
+"""Residual diagnostics figures and the per-mode regression report.
+
+:func:`plot_residual_diagnostics` draws the four classic panels (histogram with the fitted
+normal density, normal probability plot, residual against the previous residual, residual
+against fitted value). :func:`write_fit_report` fits one stepwise model per mode
+(:func:`workbench.stats.fit_modes`) and writes the summary text, JSON, the coefficient and
+statistics tables and one diagnostics figure per mode.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+from scipy import stats as _scipy_stats  # noqa: E402
+
+from data_contracts import atomic_path  # noqa: E402
+from workbench.stats.diagnostics import ResidualDiagnostics, residual_diagnostics  # noqa: E402
+from workbench.stats.modes import (  # noqa: E402
+    ModeFit,
+    coefficient_table,
+    fit_modes,
+    fit_statistics_table,
+)
+
+__all__ = ["plot_residual_diagnostics", "write_diagnostics_figures", "write_fit_report"]
+
+
+def plot_residual_diagnostics(
+    residuals,
+    fitted,
+    *,
+    diagnostics: ResidualDiagnostics | None = None,
+    title: str | None = None,
+    unit: str = "",
+):
+    """Four-panel residual diagnostics figure.
+
+    Parameters
+    ----------
+    residuals, fitted : array_like
+        Residuals and fitted values in time (block) order. [response unit]
+    diagnostics : ResidualDiagnostics, optional
+        Shown in the panel titles; computed when not given.
+    title : str, optional
+        Figure title.
+    unit : str
+        Unit of the response for the axis labels, e.g. ``"Hz"``.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Panels: histogram with the normal density of the same mean and sd; normal
+        probability plot with the least-squares line; e_t against e_{t-1} with the
+        Durbin-Watson statistic; residual against fitted value.
+    """
+    e = np.asarray(residuals, dtype=float).ravel()
+    f = np.asarray(fitted, dtype=float).ravel()
+    if e.shape != f.shape:
+        raise ValueError(f"residuals {e.shape} and fitted {f.shape} differ in shape")
+    if diagnostics is None:
+        diagnostics = residual_diagnostics(e)
+    finite = np.isfinite(e)
+    label = f"residual [{unit}]" if unit else "residual"
+    fig, axes = plt.subplots(2, 2, figsize=(9, 7), layout="constrained")
+    ax = axes[0, 0]
+    if finite.any():
+        ax.hist(
+            e[finite],
+            bins=max(5, min(30, int(finite.sum() // 4))),
+            density=True,
+            color="0.65",
+            lw=0,
+        )
+        if np.isfinite(diagnostics.std) and diagnostics.std > 0:
+            grid = np.linspace(e[finite].min(), e[finite].max(), 200)
+            ax.plot(
+                grid,
+                _scipy_stats.norm.pdf(grid, diagnostics.mean, diagnostics.std),
+                color="tab:blue",
+                lw=1.2,
+                label="normal",
+            )
+    ax.set_xlabel(label)
+    ax.set_ylabel("density")
+    ax.set_title(f"Histogram (n = {diagnostics.n})", fontsize=10)
+
+    ax = axes[0, 1]
+    if finite.sum() >= 3:
+        (theoretical, ordered), (slope, intercept, _) = _scipy_stats.probplot(e[finite])
+        ax.plot(theoretical, ordered, ".", color="0.3", ms=4)
+        ax.plot(theoretical, intercept + slope * theoretical, "-", color="tab:red", lw=1)
+    ax.set_xlabel("standard normal quantile")
+    ax.set_ylabel(label)
+    test = "Shapiro-Wilk" if np.isfinite(diagnostics.shapiro_p_value) else "Jarque-Bera"
+    ax.set_title(
+        f"Normal probability plot ({test} p = {diagnostics.normality_p_value:.3g})", fontsize=10
+    )
+
+    ax = axes[1, 0]
+    pairs = finite[1:] & finite[:-1]
+    ax.plot(e[:-1][pairs], e[1:][pairs], ".", color="0.3", ms=4)
+    ax.axhline(0, color="0.7", lw=0.8)
+    ax.axvline(0, color="0.7", lw=0.8)
+    ax.set_xlabel(f"previous {label}")
+    ax.set_ylabel(label)
+    ax.set_title(
+        f"Lagged residuals (Durbin-Watson {diagnostics.durbin_watson:.2f}, "
+        f"r₁ = {diagnostics.lag1_autocorrelation:.2f})",
+        fontsize=10,
+    )
+
+    ax = axes[1, 1]
+    both = finite & np.isfinite(f)
+    ax.plot(f[both], e[both], ".", color="0.3", ms=4)
+    ax.axhline(0, color="tab:red", lw=0.8)
+    ax.set_xlabel(f"fitted value [{unit}]" if unit else "fitted value")
+    ax.set_ylabel(label)
+    ax.set_title("Residual against fitted value", fontsize=10)
+    if title:
+        fig.suptitle(title, fontsize=11)
+    return fig
+
+
+def _save(fig, path: Path, dpi: int) -> Path:
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=dpi, format="png")
+    finally:
+        plt.close(fig)
+    return path
+
+
+def _unit(quantity: str) -> str:
+    return "Hz" if quantity.endswith("_hz") else ""
+
+
+def write_diagnostics_figures(
+    fits: Mapping[int, ModeFit],
+    out_dir: str | os.PathLike,
+    *,
+    prefix: str = "diagnostics_mode",
+    dpi: int = 100,
+) -> list[Path]:
+    """One residual diagnostics PNG per mode (``<prefix><mode>.png``); returns the paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for mode, item in sorted(fits.items()):
+        fig = plot_residual_diagnostics(
+            item.residuals,
+            item.fitted,
+            diagnostics=item.diagnostics,
+            title=f"Mode {mode}: {item.fit.formula}",
+            unit=_unit(item.quantity),
+        )
+        paths.append(_save(fig, out / f"{prefix}{mode}.png", dpi))
+    return paths
+
+
+def _write_text(path: Path, text: str) -> Path:
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return path
+
+
+def write_fit_report(
+    modal: pd.DataFrame,
+    predictors: pd.DataFrame,
+    out_dir: str | os.PathLike,
+    *,
+    quantity: str = "frequency_hz",
+    predictors_used: Sequence[str] | None = None,
+    modes: Sequence[int] | None = None,
+    errors: str = "warn",
+    dpi: int = 100,
+    **stepwise_options,
+) -> dict[str, Path]:
+    """Stepwise model per mode with summary, JSON, tables and diagnostics figures.
+
+    Parameters
+    ----------
+    modal : DataFrame
+        Tracked modal table (MODAL contract).
+    predictors : DataFrame
+        Block predictors (PREDICTORS contract), already on the modal blocks.
+    out_dir : path-like
+        Folder written into (created).
+    quantity, predictors_used, modes, errors, **stepwise_options
+        As for :func:`workbench.stats.fit_modes` (default ``errors="warn"``: a mode without
+        data is left out with a warning, the others are reported).
+    dpi : int
+        Resolution of the figures.
+
+    Returns
+    -------
+    dict of str -> Path
+        ``"summary"`` (fit_summary.txt), ``"json"`` (fit.json), ``"coefficients"``
+        (coefficients.csv: one row per mode, one column per term, 0 where a term is not in
+        the model), ``"statistics"`` (fit_statistics.csv) and ``"diagnostics_mode<k>"``
+        per mode (PNG).
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    fits = fit_modes(
+        modal,
+        predictors,
+        quantity=quantity,
+        predictors_used=predictors_used,
+        modes=modes,
+        errors=errors,
+        **stepwise_options,
+    )
+    if not fits:
+        raise ValueError(f"no mode could be fitted ({quantity}); see the warnings")
+    paths: dict[str, Path] = {}
+    coefficients = coefficient_table(fits)
+    with atomic_path(out / "coefficients.csv") as tmp:
+        coefficients.to_csv(tmp, float_format="%.10g")
+    paths["coefficients"] = out / "coefficients.csv"
+    statistics = fit_statistics_table(fits)
+    with atomic_path(out / "fit_statistics.csv") as tmp:
+        statistics.to_csv(tmp, float_format="%.10g")
+    paths["statistics"] = out / "fit_statistics.csv"
+    sections = []
+    for mode, item in fits.items():
+        sections.append(
+            f"=== Mode {mode} ({quantity}) ===\n{item.fit.summary()}\n\n"
+            f"Residual diagnostics\n{item.diagnostics.summary()}\n"
+        )
+    header = (
+        f"Stepwise regression of {quantity} per mode on {', '.join(fits[next(iter(fits))].fit.predictor_names)}\n"
+        f"{len(fits)} modes fitted\n\n"
+    )
+    paths["summary"] = _write_text(out / "fit_summary.txt", header + "\n".join(sections))
+    payload = {
+        "quantity": quantity,
+        "options": {k: v for k, v in stepwise_options.items()},
+        "modes": [item.to_dict() for item in fits.values()],
+    }
+    paths["json"] = _write_text(
+        out / "fit.json", json.dumps(payload, indent=1, allow_nan=False, default=str)
+    )
+    for mode, path in zip(fits, write_diagnostics_figures(fits, out, dpi=dpi), strict=True):
+        paths[f"diagnostics_mode{mode}"] = path
+    return paths
