@@ -58,8 +58,6 @@ def log(voyage):
 
 @pytest.fixture(scope="module")
 def predictors(voyage, log):
-    import json
-
     injected = json.loads(voyage.summary_json.read_text())["defects"]["air_temp_spikes"]
     # every spike the simulator injected into the faulty air-temperature sensor is found
     with pytest.warns(PredictorWarning, match=f"{injected} air_temp_c samples"):
