@@ -14,6 +14,7 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from sklearn.base import clone
 from sklearn.model_selection import KFold, cross_val_score
+from sklearn.utils.estimator_checks import parametrize_with_checks
 
 from workbench.stats import StepwiseFit, StepwiseRegressor, parse_terms, stepwise
 
@@ -429,7 +430,9 @@ def test_sklearn_estimator_clone_and_cross_validation():
     assert fitted is estimator
     assert list(estimator.feature_names_in_) == list(X.columns)
     assert estimator.terms_ == ("speed_kn", "water_temp_c")
-    np.testing.assert_allclose(estimator.predict(X.to_numpy()), estimator.predict(X))
+    with pytest.warns(UserWarning, match="valid feature names"):  # sklearn's own warning
+        from_array = estimator.predict(X.to_numpy())
+    np.testing.assert_allclose(from_array, estimator.predict(X))
     assert estimator.score(X, y) == pytest.approx(estimator.result_.r_squared, rel=1e-12)
 
 
@@ -461,3 +464,9 @@ def test_raw_units_with_large_offsets_agree_with_statsmodels():
     ours = fit.predict(new, interval="confidence")
     theirs = ols.get_prediction(design(new, fit.terms)).summary_frame()
     np.testing.assert_allclose(ours["lower"], theirs["mean_ci_lower"], rtol=1e-9)
+
+
+@parametrize_with_checks([StepwiseRegressor()])
+def test_sklearn_estimator_checks(estimator, check):
+    """scikit-learn's own estimator checks (API conventions, input validation, cloning)."""
+    check(estimator)

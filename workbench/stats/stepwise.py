@@ -28,6 +28,7 @@ import numpy as np
 import pandas as pd
 from scipy import special as _special
 from sklearn.base import BaseEstimator, RegressorMixin
+from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .terms import Term, parse_terms, term_name
 
@@ -944,15 +945,33 @@ class StepwiseRegressor(RegressorMixin, BaseEstimator):
         self.p_remove = p_remove
         self.max_steps = max_steps
 
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.input_tags.allow_nan = True  # rows with NaN are left out of the fit
+        return tags
+
+    def _frame(self, values: np.ndarray):
+        """Predictor values with the fitted column names (term names follow them)."""
+        names = getattr(self, "feature_names_in_", None)
+        if names is None:
+            return values
+        return pd.DataFrame(values, columns=[str(name) for name in names])
+
     def fit(self, X, y):
         """Run the stepwise search on (*X*, *y*); returns ``self``."""
-        if isinstance(X, pd.DataFrame):
-            self.feature_names_in_ = np.asarray([str(c) for c in X.columns], dtype=object)
-        elif hasattr(self, "feature_names_in_"):
-            del self.feature_names_in_
-        result = stepwise(
+        response = y.name if isinstance(y, pd.Series) and y.name is not None else None
+        values, target = validate_data(
+            self,
             X,
             y,
+            dtype=float,
+            ensure_all_finite="allow-nan",
+            ensure_min_samples=2,
+            y_numeric=True,
+        )
+        self.result_ = stepwise(
+            self._frame(values),
+            pd.Series(target, name=response) if response is not None else target,
             start=self.start,
             upper=self.upper,
             criterion=self.criterion,
@@ -960,36 +979,22 @@ class StepwiseRegressor(RegressorMixin, BaseEstimator):
             p_remove=self.p_remove,
             max_steps=self.max_steps,
         )
-        self.n_features_in_ = len(result.predictor_names)
-        self.result_ = result
         return self
 
     @property
     def terms_(self) -> tuple[str, ...]:
         """Non-constant terms of the fitted model."""
-        return self._fitted().terms
+        check_is_fitted(self, "result_")
+        return self.result_.terms
 
     @property
     def coef_(self) -> pd.Series:
         """Estimates indexed by term, intercept included."""
-        return self._fitted().coefficients["estimate"]
-
-    def _fitted(self) -> StepwiseFit:
-        from sklearn.exceptions import NotFittedError
-
-        if not hasattr(self, "result_"):
-            raise NotFittedError("StepwiseRegressor is not fitted yet; call fit(X, y) first")
-        return self.result_
+        check_is_fitted(self, "result_")
+        return self.result_.coefficients["estimate"]
 
     def predict(self, X) -> np.ndarray:
-        """Predicted means for the rows of *X*."""
-        result = self._fitted()
-        if not isinstance(X, pd.DataFrame) and hasattr(self, "feature_names_in_"):
-            values = np.asarray(X, dtype=float)
-            if values.ndim != 2 or values.shape[1] != self.n_features_in_:
-                raise ValueError(
-                    f"X has {np.shape(X)[-1]} columns; the model was fitted on "
-                    f"{self.n_features_in_}"
-                )
-            X = pd.DataFrame(values, columns=list(self.feature_names_in_))
-        return np.asarray(result.predict(X), dtype=float)
+        """Predicted means for the rows of *X* (NaN where a used predictor is NaN)."""
+        check_is_fitted(self, "result_")
+        values = validate_data(self, X, reset=False, dtype=float, ensure_all_finite="allow-nan")
+        return np.asarray(self.result_.predict(self._frame(values)), dtype=float)
