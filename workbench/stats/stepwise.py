@@ -226,20 +226,23 @@ class StepwiseFit:
     def _predictor_values(self, X) -> tuple[np.ndarray, pd.Index | None]:
         if isinstance(X, pd.DataFrame):
             needed = self.used_predictors
-            missing = [name for name in needed if name not in X.columns]
+            lookup = {str(name): i for i, name in enumerate(X.columns.tolist())}
+            missing = [name for name in needed if name not in lookup]
             if missing:
                 raise ValueError(f"X is missing predictor column {missing[0]!r} used by the model")
             values = np.empty((len(X), len(self.predictor_names)))
             values.fill(np.nan)
             if needed:
                 positions = [self.predictor_names.index(name) for name in needed]
+                source = [lookup[name] for name in needed]
                 # one conversion of the whole frame is cheapest (pandas column selection by a
                 # list of names costs far more than a small fit); column by column otherwise
                 try:
-                    lookup = {name: i for i, name in enumerate(X.columns.tolist())}
-                    block = _to_float(X)[:, [lookup[name] for name in needed]]
+                    block = _to_float(X)[:, source]
                 except (TypeError, ValueError):
-                    block = np.column_stack([_to_float(X[[name]]) for name in needed])
+                    block = np.column_stack(
+                        [X.iloc[:, i].to_numpy(dtype=float, na_value=np.nan) for i in source]
+                    )
                 values[:, positions] = block
             return values, X.index
         values = np.asarray(X, dtype=float)
