@@ -12,11 +12,22 @@ Pure numerical functions used by both SSI variants (:mod:`workbench.sid.ssi`):
 
 from __future__ import annotations
 
+import contextlib
+import os
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import linalg
+
+try:  # a dependency of scikit-learn, hence always installed with workbench
+    from threadpoolctl import threadpool_limits
+except ImportError:  # pragma: no cover
+    threadpool_limits = None
+
+#: Python threads for the per-order eigenvalue problems.
+_N_THREADS = min(2, os.cpu_count() or 1)
 
 __all__ = [
     "OrderPoles",
@@ -205,25 +216,28 @@ def poles_all_orders(
     q, r = linalg.qr(upper, mode="economic", check_finite=False)
     projected = q.T @ lower  # Qᵀ Γ↓, (n_max, n_max)
     first_block = basis[:n_outputs]  # C (up to the similarity)
-    nyquist = 0.5 * sampling_rate_hz
 
-    parts: list[tuple[np.ndarray, ...]] = []
-    for n in orders:
-        state = linalg.solve_triangular(r[:n, :n], projected[:n, :n], check_finite=False)
-        mu, psi = np.linalg.eig(state)
-        keep = mu.imag > 0.0  # one per conjugate pair; real eigenvalues have Im == 0 exactly
-        if not np.any(keep):
-            continue
-        mu, psi = mu[keep], psi[:, keep]
-        frequency, damping = modal_parameters(mu, sampling_rate_hz)
-        physical = (frequency > 0.0) & (frequency < nyquist)
-        if not np.any(physical):
-            continue
-        mu, psi = mu[physical], psi[:, physical]
-        frequency, damping = frequency[physical], damping[physical]
-        order = np.argsort(frequency, kind="stable")
-        shapes = first_block[:, :n] @ psi[:, order]
-        parts.append((np.full(order.size, n), frequency[order], damping[order], shapes, mu[order]))
+    # one small eigenvalue problem per order: single-threaded LAPACK calls, spread over
+    # (at most two) Python threads; LAPACK releases the GIL
+    with _single_threaded_blas():
+        if len(orders) >= 8 and _N_THREADS > 1:
+            with ThreadPoolExecutor(_N_THREADS) as pool:
+                # largest orders first, so that the two threads finish together
+                largest_first = sorted(orders, reverse=True)
+                done = dict(
+                    zip(
+                        largest_first,
+                        pool.map(
+                            lambda n: _order_poles(n, r, projected, first_block, sampling_rate_hz),
+                            largest_first,
+                        ),
+                        strict=True,
+                    )
+                )
+            parts = [done[n] for n in orders]
+        else:
+            parts = [_order_poles(n, r, projected, first_block, sampling_rate_hz) for n in orders]
+    parts = [part for part in parts if part is not None]
     if not parts:
         return OrderPoles(
             np.zeros(0, dtype=int),
@@ -236,3 +250,38 @@ def poles_all_orders(
         np.concatenate(column, axis=-1) for column in zip(*parts, strict=True)
     )
     return OrderPoles(model_order, frequency, damping, normalise_shapes(shapes), mu)
+
+
+def _single_threaded_blas():
+    """Limit BLAS to one thread: the per-order eigenvalue problems are small (n <= a few
+    hundred), and multi-threaded LAPACK on them is slower, badly so when other processes
+    compete for the cores (a 100-order diagram took 26 s instead of 0.9 s)."""
+    if threadpool_limits is None:  # pragma: no cover
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
+
+
+def _order_poles(
+    n: int,
+    r: np.ndarray,
+    projected: np.ndarray,
+    first_block: np.ndarray,
+    sampling_rate_hz: float,
+) -> tuple[np.ndarray, ...] | None:
+    """(orders, f, ζ, shapes, μ) of the physical poles of order *n*, or None."""
+    nyquist = 0.5 * sampling_rate_hz
+    state = linalg.solve_triangular(r[:n, :n], projected[:n, :n], check_finite=False)
+    mu, psi = np.linalg.eig(state)
+    keep = mu.imag > 0.0  # one per conjugate pair; real eigenvalues have Im == 0 exactly
+    if not np.any(keep):
+        return None
+    mu, psi = mu[keep], psi[:, keep]
+    frequency, damping = modal_parameters(mu, sampling_rate_hz)
+    physical = (frequency > 0.0) & (frequency < nyquist)
+    if not np.any(physical):
+        return None
+    mu, psi = mu[physical], psi[:, physical]
+    frequency, damping = frequency[physical], damping[physical]
+    order = np.argsort(frequency, kind="stable")
+    shapes = first_block[:, :n] @ psi[:, order]
+    return np.full(order.size, n), frequency[order], damping[order], shapes, mu[order]
