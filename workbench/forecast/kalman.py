@@ -433,6 +433,22 @@ class ModeKalmanBank:
                 self.process_variance[j], self.measurement_variance[j], transition=self.transition
             ).prior_variance
 
+    def inflate(self, modes: np.ndarray, prior_variance: np.ndarray) -> None:
+        """Raise the a-priori variance of *modes* (indices) to at least *prior_variance*.
+
+        Covariance inflation for a track whose prior has been wrong: between
+        :meth:`predict` and :meth:`update`, P⁻_j ← max(P⁻_j, v_j). With v = y² (the
+        squared innovation of the measurement about to be used) the gain becomes
+        K = y² / (y² + R) ≈ 1, so the update moves the estimate to the measurement, and P
+        then returns to its steady state over the following blocks. [Hz²]
+        """
+        idx = np.atleast_1d(np.asarray(modes, dtype=np.int64))
+        value = np.broadcast_to(np.asarray(prior_variance, dtype=float), idx.shape)
+        if np.any(~np.isfinite(value) | (value < 0)):
+            raise ValueError("prior_variance must be finite and >= 0")
+        # P⁻ = max(P⁻, v)
+        self.variance[idx] = np.fmax(self.variance[idx], value)
+
     def _active(self, active: np.ndarray | None) -> np.ndarray:
         ok = np.isfinite(self.state) & np.isfinite(self.variance)
         return ok if active is None else ok & np.asarray(active, dtype=bool)

@@ -10,9 +10,10 @@ SSI estimate of each block.
   ``horizon`` blocks taking the Kalman estimates as the new training targets, refit, repeat
   to the end of the data.
 
-Measurement options: A, the block's tracked pole (modal table); B, the pole of the block's
-stabilisation diagram nearest the a-priori estimate inside a gate (an automatic modal
-parameter selection).
+Measurement options: A, the block's tracked pole (modal table); B, a pole of the block's
+stabilisation diagram chosen automatically: inside a gate around the a-priori estimate, with
+a mode shape matching the mode's reference shape (MAC), and re-acquired outside the gate
+when the model has lost the mode (an automatic modal parameter selection).
 """
 
 from __future__ import annotations
@@ -104,7 +105,9 @@ class ForecastResult:
     ----------
     table : DataFrame
         FORECAST contract table plus ``warning`` (str, "" when none) and, for option B,
-        ``selected_model_order`` (Int64) and ``selected_damping_ratio``.
+        ``selected_model_order`` (Int64), ``selected_damping_ratio`` and ``selected_mac``
+        (MAC of the chosen pole's shape with the mode's reference shape; NaN when no pole
+        was chosen or shapes were not used).
     warnings : tuple of str
         Distinct warnings with their counts, also issued as :class:`ForecastWarning`.
     models : tuple of WindowModel
@@ -208,6 +211,9 @@ def sliding_forecast(
     trust: float | None = 0.65,
     correction_time_blocks: float = 36.0,
     gate_sigma: float = 3.0,
+    shape_mac_min: float = 0.9,
+    reacquire_blocks: int = 2,
+    reacquire_band: float = 0.05,
     predictor_columns: Sequence[str] | None = None,
     stepwise_options: Mapping[str, Any] | None = None,
     min_train_blocks: int | None = None,
@@ -229,11 +235,16 @@ def sliding_forecast(
         (consecutive rows are consecutive Kalman steps).
     poles : DataFrame, optional
         Stabilisation diagrams (POLES contract: block, model_order, frequency_hz,
-        damping_ratio, stable); required for option B.
+        damping_ratio, stable, and mode shapes ``shape_re_<ch>``/``shape_im_<ch>``);
+        required for option B.
     option : {"A", "B"}
-        Measurement: A, the tracked pole of the block; B, the pole of the block's
-        stabilisation diagram nearest the a-priori estimate inside the gate
-        ``gate_sigma * sqrt(P⁻ + R)`` (stable poles preferred; none inside: predict-only).
+        Measurement: A, the tracked pole of the block; B, an automatic pole selection from
+        the block's stabilisation diagram: among the poles inside the gate
+        ``gate_sigma * sqrt(P⁻ + R)`` around the a-priori estimate whose shape matches the
+        mode's reference shape (MAC >= *shape_mac_min*), the best by a score; a mode seen
+        only outside the gate for *reacquire_blocks* blocks is re-acquired (Notes).
+        Without shape columns in *poles* and *modal*: the nearest pole inside the gate,
+        stable poles preferred, no MAC check (with a warning).
     method : {1, 2}
         1: one training window, one forward prediction of *horizon* blocks. 2: predict
         *horizon* blocks, Kalman-filter them, slide the window by *horizon* blocks with the
@@ -258,6 +269,19 @@ def sliding_forecast(
         [blocks]
     gate_sigma : float
         Option B gate in innovation standard deviations.
+    shape_mac_min : float
+        Option B: a pole is admissible for a mode only when the MAC of its shape with the
+        mode's reference shape is at least this, compared on the channels both shapes
+        have. Default 0.9 (on the 12-h demo voyage the true poles reach MAC > 0.99 and
+        spurious poles near a mode at most about 0.85). [-]
+    reacquire_blocks : int
+        Option B: consecutive blocks (k) with no admissible pole inside the gate but one
+        near the mode (within *reacquire_band*) after which the track is re-acquired
+        outside the gate. [blocks]
+    reacquire_band : float
+        Option B: relative half-width of the band searched for the mode outside the gate,
+        around the last chosen pole's frequency and around the a-priori estimate
+        (0.05: ±5 %). [-]
     predictor_columns : sequence of str, optional
         Candidate predictors; default every numeric column of *predictors* except
         ``block``.
@@ -318,6 +342,39 @@ def sliding_forecast(
     dropped from the window's candidates; a block whose needed predictor is NaN is
     predicted by the constant model of the window; a block without a measurement is a
     predict-only step.
+
+    *Option B pole selection.* Reference shape φ_ref of mode j at block k: the latest
+    shape of the mode in the tracked modal table at or before block k (no look-ahead) that
+    is confirmed by the mode's tracked shape before it (MAC >= *shape_mac_min*), so one
+    mis-tracked block does not become the reference; before the first confirmation, the
+    mode's first tracked shape. A pole p is admissible when
+
+    .. math:: \\mathrm{MAC}(φ_p, φ_{ref}) = \\frac{|φ_{ref}^H φ_p|^2}
+              {(φ_{ref}^H φ_{ref})(φ_p^H φ_p)} \\ge \\mathrm{MAC}_{min},
+
+    computed on the channels both shapes have (NaN components, e.g. a dead sensor, are
+    left out; fewer than 3 shared channels: not admissible). Inside the gate
+    |f_p - x⁻| <= g, g = gate_sigma sqrt(P⁻ + R), stable admissible poles are preferred
+    to unstable ones, and the pole with the lowest score
+
+    .. math:: s_p = \\frac{|f_p - x^-|}{g} + \\frac{1 - \\mathrm{MAC}_p}{1 - \\mathrm{MAC}_{min}}
+
+    is the measurement (both terms lie in [0, 1]: distance to the prior and shape misfit
+    count alike). Its order, damping ratio and MAC are recorded.
+
+    *Re-acquisition of a lost track.* When the model cannot follow a regime change, the
+    prior and its gate stay on a stale frequency while the mode moves away; the gate then
+    holds no admissible pole (at most noise poles of other shapes), and the nearest-pole
+    rule would lock onto them. Rule: a block in which the gate holds no admissible pole but
+    the band |f_p - c| <= *reacquire_band* c around c = the last chosen pole's frequency or
+    c = x⁻ holds one counts as a miss (a block without any admissible pole in the band is
+    predict-only and neither counts nor resets; a pole chosen inside the gate resets the
+    count). At *reacquire_blocks* consecutive misses the admissible pole of the band with
+    the highest MAC (stable preferred) is the measurement, and the prior variance is
+    inflated to P⁻ ← max(P⁻, y²), y = z - x⁻, so that the gain is about 1 and the estimate
+    jumps to the re-acquired pole (the prior was wrong, not the measurement); P returns to
+    its steady state over the next blocks. Each re-acquisition is a row warning and is
+    counted in a :class:`ForecastWarning`.
     """
     if option not in ("A", "B"):
         raise ValueError(f"option={option!r} must be 'A' or 'B'")
@@ -338,6 +395,13 @@ def sliding_forecast(
         raise ValueError("trust=None needs a finite correction_time_blocks")
     if not gate_sigma > 0:
         raise ValueError(f"gate_sigma={gate_sigma!r} must be > 0")
+    if not 0.0 <= shape_mac_min < 1.0:
+        raise ValueError(f"shape_mac_min={shape_mac_min!r} must be in [0, 1)")
+    if int(reacquire_blocks) != reacquire_blocks or reacquire_blocks < 1:
+        raise ValueError(f"reacquire_blocks={reacquire_blocks!r} must be an integer >= 1")
+    reacquire_blocks = int(reacquire_blocks)
+    if not reacquire_band > 0:
+        raise ValueError(f"reacquire_band={reacquire_band!r} must be > 0")
     if not extrapolation_limit > 0:
         raise ValueError(f"extrapolation_limit={extrapolation_limit!r} must be > 0")
     if not 0.0 < alpha < 1.0:
@@ -400,22 +464,24 @@ def sliding_forecast(
     keep = rows_ok & (cols >= 0)
     tracked[rows[keep], cols[keep]] = modal["frequency_hz"].to_numpy(dtype=float)[keep]
 
-    # ---- poles per grid row (option B)
-    pole_slices = None
+    # ---- poles per grid row and reference shapes (option B)
+    selector: _PoleSelector | None = None
     if option == "B":
-        needed = ("block", "model_order", "frequency_hz", "damping_ratio", "stable")
-        missing = [c for c in needed if c not in poles.columns]
-        if missing:
-            raise ValueError(f"poles lacks column(s) {missing}")
-        order = np.argsort(poles["block"].to_numpy(dtype=np.int64), kind="stable")
-        pole_block = poles["block"].to_numpy(dtype=np.int64)[order]
-        pole_frequency = poles["frequency_hz"].to_numpy(dtype=float)[order]
-        pole_order = poles["model_order"].to_numpy(dtype=float)[order]
-        pole_damping = poles["damping_ratio"].to_numpy(dtype=float)[order]
-        pole_stable = poles["stable"].to_numpy(dtype=bool, na_value=False)[order]
-        lo = np.searchsorted(pole_block, blocks, side="left")
-        hi = np.searchsorted(pole_block, blocks, side="right")
-        pole_slices = (lo, hi)
+        selector = _PoleSelector(
+            poles,
+            modal,
+            blocks,
+            mode_labels,
+            shape_mac_min=shape_mac_min,
+            reacquire_blocks=reacquire_blocks,
+            reacquire_band=reacquire_band,
+        )
+        if not selector.uses_shapes:
+            notes[
+                "option B without mode shapes (poles or modal lack shape_re_<channel> columns "
+                f"for {_MIN_SHAPE_CHANNELS}+ shared channels): nearest pole in the gate, "
+                "no MAC check"
+            ] += 1
 
     # ---- first window
     if start_block is None:
@@ -446,6 +512,7 @@ def sliding_forecast(
     out_w1 = np.zeros(shape, dtype=np.int64)
     out_order = np.full(shape, np.nan)
     out_damping = np.full(shape, np.nan)
+    out_mac = np.full(shape, np.nan)
     out_warning: dict[tuple[int, int], list[str]] = {}
 
     def warn_rows(row_slice: range | list[int], j: int, message: str, kind: str) -> None:
@@ -726,19 +793,31 @@ def sliding_forecast(
             if option == "A":
                 z = tracked[i].copy()
             else:
-                z = _select_poles(
-                    i,
-                    pole_slices,
-                    pole_frequency,
-                    pole_order,
-                    pole_damping,
-                    pole_stable,
-                    prior_x,
-                    prior_p + bank.measurement_variance,
-                    gate_sigma,
-                    out_order,
-                    out_damping,
-                )
+                with np.errstate(invalid="ignore"):
+                    gate = gate_sigma * np.sqrt(prior_p + bank.measurement_variance)
+                choice = selector.select(i, prior_x, gate, have & started)
+                z = choice.frequency
+                out_order[i], out_damping[i], out_mac[i] = choice.order, choice.damping, choice.mac
+                for j in np.flatnonzero(choice.no_reference):
+                    warn_rows(
+                        [i],
+                        j,
+                        "no reference shape yet: nearest pole, no MAC check",
+                        "option B rows without a reference shape (nearest pole, no MAC check)",
+                    )
+                if choice.reacquired.any():
+                    idx = np.flatnonzero(choice.reacquired)
+                    # P⁻ ← max(P⁻, y²): the prior was wrong by y = z - x⁻, so K ≈ 1
+                    bank.inflate(idx, (z[idx] - prior_x[idx]) ** 2)
+                    for j in idx:
+                        warn_rows(
+                            [i],
+                            j,
+                            f"track re-acquired: pole at {z[j]:.4f} Hz (MAC {choice.mac[j]:.3f}) "
+                            f"outside the gate {prior_x[j]:.4f} ± {gate[j]:.4f} Hz",
+                            "tracks re-acquired outside the gate (option B: mode seen only "
+                            f"outside the gate for {reacquire_blocks} blocks)",
+                        )
             z[~have] = np.nan
             bank.update(z)
             lost = have & started & ~_plausible(bank.state, reference_hz)
@@ -802,6 +881,7 @@ def sliding_forecast(
         out_w1,
         out_order,
         out_damping,
+        out_mac,
         out_warning,
     )
     messages = tuple(f"{kind} (x{count})" for kind, count in notes.items())
@@ -855,41 +935,259 @@ def _coefficients(model: _Model) -> dict[str, float]:
     return {}
 
 
-def _select_poles(
-    i,
-    pole_slices,
-    frequency,
-    order,
-    damping,
-    stable,
-    prior,
-    innovation_variance,
-    gate_sigma,
-    out_order,
-    out_damping,
-) -> np.ndarray:
-    """Option B: nearest pole to each mode's a-priori estimate inside its gate."""
-    n_modes = prior.size
-    z = np.full(n_modes, np.nan)
-    lo, hi = pole_slices[0][i], pole_slices[1][i]
-    if hi <= lo:
-        return z
-    f = frequency[lo:hi]
-    distance = np.abs(f[:, None] - prior[None, :])  # (n_poles, n_modes)
-    with np.errstate(invalid="ignore"):
-        inside = distance <= gate_sigma * np.sqrt(innovation_variance)[None, :]
-    st = stable[lo:hi]
-    for j in range(n_modes):
-        candidates = inside[:, j] & st
-        if not candidates.any():
-            candidates = inside[:, j]
-            if not candidates.any():
+#: Fewest channels two shapes must share for their MAC to count (one channel gives MAC = 1).
+_MIN_SHAPE_CHANNELS = 3
+
+
+def _mac_on_common_channels(reference: np.ndarray, shapes: np.ndarray) -> np.ndarray:
+    """MAC of *reference* (n_channels,) with every row of *shapes* (n, n_channels).
+
+    Each pair is compared on the channels both have (finite components); a pair sharing
+    fewer than ``_MIN_SHAPE_CHANNELS`` channels gives NaN. Rows with the same set of
+    available channels (usually every pole of a block) go to :func:`workbench.sid.mac.mac`
+    together.
+    """
+    from workbench.sid.mac import mac
+
+    out = np.full(shapes.shape[0], np.nan)
+    if shapes.shape[0] == 0:
+        return out
+    ok = np.isfinite(shapes) & np.isfinite(reference)[None, :]
+    if (ok == ok[0]).all():  # one set of channels for every row (the usual case)
+        if ok[0].sum() < _MIN_SHAPE_CHANNELS:
+            return out
+        if ok[0].all():
+            return np.asarray(mac(reference, shapes.T), dtype=float).reshape(-1)
+        return np.asarray(mac(reference[ok[0]], shapes[:, ok[0]].T), dtype=float).reshape(-1)
+    patterns, inverse = np.unique(ok, axis=0, return_inverse=True)
+    inverse = np.asarray(inverse).reshape(-1)
+    for p, pattern in enumerate(patterns):
+        if pattern.sum() < _MIN_SHAPE_CHANNELS:
+            continue
+        rows = inverse == p
+        out[rows] = np.asarray(mac(reference[pattern], shapes[rows][:, pattern].T)).reshape(-1)
+    return out
+
+
+def _shape_channels(modal: pd.DataFrame, poles: pd.DataFrame) -> list[str]:
+    """Channels with shape columns in both tables, in the modal table's order."""
+    in_poles = {str(c)[len("shape_re_") :] for c in poles.columns if str(c).startswith("shape_re_")}
+    return [
+        str(c)[len("shape_re_") :]
+        for c in modal.columns
+        if str(c).startswith("shape_re_") and str(c)[len("shape_re_") :] in in_poles
+    ]
+
+
+def _shape_matrix(frame: pd.DataFrame, channels: Sequence[str]) -> np.ndarray:
+    """Complex shapes (n_rows, n_channels) of *channels* via :func:`shapes_from_frame`."""
+    from data_contracts import shapes_from_frame
+
+    columns = [f"shape_{part}_{c}" for part in ("re", "im") for c in channels]
+    _, shapes = shapes_from_frame(frame[[c for c in columns if c in frame.columns]])
+    return shapes
+
+
+@dataclass
+class _BlockChoice:
+    """Option B's measurements of one block (internal)."""
+
+    frequency: np.ndarray  # chosen pole per mode, NaN: none
+    mac: np.ndarray  # its MAC with the reference shape, NaN: not checked
+    order: np.ndarray
+    damping: np.ndarray
+    reacquired: np.ndarray  # bool: chosen outside the gate (track re-acquired)
+    no_reference: np.ndarray  # bool: shapes in use but the mode had no reference shape
+
+
+class _PoleSelector:
+    """Option B pole selection with mode-shape admissibility and track re-acquisition.
+
+    Holds the pole table sorted by block, the pole shapes on the channels shared with the
+    modal table, each mode's reference shape per grid row (see :func:`sliding_forecast`,
+    Notes) and, per mode, the count of consecutive blocks with the mode seen only outside
+    the gate and the frequency of the last chosen pole.
+    """
+
+    def __init__(
+        self,
+        poles: pd.DataFrame,
+        modal: pd.DataFrame,
+        blocks: np.ndarray,
+        mode_labels: np.ndarray,
+        *,
+        shape_mac_min: float,
+        reacquire_blocks: int,
+        reacquire_band: float,
+    ):
+        needed = ("block", "model_order", "frequency_hz", "damping_ratio", "stable")
+        missing = [c for c in needed if c not in poles.columns]
+        if missing:
+            raise ValueError(f"poles lacks column(s) {missing}")
+        order = np.argsort(poles["block"].to_numpy(dtype=np.int64), kind="stable")
+        pole_block = poles["block"].to_numpy(dtype=np.int64)[order]
+        self.frequency = poles["frequency_hz"].to_numpy(dtype=float)[order]
+        self.order = poles["model_order"].to_numpy(dtype=float)[order]
+        self.damping = poles["damping_ratio"].to_numpy(dtype=float)[order]
+        self.stable = poles["stable"].to_numpy(dtype=bool, na_value=False)[order]
+        self.lo = np.searchsorted(pole_block, blocks, side="left")
+        self.hi = np.searchsorted(pole_block, blocks, side="right")
+        self.mac_min = float(shape_mac_min)
+        self.reacquire_blocks = int(reacquire_blocks)
+        self.band = float(reacquire_band)
+        n_modes = mode_labels.size
+        self.misses = np.zeros(n_modes, dtype=np.int64)
+        self.anchor = np.full(n_modes, np.nan)  # frequency of the last chosen pole [Hz]
+        self.channels = _shape_channels(modal, poles)
+        self.shapes: np.ndarray | None = None
+        self.reference_shapes = np.empty((0, 0), dtype=complex)
+        self.reference_row = np.full((blocks.size, n_modes), -1, dtype=np.int64)
+        if len(self.channels) < _MIN_SHAPE_CHANNELS:
+            return
+        self.shapes = _shape_matrix(poles, self.channels)[order]
+        self._references(modal, blocks, mode_labels)
+
+    @property
+    def uses_shapes(self) -> bool:
+        return self.shapes is not None
+
+    def _references(self, modal: pd.DataFrame, blocks: np.ndarray, labels: np.ndarray) -> None:
+        """Reference shape of each mode at each grid row: the latest confirmed tracked shape.
+
+        A tracked shape is confirmed when its MAC with the mode's previous tracked shape is
+        >= ``mac_min``; before the first confirmation, the mode's first tracked shape.
+        Only tracked rows at or before the grid row's block are used (no look-ahead).
+        """
+        parts = []
+        offset = 0
+        for j, label in enumerate(labels):
+            rows = modal[modal["mode"].to_numpy() == label].sort_values("block", kind="stable")
+            rows = rows.drop_duplicates("block", keep="last")
+            if rows.empty:
                 continue
-        pick = int(np.flatnonzero(candidates)[np.argmin(distance[candidates, j])])
-        z[j] = f[pick]
-        out_order[i, j] = order[lo + pick]
-        out_damping[i, j] = damping[lo + pick]
-    return z
+            shapes = _shape_matrix(rows, self.channels)
+            usable = np.isfinite(shapes).sum(axis=1) >= _MIN_SHAPE_CHANNELS
+            shapes = shapes[usable]
+            track_blocks = rows["block"].to_numpy(dtype=np.int64)[usable]
+            if track_blocks.size == 0:
+                continue
+            reference = np.zeros(track_blocks.size, dtype=np.int64)
+            for r in range(1, track_blocks.size):
+                agree = _mac_on_common_channels(shapes[r], shapes[r - 1 : r])[0]
+                reference[r] = r if agree >= self.mac_min else reference[r - 1]
+            position = np.searchsorted(track_blocks, blocks, side="right") - 1
+            self.reference_row[:, j] = np.where(
+                position >= 0, offset + reference[np.maximum(position, 0)], -1
+            )
+            parts.append(shapes)
+            offset += shapes.shape[0]
+        if parts:
+            self.reference_shapes = np.concatenate(parts)
+
+    def select(
+        self, i: int, prior: np.ndarray, gate: np.ndarray, active: np.ndarray
+    ) -> _BlockChoice:
+        """Measurements of grid row *i* for the *active* modes (see sliding_forecast Notes).
+
+        *prior* is x⁻ [Hz] and *gate* the gate half-width g = gate_sigma sqrt(P⁻ + R) [Hz]
+        of each mode.
+        """
+        n_modes = prior.size
+        choice = _BlockChoice(
+            np.full(n_modes, np.nan),
+            np.full(n_modes, np.nan),
+            np.full(n_modes, np.nan),
+            np.full(n_modes, np.nan),
+            np.zeros(n_modes, dtype=bool),
+            np.zeros(n_modes, dtype=bool),
+        )
+        lo, hi = int(self.lo[i]), int(self.hi[i])
+        if hi <= lo:
+            return choice
+        f = self.frequency[lo:hi]
+        stable = self.stable[lo:hi]
+        for j in np.flatnonzero(active & np.isfinite(prior)):
+            distance = np.abs(f - prior[j])
+            with np.errstate(invalid="ignore"):
+                inside = distance <= gate[j]
+            ref = int(self.reference_row[i, j])
+            if self.shapes is None or ref < 0:
+                pick = self._nearest(inside, stable, distance)
+                choice.no_reference[j] = self.shapes is not None and pick is not None
+                mac_pick = math.nan
+            else:
+                pick, mac_pick = self._admissible_in_gate(
+                    lo, inside, stable, distance, float(gate[j]), self.reference_shapes[ref]
+                )
+                if pick is None:
+                    pick, mac_pick = self._outside_gate(
+                        lo, j, f, inside, stable, prior[j], self.reference_shapes[ref]
+                    )
+                    choice.reacquired[j] = pick is not None
+                else:
+                    self.misses[j] = 0
+            if pick is None:
+                continue
+            choice.frequency[j] = f[pick]
+            choice.mac[j] = mac_pick
+            choice.order[j] = self.order[lo + pick]
+            choice.damping[j] = self.damping[lo + pick]
+            self.anchor[j] = f[pick]
+        return choice
+
+    @staticmethod
+    def _nearest(inside: np.ndarray, stable: np.ndarray, distance: np.ndarray) -> int | None:
+        """Without shapes: the nearest pole inside the gate, stable poles first."""
+        candidates = inside & stable
+        if not candidates.any():
+            candidates = inside
+            if not candidates.any():
+                return None
+        return int(np.flatnonzero(candidates)[np.argmin(distance[candidates])])
+
+    def _admissible_in_gate(self, lo, inside, stable, distance, gate, reference):
+        """Best admissible pole inside the gate: stable first, then the lowest score."""
+        index = np.flatnonzero(inside)
+        if index.size == 0:
+            return None, math.nan
+        macs = _mac_on_common_channels(reference, self.shapes[lo + index])
+        with np.errstate(invalid="ignore"):
+            ok = macs >= self.mac_min
+        if not ok.any():
+            return None, math.nan
+        index, macs = index[ok], macs[ok]
+        if stable[index].any():
+            keep = stable[index]
+            index, macs = index[keep], macs[keep]
+        # score = |f - x⁻| / gate + (1 - MAC) / (1 - MAC_min), lowest wins
+        score = distance[index] / gate + (1.0 - macs) / max(1.0 - self.mac_min, 1e-12)
+        best = int(np.argmin(score))
+        return int(index[best]), float(macs[best])
+
+    def _outside_gate(self, lo, j, f, inside, stable, prior, reference):
+        """Count a block with the mode only outside the gate; re-acquire after k of them."""
+        near = np.zeros(f.size, dtype=bool)
+        for centre in (self.anchor[j], prior):
+            if np.isfinite(centre):
+                near |= np.abs(f - centre) <= self.band * abs(centre)
+        index = np.flatnonzero(near & ~inside)
+        if index.size == 0:
+            return None, math.nan
+        macs = _mac_on_common_channels(reference, self.shapes[lo + index])
+        with np.errstate(invalid="ignore"):
+            ok = macs >= self.mac_min
+        if not ok.any():  # the mode is not seen in this block: no evidence either way
+            return None, math.nan
+        self.misses[j] += 1
+        if self.misses[j] < self.reacquire_blocks:
+            return None, math.nan
+        self.misses[j] = 0
+        index, macs = index[ok], macs[ok]
+        if stable[index].any():
+            keep = stable[index]
+            index, macs = index[keep], macs[keep]
+        best = int(np.argmax(macs))  # highest MAC with the reference shape
+        return int(index[best]), float(macs[best])
 
 
 def _assemble(
@@ -908,6 +1206,7 @@ def _assemble(
     w1,
     order,
     damping,
+    selected_mac,
     warning_map,
 ) -> pd.DataFrame:
     rows, cols = np.nonzero(phase)
@@ -941,6 +1240,7 @@ def _assemble(
             np.where(np.isfinite(order[rows, cols]), order[rows, cols], np.nan)
         ).astype("Int64")
         frame["selected_damping_ratio"] = damping[rows, cols]
+        frame["selected_mac"] = selected_mac[rows, cols]
     frame["warning"] = pd.array(warning_text.tolist(), dtype="string")
     frame = frame.sort_values(["mode", "block"], kind="stable").reset_index(drop=True)
     return frame
