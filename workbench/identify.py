@@ -200,7 +200,13 @@ def identify_block(
         reason (gap, too few good channels, ...). Raises ValueError for data problems,
         which :func:`~workbench.parallel.run_blocks` records as a skipped block.
     """
-    data, result, selection = _identify_data(task, grid, options)
+    from threadpoolctl import threadpool_limits
+
+    # One BLAS thread per block, in workers and in-process alike: the parallelism is over
+    # blocks, and the same arithmetic everywhere makes results bit-identical whatever the
+    # scheduler (a resumed job may mix blocks computed either way).
+    with threadpool_limits(limits=1):
+        data, result, selection = _identify_data(task, grid, options)
     start = pd.Timestamp(task.block_start)
     end = grid.end(task.block)
     faults = pd.DataFrame(
