@@ -274,9 +274,8 @@ def _prepare(
     n_refs = references.size
     capacity = min(n_refs * block_rows, n_channels * (block_rows - 1))
     if order_list[-1] > capacity:
-        needed = max(
-            -(-order_list[-1] // n_refs), -(-order_list[-1] // n_channels) + 1, block_rows + 1
-        )
+        # r·i >= n and l·(i - 1) >= n
+        needed = max(-(-order_list[-1] // n_refs), -(-order_list[-1] // n_channels) + 1)
         raise ValueError(
             f"orders up to {order_list[-1]} need block_rows >= {needed} with "
             f"{n_refs} reference and {n_channels} channels, got block_rows={block_rows}"
