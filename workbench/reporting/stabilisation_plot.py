@@ -208,7 +208,8 @@ def plot_stabilisation(
     ax.set_ylabel("model order")
     ax.set_title(title or f"Stabilisation diagram ({result.method}, i = {result.block_rows})")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8, loc="upper left")
+    # below the axes, so that no pole is hidden
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncols=3)
     return fig
 
 
