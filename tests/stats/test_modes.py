@@ -134,15 +134,26 @@ def test_fit_modes_errors_name_the_column_or_mode(block_tables):
     with pytest.warns(StatsWarning, match="mode 2: no finite frequency_hz"):
         fits = fit_modes(empty, predictors, errors="warn")
     assert list(fits) == [1, 3]
+    chosen = ["speed_kn", "water_temp_c", "air_temp_c", "wind_speed_ms"]
     flat = predictors.assign(wind_speed_ms=7.0)
     with pytest.raises(ValueError, match="predictor 'wind_speed_ms' is constant"):
-        fit_modes(modal, flat)
+        fit_modes(modal, flat, predictors_used=chosen)
     collinear = predictors.assign(air_temp_c=predictors["water_temp_c"] * 2 - 1)
     with pytest.raises(ValueError, match="'air_temp_c' is a linear combination of"):
-        fit_modes(modal, collinear)
+        fit_modes(modal, collinear, predictors_used=chosen)
     missing = predictors.assign(wind_speed_ms=np.nan)
     with pytest.raises(ValueError, match="predictor 'wind_speed_ms' has no finite value"):
-        fit_modes(modal, missing)
+        fit_modes(modal, missing, predictors_used=chosen)
+    # predictors taken by default: such columns are left out with a warning
+    for table, match in (
+        (flat, "'wind_speed_ms' is constant"),
+        (collinear, "'air_temp_c' is a linear combination of 'speed_kn', 'water_temp_c'"),
+        (missing, "'wind_speed_ms' has no finite value"),
+    ):
+        with pytest.warns(StatsWarning, match=match):
+            fits = fit_modes(modal, table, modes=[1])
+        left_out = match.split("'")[1]
+        assert left_out not in fits[1].fit.predictor_names
 
 
 def test_fit_options_reach_stepwise(block_tables):

@@ -76,31 +76,54 @@ class ModeFit:
         }
 
 
-def _check_predictors(joined: pd.DataFrame, names: Sequence[str]) -> None:
-    """One-line ValueErrors for all-NaN, constant or collinear predictor columns."""
-    values = joined[list(names)].to_numpy(dtype=float)
-    for j, name in enumerate(names):
-        finite = values[np.isfinite(values[:, j]), j]
+def _usable_predictors(joined: pd.DataFrame, names: Sequence[str], explicit: bool) -> list[str]:
+    """Predictor columns fit to enter a model.
+
+    An all-NaN, constant or collinear column is a ValueError naming it when the caller
+    chose the predictors (*explicit*), and is left out with a :class:`StatsWarning` when
+    they were taken by default (every numeric column of the table).
+    """
+
+    def reject(message: str) -> None:
+        if explicit:
+            raise ValueError(message)
+        warnings.warn(f"{message}; left out of the models", StatsWarning, stacklevel=4)
+
+    kept: list[str] = []
+    for name in names:
+        finite = joined[name].to_numpy(dtype=float)
+        finite = finite[np.isfinite(finite)]
         if finite.size == 0:
-            raise ValueError(f"predictor {name!r} has no finite value in any block")
-        if np.ptp(finite) <= 1e-12 * max(1.0, float(np.abs(finite).max())):
-            raise ValueError(f"predictor {name!r} is constant ({finite[0]:g}) in every block")
+            reject(f"predictor {name!r} has no finite value in any block")
+        elif np.ptp(finite) <= 1e-12 * max(1.0, float(np.abs(finite).max())):
+            reject(f"predictor {name!r} is constant ({finite[0]:g}) in every block")
+        else:
+            kept.append(name)
+    if not kept:
+        raise ValueError("no usable predictor column (all NaN or constant)")
+    values = joined[kept].to_numpy(dtype=float)
     complete = np.isfinite(values).all(axis=1)
-    if complete.sum() <= len(names):
+    if complete.sum() <= len(kept):
         raise ValueError(
             f"only {int(complete.sum())} blocks have every predictor finite; "
-            f"{len(names) + 1} are needed for {len(names)} predictors"
+            f"{len(kept) + 1} are needed for {len(kept)} predictors ({', '.join(kept)})"
         )
     centred = values[complete] - values[complete].mean(axis=0)
     centred /= np.linalg.norm(centred, axis=0)
-    _, r = np.linalg.qr(centred)
-    for j, name in enumerate(names):
-        if r[j, j] ** 2 <= COLLINEARITY_TOLERANCE:
-            others = ", ".join(repr(n) for n in names[:j])
-            raise ValueError(
+    independent: list[int] = []
+    for j, name in enumerate(kept):
+        # 1 - R² of column j on the columns kept before it (unit-norm, centred columns)
+        basis = centred[:, independent]
+        residual = centred[:, j] - basis @ np.linalg.lstsq(basis, centred[:, j], rcond=None)[0]
+        if float(residual @ residual) <= COLLINEARITY_TOLERANCE:
+            others = ", ".join(repr(kept[i]) for i in independent)
+            reject(
                 f"predictors are rank deficient: {name!r} is a linear combination of "
                 f"{others or 'a constant'}"
             )
+        else:
+            independent.append(j)
+    return [kept[i] for i in independent]
 
 
 def fit_modes(
@@ -126,8 +149,10 @@ def fit_modes(
     quantity : str
         Modal column modelled: ``frequency_hz`` [Hz] or ``damping_ratio`` [-].
     predictors_used : sequence of str, optional
-        Candidate predictors; default every numeric predictor column except keys and times.
-        They enter in raw units (coefficients per unit of each column).
+        Candidate predictors; default every numeric predictor column except keys and times
+        (of those, all-NaN, constant and collinear columns are left out with a
+        :class:`StatsWarning`). They enter in raw units (coefficients per unit of each
+        column).
     modes : sequence of int, optional
         Modes to fit; default every mode of *modal*.
     errors : {"raise", "warn"}
@@ -146,8 +171,9 @@ def fit_modes(
     Raises
     ------
     ValueError
-        Missing columns, an all-NaN, constant or collinear predictor, or (with
-        ``errors="raise"``) a mode with no finite *quantity* or too few complete blocks.
+        Missing columns, an all-NaN, constant or collinear predictor among
+        *predictors_used*, or (with ``errors="raise"``) a mode with no finite *quantity* or
+        too few complete blocks.
     """
     if errors not in ("raise", "warn"):
         raise ValueError(f"errors={errors!r}: expected 'raise' or 'warn'")
@@ -157,7 +183,7 @@ def fit_modes(
     joined, mode_columns, names = joined_blocks(
         modal, predictors, quantities=(quantity,), predictors_used=predictors_used
     )
-    _check_predictors(joined, names)
+    names = _usable_predictors(joined, names, explicit=predictors_used is not None)
     available = {int(c[len("mode") : -len(quantity) - 1]): c for c in mode_columns}
     wanted = sorted(available) if modes is None else [int(m) for m in modes]
     X = joined[names]
