@@ -83,7 +83,9 @@ def _to_float(frame: pd.DataFrame) -> np.ndarray:
 def _as_matrix(X, parameter: str = "X") -> tuple[np.ndarray, tuple[str, ...]]:
     """Float matrix and column names of a DataFrame or array (names x1..xn for arrays)."""
     if isinstance(X, pd.DataFrame):
-        names = tuple(str(c) for c in X.columns)
+        names = tuple(X.columns.tolist())
+        if not all(type(name) is str for name in names):
+            names = tuple(map(str, names))
         if len(set(names)) != len(names):
             raise ValueError(f"{parameter} has duplicate column names: {list(names)}")
         bad = [c for c in names if ":" in c]
@@ -226,7 +228,10 @@ class StepwiseFit:
     def _predictor_values(self, X) -> tuple[np.ndarray, pd.Index | None]:
         if isinstance(X, pd.DataFrame):
             needed = self.used_predictors
-            lookup = {str(name): i for i, name in enumerate(X.columns.tolist())}
+            columns = X.columns.tolist()
+            if not all(type(name) is str for name in columns):
+                columns = [str(name) for name in columns]
+            lookup = {name: i for i, name in enumerate(columns)}
             missing = [name for name in needed if name not in lookup]
             if missing:
                 raise ValueError(f"X is missing predictor column {missing[0]!r} used by the model")
@@ -778,7 +783,8 @@ def _search_steps(
                     score = p_value
                 else:
                     score = n * np.log(sse_new / sse) + penalty  # Δ criterion of adding
-                best = int(np.argmin(np.nan_to_num(score, nan=np.inf)))
+                score[score != score] = np.inf  # NaN (0/0 on a perfect fit) never enters
+                best = int(np.argmin(score))
                 if score[best] < p_enter:
                     index = int(eligible_index[best])
                     record = [
