@@ -1070,7 +1070,8 @@ class _PoleSelector:
         parts = []
         offset = 0
         for j, label in enumerate(labels):
-            rows = modal[modal["mode"].to_numpy() == label].sort_values("block", kind="stable")
+            same = (modal["mode"] == label).to_numpy(dtype=bool, na_value=False)
+            rows = modal[same].sort_values("block", kind="stable")
             rows = rows.drop_duplicates("block", keep="last")
             if rows.empty:
                 continue
