@@ -109,7 +109,7 @@ def _parse_formula(text: str, names: Sequence[str], parameter: str) -> list[Term
         return value
 
     sign = "+"
-    if tokens[0][1] in "+-" and tokens[0][0] == "op":
+    if tokens[0][0] == "op" and tokens[0][1] in ("+", "-"):
         sign = tokens[0][1]
         position = 1
     while True:
