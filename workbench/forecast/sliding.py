@@ -992,9 +992,11 @@ def _shape_matrix(frame: pd.DataFrame, channels: Sequence[str]) -> np.ndarray:
     """Complex shapes (n_rows, n_channels) of *channels* via :func:`shapes_from_frame`."""
     from data_contracts import shapes_from_frame
 
-    columns = [f"shape_{part}_{c}" for part in ("re", "im") for c in channels]
-    _, shapes = shapes_from_frame(frame[[c for c in columns if c in frame.columns]])
-    return shapes
+    names, shapes = shapes_from_frame(frame)
+    if list(names) == list(channels):
+        return shapes
+    position = {name: k for k, name in enumerate(names)}
+    return shapes[:, [position[c] for c in channels]]
 
 
 @dataclass
@@ -1053,7 +1055,8 @@ class _PoleSelector:
         self.reference_row = np.full((blocks.size, n_modes), -1, dtype=np.int64)
         if len(self.channels) < _MIN_SHAPE_CHANNELS:
             return
-        self.shapes = _shape_matrix(poles, self.channels)[order]
+        self.shapes = _shape_matrix(poles, self.channels)  # table order: row self.rows[p]
+        self.rows = order
         self._references(modal, blocks, mode_labels)
 
     @property
@@ -1160,7 +1163,7 @@ class _PoleSelector:
         index = np.flatnonzero(inside)
         if index.size == 0:
             return None, math.nan
-        macs = _mac_on_common_channels(reference, self.shapes[lo + index])
+        macs = _mac_on_common_channels(reference, self.shapes[self.rows[lo + index]])
         with np.errstate(invalid="ignore"):
             ok = macs >= self.mac_min
         if not ok.any():
@@ -1184,7 +1187,7 @@ class _PoleSelector:
         index = np.flatnonzero(near & ~inside)
         if index.size == 0:
             return None, math.nan
-        macs = _mac_on_common_channels(reference, self.shapes[lo + index])
+        macs = _mac_on_common_channels(reference, self.shapes[self.rows[lo + index]])
         with np.errstate(invalid="ignore"):
             ok = macs >= self.mac_min
         if not ok.any():  # the mode is not seen in this block: no evidence either way
