@@ -149,12 +149,19 @@ def _add_predictor_source(parser: argparse.ArgumentParser) -> None:
         metavar="FILE",
         help="raw DSHIP log, averaged onto the modal table's blocks",
     )
+    parser.add_argument(
+        "--all-predictors",
+        action="store_true",
+        help="use every numeric column of the predictors, not only speed, water/air "
+        "temperature, wind speed and relative wind direction",
+    )
 
 
 def _predictors_for(args: argparse.Namespace, modal):
-    from .pipeline import load_predictors
+    from .pipeline import canonical_predictors, load_predictors
 
-    return load_predictors(predictors=args.predictors, dship=args.dship, like=modal)
+    table = load_predictors(predictors=args.predictors, dship=args.dship, like=modal)
+    return table if args.all_predictors else canonical_predictors(table)
 
 
 def _add_parallel(parser: argparse.ArgumentParser) -> None:
@@ -467,7 +474,7 @@ def _add_fit(commands: argparse._SubParsersAction) -> None:
 def _run_fit(args: argparse.Namespace) -> int:
     from data_contracts import MODAL, read_table
 
-    from .stats.diagnostics import write_fit_report
+    from .reporting.diagnostics_plot import write_fit_report
 
     if not 0.0 < args.p_enter < args.p_remove < 1.0:
         raise UsageError(

@@ -134,6 +134,7 @@ def run_demo(
 
     from .identify import IdentifyOptions, identify_voyage
     from .pipeline import (
+        canonical_predictors,
         evaluate_forecast,
         load_predictors,
         persistent_modes,
@@ -184,15 +185,15 @@ def run_demo(
     with stage("predictors"):
         predictors = load_predictors(dship=simulation.dship_log, like=tracked)
         write_table(predictors, out_dir / "predictors.csv", PREDICTORS)
+    predictors = canonical_predictors(predictors)
 
-    modes, note = persistent_modes(tracked, 0.5)
-    summary.lines += note
+    modes, _ = persistent_modes(tracked, 0.5)  # the forecast stage names those left out
     with stage("correlate"):
         from .reporting.correlation import write_correlation_report
 
         write_correlation_report(modes, predictors, out_dir / "correlation", cases=simulation.cases)
     with stage("fit"):
-        from .stats.diagnostics import write_fit_report
+        from .reporting.diagnostics_plot import write_fit_report
 
         write_fit_report(modes, predictors, out_dir / "fit")
 

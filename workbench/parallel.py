@@ -222,6 +222,14 @@ def _client(scheduler: str | None, n_workers: int | None):
         raise WorkbenchError("parallel processing needs dask[distributed]") from error
     if scheduler:
         return Client(scheduler, set_as_default=False)
+    quiet = [
+        logging.getLogger(name)
+        for name in list(logging.root.manager.loggerDict)
+        if name.startswith("distributed")
+    ]
+    levels = [logger.level for logger in quiet]
+    for logger in quiet:  # no cluster start/stop chatter on the user's terminal
+        logger.setLevel(logging.ERROR)
     cluster = LocalCluster(
         n_workers=n_workers or os.cpu_count() or 1,
         threads_per_worker=1,
@@ -236,8 +244,12 @@ def _client(scheduler: str | None, n_workers: int | None):
             return client
 
         def __exit__(self, *exc):
-            client.close()
-            cluster.close()
+            try:
+                client.close()
+                cluster.close()
+            finally:
+                for logger, level in zip(quiet, levels, strict=True):
+                    logger.setLevel(level)
             return False
 
     return _Both()

@@ -34,6 +34,7 @@ from .errors import WorkbenchError
 __all__ = [
     "StageResult",
     "block_grid_of",
+    "canonical_predictors",
     "evaluate_forecast",
     "forecast_modes",
     "load_predictors",
@@ -155,6 +156,19 @@ def persistent_modes(
             "of the blocks"
         )
     return modal[modal["mode"].isin(keep)], lines
+
+
+def canonical_predictors(predictors: pd.DataFrame) -> pd.DataFrame:
+    """The block columns and the canonical predictors (speed, temperatures, wind) only.
+
+    A ship log carries more numeric columns (position, heading, depth...). They are kept in
+    the predictor table, but latitude and longitude, for instance, stand in for elapsed time
+    in a regression, so models and correlations use the canonical predictors unless asked.
+    """
+    from data_contracts import CANONICAL_PREDICTORS
+
+    columns = ["block", "block_start", "block_end", *(c.name for c in CANONICAL_PREDICTORS)]
+    return predictors[[c for c in columns if c in predictors.columns]]
 
 
 # --------------------------------------------------------------------------- tracking

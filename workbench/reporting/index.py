@@ -60,15 +60,21 @@ def write_index(
         Folders with more files (e.g. thousands of acceleration files) are summarised.
     """
     root = Path(root)
-    parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
-             f"</title><style>{_STYLE}</style></head><body><h1>{html.escape(title)}</h1>"]
+    parts = [
+        f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
+        f"</title><style>{_STYLE}</style></head><body><h1>{html.escape(title)}</h1>"
+    ]
     if summary:
-        parts.append("<ul style='columns:1'>" + "".join(
-            f"<li>{html.escape(line)}</li>" for line in summary) + "</ul>")
+        parts.append(
+            "<ul style='columns:1'>"
+            + "".join(f"<li>{html.escape(line)}</li>" for line in summary)
+            + "</ul>"
+        )
     for name, frame in (tables or {}).items():
         parts.append(f"<h2>{html.escape(name)}</h2>")
-        parts.append(frame.to_html(index=False, float_format=lambda v: f"{v:.4g}", border=0,
-                                   na_rep="–"))
+        parts.append(
+            frame.to_html(index=False, float_format=lambda v: f"{v:.4g}", border=0, na_rep="–")
+        )
     folders: dict[Path, list[Path]] = {}
     for path in sorted(root.rglob("*")):
         if path.is_file() and path.name != "index.html" and not path.name.startswith("."):
@@ -78,23 +84,40 @@ def write_index(
         parts.append(f"<h2>{html.escape(label)}/</h2>")
         if len(files) > max_files_per_folder:
             total = sum(f.stat().st_size for f in files) / 1024**2
-            parts.append(f"<p class='muted'>{len(files)} files ({total:.1f} MB), from "
-                         f"{html.escape(files[0].name)} to {html.escape(files[-1].name)}</p>")
+            parts.append(
+                f"<p class='muted'>{len(files)} files ({total:.1f} MB), from "
+                f"{html.escape(files[0].name)} to {html.escape(files[-1].name)}</p>"
+            )
             continue
         figures = [f for f in files if f.suffix.lower() == ".png"]
-        others = sorted((f for f in files if f.suffix.lower() != ".png"),
-                        key=lambda f: (_KIND_ORDER.index(f.suffix.lower())
-                                       if f.suffix.lower() in _KIND_ORDER else 99, f.name))
+        others = sorted(
+            (f for f in files if f.suffix.lower() != ".png"),
+            key=lambda f: (
+                _KIND_ORDER.index(f.suffix.lower()) if f.suffix.lower() in _KIND_ORDER else 99,
+                f.name,
+            ),
+        )
         if others:
-            parts.append("<ul>" + "".join(
-                f"<li><a href='{html.escape(f.relative_to(root).as_posix())}'>"
-                f"{html.escape(f.name)}</a> <span class='muted'>{_size(f)}</span></li>"
-                for f in others) + "</ul>")
+            parts.append(
+                "<ul>"
+                + "".join(
+                    f"<li><a href='{html.escape(f.relative_to(root).as_posix())}'>"
+                    f"{html.escape(f.name)}</a> <span class='muted'>{_size(f)}</span></li>"
+                    for f in others
+                )
+                + "</ul>"
+            )
         if figures:
-            parts.append("<div class='figures'>" + "".join(
-                f"<a href='{html.escape(f.relative_to(root).as_posix())}'><img loading='lazy' "
-                f"src='{html.escape(f.relative_to(root).as_posix())}' alt=''>"
-                f"{html.escape(f.name)}</a>" for f in figures) + "</div>")
+            parts.append(
+                "<div class='figures'>"
+                + "".join(
+                    f"<a href='{html.escape(f.relative_to(root).as_posix())}'><img loading='lazy' "
+                    f"src='{html.escape(f.relative_to(root).as_posix())}' alt=''>"
+                    f"{html.escape(f.name)}</a>"
+                    for f in figures
+                )
+                + "</div>"
+            )
     parts.append("</body></html>")
     target = root / "index.html"
     with atomic_path(target) as tmp:
