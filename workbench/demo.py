@@ -169,6 +169,11 @@ def run_demo(
         f"{identified.summary.skipped} skipped, {identified.n_selected} modes selected"
     )
 
+    with stage("stabilisation figures"):
+        from .identify import write_block_figures
+
+        write_block_figures([voyage_dir], identify_dir / "figures", n_blocks=3)
+
     tracked_path = out_dir / "tracked_modal.csv"
     with stage("track"):
         track = run_track(identify_dir / "selected.parquet", tracked_path)
