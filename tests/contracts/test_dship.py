@@ -10,12 +10,9 @@ import pytest
 
 from data_contracts import ContractError, read_dship
 
-REFERENCE = (
-    Path(__file__).resolve().parents[2].parent
-    / "shared"
-    / "reference"
-    / "dship_pangaea_example.tsv"
-)
+#: The sample PANGAEA export of ../shared/reference, shipped with the tests (a clean clone
+#: has no ../shared).
+REFERENCE = Path(__file__).resolve().parents[1] / "reference" / "dship_pangaea_example.tsv"
 
 HEADER = (
     "/* DATA DESCRIPTION:\nCitation:\tsynthetic\n*/\n"
