@@ -119,3 +119,19 @@ def test_cli_track_roundtrip(voyage, tmp_path, capsys):
     tracked = read_table(out, MODAL)
     assert tracked["mode"].nunique() == 7
     assert np.isfinite(tracked["mac"]).all()
+
+
+def test_cli_identify_bad_inputs_are_one_line_errors(tmp_path, capsys):
+    folder = tmp_path / "acc"
+    folder.mkdir()
+    (folder / "acc_x.npz").write_text("not an npz file")
+    status = main(["identify", str(folder), "--out", str(tmp_path / "out"), "--scheduler",
+                   "synchronous", "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 1 and len(err) == 1 and "acc_x.npz" in err[0]
+    status = main(["identify", str(tmp_path / "missing"), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 1 and err == [f"error: {tmp_path / 'missing'}: no such file or folder"]
+    status = main(["identify", str(folder), "--out", str(tmp_path / "out"), "--min-order", "8",
+                   "--max-order", "4"])
+    assert status == 2
