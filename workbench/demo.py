@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import logging
 import os
+import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -155,6 +156,8 @@ def run_demo(
     truth = read_table(simulation.truth_modal, CONTRACTS["modal"])
 
     identify_dir = out_dir / "identify"
+    # the voyage was just (re)written: results of an earlier demo run must not be resumed
+    shutil.rmtree(identify_dir, ignore_errors=True)
     with stage("identify"):
         identified = identify_voyage(
             [voyage_dir],
