@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats as scipy_stats
 
-from data_contracts import POLES, atomic_path, shape_columns, write_table
+from data_contracts import POLES, atomic_path, shape_columns
 
 from .blocks import BlockGrid
 from .errors import WorkbenchError
@@ -455,20 +455,25 @@ def write_block_figures(
 
 
 def export_store(store: BlockStore, out_dir: str | os.PathLike, channels: Sequence[str]):
-    """Write the store's results as tables in *out_dir*; return them by kind."""
+    """Write the store's results as tables in *out_dir*; return them by kind.
+
+    Poles and selected modes are streamed chunk by chunk into one Parquet file each (rows in
+    block order), so exporting a voyage of any length needs the memory of one chunk.
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files: dict[str, Path] = {}
-    poles = store.read("poles")
-    if not poles.empty:
-        poles = poles.sort_values(["block", "model_order", "frequency_hz"], kind="stable")
-        files["poles"] = write_table(poles.reset_index(drop=True), out / "poles.parquet", POLES)
-    selected = store.read("selected")
-    if not selected.empty:
-        selected = selected.sort_values(["block", "frequency_hz"], kind="stable")
-        files["selected"] = _write_parquet(
-            selected.reset_index(drop=True), out / "selected.parquet"
+    for kind, sort, name, contract in (
+        ("poles", ["block", "model_order", "frequency_hz"], "poles.parquet", POLES),
+        ("selected", ["block", "frequency_hz"], "selected.parquet", None),
+    ):
+        chunks = (
+            chunk.sort_values(sort, kind="stable").reset_index(drop=True)
+            for chunk in store.read_chunks(kind)
         )
+        path = _write_parquet_chunks(chunks, out / name, contract)
+        if path is not None:
+            files[kind] = path
     for kind in ("faults", "channels", "blocks"):
         table = store.read(kind)
         if kind == "blocks" and not table.empty:
@@ -476,6 +481,38 @@ def export_store(store: BlockStore, out_dir: str | os.PathLike, channels: Sequen
         if not table.empty or kind == "blocks":
             files[kind] = _write_csv(table.reset_index(drop=True), out / f"{kind}.csv")
     return files
+
+
+def _write_parquet_chunks(chunks, path: Path, contract=None) -> Path | None:
+    """Stream DataFrame chunks into one Parquet file (validated per chunk), atomically."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    writer = None
+    schema = None
+    try:
+        with atomic_path(path) as tmp:
+            try:
+                for chunk in chunks:
+                    if contract is not None:
+                        chunk = contract.validate(chunk)
+                    table = pa.Table.from_pandas(chunk, preserve_index=False, schema=schema)
+                    if writer is None:
+                        schema = table.schema
+                        writer = pq.ParquetWriter(tmp, schema)
+                    writer.write_table(table)
+            finally:
+                if writer is not None:
+                    writer.close()
+            if writer is None:
+                raise _NothingWritten
+    except _NothingWritten:
+        return None
+    return path
+
+
+class _NothingWritten(Exception):
+    pass
 
 
 def _write_parquet(frame: pd.DataFrame, path: Path) -> Path:

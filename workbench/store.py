@@ -109,6 +109,39 @@ class BlockStore:
             table = table.sort_values(keys, kind="stable").reset_index(drop=True)
         return table
 
+    def read_chunks(self, kind: str, blocks_per_chunk: int = 512):
+        """Yield the rows of *kind* in block order, *blocks_per_chunk* blocks at a time.
+
+        Memory stays bounded by the chunk, whatever the size of the store: each batch file's
+        block range is in its name, so a chunk reads only the files overlapping it (and of
+        those only its rows).
+        """
+        ranges = []
+        for path in self._files(kind):
+            low, high = (
+                int(part[1:] if part.startswith("b") else part) for part in path.stem.split("-")[:2]
+            )
+            ranges.append((low, high, path))
+        if not ranges:
+            return
+        keys = None
+        first = min(r[0] for r in ranges)
+        last = max(r[1] for r in ranges)
+        for start in range(first, last + 1, blocks_per_chunk):
+            stop = start + blocks_per_chunk
+            frames = [
+                pd.read_parquet(path, filters=[("block", ">=", start), ("block", "<", stop)])
+                for low, high, path in ranges
+                if low < stop and high >= start
+            ]
+            frames = [f for f in frames if len(f)]
+            if not frames:
+                continue
+            table = pd.concat(frames, ignore_index=True)
+            if keys is None:
+                keys = [k for k in ("block", "model_order") if k in table.columns]
+            yield table.sort_values(keys, kind="stable").reset_index(drop=True)
+
     # ------------------------------------------------------------------ writing
     def write_batch(self, blocks: pd.DataFrame, results: Mapping[str, pd.DataFrame]) -> str:
         """Write one batch atomically per file, the ``blocks`` file last.

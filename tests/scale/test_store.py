@@ -110,3 +110,28 @@ def test_dask_local_cluster_matches_synchronous(tmp_path):
     assert (summary.processed, summary.skipped) == (21, 3)
     pd.testing.assert_frame_equal(parallel.read("poles"), sync.read("poles"))
     np.testing.assert_array_equal(parallel.read("blocks")["block"], np.arange(24))
+
+
+def test_read_chunks_streams_block_order_from_unordered_batches(tmp_path):
+    """Batches written out of order (as a cluster finishes them) read back in block order,
+    a few blocks at a time, with exactly the rows of a full read."""
+    store = BlockStore.open(tmp_path, {})
+    start = pd.Timestamp("2025-01-01T00:00Z")
+    for blocks in ([4, 5, 9], [0, 1, 2], [3, 6, 7, 8]):
+        frame = pd.DataFrame(
+            {
+                "block": np.repeat(blocks, 2),
+                "block_start": start,
+                "model_order": np.tile([4, 2], len(blocks)),
+                "value": np.arange(2 * len(blocks), dtype=float),
+            }
+        )
+        status = pd.DataFrame({"block": blocks, "block_start": start, "status": "ok",
+                               "reason": ""})
+        store.write_batch(status, {"poles": frame})
+    chunks = list(store.read_chunks("poles", blocks_per_chunk=3))
+    assert [sorted(c["block"].unique()) for c in chunks] == [[0, 1, 2], [3, 4, 5], [6, 7, 8],
+                                                             [9]]
+    streamed = pd.concat(chunks, ignore_index=True)
+    pd.testing.assert_frame_equal(streamed, store.read("poles"))
+    assert (streamed.groupby("block")["model_order"].apply(list) == [[2, 4]] * 10).all()
