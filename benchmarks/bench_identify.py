@@ -71,21 +71,23 @@ def main(argv=None) -> int:
     parser.add_argument("--data", type=Path, help="folder for (or with) the simulated voyages")
     parser.add_argument("--days", type=float, default=1.0, help="voyage for the throughput")
     parser.add_argument("--skip-memory", action="store_true")
+    parser.add_argument("--skip-throughput", action="store_true")
     args = parser.parse_args(argv)
     root = args.data or Path(tempfile.mkdtemp(prefix="bench_identify_"))
     root.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix="bench_identify_out_"))
     print(f"machine: {os.cpu_count()} cores")
 
-    voyage = _voyage(root, args.days)
     rates = {}
-    for workers in (1, 2):
+    for workers in () if args.skip_throughput else (1, 2):
+        voyage = _voyage(root, args.days)
         seconds, _, stdout = _identify(voyage, work / f"w{workers}", "--workers", str(workers))
         n = _blocks(stdout)
         rates[workers] = n / seconds
         print(f"{workers} worker(s): {n} blocks in {seconds:.1f} s = {rates[workers]:.2f} "
               "blocks/s (cluster start-up included)")
-    print(f"speed-up 2 vs 1 worker: {rates[2] / rates[1]:.2f}x")
+    if rates:
+        print(f"speed-up 2 vs 1 worker: {rates[2] / rates[1]:.2f}x")
 
     if not args.skip_memory:
         peaks = {}
