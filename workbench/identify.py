@@ -469,7 +469,7 @@ def export_store(store: BlockStore, out_dir: str | os.PathLike, channels: Sequen
     ):
         chunks = (
             chunk.sort_values(sort, kind="stable").reset_index(drop=True)
-            for chunk in store.read_chunks(kind)
+            for chunk in store.read_chunks(kind, blocks_per_chunk=64)
         )
         path = _write_parquet_chunks(chunks, out / name, contract)
         if path is not None:
