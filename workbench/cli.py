@@ -578,6 +578,20 @@ def _add_forecast(commands: argparse._SubParsersAction) -> None:
         metavar="SHARE",
         help="forecast only modes measured in at least this share of the blocks",
     )
+    parser.add_argument(
+        "--shape-mac-min",
+        type=float,
+        default=0.9,
+        metavar="MAC",
+        help="option B: lowest MAC of a pole's shape with the mode's tracked shape",
+    )
+    parser.add_argument(
+        "--reacquire-blocks",
+        type=int,
+        default=1,
+        metavar="K",
+        help="option B: blocks seen only outside the gate before the track is re-acquired",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(run=_run_forecast)
 
@@ -625,6 +639,10 @@ def _run_forecast(args: argparse.Namespace) -> int:
             n_jobs=args.jobs,
             progress=not args.quiet,
             min_presence=args.min_presence,
+            option_b={
+                "shape_mac_min": args.shape_mac_min,
+                "reacquire_blocks": args.reacquire_blocks,
+            },
         )
     except ValueError as error:
         if isinstance(error, ContractError):

@@ -305,6 +305,7 @@ def run_forecast(
     n_jobs: int = 1,
     progress: bool = False,
     min_presence: float = 0.5,
+    option_b: Mapping[str, Any] | None = None,
 ) -> StageResult:
     """Sliding forecasts for each option, one forecast table (CSV/Parquet) and figures.
 
@@ -332,6 +333,7 @@ def run_forecast(
             trust=trust,
             predictor_columns=predictor_columns,
             stepwise_options=stepwise_options,
+            **(dict(option_b or {}) if option == "B" else {}),
         )
         result.warnings += [f"option {option}: {m}" for m in messages]
         frames.append(table)
