@@ -8,6 +8,7 @@ success, 1 on bad data (one line per problem on stderr, naming file, column and 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import sys
 import warnings
@@ -129,6 +130,18 @@ def _run_demo(args: argparse.Namespace) -> int:
     )
     print(summary)
     return EXIT_OK
+
+
+@contextlib.contextmanager
+def _data_errors(source):
+    """A ValueError of the library about the data becomes a one-line error naming *source*
+    (contract errors pass unchanged: they name file, column and rows themselves)."""
+    try:
+        yield
+    except ContractError:
+        raise
+    except ValueError as error:
+        raise WorkbenchError(f"{source}: {error}") from None
 
 
 def _print_result(result) -> None:
@@ -360,7 +373,7 @@ def _add_track(commands: argparse._SubParsersAction) -> None:
 def _run_track(args: argparse.Namespace) -> int:
     from .pipeline import run_track
 
-    try:
+    with _data_errors(args.selected):
         result = run_track(
             args.selected,
             args.out,
@@ -370,10 +383,6 @@ def _run_track(args: argparse.Namespace) -> int:
             frequency_tolerance=args.frequency_tolerance,
             progress=not args.quiet,
         )
-    except ValueError as error:
-        if isinstance(error, ContractError):
-            raise
-        raise WorkbenchError(f"{args.selected}: {error}") from None
     _print_result(result)
     return EXIT_OK
 
@@ -421,7 +430,7 @@ def _run_correlate(args: argparse.Namespace) -> int:
     modal = read_table(args.modal, MODAL)
     predictors = _predictors_for(args, modal)
     modal = _persistent(modal, args.min_presence)
-    try:
+    with _data_errors(args.modal):
         paths = write_correlation_report(
             modal,
             predictors,
@@ -430,10 +439,6 @@ def _run_correlate(args: argparse.Namespace) -> int:
             alpha=args.alpha,
             correction=None if args.correction == "none" else args.correction,
         )
-    except ValueError as error:
-        if isinstance(error, ContractError):
-            raise
-        raise WorkbenchError(f"{args.modal}: {error}") from None
     for name, path in dict(paths).items():
         print(f"{name}: {path}")
     return EXIT_OK
@@ -483,7 +488,7 @@ def _run_fit(args: argparse.Namespace) -> int:
     modal = read_table(args.modal, MODAL)
     predictors = _predictors_for(args, modal)
     modal = _persistent(modal, args.min_presence)
-    try:
+    with _data_errors(args.modal):
         paths = write_fit_report(
             modal,
             predictors,
@@ -492,10 +497,6 @@ def _run_fit(args: argparse.Namespace) -> int:
             p_remove=args.p_remove,
             upper=args.upper,
         )
-    except ValueError as error:
-        if isinstance(error, ContractError):
-            raise
-        raise WorkbenchError(f"{args.modal}: {error}") from None
     for name, path in dict(paths).items():
         print(f"{name}: {path}")
     return EXIT_OK
@@ -623,7 +624,7 @@ def _run_forecast(args: argparse.Namespace) -> int:
     predictors = _predictors_for(args, modal)
     poles = read_table(args.poles, POLES) if args.poles is not None else None
     truth = read_table(args.truth, MODAL) if args.truth is not None else None
-    try:
+    with _data_errors(args.modal):
         result = run_forecast(
             modal,
             predictors,
@@ -644,10 +645,6 @@ def _run_forecast(args: argparse.Namespace) -> int:
                 "reacquire_blocks": args.reacquire_blocks,
             },
         )
-    except ValueError as error:
-        if isinstance(error, ContractError):
-            raise
-        raise WorkbenchError(f"{args.modal}: {error}") from None
     _print_result(result)
     return EXIT_OK
 

@@ -263,11 +263,9 @@ def forecast_modes(
         dynamic_ncols=True,
     )
     with bar:
-        if n_jobs == 1:
-            parts = []
-            for mode in modes:
-                parts.append(_forecast_part(modal, predictors, [mode], kwargs))
-                bar.update(1)
+        if n_jobs == 1:  # one call: the windows' normalisation is shared by all modes
+            parts = [_forecast_part(modal, predictors, modes, kwargs)]
+            bar.update(len(modes))
         else:
             from concurrent.futures import ProcessPoolExecutor, as_completed
 

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 import sys
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -345,16 +345,12 @@ class ModeTracker:
 
 def _selected_arrays(frame: pd.DataFrame, channels: Sequence[str]):
     """Frequencies, damping ratios and shapes (n_channels x n) of one block's rows."""
-    _, shapes = shapes_from_frame(frame[[*_shape_cols(channels)]])
+    _, shapes = shapes_from_frame(frame[[*shape_columns(channels)]])
     return (
         frame["frequency_hz"].to_numpy(dtype=float),
         frame["damping_ratio"].to_numpy(dtype=float),
         shapes.T,
     )
-
-
-def _shape_cols(channels: Iterable[str]) -> list[str]:
-    return shape_columns(list(channels))
 
 
 def track_modes(
@@ -467,7 +463,7 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
     front = ["block", "block_start", "block_end", "mode", "frequency_hz", "damping_ratio", "mac"]
     if "model_order" in table.columns:
         front.append("model_order")
-    shape = _shape_cols(channels)
+    shape = shape_columns(channels)
     rest = [c for c in table.columns if c not in front and c not in shape]
     table = table[[*front, *rest, *shape]].sort_values(["block", "mode"], kind="stable")
     return MODAL.validate(table.reset_index(drop=True))
