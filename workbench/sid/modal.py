@@ -6,28 +6,36 @@ Pure numerical functions used by both SSI variants (:mod:`workbench.sid.ssi`):
 - :func:`normalise_shapes`: unit norm, largest component real and positive;
 - :func:`modal_phase_collinearity`: MPC of complex shapes;
 - :func:`poles_all_orders`: the poles and shapes of every model order of a stabilisation
-  diagram from one observability basis (one QR, then a triangular solve and a small
-  eigenvalue problem per order).
+  diagram from one observability basis (one QR, then one small eigenvalue problem per
+  order).
+
+Threads: the SSI kernels run BLAS single-threaded and spread independent pieces of work
+(the per-order eigenvalue problems, FFT batches) over Python threads instead. How many is
+:func:`thread_budget`: the BLAS thread limit in effect when the SSI function is called,
+at most :data:`MAX_THREADS` — so a caller that limits BLAS to one thread per process (as
+:mod:`workbench.identify` does for its worker processes) gets fully serial SSI.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from contextvars import ContextVar
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import linalg
 
 try:  # a dependency of scikit-learn, hence always installed with workbench
-    from threadpoolctl import threadpool_limits
+    from threadpoolctl import threadpool_info, threadpool_limits
 except ImportError:  # pragma: no cover
-    threadpool_limits = None
+    threadpool_info = threadpool_limits = None
 
-#: Python threads for the per-order eigenvalue problems.
-_N_THREADS = min(2, os.cpu_count() or 1)
+#: Most Python threads an SSI call uses (see :func:`thread_budget`).
+MAX_THREADS = 8
+_BUDGET: ContextVar[int | None] = ContextVar("workbench_sid_thread_budget", default=None)
 
 __all__ = [
     "OrderPoles",
@@ -35,7 +43,37 @@ __all__ = [
     "modal_phase_collinearity",
     "normalise_shapes",
     "poles_all_orders",
+    "thread_budget",
 ]
+
+
+def thread_budget() -> int:
+    """Python threads the SSI kernels may use in the current context.
+
+    Inside an SSI call, the budget fixed when the call started (:func:`sid_threads`);
+    otherwise the smallest BLAS thread limit in effect (see :mod:`threadpoolctl`), capped
+    by the number of cores and :data:`MAX_THREADS`.
+    """
+    fixed = _BUDGET.get()
+    if fixed is not None:
+        return fixed
+    budget = min(MAX_THREADS, os.cpu_count() or 1)
+    if threadpool_info is not None:
+        limits = [info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"]
+        if limits:
+            budget = min(budget, *limits)
+    return max(1, int(budget))
+
+
+@contextlib.contextmanager
+def sid_threads() -> Iterator[int]:
+    """Fix the thread budget of an SSI call, then run BLAS single-threaded inside it."""
+    token = _BUDGET.set(thread_budget())
+    try:
+        with _single_threaded_blas():
+            yield _BUDGET.get()
+    finally:
+        _BUDGET.reset(token)
 
 
 def modal_parameters(
@@ -150,6 +188,9 @@ class OrderPoles:
         Normalised mode shapes Φ = CΨ, column k belongs to pole k. [-]
     discrete_eigenvalues : ndarray of complex, shape (n_poles,)
         Eigenvalues μ of A (positive imaginary part). [-]
+    state_matrix : ndarray, shape (n_max, n_max), optional
+        A = O↑⁺O↓ of the largest order in the coordinates of the observability basis
+        given to :func:`poles_all_orders` (the realisation the SSI results report).
     """
 
     model_order: np.ndarray
@@ -157,6 +198,7 @@ class OrderPoles:
     damping_ratio: np.ndarray
     mode_shapes: np.ndarray
     discrete_eigenvalues: np.ndarray
+    state_matrix: np.ndarray | None = None
 
 
 def poles_all_orders(
@@ -194,14 +236,20 @@ def poles_all_orders(
     For order n, O_n = Γ[:, :n] (first n columns). The shift structure of O_n gives
     A_n = O_n↑⁺ O_n↓ (O↑ without its last block row, O↓ without its first) and C_n its first
     block row. With one thin QR of the largest upper part, Γ↑ = Q R, the leading columns
-    satisfy Γ↑[:, :n] = Q[:, :n] R[:n, :n], hence
+    satisfy Γ↑[:, :n] = Q[:, :n] R[:n, :n], hence A_n = R_n^{-1} P_n with R_n = R[:n, :n]
+    and P_n = (QᵀΓ↓)[:n, :n]. Because R⁻¹ is upper triangular, the leading block of the
+    single matrix B = (QᵀΓ↓) R⁻¹ is
 
     .. math::
 
-        A_n = R_{:n,:n}^{-1} \\left(Q^T Γ_↓\\right)_{:n,:n},
+        B_{:n,:n} = P_n R_n^{-1} = R_n A_n R_n^{-1},
 
-    one triangular solve of size n per order after a single QR and one product QᵀΓ↓.
-    Eigenvectors Ψ of A_n give the shapes Φ = C_n Ψ.
+    similar to A_n: every order is the leading principal submatrix of one matrix, and an
+    eigenvector χ of B_n gives ψ = R_n⁻¹χ of A_n, so the shapes are
+    Φ = C_n ψ = (C R⁻¹)[:, :n] χ (again because R⁻¹ is upper triangular). After one QR and
+    two triangular solves, each order costs one eigenvalue problem of size n (LAPACK
+    geev), run single-threaded on :func:`thread_budget` Python threads (numpy releases
+    the GIL there).
     """
     basis = np.asarray(observability, dtype=float)
     n_rows, n_max = basis.shape
@@ -214,29 +262,29 @@ def poles_all_orders(
     upper = basis[:-n_outputs]
     lower = basis[n_outputs:]
     q, r = linalg.qr(upper, mode="economic", check_finite=False)
-    projected = q.T @ lower  # Qᵀ Γ↓, (n_max, n_max)
-    first_block = basis[:n_outputs]  # C (up to the similarity)
+    projected = q.T @ lower  # P = Qᵀ Γ↓, (n_max, n_max)
+    # B = P R⁻¹ and C R⁻¹ from  Bᵀ = R⁻ᵀ Pᵀ  (a lower-triangular solve)
+    nested = linalg.solve_triangular(r, projected.T, trans="T", check_finite=False).T
+    output = linalg.solve_triangular(r, basis[:n_outputs].T, trans="T", check_finite=False).T
+    nested = np.ascontiguousarray(nested)
+    state = linalg.solve_triangular(r, projected, check_finite=False)  # A = R⁻¹P, largest n
 
-    # one small eigenvalue problem per order: single-threaded LAPACK calls, spread over
-    # (at most two) Python threads; LAPACK releases the GIL
-    with _single_threaded_blas():
-        if len(orders) >= 8 and _N_THREADS > 1:
-            with ThreadPoolExecutor(_N_THREADS) as pool:
+    def eigenproblem(n):
+        return np.linalg.eig(nested[:n, :n])
+
+    with sid_threads() as threads:
+        if len(orders) >= 8 and threads > 1:
+            with ThreadPoolExecutor(threads) as pool:
                 # largest orders first, so that the two threads finish together
                 largest_first = sorted(orders, reverse=True)
-                done = dict(
-                    zip(
-                        largest_first,
-                        pool.map(
-                            lambda n: _order_poles(n, r, projected, first_block, sampling_rate_hz),
-                            largest_first,
-                        ),
-                        strict=True,
-                    )
-                )
-            parts = [done[n] for n in orders]
+                done = dict(zip(largest_first, pool.map(eigenproblem, largest_first), strict=True))
+            solutions = [done[n] for n in orders]
         else:
-            parts = [_order_poles(n, r, projected, first_block, sampling_rate_hz) for n in orders]
+            solutions = [eigenproblem(n) for n in orders]
+    parts = [
+        _order_poles(n, mu, chi, output, sampling_rate_hz)
+        for n, (mu, chi) in zip(orders, solutions, strict=True)
+    ]
     parts = [part for part in parts if part is not None]
     if not parts:
         return OrderPoles(
@@ -245,11 +293,12 @@ def poles_all_orders(
             np.zeros(0),
             np.zeros((n_outputs, 0), dtype=complex),
             np.zeros(0, dtype=complex),
+            state,
         )
     model_order, frequency, damping, shapes, mu = (
         np.concatenate(column, axis=-1) for column in zip(*parts, strict=True)
     )
-    return OrderPoles(model_order, frequency, damping, normalise_shapes(shapes), mu)
+    return OrderPoles(model_order, frequency, damping, normalise_shapes(shapes), mu, state)
 
 
 def _single_threaded_blas():
@@ -263,25 +312,27 @@ def _single_threaded_blas():
 
 def _order_poles(
     n: int,
-    r: np.ndarray,
-    projected: np.ndarray,
-    first_block: np.ndarray,
+    mu: np.ndarray,
+    vectors: np.ndarray,
+    output: np.ndarray,
     sampling_rate_hz: float,
 ) -> tuple[np.ndarray, ...] | None:
-    """(orders, f, ζ, shapes, μ) of the physical poles of order *n*, or None."""
+    """(orders, f, ζ, shapes, μ) of the physical poles of order *n*, or None.
+
+    *mu* and *vectors* are the eigenpairs of the order-n state matrix in the coordinates
+    where *output* (its first n columns) is the output matrix.
+    """
     nyquist = 0.5 * sampling_rate_hz
-    state = linalg.solve_triangular(r[:n, :n], projected[:n, :n], check_finite=False)
-    mu, psi = np.linalg.eig(state)
     keep = mu.imag > 0.0  # one per conjugate pair; real eigenvalues have Im == 0 exactly
     if not np.any(keep):
         return None
-    mu, psi = mu[keep], psi[:, keep]
+    mu = mu[keep]
     frequency, damping = modal_parameters(mu, sampling_rate_hz)
     physical = (frequency > 0.0) & (frequency < nyquist)
     if not np.any(physical):
         return None
-    mu, psi = mu[physical], psi[:, physical]
-    frequency, damping = frequency[physical], damping[physical]
+    columns = np.flatnonzero(keep)[physical]
+    mu, frequency, damping = mu[physical], frequency[physical], damping[physical]
     order = np.argsort(frequency, kind="stable")
-    shapes = first_block[:, :n] @ psi[:, order]
+    shapes = output[:, :n] @ vectors[:, columns[order]]
     return np.full(order.size, n), frequency[order], damping[order], shapes, mu[order]

@@ -27,7 +27,10 @@ Conventions
 - Linear algebra runs with single-threaded BLAS: the matrices are moderate (a few hundred
   to a thousand rows), blocks are processed in parallel by processes, and multi-threaded
   LAPACK on such matrices is slower and collapses when other processes compete for the
-  cores. The per-order eigenvalue problems are spread over two Python threads.
+  cores. Independent pieces (FFT batches, halves of a matrix product, the per-order
+  eigenvalue problems) run on Python threads instead, as many as
+  :func:`workbench.sid.modal.thread_budget` allows: the BLAS thread limit in effect when
+  the function is called, so ``threadpoolctl.threadpool_limits(1)`` makes it serial.
 
 References
 ----------
@@ -43,6 +46,7 @@ from __future__ import annotations
 import functools
 import warnings
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -53,7 +57,7 @@ from scipy import fft, linalg
 from data_contracts import shapes_to_frame
 
 from .mac import continuous_pole
-from .modal import _single_threaded_blas, modal_phase_collinearity, poles_all_orders
+from .modal import modal_phase_collinearity, poles_all_orders, sid_threads, thread_budget
 from .stabilisation import StabilityCriteria, stability_flags
 
 __all__ = [
@@ -302,19 +306,21 @@ def _lagged_products(data: np.ndarray, max_lag: int, columns: np.ndarray) -> np.
     before one inverse FFT. Cost O(N l r) instead of O(N l r max_lag) for direct sums.
     """
     n_samples, n_channels = data.shape
-    n_fft = fft.next_fast_len(max(8 * (max_lag + 1), 256), real=True)
+    workers = thread_budget()
+    n_fft = fft.next_fast_len(max(8 * (max_lag + 1), 1024), real=True)
     segment = n_fft - max_lag
     n_segments = -(-n_samples // segment)
     padded = np.zeros((n_segments * segment + max_lag, n_channels))
     padded[:n_samples] = data
     # (n_segments, n_channels, n_fft) windows starting every `segment` samples
     windows = np.lib.stride_tricks.sliding_window_view(padded, n_fft, axis=0)[::segment]
-    spectra = fft.rfft(windows, axis=-1)  # (n_segments, n_channels, n_freq)
+    spectra = fft.rfft(windows, axis=-1, workers=workers)  # (n_segments, n_channels, n_freq)
     reference = padded[: n_segments * segment, columns].reshape(n_segments, segment, -1)
-    reference_spectra = fft.rfft(reference, n=n_fft, axis=1)  # (n_segments, n_freq, n_ref)
+    # (n_segments, n_freq, n_ref)
+    reference_spectra = fft.rfft(reference, n=n_fft, axis=1, workers=workers)
     # Σ_s X_s(f) conj(Z_s(f)) as a batched product over frequencies
     cross = np.matmul(spectra.transpose(2, 1, 0), reference_spectra.conj().transpose(1, 0, 2))
-    correlation = fft.irfft(cross, n=n_fft, axis=0)
+    correlation = fft.irfft(cross, n=n_fft, axis=0, workers=workers)
     return np.ascontiguousarray(correlation[: max_lag + 1])
 
 
@@ -373,6 +379,22 @@ def _cholesky(matrix: np.ndarray, what: str) -> np.ndarray:
     )
 
 
+def _gram(matrix: np.ndarray) -> np.ndarray:
+    """M Mᵀ, its row blocks computed on :func:`thread_budget` threads (numpy releases the GIL)."""
+    threads = min(thread_budget(), matrix.shape[0] // 128)
+    if threads < 2:
+        return matrix @ matrix.T
+    gram = np.empty((matrix.shape[0], matrix.shape[0]))
+    bounds = np.linspace(0, matrix.shape[0], threads + 1).astype(int)
+
+    def rows(k):
+        np.matmul(matrix[bounds[k] : bounds[k + 1]], matrix.T, out=gram[bounds[k] : bounds[k + 1]])
+
+    with ThreadPoolExecutor(threads) as pool:
+        list(pool.map(rows, range(threads)))
+    return gram
+
+
 def _leading_singular(matrix: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
     """Left singular vectors and singular values of the *count* largest singular triplets.
 
@@ -383,7 +405,7 @@ def _leading_singular(matrix: np.ndarray, count: int) -> tuple[np.ndarray, np.nd
     """
     rows = matrix.shape[0]
     count = min(count, rows, matrix.shape[1])
-    gram = matrix @ matrix.T
+    gram = _gram(matrix)
     values, vectors = linalg.eigh(
         gram, subset_by_index=(rows - count, rows - 1), driver="evr", check_finite=False
     )
@@ -458,11 +480,11 @@ def _shift_realisation(observability: np.ndarray, n_outputs: int) -> tuple[np.nd
 
 
 def _single_threaded(function):
-    """Run *function* with single-threaded BLAS (see the module docstring)."""
+    """Run *function* with single-threaded BLAS and a fixed thread budget (module docstring)."""
 
     @functools.wraps(function)
     def wrapper(*args, **kwargs):
-        with _single_threaded_blas():
+        with sid_threads():
             return function(*args, **kwargs)
 
     return wrapper
@@ -550,11 +572,11 @@ def ssi_cov(
     poles = poles_all_orders(u[:, :n_max], n_channels, orders, sampling_rate_hz)
 
     root = np.sqrt(s[:n_max])
-    observability = u[:, :n_max] * root
-    state, output = _shift_realisation(observability, n_channels)
-    # Γ_i = S^{-1/2} U₁ᵀ T = S^{1/2} V₁ᵀ
-    controllability = (u[:, :n_max].T @ toeplitz) / root[:, None]
-    next_state_output = controllability[:, (i - 1) * n_refs :]  # G_ref, last block column
+    # realisation of O_i = U₁S₁^{1/2}: A = S₁^{-1/2} A_U S₁^{1/2}, C = first block row
+    state = poles.state_matrix * (root[None, :] / root[:, None])
+    output = u[:n_channels, :n_max] * root
+    # G_ref = last block column of Γ_i = S₁^{-1/2} U₁ᵀ T = S₁^{1/2} V₁ᵀ
+    next_state_output = (u[:, :n_max].T @ toeplitz[:, (i - 1) * n_refs :]) / root[:, None]
     output_covariance = data.T @ data / n_samples
     system = StochasticStateSpace(
         state_matrix=state,
