@@ -16,11 +16,14 @@ import pytest
 from scipy import signal
 
 from data_contracts import POLES
+from workbench.sid import ssi as ssi_module
 from workbench.sid.mac import mac
+from workbench.sid.modal import sid_threads, thread_budget
 from workbench.sid.ssi import (
     SSIWarning,
     _hankel_gram,
     _lagged_products,
+    _leading_eigh,
     ssi_cov,
     ssi_data,
 )
@@ -130,6 +133,60 @@ def test_lagged_products_and_hankel_gram_are_exact():
     hankel = np.vstack([data[b : b + n_columns].T for b in range(n_blocks)])
     gram = _hankel_gram(data, n_blocks, _lagged_products(data, n_blocks - 1, np.arange(3)))
     np.testing.assert_allclose(gram, hankel @ hankel.T, rtol=1e-10, atol=1e-8)
+
+
+@pytest.mark.parametrize(("size", "count"), [(1, 1), (2, 1), (40, 40), (300, 37)])
+def test_leading_eigh_matches_lapack_syevr(size, count):
+    """dsytrd + dstemr + dormqr give the eigenpairs of scipy's eigh, largest first."""
+    rng = np.random.default_rng(size)
+    factor = rng.standard_normal((size, size + 3)) * np.geomspace(1.0, 1e-3, size + 3)
+    symmetric = factor @ factor.T
+    original = symmetric.copy()
+    values, vectors = _leading_eigh(symmetric, count)
+    np.testing.assert_array_equal(symmetric, original)  # input untouched
+    expected_values, expected_vectors = np.linalg.eigh(original)
+    expected_values = expected_values[::-1][:count]
+    expected_vectors = expected_vectors[:, ::-1][:, :count]
+    np.testing.assert_allclose(values, expected_values, rtol=1e-11, atol=1e-13 * values[0])
+    assert np.all(np.diff(values) <= 0)
+    # same vectors up to sign (the test spectrum has no close eigenvalues)
+    alignment = np.abs(np.sum(vectors * expected_vectors, axis=0))
+    np.testing.assert_allclose(alignment, 1.0, atol=1e-9)
+    np.testing.assert_allclose(vectors.T @ vectors, np.eye(count), atol=1e-12)
+    residual = original @ vectors - vectors * values
+    assert np.abs(residual).max() < 1e-12 * values[0]
+
+
+def test_leading_eigh_falls_back_to_syevr_when_mrrr_fails(monkeypatch):
+    rng = np.random.default_rng(3)
+    factor = rng.standard_normal((30, 30))
+    symmetric = factor @ factor.T
+    expected = np.linalg.eigvalsh(symmetric)[::-1][:5]
+
+    def failing_stemr(*args, **kwargs):
+        return 0, np.zeros(30), np.zeros((30, 30)), 2
+
+    monkeypatch.setattr(ssi_module.linalg.lapack, "dstemr", failing_stemr)
+    values, vectors = _leading_eigh(symmetric, 5)
+    np.testing.assert_allclose(values, expected, rtol=1e-12)
+    np.testing.assert_allclose(symmetric @ vectors, vectors * values, atol=1e-10 * values[0])
+
+
+def test_thread_budget_follows_the_blas_limit(chain3):
+    """Serial under threadpool_limits(1) (identify's worker processes), and the same poles
+    whatever the budget."""
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+    with threadpoolctl.threadpool_limits(1, user_api="blas"):
+        assert thread_budget() == 1
+        serial = ssi_cov(chain3.acceleration, chain3.sampling_rate_hz, orders=range(2, 21, 2))
+    with sid_threads() as budget:
+        assert thread_budget() == budget  # fixed for the whole call
+        blas = [i for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas"]
+        assert all(info["num_threads"] == 1 for info in blas)  # BLAS serial inside
+    threaded = ssi_cov(chain3.acceleration, chain3.sampling_rate_hz, orders=range(2, 21, 2))
+    np.testing.assert_allclose(
+        threaded.poles["frequency_hz"], serial.poles["frequency_hz"], rtol=1e-10
+    )
 
 
 def test_ssi_data_lq_factor_matches_explicit_qr(chain3):
