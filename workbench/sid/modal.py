@@ -29,9 +29,9 @@ import numpy as np
 from scipy import linalg
 
 try:  # a dependency of scikit-learn, hence always installed with workbench
-    from threadpoolctl import threadpool_info, threadpool_limits
+    from threadpoolctl import ThreadpoolController
 except ImportError:  # pragma: no cover
-    threadpool_info = threadpool_limits = None
+    ThreadpoolController = None
 
 #: Most Python threads an SSI call uses (see :func:`thread_budget`).
 MAX_THREADS = 8
@@ -46,6 +46,29 @@ __all__ = [
     "thread_budget",
 ]
 
+_blas: list = []  # the BLAS libraries of this process, found once (see _blas_libraries)
+
+
+def _blas_libraries():
+    """threadpoolctl controller of the loaded BLAS libraries, or None.
+
+    Found once (a scan of the loaded libraries costs a few milliseconds, an SSI call used
+    to pay it five times); numpy and scipy load their BLAS on import, before any SSI call.
+    """
+    if not _blas and ThreadpoolController is not None:
+        controller = ThreadpoolController().select(user_api="blas")
+        if controller.lib_controllers:
+            _blas.append(controller)
+    return _blas[0] if _blas else None
+
+
+def blas_threads(limit: int) -> contextlib.AbstractContextManager:
+    """Context manager limiting BLAS to *limit* threads (restored on exit)."""
+    libraries = _blas_libraries()
+    if libraries is None:  # pragma: no cover
+        return contextlib.nullcontext()
+    return libraries.limit(limits=int(limit))
+
 
 def thread_budget() -> int:
     """Python threads the SSI kernels may use in the current context.
@@ -58,19 +81,27 @@ def thread_budget() -> int:
     if fixed is not None:
         return fixed
     budget = min(MAX_THREADS, os.cpu_count() or 1)
-    if threadpool_info is not None:
-        limits = [info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"]
-        if limits:
-            budget = min(budget, *limits)
+    libraries = _blas_libraries()
+    if libraries is not None:
+        budget = min(budget, *(library.num_threads for library in libraries.lib_controllers))
     return max(1, int(budget))
 
 
 @contextlib.contextmanager
 def sid_threads() -> Iterator[int]:
-    """Fix the thread budget of an SSI call, then run BLAS single-threaded inside it."""
+    """Fix the thread budget of an SSI call, then run BLAS single-threaded inside it.
+
+    Single-threaded BLAS: the per-order eigenvalue problems are small (n <= a few hundred),
+    and multi-threaded LAPACK on them is slower, badly so when other processes compete for
+    the cores (a 100-order diagram took 26 s instead of 0.9 s).
+    """
+    fixed = _BUDGET.get()
+    if fixed is not None:  # nested in an SSI call: already set up
+        yield fixed
+        return
     token = _BUDGET.set(thread_budget())
     try:
-        with _single_threaded_blas():
+        with blas_threads(1):
             yield _BUDGET.get()
     finally:
         _BUDGET.reset(token)
@@ -299,15 +330,6 @@ def poles_all_orders(
         np.concatenate(column, axis=-1) for column in zip(*parts, strict=True)
     )
     return OrderPoles(model_order, frequency, damping, normalise_shapes(shapes), mu, state)
-
-
-def _single_threaded_blas():
-    """Limit BLAS to one thread: the per-order eigenvalue problems are small (n <= a few
-    hundred), and multi-threaded LAPACK on them is slower, badly so when other processes
-    compete for the cores (a 100-order diagram took 26 s instead of 0.9 s)."""
-    if threadpool_limits is None:  # pragma: no cover
-        return contextlib.nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
 
 
 def _order_poles(

@@ -58,11 +58,11 @@ from data_contracts import shapes_to_frame
 
 from .mac import continuous_pole
 from .modal import (
+    blas_threads,
     modal_phase_collinearity,
     poles_all_orders,
     sid_threads,
     thread_budget,
-    threadpool_limits,
 )
 from .stabilisation import StabilityCriteria, stability_flags
 
@@ -447,9 +447,7 @@ def _leading_eigh(symmetric: np.ndarray, count: int) -> tuple[np.ndarray, np.nda
 
 def _blas_threads(threads: int):
     """BLAS on *threads* threads inside an SSI call (which otherwise runs it serially)."""
-    if threads < 2 or threadpool_limits is None:
-        return contextlib.nullcontext()
-    return threadpool_limits(limits=threads, user_api="blas")
+    return blas_threads(threads) if threads > 1 else contextlib.nullcontext()
 
 
 def _order_limits(n_max: int, singular_values: np.ndarray) -> None:
