@@ -24,6 +24,7 @@ from workbench.sid.ssi import (
     _hankel_gram,
     _lagged_products,
     _leading_eigh,
+    _toeplitz_gram,
     ssi_cov,
     ssi_data,
 )
@@ -135,6 +136,25 @@ def test_lagged_products_and_hankel_gram_are_exact():
     np.testing.assert_allclose(gram, hankel @ hankel.T, rtol=1e-10, atol=1e-8)
 
 
+@pytest.mark.parametrize(("block_rows", "references"), [(2, [0, 1, 2]), (9, [2]), (12, [1, 0])])
+def test_toeplitz_gram_by_displacement_equals_the_product(block_rows, references):
+    rng = np.random.default_rng(block_rows)
+    data = rng.standard_normal((2000, 3))
+    data[1:] += 0.8 * data[:-1]  # correlated in time: no zero lags
+    references = np.array(references)
+    correlations = _lagged_products(data, 2 * block_rows - 1, references) / 2000.0
+    rows, cols = np.meshgrid(np.arange(block_rows), np.arange(block_rows), indexing="ij")
+    toeplitz = (
+        correlations[block_rows + rows - cols]
+        .transpose(0, 2, 1, 3)
+        .reshape(3 * block_rows, references.size * block_rows)
+    )
+    gram = _toeplitz_gram(correlations, toeplitz)
+    upper = np.triu_indices(3 * block_rows)
+    expected = toeplitz @ toeplitz.T
+    np.testing.assert_allclose(gram[upper], expected[upper], rtol=0, atol=1e-14 * expected.max())
+
+
 @pytest.mark.parametrize(("size", "count"), [(1, 1), (2, 1), (40, 40), (300, 37)])
 def test_leading_eigh_matches_lapack_syevr(size, count):
     """dsytrd + dstemr + dormqr give the eigenpairs of scipy's eigh, largest first."""
@@ -142,8 +162,10 @@ def test_leading_eigh_matches_lapack_syevr(size, count):
     factor = rng.standard_normal((size, size + 3)) * np.geomspace(1.0, 1e-3, size + 3)
     symmetric = factor @ factor.T
     original = symmetric.copy()
+    symmetric[np.tril_indices(size, -1)] = np.nan  # only the upper triangle is read
+    upper_only = symmetric.copy()
     values, vectors = _leading_eigh(symmetric, count)
-    np.testing.assert_array_equal(symmetric, original)  # input untouched
+    np.testing.assert_array_equal(symmetric, upper_only)  # input untouched
     expected_values, expected_vectors = np.linalg.eigh(original)
     expected_values = expected_values[::-1][:count]
     expected_vectors = expected_vectors[:, ::-1][:, :count]
@@ -167,7 +189,7 @@ def test_leading_eigh_falls_back_to_syevr_when_mrrr_fails(monkeypatch):
         return 0, np.zeros(30), np.zeros((30, 30)), 2
 
     monkeypatch.setattr(ssi_module.linalg.lapack, "dstemr", failing_stemr)
-    values, vectors = _leading_eigh(symmetric, 5)
+    values, vectors = _leading_eigh(np.triu(symmetric), 5)  # the fallback reads the upper part
     np.testing.assert_allclose(values, expected, rtol=1e-12)
     np.testing.assert_allclose(symmetric @ vectors, vectors * values, atol=1e-10 * values[0])
 

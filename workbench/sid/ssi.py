@@ -384,17 +384,57 @@ def _cholesky(matrix: np.ndarray, what: str) -> np.ndarray:
     )
 
 
-def _leading_singular(matrix: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
+def _toeplitz_gram(correlations: np.ndarray, toeplitz: np.ndarray) -> np.ndarray:
+    """T Tᵀ of the block Toeplitz matrix T[p, k] = R_{i+p-k} by its displacement structure.
+
+    *correlations* holds R_0 .. R_{2i-1} (each l x r), *toeplitz* is T (i·l x i·r). With
+    G[p, q] = Σ_k R_{i+p-k} R_{i+q-k}ᵀ (l x l blocks), shifting both block indices adds
+    one term and drops one:
+
+    .. math::
+
+        G_{p+1, q+1} = G_{p, q} + R_{i+p+1} R_{i+q+1}^T - R_{p+1} R_{q+1}^T,
+
+    so the first block row (one product of l rows of T with Tᵀ) and two Gram matrices of
+    stacked correlations give all of G in O(i² l² (l + r)) operations instead of the
+    O(i³ l² r) of the product T Tᵀ. Only the upper block triangle is filled (the lower
+    triangle is left uninitialised): :func:`_leading_eigh` reads the upper triangle.
+    """
+    i = correlations.shape[0] // 2
+    n_channels = correlations.shape[1]
+    size = i * n_channels
+    gram = np.empty((size, size))
+    gram[:n_channels] = toeplitz[:n_channels] @ toeplitz.T
+    late = correlations[i + 1 : 2 * i].reshape((i - 1) * n_channels, -1)  # R_{i+1..2i-1}
+    early = correlations[1:i].reshape((i - 1) * n_channels, -1)  # R_{1..i-1}
+    for p in range(1, i):
+        rows = slice(p * n_channels, (p + 1) * n_channels)
+        previous = slice((p - 1) * n_channels, p * n_channels)
+        start = (p - 1) * n_channels
+        # G[p, q] = G[p-1, q-1] + R_{i+p} R_{i+q}ᵀ - R_p R_qᵀ for q = p .. i-1
+        block = gram[rows, p * n_channels :]
+        np.matmul(late[previous], late[start:].T, out=block)
+        block -= early[previous] @ early[start:].T
+        block += gram[previous, start : (i - 1) * n_channels]
+    return gram
+
+
+def _leading_singular(
+    matrix: np.ndarray, count: int, gram: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Left singular vectors and singular values of the *count* largest singular triplets.
 
     Computed from the eigendecomposition of M Mᵀ restricted to its largest eigenvalues
     (:func:`_leading_eigh`), 3-5 times faster than a full SVD of the block Toeplitz /
     weighted projection matrices used here. Squaring costs relative accuracy ε σ₁²/σ_k² on
-    σ_k; when σ_k/σ₁ < 1e-5 for a requested triplet the full SVD is used instead.
+    σ_k; when σ_k/σ₁ < 1e-5 for a requested triplet the full SVD is used instead. *gram*,
+    if given, is M Mᵀ (at least its upper triangle).
     """
     rows = matrix.shape[0]
     count = min(count, rows, matrix.shape[1])
-    values, vectors = _leading_eigh(matrix @ matrix.T, count)  # the product runs as syrk
+    if gram is None:
+        gram = matrix @ matrix.T  # the product runs as syrk
+    values, vectors = _leading_eigh(gram, count)
     if values[-1] > 1e-10 * values[0]:
         return vectors, np.sqrt(values)
     u, s, _ = linalg.svd(matrix, full_matrices=False, check_finite=False, lapack_driver="gesdd")
@@ -403,6 +443,8 @@ def _leading_singular(matrix: np.ndarray, count: int) -> tuple[np.ndarray, np.nd
 
 def _leading_eigh(symmetric: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
     """The *count* largest eigenvalues (decreasing) and eigenvectors of a symmetric matrix.
+
+    Only the upper triangle of *symmetric* is read.
 
     Householder tridiagonalisation (LAPACK dsytrd, blocked), the wanted eigenpairs of the
     tridiagonal matrix by multiple relatively robust representations (dstemr) and the
@@ -428,7 +470,11 @@ def _leading_eigh(symmetric: np.ndarray, count: int) -> tuple[np.ndarray, np.nda
         )
     if info != 0 or found != count:
         values, vectors = linalg.eigh(
-            symmetric, subset_by_index=(n - count, n - 1), driver="evr", check_finite=False
+            symmetric,
+            lower=False,
+            subset_by_index=(n - count, n - 1),
+            driver="evr",
+            check_finite=False,
         )
         return values[::-1], vectors[:, ::-1]
     vectors = np.asfortranarray(vectors[:, :count])
@@ -601,7 +647,9 @@ def ssi_cov(
         correlations[i + rows - cols].transpose(0, 2, 1, 3).reshape(i * n_channels, i * n_refs)
     )
     n_max = orders[-1]
-    u, s = _leading_singular(toeplitz, n_max + _EXTRA_SINGULAR_VALUES)
+    u, s = _leading_singular(
+        toeplitz, n_max + _EXTRA_SINGULAR_VALUES, gram=_toeplitz_gram(correlations, toeplitz)
+    )
     _order_limits(n_max, s)
     poles = poles_all_orders(u[:, :n_max], n_channels, orders, sampling_rate_hz)
 
