@@ -300,22 +300,19 @@ def poles_all_orders(
     nested = np.ascontiguousarray(nested)
     state = linalg.solve_triangular(r, projected, check_finite=False)  # A = R⁻¹P, largest n
 
-    def eigenproblem(n):
-        return np.linalg.eig(nested[:n, :n])
+    def order_poles(n):
+        mu, vectors = np.linalg.eig(nested[:n, :n])
+        return _order_poles(n, mu, vectors, output, sampling_rate_hz)
 
     with sid_threads() as threads:
         if len(orders) >= 8 and threads > 1:
             with ThreadPoolExecutor(threads) as pool:
-                # largest orders first, so that the two threads finish together
+                # largest orders first, so that the threads finish together
                 largest_first = sorted(orders, reverse=True)
-                done = dict(zip(largest_first, pool.map(eigenproblem, largest_first), strict=True))
-            solutions = [done[n] for n in orders]
+                done = dict(zip(largest_first, pool.map(order_poles, largest_first), strict=True))
+            parts = [done[n] for n in orders]
         else:
-            solutions = [eigenproblem(n) for n in orders]
-    parts = [
-        _order_poles(n, mu, chi, output, sampling_rate_hz)
-        for n, (mu, chi) in zip(orders, solutions, strict=True)
-    ]
+            parts = [order_poles(n) for n in orders]
     parts = [part for part in parts if part is not None]
     if not parts:
         return OrderPoles(

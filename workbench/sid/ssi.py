@@ -659,7 +659,10 @@ def ssi_cov(
     output = u[:n_channels, :n_max] * root
     # G_ref = last block column of Γ_i = S₁^{-1/2} U₁ᵀ T = S₁^{1/2} V₁ᵀ
     next_state_output = (u[:, :n_max].T @ toeplitz[:, (i - 1) * n_refs :]) / root[:, None]
-    output_covariance = data.T @ data / n_samples
+    if n_refs == n_channels and np.array_equal(references, np.arange(n_channels)):
+        output_covariance = correlations[0]  # Λ₀ = R_0 = Σ y yᵀ / N, already summed
+    else:
+        output_covariance = data.T @ data / n_samples
     system = StochasticStateSpace(
         state_matrix=state,
         output_matrix=output,
