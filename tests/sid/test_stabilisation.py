@@ -78,3 +78,48 @@ def test_stabilise_recomputes_flags_without_touching_the_input(chain3):
             & (poles["model_order"] >= 8)
         ]
         assert near.groupby("model_order")["stable"].any().sum() == 7
+
+
+def _pairwise_flags(order, frequency, damping, shapes, orders, criteria):
+    """Reference: every pole against every pole of the previous order (the definition)."""
+    stable = np.zeros(order.size, dtype=bool)
+    levels = sorted(set(orders))
+    for previous, current in zip(levels[:-1], levels[1:], strict=True):
+        for a in np.flatnonzero(order == current):
+            for b in np.flatnonzero(order == previous):
+                phi_a, phi_b = shapes[:, a], shapes[:, b]
+                mac_ab = abs(np.vdot(phi_a, phi_b)) ** 2 / (
+                    np.vdot(phi_a, phi_a).real * np.vdot(phi_b, phi_b).real
+                )
+                if (
+                    abs(frequency[a] - frequency[b]) < criteria.frequency_tol * frequency[b]
+                    and abs(damping[a] - damping[b]) < criteria.damping_tol * damping[b]
+                    and damping[a] > 0
+                    and damping[b] > 0
+                    and mac_ab > criteria.mac_min
+                ):
+                    stable[a] = True
+    return stable
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("tolerances", [(0.01, 0.05, 0.98), (0.3, 0.5, 0.5), (1.5, 2.0, 0.0)])
+def test_vectorised_flags_equal_the_pairwise_definition(seed, tolerances):
+    """Random diagrams with near-duplicate poles, negative damping, unsorted rows, orders
+    without poles and poles of orders outside the list."""
+    rng = np.random.default_rng(seed)
+    orders = [2, 4, 6, 8, 10, 14]
+    n = 300
+    order = rng.choice([2, 4, 6, 8, 10, 12, 14], n)  # 12 is not in the diagram
+    order[order == 8] = 6  # order 8 has no poles
+    frequency = rng.choice([1.0, 2.0, 5.0], n) * (1 + rng.normal(0, 0.01, n))
+    frequency[::37] = -frequency[::37]
+    damping = rng.choice([0.01, 0.02], n) * (1 + rng.normal(0, 0.05, n))
+    damping[::11] *= -1
+    base = rng.standard_normal((4, 3)) + 1j * rng.standard_normal((4, 3))
+    shapes = base[:, rng.integers(0, 3, n)] + 0.1 * rng.standard_normal((4, n))
+    criteria = StabilityCriteria(*tolerances)
+    got = stability_flags(order, frequency, damping, shapes, orders, criteria)
+    expected = _pairwise_flags(order, frequency, damping, shapes, orders, criteria)
+    np.testing.assert_array_equal(got, expected)
+    assert expected.sum() > 5  # the comparison is not vacuous

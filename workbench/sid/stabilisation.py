@@ -113,21 +113,56 @@ def stability_flags(
     """
     criteria = criteria or StabilityCriteria()
     model_order = np.asarray(model_order)
+    frequency_hz = np.asarray(frequency_hz, dtype=float)
+    damping_ratio = np.asarray(damping_ratio, dtype=float)
     stable = np.zeros(model_order.size, dtype=bool)
-    previous: np.ndarray | None = None
-    for order in sorted(int(n) for n in orders):
-        current = np.flatnonzero(model_order == order)
-        if previous is not None and current.size and previous.size:
-            match = criteria.matches(
-                frequency_hz[current],
-                damping_ratio[current],
-                mode_shapes[:, current],
-                frequency_hz[previous],
-                damping_ratio[previous],
-                mode_shapes[:, previous],
-            )
-            stable[current] = match.any(axis=1)
-        previous = current
+    levels = np.array(sorted({int(n) for n in orders}), dtype=np.int64)
+    if model_order.size == 0 or levels.size < 2:
+        return stable
+    # rank of each pole's order in the diagram; poles of other orders take no part
+    rank = np.searchsorted(levels, model_order)
+    known = (rank < levels.size) & (levels[np.minimum(rank, levels.size - 1)] == model_order)
+    # candidates b (order rank r - 1) of pole a (rank r) by frequency, |f_a - f_b| < tol f_b
+    # ⟺ f_a / (1 + tol) < f_b < f_a / (1 - tol): a window search in poles sorted by
+    # (rank, frequency), through the key rank·span + f (span > every |f|, f finite)
+    finite = known & np.isfinite(frequency_hz)
+    span = 4.0 * np.max(np.abs(frequency_hz[finite]), initial=1.0) + 1.0
+    # a reference pole with f_b <= 0 can never match (|Δf| < tol·f_b <= 0)
+    reference = np.flatnonzero(finite & (frequency_hz > 0))
+    key = rank[reference] * span + frequency_hz[reference]
+    order = np.argsort(key, kind="stable")
+    reference, key = reference[order], key[order]
+    current = np.flatnonzero(finite & (rank > 0) & (damping_ratio > 0))
+    # (windows below a group's start reach into lower ranks: filtered by the rank check)
+    base = (rank[current] - 1) * span
+    tol = criteria.frequency_tol
+    low = np.searchsorted(key, base + frequency_hz[current] / (1 + tol) * (1 - 1e-12), "left")
+    high_bound = frequency_hz[current] / (1 - tol) if tol < 1 else np.full(current.size, span)
+    high = np.searchsorted(key, base + np.minimum(high_bound, span / 2) * (1 + 1e-12), "right")
+    counts = np.maximum(high - low, 0)
+    if not counts.any():
+        return stable
+    a = np.repeat(current, counts)
+    b = reference[np.repeat(low - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())]
+    f_a, f_b = frequency_hz[a], frequency_hz[b]
+    z_a, z_b = damping_ratio[a], damping_ratio[b]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        keep = (
+            (rank[b] == rank[a] - 1)
+            & (np.abs(f_a - f_b) < criteria.frequency_tol * f_b)
+            & (np.abs(z_a - z_b) < criteria.damping_tol * z_b)
+            & (z_b > 0)
+        )
+    a, b = a[keep], b[keep]
+    if a.size:
+        shapes = np.asarray(mode_shapes)
+        phi_a, phi_b = shapes[:, a], shapes[:, b]
+        cross = np.abs(np.einsum("ij,ij->j", phi_a.conj(), phi_b)) ** 2
+        norms = np.einsum("ij,ij->j", phi_a.conj(), phi_a).real
+        norms *= np.einsum("ij,ij->j", phi_b.conj(), phi_b).real
+        with np.errstate(divide="ignore", invalid="ignore"):
+            consistent = np.clip(cross / norms, 0.0, 1.0) > criteria.mac_min
+        stable[a[consistent]] = True
     return stable
 
 
