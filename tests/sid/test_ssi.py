@@ -155,7 +155,7 @@ def test_toeplitz_gram_by_displacement_equals_the_product(block_rows, references
     np.testing.assert_allclose(gram[upper], expected[upper], rtol=0, atol=1e-14 * expected.max())
 
 
-@pytest.mark.parametrize(("size", "count"), [(1, 1), (2, 1), (40, 40), (300, 37)])
+@pytest.mark.parametrize(("size", "count"), [(1, 1), (2, 1), (40, 40), (300, 37), (400, 150)])
 def test_leading_eigh_matches_lapack_syevr(size, count):
     """dsytrd + dstemr + dormqr give the eigenpairs of scipy's eigh, largest first."""
     rng = np.random.default_rng(size)
@@ -177,6 +177,26 @@ def test_leading_eigh_matches_lapack_syevr(size, count):
     np.testing.assert_allclose(vectors.T @ vectors, np.eye(count), atol=1e-12)
     residual = original @ vectors - vectors * values
     assert np.abs(residual).max() < 1e-12 * values[0]
+
+
+def test_gil_free_stemr_matches_scipy_tridiagonal_solver():
+    from scipy.linalg import eigh_tridiagonal
+
+    from workbench.sid import _lapack
+
+    rng = np.random.default_rng(7)
+    diagonal, off_diagonal = rng.standard_normal(200), rng.standard_normal(199)
+    kept = diagonal.copy(), off_diagonal.copy()
+    values, vectors = _lapack.stemr_vectors(diagonal, off_diagonal, 151, 200)
+    np.testing.assert_array_equal(diagonal, kept[0])  # inputs untouched
+    np.testing.assert_array_equal(off_diagonal, kept[1])
+    expected_values, expected_vectors = eigh_tridiagonal(
+        diagonal, off_diagonal, select="i", select_range=(150, 199)
+    )
+    np.testing.assert_allclose(values, expected_values, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(np.abs(np.sum(vectors * expected_vectors, axis=0)), 1.0, atol=1e-9)
+    with pytest.raises(ValueError, match="indices"):
+        _lapack.stemr_vectors(diagonal, off_diagonal, 0, 10)
 
 
 def test_leading_eigh_falls_back_to_syevr_when_mrrr_fails(monkeypatch):

@@ -47,6 +47,7 @@ import contextlib
 import functools
 import warnings
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -56,6 +57,7 @@ from scipy import fft, linalg
 
 from data_contracts import shapes_to_frame
 
+from . import _lapack
 from .mac import continuous_pole
 from .modal import (
     blas_threads,
@@ -463,12 +465,8 @@ def _leading_eigh(symmetric: np.ndarray, count: int) -> tuple[np.ndarray, np.nda
         reduced, diagonal, off_diagonal, tau, info = lapack.dsytrd(
             symmetric.T, lower=1, lwork=max(work, 1)
         )
-    found = 0
-    if info == 0:
-        found, values, vectors, info = lapack.dstemr(
-            diagonal, np.append(off_diagonal, 0.0), 3, 0.0, 0.0, n - count + 1, n
-        )
-    if info != 0 or found != count:
+    pairs = _tridiagonal_top(diagonal, off_diagonal, count, threads) if info == 0 else None
+    if pairs is None:
         values, vectors = linalg.eigh(
             symmetric,
             lower=False,
@@ -477,7 +475,7 @@ def _leading_eigh(symmetric: np.ndarray, count: int) -> tuple[np.ndarray, np.nda
             check_finite=False,
         )
         return values[::-1], vectors[:, ::-1]
-    vectors = np.asfortranarray(vectors[:, :count])
+    values, vectors = pairs
     if n > 1:
         # Q = H(1)···H(n-1); reflector k acts on rows k+1..n-1: a QR factor of reduced[1:, :n-1]
         reflectors = reduced[1:, : n - 1]
@@ -488,7 +486,47 @@ def _leading_eigh(symmetric: np.ndarray, count: int) -> tuple[np.ndarray, np.nda
             )
         if info != 0:  # pragma: no cover - only for invalid arguments
             raise RuntimeError(f"LAPACK dormqr failed with info={info}")
-    return values[:count][::-1], vectors[:, ::-1]
+    return values[::-1], vectors[:, ::-1]
+
+
+def _tridiagonal_top(
+    diagonal: np.ndarray, off_diagonal: np.ndarray, count: int, threads: int
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The *count* largest eigenpairs (ascending; vectors in Fortran order) of a symmetric
+    tridiagonal matrix by dstemr, or None if dstemr fails.
+
+    With a thread budget and enough vectors, the index range is split in contiguous parts
+    computed at the same time by GIL-free dstemr calls (:mod:`workbench.sid._lapack`). MRRR
+    makes vectors orthogonal within one call; across parts the orthogonality is checked
+    (|zᵢᵀzⱼ| <= 1e-10, else one call for all).
+    """
+    n = diagonal.size
+    parts = min(threads, count // 32)
+    if parts >= 2 and _lapack.available():
+        bounds = np.linspace(n - count, n, parts + 1).astype(int)  # 0-based, ascending
+        with ThreadPoolExecutor(parts) as pool:
+            try:
+                pieces = list(
+                    pool.map(
+                        lambda k: _lapack.stemr_vectors(
+                            diagonal, off_diagonal, bounds[k] + 1, bounds[k + 1]
+                        ),
+                        range(parts),
+                    )
+                )
+            except RuntimeError:
+                pieces = None
+        if pieces is not None:
+            vectors = np.asfortranarray(np.hstack([piece[1] for piece in pieces]))
+            across = max(np.abs(pieces[k][1].T @ pieces[k + 1][1]).max() for k in range(parts - 1))
+            if across <= 1e-10:
+                return np.concatenate([piece[0] for piece in pieces]), vectors
+    found, values, vectors, info = linalg.lapack.dstemr(
+        diagonal, np.append(off_diagonal, 0.0), 2, 0.0, 0.0, n - count + 1, n
+    )
+    if info != 0 or found != count:
+        return None
+    return values[:count], np.asfortranarray(vectors[:, :count])
 
 
 def _blas_threads(threads: int):
