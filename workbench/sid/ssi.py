@@ -250,9 +250,12 @@ def _prepare(
         )
     if not np.issubdtype(data.dtype, np.number) or np.iscomplexobj(data):
         raise TypeError(f"acceleration must hold real numbers, got dtype {data.dtype}")
-    data = data.astype(float)
+    data = np.asarray(data, dtype=float)  # no copy for float64: the centring below copies
     n_samples, n_channels = data.shape
-    bad = np.flatnonzero(~np.isfinite(data).all(axis=0))
+    mean = data.mean(axis=0)  # NaN or inf in a channel make its mean non-finite
+    bad = np.zeros(0, dtype=int)
+    if not np.isfinite(mean).all():
+        bad = np.flatnonzero(~np.isfinite(data).all(axis=0))
     if bad.size:
         raise ValueError(
             f"acceleration channel(s) {bad.tolist()} (column index) contain NaN or inf; "
@@ -298,7 +301,7 @@ def _prepare(
             f"block_rows={block_rows} needs at least {min_samples} samples with "
             f"{n_channels} channels, got {n_samples}"
         )
-    data -= data.mean(axis=0)
+    data = data - mean
     return data, references, tuple(order_list)
 
 
@@ -325,8 +328,22 @@ def _lagged_products(data: np.ndarray, max_lag: int, columns: np.ndarray) -> np.
     spectra = fft.rfft(windows, axis=-1, workers=workers)  # (n_segments, n_channels, n_freq)
     # the reference columns of each segment, zero padded: (n_segments, n_ref, n_freq)
     reference_spectra = fft.rfft(windows[:, columns, :segment], n=n_fft, axis=-1, workers=workers)
-    # Σ_s X_s(f) conj(Z_s(f))ᵀ as a batched product over frequencies
-    cross = np.matmul(spectra.transpose(2, 1, 0), reference_spectra.conj().transpose(2, 0, 1))
+    # Σ_s X_s(f) conj(Z_s(f))ᵀ as a batched product over frequencies, frequency bands on
+    # the thread budget (numpy releases the GIL)
+    left = spectra.transpose(2, 1, 0)
+    right = reference_spectra.conj().transpose(2, 0, 1)
+    cross = np.empty((left.shape[0], n_channels, right.shape[2]), dtype=complex)
+    bands = np.linspace(0, left.shape[0], workers + 1).astype(int)
+
+    def band(k):
+        part = slice(bands[k], bands[k + 1])
+        np.matmul(left[part], right[part], out=cross[part])
+
+    if workers > 1:
+        with ThreadPoolExecutor(workers) as pool:
+            list(pool.map(band, range(workers)))
+    else:
+        band(0)
     correlation = fft.irfft(cross, n=n_fft, axis=0, workers=workers)
     return np.ascontiguousarray(correlation[: max_lag + 1])
 
