@@ -37,8 +37,18 @@ def _load(data: Path | None, days: float):
         simulate_voyage(data, seed=0, hours=24 * days, accelerations=False)
     modal = read_table(data / "tracked_modal.csv", MODAL)
     predictors = read_table(data / "truth_predictors.csv", PREDICTORS)
-    return modal, predictors[["block", "block_start", "block_end", "speed_kn", "water_temp_c",
-                              "air_temp_c", "wind_speed_ms", "wind_dir_rel_deg"]]
+    return modal, predictors[
+        [
+            "block",
+            "block_start",
+            "block_end",
+            "speed_kn",
+            "water_temp_c",
+            "air_temp_c",
+            "wind_speed_ms",
+            "wind_dir_rel_deg",
+        ]
+    ]
 
 
 def main(argv=None) -> int:
@@ -55,15 +65,25 @@ def main(argv=None) -> int:
     for _ in range(args.repeats):
         for jobs in (1, 2):
             start = time.perf_counter()
-            table, _ = forecast_modes(modal, predictors, option="A", method=2,
-                                      train_blocks=20, horizon=4, trust=None, n_jobs=jobs)
+            table, _ = forecast_modes(
+                modal,
+                predictors,
+                option="A",
+                method=2,
+                train_blocks=20,
+                horizon=4,
+                trust=None,
+                n_jobs=jobs,
+            )
             times[jobs].append(time.perf_counter() - start)
             tables[jobs] = table
     one, two = statistics.median(times[1]), statistics.median(times[2])
     print(f"1 process : {one:7.1f} s (median of {args.repeats})")
     print(f"2 processes: {two:7.1f} s (median of {args.repeats}); speed-up {one / two:.2f}x")
-    print(f"2 processes / 60 s target = {two / TARGET_S:.2f} "
-          f"({'meets' if two < TARGET_S else 'MISSES'} the target)")
+    print(
+        f"2 processes / 60 s target = {two / TARGET_S:.2f} "
+        f"({'meets' if two < TARGET_S else 'MISSES'} the target)"
+    )
     pd.testing.assert_frame_equal(tables[1], tables[2], check_exact=True)
     print("tables of the 1- and 2-process runs are identical")
     return 0 if two < TARGET_S else 1

@@ -50,11 +50,21 @@ def _identify(voyage: Path, out: Path, *extra: str) -> tuple[float, int, str]:
     only this run (the largest process of its tree).
     """
     shutil.rmtree(out, ignore_errors=True)
-    command = [sys.executable, "-m", "workbench.cli", "identify", str(voyage), "--out",
-               str(out), "--quiet", *extra]
+    command = [
+        sys.executable,
+        "-m",
+        "workbench.cli",
+        "identify",
+        str(voyage),
+        "--out",
+        str(out),
+        "--quiet",
+        *extra,
+    ]
     start = time.perf_counter()
-    finished = subprocess.run([sys.executable, "-c", _WRAPPER, *command], capture_output=True,
-                              text=True)
+    finished = subprocess.run(
+        [sys.executable, "-c", _WRAPPER, *command], capture_output=True, text=True
+    )
     seconds = time.perf_counter() - start
     if finished.returncode:
         raise SystemExit(finished.stderr)
@@ -84,8 +94,10 @@ def main(argv=None) -> int:
         seconds, _, stdout = _identify(voyage, work / f"w{workers}", "--workers", str(workers))
         n = _blocks(stdout)
         rates[workers] = n / seconds
-        print(f"{workers} worker(s): {n} blocks in {seconds:.1f} s = {rates[workers]:.2f} "
-              "blocks/s (cluster start-up included)")
+        print(
+            f"{workers} worker(s): {n} blocks in {seconds:.1f} s = {rates[workers]:.2f} "
+            "blocks/s (cluster start-up included)"
+        )
     if rates:
         print(f"speed-up 2 vs 1 worker: {rates[2] / rates[1]:.2f}x")
 
@@ -93,11 +105,14 @@ def main(argv=None) -> int:
         peaks = {}
         for days in (1.0, 3.0):
             folder = _voyage(root, days)
-            seconds, peak, stdout = _identify(folder, work / f"mem{days:g}", "--scheduler",
-                                              "synchronous")
+            seconds, peak, stdout = _identify(
+                folder, work / f"mem{days:g}", "--scheduler", "synchronous"
+            )
             peaks[days] = peak
-            print(f"{days:g}-day voyage, in-process: {_blocks(stdout)} blocks in "
-                  f"{seconds:.1f} s, peak RSS {peak} MiB")
+            print(
+                f"{days:g}-day voyage, in-process: {_blocks(stdout)} blocks in "
+                f"{seconds:.1f} s, peak RSS {peak} MiB"
+            )
         print(f"peak memory 3-day / 1-day: {peaks[3.0] / peaks[1.0]:.2f}")
     shutil.rmtree(work, ignore_errors=True)
     return 0
