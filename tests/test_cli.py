@@ -21,9 +21,16 @@ def test_no_command_is_a_usage_error(capsys):
 
 
 def test_validate_accepts_a_valid_table(tmp_path, capsys):
-    frame = pd.DataFrame({"block": [0], "block_start": ["2026-01-01T00:00Z"],
-                          "block_end": ["2026-01-01T00:20Z"], "mode": [1],
-                          "frequency_hz": [2.9], "damping_ratio": [0.01]})
+    frame = pd.DataFrame(
+        {
+            "block": [0],
+            "block_start": ["2026-01-01T00:00Z"],
+            "block_end": ["2026-01-01T00:20Z"],
+            "mode": [1],
+            "frequency_hz": [2.9],
+            "damping_ratio": [0.01],
+        }
+    )
     path = write_table(frame, tmp_path / "modal.csv", MODAL)
     assert main(["validate", "modal", str(path)]) == 0
     assert "valid modal file (1 rows)" in capsys.readouterr().out
@@ -31,8 +38,10 @@ def test_validate_accepts_a_valid_table(tmp_path, capsys):
 
 def test_validate_reports_each_problem_on_one_line(tmp_path, capsys):
     path = tmp_path / "modal.csv"
-    path.write_text("block,block_start,mode,frequency_hz,damping_ratio\n"
-                    "0,2026-01-01T00:00Z,1,-2.9,0.01\n0,2026-01-01T00:00Z,2,3.1,12\n")
+    path.write_text(
+        "block,block_start,mode,frequency_hz,damping_ratio\n"
+        "0,2026-01-01T00:00Z,1,-2.9,0.01\n0,2026-01-01T00:00Z,2,3.1,12\n"
+    )
     assert main(["validate", "modal", str(path)]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [

@@ -14,16 +14,27 @@ HOURS = 6.0  # 69 blocks: enough for 20-block training windows and several slide
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory):
     out = tmp_path_factory.mktemp("demo")
-    status = main(["demo", "--out", str(out), "--hours", str(HOURS), "--scheduler",
-                   "synchronous", "--quiet"])
+    status = main(
+        ["demo", "--out", str(out), "--hours", str(HOURS), "--scheduler", "synchronous", "--quiet"]
+    )
     assert status == 0
     return out
 
 
 def test_demo_writes_every_stage(demo):
-    for name in ("index.html", "tracked_modal.csv", "predictors.csv", "forecast.csv",
-                 "evaluation.csv", "identify/poles.parquet", "identify/selected.parquet",
-                 "identify/blocks.csv", "correlation", "fit", "forecast"):
+    for name in (
+        "index.html",
+        "tracked_modal.csv",
+        "predictors.csv",
+        "forecast.csv",
+        "evaluation.csv",
+        "identify/poles.parquet",
+        "identify/selected.parquet",
+        "identify/blocks.csv",
+        "correlation",
+        "fit",
+        "forecast",
+    ):
         assert (demo / name).exists(), name
     index = (demo / "index.html").read_text(encoding="utf-8")
     assert "forecast.csv" in index and "tracked_modal.csv" in index
@@ -49,8 +60,9 @@ def test_demo_tracking_recovers_the_true_modes(demo):
     paired = tracked[tracked["mode"].isin(mapping)].assign(
         true_mode=lambda t: t["mode"].map(mapping)
     )
-    merged = paired.merge(truth, left_on=["block", "true_mode"], right_on=["block", "mode"],
-                          suffixes=("", "_true"))
+    merged = paired.merge(
+        truth, left_on=["block", "true_mode"], right_on=["block", "mode"], suffixes=("", "_true")
+    )
     error = (merged["frequency_hz"] / merged["frequency_hz_true"] - 1).abs()
     assert error.median() < 0.005
 

@@ -11,8 +11,7 @@ from workbench.cli import main
 from workbench.errors import WorkbenchError
 from workbench.pipeline import block_grid_of, evaluate_forecast, forecast_modes
 
-PREDICTOR_COLUMNS = ["speed_kn", "water_temp_c", "air_temp_c", "wind_speed_ms",
-                     "wind_dir_rel_deg"]
+PREDICTOR_COLUMNS = ["speed_kn", "water_temp_c", "air_temp_c", "wind_speed_ms", "wind_dir_rel_deg"]
 
 
 @pytest.fixture(scope="module")
@@ -46,8 +45,9 @@ def test_evaluate_pairs_labels_and_beats_ssi(tables):
     """Kalman estimates beat the imitated SSI scatter on the demo voyage; relabelling the
     modes (as tracking with an extra spurious mode would) does not change the result."""
     modal, predictors, truth = tables
-    table, _ = forecast_modes(modal, predictors, option="A", method=2, train_blocks=20,
-                              horizon=4, trust=0.65)
+    table, _ = forecast_modes(
+        modal, predictors, option="A", method=2, train_blocks=20, horizon=4, trust=0.65
+    )
     plain = evaluate_forecast(table, truth).tables["evaluation"]
     shifted = table.assign(mode=table["mode"] + 10)
     relabelled = evaluate_forecast(shifted, truth).tables["evaluation"]
@@ -71,9 +71,27 @@ def test_block_grid_of_recovers_the_grid(tables):
 
 def test_cli_forecast_and_evaluate(voyage, tmp_path, capsys):
     out = tmp_path / "forecast.csv"
-    status = main(["forecast", "--modal", str(voyage.tracked_modal), "--dship",
-                   str(voyage.dship_log), "--poles", str(voyage.poles), "--option", "AB",
-                   "--method", "2", "--train", "20", "--out", str(out), "--trust", "data"])
+    status = main(
+        [
+            "forecast",
+            "--modal",
+            str(voyage.tracked_modal),
+            "--dship",
+            str(voyage.dship_log),
+            "--poles",
+            str(voyage.poles),
+            "--option",
+            "AB",
+            "--method",
+            "2",
+            "--train",
+            "20",
+            "--out",
+            str(out),
+            "--trust",
+            "data",
+        ]
+    )
     assert status == 0, capsys.readouterr().err
     forecast = read_table(out, FORECAST)
     assert set(forecast["option"]) == {"A", "B"}
@@ -92,8 +110,18 @@ def test_cli_forecast_and_evaluate(voyage, tmp_path, capsys):
     ],
 )
 def test_cli_forecast_usage_errors(voyage, tmp_path, capsys, args, message):
-    status = main(["forecast", "--modal", str(voyage.tracked_modal), "--predictors",
-                   str(voyage.truth_predictors), "--out", str(tmp_path / "f.csv"), *args])
+    status = main(
+        [
+            "forecast",
+            "--modal",
+            str(voyage.tracked_modal),
+            "--predictors",
+            str(voyage.truth_predictors),
+            "--out",
+            str(tmp_path / "f.csv"),
+            *args,
+        ]
+    )
     assert status == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
@@ -102,8 +130,17 @@ def test_cli_forecast_usage_errors(voyage, tmp_path, capsys, args, message):
 def test_cli_forecast_missing_column_is_one_line(voyage, tmp_path, capsys):
     broken = tmp_path / "modal.csv"
     pd.read_csv(voyage.tracked_modal).drop(columns=["frequency_hz"]).to_csv(broken, index=False)
-    status = main(["forecast", "--modal", str(broken), "--predictors",
-                   str(voyage.truth_predictors), "--out", str(tmp_path / "f.csv")])
+    status = main(
+        [
+            "forecast",
+            "--modal",
+            str(broken),
+            "--predictors",
+            str(voyage.truth_predictors),
+            "--out",
+            str(tmp_path / "f.csv"),
+        ]
+    )
     assert status == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert any("frequency_hz" in line and "modal.csv" in line for line in err)
@@ -112,8 +149,7 @@ def test_cli_forecast_missing_column_is_one_line(voyage, tmp_path, capsys):
 
 def test_cli_track_roundtrip(voyage, tmp_path, capsys):
     selected = tmp_path / "selected.csv"
-    pd.read_csv(voyage.tracked_modal).drop(columns=["mode", "mac"]).to_csv(selected,
-                                                                         index=False)
+    pd.read_csv(voyage.tracked_modal).drop(columns=["mode", "mac"]).to_csv(selected, index=False)
     out = tmp_path / "tracked.parquet"
     assert main(["track", str(selected), "--out", str(out)]) == 0
     tracked = read_table(out, MODAL)
@@ -125,13 +161,32 @@ def test_cli_identify_bad_inputs_are_one_line_errors(tmp_path, capsys):
     folder = tmp_path / "acc"
     folder.mkdir()
     (folder / "acc_x.npz").write_text("not an npz file")
-    status = main(["identify", str(folder), "--out", str(tmp_path / "out"), "--scheduler",
-                   "synchronous", "--quiet"])
+    status = main(
+        [
+            "identify",
+            str(folder),
+            "--out",
+            str(tmp_path / "out"),
+            "--scheduler",
+            "synchronous",
+            "--quiet",
+        ]
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert status == 1 and len(err) == 1 and "acc_x.npz" in err[0]
     status = main(["identify", str(tmp_path / "missing"), "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err.strip().splitlines()
     assert status == 1 and err == [f"error: {tmp_path / 'missing'}: no such file or folder"]
-    status = main(["identify", str(folder), "--out", str(tmp_path / "out"), "--min-order", "8",
-                   "--max-order", "4"])
+    status = main(
+        [
+            "identify",
+            str(folder),
+            "--out",
+            str(tmp_path / "out"),
+            "--min-order",
+            "8",
+            "--max-order",
+            "4",
+        ]
+    )
     assert status == 2

@@ -126,12 +126,10 @@ def test_read_chunks_streams_block_order_from_unordered_batches(tmp_path):
                 "value": np.arange(2 * len(blocks), dtype=float),
             }
         )
-        status = pd.DataFrame({"block": blocks, "block_start": start, "status": "ok",
-                               "reason": ""})
+        status = pd.DataFrame({"block": blocks, "block_start": start, "status": "ok", "reason": ""})
         store.write_batch(status, {"poles": frame})
     chunks = list(store.read_chunks("poles", blocks_per_chunk=3))
-    assert [sorted(c["block"].unique()) for c in chunks] == [[0, 1, 2], [3, 4, 5], [6, 7, 8],
-                                                             [9]]
+    assert [sorted(c["block"].unique()) for c in chunks] == [[0, 1, 2], [3, 4, 5], [6, 7, 8], [9]]
     streamed = pd.concat(chunks, ignore_index=True)
     pd.testing.assert_frame_equal(streamed, store.read("poles"))
     assert (streamed.groupby("block")["model_order"].apply(list) == [[2, 4]] * 10).all()
