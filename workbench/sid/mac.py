@@ -115,6 +115,30 @@ def mac(shapes_a, shapes_b) -> np.ndarray:
     return _squeeze(np.clip(result, 0.0, 1.0), a_1d, b_1d)
 
 
+def mac_pairs(shapes_a: np.ndarray, shapes_b: np.ndarray) -> np.ndarray:
+    """MAC of column k of *shapes_a* with column k of *shapes_b* (the diagonal of
+    :func:`mac` without forming the matrix).
+
+    Parameters
+    ----------
+    shapes_a, shapes_b : ndarray, shape (n_channels, n_pairs)
+        Mode shapes, one pair per column. [-]
+
+    Returns
+    -------
+    ndarray, shape (n_pairs,)
+        MAC values in [0, 1].
+    """
+    a = np.asarray(shapes_a, dtype=complex)
+    b = np.asarray(shapes_b, dtype=complex)
+    if a.shape != b.shape or a.ndim != 2:
+        raise ValueError(f"shapes_a {a.shape} and shapes_b {b.shape} must be equal 2-D shapes")
+    cross = np.abs(np.einsum("ij,ij->j", a.conj(), b)) ** 2
+    norm = np.einsum("ij,ij->j", a.conj(), a).real * np.einsum("ij,ij->j", b.conj(), b).real
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.clip(cross / norm, 0.0, 1.0)
+
+
 def _as_poles(name: str, poles, n_modes: int, is_1d: bool) -> np.ndarray:
     array = np.atleast_1d(np.asarray(poles, dtype=complex))
     if array.ndim != 1 or array.size != n_modes:

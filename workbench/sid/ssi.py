@@ -43,7 +43,6 @@ References
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import warnings
 from collections.abc import Sequence
@@ -478,7 +477,7 @@ def _leading_eigh(symmetric: np.ndarray, count: int) -> tuple[np.ndarray, np.nda
     threads = thread_budget()
     # the Fortran-ordered view of the symmetric matrix is its transpose, equal to it
     work = int(lapack.dsytrd_lwork(n, lower=1)[0])
-    with _blas_threads(threads):
+    with blas_threads(threads):
         reduced, diagonal, off_diagonal, tau, info = lapack.dsytrd(
             symmetric.T, lower=1, lwork=max(work, 1)
         )
@@ -497,7 +496,7 @@ def _leading_eigh(symmetric: np.ndarray, count: int) -> tuple[np.ndarray, np.nda
         # Q = H(1)···H(n-1); reflector k acts on rows k+1..n-1: a QR factor of reduced[1:, :n-1]
         reflectors = reduced[1:, : n - 1]
         work = int(lapack.dormqr("L", "N", reflectors, tau, vectors[1:], -1)[1][0])
-        with _blas_threads(threads):
+        with blas_threads(threads):
             vectors[1:], _, info = lapack.dormqr(
                 "L", "N", reflectors, tau, vectors[1:], max(work, 1), overwrite_c=1
             )
@@ -544,11 +543,6 @@ def _tridiagonal_top(
     if info != 0 or found != count:
         return None
     return values[:count], np.asfortranarray(vectors[:, :count])
-
-
-def _blas_threads(threads: int):
-    """BLAS on *threads* threads inside an SSI call (which otherwise runs it serially)."""
-    return blas_threads(threads) if threads > 1 else contextlib.nullcontext()
 
 
 def _order_limits(n_max: int, singular_values: np.ndarray) -> None:
@@ -606,12 +600,17 @@ def _assemble(
     )
 
 
-def _shift_realisation(observability: np.ndarray, n_outputs: int) -> tuple[np.ndarray, np.ndarray]:
-    """A = O↑⁺ O↓ and C = first block row of O."""
-    state = linalg.lstsq(observability[:-n_outputs], observability[n_outputs:], check_finite=False)[
-        0
-    ]
-    return state, observability[:n_outputs]
+def _realisation(
+    poles, basis: np.ndarray, root: np.ndarray, n_outputs: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """A = O↑⁺O↓ and C (first block row) of O_i = basis · diag(root).
+
+    :func:`~workbench.sid.modal.poles_all_orders` already solved the shift equation in the
+    coordinates of *basis* (one QR); scaling the columns by *root* is the similarity
+    A = diag(root)⁻¹ A_basis diag(root).
+    """
+    state = poles.state_matrix * (root[None, :] / root[:, None])
+    return state, basis[:n_outputs] * root
 
 
 def _single_threaded(function):
@@ -709,12 +708,10 @@ def ssi_cov(
     poles = poles_all_orders(u[:, :n_max], n_channels, orders, sampling_rate_hz)
 
     root = np.sqrt(s[:n_max])
-    # realisation of O_i = U₁S₁^{1/2}: A = S₁^{-1/2} A_U S₁^{1/2}, C = first block row
-    state = poles.state_matrix * (root[None, :] / root[:, None])
-    output = u[:n_channels, :n_max] * root
+    state, output = _realisation(poles, u[:, :n_max], root, n_channels)  # O_i = U₁S₁^{1/2}
     # G_ref = last block column of Γ_i = S₁^{-1/2} U₁ᵀ T = S₁^{1/2} V₁ᵀ
     next_state_output = (u[:, :n_max].T @ toeplitz[:, (i - 1) * n_refs :]) / root[:, None]
-    if n_refs == n_channels and np.array_equal(references, np.arange(n_channels)):
+    if np.array_equal(references, np.arange(n_channels)):
         output_covariance = correlations[0]  # Λ₀ = R_0 = Σ y yᵀ / N, already summed
     else:
         output_covariance = data.T @ data / n_samples
@@ -866,9 +863,18 @@ def ssi_data(
     basis = u[:, :n_max] if unweight is None else unweight @ u[:, :n_max]
     poles = poles_all_orders(basis, n_channels, orders, sampling_rate_hz)
 
-    observability = basis * np.sqrt(s[:n_max])
+    root = np.sqrt(s[:n_max])
+    observability = basis * root
     correlations = lag_sums[: i + 1] / (n_samples - np.arange(i + 1))[:, None, None]
-    system = _stochastic_model(observability, lower, correlations, p, references, channel_order)
+    system = _stochastic_model(
+        observability,
+        _realisation(poles, basis, root, n_channels),
+        lower,
+        correlations,
+        p,
+        references,
+        channel_order,
+    )
     return _assemble(
         poles,
         orders,
@@ -898,6 +904,7 @@ def _kalman_from_noise(
 
 def _stochastic_model(
     observability: np.ndarray,
+    realisation: tuple[np.ndarray, np.ndarray],
     lower: np.ndarray,
     correlations: np.ndarray,
     p: int,
@@ -906,7 +913,8 @@ def _stochastic_model(
 ) -> StochasticStateSpace:
     """A, C, G, Λ₀, Q, R, S, Σ, P, K and E[eeᵀ] at the largest order (see :func:`ssi_data`).
 
-    *correlations* are R_k = E[y_{t+k} y_tᵀ], k = 0..i (permuted channel order). Row
+    *realisation* is (A, C) of *observability* (:func:`_realisation`); *correlations* are
+    R_k = E[y_{t+k} y_tᵀ], k = 0..i (permuted channel order). Row
     spaces of the state and output sequences are expressed in the orthonormal basis Qᵀ of
     the LQ decomposition, so a product X Yᵀ of two sequences is the product of their
     coordinate matrices.
@@ -916,7 +924,7 @@ def _stochastic_model(
     block_rows = observability.shape[0] // n_channels
     n_refs = references.size
     width = p + n_channels  # coordinates up to the end of Y_{i|i}
-    state, output = _shift_realisation(observability, n_channels)
+    state, output = realisation
     # G from R_k = C A^{k-1} G, k = 1..i:  G = O_i⁺ [R_1; ...; R_i]
     stacked = correlations[1 : block_rows + 1].reshape(block_rows * n_channels, n_channels)
     next_state_output = linalg.lstsq(observability, stacked, check_finite=False)[0]

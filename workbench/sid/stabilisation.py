@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .mac import mac
+from .mac import mac, mac_pairs
 
 if TYPE_CHECKING:
     from .ssi import SSIResult
@@ -54,6 +54,43 @@ class StabilityCriteria:
         if not 0.0 <= self.mac_min <= 1.0:
             raise ValueError(f"mac_min={self.mac_min} must lie in [0, 1]")
 
+    def _close(self, frequency_a, damping_a, frequency_b, damping_b) -> np.ndarray:
+        """Frequency and damping criteria (relative to pole b, both dampings positive),
+        elementwise with broadcasting."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return (
+                (np.abs(frequency_a - frequency_b) < self.frequency_tol * frequency_b)
+                & (np.abs(damping_a - damping_b) < self.damping_tol * damping_b)
+                & (damping_a > 0)
+                & (damping_b > 0)
+            )
+
+    def consistent(
+        self,
+        frequency_a: np.ndarray,
+        damping_a: np.ndarray,
+        shapes_a: np.ndarray,
+        frequency_b: np.ndarray,
+        damping_b: np.ndarray,
+        shapes_b: np.ndarray,
+    ) -> np.ndarray:
+        """Elementwise: pole a[k] is consistent with pole b[k] (shapes are columns k).
+
+        Relative differences are taken with respect to pole b (the reference order). MAC is
+        computed only where the frequency and damping criteria hold.
+        """
+        candidates = self._close(
+            np.asarray(frequency_a),
+            np.asarray(damping_a),
+            np.asarray(frequency_b),
+            np.asarray(damping_b),
+        )
+        pairs = np.flatnonzero(candidates)
+        if pairs.size:
+            shapes_a, shapes_b = np.asarray(shapes_a), np.asarray(shapes_b)
+            candidates[pairs] = mac_pairs(shapes_a[:, pairs], shapes_b[:, pairs]) > self.mac_min
+        return candidates
+
     def matches(
         self,
         frequency_a: np.ndarray,
@@ -63,19 +100,14 @@ class StabilityCriteria:
         damping_b: np.ndarray,
         shapes_b: np.ndarray,
     ) -> np.ndarray:
-        """Boolean matrix (n_a, n_b): pole a of one order is consistent with pole b of another.
-
-        Relative differences are taken with respect to pole b (the reference order).
-        """
-        frequency_a = np.asarray(frequency_a)[:, None]
-        damping_a = np.asarray(damping_a)[:, None]
-        frequency_b = np.asarray(frequency_b)[None, :]
-        damping_b = np.asarray(damping_b)[None, :]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            close_frequency = np.abs(frequency_a - frequency_b) < self.frequency_tol * frequency_b
-            close_damping = np.abs(damping_a - damping_b) < self.damping_tol * damping_b
-        positive = (damping_a > 0) & (damping_b > 0)
-        candidates = close_frequency & close_damping & positive
+        """Boolean matrix (n_a, n_b): pole a of one order is consistent with pole b of another
+        (the criteria of :meth:`consistent` for every pair)."""
+        candidates = self._close(
+            np.asarray(frequency_a)[:, None],
+            np.asarray(damping_a)[:, None],
+            np.asarray(frequency_b)[None, :],
+            np.asarray(damping_b)[None, :],
+        )
         if not np.any(candidates):
             return candidates
         return candidates & (np.atleast_2d(mac(shapes_a, shapes_b)) > self.mac_min)
@@ -133,7 +165,6 @@ def stability_flags(
     order = np.argsort(key, kind="stable")
     reference, key = reference[order], key[order]
     current = np.flatnonzero(finite & (rank > 0) & (damping_ratio > 0))
-    # (windows below a group's start reach into lower ranks: filtered by the rank check)
     base = (rank[current] - 1) * span
     tol = criteria.frequency_tol
     low = np.searchsorted(key, base + frequency_hz[current] / (1 + tol) * (1 - 1e-12), "left")
@@ -144,25 +175,18 @@ def stability_flags(
         return stable
     a = np.repeat(current, counts)
     b = reference[np.repeat(low - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())]
-    f_a, f_b = frequency_hz[a], frequency_hz[b]
-    z_a, z_b = damping_ratio[a], damping_ratio[b]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        keep = (
-            (rank[b] == rank[a] - 1)
-            & (np.abs(f_a - f_b) < criteria.frequency_tol * f_b)
-            & (np.abs(z_a - z_b) < criteria.damping_tol * z_b)
-            & (z_b > 0)
-        )
-    a, b = a[keep], b[keep]
-    if a.size:
-        shapes = np.asarray(mode_shapes)
-        phi_a, phi_b = shapes[:, a], shapes[:, b]
-        cross = np.abs(np.einsum("ij,ij->j", phi_a.conj(), phi_b)) ** 2
-        norms = np.einsum("ij,ij->j", phi_a.conj(), phi_a).real
-        norms *= np.einsum("ij,ij->j", phi_b.conj(), phi_b).real
-        with np.errstate(divide="ignore", invalid="ignore"):
-            consistent = np.clip(cross / norms, 0.0, 1.0) > criteria.mac_min
-        stable[a[consistent]] = True
+    same_step = rank[b] == rank[a] - 1  # windows may reach into lower ranks
+    a, b = a[same_step], b[same_step]
+    shapes = np.asarray(mode_shapes)
+    consistent = criteria.consistent(
+        frequency_hz[a],
+        damping_ratio[a],
+        shapes[:, a],
+        frequency_hz[b],
+        damping_ratio[b],
+        shapes[:, b],
+    )
+    stable[a[consistent]] = True
     return stable
 
 
