@@ -224,9 +224,22 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--method",
-        choices=("cov", "data"),
+        choices=("cov", "data", "lscf"),
         default="cov",
-        help="covariance-driven or data-driven SSI",
+        help="covariance-driven or data-driven SSI, or poly-reference LSCF (PolyMAX)",
+    )
+    parser.add_argument(
+        "--lscf-max-order",
+        type=int,
+        default=15,
+        metavar="P",
+        help="LSCF polynomial orders 1..P (P x references poles)",
+    )
+    parser.add_argument(
+        "--cross-check",
+        action="store_true",
+        help="also identify with the other method (LSCF for SSI, SSI-cov for LSCF) and pair "
+        "the modes of both per block (crosscheck.csv, agreement in the summary)",
     )
     parser.add_argument("--block-rows", type=int, default=20, metavar="I")
     parser.add_argument("--max-order", type=int, default=60, metavar="N")
@@ -281,6 +294,8 @@ def _run_identify(args: argparse.Namespace) -> int:
 
     if args.min_order < 1 or args.max_order < args.min_order:
         raise UsageError(f"model orders {args.min_order}..{args.max_order} make no sense")
+    if args.lscf_max_order < 1:
+        raise UsageError(f"--lscf-max-order must be at least 1, got {args.lscf_max_order}")
     try:
         options = IdentifyOptions(
             method=args.method,
@@ -293,6 +308,8 @@ def _run_identify(args: argparse.Namespace) -> int:
             target_rate_hz=args.rate,
             band_hz=None if args.no_band else tuple(args.band),
             max_gap_s=args.max_gap,
+            lscf_orders=tuple(range(1, args.lscf_max_order + 1)),
+            cross_check=args.cross_check,
         )
     except ValueError as error:
         raise UsageError(str(error)) from None

@@ -11,7 +11,9 @@ BlockStore`, and exports the store as contract tables:
   ``workbench track``);
 * ``faults.csv`` - channels dropped per block and why;
 * ``channels.csv`` - per block and channel: RMS and kurtosis of the conditioned signal;
-* ``blocks.csv`` - every block: ``ok`` or ``skipped`` and the reason.
+* ``blocks.csv`` - every block: ``ok`` or ``skipped`` and the reason;
+* ``crosscheck.csv`` - with ``cross_check``: the SSI and LSCF modes of every block paired
+  (:func:`workbench.sid.crosscheck.cross_check`), summarised in the run's summary.
 
 Killing the job at any moment and running it again finishes it without recomputing the
 blocks already stored, and gives the same tables as an uninterrupted run (every block's
@@ -57,8 +59,9 @@ class IdentifyOptions:
 
     Attributes
     ----------
-    method : {"cov", "data"}
-        Covariance-driven or data-driven SSI.
+    method : {"cov", "data", "lscf"}
+        Covariance-driven or data-driven SSI, or poly-reference LSCF
+        (:func:`workbench.sid.lscf.lscf`, fitted in *band_hz*).
     block_rows : int
         Block rows i of the Hankel/Toeplitz matrix (lags 1..2i). [-]
     orders : tuple of int
@@ -82,9 +85,17 @@ class IdentifyOptions:
         damping change, lowest MAC).
     max_damping : float
         Poles with larger damping ratios are not selected. [-]
+    lscf_orders : tuple of int
+        Polynomial orders p of LSCF (p·r poles with r references). [-]
+    lscf_lags : int, optional
+        Correlation lags of the LSCF half-spectra (default: see :func:`~workbench.sid.lscf.
+        lscf`).
+    cross_check : bool
+        Also identify every block with the other family (LSCF for SSI, SSI-cov for LSCF)
+        and pair the selected modes of both (``crosscheck.csv``).
     """
 
-    method: Literal["cov", "data"] = "cov"
+    method: Literal["cov", "data", "lscf"] = "cov"
     block_rows: int = 20
     orders: tuple[int, ...] = tuple(range(4, 61, 2))
     weighting: Literal["pc", "upc", "cva"] = "pc"
@@ -98,10 +109,17 @@ class IdentifyOptions:
     damping_tol: float = 0.05
     mac_min: float = 0.98
     max_damping: float = 0.10
+    lscf_orders: tuple[int, ...] = tuple(range(1, 16))
+    lscf_lags: int | None = None
+    cross_check: bool = False
 
     def __post_init__(self) -> None:
-        if self.method not in ("cov", "data"):
-            raise ValueError(f"method={self.method!r} must be 'cov' or 'data'")
+        if self.method not in ("cov", "data", "lscf"):
+            raise ValueError(f"method={self.method!r} must be 'cov', 'data' or 'lscf'")
+        lscf_orders = tuple(int(o) for o in self.lscf_orders)
+        if not lscf_orders or min(lscf_orders) < 1:
+            raise ValueError(f"lscf_orders={self.lscf_orders!r} must be positive orders")
+        object.__setattr__(self, "lscf_orders", lscf_orders)
         if self.block_rows < 2:
             raise ValueError(f"block_rows={self.block_rows} must be at least 2")
         orders = tuple(int(o) for o in self.orders)
@@ -122,6 +140,13 @@ class IdentifyOptions:
         values["reference_channels"] = (
             list(self.reference_channels) if self.reference_channels else None
         )
+        values["lscf_orders"] = list(self.lscf_orders)
+        # options added with LSCF are recorded only when used, so stores written before
+        # them still resume
+        if not self.cross_check:
+            del values["cross_check"]
+            if self.method != "lscf":
+                del values["lscf_orders"], values["lscf_lags"]
         return values
 
 
@@ -134,9 +159,9 @@ class _Task:
     files: tuple
 
 
-def _identify_data(task: _Task, grid: BlockGrid, options: IdentifyOptions):
-    """Conditioned block, SSI result (None if skipped) and mode selection of one block."""
-    from .sid import select_modes, ssi_cov, ssi_data, stabilise
+def _identify_data(task: _Task, grid: BlockGrid, options: IdentifyOptions, cross=False):
+    """Conditioned block, SSI or LSCF result (None if skipped) and mode selection of one
+    block; with *cross*, also the result and selection of the other method (or None)."""
     from .signals import load_block
 
     data = load_block(
@@ -157,7 +182,19 @@ def _identify_data(task: _Task, grid: BlockGrid, options: IdentifyOptions):
         reference = [kept.index(c) for c in options.reference_channels if c in kept]
         if not reference:
             raise ValueError(f"block {task.block}: no reference channel left")
-    if options.method == "cov":
+    result, selection = _identify_method(options.method, data, reference, options)
+    if not cross:
+        return data, result, selection
+    other = "cov" if options.method == "lscf" else "lscf"
+    return data, result, selection, _identify_method(other, data, reference, options)
+
+
+def _identify_method(method: str, data, reference, options: IdentifyOptions):
+    """Result of *method* on a conditioned block, stabilised, and its mode selection."""
+    from .sid import select_modes, ssi_cov, ssi_data, stabilise
+    from .sid.lscf import lscf
+
+    if method == "cov":
         result = ssi_cov(
             data.acceleration,
             data.sampling_rate_hz,
@@ -165,7 +202,7 @@ def _identify_data(task: _Task, grid: BlockGrid, options: IdentifyOptions):
             orders=options.orders,
             reference_channels=reference,
         )
-    else:
+    elif method == "data":
         result = ssi_data(
             data.acceleration,
             data.sampling_rate_hz,
@@ -173,6 +210,19 @@ def _identify_data(task: _Task, grid: BlockGrid, options: IdentifyOptions):
             orders=options.orders,
             reference_channels=reference,
             weighting=options.weighting,
+        )
+    else:
+        band = None
+        if options.band_hz is not None:
+            nyquist = 0.5 * data.sampling_rate_hz
+            band = (min(options.band_hz[0], nyquist), min(options.band_hz[1], nyquist))
+        result = lscf(
+            data.acceleration,
+            data.sampling_rate_hz,
+            orders=options.lscf_orders,
+            frequency_band_hz=band,
+            n_lags=options.lscf_lags,
+            reference_channels=reference,
         )
     result = stabilise(
         result,
@@ -185,7 +235,7 @@ def _identify_data(task: _Task, grid: BlockGrid, options: IdentifyOptions):
         frequency_band=options.band_hz,
         damping_limits=(0.001, options.max_damping),
     )
-    return data, result, selection
+    return result, selection
 
 
 def identify_block(
@@ -206,7 +256,9 @@ def identify_block(
     # blocks, and the same arithmetic everywhere makes results bit-identical whatever the
     # scheduler (a resumed job may mix blocks computed either way).
     with threadpool_limits(limits=1):
-        data, result, selection = _identify_data(task, grid, options)
+        data, result, selection, *other = _identify_data(
+            task, grid, options, cross=options.cross_check
+        )
     start = pd.Timestamp(task.block_start)
     end = grid.end(task.block)
     faults = pd.DataFrame(
@@ -234,7 +286,30 @@ def identify_block(
         "faults": faults,
         "channels": channel_stats,
     }
+    if other:
+        tables["crosscheck"] = _cross_check_frame(
+            selection, other[0][1], options.method, task.block, start
+        )
     return BlockOutcome(task.block, start, tables, notes=notes)
+
+
+def _cross_check_frame(selection, other_selection, method, block, start) -> pd.DataFrame:
+    """The SSI and LSCF modes of one block paired (:func:`~workbench.sid.crosscheck.
+    cross_check`), with ``block_start``."""
+    from .sid.crosscheck import cross_check
+
+    ssi, lscf = (other_selection, selection) if method == "lscf" else (selection, other_selection)
+    frame = cross_check(
+        ssi.modes["frequency_hz"],
+        ssi.modes["damping_ratio"],
+        ssi.mode_shapes,
+        lscf.modes["frequency_hz"],
+        lscf.modes["damping_ratio"],
+        lscf.mode_shapes,
+        block=block,
+    )
+    frame.insert(1, "block_start", pd.to_datetime([start] * len(frame), utc=True))
+    return frame
 
 
 def _reason_kind(reason: str) -> str:
@@ -290,6 +365,11 @@ class IdentifyResult:
 
     def lines(self) -> list[str]:
         out = [str(self.summary)]
+        crosscheck = self.files.get("crosscheck")
+        if crosscheck is not None:
+            from .sid.crosscheck import agreement_lines
+
+            out += agreement_lines(pd.read_csv(crosscheck))
         out += [f"{kind}: {path}" for kind, path in self.files.items()]
         return out
 
@@ -448,7 +528,7 @@ def write_block_figures(
                 selection=selection,
                 frequency_band=options.band_hz,
                 title=f"Block {task.block} ({pd.Timestamp(task.block_start):%Y-%m-%d %H:%M} "
-                f"UTC), SSI-{options.method}",
+                f"UTC), {'LSCF' if options.method == 'lscf' else 'SSI-' + options.method}",
             )
         )
     return paths
@@ -474,7 +554,7 @@ def export_store(store: BlockStore, out_dir: str | os.PathLike, channels: Sequen
         path = _write_parquet_chunks(chunks, out / name, contract)
         if path is not None:
             files[kind] = path
-    for kind in ("faults", "channels", "blocks"):
+    for kind in ("faults", "channels", "crosscheck", "blocks"):
         table = store.read(kind)
         if kind == "blocks" and not table.empty:
             table = table.sort_values("block", kind="stable")

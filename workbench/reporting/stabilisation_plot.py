@@ -206,11 +206,17 @@ def plot_stabilisation(
     ax.set_ylim(0, max(result.orders) + 2)
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel("model order")
-    ax.set_title(title or f"Stabilisation diagram ({result.method}, i = {result.block_rows})")
+    ax.set_title(title or f"Stabilisation diagram ({result.method}{_rows(result)})")
     ax.grid(True, alpha=0.3)
     # below the axes, so that no pole is hidden
     ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncols=3)
     return fig
+
+
+def _rows(result) -> str:
+    """The block rows ", i = 20" of an SSI result; empty for LSCF results."""
+    rows = getattr(result, "block_rows", None)
+    return "" if rows is None else f", i = {rows}"
 
 
 def write_stabilisation_figure(

@@ -1,0 +1,92 @@
+"""`workbench identify --method lscf` and the SSI/LSCF cross-check on a short simulated voyage.
+
+The demo hull's modes (workbench.simulate.hull) lie between 2.9 and 8.3 Hz; the voyage is
+30 minutes (three 20-minute blocks, 5-minute step), identified in-process.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from data_contracts import POLES, read_table
+from workbench.cli import main
+from workbench.identify import IdentifyOptions, identify_voyage
+from workbench.sid.crosscheck import CROSS_CHECK_COLUMNS
+
+
+@pytest.fixture(scope="module")
+def voyage(tmp_path_factory):
+    from workbench.simulate import simulate_voyage
+
+    return simulate_voyage(tmp_path_factory.mktemp("voyage"), seed=7, hours=0.5)
+
+
+def test_lscf_identify_with_cross_check(voyage, tmp_path):
+    options = IdentifyOptions(
+        method="lscf",
+        block_rows=10,
+        orders=tuple(range(4, 41, 2)),
+        lscf_orders=tuple(range(1, 11)),
+        cross_check=True,
+    )
+    result = identify_voyage([voyage.out_dir], tmp_path, options=options, scheduler="synchronous")
+    assert result.summary.processed == voyage.n_blocks
+    poles = read_table(tmp_path / "poles.parquet", POLES)
+    assert set(poles["block"]) == set(range(voyage.n_blocks))
+    selected = pd.read_parquet(tmp_path / "selected.parquet")
+    assert selected.groupby("block").size().min() >= 5  # of the seven hull modes
+    table = pd.read_csv(tmp_path / "crosscheck.csv")
+    assert list(table.columns[:1]) == ["block"]
+    assert set(CROSS_CHECK_COLUMNS) <= set(table.columns)
+    paired = table[table["paired"]]
+    assert len(paired) >= 4 * voyage.n_blocks
+    # the two methods agree on the modes they share: 1 % is the pairing window, the
+    # median is far inside it
+    assert np.median(paired["frequency_difference"].abs()) < 0.002
+    assert (paired["mac"] > 0.95).all()
+    lines = result.lines()
+    assert any(line.startswith("SSI/LSCF cross-check over 3 block(s)") for line in lines)
+
+
+def test_options_record_lscf_settings_only_when_used():
+    assert "lscf_orders" not in IdentifyOptions().parameters()
+    assert "cross_check" not in IdentifyOptions().parameters()
+    assert IdentifyOptions(method="lscf").parameters()["lscf_orders"] == list(range(1, 16))
+    assert IdentifyOptions(cross_check=True).parameters()["cross_check"] is True
+    with pytest.raises(ValueError, match="method"):
+        IdentifyOptions(method="fdd")
+    with pytest.raises(ValueError, match="lscf_orders"):
+        IdentifyOptions(lscf_orders=(0, 1))
+
+
+def test_cli_method_lscf(voyage, tmp_path, capsys):
+    code = main(
+        [
+            "identify",
+            str(voyage.out_dir),
+            "--out",
+            str(tmp_path),
+            "--method",
+            "lscf",
+            "--lscf-max-order",
+            "8",
+            "--scheduler",
+            "synchronous",
+            "--quiet",
+        ]
+    )
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "3 block(s) processed" in out
+    assert not (tmp_path / "crosscheck.csv").exists()
+    orders = set(read_table(tmp_path / "poles.parquet", POLES)["model_order"])
+    n_channels = 19 - 1  # acc12 is dead in this voyage (see faults.csv)
+    assert orders <= {p * n_channels for p in range(1, 9)} | {p * 19 for p in range(1, 9)}
+
+
+def test_cli_rejects_bad_lscf_order(voyage, tmp_path, capsys):
+    code = main(["identify", str(voyage.out_dir), "--out", str(tmp_path), "--lscf-max-order", "0"])
+    assert code == 2
+    assert "--lscf-max-order" in capsys.readouterr().err
