@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -35,7 +36,13 @@ from scipy import fft, linalg
 from data_contracts import shapes_to_frame
 
 from .mac import continuous_pole
-from .modal import modal_parameters, modal_phase_collinearity, normalise_shapes, sid_threads
+from .modal import (
+    modal_parameters,
+    modal_phase_collinearity,
+    normalise_shapes,
+    sid_threads,
+    thread_budget,
+)
 from .ssi import _lagged_products, _prepare
 from .stabilisation import StabilityCriteria, stability_flags
 
@@ -331,12 +338,19 @@ def _fit_orders(
     moment_s = (powers @ spectra.reshape(n_lines, -1)).real.reshape(-1, n_channels, n_refs)
     gram = np.einsum("foc,foe->fce", spectra.conj(), spectra)
     moment_t = (powers @ gram.reshape(n_lines, -1)).real.reshape(-1, n_refs, n_refs)
-    parts = []
-    for p in poly_orders:
-        part = _fit_order(p, p_max, moment_r, moment_s, moment_t, sampling_rate_hz, decay, band)
-        if part is not None:
-            parts.append(part)
-    return parts
+
+    def fit(p):
+        return _fit_order(p, p_max, moment_r, moment_s, moment_t, sampling_rate_hz, decay, band)
+
+    threads = thread_budget()
+    if threads > 1 and len(poly_orders) >= 4:
+        with ThreadPoolExecutor(threads) as pool:  # LAPACK releases the GIL
+            largest_first = sorted(poly_orders, reverse=True)
+            done = dict(zip(largest_first, pool.map(fit, largest_first), strict=True))
+        parts = [done[p] for p in poly_orders]
+    else:
+        parts = [fit(p) for p in poly_orders]
+    return [part for part in parts if part is not None]
 
 
 def _fit_order(p, p_max, moment_r, moment_s, moment_t, sampling_rate_hz, decay, band):
@@ -374,32 +388,32 @@ def _fit_order(p, p_max, moment_r, moment_s, moment_t, sampling_rate_hz, decay, 
     companion[head - n_refs :] = (
         -alpha_low.reshape(p, n_refs, n_refs).transpose(1, 0, 2).reshape(n_refs, head)
     )
-    mu, vectors = np.linalg.eig(companion)
-    keep = mu.imag > 0
-    if not np.any(keep):
+    mu_window = linalg.eigvals(companion, overwrite_a=True, check_finite=False)
+    mu_window = mu_window[mu_window.imag > 0]
+    if not mu_window.size:
         return None
-    mu = mu[keep] * np.exp(decay)  # undo the exponential window
+    mu = mu_window * np.exp(decay)  # undo the exponential window
     frequency, damping = modal_parameters(mu, sampling_rate_hz)
     inside = (frequency >= band[0]) & (frequency <= band[1]) & (frequency > 0)
     inside &= frequency < 0.5 * sampling_rate_hz
     if not np.any(inside):
         return None
-    columns = np.flatnonzero(keep)[inside]
-    mu, frequency, damping = mu[inside], frequency[inside], damping[inside]
-    order = np.argsort(frequency, kind="stable")
-    columns, mu, frequency, damping = columns[order], mu[order], frequency[order], damping[order]
-    participation = vectors[:n_refs, columns]
-    participation = participation / np.linalg.norm(participation, axis=0)
+    order = np.argsort(frequency[inside], kind="stable")
+    mu_window = mu_window[inside][order]
+    frequency, damping = frequency[inside][order], damping[inside][order]
+    # participation: the null vector v of A(μ_w) = Σ_j α_j μ_w^j (the first block of the
+    # companion eigenvector), as the right singular vector of the smallest singular value
+    mu_powers = mu_window[None, :] ** np.arange(p + 1)[:, None]  # (p+1, m)
+    denominator = np.einsum("jm,jab->mab", mu_powers, alpha.reshape(p + 1, n_refs, n_refs))
+    participation = np.linalg.svd(denominator)[2][:, -1, :].conj().T  # (r, m), unit norm
     # φ_o = B_o(μ_w)v with β_o = -R⁻¹S_oα = -L⁻ᵀW_oα, evaluated at the windowed pole μ_w
-    mu_window = mu * np.exp(-decay)
     weighted = w @ (alpha @ participation)  # (p+1, o, m): W_o α v
     coefficients = linalg.solve_triangular(
         chol, weighted.reshape(p + 1, -1), lower=True, trans="T", check_finite=False
     ).reshape(p + 1, n_channels, -1)
-    mu_powers = mu_window[None, :] ** np.arange(p + 1)[:, None]  # (p+1, m)
     shapes = -np.einsum("jom,jm->om", coefficients, mu_powers)
     return (
-        np.full(mu.size, p * n_refs),
+        np.full(frequency.size, p * n_refs),
         frequency,
         damping,
         shapes,
