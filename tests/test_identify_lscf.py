@@ -12,7 +12,12 @@ import pytest
 
 from data_contracts import POLES, read_table
 from workbench.cli import main
-from workbench.identify import IdentifyOptions, identify_voyage
+from workbench.identify import (
+    IdentifyOptions,
+    cross_check_blocks,
+    identify_voyage,
+    write_tpe_figures,
+)
 from workbench.sid.crosscheck import CROSS_CHECK_COLUMNS
 
 
@@ -90,3 +95,25 @@ def test_cli_rejects_bad_lscf_order(voyage, tmp_path, capsys):
     code = main(["identify", str(voyage.out_dir), "--out", str(tmp_path), "--lscf-max-order", "0"])
     assert code == 2
     assert "--lscf-max-order" in capsys.readouterr().err
+
+
+def test_cross_check_blocks_writes_the_table_and_per_block_summary(voyage, tmp_path):
+    from workbench.sid.crosscheck import agreement_by_block
+
+    options = IdentifyOptions(block_rows=10, orders=tuple(range(4, 41, 2)))
+    table = cross_check_blocks([voyage.out_dir], tmp_path, options=options, n_blocks=2)
+    assert sorted(table["block"].unique()) == [0, voyage.n_blocks - 1]
+    written = pd.read_csv(tmp_path / "crosscheck.csv")
+    assert len(written) == len(table)
+    per_block = agreement_by_block(table)
+    assert per_block["block"].tolist() == [0, voyage.n_blocks - 1]
+    assert (per_block["pairs"] >= 4).all()
+    assert (per_block["pairs"] <= per_block[["ssi_modes", "lscf_modes"]].min(axis=1)).all()
+    assert (per_block["mac_min"] > 0.95).all()
+
+
+def test_tpe_figures(voyage, tmp_path):
+    options = IdentifyOptions(block_rows=10, orders=tuple(range(4, 41, 4)))
+    paths = write_tpe_figures([voyage.out_dir], tmp_path, options=options, blocks=[1])
+    assert [p.name for p in paths] == ["tpe_block000001.png"]
+    assert paths[0].read_bytes()[:4] == b"\x89PNG"

@@ -177,6 +177,13 @@ def run_demo(
 
         write_block_figures([voyage_dir], identify_dir / "figures", n_blocks=3)
 
+    with stage("SSI/LSCF cross-check"):
+        from .identify import cross_check_blocks
+        from .sid.crosscheck import agreement_lines
+
+        cross = cross_check_blocks([voyage_dir], identify_dir, n_blocks=6)
+    summary.lines += agreement_lines(cross) if len(cross) else ["cross-check: no block"]
+
     tracked_path = out_dir / "tracked_modal.csv"
     with stage("track"):
         track = run_track(identify_dir / "selected.parquet", tracked_path)

@@ -43,9 +43,11 @@ from .store import BlockStore
 __all__ = [
     "IdentifyOptions",
     "IdentifyResult",
+    "cross_check_blocks",
     "identify_block",
     "identify_voyage",
     "write_block_figures",
+    "write_tpe_figures",
 ]
 
 #: Acceleration file suffixes picked up from a folder (CSV acceleration files must be named
@@ -529,6 +531,123 @@ def write_block_figures(
                 frequency_band=options.band_hz,
                 title=f"Block {task.block} ({pd.Timestamp(task.block_start):%Y-%m-%d %H:%M} "
                 f"UTC), {'LSCF' if options.method == 'lscf' else 'SSI-' + options.method}",
+            )
+        )
+    return paths
+
+
+def _pick_tasks(inputs, options: IdentifyOptions, n_blocks: int, blocks):
+    """Plan and the tasks of *blocks*, or of *n_blocks* identifiable blocks spread evenly."""
+    from .signals import plan_blocks
+
+    plan = plan_blocks(
+        acceleration_files(inputs),
+        length_s=options.length_s,
+        step_s=options.step_s,
+        max_gap_s=options.max_gap_s,
+    )
+    planned = [p for p in plan.blocks if not p.skipped_reason]
+    if blocks is None:
+        picks = np.unique(np.linspace(0, len(planned) - 1, max(n_blocks, 1)).round().astype(int))
+        chosen = [planned[k] for k in picks] if planned else []
+    else:
+        wanted = {int(b) for b in blocks}
+        chosen = [p for p in planned if int(p.block) in wanted]
+    tasks = [_Task(int(p.block), p.block_start, tuple(str(f) for f in p.files)) for p in chosen]
+    return plan, tasks
+
+
+def cross_check_blocks(
+    inputs: Iterable[str | os.PathLike],
+    out_dir: str | os.PathLike,
+    *,
+    options: IdentifyOptions | None = None,
+    n_blocks: int = 6,
+    blocks: Sequence[int] | None = None,
+) -> pd.DataFrame:
+    """SSI/LSCF cross-check of a few blocks, written to ``out_dir/crosscheck.csv``.
+
+    Each block is identified with *options* (its method) and with the other family (LSCF
+    for SSI, SSI-cov for LSCF) and the selected modes are paired
+    (:func:`workbench.sid.crosscheck.cross_check`). For every block of a voyage, run
+    :func:`identify_voyage` with ``cross_check=True`` instead. Returns the table (empty if
+    no block could be identified); :func:`workbench.sid.crosscheck.agreement_lines` and
+    :func:`~workbench.sid.crosscheck.agreement_by_block` summarise it.
+    """
+    from threadpoolctl import threadpool_limits
+
+    from .sid.crosscheck import CROSS_CHECK_COLUMNS
+
+    options = options or IdentifyOptions()
+    plan, tasks = _pick_tasks(inputs, options, n_blocks, blocks)
+    frames = []
+    for task in tasks:
+        try:
+            with threadpool_limits(limits=1):
+                _, result, selection, *other = _identify_data(task, plan.grid, options, cross=True)
+        except ValueError:
+            continue
+        if result is None:
+            continue
+        frames.append(
+            _cross_check_frame(selection, other[0][1], options.method, task.block, task.block_start)
+        )
+    columns = ["block", "block_start", *CROSS_CHECK_COLUMNS[1:]]
+    table = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=columns)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    _write_csv(table, out / "crosscheck.csv")
+    return table
+
+
+def write_tpe_figures(
+    inputs: Iterable[str | os.PathLike],
+    out_dir: str | os.PathLike,
+    *,
+    options: IdentifyOptions | None = None,
+    n_blocks: int = 3,
+    blocks: Sequence[int] | None = None,
+) -> list[Path]:
+    """Stabilisation diagram of SSI-data with the total prediction error of every model
+    order beside it (:func:`workbench.sid.tpe.total_prediction_error`), for a few blocks.
+
+    SSI-data is used whatever *options.method* says (the TPE needs its Kalman gain), with
+    the block rows, orders, weighting and references of *options*.
+    """
+    import dataclasses
+
+    from .reporting.tpe_plot import write_stabilisation_tpe_figure
+    from .sid.tpe import total_prediction_error
+
+    options = dataclasses.replace(options or IdentifyOptions(), method="data", cross_check=False)
+    plan, tasks = _pick_tasks(inputs, options, n_blocks, blocks)
+    paths = []
+    for task in tasks:
+        try:
+            data, result, selection = _identify_data(task, plan.grid, options)
+            if result is None:
+                continue
+            errors = total_prediction_error(
+                data.acceleration,
+                data.sampling_rate_hz,
+                block_rows=options.block_rows,
+                orders=options.orders,
+                reference_channels=result.reference_channels,
+                weighting=options.weighting,
+            )
+        except ValueError:
+            continue
+        path = Path(out_dir) / f"tpe_block{task.block:06d}.png"
+        paths.append(
+            write_stabilisation_tpe_figure(
+                result,
+                errors,
+                path,
+                data.acceleration,
+                selection=selection,
+                frequency_band=options.band_hz,
+                title=f"Block {task.block} ({pd.Timestamp(task.block_start):%Y-%m-%d %H:%M} "
+                f"UTC), SSI-data/{options.weighting}",
             )
         )
     return paths

@@ -18,7 +18,13 @@ from scipy.optimize import linear_sum_assignment
 
 from .mac import mac
 
-__all__ = ["CROSS_CHECK_COLUMNS", "agreement_summary", "agreement_lines", "cross_check"]
+__all__ = [
+    "CROSS_CHECK_COLUMNS",
+    "agreement_by_block",
+    "agreement_lines",
+    "agreement_summary",
+    "cross_check",
+]
 
 #: Columns of a cross-check table (one row per SSI mode, LSCF mode or pair).
 CROSS_CHECK_COLUMNS = (
@@ -199,3 +205,29 @@ def agreement_lines(table: pd.DataFrame, *, frequency_agreement: float = 0.001) 
             f"MAC median {s['mac_median']:.3f}, min {s['mac_min']:.3f}"
         )
     return lines
+
+
+def agreement_by_block(table: pd.DataFrame, *, frequency_agreement: float = 0.001) -> pd.DataFrame:
+    """One row per block of a cross-check table: the table a report shows.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``block``, ``ssi_modes``, ``lscf_modes``, ``pairs``, ``agreeing`` (pairs within
+        *frequency_agreement* in frequency), ``frequency_difference_max`` (largest |Δf|/f
+        of the pairs), ``damping_difference_median`` (|Δζ|/ζ), ``mac_min``.
+    """
+    keys = [
+        "ssi_modes",
+        "lscf_modes",
+        "pairs",
+        "agreeing",
+        "frequency_difference_max",
+        "damping_difference_median",
+        "mac_min",
+    ]
+    rows = []
+    for block, part in table.groupby("block", sort=True):
+        summary = agreement_summary(part, frequency_agreement=frequency_agreement)
+        rows.append({"block": int(block), **{key: summary[key] for key in keys}})
+    return pd.DataFrame(rows, columns=["block", *keys])

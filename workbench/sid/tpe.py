@@ -102,18 +102,23 @@ def one_step_prediction(
     -----
     The predictor x̂_{k+1} = (A - KC) x̂_k + K y_k is diagonalised, F = A - KC = VΛV⁻¹, so
     every modal coordinate z = V⁻¹x̂ is a first-order recursion z_{k+1} = λ z_k + (V⁻¹K y)_k
-    run by :func:`scipy.signal.lfilter` (compiled, no Python loop over samples). If V is
-    too ill-conditioned for that, the recursion runs on x̂ directly.
+    run by :func:`scipy.signal.lfilter` (compiled, no Python loop over samples); one of
+    each conjugate pair suffices. If V is too ill-conditioned for that, the recursion runs
+    on x̂ directly.
     """
     closed = state_matrix - gain @ output_matrix  # F = A - KC
     values, vectors = linalg.eig(closed)
     if np.linalg.cond(vectors) < 1e8:
-        drive = data @ linalg.solve(vectors, gain).T  # (V⁻¹K y_k)ᵀ, (n_samples, n)
+        # F is real: of a conjugate pair only the member with Im λ > 0 is run, its
+        # contribution doubled in the real part of ŷ; real eigenvalues count once
+        keep = values.imag >= 0
+        weight = np.where(values[keep].imag > 0, 2.0, 1.0)
+        drive = linalg.solve(vectors, gain)[keep] @ data.T  # u_k = V⁻¹K y_k, (m, n_samples)
         modal = np.empty(drive.shape, dtype=complex)
-        for m, value in enumerate(values):
+        for m, value in enumerate(values[keep]):
             # z_{k+1} = λ z_k + u_k, z_0 = 0  ->  z = filter(b=[0, 1], a=[1, -λ], u)
-            modal[:, m] = signal.lfilter([0.0, 1.0], [1.0, -value], drive[:, m])
-        return (modal @ (output_matrix @ vectors).T).real
+            modal[m] = signal.lfilter([0.0, 1.0], [1.0, -value], drive[m])
+        return (((output_matrix @ vectors[:, keep]) * weight) @ modal).real.T  # ŷ = C V z
     return _predict_by_loop(data, closed, output_matrix, gain)
 
 
