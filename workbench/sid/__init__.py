@@ -5,22 +5,32 @@ Layers (bottom up): :mod:`workbench.sid.mac` (MAC and pole-weighted MACXP),
 basis), :mod:`workbench.sid.ssi` (covariance- and data-driven SSI),
 :mod:`workbench.sid.stabilisation` (stable poles between consecutive orders),
 :mod:`workbench.sid.selection` (automatic choice of the physical modes of one block),
-:mod:`workbench.sid.tracking` (modes followed across blocks).
+:mod:`workbench.sid.tracking` (modes followed across blocks). Second method and checks:
+:mod:`workbench.sid.lscf` (poly-reference LSCF), :mod:`workbench.sid.crosscheck` (SSI and
+LSCF modes paired per block), :mod:`workbench.sid.tpe` (total prediction error per order).
 """
 
+from workbench.sid.crosscheck import agreement_by_block, cross_check
+from workbench.sid.lscf import LSCFResult, lscf
 from workbench.sid.mac import continuous_pole, mac, macxp
 from workbench.sid.modal import modal_phase_collinearity, normalise_shapes
 from workbench.sid.selection import ModeSelection, select_modes
 from workbench.sid.ssi import SSIResult, SSIWarning, StochasticStateSpace, ssi_cov, ssi_data
 from workbench.sid.stabilisation import StabilityCriteria, stabilise, stability_flags
+from workbench.sid.tpe import PredictionErrors, total_prediction_error
 
 __all__ = [
+    "LSCFResult",
     "ModeSelection",
+    "PredictionErrors",
     "SSIResult",
     "SSIWarning",
     "StabilityCriteria",
     "StochasticStateSpace",
+    "agreement_by_block",
     "continuous_pole",
+    "cross_check",
+    "lscf",
     "mac",
     "macxp",
     "modal_phase_collinearity",
@@ -30,4 +40,5 @@ __all__ = [
     "ssi_data",
     "stabilise",
     "stability_flags",
+    "total_prediction_error",
 ]
