@@ -8,16 +8,20 @@ exactly for the poles, its leakage adds a few per cent more.
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 import pytest
 from scipy import linalg
 
 from data_contracts import POLES
-from workbench.sid import lscf as lscf_module
 from workbench.sid import select_modes
 from workbench.sid.lscf import half_spectra, lscf
 from workbench.sid.mac import mac
 from workbench.simulate.hull import CHANNELS
+
+# the package exports the function lscf under the module's name
+lscf_module = importlib.import_module("workbench.sid.lscf")
 
 
 def _match(result, system, order):
@@ -142,6 +146,7 @@ def test_poles_frame_follows_the_contract_and_selection_takes_it(hull_block):
         ({"frequency_band_hz": (30.0, 20.0)}, "frequency_band_hz"),
         ({"frequency_band_hz": (1.0, 150.0)}, "Nyquist"),
         ({"n_lags": 4}, "n_lags"),
+        ({"orders": range(1, 40), "frequency_band_hz": (20.0, 21.0)}, "spectral lines"),
         ({"window_end": 0.0}, "window_end"),
         ({"reference_channels": [7]}, "reference_channels"),
     ],

@@ -241,18 +241,21 @@ def lscf(
     M α = 0 with M = Σ_o (T_o - S_oᵀR^{-1}S_o), solved with α_p = I [1]_. All three
     blocks are (block) Toeplitz in j, k: they are built from the 2p + 1 moments
     Σ_f z_f^d (·), d = -p..p, so the cost does not grow with the number of lines. The
-    poles μ are the eigenvalues of the block companion matrix of A(z); the first block v
-    of each eigenvector is the participation factor (A(μ)v = 0) and the residue of
-    B A^{-1} at μ is proportional to B(μ)v v'ᵀ, so the mode shape is φ = B(μ)v. The
-    exponential window multiplied every μ by e^{-β}: μ ← μ e^{β}.
+    poles μ are the eigenvalues of the block companion matrix of A(z); the participation
+    factor v is the null vector of A(μ) (A(μ)v = 0, the first block of the companion
+    eigenvector, here the right singular vector of A(μ) of its smallest singular value)
+    and the residue of B A^{-1} at μ is proportional to B(μ)v wᵀ (wᵀA(μ) = 0), so the
+    mode shape is φ = B(μ)v. The exponential window multiplied every μ by e^{-β}:
+    μ ← μ e^{β}.
     """
     data, references, _ = _prepare(acceleration, sampling_rate_hz, 2, (1,), reference_channels)
     n_samples, n_channels = data.shape
     n_refs = references.size
     nyquist = 0.5 * float(sampling_rate_hz)
-    poly_orders = sorted({int(p) for p in orders}) if len(list(orders)) else []
+    orders = list(orders)
+    poly_orders = sorted({int(p) for p in orders})
     if not poly_orders or poly_orders[0] < 1:
-        raise ValueError(f"orders={list(orders)!r} must be positive polynomial orders")
+        raise ValueError(f"orders={orders!r} must be positive polynomial orders")
     if n_lags is None:
         n_lags = min(DEFAULT_LAGS, n_samples // 4)
     if int(n_lags) != n_lags or n_lags < 8 or n_lags > n_samples // 2:
@@ -277,7 +280,7 @@ def lscf(
         lines = (spectra.frequency_hz >= band[0]) & (spectra.frequency_hz <= band[1])
         n_lines = int(lines.sum())
         p_max = poly_orders[-1]
-        if n_lines * n_channels < 2 * (p_max + 1):
+        if n_lines < 2 * (p_max + 1):
             raise ValueError(
                 f"orders up to {p_max} need more spectral lines than the {n_lines} in "
                 f"frequency_band_hz={band}: widen the band or raise n_lags"
@@ -364,7 +367,10 @@ def _fit_order(p, p_max, moment_r, moment_s, moment_t, sampling_rate_hz, decay, 
     s = -moment_s[shift].transpose(2, 0, 1, 3).reshape(n_channels, p + 1, size)
     # T[(j, c), (k, e)] = Re Σ z^{k-j} (HᴴH)_ce (summed over outputs)
     t = moment_t[shift].transpose(0, 2, 1, 3).reshape(size, size)
-    chol = linalg.cholesky(r, lower=True, check_finite=False)  # R = LLᵀ
+    try:
+        chol = linalg.cholesky(r, lower=True, check_finite=False)  # R = LLᵀ
+    except linalg.LinAlgError:  # too few or too close lines for this order
+        return None
     # W_o = L⁻¹S_o for all outputs at once
     w = linalg.solve_triangular(
         chol, s.transpose(1, 0, 2).reshape(p + 1, -1), lower=True, check_finite=False
