@@ -9,6 +9,7 @@ exactly for the poles, its leakage adds a few per cent more.
 from __future__ import annotations
 
 import importlib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -162,3 +163,23 @@ def test_nan_channel_is_named(chain3):
     data[10, 1] = np.nan
     with pytest.raises(ValueError, match=r"\[1\]"):
         lscf(data, chain3.sampling_rate_hz)
+
+
+SHEAR_FRAME = Path(__file__).resolve().parents[3] / "shared" / "realdata" / "shear_frame"
+
+
+@pytest.mark.skipif(not SHEAR_FRAME.is_dir(), reason="../shared/realdata is absent")
+def test_koma_shear_frame_frequencies():
+    """KOMA's simulated five-storey shear frame (../shared/realdata/shear_frame/README).
+
+    Frequencies scored against the values corrected for the Newmark period elongation
+    (README): 0.5 %, as for the analytic chains. Damping is not asserted: LSCF reads the
+    upper two modes 45-90 % high here (SSI-cov: within 30 %), see the issue-19 report.
+    """
+    data = np.load(SHEAR_FRAME / "data_shearframe.npy")
+    truth = np.array([0.1811, 0.5256, 0.8209, 1.0443, 1.1824])
+    result = lscf(data, 12.0, orders=range(1, 21), n_lags=1024)  # whole 0..6 Hz range
+    selection = select_modes(result, frequency_band=(0.05, 2.0))
+    found = selection.modes["frequency_hz"].to_numpy()
+    assert found.size == truth.size, found
+    np.testing.assert_allclose(np.sort(found), truth, rtol=0.005)
