@@ -77,6 +77,14 @@ def test_cli_method_lscf(voyage, tmp_path, capsys):
             "lscf",
             "--lscf-max-order",
             "8",
+            "--tpe-figures",
+            "1",
+            "--min-order",
+            "4",
+            "--max-order",
+            "24",
+            "--block-rows",
+            "10",
             "--scheduler",
             "synchronous",
             "--quiet",
@@ -86,6 +94,8 @@ def test_cli_method_lscf(voyage, tmp_path, capsys):
     out = capsys.readouterr().out
     assert "3 block(s) processed" in out
     assert not (tmp_path / "crosscheck.csv").exists()
+    tpe_figures = list((tmp_path / "figures").glob("tpe_block*.png"))
+    assert len(tpe_figures) == 1 and f"figure: {tpe_figures[0]}" in out
     orders = set(read_table(tmp_path / "poles.parquet", POLES)["model_order"])
     n_channels = 19 - 1  # acc12 is dead in this voyage (see faults.csv)
     assert orders <= {p * n_channels for p in range(1, 9)} | {p * 19 for p in range(1, 9)}

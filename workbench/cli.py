@@ -279,6 +279,14 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
         help="stabilisation figures of K blocks spread over the voyage",
     )
     parser.add_argument(
+        "--tpe-figures",
+        type=int,
+        default=0,
+        metavar="K",
+        help="SSI-data stabilisation diagrams with the total prediction error per model "
+        "order beside them, for K blocks",
+    )
+    parser.add_argument(
         "--batch-blocks",
         type=int,
         default=16,
@@ -330,6 +338,13 @@ def _run_identify(args: argparse.Namespace) -> int:
 
         for path in write_block_figures(
             args.inputs, args.out / "figures", options=options, n_blocks=args.figures
+        ):
+            print(f"figure: {path}")
+    if args.tpe_figures > 0:
+        from .identify import write_tpe_figures
+
+        for path in write_tpe_figures(
+            args.inputs, args.out / "figures", options=options, n_blocks=args.tpe_figures
         ):
             print(f"figure: {path}")
     return EXIT_OK
