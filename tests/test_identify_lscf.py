@@ -127,3 +127,16 @@ def test_tpe_figures(voyage, tmp_path):
     paths = write_tpe_figures([voyage.out_dir], tmp_path, options=options, blocks=[1])
     assert [p.name for p in paths] == ["tpe_block000001.png"]
     assert paths[0].read_bytes()[:4] == b"\x89PNG"
+
+
+def test_a_failing_cross_check_leaves_the_block_identified(voyage, tmp_path):
+    # more lags than the block has samples: LSCF refuses, SSI-cov still identifies
+    options = IdentifyOptions(
+        block_rows=10, orders=tuple(range(4, 25, 2)), cross_check=True, lscf_lags=10**8
+    )
+    result = identify_voyage(
+        [voyage.out_dir], tmp_path, options=options, scheduler="synchronous", blocks=[0]
+    )
+    assert result.summary.processed == 1 and result.summary.skipped == 0
+    assert result.n_selected >= 5
+    assert "crosscheck" not in result.files

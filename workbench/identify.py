@@ -188,7 +188,11 @@ def _identify_data(task: _Task, grid: BlockGrid, options: IdentifyOptions, cross
     if not cross:
         return data, result, selection
     other = "cov" if options.method == "lscf" else "lscf"
-    return data, result, selection, _identify_method(other, data, reference, options)
+    try:
+        checked = _identify_method(other, data, reference, options)
+    except (ValueError, np.linalg.LinAlgError):
+        checked = None  # the block's own result stands; it just has no cross-check
+    return data, result, selection, checked
 
 
 def _identify_method(method: str, data, reference, options: IdentifyOptions):
@@ -288,7 +292,7 @@ def identify_block(
         "faults": faults,
         "channels": channel_stats,
     }
-    if other:
+    if other and other[0] is not None:
         tables["crosscheck"] = _cross_check_frame(
             selection, other[0][1], options.method, task.block, start
         )
@@ -587,7 +591,7 @@ def cross_check_blocks(
                 _, result, selection, *other = _identify_data(task, plan.grid, options, cross=True)
         except ValueError:
             continue
-        if result is None:
+        if result is None or other[0] is None:
             continue
         frames.append(
             _cross_check_frame(selection, other[0][1], options.method, task.block, task.block_start)
