@@ -272,15 +272,14 @@ def lscf(
     n_lags = int(n_lags)
     if not (0.0 < window_end <= 1.0):
         raise ValueError(f"window_end={window_end} must lie in (0, 1]")
-    if frequency_band_hz is None:
-        band = (0.0, nyquist)
-    else:
-        band = tuple(float(v) for v in frequency_band_hz)
-        if len(band) != 2 or not (0.0 <= band[0] < band[1] <= nyquist):
-            raise ValueError(
-                f"frequency_band_hz={frequency_band_hz!r} must be (low, high) with "
-                f"0 <= low < high <= {nyquist:g} Hz (Nyquist)"
-            )
+    limits = (0.0, nyquist) if frequency_band_hz is None else frequency_band_hz
+    values = [float(v) for v in limits]
+    if len(values) != 2 or not (0.0 <= values[0] < values[1] <= nyquist):
+        raise ValueError(
+            f"frequency_band_hz={frequency_band_hz!r} must be (low, high) with "
+            f"0 <= low < high <= {nyquist:g} Hz (Nyquist)"
+        )
+    band = (values[0], values[1])
     with sid_threads():
         spectra = half_spectra(data, sampling_rate_hz, references, n_lags, window_end)
         lines = (spectra.frequency_hz >= band[0]) & (spectra.frequency_hz <= band[1])

@@ -232,7 +232,7 @@ def total_prediction_error(
                 model = _stochastic_model(
                     gamma, (state, output), lower, correlations, p, references, channel_order
                 )
-            if model.kalman_gain is None:
+            if model.kalman_gain is None or model.innovation_covariance is None:
                 continue
             predicted = one_step_prediction(
                 data, model.state_matrix, model.output_matrix, model.kalman_gain
