@@ -7,7 +7,8 @@ a test checks that the README is in sync.
 from __future__ import annotations
 
 from ._core import TableContract
-from .dship import DEFAULT_DSHIP_MAPPING, DSHIP_LOG
+from .dship import DSHIP_LOG
+from .dship_names import DSHIP_NAMES
 from .tables import FORECAST, MODAL, POLES, PREDICTORS
 
 _INTRO = """\
@@ -55,14 +56,21 @@ start time, no infinite values, |a| below 500 m/s² (larger values mean wrong un
 
 Delimited text as exported by the ship's data system (DSHIP) or PANGAEA: an optional
 `/* ... */` description block, a header line with units in brackets (`Speed [kn]`,
-`TTT [°C]`) or three header rows (name, sensor, unit), a `Date/Time` column, tab or `;`
-separators, empty cells for missing values, UTF-8 or latin-1. `read_dship(path,
-mapping=...)` maps source columns to the canonical columns below, converting units
-(m/s ↔ kn, K → °C, km/h), sorts by time (warning), keeps the first of duplicate time stamps
-(warning) and keeps every other numeric column under a snake_case name with its unit
-(`dd [deg]` → `dd_deg`). Canonical columns without a source column are NaN (warning).
+`TTT [°C]`) or up to three header rows (name, description, unit), DSHIP channel names
+`DEVICE.SENSOR.PARAMETER` (`SYS.STR.SOG`), a time column (ISO-8601, `yyyy/mm/dd HH:MM:SS`
+or day-first `dd.mm.yyyy HH:MM:SS`; UTC unless an offset is given), tab or `;`
+separators, decimal points or commas, empty cells for missing values, UTF-8 or latin-1.
+`read_dship(path, mapping=...)` (CLI: `--dship-columns speed_kn=NAME,...`) maps source
+columns to the canonical columns below, converting units (m/s ↔ kn, K → °C, km/h), sorts
+by time (warning), keeps the first of duplicate time stamps (warning) and keeps every other
+numeric column under a snake_case name with its unit (`dd [deg]` → `dd_deg`). Canonical
+columns without a source column are NaN (warning). Without a relative wind direction but
+with the true wind, heading, course and speed, the relative (apparent) wind is derived:
+direction the wind comes from, clockwise from the bow, and its speed.
 
-Default mapping (case-insensitive source names, with or without the bracketed unit):
+Default names (case, spaces and underscores ignored, with or without the bracketed unit; a
+name also matches the last part of a dotted DSHIP name, and two such matches are refused
+rather than guessed). The last four rows are read only to derive the relative wind:
 
 | canonical column | source names tried |
 |---|---|
@@ -118,7 +126,7 @@ def render_markdown() -> str:
     """The contracts documentation as Markdown."""
     mapping = "\n".join(
         f"| `{name}` | {', '.join(f'`{s}`' for s in sources)} |"
-        for name, sources in DEFAULT_DSHIP_MAPPING.items()
+        for name, sources in DSHIP_NAMES.items()
     )
     parts = [_INTRO.replace("{mapping}", mapping).rstrip("\n")]
     parts.append("Canonical log after parsing:\n\n" + _columns_table(DSHIP_LOG))

@@ -40,6 +40,7 @@ def _add_validate(commands: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("kind", choices=kinds, metavar="KIND", help=f"one of: {', '.join(kinds)}")
     parser.add_argument("file", type=Path, metavar="FILE")
+    _add_dship_columns(parser)
     parser.set_defaults(run=_run_validate)
 
 
@@ -55,7 +56,7 @@ def _run_validate(args: argparse.Namespace) -> int:
                 f"{record.sampling_rate_hz:g} Hz from {record.start_time.isoformat()}"
             )
         elif args.kind == "dship":
-            table = read_dship(args.file)
+            table = read_dship(args.file, mapping=_dship_mapping(args))
             summary = f"{len(table)} records, columns {', '.join(table.columns[1:])}"
         else:
             table = read_table(args.file, CONTRACTS[args.kind])
@@ -162,6 +163,7 @@ def _add_predictor_source(parser: argparse.ArgumentParser) -> None:
         metavar="FILE",
         help="raw DSHIP log, averaged onto the modal table's blocks",
     )
+    _add_dship_columns(parser)
     parser.add_argument(
         "--all-predictors",
         action="store_true",
@@ -170,10 +172,44 @@ def _add_predictor_source(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_dship_columns(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--dship-columns",
+        action="append",
+        metavar="COLUMN=NAME,...",
+        help="ship-log columns by name, e.g. speed_kn=SYS.STR.SOG,air_temp_c=TT (also "
+        "water_temp_c, wind_speed_ms, wind_dir_rel_deg, wind_dir_true_deg, "
+        "wind_speed_true_ms, heading_deg, course_deg, time); default: the usual DSHIP names",
+    )
+
+
+def _dship_mapping(args: argparse.Namespace) -> dict[str, str] | None:
+    from data_contracts.dship_names import parse_column_mapping
+
+    if not getattr(args, "dship_columns", None):
+        return None
+    try:
+        mapping = parse_column_mapping(args.dship_columns)
+        from data_contracts.dship import CANONICAL_PREDICTORS
+        from data_contracts.dship_names import AUXILIARY_COLUMNS
+
+        known = {c.name for c in CANONICAL_PREDICTORS} | set(AUXILIARY_COLUMNS) | {"time"}
+        unknown = sorted(set(mapping) - known)
+        if unknown:
+            raise ValueError(
+                f"unknown column(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}"
+            )
+    except ValueError as error:
+        raise UsageError(f"--dship-columns: {error}") from None
+    return mapping
+
+
 def _predictors_for(args: argparse.Namespace, modal):
     from .pipeline import canonical_predictors, load_predictors
 
-    table = load_predictors(predictors=args.predictors, dship=args.dship, like=modal)
+    table = load_predictors(
+        predictors=args.predictors, dship=args.dship, like=modal, dship_mapping=_dship_mapping(args)
+    )
     return table if args.all_predictors else canonical_predictors(table)
 
 

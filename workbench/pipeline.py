@@ -86,6 +86,7 @@ def load_predictors(
     dship: str | os.PathLike | None = None,
     like: pd.DataFrame | None = None,
     min_coverage: float = 0.5,
+    dship_mapping: Mapping[str, str] | None = None,
 ) -> pd.DataFrame:
     """Block predictors from a predictor table, or averaged from a DSHIP log.
 
@@ -98,6 +99,8 @@ def load_predictors(
     like : DataFrame, optional
         A table with block, block_start, block_end (e.g. the tracked modal table) whose block
         grid the DSHIP log is averaged onto; its full block range is used.
+    dship_mapping : mapping, optional
+        Column mapping for :func:`~data_contracts.read_dship` (``speed_kn`` -> source name).
     """
     if (predictors is None) == (dship is None):
         raise ValueError("give exactly one of predictors and dship")
@@ -107,7 +110,7 @@ def load_predictors(
         raise ValueError("averaging a DSHIP log needs the blocks of a modal table")
     from .predictors import block_predictors
 
-    log = read_dship(dship)
+    log = read_dship(dship, mapping=dship_mapping)
     t0, length_s, step_s = block_grid_of(like)
     first, last = int(like["block"].min()), int(like["block"].max())
     from .blocks import BlockGrid
