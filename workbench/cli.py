@@ -19,6 +19,7 @@ from data_contracts import ContractError
 
 from . import __version__
 from .errors import WorkbenchError
+from .inputs import add_dship_columns, add_modal_layout, dship_mapping, read_modal
 
 EXIT_OK, EXIT_DATA, EXIT_USAGE = 0, 1, 2
 
@@ -40,7 +41,7 @@ def _add_validate(commands: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("kind", choices=kinds, metavar="KIND", help=f"one of: {', '.join(kinds)}")
     parser.add_argument("file", type=Path, metavar="FILE")
-    _add_dship_columns(parser)
+    add_dship_columns(parser)
     parser.set_defaults(run=_run_validate)
 
 
@@ -56,7 +57,7 @@ def _run_validate(args: argparse.Namespace) -> int:
                 f"{record.sampling_rate_hz:g} Hz from {record.start_time.isoformat()}"
             )
         elif args.kind == "dship":
-            table = read_dship(args.file, mapping=_dship_mapping(args))
+            table = read_dship(args.file, mapping=dship_mapping(args))
             summary = f"{len(table)} records, columns {', '.join(table.columns[1:])}"
         else:
             table = read_table(args.file, CONTRACTS[args.kind])
@@ -163,7 +164,8 @@ def _add_predictor_source(parser: argparse.ArgumentParser) -> None:
         metavar="FILE",
         help="raw DSHIP log, averaged onto the modal table's blocks",
     )
-    _add_dship_columns(parser)
+    add_dship_columns(parser)
+    add_modal_layout(parser)
     parser.add_argument(
         "--all-predictors",
         action="store_true",
@@ -172,43 +174,11 @@ def _add_predictor_source(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _add_dship_columns(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--dship-columns",
-        action="append",
-        metavar="COLUMN=NAME,...",
-        help="ship-log columns by name, e.g. speed_kn=SYS.STR.SOG,air_temp_c=TT (also "
-        "water_temp_c, wind_speed_ms, wind_dir_rel_deg, wind_dir_true_deg, "
-        "wind_speed_true_ms, heading_deg, course_deg, time); default: the usual DSHIP names",
-    )
-
-
-def _dship_mapping(args: argparse.Namespace) -> dict[str, str] | None:
-    from data_contracts.dship_names import parse_column_mapping
-
-    if not getattr(args, "dship_columns", None):
-        return None
-    try:
-        mapping = parse_column_mapping(args.dship_columns)
-        from data_contracts.dship import CANONICAL_PREDICTORS
-        from data_contracts.dship_names import AUXILIARY_COLUMNS
-
-        known = {c.name for c in CANONICAL_PREDICTORS} | set(AUXILIARY_COLUMNS) | {"time"}
-        unknown = sorted(set(mapping) - known)
-        if unknown:
-            raise ValueError(
-                f"unknown column(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}"
-            )
-    except ValueError as error:
-        raise UsageError(f"--dship-columns: {error}") from None
-    return mapping
-
-
 def _predictors_for(args: argparse.Namespace, modal):
     from .pipeline import canonical_predictors, load_predictors
 
     table = load_predictors(
-        predictors=args.predictors, dship=args.dship, like=modal, dship_mapping=_dship_mapping(args)
+        predictors=args.predictors, dship=args.dship, like=modal, dship_mapping=dship_mapping(args)
     )
     return table if args.all_predictors else canonical_predictors(table)
 
@@ -457,13 +427,12 @@ def _add_correlate(commands: argparse._SubParsersAction) -> None:
 
 
 def _run_correlate(args: argparse.Namespace) -> int:
-    from data_contracts import MODAL, read_table
 
     from .reporting.correlation import write_correlation_report
 
     if not 0.0 < args.alpha < 1.0:
         raise UsageError(f"--alpha must be in (0, 1), got {args.alpha}")
-    modal = read_table(args.modal, MODAL)
+    modal = read_modal(args, args.modal)
     predictors = _predictors_for(args, modal)
     modal = _persistent(modal, args.min_presence)
     with _data_errors(args.modal):
@@ -513,7 +482,6 @@ def _add_fit(commands: argparse._SubParsersAction) -> None:
 
 
 def _run_fit(args: argparse.Namespace) -> int:
-    from data_contracts import MODAL, read_table
 
     from .reporting.diagnostics_plot import write_fit_report
 
@@ -521,7 +489,7 @@ def _run_fit(args: argparse.Namespace) -> int:
         raise UsageError(
             f"need 0 < --p-enter < --p-remove < 1, got {args.p_enter} and {args.p_remove}"
         )
-    modal = read_table(args.modal, MODAL)
+    modal = read_modal(args, args.modal)
     predictors = _predictors_for(args, modal)
     modal = _persistent(modal, args.min_presence)
     with _data_errors(args.modal):
@@ -646,7 +614,7 @@ def _parse_trust(text: str) -> float | None:
 
 
 def _run_forecast(args: argparse.Namespace) -> int:
-    from data_contracts import MODAL, POLES, read_table
+    from data_contracts import POLES, read_table
 
     from .pipeline import run_forecast
 
@@ -656,10 +624,10 @@ def _run_forecast(args: argparse.Namespace) -> int:
     if args.train < 2:
         raise UsageError(f"--train must be at least 2 blocks, got {args.train}")
     trust = _parse_trust(args.trust)
-    modal = read_table(args.modal, MODAL)
+    modal = read_modal(args, args.modal)
     predictors = _predictors_for(args, modal)
     poles = read_table(args.poles, POLES) if args.poles is not None else None
-    truth = read_table(args.truth, MODAL) if args.truth is not None else None
+    truth = read_modal(args, args.truth)
     with _data_errors(args.modal):
         result = run_forecast(
             modal,
@@ -699,16 +667,17 @@ def _add_evaluate(commands: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--phase", choices=("forecast", "train", "all"), default="forecast")
     parser.add_argument("--out", type=Path, metavar="FILE", help="write the table as CSV")
+    add_modal_layout(parser)
     parser.set_defaults(run=_run_evaluate)
 
 
 def _run_evaluate(args: argparse.Namespace) -> int:
-    from data_contracts import FORECAST, MODAL, read_table
+    from data_contracts import FORECAST, read_table
 
     from .pipeline import evaluate_forecast
 
     forecast = read_table(args.forecast, FORECAST)
-    truth = read_table(args.truth, MODAL)
+    truth = read_modal(args, args.truth)
     result = evaluate_forecast(
         forecast, truth, out=args.out, phase=None if args.phase == "all" else args.phase
     )

@@ -388,14 +388,23 @@ def evaluate_forecast(
         total = part[
             ["ssi_cumulative_error_hz", "model_cumulative_error_hz", "kalman_cumulative_error_hz"]
         ].sum()
-        gain = 100.0 * (
-            1.0 - total["kalman_cumulative_error_hz"] / total["ssi_cumulative_error_hz"]
+        ssi_error = float(total["ssi_cumulative_error_hz"])
+        verdict = (
+            f"{100.0 * (1.0 - total['kalman_cumulative_error_hz'] / ssi_error):+.1f} % vs SSI"
+            if ssi_error > 0
+            else "no gain vs SSI defined (SSI error is zero)"
         )
         result.lines.append(
-            f"option {option}: cumulative |error| SSI {total['ssi_cumulative_error_hz']:.3f} Hz,"
+            f"option {option}: cumulative |error| SSI {ssi_error:.3f} Hz,"
             f" model {total['model_cumulative_error_hz']:.3f} Hz, Kalman "
-            f"{total['kalman_cumulative_error_hz']:.3f} Hz -> Kalman {gain:+.1f} % vs SSI"
+            f"{total['kalman_cumulative_error_hz']:.3f} Hz -> Kalman {verdict}"
         )
+        if ssi_error == 0 and part["n_ssi"].sum() > 0:
+            result.warnings.append(
+                f"option {option}: the truth equals the SSI estimates on every measured block "
+                "(an observed table, not an independent reference): errors measure the model "
+                "and the Kalman filter against the measurements, and gains vs SSI are undefined"
+            )
     result.lines.append(
         f"tracked labels paired with true modes {mapping} ({100 * agreement:.1f} % of "
         "measured rows agree)"
