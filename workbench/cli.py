@@ -19,7 +19,14 @@ from data_contracts import ContractError
 
 from . import __version__
 from .errors import WorkbenchError
-from .inputs import add_dship_columns, add_modal_layout, dship_mapping, read_modal
+from .inputs import (
+    acceleration_layout,
+    add_acceleration_layout,
+    add_dship_columns,
+    add_modal_layout,
+    dship_mapping,
+    read_modal,
+)
 
 EXIT_OK, EXIT_DATA, EXIT_USAGE = 0, 1, 2
 
@@ -42,6 +49,7 @@ def _add_validate(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("kind", choices=kinds, metavar="KIND", help=f"one of: {', '.join(kinds)}")
     parser.add_argument("file", type=Path, metavar="FILE")
     add_dship_columns(parser)
+    add_acceleration_layout(parser)
     parser.set_defaults(run=_run_validate)
 
 
@@ -51,7 +59,7 @@ def _run_validate(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         if args.kind == "accelerations":
-            record = read_accelerations(args.file)
+            record = read_accelerations(args.file, layout=acceleration_layout(args))
             summary = (
                 f"{record.n_samples} samples x {len(record.channels)} channels at "
                 f"{record.sampling_rate_hz:g} Hz from {record.start_time.isoformat()}"
@@ -271,6 +279,7 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
         metavar="K",
         help="stabilisation figures of K blocks spread over the voyage",
     )
+    add_acceleration_layout(parser)
     parser.add_argument(
         "--batch-blocks",
         type=int,
@@ -299,6 +308,7 @@ def _run_identify(args: argparse.Namespace) -> int:
             target_rate_hz=args.rate,
             band_hz=None if args.no_band else tuple(args.band),
             max_gap_s=args.max_gap,
+            acceleration_layout=acceleration_layout(args),
         )
     except ValueError as error:
         raise UsageError(str(error)) from None

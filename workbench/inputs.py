@@ -121,3 +121,73 @@ def read_modal(args: argparse.Namespace, path: Path | None) -> pd.DataFrame | No
     if path is None:
         return None
     return read_modal_table(path, _layout(args))
+
+
+def add_acceleration_layout(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group(
+        "acceleration files",
+        "Formats by suffix: .npz, .mat (v5, v7.3), .csv/.tsv/.txt, .h5/.hdf5, .uff/.unv "
+        "(dataset 58). These say what the files' headers do not.",
+    )
+    group.add_argument("--time-column", metavar="NAME", help="column with the sample times")
+    group.add_argument(
+        "--time-format",
+        metavar="FMT",
+        help="strptime format of the times, 'seconds' (relative to --start-time) or 'unix'",
+    )
+    group.add_argument("--separator", metavar="SEP", help="field separator (';', ',', 'tab')")
+    group.add_argument("--decimal", choices=(".", ","), help="decimal mark (default: detected)")
+    group.add_argument(
+        "--start-time", metavar="TIME", help="UTC time of the first sample (relative times)"
+    )
+    group.add_argument(
+        "--sampling-rate", type=float, metavar="HZ", help="sampling rate (default: from the file)"
+    )
+    group.add_argument(
+        "--units",
+        metavar="UNIT|CH=UNIT,...",
+        help="unit of all channels (g, mm/s^2, m/s^2, ...) or per channel; converted to m/s^2 "
+        "(default: from the headers, e.g. 'acc01 [g]', else m/s^2)",
+    )
+    group.add_argument("--channels", metavar="CH,CH,...", help="only these columns are channels")
+    group.add_argument(
+        "--variables",
+        metavar="KEY=NAME,...",
+        help="MATLAB variables / HDF5 datasets: acceleration, sampling_rate_hz, start_time, "
+        "channels, time (default: the usual names, e.g. data, fs, t0, chanNames)",
+    )
+
+
+def acceleration_layout(args: argparse.Namespace) -> dict | None:
+    """The acceleration layout given on the command line, checked (None: nothing given)."""
+    from data_contracts.dship_names import parse_column_mapping
+    from data_contracts.formats import AccelerationLayout
+
+    fields: dict = {}
+    if getattr(args, "time_column", None):
+        fields["time_column"] = args.time_column
+    if getattr(args, "time_format", None):
+        fields["time_format"] = args.time_format
+    if getattr(args, "separator", None):
+        fields["separator"] = "\t" if args.separator.lower() in ("tab", "\\t") else args.separator
+    if getattr(args, "decimal", None):
+        fields["decimal"] = args.decimal
+    if getattr(args, "start_time", None):
+        fields["start_time"] = args.start_time
+    if getattr(args, "sampling_rate", None) is not None:
+        fields["sampling_rate_hz"] = args.sampling_rate
+    try:
+        if getattr(args, "units", None):
+            fields["units"] = (
+                parse_column_mapping(args.units) if "=" in args.units else args.units.strip()
+            )
+        if getattr(args, "channels", None):
+            fields["channels"] = [c.strip() for c in args.channels.split(",") if c.strip()]
+        if getattr(args, "variables", None):
+            fields["variables"] = parse_column_mapping(args.variables)
+        if not fields:
+            return None
+        layout = AccelerationLayout(**fields)
+    except (TypeError, ValueError) as error:
+        raise _usage(f"acceleration layout: {error}") from None
+    return layout.to_dict()
