@@ -706,9 +706,37 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _add_run(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser(
+        "run",
+        help="run the chain a ship's TOML configuration describes",
+        description="Run identify, track, correlate, fit, forecast and evaluate as far as "
+        "the configuration gives their inputs (see workbench.config; `workbench demo` "
+        "writes an example, ship.toml).",
+    )
+    parser.add_argument("config_file", type=Path, metavar="SHIP.TOML")
+    parser.set_defaults(run=_run_chain)
+
+
+def _run_chain(args: argparse.Namespace) -> int:
+    from .config import ConfigError, chain, load_config
+
+    try:
+        steps = chain(load_config(args.config_file))
+    except ConfigError as error:
+        raise UsageError(str(error)) from None
+    for step in steps:
+        print(f"== workbench {' '.join(step)}", flush=True)
+        code = main((["--verbose"] if args.verbose else []) + step)
+        if code != EXIT_OK:
+            return code
+    return EXIT_OK
+
+
 #: Subcommands in the order ``--help`` lists them.
 COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_demo,
+    _add_run,
     _add_simulate,
     _add_identify,
     _add_track,
@@ -738,6 +766,15 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(title="commands", metavar="COMMAND")
     for add in COMMANDS:
         add(commands)
+    for name, sub in commands.choices.items():
+        if name in ("demo", "simulate", "run"):
+            continue
+        sub.add_argument(
+            "--config",
+            type=Path,
+            metavar="SHIP.TOML",
+            help="take this command's settings from a ship's configuration (flags win)",
+        )
     return parser
 
 
@@ -745,6 +782,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI with *argv* (default ``sys.argv[1:]``) and return the exit status."""
     parser = build_parser()
     try:
+        _apply_config(parser, argv)
         args = parser.parse_args(argv)
     except SystemExit as exit_:  # argparse exits 2 on usage errors, 0 on --help
         return int(exit_.code or 0)
@@ -768,6 +806,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         warnings.showwarning = shown
 
 
+def _apply_config(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> None:
+    """Defaults from ``--config FILE`` (bad files: message and exit 2)."""
+    from .config import ConfigError, apply_config, load_config
+
+    pre = argparse.ArgumentParser(add_help=False)
+    pre.add_argument("--config", type=Path)
+    known, _ = pre.parse_known_args(argv)
+    if known.config is not None:
+        try:
+            apply_config(parser, load_config(known.config))
+        except ConfigError as error:
+            print(f"workbench: error: {error}", file=sys.stderr)
+            raise SystemExit(EXIT_USAGE) from None
+
+
 def _run(args: argparse.Namespace) -> int:
     """Run the chosen command; user errors become messages and exit statuses."""
     try:
@@ -786,6 +839,7 @@ def _run(args: argparse.Namespace) -> int:
     except UsageError as error:
         print(f"workbench: error: {error}", file=sys.stderr)
         return EXIT_USAGE
+
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
