@@ -45,10 +45,20 @@ written by `write_accelerations(record, path)`:
 | `start_time` | string | time of the first sample, ISO-8601 UTC (`2026-01-01T00:00:00.000000Z`) |
 | `channels` | string array, n_channels | unique channel names |
 
-`read_accelerations(path)` also reads MATLAB `.mat` files (v5 via SciPy, v7.3/HDF5 via
-h5py; variable names configurable with `mat_variables={"acceleration": "acc", ...}`; the
-longer dimension is taken as samples unless `mat_orientation` says otherwise) and CSV files
-(an ISO-8601 `time` column, one column per channel, the rate from the median time step).
+`read_accelerations(path, layout=...)` also reads, by suffix (module `data_contracts.formats`;
+`layout` is an `AccelerationLayout` or a dict of its fields, CLI flags in brackets):
+
+| suffix | layout |
+|---|---|
+| `.mat` | v5 (SciPy) or v7.3 (h5py); variables found under their usual names (`data`, `fs`, `t0`, `chanNames`, ...) or named (`variables`, `--variables acceleration=X,...`); `t0` as text, MATLAB datenum or datevec |
+| `.csv`, `.tsv`, `.txt` | a time column (`time`, `Timestamp`, `Time [s]`, ... or `time_column`) in ISO-8601, `yyyy/mm/dd`, `dd.mm.yyyy`, a `time_format`, or relative seconds plus `start_time` (a time, or `filename` for the time in the file name); separator and decimal comma detected; one column per channel |
+| `.h5`, `.hdf5` | the 2-D dataset (or a group of one 1-D dataset per channel), rate, start and channel names as datasets beside it or attributes, or named (`variables`); links to other files are not followed |
+| `.uff`, `.unv` | dataset 58 time responses (function type 1) via `pyuff`; channels named by node and direction (`101+Z`); start from the ID lines or `start_time` |
+
+Units come from `units` (one for all channels or per channel), else from the headers or
+HDF5/UFF unit labels (`acc01 [g]`, `[mm/s^2]`), else m/s²; g, mg, mm/s², cm/s², gal and
+ft/s² are converted to m/s². A file that cannot be read is reported with what it contains
+(columns, variables, datasets).
 Checks: 2-D numeric array, one unique name per channel, positive sampling rate, a valid
 start time, no infinite values, |a| below 500 m/s² (larger values mean wrong units).
 

@@ -43,7 +43,7 @@ def _decode(raw: bytes, encoding: str | None) -> str:
 def sniff_separator(header_line: str) -> str:
     """The most frequent of ``,``, ``;``, tab and ``|`` in *header_line* (``,`` if none)."""
     counts = {sep: header_line.count(sep) for sep in (",", ";", "\t", "|")}
-    best = max(counts, key=counts.get)
+    best = max(counts, key=lambda sep: counts[sep])
     return best if counts[best] else ","
 
 

@@ -422,7 +422,7 @@ def read_dship(
             out[column.name] = np.nan
             continue
         used.add(index)
-        out[column.name] = convert(index, column.name, column.unit)
+        out[column.name] = convert(index, column.name, column.unit or "")
     if "wind_dir_rel_deg" in absent:
         derived = _derive_relative_wind(out, find, used, convert, headers)
         if derived is not None:

@@ -203,8 +203,8 @@ def standardise_modal(
         keys
     ) and all(units[keys[k]] is None for k in ("frequencyhz", "dampingratio"))
     kind = layout.layout
-    wide_f = {c: _wide_index(_WIDE_FREQUENCY, c) for c in frame.columns}
-    wide_f = {c: n for c, n in wide_f.items() if n is not None}
+    found_f = {c: _wide_index(_WIDE_FREQUENCY, c) for c in frame.columns}
+    wide_f: dict[str, int] = {c: n for c, n in found_f.items() if n is not None}
     if kind == "auto":
         if is_contract:
             kind = "contract"
@@ -223,7 +223,7 @@ def standardise_modal(
         return _finish(table, head, source)
 
     time_column = None
-    reference = layout.time_reference
+    reference: str | None = layout.time_reference
     named_reference = None
     for ref, names in _TIME_NAMES.items():
         column = _find(keys, names)
@@ -265,8 +265,8 @@ def standardise_modal(
                 long[column] = frame[column].to_numpy()
         long["mode"] = _mode_labels(long["mode"], mode_column, fail)
     else:  # wide
-        wide_d = {c: _wide_index(_WIDE_DAMPING, c) for c in frame.columns}
-        wide_d = {n: c for c, n in wide_d.items() if n is not None}
+        numbers = {c: _wide_index(_WIDE_DAMPING, c) for c in frame.columns}
+        wide_d = {n: c for c, n in numbers.items() if n is not None}
         if not wide_d:
             raise fail(f"wide layout has no damping columns (d1, d2, ... or zeta1, ...; {found})")
         parts = []

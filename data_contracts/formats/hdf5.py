@@ -221,7 +221,7 @@ def read_hdf5_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
         header_units: list[str | None] = [None] * len(channels)
         if unit_value is not None:
             raw = unit_value[()] if isinstance(unit_value, h5py.Dataset) else unit_value
-            texts = _texts(raw)
+            texts: list[str | None] = list(_texts(raw))
             header_units = texts * len(channels) if len(texts) == 1 else texts
         elif group_channels is not None:
             header_units = [

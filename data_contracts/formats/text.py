@@ -104,7 +104,10 @@ def read_text_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
 
     rate = layout.sampling_rate_hz
     if time_index is None:
-        start = layout_start(layout, path)
+        given = layout_start(layout, path)
+        if given is None or rate is None:
+            raise fail(f"no time column: give the start time and the sampling rate ({found})")
+        start = given
     else:
         start, step = _times(
             path, frame.iloc[:, time_index], headers[time_index], units[time_index], layout, fail
@@ -113,6 +116,8 @@ def read_text_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
             if not step > 0:
                 raise fail("times do not increase", headers[time_index])
             rate = round(1.0 / step, 9)
+    if rate is None:
+        raise fail("no sampling rate: give it")
     start = start.tz_localize("UTC") if start.tzinfo is None else start.tz_convert("UTC")
     header_units = [units[j] for j in channel_indices]
     acceleration = convert_units(acceleration, channels, header_units, layout, path)

@@ -99,9 +99,8 @@ def read_uff_accelerations(path: str | os.PathLike, layout: AccelerationLayout):
             f"records of node(s) {', '.join(complex_nodes)} hold complex values, not time responses"
         )
     acceleration = np.column_stack(columns).astype(float)
-    if layout.start_time is not None:
-        start = layout_start(layout, path)
-    else:
+    start = layout_start(layout, path)
+    if start is None:
         ids = [str(s.get(f"id{k}", "")) for s in responses[:1] for k in range(1, 6)]
         match = next((m.group(0) for text in ids if (m := _DATE.search(text))), None)
         if match is None:
