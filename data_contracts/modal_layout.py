@@ -199,9 +199,10 @@ def standardise_modal(
         name, unit = split_unit(str(column))
         keys.setdefault(name_key(name), column)
         units[column] = unit
-    is_contract = {"block", "blockstart", "blockend", "mode", "frequencyhz", "dampingratio"} <= set(
-        keys
-    ) and all(units[keys[k]] is None for k in ("frequencyhz", "dampingratio"))
+    # the contract's own block columns: the contract names whatever else is wrong
+    is_contract = {"block", "blockstart", "blockend"} <= set(keys) and all(
+        units[keys[k]] is None for k in ("frequencyhz", "dampingratio") if k in keys
+    )
     kind = layout.layout
     found_f = {c: _wide_index(_WIDE_FREQUENCY, c) for c in frame.columns}
     wide_f: dict[str, int] = {c: n for c, n in found_f.items() if n is not None}
