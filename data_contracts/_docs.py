@@ -51,7 +51,7 @@ written by `write_accelerations(record, path)`:
 | suffix | layout |
 |---|---|
 | `.mat` | v5 (SciPy) or v7.3 (h5py); variables found under their usual names (`data`, `fs`, `t0`, `chanNames`, ...) or named (`variables`, `--variables acceleration=X,...`); `t0` as text, MATLAB datenum or datevec |
-| `.csv`, `.tsv`, `.txt` | a time column (`time`, `Timestamp`, `Time [s]`, ... or `time_column`) in ISO-8601, `yyyy/mm/dd`, `dd.mm.yyyy`, a `time_format`, or relative seconds plus `start_time` (a time, or `filename` for the time in the file name); separator and decimal comma detected; one column per channel |
+| `.csv`, `.tsv`, `.txt` | a time column (`time`, `Timestamp`, `Time [s]`, ... or `time_column`) in ISO-8601, `yyyy/mm/dd`, `dd.mm.yyyy`, a `time_format`, or relative seconds plus `start_time` (a time, or `filename` for the time in the file name); separator and decimal comma detected; `Start time:` and `Sample rate:` lines above the header are read; one column per channel |
 | `.h5`, `.hdf5` | the 2-D dataset (or a group of one 1-D dataset per channel), rate, start and channel names as datasets beside it or attributes, or named (`variables`); links to other files are not followed |
 | `.uff`, `.unv` | dataset 58 time responses (function type 1) via `pyuff`; channels named by node and direction (`101+Z`); start from the ID lines or `start_time` |
 
@@ -124,6 +124,20 @@ def _columns_table(contract: TableContract) -> str:
     return text
 
 
+_MODAL_LAYOUTS = """
+
+Modal tables of other tools are read into this table by `read_modal_table(path, ...)` in
+`data_contracts.modal_layout` (the commands `correlate`, `fit`, `forecast` and `evaluate`
+use it): long (`time, mode, frequency, damping`, also `Frequency [Hz]`, `Damping [%]`,
+`zeta`, mode labels such as `Mode 2`), wide (`f1, f2, ..., d1, d2, ...`) or indexed by
+`block` (with the grid's `t0`). Times mark the start, centre or end of the analysis
+window (`time_reference`, or from names such as `window_centre`; else start, with a
+warning) and are placed on the block grid; times off the grid are refused by row.
+Damping is a fraction unless the header (`[%]`, `_pct`) or `damping_unit` says percent;
+a header that says nothing needs `damping_unit`. Naive times are UTC with a warning unless
+`time_zone` is given. Rows without a frequency are dropped with a warning that counts
+them."""
+
 _TITLES = {
     "predictors": "Block predictors",
     "modal": "Tracked modal table",
@@ -145,6 +159,7 @@ def render_markdown() -> str:
             f"## {_TITLES[contract.name]} (`{contract.name}`)\n\n"
             f"{contract.description}\n\n"
             f"{_columns_table(contract)}"
+            + (_MODAL_LAYOUTS if contract is MODAL else "")
         )
     return "\n\n".join(parts) + "\n"
 

@@ -4,6 +4,8 @@ channel, units in the headers (``acc01 [m/s^2]``) or stated by the user."""
 from __future__ import annotations
 
 import os
+import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -48,7 +50,17 @@ def read_text_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
             [Violation(column, reason, tuple(rows), n_rows)], source=path, contract="accelerations"
         )
 
-    frame, _, _ = read_delimited(path, separator=layout.separator, decimal=layout.decimal)
+    n_banner, banner = _banner(path, layout.separator)
+    if banner:
+        changes = {}
+        if layout.start_time is None and "start_time" in banner:
+            changes["start_time"] = banner["start_time"]
+        if layout.sampling_rate_hz is None and "sampling_rate_hz" in banner:
+            changes["sampling_rate_hz"] = banner["sampling_rate_hz"]
+        layout = replace(layout, **changes)
+    frame, _, _ = read_delimited(
+        path, separator=layout.separator, decimal=layout.decimal, skip_rows=n_banner
+    )
     headers = [str(c) for c in frame.columns]
     found = describe(headers, "columns")
     names = [split_unit(h)[0] for h in headers]
@@ -126,6 +138,58 @@ def read_text_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
     return AccelerationRecord(acceleration, rate, start, tuple(channels))
 
 
+_BANNER_RATE = {"samplerate", "samplingrate", "samplingfrequency", "fs", "rate", "scanrate"}
+_BANNER_START = {
+    "starttime",
+    "start",
+    "recordingstart",
+    "t0",
+    "starttimeutc",
+    "datetime",
+    "trigger",
+}
+_NUMBER = re.compile(r"[+-]?\d+(?:[.,]\d+)?(?:[eE][+-]?\d+)?")
+
+
+def _banner(path, separator: str | None) -> tuple[int, dict]:
+    """Lines above the header (an acquisition system's metadata) and what they state.
+
+    The header is the first line whose field count the next lines share; ``key: value``
+    (or ``key = value``, ``key;value``) lines above it give the start time (``Start time``,
+    ``Recording start``, ``t0``) and the sampling rate (``Sample rate``, ``Sampling
+    frequency``, ``fs``) when the layout does not.
+    """
+    from ..csv_layout import sniff_separator
+
+    with open(path, "rb") as handle:
+        head = handle.read(65536).decode("utf-8", "replace")
+    lines = head.splitlines()[:60]
+    start = 0
+    for i, line in enumerate(lines):
+        sep = separator or sniff_separator(line)
+        n = line.count(sep)
+        following = [x for x in lines[i + 1 : i + 4] if x.strip()][:2]
+        if n and following and all(x.count(sep) == n for x in following):
+            start = i
+            break
+    found: dict = {}
+    for line in lines[:start]:
+        parts = re.split(r"\s*[:=;\t]\s*", line.strip().lstrip("#%").strip(), maxsplit=1)
+        if len(parts) != 2 or not parts[1]:
+            continue
+        key = name_key(split_unit(parts[0])[0])
+        value = parts[1].strip().strip('"')
+        if key in _BANNER_RATE and (number := _NUMBER.search(value)):
+            rate = float(number.group(0).replace(",", "."))
+            unit = value[number.end() :].strip().lower()
+            found["sampling_rate_hz"] = rate * 1000 if unit.startswith("khz") else rate
+        elif key in _BANNER_START:
+            times, _ = parse_log_times(pd.Series([value]))
+            if times.notna().all():
+                found["start_time"] = times.iat[0].isoformat()
+    return start, found
+
+
 def _times(path, values: pd.Series, header: str, unit: str | None, layout, fail):
     """Start time and median step [s] of a time column."""
     fmt = layout.time_format
@@ -172,10 +236,10 @@ def _times(path, values: pd.Series, header: str, unit: str | None, layout, fail)
 def looks_like_acceleration_table(path: str | os.PathLike) -> bool:
     """Whether a text file found by a folder search is an acceleration record.
 
-    Yes when its header has a time column (``time``, ``Timestamp``, ``Time [s]``, ...) and
-    it is neither a workbench table (``block``, ``case`` columns), a ship log (a
-    ``/* ... */`` description block or predictor names such as ``Speed``, ``TTT``) nor
-    unreadable.
+    Yes when its header has a time column (``time``, ``Timestamp``, ``Time [s]``, ...) or
+    lines above the header state the start and the sampling rate, and it is neither a
+    workbench table (``block``, ``case`` columns), a ship log (a ``/* ... */`` description
+    block or predictor names such as ``Speed``, ``TTT``, ``SYS.STR.SOG``) nor unreadable.
     """
     from ..csv_layout import sniff_separator
     from ..dship_names import DSHIP_NAMES
@@ -183,15 +247,20 @@ def looks_like_acceleration_table(path: str | os.PathLike) -> bool:
     try:
         with open(path, "rb") as handle:
             raw = handle.read(65536)
-    except OSError:
+        n_banner, banner = _banner(path, None)
+    except (OSError, ValueError):
         return False
     text = raw.decode("utf-8", "replace")
-    header = next((line for line in text.splitlines() if line.strip()), "")
-    if header.lstrip().startswith("/*"):
+    lines = text.splitlines()
+    if text.lstrip().startswith("/*"):
         return False
+    header = lines[n_banner] if n_banner < len(lines) else ""
     keys = {name_key(split_unit(f)[0]) for f in header.split(sniff_separator(header))}
     if keys & {"block", "blockstart", "case", "mode"}:
         return False
+    keys |= {k.rsplit(".", 1)[-1] for k in keys}  # DSHIP's DEVICE.SENSOR.PARAMETER
     if keys & {name_key(n) for names in DSHIP_NAMES.values() for n in names}:
         return False
+    if {"start_time", "sampling_rate_hz"} <= set(banner):
+        return True
     return bool(keys & set(_TIME_NAMES))

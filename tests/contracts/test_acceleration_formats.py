@@ -280,8 +280,12 @@ def test_folder_search_finds_every_format_and_skips_tables(tmp_path):
     (tmp_path / "cases.csv").write_text("case,start,end\n")
     (tmp_path / "dship.tsv").write_text("/* DATA DESCRIPTION:\n*/\nDate/Time\tSpeed [kn]\n")
     (tmp_path / "log.csv").write_text("Date/Time,Speed [kn],TTT [°C]\n")
+    (tmp_path / "raw.txt").write_text(
+        "date time;Weatherstation.PEWDS.Air_temperature\n;°C\n01.03.2026 12:00:00;1,0\n"
+    )
+    (tmp_path / "export.txt").write_text("Start time: 2026-03-01T12:05Z\nfs = 64\na;b\n1;2\n3;4\n")
     names = [p.relative_to(tmp_path).as_posix() for p in acceleration_files([tmp_path])]
-    assert names == ["a.csv", "b.mat", "c.h5", "sub/d.unv"]
+    assert names == ["a.csv", "b.mat", "c.h5", "export.txt", "sub/d.unv"]
 
 
 def test_cli_validate_with_layout_flags(tmp_path, capsys):
@@ -310,3 +314,26 @@ def test_cli_validate_with_layout_flags(tmp_path, capsys):
     assert "256 samples x 3 channels at 64 Hz from 2026-03-01T12:05:00+00:00" in out
     assert main(["validate", "accelerations", str(path), "--units", "furlong"]) == 2
     assert "not an acceleration unit" in capsys.readouterr().err
+
+
+def test_banner_lines_above_the_header_give_start_and_rate(tmp_path):
+    """Acquisition-system exports often put metadata above the header."""
+    data = signals()
+    lines = [
+        "Measurement: hull monitoring, frame 112",
+        "Start time: 01.03.2026 12:05:00",
+        "Sample rate: 64 Hz",
+        "",
+        "acc01 [g];acc02 [g];acc03 [g]",
+    ] + [
+        ";".join(f"{v / STANDARD_GRAVITY_MS2:.17g}".replace(".", ",") for v in row) for row in data
+    ]
+    path = tmp_path / "export.txt"
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    record = read_accelerations(path)
+    assert record.start_time == START and record.sampling_rate_hz == RATE
+    assert record.channels == CHANNELS
+    np.testing.assert_allclose(record.acceleration, data, rtol=1e-14)
+    # the layout wins over the banner
+    record = read_accelerations(path, layout={"sampling_rate_hz": 128.0})
+    assert record.sampling_rate_hz == 128.0
