@@ -134,7 +134,8 @@ use it): long (`time, mode, frequency, damping`, also `Frequency [Hz]`, `Damping
 window (`time_reference`, or from names such as `window_centre`; else start, with a
 warning) and are placed on the block grid; times off the grid are refused by row.
 Damping is a fraction unless the header (`[%]`, `_pct`) or `damping_unit` says percent;
-a header that says nothing needs `damping_unit`. Naive times are UTC with a warning unless
+a header that says nothing needs `damping_unit`; a table without damping leaves
+`damping_ratio` empty (warning). Naive times are UTC with a warning unless
 `time_zone` is given. Rows without a frequency are dropped with a warning that counts
 them."""
 
@@ -158,8 +159,7 @@ def render_markdown() -> str:
         parts.append(
             f"## {_TITLES[contract.name]} (`{contract.name}`)\n\n"
             f"{contract.description}\n\n"
-            f"{_columns_table(contract)}"
-            + (_MODAL_LAYOUTS if contract is MODAL else "")
+            f"{_columns_table(contract)}" + (_MODAL_LAYOUTS if contract is MODAL else "")
         )
     return "\n\n".join(parts) + "\n"
 

@@ -20,6 +20,7 @@ the analysis window (``time_reference``, taken from the column name when it says
 (``t0 + k * step``) and ``block_end`` is the start plus the block length. A table indexed
 by ``block`` alone needs the grid's ``t0``.
 
+A table without damping (frequencies only) keeps ``damping_ratio`` empty, with a warning.
 Nothing is guessed silently: a damping column without a unit needs ``damping_unit``;
 naive times are taken as UTC with a warning unless ``time_zone`` is given; a time reference
 not stated anywhere is taken as the window start with a warning; rows without a frequency
@@ -244,15 +245,15 @@ def standardise_modal(
             raise fail(f"long layout needs mode and frequency columns; {found}")
         damping_column = _find(keys, _DAMPING_NAMES)
         if damping_column is None:
-            raise fail(f"no damping column (looked for damping, damping_ratio, zeta, xi; {found})")
+            _no_damping(head, "damping, damping_ratio, zeta, xi")
         long = pd.DataFrame(
             {
                 "_row": np.arange(len(frame)),
                 "mode": frame[mode_column],
                 "frequency_hz": _frequency(frame[frequency_column], units[frequency_column], fail),
-                "damping_ratio": _damping(
-                    frame[damping_column], damping_column, units, layout, fail
-                ),
+                "damping_ratio": np.nan
+                if damping_column is None
+                else _damping(frame[damping_column], damping_column, units, layout, fail),
             }
         )
         index_columns = [c for c in (time_column, block_column) if c is not None]
@@ -269,20 +270,20 @@ def standardise_modal(
         numbers = {c: _wide_index(_WIDE_DAMPING, c) for c in frame.columns}
         wide_d = {n: c for c, n in numbers.items() if n is not None}
         if not wide_d:
-            raise fail(f"wide layout has no damping columns (d1, d2, ... or zeta1, ...; {found})")
+            _no_damping(head, "d1, d2, ... or zeta1, ...")
         parts = []
         for column, number in sorted(wide_f.items(), key=lambda item: item[1]):
             damping_column = wide_d.get(number)
-            if damping_column is None:
+            if damping_column is None and wide_d:
                 raise fail(f"no damping column for mode {number} (frequency column {column})")
             part = pd.DataFrame(
                 {
                     "_row": np.arange(len(frame)),
                     "mode": number,
                     "frequency_hz": _frequency(frame[column], units[column], fail),
-                    "damping_ratio": _damping(
-                        frame[damping_column], damping_column, units, layout, fail
-                    ),
+                    "damping_ratio": np.nan
+                    if damping_column is None
+                    else _damping(frame[damping_column], damping_column, units, layout, fail),
                 }
             )
             for index_column in (time_column, block_column):
@@ -377,6 +378,14 @@ def _finish(table: pd.DataFrame, head: str, source: str | None) -> pd.DataFrame:
             )
             table = table.loc[~missing].reset_index(drop=True)
     return MODAL.validate(table, source=source)
+
+
+def _no_damping(head: str, looked_for: str) -> None:
+    warnings.warn(
+        f"{head}: no damping column (looked for {looked_for}); a frequency-only table: "
+        "damping_ratio is left empty (NaN)",
+        stacklevel=4,
+    )
 
 
 def _wide_index(pattern: re.Pattern, column) -> int | None:

@@ -453,6 +453,10 @@ def _run_correlate(args: argparse.Namespace) -> int:
             cases=args.cases,
             alpha=args.alpha,
             correction=None if args.correction == "none" else args.correction,
+            # a frequency-only table (another tool's) has no damping to correlate
+            quantities=("frequency_hz", "damping_ratio")
+            if modal["damping_ratio"].notna().any()
+            else ("frequency_hz",),
         )
     for name, path in dict(paths).items():
         print(f"{name}: {path}")

@@ -218,3 +218,42 @@ def test_cli_reads_a_long_table_with_one_flag(tmp_path, capsys):
     assert code == 0, err
     assert "SSI 0.050 Hz, model 0.000 Hz, Kalman 0.020 Hz" in out
     assert np.isclose(0.02, abs(2.92 - FREQUENCIES[1][0]))
+
+
+def test_frequency_only_wide_table_warns_and_leaves_damping_empty(tmp_path):
+    lines = ["Time;f1 [Hz];f2 [Hz]"]
+    for k in range(3):
+        lines.append(f"{STARTS[k].isoformat()};{FREQUENCIES[1][k]};{FREQUENCIES[2][k]}")
+    path = write(tmp_path, "\n".join(lines) + "\n")
+    with pytest.warns(UserWarning, match="no damping column .*damping_ratio is left empty"):
+        table = read_modal_table(path, time_reference="start")
+    assert table["frequency_hz"].tolist() == expected()["frequency_hz"].tolist()
+    assert table["damping_ratio"].isna().all()
+    assert table["block"].tolist() == [0, 0, 1, 1, 2, 2]
+
+
+def test_correlate_a_frequency_only_wide_table(tmp_path, capsys):
+    assert main(["simulate", "--out", str(tmp_path), "--hours", "3", "--no-accelerations"]) == 0
+    tracked = pd.read_csv(tmp_path / "tracked_modal.csv")
+    wide = tracked.pivot(index="block_start", columns="mode", values="frequency_hz")
+    wide.columns = [f"f{m} [Hz]" for m in wide.columns]
+    wide.index.name = "window_start"
+    wide.reset_index().to_csv(tmp_path / "wide.csv", index=False)
+    capsys.readouterr()
+    code = main(
+        [
+            "correlate",
+            "--modal",
+            str(tmp_path / "wide.csv"),
+            "--dship",
+            str(tmp_path / "dship.tsv"),
+            "--out",
+            str(tmp_path / "corr"),
+        ]
+    )
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert "damping_ratio is left empty" in err and "Mean of empty slice" not in err
+    table = pd.read_csv(tmp_path / "corr" / "correlation.csv")
+    assert table["y"].str.endswith("frequency_hz").any()
+    assert not table["y"].str.endswith("damping_ratio").any()
