@@ -7,7 +7,8 @@ a test checks that the README is in sync.
 from __future__ import annotations
 
 from ._core import TableContract
-from .dship import DEFAULT_DSHIP_MAPPING, DSHIP_LOG
+from .dship import DSHIP_LOG
+from .dship_names import DSHIP_NAMES
 from .tables import FORECAST, MODAL, POLES, PREDICTORS
 
 _INTRO = """\
@@ -44,10 +45,20 @@ written by `write_accelerations(record, path)`:
 | `start_time` | string | time of the first sample, ISO-8601 UTC (`2026-01-01T00:00:00.000000Z`) |
 | `channels` | string array, n_channels | unique channel names |
 
-`read_accelerations(path)` also reads MATLAB `.mat` files (v5 via SciPy, v7.3/HDF5 via
-h5py; variable names configurable with `mat_variables={"acceleration": "acc", ...}`; the
-longer dimension is taken as samples unless `mat_orientation` says otherwise) and CSV files
-(an ISO-8601 `time` column, one column per channel, the rate from the median time step).
+`read_accelerations(path, layout=...)` also reads, by suffix (module `data_contracts.formats`;
+`layout` is an `AccelerationLayout` or a dict of its fields, CLI flags in brackets):
+
+| suffix | layout |
+|---|---|
+| `.mat` | v5 (SciPy) or v7.3 (h5py); variables found under their usual names (`data`, `fs`, `t0`, `chanNames`, ...) or named (`variables`, `--variables acceleration=X,...`); `t0` as text, MATLAB datenum or datevec |
+| `.csv`, `.tsv`, `.txt` | a time column (`time`, `Timestamp`, `Time [s]`, ... or `time_column`) in ISO-8601, `yyyy/mm/dd`, `dd.mm.yyyy`, a `time_format`, or relative seconds plus `start_time` (a time, or `filename` for the time in the file name); separator and decimal comma detected; `Start time:` and `Sample rate:` lines above the header are read; one column per channel |
+| `.h5`, `.hdf5` | the 2-D dataset (or a group of one 1-D dataset per channel), rate, start and channel names as datasets beside it or attributes, or named (`variables`); links to other files are not followed |
+| `.uff`, `.unv` | dataset 58 time responses (function type 1) via `pyuff`; channels named by node and direction (`101+Z`); start from the ID lines or `start_time` |
+
+Units come from `units` (one for all channels or per channel), else from the headers or
+HDF5/UFF unit labels (`acc01 [g]`, `[mm/s^2]`), else m/s²; g, mg, mm/s², cm/s², gal and
+ft/s² are converted to m/s². A file that cannot be read is reported with what it contains
+(columns, variables, datasets).
 Checks: 2-D numeric array, one unique name per channel, positive sampling rate, a valid
 start time, no infinite values, |a| below 500 m/s² (larger values mean wrong units).
 
@@ -55,14 +66,21 @@ start time, no infinite values, |a| below 500 m/s² (larger values mean wrong un
 
 Delimited text as exported by the ship's data system (DSHIP) or PANGAEA: an optional
 `/* ... */` description block, a header line with units in brackets (`Speed [kn]`,
-`TTT [°C]`) or three header rows (name, sensor, unit), a `Date/Time` column, tab or `;`
-separators, empty cells for missing values, UTF-8 or latin-1. `read_dship(path,
-mapping=...)` maps source columns to the canonical columns below, converting units
-(m/s ↔ kn, K → °C, km/h), sorts by time (warning), keeps the first of duplicate time stamps
-(warning) and keeps every other numeric column under a snake_case name with its unit
-(`dd [deg]` → `dd_deg`). Canonical columns without a source column are NaN (warning).
+`TTT [°C]`) or up to three header rows (name, description, unit), DSHIP channel names
+`DEVICE.SENSOR.PARAMETER` (`SYS.STR.SOG`), a time column (ISO-8601, `yyyy/mm/dd HH:MM:SS`
+or day-first `dd.mm.yyyy HH:MM:SS`; UTC unless an offset is given), tab or `;`
+separators, decimal points or commas, empty cells for missing values, UTF-8 or latin-1.
+`read_dship(path, mapping=...)` (CLI: `--dship-columns speed_kn=NAME,...`) maps source
+columns to the canonical columns below, converting units (m/s ↔ kn, K → °C, km/h), sorts
+by time (warning), keeps the first of duplicate time stamps (warning) and keeps every other
+numeric column under a snake_case name with its unit (`dd [deg]` → `dd_deg`). Canonical
+columns without a source column are NaN (warning). Without a relative wind direction but
+with the true wind, heading, course and speed, the relative (apparent) wind is derived:
+direction the wind comes from, clockwise from the bow, and its speed.
 
-Default mapping (case-insensitive source names, with or without the bracketed unit):
+Default names (case, spaces and underscores ignored, with or without the bracketed unit; a
+name also matches the last part of a dotted DSHIP name, and two such matches are refused
+rather than guessed). The last four rows are read only to derive the relative wind:
 
 | canonical column | source names tried |
 |---|---|
@@ -106,6 +124,21 @@ def _columns_table(contract: TableContract) -> str:
     return text
 
 
+_MODAL_LAYOUTS = """
+
+Modal tables of other tools are read into this table by `read_modal_table(path, ...)` in
+`data_contracts.modal_layout` (the commands `correlate`, `fit`, `forecast` and `evaluate`
+use it): long (`time, mode, frequency, damping`, also `Frequency [Hz]`, `Damping [%]`,
+`zeta`, mode labels such as `Mode 2`), wide (`f1, f2, ..., d1, d2, ...`) or indexed by
+`block` (with the grid's `t0`). Times mark the start, centre or end of the analysis
+window (`time_reference`, or from names such as `window_centre`; else start, with a
+warning) and are placed on the block grid; times off the grid are refused by row.
+Damping is a fraction unless the header (`[%]`, `_pct`) or `damping_unit` says percent;
+a header that says nothing needs `damping_unit`; a table without damping leaves
+`damping_ratio` empty (warning). Naive times are UTC with a warning unless
+`time_zone` is given. Rows without a frequency are dropped with a warning that counts
+them."""
+
 _TITLES = {
     "predictors": "Block predictors",
     "modal": "Tracked modal table",
@@ -118,7 +151,7 @@ def render_markdown() -> str:
     """The contracts documentation as Markdown."""
     mapping = "\n".join(
         f"| `{name}` | {', '.join(f'`{s}`' for s in sources)} |"
-        for name, sources in DEFAULT_DSHIP_MAPPING.items()
+        for name, sources in DSHIP_NAMES.items()
     )
     parts = [_INTRO.replace("{mapping}", mapping).rstrip("\n")]
     parts.append("Canonical log after parsing:\n\n" + _columns_table(DSHIP_LOG))
@@ -126,7 +159,7 @@ def render_markdown() -> str:
         parts.append(
             f"## {_TITLES[contract.name]} (`{contract.name}`)\n\n"
             f"{contract.description}\n\n"
-            f"{_columns_table(contract)}"
+            f"{_columns_table(contract)}" + (_MODAL_LAYOUTS if contract is MODAL else "")
         )
     return "\n\n".join(parts) + "\n"
 

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ._core import CSV_READ_OPTIONS, ContractError, Violation, atomic_path
+from ._core import ContractError, Violation, atomic_path
 
 __all__ = [
     "MAX_PLAUSIBLE_ACCELERATION_MS2",
@@ -269,63 +269,16 @@ def _read_mat(path: Path, variables: dict[str, str], orientation: str) -> Accele
     )
 
 
-def _read_csv(path: Path, time_column: str, sampling_rate_hz: float | None) -> AccelerationRecord:
-    frame = pd.read_csv(path, **CSV_READ_OPTIONS)
-    if time_column not in frame.columns:
-        raise ContractError(
-            [Violation(time_column, "time column is missing")],
-            source=path,
-            contract="accelerations",
-        )
-    times = pd.to_datetime(frame[time_column], utc=True, errors="coerce", format="ISO8601")
-    if times.isna().any():
-        rows = tuple(frame.index[times.isna()][:5].tolist())
-        raise ContractError(
-            [Violation(time_column, "not ISO-8601 times", rows, int(times.isna().sum()))],
-            source=path,
-            contract="accelerations",
-        )
-    if sampling_rate_hz is None:
-        if len(times) < 2:
-            raise ContractError(
-                [Violation(time_column, "needs at least 2 samples")],
-                source=path,
-                contract="accelerations",
-            )
-        step = np.median(np.diff(times.to_numpy()).astype("timedelta64[ns]").astype(float)) / 1e9
-        if not step > 0:
-            raise ContractError(
-                [Violation(time_column, "times do not increase")],
-                source=path,
-                contract="accelerations",
-            )
-        sampling_rate_hz = round(1.0 / step, 9)
-    data = frame.drop(columns=[time_column])
-    numeric = data.apply(pd.to_numeric, errors="coerce")
-    bad_columns = [c for c in data.columns if (numeric[c].isna() & data[c].notna()).any()]
-    if bad_columns:
-        raise ContractError(
-            [Violation(c, "non-numeric values") for c in bad_columns],
-            source=path,
-            contract="accelerations",
-        )
-    return AccelerationRecord(
-        numeric.to_numpy(dtype=float),
-        sampling_rate_hz,
-        times.iloc[0],
-        tuple(str(c) for c in data.columns),
-    )
-
-
 def read_accelerations(
     path: str | os.PathLike,
     *,
     mat_variables: dict[str, str] | None = None,
     mat_orientation: str = "auto",
-    csv_time_column: str = "time",
+    csv_time_column: str | None = None,
     csv_sampling_rate_hz: float | None = None,
+    layout=None,
 ) -> AccelerationRecord:
-    """Read an acceleration file: canonical ``.npz``, MATLAB ``.mat`` or ``.csv``.
+    """Read an acceleration file: canonical ``.npz``, MATLAB ``.mat``, CSV/TSV, HDF5 or UFF.
 
     Parameters
     ----------
@@ -333,13 +286,19 @@ def read_accelerations(
         The file. The format is chosen by suffix.
     mat_variables : dict, optional
         MATLAB variable names for ``acceleration``, ``sampling_rate_hz``, ``start_time``
-        and ``channels`` (defaults: the same names). Both v5 and v7.3 (HDF5) files work.
+        and ``channels`` (default: the usual names present, e.g. ``data``, ``fs``, ``t0``,
+        ``chanNames``). Both v5 and v7.3 (HDF5) files work.
     mat_orientation : {"auto", "samples_first", "channels_first"}
         Layout of the MATLAB matrix; ``auto`` takes the longer dimension as samples.
-    csv_time_column : str
-        CSV column with ISO-8601 sample times; every other column is a channel.
+    csv_time_column : str, optional
+        CSV column with the sample times (default: ``time``, ``Timestamp``, ...).
     csv_sampling_rate_hz : float, optional
         Sampling rate for CSV files; default: from the median time step. [Hz]
+    layout : AccelerationLayout or mapping, optional
+        Everything else a file's headers may not say (time format, separator, decimal
+        mark, relative time and start, units, channels, HDF5 names); see
+        :class:`data_contracts.formats.AccelerationLayout`. The keyword arguments above
+        take precedence over its fields.
 
     Raises
     ------
@@ -352,25 +311,41 @@ def read_accelerations(
         raise ContractError(
             [Violation(None, "file not found")], source=path, contract="accelerations"
         )
-    variables = {
-        "acceleration": "acceleration",
-        "sampling_rate_hz": "sampling_rate_hz",
-        "start_time": "start_time",
-        "channels": "channels",
-    }
-    variables.update(mat_variables or {})
+    from . import formats
+
+    try:
+        layout = formats.as_layout(
+            layout,
+            time_column=csv_time_column,
+            sampling_rate_hz=csv_sampling_rate_hz,
+            orientation=None if mat_orientation == "auto" else mat_orientation,
+        )
+        if mat_variables:
+            layout = formats.as_layout(layout, variables={**layout.variables, **mat_variables})
+    except ValueError as error:
+        raise ContractError(
+            [Violation(None, f"reading options: {error}")], source=path, contract="accelerations"
+        ) from None
     try:
         if suffix == ".npz":
             record = _read_npz(path)
         elif suffix == ".mat":
-            record = _read_mat(path, variables, mat_orientation)
-        elif suffix == ".csv":
-            record = _read_csv(path, csv_time_column, csv_sampling_rate_hz)
+            variables = formats.matlab.matlab_variables(path, layout.variables)
+            record = _read_mat(path, variables, layout.orientation)
+            record = formats.matlab_record(record, layout, path)
+        elif suffix in formats.text.TEXT_SUFFIXES:
+            record = formats.text.read_text_accelerations(path, layout)
+        elif suffix in formats.hdf5.HDF5_SUFFIXES:
+            record = formats.hdf5.read_hdf5_accelerations(path, layout)
+        elif suffix in formats.uff.UFF_SUFFIXES:
+            record = formats.uff.read_uff_accelerations(path, layout)
         else:
             raise ContractError(
                 [
                     Violation(
-                        None, f"unknown acceleration format '{suffix}' (use .npz, .mat or .csv)"
+                        None,
+                        f"unknown acceleration format '{suffix}' (use "
+                        f"{', '.join(formats.ACCELERATION_SUFFIXES)})",
                     )
                 ],
                 source=path,

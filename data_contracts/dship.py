@@ -5,9 +5,17 @@ The raw file is delimited text as exported by the ship's data system or by PANGA
 * an optional ``/* ... */`` description block,
 * one header line whose names carry units in brackets (``Speed [kn]``, ``TTT [°C]``),
   or three header rows (name, sensor, unit) as in raw DSHIP extractions,
-* a time column (``Date/Time``; ISO-8601, UTC unless an offset is given),
-* tab (PANGAEA) or ``;`` (DSHIP) separators, empty cells for missing values,
+* a time column (``Date/Time``; ISO-8601, ``yyyy/mm/dd HH:MM:SS`` or day-first
+  ``dd.mm.yyyy HH:MM:SS``; UTC unless an offset is given),
+* DSHIP channel names ``DEVICE.SENSOR.PARAMETER`` (``SYS.STR.SOG``), matched through the
+  built-in table :data:`~data_contracts.dship_names.DSHIP_NAMES` or the user's mapping,
+* up to three header rows before the data (name, description, unit),
+* tab (PANGAEA) or ``;`` (DSHIP) separators, decimal points or decimal commas, empty cells
+  for missing values,
 * UTF-8 or latin-1 text.
+
+When the log has no relative wind direction but the true wind, the heading, the course and
+the speed, the relative wind is derived (:func:`~data_contracts.dship_names.relative_wind`).
 
 :func:`read_dship` maps source columns to the canonical columns of :data:`DSHIP_LOG`
 through a configurable mapping, converts units, and keeps every other numeric column
@@ -28,6 +36,15 @@ import numpy as np
 import pandas as pd
 
 from ._core import Column, ContractError, TableContract, Violation
+from .dship_names import (
+    AUXILIARY_COLUMNS,
+    DSHIP_NAMES,
+    TIME_FORMATS,
+    name_key,
+    parse_log_times,
+    relative_wind,
+    resolve_mapping,
+)
 from .tables import CANONICAL_PREDICTORS
 
 __all__ = ["DEFAULT_DSHIP_MAPPING", "DSHIP_LOG", "read_dship"]
@@ -35,20 +52,21 @@ __all__ = ["DEFAULT_DSHIP_MAPPING", "DSHIP_LOG", "read_dship"]
 #: Source names (case-insensitive, without the bracketed unit) tried for each canonical
 #: column, in order. Pass your own mapping to :func:`read_dship` for other ships.
 DEFAULT_DSHIP_MAPPING: dict[str, tuple[str, ...]] = {
-    "speed_kn": ("Speed", "SOG", "Speed over ground", "Speed through water", "STW", "Ship speed"),
-    "water_temp_c": ("Temp", "Water temp", "Water temperature", "SST", "Tw", "Temp water"),
-    "air_temp_c": ("TTT", "Air temp", "Air temperature", "Ta"),
-    "wind_speed_ms": ("ff", "Wind speed", "Wind speed true", "FF"),
-    "wind_dir_rel_deg": (
-        "RelWindDir",
-        "Rel wind dir",
-        "Relative wind direction",
-        "dd rel",
-        "Wind direction relative",
-    ),
+    c.name: DSHIP_NAMES[c.name] for c in CANONICAL_PREDICTORS
 }
 
-TIME_COLUMN_NAMES = ("Date/Time", "DATE/TIME", "Date Time", "Datetime", "time", "Time")
+TIME_COLUMN_NAMES = (
+    "Date/Time",
+    "DATE/TIME",
+    "Date Time",
+    "Datetime",
+    "time",
+    "Time",
+    "Timestamp",
+    "Time (UTC)",
+    "UTC",
+    "Zeit",
+)
 
 _KNOT_PER_MS = 3600.0 / 1852.0
 
@@ -82,6 +100,11 @@ _CONVERSIONS: dict[str, dict[str, object]] = {
     },
     "wind_dir_rel_deg": {"°": None, "degrees": None},
 }
+_CONVERSIONS["wind_speed_true_ms"] = _CONVERSIONS["wind_speed_ms"]
+for _angle in ("wind_dir_true_deg", "heading_deg", "course_deg"):
+    _CONVERSIONS[_angle] = _CONVERSIONS["wind_dir_rel_deg"]
+#: Units recognised in a unit row besides the convertible ones.
+_OTHER_UNITS = {"%", "hpa", "mbar", "psu", "m", "°n", "°e", "w/m2", "w/m^2", "mm", "1", "-"}
 
 DSHIP_LOG = TableContract(
     name="dship",
@@ -123,8 +146,30 @@ def _decode(raw: bytes, encoding: str | None) -> str:
         return raw.decode("latin-1")
 
 
-def _looks_like_time(text: str) -> bool:
-    return not pd.isna(pd.to_datetime(text.strip(), errors="coerce", format="ISO8601", utc=True))
+def _looks_like_time(text: str, time_format: str | None) -> bool:
+    formats = (time_format,) if time_format else ("ISO8601", *TIME_FORMATS)
+    return any(
+        not pd.isna(pd.to_datetime(text.strip(), errors="coerce", format=f, utc=True))
+        for f in formats
+    )
+
+
+def _is_unit(text: str) -> bool:
+    key = _unit_key(_split_name(text)[1] or text)
+    return bool(key) and (key in _OTHER_UNITS or any(key in c for c in _CONVERSIONS.values()))
+
+
+def _unit_row(rows: list[list[str]]) -> int | None:
+    """Which of the header rows after the names holds the units (None: none does)."""
+    if not rows:
+        return None
+    counts = [sum(_is_unit(c) for c in row if c) for row in rows]
+    if max(counts) > 0:
+        return len(counts) - 1 - counts[::-1].index(max(counts))
+    last = [c for c in rows[-1] if c]
+    if last and not any(" " in c for c in last):
+        return len(rows) - 1
+    return None
 
 
 def read_dship(
@@ -134,6 +179,8 @@ def read_dship(
     time_column: str | None = None,
     encoding: str | None = None,
     separator: str | None = None,
+    decimal: str | None = None,
+    time_format: str | None = None,
 ) -> pd.DataFrame:
     """Parse a raw DSHIP / PANGAEA ship log into the canonical log table.
 
@@ -143,13 +190,23 @@ def read_dship(
         The exported text file.
     mapping : mapping, optional
         Canonical column -> source name or names (case-insensitive, with or without the
-        bracketed unit). Entries replace those of :data:`DEFAULT_DSHIP_MAPPING`.
+        bracketed unit; a bare name also matches the last part of a dotted DSHIP name).
+        Entries replace those of :data:`~data_contracts.dship_names.DSHIP_NAMES`; besides
+        the predictors, ``wind_dir_true_deg``, ``wind_speed_true_ms``, ``heading_deg`` and
+        ``course_deg`` may be mapped (used to derive the relative wind), and ``time``
+        names the time column.
     time_column : str, optional
         Name of the time column; default: the first of :data:`TIME_COLUMN_NAMES` present.
     encoding : str, optional
         Text encoding; default UTF-8, falling back to latin-1.
     separator : str, optional
         Field separator; default: tab or ``;``, whichever the header line uses.
+    decimal : {".", ","}, optional
+        Decimal mark; default ``,`` when the separator is not ``,`` and numbers such as
+        ``12,5`` occur, else ``.``.
+    time_format : str, optional
+        :func:`~datetime.datetime.strptime` format of the times; default: ISO-8601,
+        ``yyyy/mm/dd HH:MM:SS`` or day-first ``dd.mm.yyyy HH:MM:SS``, whichever fits.
 
     Returns
     -------
@@ -167,6 +224,9 @@ def read_dship(
     """
     path = Path(path)
     source = str(path)
+    mapping = dict(mapping or {})
+    if "time" in mapping:
+        time_column = str(mapping.pop("time"))
 
     def fail(problems: list[Violation]) -> ContractError:
         return ContractError(problems, source=source, contract="dship")
@@ -211,6 +271,7 @@ def read_dship(
     units: list[str | None] = [_split_name(h)[1] for h in headers]
     names = [_split_name(h)[0] for h in headers]
 
+    found = f"columns in the file: {', '.join(h for h in headers if h)}"
     if time_column is None:
         lowered = {n.lower(): i for i, n in enumerate(names)}
         time_index = next(
@@ -221,29 +282,42 @@ def read_dship(
                 [
                     Violation(
                         "Date/Time",
-                        f"time column is missing (looked for {', '.join(TIME_COLUMN_NAMES)})",
+                        f"time column is missing (looked for {', '.join(TIME_COLUMN_NAMES)}; "
+                        f"{found}); name it in the mapping as time=NAME",
                     )
                 ]
             )
     else:
         if time_column not in names and time_column not in headers:
-            raise fail([Violation(time_column, "time column is missing")])
+            raise fail([Violation(time_column, f"time column is missing ({found})")])
         time_index = (
             names.index(time_column) if time_column in names else headers.index(time_column)
         )
 
-    # Raw DSHIP extractions: name row, sensor row, unit row before the data.
+    # Raw DSHIP extractions: up to three header rows (name, description, unit) before
+    # the data; the first row whose time cell holds a time starts the data.
     def time_field(line: str) -> str:
         fields = line.split(sep)
         return fields[time_index] if time_index < len(fields) else ""
 
-    if len(rows) >= 2 and not any(_looks_like_time(time_field(line)) for _, line in rows[:2]):
-        unit_fields = [u.strip() for u in rows[1][1].split(sep)]
-        for j in range(min(len(names), len(unit_fields))):
-            if unit_fields[j]:
-                bracketed = _split_name(unit_fields[j])[1]
-                units[j] = bracketed if bracketed is not None else unit_fields[j]
-        rows = rows[2:]
+    n_header = next(
+        (
+            k
+            for k, (_, line) in enumerate(rows[:4])
+            if _looks_like_time(time_field(line), time_format)
+        ),
+        0,
+    )
+    if 0 < n_header <= 3:
+        extra = [[u.strip() for u in line.split(sep)] for _, line in rows[:n_header]]
+        unit_index = _unit_row(extra)
+        if unit_index is not None:
+            unit_fields = extra[unit_index]
+            for j in range(min(len(names), len(unit_fields))):
+                if unit_fields[j] and j != time_index:
+                    bracketed = _split_name(unit_fields[j])[1]
+                    units[j] = bracketed if bracketed is not None else unit_fields[j]
+        rows = rows[n_header:]
     line_numbers = np.array([n for n, _ in rows], dtype=int)
     table = (
         pd.read_csv(
@@ -268,63 +342,97 @@ def read_dship(
         return tuple(labels), int(mask.sum())
 
     time_text = table[time_index].str.strip()
-    times = pd.to_datetime(time_text, utc=True, errors="coerce", format="ISO8601")
+    times, used_format = parse_log_times(time_text, time_format)
     bad_time = (times.isna() & (time_text != "")).to_numpy() | (time_text == "").to_numpy()
-    if bad_time.any():
-        shown, n = bad_lines(bad_time)
-        problems.append(Violation(headers[time_index], "not an ISO-8601 time", shown, n))
-
-    candidates = {
-        k: (v,) if isinstance(v, str) else tuple(v)
-        for k, v in {**DEFAULT_DSHIP_MAPPING, **(mapping or {})}.items()
-    }
-    unknown = sorted(set(candidates) - {c.name for c in CANONICAL_PREDICTORS})
-    if unknown:
-        raise ValueError(
-            f"mapping has unknown canonical column(s) {', '.join(unknown)}; "
-            f"known: {', '.join(c.name for c in CANONICAL_PREDICTORS)}"
+    if bad_time.all() and len(bad_time) and time_format is None:
+        problems.append(
+            Violation(
+                headers[time_index],
+                f"no known time format fits (first value {time_text.iat[0]!r}; tried ISO-8601, "
+                f"{', '.join(TIME_FORMATS)}); give the format (time_format)",
+            )
         )
+    elif bad_time.any():
+        shown, n = bad_lines(bad_time)
+        what = "an ISO-8601 time" if used_format == "ISO8601" else f"a time in {used_format}"
+        problems.append(Violation(headers[time_index], f"not {what}", shown, n))
+
+    known = [c.name for c in CANONICAL_PREDICTORS] + list(AUXILIARY_COLUMNS)
+    candidates = resolve_mapping(mapping, known)
+    if decimal is None:
+        decimal = "," if sep != "," and _has_decimal_commas(table, time_index) else "."
     out = pd.DataFrame({"time": times})
     used: set[int] = {time_index}
     absent: list[str] = []
-    for column in CANONICAL_PREDICTORS:
-        wanted = [w.lower() for w in candidates.get(column.name, ())]
-        index = next(
-            (
+
+    def find(name: str) -> int | None:
+        """Column index of canonical *name*: exact names first, then dotted suffixes."""
+        for wanted in candidates.get(name, ()):
+            w = name_key(wanted)
+            exact = [
                 j
-                for w in wanted
                 for j, (h, n) in enumerate(zip(headers, names, strict=True))
-                if j not in used and (h.lower() == w or n.lower() == w)
-            ),
-            None,
-        )
-        if index is None:
-            absent.append(column.name)
-            out[column.name] = np.nan
-            continue
-        used.add(index)
-        values, bad = _numbers(table[index])
+                if j not in used and w in (name_key(h), name_key(n))
+            ]
+            if exact:
+                return exact[0]
+            suffix = [
+                j
+                for j, n in enumerate(names)
+                if j not in used and "." in n and name_key(n.rsplit(".", 1)[1]) == w
+            ]
+            if len(suffix) > 1:
+                choices = ", ".join(headers[j] for j in suffix)
+                problems.append(
+                    Violation(
+                        None,
+                        f"several columns could be {name} ({choices}); choose one with a "
+                        f"mapping ({name}=NAME)",
+                    )
+                )
+                return suffix[0]
+            if suffix:
+                return suffix[0]
+        return None
+
+    def convert(index: int, name: str, unit_text: str) -> np.ndarray:
+        values, bad = _numbers(table[index], decimal)
         if bad.any():
             shown, n = bad_lines(bad)
             problems.append(Violation(headers[index], "not a number", shown, n))
         unit = units[index]
         if unit is not None:
-            conversions = _CONVERSIONS[column.name]
+            conversions = _CONVERSIONS[name]
             key = _unit_key(unit)
             if key not in conversions:
                 problems.append(
                     Violation(
                         headers[index],
-                        f"unit '{unit}' cannot be converted to {column.unit} for {column.name}",
+                        f"unit '{unit}' cannot be converted to {unit_text} for {name}",
                     )
                 )
             elif conversions[key] is not None:
                 values = conversions[key](values)
-        out[column.name] = values
+        return values
+
+    for column in CANONICAL_PREDICTORS:
+        index = find(column.name)
+        if index is None:
+            absent.append(column.name)
+            out[column.name] = np.nan
+            continue
+        used.add(index)
+        out[column.name] = convert(index, column.name, column.unit or "")
+    if "wind_dir_rel_deg" in absent:
+        derived = _derive_relative_wind(out, find, used, convert, headers)
+        if derived is not None:
+            absent.remove("wind_dir_rel_deg")
+            if "wind_speed_ms" in absent:
+                absent.remove("wind_speed_ms")
     for j, header in enumerate(headers):
         if j in used or not header:
             continue
-        values, bad = _numbers(table[j])
+        values, bad = _numbers(table[j], decimal)
         if bad.any() or np.isnan(values).all():
             continue  # text columns (events, labels) are not predictors
         name = _snake(names[j], units[j])
@@ -340,7 +448,8 @@ def read_dship(
                     Violation(
                         None,
                         "none of the predictor columns was found (speed, water "
-                        "and air temperature, wind); pass a column mapping",
+                        f"and air temperature, wind; {found}); pass a column mapping "
+                        "(e.g. speed_kn=NAME,air_temp_c=NAME)",
                     )
                 ]
             )
@@ -377,9 +486,62 @@ def read_dship(
         raise fail(relabelled) from None
 
 
-def _numbers(cells: pd.Series) -> tuple[np.ndarray, np.ndarray]:
+_DECIMAL_COMMA = re.compile(r"^[+-]?\d+,\d+$")
+
+
+def _has_decimal_commas(table: pd.DataFrame, time_index: int) -> bool:
+    """Whether numbers such as ``12,5`` occur in the first rows (separator is not ``,``)."""
+    head = table.drop(columns=[time_index]).head(50)
+    return any(head[c].str.strip().str.match(_DECIMAL_COMMA).any() for c in head.columns)
+
+
+def _derive_relative_wind(out, find, used, convert, headers) -> bool | None:
+    """Relative wind from true wind, heading, course and speed (columns added to *out*)."""
+    direction = find("wind_dir_true_deg")
+    if direction is None:
+        return None
+    speed = find("wind_speed_true_ms")
+    needed = {"heading_deg": find("heading_deg"), "course_deg": find("course_deg")}
+    missing = [k for k, v in needed.items() if v is None]
+    if out["speed_kn"].isna().all():
+        missing.append("speed_kn")
+    if speed is None and out["wind_speed_ms"].isna().all():
+        missing.append("wind speed")
+    if missing:
+        warnings.warn(
+            f"true wind ({headers[direction]}) is logged but no relative wind direction; "
+            f"deriving it needs {', '.join(missing)} (not found)",
+            stacklevel=3,
+        )
+        return None
+    for index in (direction, speed, *needed.values()):
+        if index is not None:
+            used.add(index)
+    true_dir = convert(direction, "wind_dir_true_deg", "deg")
+    true_speed = (
+        convert(speed, "wind_speed_true_ms", "m/s")
+        if speed is not None
+        else out["wind_speed_ms"].to_numpy(dtype=float)
+    )
+    heading = convert(needed["heading_deg"], "heading_deg", "deg")
+    course = convert(needed["course_deg"], "course_deg", "deg")
+    rel_dir, rel_speed = relative_wind(
+        true_dir, true_speed, heading, course, out["speed_kn"].to_numpy(dtype=float)
+    )
+    out["wind_speed_ms"] = rel_speed
+    out["wind_dir_rel_deg"] = rel_dir
+    out["wind_speed_true_ms"] = true_speed
+    out["wind_dir_true_deg"] = true_dir
+    out["heading_deg"] = heading
+    out["course_deg"] = course
+    return True
+
+
+def _numbers(cells: pd.Series, decimal: str = ".") -> tuple[np.ndarray, np.ndarray]:
     """Float values of text cells; empty cells are NaN; also a mask of unparseable cells."""
     text = cells.str.strip()
+    if decimal != ".":
+        text = text.str.replace(decimal, ".", regex=False)
     values = pd.to_numeric(text.where(text != ""), errors="coerce").to_numpy(dtype=float)
     bad = (
         np.isnan(values)

@@ -196,7 +196,16 @@ MODAL = TableContract(
         _BLOCK_END,
         _MODE,
         _FREQUENCY,
-        _DAMPING,
+        Column(
+            "damping_ratio",
+            "float",
+            "Viscous damping ratio as a fraction of critical damping; NaN where the source "
+            "gave a frequency only (e.g. a frequency-only table of another tool).",
+            nullable=True,
+            minimum=-1.0,
+            maximum=1.0,
+            hint="damping ratios are fractions: 1.2 % is 0.012",
+        ),
         Column(
             "mac",
             "float",

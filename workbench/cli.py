@@ -19,6 +19,14 @@ from data_contracts import ContractError
 
 from . import __version__
 from .errors import WorkbenchError
+from .inputs import (
+    acceleration_layout,
+    add_acceleration_layout,
+    add_dship_columns,
+    add_modal_layout,
+    dship_mapping,
+    read_modal,
+)
 
 EXIT_OK, EXIT_DATA, EXIT_USAGE = 0, 1, 2
 
@@ -40,6 +48,8 @@ def _add_validate(commands: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("kind", choices=kinds, metavar="KIND", help=f"one of: {', '.join(kinds)}")
     parser.add_argument("file", type=Path, metavar="FILE")
+    add_dship_columns(parser)
+    add_acceleration_layout(parser)
     parser.set_defaults(run=_run_validate)
 
 
@@ -49,13 +59,13 @@ def _run_validate(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         if args.kind == "accelerations":
-            record = read_accelerations(args.file)
+            record = read_accelerations(args.file, layout=acceleration_layout(args))
             summary = (
                 f"{record.n_samples} samples x {len(record.channels)} channels at "
                 f"{record.sampling_rate_hz:g} Hz from {record.start_time.isoformat()}"
             )
         elif args.kind == "dship":
-            table = read_dship(args.file)
+            table = read_dship(args.file, mapping=dship_mapping(args))
             summary = f"{len(table)} records, columns {', '.join(table.columns[1:])}"
         else:
             table = read_table(args.file, CONTRACTS[args.kind])
@@ -162,6 +172,8 @@ def _add_predictor_source(parser: argparse.ArgumentParser) -> None:
         metavar="FILE",
         help="raw DSHIP log, averaged onto the modal table's blocks",
     )
+    add_dship_columns(parser)
+    add_modal_layout(parser)
     parser.add_argument(
         "--all-predictors",
         action="store_true",
@@ -173,7 +185,9 @@ def _add_predictor_source(parser: argparse.ArgumentParser) -> None:
 def _predictors_for(args: argparse.Namespace, modal):
     from .pipeline import canonical_predictors, load_predictors
 
-    table = load_predictors(predictors=args.predictors, dship=args.dship, like=modal)
+    table = load_predictors(
+        predictors=args.predictors, dship=args.dship, like=modal, dship_mapping=dship_mapping(args)
+    )
     return table if args.all_predictors else canonical_predictors(table)
 
 
@@ -278,6 +292,7 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
         metavar="K",
         help="stabilisation figures of K blocks spread over the voyage",
     )
+    add_acceleration_layout(parser)
     parser.add_argument(
         "--tpe-figures",
         type=int,
@@ -318,6 +333,7 @@ def _run_identify(args: argparse.Namespace) -> int:
             max_gap_s=args.max_gap,
             lscf_orders=tuple(range(1, args.lscf_max_order + 1)),
             cross_check=args.cross_check,
+            acceleration_layout=acceleration_layout(args),
         )
     except ValueError as error:
         raise UsageError(str(error)) from None
@@ -453,13 +469,12 @@ def _add_correlate(commands: argparse._SubParsersAction) -> None:
 
 
 def _run_correlate(args: argparse.Namespace) -> int:
-    from data_contracts import MODAL, read_table
 
     from .reporting.correlation import write_correlation_report
 
     if not 0.0 < args.alpha < 1.0:
         raise UsageError(f"--alpha must be in (0, 1), got {args.alpha}")
-    modal = read_table(args.modal, MODAL)
+    modal = read_modal(args, args.modal)
     predictors = _predictors_for(args, modal)
     modal = _persistent(modal, args.min_presence)
     with _data_errors(args.modal):
@@ -470,6 +485,10 @@ def _run_correlate(args: argparse.Namespace) -> int:
             cases=args.cases,
             alpha=args.alpha,
             correction=None if args.correction == "none" else args.correction,
+            # a frequency-only table (another tool's) has no damping to correlate
+            quantities=("frequency_hz", "damping_ratio")
+            if modal["damping_ratio"].notna().any()
+            else ("frequency_hz",),
         )
     for name, path in dict(paths).items():
         print(f"{name}: {path}")
@@ -509,7 +528,6 @@ def _add_fit(commands: argparse._SubParsersAction) -> None:
 
 
 def _run_fit(args: argparse.Namespace) -> int:
-    from data_contracts import MODAL, read_table
 
     from .reporting.diagnostics_plot import write_fit_report
 
@@ -517,7 +535,7 @@ def _run_fit(args: argparse.Namespace) -> int:
         raise UsageError(
             f"need 0 < --p-enter < --p-remove < 1, got {args.p_enter} and {args.p_remove}"
         )
-    modal = read_table(args.modal, MODAL)
+    modal = read_modal(args, args.modal)
     predictors = _predictors_for(args, modal)
     modal = _persistent(modal, args.min_presence)
     with _data_errors(args.modal):
@@ -642,7 +660,7 @@ def _parse_trust(text: str) -> float | None:
 
 
 def _run_forecast(args: argparse.Namespace) -> int:
-    from data_contracts import MODAL, POLES, read_table
+    from data_contracts import POLES, read_table
 
     from .pipeline import run_forecast
 
@@ -652,10 +670,10 @@ def _run_forecast(args: argparse.Namespace) -> int:
     if args.train < 2:
         raise UsageError(f"--train must be at least 2 blocks, got {args.train}")
     trust = _parse_trust(args.trust)
-    modal = read_table(args.modal, MODAL)
+    modal = read_modal(args, args.modal)
     predictors = _predictors_for(args, modal)
     poles = read_table(args.poles, POLES) if args.poles is not None else None
-    truth = read_table(args.truth, MODAL) if args.truth is not None else None
+    truth = read_modal(args, args.truth)
     with _data_errors(args.modal):
         result = run_forecast(
             modal,
@@ -695,16 +713,17 @@ def _add_evaluate(commands: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--phase", choices=("forecast", "train", "all"), default="forecast")
     parser.add_argument("--out", type=Path, metavar="FILE", help="write the table as CSV")
+    add_modal_layout(parser)
     parser.set_defaults(run=_run_evaluate)
 
 
 def _run_evaluate(args: argparse.Namespace) -> int:
-    from data_contracts import FORECAST, MODAL, read_table
+    from data_contracts import FORECAST, read_table
 
     from .pipeline import evaluate_forecast
 
     forecast = read_table(args.forecast, FORECAST)
-    truth = read_table(args.truth, MODAL)
+    truth = read_modal(args, args.truth)
     result = evaluate_forecast(
         forecast, truth, out=args.out, phase=None if args.phase == "all" else args.phase
     )
@@ -723,9 +742,37 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _add_run(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser(
+        "run",
+        help="run the chain a ship's TOML configuration describes",
+        description="Run identify, track, correlate, fit, forecast and evaluate as far as "
+        "the configuration gives their inputs (see workbench.config; `workbench demo` "
+        "writes an example, ship.toml).",
+    )
+    parser.add_argument("config_file", type=Path, metavar="SHIP.TOML")
+    parser.set_defaults(run=_run_chain)
+
+
+def _run_chain(args: argparse.Namespace) -> int:
+    from .config import ConfigError, chain, load_config
+
+    try:
+        steps = chain(load_config(args.config_file))
+    except ConfigError as error:
+        raise UsageError(str(error)) from None
+    for step in steps:
+        print(f"== workbench {' '.join(step)}", flush=True)
+        code = main((["--verbose"] if args.verbose else []) + step)
+        if code != EXIT_OK:
+            return code
+    return EXIT_OK
+
+
 #: Subcommands in the order ``--help`` lists them.
 COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_demo,
+    _add_run,
     _add_simulate,
     _add_identify,
     _add_track,
@@ -755,6 +802,15 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(title="commands", metavar="COMMAND")
     for add in COMMANDS:
         add(commands)
+    for name, sub in commands.choices.items():
+        if name in ("demo", "simulate", "run"):
+            continue
+        sub.add_argument(
+            "--config",
+            type=Path,
+            metavar="SHIP.TOML",
+            help="take this command's settings from a ship's configuration (flags win)",
+        )
     return parser
 
 
@@ -762,6 +818,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI with *argv* (default ``sys.argv[1:]``) and return the exit status."""
     parser = build_parser()
     try:
+        _apply_config(parser, argv)
         args = parser.parse_args(argv)
     except SystemExit as exit_:  # argparse exits 2 on usage errors, 0 on --help
         return int(exit_.code or 0)
@@ -785,6 +842,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         warnings.showwarning = shown
 
 
+def _apply_config(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> None:
+    """Defaults from ``--config FILE`` (bad files: message and exit 2)."""
+    from .config import ConfigError, apply_config, load_config
+
+    pre = argparse.ArgumentParser(add_help=False)
+    pre.add_argument("--config", type=Path)
+    known, _ = pre.parse_known_args(argv)
+    if known.config is not None:
+        try:
+            apply_config(parser, load_config(known.config))
+        except ConfigError as error:
+            print(f"workbench: error: {error}", file=sys.stderr)
+            raise SystemExit(EXIT_USAGE) from None
+
+
 def _run(args: argparse.Namespace) -> int:
     """Run the chosen command; user errors become messages and exit statuses."""
     try:
@@ -803,6 +875,7 @@ def _run(args: argparse.Namespace) -> int:
     except UsageError as error:
         print(f"workbench: error: {error}", file=sys.stderr)
         return EXIT_USAGE
+
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130

@@ -152,6 +152,10 @@ def run_demo(
     tables: dict[str, pd.DataFrame] = {}
     with stage("simulate"):
         simulation = simulate_voyage(voyage_dir, seed=seed, hours=hours)
+    from .config import write_demo_config
+
+    config_path = write_demo_config(out_dir, voyage_dir.name)
+    summary.lines.append(f"example configuration: {config_path} (workbench run {config_path})")
     summary.lines.append(f"simulated voyage: {describe_voyage(simulation)}")
     truth = read_table(simulation.truth_modal, CONTRACTS["modal"])
 

@@ -23,8 +23,9 @@ result depends only on its own data and the options, which the store checks).
 from __future__ import annotations
 
 import functools
+import logging
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -34,11 +35,14 @@ import pandas as pd
 from scipy import stats as scipy_stats
 
 from data_contracts import POLES, atomic_path, shape_columns
+from data_contracts.formats import ACCELERATION_SUFFIXES as _FORMAT_SUFFIXES
 
 from .blocks import BlockGrid
 from .errors import WorkbenchError
 from .parallel import BlockOutcome, RunSummary, run_blocks
 from .store import BlockStore
+
+log = logging.getLogger("workbench")
 
 __all__ = [
     "IdentifyOptions",
@@ -50,9 +54,10 @@ __all__ = [
     "write_tpe_figures",
 ]
 
-#: Acceleration file suffixes picked up from a folder (CSV acceleration files must be named
-#: one by one: a voyage folder also holds CSV tables that are not accelerations).
-ACCELERATION_SUFFIXES = (".npz", ".mat")
+#: Acceleration file suffixes picked up from a folder. Text files (.csv, .tsv, .txt) are
+#: taken only when their header looks like an acceleration record: a voyage folder also
+#: holds ship logs and tables (see data_contracts.formats.text.looks_like_acceleration_table).
+ACCELERATION_SUFFIXES = _FORMAT_SUFFIXES
 
 
 @dataclass(frozen=True)
@@ -95,6 +100,10 @@ class IdentifyOptions:
     cross_check : bool
         Also identify every block with the other family (LSCF for SSI, SSI-cov for LSCF)
         and pair the selected modes of both (``crosscheck.csv``).
+    acceleration_layout : mapping, optional
+        How to read the acceleration files (fields of
+        :class:`data_contracts.formats.AccelerationLayout`: time column and format, units,
+        MATLAB/HDF5 names, ...); default: from the files themselves.
     """
 
     method: Literal["cov", "data", "lscf"] = "cov"
@@ -114,6 +123,7 @@ class IdentifyOptions:
     lscf_orders: tuple[int, ...] = tuple(range(1, 16))
     lscf_lags: int | None = None
     cross_check: bool = False
+    acceleration_layout: Mapping | None = None
 
     def __post_init__(self) -> None:
         if self.method not in ("cov", "data", "lscf"):
@@ -149,7 +159,16 @@ class IdentifyOptions:
             del values["cross_check"]
             if self.method != "lscf":
                 del values["lscf_orders"], values["lscf_lags"]
+        if self.acceleration_layout is None:  # stores made before the option resume
+            del values["acceleration_layout"]
+        else:
+            values["acceleration_layout"] = dict(self.acceleration_layout)
         return values
+
+    @property
+    def read_options(self) -> dict:
+        """Keyword arguments of :func:`data_contracts.read_accelerations`."""
+        return {"layout": dict(self.acceleration_layout)} if self.acceleration_layout else {}
 
 
 @dataclass(frozen=True)
@@ -173,6 +192,7 @@ def _identify_data(task: _Task, grid: BlockGrid, options: IdentifyOptions, cross
         target_rate_hz=options.target_rate_hz,
         band_hz=options.band_hz,
         max_gap_s=options.max_gap_s,
+        read_options=options.read_options,
     )
     if data.acceleration is None:
         return data, None, None
@@ -382,16 +402,31 @@ class IdentifyResult:
 
 def acceleration_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
     """Files named by *inputs*: files as given, folders searched (with their subfolders)
-    for ``.npz`` and ``.mat`` acceleration files."""
+    for acceleration files of every supported format (:data:`ACCELERATION_SUFFIXES`)."""
+    from data_contracts.formats.text import TEXT_SUFFIXES, looks_like_acceleration_table
+
     found: list[Path] = []
     for item in inputs:
         path = Path(item)
         if path.is_dir():
-            found += sorted(
+            candidates = sorted(
                 p
                 for p in path.rglob("*")
                 if p.suffix.lower() in ACCELERATION_SUFFIXES and p.is_file()
             )
+            other = [
+                p
+                for p in candidates
+                if p.suffix.lower() in TEXT_SUFFIXES and not looks_like_acceleration_table(p)
+            ]
+            if other:
+                log.info(
+                    "%s: %d text file(s) without an acceleration header left out (%s)",
+                    path,
+                    len(other),
+                    ", ".join(p.name for p in other[:5]) + (", ..." if len(other) > 5 else ""),
+                )
+            found += [p for p in candidates if p not in set(other)]
         elif path.is_file():
             found.append(path)
         else:
@@ -443,7 +478,11 @@ def identify_voyage(
     files = acceleration_files(inputs)
     try:
         plan = plan_blocks(
-            files, length_s=options.length_s, step_s=options.step_s, max_gap_s=options.max_gap_s
+            files,
+            length_s=options.length_s,
+            step_s=options.step_s,
+            max_gap_s=options.max_gap_s,
+            read_options=options.read_options,
         )
     except ValueError as error:
         raise WorkbenchError(str(error)) from None
@@ -504,6 +543,7 @@ def write_block_figures(
         length_s=options.length_s,
         step_s=options.step_s,
         max_gap_s=options.max_gap_s,
+        read_options=options.read_options,
     )
     planned = [p for p in plan.blocks if not p.skipped_reason]
     if blocks is None:

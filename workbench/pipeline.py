@@ -86,6 +86,7 @@ def load_predictors(
     dship: str | os.PathLike | None = None,
     like: pd.DataFrame | None = None,
     min_coverage: float = 0.5,
+    dship_mapping: Mapping[str, str] | None = None,
 ) -> pd.DataFrame:
     """Block predictors from a predictor table, or averaged from a DSHIP log.
 
@@ -98,6 +99,8 @@ def load_predictors(
     like : DataFrame, optional
         A table with block, block_start, block_end (e.g. the tracked modal table) whose block
         grid the DSHIP log is averaged onto; its full block range is used.
+    dship_mapping : mapping, optional
+        Column mapping for :func:`~data_contracts.read_dship` (``speed_kn`` -> source name).
     """
     if (predictors is None) == (dship is None):
         raise ValueError("give exactly one of predictors and dship")
@@ -107,7 +110,7 @@ def load_predictors(
         raise ValueError("averaging a DSHIP log needs the blocks of a modal table")
     from .predictors import block_predictors
 
-    log = read_dship(dship)
+    log = read_dship(dship, mapping=dship_mapping)
     t0, length_s, step_s = block_grid_of(like)
     first, last = int(like["block"].min()), int(like["block"].max())
     from .blocks import BlockGrid
@@ -385,14 +388,23 @@ def evaluate_forecast(
         total = part[
             ["ssi_cumulative_error_hz", "model_cumulative_error_hz", "kalman_cumulative_error_hz"]
         ].sum()
-        gain = 100.0 * (
-            1.0 - total["kalman_cumulative_error_hz"] / total["ssi_cumulative_error_hz"]
+        ssi_error = float(total["ssi_cumulative_error_hz"])
+        verdict = (
+            f"{100.0 * (1.0 - total['kalman_cumulative_error_hz'] / ssi_error):+.1f} % vs SSI"
+            if ssi_error > 0
+            else "no gain vs SSI defined (SSI error is zero)"
         )
         result.lines.append(
-            f"option {option}: cumulative |error| SSI {total['ssi_cumulative_error_hz']:.3f} Hz,"
+            f"option {option}: cumulative |error| SSI {ssi_error:.3f} Hz,"
             f" model {total['model_cumulative_error_hz']:.3f} Hz, Kalman "
-            f"{total['kalman_cumulative_error_hz']:.3f} Hz -> Kalman {gain:+.1f} % vs SSI"
+            f"{total['kalman_cumulative_error_hz']:.3f} Hz -> Kalman {verdict}"
         )
+        if ssi_error == 0 and part["n_ssi"].sum() > 0:
+            result.warnings.append(
+                f"option {option}: the truth equals the SSI estimates on every measured block "
+                "(an observed table, not an independent reference): errors measure the model "
+                "and the Kalman filter against the measurements, and gains vs SSI are undefined"
+            )
     result.lines.append(
         f"tracked labels paired with true modes {mapping} ({100 * agreement:.1f} % of "
         "measured rows agree)"

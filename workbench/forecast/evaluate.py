@@ -14,6 +14,11 @@ _ESTIMATES = {
 }
 
 
+def _improvement_pct(error: float, baseline: float) -> float:
+    """100 (1 - error / baseline) %; NaN when the baseline error is zero (no scale)."""
+    return 100.0 * (1.0 - error / baseline) if baseline > 0 else float("nan")
+
+
 def evaluate_against_truth(
     forecast_table: pd.DataFrame,
     truth_modal: pd.DataFrame,
@@ -76,9 +81,8 @@ def evaluate_against_truth(
         }
         common = np.isfinite(error["ssi"]) & np.isfinite(truth_hz)
         cumulative = {key: float(value[common].sum()) for key, value in error.items()}
-        with np.errstate(divide="ignore", invalid="ignore"):
-            vs_ssi = 100.0 * (1.0 - cumulative["kalman"] / cumulative["ssi"])
-            vs_model = 100.0 * (1.0 - cumulative["kalman"] / cumulative["model"])
+        vs_ssi = _improvement_pct(cumulative["kalman"], cumulative["ssi"])
+        vs_model = _improvement_pct(cumulative["kalman"], cumulative["model"])
         rows.append(
             {
                 "option": option,

@@ -1,0 +1,98 @@
+"""Delimited text as other tools write it: separator, decimal mark, units in the header.
+
+Shared by the readers of user files (modal tables, CSV accelerations): the separator is
+sniffed from the header line (``,``, ``;``, tab or ``|``), a decimal comma is recognised when
+the separator is not a comma, and header names carry their unit in brackets or parentheses
+(``acc01 [m/s^2]``, ``Damping (%)``).
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+from pathlib import Path
+
+import pandas as pd
+
+from ._core import CSV_READ_OPTIONS
+
+__all__ = ["read_delimited", "sniff_separator", "split_unit"]
+
+_NAME_UNIT = re.compile(r"^\s*(?P<name>.*?)\s*[\[(](?P<unit>[^\])]*)[\])]\s*$")
+_DECIMAL_COMMA = re.compile(r"(^|;)\s*[+-]?\d+,\d+\s*(?=$|;)", re.MULTILINE)
+
+
+def split_unit(header: str) -> tuple[str, str | None]:
+    """``"acc01 [m/s^2]"`` -> ``("acc01", "m/s^2")``; ``"Damping (%)"`` -> ``("Damping", "%")``."""
+    match = _NAME_UNIT.match(str(header))
+    if match and match["name"]:
+        return match["name"], match["unit"].strip()
+    return str(header).strip(), None
+
+
+def _decode(raw: bytes, encoding: str | None) -> str:
+    if encoding:
+        return raw.decode(encoding)
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
+def sniff_separator(header_line: str) -> str:
+    """The most frequent of ``,``, ``;``, tab and ``|`` in *header_line* (``,`` if none)."""
+    counts = {sep: header_line.count(sep) for sep in (",", ";", "\t", "|")}
+    best = max(counts, key=lambda sep: counts[sep])
+    return best if counts[best] else ","
+
+
+def read_delimited(
+    path: str | os.PathLike,
+    *,
+    separator: str | None = None,
+    decimal: str | None = None,
+    encoding: str | None = None,
+    skip_rows: int = 0,
+    dtype=None,
+) -> tuple[pd.DataFrame, str, str]:
+    """Read a delimited text table; return it with the separator and decimal mark used.
+
+    Parameters
+    ----------
+    path : path-like
+    separator : str, optional
+        Default: sniffed from the header line (:func:`sniff_separator`).
+    decimal : {".", ","}, optional
+        Default: ``,`` when the separator is not a comma and the first lines hold numbers
+        such as ``12,5``, else ``.``.
+    encoding : str, optional
+        Default UTF-8 (with or without BOM), falling back to latin-1.
+    skip_rows : int
+        Lines before the header line (e.g. a tool's banner).
+    dtype : optional
+        Passed to :func:`pandas.read_csv` (``str`` keeps the text of every cell).
+
+    Raises
+    ------
+    OSError, UnicodeDecodeError, pandas.errors.ParserError
+        For files that cannot be read; the callers turn them into contract errors.
+    """
+    text = _decode(Path(path).read_bytes(), encoding)
+    lines = text.splitlines()
+    body = lines[skip_rows:]
+    header = next((line for line in body if line.strip()), "")
+    sep = separator or sniff_separator(header)
+    if decimal is None:
+        sample = "\n".join(body[1:50])
+        decimal = "," if sep != "," and _DECIMAL_COMMA.search(sample.replace(sep, ";")) else "."
+    frame = pd.read_csv(
+        io.StringIO("\n".join(body)),
+        sep=sep,
+        decimal=decimal,
+        skipinitialspace=True,
+        dtype=dtype,
+        **({} if dtype is str else CSV_READ_OPTIONS),
+    )
+    frame.columns = [str(c).strip() for c in frame.columns]
+    return frame, sep, decimal

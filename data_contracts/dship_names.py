@@ -1,0 +1,215 @@
+"""Ship-log vocabulary: the usual DSHIP names of the predictors, time formats, relative wind.
+
+DSHIP (the data system of German research vessels such as Polarstern, Meteor and Sonne)
+names its channels ``DEVICE.SENSOR.PARAMETER`` (``SYS.STR.SOG``, ``SYS.STR.HDG``,
+``Weatherstation.PEWDS.Air_temperature``). :data:`DSHIP_NAMES` lists, for every canonical
+predictor and for the auxiliary channels needed to derive the relative wind, the full names
+and the bare parameter names the reader recognises. A bare name matches the last part of a
+dotted name, so ``Air_temperature`` finds ``Weatherstation.PEWDS.Air_temperature`` whatever
+the device is called on a given ship; when two columns match, the reader refuses to choose
+and asks for a mapping.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+
+__all__ = [
+    "AUXILIARY_COLUMNS",
+    "DSHIP_NAMES",
+    "TIME_FORMATS",
+    "parse_column_mapping",
+    "parse_log_times",
+    "relative_wind",
+]
+
+#: Knots per metre per second (1 kn = 1852 m / 3600 s).
+KNOT_PER_MS = 3600.0 / 1852.0
+
+#: Names tried for each column, in order (case, spaces and underscores ignored:
+#: ``Air temperature`` matches ``AirTemperature`` and ``Air_temperature``; with or without
+#: the bracketed unit; a bare parameter name also matches the last part of a dotted DSHIP
+#: name).
+DSHIP_NAMES: dict[str, tuple[str, ...]] = {
+    "speed_kn": (
+        "Speed",
+        "SYS.STR.SOG",
+        "SOG",
+        "Speed over ground",
+        "Speed through water",
+        "STW",
+        "Ship speed",
+    ),
+    "water_temp_c": ("Temp", "Water temp", "Water temperature", "SST", "Tw", "Temp water"),
+    "air_temp_c": ("TTT", "Air temp", "Air temperature", "TT", "Ta"),
+    "wind_speed_ms": (
+        "ff",
+        "Wind speed",
+        "Wind speed true",
+        "Wind speed rel",
+        "Rel wind speed",
+    ),
+    "wind_dir_rel_deg": (
+        "RelWindDir",
+        "Rel wind dir",
+        "Relative wind direction",
+        "dd rel",
+        "Wind direction relative",
+        "Wind direction rel",
+        "Wind dir rel",
+    ),
+    # Auxiliary channels: used to derive the relative wind when none is logged.
+    "wind_dir_true_deg": (
+        "dd",
+        "Wind direction",
+        "Wind direction true",
+        "Wind dir true",
+        "True wind dir",
+        "True wind direction",
+    ),
+    "wind_speed_true_ms": ("Wind speed true", "True wind speed", "ff true"),
+    "heading_deg": ("SYS.STR.HDG", "HDG", "Heading", "HDT", "True heading"),
+    "course_deg": ("SYS.STR.COG", "COG", "SYS.STR.Course", "Course", "Course over ground"),
+}
+
+#: Columns read only to derive the relative wind (not predictors themselves).
+AUXILIARY_COLUMNS = ("wind_dir_true_deg", "wind_speed_true_ms", "heading_deg", "course_deg")
+
+#: Time formats recognised without being told, tried after ISO-8601. Only unambiguous ones:
+#: ``dd.mm.yyyy`` is day-first by convention; ``dd/mm/yyyy`` vs ``mm/dd/yyyy`` must be
+#: stated (``time_format``).
+TIME_FORMATS = (
+    "%Y/%m/%d %H:%M:%S.%f",
+    "%Y/%m/%d %H:%M:%S",
+    "%Y/%m/%d %H:%M",
+    "%d.%m.%Y %H:%M:%S.%f",
+    "%d.%m.%Y %H:%M:%S",
+    "%d.%m.%Y %H:%M",
+)
+
+
+def parse_log_times(text: pd.Series, time_format: str | None = None) -> tuple[pd.Series, str]:
+    """UTC times of *text* and the format used.
+
+    Without *time_format*, ISO-8601 (offsets honoured) and the formats of
+    :data:`TIME_FORMATS` are tried; the one that parses most cells wins. Times without an
+    offset are UTC (ship data systems log UTC). Unparseable cells are NaT.
+    """
+
+    def parse(fmt: str) -> pd.Series:
+        return pd.to_datetime(text, utc=True, errors="coerce", format=fmt)
+
+    if time_format is not None:
+        return parse(time_format), time_format
+    best = parse("ISO8601")
+    best_format = "ISO8601"
+    if best.notna().all() or not len(text):
+        return best, best_format
+    for fmt in TIME_FORMATS:
+        times = parse(fmt)
+        if times.notna().sum() > best.notna().sum():
+            best, best_format = times, fmt
+    return best, best_format
+
+
+def parse_column_mapping(text: str | Sequence[str]) -> dict[str, str]:
+    """``"speed_kn=SYS.STR.SOG,air_temp_c=TT"`` (or a list of such) as a dict.
+
+    Raises
+    ------
+    ValueError
+        For an entry without ``=`` or with an empty side.
+    """
+    items = [text] if isinstance(text, str) else list(text)
+    mapping: dict[str, str] = {}
+    for item in items:
+        for entry in re.split(r",(?![^\[]*\])", item):  # no split inside [unit]
+            if not entry.strip():
+                continue
+            key, sep, value = entry.partition("=")
+            if not sep or not key.strip() or not value.strip():
+                raise ValueError(f"column mapping entry {entry!r} is not COLUMN=SOURCE_NAME")
+            mapping[key.strip()] = value.strip()
+    return mapping
+
+
+def relative_wind(
+    true_direction_deg: np.ndarray,
+    true_speed_ms: np.ndarray,
+    heading_deg: np.ndarray,
+    course_deg: np.ndarray,
+    ship_speed_kn: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Relative (apparent) wind on board from the true wind and the ship's motion.
+
+    Parameters
+    ----------
+    true_direction_deg : array
+        Direction the true wind blows *from*, clockwise from north. [deg]
+    true_speed_ms : array
+        True wind speed. [m/s]
+    heading_deg : array
+        Direction the bow points to, clockwise from north. [deg]
+    course_deg : array
+        Direction of the ship's motion over ground, clockwise from north. [deg]
+    ship_speed_kn : array
+        Ship speed along *course_deg*. [kn]
+
+    Returns
+    -------
+    direction_rel_deg, speed_ms : arrays
+        Direction the apparent wind comes from, clockwise from the bow, in [0, 360)
+        (0 = head wind, 90 = from starboard) [deg]; apparent wind speed [m/s].
+
+    Notes
+    -----
+    With east/north components, the true wind moves the air by
+    :math:`w = -V_t(\\sin\\theta_t, \\cos\\theta_t)`, the ship moves by
+    :math:`s = V_s(\\sin C, \\cos C)`; the air relative to the ship moves by
+    :math:`a = w - s`. It comes from :math:`\\theta_a = \\operatorname{atan2}(-a_e, -a_n)`
+    and, relative to the bow, from :math:`(\\theta_a - H) \\bmod 360`: the
+    meteorological "from" convention for both the true and the relative wind, which is
+    what a ship's anemometer reports as relative wind.
+    """
+    theta = np.deg2rad(np.asarray(true_direction_deg, dtype=float))
+    course = np.deg2rad(np.asarray(course_deg, dtype=float))
+    speed_ship_ms = np.asarray(ship_speed_kn, dtype=float) / KNOT_PER_MS
+    wind_e = -np.asarray(true_speed_ms, dtype=float) * np.sin(theta)
+    wind_n = -np.asarray(true_speed_ms, dtype=float) * np.cos(theta)
+    air_e = wind_e - speed_ship_ms * np.sin(course)
+    air_n = wind_n - speed_ship_ms * np.cos(course)
+    speed = np.hypot(air_e, air_n)
+    from_deg = np.rad2deg(np.arctan2(-air_e, -air_n))
+    relative = np.mod(from_deg - np.asarray(heading_deg, dtype=float), 360.0)
+    relative = np.where(relative >= 360.0, 0.0, relative)  # -1e-15 mod 360 rounds to 360
+    return relative, speed
+
+
+def name_key(name: str) -> str:
+    """Comparison key of a column name: lower case, without spaces and underscores."""
+    return re.sub(r"[\s_]+", "", name).lower()
+
+
+def resolve_mapping(
+    mapping: Mapping[str, str | Sequence[str]] | None, known: Sequence[str]
+) -> dict[str, tuple[str, ...]]:
+    """The built-in names with the user's entries in place of the defaults.
+
+    Raises
+    ------
+    ValueError
+        For a canonical name that does not exist.
+    """
+    unknown = sorted(set(mapping or {}) - set(known))
+    if unknown:
+        raise ValueError(
+            f"mapping has unknown column(s) {', '.join(unknown)}; known: {', '.join(known)}"
+        )
+    return {
+        k: (v,) if isinstance(v, str) else tuple(v)
+        for k, v in {**DSHIP_NAMES, **(mapping or {})}.items()
+    }
