@@ -13,7 +13,10 @@ defaults, on the recordings in ``../shared/realdata`` (see its README):
 
 For each recording it prints the reference modes found, missed and the spurious modes
 (selected modes matching no reference mode), and the frequency and damping errors of the
-found modes (relative to the reference). A reference mode is *found* when a selected mode
+found modes (relative to the reference). Repeatability: the recording is also identified
+in two windows sharing 95 % of their samples (length 0.95 of the record, step 0.05), and
+``overlap`` gives the modes found in both windows (within 0.5 %) over those found in
+either. A reference mode is *found* when a selected mode
 lies within ``--match`` (default 2 %) of it, one-to-one (Hungarian assignment on the
 relative frequency difference); the shear frame's target is 0.5 %, shown in its own
 column.
@@ -21,6 +24,12 @@ column.
 Run: ``python benchmarks/bench_real_data.py`` (needs ``../shared/realdata``; about a
 minute on one core). ``--band LOW HIGH`` overrides the band of every recording (to compare
 with a version whose default band does not suit these structures).
+
+``--demo-ab N`` also times the identification of N blocks of a simulated demo voyage
+in this process (one BLAS thread), block by block alternating the present defaults
+(clustering selection, channel check with excitation and coherence tests) with the
+former rule (library selection, absolute kurtosis limit, variance z-score alone), and
+prints the median time per block of each and their ratio.
 """
 
 from __future__ import annotations
@@ -95,7 +104,11 @@ def _write_npz(recording: Recording, folder: Path) -> Path:
     return write_accelerations(record, path)
 
 
-def _identify(recording: Recording, data: Path, out: Path, band, workbench: list[str]):
+def _identify(
+    recording: Recording, data: Path, out: Path, band, workbench: list[str], overlap=False
+):
+    minutes = recording.block_minutes * (0.95 if overlap else 1.0)
+    step = recording.block_minutes * (0.05 if overlap else 1.0)
     command = [
         *workbench,
         "identify",
@@ -106,9 +119,9 @@ def _identify(recording: Recording, data: Path, out: Path, band, workbench: list
         "synchronous",
         "--quiet",
         "--block-minutes",
-        f"{recording.block_minutes:g}",
+        f"{minutes:g}",
         "--step-minutes",
-        f"{recording.block_minutes:g}",
+        f"{step:g}",
     ]
     if recording.rate_hz is not None:
         command += ["--rate", f"{recording.rate_hz:g}"]
@@ -159,7 +172,11 @@ def main(argv=None) -> int:
     parser.add_argument("--match", type=float, default=0.02, help="relative tolerance of a match")
     parser.add_argument("--work", type=Path, help="folder for the files (default: a temporary one)")
     parser.add_argument("--details", action="store_true", help="print every selected mode")
+    parser.add_argument("--demo-ab", type=int, default=0, metavar="N", help="A/B timing")
+    parser.add_argument("--demo", type=Path, help="demo voyage folder to reuse (--demo-ab)")
     args = parser.parse_args(argv)
+    if args.demo_ab:
+        demo_ab(args.demo_ab, args.demo)
     if not REALDATA.is_dir():
         print(f"no validation data at {REALDATA}; nothing to do", file=sys.stderr)
         return 1
@@ -173,6 +190,10 @@ def main(argv=None) -> int:
             selected, seconds, failure = _identify(
                 recording, data, work / key / "out", args.band, workbench
             )
+            windows, _, _ = _identify(
+                recording, data, work / key / "overlap", args.band, workbench, overlap=True
+            )
+            overlap = _overlap(windows)
             reference = recording.reference
             required = reference["frequency_hz"].to_numpy() < recording.scored_below_hz
             n_required = int(required.sum())
@@ -219,6 +240,7 @@ def main(argv=None) -> int:
                         "note": ", ".join(f"{f:.3f}" for f in result["spurious_hz"])
                         and "spurious at "
                         + ", ".join(f"{f:.3f} Hz" for f in result["spurious_hz"]),
+                        "overlap": overlap,
                         "seconds": seconds,
                     }
                 )
@@ -226,6 +248,66 @@ def main(argv=None) -> int:
     with pd.option_context("display.width", 200, "display.max_columns", 20):
         print(table.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
     return 0
+
+
+def _overlap(selected: pd.DataFrame | None) -> str:
+    """Modes of the first two windows that agree within 0.5 %, over the modes of either."""
+    if selected is None or selected["block"].nunique() < 2:
+        return "n/a"
+    first, second = (
+        selected.loc[selected["block"] == b, "frequency_hz"].dropna().to_numpy()
+        for b in sorted(selected["block"].unique())[:2]
+    )
+    if not first.size or not second.size:
+        return f"0 of {max(first.size, second.size)}"
+    distance = np.abs(first[:, None] / second[None, :] - 1.0)
+    rows, cols = linear_sum_assignment(np.where(distance < 0.005, distance, 1e6))
+    both = int(np.sum(distance[rows, cols] < 0.005))
+    return f"{both} of {first.size + second.size - both}"
+
+
+def demo_ab(n_blocks: int, folder: Path | None) -> None:
+    """Median identify time per demo block: present defaults vs the former rules."""
+    import dataclasses
+
+    from threadpoolctl import threadpool_limits
+
+    from workbench.demo import DEMO_IDENTIFY_OPTIONS
+    from workbench.identify import _identify_data, _Task, acceleration_files, plan_identification
+
+    with tempfile.TemporaryDirectory() as tmp:
+        if folder is None or not (folder / "voyage.json").is_file():
+            from workbench.simulate import simulate_voyage
+
+            folder = folder or Path(tmp) / "voyage"
+            print(f"simulating a demo voyage into {folder} (not timed) ...", flush=True)
+            simulate_voyage(folder, seed=0, hours=max(2.0, n_blocks / 12 + 0.5))
+        new = DEMO_IDENTIFY_OPTIONS
+        old = dataclasses.replace(
+            new,
+            selection="library",
+            fault_options=(("max_kurtosis_z", -math.inf), ("coherence_check", False)),
+        )
+        plan, new = plan_identification(acceleration_files([folder]), new)
+        _, old = plan_identification(acceleration_files([folder]), old)
+        blocks = [b for b in plan.blocks if not b.skipped_reason][:n_blocks]
+        times: dict[str, list[float]] = {"former": [], "present": []}
+        modes: dict[str, int] = {"former": 0, "present": 0}
+        with threadpool_limits(limits=1):
+            for k, planned in enumerate(blocks):
+                task = _Task(planned.block, planned.block_start, tuple(map(str, planned.files)))
+                pair = [("former", old), ("present", new)]
+                for name, options in pair if k % 2 else pair[::-1]:
+                    started = time.perf_counter()
+                    _, _, selection = _identify_data(task, plan.grid, options)
+                    times[name].append(time.perf_counter() - started)
+                    modes[name] += len(selection.modes)
+    former, present = np.median(times["former"]), np.median(times["present"])
+    print(
+        f"demo identify time per block over {len(blocks)} blocks (median): former "
+        f"{former:.3f} s, present {present:.3f} s, ratio {present / former:.3f}; "
+        f"modes selected {modes['former']} vs {modes['present']}"
+    )
 
 
 def _median(values: np.ndarray) -> float:

@@ -269,11 +269,16 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
         "--block-minutes",
         type=float,
         default=None,
+        metavar="MIN",
         help="block length [min] (default 20); a length below the default step needs "
         "--step-minutes too",
     )
     parser.add_argument(
-        "--step-minutes", type=float, default=None, help="step between blocks [min] (default 5)"
+        "--step-minutes",
+        type=float,
+        default=None,
+        metavar="MIN",
+        help="step between blocks [min] (default 5)",
     )
     parser.add_argument(
         "--short-record",
@@ -298,16 +303,24 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
         type=float,
         default=10.0,
         metavar="K",
-        help="kurtosis above K (Gaussian 3) is a fault only when out of line with the other "
-        "channels and incoherent with them (default 10)",
+        help="kurtosis above K (Gaussian 3) is a fault when out of line with the other "
+        "channels (default 10)",
+    )
+    check.add_argument(
+        "--kurtosis-z-max",
+        type=float,
+        default=3.0,
+        metavar="Z",
+        help="robust z-score of a channel's log-kurtosis among the channels above which a "
+        "kurtosis above K is a fault (default 3; impulsive excitation raises every channel)",
     )
     check.add_argument(
         "--variance-z-max",
         type=float,
         default=6.0,
         metavar="Z",
-        help="robust z-score of a channel's log-variance among the channels above which it "
-        "is checked for coherence with the others (default 6)",
+        help="robust z-score of a channel's log-variance among the channels beyond which it "
+        "is a fault if it also lost coherence with every other channel (default 6)",
     )
     check.add_argument(
         "--max-nan-fraction",
@@ -377,6 +390,7 @@ def _run_identify(args: argparse.Namespace) -> int:
             fault_options=(
                 ("kurtosis_limits", (1.3, args.kurtosis_max)),
                 ("max_variance_z", args.variance_z_max),
+                ("max_kurtosis_z", args.kurtosis_z_max),
                 ("max_nan_fraction", args.max_nan_fraction),
             ),
         )

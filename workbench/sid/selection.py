@@ -19,7 +19,10 @@ diagram itself:
    logarithms of these distances fall into two groups, split by Otsu's threshold (the
    split minimising the within-group variance [4]_; distances below 1e-5 count as 1e-5,
    so that an exactly recurring harmonic does not pull the split below the modes). The
-   threshold, d_cut, is capped at 0.02 (the fixed limit of [1]_).
+   threshold d_cut is the least populated distance (minimum of a Gaussian kernel density
+   estimate of the log-distances) between Otsu's split and 0.02, the fixed limit of [1]_:
+   the split alone can fall inside the physical group when many poles recur very
+   tightly, and would cut off the more scattered, more damped modes.
 3. **Clusters** (stage 2): single-linkage hierarchical clustering of the physical poles
    cut at d_cut - the connected components of the graph joining poles closer than
    d_cut. Only poles within d_cut in frequency can be joined, so the graph is built from a
@@ -295,6 +298,7 @@ def select_modes(
     frequency_band: tuple[float, float] | None = None,
     damping_limits: tuple[float, float] = (0.001, 0.10),
     min_orders: int = 3,
+    pole_distance: float | None = None,
     library_orders: int = 5,
     frequency_tol: float = 0.01,
     damping_tol: float = 0.50,
@@ -319,6 +323,9 @@ def select_modes(
     min_orders : int
         ``"cluster"``: smallest number of model orders of a mode's cluster (the
         data-derived threshold is never below it).
+    pole_distance : float, optional
+        ``"cluster"``: a fixed cut d_cut of the pole distance instead of the data-derived
+        one (e.g. 0.02 as in Magalhães et al. 2009). [-]
     library_orders : int
         ``"library"``: number of consecutive orders below the maximum that a mode must
         appear in to enter the library.
@@ -370,6 +377,7 @@ def select_modes(
         frequency_band=frequency_band,
         damping_limits=damping_limits,
         min_orders=int(min_orders),
+        pole_distance=pole_distance,
         frequency_tol=frequency_tol,
         mac_min=mac_min,
         mpc_min=mpc_min,
@@ -434,6 +442,29 @@ def _neighbour_distance(
     return np.clip(nearest, 0.0, 1.0)
 
 
+def _distance_cut(log_distance: np.ndarray) -> float:
+    """Cut between physical and spurious poles from the log10 nearest-neighbour distances:
+    the least populated distance (minimum of a Gaussian kernel density estimate) between
+    Otsu's split and the fixed limit :data:`MAX_CLUSTER_DISTANCE`.
+
+    Otsu's split separates the two groups but, when many poles recur very tightly, falls
+    inside the physical group and would cut off the more scattered (more damped) modes;
+    the density minimum above it lies in the gap before the spurious poles.
+    """
+    from scipy.stats import gaussian_kde
+
+    top = np.log10(MAX_CLUSTER_DISTANCE)
+    split = otsu_threshold(log_distance)
+    if not np.isfinite(split) or split >= top:
+        return MAX_CLUSTER_DISTANCE
+    try:
+        density = gaussian_kde(log_distance)
+    except (np.linalg.LinAlgError, ValueError):  # too few or identical values
+        return float(10.0**split)
+    grid = np.linspace(split, top, 101)
+    return float(10.0 ** grid[np.argmin(density(grid))])
+
+
 def _components(frequency: np.ndarray, shapes: np.ndarray, cut: float) -> np.ndarray:
     """Single-linkage clusters cut at *cut*: connected components of d < cut.
 
@@ -473,6 +504,7 @@ def _select_clusters(
     frequency_tol: float,
     mac_min: float,
     mpc_min: float,
+    pole_distance: float | None = None,
 ) -> ModeSelection:
     """The clustering rule of the module docstring."""
     orders = tuple(sorted(result.orders))
@@ -503,9 +535,8 @@ def _select_clusters(
     # distances below the resolution floor are all "the same pole again": an undamped
     # harmonic recurring to 1e-9 must not make the split fall between it and the modes
     log_nearest = np.log10(np.maximum(nearest, DISTANCE_FLOOR))
-    cut_log = otsu_threshold(log_nearest)
-    cut = MAX_CLUSTER_DISTANCE if not np.isfinite(cut_log) else 10.0**cut_log
-    cut = min(cut, MAX_CLUSTER_DISTANCE)
+    cut = _distance_cut(log_nearest)
+    cut = min(cut, MAX_CLUSTER_DISTANCE) if pole_distance is None else float(pole_distance)
     thresholds["pole_distance"] = float(cut)
     physical = np.flatnonzero(nearest < cut)
     if physical.size < 2:
