@@ -23,7 +23,14 @@ needs_realdata = pytest.mark.skipif(
 )
 
 
-def _record(folder: Path, minutes: float, start: str, rate: float = 64.0, seed: int = 0):
+def _record(
+    folder: Path,
+    minutes: float,
+    start: str,
+    rate: float = 64.0,
+    seed: int = 0,
+    name: str = "record.npz",
+):
     from scipy import signal
 
     rng = np.random.default_rng(seed)
@@ -38,7 +45,7 @@ def _record(folder: Path, minutes: float, start: str, rate: float = 64.0, seed: 
     x = np.outer(modal, [1.0, 0.7, -0.5]) + 0.3 * rng.standard_normal((n, 3))
     folder.mkdir(parents=True, exist_ok=True)
     record = AccelerationRecord(0.01 * x, rate, pd.Timestamp(start), ("a", "b", "c"))
-    return write_accelerations(record, folder / "record.npz")
+    return write_accelerations(record, folder / name)
 
 
 def _identify(tmp_path: Path, *args: str) -> int:
@@ -70,6 +77,21 @@ def test_blocks_lie_inside_a_record_that_starts_at_an_odd_time(tmp_path):
     blocks = pd.read_csv(tmp_path / "out" / "blocks.csv")
     assert blocks["status"].tolist() == ["ok"]
     assert blocks["block_start"].iloc[0].startswith("2024-01-01T10:02:13")
+
+
+def test_a_short_record_beside_a_long_one_is_named(tmp_path, caplog):
+    """Two records an hour apart: the 21-min one gives a block, the 4-min one is named in a
+    warning (not silently left out)."""
+    _record(tmp_path / "data", 21.0, "2024-01-01T10:00:00Z", name="long.npz")
+    _record(tmp_path / "data", 4.0, "2024-01-01T11:30:00Z", seed=1, name="short.npz")
+    with caplog.at_level("WARNING", logger="workbench.identify"):
+        assert _identify(tmp_path) == 0
+    blocks = pd.read_csv(tmp_path / "out" / "blocks.csv")
+    assert (blocks["status"] == "ok").sum() == 1  # blocks over the gap: skipped, with reason
+    assert (blocks.loc[blocks["status"] == "skipped", "reason"].str.len() > 0).all()
+    assert any(
+        "short.npz" in r.getMessage() and "4.00 min" in r.getMessage() for r in caplog.records
+    )
 
 
 @pytest.mark.parametrize(

@@ -8,7 +8,9 @@ BlockStore`, and exports the store as contract tables:
 * ``poles.parquet`` - stabilisation diagrams (POLES contract), one row per pole, block and
   model order, with mode shapes;
 * ``selected.parquet`` - the automatically selected modes of each block (input of
-  ``workbench track``);
+  ``workbench track``), with the scatter of each mode's pole cluster
+  (``frequency_std_hz``, ``damping_std``, ``n_poles``; see
+  :mod:`workbench.sid.selection`);
 * ``faults.csv`` - channels dropped per block and why;
 * ``channels.csv`` - per block and channel: RMS and kurtosis of the conditioned signal;
 * ``blocks.csv`` - every block: ``ok`` or ``skipped`` and the reason.

@@ -224,3 +224,5 @@ def test_bad_method():
         select_modes(result, method="hdbscan")
     with pytest.raises(ValueError, match="min_orders"):
         select_modes(result, min_orders=1)
+    with pytest.raises(ValueError, match="pole_distance"):
+        select_modes(result, pole_distance=0.0)

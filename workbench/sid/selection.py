@@ -372,6 +372,8 @@ def select_modes(
         )
     if int(min_orders) < 2:
         raise ValueError(f"min_orders={min_orders} must be at least 2")
+    if pole_distance is not None and not 0 < pole_distance <= 1:
+        raise ValueError(f"pole_distance={pole_distance} must lie in (0, 1]")
     return _select_clusters(
         result,
         frequency_band=frequency_band,
