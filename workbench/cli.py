@@ -255,9 +255,20 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
         help="also identify with the other method (LSCF for SSI, SSI-cov for LSCF) and pair "
         "the modes of both per block (crosscheck.csv, agreement in the summary)",
     )
-    parser.add_argument("--block-rows", type=int, default=20, metavar="I")
-    parser.add_argument("--max-order", type=int, default=60, metavar="N")
-    parser.add_argument("--min-order", type=int, default=4, metavar="N")
+    parser.add_argument(
+        "--block-rows", type=int, default=20, metavar="I", help="SSI block rows (default 20)"
+    )
+    parser.add_argument(
+        "--max-order",
+        type=int,
+        default=60,
+        metavar="N",
+        help="highest model order (default 60; lowered to what the block rows and channels "
+        "left give)",
+    )
+    parser.add_argument(
+        "--min-order", type=int, default=4, metavar="N", help="lowest model order (default 4)"
+    )
     parser.add_argument(
         "--weighting", choices=("pc", "upc", "cva"), default="pc", help="SSI-data weighting"
     )
@@ -265,19 +276,86 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
         "--reference", metavar="CH,CH,...", help="reference channels (default: all)"
     )
     parser.add_argument(
-        "--rate", type=float, metavar="HZ", help="decimate to this sampling rate first (e.g. 64)"
+        "--rate",
+        type=float,
+        metavar="HZ",
+        help="decimate to this sampling rate first (e.g. 64); default: the files' rate",
     )
     parser.add_argument(
         "--band",
         type=float,
         nargs=2,
-        default=(2.0, 12.0),
+        default=None,
         metavar=("LOW", "HIGH"),
-        help="band-pass and selection band [Hz]",
+        help="band-pass and selection band [Hz] (LOW 0: no high-pass); default: 0 to the "
+        "anti-aliasing filter's edge 0.8 r/2 of the analysis rate r (--rate, or the files' "
+        "rate); HIGH may not exceed that edge when decimating",
     )
     parser.add_argument("--no-band", action="store_true", help="no band-pass filter")
-    parser.add_argument("--block-minutes", type=float, default=20.0)
-    parser.add_argument("--step-minutes", type=float, default=5.0)
+    parser.add_argument(
+        "--block-minutes",
+        type=float,
+        default=None,
+        metavar="MIN",
+        help="block length [min] (default 20); a length below the default step needs "
+        "--step-minutes too",
+    )
+    parser.add_argument(
+        "--step-minutes",
+        type=float,
+        default=None,
+        metavar="MIN",
+        help="step between blocks [min] (default 5)",
+    )
+    parser.add_argument(
+        "--short-record",
+        choices=("error", "one-block"),
+        default="error",
+        help="data shorter than one block: an error naming the record (default), or one "
+        "block of the record's length",
+    )
+    parser.add_argument(
+        "--selection",
+        choices=("cluster", "library"),
+        default="cluster",
+        help="automatic pole selection: clustering of the poles of all orders with "
+        "thresholds from the data (default), or the library-and-descent rule",
+    )
+    check = parser.add_argument_group("channel check (per block; a faulty channel is dropped)")
+    check.add_argument(
+        "--no-channel-check", action="store_true", help="keep every channel that has data"
+    )
+    check.add_argument(
+        "--kurtosis-max",
+        type=float,
+        default=10.0,
+        metavar="K",
+        help="kurtosis above K (Gaussian 3) is a fault when out of line with the other "
+        "channels (default 10)",
+    )
+    check.add_argument(
+        "--kurtosis-z-max",
+        type=float,
+        default=3.0,
+        metavar="Z",
+        help="robust z-score of a channel's log-kurtosis among the channels above which a "
+        "kurtosis above K is a fault (default 3; impulsive excitation raises every channel)",
+    )
+    check.add_argument(
+        "--variance-z-max",
+        type=float,
+        default=6.0,
+        metavar="Z",
+        help="robust z-score of a channel's log-variance among the channels beyond which it "
+        "is a fault if it also lost coherence with every other channel (default 6)",
+    )
+    check.add_argument(
+        "--max-nan-fraction",
+        type=float,
+        default=0.05,
+        metavar="SHARE",
+        help="largest share of missing samples (default 0.05)",
+    )
     parser.add_argument(
         "--max-gap",
         type=float,
@@ -313,12 +391,25 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
 
 
 def _run_identify(args: argparse.Namespace) -> int:
-    from .identify import IdentifyOptions, identify_voyage
+    from .blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
+    from .identify import IdentifyOptions, IdentifyOptionsError, identify_voyage
 
     if args.min_order < 1 or args.max_order < args.min_order:
         raise UsageError(f"model orders {args.min_order}..{args.max_order} make no sense")
     if args.lscf_max_order < 1:
         raise UsageError(f"--lscf-max-order must be at least 1, got {args.lscf_max_order}")
+    if args.no_band and args.band is not None:
+        raise UsageError("--band and --no-band contradict each other")
+    length_s = DEFAULT_BLOCK_LENGTH_S if args.block_minutes is None else 60.0 * args.block_minutes
+    step_s = DEFAULT_BLOCK_STEP_S if args.step_minutes is None else 60.0 * args.step_minutes
+    if not (length_s > 0 and step_s > 0):
+        raise UsageError("--block-minutes and --step-minutes must be positive")
+    if step_s > length_s:
+        given = "--block-minutes" if args.step_minutes is None else "--step-minutes"
+        raise UsageError(
+            f"{given}: step {step_s / 60:g} min is longer than the block "
+            f"{length_s / 60:g} min; give --step-minutes at most --block-minutes"
+        )
     try:
         options = IdentifyOptions(
             method=args.method,
@@ -326,27 +417,39 @@ def _run_identify(args: argparse.Namespace) -> int:
             orders=tuple(range(args.min_order, args.max_order + 1, 2)),
             weighting=args.weighting,
             reference_channels=tuple(args.reference.split(",")) if args.reference else None,
-            length_s=60.0 * args.block_minutes,
-            step_s=60.0 * args.step_minutes,
+            length_s=length_s,
+            step_s=step_s,
             target_rate_hz=args.rate,
-            band_hz=None if args.no_band else tuple(args.band),
+            band_hz=None if args.no_band else (tuple(args.band) if args.band else "auto"),
             max_gap_s=args.max_gap,
             lscf_orders=tuple(range(1, args.lscf_max_order + 1)),
             cross_check=args.cross_check,
             acceleration_layout=acceleration_layout(args),
+            selection=args.selection,
+            short_record=args.short_record,
+            channel_check=not args.no_channel_check,
+            fault_options=(
+                ("kurtosis_limits", (1.3, args.kurtosis_max)),
+                ("max_variance_z", args.variance_z_max),
+                ("max_kurtosis_z", args.kurtosis_z_max),
+                ("max_nan_fraction", args.max_nan_fraction),
+            ),
         )
     except ValueError as error:
         raise UsageError(str(error)) from None
-    result = identify_voyage(
-        args.inputs,
-        args.out,
-        options=options,
-        store_dir=args.store,
-        scheduler=args.scheduler,
-        n_workers=args.workers,
-        progress=not args.quiet,
-        batch_blocks=args.batch_blocks,
-    )
+    try:
+        result = identify_voyage(
+            args.inputs,
+            args.out,
+            options=options,
+            store_dir=args.store,
+            scheduler=args.scheduler,
+            n_workers=args.workers,
+            progress=not args.quiet,
+            batch_blocks=args.batch_blocks,
+        )
+    except IdentifyOptionsError as error:
+        raise UsageError(str(error)) from None
     for line in result.lines():
         print(line)
     if args.figures:

@@ -111,6 +111,16 @@ class _Stages:
         return _Timer()
 
 
+def _demo_identify_options():
+    from .identify import IdentifyOptions
+
+    # the structure-level setting of the demo hull: its global modes lie in 2-12 Hz
+    return IdentifyOptions(band_hz=(2.0, 12.0))
+
+
+DEMO_IDENTIFY_OPTIONS = _demo_identify_options()
+
+
 def run_demo(
     out_dir: str | os.PathLike = Path("reports") / "demo",
     *,
@@ -133,7 +143,7 @@ def run_demo(
     """
     from data_contracts import PREDICTORS, read_table, write_table
 
-    from .identify import IdentifyOptions, identify_voyage
+    from .identify import identify_voyage
     from .pipeline import (
         canonical_predictors,
         evaluate_forecast,
@@ -166,7 +176,7 @@ def run_demo(
         identified = identify_voyage(
             [voyage_dir],
             identify_dir,
-            options=IdentifyOptions(),
+            options=DEMO_IDENTIFY_OPTIONS,
             scheduler=scheduler,
             n_workers=n_workers,
             progress=progress,
@@ -179,7 +189,9 @@ def run_demo(
     with stage("stabilisation figures"):
         from .identify import write_block_figures
 
-        write_block_figures([voyage_dir], identify_dir / "figures", n_blocks=3)
+        write_block_figures(
+            [voyage_dir], identify_dir / "figures", options=DEMO_IDENTIFY_OPTIONS, n_blocks=3
+        )
 
     with stage("SSI/LSCF cross-check"):
         from .identify import cross_check_blocks

@@ -8,7 +8,9 @@ BlockStore`, and exports the store as contract tables:
 * ``poles.parquet`` - stabilisation diagrams (POLES contract), one row per pole, block and
   model order, with mode shapes;
 * ``selected.parquet`` - the automatically selected modes of each block (input of
-  ``workbench track``);
+  ``workbench track``), with the scatter of each mode's pole cluster
+  (``frequency_std_hz``, ``damping_std``, ``n_poles``; see
+  :mod:`workbench.sid.selection`);
 * ``faults.csv`` - channels dropped per block and why;
 * ``channels.csv`` - per block and channel: RMS and kurtosis of the conditioned signal;
 * ``blocks.csv`` - every block: ``ok`` or ``skipped`` and the reason;
@@ -22,8 +24,10 @@ result depends only on its own data and the options, which the store checks).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import logging
+import math
 import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
@@ -46,6 +50,7 @@ log = logging.getLogger("workbench")
 
 __all__ = [
     "IdentifyOptions",
+    "IdentifyOptionsError",
     "IdentifyResult",
     "cross_check_blocks",
     "identify_block",
@@ -82,9 +87,15 @@ class IdentifyOptions:
     target_rate_hz : float, optional
         Decimate to this rate first (e.g. 2048 Hz -> 64 Hz); ``None`` keeps the files' rate.
         [Hz]
-    band_hz : (float, float), optional
+    band_hz : (float, float) or "auto" or None
         Zero-phase band-pass after decimation; also the band of the automatic selection.
-        [Hz]
+        ``"auto"`` (default) derives it from the analysis rate r (after decimation):
+        (0, 0.8·r/2), the pass band of the decimation's anti-aliasing filter (also used
+        without decimation: poles near Nyquist are poorly resolved). A lower edge of 0
+        means no high-pass: a high-pass adds its own poles, which bias a mode within a few
+        times its edge; the linear detrend removes offsets and drift. ``None``: no
+        band-pass, selection up to 0.8·r/2. The upper edge may not exceed 0.8·r/2 when
+        decimating (above it the filter's own poles would be selected as modes). [Hz]
     max_gap_s : float
         Gaps between files up to this length inside a block are NaN-padded. [s]
     frequency_tol, damping_tol, mac_min : float
@@ -104,6 +115,15 @@ class IdentifyOptions:
         How to read the acceleration files (fields of
         :class:`data_contracts.formats.AccelerationLayout`: time column and format, units,
         MATLAB/HDF5 names, ...); default: from the files themselves.
+    selection : {"cluster", "library"}
+        Automatic pole selection (:func:`~workbench.sid.selection.select_modes`).
+    short_record : {"error", "one-block"}
+        Data with no complete block: an error naming the record (default), or one block
+        of the record's length (a single continuous record).
+    channel_check : bool
+        Drop faulty channels per block (:func:`~workbench.signals.moments.faulty_channels`).
+    fault_options : tuple of (str, value)
+        Thresholds of the channel check, e.g. ``(("kurtosis_limits", (1.3, 10.0)),)``.
     """
 
     method: Literal["cov", "data", "lscf"] = "cov"
@@ -114,7 +134,7 @@ class IdentifyOptions:
     length_s: float = 1200.0
     step_s: float = 300.0
     target_rate_hz: float | None = None
-    band_hz: tuple[float, float] | None = (2.0, 12.0)
+    band_hz: tuple[float, float] | Literal["auto"] | None = "auto"
     max_gap_s: float = 0.0
     frequency_tol: float = 0.01
     damping_tol: float = 0.05
@@ -124,6 +144,10 @@ class IdentifyOptions:
     lscf_lags: int | None = None
     cross_check: bool = False
     acceleration_layout: Mapping | None = None
+    selection: Literal["cluster", "library"] = "cluster"
+    short_record: Literal["error", "one-block"] = "error"
+    channel_check: bool = True
+    fault_options: tuple[tuple[str, object], ...] = ()
 
     def __post_init__(self) -> None:
         if self.method not in ("cov", "data", "lscf"):
@@ -138,7 +162,27 @@ class IdentifyOptions:
         if not orders or min(orders) < 1:
             raise ValueError(f"orders={self.orders!r} must be positive model orders")
         object.__setattr__(self, "orders", orders)
-        if self.band_hz is not None:
+        if self.selection not in ("cluster", "library"):
+            raise ValueError(f"selection={self.selection!r} must be 'cluster' or 'library'")
+        if self.short_record not in ("error", "one-block"):
+            raise ValueError(f"short_record={self.short_record!r} must be 'error' or 'one-block'")
+        if self.step_s > self.length_s:
+            raise ValueError(
+                f"block step {self.step_s / 60:g} min is longer than the block length "
+                f"{self.length_s / 60:g} min (blocks would leave gaps); give a step at most "
+                "the length (e.g. --step-minutes)"
+            )
+        if self.target_rate_hz is not None and not (
+            np.isfinite(self.target_rate_hz) and self.target_rate_hz > 0
+        ):
+            raise ValueError(f"target_rate_hz={self.target_rate_hz} must be a positive rate")
+        object.__setattr__(
+            self, "fault_options", tuple((str(k), v) for k, v in dict(self.fault_options).items())
+        )
+        if isinstance(self.band_hz, str):
+            if self.band_hz != "auto":
+                raise ValueError(f"band_hz={self.band_hz!r} must be (low, high), 'auto' or None")
+        elif self.band_hz is not None:
             low, high = (float(v) for v in self.band_hz)
             if not 0 <= low < high:
                 raise ValueError(f"band_hz={self.band_hz!r} must be (low, high) with low < high")
@@ -148,7 +192,10 @@ class IdentifyOptions:
         """JSON-able form (what the store records and checks on resume)."""
         values = asdict(self)
         values["orders"] = list(self.orders)
-        values["band_hz"] = list(self.band_hz) if self.band_hz else None
+        values["band_hz"] = list(self.band_hz) if isinstance(self.band_hz, tuple) else self.band_hz
+        values["fault_options"] = {
+            k: list(v) if isinstance(v, tuple) else v for k, v in self.fault_options
+        }
         values["reference_channels"] = (
             list(self.reference_channels) if self.reference_channels else None
         )
@@ -170,6 +217,60 @@ class IdentifyOptions:
         """Keyword arguments of :func:`data_contracts.read_accelerations`."""
         return {"layout": dict(self.acceleration_layout)} if self.acceleration_layout else {}
 
+    def resolved(self, sampling_rate_hz: float) -> IdentifyOptions:
+        """These options for files at *sampling_rate_hz*: the band made concrete and checked
+        against the anti-aliasing filter of the decimation.
+
+        Raises
+        ------
+        IdentifyOptionsError
+            Band above the filter's edge or Nyquist; a rate that does not divide the files'.
+        """
+        rate = float(sampling_rate_hz)
+        out_rate = rate if self.target_rate_hz is None else float(self.target_rate_hz)
+        if self.target_rate_hz is not None:
+            ratio = rate / out_rate
+            if ratio < 1 - 1e-9 or abs(ratio - round(ratio)) > 1e-9 * ratio:
+                raise IdentifyOptionsError(
+                    f"--rate {out_rate:g} must divide the files' sampling rate {rate:g} Hz by "
+                    f"a whole number (e.g. {rate / max(1, math.floor(ratio)):g})"
+                )
+        decimating = out_rate < rate
+        edge = ANTI_ALIAS_EDGE * out_rate / 2
+        if self.band_hz == "auto":
+            band: tuple[float, float] | None = (0.0, edge)
+        else:
+            band = self.band_hz
+        if band is not None:
+            low, high = band
+            if decimating and high > edge * (1 + 1e-9):
+                raise IdentifyOptionsError(
+                    f"--band upper edge {high:g} Hz lies above {edge:g} Hz, the edge of the "
+                    f"anti-aliasing filter of the decimation to {out_rate:g} Hz (its poles "
+                    "would be selected as modes); lower the band or raise --rate"
+                )
+            if high >= out_rate / 2:
+                raise IdentifyOptionsError(
+                    f"--band upper edge {high:g} Hz must lie below the Nyquist frequency "
+                    f"{out_rate / 2:g} Hz of the {out_rate:g}-Hz analysis rate"
+                )
+        return dataclasses.replace(self, band_hz=band)
+
+    def selection_band(self, sampling_rate_hz: float) -> tuple[float, float]:
+        """The band of the automatic selection for an analysis rate. [Hz]"""
+        if isinstance(self.band_hz, tuple):
+            return self.band_hz
+        return (0.0, ANTI_ALIAS_EDGE * float(sampling_rate_hz) / 2)
+
+
+class IdentifyOptionsError(ValueError):
+    """Options that do not fit the data (a usage error: the CLI exits 2)."""
+
+
+#: Edge of the decimation's anti-aliasing filter as a fraction of the new Nyquist frequency
+#: (Chebyshev type I, as MATLAB's and SciPy's ``decimate``).
+ANTI_ALIAS_EDGE = 0.8
+
 
 @dataclass(frozen=True)
 class _Task:
@@ -190,9 +291,10 @@ def _identify_data(task: _Task, grid: BlockGrid, options: IdentifyOptions, cross
         task.block,
         grid,
         target_rate_hz=options.target_rate_hz,
-        band_hz=options.band_hz,
+        band_hz=_filter_band(options),
         max_gap_s=options.max_gap_s,
         read_options=options.read_options,
+        fault_options=_fault_options(options),
     )
     if data.acceleration is None:
         return data, None, None
@@ -220,12 +322,14 @@ def _identify_method(method: str, data, reference, options: IdentifyOptions):
     from .sid import select_modes, ssi_cov, ssi_data, stabilise
     from .sid.lscf import lscf
 
+    n_channels = len(data.channels)
+    orders = _reachable_orders(options, n_channels, len(reference or range(n_channels)))
     if method == "cov":
         result = ssi_cov(
             data.acceleration,
             data.sampling_rate_hz,
             block_rows=options.block_rows,
-            orders=options.orders,
+            orders=orders,
             reference_channels=reference,
         )
     elif method == "data":
@@ -233,15 +337,14 @@ def _identify_method(method: str, data, reference, options: IdentifyOptions):
             data.acceleration,
             data.sampling_rate_hz,
             block_rows=options.block_rows,
-            orders=options.orders,
+            orders=orders,
             reference_channels=reference,
             weighting=options.weighting,
         )
     else:
-        band = None
-        if options.band_hz is not None:
-            nyquist = 0.5 * data.sampling_rate_hz
-            band = (min(options.band_hz[0], nyquist), min(options.band_hz[1], nyquist))
+        nyquist = 0.5 * data.sampling_rate_hz
+        low, high = options.selection_band(data.sampling_rate_hz)
+        band = (min(low, nyquist), min(high, nyquist))
         result = lscf(
             data.acceleration,
             data.sampling_rate_hz,
@@ -258,10 +361,41 @@ def _identify_method(method: str, data, reference, options: IdentifyOptions):
     )
     selection = select_modes(
         result,
-        frequency_band=options.band_hz,
+        method=options.selection,
+        frequency_band=options.selection_band(data.sampling_rate_hz),
         damping_limits=(0.001, options.max_damping),
     )
     return result, selection
+
+
+def _filter_band(options: IdentifyOptions):
+    """Band-pass edges for the conditioning: a lower edge of 0 means no high-pass."""
+    if not isinstance(options.band_hz, tuple):
+        return None
+    low, high = options.band_hz
+    return (low if low > 0 else None, high)
+
+
+def _fault_options(options: IdentifyOptions) -> dict:
+    """Keyword arguments of the channel check (every check off when disabled)."""
+    if not options.channel_check:
+        return {
+            "max_nan_fraction": 1.0,
+            "max_nan_run_s": math.inf,
+            "kurtosis_limits": (0.0, math.inf),
+            "flat_variance": -1.0,
+            "max_variance_z": math.inf,
+        }
+    return dict(options.fault_options)
+
+
+def _reachable_orders(options: IdentifyOptions, n_channels: int, n_reference: int):
+    """The model orders a block with these channels can give: max order <= min(r·i,
+    l·(i-1)) (r reference channels, l channels, i block rows). Channels dropped by the
+    check must not make every block fail for orders chosen for the full set."""
+    top = min(n_reference * options.block_rows, n_channels * (options.block_rows - 1))
+    orders = tuple(o for o in options.orders if o <= top)
+    return orders if len(orders) >= 2 else options.orders
 
 
 def identify_block(
@@ -436,6 +570,85 @@ def acceleration_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
     return found
 
 
+def _records(plan) -> list[tuple[pd.Timestamp, pd.Timestamp, list[str]]]:
+    """Continuous records of a plan's files: (start, end, file names), split at gaps longer
+    than half a sample plus the allowed ``max_gap_s``."""
+    rate = plan.sampling_rate_hz
+    records: list[tuple[pd.Timestamp, pd.Timestamp, list[str]]] = []
+    for info in plan.files:
+        if records:
+            gap = (info.start_time - records[-1][1]).total_seconds()
+            if gap <= plan.max_gap_s + 0.5 / rate:
+                records[-1] = (records[-1][0], info.end_time, [*records[-1][2], info.name])
+                continue
+        records.append((info.start_time, info.end_time, [info.name]))
+    return records
+
+
+def plan_identification(files: Sequence[Path], options: IdentifyOptions):
+    """The block plan of *files* and the options resolved for their sampling rate.
+
+    The grid starts at the first sample (blocks lie inside the record from its start).
+    Data without a single complete block is an error naming the record, unless
+    ``options.short_record == "one-block"``: then a single continuous record shorter than
+    a block is identified as one block of its own length.
+
+    Raises
+    ------
+    WorkbenchError
+        Inconsistent files; no complete block (exit 1).
+    IdentifyOptionsError
+        Options that do not fit the files (band, rate; exit 2).
+    """
+    from .signals import plan_blocks
+    from .signals.stream import _plan
+
+    try:
+        plan = plan_blocks(
+            files,
+            length_s=options.length_s,
+            step_s=options.step_s,
+            max_gap_s=options.max_gap_s,
+            read_options=options.read_options,
+        )
+        first = plan.files[0].start_time
+        if plan.grid.t0 != first:  # anchor the grid at the first sample, not a round time
+            grid = BlockGrid(first, options.length_s, options.step_s)
+            plan = _plan(plan.files, grid, None, None, options.max_gap_s)
+    except ValueError as error:
+        raise WorkbenchError(str(error)) from None
+    options = options.resolved(plan.sampling_rate_hz)
+    records = _records(plan)
+    short = [r for r in records if (r[1] - r[0]).total_seconds() < options.length_s - 1e-6]
+    if not plan.blocks:
+        if options.short_record == "one-block" and len(records) == 1:
+            start, end, _ = records[0]
+            n_samples = sum(info.n_samples for info in plan.files)
+            length = n_samples / plan.sampling_rate_hz
+            length = math.floor(length * 1e6) / 1e6  # whole microseconds
+            options = dataclasses.replace(options, length_s=length, step_s=length)
+            try:
+                plan = _plan(plan.files, BlockGrid(start, length, length), None, None, 0.0)
+            except ValueError as error:
+                raise WorkbenchError(str(error)) from None
+            return plan, options
+        start, end, names = max(records, key=lambda r: r[1] - r[0])
+        what = names[0] if len(names) == 1 else f"{names[0]} .. {names[-1]}"
+        raise WorkbenchError(
+            f"{what}: record of {(end - start).total_seconds() / 60:.2f} min is shorter than "
+            f"one block ({options.length_s / 60:g} min): no block to identify; give a shorter "
+            "--block-minutes (and --step-minutes), or --short-record one-block"
+        )
+    for start, end, names in short:
+        log.warning(
+            "%s: record of %.2f min is shorter than one block (%g min) and is not identified",
+            names[0],
+            (end - start).total_seconds() / 60,
+            options.length_s / 60,
+        )
+    return plan, options
+
+
 def identify_voyage(
     inputs: Iterable[str | os.PathLike],
     out_dir: str | os.PathLike,
@@ -471,21 +684,10 @@ def identify_voyage(
         Blocks written to the store together (also every 30 s); an interruption loses at
         most the blocks of the batch under way.
     """
-    from .signals import plan_blocks
-
     options = options or IdentifyOptions()
     out = Path(out_dir)
     files = acceleration_files(inputs)
-    try:
-        plan = plan_blocks(
-            files,
-            length_s=options.length_s,
-            step_s=options.step_s,
-            max_gap_s=options.max_gap_s,
-            read_options=options.read_options,
-        )
-    except ValueError as error:
-        raise WorkbenchError(str(error)) from None
+    plan, options = plan_identification(files, options)
     grid = plan.grid
     channels = tuple(plan.channels)
     parameters = {
@@ -535,16 +737,9 @@ def write_block_figures(
     the voyage, skipping blocks that cannot be identified.
     """
     from .reporting.stabilisation_plot import write_stabilisation_figure
-    from .signals import plan_blocks
 
     options = options or IdentifyOptions()
-    plan = plan_blocks(
-        acceleration_files(inputs),
-        length_s=options.length_s,
-        step_s=options.step_s,
-        max_gap_s=options.max_gap_s,
-        read_options=options.read_options,
-    )
+    plan, options = plan_identification(acceleration_files(inputs), options)
     planned = [p for p in plan.blocks if not p.skipped_reason]
     if blocks is None:
         picks = np.unique(np.linspace(0, len(planned) - 1, max(n_blocks, 1)).round().astype(int))
@@ -572,7 +767,7 @@ def write_block_figures(
                 path,
                 data.acceleration,
                 selection=selection,
-                frequency_band=options.band_hz,
+                frequency_band=options.selection_band(data.sampling_rate_hz),
                 title=f"Block {task.block} ({pd.Timestamp(task.block_start):%Y-%m-%d %H:%M} "
                 f"UTC), {'LSCF' if options.method == 'lscf' else 'SSI-' + options.method}",
             )
@@ -581,15 +776,9 @@ def write_block_figures(
 
 
 def _pick_tasks(inputs, options: IdentifyOptions, n_blocks: int, blocks):
-    """Plan and the tasks of *blocks*, or of *n_blocks* identifiable blocks spread evenly."""
-    from .signals import plan_blocks
-
-    plan = plan_blocks(
-        acceleration_files(inputs),
-        length_s=options.length_s,
-        step_s=options.step_s,
-        max_gap_s=options.max_gap_s,
-    )
+    """Plan, resolved options and the tasks of *blocks*, or of *n_blocks* identifiable
+    blocks spread evenly."""
+    plan, options = plan_identification(acceleration_files(inputs), options)
     planned = [p for p in plan.blocks if not p.skipped_reason]
     if blocks is None:
         picks = np.unique(np.linspace(0, len(planned) - 1, max(n_blocks, 1)).round().astype(int))
@@ -598,7 +787,7 @@ def _pick_tasks(inputs, options: IdentifyOptions, n_blocks: int, blocks):
         wanted = {int(b) for b in blocks}
         chosen = [p for p in planned if int(p.block) in wanted]
     tasks = [_Task(int(p.block), p.block_start, tuple(str(f) for f in p.files)) for p in chosen]
-    return plan, tasks
+    return plan, tasks, options
 
 
 def cross_check_blocks(
@@ -623,7 +812,7 @@ def cross_check_blocks(
     from .sid.crosscheck import CROSS_CHECK_COLUMNS
 
     options = options or IdentifyOptions()
-    plan, tasks = _pick_tasks(inputs, options, n_blocks, blocks)
+    plan, tasks, options = _pick_tasks(inputs, options, n_blocks, blocks)
     frames = []
     for task in tasks:
         try:
@@ -664,7 +853,7 @@ def write_tpe_figures(
     from .sid.tpe import total_prediction_error
 
     options = dataclasses.replace(options or IdentifyOptions(), method="data", cross_check=False)
-    plan, tasks = _pick_tasks(inputs, options, n_blocks, blocks)
+    plan, tasks, options = _pick_tasks(inputs, options, n_blocks, blocks)
     paths = []
     for task in tasks:
         try:
@@ -689,7 +878,7 @@ def write_tpe_figures(
                 path,
                 data.acceleration,
                 selection=selection,
-                frequency_band=options.band_hz,
+                frequency_band=options.selection_band(data.sampling_rate_hz),
                 title=f"Block {task.block} ({pd.Timestamp(task.block_start):%Y-%m-%d %H:%M} "
                 f"UTC), SSI-data/{options.weighting}",
             )

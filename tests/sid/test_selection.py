@@ -52,7 +52,7 @@ def test_library_and_descent_rule():
         if n >= 6:
             rows.append((n, 9.0, 0.0002, 3))  # harmonic: below the damping limit
     result = _diagram(rows, ORDERS)
-    selection = select_modes(result)
+    selection = select_modes(result, method="library")
     assert selection.library_orders == (10, 12, 14, 16, 18)
     # B is lost at order 6, so the modes are those of order 8
     assert selection.model_order == 8
@@ -64,10 +64,10 @@ def test_library_and_descent_rule():
     rows_back = result.poles.iloc[selection.modes["pole_index"]]
     np.testing.assert_allclose(rows_back["frequency_hz"], selection.modes["frequency_hz"])
     # lowering the damping limit lets the harmonic in; it exists from order 6, B from 8
-    with_harmonic = select_modes(result, damping_limits=(0.0, 0.1))
+    with_harmonic = select_modes(result, damping_limits=(0.0, 0.1), method="library")
     assert with_harmonic.model_order == 8 and len(with_harmonic.modes) == 3
     # a band around A alone: A is present in every order, so the lowest order is selected
-    only_a = select_modes(result, frequency_band=(2.0, 4.0))
+    only_a = select_modes(result, frequency_band=(2.0, 4.0), method="library")
     assert only_a.model_order == 2 and len(only_a.modes) == 1
 
 
@@ -77,9 +77,9 @@ def test_twins_count_once_and_empty_library():
         rows.append((n, 4.0, 0.02, 0))
         if n >= 12:
             rows.append((n, 4.01, 0.02, 0))  # the same mode split into two poles
-    selection = select_modes(_diagram(rows, ORDERS))
+    selection = select_modes(_diagram(rows, ORDERS), method="library")
     assert len(selection.modes) == 1 and selection.model_order == 2
-    empty = select_modes(_diagram([(n, 4.0, 0.5, 0) for n in ORDERS], ORDERS))
+    empty = select_modes(_diagram([(n, 4.0, 0.5, 0) for n in ORDERS], ORDERS), method="library")
     assert empty.modes.empty and empty.model_order is None
     assert empty.mode_shapes.shape == (4, 0)
 
@@ -87,11 +87,11 @@ def test_twins_count_once_and_empty_library():
 def test_bad_arguments():
     result = _diagram([(n, 4.0, 0.02, 0) for n in ORDERS], ORDERS)
     with pytest.raises(ValueError, match="library_orders"):
-        select_modes(result, library_orders=10)
+        select_modes(result, library_orders=10, method="library")
     with pytest.raises(ValueError, match="damping_limits"):
-        select_modes(result, damping_limits=(0.1, 0.01))
+        select_modes(result, damping_limits=(0.1, 0.01), method="library")
     with pytest.raises(ValueError, match="frequency_band"):
-        select_modes(result, frequency_band=(8.0, 2.0))
+        select_modes(result, frequency_band=(8.0, 2.0), method="library")
 
 
 @pytest.mark.filterwarnings("ignore::workbench.sid.ssi.SSIWarning")
@@ -136,3 +136,93 @@ def test_hull_block_with_shaft_harmonic_and_band(hull_block):
     np.testing.assert_allclose(
         banded.modes["frequency_hz"], hull_block.frequency_hz[1:4], rtol=0.005
     )
+
+
+# -- clustering rule ----------------------------------------------------------------------
+CLUSTER_ORDERS = list(range(4, 62, 2))  # 29 orders, like the identify default 4..60
+
+
+def _cluster_diagram(seed: int = 0) -> SSIResult:
+    """Two modes present in every order (A at 3 Hz, B at 5 Hz; B reads ζ = 0.05 % at one
+    over-fitted order, as the lab frame's 1.23 Hz mode does), a harmonic at 7 Hz (ζ 1e-4
+    everywhere), and one spurious pole per order at a random frequency and shape."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for n in CLUSTER_ORDERS:
+        rows.append(
+            (
+                n,
+                3.0 * (1 + 2e-4 * rng.standard_normal()),
+                0.02 * (1 + 0.05 * rng.standard_normal()),
+                0,
+            )
+        )
+        z_b = 0.0005 if n == 56 else 0.004 * (1 + 0.05 * rng.standard_normal())
+        rows.append((n, 5.0 * (1 + 2e-4 * rng.standard_normal()), z_b, 1))
+        rows.append((n, 7.0, 1e-4, 2))
+        rows.append((n, rng.uniform(1.0, 9.0), rng.uniform(0.005, 0.08), 3 + n % 5))
+    return _diagram(rows, CLUSTER_ORDERS, n_channels=8)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_cluster_rule_keeps_modes_and_drops_spurious_poles_and_harmonics(seed):
+    result = _cluster_diagram(seed)
+    selection = select_modes(result)
+    modes = selection.modes
+    # A and B only: the spurious poles never recur with the same shape at the next order,
+    # the harmonic's median damping is below the lower limit
+    np.testing.assert_allclose(modes["frequency_hz"], [3.0, 5.0], rtol=1e-3)
+    np.testing.assert_allclose(modes["damping_ratio"], [0.02, 0.004], rtol=0.05)
+    # B keeps its 29 orders: the low-damping pole of order 56 is not dropped
+    assert modes["n_poles"].tolist() == [29, 29]
+    # the uncertainty columns are the clusters' sample standard deviations
+    poles = result.poles
+    for row, shape_id in zip(modes.itertuples(), (0, 1), strict=True):
+        member = np.abs(poles["frequency_hz"] / row.frequency_hz - 1) < 0.005
+        member &= poles["damping_ratio"] > 1e-3 if shape_id == 0 else member
+        f = poles.loc[member, "frequency_hz"]
+        assert row.frequency_std_hz == pytest.approx(f.std(ddof=1), rel=1e-9)
+        z = poles.loc[member, "damping_ratio"]
+        assert row.damping_std == pytest.approx(z.std(ddof=1), rel=1e-9)
+    assert selection.method == "cluster" and selection.model_order is None
+    # the data-derived thresholds: pole distance between the modes' scatter (~1e-4) and
+    # the spurious poles' (> 0.1); a mode must recur in more orders than a spurious group
+    assert 1e-4 < selection.thresholds["pole_distance"] <= 0.02
+    assert selection.thresholds["min_orders"] >= 3
+    # the library rule loses B (ζ below the limit at one order of its window)
+    library = select_modes(result, method="library")
+    assert len(library.modes) < 2 or library.model_order is not None
+
+
+def test_cluster_rule_is_repeatable_and_twins_count_once():
+    result = _cluster_diagram(4)
+    first, second = select_modes(result), select_modes(result)
+    pd.testing.assert_frame_equal(first.modes, second.modes)
+    # a mode split in two poles at every order (0.2 % apart, same shape) is one mode
+    rows = [(n, 4.0, 0.02, 0) for n in CLUSTER_ORDERS]
+    rows += [(n, 4.008, 0.02, 0) for n in CLUSTER_ORDERS]
+    rows += [(n, 6.0 + 0.1 * (n % 7), 0.03, 1 + n % 3) for n in CLUSTER_ORDERS]
+    selection = select_modes(_diagram(rows, CLUSTER_ORDERS))
+    assert len(selection.modes) == 1
+    assert selection.modes["frequency_hz"].iloc[0] == pytest.approx(4.0, rel=3e-3)
+
+
+def test_otsu_threshold_splits_two_groups():
+    from workbench.sid.selection import otsu_threshold
+
+    values = np.r_[np.full(5, 1.0), np.full(3, 10.0)]
+    assert otsu_threshold(values) == pytest.approx(5.5)
+    assert np.isnan(otsu_threshold(np.ones(4)))
+    rng = np.random.default_rng(0)
+    low, high = rng.normal(-4, 0.3, 200), rng.normal(-1, 0.3, 50)
+    assert -3.2 < otsu_threshold(np.r_[low, high]) < -1.8
+
+
+def test_bad_method():
+    result = _diagram([(n, 4.0, 0.02, 0) for n in ORDERS], ORDERS)
+    with pytest.raises(ValueError, match="method"):
+        select_modes(result, method="hdbscan")
+    with pytest.raises(ValueError, match="min_orders"):
+        select_modes(result, min_orders=1)
+    with pytest.raises(ValueError, match="pole_distance"):
+        select_modes(result, pole_distance=0.0)

@@ -94,6 +94,8 @@ def test_faulty_channels_finds_spikes_nan_runs_flat_and_outliers():
         "variance",
         "kurtosis",
         "variance_z",
+        "kurtosis_z",
+        "coherent",
     ]
     faulty = dict(zip(report["channel"], report["faulty"], strict=True))
     reasons = dict(zip(report["channel"], report["reason"], strict=True))
@@ -101,7 +103,8 @@ def test_faulty_channels_finds_spikes_nan_runs_flat_and_outliers():
     assert reasons["c1"].startswith("kurtosis ") and "> 10" in reasons["c1"]
     assert reasons["c2"] == "nan run 60.0 s"
     assert reasons["c3"] == "flat (variance 0)"
-    assert reasons["c4"].startswith("variance z ")
+    # the loud sensor records noise of its own: no coherence with any other channel
+    assert reasons["c4"].startswith("variance z ") and "no coherence" in reasons["c4"]
     assert reasons["c5"].startswith("nan fraction 8.")
     assert reasons["c6"] == "no data (all NaN)"
     assert reasons["c0"] == reasons["c7"] == ""
@@ -122,3 +125,77 @@ def test_faulty_channels_low_kurtosis_and_options():
     assert not relaxed["faulty"].any()
     with pytest.raises(ValueError, match="channel names"):
         faulty_channels(x, RATE, ["a"])
+
+
+def _structure(rng, n_channels=6, impulsive=False, seconds=600.0):
+    """Accelerations of a 3-mode structure at *n_channels* points, excited by white noise
+    or (impulsive=True) by sparse impacts that every channel sees, plus 5 % sensor noise."""
+    from scipy import signal
+
+    n = int(RATE * seconds)
+    if impulsive:  # ice impacts: a few hundred large impulses over low-level noise
+        force = 0.05 * rng.standard_normal(n)
+        hits = rng.choice(n, int(seconds / 3), replace=False)
+        force[hits] += rng.standard_normal(hits.size) * 30.0
+    else:
+        force = rng.standard_normal(n)
+    response = np.zeros((n, n_channels))
+    points = np.linspace(0.1, 0.9, n_channels)
+    for m, (f, zeta) in enumerate(((2.0, 0.01), (4.5, 0.015), (7.0, 0.02)), start=1):
+        w = 2 * np.pi * f
+        system = signal.cont2discrete(([w**2], [1, 2 * zeta * w, w**2]), 1 / RATE)
+        modal = signal.lfilter(np.ravel(system[0]), system[1], force)
+        response += np.outer(modal, np.sin(m * np.pi * points))
+    response /= response.std()
+    return response + 0.05 * rng.standard_normal(response.shape)
+
+
+def test_impulsive_excitation_is_not_a_fault_but_a_spiking_sensor_is():
+    """Impacts seen by every channel raise every kurtosis (here 8-40): no channel is
+    faulty. Spikes of one sensor alone make that sensor faulty."""
+    rng = np.random.default_rng(7)
+    x = _structure(rng, impulsive=True)
+    report = faulty_channels(x, RATE)
+    assert (report["kurtosis"] > 6).all()
+    assert not report["faulty"].any(), report["reason"].tolist()
+    # the former absolute rule takes the excitation for faults
+    absolute = faulty_channels(x, RATE, max_kurtosis_z=-np.inf)
+    assert absolute["faulty"].sum() >= 1
+    spiky = x.copy()
+    spiky[rng.choice(len(x), 40, replace=False), 2] += 60 * x[:, 2].std()
+    report = faulty_channels(spiky, RATE)
+    assert report["faulty"].tolist() == [j == 2 for j in range(6)]
+    assert report["reason"].iloc[2].startswith("kurtosis ")
+
+
+def test_variance_outlier_kept_when_coherent_dropped_when_not():
+    """A channel in other units (1000x the others, like an accelerometer among velocity
+    channels) sees the same modes: coherent, kept. A sensor that recorded only its own
+    noise at that level is dropped."""
+    rng = np.random.default_rng(8)
+    x = _structure(rng)
+    x[:, 1] *= 1000.0
+    report = faulty_channels(x, RATE)
+    assert report["variance_z"].iloc[1] > 6 and report["coherent"].iloc[1] == 1.0
+    assert not report["faulty"].any()
+    x[:, 1] = rng.standard_normal(len(x)) * 1000.0
+    report = faulty_channels(x, RATE)
+    assert report["faulty"].tolist() == [j == 1 for j in range(6)]
+    assert report["coherent"].iloc[1] == 0.0
+    # without the coherence test a variance outlier is dropped on its z-score alone
+    x = _structure(rng)
+    x[:, 1] *= 1000.0
+    assert faulty_channels(x, RATE, coherence_check=False)["faulty"].iloc[1]
+
+
+def test_coherence_of_independent_noise_is_not_significant():
+    """Zero-coherence test: with independent white noise channels the false-alarm rate
+    over 50 trials stays near its design level (0.1 % per compared channel)."""
+    from workbench.signals.moments import coherent_with_others
+
+    rng = np.random.default_rng(9)
+    alarms = 0
+    for _ in range(50):
+        x = rng.standard_normal((int(RATE * 120), 4))
+        alarms += int(coherent_with_others(x, RATE, [0])[0])
+    assert alarms <= 1

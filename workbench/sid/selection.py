@@ -1,7 +1,52 @@
 """Automatic choice of the physical modes of one block from its stabilisation diagram.
 
-Rule (issue 5, item 4), applied to the poles that pass the sanity limits (frequency band,
-damping limits, optional MPC floor):
+Two rules; :func:`select_modes` uses ``method="cluster"`` by default.
+
+Clustering of the poles of all model orders (``method="cluster"``)
+-------------------------------------------------------------------
+In the spirit of the hierarchical clustering of Magalhães et al. [1]_ and the multi-stage
+procedures of Reynders et al. [2]_ and Neu et al. [3]_, with every threshold taken from the
+diagram itself:
+
+1. **Eligible poles**: inside the frequency band, 0 < ζ <= the upper damping limit, MPC
+   above an optional floor. The *lower* damping limit (harmonics have ζ ≈ 0) is applied to
+   a cluster's median damping, not to single poles: a real mode whose damping reads below
+   the limit at one over-fitted order keeps that order's pole.
+2. **Physical or spurious pole** (stage 1): the distance between two poles is
+   d = |f_a - f_b| / max(f_a, f_b) + 1 - MAC(φ_a, φ_b). Every pole gets the distance to
+   its nearest pole in the neighbouring model orders. Physical poles reappear at the next
+   order almost unchanged (d ~ 1e-5..1e-3), spurious ones do not (d ~ 0.01..1): the
+   logarithms of these distances fall into two groups, split by Otsu's threshold (the
+   split minimising the within-group variance [4]_; distances below 1e-5 count as 1e-5,
+   so that an exactly recurring harmonic does not pull the split below the modes). The
+   threshold d_cut is the least populated distance (minimum of a Gaussian kernel density
+   estimate of the log-distances) between Otsu's split and 0.02, the fixed limit of [1]_:
+   the split alone can fall inside the physical group when many poles recur very
+   tightly, and would cut off the more scattered, more damped modes.
+3. **Clusters** (stage 2): single-linkage hierarchical clustering of the physical poles
+   cut at d_cut - the connected components of the graph joining poles closer than
+   d_cut. Only poles within d_cut in frequency can be joined, so the graph is built from a
+   frequency-sorted window search and costs little even for thousands of poles. A cluster
+   keeps one pole per model order (the one closest to its median frequency).
+4. **Modes** (stage 3): a cluster is a mode when it holds poles of many orders: its number
+   of orders must reach Otsu's threshold on the clusters' numbers of orders (physical modes
+   recur over most orders, spurious groups over a few), but never above half the largest
+   cluster's (when every cluster is a mode there is no group of small ones to split off),
+   and at least ``min_orders``.
+   Its median damping must lie within the damping limits. Two accepted clusters with
+   frequencies within ``frequency_tol`` and MAC above ``mac_min`` are one mode (the larger
+   cluster is kept).
+
+Each mode is reported by the cluster's median frequency and median damping ratio, the shape
+(and ``pole_index``, ``model_order``, ``mpc``) of its pole nearest the median frequency,
+and the cluster scatter: ``frequency_std_hz``, ``damping_std`` (sample standard deviations
+over the cluster's poles) and ``n_poles`` (orders in the cluster) - a measurement-noise
+estimate for the forecast's Kalman filter.
+
+Library and descent (``method="library"``, the rule of issue 5)
+---------------------------------------------------------------
+Applied to the poles that pass the sanity limits (frequency band, damping limits, optional
+MPC floor):
 
 1. **Library.** Take the ``library_orders`` (default five) consecutive orders of the
    diagram just below the maximum order (the maximum order itself is left out). A mode
@@ -31,25 +76,52 @@ in one of twelve).
 The lowest order at which all library modes exist is the most parsimonious model that
 still holds every mode consistently seen at high order. Spurious noise poles are rarely
 consistent over five orders; the damping limits remove harmonics (ζ ≈ 0, e.g. the shaft
-line) and over-damped noise poles.
+line) and over-damped noise poles. On real recordings the rule is fragile: over-fitted
+orders near the maximum disturb real modes (MAC < 0.98, ζ < 0.1 % at one order) and lose
+them, which is why clustering is the default.
+
+References
+----------
+.. [1] F. Magalhães, Á. Cunha, E. Caetano, "Online automatic identification of the modal
+   parameters of a long span arch bridge", Mechanical Systems and Signal Processing 23(2),
+   316-329, 2009. doi:10.1016/j.ymssp.2008.05.003
+.. [2] E. Reynders, J. Houbrechts, G. De Roeck, "Fully automated (operational) modal
+   analysis", Mechanical Systems and Signal Processing 29, 228-250, 2012.
+   doi:10.1016/j.ymssp.2012.01.007
+.. [3] E. Neu, F. Janser, A. A. Khatibi, A. C. Orifici, "Fully automated operational modal
+   analysis using multi-stage clustering", Mechanical Systems and Signal Processing 84,
+   308-323, 2017. doi:10.1016/j.ymssp.2016.07.031
+.. [4] N. Otsu, "A threshold selection method from gray-level histograms", IEEE
+   Transactions on Systems, Man, and Cybernetics 9(1), 62-66, 1979.
+   doi:10.1109/TSMC.1979.4310076
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 import pandas as pd
+from scipy import sparse
 from scipy.optimize import linear_sum_assignment
+from scipy.sparse.csgraph import connected_components
 
 from data_contracts import shapes_to_frame
 
-from .mac import continuous_pole, mac
+from .mac import continuous_pole, mac, mac_pairs
 from .ssi import SSIResult
 from .stabilisation import StabilityCriteria
 
 __all__ = ["ModeSelection", "select_modes"]
+
+#: Largest pole distance d = Δf/f + 1 - MAC ever used to join poles into one cluster: the
+#: fixed limit of Magalhães et al. (2009); the data-derived threshold is capped at it.
+MAX_CLUSTER_DISTANCE = 0.02
+#: Pole distances below this count as equal when the split into physical and spurious
+#: poles is sought (a relative frequency change of 1e-5 is below any estimate's scatter).
+DISTANCE_FLOOR = 1e-5
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,19 +133,28 @@ class ModeSelection:
     modes : pandas.DataFrame
         One row per selected mode, sorted by frequency: ``frequency_hz`` [Hz],
         ``damping_ratio`` [-], ``model_order``, ``mpc``, ``stable`` and ``pole_index``
-        (row position in ``result.poles``).
+        (row position in ``result.poles``); with ``method="cluster"`` also the cluster
+        scatter ``frequency_std_hz`` [Hz], ``damping_std`` [-] and ``n_poles``.
     mode_shapes : ndarray of complex, shape (n_channels, n_modes)
         Shapes of the selected modes, column k for row k. [-]
     model_order : int or None
-        Order the modes were selected at (None if the library is empty).
+        Order the modes were selected at (None if the library is empty, and for the
+        clustering rule, whose modes come from several orders).
     library_orders : tuple of int
-        Orders that formed the library.
+        Orders that formed the library (all orders of the diagram for clustering).
+    method : {"cluster", "library"}
+        The rule used.
+    thresholds : dict
+        The data-derived thresholds of the clustering rule: ``pole_distance`` (d_cut) and
+        ``min_orders`` (smallest number of orders of an accepted cluster).
     """
 
     modes: pd.DataFrame
     mode_shapes: np.ndarray
     model_order: int | None
     library_orders: tuple[int, ...]
+    method: str = "library"
+    thresholds: dict = field(default_factory=dict)
 
     @property
     def continuous_poles(self) -> np.ndarray:
@@ -213,6 +294,328 @@ def _drop_twins(
 def select_modes(
     result: SSIResult,
     *,
+    method: Literal["cluster", "library"] = "cluster",
+    frequency_band: tuple[float, float] | None = None,
+    damping_limits: tuple[float, float] = (0.001, 0.10),
+    min_orders: int = 3,
+    pole_distance: float | None = None,
+    library_orders: int = 5,
+    frequency_tol: float = 0.01,
+    damping_tol: float = 0.50,
+    mac_min: float = 0.98,
+    mpc_min: float = 0.0,
+) -> ModeSelection:
+    """Select the physical modes of a stabilisation diagram.
+
+    Parameters
+    ----------
+    result : SSIResult
+        Output of :func:`~workbench.sid.ssi.ssi_cov` or :func:`~workbench.sid.ssi.ssi_data`.
+    method : {"cluster", "library"}
+        ``"cluster"``: clustering of the poles of all orders with thresholds taken from the
+        diagram; ``"library"``: the library-and-descent rule (see the module docstring).
+    frequency_band : (float, float), optional
+        Only poles with low <= f <= high are considered. [Hz]
+    damping_limits : (float, float)
+        Sanity limits of the damping ratio (harmonics have ζ ≈ 0, noise poles are often
+        heavily damped). [-] ``"library"`` applies both to every pole; ``"cluster"``
+        applies the upper one to poles and both to a cluster's median damping.
+    min_orders : int
+        ``"cluster"``: smallest number of model orders of a mode's cluster (the
+        data-derived threshold is never below it).
+    pole_distance : float, optional
+        ``"cluster"``: a fixed cut d_cut of the pole distance instead of the data-derived
+        one (e.g. 0.02 as in Magalhães et al. 2009). [-]
+    library_orders : int
+        ``"library"``: number of consecutive orders below the maximum that a mode must
+        appear in to enter the library.
+    frequency_tol : float
+        ``"library"``: largest relative frequency difference between a pole and a
+        reference pole; ``"cluster"``: two clusters closer than this with MAC above
+        ``mac_min`` are one mode. [-]
+    damping_tol : float
+        ``"library"``: largest relative damping difference between a pole and a reference
+        pole. [-]
+    mac_min : float
+        Smallest MAC between a pole and a reference pole (``"library"``), or between the
+        shapes of twin clusters (``"cluster"``). [-]
+    mpc_min : float
+        Smallest modal phase collinearity of a considered pole (0 disables). [-]
+
+    Returns
+    -------
+    ModeSelection
+        The selected modes (empty if no mode qualifies).
+
+    Raises
+    ------
+    ValueError
+        Bad limits; for ``"library"`` fewer than ``library_orders + 1`` orders.
+    """
+    if method not in ("cluster", "library"):
+        raise ValueError(f"method={method!r} must be 'cluster' or 'library'")
+    low_damping, high_damping = damping_limits
+    if not low_damping < high_damping:
+        raise ValueError(f"damping_limits={damping_limits} must be (low, high) with low < high")
+    if frequency_band is not None and not frequency_band[0] < frequency_band[1]:
+        raise ValueError(f"frequency_band={frequency_band} must be (low, high) with low < high")
+    if method == "library":
+        return _select_library(
+            result,
+            frequency_band=frequency_band,
+            damping_limits=damping_limits,
+            library_orders=library_orders,
+            frequency_tol=frequency_tol,
+            damping_tol=damping_tol,
+            mac_min=mac_min,
+            mpc_min=mpc_min,
+        )
+    if int(min_orders) < 2:
+        raise ValueError(f"min_orders={min_orders} must be at least 2")
+    if pole_distance is not None and not 0 < pole_distance <= 1:
+        raise ValueError(f"pole_distance={pole_distance} must lie in (0, 1]")
+    return _select_clusters(
+        result,
+        frequency_band=frequency_band,
+        damping_limits=damping_limits,
+        min_orders=int(min_orders),
+        pole_distance=pole_distance,
+        frequency_tol=frequency_tol,
+        mac_min=mac_min,
+        mpc_min=mpc_min,
+    )
+
+
+def otsu_threshold(values: np.ndarray) -> float:
+    """Otsu's threshold of a sample: the split minimising the within-group variance.
+
+    Parameters
+    ----------
+    values : ndarray
+        Finite values (at least two distinct).
+
+    Returns
+    -------
+    float
+        Midpoint between the largest value of the lower group and the smallest of the upper
+        group; NaN when the values do not have two distinct values.
+
+    Notes
+    -----
+    For the sorted values x_1 <= ... <= x_n, split k minimises
+    k·var(x_1..x_k) + (n-k)·var(x_k+1..x_n), equivalently maximises the between-group
+    variance k(n-k)(μ_1 - μ_2)²/n [4]_; only splits between distinct values count.
+    """
+    x = np.sort(np.asarray(values, dtype=float).ravel())
+    n = x.size
+    if n < 2 or x[0] == x[-1]:
+        return float("nan")
+    k = np.arange(1, n)
+    cumulative = np.cumsum(x)[:-1]
+    mean_low = cumulative / k
+    mean_high = (x.sum() - cumulative) / (n - k)
+    between = k * (n - k) * (mean_low - mean_high) ** 2
+    between[x[1:] == x[:-1]] = -1.0  # no split between equal values
+    best = int(np.argmax(between))
+    return float(0.5 * (x[best] + x[best + 1]))
+
+
+def _pole_distance(frequency_a, shapes_a, frequency_b, shapes_b) -> np.ndarray:
+    """d = |Δf| / max(f_a, f_b) + 1 - MAC, every pair (matrix n_a x n_b)."""
+    relative = np.abs(frequency_a[:, None] - frequency_b[None, :]) / np.maximum(
+        frequency_a[:, None], frequency_b[None, :]
+    )
+    return relative + 1.0 - np.atleast_2d(mac(shapes_a, shapes_b))
+
+
+def _neighbour_distance(
+    order_rank: np.ndarray, frequency: np.ndarray, shapes: np.ndarray, n_ranks: int
+) -> np.ndarray:
+    """Distance of every pole to its nearest pole of the neighbouring orders (1 if none)."""
+    nearest = np.ones(frequency.size)
+    members = [np.flatnonzero(order_rank == r) for r in range(n_ranks)]
+    for r in range(n_ranks - 1):
+        a, b = members[r], members[r + 1]
+        if a.size == 0 or b.size == 0:
+            continue
+        distance = _pole_distance(frequency[a], shapes[:, a], frequency[b], shapes[:, b])
+        nearest[a] = np.minimum(nearest[a], distance.min(axis=1))
+        nearest[b] = np.minimum(nearest[b], distance.min(axis=0))
+    return np.clip(nearest, 0.0, 1.0)
+
+
+def _distance_cut(log_distance: np.ndarray) -> float:
+    """Cut between physical and spurious poles from the log10 nearest-neighbour distances:
+    the least populated distance (minimum of a Gaussian kernel density estimate) between
+    Otsu's split and the fixed limit :data:`MAX_CLUSTER_DISTANCE`.
+
+    Otsu's split separates the two groups but, when many poles recur very tightly, falls
+    inside the physical group and would cut off the more scattered (more damped) modes;
+    the density minimum above it lies in the gap before the spurious poles.
+    """
+    from scipy.stats import gaussian_kde
+
+    top = np.log10(MAX_CLUSTER_DISTANCE)
+    split = otsu_threshold(log_distance)
+    if not np.isfinite(split) or split >= top:
+        return MAX_CLUSTER_DISTANCE
+    try:
+        density = gaussian_kde(log_distance)
+    except (np.linalg.LinAlgError, ValueError):  # too few or identical values
+        return float(10.0**split)
+    grid = np.linspace(split, top, 101)
+    return float(10.0 ** grid[np.argmin(density(grid))])
+
+
+def _components(frequency: np.ndarray, shapes: np.ndarray, cut: float) -> np.ndarray:
+    """Single-linkage clusters cut at *cut*: connected components of d < cut.
+
+    d >= |Δf|/max(f) so only pairs with f_b within [f_a, f_a / (1 - cut)) can be joined;
+    they are found in frequency order and their MACs computed pairwise.
+    """
+    n = frequency.size
+    if n == 0:
+        return np.zeros(0, dtype=int)
+    order = np.argsort(frequency, kind="stable")
+    f = frequency[order]
+    upper = np.searchsorted(f, f / (1.0 - cut), side="left")
+    counts = np.maximum(upper - np.arange(n) - 1, 0)
+    a = np.repeat(np.arange(n), counts)
+    b = a + 1 + (np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts))
+    if a.size:
+        relative = (f[b] - f[a]) / np.maximum(f[a], f[b])
+        close = relative < cut
+        a, b, relative = a[close], b[close], relative[close]
+    if a.size:
+        distance = relative + 1.0 - mac_pairs(shapes[:, order[a]], shapes[:, order[b]])
+        joined = distance < cut
+        a, b = a[joined], b[joined]
+    graph = sparse.coo_matrix((np.ones(a.size), (a, b)), shape=(n, n))
+    _, labels_sorted = connected_components(graph, directed=False)
+    labels = np.empty(n, dtype=int)
+    labels[order] = labels_sorted
+    return labels
+
+
+def _select_clusters(
+    result: SSIResult,
+    *,
+    frequency_band: tuple[float, float] | None,
+    damping_limits: tuple[float, float],
+    min_orders: int,
+    frequency_tol: float,
+    mac_min: float,
+    mpc_min: float,
+    pole_distance: float | None = None,
+) -> ModeSelection:
+    """The clustering rule of the module docstring."""
+    orders = tuple(sorted(result.orders))
+    poles = result.poles
+    frequency = poles["frequency_hz"].to_numpy(dtype=float)
+    damping = poles["damping_ratio"].to_numpy(dtype=float)
+    model_order = poles["model_order"].to_numpy()
+    mpc = poles["mpc"].to_numpy(dtype=float)
+    shapes = result.mode_shapes
+    low_damping, high_damping = damping_limits
+    eligible = np.isfinite(frequency) & (frequency > 0) & (damping > 0)
+    eligible &= damping <= high_damping
+    eligible &= mpc >= mpc_min
+    if frequency_band is not None:
+        eligible &= (frequency >= frequency_band[0]) & (frequency <= frequency_band[1])
+    index = np.flatnonzero(eligible)
+    thresholds: dict = {"pole_distance": float("nan"), "min_orders": int(min_orders)}
+
+    def empty() -> ModeSelection:
+        return _mode_selection(poles, shapes, np.zeros(0, dtype=int), {}, orders, thresholds)
+
+    if index.size < 2:
+        return empty()
+    f, z, shape = frequency[index], damping[index], shapes[:, index]
+    rank = np.searchsorted(np.asarray(orders), model_order[index])
+    # stage 1: physical poles recur at a neighbouring order
+    nearest = _neighbour_distance(rank, f, shape, len(orders))
+    # distances below the resolution floor are all "the same pole again": an undamped
+    # harmonic recurring to 1e-9 must not make the split fall between it and the modes
+    log_nearest = np.log10(np.maximum(nearest, DISTANCE_FLOOR))
+    cut = _distance_cut(log_nearest)
+    cut = min(cut, MAX_CLUSTER_DISTANCE) if pole_distance is None else float(pole_distance)
+    thresholds["pole_distance"] = float(cut)
+    physical = np.flatnonzero(nearest < cut)
+    if physical.size < 2:
+        return empty()
+    # stage 2: single-linkage clusters of the physical poles
+    labels = _components(f[physical], shape[:, physical], cut)
+    clusters = []
+    for label in np.unique(labels):
+        members = physical[labels == label]
+        centre = np.median(f[members])
+        # one pole per model order: the one closest to the median frequency
+        by_order = np.lexsort((np.abs(f[members] - centre), rank[members]))
+        members = members[by_order]
+        first = np.concatenate(([True], rank[members][1:] != rank[members][:-1]))
+        clusters.append(members[first])
+    sizes = np.array([c.size for c in clusters])
+    # stage 3: modes recur over many orders
+    # Otsu's split of the cluster sizes, never above half the largest cluster: when every
+    # cluster is a mode (no small groups to split off) Otsu would cut between modes
+    size_cut = min(otsu_threshold(sizes), 0.5 * sizes.max())
+    needed = max(int(min_orders), int(np.ceil(size_cut)) if np.isfinite(size_cut) else 0)
+    thresholds["min_orders"] = needed
+    accepted = [
+        c for c in clusters if c.size >= needed and low_damping <= np.median(z[c]) <= high_damping
+    ]
+    accepted.sort(key=lambda c: -c.size)
+    heads, statistics = [], {}
+    for members in accepted:
+        centre = np.median(f[members])
+        head = int(members[np.argmin(np.abs(f[members] - centre))])
+        twin = False
+        for other in heads:
+            close = abs(f[head] / f[other] - 1.0) < frequency_tol
+            if close and mac(shape[:, head], shape[:, other]) > mac_min:
+                twin = True
+                break
+        if twin:
+            continue
+        heads.append(head)
+        ddof = 1 if members.size > 1 else 0
+        statistics[int(index[head])] = {
+            "frequency_hz": float(centre),
+            "damping_ratio": float(np.median(z[members])),
+            "frequency_std_hz": float(np.std(f[members], ddof=ddof)),
+            "damping_std": float(np.std(z[members], ddof=ddof)),
+            "n_poles": int(members.size),
+        }
+    chosen = index[np.array(heads, dtype=int)]
+    return _mode_selection(poles, shapes, chosen, statistics, orders, thresholds)
+
+
+def _mode_selection(poles, shapes, heads, statistics, orders, thresholds) -> ModeSelection:
+    """ModeSelection of the clustering rule from the representative poles *heads*."""
+    heads = np.asarray(heads, dtype=int)
+    stats = [statistics[int(h)] for h in heads]
+    frequency = np.array([s["frequency_hz"] for s in stats], dtype=float)
+    order = np.argsort(frequency, kind="stable")
+    heads, stats, frequency = heads[order], [stats[k] for k in order], frequency[order]
+    modes = pd.DataFrame(
+        {
+            "frequency_hz": frequency,
+            "damping_ratio": np.array([s["damping_ratio"] for s in stats], dtype=float),
+            "model_order": poles["model_order"].to_numpy()[heads].astype(np.int64),
+            "mpc": poles["mpc"].to_numpy()[heads].astype(float),
+            "stable": poles["stable"].to_numpy()[heads].astype(bool),
+            "pole_index": heads.astype(np.int64),
+            "frequency_std_hz": np.array([s["frequency_std_hz"] for s in stats], dtype=float),
+            "damping_std": np.array([s["damping_std"] for s in stats], dtype=float),
+            "n_poles": np.array([s["n_poles"] for s in stats], dtype=np.int64),
+        }
+    )
+    return ModeSelection(modes, shapes[:, heads], None, orders, "cluster", dict(thresholds))
+
+
+def _select_library(
+    result: SSIResult,
+    *,
     frequency_band: tuple[float, float] | None = None,
     damping_limits: tuple[float, float] = (0.001, 0.10),
     library_orders: int = 5,
@@ -313,4 +716,4 @@ def select_modes(
             "pole_index": heads.astype(np.int64),
         }
     )
-    return ModeSelection(modes, shapes[:, heads], selected_order, window)
+    return ModeSelection(modes, shapes[:, heads], selected_order, window, "library")

@@ -12,9 +12,17 @@ uses it again in the next block if it has recovered. A channel is faulty when
 * it has a NaN run longer than can be bridged by interpolation (``nan run 60.0 s``),
 * it is flat (``flat (variance 0)``),
 * its kurtosis is outside the limits (``kurtosis 25.3 > 10``): spikes and bursts give large
-  kurtosis, clipping or a pure hum small kurtosis (a sine has 1.5, Gaussian noise 3),
+  kurtosis, clipping or a pure hum small kurtosis (a sine has 1.5, Gaussian noise 3). A
+  *high* kurtosis is a fault only when it is out of line with the other channels (robust
+  z-score of the log-kurtosis above ``max_kurtosis_z``): impulsive excitation - fan gusts,
+  ice impacts, slamming - reaches every channel at once and raises every kurtosis; a
+  faulty sensor's spikes are its own,
 * its variance is far from that of the other channels (robust z-score of the log-variance
-  across channels, ``variance z 8.1 > 6``): a disconnected or saturated sensor.
+  across channels, ``variance z 8.1 > 6``) *and* it has lost coherence with every other
+  channel: a disconnected or broken sensor records noise of its own. Channels of other
+  quantities or units (velocity beside acceleration, a sensor at a node of most modes)
+  also have variances out of line, but they see the same modes: their coherence with the
+  others is significant, and they are kept.
 """
 
 from __future__ import annotations
@@ -28,11 +36,19 @@ import pandas as pd
 
 from .conditioning import MAX_INTERPOLATED_NAN_RUN_S, _as_2d, _positive, detrend, nan_runs
 
-__all__ = ["WindowMoments", "faulty_channels", "moments"]
+__all__ = ["WindowMoments", "coherent_with_others", "faulty_channels", "moments"]
 
 #: Smallest robust spread of the natural log-variance across channels used in the
 #: variance z-score (channels with nearly equal variance would otherwise give huge z).
 MIN_LOG_VARIANCE_SPREAD = 0.5
+#: Smallest robust spread of the natural log-kurtosis across channels in the kurtosis
+#: z-score: with the default z limit 3, a kurtosis must exceed the channels' median by a
+#: factor exp(0.75) = 2.1 at least (impulsive excitation spreads kurtosis over channels
+#: by less; a spiking sensor exceeds it by far).
+MIN_LOG_KURTOSIS_SPREAD = 0.25
+#: Significance level of the zero-coherence test of one frequency line (see
+#: :func:`coherent_with_others`).
+COHERENCE_ALPHA = 0.01
 
 
 @dataclass(frozen=True, eq=False)
@@ -189,6 +205,8 @@ def faulty_channels(
     kurtosis_limits: tuple[float, float] = (1.3, 10.0),
     flat_variance: float = 1e-12,
     max_variance_z: float = 6.0,
+    max_kurtosis_z: float = 3.0,
+    coherence_check: bool = True,
 ) -> pd.DataFrame:
     """Check each channel of one block and say which are faulty and why.
 
@@ -205,19 +223,30 @@ def faulty_channels(
     max_nan_run_s : float
         Longest accepted NaN run; shorter runs are bridged by interpolation. [s]
     kurtosis_limits : (float, float)
-        Accepted range of the kurtosis of the linearly detrended channel (Gaussian: 3).
+        Accepted range of the kurtosis of the linearly detrended channel (Gaussian: 3). A
+        kurtosis above the upper limit is a fault only when also out of line with the
+        other channels (*max_kurtosis_z*).
     flat_variance : float
         Variances at or below this mean a flat (dead or stuck) sensor. [(m/s²)²]
     max_variance_z : float
         Largest accepted robust z-score |z| of the channel's log-variance among the
-        channels; ``inf`` switches the check off.
+        channels (beyond it, the channel is faulty if it is also incoherent with the
+        others); ``inf`` switches the check off.
+    max_kurtosis_z : float
+        A kurtosis above the upper limit is a fault when its robust z-score (log-kurtosis
+        among the channels) exceeds this; ``-inf`` makes the upper limit absolute (the
+        former rule, which takes impulsive excitation for faults).
+    coherence_check : bool
+        Confirm a variance outlier by a lost coherence with every other channel
+        (:func:`coherent_with_others`); False drops on the variance z-score alone.
 
     Returns
     -------
     DataFrame
         One row per channel: ``channel``, ``faulty`` (bool), ``reason`` (empty when fine,
         several reasons joined by ``"; "``), ``nan_fraction``, ``longest_nan_run_s``,
-        ``variance``, ``kurtosis``, ``variance_z``.
+        ``variance``, ``kurtosis``, ``variance_z``, ``kurtosis_z``, ``coherent`` (1.0 /
+        0.0 for channels whose coherence was tested, NaN otherwise).
 
     Notes
     -----
@@ -226,7 +255,9 @@ def faulty_channels(
     :math:`z_j = (\\ln v_j - \\operatorname{med}\\ln v) / \\max(1.4826\\,
     \\operatorname{MAD}, 0.5)` over channels that are not flat and have finite variance
     (needs at least 3 such channels); the floor keeps channels of nearly equal variance
-    from being flagged for small differences. See the module docstring for the policy.
+    from being flagged for small differences. The kurtosis z-score is the same statistic
+    of :math:`\\ln \\kappa_j` with the floor 0.25; with fewer than 3 usable channels the
+    kurtosis limits are absolute. See the module docstring for the policy.
     """
     array, _ = _as_2d(x)
     rate = _positive(sampling_rate_hz, "sampling_rate_hz")
@@ -257,12 +288,17 @@ def faulty_channels(
         kurtosis[group] = _shape_statistics(m2, np.zeros_like(m2), m4)[1]
 
     usable = np.isfinite(variance) & (variance > flat_variance)
-    z = np.full(n_channels, np.nan)
-    if usable.sum() >= 3:
-        log_variance = np.log(variance[usable])
-        centre = np.median(log_variance)
-        spread = max(1.4826 * np.median(np.abs(log_variance - centre)), MIN_LOG_VARIANCE_SPREAD)
-        z[usable] = (log_variance - centre) / spread
+    z = _robust_z(np.log(np.where(usable, variance, 1.0)), usable, MIN_LOG_VARIANCE_SPREAD)
+    usable_kurtosis = usable & np.isfinite(kurtosis) & (kurtosis > 0)
+    kurtosis_z = _robust_z(
+        np.log(np.where(usable_kurtosis, kurtosis, 1.0)), usable_kurtosis, MIN_LOG_KURTOSIS_SPREAD
+    )
+    # variance outliers: faulty only if they also lost coherence with every other channel
+    outliers = np.flatnonzero(np.isfinite(z) & (np.abs(z) > max_variance_z))
+    coherent = np.full(n_channels, np.nan)
+    if coherence_check and outliers.size:
+        healthy = usable & (nan_fraction <= max_nan_fraction) & (longest <= max_nan_run_s)
+        coherent[outliers] = coherent_with_others(array, rate, outliers, healthy)
 
     reasons: list[str] = []
     for j in range(n_channels):
@@ -279,12 +315,14 @@ def faulty_channels(
             if not variance[j] > flat_variance:
                 shown = 0.0 if variance[j] < 1e-30 else variance[j]  # round-off of a constant
                 why.append(f"flat (variance {shown:.3g})")
-            elif kurtosis[j] > high:
+            elif kurtosis[j] > high and not (kurtosis_z[j] <= max_kurtosis_z):
+                # out of line with the other channels (or too few channels to compare)
                 why.append(f"kurtosis {kurtosis[j]:.1f} > {high:g}")
             elif kurtosis[j] < low:
                 why.append(f"kurtosis {kurtosis[j]:.2f} < {low:g}")
-            if np.isfinite(z[j]) and abs(z[j]) > max_variance_z:
-                why.append(f"variance z {z[j]:.1f} beyond ±{max_variance_z:g}")
+            if np.isfinite(z[j]) and abs(z[j]) > max_variance_z and coherent[j] != 1.0:
+                lost = "; no coherence with any other channel" if coherent[j] == 0.0 else ""
+                why.append(f"variance z {z[j]:.1f} beyond ±{max_variance_z:g}{lost}")
         reasons.append("; ".join(why))
     return pd.DataFrame(
         {
@@ -296,5 +334,102 @@ def faulty_channels(
             "variance": variance,
             "kurtosis": kurtosis,
             "variance_z": z,
+            "kurtosis_z": kurtosis_z,
+            "coherent": coherent,
         }
     )
+
+
+def _robust_z(values: np.ndarray, usable: np.ndarray, min_spread: float) -> np.ndarray:
+    """(v - median) / max(1.4826 MAD, min_spread) over the usable entries (NaN elsewhere,
+    and everywhere with fewer than 3 usable entries)."""
+    z = np.full(values.size, np.nan)
+    if usable.sum() >= 3:
+        centre = np.median(values[usable])
+        spread = max(1.4826 * np.median(np.abs(values[usable] - centre)), min_spread)
+        z[usable] = (values[usable] - centre) / spread
+    return z
+
+
+def coherent_with_others(
+    x: np.ndarray,
+    sampling_rate_hz: float,
+    channels: Sequence[int] | np.ndarray,
+    others: np.ndarray | None = None,
+    *,
+    n_segments: int = 64,
+    alpha: float = COHERENCE_ALPHA,
+) -> np.ndarray:
+    """Whether each of *channels* is significantly coherent with at least one other channel.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n_samples, n_channels)
+        One block (NaN samples are set to 0 after a linear detrend).
+    sampling_rate_hz : float
+        [Hz]
+    channels : sequence of int
+        Columns to test.
+    others : ndarray of bool, shape (n_channels,), optional
+        Columns to compare with (default all); a column is never compared with itself.
+    n_segments : int
+        Non-overlapping Hann-windowed segments of the Welch estimate.
+    alpha : float
+        Significance level of the zero-coherence test of one frequency line.
+
+    Returns
+    -------
+    ndarray of float, shape (len(channels),)
+        1.0 (coherent with some other channel) or 0.0; NaN without another channel.
+
+    Notes
+    -----
+    With n independent segments and no true coherence, the estimated magnitude-squared
+    coherence of one frequency line exceeds :math:`c_\\alpha = 1 - \\alpha^{1/(n-1)}`
+    with probability α [1]_. Counting the lines (up to 0.8 times Nyquist) where the
+    coherence with channel k exceeds :math:`c_\\alpha`, a channel without coherence
+    gives a binomial count B(m, α) over m lines; the channel is *coherent* when, for some
+    k, the count exceeds the binomial's 0.999 quantile (Bonferroni-corrected for the
+    channels compared). Structural modes seen by both channels give many lines of high
+    coherence; a disconnected sensor recording its own noise gives none.
+
+    References
+    ----------
+    .. [1] J. S. Bendat, A. G. Piersol, "Random Data: Analysis and Measurement
+       Procedures", 4th ed., Wiley, 2010, section 9.2.3. doi:10.1002/9781118032428
+    """
+    from scipy import stats as scipy_stats
+
+    array, _ = _as_2d(x)
+    _positive(sampling_rate_hz, "sampling_rate_hz")
+    n_samples, n_channels = array.shape
+    channels = np.asarray(channels, dtype=int)
+    others = np.ones(n_channels, dtype=bool) if others is None else np.asarray(others, bool)
+    result = np.full(channels.size, np.nan)
+    segment = n_samples // max(int(n_segments), 2)
+    if segment < 16 or channels.size == 0:
+        return result
+    n = n_samples // segment
+    columns = np.union1d(channels, np.flatnonzero(others))
+    data = np.nan_to_num(detrend(array[: n * segment, columns]), nan=0.0)
+    window = np.hanning(segment)
+    spectra = np.fft.rfft(
+        data.reshape(n, segment, columns.size) * window[None, :, None], axis=1
+    )  # (segments, lines, channels)
+    lines = int(0.8 * (segment // 2)) + 1
+    spectra = spectra[:, 1:lines]
+    auto = np.mean(np.abs(spectra) ** 2, axis=0)  # (lines, channels)
+    critical = 1.0 - alpha ** (1.0 / (n - 1))
+    position = {int(c): k for k, c in enumerate(columns)}
+    for r, j in enumerate(channels):
+        a = position[int(j)]
+        partners = [position[int(k)] for k in np.flatnonzero(others) if k != j]
+        if not partners:
+            continue
+        cross = np.mean(spectra[:, :, [a]].conj() * spectra[:, :, partners], axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            coherence = np.abs(cross) ** 2 / (auto[:, [a]] * auto[:, partners])
+        count = np.sum(np.nan_to_num(coherence) > critical, axis=0)
+        limit = scipy_stats.binom.ppf(1.0 - 0.001 / len(partners), coherence.shape[0], alpha)
+        result[r] = float(np.any(count > limit))
+    return result
