@@ -150,6 +150,7 @@ class StepwiseFit:
     step_records: tuple[tuple, ...] = field(repr=False, default=())
     skipped_records: tuple[tuple, ...] = field(repr=False, default=())
     coefficient_names: tuple[str, ...] = field(repr=False, default=())
+    coefficient_terms: tuple[Term, ...] = field(repr=False, default=())
     search_estimates: np.ndarray | None = field(repr=False, default=None)
     encoding: Encoding | None = field(repr=False, default=None)
     missing: str = "candidate"
@@ -1209,6 +1210,7 @@ class _Search:
             step_records=tuple(self.steps),
             skipped_records=tuple((s, term, reason) for (term, reason), s in self.skipped.items()),
             coefficient_names=tuple(names),
+            coefficient_terms=tuple(layout.terms[t] for t in model for _ in layout.columns[t]),
             search_estimates=search_estimates,
             encoding=encoding,
             missing=missing,
