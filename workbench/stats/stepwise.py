@@ -706,6 +706,7 @@ class _Layout:
     predictors: tuple[tuple[int, ...], ...]  # predictor columns of each term
     used_columns: list[int]
     single: bool  # every term has one design column
+    first_column: np.ndarray  # first design column of each term
 
 
 @functools.lru_cache(maxsize=256)
@@ -737,8 +738,15 @@ def _layout(upper_terms: tuple[Term, ...], names: tuple[str, ...], levels: tuple
         predictors=tuple(tuple(sorted(set(t))) for t in upper_terms),
         used_columns=sorted({i for t in upper_terms for i in t}),
         single=all(w == 1 for w in widths),
+        first_column=starts[:-1].astype(int),
     )
-    for array in (out.parent_count, out.parents, out.missing_parent, out.is_intercept):
+    for array in (
+        out.parent_count,
+        out.parents,
+        out.missing_parent,
+        out.is_intercept,
+        out.first_column,
+    ):
         array.setflags(write=False)
     return out
 
@@ -814,6 +822,7 @@ class _Search:
         self.skipped: dict[tuple[str, str], int] = {}
         self.model: list[int] = []
         self.swept: dict[int, list[int]] = {}  # term -> its columns swept into the model
+        self._columns_cache: list[int] | None = None
 
     # ----------------------------------------------------------------- row sets
     def _rows(self, terms) -> np.ndarray | None:
@@ -844,7 +853,9 @@ class _Search:
         return matrix, count
 
     def _model_columns(self) -> list[int]:
-        return [c for t in self.model for c in self.swept.get(t, [])]
+        if self._columns_cache is None:
+            self._columns_cache = [c for t in self.model for c in self.swept.get(t, [])]
+        return self._columns_cache
 
     # ----------------------------------------------------------------- statistics
     def _score_add(self, n, k, sse, sst, decrease, df):
@@ -878,7 +889,7 @@ class _Search:
         df = np.zeros(len(terms))
         columns: list[list[int]] = []
         if layout.single:
-            index = np.array([layout.columns[t][0] for t in terms], dtype=int)
+            index = layout.first_column[terms]
             unexplained = matrix[index, index]
             ok = unexplained > COLLINEARITY_TOLERANCE
             decrease[ok] = matrix[index[ok], y] ** 2 / unexplained[ok]
@@ -931,6 +942,7 @@ class _Search:
                     "the terms before it"
                 )
             self.swept[term] = kept
+        self._columns_cache = None
         in_model = np.zeros(n_terms, dtype=bool)
         in_model[self.model] = True
         protected = np.zeros(n_terms, dtype=bool)
@@ -968,6 +980,7 @@ class _Search:
                         self.steps.append((step + 1, "add", display[index], *record[1:]))
                         self.model = sorted([*self.model, index])
                         self.swept[index] = columns
+                        self._columns_cache = None
                         in_model[index] = True
                         if new_rows is not None and not np.array_equal(new_rows, rows):
                             rows = new_rows
@@ -993,6 +1006,7 @@ class _Search:
                         self.steps.append((step + 1, "remove", display[index], *record[1:]))
                         self.model = [t for t in self.model if t != index]
                         self.swept.pop(index, None)
+                        self._columns_cache = None
                         in_model[index] = False
                         rows = self._rows(self.model)
                         problem = self._problem_for(rows)
@@ -1084,7 +1098,15 @@ class _Search:
         y = self.y_slot
         increase = np.full(len(terms), np.nan)
         df = np.zeros(len(terms))
-        for position, term in enumerate(terms.tolist()):
+        if self.layout.single and all(self.swept.get(t) for t in terms.tolist()[1:]):
+            # one column per term: SSE_small - SSE_large = b_j² / [(XᵀX)⁻¹]_jj
+            columns = self.layout.first_column[terms[removable]]
+            increase[removable] = matrix[columns, y] ** 2 / -matrix[columns, columns]
+            df[removable] = 1.0
+            terms_loop: list[int] = []
+        else:
+            terms_loop = terms.tolist()
+        for position, term in enumerate(terms_loop):
             if not removable[position]:
                 continue
             cols = self.swept.get(term, [])
