@@ -434,6 +434,9 @@ def sliding_forecast(
     from workbench.stats import case_labels, case_training_mask, stepwise  # optional stage
 
     options = dict(stepwise_options or {})
+    # a window's model uses the rows complete in every candidate predictor (the rule the
+    # forecast was validated with); stepwise_options={"missing": "candidate"} for MATLAB's
+    options.setdefault("missing", "complete")
     notes: Counter[str] = Counter()
 
     # ---- block grid and predictor matrix
