@@ -609,7 +609,7 @@ str or sequence of str
     models = {}
     for parameter, spec in (("upper", upper), ("start", start), ("lower", lower)):
         terms = parse_terms(spec, names, parameter=parameter, squarable=squarable)
-        for term in terms:
+        for term in terms if any(encoding.categorical) else ():
             if is_square(term) and encoding.categorical[term[0]]:
                 raise ValueError(
                     f"{parameter} term {term_name(term, names)!r}: a categorical predictor "
@@ -618,7 +618,8 @@ str or sequence of str
         models[parameter] = terms
     upper_terms = tuple(models["upper"])
     start_terms, lower_terms = models["start"], models["lower"]
-    outside = [t for t in start_terms if t not in upper_terms]
+    position = {term: k for k, term in enumerate(upper_terms)}
+    outside = [t for t in start_terms if t not in position]
     if outside:
         raise ValueError(f"start term {term_name(outside[0], names)!r} is not in the upper model")
     absent = [t for t in lower_terms if t not in start_terms]
@@ -658,7 +659,7 @@ str or sequence of str
     n = int(y_values.shape[0])
     start_columns = sorted({c for t in start_terms for c in t})
     start_rows = int(finite[:, start_columns].all(axis=1).sum()) if start_columns else n
-    width = sum(layout.widths[upper_terms.index(t)] for t in start_terms)
+    width = sum(layout.widths[position[t]] for t in start_terms)
     if start_rows < width + 1:
         raise ValueError(
             f"stepwise needs at least {width + 1} complete rows for the start model "
@@ -683,8 +684,8 @@ str or sequence of str
         p_enter=p_enter,
         p_remove=p_remove,
     )
-    start_index = [upper_terms.index(t) for t in start_terms]
-    lower_index = {upper_terms.index(t) for t in lower_terms}
+    start_index = [position[t] for t in start_terms]
+    lower_index = {position[t] for t in lower_terms}
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         search.run(start_index, lower_index, max_steps)
         return search.result(encoding, response_name, missing)
@@ -707,6 +708,9 @@ class _Layout:
     used_columns: list[int]
     single: bool  # every term has one design column
     first_column: np.ndarray  # first design column of each term
+    parent_a: np.ndarray  # the parents of a term; n_terms: none, or absent from upper
+    parent_b: np.ndarray
+    has_parents: np.ndarray
 
 
 @functools.lru_cache(maxsize=256)
@@ -719,12 +723,18 @@ def _layout(upper_terms: tuple[Term, ...], names: tuple[str, ...], levels: tuple
     columns = tuple(np.arange(starts[k], starts[k + 1]) for k in range(n_terms))
     parent_matrix = np.zeros((n_terms, n_terms), dtype=bool)
     missing_parent = np.zeros(n_terms, dtype=bool)
+    parent_a = np.full(n_terms, n_terms)
+    parent_b = np.full(n_terms, n_terms)
     for k, term in enumerate(upper_terms):
-        for parent in parents(term):
+        term_parents = parents(term)
+        for parent in term_parents:
             if parent in position:
                 parent_matrix[k, position[parent]] = True
             else:
                 missing_parent[k] = True
+        if term_parents:
+            parent_a[k] = position.get(term_parents[0], n_terms)
+            parent_b[k] = position.get(term_parents[-1], n_terms)
     out = _Layout(
         terms=upper_terms,
         widths=widths,
@@ -739,6 +749,9 @@ def _layout(upper_terms: tuple[Term, ...], names: tuple[str, ...], levels: tuple
         used_columns=sorted({i for t in upper_terms for i in t}),
         single=all(w == 1 for w in widths),
         first_column=starts[:-1].astype(int),
+        parent_a=parent_a,
+        parent_b=parent_b,
+        has_parents=np.array([len(parents(t)) > 0 for t in upper_terms], dtype=bool),
     )
     for array in (
         out.parent_count,
@@ -867,7 +880,7 @@ class _Search:
         criterion = self.criterion
         if criterion == "sse":
             score = p_value
-            value = np.full_like(p_value, np.nan)
+            value = p_value  # not recorded for "sse"
         elif criterion in ("aic", "bic"):
             penalty = 2.0 if criterion == "aic" else np.log(n)
             score = n * np.log(sse_new / sse) + penalty * df
@@ -892,10 +905,13 @@ class _Search:
             index = layout.first_column[terms]
             unexplained = matrix[index, index]
             ok = unexplained > COLLINEARITY_TOLERANCE
-            decrease[ok] = matrix[index[ok], y] ** 2 / unexplained[ok]
-            df[ok] = 1.0
-            columns = [[int(c)] if good else [] for c, good in zip(index, ok, strict=True)]
-            return decrease, df, columns
+            if ok.all():
+                decrease = matrix[index, y] ** 2 / unexplained
+                df.fill(1.0)
+            else:
+                decrease[ok] = matrix[index[ok], y] ** 2 / unexplained[ok]
+                df[ok] = 1.0
+            return decrease, df, None  # columns: the term's one column
         for position, term in enumerate(terms):
             cols = [int(c) for c in layout.columns[term]]
             if len(cols) == 1:
@@ -945,6 +961,7 @@ class _Search:
         self._columns_cache = None
         in_model = np.zeros(n_terms, dtype=bool)
         in_model[self.model] = True
+        in_extended = np.zeros(n_terms + 1, dtype=bool)
         protected = np.zeros(n_terms, dtype=bool)
         protected[list(lower)] = True
         protected |= layout.is_intercept
@@ -959,8 +976,11 @@ class _Search:
             acted = False
 
             # ---- try to add: not in the model, hierarchy satisfied, not just removed
-            missing_parents = (layout.parents & ~in_model[None, :]).any(axis=1)
-            eligible = ~in_model & ~layout.missing_parent & ~missing_parents
+            # hierarchy: both parents in the model (slot n_terms: no such parent, False)
+            in_extended[:n_terms] = in_model
+            eligible = ~in_model & (
+                ~layout.has_parents | (in_extended[layout.parent_a] & in_extended[layout.parent_b])
+            )
             if just_removed >= 0:
                 eligible[just_removed] = False
             eligible_index = np.flatnonzero(eligible)
@@ -1025,7 +1045,7 @@ class _Search:
         groups: dict[bytes | None, list[int]] = {}
         group_rows: dict[bytes | None, np.ndarray | None] = {}
         if self.finite is None:
-            groups[None] = eligible_index.tolist()
+            groups[None] = eligible_index
             group_rows[None] = None
         else:
             for term in eligible_index.tolist():
@@ -1050,39 +1070,38 @@ class _Search:
                 group_problem = self._problem_for(candidate_rows)
                 group_matrix, swept = self._swept_matrix(group_problem, self._model_columns())
                 group_k = 1 + swept
-            terms_array = np.array(terms)
+            terms_array = np.asarray(terms)
             n = group_problem.n
             sse = max(float(group_matrix[self.y_slot, self.y_slot]), 0.0)
             decrease, df, columns = self._gains(group_matrix, terms_array)
             collinear = df == 0
             short = ~collinear & (n - group_k - df < 1)
-            for term in terms_array[collinear].tolist():
-                self.skipped.setdefault(
-                    (display[term], "collinear with the model's terms"), step + 1
-                )
-            for term in terms_array[short].tolist():
-                reason = f"too few observations: n={n} leaves no error degrees of freedom"
-                self.skipped.setdefault((display[term], reason), step + 1)
             ok = ~collinear & ~short
-            if not ok.any():
-                continue
+            if not ok.all():
+                for term in terms_array[collinear].tolist():
+                    self.skipped.setdefault(
+                        (display[term], "collinear with the model's terms"), step + 1
+                    )
+                for term in terms_array[short].tolist():
+                    reason = f"too few observations: n={n} leaves no error degrees of freedom"
+                    self.skipped.setdefault((display[term], reason), step + 1)
+                if not ok.any():
+                    continue
+                terms_array, decrease, df = terms_array[ok], decrease[ok], df[ok]
+                if columns is not None:
+                    columns = [c for c, good in zip(columns, ok, strict=True) if good]
             f_stat, p_value, score, value = self._score_add(
-                n, group_k, sse, group_problem.sst, decrease[ok], df[ok]
+                n, group_k, sse, group_problem.sst, decrease, df
             )
             score = np.where(score != score, np.inf, score)  # NaN (0/0) never enters
             j = int(np.argmin(score))  # terms in canonical order: ties go to the first
-            term = int(terms_array[ok][j])
+            term = int(terms_array[j])
             candidate = (float(score[j]), term)
             if best is None or candidate < best[0]:
                 change = score[j] if self.criterion in ("aic", "bic") else -score[j]
-                record = self._record(f_stat[j], p_value[j], value[j], change, df[ok][j], n)
-                best = (
-                    candidate,
-                    term,
-                    (float(score[j]), *record),
-                    columns[int(np.flatnonzero(ok)[j])],
-                    group_rows[key],
-                )
+                record = self._record(f_stat[j], p_value[j], value[j], change, df[j], n)
+                chosen = [int(self.layout.first_column[term])] if columns is None else columns[j]
+                best = (candidate, term, (float(score[j]), *record), chosen, group_rows[key])
         if best is None:
             return None
         _, term, record, columns, new_rows = best
