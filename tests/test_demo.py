@@ -40,6 +40,22 @@ def test_demo_writes_every_stage(demo):
     assert "forecast.csv" in index and "tracked_modal.csv" in index
 
 
+def test_demo_fit_report_shows_case_models_beside_the_stitched_one(demo):
+    table = pd.read_csv(demo / "fit" / "case_models.csv")
+    cases = set(table["case"])
+    # the simulated voyage's operating cases (on a 6-h voyage the 1-h stationary stretch
+    # has fewer blocks than a case model needs and is listed as left out)
+    assert {"all", "constant_speed", "alternating", "temperature_drift"} <= cases
+    stitched = table[table["case"] == "all"].set_index("mode")
+    for case in cases - {"all"}:
+        rows = table[table["case"] == case].set_index("mode")
+        # a case model uses a subset of the stitched model's blocks
+        assert (rows["n_obs"] <= stitched.loc[rows.index, "n_obs"]).all(), case
+    summary = (demo / "fit" / "fit_summary.txt").read_text(encoding="utf-8")
+    assert "Models per operating case" in summary and "all (stitched)" in summary
+    assert "=== Case alternating, mode" in summary
+
+
 def test_demo_tables_follow_their_contracts(demo):
     tracked = read_table(demo / "tracked_modal.csv", MODAL)
     read_table(demo / "predictors.csv", PREDICTORS)

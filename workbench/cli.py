@@ -620,6 +620,13 @@ def _add_fit(commands: argparse._SubParsersAction) -> None:
         "such as 'y ~ speed_kn + water_temp_c + speed_kn:water_temp_c'",
     )
     parser.add_argument(
+        "--cases",
+        metavar="FILE|derive",
+        help="also fit per operating case beside the stitched model: a CSV with "
+        "case,start,end (UTC), or 'derive' (stationary below 1 kn, ice at water <= -1.5 C, "
+        "else open water)",
+    )
+    parser.add_argument(
         "--min-presence",
         type=float,
         default=0.5,
@@ -649,10 +656,18 @@ def _run_fit(args: argparse.Namespace) -> int:
             p_enter=args.p_enter,
             p_remove=args.p_remove,
             upper=args.upper,
+            cases=_cases_argument(args.cases),
         )
     for name, path in dict(paths).items():
         print(f"{name}: {path}")
     return EXIT_OK
+
+
+def _cases_argument(value: str | None):
+    """--cases: None, "derive" or the path of a case,start,end CSV."""
+    if value is None or value == "derive":
+        return value
+    return Path(value)
 
 
 def _add_forecast(commands: argparse._SubParsersAction) -> None:
@@ -708,6 +723,12 @@ def _add_forecast(commands: argparse._SubParsersAction) -> None:
         required=True,
         metavar="FILE",
         help="forecast table to write (.csv or .parquet)",
+    )
+    parser.add_argument(
+        "--cases",
+        metavar="FILE|derive",
+        help="forecast each window with the model of the current operating case: a CSV "
+        "with case,start,end (UTC), or 'derive' (stationary / open water / ice by rule)",
     )
     parser.add_argument(
         "--figures", type=Path, metavar="DIR", help="write one figure per mode into DIR"
@@ -797,6 +818,7 @@ def _run_forecast(args: argparse.Namespace) -> int:
                 "shape_mac_min": args.shape_mac_min,
                 "reacquire_blocks": args.reacquire_blocks,
             },
+            cases=_cases_argument(args.cases),
         )
     _print_result(result)
     return EXIT_OK

@@ -226,7 +226,7 @@ def run_demo(
     with stage("fit"):
         from .reporting.diagnostics_plot import write_fit_report
 
-        write_fit_report(modes, predictors, out_dir / "fit")
+        write_fit_report(modes, predictors, out_dir / "fit", cases=simulation.cases)
 
     poles = read_table(identify_dir / "poles.parquet", CONTRACTS["poles"])
     with stage("forecast"):

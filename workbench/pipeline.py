@@ -307,8 +307,13 @@ def run_forecast(
     progress: bool = False,
     min_presence: float = 0.5,
     option_b: Mapping[str, Any] | None = None,
+    cases=None,
 ) -> StageResult:
     """Sliding forecasts for each option, one forecast table (CSV/Parquet) and figures.
+
+    *cases* (None, "derive", a ``case,start,end`` file or table): each window forecasts
+    with the model of the current operating case (see
+    :func:`~workbench.forecast.sliding_forecast`).
 
     Modes measured in fewer than *min_presence* of the blocks (short-lived tracks: a shaft
     harmonic passing by, spurious poles) are not forecast; a line says which.
@@ -334,6 +339,7 @@ def run_forecast(
             trust=trust,
             predictor_columns=predictor_columns,
             stepwise_options=stepwise_options,
+            cases=cases,
             **(dict(option_b or {}) if option == "B" else {}),
         )
         result.warnings += [f"option {option}: {m}" for m in messages]

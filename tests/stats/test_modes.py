@@ -62,6 +62,47 @@ def test_normality_tests_match_scipy():
     json.dumps(empty.to_dict(), allow_nan=False)
 
 
+def test_durbin_watson_within_contiguous_runs():
+    rng = np.random.default_rng(3)
+    # two runs of blocks (0-99 and 200-299): the jump between them is not a lag-1 pair
+    first, second = rng.standard_normal(100) + 5.0, rng.standard_normal(100) - 5.0
+    e = np.concatenate([first, second])
+    blocks = np.concatenate([np.arange(100), np.arange(200, 300)])
+    inside = np.sum(np.diff(first) ** 2) + np.sum(np.diff(second) ** 2)
+    expected = inside / np.sum(e**2) * (e.size - 1) / 198
+    assert durbin_watson(e, blocks) == pytest.approx(expected, rel=1e-12)
+    # without the blocks the 10-unit jump counts as one more pair
+    jump = (second[0] - first[-1]) ** 2
+    assert durbin_watson(e) == pytest.approx((inside + jump) / np.sum(e**2), rel=1e-12)
+    # interleaved runs (every other block, as in a case stitched from alternating
+    # stretches): no pair is contiguous, so the statistic is undefined
+    assert np.isnan(durbin_watson(e, np.arange(0, 400, 2)))
+    diagnostics = residual_diagnostics(e, blocks=blocks)
+    assert diagnostics.durbin_watson == pytest.approx(expected, rel=1e-12)
+    pairs = np.concatenate([np.arange(99), np.arange(100, 199)])
+    lag1 = np.corrcoef(e[pairs], e[pairs + 1])[0, 1]
+    assert diagnostics.lag1_autocorrelation == pytest.approx(lag1, rel=1e-12)
+
+
+def test_fit_modes_keeps_blocks_with_nan_in_an_unused_predictor(block_tables):
+    modal, predictors = block_tables
+    predictors = predictors.copy()
+    predictors["hull_strain"] = np.nan  # a logged channel that is mostly missing
+    predictors.loc[predictors.index[:5], "hull_strain"] = np.arange(5.0)
+    fits = fit_modes(modal, predictors, predictors_used=["speed_kn", "water_temp_c", "hull_strain"])
+    for mode, item in fits.items():
+        assert "hull_strain" not in item.fit.used_predictors
+        assert item.fit.n_obs == item.blocks.size == 80, mode
+    # stepwisefit's rule keeps only the 5 blocks where every candidate is finite
+    complete = fit_modes(
+        modal,
+        predictors,
+        predictors_used=["speed_kn", "water_temp_c", "hull_strain"],
+        missing="complete",
+    )
+    assert {item.fit.n_obs for item in complete.values()} == {5}
+
+
 def test_diagnostics_figure_panels(close_figures):
     rng = np.random.default_rng(2)
     residuals = rng.standard_normal(50)

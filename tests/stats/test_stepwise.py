@@ -305,8 +305,13 @@ def test_rows_with_nan_are_left_out_and_prediction_marks_them():
     y[3] = np.nan
     X.loc[5, "c"] = np.nan
     fit = stepwise(X, y, upper="linear")
-    assert fit.n_obs == 28
+    # 'c' (NaN in row 5) is never selected: the default (MATLAB stepwiselm) keeps row 5
+    assert fit.n_obs == 29
     assert fit.terms == ("a",)
+    # MATLAB stepwisefit's rule: a row with NaN in any candidate predictor is left out
+    complete = stepwise(X, y, upper="linear", missing="complete")
+    assert complete.n_obs == 28 and complete.terms == ("a",)
+    assert "stepwisefit" in complete.summary() and "stepwiselm" in fit.summary()
     rows = pd.DataFrame({"a": [1.0, np.nan, 2.0], "b": [np.nan, 0.0, 0.0]}, index=[10, 11, 12])
     out = fit.predict(rows, interval="prediction")
     assert out.index.tolist() == [10, 11, 12]

@@ -221,6 +221,7 @@ def sliding_forecast(
     modes: Sequence[int] | None = None,
     alpha: float = 0.05,
     extrapolation_limit: float = 4.0,
+    cases=None,
 ) -> ForecastResult:
     """Sliding stepwise-regression forecast of each mode's frequency, Kalman-blended with SSI.
 
@@ -306,6 +307,11 @@ def sliding_forecast(
         Normalised predictors are clipped to ±this many window standard deviations before
         prediction, so a long forecast cannot extrapolate a 20-block fit without bound
         (e.g. a time trend); clipped blocks carry a warning.
+    cases : None, "derive", CaseRule, column name, path or DataFrame, optional
+        Operating cases (:func:`workbench.stats.cases.case_labels`). Each window then
+        trains on its blocks of the case the first forecast block is in, so the forecast
+        uses the model of the current case (the whole window when the case has fewer than
+        *min_train_blocks* of them; :func:`workbench.stats.case_training_mask`).
 
     Returns
     -------
@@ -425,9 +431,12 @@ def sliding_forecast(
         missing = [c for c in needed if c not in frame.columns]
         if missing:
             raise ValueError(f"{name} lacks column(s) {missing}")
-    from workbench.stats import stepwise  # imported here: the stats stage is optional
+    from workbench.stats import case_labels, case_training_mask, stepwise  # optional stage
 
     options = dict(stepwise_options or {})
+    # a window's model uses the rows complete in every candidate predictor (the rule the
+    # forecast was validated with); stepwise_options={"missing": "candidate"} for MATLAB's
+    options.setdefault("missing", "complete")
     notes: Counter[str] = Counter()
 
     # ---- block grid and predictor matrix
@@ -453,6 +462,7 @@ def sliding_forecast(
         else np.empty((len(grid), 0))
     )
     n_blocks = len(blocks)
+    labels = None if cases is None else case_labels(grid, cases).to_numpy()
 
     # ---- modes, tracked frequencies on the grid
     mode_labels = (
@@ -573,6 +583,9 @@ def sliding_forecast(
         window_frame: pd.DataFrame | None = None  # z-scored rows [w0, f1), built once
         for j in range(n_modes):
             y = targets[w0:w1, j]
+            in_case = case_training_mask(labels, slice(w0, w1), f0, min_train, np.isfinite(y))
+            if in_case is not None:  # the model of the current operating case
+                y = np.where(in_case, y, np.nan)
             valid_y = np.isfinite(y)
             n_valid = int(valid_y.sum())
             model: _Model | None = None

@@ -23,6 +23,7 @@ import pandas as pd  # noqa: E402
 from scipy import stats as _scipy_stats  # noqa: E402
 
 from data_contracts import atomic_path  # noqa: E402
+from workbench.stats.cases import STITCHED, fit_cases  # noqa: E402
 from workbench.stats.diagnostics import ResidualDiagnostics, residual_diagnostics  # noqa: E402
 from workbench.stats.modes import (  # noqa: E402
     ModeFit,
@@ -182,6 +183,7 @@ def write_fit_report(
     modes: Sequence[int] | None = None,
     errors: str = "warn",
     dpi: int = 100,
+    cases=None,
     **stepwise_options,
 ) -> dict[str, Path]:
     """Stepwise model per mode with summary, JSON, tables and diagnostics figures.
@@ -199,6 +201,12 @@ def write_fit_report(
         data is left out with a warning, the others are reported).
     dpi : int
         Resolution of the figures.
+    cases : None, "derive", CaseRule, column name, path or DataFrame
+        Operating cases (:func:`workbench.stats.cases.case_labels`). With cases the
+        models are fitted per case as well, beside the stitched model of all the cases'
+        blocks (which then is the one in ``coefficients.csv`` and the figures); the summary
+        opens with the per-case comparison and ``case_models.csv`` /
+        ``case_coefficients.csv`` hold it.
 
     Returns
     -------
@@ -206,19 +214,33 @@ def write_fit_report(
         ``"summary"`` (fit_summary.txt), ``"json"`` (fit.json), ``"coefficients"``
         (coefficients.csv: one row per mode, one column per term, 0 where a term is not in
         the model), ``"statistics"`` (fit_statistics.csv) and ``"diagnostics_mode<k>"``
-        per mode (PNG).
+        per mode (PNG); with cases also ``"case_models"`` and ``"case_coefficients"``.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    fits = fit_modes(
-        modal,
-        predictors,
-        quantity=quantity,
-        predictors_used=predictors_used,
-        modes=modes,
-        errors=errors,
-        **stepwise_options,
-    )
+    by_case = None
+    if cases is not None:
+        by_case = fit_cases(
+            modal,
+            predictors,
+            cases,
+            quantity=quantity,
+            predictors_used=predictors_used,
+            modes=modes,
+            errors=errors,
+            **stepwise_options,
+        )
+        fits = by_case.fits[STITCHED]
+    else:
+        fits = fit_modes(
+            modal,
+            predictors,
+            quantity=quantity,
+            predictors_used=predictors_used,
+            modes=modes,
+            errors=errors,
+            **stepwise_options,
+        )
     if not fits:
         raise ValueError(f"no mode could be fitted ({quantity}); see the warnings")
     paths: dict[str, Path] = {}
@@ -240,12 +262,35 @@ def write_fit_report(
         f"Stepwise regression of {quantity} per mode on {', '.join(fits[next(iter(fits))].fit.predictor_names)}\n"
         f"{len(fits)} modes fitted\n\n"
     )
+    if by_case is not None:
+        header += by_case.summary() + "\n\n"
+        for case, case_fits in by_case.fits.items():
+            if case == STITCHED:
+                continue
+            for mode, item in case_fits.items():
+                sections.append(
+                    f"=== Case {case}, mode {mode} ({quantity}) ===\n{item.fit.summary()}\n\n"
+                    f"Residual diagnostics\n{item.diagnostics.summary()}\n"
+                )
+        with atomic_path(out / "case_models.csv") as tmp:
+            by_case.table().to_csv(tmp, float_format="%.10g")
+        paths["case_models"] = out / "case_models.csv"
+        with atomic_path(out / "case_coefficients.csv") as tmp:
+            by_case.coefficients().to_csv(tmp, float_format="%.10g")
+        paths["case_coefficients"] = out / "case_coefficients.csv"
     paths["summary"] = _write_text(out / "fit_summary.txt", header + "\n".join(sections))
     payload = {
         "quantity": quantity,
         "options": {k: v for k, v in stepwise_options.items()},
         "modes": [item.to_dict() for item in fits.values()],
     }
+    if by_case is not None:
+        payload["cases"] = {
+            case: [item.to_dict() for item in case_fits.values()]
+            for case, case_fits in by_case.fits.items()
+            if case != STITCHED
+        }
+        payload["case_left_out"] = by_case.left_out
     paths["json"] = _write_text(
         out / "fit.json", json.dumps(payload, indent=1, allow_nan=False, default=str)
     )

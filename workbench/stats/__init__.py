@@ -7,12 +7,23 @@
 * :func:`correlation_table` - Pearson r, p-value and n of every mode quantity against every
   predictor and among predictors, per operating case (:func:`read_cases`), with
   ``significant``/``useful`` flags; :func:`modal_wide` spreads the modal table per block.
+* :func:`fit_cases` - those models per operating case (a ``case,start,end`` table, a
+  column, or cases derived from the predictors by :class:`CaseRule`) beside the stitched
+  model; :func:`case_training_mask` is the sliding forecast's per-case hook.
 * :func:`fit_modes` - one stepwise model per mode with residual diagnostics
   (:func:`residual_diagnostics`: Durbin-Watson, Shapiro-Wilk, Jarque-Bera);
   :func:`coefficient_table` (one column per term, 0 where a term is not in a model) and
   :func:`fit_statistics_table`.
 """
 
+from .cases import (
+    CaseFits,
+    CaseRule,
+    case_labels,
+    case_training_mask,
+    derive_cases,
+    fit_cases,
+)
 from .correlation import (
     adjust_p_values,
     case_masks,
@@ -27,6 +38,12 @@ from .stepwise import StepwiseFit, StepwiseRegressor, stepwise
 from .terms import parse_terms
 
 __all__ = [
+    "CaseFits",
+    "CaseRule",
+    "case_labels",
+    "case_training_mask",
+    "derive_cases",
+    "fit_cases",
     "ModeFit",
     "ResidualDiagnostics",
     "StatsWarning",

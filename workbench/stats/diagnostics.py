@@ -18,14 +18,33 @@ from scipy import stats as _scipy_stats
 __all__ = ["ResidualDiagnostics", "durbin_watson", "residual_diagnostics", "write_fit_report"]
 
 
-def durbin_watson(residuals) -> float:
+def _run_pairs(e: np.ndarray, blocks) -> np.ndarray:
+    """Mask of the consecutive pairs (t-1, t) of *e* that lie in one contiguous run of
+    blocks (block numbers differing by 1); all pairs when *blocks* is None."""
+    if blocks is None:
+        return np.ones(max(e.size - 1, 0), dtype=bool)
+    return np.diff(np.asarray(blocks, dtype=float)) == 1
+
+
+def durbin_watson(residuals, blocks=None) -> float:
     """Durbin-Watson statistic of residuals in time order (NaN left out).
+
+    Parameters
+    ----------
+    residuals : array_like
+        Residuals in block order.
+    blocks : array_like of int, optional
+        Block number of each residual. Differences are then taken only between residuals
+        of consecutive blocks (within contiguous runs): across a gap (missing blocks,
+        another operating case) neighbouring residuals are not neighbours in time.
 
     Notes
     -----
     d = Σ_{t≥2} (e_t - e_{t-1})² / Σ_t e_t², about 2 (1 - ρ₁) for lag-1 autocorrelation ρ₁:
     2 for independent residuals, towards 0 for positive and 4 for negative serial
-    correlation [1]_.
+    correlation [1]_. With *blocks* the numerator sums over pairs inside runs only and is
+    scaled by (n - 1) / (number of pairs), so d keeps its meaning (2 for white residuals)
+    when runs are short.
 
     References
     ----------
@@ -33,12 +52,22 @@ def durbin_watson(residuals) -> float:
        regression. I", Biometrika 37(3/4), 409-428, 1950. doi:10.2307/2332391
     """
     e = np.asarray(residuals, dtype=float).ravel()
-    e = e[np.isfinite(e)]
+    finite = np.isfinite(e)
+    if blocks is not None:
+        blocks = np.asarray(blocks, dtype=float).ravel()
+        if blocks.shape != e.shape:
+            raise ValueError(f"blocks has shape {blocks.shape}; residuals have {e.shape}")
+        blocks = blocks[finite]
+    e = e[finite]
     total = float(e @ e)
-    if e.size < 2 or total == 0.0:
+    pairs = _run_pairs(e, blocks)
+    if e.size < 2 or total == 0.0 or not pairs.any():
         return math.nan
-    difference = np.diff(e)
-    return float(difference @ difference) / total
+    difference = np.diff(e)[pairs]
+    value = float(difference @ difference) / total
+    if blocks is not None:
+        value *= (e.size - 1) / int(pairs.sum())
+    return value
 
 
 @dataclass(frozen=True)
@@ -130,7 +159,7 @@ class ResidualDiagnostics:
         return out
 
 
-def residual_diagnostics(residuals, *, alpha: float = 0.05) -> ResidualDiagnostics:
+def residual_diagnostics(residuals, *, alpha: float = 0.05, blocks=None) -> ResidualDiagnostics:
     """Durbin-Watson, lag-1 autocorrelation and normality tests of residuals.
 
     Parameters
@@ -139,6 +168,10 @@ def residual_diagnostics(residuals, *, alpha: float = 0.05) -> ResidualDiagnosti
         Residuals in time (block) order; NaN entries are left out.
     alpha : float
         Level for the :attr:`~ResidualDiagnostics.normal` flag.
+    blocks : array_like of int, optional
+        Block number of each residual: the Durbin-Watson statistic and the lag-1
+        autocorrelation then use only pairs of consecutive blocks (see
+        :func:`durbin_watson`).
 
     Returns
     -------
@@ -158,7 +191,13 @@ def residual_diagnostics(residuals, *, alpha: float = 0.05) -> ResidualDiagnosti
        samples)", Biometrika 52(3/4), 591-611, 1965. doi:10.1093/biomet/52.3-4.591
     """
     e = np.asarray(residuals, dtype=float).ravel()
-    e = e[np.isfinite(e)]
+    finite = np.isfinite(e)
+    if blocks is not None:
+        blocks = np.asarray(blocks, dtype=float).ravel()
+        if blocks.shape != e.shape:
+            raise ValueError(f"blocks has shape {blocks.shape}; residuals have {e.shape}")
+        blocks = blocks[finite]
+    e = e[finite]
     n = int(e.size)
     nan = math.nan
     if n == 0:
@@ -170,7 +209,11 @@ def residual_diagnostics(residuals, *, alpha: float = 0.05) -> ResidualDiagnosti
         m2 = float(centred @ centred) / n
         skewness = float(np.mean(centred**3)) / m2**1.5 if m2 > 0 else nan
         kurtosis = float(np.mean(centred**4)) / m2**2 - 3.0 if m2 > 0 else nan
-        lag1 = float(np.corrcoef(e[:-1], e[1:])[0, 1]) if n > 2 and np.ptp(e) > 0 else nan
+        pairs = _run_pairs(e, blocks)
+        if pairs.sum() > 2 and np.ptp(e) > 0:
+            lag1 = float(np.corrcoef(e[:-1][pairs], e[1:][pairs])[0, 1])
+        else:
+            lag1 = nan
     if n >= 3 and n <= 5000 and np.ptp(e) > 0:
         shapiro = _scipy_stats.shapiro(e)
         shapiro_w, shapiro_p = float(shapiro.statistic), float(shapiro.pvalue)
@@ -187,7 +230,7 @@ def residual_diagnostics(residuals, *, alpha: float = 0.05) -> ResidualDiagnosti
         std=std,
         skewness=skewness,
         excess_kurtosis=kurtosis,
-        durbin_watson=durbin_watson(e),
+        durbin_watson=durbin_watson(e, blocks),
         lag1_autocorrelation=lag1,
         shapiro_statistic=shapiro_w,
         shapiro_p_value=shapiro_p,

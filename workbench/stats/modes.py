@@ -21,7 +21,7 @@ import pandas as pd
 from .correlation import joined_blocks
 from .diagnostics import ResidualDiagnostics, residual_diagnostics
 from .stepwise import COLLINEARITY_TOLERANCE, StepwiseFit, stepwise
-from .terms import canonical_order, term_name
+from .terms import term_key
 
 __all__ = [
     "ModeFit",
@@ -49,11 +49,13 @@ class ModeFit:
     fit : StepwiseFit
         The selected model.
     blocks : ndarray of int
-        Blocks the fit used (complete rows), in order.
+        Blocks the fit used (the response and the final model's predictors finite), in
+        order.
     observed, fitted, residuals : ndarray
         Response, model values and residuals on those blocks. [quantity unit]
     diagnostics : ResidualDiagnostics
-        Durbin-Watson and normality tests of the residuals in block order.
+        Durbin-Watson and normality tests of the residuals in block order (Durbin-Watson
+        within runs of consecutive blocks).
     """
 
     mode: int
@@ -76,7 +78,9 @@ class ModeFit:
         }
 
 
-def _usable_predictors(joined: pd.DataFrame, names: Sequence[str], explicit: bool) -> list[str]:
+def _usable_predictors(
+    joined: pd.DataFrame, names: Sequence[str], explicit: bool, missing: str = "candidate"
+) -> list[str]:
     """Predictor columns fit to enter a model.
 
     An all-NaN, constant or collinear column is a ValueError naming it when the caller
@@ -104,6 +108,9 @@ def _usable_predictors(joined: pd.DataFrame, names: Sequence[str], explicit: boo
     values = joined[kept].to_numpy(dtype=float)
     complete = np.isfinite(values).all(axis=1)
     if complete.sum() <= len(kept):
+        if missing == "candidate":
+            # each model uses its own complete rows: collinearity is judged by the search
+            return kept
         raise ValueError(
             f"only {int(complete.sum())} blocks have every predictor finite; "
             f"{len(kept) + 1} are needed for {len(kept)} predictors ({', '.join(kept)})"
@@ -183,7 +190,8 @@ def fit_modes(
     joined, mode_columns, names = joined_blocks(
         modal, predictors, quantities=(quantity,), predictors_used=predictors_used
     )
-    names = _usable_predictors(joined, names, explicit=predictors_used is not None)
+    missing = stepwise_options.get("missing", "candidate")
+    names = _usable_predictors(joined, names, explicit=predictors_used is not None, missing=missing)
     available = {int(c[len("mode") : -len(quantity) - 1]): c for c in mode_columns}
     wanted = sorted(available) if modes is None else [int(m) for m in modes]
     X = joined[names]
@@ -196,11 +204,17 @@ def fit_modes(
             y = joined[available[mode]].to_numpy(dtype=float)
             if not np.isfinite(y).any():
                 raise ValueError(f"mode {mode}: no finite {quantity} in any predictor block")
-            complete = np.isfinite(y) & np.isfinite(X.to_numpy(dtype=float)).all(axis=1)
+            finite_x = np.isfinite(X.to_numpy(dtype=float))
+            if missing == "complete":
+                complete = np.isfinite(y) & finite_x.all(axis=1)
+                needed = "every predictor finite"
+            else:
+                complete = np.isfinite(y) & finite_x.any(axis=1)
+                needed = "a finite predictor"
             if complete.sum() < 3:
                 raise ValueError(
-                    f"mode {mode}: only {int(complete.sum())} blocks with {quantity} and every "
-                    "predictor finite; at least 3 are needed"
+                    f"mode {mode}: only {int(complete.sum())} blocks with {quantity} and "
+                    f"{needed}; at least 3 are needed"
                 )
             fit = stepwise(X, pd.Series(y, name=f"mode{mode}_{quantity}"), **stepwise_options)
         except ValueError as error:
@@ -208,6 +222,11 @@ def fit_modes(
                 raise
             warnings.warn(f"{error}; mode left out", StatsWarning, stacklevel=2)
             continue
+        # the blocks of the final model: the response and the predictors it uses finite
+        used = [names.index(name) for name in fit.used_predictors]
+        complete = np.isfinite(y) & finite_x[:, used].all(axis=1)
+        if missing == "complete":
+            complete &= finite_x.all(axis=1)
         fitted = np.asarray(fit.predict(X[complete]), dtype=float)
         observed = y[complete]
         residuals = observed - fitted
@@ -219,7 +238,7 @@ def fit_modes(
             observed=observed,
             fitted=fitted,
             residuals=residuals,
-            diagnostics=residual_diagnostics(residuals, alpha=alpha),
+            diagnostics=residual_diagnostics(residuals, alpha=alpha, blocks=blocks[complete]),
         )
     return fits
 
@@ -239,18 +258,21 @@ def coefficient_table(fits: Mapping[int, ModeFit | StepwiseFit]) -> pd.DataFrame
     Returns
     -------
     DataFrame
-        Index ``mode``; columns ``(Intercept)`` then every term selected for any mode in
-        canonical order (main effects in predictor order, then interactions). [quantity
-        unit per predictor unit]
+        Index ``mode``; columns ``(Intercept)`` then every coefficient selected for any mode
+        in canonical term order (main effects in predictor order, interactions, squares;
+        a categorical term has one column per non-reference level). [quantity unit per
+        predictor unit]
     """
     stepwise_fits = _as_fits(fits)
     if not stepwise_fits:
         return pd.DataFrame(index=pd.Index([], name="mode", dtype="int64"))
-    names = next(iter(stepwise_fits.values())).predictor_names
-    terms = canonical_order(
-        term for fit in stepwise_fits.values() for term in fit.model_terms if term
-    )
-    columns = ["(Intercept)", *(term_name(t, names) for t in terms)]
+    order: dict[str, tuple] = {}
+    for fit in stepwise_fits.values():
+        for position, (name, term) in enumerate(
+            zip(fit.coefficient_names, fit.coefficient_terms, strict=True)
+        ):
+            order.setdefault(name, (term_key(term), position))
+    columns = sorted(order, key=order.__getitem__)
     table = pd.DataFrame(0.0, index=pd.Index(sorted(stepwise_fits), name="mode"), columns=columns)
     for mode, fit in stepwise_fits.items():
         estimates = fit.coefficients["estimate"]

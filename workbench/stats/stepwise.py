@@ -30,14 +30,27 @@ from scipy import special as _special
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from .terms import Term, parse_terms, term_name
+from .design import Encoding, column_names, design_columns, encode, raw_transform, term_width
+from .terms import Term, is_square, parents, parse_terms, term_name
 
 __all__ = ["StepwiseFit", "StepwiseRegressor", "stepwise"]
 
-Criterion = Literal["sse", "aic", "bic"]
+Criterion = Literal["sse", "aic", "bic", "rsquared", "adjrsquared"]
+MissingRule = Literal["candidate", "complete"]
 
 #: Default thresholds per criterion (MATLAB ``stepwiselm``): (p_enter, p_remove).
-DEFAULT_THRESHOLDS = {"sse": (0.05, 0.10), "aic": (0.0, 0.01), "bic": (0.0, 0.01)}
+DEFAULT_THRESHOLDS = {
+    "sse": (0.05, 0.10),
+    "aic": (0.0, 0.01),
+    "bic": (0.0, 0.01),
+    "rsquared": (0.1, 0.05),
+    "adjrsquared": (0.0, -0.05),
+}
+
+#: A model fits exactly (zero noise up to round-off) when its SSE is at most this fraction
+#: of the total sum of squares; no term is added after that, since every F-test would
+#: compare round-off with round-off.
+EXACT_FIT_TOLERANCE = 1e-12
 
 #: A candidate is collinear with the model (never added) when the fraction of its centred
 #: sum of squares left unexplained by the model's terms, 1 - R²_j, is at most this.
@@ -58,56 +71,12 @@ def _t_quantile(probability: float, dof: int) -> float:
     return float(_special.stdtrit(dof, probability))
 
 
-# --------------------------------------------------------------------------- design matrix
-def _design(values: np.ndarray, terms: Sequence[Term]) -> np.ndarray:
-    """Design matrix with one column per term (intercept ones, main effects, products)."""
-    out = np.empty((values.shape[0], len(terms)))
-    for k, term in enumerate(terms):
-        if not term:
-            out[:, k] = 1.0
-        elif len(term) == 1:
-            out[:, k] = values[:, term[0]]
-        else:
-            np.multiply(values[:, term[0]], values[:, term[1]], out=out[:, k])
-    return out
-
-
 def _to_float(frame: pd.DataFrame) -> np.ndarray:
     """Float array of a numeric frame (pandas NA becomes NaN)."""
     try:
         return frame.to_numpy(dtype=float)
     except (TypeError, ValueError):  # nullable dtypes holding pd.NA
         return frame.to_numpy(dtype=float, na_value=np.nan)
-
-
-def _as_matrix(X, parameter: str = "X") -> tuple[np.ndarray, tuple[str, ...]]:
-    """Float matrix and column names of a DataFrame or array (names x1..xn for arrays)."""
-    if isinstance(X, pd.DataFrame):
-        names = tuple(X.columns.tolist())
-        if not all(type(name) is str for name in names):
-            names = tuple(map(str, names))
-        if len(set(names)) != len(names):
-            raise ValueError(f"{parameter} has duplicate column names: {list(names)}")
-        bad = [c for c in names if ":" in c]
-        if bad:
-            raise ValueError(f"{parameter} column {bad[0]!r}: ':' is reserved for interactions")
-        try:
-            values = _to_float(X)
-        except (TypeError, ValueError) as error:
-            numeric = set(X.select_dtypes("number").columns.map(str))
-            other = [c for c in names if c not in numeric]
-            raise TypeError(
-                f"{parameter} column {other[0] if other else '?'!r} is not numeric"
-            ) from error
-        return values, names
-    values = np.asarray(X, dtype=float)
-    if values.ndim == 1:
-        values = values[:, None]
-    if values.ndim != 2:
-        raise ValueError(
-            f"{parameter} must be 2-D (observations x predictors), got {values.ndim}-D"
-        )
-    return values, tuple(f"x{i + 1}" for i in range(values.shape[1]))
 
 
 # --------------------------------------------------------------------------- result
@@ -124,13 +93,14 @@ class StepwiseFit:
         All predictor columns the search saw (DataFrame columns, or x1..xn).
     response_name : str
         Name of the response (Series name, or ``"y"``).
-    criterion : {"sse", "aic", "bic"}
+    criterion : {"sse", "aic", "bic", "rsquared", "adjrsquared"}
         Criterion of the search.
     p_enter, p_remove : float
         Thresholds used.
     n_obs : int
-        Observations used (rows without NaN in the response or a predictor of the upper
-        model).
+        Observations of the final model: rows with the response and every predictor of the
+        final model finite (``missing="candidate"``), or with every predictor of the upper
+        model finite (``missing="complete"``).
     dfe : int
         Error degrees of freedom, ``n_obs`` minus the number of coefficients.
     sse : float
@@ -148,8 +118,11 @@ class StepwiseFit:
     Notes
     -----
     Properties :attr:`coefficients`, :attr:`steps` and :attr:`skipped` are DataFrames built
-    on first access. Coefficient standard errors are ``rmse * sqrt(diag((X'X)^-1))`` and
-    p-values two-sided from Student's t with ``dfe`` degrees of freedom.
+    on first access. Coefficients are in raw units of the predictors (one row per design
+    column: a categorical term has one row per non-reference level, ``Year_76``).
+    Standard errors are ``rmse * sqrt(diag((X'X)^-1))`` and p-values two-sided from
+    Student's t with ``dfe`` degrees of freedom. Internally the model is held in the
+    search's centred units (:attr:`search_estimates`), which :meth:`predict` uses.
     """
 
     terms: tuple[str, ...]
@@ -176,6 +149,11 @@ class StepwiseFit:
     slope_covariance: np.ndarray = field(repr=False)
     step_records: tuple[tuple, ...] = field(repr=False, default=())
     skipped_records: tuple[tuple, ...] = field(repr=False, default=())
+    coefficient_names: tuple[str, ...] = field(repr=False, default=())
+    coefficient_terms: tuple[Term, ...] = field(repr=False, default=())
+    search_estimates: np.ndarray | None = field(repr=False, default=None)
+    encoding: Encoding | None = field(repr=False, default=None)
+    missing: str = "candidate"
 
     # ----------------------------------------------------------------- tables
     @functools.cached_property
@@ -184,7 +162,7 @@ class StepwiseFit:
         with np.errstate(divide="ignore", invalid="ignore"):
             t_stat = self.estimates / self.standard_errors
         p_value = 2.0 * _special.stdtr(self.dfe, -np.abs(t_stat))
-        names = ["(Intercept)", *self.terms]
+        names = list(self.coefficient_names) or ["(Intercept)", *self.terms]
         return pd.DataFrame(
             np.column_stack([self.estimates, self.standard_errors, t_stat, p_value]),
             columns=_COEFFICIENT_COLUMNS,
@@ -195,19 +173,25 @@ class StepwiseFit:
     def steps(self) -> pd.DataFrame:
         """Step history: step, action ("add"/"remove"), term, f_stat, p_value.
 
-        For criterion ``"aic"``/``"bic"`` two more columns give the criterion of the model
-        after the step and its change (``aic``, ``aic_change``).
+        For the other criteria two more columns give the criterion of the model after the
+        step and its change (``aic``, ``aic_change``; for ``rsquared`` the change is the R²
+        gained with the term). Then ``df`` (numerator degrees of freedom: the term's
+        columns) and ``n_obs`` (rows of the larger of the two models compared).
         """
         columns = ["step", "action", "term", "f_stat", "p_value"]
         if self.criterion != "sse":
             columns += [self.criterion, f"{self.criterion}_change"]
+        columns += ["df", "n_obs"]
         rows = [record[: len(columns)] for record in self.step_records]
         frame = pd.DataFrame(rows, columns=columns)
-        return frame.astype({"step": "int64", "f_stat": float, "p_value": float})
+        return frame.astype(
+            {"step": "int64", "f_stat": float, "p_value": float, "df": "int64", "n_obs": "int64"}
+        )
 
     @functools.cached_property
     def skipped(self) -> pd.DataFrame:
-        """Candidates not tested (step, term, reason): collinear or too few observations.
+        """Candidates not tested (step, term, reason): collinear, too few observations or
+        an exact fit.
 
         Each (term, reason) pair is listed once, at the first step it occurred.
         """
@@ -226,6 +210,9 @@ class StepwiseFit:
 
     # ----------------------------------------------------------------- prediction
     def _predictor_values(self, X) -> tuple[np.ndarray, pd.Index | None]:
+        encoding = self.encoding
+        if encoding is not None and any(encoding.categorical):
+            return self._encoded_values(X)
         if isinstance(X, pd.DataFrame):
             needed = self.used_predictors
             columns = X.columns.tolist()
@@ -259,6 +246,33 @@ class StepwiseFit:
                 f"{len(self.predictor_names)} predictor columns"
             )
         return values, None
+
+    def _encoded_values(self, X) -> tuple[np.ndarray, pd.Index | None]:
+        """Predictor values with categorical columns as level codes of the fit."""
+        encoding = self.encoding
+        index = X.index if isinstance(X, pd.DataFrame) else None
+        if not isinstance(X, pd.DataFrame):
+            array = np.asarray(X, dtype=object)
+            if array.ndim == 1:
+                array = array[None, :] if len(self.predictor_names) > 1 else array[:, None]
+            if array.ndim != 2 or array.shape[1] != len(self.predictor_names):
+                raise ValueError(
+                    f"X has shape {np.shape(X)}; the model was fitted on "
+                    f"{len(self.predictor_names)} predictor columns"
+                )
+            X = pd.DataFrame(array, columns=list(self.predictor_names))
+        lookup = {str(name): name for name in X.columns}
+        values = np.full((len(X), len(self.predictor_names)), np.nan)
+        for name in self.used_predictors:
+            if name not in lookup:
+                raise ValueError(f"X is missing predictor column {name!r} used by the model")
+            j = self.predictor_names.index(name)
+            column = X[lookup[name]]
+            if encoding.levels[j] is None:
+                values[:, j] = pd.to_numeric(column, errors="coerce").to_numpy(dtype=float)
+            else:
+                values[:, j] = encoding.codes(column, j)
+        return values, index
 
     def predict(
         self,
@@ -300,8 +314,8 @@ class StepwiseFit:
         if not 0.0 < alpha < 1.0:
             raise ValueError(f"alpha={alpha!r} must lie in (0, 1)")
         values, index = self._predictor_values(X)
-        design = _design(values, self.model_terms)
-        mean = design @ self.estimates
+        design = design_columns(values, self.model_terms, self.encoding)  # centred units
+        mean = design @ self.search_estimates
         if interval is None:
             return mean
         # leverage in centred form, h = 1/n + (x - x̄)ᵀ V (x - x̄), V = (X_cᵀX_c)⁻¹
@@ -326,10 +340,16 @@ class StepwiseFit:
     # ----------------------------------------------------------------- reporting
     def summary(self) -> str:
         """A text summary in the manner of MATLAB's display of a LinearModel."""
+        rows = (
+            "each model on the rows complete in its own variables (MATLAB stepwiselm)"
+            if self.missing == "candidate"
+            else "rows complete in every candidate predictor (MATLAB stepwisefit)"
+        )
         lines = [
             f"Stepwise linear regression ({self.criterion}, p_enter={self.p_enter:g}, "
             f"p_remove={self.p_remove:g})",
             f"    {self.formula}",
+            f"Missing values: {rows}",
             "",
         ]
         if len(self.step_records):
@@ -338,7 +358,12 @@ class StepwiseFit:
                 verb = "Adding" if action == "add" else "Removing"
                 text = f"{step}. {verb} {term}, FStat = {f_stat:.4f}, pValue = {p_value:.6g}"
                 if self.criterion != "sse":
-                    text += f", {self.criterion.upper()} = {record[5]:.4f}"
+                    text += f", {self.criterion} = {record[5]:.4f}"
+                df, n_obs = record[-2:]
+                if df != 1:
+                    text += f" ({df} df)"
+                if n_obs != self.n_obs:
+                    text += f" [{n_obs} rows]"
                 lines.append(text)
             lines.append("")
         table = self.coefficients
@@ -388,6 +413,7 @@ class StepwiseFit:
             "terms": list(self.terms),
             "predictors": list(self.predictor_names),
             "criterion": self.criterion,
+            "missing": self.missing,
             "p_enter": number(self.p_enter),
             "p_remove": number(self.p_remove),
             "coefficients": coefficients,
@@ -429,79 +455,110 @@ def stepwise(
     *,
     start="constant",
     upper="interactions",
+    lower="constant",
     criterion: Criterion = "sse",
     p_enter: float | None = None,
     p_remove: float | None = None,
     max_steps: int | None = None,
+    missing: MissingRule = "candidate",
+    categorical: Sequence[str | int] | None = None,
 ) -> StepwiseFit:
     """Stepwise linear regression between a start and an upper model (MATLAB ``stepwiselm``).
 
     Parameters
     ----------
     X : DataFrame or ndarray, shape (n_obs, n_predictors)
-        Predictors. DataFrame column names become term names (interactions ``a:b``);
-        array columns are named ``x1..xn``.
+        Predictors. DataFrame column names become term names (interactions ``a:b``,
+        squares ``a^2``); array columns are named ``x1..xn``. Categorical, bool and string
+        columns enter as categorical predictors (MATLAB's reference coding, see
+        :mod:`workbench.stats.design`).
     y : array-like, shape (n_obs,)
-        Response. Rows with NaN in *y* or in a predictor of the upper or start model are
-        left out (:attr:`StepwiseFit.n_obs` counts the rows used).
-    start : {"constant", "linear", "interactions"}, formula str or sequence of str
+        Response. Rows with NaN in *y* are left out; for NaN in predictors see *missing*.
+    start : {"constant", "linear", "interactions", "purequadratic", "quadratic"}, formula \
+str or sequence of str
         Model the search starts from, e.g. ``"y ~ x1 + x2"`` or ``["x1", "x2"]``. Formula
-        text is parsed, never evaluated. Must lie inside *upper*.
-    upper : {"constant", "linear", "interactions"}, formula str or sequence of str
+        text is parsed, never evaluated. Must lie inside *upper*, contain *lower* and keep
+        the hierarchy (an interaction or square with its main effects).
+    upper : model specification (as *start*)
         Largest model considered: ``"interactions"`` (default) is the intercept, every main
-        effect and every two-way interaction.
-    criterion : {"sse", "aic", "bic"}
+        effect and every two-way interaction; ``"quadratic"`` adds the squares of the
+        numeric predictors.
+    lower : model specification (as *start*)
+        Terms that are never removed (MATLAB ``'Lower'``); default the intercept only.
+    criterion : {"sse", "aic", "bic", "rsquared", "adjrsquared"}
         ``"sse"``: partial F-test p-values. ``"aic"``/``"bic"``: change of the information
-        criterion when a term is added (negative = better).
+        criterion when a term is added (negative = better). ``"rsquared"``/
+        ``"adjrsquared"``: increase of R² or adjusted R² when a term is added.
     p_enter : float, optional
         A candidate enters when its p-value (``"sse"``) or criterion change
-        (``"aic"``/``"bic"``) is strictly below *p_enter*. Default 0.05 for ``"sse"``,
-        0 for ``"aic"``/``"bic"``.
+        (``"aic"``/``"bic"``) is strictly below *p_enter*, or its R² increase
+        (``"rsquared"``/``"adjrsquared"``) strictly above. Defaults (MATLAB's): 0.05, 0, 0,
+        0.1, 0.
     p_remove : float, optional
         A term leaves when its p-value or criterion change (of adding it back) is strictly
-        above *p_remove*. Default 0.10 for ``"sse"``, 0.01 for ``"aic"``/``"bic"``.
+        above *p_remove*, or its R² increase strictly below. Defaults: 0.10, 0.01, 0.01,
+        0.05, -0.05.
     max_steps : int, optional
         Most steps taken; default no limit.
+    missing : {"candidate", "complete"}
+        Rows with NaN in a predictor. ``"candidate"`` (default, MATLAB ``stepwiselm``): each
+        model, and each candidate model of a step, is fitted on the rows complete in the
+        variables it uses, so a NaN in a predictor that is never selected costs no row.
+        ``"complete"`` (MATLAB ``stepwisefit``): rows with a NaN in any predictor of the
+        upper model are left out of the whole search.
+    categorical : sequence of str or int, optional
+        Further predictor columns (names or positions) to treat as categorical, e.g. a
+        numeric operating-case code.
 
     Returns
     -------
     StepwiseFit
-        Final model, coefficient table, step history and the :meth:`~StepwiseFit.predict`
-        method.
+        Final model, coefficient table (raw units), step history and the
+        :meth:`~StepwiseFit.predict` method.
 
     Raises
     ------
     ValueError
-        Bad options or model specifications, fewer complete rows than the start model
-        needs, or a start model whose terms are collinear.
+        Bad options or model specifications, a predictor of the upper model without a
+        finite value (named), fewer complete rows than the start model needs, or a start
+        model whose terms are collinear.
 
     Notes
     -----
-    Each step first tries to add the candidate with the smallest p-value (strictly below
-    *p_enter*); only when none enters is the term with the largest p-value removed (strictly
-    above *p_remove*). Terms are ordered intercept, main effects in column order, then
-    interactions; ties go to the first. The intercept is never removed. An interaction
-    enters only when both its main effects are in the model, and a main effect does not
-    leave while an interaction containing it is in. The term just added is not removed in
-    the next step, nor the one just removed added back. Collinear candidates are never
-    added, and when adding a term would leave no error degrees of freedom the candidates
-    are skipped; both are recorded in :attr:`StepwiseFit.skipped`.
+    Each step first tries to add the candidate with the best score (smallest p-value,
+    strictly below *p_enter*); only when none enters is the term with the worst score
+    removed (largest p-value, strictly above *p_remove*). Terms are ordered intercept, main
+    effects in column order, interactions, then squares; ties go to the first. The
+    intercept and the *lower* terms are never removed. An interaction or a square enters
+    only when its main effects are in the model, and a main effect does not leave while a
+    term containing it is in. The term just added is not removed in the next step, nor the
+    one just removed added back. Collinear candidates are never added; when adding a term
+    would leave no error degrees of freedom the candidates are skipped; after an exact fit
+    (SSE at most ``EXACT_FIT_TOLERANCE`` times the total sum of squares, i.e. zero up to
+    round-off) no term is added, because every F-test would divide round-off by round-off.
+    All three are recorded in :attr:`StepwiseFit.skipped`.
 
-    For a model with k coefficients, residual sum of squares SSE_k and n observations, the
-    partial F-statistic of one term is always computed against the larger model's error:
+    A categorical predictor with L levels is one term of L - 1 columns, tested with L - 1
+    numerator degrees of freedom. For a candidate of d columns added to a model of k
+    coefficients fitted on n rows:
 
-    .. math:: F = \\frac{SSE_{small} - SSE_{large}}{SSE_{large} / (n - k_{large})},
-              \\quad p = P(F_{1, n - k_{large}} > F)
+    .. math:: F = \\frac{(SSE_{small} - SSE_{large}) / d}{SSE_{large} / (n - k - d)},
+              \\quad p = P(F_{d, n - k - d} > F)
+
+    Numeric predictors are centred before products are formed (see
+    :mod:`workbench.stats.design`): the models and tests are the same, but a large offset
+    in raw units cannot make an interaction look collinear with its main effects. The
+    coefficients are reported in raw units.
 
     The search sweeps [1]_ the cross-product matrix of the centred, unit-norm candidate
-    columns and the centred response. With the model's terms swept in, a candidate c has
-    residual cross-products c⊥ᵀc⊥ (= 1 - R² of c on the model; at most
+    columns and the centred response. With the model's columns swept in, a candidate
+    column c has residual cross-products c⊥ᵀc⊥ (= 1 - R² of c on the model; at most
     ``COLLINEARITY_TOLERANCE`` means collinear) and c⊥ᵀr, and adding it lowers the SSE by
-    (c⊥ᵀr)² / c⊥ᵀc⊥. Removing term j raises it by b_j² / [(XᵀX)⁻¹]_jj (the squared
-    t-statistic times s²). AIC = -2 logL + 2k and BIC = -2 logL + k ln n with
-    logL = -n/2 (ln(2π SSE/n) + 1), so the change from adding a term is
-    n ln(SSE_new/SSE) + 2 (AIC) or + ln n (BIC). The final model's statistics are computed
-    from its residuals.
+    (c⊥ᵀr)² / c⊥ᵀc⊥ (a term of several columns: the columns swept in turn). Removing term
+    T raises it by b_Tᵀ [(XᵀX)⁻¹]_TT⁻¹ b_T. AIC = -2 logL + 2k and BIC = -2 logL + k ln n
+    with logL = -n/2 (ln(2π SSE/n) + 1), so the change from adding d columns is
+    n ln(SSE_new/SSE) + 2d (AIC) or + d ln n (BIC). The final model's statistics are
+    computed from its residuals.
 
     References
     ----------
@@ -510,10 +567,15 @@ def stepwise(
     .. [2] N. R. Draper, H. Smith, *Applied Regression Analysis*, 3rd ed., Wiley, 1998,
        ch. 15 (selecting the "best" regression equation). doi:10.1002/9781118625590
     .. [3] The MathWorks, "stepwiselm" and "LinearModel.step", Statistics and Machine
-       Learning Toolbox documentation (step rules and the Hald cement example).
+       Learning Toolbox documentation (step rules, criteria, the Hald and carsmall
+       examples).
     """
     if criterion not in DEFAULT_THRESHOLDS:
-        raise ValueError(f"criterion={criterion!r}: expected 'sse', 'aic' or 'bic'")
+        raise ValueError(
+            f"criterion={criterion!r}: expected one of " + ", ".join(map(repr, DEFAULT_THRESHOLDS))
+        )
+    if missing not in ("candidate", "complete"):
+        raise ValueError(f"missing={missing!r}: expected 'candidate' or 'complete'")
     default_enter, default_remove = DEFAULT_THRESHOLDS[criterion]
     p_enter = _check_threshold("p_enter", p_enter, default_enter)
     p_remove = _check_threshold("p_remove", p_remove, default_remove)
@@ -521,15 +583,20 @@ def stepwise(
         raise ValueError(
             f"p_enter={p_enter:g}, p_remove={p_remove:g}: need 0 < p_enter <= p_remove < 1"
         )
-    if criterion != "sse" and p_enter > p_remove:
+    if criterion in ("aic", "bic") and p_enter > p_remove:
         raise ValueError(f"p_enter={p_enter:g} must not exceed p_remove={p_remove:g}")
+    if criterion in ("rsquared", "adjrsquared") and p_enter < p_remove:
+        raise ValueError(
+            f"p_enter={p_enter:g} must not be below p_remove={p_remove:g} for {criterion}"
+        )
     if max_steps is not None:
         if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)):
             raise TypeError(f"max_steps={max_steps!r} is not an integer")
         if max_steps < 0:
             raise ValueError(f"max_steps={max_steps} must be >= 0")
 
-    values, names = _as_matrix(X)
+    values, encoding = encode(X, categorical)
+    names = encoding.names
     response_name = str(y.name) if isinstance(y, pd.Series) and y.name is not None else "y"
     y_values = np.asarray(y, dtype=float)
     if y_values.ndim == 2 and 1 in y_values.shape:
@@ -538,91 +605,163 @@ def stepwise(
         raise ValueError(
             f"y has shape {np.shape(y)}; expected ({values.shape[0]},) to match X's rows"
         )
-    upper_terms = tuple(parse_terms(upper, names, parameter="upper"))
-    start_terms = parse_terms(start, names, parameter="start")
-    outside = [t for t in start_terms if t not in upper_terms]
+    squarable = [not flag for flag in encoding.categorical]
+    models = {}
+    for parameter, spec in (("upper", upper), ("start", start), ("lower", lower)):
+        terms = parse_terms(spec, names, parameter=parameter, squarable=squarable)
+        for term in terms if any(encoding.categorical) else ():
+            if is_square(term) and encoding.categorical[term[0]]:
+                raise ValueError(
+                    f"{parameter} term {term_name(term, names)!r}: a categorical predictor "
+                    "cannot be squared"
+                )
+        models[parameter] = terms
+    upper_terms = tuple(models["upper"])
+    start_terms, lower_terms = models["start"], models["lower"]
+    position = {term: k for k, term in enumerate(upper_terms)}
+    outside = [t for t in start_terms if t not in position]
     if outside:
         raise ValueError(f"start term {term_name(outside[0], names)!r} is not in the upper model")
+    absent = [t for t in lower_terms if t not in start_terms]
+    if absent:
+        raise ValueError(
+            f"lower term {term_name(absent[0], names)!r} is not in the start model; the start "
+            "model must contain the lower model"
+        )
+    for term in start_terms:
+        for parent in parents(term):
+            if parent not in start_terms:
+                raise ValueError(
+                    f"start term {term_name(term, names)!r} needs {term_name(parent, names)!r} "
+                    "in the start model (hierarchy)"
+                )
 
-    # rows: complete in y and in every predictor the upper model uses
-    used_columns = _structure(upper_terms, names).used_columns
+    layout = _layout(upper_terms, names, encoding.levels)
+    used_columns = layout.used_columns
     valid = np.isfinite(y_values)
-    if len(used_columns) == values.shape[1]:
-        valid &= np.isfinite(values).all(axis=1)
-    elif used_columns:
-        valid &= np.isfinite(values[:, used_columns]).all(axis=1)
+    if not valid.any():
+        raise ValueError(f"response {response_name!r} has no finite value")
+    finite = np.isfinite(values)
+    usable = (finite[:, used_columns] & valid[:, None]).any(axis=0)
+    if not usable.all():
+        column = used_columns[int(np.argmin(usable))]
+        where = "" if finite[:, column].any() else " (all NaN)"
+        raise ValueError(
+            f"X column {names[column]!r} has no finite value where the response "
+            f"{response_name!r} is finite{where}"
+        )
+    if missing == "complete" and used_columns:
+        valid &= finite[:, used_columns].all(axis=1)
     if not valid.all():
         values = values[valid]
         y_values = y_values[valid]
+        finite = finite[valid]
     n = int(y_values.shape[0])
-    if n < len(start_terms) + 1:
+    start_columns = sorted({c for t in start_terms for c in t})
+    start_rows = int(finite[:, start_columns].all(axis=1).sum()) if start_columns else n
+    width = sum(layout.widths[position[t]] for t in start_terms)
+    if start_rows < width + 1:
         raise ValueError(
-            f"stepwise needs at least {len(start_terms) + 1} complete rows for the start model "
-            f"({len(start_terms)} coefficients), got {n}"
+            f"stepwise needs at least {width + 1} complete rows for the start model "
+            f"({width} coefficients), got {start_rows}"
         )
-
-    candidates = _design(values, upper_terms)  # every upper term's column, built once
-    problem = _problem(candidates, y_values)
-    start_index = [upper_terms.index(t) for t in start_terms]
-    model, matrix, steps, skipped = _search(
-        problem, upper_terms, start_index, names, criterion, p_enter, p_remove, max_steps
+    # numeric predictors enter centred (their mean over the usable rows)
+    centres = np.zeros(len(names))
+    numeric = [c for c in used_columns if encoding.levels[c] is None]
+    has_missing = bool(used_columns) and not finite[:, used_columns].all()
+    if numeric:
+        block = values[:, numeric]
+        centres[numeric] = np.nanmean(block, axis=0) if has_missing else block.mean(axis=0)
+    encoding = encoding.with_centres(centres)
+    with np.errstate(invalid="ignore"):
+        candidates = design_columns(values, upper_terms, encoding, widths=layout.widths)
+    search = _Search(
+        candidates=candidates,
+        y=y_values,
+        finite=finite if has_missing else None,
+        layout=layout,
+        criterion=criterion,
+        p_enter=p_enter,
+        p_remove=p_remove,
     )
-    return _final_fit(
-        problem,
-        model,
-        matrix,
-        steps,
-        skipped,
-        upper_terms,
-        names,
-        response_name,
-        criterion,
-        p_enter,
-        p_remove,
-    )
+    start_index = [position[t] for t in start_terms]
+    lower_index = {position[t] for t in lower_terms}
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        search.run(start_index, lower_index, max_steps)
+        return search.result(encoding, response_name, missing)
 
 
 @dataclass(frozen=True)
-class _Structure:
-    """Names and hierarchy of an upper model's terms (cached per term list and names)."""
+class _Layout:
+    """Columns, names and hierarchy of an upper model's terms (cached per model)."""
 
+    terms: tuple[Term, ...]
+    widths: tuple[int, ...]
+    columns: tuple[np.ndarray, ...]  # design columns of each term
     display: tuple[str, ...]
-    parent_a: np.ndarray  # main-effect parents of interactions; n_terms = absent/none
-    parent_b: np.ndarray
-    is_interaction: np.ndarray
+    column_names: tuple[str, ...]
+    parent_count: np.ndarray  # parents each term needs (hierarchy)
+    parents: np.ndarray  # parents[k, p]: term p is a parent of term k
+    missing_parent: np.ndarray  # a parent is not in the upper model: never eligible
     is_intercept: np.ndarray
-    children: np.ndarray  # children[i, k]: interaction k contains main effect i
-    used_columns: list[int]  # predictor columns appearing in any term
+    predictors: tuple[tuple[int, ...], ...]  # predictor columns of each term
+    used_columns: list[int]
+    single: bool  # every term has one design column
+    first_column: np.ndarray  # first design column of each term
+    parent_a: np.ndarray  # the parents of a term; n_terms: none, or absent from upper
+    parent_b: np.ndarray
+    has_parents: np.ndarray
 
 
 @functools.lru_cache(maxsize=256)
-def _structure(upper_terms: tuple[Term, ...], names: tuple[str, ...]) -> _Structure:
+def _layout(upper_terms: tuple[Term, ...], names: tuple[str, ...], levels: tuple) -> _Layout:
+    encoding = Encoding(names, levels, np.zeros(len(names)))
     n_terms = len(upper_terms)
     position = {term: k for k, term in enumerate(upper_terms)}
-    # parents point at n_terms ("absent from upper") for terms without parents: in the
-    # search that slot of in_model is always False
-    sentinel = n_terms
-    parent_a = np.full(n_terms, sentinel)
-    parent_b = np.full(n_terms, sentinel)
-    is_interaction = np.zeros(n_terms, dtype=bool)
-    children = np.zeros((n_terms, n_terms), dtype=bool)
+    widths = tuple(term_width(t, encoding) for t in upper_terms)
+    starts = np.concatenate([[0], np.cumsum(widths)])
+    columns = tuple(np.arange(starts[k], starts[k + 1]) for k in range(n_terms))
+    parent_matrix = np.zeros((n_terms, n_terms), dtype=bool)
+    missing_parent = np.zeros(n_terms, dtype=bool)
+    parent_a = np.full(n_terms, n_terms)
+    parent_b = np.full(n_terms, n_terms)
     for k, term in enumerate(upper_terms):
-        if len(term) == 2:
-            is_interaction[k] = True
-            parent_a[k] = position.get((term[0],), sentinel)
-            parent_b[k] = position.get((term[1],), sentinel)
-            for parent in (parent_a[k], parent_b[k]):
-                if parent < n_terms:
-                    children[parent, k] = True
-    for array in (parent_a, parent_b, is_interaction, children):
-        array.setflags(write=False)
-    is_intercept = np.array([not term for term in upper_terms])
-    is_intercept.setflags(write=False)
-    display = tuple(term_name(term, names) for term in upper_terms)
-    used_columns = sorted({i for term in upper_terms for i in term})
-    return _Structure(
-        display, parent_a, parent_b, is_interaction, is_intercept, children, used_columns
+        term_parents = parents(term)
+        for parent in term_parents:
+            if parent in position:
+                parent_matrix[k, position[parent]] = True
+            else:
+                missing_parent[k] = True
+        if term_parents:
+            parent_a[k] = position.get(term_parents[0], n_terms)
+            parent_b[k] = position.get(term_parents[-1], n_terms)
+    out = _Layout(
+        terms=upper_terms,
+        widths=widths,
+        columns=columns,
+        display=tuple(term_name(t, names) for t in upper_terms),
+        column_names=tuple(column_names(upper_terms, encoding)),
+        parent_count=parent_matrix.sum(axis=1),
+        parents=parent_matrix,
+        missing_parent=missing_parent,
+        is_intercept=np.array([not t for t in upper_terms]),
+        predictors=tuple(tuple(sorted(set(t))) for t in upper_terms),
+        used_columns=sorted({i for t in upper_terms for i in t}),
+        single=all(w == 1 for w in widths),
+        first_column=starts[:-1].astype(int),
+        parent_a=parent_a,
+        parent_b=parent_b,
+        has_parents=np.array([len(parents(t)) > 0 for t in upper_terms], dtype=bool),
     )
+    for array in (
+        out.parent_count,
+        out.parents,
+        out.missing_parent,
+        out.is_intercept,
+        out.first_column,
+    ):
+        array.setflags(write=False)
+    return out
 
 
 def _sweep(matrix: np.ndarray, pivot: int) -> None:
@@ -643,7 +782,7 @@ def _sweep(matrix: np.ndarray, pivot: int) -> None:
 
 @dataclass
 class _Problem:
-    """Centred and scaled candidate columns and their cross-product matrix (one per fit)."""
+    """Centred and scaled candidate columns and their cross-product matrix (one per row set)."""
 
     n: int
     centred: np.ndarray  # candidate columns minus their means (n x m; column 0 intercept: 0)
@@ -651,6 +790,7 @@ class _Problem:
     scale: np.ndarray  # norms of the centred columns, 1 where a column is constant
     y_mean: float
     y_centred: np.ndarray
+    sst: float
     cross: np.ndarray  # [[ZᵀZ, Zᵀy_c], [y_cᵀZ, y_cᵀy_c]] with Z = centred / scale
 
 
@@ -659,8 +799,9 @@ def _problem(candidates: np.ndarray, y: np.ndarray) -> _Problem:
     means = candidates.sum(axis=0) / n
     centred = candidates - means
     scale = np.sqrt(np.einsum("ij,ij->j", centred, centred))
-    # a column constant up to rounding carries no information beyond the intercept
-    flat = scale <= 1e-13 * np.maximum(np.abs(means) * math.sqrt(n), 1e-300)
+    # a column constant up to rounding carries no information beyond the intercept; a
+    # column with NaN on these rows is never a candidate here (zeroed)
+    flat = ~(scale > 1e-13 * np.maximum(np.abs(means) * math.sqrt(n), 1e-300))
     flat[0] = True  # the intercept is handled by the centring
     scale = np.where(flat, 1.0, scale)
     y_mean = float(y.sum() / n)
@@ -670,252 +811,451 @@ def _problem(candidates: np.ndarray, y: np.ndarray) -> _Problem:
     augmented[:, :-1][:, flat] = 0.0
     augmented[:, -1] = y_centred
     cross = augmented.T @ augmented
-    return _Problem(n, centred, means, scale, y_mean, y_centred, cross)
+    sst = float(cross[-1, -1])
+    return _Problem(n, centred, means, scale, y_mean, y_centred, sst, cross)
 
 
-def _swept(problem: _Problem, model: list[int]) -> np.ndarray:
-    """Cross-product matrix with the model's (non-intercept) terms swept in."""
-    matrix = problem.cross.copy()
-    for index in model:
-        if index:
-            _sweep(matrix, index)
-    return matrix
+class _Search:
+    """State of one stepwise search (see :func:`stepwise`, Notes)."""
 
+    def __init__(self, *, candidates, y, finite, layout, criterion, p_enter, p_remove):
+        self.candidates = candidates
+        self.y = y
+        self.finite = finite  # None: no NaN in any used predictor
+        self.layout = layout
+        self.criterion = criterion
+        self.p_enter, self.p_remove = p_enter, p_remove
+        negated = criterion in ("rsquared", "adjrsquared")
+        # every score is "smaller is better for adding": R² gains are negated
+        self.enter_threshold = -p_enter if negated else p_enter
+        self.remove_threshold = -p_remove if negated else p_remove
+        self.y_slot = candidates.shape[1]
+        self.problems: dict[bytes | None, tuple[_Problem, np.ndarray | None]] = {}
+        self.steps: list[tuple] = []
+        self.skipped: dict[tuple[str, str], int] = {}
+        self.model: list[int] = []
+        self.swept: dict[int, list[int]] = {}  # term -> its columns swept into the model
+        self._columns_cache: list[int] | None = None
 
-def _search(
-    problem: _Problem,
-    upper_terms: tuple[Term, ...],
-    start_index: list[int],
-    names: tuple[str, ...],
-    criterion: str,
-    p_enter: float,
-    p_remove: float,
-    max_steps: int | None,
-) -> tuple[list[int], np.ndarray, list[tuple], dict[tuple[str, str], int]]:
-    """The stepwise search (see :func:`stepwise`, Notes); returns the model's term indices,
-    the swept cross-product matrix, the step records and the skipped candidates."""
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        return _search_steps(
-            problem, upper_terms, start_index, names, criterion, p_enter, p_remove, max_steps
-        )
+    # ----------------------------------------------------------------- row sets
+    def _rows(self, terms) -> np.ndarray | None:
+        if self.finite is None:
+            return None
+        columns = sorted({c for t in terms for c in self.layout.predictors[t]})
+        if not columns:
+            return np.ones(self.finite.shape[0], dtype=bool)
+        return self.finite[:, columns].all(axis=1)
 
+    def _problem_for(self, rows: np.ndarray | None) -> _Problem:
+        key = None if rows is None or rows.all() else rows.tobytes()
+        if key not in self.problems:
+            if key is None:
+                problem = _problem(self.candidates, self.y)
+            else:
+                problem = _problem(self.candidates[rows], self.y[rows])
+            self.problems[key] = (problem, rows)
+        return self.problems[key][0]
 
-def _search_steps(
-    problem: _Problem,
-    upper_terms: tuple[Term, ...],
-    start_index: list[int],
-    names: tuple[str, ...],
-    criterion: str,
-    p_enter: float,
-    p_remove: float,
-    max_steps: int | None,
-) -> tuple[list[int], np.ndarray, list[tuple], dict[tuple[str, str], int]]:
-    n = problem.n
-    n_terms = len(upper_terms)
-    structure = _structure(upper_terms, names)
-    display = structure.display
-    parent_a, parent_b = structure.parent_a, structure.parent_b
-    is_interaction, is_intercept = structure.is_interaction, structure.is_intercept
-    children = structure.children
-    y_slot = n_terms  # last row/column of the cross-product matrix
+    def _swept_matrix(self, problem: _Problem, model_columns) -> tuple[np.ndarray, int]:
+        matrix = problem.cross.copy()
+        count = 0
+        for column in model_columns:
+            if matrix[column, column] > COLLINEARITY_TOLERANCE:
+                _sweep(matrix, column)
+                count += 1
+        return matrix, count
 
-    model = sorted(start_index)
-    matrix = problem.cross.copy()
-    for index in model:
-        if not index:
-            continue
-        if matrix[index, index] <= COLLINEARITY_TOLERANCE:  # 1 - R² of the term on the others
-            raise ValueError(
-                f"start model is rank deficient: term {display[index]!r} is collinear with "
-                "the terms before it"
-            )
-        _sweep(matrix, index)
-    in_model = np.zeros(n_terms + 1, dtype=bool)  # last slot: "absent parent", always False
-    in_model[model] = True
-    steps: list[tuple] = []
-    skipped: dict[tuple[str, str], int] = {}
-    just_added = just_removed = -1
-    penalty = 2.0 if criterion == "aic" else math.log(n)
-    use_p_value = criterion == "sse"
+    def _model_columns(self) -> list[int]:
+        if self._columns_cache is None:
+            self._columns_cache = [c for t in self.model for c in self.swept.get(t, [])]
+        return self._columns_cache
 
-    def information(sse: float, k: int) -> float:
-        if sse <= 0:
-            return -math.inf
-        return n * (math.log(2 * math.pi * sse / n) + 1.0) + penalty * k  # -2 logL + pen k
+    # ----------------------------------------------------------------- statistics
+    def _score_add(self, n, k, sse, sst, decrease, df):
+        """F, p and score of adding terms with SSE decrease *decrease* and *df* columns."""
+        dfe_new = n - k - df
+        sse_new = np.maximum(sse - decrease, 0.0)
+        f_stat = (decrease / df) / (sse_new / dfe_new)
+        p_value = _f_sf(f_stat, df, dfe_new)
+        criterion = self.criterion
+        if criterion == "sse":
+            score = p_value
+            value = p_value  # not recorded for "sse"
+        elif criterion in ("aic", "bic"):
+            penalty = 2.0 if criterion == "aic" else np.log(n)
+            score = n * np.log(sse_new / sse) + penalty * df
+            value = n * (np.log(2 * np.pi * sse_new / n) + 1.0) + penalty * (k + df)
+        elif criterion == "rsquared":
+            value = 1.0 - sse_new / sst
+            score = -(decrease / sst)
+        else:
+            value = 1.0 - (sse_new / dfe_new) / (sst / (n - 1))
+            score = -(value - (1.0 - (sse / (n - k)) / (sst / (n - 1))))
+        return f_stat, p_value, score, value
 
-    step = 0
-    while max_steps is None or step < max_steps:
-        k = len(model)
-        dfe = n - k
-        sse = max(float(matrix[y_slot, y_slot]), 0.0)
-        acted = False
-
-        # ---- try to add: not in the model, hierarchy satisfied, not just removed
-        eligible = ~in_model[:n_terms] & (
-            ~is_interaction | (in_model[parent_a] & in_model[parent_b])
-        )
-        if just_removed >= 0:
-            eligible[just_removed] = False
-        eligible_index = np.flatnonzero(eligible)
-        if eligible_index.size and dfe - 1 < 1:
-            reason = f"too few observations: n={n} leaves no error degrees of freedom"
-            for index in eligible_index.tolist():
-                skipped.setdefault((display[index], reason), step + 1)
-        elif eligible_index.size:
-            # 1 - R²_j of each candidate on the model (scaled columns: c⊥ᵀc⊥)
-            unexplained = matrix[eligible_index, eligible_index]
-            collinear = unexplained <= COLLINEARITY_TOLERANCE
-            if collinear.any():
-                for index in eligible_index[collinear].tolist():
-                    skipped.setdefault(
-                        (display[index], "collinear with the model's terms"), step + 1
-                    )
-                eligible_index = eligible_index[~collinear]
-                unexplained = unexplained[~collinear]
-            if eligible_index.size:
-                dfe_new = dfe - 1
-                # SSE - SSE_new = (c⊥ᵀr)² / c⊥ᵀc⊥;  F = (SSE - SSE_new) / (SSE_new / dfe_new)
-                decrease = matrix[eligible_index, y_slot] ** 2 / unexplained
-                sse_new = np.maximum(sse - decrease, 0.0)
-                f_stat = decrease * dfe_new / sse_new
-                p_value = _f_sf(f_stat, 1.0, dfe_new)
-                if use_p_value:
-                    score = p_value
+    def _gains(self, matrix: np.ndarray, terms: np.ndarray):
+        """SSE decrease, degrees of freedom and columns of adding each term to the model
+        swept into *matrix* (collinear columns of a term are left out)."""
+        layout = self.layout
+        y = self.y_slot
+        decrease = np.zeros(len(terms))
+        df = np.zeros(len(terms))
+        columns: list[list[int]] = []
+        if layout.single:
+            index = layout.first_column[terms]
+            unexplained = matrix[index, index]
+            ok = unexplained > COLLINEARITY_TOLERANCE
+            if ok.all():
+                decrease = matrix[index, y] ** 2 / unexplained
+                df.fill(1.0)
+            else:
+                decrease[ok] = matrix[index[ok], y] ** 2 / unexplained[ok]
+                df[ok] = 1.0
+            return decrease, df, None  # columns: the term's one column
+        for position, term in enumerate(terms):
+            cols = [int(c) for c in layout.columns[term]]
+            if len(cols) == 1:
+                u = matrix[cols[0], cols[0]]
+                if u > COLLINEARITY_TOLERANCE:
+                    decrease[position] = matrix[cols[0], y] ** 2 / u
+                    df[position] = 1.0
+                    columns.append(cols)
                 else:
-                    score = n * np.log(sse_new / sse) + penalty  # Δ criterion of adding
-                score[score != score] = np.inf  # NaN (0/0 on a perfect fit) never enters
-                best = int(np.argmin(score))
-                if score[best] < p_enter:
-                    index = int(eligible_index[best])
-                    record = [
-                        step + 1,
-                        "add",
-                        display[index],
-                        float(f_stat[best]),
-                        float(p_value[best]),
-                    ]
-                    if not use_p_value:
-                        record += [information(float(sse_new[best]), k + 1), float(score[best])]
-                    steps.append(tuple(record))
-                    _sweep(matrix, index)
-                    model = sorted([*model, index])
-                    in_model[index] = True
-                    just_added, just_removed = index, -1
-                    acted = True
+                    columns.append([])
+                continue
+            index = [*cols, y]
+            small = matrix[np.ix_(index, index)].copy()
+            kept = []
+            for j in range(len(cols)):
+                if small[j, j] > COLLINEARITY_TOLERANCE:
+                    _sweep(small, j)
+                    kept.append(cols[j])
+            decrease[position] = matrix[y, y] - small[-1, -1]
+            df[position] = len(kept)
+            columns.append(kept)
+        return decrease, df, columns
 
-        # ---- otherwise try to remove: not the intercept, not just added, no child in model
-        if not acted and dfe >= 1:
-            terms = np.array(model)
-            removable = ~is_intercept[terms] & ~children[terms][:, in_model[:n_terms]].any(axis=1)
-            if just_added >= 0:
-                removable &= terms != just_added
-            if removable.any():
-                # SSE_small - SSE_large = b_j² / [(XᵀX)⁻¹]_jj; the swept block holds -(XᵀX)⁻¹
-                estimates = matrix[terms, y_slot]
-                increase = estimates**2 / -matrix[terms, terms]
-                f_stat = increase / (sse / dfe)
-                p_value = _f_sf(f_stat, 1.0, dfe)
-                if use_p_value:
-                    score = p_value
-                else:  # Δ criterion of adding the term back: large = better without
-                    score = n * np.log(sse / (sse + increase)) + penalty
-                score = np.where(removable & ~np.isnan(score), score, -np.inf)
-                worst = int(np.argmax(score))  # model is in canonical order: ties go first
-                if score[worst] > p_remove:
-                    index = int(terms[worst])
-                    record = [
-                        step + 1,
-                        "remove",
-                        display[index],
-                        float(f_stat[worst]),
-                        float(p_value[worst]),
-                    ]
-                    if not use_p_value:
-                        record += [
-                            information(sse + float(increase[worst]), k - 1),
-                            float(score[worst]),
-                        ]
-                    steps.append(tuple(record))
-                    model = [i for i in model if i != index]
-                    matrix = _swept(problem, model)  # afresh: no drift from sweeping back
-                    in_model[index] = False
-                    just_added, just_removed = -1, index
-                    acted = True
-        if not acted:
-            break
-        step += 1
-    return model, matrix, steps, skipped
+    # ----------------------------------------------------------------- the search
+    def run(self, start: list[int], lower: set[int], max_steps: int | None) -> None:
+        layout = self.layout
+        display = layout.display
+        n_terms = len(layout.terms)
+        self.model = sorted(start)
+        rows = self._rows(self.model)
+        problem = self._problem_for(rows)
+        matrix = problem.cross.copy()
+        for term in self.model:
+            if layout.is_intercept[term]:
+                continue
+            kept = []
+            for column in layout.columns[term]:
+                if matrix[column, column] > COLLINEARITY_TOLERANCE:
+                    _sweep(matrix, int(column))
+                    kept.append(int(column))
+            if not kept:
+                raise ValueError(
+                    f"start model is rank deficient: term {display[term]!r} is collinear with "
+                    "the terms before it"
+                )
+            self.swept[term] = kept
+        self._columns_cache = None
+        in_model = np.zeros(n_terms, dtype=bool)
+        in_model[self.model] = True
+        in_extended = np.zeros(n_terms + 1, dtype=bool)
+        protected = np.zeros(n_terms, dtype=bool)
+        protected[list(lower)] = True
+        protected |= layout.is_intercept
+        just_added = just_removed = -1
+        step = 0
+        while max_steps is None or step < max_steps:
+            k = 1 + len(self._model_columns())
+            n = problem.n
+            dfe = n - k
+            sse = max(float(matrix[self.y_slot, self.y_slot]), 0.0)
+            sst = problem.sst
+            acted = False
 
+            # ---- try to add: not in the model, hierarchy satisfied, not just removed
+            # hierarchy: both parents in the model (slot n_terms: no such parent, False)
+            in_extended[:n_terms] = in_model
+            eligible = ~in_model & (
+                ~layout.has_parents | (in_extended[layout.parent_a] & in_extended[layout.parent_b])
+            )
+            if just_removed >= 0:
+                eligible[just_removed] = False
+            eligible_index = np.flatnonzero(eligible)
+            exact = sse <= EXACT_FIT_TOLERANCE * sst
+            if eligible_index.size and exact:
+                reason = (
+                    f"exact fit: SSE/SST <= {EXACT_FIT_TOLERANCE:g} (round-off), "
+                    "F-tests are meaningless"
+                )
+                for index in eligible_index.tolist():
+                    self.skipped.setdefault((display[index], reason), step + 1)
+            elif eligible_index.size:
+                best = self._best_addition(eligible_index, matrix, problem, rows, step)
+                if best is not None:
+                    index, record, columns, new_rows = best
+                    if record[0] < self.enter_threshold:
+                        self.steps.append((step + 1, "add", display[index], *record[1:]))
+                        self.model = sorted([*self.model, index])
+                        self.swept[index] = columns
+                        self._columns_cache = None
+                        in_model[index] = True
+                        if new_rows is not None and not np.array_equal(new_rows, rows):
+                            rows = new_rows
+                            problem = self._problem_for(rows)
+                            matrix, _ = self._swept_matrix(problem, self._model_columns())
+                        else:
+                            for column in columns:
+                                _sweep(matrix, column)
+                        just_added, just_removed = index, -1
+                        acted = True
 
-def _final_fit(
-    problem: _Problem,
-    model: list[int],
-    matrix: np.ndarray,
-    steps: list[tuple],
-    skipped: dict[tuple[str, str], int],
-    upper_terms: tuple[Term, ...],
-    names: tuple[str, ...],
-    response_name: str,
-    criterion: str,
-    p_enter: float,
-    p_remove: float,
-) -> StepwiseFit:
-    n = problem.n
-    k = len(model)
-    dfe = n - k
-    slopes_index = model[1:]  # model[0] is the intercept
-    y_slot = len(upper_terms)
-    scale = problem.scale[slopes_index]
-    # back from centred-scaled columns: b = b_z / s, V = (X_cᵀX_c)⁻¹ = V_z / (s sᵀ)
-    slopes = matrix[slopes_index, y_slot] / scale
-    covariance = -matrix[slopes_index][:, slopes_index] / np.outer(scale, scale)
-    term_means = problem.means[slopes_index]
-    intercept = problem.y_mean - float(term_means @ slopes)
-    residual = problem.y_centred - problem.centred[:, slopes_index] @ slopes
-    sse = float(residual @ residual)
-    sst = float(problem.y_centred @ problem.y_centred)
-    mse = sse / dfe if dfe > 0 else math.nan
-    rmse = math.sqrt(mse) if mse == mse else math.nan
-    # se(b) = s √diag(V); se(intercept) = s √(1/n + x̄ᵀ V x̄)
-    variances = np.empty(k)
-    variances[0] = 1.0 / n + float(term_means @ covariance @ term_means)
-    variances[1:] = np.diagonal(covariance)
-    standard_errors = rmse * np.sqrt(np.maximum(variances, 0.0))
-    r_squared = 1.0 - sse / sst if sst > 0 else math.nan
-    adj_r_squared = 1.0 - (sse / dfe) / (sst / (n - 1)) if sst > 0 and dfe > 0 else math.nan
-    if k > 1 and dfe > 0 and mse > 0:
-        f_stat = ((sst - sse) / (k - 1)) / mse
-        f_p_value = float(_f_sf(f_stat, k - 1, dfe))
-    else:
-        f_stat = f_p_value = math.nan
-    log_likelihood = -0.5 * n * (math.log(2 * math.pi * sse / n) + 1.0) if sse > 0 else math.inf
-    display = _structure(upper_terms, names).display
-    return StepwiseFit(
-        terms=tuple(display[i] for i in slopes_index),
-        predictor_names=names,
-        response_name=response_name,
-        criterion=criterion,
-        p_enter=p_enter,
-        p_remove=p_remove,
-        n_obs=int(n),
-        dfe=int(dfe),
-        sse=sse,
-        rmse=float(rmse),
-        r_squared=float(r_squared),
-        adj_r_squared=float(adj_r_squared),
-        f_stat=float(f_stat),
-        f_p_value=float(f_p_value),
-        log_likelihood=float(log_likelihood),
-        aic=float(-2.0 * log_likelihood + 2.0 * k),
-        bic=float(-2.0 * log_likelihood + math.log(n) * k),
-        model_terms=tuple(upper_terms[i] for i in model),
-        estimates=np.concatenate([[intercept], slopes]),
-        standard_errors=standard_errors,
-        term_means=term_means,
-        slope_covariance=covariance,
-        step_records=tuple(steps),
-        skipped_records=tuple((s, term, reason) for (term, reason), s in skipped.items()),
-    )
+            # ---- otherwise try to remove: not protected, not just added, no child in model
+            if not acted and dfe >= 1:
+                terms = np.array(self.model)
+                has_child = (layout.parents[:, terms] & in_model[:, None]).any(axis=0)
+                removable = ~protected[terms] & ~has_child
+                if just_added >= 0:
+                    removable &= terms != just_added
+                if removable.any():
+                    worst = self._worst_removal(terms, removable, matrix, n, k, sse, sst)
+                    if worst is not None and worst[1][0] > self.remove_threshold:
+                        index, record = worst
+                        self.steps.append((step + 1, "remove", display[index], *record[1:]))
+                        self.model = [t for t in self.model if t != index]
+                        self.swept.pop(index, None)
+                        self._columns_cache = None
+                        in_model[index] = False
+                        rows = self._rows(self.model)
+                        problem = self._problem_for(rows)
+                        # afresh: no drift from sweeping back
+                        matrix, _ = self._swept_matrix(problem, self._model_columns())
+                        just_added, just_removed = -1, index
+                        acted = True
+            if not acted:
+                break
+            step += 1
+        self.final = (problem, matrix, rows)
+
+    def _best_addition(self, eligible_index, matrix, problem, rows, step):
+        """Best candidate: (term, record, columns, rows) or None when none is testable."""
+        display = self.layout.display
+        groups: dict[bytes | None, list[int]] = {}
+        group_rows: dict[bytes | None, np.ndarray | None] = {}
+        if self.finite is None:
+            groups[None] = eligible_index
+            group_rows[None] = None
+        else:
+            for term in eligible_index.tolist():
+                candidate_rows = self._rows([*self.model, term])
+                key = None if np.array_equal(candidate_rows, rows) else candidate_rows.tobytes()
+                groups.setdefault(key, []).append(term)
+                group_rows[key] = rows if key is None else candidate_rows
+        k = 1 + len(self._model_columns())
+        best = None
+        for key, terms in groups.items():
+            if key is None:
+                group_problem, group_matrix, group_k = problem, matrix, k
+            else:
+                candidate_rows = group_rows[key]
+                if candidate_rows.sum() < 2:
+                    for term in terms:
+                        self.skipped.setdefault(
+                            (display[term], "no complete rows with the model's variables"),
+                            step + 1,
+                        )
+                    continue
+                group_problem = self._problem_for(candidate_rows)
+                group_matrix, swept = self._swept_matrix(group_problem, self._model_columns())
+                group_k = 1 + swept
+            terms_array = np.asarray(terms)
+            n = group_problem.n
+            sse = max(float(group_matrix[self.y_slot, self.y_slot]), 0.0)
+            decrease, df, columns = self._gains(group_matrix, terms_array)
+            collinear = df == 0
+            short = ~collinear & (n - group_k - df < 1)
+            ok = ~collinear & ~short
+            if not ok.all():
+                for term in terms_array[collinear].tolist():
+                    self.skipped.setdefault(
+                        (display[term], "collinear with the model's terms"), step + 1
+                    )
+                for term in terms_array[short].tolist():
+                    reason = f"too few observations: n={n} leaves no error degrees of freedom"
+                    self.skipped.setdefault((display[term], reason), step + 1)
+                if not ok.any():
+                    continue
+                terms_array, decrease, df = terms_array[ok], decrease[ok], df[ok]
+                if columns is not None:
+                    columns = [c for c, good in zip(columns, ok, strict=True) if good]
+            f_stat, p_value, score, value = self._score_add(
+                n, group_k, sse, group_problem.sst, decrease, df
+            )
+            score = np.where(score != score, np.inf, score)  # NaN (0/0) never enters
+            j = int(np.argmin(score))  # terms in canonical order: ties go to the first
+            term = int(terms_array[j])
+            candidate = (float(score[j]), term)
+            if best is None or candidate < best[0]:
+                change = score[j] if self.criterion in ("aic", "bic") else -score[j]
+                record = self._record(f_stat[j], p_value[j], value[j], change, df[j], n)
+                chosen = [int(self.layout.first_column[term])] if columns is None else columns[j]
+                best = (candidate, term, (float(score[j]), *record), chosen, group_rows[key])
+        if best is None:
+            return None
+        _, term, record, columns, new_rows = best
+        return term, record, columns, new_rows
+
+    def _record(self, f_stat, p_value, value, change, df, n) -> tuple:
+        record = [float(f_stat), float(p_value)]
+        if self.criterion != "sse":
+            record += [float(value), float(change)]
+        return (*record, int(df), int(n))
+
+    def _worst_removal(self, terms, removable, matrix, n, k, sse, sst):
+        y = self.y_slot
+        increase = np.full(len(terms), np.nan)
+        df = np.zeros(len(terms))
+        if self.layout.single and all(self.swept.get(t) for t in terms.tolist()[1:]):
+            # one column per term: SSE_small - SSE_large = b_j² / [(XᵀX)⁻¹]_jj
+            columns = self.layout.first_column[terms[removable]]
+            increase[removable] = matrix[columns, y] ** 2 / -matrix[columns, columns]
+            df[removable] = 1.0
+            terms_loop: list[int] = []
+        else:
+            terms_loop = terms.tolist()
+        for position, term in enumerate(terms_loop):
+            if not removable[position]:
+                continue
+            cols = self.swept.get(term, [])
+            if not cols:
+                continue
+            if len(cols) == 1:
+                c = cols[0]
+                increase[position] = matrix[c, y] ** 2 / -matrix[c, c]
+            else:
+                b = matrix[cols, y]
+                inverse_block = -matrix[np.ix_(cols, cols)]  # [(XᵀX)⁻¹]_TT
+                increase[position] = float(b @ np.linalg.solve(inverse_block, b))
+            df[position] = len(cols)
+        dfe = n - k
+        f_stat = (increase / np.maximum(df, 1)) / (sse / dfe)
+        p_value = _f_sf(f_stat, np.maximum(df, 1), dfe)
+        criterion = self.criterion
+        if criterion == "sse":
+            score = p_value
+            value = np.full_like(p_value, np.nan)
+            change = score
+        elif criterion in ("aic", "bic"):
+            penalty = 2.0 if criterion == "aic" else math.log(n)
+            score = n * np.log(sse / (sse + increase)) + penalty * df  # Δ of adding it back
+            value = n * (np.log(2 * np.pi * (sse + increase) / n) + 1.0) + penalty * (k - df)
+            change = score
+        elif criterion == "rsquared":
+            score = -(increase / sst)
+            value = 1.0 - (sse + increase) / sst
+            change = -score
+        else:
+            with_term = 1.0 - (sse / dfe) / (sst / (n - 1))
+            value = 1.0 - ((sse + increase) / (dfe + df)) / (sst / (n - 1))
+            score = -(with_term - value)
+            change = -score
+        valid = removable & ~np.isnan(score) & (df > 0)
+        if not valid.any():
+            return None
+        score = np.where(valid, score, -np.inf)
+        worst = int(np.argmax(score))  # model is in canonical order: ties go first
+        record = self._record(
+            f_stat[worst], p_value[worst], value[worst], change[worst], df[worst], n
+        )
+        return int(terms[worst]), (float(score[worst]), *record)
+
+    # ----------------------------------------------------------------- the result
+    def result(self, encoding: Encoding, response_name: str, missing: str) -> StepwiseFit:
+        layout = self.layout
+        problem, matrix, rows = self.final
+        model = self.model
+        n = problem.n
+        model_columns = [int(c) for t in model for c in layout.columns[t]]
+        swept = self._model_columns()
+        k = 1 + len(swept)
+        dfe = n - k
+        slope_columns = model_columns[1:]  # model_columns[0] is the intercept
+        m = len(slope_columns)
+        scale = problem.scale[swept]
+        # back from centred-scaled columns: b = b_z / s, V = (X_cᵀX_c)⁻¹ = V_z / (s sᵀ)
+        swept_slopes = matrix[swept, self.y_slot] / scale
+        swept_covariance = -matrix[swept][:, swept] / np.outer(scale, scale)
+        if swept == slope_columns:
+            slopes, covariance = swept_slopes, swept_covariance
+        else:  # columns left out as collinear: estimate 0 (MATLAB's rank-deficient fit)
+            position = {c: j for j, c in enumerate(slope_columns)}
+            swept_position = [position[c] for c in swept]
+            slopes = np.zeros(m)
+            covariance = np.zeros((m, m))
+            slopes[swept_position] = swept_slopes
+            covariance[np.ix_(swept_position, swept_position)] = swept_covariance
+        term_means = problem.means[slope_columns]
+        intercept = problem.y_mean - float(term_means @ slopes)
+        residual = problem.y_centred - problem.centred[:, slope_columns] @ slopes
+        sse = float(residual @ residual)
+        sst = problem.sst
+        mse = sse / dfe if dfe > 0 else math.nan
+        rmse = math.sqrt(mse) if mse == mse else math.nan
+        # full covariance of (intercept, slopes) in the search's centred units, per σ²
+        full = np.empty((m + 1, m + 1))
+        full[0, 0] = 1.0 / n + float(term_means @ covariance @ term_means)
+        full[0, 1:] = full[1:, 0] = -(covariance @ term_means)
+        full[1:, 1:] = covariance
+        search_estimates = np.concatenate([[intercept], slopes])
+        terms = [layout.terms[t] for t in model]
+        transform = raw_transform(terms, encoding)
+        if transform is None:  # cannot happen with the hierarchy kept; stay in search units
+            transform = np.eye(m + 1)
+        estimates = transform @ search_estimates
+        raw_covariance = transform @ full @ transform.T
+        standard_errors = rmse * np.sqrt(np.maximum(np.diagonal(raw_covariance), 0.0))
+        r_squared = 1.0 - sse / sst if sst > 0 else math.nan
+        adj_r_squared = 1.0 - (sse / dfe) / (sst / (n - 1)) if sst > 0 and dfe > 0 else math.nan
+        if k > 1 and dfe > 0 and mse > 0:
+            f_stat = ((sst - sse) / (k - 1)) / mse
+            f_p_value = float(_f_sf(f_stat, k - 1, dfe))
+        else:
+            f_stat = f_p_value = math.nan
+        log_likelihood = -0.5 * n * (math.log(2 * math.pi * sse / n) + 1.0) if sse > 0 else math.inf
+        names = [layout.column_names[c] for c in model_columns]
+        return StepwiseFit(
+            terms=tuple(layout.display[t] for t in model[1:]),
+            predictor_names=encoding.names,
+            response_name=response_name,
+            criterion=self.criterion,
+            p_enter=self.p_enter,
+            p_remove=self.p_remove,
+            n_obs=int(n),
+            dfe=int(dfe),
+            sse=sse,
+            rmse=float(rmse),
+            r_squared=float(r_squared),
+            adj_r_squared=float(adj_r_squared),
+            f_stat=float(f_stat),
+            f_p_value=float(f_p_value),
+            log_likelihood=float(log_likelihood),
+            aic=float(-2.0 * log_likelihood + 2.0 * k),
+            bic=float(-2.0 * log_likelihood + math.log(n) * k),
+            model_terms=tuple(terms),
+            estimates=estimates,
+            standard_errors=standard_errors,
+            term_means=term_means,
+            slope_covariance=covariance,
+            step_records=tuple(self.steps),
+            skipped_records=tuple((s, term, reason) for (term, reason), s in self.skipped.items()),
+            coefficient_names=tuple(names),
+            coefficient_terms=tuple(layout.terms[t] for t in model for _ in layout.columns[t]),
+            search_estimates=search_estimates,
+            encoding=encoding,
+            missing=missing,
+        )
 
 
 # --------------------------------------------------------------------------- scikit-learn
@@ -924,8 +1264,8 @@ class StepwiseRegressor(RegressorMixin, BaseEstimator):
 
     Parameters
     ----------
-    start, upper, criterion, p_enter, p_remove, max_steps
-        As for :func:`stepwise`.
+    start, upper, lower, criterion, p_enter, p_remove, max_steps, missing
+        As for :func:`stepwise` (the estimator sees numeric arrays only).
 
     Attributes
     ----------
@@ -942,13 +1282,17 @@ class StepwiseRegressor(RegressorMixin, BaseEstimator):
         *,
         start="constant",
         upper="interactions",
+        lower="constant",
         criterion: Criterion = "sse",
         p_enter: float | None = None,
         p_remove: float | None = None,
         max_steps: int | None = None,
+        missing: MissingRule = "candidate",
     ):
         self.start = start
         self.upper = upper
+        self.lower = lower
+        self.missing = missing
         self.criterion = criterion
         self.p_enter = p_enter
         self.p_remove = p_remove
@@ -983,10 +1327,12 @@ class StepwiseRegressor(RegressorMixin, BaseEstimator):
             pd.Series(target, name=response) if response is not None else target,
             start=self.start,
             upper=self.upper,
+            lower=self.lower,
             criterion=self.criterion,
             p_enter=self.p_enter,
             p_remove=self.p_remove,
             max_steps=self.max_steps,
+            missing=self.missing,
         )
         return self
 
