@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from ._core import TableContract
 from .dship import DEFAULT_DSHIP_MAPPING, DSHIP_LOG
+from .geometry import SENSOR_GEOMETRY
 from .tables import FORECAST, MODAL, POLES, PREDICTORS
 
 _INTRO = """\
@@ -111,6 +112,7 @@ _TITLES = {
     "modal": "Tracked modal table",
     "poles": "Pole table",
     "forecast": "Forecast table",
+    "sensor_geometry": "Sensor geometry",
 }
 
 
@@ -122,7 +124,7 @@ def render_markdown() -> str:
     )
     parts = [_INTRO.replace("{mapping}", mapping).rstrip("\n")]
     parts.append("Canonical log after parsing:\n\n" + _columns_table(DSHIP_LOG))
-    for contract in (PREDICTORS, MODAL, POLES, FORECAST):
+    for contract in (PREDICTORS, MODAL, POLES, FORECAST, SENSOR_GEOMETRY):
         parts.append(
             f"## {_TITLES[contract.name]} (`{contract.name}`)\n\n"
             f"{contract.description}\n\n"
