@@ -309,10 +309,19 @@ def _format_table(frame: pd.DataFrame, digits: int = 4) -> dict:
             return value.strftime("%Y-%m-%d %H:%M")
         return str(value)
 
-    rows = [[text(v) for v in row] for row in frame.itertuples(index=False)]
+    numeric = [
+        pd.api.types.is_numeric_dtype(frame[c]) and not pd.api.types.is_bool_dtype(frame[c])
+        for c in frame.columns
+    ]
+    rows = [
+        [(text(v), "" if is_number else "text") for v, is_number in zip(row, numeric, strict=True)]
+        for row in frame.itertuples(index=False)
+    ]
     classes = list(frame.attrs.get("row_classes", [""] * len(frame)))
     return {
-        "columns": [str(c) for c in frame.columns],
+        "columns": [
+            (str(c), "" if n else "text") for c, n in zip(frame.columns, numeric, strict=True)
+        ],
         "rows": list(zip(classes, rows, strict=True)),
     }
 
