@@ -203,6 +203,7 @@ def plot_mode_shapes(
     Each channel's shape component (mean shape, rotated to real) is drawn as an arrow from
     its node along its measuring direction, scaled so that the largest is 12 % of the
     layout's extent; grey dots are the nodes, hollow circles channels without a value.
+    The axes are not to scale (a hull's length would flatten the side view).
 
     Parameters
     ----------
@@ -242,8 +243,9 @@ def plot_mode_shapes(
                 xyz[:, a], xyz[:, b], value * direction[:, a], value * direction[:, b],
                 angles="xy", scale_units="xy", scale=1.0, color=mode_colour(mode), width=0.006,
             )  # fmt: skip
-            ax.set_aspect("equal", adjustable="datalim")
-            ax.margins(0.15)
+            # no equal aspect: a hull is 8-10 times longer than deep; arrows stay along
+            # their axis (each is drawn in data units of its own axis)
+            ax.margins(0.12)
             ax.tick_params(labelsize=7)
             ax.set_xlabel(xlabel, fontsize=8)
             ax.set_ylabel(ylabel, fontsize=8)
