@@ -103,3 +103,19 @@ def test_cli_report_errors_are_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and "no run found" in err[1]
     assert main(["report", str(tmp_path / "empty"), "--blocks", "x"]) == 2
+
+
+def test_registered_sections_come_after_the_built_in_ones(short_run, monkeypatch):
+    from workbench.reporting import report
+
+    monkeypatch.setattr(report, "_SECTION_BUILDERS", [])
+
+    @report.register_section
+    def agreement(run, save_figure):
+        table = pd.DataFrame({"mode": [1, 2], "SSI [Hz]": [2.9, 4.7], "other [Hz]": [2.91, 4.69]})
+        return report.ReportSection("agreement", "Method agreement", tables=[("by mode", table)])
+
+    page = build_report(short_run, out=short_run / "extra" / "page.html", dpi=40)
+    text = page.read_text(encoding="utf-8")
+    assert text.index('id="forecast"') < text.index('id="agreement"')
+    assert "Method agreement" in text and "4.69" in text

@@ -7,8 +7,11 @@ an overview first (what ran, on which data, the modes, warnings, skipped blocks 
 channels), then one section per stage that ran. Internal files (the per-block store) are
 never listed. Mode numbers are the tracked labels everywhere; damping is shown in percent.
 
-Other stages add sections through ``extra_sections`` (title, HTML-safe paragraphs, tables,
-figures), which the template renders after the built-in ones.
+Other stages add sections without touching :func:`build_report`: a function registered
+with :func:`register_section` receives the run's files and the figure writer and returns a
+:class:`ReportSection` (or None when its stage did not run); sections can also be passed
+directly as ``extra_sections``. The template renders them after the built-in ones, with the
+same tables and figures as every other section (e.g. an SSI/LSCF agreement table).
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ import json
 import logging
 import os
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -34,7 +37,7 @@ from data_contracts import (
     read_table,
 )
 
-__all__ = ["ReportSection", "RunFiles", "build_report", "find_run"]
+__all__ = ["ReportSection", "RunFiles", "build_report", "find_run", "register_section"]
 
 log = logging.getLogger(__name__)
 
@@ -74,6 +77,23 @@ class ReportSection:
     figures: list[tuple[str, str]] = field(default_factory=list)
     details: list[tuple[str, str]] = field(default_factory=list)
     figures_first: bool = False
+
+
+#: Section builders of other stages, called in registration order (see register_section).
+_SECTION_BUILDERS: list[Callable[[RunFiles, Callable[..., str]], ReportSection | None]] = []
+
+
+def register_section(
+    builder: Callable[[RunFiles, Callable[..., str]], ReportSection | None],
+) -> Callable[[RunFiles, Callable[..., str]], ReportSection | None]:
+    """Register a section of another stage (usable as a decorator).
+
+    ``builder(run, save_figure)`` gets the :class:`RunFiles` and ``save_figure(fig, name)``
+    (writes a matplotlib figure beside the report and returns its relative path) and
+    returns a :class:`ReportSection`, or None when the run has nothing for it.
+    """
+    _SECTION_BUILDERS.append(builder)
+    return builder
 
 
 def _first(root: Path, names: Sequence[str], *, depth: int = 2) -> Path | None:
@@ -832,6 +852,10 @@ def build_report(
         )
         if path is not None and path.exists()
     ]
+    for builder in _SECTION_BUILDERS:
+        extra = builder(run, figures.save)
+        if extra is not None:
+            sections.append(extra)
     sections.extend(extra_sections)
     overview.tables.insert(0, ("", pd.DataFrame(facts, columns=["what", "value"])))
     if not warnings:

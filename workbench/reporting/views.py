@@ -243,9 +243,15 @@ def plot_mode_shapes(
                 xyz[:, a], xyz[:, b], value * direction[:, a], value * direction[:, b],
                 angles="xy", scale_units="xy", scale=1.0, color=mode_colour(mode), width=0.006,
             )  # fmt: skip
-            # no equal aspect: a hull is 8-10 times longer than deep; arrows stay along
-            # their axis (each is drawn in data units of its own axis)
-            ax.margins(0.12)
+            # limits cover nodes and arrow tips (quiver does not extend the data limits);
+            # no equal aspect: a hull is 8-10 times longer than deep
+            for values, set_limits in (
+                (np.r_[xyz[:, a], xyz[:, a] + value * direction[:, a]], ax.set_xlim),
+                (np.r_[xyz[:, b], xyz[:, b] + value * direction[:, b]], ax.set_ylim),
+            ):
+                low, high = float(np.min(values)), float(np.max(values))
+                pad = 0.08 * (high - low) if high > low else 0.1 * extent
+                set_limits(low - pad, high + pad)
             ax.tick_params(labelsize=7)
             ax.set_xlabel(xlabel, fontsize=8)
             ax.set_ylabel(ylabel, fontsize=8)
