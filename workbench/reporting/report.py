@@ -161,6 +161,7 @@ class _SignalSummary:
     start: pd.Timestamp
     end: pd.Timestamp
     n_files: int
+    n_read: int
     files: list[tuple[pd.Timestamp, pd.Timestamp, Path]]
     moments: pd.DataFrame
     spectra: dict[str, tuple[np.ndarray, np.ndarray]]
@@ -189,38 +190,67 @@ def _csd(chunk: np.ndarray, rate: float) -> tuple[np.ndarray, np.ndarray]:
     return np.fft.rfftfreq(n, 1.0 / rate), csd
 
 
-def _chunk_moments(chunk: np.ndarray, time: pd.Timestamp, channels) -> pd.DataFrame:
-    """RMS about the mean [m/s²], skewness and kurtosis (not excess) of each channel."""
+def _chunk_moments(chunk: np.ndarray) -> np.ndarray:
+    """RMS about the mean [m/s²], skewness and kurtosis (not excess) of each channel:
+    array of shape (3, n_channels), NaN for a channel without data."""
     with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        centred = chunk - np.nanmean(chunk, axis=0)
-        m2 = np.nanmean(centred**2, axis=0)
-        skewness = np.nanmean(centred**3, axis=0) / m2**1.5
-        kurtosis = np.nanmean(centred**4, axis=0) / m2**2
+        mean = np.mean if np.isfinite(chunk).all() else np.nanmean
+        centred = chunk - mean(chunk, axis=0)
+        squared = centred * centred
+        m2 = mean(squared, axis=0)
+        skewness = mean(squared * centred, axis=0) / m2**1.5
+        kurtosis = mean(squared * squared, axis=0) / m2**2
+    return np.stack([np.sqrt(m2), skewness, kurtosis])
+
+
+def _moments_frame(times: list[pd.Timestamp], values: list[np.ndarray], channels) -> pd.DataFrame:
+    stacked = np.stack(values)  # (n_chunks, 3, n_channels)
+    n_chunks, _, n_channels = stacked.shape
     return pd.DataFrame(
-        {"time": time, "channel": list(channels), "rms": np.sqrt(m2), "skewness": skewness,
-         "kurtosis": kurtosis}
-    )  # fmt: skip
-
-
-def _case_of(time: pd.Timestamp, cases: pd.DataFrame | None) -> list[str]:
-    if cases is None:
-        return []
-    inside = (cases["start"] <= time) & (time < cases["end"])
-    return list(pd.unique(cases.loc[inside, "case"]))
+        {
+            "time": np.repeat(pd.DatetimeIndex(times), n_channels),
+            "channel": np.tile(np.asarray(channels, dtype=object), n_chunks),
+            "rms": stacked[:, 0].ravel(),
+            "skewness": stacked[:, 1].ravel(),
+            "kurtosis": stacked[:, 2].ravel(),
+        }
+    )
 
 
 def _signal_pass(
-    files: Sequence[Path], cases: pd.DataFrame | None, band_hz: tuple[float, float] | None = None
+    files: Sequence[Path],
+    cases: pd.DataFrame | None,
+    band_hz: tuple[float, float] | None = None,
+    *,
+    max_files: int = 720,
+    max_chunks: int = 600,
 ) -> _SignalSummary | None:
     """One pass over the acceleration files: per-chunk channel moments, the first singular
     value of each chunk's spectral matrix (spectrogram) and the mean spectral matrix of each
-    operating case (its singular values)."""
+    operating case (its singular values).
+
+    Long runs are read at *max_files* files spread evenly over the run; chunks are sized so
+    that about *max_chunks* of them cover it (at least two spectral segments each).
+    """
+    n_files = len(files)
+    if len(files) > max_files:
+        picks = np.unique(np.linspace(0, len(files) - 1, max_files).round().astype(int))
+        files = [files[k] for k in picks]
+    case_names: list[str] = []
+    case_bounds = np.empty((0, 2), dtype=np.int64)
+    if cases is not None:
+        case_names = list(cases["case"])
+        case_bounds = np.column_stack(
+            [cases["start"].to_numpy("datetime64[ns]").astype(np.int64),
+             cases["end"].to_numpy("datetime64[ns]").astype(np.int64)]
+        )  # fmt: skip
     sums: dict[str, np.ndarray] = {}
     counts: dict[str, int] = {}
     moments, times, first_sv = [], [], []
-    frequency = None
+    frequency = shown = None
     rate = None
+    per_chunk = 0
     channels: tuple[str, ...] = ()
     spans = []
     for path in files:
@@ -231,45 +261,55 @@ def _signal_pass(
             continue
         if rate is None:
             rate, channels = record.sampling_rate_hz, record.channels
+            segment = _segment_length(rate)
+            total = len(files) * record.n_samples
+            per_chunk = int(
+                np.clip(total / max_chunks, 2 * segment, max(record.n_samples, 2 * segment))
+            )
+            # whole chunks per file, so that chunk times lie on a regular grid across files
+            per_chunk = record.n_samples // max(1, round(record.n_samples / per_chunk))
         if record.sampling_rate_hz != rate or record.channels != channels:
             continue
         data = record.acceleration
-        duration = record.n_samples / rate
         spans.append((record.start_time, record.start_time + record.duration, path))
-        chunk_s = min(60.0, max(duration / 12.0, 8.0))
-        per_chunk = int(round(chunk_s * rate))
-        for start in range(0, max(record.n_samples - per_chunk + 1, 1), per_chunk):
+        start_ns = record.start_time.value
+        for start in range(0, max(record.n_samples - per_chunk // 2, 1), per_chunk):
             chunk = data[start : start + per_chunk]
-            if len(chunk) < _segment_length(rate) // 2:
+            if len(chunk) < min(per_chunk, _segment_length(rate)):
                 continue
-            time = record.start_time + pd.Timedelta(seconds=start / rate)
-            moments.append(_chunk_moments(chunk, time, channels))
+            time_ns = start_ns + int(round(1e9 * start / rate))
+            time = pd.Timestamp(time_ns, tz="UTC")
+            moments.append(_chunk_moments(chunk))
             frequency, csd = _csd(chunk, rate)
-            shown = np.ones(len(frequency), dtype=bool)
-            if band_hz is not None:
-                shown = (frequency >= band_hz[0] - 0.5) & (frequency <= band_hz[1] + 0.5)
+            if shown is None:
+                shown = np.ones(len(frequency), dtype=bool)
+                if band_hz is not None:
+                    shown = (frequency >= band_hz[0] - 0.5) & (frequency <= band_hz[1] + 0.5)
             times.append(time)
             first_sv.append(np.linalg.eigvalsh(csd[shown])[:, -1])
-            for case in ["all", *_case_of(time, cases)]:
+            inside = (case_bounds[:, 0] <= time_ns) & (time_ns < case_bounds[:, 1])
+            for case in [
+                "all",
+                *dict.fromkeys(n for n, i in zip(case_names, inside, strict=True) if i),
+            ]:
                 sums[case] = sums.get(case, 0.0) + csd
                 counts[case] = counts.get(case, 0) + 1
     if rate is None or not times:
         return None
     spectra = {}
-    for case, total in sums.items():
-        values = np.linalg.eigvalsh(total / counts[case])[:, ::-1][:, :3]
+    for case, total_csd in sums.items():
+        values = np.linalg.eigvalsh(total_csd / counts[case])[:, ::-1][:, :3]
         spectra[case] = (frequency, np.clip(values, 0.0, None))
-    order = ["all"] + [
-        c for c in (cases["case"].unique() if cases is not None else []) if c in spectra
-    ]
+    order = ["all"] + [c for c in dict.fromkeys(case_names) if c in spectra]
     return _SignalSummary(
         sampling_rate_hz=float(rate),
         channels=channels,
         start=min(s for s, _, _ in spans),
         end=max(e for _, e, _ in spans),
-        n_files=len(spans),
+        n_files=n_files,
+        n_read=len(spans),
         files=spans,
-        moments=pd.concat(moments, ignore_index=True),
+        moments=_moments_frame(times, moments, channels),
         spectra={case: spectra[case] for case in order},
         spectrogram=(np.array(times), frequency[shown], np.array(first_sv)),
     )
@@ -344,6 +384,23 @@ def _format_table(frame: pd.DataFrame, digits: int = 4) -> dict:
         ],
         "rows": list(zip(classes, rows, strict=True)),
     }
+
+
+def _warning_counts(warnings_column: pd.Series) -> list[str]:
+    """Row warnings (``"a: detail; b: detail"``) as one line per kind with its row count,
+    e.g. ``"track re-acquired (47 rows), e.g. track re-acquired: pole at 2.8621 Hz ..."``."""
+    counts: dict[str, list] = {}
+    for text in warnings_column.dropna().astype(str):
+        for part in (p.strip() for p in text.split(";")):
+            if not part:
+                continue
+            kind = part.split(":", 1)[0].strip()
+            entry = counts.setdefault(kind, [0, part])
+            entry[0] += 1
+    return [
+        f"{kind} ({n} rows)" + (f", e.g. {example}" if example != kind else "")
+        for kind, (n, example) in counts.items()
+    ]
 
 
 def _read_csv_times(path: Path, columns: Sequence[str]) -> pd.DataFrame:
@@ -442,7 +499,12 @@ def build_report(
         facts += [
             (
                 "acceleration files",
-                f"{signal.n_files} ({len(signal.channels)} channels at {signal.sampling_rate_hz:g} Hz)",
+                f"{signal.n_files} ({len(signal.channels)} channels at {signal.sampling_rate_hz:g} Hz)"
+                + (
+                    f"; {signal.n_read} spread over the run read for the signal views"
+                    if signal.n_read < signal.n_files
+                    else ""
+                ),
             ),
             ("time span", f"{signal.start:%Y-%m-%d %H:%M} to {signal.end:%Y-%m-%d %H:%M} UTC"),
         ]
@@ -812,9 +874,7 @@ def build_report(
             )
         )
         if "warning" in forecast.columns:
-            for text in pd.unique(forecast["warning"].dropna()):
-                if str(text).strip():
-                    notices.append(f"forecast: {text}")
+            notices += [f"forecast: {line}" for line in _warning_counts(forecast["warning"])]
         if run.evaluation is not None and mapping:
             evaluation = pd.read_csv(run.evaluation)
             inverse = {true: label for label, true in mapping.items()}

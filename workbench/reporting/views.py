@@ -57,6 +57,17 @@ def _naive_utc(times) -> pd.DatetimeIndex:
     return index.tz_convert("UTC").tz_localize(None)
 
 
+def _regular_columns(times: pd.DatetimeIndex) -> tuple[np.ndarray, int, float, float]:
+    """Columns of *times* (naive UTC) on a regular grid of their median step, so that gaps
+    stay gaps in an image: column index per time, number of columns, and the grid's start
+    and step in matplotlib date units."""
+    numbers = mdates.date2num(times.to_numpy())
+    step = float(np.median(np.diff(numbers))) if len(numbers) > 1 else 1.0 / 1440
+    step = step if step > 0 else 1.0 / 1440
+    index = np.rint((numbers - numbers[0]) / step).astype(int)
+    return index, int(index.max()) + 1, float(numbers[0]), step
+
+
 def _block_times(frame: pd.DataFrame) -> pd.DatetimeIndex:
     """Block mid-times (start + half the length when ``block_end`` is known)."""
     start = pd.to_datetime(frame["block_start"], utc=True)
@@ -323,10 +334,17 @@ def plot_spectra_by_case(
         if start is not None:
             mask = (times >= _naive_utc([start])[0]) & (times < _naive_utc([end])[0])
         if mask.sum() >= 1:
-            image = ax.pcolormesh(
-                times[mask], sg_frequency[inside], decibel[mask].T, shading="nearest",
+            columns, n_columns, start_num, step = _regular_columns(times[mask])
+            grid = np.full((int(inside.sum()), n_columns), np.nan)
+            grid[:, columns] = decibel[mask].T
+            shown_f = sg_frequency[inside]
+            image = ax.imshow(
+                grid, origin="lower", aspect="auto", interpolation="nearest",
+                extent=(start_num - step / 2, start_num + (n_columns - 0.5) * step,
+                        shown_f[0], shown_f[-1]),
                 vmin=low, vmax=high, cmap="magma",
             )  # fmt: skip
+            ax.xaxis_date()
             _time_axis(ax)
             fig.colorbar(image, ax=ax, label="SV1 [dB]", pad=0.01)
         else:
@@ -361,11 +379,12 @@ def plot_channel_moments(
         sharex=True, layout="constrained", squeeze=False,
     )  # fmt: skip
     t = _naive_utc(times)
-    step = (t[-1] - t[0]) / max(len(t) - 1, 1) if len(t) > 1 else pd.Timedelta(minutes=5)
-    edges = np.append(t.to_numpy(), (t[-1] + step).to_numpy())
-    position = {time: k for k, time in enumerate(times)}
+    columns, n_columns, start_num, step_num = _regular_columns(t)
+    end_num = start_num + n_columns * step_num
+    step = pd.Timedelta(days=step_num)
+    position = {time: int(c) for time, c in zip(times, columns, strict=True)}
     for ax, statistic in zip(axes[:, 0], statistics, strict=True):
-        grid = np.full((len(channels), len(times)), np.nan)
+        grid = np.full((len(channels), n_columns), np.nan)
         table = moments.pivot_table(index="channel", columns="time", values=statistic)
         table.columns = pd.to_datetime(table.columns, utc=True)
         for i, channel in enumerate(channels):
@@ -390,7 +409,12 @@ def plot_channel_moments(
                 kwargs = {"vmin": -spread, "vmax": spread}
             else:
                 kwargs = {"vmin": np.percentile(finite, 1), "vmax": np.percentile(finite, 99)}
-        image = ax.pcolormesh(edges, np.arange(len(channels) + 1), shown, cmap=cmap, **kwargs)
+        # columns are equally spaced chunks or blocks (a gap shows as its neighbours)
+        image = ax.imshow(
+            shown, aspect="auto", interpolation="nearest", cmap=cmap,
+            extent=(start_num, end_num, len(channels), 0), **kwargs,
+        )  # fmt: skip
+        ax.xaxis_date()
         fig.colorbar(image, ax=ax, label=label, pad=0.01)
         if dropped is not None and len(dropped):
             drop_t = _naive_utc(dropped["time"])
@@ -400,7 +424,7 @@ def plot_channel_moments(
                     label="dropped")  # fmt: skip
             ax.legend(fontsize=7, loc="upper right")
         ax.set_yticks(np.arange(len(channels)) + 0.5, channels, fontsize=6)
-        ax.invert_yaxis()
+        ax.set_ylim(len(channels), 0)
         ax.set_title(label, fontsize=9)
     _time_axis(axes[-1, 0])
     axes[-1, 0].set_xlabel("time [UTC]")
