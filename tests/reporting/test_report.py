@@ -114,7 +114,8 @@ def test_registered_sections_come_after_the_built_in_ones(short_run, monkeypatch
         table = pd.DataFrame({"mode": [1, 2], "SSI [Hz]": [2.9, 4.7], "other [Hz]": [2.91, 4.69]})
         return report.ReportSection("agreement", "Method agreement", tables=[("by mode", table)])
 
-    page = build_report(short_run, out=short_run / "extra" / "page.html", dpi=40)
+    tracked_only = report.RunFiles(short_run, tracked=short_run / "tracked_modal.csv")
+    page = build_report(short_run, out=short_run / "extra" / "page.html", run=tracked_only, dpi=40)
     text = page.read_text(encoding="utf-8")
-    assert text.index('id="forecast"') < text.index('id="agreement"')
+    assert text.index('id="modes"') < text.index('id="agreement"')
     assert "Method agreement" in text and "4.69" in text
