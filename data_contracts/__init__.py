@@ -14,6 +14,7 @@ from .accelerations import (
     write_accelerations,
 )
 from .dship import DEFAULT_DSHIP_MAPPING, DSHIP_LOG, read_dship
+from .geometry import SENSOR_GEOMETRY, geometry_directions
 from .tables import (
     CANONICAL_PREDICTORS,
     CONTRACTS,
@@ -37,6 +38,7 @@ __all__ = [
     "MODAL",
     "POLES",
     "PREDICTORS",
+    "SENSOR_GEOMETRY",
     "AccelerationRecord",
     "Column",
     "ColumnPattern",
@@ -45,6 +47,7 @@ __all__ = [
     "Violation",
     "atomic_path",
     "channel_names",
+    "geometry_directions",
     "read_accelerations",
     "read_dship",
     "read_table",

@@ -9,6 +9,7 @@ from __future__ import annotations
 from ._core import TableContract
 from .dship import DSHIP_LOG
 from .dship_names import DSHIP_NAMES
+from .geometry import SENSOR_GEOMETRY
 from .tables import FORECAST, MODAL, POLES, PREDICTORS
 
 _INTRO = """\
@@ -144,6 +145,7 @@ _TITLES = {
     "modal": "Tracked modal table",
     "poles": "Pole table",
     "forecast": "Forecast table",
+    "sensor_geometry": "Sensor geometry",
 }
 
 
@@ -155,7 +157,7 @@ def render_markdown() -> str:
     )
     parts = [_INTRO.replace("{mapping}", mapping).rstrip("\n")]
     parts.append("Canonical log after parsing:\n\n" + _columns_table(DSHIP_LOG))
-    for contract in (PREDICTORS, MODAL, POLES, FORECAST):
+    for contract in (PREDICTORS, MODAL, POLES, FORECAST, SENSOR_GEOMETRY):
         parts.append(
             f"## {_TITLES[contract.name]} (`{contract.name}`)\n\n"
             f"{contract.description}\n\n"

@@ -310,7 +310,11 @@ FORECAST = TableContract(
 )
 
 #: Contracts by the name used on the command line.
-CONTRACTS: dict[str, TableContract] = {c.name: c for c in (PREDICTORS, MODAL, POLES, FORECAST)}
+from .geometry import SENSOR_GEOMETRY  # noqa: E402  (after the tables it sits beside)
+
+CONTRACTS: dict[str, TableContract] = {
+    c.name: c for c in (PREDICTORS, MODAL, POLES, FORECAST, SENSOR_GEOMETRY)
+}
 
 
 # --------------------------------------------------------------------------- mode shapes

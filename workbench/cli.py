@@ -894,6 +894,65 @@ def _run_chain(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _add_report(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser(
+        "report",
+        help="one HTML report of a run from its tables",
+        description="Build one HTML page of the run in DIR (the folder the stages wrote "
+        "into): an overview (what ran, on which data, modes found, warnings, skipped blocks, "
+        "dropped channels), then spectra, stabilisation diagrams, tracked modes, mode shapes, "
+        "correlation, regression and forecasts, as far as the run has them.",
+    )
+    parser.add_argument("dir", type=Path, metavar="DIR", help="the run's folder")
+    parser.add_argument(
+        "--out", type=Path, metavar="FILE", help="report to write (default DIR/report.html)"
+    )
+    parser.add_argument(
+        "--accelerations",
+        type=Path,
+        nargs="+",
+        metavar="DIR_OR_FILE",
+        help="acceleration files (default: an 'accelerations' folder below DIR) for spectra, "
+        "spectrograms and channel moments",
+    )
+    parser.add_argument("--dship", type=Path, metavar="FILE", help="DSHIP log for predictors")
+    parser.add_argument("--cases", type=Path, metavar="FILE", help="operating cases CSV")
+    parser.add_argument(
+        "--geometry", type=Path, metavar="FILE", help="sensor geometry CSV (mode shapes)"
+    )
+    parser.add_argument(
+        "--blocks", metavar="N,N,...", help="blocks whose stabilisation diagrams are drawn"
+    )
+    parser.add_argument("--title", help="page title")
+    parser.set_defaults(run=_run_report)
+
+
+def _run_report(args: argparse.Namespace) -> int:
+    from .reporting.report import build_report, find_run
+
+    if not args.dir.is_dir():
+        raise UsageError(f"{args.dir}: no such folder")
+    try:
+        blocks = [int(b) for b in args.blocks.split(",")] if args.blocks else None
+    except ValueError:
+        raise UsageError(
+            f"--blocks must be block numbers like 0,40,80, got {args.blocks!r}"
+        ) from None
+    run = find_run(
+        args.dir,
+        accelerations=args.accelerations or (),
+        dship=args.dship,
+        cases=args.cases,
+        geometry=args.geometry,
+    )
+    with _data_errors(args.dir):
+        path = build_report(
+            args.dir, out=args.out, run=run, title=args.title, stabilisation_blocks=blocks
+        )
+    print(f"report: {path}")
+    return EXIT_OK
+
+
 #: Subcommands in the order ``--help`` lists them.
 COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_demo,
@@ -905,6 +964,7 @@ COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_fit,
     _add_forecast,
     _add_evaluate,
+    _add_report,
     _add_validate,
 )
 

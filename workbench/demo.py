@@ -17,7 +17,7 @@ import pandas as pd
 
 from data_contracts import CONTRACTS, read_accelerations, read_dship, read_table
 
-from .reporting.index import write_index
+from .reporting.report import build_report
 
 __all__ = ["DemoSummary", "run_demo", "validate_folder"]
 
@@ -134,7 +134,8 @@ def run_demo(
 
     Stages: simulate -> identify (SSI-cov on every block, in parallel) -> track ->
     predictors (DSHIP log onto the blocks) -> correlate -> fit (stepwise per mode) ->
-    forecast (method 2, options A and B) -> evaluate against the truth -> index page.
+    forecast (method 2, options A and B) -> evaluate against the truth -> the run's
+    report (``index.html``, :func:`workbench.reporting.report.build_report`).
 
     Returns
     -------
@@ -159,7 +160,6 @@ def run_demo(
     summary = DemoSummary(out_dir)
     stage = _Stages(summary)
     voyage_dir = out_dir / "voyage"
-    tables: dict[str, pd.DataFrame] = {}
     with stage("simulate"):
         simulation = simulate_voyage(voyage_dir, seed=seed, hours=hours)
     from .config import write_demo_config
@@ -185,13 +185,6 @@ def run_demo(
         f"identify: {identified.summary.processed} blocks identified, "
         f"{identified.summary.skipped} skipped, {identified.n_selected} modes selected"
     )
-
-    with stage("stabilisation figures"):
-        from .identify import write_block_figures
-
-        write_block_figures(
-            [voyage_dir], identify_dir / "figures", options=DEMO_IDENTIFY_OPTIONS, n_blocks=3
-        )
 
     with stage("SSI/LSCF cross-check"):
         from .identify import cross_check_blocks
@@ -248,12 +241,15 @@ def run_demo(
             forecast.tables["forecast"], truth, out=out_dir / "evaluation.csv"
         )
     summary.lines += evaluation.lines
-    tables["Forecast against the true frequencies (forecast phase)"] = evaluation.tables[
-        "evaluation"
-    ]
     with stage("validate"):
         summary.validated = validate_folder(out_dir)
-    write_index(out_dir, title="workbench demo voyage", summary=[*summary.lines], tables=tables)
+    with stage("report"):
+        build_report(
+            out_dir,
+            out=out_dir / "index.html",
+            title="workbench demo voyage",
+            summary_lines=summary.lines,
+        )
     return summary
 
 

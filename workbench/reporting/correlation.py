@@ -473,10 +473,13 @@ def write_correlation_report(
         f"<title>{html.escape(title)}</title><style>{_STYLE}</style></head><body>",
         f"<h1>{html.escape(title)}</h1>",
         "".join(f"<p>{html.escape(line)}</p>" for line in summary),
-        f"<h2>Useful correlations ({len(useful)})</h2>",
-        _html_table(useful) if len(useful) else "<p class='muted'>none</p>",
         "<h2>Figures</h2>",
         *(_embedded(path, caption) for _, path, caption in figures),
+        f"<h2>Useful correlations ({len(useful)})</h2>",
+        _html_table(useful) if len(useful) else "<p class='muted'>none</p>",
+        "<p class='muted'>p-values here take overlapping blocks as independent; the run "
+        "report (<code>workbench report</code>) gives them beside p-values from the "
+        "effective number of blocks.</p>",
         "<h2>All pairs</h2><details><summary>show the full table "
         f"({len(table)} rows; also in correlation.csv)</summary>",
         _html_table(table),

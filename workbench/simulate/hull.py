@@ -21,6 +21,7 @@ __all__ = [
     "ModeLaw",
     "Sensor",
     "mode_shapes",
+    "sensor_geometry",
     "true_modal_parameters",
 ]
 
@@ -68,6 +69,41 @@ def _layout() -> tuple[Sensor, ...]:
 SENSORS: tuple[Sensor, ...] = _layout()
 #: Channel names acc01 .. acc19.
 CHANNELS: tuple[str, ...] = tuple(s.channel for s in SENSORS)
+
+#: Main dimensions of the demo hull (a polar research vessel): length between
+#: perpendiculars, breadth and depth. [m]
+HULL_LENGTH_M, HULL_BREADTH_M, HULL_DEPTH_M = 118.0, 25.0, 13.6
+
+
+def sensor_geometry() -> pd.DataFrame:
+    """The demo hull's sensor layout as a SENSOR_GEOMETRY table (x forward from the aft
+    perpendicular, y to port, z up from the keel; vertical sensors measure +z, transverse
+    ones +y). Sensors at the same place share a node."""
+    rows, nodes = [], {}
+    for sensor in SENSORS:
+        place = (
+            round(sensor.position * HULL_LENGTH_M, 3),
+            round(sensor.side * HULL_BREADTH_M / 2, 3),
+            round(sensor.height * HULL_DEPTH_M, 3),
+        )
+        node = nodes.setdefault(place, f"N{len(nodes) + 1:02d}")
+        vertical = sensor.direction == "vertical"
+        deck = "main deck" if sensor.height >= 1.0 else "tank top"
+        side = {1.0: "port", -1.0: "starboard", 0.0: "centre line"}[sensor.side]
+        rows.append(
+            {
+                "channel": sensor.channel,
+                "node": node,
+                "x_m": place[0],
+                "y_m": place[1],
+                "z_m": place[2],
+                "direction_x": 0.0,
+                "direction_y": 0.0 if vertical else 1.0,
+                "direction_z": 1.0 if vertical else 0.0,
+                "description": f"{deck}, {side}, {sensor.direction}",
+            }
+        )
+    return pd.DataFrame(rows)
 
 
 @dataclass(frozen=True)

@@ -230,6 +230,11 @@ def simulate_voyage(
     )
     with atomic_path(out / "cases.csv") as tmp:
         cases.to_csv(tmp, index=False, lineterminator="\n")
+    from data_contracts import SENSOR_GEOMETRY
+
+    from .hull import sensor_geometry
+
+    write_table(sensor_geometry(), out / "sensor_geometry.csv", SENSOR_GEOMETRY)
 
     dead_start_file = int(np.floor(0.4 * n_files))
     dead_files = max(1, min(12, n_files // 10))
@@ -268,6 +273,7 @@ def simulate_voyage(
             "tracked_modal": "tracked_modal.csv",
             "poles": "poles.parquet",
             "cases": "cases.csv",
+            "sensor_geometry": "sensor_geometry.csv",
         },
         "law": {
             "reference_conditions": REFERENCE_CONDITIONS,

@@ -1,0 +1,121 @@
+"""Report building blocks: spectra, moments, mode shapes on the layout, run discovery, CLI."""
+
+from __future__ import annotations
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+import pytest
+
+from data_contracts import shapes_to_frame
+from workbench.cli import main
+from workbench.reporting import views
+from workbench.reporting.report import _chunk_moments, _csd, build_report, find_run
+
+
+@pytest.fixture(autouse=True)
+def _close_figures():
+    yield
+    plt.close("all")
+
+
+def test_csd_of_white_noise_has_the_one_sided_level():
+    # white noise of variance s² sampled at fs has the one-sided PSD 2 s² / fs
+    rng = np.random.default_rng(0)
+    rate, sigma = 64.0, 0.3
+    frequency, csd = _csd(sigma * rng.standard_normal((64 * 600, 2)), rate)
+    inside = (frequency > 1) & (frequency < 30)
+    level = np.real(csd[inside, 0, 0]).mean()
+    assert level == pytest.approx(2 * sigma**2 / rate, rel=0.03)
+    assert np.abs(csd[inside, 0, 1]).mean() < 0.1 * level  # independent channels
+
+
+def test_chunk_moments_of_known_signals():
+    rng = np.random.default_rng(1)
+    t = np.arange(200_000) / 100.0
+    chunk = np.column_stack([2.0 * np.sin(2 * np.pi * 3.1 * t), rng.standard_normal(len(t))])
+    chunk[:10, 1] = np.nan  # a dropout does not spoil the others
+    (rms, skewness, kurtosis) = _chunk_moments(chunk)
+    assert rms[0] == pytest.approx(2 / np.sqrt(2), rel=1e-3)
+    assert kurtosis[0] == pytest.approx(1.5, rel=1e-2)  # sine: 3/2
+    assert kurtosis[1] == pytest.approx(3.0, abs=0.05) and abs(skewness[1]) < 0.02
+
+
+def _modal_with_shapes(shape, n_blocks=6, seed=0):
+    rng = np.random.default_rng(seed)
+    phases = np.exp(1j * rng.uniform(0, 2 * np.pi, n_blocks))  # arbitrary phase per block
+    shapes = phases[:, None] * shape[None, :]
+    frame = pd.DataFrame({"block": np.arange(n_blocks), "mode": 1, "frequency_hz": 2.0})
+    channels = [f"c{j}" for j in range(len(shape))]
+    return pd.concat([frame, shapes_to_frame(channels, shapes)], axis=1), channels
+
+
+def test_mean_shape_undoes_block_phases():
+    shape = np.array([0.2, 0.5, -1.0, 0.1])
+    modal, _ = _modal_with_shapes(shape)
+    modes, _, mean = views.mean_mode_shapes(modal)
+    assert modes == [1]
+    real = views._real_shape(mean[:, 0])
+    np.testing.assert_allclose(real, -shape / np.linalg.norm(shape), atol=1e-12)
+
+
+def test_mode_shape_arrows_follow_the_sensor_directions():
+    shape = np.array([0.25, 0.5, 1.0])
+    modal, channels = _modal_with_shapes(shape)
+    geometry = pd.DataFrame(
+        {
+            "channel": channels,
+            "node": ["a", "b", "c"],
+            "x_m": [0.0, 5.0, 10.0],
+            "y_m": 0.0,
+            "z_m": 0.0,
+            "direction_x": 0.0,
+            "direction_y": [0.0, 1.0, 0.0],
+            "direction_z": [1.0, 0.0, 1.0],
+        }
+    )
+    fig = views.plot_mode_shapes(modal, geometry)
+    side, plan = (ax.collections[-1] for ax in fig.axes[:2])
+    unit = shape / np.linalg.norm(shape)
+    scale = 0.12 * 10.0 / unit.max()  # largest arrow 12 % of the 10 m layout
+    np.testing.assert_allclose(side.V, [unit[0] * scale, 0.0, unit[2] * scale])  # z only
+    np.testing.assert_allclose(plan.V, [0.0, unit[1] * scale, 0.0])  # y only
+    np.testing.assert_allclose(side.U, 0.0)
+
+
+def test_report_of_a_short_run(short_run):
+    run = find_run(short_run)
+    assert run.identify == short_run / "identify" and run.tracked.name == "tracked_modal.csv"
+    assert run.geometry.name == "sensor_geometry.csv" and len(run.accelerations) > 0
+    page = build_report(short_run, out=short_run / "other" / "page.html", dpi=50)
+    text = page.read_text(encoding="utf-8")
+    assert (short_run / "other" / "report_files" / "mode_shapes.png").exists()
+    # evaluation under the tracked labels, the truth's numbers beside
+    assert "true mode" in text and "Kalman vs SSI [%]" in text
+    assert "store" not in text.replace("stored", "")
+
+
+def test_cli_report_errors_are_one_line(tmp_path, capsys):
+    assert main(["report", str(tmp_path / "missing")]) == 2
+    (tmp_path / "empty").mkdir()
+    assert main(["report", str(tmp_path / "empty")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and "no run found" in err[1]
+    assert main(["report", str(tmp_path / "empty"), "--blocks", "x"]) == 2
+
+
+def test_registered_sections_come_after_the_built_in_ones(short_run, monkeypatch):
+    from workbench.reporting import report
+
+    monkeypatch.setattr(report, "_SECTION_BUILDERS", [])
+
+    @report.register_section
+    def agreement(run, save_figure):
+        table = pd.DataFrame({"mode": [1, 2], "SSI [Hz]": [2.9, 4.7], "other [Hz]": [2.91, 4.69]})
+        return report.ReportSection("agreement", "Method agreement", tables=[("by mode", table)])
+
+    tracked_only = report.RunFiles(short_run, tracked=short_run / "tracked_modal.csv")
+    page = build_report(short_run, out=short_run / "extra" / "page.html", run=tracked_only, dpi=40)
+    text = page.read_text(encoding="utf-8")
+    assert text.index('id="modes"') < text.index('id="agreement"')
+    assert "Method agreement" in text and "4.69" in text
