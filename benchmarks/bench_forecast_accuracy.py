@@ -196,8 +196,17 @@ def main(argv=None) -> int:
     if args.out is not None:
         runs.to_csv(args.out, index=False)
     table = summarise(runs)
+    short = table.rename(
+        columns={
+            "kalman_vs_ssi_median": "K/ssi_med",
+            "kalman_vs_ssi_worst": "K/ssi_worst",
+            "model_vs_ssi_median": "M/ssi_med",
+            "kalman_vs_best_median": "K/best_med",
+            "kalman_vs_best_worst": "K/best_worst",
+        }
+    )
     with pd.option_context("display.width", 200, "display.max_rows", 500):
-        print(table.to_string(index=False, float_format=lambda v: f"{v:+.1f}"))
+        print(short.to_string(index=False, float_format=lambda v: f"{v:+.1f}"))
     print(f"{len(runs)} runs in {time.perf_counter() - start:.0f} s")
     return 0
 

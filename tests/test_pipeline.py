@@ -46,7 +46,7 @@ def test_evaluate_pairs_labels_and_beats_ssi(tables):
     modes (as tracking with an extra spurious mode would) does not change the result."""
     modal, predictors, truth = tables
     table, _ = forecast_modes(
-        modal, predictors, option="A", method=2, train_blocks=20, horizon=4, trust=0.65
+        modal, predictors, option="A", method=2, train_blocks=20, horizon=4
     )
     plain = evaluate_forecast(table, truth).tables["evaluation"]
     shifted = table.assign(mode=table["mode"] + 10)
@@ -88,8 +88,6 @@ def test_cli_forecast_and_evaluate(voyage, tmp_path, capsys):
             "20",
             "--out",
             str(out),
-            "--trust",
-            "data",
         ]
     )
     assert status == 0, capsys.readouterr().err
@@ -105,7 +103,8 @@ def test_cli_forecast_and_evaluate(voyage, tmp_path, capsys):
     "args, message",
     [
         (["--option", "B"], "option B needs --poles"),
-        (["--trust", "1.5"], "--trust must be in (0, 1)"),
+        (["--model", "window", "--trust", "1.5"], "--trust must be in (0, 1)"),
+        (["--trust", "0.5"], "--trust applies to --model window"),
         (["--train", "1"], "--train must be at least 2"),
     ],
 )

@@ -32,6 +32,7 @@ import pandas as pd
 from scipy import stats as _scipy_stats
 
 from .kalman import ModeKalmanBank, process_variance_for_gain, relaxation_factor
+from .options import MeasurementOptions, ModelOptions, NoiseOptions, method_label, option_label
 
 __all__ = ["ForecastResult", "ForecastWarning", "WindowModel", "sliding_forecast"]
 
@@ -208,11 +209,11 @@ def sliding_forecast(
     horizon: int | None = None,
     start_block: int | None = None,
     end_block: int | None = None,
-    trust: float | None = 0.65,
+    trust: float | None | Literal["auto"] = "auto",
     correction_time_blocks: float = 36.0,
     gate_sigma: float = 3.0,
     shape_mac_min: float = 0.9,
-    reacquire_blocks: int = 1,
+    reacquire_blocks: int | None = None,
     reacquire_band: float = 0.05,
     predictor_columns: Sequence[str] | None = None,
     stepwise_options: Mapping[str, Any] | None = None,
@@ -221,6 +222,9 @@ def sliding_forecast(
     modes: Sequence[int] | None = None,
     alpha: float = 0.05,
     extrapolation_limit: float = 4.0,
+    model: Literal["memory", "window"] = "memory",
+    model_options: ModelOptions | None = None,
+    noise_options: NoiseOptions | None = None,
 ) -> ForecastResult:
     """Sliding stepwise-regression forecast of each mode's frequency, Kalman-blended with SSI.
 
@@ -385,10 +389,62 @@ def sliding_forecast(
     its steady state over the next blocks. Each re-acquisition is a row warning and is
     counted in a :class:`ForecastWarning`.
     """
-    if option not in ("A", "B"):
-        raise ValueError(f"option={option!r} must be 'A' or 'B'")
-    if method not in (1, 2):
-        raise ValueError(f"method={method!r} must be 1 or 2")
+    option = option_label(option)
+    method = method_label(method)
+    if model not in ("memory", "window"):
+        raise ValueError(f"model={model!r} must be 'memory' or 'window'")
+    if model == "memory":
+        if trust not in ("auto", None):
+            raise ValueError(
+                f"trust={trust!r} applies to model='window' (the reference configuration); "
+                "model='memory' estimates its noise levels from the data"
+            )
+        if option == "B" and poles is None:
+            raise ValueError("option='B' needs poles (the stabilisation diagrams)")
+        from .blend import memory_forecast
+
+        horizon = DEFAULT_HORIZON[method] if horizon is None else int(horizon)
+        if horizon < 1:
+            raise ValueError(f"horizon={horizon} must be >= 1")
+        options_m = model_options or ModelOptions(
+            train_blocks=train_blocks,
+            min_train_blocks=min_train_blocks,
+            predictor_columns=predictor_columns,
+            stepwise_options=stepwise_options,
+            extrapolation_limit=extrapolation_limit,
+            alpha=alpha,
+        )
+        for name, frame, needed in (
+            ("modal", modal, ("block", "mode", "frequency_hz")),
+            ("predictors", predictors, ("block", "block_start")),
+        ):
+            missing = [c for c in needed if c not in frame.columns]
+            if missing:
+                raise ValueError(f"{name} lacks column(s) {missing}")
+        return memory_forecast(
+            modal,
+            predictors,
+            poles=poles,
+            method=method,
+            horizon=horizon,
+            start_block=start_block,
+            end_block=end_block,
+            modes=modes,
+            model=options_m,
+            noise=noise_options or NoiseOptions(),
+            measurement=MeasurementOptions(
+                option=option,
+                gate_sigma=gate_sigma,
+                shape_mac_min=shape_mac_min,
+                reacquire_blocks=2 if reacquire_blocks is None else reacquire_blocks,
+                reacquire_band=reacquire_band,
+            ),
+            gap_warning_blocks=gap_warning_blocks,
+        )
+    if trust == "auto":
+        trust = 0.65
+    if reacquire_blocks is None:
+        reacquire_blocks = 1
     if option == "B" and poles is None:
         raise ValueError("option='B' needs poles (the stabilisation diagrams)")
     train_blocks = int(train_blocks)
