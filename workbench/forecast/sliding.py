@@ -187,13 +187,10 @@ def _predict(
         mean = np.array(out["mean"], dtype=float)
         lower = np.array(out["lower"], dtype=float)
         upper = np.array(out["upper"], dtype=float)
+        mean_variance = np.array(out["mean_se"], dtype=float) ** 2  # se² of the mean
     except Exception:  # a fit that cannot predict these rows: fall back per row
         nan = np.full(n_rows, np.nan)
         return nan, nan.copy(), nan.copy(), nan.copy()
-    # half width h = t sqrt(s² + se²)  =>  se² = (h / t)² - s²
-    t = _t_quantile(alpha, max(model.n_train - model.n_params, 1))
-    with np.errstate(invalid="ignore"):
-        mean_variance = np.maximum(((upper - lower) / (2 * t)) ** 2 - model.rmse**2, 0.0)
     return mean, lower, upper, mean_variance
 
 
