@@ -336,6 +336,7 @@ def memory_forecast(
     selected_at = np.full(n_modes, -(10**9))
     current: list[MemoryModel | None] = [None] * n_modes
     noise_of: list[NoiseModel | None] = [None] * n_modes
+    noise_at = np.full(n_modes, -(10**9))  # grid row of each mode's last noise estimate
     state = np.zeros((n_modes, 2))
     P = np.zeros((n_modes, 2, 2))
     started = np.zeros(n_modes, dtype=bool)
@@ -494,8 +495,15 @@ def memory_forecast(
                         float(np.var(np.diff(zf)) / 2.0) if zf.size >= 3 else None,
                         float(np.var(zf)) if zf.size >= 3 else None,
                     )
-            else:
+            elif (
+                noise_of[j] is None
+                or i0 - first < int(noise.noise_blocks)  # residual window still filling
+                or i0 - noise_at[j] >= model.reselect_blocks
+            ):  # then with the terms' schedule (the grid search is the costly part)
                 nz = estimate_noise(r_hist, level_hz)
+                noise_at[j] = i0
+            else:
+                nz = noise_of[j]
             noise_of[j] = nz
             if not started[j]:
                 P[j] = _stationary(nz)

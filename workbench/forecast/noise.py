@@ -32,7 +32,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import nnls
 
 __all__ = ["MIN_RESIDUALS", "NoiseModel", "estimate_noise", "lagged_autocovariance"]
 
@@ -139,6 +138,59 @@ def prior_noise(
     )
 
 
+_SUBSETS = tuple(tuple(c for c in range(3) if mask >> c & 1) for mask in range(1, 8))
+
+
+def _grid_nnls(lags: np.ndarray, target: np.ndarray, weight: np.ndarray):
+    """Non-negative least squares of γ(h) on [φ^h, ρ^h, [h=0]] for every (τ_c, ρ) of the grid.
+
+    Exact NNLS for three unknowns: the optimum is the least-squares solution on its set of
+    positive coefficients, so the best of the least-squares solutions on the 7 column
+    subsets that come out non-negative is the NNLS solution (batched over the grid).
+    Returns (τ_c, ρ, coefficients) of the smallest misfit.
+    """
+    phis = np.exp(-1.0 / np.asarray(CORRECTION_TIMES))
+    rhos = np.asarray(ERROR_CORRELATIONS, dtype=float)
+    tau_g, rho_g = np.meshgrid(np.arange(phis.size), np.arange(rhos.size), indexing="ij")
+    tau_g, rho_g = tau_g.ravel(), rho_g.ravel()
+    h = lags[None, :].astype(float)
+    zero = (lags == 0)[None, :] * 1.0
+    rho_col = np.where(rhos[rho_g][:, None] > 0, rhos[rho_g][:, None] ** h, zero)
+    design = (
+        np.stack([phis[tau_g][:, None] ** h, rho_col, np.broadcast_to(zero, rho_col.shape)], axis=2)
+        * weight[None, :, None]
+    )
+    b = target * weight
+    best_misfit = np.full(tau_g.size, np.inf)
+    best_coef = np.zeros((tau_g.size, 3))
+    gram = np.einsum("gmi,gmj->gij", design, design)  # AᵀA per grid point
+    rhs = np.einsum("gmi,m->gi", design, b)  # Aᵀb
+    bb = float(b @ b)
+    for subset in _SUBSETS:
+        idx = np.asarray(subset)
+        G = gram[:, idx[:, None], idx[None, :]]
+        # ridge 1e-12 trace: columns that coincide (e.g. ρ^h at small ρ and [h=0])
+        ridge = 1e-12 * np.trace(G, axis1=1, axis2=2)[:, None, None] * np.eye(idx.size)
+        coef = np.linalg.solve(G + ridge + 1e-300, rhs[:, idx][:, :, None])[:, :, 0]
+        feasible = (coef >= 0).all(axis=1)
+        # |Ac - b|² = cᵀGc - 2cᵀAᵀb + bᵀb
+        misfit = np.sqrt(
+            np.maximum(
+                np.einsum("gi,gij,gj->g", coef, G, coef)
+                - 2 * np.einsum("gi,gi->g", coef, rhs[:, idx])
+                + bb,
+                0.0,
+            )
+        )
+        better = feasible & (misfit < best_misfit - 1e-30)
+        best_misfit[better] = misfit[better]
+        full = np.zeros((tau_g.size, 3))
+        full[:, subset] = coef
+        best_coef[better] = full[better]
+    g = int(np.argmin(best_misfit))
+    return float(CORRECTION_TIMES[tau_g[g]]), float(rhos[rho_g[g]]), best_coef[g]
+
+
 def estimate_noise(residuals: np.ndarray, level_hz: float) -> NoiseModel:
     """Covariance-matching estimate of the residual model (module docstring).
 
@@ -162,17 +214,7 @@ def estimate_noise(residuals: np.ndarray, level_hz: float) -> NoiseModel:
     lags = np.flatnonzero(use)
     target = gamma[use]
     weight = np.sqrt(count[use] / count[0])
-    best = None
-    for tau in CORRECTION_TIMES:
-        phi = math.exp(-1.0 / tau)
-        for rho in ERROR_CORRELATIONS:
-            design = np.column_stack(
-                [phi**lags, rho**lags if rho > 0 else (lags == 0) * 1.0, (lags == 0) * 1.0]
-            )
-            coef, misfit = nnls(design * weight[:, None], target * weight)
-            if best is None or misfit < best[0] - 1e-30:
-                best = (misfit, tau, rho, coef)
-    _, tau, rho, coef = best
+    tau, rho, coef = _grid_nnls(lags, target, weight)
     sc, se, sv = (float(c) for c in coef)
     if rho == 0.0:  # e and v coincide: all white
         sv, se = sv + se, 0.0
