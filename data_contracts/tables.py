@@ -60,7 +60,10 @@ _BLOCK = Column(
 _BLOCK_START = Column("block_start", "time", "Start of the block (inclusive), UTC.", unit="UTC")
 _BLOCK_END = Column("block_end", "time", "End of the block (exclusive), UTC.", unit="UTC")
 _MODE = Column(
-    "mode", "int", "Mode label (1-based), stable across blocks after tracking.", minimum=1
+    "mode",
+    "int",
+    "Mode label, stable across blocks after tracking: an identifier, any integer (0 and "
+    "negative labels included).",
 )
 _FREQUENCY = Column(
     "frequency_hz", "float", "Natural frequency.", unit="Hz", minimum=0.0, maximum=1.0e4

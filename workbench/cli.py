@@ -712,10 +712,18 @@ def _add_forecast(commands: argparse._SubParsersAction) -> None:
         help="blocks per forecast (default 34 for method 1, 4 for method 2)",
     )
     parser.add_argument(
+        "--model",
+        choices=("memory", "window"),
+        default="window",
+        help="window: the reference configuration, a stepwise fit on the last --train blocks "
+        "and --trust (default); memory: stepwise terms, coefficients over the whole history "
+        "with forgetting, noise levels from the data",
+    )
+    parser.add_argument(
         "--trust",
-        default="0.65",
-        help="steady-state weight on SSI in (0, 1), or 'data' for a Q from "
-        "the model's own prediction variance",
+        default=None,
+        help="--model window only: steady-state weight on SSI in (0, 1) (default 0.65), "
+        "or 'data' for a Q from the model's own prediction variance",
     )
     parser.add_argument(
         "--out",
@@ -763,9 +771,10 @@ def _add_forecast(commands: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--reacquire-blocks",
         type=int,
-        default=1,
+        default=None,
         metavar="K",
-        help="option B: blocks seen only outside the gate before the track is re-acquired",
+        help="option B: blocks seen only outside the gate before the track is re-acquired "
+        "(default 2 for --model memory, 1 for --model window)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(run=_run_forecast)
@@ -793,7 +802,11 @@ def _run_forecast(args: argparse.Namespace) -> int:
         raise UsageError("option B needs --poles (the stabilisation diagrams)")
     if args.train < 2:
         raise UsageError(f"--train must be at least 2 blocks, got {args.train}")
-    trust = _parse_trust(args.trust)
+    if args.trust is not None and args.model != "window":
+        raise UsageError(
+            "--trust applies to --model window; --model memory takes its noise levels from the data"
+        )
+    trust = "auto" if args.trust is None else _parse_trust(args.trust)
     modal = read_modal(args, args.modal)
     predictors = _predictors_for(args, modal)
     poles = read_table(args.poles, POLES) if args.poles is not None else None
@@ -809,6 +822,7 @@ def _run_forecast(args: argparse.Namespace) -> int:
             train_blocks=args.train,
             horizon=args.horizon,
             trust=trust,
+            model=args.model,
             figures=args.figures,
             truth=truth,
             n_jobs=args.jobs,

@@ -80,7 +80,8 @@ def test_every_violation_is_reported_at_once():
     frame = modal_frame().drop(columns=["block_end"])
     frame.loc[1, "frequency_hz"] = -1.0
     frame.loc[[2, 3], "damping_ratio"] = 1.5  # a percentage mistaken for a fraction
-    frame.loc[4, "mode"] = 0
+    frame["mode"] = frame["mode"].astype(float)
+    frame.loc[4, "mode"] = 1.5  # labels are any integer (0 included), but integers
     with pytest.raises(ContractError) as caught:
         MODAL.validate(frame, source="tracked.csv")
     lines = caught.value.lines()

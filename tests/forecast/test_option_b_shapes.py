@@ -107,7 +107,7 @@ def _run(modal, predictors, poles, **kwargs):
             method=1,
             horizon=N_BLOCKS - 20,
             predictor_columns=["water_temp_c", "speed_kn"],
-            **kwargs,
+            **{"model": "window", **kwargs},
         )
     messages = [str(w.message) for w in caught if issubclass(w.category, ForecastWarning)]
     return result.table.set_index("block"), messages

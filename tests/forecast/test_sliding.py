@@ -52,7 +52,8 @@ def _tables(n_blocks=80, n_modes=2, noise=0.002, seed=0):
 def _quiet(**kwargs):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ForecastWarning)
-        return sliding_forecast(**kwargs)
+        # the reference configuration (20-block window, trust) unless a test says otherwise
+        return sliding_forecast(**{"model": "window", **kwargs})
 
 
 def test_table_validates_against_forecast_contract_options_a_and_b():
@@ -214,7 +215,7 @@ def test_too_few_valid_blocks_falls_back_and_warns():
     modal, predictors, _ = _tables(n_modes=1)
     modal = modal[~modal["block"].between(3, 18)]  # 4 of 20 training blocks left
     with pytest.warns(ForecastWarning, match="too few valid blocks"):
-        result = sliding_forecast(modal, predictors, horizon=30)
+        result = sliding_forecast(modal, predictors, horizon=30, model="window")
     assert result.models[0].kind == "constant"
     table = result.table
     assert len(table) == 50 and table["kalman_frequency_hz"].notna().all()
@@ -228,7 +229,7 @@ def test_last_good_model_reused_when_a_later_window_cannot_be_fitted():
     modal, predictors, _ = _tables(n_blocks=60, n_modes=1)
     predictors.loc[predictors["block"] >= 24, ["water_temp_c", "speed_kn"]] = np.nan
     with pytest.warns(ForecastWarning):
-        result = sliding_forecast(modal, predictors, method=2, horizon=4)
+        result = sliding_forecast(modal, predictors, method=2, horizon=4, model="window")
     kinds = [m.kind for m in result.models]
     assert kinds[0] == "stepwise"
     assert "constant" in kinds or "last_good" in kinds
@@ -245,7 +246,7 @@ def test_constant_and_nan_predictors_are_left_out_with_warning():
     predictors["speed_kn"] = 12.0  # constant
     predictors["air_temp_c"] = np.nan  # dead channel for the whole voyage
     with pytest.warns(ForecastWarning) as record:
-        result = sliding_forecast(modal, predictors, horizon=20)
+        result = sliding_forecast(modal, predictors, horizon=20, model="window")
     text = " ".join(str(w.message) for w in record)
     assert "'speed_kn' left out: constant" in text
     assert "'air_temp_c' left out" in text
@@ -257,7 +258,9 @@ def test_predictor_nan_for_hours_uses_constant_model_for_those_blocks():
     modal, predictors, _ = _tables(n_modes=1)
     predictors.loc[predictors["block"].between(30, 45), "water_temp_c"] = np.nan
     with pytest.warns(ForecastWarning, match="constant model"):
-        result = sliding_forecast(modal, predictors, horizon=40, predictor_columns=["water_temp_c"])
+        result = sliding_forecast(
+            modal, predictors, horizon=40, predictor_columns=["water_temp_c"], model="window"
+        )
     table = result.table.set_index("block")
     level = modal.loc[modal["block"] < 20, "frequency_hz"].mean()
     assert table.loc[30:45, "model_frequency_hz"].to_numpy() == pytest.approx(level)
@@ -270,7 +273,7 @@ def test_mode_that_disappears_and_returns_rejoins_its_track():
     modal, predictors, truth = _tables(n_blocks=100, n_modes=2, noise=0.001)
     modal = modal[~((modal["mode"] == 2) & modal["block"].between(25, 64))]
     with pytest.warns(ForecastWarning, match="without SSI"):
-        result = sliding_forecast(modal, predictors, horizon=80)
+        result = sliding_forecast(modal, predictors, horizon=80, model="window")
     table = result.table[result.table["mode"] == 2].set_index("block")
     assert len(table) == 100
     kalman = table["kalman_frequency_hz"].to_numpy()
@@ -295,7 +298,7 @@ def test_mode_without_data_at_first_starts_later_and_does_not_disturb_others():
     reference = _quiet(modal=modal, predictors=predictors, method=2, horizon=4)
     late = modal[~((modal["mode"] == 2) & (modal["block"] < 30))]
     with pytest.warns(ForecastWarning, match="no data yet"):
-        result = sliding_forecast(late, predictors, method=2, horizon=4)
+        result = sliding_forecast(late, predictors, method=2, horizon=4, model="window")
     mode_2 = result.table[result.table["mode"] == 2]
     assert mode_2["block"].min() >= 30 and mode_2["block"].max() == 59
     assert np.isfinite(mode_2["kalman_frequency_hz"]).all()

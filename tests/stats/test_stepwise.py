@@ -188,6 +188,8 @@ def test_final_model_agrees_with_statsmodels(data):
         np.testing.assert_allclose(ours["mean"], theirs["mean"], rtol=1e-9, atol=1e-10)
         np.testing.assert_allclose(ours["lower"], theirs[lower], rtol=1e-8, atol=1e-10)
         np.testing.assert_allclose(ours["upper"], theirs[upper], rtol=1e-8, atol=1e-10)
+        # standard error of the mean, the same for both intervals (statsmodels mean_se)
+        np.testing.assert_allclose(ours["mean_se"], theirs["mean_se"], rtol=1e-8, atol=1e-12)
     np.testing.assert_allclose(fit.predict(new), ours["mean"])
     assert fit.response_name == "response"
 

@@ -56,7 +56,7 @@ EXACT_FIT_TOLERANCE = 1e-12
 #: sum of squares left unexplained by the model's terms, 1 - R²_j, is at most this.
 COLLINEARITY_TOLERANCE = 1e-10
 
-_INTERVAL_COLUMNS = pd.Index(["mean", "lower", "upper"], dtype=object)
+_INTERVAL_COLUMNS = pd.Index(["mean", "lower", "upper", "mean_se"], dtype=object)
 _COEFFICIENT_COLUMNS = pd.Index(["estimate", "se", "t_stat", "p_value"], dtype=object)
 
 
@@ -299,7 +299,8 @@ class StepwiseFit:
         -------
         ndarray or DataFrame
             Means (shape ``(n_rows,)``), or a DataFrame with columns ``mean``, ``lower``,
-            ``upper`` (index of *X* when it is a DataFrame). Rows with NaN in a predictor
+            ``upper`` and ``mean_se``, the standard error of the mean s √h (index of *X*
+            when it is a DataFrame). Rows with NaN in a predictor
             the model uses are NaN.
 
         Notes
@@ -323,11 +324,12 @@ class StepwiseFit:
         leverage = 1.0 / self.n_obs + np.einsum(
             "ij,ij->i", centred @ self.slope_covariance, centred
         )
+        mean_se = self.rmse * np.sqrt(leverage)  # standard error of the mean, s √h
         if interval == "prediction":
             leverage = leverage + 1.0
         half = _t_quantile(1.0 - alpha / 2.0, self.dfe) * self.rmse * np.sqrt(leverage)
         return pd.DataFrame(
-            np.column_stack([mean, mean - half, mean + half]),
+            np.column_stack([mean, mean - half, mean + half, mean_se]),
             columns=_INTERVAL_COLUMNS,
             index=index if index is not None else pd.RangeIndex(len(mean)),
             copy=False,

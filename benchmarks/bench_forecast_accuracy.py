@@ -1,0 +1,215 @@
+"""Forecast accuracy suite: Kalman-blended estimates against raw SSI and the model alone.
+
+Block-level regimes (``forecast_regimes.py``: alternating speed, slowly varying speed,
+stationary, temperature drift, ice breaking), several seeds each, with and without mode
+shapes in the pole and modal tables; and the full chain from accelerations (the demo
+voyage at 3 h and 12 h: simulate, identify, track; cached in ``--cache`` so identification
+runs once). Every forecast uses the library's default settings for the option and method.
+
+Scores (forecast phase, summed over modes, on the blocks that have a tracked SSI estimate;
+raw SSI is always the tracked pole, so option B's own pole choice is judged too):
+
+* ``kalman_vs_ssi`` = 100 (1 - E_kalman / E_ssi) %, E the cumulative absolute error
+  against the true frequency;
+* ``model_vs_ssi`` = 100 (1 - E_model / E_ssi) %;
+* ``kalman_vs_best`` = 100 (1 - E_kalman / min(E_ssi, E_model)) %: >= 0 when the blend is
+  at least as good as the better of its two inputs.
+
+Printed: one row per case, option and method with the median and worst seed of
+``kalman_vs_ssi``, the median of ``model_vs_ssi`` and the median and worst of
+``kalman_vs_best``. ``--out FILE`` also writes every run's scores as CSV.
+
+Run: ``python benchmarks/bench_forecast_accuracy.py --seeds 4 --out /tmp/accuracy.csv``
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from forecast_regimes import REGIMES, make_regime  # noqa: E402
+
+from workbench.forecast import sliding_forecast  # noqa: E402
+
+
+def score(table: pd.DataFrame, truth: pd.DataFrame, tracked: pd.DataFrame) -> dict:
+    """Cumulative absolute errors of SSI (tracked pole), model and Kalman (module docstring)."""
+    part = table[table["phase"] == "forecast"][
+        ["block", "mode", "model_frequency_hz", "kalman_frequency_hz"]
+    ]
+    ssi = tracked[["block", "mode", "frequency_hz"]].rename(columns={"frequency_hz": "ssi"})
+    ssi = ssi.drop_duplicates(["block", "mode"])
+    true = truth[["block", "mode", "frequency_hz"]].rename(columns={"frequency_hz": "truth"})
+    merged = part.merge(ssi, on=["block", "mode"]).merge(true, on=["block", "mode"])
+    merged = merged.dropna(subset=["ssi", "truth"])
+    e = {
+        "ssi": np.abs(merged["ssi"] - merged["truth"]).sum(),
+        "model": np.nansum(np.abs(merged["model_frequency_hz"] - merged["truth"])),
+        "kalman": np.nansum(np.abs(merged["kalman_frequency_hz"] - merged["truth"])),
+    }
+    return {
+        "n": len(merged),
+        "kalman_vs_ssi": 100 * (1 - e["kalman"] / e["ssi"]),
+        "model_vs_ssi": 100 * (1 - e["model"] / e["ssi"]),
+        "kalman_vs_best": 100 * (1 - e["kalman"] / min(e["ssi"], e["model"])),
+    }
+
+
+def _forecast(modal, predictors, poles, option, method):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return sliding_forecast(modal, predictors, poles=poles, option=option, method=method).table
+
+
+def _drop_shapes(frame: pd.DataFrame) -> pd.DataFrame:
+    return frame[[c for c in frame.columns if not str(c).startswith("shape_")]]
+
+
+def block_level_runs(seeds, n_blocks, methods, options):
+    rows = []
+    for regime in REGIMES:
+        for seed in seeds:
+            data = make_regime(regime, seed, n_blocks=n_blocks, shapes=True)
+            for shapes in (True, False):
+                tracked = data.tracked if shapes else _drop_shapes(data.tracked)
+                poles = data.poles if shapes else _drop_shapes(data.poles)
+                for option in options:
+                    for method in methods:
+                        table = _forecast(tracked, data.predictors, poles, option, method)
+                        rows.append(
+                            {
+                                "case": regime,
+                                "shapes": shapes,
+                                "seed": seed,
+                                "option": option,
+                                "method": method,
+                                **score(table, data.truth, data.tracked),
+                            }
+                        )
+            print(f"  {regime} seed {seed} done", file=sys.stderr, flush=True)
+    return rows
+
+
+def _demo_tables(cache: Path, hours: float):
+    """Tracked modal table, poles, predictors and truth of the demo voyage (cached)."""
+    from data_contracts import CONTRACTS, read_table
+    from workbench.identify import IdentifyOptions, identify_voyage
+    from workbench.pipeline import canonical_predictors, load_predictors, run_track
+    from workbench.simulate import simulate_voyage
+
+    folder = cache / f"demo{hours:g}"
+    tracked_path = folder / "tracked_modal.csv"
+    if not tracked_path.is_file():
+        folder.mkdir(parents=True, exist_ok=True)
+        print(f"simulating and identifying the {hours:g}-h demo into {folder} ...", flush=True)
+        simulate_voyage(folder / "voyage", seed=0, hours=hours)
+        identify_voyage([folder / "voyage"], folder / "identify", options=IdentifyOptions())
+        run_track(folder / "identify" / "selected.parquet", tracked_path)
+    tracked = read_table(tracked_path, CONTRACTS["modal"])
+    poles = read_table(folder / "identify" / "poles.parquet", CONTRACTS["poles"])
+    truth = read_table(folder / "voyage" / "truth_modal.csv", CONTRACTS["modal"])
+    dship = folder / "voyage" / "dship.tsv"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        predictors = canonical_predictors(load_predictors(dship=dship, like=tracked))
+    return tracked, poles, predictors, truth
+
+
+def demo_runs(cache: Path, hours_list, methods, options):
+    from workbench.pipeline import persistent_modes
+    from workbench.sid.tracking import label_agreement
+
+    rows = []
+    for hours in hours_list:
+        tracked, poles, predictors, truth = _demo_tables(cache, hours)
+        kept, _ = persistent_modes(tracked, 0.5, n_blocks=predictors["block"].nunique())
+        _, mapping = label_agreement(kept, truth)
+        kept = kept[kept["mode"].isin(mapping)]
+        inverse = {true: label for label, true in mapping.items()}
+        truth_l = truth[truth["mode"].isin(inverse)].copy()
+        truth_l["mode"] = truth_l["mode"].map(inverse)
+        for shapes in (True, False):
+            modal = kept if shapes else _drop_shapes(kept)
+            pol = poles if shapes else _drop_shapes(poles)
+            for option in options:
+                for method in methods:
+                    table = _forecast(modal, predictors, pol, option, method)
+                    rows.append(
+                        {
+                            "case": f"demo_{hours:g}h",
+                            "shapes": shapes,
+                            "seed": 0,
+                            "option": option,
+                            "method": method,
+                            **score(table, truth_l, kept),
+                        }
+                    )
+    return rows
+
+
+def summarise(runs: pd.DataFrame) -> pd.DataFrame:
+    keys = ["case", "shapes", "option", "method"]
+    grouped = runs.groupby(keys, sort=False)
+    return pd.DataFrame(
+        {
+            "seeds": grouped["seed"].nunique(),
+            "kalman_vs_ssi_median": grouped["kalman_vs_ssi"].median(),
+            "kalman_vs_ssi_worst": grouped["kalman_vs_ssi"].min(),
+            "model_vs_ssi_median": grouped["model_vs_ssi"].median(),
+            "kalman_vs_best_median": grouped["kalman_vs_best"].median(),
+            "kalman_vs_best_worst": grouped["kalman_vs_best"].min(),
+        }
+    ).reset_index()
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=4)
+    parser.add_argument("--blocks", type=int, default=432, help="blocks per regime (36 h)")
+    parser.add_argument("--methods", default="1,2")
+    parser.add_argument("--options", default="A,B")
+    parser.add_argument("--demo-hours", default="3,12", help="'' to skip the demo runs")
+    parser.add_argument(
+        "--cache", type=Path, default=Path("reports") / "bench_cache", help="demo tables"
+    )
+    parser.add_argument("--no-regimes", action="store_true")
+    parser.add_argument("--out", type=Path, help="write every run's scores as CSV")
+    args = parser.parse_args(argv)
+    methods = [int(m) for m in args.methods.split(",")]
+    options = args.options.split(",")
+    start = time.perf_counter()
+    rows = []
+    if not args.no_regimes:
+        rows += block_level_runs(range(args.seeds), args.blocks, methods, options)
+    hours = [float(h) for h in args.demo_hours.split(",") if h.strip()]
+    if hours:
+        rows += demo_runs(args.cache, hours, methods, options)
+    runs = pd.DataFrame(rows)
+    if args.out is not None:
+        runs.to_csv(args.out, index=False)
+    table = summarise(runs)
+    short = table.rename(
+        columns={
+            "kalman_vs_ssi_median": "K/ssi_med",
+            "kalman_vs_ssi_worst": "K/ssi_worst",
+            "model_vs_ssi_median": "M/ssi_med",
+            "kalman_vs_best_median": "K/best_med",
+            "kalman_vs_best_worst": "K/best_worst",
+        }
+    )
+    with pd.option_context("display.width", 200, "display.max_rows", 500):
+        print(short.to_string(index=False, float_format=lambda v: f"{v:+.1f}"))
+    print(f"{len(runs)} runs in {time.perf_counter() - start:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,335 @@
+"""Block-level voyage regimes for the forecast accuracy suite (``bench_forecast_accuracy.py``).
+
+Each regime is a ship's operating profile at 1-minute resolution (speed, water and air
+temperature, wind), turned into block-level tables the forecast stage reads: the block
+predictors (20-minute blocks, a new one every 5 minutes), the true modal frequencies, a
+tracked modal table (option A's measurements) and a pole table (stabilisation diagrams,
+option B's measurements), with or without mode shapes.
+
+The frequencies follow the demo hull's law (:func:`workbench.simulate.hull.true_modal_parameters`:
+added mass of water with speed, temperature-dependent stiffness, speed x water interaction,
+fuel burn) for four of its modes. What SSI "measures" is built to behave like real SSI
+errors rather than white noise:
+
+* *excitation weighting*: a block's identified frequency is the frequency averaged with the
+  block's excitation power (which grows with speed squared; impulsive in ice), not the time
+  average that is the block's truth, so a block in which the speed changes is biased
+  towards its faster part;
+* *correlated errors*: 75 %-overlapping blocks share most of their data, so the
+  identification error is AR(1) from block to block (lag-1 correlation 0.65), with a size
+  that varies from block to block (log-normal, larger when the speed changes inside the
+  block, 2.5x larger and heavy-tailed, Student t with 3 degrees of freedom, in ice);
+* *stabilisation diagrams*: each mode is a column of poles over the model orders 10-60,
+  scattered about the block's identified value by an amount that follows the block's error
+  size (imperfectly); noise poles at random orders; a propeller blade-rate harmonic that
+  sweeps through the band with speed (very lightly damped, stable over many orders); in
+  ice, extra short stable columns from ice impacts;
+* *tracking errors*: the tracked pole is one pole of the column (a random order of the
+  upper half), occasionally (1.5 %, 4 % in ice) a noise pole near the mode instead;
+  estimates missing at random (12 %) and in runs (blocks where the mode is not excited;
+  long runs of 10-40 blocks in ice).
+
+Nothing here knows the forecast method; the regimes were written before the method was
+changed (see the issue-11 report for the before/after table).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from data_contracts import shapes_to_frame
+from workbench.simulate.hull import CHANNELS, mode_shapes, true_modal_parameters
+
+REGIMES = ("alternating_speed", "slow_speed", "stationary", "temperature_drift", "ice_breaking")
+#: Modes of the demo hull used (0-based indices into MODE_LAWS): VB1, HB1, T1, VB3.
+MODE_INDEX = (0, 1, 3, 4)
+#: Relative standard deviation of the identification error per mode. [-]
+RELATIVE_ERROR = np.array([0.003, 0.004, 0.003, 0.004])
+LAG1 = 0.65
+STEP_MIN = 5
+BLOCK_MIN = 20
+ORDERS = np.arange(10, 61, 2)
+BLADE_HZ_PER_KN = 0.33  # 4 blades x shaft rate, shaft rate ~ speed
+
+
+@dataclass(frozen=True)
+class RegimeData:
+    name: str
+    seed: int
+    predictors: pd.DataFrame
+    truth: pd.DataFrame
+    tracked: pd.DataFrame
+    poles: pd.DataFrame
+
+
+def _smooth(rng, n, correlation_min):
+    """Unit-variance noise smoothed over *correlation_min* minutes (AR(1))."""
+    a = np.exp(-1.0 / correlation_min)
+    e = rng.standard_normal(n) * np.sqrt(1 - a * a)
+    out = np.empty(n)
+    acc = rng.standard_normal()
+    for i in range(n):
+        acc = a * acc + e[i]
+        out[i] = acc
+    return out
+
+
+def _ramp_towards(target, max_rate):
+    """Follow *target* with at most *max_rate* change per minute (ship acceleration)."""
+    out = np.empty_like(target)
+    out[0] = target[0]
+    for i in range(1, target.size):
+        out[i] = out[i - 1] + np.clip(target[i] - out[i - 1], -max_rate, max_rate)
+    return out
+
+
+def _profile(name: str, rng, n_min: int):
+    t_h = np.arange(n_min) / 60.0
+    water = 3.0 + 0.3 * _smooth(rng, n_min, 240)
+    air = (
+        -2.0
+        + 3.0 * np.sin(2 * np.pi * (t_h - rng.uniform(0, 24)) / 24)
+        + 0.8 * _smooth(rng, n_min, 60)
+    )
+    wind = np.clip(8.0 + 3.0 * _smooth(rng, n_min, 90), 0, None)
+    wind_dir = np.mod(rng.uniform(0, 360) + 40 * np.cumsum(_smooth(rng, n_min, 30)) / 60, 360)
+    excitation_spikes = np.ones(n_min)
+    if name == "alternating_speed":
+        target = np.empty(n_min)
+        i, high = 0, bool(rng.integers(2))
+        while i < n_min:
+            length = int(rng.uniform(90, 240))
+            target[i : i + length] = rng.uniform(10, 15) if high else rng.uniform(2, 6)
+            i += length
+            high = not high
+        speed = _ramp_towards(target, 0.5) + 0.3 * _smooth(rng, n_min, 10)
+    elif name == "slow_speed":
+        period = rng.uniform(8, 14)
+        speed = 9 + 4 * np.sin(2 * np.pi * t_h / period + rng.uniform(0, 6.3))
+        speed = speed + 0.8 * _smooth(rng, n_min, 120) + 0.2 * _smooth(rng, n_min, 10)
+    elif name == "stationary":
+        speed = np.abs(0.3 + 0.2 * _smooth(rng, n_min, 30))
+    elif name == "temperature_drift":
+        speed = 11 + 0.7 * _smooth(rng, n_min, 60)
+        centre, width = rng.uniform(0.3, 0.7) * t_h[-1], rng.uniform(2, 6)
+        front = 1 / (1 + np.exp(-(t_h - centre) / (width / 4)))
+        water = 7.0 - 8.5 * front + 0.2 * _smooth(rng, n_min, 120)
+        air = air + 6.0 - 15.0 * front
+    elif name == "ice_breaking":
+        # ramming: accelerate to 5-7 kn, stop in the ridge, back off; or steady breaking
+        target = np.empty(n_min)
+        i = 0
+        while i < n_min:
+            if rng.random() < 0.5:
+                cycle = int(rng.uniform(8, 20))
+                peak = rng.uniform(5, 7)
+                shape = np.concatenate(
+                    [np.linspace(0, peak, cycle // 2), np.linspace(peak, -1, cycle - cycle // 2)]
+                )
+                target[i : i + cycle] = shape[: max(0, min(cycle, n_min - i))]
+                i += cycle
+            else:
+                length = int(rng.uniform(30, 120))
+                target[i : i + length] = rng.uniform(2.5, 4.5)
+                i += length
+        speed = _ramp_towards(target, 1.0) + 0.2 * _smooth(rng, n_min, 5)
+        water = -1.6 + 0.1 * _smooth(rng, n_min, 240)
+        air = air - 13.0
+        # ice impacts: impulsive excitation, heavy-tailed in power
+        excitation_spikes = np.exp(1.5 * rng.standard_normal(n_min))
+    else:
+        raise ValueError(f"unknown regime {name!r}")
+    return t_h, speed, water, air, wind, wind_dir, excitation_spikes
+
+
+def make_regime(name: str, seed: int, *, n_blocks: int = 432, shapes: bool = True) -> RegimeData:
+    """Block-level tables of one regime and seed (see the module docstring)."""
+    rng = np.random.default_rng([REGIMES.index(name), seed])
+    n_min = (n_blocks - 1) * STEP_MIN + BLOCK_MIN
+    t_h, speed, water, air, wind, wind_dir, spikes = _profile(name, rng, n_min)
+    minute = {
+        "speed_kn": speed,
+        "water_temp_c": water,
+        "air_temp_c": air,
+        "elapsed_hours": t_h,
+    }
+    freq_min = true_modal_parameters(minute).frequency_hz[:, MODE_INDEX]
+    damp_min = true_modal_parameters(minute).damping_ratio[:, MODE_INDEX]
+    n_modes = len(MODE_INDEX)
+    starts = np.arange(n_blocks) * STEP_MIN
+    index = starts[:, None] + np.arange(BLOCK_MIN)[None, :]
+    weights = (0.2 + (np.abs(speed) / 10.0) ** 2) * spikes
+    w = weights[index]
+    w = w / w.sum(axis=1, keepdims=True)
+    truth_f = freq_min[index].mean(axis=1)  # (n_blocks, n_modes): time average
+    seen_f = np.einsum("bm,bmj->bj", w, freq_min[index])  # excitation-weighted
+    damping = damp_min[index].mean(axis=1)
+    speed_change = np.ptp(speed[index], axis=1)
+
+    ice = name == "ice_breaking"
+    size = (
+        RELATIVE_ERROR[None, :] * truth_f * np.exp(0.35 * rng.standard_normal((n_blocks, n_modes)))
+    )
+    size *= 1.0 + 0.15 * speed_change[:, None]
+    if ice:
+        size *= 2.5
+        shocks = rng.standard_t(3, (n_blocks, n_modes)) / np.sqrt(3.0)
+    else:
+        shocks = rng.standard_normal((n_blocks, n_modes))
+    error = np.empty((n_blocks, n_modes))
+    error[0] = size[0] * shocks[0]
+    for k in range(1, n_blocks):
+        error[k] = LAG1 * error[k - 1] + np.sqrt(1 - LAG1**2) * size[k] * shocks[k]
+    centre = seen_f + error  # the column's centre in the block's stabilisation diagram
+
+    # presence: missing at random and in runs
+    present = rng.random((n_blocks, n_modes)) > 0.12
+    n_runs, run_len = (4, (10, 40)) if ice else (2, (4, 15))
+    for j in range(n_modes):
+        for _ in range(n_runs):
+            length = int(rng.integers(*run_len))
+            s = int(rng.integers(0, n_blocks - length))
+            present[s : s + length, j] = False
+
+    block_start = pd.Timestamp("2025-01-10T00:00:00Z") + pd.to_timedelta(starts, unit="min")
+    block_end = block_start + pd.Timedelta(minutes=BLOCK_MIN)
+    blocks = np.arange(n_blocks)
+    predictors = pd.DataFrame(
+        {
+            "block": blocks,
+            "block_start": block_start,
+            "block_end": block_end,
+            "speed_kn": speed[index].mean(axis=1),
+            "water_temp_c": water[index].mean(axis=1),
+            "air_temp_c": air[index].mean(axis=1),
+            "wind_speed_ms": wind[index].mean(axis=1),
+            "wind_dir_rel_deg": wind_dir[index].mean(axis=1),
+        }
+    )
+    labels = np.arange(1, n_modes + 1)
+    truth = pd.DataFrame(
+        {
+            "block": np.repeat(blocks, n_modes),
+            "mode": np.tile(labels, n_blocks),
+            "frequency_hz": truth_f.ravel(),
+            "damping_ratio": damping.ravel(),
+        }
+    )
+
+    # ---- stabilisation diagrams
+    ref_shapes = mode_shapes()[list(MODE_INDEX)].astype(complex)
+    n_ch = len(CHANNELS)
+    blade_shape = np.exp(-3.0 * np.linspace(0, 1, n_ch)).astype(complex)
+    blade_shape /= np.linalg.norm(blade_shape)
+    rows_block, rows_order, rows_f, rows_d, rows_stable, rows_shape = [], [], [], [], [], []
+    tracked_rows = []
+    order_scatter = 0.4 * size * np.exp(0.3 * rng.standard_normal((n_blocks, n_modes)))
+    mislabel = 0.04 if ice else 0.015
+
+    def add(b, orders, freqs, damps, stable, shape_rows):
+        rows_block.append(np.full(orders.size, b))
+        rows_order.append(orders)
+        rows_f.append(freqs)
+        rows_d.append(damps)
+        rows_stable.append(stable)
+        rows_shape.append(shape_rows)
+
+    def noisy_shapes(base, n, level):
+        noise = rng.standard_normal((n, n_ch)) + 1j * rng.standard_normal((n, n_ch))
+        return base[None, :] + level * noise / np.sqrt(2 * n_ch)
+
+    for b in range(n_blocks):
+        for j in range(n_modes):
+            if not present[b, j]:
+                continue
+            onset = int(rng.integers(12, 26)) // 2 * 2
+            orders = ORDERS[ORDERS >= onset]
+            f = centre[b, j] + order_scatter[b, j] * rng.standard_normal(orders.size)
+            d = (
+                damping[b, j]
+                * np.exp(0.2 * rng.standard_normal())
+                * np.exp(0.05 * rng.standard_normal(orders.size))
+            )
+            stable = rng.random(orders.size) > 0.15
+            stable[0] = False
+            shp = noisy_shapes(ref_shapes[j], orders.size, 0.12 * (2 if ice else 1))
+            add(b, orders, f, d, stable, shp)
+            upper = np.flatnonzero(orders >= 30)
+            pick = int(rng.choice(upper)) if upper.size else orders.size - 1
+            f_tracked, d_tracked, s_tracked = f[pick], d[pick], shp[pick]
+            if rng.random() < mislabel:
+                f_tracked = centre[b, j] * (1 + rng.choice([-1, 1]) * rng.uniform(0.01, 0.03))
+                d_tracked = rng.uniform(0.005, 0.05)
+                s_tracked = noisy_shapes(ref_shapes[j], 1, 0.6)[0]
+                add(
+                    b,
+                    np.array([int(rng.choice(ORDERS))]),
+                    np.array([f_tracked]),
+                    np.array([d_tracked]),
+                    np.array([False]),
+                    s_tracked[None, :],
+                )
+            tracked_rows.append((b, labels[j], f_tracked, d_tracked, s_tracked))
+        # noise poles
+        n_noise = int(rng.poisson(25 * (1.6 if ice else 1.0)))
+        add(
+            b,
+            rng.choice(ORDERS, n_noise),
+            rng.uniform(2.5, 8.5, n_noise),
+            np.exp(rng.uniform(np.log(0.004), np.log(0.1), n_noise)),
+            rng.random(n_noise) < 0.2,
+            noisy_shapes(np.zeros(n_ch, dtype=complex), n_noise, 1.0),
+        )
+        # blade-rate harmonic (lightly damped, stable over many orders)
+        v = predictors["speed_kn"].iat[b]
+        if v > 2.0:
+            orders = ORDERS[ORDERS >= 20]
+            add(
+                b,
+                orders,
+                BLADE_HZ_PER_KN * v * (1 + 2e-4 * rng.standard_normal(orders.size)),
+                np.full(orders.size, 0.002) * np.exp(0.1 * rng.standard_normal(orders.size)),
+                np.ones(orders.size, dtype=bool),
+                noisy_shapes(blade_shape, orders.size, 0.05),
+            )
+        if ice:  # short stable columns from ice impacts
+            for _ in range(int(rng.poisson(2))):
+                n = int(rng.integers(3, 7))
+                start = int(rng.integers(0, ORDERS.size - n))
+                f0 = rng.uniform(2.5, 8.5)
+                add(
+                    b,
+                    ORDERS[start : start + n],
+                    f0 * (1 + 1e-3 * rng.standard_normal(n)),
+                    np.full(n, rng.uniform(0.01, 0.06)) * np.exp(0.1 * rng.standard_normal(n)),
+                    np.ones(n, dtype=bool),
+                    noisy_shapes(np.zeros(n_ch, dtype=complex), n, 1.0),
+                )
+    poles = pd.DataFrame(
+        {
+            "block": np.concatenate(rows_block).astype(np.int64),
+            "model_order": np.concatenate(rows_order).astype(np.int64),
+            "frequency_hz": np.concatenate(rows_f),
+            "damping_ratio": np.concatenate(rows_d),
+            "stable": np.concatenate(rows_stable).astype(bool),
+        }
+    )
+    tb, tm, tf, td, ts = zip(*tracked_rows, strict=True)
+    tracked = pd.DataFrame(
+        {
+            "block": np.asarray(tb, dtype=np.int64),
+            "mode": np.asarray(tm, dtype=np.int64),
+            "frequency_hz": np.asarray(tf),
+            "damping_ratio": np.asarray(td),
+        }
+    )
+    tracked.insert(1, "block_start", block_start[tracked["block"].to_numpy()])
+    if shapes:
+        pole_shapes = np.concatenate(rows_shape)
+        poles = pd.concat([poles, shapes_to_frame(CHANNELS, pole_shapes)], axis=1)
+        tracked = pd.concat([tracked, shapes_to_frame(CHANNELS, np.asarray(ts))], axis=1)
+    poles = poles.sort_values(["block", "model_order"], kind="stable").reset_index(drop=True)
+    return RegimeData(name, seed, predictors, truth, tracked, poles)

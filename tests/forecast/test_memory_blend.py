@@ -1,0 +1,157 @@
+"""Model with memory, noise from the data, AR(1) measurement error, option B clusters."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from data_contracts import FORECAST
+from workbench.forecast import (
+    ForecastWarning,
+    scalar_kalman_predict,
+    scalar_kalman_update,
+    sliding_forecast,
+)
+from workbench.forecast.blend import kalman_pass_step
+from workbench.forecast.measurement import ClusterChooser, PoleIndex
+from workbench.forecast.noise import estimate_noise
+from workbench.forecast.options import MeasurementOptions, method_label, option_label
+
+
+def _ar1(rng, n, rho, std):
+    out = np.empty(n)
+    out[0] = rng.normal(0, std)
+    for k in range(1, n):
+        out[k] = rho * out[k - 1] + math.sqrt(1 - rho * rho) * rng.normal(0, std)
+    return out
+
+
+def test_covariance_matching_recovers_the_residual_model():
+    # r = c + e + v with c: tau = 48 blocks, std 0.01 Hz; e: rho = 0.6, std 0.02 Hz;
+    # v: std 0.005 Hz. 20 000 blocks: the lag products scatter by ~1/sqrt(n) relative, so
+    # 30 % on the variances and 0.1 on rho are wide enough for sampling and grid steps.
+    rng = np.random.default_rng(1)
+    n = 20000
+    r = _ar1(rng, n, math.exp(-1 / 48), 0.01) + _ar1(rng, n, 0.6, 0.02) + rng.normal(0, 0.005, n)
+    noise = estimate_noise(r, level_hz=5.0)
+    assert abs(noise.error_correlation - 0.6) <= 0.1
+    assert noise.error_variance == pytest.approx(0.02**2, rel=0.3)
+    assert noise.correction_variance == pytest.approx(0.01**2, rel=0.3)
+    assert noise.correction_time_blocks in (24.0, 48.0, 96.0)
+
+
+def test_few_residuals_give_the_conservative_prior():
+    noise = estimate_noise(np.array([0.01, -0.02, 0.015, np.nan, 0.0]), level_hz=5.0)
+    assert noise.n_residuals == 0
+    assert noise.error_correlation == 0.0
+    assert noise.correction_variance >= 4 * noise.white_variance
+
+
+def test_two_state_step_reduces_to_the_scalar_filter_without_correlated_error():
+    # e has zero variance: the filter is the scalar one on c with R = sigma_v^2
+    state = np.array([[0.01, 0.0]])
+    P = np.array([[[4e-4, 0.0], [0.0, 0.0]]])
+    F = np.array([[0.95, 0.5]])
+    Q = np.array([[1e-5, 0.0]])
+    new_state, new_P, delta, nu = kalman_pass_step(
+        state.copy(), P.copy(), F, Q, np.array([0.03]), np.array([2e-4]), np.inf
+    )
+    x, p = scalar_kalman_predict(0.01, 4e-4, process_variance=1e-5, transition=0.95)
+    ref = scalar_kalman_update(x, p, 0.03, measurement_variance=2e-4)
+    assert new_state[0, 0] == pytest.approx(ref.state, rel=1e-12)
+    assert new_P[0, 0, 0] == pytest.approx(ref.variance, rel=1e-12)
+    assert delta[0] == 0.0
+    assert nu[0] == pytest.approx(ref.innovation / math.sqrt(ref.innovation_variance))
+
+
+def test_huber_weight_limits_an_isolated_outlier_but_not_a_persistent_one():
+    args = (np.array([[0.95, 0.5]]), np.array([[1e-6, 1e-6]]))
+    P0 = np.array([[[1e-4, 0.0], [0.0, 1e-4]]])
+    big = np.array([0.5])  # 35 sigma
+    s1, _, _, nu1 = kalman_pass_step(np.zeros((1, 2)), P0.copy(), *args, big, np.array([1e-4]), 2.5)
+    # Huber: the step is as for an innovation of 2.5 sqrt(S): K y = P/S * 2.5 sqrt(S)
+    S = 0.95**2 * 1e-4 + 1e-6 + 0.25 * 1e-4 + 1e-6 + 1e-4
+    assert s1[0].sum() == pytest.approx(2.5 * math.sqrt(S) * (S - 1e-4) / S, rel=1e-6)
+    s2, _, _, _ = kalman_pass_step(
+        np.zeros((1, 2)),
+        P0.copy(),
+        *args,
+        big,
+        np.array([1e-4]),
+        2.5,
+        previous_run=np.array([2]),
+    )
+    assert s2[0, 0] > 0.4  # the third large same-sign innovation: the model is off
+
+
+def _block_poles(prior_hz=5.0):
+    """One block: the mode's column at 5.02 Hz (damping 1 %), a blade harmonic at 4.995 Hz
+    (damping 0.2 %, nearer the prior, as many orders) and scattered noise poles."""
+    rng = np.random.default_rng(0)
+    orders = np.arange(20, 61, 2)
+    rows = [
+        (0, n, 5.02 + 5e-4 * rng.standard_normal(), 0.01 * math.exp(0.05 * rng.standard_normal()))
+        for n in orders
+    ] + [(0, n, 4.995 + 1e-4 * rng.standard_normal(), 0.002) for n in orders]
+    rows += [(0, int(rng.choice(orders)), f, 0.03) for f in rng.uniform(4.9, 5.1, 6)]
+    poles = pd.DataFrame(rows, columns=["block", "model_order", "frequency_hz", "damping_ratio"])
+    poles["stable"] = True
+    return poles
+
+
+def test_option_b_chooses_the_consistent_cluster_with_the_modes_damping():
+    poles = _block_poles()
+    index = PoleIndex(poles, np.array([0]))
+    chooser = ClusterChooser(
+        index, None, shape_mac_min=0.9, reacquire_blocks=2, reacquire_band=0.05
+    )
+    choice = chooser.choose(0, 0, prior_hz=5.0, gate_hz=0.05, damping_ref=0.011)
+    assert choice is not None and not choice.reacquired
+    assert choice.cluster.frequency_hz == pytest.approx(5.02, abs=1e-3)
+    assert choice.cluster.n_orders >= 21
+    assert choice.cluster.damping_ratio == pytest.approx(0.01, rel=0.1)
+    # a gate that holds only the harmonic: nothing with the mode's damping... it is chosen
+    # only if nothing better exists; with the damping reference far off it scores lower
+    narrow = chooser.choose(0, 0, prior_hz=4.995, gate_hz=0.01, damping_ref=0.011)
+    assert narrow is None or narrow.cluster.frequency_hz == pytest.approx(4.995, abs=1e-3)
+
+
+def test_names_and_aliases():
+    assert option_label("pole_cluster") == "B" and option_label("A") == "A"
+    assert method_label("rolling") == 2 and method_label(1) == 1
+    with pytest.raises(ValueError, match="option"):
+        option_label("C")
+    with pytest.raises(ValueError, match="max_gate"):
+        MeasurementOptions(max_gate=0.0)
+
+
+def test_memory_model_learns_the_law_across_speeds_and_table_validates():
+    # frequency = 5 (1 - 0.002 speed) + AR(1) SSI error (rho 0.6, 0.3 %); speed alternates
+    # 4 / 14 kn every 6 h (72 blocks). The 20-block window of the reference sees one speed
+    # at a time; the model with memory learns the slope and beats raw SSI.
+    rng = np.random.default_rng(4)
+    n = 432
+    block = np.arange(n)
+    start = pd.Timestamp("2025-01-01T00:00:00Z") + pd.to_timedelta(block * 300, unit="s")
+    speed = np.where((block // 72) % 2 == 0, 4.0, 14.0) + rng.normal(0, 0.3, n)
+    truth = 5.0 * (1 - 0.002 * speed)
+    z = truth + _ar1(rng, n, 0.6, 0.015)
+    predictors = pd.DataFrame({"block": block, "block_start": start, "speed_kn": speed})
+    modal = pd.DataFrame({"block": block, "block_start": start, "mode": 0, "frequency_hz": z})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ForecastWarning)
+        table = sliding_forecast(modal, predictors, method=2, model="memory").table
+    FORECAST.validate(table)
+    part = table[table["phase"] == "forecast"]
+    t = truth[part["block"].to_numpy()]
+    ssi = np.abs(part["ssi_frequency_hz"] - t).sum()
+    kalman = np.abs(part["kalman_frequency_hz"] - t).sum()
+    model = np.abs(part["model_frequency_hz"] - t).sum()
+    # measured (this seed): Kalman 49 % and model alone 52 % better than raw SSI; the
+    # blend may trail the better input by a little, not by more than 10 %
+    assert kalman < 0.7 * ssi
+    assert kalman <= 1.10 * min(ssi, model)

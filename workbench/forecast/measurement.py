@@ -1,0 +1,255 @@
+"""What the Kalman blend measures in each block: the tracked pole (option A) or a consistent
+pole cluster of the stabilisation diagram (option B), and how uncertain that block's
+estimate is.
+
+A physical mode shows up in a stabilisation diagram as a *column*: poles at many model
+orders with nearly the same frequency and damping ratio. Noise poles scatter; a spurious
+column (a lightly damped propeller harmonic, an ice-impact transient) is consistent too but
+has a damping ratio unlike the mode's. Hence:
+
+* :func:`cluster_around` - the poles of a block within a relative half-width of a
+  frequency, summarised as a :class:`PoleCluster` (distinct orders, median frequency and
+  damping, robust frequency scatter);
+* :class:`ClusterChooser` - option B: inside the prediction gate, the candidate cluster
+  with the best score
+
+  .. math:: s = \\frac{n_{orders}}{n_{max}} - \\frac{|\\ln(ζ_c / ζ_{ref})|}{\\ln 3}
+            - \\frac{|f_c - x^-|}{4 g},
+
+  (n_max the most orders of any cluster in the block's diagram, ζ_ref the mode's damping
+  ratio so far, g the gate), with at least :data:`MIN_ORDERS` orders; with mode shapes,
+  only poles whose MAC with the mode's reference shape is at least ``shape_mac_min``
+  count. The measurement is the cluster's median frequency;
+* the per-block measurement scale: the cluster's frequency scatter across model orders,
+  relative to the mode's typical scatter (:func:`scatter_scale`), which multiplies the
+  measurement-noise variances of that block.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["ClusterChooser", "PoleCluster", "PoleIndex", "cluster_around", "scatter_scale"]
+
+#: Fewest distinct model orders of a consistent cluster.
+MIN_ORDERS = 3
+#: Relative half-width of a cluster about its centre. [-]
+CLUSTER_HALF_WIDTH = 2e-3
+#: Bounds of the per-block measurement scale. [-]
+SCALE_BOUNDS = (0.3, 6.0)
+#: Scale of a block whose estimate has no cluster of MIN_ORDERS orders around it. [-]
+NO_CLUSTER_SCALE = 3.0
+
+
+@dataclass(frozen=True)
+class PoleCluster:
+    """Poles of one block around one frequency.
+
+    Parameters
+    ----------
+    n_orders : int
+        Distinct model orders.
+    frequency_hz : float
+        Median frequency. [Hz]
+    damping_ratio : float
+        Median damping ratio. [-]
+    scatter_hz : float
+        Robust standard deviation of the frequencies (1.4826 MAD; half the range for two
+        poles). [Hz]
+    min_order, max_order : int
+        Lowest and highest model order.
+    """
+
+    n_orders: int
+    frequency_hz: float
+    damping_ratio: float
+    scatter_hz: float
+    min_order: int
+    max_order: int
+
+
+class PoleIndex:
+    """The pole table sorted by block, with each grid row's slice (internal helper)."""
+
+    def __init__(self, poles: pd.DataFrame, blocks: np.ndarray):
+        needed = ("block", "model_order", "frequency_hz", "damping_ratio", "stable")
+        missing = [c for c in needed if c not in poles.columns]
+        if missing:
+            raise ValueError(f"poles lacks column(s) {missing}")
+        order = np.lexsort(
+            (
+                poles["frequency_hz"].to_numpy(dtype=float),
+                poles["block"].to_numpy(dtype=np.int64),
+            )
+        )
+        self.rows = order
+        block = poles["block"].to_numpy(dtype=np.int64)[order]
+        self.frequency = poles["frequency_hz"].to_numpy(dtype=float)[order]
+        self.order = poles["model_order"].to_numpy(dtype=float)[order]
+        self.damping = poles["damping_ratio"].to_numpy(dtype=float)[order]
+        self.lo = np.searchsorted(block, blocks, side="left")
+        self.hi = np.searchsorted(block, blocks, side="right")
+
+    def block(self, i: int) -> slice:
+        return slice(int(self.lo[i]), int(self.hi[i]))
+
+
+def _summary(frequency, damping, order) -> PoleCluster:
+    n_orders = int(np.unique(order).size)
+    centre = float(np.median(frequency))
+    if frequency.size >= 3:
+        scatter = 1.4826 * float(np.median(np.abs(frequency - centre)))
+    else:
+        scatter = float(np.ptp(frequency)) / 2.0
+    return PoleCluster(
+        n_orders,
+        centre,
+        float(np.median(damping)),
+        scatter,
+        int(np.min(order)),
+        int(np.max(order)),
+    )
+
+
+def cluster_around(
+    index: PoleIndex, i: int, frequency_hz: float, half_width: float = CLUSTER_HALF_WIDTH
+) -> PoleCluster | None:
+    """The poles of grid row *i* within ±half_width x frequency of *frequency_hz*."""
+    part = index.block(i)
+    f = index.frequency[part]
+    if f.size == 0 or not np.isfinite(frequency_hz):
+        return None
+    delta = half_width * abs(frequency_hz)
+    a, b = np.searchsorted(f, [frequency_hz - delta, frequency_hz + delta + 1e-15])
+    if b <= a:
+        return None
+    s = slice(part.start + a, part.start + b)
+    return _summary(index.frequency[s], index.damping[s], index.order[s])
+
+
+def scatter_scale(scatter_hz: float, typical_scatter_hz: float) -> float:
+    """Per-block measurement scale (scatter / typical scatter)², clipped to SCALE_BOUNDS."""
+    if not (np.isfinite(scatter_hz) and np.isfinite(typical_scatter_hz)):
+        return NO_CLUSTER_SCALE if not np.isfinite(scatter_hz) else 1.0
+    if typical_scatter_hz <= 0:
+        return 1.0
+    return float(np.clip((max(scatter_hz, 0.0) / typical_scatter_hz) ** 2, *SCALE_BOUNDS))
+
+
+@dataclass
+class Choice:
+    """Option B's choice for one mode in one block (internal)."""
+
+    cluster: PoleCluster
+    mac: float
+    reacquired: bool
+
+
+class ClusterChooser:
+    """Option B: the consistent pole cluster inside the gate (module docstring).
+
+    Parameters
+    ----------
+    index : PoleIndex
+    shape_mac : callable or None
+        ``shape_mac(i, j, rows)`` -> MAC of the poles *rows* (positions in *index*) with
+        mode j's reference shape at grid row i (NaN: no reference); None without shapes.
+    shape_mac_min : float
+    reacquire_blocks : int
+        Consecutive blocks with the mode seen only outside the gate (inside
+        ±reacquire_band) before it is taken from there.
+    reacquire_band : float
+    """
+
+    def __init__(self, index, shape_mac, *, shape_mac_min, reacquire_blocks, reacquire_band):
+        self.index = index
+        self.shape_mac = shape_mac
+        self.mac_min = float(shape_mac_min)
+        self.reacquire_blocks = int(reacquire_blocks)
+        self.band = float(reacquire_band)
+        self.misses: dict[int, int] = {}
+
+    def _clusters(self, i, j, lo_hz, hi_hz):
+        """Candidate clusters of row i between lo_hz and hi_hz (with MAC filter)."""
+        part = self.index.block(i)
+        f_all = self.index.frequency[part]
+        a, b = np.searchsorted(f_all, [lo_hz, hi_hz])
+        if b - a < 1:
+            return [], 0
+        pos = np.arange(part.start + a, part.start + b)
+        macs = np.full(pos.size, np.nan)
+        if self.shape_mac is not None:
+            macs = self.shape_mac(i, j, pos)
+            if np.isfinite(macs).any():
+                with np.errstate(invalid="ignore"):
+                    keep = macs >= self.mac_min
+                pos, macs = pos[keep], macs[keep]
+        if pos.size == 0:
+            return [], 0
+        f = self.index.frequency[pos]
+        out = []
+        used = np.zeros(pos.size, dtype=bool)
+        # density peaks: the pole with the most distinct orders within ±half-width, greedy
+        order = self.index.order[pos]
+        width = CLUSTER_HALF_WIDTH * f
+        counts = np.array(
+            [np.unique(order[np.abs(f - f[p]) <= width[p]]).size for p in range(pos.size)]
+        )
+        for p in np.argsort(-counts, kind="stable"):
+            if used[p]:
+                continue
+            member = (np.abs(f - f[p]) <= width[p]) & ~used
+            used |= member
+            cluster = _summary(f[member], self.index.damping[pos[member]], order[member])
+            mac = float(np.nanmedian(macs[member])) if np.isfinite(macs[member]).any() else math.nan
+            out.append((cluster, mac))
+        return out, int(counts.max())
+
+    def choose(
+        self, i: int, j: int, prior_hz: float, gate_hz: float, damping_ref: float
+    ) -> Choice | None:
+        """The measurement of mode j in grid row i, or None (predict-only)."""
+        if not (np.isfinite(prior_hz) and np.isfinite(gate_hz)):
+            return None
+        candidates, _ = self._clusters(i, j, prior_hz - gate_hz, prior_hz + gate_hz)
+        best = self._best(candidates, prior_hz, gate_hz, damping_ref)
+        if best is not None:
+            self.misses[j] = 0
+            return Choice(best[0], best[1], False)
+        band = self.band * abs(prior_hz)
+        outside, _ = self._clusters(i, j, prior_hz - band, prior_hz + band)
+        outside = [c for c in outside if abs(c[0].frequency_hz - prior_hz) > gate_hz]
+        best = self._best(outside, prior_hz, band, damping_ref, strict=True)
+        if best is None:
+            return None
+        self.misses[j] = self.misses.get(j, 0) + 1
+        if self.misses[j] < self.reacquire_blocks:
+            return None
+        self.misses[j] = 0
+        return Choice(best[0], best[1], True)
+
+    @staticmethod
+    def _best(candidates, prior_hz, gate_hz, damping_ref, strict=False):
+        good = [c for c in candidates if c[0].n_orders >= MIN_ORDERS]
+        if not good:
+            return None
+        n_max = max(c[0].n_orders for c in good)
+        best, best_score = None, -math.inf
+        for cluster, mac in good:
+            damping_term = 0.0
+            if np.isfinite(damping_ref) and damping_ref > 0 and cluster.damping_ratio > 0:
+                damping_term = abs(math.log(cluster.damping_ratio / damping_ref)) / math.log(3.0)
+                if strict and damping_term > 1.0:  # outside the gate: damping within x3
+                    continue
+            score = (
+                cluster.n_orders / n_max
+                - damping_term
+                - abs(cluster.frequency_hz - prior_hz) / (4 * gate_hz)
+            )
+            if score > best_score:
+                best, best_score = (cluster, mac), score
+        return best

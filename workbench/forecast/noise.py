@@ -1,0 +1,232 @@
+"""Noise levels of the Kalman blend from the data: covariance matching of model residuals.
+
+The residual of a block's SSI estimate about the model, r_k = z_k - m_k, is modelled as
+
+.. math::
+
+    r_k = c_k + e_k + v_k, \\qquad c_k = φ c_{k-1} + w_k, \\qquad e_k = ρ e_{k-1} + u_k,
+
+with c the slowly varying part of the frequency the model does not explain (time constant
+τ_c = -1/ln φ blocks), e the identification error, correlated between 75 %-overlapping
+blocks (lag-1 correlation ρ), and v a white part. Their autocovariances add up,
+
+.. math:: γ(h) = σ_c^2 φ^h + σ_e^2 ρ^h + σ_v^2 [h = 0],
+
+so (σ_c², σ_e², σ_v²) follow from the measured γ(0..L) by non-negative least squares for
+each (τ_c, ρ) of a grid, and the pair with the smallest misfit wins (covariance matching,
+[1]_). Safeguards against self-training into drift: the residuals are of raw measurements
+about a model that was fitted before they were seen (never of the filter's own output), they
+are winsorised at 4 robust standard deviations (the odd mis-selected pole), the estimate
+needs :data:`MIN_RESIDUALS` residuals and is otherwise a fixed prior, and every variance has
+a floor relative to the frequency.
+
+References
+----------
+.. [1] R. K. Mehra, "On the identification of variances and adaptive Kalman filtering",
+   IEEE Trans. Automatic Control 15(2), 175-184, 1970. doi:10.1109/TAC.1970.1099422
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["MIN_RESIDUALS", "NoiseModel", "estimate_noise", "lagged_autocovariance"]
+
+#: Fewest residuals for the covariance-matching estimate.
+MIN_RESIDUALS = 30
+#: Residuals are winsorised at this many robust standard deviations.
+WINSOR = 4.0
+#: Lags matched. [blocks]
+MAX_LAG = 12
+#: Grid of time constants of the model error. [blocks]
+CORRECTION_TIMES = (6.0, 12.0, 24.0, 48.0, 96.0, 192.0, 384.0)
+#: Grid of lag-1 correlations of the identification error.
+ERROR_CORRELATIONS = tuple(np.round(np.arange(0.0, 0.71, 0.05), 2))
+#: Relative floors: model-error and measurement standard deviations, x frequency. [-]
+MIN_CORRECTION_STD = 3e-5
+MIN_MEASUREMENT_STD = 1e-4
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """Variances of the residual model (module docstring).
+
+    Parameters
+    ----------
+    correction_variance : float
+        σ_c², stationary variance of the model error c. [Hz²]
+    correction_time_blocks : float
+        τ_c, φ = exp(-1/τ_c). [blocks]
+    error_variance : float
+        σ_e², stationary variance of the correlated identification error e. [Hz²]
+    error_correlation : float
+        ρ, lag-1 correlation of e. [-]
+    white_variance : float
+        σ_v². [Hz²]
+    n_residuals : int
+        Residuals the estimate used (0: prior).
+    """
+
+    correction_variance: float
+    correction_time_blocks: float
+    error_variance: float
+    error_correlation: float
+    white_variance: float
+    n_residuals: int = 0
+
+    @property
+    def transition(self) -> float:
+        return math.exp(-1.0 / self.correction_time_blocks)
+
+
+def lagged_autocovariance(values: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.ndarray]:
+    """Mean products r_k r_{k+h}, h = 0..max_lag, over the pairs with both values finite.
+
+    Not demeaned: a constant offset of the residuals is model error (part of c).
+    Returns the products and the number of pairs per lag.
+    """
+    r = np.asarray(values, dtype=float)
+    finite = np.isfinite(r)
+    filled = np.where(finite, r, 0.0)
+    gamma = np.full(max_lag + 1, np.nan)
+    count = np.zeros(max_lag + 1, dtype=np.int64)
+    for h in range(max_lag + 1):
+        if h >= r.size:
+            break
+        both = finite[: r.size - h] & finite[h:]
+        count[h] = int(both.sum())
+        if count[h]:
+            gamma[h] = float((filled[: r.size - h] * filled[h:])[both].sum() / count[h])
+    return gamma, count
+
+
+def _winsorise(r: np.ndarray) -> np.ndarray:
+    finite = r[np.isfinite(r)]
+    centre = float(np.median(finite))
+    spread = 1.4826 * float(np.median(np.abs(finite - centre)))
+    if spread <= 0:
+        return r
+    return np.clip(r, centre - WINSOR * spread, centre + WINSOR * spread)
+
+
+def prior_noise(
+    level_hz: float,
+    white_scatter_variance: float | None = None,
+    mean_square: float | None = None,
+) -> NoiseModel:
+    """Noise model before enough residuals exist (conservative: the filter leans on SSI).
+
+    The measurement variance is the white scatter (successive differences), all white;
+    the model error gets the larger of four times that and the residuals' mean square, with
+    a short time constant (6 blocks), because in-sample residuals of a model fitted on a
+    few blocks flatter it and nothing yet says how it extrapolates: the blend follows the
+    measurements until the model has earned trust out of sample.
+    """
+    floor = (MIN_MEASUREMENT_STD * level_hz) ** 2
+    total = white_scatter_variance if white_scatter_variance else (3e-3 * level_hz) ** 2
+    total = max(float(total), floor)
+    return NoiseModel(
+        correction_variance=max(4.0 * total, float(mean_square or 0.0)),
+        correction_time_blocks=6.0,
+        error_variance=0.0,
+        error_correlation=0.0,
+        white_variance=total,
+        n_residuals=0,
+    )
+
+
+_SUBSETS = tuple(tuple(c for c in range(3) if mask >> c & 1) for mask in range(1, 8))
+
+
+def _grid_nnls(lags: np.ndarray, target: np.ndarray, weight: np.ndarray):
+    """Non-negative least squares of γ(h) on [φ^h, ρ^h, [h=0]] for every (τ_c, ρ) of the grid.
+
+    Exact NNLS for three unknowns: the optimum is the least-squares solution on its set of
+    positive coefficients, so the best of the least-squares solutions on the 7 column
+    subsets that come out non-negative is the NNLS solution (batched over the grid).
+    Returns (τ_c, ρ, coefficients) of the smallest misfit.
+    """
+    phis = np.exp(-1.0 / np.asarray(CORRECTION_TIMES))
+    rhos = np.asarray(ERROR_CORRELATIONS, dtype=float)
+    tau_g, rho_g = np.meshgrid(np.arange(phis.size), np.arange(rhos.size), indexing="ij")
+    tau_g, rho_g = tau_g.ravel(), rho_g.ravel()
+    h = lags[None, :].astype(float)
+    zero = (lags == 0)[None, :] * 1.0
+    rho_col = np.where(rhos[rho_g][:, None] > 0, rhos[rho_g][:, None] ** h, zero)
+    design = (
+        np.stack([phis[tau_g][:, None] ** h, rho_col, np.broadcast_to(zero, rho_col.shape)], axis=2)
+        * weight[None, :, None]
+    )
+    b = target * weight
+    best_misfit = np.full(tau_g.size, np.inf)
+    best_coef = np.zeros((tau_g.size, 3))
+    gram = np.einsum("gmi,gmj->gij", design, design)  # AᵀA per grid point
+    rhs = np.einsum("gmi,m->gi", design, b)  # Aᵀb
+    bb = float(b @ b)
+    for subset in _SUBSETS:
+        idx = np.asarray(subset)
+        G = gram[:, idx[:, None], idx[None, :]]
+        # ridge 1e-12 trace: columns that coincide (e.g. ρ^h at small ρ and [h=0])
+        ridge = 1e-12 * np.trace(G, axis1=1, axis2=2)[:, None, None] * np.eye(idx.size)
+        coef = np.linalg.solve(G + ridge + 1e-300, rhs[:, idx][:, :, None])[:, :, 0]
+        feasible = (coef >= 0).all(axis=1)
+        # |Ac - b|² = cᵀGc - 2cᵀAᵀb + bᵀb
+        misfit = np.sqrt(
+            np.maximum(
+                np.einsum("gi,gij,gj->g", coef, G, coef)
+                - 2 * np.einsum("gi,gi->g", coef, rhs[:, idx])
+                + bb,
+                0.0,
+            )
+        )
+        better = feasible & (misfit < best_misfit - 1e-30)
+        best_misfit[better] = misfit[better]
+        full = np.zeros((tau_g.size, 3))
+        full[:, subset] = coef
+        best_coef[better] = full[better]
+    g = int(np.argmin(best_misfit))
+    return float(CORRECTION_TIMES[tau_g[g]]), float(rhos[rho_g[g]]), best_coef[g]
+
+
+def estimate_noise(residuals: np.ndarray, level_hz: float) -> NoiseModel:
+    """Covariance-matching estimate of the residual model (module docstring).
+
+    Parameters
+    ----------
+    residuals : ndarray
+        r_k = z_k - m_k on consecutive blocks (NaN: no measurement), oldest first. [Hz]
+    level_hz : float
+        Typical frequency of the mode, for the floors. [Hz]
+    """
+    r = np.asarray(residuals, dtype=float)
+    n = int(np.isfinite(r).sum())
+    if n < MIN_RESIDUALS:
+        finite = r[np.isfinite(r)]
+        scatter = float(np.var(np.diff(finite)) / 2.0) if finite.size >= 3 else None
+        spread = float(np.mean(finite**2)) if finite.size >= 3 else None
+        return prior_noise(level_hz, scatter, spread)
+    r = _winsorise(r)
+    gamma, count = lagged_autocovariance(r, MAX_LAG)
+    use = np.isfinite(gamma) & (count >= 10)
+    lags = np.flatnonzero(use)
+    target = gamma[use]
+    weight = np.sqrt(count[use] / count[0])
+    tau, rho, coef = _grid_nnls(lags, target, weight)
+    sc, se, sv = (float(c) for c in coef)
+    if rho == 0.0:  # e and v coincide: all white
+        sv, se = sv + se, 0.0
+    floor_c = (MIN_CORRECTION_STD * level_hz) ** 2
+    floor_m = (MIN_MEASUREMENT_STD * level_hz) ** 2
+    if se + sv < floor_m:
+        sv = floor_m - se
+    return NoiseModel(
+        correction_variance=max(sc, floor_c),
+        correction_time_blocks=float(tau),
+        error_variance=se,
+        error_correlation=float(rho),
+        white_variance=max(sv, 0.05 * floor_m),
+        n_residuals=n,
+    )

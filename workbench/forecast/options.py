@@ -1,0 +1,181 @@
+"""Typed options of the sliding forecast: the model, the noise, the measurement choice.
+
+Descriptive names with the reference work's labels kept as aliases:
+
+=====================  ===========  ======================================================
+name                   alias        meaning
+=====================  ===========  ======================================================
+``"tracked_pole"``     ``"A"``      measurement = the block's tracked pole (modal table)
+``"pole_cluster"``     ``"B"``      measurement = a consistent pole cluster of the block's
+                                    stabilisation diagram inside the prediction gate
+``"single_window"``    ``1``        one training window, one long forward prediction
+``"rolling"``          ``2``        predict *horizon* blocks, filter them, refit, repeat
+=====================  ===========  ======================================================
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Literal
+
+__all__ = [
+    "MeasurementOptions",
+    "ModelOptions",
+    "NoiseOptions",
+    "method_label",
+    "option_label",
+]
+
+_OPTIONS = {"A": "A", "B": "B", "tracked_pole": "A", "pole_cluster": "B"}
+_METHODS = {1: 1, 2: 2, "1": 1, "2": 2, "single_window": 1, "rolling": 2}
+
+
+def option_label(option: str) -> Literal["A", "B"]:
+    """'A' or 'B' for an option name or alias (``"tracked_pole"``, ``"pole_cluster"``)."""
+    try:
+        return _OPTIONS[option]  # type: ignore[return-value]
+    except (KeyError, TypeError):
+        raise ValueError(
+            f"option={option!r} must be 'A' ('tracked_pole') or 'B' ('pole_cluster')"
+        ) from None
+
+
+def method_label(method: int | str) -> Literal[1, 2]:
+    """1 or 2 for a method number or name (``"single_window"``, ``"rolling"``)."""
+    try:
+        return _METHODS[method]  # type: ignore[return-value]
+    except (KeyError, TypeError):
+        raise ValueError(
+            f"method={method!r} must be 1 ('single_window') or 2 ('rolling')"
+        ) from None
+
+
+@dataclass(frozen=True)
+class ModelOptions:
+    """The predictive model.
+
+    Parameters
+    ----------
+    kind : {"memory", "window"}
+        ``"memory"`` (default): stepwise terms, coefficients by exponentially weighted least
+        squares over all measured blocks so far (:mod:`workbench.forecast.memory`);
+        ``"window"``: the reference configuration, a stepwise fit on the last
+        *train_blocks* blocks (method 2: on the Kalman estimates).
+    train_blocks : int
+        First training window (and the window of ``"window"``). [blocks]
+    memory_blocks : float
+        Forgetting time constant of ``"memory"``, λ = exp(-1/memory_blocks). Default 576
+        blocks (2 days of 5-minute blocks). [blocks]
+    selection_blocks : int
+        Measured blocks the stepwise term selection of ``"memory"`` uses (the newest).
+        [blocks]
+    reselect_blocks : int
+        Blocks between two term selections of ``"memory"``. [blocks]
+    selection_stride : int
+        The term selection uses every this-many-th block (4: non-overlapping 20-minute
+        blocks), so that F-tests do not count one correlated SSI error several times.
+    time_trend : bool
+        ``"memory"``: add ``elapsed_hours`` to the candidate predictors (fuel burn and
+        ballast drift slowly and no log records them), unless *predictor_columns* is
+        given.
+    """
+
+    kind: Literal["memory", "window"] = "memory"
+    train_blocks: int = 20
+    memory_blocks: float = 576.0
+    selection_blocks: int = 288
+    reselect_blocks: int = 36
+    selection_stride: int = 4
+    time_trend: bool = True
+    min_train_blocks: int | None = None
+    predictor_columns: Sequence[str] | None = None
+    stepwise_options: Mapping[str, Any] | None = None
+    extrapolation_limit: float = 4.0
+    alpha: float = 0.05
+
+    def __post_init__(self):
+        if self.kind not in ("memory", "window"):
+            raise ValueError(f"model kind={self.kind!r} must be 'memory' or 'window'")
+        if int(self.train_blocks) < 2:
+            raise ValueError(f"train_blocks={self.train_blocks} must be >= 2")
+        if not self.memory_blocks > 0:
+            raise ValueError(f"memory_blocks={self.memory_blocks!r} must be > 0")
+        if int(self.selection_blocks) < 5:
+            raise ValueError(f"selection_blocks={self.selection_blocks} must be >= 5")
+        if int(self.reselect_blocks) < 1:
+            raise ValueError(f"reselect_blocks={self.reselect_blocks} must be >= 1")
+        if not self.extrapolation_limit > 0:
+            raise ValueError(f"extrapolation_limit={self.extrapolation_limit!r} must be > 0")
+        if not 0.0 < self.alpha < 1.0:
+            raise ValueError(f"alpha={self.alpha!r} must be in (0, 1)")
+
+
+@dataclass(frozen=True)
+class NoiseOptions:
+    """Noise levels of the Kalman blend (model ``"memory"``).
+
+    Parameters
+    ----------
+    noise_blocks : int
+        Newest blocks whose residuals the covariance matching uses
+        (:mod:`workbench.forecast.noise`). [blocks]
+    huber_sigma : float
+        Innovations beyond this many standard deviations get a Huber weight (the
+        measurement counts as if it were this far out): mis-selected poles and
+        heavy-tailed errors cannot pull the estimate far. [-]
+    pole_scatter : bool
+        Scale each block's measurement variance by its cluster's frequency scatter across
+        model orders (needs *poles*).
+    """
+
+    noise_blocks: int = 576
+    huber_sigma: float = 2.5
+    pole_scatter: bool = True
+
+    def __post_init__(self):
+        if int(self.noise_blocks) < 10:
+            raise ValueError(f"noise_blocks={self.noise_blocks} must be >= 10")
+        if not self.huber_sigma > 0:
+            raise ValueError(f"huber_sigma={self.huber_sigma!r} must be > 0")
+
+
+@dataclass(frozen=True)
+class MeasurementOptions:
+    """What each block measures (option A or B) and option B's gate.
+
+    Parameters
+    ----------
+    option : {"A", "B", "tracked_pole", "pole_cluster"}
+    gate_sigma : float
+        Option B gate in innovation standard deviations.
+    shape_mac_min : float
+        Option B with shapes: lowest MAC of a pole with the mode's reference shape.
+    reacquire_blocks : int
+        Option B: blocks with the mode seen only outside the gate before it is re-acquired.
+    reacquire_band : float
+        Option B: relative half-width searched outside the gate. [-]
+    max_gate : float
+        Option B (model ``"memory"``): the gate's half-width is at most this fraction of
+        the a-priori frequency. [-]
+    """
+
+    option: str = "A"
+    gate_sigma: float = 3.0
+    shape_mac_min: float = 0.9
+    reacquire_blocks: int = 2
+    reacquire_band: float = 0.05
+    max_gate: float = 0.02
+
+    def __post_init__(self):
+        object.__setattr__(self, "option", option_label(self.option))
+        if not self.max_gate > 0:
+            raise ValueError(f"max_gate={self.max_gate!r} must be > 0")
+        if not self.gate_sigma > 0:
+            raise ValueError(f"gate_sigma={self.gate_sigma!r} must be > 0")
+        if not 0.0 <= self.shape_mac_min < 1.0:
+            raise ValueError(f"shape_mac_min={self.shape_mac_min!r} must be in [0, 1)")
+        if int(self.reacquire_blocks) != self.reacquire_blocks or self.reacquire_blocks < 1:
+            raise ValueError(f"reacquire_blocks={self.reacquire_blocks!r} must be an integer >= 1")
+        if not self.reacquire_band > 0:
+            raise ValueError(f"reacquire_band={self.reacquire_band!r} must be > 0")
