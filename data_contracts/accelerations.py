@@ -7,7 +7,9 @@ the UTC time of the first sample and the channel names.
 
 from __future__ import annotations
 
+import numbers
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -76,11 +78,17 @@ def validate_accelerations(
         Listing every problem (array shape, sampling rate, channel names, time, units).
     """
     problems: list[Violation] = []
-    try:
-        acceleration = np.asarray(record.acceleration, dtype=float)
-    except (TypeError, ValueError):
+    if np.iscomplexobj(record.acceleration):
         acceleration = None
-        problems.append(Violation("acceleration", "values are not numeric"))
+        problems.append(
+            Violation("acceleration", "complex values: accelerations must be real numbers")
+        )
+    else:
+        try:
+            acceleration = np.asarray(record.acceleration, dtype=float)
+        except (TypeError, ValueError):
+            acceleration = None
+            problems.append(Violation("acceleration", "values are not numeric"))
     if acceleration is not None and acceleration.ndim != 2:
         problems.append(
             Violation(
@@ -135,17 +143,46 @@ def validate_accelerations(
                 "sampling_rate_hz", f"must be a positive number, got {record.sampling_rate_hz!r}"
             )
         )
-    try:
-        start = pd.Timestamp(record.start_time)
-        start = start.tz_localize("UTC") if start.tzinfo is None else start.tz_convert("UTC")
-        if pd.isna(start):
-            raise ValueError
-    except (TypeError, ValueError):
-        start = None
-        problems.append(Violation("start_time", f"not an ISO-8601 time: {record.start_time!r}"))
+    start = _start_time(record.start_time)
+    if start is None:
+        problems.append(Violation("start_time", _not_a_time(record.start_time)))
     if problems:
         raise ContractError(problems, source=source, contract="accelerations")
     return AccelerationRecord(acceleration, rate, start, channels)
+
+
+#: An ISO-8601 date (with optional time) at the start of a text: YYYY-MM-DD.
+_ISO_DATE = re.compile(r"^\s*[+-]?\d{4}-\d{2}-\d{2}")
+
+
+def _start_time(value) -> pd.Timestamp | None:
+    """*value* as a UTC Timestamp if it is a time (datetime or ISO-8601 text), else None.
+
+    Numbers are refused: a number of seconds or days since some epoch is ambiguous (pandas
+    would read it as nanoseconds since 1970).
+    """
+    if isinstance(value, (bool, numbers.Number, np.number)):
+        return None
+    if isinstance(value, (str, np.str_, bytes)):
+        text = value.decode(errors="replace") if isinstance(value, bytes) else str(value)
+        if not _ISO_DATE.match(text):
+            return None
+        value = text
+    try:
+        start = pd.Timestamp(value)
+        if pd.isna(start):
+            return None
+        return start.tz_localize("UTC") if start.tzinfo is None else start.tz_convert("UTC")
+    except (TypeError, ValueError, OverflowError):
+        return None
+
+
+def _not_a_time(value) -> str:
+    if isinstance(value, (bool, numbers.Number, np.number)):
+        return f"must be an ISO-8601 time such as 2026-03-01T00:00:00Z, got the number {value}"
+    text = str(value)
+    shown = text if len(text) <= 40 else text[:37] + "..."
+    return f"not an ISO-8601 time: {shown!r}"
 
 
 def write_accelerations(record: AccelerationRecord, path: str | os.PathLike) -> Path:
@@ -215,6 +252,50 @@ def _mat_channels(value, n_channels: int) -> tuple[str, ...]:
     return tuple(names)
 
 
+def _refuse_external_hdf5(mat, path: Path) -> None:
+    """Raise ContractError if any object of the HDF5 file reads data from another file.
+
+    External links, external raw storage and virtual datasets make the library open files
+    named inside the MATLAB file: a crafted file could read (and an error message echo) any
+    local file. Nothing is read from such a file; the message names only the object.
+    """
+    import h5py
+
+    seen: set = set()
+
+    def refuse(name: str, how: str):
+        return ContractError(
+            [Violation(name, f"{how}: data stored in another file are refused for safety")],
+            source=path,
+            contract="accelerations",
+        )
+
+    def walk(group, prefix: str) -> None:
+        for key in group:
+            name = f"{prefix}/{key}"
+            link = group.get(key, getlink=True)
+            if isinstance(link, h5py.ExternalLink):
+                raise refuse(name, "HDF5 external link")
+            if isinstance(link, h5py.SoftLink):
+                continue  # its target is an object of this file, checked where it lies
+            node = group.get(key)
+            if node is None:
+                continue
+            address = h5py.h5o.get_info(node.id).addr
+            if address in seen:
+                continue
+            seen.add(address)
+            if isinstance(node, h5py.Group):
+                walk(node, name)
+            elif isinstance(node, h5py.Dataset):
+                if node.is_virtual:
+                    raise refuse(name, "HDF5 virtual dataset")
+                if node.id.get_create_plist().get_external_count() > 0:
+                    raise refuse(name, "HDF5 external storage")
+
+    walk(mat, "")
+
+
 def _read_mat(path: Path, variables: dict[str, str], orientation: str) -> AccelerationRecord:
     import scipy.io
 
@@ -226,6 +307,7 @@ def _read_mat(path: Path, variables: dict[str, str], orientation: str) -> Accele
         import h5py
 
         with h5py.File(path, "r") as mat:
+            _refuse_external_hdf5(mat, path)
             for key, name in variables.items():
                 if name not in mat:
                     continue
@@ -269,6 +351,56 @@ def _read_mat(path: Path, variables: dict[str, str], orientation: str) -> Accele
     )
 
 
+def _csv_sampling_rate(
+    times: pd.Series, time_column: str, sampling_rate_hz: float | None, path: Path
+) -> float:
+    """The rate of evenly spaced CSV sample times; ContractError for any timing problem.
+
+    The times must increase strictly (no shuffled or duplicated rows), every step must be
+    within half a sample interval of the nominal one (a gap inside a file would shift the
+    later samples) and a given *sampling_rate_hz* must agree with the times.
+    """
+
+    def fail(reason: str, rows: tuple = (), n: int = 0):
+        return ContractError(
+            [Violation(time_column, reason, rows, n)], source=path, contract="accelerations"
+        )
+
+    if len(times) < 2:
+        raise fail("needs at least 2 samples")
+    steps_ns = np.diff(times.to_numpy().astype("datetime64[ns]").astype(np.int64))
+    rows = np.flatnonzero(steps_ns == 0) + 1
+    if len(rows):
+        raise fail("duplicate sample times", tuple(rows[:5].tolist()), len(rows))
+    rows = np.flatnonzero(steps_ns < 0) + 1
+    if len(rows):
+        raise fail("times go backwards (rows out of order)", tuple(rows[:5].tolist()), len(rows))
+    median_s = float(np.median(steps_ns)) / 1e9
+    if sampling_rate_hz is None:
+        rate = round(1.0 / median_s, 9)
+    else:
+        rate = float(sampling_rate_hz)
+        if not (np.isfinite(rate) and rate > 0):
+            raise fail(f"sampling rate {rate:g} Hz must be positive")
+        if abs(median_s * rate - 1.0) > 1e-3:
+            raise fail(
+                f"time step {median_s:g} s contradicts the sampling rate {rate:g} Hz "
+                f"(step {1 / rate:g} s)"
+            )
+    deviation = np.abs(steps_ns / 1e9 * rate - 1.0)
+    rows = np.flatnonzero(deviation > 0.5) + 1
+    if len(rows):
+        first = int(rows[0])
+        step_s = steps_ns[first - 1] / 1e9
+        raise fail(
+            f"uneven sampling: a step of {step_s:g} s (interval {1 / rate:g} s) - a gap "
+            "inside a file shifts the later samples; split the file at the gap",
+            tuple(rows[:5].tolist()),
+            len(rows),
+        )
+    return rate
+
+
 def _read_csv(path: Path, time_column: str, sampling_rate_hz: float | None) -> AccelerationRecord:
     frame = pd.read_csv(path, **CSV_READ_OPTIONS)
     if time_column not in frame.columns:
@@ -277,29 +409,17 @@ def _read_csv(path: Path, time_column: str, sampling_rate_hz: float | None) -> A
             source=path,
             contract="accelerations",
         )
+    text = frame[time_column].astype(str)
     times = pd.to_datetime(frame[time_column], utc=True, errors="coerce", format="ISO8601")
-    if times.isna().any():
-        rows = tuple(frame.index[times.isna()][:5].tolist())
+    not_time = times.isna() | ~text.str.match(_ISO_DATE.pattern)
+    if not_time.any():
+        rows = tuple(frame.index[not_time][:5].tolist())
         raise ContractError(
-            [Violation(time_column, "not ISO-8601 times", rows, int(times.isna().sum()))],
+            [Violation(time_column, "not ISO-8601 times", rows, int(not_time.sum()))],
             source=path,
             contract="accelerations",
         )
-    if sampling_rate_hz is None:
-        if len(times) < 2:
-            raise ContractError(
-                [Violation(time_column, "needs at least 2 samples")],
-                source=path,
-                contract="accelerations",
-            )
-        step = np.median(np.diff(times.to_numpy()).astype("timedelta64[ns]").astype(float)) / 1e9
-        if not step > 0:
-            raise ContractError(
-                [Violation(time_column, "times do not increase")],
-                source=path,
-                contract="accelerations",
-            )
-        sampling_rate_hz = round(1.0 / step, 9)
+    sampling_rate_hz = _csv_sampling_rate(times, time_column, sampling_rate_hz, path)
     data = frame.drop(columns=[time_column])
     numeric = data.apply(pd.to_numeric, errors="coerce")
     bad_columns = [c for c in data.columns if (numeric[c].isna() & data[c].notna()).any()]

@@ -18,7 +18,7 @@ from pathlib import Path
 from data_contracts import ContractError
 
 from . import __version__
-from .errors import WorkbenchError
+from .errors import OptionError, WorkbenchError
 
 EXIT_OK, EXIT_DATA, EXIT_USAGE = 0, 1, 2
 
@@ -138,7 +138,7 @@ def _data_errors(source):
     (contract errors pass unchanged: they name file, column and rows themselves)."""
     try:
         yield
-    except ContractError:
+    except (ContractError, OptionError):
         raise
     except ValueError as error:
         raise WorkbenchError(f"{source}: {error}") from None
@@ -753,6 +753,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         warnings.showwarning = shown
 
 
+def _os_error_line(error: OSError) -> str:
+    """``path: reason`` of a file-system error (read-only folder, disk full, ...)."""
+    reason = error.strerror or str(error).splitlines()[0] or type(error).__name__
+    names = [n for n in (error.filename, error.filename2) if n is not None]
+    return f"{' -> '.join(map(str, names))}: {reason}" if names else reason
+
+
 def _run(args: argparse.Namespace) -> int:
     """Run the chosen command; user errors become messages and exit statuses."""
     try:
@@ -768,9 +775,14 @@ def _run(args: argparse.Namespace) -> int:
             raise
         print(f"error: {error}", file=sys.stderr)
         return EXIT_DATA
-    except UsageError as error:
+    except (UsageError, OptionError) as error:
         print(f"workbench: error: {error}", file=sys.stderr)
         return EXIT_USAGE
+    except OSError as error:  # file-system errors on output: one line, exit 1
+        if args.verbose:
+            raise
+        print(f"error: {_os_error_line(error)}", file=sys.stderr)
+        return EXIT_DATA
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130

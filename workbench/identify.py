@@ -15,12 +15,21 @@ BlockStore`, and exports the store as contract tables:
 
 Killing the job at any moment and running it again finishes it without recomputing the
 blocks already stored, and gives the same tables as an uninterrupted run (every block's
-result depends only on its own data and the options, which the store checks).
+result depends only on its own data and the options, which the store checks). The store
+is locked while a run works on it, and every input file is fingerprinted (size,
+modification time, SHA-256 of its content): a second run on a busy store, or a rerun on
+changed files, is refused instead of mixing or reusing results of other data.
+
+Every option is checked against the files' headers before the first block (rate, band,
+reference channels, block rows against the samples of a block): an option that would make
+every block fail raises :class:`~workbench.errors.OptionError` at once.
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
+import math
 import os
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, field
@@ -34,7 +43,7 @@ from scipy import stats as scipy_stats
 from data_contracts import POLES, atomic_path, shape_columns
 
 from .blocks import BlockGrid
-from .errors import WorkbenchError
+from .errors import OptionError, WorkbenchError
 from .parallel import BlockOutcome, RunSummary, run_blocks
 from .store import BlockStore
 
@@ -101,18 +110,94 @@ class IdentifyOptions:
 
     def __post_init__(self) -> None:
         if self.method not in ("cov", "data"):
-            raise ValueError(f"method={self.method!r} must be 'cov' or 'data'")
-        if self.block_rows < 2:
-            raise ValueError(f"block_rows={self.block_rows} must be at least 2")
+            raise OptionError(f"method={self.method!r} must be 'cov' or 'data'")
+        if self.weighting not in ("pc", "upc", "cva"):
+            raise OptionError(f"weighting={self.weighting!r} must be 'pc', 'upc' or 'cva'")
+        if int(self.block_rows) != self.block_rows or self.block_rows < 2:
+            raise OptionError(f"block_rows={self.block_rows} must be an integer of at least 2")
         orders = tuple(int(o) for o in self.orders)
         if not orders or min(orders) < 1:
-            raise ValueError(f"orders={self.orders!r} must be positive model orders")
+            raise OptionError(f"orders={self.orders!r} must be positive model orders")
         object.__setattr__(self, "orders", orders)
+        for name in ("length_s", "step_s"):
+            value = float(getattr(self, name))
+            if not (math.isfinite(value) and value > 0):
+                raise OptionError(f"{name}={value:g} must be a positive number of seconds")
+        if not (math.isfinite(float(self.max_gap_s)) and self.max_gap_s >= 0):
+            raise OptionError(
+                f"max_gap_s={float(self.max_gap_s):g} must be a non-negative number of seconds"
+            )
+        if self.target_rate_hz is not None:
+            rate = float(self.target_rate_hz)
+            if not (math.isfinite(rate) and rate > 0):
+                raise OptionError(f"target_rate_hz={rate:g} must be a positive rate [Hz]")
         if self.band_hz is not None:
-            low, high = (float(v) for v in self.band_hz)
-            if not 0 <= low < high:
-                raise ValueError(f"band_hz={self.band_hz!r} must be (low, high) with low < high")
+            try:
+                low, high = (float(v) for v in self.band_hz)
+            except (TypeError, ValueError):
+                raise OptionError(f"band_hz={self.band_hz!r} must be (low, high) [Hz]") from None
+            if not (math.isfinite(low) and math.isfinite(high) and 0 <= low < high):
+                raise OptionError(
+                    f"band_hz=({low:g}, {high:g}) must be (low, high) with 0 <= low < high"
+                )
             object.__setattr__(self, "band_hz", (low, high))
+        for name in ("frequency_tol", "damping_tol", "mac_min", "max_damping"):
+            value = float(getattr(self, name))
+            if not (math.isfinite(value) and 0 <= value <= 1):
+                raise OptionError(f"{name}={value:g} must lie in [0, 1]")
+        if self.reference_channels is not None and not self.reference_channels:
+            object.__setattr__(self, "reference_channels", None)
+
+    def check_data(self, plan) -> None:
+        """Raise :class:`OptionError` now if the options cannot work on *plan*'s files.
+
+        Checked against the headers: decimation to ``target_rate_hz`` (a whole-number
+        factor), the band (below the Nyquist frequency of the decimated blocks), the
+        reference channels (names of the files' channels), and block rows and model orders
+        against the samples and channels of one block.
+        """
+        rate = float(plan.sampling_rate_hz)
+        out_rate = rate
+        if self.target_rate_hz is not None:
+            ratio = rate / float(self.target_rate_hz)
+            if not (ratio >= 1 and abs(ratio - round(ratio)) <= 1e-9 * ratio):
+                raise OptionError(
+                    f"target_rate_hz={float(self.target_rate_hz):g} must divide the files' "
+                    f"sampling rate {rate:g} Hz by a whole number"
+                )
+            out_rate = float(self.target_rate_hz)
+        if self.band_hz is not None:
+            nyquist = out_rate / 2
+            if self.band_hz[1] >= nyquist:
+                raise OptionError(
+                    f"band_hz=({self.band_hz[0]:g}, {self.band_hz[1]:g}): the upper edge must "
+                    f"lie below the Nyquist frequency {nyquist:g} Hz of the {out_rate:g} Hz "
+                    "blocks"
+                )
+        channels = list(plan.channels)
+        if self.reference_channels:
+            unknown = [c for c in self.reference_channels if c not in channels]
+            if unknown:
+                raise OptionError(
+                    f"reference_channels: {', '.join(unknown)} not among the files' channels "
+                    f"({', '.join(channels)})"
+                )
+        n_refs = len(self.reference_channels or channels)
+        n_channels = len(channels)
+        capacity = min(n_refs * self.block_rows, n_channels * (self.block_rows - 1))
+        if max(self.orders) > capacity:
+            raise OptionError(
+                f"orders up to {max(self.orders)} need more block_rows than {self.block_rows} "
+                f"with {n_refs} reference and {n_channels} channels (largest order {capacity})"
+            )
+        n_samples = int(math.floor(self.length_s * out_rate + 1e-9))
+        needed = (n_channels + n_refs + 2) * self.block_rows
+        if n_samples < needed:
+            raise OptionError(
+                f"block_rows={self.block_rows} needs at least {needed} samples per block with "
+                f"{n_channels} channels, a block has {n_samples} ({self.length_s:g} s at "
+                f"{out_rate:g} Hz)"
+            )
 
     def parameters(self) -> dict:
         """JSON-able form (what the store records and checks on resume)."""
@@ -139,12 +224,15 @@ def _identify_data(task: _Task, grid: BlockGrid, options: IdentifyOptions):
     from .sid import select_modes, ssi_cov, ssi_data, stabilise
     from .signals import load_block
 
+    band = options.band_hz
+    if band is not None and band[0] == 0:  # (0, high): low-pass only
+        band = (None, band[1])
     data = load_block(
         task.files,
         task.block,
         grid,
         target_rate_hz=options.target_rate_hz,
-        band_hz=options.band_hz,
+        band_hz=band,
         max_gap_s=options.max_gap_s,
     )
     if data.acceleration is None:
@@ -301,10 +389,13 @@ def acceleration_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
     for item in inputs:
         path = Path(item)
         if path.is_dir():
+            # hidden files (e.g. ``.name.tmp.npz`` of an interrupted write) are not data
             found += sorted(
                 p
                 for p in path.rglob("*")
-                if p.suffix.lower() in ACCELERATION_SUFFIXES and p.is_file()
+                if p.suffix.lower() in ACCELERATION_SUFFIXES
+                and not any(part.startswith(".") for part in p.relative_to(path).parts)
+                and p.is_file()
             )
         elif path.is_file():
             found.append(path)
@@ -313,6 +404,59 @@ def acceleration_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
     if not found:
         raise WorkbenchError("no acceleration files found in " + ", ".join(map(str, inputs)))
     return found
+
+
+def input_fingerprints(files) -> list[dict]:
+    """Fingerprint of each planned file: path, span, size, mtime and SHA-256 of the content.
+
+    *files* are :class:`~workbench.signals.stream.FileInfo` of a plan. The content hash
+    covers every byte (header and samples), so data changed in place with its size and
+    modification time kept is still told apart.
+    """
+    out = []
+    for info in files:
+        path = Path(info.path)
+        try:
+            stat = path.stat()
+            with open(path, "rb") as handle:
+                digest = hashlib.file_digest(handle, "sha256").hexdigest()
+        except OSError as error:
+            raise WorkbenchError(f"{path}: cannot read ({error.strerror or error})") from None
+        out.append(
+            {
+                "path": str(path.resolve()),
+                "start": info.start_time.isoformat(),
+                "end": info.end_time.isoformat(),
+                "size": int(stat.st_size),
+                "mtime_ns": int(stat.st_mtime_ns),
+                "sha256": digest,
+            }
+        )
+    return out
+
+
+def _check_run_options(scheduler, n_workers, batch_blocks) -> None:
+    if int(batch_blocks) != batch_blocks or batch_blocks < 1:
+        raise OptionError(f"batch_blocks={batch_blocks} must be a whole number of at least 1")
+    if n_workers is not None and (int(n_workers) != n_workers or n_workers < 1):
+        raise OptionError(f"n_workers={n_workers} must be a whole number of at least 1")
+    if scheduler is None or scheduler == "synchronous":
+        return
+    from urllib.parse import urlsplit
+
+    text = str(scheduler)
+    parsed = urlsplit(text if "://" in text else f"tcp://{text}")
+    try:
+        port = parsed.port
+    except ValueError:
+        port = None
+    if parsed.scheme not in ("tcp", "tls", "inproc", "ucx", "ws", "wss") or not (
+        parsed.hostname and port
+    ):
+        raise OptionError(
+            f"scheduler={text!r} must be 'synchronous' or a dask.distributed scheduler "
+            "address such as tcp://host:8786"
+        )
 
 
 def identify_voyage(
@@ -353,14 +497,22 @@ def identify_voyage(
     from .signals import plan_blocks
 
     options = options or IdentifyOptions()
+    _check_run_options(scheduler, n_workers, batch_blocks)
     out = Path(out_dir)
+    store_path = Path(store_dir) if store_dir is not None else out / "store"
+    for what, path in (("output folder", out), ("store", store_path)):
+        if path.exists() and not path.is_dir():
+            raise WorkbenchError(f"{path}: {what} is a file, not a folder")
     files = acceleration_files(inputs)
     try:
         plan = plan_blocks(
             files, length_s=options.length_s, step_s=options.step_s, max_gap_s=options.max_gap_s
         )
+    except OptionError:
+        raise
     except ValueError as error:
-        raise WorkbenchError(str(error)) from None
+        raise WorkbenchError(str(error).splitlines()[0]) from None
+    options.check_data(plan)
     grid = plan.grid
     channels = tuple(plan.channels)
     parameters = {
@@ -368,27 +520,28 @@ def identify_voyage(
         "grid_t0": grid.t0.isoformat(),
         "channels": list(channels),
     }
-    store = BlockStore.open(store_dir or out / "store", parameters)
-    wanted = None if blocks is None else {int(b) for b in blocks}
-    tasks = [
-        _Task(int(p.block), p.block_start, tuple(str(f) for f in p.files))
-        for p in plan.blocks
-        if wanted is None or int(p.block) in wanted
-    ]
-    func = functools.partial(identify_block, grid=grid, channels=channels, options=options)
-    summary = run_blocks(
-        tasks,
-        func,
-        store=store,
-        scheduler=scheduler,
-        n_workers=n_workers,
-        total=len(tasks),
-        batch_blocks=batch_blocks,
-        progress=progress,
-        description="identify",
-    )
-    result = IdentifyResult(summary, n_blocks=len(tasks))
-    result.files = export_store(store, out, channels)
+    with BlockStore.open(store_path, parameters) as store:
+        store.check_inputs(input_fingerprints(plan.files))
+        wanted = None if blocks is None else {int(b) for b in blocks}
+        tasks = [
+            _Task(int(p.block), p.block_start, tuple(str(f) for f in p.files))
+            for p in plan.blocks
+            if wanted is None or int(p.block) in wanted
+        ]
+        func = functools.partial(identify_block, grid=grid, channels=channels, options=options)
+        summary = run_blocks(
+            tasks,
+            func,
+            store=store,
+            scheduler=scheduler,
+            n_workers=n_workers,
+            total=len(tasks),
+            batch_blocks=batch_blocks,
+            progress=progress,
+            description="identify",
+        )
+        result = IdentifyResult(summary, n_blocks=len(tasks))
+        result.files = export_store(store, out, channels)
     selected = result.files.get("selected")
     if selected is not None:
         result.n_selected = len(pd.read_parquet(selected, columns=["block"]))

@@ -35,6 +35,7 @@ Skipped blocks are not left out silently: :func:`iter_blocks` yields them as
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import zipfile
@@ -746,5 +747,21 @@ def load_block(
             "outside the span of the acceleration files",
         )
     plan = _plan(touching, grid, None, None, max_gap_s)
+    if all(b.block != k for b in plan.blocks):
+        # The block reaches past the touching files into an allowed gap (the next file
+        # starts after the block's end): plan it on its own, as the full plan does.
+        starts_ns = np.array([_ns(i.start_time) for i in plan.files], dtype=np.int64)
+        ends_ns = np.array([_ns(i.end_time) for i in plan.files], dtype=np.int64)
+        indices, reason = _block_files_and_gap(
+            plan.files,
+            starts_ns,
+            ends_ns,
+            _ns(start),
+            _ns(end),
+            plan.sampling_rate_hz,
+            float(max_gap_s),
+        )
+        single = PlannedBlock(k, start, end, tuple(plan.files[i].path for i in indices), reason)
+        plan = dataclasses.replace(plan, blocks=(single,))
     options.check_rate(plan.sampling_rate_hz)
     return next(_stream(plan, options, [k]))
