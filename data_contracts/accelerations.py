@@ -368,7 +368,7 @@ def _csv_sampling_rate(
 
     if len(times) < 2:
         raise fail("needs at least 2 samples")
-    steps_ns = np.diff(times.to_numpy().astype("datetime64[ns]").astype(np.int64))
+    steps_ns = np.diff(pd.DatetimeIndex(times).as_unit("ns").asi8)
     rows = np.flatnonzero(steps_ns == 0) + 1
     if len(rows):
         raise fail("duplicate sample times", tuple(rows[:5].tolist()), len(rows))

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
+import re
 import sys
 import warnings
 from collections.abc import Callable, Sequence
@@ -90,8 +91,7 @@ def _add_simulate(commands: argparse._SubParsersAction) -> None:
 def _run_simulate(args: argparse.Namespace) -> int:
     from .simulate import simulate_voyage
 
-    if args.hours is not None and args.hours <= 0:
-        raise UsageError(f"--hours must be positive, got {args.hours}")
+    _check_hours(args.hours)
     from .demo import describe_voyage
 
     try:
@@ -102,6 +102,37 @@ def _run_simulate(args: argparse.Namespace) -> int:
         raise UsageError(str(error)) from None
     print(f"simulated voyage written to {args.out}: {describe_voyage(voyage)}")
     return EXIT_OK
+
+
+#: Longest simulated voyage: a year (longer ones would write ~10^5 files per month). [h]
+MAX_SIMULATED_HOURS = 24.0 * 366
+
+
+def _check_hours(hours) -> None:
+    import math
+
+    if hours is not None and not (math.isfinite(hours) and 0 < hours <= MAX_SIMULATED_HOURS):
+        raise UsageError(
+            f"--hours must be a positive number of hours up to {MAX_SIMULATED_HOURS:g}, "
+            f"got {hours:g}"
+        )
+
+
+def _check_positive(**values) -> None:
+    """Usage error unless every given integer option is at least 1 (None passes)."""
+    for name, value in values.items():
+        if value is not None and value < 1:
+            raise UsageError(f"--{name.replace('_', '-')} must be at least 1, got {value}")
+
+
+def _check_share(name: str, value: float, *, low_open: bool = False) -> None:
+    """Usage error unless *value* lies in [0, 1] ((0, 1] with *low_open*)."""
+    import math
+
+    ok = math.isfinite(value) and (0.0 < value if low_open else 0.0 <= value) and value <= 1.0
+    if not ok:
+        interval = "(0, 1]" if low_open else "[0, 1]"
+        raise UsageError(f"--{name} must be in {interval}, got {value:g}")
 
 
 def _add_demo(commands: argparse._SubParsersAction) -> None:
@@ -120,6 +151,8 @@ def _add_demo(commands: argparse._SubParsersAction) -> None:
 def _run_demo(args: argparse.Namespace) -> int:
     from .demo import run_demo
 
+    _check_hours(args.hours)
+    _check_positive(workers=args.workers)
     summary = run_demo(
         args.out,
         seed=args.seed,
@@ -281,6 +314,9 @@ def _run_identify(args: argparse.Namespace) -> int:
 
     if args.min_order < 1 or args.max_order < args.min_order:
         raise UsageError(f"model orders {args.min_order}..{args.max_order} make no sense")
+    _check_positive(workers=args.workers, batch_blocks=args.batch_blocks)
+    if args.figures < 0:
+        raise UsageError(f"--figures must be 0 or more, got {args.figures}")
     try:
         options = IdentifyOptions(
             method=args.method,
@@ -295,7 +331,7 @@ def _run_identify(args: argparse.Namespace) -> int:
             max_gap_s=args.max_gap,
         )
     except ValueError as error:
-        raise UsageError(str(error)) from None
+        raise UsageError(_option_names(str(error))) from None
     result = identify_voyage(
         args.inputs,
         args.out,
@@ -316,6 +352,57 @@ def _run_identify(args: argparse.Namespace) -> int:
         ):
             print(f"figure: {path}")
     return EXIT_OK
+
+
+#: Library parameter names and the CLI options that set them (for usage messages).
+_OPTION_NAMES = {
+    "length_s": "--block-minutes (in s)",
+    "step_s": "--step-minutes (in s)",
+    "max_gap_s": "--max-gap",
+    "target_rate_hz": "--rate",
+    "band_hz": "--band",
+    "block_rows": "--block-rows",
+    "orders": "--min-order/--max-order",
+    "reference_channels": "--reference",
+    "batch_blocks": "--batch-blocks",
+    "n_workers": "--workers",
+    "scheduler": "--scheduler",
+    "threshold": "--threshold",
+    "frequency_tolerance": "--frequency-tolerance",
+}
+
+
+def _option_names(message: str) -> str:
+    """*message* with a library parameter name at its start shown as the CLI option."""
+    for name, option in _OPTION_NAMES.items():
+        if message.startswith(name):
+            return option + message[len(name) :]
+    return message
+
+
+def _check_joins(args, modal, predictors=None, poles=None) -> None:
+    """Block numbers must mean the same times in every input (one-line error, exit 1)."""
+    from .joins import check_block_times, check_poles_match, check_predictors_overlap
+
+    if predictors is not None:
+        source = args.predictors if args.predictors is not None else args.dship
+        check_block_times(modal, args.modal, predictors, source)
+        check_predictors_overlap(modal, predictors, source)
+    if poles is not None:
+        check_poles_match(modal, args.modal, poles, args.poles)
+
+
+def _read_modal(path: Path, contract=None):
+    """A modal (or other block) table with rows, its block numbers on one time grid."""
+    from data_contracts import MODAL, read_table
+
+    from .joins import check_block_grid
+
+    table = read_table(path, contract or MODAL)
+    if table.empty:
+        raise WorkbenchError(f"{path}: the table has a header but no rows")
+    check_block_grid(table, path)
+    return table
 
 
 def _persistent(modal, min_presence: float):
@@ -372,7 +459,15 @@ def _add_track(commands: argparse._SubParsersAction) -> None:
 
 def _run_track(args: argparse.Namespace) -> int:
     from .pipeline import run_track
+    from .sid.tracking import TrackingOptions
 
+    try:
+        TrackingOptions(
+            threshold=args.threshold, gate=args.gate, frequency_tolerance=args.frequency_tolerance
+        )
+    except ValueError as error:
+        raise UsageError(_option_names(str(error))) from None
+    _check_table_path(args.out)
     with _data_errors(args.selected):
         result = run_track(
             args.selected,
@@ -421,21 +516,35 @@ def _add_correlate(commands: argparse._SubParsersAction) -> None:
 
 
 def _run_correlate(args: argparse.Namespace) -> int:
-    from data_contracts import MODAL, read_table
 
     from .reporting.correlation import write_correlation_report
 
     if not 0.0 < args.alpha < 1.0:
         raise UsageError(f"--alpha must be in (0, 1), got {args.alpha}")
-    modal = read_table(args.modal, MODAL)
+    _check_share("min-presence", args.min_presence)
+    cases = None
+    if args.cases is not None:
+        from .stats.correlation import read_cases
+
+        try:
+            cases = read_cases(args.cases)
+        except ValueError as error:
+            raise WorkbenchError(str(error).splitlines()[0]) from None
+        if (cases["case"].str.lower() == "all").any():
+            raise WorkbenchError(
+                f"{args.cases}: the case name 'all' is reserved for the stitched cases; "
+                "rename that case"
+            )
+    modal = _read_modal(args.modal)
     predictors = _predictors_for(args, modal)
+    _check_joins(args, modal, predictors)
     modal = _persistent(modal, args.min_presence)
     with _data_errors(args.modal):
         paths = write_correlation_report(
             modal,
             predictors,
             args.out,
-            cases=args.cases,
+            cases=cases,
             alpha=args.alpha,
             correction=None if args.correction == "none" else args.correction,
         )
@@ -477,7 +586,6 @@ def _add_fit(commands: argparse._SubParsersAction) -> None:
 
 
 def _run_fit(args: argparse.Namespace) -> int:
-    from data_contracts import MODAL, read_table
 
     from .reporting.diagnostics_plot import write_fit_report
 
@@ -485,8 +593,11 @@ def _run_fit(args: argparse.Namespace) -> int:
         raise UsageError(
             f"need 0 < --p-enter < --p-remove < 1, got {args.p_enter} and {args.p_remove}"
         )
-    modal = read_table(args.modal, MODAL)
+    _check_share("min-presence", args.min_presence)
+    modal = _read_modal(args.modal)
     predictors = _predictors_for(args, modal)
+    _check_joins(args, modal, predictors)
+    _check_upper(args.upper, predictors)
     modal = _persistent(modal, args.min_presence)
     with _data_errors(args.modal):
         paths = write_fit_report(
@@ -500,6 +611,25 @@ def _run_fit(args: argparse.Namespace) -> int:
     for name, path in dict(paths).items():
         print(f"{name}: {path}")
     return EXIT_OK
+
+
+def _check_upper(upper: str, predictors) -> None:
+    """A usage error for an --upper model that names no predictor or is not a model."""
+    from .stats.terms import parse_terms
+
+    names = [c for c in predictors.columns if c not in ("block", "block_start", "block_end")]
+    try:
+        parse_terms(upper, names, parameter="--upper")
+    except (ValueError, TypeError) as error:
+        raise UsageError(str(error).splitlines()[0]) from None
+
+
+def _check_table_path(path: Path) -> None:
+    """A usage error unless *path* names a .csv or .parquet file (not a folder)."""
+    if path.suffix.lower() not in (".csv", ".parquet", ".pq"):
+        raise UsageError(f"{path}: the table must end in .csv or .parquet")
+    if path.is_dir():
+        raise UsageError(f"{path}: is a folder; give a file name ending in .csv or .parquet")
 
 
 def _add_forecast(commands: argparse._SubParsersAction) -> None:
@@ -610,7 +740,7 @@ def _parse_trust(text: str) -> float | None:
 
 
 def _run_forecast(args: argparse.Namespace) -> int:
-    from data_contracts import MODAL, POLES, read_table
+    from data_contracts import POLES, read_table
 
     from .pipeline import run_forecast
 
@@ -619,11 +749,16 @@ def _run_forecast(args: argparse.Namespace) -> int:
         raise UsageError("option B needs --poles (the stabilisation diagrams)")
     if args.train < 2:
         raise UsageError(f"--train must be at least 2 blocks, got {args.train}")
+    _check_positive(horizon=args.horizon, jobs=args.jobs, reacquire_blocks=args.reacquire_blocks)
+    _check_share("min-presence", args.min_presence)
+    _check_share("shape-mac-min", args.shape_mac_min)
+    _check_table_path(args.out)
     trust = _parse_trust(args.trust)
-    modal = read_table(args.modal, MODAL)
+    modal = _read_modal(args.modal)
     predictors = _predictors_for(args, modal)
     poles = read_table(args.poles, POLES) if args.poles is not None else None
-    truth = read_table(args.truth, MODAL) if args.truth is not None else None
+    truth = _read_modal(args.truth) if args.truth is not None else None
+    _check_joins(args, modal, predictors, poles)
     with _data_errors(args.modal):
         result = run_forecast(
             modal,
@@ -662,17 +797,23 @@ def _add_evaluate(commands: argparse._SubParsersAction) -> None:
         "--truth", type=Path, required=True, metavar="FILE", help="true modal table"
     )
     parser.add_argument("--phase", choices=("forecast", "train", "all"), default="forecast")
-    parser.add_argument("--out", type=Path, metavar="FILE", help="write the table as CSV")
+    parser.add_argument(
+        "--out", type=Path, metavar="FILE", help="write the table (.csv or .parquet)"
+    )
     parser.set_defaults(run=_run_evaluate)
 
 
 def _run_evaluate(args: argparse.Namespace) -> int:
-    from data_contracts import FORECAST, MODAL, read_table
+    from data_contracts import FORECAST
 
+    from .joins import check_block_times
     from .pipeline import evaluate_forecast
 
-    forecast = read_table(args.forecast, FORECAST)
-    truth = read_table(args.truth, MODAL)
+    if args.out is not None:
+        _check_table_path(args.out)
+    forecast = _read_modal(args.forecast, FORECAST)
+    truth = _read_modal(args.truth)
+    check_block_times(forecast, args.forecast, truth, args.truth)
     result = evaluate_forecast(
         forecast, truth, out=args.out, phase=None if args.phase == "all" else args.phase
     )
@@ -707,7 +848,7 @@ COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
     """Warnings as one line, ``warning: ...``, without source location (unless --verbose)."""
-    print(f"warning: {message}", file=sys.stderr if file is None else file)
+    print(f"warning: {_plain(message)}", file=sys.stderr if file is None else file)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -753,6 +894,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         warnings.showwarning = shown
 
 
+#: NumPy >= 2 scalar reprs (``np.float64(0.5)``) inside messages built with ``!r``.
+_NUMPY_REPR = re.compile(r"\bnp\.(?:float|int|uint|complex|bool|str)\w*\(([^()]*)\)")
+
+
+def _plain(message) -> str:
+    """*message* with NumPy scalar reprs shown as plain values (``0.5``, not
+    ``np.float64(0.5)``); one rule for every message the CLI prints."""
+    return _NUMPY_REPR.sub(r"\1", str(message))
+
+
 def _os_error_line(error: OSError) -> str:
     """``path: reason`` of a file-system error (read-only folder, disk full, ...)."""
     reason = error.strerror or str(error).splitlines()[0] or type(error).__name__
@@ -768,15 +919,15 @@ def _run(args: argparse.Namespace) -> int:
         if args.verbose:
             raise
         for line in error.lines():
-            print(line, file=sys.stderr)
+            print(_plain(line), file=sys.stderr)
         return EXIT_DATA
     except WorkbenchError as error:
         if args.verbose:
             raise
-        print(f"error: {error}", file=sys.stderr)
+        print(f"error: {_plain(error)}", file=sys.stderr)
         return EXIT_DATA
     except (UsageError, OptionError) as error:
-        print(f"workbench: error: {error}", file=sys.stderr)
+        print(f"workbench: error: {_plain(_option_names(str(error)))}", file=sys.stderr)
         return EXIT_USAGE
     except OSError as error:  # file-system errors on output: one line, exit 1
         if args.verbose:

@@ -385,13 +385,16 @@ def evaluate_forecast(
         total = part[
             ["ssi_cumulative_error_hz", "model_cumulative_error_hz", "kalman_cumulative_error_hz"]
         ].sum()
-        gain = 100.0 * (
-            1.0 - total["kalman_cumulative_error_hz"] / total["ssi_cumulative_error_hz"]
-        )
+        ssi_error = float(total["ssi_cumulative_error_hz"])
+        if ssi_error > 0:
+            gain = 100.0 * (1.0 - float(total["kalman_cumulative_error_hz"]) / ssi_error)
+            versus = f"Kalman {gain:+.1f} % vs SSI"
+        else:
+            versus = "no SSI estimate in the evaluated blocks to compare with"
         result.lines.append(
             f"option {option}: cumulative |error| SSI {total['ssi_cumulative_error_hz']:.3f} Hz,"
             f" model {total['model_cumulative_error_hz']:.3f} Hz, Kalman "
-            f"{total['kalman_cumulative_error_hz']:.3f} Hz -> Kalman {gain:+.1f} % vs SSI"
+            f"{total['kalman_cumulative_error_hz']:.3f} Hz -> {versus}"
         )
     result.lines.append(
         f"tracked labels paired with true modes {mapping} ({100 * agreement:.1f} % of "
@@ -400,7 +403,10 @@ def evaluate_forecast(
     if out is not None:
         out = Path(out)
         with atomic_path(out) as tmp:
-            table.to_csv(tmp, index=False)
+            if out.suffix.lower() in (".parquet", ".pq"):
+                table.to_parquet(tmp, index=False)
+            else:
+                table.to_csv(tmp, index=False)
         result.files.append(out)
     return result
 
