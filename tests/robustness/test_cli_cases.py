@@ -60,6 +60,9 @@ def _derived_tables(base: Path, sim: Path) -> None:
     # a predictor whose name is matplotlib mathtext
     odd = predictors.rename(columns={"elapsed_hours": "$\\alpha_{x$"})
     odd.to_csv(base / "predictors_mathtext.csv", index=False)
+    dead = predictors.copy()
+    dead["water_temp_c"] = np.nan  # a sensor dead for the whole voyage
+    dead.to_csv(base / "predictors_dead_column.csv", index=False)
     # modal tables: header only; a block number far beyond any time
     modal.iloc[:0].to_csv(base / "modal_header_only.csv", index=False)
     huge = modal.copy()
@@ -148,6 +151,10 @@ def _derived_accelerations(base: Path) -> None:
     gap["time"] = later.strftime("%Y-%m-%dT%H:%M:%S.%fZ")
     gap.to_csv(base / "gap.csv", index=False)
     # stores: corrupt store.json, empty store.json, a damaged batch
+    argv = ["identify", str(base / "voyage"), "--out", str(base / "damaged"), *IDENTIFY_ARGS]
+    assert main(argv) == 0
+    batch = next((base / "damaged" / "store" / "blocks").rglob("*.parquet"))
+    batch.write_bytes(batch.read_bytes()[: len(batch.read_bytes()) // 2])  # torn by a bad disk
     for name, text in (("store_corrupt", "{not json"), ("store_empty", "")):
         (base / name).mkdir()
         (base / name / "store.json").write_text(text, encoding="utf-8")
@@ -187,6 +194,11 @@ CASES = {
     "store is a file": ([*IDENT, "--store", "{root}/a_file"], 1, "store is a file"),
     "store.json corrupt": ([*IDENT, "--store", "{root}/store_corrupt"], 1, "delete the folder"),
     "store.json empty": ([*IDENT, "--store", "{root}/store_empty"], 1, "delete the folder"),
+    "stored batch damaged": (
+        ["identify", "{root}/voyage", "--out", "{root}/damaged", *IDENTIFY_ARGS],
+        1,
+        "the store is damaged: delete the folder",
+    ),
     "hidden leftover ignored": (
         ["identify", "{root}/leftover", "--out", "{tmp}/out", *IDENTIFY_ARGS],
         0,
@@ -324,6 +336,18 @@ CASES = {
             "--predictors",
             "{root}/predictors_mathtext.csv",
             "--all-predictors",
+            "--out",
+            "{tmp}/c",
+        ],
+        0,
+        "html",
+    ),
+    "correlate with an all-NaN predictor is quiet": (
+        [
+            "correlate",
+            *MODAL,
+            "--predictors",
+            "{root}/predictors_dead_column.csv",
             "--out",
             "{tmp}/c",
         ],
