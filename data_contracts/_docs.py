@@ -48,8 +48,15 @@ written by `write_accelerations(record, path)`:
 h5py; variable names configurable with `mat_variables={"acceleration": "acc", ...}`; the
 longer dimension is taken as samples unless `mat_orientation` says otherwise) and CSV files
 (an ISO-8601 `time` column, one column per channel, the rate from the median time step).
-Checks: 2-D numeric array, one unique name per channel, positive sampling rate, a valid
-start time, no infinite values, |a| below 500 m/s² (larger values mean wrong units).
+Checks: 2-D real numeric array (complex values refused), one unique name per channel,
+positive sampling rate, a start time that is a time (ISO-8601 text or a datetime; a number
+is refused, not read as nanoseconds since 1970), no infinite values, |a| below 500 m/s²
+(larger values mean wrong units). CSV times must increase strictly (shuffled or duplicated
+rows are refused), every step must lie within half a sample of the sampling interval (a gap
+inside a file would shift the later samples: split the file there) and a given
+`csv_sampling_rate_hz` must agree with the times. MATLAB v7.3 files whose variables use
+HDF5 external storage, external links or virtual datasets are refused before anything is
+read (such a file could make the reader open any local file).
 
 ## Raw ship log (`dship`)
 
