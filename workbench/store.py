@@ -35,7 +35,7 @@ import socket
 import time
 import uuid
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import pandas as pd
@@ -193,6 +193,7 @@ class BlockStore:
 
     root: Path
     lock: StoreLock | None = None
+    _owners_cache: dict | None = field(default=None, repr=False, compare=False)
 
     def close(self) -> None:
         """Release the store's lock (results stay on disk)."""
@@ -331,6 +332,25 @@ class BlockStore:
         except (OSError, ValueError) as error:
             raise _corrupt(self.root, str(path.relative_to(self.root)), error) from None
 
+    def _owners(self) -> dict[int, str]:
+        """The batch each block's results are read from: the first batch (by name) whose
+        ``blocks`` file lists it. A block stored twice (by two runs that shared a store
+        before stores were locked) is thus read once."""
+        if self._owners_cache is None:
+            owners: dict[int, str] = {}
+            for path in self._files(BLOCKS_KIND):
+                for block in self._read_file(path, columns=["block"])["block"].tolist():
+                    owners.setdefault(int(block), path.stem)
+            self._owners_cache = owners
+        return self._owners_cache
+
+    def _own_rows(self, frame: pd.DataFrame, path: Path) -> pd.DataFrame:
+        if frame.empty:
+            return frame
+        owners = self._owners()
+        keep = frame["block"].map(lambda b: owners.get(int(b)) == path.stem).to_numpy(bool)
+        return frame if keep.all() else frame[keep]
+
     def completed_blocks(self) -> set[int]:
         """Blocks already processed (successfully or skipped with a recorded reason)."""
         table = self.read(BLOCKS_KIND)
@@ -341,7 +361,7 @@ class BlockStore:
         files = self._files(kind)
         if not files:
             return pd.DataFrame()
-        frames = [self._read_file(path) for path in files]
+        frames = [self._own_rows(self._read_file(path), path) for path in files]
         table = pd.concat([f for f in frames if len(f)] or frames[:1], ignore_index=True)
         keys = [k for k in ("block", "model_order") if k in table.columns]
         if keys:
@@ -373,7 +393,10 @@ class BlockStore:
         for start in range(first, last + 1, blocks_per_chunk):
             stop = start + blocks_per_chunk
             frames = [
-                self._read_file(path, filters=[("block", ">=", start), ("block", "<", stop)])
+                self._own_rows(
+                    self._read_file(path, filters=[("block", ">=", start), ("block", "<", stop)]),
+                    path,
+                )
                 for low, high, path in ranges
                 if low < stop and high >= start
             ]
@@ -408,6 +431,7 @@ class BlockStore:
             f"b{int(blocks['block'].min()):07d}-{int(blocks['block'].max()):07d}-"
             f"{uuid.uuid4().hex[:8]}"
         )
+        self._owners_cache = None
         for kind, frame in results.items():
             if kind == BLOCKS_KIND:
                 raise ValueError(f"kind {BLOCKS_KIND!r} is reserved")

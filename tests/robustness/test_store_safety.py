@@ -215,3 +215,33 @@ def test_hdf5_data_in_another_file_is_refused_unread(tmp_path, secret, capsys, k
     assert _identify([path], tmp_path / "out") == 1
     err = capsys.readouterr().err
     assert fragment in err and SECRET not in err
+
+
+def test_blocks_stored_twice_by_an_unlocked_past_run_are_read_once(tmp_path):
+    """Stores written by two concurrent runs before stores were locked hold every block
+    twice; reading (and so exporting) takes each block from one batch only."""
+    from workbench.store import BlockStore
+
+    start = pd.Timestamp("2026-03-01T00:00Z")
+
+    def batch(blocks, value):
+        status = pd.DataFrame({"block": blocks, "block_start": start, "status": "ok", "reason": ""})
+        rows = pd.DataFrame(
+            {
+                "block": np.repeat(blocks, 2),
+                "block_start": start,
+                "model_order": np.tile([2, 4], len(blocks)),
+                "value": value,
+            }
+        )
+        return status, {"poles": rows}
+
+    with BlockStore.open(tmp_path, {}) as store:
+        store.write_batch(*batch([0, 1, 2], 1.0))
+        store.write_batch(*batch([1, 2, 3], 2.0))  # the second run's copy of blocks 1, 2
+        poles = store.read("poles")
+        assert poles["block"].tolist() == [0, 0, 1, 1, 2, 2, 3, 3]
+        assert poles.groupby("block")["value"].nunique().max() == 1
+        chunks = pd.concat(store.read_chunks("poles", blocks_per_chunk=2), ignore_index=True)
+        pd.testing.assert_frame_equal(chunks, poles)
+        assert store.read("blocks")["block"].tolist() == [0, 1, 2, 3]
