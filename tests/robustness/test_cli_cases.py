@@ -360,6 +360,11 @@ CASES = {
         "html",
     ),
     # ------------------------------------------------------------------ stage options
+    "correlate out is a file": (
+        ["correlate", *MODAL, *PRED, "--out", "{root}/a_file"],
+        1,
+        "a_file",
+    ),
     "track threshold 2": (
         ["track", "{root}/sim/tracked_modal.csv", "--out", "{tmp}/t.csv", "--threshold", "2"],
         2,

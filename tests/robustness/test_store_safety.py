@@ -245,3 +245,37 @@ def test_blocks_stored_twice_by_an_unlocked_past_run_are_read_once(tmp_path):
         chunks = pd.concat(store.read_chunks("poles", blocks_per_chunk=2), ignore_index=True)
         pd.testing.assert_frame_equal(chunks, poles)
         assert store.read("blocks")["block"].tolist() == [0, 1, 2, 3]
+
+
+# ------------------------------------------------------------------ file-system errors
+def test_disk_full_on_export_is_one_line_and_keeps_the_store(tmp_path, capsys, monkeypatch):
+    import errno
+
+    import workbench.identify as identify
+
+    write_voyage(tmp_path / "voyage", n_files=4)
+
+    def full(frame, path):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+
+    monkeypatch.setattr(identify, "_write_csv", full)
+    assert _identify([tmp_path / "voyage"], tmp_path / "out") == 1
+    err = capsys.readouterr().err.strip()
+    assert err.endswith(".csv: No space left on device") and len(err.splitlines()) == 1
+    assert not (tmp_path / "out" / "store" / "lock").exists()
+    monkeypatch.undo()
+    assert _identify([tmp_path / "voyage"], tmp_path / "out") == 0  # nothing computed is lost
+    assert "0 block(s) processed, 0 skipped, 3 already done" in capsys.readouterr().out
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() == 0, reason="root ignores modes")
+def test_read_only_output_folder_is_one_line(tmp_path, capsys):
+    write_voyage(tmp_path / "voyage", n_files=4)
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out").chmod(0o500)
+    try:
+        assert _identify([tmp_path / "voyage"], tmp_path / "out") == 1
+    finally:
+        (tmp_path / "out").chmod(0o700)
+    err = capsys.readouterr().err.strip()
+    assert "Permission denied" in err and len(err.splitlines()) == 1
