@@ -38,6 +38,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from data_contracts import atomic_path
@@ -59,6 +60,19 @@ except ImportError:  # pragma: no cover - Windows: pid-based lock only
 
 #: Locks this process holds, by store path: {path: [fd, count]} (re-entrant in-process).
 _HELD: dict[str, list] = {}
+
+
+#: Overlap of two files' spans that is only rounding of their end times. [ns]
+_SPAN_TOLERANCE_NS = 100_000
+
+
+def _ns(times) -> np.ndarray:
+    """ISO times as int64 nanoseconds since the epoch (UTC)."""
+    if not len(times):
+        return np.empty(0, np.int64)
+    return (
+        pd.DatetimeIndex(pd.to_datetime(list(times), utc=True, format="ISO8601")).as_unit("ns").asi8
+    )
 
 
 def _corrupt(root: Path, what: str, error: BaseException) -> WorkbenchError:
@@ -281,26 +295,30 @@ class BlockStore:
             try:
                 recorded = json.loads(path.read_text(encoding="utf-8"))["files"]
                 known = {r["sha256"] for r in recorded}
-                spans = [(pd.Timestamp(r["start"]), pd.Timestamp(r["end"]), r) for r in recorded]
+                lows = _ns([r["start"] for r in recorded])
+                highs = _ns([r["end"] for r in recorded])
             except (OSError, ValueError, KeyError, TypeError) as error:
                 raise _corrupt(self.root, _INPUTS, error) from None
         else:
-            known, spans = set(), []
+            known, lows, highs = set(), np.empty(0, np.int64), np.empty(0, np.int64)
         new = []
         for item in fingerprints:
             item = dict(item)
             if item["sha256"] in known:
                 continue
-            start, end = pd.Timestamp(item["start"]), pd.Timestamp(item["end"])
-            for low, high, old in spans:
-                if low < end and start < high:
-                    what = "size" if old.get("size") != item["size"] else "content"
-                    raise WorkbenchError(
-                        f"{item['path']}: input changed since the store {self.root} was made "
-                        f"(other {what} than {old['path']} for {old['start']} to "
-                        f"{old['end']}); its results would be of other data: use another "
-                        "--store or delete this one"
-                    )
+            start, end = (int(v) for v in _ns([item["start"], item["end"]]))
+            # spans sharing more than rounding (0.1 ms, well below a sample) hold other data
+            overlap = np.minimum(highs, end) - np.maximum(lows, start)
+            clashing = np.flatnonzero(overlap > _SPAN_TOLERANCE_NS)
+            if len(clashing):
+                old = recorded[int(clashing[0])]
+                what = "size" if old.get("size") != item["size"] else "content"
+                raise WorkbenchError(
+                    f"{item['path']}: input changed since the store {self.root} was made "
+                    f"(other {what} than {old['path']} for {old['start']} to "
+                    f"{old['end']}); its results would be of other data: use another "
+                    "--store or delete this one"
+                )
             new.append(item)
             known.add(item["sha256"])
         if new or not path.is_file():

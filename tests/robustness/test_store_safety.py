@@ -279,3 +279,22 @@ def test_read_only_output_folder_is_one_line(tmp_path, capsys):
         (tmp_path / "out").chmod(0o700)
     err = capsys.readouterr().err.strip()
     assert "Permission denied" in err and len(err.splitlines()) == 1
+
+
+def test_input_spans_touching_by_rounding_are_not_a_change(tmp_path):
+    """File ends computed as n / rate may pass the next file's start by nanoseconds; times
+    come with and without fractions. Neither makes a new adjacent file a changed input."""
+    from workbench.errors import WorkbenchError
+    from workbench.store import BlockStore
+
+    def fingerprint(k: int, digest: str, end_s: float) -> dict:
+        start = pd.Timestamp("2026-03-01T00:00Z") + pd.Timedelta(seconds=300 * k)
+        end = start + pd.Timedelta(seconds=end_s)
+        return {"path": f"f{k}", "start": start.isoformat(), "end": end.isoformat(),
+                "size": 10, "mtime_ns": 0, "sha256": digest}  # fmt: skip
+
+    with BlockStore.open(tmp_path, {}) as store:
+        store.check_inputs([fingerprint(0, "a", 300.00000001)])
+        store.check_inputs([fingerprint(0, "a", 300.00000001), fingerprint(1, "b", 300.0)])
+        with pytest.raises(WorkbenchError, match="f1: input changed"):
+            store.check_inputs([fingerprint(1, "c", 300.0)])
