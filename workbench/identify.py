@@ -182,6 +182,8 @@ class IdentifyOptions:
                     f"reference_channels: {', '.join(unknown)} not among the files' channels "
                     f"({', '.join(channels)})"
                 )
+        if self.method not in ("cov", "data"):
+            return  # block rows and model orders are SSI settings
         n_refs = len(self.reference_channels or channels)
         n_channels = len(channels)
         capacity = min(n_refs * self.block_rows, n_channels * (self.block_rows - 1))
