@@ -60,8 +60,15 @@ Units come from `units` (one for all channels or per channel), else from the hea
 HDF5/UFF unit labels (`acc01 [g]`, `[mm/s^2]`), else m/s²; g, mg, mm/s², cm/s², gal and
 ft/s² are converted to m/s². A file that cannot be read is reported with what it contains
 (columns, variables, datasets).
-Checks: 2-D numeric array, one unique name per channel, positive sampling rate, a valid
-start time, no infinite values, |a| below 500 m/s² (larger values mean wrong units).
+Checks: 2-D real numeric array (complex values refused), one unique name per channel,
+positive sampling rate, a start time that is a time (ISO-8601 text or a datetime; a number
+is refused, not read as nanoseconds since 1970), no infinite values, |a| below 500 m/s²
+(larger values mean wrong units). Text-file times must increase strictly (shuffled or
+duplicated rows are refused), every step must lie within half a sample of the sampling
+interval (a gap inside a file would shift the later samples: split the file there) and a
+given sampling rate must agree with the times. MATLAB v7.3 and HDF5 files whose variables
+use HDF5 external storage, external links or virtual datasets are refused before anything
+is read (such a file could make the reader open any local file).
 
 ## Raw ship log (`dship`)
 

@@ -7,7 +7,9 @@ the UTC time of the first sample and the channel names.
 
 from __future__ import annotations
 
+import numbers
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -76,11 +78,17 @@ def validate_accelerations(
         Listing every problem (array shape, sampling rate, channel names, time, units).
     """
     problems: list[Violation] = []
-    try:
-        acceleration = np.asarray(record.acceleration, dtype=float)
-    except (TypeError, ValueError):
+    if np.iscomplexobj(record.acceleration):
         acceleration = None
-        problems.append(Violation("acceleration", "values are not numeric"))
+        problems.append(
+            Violation("acceleration", "complex values: accelerations must be real numbers")
+        )
+    else:
+        try:
+            acceleration = np.asarray(record.acceleration, dtype=float)
+        except (TypeError, ValueError):
+            acceleration = None
+            problems.append(Violation("acceleration", "values are not numeric"))
     if acceleration is not None and acceleration.ndim != 2:
         problems.append(
             Violation(
@@ -135,17 +143,46 @@ def validate_accelerations(
                 "sampling_rate_hz", f"must be a positive number, got {record.sampling_rate_hz!r}"
             )
         )
-    try:
-        start = pd.Timestamp(record.start_time)
-        start = start.tz_localize("UTC") if start.tzinfo is None else start.tz_convert("UTC")
-        if pd.isna(start):
-            raise ValueError
-    except (TypeError, ValueError):
-        start = None
-        problems.append(Violation("start_time", f"not an ISO-8601 time: {record.start_time!r}"))
+    start = _start_time(record.start_time)
+    if start is None:
+        problems.append(Violation("start_time", _not_a_time(record.start_time)))
     if problems:
         raise ContractError(problems, source=source, contract="accelerations")
     return AccelerationRecord(acceleration, rate, start, channels)
+
+
+#: An ISO-8601 date (with optional time) at the start of a text: YYYY-MM-DD.
+_ISO_DATE = re.compile(r"^\s*[+-]?\d{4}-\d{2}-\d{2}")
+
+
+def _start_time(value) -> pd.Timestamp | None:
+    """*value* as a UTC Timestamp if it is a time (datetime or ISO-8601 text), else None.
+
+    Numbers are refused: a number of seconds or days since some epoch is ambiguous (pandas
+    would read it as nanoseconds since 1970).
+    """
+    if isinstance(value, (bool, numbers.Number, np.number)):
+        return None
+    if isinstance(value, (str, np.str_, bytes)):
+        text = value.decode(errors="replace") if isinstance(value, bytes) else str(value)
+        if not _ISO_DATE.match(text):
+            return None
+        value = text
+    try:
+        start = pd.Timestamp(value)
+        if pd.isna(start):
+            return None
+        return start.tz_localize("UTC") if start.tzinfo is None else start.tz_convert("UTC")
+    except (TypeError, ValueError, OverflowError):
+        return None
+
+
+def _not_a_time(value) -> str:
+    if isinstance(value, (bool, numbers.Number, np.number)):
+        return f"must be an ISO-8601 time such as 2026-03-01T00:00:00Z, got the number {value}"
+    text = str(value)
+    shown = text if len(text) <= 40 else text[:37] + "..."
+    return f"not an ISO-8601 time: {shown!r}"
 
 
 def write_accelerations(record: AccelerationRecord, path: str | os.PathLike) -> Path:
@@ -215,6 +252,50 @@ def _mat_channels(value, n_channels: int) -> tuple[str, ...]:
     return tuple(names)
 
 
+def _refuse_external_hdf5(mat, path: Path) -> None:
+    """Raise ContractError if any object of the HDF5 file reads data from another file.
+
+    External links, external raw storage and virtual datasets make the library open files
+    named inside the MATLAB file: a crafted file could read (and an error message echo) any
+    local file. Nothing is read from such a file; the message names only the object.
+    """
+    import h5py
+
+    seen: set = set()
+
+    def refuse(name: str, how: str):
+        return ContractError(
+            [Violation(name, f"{how}: data stored in another file are refused for safety")],
+            source=path,
+            contract="accelerations",
+        )
+
+    def walk(group, prefix: str) -> None:
+        for key in group:
+            name = f"{prefix}/{key}"
+            link = group.get(key, getlink=True)
+            if isinstance(link, h5py.ExternalLink):
+                raise refuse(name, "HDF5 external link")
+            if isinstance(link, h5py.SoftLink):
+                continue  # its target is an object of this file, checked where it lies
+            node = group.get(key)
+            if node is None:
+                continue
+            address = h5py.h5o.get_info(node.id).addr
+            if address in seen:
+                continue
+            seen.add(address)
+            if isinstance(node, h5py.Group):
+                walk(node, name)
+            elif isinstance(node, h5py.Dataset):
+                if node.is_virtual:
+                    raise refuse(name, "HDF5 virtual dataset")
+                if node.id.get_create_plist().get_external_count() > 0:
+                    raise refuse(name, "HDF5 external storage")
+
+    walk(mat, "")
+
+
 def _read_mat(path: Path, variables: dict[str, str], orientation: str) -> AccelerationRecord:
     import scipy.io
 
@@ -226,6 +307,7 @@ def _read_mat(path: Path, variables: dict[str, str], orientation: str) -> Accele
         import h5py
 
         with h5py.File(path, "r") as mat:
+            _refuse_external_hdf5(mat, path)
             for key, name in variables.items():
                 if name not in mat:
                     continue

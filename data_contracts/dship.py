@@ -319,19 +319,29 @@ def read_dship(
                     units[j] = bracketed if bracketed is not None else unit_fields[j]
         rows = rows[n_header:]
     line_numbers = np.array([n for n, _ in rows], dtype=int)
-    table = (
-        pd.read_csv(
-            io.StringIO("\n".join(line for _, line in rows)),
-            sep=sep,
-            header=None,
-            dtype=str,
-            keep_default_na=False,
-            names=list(range(len(headers))),
-            engine="python",
+    try:
+        table = (
+            pd.read_csv(
+                io.StringIO("\n".join(line for _, line in rows)),
+                sep=sep,
+                header=None,
+                dtype=str,
+                keep_default_na=False,
+                names=list(range(len(headers))),
+                engine="python",
+            )
+            if rows
+            else pd.DataFrame(columns=list(range(len(headers))), dtype=str)
         )
-        if rows
-        else pd.DataFrame(columns=list(range(len(headers))), dtype=str)
-    )
+    except pd.errors.ParserError as error:  # a ragged row: more fields than the header
+        found = re.search(r"line (\d+), saw (\d+)", str(error))
+        if found is None:
+            raise fail([Violation(None, "rows could not be split into fields")]) from None
+        k, n_fields = int(found.group(1)), int(found.group(2))
+        line = int(line_numbers[k - 1]) if 0 < k <= len(line_numbers) else k
+        raise fail(
+            [Violation(None, f"line {line}: {n_fields} fields, the header has {len(headers)}")]
+        ) from None
     if len(table) != len(rows):
         raise fail([Violation(None, "rows could not be split into fields consistently")])
 

@@ -361,7 +361,10 @@ def _format_of(path: Path) -> str:
         return "csv"
     if suffix in (".parquet", ".pq"):
         return "parquet"
-    raise ValueError(f"{path}: unknown table format '{suffix}' (use .csv or .parquet)")
+    raise ContractError(
+        [Violation(None, f"unknown table format '{suffix}' (use .csv or .parquet)")],
+        source=path,
+    )
 
 
 def read_table(path: str | os.PathLike, contract: TableContract) -> pd.DataFrame:

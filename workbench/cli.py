@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
+import re
 import sys
 import warnings
 from collections.abc import Callable, Sequence
@@ -18,7 +19,7 @@ from pathlib import Path
 from data_contracts import ContractError
 
 from . import __version__
-from .errors import WorkbenchError
+from .errors import OptionError, WorkbenchError
 from .inputs import (
     acceleration_layout,
     add_acceleration_layout,
@@ -100,8 +101,7 @@ def _add_simulate(commands: argparse._SubParsersAction) -> None:
 def _run_simulate(args: argparse.Namespace) -> int:
     from .simulate import simulate_voyage
 
-    if args.hours is not None and args.hours <= 0:
-        raise UsageError(f"--hours must be positive, got {args.hours}")
+    _check_hours(args.hours)
     from .demo import describe_voyage
 
     try:
@@ -112,6 +112,37 @@ def _run_simulate(args: argparse.Namespace) -> int:
         raise UsageError(str(error)) from None
     print(f"simulated voyage written to {args.out}: {describe_voyage(voyage)}")
     return EXIT_OK
+
+
+#: Longest simulated voyage: a year (longer ones would write ~10^5 files per month). [h]
+MAX_SIMULATED_HOURS = 24.0 * 366
+
+
+def _check_hours(hours) -> None:
+    import math
+
+    if hours is not None and not (math.isfinite(hours) and 0 < hours <= MAX_SIMULATED_HOURS):
+        raise UsageError(
+            f"--hours must be a positive number of hours up to {MAX_SIMULATED_HOURS:g}, "
+            f"got {hours:g}"
+        )
+
+
+def _check_positive(**values) -> None:
+    """Usage error unless every given integer option is at least 1 (None passes)."""
+    for name, value in values.items():
+        if value is not None and value < 1:
+            raise UsageError(f"--{name.replace('_', '-')} must be at least 1, got {value}")
+
+
+def _check_share(name: str, value: float, *, low_open: bool = False) -> None:
+    """Usage error unless *value* lies in [0, 1] ((0, 1] with *low_open*)."""
+    import math
+
+    ok = math.isfinite(value) and (0.0 < value if low_open else 0.0 <= value) and value <= 1.0
+    if not ok:
+        interval = "(0, 1]" if low_open else "[0, 1]"
+        raise UsageError(f"--{name} must be in {interval}, got {value:g}")
 
 
 def _add_demo(commands: argparse._SubParsersAction) -> None:
@@ -130,6 +161,8 @@ def _add_demo(commands: argparse._SubParsersAction) -> None:
 def _run_demo(args: argparse.Namespace) -> int:
     from .demo import run_demo
 
+    _check_hours(args.hours)
+    _check_positive(workers=args.workers)
     summary = run_demo(
         args.out,
         seed=args.seed,
@@ -148,7 +181,7 @@ def _data_errors(source):
     (contract errors pass unchanged: they name file, column and rows themselves)."""
     try:
         yield
-    except ContractError:
+    except (ContractError, OptionError):
         raise
     except ValueError as error:
         raise WorkbenchError(f"{source}: {error}") from None
@@ -410,6 +443,9 @@ def _run_identify(args: argparse.Namespace) -> int:
             f"{given}: step {step_s / 60:g} min is longer than the block "
             f"{length_s / 60:g} min; give --step-minutes at most --block-minutes"
         )
+    _check_positive(workers=args.workers, batch_blocks=args.batch_blocks)
+    if args.figures < 0:
+        raise UsageError(f"--figures must be 0 or more, got {args.figures}")
     try:
         options = IdentifyOptions(
             method=args.method,
@@ -436,7 +472,7 @@ def _run_identify(args: argparse.Namespace) -> int:
             ),
         )
     except ValueError as error:
-        raise UsageError(str(error)) from None
+        raise UsageError(_option_names(str(error))) from None
     try:
         result = identify_voyage(
             args.inputs,
@@ -467,6 +503,58 @@ def _run_identify(args: argparse.Namespace) -> int:
         ):
             print(f"figure: {path}")
     return EXIT_OK
+
+
+#: Library parameter names and the CLI options that set them (for usage messages).
+_OPTION_NAMES = {
+    "length_s": "--block-minutes (in s)",
+    "step_s": "--step-minutes (in s)",
+    "max_gap_s": "--max-gap",
+    "target_rate_hz": "--rate",
+    "band_hz": "--band",
+    "block_rows": "--block-rows",
+    "orders": "--min-order/--max-order",
+    "reference_channels": "--reference",
+    "batch_blocks": "--batch-blocks",
+    "n_workers": "--workers",
+    "scheduler": "--scheduler",
+    "threshold": "--threshold",
+    "frequency_tolerance": "--frequency-tolerance",
+}
+
+
+def _option_names(message: str) -> str:
+    """*message* with a library parameter name at its start shown as the CLI option."""
+    for name, option in _OPTION_NAMES.items():
+        if message.startswith(name):
+            return option + message[len(name) :]
+    return message
+
+
+def _check_joins(args, modal, predictors=None, poles=None) -> None:
+    """Block numbers must mean the same times in every input (one-line error, exit 1)."""
+    from .joins import check_block_times, check_poles_match, check_predictors_overlap
+
+    if predictors is not None:
+        source = args.predictors if args.predictors is not None else args.dship
+        check_block_times(modal, args.modal, predictors, source)
+        check_predictors_overlap(modal, predictors, source)
+    if poles is not None:
+        check_poles_match(modal, args.modal, poles, args.poles)
+
+
+def _read_modal(args: argparse.Namespace, path: Path, contract=None):
+    """A modal table in any recognised layout (or a table of *contract*) with rows, its
+    block numbers on one time grid."""
+    from data_contracts import read_table
+
+    from .joins import check_block_grid
+
+    table = read_modal(args, path) if contract is None else read_table(path, contract)
+    if table.empty:
+        raise WorkbenchError(f"{path}: the table has a header but no rows")
+    check_block_grid(table, path)
+    return table
 
 
 def _persistent(modal, min_presence: float):
@@ -523,7 +611,15 @@ def _add_track(commands: argparse._SubParsersAction) -> None:
 
 def _run_track(args: argparse.Namespace) -> int:
     from .pipeline import run_track
+    from .sid.tracking import TrackingOptions
 
+    try:
+        TrackingOptions(
+            threshold=args.threshold, gate=args.gate, frequency_tolerance=args.frequency_tolerance
+        )
+    except ValueError as error:
+        raise UsageError(_option_names(str(error))) from None
+    _check_table_path(args.out)
     with _data_errors(args.selected):
         result = run_track(
             args.selected,
@@ -577,15 +673,30 @@ def _run_correlate(args: argparse.Namespace) -> int:
 
     if not 0.0 < args.alpha < 1.0:
         raise UsageError(f"--alpha must be in (0, 1), got {args.alpha}")
-    modal = read_modal(args, args.modal)
+    _check_share("min-presence", args.min_presence)
+    cases = None
+    if args.cases is not None:
+        from .stats.correlation import read_cases
+
+        try:
+            cases = read_cases(args.cases)
+        except ValueError as error:
+            raise WorkbenchError(str(error).splitlines()[0]) from None
+        if (cases["case"].str.lower() == "all").any():
+            raise WorkbenchError(
+                f"{args.cases}: the case name 'all' is reserved for the stitched cases; "
+                "rename that case"
+            )
+    modal = _read_modal(args, args.modal)
     predictors = _predictors_for(args, modal)
+    _check_joins(args, modal, predictors)
     modal = _persistent(modal, args.min_presence)
     with _data_errors(args.modal):
         paths = write_correlation_report(
             modal,
             predictors,
             args.out,
-            cases=args.cases,
+            cases=cases,
             alpha=args.alpha,
             correction=None if args.correction == "none" else args.correction,
             # a frequency-only table (another tool's) has no damping to correlate
@@ -645,8 +756,11 @@ def _run_fit(args: argparse.Namespace) -> int:
         raise UsageError(
             f"need 0 < --p-enter < --p-remove < 1, got {args.p_enter} and {args.p_remove}"
         )
-    modal = read_modal(args, args.modal)
+    _check_share("min-presence", args.min_presence)
+    modal = _read_modal(args, args.modal)
     predictors = _predictors_for(args, modal)
+    _check_joins(args, modal, predictors)
+    _check_upper(args.upper, predictors)
     modal = _persistent(modal, args.min_presence)
     with _data_errors(args.modal):
         paths = write_fit_report(
@@ -668,6 +782,25 @@ def _cases_argument(value: str | None):
     if value is None or value == "derive":
         return value
     return Path(value)
+
+
+def _check_upper(upper: str, predictors) -> None:
+    """A usage error for an --upper model that names no predictor or is not a model."""
+    from .stats.terms import parse_terms
+
+    names = [c for c in predictors.columns if c not in ("block", "block_start", "block_end")]
+    try:
+        parse_terms(upper, names, parameter="--upper")
+    except (ValueError, TypeError) as error:
+        raise UsageError(str(error).splitlines()[0]) from None
+
+
+def _check_table_path(path: Path) -> None:
+    """A usage error unless *path* names a .csv or .parquet file (not a folder)."""
+    if path.suffix.lower() not in (".csv", ".parquet", ".pq"):
+        raise UsageError(f"{path}: the table must end in .csv or .parquet")
+    if path.is_dir():
+        raise UsageError(f"{path}: is a folder; give a file name ending in .csv or .parquet")
 
 
 def _add_forecast(commands: argparse._SubParsersAction) -> None:
@@ -806,11 +939,16 @@ def _run_forecast(args: argparse.Namespace) -> int:
         raise UsageError(
             "--trust applies to --model window; --model memory takes its noise levels from the data"
         )
+    _check_positive(horizon=args.horizon, jobs=args.jobs, reacquire_blocks=args.reacquire_blocks)
+    _check_share("min-presence", args.min_presence)
+    _check_share("shape-mac-min", args.shape_mac_min)
+    _check_table_path(args.out)
     trust = "auto" if args.trust is None else _parse_trust(args.trust)
-    modal = read_modal(args, args.modal)
+    modal = _read_modal(args, args.modal)
     predictors = _predictors_for(args, modal)
     poles = read_table(args.poles, POLES) if args.poles is not None else None
-    truth = read_modal(args, args.truth)
+    truth = _read_modal(args, args.truth) if args.truth is not None else None
+    _check_joins(args, modal, predictors, poles)
     with _data_errors(args.modal):
         result = run_forecast(
             modal,
@@ -851,18 +989,24 @@ def _add_evaluate(commands: argparse._SubParsersAction) -> None:
         "--truth", type=Path, required=True, metavar="FILE", help="true modal table"
     )
     parser.add_argument("--phase", choices=("forecast", "train", "all"), default="forecast")
-    parser.add_argument("--out", type=Path, metavar="FILE", help="write the table as CSV")
+    parser.add_argument(
+        "--out", type=Path, metavar="FILE", help="write the table (.csv or .parquet)"
+    )
     add_modal_layout(parser)
     parser.set_defaults(run=_run_evaluate)
 
 
 def _run_evaluate(args: argparse.Namespace) -> int:
-    from data_contracts import FORECAST, read_table
+    from data_contracts import FORECAST
 
+    from .joins import check_block_times
     from .pipeline import evaluate_forecast
 
-    forecast = read_table(args.forecast, FORECAST)
-    truth = read_modal(args, args.truth)
+    if args.out is not None:
+        _check_table_path(args.out)
+    forecast = _read_modal(args, args.forecast, FORECAST)
+    truth = _read_modal(args, args.truth)
+    check_block_times(forecast, args.forecast, truth, args.truth)
     result = evaluate_forecast(
         forecast, truth, out=args.out, phase=None if args.phase == "all" else args.phase
     )
@@ -985,7 +1129,7 @@ COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
     """Warnings as one line, ``warning: ...``, without source location (unless --verbose)."""
-    print(f"warning: {message}", file=sys.stderr if file is None else file)
+    print(f"warning: {_plain(message)}", file=sys.stderr if file is None else file)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -1056,6 +1200,23 @@ def _apply_config(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -
             raise SystemExit(EXIT_USAGE) from None
 
 
+#: NumPy >= 2 scalar reprs (``np.float64(0.5)``) inside messages built with ``!r``.
+_NUMPY_REPR = re.compile(r"\bnp\.(?:float|int|uint|complex|bool|str)\w*\(([^()]*)\)")
+
+
+def _plain(message) -> str:
+    """*message* with NumPy scalar reprs shown as plain values (``0.5``, not
+    ``np.float64(0.5)``); one rule for every message the CLI prints."""
+    return _NUMPY_REPR.sub(r"\1", str(message))
+
+
+def _os_error_line(error: OSError) -> str:
+    """``path: reason`` of a file-system error (read-only folder, disk full, ...)."""
+    reason = error.strerror or str(error).splitlines()[0] or type(error).__name__
+    names = [n for n in (error.filename, error.filename2) if n is not None]
+    return f"{' -> '.join(map(str, names))}: {reason}" if names else reason
+
+
 def _run(args: argparse.Namespace) -> int:
     """Run the chosen command; user errors become messages and exit statuses."""
     try:
@@ -1064,17 +1225,21 @@ def _run(args: argparse.Namespace) -> int:
         if args.verbose:
             raise
         for line in error.lines():
-            print(line, file=sys.stderr)
+            print(_plain(line), file=sys.stderr)
         return EXIT_DATA
     except WorkbenchError as error:
         if args.verbose:
             raise
-        print(f"error: {error}", file=sys.stderr)
+        print(f"error: {_plain(error)}", file=sys.stderr)
         return EXIT_DATA
-    except UsageError as error:
-        print(f"workbench: error: {error}", file=sys.stderr)
+    except (UsageError, OptionError) as error:
+        print(f"workbench: error: {_plain(_option_names(str(error)))}", file=sys.stderr)
         return EXIT_USAGE
-
+    except OSError as error:  # file-system errors on output: one line, exit 1
+        if args.verbose:
+            raise
+        print(f"error: {_os_error_line(error)}", file=sys.stderr)
+        return EXIT_DATA
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130

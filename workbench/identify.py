@@ -19,13 +19,21 @@ BlockStore`, and exports the store as contract tables:
 
 Killing the job at any moment and running it again finishes it without recomputing the
 blocks already stored, and gives the same tables as an uninterrupted run (every block's
-result depends only on its own data and the options, which the store checks).
+result depends only on its own data and the options, which the store checks). The store
+is locked while a run works on it, and every input file is fingerprinted (size,
+modification time, SHA-256 of its content): a second run on a busy store, or a rerun on
+changed files, is refused instead of mixing or reusing results of other data.
+
+Every option is checked against the files' headers before the first block (rate, band,
+reference channels, block rows against the samples of a block): an option that would make
+every block fail raises :class:`~workbench.errors.OptionError` at once.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
+import hashlib
 import logging
 import math
 import os
@@ -42,7 +50,7 @@ from data_contracts import POLES, atomic_path, shape_columns
 from data_contracts.formats import ACCELERATION_SUFFIXES as _FORMAT_SUFFIXES
 
 from .blocks import BlockGrid
-from .errors import WorkbenchError
+from .errors import OptionError, WorkbenchError
 from .parallel import BlockOutcome, RunSummary, run_blocks
 from .store import BlockStore
 
@@ -151,42 +159,116 @@ class IdentifyOptions:
 
     def __post_init__(self) -> None:
         if self.method not in ("cov", "data", "lscf"):
-            raise ValueError(f"method={self.method!r} must be 'cov', 'data' or 'lscf'")
+            raise OptionError(f"method={self.method!r} must be 'cov', 'data' or 'lscf'")
+        if self.weighting not in ("pc", "upc", "cva"):
+            raise OptionError(f"weighting={self.weighting!r} must be 'pc', 'upc' or 'cva'")
         lscf_orders = tuple(int(o) for o in self.lscf_orders)
         if not lscf_orders or min(lscf_orders) < 1:
-            raise ValueError(f"lscf_orders={self.lscf_orders!r} must be positive orders")
+            raise OptionError(f"lscf_orders={self.lscf_orders!r} must be positive orders")
         object.__setattr__(self, "lscf_orders", lscf_orders)
-        if self.block_rows < 2:
-            raise ValueError(f"block_rows={self.block_rows} must be at least 2")
+        if int(self.block_rows) != self.block_rows or self.block_rows < 2:
+            raise OptionError(f"block_rows={self.block_rows} must be an integer of at least 2")
         orders = tuple(int(o) for o in self.orders)
         if not orders or min(orders) < 1:
-            raise ValueError(f"orders={self.orders!r} must be positive model orders")
+            raise OptionError(f"orders={self.orders!r} must be positive model orders")
         object.__setattr__(self, "orders", orders)
         if self.selection not in ("cluster", "library"):
-            raise ValueError(f"selection={self.selection!r} must be 'cluster' or 'library'")
+            raise OptionError(f"selection={self.selection!r} must be 'cluster' or 'library'")
         if self.short_record not in ("error", "one-block"):
-            raise ValueError(f"short_record={self.short_record!r} must be 'error' or 'one-block'")
+            raise OptionError(f"short_record={self.short_record!r} must be 'error' or 'one-block'")
+        for name in ("length_s", "step_s"):
+            value = float(getattr(self, name))
+            if not (math.isfinite(value) and value > 0):
+                raise OptionError(f"{name}={value:g} must be a positive number of seconds")
         if self.step_s > self.length_s:
-            raise ValueError(
+            raise OptionError(
                 f"block step {self.step_s / 60:g} min is longer than the block length "
                 f"{self.length_s / 60:g} min (blocks would leave gaps); give a step at most "
                 "the length (e.g. --step-minutes)"
             )
-        if self.target_rate_hz is not None and not (
-            np.isfinite(self.target_rate_hz) and self.target_rate_hz > 0
-        ):
-            raise ValueError(f"target_rate_hz={self.target_rate_hz} must be a positive rate")
+        if not (math.isfinite(float(self.max_gap_s)) and self.max_gap_s >= 0):
+            raise OptionError(
+                f"max_gap_s={float(self.max_gap_s):g} must be a non-negative number of seconds"
+            )
+        if self.target_rate_hz is not None:
+            rate = float(self.target_rate_hz)
+            if not (math.isfinite(rate) and rate > 0):
+                raise OptionError(f"target_rate_hz={rate:g} must be a positive rate [Hz]")
         object.__setattr__(
             self, "fault_options", tuple((str(k), v) for k, v in dict(self.fault_options).items())
         )
         if isinstance(self.band_hz, str):
             if self.band_hz != "auto":
-                raise ValueError(f"band_hz={self.band_hz!r} must be (low, high), 'auto' or None")
+                raise OptionError(f"band_hz={self.band_hz!r} must be (low, high), 'auto' or None")
         elif self.band_hz is not None:
-            low, high = (float(v) for v in self.band_hz)
-            if not 0 <= low < high:
-                raise ValueError(f"band_hz={self.band_hz!r} must be (low, high) with low < high")
+            try:
+                low, high = (float(v) for v in self.band_hz)
+            except (TypeError, ValueError):
+                raise OptionError(f"band_hz={self.band_hz!r} must be (low, high) [Hz]") from None
+            if not (math.isfinite(low) and math.isfinite(high) and 0 <= low < high):
+                raise OptionError(
+                    f"band_hz=({low:g}, {high:g}) must be (low, high) with 0 <= low < high"
+                )
             object.__setattr__(self, "band_hz", (low, high))
+        for name in ("frequency_tol", "damping_tol", "mac_min", "max_damping"):
+            value = float(getattr(self, name))
+            if not (math.isfinite(value) and 0 <= value <= 1):
+                raise OptionError(f"{name}={value:g} must lie in [0, 1]")
+        if self.reference_channels is not None and not self.reference_channels:
+            object.__setattr__(self, "reference_channels", None)
+
+    def check_data(self, plan) -> None:
+        """Raise :class:`OptionError` now if the options cannot work on *plan*'s files.
+
+        Checked against the headers: decimation to ``target_rate_hz`` (a whole-number
+        factor), the band (below the Nyquist frequency of the decimated blocks), the
+        reference channels (names of the files' channels), and block rows and model orders
+        against the samples and channels of one block.
+        """
+        rate = float(plan.sampling_rate_hz)
+        out_rate = rate
+        if self.target_rate_hz is not None:
+            ratio = rate / float(self.target_rate_hz)
+            if not (ratio >= 1 and abs(ratio - round(ratio)) <= 1e-9 * ratio):
+                raise OptionError(
+                    f"target_rate_hz={float(self.target_rate_hz):g} must divide the files' "
+                    f"sampling rate {rate:g} Hz by a whole number"
+                )
+            out_rate = float(self.target_rate_hz)
+        if self.band_hz is not None:
+            nyquist = out_rate / 2
+            if self.band_hz[1] >= nyquist:
+                raise OptionError(
+                    f"band_hz=({self.band_hz[0]:g}, {self.band_hz[1]:g}): the upper edge must "
+                    f"lie below the Nyquist frequency {nyquist:g} Hz of the {out_rate:g} Hz "
+                    "blocks"
+                )
+        channels = list(plan.channels)
+        if self.reference_channels:
+            unknown = [c for c in self.reference_channels if c not in channels]
+            if unknown:
+                raise OptionError(
+                    f"reference_channels: {', '.join(unknown)} not among the files' channels "
+                    f"({', '.join(channels)})"
+                )
+        if self.method not in ("cov", "data"):
+            return  # block rows and model orders are SSI settings
+        n_refs = len(self.reference_channels or channels)
+        n_channels = len(channels)
+        capacity = min(n_refs * self.block_rows, n_channels * (self.block_rows - 1))
+        if max(self.orders) > capacity:
+            raise OptionError(
+                f"orders up to {max(self.orders)} need more block_rows than {self.block_rows} "
+                f"with {n_refs} reference and {n_channels} channels (largest order {capacity})"
+            )
+        n_samples = int(math.floor(self.length_s * out_rate + 1e-9))
+        needed = (n_channels + n_refs + 2) * self.block_rows
+        if n_samples < needed:
+            raise OptionError(
+                f"block_rows={self.block_rows} needs at least {needed} samples per block with "
+                f"{n_channels} channels, a block has {n_samples} ({self.length_s:g} s at "
+                f"{out_rate:g} Hz)"
+            )
 
     def parameters(self) -> dict:
         """JSON-able form (what the store records and checks on resume)."""
@@ -263,7 +345,7 @@ class IdentifyOptions:
         return (0.0, ANTI_ALIAS_EDGE * float(sampling_rate_hz) / 2)
 
 
-class IdentifyOptionsError(ValueError):
+class IdentifyOptionsError(OptionError):
     """Options that do not fit the data (a usage error: the CLI exits 2)."""
 
 
@@ -286,6 +368,9 @@ def _identify_data(task: _Task, grid: BlockGrid, options: IdentifyOptions, cross
     block; with *cross*, also the result and selection of the other method (or None)."""
     from .signals import load_block
 
+    band = options.band_hz
+    if band is not None and band[0] == 0:  # (0, high): low-pass only
+        band = (None, band[1])
     data = load_block(
         task.files,
         task.block,
@@ -543,10 +628,13 @@ def acceleration_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
     for item in inputs:
         path = Path(item)
         if path.is_dir():
+            # hidden files (e.g. ``.name.tmp.npz`` of an interrupted write) are not data
             candidates = sorted(
                 p
                 for p in path.rglob("*")
-                if p.suffix.lower() in ACCELERATION_SUFFIXES and p.is_file()
+                if p.suffix.lower() in ACCELERATION_SUFFIXES
+                and not any(part.startswith(".") for part in p.relative_to(path).parts)
+                and p.is_file()
             )
             other = [
                 p
@@ -615,8 +703,10 @@ def plan_identification(files: Sequence[Path], options: IdentifyOptions):
         if plan.grid.t0 != first:  # anchor the grid at the first sample, not a round time
             grid = BlockGrid(first, options.length_s, options.step_s)
             plan = _plan(plan.files, grid, None, None, options.max_gap_s)
+    except OptionError:
+        raise
     except ValueError as error:
-        raise WorkbenchError(str(error)) from None
+        raise WorkbenchError(str(error).splitlines()[0]) from None
     options = options.resolved(plan.sampling_rate_hz)
     records = _records(plan)
     short = [r for r in records if (r[1] - r[0]).total_seconds() < options.length_s - 1e-6]
@@ -647,6 +737,59 @@ def plan_identification(files: Sequence[Path], options: IdentifyOptions):
             options.length_s / 60,
         )
     return plan, options
+
+
+def input_fingerprints(files) -> list[dict]:
+    """Fingerprint of each planned file: path, span, size, mtime and SHA-256 of the content.
+
+    *files* are :class:`~workbench.signals.stream.FileInfo` of a plan. The content hash
+    covers every byte (header and samples), so data changed in place with its size and
+    modification time kept is still told apart.
+    """
+    out = []
+    for info in files:
+        path = Path(info.path)
+        try:
+            stat = path.stat()
+            with open(path, "rb") as handle:
+                digest = hashlib.file_digest(handle, "sha256").hexdigest()
+        except OSError as error:
+            raise WorkbenchError(f"{path}: cannot read ({error.strerror or error})") from None
+        out.append(
+            {
+                "path": str(path.resolve()),
+                "start": info.start_time.isoformat(),
+                "end": info.end_time.isoformat(),
+                "size": int(stat.st_size),
+                "mtime_ns": int(stat.st_mtime_ns),
+                "sha256": digest,
+            }
+        )
+    return out
+
+
+def _check_run_options(scheduler, n_workers, batch_blocks) -> None:
+    if int(batch_blocks) != batch_blocks or batch_blocks < 1:
+        raise OptionError(f"batch_blocks={batch_blocks} must be a whole number of at least 1")
+    if n_workers is not None and (int(n_workers) != n_workers or n_workers < 1):
+        raise OptionError(f"n_workers={n_workers} must be a whole number of at least 1")
+    if scheduler is None or scheduler == "synchronous":
+        return
+    from urllib.parse import urlsplit
+
+    text = str(scheduler)
+    parsed = urlsplit(text if "://" in text else f"tcp://{text}")
+    try:
+        port = parsed.port
+    except ValueError:
+        port = None
+    if parsed.scheme not in ("tcp", "tls", "inproc", "ucx", "ws", "wss") or not (
+        parsed.hostname and port
+    ):
+        raise OptionError(
+            f"scheduler={text!r} must be 'synchronous' or a dask.distributed scheduler "
+            "address such as tcp://host:8786"
+        )
 
 
 def identify_voyage(
@@ -685,9 +828,15 @@ def identify_voyage(
         most the blocks of the batch under way.
     """
     options = options or IdentifyOptions()
+    _check_run_options(scheduler, n_workers, batch_blocks)
     out = Path(out_dir)
+    store_path = Path(store_dir) if store_dir is not None else out / "store"
+    for what, path in (("output folder", out), ("store", store_path)):
+        if path.exists() and not path.is_dir():
+            raise WorkbenchError(f"{path}: {what} is a file, not a folder")
     files = acceleration_files(inputs)
     plan, options = plan_identification(files, options)
+    options.check_data(plan)
     grid = plan.grid
     channels = tuple(plan.channels)
     parameters = {
@@ -695,27 +844,28 @@ def identify_voyage(
         "grid_t0": grid.t0.isoformat(),
         "channels": list(channels),
     }
-    store = BlockStore.open(store_dir or out / "store", parameters)
-    wanted = None if blocks is None else {int(b) for b in blocks}
-    tasks = [
-        _Task(int(p.block), p.block_start, tuple(str(f) for f in p.files))
-        for p in plan.blocks
-        if wanted is None or int(p.block) in wanted
-    ]
-    func = functools.partial(identify_block, grid=grid, channels=channels, options=options)
-    summary = run_blocks(
-        tasks,
-        func,
-        store=store,
-        scheduler=scheduler,
-        n_workers=n_workers,
-        total=len(tasks),
-        batch_blocks=batch_blocks,
-        progress=progress,
-        description="identify",
-    )
-    result = IdentifyResult(summary, n_blocks=len(tasks))
-    result.files = export_store(store, out, channels)
+    with BlockStore.open(store_path, parameters) as store:
+        store.check_inputs(input_fingerprints(plan.files))
+        wanted = None if blocks is None else {int(b) for b in blocks}
+        tasks = [
+            _Task(int(p.block), p.block_start, tuple(str(f) for f in p.files))
+            for p in plan.blocks
+            if wanted is None or int(p.block) in wanted
+        ]
+        func = functools.partial(identify_block, grid=grid, channels=channels, options=options)
+        summary = run_blocks(
+            tasks,
+            func,
+            store=store,
+            scheduler=scheduler,
+            n_workers=n_workers,
+            total=len(tasks),
+            batch_blocks=batch_blocks,
+            progress=progress,
+            description="identify",
+        )
+        result = IdentifyResult(summary, n_blocks=len(tasks))
+        result.files = export_store(store, out, channels)
     selected = result.files.get("selected")
     if selected is not None:
         result.n_selected = len(pd.read_parquet(selected, columns=["block"]))

@@ -299,7 +299,7 @@ def run_forecast(
     train_blocks: int = 20,
     horizon: int | None = None,
     trust: float | None | str = "auto",
-    model: str = "memory",
+    model: str = "window",
     figures: str | os.PathLike | None = None,
     truth: pd.DataFrame | None = None,
     predictor_columns: Sequence[str] | None = None,
@@ -420,7 +420,10 @@ def evaluate_forecast(
     if out is not None:
         out = Path(out)
         with atomic_path(out) as tmp:
-            table.to_csv(tmp, index=False)
+            if out.suffix.lower() in (".parquet", ".pq"):
+                table.to_parquet(tmp, index=False)
+            else:
+                table.to_csv(tmp, index=False)
         result.files.append(out)
     return result
 

@@ -3,6 +3,8 @@
 Layout under the store root::
 
     <root>/store.json                      parameters the results were computed with
+    <root>/inputs.json                     fingerprints of the input files (see below)
+    <root>/lock                            who is running on the store now (see below)
     <root>/<kind>/day=YYYY-MM-DD/<batch>.parquet
 
 ``kind`` is a result family (``poles``, ``selected``, ``moments``, ``faults``, ...). Results
@@ -12,17 +14,31 @@ reason). A block counts as done only once its ``blocks`` file exists, and every 
 written to a temporary name and renamed, so killing the process at any moment leaves either
 a whole batch or files that :meth:`BlockStore.open` removes as orphans. Any Parquet engine
 reads a kind as a hive-partitioned dataset (``pd.read_parquet(root / "poles")``).
+
+One run at a time: :meth:`BlockStore.open` takes an exclusive lock (``<root>/lock``, an
+``flock`` held for the life of the store object, with the holder's pid, host and start
+time written inside). A second run on the same store is refused with a message naming the
+holder; the lock of a dead process is released by the kernel, so a killed run never
+blocks the next one.
+
+Inputs are fingerprinted (:meth:`BlockStore.check_inputs`): size, modification time and a
+SHA-256 of the content of every input file, with the time span it covers. A resumed run
+whose file for a stored time span has other content is refused, so results of one voyage
+are never exported as those of another.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import socket
+import time
 import uuid
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from data_contracts import atomic_path
@@ -34,17 +50,182 @@ __all__ = ["BLOCKS_KIND", "BlockStore"]
 #: The kind whose files mark blocks as done.
 BLOCKS_KIND = "blocks"
 _CONFIG = "store.json"
+_INPUTS = "inputs.json"
+_LOCK = "lock"
+
+try:  # POSIX
+    import fcntl
+except ImportError:  # pragma: no cover - Windows: pid-based lock only
+    fcntl = None
+
+#: Locks this process holds, by store path: {path: [fd, count]} (re-entrant in-process).
+_HELD: dict[str, list] = {}
+
+
+#: Overlap of two files' spans that is only rounding of their end times. [ns]
+_SPAN_TOLERANCE_NS = 100_000
+
+
+def _ns(times) -> np.ndarray:
+    """ISO times as int64 nanoseconds since the epoch (UTC)."""
+    if not len(times):
+        return np.empty(0, np.int64)
+    return (
+        pd.DatetimeIndex(pd.to_datetime(list(times), utc=True, format="ISO8601")).as_unit("ns").asi8
+    )
+
+
+def _corrupt(root: Path, what: str, error: BaseException) -> WorkbenchError:
+    detail = str(error).splitlines()[0] if str(error) else type(error).__name__
+    return WorkbenchError(
+        f"{root}: {what} is unreadable ({detail}); the store is damaged: delete the folder "
+        "(or use another --store) and run again"
+    )
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+class StoreLock:
+    """An exclusive, re-entrant (within one process) lock on a store folder.
+
+    The lock file records ``pid``, ``host`` and ``started`` (UTC) of the holder. With
+    ``fcntl`` the lock is an ``flock`` on that file, so it dies with its process; without
+    it the file's existence is the lock and a lock of a dead process on this host is taken
+    over.
+    """
+
+    def __init__(self, root: Path):
+        self.root = Path(root)
+        self.path = self.root / _LOCK
+        self._key = str(self.path.resolve())
+        self._held = False
+
+    def holder(self) -> str:
+        """``pid N on HOST since TIME`` from the lock file, or ``an unknown process``."""
+        try:
+            info = json.loads(self.path.read_text(encoding="utf-8"))
+            return f"pid {int(info['pid'])} on {info['host']} since {info['started']}"
+        except (OSError, ValueError, KeyError, TypeError):
+            return "an unknown process"
+
+    def _refuse(self) -> WorkbenchError:
+        return WorkbenchError(
+            f"{self.root}: store is in use by another run ({self.holder()}); wait for it to "
+            "finish or use another --store"
+        )
+
+    def _info(self) -> bytes:
+        started = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+        return json.dumps(
+            {"pid": os.getpid(), "host": socket.gethostname(), "started": started}
+        ).encode()
+
+    def acquire(self) -> StoreLock:
+        held = _HELD.get(self._key)
+        if held is not None:
+            held[1] += 1
+            self._held = True
+            return self
+        fd = self._acquire_flock() if fcntl is not None else self._acquire_file()
+        _HELD[self._key] = [fd, 1]
+        self._held = True
+        return self
+
+    def _acquire_flock(self) -> int:
+        for _ in range(10):
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                os.close(fd)
+                raise self._refuse() from None
+            try:  # the file may have been unlinked by a releasing holder meanwhile
+                same = os.fstat(fd).st_ino == os.stat(self.path).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                os.ftruncate(fd, 0)
+                os.write(fd, self._info())
+                os.fsync(fd)
+                return fd
+            os.close(fd)
+        raise self._refuse()
+
+    def _acquire_file(self) -> int:  # pragma: no cover - platforms without fcntl
+        for _ in range(2):
+            try:
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644)
+            except FileExistsError:
+                try:
+                    info = json.loads(self.path.read_text(encoding="utf-8"))
+                    stale = info["host"] == socket.gethostname() and not _pid_alive(
+                        int(info["pid"])
+                    )
+                except (OSError, ValueError, KeyError, TypeError):
+                    stale = False
+                if not stale:
+                    raise self._refuse() from None
+                self.path.unlink(missing_ok=True)
+                continue
+            os.write(fd, self._info())
+            return fd
+        raise self._refuse()
+
+    def release(self) -> None:
+        if not self._held:
+            return
+        self._held = False
+        held = _HELD.get(self._key)
+        if held is None:
+            return
+        held[1] -= 1
+        if held[1] > 0:
+            return
+        del _HELD[self._key]
+        try:
+            self.path.unlink(missing_ok=True)
+        finally:
+            os.close(held[0])  # closing the descriptor releases the flock
 
 
 @dataclass
 class BlockStore:
     """Per-block results of one job, on disk.
 
-    Use :meth:`open`, which creates the store or checks that an existing one was made with
-    the same parameters (so a resumed job never mixes results of different settings).
+    Use :meth:`open`, which locks the store, creates it or checks that an existing one was
+    made with the same parameters (so a resumed job never mixes results of different
+    settings). :meth:`close` (or leaving a ``with`` block) releases the lock.
     """
 
     root: Path
+    lock: StoreLock | None = None
+    _owners_cache: dict | None = field(default=None, repr=False, compare=False)
+
+    def close(self) -> None:
+        """Release the store's lock (results stay on disk)."""
+        if self.lock is not None:
+            self.lock.release()
+            self.lock = None
+
+    def __enter__(self) -> BlockStore:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        try:
+            self.close()
+        except Exception:  # pragma: no cover - interpreter shutdown
+            pass
 
     @classmethod
     def open(cls, root: str | os.PathLike, parameters: Mapping[str, object]) -> BlockStore:
@@ -53,14 +234,31 @@ class BlockStore:
         Raises
         ------
         WorkbenchError
-            If the store exists and was made with other parameters.
+            If another run holds the store, the store exists and was made with other
+            parameters, or its files are damaged.
         """
         root = Path(root)
+        if root.exists() and not root.is_dir():
+            raise WorkbenchError(f"{root}: store path is a file, not a folder")
         root.mkdir(parents=True, exist_ok=True)
+        lock = StoreLock(root).acquire()
+        try:
+            return cls._open_locked(root, parameters, lock)
+        except BaseException:
+            lock.release()
+            raise
+
+    @classmethod
+    def _open_locked(cls, root: Path, parameters: Mapping[str, object], lock) -> BlockStore:
         config_path = root / _CONFIG
         wanted = json.loads(json.dumps(dict(parameters), sort_keys=True, default=str))
         if config_path.is_file():
-            found = json.loads(config_path.read_text(encoding="utf-8"))
+            try:
+                found = json.loads(config_path.read_text(encoding="utf-8"))
+                if not isinstance(found, dict):
+                    raise ValueError("not a JSON object")
+            except (OSError, ValueError) as error:
+                raise _corrupt(root, _CONFIG, error) from None
             if found != wanted:
                 changed = sorted(
                     k for k in set(found) | set(wanted) if found.get(k) != wanted.get(k)
@@ -72,9 +270,63 @@ class BlockStore:
         else:
             with atomic_path(config_path) as tmp:
                 tmp.write_text(json.dumps(wanted, indent=2, sort_keys=True), encoding="utf-8")
-        store = cls(root)
+        store = cls(root, lock)
         store._remove_orphans()
         return store
+
+    # ------------------------------------------------------------------ inputs
+    def check_inputs(self, fingerprints: Iterable[Mapping[str, object]]) -> None:
+        """Check the input files against those the stored results came from, then record them.
+
+        Each fingerprint has ``path``, ``start``, ``end`` (ISO times of the span it covers),
+        ``size``, ``mtime_ns`` and ``sha256``. A file whose content is already recorded is
+        the same data (wherever it lies now); a file with new content whose span overlaps a
+        recorded file's span is a *changed* input: the stored results of that span came
+        from other data.
+
+        Raises
+        ------
+        WorkbenchError
+            Naming the changed file, when the stored results cannot be reused.
+        """
+        path = self.root / _INPUTS
+        recorded: list[dict] = []
+        if path.is_file():
+            try:
+                recorded = json.loads(path.read_text(encoding="utf-8"))["files"]
+                known = {r["sha256"] for r in recorded}
+                lows = _ns([r["start"] for r in recorded])
+                highs = _ns([r["end"] for r in recorded])
+            except (OSError, ValueError, KeyError, TypeError) as error:
+                raise _corrupt(self.root, _INPUTS, error) from None
+        else:
+            known, lows, highs = set(), np.empty(0, np.int64), np.empty(0, np.int64)
+        new = []
+        for item in fingerprints:
+            item = dict(item)
+            if item["sha256"] in known:
+                continue
+            start, end = (int(v) for v in _ns([item["start"], item["end"]]))
+            # spans sharing more than rounding (0.1 ms, well below a sample) hold other data
+            overlap = np.minimum(highs, end) - np.maximum(lows, start)
+            clashing = np.flatnonzero(overlap > _SPAN_TOLERANCE_NS)
+            if len(clashing):
+                old = recorded[int(clashing[0])]
+                what = "size" if old.get("size") != item["size"] else "content"
+                raise WorkbenchError(
+                    f"{item['path']}: input changed since the store {self.root} was made "
+                    f"(other {what} than {old['path']} for {old['start']} to "
+                    f"{old['end']}); its results would be of other data: use another "
+                    "--store or delete this one"
+                )
+            new.append(item)
+            known.add(item["sha256"])
+        if new or not path.is_file():
+            with atomic_path(path) as tmp:
+                tmp.write_text(
+                    json.dumps({"files": recorded + new}, indent=1, sort_keys=True),
+                    encoding="utf-8",
+                )
 
     # ------------------------------------------------------------------ reading
     def _files(self, kind: str) -> list[Path]:
@@ -92,6 +344,31 @@ class BlockStore:
         for leftover in self.root.glob("**/.*.tmp*"):  # temporary files of a killed write
             leftover.unlink(missing_ok=True)
 
+    def _read_file(self, path: Path, **kwargs) -> pd.DataFrame:
+        try:
+            return pd.read_parquet(path, **kwargs)
+        except (OSError, ValueError) as error:
+            raise _corrupt(self.root, str(path.relative_to(self.root)), error) from None
+
+    def _owners(self) -> dict[int, str]:
+        """The batch each block's results are read from: the first batch (by name) whose
+        ``blocks`` file lists it. A block stored twice (by two runs that shared a store
+        before stores were locked) is thus read once."""
+        if self._owners_cache is None:
+            owners: dict[int, str] = {}
+            for path in self._files(BLOCKS_KIND):
+                for block in self._read_file(path, columns=["block"])["block"].tolist():
+                    owners.setdefault(int(block), path.stem)
+            self._owners_cache = owners
+        return self._owners_cache
+
+    def _own_rows(self, frame: pd.DataFrame, path: Path) -> pd.DataFrame:
+        if frame.empty:
+            return frame
+        owners = self._owners()
+        keep = frame["block"].map(lambda b: owners.get(int(b)) == path.stem).to_numpy(bool)
+        return frame if keep.all() else frame[keep]
+
     def completed_blocks(self) -> set[int]:
         """Blocks already processed (successfully or skipped with a recorded reason)."""
         table = self.read(BLOCKS_KIND)
@@ -102,7 +379,7 @@ class BlockStore:
         files = self._files(kind)
         if not files:
             return pd.DataFrame()
-        frames = [pd.read_parquet(path) for path in files]
+        frames = [self._own_rows(self._read_file(path), path) for path in files]
         table = pd.concat([f for f in frames if len(f)] or frames[:1], ignore_index=True)
         keys = [k for k in ("block", "model_order") if k in table.columns]
         if keys:
@@ -118,9 +395,13 @@ class BlockStore:
         """
         ranges = []
         for path in self._files(kind):
-            low, high = (
-                int(part[1:] if part.startswith("b") else part) for part in path.stem.split("-")[:2]
-            )
+            try:
+                low, high = (
+                    int(part[1:] if part.startswith("b") else part)
+                    for part in path.stem.split("-")[:2]
+                )
+            except ValueError as error:
+                raise _corrupt(self.root, str(path.relative_to(self.root)), error) from None
             ranges.append((low, high, path))
         if not ranges:
             return
@@ -130,7 +411,10 @@ class BlockStore:
         for start in range(first, last + 1, blocks_per_chunk):
             stop = start + blocks_per_chunk
             frames = [
-                pd.read_parquet(path, filters=[("block", ">=", start), ("block", "<", stop)])
+                self._own_rows(
+                    self._read_file(path, filters=[("block", ">=", start), ("block", "<", stop)]),
+                    path,
+                )
                 for low, high, path in ranges
                 if low < stop and high >= start
             ]
@@ -165,6 +449,7 @@ class BlockStore:
             f"b{int(blocks['block'].min()):07d}-{int(blocks['block'].max()):07d}-"
             f"{uuid.uuid4().hex[:8]}"
         )
+        self._owners_cache = None
         for kind, frame in results.items():
             if kind == BLOCKS_KIND:
                 raise ValueError(f"kind {BLOCKS_KIND!r} is reserved")

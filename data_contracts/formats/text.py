@@ -121,9 +121,11 @@ def read_text_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
             raise fail(f"no time column: give the start time and the sampling rate ({found})")
         start = given
     else:
-        start, step = _times(
+        start, step, seconds = _times(
             path, frame.iloc[:, time_index], headers[time_index], units[time_index], layout, fail
         )
+        if seconds is not None:
+            _check_steps(seconds, rate, headers[time_index], fail)
         if rate is None:
             if not step > 0:
                 raise fail("times do not increase", headers[time_index])
@@ -191,7 +193,7 @@ def _banner(path, separator: str | None) -> tuple[int, dict]:
 
 
 def _times(path, values: pd.Series, header: str, unit: str | None, layout, fail):
-    """Start time and median step [s] of a time column."""
+    """Start time, median step [s] and the times [s] of a time column."""
     fmt = layout.time_format
     numbers = pd.to_numeric(values, errors="coerce")
     is_numeric = numbers.notna().all() and len(numbers) > 0
@@ -207,14 +209,15 @@ def _times(path, values: pd.Series, header: str, unit: str | None, layout, fail)
         seconds = numbers.to_numpy(dtype=float) * scale
         step = float(np.median(np.diff(seconds))) if len(seconds) > 1 else float("nan")
         if fmt == "unix":
-            return pd.Timestamp(round(seconds[0] * 1e9), tz="UTC"), step
+            return pd.Timestamp(round(seconds[0] * 1e9), tz="UTC"), step, seconds
         if layout.start_time is None:
             raise fail(
                 f"holds relative times ({seconds[0]:g} to {seconds[-1]:g} s): give the start "
                 "time of the file",
                 header,
             )
-        return layout_start(layout, path) + pd.Timedelta(seconds=float(seconds[0])), step
+        start = layout_start(layout, path) + pd.Timedelta(seconds=float(seconds[0]))
+        return start, step, seconds
     text = values.astype(str).str.strip()
     times, used = parse_log_times(text, fmt)
     bad = times.isna().to_numpy()
@@ -228,9 +231,45 @@ def _times(path, values: pd.Series, header: str, unit: str | None, layout, fail)
         rows = [f"row {r}" for r in np.nonzero(bad)[0][:5]]
         raise fail(f"not a time in the format {used}", header, rows, int(bad.sum()))
     if len(times) < 2:
-        return times.iat[0], float("nan")
+        return times.iat[0], float("nan"), None
     seconds = (times - times.iat[0]).dt.total_seconds().to_numpy()
-    return times.iat[0], float(np.median(np.diff(seconds)))
+    return times.iat[0], float(np.median(np.diff(seconds))), seconds
+
+
+def _check_steps(seconds: np.ndarray, rate: float | None, header: str, fail) -> None:
+    """Refuse sample times that are not evenly spaced at the rate.
+
+    The times must increase strictly (no shuffled or duplicated rows), every step must lie
+    within half a sample interval of the nominal one (a gap inside a file would shift the
+    later samples) and a given *rate* must agree with the median step.
+    """
+    steps = np.diff(seconds)
+    if len(steps) == 0:
+        return
+    for mask, reason in (
+        (steps == 0, "duplicate sample times"),
+        (steps < 0, "times go backwards (rows out of order)"),
+    ):
+        rows = np.flatnonzero(mask) + 1
+        if len(rows):
+            raise fail(reason, header, [f"row {r}" for r in rows[:5]], len(rows))
+    median = float(np.median(steps))
+    if rate is not None and abs(median * rate - 1.0) > 1e-3:
+        raise fail(
+            f"time step {median:g} s contradicts the sampling rate {rate:g} Hz "
+            f"(step {1 / rate:g} s)",
+            header,
+        )
+    nominal = 1.0 / rate if rate is not None else median
+    rows = np.flatnonzero(np.abs(steps / nominal - 1.0) > 0.5) + 1
+    if len(rows):
+        raise fail(
+            f"uneven sampling: a step of {steps[rows[0] - 1]:g} s (interval {nominal:g} s) - a "
+            "gap inside a file shifts the later samples; split the file at the gap",
+            header,
+            [f"row {r}" for r in rows[:5]],
+            len(rows),
+        )
 
 
 def looks_like_acceleration_table(path: str | os.PathLike) -> bool:

@@ -14,11 +14,6 @@ _ESTIMATES = {
 }
 
 
-def _improvement_pct(error: float, baseline: float) -> float:
-    """100 (1 - error / baseline) %; NaN when the baseline error is zero (no scale)."""
-    return 100.0 * (1.0 - error / baseline) if baseline > 0 else float("nan")
-
-
 def evaluate_against_truth(
     forecast_table: pd.DataFrame,
     truth_modal: pd.DataFrame,
@@ -81,8 +76,9 @@ def evaluate_against_truth(
         }
         common = np.isfinite(error["ssi"]) & np.isfinite(truth_hz)
         cumulative = {key: float(value[common].sum()) for key, value in error.items()}
-        vs_ssi = _improvement_pct(cumulative["kalman"], cumulative["ssi"])
-        vs_model = _improvement_pct(cumulative["kalman"], cumulative["model"])
+        # no SSI estimate in the evaluated rows (or zero error): no improvement to state
+        vs_ssi = _improvement(cumulative["kalman"], cumulative["ssi"])
+        vs_model = _improvement(cumulative["kalman"], cumulative["model"])
         rows.append(
             {
                 "option": option,
@@ -112,3 +108,10 @@ def evaluate_against_truth(
         "improvement_vs_model_pct",
     ]
     return pd.DataFrame(rows, columns=columns)
+
+
+def _improvement(error: float, baseline: float) -> float:
+    """100 (1 - error / baseline) %, NaN when the baseline error is zero or undefined."""
+    if not (np.isfinite(baseline) and baseline > 0):
+        return float("nan")
+    return 100.0 * (1.0 - error / baseline)

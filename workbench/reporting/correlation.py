@@ -46,9 +46,14 @@ def variable_label(name: str) -> str:
     """Short axis label: ``mode3_frequency_hz`` → ``f3 [Hz]``, damping ratio → ``ζ3 [%]``."""
     match = _MODE_COLUMN.match(name)
     if match is None:
-        return name
+        return _literal(name)
     mode, quantity = match.groups()
     return f"f{mode} [Hz]" if quantity == "frequency_hz" else f"ζ{mode} [%]"
+
+
+def _literal(text: str) -> str:
+    """*text* shown as is by matplotlib (``$`` would start mathtext)."""
+    return str(text).replace("$", r"\$")
 
 
 def _display_values(frame: pd.DataFrame, columns: Sequence[str]) -> np.ndarray:
@@ -316,10 +321,12 @@ def correlation_heatmaps(table: pd.DataFrame, *, cases: Sequence[str] | None = N
                         color="black" if significant[a, b] else "0.45",
                         fontweight="bold" if significant[a, b] else "normal",
                     )
-        ax.set_xticks(range(len(columns)), columns, rotation=40, ha="right", fontsize=7)
+        ax.set_xticks(
+            range(len(columns)), [_literal(c) for c in columns], rotation=40, ha="right", fontsize=7
+        )
         ax.set_yticks(range(len(rows)), [variable_label(y) for y in rows], fontsize=7)
         n = int(part["n"].max()) if len(part) else 0
-        ax.set_title(f"{case} (n ≤ {n})", fontsize=9)
+        ax.set_title(f"{_literal(case)} (n ≤ {n})", fontsize=9)
     if image is not None:
         fig.colorbar(image, ax=axes.ravel().tolist(), shrink=0.6, label="Pearson r")
     return fig

@@ -35,6 +35,7 @@ Skipped blocks are not left out silently: :func:`iter_blocks` yields them as
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import zipfile
@@ -102,12 +103,25 @@ class FileInfo:
 
 
 def _npz_info(path: Path) -> FileInfo:
-    with zipfile.ZipFile(path) as archive, archive.open("acceleration.npy") as handle:
-        version = np.lib.format.read_magic(handle)
-        if version == (1, 0):
-            shape, _, _ = np.lib.format.read_array_header_1_0(handle)
-        else:
-            shape, _, _ = np.lib.format.read_array_header_2_0(handle)
+    with zipfile.ZipFile(path) as archive:
+        member = archive.getinfo("acceleration.npy")
+        with archive.open(member) as handle:
+            version = np.lib.format.read_magic(handle)
+            if version == (1, 0):
+                shape, _, dtype = np.lib.format.read_array_header_1_0(handle)
+            else:
+                shape, _, dtype = np.lib.format.read_array_header_2_0(handle)
+            header_bytes = handle.tell()
+    # The samples the header claims must be in the archive (a 1-KB file claiming 30 days
+    # would plan thousands of blocks): stored bytes lie within the file, and deflate
+    # compresses by at most about 1032:1.
+    claimed = header_bytes + int(np.prod(shape)) * np.dtype(dtype).itemsize
+    if (
+        member.file_size < claimed
+        or member.compress_size > path.stat().st_size
+        or member.file_size > 1100 * max(member.compress_size, 1)
+    ):
+        raise ValueError("the array header claims more samples than the file holds")
     with np.load(path, allow_pickle=False) as data:
         rate = float(np.asarray(data["sampling_rate_hz"]).reshape(-1)[0])
         start = str(np.asarray(data["start_time"]).reshape(-1)[0])
@@ -746,5 +760,21 @@ def load_block(
             "outside the span of the acceleration files",
         )
     plan = _plan(touching, grid, None, None, max_gap_s)
+    if all(b.block != k for b in plan.blocks):
+        # The block reaches past the touching files into an allowed gap (the next file
+        # starts after the block's end): plan it on its own, as the full plan does.
+        starts_ns = np.array([_ns(i.start_time) for i in plan.files], dtype=np.int64)
+        ends_ns = np.array([_ns(i.end_time) for i in plan.files], dtype=np.int64)
+        indices, reason = _block_files_and_gap(
+            plan.files,
+            starts_ns,
+            ends_ns,
+            _ns(start),
+            _ns(end),
+            plan.sampling_rate_hz,
+            float(max_gap_s),
+        )
+        single = PlannedBlock(k, start, end, tuple(plan.files[i].path for i in indices), reason)
+        plan = dataclasses.replace(plan, blocks=(single,))
     options.check_rate(plan.sampling_rate_hz)
     return next(_stream(plan, options, [k]))

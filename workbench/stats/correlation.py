@@ -12,6 +12,7 @@ ranges (:func:`read_cases`); the case ``"all"`` stitches the cases together.
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Literal
@@ -278,7 +279,8 @@ def pairwise_pearson(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarr
     b = np.asarray(b, dtype=float)
     valid_a = np.isfinite(a)
     valid_b = np.isfinite(b)
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns: "empty slice"
         a = a - np.where(valid_a.any(0), np.nanmean(np.where(valid_a, a, np.nan), 0), 0.0)
         b = b - np.where(valid_b.any(0), np.nanmean(np.where(valid_b, b, np.nan), 0), 0.0)
     a0 = np.where(valid_a, a, 0.0)

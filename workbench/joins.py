@@ -1,0 +1,160 @@
+"""Checks that tables joined on block numbers mean the same blocks.
+
+Stages join their inputs on ``block`` (the modal table with the block predictors, the
+poles, the true modal table). A block number is only meaningful with its grid: predictors
+of another day, a table shifted by one block or the poles of another voyage carry the same
+numbers for other times. These checks compare the block times (or, for pole tables
+without times, the tracked poles themselves) and raise a one-line
+:class:`~workbench.errors.WorkbenchError` naming the file and the first disagreeing block.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from .errors import WorkbenchError
+
+__all__ = [
+    "check_block_grid",
+    "check_block_times",
+    "check_poles_match",
+    "check_predictors_overlap",
+]
+
+#: Block starts closer than this are the same time (CSV round trips keep microseconds). [s]
+_TIME_TOLERANCE_S = 1e-3
+
+
+def _starts(table: pd.DataFrame) -> pd.Series:
+    starts = table[["block", "block_start"]].drop_duplicates("block").set_index("block")
+    return pd.to_datetime(starts["block_start"], utc=True)
+
+
+def check_block_times(
+    reference: pd.DataFrame, reference_name, other: pd.DataFrame, other_name
+) -> None:
+    """Raise if *other* gives any block number another start time than *reference*, or if
+    the two tables have no block in common.
+
+    Tables without a ``block_start`` column cannot be checked this way and pass.
+
+    Raises
+    ------
+    WorkbenchError
+        ``"<other>: block 7 starts 2026-03-02T00:35:00Z, but 2026-03-01T00:35:00Z in
+        <reference> ..."``.
+    """
+    if reference.empty or other.empty:
+        return
+    if not {"block", "block_start"} <= set(reference.columns) & set(other.columns):
+        return
+    ref, oth = _starts(reference), _starts(other)
+    common = ref.index.intersection(oth.index)
+    if not len(common):
+        raise WorkbenchError(
+            f"{other_name}: no block in common with {reference_name} (blocks "
+            f"{int(oth.index.min())}..{int(oth.index.max())} against "
+            f"{int(ref.index.min())}..{int(ref.index.max())})"
+        )
+    delta = (oth[common] - ref[common]).dt.total_seconds().to_numpy()
+    off = np.abs(delta) > _TIME_TOLERANCE_S
+    if not off.any():
+        return
+    first = common[np.flatnonzero(off)[0]]
+    shift = float(delta[np.flatnonzero(off)[0]])
+    raise WorkbenchError(
+        f"{other_name}: block {int(first)} starts {_iso(oth[first])}, but {_iso(ref[first])} "
+        f"in {reference_name} ({int(off.sum())} of {len(common)} common blocks differ, first "
+        f"by {shift:+g} s): block numbers must mean the same times in every input"
+    )
+
+
+def check_block_grid(table: pd.DataFrame, name) -> None:
+    """Raise if a table's block numbers and block starts do not lie on one grid
+    (``block_start = t0 + block * step``), e.g. a block number of 1e18 among blocks 0..44.
+    """
+    if table.empty or not {"block", "block_start"} <= set(table.columns):
+        return
+    starts = _starts(table).sort_index()
+    if len(starts) < 2:
+        return
+    blocks = starts.index.to_numpy(dtype=float)
+    seconds = (starts - starts.iloc[0]).dt.total_seconds().to_numpy()
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        step = float(np.median(np.diff(seconds) / np.diff(blocks)))
+        off = np.abs(seconds - (blocks - blocks[0]) * step) > _TIME_TOLERANCE_S
+    if not off.any():
+        return
+    k = int(np.flatnonzero(off)[0])
+    raise WorkbenchError(
+        f"{name}: block {int(starts.index[k])} starts {_iso(starts.iloc[k])}, off the grid of "
+        f"the other blocks (a block every {step:g} s from block {int(starts.index[0])} at "
+        f"{_iso(starts.iloc[0])}): block numbers and times disagree"
+    )
+
+
+def check_predictors_overlap(modal: pd.DataFrame, predictors: pd.DataFrame, name) -> None:
+    """Raise if *predictors* have no value at all on the blocks of *modal* (e.g. a ship log
+    of another voyage averaged onto the modal table's blocks)."""
+    columns = [
+        c
+        for c in predictors.columns
+        if c not in ("block", "block_start", "block_end")
+        and pd.api.types.is_numeric_dtype(predictors[c])
+    ]
+    if not columns or modal.empty:
+        return
+    rows = predictors[predictors["block"].isin(modal["block"].unique())]
+    if len(rows) and rows[columns].notna().to_numpy().any():
+        return
+    first, last = modal["block_start"].min(), modal["block_start"].max()
+    raise WorkbenchError(
+        f"{name}: no predictor value on any block of the modal table ({_iso(first)} to "
+        f"{_iso(last)}): the ship log or predictor table does not overlap the blocks"
+    )
+
+
+def check_poles_match(
+    modal: pd.DataFrame, modal_name, poles: pd.DataFrame, poles_name, *, min_share: float = 0.5
+) -> None:
+    """Raise if *poles* do not hold the tracked poles of *modal* (another voyage's poles).
+
+    With ``block_start`` in both tables the block times are compared. Otherwise, when the
+    modal table records each mode's ``model_order``, the tracked frequency must be one of
+    the poles of its block and order (relative difference 1e-6) for at least *min_share*
+    of the rows of the blocks they share.
+    """
+    if "block_start" in poles.columns:
+        check_block_times(modal, modal_name, poles, poles_name)
+        return
+    if modal.empty or poles.empty or "model_order" not in modal.columns:
+        return
+    tracked = modal.dropna(subset=["model_order", "frequency_hz"])
+    tracked = tracked[tracked["block"].isin(poles["block"].unique())]
+    if not len(common_blocks := tracked["block"].unique()):
+        raise WorkbenchError(
+            f"{poles_name}: no block in common with {modal_name} (poles of another voyage?)"
+        )
+    keys = tracked[["block", "model_order", "frequency_hz"]].astype({"model_order": "int64"})
+    keys = keys.reset_index(drop=True).reset_index(names="row")
+    candidates = poles[poles["block"].isin(common_blocks)][["block", "model_order", "frequency_hz"]]
+    merged = keys.merge(
+        candidates.astype({"model_order": "int64"}),
+        on=["block", "model_order"],
+        suffixes=("", "_pole"),
+    )
+    close = np.abs(merged["frequency_hz_pole"] - merged["frequency_hz"]) <= 1e-6 * np.maximum(
+        merged["frequency_hz"].abs(), 1.0
+    )
+    found = merged.loc[close, "row"].nunique()
+    if found < min_share * len(keys):
+        raise WorkbenchError(
+            f"{poles_name}: only {found} of {len(keys)} tracked poles of {modal_name} are "
+            "among these poles at their block and model order: poles of another voyage or "
+            "shifted blocks"
+        )
+
+
+def _iso(time) -> str:
+    return pd.Timestamp(time).strftime("%Y-%m-%dT%H:%M:%SZ")
