@@ -14,6 +14,7 @@ from .accelerations import (
     write_accelerations,
 )
 from .dship import DEFAULT_DSHIP_MAPPING, DSHIP_LOG, read_dship
+from .health import ALARMS, HEALTH
 from .tables import (
     CANONICAL_PREDICTORS,
     CONTRACTS,
@@ -29,6 +30,8 @@ from .tables import (
 )
 
 __all__ = [
+    "ALARMS",
+    "HEALTH",
     "CANONICAL_PREDICTORS",
     "CONTRACTS",
     "DEFAULT_DSHIP_MAPPING",

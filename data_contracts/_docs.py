@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from ._core import TableContract
 from .dship import DEFAULT_DSHIP_MAPPING, DSHIP_LOG
+from .health import ALARMS, HEALTH
 from .tables import FORECAST, MODAL, POLES, PREDICTORS
 
 _INTRO = """\
@@ -111,6 +112,8 @@ _TITLES = {
     "modal": "Tracked modal table",
     "poles": "Pole table",
     "forecast": "Forecast table",
+    "health": "Structural-health chart",
+    "alarms": "Structural-health alarms",
 }
 
 
@@ -122,7 +125,7 @@ def render_markdown() -> str:
     )
     parts = [_INTRO.replace("{mapping}", mapping).rstrip("\n")]
     parts.append("Canonical log after parsing:\n\n" + _columns_table(DSHIP_LOG))
-    for contract in (PREDICTORS, MODAL, POLES, FORECAST):
+    for contract in (PREDICTORS, MODAL, POLES, FORECAST, HEALTH, ALARMS):
         parts.append(
             f"## {_TITLES[contract.name]} (`{contract.name}`)\n\n"
             f"{contract.description}\n\n"
