@@ -117,7 +117,9 @@ def test_bad_options_name_the_parameter(field, value):
 def test_too_short_forecast_and_bad_contract_are_reported():
     voyage = simulate_health_voyage(6, seed=0)
     forecast = law_forecast(voyage)
-    with pytest.raises(ValueError, match="reference period of 144 blocks"):
+    with pytest.raises(
+        ValueError, match="reference period of 144 blocks from block 0 but the forecast has only 69 blocks"
+    ):
         health_chart(forecast, OPTIONS)
     with pytest.raises(ContractError, match="model_frequency_hz"):
         health_chart(forecast.drop(columns="model_frequency_hz"), OPTIONS)

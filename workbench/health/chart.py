@@ -9,15 +9,17 @@ residuals over a reference period and flags blocks where they leave it.
 from __future__ import annotations
 
 import math
+import os
 import warnings
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Literal
 
 import numpy as np
 import pandas as pd
 from scipy import stats as _scipy_stats
 
-from data_contracts import ALARMS, FORECAST, HEALTH
+from data_contracts import ALARMS, FORECAST, HEALTH, write_table
 
 __all__ = ["HealthOptions", "HealthReference", "HealthResult", "health_chart"]
 
@@ -150,6 +152,15 @@ class HealthResult:
     alarms: pd.DataFrame
     reference: HealthReference
     options: HealthOptions = field(default_factory=HealthOptions)
+
+    def save(self, out: str | os.PathLike) -> dict[str, Path]:
+        """Write ``health.csv`` and ``alarms.csv`` into folder *out* (each atomically)."""
+        folder = Path(out)
+        folder.mkdir(parents=True, exist_ok=True)
+        return {
+            "health": write_table(self.table, folder / "health.csv", HEALTH),
+            "alarms": write_table(self.alarms, folder / "alarms.csv", ALARMS),
+        }
 
     def summary(self) -> str:
         """A few lines a structural engineer reads."""
@@ -352,7 +363,7 @@ def health_chart(forecast: pd.DataFrame, options: HealthOptions | None = None) -
     if stop > len(blocks):
         raise ValueError(
             f"reference period of {options.reference_blocks} blocks from block {ref_start} "
-            f"needs blocks up to position {stop}, forecast has {len(blocks) - first}"
+            f"but the forecast has only {len(blocks) - first} blocks from there"
         )
     reference = wide.iloc[first:stop]
     valid_share = reference.notna().mean()
