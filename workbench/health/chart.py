@@ -319,6 +319,14 @@ def health_chart(forecast: pd.DataFrame, options: HealthOptions | None = None) -
        σ* are estimated, followed by one day standardised with them. Σ_z is the second
        moment of the replicates' EWMA on their day, and the limit the smallest h whose
        upcrossings stay at ``false_alarms_per_day``.
+
+       Known limitation: Σ_z is estimated once from the reference sample, not per
+       replicate, so the limit does not carry the error of Σ_z itself. Measured with a
+       12-h (144-block) reference and the 0.1/day target: 0.3-0.4 alarm episodes per day on
+       white Gaussian residuals (3 seeds, 20 days each) and 0.6 per day on the
+       block-level voyages of ``benchmarks/bench_health.py`` with the true law as model
+       (10 seeds). A longer reference, or an upper quantile of replicate limits
+       (Gandy and Kvaløy 2013, doi:10.1111/sjos.12006), would tighten it.
     5. *Evidence.* T² = Σ_j z_j (Σ_z⁻¹ z)_j; the shares at the peak of an episode name the
        modes that moved; the top mode's median relative residual over the episode minus
        its reference median estimates its frequency shift (a stiffness loss k lowers the
