@@ -15,6 +15,7 @@ from .accelerations import (
 )
 from .dship import DEFAULT_DSHIP_MAPPING, DSHIP_LOG, read_dship
 from .geometry import SENSOR_GEOMETRY, geometry_directions
+from .health import ALARMS, HEALTH
 from .tables import (
     CANONICAL_PREDICTORS,
     CONTRACTS,
@@ -30,6 +31,8 @@ from .tables import (
 )
 
 __all__ = [
+    "ALARMS",
+    "HEALTH",
     "CANONICAL_PREDICTORS",
     "CONTRACTS",
     "DEFAULT_DSHIP_MAPPING",

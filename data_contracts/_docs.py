@@ -10,6 +10,7 @@ from ._core import TableContract
 from .dship import DSHIP_LOG
 from .dship_names import DSHIP_NAMES
 from .geometry import SENSOR_GEOMETRY
+from .health import ALARMS, HEALTH
 from .tables import FORECAST, MODAL, POLES, PREDICTORS
 
 _INTRO = """\
@@ -153,6 +154,8 @@ _TITLES = {
     "poles": "Pole table",
     "forecast": "Forecast table",
     "sensor_geometry": "Sensor geometry",
+    "health": "Structural-health chart",
+    "alarms": "Structural-health alarms",
 }
 
 
@@ -164,7 +167,7 @@ def render_markdown() -> str:
     )
     parts = [_INTRO.replace("{mapping}", mapping).rstrip("\n")]
     parts.append("Canonical log after parsing:\n\n" + _columns_table(DSHIP_LOG))
-    for contract in (PREDICTORS, MODAL, POLES, FORECAST, SENSOR_GEOMETRY):
+    for contract in (PREDICTORS, MODAL, POLES, FORECAST, SENSOR_GEOMETRY, HEALTH, ALARMS):
         parts.append(
             f"## {_TITLES[contract.name]} (`{contract.name}`)\n\n"
             f"{contract.description}\n\n"

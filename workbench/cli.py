@@ -1111,6 +1111,59 @@ def _run_report(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _add_health(commands: argparse._SubParsersAction) -> None:
+    from .health import HealthOptions
+
+    defaults = HealthOptions()
+    parser = commands.add_parser(
+        "health",
+        help="structural-health control chart of a forecast's frequency residuals",
+        description="MEWMA/Hotelling chart of the standardised residuals (SSI minus model) "
+        "of a forecast table: learns a reference period, then writes health.csv (statistic, "
+        "limit, alarm per block) and alarms.csv (episodes with the modes that moved). Use a "
+        "forecast whose model is frozen before the reference period (forecast --method 1).",
+    )
+    parser.add_argument("--forecast", type=Path, required=True, metavar="FILE")
+    parser.add_argument(
+        "--reference-hours", type=float, default=6.0, help="reference period length [h]"
+    )
+    parser.add_argument("--reference-start-block", type=int, metavar="K")
+    parser.add_argument("--ewma-lambda", type=float, default=defaults.ewma_lambda)
+    parser.add_argument("--false-alarms-per-day", type=float, default=defaults.false_alarms_per_day)
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR")
+    parser.set_defaults(run=_run_health)
+
+
+def _run_health(args: argparse.Namespace) -> int:
+    from data_contracts import FORECAST, read_table
+
+    from .health import HealthOptions, health_chart
+
+    forecast = read_table(args.forecast, FORECAST)
+    step_h = forecast["block_start"].drop_duplicates().sort_values().diff().median()
+    blocks = int(round(args.reference_hours * 3600 / step_h.total_seconds()))
+    try:
+        options = HealthOptions(
+            reference_blocks=blocks,
+            reference_start_block=args.reference_start_block,
+            ewma_lambda=args.ewma_lambda,
+            false_alarms_per_day=args.false_alarms_per_day,
+        )
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    try:
+        result = health_chart(forecast, options)
+    except ContractError:
+        raise
+    except ValueError as error:
+        raise WorkbenchError(f"{args.forecast}: {error}") from None
+    paths = result.save(args.out)
+    print(result.summary())
+    for path in paths.values():
+        print(f"wrote {path}")
+    return EXIT_OK
+
+
 #: Subcommands in the order ``--help`` lists them.
 COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_demo,
@@ -1123,6 +1176,7 @@ COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_forecast,
     _add_evaluate,
     _add_report,
+    _add_health,
     _add_validate,
 )
 

@@ -1,0 +1,125 @@
+"""Structural-health chart: invariants on block-level voyages with known damage.
+
+Voyages come from :func:`workbench.health.simulate_health_voyage` (demo hull law, SSI-like
+errors correlated as 75 %-overlapping blocks give). The operational model is the hull's law
+at the logged predictors (:func:`law_forecast`), so what is tested is the chart; the real
+stepwise forecast is measured in ``benchmarks/bench_health.py``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from data_contracts import ALARMS, HEALTH, ContractError, read_table, write_table
+from workbench.health import (
+    HealthOptions,
+    detection_delay_hours,
+    health_chart,
+    law_forecast,
+    simulate_health_voyage,
+)
+from workbench.health.chart import ewma_hold, hotelling, upcrossings_per_day
+
+#: 12 h reference (one full operating cycle: rest, 10 kn, alternating, temperature drift).
+OPTIONS = HealthOptions(reference_blocks=144, reference_start_block=0)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_stiffness_loss_alarms_within_two_hours_and_names_the_mode(seed):
+    voyage = simulate_health_voyage(
+        24, seed=seed, damaged_mode=3, stiffness_loss=0.02, damage_after_hours=16
+    )
+    result = health_chart(law_forecast(voyage), OPTIONS)
+    assert detection_delay_hours(voyage, result.table) <= 2.0
+    alarms = result.alarms
+    first = alarms[alarms["end_time"] + pd.Timedelta(minutes=20) > voyage.damage_time].iloc[0]
+    assert first["top_mode"] == 3
+    # 2 % stiffness loss: frequency x sqrt(0.98), -1.005 %; 0.4 % is about three standard
+    # errors of a median over an episode of 10-30 correlated blocks with 0.4 % scatter
+    assert first["top_mode_shift_percent"] == pytest.approx(100 * (math.sqrt(0.98) - 1), abs=0.4)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_changes_explained_by_the_model_do_not_alarm_unexplained_ones_do(seed):
+    # no damage; the 6-h reference holds rest and 10 kn, the 6 h monitored then bring the
+    # 0-10 kn alternation and 3 °C of water warming: the frequencies move by up to 3 %,
+    # 5-10 x the identification scatter (6 seeds checked: no alarm with the law)
+    voyage = simulate_health_voyage(12, seed=seed)
+    options = HealthOptions(reference_blocks=72, reference_start_block=0)
+    result = health_chart(law_forecast(voyage), options)
+    assert not result.table["alarm"].any()
+    assert result.alarms.empty
+    # a model blind to temperature (temperatures held at their reference medians) misses
+    # the warming and alarms on it
+    blind = voyage.predictors.copy()
+    for column in ("water_temp_c", "air_temp_c"):
+        blind[column] = blind.loc[:71, column].median()
+    unexplained = health_chart(law_forecast(dataclasses.replace(voyage, predictors=blind)), options)
+    monitored = unexplained.table[unexplained.table["phase"] == "monitor"]
+    assert monitored["alarm"].mean() > 0.2
+
+
+def test_tables_follow_their_contracts_and_round_trip(tmp_path):
+    voyage = simulate_health_voyage(
+        24, seed=0, damaged_mode=3, stiffness_loss=0.02, damage_after_hours=16
+    )
+    result = health_chart(law_forecast(voyage), OPTIONS)
+    assert len(result.alarms) >= 1
+    for table, contract, name in (
+        (result.table, HEALTH, "health.csv"),
+        (result.alarms, ALARMS, "alarms.csv"),
+    ):
+        back = read_table(write_table(table, tmp_path / name, contract), contract)
+        pd.testing.assert_frame_equal(back, contract.validate(table), check_dtype=False)
+    shares = result.table.filter(like="contribution_").sum(axis=1)
+    assert np.allclose(shares[result.table["statistic"] > 0], 1.0)
+    assert "alarm 1: blocks" in result.summary()
+
+
+def test_a_mode_missing_from_the_reference_is_left_out():
+    voyage = simulate_health_voyage(24, seed=0)
+    forecast = law_forecast(voyage)
+    forecast.loc[(forecast["mode"] == 4) & (forecast["block"] < 120), "ssi_frequency_hz"] = np.nan
+    result = health_chart(forecast, OPTIONS)
+    assert result.reference.modes == (1, 2, 3, 5, 6, 7)
+    assert result.reference.excluded_modes == (4,)
+    assert "contribution_4" not in result.table.columns
+
+
+def test_ewma_holds_through_missing_values_and_hotelling_parts_sum():
+    x = np.array([[1.0, 2.0], [np.nan, 2.0], [1.0, np.nan]])
+    z = ewma_hold(x, 0.5)
+    assert np.allclose(z, [[0.5, 1.0], [0.5, 1.5], [0.75, 1.5]])
+    covariance = np.array([[2.0, 0.5], [0.5, 1.0]])
+    t2, parts = hotelling(z, covariance)
+    expected = np.einsum("ij,jk,ik->i", z, np.linalg.inv(covariance), z)
+    assert np.allclose(t2, expected)
+    assert np.allclose(parts.sum(axis=1), t2)
+    # two upcrossings in 4 blocks at 288 blocks per day
+    assert upcrossings_per_day(np.array([2.0, 0.0, 2.0, 2.0]), 1.0, 288.0) == 144.0
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("ewma_lambda", 0.0), ("reference_blocks", 5), ("false_alarms_per_day", -1.0)],
+)
+def test_bad_options_name_the_parameter(field, value):
+    with pytest.raises(ValueError, match=field) as error:
+        HealthOptions(**{field: value})
+    assert str(value) in str(error.value)
+
+
+def test_too_short_forecast_and_bad_contract_are_reported():
+    voyage = simulate_health_voyage(6, seed=0)
+    forecast = law_forecast(voyage)
+    with pytest.raises(
+        ValueError, match="reference period of 144 blocks from block 0 but the forecast has only 69 blocks"
+    ):
+        health_chart(forecast, OPTIONS)
+    with pytest.raises(ContractError, match="model_frequency_hz"):
+        health_chart(forecast.drop(columns="model_frequency_hz"), OPTIONS)

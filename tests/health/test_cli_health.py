@@ -1,0 +1,43 @@
+"""``workbench health``: files written, exit statuses 0 / 1 (bad data) / 2 (usage)."""
+
+from __future__ import annotations
+
+import pytest
+
+from data_contracts import ALARMS, FORECAST, HEALTH, read_table, write_table
+from workbench.cli import main
+from workbench.health import law_forecast, simulate_health_voyage
+
+
+@pytest.fixture(scope="module")
+def forecast_file(tmp_path_factory):
+    voyage = simulate_health_voyage(
+        24, seed=0, damaged_mode=3, stiffness_loss=0.02, damage_after_hours=16
+    )
+    path = tmp_path_factory.mktemp("health") / "forecast.csv"
+    return write_table(law_forecast(voyage), path, FORECAST)
+
+
+def test_health_writes_tables_and_summary(forecast_file, tmp_path, capsys):
+    out = tmp_path / "out"
+    status = main(
+        ["health", "--forecast", str(forecast_file), "--reference-hours", "12",
+         "--reference-start-block", "0", "--out", str(out)]
+    )  # fmt: skip
+    assert status == 0
+    health = read_table(out / "health.csv", HEALTH)
+    alarms = read_table(out / "alarms.csv", ALARMS)
+    assert (health["phase"] == "reference").sum() == 144
+    assert alarms["top_mode"].iloc[-1] == 3
+    assert "alarm episode" in capsys.readouterr().out
+
+
+def test_health_reports_bad_data_and_usage_in_one_line(forecast_file, tmp_path, capsys):
+    too_long = ["--reference-hours", "30", "--out", str(tmp_path)]
+    assert main(["health", "--forecast", str(forecast_file), *too_long]) == 1
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1 and "forecast.csv" in error and "360 blocks" in error
+    bad_lambda = ["--ewma-lambda", "2", "--out", str(tmp_path)]
+    assert main(["health", "--forecast", str(forecast_file), *bad_lambda]) == 2
+    assert "ewma_lambda=2.0" in capsys.readouterr().err
+    assert main(["health", "--forecast", str(tmp_path / "none.csv"), "--out", "x"]) == 1
