@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import shutil
+
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
@@ -119,3 +121,39 @@ def test_registered_sections_come_after_the_built_in_ones(short_run, monkeypatch
     text = page.read_text(encoding="utf-8")
     assert text.index('id="modes"') < text.index('id="agreement"')
     assert "Method agreement" in text and "4.69" in text
+
+
+def test_crosscheck_section_shows_the_ssi_lscf_agreement_per_block(short_run, tmp_path):
+    # two blocks: block 0 with three SSI modes, two of which LSCF finds (0.05 % and 0.2 %
+    # apart), block 1 with one mode both find 0.02 % apart; identical shapes (MAC 1)
+    from workbench.reporting import report
+    from workbench.sid.crosscheck import cross_check
+
+    shapes = np.eye(3, dtype=complex)
+    table = pd.concat(
+        [
+            cross_check(
+                [2.0, 3.0, 5.0],
+                [0.01, 0.01, 0.02],
+                shapes,
+                [2.001, 3.006],
+                [0.011, 0.012],
+                shapes[:, :2],
+                block=0,
+            ),
+            cross_check([4.0], [0.01], shapes[:, :1], [4.0008], [0.01], shapes[:, :1], block=1),
+        ]
+    )
+    identify = tmp_path / "identify"
+    shutil.copytree(find_run(short_run).identify, identify)
+    table.to_csv(identify / "crosscheck.csv", index=False)
+    run = report.RunFiles(tmp_path, identify=identify, tracked=short_run / "tracked_modal.csv")
+    section = report._crosscheck_section(run)
+    shown = section.tables[0][1].set_index("block")
+    assert shown.loc[0, "pairs"] == 2 and shown.loc[0, "SSI modes"] == 3
+    assert shown.loc[0, "within 0.1 %"] == 1  # 0.05 % agrees, 0.2 % does not
+    assert shown.loc[0, "max |Δf|/f [%]"] == pytest.approx(0.2)
+    assert shown.loc[1, "max |Δf|/f [%]"] == pytest.approx(0.02)
+    assert shown.loc[1, "lowest MAC"] == pytest.approx(1.0)
+    page = build_report(tmp_path, out=tmp_path / "page.html", run=run, dpi=40)
+    assert "SSI / LSCF cross-check" in page.read_text(encoding="utf-8")

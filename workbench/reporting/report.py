@@ -912,6 +912,9 @@ def build_report(
         )
         if path is not None and path.exists()
     ]
+    crosscheck = _crosscheck_section(run)
+    if crosscheck is not None:
+        sections.append(crosscheck)
     for builder in _SECTION_BUILDERS:
         extra = builder(run, figures.save)
         if extra is not None:
@@ -938,6 +941,41 @@ def build_report(
     with atomic_path(out) as tmp:
         tmp.write_text(page, encoding="utf-8")
     return out
+
+
+def _crosscheck_section(run: RunFiles) -> ReportSection | None:
+    """SSI/LSCF agreement per block from identify's ``crosscheck.csv`` (None without it)."""
+    from workbench.sid.crosscheck import agreement_by_block, agreement_lines
+
+    path = run.identify / "crosscheck.csv" if run.identify is not None else None
+    if path is None or not path.is_file():
+        return None
+    table = pd.read_csv(path)
+    if table.empty:
+        return None
+    by_block = agreement_by_block(table)
+    shown = pd.DataFrame(
+        {
+            "block": by_block["block"],
+            "SSI modes": by_block["ssi_modes"],
+            "LSCF modes": by_block["lscf_modes"],
+            "pairs": by_block["pairs"],
+            "within 0.1 %": by_block["agreeing"],
+            "max |Δf|/f [%]": 100 * by_block["frequency_difference_max"],
+            "median |Δζ|/ζ [%]": 100 * by_block["damping_difference_median"],
+            "lowest MAC": by_block["mac_min"],
+        }
+    )
+    return ReportSection(
+        "crosscheck",
+        "SSI / LSCF cross-check",
+        paragraphs=[
+            "The selected modes of the same blocks identified by SSI and by poly-reference "
+            "LSCF, paired one-to-one (within 1 % in frequency and MAC >= 0.8).",
+            *agreement_lines(table),
+        ],
+        tables=[("Agreement per block", shown)],
+    )
 
 
 def _render_section(section: ReportSection) -> dict:
