@@ -28,7 +28,7 @@ import pandas as pd
 
 from .conditioning import MAX_INTERPOLATED_NAN_RUN_S, _as_2d, _positive, detrend, nan_runs
 
-__all__ = ["WindowMoments", "faulty_channels", "moments"]
+__all__ = ["WindowMoments", "channel_verdicts", "faulty_channels", "moments"]
 
 #: Smallest robust spread of the natural log-variance across channels used in the
 #: variance z-score (channels with nearly equal variance would otherwise give huge z).
@@ -256,6 +256,54 @@ def faulty_channels(
         variance[group] = m2
         kurtosis[group] = _shape_statistics(m2, np.zeros_like(m2), m4)[1]
 
+    return channel_verdicts(
+        names,
+        nan_fraction,
+        longest,
+        variance,
+        kurtosis,
+        max_nan_fraction=max_nan_fraction,
+        max_nan_run_s=max_nan_run_s,
+        kurtosis_limits=kurtosis_limits,
+        flat_variance=flat_variance,
+        max_variance_z=max_variance_z,
+    )
+
+
+def channel_verdicts(
+    channels: Sequence[str],
+    nan_fraction: np.ndarray,
+    longest: np.ndarray,
+    variance: np.ndarray,
+    kurtosis: np.ndarray,
+    *,
+    max_nan_fraction: float = 0.05,
+    max_nan_run_s: float = MAX_INTERPOLATED_NAN_RUN_S,
+    kurtosis_limits: tuple[float, float] = (1.3, 10.0),
+    flat_variance: float = 1e-12,
+    max_variance_z: float = 6.0,
+) -> pd.DataFrame:
+    """The verdicts of :func:`faulty_channels` from the block statistics it computes.
+
+    Parameters
+    ----------
+    channels : sequence of str
+    nan_fraction, longest, variance, kurtosis : ndarray, shape (n_channels,)
+        Fraction of NaN samples, longest NaN run [s], variance [(m/s²)²] and kurtosis of
+        the linearly detrended block (NaN where undefined).
+    max_nan_fraction, max_nan_run_s, kurtosis_limits, flat_variance, max_variance_z
+        As for :func:`faulty_channels`.
+
+    Returns
+    -------
+    DataFrame
+        As :func:`faulty_channels` returns.
+    """
+    names = [str(c) for c in channels]
+    n_channels = len(names)
+    low, high = (float(v) for v in kurtosis_limits)
+    if not low < high:
+        raise ValueError(f"kurtosis_limits={kurtosis_limits} must be (lower, upper)")
     usable = np.isfinite(variance) & (variance > flat_variance)
     z = np.full(n_channels, np.nan)
     if usable.sum() >= 3:
