@@ -84,6 +84,15 @@ def _add_simulate(commands: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--no-accelerations", action="store_true", help="skip the acceleration files (tables only)"
     )
+    parser.add_argument(
+        "--rate",
+        type=float,
+        default=64.0,
+        metavar="HZ",
+        help="sampling rate of the acceleration files, a multiple of 64 Hz (e.g. 2048, a "
+        "recorder's rate: same modal physics, broadband content and a 60 Hz hum above the "
+        "band) [default: 64]",
+    )
     parser.set_defaults(run=_run_simulate)
 
 
@@ -96,7 +105,11 @@ def _run_simulate(args: argparse.Namespace) -> int:
 
     try:
         voyage = simulate_voyage(
-            args.out, seed=args.seed, hours=args.hours, accelerations=not args.no_accelerations
+            args.out,
+            seed=args.seed,
+            hours=args.hours,
+            accelerations=not args.no_accelerations,
+            sampling_rate_hz=args.rate,
         )
     except ValueError as error:  # e.g. a voyage shorter than one block
         raise UsageError(str(error)) from None
@@ -238,7 +251,14 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
         "--reference", metavar="CH,CH,...", help="reference channels (default: all)"
     )
     parser.add_argument(
-        "--rate", type=float, metavar="HZ", help="decimate to this sampling rate first (e.g. 64)"
+        "--rate",
+        type=_analysis_rate,
+        default="auto",
+        metavar="HZ|auto|native",
+        help="analysis rate the files are decimated to (Chebyshev I, each file once). "
+        "'auto' (default): the files' rate halved while it stays at or above 4 x the "
+        "band's upper edge (2048 Hz files and the 2-12 Hz band -> 64 Hz; 64 Hz files stay); "
+        "'native': keep the files' rate",
     )
     parser.add_argument(
         "--band",
@@ -249,6 +269,13 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
         help="band-pass and selection band [Hz]",
     )
     parser.add_argument("--no-band", action="store_true", help="no band-pass filter")
+    parser.add_argument(
+        "--conditioning",
+        choices=("per-file", "per-block"),
+        default="per-file",
+        help="when decimating: condition each file once (default) or every block from its "
+        "raw files (reference path, slower)",
+    )
     parser.add_argument("--block-minutes", type=float, default=20.0)
     parser.add_argument("--step-minutes", type=float, default=5.0)
     parser.add_argument(
@@ -276,6 +303,21 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
     parser.set_defaults(run=_run_identify)
 
 
+def _analysis_rate(text: str):
+    """``--rate``: a rate in Hz, ``auto`` or ``native`` (None: the files' rate)."""
+    if text.lower() in ("auto", "native"):
+        return None if text.lower() == "native" else "auto"
+    try:
+        rate = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a rate in Hz, 'auto' or 'native'"
+        ) from None
+    if not rate > 0:
+        raise argparse.ArgumentTypeError(f"rate {text} Hz must be positive")
+    return rate
+
+
 def _run_identify(args: argparse.Namespace) -> int:
     from .identify import IdentifyOptions, identify_voyage
 
@@ -293,6 +335,7 @@ def _run_identify(args: argparse.Namespace) -> int:
             target_rate_hz=args.rate,
             band_hz=None if args.no_band else tuple(args.band),
             max_gap_s=args.max_gap,
+            conditioning=args.conditioning,
         )
     except ValueError as error:
         raise UsageError(str(error)) from None

@@ -61,7 +61,6 @@ from ..blocks import BlockGrid
 from .conditioning import (
     MAX_INTERPOLATED_NAN_RUN_S,
     bandpass,
-    decimate,
     decimation_stages,
     interpolate_nan_runs,
 )
@@ -188,6 +187,17 @@ def padding_samples(
     return int(math.ceil(total / factor) * factor)
 
 
+def _decimate_channels_last(x: np.ndarray, factor: int, order: int = 8, ripple_db: float = 0.05):
+    """:func:`~workbench.signals.conditioning.decimate` of finite samples laid out as
+    (n_channels, n_samples): the same Chebyshev type I stages and zero-phase filtering
+    (equal to the last bit, tested), filtering along the contiguous axis, which is twice as
+    fast as along the rows of an (n_samples, n_channels) array."""
+    for q in decimation_stages(factor):
+        sos = signal.cheby1(int(order), ripple_db, 0.8 / q, output="sos")
+        x = signal.sosfiltfilt(sos, x, axis=-1)[:, ::q]
+    return x
+
+
 # ----------------------------------------------------------------------------------------
 # partial reads
 # ----------------------------------------------------------------------------------------
@@ -264,30 +274,39 @@ class _StepSums:
     longest_nan: np.ndarray
 
 
-def _step_sums(x: np.ndarray, first_ns: int, rate: float) -> _StepSums:
+def _step_sums(x: np.ndarray, first_ns: int, rate: float, chunk: int = 2048) -> _StepSums:
     n, n_channels = x.shape
     missing = np.isnan(x)
-    finite = ~missing
-    count = finite.sum(axis=0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        offset = np.where(count > 0, np.where(finite, x, 0.0).sum(axis=0) / np.maximum(count, 1), 0)
-    u = np.where(finite, x - offset, 0.0)
+    any_missing = bool(missing.any())
     half = (n - 1) / 2.0
-    tau = (np.arange(n) - half) / (half if half > 0 else 1.0)
+    scale = half if half > 0 else 1.0
+    if any_missing:
+        count = n - missing.sum(axis=0)
+        with np.errstate(invalid="ignore"):
+            offset = np.where(count > 0, np.nansum(x, axis=0) / np.maximum(count, 1), 0.0)
+    else:
+        offset = x.mean(axis=0) if n else np.zeros(n_channels)
     sums = np.zeros((5, 5, n_channels))
-    weight = finite.astype(float)
-    powers = [weight, u]
-    for _ in range(3):
-        powers.append(powers[-1] * u)
-    tau_power = np.ones(n)
-    for j in range(5):
-        for i in range(5 - j):
-            sums[i, j] = tau_power @ powers[i]
-        tau_power = tau_power * tau
+    # row chunks that stay in cache: sums[i, j] = sum_t u_t**i tau_t**j (finite samples)
+    for lo in range(0, n, chunk):
+        hi = min(n, lo + chunk)
+        tau = (np.arange(lo, hi) - half) / scale
+        basis = np.vander(tau, 5, increasing=True)  # (m, 5): 1, tau, ..., tau**4
+        u = x[lo:hi] - offset
+        if any_missing:
+            weight = ~missing[lo:hi]
+            u = np.where(weight, u, 0.0)
+            power = weight.astype(float)
+        else:
+            power = np.ones_like(u)
+        for i in range(5):
+            sums[i, : 5 - i] += (power.T @ basis[:, : 5 - i]).T
+            if i < 4:
+                power = power * u
     leading = np.zeros(n_channels, dtype=np.int64)
     trailing = np.zeros(n_channels, dtype=np.int64)
     longest = np.zeros(n_channels, dtype=np.int64)
-    for j in np.flatnonzero(missing.any(axis=0)):
+    for j in np.flatnonzero(missing.any(axis=0)) if any_missing else ():
         column = missing[:, j]
         if column.all():
             leading[j] = trailing[j] = longest[j] = n
@@ -494,11 +513,13 @@ class FileConditioner:
         padded = np.concatenate(parts) if len(parts) > 1 else raw
         origin = start - before  # raw lattice index of padded[0]
         lead = (-origin) % f
-        x = interpolate_nan_runs(padded[lead:], self.rate, max_run_s=self.max_nan_run_s)
-        bad = np.isnan(x).any(axis=0)
-        if bad.any():  # runs too long to bridge: the channel is faulty wherever they lie
-            x[:, bad] = 0.0
-        y = decimate(x, self.rate, self.target_rate_hz)
+        x = padded[lead:]
+        bad = np.zeros(x.shape[1], dtype=bool)
+        if np.isnan(x).any():
+            x = interpolate_nan_runs(x, self.rate, max_run_s=self.max_nan_run_s)
+            bad = np.isnan(x).any(axis=0)
+            x[:, bad] = 0.0  # runs too long to bridge: the channel is faulty around them
+        y = _decimate_channels_last(np.ascontiguousarray(x.T), self.factor).T
         if self.band_hz is not None:
             y = bandpass(y, self.target_rate_hz, *self.band_hz)
         # analysis samples m * f with start <= m * f < start + n belong to this file
