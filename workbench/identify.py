@@ -496,8 +496,11 @@ def identify_voyage(
     if per_file:
         done = store.completed_blocks()
         todo = [t for t in tasks if t.block not in done]
+        # runs of up to 24 blocks (2 h), a whole number per worker: files at the ends of
+        # a run are conditioned by both runs sharing them
         workers = n_workers or os.cpu_count() or 1
-        size = min(24, max(4, -(-len(todo) // (2 * workers))))
+        n_runs = workers * max(1, -(-len(todo) // (24 * workers)))
+        size = max(1, -(-len(todo) // n_runs))
         units = [t for t in tasks if t.block in done] + _runs(todo, plan, size)
         func = functools.partial(identify_run, grid=grid, channels=channels, options=options)
     else:

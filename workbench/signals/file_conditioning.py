@@ -456,7 +456,6 @@ class FileConditioner:
         self._t0_ns = pd.Timestamp(grid.t0).as_unit("ns").value
         self._starts_ns = np.array([_start_ns(i) for i in self.files], dtype=np.int64)
         self._cache: dict[int, _ConditionedFile] = {}
-        self._raw: tuple[int, np.ndarray] | None = None
         self.fallbacks = 0  # blocks built by load_block
 
     # -- lattice helpers ------------------------------------------------------------------
@@ -477,8 +476,6 @@ class FileConditioner:
 
     # -- conditioning of one file -----------------------------------------------------------
     def _raw_file(self, index: int) -> np.ndarray:
-        if self._raw is not None and self._raw[0] == index:
-            return self._raw[1]
         info = self.files[index]
         record = read_accelerations(info.path)
         if record.sampling_rate_hz != info.sampling_rate_hz or record.n_samples != info.n_samples:
@@ -486,7 +483,6 @@ class FileConditioner:
         x = record.acceleration
         if record.channels != self.channels:
             x = x[:, [record.channels.index(c) for c in self.channels]]
-        self._raw = (index, x)
         return x
 
     def _conditioned(self, index: int) -> _ConditionedFile:
@@ -510,16 +506,20 @@ class FileConditioner:
         parts.append(raw)
         if self._contiguous(index, index + 1):
             parts.append(_read_rows(self.files[index + 1], self.channels, 0, self.padding + f))
-        padded = np.concatenate(parts) if len(parts) > 1 else raw
-        origin = start - before  # raw lattice index of padded[0]
-        lead = (-origin) % f
-        x = padded[lead:]
-        bad = np.zeros(x.shape[1], dtype=bool)
-        if np.isnan(x).any():
-            x = interpolate_nan_runs(x, self.rate, max_run_s=self.max_nan_run_s)
-            bad = np.isnan(x).any(axis=0)
-            x[:, bad] = 0.0  # runs too long to bridge: the channel is faulty around them
-        y = _decimate_channels_last(np.ascontiguousarray(x.T), self.factor).T
+        steps = self._step_sums(index, raw, start)
+        origin = start - before  # raw lattice index of the first padded sample
+        lead = (-origin) % f  # samples before the first one on the analysis lattice
+        parts[0] = parts[0][lead:]
+        # one copy: the padded record as (n_channels, n_samples), filtered along its rows
+        x = np.concatenate([p.T for p in parts], axis=1)
+        bad = np.zeros(x.shape[0], dtype=bool)
+        holes = np.flatnonzero(np.isnan(x).any(axis=1))
+        if holes.size:
+            bridged = interpolate_nan_runs(x[holes].T, self.rate, max_run_s=self.max_nan_run_s).T
+            bad[holes] = np.isnan(bridged).any(axis=1)
+            x[holes] = np.where(np.isnan(bridged), 0.0, bridged)  # unbridged: faulty there
+        y = _decimate_channels_last(x, self.factor).T
+        del x
         if self.band_hz is not None:
             y = bandpass(y, self.target_rate_hz, *self.band_hz)
         # analysis samples m * f with start <= m * f < start + n belong to this file
@@ -528,7 +528,6 @@ class FileConditioner:
         n_out = -(-(start + n) // f) - first_out
         samples = np.ascontiguousarray(y[skip : skip + n_out])
         samples[:, bad] = np.nan
-        steps = self._step_sums(index, raw, start)
         conditioned = _ConditionedFile(first_out, samples, steps)
         self._cache[index] = conditioned
         return conditioned
