@@ -174,3 +174,21 @@ def test_conditioner_rejects_a_rate_that_is_not_a_decimation(voyage):
         FileConditioner(plan.files, plan.grid, plan.channels, target_rate_hz=300.0, band_hz=BAND)
     with pytest.raises(ValueError, match="target_rate_hz"):
         FileConditioner(plan.files, plan.grid, plan.channels, target_rate_hz=RATE, band_hz=BAND)
+
+
+def test_an_unreadable_neighbour_breaks_the_chain_only(voyage, tmp_path):
+    _, paths, _ = voyage
+    copies = []
+    for path in paths:
+        copy = tmp_path / path.name
+        copy.write_bytes(path.read_bytes())
+        copies.append(copy)
+    plan = plan_blocks(copies, length_s=4 * FILE_S, step_s=FILE_S)
+    copies[4].write_bytes(b"not an npz file")  # after planning: the file went bad
+    conditioner = FileConditioner(
+        plan.files, plan.grid, plan.channels, target_rate_hz=TARGET, band_hz=BAND
+    )
+    first = conditioner.block(plan.blocks[0])  # files 0-3; file 4 only pads file 3
+    assert first.acceleration is not None and conditioner.fallbacks == 0
+    with pytest.raises(ValueError, match="acc_4"):
+        conditioner.block(plan.blocks[1])

@@ -223,6 +223,15 @@ def _read_rows(info: FileInfo, channels: Sequence[str], first: int, stop: int) -
     return np.asarray(rows, dtype=float)
 
 
+def _edge_rows(info: FileInfo, channels, first: int, stop: int | None = None):
+    """Rows of a neighbouring file for padding, or None when it cannot be read (then the
+    chain of contiguous files breaks there; the blocks holding that file report it)."""
+    try:
+        return _read_rows(info, channels, first, info.n_samples if stop is None else stop)
+    except (OSError, ValueError):
+        return None
+
+
 def _npz_rows(path: Path, first: int, stop: int) -> np.ndarray | None:
     try:
         with zipfile.ZipFile(path) as archive:
@@ -499,13 +508,15 @@ class FileConditioner:
         if self._contiguous(index - 1, index):
             previous = self.files[index - 1]
             want = self.padding + start % f  # padded record starts on the analysis lattice
-            parts.append(
-                _read_rows(previous, self.channels, previous.n_samples - want, previous.n_samples)
-            )
-            before = parts[0].shape[0]
+            tail = _edge_rows(previous, self.channels, previous.n_samples - want)
+            if tail is not None:
+                parts.append(tail)
+                before = tail.shape[0]
         parts.append(raw)
         if self._contiguous(index, index + 1):
-            parts.append(_read_rows(self.files[index + 1], self.channels, 0, self.padding + f))
+            head = _edge_rows(self.files[index + 1], self.channels, 0, self.padding + f)
+            if head is not None:
+                parts.append(head)
         steps = self._step_sums(index, raw, start)
         origin = start - before  # raw lattice index of the first padded sample
         lead = (-origin) % f  # samples before the first one on the analysis lattice
