@@ -498,7 +498,7 @@ def identify_voyage(
         todo = [t for t in tasks if t.block not in done]
         # runs of up to 24 blocks (2 h), a whole number per worker: files at the ends of
         # a run are conditioned by both runs sharing them
-        workers = n_workers or os.cpu_count() or 1
+        workers = 1 if scheduler == "synchronous" else n_workers or os.cpu_count() or 1
         n_runs = workers * max(1, -(-len(todo) // (24 * workers)))
         size = max(1, -(-len(todo) // n_runs))
         units = [t for t in tasks if t.block in done] + _runs(todo, plan, size)
