@@ -1,4 +1,4 @@
-"""Benchmark: covariance SSI of one 20-minute block against koma-python's ``covssi``.
+"""Benchmark: covariance SSI of one 20-minute block against koma-python and pyOMA2.
 
 Issue 5, item 8: one 20-minute block of the demo hull (19 channels at 64 Hz, 76 800
 samples), SSI-cov with 60 block rows and a full stabilisation diagram, orders 2..200 (even
@@ -15,19 +15,28 @@ with equal frequency accuracy. Printed (median of ``--repeats`` runs each):
 4. the demo configuration (20 block rows, orders 2..80, stabilisation flags and automatic
    selection) per block, and that time x 140 blocks.
 
-Ours and koma are run alternately so that both see the same machine load; the target is
+pyOMA2 (PyPI ``pyOMA-2``, imported as ``pyoma2``, optional) is timed beside koma on the same
+block: its SSI-cov kernel, the functions its ``SSIcov`` algorithm runs (``build_hank`` with
+``method="cov"``, ``SSI_fast``, ``SSI_poles`` with ``br = i``, ``ordmax = 200``, ``step = 2``;
+no uncertainty), with its frequencies at the same orders compared to ours.
+
+Ours, koma and pyOMA2 are run alternately so that all see the same machine load; the target is
 judged on the median of the ratios of back-to-back (ours, koma) pairs, and the ratio of
 the medians and of the fastest runs are printed beside it (on a shared machine koma's
 multi-threaded BLAS is the more disturbed of the two). Both use the same cores: koma its
 default multi-threaded BLAS, ours its Python threads (:func:`workbench.sid.modal.thread_budget`)
 with single-threaded BLAS; ``--single-thread-baseline`` also times koma with one BLAS thread.
 
-Run: ``python benchmarks/bench_ssi.py [--repeats 7] [--koma-repeats 7]``.
+Run: ``python benchmarks/bench_ssi.py [--repeats 7] [--koma-repeats 7]`` (koma and pyOMA2:
+``pip install -e .[bench]``).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import logging
+import os
 import statistics
 import sys
 import time
@@ -91,6 +100,12 @@ def _median_time(function, repeats: int) -> tuple[float, object]:
     return statistics.median(times), value
 
 
+@contextlib.contextmanager
+def _quiet_stderr():
+    with open(os.devnull, "w") as sink, contextlib.redirect_stderr(sink):
+        yield
+
+
 def _frequencies_by_order(orders_array, frequency_hz) -> dict[int, np.ndarray]:
     return {int(n): frequency_hz[orders_array == n] for n in np.unique(orders_array)}
 
@@ -130,16 +145,33 @@ def main(argv=None) -> int:
         koma = None
         print("koma-python is not installed: only the naive baseline is measured")
 
+    try:
+        settings = np.geterr()
+        import pyoma2.functions.ssi as pyoma_ssi
+
+        np.seterr(**settings)  # pyOMA2 changes numpy's error handling at import
+        logging.getLogger("pyoma2").setLevel(logging.WARNING)  # and logs every step
+    except ImportError:
+        pyoma_ssi = None
+        print("pyOMA2 is not installed (pip install pyOMA-2): not measured")
+
     def run_ours():
         return ssi_cov(data, RATE_HZ, block_rows=BLOCK_ROWS, orders=ORDERS)
+
+    def run_pyoma():
+        # the kernel of pyOMA2's SSIcov: Hankel of covariances, SVD + QR, poles per order
+        y = data.T
+        hankel, _ = pyoma_ssi.build_hank(y, y, BLOCK_ROWS, method="cov")
+        obs, a, c, _ = pyoma_ssi.SSI_fast(hankel, BLOCK_ROWS, ORDERS[-1], step=2)
+        return pyoma_ssi.SSI_poles(obs, a, c, ORDERS[-1], 1.0 / RATE_HZ, step=2)[0]
 
     def run_koma():
         return koma.oma.covssi(data, RATE_HZ, BLOCK_ROWS, ORDERS, showinfo=False)
 
     # interleaved (ours, koma, ours, koma, ...) so that both see the same machine load;
     # each (ours, koma) pair ran back to back and gives one ratio
-    ours_times, koma_times = [], []
-    ours = koma_result = None
+    ours_times, koma_times, pyoma_times, pyoma_pairs = [], [], [], []
+    ours = koma_result = pyoma_frequency = None
     for k in range(max(args.repeats, args.koma_repeats)):
         if k < args.repeats:
             elapsed, ours = _median_time(run_ours, 1)
@@ -147,6 +179,12 @@ def main(argv=None) -> int:
         if koma is not None and k < args.koma_repeats:
             elapsed, koma_result = _median_time(run_koma, 1)
             koma_times.append(elapsed)
+        if pyoma_ssi is not None and k < args.koma_repeats:
+            with _quiet_stderr():  # pyOMA2 draws progress bars
+                elapsed, pyoma_frequency = _median_time(run_pyoma, 1)
+            pyoma_times.append(elapsed)
+            if k < args.repeats:
+                pyoma_pairs.append(elapsed / ours_times[-1])
     ours_time = statistics.median(ours_times)
     ours_by_order = _frequencies_by_order(
         ours.poles["model_order"].to_numpy(), ours.poles["frequency_hz"].to_numpy()
@@ -195,6 +233,28 @@ def main(argv=None) -> int:
                 f" ({np.isfinite(ours_near).sum()}/7 found), koma "
                 f"{np.nanmax(np.abs(koma_near / true_frequency - 1)):.3%}"
                 f" ({np.isfinite(koma_near).sum()}/7 found)"
+            )
+
+    if pyoma_ssi is not None:
+        pyoma_time = statistics.median(pyoma_times)
+        print(
+            f"pyOMA2 SSIcov kernel   : {pyoma_time:8.3f} s (median of {len(pyoma_times)}; "
+            f"min {min(pyoma_times):.3f}, max {max(pyoma_times):.3f}); ratio pyOMA2 / ours "
+            f"{statistics.median(pyoma_pairs):.1f}x median of {len(pyoma_pairs)} back-to-back "
+            f"pairs, ratio of medians {pyoma_time / ours_time:.1f}x"
+        )
+        print("pyOMA2 frequencies near the 7 true modes:")
+        for n in (20, 60, 100, 200):
+            if n // 2 >= pyoma_frequency.shape[1]:
+                continue
+            column = pyoma_frequency[:, n // 2]
+            pyoma_near = _near(column[np.isfinite(column)], true_frequency)
+            ours_near = _near(ours_by_order.get(n, np.zeros(0)), true_frequency)
+            print(
+                f"  order {n:3d}: ours vs pyOMA2 "
+                f"{np.nanmax(np.abs(ours_near / pyoma_near - 1)):.2e} | error vs truth: pyOMA2 "
+                f"{np.nanmax(np.abs(pyoma_near / true_frequency - 1)):.3%}"
+                f" ({np.isfinite(pyoma_near).sum()}/7 found)"
             )
 
     naive_time, naive = _median_time(

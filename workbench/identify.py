@@ -38,7 +38,7 @@ import logging
 import math
 import os
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Literal
 
@@ -92,9 +92,14 @@ class IdentifyOptions:
         Reference channels (default: all).
     length_s, step_s : float
         Block length and step (default 20 min, 75 % overlap). [s]
-    target_rate_hz : float, optional
-        Decimate to this rate first (e.g. 2048 Hz -> 64 Hz); ``None`` keeps the files' rate.
-        [Hz]
+    target_rate_hz : float or "auto", optional
+        Decimate to this rate first (e.g. 2048 Hz -> 64 Hz); ``None`` keeps the files' rate;
+        ``"auto"`` (default) derives it from the band
+        (:func:`~workbench.signals.file_conditioning.default_decimation_rate`: the files'
+        rate halved while it stays at or above 4 x the band's upper edge, so 2048 Hz files
+        and a 2-12 Hz band are identified at 64 Hz, 64 Hz files at 64 Hz). When decimating,
+        each file is conditioned once for all blocks sharing it
+        (:class:`~workbench.signals.file_conditioning.FileConditioner`). [Hz]
     band_hz : (float, float) or "auto" or None
         Zero-phase band-pass after decimation; also the band of the automatic selection.
         ``"auto"`` (default) derives it from the analysis rate r (after decimation):
@@ -132,6 +137,11 @@ class IdentifyOptions:
         Drop faulty channels per block (:func:`~workbench.signals.moments.faulty_channels`).
     fault_options : tuple of (str, value)
         Thresholds of the channel check, e.g. ``(("kurtosis_limits", (1.3, 10.0)),)``.
+    conditioning : {"per-file", "per-block"}
+        When decimating: condition each file once and cut the blocks from the conditioned
+        files (default), or build every block from its raw files (the reference path, four
+        times the work for 75 % overlap; equal in the blocks' interior, see
+        :mod:`workbench.signals.file_conditioning`).
     """
 
     method: Literal["cov", "data", "lscf"] = "cov"
@@ -141,7 +151,7 @@ class IdentifyOptions:
     reference_channels: tuple[str, ...] | None = None
     length_s: float = 1200.0
     step_s: float = 300.0
-    target_rate_hz: float | None = None
+    target_rate_hz: float | Literal["auto"] | None = "auto"
     band_hz: tuple[float, float] | Literal["auto"] | None = "auto"
     max_gap_s: float = 0.0
     frequency_tol: float = 0.01
@@ -156,8 +166,13 @@ class IdentifyOptions:
     short_record: Literal["error", "one-block"] = "error"
     channel_check: bool = True
     fault_options: tuple[tuple[str, object], ...] = ()
+    conditioning: Literal["per-file", "per-block"] = "per-file"
 
     def __post_init__(self) -> None:
+        if self.conditioning not in ("per-file", "per-block"):
+            raise OptionError(
+                f"conditioning={self.conditioning!r} must be 'per-file' or 'per-block'"
+            )
         if self.method not in ("cov", "data", "lscf"):
             raise OptionError(f"method={self.method!r} must be 'cov', 'data' or 'lscf'")
         if self.weighting not in ("pc", "upc", "cva"):
@@ -190,10 +205,17 @@ class IdentifyOptions:
             raise OptionError(
                 f"max_gap_s={float(self.max_gap_s):g} must be a non-negative number of seconds"
             )
-        if self.target_rate_hz is not None:
-            rate = float(self.target_rate_hz)
+        if self.target_rate_hz is not None and self.target_rate_hz != "auto":
+            try:
+                rate = float(self.target_rate_hz)
+            except (TypeError, ValueError):
+                rate = math.nan
             if not (math.isfinite(rate) and rate > 0):
-                raise OptionError(f"target_rate_hz={rate:g} must be a positive rate [Hz]")
+                raise OptionError(
+                    f"target_rate_hz={self.target_rate_hz!r} must be a positive rate [Hz], "
+                    "'auto' or None"
+                )
+            object.__setattr__(self, "target_rate_hz", rate)
         object.__setattr__(
             self, "fault_options", tuple((str(k), v) for k, v in dict(self.fault_options).items())
         )
@@ -300,8 +322,9 @@ class IdentifyOptions:
         return {"layout": dict(self.acceleration_layout)} if self.acceleration_layout else {}
 
     def resolved(self, sampling_rate_hz: float) -> IdentifyOptions:
-        """These options for files at *sampling_rate_hz*: the band made concrete and checked
-        against the anti-aliasing filter of the decimation.
+        """These options for files at *sampling_rate_hz*: the analysis rate (``"auto"``:
+        :func:`analysis_rate`) and the band made concrete, the band checked against the
+        anti-aliasing filter of the decimation.
 
         Raises
         ------
@@ -309,8 +332,9 @@ class IdentifyOptions:
             Band above the filter's edge or Nyquist; a rate that does not divide the files'.
         """
         rate = float(sampling_rate_hz)
-        out_rate = rate if self.target_rate_hz is None else float(self.target_rate_hz)
-        if self.target_rate_hz is not None:
+        out_rate = analysis_rate(self, rate)
+        target = None if out_rate == rate else out_rate
+        if self.target_rate_hz not in (None, "auto"):
             ratio = rate / out_rate
             if ratio < 1 - 1e-9 or abs(ratio - round(ratio)) > 1e-9 * ratio:
                 raise IdentifyOptionsError(
@@ -336,7 +360,7 @@ class IdentifyOptions:
                     f"--band upper edge {high:g} Hz must lie below the Nyquist frequency "
                     f"{out_rate / 2:g} Hz of the {out_rate:g}-Hz analysis rate"
                 )
-        return dataclasses.replace(self, band_hz=band)
+        return dataclasses.replace(self, band_hz=band, target_rate_hz=target)
 
     def selection_band(self, sampling_rate_hz: float) -> tuple[float, float]:
         """The band of the automatic selection for an analysis rate. [Hz]"""
@@ -348,6 +372,11 @@ class IdentifyOptions:
 class IdentifyOptionsError(OptionError):
     """Options that do not fit the data (a usage error: the CLI exits 2)."""
 
+
+#: Highest natural frequency the default analysis rate keeps in reach when no band is
+#: given [Hz]: global modes of ship hulls (vertical and horizontal bending, torsion) and of
+#: most civil structures lie well below it; give --band or --rate for anything higher.
+DEFAULT_MODE_CEILING_HZ = 25.0
 
 #: Edge of the decimation's anti-aliasing filter as a fraction of the new Nyquist frequency
 #: (Chebyshev type I, as MATLAB's and SciPy's ``decimate``).
@@ -363,24 +392,33 @@ class _Task:
     files: tuple
 
 
-def _identify_data(task: _Task, grid: BlockGrid, options: IdentifyOptions, cross=False):
+def _identify_data(
+    task: _Task, grid: BlockGrid, options: IdentifyOptions, cross=False, conditioner=None
+):
     """Conditioned block, SSI or LSCF result (None if skipped) and mode selection of one
-    block; with *cross*, also the result and selection of the other method (or None)."""
-    from .signals import load_block
+    block; with *cross*, also the result and selection of the other method (or None).
 
-    band = options.band_hz
-    if band is not None and band[0] == 0:  # (0, high): low-pass only
-        band = (None, band[1])
-    data = load_block(
-        task.files,
-        task.block,
-        grid,
-        target_rate_hz=options.target_rate_hz,
-        band_hz=_filter_band(options),
-        max_gap_s=options.max_gap_s,
-        read_options=options.read_options,
-        fault_options=_fault_options(options),
-    )
+    *conditioner* (a :class:`~workbench.signals.file_conditioning.FileConditioner`) gives
+    the block from files conditioned once; without it the block is built from its files.
+    """
+    from .signals import PlannedBlock, load_block
+
+    if conditioner is not None:
+        planned = PlannedBlock(
+            task.block, task.block_start, grid.end(task.block), tuple(map(Path, task.files))
+        )
+        data = conditioner.block(planned)
+    else:
+        data = load_block(
+            task.files,
+            task.block,
+            grid,
+            target_rate_hz=options.target_rate_hz,
+            band_hz=_filter_band(options),
+            max_gap_s=options.max_gap_s,
+            read_options=options.read_options,
+            fault_options=_fault_options(options),
+        )
     if data.acceleration is None:
         return data, None, None
     kept = list(data.channels)
@@ -484,7 +522,12 @@ def _reachable_orders(options: IdentifyOptions, n_channels: int, n_reference: in
 
 
 def identify_block(
-    task: _Task, *, grid: BlockGrid, channels: Sequence[str], options: IdentifyOptions
+    task: _Task,
+    *,
+    grid: BlockGrid,
+    channels: Sequence[str],
+    options: IdentifyOptions,
+    conditioner=None,
 ) -> BlockOutcome:
     """Identify one block: load and condition, SSI over all orders, stabilise, select.
 
@@ -502,7 +545,7 @@ def identify_block(
     # scheduler (a resumed job may mix blocks computed either way).
     with threadpool_limits(limits=1):
         data, result, selection, *other = _identify_data(
-            task, grid, options, cross=options.cross_check
+            task, grid, options, cross=options.cross_check, conditioner=conditioner
         )
     start = pd.Timestamp(task.block_start)
     end = grid.end(task.block)
@@ -555,6 +598,89 @@ def _cross_check_frame(selection, other_selection, method, block, start) -> pd.D
     )
     frame.insert(1, "block_start", pd.to_datetime([start] * len(frame), utc=True))
     return frame
+
+
+@dataclass(frozen=True)
+class _Run:
+    """Consecutive blocks identified in one worker from files conditioned once (picklable).
+
+    ``files`` are the headers of the files the blocks need plus one contiguous file on
+    either side (their edges pad the filters).
+    """
+
+    block: int
+    block_start: pd.Timestamp
+    tasks: tuple[_Task, ...]
+    files: tuple
+
+    @property
+    def blocks(self) -> tuple[int, ...]:
+        return tuple(t.block for t in self.tasks)
+
+
+def identify_run(
+    run: _Run, *, grid: BlockGrid, channels: Sequence[str], options: IdentifyOptions
+) -> list[BlockOutcome]:
+    """Identify the consecutive blocks of *run*, conditioning each of their files once.
+
+    Returns one :class:`~workbench.parallel.BlockOutcome` per block, as
+    :func:`identify_block` gives it (a block failing with a data error is skipped with the
+    reason; the other blocks go on).
+    """
+    from .parallel import _guarded
+    from .signals.file_conditioning import FileConditioner
+
+    conditioner = FileConditioner(
+        run.files,
+        grid,
+        channels,
+        target_rate_hz=float(options.target_rate_hz),
+        band_hz=_filter_band(options),
+        max_gap_s=options.max_gap_s,
+        fault_options=_fault_options(options),
+        read_options=options.read_options,
+    )
+    func = functools.partial(
+        identify_block, grid=grid, channels=channels, options=options, conditioner=conditioner
+    )
+    return [_guarded(func, task) for task in run.tasks]
+
+
+def _runs(tasks: Sequence[_Task], plan, size: int) -> list[_Run]:
+    """*tasks* (ascending) in runs of at most *size* consecutive blocks."""
+    position = {info.path: i for i, info in enumerate(plan.files)}
+    runs: list[_Run] = []
+    for first in range(0, len(tasks), size):
+        chunk = tuple(tasks[first : first + size])
+        used = [position[Path(f)] for t in chunk for f in t.files]
+        if used:
+            lo, hi = max(min(used) - 1, 0), min(max(used) + 2, len(plan.files))
+        else:
+            lo = hi = 0
+        runs.append(_Run(chunk[0].block, chunk[0].block_start, chunk, plan.files[lo:hi]))
+    return runs
+
+
+def analysis_rate(options: IdentifyOptions, sampling_rate_hz: float) -> float:
+    """The rate blocks are identified at, for files at *sampling_rate_hz*. [Hz]
+
+    ``target_rate_hz="auto"`` follows the band's upper edge
+    (:func:`~workbench.signals.file_conditioning.default_decimation_rate`: the files' rate
+    halved while it stays at or above 4 x the edge). With the band left to ``"auto"`` (then
+    derived from the rate itself) or None, the edge is :data:`DEFAULT_MODE_CEILING_HZ`, so
+    2048-Hz files are analysed at 128 Hz, 256 Hz at 128 Hz and 64 Hz at 64 Hz.
+    """
+    from .signals.file_conditioning import default_decimation_rate
+
+    if options.target_rate_hz is None:
+        return float(sampling_rate_hz)
+    if options.target_rate_hz == "auto":
+        if isinstance(options.band_hz, tuple):
+            band = options.band_hz
+        else:
+            band = (None, DEFAULT_MODE_CEILING_HZ)
+        return default_decimation_rate(sampling_rate_hz, band)
+    return float(options.target_rate_hz)
 
 
 def _reason_kind(reason: str) -> str:
@@ -839,6 +965,15 @@ def identify_voyage(
     options.check_data(plan)
     grid = plan.grid
     channels = tuple(plan.channels)
+    # the analysis rate; decimating blocks are cut from files conditioned once
+    rate = analysis_rate(options, plan.sampling_rate_hz)
+    ratio = plan.sampling_rate_hz / rate
+    per_file = (
+        options.conditioning == "per-file"
+        and round(ratio) >= 2
+        and abs(ratio - round(ratio)) <= 1e-9 * ratio
+    )
+    options = replace(options, target_rate_hz=None if rate == plan.sampling_rate_hz else rate)
     parameters = {
         **options.parameters(),
         "grid_t0": grid.t0.isoformat(),
@@ -852,9 +987,21 @@ def identify_voyage(
             for p in plan.blocks
             if wanted is None or int(p.block) in wanted
         ]
-        func = functools.partial(identify_block, grid=grid, channels=channels, options=options)
+        if per_file:
+            done = store.completed_blocks()
+            todo = [t for t in tasks if t.block not in done]
+            # runs of up to 24 blocks (2 h), a whole number per worker: files at the ends of
+            # a run are conditioned by both runs sharing them
+            workers = 1 if scheduler == "synchronous" else n_workers or os.cpu_count() or 1
+            n_runs = workers * max(1, -(-len(todo) // (24 * workers)))
+            size = max(1, -(-len(todo) // n_runs))
+            units = [t for t in tasks if t.block in done] + _runs(todo, plan, size)
+            func = functools.partial(identify_run, grid=grid, channels=channels, options=options)
+        else:
+            units = tasks
+            func = functools.partial(identify_block, grid=grid, channels=channels, options=options)
         summary = run_blocks(
-            tasks,
+            units,
             func,
             store=store,
             scheduler=scheduler,

@@ -116,7 +116,8 @@ def run_blocks(
     func : callable
         ``func(task) -> BlockOutcome``; must be picklable (a module-level function or a
         ``functools.partial`` of one). ``ValueError`` and ``LinAlgError`` raised by it mark
-        the block as skipped with the message as reason.
+        the block as skipped with the message as reason. A task of several consecutive
+        blocks (with a ``blocks`` attribute) returns a list of outcomes, one per block.
     store : BlockStore
         Where results go; also tells which blocks are done (resume).
     scheduler : str, optional
@@ -172,7 +173,11 @@ def run_blocks(
         store.write_batch(blocks, results)
         pending.clear()
 
-    def accept(outcome: BlockOutcome, bar) -> None:
+    def accept(outcome: BlockOutcome | list[BlockOutcome], bar) -> None:
+        if isinstance(outcome, list):  # a task of several blocks
+            for one in outcome:
+                accept(one, bar)
+            return
         if outcome.skipped:
             counts["skipped"] += 1
             skip_reasons[outcome.skipped] += 1
@@ -186,8 +191,9 @@ def run_blocks(
 
     def remaining() -> Iterable[Any]:
         for task in tasks:
-            if int(task.block) in done:
-                counts["already_done"] += 1
+            numbers = [int(b) for b in getattr(task, "blocks", (task.block,))]
+            if all(b in done for b in numbers):
+                counts["already_done"] += len(numbers)
                 continue
             yield task
 

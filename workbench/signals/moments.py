@@ -28,7 +28,7 @@ uses it again in the next block if it has recovered. A channel is faulty when
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,7 +36,14 @@ import pandas as pd
 
 from .conditioning import MAX_INTERPOLATED_NAN_RUN_S, _as_2d, _positive, detrend, nan_runs
 
-__all__ = ["WindowMoments", "coherent_with_others", "faulty_channels", "moments"]
+__all__ = [
+    "CoherenceNeeded",
+    "WindowMoments",
+    "channel_verdicts",
+    "coherent_with_others",
+    "faulty_channels",
+    "moments",
+]
 
 #: Smallest robust spread of the natural log-variance across channels used in the
 #: variance z-score (channels with nearly equal variance would otherwise give huge z).
@@ -287,6 +294,74 @@ def faulty_channels(
         variance[group] = m2
         kurtosis[group] = _shape_statistics(m2, np.zeros_like(m2), m4)[1]
 
+    return channel_verdicts(
+        names,
+        nan_fraction,
+        longest,
+        variance,
+        kurtosis,
+        max_nan_fraction=max_nan_fraction,
+        max_nan_run_s=max_nan_run_s,
+        kurtosis_limits=kurtosis_limits,
+        flat_variance=flat_variance,
+        max_variance_z=max_variance_z,
+        max_kurtosis_z=max_kurtosis_z,
+        coherence_check=coherence_check,
+        coherence=lambda outliers, healthy: coherent_with_others(array, rate, outliers, healthy),
+    )
+
+
+class CoherenceNeeded(LookupError):
+    """:func:`channel_verdicts` needs the block's samples (a variance outlier whose
+    coherence with the other channels decides its verdict) but was given none."""
+
+
+def channel_verdicts(
+    channels: Sequence[str],
+    nan_fraction: np.ndarray,
+    longest: np.ndarray,
+    variance: np.ndarray,
+    kurtosis: np.ndarray,
+    *,
+    max_nan_fraction: float = 0.05,
+    max_nan_run_s: float = MAX_INTERPOLATED_NAN_RUN_S,
+    kurtosis_limits: tuple[float, float] = (1.3, 10.0),
+    flat_variance: float = 1e-12,
+    max_variance_z: float = 6.0,
+    max_kurtosis_z: float = 3.0,
+    coherence_check: bool = True,
+    coherence: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+) -> pd.DataFrame:
+    """The verdicts of :func:`faulty_channels` from the block statistics it computes.
+
+    Parameters
+    ----------
+    channels : sequence of str
+    nan_fraction, longest, variance, kurtosis : ndarray, shape (n_channels,)
+        Fraction of NaN samples, longest NaN run [s], variance [(m/s²)²] and kurtosis of
+        the linearly detrended block (NaN where undefined).
+    max_nan_fraction, max_nan_run_s, kurtosis_limits, flat_variance, max_variance_z
+    max_kurtosis_z, coherence_check
+        As for :func:`faulty_channels`.
+    coherence : callable, optional
+        ``coherence(outliers, healthy)`` -> 1.0 / 0.0 per outlier channel: whether it is
+        coherent with any healthy channel (:func:`coherent_with_others` on the block).
+
+    Returns
+    -------
+    DataFrame
+        As :func:`faulty_channels` returns.
+
+    Raises
+    ------
+    CoherenceNeeded
+        A variance outlier must be checked for coherence and *coherence* is None.
+    """
+    names = [str(c) for c in channels]
+    n_channels = len(names)
+    low, high = (float(v) for v in kurtosis_limits)
+    if not low < high:
+        raise ValueError(f"kurtosis_limits={kurtosis_limits} must be (lower, upper)")
     usable = np.isfinite(variance) & (variance > flat_variance)
     z = _robust_z(np.log(np.where(usable, variance, 1.0)), usable, MIN_LOG_VARIANCE_SPREAD)
     usable_kurtosis = usable & np.isfinite(kurtosis) & (kurtosis > 0)
@@ -298,7 +373,9 @@ def faulty_channels(
     coherent = np.full(n_channels, np.nan)
     if coherence_check and outliers.size:
         healthy = usable & (nan_fraction <= max_nan_fraction) & (longest <= max_nan_run_s)
-        coherent[outliers] = coherent_with_others(array, rate, outliers, healthy)
+        if coherence is None:
+            raise CoherenceNeeded(f"variance outliers {outliers.tolist()} need the block's samples")
+        coherent[outliers] = coherence(outliers, healthy)
 
     reasons: list[str] = []
     for j in range(n_channels):

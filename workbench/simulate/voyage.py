@@ -37,8 +37,13 @@ __all__ = ["DEFAULT_HOURS", "VoyageSummary", "simulate_voyage"]
 
 #: Default voyage length. [h]
 DEFAULT_HOURS = 12.0
-#: Sampling rate of the accelerometers. [Hz]
+#: Sampling rate of the accelerometers (default) and of the modal physics' normalisation. [Hz]
 SAMPLING_RATE_HZ = 64.0
+#: Generator hum written into files sampled fast enough to hold it (above the analysis
+#: band; decimating to 64 Hz without an anti-alias filter would fold it to 4 Hz). [Hz]
+GENERATOR_HZ = 60.0
+#: Its amplitude, larger than any mode's RMS. [m/s²]
+GENERATOR_AMPLITUDE_MS2 = 0.03
 #: Length of one acceleration file. [s]
 FILE_SECONDS = 300
 #: Block grid of the truth tables: length and step. [s]
@@ -116,6 +121,7 @@ def simulate_voyage(
     hours: float | None = None,
     accelerations: bool = True,
     progress: Callable[[int, int], None] | None = None,
+    sampling_rate_hz: float = SAMPLING_RATE_HZ,
 ) -> VoyageSummary:
     """Simulate a demo voyage and write all its files into *out_dir*.
 
@@ -132,6 +138,16 @@ def simulate_voyage(
         Write the acceleration files (the slow part); the tables do not depend on it.
     progress : callable, optional
         Called as ``progress(files_done, files_total)`` after each acceleration file.
+    sampling_rate_hz : float
+        Rate of the acceleration files (a recorder's rate, e.g. 2048), a whole multiple of
+        :data:`SAMPLING_RATE_HZ` (64 Hz). [Hz] The physics is the same at every rate: the
+        modal forces and the sensor noise keep their power spectral density (their
+        per-sample standard deviation grows as the square root of the rate), so the band
+        holding the modes looks the same and the files carry broadband content up to the
+        Nyquist frequency above it. Files at 160 Hz and faster also carry a generator hum
+        at :data:`GENERATOR_HZ` (60 Hz, 30 mm/s²): content above the band that the
+        decimation must remove (it would alias to 4 Hz at 64 Hz). Dropout lengths are the
+        same in seconds.
 
     Returns
     -------
@@ -160,6 +176,13 @@ def simulate_voyage(
     Only one 5-min file of accelerations is in memory at a time.
     """
     hours = DEFAULT_HOURS if hours is None else float(hours)
+    rate = float(sampling_rate_hz)
+    multiple = rate / SAMPLING_RATE_HZ
+    if not (rate > 0 and multiple >= 1 and abs(multiple - round(multiple)) < 1e-9):
+        raise ValueError(
+            f"sampling_rate_hz={sampling_rate_hz} must be a whole multiple of "
+            f"{SAMPLING_RATE_HZ:g} Hz"
+        )
     n_files = int(np.floor(hours * 3600 / FILE_SECONDS + 1e-9))
     if n_files < BLOCK_SECONDS // FILE_SECONDS:
         raise ValueError(f"hours={hours} must be at least {BLOCK_SECONDS / 3600:g} (one block)")
@@ -252,6 +275,7 @@ def simulate_voyage(
             sensor_rng,
             (dead_start_file, dead_start_file + dead_files),
             progress,
+            rate,
         )
 
     summary = {
@@ -259,7 +283,7 @@ def simulate_voyage(
         "hours": hours,
         "start_time": _iso(start),
         "end_time": _iso(end),
-        "sampling_rate_hz": SAMPLING_RATE_HZ,
+        "sampling_rate_hz": rate,
         "channels": list(CHANNELS),
         "file_seconds": FILE_SECONDS,
         "block_seconds": BLOCK_SECONDS,
@@ -374,11 +398,13 @@ def _write_accelerations(
     sensor_rng: np.random.Generator,
     dead_files: tuple[int, int],
     progress,
+    rate: float = SAMPLING_RATE_HZ,
 ) -> list[Path]:
     folder.mkdir(parents=True, exist_ok=True)
     n_files = len(file_frequency)
-    n_samples = int(FILE_SECONDS * SAMPLING_RATE_HZ)
-    rate = SAMPLING_RATE_HZ
+    n_samples = int(round(FILE_SECONDS * rate))
+    # white noise keeps its spectral density at any rate: per-sample std ~ sqrt(rate)
+    density_scale = np.sqrt(rate / SAMPLING_RATE_HZ)
     shaft_shape = _shaft_shape()
     dropout_columns = [CHANNELS.index(c) for c in DROPOUT_CHANNELS]
     dead_column = CHANNELS.index(DEAD_CHANNEL)
@@ -387,11 +413,11 @@ def _write_accelerations(
     # modal force std giving the target RMS at 5 kn, per unit of (0.5 + 0.1 speed)
     unit_rms = np.sqrt(
         [
-            _acceleration_variance(stationary_covariance(f, z, rate)[0], f, z)
+            _acceleration_variance(stationary_covariance(f, z, SAMPLING_RATE_HZ)[0], f, z)
             for f, z in zip(file_frequency[0], file_damping[0], strict=True)
         ]
     )
-    base_std = MODE_RMS_MS2 / unit_rms
+    base_std = MODE_RMS_MS2 / unit_rms * density_scale
     state: ModalState | None = None
     shaft_phase = 0.0
     paths = []
@@ -424,10 +450,14 @@ def _write_accelerations(
         shaft_phase = float(np.mod(phase[-1], 2 * np.pi))
         amplitude = SHAFT_AMPLITUDE_MS2 * (speed / 10.0) ** 2
         acceleration += (amplitude * np.sin(phase))[:, None] * shaft_shape
-        acceleration += SENSOR_NOISE_MS2 * sensor_rng.standard_normal(acceleration.shape)
+        if rate >= 160.0:
+            hum = GENERATOR_AMPLITUDE_MS2 * np.sin(2 * np.pi * GENERATOR_HZ * t)
+            acceleration += hum[:, None] * shaft_shape
+        noise = SENSOR_NOISE_MS2 * density_scale
+        acceleration += noise * sensor_rng.standard_normal(acceleration.shape)
         for column, rate_per_file in zip(dropout_columns, (2.0, 1.0), strict=True):
             for _ in range(sensor_rng.poisson(rate_per_file)):
-                length = int(sensor_rng.integers(32, 321))
+                length = int(round(sensor_rng.integers(32, 321) * rate / SAMPLING_RATE_HZ))
                 first = int(sensor_rng.integers(0, n_samples - length))
                 acceleration[first : first + length, column] = np.nan
         if dead_files[0] <= k < dead_files[1]:

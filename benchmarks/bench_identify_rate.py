@@ -1,0 +1,164 @@
+"""Benchmark: identification at a recorder's rate (2048 Hz, 19 channels), files conditioned
+once against the per-block path (issue 18).
+
+``workbench identify`` runs on a voyage simulated at 2048 Hz (``workbench simulate --rate
+2048``; default 1 h, ``--hours 24`` for a day) with the default analysis rate (2048 Hz ->
+64 Hz for the 2-12 Hz band), in a fresh store each time, for
+
+* ``--conditioning per-block``: every 20-min block read, checked and decimated from its raw
+  files (the path before issue 18: each sample conditioned four times), and
+* ``--conditioning per-file``: each file read, checked and decimated once,
+
+with 1 and 2 worker processes. The runs are interleaved (A B, B A, ...) so that both paths
+see the same machine load, and the figures are medians over ``--repeats`` runs; the ratio
+quoted is the ratio of the medians, and the worst ratio of a back-to-back pair is printed
+beside it.
+
+Real-time factor = recording identified per second of wall clock, counted as one block step
+(5 min) of new recording per block: a voyage of N five-minute files has N - 3 blocks, so a
+short voyage is not credited with the three files that only complete the first block. The
+time for a day (288 blocks) is extrapolated from the measured factor (not measured, unless
+``--hours 24``). Wall clock includes starting the Dask cluster.
+
+Peak memory: the largest process of each run (``getrusage`` of the child processes), and
+the per-file path in-process (``--scheduler synchronous``) on a voyage of ``--hours`` and
+of twice that: memory independent of voyage length means a ratio near 1.
+
+Simulating the voyages is not timed (a 1-h, 2048-Hz voyage writes 1.1 GB; ``--data`` reuses
+a folder). Run: ``python benchmarks/bench_identify_rate.py`` (about 25 minutes on a quiet
+2-core machine with the defaults).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+RATE_HZ = 2048.0
+STEP_S = 300.0
+DAY_BLOCKS = 288
+
+_WRAPPER = (
+    "import resource, subprocess, sys\n"
+    "done = subprocess.run(sys.argv[1:], capture_output=True, text=True)\n"
+    "sys.stdout.write(done.stdout); sys.stderr.write(done.stderr)\n"
+    "print('PEAK_KIB', resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)\n"
+    "sys.exit(done.returncode)\n"
+)
+
+
+def _voyage(root: Path, hours: float) -> Path:
+    folder = root / f"voyage_{RATE_HZ:g}hz_{hours:g}h"
+    if not (folder / "voyage.json").is_file():
+        from workbench.simulate import simulate_voyage
+
+        print(f"simulating {hours:g} h at {RATE_HZ:g} Hz into {folder} (not timed) ...", flush=True)
+        simulate_voyage(folder, seed=0, hours=hours, sampling_rate_hz=RATE_HZ)
+    return folder / "accelerations"
+
+
+def _identify(voyage: Path, out: Path, *extra: str) -> tuple[float, int, int]:
+    """``workbench identify`` in a child process: (seconds, peak RSS MiB, blocks done)."""
+    shutil.rmtree(out, ignore_errors=True)
+    command = [sys.executable, "-m", "workbench.cli", "identify", str(voyage)]
+    command += ["--out", str(out), "--quiet", *extra]
+    start = time.perf_counter()
+    finished = subprocess.run(
+        [sys.executable, "-c", _WRAPPER, *command], capture_output=True, text=True
+    )
+    seconds = time.perf_counter() - start
+    shutil.rmtree(out, ignore_errors=True)
+    if finished.returncode:
+        raise SystemExit(finished.stderr)
+    peak_kib = int(finished.stdout.rsplit("PEAK_KIB", 1)[1].split()[0])
+    blocks = int(finished.stdout.split(" block(s) processed")[0].split()[-1])
+    return seconds, peak_kib // 1024, blocks
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, help="folder for (or with) the simulated voyages")
+    parser.add_argument("--hours", type=float, default=1.0, help="voyage length (24: a day)")
+    parser.add_argument("--repeats", type=int, default=3, help="runs of each configuration")
+    parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--skip-memory", action="store_true")
+    args = parser.parse_args(argv)
+    root = args.data or Path(tempfile.mkdtemp(prefix="bench_identify_rate_"))
+    root.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix="bench_identify_rate_out_"))
+    voyage = _voyage(root, args.hours)
+    print(
+        f"machine: {os.cpu_count()} cores; voyage {args.hours:g} h at {RATE_HZ:g} Hz, 19 channels"
+    )
+
+    paths = ("per-block", "per-file")
+    seconds: dict = {(p, w): [] for p in paths for w in args.workers}
+    peaks: dict = {(p, w): [] for p in paths for w in args.workers}
+    pairs: dict = {w: [] for w in args.workers}
+    n_blocks = 0
+    for repeat in range(args.repeats):
+        for workers in args.workers:
+            order = paths if repeat % 2 == 0 else paths[::-1]
+            pair = {}
+            for path in order:
+                took, peak, n_blocks = _identify(
+                    voyage, work / "out", "--workers", str(workers), "--conditioning", path
+                )
+                seconds[path, workers].append(took)
+                peaks[path, workers].append(peak)
+                pair[path] = took
+                print(
+                    f"  run {repeat + 1}, {workers} worker(s), {path:9s}: {took:7.1f} s, "
+                    f"peak {peak} MiB",
+                    flush=True,
+                )
+            pairs[workers].append(pair["per-block"] / pair["per-file"])
+
+    print(f"\n{n_blocks} blocks = {n_blocks * STEP_S / 3600:g} h of new recording per run")
+    print("workers  path       median s  real-time factor  day (288 blocks)  peak MiB")
+    factors = {}
+    for workers in args.workers:
+        for path in paths:
+            median = statistics.median(seconds[path, workers])
+            factor = n_blocks * STEP_S / median
+            factors[path, workers] = factor
+            day_min = DAY_BLOCKS * STEP_S / factor / 60
+            print(
+                f"{workers:7d}  {path:9s}  {median:8.1f}  {factor:16.1f}  {day_min:11.1f} min"
+                f"  {max(peaks[path, workers]):8d}"
+            )
+    for workers in args.workers:
+        ratio = factors["per-file", workers] / factors["per-block", workers]
+        print(
+            f"{workers} worker(s): per-file / per-block throughput = {ratio:.2f}x (ratio of "
+            f"medians); back-to-back pairs: median {statistics.median(pairs[workers]):.2f}x, "
+            f"worst {min(pairs[workers]):.2f}x"
+        )
+    print("(day times extrapolated from the measured real-time factor unless --hours 24)")
+
+    if not args.skip_memory:
+        peak_of = {}
+        for hours in (args.hours, 2 * args.hours):
+            folder = _voyage(root, hours)
+            took, peak, blocks = _identify(
+                folder, work / "mem", "--scheduler", "synchronous", "--conditioning", "per-file"
+            )
+            peak_of[hours] = peak
+            print(
+                f"per-file, in-process, {hours:g} h: {blocks} blocks in {took:.1f} s, peak {peak} MiB"
+            )
+        ratio = peak_of[2 * args.hours] / peak_of[args.hours]
+        print(f"peak memory {2 * args.hours:g} h / {args.hours:g} h: {ratio:.2f}")
+    shutil.rmtree(work, ignore_errors=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,194 @@
+"""Files conditioned once (workbench.signals.file_conditioning) against the per-block builder.
+
+The reference is :func:`workbench.signals.load_block`, which conditions every block from its
+raw files. The two paths must agree
+
+* in the faulty-channel statistics (NaN fraction and runs, variance and kurtosis of the
+  detrended block) up to rounding: the per-file path assembles them exactly from sums;
+* in the conditioned samples of a block's interior: samples farther than
+  ``padding_samples / factor`` from both block ends, where the per-block filters' start-up
+  transients have decayed below ``SETTLED`` (1e-9) of their peak. The tolerance, 1e-6 of
+  the channel RMS, leaves three decades for the transients' sum over the cascade and for
+  the different starting points (the per-block path detrends the raw block first);
+* at file joins: the conditioned files equal filtering the whole continuous record to
+  1e-8 of the RMS (overlap-and-discard with the same padding).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from data_contracts import AccelerationRecord, read_accelerations, write_accelerations
+from workbench.signals import bandpass, decimate, load_block, plan_blocks
+from workbench.signals.file_conditioning import (
+    FileConditioner,
+    _decimate_channels_last,
+    _read_rows,
+    default_decimation_rate,
+    padding_samples,
+)
+
+RATE = 512.0
+TARGET = 64.0
+BAND = (2.0, 12.0)
+FILE_S = 30
+N_FILES = 6
+CHANNELS = tuple(f"acc{j:02d}" for j in range(5))
+T0 = pd.Timestamp("2024-01-01T00:00:00Z")
+
+
+def _record(rng, n):
+    """Broadband noise, a 5 Hz resonance, a drift and gravity-like offsets."""
+    t = np.arange(n) / RATE
+    x = rng.standard_normal((n, len(CHANNELS)))
+    x += np.sin(2 * np.pi * 5.0 * t)[:, None] * np.linspace(1, 2, len(CHANNELS))
+    x += 0.002 * rng.standard_normal((n, len(CHANNELS))).cumsum(axis=0)
+    x += np.array([9.81, 0.0, -3.0, 0.5, 0.0])
+    return x
+
+
+@pytest.fixture(scope="module")
+def voyage(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("files")
+    rng = np.random.default_rng(7)
+    n_file = int(FILE_S * RATE)
+    full = _record(rng, n_file * N_FILES)
+    # a 3-s NaN run across the join of files 1 and 2, a 15-s run (too long to bridge) in
+    # file 4, a short one inside file 0
+    join = 2 * n_file
+    full[join - int(1.5 * RATE) : join + int(1.5 * RATE), 1] = np.nan
+    full[4 * n_file + 1000 : 4 * n_file + 1000 + int(15 * RATE), 3] = np.nan
+    full[2000:2100, 4] = np.nan
+    paths = []
+    for k in range(N_FILES):
+        path = folder / f"acc_{k}.npz"
+        part = full[k * n_file : (k + 1) * n_file]
+        start = T0 + pd.Timedelta(seconds=k * FILE_S)
+        write_accelerations(AccelerationRecord(part, RATE, start, CHANNELS), path)
+        paths.append(path)
+    plan = plan_blocks(paths, length_s=4 * FILE_S, step_s=FILE_S)
+    return full, paths, plan
+
+
+def test_default_rate_rule():
+    assert default_decimation_rate(2048.0, (2.0, 12.0)) == 64.0
+    assert default_decimation_rate(1000.0, (2.0, 12.0)) == 62.5
+    assert default_decimation_rate(200.0, (2.0, 12.0)) == 50.0
+    assert default_decimation_rate(64.0, (2.0, 12.0)) == 64.0
+    assert default_decimation_rate(2048.0, (1.0, 30.0)) == 128.0
+    assert default_decimation_rate(2048.0, None) == 2048.0
+    assert default_decimation_rate(2048.0, (5.0, None)) == 2048.0
+    with pytest.raises(ValueError, match="sampling_rate_hz"):
+        default_decimation_rate(0.0, BAND)
+
+
+def test_decimation_along_channels_is_bit_equal_to_decimate():
+    x = np.random.default_rng(1).standard_normal((8000, 3))
+    fast = _decimate_channels_last(np.ascontiguousarray(x.T), 32).T
+    np.testing.assert_array_equal(fast, decimate(x, 2048.0, 64.0))
+
+
+def test_partial_read_equals_the_rows_of_the_whole_file(voyage):
+    _, paths, plan = voyage
+    info = plan.files[2]
+    whole = read_accelerations(paths[2]).acceleration
+    rows = _read_rows(info, CHANNELS, 100, 900)
+    np.testing.assert_array_equal(rows, whole[100:900])
+    reordered = _read_rows(info, CHANNELS[::-1], 0, 10)
+    np.testing.assert_array_equal(reordered, whole[:10, ::-1])
+
+
+def test_blocks_equal_the_per_block_builder_within_the_filter_transients(voyage):
+    _, paths, plan = voyage
+    conditioner = FileConditioner(
+        plan.files, plan.grid, plan.channels, target_rate_hz=TARGET, band_hz=BAND
+    )
+    edge = padding_samples(RATE, TARGET, BAND) // int(RATE / TARGET)
+    n_out = int(4 * FILE_S * TARGET)
+    assert 0 < 2 * edge < n_out  # the blocks have an interior to compare
+    built = 0
+    for planned in plan.blocks:
+        fast = conditioner.block(planned)
+        slow = load_block(paths, planned.block, plan.grid, target_rate_hz=TARGET, band_hz=BAND)
+        columns = ["nan_fraction", "longest_nan_run_s", "variance", "kurtosis", "variance_z"]
+        np.testing.assert_allclose(
+            fast.channel_report[columns].to_numpy(float),
+            slow.channel_report[columns].to_numpy(float),
+            rtol=1e-9,
+            atol=1e-12,
+        )
+        assert fast.dropped == slow.dropped
+        assert fast.channels == slow.channels
+        assert fast.sampling_rate_hz == slow.sampling_rate_hz == TARGET
+        assert fast.acceleration.shape == slow.acceleration.shape
+        rms = slow.acceleration.std(axis=0)
+        interior = np.abs(fast.acceleration - slow.acceleration)[edge:-edge] / rms
+        assert interior.max() < 1e-6
+        built += 1
+    assert conditioner.fallbacks == 0
+    assert built == len(plan.blocks) == 3
+    # the 15-s NaN run makes acc03 faulty in the blocks holding file 4 (blocks 1 and 2)
+    assert "acc03" not in conditioner.block(plan.blocks[2]).channels
+
+
+def test_file_joins_equal_filtering_the_whole_record(voyage):
+    full, _, plan = voyage
+    conditioner = FileConditioner(
+        plan.files, plan.grid, plan.channels, target_rate_hz=TARGET, band_hz=BAND
+    )
+    clean = [0, 2, 4]  # channels without NaN runs longer than can be bridged
+    whole = bandpass(decimate(full[:, clean], RATE, TARGET), TARGET, *BAND)
+    joined = np.concatenate([conditioner._conditioned(k).samples for k in range(N_FILES)])
+    assert joined.shape == (whole.shape[0], len(CHANNELS))
+    error = np.abs(joined[:, clean] - whole) / whole.std(axis=0)
+    assert error.max() < 1e-8
+
+
+def test_blocks_with_a_padded_gap_fall_back_to_the_per_block_builder(tmp_path):
+    rng = np.random.default_rng(3)
+    n_file = int(FILE_S * RATE)
+    paths = []
+    for k in range(5):
+        start = T0 + pd.Timedelta(seconds=k * FILE_S + (2.0 if k >= 2 else 0.0))
+        path = tmp_path / f"acc_{k}.npz"
+        write_accelerations(AccelerationRecord(_record(rng, n_file), RATE, start, CHANNELS), path)
+        paths.append(path)
+    plan = plan_blocks(paths, length_s=4 * FILE_S, step_s=FILE_S, max_gap_s=3.0)
+    conditioner = FileConditioner(
+        plan.files, plan.grid, plan.channels, target_rate_hz=TARGET, band_hz=BAND, max_gap_s=3.0
+    )
+    planned = plan.blocks[0]
+    fast = conditioner.block(planned)
+    slow = load_block(
+        paths, planned.block, plan.grid, target_rate_hz=TARGET, band_hz=BAND, max_gap_s=3.0
+    )
+    assert conditioner.fallbacks == 1
+    np.testing.assert_array_equal(fast.acceleration, slow.acceleration)
+
+
+def test_conditioner_rejects_a_rate_that_is_not_a_decimation(voyage):
+    _, _, plan = voyage
+    with pytest.raises(ValueError, match="target_rate_hz"):
+        FileConditioner(plan.files, plan.grid, plan.channels, target_rate_hz=300.0, band_hz=BAND)
+    with pytest.raises(ValueError, match="target_rate_hz"):
+        FileConditioner(plan.files, plan.grid, plan.channels, target_rate_hz=RATE, band_hz=BAND)
+
+
+def test_an_unreadable_neighbour_breaks_the_chain_only(voyage, tmp_path):
+    _, paths, _ = voyage
+    copies = []
+    for path in paths:
+        copy = tmp_path / path.name
+        copy.write_bytes(path.read_bytes())
+        copies.append(copy)
+    plan = plan_blocks(copies, length_s=4 * FILE_S, step_s=FILE_S)
+    copies[4].write_bytes(b"not an npz file")  # after planning: the file went bad
+    conditioner = FileConditioner(
+        plan.files, plan.grid, plan.channels, target_rate_hz=TARGET, band_hz=BAND
+    )
+    first = conditioner.block(plan.blocks[0])  # files 0-3; file 4 only pads file 3
+    assert first.acceleration is not None and conditioner.fallbacks == 0
+    with pytest.raises(ValueError, match="acc_4"):
+        conditioner.block(plan.blocks[1])
