@@ -1035,22 +1035,9 @@ def write_block_figures(
     """
     from .reporting.stabilisation_plot import write_stabilisation_figure
 
-    options = options or IdentifyOptions()
-    plan, options = plan_identification(acceleration_files(inputs), options)
-    planned = [p for p in plan.blocks if not p.skipped_reason]
-    if blocks is None:
-        picks = np.unique(np.linspace(0, len(planned) - 1, max(n_blocks, 1)).round().astype(int))
-        chosen = [planned[k] for k in picks] if planned else []
-    else:
-        wanted = {int(b) for b in blocks}
-        chosen = [p for p in planned if int(p.block) in wanted]
+    plan, tasks, options = _pick_tasks(inputs, options or IdentifyOptions(), n_blocks, blocks)
     paths = []
-    for planned_block in chosen:
-        task = _Task(
-            int(planned_block.block),
-            planned_block.block_start,
-            tuple(str(f) for f in planned_block.files),
-        )
+    for task in tasks:
         try:
             data, result, selection = _identify_data(task, plan.grid, options)
         except ValueError:
