@@ -68,3 +68,11 @@ def test_verbose_shows_the_traceback(tmp_path):
 
 def test_unknown_kind_is_usage_error(capsys):
     assert main(["validate", "spectra", "x"]) == 2
+
+
+@pytest.mark.parametrize("command", ["identify", "forecast", "evaluate", "track", "fit", "report"])
+def test_help_shows_percent_signs_once(command, capsys):
+    # argparse %-formats help strings but prints descriptions as written: '%%' there is a typo
+    assert main([command, "--help"]) == 0
+    shown = capsys.readouterr().out
+    assert "usage: workbench" in shown and "%%" not in shown

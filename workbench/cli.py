@@ -260,7 +260,7 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser(
         "identify",
         help="SSI of every block of acceleration files -> pole tables, selected modes",
-        description="Cut acceleration files into blocks (default 20 min, 75 %% overlap), "
+        description="Cut acceleration files into blocks (default 20 min, 75 % overlap), "
         "condition them, run stochastic subspace identification over all model orders, "
         "mark stable poles and select modes automatically, block by block in parallel. "
         "Results go to a resumable per-block store: run the same command again after an "
@@ -847,7 +847,7 @@ def _add_forecast(commands: argparse._SubParsersAction) -> None:
         "forecast",
         help="sliding regression forecast of each mode, Kalman-blended with SSI",
         description="Train a stepwise model of each mode's frequency on the last N blocks, "
-        "predict ahead with 95 %% bounds and blend with the SSI estimates by a Kalman filter "
+        "predict ahead with 95 % bounds and blend with the SSI estimates by a Kalman filter "
         "(option A: tracked pole; option B: nearest pole of the stabilisation diagram).",
     )
     parser.add_argument(
@@ -1021,7 +1021,7 @@ def _add_evaluate(commands: argparse._SubParsersAction) -> None:
         help="compare SSI, model and Kalman estimates with a true modal table",
         description="Cumulative absolute error per mode of the SSI-only, model-only and "
         "Kalman estimates of a forecast table against the truth (e.g. of the demo voyage), "
-        "and the improvement in %%.",
+        "and the improvement in %.",
     )
     parser.add_argument("--forecast", type=Path, required=True, metavar="FILE")
     parser.add_argument(
