@@ -386,19 +386,25 @@ def memory_forecast(
             # z-scores from the newest history (not frozen at the selection): a speed first
             # seen after the selection is then inside the clipping range
             newest = X_all[rows_ok[rows_ok >= i - int(model.selection_blocks)]][:, list(use)]
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", RuntimeWarning)
-                m_new = np.nanmean(newest, axis=0)
-                s_new = np.nanstd(newest, axis=0, ddof=1)
+            if newest.shape[0] >= 2 and np.isfinite(newest).all():  # the usual case: fast
+                m_new = newest.mean(axis=0)
+                s_new = newest.std(axis=0, ddof=1)
+            else:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    m_new = np.nanmean(newest, axis=0)
+                    s_new = np.nanstd(newest, axis=0, ddof=1)
             good = np.isfinite(s_new) & (s_new > 1e-12 * np.maximum(1.0, np.abs(m_new)))
             mean = np.where(good, m_new, mean)
             scale = np.where(good, s_new, scale)
-        age = (i - 1 - rows_ok).astype(float)
+        # the whole history slice (a view, no copy): the fits skip blocks without a
+        # measurement themselves, so they use exactly the rows of rows_ok, in order
+        age = (i - 1 - np.arange(lo, i)).astype(float)
         fitted = None
         if use and terms != ((),):
             fitted = fit_memory_model(
-                X_all[rows_ok],
-                meas[rows_ok, j],
+                X_all[lo:i],
+                y,
                 age,
                 columns=use,
                 names=names,
@@ -409,7 +415,7 @@ def memory_forecast(
                 limit=limit,
             )
         if fitted is None:
-            fitted = constant_model(meas[rows_ok, j], age, memory)
+            fitted = constant_model(y, age, memory)
         return fitted
 
     def predict(m: MemoryModel, rows_: np.ndarray):

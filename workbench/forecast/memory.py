@@ -157,15 +157,22 @@ def fit_memory_model(
     n_eff = w.sum() ** 2 / (w @ w) if w.size else 0.0
     if n_eff < p + 3:
         return None
-    sw = np.sqrt(w)
-    # β = argmin Σ w_k (y_k - x_k β)²
-    beta, _, rank, _ = np.linalg.lstsq(D * sw[:, None], y * sw, rcond=None)
-    if rank < p:
-        return None
+    Dw = D * w[:, None]
+    normal = Dw.T @ D  # XᵀWX
+    solved = _solve_well_conditioned(normal, Dw.T @ y)
+    if solved is not None:
+        # β = (XᵀWX)⁻¹ XᵀWy: the same estimate as the SVD path below, to round-off
+        beta, covariance = solved
+    else:
+        sw = np.sqrt(w)
+        # β = argmin Σ w_k (y_k - x_k β)²
+        beta, _, rank, _ = np.linalg.lstsq(D * sw[:, None], y * sw, rcond=None)
+        if rank < p:
+            return None
+        covariance = np.linalg.pinv(normal)  # (XᵀWX)⁻¹
     resid = y - D @ beta
     dof = n_eff - p
     s2 = float((w * resid**2).sum() / w.sum() * n_eff / dof)  # weighted residual variance
-    covariance = np.linalg.pinv((D * w[:, None]).T @ D)  # (XᵀWX)⁻¹
     return MemoryModel(
         "memory",
         model.columns,
@@ -179,6 +186,41 @@ def fit_memory_model(
         float(dof),
         int(ok.sum()),
     )
+
+
+#: Largest condition number of XᵀWX solved through the normal equations; beyond it (rank
+#: doubtful) the SVD least squares decides the rank as before. At 1e8 the normal equations
+#: lose at most ~1e8 x eps ~ 1e-8 relative, far below the model's own uncertainty.
+_MAX_NORMAL_CONDITION = 1e8
+
+
+def _solve_well_conditioned(
+    normal: np.ndarray, rhs: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """(XᵀWX)⁻¹ XᵀWy and (XᵀWX)⁻¹ by Cholesky, or None when XᵀWX is ill-conditioned.
+
+    A few terms and thousands of rows: forming XᵀWX (n p² flops) and factoring p x p is
+    much cheaper than the SVD of the n x p weighted design that ``lstsq`` and ``pinv`` did
+    at every refit, and equal to round-off when the condition number is moderate.
+    """
+    if not np.isfinite(normal).all():
+        return None
+    diagonal = np.sqrt(np.diag(normal))
+    if not (diagonal > 0).all():
+        return None
+    # equilibrate (unit diagonal) so the condition number reflects collinearity, not units
+    scaled = normal / np.outer(diagonal, diagonal)
+    eigenvalues = np.linalg.eigvalsh(scaled)
+    if eigenvalues[0] <= eigenvalues[-1] / _MAX_NORMAL_CONDITION:
+        return None
+    try:
+        factor = np.linalg.cholesky(scaled)
+    except np.linalg.LinAlgError:
+        return None
+    inverse_scaled = np.linalg.inv(factor)
+    inverse_scaled = inverse_scaled.T @ inverse_scaled  # (L Lᵀ)⁻¹ = L⁻ᵀ L⁻¹
+    covariance = inverse_scaled / np.outer(diagonal, diagonal)
+    return covariance @ rhs, covariance
 
 
 def constant_model(y: np.ndarray, age: np.ndarray, memory_blocks: float) -> MemoryModel | None:

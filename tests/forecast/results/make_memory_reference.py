@@ -1,0 +1,86 @@
+"""Record the memory forecast of a small synthetic voyage (tests/forecast/test_memory_speed.py).
+
+Run from the repository root, with the code whose results are the reference:
+``python tests/forecast/results/make_memory_reference.py``. The reference in
+memory_reference.csv was written by the memory path before it was vectorised (commit
+301f99c), so the test checks that the speed-up did not change the results.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+COLUMNS = [
+    "model_frequency_hz",
+    "model_lower_hz",
+    "model_upper_hz",
+    "ssi_frequency_hz",
+    "kalman_frequency_hz",
+    "kalman_std_hz",
+]
+
+
+def case() -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Three modes, speed / temperatures / wind, 900 blocks (3 days of 5-minute blocks)."""
+    rng = np.random.default_rng(11)
+    n = 900
+    block = np.arange(n)
+    start = pd.Timestamp("2025-01-01T00:00:00Z") + pd.to_timedelta(block * 300, unit="s")
+    speed = np.where((block // 90) % 2 == 0, 5.0, 13.0) + 3 * np.sin(block / 70.0)
+    speed += rng.normal(0, 0.3, n)
+    water = 12 + 2 * np.sin(block / 300.0) + rng.normal(0, 0.05, n)
+    air = 15 + 4 * np.sin(block / 144.0) + rng.normal(0, 0.3, n)
+    wind = 8 + 3 * np.cos(block / 50.0) + rng.normal(0, 0.5, n)
+    predictors = pd.DataFrame(
+        {
+            "block": block,
+            "block_start": start,
+            "speed_kn": speed,
+            "water_temp_c": water,
+            "air_temp_c": air,
+            "wind_speed_ms": wind,
+        }
+    )
+    rows = []
+    for mode, f0 in ((1, 2.1), (2, 4.7), (3, 7.9)):
+        truth = f0 * (1 - 0.0015 * speed + 0.0004 * (water - 12) - 1e-5 * speed * wind)
+        err = np.empty(n)
+        err[0] = 0.0
+        for k in range(1, n):
+            err[k] = 0.6 * err[k - 1] + math.sqrt(1 - 0.36) * rng.normal(0, 0.003 * f0)
+        z = truth + err
+        z[rng.random(n) < 0.1] = np.nan
+        keep = np.isfinite(z)
+        rows.append(
+            pd.DataFrame(
+                {
+                    "block": block[keep],
+                    "block_start": start[keep],
+                    "mode": mode,
+                    "frequency_hz": z[keep],
+                }
+            )
+        )
+    return pd.concat(rows, ignore_index=True), predictors
+
+
+def forecast() -> pd.DataFrame:
+    from workbench.forecast import ForecastWarning, sliding_forecast
+
+    modal, predictors = case()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ForecastWarning)
+        table = sliding_forecast(modal, predictors, method=2, model="memory").table
+    return table[["block", "mode", "phase", *COLUMNS]].reset_index(drop=True)
+
+
+if __name__ == "__main__":
+    out = Path(__file__).with_name("memory_reference.csv")
+    forecast().to_csv(out, index=False, float_format="%.17g")
+    print(f"wrote {out}", file=sys.stderr)
