@@ -315,8 +315,8 @@ def sliding_forecast(
         the data, an AR(1) measurement-error state (:func:`workbench.forecast.blend.
         memory_forecast`; *model_options*, *noise_options*). ``"memory"`` beats raw SSI by
         31-49 % on the block-level regimes of ``benchmarks/bench_forecast_accuracy.py`` but
-        not yet on the demo voyage, and is about 4x slower on voyage-length tables, so it is
-        not the default yet.
+        not yet on the demo voyage (22 % worse than raw SSI at 3 h), so it is not the
+        default yet.
     cases : None, "derive", CaseRule, column name, path or DataFrame, optional
         Operating cases (:func:`workbench.stats.cases.case_labels`). Each window then
         trains on its blocks of the case the first forecast block is in, so the forecast
