@@ -33,9 +33,6 @@ import numpy as np
 import pandas as pd
 from scipy import fft, linalg
 
-from data_contracts import shapes_to_frame
-
-from .mac import continuous_pole
 from .modal import (
     modal_parameters,
     modal_phase_collinearity,
@@ -43,7 +40,7 @@ from .modal import (
     sid_threads,
     thread_budget,
 )
-from .ssi import _lagged_products, _prepare
+from .ssi import PoleTableMixin, _lagged_products, _prepare
 from .stabilisation import StabilityCriteria, stability_flags
 
 __all__ = ["HalfSpectra", "LSCFResult", "half_spectra", "lscf"]
@@ -112,7 +109,7 @@ def half_spectra(
 
 
 @dataclass(frozen=True, eq=False)
-class LSCFResult:
+class LSCFResult(PoleTableMixin):
     """Poles of every model order of one pLSCF run (a stabilisation diagram).
 
     Parameters
@@ -156,31 +153,6 @@ class LSCFResult:
     reference_channels: tuple[int, ...]
     method: str = "lscf"
     criteria: StabilityCriteria = field(default_factory=StabilityCriteria)
-
-    @property
-    def n_channels(self) -> int:
-        return int(self.mode_shapes.shape[0])
-
-    @property
-    def continuous_poles(self) -> np.ndarray:
-        """Continuous-time poles λ = -ζω + iω√(1-ζ²) of the rows of *poles*. [rad/s]"""
-        return continuous_pole(
-            self.poles["frequency_hz"].to_numpy(), self.poles["damping_ratio"].to_numpy()
-        )
-
-    def poles_frame(self, channels: Sequence[str], block: int | None = None) -> pd.DataFrame:
-        """The poles with mode-shape columns (pole-table contract), as
-        :meth:`workbench.sid.ssi.SSIResult.poles_frame`."""
-        channels = list(channels)
-        if len(channels) != self.n_channels:
-            raise ValueError(
-                f"channels has {len(channels)} names for {self.n_channels} identified channels"
-            )
-        frame = self.poles.reset_index(drop=True)
-        if block is not None:
-            frame.insert(0, "block", np.full(len(frame), int(block), dtype=np.int64))
-        shapes = shapes_to_frame(channels, self.mode_shapes.T, index=frame.index)
-        return pd.concat([frame, shapes], axis=1)
 
 
 def lscf(

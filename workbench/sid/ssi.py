@@ -150,8 +150,55 @@ class StochasticStateSpace:
         )
 
 
+class PoleTableMixin:
+    """What every identification result with ``poles`` (one row per pole: model_order,
+    frequency_hz, damping_ratio, ...) and ``mode_shapes`` (n_channels x n_poles) offers:
+    SSI (:class:`SSIResult`) and LSCF (:class:`~workbench.sid.lscf.LSCFResult`)."""
+
+    poles: pd.DataFrame
+    mode_shapes: np.ndarray
+
+    @property
+    def n_channels(self) -> int:
+        return int(self.mode_shapes.shape[0])
+
+    @property
+    def continuous_poles(self) -> np.ndarray:
+        """Continuous-time poles λ = -ζω + iω√(1-ζ²) of the rows of *poles*. [rad/s]"""
+        return continuous_pole(
+            self.poles["frequency_hz"].to_numpy(), self.poles["damping_ratio"].to_numpy()
+        )
+
+    def poles_frame(self, channels: Sequence[str], block: int | None = None) -> pd.DataFrame:
+        """The poles with mode-shape columns, ready for the pole-table contract.
+
+        Parameters
+        ----------
+        channels : sequence of str
+            Names of the input columns (length n_channels).
+        block : int, optional
+            Block number; adds the ``block`` column first (required by the contract).
+
+        Returns
+        -------
+        pandas.DataFrame
+            ``[block,] model_order, frequency_hz, damping_ratio, stable, mpc``,
+            ``shape_re_<channel>``..., ``shape_im_<channel>``...
+        """
+        channels = list(channels)
+        if len(channels) != self.n_channels:
+            raise ValueError(
+                f"channels has {len(channels)} names for {self.n_channels} identified channels"
+            )
+        frame = self.poles.reset_index(drop=True)
+        if block is not None:
+            frame.insert(0, "block", np.full(len(frame), int(block), dtype=np.int64))
+        shapes = shapes_to_frame(channels, self.mode_shapes.T, index=frame.index)
+        return pd.concat([frame, shapes], axis=1)
+
+
 @dataclass(frozen=True, eq=False)
-class SSIResult:
+class SSIResult(PoleTableMixin):
     """Poles of every model order of one SSI run (a stabilisation diagram).
 
     Parameters
@@ -193,44 +240,6 @@ class SSIResult:
     method: str
     system: StochasticStateSpace
     criteria: StabilityCriteria = field(default_factory=StabilityCriteria)
-
-    @property
-    def n_channels(self) -> int:
-        return int(self.mode_shapes.shape[0])
-
-    @property
-    def continuous_poles(self) -> np.ndarray:
-        """Continuous-time poles λ = -ζω + iω√(1-ζ²) of the rows of *poles*. [rad/s]"""
-        return continuous_pole(
-            self.poles["frequency_hz"].to_numpy(), self.poles["damping_ratio"].to_numpy()
-        )
-
-    def poles_frame(self, channels: Sequence[str], block: int | None = None) -> pd.DataFrame:
-        """The poles with mode-shape columns, ready for the pole-table contract.
-
-        Parameters
-        ----------
-        channels : sequence of str
-            Names of the input columns (length n_channels).
-        block : int, optional
-            Block number; adds the ``block`` column first (required by the contract).
-
-        Returns
-        -------
-        pandas.DataFrame
-            ``[block,] model_order, frequency_hz, damping_ratio, stable, mpc``,
-            ``shape_re_<channel>``..., ``shape_im_<channel>``...
-        """
-        channels = list(channels)
-        if len(channels) != self.n_channels:
-            raise ValueError(
-                f"channels has {len(channels)} names for {self.n_channels} identified channels"
-            )
-        frame = self.poles.reset_index(drop=True)
-        if block is not None:
-            frame.insert(0, "block", np.full(len(frame), int(block), dtype=np.int64))
-        shapes = shapes_to_frame(channels, self.mode_shapes.T, index=frame.index)
-        return pd.concat([frame, shapes], axis=1)
 
 
 # --------------------------------------------------------------------------- validation
