@@ -178,6 +178,7 @@ def memory_forecast(
         ForecastWarning,
         WindowModel,
         _assemble,
+        _drop_unusable,
         _mac_on_common_channels,
         _plausible,
         _PoleSelector,
@@ -675,12 +676,7 @@ def memory_forecast(
         is_first = False
         i0 = f1
 
-    unusable = (out_phase > 0) & ~(np.isfinite(out["model"]) & np.isfinite(out["kalman"]))
-    if unusable.any():
-        notes["rows left out: no model value available (mode without data so far)"] += int(
-            unusable.sum()
-        )
-        out_phase[unusable] = 0
+    _drop_unusable(out_phase, out["model"], out["kalman"], notes)
     table = _assemble(
         blocks,
         block_start,

@@ -945,12 +945,7 @@ def sliding_forecast(
             break
         window_start += horizon
 
-    unusable = (out_phase > 0) & ~(np.isfinite(out_model) & np.isfinite(out_kalman))
-    if unusable.any():  # a mode without any data yet: no row rather than a NaN row
-        notes["rows left out: no model value available (mode without data so far)"] += int(
-            unusable.sum()
-        )
-        out_phase[unusable] = 0
+    _drop_unusable(out_phase, out_model, out_kalman, notes)
     table = _assemble(
         blocks,
         block_start,
@@ -1279,6 +1274,17 @@ class _PoleSelector:
             index, macs = index[keep], macs[keep]
         best = int(np.argmax(macs))  # highest MAC with the reference shape
         return int(index[best]), float(macs[best])
+
+
+def _drop_unusable(out_phase, model, kalman, notes) -> None:
+    """Rows without a model or Kalman value (a mode without any data yet) get phase 0:
+    no row rather than a NaN row; counted in *notes*."""
+    unusable = (out_phase > 0) & ~(np.isfinite(model) & np.isfinite(kalman))
+    if unusable.any():
+        notes["rows left out: no model value available (mode without data so far)"] += int(
+            unusable.sum()
+        )
+        out_phase[unusable] = 0
 
 
 def _assemble(
