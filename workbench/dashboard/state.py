@@ -1,0 +1,235 @@
+"""Read-only access to a monitor's state folder.
+
+The monitor (``workbench monitor``) publishes its results into a state folder, each file
+written atomically (temporary file, then rename). Any file may be absent early on:
+
+==========================  ============================================================
+``tracked.parquet``         MODAL contract: the tracked modal table so far
+``forecast.parquet``        FORECAST contract: model prediction with 95 % bounds, SSI and
+                            Kalman estimates per block and mode
+``health.parquet``          HEALTH contract: the control chart, one row per block
+``alarms.parquet``          ALARMS contract: alarm episodes with their evidence
+``data_health.parquet``     :data:`DATA_HEALTH`: channels, gaps and latency per block
+``status.json``             :data:`STATUS_KEYS`: the monitor's heartbeat
+==========================  ============================================================
+
+:class:`StateFolder` reads a file again only when its signature (modification time in
+ns, size, inode) changed, keeps the last good version when a new one cannot be read, and
+never writes, creates or locks anything in the folder.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from data_contracts import (
+    ALARMS,
+    FORECAST,
+    HEALTH,
+    MODAL,
+    Column,
+    ContractError,
+    TableContract,
+    read_table,
+)
+
+__all__ = [
+    "DATA_HEALTH",
+    "STATE_FILES",
+    "STATUS_KEYS",
+    "FileSnapshot",
+    "StateFolder",
+    "read_status",
+]
+
+#: Data health of the acquisition, one row per block (written by the monitor).
+DATA_HEALTH = TableContract(
+    name="data_health",
+    description="Health of the acquisition per identified block: channels used and dropped, "
+    "gaps in the files, when the last file landed and the latency to identification.",
+    columns=(
+        Column("block", "int", "Block number on the voyage's block grid.", minimum=0),
+        Column("block_start", "time", "Start of the block, UTC.", unit="UTC"),
+        Column("n_channels", "int", "Channels used for identification.", minimum=0),
+        Column(
+            "dropped_channels",
+            "str",
+            "Channels left out of this block, comma-separated ('' if none).",
+            nullable=True,
+        ),
+        Column("gap_seconds", "float", "Missing data inside the block. [s]", unit="s", minimum=0),
+        Column("last_file_landed", "time", "When the block's last file arrived, UTC.", unit="UTC"),
+        Column("identified_at", "time", "When the block was identified, UTC.", unit="UTC"),
+        Column(
+            "latency_s",
+            "float",
+            "From the last file landing to the block's results being published. [s]",
+            unit="s",
+        ),
+    ),
+    unique=("block",),
+)
+
+#: File names of the state folder by part, with the contract of each table.
+STATE_FILES: dict[str, tuple[str, TableContract | None]] = {
+    "tracked": ("tracked.parquet", MODAL),
+    "forecast": ("forecast.parquet", FORECAST),
+    "health": ("health.parquet", HEALTH),
+    "alarms": ("alarms.parquet", ALARMS),
+    "data_health": ("data_health.parquet", DATA_HEALTH),
+    "status": ("status.json", None),
+}
+
+#: Keys of ``status.json`` and the JSON types each takes.
+STATUS_KEYS: dict[str, tuple[type, ...]] = {
+    "updated_at": (str,),
+    "last_block": (int, type(None)),
+    "blocks_done": (int,),
+    "state": (str,),
+    "pid": (int,),
+    "watch": (str,),
+    "message": (str,),
+}
+
+Signature = tuple[int, int, int]
+
+
+@dataclass(frozen=True)
+class FileSnapshot:
+    """One state file as last read.
+
+    Parameters
+    ----------
+    name : str
+        Part name (``tracked``, ``forecast``, ... see :data:`STATE_FILES`).
+    signature : tuple of int or None
+        (mtime in ns, size in bytes, inode) of the file; None when it is absent.
+    data : DataFrame, dict or None
+        The validated table (or the status dictionary); None when nothing good was read
+        yet.
+    error : str or None
+        Why the current file could not be used (absent, unreadable, contract violation).
+        When *data* is not None as well, *data* is the last good version.
+    """
+
+    name: str
+    signature: Signature | None
+    data: Any
+    error: str | None
+
+    @property
+    def available(self) -> bool:
+        return self.data is not None
+
+
+def read_status(path: str | os.PathLike) -> dict:
+    """Read and check ``status.json``.
+
+    Raises
+    ------
+    ValueError
+        The file is not a JSON object with the keys and types of :data:`STATUS_KEYS`
+        (message names the file and the key).
+    """
+    path = Path(path)
+    try:
+        status = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ValueError(f"{path.name}: not valid JSON ({error})") from None
+    if not isinstance(status, dict):
+        raise ValueError(f"{path.name}: expected a JSON object, got {type(status).__name__}")
+    problems = []
+    for key, types in STATUS_KEYS.items():
+        if key not in status:
+            problems.append(f"missing key '{key}'")
+        elif not isinstance(status[key], types) or isinstance(status[key], bool):
+            problems.append(f"key '{key}' has type {type(status[key]).__name__}")
+    if not problems:
+        try:
+            pd.Timestamp(status["updated_at"])
+        except ValueError:
+            problems.append(f"key 'updated_at' is not an ISO-8601 time: {status['updated_at']!r}")
+    if problems:
+        raise ValueError(f"{path.name}: " + "; ".join(problems))
+    return status
+
+
+def _first_line(error: BaseException) -> str:
+    text = str(error).strip()
+    return text.splitlines()[0] if text else type(error).__name__
+
+
+class StateFolder:
+    """Cached, read-only view of a monitor's state folder.
+
+    Parameters
+    ----------
+    folder : path
+        The state folder; it may not exist yet.
+
+    Notes
+    -----
+    Thread-safe: the dashboard's request threads share one instance, so each file is
+    parsed once per change, however many screens are watching.
+    """
+
+    def __init__(self, folder: str | os.PathLike):
+        self.folder = Path(folder)
+        self._cache: dict[str, FileSnapshot] = {}
+        self._lock = threading.Lock()
+
+    def path(self, name: str) -> Path:
+        return self.folder / STATE_FILES[name][0]
+
+    def signature(self, name: str) -> Signature | None:
+        """(mtime in ns, size, inode) of a state file, None when absent."""
+        try:
+            st = os.stat(self.path(name))
+        except OSError:
+            return None
+        return (st.st_mtime_ns, st.st_size, st.st_ino)
+
+    def signatures(self) -> dict[str, Signature | None]:
+        return {name: self.signature(name) for name in STATE_FILES}
+
+    def read(self, name: str) -> FileSnapshot:
+        """The current content of state file *name* (re-read only when it changed)."""
+        if name not in STATE_FILES:
+            raise KeyError(name)
+        with self._lock:
+            signature = self.signature(name)
+            cached = self._cache.get(name)
+            if cached is not None and cached.signature == signature:
+                return cached
+            last_good = cached.data if cached is not None else None
+            filename, contract = STATE_FILES[name]
+            if signature is None:
+                if not self.folder.is_dir():
+                    error = f"state folder {self.folder} does not exist (yet)"
+                else:
+                    error = f"{filename} not written yet"
+                # a file that disappears (monitor reset) takes its data with it
+                snapshot = FileSnapshot(name, None, None, error)
+            else:
+                try:
+                    if contract is None:
+                        data = read_status(self.path(name))
+                    else:
+                        data = read_table(self.path(name), contract)
+                    snapshot = FileSnapshot(name, signature, data, None)
+                except ContractError as error:
+                    reason = "; ".join(str(v) for v in error.violations[:3])
+                    snapshot = FileSnapshot(name, signature, last_good, f"{filename}: {reason}")
+                except (OSError, ValueError) as error:
+                    snapshot = FileSnapshot(
+                        name, signature, last_good, f"{filename}: {_first_line(error)}"
+                    )
+            self._cache[name] = snapshot
+            return snapshot

@@ -1,0 +1,285 @@
+"""What each panel of the dashboard shows, as JSON-ready dictionaries.
+
+Pure functions of the state tables: no I/O, so each panel is testable on its own. Times
+are sent twice: ISO-8601 UTC text for people and epoch milliseconds for the plots.
+Missing values (NaN, NaT) become ``null``, since JSON has no NaN.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+__all__ = [
+    "alarms_view",
+    "data_health_view",
+    "health_view",
+    "iso",
+    "modes_view",
+    "status_view",
+    "tracked_view",
+]
+
+
+def iso(value) -> str | None:
+    """ISO-8601 UTC text of a timestamp (``2024-03-01T06:05:00Z``), None for NaT."""
+    if value is None or pd.isna(value):
+        return None
+    stamp = pd.Timestamp(value)
+    stamp = stamp.tz_localize("UTC") if stamp.tzinfo is None else stamp.tz_convert("UTC")
+    return stamp.strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def _epoch_ms(values: pd.Series) -> list[int]:
+    return (values.astype("int64") // 1_000_000).astype(int).tolist()
+
+
+def _num(value) -> float | None:
+    """A float for JSON: None for NaN, infinities and missing values."""
+    if value is None or value is pd.NA:
+        return None
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def _nums(values) -> list[float | None]:
+    array = np.asarray(values, dtype=float)
+    return [float(v) if math.isfinite(v) else None for v in array]
+
+
+def _window(frame: pd.DataFrame, hours: float) -> pd.DataFrame:
+    """Rows whose block starts within *hours* of the newest block's start."""
+    if frame.empty:
+        return frame
+    newest = frame["block_start"].max()
+    return frame[frame["block_start"] > newest - pd.Timedelta(hours=hours)]
+
+
+def status_view(status: dict | None, now: pd.Timestamp) -> dict[str, Any]:
+    """The monitor's heartbeat with its age at *now*. [s]"""
+    if status is None:
+        return {}
+    updated = pd.Timestamp(status["updated_at"])
+    updated = updated.tz_localize("UTC") if updated.tzinfo is None else updated
+    return {
+        "state": status["state"],
+        "last_block": status["last_block"],
+        "blocks_done": status["blocks_done"],
+        "updated_at": iso(updated),
+        "age_s": _num((now - updated).total_seconds()),
+        "watch": status["watch"],
+        "message": status["message"],
+        "pid": status["pid"],
+    }
+
+
+def choose_option(forecast: pd.DataFrame, option: str | None) -> str | None:
+    """Forecast option to show: *option* when given, else A when present, else B."""
+    present = set(forecast["option"].unique())
+    if option is not None:
+        return option if option in present else None
+    for candidate in ("A", "B"):
+        if candidate in present:
+            return candidate
+    return None
+
+
+def modes_view(
+    tracked: pd.DataFrame | None, forecast: pd.DataFrame | None, *, option: str | None = None
+) -> dict[str, Any]:
+    """One card per mode: the newest SSI estimate, model prediction with its 95 % bounds
+    and Kalman estimate.
+
+    The newest block is the newest of either table. A mode without an estimate in it is
+    shown with the block it was last seen in (``last_block``), so a mode that has gone
+    quiet is visible as such rather than with an old number passed off as current.
+    """
+    cards: dict[int, dict[str, Any]] = {}
+    newest_block = None
+    newest_start = None
+    shown_option = None
+    if tracked is not None and not tracked.empty:
+        newest_block = int(tracked["block"].max())
+        newest_start = tracked["block_start"].max()
+        last = tracked.sort_values("block").groupby("mode", sort=True).tail(1)
+        for row in last.itertuples(index=False):
+            cards[int(row.mode)] = {
+                "mode": int(row.mode),
+                "last_block": int(row.block),
+                "last_time": iso(row.block_start),
+                "frequency_hz": _num(row.frequency_hz),
+                "damping_ratio": _num(row.damping_ratio),
+            }
+    if forecast is not None and not forecast.empty:
+        shown_option = choose_option(forecast, option)
+        rows = forecast[forecast["option"] == shown_option]
+        if not rows.empty:
+            block = int(rows["block"].max())
+            if newest_block is None or block > newest_block:
+                newest_block = block
+                newest_start = rows.loc[rows["block"] == block, "block_start"].iloc[0]
+            newest = rows.sort_values("block").groupby("mode", sort=True).tail(1)
+            for row in newest.itertuples(index=False):
+                card = cards.setdefault(int(row.mode), {"mode": int(row.mode)})
+                card.update(
+                    {
+                        "forecast_block": int(row.block),
+                        "forecast_time": iso(row.block_start),
+                        "phase": row.phase,
+                        "ssi_frequency_hz": _num(row.ssi_frequency_hz),
+                        "model_frequency_hz": _num(row.model_frequency_hz),
+                        "model_lower_hz": _num(row.model_lower_hz),
+                        "model_upper_hz": _num(row.model_upper_hz),
+                        "kalman_frequency_hz": _num(row.kalman_frequency_hz),
+                        "kalman_std_hz": _num(row.kalman_std_hz),
+                    }
+                )
+                ssi, low, high = (
+                    card["ssi_frequency_hz"],
+                    card["model_lower_hz"],
+                    card["model_upper_hz"],
+                )
+                card["inside_bounds"] = (
+                    None if ssi is None or low is None or high is None else low <= ssi <= high
+                )
+    if forecast is not None and not forecast.empty and tracked is None:
+        # no tracked table yet: the forecast's SSI column tells when a mode was identified
+        rows = forecast[(forecast["option"] == shown_option) & forecast["ssi_frequency_hz"].notna()]
+        for mode, group in rows.groupby("mode"):
+            cards[int(mode)]["last_block"] = int(group["block"].max())
+    for card in cards.values():
+        card["current"] = newest_block is not None and card.get("last_block") == newest_block
+        if not card["current"]:
+            # an old number is not passed off as current
+            card["frequency_hz"] = None
+            card["damping_ratio"] = None
+    return {
+        "block": newest_block,
+        "block_start": iso(newest_start),
+        "option": shown_option,
+        "modes": [cards[m] for m in sorted(cards)],
+    }
+
+
+def tracked_view(tracked: pd.DataFrame, *, hours: float) -> dict[str, Any]:
+    """Tracked frequencies of the last *hours* before the newest block, one series per
+    mode (blocks, times, frequencies)."""
+    window = _window(tracked, hours).sort_values(["mode", "block"])
+    series = []
+    for mode, rows in window.groupby("mode", sort=True):
+        series.append(
+            {
+                "mode": int(mode),
+                "block": rows["block"].astype(int).tolist(),
+                "t": _epoch_ms(rows["block_start"]),
+                "frequency_hz": _nums(rows["frequency_hz"]),
+            }
+        )
+    return {
+        "hours": hours,
+        "block": int(tracked["block"].max()) if not tracked.empty else None,
+        "start": iso(window["block_start"].min()) if not window.empty else None,
+        "end": iso(window["block_start"].max()) if not window.empty else None,
+        "series": series,
+    }
+
+
+def health_view(health: pd.DataFrame, *, hours: float) -> dict[str, Any]:
+    """The control chart over the last *hours*: statistic, limit, phase and alarms."""
+    full = health.sort_values("block")
+    window = _window(full, hours)
+    reference = full[full["phase"] == "reference"]
+    newest = full.iloc[-1] if not full.empty else None
+    return {
+        "hours": hours,
+        "block": None if newest is None else int(newest["block"]),
+        "statistic": None if newest is None else _num(newest["statistic"]),
+        "limit": None if newest is None else _num(newest["limit"]),
+        "phase": None if newest is None else newest["phase"],
+        "alarm": None if newest is None else bool(newest["alarm"]),
+        "n_modes": None if newest is None else int(newest["n_modes"]),
+        "reference_start": iso(reference["block_start"].min()) if not reference.empty else None,
+        "reference_end": iso(reference["block_start"].max()) if not reference.empty else None,
+        "points": {
+            "block": window["block"].astype(int).tolist(),
+            "t": _epoch_ms(window["block_start"]),
+            "statistic": _nums(window["statistic"]),
+            "limit": _nums(window["limit"]),
+            "alarm": window["alarm"].astype(bool).tolist(),
+            "reference": (window["phase"] == "reference").tolist(),
+        },
+    }
+
+
+def alarms_view(alarms: pd.DataFrame, health: pd.DataFrame | None = None) -> dict[str, Any]:
+    """Alarm episodes, newest first; an episode is active when it reaches the newest
+    block of the health chart and that block alarms."""
+    active_block = None
+    if health is not None and not health.empty:
+        newest = health.sort_values("block").iloc[-1]
+        if bool(newest["alarm"]):
+            active_block = int(newest["block"])
+    episodes = []
+    for row in alarms.sort_values("start_block", ascending=False).itertuples(index=False):
+        episodes.append(
+            {
+                "alarm": int(row.alarm),
+                "start_block": int(row.start_block),
+                "end_block": int(row.end_block),
+                "start_time": iso(row.start_time),
+                "end_time": iso(row.end_time),
+                "peak_block": int(row.peak_block),
+                "peak_statistic": _num(row.peak_statistic),
+                "limit": _num(row.limit),
+                "modes": row.modes,
+                "top_mode": int(row.top_mode),
+                "top_mode_shift_percent": _num(row.top_mode_shift_percent),
+                "active": active_block is not None and int(row.end_block) == active_block,
+            }
+        )
+    return {
+        "count": len(episodes),
+        "active": any(e["active"] for e in episodes),
+        "alarms": episodes,
+    }
+
+
+def data_health_view(data_health: pd.DataFrame, *, hours: float) -> dict[str, Any]:
+    """The newest block's acquisition health and a summary over the last *hours*:
+    latency (median, worst), blocks with dropped channels, total gaps."""
+    window = _window(data_health.sort_values("block"), hours)
+    if window.empty:
+        return {"hours": hours, "latest": None, "summary": None, "rows": []}
+
+    def row_dict(row) -> dict[str, Any]:
+        dropped = row.dropped_channels if isinstance(row.dropped_channels, str) else ""
+        return {
+            "block": int(row.block),
+            "block_start": iso(row.block_start),
+            "n_channels": int(row.n_channels),
+            "dropped_channels": [c.strip() for c in dropped.split(",") if c.strip()],
+            "gap_seconds": _num(row.gap_seconds),
+            "last_file_landed": iso(row.last_file_landed),
+            "identified_at": iso(row.identified_at),
+            "latency_s": _num(row.latency_s),
+        }
+
+    rows = [row_dict(r) for r in window.itertuples(index=False)]
+    latency = window["latency_s"].to_numpy(dtype=float)
+    latency = latency[np.isfinite(latency)]
+    dropped = window["dropped_channels"].fillna("").str.strip() != ""
+    return {
+        "hours": hours,
+        "latest": rows[-1],
+        "summary": {
+            "blocks": len(rows),
+            "median_latency_s": _num(np.median(latency)) if latency.size else None,
+            "worst_latency_s": _num(latency.max()) if latency.size else None,
+            "blocks_with_dropped_channels": int(dropped.sum()),
+            "gap_seconds": _num(window["gap_seconds"].sum()),
+        },
+        "rows": rows[::-1][:12],
+    }
