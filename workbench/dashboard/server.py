@@ -248,6 +248,7 @@ def _render_page(options: DashboardOptions) -> bytes:
 class _Handler(BaseHTTPRequestHandler):
     server: DashboardServer
     server_version = "workbench-dashboard"
+    sys_version = ""
     protocol_version = "HTTP/1.1"
     #: seconds a silent connection is kept (a stalled client cannot hold a thread)
     timeout = 30

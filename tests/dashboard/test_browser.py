@@ -1,0 +1,172 @@
+"""The dashboard as a reader sees it, in a real headless browser (Debian's chromium).
+
+One chromium per module, driven over the DevTools protocol by
+:mod:`workbench.dashboard.browser` (standard library only): the page is loaded once from
+a dashboard server in this process, what it shows is read from the DOM, and blocks are
+then published into the state folder while the page stays open, to see them appear
+without a reload. Skipped when chromium is absent, except on CI (``CI=true``).
+"""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from workbench.dashboard import DashboardOptions
+from workbench.dashboard.browser import HeadlessChromium, find_chromium
+
+from .conftest import publish
+
+#: What a reader sees, gathered in the page.
+READ_PAGE = """(() => {
+  const text = (sel) => [...document.querySelectorAll(sel)].map((n) => n.innerText.trim());
+  const visible = (sel) => { const n = document.querySelector(sel);
+                             return !!n && n.getClientRects().length > 0; };
+  const series = [...document.querySelectorAll("#tracked-chart g.series")];
+  return {
+    status: document.getElementById("status").innerText,
+    cards: [...document.querySelectorAll("#modes .mode-card")].map((c) => ({
+      mode: +c.dataset.mode, text: c.innerText, stale: c.classList.contains("stale")})),
+    modesHeading: document.querySelector("#modes h2").innerText,
+    series: series.map((g) => ({key: +g.dataset.key, points: +g.dataset.points,
+                                circles: g.querySelectorAll("circle").length,
+                                colour: g.querySelector("path").getAttribute("stroke")})),
+    legend: text("#tracked .legend span"),
+    healthHeading: document.querySelector("#health h2").innerText,
+    healthLimit: document.querySelectorAll("#health-chart path.limit").length,
+    healthLine: document.querySelectorAll("#health-chart path.statistic").length,
+    alarmPoints: document.querySelectorAll("#health-chart circle.alarm-point").length,
+    alarmRows: text("#alarms tbody tr"),
+    activeAlarms: document.querySelectorAll("#alarms tr.active").length,
+    facts: Object.fromEntries([...document.querySelectorAll("#data_health dd")].map(
+      (d) => [d.dataset.fact, d.innerText])),
+    healthRows: document.querySelectorAll("#data_health tbody tr").length,
+    placeholders: ["modes", "tracked", "health", "alarms", "data_health"].filter(
+      (id) => visible(`#${id} .placeholder`)),
+    polls: window.dashboard.polls,
+    marker: window.__notReloaded || null,
+    scrollWidth: document.documentElement.scrollWidth,
+  };
+})()"""
+
+
+@pytest.fixture(scope="module")
+def browser():
+    if find_chromium() is None:
+        if os.environ.get("CI", "").lower() == "true":
+            pytest.fail("chromium is not installed; CI must install it (see .ci/run)")
+        pytest.skip("chromium not installed (apt-get install chromium)")
+    with HeadlessChromium(width=1400, height=1000) as chromium:
+        yield chromium
+
+
+def _shows(page, panel: str, block: int) -> None:
+    page.wait_for(f"document.getElementById('{panel}').dataset.block === '{block}'", timeout=15)
+
+
+def test_reader_sees_modes_series_health_alarms_and_data_health(browser, voyage, tmp_path, serve):
+    onset = int(voyage.alarms["start_block"].iloc[0])
+    newest = onset + 6
+    state = publish(voyage, tmp_path, newest)
+    served = serve(tmp_path, DashboardOptions(hours=6.0, health_hours=24.0, poll_seconds=0.2))
+    page = browser.open(served.url)
+    for panel in ("modes", "tracked", "health", "data_health"):
+        _shows(page, panel, newest)
+    seen = page.evaluate(READ_PAGE)
+
+    # status line
+    assert f"last block {newest}" in seen["status"] and "monitor running" in seen["status"]
+    # one card per mode, newest frequency and the forecast's bounds as printed numbers
+    forecast = state.forecast[state.forecast["block"] == newest].set_index("mode")
+    tracked = state.tracked[state.tracked["block"] == newest].set_index("mode")
+    assert [c["mode"] for c in seen["cards"]] == sorted(state.tracked["mode"].unique())
+    for card in seen["cards"]:
+        row = forecast.loc[card["mode"]]
+        assert card["text"].startswith(f"Mode {card['mode']}")
+        bounds = f"[{row['model_lower_hz']:.3f}, {row['model_upper_hz']:.3f}] Hz"
+        assert f"model {row['model_frequency_hz']:.3f} {bounds}" in card["text"]
+        assert f"Kalman {row['kalman_frequency_hz']:.3f} ± " in card["text"]
+        if card["mode"] in tracked.index:
+            assert f"{tracked.loc[card['mode'], 'frequency_hz']:.3f} Hz" in card["text"]
+            assert not card["stale"]
+        else:
+            assert card["stale"] and f"not identified in block {newest}" in card["text"]
+    # tracked frequencies: one coloured series per mode, every block of the last 6 h
+    window = state.tracked[state.tracked["block"].between(newest - 71, newest)]
+    counts = window.groupby("mode").size()
+    assert [s["key"] for s in seen["series"]] == counts.index.tolist()
+    assert [s["points"] for s in seen["series"]] == counts.tolist()
+    assert [s["circles"] for s in seen["series"]] == counts.tolist()
+    assert len({s["colour"] for s in seen["series"]}) == len(counts)
+    assert seen["legend"] == [f"mode {m}" for m in counts.index]
+    # health chart: the statistic, its limit, the alarming blocks
+    health = state.health[state.health["block"] <= newest]
+    assert seen["healthLine"] == 1 and seen["healthLimit"] == 1
+    assert seen["alarmPoints"] == int(health["alarm"].sum()) > 0
+    assert f"limit {health['limit'].iloc[-1]:.2f}" in seen["healthHeading"]
+    assert "ALARM" in seen["healthHeading"]
+    # alarm list: the ongoing episode, naming the damaged mode
+    assert len(seen["alarmRows"]) == 1 and seen["activeAlarms"] == 1
+    assert "ongoing" in seen["alarmRows"][0] and "mode 3" in seen["alarmRows"][0]
+    # data health of the newest block
+    latest = state.data_health.set_index("block").loc[newest]
+    assert seen["facts"]["channels"] == str(latest["n_channels"])
+    assert seen["facts"]["dropped now"] == (latest["dropped_channels"] or "none")
+    assert seen["facts"]["latency"].startswith(f"{latest['latency_s']:.1f} s (median ")
+    assert seen["healthRows"] == 12
+    assert seen["placeholders"] == []
+    assert seen["scrollWidth"] <= 1400
+
+    # live: publish three more blocks, one at a time, and watch each appear, no reload
+    page.evaluate("window.__notReloaded = 'yes'")
+    polls = seen["polls"]
+    for _ in range(3):
+        block = state.append()
+        for panel in ("modes", "tracked", "health", "alarms", "data_health"):
+            page.wait_for(f"document.getElementById('{panel}').dataset.block !== ''")
+        _shows(page, "modes", block)
+        _shows(page, "tracked", block)
+        _shows(page, "health", block)
+        _shows(page, "data_health", block)
+    after = page.evaluate(READ_PAGE)
+    assert after["marker"] == "yes" and after["polls"] > polls
+    assert f"last block {newest + 3}" in after["status"]
+    grown = state.tracked[state.tracked["block"].between(newest + 3 - 71, newest + 3)]
+    assert sum(s["points"] for s in after["series"]) == len(grown)
+    assert "ongoing" in after["alarmRows"][0]
+
+
+def test_waiting_then_filling_without_reload(browser, voyage, tmp_path, serve):
+    served = serve(tmp_path, DashboardOptions(poll_seconds=0.2))
+    page = browser.open(served.url)
+    page.wait_for("window.dashboard && window.dashboard.polls > 1")
+    seen = page.evaluate(READ_PAGE)
+    assert seen["placeholders"] == ["modes", "tracked", "health", "alarms", "data_health"]
+    assert "waiting for data" in seen["status"]
+    assert seen["cards"] == [] and seen["series"] == []
+    page.evaluate("window.__notReloaded = 'yes'")
+
+    # the monitor's first blocks: modes and data health fill, health still learns
+    state = publish(voyage, tmp_path, 30)
+    _shows(page, "modes", 30)
+    _shows(page, "data_health", 30)
+    seen = page.evaluate(READ_PAGE)
+    assert seen["placeholders"] == ["health", "alarms"]
+    assert len(seen["cards"]) == 7 and len(seen["series"]) == 7
+
+    # a torn write of a table: the page keeps the last good data and says why
+    (tmp_path / "tracked.parquet").write_bytes(b"PAR1 torn")
+    page.wait_for("!!document.querySelector('#tracked .note')")
+    assert "tracked.parquet" in page.evaluate("document.querySelector('#tracked .note').innerText")
+    assert len(page.evaluate(READ_PAGE)["series"]) == 7
+
+    # the reference period completes: the health chart and the (empty) alarm list appear
+    state.write(voyage.reference_end_block)
+    _shows(page, "health", voyage.reference_end_block)
+    page.wait_for("document.getElementById('alarms').dataset.block === '0'")
+    seen = page.evaluate(READ_PAGE)
+    assert seen["placeholders"] == [] and seen["alarmRows"] == []
+    assert "learning reference" in seen["healthHeading"] or "in control" in seen["healthHeading"]
+    assert page.evaluate("!!document.querySelector('#tracked .note')") is False
+    assert seen["marker"] == "yes"
