@@ -87,7 +87,12 @@ def _add_dashboard(commands: argparse._SubParsersAction) -> None:
         "frequencies, the health chart with its limit, data health and alarms. It updates "
         "without a reload, needs no internet and never writes into the folder.",
     )
-    parser.add_argument("--state", type=Path, required=True, metavar="DIR")
+    parser.add_argument("--state", type=Path, metavar="DIR", help="the monitor's state folder")
+    parser.add_argument(
+        "--demo",
+        action="store_true",
+        help="replay a simulated voyage into a temporary folder, a block every 2 s",
+    )
     parser.add_argument(
         "--host", default="127.0.0.1", help="interface to listen on (default: this machine only)"
     )
@@ -100,7 +105,7 @@ def _add_dashboard(commands: argparse._SubParsersAction) -> None:
 
 
 def _run_dashboard(args: argparse.Namespace) -> int:
-    from .dashboard import DashboardOptions, is_loopback, make_server
+    from .dashboard import DashboardOptions, is_loopback, make_server, serve_until_stopped
 
     try:
         options = DashboardOptions(
@@ -113,6 +118,10 @@ def _run_dashboard(args: argparse.Namespace) -> int:
         raise UsageError(str(error).replace("poll_seconds", "poll")) from None
     if not 0 <= args.port <= 65535:
         raise UsageError(f"--port={args.port} must be in 0-65535")
+    if (args.state is None) == (not args.demo):
+        raise UsageError("give --state DIR or --demo (not both)")
+    if args.demo:
+        return _serve_demo(args, options)
     if args.state.exists() and not args.state.is_dir():
         raise UsageError(f"--state {args.state} is a file, not a folder")
     if not args.state.exists():
@@ -129,13 +138,22 @@ def _run_dashboard(args: argparse.Namespace) -> int:
         reason = error.strerror or str(error)
         raise WorkbenchError(f"cannot listen on {args.host}:{args.port}: {reason}") from None
     print(f"dashboard of {args.state} on {server.url} (Ctrl+C stops it)", flush=True)
-    try:
-        server.serve_forever()
-    except KeyboardInterrupt:
-        pass
-    finally:
-        server.server_close()
+    serve_until_stopped(server)
     return EXIT_OK
+
+
+def _serve_demo(args: argparse.Namespace, options) -> int:
+    import tempfile
+
+    from .dashboard import DemoReplay
+
+    with tempfile.TemporaryDirectory(prefix="workbench-dashboard-demo-") as folder:
+        replay = DemoReplay(folder).start()
+        args.state = Path(folder)
+        try:
+            return _run_dashboard(argparse.Namespace(**{**vars(args), "demo": False}))
+        finally:
+            replay.stop()
 
 
 def _add_simulate(commands: argparse._SubParsersAction) -> None:

@@ -65,14 +65,21 @@ def _shows(page, panel: str, block: int) -> None:
     page.wait_for(f"document.getElementById('{panel}').dataset.block === '{block}'", timeout=15)
 
 
+def _settled(page) -> None:
+    """Wait for the poll in flight (and its panel fetches) to finish."""
+    polls = page.evaluate("window.dashboard.polls")
+    page.wait_for(f"window.dashboard.polls > {polls}", timeout=15)
+
+
 def test_reader_sees_modes_series_health_alarms_and_data_health(browser, voyage, tmp_path, serve):
     onset = int(voyage.alarms["start_block"].iloc[0])
     newest = onset + 6
     state = publish(voyage, tmp_path, newest)
     served = serve(tmp_path, DashboardOptions(hours=6.0, health_hours=24.0, poll_seconds=0.2))
     page = browser.open(served.url)
-    for panel in ("modes", "tracked", "health", "data_health"):
+    for panel in ("modes", "tracked", "health", "data_health", "status"):
         _shows(page, panel, newest)
+    _settled(page)
     seen = page.evaluate(READ_PAGE)
 
     # status line
@@ -129,6 +136,8 @@ def test_reader_sees_modes_series_health_alarms_and_data_health(browser, voyage,
         _shows(page, "tracked", block)
         _shows(page, "health", block)
         _shows(page, "data_health", block)
+        _shows(page, "status", block)  # written last
+    _settled(page)
     after = page.evaluate(READ_PAGE)
     assert after["marker"] == "yes" and after["polls"] > polls
     assert f"last block {newest + 3}" in after["status"]
@@ -151,6 +160,8 @@ def test_waiting_then_filling_without_reload(browser, voyage, tmp_path, serve):
     state = publish(voyage, tmp_path, 30)
     _shows(page, "modes", 30)
     _shows(page, "data_health", 30)
+    _shows(page, "status", 30)
+    _settled(page)
     seen = page.evaluate(READ_PAGE)
     assert seen["placeholders"] == ["health", "alarms"]
     assert len(seen["cards"]) == 7 and len(seen["series"]) == 7
@@ -165,6 +176,8 @@ def test_waiting_then_filling_without_reload(browser, voyage, tmp_path, serve):
     state.write(voyage.reference_end_block)
     _shows(page, "health", voyage.reference_end_block)
     page.wait_for("document.getElementById('alarms').dataset.block === '0'")
+    _shows(page, "status", voyage.reference_end_block)
+    _settled(page)
     seen = page.evaluate(READ_PAGE)
     assert seen["placeholders"] == [] and seen["alarmRows"] == []
     assert "learning reference" in seen["healthHeading"] or "in control" in seen["healthHeading"]

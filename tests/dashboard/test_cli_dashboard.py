@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import os
+import signal
 import socket
+import threading
+from pathlib import Path
 
 import pytest
 
 import workbench.dashboard
 from workbench.cli import main
-from workbench.dashboard import is_loopback
+from workbench.dashboard import is_loopback, make_server, serve_until_stopped
 
 
 class _FakeServer:
@@ -107,3 +111,23 @@ def test_busy_port_is_one_line_exit_1(tmp_path, capsys):
         assert main(["dashboard", "--state", str(tmp_path), "--port", str(port)]) == 1
     err = capsys.readouterr().err
     assert err.startswith(f"error: cannot listen on 127.0.0.1:{port}") and err.count("\n") == 1
+
+
+def test_demo_serves_a_replayed_voyage_and_cleans_up(fake_server, capsys):
+    assert main(["dashboard", "--demo", "--port", "0"]) == 0
+    (server,) = fake_server
+    folder = Path(server.state)
+    assert folder.name.startswith("workbench-dashboard-demo-")
+    assert not folder.exists()  # the temporary state folder is removed on exit
+
+
+def test_sigterm_stops_the_server_cleanly(tmp_path):
+    server = make_server(tmp_path, port=0)
+    previous = signal.getsignal(signal.SIGTERM)
+    timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGTERM))
+    timer.start()
+    serve_until_stopped(server)  # returns instead of killing the test process
+    timer.join()
+    assert signal.getsignal(signal.SIGTERM) is previous
+    with pytest.raises(OSError):
+        server.socket.getsockname()  # closed

@@ -7,8 +7,14 @@ endpoint and fetches only the panels whose state files changed (ETags from the f
 signatures); it needs no network beyond the dashboard server (no CDN).
 """
 
-from .demo import DemoState, demo_state
-from .server import DashboardOptions, DashboardServer, is_loopback, make_server
+from .demo import DemoReplay, DemoState, demo_state
+from .server import (
+    DashboardOptions,
+    DashboardServer,
+    is_loopback,
+    make_server,
+    serve_until_stopped,
+)
 from .state import DATA_HEALTH, STATE_FILES, StateFolder
 
 __all__ = [
@@ -16,9 +22,11 @@ __all__ = [
     "STATE_FILES",
     "DashboardOptions",
     "DashboardServer",
+    "DemoReplay",
     "DemoState",
     "StateFolder",
     "demo_state",
     "is_loopback",
     "make_server",
+    "serve_until_stopped",
 ]

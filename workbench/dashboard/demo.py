@@ -239,3 +239,50 @@ def demo_state(
     elif blocks > 0:
         state.write(int(state.blocks[min(blocks, len(state.blocks)) - 1]))
     return state
+
+
+class DemoReplay:
+    """Publish a simulated voyage into *folder* one block every *interval* seconds, in a
+    background thread, for ``workbench dashboard --demo``.
+
+    Parameters
+    ----------
+    folder : path
+        State folder to write.
+    interval : float
+        Seconds between blocks. [s]
+    seed : int
+        Seed of the voyage.
+    lead_hours : float
+        Hours published at once before the replay starts, so the page opens on a full
+        view (the health chart's reference period already learned). [h]
+    """
+
+    def __init__(
+        self, folder: str | os.PathLike, *, interval: float = 2.0, seed: int = 0, lead_hours=19.0
+    ):
+        import threading
+
+        if not interval > 0:
+            raise ValueError(f"interval={interval!r} must be > 0")
+        self.interval = float(interval)
+        self.state = demo_state(folder, blocks=0, seed=seed)
+        first = int(round(lead_hours * 3600 / _STEP_SECONDS))
+        self.state.write(int(self.state.blocks[min(first, len(self.state.blocks) - 1)]))
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="dashboard-demo", daemon=True)
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.interval):
+            if self.state.written_block >= self.state.last_block:
+                self.state.write(self.state.last_block, state="stopped", message="voyage ended")
+                return
+            self.state.append()
+
+    def start(self) -> DemoReplay:
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=10)

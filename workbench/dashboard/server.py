@@ -22,6 +22,7 @@ import hashlib
 import ipaddress
 import json
 import logging
+import signal
 import socket
 import threading
 from collections.abc import Callable
@@ -44,7 +45,13 @@ from .views import (
     tracked_view,
 )
 
-__all__ = ["DashboardOptions", "DashboardServer", "is_loopback", "make_server"]
+__all__ = [
+    "DashboardOptions",
+    "DashboardServer",
+    "is_loopback",
+    "make_server",
+    "serve_until_stopped",
+]
 
 log = logging.getLogger("workbench.dashboard")
 
@@ -338,3 +345,25 @@ def make_server(
     """A :class:`DashboardServer` bound to *host*:*port* (0: a free port), not started;
     call ``serve_forever()`` (or run it in a thread) and ``shutdown()``."""
     return DashboardServer((host, port), state, options)
+
+
+def serve_until_stopped(server: DashboardServer) -> None:
+    """Serve until Ctrl+C or SIGTERM (how a service manager stops it), then close.
+
+    The SIGTERM handler is installed only in the main thread and restored afterwards.
+    """
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+
+        def stop(signum, frame):
+            raise KeyboardInterrupt
+
+        previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+        server.server_close()
