@@ -9,8 +9,10 @@ without a reload. Skipped when chromium is absent, except on CI (``CI=true``).
 
 from __future__ import annotations
 
+import json
 import os
 
+import pandas as pd
 import pytest
 
 from workbench.dashboard import DashboardOptions
@@ -183,3 +185,21 @@ def test_waiting_then_filling_without_reload(browser, voyage, tmp_path, serve):
     assert "learning reference" in seen["healthHeading"] or "in control" in seen["healthHeading"]
     assert page.evaluate("!!document.querySelector('#tracked .note')") is False
     assert seen["marker"] == "yes"
+
+
+def test_a_silent_monitor_is_flagged(browser, voyage, tmp_path, serve):
+    publish(voyage, tmp_path, 100)
+    status_file = tmp_path / "status.json"
+    status = json.loads(status_file.read_text())
+    hour_ago = pd.Timestamp.now(tz="UTC") - pd.Timedelta(minutes=61)
+    status["updated_at"] = hour_ago.strftime("%Y-%m-%dT%H:%M:%SZ")
+    status_file.write_text(json.dumps(status))
+    page = browser.open(serve(tmp_path, DashboardOptions(poll_seconds=0.2)).url)
+    text = page.wait_for("document.getElementById('status-stale').innerText")
+    assert text == "no news from the monitor for 61 min"
+    # a monitor that says it stopped is not silent: it says so
+    status_file.write_text(json.dumps({**status, "state": "stopped", "message": "disk full"}))
+    page.wait_for("document.getElementById('status-state').innerText === 'monitor stopped'")
+    _settled(page)
+    assert page.evaluate("document.getElementById('status-stale').innerText") == ""
+    assert "disk full" in page.evaluate("document.getElementById('status').innerText")

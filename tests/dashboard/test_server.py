@@ -256,7 +256,7 @@ def test_page_and_assets_are_served_by_the_package(tmp_path, serve):
         status, headers, body = get(served.url + asset)
         assert status == 200 and len(body) > 500
         assert "http://" not in body.decode().replace("http://www.w3.org/2000/svg", "")
-    assert '"poll_ms": 1000' in page
+    assert '"poll_ms": 1000' in page and '"stale_s": 900.0' in page
 
 
 @pytest.mark.parametrize(
@@ -279,3 +279,15 @@ def test_an_internal_error_is_one_json_line(tmp_path, serve, monkeypatch):
     status, headers, body = get(served.url + "api/modes")
     assert status == 500
     assert strict_json(body) == {"available": False, "message": "internal error: RuntimeError"}
+
+
+def test_tables_without_rows_wait(tmp_path, voyage, serve):
+    """The monitor has started but identified nothing yet: empty tables, no block."""
+    state = publish(voyage, tmp_path)
+    state.write(-1)
+    served = serve(tmp_path)
+    for name in ("modes", "tracked", "data_health"):
+        data = panel(served, name)
+        assert data == {"available": False, "message": "no block identified yet"}, name
+    status = panel(served, "status")
+    assert status["last_block"] is None and status["blocks_done"] == 0

@@ -3,7 +3,7 @@
 Routes (GET and HEAD only; the server never writes into the state folder):
 
 ``/``                     the page
-``/static/<file>``        its script, style sheet and licence, from the package data
+``/static/<file>``        its script and style sheet, from the package data
 ``/api/versions``         one ETag per panel and the server's clock
 ``/api/<panel>``          a panel's data as JSON (``status``, ``modes``, ``tracked``,
                           ``health``, ``alarms``, ``data_health``)
@@ -14,6 +14,15 @@ it reads and of the dashboard's options, so an unchanged panel costs one small r
 and no parsing. Every panel answers with ``available: false`` and a message while its
 files are absent or unreadable; an internal error gives a one-line JSON 500, never a
 traceback page.
+
+Why the standard library's :class:`~http.server.ThreadingHTTPServer`: the dashboard is a
+read-only view for a handful of screens on a ship's network, serving a fixed set of
+routes (no file serving by path, no uploads, no sessions), so it needs neither an async
+framework nor a WSGI/ASGI server, and it adds no dependency to install on the bridge
+computer. A thread per connection with a read timeout, answers built once per change of
+the state files and shared by all clients, and small JSON bodies keep it light; the
+Python documentation's warning about ``http.server`` concerns its file-serving handlers,
+which are not used.
 """
 
 from __future__ import annotations
@@ -77,15 +86,19 @@ class DashboardOptions:
         How often the page asks whether anything changed. [s]
     option : {"A", "B"}, optional
         Forecast option shown on the mode cards; default A when present, else B.
+    stale_seconds : float
+        A running monitor whose ``status.json`` is older than this is flagged as silent
+        (default 15 min: three 5-min blocks missed). [s]
     """
 
     hours: float = 6.0
     health_hours: float = 24.0
     poll_seconds: float = 1.0
     option: str | None = None
+    stale_seconds: float = 900.0
 
     def __post_init__(self) -> None:
-        for name in ("hours", "health_hours", "poll_seconds"):
+        for name in ("hours", "health_hours", "poll_seconds", "stale_seconds"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and value > 0):
                 raise ValueError(f"{name}={value!r} must be a positive number")
@@ -131,7 +144,8 @@ def _modes(state: StateFolder, options: DashboardOptions) -> dict[str, Any]:
     if not (tracked.available or forecast.available):
         return _unavailable(tracked.error, forecast.error)
     view = modes_view(tracked.data, forecast.data, option=options.option)
-    # absent forecast early on is expected; say so on the cards
+    if view["block"] is None:
+        return _unavailable("no block identified yet")
     return _panel(view, tracked.error, forecast.error)
 
 
@@ -139,6 +153,8 @@ def _tracked(state: StateFolder, options: DashboardOptions) -> dict[str, Any]:
     snap = state.read("tracked")
     if not snap.available:
         return _unavailable(snap.error)
+    if snap.data.empty:
+        return _unavailable("no block identified yet")
     return _panel(tracked_view(snap.data, hours=options.hours), snap.error)
 
 
@@ -147,7 +163,7 @@ def _health(state: StateFolder, options: DashboardOptions) -> dict[str, Any]:
     if not snap.available:
         return _unavailable(snap.error)
     if snap.data.empty:
-        return _unavailable("health chart has no block yet")
+        return _unavailable("the health chart has no block yet")
     return _panel(health_view(snap.data, hours=options.health_hours), snap.error)
 
 
@@ -162,6 +178,8 @@ def _data_health(state: StateFolder, options: DashboardOptions) -> dict[str, Any
     snap = state.read("data_health")
     if not snap.available:
         return _unavailable(snap.error)
+    if snap.data.empty:
+        return _unavailable("no block identified yet")
     return _panel(data_health_view(snap.data, hours=options.hours), snap.error)
 
 
@@ -248,7 +266,9 @@ class DashboardServer(ThreadingHTTPServer):
 
 def _render_page(options: DashboardOptions) -> bytes:
     page = resources.files(__package__).joinpath("static", "index.html").read_text("utf-8")
-    config = json.dumps({"poll_ms": int(options.poll_seconds * 1000), "hours": options.hours})
+    config = json.dumps(
+        {"poll_ms": int(options.poll_seconds * 1000), "stale_s": options.stale_seconds}
+    )
     return page.replace("{{CONFIG}}", config).encode()
 
 

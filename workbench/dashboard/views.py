@@ -34,7 +34,9 @@ def iso(value) -> str | None:
 
 
 def _epoch_ms(values: pd.Series) -> list[int]:
-    return (values.astype("int64") // 1_000_000).astype(int).tolist()
+    """Milliseconds since 1970-01-01 UTC (whatever the time resolution of *values*)."""
+    elapsed = values - pd.Timestamp(0, tz="UTC")
+    return (elapsed // pd.Timedelta(milliseconds=1)).astype("int64").tolist()
 
 
 def _num(value) -> float | None:

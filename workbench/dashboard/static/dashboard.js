@@ -320,6 +320,10 @@
       if (updated) {
         const age = (Date.now() + state.serverOffsetMs - Date.parse(updated)) / 1000;
         $("#status-updated").textContent = `updated ${hhmm(updated)}Z (${ago(age)})`;
+        const box = document.getElementById("status");
+        const silent = box.classList.contains("running") && age > CONFIG.stale_s;
+        box.classList.toggle("stale", silent);
+        $("#status-stale").textContent = silent ? `no news from the monitor for ${ago(age).replace(" ago", "")}` : "";
       }
     } catch (error) {
       state.errors += 1;
