@@ -47,6 +47,7 @@ READ_PAGE = """(() => {
     placeholders: ["modes", "tracked", "health", "alarms", "data_health"].filter(
       (id) => visible(`#${id} .placeholder`)),
     polls: window.dashboard.polls,
+    errors: window.dashboard.errors ? window.dashboard.lastError : null,
     marker: window.__notReloaded || null,
     scrollWidth: document.documentElement.scrollWidth,
   };
@@ -142,6 +143,7 @@ def test_reader_sees_modes_series_health_alarms_and_data_health(browser, voyage,
     _settled(page)
     after = page.evaluate(READ_PAGE)
     assert after["marker"] == "yes" and after["polls"] > polls
+    assert seen["errors"] is None and after["errors"] is None
     assert f"last block {newest + 3}" in after["status"]
     grown = state.tracked[state.tracked["block"].between(newest + 3 - 71, newest + 3)]
     assert sum(s["points"] for s in after["series"]) == len(grown)
@@ -184,7 +186,7 @@ def test_waiting_then_filling_without_reload(browser, voyage, tmp_path, serve):
     assert seen["placeholders"] == [] and seen["alarmRows"] == []
     assert "learning reference" in seen["healthHeading"] or "in control" in seen["healthHeading"]
     assert page.evaluate("!!document.querySelector('#tracked .note')") is False
-    assert seen["marker"] == "yes"
+    assert seen["marker"] == "yes" and seen["errors"] is None
 
 
 def test_a_silent_monitor_is_flagged(browser, voyage, tmp_path, serve):

@@ -128,9 +128,9 @@
     const section = setPanel("health", d);
     const svg = document.getElementById("health-chart");
     if (!d.available) { svg.replaceChildren(); return null; }
-    const state = d.alarm ? "ALARM" : (d.phase === "reference" ? "learning reference" : "in control");
+    const verdict = d.alarm ? "ALARM" : (d.phase === "reference" ? "learning reference" : "in control");
     $("#health-sub").textContent =
-      `block ${d.block}: T² ${fmt(d.statistic, 2)}, limit ${fmt(d.limit, 2)} · ${state}`;
+      `block ${d.block}: T² ${fmt(d.statistic, 2)}, limit ${fmt(d.limit, 2)} · ${verdict}`;
     section.classList.toggle("alarming", !!d.alarm);
     const p = d.points;
     drawChart(svg, {
@@ -327,6 +327,7 @@
       }
     } catch (error) {
       state.errors += 1;
+      state.lastError = String(error);
       connection.className = "connection lost";
       connection.textContent = "connection to the dashboard server lost; retrying…";
     }
