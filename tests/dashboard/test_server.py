@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from workbench.dashboard import DashboardOptions
+from workbench.dashboard import DashboardOptions, make_server
 from workbench.dashboard.server import PANELS, Panel
 
 from .conftest import publish
@@ -291,3 +291,23 @@ def test_tables_without_rows_wait(tmp_path, voyage, serve):
         assert data == {"available": False, "message": "no block identified yet"}, name
     status = panel(served, "status")
     assert status["last_block"] is None and status["blocks_done"] == 0
+
+
+@pytest.mark.parametrize(
+    "host, status",
+    [("127.0.0.1:8050", 200), ("localhost", 200), ("[::1]:8050", 200),
+     ("attacker.example:8050", 421), ("192.168.1.20", 421)],
+)  # fmt: skip
+def test_a_localhost_dashboard_answers_local_names_only(tmp_path, serve, host, status):
+    """DNS rebinding: a page of another site must not read a localhost dashboard."""
+    served = serve(tmp_path)
+    assert get(served.url + "api/versions", {"Host": host})[0] == status
+
+
+def test_a_dashboard_on_the_network_answers_any_name(tmp_path):
+    server = make_server(tmp_path, host="0.0.0.0", port=0)
+    try:
+        assert server.host_allowed("bridge-pc.local:8050")
+        assert server.host_allowed(None)
+    finally:
+        server.server_close()

@@ -227,7 +227,20 @@ class DashboardServer(ThreadingHTTPServer):
         self._page = _render_page(self.options)
         if ":" in address[0]:
             self.address_family = socket.AF_INET6
+        #: bound to this machine only: answer only requests addressed to it by a local
+        #: name, so a web page elsewhere cannot read the dashboard by pointing one of its
+        #: own host names at 127.0.0.1 (DNS rebinding)
+        self.local_only = is_loopback(address[0])
         super().__init__(address, _Handler)
+
+    def host_allowed(self, host_header: str | None) -> bool:
+        """Whether a request with this ``Host`` header is served."""
+        if not self.local_only:
+            return True
+        if not host_header:
+            return False
+        host = urlsplit(f"//{host_header}").hostname or ""
+        return is_loopback(host)
 
     @property
     def url(self) -> str:
@@ -317,7 +330,13 @@ class _Handler(BaseHTTPRequestHandler):
     def _serve(self, *, head: bool) -> None:
         path = urlsplit(self.path).path
         try:
-            if path in ("/", "/index.html"):
+            if not self.server.host_allowed(self.headers.get("Host")):
+                self._json(
+                    HTTPStatus.MISDIRECTED_REQUEST,
+                    {"error": "this dashboard answers to localhost only"},
+                    head=head,
+                )
+            elif path in ("/", "/index.html"):
                 self._send(
                     HTTPStatus.OK,
                     self.server._page,
