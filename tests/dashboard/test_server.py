@@ -6,6 +6,7 @@ import json
 import math
 import os
 import re
+import threading
 import urllib.error
 import urllib.request
 
@@ -311,3 +312,42 @@ def test_a_dashboard_on_the_network_answers_any_name(tmp_path):
         assert server.host_allowed(None)
     finally:
         server.server_close()
+
+
+def test_many_screens_while_blocks_arrive(tmp_path, voyage, serve):
+    """Eight clients poll every panel while the state is republished block by block:
+    every answer is a 200 with strict JSON, and the blocks they see never go back."""
+    state = publish(voyage, tmp_path, 240)
+    served = serve(tmp_path)
+    stop = threading.Event()
+    failures: list[str] = []
+
+    def client() -> None:
+        seen = 0
+        while not stop.is_set():
+            for name in PANELS:
+                status, _, body = get(served.url + f"api/{name}")
+                try:
+                    data = strict_json(body)
+                except ValueError as error:
+                    failures.append(f"{name}: {error}")
+                    continue
+                if status != 200:
+                    failures.append(f"{name}: HTTP {status}")
+                if name == "modes" and data.get("block") is not None:
+                    if data["block"] < seen:
+                        failures.append(f"modes went back from {seen} to {data['block']}")
+                    seen = data["block"]
+
+    threads = [threading.Thread(target=client) for _ in range(8)]
+    for thread in threads:
+        thread.start()
+    try:
+        for _ in range(4):
+            state.append()
+    finally:
+        stop.set()
+        for thread in threads:
+            thread.join(timeout=30)
+    assert failures == []
+    assert panel(served, "modes")["block"] == 244
