@@ -96,7 +96,8 @@ def test_reader_sees_modes_series_health_alarms_and_data_health(browser, voyage,
         assert card["text"].startswith(f"Mode {card['mode']}")
         bounds = f"[{row['model_lower_hz']:.3f}, {row['model_upper_hz']:.3f}] Hz"
         assert f"model {row['model_frequency_hz']:.3f} {bounds}" in card["text"]
-        assert f"Kalman {row['kalman_frequency_hz']:.3f} ± " in card["text"]
+        kalman = f"Kalman {row['kalman_frequency_hz']:.3f} ± {1.96 * row['kalman_std_hz']:.3f} Hz"
+        assert f"{kalman} (95 %)" in card["text"]
         if card["mode"] in tracked.index:
             assert f"{tracked.loc[card['mode'], 'frequency_hz']:.3f} Hz" in card["text"]
             assert not card["stale"]

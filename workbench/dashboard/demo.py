@@ -222,8 +222,8 @@ def demo_state(
     state = DemoState(
         folder=Path(folder),
         tracked=voyage.modal,
-        forecast=forecast[list(FORECAST.column_names)],
-        health=chart.table[list(HEALTH.column_names)],
+        forecast=forecast,  # with its warning column, as the forecast stage writes it
+        health=chart.table,  # with the contribution of each mode to T²
         alarms=chart.alarms,
         data_health=_data_health(
             predictors["block_start"],

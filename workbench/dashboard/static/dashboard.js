@@ -87,7 +87,7 @@
           `model ${fmt(m.model_frequency_hz, 3)} [${fmt(m.model_lower_hz, 3)}, ${fmt(m.model_upper_hz, 3)}] Hz`));
         const std2 = m.kalman_std_hz === null ? null : 1.96 * m.kalman_std_hz;
         card.append(el("div", { class: "row kalman" },
-          `Kalman ${fmt(m.kalman_frequency_hz, 3)} ± ${fmt(std2, 3)} Hz`));
+          `Kalman ${fmt(m.kalman_frequency_hz, 3)} ± ${fmt(std2, 3)} Hz (95 %)`));
       }
       if (m.damping_ratio !== undefined && m.damping_ratio !== null) {
         card.append(el("div", { class: "row damping" }, `damping ${fmt(100 * m.damping_ratio, 2)} %`));
