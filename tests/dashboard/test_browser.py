@@ -10,6 +10,7 @@ without a reload. Skipped when chromium is absent, except on CI (``CI=true``).
 from __future__ import annotations
 
 import json
+import math
 import os
 
 import pandas as pd
@@ -116,7 +117,10 @@ def test_reader_sees_modes_series_health_alarms_and_data_health(browser, voyage,
     assert seen["healthLine"] == 1 and seen["healthLimit"] == 1
     assert seen["alarmPoints"] == int(health["alarm"].sum()) > 0
     assert f"limit {health['limit'].iloc[-1]:.2f}" in seen["healthHeading"]
-    assert "ALARM" in seen["healthHeading"]
+    shares = health.iloc[-1][[f"contribution_{m}" for m in range(1, 8)]].astype(float)
+    top = shares[shares >= 0.05].sort_values(ascending=False).iloc[:3]
+    driven = ", ".join(f"mode {c[13:]} {math.floor(100 * v + 0.5)} %" for c, v in top.items())
+    assert seen["healthHeading"].endswith(f"· ALARM · driven by {driven}")
     # alarm list: the ongoing episode, naming the damaged mode
     assert len(seen["alarmRows"]) == 1 and seen["activeAlarms"] == 1
     assert "ongoing" in seen["alarmRows"][0] and "mode 3" in seen["alarmRows"][0]

@@ -129,6 +129,10 @@ def test_health_and_alarms_follow_the_chart(tmp_path, voyage, serve):
     assert health["limit"] == pytest.approx(table["limit"].iloc[-1], rel=1e-12)
     assert sum(health["points"]["alarm"]) == int(table["alarm"].sum())
     assert sum(health["points"]["reference"]) == int((table["phase"] == "reference").sum())
+    shares = {c["mode"]: c["share"] for c in health["contributions"]}
+    newest = table.iloc[-1]
+    assert shares == {m: newest[f"contribution_{m}"] for m in range(1, 8)}
+    assert [c["share"] for c in health["contributions"]] == sorted(shares.values(), reverse=True)
     alarms = panel(served, "alarms")
     assert alarms["count"] == 1 and alarms["active"] is True
     episode = alarms["alarms"][0]

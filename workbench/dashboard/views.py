@@ -195,6 +195,16 @@ def health_view(health: pd.DataFrame, *, hours: float) -> dict[str, Any]:
     window = _window(full, hours)
     reference = full[full["phase"] == "reference"]
     newest = full.iloc[-1] if not full.empty else None
+    # share of T² per mode in the newest block (``contribution_<mode>`` columns of
+    # :func:`workbench.health.health_chart`, when the table has them)
+    contributions = []
+    if newest is not None:
+        for column in full.columns:
+            if column.startswith("contribution_") and column[13:].isdigit():
+                share = _num(newest[column])
+                if share is not None:
+                    contributions.append({"mode": int(column[13:]), "share": share})
+        contributions.sort(key=lambda c: -c["share"])
     return {
         "hours": hours,
         "block": None if newest is None else int(newest["block"]),
@@ -203,6 +213,7 @@ def health_view(health: pd.DataFrame, *, hours: float) -> dict[str, Any]:
         "phase": None if newest is None else newest["phase"],
         "alarm": None if newest is None else bool(newest["alarm"]),
         "n_modes": None if newest is None else int(newest["n_modes"]),
+        "contributions": contributions,
         "reference_start": iso(reference["block_start"].min()) if not reference.empty else None,
         "reference_end": iso(reference["block_start"].max()) if not reference.empty else None,
         "points": {

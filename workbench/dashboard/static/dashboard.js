@@ -129,8 +129,11 @@
     const svg = document.getElementById("health-chart");
     if (!d.available) { svg.replaceChildren(); return null; }
     const verdict = d.alarm ? "ALARM" : (d.phase === "reference" ? "learning reference" : "in control");
+    const top = d.contributions.filter((c) => c.share >= 0.05).slice(0, 3)
+      .map((c) => `mode ${c.mode} ${Math.round(100 * c.share)} %`).join(", ");
     $("#health-sub").textContent =
-      `block ${d.block}: T² ${fmt(d.statistic, 2)}, limit ${fmt(d.limit, 2)} · ${verdict}`;
+      `block ${d.block}: T² ${fmt(d.statistic, 2)}, limit ${fmt(d.limit, 2)} · ${verdict}` +
+      (d.alarm && top ? ` · driven by ${top}` : "");
     section.classList.toggle("alarming", !!d.alarm);
     const p = d.points;
     drawChart(svg, {
