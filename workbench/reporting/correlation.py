@@ -392,7 +392,9 @@ def corrplot_of(result, quantity: str = "frequency_hz"):
     options = result.options
     stitched = result.joined[result.case_blocks["all"]]
     if quantity not in result.quantities:
-        raise ValueError(f"quantity={quantity!r} was not correlated; give one of {result.quantities}")
+        raise ValueError(
+            f"quantity={quantity!r} was not correlated; give one of {result.quantities}"
+        )
     columns = [c for c in result.mode_columns if c.endswith("_" + quantity)]
     return corrplot(
         stitched,
