@@ -11,10 +11,12 @@ from typing import Literal
 import numpy as np
 import pandas as pd
 
+from data_contracts import MODAL, PREDICTORS
+
 from ..errors import WorkbenchError
 from ..sid.presence import persistent_modes
 from ..stats.correlation import case_masks, correlation_table, joined_blocks, read_cases
-from ._base import StageResult, write_frame
+from ._base import StageResult, read_any_table, write_frame
 
 __all__ = ["CorrelateOptions", "CorrelateResult", "correlate"]
 
@@ -149,8 +151,8 @@ def _cases(cases):
 
 
 def correlate(
-    modal: pd.DataFrame,
-    predictors: pd.DataFrame,
+    modal: pd.DataFrame | str | os.PathLike,
+    predictors: pd.DataFrame | str | os.PathLike,
     *,
     cases: str | os.PathLike | pd.DataFrame | None = None,
     options: CorrelateOptions | None = None,
@@ -169,6 +171,8 @@ def correlate(
     options : CorrelateOptions, optional
     """
     options = options or CorrelateOptions()
+    modal = read_any_table(modal, MODAL, name="modal")
+    predictors = read_any_table(predictors, PREDICTORS, name="predictors")
     modal, lines = persistent_modes(modal, options.min_presence)
     if options.quantities is None:
         quantities: Sequence[str] = (

@@ -8,10 +8,12 @@ from pathlib import Path
 
 import pandas as pd
 
+from data_contracts import FORECAST, MODAL
+
 from ..errors import WorkbenchError
 from ..forecast import evaluate_against_truth
 from ..sid.tracking import label_agreement
-from ._base import StageResult, table_path, write_frame
+from ._base import StageResult, read_any_table, table_path, write_frame
 
 __all__ = ["EvaluateResult", "evaluate", "pair_with_truth", "relabel_truth"]
 
@@ -96,8 +98,8 @@ class EvaluateResult(StageResult):
 
 
 def evaluate(
-    forecast: pd.DataFrame,
-    truth: pd.DataFrame,
+    forecast: pd.DataFrame | str | os.PathLike,
+    truth: pd.DataFrame | str | os.PathLike,
     *,
     phase: str | None = "forecast",
 ) -> EvaluateResult:
@@ -112,6 +114,8 @@ def evaluate(
     phase : {"forecast", "train", None}
         Rows compared: forecast blocks, training blocks, or all (None).
     """
+    forecast = read_any_table(forecast, FORECAST, name="forecast")
+    truth = read_any_table(truth, MODAL, name="truth")
     relabelled, agreement, mapping = pair_with_truth(forecast, truth)
     table = evaluate_against_truth(relabelled, truth, phase=phase)
     result = EvaluateResult(table=table, mapping=mapping, agreement=agreement)

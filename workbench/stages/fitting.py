@@ -21,12 +21,14 @@ import numpy as np
 import pandas as pd
 from scipy import stats as _scipy_stats
 
+from data_contracts import MODAL, PREDICTORS
+
 from ..sid.presence import persistent_modes
 from ..stats.cases import STITCHED, CaseFits, fit_cases
 from ..stats.fit_io import design_matrix, model_from_dict, model_to_dict
 from ..stats.modes import ModeFit, coefficient_table, fit_modes, fit_statistics_table
 from ..stats.stepwise import StepwiseFit
-from ._base import StageResult
+from ._base import StageResult, read_any_table
 
 __all__ = ["FitOptions", "FitResult", "ModeResults", "PredictionResults", "fit", "read_fit"]
 
@@ -445,8 +447,8 @@ def _mode_dict(result: ModeResults) -> dict[str, Any]:
 
 
 def fit(
-    modal: pd.DataFrame,
-    predictors: pd.DataFrame,
+    modal: pd.DataFrame | str | os.PathLike,
+    predictors: pd.DataFrame | str | os.PathLike,
     *,
     cases=None,
     options: FitOptions | None = None,
@@ -470,6 +472,8 @@ def fit(
         When no mode could be fitted.
     """
     options = options or FitOptions()
+    modal = read_any_table(modal, MODAL, name="modal")
+    predictors = read_any_table(predictors, PREDICTORS, name="predictors")
     modal, lines = persistent_modes(modal, options.min_presence)
     common = dict(
         quantity=options.quantity,

@@ -11,13 +11,13 @@ from typing import Any, Literal
 
 import pandas as pd
 
-from data_contracts import FORECAST
+from data_contracts import FORECAST, MODAL, POLES, PREDICTORS
 
 from ..forecast import ForecastWarning, sliding_forecast
 from ..forecast.options import method_label, option_label
 from ..parallel import process_map
 from ..sid.presence import persistent_modes
-from ._base import StageResult, table_path, write_frame
+from ._base import StageResult, read_any_table, table_path, write_frame
 
 __all__ = ["ForecastOptions", "ForecastStageResult", "forecast", "forecast_modes"]
 
@@ -192,10 +192,10 @@ def forecast_modes(
 
 
 def forecast(
-    modal: pd.DataFrame,
-    predictors: pd.DataFrame,
+    modal: pd.DataFrame | str | os.PathLike,
+    predictors: pd.DataFrame | str | os.PathLike,
     *,
-    poles: pd.DataFrame | None = None,
+    poles: pd.DataFrame | str | os.PathLike | None = None,
     cases=None,
     options: ForecastOptions | None = None,
     progress: bool = False,
@@ -220,6 +220,10 @@ def forecast(
     tracks: a shaft harmonic passing by, spurious poles) are not forecast; a line says which.
     """
     options = options or ForecastOptions()
+    modal = read_any_table(modal, MODAL, name="modal")
+    predictors = read_any_table(predictors, PREDICTORS, name="predictors")
+    if poles is not None:
+        poles = read_any_table(poles, POLES, name="poles")
     if "B" in options.options and poles is None:
         raise ValueError("option B needs the pole table (poles=...)")
     kept, lines = persistent_modes(

@@ -8,8 +8,10 @@ from pathlib import Path
 
 import pandas as pd
 
+from data_contracts import FORECAST
+
 from ..health import HealthOptions, HealthResult, health_chart
-from ._base import StageResult
+from ._base import StageResult, read_any_table
 
 __all__ = ["HealthStageResult", "health"]
 
@@ -60,7 +62,7 @@ class HealthStageResult(StageResult):
 
 
 def health(
-    forecast: pd.DataFrame,
+    forecast: pd.DataFrame | str | os.PathLike,
     *,
     options: HealthOptions | None = None,
     reference_hours: float | None = None,
@@ -78,6 +80,7 @@ def health(
         the forecast's block step.
     """
     options = options or HealthOptions()
+    forecast = read_any_table(forecast, FORECAST, name="forecast")
     if reference_hours is not None:
         step = forecast["block_start"].drop_duplicates().sort_values().diff().median()
         blocks = int(round(reference_hours * 3600 / step.total_seconds()))
