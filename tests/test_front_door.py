@@ -103,7 +103,20 @@ def test_import_is_light_and_keeps_the_backend():
 def test_front_door_names(tables):
     for name in ("identify", "track", "correlate", "fit", "forecast", "evaluate", "health"):
         assert callable(getattr(wb, name)), name
-    assert wb.track is wb.stages.track  # the function, never a module of the same name
+    assert wb.track is wb.stages.track
+    # forecast, identify and health are also packages: called, they run the stage; their
+    # attributes stay the package's, however it was imported
+    import workbench.forecast as package
+    import workbench.identify
+
+    assert package.sliding_forecast is sys.modules["workbench.forecast"].sliding_forecast
+    assert wb.forecast.__wrapped__ is wb.stages.forecast
+    assert wb.identify.identify_voyage is sys.modules["workbench.identify"].identify_voyage
+    assert "Sliding forecasts" in wb.forecast.__doc__
+    wb.health.marker = 1  # attribute writes reach the module (monkeypatching works)
+    assert sys.modules["workbench.health"].marker == 1
+    del wb.health.marker
+    assert workbench.identify is wb.identify
     with pytest.raises(AttributeError, match="no_such_stage"):
         wb.no_such_stage  # noqa: B018
 
@@ -148,6 +161,8 @@ def test_fit_reads_like_statsmodels(tables, tmp_path):
     assert np.isnan(result.params.loc[2, "speed_kn:water_temp_c"])
     assert result.rsquared.index.tolist() == [1, 2]
     assert "Mode 1" in one.summary() and "Durbin-Watson" in one.summary()
+    page = result._repr_html_()
+    assert "<table" in page and "<th>mode</th>" in page.replace("\n", "").replace(" ", "")
 
 
 def test_fit_saved_as_json_predicts_the_same(tables, tmp_path):
@@ -189,6 +204,7 @@ def test_correlate_result(tables, tmp_path):
 
 def test_track_forecast_evaluate_on_a_simulated_voyage(tmp_path):
     from workbench.simulate import simulate_voyage
+    from workbench.stages import relabel_truth as evaluate_truth
 
     voyage = simulate_voyage(tmp_path / "voyage", seed=4, hours=4, accelerations=False)
     truth = read_table(voyage.truth_modal, MODAL)
@@ -213,6 +229,17 @@ def test_track_forecast_evaluate_on_a_simulated_voyage(tmp_path):
     totals = evaluation.table[["ssi_cumulative_error_hz", "kalman_cumulative_error_hz"]].sum()
     assert totals["kalman_cumulative_error_hz"] < totals["ssi_cumulative_error_hz"]
     assert "option A: cumulative |error|" in evaluation.summary()
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    for figure in (evaluation.plot(), tracked.plot()):
+        assert len(figure.axes[0].patches) + len(figure.axes[0].lines) >= 7
+        plt.close(figure)
+    figure = result.plot(4, truth=evaluate_truth(truth, evaluation.mapping))
+    assert figure.axes and figure.axes[0].lines
+    plt.close(figure)
 
 
 def test_forecast_options_are_checked():

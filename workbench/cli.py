@@ -241,6 +241,16 @@ def _predictors_for(args: argparse.Namespace, modal):
     return table if args.all_predictors else canonical_predictors(table)
 
 
+def _modal_and_predictors(args: argparse.Namespace):
+    """``--modal`` and the predictors (``--predictors`` or ``--dship`` averaged onto the
+    modal blocks) of correlate, fit and forecast, their block times checked against each
+    other."""
+    modal = _read_modal(args, args.modal)
+    predictors = _predictors_for(args, modal)
+    _check_joins(args, modal, predictors)
+    return modal, predictors
+
+
 def _add_parallel(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("parallel execution")
     group.add_argument(
@@ -704,9 +714,7 @@ def _run_correlate(args: argparse.Namespace) -> int:
         correction=None if args.correction == "none" else args.correction,
         min_presence=args.min_presence,
     )
-    modal = _read_modal(args, args.modal)
-    predictors = _predictors_for(args, modal)
-    _check_joins(args, modal, predictors)
+    modal, predictors = _modal_and_predictors(args)
     with _data_errors(args.modal):
         result = correlate(modal, predictors, cases=args.cases, options=options)
         paths = result.save(args.out)
@@ -767,9 +775,7 @@ def _run_fit(args: argparse.Namespace) -> int:
         upper=args.upper,
         min_presence=args.min_presence,
     )
-    modal = _read_modal(args, args.modal)
-    predictors = _predictors_for(args, modal)
-    _check_joins(args, modal, predictors)
+    modal, predictors = _modal_and_predictors(args)
     _check_upper(args.upper, predictors)
     with _data_errors(args.modal):
         result = fit(modal, predictors, cases=_cases_argument(args.cases), options=options)
@@ -945,11 +951,10 @@ def _run_forecast(args: argparse.Namespace) -> int:
     _check_share("shape-mac-min", args.shape_mac_min)
     _check_table_path(args.out)
     trust = "auto" if args.trust is None else _parse_trust(args.trust)
-    modal = _read_modal(args, args.modal)
-    predictors = _predictors_for(args, modal)
+    modal, predictors = _modal_and_predictors(args)
     poles = read_table(args.poles, POLES) if args.poles is not None else None
     truth = _read_modal(args, args.truth) if args.truth is not None else None
-    _check_joins(args, modal, predictors, poles)
+    _check_joins(args, modal, None, poles)
     stage_options = ForecastOptions(
         options=options,
         method=args.method,

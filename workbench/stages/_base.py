@@ -43,7 +43,8 @@ class StageResult:
 
     def _repr_html_(self) -> str:
         rows = len(self.table)
-        head = self.table.head(10).to_html(index=False, border=0, max_cols=12)
+        named = any(name is not None for name in self.table.index.names)  # e.g. mode
+        head = self.table.head(10).to_html(index=named, border=0, max_cols=12)
         more = f"<p>{rows} rows; first 10 shown.</p>" if rows > 10 else ""
         return (
             f"<div><strong>{html.escape(self.title)}</strong>"

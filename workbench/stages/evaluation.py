@@ -6,6 +6,7 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from data_contracts import FORECAST, MODAL
@@ -91,6 +92,29 @@ class EvaluateResult(StageResult):
     lines: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     title = "forecast against the truth"
+
+    def plot(self, ax=None):
+        """Cumulative absolute error of SSI, model and Kalman per mode and option."""
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            _, ax = plt.subplots(figsize=(9, 4), layout="constrained")
+        table = self.table.sort_values(["option", "mode"])
+        labels = [f"{o}{m}" for o, m in zip(table["option"], table["mode"], strict=True)]
+        x = np.arange(len(table))
+        for k, (column, name) in enumerate(
+            (
+                ("ssi_cumulative_error_hz", "SSI"),
+                ("model_cumulative_error_hz", "model"),
+                ("kalman_cumulative_error_hz", "Kalman"),
+            )
+        ):
+            ax.bar(x + (k - 1) * 0.27, table[column], width=0.27, label=name)
+        ax.set_xticks(x, labels)
+        ax.set_xlabel("option and true mode")
+        ax.set_ylabel("cumulative |error| [Hz]")
+        ax.legend(fontsize=8)
+        return ax.figure
 
     def save(self, out: str | os.PathLike) -> dict[str, Path]:
         """The table (``out`` a .csv/.parquet file, or a folder: evaluation.csv)."""
