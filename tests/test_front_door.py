@@ -161,6 +161,11 @@ def test_fit_reads_like_statsmodels(tables, tmp_path):
     assert np.isnan(result.params.loc[2, "speed_kn:water_temp_c"])
     assert result.rsquared.index.tolist() == [1, 2]
     assert "Mode 1" in one.summary() and "Durbin-Watson" in one.summary()
+    figure = result.plot(1)  # residual diagnostics: four panels
+    assert len(figure.axes) == 4
+    import matplotlib.pyplot as plt
+
+    plt.close(figure)
     page = result._repr_html_()
     assert "<table" in page and "<th>mode</th>" in page.replace("\n", "").replace(" ", "")
 
@@ -198,6 +203,11 @@ def test_correlate_result(tables, tmp_path):
     assert "useful pairs" in result.summary()
     html = result._repr_html_()
     assert "<table" in html and "correlation" in html
+    figure = result.plot("damping_ratio")
+    assert figure.axes
+    import matplotlib.pyplot as plt
+
+    plt.close(figure)
     paths = result.save(tmp_path / "corr", figures=False)
     assert list(paths) == ["csv"] and paths["csv"].is_file()
 
