@@ -25,7 +25,7 @@ from pathlib import Path
 import pandas as pd
 
 from data_contracts import MODAL, PREDICTORS, read_table
-from workbench.pipeline import forecast_modes
+from workbench.stages import forecast_modes
 
 TARGET_S = 60.0
 

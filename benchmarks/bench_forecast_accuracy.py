@@ -102,8 +102,9 @@ def _demo_tables(cache: Path, hours: float):
     """Tracked modal table, poles, predictors and truth of the demo voyage (cached)."""
     from data_contracts import CONTRACTS, read_table
     from workbench.identify import IdentifyOptions, identify_voyage
-    from workbench.pipeline import canonical_predictors, load_predictors, run_track
+    from workbench.predictors import canonical_predictors, load_predictors
     from workbench.simulate import simulate_voyage
+    from workbench.stages import track
 
     folder = cache / f"demo{hours:g}"
     tracked_path = folder / "tracked_modal.csv"
@@ -112,7 +113,7 @@ def _demo_tables(cache: Path, hours: float):
         print(f"simulating and identifying the {hours:g}-h demo into {folder} ...", flush=True)
         simulate_voyage(folder / "voyage", seed=0, hours=hours)
         identify_voyage([folder / "voyage"], folder / "identify", options=IdentifyOptions())
-        run_track(folder / "identify" / "selected.parquet", tracked_path)
+        track(folder / "identify" / "selected.parquet").save(tracked_path)
     tracked = read_table(tracked_path, CONTRACTS["modal"])
     poles = read_table(folder / "identify" / "poles.parquet", CONTRACTS["poles"])
     truth = read_table(folder / "voyage" / "truth_modal.csv", CONTRACTS["modal"])
@@ -124,7 +125,7 @@ def _demo_tables(cache: Path, hours: float):
 
 
 def demo_runs(cache: Path, hours_list, methods, options):
-    from workbench.pipeline import persistent_modes
+    from workbench.sid.presence import persistent_modes
     from workbench.sid.tracking import label_agreement
 
     rows = []

@@ -100,3 +100,23 @@ def test_demo_kalman_beats_raw_ssi(demo):
         kalman = part["kalman_cumulative_error_hz"].sum()
         assert kalman < model, option
         assert kalman < 1.10 * ssi, option
+
+
+def test_demo_tables_match_the_recorded_summary(demo):
+    """Every table of the demo equals the one recorded before the stages were moved into
+    ``workbench.stages`` (``tests/data/demo_summary.json``, written by
+    ``tests/demo_summary.py`` from this fixture's run): row counts, columns, categorical
+    values exactly, and per numeric column the count, sum, sum of absolute values and
+    quantiles within 1e-9 relative (rounding of a different summation order, nothing more)."""
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location(
+        "demo_summary", Path(__file__).with_name("demo_summary.py")
+    )
+    helper = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(helper)
+    expected = json.loads(helper.SUMMARY.read_text(encoding="utf-8"))
+    problems = helper.compare(helper.summarise(demo), expected)
+    assert not problems, "\n".join(problems[:20])

@@ -15,7 +15,13 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-__all__ = ["DEFAULT_BLOCK_LENGTH_S", "DEFAULT_BLOCK_STEP_S", "BlockGrid", "utc_timestamp"]
+__all__ = [
+    "DEFAULT_BLOCK_LENGTH_S",
+    "DEFAULT_BLOCK_STEP_S",
+    "BlockGrid",
+    "block_grid_of",
+    "utc_timestamp",
+]
 
 #: Default block length. [s]
 DEFAULT_BLOCK_LENGTH_S = 1200.0
@@ -222,3 +228,34 @@ class BlockGrid:
         if np.any(k < 0):
             raise ValueError(f"block numbers must be >= 0, got {int(k.min())}")
         return k
+
+
+def block_grid_of(table: pd.DataFrame) -> tuple[pd.Timestamp, float, float]:
+    """Block grid ``(t0, length_s, step_s)`` of a table with block, block_start, block_end.
+
+    With a single block the step cannot be seen and is taken as a quarter of the block
+    length (the default 75 % overlap).
+
+    Raises
+    ------
+    WorkbenchError
+        If the block starts do not lie on one grid.
+    """
+    from .errors import WorkbenchError
+
+    blocks = table[["block", "block_start", "block_end"]].drop_duplicates("block")
+    blocks = blocks.sort_values("block")
+    start = pd.to_datetime(blocks["block_start"], utc=True)
+    length = (pd.to_datetime(blocks["block_end"], utc=True) - start).dt.total_seconds()
+    if len(blocks) > 1:
+        steps = start.diff().dt.total_seconds().to_numpy()[1:] / np.diff(blocks["block"])
+        step = float(np.median(steps))
+    else:
+        step = float(length.iat[0]) / 4.0
+    t0 = start.iat[0] - pd.Timedelta(seconds=step * int(blocks["block"].iat[0]))
+    expected = t0 + pd.to_timedelta(blocks["block"].to_numpy() * step, unit="s")
+    off = np.abs((start.to_numpy() - expected.to_numpy()) / np.timedelta64(1, "s")) > 1e-3
+    if off.any():
+        first = int(blocks["block"].to_numpy()[off][0])
+        raise WorkbenchError(f"block {first}: block_start is off the block grid (step {step:g} s)")
+    return t0, float(length.median()), step

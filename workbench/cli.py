@@ -279,11 +279,14 @@ def _data_errors(source):
         raise WorkbenchError(f"{source}: {error}") from None
 
 
-def _print_result(result) -> None:
+def _print_result(result, paths=None) -> None:
+    """A stage result's warnings (stderr), lines and the files it wrote."""
     for line in result.warnings:
         print(f"warning: {line}", file=sys.stderr)
     for line in result.lines:
         print(line)
+    for name, path in dict(paths or {}).items():
+        print(f"{name}: {path}")
 
 
 def _add_predictor_source(parser: argparse.ArgumentParser) -> None:
@@ -308,12 +311,22 @@ def _add_predictor_source(parser: argparse.ArgumentParser) -> None:
 
 
 def _predictors_for(args: argparse.Namespace, modal):
-    from .pipeline import canonical_predictors, load_predictors
+    from .predictors import canonical_predictors, load_predictors
 
     table = load_predictors(
         predictors=args.predictors, dship=args.dship, like=modal, dship_mapping=dship_mapping(args)
     )
     return table if args.all_predictors else canonical_predictors(table)
+
+
+def _modal_and_predictors(args: argparse.Namespace):
+    """``--modal`` and the predictors (``--predictors`` or ``--dship`` averaged onto the
+    modal blocks) of correlate, fit and forecast, their block times checked against each
+    other."""
+    modal = _read_modal(args, args.modal)
+    predictors = _predictors_for(args, modal)
+    _check_joins(args, modal, predictors)
+    return modal, predictors
 
 
 def _add_parallel(parser: argparse.ArgumentParser) -> None:
@@ -541,7 +554,8 @@ def _analysis_rate(text: str):
 
 def _run_identify(args: argparse.Namespace) -> int:
     from .blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
-    from .identify import IdentifyOptions, IdentifyOptionsError, identify_voyage
+    from .identify import IdentifyOptions, IdentifyOptionsError
+    from .stages import identify
 
     if args.min_order < 1 or args.max_order < args.min_order:
         raise UsageError(f"model orders {args.min_order}..{args.max_order} make no sense")
@@ -591,7 +605,7 @@ def _run_identify(args: argparse.Namespace) -> int:
     except ValueError as error:
         raise UsageError(_option_names(str(error))) from None
     try:
-        result = identify_voyage(
+        result = identify(
             args.inputs,
             args.out,
             options=options,
@@ -603,7 +617,7 @@ def _run_identify(args: argparse.Namespace) -> int:
         )
     except IdentifyOptionsError as error:
         raise UsageError(str(error)) from None
-    for line in result.lines():
+    for line in result.lines:
         print(line)
     if args.figures:
         from .identify import write_block_figures
@@ -674,17 +688,6 @@ def _read_modal(args: argparse.Namespace, path: Path, contract=None):
     return table
 
 
-def _persistent(modal, min_presence: float):
-    from .pipeline import persistent_modes
-
-    if not 0.0 <= min_presence <= 1.0:
-        raise UsageError(f"--min-presence must be in [0, 1], got {min_presence}")
-    kept, lines = persistent_modes(modal, min_presence)
-    for line in lines:
-        print(line)
-    return kept
-
-
 def _add_track(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser(
         "track",
@@ -727,27 +730,21 @@ def _add_track(commands: argparse._SubParsersAction) -> None:
 
 
 def _run_track(args: argparse.Namespace) -> int:
-    from .pipeline import run_track
-    from .sid.tracking import TrackingOptions
+    from .stages import TrackingOptions, track
 
     try:
-        TrackingOptions(
+        options = TrackingOptions(
             threshold=args.threshold, gate=args.gate, frequency_tolerance=args.frequency_tolerance
         )
     except ValueError as error:
         raise UsageError(_option_names(str(error))) from None
     _check_table_path(args.out)
     with _data_errors(args.selected):
-        result = run_track(
-            args.selected,
-            args.out,
-            reference=args.reference,
-            threshold=args.threshold,
-            gate=args.gate,
-            frequency_tolerance=args.frequency_tolerance,
-            progress=not args.quiet,
+        result = track(
+            args.selected, reference=args.reference, options=options, progress=not args.quiet
         )
-    _print_result(result)
+    paths = result.save(args.out)
+    _print_result(result, paths)
     return EXIT_OK
 
 
@@ -785,44 +782,21 @@ def _add_correlate(commands: argparse._SubParsersAction) -> None:
 
 
 def _run_correlate(args: argparse.Namespace) -> int:
-
-    from .reporting.correlation import write_correlation_report
+    from .stages import CorrelateOptions, correlate
 
     if not 0.0 < args.alpha < 1.0:
         raise UsageError(f"--alpha must be in (0, 1), got {args.alpha}")
     _check_share("min-presence", args.min_presence)
-    cases = None
-    if args.cases is not None:
-        from .stats.correlation import read_cases
-
-        try:
-            cases = read_cases(args.cases)
-        except ValueError as error:
-            raise WorkbenchError(str(error).splitlines()[0]) from None
-        if (cases["case"].str.lower() == "all").any():
-            raise WorkbenchError(
-                f"{args.cases}: the case name 'all' is reserved for the stitched cases; "
-                "rename that case"
-            )
-    modal = _read_modal(args, args.modal)
-    predictors = _predictors_for(args, modal)
-    _check_joins(args, modal, predictors)
-    modal = _persistent(modal, args.min_presence)
+    options = CorrelateOptions(
+        alpha=args.alpha,
+        correction=None if args.correction == "none" else args.correction,
+        min_presence=args.min_presence,
+    )
+    modal, predictors = _modal_and_predictors(args)
     with _data_errors(args.modal):
-        paths = write_correlation_report(
-            modal,
-            predictors,
-            args.out,
-            cases=cases,
-            alpha=args.alpha,
-            correction=None if args.correction == "none" else args.correction,
-            # a frequency-only table (another tool's) has no damping to correlate
-            quantities=("frequency_hz", "damping_ratio")
-            if modal["damping_ratio"].notna().any()
-            else ("frequency_hz",),
-        )
-    for name, path in dict(paths).items():
-        print(f"{name}: {path}")
+        result = correlate(modal, predictors, cases=args.cases, options=options)
+        paths = result.save(args.out)
+    _print_result(result, paths)
     return EXIT_OK
 
 
@@ -866,31 +840,25 @@ def _add_fit(commands: argparse._SubParsersAction) -> None:
 
 
 def _run_fit(args: argparse.Namespace) -> int:
-
-    from .reporting.diagnostics_plot import write_fit_report
+    from .stages import FitOptions, fit
 
     if not 0.0 < args.p_enter < args.p_remove < 1.0:
         raise UsageError(
             f"need 0 < --p-enter < --p-remove < 1, got {args.p_enter} and {args.p_remove}"
         )
     _check_share("min-presence", args.min_presence)
-    modal = _read_modal(args, args.modal)
-    predictors = _predictors_for(args, modal)
-    _check_joins(args, modal, predictors)
+    options = FitOptions(
+        p_enter=args.p_enter,
+        p_remove=args.p_remove,
+        upper=args.upper,
+        min_presence=args.min_presence,
+    )
+    modal, predictors = _modal_and_predictors(args)
     _check_upper(args.upper, predictors)
-    modal = _persistent(modal, args.min_presence)
     with _data_errors(args.modal):
-        paths = write_fit_report(
-            modal,
-            predictors,
-            args.out,
-            p_enter=args.p_enter,
-            p_remove=args.p_remove,
-            upper=args.upper,
-            cases=_cases_argument(args.cases),
-        )
-    for name, path in dict(paths).items():
-        print(f"{name}: {path}")
+        result = fit(modal, predictors, cases=_cases_argument(args.cases), options=options)
+        paths = result.save(args.out)
+    _print_result(result, paths)
     return EXIT_OK
 
 
@@ -1045,7 +1013,7 @@ def _parse_trust(text: str) -> float | None:
 def _run_forecast(args: argparse.Namespace) -> int:
     from data_contracts import POLES, read_table
 
-    from .pipeline import run_forecast
+    from .stages import ForecastOptions, forecast
 
     options = ("A", "B") if args.option == "AB" else (args.option,)
     if "B" in options and args.poles is None:
@@ -1061,35 +1029,33 @@ def _run_forecast(args: argparse.Namespace) -> int:
     _check_share("shape-mac-min", args.shape_mac_min)
     _check_table_path(args.out)
     trust = "auto" if args.trust is None else _parse_trust(args.trust)
-    modal = _read_modal(args, args.modal)
-    predictors = _predictors_for(args, modal)
+    modal, predictors = _modal_and_predictors(args)
     poles = read_table(args.poles, POLES) if args.poles is not None else None
     truth = _read_modal(args, args.truth) if args.truth is not None else None
-    _check_joins(args, modal, predictors, poles)
+    _check_joins(args, modal, None, poles)
+    stage_options = ForecastOptions(
+        options=options,
+        method=args.method,
+        train_blocks=args.train,
+        horizon=args.horizon,
+        trust=trust,
+        model=args.model,
+        n_jobs=args.jobs,
+        min_presence=args.min_presence,
+        shape_mac_min=args.shape_mac_min,
+        reacquire_blocks=args.reacquire_blocks,
+    )
     with _data_errors(args.modal):
-        result = run_forecast(
+        result = forecast(
             modal,
             predictors,
-            args.out,
             poles=poles,
-            options=options,
-            method=args.method,
-            train_blocks=args.train,
-            horizon=args.horizon,
-            trust=trust,
-            model=args.model,
-            figures=args.figures,
-            truth=truth,
-            n_jobs=args.jobs,
-            progress=not args.quiet,
-            min_presence=args.min_presence,
-            option_b={
-                "shape_mac_min": args.shape_mac_min,
-                "reacquire_blocks": args.reacquire_blocks,
-            },
             cases=_cases_argument(args.cases),
+            options=stage_options,
+            progress=not args.quiet,
         )
-    _print_result(result)
+        paths = result.save(args.out, figures=args.figures, truth=truth)
+    _print_result(result, paths)
     return EXIT_OK
 
 
@@ -1117,28 +1083,18 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     from data_contracts import FORECAST
 
     from .joins import check_block_times
-    from .pipeline import evaluate_forecast
+    from .stages import evaluate
+    from .stages.evaluation import SUMMARY_COLUMNS
 
     if args.out is not None:
         _check_table_path(args.out)
     forecast = _read_modal(args, args.forecast, FORECAST)
     truth = _read_modal(args, args.truth)
     check_block_times(forecast, args.forecast, truth, args.truth)
-    result = evaluate_forecast(
-        forecast, truth, out=args.out, phase=None if args.phase == "all" else args.phase
-    )
-    table = result.tables["evaluation"]
-    columns = [
-        "option",
-        "mode",
-        "n_ssi",
-        "ssi_cumulative_error_hz",
-        "model_cumulative_error_hz",
-        "kalman_cumulative_error_hz",
-        "improvement_vs_ssi_pct",
-    ]
-    print(table[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
-    _print_result(result)
+    result = evaluate(forecast, truth, phase=None if args.phase == "all" else args.phase)
+    paths = result.save(args.out) if args.out is not None else {}
+    print(result.table[SUMMARY_COLUMNS].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    _print_result(result, paths)
     return EXIT_OK
 
 
@@ -1254,7 +1210,8 @@ def _add_health(commands: argparse._SubParsersAction) -> None:
 def _run_health(args: argparse.Namespace) -> int:
     from data_contracts import FORECAST, read_table
 
-    from .health import HealthOptions, health_chart
+    from .health import HealthOptions
+    from .stages import health
 
     forecast = read_table(args.forecast, FORECAST)
     step_h = forecast["block_start"].drop_duplicates().sort_values().diff().median()
@@ -1268,12 +1225,8 @@ def _run_health(args: argparse.Namespace) -> int:
         )
     except ValueError as error:
         raise UsageError(str(error)) from None
-    try:
-        result = health_chart(forecast, options)
-    except ContractError:
-        raise
-    except ValueError as error:
-        raise WorkbenchError(f"{args.forecast}: {error}") from None
+    with _data_errors(args.forecast):
+        result = health(forecast, options=options)
     paths = result.save(args.out)
     print(result.summary())
     for path in paths.values():

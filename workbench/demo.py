@@ -13,8 +13,6 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import pandas as pd
-
 from data_contracts import CONTRACTS, read_accelerations, read_dship, read_table
 
 from .reporting.report import build_report
@@ -142,18 +140,22 @@ def run_demo(
     DemoSummary
         Stage timings, number of files validated, headline numbers.
     """
-    from data_contracts import PREDICTORS, read_table, write_table
+    from data_contracts import PREDICTORS, write_table
 
-    from .identify import identify_voyage
-    from .pipeline import (
-        canonical_predictors,
-        evaluate_forecast,
-        load_predictors,
-        persistent_modes,
-        run_forecast,
-        run_track,
-    )
+    from .predictors import canonical_predictors, load_predictors
     from .simulate import simulate_voyage
+    from .stages import (
+        CorrelateOptions,
+        FitOptions,
+        ForecastOptions,
+        correlate,
+        evaluate,
+        fit,
+        forecast,
+        identify,
+        relabel_truth,
+        track,
+    )
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -173,8 +175,8 @@ def run_demo(
     # the voyage was just (re)written: results of an earlier demo run must not be resumed
     shutil.rmtree(identify_dir, ignore_errors=True)
     with stage("identify"):
-        identified = identify_voyage(
-            [voyage_dir],
+        identified = identify(
+            voyage_dir,
             identify_dir,
             options=DEMO_IDENTIFY_OPTIONS,
             scheduler=scheduler,
@@ -182,8 +184,8 @@ def run_demo(
             progress=progress,
         )
     summary.lines.append(
-        f"identify: {identified.summary.processed} blocks identified, "
-        f"{identified.summary.skipped} skipped, {identified.n_selected} modes selected"
+        f"identify: {identified.run.summary.processed} blocks identified, "
+        f"{identified.run.summary.skipped} skipped, {identified.run.n_selected} modes selected"
     )
 
     with stage("SSI/LSCF cross-check"):
@@ -193,56 +195,59 @@ def run_demo(
         cross = cross_check_blocks([voyage_dir], identify_dir, n_blocks=6)
     summary.lines += agreement_lines(cross) if len(cross) else ["cross-check: no block"]
 
-    tracked_path = out_dir / "tracked_modal.csv"
     with stage("track"):
-        track = run_track(identify_dir / "selected.parquet", tracked_path)
-    summary.lines += track.lines
-    tracked = track.tables["tracked"]
+        tracked = track(identify_dir / "selected.parquet")
+        path = tracked.save(out_dir / "tracked_modal.csv")["tracked"]
+    summary.lines += tracked.lines
+    summary.lines.append(f"tracked modal table: {path}")
     from .sid.tracking import label_agreement
 
-    agreement, mapping = label_agreement(tracked, truth)
+    agreement, mapping = label_agreement(tracked.table, truth)
     summary.lines.append(
         f"tracking: {100 * agreement:.1f} % of tracked (block, mode) pairs carry the true "
         f"mode's label (labels -> true modes {mapping})"
     )
 
     with stage("predictors"):
-        predictors = load_predictors(dship=simulation.dship_log, like=tracked)
+        predictors = load_predictors(dship=simulation.dship_log, like=tracked.table)
         write_table(predictors, out_dir / "predictors.csv", PREDICTORS)
     predictors = canonical_predictors(predictors)
 
-    modes, _ = persistent_modes(tracked, 0.5)  # the forecast stage names those left out
     with stage("correlate"):
-        from .reporting.correlation import write_correlation_report
-
-        write_correlation_report(modes, predictors, out_dir / "correlation", cases=simulation.cases)
+        correlate(
+            tracked.table, predictors, cases=simulation.cases, options=CorrelateOptions()
+        ).save(out_dir / "correlation")
     with stage("fit"):
-        from .reporting.diagnostics_plot import write_fit_report
+        fit(tracked.table, predictors, cases=simulation.cases, options=FitOptions()).save(
+            out_dir / "fit"
+        )
 
-        write_fit_report(modes, predictors, out_dir / "fit", cases=simulation.cases)
-
-    poles = read_table(identify_dir / "poles.parquet", CONTRACTS["poles"])
     with stage("forecast"):
-        forecast = run_forecast(
-            tracked,
+        forecasted = forecast(
+            tracked.table,
             predictors,
+            poles=identified.poles,
+            options=ForecastOptions(
+                options=("A", "B"),
+                method=2,
+                train_blocks=20,
+                # the reference configuration: the memory model needs history; on demo
+                # voyages of 3-6 h it is still 16-24 % worse than raw SSI
+                # (bench_forecast_accuracy.py)
+                model="window",
+                trust=0.65,
+            ),
+        )
+        paths = forecasted.save(
             out_dir / "forecast.csv",
-            poles=poles,
-            options=("A", "B"),
-            method=2,
-            train_blocks=20,
-            # the reference configuration: the memory model needs history; on demo voyages
-            # of 3-6 h it is still 16-24 % worse than raw SSI (bench_forecast_accuracy.py)
-            model="window",
-            trust=0.65,
             figures=out_dir / "forecast",
-            truth=_relabel(truth, mapping),
+            truth=relabel_truth(truth, mapping),
         )
-    summary.lines += forecast.lines
+    summary.lines += forecasted.lines
+    summary.lines.append(f"forecast table: {paths['forecast']}")
     with stage("evaluate"):
-        evaluation = evaluate_forecast(
-            forecast.tables["forecast"], truth, out=out_dir / "evaluation.csv"
-        )
+        evaluation = evaluate(forecasted.table, truth)
+        evaluation.save(out_dir / "evaluation.csv")
     summary.lines += evaluation.lines
     with stage("validate"):
         summary.validated = validate_folder(out_dir)
@@ -254,11 +259,3 @@ def run_demo(
             summary_lines=summary.lines,
         )
     return summary
-
-
-def _relabel(truth: pd.DataFrame, mapping: dict[int, int]) -> pd.DataFrame:
-    """The truth table under the tracked labels (for drawing it beside the forecast)."""
-    inverse = {true: label for label, true in mapping.items()}
-    part = truth[truth["mode"].isin(inverse)].copy()
-    part["mode"] = part["mode"].map(inverse).astype("int64")
-    return part

@@ -25,7 +25,7 @@ import pandas as pd
 from .errors import WorkbenchError
 from .store import BlockStore
 
-__all__ = ["BlockOutcome", "BlockTask", "RunSummary", "run_blocks"]
+__all__ = ["BlockOutcome", "BlockTask", "RunSummary", "process_map", "run_blocks"]
 
 log = logging.getLogger(__name__)
 
@@ -90,6 +90,51 @@ def _progress(total: int | None, enabled: bool, description: str):
         dynamic_ncols=True,
         smoothing=0.1,
     )
+
+
+def process_map(
+    func: Callable[..., Any],
+    calls: list[tuple],
+    *,
+    n_jobs: int = 1,
+    progress: bool = False,
+    description: str = "",
+    unit: str = "task",
+    sizes: list[int] | None = None,
+) -> list[Any]:
+    """``[func(*args) for args in calls]``, spread over *n_jobs* local processes.
+
+    For work that needs no store and no cluster (e.g. independent modes of a forecast):
+    *func* must be picklable (module level) when *n_jobs* > 1. *sizes* weighs each call in
+    the progress bar (default 1 each). Results come back in the order of *calls*.
+    """
+    from tqdm.auto import tqdm
+
+    sizes = [1] * len(calls) if sizes is None else list(sizes)
+    bar = tqdm(
+        total=sum(sizes),
+        desc=description,
+        unit=unit,
+        disable=not progress,
+        file=sys.stderr,
+        dynamic_ncols=True,
+    )
+    with bar:
+        if n_jobs <= 1 or len(calls) <= 1:
+            results = []
+            for args, size in zip(calls, sizes, strict=True):
+                results.append(func(*args))
+                bar.update(size)
+            return results
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        with ProcessPoolExecutor(max_workers=n_jobs) as pool:
+            futures = {
+                pool.submit(func, *args): size for args, size in zip(calls, sizes, strict=True)
+            }
+            for done in as_completed(futures):
+                bar.update(futures[done])
+            return [future.result() for future in futures]
 
 
 def run_blocks(

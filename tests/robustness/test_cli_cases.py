@@ -460,16 +460,16 @@ def test_case(root, tmp_path, capsys, command, code, fragment):
 
 def test_evaluate_writes_real_parquet(root, tmp_path):
     from data_contracts import FORECAST, MODAL, read_table
-    from workbench.pipeline import evaluate_forecast
+    from workbench.stages import evaluate
 
     out = tmp_path / "evaluation.parquet"
     argv = ["evaluate", "--forecast", f"{root}/forecast.csv", "--truth"]
     assert main([*argv, f"{root}/sim/truth_modal.csv", "--out", str(out)]) == 0
     assert out.read_bytes()[:4] == b"PAR1"
-    expected = evaluate_forecast(
+    expected = evaluate(
         read_table(root / "forecast.csv", FORECAST),
         read_table(root / "sim" / "truth_modal.csv", MODAL),
-    ).tables["evaluation"]
+    ).table
     pd.testing.assert_frame_equal(pd.read_parquet(out), expected.reset_index(drop=True))
 
 

@@ -13,8 +13,8 @@ from workbench.reporting.correlation import (
     correlation_heatmaps,
     corrplot,
     variable_label,
-    write_correlation_report,
 )
+from workbench.stages import CorrelateOptions, correlate
 from workbench.stats import correlation_table
 
 
@@ -73,9 +73,13 @@ def test_write_correlation_report(block_tables, tmp_path, close_figures):
         "second,2024-03-01T03:00:00Z,2024-03-01T07:00:00Z\n"
     )
     out = tmp_path / "report"
-    paths = write_correlation_report(
-        modal, predictors, out, cases=cases, correction="fdr_bh", predictors_used=None
+    result = correlate(
+        modal,
+        predictors,
+        cases=cases,
+        options=CorrelateOptions(correction="fdr_bh", min_presence=0.0),
     )
+    paths = result.save(out)
     assert set(paths) == {
         "csv",
         "html",

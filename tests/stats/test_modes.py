@@ -12,7 +12,8 @@ import pytest
 from scipy import stats
 from statsmodels.stats.stattools import durbin_watson as sm_durbin_watson
 
-from workbench.reporting.diagnostics_plot import plot_residual_diagnostics, write_fit_report
+from workbench.reporting.diagnostics_plot import plot_residual_diagnostics
+from workbench.stages import FitOptions, fit
 from workbench.stats import (
     StatsWarning,
     coefficient_table,
@@ -216,13 +217,17 @@ def test_write_fit_report(block_tables, tmp_path, close_figures):
     modal.loc[modal["mode"] == 3, "frequency_hz"] = np.nan  # left out with a warning
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        paths = write_fit_report(modal, predictors, tmp_path / "fit", p_enter=0.01, p_remove=0.02)
+        result = fit(
+            modal, predictors, options=FitOptions(p_enter=0.01, p_remove=0.02, min_presence=0.0)
+        )
+        paths = result.save(tmp_path / "fit")
     assert any(issubclass(w.category, StatsWarning) for w in caught)
     assert set(paths) == {
         "summary",
         "json",
         "coefficients",
         "statistics",
+        "influence",
         "diagnostics_mode1",
         "diagnostics_mode2",
     }

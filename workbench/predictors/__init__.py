@@ -5,6 +5,8 @@
   despiking; returns the PREDICTORS table. :func:`block_coverage` gives the coverage.
 * :func:`flag_faulty` -- spikes (robust rolling z-score), faulty stretches and columns.
 * :class:`Normaliser` -- z-scores whose parameters are kept (JSON) for new data.
+* :func:`load_predictors` -- the PREDICTORS table of a stage, read or averaged from a
+  DSHIP log; :func:`canonical_predictors` keeps the canonical columns.
 """
 
 from data_contracts import read_dship
@@ -13,6 +15,7 @@ from ._common import PredictorWarning
 from .averaging import block_coverage, block_predictors, circular_mean_deg
 from .faults import FaultFlags, flag_faulty
 from .normalise import Normaliser
+from .tables import canonical_predictors, load_predictors
 
 __all__ = [
     "FaultFlags",
@@ -20,7 +23,9 @@ __all__ = [
     "PredictorWarning",
     "block_coverage",
     "block_predictors",
+    "canonical_predictors",
     "circular_mean_deg",
     "flag_faulty",
+    "load_predictors",
     "read_dship",
 ]

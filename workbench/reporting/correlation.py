@@ -2,8 +2,8 @@
 
 :func:`corrplot` draws a matrix of panels for a handful of variables: histograms on the
 diagonal, scatter plots with least-squares lines below it and the correlation coefficients
-above it, significant correlations in red. :func:`write_correlation_report` runs
-:func:`workbench.stats.correlation_table` and writes ``correlation.csv``, the figures and
+above it, significant correlations in red. :func:`write_correlation_report` writes the
+result of :func:`workbench.stages.correlate` as ``correlation.csv``, the figures and
 ``correlation.html`` (figures embedded as base64, so the page is one file).
 """
 
@@ -27,15 +27,15 @@ from matplotlib.patches import Rectangle  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from data_contracts import atomic_path  # noqa: E402
-from workbench.stats.correlation import (  # noqa: E402
-    adjust_p_values,
-    case_masks,
-    correlation_table,
-    joined_blocks,
-    pairwise_pearson,
-)
+from workbench.stats.correlation import adjust_p_values, pairwise_pearson  # noqa: E402
 
-__all__ = ["corrplot", "correlation_heatmaps", "variable_label", "write_correlation_report"]
+__all__ = [
+    "corrplot",
+    "corrplot_of",
+    "correlation_heatmaps",
+    "variable_label",
+    "write_correlation_report",
+]
 
 _SIGNIFICANT = "#c0392b"
 _PLAIN = "0.35"
@@ -386,17 +386,29 @@ def _html_table(frame: pd.DataFrame) -> str:
     return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
 
 
+def corrplot_of(result, quantity: str = "frequency_hz"):
+    """:func:`corrplot` of *quantity* of every mode and the predictors of a correlation
+    result (:class:`workbench.stages.CorrelateResult`), all cases stitched."""
+    options = result.options
+    stitched = result.joined[result.case_blocks["all"]]
+    if quantity not in result.quantities:
+        raise ValueError(
+            f"quantity={quantity!r} was not correlated; give one of {result.quantities}"
+        )
+    columns = [c for c in result.mode_columns if c.endswith("_" + quantity)]
+    return corrplot(
+        stitched,
+        columns=columns + result.predictor_names,
+        alpha=options.alpha,
+        correction=options.correction,
+        title=f"{quantity} and predictors, all cases ({len(stitched)} blocks)",
+    )
+
+
 def write_correlation_report(
-    modal: pd.DataFrame,
-    predictors: pd.DataFrame,
+    result,
     out_dir: str | os.PathLike,
     *,
-    cases: str | os.PathLike | pd.DataFrame | None = None,
-    alpha: float = 0.05,
-    correction: Literal["holm", "fdr_bh"] | None = None,
-    quantities: Sequence[str] = ("frequency_hz", "damping_ratio"),
-    predictors_used: Sequence[str] | None = None,
-    useful_r: float = 0.5,
     title: str = "Correlation of modal parameters with operating conditions",
     dpi: int = 110,
 ) -> dict[str, Path]:
@@ -404,14 +416,10 @@ def write_correlation_report(
 
     Parameters
     ----------
-    modal : DataFrame
-        Tracked modal table (MODAL contract).
-    predictors : DataFrame
-        Block predictors (PREDICTORS contract), already averaged onto the modal blocks.
+    result : CorrelateResult
+        Output of :func:`workbench.stages.correlate`.
     out_dir : path-like
         Folder written into (created).
-    cases, alpha, correction, quantities, predictors_used, useful_r
-        As for :func:`workbench.stats.correlation_table`.
     title : str
         Title of the HTML page.
     dpi : int
@@ -426,38 +434,21 @@ def write_correlation_report(
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    table = correlation_table(
-        modal,
-        predictors,
-        cases=cases,
-        alpha=alpha,
-        correction=correction,
-        quantities=quantities,
-        predictors_used=predictors_used,
-        useful_r=useful_r,
-    )
+    table = result.table
+    options = result.options
+    alpha, correction, useful_r = options.alpha, options.correction, options.useful_r
     paths: dict[str, Path] = {}
     csv_path = out / "correlation.csv"
     with atomic_path(csv_path) as tmp:
         table.to_csv(tmp, index=False, float_format="%.10g")
     paths["csv"] = csv_path
 
-    joined, mode_columns, names = joined_blocks(
-        modal, predictors, quantities=quantities, predictors_used=predictors_used
-    )
-    masks = dict(case_masks(joined.reset_index(), cases))
-    stitched = joined[masks["all"]]
+    joined, mode_columns, names = result.joined, result.mode_columns, result.predictor_names
+    masks = result.case_blocks
     figures: list[tuple[str, Path, str]] = []
-    for quantity in quantities:
-        columns = [c for c in mode_columns if c.endswith("_" + quantity)] + names
+    for quantity in result.quantities:
         name = f"corrplot_{_slug(quantity)}"
-        fig = corrplot(
-            stitched,
-            columns=columns,
-            alpha=alpha,
-            correction=correction,
-            title=f"{quantity} and predictors, all cases ({len(stitched)} blocks)",
-        )
+        fig = corrplot_of(result, quantity)
         paths[name] = _save(fig, out / f"{name}.png", dpi)
         figures.append((name, paths[name], f"{quantity}: modes and predictors, all cases"))
     fig = correlation_heatmaps(table)

@@ -2,16 +2,16 @@
 
 :func:`plot_residual_diagnostics` draws the four classic panels (histogram with the fitted
 normal density, normal probability plot, residual against the previous residual, residual
-against fitted value). :func:`write_fit_report` fits one stepwise model per mode
-(:func:`workbench.stats.fit_modes`) and writes the summary text, JSON, the coefficient and
-statistics tables and one diagnostics figure per mode.
+against fitted value). :func:`write_fit_report` writes the result of
+:func:`workbench.stages.fit` (one stepwise model per mode): the summary text, JSON, the
+coefficient and statistics tables and one diagnostics figure per mode.
 """
 
 from __future__ import annotations
 
 import json
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from pathlib import Path
 
 import matplotlib
@@ -19,18 +19,12 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
 from scipy import stats as _scipy_stats  # noqa: E402
 
 from data_contracts import atomic_path  # noqa: E402
-from workbench.stats.cases import STITCHED, fit_cases  # noqa: E402
+from workbench.stats.cases import STITCHED  # noqa: E402
 from workbench.stats.diagnostics import ResidualDiagnostics, residual_diagnostics  # noqa: E402
-from workbench.stats.modes import (  # noqa: E402
-    ModeFit,
-    coefficient_table,
-    fit_modes,
-    fit_statistics_table,
-)
+from workbench.stats.modes import ModeFit  # noqa: E402
 
 __all__ = ["plot_residual_diagnostics", "write_diagnostics_figures", "write_fit_report"]
 
@@ -174,84 +168,51 @@ def _write_text(path: Path, text: str) -> Path:
 
 
 def write_fit_report(
-    modal: pd.DataFrame,
-    predictors: pd.DataFrame,
+    result,
     out_dir: str | os.PathLike,
     *,
-    quantity: str = "frequency_hz",
-    predictors_used: Sequence[str] | None = None,
-    modes: Sequence[int] | None = None,
-    errors: str = "warn",
+    figures: bool = True,
     dpi: int = 100,
-    cases=None,
-    **stepwise_options,
 ) -> dict[str, Path]:
-    """Stepwise model per mode with summary, JSON, tables and diagnostics figures.
+    """Write the models of a fit result: summary, JSON, tables and diagnostics figures.
 
     Parameters
     ----------
-    modal : DataFrame
-        Tracked modal table (MODAL contract).
-    predictors : DataFrame
-        Block predictors (PREDICTORS contract), already on the modal blocks.
+    result : FitResult
+        Output of :func:`workbench.stages.fit`.
     out_dir : path-like
         Folder written into (created).
-    quantity, predictors_used, modes, errors, **stepwise_options
-        As for :func:`workbench.stats.fit_modes` (default ``errors="warn"``: a mode without
-        data is left out with a warning, the others are reported).
+    figures : bool
+        Also one residual diagnostics PNG per mode.
     dpi : int
         Resolution of the figures.
-    cases : None, "derive", CaseRule, column name, path or DataFrame
-        Operating cases (:func:`workbench.stats.cases.case_labels`). With cases the
-        models are fitted per case as well, beside the stitched model of all the cases'
-        blocks (which then is the one in ``coefficients.csv`` and the figures); the summary
-        opens with the per-case comparison and ``case_models.csv`` /
-        ``case_coefficients.csv`` hold it.
 
     Returns
     -------
     dict of str -> Path
         ``"summary"`` (fit_summary.txt), ``"json"`` (fit.json), ``"coefficients"``
         (coefficients.csv: one row per mode, one column per term, 0 where a term is not in
-        the model), ``"statistics"`` (fit_statistics.csv) and ``"diagnostics_mode<k>"``
+        the model), ``"statistics"`` (fit_statistics.csv), ``"influence"`` (influence.csv:
+        leverage, Cook's distance, studentized residual per mode and block) and
+        ``"diagnostics_mode<k>"``
         per mode (PNG); with cases also ``"case_models"`` and ``"case_coefficients"``.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    by_case = None
-    if cases is not None:
-        by_case = fit_cases(
-            modal,
-            predictors,
-            cases,
-            quantity=quantity,
-            predictors_used=predictors_used,
-            modes=modes,
-            errors=errors,
-            **stepwise_options,
-        )
-        fits = by_case.fits[STITCHED]
-    else:
-        fits = fit_modes(
-            modal,
-            predictors,
-            quantity=quantity,
-            predictors_used=predictors_used,
-            modes=modes,
-            errors=errors,
-            **stepwise_options,
-        )
-    if not fits:
-        raise ValueError(f"no mode could be fitted ({quantity}); see the warnings")
+    fits = result.fits
+    by_case = result.by_case
+    quantity = result.options.quantity
     paths: dict[str, Path] = {}
-    coefficients = coefficient_table(fits)
     with atomic_path(out / "coefficients.csv") as tmp:
-        coefficients.to_csv(tmp, float_format="%.10g")
+        result.coefficients.to_csv(tmp, float_format="%.10g")
     paths["coefficients"] = out / "coefficients.csv"
-    statistics = fit_statistics_table(fits)
     with atomic_path(out / "fit_statistics.csv") as tmp:
-        statistics.to_csv(tmp, float_format="%.10g")
+        result.table.to_csv(tmp, float_format="%.10g")
     paths["statistics"] = out / "fit_statistics.csv"
+    if len(fits) == len(result.models):  # fitted here, not read from JSON
+        with atomic_path(out / "influence.csv") as tmp:
+            result.influence_table().to_csv(tmp, index=False, float_format="%.10g")
+        paths["influence"] = out / "influence.csv"
     sections = []
     for mode, item in fits.items():
         sections.append(
@@ -279,21 +240,10 @@ def write_fit_report(
             by_case.coefficients().to_csv(tmp, float_format="%.10g")
         paths["case_coefficients"] = out / "case_coefficients.csv"
     paths["summary"] = _write_text(out / "fit_summary.txt", header + "\n".join(sections))
-    payload = {
-        "quantity": quantity,
-        "options": {k: v for k, v in stepwise_options.items()},
-        "modes": [item.to_dict() for item in fits.values()],
-    }
-    if by_case is not None:
-        payload["cases"] = {
-            case: [item.to_dict() for item in case_fits.values()]
-            for case, case_fits in by_case.fits.items()
-            if case != STITCHED
-        }
-        payload["case_left_out"] = by_case.left_out
     paths["json"] = _write_text(
-        out / "fit.json", json.dumps(payload, indent=1, allow_nan=False, default=str)
+        out / "fit.json", json.dumps(result.to_dict(), indent=1, allow_nan=False, default=str)
     )
-    for mode, path in zip(fits, write_diagnostics_figures(fits, out, dpi=dpi), strict=True):
-        paths[f"diagnostics_mode{mode}"] = path
+    if figures:
+        for mode, path in zip(fits, write_diagnostics_figures(fits, out, dpi=dpi), strict=True):
+            paths[f"diagnostics_mode{mode}"] = path
     return paths

@@ -445,7 +445,7 @@ def build_report(
     """
     import jinja2
 
-    from workbench.pipeline import canonical_predictors, load_predictors
+    from workbench.predictors import canonical_predictors, load_predictors
     from workbench.stats.correlation import correlation_table_effective, read_cases
 
     from . import views

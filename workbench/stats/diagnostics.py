@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy import stats as _scipy_stats
 
-__all__ = ["ResidualDiagnostics", "durbin_watson", "residual_diagnostics", "write_fit_report"]
+__all__ = ["ResidualDiagnostics", "durbin_watson", "residual_diagnostics"]
 
 
 def _run_pairs(e: np.ndarray, blocks) -> np.ndarray:
@@ -45,6 +45,8 @@ def durbin_watson(residuals, blocks=None) -> float:
     correlation [1]_. With *blocks* the numerator sums over pairs inside runs only and is
     scaled by (n - 1) / (number of pairs), so d keeps its meaning (2 for white residuals)
     when runs are short.
+    One contiguous run gives the textbook statistic
+    (:func:`statsmodels.stats.stattools.durbin_watson`).
 
     References
     ----------
@@ -63,6 +65,10 @@ def durbin_watson(residuals, blocks=None) -> float:
     pairs = _run_pairs(e, blocks)
     if e.size < 2 or total == 0.0 or not pairs.any():
         return math.nan
+    if pairs.all():  # one contiguous run: the textbook statistic
+        from statsmodels.stats.stattools import durbin_watson as _durbin_watson
+
+        return float(_durbin_watson(e))
     difference = np.diff(e)[pairs]
     value = float(difference @ difference) / total
     if blocks is not None:
@@ -180,7 +186,8 @@ def residual_diagnostics(residuals, *, alpha: float = 0.05, blocks=None) -> Resi
     Notes
     -----
     Jarque-Bera: JB = n/6 (S² + K²/4) with skewness S and excess kurtosis K, χ²₂ under
-    normality [1]_. Shapiro-Wilk from :func:`scipy.stats.shapiro` [2]_.
+    normality [1]_ (computed by :func:`statsmodels.stats.stattools.jarque_bera`).
+    Shapiro-Wilk from :func:`scipy.stats.shapiro` [2]_.
 
     References
     ----------
@@ -220,8 +227,9 @@ def residual_diagnostics(residuals, *, alpha: float = 0.05, blocks=None) -> Resi
     else:
         shapiro_w = shapiro_p = nan
     if n >= 2 and m2 > 0:
-        jarque_bera = n / 6.0 * (skewness**2 + kurtosis**2 / 4.0)
-        jarque_bera_p = float(_scipy_stats.chi2.sf(jarque_bera, 2))
+        from statsmodels.stats.stattools import jarque_bera as _jarque_bera
+
+        jarque_bera, jarque_bera_p, _, _ = (float(v) for v in _jarque_bera(e))
     else:
         jarque_bera = jarque_bera_p = nan
     return ResidualDiagnostics(
@@ -238,14 +246,3 @@ def residual_diagnostics(residuals, *, alpha: float = 0.05, blocks=None) -> Resi
         jarque_bera_p_value=jarque_bera_p,
         alpha=alpha,
     )
-
-
-def write_fit_report(modal, predictors, out_dir, **options):
-    """Per-mode stepwise report; see :func:`workbench.reporting.diagnostics_plot.write_fit_report`.
-
-    The report draws figures, so it lives in :mod:`workbench.reporting`; this alias imports
-    it on call (the statistics themselves never import matplotlib).
-    """
-    from workbench.reporting.diagnostics_plot import write_fit_report as _write_fit_report
-
-    return _write_fit_report(modal, predictors, out_dir, **options)

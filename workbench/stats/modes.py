@@ -5,7 +5,8 @@ same blocks with :func:`~workbench.stats.stepwise`, and attaches the residual di
 :func:`coefficient_table` lines the models up (one row per mode, one column per term, 0
 where a mode's model leaves a term out) and :func:`fit_statistics_table` gives their
 goodness of fit. The report with figures is
-:func:`workbench.reporting.diagnostics_plot.write_fit_report`.
+:func:`workbench.stages.fit` (written by
+:func:`workbench.reporting.diagnostics_plot.write_fit_report`).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""File-to-file stages shared by the CLI and the demo (workbench.pipeline) and their CLI."""
+"""The stages shared by the CLI, the demo and notebooks (workbench.stages), and their CLI."""
 
 from __future__ import annotations
 
@@ -7,9 +7,10 @@ import pandas as pd
 import pytest
 
 from data_contracts import FORECAST, MODAL, PREDICTORS, read_table
+from workbench.blocks import block_grid_of
 from workbench.cli import main
 from workbench.errors import WorkbenchError
-from workbench.pipeline import block_grid_of, evaluate_forecast, forecast_modes
+from workbench.stages import evaluate, forecast_modes
 
 PREDICTOR_COLUMNS = ["speed_kn", "water_temp_c", "air_temp_c", "wind_speed_ms", "wind_dir_rel_deg"]
 
@@ -46,9 +47,9 @@ def test_evaluate_pairs_labels_and_beats_ssi(tables):
     modes (as tracking with an extra spurious mode would) does not change the result."""
     modal, predictors, truth = tables
     table, _ = forecast_modes(modal, predictors, option="A", method=2, train_blocks=20, horizon=4)
-    plain = evaluate_forecast(table, truth).tables["evaluation"]
+    plain = evaluate(table, truth).table
     shifted = table.assign(mode=table["mode"] + 10)
-    relabelled = evaluate_forecast(shifted, truth).tables["evaluation"]
+    relabelled = evaluate(shifted, truth).table
     pd.testing.assert_frame_equal(plain, relabelled)
     # 10 % lower cumulative error than the raw estimates is the bar (default memory model;
     # the reference window model with trust 0.65 measured 24 % here, seed 2)

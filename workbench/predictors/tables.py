@@ -1,0 +1,73 @@
+"""The block predictor table a stage works on: read, or averaged from a DSHIP log.
+
+:func:`load_predictors` gives the PREDICTORS table from either source;
+:func:`canonical_predictors` keeps the block columns and the canonical predictors.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+
+import numpy as np
+import pandas as pd
+
+from data_contracts import CANONICAL_PREDICTORS, PREDICTORS, read_dship, read_table
+
+from ..blocks import BlockGrid, block_grid_of
+
+__all__ = ["canonical_predictors", "load_predictors"]
+
+
+def load_predictors(
+    *,
+    predictors: str | os.PathLike | None = None,
+    dship: str | os.PathLike | None = None,
+    like: pd.DataFrame | None = None,
+    min_coverage: float = 0.5,
+    dship_mapping: Mapping[str, str] | None = None,
+) -> pd.DataFrame:
+    """Block predictors from a predictor table, or averaged from a DSHIP log.
+
+    Parameters
+    ----------
+    predictors : path, optional
+        A block predictor table (PREDICTORS contract).
+    dship : path, optional
+        A raw DSHIP log; averaged onto the block grid of *like*.
+    like : DataFrame, optional
+        A table with block, block_start, block_end (e.g. the tracked modal table) whose block
+        grid the DSHIP log is averaged onto; its full block range is used.
+    min_coverage : float
+        Share of a block the log must cover for the block's average (see
+        :func:`~workbench.predictors.block_predictors`).
+    dship_mapping : mapping, optional
+        Column mapping for :func:`~data_contracts.read_dship` (``speed_kn`` -> source name).
+    """
+    if (predictors is None) == (dship is None):
+        raise ValueError("give exactly one of predictors and dship")
+    if predictors is not None:
+        return read_table(predictors, PREDICTORS)
+    if like is None:
+        raise ValueError("averaging a DSHIP log needs the blocks of a modal table")
+    from .averaging import block_predictors
+
+    log = read_dship(dship, mapping=dship_mapping)
+    t0, length_s, step_s = block_grid_of(like)
+    first, last = int(like["block"].min()), int(like["block"].max())
+    grid = BlockGrid(t0=t0, length_s=length_s, step_s=step_s)
+    table = block_predictors(
+        log, grid=grid, blocks=np.arange(first, last + 1), min_coverage=min_coverage
+    )
+    return PREDICTORS.validate(table)
+
+
+def canonical_predictors(predictors: pd.DataFrame) -> pd.DataFrame:
+    """The block columns and the canonical predictors (speed, temperatures, wind) only.
+
+    A ship log carries more numeric columns (position, heading, depth...). They are kept in
+    the predictor table, but latitude and longitude, for instance, stand in for elapsed time
+    in a regression, so models and correlations use the canonical predictors unless asked.
+    """
+    columns = ["block", "block_start", "block_end", *(c.name for c in CANONICAL_PREDICTORS)]
+    return predictors[[c for c in columns if c in predictors.columns]]

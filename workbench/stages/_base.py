@@ -1,0 +1,125 @@
+"""What every stage result has: a table, a summary, an HTML view, atomic saving."""
+
+from __future__ import annotations
+
+import html
+import json
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from data_contracts import atomic_path, read_table, write_table
+
+__all__ = ["StageResult", "read_any_table", "table_path", "write_frame", "write_json"]
+
+#: Suffixes of the table files a stage writes or reads.
+TABLE_SUFFIXES = (".csv", ".parquet", ".pq")
+
+
+class StageResult:
+    """Base of the stage results: ``table``, ``summary()``, ``_repr_html_``, ``save()``.
+
+    Subclasses are dataclasses with a ``table`` field (a DataFrame following its contract)
+    and ``lines`` / ``warnings`` lists; they implement :meth:`save`.
+    """
+
+    table: pd.DataFrame
+    lines: list[str]
+    warnings: list[str]
+
+    #: Title of the notebook view.
+    title = "result"
+
+    def summary(self) -> str:
+        """What the stage found, in a few lines a person reads."""
+        return "\n".join([*self.lines, *(f"warning: {w}" for w in self.warnings)])
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def _repr_html_(self) -> str:
+        rows = len(self.table)
+        named = any(name is not None for name in self.table.index.names)  # e.g. mode
+        head = self.table.head(10).to_html(index=named, border=0, max_cols=12)
+        more = f"<p>{rows} rows; first 10 shown.</p>" if rows > 10 else ""
+        return (
+            f"<div><strong>{html.escape(self.title)}</strong>"
+            f"<pre>{html.escape(self.summary())}</pre>{head}{more}</div>"
+        )
+
+    def save(self, out_dir: str | os.PathLike) -> dict[str, Path]:  # pragma: no cover
+        raise NotImplementedError
+
+
+def table_path(out: str | os.PathLike, default_name: str) -> Path:
+    """*out* when it names a table file (.csv/.parquet), else *out* / *default_name*."""
+    out = Path(out)
+    return out if out.suffix.lower() in TABLE_SUFFIXES else out / default_name
+
+
+def write_frame(frame: pd.DataFrame, path: str | os.PathLike, contract=None, **csv) -> Path:
+    """Write *frame* atomically (CSV or Parquet from the suffix), validated against
+    *contract* when one is given; returns the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if contract is not None:
+        return write_table(frame, path, contract)
+    with atomic_path(path) as tmp:
+        if path.suffix.lower() in (".parquet", ".pq"):
+            frame.to_parquet(tmp, index=False)
+        else:
+            frame.to_csv(tmp, index=csv.pop("index", False), **csv)
+    return path
+
+
+def write_json(data: Mapping[str, Any], path: str | os.PathLike) -> Path:
+    """Write *data* as indented JSON, atomically (NumPy scalars and times as plain values)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(data, indent=2, default=_json_default), encoding="utf-8")
+    return path
+
+
+def _json_default(value):
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, pd.Timestamp):
+        return value.isoformat()
+    return str(value)
+
+
+def read_any_table(
+    table: pd.DataFrame | str | os.PathLike, contract=None, *, name: str = "table"
+) -> pd.DataFrame:
+    """*table* itself, or the table in the file it names (CSV/Parquet, UTC block times).
+
+    With *contract* the file is read and checked by :func:`~data_contracts.read_table`;
+    without, times in ``block_start`` / ``block_end`` are parsed as UTC.
+    """
+    from ..errors import WorkbenchError
+
+    if isinstance(table, pd.DataFrame):
+        return table
+    if not isinstance(table, str | os.PathLike):
+        raise TypeError(f"{name} must be a DataFrame or a path, got {type(table).__name__}")
+    if contract is not None:
+        return read_table(table, contract)
+    path = Path(table)
+    try:
+        if path.suffix.lower() in (".parquet", ".pq"):
+            frame = pd.read_parquet(path)
+        else:
+            frame = pd.read_csv(path)
+    except FileNotFoundError:
+        raise WorkbenchError(f"{path}: no such file") from None
+    except (OSError, ValueError) as error:
+        raise WorkbenchError(f"{path}: unreadable ({str(error).splitlines()[0]})") from None
+    for column in ("block_start", "block_end"):
+        if column in frame.columns:
+            frame[column] = pd.to_datetime(frame[column], utc=True)
+    return frame

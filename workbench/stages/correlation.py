@@ -1,0 +1,214 @@
+"""Correlate stage: Pearson r of every mode quantity with every predictor, per case."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import pandas as pd
+
+from data_contracts import MODAL, PREDICTORS
+
+from ..errors import WorkbenchError
+from ..sid.presence import persistent_modes
+from ..stats.correlation import case_masks, correlation_table, joined_blocks, read_cases
+from ._base import StageResult, read_any_table, write_frame
+
+__all__ = ["CorrelateOptions", "CorrelateResult", "correlate"]
+
+
+@dataclass(frozen=True)
+class CorrelateOptions:
+    """Options of :func:`correlate`.
+
+    Parameters
+    ----------
+    alpha : float
+        Significance level: a pair is significant when its (adjusted) p-value is below it.
+    correction : {None, "holm", "fdr_bh"}
+        Multiple-comparison correction of the p-values within each case.
+    quantities : sequence of str, optional
+        Modal columns correlated; default frequency and damping ratio, frequency only when
+        the modal table has no damping (another tool's frequency-only table).
+    predictors_used : sequence of str, optional
+        Predictor columns; default every numeric predictor column.
+    useful_r : float
+        A significant pair is *useful* when |r| is at least this.
+    min_presence : float
+        Only modes measured in at least this share of the blocks are correlated.
+    """
+
+    alpha: float = 0.05
+    correction: Literal["holm", "fdr_bh"] | None = None
+    quantities: tuple[str, ...] | None = None
+    predictors_used: tuple[str, ...] | None = None
+    useful_r: float = 0.5
+    min_presence: float = 0.5
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.alpha < 1.0:
+            raise ValueError(f"alpha={self.alpha} must be in (0, 1)")
+        if self.correction not in (None, "holm", "fdr_bh"):
+            raise ValueError(f"correction={self.correction!r} must be None, 'holm' or 'fdr_bh'")
+        if not 0.0 <= self.min_presence <= 1.0:
+            raise ValueError(f"min_presence={self.min_presence} must be in [0, 1]")
+        if not 0.0 <= self.useful_r <= 1.0:
+            raise ValueError(f"useful_r={self.useful_r} must be in [0, 1]")
+
+
+@dataclass
+class CorrelateResult(StageResult):
+    """Correlations of the modes with the predictors.
+
+    Attributes
+    ----------
+    table : DataFrame
+        Tidy table, one row per pair and case: x, y, case, r, p_value, p_adjusted, n,
+        significant, useful.
+    joined : DataFrame
+        The block table correlated (index block): predictors and ``mode<k>_<quantity>``.
+    mode_columns, predictor_names : list of str
+        Mode-quantity and predictor columns of *joined*.
+    case_blocks : dict of str -> ndarray of bool
+        Rows of *joined* per case (``"all"``: the stitched cases).
+    options : CorrelateOptions
+    """
+
+    table: pd.DataFrame
+    joined: pd.DataFrame
+    mode_columns: list[str]
+    predictor_names: list[str]
+    case_blocks: dict[str, np.ndarray]
+    options: CorrelateOptions
+    lines: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    title = "correlation of modes with predictors"
+
+    @property
+    def quantities(self) -> tuple[str, ...]:
+        return self.options.quantities or ("frequency_hz", "damping_ratio")
+
+    def pivot(self, value: str = "r", *, case: str = "all") -> pd.DataFrame:
+        """*value* (r, p_value, p_adjusted, n) of one case as a y x x matrix."""
+        part = self.table[self.table["case"] == case]
+        if part.empty:
+            raise KeyError(f"no case {case!r}; cases: {list(pd.unique(self.table['case']))}")
+        return part.pivot(index="y", columns="x", values=value)
+
+    @property
+    def r(self) -> pd.DataFrame:
+        """Pearson r of the stitched cases (rows y, columns x)."""
+        return self.pivot("r")
+
+    @property
+    def pvalues(self) -> pd.DataFrame:
+        """Two-sided p-values of the stitched cases (rows y, columns x)."""
+        return self.pivot("p_value")
+
+    @property
+    def useful(self) -> pd.DataFrame:
+        """The useful pairs (significant, |r| large enough), by case and p-value."""
+        return self.table[self.table["useful"]].sort_values(["case", "p_value"], kind="stable")
+
+    def plot(self, quantity: str = "frequency_hz"):
+        """corrplot of *quantity* of every mode and the predictors, all cases stitched."""
+        from ..reporting.correlation import corrplot_of
+
+        return corrplot_of(self, quantity)
+
+    def save(
+        self, out_dir: str | os.PathLike, *, figures: bool = True, dpi: int = 110
+    ) -> dict[str, Path]:
+        """correlation.csv and, with *figures*, the corrplots, the heatmap and
+        correlation.html (figures embedded) in *out_dir*."""
+        if figures:
+            from ..reporting.correlation import write_correlation_report
+
+            return write_correlation_report(self, out_dir, dpi=dpi)
+        path = Path(out_dir) / "correlation.csv"
+        return {"csv": write_frame(self.table, path, float_format="%.10g")}
+
+
+def _cases(cases):
+    """A case table from a path (checked), or *cases* as given."""
+    if cases is None or isinstance(cases, pd.DataFrame):
+        return cases
+    if isinstance(cases, str) and not os.path.exists(cases):
+        return cases  # a column of the predictors
+    try:
+        table = read_cases(cases)
+    except ValueError as error:
+        raise WorkbenchError(str(error).splitlines()[0]) from None
+    if (table["case"].str.lower() == "all").any():
+        raise WorkbenchError(
+            f"{cases}: the case name 'all' is reserved for the stitched cases; rename that case"
+        )
+    return table
+
+
+def correlate(
+    modal: pd.DataFrame | str | os.PathLike,
+    predictors: pd.DataFrame | str | os.PathLike,
+    *,
+    cases: str | os.PathLike | pd.DataFrame | None = None,
+    options: CorrelateOptions | None = None,
+) -> CorrelateResult:
+    """Pearson correlation and significance of the modes with the predictors.
+
+    Parameters
+    ----------
+    modal : DataFrame
+        Tracked modal table (MODAL contract).
+    predictors : DataFrame
+        Block predictors (PREDICTORS contract) on the modal table's blocks.
+    cases : None, column name, path or DataFrame
+        Operating cases (``case,start,end``; see :func:`workbench.stats.correlation.case_masks`).
+        Each case is tested separately; ``"all"`` stitches them.
+    options : CorrelateOptions, optional
+    """
+    options = options or CorrelateOptions()
+    modal = read_any_table(modal, MODAL, name="modal")
+    predictors = read_any_table(predictors, PREDICTORS, name="predictors")
+    modal, lines = persistent_modes(modal, options.min_presence)
+    if options.quantities is None:
+        quantities: Sequence[str] = (
+            ("frequency_hz", "damping_ratio")
+            if "damping_ratio" in modal.columns and modal["damping_ratio"].notna().any()
+            else ("frequency_hz",)
+        )
+        options = replace(options, quantities=tuple(quantities))
+    cases = _cases(cases)
+    table = correlation_table(
+        modal,
+        predictors,
+        cases=cases,
+        alpha=options.alpha,
+        correction=options.correction,
+        quantities=options.quantities,
+        predictors_used=options.predictors_used,
+        useful_r=options.useful_r,
+    )
+    joined, mode_columns, names = joined_blocks(
+        modal, predictors, quantities=options.quantities, predictors_used=options.predictors_used
+    )
+    masks = dict(case_masks(joined.reset_index(), cases))
+    result = CorrelateResult(
+        table=table,
+        joined=joined,
+        mode_columns=mode_columns,
+        predictor_names=names,
+        case_blocks=masks,
+        options=options,
+        lines=list(lines),
+    )
+    n_useful = int(table["useful"].sum())
+    result.lines.append(
+        f"correlation of {len(mode_columns)} mode quantities with {len(names)} predictors over "
+        f"{len(joined)} blocks, cases {', '.join(masks)}: {n_useful} useful pairs "
+        f"(significant at {options.alpha:g}, |r| >= {options.useful_r:g})"
+    )
+    return result

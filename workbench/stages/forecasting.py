@@ -1,0 +1,254 @@
+"""Forecast stage: sliding model per mode, Kalman-blended with SSI, for each option."""
+
+from __future__ import annotations
+
+import os
+import warnings
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import pandas as pd
+
+from data_contracts import FORECAST, MODAL, POLES, PREDICTORS
+
+from ..forecast import ForecastWarning, sliding_forecast
+from ..forecast.options import method_label, option_label
+from ..parallel import process_map
+from ..sid.presence import persistent_modes
+from ._base import StageResult, read_any_table, table_path, write_frame
+
+__all__ = ["ForecastOptions", "ForecastStageResult", "forecast", "forecast_modes"]
+
+
+@dataclass(frozen=True)
+class ForecastOptions:
+    """Options of :func:`forecast`.
+
+    Parameters
+    ----------
+    options : tuple of {"A", "B"}
+        Measurement options run into one table (A: tracked pole; B: the stabilisation-
+        diagram pole cluster nearest the prediction; ``"tracked_pole"``/``"pole_cluster"``
+        are accepted).
+    method : {1, 2}
+        1: one long forecast; 2: predict *horizon* blocks, filter, slide, refit
+        (``"single_window"``/``"rolling"`` accepted).
+    train_blocks : int
+        Training window. [blocks]
+    horizon : int, optional
+        Blocks per forecast (default 34 for method 1, 4 for method 2).
+    trust : float, None or "auto"
+        Window model: steady-state weight on SSI in (0, 1); None: Q from the model's own
+        prediction variance; "auto": the forecast's default.
+    model : {"window", "memory"}
+        The predictive model (see :func:`~workbench.forecast.sliding_forecast`).
+    predictor_columns : tuple of str, optional
+        Candidate predictors; default every predictor column.
+    stepwise_options : mapping, optional
+        Options of the stepwise fits.
+    min_presence : float
+        Only modes measured in at least this share of the predictor blocks are forecast.
+    shape_mac_min : float
+        Option B: lowest MAC of a pole's shape with the mode's tracked shape.
+    reacquire_blocks : int, optional
+        Option B: blocks seen only outside the gate before the track is re-acquired.
+    n_jobs : int
+        Processes the modes are spread over (the table is the same whatever the number).
+    """
+
+    options: tuple[str, ...] = ("A",)
+    method: int | str = 2
+    train_blocks: int = 20
+    horizon: int | None = None
+    trust: float | None | Literal["auto"] = "auto"
+    model: Literal["window", "memory"] = "window"
+    predictor_columns: tuple[str, ...] | None = None
+    stepwise_options: Mapping[str, Any] | None = None
+    min_presence: float = 0.5
+    shape_mac_min: float = 0.9
+    reacquire_blocks: int | None = None
+    n_jobs: int = 1
+
+    def __post_init__(self) -> None:
+        if isinstance(self.options, str):
+            object.__setattr__(
+                self, "options", tuple(self.options) if self.options == "AB" else (self.options,)
+            )
+        object.__setattr__(self, "options", tuple(option_label(o) for o in self.options))
+        object.__setattr__(self, "method", method_label(self.method))
+        if self.train_blocks < 2:
+            raise ValueError(f"train_blocks={self.train_blocks} must be at least 2")
+        if not 0.0 <= self.min_presence <= 1.0:
+            raise ValueError(f"min_presence={self.min_presence} must be in [0, 1]")
+        if self.n_jobs < 1:
+            raise ValueError(f"n_jobs={self.n_jobs} must be at least 1")
+
+    def sliding_options(self, option: str) -> dict[str, Any]:
+        """Keyword arguments of :func:`~workbench.forecast.sliding_forecast` for *option*."""
+        kwargs: dict[str, Any] = dict(
+            option=option,
+            method=self.method,
+            train_blocks=self.train_blocks,
+            horizon=self.horizon,
+            trust=self.trust,
+            model=self.model,
+            predictor_columns=self.predictor_columns,
+            stepwise_options=self.stepwise_options,
+        )
+        if option == "B":
+            kwargs.update(shape_mac_min=self.shape_mac_min, reacquire_blocks=self.reacquire_blocks)
+        return kwargs
+
+
+@dataclass
+class ForecastStageResult(StageResult):
+    """The forecast table (FORECAST contract) of every option, and its notes.
+
+    Attributes
+    ----------
+    table : DataFrame
+        One row per block, mode and option: SSI, model and Kalman estimates with bounds.
+    options : ForecastOptions
+    """
+
+    table: pd.DataFrame
+    options: ForecastOptions
+    lines: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    title = "forecast"
+
+    def plot(self, mode: int | None = None, *, truth: pd.DataFrame | None = None, option=None):
+        """Forecast figure of *mode* (default the first): SSI, model with bounds, Kalman."""
+        from ..reporting.forecast_plot import plot_forecast_mode
+
+        mode = int(self.table["mode"].min()) if mode is None else int(mode)
+        return plot_forecast_mode(self.table, mode, truth_modal=truth, option=option)
+
+    def save(
+        self,
+        out: str | os.PathLike,
+        *,
+        figures: str | os.PathLike | None = None,
+        truth: pd.DataFrame | None = None,
+    ) -> dict[str, Path]:
+        """The table (``out`` a .csv/.parquet file, or a folder: forecast.csv) and, with
+        *figures* (a folder), one figure per mode (the *truth* drawn beside)."""
+        paths = {"forecast": write_frame(self.table, table_path(out, "forecast.csv"), FORECAST)}
+        if figures is not None:
+            from ..reporting.forecast_plot import write_forecast_figures
+
+            for path in write_forecast_figures(self.table, figures, truth_modal=truth):
+                paths[path.stem] = path
+        return paths
+
+
+def _forecast_part(modal, predictors, modes, kwargs):
+    """One process's share of :func:`forecast_modes` (module level: picklable)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ForecastWarning)
+        result = sliding_forecast(modal, predictors, modes=modes, **kwargs)
+    messages = [str(w.message) for w in caught if issubclass(w.category, ForecastWarning)]
+    return result.table, messages
+
+
+def forecast_modes(
+    modal: pd.DataFrame,
+    predictors: pd.DataFrame,
+    *,
+    n_jobs: int = 1,
+    progress: bool = False,
+    **kwargs: Any,
+) -> tuple[pd.DataFrame, list[str]]:
+    """:func:`~workbench.forecast.sliding_forecast` with the modes spread over processes.
+
+    Modes are independent (one model and one Kalman filter each), so the table equals that
+    of a single call, whatever *n_jobs*. Returns the forecast table (sorted by block, mode)
+    and the forecast warnings' messages.
+    """
+    modes = kwargs.pop("modes", None)
+    modes = sorted(int(m) for m in (modal["mode"].unique() if modes is None else modes))
+    n_jobs = max(1, min(int(n_jobs), len(modes)))
+    if n_jobs == 1:  # one call: the windows' normalisation is shared by all modes
+        calls = [(modal, predictors, modes, kwargs)]
+        sizes = [len(modes)]
+    else:
+        calls = [(modal[modal["mode"] == mode], predictors, [mode], kwargs) for mode in modes]
+        sizes = None
+    parts = process_map(
+        _forecast_part,
+        calls,
+        n_jobs=n_jobs,
+        progress=progress,
+        description="forecast",
+        unit="mode",
+        sizes=sizes,
+    )
+    table = pd.concat([p[0] for p in parts], ignore_index=True)
+    keys = [c for c in ("block", "mode", "option") if c in table.columns]
+    table = table.sort_values(keys, kind="stable").reset_index(drop=True)
+    return table, [m for p in parts for m in p[1]]
+
+
+def forecast(
+    modal: pd.DataFrame | str | os.PathLike,
+    predictors: pd.DataFrame | str | os.PathLike,
+    *,
+    poles: pd.DataFrame | str | os.PathLike | None = None,
+    cases=None,
+    options: ForecastOptions | None = None,
+    progress: bool = False,
+) -> ForecastStageResult:
+    """Sliding forecasts of every persistent mode, for each measurement option.
+
+    Parameters
+    ----------
+    modal : DataFrame
+        Tracked modal table (MODAL contract).
+    predictors : DataFrame
+        Block predictors (PREDICTORS contract); their blocks are the forecast's grid.
+    poles : DataFrame, optional
+        Pole table (POLES contract), needed for option B.
+    cases : None, "derive", path or DataFrame
+        Each window forecasts with the model of the current operating case.
+    options : ForecastOptions, optional
+    progress : bool
+        Progress bar on stderr.
+
+    Modes measured in fewer than ``options.min_presence`` of the blocks (short-lived
+    tracks: a shaft harmonic passing by, spurious poles) are not forecast; a line says which.
+    """
+    options = options or ForecastOptions()
+    modal = read_any_table(modal, MODAL, name="modal")
+    predictors = read_any_table(predictors, PREDICTORS, name="predictors")
+    if poles is not None:
+        poles = read_any_table(poles, POLES, name="poles")
+    if "B" in options.options and poles is None:
+        raise ValueError("option B needs the pole table (poles=...)")
+    kept, lines = persistent_modes(
+        modal, options.min_presence, n_blocks=predictors["block"].nunique()
+    )
+    modes = sorted(int(m) for m in kept["mode"].unique())
+    result = ForecastStageResult(table=pd.DataFrame(), options=options, lines=list(lines))
+    frames = []
+    for option in options.options:
+        table, messages = forecast_modes(
+            modal,
+            predictors,
+            n_jobs=options.n_jobs,
+            progress=progress,
+            modes=modes,
+            poles=poles,
+            cases=cases,
+            **options.sliding_options(option),
+        )
+        result.warnings += [f"option {option}: {m}" for m in messages]
+        frames.append(table)
+    result.table = pd.concat(frames, ignore_index=True)
+    result.lines.append(
+        f"forecast of {result.table['mode'].nunique()} modes over "
+        f"{result.table['block'].nunique()} blocks, option(s) {'/'.join(options.options)}, "
+        f"method {options.method}, train {options.train_blocks}"
+    )
+    return result

@@ -1,0 +1,111 @@
+"""Identify stage: SSI (or LSCF) of every block of acceleration files, resumable, parallel.
+
+The work itself lives in :mod:`workbench.identify` (block planning, conditioning, the
+per-block store); this is its one entry point with the result every stage returns.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import pandas as pd
+
+from data_contracts import POLES, read_table
+
+from ..identify import IdentifyOptions, IdentifyResult, identify_voyage
+from ._base import StageResult, write_frame
+
+__all__ = ["IdentifyOptions", "IdentifyStageResult", "identify"]
+
+
+@dataclass
+class IdentifyStageResult(StageResult):
+    """Modes selected per block (``table``), the pole tables and what the run did.
+
+    Attributes
+    ----------
+    run : IdentifyResult
+        Run summary (blocks processed, skipped and why) and the files written.
+    """
+
+    run: IdentifyResult
+    lines: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    title = "identified modes"
+
+    @property
+    def files(self) -> dict[str, Path]:
+        return dict(self.run.files)
+
+    @cached_property
+    def table(self) -> pd.DataFrame:  # type: ignore[override]
+        """Selected modes, one row per block and mode (the input of :func:`track`)."""
+        path = self.run.files.get("selected")
+        if path is None:
+            return pd.DataFrame(columns=["block", "block_start", "block_end", "frequency_hz"])
+        frame = pd.read_parquet(path)
+        for column in ("block_start", "block_end"):
+            if column in frame.columns:
+                frame[column] = pd.to_datetime(frame[column], utc=True)
+        return frame
+
+    @cached_property
+    def poles(self) -> pd.DataFrame:
+        """Poles of every model order and block (POLES contract)."""
+        path = self.run.files.get("poles")
+        if path is None:
+            raise ValueError("the run wrote no pole table (no block was identified)")
+        return read_table(path, POLES)
+
+    def save(self, out_dir: str | os.PathLike) -> dict[str, Path]:
+        """selected.parquet and poles.parquet in *out_dir*."""
+        out = Path(out_dir)
+        return {
+            "selected": write_frame(self.table, out / "selected.parquet"),
+            "poles": write_frame(self.poles, out / "poles.parquet", POLES),
+        }
+
+
+def identify(
+    inputs: str | os.PathLike | Iterable[str | os.PathLike],
+    out_dir: str | os.PathLike,
+    *,
+    options: IdentifyOptions | None = None,
+    store_dir: str | os.PathLike | None = None,
+    scheduler: str | None = None,
+    n_workers: int | None = None,
+    progress: bool = False,
+    batch_blocks: int = 16,
+) -> IdentifyStageResult:
+    """Identify every block of a voyage's acceleration files.
+
+    Parameters
+    ----------
+    inputs : path or iterable of paths
+        Acceleration files and/or folders holding them.
+    out_dir : path-like
+        Where poles.parquet, selected.parquet, blocks.csv, faults.csv... are written; the
+        per-block store (``out_dir/store`` unless *store_dir*) makes a rerun resume.
+    options : IdentifyOptions, optional
+        Method, block rows, orders, band, block length... (defaults: SSI-cov, 20-min
+        blocks every 5 min).
+    scheduler, n_workers, progress, batch_blocks
+        Parallel execution (:func:`workbench.identify.identify_voyage`).
+    """
+    if isinstance(inputs, str | os.PathLike):
+        inputs = [inputs]
+    run = identify_voyage(
+        list(inputs),
+        out_dir,
+        options=options,
+        store_dir=store_dir,
+        scheduler=scheduler,
+        n_workers=n_workers,
+        progress=progress,
+        batch_blocks=batch_blocks,
+    )
+    return IdentifyStageResult(run=run, lines=run.lines())

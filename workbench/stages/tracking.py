@@ -1,0 +1,106 @@
+"""Track stage: the modes selected block by block -> the tracked modal table."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from data_contracts import MODAL
+
+from ..errors import WorkbenchError
+from ..sid.tracking import TrackingOptions, track_modes
+from ._base import StageResult, read_any_table, table_path, write_frame
+
+__all__ = ["TrackResult", "track"]
+
+
+@dataclass
+class TrackResult(StageResult):
+    """The tracked modal table (MODAL contract) and what tracking found.
+
+    Attributes
+    ----------
+    table : DataFrame
+        One row per block and tracked mode (MODAL contract).
+    n_blocks : int
+        Blocks of the selected-modes table.
+    """
+
+    table: pd.DataFrame
+    n_blocks: int
+    lines: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    title = "tracked modes"
+
+    @property
+    def modes(self) -> pd.DataFrame:
+        """Per tracked mode: blocks it was seen in and its median frequency [Hz]."""
+        return self.table.groupby("mode").agg(
+            blocks=("block", "size"), frequency_hz=("frequency_hz", "median")
+        )
+
+    def save(self, out: str | os.PathLike) -> dict[str, Path]:
+        """Write the table (``out`` a .csv/.parquet file, or a folder: tracked_modal.csv)."""
+        return {"tracked": write_frame(self.table, table_path(out, "tracked_modal.csv"), MODAL)}
+
+    def plot(self, ax=None):
+        """Frequency of each tracked mode over the blocks; returns the figure."""
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            _, ax = plt.subplots(figsize=(9, 4.5), layout="constrained")
+        for mode, part in self.table.groupby("mode"):
+            ax.plot(part["block"], part["frequency_hz"], ".", ms=3, label=f"mode {mode}")
+        ax.set_xlabel("block")
+        ax.set_ylabel("frequency [Hz]")
+        ax.legend(fontsize=7, ncols=2, loc="best")
+        return ax.figure
+
+
+def track(
+    selected: pd.DataFrame | str | os.PathLike,
+    *,
+    reference: pd.DataFrame | str | os.PathLike | None = None,
+    options: TrackingOptions | None = None,
+    progress: bool = False,
+) -> TrackResult:
+    """Follow the modes selected block by block through the voyage.
+
+    Parameters
+    ----------
+    selected : DataFrame or path
+        Selected modes per block (``selected.parquet`` of :func:`identify`).
+    reference : DataFrame or path, optional
+        A modal table whose modes start the library (their labels are kept).
+    options : TrackingOptions, optional
+        Gate, threshold, frequency tolerance... (:class:`~workbench.sid.tracking.TrackingOptions`).
+    progress : bool
+        Progress bar on stderr.
+
+    Raises
+    ------
+    WorkbenchError
+        When no mode could be tracked.
+    """
+    source = selected
+    selected = read_any_table(selected, name="selected")
+    if reference is not None:
+        reference = read_any_table(reference, MODAL, name="reference")
+    tracked = track_modes(
+        selected, options=options or TrackingOptions(), reference=reference, progress=progress
+    )
+    if tracked.empty:
+        where = source if not isinstance(source, pd.DataFrame) else "selected modes"
+        raise WorkbenchError(f"{where}: no mode could be tracked")
+    result = TrackResult(table=tracked, n_blocks=int(selected["block"].nunique()))
+    result.lines.append(
+        f"{result.modes.shape[0]} modes tracked over {result.n_blocks} blocks: "
+        + ", ".join(
+            f"{m}: {r.frequency_hz:.3f} Hz ({int(r.blocks)} blocks)"
+            for m, r in result.modes.iterrows()
+        )
+    )
+    return result
