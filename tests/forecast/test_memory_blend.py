@@ -120,6 +120,39 @@ def test_option_b_chooses_the_consistent_cluster_with_the_modes_damping():
     assert narrow is None or narrow.cluster.frequency_hz == pytest.approx(4.995, abs=1e-3)
 
 
+def test_option_b_rejects_a_short_transient_column_once_the_modes_length_is_known():
+    # blocks 0-5: the mode's column, 21 orders at 5.02 Hz; block 6: the mode is not
+    # excited, only a 4-order stable ice-impact column at 5.01 Hz inside the gate
+    rng = np.random.default_rng(1)
+    orders = np.arange(20, 61, 2)
+    rows = [(b, n, 5.02 + 5e-4 * rng.standard_normal(), 0.01) for b in range(6) for n in orders] + [
+        (6, n, 5.01 + 1e-4 * rng.standard_normal(), 0.012) for n in orders[:4]
+    ]
+    poles = pd.DataFrame(rows, columns=["block", "model_order", "frequency_hz", "damping_ratio"])
+    poles["stable"] = True
+    chooser = ClusterChooser(
+        PoleIndex(poles, np.arange(7)),
+        None,
+        shape_mac_min=0.9,
+        reacquire_blocks=2,
+        reacquire_band=0.05,
+    )
+    for b in range(6):
+        assert chooser.choose(b, 0, prior_hz=5.0, gate_hz=0.05, damping_ref=0.01) is not None
+    # 4 orders < half the mode's typical 21: predict-only, not a measurement
+    assert chooser.choose(6, 0, prior_hz=5.0, gate_hz=0.05, damping_ref=0.01) is None
+    # a fresh chooser (no history of the mode yet) accepts the 4-order column
+    fresh = ClusterChooser(
+        PoleIndex(poles, np.arange(7)),
+        None,
+        shape_mac_min=0.9,
+        reacquire_blocks=2,
+        reacquire_band=0.05,
+    )
+    choice = fresh.choose(6, 0, prior_hz=5.0, gate_hz=0.05, damping_ref=0.01)
+    assert choice is not None and choice.cluster.n_orders == 4
+
+
 def test_names_and_aliases():
     assert option_label("pole_cluster") == "B" and option_label("A") == "A"
     assert method_label("rolling") == 2 and method_label(1) == 1
