@@ -225,6 +225,7 @@ def memory_forecast(
     noise: NoiseOptions,
     measurement: MeasurementOptions,
     gap_warning_blocks: int = 12,
+    cases=None,
 ):
     """Forecast with :mod:`memory <workbench.forecast.memory>` models (see module docs).
 
@@ -407,6 +408,13 @@ def memory_forecast(
         reference_hz = np.nanmedian(tracked[first : first + train], axis=0)
         damping_ref = np.nanmedian(tracked_damping[first : first + train], axis=0)
     terms_of: list[tuple | None] = [None] * n_modes
+    selected_case: list = [None] * n_modes  # operating case of each mode's term selection
+    train_y: list = [None] * n_modes  # targets of each mode's last refit (case rows only)
+    labels = None
+    if cases is not None:
+        from workbench.stats import case_labels, case_training_mask
+
+        labels = case_labels(grid, cases).to_numpy()
     selected_at = np.full(n_modes, -(10**9))
     current: list[MemoryModel | None] = [None] * n_modes
     noise_of: list[NoiseModel | None] = [None] * n_modes
@@ -422,11 +430,23 @@ def memory_forecast(
         """Model of mode j from the measured blocks before grid row i."""
         lo = max(first, i - history_limit)
         y = meas[lo:i, j]
+        case = None
+        if labels is not None:  # the model of the current operating case
+            in_case = case_training_mask(labels, slice(lo, i), i, min_train, np.isfinite(y))
+            if in_case is not None:
+                y = np.where(in_case, y, np.nan)
+                case = labels[i]
+        train_y[j] = y
         ok = np.isfinite(y)
         if ok.sum() < min_train:
             return None
         rows_ok = np.flatnonzero(ok) + lo
-        if terms_of[j] is None or i - selected_at[j] >= model.reselect_blocks:
+        if (
+            terms_of[j] is None
+            or i - selected_at[j] >= model.reselect_blocks
+            or (labels is not None and case != selected_case[j])
+        ):
+            selected_case[j] = case
             # non-overlapping blocks only (75 % overlap: every 4th block shares no data), so
             # the F-tests of the selection do not count one correlated error several times
             recent = rows_ok[rows_ok >= i - int(model.selection_blocks)]
@@ -527,7 +547,7 @@ def memory_forecast(
             found = _excitation_statistics(
                 fitted,
                 X_all[lo:i],
-                meas[lo:i, j],
+                train_y[j],
                 age,
                 speed_col,
                 speed_var[lo:i],
@@ -549,7 +569,7 @@ def memory_forecast(
         shift = np.minimum(pooled * speed_var[lo:i], shift_cap[lo:i])
         for j, (_, _, slope) in stats.items():
             fits[j] = _debiased_refit(
-                fits[j], X_all[lo:i], meas[lo:i, j], age, slope * shift, memory, limit
+                fits[j], X_all[lo:i], train_y[j], age, slope * shift, memory, limit
             )
             kappa[j] = pooled
 

@@ -320,6 +320,9 @@ def sliding_forecast(
         trains on its blocks of the case the first forecast block is in, so the forecast
         uses the model of the current case (the whole window when the case has fewer than
         *min_train_blocks* of them; :func:`workbench.stats.case_training_mask`).
+        ``model="memory"``: each refit uses the history's blocks of that case (all of the
+        history when it holds fewer than *min_train_blocks*), and the terms are selected
+        again when the case changes.
 
     Returns
     -------
@@ -404,8 +407,6 @@ def sliding_forecast(
     if model not in ("memory", "window"):
         raise ValueError(f"model={model!r} must be 'memory' or 'window'")
     if model == "memory":
-        if cases is not None:
-            raise ValueError("cases apply to model='window'; model='memory' takes no cases yet")
         if trust not in ("auto", None):
             raise ValueError(
                 f"trust={trust!r} applies to model='window' (the reference configuration); "
@@ -452,6 +453,7 @@ def sliding_forecast(
                 reacquire_band=reacquire_band,
             ),
             gap_warning_blocks=gap_warning_blocks,
+            cases=cases,
         )
     if trust == "auto":
         trust = 0.65
