@@ -36,6 +36,7 @@ import pandas as pd
 
 __all__ = ["sub_windows_per_block", "within_block_profile", "within_block_variance"]
 
+
 def sub_windows_per_block(grid: pd.DataFrame) -> int | None:
     """n when the blocks are n-fold overlapping (length = n x step), else None.
 
@@ -107,17 +108,15 @@ def within_block_profile(values: np.ndarray, n_sub: int, *, history: int | None 
     history = 2 * n_sub + 1 if history is None else int(history)
     n = values.size
     out = np.full((n, n_sub), np.nan)
-    maps = {}
-    for b in range(n):
-        h = min(history, b + 1)
-        if h < 2:
-            continue
-        window = values[b - h + 1 : b + 1]
-        if not np.isfinite(window).all():
-            continue
-        if h not in maps:
-            maps[h] = _smoothest_map(n_sub, h)
-        out[b] = maps[h] @ window
+    for b in range(1, min(history - 1, n)):  # the first blocks: the blocks so far
+        window = values[: b + 1]
+        if np.isfinite(window).all():
+            out[b] = _smoothest_map(n_sub, b + 1) @ window
+    if n >= history:  # the rest at once: every window of *history* blocks
+        windows = np.lib.stride_tricks.sliding_window_view(values, history)
+        full = windows @ _smoothest_map(n_sub, history).T
+        full[~np.isfinite(windows).all(axis=1)] = np.nan
+        out[history - 1 :] = full
     return out
 
 
