@@ -4,7 +4,10 @@ Block-level regimes (``forecast_regimes.py``: alternating speed, slowly varying 
 stationary, temperature drift, ice breaking), several seeds each, with and without mode
 shapes in the pole and modal tables; and the full chain from accelerations (the demo
 voyage at 3 h and 12 h: simulate, identify, track; cached in ``--cache`` so identification
-runs once). Every forecast uses the library's default settings for the option and method.
+runs once). Every forecast uses the library's default settings for the option and method
+of the model chosen with ``--model`` (default ``memory``; ``window`` is the reference
+configuration with its hand-set trust); ``--no-excitation-bias`` switches the memory
+model's measurement term for SSI's excitation weighting off, for comparison.
 
 Scores (forecast phase, summed over modes, on the blocks that have a tracked SSI estimate;
 raw SSI is always the tracked pole, so option B's own pole choice is judged too):
