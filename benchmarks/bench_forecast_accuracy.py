@@ -4,7 +4,10 @@ Block-level regimes (``forecast_regimes.py``: alternating speed, slowly varying 
 stationary, temperature drift, ice breaking), several seeds each, with and without mode
 shapes in the pole and modal tables; and the full chain from accelerations (the demo
 voyage at 3 h and 12 h: simulate, identify, track; cached in ``--cache`` so identification
-runs once). Every forecast uses the library's default settings for the option and method.
+runs once). Every forecast uses the library's default settings for the option and method
+of the model chosen with ``--model`` (default ``memory``; ``window`` is the reference
+configuration with its hand-set trust); ``--no-excitation-bias`` switches the memory
+model's measurement term for SSI's excitation weighting off, for comparison.
 
 Scores (forecast phase, summed over modes, on the blocks that have a tracked SSI estimate;
 raw SSI is always the tracked pole, so option B's own pole choice is judged too):
@@ -63,22 +66,34 @@ def score(table: pd.DataFrame, truth: pd.DataFrame, tracked: pd.DataFrame) -> di
     }
 
 
+MODEL = "memory"
+MODEL_OPTIONS = None
+
+
 def _forecast(modal, predictors, poles, option, method):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return sliding_forecast(modal, predictors, poles=poles, option=option, method=method).table
+        return sliding_forecast(
+            modal,
+            predictors,
+            poles=poles,
+            option=option,
+            method=method,
+            model=MODEL,
+            model_options=MODEL_OPTIONS,
+        ).table
 
 
 def _drop_shapes(frame: pd.DataFrame) -> pd.DataFrame:
     return frame[[c for c in frame.columns if not str(c).startswith("shape_")]]
 
 
-def block_level_runs(seeds, n_blocks, methods, options):
+def block_level_runs(seeds, n_blocks, methods, options, regimes=REGIMES, shapes_list=(True, False)):
     rows = []
-    for regime in REGIMES:
+    for regime in regimes:
         for seed in seeds:
             data = make_regime(regime, seed, n_blocks=n_blocks, shapes=True)
-            for shapes in (True, False):
+            for shapes in shapes_list:
                 tracked = data.tracked if shapes else _drop_shapes(data.tracked)
                 poles = data.poles if shapes else _drop_shapes(data.poles)
                 for option in options:
@@ -183,13 +198,34 @@ def main(argv=None) -> int:
     )
     parser.add_argument("--no-regimes", action="store_true")
     parser.add_argument("--out", type=Path, help="write every run's scores as CSV")
+    parser.add_argument("--model", choices=("memory", "window"), default="memory")
+    parser.add_argument(
+        "--no-excitation-bias", action="store_true", help="memory model without its SSI bias term"
+    )
+    parser.add_argument(
+        "--shapes", choices=("both", "with", "without"), default="both", help="pole shapes"
+    )
+    parser.add_argument("--regimes", default=",".join(REGIMES), help="block-level regimes")
     args = parser.parse_args(argv)
+    global MODEL, MODEL_OPTIONS
+    MODEL = args.model
+    if args.no_excitation_bias:
+        from workbench.forecast.options import ModelOptions
+
+        MODEL_OPTIONS = ModelOptions(excitation_bias=False)
     methods = [int(m) for m in args.methods.split(",")]
     options = args.options.split(",")
     start = time.perf_counter()
     rows = []
     if not args.no_regimes:
-        rows += block_level_runs(range(args.seeds), args.blocks, methods, options)
+        rows += block_level_runs(
+            range(args.seeds),
+            args.blocks,
+            methods,
+            options,
+            args.regimes.split(","),
+            {"both": (True, False), "with": (True,), "without": (False,)}[args.shapes],
+        )
     hours = [float(h) for h in args.demo_hours.split(",") if h.strip()]
     if hours:
         rows += demo_runs(args.cache, hours, methods, options)

@@ -20,7 +20,11 @@ Kalman model per mode, with m_k the model's prediction and z_k the block's SSI e
     \\begin{bmatrix} c_{k-1} \\\\ e_{k-1} \\end{bmatrix} + w_k,
 
 Q = diag(σ_c²(1 - φ²), σ_e²(1 - ρ²) s_k), R_k = σ_v² s_k, H = [1 1], with s_k the block's
-measurement scale (pole scatter across model orders). The identification error e is a state
+measurement scale (pole scatter across model orders). With the excitation term
+(:mod:`workbench.forecast.excitation`) the measurement is about the model at the
+excitation-weighted speed: z_k = m̃_k + c_k + e_k + v_k, m̃_k = m(v̄_k + κ σ²_{v,k}, ...),
+while the state stays x_k = m_k + c_k: SSI's bias in a block whose speed changes goes into
+the measurement equation, not into the estimate. The identification error e is a state
 because 75 %-overlapping blocks share their data: a white R would count the same error
 several times. The blended estimate is x̂ = m + ĉ.
 """
@@ -35,6 +39,7 @@ from collections import Counter
 import numpy as np
 import pandas as pd
 
+from .excitation import sub_windows_per_block, within_block_variance
 from .measurement import (
     ClusterChooser,
     PoleIndex,
@@ -51,6 +56,8 @@ __all__ = ["kalman_pass_step", "memory_forecast"]
 #: model is the weighted mean (a 20-block window holds only 5 independent SSI estimates,
 #: and a stepwise fit on its 20 overlapping ones extrapolates wildly).
 _MIN_SELECTION_ROWS = 10
+#: Entry p-value of the short-history selection before the division by the overlap.
+_SHORT_P_ENTER = 0.05
 #: Oldest history a refit looks at, in forgetting time constants (weight e^-6 beyond).
 _HISTORY_CONSTANTS = 6.0
 
@@ -148,6 +155,58 @@ def kalman_pass_step(
     return state, P, delta, normalised
 
 
+#: Largest excitation sensitivity d ln P / dv accepted: the response power at most
+#: doubling per knot. [1/kn]
+_MAX_KAPPA = float(np.log(2.0))
+
+
+def _excitation_statistics(fitted, X, y, age, speed_col, speed_var, memory, limit):
+    """Weighted normal-equation terms of κ for one mode, and the model's speed slope.
+
+    With d_k = ∂m/∂v the model's speed slope at block k (1-kn difference) the
+    measurement's excitation bias is d_k κ σ_k² (:mod:`~workbench.forecast.excitation`);
+    the least-squares κ of the residuals r_k on g_k = d_k σ_k², with forgetting weights
+    w_k, is Σ w g r / Σ w g². Each mode's sums are divided by its residual variance, so
+    that κ (a property of the excitation, common to all modes) is pooled by precision.
+
+    Returns
+    -------
+    (numerator, denominator, slope) or None
+    """
+    ok = np.isfinite(y) & (speed_var > 0)
+    if ok.sum() < 3:
+        return None
+    Xp = X.copy()
+    Xp[:, speed_col] += 1.0
+    base = fitted.predict(X, limit)[0]
+    slope = fitted.predict(Xp, limit)[0] - base  # ∂m/∂v [Hz/kn]
+    g = slope * speed_var
+    w = np.exp(-age / memory) / fitted.residual_variance
+    good = ok & np.isfinite(g) & np.isfinite(base)
+    if not good.any():
+        return None
+    numerator = float((w[good] * g[good] * (y[good] - base[good])).sum())
+    denominator = float((w[good] * g[good] ** 2).sum())
+    return numerator, denominator, slope
+
+
+def _debiased_refit(fitted, X, y, age, bias, memory, limit):
+    """Refit *fitted*'s terms on the targets minus the excitation bias (time averages)."""
+    refitted = fit_memory_model(
+        X,
+        y - np.where(np.isfinite(bias), bias, 0.0),
+        age,
+        columns=fitted.columns,
+        names=fitted.names,
+        terms=fitted.terms,
+        mean=fitted.mean,
+        scale=fitted.scale,
+        memory_blocks=memory,
+        limit=limit,
+    )
+    return fitted if refitted is None else refitted
+
+
 def _stationary(noise: NoiseModel) -> np.ndarray:
     return np.diag([noise.correction_variance, noise.error_variance + 1e-300])
 
@@ -166,6 +225,7 @@ def memory_forecast(
     noise: NoiseOptions,
     measurement: MeasurementOptions,
     gap_warning_blocks: int = 12,
+    cases=None,
 ):
     """Forecast with :mod:`memory <workbench.forecast.memory>` models (see module docs).
 
@@ -215,6 +275,18 @@ def memory_forecast(
         hours = (start_ns - start_ns[0]) / 3.6e12
         X_all = np.column_stack([X_all, hours.astype(float)])
         columns = [*columns, "elapsed_hours"]
+    # SSI's excitation weighting: in a block whose speed changes, SSI sees the frequency at
+    # about v̄ + κ σ_v² (workbench.forecast.excitation); σ_v² from the overlapping blocks
+    speed_col = columns.index("speed_kn") if "speed_kn" in columns else None
+    n_sub = sub_windows_per_block(grid) if model.excitation_bias else None
+    speed_var = shift_cap = None
+    if n_sub is not None and speed_col is not None:
+        speed_var = within_block_variance(X_all[:, speed_col], n_sub)
+        speed_var = np.where(np.isfinite(speed_var), speed_var, 0.0)
+        # a weighted mean of n sub-windows lies at most sqrt(n - 1) σ from their mean
+        shift_cap = np.sqrt((n_sub - 1) * speed_var)
+        if not speed_var.max(initial=0.0) > 0:
+            speed_var = None
     mode_labels = (
         np.array(sorted(int(m) for m in modal["mode"].dropna().unique()))
         if modes is None
@@ -223,6 +295,7 @@ def memory_forecast(
     n_modes = mode_labels.size
     if n_modes == 0:
         raise ValueError("modal has no modes to forecast")
+    kappa = np.zeros(n_modes)  # excitation sensitivity d ln P / dv per mode [1/kn]
     tracked = np.full((n_blocks, n_modes), np.nan)
     tracked_damping = np.full((n_blocks, n_modes), np.nan)
     rows = np.searchsorted(blocks, modal["block"].to_numpy(dtype=np.int64))
@@ -315,6 +388,7 @@ def memory_forecast(
             "scatter",
             "min_order",
             "max_order",
+            "seen",
         )
     }
     out_w0 = np.zeros(shape, dtype=np.int64)
@@ -334,6 +408,13 @@ def memory_forecast(
         reference_hz = np.nanmedian(tracked[first : first + train], axis=0)
         damping_ref = np.nanmedian(tracked_damping[first : first + train], axis=0)
     terms_of: list[tuple | None] = [None] * n_modes
+    selected_case: list = [None] * n_modes  # operating case of each mode's term selection
+    train_y: list = [None] * n_modes  # targets of each mode's last refit (case rows only)
+    labels = None
+    if cases is not None:
+        from workbench.stats import case_labels, case_training_mask
+
+        labels = case_labels(grid, cases).to_numpy()
     selected_at = np.full(n_modes, -(10**9))
     current: list[MemoryModel | None] = [None] * n_modes
     noise_of: list[NoiseModel | None] = [None] * n_modes
@@ -349,16 +430,42 @@ def memory_forecast(
         """Model of mode j from the measured blocks before grid row i."""
         lo = max(first, i - history_limit)
         y = meas[lo:i, j]
+        case = None
+        if labels is not None:  # the model of the current operating case
+            in_case = case_training_mask(labels, slice(lo, i), i, min_train, np.isfinite(y))
+            if in_case is not None:
+                y = np.where(in_case, y, np.nan)
+                case = labels[i]
+        train_y[j] = y
         ok = np.isfinite(y)
         if ok.sum() < min_train:
             return None
         rows_ok = np.flatnonzero(ok) + lo
-        if terms_of[j] is None or i - selected_at[j] >= model.reselect_blocks:
+        if (
+            terms_of[j] is None
+            or i - selected_at[j] >= model.reselect_blocks
+            or (labels is not None and case != selected_case[j])
+        ):
+            selected_case[j] = case
             # non-overlapping blocks only (75 % overlap: every 4th block shares no data), so
             # the F-tests of the selection do not count one correlated error several times
             recent = rows_ok[rows_ok >= i - int(model.selection_blocks)]
-            recent = recent[(i - 1 - recent) % int(model.selection_stride) == 0]
-            few = recent.size < max(min_train, _MIN_SELECTION_ROWS)
+            spaced = recent[(i - 1 - recent) % int(model.selection_stride) == 0]
+            short = spaced.size < max(min_train, _MIN_SELECTION_ROWS)
+            selection_options = model.stepwise_options
+            if short and recent.size >= min_train and model.short_history_selection:
+                # a short history (the first window): every measured block, main effects
+                # only, and an entry p-value divided by the overlap (the F-tests count each
+                # correlated error up to `stride` times)
+                selection_options = {
+                    "upper": "linear",
+                    "p_enter": _SHORT_P_ENTER / int(model.selection_stride),
+                    "p_remove": 2 * _SHORT_P_ENTER / int(model.selection_stride),
+                    **dict(model.stepwise_options or {}),
+                }
+                few = False
+            else:
+                recent, few = spaced, short
             Xs = X_all[recent]
             use, names = [], []
             for c, name in enumerate(columns):
@@ -375,7 +482,7 @@ def memory_forecast(
                 scale = np.nanstd(Xs[:, use], axis=0, ddof=1)
                 Z = pd.DataFrame((Xs[:, use] - mean) / scale, columns=names)
                 try:
-                    terms = select_terms(Z, meas[recent, j], model.stepwise_options)
+                    terms = select_terms(Z, meas[recent, j], selection_options)
                 except Exception:  # singular selection: keep the last terms
                     terms = terms_of[j][3] if terms_of[j] is not None else ((),)
                 terms_of[j] = (tuple(use), tuple(names), (mean, scale), terms)
@@ -419,6 +526,62 @@ def memory_forecast(
             fitted = constant_model(y, age, memory)
         return fitted
 
+    def excitation_refit(fits: list, i: int) -> None:
+        """κ pooled over the modes whose model has a speed term; refit those de-biased.
+
+        κ is constrained to [0, ln 2 per kn]: excitation grows with speed (κ >= 0), and no
+        realistic hull response more than doubles its power per knot. The shift κ σ_k² is
+        capped at sqrt(n - 1) σ_k (a weighted mean of the block's n sub-windows cannot lie
+        further from their mean). The refit on y - d κ σ² makes the state model a model of
+        the time averages, not of the excitation-weighted history.
+        """
+        kappa[:] = 0.0
+        if speed_var is None:
+            return
+        lo = max(first, i - history_limit)
+        age = (i - 1 - np.arange(lo, i)).astype(float)
+        stats = {}
+        for j, fitted in enumerate(fits):
+            if fitted is None or fitted.kind == "constant" or speed_col not in fitted.columns:
+                continue
+            found = _excitation_statistics(
+                fitted,
+                X_all[lo:i],
+                train_y[j],
+                age,
+                speed_col,
+                speed_var[lo:i],
+                memory,
+                limit,
+            )
+            if found is not None:
+                stats[j] = found
+        denominator = sum(d for _, d, _ in stats.values())
+        if not denominator > 0:
+            return
+        # constrained least squares: the sign of the bias is known from physics, so no
+        # significance gate (on the block-level regimes a 2-standard-error gate changed the
+        # scores by less than 1 point; it only withheld the term on short histories)
+        pooled = sum(n for n, _, _ in stats.values()) / denominator
+        pooled = min(max(pooled, 0.0), _MAX_KAPPA)
+        if pooled == 0.0:
+            return
+        shift = np.minimum(pooled * speed_var[lo:i], shift_cap[lo:i])
+        for j, (_, _, slope) in stats.items():
+            fits[j] = _debiased_refit(
+                fits[j], X_all[lo:i], train_y[j], age, slope * shift, memory, limit
+            )
+            kappa[j] = pooled
+
+    def seen_by_ssi(m: MemoryModel, rows_: np.ndarray, j: int, mean: np.ndarray):
+        """Model of the measurement: the model at the excitation-weighted speed."""
+        if kappa[j] <= 0 or speed_var is None:
+            return mean
+        X = X_all[rows_].copy()
+        X[:, speed_col] += np.minimum(kappa[j] * speed_var[rows_], shift_cap[rows_])
+        seen = m.predict(X, limit)[0]
+        return np.where(np.isfinite(seen), seen, mean)
+
     def predict(m: MemoryModel, rows_: np.ndarray):
         X = X_all[rows_]
         mean, mvar = m.predict(X, limit)
@@ -442,13 +605,16 @@ def memory_forecast(
         f1 = min(i0 + horizon, (last + 1) if method == 2 else n_blocks)
         k_first = first if is_first else i0
         report = np.arange(k_first, f1)
-        m_rows = np.full((f1 - k_first, n_modes), np.nan)
+        m_rows = np.full((f1 - k_first, n_modes), np.nan)  # model of the state
+        z_rows = np.full((f1 - k_first, n_modes), np.nan)  # model of the measurement
         v_rows = np.zeros((f1 - k_first, n_modes))
+        if is_first or method == 2:
+            fits = [refit(j, i0) for j in range(n_modes)]
+            excitation_refit(fits, i0)
+            for j in range(n_modes):
+                if fits[j] is not None:
+                    current[j] = fits[j]
         for j in range(n_modes):
-            if is_first or method == 2:
-                fitted = refit(j, i0)
-                if fitted is not None:
-                    current[j] = fitted
             m = current[j]
             if m is None:
                 notes[f"mode {mode_labels[j]}: too few measured blocks, no forecast"] += 1
@@ -456,10 +622,14 @@ def memory_forecast(
             # predictions from the row before (model switch) to the end of this window
             from_row = max(k_first - 1, first)
             mean, lower, upper, bad, mvar = predict(m, np.arange(from_row, f1))
+            # what SSI sees (measurement equation); the state is the time average
+            seen = seen_by_ssi(m, np.arange(from_row, f1), j, mean)
             implausible = np.isfinite(mean) & ~_plausible(mean, reference_hz[j])
+            implausible |= np.isfinite(seen) & ~_plausible(seen, reference_hz[j])
             if implausible.any():
                 level = float(np.nanmedian(meas[max(first, i0 - 36) : i0, j]))
                 mean[implausible] = level
+                seen[implausible] = level
                 lower[implausible] = level - (upper - lower)[implausible] / 2
                 upper[implausible] = level + (upper - lower)[implausible] / 2
             shift = from_row < k_first
@@ -467,6 +637,8 @@ def memory_forecast(
             # history, so the model error c is the same quantity before and after a refit
             sl = slice(1, None) if shift else slice(None)
             m_rows[:, j] = mean[sl]
+            z_rows[:, j] = seen[sl]
+            out["seen"][report, j] = seen[sl]
             v_rows[:, j] = mvar[sl]
             out["model"][report, j] = mean[sl]
             out["lower"][report, j] = lower[sl]
@@ -483,7 +655,7 @@ def memory_forecast(
             if np.isfinite(r_hist).sum() == 0 and is_first:
                 # first window: in-sample residuals (estimate_noise falls back to a
                 # conservative prior when there are too few of them)
-                insample = meas[first:i0, j] - out["model"][first:i0, j]
+                insample = meas[first:i0, j] - out["seen"][first:i0, j]
                 if np.isfinite(insample).sum() >= 3 * MIN_RESIDUALS:
                     # a long first window: the measurement noise from the in-sample
                     # residuals; their slow part is not evidence of model error (the fit
@@ -568,6 +740,7 @@ def memory_forecast(
         # ---- Kalman pass
         for r, k in enumerate(report):
             m_now = m_rows[r]
+            z_now = z_rows[r]
             have = np.isfinite(m_now) & have_model
             z = np.full(n_modes, np.nan)
             scale = np.ones(n_modes)
@@ -586,8 +759,7 @@ def memory_forecast(
                 prior_state = state * F
                 Pp = P * (F[:, :, None] * F[:, None, :])
                 S = Pp[:, 0, 0] + Pp[:, 1, 1] + 2 * Pp[:, 0, 1] + q_c + q_e + r_v
-                prior_x = m_now + prior_state[:, 0]
-                prior_z = prior_x + prior_state[:, 1]
+                prior_z = z_now + prior_state[:, 0] + prior_state[:, 1]
                 # g = gate_sigma sqrt(S), at most max_gate x the frequency: a filter that has
                 # lost confidence must not open its gate onto other modes and harmonics
                 gate = np.minimum(
@@ -628,7 +800,7 @@ def memory_forecast(
                             "tracks re-acquired outside the gate (option B)",
                         )
             z[~have] = np.nan
-            residual = z - m_now
+            residual = z - z_now  # innovation about what SSI is expected to see
             Q = np.column_stack([q_c, q_e * scale])
             state, P, delta, nu = kalman_pass_step(
                 state,

@@ -17,7 +17,10 @@ has a damping ratio unlike the mode's. Hence:
             - \\frac{|f_c - x^-|}{4 g},
 
   (n_max the most orders of any cluster in the block's diagram, ζ_ref the mode's damping
-  ratio so far, g the gate), with at least :data:`MIN_ORDERS` orders; with mode shapes,
+  ratio so far, g the gate), with at least :data:`MIN_ORDERS` orders and, once the mode
+  has been chosen in 5 blocks, at least half the median orders of its last 36 clusters
+  (a mode's column keeps its length; a short consistent column is a transient such as an
+  ice impact, usually in a block where the mode is not excited); with mode shapes,
   only poles whose MAC with the mode's reference shape is at least ``shape_mac_min``
   count. The measurement is the cluster's median frequency;
 * the per-block measurement scale: the cluster's frequency scatter across model orders,
@@ -37,6 +40,11 @@ __all__ = ["ClusterChooser", "PoleCluster", "PoleIndex", "cluster_around", "scat
 
 #: Fewest distinct model orders of a consistent cluster.
 MIN_ORDERS = 3
+#: A mode's cluster needs at least this fraction of the median orders of its recent ones.
+_MIN_LENGTH_FRACTION = 0.5
+#: Recent clusters remembered per mode, and how many before the rule applies.
+_LENGTH_HISTORY = 36
+_MIN_LENGTH_HISTORY = 5
 #: Relative half-width of a cluster about its centre. [-]
 CLUSTER_HALF_WIDTH = 2e-3
 #: Bounds of the per-block measurement scale. [-]
@@ -172,6 +180,25 @@ class ClusterChooser:
         self.reacquire_blocks = int(reacquire_blocks)
         self.band = float(reacquire_band)
         self.misses: dict[int, int] = {}
+        self.lengths: dict[int, list[int]] = {}  # orders of each mode's recent clusters
+
+    def _shortest(self, j: int) -> int:
+        """Fewest orders a cluster of mode j needs: half its recent typical column.
+
+        A mode's column in the stabilisation diagram keeps its length from block to block;
+        a much shorter consistent column in the gate is a transient (an ice impact, a
+        harmonic sweeping past) - most often while the mode itself is not excited, when
+        taking it would pull the filter away for the whole gap.
+        """
+        recent = self.lengths.get(j, [])
+        if len(recent) < _MIN_LENGTH_HISTORY:
+            return MIN_ORDERS
+        return max(MIN_ORDERS, int(math.ceil(_MIN_LENGTH_FRACTION * float(np.median(recent)))))
+
+    def _accepted(self, j: int, cluster) -> None:
+        recent = self.lengths.setdefault(j, [])
+        recent.append(cluster.n_orders)
+        del recent[:-_LENGTH_HISTORY]
 
     def _clusters(self, i, j, lo_hz, hi_hz):
         """Candidate clusters of row i between lo_hz and hi_hz (with MAC filter)."""
@@ -215,14 +242,21 @@ class ClusterChooser:
         """The measurement of mode j in grid row i, or None (predict-only)."""
         if not (np.isfinite(prior_hz) and np.isfinite(gate_hz)):
             return None
+        shortest = self._shortest(j)
         candidates, _ = self._clusters(i, j, prior_hz - gate_hz, prior_hz + gate_hz)
+        candidates = [c for c in candidates if c[0].n_orders >= shortest]
         best = self._best(candidates, prior_hz, gate_hz, damping_ref)
         if best is not None:
             self.misses[j] = 0
+            self._accepted(j, best[0])
             return Choice(best[0], best[1], False)
         band = self.band * abs(prior_hz)
         outside, _ = self._clusters(i, j, prior_hz - band, prior_hz + band)
-        outside = [c for c in outside if abs(c[0].frequency_hz - prior_hz) > gate_hz]
+        outside = [
+            c
+            for c in outside
+            if abs(c[0].frequency_hz - prior_hz) > gate_hz and c[0].n_orders >= shortest
+        ]
         best = self._best(outside, prior_hz, band, damping_ref, strict=True)
         if best is None:
             return None
@@ -230,6 +264,7 @@ class ClusterChooser:
         if self.misses[j] < self.reacquire_blocks:
             return None
         self.misses[j] = 0
+        self._accepted(j, best[0])
         return Choice(best[0], best[1], True)
 
     @staticmethod

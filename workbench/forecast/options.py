@@ -79,6 +79,20 @@ class ModelOptions:
         ``"memory"``: add ``elapsed_hours`` to the candidate predictors (fuel burn and
         ballast drift slowly and no log records them), unless *predictor_columns* is
         given.
+    excitation_bias : bool
+        ``"memory"``: model the bias of SSI in a block whose speed changes (it weights the
+        faster part, :mod:`workbench.forecast.excitation`): the measurement equation
+        evaluates the model at the excitation-weighted speed v̄ + κ σ_v², σ_v² the
+        within-block speed variance recovered from the overlapping blocks' means, κ >= 0
+        estimated from the data (pooled over the modes); the state (the block's time
+        average) is the model at v̄. Needs
+        ``speed_kn``, ``block_end`` and blocks that overlap by a whole number of steps.
+    short_history_selection : bool
+        ``"memory"``: while the history holds fewer non-overlapping measured blocks than a
+        stepwise selection needs (10), select main effects only on every measured block,
+        with the entry p-value divided by *selection_stride* (0.05 / 4: the F-tests count
+        each correlated SSI error up to *selection_stride* times), instead of the constant
+        model. A 20-block first window otherwise has no speed term at all.
     """
 
     kind: Literal["memory", "window"] = "memory"
@@ -88,6 +102,8 @@ class ModelOptions:
     reselect_blocks: int = 36
     selection_stride: int = 4
     time_trend: bool = True
+    excitation_bias: bool = True
+    short_history_selection: bool = True
     min_train_blocks: int | None = None
     predictor_columns: Sequence[str] | None = None
     stepwise_options: Mapping[str, Any] | None = None

@@ -21,8 +21,6 @@ from __future__ import annotations
 import functools
 import math
 import re
-import warnings
-from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -31,7 +29,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats as _scipy_stats
 
-from .kalman import ModeKalmanBank, process_variance_for_gain, relaxation_factor
+from .kalman import relaxation_factor
 from .options import MeasurementOptions, ModelOptions, NoiseOptions, method_label, option_label
 
 __all__ = ["ForecastResult", "ForecastWarning", "WindowModel", "sliding_forecast"]
@@ -313,15 +311,21 @@ def sliding_forecast(
         last *train_blocks* blocks, Kalman trust *trust*. ``"memory"``: stepwise terms with
         coefficients over the whole history with exponential forgetting, noise levels from
         the data, an AR(1) measurement-error state (:func:`workbench.forecast.blend.
-        memory_forecast`; *model_options*, *noise_options*). ``"memory"`` beats raw SSI by
-        31-49 % on the block-level regimes of ``benchmarks/bench_forecast_accuracy.py`` but
-        not yet on the demo voyage (22 % worse than raw SSI at 3 h), so it is not the
-        default yet.
+        memory_forecast`; *model_options*, *noise_options*), and a measurement equation for
+        SSI's excitation weighting (:mod:`workbench.forecast.excitation`). With method 2
+        ``"memory"`` beats raw SSI by 30 % or more on every block-level regime of
+        ``benchmarks/bench_forecast_accuracy.py`` and on the demo voyage at 3 h and 12 h
+        (``benchmarks/results/forecast_accuracy_after.txt``). It is not the default yet:
+        in the ice regime the blend is still 6-25 % worse than its model alone, and with
+        method 1 (one 20-block window) it is worse than raw SSI on the 12-h demo.
     cases : None, "derive", CaseRule, column name, path or DataFrame, optional
         Operating cases (:func:`workbench.stats.cases.case_labels`). Each window then
         trains on its blocks of the case the first forecast block is in, so the forecast
         uses the model of the current case (the whole window when the case has fewer than
         *min_train_blocks* of them; :func:`workbench.stats.case_training_mask`).
+        ``model="memory"``: each refit uses the history's blocks of that case (all of the
+        history when it holds fewer than *min_train_blocks*), and the terms are selected
+        again when the case changes.
 
     Returns
     -------
@@ -406,8 +410,6 @@ def sliding_forecast(
     if model not in ("memory", "window"):
         raise ValueError(f"model={model!r} must be 'memory' or 'window'")
     if model == "memory":
-        if cases is not None:
-            raise ValueError("cases apply to model='window'; model='memory' takes no cases yet")
         if trust not in ("auto", None):
             raise ValueError(
                 f"trust={trust!r} applies to model='window' (the reference configuration); "
@@ -454,6 +456,7 @@ def sliding_forecast(
                 reacquire_band=reacquire_band,
             ),
             gap_warning_blocks=gap_warning_blocks,
+            cases=cases,
         )
     if trust == "auto":
         trust = 0.65
@@ -495,480 +498,37 @@ def sliding_forecast(
         missing = [c for c in needed if c not in frame.columns]
         if missing:
             raise ValueError(f"{name} lacks column(s) {missing}")
-    from workbench.stats import case_labels, case_training_mask, stepwise  # optional stage
-
     options = dict(stepwise_options or {})
     # a window's model uses the rows complete in every candidate predictor (the rule the
     # forecast was validated with); stepwise_options={"missing": "candidate"} for MATLAB's
     options.setdefault("missing", "complete")
-    notes: Counter[str] = Counter()
+    from .window import window_forecast
 
-    # ---- block grid and predictor matrix
-    grid = predictors.sort_values("block").drop_duplicates("block", keep="last")
-    blocks = grid["block"].to_numpy(dtype=np.int64)
-    block_start = pd.to_datetime(grid["block_start"], utc=True).to_numpy()
-    if predictor_columns is None:
-        predictor_columns = [
-            c
-            for c in grid.columns
-            if c != "block"
-            and pd.api.types.is_numeric_dtype(grid[c].dtype)
-            and not pd.api.types.is_bool_dtype(grid[c].dtype)
-        ]
-    else:
-        missing = [c for c in predictor_columns if c not in grid.columns]
-        if missing:
-            raise ValueError(f"predictor_columns {missing} are not columns of predictors")
-    columns = list(predictor_columns)
-    X_all = (
-        grid[columns].to_numpy(dtype=float, na_value=np.nan)
-        if columns
-        else np.empty((len(grid), 0))
+    return window_forecast(
+        modal,
+        predictors,
+        poles=poles,
+        option=option,
+        method=method,
+        train_blocks=train_blocks,
+        horizon=horizon,
+        start_block=start_block,
+        end_block=end_block,
+        trust=trust,
+        phi=phi,
+        gate_sigma=gate_sigma,
+        shape_mac_min=shape_mac_min,
+        reacquire_blocks=reacquire_blocks,
+        reacquire_band=reacquire_band,
+        predictor_columns=predictor_columns,
+        stepwise_options=options,
+        min_train=min_train,
+        gap_warning_blocks=gap_warning_blocks,
+        modes=modes,
+        alpha=alpha,
+        extrapolation_limit=extrapolation_limit,
+        cases=cases,
     )
-    n_blocks = len(blocks)
-    labels = None if cases is None else case_labels(grid, cases).to_numpy()
-
-    # ---- modes, tracked frequencies on the grid
-    mode_labels = (
-        np.array(sorted(int(m) for m in modal["mode"].dropna().unique()))
-        if modes is None
-        else np.asarray(modes, dtype=np.int64)
-    )
-    n_modes = len(mode_labels)
-    if n_modes == 0:
-        raise ValueError("modal has no modes to forecast")
-    tracked = np.full((n_blocks, n_modes), np.nan)
-    rows = np.searchsorted(blocks, modal["block"].to_numpy(dtype=np.int64))
-    rows_ok = (rows < n_blocks) & (
-        blocks[np.minimum(rows, n_blocks - 1)] == modal["block"].to_numpy()
-    )
-    mode_index = {int(m): j for j, m in enumerate(mode_labels)}
-    cols = np.array([mode_index.get(int(m), -1) for m in modal["mode"].to_numpy()])
-    keep = rows_ok & (cols >= 0)
-    tracked[rows[keep], cols[keep]] = modal["frequency_hz"].to_numpy(dtype=float)[keep]
-
-    # ---- poles per grid row and reference shapes (option B)
-    selector: _PoleSelector | None = None
-    if option == "B":
-        selector = _PoleSelector(
-            poles,
-            modal,
-            blocks,
-            mode_labels,
-            shape_mac_min=shape_mac_min,
-            reacquire_blocks=reacquire_blocks,
-            reacquire_band=reacquire_band,
-        )
-        if not selector.uses_shapes:
-            notes[
-                "option B without mode shapes (poles or modal lack shape_re_<channel> columns "
-                f"for {_MIN_SHAPE_CHANNELS}+ shared channels): nearest pole in the gate, "
-                "no MAC check"
-            ] += 1
-
-    # ---- first window
-    if start_block is None:
-        first = 0
-    else:
-        first = int(np.searchsorted(blocks, start_block))
-        if first >= n_blocks or blocks[first] != start_block:
-            raise ValueError(f"start_block={start_block} is not a block of predictors")
-    last = n_blocks - 1
-    if end_block is not None:
-        last = int(np.searchsorted(blocks, int(end_block), side="right")) - 1
-    if last - first + 1 < train_blocks + 1:
-        raise ValueError(
-            f"train_blocks={train_blocks} needs at least {train_blocks + 1} blocks from "
-            f"start_block to end_block, got {max(last - first + 1, 0)}"
-        )
-
-    # ---- outputs on the grid (row index) x mode
-    shape = (n_blocks, n_modes)
-    out_phase = np.zeros(shape, dtype=np.int8)  # 0 none, 1 train, 2 forecast
-    out_ssi = np.full(shape, np.nan)
-    out_model = np.full(shape, np.nan)
-    out_lower = np.full(shape, np.nan)
-    out_upper = np.full(shape, np.nan)
-    out_kalman = np.full(shape, np.nan)
-    out_std = np.full(shape, np.nan)
-    out_w0 = np.zeros(shape, dtype=np.int64)
-    out_w1 = np.zeros(shape, dtype=np.int64)
-    out_order = np.full(shape, np.nan)
-    out_damping = np.full(shape, np.nan)
-    out_mac = np.full(shape, np.nan)
-    out_warning: dict[tuple[int, int], list[str]] = {}
-
-    def warn_rows(row_slice: range | list[int], j: int, message: str, kind: str) -> None:
-        notes[kind] += 1
-        for i in row_slice:
-            out_warning.setdefault((i, j), []).append(message)
-
-    targets = tracked.copy()  # training targets: tracked, then Kalman estimates (method 2)
-    measured = np.full(shape, np.nan)  # measurement used in each block (for R)
-    measured[first : first + train_blocks] = tracked[first : first + train_blocks]
-    bank = ModeKalmanBank(n_modes, transition=phi)
-    last_good: list[_Model | None] = [None] * n_modes
-    last_r = np.full(n_modes, np.nan)
-    previous_model_value = np.full(n_modes, np.nan)  # m_{k-1} under the current model
-    gap = np.zeros(n_modes, dtype=np.int64)
-    models_out: list[WindowModel] = []
-    started = np.zeros(n_modes, dtype=bool)
-    reference_hz = np.full(n_modes, np.nan)  # first window's median: plausibility band
-
-    window_start = first
-    while True:
-        w0, w1 = window_start, window_start + train_blocks  # training rows [w0, w1)
-        f0 = w1
-        f1 = min(f0 + horizon, last + 1) if method == 2 else min(f0 + horizon, n_blocks)
-        if f0 >= f1:
-            break
-        is_first = w0 == first
-        X_train = X_all[w0:w1]
-        # ---- candidate predictors of this window (enough valid values, not constant)
-        use = []
-        for c, name in enumerate(columns):
-            values = X_train[:, c]
-            valid = np.isfinite(values)
-            if valid.sum() < min_train:
-                notes[f"predictor '{name}' left out: fewer than {min_train} valid values"] += 1
-                continue
-            v = values[valid]
-            if np.ptp(v) <= 1e-12 * max(1.0, float(np.abs(v).max())):
-                notes[f"predictor '{name}' left out: constant in the window"] += 1
-                continue
-            use.append(c)
-        use_names = tuple(columns[c] for c in use)
-        Xw = X_train[:, use]
-        mean = np.nanmean(Xw, axis=0) if use else np.empty(0)
-        scale = np.nanstd(Xw, axis=0, ddof=1) if use else np.empty(0)
-        z_train = pd.DataFrame((Xw - mean) / scale, columns=list(use_names))
-        pred_rows = np.arange(w0, f1)  # training rows then forecast rows
-        window_models: list[_Model | None] = []
-        window_frame: pd.DataFrame | None = None  # z-scored rows [w0, f1), built once
-        for j in range(n_modes):
-            y = targets[w0:w1, j]
-            in_case = case_training_mask(labels, slice(w0, w1), f0, min_train, np.isfinite(y))
-            if in_case is not None:  # the model of the current operating case
-                y = np.where(in_case, y, np.nan)
-            valid_y = np.isfinite(y)
-            n_valid = int(valid_y.sum())
-            model: _Model | None = None
-            reason = ""
-            if not np.isfinite(reference_hz[j]) and n_valid >= 1:
-                reference_hz[j] = float(np.median(y[valid_y]))
-            if n_valid >= min_train and use:
-                try:
-                    with warnings.catch_warnings():
-                        warnings.simplefilter("ignore")
-                        fit = stepwise(z_train, y, **options)
-                    rmse = float(fit.rmse)
-                    n_params = len(getattr(fit, "coefficients", ())) or 1
-                    if not np.isfinite(rmse):
-                        raise ValueError("non-finite rmse")
-                    model = _Model(
-                        "stepwise",
-                        fit,
-                        use_names,
-                        mean,
-                        scale,
-                        n_train=n_valid,
-                        n_params=n_params,
-                        rmse=rmse,
-                        used=_used_columns(fit, use_names),
-                    )
-                    last_good[j] = model
-                except Exception as error:  # rank deficiency, singular fits...
-                    reason = f"stepwise fit failed ({type(error).__name__})"
-            elif n_valid < min_train:
-                reason = f"too few valid blocks ({n_valid} < {min_train})"
-            else:
-                reason = "no usable predictor"
-            if model is None and n_valid >= min_train and not use:
-                model = None  # constant model below is the right model here
-            elif model is None and last_good[j] is not None:
-                model = last_good[j]
-                model = _Model(**{**model.__dict__, "kind": "last_good"})
-                reason += ": last good model"
-            if model is None:
-                if n_valid >= 1:
-                    level = float(np.mean(y[valid_y]))
-                    spread = float(np.std(y[valid_y], ddof=1)) if n_valid >= 2 else math.nan
-                elif started[j]:
-                    level, spread = float(bank.state[j]), math.nan
-                    n_valid = 1
-                else:
-                    level = math.nan
-                if not np.isfinite(level):
-                    warn_rows([], j, "", f"mode {mode_labels[j]}: no data yet, no forecast")
-                    window_models.append(None)
-                    continue
-                if not np.isfinite(spread) or spread <= 0:
-                    spread = (
-                        math.sqrt(last_r[j])
-                        if np.isfinite(last_r[j])
-                        else _DEFAULT_RELATIVE_STD * abs(level)
-                    )
-                model = _Model(
-                    "constant",
-                    None,
-                    (),
-                    np.empty(0),
-                    np.empty(0),
-                    level=level,
-                    spread=spread,
-                    n_train=max(n_valid, 1),
-                    n_params=1,
-                    rmse=spread,
-                )
-                if reason:
-                    reason += ": constant model"
-            window_models.append(model)
-
-            # ---- predictions on training + forecast rows
-            if model.kind == "stepwise":  # this window's normalisation: shared frame
-                rows_X = X_all[w0:f1][:, use]
-                if window_frame is None:
-                    z_rows = _z_scores(rows_X, mean, scale, extrapolation_limit)
-                    window_frame = pd.DataFrame(z_rows, columns=list(use_names))
-                mean_p, lower_p, upper_p, mvar = _predict(
-                    model, rows_X, alpha, extrapolation_limit, window_frame
-                )
-            else:
-                rows_X = X_all[w0:f1][:, [columns.index(c) for c in model.columns]]
-                mean_p, lower_p, upper_p, mvar = _predict(model, rows_X, alpha, extrapolation_limit)
-            if model.fit is not None:
-                used = [c for c, name in enumerate(model.columns) if name in model.used]
-                if used:
-                    with np.errstate(invalid="ignore", divide="ignore"):
-                        far = np.abs((rows_X[:, used] - model.mean[used]) / model.scale[used])
-                    clipped = pred_rows[(far > extrapolation_limit).any(axis=1)]
-                    clipped = clipped[clipped >= (w0 if is_first else f0)]
-                    if clipped.size:
-                        warn_rows(
-                            clipped.tolist(),
-                            j,
-                            f"predictors beyond ±{extrapolation_limit:g} sd of the window: clipped",
-                            "blocks with predictors far outside the training window (clipped)",
-                        )
-            with np.errstate(invalid="ignore"):
-                implausible = np.isfinite(mean_p) & ~_plausible(mean_p, reference_hz[j])
-            mean_p[implausible] = np.nan  # non-physical: constant model below
-            bad = ~np.isfinite(mean_p)
-            if bad.any():
-                # needed predictor NaN in these blocks: constant model of the window
-                if n_valid >= 1:
-                    level = float(np.mean(y[valid_y]))
-                    spread = float(np.std(y[valid_y], ddof=1)) if n_valid >= 2 else model.rmse
-                elif started[j]:
-                    level, spread = float(bank.state[j]), model.rmse
-                else:
-                    with warnings.catch_warnings():
-                        warnings.simplefilter("ignore", RuntimeWarning)
-                        level, spread = float(np.nanmean(mean_p)), model.rmse
-                cm, cl, cu, cv = _constant_prediction(
-                    level,
-                    spread if spread > 0 else model.rmse,
-                    max(n_valid, 1),
-                    int(bad.sum()),
-                    alpha,
-                )
-                mean_p[bad], lower_p[bad], upper_p[bad], mvar[bad] = cm, cl, cu, cv
-                shown_from = w0 if is_first else f0
-                for mask, message, kind in (
-                    (
-                        bad & ~implausible,
-                        "predictor NaN: constant-model prediction",
-                        "blocks predicted by the constant model (a needed predictor is NaN)",
-                    ),
-                    (
-                        implausible,
-                        "model implausible: constant-model prediction",
-                        "blocks predicted by the constant model (model value outside "
-                        f"{1 / _PLAUSIBLE_FACTOR:g}-{_PLAUSIBLE_FACTOR:g} x the mode's level)",
-                    ),
-                ):
-                    shown = pred_rows[mask]
-                    shown = shown[shown >= shown_from]
-                    if shown.size:
-                        warn_rows(shown.tolist(), j, message, kind)
-            n_tr = w1 - w0
-            m_train = mean_p[:n_tr]
-            # ---- R: scatter of the measurements about the model in the window
-            resid = measured[w0:w1, j] - m_train
-            resid = resid[np.isfinite(resid)]
-            dof = resid.size - model.n_params
-            level_hz = float(np.nanmean(np.abs(mean_p)))
-            if resid.size >= _MIN_DIFFERENCES + 1:
-                r = _white_scatter_variance(resid)
-            elif dof >= 2:
-                r = float(resid @ resid) / dof
-            elif np.isfinite(last_r[j]):
-                r = float(last_r[j])
-            elif np.isfinite(model.rmse) and model.rmse > 0:
-                r = model.rmse**2
-            else:
-                r = (_DEFAULT_RELATIVE_STD * level_hz) ** 2
-            r = max(r, (_MIN_RELATIVE_STD * level_hz) ** 2)
-            last_r[j] = r
-            # ---- Q: from trust, or the model's own mean-prediction variance
-            if trust is not None:
-                q = process_variance_for_gain(float(trust), r, transition=phi)
-            else:
-                s2 = float(np.nanmean(mvar[n_tr:])) if np.isfinite(mvar[n_tr:]).any() else r
-                q = max(s2, (_MIN_RELATIVE_STD * level_hz) ** 2) * (1.0 - phi * phi)
-            bank.process_variance[j] = q
-            bank.measurement_variance[j] = r
-            if reason:
-                shown_rows = range(w0 if is_first else f0, f1)
-                warn_rows(
-                    shown_rows,
-                    j,
-                    f"window {blocks[w0]}-{blocks[w1 - 1]}: {reason}",
-                    f"windows with a fallback model ({reason.split(' (')[0]})",
-                )
-            models_out.append(
-                WindowModel(
-                    mode=int(mode_labels[j]),
-                    window_start_block=int(blocks[w0]),
-                    window_end_block=int(blocks[w1 - 1]),
-                    kind=model.kind,  # type: ignore[arg-type]
-                    terms=model.terms(),
-                    coefficients=_coefficients(model),
-                    n_train=n_valid,
-                    rmse_hz=float(model.rmse),
-                    measurement_variance=r,
-                    process_variance=q,
-                    normalisation={
-                        c: (float(a), float(b))
-                        for c, a, b in zip(model.columns, model.mean, model.scale, strict=True)
-                    },
-                    warning=reason,
-                )
-            )
-            # ---- store the model track of the rows this window reports
-            report = slice(0, None) if is_first else slice(n_tr, None)
-            rows_rep = pred_rows[report]
-            out_model[rows_rep, j] = mean_p[report]
-            out_lower[rows_rep, j] = lower_p[report]
-            out_upper[rows_rep, j] = upper_p[report]
-            out_w0[rows_rep, j] = blocks[w0]
-            out_w1[rows_rep, j] = blocks[w1 - 1]
-            out_phase[rows_rep, j] = np.where(rows_rep < w1, 1, 2)
-            # m_{k-1} under this window's model for the first reported row's predict step
-            previous_model_value[j] = mean_p[n_tr - 1] if not is_first else math.nan
-
-        # ---- Kalman pass over the reported rows (all modes together)
-        k_first = w0 if is_first else f0
-        for i in range(k_first, f1):
-            model_now = out_model[i]
-            have = np.isfinite(model_now)
-            # B u = m_k - φ m_{k-1}; a mode without m_{k-1} (no model in the last window)
-            # restarts its correction from zero: B u = m_k - φ x⁺_{k-1}, so x⁻ = m_k
-            control = np.where(
-                np.isfinite(previous_model_value),
-                model_now - phi * previous_model_value,
-                model_now - phi * bank.state,
-            )
-            bank.predict(control, active=have & started)
-            fresh = have & ~started
-            if fresh.any():
-                idx = np.flatnonzero(fresh)
-                bank.initialise(idx, model_now[idx])
-                started[idx] = True
-            prior_x, prior_p = bank.state.copy(), bank.variance.copy()
-            if option == "A":
-                z = tracked[i].copy()
-            else:
-                with np.errstate(invalid="ignore"):
-                    gate = gate_sigma * np.sqrt(prior_p + bank.measurement_variance)
-                choice = selector.select(i, prior_x, gate, have & started)
-                z = choice.frequency
-                out_order[i], out_damping[i], out_mac[i] = choice.order, choice.damping, choice.mac
-                for j in np.flatnonzero(choice.no_reference):
-                    warn_rows(
-                        [i],
-                        j,
-                        "no reference shape yet: nearest pole, no MAC check",
-                        "option B rows without a reference shape (nearest pole, no MAC check)",
-                    )
-                if choice.reacquired.any():
-                    idx = np.flatnonzero(choice.reacquired)
-                    # P⁻ ← max(P⁻, y²): the prior was wrong by y = z - x⁻, so K ≈ 1
-                    bank.inflate(idx, (z[idx] - prior_x[idx]) ** 2)
-                    for j in idx:
-                        warn_rows(
-                            [i],
-                            j,
-                            f"track re-acquired: pole at {z[j]:.4f} Hz (MAC {choice.mac[j]:.3f}) "
-                            f"outside the gate {prior_x[j]:.4f} ± {gate[j]:.4f} Hz",
-                            "tracks re-acquired outside the gate (option B: mode seen only "
-                            f"outside the gate for {reacquire_blocks} block(s))",
-                        )
-            z[~have] = np.nan
-            bank.update(z)
-            lost = have & started & ~_plausible(bank.state, reference_hz)
-            if lost.any():  # track lost (model or measurements far off): restart at model
-                idx = np.flatnonzero(lost)
-                bank.initialise(idx, model_now[idx])
-                for j in idx:
-                    warn_rows(
-                        [i],
-                        j,
-                        "Kalman track implausible: restarted at the model",
-                        "Kalman tracks restarted at the model (estimate implausible)",
-                    )
-            measured[i] = z
-            out_ssi[i] = z
-            out_kalman[i] = np.where(have, bank.state, np.nan)
-            out_std[i] = np.where(have, np.sqrt(np.maximum(bank.variance, 0.0)), np.nan)
-            has_z = np.isfinite(z)
-            gap = np.where(has_z, 0, gap + have)
-            for j in np.flatnonzero(have & (gap >= gap_warning_blocks)):
-                warn_rows(
-                    [i],
-                    j,
-                    f"no SSI estimate for {gap[j]} blocks: predict-only",
-                    "rows in a long stretch without SSI estimates (predict-only)",
-                )
-            previous_model_value = np.where(have, model_now, previous_model_value)
-        if method == 2:
-            # the Kalman estimates of the blocks with a measurement are the next windows'
-            # targets; predict-only blocks carry no new information (re-training on them
-            # would feed the model its own extrapolation), modes not started keep tracked
-            kalman_rows = out_kalman[f0:f1]
-            targets[f0:f1] = np.where(
-                np.isfinite(kalman_rows),
-                np.where(np.isfinite(measured[f0:f1]), kalman_rows, np.nan),
-                tracked[f0:f1],
-            )
-        if method == 1 or f1 > last:
-            break
-        window_start += horizon
-
-    _drop_unusable(out_phase, out_model, out_kalman, notes)
-    table = _assemble(
-        blocks,
-        block_start,
-        mode_labels,
-        option,
-        out_phase,
-        out_ssi,
-        out_model,
-        out_lower,
-        out_upper,
-        out_kalman,
-        out_std,
-        out_w0,
-        out_w1,
-        out_order,
-        out_damping,
-        out_mac,
-        out_warning,
-    )
-    messages = tuple(f"{kind} (x{count})" for kind, count in notes.items())
-    for message in messages:
-        warnings.warn(message, ForecastWarning, stacklevel=2)
-    return ForecastResult(table=table, warnings=messages, models=tuple(models_out))
 
 
 def _plausible(frequency: np.ndarray, reference: np.ndarray | float) -> np.ndarray:

@@ -1,0 +1,363 @@
+"""The reference forecast (``model="window"``): a short orchestrator of named steps.
+
+:func:`window_forecast` runs, window after window (method 1: one window; method 2: slide by
+*horizon* blocks, the Kalman estimates as the next targets):
+
+1. the window's candidate predictors and each mode's model and predictions
+   (:mod:`workbench.forecast.window_model`);
+2. the Kalman noise levels R and Q (:mod:`workbench.forecast.window_noise`);
+3. the Kalman pass over the rows the window reports, with option A's or B's measurement
+   (:mod:`workbench.forecast.window_kalman`).
+
+Everything the steps share lives on one :class:`WindowRun`: the block grid, the settings
+and the output arrays, so a step reads like the equations in the
+:func:`~workbench.forecast.sliding_forecast` docstring. Arguments arrive validated.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections import Counter
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from .kalman import ModeKalmanBank
+from .sliding import (
+    _MIN_SHAPE_CHANNELS,
+    ForecastResult,
+    ForecastWarning,
+    WindowModel,
+    _assemble,
+    _coefficients,
+    _drop_unusable,
+    _Model,
+    _PoleSelector,
+)
+from .window_kalman import kalman_pass, next_targets
+from .window_model import WindowFrame, fit_window_model, predict_window
+from .window_noise import window_noise_levels
+
+__all__ = ["WindowRun", "block_grid", "window_forecast"]
+
+
+@dataclass
+class BlockGrid:
+    """The forecast's block grid: predictor matrix and tracked frequencies per mode."""
+
+    blocks: np.ndarray  # block numbers, sorted
+    block_start: np.ndarray
+    columns: list[str]  # candidate predictor columns
+    X_all: np.ndarray  # (n_blocks, n_columns) raw predictors
+    mode_labels: np.ndarray
+    tracked: np.ndarray  # (n_blocks, n_modes) tracked frequency, NaN where missing [Hz]
+
+
+def block_grid(
+    modal: pd.DataFrame,
+    predictors: pd.DataFrame,
+    predictor_columns: Sequence[str] | None,
+    modes: Sequence[int] | None,
+) -> BlockGrid:
+    """Block grid of *predictors* (consecutive rows: consecutive Kalman steps)."""
+    grid = predictors.sort_values("block").drop_duplicates("block", keep="last")
+    blocks = grid["block"].to_numpy(dtype=np.int64)
+    block_start = pd.to_datetime(grid["block_start"], utc=True).to_numpy()
+    if predictor_columns is None:
+        predictor_columns = [
+            c
+            for c in grid.columns
+            if c != "block"
+            and pd.api.types.is_numeric_dtype(grid[c].dtype)
+            and not pd.api.types.is_bool_dtype(grid[c].dtype)
+        ]
+    else:
+        missing = [c for c in predictor_columns if c not in grid.columns]
+        if missing:
+            raise ValueError(f"predictor_columns {missing} are not columns of predictors")
+    columns = list(predictor_columns)
+    X_all = (
+        grid[columns].to_numpy(dtype=float, na_value=np.nan)
+        if columns
+        else np.empty((len(grid), 0))
+    )
+    n_blocks = len(blocks)
+    mode_labels = (
+        np.array(sorted(int(m) for m in modal["mode"].dropna().unique()))
+        if modes is None
+        else np.asarray(modes, dtype=np.int64)
+    )
+    if len(mode_labels) == 0:
+        raise ValueError("modal has no modes to forecast")
+    tracked = np.full((n_blocks, len(mode_labels)), np.nan)
+    rows = np.searchsorted(blocks, modal["block"].to_numpy(dtype=np.int64))
+    rows_ok = (rows < n_blocks) & (
+        blocks[np.minimum(rows, n_blocks - 1)] == modal["block"].to_numpy()
+    )
+    mode_index = {int(m): j for j, m in enumerate(mode_labels)}
+    cols = np.array([mode_index.get(int(m), -1) for m in modal["mode"].to_numpy()])
+    keep = rows_ok & (cols >= 0)
+    tracked[rows[keep], cols[keep]] = modal["frequency_hz"].to_numpy(dtype=float)[keep]
+    return BlockGrid(blocks, block_start, columns, X_all, mode_labels, tracked)
+
+
+@dataclass
+class WindowRun:
+    """Settings, grid, running filter state and outputs of one reference forecast."""
+
+    grid: BlockGrid
+    option: str
+    method: int
+    train_blocks: int
+    horizon: int
+    trust: float | None
+    phi: float
+    gate_sigma: float
+    reacquire_blocks: int
+    min_train: int
+    alpha: float
+    extrapolation_limit: float
+    gap_warning_blocks: int
+    stepwise_options: Mapping[str, Any]
+    first: int
+    last: int
+    labels: np.ndarray | None = None  # operating case per grid row
+    selector: _PoleSelector | None = None
+    notes: Counter = field(default_factory=Counter)
+    out_warning: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        g = self.grid
+        n_blocks, n_modes = g.tracked.shape
+        shape = (n_blocks, n_modes)
+        self.blocks, self.X_all, self.columns = g.blocks, g.X_all, g.columns
+        self.mode_labels, self.tracked = g.mode_labels, g.tracked
+        self.out_phase = np.zeros(shape, dtype=np.int8)  # 0 none, 1 train, 2 forecast
+        for name in ("ssi", "model", "lower", "upper", "kalman", "std", "order", "damping"):
+            setattr(self, f"out_{name}", np.full(shape, np.nan))
+        self.out_mac = np.full(shape, np.nan)
+        self.out_w0 = np.zeros(shape, dtype=np.int64)
+        self.out_w1 = np.zeros(shape, dtype=np.int64)
+        # training targets: tracked, then Kalman estimates (method 2)
+        self.targets = self.tracked.copy()
+        self.measured = np.full(shape, np.nan)  # measurement used in each block (for R)
+        window = slice(self.first, self.first + self.train_blocks)
+        self.measured[window] = self.tracked[window]
+        self.bank = ModeKalmanBank(n_modes, transition=self.phi)
+        self.last_good: list[_Model | None] = [None] * n_modes
+        self.last_r = np.full(n_modes, np.nan)
+        self.previous_model_value = np.full(n_modes, np.nan)  # m_{k-1}, current model
+        self.gap = np.zeros(n_modes, dtype=np.int64)
+        self.models_out: list[WindowModel] = []
+        self.started = np.zeros(n_modes, dtype=bool)
+        self.reference_hz = np.full(n_modes, np.nan)  # first window's median: plausibility
+
+    @property
+    def n_modes(self) -> int:
+        return self.tracked.shape[1]
+
+    def warn_rows(self, row_slice, j: int, message: str, kind: str) -> None:
+        self.notes[kind] += 1
+        for i in row_slice:
+            self.out_warning.setdefault((i, j), []).append(message)
+
+
+def window_forecast(
+    modal: pd.DataFrame,
+    predictors: pd.DataFrame,
+    *,
+    poles: pd.DataFrame | None,
+    option: str,
+    method: int,
+    train_blocks: int,
+    horizon: int,
+    start_block: int | None,
+    end_block: int | None,
+    trust: float | None,
+    phi: float,
+    gate_sigma: float,
+    shape_mac_min: float,
+    reacquire_blocks: int,
+    reacquire_band: float,
+    predictor_columns: Sequence[str] | None,
+    stepwise_options: Mapping[str, Any],
+    min_train: int,
+    gap_warning_blocks: int,
+    modes: Sequence[int] | None,
+    alpha: float,
+    extrapolation_limit: float,
+    cases,
+) -> ForecastResult:
+    """The reference forecast (module docstring; parameters as
+    :func:`~workbench.forecast.sliding_forecast`, validated there)."""
+    from workbench.stats import case_labels
+
+    grid = block_grid(modal, predictors, predictor_columns, modes)
+    frame = predictors.sort_values("block").drop_duplicates("block", keep="last")
+    labels = None if cases is None else case_labels(frame, cases).to_numpy()
+    notes: Counter[str] = Counter()
+    selector = None
+    if option == "B":
+        selector = _PoleSelector(
+            poles,
+            modal,
+            grid.blocks,
+            grid.mode_labels,
+            shape_mac_min=shape_mac_min,
+            reacquire_blocks=reacquire_blocks,
+            reacquire_band=reacquire_band,
+        )
+        if not selector.uses_shapes:
+            notes[
+                "option B without mode shapes (poles or modal lack shape_re_<channel> columns "
+                f"for {_MIN_SHAPE_CHANNELS}+ shared channels): nearest pole in the gate, "
+                "no MAC check"
+            ] += 1
+    first, last = _forecast_span(grid.blocks, start_block, end_block, train_blocks)
+    run = WindowRun(
+        grid=grid,
+        option=option,
+        method=method,
+        train_blocks=train_blocks,
+        horizon=horizon,
+        trust=trust,
+        phi=phi,
+        gate_sigma=gate_sigma,
+        reacquire_blocks=reacquire_blocks,
+        min_train=min_train,
+        alpha=alpha,
+        extrapolation_limit=extrapolation_limit,
+        gap_warning_blocks=gap_warning_blocks,
+        stepwise_options=stepwise_options,
+        first=first,
+        last=last,
+        labels=labels,
+        selector=selector,
+        notes=notes,
+    )
+    n_blocks = len(grid.blocks)
+    window_start = first
+    while True:
+        w0, w1 = window_start, window_start + train_blocks  # training rows [w0, w1)
+        f0 = w1
+        f1 = min(f0 + horizon, last + 1) if method == 2 else min(f0 + horizon, n_blocks)
+        if f0 >= f1:
+            break
+        window = WindowFrame(run.X_all, run.columns, w0, w1, f1)
+        window.select(min_train, notes)
+        for j in range(run.n_modes):
+            model_window(run, j, window)
+        is_first = w0 == first
+        kalman_pass(run, w0 if is_first else f0, f1)
+        if method == 2:
+            next_targets(run, f0, f1)
+        if method == 1 or f1 > last:
+            break
+        window_start += horizon
+
+    _drop_unusable(run.out_phase, run.out_model, run.out_kalman, notes)
+    table = _assemble(
+        grid.blocks,
+        grid.block_start,
+        grid.mode_labels,
+        option,
+        run.out_phase,
+        run.out_ssi,
+        run.out_model,
+        run.out_lower,
+        run.out_upper,
+        run.out_kalman,
+        run.out_std,
+        run.out_w0,
+        run.out_w1,
+        run.out_order,
+        run.out_damping,
+        run.out_mac,
+        run.out_warning,
+    )
+    messages = tuple(f"{kind} (x{count})" for kind, count in notes.items())
+    for message in messages:
+        warnings.warn(message, ForecastWarning, stacklevel=3)
+    return ForecastResult(table=table, warnings=messages, models=tuple(run.models_out))
+
+
+def _forecast_span(blocks, start_block, end_block, train_blocks) -> tuple[int, int]:
+    """Grid rows of the first training block and of the last block forecast."""
+    n_blocks = len(blocks)
+    if start_block is None:
+        first = 0
+    else:
+        first = int(np.searchsorted(blocks, start_block))
+        if first >= n_blocks or blocks[first] != start_block:
+            raise ValueError(f"start_block={start_block} is not a block of predictors")
+    last = n_blocks - 1
+    if end_block is not None:
+        last = int(np.searchsorted(blocks, int(end_block), side="right")) - 1
+    if last - first + 1 < train_blocks + 1:
+        raise ValueError(
+            f"train_blocks={train_blocks} needs at least {train_blocks + 1} blocks from "
+            f"start_block to end_block, got {max(last - first + 1, 0)}"
+        )
+    return first, last
+
+
+def model_window(run: WindowRun, j: int, window: WindowFrame) -> None:
+    """Model, predictions and noise levels of mode *j* for one window; rows reported."""
+    from workbench.stats import case_training_mask
+
+    w0, w1, f0, f1 = window.w0, window.w1, window.w1, window.f1
+    is_first = w0 == run.first
+    y = run.targets[w0:w1, j]
+    in_case = case_training_mask(run.labels, slice(w0, w1), f0, run.min_train, np.isfinite(y))
+    if in_case is not None:  # the model of the current operating case
+        y = np.where(in_case, y, np.nan)
+    model, reason, n_valid = fit_window_model(run, j, window, y)
+    if model is None:
+        return
+    mean_p, lower_p, upper_p, mvar = predict_window(run, j, model, window, y, n_valid)
+    r, q = window_noise_levels(run, j, model, mean_p, mvar, w0, w1)
+    run.bank.process_variance[j] = q
+    run.bank.measurement_variance[j] = r
+    blocks = run.blocks
+    if reason:
+        run.warn_rows(
+            range(w0 if is_first else f0, f1),
+            j,
+            f"window {blocks[w0]}-{blocks[w1 - 1]}: {reason}",
+            f"windows with a fallback model ({reason.split(' (')[0]})",
+        )
+    run.models_out.append(
+        WindowModel(
+            mode=int(run.mode_labels[j]),
+            window_start_block=int(blocks[w0]),
+            window_end_block=int(blocks[w1 - 1]),
+            kind=model.kind,  # type: ignore[arg-type]
+            terms=model.terms(),
+            coefficients=_coefficients(model),
+            n_train=n_valid,
+            rmse_hz=float(model.rmse),
+            measurement_variance=r,
+            process_variance=q,
+            normalisation={
+                c: (float(a), float(b))
+                for c, a, b in zip(model.columns, model.mean, model.scale, strict=True)
+            },
+            warning=reason,
+        )
+    )
+    # the model track of the rows this window reports
+    n_tr = w1 - w0
+    report = slice(0, None) if is_first else slice(n_tr, None)
+    rows_rep = np.arange(w0, f1)[report]
+    run.out_model[rows_rep, j] = mean_p[report]
+    run.out_lower[rows_rep, j] = lower_p[report]
+    run.out_upper[rows_rep, j] = upper_p[report]
+    run.out_w0[rows_rep, j] = blocks[w0]
+    run.out_w1[rows_rep, j] = blocks[w1 - 1]
+    run.out_phase[rows_rep, j] = np.where(rows_rep < w1, 1, 2)
+    # m_{k-1} under this window's model for the first reported row's predict step
+    run.previous_model_value[j] = mean_p[n_tr - 1] if not is_first else math.nan
