@@ -43,6 +43,7 @@ import pandas as pd
 from ._core import ContractError, Violation
 from .csv_layout import read_delimited, split_unit
 from .dship_names import TIME_FORMATS, name_key
+from .grid import GRID_ATTR, attach_grid, read_grid
 from .tables import MODAL
 
 __all__ = ["ModalLayout", "read_modal_table", "standardise_modal"]
@@ -178,7 +179,10 @@ def read_modal_table(
         raise ContractError(
             [Violation(None, f"cannot read file: {message}")], source=path, contract="modal"
         ) from None
-    return standardise_modal(frame, layout, source=str(path))
+    frame.attrs.pop(GRID_ATTR, None)
+    table = standardise_modal(frame, layout, source=str(path))
+    fmt = "parquet" if path.suffix.lower() in (".parquet", ".pq") else "csv"
+    return attach_grid(table, read_grid(path, fmt), path)
 
 
 def standardise_modal(

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from data_contracts import CONTRACTS, read_accelerations, read_dship, read_table
+from data_contracts import CONTRACTS, read_table, validate_file
 
 from .reporting.report import build_report
 
@@ -53,7 +53,7 @@ def _kind_of(path: Path) -> str | None:
         return "accelerations"
     if path.suffix in (".tab", ".tsv"):
         return "dship"
-    for kind in ("forecast", "poles", "predictors"):
+    for kind in ("forecast", "poles", "predictors", "selected"):
         if name.startswith(kind) and path.suffix in (".csv", ".parquet"):
             return kind
     if path.suffix in (".csv", ".parquet") and "modal" in name:
@@ -82,12 +82,7 @@ def validate_folder(root: Path) -> int:
         kind = _kind_of(path)
         if kind is None or not path.is_file():
             continue
-        if kind == "accelerations":
-            read_accelerations(path)
-        elif kind == "dship":
-            read_dship(path)
-        else:
-            read_table(path, CONTRACTS[kind])
+        validate_file(kind, path)
         count += 1
     return count
 
@@ -142,7 +137,7 @@ def run_demo(
     DemoSummary
         Stage timings, number of files validated, headline numbers.
     """
-    from data_contracts import PREDICTORS, read_table, write_table
+    from data_contracts import PREDICTORS, write_table
 
     from .identify import identify_voyage
     from .pipeline import (

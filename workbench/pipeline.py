@@ -23,11 +23,15 @@ from data_contracts import (
     MODAL,
     POLES,
     PREDICTORS,
+    SELECTED,
     atomic_path,
     read_dship,
     read_table,
+    recorded_grid,
+    set_grid,
     write_table,
 )
+from data_contracts.grid import grid_mismatch
 
 from .errors import WorkbenchError
 
@@ -57,11 +61,22 @@ class StageResult:
 def block_grid_of(table: pd.DataFrame) -> tuple[pd.Timestamp, float, float]:
     """Block grid ``(t0, length_s, step_s)`` of a table with block, block_start, block_end.
 
+    The grid recorded with the table (``table.attrs["block_grid"]``, read from the file by
+    :func:`~data_contracts.read_table`) is used when there is one. Otherwise it is inferred
+    from the block starts; a single block does not tell the step, which is then taken as a
+    quarter of the length (75 % overlap) with a warning.
+
     Raises
     ------
     WorkbenchError
-        If the block starts do not lie on one grid.
+        If the block starts do not lie on one grid (or not on the recorded one).
     """
+    recorded = recorded_grid(table)
+    if recorded is not None:
+        off_grid = grid_mismatch(table, recorded)
+        if off_grid is not None:
+            raise WorkbenchError(off_grid)
+        return pd.Timestamp(recorded["t0"]), recorded["length_s"], recorded["step_s"]
     blocks = table[["block", "block_start", "block_end"]].drop_duplicates("block")
     blocks = blocks.sort_values("block")
     start = pd.to_datetime(blocks["block_start"], utc=True)
@@ -71,6 +86,12 @@ def block_grid_of(table: pd.DataFrame) -> tuple[pd.Timestamp, float, float]:
         step = float(np.median(steps))
     else:
         step = float(length.iat[0]) / 4.0
+        warnings.warn(
+            f"one block and no recorded block grid: the step between blocks is taken as a "
+            f"quarter of the block length ({step:g} s, 75 % overlap)",
+            UserWarning,
+            stacklevel=2,
+        )
     t0 = start.iat[0] - pd.Timedelta(seconds=step * int(blocks["block"].iat[0]))
     expected = t0 + pd.to_timedelta(blocks["block"].to_numpy() * step, unit="s")
     off = np.abs((start.to_numpy() - expected.to_numpy()) / np.timedelta64(1, "s")) > 1e-3
@@ -119,7 +140,7 @@ def load_predictors(
     table = block_predictors(
         log, grid=grid, blocks=np.arange(first, last + 1), min_coverage=min_coverage
     )
-    return PREDICTORS.validate(table)
+    return set_grid(PREDICTORS.validate(table), grid)
 
 
 def persistent_modes(
@@ -186,13 +207,14 @@ def run_track(
     """Track the modes selected block by block (``selected`` table) into a modal table."""
     from .sid.tracking import TrackingOptions, track_modes
 
-    selected = _read_any(selected_path)
+    selected = read_table(selected_path, SELECTED)
     ref = read_table(reference, MODAL) if reference is not None else None
     tracked = track_modes(
         selected, options=TrackingOptions(**options), reference=ref, progress=progress
     )
     if tracked.empty:
         raise WorkbenchError(f"{selected_path}: no mode could be tracked")
+    set_grid(tracked, recorded_grid(selected))
     path = write_table(tracked, out, MODAL)
     result = StageResult(files=[path], tables={"tracked": tracked})
     counts = tracked.groupby("mode").agg(
@@ -206,24 +228,6 @@ def run_track(
         )
     )
     return result
-
-
-def _read_any(path: str | os.PathLike) -> pd.DataFrame:
-    """A table without contract (e.g. selected modes), CSV or Parquet, with UTC times."""
-    path = Path(path)
-    try:
-        if path.suffix.lower() == ".parquet":
-            frame = pd.read_parquet(path)
-        else:
-            frame = pd.read_csv(path)
-    except FileNotFoundError:
-        raise WorkbenchError(f"{path}: no such file") from None
-    except (OSError, ValueError) as error:
-        raise WorkbenchError(f"{path}: unreadable ({str(error).splitlines()[0]})") from None
-    for column in ("block_start", "block_end"):
-        if column in frame.columns:
-            frame[column] = pd.to_datetime(frame[column], utc=True)
-    return frame
 
 
 # --------------------------------------------------------------------------- forecast
@@ -347,6 +351,7 @@ def run_forecast(
         result.warnings += [f"option {option}: {m}" for m in messages]
         frames.append(table)
     table = pd.concat(frames, ignore_index=True)
+    set_grid(table, recorded_grid(modal) or recorded_grid(predictors))
     path = write_table(table, out, FORECAST)
     result.files.append(path)
     result.tables["forecast"] = table

@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats as _scipy_stats
 
-from data_contracts import ALARMS, FORECAST, HEALTH, write_table
+from data_contracts import ALARMS, FORECAST, HEALTH, recorded_grid, set_grid, write_table
 
 __all__ = ["HealthOptions", "HealthReference", "HealthResult", "health_chart"]
 
@@ -441,7 +441,7 @@ def health_chart(forecast: pd.DataFrame, options: HealthOptions | None = None) -
         shares = parts / t2[:, None]
     for j, mode in enumerate(modes):
         health[f"contribution_{mode}"] = np.where(t2 > 0, shares[:, j], np.nan)
-    health = HEALTH.validate(health)
+    health = set_grid(HEALTH.validate(health), recorded_grid(forecast))
 
     reference_relative = relative.iloc[first:stop][list(modes)].median()
     episodes = []

@@ -23,6 +23,7 @@ from data_contracts import (
     write_table,
 )
 
+from ..blocks import BlockGrid
 from ..dynamics import (
     ModalState,
     draw_stationary_state,
@@ -242,11 +243,16 @@ def simulate_voyage(
         tracked_rng=tracked_rng,
         poles_rng=poles_rng,
     )
+    grid = BlockGrid(start, BLOCK_SECONDS, BLOCK_STEP_SECONDS)
     paths = {
-        "truth_predictors": write_table(predictors, out / "truth_predictors.csv", PREDICTORS),
-        "truth_modal": write_table(truth_modal, out / "truth_modal.csv", MODAL),
-        "tracked_modal": write_table(imitation.tracked, out / "tracked_modal.csv", MODAL),
-        "poles": write_table(imitation.poles, out / "poles.parquet", POLES),
+        "truth_predictors": write_table(
+            predictors, out / "truth_predictors.csv", PREDICTORS, grid=grid
+        ),
+        "truth_modal": write_table(truth_modal, out / "truth_modal.csv", MODAL, grid=grid),
+        "tracked_modal": write_table(
+            imitation.tracked, out / "tracked_modal.csv", MODAL, grid=grid
+        ),
+        "poles": write_table(imitation.poles, out / "poles.parquet", POLES, grid=grid),
     }
     cases = profile.cases.assign(
         start=profile.cases["start"].map(_iso), end=profile.cases["end"].map(_iso)
