@@ -81,6 +81,16 @@ _DAMPING = Column(
     hint="damping ratios are fractions: 1.2 % is 0.012",
 )
 
+_MPC = Column(
+    "mpc",
+    "float",
+    "Modal phase collinearity of the shape (1 = real mode).",
+    required=False,
+    nullable=True,
+    minimum=0.0,
+    maximum=1.0 + 1e-9,
+)
+
 #: Canonical predictor columns, with their physical bounds used for plausibility checks.
 CANONICAL_PREDICTORS: tuple[Column, ...] = (
     Column(
@@ -255,15 +265,7 @@ POLES = TableContract(
             "bool",
             "Pole is stable in frequency, damping and shape against the previous model order.",
         ),
-        Column(
-            "mpc",
-            "float",
-            "Modal phase collinearity of the shape (1 = real mode).",
-            required=False,
-            nullable=True,
-            minimum=0.0,
-            maximum=1.0 + 1e-9,
-        ),
+        _MPC,
     ),
     patterns=(_SHAPES,),
 )
@@ -282,18 +284,12 @@ SELECTED = TableContract(
         Column(
             "model_order",
             "int",
-            "Model order of the pole that represents the mode.",
+            "Model order of the pole that represents the mode (written by identify; "
+            "tracking does not need it).",
+            required=False,
             minimum=1,
         ),
-        Column(
-            "mpc",
-            "float",
-            "Modal phase collinearity of the shape (1 = real mode).",
-            required=False,
-            nullable=True,
-            minimum=0.0,
-            maximum=1.0 + 1e-9,
-        ),
+        _MPC,
         Column(
             "stable",
             "bool",

@@ -1169,13 +1169,18 @@ def _add_health(commands: argparse._SubParsersAction) -> None:
 
 
 def _run_health(args: argparse.Namespace) -> int:
-    from data_contracts import FORECAST, read_table
+    from data_contracts import FORECAST, read_table, recorded_grid
 
     from .health import HealthOptions, health_chart
 
     forecast = read_table(args.forecast, FORECAST)
-    step_h = forecast["block_start"].drop_duplicates().sort_values().diff().median()
-    blocks = int(round(args.reference_hours * 3600 / step_h.total_seconds()))
+    grid = recorded_grid(forecast)
+    step_s = (
+        grid["step_s"]
+        if grid is not None
+        else forecast["block_start"].drop_duplicates().sort_values().diff().median().total_seconds()
+    )
+    blocks = int(round(args.reference_hours * 3600 / step_s))
     try:
         options = HealthOptions(
             reference_blocks=blocks,
@@ -1264,6 +1269,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     log.setLevel(logging.DEBUG if args.verbose else logging.INFO)
     for noisy in ("distributed", "tornado", "bokeh", "asyncio"):  # cluster chatter
         logging.getLogger(noisy).setLevel(logging.DEBUG if args.verbose else logging.ERROR)
+    import matplotlib
+
+    matplotlib.use("Agg")  # commands write figures to files and never open a window
     shown = warnings.showwarning
     if not args.verbose:
         warnings.showwarning = _show_warning

@@ -82,7 +82,7 @@ class IdentifyOptions:
     ----------
     method : {"cov", "data", "lscf"}
         Covariance-driven or data-driven SSI, or poly-reference LSCF
-        (:func:`workbench.sid.lscf.lscf`, fitted in *band_hz*).
+        (:func:`workbench.sid.plscf.lscf`, fitted in *band_hz*).
     block_rows : int
         Block rows i of the Hankel/Toeplitz matrix (lags 1..2i). [-]
     orders : tuple of int
@@ -120,7 +120,7 @@ class IdentifyOptions:
     lscf_orders : tuple of int
         Polynomial orders p of LSCF (p·r poles with r references). [-]
     lscf_lags : int, optional
-        Correlation lags of the LSCF half-spectra (default: see :func:`~workbench.sid.lscf.
+        Correlation lags of the LSCF half-spectra (default: see :func:`~workbench.sid.plscf.
         lscf`).
     cross_check : bool
         Also identify every block with the other family (LSCF for SSI, SSI-cov for LSCF)
@@ -444,7 +444,7 @@ def _identify_data(
 def _identify_method(method: str, data, reference, options: IdentifyOptions):
     """Result of *method* on a conditioned block, stabilised, and its mode selection."""
     from .sid import select_modes, ssi_cov, ssi_data, stabilise
-    from .sid.lscf import lscf
+    from .sid.plscf import lscf
 
     n_channels = len(data.channels)
     orders = _reachable_orders(options, n_channels, len(reference or range(n_channels)))

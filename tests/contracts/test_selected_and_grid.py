@@ -84,13 +84,13 @@ def test_selected_is_a_registered_contract_and_accepts_what_identify_writes():
 
 
 def test_selected_reports_every_violation():
-    bad = selected_frame().drop(columns="model_order")
+    bad = selected_frame().drop(columns="frequency_hz")
     bad.loc[1, "damping_ratio"] = 1.5  # a percentage, not a fraction
     bad.loc[2, "block_end"] = bad.loc[2, "block_start"]
     with pytest.raises(ContractError) as caught:
         SELECTED.validate(bad, source="selected.parquet")
     message = str(caught.value)
-    assert "'model_order'" in message and "'damping_ratio', row 1" in message
+    assert "'frequency_hz'" in message and "'damping_ratio', row 1" in message
     # table-level checks (end after start) run once the columns are right
     with pytest.raises(ContractError, match="block_end must be after block_start"):
         SELECTED.validate(selected_frame().assign(block_end=lambda f: f["block_start"]))

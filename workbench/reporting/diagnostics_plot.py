@@ -14,23 +14,22 @@ import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from scipy import stats as _scipy_stats
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from scipy import stats as _scipy_stats  # noqa: E402
-
-from data_contracts import atomic_path  # noqa: E402
-from workbench.stats.cases import STITCHED, fit_cases  # noqa: E402
-from workbench.stats.diagnostics import ResidualDiagnostics, residual_diagnostics  # noqa: E402
-from workbench.stats.modes import (  # noqa: E402
+from data_contracts import atomic_path
+from workbench.stats.cases import STITCHED, fit_cases
+from workbench.stats.diagnostics import ResidualDiagnostics, residual_diagnostics
+from workbench.stats.mode_fits import (
     ModeFit,
     coefficient_table,
     fit_modes,
     fit_statistics_table,
 )
+
+from .figures import save_figure
 
 __all__ = ["plot_residual_diagnostics", "write_diagnostics_figures", "write_fit_report"]
 
@@ -131,15 +130,6 @@ def plot_residual_diagnostics(
     return fig
 
 
-def _save(fig, path: Path, dpi: int) -> Path:
-    try:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=dpi, format="png")
-    finally:
-        plt.close(fig)
-    return path
-
-
 def _unit(quantity: str) -> str:
     return "Hz" if quantity.endswith("_hz") else ""
 
@@ -163,7 +153,7 @@ def write_diagnostics_figures(
             title=f"Mode {mode}: {item.fit.formula}",
             unit=_unit(item.quantity),
         )
-        paths.append(_save(fig, out / f"{prefix}{mode}.png", dpi))
+        paths.append(save_figure(fig, out / f"{prefix}{mode}.png", dpi=dpi))
     return paths
 
 

@@ -31,7 +31,7 @@ from ..dynamics import (
     stationary_covariance,
 )
 from .hull import CHANNELS, MODE_LAWS, REFERENCE_CONDITIONS, mode_shapes, true_modal_parameters
-from .identification import SHAFT_HZ_PER_KN, imitate_identification
+from .imitation import SHAFT_HZ_PER_KN, imitate_identification
 from .profile import operating_profile, write_dship_log
 
 __all__ = ["DEFAULT_HOURS", "VoyageSummary", "simulate_voyage"]
@@ -170,7 +170,7 @@ def simulate_voyage(
     * ``truth_modal.csv`` (MODAL contract): block means of the true modal parameters, true
       shapes.
     * ``tracked_modal.csv`` (MODAL) and ``poles.parquet`` (POLES): imitated identification
-      (:func:`~workbench.simulate.identification.imitate_identification`).
+      (:func:`~workbench.simulate.imitation.imitate_identification`).
     * ``cases.csv``: case, start, end of the operating stretches.
     * ``voyage.json``: seed, hours, times, files, law coefficients, defect locations.
 

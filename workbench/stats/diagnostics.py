@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy import stats as _scipy_stats
 
-__all__ = ["ResidualDiagnostics", "durbin_watson", "residual_diagnostics", "write_fit_report"]
+__all__ = ["ResidualDiagnostics", "durbin_watson", "residual_diagnostics"]
 
 
 def _run_pairs(e: np.ndarray, blocks) -> np.ndarray:
@@ -238,14 +238,3 @@ def residual_diagnostics(residuals, *, alpha: float = 0.05, blocks=None) -> Resi
         jarque_bera_p_value=jarque_bera_p,
         alpha=alpha,
     )
-
-
-def write_fit_report(modal, predictors, out_dir, **options):
-    """Per-mode stepwise report; see :func:`workbench.reporting.diagnostics_plot.write_fit_report`.
-
-    The report draws figures, so it lives in :mod:`workbench.reporting`; this alias imports
-    it on call (the statistics themselves never import matplotlib).
-    """
-    from workbench.reporting.diagnostics_plot import write_fit_report as _write_fit_report
-
-    return _write_fit_report(modal, predictors, out_dir, **options)
