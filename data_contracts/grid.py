@@ -65,14 +65,11 @@ def grid_record(grid: Any) -> dict[str, Any]:
     ValueError
         When a field is missing or not valid (a positive length at least the step).
     """
+    fields = ("t0", "length_s", "step_s")
     if isinstance(grid, Mapping):
-        get = grid.get
+        t0, length, step = (grid.get(name) for name in fields)
     else:
-
-        def get(name):
-            return getattr(grid, name, None)
-
-    t0, length, step = get("t0"), get("length_s"), get("step_s")
+        t0, length, step = (getattr(grid, name, None) for name in fields)
     if t0 is None or length is None or step is None:
         raise ValueError("a block grid needs t0, length_s and step_s")
     try:
