@@ -2,7 +2,7 @@
 
 Issue 19: the laboratory steel frame of ../shared/realdata/lab_frame (``measurement_1``,
 5 good channels, decimated from 256 Hz to 42.7 Hz: 10 240 samples), identified by
-:func:`workbench.sid.lscf.lscf` and by pyOMA2's ``pLSCF`` algorithm (pyOMA-2 on PyPI, an
+:func:`workbench.sid.plscf.lscf` and by pyOMA2's ``pLSCF`` algorithm (pyOMA-2 on PyPI, an
 optional benchmark dependency: ``pip install -e ".[bench]"``) with the same model:
 
 - every channel an output and a reference (pyOMA2 uses all channels as references);
@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from workbench.sid.lscf import lscf
+from workbench.sid.plscf import lscf
 from workbench.signals.conditioning import decimate
 
 ROOT = Path(__file__).resolve().parents[1]

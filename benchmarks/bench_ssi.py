@@ -24,7 +24,7 @@ Ours, koma and pyOMA2 are run alternately so that all see the same machine load;
 judged on the median of the ratios of back-to-back (ours, koma) pairs, and the ratio of
 the medians and of the fastest runs are printed beside it (on a shared machine koma's
 multi-threaded BLAS is the more disturbed of the two). Both use the same cores: koma its
-default multi-threaded BLAS, ours its Python threads (:func:`workbench.sid.modal.thread_budget`)
+default multi-threaded BLAS, ours its Python threads (:func:`workbench.sid.threads.thread_budget`)
 with single-threaded BLAS; ``--single-thread-baseline`` also times koma with one BLAS thread.
 
 Run: ``python benchmarks/bench_ssi.py [--repeats 7] [--koma-repeats 7]`` (koma and pyOMA2:

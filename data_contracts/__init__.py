@@ -15,6 +15,7 @@ from .accelerations import (
 )
 from .dship import DEFAULT_DSHIP_MAPPING, DSHIP_LOG, read_dship
 from .geometry import SENSOR_GEOMETRY, geometry_directions
+from .grid import grid_record, recorded_grid, set_grid
 from .health import ALARMS, HEALTH
 from .tables import (
     CANONICAL_PREDICTORS,
@@ -23,12 +24,14 @@ from .tables import (
     MODAL,
     POLES,
     PREDICTORS,
+    SELECTED,
     read_table,
     shape_columns,
     shapes_from_frame,
     shapes_to_frame,
     write_table,
 )
+from .validation import FILE_KINDS, ValidatedFile, validate_file
 
 __all__ = [
     "ALARMS",
@@ -37,27 +40,34 @@ __all__ = [
     "CONTRACTS",
     "DEFAULT_DSHIP_MAPPING",
     "DSHIP_LOG",
+    "FILE_KINDS",
     "FORECAST",
     "MODAL",
     "POLES",
     "PREDICTORS",
+    "SELECTED",
     "SENSOR_GEOMETRY",
     "AccelerationRecord",
     "Column",
     "ColumnPattern",
     "ContractError",
     "TableContract",
+    "ValidatedFile",
     "Violation",
     "atomic_path",
     "channel_names",
     "geometry_directions",
+    "grid_record",
     "read_accelerations",
     "read_dship",
     "read_table",
+    "recorded_grid",
+    "set_grid",
     "shape_columns",
     "shapes_from_frame",
     "shapes_to_frame",
     "validate_accelerations",
+    "validate_file",
     "write_accelerations",
     "write_table",
 ]

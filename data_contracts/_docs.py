@@ -11,7 +11,7 @@ from .dship import DSHIP_LOG
 from .dship_names import DSHIP_NAMES
 from .geometry import SENSOR_GEOMETRY
 from .health import ALARMS, HEALTH
-from .tables import FORECAST, MODAL, POLES, PREDICTORS
+from .tables import FORECAST, MODAL, POLES, PREDICTORS, SELECTED
 
 _INTRO = """\
 # Data contracts
@@ -29,6 +29,13 @@ Columns not listed are kept (extra predictors, diagnostics).
 **Blocks.** A voyage's block grid is anchored at `t0`, the first data time floored to the
 block step. Block `k` covers `[t0 + k·step, t0 + k·step + length)`; by default `length` is
 20 min with 75 % overlap, so `step` is 5 min. `block` is the integer `k`.
+Every block-level table records its grid, so later stages use it instead of guessing it
+from the block starts (a table of one block cannot tell its step): `read_table` attaches it
+as `frame.attrs["block_grid"]` (`{"t0": ISO-8601 UTC, "length_s": s, "step_s": s}`) and
+`write_table` stores it in the Parquet key-value metadata (`workbench.block_grid`, the same
+JSON) or, beside a CSV file, in a sidecar `<file name>.grid.json` (the CSV stays a plain
+table). Files without a recorded grid read as before; a recorded grid that contradicts the
+`block`/`block_start`/`block_end` columns is ignored with a warning.
 
 **Mode shapes.** One pair of float columns per channel `c`: `shape_re_<c>` and
 `shape_im_<c>` (real and imaginary part). Shapes have unit Euclidean norm with the largest
@@ -152,6 +159,7 @@ _TITLES = {
     "predictors": "Block predictors",
     "modal": "Tracked modal table",
     "poles": "Pole table",
+    "selected": "Selected modes",
     "forecast": "Forecast table",
     "sensor_geometry": "Sensor geometry",
     "health": "Structural-health chart",
@@ -167,7 +175,16 @@ def render_markdown() -> str:
     )
     parts = [_INTRO.replace("{mapping}", mapping).rstrip("\n")]
     parts.append("Canonical log after parsing:\n\n" + _columns_table(DSHIP_LOG))
-    for contract in (PREDICTORS, MODAL, POLES, FORECAST, SENSOR_GEOMETRY, HEALTH, ALARMS):
+    for contract in (
+        PREDICTORS,
+        MODAL,
+        POLES,
+        SELECTED,
+        FORECAST,
+        SENSOR_GEOMETRY,
+        HEALTH,
+        ALARMS,
+    ):
         parts.append(
             f"## {_TITLES[contract.name]} (`{contract.name}`)\n\n"
             f"{contract.description}\n\n"

@@ -43,6 +43,7 @@ import pandas as pd
 from ._core import ContractError, Violation
 from .csv_layout import read_delimited, split_unit
 from .dship_names import TIME_FORMATS, name_key
+from .grid import GRID_ATTR, attach_grid, read_grid, set_grid
 from .tables import MODAL
 
 __all__ = ["ModalLayout", "read_modal_table", "standardise_modal"]
@@ -178,7 +179,10 @@ def read_modal_table(
         raise ContractError(
             [Violation(None, f"cannot read file: {message}")], source=path, contract="modal"
         ) from None
-    return standardise_modal(frame, layout, source=str(path))
+    frame.attrs.pop(GRID_ATTR, None)
+    table = standardise_modal(frame, layout, source=str(path))
+    fmt = "parquet" if path.suffix.lower() in (".parquet", ".pq") else "csv"
+    return attach_grid(table, read_grid(path, fmt), path)
 
 
 def standardise_modal(
@@ -363,7 +367,8 @@ def standardise_modal(
     table.insert(2, "block_end", pd.DatetimeIndex(block_start) + length)
     table = table.drop(columns="_row")
     table = table.sort_values(["block", "mode"], kind="stable").reset_index(drop=True)
-    return _finish(table, head, source)
+    grid = {"t0": t0, "length_s": layout.block_length_s, "step_s": layout.block_step_s}
+    return set_grid(_finish(table, head, source), grid)
 
 
 def _finish(table: pd.DataFrame, head: str, source: str | None) -> pd.DataFrame:

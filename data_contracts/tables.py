@@ -1,9 +1,11 @@
 """The block-level tables every stage reads and writes.
 
 Contracts: :data:`PREDICTORS` (block-averaged ship log), :data:`MODAL` (tracked modal table),
-:data:`POLES` (stabilisation diagrams), :data:`FORECAST` (sliding-model and Kalman
-estimates). Each is a :class:`~data_contracts._core.TableContract`; read and write them with
-:func:`read_table` / :func:`write_table`, which validate and use CSV or Parquet by suffix.
+:data:`POLES` (stabilisation diagrams), :data:`SELECTED` (the modes selected automatically in
+each block, input of tracking), :data:`FORECAST` (sliding-model and Kalman estimates). Each
+is a :class:`~data_contracts._core.TableContract`; read and write them with
+:func:`read_table` / :func:`write_table`, which validate, use CSV or Parquet by suffix and
+carry the block grid the table was computed on (:mod:`data_contracts.grid`).
 
 Mode shapes are stored as two float columns per channel, ``shape_re_<channel>`` and
 ``shape_im_<channel>``; :func:`shapes_to_frame` and :func:`shapes_from_frame` convert.
@@ -18,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from . import grid as _grid
 from ._core import (
     CSV_READ_OPTIONS,
     Column,
@@ -34,6 +37,7 @@ __all__ = [
     "MODAL",
     "POLES",
     "PREDICTORS",
+    "SELECTED",
     "CONTRACTS",
     "read_table",
     "shape_columns",
@@ -75,6 +79,16 @@ _DAMPING = Column(
     minimum=-1.0,
     maximum=1.0,
     hint="damping ratios are fractions: 1.2 % is 0.012",
+)
+
+_MPC = Column(
+    "mpc",
+    "float",
+    "Modal phase collinearity of the shape (1 = real mode).",
+    required=False,
+    nullable=True,
+    minimum=0.0,
+    maximum=1.0 + 1e-9,
 )
 
 #: Canonical predictor columns, with their physical bounds used for plausibility checks.
@@ -251,17 +265,71 @@ POLES = TableContract(
             "bool",
             "Pole is stable in frequency, damping and shape against the previous model order.",
         ),
+        _MPC,
+    ),
+    patterns=(_SHAPES,),
+)
+
+SELECTED = TableContract(
+    name="selected",
+    description="Modes selected automatically from each block's stabilisation diagram (the "
+    "input of tracking): one row per block and selected mode, ordered by frequency within "
+    "the block. Mode labels are assigned later, by tracking.",
+    columns=(
+        _BLOCK,
+        _BLOCK_START,
+        _BLOCK_END,
+        _FREQUENCY,
+        _DAMPING,
         Column(
-            "mpc",
+            "model_order",
+            "int",
+            "Model order of the pole that represents the mode (written by identify; "
+            "tracking does not need it).",
+            required=False,
+            minimum=1,
+        ),
+        _MPC,
+        Column(
+            "stable",
+            "bool",
+            "The representing pole is stable against the previous model order.",
+            required=False,
+        ),
+        Column(
+            "pole_index",
+            "int",
+            "Row of the representing pole among the block's poles (all orders).",
+            required=False,
+            minimum=0,
+        ),
+        Column(
+            "frequency_std_hz",
             "float",
-            "Modal phase collinearity of the shape (1 = real mode).",
+            "Scatter of the frequency over the poles of the mode's cluster.",
+            unit="Hz",
             required=False,
             nullable=True,
             minimum=0.0,
-            maximum=1.0 + 1e-9,
+        ),
+        Column(
+            "damping_std",
+            "float",
+            "Scatter of the damping ratio over the poles of the mode's cluster.",
+            required=False,
+            nullable=True,
+            minimum=0.0,
+        ),
+        Column(
+            "n_poles",
+            "int",
+            "Poles in the mode's cluster (one per model order at most).",
+            required=False,
+            minimum=1,
         ),
     ),
     patterns=(_SHAPES,),
+    checks=(_end_after_start, _one_start_per_block),
 )
 
 FORECAST = TableContract(
@@ -316,7 +384,7 @@ FORECAST = TableContract(
 from .geometry import SENSOR_GEOMETRY  # noqa: E402  (after the tables it sits beside)
 
 CONTRACTS: dict[str, TableContract] = {
-    c.name: c for c in (PREDICTORS, MODAL, POLES, FORECAST, SENSOR_GEOMETRY)
+    c.name: c for c in (PREDICTORS, MODAL, POLES, SELECTED, FORECAST, SENSOR_GEOMETRY)
 }
 
 
@@ -370,6 +438,10 @@ def _format_of(path: Path) -> str:
 def read_table(path: str | os.PathLike, contract: TableContract) -> pd.DataFrame:
     """Read a CSV or Parquet table and validate it against *contract*.
 
+    The block grid recorded with the file (Parquet metadata, or the CSV's
+    ``<name>.grid.json`` sidecar; see :mod:`data_contracts.grid`) is attached to the
+    returned frame as ``frame.attrs["block_grid"]``.
+
     Raises
     ------
     ContractError
@@ -392,18 +464,39 @@ def read_table(path: str | os.PathLike, contract: TableContract) -> pd.DataFrame
         raise ContractError(
             [Violation(None, reason)], source=path, contract=contract.name
         ) from None
-    return contract.validate(frame, source=path)
+    frame.attrs.pop(_grid.GRID_ATTR, None)
+    table = contract.validate(frame, source=path)
+    return _grid.attach_grid(table, _grid.read_grid(path, fmt), path)
 
 
-def write_table(frame: pd.DataFrame, path: str | os.PathLike, contract: TableContract) -> Path:
+def write_table(
+    frame: pd.DataFrame, path: str | os.PathLike, contract: TableContract, *, grid=None
+) -> Path:
     """Validate *frame* and write it atomically as CSV or Parquet (by suffix).
 
     Times are written as ISO-8601 UTC; floats with the shortest text that reads back to
     the same double, so a CSV round trip is exact.
+
+    Parameters
+    ----------
+    grid : mapping or BlockGrid, optional
+        The block grid of the table's blocks (default: the one recorded with *frame*, if
+        any). Stored in the Parquet metadata, or beside a CSV file as
+        ``<name>.grid.json``; see :mod:`data_contracts.grid`.
+
+    Raises
+    ------
+    ContractError
+        When *frame* violates the contract, or its blocks are not on *grid*.
     """
     path = Path(path)
     fmt = _format_of(path)
+    record = _grid.grid_record(grid) if grid is not None else _grid.recorded_grid(frame)
     table = contract.validate(frame)
+    if record is not None:
+        reason = _grid.grid_mismatch(table, record)
+        if reason is not None:
+            raise ContractError([Violation(None, reason)], source=path, contract=contract.name)
     with atomic_path(path) as tmp:
         if fmt == "csv":
             out = table.copy()
@@ -419,8 +512,38 @@ def write_table(frame: pd.DataFrame, path: str | os.PathLike, contract: TableCon
                     )
             out.to_csv(tmp, index=False, lineterminator="\n")
         else:
-            table.to_parquet(tmp, index=False)
+            write_parquet(table, tmp, grid=record)
+    if fmt == "csv":
+        write_grid_sidecar(path, record)
     return path
+
+
+def write_parquet(frame: pd.DataFrame, path: str | os.PathLike, *, grid=None) -> Path:
+    """Write *frame* (no index) as Parquet, with *grid* in the key-value metadata."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    table = pa.Table.from_pandas(frame, preserve_index=False)
+    if grid is not None:
+        table = table.replace_schema_metadata(metadata_with_grid(table.schema.metadata, grid))
+    pq.write_table(table, path)
+    return Path(path)
+
+
+def metadata_with_grid(metadata: dict | None, grid) -> dict:
+    """Parquet key-value *metadata* plus the block *grid* (``workbench.block_grid``)."""
+    return {**(metadata or {}), _grid.GRID_METADATA_KEY: _grid.grid_json(grid).encode()}
+
+
+def write_grid_sidecar(path: str | os.PathLike, grid) -> Path | None:
+    """Write (or, without *grid*, remove) the grid sidecar of the CSV table *path*."""
+    sidecar = _grid.grid_sidecar(path)
+    if grid is None:
+        sidecar.unlink(missing_ok=True)  # a stale grid must not outlive its table
+        return None
+    with atomic_path(sidecar) as tmp:
+        tmp.write_text(_grid.grid_json(grid) + "\n", encoding="utf-8")
+    return sidecar
 
 
 __all__ += ["ContractError"]

@@ -25,7 +25,7 @@ from workbench.simulate import (
     simulate_voyage,
     true_modal_parameters,
 )
-from workbench.simulate.identification import (
+from workbench.simulate.imitation import (
     DAMPING_SCATTER,
     FREQUENCY_SCATTER,
     MISSING_FRACTION,

@@ -233,16 +233,29 @@ class BlockGrid:
 def block_grid_of(table: pd.DataFrame) -> tuple[pd.Timestamp, float, float]:
     """Block grid ``(t0, length_s, step_s)`` of a table with block, block_start, block_end.
 
-    With a single block the step cannot be seen and is taken as a quarter of the block
-    length (the default 75 % overlap).
+    The grid recorded with the table (``table.attrs["block_grid"]``, read from the file by
+    :func:`~data_contracts.read_table`) is used when there is one. Otherwise it is inferred
+    from the block starts; a single block does not tell the step, which is then taken as a
+    quarter of the length (75 % overlap) with a warning.
 
     Raises
     ------
     WorkbenchError
-        If the block starts do not lie on one grid.
+        If the block starts do not lie on one grid (or not on the recorded one).
     """
+    import warnings
+
+    from data_contracts import recorded_grid
+    from data_contracts.grid import grid_mismatch
+
     from .errors import WorkbenchError
 
+    recorded = recorded_grid(table)
+    if recorded is not None:
+        off_grid = grid_mismatch(table, recorded)
+        if off_grid is not None:
+            raise WorkbenchError(off_grid)
+        return pd.Timestamp(recorded["t0"]), recorded["length_s"], recorded["step_s"]
     blocks = table[["block", "block_start", "block_end"]].drop_duplicates("block")
     blocks = blocks.sort_values("block")
     start = pd.to_datetime(blocks["block_start"], utc=True)
@@ -252,6 +265,12 @@ def block_grid_of(table: pd.DataFrame) -> tuple[pd.Timestamp, float, float]:
         step = float(np.median(steps))
     else:
         step = float(length.iat[0]) / 4.0
+        warnings.warn(
+            f"one block and no recorded block grid: the step between blocks is taken as a "
+            f"quarter of the block length ({step:g} s, 75 % overlap)",
+            UserWarning,
+            stacklevel=2,
+        )
     t0 = start.iat[0] - pd.Timedelta(seconds=step * int(blocks["block"].iat[0]))
     expected = t0 + pd.to_timedelta(blocks["block"].to_numpy() * step, unit="s")
     off = np.abs((start.to_numpy() - expected.to_numpy()) / np.timedelta64(1, "s")) > 1e-3

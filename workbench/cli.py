@@ -40,15 +40,16 @@ class UsageError(Exception):
 
 
 def _add_validate(commands: argparse._SubParsersAction) -> None:
-    from data_contracts import CONTRACTS
+    from data_contracts import FILE_KINDS
 
-    kinds = ["accelerations", "dship", *CONTRACTS]
     parser = commands.add_parser(
         "validate",
         help="check a file against a data contract",
         description="Check FILE against the contract KIND and report every problem.",
     )
-    parser.add_argument("kind", choices=kinds, metavar="KIND", help=f"one of: {', '.join(kinds)}")
+    parser.add_argument(
+        "kind", choices=FILE_KINDS, metavar="KIND", help=f"one of: {', '.join(FILE_KINDS)}"
+    )
     parser.add_argument("file", type=Path, metavar="FILE")
     add_dship_columns(parser)
     add_acceleration_layout(parser)
@@ -56,25 +57,19 @@ def _add_validate(commands: argparse._SubParsersAction) -> None:
 
 
 def _run_validate(args: argparse.Namespace) -> int:
-    from data_contracts import CONTRACTS, read_accelerations, read_dship, read_table
+    from data_contracts import validate_file
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        if args.kind == "accelerations":
-            record = read_accelerations(args.file, layout=acceleration_layout(args))
-            summary = (
-                f"{record.n_samples} samples x {len(record.channels)} channels at "
-                f"{record.sampling_rate_hz:g} Hz from {record.start_time.isoformat()}"
-            )
-        elif args.kind == "dship":
-            table = read_dship(args.file, mapping=dship_mapping(args))
-            summary = f"{len(table)} records, columns {', '.join(table.columns[1:])}"
-        else:
-            table = read_table(args.file, CONTRACTS[args.kind])
-            summary = f"{len(table)} rows"
+        checked = validate_file(
+            args.kind,
+            args.file,
+            layout=acceleration_layout(args) if args.kind == "accelerations" else None,
+            dship_mapping=dship_mapping(args) if args.kind == "dship" else None,
+        )
     for warning in caught:
         print(f"warning: {warning.message}", file=sys.stderr)
-    print(f"{args.file}: valid {args.kind} file ({summary})")
+    print(f"{args.file}: valid {args.kind} file ({checked.summary})")
     return EXIT_OK
 
 
@@ -1208,14 +1203,19 @@ def _add_health(commands: argparse._SubParsersAction) -> None:
 
 
 def _run_health(args: argparse.Namespace) -> int:
-    from data_contracts import FORECAST, read_table
+    from data_contracts import FORECAST, read_table, recorded_grid
 
     from .health import HealthOptions
     from .stages import health
 
     forecast = read_table(args.forecast, FORECAST)
-    step_h = forecast["block_start"].drop_duplicates().sort_values().diff().median()
-    blocks = int(round(args.reference_hours * 3600 / step_h.total_seconds()))
+    grid = recorded_grid(forecast)
+    step_s = (
+        grid["step_s"]
+        if grid is not None
+        else forecast["block_start"].drop_duplicates().sort_values().diff().median().total_seconds()
+    )
+    blocks = int(round(args.reference_hours * 3600 / step_s))
     try:
         options = HealthOptions(
             reference_blocks=blocks,
@@ -1301,6 +1301,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     log.setLevel(logging.DEBUG if args.verbose else logging.INFO)
     for noisy in ("distributed", "tornado", "bokeh", "asyncio"):  # cluster chatter
         logging.getLogger(noisy).setLevel(logging.DEBUG if args.verbose else logging.ERROR)
+    import matplotlib
+
+    matplotlib.use("Agg")  # commands write figures to files and never open a window
     shown = warnings.showwarning
     if not args.verbose:
         warnings.showwarning = _show_warning

@@ -13,7 +13,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from data_contracts import CONTRACTS, read_accelerations, read_dship, read_table
+from data_contracts import CONTRACTS, read_table, validate_file
 
 from .reporting.report import build_report
 
@@ -51,7 +51,7 @@ def _kind_of(path: Path) -> str | None:
         return "accelerations"
     if path.suffix in (".tab", ".tsv"):
         return "dship"
-    for kind in ("forecast", "poles", "predictors"):
+    for kind in ("forecast", "poles", "predictors", "selected"):
         if name.startswith(kind) and path.suffix in (".csv", ".parquet"):
             return kind
     if path.suffix in (".csv", ".parquet") and "modal" in name:
@@ -80,12 +80,7 @@ def validate_folder(root: Path) -> int:
         kind = _kind_of(path)
         if kind is None or not path.is_file():
             continue
-        if kind == "accelerations":
-            read_accelerations(path)
-        elif kind == "dship":
-            read_dship(path)
-        else:
-            read_table(path, CONTRACTS[kind])
+        validate_file(kind, path)
         count += 1
     return count
 

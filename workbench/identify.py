@@ -46,8 +46,9 @@ import numpy as np
 import pandas as pd
 from scipy import stats as scipy_stats
 
-from data_contracts import POLES, atomic_path, shape_columns
+from data_contracts import POLES, SELECTED, atomic_path, shape_columns
 from data_contracts.formats import ACCELERATION_SUFFIXES as _FORMAT_SUFFIXES
+from data_contracts.tables import metadata_with_grid, write_grid_sidecar
 
 from .blocks import BlockGrid
 from .errors import OptionError, WorkbenchError
@@ -81,7 +82,7 @@ class IdentifyOptions:
     ----------
     method : {"cov", "data", "lscf"}
         Covariance-driven or data-driven SSI, or poly-reference LSCF
-        (:func:`workbench.sid.lscf.lscf`, fitted in *band_hz*).
+        (:func:`workbench.sid.plscf.lscf`, fitted in *band_hz*).
     block_rows : int
         Block rows i of the Hankel/Toeplitz matrix (lags 1..2i). [-]
     orders : tuple of int
@@ -119,7 +120,7 @@ class IdentifyOptions:
     lscf_orders : tuple of int
         Polynomial orders p of LSCF (p·r poles with r references). [-]
     lscf_lags : int, optional
-        Correlation lags of the LSCF half-spectra (default: see :func:`~workbench.sid.lscf.
+        Correlation lags of the LSCF half-spectra (default: see :func:`~workbench.sid.plscf.
         lscf`).
     cross_check : bool
         Also identify every block with the other family (LSCF for SSI, SSI-cov for LSCF)
@@ -443,7 +444,7 @@ def _identify_data(
 def _identify_method(method: str, data, reference, options: IdentifyOptions):
     """Result of *method* on a conditioned block, stabilised, and its mode selection."""
     from .sid import select_modes, ssi_cov, ssi_data, stabilise
-    from .sid.lscf import lscf
+    from .sid.plscf import lscf
 
     n_channels = len(data.channels)
     orders = _reachable_orders(options, n_channels, len(reference or range(n_channels)))
@@ -1012,7 +1013,7 @@ def identify_voyage(
             description="identify",
         )
         result = IdentifyResult(summary, n_blocks=len(tasks))
-        result.files = export_store(store, out, channels)
+        result.files = export_store(store, out, channels, grid=grid)
     selected = result.files.get("selected")
     if selected is not None:
         result.n_selected = len(pd.read_parquet(selected, columns=["block"]))
@@ -1113,7 +1114,7 @@ def cross_check_blocks(
     table = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=columns)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    _write_csv(table, out / "crosscheck.csv")
+    write_grid_sidecar(_write_csv(table, out / "crosscheck.csv"), plan.grid)
     return table
 
 
@@ -1170,24 +1171,32 @@ def write_tpe_figures(
     return paths
 
 
-def export_store(store: BlockStore, out_dir: str | os.PathLike, channels: Sequence[str]):
+def export_store(
+    store: BlockStore,
+    out_dir: str | os.PathLike,
+    channels: Sequence[str],
+    *,
+    grid: BlockGrid | None = None,
+):
     """Write the store's results as tables in *out_dir*; return them by kind.
 
     Poles and selected modes are streamed chunk by chunk into one Parquet file each (rows in
-    block order), so exporting a voyage of any length needs the memory of one chunk.
+    block order), so exporting a voyage of any length needs the memory of one chunk. Every
+    table records the block *grid* (Parquet metadata, or a ``<name>.grid.json`` sidecar
+    beside the CSV files; see :mod:`data_contracts.grid`).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files: dict[str, Path] = {}
     for kind, sort, name, contract in (
         ("poles", ["block", "model_order", "frequency_hz"], "poles.parquet", POLES),
-        ("selected", ["block", "frequency_hz"], "selected.parquet", None),
+        ("selected", ["block", "frequency_hz"], "selected.parquet", SELECTED),
     ):
         chunks = (
             chunk.sort_values(sort, kind="stable").reset_index(drop=True)
             for chunk in store.read_chunks(kind, blocks_per_chunk=64)
         )
-        path = _write_parquet_chunks(chunks, out / name, contract)
+        path = _write_parquet_chunks(chunks, out / name, contract, grid=grid)
         if path is not None:
             files[kind] = path
     for kind in ("faults", "channels", "crosscheck", "blocks"):
@@ -1196,10 +1205,11 @@ def export_store(store: BlockStore, out_dir: str | os.PathLike, channels: Sequen
             table = table.sort_values("block", kind="stable")
         if not table.empty or kind == "blocks":
             files[kind] = _write_csv(table.reset_index(drop=True), out / f"{kind}.csv")
+            write_grid_sidecar(files[kind], grid)
     return files
 
 
-def _write_parquet_chunks(chunks, path: Path, contract=None) -> Path | None:
+def _write_parquet_chunks(chunks, path: Path, contract=None, *, grid=None) -> Path | None:
     """Stream DataFrame chunks into one Parquet file (validated per chunk), atomically."""
     import pyarrow as pa
     import pyarrow.parquet as pq
@@ -1215,6 +1225,8 @@ def _write_parquet_chunks(chunks, path: Path, contract=None) -> Path | None:
                     table = pa.Table.from_pandas(chunk, preserve_index=False, schema=schema)
                     if writer is None:
                         schema = table.schema
+                        if grid is not None:
+                            schema = schema.with_metadata(metadata_with_grid(schema.metadata, grid))
                         writer = pq.ParquetWriter(tmp, schema)
                     writer.write_table(table)
             finally:

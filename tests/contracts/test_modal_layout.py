@@ -122,7 +122,10 @@ def test_block_indexed_layout_needs_the_grid_t0(tmp_path):
     with pytest.raises(ContractError, match="block numbers .* but no times: give the grid's t0"):
         read_modal_table(path)
     t0 = STARTS[0] - pd.Timedelta(minutes=35)
-    check(read_modal_table(path, grid_t0=t0.isoformat()), blocks_from=7)
+    table = read_modal_table(path, grid_t0=t0.isoformat())
+    check(table, blocks_from=7)
+    # the grid the layout placed the rows on travels with the table
+    assert table.attrs["block_grid"] == {"t0": t0.isoformat(), "length_s": 1200.0, "step_s": 300.0}
 
 
 def test_rows_without_frequency_are_dropped_and_counted(tmp_path):

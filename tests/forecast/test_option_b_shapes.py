@@ -20,7 +20,7 @@ import pytest
 from data_contracts import FORECAST, shapes_to_frame
 from workbench.forecast import ForecastWarning, ModeKalmanBank, sliding_forecast
 from workbench.forecast.sliding import _mac_on_common_channels
-from workbench.sid.mac import mac
+from workbench.sid.assurance import mac
 
 START = pd.Timestamp("2024-03-01T00:00:00Z")
 CHANNELS = [f"acc{c:02d}" for c in range(1, 9)]

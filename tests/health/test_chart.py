@@ -123,3 +123,22 @@ def test_too_short_forecast_and_bad_contract_are_reported():
         health_chart(forecast, OPTIONS)
     with pytest.raises(ContractError, match="model_frequency_hz"):
         health_chart(forecast.drop(columns="model_frequency_hz"), OPTIONS)
+
+
+def test_the_recorded_block_grid_gives_the_step_not_the_blocks_present():
+    from data_contracts import set_grid
+
+    voyage = simulate_health_voyage(
+        24, seed=0, damaged_mode=3, stiffness_loss=0.02, damage_after_hours=16
+    )
+    forecast = law_forecast(voyage)
+    sparse = forecast[forecast["block"] % 2 == 0].copy()  # every other block identified
+    options = HealthOptions(reference_blocks=72, reference_start_block=0)
+    # without a recorded grid the step is read from the blocks present: 10 min
+    assert health_chart(sparse, options).reference.blocks_per_day == pytest.approx(144.0)
+    first = sparse.loc[sparse["block"].idxmin()]
+    t0 = first["block_start"] - pd.Timedelta(minutes=5) * int(first["block"])
+    set_grid(sparse, {"t0": t0, "length_s": 1200.0, "step_s": 300.0})
+    result = health_chart(sparse, options)
+    assert result.reference.blocks_per_day == pytest.approx(288.0)
+    assert result.table.attrs["block_grid"]["step_s"] == 300.0

@@ -20,7 +20,7 @@ from workbench.sid.crosscheck import (
     agreement_summary,
     cross_check,
 )
-from workbench.sid.lscf import lscf
+from workbench.sid.plscf import lscf
 from workbench.signals.conditioning import decimate
 
 LAB_FRAME = Path(__file__).resolve().parents[3] / "shared" / "realdata" / "lab_frame"

@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from data_contracts import MODAL
-from workbench.sid.mac import mac
+from workbench.sid.assurance import mac
 from workbench.sid.selection import select_modes
 from workbench.sid.ssi import SSIResult, StochasticStateSpace, ssi_cov, ssi_data
 from workbench.sid.stabilisation import stability_flags

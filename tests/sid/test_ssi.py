@@ -17,8 +17,7 @@ from scipy import signal
 
 from data_contracts import POLES
 from workbench.sid import ssi as ssi_module
-from workbench.sid.mac import mac
-from workbench.sid.modal import sid_threads, thread_budget
+from workbench.sid.assurance import mac
 from workbench.sid.ssi import (
     SSIWarning,
     _hankel_gram,
@@ -28,6 +27,7 @@ from workbench.sid.ssi import (
     ssi_cov,
     ssi_data,
 )
+from workbench.sid.threads import sid_threads, thread_budget
 from workbench.simulate.hull import CHANNELS
 
 METHODS = {

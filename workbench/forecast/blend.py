@@ -39,6 +39,7 @@ from collections import Counter
 import numpy as np
 import pandas as pd
 
+from ..stats.distributions import t_quantile
 from .excitation import sub_windows_per_block, within_block_variance
 from .measurement import (
     ClusterChooser,
@@ -242,7 +243,6 @@ def memory_forecast(
         _mac_on_common_channels,
         _plausible,
         _PoleSelector,
-        _t_quantile,
     )
 
     option = measurement.option
@@ -592,7 +592,7 @@ def memory_forecast(
         dof = max(int(round(m.dof)), 1)
         t = t_cache.get(dof)
         if t is None:
-            t = t_cache[dof] = _t_quantile(model.alpha, dof)
+            t = t_cache[dof] = t_quantile(1 - model.alpha / 2, dof)
         half = t * np.sqrt(m.residual_variance + mvar)
         return mean, mean - half, mean + half, bad, mvar
 

@@ -18,7 +18,6 @@ when the model has lost the mode (an automatic modal parameter selection).
 
 from __future__ import annotations
 
-import functools
 import math
 import re
 from collections.abc import Mapping, Sequence
@@ -27,8 +26,8 @@ from typing import Any, Literal
 
 import numpy as np
 import pandas as pd
-from scipy import stats as _scipy_stats
 
+from ..stats.distributions import t_quantile
 from .kalman import relaxation_factor
 from .options import MeasurementOptions, ModelOptions, NoiseOptions, method_label, option_label
 
@@ -139,18 +138,12 @@ class _Model:
         return tuple(getattr(self.fit, "terms", ())) if self.fit is not None else ()
 
 
-@functools.lru_cache(maxsize=4096)
-def _t_quantile(alpha: float, dof: int) -> float:
-    """Two-sided Student-t quantile t_{1-α/2, dof} (cached: called per window and mode)."""
-    return float(_scipy_stats.t.ppf(1 - alpha / 2, dof))
-
-
 def _constant_prediction(
     level: float, spread: float, n: int, n_rows: int, alpha: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Constant model ȳ ± t s sqrt(1 + 1/n): mean, lower, upper, mean-prediction variance."""
     mean = np.full(n_rows, level)
-    t = _t_quantile(alpha, max(n - 1, 1))
+    t = t_quantile(1 - alpha / 2, max(n - 1, 1))
     half = t * spread * math.sqrt(1.0 + 1.0 / max(n, 1))
     return mean, mean - half, mean + half, np.full(n_rows, spread**2 / max(n, 1))
 
@@ -585,10 +578,10 @@ def _mac_on_common_channels(reference: np.ndarray, shapes: np.ndarray) -> np.nda
 
     Each pair is compared on the channels both have (finite components); a pair sharing
     fewer than ``_MIN_SHAPE_CHANNELS`` channels gives NaN. Rows with the same set of
-    available channels (usually every pole of a block) go to :func:`workbench.sid.mac.mac`
+    available channels (usually every pole of a block) go to :func:`workbench.sid.assurance.mac`
     together.
     """
-    from workbench.sid.mac import mac
+    from workbench.sid.assurance import mac
 
     out = np.full(shapes.shape[0], np.nan)
     if shapes.shape[0] == 0:

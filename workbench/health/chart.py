@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats as _scipy_stats
 
-from data_contracts import ALARMS, FORECAST, HEALTH, write_table
+from data_contracts import ALARMS, FORECAST, HEALTH, recorded_grid, set_grid, write_table
 
 __all__ = ["HealthOptions", "HealthReference", "HealthResult", "health_chart"]
 
@@ -354,7 +354,11 @@ def health_chart(forecast: pd.DataFrame, options: HealthOptions | None = None) -
     wide, relative = _residual_matrix(table)
     starts = table.groupby("block")["block_start"].first().reindex(wide.index)
     blocks = wide.index.to_numpy()
-    step_s = float(np.median(np.diff(starts.to_numpy()).astype("timedelta64[s]").astype(float)))
+    grid = recorded_grid(forecast)
+    if grid is not None:
+        step_s = grid["step_s"]
+    else:  # a table without recorded grid: the step between consecutive blocks present
+        step_s = float(np.median(np.diff(starts.to_numpy()).astype("timedelta64[s]").astype(float)))
     if not step_s > 0:
         raise ValueError("forecast: cannot infer the block step from block_start")
     blocks_per_day = 86400.0 / step_s
@@ -441,7 +445,7 @@ def health_chart(forecast: pd.DataFrame, options: HealthOptions | None = None) -
         shares = parts / t2[:, None]
     for j, mode in enumerate(modes):
         health[f"contribution_{mode}"] = np.where(t2 > 0, shares[:, j], np.nan)
-    health = HEALTH.validate(health)
+    health = set_grid(HEALTH.validate(health), grid)
 
     reference_relative = relative.iloc[first:stop][list(modes)].median()
     episodes = []

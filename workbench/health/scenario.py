@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from ..simulate import START_TIME, operating_profile, true_modal_parameters
-from ..simulate.identification import FREQUENCY_SCATTER
+from ..simulate.imitation import FREQUENCY_SCATTER
 
 __all__ = [
     "HealthVoyage",
@@ -106,7 +106,7 @@ def simulate_health_voyage(
     -----
     Identification error of mode m in block k: e = f_m (u_k + ... + u_{k+3}) / 4 with u
     independent N(0, (2 s_m)²) per 5-min segment and s_m the demo's relative scatter
-    (:data:`~workbench.simulate.identification.FREQUENCY_SCATTER`, 0.2-0.5 %), so each
+    (:data:`~workbench.simulate.imitation.FREQUENCY_SCATTER`, 0.2-0.5 %), so each
     block has relative scatter s_m and neighbouring blocks, sharing 15 of their 20 minutes,
     correlate 0.75, 0.50, 0.25 at lags 1, 2, 3 blocks. A block partly after the damage
     sees the block average of the step. Logged predictors add white noise (speed 0.1 kn,
@@ -235,7 +235,7 @@ def law_forecast(voyage: HealthVoyage) -> pd.DataFrame:
 
     The operational/environmental model is then as good as a model can be: its error comes
     only from the log's noise. The 95 % bounds are ±1.96 s_m f with s_m the identification
-    scatter of :data:`~workbench.simulate.identification.FREQUENCY_SCATTER`. This separates
+    scatter of :data:`~workbench.simulate.imitation.FREQUENCY_SCATTER`. This separates
     what the chart does from how well a regression model extrapolates
     (:func:`frozen_forecast`).
     """

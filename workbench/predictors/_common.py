@@ -36,3 +36,22 @@ def numeric_columns(log: pd.DataFrame) -> list[str]:
         and pd.api.types.is_numeric_dtype(log[c])
         and not pd.api.types.is_bool_dtype(log[c])
     ]
+
+
+def check_numeric_columns(log: pd.DataFrame, columns) -> list[str]:
+    """*columns* as a list, checked to be numeric columns of *log*.
+
+    Raises
+    ------
+    ValueError
+        Naming the columns that are not in the log, or not numeric.
+    """
+    columns = list(columns)
+    missing = [c for c in columns if c not in log.columns]
+    if missing:
+        raise ValueError(f"columns {', '.join(missing)} are not in the log")
+    numeric = set(numeric_columns(log))
+    not_numeric = [c for c in columns if c not in numeric]
+    if not_numeric:
+        raise ValueError(f"columns {', '.join(not_numeric)} are not numeric")
+    return columns

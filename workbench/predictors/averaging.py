@@ -20,7 +20,14 @@ import pandas as pd
 from data_contracts import PREDICTORS
 
 from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S, BlockGrid
-from ._common import BLOCK_COLUMNS, CANONICAL_NAMES, PredictorWarning, numeric_columns, time_ns
+from ._common import (
+    BLOCK_COLUMNS,
+    CANONICAL_NAMES,
+    PredictorWarning,
+    check_numeric_columns,
+    numeric_columns,
+    time_ns,
+)
 from .faults import flag_faulty
 
 __all__ = ["block_coverage", "block_predictors", "circular_mean_deg"]
@@ -188,14 +195,7 @@ def _selected_columns(log: pd.DataFrame, columns: Sequence[str] | None) -> list[
     extras = [c for c in numeric_columns(log) if c not in CANONICAL_NAMES]
     if columns is None:
         return extras
-    unknown = [c for c in columns if c not in log.columns]
-    if unknown:
-        raise ValueError(f"columns {', '.join(unknown)} are not in the log")
-    numeric = set(numeric_columns(log))
-    not_numeric = [c for c in columns if c not in numeric]
-    if not_numeric:
-        raise ValueError(f"columns {', '.join(not_numeric)} are not numeric")
-    return [c for c in columns if c not in CANONICAL_NAMES]
+    return [c for c in check_numeric_columns(log, columns) if c not in CANONICAL_NAMES]
 
 
 def block_coverage(

@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 from scipy import ndimage
 
-from ._common import CANONICAL_NAMES, numeric_columns, time_ns
+from ._common import CANONICAL_NAMES, check_numeric_columns, time_ns
 
 __all__ = ["FaultFlags", "flag_faulty"]
 
@@ -211,13 +211,7 @@ def flag_faulty(
     times = time_ns(log)
     if columns is None:
         columns = [c for c in CANONICAL_NAMES if c in log.columns]
-    missing = [c for c in columns if c not in log.columns]
-    if missing:
-        raise ValueError(f"columns {', '.join(missing)} are not in the log")
-    numeric = set(numeric_columns(log))
-    not_numeric = [c for c in columns if c not in numeric]
-    if not_numeric:
-        raise ValueError(f"columns {', '.join(not_numeric)} are not numeric")
+    columns = check_numeric_columns(log, columns)
     window = int(window)
     if window < 5 or window % 2 == 0:
         raise ValueError(f"window={window} must be an odd number of samples, at least 5")

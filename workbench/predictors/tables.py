@@ -12,7 +12,7 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
-from data_contracts import CANONICAL_PREDICTORS, PREDICTORS, read_dship, read_table
+from data_contracts import CANONICAL_PREDICTORS, PREDICTORS, read_dship, read_table, set_grid
 
 from ..blocks import BlockGrid, block_grid_of
 
@@ -59,7 +59,7 @@ def load_predictors(
     table = block_predictors(
         log, grid=grid, blocks=np.arange(first, last + 1), min_coverage=min_coverage
     )
-    return PREDICTORS.validate(table)
+    return set_grid(PREDICTORS.validate(table), grid)
 
 
 def canonical_predictors(predictors: pd.DataFrame) -> pd.DataFrame:

@@ -17,17 +17,16 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Literal
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from matplotlib.patches import Rectangle
+from matplotlib.ticker import MaxNLocator
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from matplotlib.patches import Rectangle  # noqa: E402
-from matplotlib.ticker import MaxNLocator  # noqa: E402
+from data_contracts import atomic_path
+from workbench.stats.correlation import adjust_p_values, pairwise_pearson
 
-from data_contracts import atomic_path  # noqa: E402
-from workbench.stats.correlation import adjust_p_values, pairwise_pearson  # noqa: E402
+from .figures import save_figure
 
 __all__ = [
     "corrplot",
@@ -338,15 +337,6 @@ def _slug(text: str) -> str:
     return slug or "case"
 
 
-def _save(fig, path: Path, dpi: int) -> Path:
-    try:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=dpi, format="png")
-    finally:
-        plt.close(fig)
-    return path
-
-
 def _embedded(path: Path, alt: str) -> str:
     data = base64.b64encode(path.read_bytes()).decode("ascii")
     return (
@@ -449,10 +439,10 @@ def write_correlation_report(
     for quantity in result.quantities:
         name = f"corrplot_{_slug(quantity)}"
         fig = corrplot_of(result, quantity)
-        paths[name] = _save(fig, out / f"{name}.png", dpi)
+        paths[name] = save_figure(fig, out / f"{name}.png", dpi=dpi)
         figures.append((name, paths[name], f"{quantity}: modes and predictors, all cases"))
     fig = correlation_heatmaps(table)
-    paths["heatmap"] = _save(fig, out / "correlation_heatmap.png", dpi)
+    paths["heatmap"] = save_figure(fig, out / "correlation_heatmap.png", dpi=dpi)
     figures.append(("heatmap", paths["heatmap"], "Pearson r of mode quantities per case"))
 
     useful = table[table["useful"]].sort_values(["case", "p_value"], kind="stable")

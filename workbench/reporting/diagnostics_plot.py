@@ -14,17 +14,16 @@ import os
 from collections.abc import Mapping
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+from scipy import stats as _scipy_stats
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from scipy import stats as _scipy_stats  # noqa: E402
+from data_contracts import atomic_path
+from workbench.stats.cases import STITCHED
+from workbench.stats.diagnostics import ResidualDiagnostics, residual_diagnostics
+from workbench.stats.mode_fits import ModeFit
 
-from data_contracts import atomic_path  # noqa: E402
-from workbench.stats.cases import STITCHED  # noqa: E402
-from workbench.stats.diagnostics import ResidualDiagnostics, residual_diagnostics  # noqa: E402
-from workbench.stats.modes import ModeFit  # noqa: E402
+from .figures import save_figure
 
 __all__ = ["plot_residual_diagnostics", "write_diagnostics_figures", "write_fit_report"]
 
@@ -125,15 +124,6 @@ def plot_residual_diagnostics(
     return fig
 
 
-def _save(fig, path: Path, dpi: int) -> Path:
-    try:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=dpi, format="png")
-    finally:
-        plt.close(fig)
-    return path
-
-
 def _unit(quantity: str) -> str:
     return "Hz" if quantity.endswith("_hz") else ""
 
@@ -157,7 +147,7 @@ def write_diagnostics_figures(
             title=f"Mode {mode}: {item.fit.formula}",
             unit=_unit(item.quantity),
         )
-        paths.append(_save(fig, out / f"{prefix}{mode}.png", dpi))
+        paths.append(save_figure(fig, out / f"{prefix}{mode}.png", dpi=dpi))
     return paths
 
 

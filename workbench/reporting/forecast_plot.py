@@ -6,14 +6,11 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from data_contracts import atomic_path  # noqa: E402
+from .figures import save_figure
 
 __all__ = ["plot_forecast_mode", "write_forecast_figures"]
 
@@ -139,10 +136,5 @@ def write_forecast_figures(
             suffix = f"_{option}" if option is not None and len(options) > 1 else ""
             path = out / f"{prefix}{mode}{suffix}.png"
             fig = plot_forecast_mode(forecast_table, mode, truth_modal=truth_modal, option=option)
-            try:
-                with atomic_path(path) as tmp:
-                    fig.savefig(tmp, dpi=dpi, format="png")
-            finally:
-                plt.close(fig)
-            paths.append(path)
+            paths.append(save_figure(fig, path, dpi=dpi))
     return paths

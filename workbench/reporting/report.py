@@ -344,14 +344,9 @@ class _Figures:
         self.dpi = dpi
 
     def save(self, fig, name: str) -> str:
-        import matplotlib.pyplot as plt
+        from .figures import save_figure  # matplotlib only when a report draws
 
-        path = self.folder / f"{name}.png"
-        try:
-            with atomic_path(path) as tmp:
-                fig.savefig(tmp, dpi=self.dpi, format="png")
-        finally:
-            plt.close(fig)
+        path = save_figure(fig, self.folder / f"{name}.png", dpi=self.dpi)
         return path.relative_to(self.report_dir).as_posix()
 
 

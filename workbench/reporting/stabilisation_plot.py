@@ -14,17 +14,13 @@ import os
 from pathlib import Path
 from typing import Literal
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+from scipy import fft, signal
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from scipy import fft, signal  # noqa: E402
-
-from data_contracts import atomic_path  # noqa: E402
-
-from ..sid.selection import ModeSelection  # noqa: E402
-from ..sid.ssi import SSIResult  # noqa: E402
+from ..sid.selection import ModeSelection
+from ..sid.ssi import SSIResult
+from .figures import save_figure
 
 __all__ = [
     "cross_spectral_density",
@@ -229,12 +225,5 @@ def write_stabilisation_figure(
     **kwargs,
 ) -> Path:
     """Draw :func:`plot_stabilisation` and write it atomically as PNG to *path*."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     fig = plot_stabilisation(result, acceleration, selection=selection, **kwargs)
-    try:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=dpi, format="png")
-    finally:
-        plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=dpi)

@@ -13,16 +13,12 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from data_contracts import atomic_path  # noqa: E402
-
-from ..sid.tpe import PredictionErrors  # noqa: E402
-from .stabilisation_plot import plot_stabilisation  # noqa: E402
+from ..sid.tpe import PredictionErrors
+from .figures import save_figure
+from .stabilisation_plot import plot_stabilisation
 
 __all__ = ["plot_stabilisation_with_tpe", "write_stabilisation_tpe_figure"]
 
@@ -90,12 +86,5 @@ def write_stabilisation_tpe_figure(
     **kwargs,
 ) -> Path:
     """Draw :func:`plot_stabilisation_with_tpe` and write it atomically as PNG to *path*."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     fig = plot_stabilisation_with_tpe(result, errors, acceleration, **kwargs)
-    try:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=dpi, format="png")
-    finally:
-        plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=dpi)

@@ -10,16 +10,13 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-import matplotlib
+import matplotlib.dates as mdates
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.dates as mdates  # noqa: E402
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from data_contracts import geometry_directions, shapes_from_frame  # noqa: E402
-from workbench.sid.mac import mac  # noqa: E402
+from data_contracts import geometry_directions, shapes_from_frame
+from workbench.sid.assurance import mac
 
 __all__ = [
     "mean_mode_shapes",

@@ -1,19 +1,23 @@
 """System identification: stochastic subspace identification, stabilisation, MAC/MACXP.
 
-Layers (bottom up): :mod:`workbench.sid.mac` (MAC and pole-weighted MACXP),
+Layers (bottom up): :mod:`workbench.sid.assurance` (MAC and pole-weighted MACXP),
 :mod:`workbench.sid.modal` (modal parameters of every model order from one observability
 basis), :mod:`workbench.sid.ssi` (covariance- and data-driven SSI),
 :mod:`workbench.sid.stabilisation` (stable poles between consecutive orders),
 :mod:`workbench.sid.selection` (automatic choice of the physical modes of one block),
 :mod:`workbench.sid.tracking` (modes followed across blocks). Second method and checks:
-:mod:`workbench.sid.lscf` (poly-reference LSCF), :mod:`workbench.sid.crosscheck` (SSI and
+:mod:`workbench.sid.plscf` (poly-reference LSCF), :mod:`workbench.sid.crosscheck` (SSI and
 LSCF modes paired per block), :mod:`workbench.sid.tpe` (total prediction error per order).
 """
 
+import sys as _sys
+
+from workbench.sid import assurance as _assurance
+from workbench.sid import plscf as _plscf
+from workbench.sid.assurance import continuous_pole, mac, macxp
 from workbench.sid.crosscheck import agreement_by_block, cross_check
-from workbench.sid.lscf import LSCFResult, lscf
-from workbench.sid.mac import continuous_pole, mac, macxp
 from workbench.sid.modal import modal_phase_collinearity, normalise_shapes
+from workbench.sid.plscf import LSCFResult, lscf
 from workbench.sid.selection import ModeSelection, select_modes
 from workbench.sid.ssi import SSIResult, SSIWarning, StochasticStateSpace, ssi_cov, ssi_data
 from workbench.sid.stabilisation import StabilityCriteria, stabilise, stability_flags
@@ -42,3 +46,10 @@ __all__ = [
     "stability_flags",
     "total_prediction_error",
 ]
+
+# The modules were named ``mac`` and ``lscf`` until they stopped sharing their names with
+# the functions above (``workbench.sid.mac`` was the module or the function depending on
+# what had been imported). Old imports such as ``from workbench.sid.mac import macxp`` still
+# find the modules; ``workbench.sid.mac`` and ``workbench.sid.lscf`` are the functions.
+_sys.modules.setdefault("workbench.sid.mac", _assurance)
+_sys.modules.setdefault("workbench.sid.lscf", _plscf)

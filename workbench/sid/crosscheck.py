@@ -2,7 +2,7 @@
 
 Two methods with different error mechanisms (SSI: a subspace of the time-domain
 correlations; LSCF: a rational fit of their half-spectra in a band, see
-:mod:`workbench.sid.lscf`) that find the same mode with the same frequency, damping and
+:mod:`workbench.sid.plscf`) that find the same mode with the same frequency, damping and
 shape give a much stronger case for it than either alone. :func:`cross_check` pairs the
 selected modes of the two methods one-to-one; :func:`agreement_summary` condenses the
 pairs of any number of blocks into the few numbers an identify summary or a report shows.
@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import linear_sum_assignment
 
-from .mac import mac
+from .assurance import mac
 
 __all__ = [
     "CROSS_CHECK_COLUMNS",

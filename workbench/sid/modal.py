@@ -9,33 +9,19 @@ Pure numerical functions used by both SSI variants (:mod:`workbench.sid.ssi`):
   diagram from one observability basis (one QR, then one small eigenvalue problem per
   order).
 
-Threads: the SSI kernels run BLAS single-threaded and spread independent pieces of work
-(the per-order eigenvalue problems, FFT batches) over Python threads instead. How many is
-:func:`thread_budget`: the BLAS thread limit in effect when the SSI function is called,
-at most :data:`MAX_THREADS` — so a caller that limits BLAS to one thread per process (as
-:mod:`workbench.identify` does for its worker processes) gets fully serial SSI.
+The per-order eigenvalue problems run on the threads :mod:`workbench.sid.threads` allows.
 """
 
 from __future__ import annotations
 
-import contextlib
-import os
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
-from contextvars import ContextVar
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import linalg
 
-try:  # a dependency of scikit-learn, hence always installed with workbench
-    from threadpoolctl import ThreadpoolController
-except ImportError:  # pragma: no cover
-    ThreadpoolController = None
-
-#: Most Python threads an SSI call uses (see :func:`thread_budget`).
-MAX_THREADS = 8
-_BUDGET: ContextVar[int | None] = ContextVar("workbench_sid_thread_budget", default=None)
+from .threads import sid_threads
 
 __all__ = [
     "OrderPoles",
@@ -43,68 +29,7 @@ __all__ = [
     "modal_phase_collinearity",
     "normalise_shapes",
     "poles_all_orders",
-    "thread_budget",
 ]
-
-_blas: list = []  # the BLAS libraries of this process, found once (see _blas_libraries)
-
-
-def _blas_libraries():
-    """threadpoolctl controller of the loaded BLAS libraries, or None.
-
-    Found once (a scan of the loaded libraries costs a few milliseconds, an SSI call used
-    to pay it five times); numpy and scipy load their BLAS on import, before any SSI call.
-    """
-    if not _blas and ThreadpoolController is not None:
-        controller = ThreadpoolController().select(user_api="blas")
-        if controller.lib_controllers:
-            _blas.append(controller)
-    return _blas[0] if _blas else None
-
-
-def blas_threads(limit: int) -> contextlib.AbstractContextManager:
-    """Context manager limiting BLAS to *limit* threads (restored on exit)."""
-    libraries = _blas_libraries()
-    if libraries is None:  # pragma: no cover
-        return contextlib.nullcontext()
-    return libraries.limit(limits=int(limit))
-
-
-def thread_budget() -> int:
-    """Python threads the SSI kernels may use in the current context.
-
-    Inside an SSI call, the budget fixed when the call started (:func:`sid_threads`);
-    otherwise the smallest BLAS thread limit in effect (see :mod:`threadpoolctl`), capped
-    by the number of cores and :data:`MAX_THREADS`.
-    """
-    fixed = _BUDGET.get()
-    if fixed is not None:
-        return fixed
-    budget = min(MAX_THREADS, os.cpu_count() or 1)
-    libraries = _blas_libraries()
-    if libraries is not None:
-        budget = min(budget, *(library.num_threads for library in libraries.lib_controllers))
-    return max(1, int(budget))
-
-
-@contextlib.contextmanager
-def sid_threads() -> Iterator[int]:
-    """Fix the thread budget of an SSI call, then run BLAS single-threaded inside it.
-
-    Single-threaded BLAS: the per-order eigenvalue problems are small (n <= a few hundred),
-    and multi-threaded LAPACK on them is slower, badly so when other processes compete for
-    the cores (a 100-order diagram took 26 s instead of 0.9 s).
-    """
-    fixed = _BUDGET.get()
-    if fixed is not None:  # nested in an SSI call: already set up
-        yield fixed
-        return
-    token = _BUDGET.set(thread_budget())
-    try:
-        with blas_threads(1):
-            yield _BUDGET.get()
-    finally:
-        _BUDGET.reset(token)
 
 
 def modal_parameters(

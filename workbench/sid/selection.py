@@ -110,7 +110,7 @@ from scipy.sparse.csgraph import connected_components
 
 from data_contracts import shapes_to_frame
 
-from .mac import continuous_pole, mac, mac_pairs
+from .assurance import continuous_pole, mac, mac_pairs
 from .ssi import SSIResult
 from .stabilisation import StabilityCriteria
 

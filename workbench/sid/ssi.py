@@ -29,7 +29,7 @@ Conventions
   LAPACK on such matrices is slower and collapses when other processes compete for the
   cores. Independent pieces (FFT batches, halves of a matrix product, the per-order
   eigenvalue problems) run on Python threads instead, as many as
-  :func:`workbench.sid.modal.thread_budget` allows: the BLAS thread limit in effect when
+  :func:`workbench.sid.threads.thread_budget` allows: the BLAS thread limit in effect when
   the function is called, so ``threadpoolctl.threadpool_limits(1)`` makes it serial.
 
 References
@@ -57,15 +57,10 @@ from scipy import fft, linalg
 from data_contracts import shapes_to_frame
 
 from . import _lapack
-from .mac import continuous_pole
-from .modal import (
-    blas_threads,
-    modal_phase_collinearity,
-    poles_all_orders,
-    sid_threads,
-    thread_budget,
-)
+from .assurance import continuous_pole
+from .modal import modal_phase_collinearity, poles_all_orders
 from .stabilisation import StabilityCriteria, stability_flags
+from .threads import blas_threads, sid_threads, thread_budget
 
 __all__ = [
     "SSIResult",
@@ -153,7 +148,7 @@ class StochasticStateSpace:
 class PoleTableMixin:
     """What every identification result with ``poles`` (one row per pole: model_order,
     frequency_hz, damping_ratio, ...) and ``mode_shapes`` (n_channels x n_poles) offers:
-    SSI (:class:`SSIResult`) and LSCF (:class:`~workbench.sid.lscf.LSCFResult`)."""
+    SSI (:class:`SSIResult`) and LSCF (:class:`~workbench.sid.plscf.LSCFResult`)."""
 
     poles: pd.DataFrame
     mode_shapes: np.ndarray

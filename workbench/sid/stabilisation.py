@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .mac import mac, mac_pairs
+from .assurance import mac, mac_pairs
 
 if TYPE_CHECKING:
     from .ssi import SSIResult

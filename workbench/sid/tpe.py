@@ -27,7 +27,6 @@ import numpy as np
 import pandas as pd
 from scipy import linalg, signal
 
-from .modal import sid_threads
 from .ssi import (
     DEFAULT_BLOCK_ROWS,
     DEFAULT_ORDERS,
@@ -41,6 +40,7 @@ from .ssi import (
     _prepare,
     _stochastic_model,
 )
+from .threads import sid_threads
 
 __all__ = ["PredictionErrors", "one_step_prediction", "total_prediction_error"]
 

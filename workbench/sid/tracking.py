@@ -35,7 +35,7 @@ from scipy.optimize import linear_sum_assignment
 
 from data_contracts import MODAL, shape_columns, shapes_from_frame
 
-from .mac import continuous_pole, mac, macxp
+from .assurance import continuous_pole, mac, macxp
 
 __all__ = ["LibraryMode", "ModeTracker", "TrackingOptions", "label_agreement", "track_modes"]
 

@@ -46,7 +46,6 @@ from __future__ import annotations
 
 import functools
 import math
-import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -56,6 +55,7 @@ import pandas as pd
 from scipy import signal
 
 from data_contracts import read_accelerations
+from data_contracts.npz import read_sample_rows
 
 from ..blocks import BlockGrid
 from .conditioning import (
@@ -214,7 +214,7 @@ def _read_rows(
         return np.zeros((0, len(channels)))
     rows = None
     if info.path.suffix.lower() == ".npz":
-        rows = _npz_rows(info.path, first, stop)
+        rows = read_sample_rows(info.path, first, stop)
     if rows is None:
         record = read_accelerations(info.path, **(read_options or {}))
         rows, names = record.acceleration[first:stop], record.channels
@@ -233,34 +233,6 @@ def _edge_rows(info: FileInfo, channels, first: int, stop: int | None = None, re
             info, channels, first, info.n_samples if stop is None else stop, read_options
         )
     except (OSError, ValueError):
-        return None
-
-
-def _npz_rows(path: Path, first: int, stop: int) -> np.ndarray | None:
-    try:
-        with zipfile.ZipFile(path) as archive:
-            member = archive.getinfo("acceleration.npy")
-            if member.compress_type != zipfile.ZIP_STORED:
-                return None
-        with open(path, "rb") as handle:
-            handle.seek(member.header_offset)
-            local = handle.read(30)
-            if local[:4] != b"PK\x03\x04":
-                return None
-            name_length = int.from_bytes(local[26:28], "little")
-            extra_length = int.from_bytes(local[28:30], "little")
-            handle.seek(member.header_offset + 30 + name_length + extra_length)
-            version = np.lib.format.read_magic(handle)
-            if version == (1, 0):
-                shape, fortran, dtype = np.lib.format.read_array_header_1_0(handle)
-            else:
-                shape, fortran, dtype = np.lib.format.read_array_header_2_0(handle)
-            if fortran or len(shape) != 2 or dtype.hasobject:
-                return None
-            handle.seek(handle.tell() + first * shape[1] * dtype.itemsize)
-            rows = np.fromfile(handle, dtype=dtype, count=(stop - first) * shape[1])
-        return rows.reshape(stop - first, shape[1])
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile):
         return None
 
 

@@ -38,7 +38,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-import zipfile
 from collections import deque
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -48,6 +47,7 @@ import numpy as np
 import pandas as pd
 
 from data_contracts import AccelerationRecord, read_accelerations
+from data_contracts.npz import read_sample_header
 
 from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S, BlockGrid, utc_timestamp
 from .conditioning import MAX_INTERPOLATED_NAN_RUN_S, bandpass, decimate, interpolate_nan_runs
@@ -103,23 +103,15 @@ class FileInfo:
 
 
 def _npz_info(path: Path) -> FileInfo:
-    with zipfile.ZipFile(path) as archive:
-        member = archive.getinfo("acceleration.npy")
-        with archive.open(member) as handle:
-            version = np.lib.format.read_magic(handle)
-            if version == (1, 0):
-                shape, _, dtype = np.lib.format.read_array_header_1_0(handle)
-            else:
-                shape, _, dtype = np.lib.format.read_array_header_2_0(handle)
-            header_bytes = handle.tell()
+    header = read_sample_header(path)
+    shape = header.shape
     # The samples the header claims must be in the archive (a 1-KB file claiming 30 days
     # would plan thousands of blocks): stored bytes lie within the file, and deflate
     # compresses by at most about 1032:1.
-    claimed = header_bytes + int(np.prod(shape)) * np.dtype(dtype).itemsize
     if (
-        member.file_size < claimed
-        or member.compress_size > path.stat().st_size
-        or member.file_size > 1100 * max(member.compress_size, 1)
+        header.member_size < header.claimed_bytes
+        or header.compressed_size > path.stat().st_size
+        or header.member_size > 1100 * max(header.compressed_size, 1)
     ):
         raise ValueError("the array header claims more samples than the file holds")
     with np.load(path, allow_pickle=False) as data:

@@ -45,7 +45,7 @@ from .hull import (
     mode_shapes,
     true_modal_parameters,
 )
-from .identification import IdentificationImitation, imitate_identification, mac
+from .imitation import IdentificationImitation, imitate_identification
 from .profile import CASE_FRACTIONS, OperatingProfile, operating_profile, write_dship_log
 from .voyage import DEFAULT_HOURS, SAMPLING_RATE_HZ, START_TIME, VoyageSummary, simulate_voyage
 
@@ -64,7 +64,6 @@ __all__ = [
     "OperatingProfile",
     "VoyageSummary",
     "imitate_identification",
-    "mac",
     "mode_shapes",
     "operating_profile",
     "simulate_voyage",

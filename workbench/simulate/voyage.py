@@ -23,6 +23,7 @@ from data_contracts import (
     write_table,
 )
 
+from ..blocks import BlockGrid
 from ..dynamics import (
     ModalState,
     draw_stationary_state,
@@ -30,7 +31,7 @@ from ..dynamics import (
     stationary_covariance,
 )
 from .hull import CHANNELS, MODE_LAWS, REFERENCE_CONDITIONS, mode_shapes, true_modal_parameters
-from .identification import SHAFT_HZ_PER_KN, imitate_identification
+from .imitation import SHAFT_HZ_PER_KN, imitate_identification
 from .profile import operating_profile, write_dship_log
 
 __all__ = ["DEFAULT_HOURS", "VoyageSummary", "simulate_voyage"]
@@ -169,7 +170,7 @@ def simulate_voyage(
     * ``truth_modal.csv`` (MODAL contract): block means of the true modal parameters, true
       shapes.
     * ``tracked_modal.csv`` (MODAL) and ``poles.parquet`` (POLES): imitated identification
-      (:func:`~workbench.simulate.identification.imitate_identification`).
+      (:func:`~workbench.simulate.imitation.imitate_identification`).
     * ``cases.csv``: case, start, end of the operating stretches.
     * ``voyage.json``: seed, hours, times, files, law coefficients, defect locations.
 
@@ -242,11 +243,16 @@ def simulate_voyage(
         tracked_rng=tracked_rng,
         poles_rng=poles_rng,
     )
+    grid = BlockGrid(start, BLOCK_SECONDS, BLOCK_STEP_SECONDS)
     paths = {
-        "truth_predictors": write_table(predictors, out / "truth_predictors.csv", PREDICTORS),
-        "truth_modal": write_table(truth_modal, out / "truth_modal.csv", MODAL),
-        "tracked_modal": write_table(imitation.tracked, out / "tracked_modal.csv", MODAL),
-        "poles": write_table(imitation.poles, out / "poles.parquet", POLES),
+        "truth_predictors": write_table(
+            predictors, out / "truth_predictors.csv", PREDICTORS, grid=grid
+        ),
+        "truth_modal": write_table(truth_modal, out / "truth_modal.csv", MODAL, grid=grid),
+        "tracked_modal": write_table(
+            imitation.tracked, out / "tracked_modal.csv", MODAL, grid=grid
+        ),
+        "poles": write_table(imitation.poles, out / "poles.parquet", POLES, grid=grid),
     }
     cases = profile.cases.assign(
         start=profile.cases["start"].map(_iso), end=profile.cases["end"].map(_iso)

@@ -26,7 +26,7 @@ from data_contracts import MODAL, PREDICTORS
 from ..sid.presence import persistent_modes
 from ..stats.cases import STITCHED, CaseFits, fit_cases
 from ..stats.fit_io import design_matrix, model_from_dict, model_to_dict
-from ..stats.modes import ModeFit, coefficient_table, fit_modes, fit_statistics_table
+from ..stats.mode_fits import ModeFit, coefficient_table, fit_modes, fit_statistics_table
 from ..stats.stepwise import StepwiseFit
 from ._base import StageResult, read_any_table
 
@@ -322,7 +322,7 @@ class FitResult(StageResult):
 
     @property
     def fits(self) -> dict[int, ModeFit]:
-        """The :class:`~workbench.stats.modes.ModeFit` of each mode (fitted here, not read)."""
+        """The :class:`~workbench.stats.mode_fits.ModeFit` of each mode (fitted here, not read)."""
         return {m: r.fit for m, r in self.models.items() if r.fit is not None}
 
     @property

@@ -11,7 +11,7 @@ from typing import Any, Literal
 
 import pandas as pd
 
-from data_contracts import FORECAST, MODAL, POLES, PREDICTORS
+from data_contracts import FORECAST, MODAL, POLES, PREDICTORS, recorded_grid, set_grid
 
 from ..forecast import ForecastWarning, sliding_forecast
 from ..forecast.options import method_label, option_label
@@ -246,6 +246,7 @@ def forecast(
         result.warnings += [f"option {option}: {m}" for m in messages]
         frames.append(table)
     result.table = pd.concat(frames, ignore_index=True)
+    set_grid(result.table, recorded_grid(modal) or recorded_grid(predictors))
     result.lines.append(
         f"forecast of {result.table['mode'].nunique()} modes over "
         f"{result.table['block'].nunique()} blocks, option(s) {'/'.join(options.options)}, "

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from data_contracts import MODAL
+from data_contracts import MODAL, SELECTED, recorded_grid, set_grid
 
 from ..errors import WorkbenchError
 from ..sid.tracking import TrackingOptions, track_modes
@@ -86,7 +86,7 @@ def track(
         When no mode could be tracked.
     """
     source = selected
-    selected = read_any_table(selected, name="selected")
+    selected = read_any_table(selected, SELECTED, name="selected")
     if reference is not None:
         reference = read_any_table(reference, MODAL, name="reference")
     tracked = track_modes(
@@ -95,6 +95,7 @@ def track(
     if tracked.empty:
         where = source if not isinstance(source, pd.DataFrame) else "selected modes"
         raise WorkbenchError(f"{where}: no mode could be tracked")
+    set_grid(tracked, recorded_grid(selected))
     result = TrackResult(table=tracked, n_blocks=int(selected["block"].nunique()))
     result.lines.append(
         f"{result.modes.shape[0]} modes tracked over {result.n_blocks} blocks: "

@@ -33,7 +33,7 @@ from .correlation import (
     read_cases,
 )
 from .diagnostics import ResidualDiagnostics, durbin_watson, residual_diagnostics
-from .modes import ModeFit, StatsWarning, coefficient_table, fit_modes, fit_statistics_table
+from .mode_fits import ModeFit, StatsWarning, coefficient_table, fit_modes, fit_statistics_table
 from .stepwise import StepwiseFit, StepwiseRegressor, stepwise
 from .terms import parse_terms
 

@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from .correlation import case_masks
-from .modes import ModeFit, StatsWarning, coefficient_table, fit_modes
+from .mode_fits import ModeFit, StatsWarning, coefficient_table, fit_modes
 
 __all__ = [
     "STITCHED",

@@ -31,6 +31,7 @@ from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .design import Encoding, column_names, design_columns, encode, raw_transform, term_width
+from .distributions import t_quantile
 from .terms import Term, is_square, parents, parse_terms, term_name
 
 __all__ = ["StepwiseFit", "StepwiseRegressor", "stepwise"]
@@ -63,12 +64,6 @@ _COEFFICIENT_COLUMNS = pd.Index(["estimate", "se", "t_stat", "p_value"], dtype=o
 def _f_sf(f: np.ndarray | float, df_num: float, df_den: float) -> np.ndarray:
     """Upper tail P(F > f) of the F(df_num, df_den) distribution."""
     return _special.fdtrc(df_num, df_den, f)
-
-
-@functools.lru_cache(maxsize=1024)
-def _t_quantile(probability: float, dof: int) -> float:
-    """Student-t quantile (cached: every window of a sliding forecast asks for the same)."""
-    return float(_special.stdtrit(dof, probability))
 
 
 def _to_float(frame: pd.DataFrame) -> np.ndarray:
@@ -327,7 +322,7 @@ class StepwiseFit:
         mean_se = self.rmse * np.sqrt(leverage)  # standard error of the mean, s √h
         if interval == "prediction":
             leverage = leverage + 1.0
-        half = _t_quantile(1.0 - alpha / 2.0, self.dfe) * self.rmse * np.sqrt(leverage)
+        half = t_quantile(1.0 - alpha / 2.0, self.dfe) * self.rmse * np.sqrt(leverage)
         return pd.DataFrame(
             np.column_stack([mean, mean - half, mean + half, mean_se]),
             columns=_INTERVAL_COLUMNS,

@@ -14,13 +14,14 @@ import pandas as pd
 
 from data_contracts import shapes_to_frame
 
+from ..sid.assurance import mac, mac_pairs
+from ..sid.modal import modal_phase_collinearity, normalise_shapes
+
 __all__ = [
     "FREQUENCY_SCATTER",
     "DAMPING_SCATTER",
     "IdentificationImitation",
     "imitate_identification",
-    "mac",
-    "normalise_shapes",
 ]
 
 #: Relative standard deviation of the identified frequency, per mode. [-]
@@ -45,42 +46,9 @@ STABILITY_CRITERIA = (0.01, 0.10, 0.98)
 SHAFT_HZ_PER_KN = 0.3
 
 
-def normalise_shapes(shapes: np.ndarray) -> np.ndarray:
-    """Unit Euclidean norm per row, largest component real and positive."""
-    shapes = np.atleast_2d(np.asarray(shapes, dtype=complex))
-    largest = shapes[np.arange(len(shapes)), np.argmax(np.abs(shapes), axis=1)]
-    rotation = np.conj(largest) / np.abs(largest)
-    shapes = shapes * rotation[:, None]
-    return shapes / np.linalg.norm(shapes, axis=1, keepdims=True)
-
-
-def mac(first: np.ndarray, second: np.ndarray) -> np.ndarray:
-    """Modal assurance criterion between matching rows of two shape arrays.
-
-    Notes
-    -----
-    MAC(a, b) = |aᴴb|² / ((aᴴa)(bᴴb)) [1]_.
-
-    References
-    ----------
-    .. [1] R. J. Allemang, "The modal assurance criterion - twenty years of use and abuse",
-       Sound and Vibration 37(8), 2003, 14-23.
-    """
-    a = np.atleast_2d(first)
-    b = np.atleast_2d(second)
-    cross = np.abs(np.sum(np.conj(a) * b, axis=1)) ** 2
-    return cross / (np.sum(np.abs(a) ** 2, axis=1) * np.sum(np.abs(b) ** 2, axis=1))
-
-
-def _mpc(shapes: np.ndarray) -> np.ndarray:
-    """Modal phase collinearity of each row (1 for a real mode)."""
-    re, im = shapes.real, shapes.imag
-    sxx = np.sum(re * re, axis=1)
-    syy = np.sum(im * im, axis=1)
-    sxy = np.sum(re * im, axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        value = ((sxx - syy) ** 2 + 4 * sxy**2) / (sxx + syy) ** 2
-    return np.clip(np.nan_to_num(value, nan=1.0), 0.0, 1.0)
+def _normalised(shapes: np.ndarray) -> np.ndarray:
+    """Shapes given as rows, normalised by :func:`workbench.sid.normalise_shapes`."""
+    return normalise_shapes(np.atleast_2d(shapes).T).T
 
 
 @dataclass(frozen=True)
@@ -109,7 +77,7 @@ def _noisy_shapes(rng, shapes, n, real_std, imag_std):
     noise = real_std * rng.standard_normal((n, shapes.shape[-1])) + 1j * imag_std * (
         rng.standard_normal((n, shapes.shape[-1]))
     )
-    return normalise_shapes(shapes + noise)
+    return _normalised(shapes + noise)
 
 
 def imitate_identification(
@@ -202,7 +170,7 @@ def imitate_identification(
             "mode": label[rows_b, rows_m],
             "frequency_hz": frequency[rows_b, rows_m],
             "damping_ratio": damping[rows_b, rows_m],
-            "mac": mac(shapes[rows_b, rows_m], mode_shapes[label[rows_b, rows_m] - 1]),
+            "mac": mac_pairs(shapes[rows_b, rows_m].T, mode_shapes[label[rows_b, rows_m] - 1].T),
             "model_order": pd.array(model_order[rows_b, rows_m], dtype="Int64"),
         }
     )
@@ -259,7 +227,7 @@ def _poles(
                     1 + FREQUENCY_SCATTER[m] * 4 * decay * rng.standard_normal(len(orders))
                 )
                 z = damping[b, m] * np.exp(0.3 * decay * rng.standard_normal(len(orders)))
-                s = normalise_shapes(
+                s = _normalised(
                     shapes[b, m]
                     + 0.05
                     * decay[:, None]
@@ -274,7 +242,7 @@ def _poles(
                 orders = np.sort(rng.choice(ORDERS, 3, replace=False))
                 f = frequency[b, m] * (1 + 0.02 * rng.standard_normal(3))
                 z = damping[b, m] * np.exp(0.5 * rng.standard_normal(3))
-                s = normalise_shapes(shapes[b, m] + 0.2 * rng.standard_normal((3, n_channels)))
+                s = _normalised(shapes[b, m] + 0.2 * rng.standard_normal((3, n_channels)))
             f_rows.append(f), z_rows.append(z), o_rows.append(orders), s_rows.append(s)
         if speed[b] > 3.0 and speed_std[b] < 0.5:
             orders = ORDERS[ORDERS >= 14]
@@ -285,7 +253,7 @@ def _poles(
             o_rows.append(orders)
             stern = np.exp(-3.0 * np.linspace(0, 1, n_channels))
             s_rows.append(
-                normalise_shapes(stern + 0.01 * rng.standard_normal((len(orders), n_channels)))
+                _normalised(stern + 0.01 * rng.standard_normal((len(orders), n_channels)))
             )
         counts = rng.poisson(1.5 + ORDERS / 15.0)
         n_spurious = int(counts.sum())
@@ -299,7 +267,7 @@ def _poles(
             )
         )
         s_rows.append(
-            normalise_shapes(
+            _normalised(
                 rng.standard_normal((n_spurious, n_channels))
                 + 1j * rng.standard_normal((n_spurious, n_channels))
             )
@@ -326,7 +294,7 @@ def _poles(
             "frequency_hz": f,
             "damping_ratio": z,
             "stable": stable,
-            "mpc": _mpc(s),
+            "mpc": modal_phase_collinearity(s.T),
         }
     )
     return pd.concat([frame, shapes_to_frame(channels, s, index=frame.index)], axis=1)
@@ -351,6 +319,6 @@ def _stability(block, order, frequency, damping, shapes) -> np.ndarray:
         za, zb = damping[lo:hi, None], damping[None, plo:phi]
         close_f = np.abs(fa - fb) <= df_max * np.abs(fb)
         close_z = np.abs(za - zb) <= dz_max * np.abs(zb)
-        cross = np.abs(np.conj(shapes[lo:hi]) @ shapes[plo:phi].T) ** 2  # unit-norm shapes
-        stable[lo:hi] = np.any(close_f & close_z & (cross >= mac_min), axis=1)
+        same_shape = mac(shapes[lo:hi].T, shapes[plo:phi].T) >= mac_min
+        stable[lo:hi] = np.any(close_f & close_z & same_shape, axis=1)
     return stable

@@ -1,4 +1,4 @@
-"""Tests for workbench.sid.lscf: pLSCF (PolyMAX) on systems with analytic modal parameters.
+"""Tests for workbench.sid.plscf: pLSCF (PolyMAX) on systems with analytic modal parameters.
 
 Tolerances as for SSI (issue 19): frequencies within 0.5 %, damping ratios within 20 %
 (relative), MAC above 0.99. The statistical scatter of the damping ratio of these records
@@ -8,7 +8,6 @@ exactly for the poles, its leakage adds a few per cent more.
 
 from __future__ import annotations
 
-import importlib
 from pathlib import Path
 
 import numpy as np
@@ -16,13 +15,13 @@ import pytest
 from scipy import linalg
 
 from data_contracts import POLES
+from workbench.sid import plscf as lscf_module
 from workbench.sid import select_modes
-from workbench.sid.lscf import half_spectra, lscf
-from workbench.sid.mac import mac
+from workbench.sid.assurance import mac
+from workbench.sid.plscf import half_spectra, lscf
 from workbench.simulate.hull import CHANNELS
 
 # the package exports the function lscf under the module's name
-lscf_module = importlib.import_module("workbench.sid.lscf")
 
 
 def _match(result, system, order):

@@ -33,15 +33,10 @@ import numpy as np
 import pandas as pd
 from scipy import fft, linalg
 
-from .modal import (
-    modal_parameters,
-    modal_phase_collinearity,
-    normalise_shapes,
-    sid_threads,
-    thread_budget,
-)
+from .modal import modal_parameters, modal_phase_collinearity, normalise_shapes
 from .ssi import PoleTableMixin, _lagged_products, _prepare
 from .stabilisation import StabilityCriteria, stability_flags
+from .threads import sid_threads, thread_budget
 
 __all__ = ["HalfSpectra", "LSCFResult", "half_spectra", "lscf"]
 

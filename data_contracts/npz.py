@@ -1,0 +1,121 @@
+"""The sample array of a canonical ``.npz`` acceleration file, without loading it.
+
+Planning a voyage needs only each file's header (shape and dtype of ``acceleration``), and
+cutting a block needs only some of its rows. :func:`read_sample_header` parses the ``.npy``
+header of the ``acceleration`` member once; :func:`read_sample_rows` reads rows in place
+when the member is stored uncompressed (as :func:`~data_contracts.write_accelerations`
+writes it). Whole files are read by :func:`~data_contracts.read_accelerations`.
+"""
+
+from __future__ import annotations
+
+import os
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["NpzSampleHeader", "read_sample_header", "read_sample_rows"]
+
+_MEMBER = "acceleration.npy"
+_LOCAL_HEADER = b"PK\x03\x04"
+
+
+@dataclass(frozen=True)
+class NpzSampleHeader:
+    """What the ``.npy`` header of the ``acceleration`` member says.
+
+    Parameters
+    ----------
+    shape : tuple of int
+    dtype : numpy.dtype
+    fortran_order : bool
+    header_bytes : int
+        Length of the ``.npy`` header (magic included): the samples start there. [B]
+    member_size, compressed_size : int
+        Size of the member uncompressed and as stored in the archive. [B]
+    data_offset : int or None
+        Offset of the first sample in the ``.npz`` file when the member is stored
+        uncompressed, else None. [B]
+    """
+
+    shape: tuple[int, ...]
+    dtype: np.dtype
+    fortran_order: bool
+    header_bytes: int
+    member_size: int
+    compressed_size: int
+    data_offset: int | None
+
+    @property
+    def claimed_bytes(self) -> int:
+        """Bytes the member must hold for the samples its header claims. [B]"""
+        return self.header_bytes + int(np.prod(self.shape)) * self.dtype.itemsize
+
+
+def _read_npy_header(handle) -> tuple[tuple[int, ...], bool, np.dtype]:
+    version = np.lib.format.read_magic(handle)
+    if version == (1, 0):
+        return np.lib.format.read_array_header_1_0(handle)
+    return np.lib.format.read_array_header_2_0(handle)
+
+
+def read_sample_header(path: str | os.PathLike) -> NpzSampleHeader:
+    """Header of the ``acceleration`` array of the ``.npz`` file *path*.
+
+    Raises
+    ------
+    KeyError
+        The archive has no ``acceleration`` member.
+    OSError, ValueError, zipfile.BadZipFile
+        The file or its header cannot be read.
+    """
+    path = Path(path)
+    with zipfile.ZipFile(path) as archive:
+        member = archive.getinfo(_MEMBER)
+        with archive.open(member) as handle:
+            shape, fortran, dtype = _read_npy_header(handle)
+            header_bytes = handle.tell()
+    offset = None
+    if member.compress_type == zipfile.ZIP_STORED:
+        with open(path, "rb") as handle:
+            handle.seek(member.header_offset)
+            local = handle.read(30)
+        if local[:4] == _LOCAL_HEADER:
+            name_length = int.from_bytes(local[26:28], "little")
+            extra_length = int.from_bytes(local[28:30], "little")
+            offset = member.header_offset + 30 + name_length + extra_length + header_bytes
+    return NpzSampleHeader(
+        tuple(int(n) for n in shape),
+        np.dtype(dtype),
+        bool(fortran),
+        int(header_bytes),
+        int(member.file_size),
+        int(member.compress_size),
+        offset,
+    )
+
+
+def read_sample_rows(path: str | os.PathLike, first: int, stop: int) -> np.ndarray | None:
+    """Rows ``[first, stop)`` of the ``acceleration`` array, read in place.
+
+    Returns None when the rows cannot be read in place (compressed member, Fortran order,
+    object dtype, not 2-D, unreadable): read the whole file then.
+    """
+    try:
+        header = read_sample_header(path)
+        if (
+            header.data_offset is None
+            or header.fortran_order
+            or len(header.shape) != 2
+            or header.dtype.hasobject
+        ):
+            return None
+        n_channels = header.shape[1]
+        with open(path, "rb") as handle:
+            handle.seek(header.data_offset + first * n_channels * header.dtype.itemsize)
+            rows = np.fromfile(handle, dtype=header.dtype, count=(stop - first) * n_channels)
+        return rows.reshape(stop - first, n_channels)
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile):
+        return None
