@@ -1,11 +1,11 @@
 """No module imports a layer above its own (every import statement, also inside functions).
 
 Layers, bottom up: data contracts; infrastructure (errors, blocks, the per-block store,
-parallel runs, joins, configuration) with signals, predictors and the simulator; sid;
-stats; forecast and health; the figure modules of reporting (they draw from tables and
+parallel runs, joins, configuration) with signals and predictors; sid; stats and the
+simulator (which imitates identification with sid's functions); forecast and health; the figure modules of reporting (they draw from tables and
 stage results and import nothing above stats); the stages (``workbench.stages`` and the
 identify engine ``workbench.identify``); at the top the run report builder, the demo, the
-CLI and its argument helpers.
+CLI and its argument helpers, the monitor and the dashboard.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ LAYERS = {
     "workbench.config": 1,
     "workbench.signals": 1,
     "workbench.predictors": 1,
-    "workbench.simulate": 1,
+    "workbench.simulate": 3,  # the simulator imitates identification with sid's own functions
     "workbench.sid": 2,
     "workbench.stats": 3,
     "workbench.forecast": 4,
@@ -40,6 +40,8 @@ LAYERS = {
     "workbench.demo": 7,
     "workbench.inputs": 7,
     "workbench.cli": 7,
+    "workbench.dashboard": 7,
+    "workbench.monitor": 7,
 }
 
 

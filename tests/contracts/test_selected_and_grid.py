@@ -29,7 +29,7 @@ from data_contracts.grid import GRID_METADATA_KEY, grid_sidecar
 from data_contracts.npz import read_sample_header, read_sample_rows
 from workbench.blocks import BlockGrid
 from workbench.errors import WorkbenchError
-from workbench.pipeline import block_grid_of
+from workbench.blocks import block_grid_of
 
 # a grid no inference from one block can find: 50 % overlap, t0 not on a round time
 GRID = BlockGrid(pd.Timestamp("2026-03-01T00:02:10.5Z"), length_s=1200.0, step_s=600.0)
@@ -190,16 +190,17 @@ def test_a_grid_contradicting_the_blocks_is_refused_or_ignored(tmp_path):
         block_grid_of(moved)
 
 
-def test_run_track_carries_the_grid_from_selected_to_tracked(tmp_path):
-    from workbench.pipeline import run_track
+def test_track_carries_the_grid_from_selected_to_tracked(tmp_path):
+    from workbench.stages import track
 
     frame = selected_frame(blocks=range(2, 10))
     selected = write_table(frame, tmp_path / "selected.parquet", SELECTED, grid=GRID)
-    result = run_track(selected, tmp_path / "tracked.csv")
+    result = track(selected)
+    result.save(tmp_path / "tracked.csv")
     tracked = read_table(tmp_path / "tracked.csv", MODAL)
     assert tracked.attrs["block_grid"]["step_s"] == 600.0
     assert tracked["mode"].nunique() == 2 and tracked["block"].nunique() == 8
-    assert result.tables["tracked"].attrs["block_grid"] == tracked.attrs["block_grid"]
+    assert result.table.attrs["block_grid"] == tracked.attrs["block_grid"]
 
 
 # --------------------------------------------------------------------------- .npz header
