@@ -66,7 +66,7 @@ def score(table: pd.DataFrame, truth: pd.DataFrame, tracked: pd.DataFrame) -> di
 def _forecast(modal, predictors, poles, option, method):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return sliding_forecast(modal, predictors, poles=poles, option=option, method=method).table
+        return sliding_forecast(modal, predictors, poles=poles, option=option, scheme=method).table
 
 
 def _drop_shapes(frame: pd.DataFrame) -> pd.DataFrame:
@@ -119,7 +119,7 @@ def _demo_tables(cache: Path, hours: float):
     dship = folder / "voyage" / "dship.tsv"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        predictors = canonical_predictors(load_predictors(dship=dship, like=tracked))
+        predictors = canonical_predictors(load_predictors(dship=dship, onto=tracked))
     return tracked, poles, predictors, truth
 
 

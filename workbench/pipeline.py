@@ -29,6 +29,7 @@ from data_contracts import (
     write_table,
 )
 
+from ._deprecation import renamed_parameters
 from .errors import WorkbenchError
 
 __all__ = [
@@ -80,11 +81,12 @@ def block_grid_of(table: pd.DataFrame) -> tuple[pd.Timestamp, float, float]:
     return t0, float(length.median()), step
 
 
+@renamed_parameters(like="onto")
 def load_predictors(
     *,
     predictors: str | os.PathLike | None = None,
     dship: str | os.PathLike | None = None,
-    like: pd.DataFrame | None = None,
+    onto: pd.DataFrame | None = None,
     min_coverage: float = 0.5,
     dship_mapping: Mapping[str, str] | None = None,
 ) -> pd.DataFrame:
@@ -95,8 +97,8 @@ def load_predictors(
     predictors : path, optional
         A block predictor table (PREDICTORS contract).
     dship : path, optional
-        A raw DSHIP log; averaged onto the block grid of *like*.
-    like : DataFrame, optional
+        A raw DSHIP log; averaged onto the block grid of *onto*.
+    onto : DataFrame, optional
         A table with block, block_start, block_end (e.g. the tracked modal table) whose block
         grid the DSHIP log is averaged onto; its full block range is used.
     dship_mapping : mapping, optional
@@ -106,13 +108,13 @@ def load_predictors(
         raise ValueError("give exactly one of predictors and dship")
     if predictors is not None:
         return read_table(predictors, PREDICTORS)
-    if like is None:
-        raise ValueError("averaging a DSHIP log needs the blocks of a modal table")
+    if onto is None:
+        raise ValueError("averaging a DSHIP log needs the blocks of a modal table (onto=)")
     from .predictors import block_predictors
 
     log = read_dship(dship, mapping=dship_mapping)
-    t0, length_s, step_s = block_grid_of(like)
-    first, last = int(like["block"].min()), int(like["block"].max())
+    t0, length_s, step_s = block_grid_of(onto)
+    first, last = int(onto["block"].min()), int(onto["block"].max())
     from .blocks import BlockGrid
 
     grid = BlockGrid(t0=t0, length_s=length_s, step_s=step_s)
@@ -175,11 +177,12 @@ def canonical_predictors(predictors: pd.DataFrame) -> pd.DataFrame:
 
 
 # --------------------------------------------------------------------------- tracking
+@renamed_parameters(reference="reference_modes")
 def run_track(
     selected_path: str | os.PathLike,
     out: str | os.PathLike,
     *,
-    reference: str | os.PathLike | None = None,
+    reference_modes: str | os.PathLike | None = None,
     progress: bool = False,
     **options: Any,
 ) -> StageResult:
@@ -187,9 +190,9 @@ def run_track(
     from .sid.tracking import TrackingOptions, track_modes
 
     selected = _read_any(selected_path)
-    ref = read_table(reference, MODAL) if reference is not None else None
+    ref = read_table(reference_modes, MODAL) if reference_modes is not None else None
     tracked = track_modes(
-        selected, options=TrackingOptions(**options), reference=ref, progress=progress
+        selected, options=TrackingOptions(**options), reference_modes=ref, progress=progress
     )
     if tracked.empty:
         raise WorkbenchError(f"{selected_path}: no mode could be tracked")
@@ -238,23 +241,24 @@ def _forecast_part(modal, predictors, modes, kwargs):
     return result.table, messages
 
 
+@renamed_parameters(n_jobs="n_workers")
 def forecast_modes(
     modal: pd.DataFrame,
     predictors: pd.DataFrame,
     *,
-    n_jobs: int = 1,
+    n_workers: int = 1,
     progress: bool = False,
     **kwargs: Any,
 ) -> tuple[pd.DataFrame, list[str]]:
     """:func:`~workbench.forecast.sliding_forecast` with the modes spread over processes.
 
     Modes are independent (one model and one Kalman filter each), so the table equals that
-    of a single call, whatever *n_jobs*. Returns the forecast table (sorted by block, mode)
+    of a single call, whatever *n_workers*. Returns the forecast table (sorted by block, mode)
     and the forecast warnings' messages.
     """
     modes = kwargs.pop("modes", None)
     modes = sorted(int(m) for m in (modal["mode"].unique() if modes is None else modes))
-    n_jobs = max(1, min(int(n_jobs), len(modes)))
+    n_workers = max(1, min(int(n_workers), len(modes)))
     from tqdm.auto import tqdm
 
     bar = tqdm(
@@ -266,13 +270,13 @@ def forecast_modes(
         dynamic_ncols=True,
     )
     with bar:
-        if n_jobs == 1:  # one call: the windows' normalisation is shared by all modes
+        if n_workers == 1:  # one call: the windows' normalisation is shared by all modes
             parts = [_forecast_part(modal, predictors, modes, kwargs)]
             bar.update(len(modes))
         else:
             from concurrent.futures import ProcessPoolExecutor, as_completed
 
-            with ProcessPoolExecutor(max_workers=n_jobs) as pool:
+            with ProcessPoolExecutor(max_workers=n_workers) as pool:
                 futures = [
                     pool.submit(
                         _forecast_part, modal[modal["mode"] == mode], predictors, [mode], kwargs
@@ -288,6 +292,11 @@ def forecast_modes(
     return table, [m for p in parts for m in p[1]]
 
 
+#: Descriptive names of the forecast schemes (the reference work's methods 1 and 2).
+_SCHEME_NAMES = {1: "single-window", 2: "rolling"}
+
+
+@renamed_parameters(method="scheme", n_jobs="n_workers")
 def run_forecast(
     modal: pd.DataFrame,
     predictors: pd.DataFrame,
@@ -295,7 +304,7 @@ def run_forecast(
     *,
     poles: pd.DataFrame | None = None,
     options: Sequence[Literal["A", "B"]] = ("A",),
-    method: Literal[1, 2] = 2,
+    scheme: Literal[1, 2, "single_window", "rolling"] = 2,
     train_blocks: int = 20,
     horizon: int | None = None,
     trust: float | None | str = "auto",
@@ -304,7 +313,7 @@ def run_forecast(
     truth: pd.DataFrame | None = None,
     predictor_columns: Sequence[str] | None = None,
     stepwise_options: Mapping[str, Any] | None = None,
-    n_jobs: int = 1,
+    n_workers: int = 1,
     progress: bool = False,
     min_presence: float = 0.5,
     option_b: Mapping[str, Any] | None = None,
@@ -320,6 +329,8 @@ def run_forecast(
     harmonic passing by, spurious poles) are not forecast; a line says which.
     """
 
+    from .forecast.options import method_label
+
     result = StageResult()
     kept, note = persistent_modes(modal, min_presence, n_blocks=predictors["block"].nunique())
     modes = sorted(int(m) for m in kept["mode"].unique())
@@ -329,12 +340,12 @@ def run_forecast(
         table, messages = forecast_modes(
             modal,
             predictors,
-            n_jobs=n_jobs,
+            n_workers=n_workers,
             progress=progress,
             modes=modes,
             poles=poles,
             option=option,
-            method=method,
+            scheme=scheme,
             train_blocks=train_blocks,
             horizon=horizon,
             trust=trust,
@@ -353,7 +364,8 @@ def run_forecast(
     n_modes = table["mode"].nunique()
     result.lines.append(
         f"forecast of {n_modes} modes over {table['block'].nunique()} blocks, option(s) "
-        f"{'/'.join(options)}, method {method}, train {train_blocks} -> {path}"
+        f"{'/'.join(options)}, scheme {_SCHEME_NAMES[method_label(scheme)]}, "
+        f"train {train_blocks} -> {path}"
     )
     if figures is not None:
         from .reporting.forecast_plot import write_forecast_figures

@@ -34,7 +34,7 @@ def make_run(out, *, hours: float = 2.0):
     )
     tracked = run_track(out / "identify" / "selected.parquet", out / "tracked_modal.csv")
     tracked = tracked.tables["tracked"]
-    predictors = load_predictors(dship=voyage.dship_log, like=tracked)
+    predictors = load_predictors(dship=voyage.dship_log, onto=tracked)
     write_table(predictors, out / "predictors.csv", PREDICTORS)
     predictors = canonical_predictors(predictors)
     modes, _ = persistent_modes(tracked, 0.5)
@@ -45,7 +45,7 @@ def make_run(out, *, hours: float = 2.0):
         out / "forecast.csv",
         poles=read_table(out / "identify" / "poles.parquet", CONTRACTS["poles"]),
         options=("A", "B"),
-        method=2,
+        scheme=2,
         train_blocks=6,
         horizon=2,
         trust=0.65,

@@ -31,6 +31,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats as _scipy_stats
 
+from .._deprecation import renamed_parameters
 from .kalman import ModeKalmanBank, process_variance_for_gain, relaxation_factor
 from .options import MeasurementOptions, ModelOptions, NoiseOptions, method_label, option_label
 
@@ -195,13 +196,14 @@ def _predict(
 
 
 # --------------------------------------------------------------------------- main function
+@renamed_parameters(method="scheme", shape_mac_min="mac_min")
 def sliding_forecast(
     modal: pd.DataFrame,
     predictors: pd.DataFrame,
     *,
     poles: pd.DataFrame | None = None,
-    option: Literal["A", "B"] = "A",
-    method: Literal[1, 2] = 1,
+    option: Literal["A", "B", "tracked_pole", "pole_cluster"] = "A",
+    scheme: Literal[1, 2, "single_window", "rolling"] = 1,
     train_blocks: int = 20,
     horizon: int | None = None,
     start_block: int | None = None,
@@ -209,7 +211,7 @@ def sliding_forecast(
     trust: float | None | Literal["auto"] = "auto",
     correction_time_blocks: float = 36.0,
     gate_sigma: float = 3.0,
-    shape_mac_min: float = 0.9,
+    mac_min: float = 0.9,
     reacquire_blocks: int | None = None,
     reacquire_band: float = 0.05,
     predictor_columns: Sequence[str] | None = None,
@@ -239,16 +241,18 @@ def sliding_forecast(
         Stabilisation diagrams (POLES contract: block, model_order, frequency_hz,
         damping_ratio, stable, and mode shapes ``shape_re_<ch>``/``shape_im_<ch>``);
         required for option B.
-    option : {"A", "B"}
-        Measurement: A, the tracked pole of the block; B, an automatic pole selection from
-        the block's stabilisation diagram: among the poles inside the gate
+    option : {"A", "B", "tracked_pole", "pole_cluster"}
+        Measurement: A (``"tracked_pole"``), the tracked pole of the block; B, an automatic pole selection from
+        the block's stabilisation diagram (B, ``"pole_cluster"``): among the poles inside the gate
         ``gate_sigma * sqrt(P⁻ + R)`` around the a-priori estimate whose shape matches the
-        mode's reference shape (MAC >= *shape_mac_min*), the best by a score; a mode seen
+        mode's reference shape (MAC >= *mac_min*), the best by a score; a mode seen
         only outside the gate for *reacquire_blocks* blocks is re-acquired (Notes).
         Without shape columns in *poles* and *modal*: the nearest pole inside the gate,
         stable poles preferred, no MAC check (with a warning).
-    method : {1, 2}
-        1: one training window, one forward prediction of *horizon* blocks. 2: predict
+    scheme : {1, 2, "single_window", "rolling"}
+        How the forecast slides (the reference work's methods 1 and 2).
+        ``"single_window"`` (1): one training window, one forward prediction of *horizon*
+        blocks. ``"rolling"`` (2): predict
         *horizon* blocks, Kalman-filter them, slide the window by *horizon* blocks with the
         Kalman estimates as new training targets, refit, repeat to *end_block*.
     train_blocks : int
@@ -271,7 +275,7 @@ def sliding_forecast(
         [blocks]
     gate_sigma : float
         Option B gate in innovation standard deviations.
-    shape_mac_min : float
+    mac_min : float
         Option B: a pole is admissible for a mode only when the MAC of its shape with the
         mode's reference shape is at least this, compared on the channels both shapes
         have. Default 0.9: on the 12-h demo voyage the poles of a mode's column in the
@@ -366,7 +370,7 @@ def sliding_forecast(
 
     *Option B pole selection.* Reference shape φ_ref of mode j at block k: the latest
     shape of the mode in the tracked modal table at or before block k (no look-ahead) that
-    is confirmed by the mode's tracked shape before it (MAC >= *shape_mac_min*), so one
+    is confirmed by the mode's tracked shape before it (MAC >= *mac_min*), so one
     mis-tracked block does not become the reference; before the first confirmation, the
     mode's first tracked shape. A pole p is admissible when
 
@@ -402,7 +406,7 @@ def sliding_forecast(
     counted in a :class:`ForecastWarning`.
     """
     option = option_label(option)
-    method = method_label(method)
+    method = method_label(scheme)
     if model not in ("memory", "window"):
         raise ValueError(f"model={model!r} must be 'memory' or 'window'")
     if model == "memory":
@@ -449,7 +453,7 @@ def sliding_forecast(
             measurement=MeasurementOptions(
                 option=option,
                 gate_sigma=gate_sigma,
-                shape_mac_min=shape_mac_min,
+                mac_min=mac_min,
                 reacquire_blocks=2 if reacquire_blocks is None else reacquire_blocks,
                 reacquire_band=reacquire_band,
             ),
@@ -474,8 +478,8 @@ def sliding_forecast(
         raise ValueError("trust=None needs a finite correction_time_blocks")
     if not gate_sigma > 0:
         raise ValueError(f"gate_sigma={gate_sigma!r} must be > 0")
-    if not 0.0 <= shape_mac_min < 1.0:
-        raise ValueError(f"shape_mac_min={shape_mac_min!r} must be in [0, 1)")
+    if not 0.0 <= mac_min < 1.0:
+        raise ValueError(f"mac_min={mac_min!r} must be in [0, 1)")
     if int(reacquire_blocks) != reacquire_blocks or reacquire_blocks < 1:
         raise ValueError(f"reacquire_blocks={reacquire_blocks!r} must be an integer >= 1")
     reacquire_blocks = int(reacquire_blocks)
@@ -555,7 +559,7 @@ def sliding_forecast(
             modal,
             blocks,
             mode_labels,
-            shape_mac_min=shape_mac_min,
+            shape_mac_min=mac_min,
             reacquire_blocks=reacquire_blocks,
             reacquire_band=reacquire_band,
         )

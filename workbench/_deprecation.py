@@ -1,0 +1,91 @@
+"""Renamed parameters and fields: the old spelling keeps working, with a DeprecationWarning.
+
+The project's vocabulary (README, "Glossary") gives every concept one name. Where a name
+changed, code written against the old one still runs: the old keyword is accepted, mapped
+onto the new one and a :class:`DeprecationWarning` says which name to use (scikit-learn
+style). Giving both spellings is a ``TypeError``.
+"""
+
+from __future__ import annotations
+
+import functools
+import warnings
+from collections.abc import Callable, Mapping
+from typing import Any, TypeVar
+
+__all__ = ["renamed_fields", "renamed_parameters"]
+
+F = TypeVar("F", bound=Callable[..., Any])
+C = TypeVar("C", bound=type)
+
+
+def _warn(owner: str, old: str, new: str, stacklevel: int) -> None:
+    warnings.warn(
+        f"{owner}: '{old}' is deprecated and will be removed; use '{new}'",
+        DeprecationWarning,
+        stacklevel=stacklevel,
+    )
+
+
+def _translate(owner: str, renames: Mapping[str, str], kwargs: dict, stacklevel: int) -> dict:
+    """*kwargs* with every old keyword of *renames* replaced by its new name."""
+    if not renames.keys() & kwargs.keys():
+        return kwargs
+    kwargs = dict(kwargs)
+    for old, new in renames.items():
+        if old not in kwargs:
+            continue
+        if new in kwargs:
+            raise TypeError(f"{owner}: give '{new}' only ('{old}' is its deprecated name)")
+        _warn(owner, old, new, stacklevel + 1)
+        kwargs[new] = kwargs.pop(old)
+    return kwargs
+
+
+def renamed_parameters(**renames: str) -> Callable[[F], F]:
+    """Decorator: accept the old keyword names ``old=new`` of a function, with a warning.
+
+    Examples
+    --------
+    >>> @renamed_parameters(like="onto")
+    ... def load(*, onto=None):
+    ...     return onto
+    """
+
+    def decorate(function: F) -> F:
+        owner = f"{function.__qualname__}()"
+
+        @functools.wraps(function)
+        def wrapper(*args, **kwargs):
+            return function(*args, **_translate(owner, renames, kwargs, 3))
+
+        wrapper.__deprecated_parameters__ = dict(renames)  # type: ignore[attr-defined]
+        return wrapper  # type: ignore[return-value]
+
+    return decorate
+
+
+def renamed_fields(**renames: str) -> Callable[[C], C]:
+    """Class decorator for (frozen) dataclasses: old field names ``old=new`` are accepted
+    by the constructor and readable as attributes, both with a DeprecationWarning."""
+
+    def decorate(cls: C) -> C:
+        init = cls.__init__
+        owner = cls.__name__
+
+        @functools.wraps(init)
+        def __init__(self, *args, **kwargs):
+            init(self, *args, **_translate(owner, renames, kwargs, 3))
+
+        cls.__init__ = __init__  # type: ignore[misc]
+        for old, new in renames.items():
+
+            def getter(self, _old=old, _new=new):
+                _warn(owner, _old, _new, 3)
+                return getattr(self, _new)
+
+            setattr(cls, old, property(getter, doc=f"Deprecated name of ``{new}``."))
+        cls.__deprecated_fields__ = dict(renames)  # type: ignore[attr-defined]
+        return cls
+
+    return decorate
