@@ -27,22 +27,36 @@ def _warn(owner: str, old: str, new: str, stacklevel: int) -> None:
     )
 
 
-def _translate(owner: str, renames: Mapping[str, str], kwargs: dict, stacklevel: int) -> dict:
-    """*kwargs* with every old keyword of *renames* replaced by its new name."""
+def _target(rename) -> tuple[str, Callable[[Any], Any], Callable[[Any], Any]]:
+    """(new name, old value -> new value, new value -> old value) of a rename given as the
+    new name or as that triple (a parameter whose meaning was widened, e.g. a maximum that
+    became a pair of limits)."""
+    if isinstance(rename, str):
+        return rename, _same, _same
+    return rename
+
+
+def _same(value):
+    return value
+
+
+def _translate(owner: str, renames: Mapping[str, Any], kwargs: dict, stacklevel: int) -> dict:
+    """*kwargs* with every old keyword of *renames* replaced by its new name (and value)."""
     if not renames.keys() & kwargs.keys():
         return kwargs
     kwargs = dict(kwargs)
-    for old, new in renames.items():
+    for old, rename in renames.items():
         if old not in kwargs:
             continue
+        new, to_new, _ = _target(rename)
         if new in kwargs:
             raise TypeError(f"{owner}: give '{new}' only ('{old}' is its deprecated name)")
         _warn(owner, old, new, stacklevel + 1)
-        kwargs[new] = kwargs.pop(old)
+        kwargs[new] = to_new(kwargs.pop(old))
     return kwargs
 
 
-def renamed_parameters(**renames: str) -> Callable[[F], F]:
+def renamed_parameters(**renames: Any) -> Callable[[F], F]:
     """Decorator: accept the old keyword names ``old=new`` of a function, with a warning.
 
     Examples
@@ -59,15 +73,16 @@ def renamed_parameters(**renames: str) -> Callable[[F], F]:
         def wrapper(*args, **kwargs):
             return function(*args, **_translate(owner, renames, kwargs, 3))
 
-        wrapper.__deprecated_parameters__ = dict(renames)  # type: ignore[attr-defined]
+        wrapper.__deprecated_parameters__ = {o: _target(r)[0] for o, r in renames.items()}  # type: ignore[attr-defined]
         return wrapper  # type: ignore[return-value]
 
     return decorate
 
 
-def renamed_fields(**renames: str) -> Callable[[C], C]:
-    """Class decorator for (frozen) dataclasses: old field names ``old=new`` are accepted
-    by the constructor and readable as attributes, both with a DeprecationWarning."""
+def renamed_fields(**renames: Any) -> Callable[[C], C]:
+    """Class decorator for (frozen) dataclasses: old field names ``old=new`` (or
+    ``old=(new, to_new, to_old)``) are accepted by the constructor and readable as
+    attributes, both with a DeprecationWarning."""
 
     def decorate(cls: C) -> C:
         init = cls.__init__
@@ -78,14 +93,15 @@ def renamed_fields(**renames: str) -> Callable[[C], C]:
             init(self, *args, **_translate(owner, renames, kwargs, 3))
 
         cls.__init__ = __init__  # type: ignore[misc]
-        for old, new in renames.items():
+        for old, rename in renames.items():
+            new, _, to_old = _target(rename)
 
-            def getter(self, _old=old, _new=new):
+            def getter(self, _old=old, _new=new, _to_old=to_old):
                 _warn(owner, _old, _new, 3)
-                return getattr(self, _new)
+                return _to_old(getattr(self, _new))
 
             setattr(cls, old, property(getter, doc=f"Deprecated name of ``{new}``."))
-        cls.__deprecated_fields__ = dict(renames)  # type: ignore[attr-defined]
+        cls.__deprecated_fields__ = {o: _target(r)[0] for o, r in renames.items()}  # type: ignore[attr-defined]
         return cls
 
     return decorate

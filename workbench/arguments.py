@@ -34,7 +34,10 @@ class HelpFormatter(argparse.HelpFormatter):
         text = action.help
         if not text or text == argparse.SUPPRESS or "default" in text:
             return text
-        if action.default in (None, False, argparse.SUPPRESS) or not action.option_strings:
+        default = action.default
+        if default is None or default is False or default == argparse.SUPPRESS:
+            return text
+        if not action.option_strings:
             return text
         return f"{text} (default: %(default)s)"
 

@@ -21,7 +21,7 @@ from .health import HealthOptions
 from .identify import IdentifyOptions
 from .sid.tracking import TrackingOptions
 from .signals.moments import faulty_channels
-from .simulate.voyage import DEFAULT_HOURS
+from .simulate.voyage import DEFAULT_HOURS, SAMPLING_RATE_HZ
 from .stats.stepwise import DEFAULT_THRESHOLDS
 
 
@@ -44,7 +44,7 @@ SEED = 0
 #: Length of the demo voyage. [h]
 HOURS = DEFAULT_HOURS
 #: Sampling rate of simulated acceleration files (the analysis rate of the demo). [Hz]
-SIMULATE_SAMPLING_RATE_HZ = 64.0
+SIMULATE_SAMPLING_RATE_HZ = SAMPLING_RATE_HZ
 DEMO_OUT = Path("reports") / "demo"
 
 # --------------------------------------------------------------------------- identify

@@ -23,6 +23,7 @@ from scipy import fft, signal  # noqa: E402
 
 from data_contracts import atomic_path  # noqa: E402
 
+from .._deprecation import renamed_parameters  # noqa: E402
 from ..sid.selection import ModeSelection  # noqa: E402
 from ..sid.ssi import SSIResult  # noqa: E402
 
@@ -119,13 +120,14 @@ def mode_indicator(
     return frequency, np.clip(values, 0.0, None)
 
 
+@renamed_parameters(frequency_band="band_hz")
 def plot_stabilisation(
     result: SSIResult,
     acceleration: np.ndarray | None = None,
     *,
     selection: ModeSelection | None = None,
     background: Literal["cmif", "psd"] = "cmif",
-    frequency_band: tuple[float, float] | None = None,
+    band_hz: tuple[float, float] | None = None,
     title: str | None = None,
     ax=None,
 ):
@@ -141,7 +143,7 @@ def plot_stabilisation(
         Selected modes, drawn as vertical lines.
     background : {"cmif", "psd"}
         First CMIF curve, or the mean auto power spectral density of the channels.
-    frequency_band : (float, float), optional
+    band_hz : (float, float), optional
         Frequency axis limits. Default 0 to Nyquist. [Hz]
     title : str, optional
         Axes title.
@@ -160,7 +162,7 @@ def plot_stabilisation(
     else:
         fig = ax.figure
     nyquist = result.sampling_rate_hz / 2
-    band = frequency_band if frequency_band is not None else (0.0, nyquist)
+    band = band_hz if band_hz is not None else (0.0, nyquist)
 
     if acceleration is not None:
         spectrum_ax = ax.twinx()
