@@ -426,3 +426,29 @@ def test_no_progress_bar_when_stderr_is_not_a_terminal(tmp_path, capsys, monkeyp
     tracked = pd.read_csv(tmp_path / "tracked.csv")
     assert sorted(tracked["mode"].unique()) == [1, 2]
     write_table(tracked, tmp_path / "again.csv", MODAL)  # a valid modal table
+
+
+def test_former_configuration_keys_are_read_with_a_warning(tmp_path):
+    from workbench.config import ConfigDeprecationWarning, load_config, write_demo_config
+
+    path = tmp_path / "ship.toml"
+    path.write_text("[track]\nthreshold = 0.8\n[forecast]\nmethod = 1\ntrain = 12\n")
+    with pytest.warns(ConfigDeprecationWarning) as caught:
+        config = load_config(path)
+    assert sorted(str(w.message).split(": ", 1)[1] for w in caught) == [
+        "[forecast] method is deprecated; use scheme",
+        "[forecast] train is deprecated; use train_blocks",
+        "[track] threshold is deprecated; use mac_min",
+    ]
+    assert config.get("track", "mac_min") == 0.8
+    assert config.get("forecast", "scheme") == 1 and config.get("forecast", "train_blocks") == 12
+    args = build_parser()
+    from workbench.config import apply_config
+
+    apply_config(args, config)
+    parsed = args.parse_args(["forecast", "--modal", "m", "--dship", "d", "--out", "f.csv"])
+    assert parsed.scheme == 1 and parsed.train_blocks == 12
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        demo = load_config(write_demo_config(tmp_path))  # written with the present names
+    assert demo.get("forecast", "scheme") == "rolling"

@@ -447,12 +447,14 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
         metavar="S",
         help="NaN-pad gaps between files up to S seconds inside a block",
     )
-    parser.add_argument(
-        "--figures",
+    add_renamed(
+        parser,
+        "--stabilisation-figures",
+        ["--figures"],
         type=int,
         default=0,
         metavar="K",
-        help="stabilisation figures of K blocks spread over the voyage",
+        help="stabilisation diagrams of K blocks spread over the voyage",
     )
     add_acceleration_layout(parser)
     parser.add_argument(
@@ -508,8 +510,10 @@ def _run_identify(args: argparse.Namespace) -> int:
             f"{length_s / 60:g} min; give --step-minutes at most --block-minutes"
         )
     _check_positive(workers=args.workers, batch_blocks=args.batch_blocks)
-    if args.figures < 0:
-        raise UsageError(f"--figures must be 0 or more, got {args.figures}")
+    if args.stabilisation_figures < 0:
+        raise UsageError(
+            f"--stabilisation-figures must be 0 or more, got {args.stabilisation_figures}"
+        )
     try:
         options = IdentifyOptions(
             method=args.method,
@@ -555,11 +559,14 @@ def _run_identify(args: argparse.Namespace) -> int:
         raise UsageError(str(error)) from None
     for line in result.lines():
         print(line)
-    if args.figures:
+    if args.stabilisation_figures:
         from .identify import write_block_figures
 
         for path in write_block_figures(
-            args.inputs, args.out / "figures", options=options, n_blocks=args.figures
+            args.inputs,
+            args.out / "figures",
+            options=options,
+            n_blocks=args.stabilisation_figures,
         ):
             print(f"figure: {path}")
     if args.tpe_figures > 0:

@@ -181,7 +181,7 @@ CASES = {
     "scheduler bogus": ([*IDENT, "--scheduler", "bogus"], 2, "--scheduler"),
     "workers -2": ([*IDENT, "--workers", "-2"], 2, "--workers"),
     "workers 0": ([*IDENT, "--workers", "0"], 2, "--workers"),
-    "figures -1": ([*IDENT, "--figures", "-1"], 2, "--figures"),
+    "figures -1": ([*IDENT, "--stabilisation-figures", "-1"], 2, "--stabilisation-figures"),
     "out is a file": (
         ["identify", "{root}/voyage", "--out", "{root}/a_file", *IDENTIFY_ARGS],
         1,
