@@ -452,3 +452,20 @@ def test_former_configuration_keys_are_read_with_a_warning(tmp_path):
         warnings.simplefilter("error")
         demo = load_config(write_demo_config(tmp_path))  # written with the present names
     assert demo.get("forecast", "scheme") == "rolling"
+
+
+def test_renamed_argument_inside_the_signature():
+    """The form that adds no stack frame (warnings of the function keep pointing at its
+    caller)."""
+    from workbench._deprecation import DEPRECATED, renamed_argument
+
+    def forecast(*, scheme=1, method=DEPRECATED):
+        return renamed_argument("forecast()", "method", method, "scheme", scheme, 1)
+
+    assert forecast(scheme=2) == 2
+    with pytest.warns(DeprecationWarning, match="'method' is deprecated") as caught:
+        line = inspect.currentframe().f_lineno + 1
+        assert forecast(method=2) == 2
+    assert (caught[0].filename, caught[0].lineno) == (__file__, line)  # the caller's line
+    with pytest.raises(TypeError, match="give 'scheme' only"):
+        forecast(method=2, scheme=2)

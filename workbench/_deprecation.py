@@ -13,7 +13,7 @@ import warnings
 from collections.abc import Callable, Mapping
 from typing import Any, TypeVar
 
-__all__ = ["renamed_fields", "renamed_parameters"]
+__all__ = ["DEPRECATED", "renamed_argument", "renamed_fields", "renamed_parameters"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 C = TypeVar("C", bound=type)
@@ -105,3 +105,27 @@ def renamed_fields(**renames: Any) -> Callable[[C], C]:
         return cls
 
     return decorate
+
+
+class _Unset:
+    def __repr__(self) -> str:
+        return "<deprecated>"
+
+
+#: Default of a deprecated keyword kept in a signature (see :func:`renamed_argument`).
+DEPRECATED: Any = _Unset()
+
+
+def renamed_argument(owner: str, old: str, old_value, new: str, new_value, default):
+    """The value of parameter *new* when its deprecated name *old* may have been given.
+
+    For functions whose warnings point at their caller (``stacklevel=2``), where the
+    wrapper of :func:`renamed_parameters` would add a frame: the old keyword stays in the
+    signature with the default :data:`DEPRECATED`, and the body calls this first.
+    """
+    if old_value is DEPRECATED:
+        return new_value
+    if new_value is not default and new_value != default:
+        raise TypeError(f"{owner}: give '{new}' only ('{old}' is its deprecated name)")
+    _warn(owner, old, new, 4)  # _warn <- renamed_argument <- the function <- its caller
+    return old_value

@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats as _scipy_stats
 
-from .._deprecation import renamed_parameters
+from .._deprecation import DEPRECATED, renamed_argument
 from .kalman import ModeKalmanBank, process_variance_for_gain, relaxation_factor
 from .options import MeasurementOptions, ModelOptions, NoiseOptions, method_label, option_label
 
@@ -196,7 +196,6 @@ def _predict(
 
 
 # --------------------------------------------------------------------------- main function
-@renamed_parameters(method="scheme", shape_mac_min="mac_min")
 def sliding_forecast(
     modal: pd.DataFrame,
     predictors: pd.DataFrame,
@@ -225,6 +224,8 @@ def sliding_forecast(
     model: Literal["memory", "window"] = "window",
     model_options: ModelOptions | None = None,
     noise_options: NoiseOptions | None = None,
+    method=DEPRECATED,
+    shape_mac_min=DEPRECATED,
 ) -> ForecastResult:
     """Sliding stepwise-regression forecast of each mode's frequency, Kalman-blended with SSI.
 
@@ -326,6 +327,8 @@ def sliding_forecast(
         trains on its blocks of the case the first forecast block is in, so the forecast
         uses the model of the current case (the whole window when the case has fewer than
         *min_train_blocks* of them; :func:`workbench.stats.case_training_mask`).
+    method, shape_mac_min
+        Deprecated names of *scheme* and *mac_min* (a DeprecationWarning).
 
     Returns
     -------
@@ -405,6 +408,10 @@ def sliding_forecast(
     its steady state over the next blocks. Each re-acquisition is a row warning and is
     counted in a :class:`ForecastWarning`.
     """
+    scheme = renamed_argument("sliding_forecast()", "method", method, "scheme", scheme, 1)
+    mac_min = renamed_argument(
+        "sliding_forecast()", "shape_mac_min", shape_mac_min, "mac_min", mac_min, 0.9
+    )
     option = option_label(option)
     method = method_label(scheme)
     if model not in ("memory", "window"):
@@ -1345,3 +1352,7 @@ def _assemble(
     frame["warning"] = pd.array(warning_text.tolist(), dtype="string")
     frame = frame.sort_values(["mode", "block"], kind="stable").reset_index(drop=True)
     return frame
+
+
+#: Former keyword names of :func:`sliding_forecast` (README, "Glossary").
+sliding_forecast.__deprecated_parameters__ = {"method": "scheme", "shape_mac_min": "mac_min"}
