@@ -143,9 +143,15 @@ def test_glossary_flags_are_what_help_shows(row):
 
 @cache
 def _library() -> dict[str, object]:
-    """Public classes and functions of every workbench module, by name."""
+    """Public classes and functions of every workbench and data_contracts module, by name."""
+    import data_contracts
+
     found: dict[str, object] = {}
-    for info in pkgutil.walk_packages(workbench.__path__, "workbench."):
+    packages = [
+        *pkgutil.walk_packages(workbench.__path__, "workbench."),
+        *pkgutil.walk_packages(data_contracts.__path__, "data_contracts."),
+    ]
+    for info in packages:
         if info.name.endswith("__main__"):
             continue
         try:
@@ -154,7 +160,7 @@ def _library() -> dict[str, object]:
             continue
         for name, value in vars(module).items():
             if not name.startswith("_") and (inspect.isclass(value) or callable(value)):
-                if getattr(value, "__module__", "").startswith("workbench"):
+                if getattr(value, "__module__", "").startswith(("workbench", "data_contracts")):
                     found.setdefault(name, value)
     return found
 
