@@ -80,12 +80,12 @@ def main(argv=None) -> int:
                     modal,
                     predictors,
                     option="A",
-                    method=2,
+                    scheme=2,
                     train_blocks=20,
                     horizon=4,
                     trust=None,
                     model=name,
-                    n_jobs=jobs,
+                    n_workers=jobs,
                 )
                 times[name, jobs].append(time.perf_counter() - start)
                 tables[name, jobs] = table

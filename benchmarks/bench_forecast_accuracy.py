@@ -78,7 +78,7 @@ def _forecast(modal, predictors, poles, option, method):
             predictors,
             poles=poles,
             option=option,
-            method=method,
+            scheme=method,
             model=MODEL,
             model_options=MODEL_OPTIONS,
         ).table
@@ -135,7 +135,7 @@ def _demo_tables(cache: Path, hours: float):
     dship = folder / "voyage" / "dship.tsv"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        predictors = canonical_predictors(load_predictors(dship=dship, like=tracked))
+        predictors = canonical_predictors(load_predictors(dship=dship, onto=tracked))
     return tracked, poles, predictors, truth
 
 

@@ -26,7 +26,7 @@ def write(path: Path, text: str) -> Path:
 def test_unknown_sections_keys_and_types_are_refused(tmp_path):
     path = write(
         tmp_path / "ship.toml",
-        '[dship]\nfile = "log.dat"\ncolumn = {}\n[forecst]\ntrain = 5\n[forecast]\ntrain = "20"\n',
+        '[dship]\nfile = "log.dat"\ncolumn = {}\n[forecst]\ntrain = 5\n[forecast]\ntrain_blocks = "20"\n',
     )
     with pytest.raises(ConfigError) as caught:
         load_config(path)
@@ -35,7 +35,7 @@ def test_unknown_sections_keys_and_types_are_refused(tmp_path):
         f"{path}: [dship] unknown key 'column' (known: file, columns)",
         f"{path}: unknown section [forecst] (known: output, accelerations, dship, predictors, "
         "modal, blocks, identify, track, correlate, fit, forecast, evaluate)",
-        f"{path}: [forecast] train = '20' has the wrong type",
+        f"{path}: [forecast] train_blocks = '20' has the wrong type",
     ]
     assert main(["correlate", "--config", str(path)]) == 2
     assert main(["run", str(path)]) == 2
@@ -102,7 +102,7 @@ def test_run_a_foreign_modal_table_and_ship_log(tmp_path, capsys):
     config = write(
         tmp_path / "ship.toml",
         '[modal]\nfile = "modes.csv"\ntime_reference = "centre"\n'
-        '[dship]\nfile = "dship.tsv"\n[forecast]\ntrain = 10\n'
+        '[dship]\nfile = "dship.tsv"\n[forecast]\ntrain_blocks = 10\n'
         '[evaluate]\ntruth = "truth_modal.csv"\n',
     )
     capsys.readouterr()

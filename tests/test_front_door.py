@@ -228,7 +228,7 @@ def test_track_forecast_evaluate_on_a_simulated_voyage(tmp_path):
     result = wb.forecast(
         tracked.table,
         predictors,
-        options=wb.ForecastOptions(options=("tracked_pole",), method="rolling", trust=0.65),
+        options=wb.ForecastOptions(options=("tracked_pole",), scheme="rolling", trust=0.65),
     )
     FORECAST.validate(result.table)
     assert result.options.options == ("A",) and result.options.method == 2

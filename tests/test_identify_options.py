@@ -117,13 +117,14 @@ def test_help_shows_every_default(capsys):
     text = " ".join(capsys.readouterr().out.split())
     for fragment in (
         "anti-aliasing filter's edge 0.8 r/2",
-        "(default 20)",
-        "(default 5)",
-        "(default 60",
-        "(default 10)",
-        "(default 6)",
-        "(default 3;",
-        "(default 0.05)",
+        "SSI block rows (time lags of the Hankel matrix) (default: 20)",
+        "block length [min] (default: 20)",
+        "step between blocks [min] (default: 5)",
+        "(default: 60)",
+        "(default: 10.0)",
+        "(default: 6.0)",
+        "(default: 3.0)",
+        "missing samples (default: 0.05)",
         "clustering of the poles of all orders",
     ):
         assert fragment in text, fragment

@@ -34,9 +34,9 @@ def tables(voyage):
 
 def test_forecast_modes_split_over_processes_is_identical(tables):
     modal, predictors, _ = tables
-    kwargs = dict(option="A", method=2, train_blocks=20, horizon=4, trust=None)
-    one, _ = forecast_modes(modal, predictors, n_jobs=1, **kwargs)
-    two, _ = forecast_modes(modal, predictors, n_jobs=2, **kwargs)
+    kwargs = dict(option="A", scheme=2, train_blocks=20, horizon=4, trust=None)
+    one, _ = forecast_modes(modal, predictors, n_workers=1, **kwargs)
+    two, _ = forecast_modes(modal, predictors, n_workers=2, **kwargs)
     pd.testing.assert_frame_equal(one, two, check_exact=True)
     FORECAST.validate(one)
     assert sorted(one["mode"].unique()) == list(range(1, 8))
@@ -46,7 +46,7 @@ def test_evaluate_pairs_labels_and_beats_ssi(tables):
     """Kalman estimates beat the imitated SSI scatter on the demo voyage; relabelling the
     modes (as tracking with an extra spurious mode would) does not change the result."""
     modal, predictors, truth = tables
-    table, _ = forecast_modes(modal, predictors, option="A", method=2, train_blocks=20, horizon=4)
+    table, _ = forecast_modes(modal, predictors, option="A", scheme=2, train_blocks=20, horizon=4)
     plain = evaluate(table, truth).table
     shifted = table.assign(mode=table["mode"] + 10)
     relabelled = evaluate(shifted, truth).table
@@ -81,10 +81,10 @@ def test_cli_forecast_and_evaluate(voyage, tmp_path, capsys):
             "--poles",
             str(voyage.poles),
             "--option",
-            "AB",
-            "--method",
-            "2",
-            "--train",
+            "both",
+            "--scheme",
+            "rolling",
+            "--train-blocks",
             "20",
             "--out",
             str(out),
@@ -102,10 +102,11 @@ def test_cli_forecast_and_evaluate(voyage, tmp_path, capsys):
 @pytest.mark.parametrize(
     "args, message",
     [
-        (["--option", "B"], "option B needs --poles"),
+        (["--option", "B"], "--option pole-cluster (B) needs --poles"),
+        (["--option", "pole-cluster"], "--option pole-cluster (B) needs --poles"),
         (["--model", "window", "--trust", "1.5"], "--trust must be in (0, 1)"),
         (["--model", "memory", "--trust", "0.5"], "--trust applies to --model window"),
-        (["--train", "1"], "--train must be at least 2"),
+        (["--train-blocks", "1"], "--train-blocks must be at least 2"),
     ],
 )
 def test_cli_forecast_usage_errors(voyage, tmp_path, capsys, args, message):

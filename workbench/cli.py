@@ -20,6 +20,15 @@ from pathlib import Path
 from data_contracts import ContractError
 
 from . import __version__
+from . import defaults as D
+from .arguments import (
+    HelpFormatter,
+    Namespace,
+    add_renamed,
+    add_verbosity,
+    choice,
+    stderr_is_terminal,
+)
 from .errors import OptionError, WorkbenchError
 from .inputs import (
     acceleration_layout,
@@ -158,25 +167,27 @@ def _add_simulate(commands: argparse._SubParsersAction) -> None:
         description="Write a simulated voyage: 5-minute acceleration files, the DSHIP log, "
         "ground-truth and noisy tracked modal tables, and pole tables.",
     )
-    parser.add_argument("--out", type=Path, required=True, metavar="DIR")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
+    parser.add_argument("--seed", type=int, default=D.SEED, help="random seed")
     parser.add_argument(
         "--hours",
         type=float,
         default=None,
-        help="voyage length [h] (default: the demo length, 12 h)",
+        help=f"voyage length [h] (default: the demo length, {D.HOURS:g} h)",
     )
     parser.add_argument(
         "--no-accelerations", action="store_true", help="skip the acceleration files (tables only)"
     )
-    parser.add_argument(
-        "--rate",
+    add_renamed(
+        parser,
+        "--sampling-rate",
+        ["--rate"],
         type=float,
-        default=64.0,
+        default=D.SIMULATE_SAMPLING_RATE_HZ,
         metavar="HZ",
-        help="sampling rate of the acceleration files, a multiple of 64 Hz (e.g. 2048, a "
-        "recorder's rate: same modal physics, broadband content and a 60 Hz hum above the "
-        "band) [default: 64]",
+        help="sampling rate of the acceleration files [Hz], a multiple of 64 Hz (e.g. 2048, "
+        "a recorder's rate: same modal physics, broadband content and a 60 Hz hum above the "
+        "band)",
     )
     parser.set_defaults(run=_run_simulate)
 
@@ -193,7 +204,7 @@ def _run_simulate(args: argparse.Namespace) -> int:
             seed=args.seed,
             hours=args.hours,
             accelerations=not args.no_accelerations,
-            sampling_rate_hz=args.rate,
+            sampling_rate_hz=args.sampling_rate,
         )
     except ValueError as error:  # e.g. a voyage shorter than one block
         raise UsageError(str(error)) from None
@@ -238,9 +249,11 @@ def _add_demo(commands: argparse._SubParsersAction) -> None:
         help="run the whole chain on the built-in demo voyage",
         description="Simulate the demo voyage into reports/demo/ and run every stage on it.",
     )
-    parser.add_argument("--out", type=Path, default=Path("reports") / "demo", metavar="DIR")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--hours", type=float, default=None, help="voyage length [h] (default 12)")
+    parser.add_argument("--out", type=Path, default=D.DEMO_OUT, metavar="DIR", help="output folder")
+    parser.add_argument("--seed", type=int, default=D.SEED, help="random seed")
+    parser.add_argument(
+        "--hours", type=float, default=None, help=f"voyage length [h] (default: {D.HOURS:g})"
+    )
     _add_parallel(parser)
     parser.set_defaults(run=_run_demo)
 
@@ -309,7 +322,7 @@ def _predictors_for(args: argparse.Namespace, modal):
     from .predictors import canonical_predictors, load_predictors
 
     table = load_predictors(
-        predictors=args.predictors, dship=args.dship, like=modal, dship_mapping=dship_mapping(args)
+        predictors=args.predictors, dship=args.dship, onto=modal, dship_mapping=dship_mapping(args)
     )
     return table if args.all_predictors else canonical_predictors(table)
 
@@ -339,7 +352,6 @@ def _add_parallel(parser: argparse.ArgumentParser) -> None:
         metavar="N",
         help="worker processes of the local cluster (default: all cores)",
     )
-    group.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def _add_identify(commands: argparse._SubParsersAction) -> None:
@@ -367,18 +379,19 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
         help="folder for poles.parquet, selected.parquet, faults.csv, ...",
     )
     parser.add_argument(
-        "--store", type=Path, metavar="DIR", help="per-block store (default OUT/store)"
+        "--store", type=Path, metavar="DIR", help="per-block store (default: OUT/store)"
     )
     parser.add_argument(
         "--method",
         choices=("cov", "data", "lscf"),
-        default="cov",
-        help="covariance-driven or data-driven SSI, or poly-reference LSCF (PolyMAX)",
+        default=D.IDENTIFY_METHOD,
+        help="identification method: covariance-driven (cov) or data-driven (data) SSI, or "
+        "poly-reference LSCF (PolyMAX)",
     )
     parser.add_argument(
         "--lscf-max-order",
         type=int,
-        default=15,
+        default=D.IDENTIFY_LSCF_MAX_ORDER,
         metavar="P",
         help="LSCF polynomial orders 1..P (P x references poles)",
     )
@@ -389,31 +402,45 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
         "the modes of both per block (crosscheck.csv, agreement in the summary)",
     )
     parser.add_argument(
-        "--block-rows", type=int, default=20, metavar="I", help="SSI block rows (default 20)"
+        "--block-rows",
+        type=int,
+        default=D.IDENTIFY_BLOCK_ROWS,
+        metavar="I",
+        help="SSI block rows (time lags of the Hankel matrix)",
     )
     parser.add_argument(
         "--max-order",
         type=int,
-        default=60,
+        default=D.IDENTIFY_MAX_ORDER,
         metavar="N",
-        help="highest model order (default 60; lowered to what the block rows and channels "
-        "left give)",
+        help="highest model order (lowered to what the block rows and channels allow)",
     )
     parser.add_argument(
-        "--min-order", type=int, default=4, metavar="N", help="lowest model order (default 4)"
+        "--min-order",
+        type=int,
+        default=D.IDENTIFY_MIN_ORDER,
+        metavar="N",
+        help=f"lowest model order (orders step by {D.IDENTIFY_ORDER_STEP})",
     )
     parser.add_argument(
-        "--weighting", choices=("pc", "upc", "cva"), default="pc", help="SSI-data weighting"
+        "--weighting",
+        choices=("pc", "upc", "cva"),
+        default=D.IDENTIFY_WEIGHTING,
+        help="SSI-data weighting",
     )
-    parser.add_argument(
-        "--reference", metavar="CH,CH,...", help="reference channels (default: all)"
+    add_renamed(
+        parser,
+        "--reference-channels",
+        ["--reference"],
+        metavar="CH,CH,...",
+        help="SSI reference channels (default: all)",
     )
     parser.add_argument(
         "--rate",
-        default="auto",
+        default=D.IDENTIFY_RATE,
         metavar="HZ|auto|native",
         help="analysis rate the files are decimated to (Chebyshev I, each file once). "
-        "'auto' (default): the files' rate halved while it stays at or above 4 x the "
+        "'auto': the files' rate halved while it stays at or above 4 x the "
         "band's upper edge, 4 x 25 Hz without --band (2048 Hz files: 64 Hz with --band 2 12, "
         "128 Hz without; 64 Hz files stay); "
         "'native': keep the files' rate",
@@ -434,29 +461,29 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
         type=float,
         default=None,
         metavar="MIN",
-        help="block length [min] (default 20); a length below the default step needs "
-        "--step-minutes too",
+        help=f"block length [min] (default: {D.BLOCK_MINUTES:g}); a length below the default "
+        "step needs --step-minutes too",
     )
     parser.add_argument(
         "--step-minutes",
         type=float,
         default=None,
         metavar="MIN",
-        help="step between blocks [min] (default 5)",
+        help=f"step between blocks [min] (default: {D.STEP_MINUTES:g})",
     )
     parser.add_argument(
         "--short-record",
         choices=("error", "one-block"),
-        default="error",
-        help="data shorter than one block: an error naming the record (default), or one "
-        "block of the record's length",
+        default=D.IDENTIFY_SHORT_RECORD,
+        help="data shorter than one block: an error naming the record, or one block of the "
+        "record's length",
     )
     parser.add_argument(
         "--selection",
         choices=("cluster", "library"),
-        default="cluster",
+        default=D.IDENTIFY_SELECTION,
         help="automatic pole selection: clustering of the poles of all orders with "
-        "thresholds from the data (default), or the library-and-descent rule",
+        "thresholds from the data, or the library-and-descent rule",
     )
     check = parser.add_argument_group("channel check (per block; a faulty channel is dropped)")
     check.add_argument(
@@ -465,54 +492,55 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
     check.add_argument(
         "--kurtosis-max",
         type=float,
-        default=10.0,
+        default=D.IDENTIFY_KURTOSIS_MAX,
         metavar="K",
-        help="kurtosis above K (Gaussian 3) is a fault when out of line with the other "
-        "channels (default 10)",
+        help="kurtosis above K (Gaussian 3) is a fault when out of line with the other channels",
     )
     check.add_argument(
         "--kurtosis-z-max",
         type=float,
-        default=3.0,
+        default=D.IDENTIFY_KURTOSIS_Z_MAX,
         metavar="Z",
         help="robust z-score of a channel's log-kurtosis among the channels above which a "
-        "kurtosis above K is a fault (default 3; impulsive excitation raises every channel)",
+        "kurtosis above K is a fault (impulsive excitation raises every channel)",
     )
     check.add_argument(
         "--variance-z-max",
         type=float,
-        default=6.0,
+        default=D.IDENTIFY_VARIANCE_Z_MAX,
         metavar="Z",
         help="robust z-score of a channel's log-variance among the channels beyond which it "
-        "is a fault if it also lost coherence with every other channel (default 6)",
+        "is a fault if it also lost coherence with every other channel",
     )
     check.add_argument(
         "--max-nan-fraction",
         type=float,
-        default=0.05,
+        default=D.IDENTIFY_MAX_NAN_FRACTION,
         metavar="SHARE",
-        help="largest share of missing samples (default 0.05)",
+        help="largest share of missing samples",
     )
     parser.add_argument(
         "--conditioning",
         choices=("per-file", "per-block"),
-        default="per-file",
-        help="when decimating: condition each file once (default) or every block from its "
-        "raw files (reference path, slower)",
+        default=D.IDENTIFY_CONDITIONING,
+        help="when decimating: condition each file once or every block from its raw files "
+        "(reference path, slower)",
     )
     parser.add_argument(
         "--max-gap",
         type=float,
-        default=0.0,
+        default=D.IDENTIFY_MAX_GAP_S,
         metavar="S",
         help="NaN-pad gaps between files up to S seconds inside a block",
     )
-    parser.add_argument(
-        "--figures",
+    add_renamed(
+        parser,
+        "--stabilisation-figures",
+        ["--figures"],
         type=int,
         default=0,
         metavar="K",
-        help="stabilisation figures of K blocks spread over the voyage",
+        help="stabilisation diagrams of K blocks spread over the voyage",
     )
     add_acceleration_layout(parser)
     parser.add_argument(
@@ -526,7 +554,7 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--batch-blocks",
         type=int,
-        default=16,
+        default=D.IDENTIFY_BATCH_BLOCKS,
         metavar="N",
         help="blocks stored together (an interruption loses at most these)",
     )
@@ -569,15 +597,19 @@ def _run_identify(args: argparse.Namespace) -> int:
             f"{length_s / 60:g} min; give --step-minutes at most --block-minutes"
         )
     _check_positive(workers=args.workers, batch_blocks=args.batch_blocks)
-    if args.figures < 0:
-        raise UsageError(f"--figures must be 0 or more, got {args.figures}")
+    if args.stabilisation_figures < 0:
+        raise UsageError(
+            f"--stabilisation-figures must be 0 or more, got {args.stabilisation_figures}"
+        )
     try:
         options = IdentifyOptions(
             method=args.method,
             block_rows=args.block_rows,
-            orders=tuple(range(args.min_order, args.max_order + 1, 2)),
+            orders=tuple(range(args.min_order, args.max_order + 1, D.IDENTIFY_ORDER_STEP)),
             weighting=args.weighting,
-            reference_channels=tuple(args.reference.split(",")) if args.reference else None,
+            reference_channels=(
+                tuple(args.reference_channels.split(",")) if args.reference_channels else None
+            ),
             length_s=length_s,
             step_s=step_s,
             target_rate_hz=_analysis_rate(args.rate),
@@ -614,11 +646,14 @@ def _run_identify(args: argparse.Namespace) -> int:
         raise UsageError(str(error)) from None
     for line in result.lines:
         print(line)
-    if args.figures:
+    if args.stabilisation_figures:
         from .identify import write_block_figures
 
         for path in write_block_figures(
-            args.inputs, args.out / "figures", options=options, n_blocks=args.figures
+            args.inputs,
+            args.out / "figures",
+            options=options,
+            n_blocks=args.stabilisation_figures,
         ):
             print(f"figure: {path}")
     if args.tpe_figures > 0:
@@ -640,12 +675,12 @@ _OPTION_NAMES = {
     "band_hz": "--band",
     "block_rows": "--block-rows",
     "orders": "--min-order/--max-order",
-    "reference_channels": "--reference",
+    "reference_channels": "--reference-channels",
     "batch_blocks": "--batch-blocks",
     "n_workers": "--workers",
     "scheduler": "--scheduler",
-    "threshold": "--threshold",
-    "frequency_tolerance": "--frequency-tolerance",
+    "mac_min": "--mac-min",
+    "frequency_tol": "--frequency-tol",
 }
 
 
@@ -701,24 +736,36 @@ def _add_track(commands: argparse._SubParsersAction) -> None:
         metavar="FILE",
         help="tracked modal table to write (.csv or .parquet)",
     )
-    parser.add_argument(
-        "--reference",
+    add_renamed(
+        parser,
+        "--reference-modes",
+        ["--reference"],
         type=Path,
         metavar="FILE",
-        help="modal table whose modes start the library (labels kept)",
+        help="modal table whose modes start the tracker's library (labels kept)",
     )
-    parser.add_argument(
-        "--threshold",
+    add_renamed(
+        parser,
+        "--mac-min",
+        ["--threshold"],
         type=float,
-        default=0.9,
+        default=D.TRACK_MAC_MIN,
+        metavar="MAC",
         help="lowest MAC (or MACXP with --gate macxp) to join a mode",
     )
-    parser.add_argument("--gate", choices=("mac", "macxp"), default="mac")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument(
-        "--frequency-tolerance",
+        "--gate",
+        choices=("mac", "macxp"),
+        default=D.TRACK_GATE,
+        help="criterion --mac-min applies to",
+    )
+    add_renamed(
+        parser,
+        "--frequency-tol",
+        ["--frequency-tolerance"],
         type=float,
-        default=0.05,
+        default=D.TRACK_FREQUENCY_TOL,
+        metavar="REL",
         help="largest relative frequency difference to join a mode",
     )
     parser.set_defaults(run=_run_track)
@@ -729,14 +776,17 @@ def _run_track(args: argparse.Namespace) -> int:
 
     try:
         options = TrackingOptions(
-            threshold=args.threshold, gate=args.gate, frequency_tolerance=args.frequency_tolerance
+            mac_min=args.mac_min, gate=args.gate, frequency_tol=args.frequency_tol
         )
     except ValueError as error:
         raise UsageError(_option_names(str(error))) from None
     _check_table_path(args.out)
     with _data_errors(args.selected):
         result = track(
-            args.selected, reference=args.reference, options=options, progress=not args.quiet
+            args.selected,
+            reference_modes=args.reference_modes,
+            options=options,
+            progress=not args.quiet,
         )
     paths = result.save(args.out)
     _print_result(result, paths)
@@ -758,21 +808,21 @@ def _add_correlate(commands: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--cases", type=Path, metavar="FILE", help="operating cases: CSV with case,start,end (UTC)"
     )
-    parser.add_argument("--alpha", type=float, default=0.05)
+    parser.add_argument("--alpha", type=float, default=D.CORRELATE_ALPHA, help="significance level")
     parser.add_argument(
         "--correction",
         choices=("none", "holm", "fdr_bh"),
-        default="none",
+        default=D.CORRELATE_CORRECTION,
         help="multiple-testing correction of the p-values",
     )
     parser.add_argument(
         "--min-presence",
         type=float,
-        default=0.5,
+        default=D.MIN_PRESENCE,
         metavar="SHARE",
         help="only modes measured in at least this share of the blocks",
     )
-    parser.add_argument("--out", type=Path, required=True, metavar="DIR")
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
     parser.set_defaults(run=_run_correlate)
 
 
@@ -808,11 +858,15 @@ def _add_fit(commands: argparse._SubParsersAction) -> None:
         "--modal", type=Path, required=True, metavar="FILE", help="tracked modal table"
     )
     _add_predictor_source(parser)
-    parser.add_argument("--p-enter", type=float, default=0.05)
-    parser.add_argument("--p-remove", type=float, default=0.10)
+    parser.add_argument(
+        "--p-enter", type=float, default=D.FIT_P_ENTER, help="F-test p-value to add a term"
+    )
+    parser.add_argument(
+        "--p-remove", type=float, default=D.FIT_P_REMOVE, help="F-test p-value to remove a term"
+    )
     parser.add_argument(
         "--upper",
-        default="interactions",
+        default=D.FIT_UPPER,
         help="largest model: constant, linear, interactions, or a formula "
         "such as 'y ~ speed_kn + water_temp_c + speed_kn:water_temp_c'",
     )
@@ -826,11 +880,11 @@ def _add_fit(commands: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--min-presence",
         type=float,
-        default=0.5,
+        default=D.MIN_PRESENCE,
         metavar="SHARE",
         help="only modes measured in at least this share of the blocks",
     )
-    parser.add_argument("--out", type=Path, required=True, metavar="DIR")
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
     parser.set_defaults(run=_run_fit)
 
 
@@ -883,13 +937,26 @@ def _check_table_path(path: Path) -> None:
         raise UsageError(f"{path}: is a folder; give a file name ending in .csv or .parquet")
 
 
+#: ``--option``: what each block measures (the reference work's options A and B).
+FORECAST_OPTIONS = choice(
+    {"tracked-pole": "A", "pole-cluster": "B", "both": "AB"},
+    {"A": "tracked-pole", "B": "pole-cluster", "AB": "both"},
+)
+#: ``--scheme``: how the forecast slides (the reference work's methods 1 and 2).
+FORECAST_SCHEMES = choice(
+    {"single-window": 1, "rolling": 2}, {"1": "single-window", "2": "rolling"}
+)
+
+
 def _add_forecast(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser(
         "forecast",
         help="sliding regression forecast of each mode, Kalman-blended with SSI",
         description="Train a stepwise model of each mode's frequency on the last N blocks, "
-        "predict ahead with 95 % bounds and blend with the SSI estimates by a Kalman filter "
-        "(option A: tracked pole; option B: nearest pole of the stabilisation diagram).",
+        "predict ahead with 95 % bounds and blend with the SSI estimates by a Kalman filter. "
+        "The measurement of a block is its tracked pole (--option tracked-pole, the reference "
+        "work's option A) or the pole cluster of its stabilisation diagram inside the "
+        "prediction gate (pole-cluster, option B).",
     )
     parser.add_argument(
         "--modal", type=Path, required=True, metavar="FILE", help="tracked modal table"
@@ -899,44 +966,58 @@ def _add_forecast(commands: argparse._SubParsersAction) -> None:
         "--poles",
         type=Path,
         metavar="FILE",
-        help="pole table (stabilisation diagrams), needed for option B",
+        help="pole table (stabilisation diagrams), needed for --option pole-cluster",
     )
     parser.add_argument(
         "--option",
-        choices=("A", "B", "AB"),
-        default="A",
-        help="measurement option; AB runs both into one table",
+        type=FORECAST_OPTIONS,
+        metavar=FORECAST_OPTIONS.metavar,
+        default=D.FORECAST_OPTION,
+        help="measurement: the tracked pole (alias A), the pole cluster of the "
+        "stabilisation diagram nearest the prediction (alias B), or both into one table "
+        "(alias AB); the table's option column says A or B",
     )
-    parser.add_argument(
-        "--method",
+    add_renamed(
+        parser,
+        "--scheme",
+        ["--method"],
+        type=FORECAST_SCHEMES,
+        metavar=FORECAST_SCHEMES.metavar,
+        default=D.FORECAST_SCHEME,
+        help="single-window (alias 1): one training window, one long forecast; rolling "
+        "(alias 2): predict H blocks, filter them, slide the window, refit",
+    )
+    add_renamed(
+        parser,
+        "--train-blocks",
+        ["--train"],
         type=int,
-        choices=(1, 2),
-        default=2,
-        help="1: one long forecast; 2: predict H blocks, filter, slide, refit",
-    )
-    parser.add_argument(
-        "--train", type=int, default=20, metavar="N", help="training window [blocks]"
+        default=D.FORECAST_TRAIN_BLOCKS,
+        metavar="N",
+        help="training window [blocks]",
     )
     parser.add_argument(
         "--horizon",
         type=int,
         default=None,
         metavar="H",
-        help="blocks per forecast (default 34 for method 1, 4 for method 2)",
+        help="blocks per forecast [blocks] (default: "
+        + ", ".join(f"{h} for {s}" for s, h in D.FORECAST_HORIZON.items())
+        + ")",
     )
     parser.add_argument(
         "--model",
         choices=("memory", "window"),
-        default="window",
-        help="window: the reference configuration, a stepwise fit on the last --train blocks "
-        "and --trust (default); memory: stepwise terms, coefficients over the whole history "
-        "with forgetting, noise levels from the data",
+        default=D.FORECAST_MODEL,
+        help="window: the reference configuration, a stepwise fit on the last "
+        "--train-blocks blocks and --trust; memory: stepwise terms, coefficients over the "
+        "whole history with forgetting, noise levels from the data",
     )
     parser.add_argument(
         "--trust",
         default=None,
-        help="--model window only: steady-state weight on SSI in (0, 1) (default 0.65), "
-        "or 'data' for a Q from the model's own prediction variance",
+        help=f"--model window only: steady-state weight on SSI in (0, 1) (default: "
+        f"{D.FORECAST_TRUST:g}), or 'data' for a Q from the model's own prediction variance",
     )
     parser.add_argument(
         "--out",
@@ -960,36 +1041,41 @@ def _add_forecast(commands: argparse._SubParsersAction) -> None:
         metavar="FILE",
         help="true modal table to draw in the figures (simulations)",
     )
-    parser.add_argument(
-        "--jobs",
+    add_renamed(
+        parser,
+        "--workers",
+        ["--jobs"],
         type=int,
-        default=1,
+        default=D.FORECAST_WORKERS,
         metavar="N",
-        help="processes to spread the modes over (for voyage-length tables)",
+        help="worker processes to spread the modes over (for voyage-length tables)",
     )
     parser.add_argument(
         "--min-presence",
         type=float,
-        default=0.5,
+        default=D.MIN_PRESENCE,
         metavar="SHARE",
         help="forecast only modes measured in at least this share of the blocks",
     )
-    parser.add_argument(
-        "--shape-mac-min",
+    add_renamed(
+        parser,
+        "--mac-min",
+        ["--shape-mac-min"],
         type=float,
-        default=0.9,
+        default=D.FORECAST_MAC_MIN,
         metavar="MAC",
-        help="option B: lowest MAC of a pole's shape with the mode's tracked shape",
+        help="pole-cluster: lowest MAC of a pole's shape with the mode's tracked shape",
     )
     parser.add_argument(
         "--reacquire-blocks",
         type=int,
         default=None,
         metavar="K",
-        help="option B: blocks seen only outside the gate before the track is re-acquired "
-        "(default 2 for --model memory, 1 for --model window)",
+        help="pole-cluster: blocks seen only outside the gate before the track is "
+        "re-acquired (default: "
+        + ", ".join(f"{k} for --model {m}" for m, k in D.FORECAST_REACQUIRE_BLOCKS.items())
+        + ")",
     )
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(run=_run_forecast)
 
 
@@ -1012,16 +1098,18 @@ def _run_forecast(args: argparse.Namespace) -> int:
 
     options = ("A", "B") if args.option == "AB" else (args.option,)
     if "B" in options and args.poles is None:
-        raise UsageError("option B needs --poles (the stabilisation diagrams)")
-    if args.train < 2:
-        raise UsageError(f"--train must be at least 2 blocks, got {args.train}")
+        raise UsageError("--option pole-cluster (B) needs --poles (the stabilisation diagrams)")
+    if args.train_blocks < 2:
+        raise UsageError(f"--train-blocks must be at least 2, got {args.train_blocks}")
     if args.trust is not None and args.model != "window":
         raise UsageError(
             "--trust applies to --model window; --model memory takes its noise levels from the data"
         )
-    _check_positive(horizon=args.horizon, jobs=args.jobs, reacquire_blocks=args.reacquire_blocks)
+    _check_positive(
+        horizon=args.horizon, workers=args.workers, reacquire_blocks=args.reacquire_blocks
+    )
     _check_share("min-presence", args.min_presence)
-    _check_share("shape-mac-min", args.shape_mac_min)
+    _check_share("mac-min", args.mac_min)
     _check_table_path(args.out)
     trust = "auto" if args.trust is None else _parse_trust(args.trust)
     modal, predictors = _modal_and_predictors(args)
@@ -1030,14 +1118,14 @@ def _run_forecast(args: argparse.Namespace) -> int:
     _check_joins(args, modal, None, poles)
     stage_options = ForecastOptions(
         options=options,
-        method=args.method,
-        train_blocks=args.train,
+        scheme=args.scheme,
+        train_blocks=args.train_blocks,
         horizon=args.horizon,
         trust=trust,
         model=args.model,
-        n_jobs=args.jobs,
+        n_workers=args.workers,
         min_presence=args.min_presence,
-        shape_mac_min=args.shape_mac_min,
+        mac_min=args.mac_min,
         reacquire_blocks=args.reacquire_blocks,
     )
     with _data_errors(args.modal):
@@ -1062,11 +1150,18 @@ def _add_evaluate(commands: argparse._SubParsersAction) -> None:
         "Kalman estimates of a forecast table against the truth (e.g. of the demo voyage), "
         "and the improvement in %.",
     )
-    parser.add_argument("--forecast", type=Path, required=True, metavar="FILE")
+    parser.add_argument(
+        "--forecast", type=Path, required=True, metavar="FILE", help="forecast table"
+    )
     parser.add_argument(
         "--truth", type=Path, required=True, metavar="FILE", help="true modal table"
     )
-    parser.add_argument("--phase", choices=("forecast", "train", "all"), default="forecast")
+    parser.add_argument(
+        "--phase",
+        choices=("forecast", "train", "all"),
+        default=D.EVALUATE_PHASE,
+        help="rows compared: the forecast blocks, the training blocks or all",
+    )
     parser.add_argument(
         "--out", type=Path, metavar="FILE", help="write the table (.csv or .parquet)"
     )
@@ -1180,25 +1275,43 @@ def _run_report(args: argparse.Namespace) -> int:
 
 
 def _add_health(commands: argparse._SubParsersAction) -> None:
-    from .health import HealthOptions
-
-    defaults = HealthOptions()
     parser = commands.add_parser(
         "health",
         help="structural-health control chart of a forecast's frequency residuals",
         description="MEWMA/Hotelling chart of the standardised residuals (SSI minus model) "
         "of a forecast table: learns a reference period, then writes health.csv (statistic, "
         "limit, alarm per block) and alarms.csv (episodes with the modes that moved). Use a "
-        "forecast whose model is frozen before the reference period (forecast --method 1).",
+        "forecast whose model is frozen before the reference period (forecast --scheme "
+        "single-window).",
     )
-    parser.add_argument("--forecast", type=Path, required=True, metavar="FILE")
     parser.add_argument(
-        "--reference-hours", type=float, default=6.0, help="reference period length [h]"
+        "--forecast", type=Path, required=True, metavar="FILE", help="forecast table"
     )
-    parser.add_argument("--reference-start-block", type=int, metavar="K")
-    parser.add_argument("--ewma-lambda", type=float, default=defaults.ewma_lambda)
-    parser.add_argument("--false-alarms-per-day", type=float, default=defaults.false_alarms_per_day)
-    parser.add_argument("--out", type=Path, required=True, metavar="DIR")
+    parser.add_argument(
+        "--reference-hours",
+        type=float,
+        default=D.HEALTH_REFERENCE_HOURS,
+        help="reference period length [h]",
+    )
+    parser.add_argument(
+        "--reference-start-block",
+        type=int,
+        metavar="K",
+        help="first block of the reference period (default: the first block of the forecast phase)",
+    )
+    parser.add_argument(
+        "--ewma-lambda",
+        type=float,
+        default=D.HEALTH_EWMA_LAMBDA,
+        help="weight of the newest block in the MEWMA statistic",
+    )
+    parser.add_argument(
+        "--false-alarms-per-day",
+        type=float,
+        default=D.HEALTH_FALSE_ALARMS_PER_DAY,
+        help="expected false alarms per day in control (sets the limit)",
+    )
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
     parser.set_defaults(run=_run_health)
 
 
@@ -1262,15 +1375,16 @@ def build_parser() -> argparse.ArgumentParser:
         prog="workbench",
         description="Hull vibration monitoring: identify, track, model and forecast a ship's "
         "structural modes from accelerations and the ship's log.",
+        formatter_class=HelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"workbench {__version__}")
-    parser.add_argument(
-        "-v", "--verbose", action="store_true", help="show tracebacks and debug logging"
-    )
+    add_verbosity(parser, top_level=True)
     commands = parser.add_subparsers(title="commands", metavar="COMMAND")
     for add in COMMANDS:
         add(commands)
     for name, sub in commands.choices.items():
+        sub.formatter_class = HelpFormatter
+        add_verbosity(sub)
         if name in ("demo", "simulate", "run"):
             continue
         sub.add_argument(
@@ -1287,12 +1401,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     try:
         _apply_config(parser, argv)
-        args = parser.parse_args(argv)
+        args = parser.parse_args(argv, namespace=Namespace())
     except SystemExit as exit_:  # argparse exits 2 on usage errors, 0 on --help
         return int(exit_.code or 0)
     if not hasattr(args, "run"):
         parser.print_help(sys.stderr)
         return EXIT_USAGE
+    if not stderr_is_terminal():  # no progress bars in logs, pipes and CI
+        args.quiet = True
     logging.basicConfig(
         level=logging.DEBUG if args.verbose else logging.WARNING,
         format="%(message)s",

@@ -27,8 +27,8 @@ are refused by name (a mistyped option must not be ignored). Example::
     rate = 64
 
     [forecast]
-    option = "AB"
-    train = 20
+    option = "both"                     # tracked-pole (A), pole-cluster (B) or both
+    train_blocks = 20
 
 A modal table from another tool replaces identification and tracking::
 
@@ -43,6 +43,7 @@ from __future__ import annotations
 import argparse
 import os
 import tomllib
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,6 +51,7 @@ from typing import Any
 
 __all__ = [
     "SCHEMA",
+    "ConfigDeprecationWarning",
     "ShipConfig",
     "apply_config",
     "chain",
@@ -101,10 +103,10 @@ SCHEMA: dict[str, dict[str, Any]] = {
         "no_band": bool,
     },
     "track": {
-        "threshold": (int, float),
+        "mac_min": (int, float),
         "gate": str,
-        "frequency_tolerance": (int, float),
-        "reference": _PATH,
+        "frequency_tol": (int, float),
+        "reference_modes": _PATH,
     },
     "correlate": {
         "alpha": (int, float),
@@ -120,17 +122,33 @@ SCHEMA: dict[str, dict[str, Any]] = {
     },
     "forecast": {
         "option": str,
-        "method": int,
-        "train": int,
+        "scheme": (str, int),
+        "train_blocks": int,
         "horizon": int,
         "trust": (str, int, float),
         "min_presence": (int, float),
-        "shape_mac_min": (int, float),
+        "mac_min": (int, float),
         "reacquire_blocks": int,
         "figures": bool,
     },
     "evaluate": {"truth": _PATH, "phase": str},
 }
+
+
+#: Keys renamed with the vocabulary (README, "Glossary"): section -> old key -> new key. The
+#: old keys are still read, with a warning.
+RENAMED_KEYS: dict[str, dict[str, str]] = {
+    "track": {
+        "threshold": "mac_min",
+        "frequency_tolerance": "frequency_tol",
+        "reference": "reference_modes",
+    },
+    "forecast": {"method": "scheme", "train": "train_blocks", "shape_mac_min": "mac_min"},
+}
+
+
+class ConfigDeprecationWarning(UserWarning):
+    """A configuration key under its old name (still read; shown to the user)."""
 
 
 class ConfigError(ValueError):
@@ -183,23 +201,37 @@ def load_config(path: str | os.PathLike) -> ShipConfig:
             problems.append(f"[{name}] must be a table")
             continue
         section = {}
-        for key, value in values.items():
+        for given, value in values.items():
+            key = given
+            new = RENAMED_KEYS.get(name, {}).get(key)
+            if new is not None:
+                if new in values:
+                    problems.append(f"[{name}] give {new} only ({key} is its old name)")
+                    continue
+                warnings.warn(
+                    f"{path}: [{name}] {key} is deprecated; use {new}",
+                    ConfigDeprecationWarning,
+                    stacklevel=2,
+                )
+                key = new
             kind = SCHEMA[name].get(key)
             if kind is None:
-                problems.append(f"[{name}] unknown key '{key}' (known: {', '.join(SCHEMA[name])})")
+                problems.append(
+                    f"[{name}] unknown key '{given}' (known: {', '.join(SCHEMA[name])})"
+                )
             elif kind == _PATH:
                 if not isinstance(value, str):
-                    problems.append(f"[{name}] {key} must be a path (text)")
+                    problems.append(f"[{name}] {given} must be a path (text)")
                 else:
                     section[key] = base / value
             elif kind == _PATHS:
                 items = [value] if isinstance(value, str) else value
                 if not isinstance(items, list) or not all(isinstance(v, str) for v in items):
-                    problems.append(f"[{name}] {key} must be a path or a list of paths")
+                    problems.append(f"[{name}] {given} must be a path or a list of paths")
                 else:
                     section[key] = [base / v for v in items]
             elif not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
-                problems.append(f"[{name}] {key} = {value!r} has the wrong type")
+                problems.append(f"[{name}] {given} = {value!r} has the wrong type")
             else:
                 section[key] = value
         sections[name] = section
@@ -274,7 +306,7 @@ def command_defaults(command: str, config: ShipConfig) -> dict[str, Any]:
     elif command == "track":
         values["selected"] = out / "identify" / "selected.parquet"
         values["out"] = out / "tracked_modal.csv"
-        for key in ("threshold", "gate", "frequency_tolerance", "reference"):
+        for key in ("mac_min", "gate", "frequency_tol", "reference_modes"):
             put(key, "track", key)
     elif command == "correlate":
         values["out"] = out / "correlation"
@@ -286,13 +318,15 @@ def command_defaults(command: str, config: ShipConfig) -> dict[str, Any]:
             put(key, "fit", key)
     elif command == "forecast":
         values["out"] = out / "forecast.csv"
-        for key in ("option", "method", "train", "horizon", "min_presence", "shape_mac_min"):
+        for key in ("option", "train_blocks", "horizon", "min_presence", "mac_min"):
             put(key, "forecast", key)
+        put("scheme", "forecast", "scheme", str)
         put("reacquire_blocks", "forecast", "reacquire_blocks")
         put("trust", "forecast", "trust", str)
         if c.get("forecast", "figures", False):
             values["figures"] = out / "forecast_figures"
-        if "B" in str(c.get("forecast", "option", "A")) and c.has("accelerations", "inputs"):
+        option = str(c.get("forecast", "option", "A"))
+        if option in ("B", "AB", "pole-cluster", "both") and c.has("accelerations", "inputs"):
             values["poles"] = out / "identify" / "poles.parquet"
     elif command == "evaluate":
         values["forecast"] = out / "forecast.csv"
@@ -390,10 +424,16 @@ def write_demo_config(out_dir: str | os.PathLike, voyage: str = "voyage") -> Pat
         "dship": {"file": f"{voyage}/dship.tsv"},
         "blocks": {"length_minutes": 20, "step_minutes": 5},
         "identify": {"method": "cov", "band": [2.0, 12.0], "max_order": 60},
-        "track": {"threshold": 0.9, "gate": "mac"},
+        "track": {"mac_min": 0.9, "gate": "mac"},
         "correlate": {"alpha": 0.05, "cases": f"{voyage}/cases.csv"},
         "fit": {"p_enter": 0.05, "p_remove": 0.10},
-        "forecast": {"option": "AB", "method": 2, "train": 20, "trust": 0.65, "figures": True},
+        "forecast": {
+            "option": "both",
+            "scheme": "rolling",
+            "train_blocks": 20,
+            "trust": 0.65,
+            "figures": True,
+        },
         "evaluate": {"truth": f"{voyage}/truth_modal.csv"},
     }
     comment = (

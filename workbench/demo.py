@@ -127,7 +127,7 @@ def run_demo(
 
     Stages: simulate -> identify (SSI-cov on every block, in parallel) -> track ->
     predictors (DSHIP log onto the blocks) -> correlate -> fit (stepwise per mode) ->
-    forecast (method 2, options A and B) -> evaluate against the truth -> the run's
+    forecast (rolling scheme, options A and B) -> evaluate against the truth -> the run's
     report (``index.html``, :func:`workbench.reporting.report.build_report`).
 
     Returns
@@ -204,7 +204,7 @@ def run_demo(
     )
 
     with stage("predictors"):
-        predictors = load_predictors(dship=simulation.dship_log, like=tracked.table)
+        predictors = load_predictors(dship=simulation.dship_log, onto=tracked.table)
         write_table(predictors, out_dir / "predictors.csv", PREDICTORS)
     predictors = canonical_predictors(predictors)
 
@@ -224,7 +224,7 @@ def run_demo(
             poles=identified.poles,
             options=ForecastOptions(
                 options=("A", "B"),
-                method=2,
+                scheme="rolling",
                 train_blocks=20,
                 # the reference configuration: the memory model needs history; on demo
                 # voyages of 3-6 h it is still 16-24 % worse than raw SSI

@@ -50,6 +50,7 @@ from data_contracts import POLES, SELECTED, atomic_path, shape_columns
 from data_contracts.formats import ACCELERATION_SUFFIXES as _FORMAT_SUFFIXES
 from data_contracts.tables import metadata_with_grid, write_grid_sidecar
 
+from ._deprecation import renamed_fields
 from .blocks import BlockGrid
 from .errors import OptionError, WorkbenchError
 from .parallel import BlockOutcome, RunSummary, run_blocks
@@ -74,6 +75,13 @@ __all__ = [
 ACCELERATION_SUFFIXES = _FORMAT_SUFFIXES
 
 
+#: Lower damping limit of the automatic selection (harmonics have ζ ≈ 0). [-]
+_LOWEST_DAMPING = 0.001
+
+
+@renamed_fields(
+    max_damping=("damping_limits", lambda high: (_LOWEST_DAMPING, high), lambda lim: lim[1])
+)
 @dataclass(frozen=True)
 class IdentifyOptions:
     """Settings of block-wise identification (all stored with the results).
@@ -115,8 +123,9 @@ class IdentifyOptions:
     frequency_tol, damping_tol, mac_min : float
         Stability criteria between consecutive orders (relative frequency change, relative
         damping change, lowest MAC).
-    max_damping : float
-        Poles with larger damping ratios are not selected. [-]
+    damping_limits : (float, float)
+        Poles with damping ratios outside these limits are not selected (harmonics have
+        ζ ≈ 0, noise poles large ζ). [-]
     lscf_orders : tuple of int
         Polynomial orders p of LSCF (p·r poles with r references). [-]
     lscf_lags : int, optional
@@ -158,7 +167,7 @@ class IdentifyOptions:
     frequency_tol: float = 0.01
     damping_tol: float = 0.05
     mac_min: float = 0.98
-    max_damping: float = 0.10
+    damping_limits: tuple[float, float] = (_LOWEST_DAMPING, 0.10)
     lscf_orders: tuple[int, ...] = tuple(range(1, 16))
     lscf_lags: int | None = None
     cross_check: bool = False
@@ -233,10 +242,21 @@ class IdentifyOptions:
                     f"band_hz=({low:g}, {high:g}) must be (low, high) with 0 <= low < high"
                 )
             object.__setattr__(self, "band_hz", (low, high))
-        for name in ("frequency_tol", "damping_tol", "mac_min", "max_damping"):
+        for name in ("frequency_tol", "damping_tol", "mac_min"):
             value = float(getattr(self, name))
             if not (math.isfinite(value) and 0 <= value <= 1):
                 raise OptionError(f"{name}={value:g} must lie in [0, 1]")
+        try:
+            low, high = (float(v) for v in self.damping_limits)
+        except (TypeError, ValueError):
+            raise OptionError(
+                f"damping_limits={self.damping_limits!r} must be (low, high)"
+            ) from None
+        if not (math.isfinite(low) and math.isfinite(high) and 0 <= low < high <= 1):
+            raise OptionError(
+                f"damping_limits=({low:g}, {high:g}) must be (low, high) with 0 <= low < high <= 1"
+            )
+        object.__setattr__(self, "damping_limits", (low, high))
         if self.reference_channels is not None and not self.reference_channels:
             object.__setattr__(self, "reference_channels", None)
 
@@ -305,6 +325,13 @@ class IdentifyOptions:
             list(self.reference_channels) if self.reference_channels else None
         )
         values["lscf_orders"] = list(self.lscf_orders)
+        # recorded as the former max_damping while the lower limit is the former fixed one,
+        # so stores written before the rename still resume
+        del values["damping_limits"]
+        if self.damping_limits[0] == _LOWEST_DAMPING:
+            values["max_damping"] = self.damping_limits[1]
+        else:
+            values["damping_limits"] = list(self.damping_limits)
         # options added with LSCF are recorded only when used, so stores written before
         # them still resume
         if not self.cross_check:
@@ -473,7 +500,7 @@ def _identify_method(method: str, data, reference, options: IdentifyOptions):
             data.acceleration,
             data.sampling_rate_hz,
             orders=options.lscf_orders,
-            frequency_band_hz=band,
+            band_hz=band,
             n_lags=options.lscf_lags,
             reference_channels=reference,
         )
@@ -485,9 +512,9 @@ def _identify_method(method: str, data, reference, options: IdentifyOptions):
     )
     selection = select_modes(
         result,
-        method=options.selection,
-        frequency_band=options.selection_band(data.sampling_rate_hz),
-        damping_limits=(0.001, options.max_damping),
+        selection=options.selection,
+        band_hz=options.selection_band(data.sampling_rate_hz),
+        damping_limits=options.damping_limits,
     )
     return result, selection
 
@@ -1052,7 +1079,7 @@ def write_block_figures(
                 path,
                 data.acceleration,
                 selection=selection,
-                frequency_band=options.selection_band(data.sampling_rate_hz),
+                band_hz=options.selection_band(data.sampling_rate_hz),
                 title=f"Block {task.block} ({pd.Timestamp(task.block_start):%Y-%m-%d %H:%M} "
                 f"UTC), {'LSCF' if options.method == 'lscf' else 'SSI-' + options.method}",
             )
@@ -1163,7 +1190,7 @@ def write_tpe_figures(
                 path,
                 data.acceleration,
                 selection=selection,
-                frequency_band=options.selection_band(data.sampling_rate_hz),
+                band_hz=options.selection_band(data.sampling_rate_hz),
                 title=f"Block {task.block} ({pd.Timestamp(task.block_start):%Y-%m-%d %H:%M} "
                 f"UTC), SSI-data/{options.weighting}",
             )

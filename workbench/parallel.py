@@ -96,16 +96,16 @@ def process_map(
     func: Callable[..., Any],
     calls: list[tuple],
     *,
-    n_jobs: int = 1,
+    n_workers: int = 1,
     progress: bool = False,
     description: str = "",
     unit: str = "task",
     sizes: list[int] | None = None,
 ) -> list[Any]:
-    """``[func(*args) for args in calls]``, spread over *n_jobs* local processes.
+    """``[func(*args) for args in calls]``, spread over *n_workers* local processes.
 
     For work that needs no store and no cluster (e.g. independent modes of a forecast):
-    *func* must be picklable (module level) when *n_jobs* > 1. *sizes* weighs each call in
+    *func* must be picklable (module level) when *n_workers* > 1. *sizes* weighs each call in
     the progress bar (default 1 each). Results come back in the order of *calls*.
     """
     from tqdm.auto import tqdm
@@ -120,7 +120,7 @@ def process_map(
         dynamic_ncols=True,
     )
     with bar:
-        if n_jobs <= 1 or len(calls) <= 1:
+        if n_workers <= 1 or len(calls) <= 1:
             results = []
             for args, size in zip(calls, sizes, strict=True):
                 results.append(func(*args))
@@ -128,7 +128,7 @@ def process_map(
             return results
         from concurrent.futures import ProcessPoolExecutor, as_completed
 
-        with ProcessPoolExecutor(max_workers=n_jobs) as pool:
+        with ProcessPoolExecutor(max_workers=n_workers) as pool:
             futures = {
                 pool.submit(func, *args): size for args, size in zip(calls, sizes, strict=True)
             }

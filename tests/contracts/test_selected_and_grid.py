@@ -27,9 +27,8 @@ from data_contracts import (
 )
 from data_contracts.grid import GRID_METADATA_KEY, grid_sidecar
 from data_contracts.npz import read_sample_header, read_sample_rows
-from workbench.blocks import BlockGrid
+from workbench.blocks import BlockGrid, block_grid_of
 from workbench.errors import WorkbenchError
-from workbench.blocks import block_grid_of
 
 # a grid no inference from one block can find: 50 % overlap, t0 not on a round time
 GRID = BlockGrid(pd.Timestamp("2026-03-01T00:02:10.5Z"), length_s=1200.0, step_s=600.0)

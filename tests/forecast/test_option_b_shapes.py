@@ -168,7 +168,7 @@ def test_reacquire_blocks_counts_consecutive_blocks_seen_only_outside_the_gate()
 
 def test_stricter_shape_threshold_than_any_pole_means_predict_only():
     modal, predictors, poles, _, _ = _regime_change_case()
-    table, _ = _run(modal, predictors, poles, shape_mac_min=0.99999)
+    table, _ = _run(modal, predictors, poles, mac_min=0.99999)
     # 1 % shape noise keeps every MAC below 0.99999: nothing admissible, no re-acquisition
     assert table["ssi_frequency_hz"].isna().all()
     assert table["kalman_frequency_hz"].notna().all()
@@ -177,8 +177,8 @@ def test_stricter_shape_threshold_than_any_pole_means_predict_only():
 @pytest.mark.parametrize(
     ("name", "value"),
     [
-        ("shape_mac_min", 1.0),
-        ("shape_mac_min", -0.1),
+        ("mac_min", 1.0),
+        ("mac_min", -0.1),
         ("reacquire_blocks", 0),
         ("reacquire_band", 0),
     ],

@@ -28,7 +28,7 @@ def make_run(out, *, hours: float = 2.0):
     tracked = track(identified.table)
     tracked.save(out / "tracked_modal.csv")
     tracked = tracked.table
-    predictors = load_predictors(dship=voyage.dship_log, like=tracked)
+    predictors = load_predictors(dship=voyage.dship_log, onto=tracked)
     write_table(predictors, out / "predictors.csv", PREDICTORS)
     predictors = canonical_predictors(predictors)
     fit(tracked, predictors).save(out / "fit")
@@ -37,7 +37,7 @@ def make_run(out, *, hours: float = 2.0):
         predictors,
         poles=identified.poles,
         options=ForecastOptions(
-            options=("A", "B"), method=2, train_blocks=6, horizon=2, trust=0.65
+            options=("A", "B"), scheme=2, train_blocks=6, horizon=2, trust=0.65
         ),
     )
     forecasted.save(out / "forecast.csv")

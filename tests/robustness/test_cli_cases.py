@@ -173,7 +173,7 @@ CASES = {
     "rate 0": ([*IDENT, "--rate", "0"], 2, "--rate"),
     "rate nan": ([*IDENT, "--rate", "nan"], 2, "--rate"),
     "rate not a divisor": ([*IDENT, "--rate", "5"], 2, "whole number"),
-    "unknown reference": ([*IDENT, "--reference", "acc99"], 2, "acc99 not among"),
+    "unknown reference": ([*IDENT, "--reference-channels", "acc99"], 2, "acc99 not among"),
     "huge block rows": ([*IDENT, "--block-rows", "5000", "--max-order", "16"], 2, "samples"),
     "block minutes 0": ([*IDENT, "--block-minutes", "0"], 2, "--block-minutes"),
     "max gap negative": ([*IDENT, "--max-gap", "-1"], 2, "--max-gap"),
@@ -181,7 +181,7 @@ CASES = {
     "scheduler bogus": ([*IDENT, "--scheduler", "bogus"], 2, "--scheduler"),
     "workers -2": ([*IDENT, "--workers", "-2"], 2, "--workers"),
     "workers 0": ([*IDENT, "--workers", "0"], 2, "--workers"),
-    "figures -1": ([*IDENT, "--figures", "-1"], 2, "--figures"),
+    "figures -1": ([*IDENT, "--stabilisation-figures", "-1"], 2, "--stabilisation-figures"),
     "out is a file": (
         ["identify", "{root}/voyage", "--out", "{root}/a_file", *IDENTIFY_ARGS],
         1,
@@ -368,10 +368,10 @@ CASES = {
         1,
         "a_file",
     ),
-    "track threshold 2": (
-        ["track", "{root}/sim/tracked_modal.csv", "--out", "{tmp}/t.csv", "--threshold", "2"],
+    "track mac min 2": (
+        ["track", "{root}/sim/tracked_modal.csv", "--out", "{tmp}/t.csv", "--mac-min", "2"],
         2,
-        "--threshold",
+        "--mac-min",
     ),
     "track out suffix": (
         ["track", "{root}/sim/tracked_modal.csv", "--out", "{tmp}/t.txt"],
@@ -394,14 +394,14 @@ CASES = {
         "--min-presence",
     ),
     "forecast shape mac 5": (
-        ["forecast", *MODAL, *PRED, "--out", "{tmp}/f.csv", "--shape-mac-min", "5"],
+        ["forecast", *MODAL, *PRED, "--out", "{tmp}/f.csv", "--mac-min", "5"],
         2,
-        "--shape-mac-min",
+        "--mac-min",
     ),
-    "forecast jobs -4": (
-        ["forecast", *MODAL, *PRED, "--out", "{tmp}/f.csv", "--jobs", "-4"],
+    "forecast workers -4": (
+        ["forecast", *MODAL, *PRED, "--out", "{tmp}/f.csv", "--workers", "-4"],
         2,
-        "--jobs",
+        "--workers",
     ),
     "forecast out is a folder": (
         ["forecast", *MODAL, *PRED, "--out", "{root}/a_folder"],

@@ -1,4 +1,4 @@
-"""Identification of recorder-rate files: simulate --rate, default analysis rate, files
+"""Identification of recorder-rate files: simulate --sampling-rate, default analysis rate, files
 conditioned once (issue 18).
 
 A 40-minute voyage at 256 Hz (8 five-minute files, 5 blocks) stands in for 2048-Hz
@@ -134,7 +134,10 @@ def test_resume_of_runs_of_blocks_gives_the_same_tables(voyages, identified, tmp
 
 
 def test_cli_rate_arguments(tmp_path, capsys):
-    assert main(["simulate", "--out", str(tmp_path / "v"), "--hours", "0.5", "--rate", "100"]) == 2
+    assert (
+        main(["simulate", "--out", str(tmp_path / "v"), "--hours", "0.5", "--sampling-rate", "100"])
+        == 2
+    )
     assert "sampling_rate_hz" in capsys.readouterr().err
     assert main(["identify", str(tmp_path), "--out", str(tmp_path / "o"), "--rate", "fast"]) == 2
     assert "'fast' is not a rate" in capsys.readouterr().err

@@ -78,13 +78,13 @@ def test_lab_frame_ssi_and_lscf_agree_to_a_tenth_of_a_percent(record):
         data,
         rate,
         orders=range(1, 41),
-        frequency_band_hz=band,
+        band_hz=band,
         reference_channels=references,
         n_lags=2048,
     )
     limits = (0.0005, 0.05)
-    a = select_modes(ssi, frequency_band=band, damping_limits=limits)
-    b = select_modes(poly, frequency_band=band, damping_limits=limits)
+    a = select_modes(ssi, band_hz=band, damping_limits=limits)
+    b = select_modes(poly, band_hz=band, damping_limits=limits)
     table = cross_check(
         a.modes["frequency_hz"],
         a.modes["damping_ratio"],

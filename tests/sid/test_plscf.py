@@ -61,7 +61,7 @@ def test_frequency_band_and_reference_channels(chain5):
         chain5.acceleration,
         chain5.sampling_rate_hz,
         orders=range(1, 16),
-        frequency_band_hz=band,
+        band_hz=band,
         reference_channels=[0, 4],
     )
     frequency = result.poles["frequency_hz"].to_numpy()
@@ -127,12 +127,12 @@ def test_poles_frame_follows_the_contract_and_selection_takes_it(hull_block):
         hull_block.acceleration,
         hull_block.sampling_rate_hz,
         orders=range(1, 10),
-        frequency_band_hz=(1.0, 12.0),
+        band_hz=(1.0, 12.0),
     )
     frame = POLES.validate(result.poles_frame(CHANNELS, block=3))
     assert (frame["block"] == 3).all()
     assert len(frame) == len(result.poles)
-    selection = select_modes(result, frequency_band=(1.0, 12.0))
+    selection = select_modes(result, band_hz=(1.0, 12.0))
     found = selection.modes["frequency_hz"].to_numpy()
     for f in hull_block.frequency_hz:
         assert np.abs(found / f - 1).min() < 0.005, (f, found)
@@ -143,10 +143,10 @@ def test_poles_frame_follows_the_contract_and_selection_takes_it(hull_block):
     [
         ({"orders": []}, "orders"),
         ({"orders": [0, 1]}, "orders"),
-        ({"frequency_band_hz": (30.0, 20.0)}, "frequency_band_hz"),
-        ({"frequency_band_hz": (1.0, 150.0)}, "Nyquist"),
+        ({"band_hz": (30.0, 20.0)}, "band_hz"),
+        ({"band_hz": (1.0, 150.0)}, "Nyquist"),
         ({"n_lags": 4}, "n_lags"),
-        ({"orders": range(1, 40), "frequency_band_hz": (20.0, 21.0)}, "spectral lines"),
+        ({"orders": range(1, 40), "band_hz": (20.0, 21.0)}, "spectral lines"),
         ({"window_end": 0.0}, "window_end"),
         ({"reference_channels": [7]}, "reference_channels"),
     ],
@@ -178,7 +178,7 @@ def test_koma_shear_frame_frequencies():
     data = np.load(SHEAR_FRAME / "data_shearframe.npy")
     truth = np.array([0.1811, 0.5256, 0.8209, 1.0443, 1.1824])
     result = lscf(data, 12.0, orders=range(1, 21), n_lags=1024)  # whole 0..6 Hz range
-    selection = select_modes(result, frequency_band=(0.05, 2.0))
+    selection = select_modes(result, band_hz=(0.05, 2.0))
     found = selection.modes["frequency_hz"].to_numpy()
     assert found.size == truth.size, found
     np.testing.assert_allclose(np.sort(found), truth, rtol=0.005)

@@ -52,7 +52,7 @@ def test_library_and_descent_rule():
         if n >= 6:
             rows.append((n, 9.0, 0.0002, 3))  # harmonic: below the damping limit
     result = _diagram(rows, ORDERS)
-    selection = select_modes(result, method="library")
+    selection = select_modes(result, selection="library")
     assert selection.library_orders == (10, 12, 14, 16, 18)
     # B is lost at order 6, so the modes are those of order 8
     assert selection.model_order == 8
@@ -64,10 +64,10 @@ def test_library_and_descent_rule():
     rows_back = result.poles.iloc[selection.modes["pole_index"]]
     np.testing.assert_allclose(rows_back["frequency_hz"], selection.modes["frequency_hz"])
     # lowering the damping limit lets the harmonic in; it exists from order 6, B from 8
-    with_harmonic = select_modes(result, damping_limits=(0.0, 0.1), method="library")
+    with_harmonic = select_modes(result, damping_limits=(0.0, 0.1), selection="library")
     assert with_harmonic.model_order == 8 and len(with_harmonic.modes) == 3
     # a band around A alone: A is present in every order, so the lowest order is selected
-    only_a = select_modes(result, frequency_band=(2.0, 4.0), method="library")
+    only_a = select_modes(result, band_hz=(2.0, 4.0), selection="library")
     assert only_a.model_order == 2 and len(only_a.modes) == 1
 
 
@@ -77,9 +77,9 @@ def test_twins_count_once_and_empty_library():
         rows.append((n, 4.0, 0.02, 0))
         if n >= 12:
             rows.append((n, 4.01, 0.02, 0))  # the same mode split into two poles
-    selection = select_modes(_diagram(rows, ORDERS), method="library")
+    selection = select_modes(_diagram(rows, ORDERS), selection="library")
     assert len(selection.modes) == 1 and selection.model_order == 2
-    empty = select_modes(_diagram([(n, 4.0, 0.5, 0) for n in ORDERS], ORDERS), method="library")
+    empty = select_modes(_diagram([(n, 4.0, 0.5, 0) for n in ORDERS], ORDERS), selection="library")
     assert empty.modes.empty and empty.model_order is None
     assert empty.mode_shapes.shape == (4, 0)
 
@@ -87,11 +87,11 @@ def test_twins_count_once_and_empty_library():
 def test_bad_arguments():
     result = _diagram([(n, 4.0, 0.02, 0) for n in ORDERS], ORDERS)
     with pytest.raises(ValueError, match="library_orders"):
-        select_modes(result, library_orders=10, method="library")
+        select_modes(result, library_orders=10, selection="library")
     with pytest.raises(ValueError, match="damping_limits"):
-        select_modes(result, damping_limits=(0.1, 0.01), method="library")
-    with pytest.raises(ValueError, match="frequency_band"):
-        select_modes(result, frequency_band=(8.0, 2.0), method="library")
+        select_modes(result, damping_limits=(0.1, 0.01), selection="library")
+    with pytest.raises(ValueError, match="band_hz"):
+        select_modes(result, band_hz=(8.0, 2.0), selection="library")
 
 
 @pytest.mark.filterwarnings("ignore::workbench.sid.ssi.SSIWarning")
@@ -132,7 +132,7 @@ def test_hull_block_with_shaft_harmonic_and_band(hull_block):
     assert len(near_harmonic) > 10 and (near_harmonic["damping_ratio"].abs() < 0.001).all()
     selection = select_modes(result)
     np.testing.assert_allclose(selection.modes["frequency_hz"], hull_block.frequency_hz, rtol=0.005)
-    banded = select_modes(result, frequency_band=(4.0, 6.0))
+    banded = select_modes(result, band_hz=(4.0, 6.0))
     np.testing.assert_allclose(
         banded.modes["frequency_hz"], hull_block.frequency_hz[1:4], rtol=0.005
     )
@@ -190,7 +190,7 @@ def test_cluster_rule_keeps_modes_and_drops_spurious_poles_and_harmonics(seed):
     assert 1e-4 < selection.thresholds["pole_distance"] <= 0.02
     assert selection.thresholds["min_orders"] >= 3
     # the library rule loses B (ζ below the limit at one order of its window)
-    library = select_modes(result, method="library")
+    library = select_modes(result, selection="library")
     assert len(library.modes) < 2 or library.model_order is not None
 
 
@@ -218,10 +218,10 @@ def test_otsu_threshold_splits_two_groups():
     assert -3.2 < otsu_threshold(np.r_[low, high]) < -1.8
 
 
-def test_bad_method():
+def test_bad_selection():
     result = _diagram([(n, 4.0, 0.02, 0) for n in ORDERS], ORDERS)
-    with pytest.raises(ValueError, match="method"):
-        select_modes(result, method="hdbscan")
+    with pytest.raises(ValueError, match="selection"):
+        select_modes(result, selection="hdbscan")
     with pytest.raises(ValueError, match="min_orders"):
         select_modes(result, min_orders=1)
     with pytest.raises(ValueError, match="pole_distance"):

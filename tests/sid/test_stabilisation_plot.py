@@ -59,9 +59,7 @@ def test_cmif_peaks_at_the_hull_modes(hull_block):
 def test_figure_shows_every_pole_and_is_written(hull_block, tmp_path):
     result = ssi_cov(hull_block.acceleration, hull_block.sampling_rate_hz, orders=range(2, 41, 2))
     selection = select_modes(result)
-    fig = plot_stabilisation(
-        result, hull_block.acceleration, selection=selection, frequency_band=(0, 12)
-    )
+    fig = plot_stabilisation(result, hull_block.acceleration, selection=selection, band_hz=(0, 12))
     ax = fig.axes[0]
     lines = {line.get_label(): line for line in ax.get_lines()}
     stable = result.poles["stable"].to_numpy()

@@ -32,7 +32,7 @@ def identified(chain3):
 
 def test_tpe_panel_shares_the_order_axis(identified):
     data, result, errors = identified
-    fig = plot_stabilisation_with_tpe(result, errors, data, frequency_band=(0, 40))
+    fig = plot_stabilisation_with_tpe(result, errors, data, band_hz=(0, 40))
     diagram, side = fig.axes[0], fig.axes[1]
     assert side.get_shared_y_axes().joined(diagram, side)
     line = side.get_lines()[0]

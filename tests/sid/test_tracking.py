@@ -155,7 +155,7 @@ def test_reference_library_keeps_its_labels():
     frames = [_rows(b, [4.5, 3.0], [0.01, 0.01], [_shape(2), _shape(1)]) for b in range(5)]
     tracked = track_modes(
         pd.concat(frames, ignore_index=True),
-        reference=reference,
+        reference_modes=reference,
         options=TrackingOptions(sort_by_frequency=False),
     )
     assert tracked.groupby("mode")["frequency_hz"].first().to_dict() == {7: 3.0, 9: 4.5}
@@ -171,12 +171,12 @@ def test_label_agreement_penalises_split_tracks():
 @pytest.mark.parametrize(
     "options",
     [
-        dict(threshold=0.0),
-        dict(threshold=1.5),
+        dict(mac_min=0.0),
+        dict(mac_min=1.5),
         dict(gate="mode"),
         dict(smoothing=2.0),
         dict(min_blocks=0),
-        dict(frequency_tolerance=0.0),
+        dict(frequency_tol=0.0),
     ],
 )
 def test_bad_options_are_rejected(options):

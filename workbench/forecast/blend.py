@@ -339,7 +339,7 @@ def memory_forecast(
             modal,
             blocks,
             mode_labels,
-            shape_mac_min=measurement.shape_mac_min,
+            shape_mac_min=measurement.mac_min,
             reacquire_blocks=measurement.reacquire_blocks,
             reacquire_band=measurement.reacquire_band,
         )
@@ -365,7 +365,7 @@ def memory_forecast(
         chooser = ClusterChooser(
             index,
             shape_mac,
-            shape_mac_min=measurement.shape_mac_min,
+            shape_mac_min=measurement.mac_min,
             reacquire_blocks=measurement.reacquire_blocks,
             reacquire_band=measurement.reacquire_band,
         )

@@ -19,6 +19,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
+from .._deprecation import renamed_fields
+
 __all__ = [
     "MeasurementOptions",
     "ModelOptions",
@@ -27,8 +29,15 @@ __all__ = [
     "option_label",
 ]
 
-_OPTIONS = {"A": "A", "B": "B", "tracked_pole": "A", "pole_cluster": "B"}
-_METHODS = {1: 1, 2: 2, "1": 1, "2": 2, "single_window": 1, "rolling": 2}
+_OPTIONS = {
+    "A": "A",
+    "B": "B",
+    "tracked_pole": "A",
+    "pole_cluster": "B",
+    "tracked-pole": "A",
+    "pole-cluster": "B",
+}
+_METHODS = {1: 1, 2: 2, "1": 1, "2": 2, "single_window": 1, "single-window": 1, "rolling": 2}
 
 
 def option_label(option: str) -> Literal["A", "B"]:
@@ -156,6 +165,7 @@ class NoiseOptions:
             raise ValueError(f"huber_sigma={self.huber_sigma!r} must be > 0")
 
 
+@renamed_fields(shape_mac_min="mac_min")
 @dataclass(frozen=True)
 class MeasurementOptions:
     """What each block measures (option A or B) and option B's gate.
@@ -165,7 +175,7 @@ class MeasurementOptions:
     option : {"A", "B", "tracked_pole", "pole_cluster"}
     gate_sigma : float
         Option B gate in innovation standard deviations.
-    shape_mac_min : float
+    mac_min : float
         Option B with shapes: lowest MAC of a pole with the mode's reference shape.
     reacquire_blocks : int
         Option B: blocks with the mode seen only outside the gate before it is re-acquired.
@@ -178,7 +188,7 @@ class MeasurementOptions:
 
     option: str = "A"
     gate_sigma: float = 3.0
-    shape_mac_min: float = 0.9
+    mac_min: float = 0.9
     reacquire_blocks: int = 2
     reacquire_band: float = 0.05
     max_gate: float = 0.02
@@ -189,8 +199,8 @@ class MeasurementOptions:
             raise ValueError(f"max_gate={self.max_gate!r} must be > 0")
         if not self.gate_sigma > 0:
             raise ValueError(f"gate_sigma={self.gate_sigma!r} must be > 0")
-        if not 0.0 <= self.shape_mac_min < 1.0:
-            raise ValueError(f"shape_mac_min={self.shape_mac_min!r} must be in [0, 1)")
+        if not 0.0 <= self.mac_min < 1.0:
+            raise ValueError(f"mac_min={self.mac_min!r} must be in [0, 1)")
         if int(self.reacquire_blocks) != self.reacquire_blocks or self.reacquire_blocks < 1:
             raise ValueError(f"reacquire_blocks={self.reacquire_blocks!r} must be an integer >= 1")
         if not self.reacquire_band > 0:

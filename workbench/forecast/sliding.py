@@ -27,6 +27,7 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
+from .._deprecation import DEPRECATED, renamed_argument
 from ..stats.distributions import t_quantile
 from .kalman import relaxation_factor
 from .options import MeasurementOptions, ModelOptions, NoiseOptions, method_label, option_label
@@ -191,8 +192,8 @@ def sliding_forecast(
     predictors: pd.DataFrame,
     *,
     poles: pd.DataFrame | None = None,
-    option: Literal["A", "B"] = "A",
-    method: Literal[1, 2] = 1,
+    option: Literal["A", "B", "tracked_pole", "pole_cluster"] = "A",
+    scheme: Literal[1, 2, "single_window", "rolling"] = 1,
     train_blocks: int = 20,
     horizon: int | None = None,
     start_block: int | None = None,
@@ -200,7 +201,7 @@ def sliding_forecast(
     trust: float | None | Literal["auto"] = "auto",
     correction_time_blocks: float = 36.0,
     gate_sigma: float = 3.0,
-    shape_mac_min: float = 0.9,
+    mac_min: float = 0.9,
     reacquire_blocks: int | None = None,
     reacquire_band: float = 0.05,
     predictor_columns: Sequence[str] | None = None,
@@ -214,6 +215,8 @@ def sliding_forecast(
     model: Literal["memory", "window"] = "window",
     model_options: ModelOptions | None = None,
     noise_options: NoiseOptions | None = None,
+    method=DEPRECATED,
+    shape_mac_min=DEPRECATED,
 ) -> ForecastResult:
     """Sliding stepwise-regression forecast of each mode's frequency, Kalman-blended with SSI.
 
@@ -230,16 +233,18 @@ def sliding_forecast(
         Stabilisation diagrams (POLES contract: block, model_order, frequency_hz,
         damping_ratio, stable, and mode shapes ``shape_re_<ch>``/``shape_im_<ch>``);
         required for option B.
-    option : {"A", "B"}
-        Measurement: A, the tracked pole of the block; B, an automatic pole selection from
-        the block's stabilisation diagram: among the poles inside the gate
+    option : {"A", "B", "tracked_pole", "pole_cluster"}
+        Measurement: A (``"tracked_pole"``), the tracked pole of the block; B, an automatic pole selection from
+        the block's stabilisation diagram (B, ``"pole_cluster"``): among the poles inside the gate
         ``gate_sigma * sqrt(P⁻ + R)`` around the a-priori estimate whose shape matches the
-        mode's reference shape (MAC >= *shape_mac_min*), the best by a score; a mode seen
+        mode's reference shape (MAC >= *mac_min*), the best by a score; a mode seen
         only outside the gate for *reacquire_blocks* blocks is re-acquired (Notes).
         Without shape columns in *poles* and *modal*: the nearest pole inside the gate,
         stable poles preferred, no MAC check (with a warning).
-    method : {1, 2}
-        1: one training window, one forward prediction of *horizon* blocks. 2: predict
+    scheme : {1, 2, "single_window", "rolling"}
+        How the forecast slides (the reference work's methods 1 and 2).
+        ``"single_window"`` (1): one training window, one forward prediction of *horizon*
+        blocks. ``"rolling"`` (2): predict
         *horizon* blocks, Kalman-filter them, slide the window by *horizon* blocks with the
         Kalman estimates as new training targets, refit, repeat to *end_block*.
     train_blocks : int
@@ -262,7 +267,7 @@ def sliding_forecast(
         [blocks]
     gate_sigma : float
         Option B gate in innovation standard deviations.
-    shape_mac_min : float
+    mac_min : float
         Option B: a pole is admissible for a mode only when the MAC of its shape with the
         mode's reference shape is at least this, compared on the channels both shapes
         have. Default 0.9: on the 12-h demo voyage the poles of a mode's column in the
@@ -319,6 +324,8 @@ def sliding_forecast(
         ``model="memory"``: each refit uses the history's blocks of that case (all of the
         history when it holds fewer than *min_train_blocks*), and the terms are selected
         again when the case changes.
+    method, shape_mac_min
+        Deprecated names of *scheme* and *mac_min* (a DeprecationWarning).
 
     Returns
     -------
@@ -363,7 +370,7 @@ def sliding_forecast(
 
     *Option B pole selection.* Reference shape φ_ref of mode j at block k: the latest
     shape of the mode in the tracked modal table at or before block k (no look-ahead) that
-    is confirmed by the mode's tracked shape before it (MAC >= *shape_mac_min*), so one
+    is confirmed by the mode's tracked shape before it (MAC >= *mac_min*), so one
     mis-tracked block does not become the reference; before the first confirmation, the
     mode's first tracked shape. A pole p is admissible when
 
@@ -398,8 +405,12 @@ def sliding_forecast(
     its steady state over the next blocks. Each re-acquisition is a row warning and is
     counted in a :class:`ForecastWarning`.
     """
+    scheme = renamed_argument("sliding_forecast()", "method", method, "scheme", scheme, 1)
+    mac_min = renamed_argument(
+        "sliding_forecast()", "shape_mac_min", shape_mac_min, "mac_min", mac_min, 0.9
+    )
     option = option_label(option)
-    method = method_label(method)
+    method = method_label(scheme)
     if model not in ("memory", "window"):
         raise ValueError(f"model={model!r} must be 'memory' or 'window'")
     if model == "memory":
@@ -444,7 +455,7 @@ def sliding_forecast(
             measurement=MeasurementOptions(
                 option=option,
                 gate_sigma=gate_sigma,
-                shape_mac_min=shape_mac_min,
+                mac_min=mac_min,
                 reacquire_blocks=2 if reacquire_blocks is None else reacquire_blocks,
                 reacquire_band=reacquire_band,
             ),
@@ -470,8 +481,8 @@ def sliding_forecast(
         raise ValueError("trust=None needs a finite correction_time_blocks")
     if not gate_sigma > 0:
         raise ValueError(f"gate_sigma={gate_sigma!r} must be > 0")
-    if not 0.0 <= shape_mac_min < 1.0:
-        raise ValueError(f"shape_mac_min={shape_mac_min!r} must be in [0, 1)")
+    if not 0.0 <= mac_min < 1.0:
+        raise ValueError(f"mac_min={mac_min!r} must be in [0, 1)")
     if int(reacquire_blocks) != reacquire_blocks or reacquire_blocks < 1:
         raise ValueError(f"reacquire_blocks={reacquire_blocks!r} must be an integer >= 1")
     reacquire_blocks = int(reacquire_blocks)
@@ -510,7 +521,7 @@ def sliding_forecast(
         trust=trust,
         phi=phi,
         gate_sigma=gate_sigma,
-        shape_mac_min=shape_mac_min,
+        shape_mac_min=mac_min,
         reacquire_blocks=reacquire_blocks,
         reacquire_band=reacquire_band,
         predictor_columns=predictor_columns,
@@ -894,3 +905,7 @@ def _assemble(
     frame["warning"] = pd.array(warning_text.tolist(), dtype="string")
     frame = frame.sort_values(["mode", "block"], kind="stable").reset_index(drop=True)
     return frame
+
+
+#: Former keyword names of :func:`sliding_forecast` (README, "Glossary").
+sliding_forecast.__deprecated_parameters__ = {"method": "scheme", "shape_mac_min": "mac_min"}

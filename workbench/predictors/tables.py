@@ -14,16 +14,18 @@ import pandas as pd
 
 from data_contracts import CANONICAL_PREDICTORS, PREDICTORS, read_dship, read_table, set_grid
 
+from .._deprecation import renamed_parameters
 from ..blocks import BlockGrid, block_grid_of
 
 __all__ = ["canonical_predictors", "load_predictors"]
 
 
+@renamed_parameters(like="onto")
 def load_predictors(
     *,
     predictors: str | os.PathLike | None = None,
     dship: str | os.PathLike | None = None,
-    like: pd.DataFrame | None = None,
+    onto: pd.DataFrame | None = None,
     min_coverage: float = 0.5,
     dship_mapping: Mapping[str, str] | None = None,
 ) -> pd.DataFrame:
@@ -34,8 +36,8 @@ def load_predictors(
     predictors : path, optional
         A block predictor table (PREDICTORS contract).
     dship : path, optional
-        A raw DSHIP log; averaged onto the block grid of *like*.
-    like : DataFrame, optional
+        A raw DSHIP log; averaged onto the block grid of *onto*.
+    onto : DataFrame, optional
         A table with block, block_start, block_end (e.g. the tracked modal table) whose block
         grid the DSHIP log is averaged onto; its full block range is used.
     min_coverage : float
@@ -48,13 +50,13 @@ def load_predictors(
         raise ValueError("give exactly one of predictors and dship")
     if predictors is not None:
         return read_table(predictors, PREDICTORS)
-    if like is None:
-        raise ValueError("averaging a DSHIP log needs the blocks of a modal table")
+    if onto is None:
+        raise ValueError("averaging a DSHIP log needs the blocks of a modal table (onto=)")
     from .averaging import block_predictors
 
     log = read_dship(dship, mapping=dship_mapping)
-    t0, length_s, step_s = block_grid_of(like)
-    first, last = int(like["block"].min()), int(like["block"].max())
+    t0, length_s, step_s = block_grid_of(onto)
+    first, last = int(onto["block"].min()), int(onto["block"].max())
     grid = BlockGrid(t0=t0, length_s=length_s, step_s=step_s)
     table = block_predictors(
         log, grid=grid, blocks=np.arange(first, last + 1), min_coverage=min_coverage

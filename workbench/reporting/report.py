@@ -468,7 +468,7 @@ def build_report(
     if run.predictors is not None:
         predictors = read_table(run.predictors, PREDICTORS)
     elif run.dship is not None and modal is not None:
-        predictors = load_predictors(dship=run.dship, like=modal)
+        predictors = load_predictors(dship=run.dship, onto=modal)
     if predictors is not None:
         predictors = canonical_predictors(predictors)
     cases = read_cases(run.cases) if run.cases is not None else None

@@ -18,6 +18,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from scipy import fft, signal
 
+from .._deprecation import renamed_parameters
 from ..sid.selection import ModeSelection
 from ..sid.ssi import SSIResult
 from .figures import save_figure
@@ -115,13 +116,14 @@ def mode_indicator(
     return frequency, np.clip(values, 0.0, None)
 
 
+@renamed_parameters(frequency_band="band_hz")
 def plot_stabilisation(
     result: SSIResult,
     acceleration: np.ndarray | None = None,
     *,
     selection: ModeSelection | None = None,
     background: Literal["cmif", "psd"] = "cmif",
-    frequency_band: tuple[float, float] | None = None,
+    band_hz: tuple[float, float] | None = None,
     title: str | None = None,
     ax=None,
 ):
@@ -137,7 +139,7 @@ def plot_stabilisation(
         Selected modes, drawn as vertical lines.
     background : {"cmif", "psd"}
         First CMIF curve, or the mean auto power spectral density of the channels.
-    frequency_band : (float, float), optional
+    band_hz : (float, float), optional
         Frequency axis limits. Default 0 to Nyquist. [Hz]
     title : str, optional
         Axes title.
@@ -156,7 +158,7 @@ def plot_stabilisation(
     else:
         fig = ax.figure
     nyquist = result.sampling_rate_hz / 2
-    band = frequency_band if frequency_band is not None else (0.0, nyquist)
+    band = band_hz if band_hz is not None else (0.0, nyquist)
 
     if acceleration is not None:
         spectrum_ax = ax.twinx()

@@ -36,7 +36,7 @@ def plot_stabilisation_with_tpe(result, errors: PredictionErrors, acceleration=N
         Data for the background spectrum of the diagram.
     **kwargs
         Passed to :func:`~workbench.reporting.stabilisation_plot.plot_stabilisation`
-        (``selection``, ``frequency_band``, ``background``, ``title``).
+        (``selection``, ``band_hz``, ``background``, ``title``).
 
     Returns
     -------

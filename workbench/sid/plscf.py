@@ -33,6 +33,7 @@ import numpy as np
 import pandas as pd
 from scipy import fft, linalg
 
+from .._deprecation import renamed_fields, renamed_parameters
 from .modal import modal_parameters, modal_phase_collinearity, normalise_shapes
 from .ssi import PoleTableMixin, _lagged_products, _prepare
 from .stabilisation import StabilityCriteria, stability_flags
@@ -103,6 +104,7 @@ def half_spectra(
     return HalfSpectra(frequency, spectra, scale, float(decay), int(n_lags))
 
 
+@renamed_fields(frequency_band_hz="band_hz")
 @dataclass(frozen=True, eq=False)
 class LSCFResult(PoleTableMixin):
     """Poles of every model order of one pLSCF run (a stabilisation diagram).
@@ -125,7 +127,7 @@ class LSCFResult(PoleTableMixin):
         State dimensions p·r of the diagram (what ``model_order`` holds).
     polynomial_orders : tuple of int
         Polynomial orders p of the fitted models.
-    frequency_band_hz : (float, float)
+    band_hz : (float, float)
         Band of the fit; only poles inside it are kept. [Hz]
     n_lags : int
         Correlation lags of the half-spectra.
@@ -143,19 +145,20 @@ class LSCFResult(PoleTableMixin):
     sampling_rate_hz: float
     orders: tuple[int, ...]
     polynomial_orders: tuple[int, ...]
-    frequency_band_hz: tuple[float, float]
+    band_hz: tuple[float, float]
     n_lags: int
     reference_channels: tuple[int, ...]
     method: str = "lscf"
     criteria: StabilityCriteria = field(default_factory=StabilityCriteria)
 
 
+@renamed_parameters(frequency_band_hz="band_hz")
 def lscf(
     acceleration: np.ndarray,
     sampling_rate_hz: float,
     *,
     orders: Sequence[int] = DEFAULT_ORDERS,
-    frequency_band_hz: tuple[float, float] | None = None,
+    band_hz: tuple[float, float] | None = None,
     n_lags: int | None = None,
     reference_channels: Sequence[int] | None = None,
     window_end: float = DEFAULT_WINDOW_END,
@@ -171,12 +174,12 @@ def lscf(
         Sampling rate. [Hz]
     orders : sequence of int
         Polynomial orders p of the model (each gives p·r poles with r references).
-    frequency_band_hz : (float, float), optional
+    band_hz : (float, float), optional
         Band of the fit (default 0 to Nyquist); poles outside it are dropped. [Hz] The
         basis z^j is well conditioned when the band covers most of 0..Nyquist; in a
         narrow band high orders lose precision (normal equations): decimate first, or fit
         the whole range and select the modes in the band (:func:`~workbench.sid.
-        select_modes` ``frequency_band``). On the KOMA shear frame (modes 0.18-1.18 Hz at
+        select_modes` ``band_hz``). On the KOMA shear frame (modes 0.18-1.18 Hz at
         12 Hz) the band 0.05-2 Hz gave too few stable poles to select from, the whole
         range all five modes within 0.3 %.
     n_lags : int, optional
@@ -239,11 +242,11 @@ def lscf(
     n_lags = int(n_lags)
     if not (0.0 < window_end <= 1.0):
         raise ValueError(f"window_end={window_end} must lie in (0, 1]")
-    limits = (0.0, nyquist) if frequency_band_hz is None else frequency_band_hz
+    limits = (0.0, nyquist) if band_hz is None else band_hz
     values = [float(v) for v in limits]
     if len(values) != 2 or not (0.0 <= values[0] < values[1] <= nyquist):
         raise ValueError(
-            f"frequency_band_hz={frequency_band_hz!r} must be (low, high) with "
+            f"band_hz={band_hz!r} must be (low, high) with "
             f"0 <= low < high <= {nyquist:g} Hz (Nyquist)"
         )
     band = (values[0], values[1])
@@ -255,7 +258,7 @@ def lscf(
         if n_lines < 2 * (p_max + 1):
             raise ValueError(
                 f"orders up to {p_max} need more spectral lines than the {n_lines} in "
-                f"frequency_band_hz={band}: widen the band or raise n_lags"
+                f"band_hz={band}: widen the band or raise n_lags"
             )
         parts = _fit_orders(
             spectra.spectra[lines],
@@ -287,7 +290,7 @@ def lscf(
         sampling_rate_hz=float(sampling_rate_hz),
         orders=state_orders,
         polynomial_orders=tuple(poly_orders),
-        frequency_band_hz=(float(band[0]), float(band[1])),
+        band_hz=(float(band[0]), float(band[1])),
         n_lags=n_lags,
         reference_channels=tuple(int(c) for c in references),
         criteria=criteria,

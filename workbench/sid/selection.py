@@ -1,9 +1,9 @@
 """Automatic choice of the physical modes of one block from its stabilisation diagram.
 
-Two rules; :func:`select_modes` uses ``method="cluster"`` by default.
+Two rules; :func:`select_modes` uses ``selection="cluster"`` by default.
 
-Clustering of the poles of all model orders (``method="cluster"``)
--------------------------------------------------------------------
+Clustering of the poles of all model orders (``selection="cluster"``)
+----------------------------------------------------------------------
 In the spirit of the hierarchical clustering of Magalhães et al. [1]_ and the multi-stage
 procedures of Reynders et al. [2]_ and Neu et al. [3]_, with every threshold taken from the
 diagram itself:
@@ -43,8 +43,8 @@ and the cluster scatter: ``frequency_std_hz``, ``damping_std`` (sample standard 
 over the cluster's poles) and ``n_poles`` (orders in the cluster) - a measurement-noise
 estimate for the forecast's Kalman filter.
 
-Library and descent (``method="library"``, the rule of issue 5)
----------------------------------------------------------------
+Library and descent (``selection="library"``, the rule of issue 5)
+------------------------------------------------------------------
 Applied to the poles that pass the sanity limits (frequency band, damping limits, optional
 MPC floor):
 
@@ -110,6 +110,7 @@ from scipy.sparse.csgraph import connected_components
 
 from data_contracts import shapes_to_frame
 
+from .._deprecation import renamed_parameters
 from .assurance import continuous_pole, mac, mac_pairs
 from .ssi import SSIResult
 from .stabilisation import StabilityCriteria
@@ -133,7 +134,7 @@ class ModeSelection:
     modes : pandas.DataFrame
         One row per selected mode, sorted by frequency: ``frequency_hz`` [Hz],
         ``damping_ratio`` [-], ``model_order``, ``mpc``, ``stable`` and ``pole_index``
-        (row position in ``result.poles``); with ``method="cluster"`` also the cluster
+        (row position in ``result.poles``); with ``selection="cluster"`` also the cluster
         scatter ``frequency_std_hz`` [Hz], ``damping_std`` [-] and ``n_poles``.
     mode_shapes : ndarray of complex, shape (n_channels, n_modes)
         Shapes of the selected modes, column k for row k. [-]
@@ -291,11 +292,12 @@ def _drop_twins(
     return poles[keep]
 
 
+@renamed_parameters(method="selection", frequency_band="band_hz")
 def select_modes(
     result: SSIResult,
     *,
-    method: Literal["cluster", "library"] = "cluster",
-    frequency_band: tuple[float, float] | None = None,
+    selection: Literal["cluster", "library"] = "cluster",
+    band_hz: tuple[float, float] | None = None,
     damping_limits: tuple[float, float] = (0.001, 0.10),
     min_orders: int = 3,
     pole_distance: float | None = None,
@@ -311,10 +313,10 @@ def select_modes(
     ----------
     result : SSIResult
         Output of :func:`~workbench.sid.ssi.ssi_cov` or :func:`~workbench.sid.ssi.ssi_data`.
-    method : {"cluster", "library"}
+    selection : {"cluster", "library"}
         ``"cluster"``: clustering of the poles of all orders with thresholds taken from the
         diagram; ``"library"``: the library-and-descent rule (see the module docstring).
-    frequency_band : (float, float), optional
+    band_hz : (float, float), optional
         Only poles with low <= f <= high are considered. [Hz]
     damping_limits : (float, float)
         Sanity limits of the damping ratio (harmonics have ζ ≈ 0, noise poles are often
@@ -352,17 +354,17 @@ def select_modes(
     ValueError
         Bad limits; for ``"library"`` fewer than ``library_orders + 1`` orders.
     """
-    if method not in ("cluster", "library"):
-        raise ValueError(f"method={method!r} must be 'cluster' or 'library'")
+    if selection not in ("cluster", "library"):
+        raise ValueError(f"selection={selection!r} must be 'cluster' or 'library'")
     low_damping, high_damping = damping_limits
     if not low_damping < high_damping:
         raise ValueError(f"damping_limits={damping_limits} must be (low, high) with low < high")
-    if frequency_band is not None and not frequency_band[0] < frequency_band[1]:
-        raise ValueError(f"frequency_band={frequency_band} must be (low, high) with low < high")
-    if method == "library":
+    if band_hz is not None and not band_hz[0] < band_hz[1]:
+        raise ValueError(f"band_hz={band_hz} must be (low, high) with low < high")
+    if selection == "library":
         return _select_library(
             result,
-            frequency_band=frequency_band,
+            frequency_band=band_hz,
             damping_limits=damping_limits,
             library_orders=library_orders,
             frequency_tol=frequency_tol,
@@ -376,7 +378,7 @@ def select_modes(
         raise ValueError(f"pole_distance={pole_distance} must lie in (0, 1]")
     return _select_clusters(
         result,
-        frequency_band=frequency_band,
+        frequency_band=band_hz,
         damping_limits=damping_limits,
         min_orders=int(min_orders),
         pole_distance=pole_distance,

@@ -35,6 +35,7 @@ from scipy.optimize import linear_sum_assignment
 
 from data_contracts import MODAL, shape_columns, shapes_from_frame
 
+from .._deprecation import renamed_fields, renamed_parameters
 from .assurance import continuous_pole, mac, macxp
 
 __all__ = ["LibraryMode", "ModeTracker", "TrackingOptions", "label_agreement", "track_modes"]
@@ -42,24 +43,25 @@ __all__ = ["LibraryMode", "ModeTracker", "TrackingOptions", "label_agreement", "
 _BLOCK_COLUMNS = ("block", "block_start", "block_end")
 
 
+@renamed_fields(threshold="mac_min", frequency_tolerance="frequency_tol")
 @dataclass(frozen=True)
 class TrackingOptions:
     """Parameters of :class:`ModeTracker`.
 
     Attributes
     ----------
-    threshold : float
+    mac_min : float
         Lowest value of the gate criterion for a block mode to join a library mode (or a
         candidate). [-]
     gate : {"mac", "macxp"}
-        Criterion the threshold applies to. Among admissible pairs the assignment always
+        Criterion *mac_min* applies to. Among admissible pairs the assignment always
         maximises MACXP. The default gates on the shape alone (MAC) because MACXP's pole
         weighting makes it fall quickly with the scatter of SSI estimates: for two
         identical shapes with damping ζ and a relative frequency difference δ,
         MACXP ≈ 4ζ²/(4ζ² + δ²), i.e. 0.8 for ζ = δ = 0.5 %, which is within the
         block-to-block scatter of identified frequencies. Gating on MACXP at 0.9 splits
         such modes into several labels.
-    frequency_tolerance : float
+    frequency_tol : float
         Largest relative frequency difference between a block mode and the library mode it
         joins. [-]
     smoothing : float
@@ -79,9 +81,9 @@ class TrackingOptions:
         Relabel the final modes 1, 2, ... in order of their median frequency.
     """
 
-    threshold: float = 0.9
+    mac_min: float = 0.9
     gate: Literal["mac", "macxp"] = "mac"
-    frequency_tolerance: float = 0.05
+    frequency_tol: float = 0.05
     smoothing: float = 0.2
     confirm_within: int = 3
     candidate_lifetime: int = 3
@@ -90,12 +92,12 @@ class TrackingOptions:
     sort_by_frequency: bool = True
 
     def __post_init__(self) -> None:
-        if not 0.0 < self.threshold <= 1.0:
-            raise ValueError(f"threshold={self.threshold} must be in (0, 1]")
+        if not 0.0 < self.mac_min <= 1.0:
+            raise ValueError(f"mac_min={self.mac_min} must be in (0, 1]")
         if self.gate not in ("mac", "macxp"):
             raise ValueError(f"gate={self.gate!r} must be 'mac' or 'macxp'")
-        if not 0.0 < self.frequency_tolerance < 1.0:
-            raise ValueError(f"frequency_tolerance={self.frequency_tolerance} must be in (0, 1)")
+        if not 0.0 < self.frequency_tol < 1.0:
+            raise ValueError(f"frequency_tol={self.frequency_tol} must be in (0, 1)")
         if not 0.0 <= self.smoothing <= 1.0:
             raise ValueError(f"smoothing={self.smoothing} must be in [0, 1]")
         for name in ("confirm_within", "candidate_lifetime", "min_blocks", "min_channels"):
@@ -161,8 +163,8 @@ class ModeTracker:
     Notes
     -----
     Score of block mode *i* against library mode *j*: ``MACXP(φ_i, λ_i; φ_j, λ_j)`` on the
-    channels both shapes have, set to 0 when below ``threshold``, when
-    ``|f_i - f_j| > frequency_tolerance * f_j`` or when fewer than ``min_channels`` are
+    channels both shapes have, set to 0 when below ``mac_min``, when
+    ``|f_i - f_j| > frequency_tol * f_j`` or when fewer than ``min_channels`` are
     shared. The assignment maximises the summed score with the Hungarian algorithm [1]_,
     so two block modes never take the same label. A library mode that joins is updated as
     ``f ← (1 - α) f + α f_i`` (same for damping) and ``φ ← normalise((1 - α) φ + α φ_i)``
@@ -218,7 +220,7 @@ class ModeTracker:
             common = block_finite & np.isfinite(mode.shape)
             if common.sum() < options.min_channels:
                 continue
-            close = np.abs(frequency - mode.frequency_hz) <= options.frequency_tolerance * (
+            close = np.abs(frequency - mode.frequency_hz) <= options.frequency_tol * (
                 mode.frequency_hz
             )
             if not close.any():
@@ -231,7 +233,7 @@ class ModeTracker:
                 np.array([mode.pole]),
             )[:, 0]
             gate = values if options.gate == "macxp" else mac(block_shapes, mode.shape[common])
-            values = np.where(gate >= options.threshold, np.maximum(values, 1e-9), 0.0)
+            values = np.where(gate >= options.mac_min, np.maximum(values, 1e-9), 0.0)
             scores[np.flatnonzero(close), j] = values
         return scores
 
@@ -353,11 +355,12 @@ def _selected_arrays(frame: pd.DataFrame, channels: Sequence[str]):
     )
 
 
+@renamed_parameters(reference="reference_modes")
 def track_modes(
     selected: pd.DataFrame,
     *,
     options: TrackingOptions | None = None,
-    reference: pd.DataFrame | None = None,
+    reference_modes: pd.DataFrame | None = None,
     progress: bool = False,
 ) -> pd.DataFrame:
     """Tracked modal table from the modes selected block by block.
@@ -369,7 +372,7 @@ def track_modes(
         ``frequency_hz``, ``damping_ratio``, optional ``model_order`` and ``mpc``, and mode
         shape columns ``shape_re_<c>``/``shape_im_<c>`` (NaN for channels a block lacks).
     options : TrackingOptions, optional
-    reference : DataFrame, optional
+    reference_modes : DataFrame, optional
         Initial library: a modal table (its ``mode`` labels are kept; the median of each
         mode's frequency and damping and the shape of its first row are used).
     progress : bool
@@ -392,6 +395,7 @@ def track_modes(
     channels, _ = shapes_from_frame(selected.iloc[:0])
     if not channels:
         raise ValueError("selected modes: no mode-shape columns (shape_re_<channel>)")
+    reference = reference_modes
     tracker = ModeTracker(len(channels), options, _reference_modes(reference, channels))
     if reference is not None:
         tracker._next_label = int(reference["mode"].max()) + 1

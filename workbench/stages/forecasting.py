@@ -13,6 +13,7 @@ import pandas as pd
 
 from data_contracts import FORECAST, MODAL, POLES, PREDICTORS, recorded_grid, set_grid
 
+from .._deprecation import renamed_parameters
 from ..forecast import ForecastWarning, sliding_forecast
 from ..forecast.options import method_label, option_label
 from ..parallel import process_map
@@ -20,6 +21,10 @@ from ..sid.presence import persistent_modes
 from ._base import StageResult, read_any_table, table_path, write_frame
 
 __all__ = ["ForecastOptions", "ForecastStageResult", "forecast", "forecast_modes"]
+
+
+#: Descriptive names of the forecast schemes (the reference work's methods 1 and 2).
+SCHEME_NAMES = {1: "single-window", 2: "rolling"}
 
 
 @dataclass(frozen=True)
@@ -32,13 +37,13 @@ class ForecastOptions:
         Measurement options run into one table (A: tracked pole; B: the stabilisation-
         diagram pole cluster nearest the prediction; ``"tracked_pole"``/``"pole_cluster"``
         are accepted).
-    method : {1, 2}
-        1: one long forecast; 2: predict *horizon* blocks, filter, slide, refit
-        (``"single_window"``/``"rolling"`` accepted).
+    scheme : {"rolling", "single-window"} or {2, 1}
+        ``"rolling"`` (the reference work's method 2): predict *horizon* blocks, filter,
+        slide, refit; ``"single-window"`` (method 1): one long forecast.
     train_blocks : int
         Training window. [blocks]
     horizon : int, optional
-        Blocks per forecast (default 34 for method 1, 4 for method 2).
+        Blocks per forecast (default 34 for single-window, 4 for rolling).
     trust : float, None or "auto"
         Window model: steady-state weight on SSI in (0, 1); None: Q from the model's own
         prediction variance; "auto": the forecast's default.
@@ -50,16 +55,16 @@ class ForecastOptions:
         Options of the stepwise fits.
     min_presence : float
         Only modes measured in at least this share of the predictor blocks are forecast.
-    shape_mac_min : float
+    mac_min : float
         Option B: lowest MAC of a pole's shape with the mode's tracked shape.
     reacquire_blocks : int, optional
         Option B: blocks seen only outside the gate before the track is re-acquired.
-    n_jobs : int
+    n_workers : int
         Processes the modes are spread over (the table is the same whatever the number).
     """
 
     options: tuple[str, ...] = ("A",)
-    method: int | str = 2
+    scheme: int | str = 2
     train_blocks: int = 20
     horizon: int | None = None
     trust: float | None | Literal["auto"] = "auto"
@@ -67,9 +72,9 @@ class ForecastOptions:
     predictor_columns: tuple[str, ...] | None = None
     stepwise_options: Mapping[str, Any] | None = None
     min_presence: float = 0.5
-    shape_mac_min: float = 0.9
+    mac_min: float = 0.9
     reacquire_blocks: int | None = None
-    n_jobs: int = 1
+    n_workers: int = 1
 
     def __post_init__(self) -> None:
         if isinstance(self.options, str):
@@ -77,19 +82,19 @@ class ForecastOptions:
                 self, "options", tuple(self.options) if self.options == "AB" else (self.options,)
             )
         object.__setattr__(self, "options", tuple(option_label(o) for o in self.options))
-        object.__setattr__(self, "method", method_label(self.method))
+        object.__setattr__(self, "scheme", method_label(self.scheme))
         if self.train_blocks < 2:
             raise ValueError(f"train_blocks={self.train_blocks} must be at least 2")
         if not 0.0 <= self.min_presence <= 1.0:
             raise ValueError(f"min_presence={self.min_presence} must be in [0, 1]")
-        if self.n_jobs < 1:
-            raise ValueError(f"n_jobs={self.n_jobs} must be at least 1")
+        if self.n_workers < 1:
+            raise ValueError(f"n_workers={self.n_workers} must be at least 1")
 
     def sliding_options(self, option: str) -> dict[str, Any]:
         """Keyword arguments of :func:`~workbench.forecast.sliding_forecast` for *option*."""
         kwargs: dict[str, Any] = dict(
             option=option,
-            method=self.method,
+            scheme=self.scheme,
             train_blocks=self.train_blocks,
             horizon=self.horizon,
             trust=self.trust,
@@ -98,7 +103,7 @@ class ForecastOptions:
             stepwise_options=self.stepwise_options,
         )
         if option == "B":
-            kwargs.update(shape_mac_min=self.shape_mac_min, reacquire_blocks=self.reacquire_blocks)
+            kwargs.update(mac_min=self.mac_min, reacquire_blocks=self.reacquire_blocks)
         return kwargs
 
 
@@ -153,24 +158,25 @@ def _forecast_part(modal, predictors, modes, kwargs):
     return result.table, messages
 
 
+@renamed_parameters(n_jobs="n_workers")
 def forecast_modes(
     modal: pd.DataFrame,
     predictors: pd.DataFrame,
     *,
-    n_jobs: int = 1,
+    n_workers: int = 1,
     progress: bool = False,
     **kwargs: Any,
 ) -> tuple[pd.DataFrame, list[str]]:
     """:func:`~workbench.forecast.sliding_forecast` with the modes spread over processes.
 
     Modes are independent (one model and one Kalman filter each), so the table equals that
-    of a single call, whatever *n_jobs*. Returns the forecast table (sorted by block, mode)
+    of a single call, whatever *n_workers*. Returns the forecast table (sorted by block, mode)
     and the forecast warnings' messages.
     """
     modes = kwargs.pop("modes", None)
     modes = sorted(int(m) for m in (modal["mode"].unique() if modes is None else modes))
-    n_jobs = max(1, min(int(n_jobs), len(modes)))
-    if n_jobs == 1:  # one call: the windows' normalisation is shared by all modes
+    n_workers = max(1, min(int(n_workers), len(modes)))
+    if n_workers == 1:  # one call: the windows' normalisation is shared by all modes
         calls = [(modal, predictors, modes, kwargs)]
         sizes = [len(modes)]
     else:
@@ -179,7 +185,7 @@ def forecast_modes(
     parts = process_map(
         _forecast_part,
         calls,
-        n_jobs=n_jobs,
+        n_workers=n_workers,
         progress=progress,
         description="forecast",
         unit="mode",
@@ -236,7 +242,7 @@ def forecast(
         table, messages = forecast_modes(
             modal,
             predictors,
-            n_jobs=options.n_jobs,
+            n_workers=options.n_workers,
             progress=progress,
             modes=modes,
             poles=poles,
@@ -250,6 +256,6 @@ def forecast(
     result.lines.append(
         f"forecast of {result.table['mode'].nunique()} modes over "
         f"{result.table['block'].nunique()} blocks, option(s) {'/'.join(options.options)}, "
-        f"method {options.method}, train {options.train_blocks}"
+        f"scheme {SCHEME_NAMES[options.scheme]}, train {options.train_blocks}"
     )
     return result

@@ -10,6 +10,7 @@ import pandas as pd
 
 from data_contracts import MODAL, SELECTED, recorded_grid, set_grid
 
+from .._deprecation import renamed_parameters
 from ..errors import WorkbenchError
 from ..sid.tracking import TrackingOptions, track_modes
 from ._base import StageResult, read_any_table, table_path, write_frame
@@ -60,10 +61,11 @@ class TrackResult(StageResult):
         return ax.figure
 
 
+@renamed_parameters(reference="reference_modes")
 def track(
     selected: pd.DataFrame | str | os.PathLike,
     *,
-    reference: pd.DataFrame | str | os.PathLike | None = None,
+    reference_modes: pd.DataFrame | str | os.PathLike | None = None,
     options: TrackingOptions | None = None,
     progress: bool = False,
 ) -> TrackResult:
@@ -73,7 +75,7 @@ def track(
     ----------
     selected : DataFrame or path
         Selected modes per block (``selected.parquet`` of :func:`identify`).
-    reference : DataFrame or path, optional
+    reference_modes : DataFrame or path, optional
         A modal table whose modes start the library (their labels are kept).
     options : TrackingOptions, optional
         Gate, threshold, frequency tolerance... (:class:`~workbench.sid.tracking.TrackingOptions`).
@@ -87,10 +89,13 @@ def track(
     """
     source = selected
     selected = read_any_table(selected, SELECTED, name="selected")
-    if reference is not None:
-        reference = read_any_table(reference, MODAL, name="reference")
+    if reference_modes is not None:
+        reference_modes = read_any_table(reference_modes, MODAL, name="reference modes")
     tracked = track_modes(
-        selected, options=options or TrackingOptions(), reference=reference, progress=progress
+        selected,
+        options=options or TrackingOptions(),
+        reference_modes=reference_modes,
+        progress=progress,
     )
     if tracked.empty:
         where = source if not isinstance(source, pd.DataFrame) else "selected modes"

@@ -1,0 +1,105 @@
+"""Default values of every command-line option, in one place.
+
+Each value is read from the library object that defines it (an options dataclass, a
+module constant, a function's keyword default), so the command line, the library and
+``--help`` cannot drift apart; ``tests/test_vocabulary.py`` checks that every option with
+a default shows it in ``--help`` and that the values here are the library's. The few
+defaults that exist only on the command line are defined here and say why.
+
+Names follow the glossary (README, "Glossary"): ``<COMMAND>_<PARAMETER>``.
+"""
+
+from __future__ import annotations
+
+import inspect
+from pathlib import Path
+
+from .blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
+from .forecast.options import MeasurementOptions
+from .forecast.sliding import DEFAULT_HORIZON
+from .health import HealthOptions
+from .identify import IdentifyOptions
+from .sid.tracking import TrackingOptions
+from .signals.moments import faulty_channels
+from .simulate.voyage import DEFAULT_HOURS, SAMPLING_RATE_HZ
+from .stats.stepwise import DEFAULT_THRESHOLDS
+
+
+def _keyword_default(function, name: str):
+    return inspect.signature(function).parameters[name].default
+
+
+_IDENTIFY = IdentifyOptions()
+_TRACK = TrackingOptions()
+_MEASUREMENT = MeasurementOptions()
+_HEALTH = HealthOptions()
+
+# --------------------------------------------------------------------------- blocks
+#: Block length and step of the block grid. [min]
+BLOCK_MINUTES = DEFAULT_BLOCK_LENGTH_S / 60.0
+STEP_MINUTES = DEFAULT_BLOCK_STEP_S / 60.0
+
+# --------------------------------------------------------------------------- simulate, demo
+SEED = 0
+#: Length of the demo voyage. [h]
+HOURS = DEFAULT_HOURS
+#: Sampling rate of simulated acceleration files (the analysis rate of the demo). [Hz]
+SIMULATE_SAMPLING_RATE_HZ = SAMPLING_RATE_HZ
+DEMO_OUT = Path("reports") / "demo"
+
+# --------------------------------------------------------------------------- identify
+IDENTIFY_METHOD = _IDENTIFY.method
+IDENTIFY_BLOCK_ROWS = _IDENTIFY.block_rows
+IDENTIFY_MIN_ORDER = min(_IDENTIFY.orders)
+IDENTIFY_MAX_ORDER = max(_IDENTIFY.orders)
+#: Step between model orders (SSI poles come in complex-conjugate pairs). [-]
+IDENTIFY_ORDER_STEP = 2
+IDENTIFY_LSCF_MAX_ORDER = max(_IDENTIFY.lscf_orders)
+IDENTIFY_WEIGHTING = _IDENTIFY.weighting
+IDENTIFY_RATE = _IDENTIFY.target_rate_hz
+IDENTIFY_MAX_GAP_S = _IDENTIFY.max_gap_s
+IDENTIFY_SELECTION = _IDENTIFY.selection
+IDENTIFY_SHORT_RECORD = _IDENTIFY.short_record
+IDENTIFY_CONDITIONING = _IDENTIFY.conditioning
+IDENTIFY_KURTOSIS_MAX = _keyword_default(faulty_channels, "kurtosis_limits")[1]
+IDENTIFY_KURTOSIS_Z_MAX = _keyword_default(faulty_channels, "max_kurtosis_z")
+IDENTIFY_VARIANCE_Z_MAX = _keyword_default(faulty_channels, "max_variance_z")
+IDENTIFY_MAX_NAN_FRACTION = _keyword_default(faulty_channels, "max_nan_fraction")
+#: Blocks the per-block store writes together (an interruption loses at most these).
+IDENTIFY_BATCH_BLOCKS = 16
+
+# --------------------------------------------------------------------------- track
+TRACK_MAC_MIN = _TRACK.mac_min
+TRACK_GATE = _TRACK.gate
+TRACK_FREQUENCY_TOL = _TRACK.frequency_tol
+
+# --------------------------------------------------------------------------- correlate, fit
+#: Share of the blocks a mode must be measured in to be modelled (short-lived tracks are
+#: shaft harmonics sweeping past or spurious poles). [-]
+MIN_PRESENCE = 0.5
+CORRELATE_ALPHA = 0.05
+CORRELATE_CORRECTION = "none"
+FIT_P_ENTER, FIT_P_REMOVE = DEFAULT_THRESHOLDS["sse"]
+FIT_UPPER = "interactions"
+
+# --------------------------------------------------------------------------- forecast
+#: The measurement of the reference work's option A.
+FORECAST_OPTION = "tracked-pole"
+#: The reference work's method 2.
+FORECAST_SCHEME = "rolling"
+FORECAST_TRAIN_BLOCKS = 20
+#: Forecast horizon per scheme. [blocks]
+FORECAST_HORIZON = {"single-window": DEFAULT_HORIZON[1], "rolling": DEFAULT_HORIZON[2]}
+#: The command line runs the reference configuration (the library's default is "memory").
+FORECAST_MODEL = "window"
+#: Steady-state weight on the SSI estimate of ``--model window``. [-]
+FORECAST_TRUST = 0.65
+FORECAST_MAC_MIN = _MEASUREMENT.mac_min
+FORECAST_REACQUIRE_BLOCKS = {"memory": _MEASUREMENT.reacquire_blocks, "window": 1}
+FORECAST_WORKERS = 1
+
+# --------------------------------------------------------------------------- evaluate, health
+EVALUATE_PHASE = "forecast"
+HEALTH_REFERENCE_HOURS = 6.0
+HEALTH_EWMA_LAMBDA = _HEALTH.ewma_lambda
+HEALTH_FALSE_ALARMS_PER_DAY = _HEALTH.false_alarms_per_day
