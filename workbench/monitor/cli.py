@@ -11,7 +11,7 @@ import argparse
 import signal
 from pathlib import Path
 
-__all__ = ["add_monitor", "run_monitor"]
+__all__ = ["add_monitor", "prepare_monitor", "run_monitor"]
 
 # dest -> default, applied after the configuration file (flags default to None so that
 # the file's values are used when a flag is not given)
@@ -256,8 +256,9 @@ def _options(args: argparse.Namespace):
         raise UsageError(str(error)) from None
 
 
-def run_monitor(args: argparse.Namespace) -> int:
-    """Run ``workbench monitor``; returns the exit status."""
+def prepare_monitor(args: argparse.Namespace):
+    """The :class:`~workbench.monitor.Monitor` that parsed ``monitor`` arguments describe
+    (configuration file and defaults applied)."""
     from ..cli import UsageError
     from .core import Monitor
 
@@ -272,8 +273,12 @@ def run_monitor(args: argparse.Namespace) -> int:
         raise UsageError("monitor needs --state DIR")
     if not args.watch.is_dir():
         raise UsageError(f"--watch {args.watch}: no such folder")
-    options = _options(args)
-    monitor = Monitor(args.watch, args.state, dship=args.dship, options=options)
+    return Monitor(args.watch, args.state, dship=args.dship, options=_options(args))
+
+
+def run_monitor(args: argparse.Namespace) -> int:
+    """Run ``workbench monitor``; returns the exit status."""
+    monitor = prepare_monitor(args)
     previous = {}
 
     def stop(signum, frame) -> None:  # noqa: ARG001 - signal handler signature
@@ -287,10 +292,10 @@ def run_monitor(args: argparse.Namespace) -> int:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
         monitor.close()
+    through = monitor.tracked_through
     print(
         f"{len(monitor.done)} block(s) decided, tracked up to block "
-        f"{monitor._tracked_through if monitor._tracked_through >= 0 else '-'}; "
-        f"state in {args.state}"
+        f"{through if through >= 0 else '-'}; state in {args.state}"
     )
     for message in monitor.messages[-10:]:
         print(f"note: {message}")

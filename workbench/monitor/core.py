@@ -201,6 +201,11 @@ class Monitor:
         self._defer_outlook = False
         self._saved_grid = self._stored_grid()
 
+    @property
+    def tracked_through(self) -> int:
+        """Every block up to this one is decided and in the tracked table (-1: none)."""
+        return self._tracked_through
+
     # ------------------------------------------------------------------ lifecycle
     def close(self, state: str = "stopped") -> None:
         """Finish the background work, write the final status and release the store."""
@@ -332,6 +337,25 @@ class Monitor:
             return
         self.files.append(item)
         self.files.sort(key=lambda f: (f.info.start_time, str(f.path)))
+        if self.voyage is not None:
+            self._note_too_late(item)
+
+    def _note_too_late(self, item: LandedFile) -> None:
+        """Say so when *item* lands after blocks over its span were decided without it."""
+        grid = self.voyage.grid
+        start, end = item.info.start_time.value, item.info.end_time.value
+        skipped = sorted(
+            int(row["block"])
+            for row in self._health_rows
+            if row["status"] == "skipped"
+            and grid.start(int(row["block"])).value < end
+            and grid.end(int(row["block"])).value > start
+        )
+        if skipped:
+            self.messages.append(
+                f"{item.path.name}: landed after blocks {skipped[0]}-{skipped[-1]} were "
+                "decided without it (skipped: gap); they are not redone"
+            )
 
     def _anchor(self) -> bool:
         """Fix the grid, channels and options from the files (or the store); open the
