@@ -218,6 +218,11 @@ class Monitor:
         if self._executor is not None:
             self._executor.shutdown(wait=True)
             self._executor = None
+        if self.voyage is not None and self._tracked_through >= 0:
+            if self.dship is not None and _file_key(self.dship) != self._dship_key:
+                self._outlook_due = True
+            if self._outlook_due:  # a clean stop leaves the outlook of every block
+                self.update_outlook(background=False)
         self._write_status(state)
         if self.store is not None:
             self.store.close()
@@ -472,8 +477,10 @@ class Monitor:
             options=voyage.options,
             conditioner=conditioner,
         )
+        cpu = time.process_time()
         outcome = _guarded(func, task)
         identified_at = pd.Timestamp.now(tz="UTC")
+        cpu = time.process_time() - cpu
         row = self._health_row(planned, outcome, identified_at)
         tables = {k: v for k, v in outcome.tables.items() if len(v)}
         tables["monitor"] = pd.DataFrame([row])
@@ -495,6 +502,14 @@ class Monitor:
         self._write_data_health()
         self._forget_conditioned()
         self._write_status("running")
+        log.info(
+            "block %d: %s, identification CPU %.3f s, state written %.3f s after its last "
+            "file landed",
+            outcome.block,
+            row["status"],
+            cpu,
+            (pd.Timestamp.now(tz="UTC") - row["last_file_landed"]).total_seconds(),
+        )
 
     def _conditioner(self, planned) -> _SharedConditioner:
         voyage = self.voyage
@@ -680,6 +695,13 @@ class Monitor:
 
     def _collect(self, report: OutlookReport) -> None:
         self.outlook_reports.append(report)
+        log.info(
+            "outlook: %d blocks, %d forecast rows, %.3f s (CPU %.3f s)",
+            report.n_blocks,
+            report.forecast_rows,
+            report.seconds,
+            report.cpu_seconds,
+        )
         for message in report.messages:
             if message not in self.messages[-20:]:
                 self.messages.append(message)

@@ -103,6 +103,7 @@ class OutlookReport:
     """What one :func:`update_outlook` did."""
 
     seconds: float = 0.0
+    cpu_seconds: float = 0.0
     n_blocks: int = 0
     forecast_rows: int = 0
     health_rows: int = 0
@@ -243,7 +244,7 @@ def update_outlook(
     """
     from ..health import HealthOptions, health_chart
 
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.process_time()
     state = Path(state)
     report = OutlookReport()
     tracked_path = state / "tracked.parquet"
@@ -298,6 +299,7 @@ def update_outlook(
             report.written = False
             break
     report.seconds = time.perf_counter() - started
+    report.cpu_seconds = time.process_time() - cpu
     return report
 
 
