@@ -1,7 +1,7 @@
 """A short simulated voyage, its batch results, and a feeder that replays it into a folder.
 
 The voyage is the demo's simulator (7 hull modes, shaft harmonic, dropouts, a dead
-channel) for 1.5 h, reduced to 8 of its 19 channels so that SSI takes a fraction of a
+channel) for 1.5 h, reduced to 6 of its 19 channels so that SSI takes a fraction of a
 second per block. The batch reference is what a user runs: ``workbench identify`` +
 ``track`` + ``forecast`` over the complete folder, with the same settings as the monitor.
 """
@@ -20,8 +20,8 @@ import pytest
 from data_contracts import AccelerationRecord, read_accelerations, write_accelerations
 
 HOURS = 1.5
-KEEP = ("acc01", "acc03", "acc05", "acc08", "acc10", "acc12", "acc15", "acc18")
-IDENTIFY = ["--block-rows", "8", "--max-order", "24", "--band", "2", "12"]
+KEEP = ("acc01", "acc04", "acc08", "acc12", "acc15", "acc18")
+IDENTIFY = ["--block-rows", "8", "--max-order", "20", "--band", "2", "12"]
 FORECAST = ["--train", "6"]
 MONITOR_FAST = ["--poll", "0.05", "--settle", "0.2"]
 
@@ -32,12 +32,14 @@ def cli(*argv) -> int:
     return main([str(a) for a in argv])
 
 
-def write_voyage(root: Path, *, rate_hz: float = 64.0, seed: int = 11) -> Path:
+def write_voyage(
+    root: Path, *, rate_hz: float = 64.0, seed: int = 11, hours: float = HOURS
+) -> Path:
     """The reduced voyage in *root*/source: accelerations/ and dship.tsv."""
     from workbench.simulate import simulate_voyage
 
     full = root / "full"
-    simulate_voyage(full, seed=seed, hours=HOURS, sampling_rate_hz=rate_hz)
+    simulate_voyage(full, seed=seed, hours=hours, sampling_rate_hz=rate_hz)
     source = root / "source"
     (source / "accelerations").mkdir(parents=True)
     for path in sorted((full / "accelerations").glob("*.npz")):
@@ -142,9 +144,10 @@ def file_end(path: Path) -> pd.Timestamp:
     return read_file_info(path).end_time
 
 
-def assert_same_tables(state: Path, batch: dict[str, pd.DataFrame]) -> None:
+def assert_same_tables(state: Path, batch: dict[str, pd.DataFrame], min_rows: int = 20) -> None:
     tracked = pd.read_parquet(state / "tracked.parquet")
     forecast = pd.read_parquet(state / "forecast.parquet")
-    assert len(batch["tracked"]) > 50 and len(batch["forecast"]) > 20  # not vacuous
+    # not vacuous: several modes over the blocks, forecast rows after the training window
+    assert len(batch["tracked"]) > 2 * min_rows and len(batch["forecast"]) > min_rows
     pd.testing.assert_frame_equal(tracked, batch["tracked"])
     pd.testing.assert_frame_equal(forecast, batch["forecast"])

@@ -100,7 +100,7 @@ def test_replayed_voyage_equals_batch(voyage, batch, tmp_path):
     assert (health["identified_at"] >= health["last_file_landed"]).all()
     # acc12 is dead for an hour from 40 % of the voyage: data health shows it
     assert health["dropped_channels"].str.contains("acc12").any()
-    assert (health.loc[health["status"] == "ok", "n_channels"] >= 7).all()
+    assert (health.loc[health["status"] == "ok", "n_channels"] >= 5).all()
     status = _status(state)
     assert status["state"] == "stopped" and status["blocks_done"] == n_blocks
     assert status["last_block"] == n_blocks - 1 and status["pid"] == os.getpid()
@@ -249,7 +249,7 @@ def test_decimated_files_are_conditioned_once_and_equal_batch(tmp_path):
     """128-Hz files decimated to 64 Hz: each file conditioned once, although every file
     lies in four blocks; a block waits for the file after it (its filters' padding), and
     the tables equal the batch run's."""
-    voyage = write_voyage(tmp_path / "v128", rate_hz=128.0, seed=4)
+    voyage = write_voyage(tmp_path / "v128", rate_hz=128.0, seed=4, hours=1.0)
     batch = batch_run(voyage, tmp_path / "batch")
     watch, state = tmp_path / "watch", tmp_path / "state"
     watch.mkdir()
@@ -285,6 +285,83 @@ def test_decimated_files_are_conditioned_once_and_equal_batch(tmp_path):
         )
         == 0
     )
-    assert_same_tables(state, batch)
+    assert_same_tables(state, batch, min_rows=10)
     # the live run conditioned every file but the last (its block waited) exactly once
     assert monitor.conditioned_files[0] == len(files) - 1
+
+
+def test_sigterm_stops_cleanly(voyage, tmp_path):
+    """SIGTERM mid-run: exit status 0, status.json says stopped, the blocks stored are
+    exactly those data_health lists."""
+    import signal
+    import subprocess
+    import sys
+
+    state = tmp_path / "state"
+    argv = ["monitor", "--watch", voyage / "accelerations", "--state", state]
+    argv += ["--dship", voyage / "dship.tsv", *IDENTIFY, *FORECAST, *MONITOR_FAST]
+    code = "import sys; from workbench.cli import main; sys.exit(main(sys.argv[1:]))"
+    process = subprocess.Popen(
+        [sys.executable, "-c", code, *map(str, argv)], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        rows = state / "data_health.parquet"
+        _wait(lambda: rows.is_file() and len(pd.read_parquet(rows)) >= 2)
+        process.send_signal(signal.SIGTERM)
+        out, _ = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0
+    status = _status(state)
+    assert status["state"] == "stopped" and status["pid"] == process.pid
+    health = pd.read_parquet(state / "data_health.parquet")
+    assert status["blocks_done"] == len(health) >= 2
+    assert f"{len(health)} block(s) decided" in out
+
+
+def test_settings_from_a_ship_configuration(voyage, tmp_path):
+    """--config fills what flags do not give, from the sections the batch commands read;
+    flags win."""
+    from workbench.config import write_config
+
+    config = write_config(
+        tmp_path / "ship.toml",
+        {
+            "output": {"dir": "out"},
+            "accelerations": {"inputs": [str(voyage / "accelerations")]},
+            "dship": {"file": str(voyage / "dship.tsv")},
+            "blocks": {"length_minutes": 20, "step_minutes": 5},
+            "identify": {"band": [2.0, 12.0], "block_rows": 8, "max_order": 20},
+            "track": {"threshold": 0.85},
+            "forecast": {"option": "AB", "train": 6, "method": 2},
+        },
+    )
+    argv = ["monitor", "--config", str(config), "--train", "7"]
+    monitor = prepare_monitor(build_parser().parse_args(argv))
+    try:
+        options = monitor.options
+        assert monitor.watch == voyage / "accelerations"
+        assert monitor.dship == voyage / "dship.tsv"
+        assert monitor.state == tmp_path / "out" / "monitor"
+        assert options.identify.band_hz == (2.0, 12.0) and options.identify.block_rows == 8
+        assert max(options.identify.orders) == 20
+        assert options.tracking.threshold == 0.85
+        assert options.forecast.options == ("A", "B") and options.forecast.train_blocks == 7
+    finally:
+        monitor.close()
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["monitor", "--state", "s"], "--watch"),
+        (["monitor", "--watch", "nowhere", "--state", "s"], "no such folder"),
+        (["monitor", "--watch", ".", "--state", "s", "--poll", "0"], "poll_s"),
+    ],
+)
+def test_usage_errors_exit_2(argv, needle, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert cli(*argv) == 2
+    err = capsys.readouterr().err
+    assert needle in err and "Traceback" not in err

@@ -353,6 +353,7 @@ class Monitor:
             int(row["block"])
             for row in self._health_rows
             if row["status"] == "skipped"
+            and ("gap" in row["reason"] or "no data" in row["reason"])
             and grid.start(int(row["block"])).value < end
             and grid.end(int(row["block"])).value > start
         )
@@ -423,7 +424,8 @@ class Monitor:
         late = int(self.options.late_s * _NS)
         low = max(low, voyage.grid.t0.value)  # nothing comes before the first block
         cursor = low
-        for start, end in zip(starts, ends, strict=True):
+        first = max(0, int(np.searchsorted(ends, low, side="left")) - 1)  # files in time order
+        for start, end in zip(starts[first:], ends[first:], strict=True):
             if end <= cursor + half:
                 continue
             if start > high - half:
