@@ -365,3 +365,10 @@ def test_usage_errors_exit_2(argv, needle, tmp_path, capsys, monkeypatch):
     assert cli(*argv) == 2
     err = capsys.readouterr().err
     assert needle in err and "Traceback" not in err
+
+
+def test_once_on_a_folder_without_data_is_an_error(tmp_path, capsys):
+    (tmp_path / "watch").mkdir()
+    assert cli("monitor", "--watch", tmp_path / "watch", "--state", tmp_path / "s", "--once") == 1
+    assert "no complete acceleration file" in capsys.readouterr().err
+    assert _status(tmp_path / "s")["state"] == "stopped"

@@ -292,6 +292,10 @@ def run_monitor(args: argparse.Namespace) -> int:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
         monitor.close()
+    if args.once and monitor.voyage is None:
+        from ..errors import WorkbenchError
+
+        raise WorkbenchError(f"{args.watch}: no complete acceleration file to monitor")
     through = monitor.tracked_through
     print(
         f"{len(monitor.done)} block(s) decided, tracked up to block "

@@ -199,6 +199,7 @@ class Monitor:
         self.outlook_reports: list[OutlookReport] = []
         self._dship_key = None
         self._defer_outlook = False
+        self._log_complete = False
         self._saved_grid = self._stored_grid()
 
     @property
@@ -219,7 +220,11 @@ class Monitor:
             self._executor.shutdown(wait=True)
             self._executor = None
         if self.voyage is not None and self._tracked_through >= 0:
-            if self.dship is not None and _file_key(self.dship) != self._dship_key:
+            if (
+                self.dship is not None
+                and not self._log_complete
+                and _file_key(self.dship) != self._dship_key
+            ):
                 self._outlook_due = True
             if self._outlook_due:  # a clean stop leaves the outlook of every block
                 self.update_outlook(background=False)
@@ -284,7 +289,7 @@ class Monitor:
             decided += 1
         if decided:
             self._outlook_due = True
-        elif self.dship is not None and self._tracked_through >= 0:
+        elif self.dship is not None and self._tracked_through >= 0 and not self._log_complete:
             key = _file_key(self.dship)
             if key != self._dship_key:  # the ship log grew: the newest predictors change
                 self._outlook_due = True
@@ -668,6 +673,7 @@ class Monitor:
             except Exception as error:  # noqa: BLE001 - a crashed worker: say so, go on
                 self.messages.append(f"forecast: background update failed ({error})")
         if self._outlook_due:
+            self._log_complete = False
             self.update_outlook(background=self.options.background)
 
     def update_outlook(self, *, background: bool = False) -> None:
@@ -697,6 +703,8 @@ class Monitor:
 
     def _collect(self, report: OutlookReport) -> None:
         self.outlook_reports.append(report)
+        # a log that already covered the newest block changes no predictor when it grows
+        self._log_complete = report.log_complete
         log.info(
             "outlook: %d blocks, %d forecast rows, %.3f s (CPU %.3f s)",
             report.n_blocks,
@@ -724,6 +732,7 @@ class Monitor:
             frame.to_parquet(tmp, index=False)
 
     def _write_status(self, state: str, message: str | None = None) -> None:
+        del self.messages[:-200]  # a long run keeps its recent messages only
         last = max((b for b in self.done if b <= self._tracked_through), default=None)
         if message is None:
             message = self.messages[-1] if self.messages else ""

@@ -110,6 +110,8 @@ class OutlookReport:
     alarms: int = 0
     messages: list[str] = field(default_factory=list)
     written: bool = True
+    #: The ship log reached the end of the newest tracked block (its predictors are final).
+    log_complete: bool = False
 
 
 def empty_table(contract) -> pd.DataFrame:
@@ -255,6 +257,9 @@ def update_outlook(
         if len(tracked):
             try:
                 predictors = block_predictors_of(tracked, Path(dship), grid, settings)
+                log = _ship_log(Path(dship), dict(settings.dship_mapping))
+                newest_end = grid.end(int(tracked["block"].max()))
+                report.log_complete = bool(len(log) and log["time"].max() >= newest_end)
                 poles = None
                 if "B" in settings.options and store is not None:
                     poles = _store_poles(Path(store), tracked)
