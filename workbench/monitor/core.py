@@ -200,6 +200,7 @@ class Monitor:
         self._dship_key = None
         self._defer_outlook = False
         self._log_complete = False
+        self._dirty = True
         self._saved_grid = self._stored_grid()
 
     @property
@@ -282,8 +283,12 @@ class Monitor:
             self._write_status("running", "waiting for the first complete files")
             return 0
         decided = 0
-        for planned in self._ready_blocks(flush):
+        # blocks become ready only when data lands (or at a flush): plan only then
+        ready = self._ready_blocks(flush) if (self._dirty or flush) else []
+        self._dirty = False
+        for planned in ready:
             if self.stop_event.is_set():
+                self._dirty = True  # the rest is still ready next time
                 break
             self._process(planned)
             decided += 1
@@ -347,6 +352,7 @@ class Monitor:
             return
         self.files.append(item)
         self.files.sort(key=lambda f: (f.info.start_time, str(f.path)))
+        self._dirty = True
         if self.voyage is not None:
             self._note_too_late(item)
 
@@ -694,8 +700,12 @@ class Monitor:
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
 
+            # a lower priority: on a busy machine the next block's identification (the
+            # latency users see) goes first, the forecast takes the time left
             self._executor = ProcessPoolExecutor(
-                max_workers=1, mp_context=multiprocessing.get_context("spawn")
+                max_workers=1,
+                mp_context=multiprocessing.get_context("spawn"),
+                initializer=_lower_priority,
             )
         self._outlook_future = self._executor.submit(
             update_outlook, *arguments, **keywords, parent_pid=os.getpid()
@@ -747,6 +757,13 @@ class Monitor:
         }
         with atomic_path(self.state / "status.json") as tmp:
             tmp.write_text(json.dumps(status, indent=1), encoding="utf-8")
+
+
+def _lower_priority() -> None:
+    try:
+        os.nice(10)
+    except (AttributeError, OSError):  # pragma: no cover - platforms without nice
+        pass
 
 
 def _file_key(path: Path | None):

@@ -256,7 +256,12 @@ def update_outlook(
         report.n_blocks = int(tracked["block"].nunique()) if len(tracked) else 0
         if len(tracked):
             try:
-                predictors = block_predictors_of(tracked, Path(dship), grid, settings)
+                # the ship log's notes go to the report (and status.json), not to stderr
+                # at every recompute
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always")
+                    predictors = block_predictors_of(tracked, Path(dship), grid, settings)
+                report.messages += list(dict.fromkeys(str(w.message) for w in caught))
                 log = _ship_log(Path(dship), dict(settings.dship_mapping))
                 newest_end = grid.end(int(tracked["block"].max()))
                 report.log_complete = bool(len(log) and log["time"].max() >= newest_end)
@@ -264,7 +269,7 @@ def update_outlook(
                 if "B" in settings.options and store is not None:
                     poles = _store_poles(Path(store), tracked)
                 with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")  # ship-log notes: once, by the CLI
+                    warnings.simplefilter("ignore")  # other than the forecast's own notes
                     forecast, notes = forecast_table(tracked, predictors, settings, poles)
                 report.messages += notes
             except (ValueError, ArithmeticError, np.linalg.LinAlgError, OSError) as error:
