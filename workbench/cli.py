@@ -1347,6 +1347,12 @@ def _run_health(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _add_monitor(commands: argparse._SubParsersAction) -> None:
+    from .monitor.cli import add_monitor
+
+    add_monitor(commands)
+
+
 #: Subcommands in the order ``--help`` lists them.
 COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_demo,
@@ -1361,6 +1367,7 @@ COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_report,
     _add_health,
     _add_dashboard,
+    _add_monitor,
     _add_validate,
 )
 

@@ -1,0 +1,79 @@
+"""Live monitoring: follow a folder of acquisition files and a growing ship log.
+
+``workbench monitor --watch DIR --dship FILE --state DIR`` identifies every block as soon
+as its data is complete, tracks the modes and updates the Kalman-blended forecast and the
+structural-health chart block by block, with the same results as the batch commands
+(``identify`` + ``track`` + ``forecast`` + ``health``) over the same files. A dashboard
+reads the state folder.
+
+State folder
+------------
+Every file is written atomically (temporary name, then rename), so a reader never sees a
+half-written file::
+
+    <state>/tracked.parquet      MODAL contract: the tracked modal table so far
+    <state>/forecast.parquet     FORECAST contract: sliding forecast + Kalman, all blocks
+    <state>/health.parquet       HEALTH contract (empty until a reference period is learned)
+    <state>/alarms.parquet       ALARMS contract (empty until then, and while no alarm)
+    <state>/data_health.parquet  one row per decided block, in block order:
+                                 block (int64), block_start (UTC), n_channels (int64,
+                                 channels used; 0 for a skipped block), dropped_channels
+                                 (comma-separated, '' if none), gap_seconds (float, time of
+                                 the block without data), last_file_landed (UTC, the
+                                 modification time of the block's last file when it was
+                                 found complete), identified_at (UTC), latency_s
+                                 (identified_at - last_file_landed), status ('ok' or
+                                 'skipped'), reason (why skipped, else '')
+    <state>/status.json          {"updated_at": ISO UTC, "last_block": int|null,
+                                  "blocks_done": int, "state": "running"|"stopped",
+                                  "pid": int, "watch": str, "message": str}
+    <state>/store/               the per-block store (:class:`~workbench.store.BlockStore`,
+                                 the same layout and parameters as ``workbench identify``'s)
+
+``last_block`` is the newest block of the tracked table's span (every block up to it is
+decided); ``blocks_done`` counts decided blocks (identified or skipped).
+
+When is a block identified
+--------------------------
+* A file counts once it is complete (:mod:`workbench.monitor.watcher`: not a hidden
+  temporary name, unmodified for ``settle_s``, header readable).
+* A block is identified when the files covering its span are all there. When the files
+  are decimated (conditioned once per file, :class:`~workbench.signals.file_conditioning.
+  FileConditioner`), each file's filters are padded with the raw edges of its neighbours,
+  so the block also waits for the file after it: that is what makes it equal to the batch
+  result (a batch run has that file too).
+* Missing data (a late or lost file) holds the blocks over it until data ``late_s`` newer
+  than the hole has landed (data time, so a replay at any speed decides alike); a file
+  landing within that window is used as if it had come in order. After it, the blocks
+  over the hole are decided as ``workbench identify`` over the files present decides them
+  (skipped: gap), and a file landing later still is *not* used for them (a stored block is
+  never redone; its message in ``status.json`` says so) - blocks later in the record that
+  it completes are identified normally. The last blocks of a record (waiting for a next
+  file that does not come) are decided after ``flush_after_s`` without new files, or at
+  once with ``--once``.
+* Blocks are tracked in block order, so a block waiting for a late file holds the tracked
+  table (not the identification) of the blocks after it.
+* The block grid is anchored at the first file (as in ``workbench identify``) and kept in
+  the store: a file starting before it is refused with a message.
+
+Resuming
+--------
+A block is stored (with its data-health row) before the state files mention it, as one
+batch of the store, so killing the monitor at any moment (``kill -9`` included) and
+starting it again loses no block and repeats none: the store says which blocks are done,
+the tracker is replayed from their stored modes, and the forecast is recomputed.
+"""
+
+from .core import DATA_HEALTH_COLUMNS, Monitor, MonitorOptions
+from .outlook import ForecastSettings, update_outlook
+from .watcher import FolderWatcher, LandedFile
+
+__all__ = [
+    "DATA_HEALTH_COLUMNS",
+    "FolderWatcher",
+    "ForecastSettings",
+    "LandedFile",
+    "Monitor",
+    "MonitorOptions",
+    "update_outlook",
+]

@@ -1,0 +1,306 @@
+"""``workbench monitor``: arguments and the run (the CLI's part of :mod:`workbench.monitor`).
+
+Settings come from flags, or from ``--config ship.toml`` (its ``[accelerations] inputs``,
+``[dship]``, ``[blocks]``, ``[identify]``, ``[track]`` and ``[forecast]`` sections, read as
+the batch commands read them); flags win.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+from pathlib import Path
+
+__all__ = ["add_monitor", "prepare_monitor", "run_monitor"]
+
+# dest -> default, applied after the configuration file (flags default to None so that
+# the file's values are used when a flag is not given)
+_DEFAULTS = {
+    "method": "cov",
+    "block_rows": 20,
+    "min_order": 4,
+    "max_order": 60,
+    "weighting": "pc",
+    "rate": "auto",
+    "no_band": False,
+    "max_gap": 0.0,
+    "selection": "cluster",
+    "conditioning": "per-file",
+    "threshold": 0.9,
+    "gate": "mac",
+    "frequency_tolerance": 0.05,
+    "option": "A",
+    "forecast_method": 2,
+    "train": 20,
+    "model": "window",
+    "min_presence": 0.5,
+    "shape_mac_min": 0.9,
+    "reference_hours": 6.0,
+    "ewma_lambda": 0.1,
+    "false_alarms_per_day": 0.1,
+    "poll": 1.0,
+    "settle": 1.0,
+    "late": 900.0,
+    "flush_after": 900.0,
+}
+
+
+def add_monitor(commands: argparse._SubParsersAction) -> None:
+    """Add the ``monitor`` subcommand."""
+    parser = commands.add_parser(
+        "monitor",
+        help="follow a folder of acceleration files and the ship log: identify, track, "
+        "forecast and chart structural health block by block",
+        description="Identify every block as soon as its files are complete, track the "
+        "modes, update the forecast and the health chart incrementally, and keep a state "
+        "folder (tracked.parquet, forecast.parquet, health.parquet, alarms.parquet, "
+        "data_health.parquet, status.json) that a dashboard reads. Resumable: stop it "
+        "(Ctrl-C, SIGTERM, even kill -9) and start it again, it carries on without losing "
+        "or repeating a block. Results equal those of identify + track + forecast over "
+        "the same files.",
+    )
+    parser.add_argument("--watch", type=Path, metavar="DIR", help="folder the files arrive in")
+    parser.add_argument("--dship", type=Path, metavar="FILE", help="the ship log (growing)")
+    parser.add_argument(
+        "--state",
+        type=Path,
+        metavar="DIR",
+        help="state folder (default: OUTPUT/monitor with --config)",
+    )
+    parser.add_argument(
+        "--once",
+        action="store_true",
+        help="process the files present (as all there will be) and exit",
+    )
+    parser.add_argument("--poll", type=float, metavar="S", help="seconds between polls (1)")
+    parser.add_argument(
+        "--settle",
+        type=float,
+        metavar="S",
+        help="a file is taken once unmodified this long (1 s); hidden temporary files are "
+        "never taken",
+    )
+    parser.add_argument(
+        "--late",
+        type=float,
+        metavar="S",
+        help="missing data is waited for until data S seconds newer has landed (900)",
+    )
+    parser.add_argument(
+        "--flush-after",
+        type=float,
+        metavar="S",
+        help="with no new file for S seconds, decide the blocks still waiting (900)",
+    )
+    parser.add_argument(
+        "--foreground",
+        action="store_true",
+        help="recompute forecast and health in this process (default: a background process)",
+    )
+    ident = parser.add_argument_group("identification (as workbench identify)")
+    ident.add_argument("--method", choices=("cov", "data", "lscf"))
+    ident.add_argument("--block-rows", type=int, metavar="I")
+    ident.add_argument("--min-order", type=int, metavar="N")
+    ident.add_argument("--max-order", type=int, metavar="N")
+    ident.add_argument("--weighting", choices=("pc", "upc", "cva"))
+    ident.add_argument("--reference", metavar="CH,CH,...", help="reference channels")
+    ident.add_argument("--rate", metavar="HZ|auto|native", help="analysis rate (auto)")
+    ident.add_argument("--band", type=float, nargs=2, metavar=("LOW", "HIGH"))
+    ident.add_argument("--no-band", action="store_true", default=None)
+    ident.add_argument("--block-minutes", type=float, metavar="MIN")
+    ident.add_argument("--step-minutes", type=float, metavar="MIN")
+    ident.add_argument("--max-gap", type=float, metavar="S")
+    ident.add_argument("--selection", choices=("cluster", "library"))
+    ident.add_argument("--no-channel-check", action="store_true", default=None)
+    ident.add_argument("--conditioning", choices=("per-file", "per-block"))
+    track = parser.add_argument_group("tracking (as workbench track)")
+    track.add_argument("--threshold", type=float)
+    track.add_argument("--gate", choices=("mac", "macxp"))
+    track.add_argument("--frequency-tolerance", type=float)
+    fore = parser.add_argument_group("forecast and health (as workbench forecast / health)")
+    fore.add_argument("--option", choices=("A", "B", "AB"))
+    fore.add_argument("--forecast-method", type=int, choices=(1, 2))
+    fore.add_argument("--train", type=int, metavar="N")
+    fore.add_argument("--horizon", type=int, metavar="H")
+    fore.add_argument("--model", choices=("memory", "window"))
+    fore.add_argument("--trust")
+    fore.add_argument("--min-presence", type=float, metavar="SHARE")
+    fore.add_argument("--shape-mac-min", type=float, metavar="MAC")
+    fore.add_argument("--reacquire-blocks", type=int, metavar="K")
+    fore.add_argument("--all-predictors", action="store_true", default=None)
+    fore.add_argument("--reference-hours", type=float, help="health reference period [h] (6)")
+    fore.add_argument("--ewma-lambda", type=float)
+    fore.add_argument("--false-alarms-per-day", type=float)
+    parser.set_defaults(run=run_monitor)
+
+
+def _from_config(args: argparse.Namespace) -> None:
+    """Fill the flags not given from ``--config`` (the batch commands' sections)."""
+    from ..config import command_defaults, load_config
+
+    config = load_config(args.config)
+    identify = command_defaults("identify", config)
+    for dest in (
+        "method",
+        "block_rows",
+        "min_order",
+        "max_order",
+        "weighting",
+        "rate",
+        "no_band",
+        "band",
+        "reference",
+        "block_minutes",
+        "step_minutes",
+        "max_gap",
+    ):
+        if getattr(args, dest, None) is None and dest in identify:
+            setattr(args, dest, identify[dest])
+    if args.watch is None and identify.get("inputs"):
+        args.watch = Path(identify["inputs"][0])
+    track = command_defaults("track", config)
+    for dest in ("threshold", "gate", "frequency_tolerance"):
+        if getattr(args, dest) is None and dest in track:
+            setattr(args, dest, track[dest])
+    forecast = command_defaults("forecast", config)
+    pairs = {
+        "option": "option",
+        "forecast_method": "method",
+        "train": "train",
+        "horizon": "horizon",
+        "min_presence": "min_presence",
+        "shape_mac_min": "shape_mac_min",
+        "reacquire_blocks": "reacquire_blocks",
+        "trust": "trust",
+        "dship": "dship",
+        "all_predictors": "all_predictors",
+    }
+    for dest, key in pairs.items():
+        if getattr(args, dest) is None and key in forecast:
+            setattr(args, dest, forecast[key])
+    if config.has("dship", "columns"):
+        args.dship_columns = dict(config.get("dship", "columns"))
+    if args.state is None:
+        args.state = config.out_dir / "monitor"
+
+
+def _options(args: argparse.Namespace):
+    from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
+    from ..cli import UsageError, _analysis_rate, _parse_trust
+    from ..identify import IdentifyOptions
+    from ..sid.tracking import TrackingOptions
+    from .core import MonitorOptions
+    from .outlook import ForecastSettings
+
+    if args.min_order < 1 or args.max_order < args.min_order:
+        raise UsageError(f"model orders {args.min_order}..{args.max_order} make no sense")
+    if args.no_band and args.band is not None:
+        raise UsageError("--band and --no-band contradict each other")
+    length_s = DEFAULT_BLOCK_LENGTH_S if args.block_minutes is None else 60.0 * args.block_minutes
+    step_s = DEFAULT_BLOCK_STEP_S if args.step_minutes is None else 60.0 * args.step_minutes
+    trust = "auto" if args.trust is None else _parse_trust(str(args.trust))
+    try:
+        identify = IdentifyOptions(
+            method=args.method,
+            block_rows=args.block_rows,
+            orders=tuple(range(args.min_order, args.max_order + 1, 2)),
+            weighting=args.weighting,
+            reference_channels=tuple(args.reference.split(",")) if args.reference else None,
+            length_s=length_s,
+            step_s=step_s,
+            target_rate_hz=_analysis_rate(str(args.rate)),
+            band_hz=None if args.no_band else (tuple(args.band) if args.band else "auto"),
+            max_gap_s=args.max_gap,
+            selection=args.selection,
+            channel_check=not args.no_channel_check,
+            # the thresholds `workbench identify` uses by default (same store parameters)
+            fault_options=(
+                ("kurtosis_limits", (1.3, 10.0)),
+                ("max_variance_z", 6.0),
+                ("max_kurtosis_z", 3.0),
+                ("max_nan_fraction", 0.05),
+            ),
+            conditioning=args.conditioning,
+        )
+        tracking = TrackingOptions(
+            threshold=args.threshold, gate=args.gate, frequency_tolerance=args.frequency_tolerance
+        )
+        options = ("A", "B") if args.option == "AB" else (args.option,)
+        forecast = ForecastSettings(
+            options=options,
+            method=args.forecast_method,
+            train_blocks=args.train,
+            horizon=args.horizon,
+            trust=trust,
+            model=args.model,
+            min_presence=args.min_presence,
+            shape_mac_min=args.shape_mac_min,
+            reacquire_blocks=args.reacquire_blocks,
+            all_predictors=bool(args.all_predictors),
+            dship_mapping=tuple(dict(getattr(args, "dship_columns", None) or {}).items()),
+            reference_hours=args.reference_hours,
+            ewma_lambda=args.ewma_lambda,
+            false_alarms_per_day=args.false_alarms_per_day,
+        )
+        return MonitorOptions(
+            identify=identify,
+            tracking=tracking,
+            forecast=forecast,
+            poll_s=args.poll,
+            settle_s=args.settle,
+            late_s=args.late,
+            flush_after_s=args.flush_after,
+            background=not (args.foreground or args.once),
+        )
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+
+
+def prepare_monitor(args: argparse.Namespace):
+    """The :class:`~workbench.monitor.Monitor` that parsed ``monitor`` arguments describe
+    (configuration file and defaults applied)."""
+    from ..cli import UsageError
+    from .core import Monitor
+
+    if getattr(args, "config", None) is not None:
+        _from_config(args)
+    for dest, value in _DEFAULTS.items():
+        if getattr(args, dest, None) is None:
+            setattr(args, dest, value)
+    if args.watch is None:
+        raise UsageError("monitor needs --watch DIR (or [accelerations] inputs in --config)")
+    if args.state is None:
+        raise UsageError("monitor needs --state DIR")
+    if not args.watch.is_dir():
+        raise UsageError(f"--watch {args.watch}: no such folder")
+    return Monitor(args.watch, args.state, dship=args.dship, options=_options(args))
+
+
+def run_monitor(args: argparse.Namespace) -> int:
+    """Run ``workbench monitor``; returns the exit status."""
+    monitor = prepare_monitor(args)
+    previous = {}
+
+    def stop(signum, frame) -> None:  # noqa: ARG001 - signal handler signature
+        monitor.stop_event.set()
+
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        previous[signum] = signal.signal(signum, stop)
+    try:
+        monitor.run(once=args.once)
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        monitor.close()
+    if args.once and monitor.voyage is None:
+        from ..errors import WorkbenchError
+
+        raise WorkbenchError(f"{args.watch}: no complete acceleration file to monitor")
+    through = monitor.tracked_through
+    print(
+        f"{len(monitor.done)} block(s) decided, tracked up to block "
+        f"{through if through >= 0 else '-'}; state in {args.state}"
+    )
+    for message in monitor.messages[-10:]:
+        print(f"note: {message}")
+    return 0

@@ -1,0 +1,774 @@
+"""The monitor: identify blocks as their data lands, track and forecast incrementally.
+
+See :mod:`workbench.monitor` for the state folder, the rules for complete files, late
+files and resuming.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import logging
+import math
+import os
+import threading
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pandas as pd
+
+from data_contracts import MODAL, atomic_path, shapes_from_frame, write_table
+
+from ..blocks import BlockGrid
+from ..errors import WorkbenchError
+from ..identify import IdentifyOptions, analysis_rate, identify_block, input_fingerprints
+from ..sid.tracking import ModeTracker, TrackingOptions
+from ..signals.file_conditioning import FileConditioner
+from ..store import BlockStore, StoreLock
+from .outlook import ForecastSettings, OutlookReport, empty_table, update_outlook
+from .watcher import FolderWatcher, LandedFile
+
+log = logging.getLogger("workbench")
+
+__all__ = ["Monitor", "MonitorOptions"]
+
+_NS = 1_000_000_000
+
+#: Columns of ``data_health.parquet`` (the agreed interface first, then status and reason).
+DATA_HEALTH_COLUMNS = (
+    "block",
+    "block_start",
+    "n_channels",
+    "dropped_channels",
+    "gap_seconds",
+    "last_file_landed",
+    "identified_at",
+    "latency_s",
+    "status",
+    "reason",
+)
+
+
+@dataclass(frozen=True)
+class MonitorOptions:
+    """Settings of :class:`Monitor`.
+
+    Attributes
+    ----------
+    identify : IdentifyOptions
+        Block grid, conditioning, SSI and selection (as ``workbench identify``).
+    tracking : TrackingOptions
+        As ``workbench track``.
+    forecast : ForecastSettings
+        As ``workbench forecast`` and ``workbench health``.
+    poll_s : float
+        Time between two looks at the folder. [s]
+    settle_s : float
+        A file is taken once unmodified this long (see :mod:`workbench.monitor.watcher`). [s]
+    late_s : float
+        Missing data is waited for until data this much newer (in data time) has landed;
+        then the blocks over the hole are decided as a batch run over the files present
+        would decide them. [s]
+    flush_after_s : float
+        When no file has landed for this long (wall time), the blocks still waiting (the
+        last ones, or those over a hole) are decided with the files present. [s]
+    background : bool
+        Recompute forecast and health in a background process, so that they never delay
+        the next block (live mode); ``False``: in this process after the blocks.
+    """
+
+    identify: IdentifyOptions = field(default_factory=IdentifyOptions)
+    tracking: TrackingOptions = field(default_factory=TrackingOptions)
+    forecast: ForecastSettings = field(default_factory=ForecastSettings)
+    poll_s: float = 1.0
+    settle_s: float = 1.0
+    late_s: float = 900.0
+    flush_after_s: float = 900.0
+    background: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ("poll_s", "settle_s", "late_s", "flush_after_s"):
+            value = float(getattr(self, name))
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name}={value!r} must be a non-negative number of seconds")
+        if self.poll_s <= 0:
+            raise ValueError(f"poll_s={self.poll_s!r} must be positive")
+        if self.identify.short_record != "error":
+            raise ValueError("short_record='one-block' is for a finished record, not a monitor")
+
+
+class _SharedConditioner(FileConditioner):
+    """A :class:`FileConditioner` over a few files that takes conditioned files from a
+    cache shared by the monitor's blocks, so each file is conditioned once.
+
+    A conditioned file depends on the file and on the raw edges of its contiguous
+    neighbours; the cache key names all three, so a file conditioned before its next
+    neighbour landed is conditioned again once it has (the monitor avoids that by waiting
+    for the neighbour, see ``late_s``).
+    """
+
+    def __init__(self, *args, shared: dict, counter: list, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._shared = shared
+        self._counter = counter
+
+    def _key(self, index: int):
+        before = self.files[index - 1].path if self._contiguous(index - 1, index) else None
+        after = self.files[index + 1].path if self._contiguous(index, index + 1) else None
+        return (self.files[index].path, before, after)
+
+    def _conditioned(self, index: int):
+        key = self._key(index)
+        hit = self._shared.get(key)
+        if hit is not None:
+            self._cache[index] = hit
+            return hit
+        result = super()._conditioned(index)
+        self._shared[key] = result
+        self._counter[0] += 1
+        return result
+
+
+@dataclass
+class _Voyage:
+    """What the first files fixed: grid, channels, rate, resolved options."""
+
+    grid: BlockGrid
+    channels: tuple[str, ...]
+    rate_hz: float
+    options: IdentifyOptions
+    per_file: bool
+    parameters: dict
+
+
+class Monitor:
+    """Follow *watch* and keep the state folder *state* up to date.
+
+    Parameters
+    ----------
+    watch : path-like
+        Folder where acceleration files arrive (subfolders included).
+    state : path-like
+        The state folder (see :mod:`workbench.monitor`); its ``store`` subfolder is the
+        per-block store, which makes the monitor resumable.
+    dship : path-like, optional
+        The ship log (growing); without it no forecast and no health chart.
+    options : MonitorOptions, optional
+    """
+
+    def __init__(self, watch, state, *, dship=None, options: MonitorOptions | None = None):
+        self.watch = Path(watch)
+        self.state = Path(state)
+        self.dship = Path(dship) if dship is not None else None
+        self.options = options or MonitorOptions()
+        if self.state.exists() and not self.state.is_dir():
+            raise WorkbenchError(f"{self.state}: state folder is a file")
+        self.state.mkdir(parents=True, exist_ok=True)
+        self.store_path = self.state / "store"
+        self.store_path.mkdir(exist_ok=True)
+        # one monitor per state folder: the store's lock, held for the monitor's life
+        self._lock = StoreLock(self.store_path).acquire()
+        self.watcher = FolderWatcher(
+            self.watch,
+            settle_s=self.options.settle_s,
+            read_options=self.options.identify.read_options,
+            exclude=[self.dship] if self.dship is not None else [],
+        )
+        self.stop_event = threading.Event()
+        self.voyage: _Voyage | None = None
+        self.store: BlockStore | None = None
+        self.files: list[LandedFile] = []
+        self.done: set[int] = set()
+        self.messages: list[str] = []
+        self.conditioned_files = [0]  # files conditioned (per-file path)
+        self._shared: dict = {}
+        self._health_rows: list[dict] = []
+        self._selected_parts: dict[int, pd.DataFrame] = {}
+        self._tracked_through = -1
+        self._tracker: ModeTracker | None = None
+        self._track_rows: list[tuple[int, int, float]] = []
+        self._frame: pd.DataFrame | None = None
+        self._track_channels: list[str] | None = None
+        self._last_landing = time.monotonic()
+        self._outlook_due = False
+        self._outlook_future = None
+        self._executor = None
+        self.outlook_reports: list[OutlookReport] = []
+        self._dship_key = None
+        self._defer_outlook = False
+        self._log_complete = False
+        self._dirty = True
+        self._saved_grid = self._stored_grid()
+
+    @property
+    def tracked_through(self) -> int:
+        """Every block up to this one is decided and in the tracked table (-1: none)."""
+        return self._tracked_through
+
+    # ------------------------------------------------------------------ lifecycle
+    def close(self, state: str = "stopped") -> None:
+        """Finish the background work, write the final status and release the store."""
+        if self._outlook_future is not None:
+            try:
+                self._collect(self._outlook_future.result())
+            except Exception as error:  # noqa: BLE001 - report, do not lose the status
+                self.messages.append(f"forecast: {error}")
+            self._outlook_future = None
+        if self._executor is not None:
+            self._executor.shutdown(wait=True)
+            self._executor = None
+        if self.voyage is not None and self._tracked_through >= 0:
+            if (
+                self.dship is not None
+                and not self._log_complete
+                and _file_key(self.dship) != self._dship_key
+            ):
+                self._outlook_due = True
+            if self._outlook_due:  # a clean stop leaves the outlook of every block
+                self.update_outlook(background=False)
+        self._write_status(state)
+        if self.store is not None:
+            self.store.close()
+            self.store = None
+        self._lock.release()
+
+    def __enter__(self) -> Monitor:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def run(self, *, once: bool = False) -> None:
+        """Poll until :attr:`stop_event` is set (by SIGINT/SIGTERM in the CLI), or, with
+        *once*, process the files present and return.
+
+        *once* treats the files present as all there will be: it waits for files still
+        being written to settle, then decides every block (also those over holes and the
+        last ones) as ``workbench identify`` over the same files would.
+        """
+        self._write_status("running", "starting")
+        self._defer_outlook = once
+        if once:
+            waited = 0.0
+            while True:
+                self.step(flush=False)
+                if self.stop_event.is_set() or not self.watcher.pending:
+                    break
+                if waited > max(self.options.flush_after_s, 10 * self.options.settle_s):
+                    break
+                time.sleep(self.options.poll_s)
+                waited += self.options.poll_s
+            if not self.stop_event.is_set():
+                self.step(flush=True)
+                if self._outlook_due or not self.outlook_reports:
+                    self.update_outlook(background=False)
+            return
+        while not self.stop_event.is_set():
+            idle = time.monotonic() - self._last_landing
+            self.step(flush=idle >= self.options.flush_after_s)
+            self.stop_event.wait(self.options.poll_s)
+
+    # ------------------------------------------------------------------ one cycle
+    def step(self, *, flush: bool = False) -> int:
+        """Take the new complete files, identify every block that is ready, update the
+        state folder; return the number of blocks decided."""
+        landed, messages = self.watcher.poll()
+        self.messages += messages
+        for item in landed:
+            self._take(item)
+        if self.voyage is None and not self._anchor():
+            self._write_status("running", "waiting for the first complete files")
+            return 0
+        decided = 0
+        # blocks become ready only when data lands (or at a flush): plan only then
+        ready = self._ready_blocks(flush) if (self._dirty or flush) else []
+        self._dirty = False
+        for planned in ready:
+            if self.stop_event.is_set():
+                self._dirty = True  # the rest is still ready next time
+                break
+            self._process(planned)
+            decided += 1
+        if decided:
+            self._outlook_due = True
+        elif self.dship is not None and self._tracked_through >= 0 and not self._log_complete:
+            key = _file_key(self.dship)
+            if key != self._dship_key:  # the ship log grew: the newest predictors change
+                self._outlook_due = True
+        self._poll_outlook()
+        self._write_status("running")
+        return decided
+
+    # ------------------------------------------------------------------ files
+    def _stored_grid(self):
+        config = self.store_path / "store.json"
+        if not config.is_file():
+            return None
+        try:
+            found = json.loads(config.read_text(encoding="utf-8"))
+            return pd.Timestamp(found["grid_t0"]), tuple(found["channels"])
+        except (OSError, ValueError, KeyError, TypeError) as error:
+            raise WorkbenchError(f"{config}: unreadable ({error}); use another --state") from None
+
+    def _take(self, item: LandedFile) -> None:
+        """Add a complete file to the voyage, or refuse it with a message."""
+        self._last_landing = time.monotonic()
+        info = item.info
+        reason = ""
+        if self.voyage is not None:
+            voyage = self.voyage
+            half = pd.Timedelta(seconds=0.5 / voyage.rate_hz)
+            if info.sampling_rate_hz != voyage.rate_hz:
+                reason = f"sampling rate {info.sampling_rate_hz:g} Hz, not {voyage.rate_hz:g} Hz"
+            elif set(info.channels) != set(voyage.channels) or len(info.channels) != len(
+                voyage.channels
+            ):
+                reason = "other channels than the voyage's"
+            elif info.start_time < voyage.grid.t0 - half:
+                reason = (
+                    f"starts before the monitor's first block ({voyage.grid.t0.isoformat()}); "
+                    "blocks are anchored at the first file"
+                )
+        if not reason:
+            for other in self.files:
+                overlap = min(other.info.end_time, info.end_time) - max(
+                    other.info.start_time, info.start_time
+                )
+                if overlap.total_seconds() > 0.5 / info.sampling_rate_hz:
+                    reason = f"overlaps {other.path.name}"
+                    break
+        if not reason and self.store is not None:
+            try:
+                self.store.check_inputs(input_fingerprints([info]))
+            except WorkbenchError as error:
+                reason = str(error)
+        if reason:
+            self.messages.append(f"{item.path.name}: not used: {reason}")
+            log.warning("%s: not used: %s", item.path, reason)
+            self.watcher.refuse(item.path)
+            return
+        self.files.append(item)
+        self.files.sort(key=lambda f: (f.info.start_time, str(f.path)))
+        self._dirty = True
+        if self.voyage is not None:
+            self._note_too_late(item)
+
+    def _note_too_late(self, item: LandedFile) -> None:
+        """Say so when *item* lands after blocks over its span were decided without it."""
+        grid = self.voyage.grid
+        start, end = item.info.start_time.value, item.info.end_time.value
+        skipped = sorted(
+            int(row["block"])
+            for row in self._health_rows
+            if row["status"] == "skipped"
+            and ("gap" in row["reason"] or "no data" in row["reason"])
+            and grid.start(int(row["block"])).value < end
+            and grid.end(int(row["block"])).value > start
+        )
+        if skipped:
+            self.messages.append(
+                f"{item.path.name}: landed after blocks {skipped[0]}-{skipped[-1]} were "
+                "decided without it (skipped: gap); they are not redone"
+            )
+
+    def _anchor(self) -> bool:
+        """Fix the grid, channels and options from the files (or the store); open the
+        store. Waits while files are still being written (the first one may be among them).
+        """
+        if not self.files or (self.watcher.pending and self._saved_grid is None):
+            return False
+        first = self.files[0].info
+        options = self.options.identify
+        try:
+            options = options.resolved(first.sampling_rate_hz)
+            options.check_data(
+                SimpleNamespace(sampling_rate_hz=first.sampling_rate_hz, channels=first.channels)
+            )
+        except ValueError as error:
+            from ..identify import IdentifyOptionsError
+
+            raise IdentifyOptionsError(str(error)) from None
+        if self._saved_grid is not None:
+            t0, channels = self._saved_grid
+        else:
+            t0, channels = first.start_time, tuple(first.channels)
+        grid = BlockGrid(t0, options.length_s, options.step_s)
+        rate = analysis_rate(options, first.sampling_rate_hz)
+        ratio = first.sampling_rate_hz / rate
+        per_file = (
+            options.conditioning == "per-file"
+            and round(ratio) >= 2
+            and abs(ratio - round(ratio)) <= 1e-9 * ratio
+        )
+        options = replace(options, target_rate_hz=None if rate == first.sampling_rate_hz else rate)
+        parameters = {
+            **options.parameters(),
+            "grid_t0": grid.t0.isoformat(),
+            "channels": list(channels),
+        }
+        self.voyage = _Voyage(
+            grid, tuple(channels), float(first.sampling_rate_hz), options, per_file, parameters
+        )
+        self.store = BlockStore.open(self.store_path, parameters)
+        self.done = self.store.completed_blocks()
+        # files taken before the voyage was fixed are checked now
+        files, self.files = self.files, []
+        for item in files:
+            self._take(item)
+        self._resume()
+        return True
+
+    # ------------------------------------------------------------------ readiness
+    def _coverage(self) -> tuple[np.ndarray, np.ndarray]:
+        starts = np.array([f.info.start_time.value for f in self.files], dtype=np.int64)
+        ends = np.array([f.info.end_time.value for f in self.files], dtype=np.int64)
+        return starts, ends
+
+    def _settled(self, low: int, high: int, starts, ends, newest: int) -> bool:
+        """No data can still arrive for [low, high) ns: it is covered by files, or every
+        uncovered stretch of it lies ``late_s`` or more before the newest data."""
+        voyage = self.voyage
+        half = int(0.5 / voyage.rate_hz * _NS)
+        late = int(self.options.late_s * _NS)
+        low = max(low, voyage.grid.t0.value)  # nothing comes before the first block
+        cursor = low
+        first = max(0, int(np.searchsorted(ends, low, side="left")) - 1)  # files in time order
+        for start, end in zip(starts[first:], ends[first:], strict=True):
+            if end <= cursor + half:
+                continue
+            if start > high - half:
+                break
+            if start > cursor + half and newest < start + late:  # a hole [cursor, start)
+                return False
+            cursor = max(cursor, end)
+        if cursor < high - half and newest < high + late:
+            return False
+        return True
+
+    def _ready_blocks(self, flush: bool):
+        """Blocks not yet decided whose data (and, when decimating, whose neighbouring
+        files) can no longer change, ascending."""
+        from ..signals.stream import _plan
+
+        if not self.files:
+            return []
+        voyage = self.voyage
+        plan = _plan(
+            [f.info for f in self.files], voyage.grid, None, None, voyage.options.max_gap_s
+        )
+        starts, ends = self._coverage()
+        newest = int(ends.max())
+        margin = int(2.0 / voyage.rate_hz * _NS) if voyage.per_file else 0
+        ready = []
+        for planned in plan.blocks:
+            if planned.block in self.done:
+                continue
+            low = planned.block_start.value - margin
+            high = planned.block_end.value + margin
+            if flush or self._settled(low, high, starts, ends, newest):
+                ready.append(planned)
+        self._plan = plan
+        return ready
+
+    # ------------------------------------------------------------------ one block
+    def _process(self, planned) -> None:
+        from ..identify import _Task
+        from ..parallel import _guarded
+
+        voyage = self.voyage
+        task = _Task(int(planned.block), planned.block_start, tuple(str(f) for f in planned.files))
+        conditioner = None
+        if voyage.per_file:
+            conditioner = self._conditioner(planned)
+        func = functools.partial(
+            identify_block,
+            grid=voyage.grid,
+            channels=voyage.channels,
+            options=voyage.options,
+            conditioner=conditioner,
+        )
+        cpu = time.process_time()
+        outcome = _guarded(func, task)
+        identified_at = pd.Timestamp.now(tz="UTC")
+        cpu = time.process_time() - cpu
+        row = self._health_row(planned, outcome, identified_at)
+        tables = {k: v for k, v in outcome.tables.items() if len(v)}
+        tables["monitor"] = pd.DataFrame([row])
+        blocks = pd.DataFrame(
+            {
+                "block": [int(outcome.block)],
+                "block_start": pd.to_datetime([outcome.block_start], utc=True),
+                "status": ["skipped" if outcome.skipped else "ok"],
+                "reason": [outcome.skipped],
+            }
+        )
+        self.store.write_batch(blocks, tables)  # the block is done once this returns
+        self.done.add(int(outcome.block))
+        self._health_rows.append(row)
+        selected = outcome.tables.get("selected")
+        if not outcome.skipped and selected is not None and len(selected):
+            self._selected_parts[int(outcome.block)] = selected
+        self._advance_tracking()
+        self._write_data_health()
+        self._forget_conditioned()
+        self._write_status("running")
+        log.info(
+            "block %d: %s, identification CPU %.3f s, state written %.3f s after its last "
+            "file landed",
+            outcome.block,
+            row["status"],
+            cpu,
+            (pd.Timestamp.now(tz="UTC") - row["last_file_landed"]).total_seconds(),
+        )
+
+    def _conditioner(self, planned) -> _SharedConditioner:
+        voyage = self.voyage
+        from ..identify import _fault_options, _filter_band
+
+        infos = [f.info for f in self.files]
+        position = {info.path: i for i, info in enumerate(infos)}
+        used = [position[Path(p)] for p in planned.files if Path(p) in position]
+        if used:
+            lo, hi = max(min(used) - 1, 0), min(max(used) + 2, len(infos))
+        else:
+            lo, hi = 0, len(infos)
+        options = voyage.options
+        return _SharedConditioner(
+            infos[lo:hi],
+            voyage.grid,
+            voyage.channels,
+            target_rate_hz=float(options.target_rate_hz),
+            band_hz=_filter_band(options),
+            max_gap_s=options.max_gap_s,
+            fault_options=_fault_options(options),
+            read_options=options.read_options,
+            shared=self._shared,
+            counter=self.conditioned_files,
+        )
+
+    def _forget_conditioned(self) -> None:
+        """Drop conditioned files no block still to come needs."""
+        if not self._shared:
+            return
+        waiting = [b.block_start for b in self._plan.blocks if b.block not in self.done]
+        horizon = min(waiting) if waiting else None
+        ends = {f.path: f.info.end_time for f in self.files}
+        for key in list(self._shared):
+            end = ends.get(key[0])
+            if end is None or horizon is None or end <= horizon:
+                del self._shared[key]
+
+    def _health_row(self, planned, outcome, identified_at: pd.Timestamp) -> dict:
+        by_path = {f.path: f for f in self.files}
+        used = [by_path[Path(p)] for p in planned.files if Path(p) in by_path]
+        landed = max((f.landed for f in used), default=pd.NaT)
+        start, end = planned.block_start.value, planned.block_end.value
+        covered = sum(
+            max(0, min(end, f.info.end_time.value) - max(start, f.info.start_time.value))
+            for f in used
+        )
+        faults = outcome.tables.get("faults")
+        dropped = [] if faults is None or faults.empty else [str(c) for c in faults["channel"]]
+        channels = outcome.tables.get("channels")
+        n_channels = 0 if channels is None or outcome.skipped else int(len(channels))
+        gap = max(0.0, (end - start - covered) / _NS)
+        return {
+            "block": int(outcome.block),
+            "block_start": pd.Timestamp(outcome.block_start).tz_convert("UTC"),
+            "n_channels": n_channels,
+            "dropped_channels": ",".join(dropped),
+            "gap_seconds": round(gap, 6),
+            "last_file_landed": landed,
+            "identified_at": identified_at,
+            "latency_s": (identified_at - landed).total_seconds()
+            if landed is not pd.NaT
+            else np.nan,
+            "status": "skipped" if outcome.skipped else "ok",
+            "reason": outcome.skipped,
+        }
+
+    # ------------------------------------------------------------------ tracking
+    def _advance_tracking(self) -> None:
+        """Feed the decided blocks to the tracker in block order (the tracker needs them
+        in order; a block waiting for late data holds the ones after it) and write the
+        tracked table when it grew."""
+        from ..sid.tracking import _tracked_table
+
+        grew = False
+        while self._tracked_through + 1 in self.done:
+            block = self._tracked_through + 1
+            part = self._selected_parts.pop(block, None)
+            if part is not None:
+                self._track_block(block, part)
+                grew = True
+            self._tracked_through = block
+        if grew or not (self.state / "tracked.parquet").exists():
+            if self._frame is None:
+                table = empty_table(MODAL)
+            else:
+                table = _tracked_table(
+                    self._frame,
+                    list(self._track_rows),
+                    self._tracker,
+                    self._track_channels,
+                    self.options.tracking,
+                )
+            write_table(table, self.state / "tracked.parquet", MODAL)
+
+    def _track_block(self, block: int, part: pd.DataFrame) -> None:
+        # the order `workbench identify` exports a block's modes in (then `track` reads it)
+        if "model_order" in part.columns:
+            part = part.sort_values("model_order", kind="stable")
+        part = part.sort_values("frequency_hz", kind="stable")
+        if self._tracker is None:
+            channels, _ = shapes_from_frame(part.iloc[:0])
+            if not channels:
+                raise WorkbenchError(f"block {block}: selected modes without mode shapes")
+            self._track_channels = channels
+            self._tracker = ModeTracker(len(channels), self.options.tracking)
+        offset = 0 if self._frame is None else len(self._frame)
+        part = part.reset_index(drop=True)
+        part.index = pd.RangeIndex(offset, offset + len(part))
+        self._frame = part if self._frame is None else pd.concat([self._frame, part])
+        _, shapes = shapes_from_frame(part)
+        updates = self._tracker.update(
+            block,
+            part["frequency_hz"].to_numpy(dtype=float),
+            part["damping_ratio"].to_numpy(dtype=float),
+            shapes.T,
+            part.index,
+        )
+        self._track_rows += [(int(part.index[i]), label, score) for i, label, score in updates]
+        self._track_rows += self._tracker.late_assignments
+        self._tracker.late_assignments = []
+
+    def _resume(self) -> None:
+        """After a restart: replay the stored blocks into the tracker and the data-health
+        table (the store is the truth; nothing is identified twice)."""
+        if not self.done:
+            self._plan = SimpleNamespace(blocks=())
+            self._advance_tracking()
+            return
+        health = self.store.read("monitor")
+        if len(health):
+            self._health_rows = health.drop(columns=["day"], errors="ignore").to_dict("records")
+        selected = self.store.read("selected")
+        if len(selected):
+            selected = selected.drop(columns=["day"], errors="ignore")
+            for block, part in selected.groupby("block", sort=True):
+                self._selected_parts[int(block)] = part
+        self._plan = SimpleNamespace(blocks=())
+        self._advance_tracking()
+        self._write_data_health()
+        self._outlook_due = True
+
+    # ------------------------------------------------------------------ outlook
+    def _poll_outlook(self) -> None:
+        if self._defer_outlook:  # --once: one outlook at the end
+            return
+        future = self._outlook_future
+        if future is not None:
+            if not future.done():
+                return
+            self._outlook_future = None
+            try:
+                self._collect(future.result())
+            except Exception as error:  # noqa: BLE001 - a crashed worker: say so, go on
+                self.messages.append(f"forecast: background update failed ({error})")
+        if self._outlook_due:
+            self._log_complete = False
+            self.update_outlook(background=self.options.background)
+
+    def update_outlook(self, *, background: bool = False) -> None:
+        """Recompute forecast, health and alarms from the tracked table so far."""
+        if self.voyage is None:
+            return
+        if self._outlook_future is not None:  # wait for the one under way, then recompute
+            self._collect(self._outlook_future.result())
+            self._outlook_future = None
+        self._outlook_due = False
+        self._dship_key = _file_key(self.dship) if self.dship is not None else None
+        arguments = (self.state, self.dship, self.options.forecast, self.voyage.grid)
+        keywords = {"store": self.store_path}
+        if not background:
+            self._collect(update_outlook(*arguments, **keywords))
+            return
+        if self._executor is None:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+
+            # a lower priority: on a busy machine the next block's identification (the
+            # latency users see) goes first, the forecast takes the time left
+            self._executor = ProcessPoolExecutor(
+                max_workers=1,
+                mp_context=multiprocessing.get_context("spawn"),
+                initializer=_lower_priority,
+            )
+        self._outlook_future = self._executor.submit(
+            update_outlook, *arguments, **keywords, parent_pid=os.getpid()
+        )
+
+    def _collect(self, report: OutlookReport) -> None:
+        self.outlook_reports.append(report)
+        # a log that already covered the newest block changes no predictor when it grows
+        self._log_complete = report.log_complete
+        log.info(
+            "outlook: %d blocks, %d forecast rows, %.3f s (CPU %.3f s)",
+            report.n_blocks,
+            report.forecast_rows,
+            report.seconds,
+            report.cpu_seconds,
+        )
+        for message in report.messages:
+            if message not in self.messages[-20:]:
+                self.messages.append(message)
+
+    # ------------------------------------------------------------------ state files
+    def _write_data_health(self) -> None:
+        frame = pd.DataFrame(self._health_rows, columns=list(DATA_HEALTH_COLUMNS))
+        frame = frame.sort_values("block", kind="stable").reset_index(drop=True)
+        frame["block"] = frame["block"].astype("int64")
+        frame["n_channels"] = frame["n_channels"].astype("int64")
+        for column in ("block_start", "last_file_landed", "identified_at"):
+            frame[column] = pd.to_datetime(frame[column], utc=True)
+        for column in ("gap_seconds", "latency_s"):
+            frame[column] = frame[column].astype(float)
+        for column in ("dropped_channels", "status", "reason"):
+            frame[column] = frame[column].fillna("").astype(str)
+        with atomic_path(self.state / "data_health.parquet") as tmp:
+            frame.to_parquet(tmp, index=False)
+
+    def _write_status(self, state: str, message: str | None = None) -> None:
+        del self.messages[:-200]  # a long run keeps its recent messages only
+        last = max((b for b in self.done if b <= self._tracked_through), default=None)
+        if message is None:
+            message = self.messages[-1] if self.messages else ""
+        status = {
+            "updated_at": pd.Timestamp.now(tz="UTC").strftime("%Y-%m-%dT%H:%M:%S.%fZ"),
+            "last_block": None if last is None else int(last),
+            "blocks_done": len(self.done),
+            "state": state,
+            "pid": os.getpid(),
+            "watch": str(self.watch.resolve()),
+            "message": message,
+        }
+        with atomic_path(self.state / "status.json") as tmp:
+            tmp.write_text(json.dumps(status, indent=1), encoding="utf-8")
+
+
+def _lower_priority() -> None:
+    try:
+        os.nice(10)
+    except (AttributeError, OSError):  # pragma: no cover - platforms without nice
+        pass
+
+
+def _file_key(path: Path | None):
+    try:
+        stat = Path(path).stat()
+    except (OSError, TypeError):
+        return None
+    return (stat.st_size, stat.st_mtime_ns)

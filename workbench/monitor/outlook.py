@@ -1,0 +1,326 @@
+"""Forecast and structural-health chart of the tracked table so far (the monitor's outlook).
+
+:func:`update_outlook` reads ``<state>/tracked.parquet`` and the ship log, and writes
+``forecast.parquet``, ``health.parquet`` and ``alarms.parquet`` into the state folder,
+exactly as ``workbench forecast --modal tracked.parquet --dship LOG ...`` followed by
+``workbench health`` would over the same data: the ship log is averaged onto the tracked
+blocks (:func:`~workbench.predictors.block_predictors`), modes measured in fewer than
+``min_presence`` of the blocks are left out, and :func:`~workbench.forecast.sliding_forecast`
+runs over the whole table for each measurement option.
+
+The forecast is recomputed over the whole table (not resumed from the last Kalman state):
+the tracked labels may be renumbered by a new block (``sort_by_frequency``), the modes
+kept depend on the presence over all blocks, and the newest block's predictors change while
+the ship log grows. Recomputing is exact by construction; its cost grows with the table
+(measured in ``benchmarks/bench_monitor.py``) and it runs in a background process, so it
+never delays the identification of the next block.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+import warnings
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import pandas as pd
+
+from data_contracts import ALARMS, FORECAST, HEALTH, MODAL, POLES, PREDICTORS, read_table
+
+__all__ = ["ForecastSettings", "OutlookReport", "empty_table", "update_outlook"]
+
+
+@dataclass(frozen=True)
+class ForecastSettings:
+    """Forecast and health-chart settings of the monitor (as ``workbench forecast`` and
+    ``workbench health`` take them).
+
+    Attributes
+    ----------
+    options : tuple of {"A", "B"}
+        Measurement options (B needs the stabilisation diagrams, read from the store).
+    method : {1, 2}
+    train_blocks : int
+    horizon : int, optional
+    trust : float, None or "auto"
+    model : {"window", "memory"}
+    min_presence : float
+        Modes measured in fewer than this share of the blocks are not forecast. [-]
+    shape_mac_min : float
+    reacquire_blocks : int, optional
+    all_predictors : bool
+        Use every numeric column of the ship log, not only the canonical predictors.
+    dship_mapping : tuple of (str, str)
+        Column mapping of the ship log (``speed_kn`` -> source name).
+    reference_hours : float
+        Reference period of the health chart. [h]
+    ewma_lambda, false_alarms_per_day : float
+        Health-chart settings (:class:`~workbench.health.HealthOptions`).
+    """
+
+    options: tuple[Literal["A", "B"], ...] = ("A",)
+    method: Literal[1, 2] = 2
+    train_blocks: int = 20
+    horizon: int | None = None
+    trust: float | None | str = "auto"
+    model: Literal["window", "memory"] = "window"
+    min_presence: float = 0.5
+    shape_mac_min: float = 0.9
+    reacquire_blocks: int | None = None
+    all_predictors: bool = False
+    dship_mapping: tuple[tuple[str, str], ...] = ()
+    reference_hours: float = 6.0
+    ewma_lambda: float = 0.1
+    false_alarms_per_day: float = 0.1
+
+    def __post_init__(self) -> None:
+        options = tuple(self.options)
+        if not options or any(o not in ("A", "B") for o in options):
+            raise ValueError(f"options={self.options!r} must be 'A', 'B' or both")
+        object.__setattr__(self, "options", options)
+        if self.method not in (1, 2):
+            raise ValueError(f"method={self.method!r} must be 1 or 2")
+        if int(self.train_blocks) != self.train_blocks or self.train_blocks < 2:
+            raise ValueError(f"train_blocks={self.train_blocks!r} must be at least 2")
+        if not 0.0 <= self.min_presence <= 1.0:
+            raise ValueError(f"min_presence={self.min_presence!r} must be in [0, 1]")
+        if not (math.isfinite(self.reference_hours) and self.reference_hours > 0):
+            raise ValueError(f"reference_hours={self.reference_hours!r} must be positive")
+        object.__setattr__(
+            self,
+            "dship_mapping",
+            tuple((str(k), str(v)) for k, v in dict(self.dship_mapping).items()),
+        )
+
+
+@dataclass
+class OutlookReport:
+    """What one :func:`update_outlook` did."""
+
+    seconds: float = 0.0
+    cpu_seconds: float = 0.0
+    n_blocks: int = 0
+    forecast_rows: int = 0
+    health_rows: int = 0
+    alarms: int = 0
+    messages: list[str] = field(default_factory=list)
+    written: bool = True
+    #: The ship log reached the end of the newest tracked block (its predictors are final).
+    log_complete: bool = False
+
+
+def empty_table(contract) -> pd.DataFrame:
+    """A table of *contract* without rows (what the state files hold before any result)."""
+    return contract.validate(pd.DataFrame(columns=list(contract.column_names)))
+
+
+def _write(frame: pd.DataFrame, path: Path, contract, parent_pid: int | None) -> bool:
+    """Write atomically, unless the monitor that asked for it has died meanwhile (a stale
+    background result must not overwrite what its restarted successor wrote)."""
+    from data_contracts import write_table
+
+    if parent_pid is not None and os.getppid() != parent_pid:
+        return False
+    write_table(frame, path, contract)
+    return True
+
+
+_DSHIP_CACHE: dict[str, tuple[tuple[int, int], pd.DataFrame]] = {}
+
+
+def _ship_log(path: Path, mapping: Mapping[str, str] | None) -> pd.DataFrame:
+    """The ship log, read again only when its size or modification time changed."""
+    from data_contracts import read_dship
+
+    stat = path.stat()
+    key = (stat.st_size, stat.st_mtime_ns)
+    cached = _DSHIP_CACHE.get(str(path))
+    if cached is not None and cached[0] == key:
+        return cached[1]
+    log = read_dship(path, mapping=dict(mapping) if mapping else None)
+    _DSHIP_CACHE.clear()
+    _DSHIP_CACHE[str(path)] = (key, log)
+    return log
+
+
+def block_predictors_of(
+    tracked: pd.DataFrame, dship: Path, grid, settings: ForecastSettings
+) -> pd.DataFrame:
+    """The ship log averaged onto the blocks first..last of *tracked* (as ``workbench
+    forecast --dship`` does)."""
+    from data_contracts import CANONICAL_PREDICTORS
+
+    from ..predictors import block_predictors
+
+    log = _ship_log(Path(dship), dict(settings.dship_mapping))
+    first, last = int(tracked["block"].min()), int(tracked["block"].max())
+    table = block_predictors(log, grid=grid, blocks=np.arange(first, last + 1), min_coverage=0.5)
+    table = PREDICTORS.validate(table)
+    if settings.all_predictors:
+        return table
+    columns = ["block", "block_start", "block_end", *(c.name for c in CANONICAL_PREDICTORS)]
+    return table[[c for c in columns if c in table.columns]]
+
+
+def forecast_table(
+    tracked: pd.DataFrame,
+    predictors: pd.DataFrame,
+    settings: ForecastSettings,
+    poles: pd.DataFrame | None = None,
+) -> tuple[pd.DataFrame, list[str]]:
+    """Forecast table (FORECAST contract) of every option, and the forecast's warnings.
+
+    Raises
+    ------
+    ValueError
+        When no mode is measured often enough or the table is too short to forecast.
+    """
+    from ..forecast import ForecastWarning, sliding_forecast
+
+    n_blocks = predictors["block"].nunique()
+    presence = tracked.groupby("mode")["block"].nunique() / max(n_blocks, 1)
+    modes = sorted(int(m) for m in presence.index[presence >= settings.min_presence])
+    if not modes:
+        raise ValueError(
+            f"no mode is measured in at least {100 * settings.min_presence:.0f} % of the blocks"
+        )
+    frames, messages = [], []
+    for option in settings.options:
+        extra: dict[str, Any] = {}
+        if option == "B":
+            if poles is None:
+                raise ValueError("option B needs the stabilisation diagrams (poles)")
+            extra = {
+                "shape_mac_min": settings.shape_mac_min,
+                "reacquire_blocks": settings.reacquire_blocks,
+            }
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ForecastWarning)
+            result = sliding_forecast(
+                tracked,
+                predictors,
+                modes=modes,
+                poles=poles,
+                option=option,
+                method=settings.method,
+                train_blocks=settings.train_blocks,
+                horizon=settings.horizon,
+                trust=settings.trust,
+                model=settings.model,
+                predictor_columns=None,
+                stepwise_options=None,
+                cases=None,
+                **extra,
+            )
+        messages += [
+            f"option {option}: {w.message}"
+            for w in caught
+            if issubclass(w.category, ForecastWarning)
+        ]
+        table = result.table
+        keys = [c for c in ("block", "mode", "option") if c in table.columns]
+        frames.append(table.sort_values(keys, kind="stable").reset_index(drop=True))
+    return pd.concat(frames, ignore_index=True), messages
+
+
+def update_outlook(
+    state: str | os.PathLike,
+    dship: str | os.PathLike | None,
+    settings: ForecastSettings,
+    grid,
+    *,
+    store: str | os.PathLike | None = None,
+    parent_pid: int | None = None,
+) -> OutlookReport:
+    """Recompute ``forecast``, ``health`` and ``alarms`` of the state folder from its
+    ``tracked.parquet`` and the ship log *dship* (see the module notes).
+
+    Tables that cannot be computed yet (too few blocks, no reference period) are written
+    empty, with the reason in the report's messages. *store* (the monitor's block store)
+    is read for the stabilisation diagrams when option B is asked for.
+    """
+    from ..health import HealthOptions, health_chart
+
+    started, cpu = time.perf_counter(), time.process_time()
+    state = Path(state)
+    report = OutlookReport()
+    tracked_path = state / "tracked.parquet"
+    forecast = empty_table(FORECAST)
+    if tracked_path.is_file() and dship is not None:
+        tracked = read_table(tracked_path, MODAL)
+        report.n_blocks = int(tracked["block"].nunique()) if len(tracked) else 0
+        if len(tracked):
+            try:
+                # the ship log's notes go to the report (and status.json), not to stderr
+                # at every recompute
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always")
+                    predictors = block_predictors_of(tracked, Path(dship), grid, settings)
+                report.messages += list(dict.fromkeys(str(w.message) for w in caught))
+                log = _ship_log(Path(dship), dict(settings.dship_mapping))
+                newest_end = grid.end(int(tracked["block"].max()))
+                report.log_complete = bool(len(log) and log["time"].max() >= newest_end)
+                poles = None
+                if "B" in settings.options and store is not None:
+                    poles = _store_poles(Path(store), tracked)
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # other than the forecast's own notes
+                    forecast, notes = forecast_table(tracked, predictors, settings, poles)
+                report.messages += notes
+            except (ValueError, ArithmeticError, np.linalg.LinAlgError, OSError) as error:
+                report.messages.append(f"forecast: {str(error).splitlines()[0]}")
+                forecast = empty_table(FORECAST)
+            except Exception as error:  # noqa: BLE001 - a contract or data error of the log
+                report.messages.append(f"forecast: {type(error).__name__}: {error}")
+                forecast = empty_table(FORECAST)
+    elif dship is None:
+        report.messages.append("forecast: no ship log given")
+    health, alarms = empty_table(HEALTH), empty_table(ALARMS)
+    if len(forecast):
+        blocks = int(round(settings.reference_hours * 3600.0 / grid.step_s))
+        try:
+            chart = health_chart(
+                forecast,
+                HealthOptions(
+                    reference_blocks=blocks,
+                    ewma_lambda=settings.ewma_lambda,
+                    false_alarms_per_day=settings.false_alarms_per_day,
+                ),
+            )
+            health, alarms = chart.table, chart.alarms
+        except ValueError as error:
+            report.messages.append(f"health: {str(error).splitlines()[0]}")
+    report.forecast_rows, report.health_rows, report.alarms = (
+        len(forecast),
+        len(health),
+        len(alarms),
+    )
+    for frame, name, contract in (
+        (forecast, "forecast.parquet", FORECAST),
+        (health, "health.parquet", HEALTH),
+        (alarms, "alarms.parquet", ALARMS),
+    ):
+        if not _write(frame, state / name, contract, parent_pid):
+            report.written = False
+            break
+    report.seconds = time.perf_counter() - started
+    report.cpu_seconds = time.process_time() - cpu
+    return report
+
+
+def _store_poles(store: Path, tracked: pd.DataFrame) -> pd.DataFrame | None:
+    """The pole table of the tracked blocks from the store's committed batches, in the
+    order ``poles.parquet`` of ``workbench identify`` has them."""
+    committed = {p.stem for p in (store / "blocks").glob("day=*/*.parquet")}
+    files = [p for p in sorted((store / "poles").glob("day=*/*.parquet")) if p.stem in committed]
+    if not files:
+        return None
+    poles = pd.concat([pd.read_parquet(p) for p in files], ignore_index=True)
+    poles = poles.sort_values(["block", "model_order"], kind="stable")
+    poles = poles.sort_values(["block", "model_order", "frequency_hz"], kind="stable")
+    return POLES.validate(poles.reset_index(drop=True))
