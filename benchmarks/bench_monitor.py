@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-FORECAST = ["--train", "20", "--trust", "0.65"]
+FORECAST = ["--train-blocks", "20", "--trust", "0.65"]
 IDENTIFY = ["--band", "2", "12"]
 
 

@@ -333,11 +333,11 @@ def test_settings_from_a_ship_configuration(voyage, tmp_path):
             "dship": {"file": str(voyage / "dship.tsv")},
             "blocks": {"length_minutes": 20, "step_minutes": 5},
             "identify": {"band": [2.0, 12.0], "block_rows": 8, "max_order": 20},
-            "track": {"threshold": 0.85},
-            "forecast": {"option": "AB", "train": 6, "method": 2},
+            "track": {"mac_min": 0.85},
+            "forecast": {"option": "AB", "train_blocks": 6, "scheme": 2},
         },
     )
-    argv = ["monitor", "--config", str(config), "--train", "7"]
+    argv = ["monitor", "--config", str(config), "--train-blocks", "7"]
     monitor = prepare_monitor(build_parser().parse_args(argv))
     try:
         options = monitor.options
@@ -346,7 +346,7 @@ def test_settings_from_a_ship_configuration(voyage, tmp_path):
         assert monitor.state == tmp_path / "out" / "monitor"
         assert options.identify.band_hz == (2.0, 12.0) and options.identify.block_rows == 8
         assert max(options.identify.orders) == 20
-        assert options.tracking.threshold == 0.85
+        assert options.tracking.mac_min == 0.85
         assert options.forecast.options == ("A", "B") and options.forecast.train_blocks == 7
     finally:
         monitor.close()

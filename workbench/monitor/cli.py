@@ -26,15 +26,14 @@ _DEFAULTS = {
     "max_gap": 0.0,
     "selection": "cluster",
     "conditioning": "per-file",
-    "threshold": 0.9,
+    "mac_min": 0.9,
     "gate": "mac",
-    "frequency_tolerance": 0.05,
+    "frequency_tol": 0.05,
     "option": "A",
-    "forecast_method": 2,
-    "train": 20,
+    "scheme": 2,
+    "train_blocks": 20,
     "model": "window",
     "min_presence": 0.5,
-    "shape_mac_min": 0.9,
     "reference_hours": 6.0,
     "ewma_lambda": 0.1,
     "false_alarms_per_day": 0.1,
@@ -47,6 +46,9 @@ _DEFAULTS = {
 
 def add_monitor(commands: argparse._SubParsersAction) -> None:
     """Add the ``monitor`` subcommand."""
+    from ..arguments import add_renamed
+    from ..cli import FORECAST_OPTIONS, FORECAST_SCHEMES
+
     parser = commands.add_parser(
         "monitor",
         help="follow a folder of acceleration files and the ship log: identify, track, "
@@ -103,7 +105,13 @@ def add_monitor(commands: argparse._SubParsersAction) -> None:
     ident.add_argument("--min-order", type=int, metavar="N")
     ident.add_argument("--max-order", type=int, metavar="N")
     ident.add_argument("--weighting", choices=("pc", "upc", "cva"))
-    ident.add_argument("--reference", metavar="CH,CH,...", help="reference channels")
+    add_renamed(
+        ident,
+        "--reference-channels",
+        ["--reference"],
+        metavar="CH,CH,...",
+        help="reference channels",
+    )
     ident.add_argument("--rate", metavar="HZ|auto|native", help="analysis rate (auto)")
     ident.add_argument("--band", type=float, nargs=2, metavar=("LOW", "HIGH"))
     ident.add_argument("--no-band", action="store_true", default=None)
@@ -114,18 +122,31 @@ def add_monitor(commands: argparse._SubParsersAction) -> None:
     ident.add_argument("--no-channel-check", action="store_true", default=None)
     ident.add_argument("--conditioning", choices=("per-file", "per-block"))
     track = parser.add_argument_group("tracking (as workbench track)")
-    track.add_argument("--threshold", type=float)
+    add_renamed(
+        track,
+        "--mac-min",
+        ["--threshold", "--shape-mac-min"],
+        type=float,
+        metavar="MAC",
+        help="lowest MAC that joins a mode to a tracked mode, and of an option-B pole with "
+        "its mode's shape (0.9)",
+    )
     track.add_argument("--gate", choices=("mac", "macxp"))
-    track.add_argument("--frequency-tolerance", type=float)
+    add_renamed(track, "--frequency-tol", ["--frequency-tolerance"], type=float)
     fore = parser.add_argument_group("forecast and health (as workbench forecast / health)")
-    fore.add_argument("--option", choices=("A", "B", "AB"))
-    fore.add_argument("--forecast-method", type=int, choices=(1, 2))
-    fore.add_argument("--train", type=int, metavar="N")
+    fore.add_argument("--option", type=FORECAST_OPTIONS, metavar=FORECAST_OPTIONS.metavar)
+    add_renamed(
+        fore,
+        "--scheme",
+        ["--forecast-method"],
+        type=FORECAST_SCHEMES,
+        metavar=FORECAST_SCHEMES.metavar,
+    )
+    add_renamed(fore, "--train-blocks", ["--train"], type=int, metavar="N")
     fore.add_argument("--horizon", type=int, metavar="H")
     fore.add_argument("--model", choices=("memory", "window"))
     fore.add_argument("--trust")
     fore.add_argument("--min-presence", type=float, metavar="SHARE")
-    fore.add_argument("--shape-mac-min", type=float, metavar="MAC")
     fore.add_argument("--reacquire-blocks", type=int, metavar="K")
     fore.add_argument("--all-predictors", action="store_true", default=None)
     fore.add_argument("--reference-hours", type=float, help="health reference period [h] (6)")
@@ -149,7 +170,7 @@ def _from_config(args: argparse.Namespace) -> None:
         "rate",
         "no_band",
         "band",
-        "reference",
+        "reference_channels",
         "block_minutes",
         "step_minutes",
         "max_gap",
@@ -159,17 +180,16 @@ def _from_config(args: argparse.Namespace) -> None:
     if args.watch is None and identify.get("inputs"):
         args.watch = Path(identify["inputs"][0])
     track = command_defaults("track", config)
-    for dest in ("threshold", "gate", "frequency_tolerance"):
+    for dest in ("mac_min", "gate", "frequency_tol"):
         if getattr(args, dest) is None and dest in track:
             setattr(args, dest, track[dest])
     forecast = command_defaults("forecast", config)
     pairs = {
         "option": "option",
-        "forecast_method": "method",
-        "train": "train",
+        "scheme": "scheme",
+        "train_blocks": "train_blocks",
         "horizon": "horizon",
         "min_presence": "min_presence",
-        "shape_mac_min": "shape_mac_min",
         "reacquire_blocks": "reacquire_blocks",
         "trust": "trust",
         "dship": "dship",
@@ -185,8 +205,9 @@ def _from_config(args: argparse.Namespace) -> None:
 
 
 def _options(args: argparse.Namespace):
+    from .. import defaults as D
     from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
-    from ..cli import UsageError, _analysis_rate, _parse_trust
+    from ..cli import FORECAST_OPTIONS, FORECAST_SCHEMES, UsageError, _analysis_rate, _parse_trust
     from ..identify import IdentifyOptions
     from ..sid.tracking import TrackingOptions
     from .core import MonitorOptions
@@ -203,9 +224,11 @@ def _options(args: argparse.Namespace):
         identify = IdentifyOptions(
             method=args.method,
             block_rows=args.block_rows,
-            orders=tuple(range(args.min_order, args.max_order + 1, 2)),
+            orders=tuple(range(args.min_order, args.max_order + 1, D.IDENTIFY_ORDER_STEP)),
             weighting=args.weighting,
-            reference_channels=tuple(args.reference.split(",")) if args.reference else None,
+            reference_channels=(
+                tuple(args.reference_channels.split(",")) if args.reference_channels else None
+            ),
             length_s=length_s,
             step_s=step_s,
             target_rate_hz=_analysis_rate(str(args.rate)),
@@ -223,18 +246,19 @@ def _options(args: argparse.Namespace):
             conditioning=args.conditioning,
         )
         tracking = TrackingOptions(
-            threshold=args.threshold, gate=args.gate, frequency_tolerance=args.frequency_tolerance
+            mac_min=args.mac_min, gate=args.gate, frequency_tol=args.frequency_tol
         )
-        options = ("A", "B") if args.option == "AB" else (args.option,)
+        option = FORECAST_OPTIONS(str(args.option))  # the file may hold names or letters
+        options = ("A", "B") if option == "AB" else (option,)
         forecast = ForecastSettings(
             options=options,
-            method=args.forecast_method,
-            train_blocks=args.train,
+            scheme=FORECAST_SCHEMES(str(args.scheme)),
+            train_blocks=args.train_blocks,
             horizon=args.horizon,
             trust=trust,
             model=args.model,
             min_presence=args.min_presence,
-            shape_mac_min=args.shape_mac_min,
+            mac_min=args.mac_min,
             reacquire_blocks=args.reacquire_blocks,
             all_predictors=bool(args.all_predictors),
             dship_mapping=tuple(dict(getattr(args, "dship_columns", None) or {}).items()),
@@ -252,7 +276,7 @@ def _options(args: argparse.Namespace):
             flush_after_s=args.flush_after,
             background=not (args.foreground or args.once),
         )
-    except ValueError as error:
+    except (ValueError, argparse.ArgumentTypeError) as error:
         raise UsageError(str(error)) from None
 
 

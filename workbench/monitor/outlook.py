@@ -25,7 +25,7 @@ import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 import pandas as pd
@@ -44,14 +44,16 @@ class ForecastSettings:
     ----------
     options : tuple of {"A", "B"}
         Measurement options (B needs the stabilisation diagrams, read from the store).
-    method : {1, 2}
+    scheme : {1, 2}
+        Forecast scheme: 1 single-window, 2 rolling (as ``workbench forecast --scheme``).
     train_blocks : int
     horizon : int, optional
     trust : float, None or "auto"
     model : {"window", "memory"}
     min_presence : float
         Modes measured in fewer than this share of the blocks are not forecast. [-]
-    shape_mac_min : float
+    mac_min : float
+        Option B: lowest MAC of a pole's shape with the mode's tracked shape.
     reacquire_blocks : int, optional
     all_predictors : bool
         Use every numeric column of the ship log, not only the canonical predictors.
@@ -64,13 +66,13 @@ class ForecastSettings:
     """
 
     options: tuple[Literal["A", "B"], ...] = ("A",)
-    method: Literal[1, 2] = 2
+    scheme: Literal[1, 2] = 2
     train_blocks: int = 20
     horizon: int | None = None
     trust: float | None | str = "auto"
     model: Literal["window", "memory"] = "window"
     min_presence: float = 0.5
-    shape_mac_min: float = 0.9
+    mac_min: float = 0.9
     reacquire_blocks: int | None = None
     all_predictors: bool = False
     dship_mapping: tuple[tuple[str, str], ...] = ()
@@ -83,8 +85,8 @@ class ForecastSettings:
         if not options or any(o not in ("A", "B") for o in options):
             raise ValueError(f"options={self.options!r} must be 'A', 'B' or both")
         object.__setattr__(self, "options", options)
-        if self.method not in (1, 2):
-            raise ValueError(f"method={self.method!r} must be 1 or 2")
+        if self.scheme not in (1, 2):
+            raise ValueError(f"scheme={self.scheme!r} must be 1 (single-window) or 2 (rolling)")
         if int(self.train_blocks) != self.train_blocks or self.train_blocks < 2:
             raise ValueError(f"train_blocks={self.train_blocks!r} must be at least 2")
         if not 0.0 <= self.min_presence <= 1.0:
@@ -173,59 +175,35 @@ def forecast_table(
     settings: ForecastSettings,
     poles: pd.DataFrame | None = None,
 ) -> tuple[pd.DataFrame, list[str]]:
-    """Forecast table (FORECAST contract) of every option, and the forecast's warnings.
+    """Forecast table (FORECAST contract) of every option, and the forecast's warnings:
+    the forecast stage (:func:`workbench.stages.forecast`) that ``workbench forecast`` runs.
 
     Raises
     ------
     ValueError
         When no mode is measured often enough or the table is too short to forecast.
     """
-    from ..forecast import ForecastWarning, sliding_forecast
+    from ..errors import WorkbenchError
+    from ..stages.forecasting import ForecastOptions, forecast
 
-    n_blocks = predictors["block"].nunique()
-    presence = tracked.groupby("mode")["block"].nunique() / max(n_blocks, 1)
-    modes = sorted(int(m) for m in presence.index[presence >= settings.min_presence])
-    if not modes:
-        raise ValueError(
-            f"no mode is measured in at least {100 * settings.min_presence:.0f} % of the blocks"
-        )
-    frames, messages = [], []
-    for option in settings.options:
-        extra: dict[str, Any] = {}
-        if option == "B":
-            if poles is None:
-                raise ValueError("option B needs the stabilisation diagrams (poles)")
-            extra = {
-                "shape_mac_min": settings.shape_mac_min,
-                "reacquire_blocks": settings.reacquire_blocks,
-            }
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", ForecastWarning)
-            result = sliding_forecast(
-                tracked,
-                predictors,
-                modes=modes,
-                poles=poles,
-                option=option,
-                method=settings.method,
-                train_blocks=settings.train_blocks,
-                horizon=settings.horizon,
-                trust=settings.trust,
-                model=settings.model,
-                predictor_columns=None,
-                stepwise_options=None,
-                cases=None,
-                **extra,
-            )
-        messages += [
-            f"option {option}: {w.message}"
-            for w in caught
-            if issubclass(w.category, ForecastWarning)
-        ]
-        table = result.table
-        keys = [c for c in ("block", "mode", "option") if c in table.columns]
-        frames.append(table.sort_values(keys, kind="stable").reset_index(drop=True))
-    return pd.concat(frames, ignore_index=True), messages
+    if "B" in settings.options and poles is None:
+        raise ValueError("option B needs the stabilisation diagrams (poles)")
+    options = ForecastOptions(
+        options=settings.options,
+        scheme=settings.scheme,
+        train_blocks=settings.train_blocks,
+        horizon=settings.horizon,
+        trust=settings.trust,
+        model=settings.model,
+        min_presence=settings.min_presence,
+        mac_min=settings.mac_min,
+        reacquire_blocks=settings.reacquire_blocks,
+    )
+    try:
+        result = forecast(tracked, predictors, poles=poles, options=options)
+    except WorkbenchError as error:
+        raise ValueError(str(error)) from None
+    return result.table, list(result.warnings)
 
 
 def update_outlook(
