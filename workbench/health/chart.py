@@ -69,6 +69,9 @@ class HealthOptions:
     bootstrap_days: float = 400.0
     min_valid_fraction: float = 0.5
     seed: int = 0
+    limit_method: Literal["upcrossings", "day_max"] = "upcrossings"
+    common_shift: bool = False
+    covariance: Literal["full", "diagonal", "pooled"] = "full"
 
     def __post_init__(self) -> None:
         if int(self.reference_blocks) != self.reference_blocks or self.reference_blocks < 12:
@@ -117,6 +120,9 @@ class HealthReference:
         Upcrossings of the limit per day in the bootstrap series. [1/day]
     excluded_modes : tuple of int
         Modes with too few reference residuals to be charted.
+    relative_median : ndarray, shape (n_modes,), optional
+        Median relative residual (f_SSI / f_model - 1) of each charted mode over the
+        reference, the zero of the alarms' frequency-shift estimate. [-]
     """
 
     modes: tuple[int, ...]
@@ -130,6 +136,7 @@ class HealthReference:
     blocks_per_day: float
     bootstrap_false_alarms_per_day: float
     excluded_modes: tuple[int, ...] = ()
+    relative_median: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -260,18 +267,30 @@ def _limit_for_rate(statistic: np.ndarray, rate: float, blocks_per_day: float) -
 
 
 # --------------------------------------------------------------------------- stage
-def _residual_matrix(forecast: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Prediction-standardised residuals and relative residuals, blocks x modes."""
+def _residual_matrix(
+    forecast: pd.DataFrame, *, common_shift: bool = False
+) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Prediction-standardised residuals and relative residuals, blocks x modes.
+
+    With *common_shift*, each block's median relative residual over its modes is removed
+    from every mode first (blocks with fewer than 3 modes get none).
+    """
     z975 = _scipy_stats.norm.ppf(0.975)
     prediction_std = (forecast["model_upper_hz"] - forecast["model_lower_hz"]) / (2 * z975)
     with np.errstate(invalid="ignore", divide="ignore"):
-        standardised = (forecast["ssi_frequency_hz"] - forecast["model_frequency_hz"]) / (
-            prediction_std.where(prediction_std > 0)
-        )
         relative = forecast["ssi_frequency_hz"] / forecast["model_frequency_hz"] - 1.0
-    frame = forecast.assign(standardised=standardised, relative=relative)
-    wide = frame.pivot(index="block", columns="mode", values="standardised").sort_index()
+        relative_std = (prediction_std / forecast["model_frequency_hz"]).where(prediction_std > 0)
+    frame = forecast.assign(relative=relative, relative_std=relative_std)
     rel = frame.pivot(index="block", columns="mode", values="relative").sort_index()
+    std = frame.pivot(index="block", columns="mode", values="relative_std").sort_index()
+    if common_shift:
+        enough = rel.notna().sum(axis=1) >= 3
+        shift = rel.median(axis=1)
+        centred = rel.sub(shift, axis=0).where(enough, np.nan)
+    else:
+        centred = rel
+    with np.errstate(invalid="ignore", divide="ignore"):
+        wide = centred / std
     return wide, rel
 
 
@@ -343,53 +362,62 @@ def health_chart(forecast: pd.DataFrame, options: HealthOptions | None = None) -
     .. [3] H. R. Künsch, "The jackknife and the bootstrap for general stationary
        observations", Annals of Statistics 17(3), 1989. doi:10.1214/aos/1176347265
     """
+    from .monitor import HealthMonitor
+
     options = options or HealthOptions()
     table = FORECAST.validate(forecast)
-    option = options.option
-    if option is None:
-        option = "A" if (table["option"] == "A").any() else "B"
-    table = table[table["option"] == option]
-    if table.empty:
-        raise ValueError(f"forecast has no rows for option {option!r}")
-    wide, relative = _residual_matrix(table)
-    starts = table.groupby("block")["block_start"].first().reindex(wide.index)
-    blocks = wide.index.to_numpy()
-    step_s = float(np.median(np.diff(starts.to_numpy()).astype("timedelta64[s]").astype(float)))
-    if not step_s > 0:
-        raise ValueError("forecast: cannot infer the block step from block_start")
-    blocks_per_day = 86400.0 / step_s
+    if options.option is not None and not (table["option"] == options.option).any():
+        raise ValueError(f"forecast has no rows for option {options.option!r}")
+    monitor = HealthMonitor(options)
+    update = monitor.update(table)
+    if monitor.reference is None:
+        raise ValueError(monitor.waiting_reason())
+    return HealthResult(
+        table=update.health, alarms=update.alarms, reference=monitor.reference, options=options
+    )
 
-    if options.reference_start_block is None:
-        in_forecast = table.loc[table["phase"] == "forecast", "block"]
-        if in_forecast.empty:
-            raise ValueError("forecast has no 'forecast' phase rows; give reference_start_block")
-        ref_start = int(in_forecast.min())
-    else:
-        ref_start = int(options.reference_start_block)
-    first = int(np.searchsorted(blocks, ref_start))
-    stop = first + int(options.reference_blocks)
-    if stop > len(blocks):
-        raise ValueError(
-            f"reference period of {options.reference_blocks} blocks from block {ref_start} "
-            f"but the forecast has only {len(blocks) - first} blocks from there"
-        )
-    reference = wide.iloc[first:stop]
-    valid_share = reference.notna().mean()
-    modes = tuple(int(m) for m in valid_share.index[valid_share >= options.min_valid_fraction])
-    excluded = tuple(int(m) for m in valid_share.index if int(m) not in modes)
-    if not modes:
+
+def learn_reference(
+    residuals: np.ndarray,
+    relative: np.ndarray,
+    modes: tuple[int, ...],
+    blocks: np.ndarray,
+    blocks_per_day: float,
+    options: HealthOptions,
+) -> HealthReference:
+    """Learn the in-control state from the reference blocks (steps 2 and 4 of
+    :func:`health_chart`).
+
+    Parameters
+    ----------
+    residuals, relative : ndarray, shape (n_reference_blocks, n_modes)
+        Prediction-standardised and relative residuals of the reference blocks (NaN where
+        a mode has no estimate), columns in the order of *modes*.
+    modes : tuple of int
+        Modes seen in the reference blocks.
+    blocks : ndarray of int
+        The reference blocks.
+    blocks_per_day : float
+        Block steps per day. [1/day]
+    options : HealthOptions
+    """
+    first_block, last_block = int(blocks[0]), int(blocks[-1])
+    valid_share = np.isfinite(residuals).mean(axis=0)
+    keep = valid_share >= options.min_valid_fraction
+    charted = tuple(m for m, k in zip(modes, keep, strict=True) if k)
+    excluded = tuple(m for m, k in zip(modes, keep, strict=True) if not k)
+    if not charted:
         raise ValueError(
             f"no mode has residuals in {options.min_valid_fraction:.0%} of the reference "
-            f"blocks {blocks[first]}-{blocks[stop - 1]}"
+            f"blocks {first_block}-{last_block}"
         )
-    ref = reference[list(modes)].to_numpy(dtype=float)
+    ref = residuals[:, keep]
     location, scale = _robust_location_scale(ref)
     if not np.all(scale > 0):
         raise ValueError(
-            f"reference blocks {blocks[first]}-{blocks[stop - 1]}: a mode's residuals do not vary"
+            f"reference blocks {first_block}-{last_block}: a mode's residuals do not vary"
         )
-    p = len(modes)
-    lam = options.ewma_lambda
+    p = len(charted)
     rng = np.random.default_rng(options.seed)
     monitor_blocks = int(round(blocks_per_day))
     n_replicates = int(math.ceil(options.bootstrap_days))
@@ -409,77 +437,28 @@ def health_chart(forecast: pd.DataFrame, options: HealthOptions | None = None) -
         rep_x = np.clip(
             (streams - rep_location) / rep_scale, -options.clip_sigma, options.clip_sigma
         )
-    rep_ewma = ewma_hold(rep_x, lam)[len(ref) :]  # (monitor_blocks, replicates, modes)
+    rep_ewma = ewma_hold(rep_x, options.ewma_lambda)[len(ref) :]  # (day, replicates, modes)
     pooled = rep_ewma.reshape(-1, p)
     ewma_covariance = pooled.T @ pooled / len(pooled)  # second moment about the target 0
+    if options.covariance == "diagonal":
+        ewma_covariance = np.diag(np.diag(ewma_covariance))
+    elif options.covariance == "pooled":
+        ewma_covariance = float(np.mean(np.diag(ewma_covariance))) * np.eye(p)
     boot_t2 = hotelling(pooled, ewma_covariance)[0].reshape(monitor_blocks, n_replicates)
-    limit = _limit_for_rate(boot_t2, options.false_alarms_per_day, blocks_per_day)
+    if options.limit_method == "day_max":
+        # P(some alarm in a day) = 1 - exp(-rate) for Poisson episodes at *rate* per day
+        limit = float(np.quantile(boot_t2.max(axis=0), math.exp(-options.false_alarms_per_day)))
+    else:
+        limit = _limit_for_rate(boot_t2, options.false_alarms_per_day, blocks_per_day)
     boot_rate = upcrossings_per_day(boot_t2, limit, blocks_per_day)
     correlation = np.corrcoef(np.nan_to_num(pooled), rowvar=False).reshape(p, p)
-
-    def standardise(values: np.ndarray) -> np.ndarray:
-        with np.errstate(invalid="ignore"):
-            return np.clip((values - location) / scale, -options.clip_sigma, options.clip_sigma)
-
-    monitored = wide.iloc[first:][list(modes)].to_numpy(dtype=float)
-    ewma = ewma_hold(standardise(monitored), lam)
-    t2, parts = hotelling(ewma, ewma_covariance)
-    phase = np.where(np.arange(len(t2)) < stop - first, "reference", "monitor")
-    alarm = (t2 > limit) & (phase == "monitor")
-    health = pd.DataFrame(
-        {
-            "block": blocks[first:],
-            "block_start": starts.to_numpy()[first:],
-            "phase": phase,
-            "n_modes": np.isfinite(monitored).sum(axis=1),
-            "statistic": np.maximum(t2, 0.0),
-            "limit": limit,
-            "alarm": alarm,
-        }
-    )
-    with np.errstate(invalid="ignore", divide="ignore"):
-        shares = parts / t2[:, None]
-    for j, mode in enumerate(modes):
-        health[f"contribution_{mode}"] = np.where(t2 > 0, shares[:, j], np.nan)
-    health = HEALTH.validate(health)
-
-    reference_relative = relative.iloc[first:stop][list(modes)].median()
-    episodes = []
-    edges = np.diff(np.concatenate([[0], alarm.astype(int), [0]]))
-    for number, (a, b) in enumerate(
-        zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1, strict=True), start=1
-    ):
-        peak = a + int(np.argmax(t2[a : b + 1]))
-        order = np.argsort(-shares[peak])
-        named = [
-            f"{modes[j]} ({100 * shares[peak, j]:.0f} %)"
-            for j in order[:3]
-            if shares[peak, j] >= 0.05
-        ]
-        top = modes[int(order[0])]
-        episode_rel = relative.iloc[first + a : first + b + 1][top]
-        shift = 100.0 * (float(episode_rel.median()) - float(reference_relative[top]))
-        episodes.append(
-            {
-                "alarm": number,
-                "start_block": int(blocks[first + a]),
-                "end_block": int(blocks[first + b]),
-                "start_time": starts.iloc[first + a],
-                "end_time": starts.iloc[first + b],
-                "peak_block": int(blocks[first + peak]),
-                "peak_statistic": float(t2[peak]),
-                "limit": limit,
-                "modes": "; ".join(named),
-                "top_mode": top,
-                "top_mode_shift_percent": shift if math.isfinite(shift) else np.nan,
-            }
-        )
-    columns = list(ALARMS.column_names)
-    alarms = ALARMS.validate(pd.DataFrame(episodes, columns=columns))
-    result_reference = HealthReference(
-        modes=modes,
-        start_block=int(blocks[first]),
-        end_block=int(blocks[stop - 1]),
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        relative_median = np.nanmedian(relative[:, keep], axis=0)
+    return HealthReference(
+        modes=charted,
+        start_block=first_block,
+        end_block=last_block,
         location=location,
         scale=scale,
         correlation=correlation,
@@ -488,5 +467,5 @@ def health_chart(forecast: pd.DataFrame, options: HealthOptions | None = None) -
         blocks_per_day=blocks_per_day,
         bootstrap_false_alarms_per_day=boot_rate,
         excluded_modes=excluded,
+        relative_median=relative_median,
     )
-    return HealthResult(table=health, alarms=alarms, reference=result_reference, options=options)
