@@ -1160,9 +1160,23 @@ def _add_health(commands: argparse._SubParsersAction) -> None:
         description="MEWMA/Hotelling chart of the standardised residuals (SSI minus model) "
         "of a forecast table: learns a reference period, then writes health.csv (statistic, "
         "limit, alarm per block) and alarms.csv (episodes with the modes that moved). Use a "
-        "forecast whose model is frozen before the reference period (forecast --method 1).",
+        "forecast whose model is frozen before the reference period (forecast --method 1), "
+        "or give --modal, --predictors and --train-hours to fit the chart's own operational "
+        "model (speed, speed², temperatures, speed x water, fuel) on the first hours.",
     )
-    parser.add_argument("--forecast", type=Path, required=True, metavar="FILE")
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument("--forecast", type=Path, metavar="FILE")
+    source.add_argument("--modal", type=Path, metavar="FILE", help="tracked modal table")
+    parser.add_argument(
+        "--predictors", type=Path, metavar="FILE", help="block predictors (with --modal)"
+    )
+    parser.add_argument(
+        "--train-hours",
+        type=float,
+        metavar="H",
+        help="with --modal: hours the operational model is fitted on; the reference "
+        "period follows them",
+    )
     parser.add_argument(
         "--reference-hours", type=float, default=6.0, help="reference period length [h]"
     )
@@ -1174,11 +1188,37 @@ def _add_health(commands: argparse._SubParsersAction) -> None:
 
 
 def _run_health(args: argparse.Namespace) -> int:
-    from data_contracts import FORECAST, read_table
+    from data_contracts import FORECAST, MODAL, PREDICTORS, read_table
 
-    from .health import HealthOptions, health_chart
+    from .health import HealthOptions, fit_operational_model, health_chart
 
-    forecast = read_table(args.forecast, FORECAST)
+    source = args.forecast
+    if args.modal is not None:
+        if args.predictors is None or args.train_hours is None:
+            raise UsageError("--modal needs --predictors and --train-hours")
+        source = args.modal
+        modal = read_table(args.modal, MODAL)
+        predictors = read_table(args.predictors, PREDICTORS)
+        step = predictors["block_start"].drop_duplicates().sort_values().diff().median()
+        train = int(round(args.train_hours * 3600 / step.total_seconds()))
+        reference = int(round(args.reference_hours * 3600 / step.total_seconds()))
+        first = int(predictors["block"].min())
+        if args.reference_start_block is None:
+            args.reference_start_block = first + train
+        try:
+            model = fit_operational_model(
+                modal, predictors, train_start_block=first, train_blocks=train
+            )
+            forecast = model.forecast(
+                modal,
+                predictors,
+                reference_start_block=args.reference_start_block,
+                reference_blocks=reference,
+            )
+        except ValueError as error:
+            raise WorkbenchError(f"{args.modal}: {error}") from None
+    else:
+        forecast = read_table(args.forecast, FORECAST)
     step_h = forecast["block_start"].drop_duplicates().sort_values().diff().median()
     blocks = int(round(args.reference_hours * 3600 / step_h.total_seconds()))
     try:
@@ -1195,7 +1235,7 @@ def _run_health(args: argparse.Namespace) -> int:
     except ContractError:
         raise
     except ValueError as error:
-        raise WorkbenchError(f"{args.forecast}: {error}") from None
+        raise WorkbenchError(f"{source}: {error}") from None
     paths = result.save(args.out)
     print(result.summary())
     for path in paths.values():

@@ -118,7 +118,8 @@ def test_too_short_forecast_and_bad_contract_are_reported():
     voyage = simulate_health_voyage(6, seed=0)
     forecast = law_forecast(voyage)
     with pytest.raises(
-        ValueError, match="reference period of 144 blocks from block 0 but the forecast has only 69 blocks"
+        ValueError,
+        match="reference period of 144 blocks from block 0 but the forecast has only 69 blocks",
     ):
         health_chart(forecast, OPTIONS)
     with pytest.raises(ContractError, match="model_frequency_hz"):

@@ -42,14 +42,16 @@ class HealthOptions:
         EWMA weight λ of the newest block, z_k = z_{k-1} + λ (x_k - z_{k-1}). 0.1 averages
         over about (2 - λ)/λ = 19 blocks (1.6 h). [-]
     false_alarms_per_day : float
-        Target rate of alarm episodes (upcrossings of the limit) in control. [1/day]
+        Target rate of false alarm episodes in control; with ``limit_method='day_max'`` a
+        day passes without one with probability exp(-rate). [1/day]
     clip_sigma : float
         Standardised residuals are clipped to ±this, so one wrong pole cannot raise an
         alarm alone. [-]
     bootstrap_block_length : int
         Length of the moving blocks resampled from the reference period to build the
-        in-control series. Default 4: 20-min blocks every 5 min share data with the next
-        3 blocks, so their identification errors correlate up to lag 3. [blocks]
+        in-control series. 20-min blocks every 5 min share data with the next 3 blocks
+        (errors correlated up to lag 3) and model errors vary over hours; runs of 24 blocks
+        (2 h, longer than the EWMA's memory) keep the long-run variance. [blocks]
     bootstrap_days : float
         Number of resampled in-control days (replicates) the limit is read from. [day]
     min_valid_fraction : float
@@ -57,6 +59,24 @@ class HealthOptions:
         charted. [-]
     seed : int
         Seed of the bootstrap.
+    limit_method : {"day_max", "upcrossings"}
+        Control limit from the bootstrap: the quantile of the daily maximum of T² (a day
+        without false alarm with probability exp(-rate)), or the smallest limit whose
+        upcrossings per day stay at the rate.
+    common_shift : bool
+        Remove each block's median relative residual over its modes (a change of the
+        whole hull's mass or stiffness) before charting.
+    covariance : {"pooled", "diagonal", "full"}
+        In-control covariance of the EWMA vector from the bootstrap: its mean variance
+        times the identity, its diagonal, or all of it.
+    model_uncertainty : bool
+        Add the forecast's ``model_shift_std`` (when present) to the covariance of each
+        block (see Notes of :func:`health_chart`).
+    decrease_only : bool
+        Chart only decreases of the frequencies: each mode's EWMA is reflected at 0,
+        z_k = min(0, ...). A loss of stiffness can only lower natural frequencies, so this
+        keeps the sensitivity to damage and halves the directions model errors can alarm
+        in; an increase (a mode stiffening) is then not reported.
     """
 
     reference_blocks: int = 72
@@ -65,13 +85,20 @@ class HealthOptions:
     ewma_lambda: float = 0.1
     false_alarms_per_day: float = 0.1
     clip_sigma: float = 4.0
-    bootstrap_block_length: int = 4
+    bootstrap_block_length: int = 24
     bootstrap_days: float = 400.0
     min_valid_fraction: float = 0.5
     seed: int = 0
-    limit_method: Literal["upcrossings", "day_max"] = "upcrossings"
+    limit_method: Literal["day_max", "upcrossings"] = "day_max"
     common_shift: bool = False
-    covariance: Literal["full", "diagonal", "pooled"] = "full"
+    covariance: Literal["pooled", "diagonal", "full"] = "pooled"
+    model_uncertainty: bool = True
+    decrease_only: bool = True
+
+    @property
+    def ewma_ceiling(self) -> float | None:
+        """Reflecting barrier of the EWMA: 0 when only decreases are charted."""
+        return 0.0 if self.decrease_only else None
 
     def __post_init__(self) -> None:
         if int(self.reference_blocks) != self.reference_blocks or self.reference_blocks < 12:
@@ -91,6 +118,14 @@ class HealthOptions:
             )
         if not 0.0 < self.min_valid_fraction <= 1.0:
             raise ValueError(f"min_valid_fraction={self.min_valid_fraction!r} must be in (0, 1]")
+        if self.limit_method not in ("day_max", "upcrossings"):
+            raise ValueError(
+                f"limit_method={self.limit_method!r} must be 'day_max' or 'upcrossings'"
+            )
+        if self.covariance not in ("pooled", "diagonal", "full"):
+            raise ValueError(
+                f"covariance={self.covariance!r} must be 'pooled', 'diagonal' or 'full'"
+            )
         if self.option not in (None, "A", "B"):
             raise ValueError(f"option={self.option!r} must be 'A', 'B' or None")
 
@@ -200,20 +235,30 @@ class HealthResult:
 
 
 # --------------------------------------------------------------------------- pure functions
-def ewma_hold(values: np.ndarray, ewma_lambda: float) -> np.ndarray:
+def ewma_hold(
+    values: np.ndarray, ewma_lambda: float, *, ceiling: float | None = None
+) -> np.ndarray:
     """Column-wise EWMA that holds its value where an input is missing.
 
     z_k = z_{k-1} + λ (x_k - z_{k-1}) where x_k is finite, z_k = z_{k-1} otherwise;
-    z_{-1} = 0 (the in-control mean of standardised residuals).
+    z_{-1} = 0 (the in-control mean of standardised residuals). With *ceiling*, z_k is
+    reflected at it, z_k = min(z_k, ceiling) (a one-sided EWMA for decreases).
     """
     x = np.asarray(values, dtype=float)
     out = np.empty_like(x)
     z = np.zeros(x.shape[1:])
     for k in range(x.shape[0]):
-        step = np.nan_to_num(x[k] - z, nan=0.0)  # missing: no update
-        z = z + ewma_lambda * step
+        z = ewma_step(z, x[k], ewma_lambda, ceiling=ceiling)
         out[k] = z
     return out
+
+
+def ewma_step(
+    z: np.ndarray, x: np.ndarray, ewma_lambda: float, *, ceiling: float | None = None
+) -> np.ndarray:
+    """One step of :func:`ewma_hold` (the batch and the incremental chart share it)."""
+    z = z + ewma_lambda * np.nan_to_num(x - z, nan=0.0)  # missing: no update
+    return z if ceiling is None else np.minimum(z, ceiling)
 
 
 def hotelling(ewma: np.ndarray, covariance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -269,8 +314,9 @@ def _limit_for_rate(statistic: np.ndarray, rate: float, blocks_per_day: float) -
 # --------------------------------------------------------------------------- stage
 def _residual_matrix(
     forecast: pd.DataFrame, *, common_shift: bool = False
-) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Prediction-standardised residuals and relative residuals, blocks x modes.
+) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame | None]:
+    """Prediction-standardised residuals, relative residuals and the prediction-standardised
+    ``model_shift_std`` (None without that column), blocks x modes.
 
     With *common_shift*, each block's median relative residual over its modes is removed
     from every mode first (blocks with fewer than 3 modes get none).
@@ -291,7 +337,12 @@ def _residual_matrix(
         centred = rel
     with np.errstate(invalid="ignore", divide="ignore"):
         wide = centred / std
-    return wide, rel
+    shift = None
+    if "model_shift_std" in forecast.columns:
+        shift_std = frame.pivot(index="block", columns="mode", values="model_shift_std")
+        with np.errstate(invalid="ignore", divide="ignore"):
+            shift = shift_std.sort_index() / std
+    return wide, rel, shift
 
 
 def health_chart(forecast: pd.DataFrame, options: HealthOptions | None = None) -> HealthResult:
@@ -319,37 +370,48 @@ def health_chart(forecast: pd.DataFrame, options: HealthOptions | None = None) -
     -----
     1. *Residuals.* r = (f_SSI - f_model) / s_pred per block and mode, with s_pred the
        prediction standard deviation read from the 95 % bounds, (upper - lower) / (2 · 1.96).
-       The model should be frozen over the reference and monitoring periods (method 1,
-       trained before the reference period): a model re-trained on recent blocks (method 2)
-       absorbs a persistent change within about one training window.
+       The model should be frozen over the reference and monitoring periods (method 1, or
+       :func:`~workbench.health.fit_operational_model`, trained before the reference
+       period): a model re-trained on recent blocks (method 2) absorbs a persistent change
+       within about one training window. With ``common_shift``, each block's median
+       relative residual over its modes is removed first: a change of the whole hull's
+       mass or stiffness (fuel, steel temperature) moves every frequency by about the same
+       fraction, while a local stiffness loss moves the modes that strain the damaged
+       region [4]_; the median over modes ignores a shift confined to one or two modes.
     2. *Reference.* Per mode, over the reference blocks that have it (missing modes per
        block are simply absent), location μ = median and scale σ = 1.4826 MAD, robust to
-       wrong poles and mislabelled modes; x = clip((r - μ)/σ, ±c). Cross-mode correlation
-       enters through Σ_z below. Modes present in fewer than ``min_valid_fraction`` of the
-       reference blocks are not charted.
+       wrong poles and mislabelled modes; x = clip((r - μ)/σ, ±c). Modes present in fewer
+       than ``min_valid_fraction`` of the reference blocks are not charted.
     3. *Chart.* MEWMA [1]_: z_k = z_{k-1} + λ (x_k - z_{k-1}) per mode, held where a mode
-       has no residual; T²_k = z_kᵀ Σ_z⁻¹ z_k.
+       has no residual; T²_k = z_kᵀ (Σ_z + D_k)⁻¹ z_k. D_k is diagonal, the squared
+       ``model_shift_std`` of the forecast table (when it has that column and
+       ``model_uncertainty`` is on) in the chart's units: the variance of the model's
+       error at block k minus its mean error over the reference, which the location μ
+       learned away. That error is persistent, so it reaches z undamped: when the ship
+       operates outside what the model was trained on, the chart widens by what the
+       model cannot know instead of alarming on it (a novelty test in the sense of
+       [5]_ on the residuals, not on the operating conditions).
     4. *Limit with autocorrelation and estimation error.* Residuals of 75 %-overlapping
-       blocks are correlated, so neither λ/(2-λ) I nor a χ² quantile holds; and μ, σ come
-       from a short reference, whose error shifts the whole monitoring period [2]_. Each of
-       ``bootstrap_days`` replicates resamples the reference residuals as moving blocks of
-       ``bootstrap_block_length`` [3]_ (keeping their auto- and cross-correlation and the
-       missing-data pattern) into a reference period of the same length, from which μ*,
-       σ* are estimated, followed by one day standardised with them. Σ_z is the second
-       moment of the replicates' EWMA on their day, and the limit the smallest h whose
-       upcrossings stay at ``false_alarms_per_day``.
-
-       Known limitation: Σ_z is estimated once from the reference sample, not per
-       replicate, so the limit does not carry the error of Σ_z itself. Measured with a
-       12-h (144-block) reference and the 0.1/day target: 0.3-0.4 alarm episodes per day on
-       white Gaussian residuals (3 seeds, 20 days each) and 0.6 per day on the
-       block-level voyages of ``benchmarks/bench_health.py`` with the true law as model
-       (10 seeds). A longer reference, or an upper quantile of replicate limits
-       (Gandy and Kvaløy 2013, doi:10.1111/sjos.12006), would tighten it.
-    5. *Evidence.* T² = Σ_j z_j (Σ_z⁻¹ z)_j; the shares at the peak of an episode name the
-       modes that moved; the top mode's median relative residual over the episode minus
-       its reference median estimates its frequency shift (a stiffness loss k lowers the
-       frequency by about k/2).
+       blocks are correlated, and model errors vary over hours, so neither λ/(2-λ) I nor a
+       χ² quantile holds; and μ, σ come from a finite reference, whose error shifts the
+       whole monitoring period [2]_. Each of ``bootstrap_days`` replicates resamples the
+       reference residuals as moving blocks of ``bootstrap_block_length`` [3]_ (24 blocks,
+       2 h, longer than the EWMA's memory, so the long-run variance is kept; 4-block runs
+       lose a third of it) into a reference period of the same length, from which μ*, σ*
+       are estimated, followed by one day standardised with them. Σ_z is the second moment
+       of the replicates' EWMA on their day; ``covariance='pooled'`` (default) keeps only
+       its mean diagonal, κ I: the reference holds too few independent stretches to
+       estimate 28 covariances of a 7-mode, strongly autocorrelated series, and an
+       underestimated variance in one direction alarms on it. The limit (``'day_max'``,
+       default) is the exp(-``false_alarms_per_day``) quantile of the replicates' daily
+       maximum of T², so that a day passes without a false alarm with probability
+       exp(-rate) (``'upcrossings'``: the smallest h whose upcrossings stay at the rate).
+       Measured over 10 seeds in ``benchmarks/bench_health.py`` (results in
+       ``benchmarks/results/health.txt``).
+    5. *Evidence.* T² = Σ_j z_j ((Σ_z + D_k)⁻¹ z)_j; the shares at the peak of an episode
+       name the modes that moved; the top mode's median relative residual over the episode
+       minus its reference median estimates its frequency shift (a stiffness loss k lowers
+       the frequency by about k/2).
 
     References
     ----------
@@ -361,6 +423,11 @@ def health_chart(forecast: pd.DataFrame, options: HealthOptions | None = None) -
        Technology 46(3), 2014. doi:10.1080/00224065.2014.11917969
     .. [3] H. R. Künsch, "The jackknife and the bootstrap for general stationary
        observations", Annals of Statistics 17(3), 1989. doi:10.1214/aos/1176347265
+    .. [4] A.-M. Yan, G. Kerschen, P. De Boe, J.-C. Golinval, "Structural damage diagnosis
+       under varying environmental conditions - Part I: a linear analysis", Mechanical
+       Systems and Signal Processing 19(4), 2005. doi:10.1016/j.ymssp.2004.12.002
+    .. [5] K. Worden, G. Manson, N. R. J. Fieller, "Damage detection using outlier
+       analysis", Journal of Sound and Vibration 229(3), 2000. doi:10.1006/jsvi.1999.2514
     """
     from .monitor import HealthMonitor
 
@@ -437,7 +504,9 @@ def learn_reference(
         rep_x = np.clip(
             (streams - rep_location) / rep_scale, -options.clip_sigma, options.clip_sigma
         )
-    rep_ewma = ewma_hold(rep_x, options.ewma_lambda)[len(ref) :]  # (day, replicates, modes)
+    rep_ewma = ewma_hold(rep_x, options.ewma_lambda, ceiling=options.ewma_ceiling)[
+        len(ref) :
+    ]  # (day, replicates, modes)
     pooled = rep_ewma.reshape(-1, p)
     ewma_covariance = pooled.T @ pooled / len(pooled)  # second moment about the target 0
     if options.covariance == "diagonal":

@@ -107,7 +107,14 @@ class OperationalModel:
         parameter_var = np.einsum("bi,mij,bj->bm", x, self.covariance, x)
         return mean, np.sqrt(np.maximum(parameter_var, 0.0))
 
-    def forecast(self, modal: pd.DataFrame, predictors: pd.DataFrame) -> pd.DataFrame:
+    def forecast(
+        self,
+        modal: pd.DataFrame,
+        predictors: pd.DataFrame,
+        *,
+        reference_start_block: int | None = None,
+        reference_blocks: int | None = None,
+    ) -> pd.DataFrame:
         """FORECAST table (option A) of this model on the blocks of *predictors*.
 
         ``model_frequency_hz`` = exp(prediction); the 95 % bounds are exp(prediction ±
@@ -115,11 +122,31 @@ class OperationalModel:
         phase 'train' inside the training window, 'forecast' elsewhere. There is no Kalman
         blending: ``kalman_frequency_hz`` is the model prediction and ``kalman_std_hz`` its
         standard deviation.
+
+        With the health chart's reference period (*reference_start_block*,
+        *reference_blocks*), the table also has ``model_shift_std``: the standard deviation
+        of the model's error at the block minus its mean error over the reference blocks,
+        √((x - x̄_ref)ᵀ C (x - x̄_ref)) with C the coefficients' covariance. [-] (relative)
+        The chart learns the reference's mean error away; what is left is persistent
+        (the EWMA does not average it out), so the chart adds it to its covariance.
         """
         modal = MODAL.validate(modal)
         grid = predictors.sort_values("block").reset_index(drop=True)
         blocks = grid["block"].to_numpy()
         mean, parameter_std = self.predict_log(grid)
+        shift_std = None
+        if reference_start_block is not None and reference_blocks is not None:
+            x = self.design(grid)
+            stop = reference_start_block + int(reference_blocks) - 1
+            inside_ref = (blocks >= reference_start_block) & (blocks <= stop)
+            if not inside_ref.any():
+                raise ValueError(
+                    f"reference blocks {reference_start_block}-{stop} are not in predictors"
+                )
+            dx = x - np.nanmean(x[inside_ref], axis=0)
+            shift_std = np.sqrt(
+                np.maximum(np.einsum("bi,mij,bj->bm", dx, self.covariance, dx), 0.0)
+            )
         std = np.sqrt(self.residual_std[None, :] ** 2 + parameter_std**2)
         measured = (
             modal[modal["mode"].isin(self.modes)]
@@ -148,6 +175,8 @@ class OperationalModel:
                 "window_end_block": self.train_end_block,
             }
         )
+        if shift_std is not None:
+            table["model_shift_std"] = shift_std.ravel()
         table = table[np.isfinite(table["model_frequency_hz"])]
         return FORECAST.validate(table.reset_index(drop=True))
 

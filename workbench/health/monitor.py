@@ -27,6 +27,7 @@ from .chart import (
     HealthOptions,
     HealthReference,
     _residual_matrix,
+    ewma_step,
     hotelling,
     learn_reference,
 )
@@ -157,7 +158,9 @@ class HealthMonitor:
         table = table[table["block"] >= self._reference_start]
         if table.empty:
             return self._empty()
-        wide, relative = _residual_matrix(table, common_shift=self.options.common_shift)
+        wide, relative, shift = _residual_matrix(table, common_shift=self.options.common_shift)
+        if shift is None or not self.options.model_uncertainty:
+            shift = wide * np.nan
         starts = table.groupby("block")["block_start"].first().reindex(wide.index)
         new = [
             {
@@ -165,6 +168,7 @@ class HealthMonitor:
                 "block_start": starts.loc[block],
                 "residual": {int(m): float(v) for m, v in wide.loc[block].items()},
                 "relative": {int(m): float(v) for m, v in relative.loc[block].items()},
+                "shift_std": {int(m): float(v) for m, v in shift.loc[block].items()},
             }
             for block in wide.index
         ]
@@ -207,6 +211,7 @@ class HealthMonitor:
                 "block_start": item["block_start"].isoformat(),
                 "residual": {str(m): _num(v) for m, v in item["residual"].items()},
                 "relative": {str(m): _num(v) for m, v in item["relative"].items()},
+                "shift_std": {str(m): _num(v) for m, v in item["shift_std"].items()},
             }
 
         open_episode = None
@@ -248,6 +253,7 @@ class HealthMonitor:
                 "block_start": pd.Timestamp(item["block_start"]),
                 "residual": {int(m): _nan(v) for m, v in item["residual"].items()},
                 "relative": {int(m): _nan(v) for m, v in item["relative"].items()},
+                "shift_std": {int(m): _nan(v) for m, v in item["shift_std"].items()},
             }
             for item in state["pending"]
         ]
@@ -327,8 +333,12 @@ class HealthMonitor:
         with np.errstate(invalid="ignore"):
             x = np.clip((raw - ref.location) / ref.scale, -options.clip_sigma, options.clip_sigma)
         # z_k = z_{k-1} + λ (x_k - z_{k-1}); a missing mode keeps its z
-        self._ewma = self._ewma + options.ewma_lambda * np.nan_to_num(x - self._ewma, nan=0.0)
-        t2_row, parts_row = hotelling(self._ewma[None, :], ref.ewma_covariance)
+        self._ewma = ewma_step(self._ewma, x, options.ewma_lambda, ceiling=options.ewma_ceiling)
+        # the model's persistent error, in the chart's units, widens the in-control
+        # covariance of z (the EWMA passes a persistent error through unattenuated)
+        model = np.array([item["shift_std"].get(m, np.nan) for m in ref.modes]) / ref.scale
+        covariance = ref.ewma_covariance + np.diag(np.nan_to_num(model, nan=0.0) ** 2)
+        t2_row, parts_row = hotelling(self._ewma[None, :], covariance)
         t2, parts = float(t2_row[0]), parts_row[0]
         phase = "reference" if self._charted < options.reference_blocks else "monitor"
         self._charted += 1

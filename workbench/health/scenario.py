@@ -61,8 +61,9 @@ class HealthVoyage:
     modal : DataFrame
         MODAL contract (block, block_start, block_end, mode, frequency_hz, damping_ratio).
     predictors : DataFrame
-        PREDICTORS contract plus ``elapsed_hours`` (a proxy for the fuel state the log
-        records), as logged (with sensor noise).
+        PREDICTORS contract (wind block-averaged from the profile, noise-free; the hull
+        law ignores wind) plus ``elapsed_hours`` and ``fuel_burned_t`` (fuel used since
+        departure, as the flow meters log it), as logged (with sensor noise).
     true_frequency_hz : ndarray, shape (n_blocks, n_modes)
         Block-averaged true frequencies, damage included. [Hz]
     damage_time : Timestamp or None
@@ -151,6 +152,11 @@ def simulate_health_voyage(
         c: window(profile[c].to_numpy(), BLOCK_SECONDS)[::BLOCK_STEP_SECONDS][:n_blocks].mean(-1)
         for c in columns
     }
+    direction = np.radians(profile["wind_dir_rel_deg"].to_numpy())
+    wind_sin, wind_cos = (
+        window(f(direction), BLOCK_SECONDS)[::BLOCK_STEP_SECONDS][:n_blocks].mean(-1)
+        for f in (np.sin, np.cos)
+    )
     frequency = true_modal_parameters(truth).frequency_hz[:, [m - 1 for m in modes]]
     damping = true_modal_parameters(truth).damping_ratio[:, [m - 1 for m in modes]]
     damage_time = None
@@ -182,6 +188,8 @@ def simulate_health_voyage(
             "speed_kn": np.clip(truth["speed_kn"] + 0.1 * rng.standard_normal(n_blocks), 0, None),
             "water_temp_c": truth["water_temp_c"] + 0.05 * rng.standard_normal(n_blocks),
             "air_temp_c": truth["air_temp_c"] + 0.05 * rng.standard_normal(n_blocks),
+            "wind_speed_ms": truth["wind_speed_ms"],
+            "wind_dir_rel_deg": np.mod(np.degrees(np.arctan2(wind_sin, wind_cos)), 360.0),
             "elapsed_hours": truth["elapsed_hours"],
             "fuel_burned_t": fuel * (1.0 + 0.003 * rng.standard_normal(n_blocks))
             + 0.05 * rng.standard_normal(n_blocks),
