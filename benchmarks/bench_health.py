@@ -25,7 +25,7 @@ Operational/environmental models feeding the chart:
 
 Chart settings: ``after`` (the current :class:`~workbench.health.HealthOptions` defaults)
 or ``before`` (the previous defaults: upcrossing-calibrated limit, full covariance,
-4-block bootstrap, no model uncertainty).
+4-block bootstrap, no model uncertainty, two-sided EWMA).
 
 Printed per model and scenario over ``--seeds`` seeds: alarm episodes per day in the
 monitored hours before any damage (mean, max), seeds without any false alarm, and the
@@ -62,6 +62,7 @@ BEFORE = {
     "covariance": "full",
     "bootstrap_block_length": 4,
     "model_uncertainty": False,
+    "decrease_only": False,
 }
 
 
@@ -121,7 +122,8 @@ def main(argv=None) -> int:
         f"chart '{args.chart}': lambda {options.ewma_lambda:g}, target "
         f"{options.false_alarms_per_day:g} false alarms/day, limit {options.limit_method}, "
         f"covariance {options.covariance}, bootstrap blocks {options.bootstrap_block_length}, "
-        f"model uncertainty {options.model_uncertainty}, common shift {options.common_shift}"
+        f"model uncertainty {options.model_uncertainty}, decrease only "
+        f"{options.decrease_only}, common shift {options.common_shift}"
     )
     header = (
         f"{'model':9s} {'scenario':>9s} {'false alarms/day':>17s} {'no false alarm':>15s} "
