@@ -107,13 +107,23 @@ def main(argv=None) -> int:
         help="none, regime, or LOSS@MODE",
     )
     parser.add_argument("--chart", choices=["after", "before"], default="after")
+    parser.add_argument("--ewma-lambda", type=float, default=HealthOptions.ewma_lambda)
+    parser.add_argument(
+        "--false-alarms-per-day", type=float, default=HealthOptions.false_alarms_per_day
+    )
+    parser.add_argument("--per-seed", action="store_true", help="also print each seed's numbers")
     args = parser.parse_args(argv)
 
     train = int(round(args.train_hours * 12))
     reference = int(round(args.reference_hours * 12))
     hours = args.train_hours + args.reference_hours + 24.0
     onset = args.train_hours + args.reference_hours + 12.0
-    options = HealthOptions(reference_blocks=reference, reference_start_block=train)
+    options = HealthOptions(
+        reference_blocks=reference,
+        reference_start_block=train,
+        ewma_lambda=args.ewma_lambda,
+        false_alarms_per_day=args.false_alarms_per_day,
+    )
     if args.chart == "before":
         options = dataclasses.replace(options, **BEFORE)
     print(
@@ -169,6 +179,10 @@ def main(argv=None) -> int:
                 f"{worst:>16s} {missed:>7s}",
                 flush=True,
             )
+            if args.per_seed:
+                shown = delays if mode else rates
+                what = "delays [h]" if mode else "false alarms/day"
+                print(f"{'':19s} per seed {what}: " + " ".join(f"{v:.2f}" for v in shown))
     return 0
 
 
