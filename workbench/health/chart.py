@@ -390,7 +390,10 @@ def health_chart(forecast: pd.DataFrame, options: HealthOptions | None = None) -
        learned away. That error is persistent, so it reaches z undamped: when the ship
        operates outside what the model was trained on, the chart widens by what the
        model cannot know instead of alarming on it (a novelty test in the sense of
-       [5]_ on the residuals, not on the operating conditions).
+       [5]_ on the residuals, not on the operating conditions). With ``decrease_only``
+       (default) each z_j is reflected at 0, z_j = min(0, ...): a loss of stiffness ΔK ⪰ 0
+       can only lower the eigenvalues ω² of (K - ΔK) φ = ω² M φ (Courant-Fischer min-max),
+       so only decreases are charted and model errors can alarm in half the directions.
     4. *Limit with autocorrelation and estimation error.* Residuals of 75 %-overlapping
        blocks are correlated, and model errors vary over hours, so neither λ/(2-λ) I nor a
        χ² quantile holds; and μ, σ come from a finite reference, whose error shifts the
