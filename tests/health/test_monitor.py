@@ -17,13 +17,14 @@ from workbench.health import (
     simulate_health_voyage,
 )
 
-OPTIONS = HealthOptions(reference_blocks=144, reference_start_block=0)
+#: 6-h reference from the first block; 16-h voyage, 2 % stiffness loss on mode 3 at 11 h
+OPTIONS = HealthOptions(reference_blocks=72, reference_start_block=0)
 
 
 @pytest.fixture(scope="module")
 def damaged_forecast():
     voyage = simulate_health_voyage(
-        24, seed=0, damaged_mode=3, stiffness_loss=0.02, damage_after_hours=16
+        16, seed=0, damaged_mode=3, stiffness_loss=0.02, damage_after_hours=11
     )
     return law_forecast(voyage)
 
@@ -62,20 +63,17 @@ def test_block_by_block_with_restarts_gives_the_batch_tables(damaged_forecast, t
 def test_state_is_plain_json_and_rows_come_once_in_order(damaged_forecast, tmp_path):
     blocks = damaged_forecast.groupby("block")
     monitor = HealthMonitor(OPTIONS)
-    first = monitor.update(pd.concat([blocks.get_group(b) for b in range(100)]))
-    assert first.health.empty  # reference (144 blocks) not complete yet
+    first = monitor.update(pd.concat([blocks.get_group(b) for b in range(50)]))
+    assert first.health.empty  # reference (72 blocks) not complete yet
     path = monitor.save_state(tmp_path / "state.json")
     state = json.loads(path.read_text())  # strict JSON: no NaN tokens, no pickle
-    assert state["reference"] is None and len(state["pending"]) == 100
-    second = HealthMonitor.load_state(path).update(
-        pd.concat([blocks.get_group(b) for b in range(100, 150)])
-    )
-    assert second.health["block"].tolist() == list(range(150))
-    assert (second.health["phase"] == "reference").sum() == 144
-    with pytest.raises(ValueError, match="block 120 arrives after block 149"):
-        monitor2 = HealthMonitor.load_state(path)
-        monitor2.update(pd.concat([blocks.get_group(b) for b in range(100, 150)]))
-        monitor2.update(blocks.get_group(120))
+    assert state["reference"] is None and len(state["pending"]) == 50
+    monitor = HealthMonitor.load_state(path)
+    second = monitor.update(pd.concat([blocks.get_group(b) for b in range(50, 80)]))
+    assert second.health["block"].tolist() == list(range(80))
+    assert (second.health["phase"] == "reference").sum() == 72
+    with pytest.raises(ValueError, match="block 60 arrives after block 79"):
+        monitor.update(blocks.get_group(60))
     (tmp_path / "bad.json").write_text('{"version": 99}')
     with pytest.raises(ValueError, match="version 99"):
         HealthMonitor.load_state(tmp_path / "bad.json")

@@ -146,7 +146,8 @@ class HealthReference:
     correlation : ndarray, shape (n_modes, n_modes)
         Correlation of the in-control EWMA across modes (bootstrap).
     ewma_covariance : ndarray, shape (n_modes, n_modes)
-        Second moment about 0 of the in-control EWMA vector (bootstrap), Σ_z.
+        Second moment about 0 of the in-control EWMA vector (bootstrap), Σ_z; its mean
+        diagonal times the identity with ``covariance='pooled'``.
     limit : float
         Control limit of T².
     blocks_per_day : float

@@ -11,6 +11,7 @@ once). Its state saves to and loads from JSON (no pickle).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import math
 import os
@@ -419,8 +420,16 @@ class HealthMonitor:
         return HEALTH.validate(frame)
 
     def _alarm_frame(self, changed: dict[int, dict[str, Any]]) -> pd.DataFrame:
+        if not changed:
+            return _no_alarms().copy()
         frame = pd.DataFrame(list(changed.values()), columns=list(ALARMS.column_names))
         return ALARMS.validate(frame)
+
+
+@functools.cache
+def _no_alarms() -> pd.DataFrame:
+    """An empty ALARMS table (validated once: most blocks change no alarm)."""
+    return ALARMS.validate(pd.DataFrame(columns=list(ALARMS.column_names)))
 
 
 def _nan(value) -> float:
