@@ -3,30 +3,45 @@
 Block-level voyages from :func:`workbench.health.simulate_health_voyage` (the demo hull's
 modal law driven by the demo operating profile, identification errors correlated as
 75 %-overlapping blocks give, 10 % missing estimates, 0.5 % wrong poles). Timeline: the
-forecast model trains on the first ``--train-hours`` (36 h, three 12-h operating cycles),
-the chart's reference period is the next ``--reference-hours`` (12 h, one full cycle),
-then 24 h are monitored. Damage: a step stiffness loss on one mode 12 h into the
-monitoring (frequency x sqrt(1 - loss)).
+operational model trains on the first ``--train-hours``, the chart's reference period is
+the next ``--reference-hours``, then 24 h are monitored. Scenarios:
 
-Two operational/environmental models feed the chart:
+* ``none``: no damage;
+* ``regime``: no damage; 4 h into the monitoring the ship leaves its operating cycle for a
+  transit into colder water (12 kn, water to -1.7 °C, air 10 °C colder: all outside the
+  training range), the main false-alarm risk in practice;
+* ``<loss>@<mode>`` (e.g. ``0.02@3``): a step stiffness loss on one mode 12 h into the
+  monitoring (frequency x sqrt(1 - loss)).
+
+Operational/environmental models feeding the chart:
 
 * ``law``: the hull's own law at the logged predictors (the best any model can do);
-* ``stepwise``: the real :func:`workbench.forecast.sliding_forecast`, method 1, trained
-  once on the training period (a frozen model).
+* ``stepwise``: the project's :func:`workbench.forecast.sliding_forecast`, method 1,
+  trained once on the training period (elapsed hours as the fuel proxy);
+* ``ols``: :func:`workbench.health.fit_operational_model` on the training period (speed,
+  speed², temperatures, speed x water, logged fuel used), with its parameter uncertainty
+  relative to the reference period (``model_shift_std``);
+* ``ols-time``: the same with elapsed hours instead of the logged fuel.
 
-Printed per model and scenario over ``--seeds`` seeds: alarm episodes per day in the 24 h
-without damage (all of them, and before the onset in damaged runs), and the detection
-delay (onset to the end of the first alarming block after the onset; "miss" when none)
-as median and worst, with the share of seeds already alarming at the onset.
+Chart settings: ``after`` (the current :class:`~workbench.health.HealthOptions` defaults)
+or ``before`` (the previous defaults: upcrossing-calibrated limit, full covariance,
+4-block bootstrap, no model uncertainty, two-sided EWMA).
 
-Run: ``python benchmarks/bench_health.py --seeds 10``
+Printed per model and scenario over ``--seeds`` seeds: alarm episodes per day in the
+monitored hours before any damage (mean, max), seeds without any false alarm, and the
+detection delay (onset to the end of the first alarming block after it; "miss" when
+none) as median and worst.
+
+Run: ``python benchmarks/bench_health.py --seeds 10`` (results: benchmarks/results/health.txt)
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import statistics
+import warnings
 
 import numpy as np
 import pandas as pd
@@ -34,11 +49,21 @@ import pandas as pd
 from workbench.health import (
     HealthOptions,
     detection_delay_hours,
+    fit_operational_model,
     frozen_forecast,
     health_chart,
     law_forecast,
     simulate_health_voyage,
 )
+
+#: The chart settings before this benchmark's second round (kept to measure against).
+BEFORE = {
+    "limit_method": "upcrossings",
+    "covariance": "full",
+    "bootstrap_block_length": 4,
+    "model_uncertainty": False,
+    "decrease_only": False,
+}
 
 
 def _episodes_per_day(health: pd.DataFrame, until: pd.Timestamp | None) -> float:
@@ -50,15 +75,43 @@ def _episodes_per_day(health: pd.DataFrame, until: pd.Timestamp | None) -> float
     return starts / (len(monitor) / 288.0) if len(monitor) else math.nan
 
 
+def _forecast(name: str, voyage, train: int, reference: int) -> pd.DataFrame:
+    if name == "law":
+        return law_forecast(voyage)
+    if name == "stepwise":
+        return frozen_forecast(voyage, train)
+    predictors = voyage.predictors
+    if name == "ols-time":
+        predictors = predictors.drop(columns="fuel_burned_t")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = fit_operational_model(voyage.modal, predictors, train_blocks=train)
+    return model.forecast(
+        voyage.modal, predictors, reference_start_block=train, reference_blocks=reference
+    )
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=10)
-    parser.add_argument("--train-hours", type=float, default=36.0)
-    parser.add_argument("--reference-hours", type=float, default=12.0)
-    parser.add_argument("--mode", type=int, default=3, help="damaged mode (1-7)")
-    parser.add_argument("--losses", type=float, nargs="+", default=[0.01, 0.02])
-    parser.add_argument("--ewma-lambda", type=float, default=0.1)
-    parser.add_argument("--false-alarms-per-day", type=float, default=0.1)
+    parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--train-hours", type=float, default=72.0)
+    parser.add_argument("--reference-hours", type=float, default=24.0)
+    parser.add_argument(
+        "--models", nargs="+", default=["ols"], choices=["law", "stepwise", "ols", "ols-time"]
+    )
+    parser.add_argument(
+        "--scenarios",
+        nargs="+",
+        default=["none", "regime", "0.01@3", "0.02@3", "0.02@1", "0.02@6"],
+        help="none, regime, or LOSS@MODE",
+    )
+    parser.add_argument("--chart", choices=["after", "before"], default="after")
+    parser.add_argument("--ewma-lambda", type=float, default=HealthOptions.ewma_lambda)
+    parser.add_argument(
+        "--false-alarms-per-day", type=float, default=HealthOptions.false_alarms_per_day
+    )
+    parser.add_argument("--per-seed", action="store_true", help="also print each seed's numbers")
     args = parser.parse_args(argv)
 
     train = int(round(args.train_hours * 12))
@@ -71,53 +124,65 @@ def main(argv=None) -> int:
         ewma_lambda=args.ewma_lambda,
         false_alarms_per_day=args.false_alarms_per_day,
     )
-    models = {"law": law_forecast, "stepwise": lambda v: frozen_forecast(v, train)}
+    if args.chart == "before":
+        options = dataclasses.replace(options, **BEFORE)
     print(
-        f"{args.seeds} seeds; train {args.train_hours:g} h, reference {args.reference_hours:g} h, "
-        f"monitor 24 h; damage on mode {args.mode} at +12 h; lambda {args.ewma_lambda:g}, "
-        f"target {args.false_alarms_per_day:g} false alarms/day"
+        f"{args.seeds} seeds from {args.first_seed}; train {args.train_hours:g} h, reference "
+        f"{args.reference_hours:g} h, monitor 24 h; damage at +12 h, regime change at +4 h; "
+        f"chart '{args.chart}': lambda {options.ewma_lambda:g}, target "
+        f"{options.false_alarms_per_day:g} false alarms/day, limit {options.limit_method}, "
+        f"covariance {options.covariance}, bootstrap blocks {options.bootstrap_block_length}, "
+        f"model uncertainty {options.model_uncertainty}, decrease only "
+        f"{options.decrease_only}, common shift {options.common_shift}"
     )
     header = (
-        f"{'model':9s} {'stiffness loss':>14s} {'false alarms/day':>17s} "
-        f"{'delay median [h]':>17s} {'delay worst [h]':>16s} {'missed':>7s} {'alarming at onset':>18s}"
+        f"{'model':9s} {'scenario':>9s} {'false alarms/day':>17s} {'no false alarm':>15s} "
+        f"{'delay median [h]':>17s} {'delay worst [h]':>16s} {'missed':>7s}"
     )
     print(header)
     print("-" * len(header))
-    for name, make in models.items():
-        for loss in [0.0, *args.losses]:
-            rates, delays, at_onset = [], [], 0
-            for seed in range(args.seeds):
+    for name in args.models:
+        for scenario in args.scenarios:
+            loss, mode, regime = 0.0, None, None
+            if scenario == "regime":
+                regime = args.train_hours + args.reference_hours + 4.0
+            elif scenario != "none":
+                text_loss, text_mode = scenario.split("@")
+                loss, mode = float(text_loss), int(text_mode)
+            rates, delays = [], []
+            for seed in range(args.first_seed, args.first_seed + args.seeds):
                 voyage = simulate_health_voyage(
                     hours,
                     seed=seed,
-                    damaged_mode=args.mode if loss > 0 else None,
+                    damaged_mode=mode,
                     stiffness_loss=loss,
-                    damage_after_hours=onset if loss > 0 else None,
+                    damage_after_hours=onset if mode else None,
+                    regime_change_after_hours=regime,
                 )
-                result = health_chart(make(voyage), options)
-                table = result.table
-                until = voyage.damage_time
-                rates.append(_episodes_per_day(table, until))
-                if loss > 0:
-                    delay = detection_delay_hours(voyage, table)
-                    delays.append(delay)
-                    ends = table["block_start"] + pd.Timedelta(minutes=20)
-                    before = table[ends <= until]
-                    at_onset += bool(len(before) and before["alarm"].iloc[-1])
+                table = health_chart(_forecast(name, voyage, train, reference), options).table
+                rates.append(_episodes_per_day(table, voyage.damage_time))
+                if mode:
+                    delays.append(detection_delay_hours(voyage, table))
             rate = f"{statistics.mean(rates):.2f} (max {max(rates):.1f})"
-            if loss > 0:
+            clean = f"{sum(r == 0 for r in rates)}/{len(rates)}"
+            if mode:
                 found = [d for d in delays if math.isfinite(d)]
                 median = f"{statistics.median(delays):.2f}" if found else "miss"
-                worst = f"{max(delays):.2f}" if all(map(math.isfinite, delays)) else "miss"
+                if median == "inf":
+                    median = "miss"
+                worst = f"{max(delays):.2f}" if len(found) == len(delays) else "miss"
                 missed = f"{len(delays) - len(found)}/{len(delays)}"
-                onset_share = f"{at_onset}/{len(delays)}"
             else:
-                median = worst = missed = onset_share = "-"
+                median = worst = missed = "-"
             print(
-                f"{name:9s} {100 * loss:13.1f}% {rate:>17s} {median:>17s} {worst:>16s} "
-                f"{missed:>7s} {onset_share:>18s}",
+                f"{name:9s} {scenario:>9s} {rate:>17s} {clean:>15s} {median:>17s} "
+                f"{worst:>16s} {missed:>7s}",
                 flush=True,
             )
+            if args.per_seed:
+                shown = delays if mode else rates
+                what = "delays [h]" if mode else "false alarms/day"
+                print(f"{'':19s} per seed {what}: " + " ".join(f"{v:.2f}" for v in shown))
     return 0
 
 

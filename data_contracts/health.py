@@ -35,7 +35,9 @@ HEALTH = TableContract(
         Column(
             "statistic",
             "float",
-            "MEWMA Hotelling statistic T² = zᵀ Σ_z⁻¹ z of the EWMA z of the residuals.",
+            "MEWMA Hotelling statistic T² = zᵀ (Σ_z + D)⁻¹ z of the EWMA z of the residuals "
+            "(D: the model's own uncertainty at the block; z reflected at 0 when only "
+            "decreases are charted).",
             minimum=0.0,
         ),
         Column("limit", "float", "Control limit of the statistic.", minimum=0.0),

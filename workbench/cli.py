@@ -1282,10 +1282,22 @@ def _add_health(commands: argparse._SubParsersAction) -> None:
         "of a forecast table: learns a reference period, then writes health.csv (statistic, "
         "limit, alarm per block) and alarms.csv (episodes with the modes that moved). Use a "
         "forecast whose model is frozen before the reference period (forecast --scheme "
-        "single-window).",
+        "single-window), or give --modal, --predictors and --train-hours to fit the chart's "
+        "own operational model (speed, speed², temperatures, speed x water, fuel) on the "
+        "first hours.",
+    )
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument("--forecast", type=Path, metavar="FILE", help="forecast table")
+    source.add_argument("--modal", type=Path, metavar="FILE", help="tracked modal table")
+    parser.add_argument(
+        "--predictors", type=Path, metavar="FILE", help="block predictors (with --modal)"
     )
     parser.add_argument(
-        "--forecast", type=Path, required=True, metavar="FILE", help="forecast table"
+        "--train-hours",
+        type=float,
+        metavar="H",
+        help="with --modal: hours the operational model is fitted on; the reference "
+        "period follows them",
     )
     parser.add_argument(
         "--reference-hours",
@@ -1297,7 +1309,8 @@ def _add_health(commands: argparse._SubParsersAction) -> None:
         "--reference-start-block",
         type=int,
         metavar="K",
-        help="first block of the reference period (default: the first block of the forecast phase)",
+        help="first block of the reference period (default: the first block of the forecast "
+        "phase, or the first after the training hours with --modal)",
     )
     parser.add_argument(
         "--ewma-lambda",
@@ -1315,20 +1328,51 @@ def _add_health(commands: argparse._SubParsersAction) -> None:
     parser.set_defaults(run=_run_health)
 
 
-def _run_health(args: argparse.Namespace) -> int:
-    from data_contracts import FORECAST, read_table, recorded_grid
+def _block_step_s(table) -> float:
+    """Block step of *table*: its recorded grid, else the median step of its blocks."""
+    from data_contracts import recorded_grid
 
-    from .health import HealthOptions
+    grid = recorded_grid(table)
+    if grid is not None:
+        return float(grid["step_s"])
+    starts = table["block_start"].drop_duplicates().sort_values()
+    return float(starts.diff().median().total_seconds())
+
+
+def _run_health(args: argparse.Namespace) -> int:
+    from data_contracts import FORECAST, MODAL, PREDICTORS, read_table
+
+    from .health import HealthOptions, fit_operational_model
     from .stages import health
 
-    forecast = read_table(args.forecast, FORECAST)
-    grid = recorded_grid(forecast)
-    step_s = (
-        grid["step_s"]
-        if grid is not None
-        else forecast["block_start"].drop_duplicates().sort_values().diff().median().total_seconds()
-    )
-    blocks = int(round(args.reference_hours * 3600 / step_s))
+    source = args.forecast
+    if args.modal is not None:
+        if args.predictors is None or args.train_hours is None:
+            raise UsageError("--modal needs --predictors and --train-hours")
+        source = args.modal
+        modal = read_table(args.modal, MODAL)
+        predictors = read_table(args.predictors, PREDICTORS)
+        step_s = _block_step_s(predictors)
+        train = int(round(args.train_hours * 3600 / step_s))
+        reference = int(round(args.reference_hours * 3600 / step_s))
+        first = int(predictors["block"].min())
+        if args.reference_start_block is None:
+            args.reference_start_block = first + train
+        try:
+            model = fit_operational_model(
+                modal, predictors, train_start_block=first, train_blocks=train
+            )
+            forecast = model.forecast(
+                modal,
+                predictors,
+                reference_start_block=args.reference_start_block,
+                reference_blocks=reference,
+            )
+        except ValueError as error:
+            raise WorkbenchError(f"{args.modal}: {error}") from None
+    else:
+        forecast = read_table(args.forecast, FORECAST)
+    blocks = int(round(args.reference_hours * 3600 / _block_step_s(forecast)))
     try:
         options = HealthOptions(
             reference_blocks=blocks,
@@ -1338,7 +1382,7 @@ def _run_health(args: argparse.Namespace) -> int:
         )
     except ValueError as error:
         raise UsageError(str(error)) from None
-    with _data_errors(args.forecast):
+    with _data_errors(source):
         result = health(forecast, options=options)
     paths = result.save(args.out)
     print(result.summary())

@@ -41,3 +41,24 @@ def test_health_reports_bad_data_and_usage_in_one_line(forecast_file, tmp_path, 
     assert main(["health", "--forecast", str(forecast_file), *bad_lambda]) == 2
     assert "ewma_lambda=2.0" in capsys.readouterr().err
     assert main(["health", "--forecast", str(tmp_path / "none.csv"), "--out", "x"]) == 1
+
+
+def test_health_fits_its_own_model_from_modal_and_predictors(tmp_path, capsys):
+    from data_contracts import MODAL, PREDICTORS
+
+    voyage = simulate_health_voyage(24, seed=1)
+    modal = write_table(voyage.modal, tmp_path / "modal.csv", MODAL)
+    predictors = write_table(voyage.predictors, tmp_path / "predictors.csv", PREDICTORS)
+    out = tmp_path / "out"
+    status = main(
+        ["health", "--modal", str(modal), "--predictors", str(predictors),
+         "--train-hours", "12", "--reference-hours", "6", "--out", str(out)]
+    )  # fmt: skip
+    assert status == 0
+    health = read_table(out / "health.csv", HEALTH)
+    # 12 h of training (144 blocks), then 6 h of reference (72 blocks)
+    assert health["block"].iloc[0] == 144
+    assert (health["phase"] == "reference").sum() == 72
+    assert "modes charted: 1, 2, 3, 4, 5, 6, 7" in capsys.readouterr().out
+    assert main(["health", "--modal", str(modal), "--out", str(out)]) == 2
+    assert "--modal needs --predictors and --train-hours" in capsys.readouterr().err

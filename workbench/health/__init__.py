@@ -2,11 +2,16 @@
 
 * :func:`health_chart` - MEWMA/Hotelling chart of the forecast's standardised residuals
   with a robust reference period and a bootstrap control limit; HEALTH and ALARMS tables;
+* :class:`HealthMonitor` - the same chart fed block by block, with a JSON state;
+* :func:`fit_operational_model` - a per-mode regression of log frequency on the ship log
+  (speed, temperatures, fuel) whose FORECAST table feeds the chart;
 * :func:`simulate_health_voyage` - block-level voyages with a stiffness loss part-way, for
   tests and ``benchmarks/bench_health.py``.
 """
 
 from .chart import HealthOptions, HealthReference, HealthResult, health_chart
+from .model import OperationalModel, fit_operational_model
+from .monitor import HealthMonitor, MonitorUpdate
 from .scenario import (
     HealthVoyage,
     detection_delay_hours,
@@ -16,11 +21,15 @@ from .scenario import (
 )
 
 __all__ = [
+    "HealthMonitor",
     "HealthOptions",
     "HealthReference",
     "HealthResult",
     "HealthVoyage",
+    "MonitorUpdate",
+    "OperationalModel",
     "detection_delay_hours",
+    "fit_operational_model",
     "frozen_forecast",
     "health_chart",
     "law_forecast",

@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from ..simulate import START_TIME, operating_profile, true_modal_parameters
+from ..simulate.hull import FUEL_TIME_CONSTANT_H
 from ..simulate.imitation import FREQUENCY_SCATTER
 
 __all__ = [
@@ -38,6 +39,17 @@ BLOCK_STEP_SECONDS = 300
 #: Block length in steps: a block's identification error is the mean of this many
 #: independent 5-min segment errors, so errors of blocks k and k+l correlate as 1 - l/4.
 SEGMENTS_PER_BLOCK = BLOCK_SECONDS // BLOCK_STEP_SECONDS
+#: Fuel burn rate at departure; it falls as exp(-t / τ_f) like the hull law's mass. [t/h]
+FUEL_RATE_T_PER_H = 1.2
+#: Predictors of the stepwise model of :func:`frozen_forecast` (the log as the forecast
+#: stage reads it: elapsed hours stand for the fuel state).
+STEPWISE_PREDICTORS = ("speed_kn", "water_temp_c", "air_temp_c", "elapsed_hours")
+#: Regime after :func:`simulate_health_voyage`'s ``regime_change_after_hours``: transit
+#: towards the ice edge at 11.5-13 kn, water cooling to -1.7 °C (sea-water freezing point)
+#: with a 2-h time constant, air cooling by 10 °C with a 4-h time constant. [kn, °C, °C]
+TRANSIT_SPEED_KN = 12.25
+ICE_WATER_TEMP_C = -1.7
+ICE_AIR_COOLING_C = 10.0
 
 
 @dataclass(frozen=True)
@@ -49,8 +61,9 @@ class HealthVoyage:
     modal : DataFrame
         MODAL contract (block, block_start, block_end, mode, frequency_hz, damping_ratio).
     predictors : DataFrame
-        PREDICTORS contract plus ``elapsed_hours`` (a proxy for the fuel state the log
-        records), as logged (with sensor noise).
+        PREDICTORS contract (wind block-averaged from the profile, noise-free; the hull
+        law ignores wind) plus ``elapsed_hours`` and ``fuel_burned_t`` (fuel used since
+        departure, as the flow meters log it), as logged (with sensor noise).
     true_frequency_hz : ndarray, shape (n_blocks, n_modes)
         Block-averaged true frequencies, damage included. [Hz]
     damage_time : Timestamp or None
@@ -79,6 +92,7 @@ def simulate_health_voyage(
     missing_fraction: float = 0.10,
     outlier_fraction: float = 0.005,
     modes: tuple[int, ...] = (1, 2, 3, 4, 5, 6, 7),
+    regime_change_after_hours: float | None = None,
 ) -> HealthVoyage:
     """Simulate a block-level voyage, optionally with a stiffness loss part-way.
 
@@ -101,6 +115,12 @@ def simulate_health_voyage(
         Share of estimates replaced by a wrong pole (±2-5 % off).
     modes : tuple of int
         Modes kept in the tables.
+    regime_change_after_hours : float, optional
+        From this time on the ship leaves its 12-h operating cycle for a transit into
+        colder water (:data:`TRANSIT_SPEED_KN`, :data:`ICE_WATER_TEMP_C`,
+        :data:`ICE_AIR_COOLING_C`): speed, water and air temperature leave the range seen
+        before, and the hull's law follows them (ice loads on the hull are not modelled).
+        [h]
 
     Notes
     -----
@@ -110,7 +130,10 @@ def simulate_health_voyage(
     block has relative scatter s_m and neighbouring blocks, sharing 15 of their 20 minutes,
     correlate 0.75, 0.50, 0.25 at lags 1, 2, 3 blocks. A block partly after the damage
     sees the block average of the step. Logged predictors add white noise (speed 0.1 kn,
-    temperatures 0.05 °C).
+    temperatures 0.05 °C, fuel 0.3 % + 0.05 t). ``fuel_burned_t`` is the fuel used since
+    departure as the ship's flow meters log it, :data:`FUEL_RATE_T_PER_H` τ_f (1 - e^{-t/τ_f}),
+    the mass loss the hull law sees; ``elapsed_hours`` is kept for models that use time as
+    the fuel proxy.
     """
     if damaged_mode is not None and damaged_mode not in modes:
         raise ValueError(f"damaged_mode={damaged_mode} is not one of modes={modes}")
@@ -118,6 +141,8 @@ def simulate_health_voyage(
         raise ValueError(f"stiffness_loss={stiffness_loss!r} must be in [0, 1)")
     rng = np.random.default_rng(seed)
     profile = operating_profile(START_TIME, hours, rng=rng).predictors
+    if regime_change_after_hours is not None:
+        profile = _regime_change(profile, regime_change_after_hours * 3600.0, rng)
     n_seconds = len(profile)
     n_blocks = (n_seconds - BLOCK_SECONDS) // BLOCK_STEP_SECONDS + 1
     starts = np.arange(n_blocks) * BLOCK_STEP_SECONDS
@@ -127,6 +152,11 @@ def simulate_health_voyage(
         c: window(profile[c].to_numpy(), BLOCK_SECONDS)[::BLOCK_STEP_SECONDS][:n_blocks].mean(-1)
         for c in columns
     }
+    direction = np.radians(profile["wind_dir_rel_deg"].to_numpy())
+    wind_sin, wind_cos = (
+        window(f(direction), BLOCK_SECONDS)[::BLOCK_STEP_SECONDS][:n_blocks].mean(-1)
+        for f in (np.sin, np.cos)
+    )
     frequency = true_modal_parameters(truth).frequency_hz[:, [m - 1 for m in modes]]
     damping = true_modal_parameters(truth).damping_ratio[:, [m - 1 for m in modes]]
     damage_time = None
@@ -146,6 +176,8 @@ def simulate_health_voyage(
     measured = np.where(wrong, frequency * (1.0 + offset), measured)
     missing = rng.random(measured.shape) < missing_fraction
 
+    tau = FUEL_TIME_CONSTANT_H
+    fuel = FUEL_RATE_T_PER_H * tau * (1.0 - np.exp(-truth["elapsed_hours"] / tau))
     block_start = START_TIME + pd.to_timedelta(starts, unit="s")
     block_end = block_start + pd.Timedelta(seconds=BLOCK_SECONDS)
     predictors = pd.DataFrame(
@@ -156,7 +188,11 @@ def simulate_health_voyage(
             "speed_kn": np.clip(truth["speed_kn"] + 0.1 * rng.standard_normal(n_blocks), 0, None),
             "water_temp_c": truth["water_temp_c"] + 0.05 * rng.standard_normal(n_blocks),
             "air_temp_c": truth["air_temp_c"] + 0.05 * rng.standard_normal(n_blocks),
+            "wind_speed_ms": truth["wind_speed_ms"],
+            "wind_dir_rel_deg": np.mod(np.degrees(np.arctan2(wind_sin, wind_cos)), 360.0),
             "elapsed_hours": truth["elapsed_hours"],
+            "fuel_burned_t": fuel * (1.0 + 0.003 * rng.standard_normal(n_blocks))
+            + 0.05 * rng.standard_normal(n_blocks),
         }
     )
     rows, cols = np.nonzero(~missing)
@@ -180,7 +216,31 @@ def simulate_health_voyage(
     )
 
 
-def frozen_forecast(voyage: HealthVoyage, train_blocks: int) -> pd.DataFrame:
+def _regime_change(profile: pd.DataFrame, onset_s: float, rng: np.random.Generator) -> pd.DataFrame:
+    """The 1-s profile with the transit regime from *onset_s* on (see the constants)."""
+    from ..simulate.profile import _smooth_noise
+
+    t = profile["elapsed_hours"].to_numpy() * 3600.0
+    after = np.clip(t - onset_s, 0.0, None)
+    ramp = np.clip(after / 1800.0, 0.0, 1.0)  # 30 min to reach transit speed
+    transit = TRANSIT_SPEED_KN + 0.5 * _smooth_noise(rng, len(t), 1800.0)
+    out = profile.copy()
+    out["speed_kn"] = (1 - ramp) * profile["speed_kn"] + ramp * transit
+    water0 = float(np.interp(onset_s, t, profile["water_temp_c"]))
+    cool = 1.0 - np.exp(-after / 7200.0)
+    out["water_temp_c"] = np.where(
+        t >= onset_s, water0 + (ICE_WATER_TEMP_C - water0) * cool, profile["water_temp_c"]
+    )
+    out["air_temp_c"] = profile["air_temp_c"] - ICE_AIR_COOLING_C * (1.0 - np.exp(-after / 14400.0))
+    return out
+
+
+def frozen_forecast(
+    voyage: HealthVoyage,
+    train_blocks: int,
+    *,
+    predictor_columns: tuple[str, ...] = STEPWISE_PREDICTORS,
+) -> pd.DataFrame:
     """FORECAST table of a model trained once on the first *train_blocks* blocks.
 
     :func:`workbench.forecast.sliding_forecast`, method 1 (one window, one forward
@@ -210,6 +270,7 @@ def frozen_forecast(voyage: HealthVoyage, train_blocks: int) -> pd.DataFrame:
             horizon=horizon,
             stepwise_options=STEPWISE,
             extrapolation_limit=EXTRAPOLATION_LIMIT,
+            predictor_columns=list(predictor_columns),
         )
     return result.table
 

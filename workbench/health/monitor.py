@@ -1,0 +1,445 @@
+"""Incremental structural-health chart: feed forecast rows block by block.
+
+:class:`HealthMonitor` keeps what :func:`~workbench.health.health_chart` needs between
+blocks (the reference blocks until the reference is learned, then the EWMA vector and the
+open alarm episode), so a live monitor feeds it each block's FORECAST rows as they come and
+gets the new HEALTH rows and the new or changed ALARMS rows back. Fed a voyage block by
+block, or all at once, it gives the batch chart's tables (``health_chart`` is this class fed
+once). Its state saves to and loads from JSON (no pickle).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from data_contracts import ALARMS, FORECAST, HEALTH, atomic_path, recorded_grid
+
+from .chart import (
+    HealthOptions,
+    HealthReference,
+    _residual_matrix,
+    ewma_step,
+    hotelling,
+    learn_reference,
+)
+
+__all__ = ["HealthMonitor", "MonitorUpdate"]
+
+#: Version of the JSON state layout.
+STATE_VERSION = 1
+
+
+@dataclass(frozen=True)
+class MonitorUpdate:
+    """What one :meth:`HealthMonitor.update` produced.
+
+    Parameters
+    ----------
+    health : DataFrame
+        New HEALTH rows (with ``contribution_<mode>``), one per block charted by this
+        update (the reference blocks all at once when the reference is learned).
+    alarms : DataFrame
+        ALARMS rows of the episodes that started or changed in this update; a row with an
+        ``alarm`` number seen before replaces the earlier one.
+    """
+
+    health: pd.DataFrame
+    alarms: pd.DataFrame
+
+
+def _num(value: float) -> float | None:
+    """JSON-safe float (NaN and infinities as null)."""
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def _arr(values) -> list:
+    return [_num(v) for v in np.ravel(np.asarray(values, dtype=float))]
+
+
+def _from_json(values) -> np.ndarray:
+    return np.array([np.nan if v is None else float(v) for v in values], dtype=float)
+
+
+class HealthMonitor:
+    """Structural-health chart updated block by block.
+
+    Parameters
+    ----------
+    options : HealthOptions, optional
+        As for :func:`~workbench.health.health_chart`.
+
+    Notes
+    -----
+    Blocks must arrive in increasing block order, each with all its rows in one update
+    (rows of a block already charted are refused, so nothing is counted twice). Until the
+    ``reference_blocks`` blocks from the reference start have arrived the monitor only
+    buffers them; the update that completes the reference learns it and charts all of
+    them at once. The block step (blocks per day) is the median step between the
+    reference blocks.
+
+    Examples
+    --------
+    >>> monitor = HealthMonitor(HealthOptions(reference_blocks=144))  # doctest: +SKIP
+    >>> for rows in blocks_as_they_come:  # doctest: +SKIP
+    ...     update = monitor.update(rows)
+    ...     monitor.save_state("health_state.json")
+    """
+
+    def __init__(self, options: HealthOptions | None = None) -> None:
+        self.options = options or HealthOptions()
+        self.reference: HealthReference | None = None
+        self._option: str | None = None
+        self._reference_start: int | None = self.options.reference_start_block
+        self._pending: list[dict[str, Any]] = []  # reference blocks before learning
+        self._last_block: int | None = None
+        self._charted = 0  # blocks charted since the reference start
+        self._ewma: np.ndarray | None = None
+        self._episodes = 0
+        self._open: dict[str, Any] | None = None  # the alarm episode in progress
+        self._step_s: float | None = None  # block step of the recorded grid, if any
+
+    # ------------------------------------------------------------------ public
+    def waiting_reason(self) -> str:
+        """Why the reference is not learned yet (one line)."""
+        if self._reference_start is None:
+            return "forecast has no 'forecast' phase rows; give reference_start_block"
+        return (
+            f"reference period of {self.options.reference_blocks} blocks from block "
+            f"{self._reference_start} but the forecast has only {len(self._pending)} blocks "
+            "from there"
+        )
+
+    def update(self, rows: pd.DataFrame) -> MonitorUpdate:
+        """Chart the blocks of *rows* (FORECAST rows, one or more whole blocks).
+
+        Returns
+        -------
+        MonitorUpdate
+            The new HEALTH rows and the new or changed ALARMS rows.
+
+        Raises
+        ------
+        ContractError
+            *rows* violate the FORECAST contract.
+        ValueError
+            A block arrives out of order or again.
+        """
+        grid = recorded_grid(rows)
+        if grid is not None and self._step_s is None:
+            self._step_s = float(grid["step_s"])
+        table = FORECAST.validate(rows)
+        if self._option is None and len(table):
+            if self.options.option is not None:
+                self._option = self.options.option
+            else:
+                self._option = "A" if (table["option"] == "A").any() else "B"
+        table = table[table["option"] == self._option]
+        if table.empty:
+            return self._empty()
+        blocks = np.sort(table["block"].unique())
+        if self._last_block is not None and blocks[0] <= self._last_block:
+            raise ValueError(
+                f"block {int(blocks[0])} arrives after block {self._last_block} "
+                "(blocks must arrive in increasing order, each once)"
+            )
+        if self._reference_start is None:
+            in_forecast = table.loc[table["phase"] == "forecast", "block"]
+            if not in_forecast.empty:
+                self._reference_start = int(in_forecast.min())
+        self._last_block = int(blocks[-1])
+        if self._reference_start is None:
+            return self._empty()
+        table = table[table["block"] >= self._reference_start]
+        if table.empty:
+            return self._empty()
+        wide, relative, shift = _residual_matrix(table, common_shift=self.options.common_shift)
+        if shift is None or not self.options.model_uncertainty:
+            shift = wide * np.nan
+        starts = table.groupby("block")["block_start"].first().reindex(wide.index)
+        new = [
+            {
+                "block": int(block),
+                "block_start": starts.loc[block],
+                "residual": {int(m): float(v) for m, v in wide.loc[block].items()},
+                "relative": {int(m): float(v) for m, v in relative.loc[block].items()},
+                "shift_std": {int(m): float(v) for m, v in shift.loc[block].items()},
+            }
+            for block in wide.index
+        ]
+        health_rows: list[dict[str, Any]] = []
+        changed: dict[int, dict[str, Any]] = {}
+        if self.reference is None:
+            self._pending.extend(new)
+            if len(self._pending) < self.options.reference_blocks:
+                return self._empty()
+            self._learn()
+            new, self._pending = self._pending, []
+        for item in new:
+            health_rows.append(self._chart(item, changed))
+        return MonitorUpdate(self._health_frame(health_rows), self._alarm_frame(changed))
+
+    # ------------------------------------------------------------------ state
+    def state(self) -> dict[str, Any]:
+        """The monitor's state as plain JSON types."""
+        ref = self.reference
+        reference = None
+        if ref is not None:
+            reference = {
+                "modes": list(ref.modes),
+                "start_block": ref.start_block,
+                "end_block": ref.end_block,
+                "location": _arr(ref.location),
+                "scale": _arr(ref.scale),
+                "correlation": _arr(ref.correlation),
+                "ewma_covariance": _arr(ref.ewma_covariance),
+                "limit": ref.limit,
+                "blocks_per_day": ref.blocks_per_day,
+                "bootstrap_false_alarms_per_day": ref.bootstrap_false_alarms_per_day,
+                "excluded_modes": list(ref.excluded_modes),
+                "relative_median": _arr(ref.relative_median),
+            }
+
+        def item_state(item: dict[str, Any]) -> dict[str, Any]:
+            return {
+                "block": item["block"],
+                "block_start": item["block_start"].isoformat(),
+                "residual": {str(m): _num(v) for m, v in item["residual"].items()},
+                "relative": {str(m): _num(v) for m, v in item["relative"].items()},
+                "shift_std": {str(m): _num(v) for m, v in item["shift_std"].items()},
+            }
+
+        open_episode = None
+        if self._open is not None:
+            open_episode = {
+                **{k: v for k, v in self._open.items() if k not in ("shares", "relative")},
+                "start_time": self._open["start_time"].isoformat(),
+                "end_time": self._open["end_time"].isoformat(),
+                "shares": _arr(self._open["shares"]),
+                "relative": [_arr(r) for r in self._open["relative"]],
+            }
+        return {
+            "version": STATE_VERSION,
+            "options": dataclasses.asdict(self.options),
+            "option": self._option,
+            "reference_start": self._reference_start,
+            "step_s": self._step_s,
+            "pending": [item_state(item) for item in self._pending],
+            "last_block": self._last_block,
+            "charted": self._charted,
+            "ewma": None if self._ewma is None else _arr(self._ewma),
+            "episodes": self._episodes,
+            "open": open_episode,
+            "reference": reference,
+        }
+
+    @classmethod
+    def from_state(cls, state: dict[str, Any]) -> HealthMonitor:
+        """Rebuild a monitor from :meth:`state`."""
+        if state.get("version") != STATE_VERSION:
+            raise ValueError(
+                f"health monitor state version {state.get('version')!r} is not {STATE_VERSION}"
+            )
+        monitor = cls(HealthOptions(**state["options"]))
+        monitor._option = state["option"]
+        monitor._reference_start = state["reference_start"]
+        monitor._step_s = state.get("step_s")
+        monitor._pending = [
+            {
+                "block": int(item["block"]),
+                "block_start": pd.Timestamp(item["block_start"]),
+                "residual": {int(m): _nan(v) for m, v in item["residual"].items()},
+                "relative": {int(m): _nan(v) for m, v in item["relative"].items()},
+                "shift_std": {int(m): _nan(v) for m, v in item["shift_std"].items()},
+            }
+            for item in state["pending"]
+        ]
+        monitor._last_block = state["last_block"]
+        monitor._charted = int(state["charted"])
+        monitor._ewma = None if state["ewma"] is None else _from_json(state["ewma"])
+        monitor._episodes = int(state["episodes"])
+        episode = state["open"]
+        if episode is not None:
+            monitor._open = {
+                **episode,
+                "start_time": pd.Timestamp(episode["start_time"]),
+                "end_time": pd.Timestamp(episode["end_time"]),
+                "shares": _from_json(episode["shares"]),
+                "relative": [_from_json(r) for r in episode["relative"]],
+            }
+        ref = state["reference"]
+        if ref is not None:
+            p = len(ref["modes"])
+            monitor.reference = HealthReference(
+                modes=tuple(ref["modes"]),
+                start_block=ref["start_block"],
+                end_block=ref["end_block"],
+                location=_from_json(ref["location"]),
+                scale=_from_json(ref["scale"]),
+                correlation=_from_json(ref["correlation"]).reshape(p, p),
+                ewma_covariance=_from_json(ref["ewma_covariance"]).reshape(p, p),
+                limit=float(ref["limit"]),
+                blocks_per_day=float(ref["blocks_per_day"]),
+                bootstrap_false_alarms_per_day=float(ref["bootstrap_false_alarms_per_day"]),
+                excluded_modes=tuple(ref["excluded_modes"]),
+                relative_median=_from_json(ref["relative_median"]),
+            )
+        return monitor
+
+    def save_state(self, path: str | os.PathLike) -> Path:
+        """Write :meth:`state` to *path* as JSON, atomically."""
+        path = Path(path)
+        with atomic_path(path) as tmp:
+            tmp.write_text(json.dumps(self.state(), allow_nan=False), encoding="utf-8")
+        return path
+
+    @classmethod
+    def load_state(cls, path: str | os.PathLike) -> HealthMonitor:
+        """Read a monitor saved by :meth:`save_state`."""
+        try:
+            state = json.loads(Path(path).read_text(encoding="utf-8"))
+            return cls.from_state(state)
+        except (json.JSONDecodeError, KeyError, TypeError) as error:
+            raise ValueError(f"{path}: not a health monitor state ({error})") from None
+
+    # ------------------------------------------------------------------ internals
+    def _empty(self) -> MonitorUpdate:
+        return MonitorUpdate(self._health_frame([]), self._alarm_frame({}))
+
+    def _learn(self) -> None:
+        n = self.options.reference_blocks
+        items = self._pending[:n]
+        modes = tuple(sorted({m for item in items for m in item["residual"]}))
+        residuals = np.array([[item["residual"].get(m, np.nan) for m in modes] for item in items])
+        relative = np.array([[item["relative"].get(m, np.nan) for m in modes] for item in items])
+        blocks = np.array([item["block"] for item in items])
+        starts = pd.DatetimeIndex([item["block_start"] for item in items])
+        if self._step_s is not None:  # the recorded grid, not the blocks present
+            step_s = self._step_s
+        else:
+            step_s = float(np.median(np.diff(starts.asi8))) / 1e9
+        if not step_s > 0:
+            raise ValueError("forecast: cannot infer the block step from block_start")
+        self.reference = learn_reference(
+            residuals, relative, modes, blocks, 86400.0 / step_s, self.options
+        )
+        self._ewma = np.zeros(len(self.reference.modes))
+
+    def _chart(self, item: dict[str, Any], changed: dict[int, dict[str, Any]]) -> dict[str, Any]:
+        ref = self.reference
+        options = self.options
+        assert ref is not None and self._ewma is not None
+        raw = np.array([item["residual"].get(m, np.nan) for m in ref.modes])
+        with np.errstate(invalid="ignore"):
+            x = np.clip((raw - ref.location) / ref.scale, -options.clip_sigma, options.clip_sigma)
+        # z_k = z_{k-1} + λ (x_k - z_{k-1}); a missing mode keeps its z
+        self._ewma = ewma_step(self._ewma, x, options.ewma_lambda, ceiling=options.ewma_ceiling)
+        # the model's persistent error, in the chart's units, widens the in-control
+        # covariance of z (the EWMA passes a persistent error through unattenuated)
+        model = np.array([item["shift_std"].get(m, np.nan) for m in ref.modes]) / ref.scale
+        covariance = ref.ewma_covariance + np.diag(np.nan_to_num(model, nan=0.0) ** 2)
+        t2_row, parts_row = hotelling(self._ewma[None, :], covariance)
+        t2, parts = float(t2_row[0]), parts_row[0]
+        phase = "reference" if self._charted < options.reference_blocks else "monitor"
+        self._charted += 1
+        alarm = bool(t2 > ref.limit) and phase == "monitor"
+        with np.errstate(invalid="ignore", divide="ignore"):
+            shares = parts / t2
+        row = {
+            "block": item["block"],
+            "block_start": item["block_start"],
+            "phase": phase,
+            "n_modes": int(np.isfinite(raw).sum()),
+            "statistic": max(t2, 0.0),
+            "limit": ref.limit,
+            "alarm": alarm,
+        }
+        for j, mode in enumerate(ref.modes):
+            row[f"contribution_{mode}"] = shares[j] if t2 > 0 else np.nan
+        relative = np.array([item["relative"].get(m, np.nan) for m in ref.modes])
+        if alarm:
+            if self._open is None:
+                self._episodes += 1
+                self._open = {
+                    "alarm": self._episodes,
+                    "start_block": item["block"],
+                    "start_time": item["block_start"],
+                    "peak_block": item["block"],
+                    "peak_statistic": t2,
+                    "shares": shares,
+                    "relative": [],
+                }
+            elif t2 > self._open["peak_statistic"]:
+                self._open.update(peak_block=item["block"], peak_statistic=t2, shares=shares)
+            self._open.update(end_block=item["block"], end_time=item["block_start"])
+            self._open["relative"].append(relative)
+            changed[self._open["alarm"]] = self._episode_row(self._open)
+        else:
+            self._open = None
+        return row
+
+    def _episode_row(self, episode: dict[str, Any]) -> dict[str, Any]:
+        ref = self.reference
+        assert ref is not None and ref.relative_median is not None
+        shares = episode["shares"]
+        order = np.argsort(-shares)
+        named = [
+            f"{ref.modes[j]} ({100 * shares[j]:.0f} %)" for j in order[:3] if shares[j] >= 0.05
+        ]
+        top = int(order[0])
+        values = np.array([r[top] for r in episode["relative"]])
+        values = values[np.isfinite(values)]
+        shift = (
+            100.0 * (float(np.median(values)) - float(ref.relative_median[top]))
+            if values.size
+            else np.nan
+        )
+        return {
+            "alarm": episode["alarm"],
+            "start_block": episode["start_block"],
+            "end_block": episode["end_block"],
+            "start_time": episode["start_time"],
+            "end_time": episode["end_time"],
+            "peak_block": episode["peak_block"],
+            "peak_statistic": float(episode["peak_statistic"]),
+            "limit": ref.limit,
+            "modes": "; ".join(named),
+            "top_mode": ref.modes[top],
+            "top_mode_shift_percent": shift if math.isfinite(shift) else np.nan,
+        }
+
+    def _health_frame(self, rows: list[dict[str, Any]]) -> pd.DataFrame:
+        columns = list(HEALTH.column_names)
+        if self.reference is not None:
+            columns += [f"contribution_{m}" for m in self.reference.modes]
+        frame = pd.DataFrame(rows, columns=columns)
+        if frame.empty:
+            return frame
+        frame["block_start"] = pd.to_datetime(frame["block_start"], utc=True)
+        return HEALTH.validate(frame)
+
+    def _alarm_frame(self, changed: dict[int, dict[str, Any]]) -> pd.DataFrame:
+        if not changed:
+            return _no_alarms().copy()
+        frame = pd.DataFrame(list(changed.values()), columns=list(ALARMS.column_names))
+        return ALARMS.validate(frame)
+
+
+@functools.cache
+def _no_alarms() -> pd.DataFrame:
+    """An empty ALARMS table (validated once: most blocks change no alarm)."""
+    return ALARMS.validate(pd.DataFrame(columns=list(ALARMS.column_names)))
+
+
+def _nan(value) -> float:
+    return np.nan if value is None else float(value)
