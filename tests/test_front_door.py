@@ -231,7 +231,7 @@ def test_track_forecast_evaluate_on_a_simulated_voyage(tmp_path):
         options=wb.ForecastOptions(options=("tracked_pole",), scheme="rolling", trust=0.65),
     )
     FORECAST.validate(result.table)
-    assert result.options.options == ("A",) and result.options.method == 2
+    assert result.options.options == ("A",) and result.options.scheme == 2
     path = result.save(tmp_path / "out")["forecast"]
     assert path.name == "forecast.csv"
     evaluation = wb.evaluate(result.table, truth)
