@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from workbench.simulate.identification import FREQUENCY_SCATTER
+from workbench.simulate.imitation import FREQUENCY_SCATTER
 
 from workbench.health import fit_operational_model, simulate_health_voyage
 
