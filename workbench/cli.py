@@ -98,7 +98,9 @@ def _add_dashboard(commands: argparse._SubParsersAction) -> None:
         help="replay a simulated voyage into a temporary folder, a block every 2 s",
     )
     parser.add_argument(
-        "--host", default="127.0.0.1", help="interface to listen on (default: this machine only)"
+        "--host",
+        default="127.0.0.1",
+        help="interface to listen on (default: %(default)s, this machine only)",
     )
     parser.add_argument("--port", type=int, default=8050, help="port (0: any free port)")
     parser.add_argument("--hours", type=float, default=6.0, help="tracked-frequency span [h]")
