@@ -70,6 +70,8 @@ from .stream import AccelerationBlock, FileInfo, PlannedBlock, load_block
 
 __all__ = [
     "FileConditioner",
+    "FileConditioning",
+    "condition_file",
     "default_decimation_rate",
     "padding_samples",
 ]
@@ -475,6 +477,20 @@ class FileConditioner:
         self._cache: dict[int, _ConditionedFile] = {}
         self.fallbacks = 0  # blocks built by load_block
 
+    def reuse(self, conditioned: Mapping[str | Path, _ConditionedFile | None]) -> None:
+        """Take files conditioned elsewhere (by :func:`condition_file`, e.g. in another
+        worker) for the files of this conditioner with those paths; ``None`` values and
+        paths not among its files are ignored (those files are conditioned here)."""
+        index = {str(info.path): i for i, info in enumerate(self.files)}
+        for path, value in conditioned.items():
+            if value is not None and str(path) in index:
+                self._cache[index[str(path)]] = value
+
+    def conditioned_file(self, index: int) -> _ConditionedFile:
+        """File *index* of :attr:`files` conditioned (padded with its contiguous
+        neighbours' edges), with its faulty-channel step sums; cached."""
+        return self._conditioned(index)
+
     # -- lattice helpers ------------------------------------------------------------------
     def _offset(self, index: int) -> float:
         """Raw samples from the grid origin to the file's first sample (may be fractional)."""
@@ -699,6 +715,38 @@ class FileConditioner:
             notes,
             report,
         )
+
+
+@dataclass(frozen=True)
+class FileConditioning:
+    """What :func:`condition_file` needs to condition one file on its own (picklable).
+
+    Parameters
+    ----------
+    files : tuple of FileInfo
+        The file and its neighbours in the voyage plan (one on either side where they
+        exist): their edges pad the filters.
+    index : int
+        Position of the file in *files*.
+    grid : BlockGrid
+    channels : tuple of str
+    settings : mapping
+        Keyword arguments of :class:`FileConditioner` (``target_rate_hz``, ``band_hz``,
+        ...).
+    """
+
+    files: tuple
+    index: int
+    grid: BlockGrid
+    channels: tuple
+    settings: Mapping
+
+
+def condition_file(job: FileConditioning) -> _ConditionedFile:
+    """One file conditioned once, for every block holding it: the value a
+    :class:`FileConditioner` of those blocks takes with :meth:`FileConditioner.reuse`."""
+    conditioner = FileConditioner(job.files, job.grid, job.channels, **dict(job.settings))
+    return conditioner.conditioned_file(conditioner.files.index(job.files[job.index]))
 
 
 def _start_ns(info: FileInfo) -> int:
