@@ -24,6 +24,14 @@ Peak memory: the largest process of each run (``getrusage`` of the child process
 the per-file path in-process (``--scheduler synchronous``) on a voyage of ``--hours`` and
 of twice that: memory independent of voyage length means a ratio near 1.
 
+Long stretches (``--long-hours 2 4``, or ``24`` for a whole day where the disk holds its
+27 GB): the per-file path with the largest ``--workers`` on voyages of those lengths,
+measured end to end (nothing extrapolated): real-time factor, peak memory, and the
+incremental real-time factor between consecutive lengths (new recording of the extra
+blocks / extra wall clock), which leaves out the fixed costs (start-up, cluster) and is
+flat when the cost per block does not grow with the voyage. The machine's load average is
+printed with every run (the machine may be shared).
+
 Simulating the voyages is not timed (a 1-h, 2048-Hz voyage writes 1.1 GB; ``--data`` reuses
 a folder). Run: ``python benchmarks/bench_identify_rate.py`` (about 25 minutes on a quiet
 2-core machine with the defaults).
@@ -32,6 +40,7 @@ a folder). Run: ``python benchmarks/bench_identify_rate.py`` (about 25 minutes o
 from __future__ import annotations
 
 import argparse
+import itertools
 import os
 import shutil
 import statistics
@@ -89,14 +98,64 @@ def main(argv=None) -> int:
     parser.add_argument("--repeats", type=int, default=3, help="runs of each configuration")
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--skip-memory", action="store_true")
+    parser.add_argument(
+        "--long-hours",
+        type=float,
+        nargs="*",
+        default=[],
+        help="also identify voyages of these lengths (per-file, largest --workers)",
+    )
+    parser.add_argument("--skip-ratio", action="store_true", help="only the long stretches")
     args = parser.parse_args(argv)
     root = args.data or Path(tempfile.mkdtemp(prefix="bench_identify_rate_"))
     root.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix="bench_identify_rate_out_"))
     voyage = _voyage(root, args.hours)
     print(
-        f"machine: {os.cpu_count()} cores; voyage {args.hours:g} h at {RATE_HZ:g} Hz, 19 channels"
+        f"machine: {os.cpu_count()} cores, load average {_load()}; voyage {args.hours:g} h "
+        f"at {RATE_HZ:g} Hz, 19 channels"
     )
+    if not args.skip_ratio:
+        _ratios(args, root, voyage, work)
+    if args.long_hours:
+        _long_stretches(args, root, work, max(args.workers))
+    print(f"load average at the end: {_load()}")
+    shutil.rmtree(work, ignore_errors=True)
+    return 0
+
+
+def _load() -> str:
+    return " ".join(f"{x:.1f}" for x in os.getloadavg())
+
+
+def _long_stretches(args, root: Path, work: Path, workers: int) -> None:
+    """Per-file identification of voyages of ``args.long_hours``, measured end to end."""
+    print(f"\nlong stretches: per-file, {workers} worker(s), each measured once")
+    print("hours  blocks  wall s  real-time factor  peak MiB  load average")
+    done = []
+    for hours in sorted(args.long_hours):
+        folder = _voyage(root, hours)
+        took, peak, blocks = _identify(
+            folder, work / "long", "--workers", str(workers), "--conditioning", "per-file"
+        )
+        factor = blocks * STEP_S / took
+        done.append((hours, blocks, took))
+        print(
+            f"{hours:5g}  {blocks:6d}  {took:6.1f}  {factor:16.1f}  {peak:8d}  {_load()}",
+            flush=True,
+        )
+    for (h0, b0, t0), (h1, b1, t1) in itertools.pairwise(done):
+        if t1 > t0:
+            print(
+                f"incremental {h0:g} h -> {h1:g} h: {(b1 - b0) * STEP_S / (t1 - t0):.1f} "
+                f"(extra {b1 - b0} blocks in {t1 - t0:.1f} s)"
+            )
+    if done and done[-1][1] >= DAY_BLOCKS:
+        print(f"a day measured: {done[-1][2] / 60:.1f} min for {done[-1][1]} blocks")
+
+
+def _ratios(args, root: Path, voyage: Path, work: Path) -> None:
+    """Per-block against per-file, interleaved, for each worker count."""
 
     paths = ("per-block", "per-file")
     seconds: dict = {(p, w): [] for p in paths for w in args.workers}
@@ -116,7 +175,7 @@ def main(argv=None) -> int:
                 pair[path] = took
                 print(
                     f"  run {repeat + 1}, {workers} worker(s), {path:9s}: {took:7.1f} s, "
-                    f"peak {peak} MiB",
+                    f"peak {peak} MiB, load average {_load()}",
                     flush=True,
                 )
             pairs[workers].append(pair["per-block"] / pair["per-file"])
@@ -156,8 +215,6 @@ def main(argv=None) -> int:
             )
         ratio = peak_of[2 * args.hours] / peak_of[args.hours]
         print(f"peak memory {2 * args.hours:g} h / {args.hours:g} h: {ratio:.2f}")
-    shutil.rmtree(work, ignore_errors=True)
-    return 0
 
 
 if __name__ == "__main__":
