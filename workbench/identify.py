@@ -385,11 +385,31 @@ ANTI_ALIAS_EDGE = 0.8
 
 @dataclass(frozen=True)
 class _Task:
-    """One block to identify (picklable: sent to the workers)."""
+    """One block to identify (picklable: sent to the workers).
+
+    ``infos`` are the planned headers of ``files`` (:class:`~workbench.signals.FileInfo`),
+    so a worker does not read every file once more to plan the block (for a CSV file that
+    is a whole parse per block holding it).
+    """
 
     block: int
     block_start: pd.Timestamp
     files: tuple
+    infos: tuple = ()
+
+
+def _block_tasks(plan, planned) -> list[_Task]:
+    """Tasks of the *planned* blocks of *plan*, with their files' headers."""
+    header = {info.path: info for info in plan.files}
+    return [
+        _Task(
+            int(p.block),
+            p.block_start,
+            tuple(str(f) for f in p.files),
+            tuple(header[Path(f)] for f in p.files if Path(f) in header),
+        )
+        for p in planned
+    ]
 
 
 def _identify_data(
@@ -410,7 +430,7 @@ def _identify_data(
         data = conditioner.block(planned)
     else:
         data = load_block(
-            task.files,
+            task.infos if len(task.infos) == len(task.files) else task.files,
             task.block,
             grid,
             target_rate_hz=options.target_rate_hz,
@@ -1009,11 +1029,9 @@ def identify_voyage(
     with BlockStore.open(store_path, parameters) as store:
         store.check_inputs(input_fingerprints(plan.files))
         wanted = None if blocks is None else {int(b) for b in blocks}
-        tasks = [
-            _Task(int(p.block), p.block_start, tuple(str(f) for f in p.files))
-            for p in plan.blocks
-            if wanted is None or int(p.block) in wanted
-        ]
+        tasks = _block_tasks(
+            plan, [p for p in plan.blocks if wanted is None or int(p.block) in wanted]
+        )
         if per_file:
             # each file conditioned once, on any worker, for the blocks holding it
             units = _file_tasks(tasks, plan, options)
@@ -1093,7 +1111,7 @@ def _pick_tasks(inputs, options: IdentifyOptions, n_blocks: int, blocks):
     else:
         wanted = {int(b) for b in blocks}
         chosen = [p for p in planned if int(p.block) in wanted]
-    tasks = [_Task(int(p.block), p.block_start, tuple(str(f) for f in p.files)) for p in chosen]
+    tasks = _block_tasks(plan, chosen)
     return plan, tasks, options
 
 

@@ -44,6 +44,7 @@ the analysis rate) and one raw file; it does not grow with the voyage.
 
 from __future__ import annotations
 
+import collections
 import functools
 import math
 import zipfile
@@ -203,13 +204,38 @@ def _decimate_channels_last(x: np.ndarray, factor: int, order: int = 8, ripple_d
 # ----------------------------------------------------------------------------------------
 # partial reads
 # ----------------------------------------------------------------------------------------
+#: Files read whole (formats without partial reads: CSV, MATLAB, HDF5, UFF, compressed
+#: ``.npz``) kept per process. Conditioning a file also needs its neighbours' edges, and
+#: the next file conditioned is usually a neighbour: with the last three files kept, a
+#: voyage conditioned in order parses each file once instead of three times. [files]
+WHOLE_READS_KEPT = 3
+_whole_reads: collections.OrderedDict = collections.OrderedDict()
+
+
+def _read_whole(path: Path, read_options=None):
+    """:func:`data_contracts.read_accelerations` of *path*, from the per-process cache of
+    the last :data:`WHOLE_READS_KEPT` files when neither the file (size, modification
+    time) nor the reading options changed."""
+    stat = path.stat()
+    key = (str(path), stat.st_size, stat.st_mtime_ns, repr(sorted((read_options or {}).items())))
+    record = _whole_reads.get(key)
+    if record is None:
+        record = read_accelerations(path, **(read_options or {}))
+        _whole_reads[key] = record
+        while len(_whole_reads) > WHOLE_READS_KEPT:
+            _whole_reads.popitem(last=False)
+    else:
+        _whole_reads.move_to_end(key)
+    return record
+
+
 def _read_rows(
     info: FileInfo, channels: Sequence[str], first: int, stop: int, read_options=None
 ) -> np.ndarray:
     """Rows [first, stop) of a file's samples, channels in *channels* order.
 
     Uncompressed ``.npz`` files are read in place (only the wanted rows); other files are
-    read whole.
+    read whole (kept for the next few reads, :data:`WHOLE_READS_KEPT`).
     """
     first, stop = max(0, int(first)), min(info.n_samples, int(stop))
     if stop <= first:
@@ -218,7 +244,7 @@ def _read_rows(
     if info.path.suffix.lower() == ".npz":
         rows = _npz_rows(info.path, first, stop)
     if rows is None:
-        record = read_accelerations(info.path, **(read_options or {}))
+        record = _read_whole(info.path, read_options)
         rows, names = record.acceleration[first:stop], record.channels
     else:
         names = info.channels
@@ -510,7 +536,10 @@ class FileConditioner:
     # -- conditioning of one file -----------------------------------------------------------
     def _raw_file(self, index: int) -> np.ndarray:
         info = self.files[index]
-        record = read_accelerations(info.path, **self.read_options)
+        if info.path.suffix.lower() == ".npz":
+            record = read_accelerations(info.path, **self.read_options)
+        else:  # parsed whole: the neighbours' conditioning reads it again
+            record = _read_whole(info.path, self.read_options)
         if record.sampling_rate_hz != info.sampling_rate_hz or record.n_samples != info.n_samples:
             raise ValueError(f"{info.path}: file changed since it was planned")
         x = record.acceleration
