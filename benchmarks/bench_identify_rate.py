@@ -58,7 +58,8 @@ _WRAPPER = (
     "import resource, subprocess, sys\n"
     "done = subprocess.run(sys.argv[1:], capture_output=True, text=True)\n"
     "sys.stdout.write(done.stdout); sys.stderr.write(done.stderr)\n"
-    "print('PEAK_KIB', resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)\n"
+    "usage = resource.getrusage(resource.RUSAGE_CHILDREN)\n"
+    "print('PEAK_KIB', usage.ru_maxrss, 'CPU_S', usage.ru_utime + usage.ru_stime)\n"
     "sys.exit(done.returncode)\n"
 )
 
@@ -73,8 +74,9 @@ def _voyage(root: Path, hours: float) -> Path:
     return folder / "accelerations"
 
 
-def _identify(voyage: Path, out: Path, *extra: str) -> tuple[float, int, int]:
-    """``workbench identify`` in a child process: (seconds, peak RSS MiB, blocks done)."""
+def _identify(voyage: Path, out: Path, *extra: str) -> tuple[float, int, int, float]:
+    """``workbench identify`` in a child process: (seconds, peak RSS MiB, blocks done, CPU
+    seconds of the process tree)."""
     shutil.rmtree(out, ignore_errors=True)
     command = [sys.executable, "-m", "workbench.cli", "identify", str(voyage)]
     command += ["--out", str(out), "--quiet", *extra]
@@ -86,9 +88,10 @@ def _identify(voyage: Path, out: Path, *extra: str) -> tuple[float, int, int]:
     shutil.rmtree(out, ignore_errors=True)
     if finished.returncode:
         raise SystemExit(finished.stderr)
-    peak_kib = int(finished.stdout.rsplit("PEAK_KIB", 1)[1].split()[0])
+    usage = finished.stdout.rsplit("PEAK_KIB", 1)[1].split()
+    peak_kib, cpu = int(usage[0]), float(usage[2])
     blocks = int(finished.stdout.split(" block(s) processed")[0].split()[-1])
-    return seconds, peak_kib // 1024, blocks
+    return seconds, peak_kib // 1024, blocks, cpu
 
 
 def main(argv=None) -> int:
@@ -135,13 +138,14 @@ def _long_stretches(args, root: Path, work: Path, workers: int) -> None:
     done = []
     for hours in sorted(args.long_hours):
         folder = _voyage(root, hours)
-        took, peak, blocks = _identify(
+        took, peak, blocks, cpu = _identify(
             folder, work / "long", "--workers", str(workers), "--conditioning", "per-file"
         )
         factor = blocks * STEP_S / took
         done.append((hours, blocks, took))
         print(
-            f"{hours:5g}  {blocks:6d}  {took:6.1f}  {factor:16.1f}  {peak:8d}  {_load()}",
+            f"{hours:5g}  {blocks:6d}  {took:6.1f}  {factor:16.1f}  {peak:8d}  {_load()}"
+            f"  (CPU {cpu:.1f} s: {blocks * STEP_S / cpu:.1f} s of recording per CPU second)",
             flush=True,
         )
     for (h0, b0, t0), (h1, b1, t1) in itertools.pairwise(done):
@@ -161,21 +165,23 @@ def _ratios(args, root: Path, voyage: Path, work: Path) -> None:
     seconds: dict = {(p, w): [] for p in paths for w in args.workers}
     peaks: dict = {(p, w): [] for p in paths for w in args.workers}
     pairs: dict = {w: [] for w in args.workers}
+    cpus: dict = {(p, w): [] for p in paths for w in args.workers}
     n_blocks = 0
     for repeat in range(args.repeats):
         for workers in args.workers:
             order = paths if repeat % 2 == 0 else paths[::-1]
             pair = {}
             for path in order:
-                took, peak, n_blocks = _identify(
+                took, peak, n_blocks, cpu = _identify(
                     voyage, work / "out", "--workers", str(workers), "--conditioning", path
                 )
+                cpus[path, workers].append(cpu)
                 seconds[path, workers].append(took)
                 peaks[path, workers].append(peak)
                 pair[path] = took
                 print(
                     f"  run {repeat + 1}, {workers} worker(s), {path:9s}: {took:7.1f} s, "
-                    f"peak {peak} MiB, load average {_load()}",
+                    f"peak {peak} MiB, CPU {cpu:.1f} s, load average {_load()}",
                     flush=True,
                 )
             pairs[workers].append(pair["per-block"] / pair["per-file"])
@@ -200,13 +206,17 @@ def _ratios(args, root: Path, voyage: Path, work: Path) -> None:
             f"medians); back-to-back pairs: median {statistics.median(pairs[workers]):.2f}x, "
             f"worst {min(pairs[workers]):.2f}x"
         )
+        cpu_ratio = statistics.median(cpus["per-block", workers]) / statistics.median(
+            cpus["per-file", workers]
+        )
+        print(f"  CPU seconds per run, per-block / per-file (medians): {cpu_ratio:.2f}x")
     print("(day times extrapolated from the measured real-time factor unless --hours 24)")
 
     if not args.skip_memory:
         peak_of = {}
         for hours in (args.hours, 2 * args.hours):
             folder = _voyage(root, hours)
-            took, peak, blocks = _identify(
+            took, peak, blocks, _ = _identify(
                 folder, work / "mem", "--scheduler", "synchronous", "--conditioning", "per-file"
             )
             peak_of[hours] = peak
