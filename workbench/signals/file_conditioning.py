@@ -40,6 +40,12 @@ faulty-channel statistics are equal up to rounding.
 
 Memory: a :class:`FileConditioner` keeps the conditioned files of the blocks under way (at
 the analysis rate) and one raw file; it does not grow with the voyage.
+
+In parallel runs each file is conditioned once by :func:`condition_file` (a
+:class:`~workbench.parallel.SharedInput` of the blocks holding it, on any worker) and the
+blocks take the conditioned files with :meth:`FileConditioner.reuse`: only the small
+conditioned files (a few MB at the analysis rate) travel between processes, never the raw
+samples.
 """
 
 from __future__ import annotations
