@@ -429,8 +429,9 @@ def _identify_data(
         )
         data = conditioner.block(planned)
     else:
+        infos = getattr(task, "infos", ())  # planned headers: no file read to plan again
         data = load_block(
-            task.infos if len(task.infos) == len(task.files) else task.files,
+            infos if len(infos) == len(task.files) else task.files,
             task.block,
             grid,
             target_rate_hz=options.target_rate_hz,
@@ -665,6 +666,8 @@ def identify_from_files(
     """
     from .signals.file_conditioning import FileConditioner
 
+    if not task.window:  # a planned block without files: the per-block path says why
+        return identify_block(task, grid=grid, channels=channels, options=options)
     conditioner = FileConditioner(task.window, grid, channels, **_conditioner_settings(options))
     conditioner.reuse(conditioned or {})
     return identify_block(
