@@ -24,6 +24,14 @@ Peak memory: the largest process of each run (``getrusage`` of the child process
 the per-file path in-process (``--scheduler synchronous``) on a voyage of ``--hours`` and
 of twice that: memory independent of voyage length means a ratio near 1.
 
+Long stretches (``--long-hours 2 4``, or ``24`` for a whole day where the disk holds its
+27 GB): the per-file path with the largest ``--workers`` on voyages of those lengths,
+measured end to end (nothing extrapolated): real-time factor, peak memory, and the
+incremental real-time factor between consecutive lengths (new recording of the extra
+blocks / extra wall clock), which leaves out the fixed costs (start-up, cluster) and is
+flat when the cost per block does not grow with the voyage. The machine's load average is
+printed with every run (the machine may be shared).
+
 Simulating the voyages is not timed (a 1-h, 2048-Hz voyage writes 1.1 GB; ``--data`` reuses
 a folder). Run: ``python benchmarks/bench_identify_rate.py`` (about 25 minutes on a quiet
 2-core machine with the defaults).
@@ -32,6 +40,7 @@ a folder). Run: ``python benchmarks/bench_identify_rate.py`` (about 25 minutes o
 from __future__ import annotations
 
 import argparse
+import itertools
 import os
 import shutil
 import statistics
@@ -49,7 +58,8 @@ _WRAPPER = (
     "import resource, subprocess, sys\n"
     "done = subprocess.run(sys.argv[1:], capture_output=True, text=True)\n"
     "sys.stdout.write(done.stdout); sys.stderr.write(done.stderr)\n"
-    "print('PEAK_KIB', resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)\n"
+    "usage = resource.getrusage(resource.RUSAGE_CHILDREN)\n"
+    "print('PEAK_KIB', usage.ru_maxrss, 'CPU_S', usage.ru_utime + usage.ru_stime)\n"
     "sys.exit(done.returncode)\n"
 )
 
@@ -64,8 +74,9 @@ def _voyage(root: Path, hours: float) -> Path:
     return folder / "accelerations"
 
 
-def _identify(voyage: Path, out: Path, *extra: str) -> tuple[float, int, int]:
-    """``workbench identify`` in a child process: (seconds, peak RSS MiB, blocks done)."""
+def _identify(voyage: Path, out: Path, *extra: str) -> tuple[float, int, int, float]:
+    """``workbench identify`` in a child process: (seconds, peak RSS MiB, blocks done, CPU
+    seconds of the process tree)."""
     shutil.rmtree(out, ignore_errors=True)
     command = [sys.executable, "-m", "workbench.cli", "identify", str(voyage)]
     command += ["--out", str(out), "--quiet", *extra]
@@ -77,9 +88,10 @@ def _identify(voyage: Path, out: Path, *extra: str) -> tuple[float, int, int]:
     shutil.rmtree(out, ignore_errors=True)
     if finished.returncode:
         raise SystemExit(finished.stderr)
-    peak_kib = int(finished.stdout.rsplit("PEAK_KIB", 1)[1].split()[0])
+    usage = finished.stdout.rsplit("PEAK_KIB", 1)[1].split()
+    peak_kib, cpu = int(usage[0]), float(usage[2])
     blocks = int(finished.stdout.split(" block(s) processed")[0].split()[-1])
-    return seconds, peak_kib // 1024, blocks
+    return seconds, peak_kib // 1024, blocks, cpu
 
 
 def main(argv=None) -> int:
@@ -89,34 +101,87 @@ def main(argv=None) -> int:
     parser.add_argument("--repeats", type=int, default=3, help="runs of each configuration")
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--skip-memory", action="store_true")
+    parser.add_argument(
+        "--long-hours",
+        type=float,
+        nargs="*",
+        default=[],
+        help="also identify voyages of these lengths (per-file, largest --workers)",
+    )
+    parser.add_argument("--skip-ratio", action="store_true", help="only the long stretches")
     args = parser.parse_args(argv)
     root = args.data or Path(tempfile.mkdtemp(prefix="bench_identify_rate_"))
     root.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix="bench_identify_rate_out_"))
     voyage = _voyage(root, args.hours)
     print(
-        f"machine: {os.cpu_count()} cores; voyage {args.hours:g} h at {RATE_HZ:g} Hz, 19 channels"
+        f"machine: {os.cpu_count()} cores, load average {_load()}; voyage {args.hours:g} h "
+        f"at {RATE_HZ:g} Hz, 19 channels"
     )
+    if not args.skip_ratio:
+        _ratios(args, root, voyage, work)
+    if args.long_hours:
+        _long_stretches(args, root, work, max(args.workers))
+    print(f"load average at the end: {_load()}")
+    shutil.rmtree(work, ignore_errors=True)
+    return 0
+
+
+def _load() -> str:
+    return " ".join(f"{x:.1f}" for x in os.getloadavg())
+
+
+def _long_stretches(args, root: Path, work: Path, workers: int) -> None:
+    """Per-file identification of voyages of ``args.long_hours``, measured end to end."""
+    print(f"\nlong stretches: per-file, {workers} worker(s), each measured once")
+    print("hours  blocks  wall s  real-time factor  peak MiB  load average")
+    done = []
+    for hours in sorted(args.long_hours):
+        folder = _voyage(root, hours)
+        took, peak, blocks, cpu = _identify(
+            folder, work / "long", "--workers", str(workers), "--conditioning", "per-file"
+        )
+        factor = blocks * STEP_S / took
+        done.append((hours, blocks, took))
+        print(
+            f"{hours:5g}  {blocks:6d}  {took:6.1f}  {factor:16.1f}  {peak:8d}  {_load()}"
+            f"  (CPU {cpu:.1f} s: {blocks * STEP_S / cpu:.1f} s of recording per CPU second)",
+            flush=True,
+        )
+    for (h0, b0, t0), (h1, b1, t1) in itertools.pairwise(done):
+        if t1 > t0:
+            print(
+                f"incremental {h0:g} h -> {h1:g} h: {(b1 - b0) * STEP_S / (t1 - t0):.1f} "
+                f"(extra {b1 - b0} blocks in {t1 - t0:.1f} s)"
+            )
+    if done and done[-1][1] >= DAY_BLOCKS:
+        print(f"a day measured: {done[-1][2] / 60:.1f} min for {done[-1][1]} blocks")
+
+
+def _ratios(args, root: Path, voyage: Path, work: Path) -> None:
+    """Per-block against per-file, interleaved, for each worker count."""
 
     paths = ("per-block", "per-file")
     seconds: dict = {(p, w): [] for p in paths for w in args.workers}
     peaks: dict = {(p, w): [] for p in paths for w in args.workers}
     pairs: dict = {w: [] for w in args.workers}
+    cpus: dict = {(p, w): [] for p in paths for w in args.workers}
     n_blocks = 0
     for repeat in range(args.repeats):
         for workers in args.workers:
             order = paths if repeat % 2 == 0 else paths[::-1]
             pair = {}
             for path in order:
-                took, peak, n_blocks = _identify(
+                took, peak, n_blocks, cpu = _identify(
                     voyage, work / "out", "--workers", str(workers), "--conditioning", path
                 )
+                cpus[path, workers].append(cpu)
                 seconds[path, workers].append(took)
                 peaks[path, workers].append(peak)
                 pair[path] = took
                 print(
                     f"  run {repeat + 1}, {workers} worker(s), {path:9s}: {took:7.1f} s, "
-                    f"peak {peak} MiB",
+                    f"peak {peak} MiB, CPU {cpu:.1f} s, load average {_load()}",
                     flush=True,
                 )
             pairs[workers].append(pair["per-block"] / pair["per-file"])
@@ -141,13 +206,17 @@ def main(argv=None) -> int:
             f"medians); back-to-back pairs: median {statistics.median(pairs[workers]):.2f}x, "
             f"worst {min(pairs[workers]):.2f}x"
         )
+        cpu_ratio = statistics.median(cpus["per-block", workers]) / statistics.median(
+            cpus["per-file", workers]
+        )
+        print(f"  CPU seconds per run, per-block / per-file (medians): {cpu_ratio:.2f}x")
     print("(day times extrapolated from the measured real-time factor unless --hours 24)")
 
     if not args.skip_memory:
         peak_of = {}
         for hours in (args.hours, 2 * args.hours):
             folder = _voyage(root, hours)
-            took, peak, blocks = _identify(
+            took, peak, blocks, _ = _identify(
                 folder, work / "mem", "--scheduler", "synchronous", "--conditioning", "per-file"
             )
             peak_of[hours] = peak
@@ -156,8 +225,6 @@ def main(argv=None) -> int:
             )
         ratio = peak_of[2 * args.hours] / peak_of[args.hours]
         print(f"peak memory {2 * args.hours:g} h / {args.hours:g} h: {ratio:.2f}")
-    shutil.rmtree(work, ignore_errors=True)
-    return 0
 
 
 if __name__ == "__main__":

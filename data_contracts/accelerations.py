@@ -109,18 +109,17 @@ def validate_accelerations(
             problems.append(
                 Violation("acceleration", f"needs at least 2 samples, got {acceleration.shape[0]}")
             )
-        if np.isinf(acceleration).any():
+        peak = _column_peaks(acceleration)  # one pass: infinite and implausible values
+        if np.isinf(peak).any():
             cols = sorted(
                 {
                     channels[j] if j < len(channels) else str(j)
-                    for j in np.nonzero(np.isinf(acceleration).any(axis=0))[0]
+                    for j in np.flatnonzero(np.isinf(peak))
                 }
             )
             problems.append(
                 Violation("acceleration", f"infinite values in channel(s) {', '.join(cols)}")
             )
-        finite = np.where(np.isnan(acceleration), 0.0, np.abs(acceleration))  # dead channels
-        peak = finite.max(axis=0) if acceleration.size else np.array([])
         implausible = np.nonzero(np.isfinite(peak) & (peak > MAX_PLAUSIBLE_ACCELERATION_MS2))[0]
         if len(implausible):
             cols = ", ".join(channels[j] if j < len(channels) else str(j) for j in implausible)
@@ -149,6 +148,29 @@ def validate_accelerations(
     if problems:
         raise ContractError(problems, source=source, contract="accelerations")
     return AccelerationRecord(acceleration, rate, start, channels)
+
+
+#: Values per chunk of :func:`_column_peaks` (256 KB of float64: stays in the CPU cache).
+_PEAK_CHUNK_VALUES = 32768
+
+
+def _column_peaks(acceleration: np.ndarray) -> np.ndarray:
+    """Largest absolute value of each column of a 2-D float array, NaN ignored.
+
+    An all-NaN (dead) column gives 0, a column holding an infinite value gives ``inf``.
+    One pass over the samples in cache-sized row chunks, so validating a 2048-Hz file
+    costs a fraction of reading it (no full-size temporaries).
+    """
+    n_rows, n_columns = acceleration.shape
+    peak = np.zeros(n_columns)
+    rows = max(1, _PEAK_CHUNK_VALUES // max(n_columns, 1))
+    buffer = np.empty((min(rows, n_rows), n_columns))
+    for first in range(0, n_rows, rows):
+        chunk = acceleration[first : first + rows]
+        magnitude = buffer[: chunk.shape[0]]
+        np.abs(chunk, out=magnitude)
+        np.fmax(peak, np.fmax.reduce(magnitude, axis=0), out=peak)  # fmax skips NaN
+    return peak
 
 
 #: An ISO-8601 date (with optional time) at the start of a text: YYYY-MM-DD.

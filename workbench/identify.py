@@ -413,11 +413,31 @@ ANTI_ALIAS_EDGE = 0.8
 
 @dataclass(frozen=True)
 class _Task:
-    """One block to identify (picklable: sent to the workers)."""
+    """One block to identify (picklable: sent to the workers).
+
+    ``infos`` are the planned headers of ``files`` (:class:`~workbench.signals.FileInfo`),
+    so a worker does not read every file once more to plan the block (for a CSV file that
+    is a whole parse per block holding it).
+    """
 
     block: int
     block_start: pd.Timestamp
     files: tuple
+    infos: tuple = ()
+
+
+def _block_tasks(plan, planned) -> list[_Task]:
+    """Tasks of the *planned* blocks of *plan*, with their files' headers."""
+    header = {info.path: info for info in plan.files}
+    return [
+        _Task(
+            int(p.block),
+            p.block_start,
+            tuple(str(f) for f in p.files),
+            tuple(header[Path(f)] for f in p.files if Path(f) in header),
+        )
+        for p in planned
+    ]
 
 
 def _identify_data(
@@ -437,8 +457,9 @@ def _identify_data(
         )
         data = conditioner.block(planned)
     else:
+        infos = getattr(task, "infos", ())  # planned headers: no file read to plan again
         data = load_block(
-            task.files,
+            infos if len(infos) == len(task.files) else task.files,
             task.block,
             grid,
             target_rate_hz=options.target_rate_hz,
@@ -629,64 +650,93 @@ def _cross_check_frame(selection, other_selection, method, block, start) -> pd.D
 
 
 @dataclass(frozen=True)
-class _Run:
-    """Consecutive blocks identified in one worker from files conditioned once (picklable).
+class _FileTask:
+    """One block cut from files conditioned once (picklable: sent to the workers).
 
-    ``files`` are the headers of the files the blocks need plus one contiguous file on
-    either side (their edges pad the filters).
+    ``window`` are the headers of the block's files plus one contiguous file on either
+    side (their edges pad the filters); ``shared_inputs`` condition each of the block's
+    files once for all the blocks holding it
+    (:class:`~workbench.parallel.SharedInput` of
+    :func:`~workbench.signals.file_conditioning.condition_file`).
     """
 
     block: int
     block_start: pd.Timestamp
-    tasks: tuple[_Task, ...]
     files: tuple
-
-    @property
-    def blocks(self) -> tuple[int, ...]:
-        return tuple(t.block for t in self.tasks)
+    window: tuple = ()
+    shared_inputs: tuple = ()
 
 
-def identify_run(
-    run: _Run, *, grid: BlockGrid, channels: Sequence[str], options: IdentifyOptions
-) -> list[BlockOutcome]:
-    """Identify the consecutive blocks of *run*, conditioning each of their files once.
+def _conditioner_settings(options: IdentifyOptions) -> dict:
+    return {
+        "target_rate_hz": float(options.target_rate_hz),
+        "band_hz": _filter_band(options),
+        "max_gap_s": options.max_gap_s,
+        "fault_options": _fault_options(options),
+        "read_options": options.read_options,
+    }
 
-    Returns one :class:`~workbench.parallel.BlockOutcome` per block, as
-    :func:`identify_block` gives it (a block failing with a data error is skipped with the
-    reason; the other blocks go on).
+
+def identify_from_files(
+    task: _FileTask,
+    conditioned: Mapping | None = None,
+    *,
+    grid: BlockGrid,
+    channels: Sequence[str],
+    options: IdentifyOptions,
+) -> BlockOutcome:
+    """Identify one block from its files conditioned once.
+
+    *conditioned* maps file paths to the files conditioned by
+    :func:`~workbench.signals.file_conditioning.condition_file` (shared by the blocks
+    holding them; :func:`~workbench.parallel.run_blocks` passes them); files missing there
+    are conditioned here. Returns what :func:`identify_block` returns.
     """
-    from .parallel import _guarded
     from .signals.file_conditioning import FileConditioner
 
-    conditioner = FileConditioner(
-        run.files,
-        grid,
-        channels,
-        target_rate_hz=float(options.target_rate_hz),
-        band_hz=_filter_band(options),
-        max_gap_s=options.max_gap_s,
-        fault_options=_fault_options(options),
-        read_options=options.read_options,
+    if not task.window:  # a planned block without files: the per-block path says why
+        return identify_block(task, grid=grid, channels=channels, options=options)
+    conditioner = FileConditioner(task.window, grid, channels, **_conditioner_settings(options))
+    conditioner.reuse(conditioned or {})
+    return identify_block(
+        task, grid=grid, channels=channels, options=options, conditioner=conditioner
     )
-    func = functools.partial(
-        identify_block, grid=grid, channels=channels, options=options, conditioner=conditioner
-    )
-    return [_guarded(func, task) for task in run.tasks]
 
 
-def _runs(tasks: Sequence[_Task], plan, size: int) -> list[_Run]:
-    """*tasks* (ascending) in runs of at most *size* consecutive blocks."""
+def _file_tasks(tasks: Sequence[_Task], plan, options: IdentifyOptions) -> list[_FileTask]:
+    """*tasks* as blocks cut from files conditioned once, each file's conditioning shared
+    by the blocks holding it."""
+    from .parallel import SharedInput
+    from .signals.file_conditioning import FileConditioning, condition_file
+
     position = {info.path: i for i, info in enumerate(plan.files)}
-    runs: list[_Run] = []
-    for first in range(0, len(tasks), size):
-        chunk = tuple(tasks[first : first + size])
-        used = [position[Path(f)] for t in chunk for f in t.files]
-        if used:
-            lo, hi = max(min(used) - 1, 0), min(max(used) + 2, len(plan.files))
-        else:
-            lo = hi = 0
-        runs.append(_Run(chunk[0].block, chunk[0].block_start, chunk, plan.files[lo:hi]))
-    return runs
+    settings = _conditioner_settings(options)
+    channels = tuple(plan.channels)
+    jobs: dict[int, SharedInput] = {}
+    out = []
+    for task in tasks:
+        used = sorted(position[Path(f)] for f in task.files)
+        if not used:
+            out.append(_FileTask(task.block, task.block_start, task.files))
+            continue
+        for i in used:
+            if i not in jobs:
+                lo = max(i - 1, 0)
+                job = FileConditioning(
+                    tuple(plan.files[lo : i + 2]), i - lo, plan.grid, channels, settings
+                )
+                jobs[i] = SharedInput(str(plan.files[i].path), condition_file, job)
+        lo, hi = max(used[0] - 1, 0), min(used[-1] + 2, len(plan.files))
+        out.append(
+            _FileTask(
+                task.block,
+                task.block_start,
+                task.files,
+                tuple(plan.files[lo:hi]),
+                tuple(jobs[i] for i in used),
+            )
+        )
+    return out
 
 
 def analysis_rate(options: IdentifyOptions, sampling_rate_hz: float) -> float:
@@ -1010,21 +1060,15 @@ def identify_voyage(
     with BlockStore.open(store_path, parameters) as store:
         store.check_inputs(input_fingerprints(plan.files))
         wanted = None if blocks is None else {int(b) for b in blocks}
-        tasks = [
-            _Task(int(p.block), p.block_start, tuple(str(f) for f in p.files))
-            for p in plan.blocks
-            if wanted is None or int(p.block) in wanted
-        ]
+        tasks = _block_tasks(
+            plan, [p for p in plan.blocks if wanted is None or int(p.block) in wanted]
+        )
         if per_file:
-            done = store.completed_blocks()
-            todo = [t for t in tasks if t.block not in done]
-            # runs of up to 24 blocks (2 h), a whole number per worker: files at the ends of
-            # a run are conditioned by both runs sharing them
-            workers = 1 if scheduler == "synchronous" else n_workers or os.cpu_count() or 1
-            n_runs = workers * max(1, -(-len(todo) // (24 * workers)))
-            size = max(1, -(-len(todo) // n_runs))
-            units = [t for t in tasks if t.block in done] + _runs(todo, plan, size)
-            func = functools.partial(identify_run, grid=grid, channels=channels, options=options)
+            # each file conditioned once, on any worker, for the blocks holding it
+            units = _file_tasks(tasks, plan, options)
+            func = functools.partial(
+                identify_from_files, grid=grid, channels=channels, options=options
+            )
         else:
             units = tasks
             func = functools.partial(identify_block, grid=grid, channels=channels, options=options)
@@ -1098,7 +1142,7 @@ def _pick_tasks(inputs, options: IdentifyOptions, n_blocks: int, blocks):
     else:
         wanted = {int(b) for b in blocks}
         chosen = [p for p in planned if int(p.block) in wanted]
-    tasks = [_Task(int(p.block), p.block_start, tuple(str(f) for f in p.files)) for p in chosen]
+    tasks = _block_tasks(plan, chosen)
     return plan, tasks, options
 
 

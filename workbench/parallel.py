@@ -5,6 +5,11 @@ The same code runs on a local cluster (all cores by default), on an existing
 (``scheduler="synchronous"``, for debugging and tiny jobs). Memory stays bounded: tasks are
 streamed from an iterator with at most ``max_in_flight`` submitted at a time, and finished
 results are flushed to the store in batches.
+
+Tasks may share inputs (:class:`SharedInput`), e.g. an acquisition file conditioned once
+for the four overlapping blocks that hold it: each shared input is computed once, on any
+worker, and handed to every task naming it, instead of each task (or each worker)
+computing it again.
 """
 
 from __future__ import annotations
@@ -14,7 +19,7 @@ import os
 import sys
 import time
 from collections import Counter
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Hashable, Iterable, Mapping
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -25,7 +30,7 @@ import pandas as pd
 from .errors import WorkbenchError
 from .store import BlockStore
 
-__all__ = ["BlockOutcome", "BlockTask", "RunSummary", "process_map", "run_blocks"]
+__all__ = ["BlockOutcome", "BlockTask", "RunSummary", "SharedInput", "process_map", "run_blocks"]
 
 log = logging.getLogger(__name__)
 
@@ -35,6 +40,43 @@ class BlockTask(Protocol):
 
     block: int
     block_start: pd.Timestamp
+
+
+@dataclass(frozen=True)
+class SharedInput:
+    """A value several tasks need, computed once per run: ``compute(argument)``.
+
+    A task lists the shared inputs it needs in a ``shared_inputs`` attribute; it is then
+    called as ``func(task, inputs)`` with ``inputs`` mapping each :attr:`key` to its value.
+    Inputs are computed in task order and forgotten once a task no longer names them (the
+    tasks that share an input should be consecutive, as the blocks holding one file are).
+    A computation failing with a data error (``ValueError``, ``OSError``, ...) gives
+    ``None``: the task is expected to redo the work itself and report the error as its own.
+
+    Parameters
+    ----------
+    key : hashable
+        Names the value within a run (e.g. the file's path as text).
+    compute : callable
+        Picklable (module-level function or ``functools.partial`` of one).
+    argument
+        Passed to *compute*; picklable.
+    """
+
+    key: Hashable
+    compute: Callable[[Any], Any]
+    argument: Any
+
+
+def _compute_shared(compute: Callable[[Any], Any], argument: Any) -> Any:
+    try:
+        return compute(argument)
+    except (ValueError, OSError, WorkbenchError, ArithmeticError, np.linalg.LinAlgError):
+        return None  # the task needing it redoes the work and reports the error
+
+
+def _needs(task: Any) -> tuple[SharedInput, ...]:
+    return tuple(getattr(task, "shared_inputs", None) or ())
 
 
 @dataclass(frozen=True)
@@ -69,10 +111,11 @@ class RunSummary:
         return "\n".join(lines)
 
 
-def _guarded(func: Callable[[Any], BlockOutcome], task: Any) -> BlockOutcome:
-    """Run *func*; a failure of one block becomes a skipped block with the reason."""
+def _guarded(func: Callable[..., BlockOutcome], task: Any, inputs=None) -> BlockOutcome:
+    """Run *func* (with the task's shared *inputs*, if it has any); a failure of one block
+    becomes a skipped block with the reason."""
     try:
-        return func(task)
+        return func(task) if inputs is None else func(task, inputs)
     except (ValueError, WorkbenchError, ArithmeticError, np.linalg.LinAlgError) as error:
         reason = str(error).splitlines()[0] if str(error) else type(error).__name__
         return BlockOutcome(int(task.block), pd.Timestamp(task.block_start), skipped=reason)
@@ -163,6 +206,8 @@ def run_blocks(
         ``functools.partial`` of one). ``ValueError`` and ``LinAlgError`` raised by it mark
         the block as skipped with the message as reason. A task of several consecutive
         blocks (with a ``blocks`` attribute) returns a list of outcomes, one per block.
+        A task with ``shared_inputs`` (:class:`SharedInput`) is run as
+        ``func(task, inputs)``.
     store : BlockStore
         Where results go; also tells which blocks are done (resume).
     scheduler : str, optional
@@ -247,8 +292,20 @@ def run_blocks(
         bar = stack.enter_context(_progress(todo_total, progress, description))
         try:
             if scheduler == "synchronous":
+                values: dict = {}
                 for task in remaining():
-                    accept(_guarded(func, task), bar)
+                    needs = _needs(task)
+                    if not needs:
+                        accept(_guarded(func, task), bar)
+                        continue
+                    keys = {need.key for need in needs}
+                    for key in [k for k in values if k not in keys]:
+                        del values[key]  # consecutive tasks share; older inputs are done
+                    for need in needs:
+                        if need.key not in values:
+                            values[need.key] = _compute_shared(need.compute, need.argument)
+                    accept(_guarded(func, task, {n.key: values[n.key] for n in needs}), bar)
+                values.clear()
             else:
                 client = stack.enter_context(_client(scheduler, n_workers))
                 workers = max(len(client.scheduler_info().get("workers", {})), 1)
@@ -309,10 +366,27 @@ def _client(scheduler: str | None, n_workers: int | None):
 def _run_distributed(client, tasks: Iterable[Any], func, limit: int, accept) -> None:
     from dask.distributed import as_completed
 
+    shared: dict = {}  # key -> future of a shared input still named by the newest task
+
+    def submit(task):
+        needs = _needs(task)
+        if not needs:
+            return client.submit(_guarded, func, task, pure=False)
+        keys = {need.key for need in needs}
+        for key in [k for k in shared if k not in keys]:
+            shared.pop(key).release()  # the cluster keeps it while a queued task needs it
+        for need in needs:
+            if need.key not in shared:
+                shared[need.key] = client.submit(
+                    _compute_shared, need.compute, need.argument, pure=False
+                )
+        inputs = {need.key: shared[need.key] for need in needs}
+        return client.submit(_guarded, func, task, inputs, pure=False)
+
     iterator = iter(tasks)
     first = []
     for task in iterator:
-        first.append(client.submit(_guarded, func, task, pure=False))
+        first.append(submit(task))
         if len(first) >= limit:
             break
     if not first:
@@ -322,5 +396,8 @@ def _run_distributed(client, tasks: Iterable[Any], func, limit: int, accept) -> 
         accept(future.result())
         future.release()
         for task in iterator:  # keep at most `limit` tasks in flight
-            in_flight.add(client.submit(_guarded, func, task, pure=False))
+            in_flight.add(submit(task))
             break
+    for future in shared.values():
+        future.release()
+    shared.clear()

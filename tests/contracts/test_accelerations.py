@@ -138,3 +138,33 @@ def test_pickled_npz_is_refused(tmp_path):
     )
     with pytest.raises(ContractError, match="cannot read file"):
         read_accelerations(path)
+
+
+def test_one_pass_peaks_equal_the_per_column_definition():
+    """``_column_peaks`` (chunked, one pass) against max |a| over the non-NaN samples per
+    column (0 for a dead column, inf where an infinite value is), across chunk edges."""
+    from data_contracts import accelerations
+
+    rng = np.random.default_rng(3)
+    n_rows = 3 * accelerations._PEAK_CHUNK_VALUES // 19 + 7  # several chunks and a rest
+    x = rng.standard_normal((n_rows, 19))
+    x[rng.random(x.shape) < 0.01] = np.nan
+    x[:, 4] = np.nan  # dead channel
+    x[n_rows - 1, 7] = -np.inf  # in the last, partial chunk
+    x[accelerations._PEAK_CHUNK_VALUES // 19, 11] = 42.0  # first row of the second chunk
+    peaks = accelerations._column_peaks(x)
+    expected = np.where(np.isnan(x), 0.0, np.abs(x)).max(axis=0)
+    np.testing.assert_array_equal(peaks, expected)
+    assert peaks[4] == 0.0 and peaks[7] == np.inf and peaks[11] == 42.0
+
+
+def test_infinite_and_implausible_channels_are_named(tmp_path):
+    x = np.zeros((50_000, 3))
+    x[49_999, 1] = np.inf
+    x[123, 2] = -600.0
+    bad = AccelerationRecord(x, 64.0, START, ("a", "b", "c"))
+    with pytest.raises(ContractError) as caught:
+        write_accelerations(bad, tmp_path / "bad.npz")
+    text = str(caught.value)
+    assert "infinite values in channel(s) b" in text
+    assert "above 500 m/s² in channel(s) c:" in text

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from workbench.errors import WorkbenchError
-from workbench.parallel import BlockOutcome, run_blocks
+from workbench.parallel import BlockOutcome, SharedInput, run_blocks
 from workbench.store import BlockStore
 
 T0 = pd.Timestamp("2026-03-01T23:00Z")  # the blocks straddle midnight: two day partitions
@@ -110,6 +110,58 @@ def test_dask_local_cluster_matches_synchronous(tmp_path):
     assert (summary.processed, summary.skipped) == (21, 3)
     pd.testing.assert_frame_equal(parallel.read("poles"), sync.read("poles"))
     np.testing.assert_array_equal(parallel.read("blocks")["block"], np.arange(24))
+
+
+class SharingTask(Task):
+    """Block *b* needs "files" b .. b+3, as a 20-min block with 75 % overlap does."""
+
+    def __init__(self, block: int, log_dir):
+        super().__init__(block)
+        self.shared_inputs = tuple(
+            SharedInput(f"file{k}", file_value, (k, str(log_dir))) for k in range(block, block + 4)
+        )
+
+
+def file_value(argument):
+    """A stand-in for conditioning a file: logs each call (any process), file 5 is bad."""
+    k, log_dir = argument
+    with open(f"{log_dir}/file{k}", "a") as log:
+        log.write("x")
+    if k == 5:
+        raise ValueError("file5: cannot read")
+    return 10.0 * k
+
+
+def sum_of_files(task, inputs):
+    values = [inputs[f"file{k}"] for k in range(task.block, task.block + 4)]
+    if any(v is None for v in values):
+        raise ValueError(f"block {task.block}: a file failed")
+    rows = pd.DataFrame({"block": [task.block], "block_start": [task.block_start]})
+    return BlockOutcome(task.block, task.block_start, {"poles": rows.assign(value=sum(values))})
+
+
+@pytest.mark.parametrize("scheduler", ["synchronous", None])
+def test_shared_inputs_are_computed_once_and_handed_to_each_task(tmp_path, scheduler):
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    logs = tmp_path / "calls"
+    logs.mkdir()
+    store = BlockStore.open(tmp_path / "store", {})
+    summary = run_blocks(
+        (SharingTask(b, logs) for b in range(12)),
+        sum_of_files,
+        store=store,
+        scheduler=scheduler,
+        n_workers=2,
+        max_in_flight=3,
+    )
+    # each of the 15 files computed once although 4 blocks use each (the first, 1..3)
+    calls = {p.name: len(p.read_text()) for p in logs.iterdir()}
+    assert calls == {f"file{k}": 1 for k in range(15)}
+    # blocks 2..5 hold the failing file 5: skipped with the task's own reason
+    assert summary.skip_reasons == {f"block {b}: a file failed": 1 for b in (2, 3, 4, 5)}
+    poles = store.read("poles")
+    assert poles["block"].tolist() == [0, 1, *range(6, 12)]
+    np.testing.assert_array_equal(poles["value"], [10.0 * (4 * b + 6) for b in poles["block"]])
 
 
 def test_read_chunks_streams_block_order_from_unordered_batches(tmp_path):

@@ -16,6 +16,9 @@ raw files. The two paths must agree
 
 from __future__ import annotations
 
+import collections
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -192,3 +195,52 @@ def test_an_unreadable_neighbour_breaks_the_chain_only(voyage, tmp_path):
     assert first.acceleration is not None and conditioner.fallbacks == 0
     with pytest.raises(ValueError, match="acc_4"):
         conditioner.block(plan.blocks[1])
+
+
+def test_text_files_are_parsed_once_and_give_the_npz_blocks(voyage, tmp_path, monkeypatch):
+    """CSV files (read whole, no partial reads): conditioning a file needs its neighbours'
+    edges, yet each file is parsed once when the files are conditioned in order, and the
+    blocks equal those of the same samples in ``.npz`` files."""
+    from workbench.signals import file_conditioning
+
+    full, _, plan = voyage
+    n_file = int(FILE_S * RATE)
+    paths = []
+    for k in range(N_FILES):
+        part = pd.DataFrame(full[k * n_file : (k + 1) * n_file], columns=list(CHANNELS))
+        times = (
+            T0
+            + pd.Timedelta(seconds=k * FILE_S)
+            + pd.to_timedelta(np.arange(n_file) / RATE, unit="s")
+        )
+        part.insert(0, "time", times.strftime("%Y-%m-%dT%H:%M:%S.%fZ"))
+        paths.append(tmp_path / f"acc_{k}.csv")
+        part.to_csv(paths[-1], index=False, float_format="%.17g")
+    options = {"csv_sampling_rate_hz": RATE}  # the times are rounded to microseconds
+    text_plan = plan_blocks(paths, length_s=4 * FILE_S, step_s=FILE_S, read_options=options)
+    parsed = []
+
+    def counting(path, **options):
+        parsed.append(Path(path).name)
+        return read_accelerations(path, **options)
+
+    monkeypatch.setattr(file_conditioning, "read_accelerations", counting)
+    monkeypatch.setattr(file_conditioning, "_whole_reads", collections.OrderedDict())
+    text = FileConditioner(
+        text_plan.files,
+        text_plan.grid,
+        text_plan.channels,
+        target_rate_hz=TARGET,
+        band_hz=BAND,
+        read_options=options,
+    )
+    binary = FileConditioner(
+        plan.files, plan.grid, plan.channels, target_rate_hz=TARGET, band_hz=BAND
+    )
+    for planned_text, planned in zip(text_plan.blocks, plan.blocks, strict=True):
+        a, b = text.block(planned_text), binary.block(planned)
+        assert a.channels == b.channels
+        np.testing.assert_array_equal(a.acceleration, b.acceleration)
+    assert text.fallbacks == 0
+    csv = sorted(name for name in parsed if name.endswith(".csv"))
+    assert csv == sorted(p.name for p in paths)  # each CSV parsed once

@@ -40,10 +40,17 @@ faulty-channel statistics are equal up to rounding.
 
 Memory: a :class:`FileConditioner` keeps the conditioned files of the blocks under way (at
 the analysis rate) and one raw file; it does not grow with the voyage.
+
+In parallel runs each file is conditioned once by :func:`condition_file` (a
+:class:`~workbench.parallel.SharedInput` of the blocks holding it, on any worker) and the
+blocks take the conditioned files with :meth:`FileConditioner.reuse`: only the small
+conditioned files (a few MB at the analysis rate) travel between processes, never the raw
+samples.
 """
 
 from __future__ import annotations
 
+import collections
 import functools
 import math
 from collections.abc import Mapping, Sequence
@@ -70,6 +77,8 @@ from .stream import AccelerationBlock, FileInfo, PlannedBlock, load_block
 
 __all__ = [
     "FileConditioner",
+    "FileConditioning",
+    "condition_file",
     "default_decimation_rate",
     "padding_samples",
 ]
@@ -201,13 +210,38 @@ def _decimate_channels_last(x: np.ndarray, factor: int, order: int = 8, ripple_d
 # ----------------------------------------------------------------------------------------
 # partial reads
 # ----------------------------------------------------------------------------------------
+#: Files read whole (formats without partial reads: CSV, MATLAB, HDF5, UFF, compressed
+#: ``.npz``) kept per process. Conditioning a file also needs its neighbours' edges, and
+#: the next file conditioned is usually a neighbour: with the last three files kept, a
+#: voyage conditioned in order parses each file once instead of three times. [files]
+WHOLE_READS_KEPT = 3
+_whole_reads: collections.OrderedDict = collections.OrderedDict()
+
+
+def _read_whole(path: Path, read_options=None):
+    """:func:`data_contracts.read_accelerations` of *path*, from the per-process cache of
+    the last :data:`WHOLE_READS_KEPT` files when neither the file (size, modification
+    time) nor the reading options changed."""
+    stat = path.stat()
+    key = (str(path), stat.st_size, stat.st_mtime_ns, repr(sorted((read_options or {}).items())))
+    record = _whole_reads.get(key)
+    if record is None:
+        record = read_accelerations(path, **(read_options or {}))
+        _whole_reads[key] = record
+        while len(_whole_reads) > WHOLE_READS_KEPT:
+            _whole_reads.popitem(last=False)
+    else:
+        _whole_reads.move_to_end(key)
+    return record
+
+
 def _read_rows(
     info: FileInfo, channels: Sequence[str], first: int, stop: int, read_options=None
 ) -> np.ndarray:
     """Rows [first, stop) of a file's samples, channels in *channels* order.
 
     Uncompressed ``.npz`` files are read in place (only the wanted rows); other files are
-    read whole.
+    read whole (kept for the next few reads, :data:`WHOLE_READS_KEPT`).
     """
     first, stop = max(0, int(first)), min(info.n_samples, int(stop))
     if stop <= first:
@@ -216,7 +250,7 @@ def _read_rows(
     if info.path.suffix.lower() == ".npz":
         rows = read_sample_rows(info.path, first, stop)
     if rows is None:
-        record = read_accelerations(info.path, **(read_options or {}))
+        record = _read_whole(info.path, read_options)
         rows, names = record.acceleration[first:stop], record.channels
     else:
         names = info.channels
@@ -447,6 +481,20 @@ class FileConditioner:
         self._cache: dict[int, _ConditionedFile] = {}
         self.fallbacks = 0  # blocks built by load_block
 
+    def reuse(self, conditioned: Mapping[str | Path, _ConditionedFile | None]) -> None:
+        """Take files conditioned elsewhere (by :func:`condition_file`, e.g. in another
+        worker) for the files of this conditioner with those paths; ``None`` values and
+        paths not among its files are ignored (those files are conditioned here)."""
+        index = {str(info.path): i for i, info in enumerate(self.files)}
+        for path, value in conditioned.items():
+            if value is not None and str(path) in index:
+                self._cache[index[str(path)]] = value
+
+    def conditioned_file(self, index: int) -> _ConditionedFile:
+        """File *index* of :attr:`files` conditioned (padded with its contiguous
+        neighbours' edges), with its faulty-channel step sums; cached."""
+        return self._conditioned(index)
+
     # -- lattice helpers ------------------------------------------------------------------
     def _offset(self, index: int) -> float:
         """Raw samples from the grid origin to the file's first sample (may be fractional)."""
@@ -466,7 +514,10 @@ class FileConditioner:
     # -- conditioning of one file -----------------------------------------------------------
     def _raw_file(self, index: int) -> np.ndarray:
         info = self.files[index]
-        record = read_accelerations(info.path, **self.read_options)
+        if info.path.suffix.lower() == ".npz":
+            record = read_accelerations(info.path, **self.read_options)
+        else:  # parsed whole: the neighbours' conditioning reads it again
+            record = _read_whole(info.path, self.read_options)
         if record.sampling_rate_hz != info.sampling_rate_hz or record.n_samples != info.n_samples:
             raise ValueError(f"{info.path}: file changed since it was planned")
         x = record.acceleration
@@ -671,6 +722,38 @@ class FileConditioner:
             notes,
             report,
         )
+
+
+@dataclass(frozen=True)
+class FileConditioning:
+    """What :func:`condition_file` needs to condition one file on its own (picklable).
+
+    Parameters
+    ----------
+    files : tuple of FileInfo
+        The file and its neighbours in the voyage plan (one on either side where they
+        exist): their edges pad the filters.
+    index : int
+        Position of the file in *files*.
+    grid : BlockGrid
+    channels : tuple of str
+    settings : mapping
+        Keyword arguments of :class:`FileConditioner` (``target_rate_hz``, ``band_hz``,
+        ...).
+    """
+
+    files: tuple
+    index: int
+    grid: BlockGrid
+    channels: tuple
+    settings: Mapping
+
+
+def condition_file(job: FileConditioning) -> _ConditionedFile:
+    """One file conditioned once, for every block holding it: the value a
+    :class:`FileConditioner` of those blocks takes with :meth:`FileConditioner.reuse`."""
+    conditioner = FileConditioner(job.files, job.grid, job.channels, **dict(job.settings))
+    return conditioner.conditioned_file(conditioner.files.index(job.files[job.index]))
 
 
 def _start_ns(info: FileInfo) -> int:
