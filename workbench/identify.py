@@ -739,6 +739,30 @@ def _file_tasks(tasks: Sequence[_Task], plan, options: IdentifyOptions) -> list[
     return out
 
 
+def resolved_run(
+    options: IdentifyOptions, sampling_rate_hz: float, grid, channels: Sequence[str]
+) -> tuple[IdentifyOptions, bool, dict]:
+    """The options of a run on files at *sampling_rate_hz*, whether its files are
+    conditioned once each (per-file decimation by an integer factor), and the parameters
+    its store is opened with (``identify`` and ``monitor`` share them, so their stores
+    agree).
+    """
+    rate = analysis_rate(options, sampling_rate_hz)
+    ratio = sampling_rate_hz / rate
+    per_file = (
+        options.conditioning == "per-file"
+        and round(ratio) >= 2
+        and abs(ratio - round(ratio)) <= 1e-9 * ratio
+    )
+    options = replace(options, target_rate_hz=None if rate == sampling_rate_hz else rate)
+    parameters = {
+        **options.parameters(),
+        "grid_t0": grid.t0.isoformat(),
+        "channels": list(channels),
+    }
+    return options, per_file, parameters
+
+
 def analysis_rate(options: IdentifyOptions, sampling_rate_hz: float) -> float:
     """The rate blocks are identified at, for files at *sampling_rate_hz*. [Hz]
 
@@ -1044,19 +1068,7 @@ def identify_voyage(
     grid = plan.grid
     channels = tuple(plan.channels)
     # the analysis rate; decimating blocks are cut from files conditioned once
-    rate = analysis_rate(options, plan.sampling_rate_hz)
-    ratio = plan.sampling_rate_hz / rate
-    per_file = (
-        options.conditioning == "per-file"
-        and round(ratio) >= 2
-        and abs(ratio - round(ratio)) <= 1e-9 * ratio
-    )
-    options = replace(options, target_rate_hz=None if rate == plan.sampling_rate_hz else rate)
-    parameters = {
-        **options.parameters(),
-        "grid_t0": grid.t0.isoformat(),
-        "channels": list(channels),
-    }
+    options, per_file, parameters = resolved_run(options, plan.sampling_rate_hz, grid, channels)
     with BlockStore.open(store_path, parameters) as store:
         store.check_inputs(input_fingerprints(plan.files))
         wanted = None if blocks is None else {int(b) for b in blocks}

@@ -39,7 +39,12 @@ def _monitor(watch: Path, state: Path, dship: Path, *extra):
 
 def _wait(condition, timeout_s: float = 300.0) -> None:  # a bound, for busy machines
     deadline = time.monotonic() + timeout_s
-    while not condition():
+    while True:
+        try:
+            if condition():
+                return
+        except OSError:  # a state file renamed over while this test read it: read again
+            pass
         if time.monotonic() > deadline:
             raise AssertionError("timed out waiting for the monitor")
         time.sleep(0.02)

@@ -13,7 +13,7 @@ import math
 import os
 import threading
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -24,7 +24,7 @@ from data_contracts import MODAL, atomic_path, shapes_from_frame, write_table
 
 from ..blocks import BlockGrid
 from ..errors import WorkbenchError
-from ..identify import IdentifyOptions, analysis_rate, identify_block, input_fingerprints
+from ..identify import IdentifyOptions, identify_block, input_fingerprints, resolved_run
 from ..sid.tracking import ModeTracker, TrackingOptions
 from ..signals.file_conditioning import FileConditioner
 from ..store import BlockStore, StoreLock
@@ -396,19 +396,9 @@ class Monitor:
         else:
             t0, channels = first.start_time, tuple(first.channels)
         grid = BlockGrid(t0, options.length_s, options.step_s)
-        rate = analysis_rate(options, first.sampling_rate_hz)
-        ratio = first.sampling_rate_hz / rate
-        per_file = (
-            options.conditioning == "per-file"
-            and round(ratio) >= 2
-            and abs(ratio - round(ratio)) <= 1e-9 * ratio
+        options, per_file, parameters = resolved_run(
+            options, first.sampling_rate_hz, grid, channels
         )
-        options = replace(options, target_rate_hz=None if rate == first.sampling_rate_hz else rate)
-        parameters = {
-            **options.parameters(),
-            "grid_t0": grid.t0.isoformat(),
-            "channels": list(channels),
-        }
         self.voyage = _Voyage(
             grid, tuple(channels), float(first.sampling_rate_hz), options, per_file, parameters
         )
