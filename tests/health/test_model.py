@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from workbench.simulate.imitation import FREQUENCY_SCATTER
 
 from workbench.health import fit_operational_model, simulate_health_voyage
+from workbench.simulate.imitation import FREQUENCY_SCATTER
 
 
 @pytest.fixture(scope="module")
