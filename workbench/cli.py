@@ -577,15 +577,27 @@ def _analysis_rate(text: str):
     return rate
 
 
-def _run_identify(args: argparse.Namespace) -> int:
-    from .blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
-    from .identify import IdentifyOptions, IdentifyOptionsError
-    from .stages import identify
+def identify_options(args: argparse.Namespace):
+    """The :class:`~workbench.identify.IdentifyOptions` that parsed identification flags
+    describe (``identify`` and ``monitor``); options a command lacks take their defaults.
 
+    Raises
+    ------
+    UsageError
+        For contradicting or impossible flags (exit 2).
+    """
+    from .blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
+    from .identify import IdentifyOptions
+
+    def flag(name: str, default):
+        value = getattr(args, name, None)
+        return default if value is None else value
+
+    lscf_max_order = flag("lscf_max_order", D.IDENTIFY_LSCF_MAX_ORDER)
     if args.min_order < 1 or args.max_order < args.min_order:
         raise UsageError(f"model orders {args.min_order}..{args.max_order} make no sense")
-    if args.lscf_max_order < 1:
-        raise UsageError(f"--lscf-max-order must be at least 1, got {args.lscf_max_order}")
+    if lscf_max_order < 1:
+        raise UsageError(f"--lscf-max-order must be at least 1, got {lscf_max_order}")
     if args.no_band and args.band is not None:
         raise UsageError("--band and --no-band contradict each other")
     length_s = DEFAULT_BLOCK_LENGTH_S if args.block_minutes is None else 60.0 * args.block_minutes
@@ -598,13 +610,8 @@ def _run_identify(args: argparse.Namespace) -> int:
             f"{given}: step {step_s / 60:g} min is longer than the block "
             f"{length_s / 60:g} min; give --step-minutes at most --block-minutes"
         )
-    _check_positive(workers=args.workers, batch_blocks=args.batch_blocks)
-    if args.stabilisation_figures < 0:
-        raise UsageError(
-            f"--stabilisation-figures must be 0 or more, got {args.stabilisation_figures}"
-        )
     try:
-        options = IdentifyOptions(
+        return IdentifyOptions(
             method=args.method,
             block_rows=args.block_rows,
             orders=tuple(range(args.min_order, args.max_order + 1, D.IDENTIFY_ORDER_STEP)),
@@ -614,25 +621,37 @@ def _run_identify(args: argparse.Namespace) -> int:
             ),
             length_s=length_s,
             step_s=step_s,
-            target_rate_hz=_analysis_rate(args.rate),
+            target_rate_hz=_analysis_rate(str(args.rate)),
             band_hz=None if args.no_band else (tuple(args.band) if args.band else "auto"),
             max_gap_s=args.max_gap,
-            lscf_orders=tuple(range(1, args.lscf_max_order + 1)),
-            cross_check=args.cross_check,
+            lscf_orders=tuple(range(1, lscf_max_order + 1)),
+            cross_check=flag("cross_check", IdentifyOptions().cross_check),
             acceleration_layout=acceleration_layout(args),
             selection=args.selection,
-            short_record=args.short_record,
+            short_record=flag("short_record", D.IDENTIFY_SHORT_RECORD),
             channel_check=not args.no_channel_check,
             fault_options=(
-                ("kurtosis_limits", (1.3, args.kurtosis_max)),
-                ("max_variance_z", args.variance_z_max),
-                ("max_kurtosis_z", args.kurtosis_z_max),
-                ("max_nan_fraction", args.max_nan_fraction),
+                ("kurtosis_limits", (1.3, flag("kurtosis_max", D.IDENTIFY_KURTOSIS_MAX))),
+                ("max_variance_z", flag("variance_z_max", D.IDENTIFY_VARIANCE_Z_MAX)),
+                ("max_kurtosis_z", flag("kurtosis_z_max", D.IDENTIFY_KURTOSIS_Z_MAX)),
+                ("max_nan_fraction", flag("max_nan_fraction", D.IDENTIFY_MAX_NAN_FRACTION)),
             ),
             conditioning=args.conditioning,
         )
     except ValueError as error:
         raise UsageError(_option_names(str(error))) from None
+
+
+def _run_identify(args: argparse.Namespace) -> int:
+    from .identify import IdentifyOptionsError
+    from .stages import identify
+
+    options = identify_options(args)
+    _check_positive(workers=args.workers, batch_blocks=args.batch_blocks)
+    if args.stabilisation_figures < 0:
+        raise UsageError(
+            f"--stabilisation-figures must be 0 or more, got {args.stabilisation_figures}"
+        )
     try:
         result = identify(
             args.inputs,

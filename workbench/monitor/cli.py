@@ -205,46 +205,20 @@ def _from_config(args: argparse.Namespace) -> None:
 
 
 def _options(args: argparse.Namespace):
-    from .. import defaults as D
-    from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
-    from ..cli import FORECAST_OPTIONS, FORECAST_SCHEMES, UsageError, _analysis_rate, _parse_trust
-    from ..identify import IdentifyOptions
+    from ..cli import (
+        FORECAST_OPTIONS,
+        FORECAST_SCHEMES,
+        UsageError,
+        _parse_trust,
+        identify_options,
+    )
     from ..sid.tracking import TrackingOptions
     from .core import MonitorOptions
     from .outlook import ForecastSettings
 
-    if args.min_order < 1 or args.max_order < args.min_order:
-        raise UsageError(f"model orders {args.min_order}..{args.max_order} make no sense")
-    if args.no_band and args.band is not None:
-        raise UsageError("--band and --no-band contradict each other")
-    length_s = DEFAULT_BLOCK_LENGTH_S if args.block_minutes is None else 60.0 * args.block_minutes
-    step_s = DEFAULT_BLOCK_STEP_S if args.step_minutes is None else 60.0 * args.step_minutes
+    identify = identify_options(args)
     trust = "auto" if args.trust is None else _parse_trust(str(args.trust))
     try:
-        identify = IdentifyOptions(
-            method=args.method,
-            block_rows=args.block_rows,
-            orders=tuple(range(args.min_order, args.max_order + 1, D.IDENTIFY_ORDER_STEP)),
-            weighting=args.weighting,
-            reference_channels=(
-                tuple(args.reference_channels.split(",")) if args.reference_channels else None
-            ),
-            length_s=length_s,
-            step_s=step_s,
-            target_rate_hz=_analysis_rate(str(args.rate)),
-            band_hz=None if args.no_band else (tuple(args.band) if args.band else "auto"),
-            max_gap_s=args.max_gap,
-            selection=args.selection,
-            channel_check=not args.no_channel_check,
-            # the thresholds `workbench identify` uses by default (same store parameters)
-            fault_options=(
-                ("kurtosis_limits", (1.3, 10.0)),
-                ("max_variance_z", 6.0),
-                ("max_kurtosis_z", 3.0),
-                ("max_nan_fraction", 0.05),
-            ),
-            conditioning=args.conditioning,
-        )
         tracking = TrackingOptions(
             mac_min=args.mac_min, gate=args.gate, frequency_tol=args.frequency_tol
         )
