@@ -104,22 +104,12 @@ def _identify_method(method: str, data, reference, options: IdentifyOptions):
 
     n_channels = len(data.channels)
     orders = _reachable_orders(options, n_channels, len(reference or range(n_channels)))
+    ssi = {"block_rows": options.block_rows, "orders": orders, "reference_channels": reference}
     if method == "cov":
-        result = ssi_cov(
-            data.acceleration,
-            data.sampling_rate_hz,
-            block_rows=options.block_rows,
-            orders=orders,
-            reference_channels=reference,
-        )
+        result = ssi_cov(data.acceleration, data.sampling_rate_hz, **ssi)
     elif method == "data":
         result = ssi_data(
-            data.acceleration,
-            data.sampling_rate_hz,
-            block_rows=options.block_rows,
-            orders=orders,
-            reference_channels=reference,
-            weighting=options.weighting,
+            data.acceleration, data.sampling_rate_hz, **ssi, weighting=options.weighting
         )
     else:
         nyquist = 0.5 * data.sampling_rate_hz

@@ -48,8 +48,9 @@ def write_block_figures(
                 data.acceleration,
                 selection=selection,
                 band_hz=options.selection_band(data.sampling_rate_hz),
-                title=f"Block {task.block} ({pd.Timestamp(task.block_start):%Y-%m-%d %H:%M} "
-                f"UTC), {'LSCF' if options.method == 'lscf' else 'SSI-' + options.method}",
+                title=_block_title(
+                    task, "LSCF" if options.method == "lscf" else "SSI-" + options.method
+                ),
             )
         )
     return paths
@@ -100,8 +101,12 @@ def write_tpe_figures(
                 data.acceleration,
                 selection=selection,
                 band_hz=options.selection_band(data.sampling_rate_hz),
-                title=f"Block {task.block} ({pd.Timestamp(task.block_start):%Y-%m-%d %H:%M} "
-                f"UTC), SSI-data/{options.weighting}",
+                title=_block_title(task, f"SSI-data/{options.weighting}"),
             )
         )
     return paths
+
+
+def _block_title(task, method: str) -> str:
+    """Title of a block's figure: its number, start (UTC) and *method*."""
+    return f"Block {task.block} ({pd.Timestamp(task.block_start):%Y-%m-%d %H:%M} UTC), {method}"
