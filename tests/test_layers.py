@@ -35,6 +35,7 @@ LAYERS = {
     "workbench.health": 4,
     "workbench.reporting": 5,
     "workbench.identify": 6,
+    "workbench.identification": 6,  # the identify engine, one module per responsibility
     "workbench.stages": 6,
     "workbench.reporting.report": 7,
     "workbench.demo": 7,

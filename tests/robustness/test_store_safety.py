@@ -251,14 +251,14 @@ def test_blocks_stored_twice_by_an_unlocked_past_run_are_read_once(tmp_path):
 def test_disk_full_on_export_is_one_line_and_keeps_the_store(tmp_path, capsys, monkeypatch):
     import errno
 
-    import workbench.identify as identify
+    import workbench.identification.export as export
 
     write_voyage(tmp_path / "voyage", n_files=4)
 
     def full(frame, path):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
 
-    monkeypatch.setattr(identify, "_write_csv", full)
+    monkeypatch.setattr(export, "_write_csv", full)
     assert _identify([tmp_path / "voyage"], tmp_path / "out") == 1
     err = capsys.readouterr().err.strip()
     assert err.endswith(".csv: No space left on device") and len(err.splitlines()) == 1

@@ -1,0 +1,379 @@
+"""The per-block engine: one block's data conditioned and identified (per block, or cut
+from files conditioned once), and the rows it adds to the store."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy import stats as scipy_stats
+
+from data_contracts import shape_columns
+
+from ..blocks import BlockGrid
+from ..parallel import BlockOutcome
+from .options import IdentifyOptions
+
+
+@dataclass(frozen=True)
+class _Task:
+    """One block to identify (picklable: sent to the workers).
+
+    ``infos`` are the planned headers of ``files`` (:class:`~workbench.signals.FileInfo`),
+    so a worker does not read every file once more to plan the block (for a CSV file that
+    is a whole parse per block holding it).
+    """
+
+    block: int
+    block_start: pd.Timestamp
+    files: tuple
+    infos: tuple = ()
+
+
+def _block_tasks(plan, planned) -> list[_Task]:
+    """Tasks of the *planned* blocks of *plan*, with their files' headers."""
+    header = {info.path: info for info in plan.files}
+    return [
+        _Task(
+            int(p.block),
+            p.block_start,
+            tuple(str(f) for f in p.files),
+            tuple(header[Path(f)] for f in p.files if Path(f) in header),
+        )
+        for p in planned
+    ]
+
+
+def _identify_data(
+    task: _Task, grid: BlockGrid, options: IdentifyOptions, cross=False, conditioner=None
+):
+    """Conditioned block, SSI or LSCF result (None if skipped) and mode selection of one
+    block; with *cross*, also the result and selection of the other method (or None).
+
+    *conditioner* (a :class:`~workbench.signals.file_conditioning.FileConditioner`) gives
+    the block from files conditioned once; without it the block is built from its files.
+    """
+    from ..signals import PlannedBlock, load_block
+
+    if conditioner is not None:
+        planned = PlannedBlock(
+            task.block, task.block_start, grid.end(task.block), tuple(map(Path, task.files))
+        )
+        data = conditioner.block(planned)
+    else:
+        infos = getattr(task, "infos", ())  # planned headers: no file read to plan again
+        data = load_block(
+            infos if len(infos) == len(task.files) else task.files,
+            task.block,
+            grid,
+            target_rate_hz=options.target_rate_hz,
+            band_hz=_filter_band(options),
+            max_gap_s=options.max_gap_s,
+            read_options=options.read_options,
+            fault_options=_fault_options(options),
+        )
+    if data.acceleration is None:
+        return data, None, None
+    kept = list(data.channels)
+    if len(kept) < 2:
+        raise ValueError(f"block {task.block}: only {len(kept)} good channel(s) left")
+    reference = None
+    if options.reference_channels:
+        reference = [kept.index(c) for c in options.reference_channels if c in kept]
+        if not reference:
+            raise ValueError(f"block {task.block}: no reference channel left")
+    result, selection = _identify_method(options.method, data, reference, options)
+    if not cross:
+        return data, result, selection
+    other = "cov" if options.method == "lscf" else "lscf"
+    try:
+        checked = _identify_method(other, data, reference, options)
+    except (ValueError, np.linalg.LinAlgError):
+        checked = None  # the block's own result stands; it just has no cross-check
+    return data, result, selection, checked
+
+
+def _identify_method(method: str, data, reference, options: IdentifyOptions):
+    """Result of *method* on a conditioned block, stabilised, and its mode selection."""
+    from ..sid import select_modes, ssi_cov, ssi_data, stabilise
+    from ..sid.plscf import lscf
+
+    n_channels = len(data.channels)
+    orders = _reachable_orders(options, n_channels, len(reference or range(n_channels)))
+    ssi = {"block_rows": options.block_rows, "orders": orders, "reference_channels": reference}
+    if method == "cov":
+        result = ssi_cov(data.acceleration, data.sampling_rate_hz, **ssi)
+    elif method == "data":
+        result = ssi_data(
+            data.acceleration, data.sampling_rate_hz, **ssi, weighting=options.weighting
+        )
+    else:
+        nyquist = 0.5 * data.sampling_rate_hz
+        low, high = options.selection_band(data.sampling_rate_hz)
+        band = (min(low, nyquist), min(high, nyquist))
+        result = lscf(
+            data.acceleration,
+            data.sampling_rate_hz,
+            orders=options.lscf_orders,
+            band_hz=band,
+            n_lags=options.lscf_lags,
+            reference_channels=reference,
+        )
+    result = stabilise(
+        result,
+        frequency_tol=options.frequency_tol,
+        damping_tol=options.damping_tol,
+        mac_min=options.mac_min,
+    )
+    selection = select_modes(
+        result,
+        selection=options.selection,
+        band_hz=options.selection_band(data.sampling_rate_hz),
+        damping_limits=options.damping_limits,
+    )
+    return result, selection
+
+
+def _filter_band(options: IdentifyOptions):
+    """Band-pass edges for the conditioning: a lower edge of 0 means no high-pass."""
+    if not isinstance(options.band_hz, tuple):
+        return None
+    low, high = options.band_hz
+    return (low if low > 0 else None, high)
+
+
+def _fault_options(options: IdentifyOptions) -> dict:
+    """Keyword arguments of the channel check (every check off when disabled)."""
+    if not options.channel_check:
+        return {
+            "max_nan_fraction": 1.0,
+            "max_nan_run_s": math.inf,
+            "kurtosis_limits": (0.0, math.inf),
+            "flat_variance": -1.0,
+            "max_variance_z": math.inf,
+        }
+    return dict(options.fault_options)
+
+
+def _reachable_orders(options: IdentifyOptions, n_channels: int, n_reference: int):
+    """The model orders a block with these channels can give: max order <= min(r·i,
+    l·(i-1)) (r reference channels, l channels, i block rows). Channels dropped by the
+    check must not make every block fail for orders chosen for the full set."""
+    top = min(n_reference * options.block_rows, n_channels * (options.block_rows - 1))
+    orders = tuple(o for o in options.orders if o <= top)
+    return orders if len(orders) >= 2 else options.orders
+
+
+def identify_block(
+    task: _Task,
+    *,
+    grid: BlockGrid,
+    channels: Sequence[str],
+    options: IdentifyOptions,
+    conditioner=None,
+) -> BlockOutcome:
+    """Identify one block: load and condition, SSI over all orders, stabilise, select.
+
+    Returns
+    -------
+    BlockOutcome
+        Tables ``poles``, ``selected``, ``faults``, ``channels``; or skipped with the
+        reason (gap, too few good channels, ...). Raises ValueError for data problems,
+        which :func:`~workbench.parallel.run_blocks` records as a skipped block.
+    """
+    from threadpoolctl import threadpool_limits
+
+    # One BLAS thread per block, in workers and in-process alike: the parallelism is over
+    # blocks, and the same arithmetic everywhere makes results bit-identical whatever the
+    # scheduler (a resumed job may mix blocks computed either way).
+    with threadpool_limits(limits=1):
+        data, result, selection, *other = _identify_data(
+            task, grid, options, cross=options.cross_check, conditioner=conditioner
+        )
+    start = pd.Timestamp(task.block_start)
+    end = grid.end(task.block)
+    faults = pd.DataFrame(
+        {
+            "block": np.full(len(data.dropped), task.block, dtype="int64"),
+            "block_start": pd.to_datetime([start] * len(data.dropped), utc=True),
+            "channel": [c for c, _ in data.dropped],
+            "reason": [r for _, r in data.dropped],
+        }
+    )
+    notes = tuple(f"channel {c} dropped ({_reason_kind(r)})" for c, r in data.dropped)
+    if result is None:
+        return BlockOutcome(
+            task.block, start, {"faults": faults}, skipped=data.skipped_reason, notes=notes
+        )
+    kept = list(data.channels)
+    poles = _full_channels(result.poles_frame(kept, block=task.block), kept, channels)
+    selected_frame = _selected_frame(
+        selection.modes_frame(kept), kept, channels, task.block, start, end
+    )
+    channel_stats = _channel_statistics(data.acceleration, kept, task.block, start)
+    tables = {
+        "poles": poles,
+        "selected": selected_frame,
+        "faults": faults,
+        "channels": channel_stats,
+    }
+    if other and other[0] is not None:
+        tables["crosscheck"] = _cross_check_frame(
+            selection, other[0][1], options.method, task.block, start
+        )
+    return BlockOutcome(task.block, start, tables, notes=notes)
+
+
+def _cross_check_frame(selection, other_selection, method, block, start) -> pd.DataFrame:
+    """The SSI and LSCF modes of one block paired (:func:`~workbench.sid.crosscheck.
+    cross_check`), with ``block_start``."""
+    from ..sid.crosscheck import cross_check
+
+    ssi, lscf = (other_selection, selection) if method == "lscf" else (selection, other_selection)
+    frame = cross_check(
+        ssi.modes["frequency_hz"],
+        ssi.modes["damping_ratio"],
+        ssi.mode_shapes,
+        lscf.modes["frequency_hz"],
+        lscf.modes["damping_ratio"],
+        lscf.mode_shapes,
+        block=block,
+    )
+    frame.insert(1, "block_start", pd.to_datetime([start] * len(frame), utc=True))
+    return frame
+
+
+@dataclass(frozen=True)
+class _FileTask:
+    """One block cut from files conditioned once (picklable: sent to the workers).
+
+    ``window`` are the headers of the block's files plus one contiguous file on either
+    side (their edges pad the filters); ``shared_inputs`` condition each of the block's
+    files once for all the blocks holding it
+    (:class:`~workbench.parallel.SharedInput` of
+    :func:`~workbench.signals.file_conditioning.condition_file`).
+    """
+
+    block: int
+    block_start: pd.Timestamp
+    files: tuple
+    window: tuple = ()
+    shared_inputs: tuple = ()
+
+
+def _conditioner_settings(options: IdentifyOptions) -> dict:
+    return {
+        "target_rate_hz": float(options.target_rate_hz),
+        "band_hz": _filter_band(options),
+        "max_gap_s": options.max_gap_s,
+        "fault_options": _fault_options(options),
+        "read_options": options.read_options,
+    }
+
+
+def identify_from_files(
+    task: _FileTask,
+    conditioned: Mapping | None = None,
+    *,
+    grid: BlockGrid,
+    channels: Sequence[str],
+    options: IdentifyOptions,
+) -> BlockOutcome:
+    """Identify one block from its files conditioned once.
+
+    *conditioned* maps file paths to the files conditioned by
+    :func:`~workbench.signals.file_conditioning.condition_file` (shared by the blocks
+    holding them; :func:`~workbench.parallel.run_blocks` passes them); files missing there
+    are conditioned here. Returns what :func:`identify_block` returns.
+    """
+    from ..signals.file_conditioning import FileConditioner
+
+    if not task.window:  # a planned block without files: the per-block path says why
+        return identify_block(task, grid=grid, channels=channels, options=options)
+    conditioner = FileConditioner(task.window, grid, channels, **_conditioner_settings(options))
+    conditioner.reuse(conditioned or {})
+    return identify_block(
+        task, grid=grid, channels=channels, options=options, conditioner=conditioner
+    )
+
+
+def _file_tasks(tasks: Sequence[_Task], plan, options: IdentifyOptions) -> list[_FileTask]:
+    """*tasks* as blocks cut from files conditioned once, each file's conditioning shared
+    by the blocks holding it."""
+    from ..parallel import SharedInput
+    from ..signals.file_conditioning import FileConditioning, condition_file
+
+    position = {info.path: i for i, info in enumerate(plan.files)}
+    settings = _conditioner_settings(options)
+    channels = tuple(plan.channels)
+    jobs: dict[int, SharedInput] = {}
+    out = []
+    for task in tasks:
+        used = sorted(position[Path(f)] for f in task.files)
+        if not used:
+            out.append(_FileTask(task.block, task.block_start, task.files))
+            continue
+        for i in used:
+            if i not in jobs:
+                lo = max(i - 1, 0)
+                job = FileConditioning(
+                    tuple(plan.files[lo : i + 2]), i - lo, plan.grid, channels, settings
+                )
+                jobs[i] = SharedInput(str(plan.files[i].path), condition_file, job)
+        lo, hi = max(used[0] - 1, 0), min(used[-1] + 2, len(plan.files))
+        out.append(
+            _FileTask(
+                task.block,
+                task.block_start,
+                task.files,
+                tuple(plan.files[lo:hi]),
+                tuple(jobs[i] for i in used),
+            )
+        )
+    return out
+
+
+def _reason_kind(reason: str) -> str:
+    """The kind of a fault reason without its numbers (for summary counts), e.g.
+    ``"nan fraction 1.00 > 0.05"`` -> ``"nan fraction"``."""
+    words = []
+    for word in reason.split():
+        if any(ch.isdigit() for ch in word) or word in (">", "<", "=", "%"):
+            break
+        words.append(word)
+    return " ".join(words) or "faulty"
+
+
+def _full_channels(frame: pd.DataFrame, kept: Sequence[str], channels: Sequence[str]):
+    """*frame* with shape columns for every voyage channel (NaN for dropped ones)."""
+    frame = frame.copy()
+    for column in shape_columns([c for c in channels if c not in kept]):
+        frame[column] = np.nan
+    front = [c for c in frame.columns if not str(c).startswith("shape_")]
+    return frame[[*front, *shape_columns(channels)]]
+
+
+def _selected_frame(selected, kept, channels, block, start, end) -> pd.DataFrame:
+    frame = selected.reset_index(drop=True).copy()
+    frame.insert(0, "block", np.int64(block))
+    frame.insert(1, "block_start", start)
+    frame.insert(2, "block_end", end)
+    frame["block_start"] = pd.to_datetime(frame["block_start"], utc=True)
+    frame["block_end"] = pd.to_datetime(frame["block_end"], utc=True)
+    return _full_channels(frame, kept, channels)
+
+
+def _channel_statistics(acceleration: np.ndarray, kept, block, start) -> pd.DataFrame:
+    return pd.DataFrame(
+        {
+            "block": np.int64(block),
+            "block_start": pd.to_datetime([start] * len(kept), utc=True),
+            "channel": list(kept),
+            "rms": np.sqrt(np.nanmean(acceleration**2, axis=0)),
+            "kurtosis": scipy_stats.kurtosis(acceleration, axis=0, fisher=False, nan_policy="omit"),
+        }
+    )

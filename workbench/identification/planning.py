@@ -1,0 +1,211 @@
+"""File discovery and planning: acceleration files of a voyage, their blocks, the
+fingerprints of the inputs and the resolved options and store parameters of a run."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import logging
+import math
+import os
+from collections.abc import Iterable, Sequence
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..blocks import BlockGrid
+from ..errors import OptionError, WorkbenchError
+from .engine import _block_tasks
+from .options import ACCELERATION_SUFFIXES, IdentifyOptions, analysis_rate
+
+log = logging.getLogger("workbench")
+
+
+def resolved_run(
+    options: IdentifyOptions, sampling_rate_hz: float, grid, channels: Sequence[str]
+) -> tuple[IdentifyOptions, bool, dict]:
+    """The options of a run on files at *sampling_rate_hz*, whether its files are
+    conditioned once each (per-file decimation by an integer factor), and the parameters
+    its store is opened with (``identify`` and ``monitor`` share them, so their stores
+    agree).
+    """
+    rate = analysis_rate(options, sampling_rate_hz)
+    ratio = sampling_rate_hz / rate
+    per_file = (
+        options.conditioning == "per-file"
+        and round(ratio) >= 2
+        and abs(ratio - round(ratio)) <= 1e-9 * ratio
+    )
+    options = replace(options, target_rate_hz=None if rate == sampling_rate_hz else rate)
+    parameters = {
+        **options.parameters(),
+        "grid_t0": grid.t0.isoformat(),
+        "channels": list(channels),
+    }
+    return options, per_file, parameters
+
+
+def acceleration_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
+    """Files named by *inputs*: files as given, folders searched (with their subfolders)
+    for acceleration files of every supported format (:data:`ACCELERATION_SUFFIXES`)."""
+    from data_contracts.formats.text import TEXT_SUFFIXES, looks_like_acceleration_table
+
+    found: list[Path] = []
+    for item in inputs:
+        path = Path(item)
+        if path.is_dir():
+            # hidden files (e.g. ``.name.tmp.npz`` of an interrupted write) are not data
+            candidates = sorted(
+                p
+                for p in path.rglob("*")
+                if p.suffix.lower() in ACCELERATION_SUFFIXES
+                and not any(part.startswith(".") for part in p.relative_to(path).parts)
+                and p.is_file()
+            )
+            other = [
+                p
+                for p in candidates
+                if p.suffix.lower() in TEXT_SUFFIXES and not looks_like_acceleration_table(p)
+            ]
+            if other:
+                log.info(
+                    "%s: %d text file(s) without an acceleration header left out (%s)",
+                    path,
+                    len(other),
+                    ", ".join(p.name for p in other[:5]) + (", ..." if len(other) > 5 else ""),
+                )
+            found += [p for p in candidates if p not in set(other)]
+        elif path.is_file():
+            found.append(path)
+        else:
+            raise WorkbenchError(f"{path}: no such file or folder")
+    if not found:
+        raise WorkbenchError("no acceleration files found in " + ", ".join(map(str, inputs)))
+    return found
+
+
+def _records(plan) -> list[tuple[pd.Timestamp, pd.Timestamp, list[str]]]:
+    """Continuous records of a plan's files: (start, end, file names), split at gaps longer
+    than half a sample plus the allowed ``max_gap_s``."""
+    rate = plan.sampling_rate_hz
+    records: list[tuple[pd.Timestamp, pd.Timestamp, list[str]]] = []
+    for info in plan.files:
+        if records:
+            gap = (info.start_time - records[-1][1]).total_seconds()
+            if gap <= plan.max_gap_s + 0.5 / rate:
+                records[-1] = (records[-1][0], info.end_time, [*records[-1][2], info.name])
+                continue
+        records.append((info.start_time, info.end_time, [info.name]))
+    return records
+
+
+def plan_identification(files: Sequence[Path], options: IdentifyOptions):
+    """The block plan of *files* and the options resolved for their sampling rate.
+
+    The grid starts at the first sample (blocks lie inside the record from its start).
+    Data without a single complete block is an error naming the record, unless
+    ``options.short_record == "one-block"``: then a single continuous record shorter than
+    a block is identified as one block of its own length.
+
+    Raises
+    ------
+    WorkbenchError
+        Inconsistent files; no complete block (exit 1).
+    IdentifyOptionsError
+        Options that do not fit the files (band, rate; exit 2).
+    """
+    from ..signals import plan_blocks
+    from ..signals.stream import _plan
+
+    try:
+        plan = plan_blocks(
+            files,
+            length_s=options.length_s,
+            step_s=options.step_s,
+            max_gap_s=options.max_gap_s,
+            read_options=options.read_options,
+        )
+        first = plan.files[0].start_time
+        if plan.grid.t0 != first:  # anchor the grid at the first sample, not a round time
+            grid = BlockGrid(first, options.length_s, options.step_s)
+            plan = _plan(plan.files, grid, None, None, options.max_gap_s)
+    except OptionError:
+        raise
+    except ValueError as error:
+        raise WorkbenchError(str(error).splitlines()[0]) from None
+    options = options.resolved(plan.sampling_rate_hz)
+    records = _records(plan)
+    short = [r for r in records if (r[1] - r[0]).total_seconds() < options.length_s - 1e-6]
+    if not plan.blocks:
+        if options.short_record == "one-block" and len(records) == 1:
+            start, end, _ = records[0]
+            n_samples = sum(info.n_samples for info in plan.files)
+            length = n_samples / plan.sampling_rate_hz
+            length = math.floor(length * 1e6) / 1e6  # whole microseconds
+            options = dataclasses.replace(options, length_s=length, step_s=length)
+            try:
+                plan = _plan(plan.files, BlockGrid(start, length, length), None, None, 0.0)
+            except ValueError as error:
+                raise WorkbenchError(str(error)) from None
+            return plan, options
+        start, end, names = max(records, key=lambda r: r[1] - r[0])
+        what = names[0] if len(names) == 1 else f"{names[0]} .. {names[-1]}"
+        raise WorkbenchError(
+            f"{what}: record of {(end - start).total_seconds() / 60:.2f} min is shorter than "
+            f"one block ({options.length_s / 60:g} min): no block to identify; give a shorter "
+            "--block-minutes (and --step-minutes), or --short-record one-block"
+        )
+    for start, end, names in short:
+        log.warning(
+            "%s: record of %.2f min is shorter than one block (%g min) and is not identified",
+            names[0],
+            (end - start).total_seconds() / 60,
+            options.length_s / 60,
+        )
+    return plan, options
+
+
+def input_fingerprints(files) -> list[dict]:
+    """Fingerprint of each planned file: path, span, size, mtime and SHA-256 of the content.
+
+    *files* are :class:`~workbench.signals.stream.FileInfo` of a plan. The content hash
+    covers every byte (header and samples), so data changed in place with its size and
+    modification time kept is still told apart.
+    """
+    out = []
+    for info in files:
+        path = Path(info.path)
+        try:
+            stat = path.stat()
+            with open(path, "rb") as handle:
+                digest = hashlib.file_digest(handle, "sha256").hexdigest()
+        except OSError as error:
+            raise WorkbenchError(f"{path}: cannot read ({error.strerror or error})") from None
+        out.append(
+            {
+                "path": str(path.resolve()),
+                "start": info.start_time.isoformat(),
+                "end": info.end_time.isoformat(),
+                "size": int(stat.st_size),
+                "mtime_ns": int(stat.st_mtime_ns),
+                "sha256": digest,
+            }
+        )
+    return out
+
+
+def _pick_tasks(inputs, options: IdentifyOptions, n_blocks: int, blocks):
+    """Plan, resolved options and the tasks of *blocks*, or of *n_blocks* identifiable
+    blocks spread evenly."""
+    plan, options = plan_identification(acceleration_files(inputs), options)
+    planned = [p for p in plan.blocks if not p.skipped_reason]
+    if blocks is None:
+        picks = np.unique(np.linspace(0, len(planned) - 1, max(n_blocks, 1)).round().astype(int))
+        chosen = [planned[k] for k in picks] if planned else []
+    else:
+        wanted = {int(b) for b in blocks}
+        chosen = [p for p in planned if int(p.block) in wanted]
+    tasks = _block_tasks(plan, chosen)
+    return plan, tasks, options

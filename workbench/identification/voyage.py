@@ -1,0 +1,147 @@
+"""The voyage runner: every block of a voyage identified, in parallel and resumable, into
+a :class:`~workbench.store.BlockStore`, then exported."""
+
+from __future__ import annotations
+
+import functools
+import os
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from ..errors import OptionError, WorkbenchError
+from ..parallel import RunSummary, run_blocks
+from ..store import BlockStore
+from .engine import _block_tasks, _file_tasks, identify_block, identify_from_files
+from .export import export_store
+from .options import IdentifyOptions
+from .planning import acceleration_files, input_fingerprints, plan_identification, resolved_run
+
+
+@dataclass
+class IdentifyResult:
+    """What :func:`identify_voyage` did and wrote."""
+
+    summary: RunSummary
+    files: dict[str, Path] = field(default_factory=dict)
+    n_blocks: int = 0
+    n_selected: int = 0
+
+    def lines(self) -> list[str]:
+        out = [str(self.summary)]
+        crosscheck = self.files.get("crosscheck")
+        if crosscheck is not None:
+            from ..sid.crosscheck import agreement_lines
+
+            out += agreement_lines(pd.read_csv(crosscheck))
+        out += [f"{kind}: {path}" for kind, path in self.files.items()]
+        return out
+
+
+def _check_run_options(scheduler, n_workers, batch_blocks) -> None:
+    if int(batch_blocks) != batch_blocks or batch_blocks < 1:
+        raise OptionError(f"batch_blocks={batch_blocks} must be a whole number of at least 1")
+    if n_workers is not None and (int(n_workers) != n_workers or n_workers < 1):
+        raise OptionError(f"n_workers={n_workers} must be a whole number of at least 1")
+    if scheduler is None or scheduler == "synchronous":
+        return
+    from urllib.parse import urlsplit
+
+    text = str(scheduler)
+    parsed = urlsplit(text if "://" in text else f"tcp://{text}")
+    try:
+        port = parsed.port
+    except ValueError:
+        port = None
+    if parsed.scheme not in ("tcp", "tls", "inproc", "ucx", "ws", "wss") or not (
+        parsed.hostname and port
+    ):
+        raise OptionError(
+            f"scheduler={text!r} must be 'synchronous' or a dask.distributed scheduler "
+            "address such as tcp://host:8786"
+        )
+
+
+def identify_voyage(
+    inputs: Iterable[str | os.PathLike],
+    out_dir: str | os.PathLike,
+    *,
+    options: IdentifyOptions | None = None,
+    store_dir: str | os.PathLike | None = None,
+    scheduler: str | None = None,
+    n_workers: int | None = None,
+    progress: bool = False,
+    blocks: Sequence[int] | None = None,
+    batch_blocks: int = 16,
+) -> IdentifyResult:
+    """Identify every block of a voyage's acceleration files; resumable and parallel.
+
+    Parameters
+    ----------
+    inputs : iterable of path-like
+        Acceleration files and/or folders holding them.
+    out_dir : path-like
+        Where the exported tables go.
+    options : IdentifyOptions, optional
+    store_dir : path-like, optional
+        The per-block store (default ``out_dir / "store"``). Running again with the same
+        store resumes; other options than the store's raise :class:`WorkbenchError`.
+    scheduler : str, optional
+        ``None``: local Dask cluster with *n_workers* processes (default all cores);
+        ``"synchronous"``: this process; else a ``dask.distributed`` scheduler address.
+    progress : bool
+        Progress bar on stderr.
+    blocks : sequence of int, optional
+        Only these blocks.
+    batch_blocks : int
+        Blocks written to the store together (also every 30 s); an interruption loses at
+        most the blocks of the batch under way.
+    """
+    options = options or IdentifyOptions()
+    _check_run_options(scheduler, n_workers, batch_blocks)
+    out = Path(out_dir)
+    store_path = Path(store_dir) if store_dir is not None else out / "store"
+    for what, path in (("output folder", out), ("store", store_path)):
+        if path.exists() and not path.is_dir():
+            raise WorkbenchError(f"{path}: {what} is a file, not a folder")
+    files = acceleration_files(inputs)
+    plan, options = plan_identification(files, options)
+    options.check_data(plan)
+    grid = plan.grid
+    channels = tuple(plan.channels)
+    # the analysis rate; decimating blocks are cut from files conditioned once
+    options, per_file, parameters = resolved_run(options, plan.sampling_rate_hz, grid, channels)
+    with BlockStore.open(store_path, parameters) as store:
+        store.check_inputs(input_fingerprints(plan.files))
+        wanted = None if blocks is None else {int(b) for b in blocks}
+        tasks = _block_tasks(
+            plan, [p for p in plan.blocks if wanted is None or int(p.block) in wanted]
+        )
+        if per_file:
+            # each file conditioned once, on any worker, for the blocks holding it
+            units = _file_tasks(tasks, plan, options)
+            func = functools.partial(
+                identify_from_files, grid=grid, channels=channels, options=options
+            )
+        else:
+            units = tasks
+            func = functools.partial(identify_block, grid=grid, channels=channels, options=options)
+        summary = run_blocks(
+            units,
+            func,
+            store=store,
+            scheduler=scheduler,
+            n_workers=n_workers,
+            total=len(tasks),
+            batch_blocks=batch_blocks,
+            progress=progress,
+            description="identify",
+        )
+        result = IdentifyResult(summary, n_blocks=len(tasks))
+        result.files = export_store(store, out, channels, grid=grid)
+    selected = result.files.get("selected")
+    if selected is not None:
+        result.n_selected = len(pd.read_parquet(selected, columns=["block"]))
+    return result
