@@ -20,8 +20,19 @@ identification alone), the cost of recomputing the forecast and health chart aga
 number of blocks, and the machine's load (the machine is shared: latencies include
 waiting for a core).
 
+With ``--dashboard`` the whole bridge chain is measured end to end: a dashboard server
+(:mod:`workbench.dashboard`) runs in this process on the monitor's state folder and a
+headless chromium (Debian's, :mod:`workbench.dashboard.browser`) keeps its page open; a
+second reader polls the page (every 50 ms) for what each panel has drawn and the page's
+own render timestamp (``window.dashboard.rendered``, ``Date.now()``: the same wall clock).
+A block is shown by a panel from the first render of that block or a later one. Latency =
+that render time minus the landing time of the block's last file, per panel: mode cards
+and tracked-frequency plot (from ``tracked.parquet``), health chart (from the background
+forecast process), data health. Written to ``monitor_dashboard.txt`` and
+``monitor_dashboard.latency.csv`` instead.
+
 Run: ``python benchmarks/bench_monitor.py`` (``--data DIR`` keeps the voyage and batch
-results between runs; ``--hours 2`` for a quick look).
+results between runs; ``--hours 2`` for a quick look; ``--dashboard`` end to end).
 """
 
 from __future__ import annotations
@@ -122,8 +133,68 @@ class _Reader(threading.Thread):
             self.stop.wait(0.05)
 
 
+#: Panels whose drawn block is followed with ``--dashboard`` (section ids of the page).
+PANELS = ("modes", "tracked", "health", "data_health")
+
+
+class _PageReader(threading.Thread):
+    """A dashboard server on the state folder and a headless chromium page open on it;
+    notes when the page first drew each block (or a later one) in each panel."""
+
+    def __init__(self, state: Path, poll: float):
+        super().__init__(daemon=True)
+        self.state, self.poll = state, poll
+        self.first_shown: dict[str, dict[int, float]] = {name: {} for name in PANELS}
+        self.renders = 0
+        self.error: BaseException | None = None
+        self.ready = threading.Event()
+        self.stop = threading.Event()
+
+    def run(self) -> None:
+        from workbench.dashboard import DashboardOptions, make_server
+        from workbench.dashboard.browser import HeadlessChromium
+
+        server = make_server(self.state, port=0, options=DashboardOptions(poll_seconds=self.poll))
+        serving = threading.Thread(
+            target=server.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True
+        )
+        serving.start()
+        seen: dict[str, float] = {}
+        try:
+            with HeadlessChromium() as browser:
+                page = browser.open(server.url)
+                page.wait_for("window.dashboard && window.dashboard.polls > 0", timeout=60)
+                self.ready.set()
+                while not self.stop.is_set():
+                    rendered = page.evaluate("JSON.stringify(window.dashboard.rendered)")
+                    for name, drawn in json.loads(rendered or "{}").items():
+                        if name not in self.first_shown or drawn["at"] == seen.get(name):
+                            continue
+                        seen[name] = drawn["at"]
+                        self.renders += 1
+                        if drawn["value"] is None:
+                            continue
+                        shown = self.first_shown[name]
+                        for block in range(int(drawn["value"]) + 1):
+                            shown.setdefault(block, drawn["at"] / 1000.0)
+                    self.stop.wait(0.05)
+        except BaseException as error:  # reported by the caller
+            self.error = error
+            self.ready.set()
+        finally:
+            server.shutdown()
+            server.server_close()
+
+
 def _replay(
-    voyage: Path, batch: Path, work: Path, speed: float, option: str, poll: float, settle: float
+    voyage: Path,
+    batch: Path,
+    work: Path,
+    speed: float,
+    option: str,
+    poll: float,
+    settle: float,
+    dashboard: float | None = None,
 ):
     from workbench.signals.stream import read_file_info
 
@@ -144,6 +215,14 @@ def _replay(
     process = subprocess.Popen(command, stderr=stderr, stdout=subprocess.DEVNULL)
     reader = _Reader(state / "tracked.parquet")
     reader.start()
+    page = None
+    if dashboard is not None:
+        state.mkdir(parents=True, exist_ok=True)
+        page = _PageReader(state, dashboard)
+        page.start()
+        page.ready.wait(90)
+        if page.error is not None:
+            raise SystemExit(f"dashboard page could not be followed: {page.error}")
     time.sleep(3.0)  # the monitor's start-up (imports) is not part of a block's latency
     origin = time.time()
     t0 = starts[0]
@@ -169,16 +248,22 @@ def _replay(
             break
         time.sleep(0.2)
     drain_s = time.time() - origin - replay_s
-    time.sleep(2.0)
+    time.sleep(2.0 if page is None else 10.0)  # the page: one more poll, background forecast
     process.send_signal(signal.SIGTERM)
     code = process.wait(timeout=600)
     stderr.close()
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     reader.stop.set()
     reader.join()
+    if page is not None:
+        page.stop.set()
+        page.join(timeout=60)
+        if page.error is not None:
+            raise SystemExit(f"dashboard page failed during the replay: {page.error}")
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     status = json.loads((state / "status.json").read_text())
-    return state, reader.first_seen, cpu, code, status, expected, replay_s, drain_s
+    shown = None if page is None else page.first_shown
+    return state, reader.first_seen, shown, cpu, code, status, expected, replay_s, drain_s
 
 
 def _equal(state: Path, batch: Path) -> dict[str, str]:
@@ -195,6 +280,49 @@ def _equal(state: Path, batch: Path) -> dict[str, str]:
     return out
 
 
+def _page_latency(
+    shown: dict[str, dict[int, float]], landed: pd.Series, blocks: pd.Index, poll: float
+) -> tuple[pd.DataFrame, list[str]]:
+    """Latency last file landed -> drawn on the page, per panel, and the report's lines."""
+    columns = {}
+    for name, first in shown.items():
+        columns[f"page_{name}_s"] = pd.Series(
+            {b: first[b] - landed[b].timestamp() for b in landed.index if b in first},
+            dtype=float,
+        )
+    table = pd.DataFrame(columns).reindex(landed.index)
+    # a block is on the bridge when both the mode cards and the tracked plot show it
+    table.insert(0, "page_shown_s", table[["page_modes_s", "page_tracked_s"]].max(axis=1))
+
+    def stats(values: pd.Series) -> str:
+        values = values.dropna()
+        if values.empty:
+            return "never drawn (the panel was still waiting for data)"
+        return (
+            f"median {values.median():.2f} s, 90th percentile {values.quantile(0.9):.2f} s, "
+            f"worst {values.max():.2f} s (block {int(values.idxmax())}; {len(values)} blocks)"
+        )
+
+    # the health chart starts when the reference period is learned: the blocks drawn in its
+    # first render before the newest one waited for that, not for the display
+    health = shown["health"]
+    health_from = max((b for b, t in health.items() if t == min(health.values())), default=0)
+    tracked = table["page_shown_s"].reindex(blocks)
+    lines = [
+        f"END TO END, last file landed -> dashboard page shows the block (mode cards and "
+        f"tracked-frequency plot, headless chromium, page polling {poll:g} s): " + stats(tracked),
+        f"  from block 3 on: {stats(tracked.loc[3:])}; blocks never shown: "
+        f"{int(tracked.isna().sum())}",
+        f"  per panel: mode cards {stats(table['page_modes_s'])}",
+        f"             tracked plot {stats(table['page_tracked_s'])}",
+        f"             health chart (background forecast + health), from block "
+        f"{health_from} (the chart's first, once the reference period is learned; the blocks "
+        f"before it appear all at once then): {stats(table['page_health_s'].loc[health_from:])}",
+        f"             data health {stats(table['page_data_health_s'])}",
+    ]
+    return table, lines
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--hours", type=float, default=12.0)
@@ -204,14 +332,38 @@ def main() -> None:
     parser.add_argument("--settle", type=float, default=0.5)
     parser.add_argument("--data", type=Path, help="folder to keep voyage and batch results in")
     parser.add_argument(
-        "--out", type=Path, default=Path(__file__).parent / "results" / "monitor_replay.txt"
+        "--dashboard",
+        nargs="?",
+        type=float,
+        const=1.0,
+        metavar="POLL_S",
+        help="end to end: a dashboard on the state folder, followed in headless chromium "
+        "(page polling every POLL_S seconds, default 1: the dashboard's default)",
     )
+    parser.add_argument("--out", type=Path, help="report file (default in benchmarks/results)")
     args = parser.parse_args()
+    results = Path(__file__).parent / "results"
+    if args.out is None:
+        name = "monitor_replay.txt" if args.dashboard is None else "monitor_dashboard.txt"
+        args.out = results / name
+    if args.dashboard is not None:
+        from workbench.dashboard.browser import find_chromium
+
+        if find_chromium() is None:
+            print("chromium not found (apt-get install chromium)", file=sys.stderr)
+            raise SystemExit(1)
     root = args.data or Path(tempfile.mkdtemp(prefix="bench_monitor_"))
     root.mkdir(parents=True, exist_ok=True)
     voyage, batch, batch_s = _prepare(root, args.hours, args.option)
-    state, first_seen, cpu, code, status, expected, replay_s, drain_s = _replay(
-        voyage, batch, root / "replay", args.speed, args.option, args.poll, args.settle
+    state, first_seen, shown, cpu, code, status, expected, replay_s, drain_s = _replay(
+        voyage,
+        batch,
+        root / "replay",
+        args.speed,
+        args.option,
+        args.poll,
+        args.settle,
+        args.dashboard,
     )
     health = pd.read_parquet(state / "data_health.parquet")
     landed = health.set_index("block")["last_file_landed"]
@@ -263,11 +415,18 @@ def main() -> None:
             f"{c[-1] / max(n[-1], 1) * 1000:.1f} ms"
         )
     lines.append(f"batch reference computed in {batch_s:.1f} s (0 when reused)")
+    if shown is not None:
+        on_page, page_lines = _page_latency(shown, landed, latency.index, args.dashboard)
+        lines[0] += f", dashboard page polling every {args.dashboard:g} s"
+        lines[5:5] = page_lines
+        latency = pd.concat([latency.rename("tracked_parquet_s"), on_page], axis=1)
     report = "\n".join(lines)
     print(report)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(report + "\n", encoding="utf-8")
-    latency.rename("latency_s").to_csv(args.out.with_suffix(".latency.csv"), header=True)
+    if isinstance(latency, pd.Series):
+        latency = latency.rename("latency_s")
+    latency.rename_axis("block").to_csv(args.out.with_suffix(".latency.csv"), header=True)
 
 
 if __name__ == "__main__":
