@@ -13,16 +13,15 @@ from __future__ import annotations
 import json
 import os
 import re
-import shutil
 import subprocess
 from pathlib import Path
 
 import pytest
 
+from workbench.dashboard.browser import HEADLESS_FLAGS, find_chromium
 from workbench.reporting.report import build_report
 
 WIDTH = 1400
-_BROWSERS = ("chromium", "chromium-browser", "google-chrome")
 
 _CHECKS = """
 <script>
@@ -49,17 +48,9 @@ window.addEventListener("load", () => {
 """
 
 
-def _chromium() -> str | None:
-    for name in _BROWSERS:
-        path = shutil.which(name)
-        if path:
-            return path
-    return None
-
-
 @pytest.fixture(scope="module")
 def browser():
-    path = _chromium()
+    path = find_chromium()
     if path is None:
         if os.environ.get("CI", "").lower() == "true":
             pytest.fail("chromium is not installed; CI must install it (see .ci/run)")
@@ -75,15 +66,7 @@ def _read_page(browser: str, page: Path, profile: Path) -> dict:
     )
     command = [
         browser,
-        "--headless",
-        "--no-sandbox",
-        "--disable-gpu",
-        "--disable-quic",
-        "--no-first-run",
-        "--disable-background-networking",
-        "--disable-component-update",
-        "--disable-sync",
-        "--hide-scrollbars",
+        *HEADLESS_FLAGS,
         f"--user-data-dir={profile}",
         f"--window-size={WIDTH},900",
         "--virtual-time-budget=15000",

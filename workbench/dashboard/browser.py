@@ -30,13 +30,13 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
 
-__all__ = ["BrowserError", "HeadlessChromium", "Page", "find_chromium"]
+__all__ = ["HEADLESS_FLAGS", "BrowserError", "HeadlessChromium", "Page", "find_chromium"]
 
 #: Executables tried, in order (Debian: chromium).
 BROWSERS = ("chromium", "chromium-browser", "google-chrome")
-#: Flags for a quiet headless browser on a machine without internet (the same as the
-#: report's browser test, plus the remote-debugging port and no timer throttling).
-FLAGS = (
+#: Flags for a quiet headless browser on a machine without internet (also what the
+#: report's browser test runs chromium with).
+HEADLESS_FLAGS = (
     "--headless",
     "--no-sandbox",
     "--disable-gpu",
@@ -46,6 +46,10 @@ FLAGS = (
     "--disable-component-update",
     "--disable-sync",
     "--hide-scrollbars",
+)
+#: The headless flags plus the remote-debugging port and no timer throttling.
+FLAGS = (
+    *HEADLESS_FLAGS,
     "--disable-background-timer-throttling",
     "--disable-renderer-backgrounding",
     "--remote-debugging-port=0",
