@@ -50,6 +50,7 @@ from .measurement import (
 from .memory import MemoryModel, constant_model, fit_memory_model, select_terms
 from .noise import MIN_CORRECTION_STD, MIN_RESIDUALS, NoiseModel, estimate_noise, prior_noise
 from .options import MeasurementOptions, ModelOptions, NoiseOptions
+from .predictor_grid import predictor_matrix
 
 __all__ = ["kalman_pass_step", "memory_forecast"]
 
@@ -247,26 +248,8 @@ def memory_forecast(
 
     option = measurement.option
     notes: Counter[str] = Counter()
-    grid = predictors.sort_values("block").drop_duplicates("block", keep="last")
-    blocks = grid["block"].to_numpy(dtype=np.int64)
-    block_start = pd.to_datetime(grid["block_start"], utc=True).to_numpy()
-    if model.predictor_columns is None:
-        columns = [
-            c
-            for c in grid.columns
-            if c != "block"
-            and pd.api.types.is_numeric_dtype(grid[c].dtype)
-            and not pd.api.types.is_bool_dtype(grid[c].dtype)
-        ]
-    else:
-        columns = list(model.predictor_columns)
-        missing = [c for c in columns if c not in grid.columns]
-        if missing:
-            raise ValueError(f"predictor_columns {missing} are not columns of predictors")
-    X_all = (
-        grid[columns].to_numpy(dtype=float, na_value=np.nan)
-        if columns
-        else np.empty((len(grid), 0))
+    grid, blocks, block_start, columns, X_all = predictor_matrix(
+        predictors, model.predictor_columns
     )
     n_blocks = blocks.size
     if model.time_trend and model.predictor_columns is None:  # explicit columns: as given

@@ -27,6 +27,7 @@ import numpy as np
 import pandas as pd
 
 from .kalman import ModeKalmanBank
+from .predictor_grid import predictor_matrix
 from .sliding import (
     _MIN_SHAPE_CHANNELS,
     ForecastResult,
@@ -64,27 +65,7 @@ def block_grid(
     modes: Sequence[int] | None,
 ) -> BlockGrid:
     """Block grid of *predictors* (consecutive rows: consecutive Kalman steps)."""
-    grid = predictors.sort_values("block").drop_duplicates("block", keep="last")
-    blocks = grid["block"].to_numpy(dtype=np.int64)
-    block_start = pd.to_datetime(grid["block_start"], utc=True).to_numpy()
-    if predictor_columns is None:
-        predictor_columns = [
-            c
-            for c in grid.columns
-            if c != "block"
-            and pd.api.types.is_numeric_dtype(grid[c].dtype)
-            and not pd.api.types.is_bool_dtype(grid[c].dtype)
-        ]
-    else:
-        missing = [c for c in predictor_columns if c not in grid.columns]
-        if missing:
-            raise ValueError(f"predictor_columns {missing} are not columns of predictors")
-    columns = list(predictor_columns)
-    X_all = (
-        grid[columns].to_numpy(dtype=float, na_value=np.nan)
-        if columns
-        else np.empty((len(grid), 0))
-    )
+    _, blocks, block_start, columns, X_all = predictor_matrix(predictors, predictor_columns)
     n_blocks = len(blocks)
     mode_labels = (
         np.array(sorted(int(m) for m in modal["mode"].dropna().unique()))
