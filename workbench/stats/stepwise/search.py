@@ -1,0 +1,466 @@
+"""One stepwise search with MATLAB ``stepwiselm``'s rules on the swept cross-product matrix
+(see :func:`~workbench.stats.stepwise`, Notes), and the :class:`StepwiseFit` it ends in."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import special as _special
+
+from ..design import Encoding, raw_transform
+from .result import StepwiseFit
+from .sweep import COLLINEARITY_TOLERANCE, _Problem, _problem, _sweep
+
+#: A model fits exactly (zero noise up to round-off) when its SSE is at most this fraction
+#: of the total sum of squares; no term is added after that, since every F-test would
+#: compare round-off with round-off.
+EXACT_FIT_TOLERANCE = 1e-12
+
+
+def _f_sf(f: np.ndarray | float, df_num: float, df_den: float) -> np.ndarray:
+    """Upper tail P(F > f) of the F(df_num, df_den) distribution."""
+    return _special.fdtrc(df_num, df_den, f)
+
+
+class _Search:
+    """State of one stepwise search (see :func:`stepwise`, Notes)."""
+
+    def __init__(self, *, candidates, y, finite, layout, criterion, p_enter, p_remove):
+        self.candidates = candidates
+        self.y = y
+        self.finite = finite  # None: no NaN in any used predictor
+        self.layout = layout
+        self.criterion = criterion
+        self.p_enter, self.p_remove = p_enter, p_remove
+        negated = criterion in ("rsquared", "adjrsquared")
+        # every score is "smaller is better for adding": R² gains are negated
+        self.enter_threshold = -p_enter if negated else p_enter
+        self.remove_threshold = -p_remove if negated else p_remove
+        self.y_slot = candidates.shape[1]
+        self.problems: dict[bytes | None, tuple[_Problem, np.ndarray | None]] = {}
+        self.steps: list[tuple] = []
+        self.skipped: dict[tuple[str, str], int] = {}
+        self.model: list[int] = []
+        self.swept: dict[int, list[int]] = {}  # term -> its columns swept into the model
+        self._columns_cache: list[int] | None = None
+
+    # ----------------------------------------------------------------- row sets
+    def _rows(self, terms) -> np.ndarray | None:
+        if self.finite is None:
+            return None
+        columns = sorted({c for t in terms for c in self.layout.predictors[t]})
+        if not columns:
+            return np.ones(self.finite.shape[0], dtype=bool)
+        return self.finite[:, columns].all(axis=1)
+
+    def _problem_for(self, rows: np.ndarray | None) -> _Problem:
+        key = None if rows is None or rows.all() else rows.tobytes()
+        if key not in self.problems:
+            if key is None:
+                problem = _problem(self.candidates, self.y)
+            else:
+                problem = _problem(self.candidates[rows], self.y[rows])
+            self.problems[key] = (problem, rows)
+        return self.problems[key][0]
+
+    def _swept_matrix(self, problem: _Problem, model_columns) -> tuple[np.ndarray, int]:
+        matrix = problem.cross.copy()
+        count = 0
+        for column in model_columns:
+            if matrix[column, column] > COLLINEARITY_TOLERANCE:
+                _sweep(matrix, column)
+                count += 1
+        return matrix, count
+
+    def _model_columns(self) -> list[int]:
+        if self._columns_cache is None:
+            self._columns_cache = [c for t in self.model for c in self.swept.get(t, [])]
+        return self._columns_cache
+
+    # ----------------------------------------------------------------- statistics
+    def _score_add(self, n, k, sse, sst, decrease, df):
+        """F, p and score of adding terms with SSE decrease *decrease* and *df* columns."""
+        dfe_new = n - k - df
+        sse_new = np.maximum(sse - decrease, 0.0)
+        f_stat = (decrease / df) / (sse_new / dfe_new)
+        p_value = _f_sf(f_stat, df, dfe_new)
+        criterion = self.criterion
+        if criterion == "sse":
+            score = p_value
+            value = p_value  # not recorded for "sse"
+        elif criterion in ("aic", "bic"):
+            penalty = 2.0 if criterion == "aic" else np.log(n)
+            score = n * np.log(sse_new / sse) + penalty * df
+            value = n * (np.log(2 * np.pi * sse_new / n) + 1.0) + penalty * (k + df)
+        elif criterion == "rsquared":
+            value = 1.0 - sse_new / sst
+            score = -(decrease / sst)
+        else:
+            value = 1.0 - (sse_new / dfe_new) / (sst / (n - 1))
+            score = -(value - (1.0 - (sse / (n - k)) / (sst / (n - 1))))
+        return f_stat, p_value, score, value
+
+    def _gains(self, matrix: np.ndarray, terms: np.ndarray):
+        """SSE decrease, degrees of freedom and columns of adding each term to the model
+        swept into *matrix* (collinear columns of a term are left out)."""
+        layout = self.layout
+        y = self.y_slot
+        decrease = np.zeros(len(terms))
+        df = np.zeros(len(terms))
+        columns: list[list[int]] = []
+        if layout.single:
+            index = layout.first_column[terms]
+            unexplained = matrix[index, index]
+            ok = unexplained > COLLINEARITY_TOLERANCE
+            if ok.all():
+                decrease = matrix[index, y] ** 2 / unexplained
+                df.fill(1.0)
+            else:
+                decrease[ok] = matrix[index[ok], y] ** 2 / unexplained[ok]
+                df[ok] = 1.0
+            return decrease, df, None  # columns: the term's one column
+        for position, term in enumerate(terms):
+            cols = [int(c) for c in layout.columns[term]]
+            if len(cols) == 1:
+                u = matrix[cols[0], cols[0]]
+                if u > COLLINEARITY_TOLERANCE:
+                    decrease[position] = matrix[cols[0], y] ** 2 / u
+                    df[position] = 1.0
+                    columns.append(cols)
+                else:
+                    columns.append([])
+                continue
+            index = [*cols, y]
+            small = matrix[np.ix_(index, index)].copy()
+            kept = []
+            for j in range(len(cols)):
+                if small[j, j] > COLLINEARITY_TOLERANCE:
+                    _sweep(small, j)
+                    kept.append(cols[j])
+            decrease[position] = matrix[y, y] - small[-1, -1]
+            df[position] = len(kept)
+            columns.append(kept)
+        return decrease, df, columns
+
+    # ----------------------------------------------------------------- the search
+    def run(self, start: list[int], lower: set[int], max_steps: int | None) -> None:
+        layout = self.layout
+        display = layout.display
+        n_terms = len(layout.terms)
+        self.model = sorted(start)
+        rows = self._rows(self.model)
+        problem = self._problem_for(rows)
+        matrix = problem.cross.copy()
+        for term in self.model:
+            if layout.is_intercept[term]:
+                continue
+            kept = []
+            for column in layout.columns[term]:
+                if matrix[column, column] > COLLINEARITY_TOLERANCE:
+                    _sweep(matrix, int(column))
+                    kept.append(int(column))
+            if not kept:
+                raise ValueError(
+                    f"start model is rank deficient: term {display[term]!r} is collinear with "
+                    "the terms before it"
+                )
+            self.swept[term] = kept
+        self._columns_cache = None
+        in_model = np.zeros(n_terms, dtype=bool)
+        in_model[self.model] = True
+        in_extended = np.zeros(n_terms + 1, dtype=bool)
+        protected = np.zeros(n_terms, dtype=bool)
+        protected[list(lower)] = True
+        protected |= layout.is_intercept
+        just_added = just_removed = -1
+        step = 0
+        while max_steps is None or step < max_steps:
+            k = 1 + len(self._model_columns())
+            n = problem.n
+            dfe = n - k
+            sse = max(float(matrix[self.y_slot, self.y_slot]), 0.0)
+            sst = problem.sst
+            acted = False
+
+            # ---- try to add: not in the model, hierarchy satisfied, not just removed
+            # hierarchy: both parents in the model (slot n_terms: no such parent, False)
+            in_extended[:n_terms] = in_model
+            eligible = ~in_model & (
+                ~layout.has_parents | (in_extended[layout.parent_a] & in_extended[layout.parent_b])
+            )
+            if just_removed >= 0:
+                eligible[just_removed] = False
+            eligible_index = np.flatnonzero(eligible)
+            exact = sse <= EXACT_FIT_TOLERANCE * sst
+            if eligible_index.size and exact:
+                reason = (
+                    f"exact fit: SSE/SST <= {EXACT_FIT_TOLERANCE:g} (round-off), "
+                    "F-tests are meaningless"
+                )
+                for index in eligible_index.tolist():
+                    self.skipped.setdefault((display[index], reason), step + 1)
+            elif eligible_index.size:
+                best = self._best_addition(eligible_index, matrix, problem, rows, step)
+                if best is not None:
+                    index, record, columns, new_rows = best
+                    if record[0] < self.enter_threshold:
+                        self.steps.append((step + 1, "add", display[index], *record[1:]))
+                        self.model = sorted([*self.model, index])
+                        self.swept[index] = columns
+                        self._columns_cache = None
+                        in_model[index] = True
+                        if new_rows is not None and not np.array_equal(new_rows, rows):
+                            rows = new_rows
+                            problem = self._problem_for(rows)
+                            matrix, _ = self._swept_matrix(problem, self._model_columns())
+                        else:
+                            for column in columns:
+                                _sweep(matrix, column)
+                        just_added, just_removed = index, -1
+                        acted = True
+
+            # ---- otherwise try to remove: not protected, not just added, no child in model
+            if not acted and dfe >= 1:
+                terms = np.array(self.model)
+                has_child = (layout.parents[:, terms] & in_model[:, None]).any(axis=0)
+                removable = ~protected[terms] & ~has_child
+                if just_added >= 0:
+                    removable &= terms != just_added
+                if removable.any():
+                    worst = self._worst_removal(terms, removable, matrix, n, k, sse, sst)
+                    if worst is not None and worst[1][0] > self.remove_threshold:
+                        index, record = worst
+                        self.steps.append((step + 1, "remove", display[index], *record[1:]))
+                        self.model = [t for t in self.model if t != index]
+                        self.swept.pop(index, None)
+                        self._columns_cache = None
+                        in_model[index] = False
+                        rows = self._rows(self.model)
+                        problem = self._problem_for(rows)
+                        # afresh: no drift from sweeping back
+                        matrix, _ = self._swept_matrix(problem, self._model_columns())
+                        just_added, just_removed = -1, index
+                        acted = True
+            if not acted:
+                break
+            step += 1
+        self.final = (problem, matrix, rows)
+
+    def _best_addition(self, eligible_index, matrix, problem, rows, step):
+        """Best candidate: (term, record, columns, rows) or None when none is testable."""
+        display = self.layout.display
+        groups: dict[bytes | None, list[int]] = {}
+        group_rows: dict[bytes | None, np.ndarray | None] = {}
+        if self.finite is None:
+            groups[None] = eligible_index
+            group_rows[None] = None
+        else:
+            for term in eligible_index.tolist():
+                candidate_rows = self._rows([*self.model, term])
+                key = None if np.array_equal(candidate_rows, rows) else candidate_rows.tobytes()
+                groups.setdefault(key, []).append(term)
+                group_rows[key] = rows if key is None else candidate_rows
+        k = 1 + len(self._model_columns())
+        best = None
+        for key, terms in groups.items():
+            if key is None:
+                group_problem, group_matrix, group_k = problem, matrix, k
+            else:
+                candidate_rows = group_rows[key]
+                if candidate_rows.sum() < 2:
+                    for term in terms:
+                        self.skipped.setdefault(
+                            (display[term], "no complete rows with the model's variables"),
+                            step + 1,
+                        )
+                    continue
+                group_problem = self._problem_for(candidate_rows)
+                group_matrix, swept = self._swept_matrix(group_problem, self._model_columns())
+                group_k = 1 + swept
+            terms_array = np.asarray(terms)
+            n = group_problem.n
+            sse = max(float(group_matrix[self.y_slot, self.y_slot]), 0.0)
+            decrease, df, columns = self._gains(group_matrix, terms_array)
+            collinear = df == 0
+            short = ~collinear & (n - group_k - df < 1)
+            ok = ~collinear & ~short
+            if not ok.all():
+                for term in terms_array[collinear].tolist():
+                    self.skipped.setdefault(
+                        (display[term], "collinear with the model's terms"), step + 1
+                    )
+                for term in terms_array[short].tolist():
+                    reason = f"too few observations: n={n} leaves no error degrees of freedom"
+                    self.skipped.setdefault((display[term], reason), step + 1)
+                if not ok.any():
+                    continue
+                terms_array, decrease, df = terms_array[ok], decrease[ok], df[ok]
+                if columns is not None:
+                    columns = [c for c, good in zip(columns, ok, strict=True) if good]
+            f_stat, p_value, score, value = self._score_add(
+                n, group_k, sse, group_problem.sst, decrease, df
+            )
+            score = np.where(score != score, np.inf, score)  # NaN (0/0) never enters
+            j = int(np.argmin(score))  # terms in canonical order: ties go to the first
+            term = int(terms_array[j])
+            candidate = (float(score[j]), term)
+            if best is None or candidate < best[0]:
+                change = score[j] if self.criterion in ("aic", "bic") else -score[j]
+                record = self._record(f_stat[j], p_value[j], value[j], change, df[j], n)
+                chosen = [int(self.layout.first_column[term])] if columns is None else columns[j]
+                best = (candidate, term, (float(score[j]), *record), chosen, group_rows[key])
+        if best is None:
+            return None
+        _, term, record, columns, new_rows = best
+        return term, record, columns, new_rows
+
+    def _record(self, f_stat, p_value, value, change, df, n) -> tuple:
+        record = [float(f_stat), float(p_value)]
+        if self.criterion != "sse":
+            record += [float(value), float(change)]
+        return (*record, int(df), int(n))
+
+    def _worst_removal(self, terms, removable, matrix, n, k, sse, sst):
+        y = self.y_slot
+        increase = np.full(len(terms), np.nan)
+        df = np.zeros(len(terms))
+        if self.layout.single and all(self.swept.get(t) for t in terms.tolist()[1:]):
+            # one column per term: SSE_small - SSE_large = b_j² / [(XᵀX)⁻¹]_jj
+            columns = self.layout.first_column[terms[removable]]
+            increase[removable] = matrix[columns, y] ** 2 / -matrix[columns, columns]
+            df[removable] = 1.0
+            terms_loop: list[int] = []
+        else:
+            terms_loop = terms.tolist()
+        for position, term in enumerate(terms_loop):
+            if not removable[position]:
+                continue
+            cols = self.swept.get(term, [])
+            if not cols:
+                continue
+            if len(cols) == 1:
+                c = cols[0]
+                increase[position] = matrix[c, y] ** 2 / -matrix[c, c]
+            else:
+                b = matrix[cols, y]
+                inverse_block = -matrix[np.ix_(cols, cols)]  # [(XᵀX)⁻¹]_TT
+                increase[position] = float(b @ np.linalg.solve(inverse_block, b))
+            df[position] = len(cols)
+        dfe = n - k
+        f_stat = (increase / np.maximum(df, 1)) / (sse / dfe)
+        p_value = _f_sf(f_stat, np.maximum(df, 1), dfe)
+        criterion = self.criterion
+        if criterion == "sse":
+            score = p_value
+            value = np.full_like(p_value, np.nan)
+            change = score
+        elif criterion in ("aic", "bic"):
+            penalty = 2.0 if criterion == "aic" else math.log(n)
+            score = n * np.log(sse / (sse + increase)) + penalty * df  # Δ of adding it back
+            value = n * (np.log(2 * np.pi * (sse + increase) / n) + 1.0) + penalty * (k - df)
+            change = score
+        elif criterion == "rsquared":
+            score = -(increase / sst)
+            value = 1.0 - (sse + increase) / sst
+            change = -score
+        else:
+            with_term = 1.0 - (sse / dfe) / (sst / (n - 1))
+            value = 1.0 - ((sse + increase) / (dfe + df)) / (sst / (n - 1))
+            score = -(with_term - value)
+            change = -score
+        valid = removable & ~np.isnan(score) & (df > 0)
+        if not valid.any():
+            return None
+        score = np.where(valid, score, -np.inf)
+        worst = int(np.argmax(score))  # model is in canonical order: ties go first
+        record = self._record(
+            f_stat[worst], p_value[worst], value[worst], change[worst], df[worst], n
+        )
+        return int(terms[worst]), (float(score[worst]), *record)
+
+    # ----------------------------------------------------------------- the result
+    def result(self, encoding: Encoding, response_name: str, missing: str) -> StepwiseFit:
+        layout = self.layout
+        problem, matrix, rows = self.final
+        model = self.model
+        n = problem.n
+        model_columns = [int(c) for t in model for c in layout.columns[t]]
+        swept = self._model_columns()
+        k = 1 + len(swept)
+        dfe = n - k
+        slope_columns = model_columns[1:]  # model_columns[0] is the intercept
+        m = len(slope_columns)
+        scale = problem.scale[swept]
+        # back from centred-scaled columns: b = b_z / s, V = (X_cᵀX_c)⁻¹ = V_z / (s sᵀ)
+        swept_slopes = matrix[swept, self.y_slot] / scale
+        swept_covariance = -matrix[swept][:, swept] / np.outer(scale, scale)
+        if swept == slope_columns:
+            slopes, covariance = swept_slopes, swept_covariance
+        else:  # columns left out as collinear: estimate 0 (MATLAB's rank-deficient fit)
+            position = {c: j for j, c in enumerate(slope_columns)}
+            swept_position = [position[c] for c in swept]
+            slopes = np.zeros(m)
+            covariance = np.zeros((m, m))
+            slopes[swept_position] = swept_slopes
+            covariance[np.ix_(swept_position, swept_position)] = swept_covariance
+        term_means = problem.means[slope_columns]
+        intercept = problem.y_mean - float(term_means @ slopes)
+        residual = problem.y_centred - problem.centred[:, slope_columns] @ slopes
+        sse = float(residual @ residual)
+        sst = problem.sst
+        mse = sse / dfe if dfe > 0 else math.nan
+        rmse = math.sqrt(mse) if mse == mse else math.nan
+        # full covariance of (intercept, slopes) in the search's centred units, per σ²
+        full = np.empty((m + 1, m + 1))
+        full[0, 0] = 1.0 / n + float(term_means @ covariance @ term_means)
+        full[0, 1:] = full[1:, 0] = -(covariance @ term_means)
+        full[1:, 1:] = covariance
+        search_estimates = np.concatenate([[intercept], slopes])
+        terms = [layout.terms[t] for t in model]
+        transform = raw_transform(terms, encoding)
+        if transform is None:  # cannot happen with the hierarchy kept; stay in search units
+            transform = np.eye(m + 1)
+        estimates = transform @ search_estimates
+        raw_covariance = transform @ full @ transform.T
+        standard_errors = rmse * np.sqrt(np.maximum(np.diagonal(raw_covariance), 0.0))
+        r_squared = 1.0 - sse / sst if sst > 0 else math.nan
+        adj_r_squared = 1.0 - (sse / dfe) / (sst / (n - 1)) if sst > 0 and dfe > 0 else math.nan
+        if k > 1 and dfe > 0 and mse > 0:
+            f_stat = ((sst - sse) / (k - 1)) / mse
+            f_p_value = float(_f_sf(f_stat, k - 1, dfe))
+        else:
+            f_stat = f_p_value = math.nan
+        log_likelihood = -0.5 * n * (math.log(2 * math.pi * sse / n) + 1.0) if sse > 0 else math.inf
+        names = [layout.column_names[c] for c in model_columns]
+        return StepwiseFit(
+            terms=tuple(layout.display[t] for t in model[1:]),
+            predictor_names=encoding.names,
+            response_name=response_name,
+            criterion=self.criterion,
+            p_enter=self.p_enter,
+            p_remove=self.p_remove,
+            n_obs=int(n),
+            dfe=int(dfe),
+            sse=sse,
+            rmse=float(rmse),
+            r_squared=float(r_squared),
+            adj_r_squared=float(adj_r_squared),
+            f_stat=float(f_stat),
+            f_p_value=float(f_p_value),
+            log_likelihood=float(log_likelihood),
+            aic=float(-2.0 * log_likelihood + 2.0 * k),
+            bic=float(-2.0 * log_likelihood + math.log(n) * k),
+            model_terms=tuple(terms),
+            estimates=estimates,
+            standard_errors=standard_errors,
+            term_means=term_means,
+            slope_covariance=covariance,
+            step_records=tuple(self.steps),
+            skipped_records=tuple((s, term, reason) for (term, reason), s in self.skipped.items()),
+            coefficient_names=tuple(names),
+            coefficient_terms=tuple(layout.terms[t] for t in model for _ in layout.columns[t]),
+            search_estimates=search_estimates,
+            encoding=encoding,
+            missing=missing,
+        )
