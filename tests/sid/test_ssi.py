@@ -16,7 +16,6 @@ import pytest
 from scipy import signal
 
 from data_contracts import POLES
-from workbench.sid import ssi as ssi_module
 from workbench.sid.assurance import mac
 from workbench.sid.ssi import (
     SSIWarning,
@@ -24,6 +23,7 @@ from workbench.sid.ssi import (
     _lagged_products,
     _leading_eigh,
     _toeplitz_gram,
+    decomposition,
     ssi_cov,
     ssi_data,
 )
@@ -208,7 +208,7 @@ def test_leading_eigh_falls_back_to_syevr_when_mrrr_fails(monkeypatch):
     def failing_stemr(*args, **kwargs):
         return 0, np.zeros(30), np.zeros((30, 30)), 2
 
-    monkeypatch.setattr(ssi_module.linalg.lapack, "dstemr", failing_stemr)
+    monkeypatch.setattr(decomposition.linalg.lapack, "dstemr", failing_stemr)
     values, vectors = _leading_eigh(np.triu(symmetric), 5)  # the fallback reads the upper part
     np.testing.assert_allclose(values, expected, rtol=1e-12)
     np.testing.assert_allclose(symmetric @ vectors, vectors * values, atol=1e-10 * values[0])

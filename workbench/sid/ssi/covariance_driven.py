@@ -1,0 +1,123 @@
+"""Covariance-driven SSI (:func:`ssi_cov`)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..modal import poles_all_orders
+from .decomposition import _leading_singular
+from .hankel import _lagged_products, _toeplitz_gram
+from .preparation import (
+    _EXTRA_SINGULAR_VALUES,
+    DEFAULT_BLOCK_ROWS,
+    DEFAULT_ORDERS,
+    _order_limits,
+    _prepare,
+    _single_threaded,
+)
+from .realisation import _assemble, _realisation
+from .results import SSIResult, StochasticStateSpace
+
+__all__ = ["ssi_cov"]
+
+
+@_single_threaded
+def ssi_cov(
+    acceleration: np.ndarray,
+    sampling_rate_hz: float,
+    *,
+    block_rows: int = DEFAULT_BLOCK_ROWS,
+    orders: Sequence[int] = DEFAULT_ORDERS,
+    reference_channels: Sequence[int] | None = None,
+) -> SSIResult:
+    """Covariance-driven stochastic subspace identification (reference-based).
+
+    Parameters
+    ----------
+    acceleration : ndarray, shape (n_samples, n_channels)
+        Measured accelerations, finite (drop dead channels first). [m/s²]
+    sampling_rate_hz : float
+        Sampling rate. [Hz]
+    block_rows : int
+        Number of block rows i; output correlations up to lag 2i - 1 are used. Must allow
+        the largest order: max(orders) <= min(r·i, l·(i-1)) for r references, l channels.
+    orders : sequence of int
+        Model orders of the stabilisation diagram.
+    reference_channels : sequence of int, optional
+        Columns used as references (projection channels). Default: all.
+
+    Returns
+    -------
+    SSIResult
+        Poles of every order with shapes; ``system`` holds A, C, G (reference columns) and
+        Λ₀ of the largest order (use :func:`ssi_data` for noise covariances and the Kalman
+        gain).
+
+    Raises
+    ------
+    ValueError
+        NaN/inf in a channel (the message names its column index), too few samples for
+        *block_rows*, or orders beyond what *block_rows* allows.
+
+    Notes
+    -----
+    With the output correlations R_k = E[y_{t+k} y_{t,ref}ᵀ] = C A^{k-1} G_ref (later
+    sample on the left: this orientation makes C, hence Φ = CΨ, the observed mode shapes),
+    estimated as R_k = Σ_m y_{m+k} y_{m,ref}ᵀ / (N - k) by segmented FFT (exact sums), the
+    block Toeplitz matrix
+
+    .. math::
+
+        T_{1|i} = \\begin{pmatrix} R_i & R_{i-1} & \\cdots & R_1 \\\\
+                  R_{i+1} & R_i & \\cdots & R_2 \\\\
+                  \\vdots & & & \\vdots \\\\
+                  R_{2i-1} & R_{2i-2} & \\cdots & R_i \\end{pmatrix}
+                = O_i Γ_i = U S Vᵀ
+
+    factors into observability O_i = U₁S₁^{1/2} and reversed controllability
+    Γ_i = S₁^{1/2}V₁ᵀ. One SVD serves every order n (first n singular triplets); A_n
+    follows from the shift structure of O_i (:func:`workbench.sid.modal.poles_all_orders`).
+
+    References
+    ----------
+    .. [1] B. Peeters, G. De Roeck, "Reference-based stochastic subspace identification
+       for output-only modal analysis", MSSP 13(6), 855-878, 1999.
+       doi:10.1006/mssp.1999.1249
+    """
+    data, references, orders = _prepare(
+        acceleration, sampling_rate_hz, block_rows, orders, reference_channels
+    )
+    n_samples, n_channels = data.shape
+    i = int(block_rows)
+    n_refs = references.size
+    sums = _lagged_products(data, 2 * i - 1, references)  # lags 0 .. 2i-1
+    correlations = sums / (n_samples - np.arange(2 * i))[:, None, None]
+    rows, cols = np.meshgrid(np.arange(i), np.arange(i), indexing="ij")
+    toeplitz = (
+        correlations[i + rows - cols].transpose(0, 2, 1, 3).reshape(i * n_channels, i * n_refs)
+    )
+    n_max = orders[-1]
+    u, s = _leading_singular(
+        toeplitz, n_max + _EXTRA_SINGULAR_VALUES, gram=_toeplitz_gram(correlations, toeplitz)
+    )
+    _order_limits(n_max, s)
+    poles = poles_all_orders(u[:, :n_max], n_channels, orders, sampling_rate_hz)
+
+    root = np.sqrt(s[:n_max])
+    state, output = _realisation(poles, u[:, :n_max], root, n_channels)  # O_i = U₁S₁^{1/2}
+    # G_ref = last block column of Γ_i = S₁^{-1/2} U₁ᵀ T = S₁^{1/2} V₁ᵀ
+    next_state_output = (u[:, :n_max].T @ toeplitz[:, (i - 1) * n_refs :]) / root[:, None]
+    if np.array_equal(references, np.arange(n_channels)):
+        output_covariance = correlations[0]  # Λ₀ = R_0 = Σ y yᵀ / N, already summed
+    else:
+        output_covariance = data.T @ data / n_samples
+    system = StochasticStateSpace(
+        state_matrix=state,
+        output_matrix=output,
+        next_state_output_covariance=next_state_output,
+        output_covariance=output_covariance,
+        reference_channels=tuple(int(c) for c in references),
+    )
+    return _assemble(poles, orders, sampling_rate_hz, i, s, references, "ssi-cov", system)
