@@ -4,7 +4,8 @@ Layers (bottom up): :mod:`workbench.sid.assurance` (MAC and pole-weighted MACXP)
 :mod:`workbench.sid.modal` (modal parameters of every model order from one observability
 basis), :mod:`workbench.sid.ssi` (covariance- and data-driven SSI),
 :mod:`workbench.sid.stabilisation` (stable poles between consecutive orders),
-:mod:`workbench.sid.selection` (automatic choice of the physical modes of one block),
+:mod:`workbench.sid.selection` (automatic choice of the physical modes of one block; its
+pole clustering in :mod:`workbench.sid.pole_clustering`),
 :mod:`workbench.sid.tracking` (modes followed across blocks). Second method and checks:
 :mod:`workbench.sid.plscf` (poly-reference LSCF), :mod:`workbench.sid.crosscheck` (SSI and
 LSCF modes paired per block), :mod:`workbench.sid.tpe` (total prediction error per order).
