@@ -2,13 +2,17 @@
 
 Pure functions (:mod:`~workbench.signals.conditioning`, :mod:`~workbench.signals.moments`):
 :func:`detrend`, :func:`decimate`, :func:`bandpass`, :func:`interpolate_nan_runs`,
-:func:`moments`, :func:`faulty_channels`. The block builder
-(:mod:`~workbench.signals.stream`): :func:`plan_blocks`, :func:`iter_blocks`,
-:func:`load_block`. The NaN policy is described in :mod:`~workbench.signals.conditioning`,
-the faulty-channel policy in :mod:`~workbench.signals.moments`, gaps between files in
-:mod:`~workbench.signals.stream`.
+:func:`moments`, :func:`faulty_channels`. Blocks: planned from the file headers
+(:mod:`~workbench.signals.block_plan`: :func:`plan_blocks`, :func:`read_file_info`) and
+built (:mod:`~workbench.signals.block_builder`: :func:`iter_blocks`, :func:`load_block`;
+:mod:`~workbench.signals.file_conditioning` conditions each file once instead). The NaN
+policy is described in :mod:`~workbench.signals.conditioning`, the faulty-channel policy in
+:mod:`~workbench.signals.moments`, gaps between files in
+:mod:`~workbench.signals.block_plan`.
 """
 
+from .block_builder import AccelerationBlock, iter_blocks, load_block
+from .block_plan import BlockPlan, FileInfo, PlannedBlock, plan_blocks, read_file_info
 from .conditioning import (
     MAX_INTERPOLATED_NAN_RUN_S,
     SignalWarning,
@@ -20,16 +24,6 @@ from .conditioning import (
     nan_runs,
 )
 from .moments import WindowMoments, faulty_channels, moments
-from .stream import (
-    AccelerationBlock,
-    BlockPlan,
-    FileInfo,
-    PlannedBlock,
-    iter_blocks,
-    load_block,
-    plan_blocks,
-    read_file_info,
-)
 
 __all__ = [
     "MAX_INTERPOLATED_NAN_RUN_S",

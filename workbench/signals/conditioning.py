@@ -13,7 +13,7 @@ Dropouts (NaN) are handled the same way everywhere:
   straight lines between the neighbouring samples (:func:`interpolate_nan_runs`); the
   interpolated samples stay in the output as ordinary values. A channel that still holds
   NaN after that (a longer run) is faulty: it comes out all-NaN and a
-  :class:`SignalWarning` names it. The block builder (:mod:`workbench.signals.stream`) drops
+  :class:`SignalWarning` names it. The block builder (:mod:`workbench.signals.block_builder`) drops
   such channels before filtering (see :func:`~workbench.signals.moments.faulty_channels`),
   so in a pipeline the warning does not occur.
 """

@@ -1,7 +1,7 @@
 """Condition each acquisition file once and cut the blocks from the conditioned files.
 
 With 20-minute blocks every 5 minutes, each 5-minute file lies in four blocks. The block
-builder of :mod:`workbench.signals.stream` reads, checks and decimates every block from its
+builder of :mod:`workbench.signals.block_builder` reads, checks and decimates every block from its
 raw files, so every raw sample is read, checked and filtered four times. At a recorder's
 rate (2048 Hz, about 20 channels) that repetition dominates the cost of identification.
 
@@ -27,7 +27,7 @@ A block is then cut from the conditioned files (a few MB at the analysis rate) a
 faulty channels dropped. Blocks the conditioned files cannot give exactly as the per-block
 builder would (a NaN-padded gap inside the block, a kept channel whose NaN run could not be
 bridged elsewhere in its file, a block start off the decimated sample lattice) are built by
-:func:`~workbench.signals.stream.load_block` instead, so the result never silently differs.
+:func:`~workbench.signals.block_builder.load_block` instead, so the result never silently differs.
 
 Equality with the per-block builder
 -----------------------------------
@@ -65,6 +65,8 @@ from data_contracts import read_accelerations
 from data_contracts.npz import read_sample_rows
 
 from ..blocks import BlockGrid
+from .block_builder import AccelerationBlock, load_block
+from .block_plan import FileInfo, PlannedBlock
 from .conditioning import (
     MAX_INTERPOLATED_NAN_RUN_S,
     bandpass,
@@ -73,7 +75,6 @@ from .conditioning import (
 )
 from .conditioning import detrend as linear_detrend
 from .moments import CoherenceNeeded, channel_verdicts
-from .stream import AccelerationBlock, FileInfo, PlannedBlock, load_block
 
 __all__ = [
     "FileConditioner",
@@ -432,7 +433,7 @@ class FileConditioner:
     band_hz : (float or None, float or None) or None
         Band-pass edges. [Hz]
     max_gap_s : float
-        As for :func:`~workbench.signals.stream.load_block` (blocks with a NaN-padded gap
+        As for :func:`~workbench.signals.block_builder.load_block` (blocks with a NaN-padded gap
         are built by it). [s]
     fault_options : mapping, optional
         Keyword arguments of :func:`~workbench.signals.moments.faulty_channels`.

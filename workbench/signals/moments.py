@@ -4,7 +4,7 @@ Faulty-channel policy
 ---------------------
 :func:`faulty_channels` checks every channel of one block and gives each a verdict and a
 reason. A faulty channel is **dropped for that block only**: the block builder
-(:func:`workbench.signals.stream.iter_blocks`) removes it before filtering and
+(:func:`workbench.signals.block_builder.iter_blocks`) removes it before filtering and
 identification, lists it with its reason in the block's ``dropped`` field and notes, and
 uses it again in the next block if it has recovered. A channel is faulty when
 

@@ -1,4 +1,5 @@
-"""Tests for the streaming block builder (workbench.signals.stream).
+"""Tests for the block plan and the streaming block builder (workbench.signals.block_plan,
+workbench.signals.block_builder).
 
 On the simulated 1-h demo voyage (12 five-minute files, 19 channels at 64 Hz; acc07 and
 acc15 with short dropouts, acc12 dead in file 4 = 00:20-00:25, see
@@ -18,8 +19,7 @@ from scipy import signal
 
 from data_contracts import AccelerationRecord, read_accelerations, write_accelerations
 from workbench.blocks import BlockGrid
-from workbench.signals import iter_blocks, load_block, plan_blocks
-from workbench.signals import stream as stream_module
+from workbench.signals import block_builder, iter_blocks, load_block, plan_blocks
 from workbench.simulate import simulate_voyage
 
 
@@ -92,13 +92,13 @@ def test_load_block_equals_the_streamed_block(voyage, voyage_blocks):
 
 def test_selected_blocks_read_only_their_files(voyage, monkeypatch):
     reads: list[str] = []
-    original = stream_module.read_accelerations
+    original = block_builder.read_accelerations
 
     def counting(path, **options):
         reads.append(Path(path).name)
         return original(path, **options)
 
-    monkeypatch.setattr(stream_module, "read_accelerations", counting)
+    monkeypatch.setattr(block_builder, "read_accelerations", counting)
     blocks = list(iter_blocks(voyage.acceleration_files, blocks=[6, 7, 42]))
     assert [b.block for b in blocks] == [6, 7, 42]
     assert reads == [f.name for f in voyage.acceleration_files[6:11]]  # each file once
@@ -108,14 +108,14 @@ def test_selected_blocks_read_only_their_files(voyage, monkeypatch):
 def test_memory_is_bounded(voyage, monkeypatch):
     """At most length / file duration + 1 = 5 files' arrays are alive at any block."""
     arrays: list[weakref.ref] = []
-    original = stream_module.read_accelerations
+    original = block_builder.read_accelerations
 
     def tracking(path, **options):
         record = original(path, **options)
         arrays.append(weakref.ref(record.acceleration))
         return record
 
-    monkeypatch.setattr(stream_module, "read_accelerations", tracking)
+    monkeypatch.setattr(block_builder, "read_accelerations", tracking)
     peak = 0
     for block in iter_blocks(voyage.acceleration_files, detrend=False):
         del block
@@ -245,3 +245,13 @@ def test_all_faulty_block_is_skipped_and_options_are_checked(tmp_path):
         iter_blocks(files, grid=grid, target_rate_hz=3.0)  # 8 Hz / 3 Hz
     with pytest.raises(ValueError, match="Nyquist"):
         iter_blocks(files, grid=grid, target_rate_hz=4.0, band_hz=(0.5, 3.0))
+
+
+def test_the_former_stream_module_names_the_same_objects():
+    """workbench.signals.stream was split into block_plan and block_builder; imports from the
+    old module (the identify planner and the monitor use its ``_plan``) still work."""
+    from workbench.signals import block_plan, stream
+
+    for name in (*stream.__all__, "_plan"):
+        home = block_plan if hasattr(block_plan, name) else block_builder
+        assert getattr(stream, name) is getattr(home, name), name

@@ -1,0 +1,440 @@
+"""Conditioned blocks of accelerations cut from consecutive acquisition files, streamed.
+
+The files are planned into blocks by :func:`~workbench.signals.block_plan.plan_blocks`
+(headers only); this module builds the blocks without loading a voyage:
+
+* :func:`iter_blocks` streams the blocks in order, holding only the files of the current
+  block in memory (a deque of at most ``ceil(length / file duration) + 1`` records).
+* :func:`load_block` builds one block from just its files (for parallel workers).
+
+Each block is conditioned in this order: faulty channels are found on the raw samples
+(:func:`~workbench.signals.moments.faulty_channels`) and dropped for this block; NaN runs
+in the kept channels (all shorter than ``max_nan_run_s``, else the channel was faulty)
+are bridged linearly; then optional linear detrend, decimation and band-pass.
+
+
+Blocks overlapping a gap between files are skipped or NaN-padded as described in
+:mod:`workbench.signals.block_plan`. Skipped blocks are not left out silently:
+:func:`iter_blocks` yields them as :class:`AccelerationBlock` with ``acceleration=None``
+and ``skipped_reason`` set.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from collections import deque
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from data_contracts import AccelerationRecord, read_accelerations
+
+from ..blocks import BlockGrid
+from .block_plan import (
+    BlockPlan,
+    FileInfo,
+    PlannedBlock,
+    _block_files_and_gap,
+    _ns,
+    _plan,
+    plan_blocks,
+    read_file_info,
+)
+from .conditioning import MAX_INTERPOLATED_NAN_RUN_S, bandpass, decimate, interpolate_nan_runs
+from .conditioning import detrend as linear_detrend
+from .moments import _channel_groups, faulty_channels
+
+__all__ = ["AccelerationBlock", "iter_blocks", "load_block"]
+
+
+@dataclass(frozen=True, eq=False)
+class AccelerationBlock:
+    """One conditioned block of accelerations, or a skipped block and why.
+
+    Parameters
+    ----------
+    block : int
+        Block number on the grid.
+    block_start, block_end : pandas.Timestamp
+        Span of the block. [UTC]
+    acceleration : ndarray, shape (n_samples, n_channels) or None
+        Conditioned accelerations of the kept channels [m/s²]; None for a skipped block.
+    sampling_rate_hz : float
+        Rate of *acceleration* (after decimation). [Hz]
+    channels : tuple of str
+        Names of the kept channels, one per column.
+    dropped : tuple of (str, str)
+        Channels dropped for this block and the reason, e.g. ``("acc12", "nan run 300.0 s")``.
+    files : tuple of str
+        Names of the files the block was cut from.
+    skipped_reason : str
+        Empty for a built block; else why it was skipped (gap, all channels faulty, ...).
+    notes : tuple of str
+        Things worth recording (dropped channels, NaN-padded gaps).
+    channel_report : DataFrame or None
+        The per-channel checks of :func:`~workbench.signals.moments.faulty_channels`.
+    """
+
+    block: int
+    block_start: pd.Timestamp
+    block_end: pd.Timestamp
+    acceleration: np.ndarray | None
+    sampling_rate_hz: float
+    channels: tuple[str, ...]
+    dropped: tuple[tuple[str, str], ...] = ()
+    files: tuple[str, ...] = ()
+    skipped_reason: str = ""
+    notes: tuple[str, ...] = ()
+    channel_report: pd.DataFrame | None = field(default=None, repr=False)
+
+    @property
+    def skipped(self) -> bool:
+        """True when the block could not be built (see *skipped_reason*)."""
+        return self.acceleration is None
+
+
+@dataclass(frozen=True)
+class _Conditioning:
+    target_rate_hz: float | None
+    band_hz: tuple[float | None, float | None] | None
+    detrend: bool
+    fault_options: Mapping
+    read_options: Mapping
+
+    @classmethod
+    def make(cls, target_rate_hz, band_hz, detrend, fault_options, read_options) -> _Conditioning:
+        options = dict(fault_options or {})
+        # fail early on a mistyped option, not in the middle of a voyage
+        faulty_channels(np.zeros((4, 1)) + np.arange(4)[:, None], 1.0, **options)
+        if band_hz is not None:
+            band = tuple(band_hz)
+            if len(band) != 2:
+                raise ValueError(f"band_hz={band_hz!r} must be (low_hz, high_hz)")
+        else:
+            band = None
+        return cls(target_rate_hz, band, bool(detrend), options, dict(read_options or {}))
+
+    @property
+    def max_nan_run_s(self) -> float:
+        return float(self.fault_options.get("max_nan_run_s", MAX_INTERPOLATED_NAN_RUN_S))
+
+    def check_rate(self, rate: float) -> None:
+        """Raise now (not at the first block) if decimation or band-pass cannot work."""
+        out_rate = rate
+        if self.target_rate_hz is not None:
+            ratio = rate / float(self.target_rate_hz)
+            if not (ratio >= 1 and abs(ratio - round(ratio)) <= 1e-9 * ratio):
+                raise ValueError(
+                    f"target_rate_hz={self.target_rate_hz:g} must divide the files' sampling "
+                    f"rate {rate:g} Hz by a whole number"
+                )
+            out_rate = float(self.target_rate_hz)
+        if self.band_hz is not None:
+            bandpass(np.zeros((256, 1)), out_rate, *self.band_hz)
+
+
+def _load(info: FileInfo, channels: tuple[str, ...], read_options: Mapping) -> AccelerationRecord:
+    record = read_accelerations(info.path, **dict(read_options))
+    if record.sampling_rate_hz != info.sampling_rate_hz or record.n_samples != info.n_samples:
+        raise ValueError(f"{info.path}: file changed since it was planned")
+    if record.channels != channels:
+        order = [record.channels.index(c) for c in channels]
+        record = AccelerationRecord(
+            record.acceleration[:, order], record.sampling_rate_hz, record.start_time, channels
+        )
+    return record
+
+
+def _assemble(
+    records: Sequence[AccelerationRecord], start: pd.Timestamp, length_s: float, rate: float
+) -> tuple[np.ndarray, list[str]]:
+    """Samples of [start, start + length) from *records* on the first record's sample lattice;
+    uncovered samples are NaN (gaps allowed by the plan). Returns the array and notes."""
+    n_block = int(round(length_s * rate))
+    n_channels = records[0].acceleration.shape[1]
+    out = np.full((n_block, n_channels), np.nan)
+    reference = records[0].start_time
+    # first lattice sample at or after the block start
+    b0 = math.ceil((start - reference).total_seconds() * rate - 1e-6)
+    filled = np.zeros(n_block, dtype=bool)
+    for record in records:
+        offset = int(round((record.start_time - reference).total_seconds() * rate))
+        lo = max(offset, b0)
+        hi = min(offset + record.n_samples, b0 + n_block)
+        if hi > lo:
+            out[lo - b0 : hi - b0] = record.acceleration[lo - offset : hi - offset]
+            filled[lo - b0 : hi - b0] = True
+    notes = []
+    if not filled.all():
+        notes.append(f"gap of {np.count_nonzero(~filled) / rate:.1f} s NaN-padded")
+    return out, notes
+
+
+def _condition(
+    raw: np.ndarray,
+    rate: float,
+    channels: tuple[str, ...],
+    options: _Conditioning,
+    planned: PlannedBlock,
+    notes: list[str],
+) -> AccelerationBlock:
+    report = faulty_channels(raw, rate, channels, **options.fault_options)
+    faulty = report["faulty"].to_numpy()
+    dropped = tuple(
+        (str(c), str(r))
+        for c, r in zip(report["channel"][faulty], report["reason"][faulty], strict=True)
+    )
+    notes = notes + [f"{c} dropped: {r}" for c, r in dropped]
+    names = tuple(c for c, bad in zip(channels, faulty, strict=True) if not bad)
+    files = tuple(Path(f).name for f in planned.files)
+    if not names:
+        return AccelerationBlock(
+            planned.block,
+            planned.block_start,
+            planned.block_end,
+            None,
+            rate,
+            (),
+            dropped,
+            files,
+            "all channels faulty",
+            tuple(notes),
+            report,
+        )
+    kept = np.flatnonzero(~faulty)
+    decimating = options.target_rate_hz is not None and float(options.target_rate_hz) != rate
+    out_rate = float(options.target_rate_hz) if decimating else rate
+    parts = []
+    # channel by channel group: the temporaries of a 2048-Hz block stay small
+    for group in _channel_groups(raw.shape[0], len(kept)):
+        x = interpolate_nan_runs(raw[:, kept[group]], rate, max_run_s=options.max_nan_run_s)
+        if options.detrend:
+            x = linear_detrend(x)
+        if decimating:
+            x = decimate(x, rate, out_rate, max_nan_run_s=options.max_nan_run_s)
+        if options.band_hz is not None:
+            x = bandpass(x, out_rate, *options.band_hz, max_nan_run_s=options.max_nan_run_s)
+        parts.append(x)
+    x = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
+    return AccelerationBlock(
+        planned.block,
+        planned.block_start,
+        planned.block_end,
+        x,
+        out_rate,
+        names,
+        dropped,
+        files,
+        "",
+        tuple(notes),
+        report,
+    )
+
+
+def _skipped(planned: PlannedBlock, rate: float, reason: str) -> AccelerationBlock:
+    return AccelerationBlock(
+        planned.block,
+        planned.block_start,
+        planned.block_end,
+        None,
+        rate,
+        (),
+        files=tuple(Path(f).name for f in planned.files),
+        skipped_reason=reason,
+        notes=(f"skipped: {reason}",),
+    )
+
+
+def _build(
+    plan: BlockPlan,
+    planned: PlannedBlock,
+    records: Sequence[AccelerationRecord],
+    options: _Conditioning,
+) -> AccelerationBlock:
+    raw, notes = _assemble(records, planned.block_start, plan.grid.length_s, plan.sampling_rate_hz)
+    return _condition(raw, plan.sampling_rate_hz, plan.channels, options, planned, notes)
+
+
+def iter_blocks(
+    files: Iterable[str | os.PathLike],
+    *,
+    grid: BlockGrid | None = None,
+    length_s: float | None = None,
+    step_s: float | None = None,
+    target_rate_hz: float | None = None,
+    band_hz: tuple[float | None, float | None] | None = None,
+    detrend: bool = True,
+    fault_options: Mapping | None = None,
+    blocks: Iterable[int] | None = None,
+    max_gap_s: float = 0.0,
+    read_options: Mapping | None = None,
+) -> Iterator[AccelerationBlock]:
+    """Stream conditioned blocks of accelerations from consecutive files.
+
+    Parameters
+    ----------
+    files : iterable of path-like
+        Acceleration files (any order, any format ``read_accelerations`` reads).
+    grid : BlockGrid, optional
+        Block grid; default: anchored at the first file's start floored to the step, with
+        *length_s* / *step_s* (default 1200 s / 300 s).
+    length_s, step_s : float, optional
+        Block length and step when *grid* is not given. [s]
+    target_rate_hz : float, optional
+        Decimate to this rate (:func:`~workbench.signals.conditioning.decimate`). [Hz]
+    band_hz : (float or None, float or None), optional
+        Band-pass edges after decimation (:func:`~workbench.signals.conditioning.bandpass`).
+        [Hz]
+    detrend : bool
+        Remove a straight line from each channel of each block.
+    fault_options : mapping, optional
+        Keyword arguments for :func:`~workbench.signals.moments.faulty_channels`;
+        ``max_nan_run_s`` also sets the longest NaN run that is interpolated.
+    blocks : iterable of int, optional
+        Build only these blocks (e.g. those not yet done when resuming); files not needed by
+        them are never read. Requested blocks outside the files' span are yielded as
+        skipped.
+    max_gap_s : float
+        Gaps between files up to this length inside a block are NaN-padded (see the module
+        notes); blocks overlapping longer gaps are skipped. [s]
+    read_options : mapping, optional
+        Keyword arguments for :func:`data_contracts.read_accelerations`.
+
+    Yields
+    ------
+    AccelerationBlock
+        In ascending block order; skipped blocks have ``acceleration=None`` and a
+        ``skipped_reason``.
+
+    Raises
+    ------
+    ValueError
+        Before the first block: files inconsistent in channels or sampling rate, or
+        overlapping; an unknown fault option raises TypeError.
+
+    Notes
+    -----
+    Memory: the loaded files sit in a deque; files ending before the current block starts
+    are released before new ones are read, so at most ``ceil(length / file duration) + 1``
+    files are held (5 for 20-min blocks of 5-min files) plus the block being built.
+    """
+    options = _Conditioning.make(target_rate_hz, band_hz, detrend, fault_options, read_options)
+    plan = plan_blocks(
+        files,
+        grid,
+        length_s=length_s,
+        step_s=step_s,
+        max_gap_s=max_gap_s,
+        read_options=read_options,
+    )
+    options.check_rate(plan.sampling_rate_hz)
+    return _stream(plan, options, blocks)
+
+
+def _stream(
+    plan: BlockPlan, options: _Conditioning, blocks: Iterable[int] | None
+) -> Iterator[AccelerationBlock]:
+    index = {info.path: i for i, info in enumerate(plan.files)}
+    by_number = {b.block: b for b in plan.blocks}
+    if blocks is None:
+        wanted = [b.block for b in plan.blocks]
+    else:
+        wanted = sorted({int(k) for k in blocks})
+    cache: deque[tuple[int, AccelerationRecord]] = deque()
+    rate = plan.sampling_rate_hz
+    for k in wanted:
+        planned = by_number.get(k)
+        if planned is None:
+            outside = PlannedBlock(k, plan.grid.start(k), plan.grid.end(k), ())
+            yield _skipped(outside, rate, "outside the span of the acceleration files")
+            continue
+        if planned.skipped_reason:
+            yield _skipped(planned, rate, planned.skipped_reason)
+            continue
+        needed = [index[p] for p in planned.files]
+        while cache and cache[0][0] < needed[0]:
+            cache.popleft()
+        if cache and cache[-1][0] > needed[-1]:  # cannot happen for ascending blocks
+            cache.clear()
+        loaded = {i for i, _ in cache}
+        for i in needed:
+            if i not in loaded:
+                cache.append((i, _load(plan.files[i], plan.channels, options.read_options)))
+        records = [r for i, r in cache if needed[0] <= i <= needed[-1]]
+        yield _build(plan, planned, records, options)
+        del records
+
+
+def load_block(
+    files: Iterable[str | os.PathLike | FileInfo],
+    block: int,
+    grid: BlockGrid,
+    *,
+    target_rate_hz: float | None = None,
+    band_hz: tuple[float | None, float | None] | None = None,
+    detrend: bool = True,
+    fault_options: Mapping | None = None,
+    max_gap_s: float = 0.0,
+    read_options: Mapping | None = None,
+) -> AccelerationBlock:
+    """Build one block from its files, e.g. in a parallel worker.
+
+    Parameters
+    ----------
+    files : iterable of path-like or FileInfo
+        The block's files (``PlannedBlock.files``) or any superset; only files overlapping
+        the block are read.
+    block : int
+        Block number on *grid*.
+    grid : BlockGrid
+        The voyage's grid (``BlockPlan.grid``).
+    target_rate_hz, band_hz, detrend, fault_options, max_gap_s, read_options
+        As for :func:`iter_blocks`.
+
+    Returns
+    -------
+    AccelerationBlock
+        Identical to the one :func:`iter_blocks` yields for this block; skipped (with the
+        reason) when the files do not cover it.
+    """
+    options = _Conditioning.make(target_rate_hz, band_hz, detrend, fault_options, read_options)
+    infos = [
+        f if isinstance(f, FileInfo) else read_file_info(f, read_options=read_options)
+        for f in files
+    ]
+    k = int(block)
+    start, end = grid.start(k), grid.end(k)
+    if not infos:
+        return _skipped(PlannedBlock(k, start, end, ()), float("nan"), "no acceleration files")
+    # plan only the files touching the block (consistency checks included)
+    touching = [i for i in infos if i.start_time < end and i.end_time > start]
+    if not touching:
+        return _skipped(
+            PlannedBlock(k, start, end, ()),
+            infos[0].sampling_rate_hz,
+            "outside the span of the acceleration files",
+        )
+    plan = _plan(touching, grid, None, None, max_gap_s)
+    if all(b.block != k for b in plan.blocks):
+        # The block reaches past the touching files into an allowed gap (the next file
+        # starts after the block's end): plan it on its own, as the full plan does.
+        starts_ns = np.array([_ns(i.start_time) for i in plan.files], dtype=np.int64)
+        ends_ns = np.array([_ns(i.end_time) for i in plan.files], dtype=np.int64)
+        indices, reason = _block_files_and_gap(
+            plan.files,
+            starts_ns,
+            ends_ns,
+            _ns(start),
+            _ns(end),
+            plan.sampling_rate_hz,
+            float(max_gap_s),
+        )
+        single = PlannedBlock(k, start, end, tuple(plan.files[i].path for i in indices), reason)
+        plan = dataclasses.replace(plan, blocks=(single,))
+    options.check_rate(plan.sampling_rate_hz)
+    return next(_stream(plan, options, [k]))

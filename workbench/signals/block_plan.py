@@ -1,0 +1,356 @@
+"""Which blocks a set of consecutive acquisition files gives, from their headers alone.
+
+An acquisition system writes one file per interval (typically 5 minutes). Identification
+works on blocks of the shared grid (:class:`~workbench.blocks.BlockGrid`; default 20 min
+every 5 min). :func:`plan_blocks` reads only the file headers (:func:`read_file_info`; for
+``.npz`` files: start time, rate, channel names and the array shape from the archive;
+``.mat`` and ``.csv`` files are read whole once) and lists every block the files give, with
+the files each needs and, for blocks that cannot be built, the reason. The orchestrator
+plans parallel tasks with it; the blocks themselves are built by
+:mod:`workbench.signals.block_builder`.
+
+Gaps between files
+------------------
+Consecutive files normally abut (the next file starts one sample interval after the last
+sample of the previous one; offsets below half a sample are ignored). A block that
+overlaps a gap is **skipped** with the reason (``"gap of 42.0 s between acc_a.npz and
+acc_b.npz"``), unless the gap's part inside the block is at most ``max_gap_s``: then the
+gap is filled with NaN, which the NaN policy bridges by interpolation -- so ``max_gap_s``
+should not exceed the faulty-channel ``max_nan_run_s`` (default 10 s), or every channel of
+the block would be dropped. Files that overlap in time, differ in channel set or in
+sampling rate are errors (:class:`ValueError` naming the file). Channels in a different
+order are reordered to the first file's order.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from data_contracts import read_accelerations
+from data_contracts.npz import read_sample_header
+
+from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S, BlockGrid, utc_timestamp
+
+__all__ = ["BlockPlan", "FileInfo", "PlannedBlock", "plan_blocks", "read_file_info"]
+
+_NS = 1_000_000_000
+
+
+# ----------------------------------------------------------------------------------------
+# file headers
+# ----------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class FileInfo:
+    """What a file holds, without its samples.
+
+    Parameters
+    ----------
+    path : Path
+    start_time : pandas.Timestamp
+        Time of the first sample. [UTC]
+    sampling_rate_hz : float
+        [Hz]
+    n_samples : int
+    channels : tuple of str
+    """
+
+    path: Path
+    start_time: pd.Timestamp
+    sampling_rate_hz: float
+    n_samples: int
+    channels: tuple[str, ...]
+
+    @property
+    def name(self) -> str:
+        return self.path.name
+
+    @property
+    def end_time(self) -> pd.Timestamp:
+        """Time just after the last sample. [UTC]"""
+        return self.start_time + pd.Timedelta(seconds=self.n_samples / self.sampling_rate_hz)
+
+
+def _npz_info(path: Path) -> FileInfo:
+    header = read_sample_header(path)
+    shape = header.shape
+    # The samples the header claims must be in the archive (a 1-KB file claiming 30 days
+    # would plan thousands of blocks): stored bytes lie within the file, and deflate
+    # compresses by at most about 1032:1.
+    if (
+        header.member_size < header.claimed_bytes
+        or header.compressed_size > path.stat().st_size
+        or header.member_size > 1100 * max(header.compressed_size, 1)
+    ):
+        raise ValueError("the array header claims more samples than the file holds")
+    with np.load(path, allow_pickle=False) as data:
+        rate = float(np.asarray(data["sampling_rate_hz"]).reshape(-1)[0])
+        start = str(np.asarray(data["start_time"]).reshape(-1)[0])
+        channels = tuple(str(c) for c in np.asarray(data["channels"]).ravel())
+    if len(shape) != 2 or shape[1] != len(channels) or not (math.isfinite(rate) and rate > 0):
+        raise ValueError("inconsistent header")
+    return FileInfo(path, utc_timestamp(start), rate, int(shape[0]), channels)
+
+
+def read_file_info(path: str | os.PathLike, *, read_options: Mapping | None = None) -> FileInfo:
+    """Header of an acceleration file: start time, rate, number of samples, channels.
+
+    For ``.npz`` files only the small arrays and the header of the sample array are read.
+    Other formats (and ``.npz`` files whose header looks wrong) are read whole with
+    :func:`data_contracts.read_accelerations`, which also reports any problem.
+
+    Parameters
+    ----------
+    path : path-like
+    read_options : mapping, optional
+        Keyword arguments for :func:`data_contracts.read_accelerations` (MATLAB variable
+        names, CSV time column, ...).
+    """
+    path = Path(path)
+    if path.suffix.lower() == ".npz":
+        try:
+            return _npz_info(path)
+        except Exception:  # anything odd: the full reader gives the proper ContractError
+            pass
+    record = read_accelerations(path, **dict(read_options or {}))
+    return FileInfo(
+        path, record.start_time, record.sampling_rate_hz, record.n_samples, record.channels
+    )
+
+
+# ----------------------------------------------------------------------------------------
+# planning
+# ----------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PlannedBlock:
+    """One block of a :class:`BlockPlan`: its span, its files, or why it cannot be built.
+
+    Satisfies the ``BlockTask`` protocol of :func:`workbench.parallel.run_blocks`.
+
+    Parameters
+    ----------
+    block : int
+    block_start, block_end : pandas.Timestamp
+        [UTC]
+    files : tuple of Path
+        Files overlapping the block, in time order (empty for some skipped blocks).
+    skipped_reason : str
+        Empty when the block can be built; else why not (e.g. a gap between files).
+    """
+
+    block: int
+    block_start: pd.Timestamp
+    block_end: pd.Timestamp
+    files: tuple[Path, ...]
+    skipped_reason: str = ""
+
+
+@dataclass(frozen=True, eq=False)
+class BlockPlan:
+    """The blocks a set of acceleration files gives.
+
+    Parameters
+    ----------
+    grid : BlockGrid
+    files : tuple of FileInfo
+        The files, sorted by start time.
+    channels : tuple of str
+        Channel names (order of the first file).
+    sampling_rate_hz : float
+        [Hz]
+    blocks : tuple of PlannedBlock
+        Every block lying inside the span of the files, ascending; blocks overlapping a gap
+        carry a ``skipped_reason``.
+    max_gap_s : float
+        Gaps up to this length inside a block are NaN-padded. [s]
+    """
+
+    grid: BlockGrid
+    files: tuple[FileInfo, ...]
+    channels: tuple[str, ...]
+    sampling_rate_hz: float
+    blocks: tuple[PlannedBlock, ...]
+    max_gap_s: float = 0.0
+
+    def frame(self) -> pd.DataFrame:
+        """Table of the plan: block, block_start, block_end, n_files, skipped_reason."""
+        return pd.DataFrame(
+            {
+                "block": np.array([b.block for b in self.blocks], dtype=np.int64),
+                "block_start": pd.DatetimeIndex([b.block_start for b in self.blocks]),
+                "block_end": pd.DatetimeIndex([b.block_end for b in self.blocks]),
+                "n_files": np.array([len(b.files) for b in self.blocks], dtype=np.int64),
+                "skipped_reason": pd.Series([b.skipped_reason for b in self.blocks], dtype=str),
+            }
+        )
+
+    @property
+    def max_files_per_block(self) -> int:
+        return max((len(b.files) for b in self.blocks), default=0)
+
+
+def _check_consistent(infos: Sequence[FileInfo]) -> None:
+    first = infos[0]
+    for info in infos[1:]:
+        if info.sampling_rate_hz != first.sampling_rate_hz:
+            raise ValueError(
+                f"{info.path}: sampling rate {info.sampling_rate_hz:g} Hz differs from "
+                f"{first.sampling_rate_hz:g} Hz of {first.name}"
+            )
+        if set(info.channels) != set(first.channels) or len(info.channels) != len(first.channels):
+            missing = [c for c in first.channels if c not in info.channels]
+            extra = [c for c in info.channels if c not in first.channels]
+            parts = []
+            if missing:
+                parts.append(f"missing {', '.join(missing)}")
+            if extra:
+                parts.append(f"extra {', '.join(extra)}")
+            raise ValueError(
+                f"{info.path}: channels differ from those of {first.name} ({'; '.join(parts)})"
+            )
+    rate = first.sampling_rate_hz
+    for previous, info in zip(infos[:-1], infos[1:], strict=True):
+        overlap_s = (previous.end_time - info.start_time).total_seconds()
+        if overlap_s > 0.5 / rate:
+            raise ValueError(
+                f"{info.path}: starts {overlap_s:g} s before the end of {previous.name} "
+                "(overlapping or duplicate files)"
+            )
+
+
+def _resolve_grid(
+    grid: BlockGrid | None, length_s: float | None, step_s: float | None, first_time
+) -> BlockGrid:
+    if grid is None:
+        return BlockGrid.from_first_time(
+            first_time,
+            DEFAULT_BLOCK_LENGTH_S if length_s is None else length_s,
+            DEFAULT_BLOCK_STEP_S if step_s is None else step_s,
+        )
+    if not isinstance(grid, BlockGrid):
+        raise TypeError(f"grid must be a BlockGrid, got {type(grid).__name__}")
+    for name, value, own in (
+        ("length_s", length_s, grid.length_s),
+        ("step_s", step_s, grid.step_s),
+    ):
+        if value is not None and float(value) != own:
+            raise ValueError(f"{name}={value:g} contradicts the grid's {name}={own:g}")
+    return grid
+
+
+def _ns(time: pd.Timestamp) -> int:
+    return pd.Timestamp(time).as_unit("ns").value
+
+
+def _block_files_and_gap(
+    infos: Sequence[FileInfo],
+    starts_ns: np.ndarray,
+    ends_ns: np.ndarray,
+    start: int,
+    end: int,
+    rate: float,
+    max_gap_s: float,
+) -> tuple[list[int], str]:
+    """Indices of the files overlapping [start, end) ns, and a skip reason ("" if none)."""
+    half = int(0.5 / rate * _NS)
+    first = int(np.searchsorted(ends_ns, start + half, side="right"))
+    last = int(np.searchsorted(starts_ns, end - half, side="left"))
+    indices = list(range(first, last))
+    if not indices:
+        before = infos[first - 1].name if first > 0 else "the first file"
+        after = infos[first].name if first < len(infos) else "the last file"
+        return indices, f"no data (gap between {before} and {after})"
+    # uncovered stretches inside the block: before the first file, between files, after;
+    # each named by the files on either side (also those just outside the block)
+    first_i, last_i = indices[0], indices[-1]
+    edges = [(start, starts_ns[first_i], first_i - 1, first_i)]
+    edges += [(ends_ns[i], starts_ns[i + 1], i, i + 1) for i in indices[:-1]]
+    edges += [(ends_ns[last_i], end, last_i, last_i + 1)]
+    for gap_start, gap_end, a, b in edges:
+        inside = min(gap_end, end) - max(gap_start, start)
+        if inside <= half:
+            continue
+        inside_s = inside / _NS
+        if inside_s > max_gap_s + 0.5 / rate:
+            left = infos[a].name if a >= 0 else "the start of the data"
+            right = infos[b].name if b < len(infos) else "the end of the data"
+            return indices, f"gap of {inside_s:.1f} s between {left} and {right}"
+    return indices, ""
+
+
+def _plan(
+    infos: Sequence[FileInfo],
+    grid: BlockGrid | None,
+    length_s: float | None,
+    step_s: float | None,
+    max_gap_s: float,
+) -> BlockPlan:
+    if not infos:
+        raise ValueError("no acceleration files given")
+    if not (math.isfinite(float(max_gap_s)) and max_gap_s >= 0):
+        raise ValueError(f"max_gap_s={max_gap_s} must be a non-negative number of seconds")
+    infos = sorted(infos, key=lambda i: (i.start_time, str(i.path)))
+    _check_consistent(infos)
+    rate = infos[0].sampling_rate_hz
+    grid = _resolve_grid(grid, length_s, step_s, infos[0].start_time)
+    starts_ns = np.array([_ns(i.start_time) for i in infos], dtype=np.int64)
+    ends_ns = np.array([_ns(i.end_time) for i in infos], dtype=np.int64)
+    half = pd.Timedelta(seconds=0.5 / rate)
+    numbers = grid.complete_blocks(infos[0].start_time - half, infos[-1].end_time + half)
+    planned = []
+    for k in numbers:
+        start, end = grid.start(int(k)), grid.end(int(k))
+        indices, reason = _block_files_and_gap(
+            infos, starts_ns, ends_ns, _ns(start), _ns(end), rate, float(max_gap_s)
+        )
+        planned.append(
+            PlannedBlock(int(k), start, end, tuple(infos[i].path for i in indices), reason)
+        )
+    return BlockPlan(grid, tuple(infos), infos[0].channels, rate, tuple(planned), float(max_gap_s))
+
+
+def plan_blocks(
+    files: Iterable[str | os.PathLike],
+    grid: BlockGrid | None = None,
+    *,
+    length_s: float | None = None,
+    step_s: float | None = None,
+    max_gap_s: float = 0.0,
+    read_options: Mapping | None = None,
+) -> BlockPlan:
+    """List the blocks a set of acceleration files gives, reading only their headers.
+
+    Parameters
+    ----------
+    files : iterable of path-like
+        Acceleration files in any order (any format :func:`data_contracts.read_accelerations`
+        reads); they are sorted by start time.
+    grid : BlockGrid, optional
+        Block grid; default: anchored at the first file's start floored to the step.
+    length_s, step_s : float, optional
+        Block length and step when *grid* is not given (default 1200 s and 300 s). [s]
+    max_gap_s : float
+        Gaps between files up to this length inside a block are NaN-padded; blocks over
+        longer gaps are listed as skipped. [s]
+    read_options : mapping, optional
+        Keyword arguments for :func:`data_contracts.read_accelerations`.
+
+    Returns
+    -------
+    BlockPlan
+        Every block of the grid lying entirely inside the span of the files.
+
+    Raises
+    ------
+    ValueError
+        No files; files differing in channel set or sampling rate; overlapping files. The
+        message names the file.
+    """
+    infos = [read_file_info(f, read_options=read_options) for f in files]
+    return _plan(infos, grid, length_s, step_s, max_gap_s)
