@@ -201,7 +201,7 @@ def test_text_files_are_parsed_once_and_give_the_npz_blocks(voyage, tmp_path, mo
     """CSV files (read whole, no partial reads): conditioning a file needs its neighbours'
     edges, yet each file is parsed once when the files are conditioned in order, and the
     blocks equal those of the same samples in ``.npz`` files."""
-    from workbench.signals import file_conditioning
+    from workbench.signals import file_reads
 
     full, _, plan = voyage
     n_file = int(FILE_S * RATE)
@@ -224,8 +224,8 @@ def test_text_files_are_parsed_once_and_give_the_npz_blocks(voyage, tmp_path, mo
         parsed.append(Path(path).name)
         return read_accelerations(path, **options)
 
-    monkeypatch.setattr(file_conditioning, "read_accelerations", counting)
-    monkeypatch.setattr(file_conditioning, "_whole_reads", collections.OrderedDict())
+    monkeypatch.setattr(file_reads, "read_accelerations", counting)
+    monkeypatch.setattr(file_reads, "_whole_reads", collections.OrderedDict())
     text = FileConditioner(
         text_plan.files,
         text_plan.grid,

@@ -14,14 +14,14 @@ rate (2048 Hz, about 20 channels) that repetition dominates the cost of identifi
   raw edges of the contiguous neighbouring files** (overlap and discard), and the padding is
   cut off again: the conditioned files join into the record that filtering the whole
   continuous record would give, to within the decay of the filters' transients over the
-  padding (:func:`padding_samples`). A gap between files (or the end of the data) breaks
-  the chain: there the filters start as ``scipy.signal.sosfiltfilt`` starts at the ends of a
-  record;
+  padding (:func:`~workbench.signals.filter_cascade.padding_samples`). A gap between files
+  (or the end of the data) breaks the chain: there the filters start as
+  ``scipy.signal.sosfiltfilt`` starts at the ends of a record;
 * the sums the faulty-channel check needs (NaN count and runs, power sums of the
-  samples against time) are taken per grid step (:class:`_StepSums`), so the check of a block
-  (:func:`~workbench.signals.moments.faulty_channels`: NaN fraction and runs, flatness,
-  kurtosis and variance of the linearly detrended block) is assembled from them exactly,
-  without the raw samples.
+  samples against time) are taken per grid step (:mod:`~workbench.signals.step_sums`), so
+  the check of a block (:func:`~workbench.signals.moments.faulty_channels`: NaN fraction
+  and runs, flatness, kurtosis and variance of the linearly detrended block) is assembled
+  from them exactly, without the raw samples.
 
 A block is then cut from the conditioned files (a few MB at the analysis rate) and its
 faulty channels dropped. Blocks the conditioned files cannot give exactly as the per-block
@@ -33,10 +33,11 @@ Equality with the per-block builder
 -----------------------------------
 The per-block builder filters each block on its own, so its first and last samples carry
 the filters' start-up transients; the conditioned files carry none (inside a chain). The
-two agree in the block's interior: samples farther than :func:`padding_samples` from both
-block ends differ only by the transients' remainder (below ``1e-6`` of the signal RMS for
-the default filters; ``tests/signals/test_file_conditioning.py`` checks it). The
-faulty-channel statistics are equal up to rounding.
+two agree in the block's interior: samples farther than
+:func:`~workbench.signals.filter_cascade.padding_samples` from both block ends differ only
+by the transients' remainder (below ``1e-6`` of the signal RMS for the default filters;
+``tests/signals/test_file_conditioning.py`` checks it). The faulty-channel statistics are
+equal up to rounding.
 
 Memory: a :class:`FileConditioner` keeps the conditioned files of the blocks under way (at
 the analysis rate) and one raw file; it does not grow with the voyage.
@@ -50,8 +51,6 @@ samples.
 
 from __future__ import annotations
 
-import collections
-import functools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -59,10 +58,8 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy import signal
 
 from data_contracts import read_accelerations
-from data_contracts.npz import read_sample_rows
 
 from ..blocks import BlockGrid
 from .block_builder import AccelerationBlock, load_block
@@ -70,11 +67,17 @@ from .block_plan import FileInfo, PlannedBlock
 from .conditioning import (
     MAX_INTERPOLATED_NAN_RUN_S,
     bandpass,
-    decimation_stages,
     interpolate_nan_runs,
 )
 from .conditioning import detrend as linear_detrend
+from .file_reads import _edge_rows, _read_rows, _read_whole  # noqa: F401  (_read_rows: tests)
+from .filter_cascade import (  # noqa: F401  (_decimate_channels_last: tests)
+    _decimate_channels_last,
+    default_decimation_rate,
+    padding_samples,
+)
 from .moments import CoherenceNeeded, channel_verdicts
+from .step_sums import _NS, _block_statistics, _step_sums
 
 __all__ = [
     "FileConditioner",
@@ -83,328 +86,6 @@ __all__ = [
     "default_decimation_rate",
     "padding_samples",
 ]
-
-_NS = 1_000_000_000
-#: Relative size of a filter transient regarded as gone (impulse-response envelope). [-]
-SETTLED = 1e-9
-#: Highest analysis rate relative to the band's upper edge in the default rate rule. [-]
-RATE_PER_BAND_EDGE = 4.0
-
-
-# ----------------------------------------------------------------------------------------
-# the default analysis rate
-# ----------------------------------------------------------------------------------------
-def default_decimation_rate(
-    sampling_rate_hz: float, band_hz: tuple[float | None, float | None] | None
-) -> float:
-    """The analysis rate for files sampled at *sampling_rate_hz* and the band *band_hz*.
-
-    Rule: halve the files' rate while the result stays at or above
-    ``RATE_PER_BAND_EDGE`` (4) times the band's upper edge. The anti-alias filter of the
-    last decimation stage then starts rolling off at 0.4 x the analysis rate, at least 1.6 x
-    above the band, and the band lies below half the Nyquist frequency, where SSI with a
-    few dozen block rows resolves it well. E.g. 2048 Hz and a 2-12 Hz band give 64 Hz,
-    1000 Hz gives 62.5 Hz, 200 Hz gives 50 Hz, 64 Hz stays 64 Hz. Without an upper band
-    edge the files' rate is kept.
-
-    Parameters
-    ----------
-    sampling_rate_hz : float
-        Rate of the acceleration files. [Hz]
-    band_hz : (float or None, float or None) or None
-        Analysis band. [Hz]
-
-    Returns
-    -------
-    float
-        The analysis rate, ``sampling_rate_hz / 2**k`` for some k >= 0. [Hz]
-    """
-    rate = float(sampling_rate_hz)
-    if not (math.isfinite(rate) and rate > 0):
-        raise ValueError(f"sampling_rate_hz={sampling_rate_hz!r} must be a positive number")
-    if band_hz is None or band_hz[1] is None:
-        return rate
-    lowest = RATE_PER_BAND_EDGE * float(band_hz[1])
-    while rate / 2 >= lowest:
-        rate /= 2
-    return rate
-
-
-# ----------------------------------------------------------------------------------------
-# filter transients
-# ----------------------------------------------------------------------------------------
-def _settle_samples(sos: np.ndarray, tolerance: float = SETTLED) -> int:
-    """Samples after which the impulse response of *sos* stays below *tolerance* times its
-    peak (one pass; the backward pass of a zero-phase filter decays alike)."""
-    length = 256
-    while True:
-        impulse = np.zeros(length)
-        impulse[0] = 1.0
-        response = np.abs(signal.sosfilt(sos, impulse))
-        above = np.flatnonzero(response > tolerance * response.max())
-        if above[-1] < length // 2 or length >= 1 << 22:
-            return int(above[-1]) + 1
-        length *= 2
-
-
-@functools.lru_cache(maxsize=32)
-def padding_samples(
-    sampling_rate_hz: float,
-    target_rate_hz: float,
-    band_hz: tuple[float | None, float | None] | None,
-    *,
-    order: int = 8,
-    ripple_db: float = 0.05,
-    band_order: int = 4,
-) -> int:
-    """Raw samples on each side of a file that carry the conditioning filters' transients.
-
-    The sum over the cascade (each decimation stage, then the band-pass) of the length of
-    its impulse response down to :data:`SETTLED` of its peak, in input samples, rounded up
-    to a whole number of decimation factors. Filtering a file padded with this many samples
-    of its neighbours and discarding the padding gives the file's part of the continuously
-    filtered record; it is also how far into a block the per-block filters' start-up
-    transients reach.
-
-    Parameters
-    ----------
-    sampling_rate_hz, target_rate_hz : float
-        Input and analysis rate. [Hz]
-    band_hz : (float or None, float or None) or None
-        Band-pass edges at the analysis rate. [Hz]
-    order, ripple_db, band_order
-        As for :func:`~workbench.signals.conditioning.decimate` and
-        :func:`~workbench.signals.conditioning.bandpass`.
-    """
-    factor = int(round(sampling_rate_hz / target_rate_hz))
-    total = 0
-    step = 1  # input samples per sample at the current stage's rate
-    for q in decimation_stages(factor):
-        sos = signal.cheby1(int(order), ripple_db, 0.8 / q, output="sos")
-        total += _settle_samples(sos) * step
-        step *= q
-    if band_hz is not None:
-        low, high = band_hz
-        if low is None:
-            sos = signal.butter(band_order, high, "lowpass", fs=target_rate_hz, output="sos")
-        elif high is None:
-            sos = signal.butter(band_order, low, "highpass", fs=target_rate_hz, output="sos")
-        else:
-            sos = signal.butter(
-                band_order, [low, high], "bandpass", fs=target_rate_hz, output="sos"
-            )
-        total += _settle_samples(sos) * step
-    return int(math.ceil(total / factor) * factor)
-
-
-def _decimate_channels_last(x: np.ndarray, factor: int, order: int = 8, ripple_db: float = 0.05):
-    """:func:`~workbench.signals.conditioning.decimate` of finite samples laid out as
-    (n_channels, n_samples): the same Chebyshev type I stages and zero-phase filtering
-    (equal to the last bit, tested), filtering along the contiguous axis, which is twice as
-    fast as along the rows of an (n_samples, n_channels) array."""
-    for q in decimation_stages(factor):
-        sos = signal.cheby1(int(order), ripple_db, 0.8 / q, output="sos")
-        x = signal.sosfiltfilt(sos, x, axis=-1)[:, ::q]
-    return x
-
-
-# ----------------------------------------------------------------------------------------
-# partial reads
-# ----------------------------------------------------------------------------------------
-#: Files read whole (formats without partial reads: CSV, MATLAB, HDF5, UFF, compressed
-#: ``.npz``) kept per process. Conditioning a file also needs its neighbours' edges, and
-#: the next file conditioned is usually a neighbour: with the last three files kept, a
-#: voyage conditioned in order parses each file once instead of three times. [files]
-WHOLE_READS_KEPT = 3
-_whole_reads: collections.OrderedDict = collections.OrderedDict()
-
-
-def _read_whole(path: Path, read_options=None):
-    """:func:`data_contracts.read_accelerations` of *path*, from the per-process cache of
-    the last :data:`WHOLE_READS_KEPT` files when neither the file (size, modification
-    time) nor the reading options changed."""
-    stat = path.stat()
-    key = (str(path), stat.st_size, stat.st_mtime_ns, repr(sorted((read_options or {}).items())))
-    record = _whole_reads.get(key)
-    if record is None:
-        record = read_accelerations(path, **(read_options or {}))
-        _whole_reads[key] = record
-        while len(_whole_reads) > WHOLE_READS_KEPT:
-            _whole_reads.popitem(last=False)
-    else:
-        _whole_reads.move_to_end(key)
-    return record
-
-
-def _read_rows(
-    info: FileInfo, channels: Sequence[str], first: int, stop: int, read_options=None
-) -> np.ndarray:
-    """Rows [first, stop) of a file's samples, channels in *channels* order.
-
-    Uncompressed ``.npz`` files are read in place (only the wanted rows); other files are
-    read whole (kept for the next few reads, :data:`WHOLE_READS_KEPT`).
-    """
-    first, stop = max(0, int(first)), min(info.n_samples, int(stop))
-    if stop <= first:
-        return np.zeros((0, len(channels)))
-    rows = None
-    if info.path.suffix.lower() == ".npz":
-        rows = read_sample_rows(info.path, first, stop)
-    if rows is None:
-        record = _read_whole(info.path, read_options)
-        rows, names = record.acceleration[first:stop], record.channels
-    else:
-        names = info.channels
-    if tuple(names) != tuple(channels):
-        rows = rows[:, [list(names).index(c) for c in channels]]
-    return np.asarray(rows, dtype=float)
-
-
-def _edge_rows(info: FileInfo, channels, first: int, stop: int | None = None, read_options=None):
-    """Rows of a neighbouring file for padding, or None when it cannot be read (then the
-    chain of contiguous files breaks there; the blocks holding that file report it)."""
-    try:
-        return _read_rows(
-            info, channels, first, info.n_samples if stop is None else stop, read_options
-        )
-    except (OSError, ValueError):
-        return None
-
-
-# ----------------------------------------------------------------------------------------
-# faulty-channel sums per grid step
-# ----------------------------------------------------------------------------------------
-@dataclass(frozen=True, eq=False)
-class _StepSums:
-    """Sums over the samples of one file inside one grid step, per channel.
-
-    ``sums[i, j]`` is the sum over the finite samples of ``u**i * tau**j`` (``i + j <= 4``)
-    with ``u = x - offset`` and ``tau`` the time from the piece's centre in units of its
-    half-length ``half_s``; ``centre_ns`` is the centre's time.
-    """
-
-    first_ns: int
-    n_samples: int
-    centre_ns: int
-    half_s: float
-    offset: np.ndarray
-    sums: np.ndarray  # (5, 5, n_channels)
-    leading_nan: np.ndarray
-    trailing_nan: np.ndarray
-    longest_nan: np.ndarray
-
-
-def _step_sums(x: np.ndarray, first_ns: int, rate: float, chunk: int = 2048) -> _StepSums:
-    n, n_channels = x.shape
-    missing = np.isnan(x)
-    any_missing = bool(missing.any())
-    half = (n - 1) / 2.0
-    scale = half if half > 0 else 1.0
-    if any_missing:
-        count = n - missing.sum(axis=0)
-        with np.errstate(invalid="ignore"):
-            offset = np.where(count > 0, np.nansum(x, axis=0) / np.maximum(count, 1), 0.0)
-    else:
-        offset = x.mean(axis=0) if n else np.zeros(n_channels)
-    sums = np.zeros((5, 5, n_channels))
-    # row chunks that stay in cache: sums[i, j] = sum_t u_t**i tau_t**j (finite samples)
-    for lo in range(0, n, chunk):
-        hi = min(n, lo + chunk)
-        tau = (np.arange(lo, hi) - half) / scale
-        basis = np.vander(tau, 5, increasing=True)  # (m, 5): 1, tau, ..., tau**4
-        u = x[lo:hi] - offset
-        if any_missing:
-            weight = ~missing[lo:hi]
-            u = np.where(weight, u, 0.0)
-            power = weight.astype(float)
-        else:
-            power = np.ones_like(u)
-        for i in range(5):
-            sums[i, : 5 - i] += (power.T @ basis[:, : 5 - i]).T
-            if i < 4:
-                power = power * u
-    leading = np.zeros(n_channels, dtype=np.int64)
-    trailing = np.zeros(n_channels, dtype=np.int64)
-    longest = np.zeros(n_channels, dtype=np.int64)
-    for j in np.flatnonzero(missing.any(axis=0)) if any_missing else ():
-        column = missing[:, j]
-        if column.all():
-            leading[j] = trailing[j] = longest[j] = n
-            continue
-        leading[j] = int(np.argmin(column))
-        trailing[j] = int(np.argmin(column[::-1]))
-        edges = np.diff(np.concatenate(([0], column.view(np.int8), [0])))
-        longest[j] = int((np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)).max())
-    half_s = half / rate if half > 0 else 1.0 / rate
-    centre_ns = first_ns + int(round(half / rate * _NS))
-    return _StepSums(first_ns, n, centre_ns, half_s, offset, sums, leading, trailing, longest)
-
-
-def _block_statistics(pieces: Sequence[_StepSums], n_block: int, rate: float):
-    """NaN fraction, longest NaN run [s], variance and kurtosis of the linearly detrended
-    block made of *pieces* (in time order), as :func:`faulty_channels` computes them."""
-    n_channels = pieces[0].offset.size
-    centre_ns = (pieces[0].first_ns + pieces[-1].centre_ns * 2 - pieces[-1].first_ns) // 2
-    # time sums about the block centre: t = d + h tau for each piece
-    count = np.zeros(n_channels)
-    sum_t = np.zeros(n_channels)
-    sum_tt = np.zeros(n_channels)
-    sum_x = np.zeros(n_channels)
-    sum_xt = np.zeros(n_channels)
-    for p in pieces:
-        d = (p.centre_ns - centre_ns) / _NS
-        h = p.half_s
-        s = p.sums
-        count += s[0, 0]
-        sum_t += d * s[0, 0] + h * s[0, 1]
-        sum_tt += d * d * s[0, 0] + 2 * d * h * s[0, 1] + h * h * s[0, 2]
-        sum_x += s[1, 0] + p.offset * s[0, 0]
-        sum_xt += d * s[1, 0] + h * s[1, 1] + p.offset * (d * s[0, 0] + h * s[0, 1])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        t_mean = sum_t / count
-        x_mean = sum_x / count
-        sxx = sum_tt - count * t_mean * t_mean
-        sxy = sum_xt - count * t_mean * x_mean
-        slope = np.where(sxx > 0, sxy / np.where(sxx > 0, sxx, 1.0), 0.0)
-        intercept = x_mean - slope * t_mean
-    # power sums of the residual r = u - alpha - beta tau on each piece
-    power = np.zeros((5, n_channels))
-    binomial = [[math.comb(k, m) for m in range(k + 1)] for k in range(5)]
-    for p in pieces:
-        d = (p.centre_ns - centre_ns) / _NS
-        alpha = intercept + slope * d - p.offset
-        beta = slope * p.half_s
-        for k in range(1, 5):
-            for m in range(k + 1):
-                line = np.zeros(n_channels)  # sum of u^(k-m) (alpha + beta tau)^m
-                for ell in range(m + 1):
-                    line += binomial[m][ell] * alpha ** (m - ell) * beta**ell * p.sums[k - m, ell]
-                power[k] += binomial[k][m] * (-1) ** m * line
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = power[1] / count
-        m2 = power[2] / count - mean**2
-        m4 = (
-            power[4] / count
-            - 4 * mean * power[3] / count
-            + 6 * mean**2 * power[2] / count
-            - 3 * mean**4
-        )
-        m2 = np.maximum(m2, 0.0)
-        kurtosis = np.where(m2 > 0, m4 / np.where(m2 > 0, m2, 1.0) ** 2, np.nan)
-        variance = np.where(count > 0, m2, np.nan)
-    kurtosis = np.where(count > 0, kurtosis, np.nan)
-    # NaN runs across pieces
-    longest = np.zeros(n_channels, dtype=np.int64)
-    run = np.zeros(n_channels, dtype=np.int64)
-    for p in pieces:
-        whole = p.leading_nan >= p.n_samples
-        longest = np.maximum(
-            longest, np.where(whole, 0, np.maximum(run + p.leading_nan, p.longest_nan))
-        )
-        run = np.where(whole, run + p.n_samples, p.trailing_nan)
-    longest = np.maximum(longest, run)
-    nan_fraction = 1.0 - count / n_block if n_block else np.ones(n_channels)
-    return nan_fraction, longest / rate, variance, kurtosis
 
 
 # ----------------------------------------------------------------------------------------
