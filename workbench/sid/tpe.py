@@ -32,13 +32,9 @@ from .ssi import (
     DEFAULT_ORDERS,
     SSIWarning,
     Weighting,
-    _cholesky,
-    _hankel_gram,
-    _lagged_products,
-    _leading_singular,
-    _order_limits,
     _prepare,
     _stochastic_model,
+    _weighted_projection,
 )
 from .threads import sid_threads
 
@@ -189,33 +185,12 @@ def total_prediction_error(
         raise ValueError(f"warm_up={warm_up} must be an integer in [0, {n_samples // 2})")
     warm_up = int(warm_up)
     i = int(block_rows)
-    n_refs = references.size
     with sid_threads():
-        others = np.setdiff1d(np.arange(n_channels), references)
-        channel_order = np.concatenate([references, others])
-        permuted = data[:, channel_order]
-        lag_sums = _lagged_products(permuted, 2 * i - 1, np.arange(n_channels))
-        gram_all = _hankel_gram(permuted, 2 * i, lag_sums)
-        past = (np.arange(i)[:, None] * n_channels + np.arange(n_refs)[None, :]).ravel()
-        future = np.arange(i * n_channels, 2 * i * n_channels)
-        rows = np.concatenate([past, future])
-        gram = gram_all[np.ix_(rows, rows)] / (n_samples - 2 * i + 1)
-        lower = _cholesky(gram, "block Hankel matrix")
-        p = n_refs * i
-        l11, l21 = lower[:p, :p], lower[p:, :p]
-        unweight = None
-        if weighting == "upc":
-            weighted = l21
-        elif weighting == "pc":
-            weighted = l21 @ l11.T
-        else:
-            unweight = _cholesky(gram[p:, p:], "future output covariance")
-            weighted = linalg.solve_triangular(unweight, l21, lower=True, check_finite=False)
         n_max = orders[-1]
-        u, s = _leading_singular(weighted, n_max)
-        _order_limits(n_max, s)
-        basis = u[:, :n_max] if unweight is None else unweight @ u[:, :n_max]
-        observability = basis * np.sqrt(s[:n_max])
+        projection = _weighted_projection(data, i, references, weighting, n_max, n_max)
+        channel_order, lag_sums = projection.channel_order, projection.lag_sums
+        lower, p = projection.lower, projection.past_rows
+        observability = projection.basis * np.sqrt(projection.singular_values[:n_max])
         correlations = lag_sums[: i + 1] / (n_samples - np.arange(i + 1))[:, None, None]
 
         energy = np.sum(data[warm_up:] ** 2, axis=0)

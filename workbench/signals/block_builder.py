@@ -184,28 +184,9 @@ def _condition(
     notes: list[str],
 ) -> AccelerationBlock:
     report = faulty_channels(raw, rate, channels, **options.fault_options)
-    faulty = report["faulty"].to_numpy()
-    dropped = tuple(
-        (str(c), str(r))
-        for c, r in zip(report["channel"][faulty], report["reason"][faulty], strict=True)
-    )
-    notes = notes + [f"{c} dropped: {r}" for c, r in dropped]
-    names = tuple(c for c, bad in zip(channels, faulty, strict=True) if not bad)
-    files = tuple(Path(f).name for f in planned.files)
+    faulty, dropped, names, notes = _verdicts(report, channels, notes)
     if not names:
-        return AccelerationBlock(
-            planned.block,
-            planned.block_start,
-            planned.block_end,
-            None,
-            rate,
-            (),
-            dropped,
-            files,
-            "all channels faulty",
-            tuple(notes),
-            report,
-        )
+        return _finished(planned, None, rate, (), dropped, notes, report, "all channels faulty")
     kept = np.flatnonzero(~faulty)
     decimating = options.target_rate_hz is not None and float(options.target_rate_hz) != rate
     out_rate = float(options.target_rate_hz) if decimating else rate
@@ -221,33 +202,53 @@ def _condition(
             x = bandpass(x, out_rate, *options.band_hz, max_nan_run_s=options.max_nan_run_s)
         parts.append(x)
     x = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=1)
+    return _finished(planned, x, out_rate, names, dropped, notes, report)
+
+
+def _verdicts(
+    report: pd.DataFrame, channels: Sequence[str], notes: Sequence[str] = ()
+) -> tuple[np.ndarray, tuple[tuple[str, str], ...], tuple[str, ...], tuple[str, ...]]:
+    """From a channel report (:func:`~workbench.signals.moments.faulty_channels`): the
+    faulty mask, the dropped (channel, reason) pairs, the kept channels and *notes* with a
+    line per dropped channel."""
+    faulty = report["faulty"].to_numpy()
+    dropped = tuple(
+        (str(c), str(r))
+        for c, r in zip(report["channel"][faulty], report["reason"][faulty], strict=True)
+    )
+    notes = (*notes, *(f"{c} dropped: {r}" for c, r in dropped))
+    names = tuple(c for c, bad in zip(channels, faulty, strict=True) if not bad)
+    return faulty, dropped, names, notes
+
+
+def _finished(
+    planned: PlannedBlock,
+    acceleration: np.ndarray | None,
+    rate: float,
+    channels: tuple[str, ...],
+    dropped: tuple[tuple[str, str], ...],
+    notes: Sequence[str],
+    report: pd.DataFrame | None,
+    skipped_reason: str = "",
+) -> AccelerationBlock:
+    """The block *planned*: built (*acceleration*), or skipped with *skipped_reason*."""
     return AccelerationBlock(
         planned.block,
         planned.block_start,
         planned.block_end,
-        x,
-        out_rate,
-        names,
+        acceleration,
+        rate,
+        channels,
         dropped,
-        files,
-        "",
+        tuple(Path(f).name for f in planned.files),
+        skipped_reason,
         tuple(notes),
         report,
     )
 
 
 def _skipped(planned: PlannedBlock, rate: float, reason: str) -> AccelerationBlock:
-    return AccelerationBlock(
-        planned.block,
-        planned.block_start,
-        planned.block_end,
-        None,
-        rate,
-        (),
-        files=tuple(Path(f).name for f in planned.files),
-        skipped_reason=reason,
-        notes=(f"skipped: {reason}",),
-    )
+    return _finished(planned, None, rate, (), (), (f"skipped: {reason}",), None, reason)
 
 
 def _build(

@@ -62,7 +62,7 @@ import pandas as pd
 from data_contracts import read_accelerations
 
 from ..blocks import BlockGrid
-from .block_builder import AccelerationBlock, load_block
+from .block_builder import AccelerationBlock, _finished, _verdicts, load_block
 from .block_plan import FileInfo, PlannedBlock
 from .conditioning import (
     MAX_INTERPOLATED_NAN_RUN_S,
@@ -349,27 +349,10 @@ class FileConditioner:
         except CoherenceNeeded:
             return None  # a variance outlier's coherence needs the raw block: load_block
 
-        faulty = report["faulty"].to_numpy()
-        dropped = tuple(
-            (str(c), str(r))
-            for c, r in zip(report["channel"][faulty], report["reason"][faulty], strict=True)
-        )
-        notes = tuple(f"{c} dropped: {r}" for c, r in dropped)
-        names = tuple(c for c, bad in zip(self.channels, faulty, strict=True) if not bad)
-        file_names = tuple(Path(f).name for f in planned.files)
+        faulty, dropped, names, notes = _verdicts(report, self.channels)
         if not names:
-            return AccelerationBlock(
-                planned.block,
-                planned.block_start,
-                planned.block_end,
-                None,
-                self.rate,
-                (),
-                dropped,
-                file_names,
-                "all channels faulty",
-                notes,
-                report,
+            return _finished(
+                planned, None, self.rate, (), dropped, notes, report, "all channels faulty"
             )
         kept = np.flatnonzero(~faulty)
         first_out = start_raw // self.factor
@@ -391,19 +374,7 @@ class FileConditioner:
             return None
         if self.detrend and (self.band_hz is None or self.band_hz[0] is None):
             out = linear_detrend(out)
-        return AccelerationBlock(
-            planned.block,
-            planned.block_start,
-            planned.block_end,
-            out,
-            self.target_rate_hz,
-            names,
-            dropped,
-            file_names,
-            "",
-            notes,
-            report,
-        )
+        return _finished(planned, out, self.target_rate_hz, names, dropped, notes, report)
 
 
 @dataclass(frozen=True)

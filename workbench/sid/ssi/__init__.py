@@ -48,7 +48,7 @@ References
 # the private kernels are imported from here by workbench.sid.tpe, workbench.sid.plscf and
 # the tests, as before the module became a package
 from .covariance_driven import ssi_cov
-from .data_driven import ssi_data
+from .data_driven import _weighted_projection, ssi_data  # noqa: F401
 from .decomposition import _leading_eigh, _leading_singular  # noqa: F401
 from .hankel import _cholesky, _hankel_gram, _lagged_products, _toeplitz_gram  # noqa: F401
 from .preparation import (  # noqa: F401

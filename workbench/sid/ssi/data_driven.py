@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import linalg
@@ -131,6 +132,70 @@ def ssi_data(
     )
     n_samples, n_channels = data.shape
     i = int(block_rows)
+    n_max = orders[-1]
+    projection = _weighted_projection(
+        data, i, references, weighting, n_max, n_max + _EXTRA_SINGULAR_VALUES
+    )
+    channel_order, lag_sums = projection.channel_order, projection.lag_sums
+    lower, p, basis, s = (
+        projection.lower,
+        projection.past_rows,
+        projection.basis,
+        projection.singular_values,
+    )
+    poles = poles_all_orders(basis, n_channels, orders, sampling_rate_hz)
+
+    root = np.sqrt(s[:n_max])
+    observability = basis * root
+    correlations = lag_sums[: i + 1] / (n_samples - np.arange(i + 1))[:, None, None]
+    system = _stochastic_model(
+        observability,
+        _realisation(poles, basis, root, n_channels),
+        lower,
+        correlations,
+        p,
+        references,
+        channel_order,
+    )
+    return _assemble(
+        poles,
+        orders,
+        sampling_rate_hz,
+        i,
+        s,
+        references,
+        f"ssi-data/{weighting}",
+        system,
+        channel_order=channel_order,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class _WeightedProjection:
+    """The LQ factor of the reference-based block Hankel matrix and the observability basis
+    from the SVD of the weighted projection (:func:`ssi_data`, Notes); channels permuted
+    references first (``channel_order``)."""
+
+    channel_order: np.ndarray
+    lag_sums: np.ndarray  # lagged products of the permuted channels, lags 0 .. 2i-1
+    lower: np.ndarray  # L of H = L Qᵀ, [Y_p^ref; Y_f] normalised by 1/√j
+    past_rows: int  # p = r·i rows of the past references
+    basis: np.ndarray  # U₁ (L_f U₁ for CVA): O_i = basis · S₁^{1/2}, n_max columns
+    singular_values: np.ndarray  # the leading singular values of W₁ P_i W₂
+
+
+def _weighted_projection(
+    data: np.ndarray,
+    block_rows: int,
+    references: np.ndarray,
+    weighting: Weighting,
+    n_max: int,
+    n_singular: int,
+) -> _WeightedProjection:
+    """LQ factor of mean-free *data* and the observability basis of order *n_max* from the
+    *n_singular* leading singular triplets of the weighted projection (see :func:`ssi_data`)."""
+    n_samples, n_channels = data.shape
+    i = int(block_rows)
     n_refs = references.size
     # references first: then Y_{i|i}^{ref} is the first block of the future rows
     others = np.setdiff1d(np.arange(n_channels), references)
@@ -157,32 +222,7 @@ def ssi_data(
     else:  # cva
         unweight = _cholesky(gram[p:, p:], "future output covariance")
         weighted = linalg.solve_triangular(unweight, l21, lower=True, check_finite=False)
-    n_max = orders[-1]
-    u, s = _leading_singular(weighted, n_max + _EXTRA_SINGULAR_VALUES)
+    u, s = _leading_singular(weighted, n_singular)
     _order_limits(n_max, s)
     basis = u[:, :n_max] if unweight is None else unweight @ u[:, :n_max]
-    poles = poles_all_orders(basis, n_channels, orders, sampling_rate_hz)
-
-    root = np.sqrt(s[:n_max])
-    observability = basis * root
-    correlations = lag_sums[: i + 1] / (n_samples - np.arange(i + 1))[:, None, None]
-    system = _stochastic_model(
-        observability,
-        _realisation(poles, basis, root, n_channels),
-        lower,
-        correlations,
-        p,
-        references,
-        channel_order,
-    )
-    return _assemble(
-        poles,
-        orders,
-        sampling_rate_hz,
-        i,
-        s,
-        references,
-        f"ssi-data/{weighting}",
-        system,
-        channel_order=channel_order,
-    )
+    return _WeightedProjection(channel_order, lag_sums, lower, p, basis, s)

@@ -188,7 +188,11 @@ class StepwiseFit:
                     )
                 values[:, positions] = block
             return values, X.index
-        values = np.asarray(X, dtype=float)
+        return self._predictor_array(X, float), None
+
+    def _predictor_array(self, X, dtype) -> np.ndarray:
+        """*X* (not a DataFrame) as rows of the fitted predictor columns; one row if 1-D."""
+        values = np.asarray(X, dtype=dtype)
         if values.ndim == 1:
             values = values[None, :] if len(self.predictor_names) > 1 else values[:, None]
         if values.ndim != 2 or values.shape[1] != len(self.predictor_names):
@@ -196,21 +200,14 @@ class StepwiseFit:
                 f"X has shape {np.shape(X)}; the model was fitted on "
                 f"{len(self.predictor_names)} predictor columns"
             )
-        return values, None
+        return values
 
     def _encoded_values(self, X) -> tuple[np.ndarray, pd.Index | None]:
         """Predictor values with categorical columns as level codes of the fit."""
         encoding = self.encoding
         index = X.index if isinstance(X, pd.DataFrame) else None
         if not isinstance(X, pd.DataFrame):
-            array = np.asarray(X, dtype=object)
-            if array.ndim == 1:
-                array = array[None, :] if len(self.predictor_names) > 1 else array[:, None]
-            if array.ndim != 2 or array.shape[1] != len(self.predictor_names):
-                raise ValueError(
-                    f"X has shape {np.shape(X)}; the model was fitted on "
-                    f"{len(self.predictor_names)} predictor columns"
-                )
+            array = self._predictor_array(X, object)
             X = pd.DataFrame(array, columns=list(self.predictor_names))
         lookup = {str(name): name for name in X.columns}
         values = np.full((len(X), len(self.predictor_names)), np.nan)
