@@ -106,8 +106,6 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import linear_sum_assignment
 
-from data_contracts import shapes_to_frame
-
 from .._deprecation import renamed_parameters
 from .assurance import continuous_pole, mac
 from .pole_clustering import (  # otsu_threshold and the constants also importable from here
@@ -119,6 +117,7 @@ from .pole_clustering import (  # otsu_threshold and the constants also importab
     otsu_threshold,
 )
 from .ssi import SSIResult
+from .ssi.results import _with_shapes
 from .stabilisation import StabilityCriteria
 
 __all__ = ["ModeSelection", "select_modes"]
@@ -173,18 +172,7 @@ class ModeSelection:
         block : int, optional
             Block number; adds a ``block`` column first.
         """
-        channels = list(channels)
-        if len(channels) != self.mode_shapes.shape[0]:
-            raise ValueError(
-                f"channels has {len(channels)} names for {self.mode_shapes.shape[0]} "
-                "identified channels"
-            )
-        frame = self.modes.reset_index(drop=True)
-        if block is not None:
-            frame.insert(0, "block", np.full(len(frame), int(block), dtype=np.int64))
-        return pd.concat(
-            [frame, shapes_to_frame(channels, self.mode_shapes.T, index=frame.index)], axis=1
-        )
+        return _with_shapes(self.modes, self.mode_shapes, channels, block)
 
 
 def _assign(

@@ -120,16 +120,24 @@ class PoleTableMixin:
             ``[block,] model_order, frequency_hz, damping_ratio, stable, mpc``,
             ``shape_re_<channel>``..., ``shape_im_<channel>``...
         """
-        channels = list(channels)
-        if len(channels) != self.n_channels:
-            raise ValueError(
-                f"channels has {len(channels)} names for {self.n_channels} identified channels"
-            )
-        frame = self.poles.reset_index(drop=True)
-        if block is not None:
-            frame.insert(0, "block", np.full(len(frame), int(block), dtype=np.int64))
-        shapes = shapes_to_frame(channels, self.mode_shapes.T, index=frame.index)
-        return pd.concat([frame, shapes], axis=1)
+        return _with_shapes(self.poles, self.mode_shapes, channels, block)
+
+
+def _with_shapes(
+    table: pd.DataFrame, mode_shapes: np.ndarray, channels: Sequence[str], block: int | None
+) -> pd.DataFrame:
+    """*table* (one row per column of *mode_shapes*) with ``[block,]`` first and the
+    ``shape_re_<channel>``, ``shape_im_<channel>`` columns last."""
+    channels = list(channels)
+    if len(channels) != mode_shapes.shape[0]:
+        raise ValueError(
+            f"channels has {len(channels)} names for {mode_shapes.shape[0]} identified channels"
+        )
+    frame = table.reset_index(drop=True)
+    if block is not None:
+        frame.insert(0, "block", np.full(len(frame), int(block), dtype=np.int64))
+    shapes = shapes_to_frame(channels, mode_shapes.T, index=frame.index)
+    return pd.concat([frame, shapes], axis=1)
 
 
 @dataclass(frozen=True, eq=False)
