@@ -249,9 +249,24 @@ def test_all_faulty_block_is_skipped_and_options_are_checked(tmp_path):
 
 def test_the_former_stream_module_names_the_same_objects():
     """workbench.signals.stream was split into block_plan and block_builder; imports from the
-    old module (the identify planner and the monitor use its ``_plan``) still work."""
+    old module still work."""
     from workbench.signals import block_plan, stream
 
-    for name in (*stream.__all__, "_plan"):
+    for name in stream.__all__:
         home = block_plan if hasattr(block_plan, name) else block_builder
         assert getattr(stream, name) is getattr(home, name), name
+
+
+def test_planning_from_read_headers_equals_planning_from_files(voyage):
+    """plan_file_infos (headers already read, as the identify planner and the monitor keep
+    them) gives the plan plan_blocks gives from the files."""
+    from workbench.signals import plan_file_infos, read_file_info
+    from workbench.signals.stream import _plan
+
+    files = voyage.acceleration_files
+    infos = [read_file_info(f) for f in reversed(files)]
+    expected = plan_blocks(files, max_gap_s=1.0).frame()
+    pd.testing.assert_frame_equal(plan_file_infos(infos, max_gap_s=1.0).frame(), expected)
+    pd.testing.assert_frame_equal(_plan(infos, None, None, None, 1.0).frame(), expected)
+    with pytest.raises(ValueError, match="no acceleration files"):
+        plan_file_infos([])

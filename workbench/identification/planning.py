@@ -117,7 +117,7 @@ def plan_identification(files: Sequence[Path], options: IdentifyOptions):
         Options that do not fit the files (band, rate; exit 2).
     """
     from ..signals import plan_blocks
-    from ..signals.stream import _plan
+    from ..signals.block_plan import plan_file_infos
 
     try:
         plan = plan_blocks(
@@ -130,7 +130,7 @@ def plan_identification(files: Sequence[Path], options: IdentifyOptions):
         first = plan.files[0].start_time
         if plan.grid.t0 != first:  # anchor the grid at the first sample, not a round time
             grid = BlockGrid(first, options.length_s, options.step_s)
-            plan = _plan(plan.files, grid, None, None, options.max_gap_s)
+            plan = plan_file_infos(plan.files, grid, max_gap_s=options.max_gap_s)
     except OptionError:
         raise
     except ValueError as error:
@@ -146,7 +146,7 @@ def plan_identification(files: Sequence[Path], options: IdentifyOptions):
             length = math.floor(length * 1e6) / 1e6  # whole microseconds
             options = dataclasses.replace(options, length_s=length, step_s=length)
             try:
-                plan = _plan(plan.files, BlockGrid(start, length, length), None, None, 0.0)
+                plan = plan_file_infos(plan.files, BlockGrid(start, length, length))
             except ValueError as error:
                 raise WorkbenchError(str(error)) from None
             return plan, options

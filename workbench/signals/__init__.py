@@ -12,7 +12,14 @@ policy is described in :mod:`~workbench.signals.conditioning`, the faulty-channe
 """
 
 from .block_builder import AccelerationBlock, iter_blocks, load_block
-from .block_plan import BlockPlan, FileInfo, PlannedBlock, plan_blocks, read_file_info
+from .block_plan import (
+    BlockPlan,
+    FileInfo,
+    PlannedBlock,
+    plan_blocks,
+    plan_file_infos,
+    read_file_info,
+)
 from .conditioning import (
     MAX_INTERPOLATED_NAN_RUN_S,
     SignalWarning,
@@ -44,5 +51,6 @@ __all__ = [
     "moments",
     "nan_runs",
     "plan_blocks",
+    "plan_file_infos",
     "read_file_info",
 ]

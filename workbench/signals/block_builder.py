@@ -41,8 +41,8 @@ from .block_plan import (
     PlannedBlock,
     _block_files_and_gap,
     _ns,
-    _plan,
     plan_blocks,
+    plan_file_infos,
     read_file_info,
 )
 from .conditioning import MAX_INTERPOLATED_NAN_RUN_S, bandpass, decimate, interpolate_nan_runs
@@ -420,7 +420,7 @@ def load_block(
             infos[0].sampling_rate_hz,
             "outside the span of the acceleration files",
         )
-    plan = _plan(touching, grid, None, None, max_gap_s)
+    plan = plan_file_infos(touching, grid, max_gap_s=max_gap_s)
     if all(b.block != k for b in plan.blocks):
         # The block reaches past the touching files into an allowed gap (the next file
         # starts after the block's end): plan it on its own, as the full plan does.

@@ -284,13 +284,20 @@ def _block_files_and_gap(
     return indices, ""
 
 
-def _plan(
+def plan_file_infos(
     infos: Sequence[FileInfo],
-    grid: BlockGrid | None,
-    length_s: float | None,
-    step_s: float | None,
-    max_gap_s: float,
+    grid: BlockGrid | None = None,
+    *,
+    length_s: float | None = None,
+    step_s: float | None = None,
+    max_gap_s: float = 0.0,
 ) -> BlockPlan:
+    """:func:`plan_blocks` for files whose headers are already read (:class:`FileInfo`).
+
+    Callers that keep the headers (the identify planner, the monitor re-planning as files
+    arrive) plan from them without reading the files again. Parameters and errors as in
+    :func:`plan_blocks`.
+    """
     if not infos:
         raise ValueError("no acceleration files given")
     if not (math.isfinite(float(max_gap_s)) and max_gap_s >= 0):
@@ -353,4 +360,4 @@ def plan_blocks(
         message names the file.
     """
     infos = [read_file_info(f, read_options=read_options) for f in files]
-    return _plan(infos, grid, length_s, step_s, max_gap_s)
+    return plan_file_infos(infos, grid, length_s=length_s, step_s=step_s, max_gap_s=max_gap_s)

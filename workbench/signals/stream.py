@@ -9,14 +9,20 @@ blocks in :mod:`workbench.signals.block_builder` (:func:`iter_blocks`, :func:`lo
 from __future__ import annotations
 
 from .block_builder import AccelerationBlock, iter_blocks, load_block
-from .block_plan import (  # noqa: F401  (_plan: used by the identify planner and the monitor)
+from .block_plan import (
     BlockPlan,
     FileInfo,
     PlannedBlock,
-    _plan,
     plan_blocks,
+    plan_file_infos,
     read_file_info,
 )
+
+
+def _plan(infos, grid, length_s, step_s, max_gap_s):
+    """The former private planner's positional form (use :func:`plan_file_infos`)."""
+    return plan_file_infos(infos, grid, length_s=length_s, step_s=step_s, max_gap_s=max_gap_s)
+
 
 __all__ = [
     "AccelerationBlock",
@@ -26,5 +32,6 @@ __all__ = [
     "iter_blocks",
     "load_block",
     "plan_blocks",
+    "plan_file_infos",
     "read_file_info",
 ]
