@@ -31,7 +31,9 @@ def split_unit(header: str) -> tuple[str, str | None]:
     return str(header).strip(), None
 
 
-def _decode(raw: bytes, encoding: str | None) -> str:
+def decode_text(raw: bytes, encoding: str | None) -> str:
+    """*raw* decoded with *encoding*; without one, UTF-8 (a byte-order mark dropped), else
+    Latin-1, which every byte sequence is (exported ship logs are often Windows-1252)."""
     if encoding:
         return raw.decode(encoding)
     try:
@@ -78,7 +80,7 @@ def read_delimited(
     OSError, UnicodeDecodeError, pandas.errors.ParserError
         For files that cannot be read; the callers turn them into contract errors.
     """
-    text = _decode(Path(path).read_bytes(), encoding)
+    text = decode_text(Path(path).read_bytes(), encoding)
     lines = text.splitlines()
     body = lines[skip_rows:]
     header = next((line for line in body if line.strip()), "")

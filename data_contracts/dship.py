@@ -36,6 +36,7 @@ import numpy as np
 import pandas as pd
 
 from ._core import Column, ContractError, TableContract, Violation
+from .csv_layout import decode_text
 from .dship_names import (
     AUXILIARY_COLUMNS,
     DSHIP_NAMES,
@@ -137,15 +138,6 @@ def _snake(name: str, unit: str | None) -> str:
     return base
 
 
-def _decode(raw: bytes, encoding: str | None) -> str:
-    if encoding:
-        return raw.decode(encoding)
-    try:
-        return raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        return raw.decode("latin-1")
-
-
 def _looks_like_time(text: str, time_format: str | None) -> bool:
     formats = (time_format,) if time_format else ("ISO8601", *TIME_FORMATS)
     return any(
@@ -235,7 +227,7 @@ def read_dship(
         raw = path.read_bytes()
     except OSError as error:
         raise fail([Violation(None, f"cannot read file: {error.strerror or error}")]) from None
-    text = _decode(raw, encoding)
+    text = decode_text(raw, encoding)
     lines = text.splitlines()
     first_data_line = 0
     stripped = [line.strip() for line in lines]
