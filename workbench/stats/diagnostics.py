@@ -18,6 +18,18 @@ from scipy import stats as _scipy_stats
 __all__ = ["ResidualDiagnostics", "durbin_watson", "residual_diagnostics"]
 
 
+def _finite_residuals(residuals, blocks) -> tuple[np.ndarray, np.ndarray | None]:
+    """The finite residuals (flattened) and the block numbers that go with them."""
+    e = np.asarray(residuals, dtype=float).ravel()
+    finite = np.isfinite(e)
+    if blocks is not None:
+        blocks = np.asarray(blocks, dtype=float).ravel()
+        if blocks.shape != e.shape:
+            raise ValueError(f"blocks has shape {blocks.shape}; residuals have {e.shape}")
+        blocks = blocks[finite]
+    return e[finite], blocks
+
+
 def _run_pairs(e: np.ndarray, blocks) -> np.ndarray:
     """Mask of the consecutive pairs (t-1, t) of *e* that lie in one contiguous run of
     blocks (block numbers differing by 1); all pairs when *blocks* is None."""
@@ -53,14 +65,7 @@ def durbin_watson(residuals, blocks=None) -> float:
     .. [1] J. Durbin, G. S. Watson, "Testing for serial correlation in least squares
        regression. I", Biometrika 37(3/4), 409-428, 1950. doi:10.2307/2332391
     """
-    e = np.asarray(residuals, dtype=float).ravel()
-    finite = np.isfinite(e)
-    if blocks is not None:
-        blocks = np.asarray(blocks, dtype=float).ravel()
-        if blocks.shape != e.shape:
-            raise ValueError(f"blocks has shape {blocks.shape}; residuals have {e.shape}")
-        blocks = blocks[finite]
-    e = e[finite]
+    e, blocks = _finite_residuals(residuals, blocks)
     total = float(e @ e)
     pairs = _run_pairs(e, blocks)
     if e.size < 2 or total == 0.0 or not pairs.any():
@@ -197,14 +202,7 @@ def residual_diagnostics(residuals, *, alpha: float = 0.05, blocks=None) -> Resi
     .. [2] S. S. Shapiro, M. B. Wilk, "An analysis of variance test for normality (complete
        samples)", Biometrika 52(3/4), 591-611, 1965. doi:10.1093/biomet/52.3-4.591
     """
-    e = np.asarray(residuals, dtype=float).ravel()
-    finite = np.isfinite(e)
-    if blocks is not None:
-        blocks = np.asarray(blocks, dtype=float).ravel()
-        if blocks.shape != e.shape:
-            raise ValueError(f"blocks has shape {blocks.shape}; residuals have {e.shape}")
-        blocks = blocks[finite]
-    e = e[finite]
+    e, blocks = _finite_residuals(residuals, blocks)
     n = int(e.size)
     nan = math.nan
     if n == 0:
