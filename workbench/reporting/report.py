@@ -124,7 +124,7 @@ def find_run(
     ``cases.csv``, ``sensor_geometry.csv``, a DSHIP log (``*.tsv``/``*.tab``) and an
     ``accelerations`` folder. Explicit arguments win.
     """
-    from workbench.identify import acceleration_files
+    from data_contracts.formats import acceleration_files
 
     root = Path(root)
     run = RunFiles(root)
