@@ -148,7 +148,7 @@ def test_crosscheck_section_shows_the_ssi_lscf_agreement_per_block(short_run, tm
     shutil.copytree(find_run(short_run).identify, identify)
     table.to_csv(identify / "crosscheck.csv", index=False)
     run = report.RunFiles(tmp_path, identify=identify, tracked=short_run / "tracked_modal.csv")
-    section = report._crosscheck_section(run)
+    section = report.sections.crosscheck_section(run)
     shown = section.tables[0][1].set_index("block")
     assert shown.loc[0, "pairs"] == 2 and shown.loc[0, "SSI modes"] == 3
     assert shown.loc[0, "within 0.1 %"] == 1  # 0.05 % agrees, 0.2 % does not
