@@ -157,3 +157,30 @@ def test_crosscheck_section_shows_the_ssi_lscf_agreement_per_block(short_run, tm
     assert shown.loc[1, "lowest MAC"] == pytest.approx(1.0)
     page = build_report(tmp_path, out=tmp_path / "page.html", run=run, dpi=40)
     assert "SSI / LSCF cross-check" in page.read_text(encoding="utf-8")
+
+
+def test_the_report_shows_the_correlate_stage_result(short_run, tmp_path):
+    # the report draws the correlations from the correlate stage: the result it is given
+    # (here with every mode, however rare) and the stage it runs itself agree on the modes
+    # the report keeps (present in at least half the blocks), digit for digit
+    from data_contracts import MODAL, PREDICTORS, read_table
+    from workbench.predictors import canonical_predictors
+    from workbench.reporting import report
+    from workbench.stages import CorrelateOptions, correlate
+
+    found = find_run(short_run)
+    run = report.RunFiles(short_run, tracked=found.tracked, predictors=found.predictors)
+    modal = read_table(found.tracked, MODAL)
+    predictors = canonical_predictors(read_table(found.predictors, PREDICTORS))
+    every_mode = correlate(modal, predictors, options=CorrelateOptions(min_presence=0.0))
+    tables = {}
+    for name, given in (("own", None), ("given", every_mode)):
+        page = build_report(short_run, out=tmp_path / name / "page.html", run=run,
+                            correlation=given, dpi=30)  # fmt: skip
+        tables[name] = pd.read_csv(page.parent / "report_files" / "correlation_effective.csv")
+    pd.testing.assert_frame_equal(tables["own"], tables["given"])
+    presence = modal.groupby("mode")["block"].nunique() / modal["block"].nunique()
+    shown = {int(y[4:].split("_")[0]) for y in tables["own"]["y"] if y.startswith("mode")}
+    assert shown == {int(m) for m in presence.index[presence >= 0.5]}
+    assert shown < {int(m) for m in modal["mode"]}  # the given result's rare modes left out
+    assert {"n_effective", "p_effective", "significant_effective"} <= set(tables["own"])

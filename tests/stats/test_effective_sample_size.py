@@ -111,3 +111,40 @@ def test_table_adds_effective_columns():
     assert (table["p_effective"] >= table["p_value"] - 1e-12).all()
     row = table[(table.x == "speed_kn") & (table.y == "mode1_frequency_hz")].iloc[0]
     assert row["significant_effective"] and not row["small"]
+
+
+def test_the_correlate_stage_gives_the_same_effective_table():
+    # CorrelateResult.effective() (what the report shows) is correlation_table_effective
+    # of the same tables, and leaves the stage's own table as it was
+    from workbench.stages import correlate
+
+    rng = np.random.default_rng(7)
+    blocks = np.arange(80)
+    start = pd.Timestamp("2024-01-01", tz="UTC") + pd.to_timedelta(5 * blocks, unit="min")
+    speed = _ar1(rng, 80, 0.9)
+    predictors = pd.DataFrame(
+        {
+            "block": blocks,
+            "block_start": start,
+            "block_end": start + pd.Timedelta(minutes=20),
+            "speed_kn": speed,
+            "water_temp_c": _ar1(rng, 80, 0.9),
+        }
+    )
+    modal = pd.DataFrame(
+        {
+            "block": np.repeat(blocks, 2),
+            "mode": np.tile([1, 2], 80),
+            "frequency_hz": np.repeat(3.0 - 0.01 * speed, 2)
+            + np.tile([0.0, 1.5], 80)
+            + 0.002 * rng.standard_normal(160),
+            "damping_ratio": 0.01 + 0.001 * rng.standard_normal(160),
+        }
+    )
+    result = correlate(modal, predictors)
+    columns = list(result.table.columns)
+    table = result.effective()
+    pd.testing.assert_frame_equal(table, correlation_table_effective(modal, predictors))
+    assert list(result.table.columns) == columns  # the stage's table is untouched
+    row = table[(table.x == "speed_kn") & (table.y == "mode2_frequency_hz")].iloc[0]
+    assert row["significant_effective"] and row["n_effective"] < row["n"]

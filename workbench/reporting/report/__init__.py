@@ -96,7 +96,8 @@ def build_report(
         Sections added after the built-in ones (other stages' results).
     correlation : CorrelateResult, optional
         The correlate stage's result of this run (default: the stage run on the modes
-        present in at least half the blocks); the report shows the pairs of those modes.
+        present in at least half the blocks and the speed, temperature and wind
+        predictors); the report shows its pairs of the modes present in half the blocks.
     """
     root = Path(root)
     run = run or find_run(root)
