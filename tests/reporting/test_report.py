@@ -184,3 +184,19 @@ def test_the_report_shows_the_correlate_stage_result(short_run, tmp_path):
     assert shown == {int(m) for m in presence.index[presence >= 0.5]}
     assert shown < {int(m) for m in modal["mode"]}  # the given result's rare modes left out
     assert {"n_effective", "p_effective", "significant_effective"} <= set(tables["own"])
+
+
+def test_the_correlation_text_states_the_overlap_of_the_block_grid():
+    from data_contracts import set_grid
+    from workbench.reporting.report.sections import block_dependence
+
+    start = pd.Timestamp("2024-01-01", tz="UTC") + pd.to_timedelta(10 * np.arange(6), unit="min")
+    blocks = pd.DataFrame({"block": np.arange(6), "block_start": start})
+    half = blocks.assign(block_end=start + pd.Timedelta(minutes=20))  # inferred: 10 of 20 min
+    assert block_dependence(half).startswith("Blocks overlap (50 %), so")
+    recorded = set_grid(half.copy(), {"t0": start[0], "length_s": 1200.0, "step_s": 600.0})
+    assert block_dependence(recorded).startswith("Blocks overlap (50 %), so")
+    adjacent = blocks.assign(block_end=start + pd.Timedelta(minutes=10))
+    assert "overlap" not in block_dependence(adjacent)
+    off_grid = set_grid(half.copy(), {"t0": start[0], "length_s": 1200.0, "step_s": 300.0})
+    assert block_dependence(off_grid) == "Neighbouring blocks are not independent"

@@ -5,6 +5,7 @@ or None when its stage did not run."""
 from __future__ import annotations
 
 import os
+import warnings
 
 import numpy as np
 import pandas as pd
@@ -215,7 +216,7 @@ def correlation_section(data: RunData) -> ReportSection | None:
         fig = views.plot_correlation_heatmap(table)
         section.paragraphs.append(
             "Pearson r of each mode's frequency (f) and damping ratio (ζ) with each predictor, per operating case. "
-            "Blocks overlap (75 %), so neighbouring blocks are not independent: the p-values use an effective "
+            f"{block_dependence(predictors)}: the p-values use an effective "
             "number of blocks N_eff from the autocorrelation of both series (Bartlett; Bretherton et al. 1999). "
             "* significant (p < 0.05) with N_eff; ° significant only if the blocks were taken as independent. "
             "Greyed: fewer than 10 blocks or N_eff < 5, not judged."
@@ -258,6 +259,24 @@ def correlation_section(data: RunData) -> ReportSection | None:
         )
         return section
     return None
+
+
+def block_dependence(predictors: pd.DataFrame) -> str:
+    """Why neighbouring blocks are not independent, with the overlap of the table's block
+    grid (recorded with it, else inferred from the block times)."""
+    from workbench.blocks import block_grid_of
+    from workbench.errors import WorkbenchError
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # a single block: the step is assumed
+            _, length_s, step_s = block_grid_of(predictors)
+    except (WorkbenchError, KeyError, ValueError):
+        return "Neighbouring blocks are not independent"
+    overlap = 1.0 - step_s / length_s
+    if overlap > 0:
+        return f"Blocks overlap ({100 * overlap:.0f} %), so neighbouring blocks are not independent"
+    return "Neighbouring blocks are not independent (the operating conditions change slowly)"
 
 
 def _correlations(data: RunData, kept) -> pd.DataFrame:
