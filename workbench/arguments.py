@@ -2,7 +2,7 @@
 options whose old spelling still works, descriptive choices with short aliases, and the
 ``--verbose``/``--quiet`` switches accepted before or after the command.
 
-Kept apart from ``cli.py`` so that the commands only declare their options.
+Kept apart from :mod:`workbench.cli` so that the commands only declare their options.
 """
 
 from __future__ import annotations

@@ -209,9 +209,10 @@ def run_demo(
     predictors = canonical_predictors(predictors)
 
     with stage("correlate"):
-        correlate(
+        correlated = correlate(
             tracked.table, predictors, cases=simulation.cases, options=CorrelateOptions()
-        ).save(out_dir / "correlation")
+        )
+        correlated.save(out_dir / "correlation")
     with stage("fit"):
         fit(tracked.table, predictors, cases=simulation.cases, options=FitOptions()).save(
             out_dir / "fit"
@@ -252,5 +253,6 @@ def run_demo(
             out=out_dir / "index.html",
             title="workbench demo voyage",
             summary_lines=summary.lines,
+            correlation=correlated,
         )
     return summary

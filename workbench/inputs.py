@@ -1,8 +1,8 @@
 """Command-line options that say how the user's input files are laid out.
 
-Shared by the commands that read ship logs and modal tables; kept apart from ``cli.py``
-so the commands only call :func:`add_dship_columns` / :func:`add_modal_layout` and read
-through :func:`dship_mapping` / :func:`read_modal`.
+Shared by the commands that read ship logs and modal tables; kept apart from
+:mod:`workbench.cli` so the commands only call :func:`add_dship_columns` /
+:func:`add_modal_layout` and read through :func:`dship_mapping` / :func:`read_modal`.
 """
 
 from __future__ import annotations

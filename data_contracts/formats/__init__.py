@@ -21,10 +21,12 @@ headers (``acc01 [g]``). When a file cannot be read, the error lists what it doe
 
 from __future__ import annotations
 
+import logging
 import math
+import os
 import re
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Literal
@@ -34,12 +36,15 @@ import pandas as pd
 
 from .._core import ContractError, Violation
 
+log = logging.getLogger("workbench")
+
 __all__ = [
     "ACCELERATION_SUFFIXES",
     "ACCELERATION_UNITS",
     "STANDARD_GRAVITY_MS2",
     "AccelerationLayout",
     "acceleration_factor",
+    "acceleration_files",
     "as_layout",
 ]
 
@@ -77,6 +82,53 @@ ACCELERATION_UNITS: dict[str, float] = {
 
 #: Suffixes of the acceleration files a folder search picks up.
 ACCELERATION_SUFFIXES = (".npz", ".mat", ".csv", ".tsv", ".txt", ".h5", ".hdf5", ".uff", ".unv")
+
+
+def acceleration_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
+    """Files named by *inputs*: files as given, folders searched (with their subfolders)
+    for acceleration files of every supported format (:data:`ACCELERATION_SUFFIXES`).
+
+    Hidden files and text files without an acceleration header are left out.
+
+    Raises
+    ------
+    FileNotFoundError
+        For an input that does not exist, or when no file is found (one-line message).
+    """
+    from .text import TEXT_SUFFIXES, looks_like_acceleration_table
+
+    found: list[Path] = []
+    for item in inputs:
+        path = Path(item)
+        if path.is_dir():
+            # hidden files (e.g. ``.name.tmp.npz`` of an interrupted write) are not data
+            candidates = sorted(
+                p
+                for p in path.rglob("*")
+                if p.suffix.lower() in ACCELERATION_SUFFIXES
+                and not any(part.startswith(".") for part in p.relative_to(path).parts)
+                and p.is_file()
+            )
+            other = [
+                p
+                for p in candidates
+                if p.suffix.lower() in TEXT_SUFFIXES and not looks_like_acceleration_table(p)
+            ]
+            if other:
+                log.info(
+                    "%s: %d text file(s) without an acceleration header left out (%s)",
+                    path,
+                    len(other),
+                    ", ".join(p.name for p in other[:5]) + (", ..." if len(other) > 5 else ""),
+                )
+            found += [p for p in candidates if p not in set(other)]
+        elif path.is_file():
+            found.append(path)
+        else:
+            raise FileNotFoundError(f"{path}: no such file or folder")
+    if not found:
+        raise FileNotFoundError("no acceleration files found in " + ", ".join(map(str, inputs)))
+    return found
 
 
 def acceleration_factor(unit: str, *, what: str = "unit") -> float:

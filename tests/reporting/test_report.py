@@ -148,7 +148,7 @@ def test_crosscheck_section_shows_the_ssi_lscf_agreement_per_block(short_run, tm
     shutil.copytree(find_run(short_run).identify, identify)
     table.to_csv(identify / "crosscheck.csv", index=False)
     run = report.RunFiles(tmp_path, identify=identify, tracked=short_run / "tracked_modal.csv")
-    section = report._crosscheck_section(run)
+    section = report.sections.crosscheck_section(run)
     shown = section.tables[0][1].set_index("block")
     assert shown.loc[0, "pairs"] == 2 and shown.loc[0, "SSI modes"] == 3
     assert shown.loc[0, "within 0.1 %"] == 1  # 0.05 % agrees, 0.2 % does not
@@ -157,3 +157,46 @@ def test_crosscheck_section_shows_the_ssi_lscf_agreement_per_block(short_run, tm
     assert shown.loc[1, "lowest MAC"] == pytest.approx(1.0)
     page = build_report(tmp_path, out=tmp_path / "page.html", run=run, dpi=40)
     assert "SSI / LSCF cross-check" in page.read_text(encoding="utf-8")
+
+
+def test_the_report_shows_the_correlate_stage_result(short_run, tmp_path):
+    # the report draws the correlations from the correlate stage: the result it is given
+    # (here with every mode, however rare) and the stage it runs itself agree on the modes
+    # the report keeps (present in at least half the blocks), digit for digit
+    from data_contracts import MODAL, PREDICTORS, read_table
+    from workbench.predictors import canonical_predictors
+    from workbench.reporting import report
+    from workbench.stages import CorrelateOptions, correlate
+
+    found = find_run(short_run)
+    run = report.RunFiles(short_run, tracked=found.tracked, predictors=found.predictors)
+    modal = read_table(found.tracked, MODAL)
+    predictors = canonical_predictors(read_table(found.predictors, PREDICTORS))
+    every_mode = correlate(modal, predictors, options=CorrelateOptions(min_presence=0.0))
+    tables = {}
+    for name, given in (("own", None), ("given", every_mode)):
+        page = build_report(short_run, out=tmp_path / name / "page.html", run=run,
+                            correlation=given, dpi=30)  # fmt: skip
+        tables[name] = pd.read_csv(page.parent / "report_files" / "correlation_effective.csv")
+    pd.testing.assert_frame_equal(tables["own"], tables["given"])
+    presence = modal.groupby("mode")["block"].nunique() / modal["block"].nunique()
+    shown = {int(y[4:].split("_")[0]) for y in tables["own"]["y"] if y.startswith("mode")}
+    assert shown == {int(m) for m in presence.index[presence >= 0.5]}
+    assert shown < {int(m) for m in modal["mode"]}  # the given result's rare modes left out
+    assert {"n_effective", "p_effective", "significant_effective"} <= set(tables["own"])
+
+
+def test_the_correlation_text_states_the_overlap_of_the_block_grid():
+    from data_contracts import set_grid
+    from workbench.reporting.report.sections import block_dependence
+
+    start = pd.Timestamp("2024-01-01", tz="UTC") + pd.to_timedelta(10 * np.arange(6), unit="min")
+    blocks = pd.DataFrame({"block": np.arange(6), "block_start": start})
+    half = blocks.assign(block_end=start + pd.Timedelta(minutes=20))  # inferred: 10 of 20 min
+    assert block_dependence(half).startswith("Blocks overlap (50 %), so")
+    recorded = set_grid(half.copy(), {"t0": start[0], "length_s": 1200.0, "step_s": 600.0})
+    assert block_dependence(recorded).startswith("Blocks overlap (50 %), so")
+    adjacent = blocks.assign(block_end=start + pd.Timedelta(minutes=10))
+    assert "overlap" not in block_dependence(adjacent)
+    off_grid = set_grid(half.copy(), {"t0": start[0], "length_s": 1200.0, "step_s": 300.0})
+    assert block_dependence(off_grid) == "Neighbouring blocks are not independent"

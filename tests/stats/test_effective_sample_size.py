@@ -83,31 +83,53 @@ def test_degenerate_inputs():
     assert effective_p_value(0.5, 2.0) != effective_p_value(0.5, 2.0)  # NaN: no dof
 
 
-def test_table_adds_effective_columns():
-    rng = np.random.default_rng(5)
-    blocks = np.arange(120)
+def _speed_driven_mode(seed: int, n_blocks: int) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """A modal table of one mode whose frequency falls with an AR(1) speed, and its
+    predictors, on 5-min steps of 20-min blocks (overlapping: N_eff < n)."""
+    rng = np.random.default_rng(seed)
+    blocks = np.arange(n_blocks)
     start = pd.Timestamp("2024-01-01", tz="UTC") + pd.to_timedelta(5 * blocks, unit="min")
-    speed = _ar1(rng, 120, 0.9)
+    speed = _ar1(rng, n_blocks, 0.9)
     predictors = pd.DataFrame(
         {
             "block": blocks,
             "block_start": start,
             "block_end": start + pd.Timedelta(minutes=20),
             "speed_kn": speed,
-            "water_temp_c": _ar1(rng, 120, 0.9),
+            "water_temp_c": _ar1(rng, n_blocks, 0.9),
         }
     )
     modal = pd.DataFrame(
         {
             "block": blocks,
             "mode": 1,
-            "frequency_hz": 3.0 - 0.01 * speed + 0.002 * rng.standard_normal(120),
-            "damping_ratio": 0.01 + 0.001 * _ar1(rng, 120, 0.9),
+            "frequency_hz": 3.0 - 0.01 * speed + 0.002 * rng.standard_normal(n_blocks),
+            "damping_ratio": 0.01 + 0.001 * _ar1(rng, n_blocks, 0.9),
         }
     )
+    return modal, predictors
+
+
+def test_table_adds_effective_columns():
+    modal, predictors = _speed_driven_mode(5, 120)
     table = correlation_table_effective(modal, predictors)
     assert {"n_effective", "p_effective", "significant_effective", "small"} <= set(table)
     assert (table["n_effective"] <= table["n"]).all()
     assert (table["p_effective"] >= table["p_value"] - 1e-12).all()
     row = table[(table.x == "speed_kn") & (table.y == "mode1_frequency_hz")].iloc[0]
     assert row["significant_effective"] and not row["small"]
+
+
+def test_the_correlate_stage_gives_the_same_effective_table():
+    # CorrelateResult.effective() (what the report shows) is correlation_table_effective
+    # of the same tables, and leaves the stage's own table as it was
+    from workbench.stages import correlate
+
+    modal, predictors = _speed_driven_mode(7, 80)
+    result = correlate(modal, predictors)
+    columns = list(result.table.columns)
+    table = result.effective()
+    pd.testing.assert_frame_equal(table, correlation_table_effective(modal, predictors))
+    assert list(result.table.columns) == columns  # the stage's table is untouched
+    row = table[(table.x == "speed_kn") & (table.y == "mode1_frequency_hz")].iloc[0]
+    assert row["significant_effective"] and row["n_effective"] < row["n"]

@@ -18,7 +18,7 @@ import pandas as pd
 from ..blocks import BlockGrid
 from ..errors import OptionError, WorkbenchError
 from .engine import _block_tasks
-from .options import ACCELERATION_SUFFIXES, IdentifyOptions, analysis_rate
+from .options import IdentifyOptions, analysis_rate
 
 log = logging.getLogger("workbench")
 
@@ -48,42 +48,14 @@ def resolved_run(
 
 
 def acceleration_files(inputs: Iterable[str | os.PathLike]) -> list[Path]:
-    """Files named by *inputs*: files as given, folders searched (with their subfolders)
-    for acceleration files of every supported format (:data:`ACCELERATION_SUFFIXES`)."""
-    from data_contracts.formats.text import TEXT_SUFFIXES, looks_like_acceleration_table
+    """:func:`data_contracts.formats.acceleration_files`, a missing input or an empty
+    search reported as a :class:`~workbench.errors.WorkbenchError` (one line, exit 1)."""
+    from data_contracts.formats import acceleration_files as find_files
 
-    found: list[Path] = []
-    for item in inputs:
-        path = Path(item)
-        if path.is_dir():
-            # hidden files (e.g. ``.name.tmp.npz`` of an interrupted write) are not data
-            candidates = sorted(
-                p
-                for p in path.rglob("*")
-                if p.suffix.lower() in ACCELERATION_SUFFIXES
-                and not any(part.startswith(".") for part in p.relative_to(path).parts)
-                and p.is_file()
-            )
-            other = [
-                p
-                for p in candidates
-                if p.suffix.lower() in TEXT_SUFFIXES and not looks_like_acceleration_table(p)
-            ]
-            if other:
-                log.info(
-                    "%s: %d text file(s) without an acceleration header left out (%s)",
-                    path,
-                    len(other),
-                    ", ".join(p.name for p in other[:5]) + (", ..." if len(other) > 5 else ""),
-                )
-            found += [p for p in candidates if p not in set(other)]
-        elif path.is_file():
-            found.append(path)
-        else:
-            raise WorkbenchError(f"{path}: no such file or folder")
-    if not found:
-        raise WorkbenchError("no acceleration files found in " + ", ".join(map(str, inputs)))
-    return found
+    try:
+        return find_files(inputs)
+    except FileNotFoundError as error:
+        raise WorkbenchError(str(error)) from None
 
 
 def _records(plan) -> list[tuple[pd.Timestamp, pd.Timestamp, list[str]]]:

@@ -19,6 +19,11 @@ Every result has ``.table`` (a DataFrame following its contract), ``.summary()``
 view for notebooks and ``.save(dir)`` (atomic writes, contract formats); ``.plot()`` where a
 figure fits. The CLI parses arguments and calls these; the demo calls them too. Importing
 this package is light: each stage module is imported on first use.
+
+A result leads to the next stage with the same call on its table:
+``identify(...).track()`` (keeping the poles for forecast option B), then
+``TrackResult.predictors(dship)``, ``.correlate``, ``.fit``, ``.forecast``, and
+``ForecastStageResult.evaluate(truth)``.
 """
 
 from __future__ import annotations

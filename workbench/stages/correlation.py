@@ -15,7 +15,13 @@ from data_contracts import MODAL, PREDICTORS
 
 from ..errors import WorkbenchError
 from ..sid.presence import persistent_modes
-from ..stats.correlation import case_masks, correlation_table, joined_blocks, read_cases
+from ..stats.correlation import (
+    case_masks,
+    correlation_table,
+    effective_significance,
+    joined_blocks,
+    read_cases,
+)
 from ._base import StageResult, read_any_table, write_frame
 
 __all__ = ["CorrelateOptions", "CorrelateResult", "correlate"]
@@ -113,6 +119,19 @@ class CorrelateResult(StageResult):
     def useful(self) -> pd.DataFrame:
         """The useful pairs (significant, |r| large enough), by case and p-value."""
         return self.table[self.table["useful"]].sort_values(["case", "p_value"], kind="stable")
+
+    def effective(self, *, min_blocks: int = 10) -> pd.DataFrame:
+        """:attr:`table` with significance that respects autocorrelated (overlapping)
+        blocks: ``n_effective``, ``p_effective``, ``significant_effective`` and ``small``
+        (fewer than *min_blocks* blocks or N_eff < 5), see
+        :func:`workbench.stats.correlation.effective_significance`."""
+        return effective_significance(
+            self.table,
+            self.joined,
+            self.case_blocks,
+            alpha=self.options.alpha,
+            min_blocks=min_blocks,
+        )
 
     def plot(self, quantity: str = "frequency_hz"):
         """corrplot of *quantity* of every mode and the predictors, all cases stitched."""

@@ -124,6 +124,13 @@ class ForecastStageResult(StageResult):
     warnings: list[str] = field(default_factory=list)
     title = "forecast"
 
+    def evaluate(self, truth: pd.DataFrame | str | os.PathLike, *, phase="forecast"):
+        """:func:`~workbench.stages.evaluate` of this forecast against the true modal
+        table *truth*."""
+        from .evaluation import evaluate
+
+        return evaluate(self.table, truth, phase=phase)
+
     def plot(self, mode: int | None = None, *, truth: pd.DataFrame | None = None, option=None):
         """Forecast figure of *mode* (default the first): SSI, model with bounds, Kalman."""
         from ..reporting.forecast_plot import plot_forecast_mode

@@ -61,6 +61,17 @@ class IdentifyStageResult(StageResult):
             raise ValueError("the run wrote no pole table (no block was identified)")
         return read_table(path, POLES)
 
+    def track(self, *, reference_modes=None, options=None, progress: bool = False):
+        """:func:`~workbench.stages.track` of the selected modes; the tracked result keeps
+        this run's poles for the forecast's pole-cluster option (B)."""
+        from .tracking import track
+
+        result = track(
+            self.table, reference_modes=reference_modes, options=options, progress=progress
+        )
+        result.poles = self.poles if "poles" in self.run.files else None
+        return result
+
     def save(self, out_dir: str | os.PathLike) -> dict[str, Path]:
         """selected.parquet and poles.parquet in *out_dir*."""
         out = Path(out_dir)

@@ -28,13 +28,64 @@ class TrackResult(StageResult):
         One row per block and tracked mode (MODAL contract).
     n_blocks : int
         Blocks of the selected-modes table.
+    poles : DataFrame, optional
+        Poles of every model order and block (POLES contract) when tracked from an
+        identification (:meth:`IdentifyStageResult.track`): what :meth:`forecast`
+        measures with ``option B``.
+
+    The next stages run on the tracked table: :meth:`predictors` (the ship log onto its
+    blocks), :meth:`correlate`, :meth:`fit`, :meth:`forecast`.
     """
 
     table: pd.DataFrame
     n_blocks: int
     lines: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    poles: pd.DataFrame | None = field(default=None, repr=False)
     title = "tracked modes"
+
+    def predictors(
+        self,
+        dship: str | os.PathLike,
+        *,
+        dship_mapping: dict[str, str] | None = None,
+        all_predictors: bool = False,
+    ) -> pd.DataFrame:
+        """The ship log *dship* averaged onto the tracked blocks (PREDICTORS contract):
+        speed, water and air temperature, wind speed and relative wind direction, or
+        every numeric column with *all_predictors* (as ``--dship`` of the commands)."""
+        from ..predictors import canonical_predictors, load_predictors
+
+        table = load_predictors(dship=dship, onto=self.table, dship_mapping=dship_mapping)
+        return table if all_predictors else canonical_predictors(table)
+
+    def correlate(self, predictors: pd.DataFrame, *, cases=None, options=None):
+        """:func:`~workbench.stages.correlate` of the tracked modes with *predictors*."""
+        from .correlation import correlate
+
+        return correlate(self.table, predictors, cases=cases, options=options)
+
+    def fit(self, predictors: pd.DataFrame, *, cases=None, options=None):
+        """:func:`~workbench.stages.fit`: a stepwise model of each tracked mode."""
+        from .fitting import fit
+
+        return fit(self.table, predictors, cases=cases, options=options)
+
+    def forecast(
+        self, predictors: pd.DataFrame, *, poles=None, cases=None, options=None, progress=False
+    ):
+        """:func:`~workbench.stages.forecast` of the tracked modes; *poles* default to
+        those of the identification they were tracked from."""
+        from .forecasting import forecast
+
+        return forecast(
+            self.table,
+            predictors,
+            poles=self.poles if poles is None else poles,
+            cases=cases,
+            options=options,
+            progress=progress,
+        )
 
     @property
     def modes(self) -> pd.DataFrame:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import os
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Literal
 
@@ -27,6 +27,7 @@ __all__ = [
     "correlation_table",
     "correlation_table_effective",
     "effective_p_value",
+    "effective_significance",
     "effective_sample_size",
     "joined_blocks",
     "modal_wide",
@@ -557,35 +558,37 @@ def effective_p_value(r: np.ndarray, n_effective: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(r) & (dof > 0), p, np.nan)
 
 
-def correlation_table_effective(
-    modal: pd.DataFrame,
-    predictors: pd.DataFrame,
+def effective_significance(
+    table: pd.DataFrame,
+    joined: pd.DataFrame,
+    case_blocks: Mapping[str, np.ndarray],
     *,
-    cases: str | os.PathLike | pd.DataFrame | None = None,
     alpha: float = 0.05,
     min_blocks: int = 10,
-    **kwargs,
 ) -> pd.DataFrame:
-    """:func:`correlation_table` with significance that respects autocorrelated blocks.
+    """*table* (of :func:`correlation_table`) with significance that respects
+    autocorrelated blocks, as a new table.
 
     Adds ``n_effective`` (:func:`effective_sample_size` on the block grid, per pair and
     case), ``p_effective`` (:func:`effective_p_value`), ``significant_effective``
     (``p_effective < alpha``) and ``small`` (fewer than *min_blocks* blocks or N_eff < 5:
     too little to judge). The naive ``p_value`` (blocks taken as independent) is kept
-    beside. Other keyword arguments go to :func:`correlation_table`.
+    beside.
+
+    Parameters
+    ----------
+    table : DataFrame
+        Pairs (x, y, case, r, n, ...) computed on *joined*.
+    joined : DataFrame
+        The block table correlated (:func:`joined_blocks`), indexed by block number.
+    case_blocks : mapping of str to ndarray of bool
+        Rows of *joined* in each case of *table* (:func:`case_masks`).
     """
-    table = correlation_table(modal, predictors, cases=cases, alpha=alpha, **kwargs)
-    joined, _, _ = joined_blocks(
-        modal,
-        predictors,
-        quantities=kwargs.get("quantities", ("frequency_hz", "damping_ratio")),
-        predictors_used=kwargs.get("predictors_used"),
-    )
-    masks = dict(case_masks(joined.reset_index(), cases))
+    table = table.copy()
     positions = joined.index.to_numpy(dtype=np.int64)
     n_effective = np.full(len(table), np.nan)
     for case, rows in table.groupby("case", sort=False).groups.items():
-        mask = masks[case]
+        mask = case_blocks[case]
         for row in rows:
             x = joined[table.at[row, "x"]].to_numpy(dtype=float)[mask]
             y = joined[table.at[row, "y"]].to_numpy(dtype=float)[mask]
@@ -595,3 +598,27 @@ def correlation_table_effective(
     table["significant_effective"] = np.nan_to_num(table["p_effective"], nan=1.0) < alpha
     table["small"] = (table["n"] < min_blocks) | ~(np.nan_to_num(n_effective) >= 5.0)
     return table
+
+
+def correlation_table_effective(
+    modal: pd.DataFrame,
+    predictors: pd.DataFrame,
+    *,
+    cases: str | os.PathLike | pd.DataFrame | None = None,
+    alpha: float = 0.05,
+    min_blocks: int = 10,
+    **kwargs,
+) -> pd.DataFrame:
+    """:func:`correlation_table` with :func:`effective_significance` (significance that
+    respects autocorrelated blocks). Other keyword arguments go to
+    :func:`correlation_table`.
+    """
+    table = correlation_table(modal, predictors, cases=cases, alpha=alpha, **kwargs)
+    joined, _, _ = joined_blocks(
+        modal,
+        predictors,
+        quantities=kwargs.get("quantities", ("frequency_hz", "damping_ratio")),
+        predictors_used=kwargs.get("predictors_used"),
+    )
+    masks = dict(case_masks(joined.reset_index(), cases))
+    return effective_significance(table, joined, masks, alpha=alpha, min_blocks=min_blocks)

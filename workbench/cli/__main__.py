@@ -1,0 +1,7 @@
+"""``python -m workbench.cli COMMAND ...``: the same as the ``workbench`` command."""
+
+import sys
+
+from . import main
+
+sys.exit(main())

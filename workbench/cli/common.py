@@ -1,0 +1,201 @@
+"""What the commands share: exit statuses, the usage error, option checks, reading the
+modal table and the predictors of correlate/fit/forecast, printing a stage's result."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import logging
+import sys
+from pathlib import Path
+
+from data_contracts import ContractError
+
+from ..errors import OptionError, WorkbenchError
+from ..inputs import add_dship_columns, add_modal_layout, dship_mapping, read_modal
+
+EXIT_OK, EXIT_DATA, EXIT_USAGE = 0, 1, 2
+
+
+log = logging.getLogger("workbench")
+
+
+class UsageError(Exception):
+    """Arguments that parse but make no sense together (exit status 2)."""
+
+
+#: Longest simulated voyage: a year (longer ones would write ~10^5 files per month). [h]
+MAX_SIMULATED_HOURS = 24.0 * 366
+
+
+def _check_hours(hours) -> None:
+    import math
+
+    if hours is not None and not (math.isfinite(hours) and 0 < hours <= MAX_SIMULATED_HOURS):
+        raise UsageError(
+            f"--hours must be a positive number of hours up to {MAX_SIMULATED_HOURS:g}, "
+            f"got {hours:g}"
+        )
+
+
+def _check_positive(**values) -> None:
+    """Usage error unless every given integer option is at least 1 (None passes)."""
+    for name, value in values.items():
+        if value is not None and value < 1:
+            raise UsageError(f"--{name.replace('_', '-')} must be at least 1, got {value}")
+
+
+def _check_share(name: str, value: float, *, low_open: bool = False) -> None:
+    """Usage error unless *value* lies in [0, 1] ((0, 1] with *low_open*)."""
+    import math
+
+    ok = math.isfinite(value) and (0.0 < value if low_open else 0.0 <= value) and value <= 1.0
+    if not ok:
+        interval = "(0, 1]" if low_open else "[0, 1]"
+        raise UsageError(f"--{name} must be in {interval}, got {value:g}")
+
+
+@contextlib.contextmanager
+def _data_errors(source):
+    """A ValueError of the library about the data becomes a one-line error naming *source*
+    (contract errors pass unchanged: they name file, column and rows themselves)."""
+    try:
+        yield
+    except (ContractError, OptionError):
+        raise
+    except ValueError as error:
+        raise WorkbenchError(f"{source}: {error}") from None
+
+
+def _print_result(result, paths=None) -> None:
+    """A stage result's warnings (stderr), lines and the files it wrote."""
+    for line in result.warnings:
+        print(f"warning: {line}", file=sys.stderr)
+    for line in result.lines:
+        print(line)
+    for name, path in dict(paths or {}).items():
+        print(f"{name}: {path}")
+
+
+def _add_predictor_source(parser: argparse.ArgumentParser) -> None:
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument(
+        "--predictors", type=Path, metavar="FILE", help="block predictor table (CSV/Parquet)"
+    )
+    source.add_argument(
+        "--dship",
+        type=Path,
+        metavar="FILE",
+        help="raw DSHIP log, averaged onto the modal table's blocks",
+    )
+    add_dship_columns(parser)
+    add_modal_layout(parser)
+    parser.add_argument(
+        "--all-predictors",
+        action="store_true",
+        help="use every numeric column of the predictors, not only speed, water/air "
+        "temperature, wind speed and relative wind direction",
+    )
+
+
+def _predictors_for(args: argparse.Namespace, modal):
+    from ..predictors import canonical_predictors, load_predictors
+
+    table = load_predictors(
+        predictors=args.predictors, dship=args.dship, onto=modal, dship_mapping=dship_mapping(args)
+    )
+    return table if args.all_predictors else canonical_predictors(table)
+
+
+def _modal_and_predictors(args: argparse.Namespace):
+    """``--modal`` and the predictors (``--predictors`` or ``--dship`` averaged onto the
+    modal blocks) of correlate, fit and forecast, their block times checked against each
+    other."""
+    modal = _read_modal(args, args.modal)
+    predictors = _predictors_for(args, modal)
+    _check_joins(args, modal, predictors)
+    return modal, predictors
+
+
+def _add_parallel(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group("parallel execution")
+    group.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="address of a running dask.distributed scheduler "
+        "(tcp://host:8786), or 'synchronous' to run in this process; "
+        "default: a local cluster on all cores",
+    )
+    group.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="worker processes of the local cluster (default: all cores)",
+    )
+
+
+#: Library parameter names and the CLI options that set them (for usage messages).
+_OPTION_NAMES = {
+    "length_s": "--block-minutes (in s)",
+    "step_s": "--step-minutes (in s)",
+    "max_gap_s": "--max-gap",
+    "target_rate_hz": "--rate",
+    "band_hz": "--band",
+    "block_rows": "--block-rows",
+    "orders": "--min-order/--max-order",
+    "reference_channels": "--reference-channels",
+    "batch_blocks": "--batch-blocks",
+    "n_workers": "--workers",
+    "scheduler": "--scheduler",
+    "mac_min": "--mac-min",
+    "frequency_tol": "--frequency-tol",
+}
+
+
+def _option_names(message: str) -> str:
+    """*message* with a library parameter name at its start shown as the CLI option."""
+    for name, option in _OPTION_NAMES.items():
+        if message.startswith(name):
+            return option + message[len(name) :]
+    return message
+
+
+def _check_joins(args, modal, predictors=None, poles=None) -> None:
+    """Block numbers must mean the same times in every input (one-line error, exit 1)."""
+    from ..joins import check_block_times, check_poles_match, check_predictors_overlap
+
+    if predictors is not None:
+        source = args.predictors if args.predictors is not None else args.dship
+        check_block_times(modal, args.modal, predictors, source)
+        check_predictors_overlap(modal, predictors, source)
+    if poles is not None:
+        check_poles_match(modal, args.modal, poles, args.poles)
+
+
+def _read_modal(args: argparse.Namespace, path: Path, contract=None):
+    """A modal table in any recognised layout (or a table of *contract*) with rows, its
+    block numbers on one time grid."""
+    from data_contracts import read_table
+
+    from ..joins import check_block_grid
+
+    table = read_modal(args, path) if contract is None else read_table(path, contract)
+    if table.empty:
+        raise WorkbenchError(f"{path}: the table has a header but no rows")
+    check_block_grid(table, path)
+    return table
+
+
+def _cases_argument(value: str | None):
+    """--cases: None, "derive" or the path of a case,start,end CSV."""
+    if value is None or value == "derive":
+        return value
+    return Path(value)
+
+
+def _check_table_path(path: Path) -> None:
+    """A usage error unless *path* names a .csv or .parquet file (not a folder)."""
+    if path.suffix.lower() not in (".csv", ".parquet", ".pq"):
+        raise UsageError(f"{path}: the table must end in .csv or .parquet")
+    if path.is_dir():
+        raise UsageError(f"{path}: is a folder; give a file name ending in .csv or .parquet")

@@ -1,0 +1,123 @@
+"""``workbench demo``, ``simulate`` and ``run``: the built-in demo voyage, a simulated
+voyage, and the chain a ship's configuration describes."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from .. import defaults as D
+from ..arguments import add_renamed
+from .common import EXIT_OK, UsageError, _add_parallel, _check_hours, _check_positive
+
+
+def _add_simulate(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser(
+        "simulate",
+        help="simulate a demo voyage with known modal parameters",
+        description="Write a simulated voyage: 5-minute acceleration files, the DSHIP log, "
+        "ground-truth and noisy tracked modal tables, and pole tables.",
+    )
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
+    parser.add_argument("--seed", type=int, default=D.SEED, help="random seed")
+    parser.add_argument(
+        "--hours",
+        type=float,
+        default=None,
+        help=f"voyage length [h] (default: the demo length, {D.HOURS:g} h)",
+    )
+    parser.add_argument(
+        "--no-accelerations", action="store_true", help="skip the acceleration files (tables only)"
+    )
+    add_renamed(
+        parser,
+        "--sampling-rate",
+        ["--rate"],
+        type=float,
+        default=D.SIMULATE_SAMPLING_RATE_HZ,
+        metavar="HZ",
+        help="sampling rate of the acceleration files [Hz], a multiple of 64 Hz (e.g. 2048, "
+        "a recorder's rate: same modal physics, broadband content and a 60 Hz hum above the "
+        "band)",
+    )
+    parser.set_defaults(run=_run_simulate)
+
+
+def _run_simulate(args: argparse.Namespace) -> int:
+    from ..simulate import simulate_voyage
+
+    _check_hours(args.hours)
+    from ..demo import describe_voyage
+
+    try:
+        voyage = simulate_voyage(
+            args.out,
+            seed=args.seed,
+            hours=args.hours,
+            accelerations=not args.no_accelerations,
+            sampling_rate_hz=args.sampling_rate,
+        )
+    except ValueError as error:  # e.g. a voyage shorter than one block
+        raise UsageError(str(error)) from None
+    print(f"simulated voyage written to {args.out}: {describe_voyage(voyage)}")
+    return EXIT_OK
+
+
+def _add_demo(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser(
+        "demo",
+        help="run the whole chain on the built-in demo voyage",
+        description="Simulate the demo voyage into reports/demo/ and run every stage on it.",
+    )
+    parser.add_argument("--out", type=Path, default=D.DEMO_OUT, metavar="DIR", help="output folder")
+    parser.add_argument("--seed", type=int, default=D.SEED, help="random seed")
+    parser.add_argument(
+        "--hours", type=float, default=None, help=f"voyage length [h] (default: {D.HOURS:g})"
+    )
+    _add_parallel(parser)
+    parser.set_defaults(run=_run_demo)
+
+
+def _run_demo(args: argparse.Namespace) -> int:
+    from ..demo import run_demo
+
+    _check_hours(args.hours)
+    _check_positive(workers=args.workers)
+    summary = run_demo(
+        args.out,
+        seed=args.seed,
+        hours=args.hours,
+        scheduler=args.scheduler,
+        n_workers=args.workers,
+        progress=not args.quiet,
+    )
+    print(summary)
+    return EXIT_OK
+
+
+def _add_run(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser(
+        "run",
+        help="run the chain a ship's TOML configuration describes",
+        description="Run identify, track, correlate, fit, forecast and evaluate as far as "
+        "the configuration gives their inputs (see workbench.config; `workbench demo` "
+        "writes an example, ship.toml).",
+    )
+    parser.add_argument("config_file", type=Path, metavar="SHIP.TOML")
+    parser.set_defaults(run=_run_chain)
+
+
+def _run_chain(args: argparse.Namespace) -> int:
+    from ..config import ConfigError, chain, load_config
+    from . import main
+
+    try:
+        steps = chain(load_config(args.config_file))
+    except ConfigError as error:
+        raise UsageError(str(error)) from None
+    for step in steps:
+        print(f"== workbench {' '.join(step)}", flush=True)
+        code = main((["--verbose"] if args.verbose else []) + step)
+        if code != EXIT_OK:
+            return code
+    return EXIT_OK

@@ -1,0 +1,395 @@
+"""``workbench forecast``, ``evaluate`` and ``health``: the sliding forecast blended with
+SSI, its errors against a truth, and the structural-health chart of its residuals."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from .. import defaults as D
+from ..arguments import add_renamed, choice
+from ..errors import WorkbenchError
+from ..inputs import add_modal_layout
+from .common import (
+    EXIT_OK,
+    UsageError,
+    _add_predictor_source,
+    _cases_argument,
+    _check_joins,
+    _check_positive,
+    _check_share,
+    _check_table_path,
+    _data_errors,
+    _modal_and_predictors,
+    _print_result,
+    _read_modal,
+)
+
+#: ``--option``: what each block measures (the reference work's options A and B).
+FORECAST_OPTIONS = choice(
+    {"tracked-pole": "A", "pole-cluster": "B", "both": "AB"},
+    {"A": "tracked-pole", "B": "pole-cluster", "AB": "both"},
+)
+
+
+#: ``--scheme``: how the forecast slides (the reference work's methods 1 and 2).
+FORECAST_SCHEMES = choice(
+    {"single-window": 1, "rolling": 2}, {"1": "single-window", "2": "rolling"}
+)
+
+
+def _add_forecast(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser(
+        "forecast",
+        help="sliding regression forecast of each mode, Kalman-blended with SSI",
+        description="Train a stepwise model of each mode's frequency on the last N blocks, "
+        "predict ahead with 95 % bounds and blend with the SSI estimates by a Kalman filter. "
+        "The measurement of a block is its tracked pole (--option tracked-pole, the reference "
+        "work's option A) or the pole cluster of its stabilisation diagram inside the "
+        "prediction gate (pole-cluster, option B).",
+    )
+    parser.add_argument(
+        "--modal", type=Path, required=True, metavar="FILE", help="tracked modal table"
+    )
+    _add_predictor_source(parser)
+    parser.add_argument(
+        "--poles",
+        type=Path,
+        metavar="FILE",
+        help="pole table (stabilisation diagrams), needed for --option pole-cluster",
+    )
+    parser.add_argument(
+        "--option",
+        type=FORECAST_OPTIONS,
+        metavar=FORECAST_OPTIONS.metavar,
+        default=D.FORECAST_OPTION,
+        help="measurement: the tracked pole (alias A), the pole cluster of the "
+        "stabilisation diagram nearest the prediction (alias B), or both into one table "
+        "(alias AB); the table's option column says A or B",
+    )
+    add_renamed(
+        parser,
+        "--scheme",
+        ["--method"],
+        type=FORECAST_SCHEMES,
+        metavar=FORECAST_SCHEMES.metavar,
+        default=D.FORECAST_SCHEME,
+        help="single-window (alias 1): one training window, one long forecast; rolling "
+        "(alias 2): predict H blocks, filter them, slide the window, refit",
+    )
+    add_renamed(
+        parser,
+        "--train-blocks",
+        ["--train"],
+        type=int,
+        default=D.FORECAST_TRAIN_BLOCKS,
+        metavar="N",
+        help="training window [blocks]",
+    )
+    parser.add_argument(
+        "--horizon",
+        type=int,
+        default=None,
+        metavar="H",
+        help="blocks per forecast [blocks] (default: "
+        + ", ".join(f"{h} for {s}" for s, h in D.FORECAST_HORIZON.items())
+        + ")",
+    )
+    parser.add_argument(
+        "--model",
+        choices=("memory", "window"),
+        default=D.FORECAST_MODEL,
+        help="window: the reference configuration, a stepwise fit on the last "
+        "--train-blocks blocks and --trust; memory: stepwise terms, coefficients over the "
+        "whole history with forgetting, noise levels from the data",
+    )
+    parser.add_argument(
+        "--trust",
+        default=None,
+        help=f"--model window only: steady-state weight on SSI in (0, 1) (default: "
+        f"{D.FORECAST_TRUST:g}), or 'data' for a Q from the model's own prediction variance",
+    )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        metavar="FILE",
+        help="forecast table to write (.csv or .parquet)",
+    )
+    parser.add_argument(
+        "--cases",
+        metavar="FILE|derive",
+        help="forecast each window with the model of the current operating case: a CSV "
+        "with case,start,end (UTC), or 'derive' (stationary / open water / ice by rule)",
+    )
+    parser.add_argument(
+        "--figures", type=Path, metavar="DIR", help="write one figure per mode into DIR"
+    )
+    parser.add_argument(
+        "--truth",
+        type=Path,
+        metavar="FILE",
+        help="true modal table to draw in the figures (simulations)",
+    )
+    add_renamed(
+        parser,
+        "--workers",
+        ["--jobs"],
+        type=int,
+        default=D.FORECAST_WORKERS,
+        metavar="N",
+        help="worker processes to spread the modes over (for voyage-length tables)",
+    )
+    parser.add_argument(
+        "--min-presence",
+        type=float,
+        default=D.MIN_PRESENCE,
+        metavar="SHARE",
+        help="forecast only modes measured in at least this share of the blocks",
+    )
+    add_renamed(
+        parser,
+        "--mac-min",
+        ["--shape-mac-min"],
+        type=float,
+        default=D.FORECAST_MAC_MIN,
+        metavar="MAC",
+        help="pole-cluster: lowest MAC of a pole's shape with the mode's tracked shape",
+    )
+    parser.add_argument(
+        "--reacquire-blocks",
+        type=int,
+        default=None,
+        metavar="K",
+        help="pole-cluster: blocks seen only outside the gate before the track is "
+        "re-acquired (default: "
+        + ", ".join(f"{k} for --model {m}" for m, k in D.FORECAST_REACQUIRE_BLOCKS.items())
+        + ")",
+    )
+    parser.set_defaults(run=_run_forecast)
+
+
+def _parse_trust(text: str) -> float | None:
+    if text.strip().lower() in ("data", "none"):
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise UsageError(f"--trust must be a number in (0, 1) or 'data', got {text!r}") from None
+    if not 0.0 < value < 1.0:
+        raise UsageError(f"--trust must be in (0, 1), got {value}")
+    return value
+
+
+def _run_forecast(args: argparse.Namespace) -> int:
+    from data_contracts import POLES, read_table
+
+    from ..stages import ForecastOptions, forecast
+
+    options = ("A", "B") if args.option == "AB" else (args.option,)
+    if "B" in options and args.poles is None:
+        raise UsageError("--option pole-cluster (B) needs --poles (the stabilisation diagrams)")
+    if args.train_blocks < 2:
+        raise UsageError(f"--train-blocks must be at least 2, got {args.train_blocks}")
+    if args.trust is not None and args.model != "window":
+        raise UsageError(
+            "--trust applies to --model window; --model memory takes its noise levels from the data"
+        )
+    _check_positive(
+        horizon=args.horizon, workers=args.workers, reacquire_blocks=args.reacquire_blocks
+    )
+    _check_share("min-presence", args.min_presence)
+    _check_share("mac-min", args.mac_min)
+    _check_table_path(args.out)
+    trust = "auto" if args.trust is None else _parse_trust(args.trust)
+    modal, predictors = _modal_and_predictors(args)
+    poles = read_table(args.poles, POLES) if args.poles is not None else None
+    truth = _read_modal(args, args.truth) if args.truth is not None else None
+    _check_joins(args, modal, None, poles)
+    stage_options = ForecastOptions(
+        options=options,
+        scheme=args.scheme,
+        train_blocks=args.train_blocks,
+        horizon=args.horizon,
+        trust=trust,
+        model=args.model,
+        n_workers=args.workers,
+        min_presence=args.min_presence,
+        mac_min=args.mac_min,
+        reacquire_blocks=args.reacquire_blocks,
+    )
+    with _data_errors(args.modal):
+        result = forecast(
+            modal,
+            predictors,
+            poles=poles,
+            cases=_cases_argument(args.cases),
+            options=stage_options,
+            progress=not args.quiet,
+        )
+        paths = result.save(args.out, figures=args.figures, truth=truth)
+    _print_result(result, paths)
+    return EXIT_OK
+
+
+def _add_evaluate(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser(
+        "evaluate",
+        help="compare SSI, model and Kalman estimates with a true modal table",
+        description="Cumulative absolute error per mode of the SSI-only, model-only and "
+        "Kalman estimates of a forecast table against the truth (e.g. of the demo voyage), "
+        "and the improvement in %.",
+    )
+    parser.add_argument(
+        "--forecast", type=Path, required=True, metavar="FILE", help="forecast table"
+    )
+    parser.add_argument(
+        "--truth", type=Path, required=True, metavar="FILE", help="true modal table"
+    )
+    parser.add_argument(
+        "--phase",
+        choices=("forecast", "train", "all"),
+        default=D.EVALUATE_PHASE,
+        help="rows compared: the forecast blocks, the training blocks or all",
+    )
+    parser.add_argument(
+        "--out", type=Path, metavar="FILE", help="write the table (.csv or .parquet)"
+    )
+    add_modal_layout(parser)
+    parser.set_defaults(run=_run_evaluate)
+
+
+def _run_evaluate(args: argparse.Namespace) -> int:
+    from data_contracts import FORECAST
+
+    from ..joins import check_block_times
+    from ..stages import evaluate
+    from ..stages.evaluation import SUMMARY_COLUMNS
+
+    if args.out is not None:
+        _check_table_path(args.out)
+    forecast = _read_modal(args, args.forecast, FORECAST)
+    truth = _read_modal(args, args.truth)
+    check_block_times(forecast, args.forecast, truth, args.truth)
+    result = evaluate(forecast, truth, phase=None if args.phase == "all" else args.phase)
+    paths = result.save(args.out) if args.out is not None else {}
+    print(result.table[SUMMARY_COLUMNS].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    _print_result(result, paths)
+    return EXIT_OK
+
+
+def _add_health(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser(
+        "health",
+        help="structural-health control chart of a forecast's frequency residuals",
+        description="MEWMA/Hotelling chart of the standardised residuals (SSI minus model) "
+        "of a forecast table: learns a reference period, then writes health.csv (statistic, "
+        "limit, alarm per block) and alarms.csv (episodes with the modes that moved). Use a "
+        "forecast whose model is frozen before the reference period (forecast --scheme "
+        "single-window), or give --modal, --predictors and --train-hours to fit the chart's "
+        "own operational model (speed, speed², temperatures, speed x water, fuel) on the "
+        "first hours.",
+    )
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument("--forecast", type=Path, metavar="FILE", help="forecast table")
+    source.add_argument("--modal", type=Path, metavar="FILE", help="tracked modal table")
+    parser.add_argument(
+        "--predictors", type=Path, metavar="FILE", help="block predictors (with --modal)"
+    )
+    parser.add_argument(
+        "--train-hours",
+        type=float,
+        metavar="H",
+        help="with --modal: hours the operational model is fitted on; the reference "
+        "period follows them",
+    )
+    parser.add_argument(
+        "--reference-hours",
+        type=float,
+        default=D.HEALTH_REFERENCE_HOURS,
+        help="reference period length [h]",
+    )
+    parser.add_argument(
+        "--reference-start-block",
+        type=int,
+        metavar="K",
+        help="first block of the reference period (default: the first block of the forecast "
+        "phase, or the first after the training hours with --modal)",
+    )
+    parser.add_argument(
+        "--ewma-lambda",
+        type=float,
+        default=D.HEALTH_EWMA_LAMBDA,
+        help="weight of the newest block in the MEWMA statistic",
+    )
+    parser.add_argument(
+        "--false-alarms-per-day",
+        type=float,
+        default=D.HEALTH_FALSE_ALARMS_PER_DAY,
+        help="expected false alarms per day in control (sets the limit)",
+    )
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
+    parser.set_defaults(run=_run_health)
+
+
+def _block_step_s(table) -> float:
+    """Block step of *table*: its recorded grid, else the median step of its blocks."""
+    from data_contracts import recorded_grid
+
+    grid = recorded_grid(table)
+    if grid is not None:
+        return float(grid["step_s"])
+    starts = table["block_start"].drop_duplicates().sort_values()
+    return float(starts.diff().median().total_seconds())
+
+
+def _run_health(args: argparse.Namespace) -> int:
+    from data_contracts import FORECAST, MODAL, PREDICTORS, read_table
+
+    from ..health import HealthOptions, fit_operational_model
+    from ..stages import health
+
+    source = args.forecast
+    if args.modal is not None:
+        if args.predictors is None or args.train_hours is None:
+            raise UsageError("--modal needs --predictors and --train-hours")
+        source = args.modal
+        modal = read_table(args.modal, MODAL)
+        predictors = read_table(args.predictors, PREDICTORS)
+        step_s = _block_step_s(predictors)
+        train = int(round(args.train_hours * 3600 / step_s))
+        reference = int(round(args.reference_hours * 3600 / step_s))
+        first = int(predictors["block"].min())
+        if args.reference_start_block is None:
+            args.reference_start_block = first + train
+        try:
+            model = fit_operational_model(
+                modal, predictors, train_start_block=first, train_blocks=train
+            )
+            forecast = model.forecast(
+                modal,
+                predictors,
+                reference_start_block=args.reference_start_block,
+                reference_blocks=reference,
+            )
+        except ValueError as error:
+            raise WorkbenchError(f"{args.modal}: {error}") from None
+    else:
+        forecast = read_table(args.forecast, FORECAST)
+    blocks = int(round(args.reference_hours * 3600 / _block_step_s(forecast)))
+    try:
+        options = HealthOptions(
+            reference_blocks=blocks,
+            reference_start_block=args.reference_start_block,
+            ewma_lambda=args.ewma_lambda,
+            false_alarms_per_day=args.false_alarms_per_day,
+        )
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    with _data_errors(source):
+        result = health(forecast, options=options)
+    paths = result.save(args.out)
+    print(result.summary())
+    for path in paths.values():
+        print(f"wrote {path}")
+    return EXIT_OK

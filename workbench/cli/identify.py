@@ -1,0 +1,344 @@
+"""``workbench identify`` and the identification options it shares with ``monitor``
+(:func:`identify_options`)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+from .. import defaults as D
+from ..arguments import add_renamed
+from ..inputs import acceleration_layout, add_acceleration_layout
+from .common import EXIT_OK, UsageError, _add_parallel, _check_positive, _option_names
+
+
+def _add_identify(commands: argparse._SubParsersAction) -> None:
+    parser = commands.add_parser(
+        "identify",
+        help="SSI of every block of acceleration files -> pole tables, selected modes",
+        description="Cut acceleration files into blocks (default 20 min, 75 % overlap), "
+        "condition them, run stochastic subspace identification over all model orders, "
+        "mark stable poles and select modes automatically, block by block in parallel. "
+        "Results go to a resumable per-block store: run the same command again after an "
+        "interruption and it carries on.",
+    )
+    parser.add_argument(
+        "inputs",
+        nargs="+",
+        type=Path,
+        metavar="DIR_OR_FILE",
+        help="acceleration files or folders holding them",
+    )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        metavar="DIR",
+        help="folder for poles.parquet, selected.parquet, faults.csv, ...",
+    )
+    parser.add_argument(
+        "--store", type=Path, metavar="DIR", help="per-block store (default: OUT/store)"
+    )
+    parser.add_argument(
+        "--method",
+        choices=("cov", "data", "lscf"),
+        default=D.IDENTIFY_METHOD,
+        help="identification method: covariance-driven (cov) or data-driven (data) SSI, or "
+        "poly-reference LSCF (PolyMAX)",
+    )
+    parser.add_argument(
+        "--lscf-max-order",
+        type=int,
+        default=D.IDENTIFY_LSCF_MAX_ORDER,
+        metavar="P",
+        help="LSCF polynomial orders 1..P (P x references poles)",
+    )
+    parser.add_argument(
+        "--cross-check",
+        action="store_true",
+        help="also identify with the other method (LSCF for SSI, SSI-cov for LSCF) and pair "
+        "the modes of both per block (crosscheck.csv, agreement in the summary)",
+    )
+    parser.add_argument(
+        "--block-rows",
+        type=int,
+        default=D.IDENTIFY_BLOCK_ROWS,
+        metavar="I",
+        help="SSI block rows (time lags of the Hankel matrix)",
+    )
+    parser.add_argument(
+        "--max-order",
+        type=int,
+        default=D.IDENTIFY_MAX_ORDER,
+        metavar="N",
+        help="highest model order (lowered to what the block rows and channels allow)",
+    )
+    parser.add_argument(
+        "--min-order",
+        type=int,
+        default=D.IDENTIFY_MIN_ORDER,
+        metavar="N",
+        help=f"lowest model order (orders step by {D.IDENTIFY_ORDER_STEP})",
+    )
+    parser.add_argument(
+        "--weighting",
+        choices=("pc", "upc", "cva"),
+        default=D.IDENTIFY_WEIGHTING,
+        help="SSI-data weighting",
+    )
+    add_renamed(
+        parser,
+        "--reference-channels",
+        ["--reference"],
+        metavar="CH,CH,...",
+        help="SSI reference channels (default: all)",
+    )
+    parser.add_argument(
+        "--rate",
+        default=D.IDENTIFY_RATE,
+        metavar="HZ|auto|native",
+        help="analysis rate the files are decimated to (Chebyshev I, each file once). "
+        "'auto': the files' rate halved while it stays at or above 4 x the "
+        "band's upper edge, 4 x 25 Hz without --band (2048 Hz files: 64 Hz with --band 2 12, "
+        "128 Hz without; 64 Hz files stay); "
+        "'native': keep the files' rate",
+    )
+    parser.add_argument(
+        "--band",
+        type=float,
+        nargs=2,
+        default=None,
+        metavar=("LOW", "HIGH"),
+        help="band-pass and selection band [Hz] (LOW 0: no high-pass); default: 0 to the "
+        "anti-aliasing filter's edge 0.8 r/2 of the analysis rate r (--rate, or the files' "
+        "rate); HIGH may not exceed that edge when decimating",
+    )
+    parser.add_argument("--no-band", action="store_true", help="no band-pass filter")
+    parser.add_argument(
+        "--block-minutes",
+        type=float,
+        default=None,
+        metavar="MIN",
+        help=f"block length [min] (default: {D.BLOCK_MINUTES:g}); a length below the default "
+        "step needs --step-minutes too",
+    )
+    parser.add_argument(
+        "--step-minutes",
+        type=float,
+        default=None,
+        metavar="MIN",
+        help=f"step between blocks [min] (default: {D.STEP_MINUTES:g})",
+    )
+    parser.add_argument(
+        "--short-record",
+        choices=("error", "one-block"),
+        default=D.IDENTIFY_SHORT_RECORD,
+        help="data shorter than one block: an error naming the record, or one block of the "
+        "record's length",
+    )
+    parser.add_argument(
+        "--selection",
+        choices=("cluster", "library"),
+        default=D.IDENTIFY_SELECTION,
+        help="automatic pole selection: clustering of the poles of all orders with "
+        "thresholds from the data, or the library-and-descent rule",
+    )
+    check = parser.add_argument_group("channel check (per block; a faulty channel is dropped)")
+    check.add_argument(
+        "--no-channel-check", action="store_true", help="keep every channel that has data"
+    )
+    check.add_argument(
+        "--kurtosis-max",
+        type=float,
+        default=D.IDENTIFY_KURTOSIS_MAX,
+        metavar="K",
+        help="kurtosis above K (Gaussian 3) is a fault when out of line with the other channels",
+    )
+    check.add_argument(
+        "--kurtosis-z-max",
+        type=float,
+        default=D.IDENTIFY_KURTOSIS_Z_MAX,
+        metavar="Z",
+        help="robust z-score of a channel's log-kurtosis among the channels above which a "
+        "kurtosis above K is a fault (impulsive excitation raises every channel)",
+    )
+    check.add_argument(
+        "--variance-z-max",
+        type=float,
+        default=D.IDENTIFY_VARIANCE_Z_MAX,
+        metavar="Z",
+        help="robust z-score of a channel's log-variance among the channels beyond which it "
+        "is a fault if it also lost coherence with every other channel",
+    )
+    check.add_argument(
+        "--max-nan-fraction",
+        type=float,
+        default=D.IDENTIFY_MAX_NAN_FRACTION,
+        metavar="SHARE",
+        help="largest share of missing samples",
+    )
+    parser.add_argument(
+        "--conditioning",
+        choices=("per-file", "per-block"),
+        default=D.IDENTIFY_CONDITIONING,
+        help="when decimating: condition each file once or every block from its raw files "
+        "(reference path, slower)",
+    )
+    parser.add_argument(
+        "--max-gap",
+        type=float,
+        default=D.IDENTIFY_MAX_GAP_S,
+        metavar="S",
+        help="NaN-pad gaps between files up to S seconds inside a block",
+    )
+    add_renamed(
+        parser,
+        "--stabilisation-figures",
+        ["--figures"],
+        type=int,
+        default=0,
+        metavar="K",
+        help="stabilisation diagrams of K blocks spread over the voyage",
+    )
+    add_acceleration_layout(parser)
+    parser.add_argument(
+        "--tpe-figures",
+        type=int,
+        default=0,
+        metavar="K",
+        help="SSI-data stabilisation diagrams with the total prediction error per model "
+        "order beside them, for K blocks",
+    )
+    parser.add_argument(
+        "--batch-blocks",
+        type=int,
+        default=D.IDENTIFY_BATCH_BLOCKS,
+        metavar="N",
+        help="blocks stored together (an interruption loses at most these)",
+    )
+    _add_parallel(parser)
+    parser.set_defaults(run=_run_identify)
+
+
+def _analysis_rate(text: str):
+    """``--rate``: a rate in Hz, ``auto`` or ``native`` (None: the files' rate)."""
+    if text.lower() in ("auto", "native"):
+        return None if text.lower() == "native" else "auto"
+    try:
+        rate = float(text)
+    except ValueError:
+        raise UsageError(f"--rate {text!r} is not a rate in Hz, 'auto' or 'native'") from None
+    if not (math.isfinite(rate) and rate > 0):
+        raise UsageError(f"--rate {text} Hz must be a positive rate")
+    return rate
+
+
+def identify_options(args: argparse.Namespace):
+    """The :class:`~workbench.identify.IdentifyOptions` that parsed identification flags
+    describe (``identify`` and ``monitor``); options a command lacks take their defaults.
+
+    Raises
+    ------
+    UsageError
+        For contradicting or impossible flags (exit 2).
+    """
+    from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
+    from ..identify import IdentifyOptions
+
+    def flag(name: str, default):
+        value = getattr(args, name, None)
+        return default if value is None else value
+
+    lscf_max_order = flag("lscf_max_order", D.IDENTIFY_LSCF_MAX_ORDER)
+    if args.min_order < 1 or args.max_order < args.min_order:
+        raise UsageError(f"model orders {args.min_order}..{args.max_order} make no sense")
+    if lscf_max_order < 1:
+        raise UsageError(f"--lscf-max-order must be at least 1, got {lscf_max_order}")
+    if args.no_band and args.band is not None:
+        raise UsageError("--band and --no-band contradict each other")
+    length_s = DEFAULT_BLOCK_LENGTH_S if args.block_minutes is None else 60.0 * args.block_minutes
+    step_s = DEFAULT_BLOCK_STEP_S if args.step_minutes is None else 60.0 * args.step_minutes
+    if not (length_s > 0 and step_s > 0):
+        raise UsageError("--block-minutes and --step-minutes must be positive")
+    if step_s > length_s:
+        given = "--block-minutes" if args.step_minutes is None else "--step-minutes"
+        raise UsageError(
+            f"{given}: step {step_s / 60:g} min is longer than the block "
+            f"{length_s / 60:g} min; give --step-minutes at most --block-minutes"
+        )
+    try:
+        return IdentifyOptions(
+            method=args.method,
+            block_rows=args.block_rows,
+            orders=tuple(range(args.min_order, args.max_order + 1, D.IDENTIFY_ORDER_STEP)),
+            weighting=args.weighting,
+            reference_channels=(
+                tuple(args.reference_channels.split(",")) if args.reference_channels else None
+            ),
+            length_s=length_s,
+            step_s=step_s,
+            target_rate_hz=_analysis_rate(str(args.rate)),
+            band_hz=None if args.no_band else (tuple(args.band) if args.band else "auto"),
+            max_gap_s=args.max_gap,
+            lscf_orders=tuple(range(1, lscf_max_order + 1)),
+            cross_check=flag("cross_check", IdentifyOptions().cross_check),
+            acceleration_layout=acceleration_layout(args),
+            selection=args.selection,
+            short_record=flag("short_record", D.IDENTIFY_SHORT_RECORD),
+            channel_check=not args.no_channel_check,
+            fault_options=(
+                ("kurtosis_limits", (1.3, flag("kurtosis_max", D.IDENTIFY_KURTOSIS_MAX))),
+                ("max_variance_z", flag("variance_z_max", D.IDENTIFY_VARIANCE_Z_MAX)),
+                ("max_kurtosis_z", flag("kurtosis_z_max", D.IDENTIFY_KURTOSIS_Z_MAX)),
+                ("max_nan_fraction", flag("max_nan_fraction", D.IDENTIFY_MAX_NAN_FRACTION)),
+            ),
+            conditioning=args.conditioning,
+        )
+    except ValueError as error:
+        raise UsageError(_option_names(str(error))) from None
+
+
+def _run_identify(args: argparse.Namespace) -> int:
+    from ..identify import IdentifyOptionsError
+    from ..stages import identify
+
+    options = identify_options(args)
+    _check_positive(workers=args.workers, batch_blocks=args.batch_blocks)
+    if args.stabilisation_figures < 0:
+        raise UsageError(
+            f"--stabilisation-figures must be 0 or more, got {args.stabilisation_figures}"
+        )
+    try:
+        result = identify(
+            args.inputs,
+            args.out,
+            options=options,
+            store_dir=args.store,
+            scheduler=args.scheduler,
+            n_workers=args.workers,
+            progress=not args.quiet,
+            batch_blocks=args.batch_blocks,
+        )
+    except IdentifyOptionsError as error:
+        raise UsageError(str(error)) from None
+    for line in result.lines:
+        print(line)
+    if args.stabilisation_figures:
+        from ..identify import write_block_figures
+
+        for path in write_block_figures(
+            args.inputs,
+            args.out / "figures",
+            options=options,
+            n_blocks=args.stabilisation_figures,
+        ):
+            print(f"figure: {path}")
+    if args.tpe_figures > 0:
+        from ..identify import write_tpe_figures
+
+        for path in write_tpe_figures(
+            args.inputs, args.out / "figures", options=options, n_blocks=args.tpe_figures
+        ):
+            print(f"figure: {path}")
+    return EXIT_OK

@@ -1,0 +1,219 @@
+"""The report's overview: what ran, on which data, the modes found, skipped blocks and
+dropped channels; it also loads the tables the later sections share."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import pandas as pd
+
+from data_contracts import MODAL, PREDICTORS, SENSOR_GEOMETRY, read_table
+
+from .render import read_csv_times
+from .run import ReportSection, RunFiles
+from .signals import SignalSummary, signal_pass
+
+if TYPE_CHECKING:
+    from ...stages import CorrelateResult
+    from .render import Figures
+
+
+@dataclass
+class RunData:
+    """A run's tables as the report's sections read them (None where a stage did not run)."""
+
+    run: RunFiles
+    out: Path
+    figures: Figures
+    parameters: dict
+    band: tuple[float, float] | None
+    modal: pd.DataFrame | None
+    predictors: pd.DataFrame | None
+    cases: pd.DataFrame | None
+    geometry: pd.DataFrame | None
+    signal: SignalSummary | None
+    correlation: CorrelateResult | None = None
+    blocks: pd.DataFrame | None = None
+    faults: pd.DataFrame | None = None
+    mode_table: pd.DataFrame | None = None
+    mode_frequencies: dict = field(default_factory=dict)
+    notices: list[str] = field(default_factory=list)
+
+
+def load_run(
+    run: RunFiles, out: Path, figures: Figures, correlation: CorrelateResult | None = None
+) -> RunData:
+    """Read the run's tables once: identification parameters, tracked modes, predictors
+    (from the table, or the DSHIP log onto the modal blocks), cases, sensor geometry and
+    the pass over the acceleration files."""
+    from workbench.predictors import canonical_predictors, load_predictors
+    from workbench.stats.correlation import read_cases
+
+    parameters = {}
+    if run.identify is not None and (run.identify / "store" / "store.json").exists():
+        parameters = json.loads((run.identify / "store" / "store.json").read_text())
+    band = tuple(parameters["band_hz"]) if parameters.get("band_hz") else None
+
+    modal = read_table(run.tracked, MODAL) if run.tracked is not None else None
+    predictors = None
+    if run.predictors is not None:
+        predictors = read_table(run.predictors, PREDICTORS)
+    elif run.dship is not None and modal is not None:
+        predictors = load_predictors(dship=run.dship, onto=modal)
+    if predictors is not None:
+        predictors = canonical_predictors(predictors)
+    cases = read_cases(run.cases) if run.cases is not None else None
+    geometry = read_table(run.geometry, SENSOR_GEOMETRY) if run.geometry is not None else None
+    signal = signal_pass(run.accelerations, cases, band) if run.accelerations else None
+    return RunData(
+        run=run,
+        out=out,
+        figures=figures,
+        parameters=parameters,
+        band=band,
+        modal=modal,
+        predictors=predictors,
+        cases=cases,
+        geometry=geometry,
+        signal=signal,
+        correlation=correlation,
+    )
+
+
+def overview_section(data: RunData, summary_lines=()) -> ReportSection:
+    """The overview section; sets the run's blocks, faults, mode table and mode
+    frequencies on *data* and adds its notices."""
+    run, parameters, band, signal = data.run, data.parameters, data.band, data.signal
+    modal, predictors, notices = data.modal, data.predictors, data.notices
+    overview = ReportSection("overview", "Overview", paragraphs=list(summary_lines))
+    # ---- overview: what ran, on which data
+    ran = [
+        name
+        for name, present in (
+            ("identification", run.identify),
+            ("tracking", run.tracked),
+            ("predictors", predictors is not None),
+            ("correlation", modal is not None and predictors is not None),
+            ("stepwise regression", run.fit),
+            ("forecast", run.forecast),
+            ("evaluation against the truth", run.evaluation),
+        )
+        if present is not None and present is not False
+    ]
+    facts = [("stages", ", ".join(ran) or "none found")]
+    if signal is not None:
+        facts += [
+            (
+                "acceleration files",
+                f"{signal.n_files} ({len(signal.channels)} channels at {signal.sampling_rate_hz:g} Hz)"
+                + (
+                    f"; {signal.n_read} spread over the run read for the signal views"
+                    if signal.n_read < signal.n_files
+                    else ""
+                ),
+            ),
+            ("time span", f"{signal.start:%Y-%m-%d %H:%M} to {signal.end:%Y-%m-%d %H:%M} UTC"),
+        ]
+    if parameters:
+        orders = parameters.get("orders") or [0]
+        facts += [
+            (
+                "identification",
+                f"SSI-{parameters.get('method')}, block rows {parameters.get('block_rows')}, "
+                f"orders {min(orders)}-{max(orders)}, blocks of {parameters.get('length_s', 0) / 60:g} min "
+                f"every {parameters.get('step_s', 0) / 60:g} min"
+                + (f", band {band[0]:g}-{band[1]:g} Hz" if band else "")
+                + (
+                    f", decimated to {parameters['target_rate_hz']:g} Hz"
+                    if parameters.get("target_rate_hz")
+                    else ""
+                ),
+            )
+        ]
+    blocks = None
+    if run.identify is not None:
+        blocks = read_csv_times(run.identify / "blocks.csv", ["block_start"])
+        skipped = blocks[blocks["status"] != "ok"]
+        facts.append(
+            (
+                "blocks",
+                f"{len(blocks)} planned, {len(blocks) - len(skipped)} identified, {len(skipped)} skipped",
+            )
+        )
+        if len(skipped):
+            table = skipped[["block", "block_start", "reason"]].head(20)
+            overview.tables.append((f"Skipped blocks ({len(skipped)}; first 20)", table))
+            notices.append(
+                f"{len(skipped)} blocks could not be identified (see the skipped blocks)"
+            )
+    faults = None
+    if run.identify is not None and (run.identify / "faults.csv").exists():
+        faults = read_csv_times(run.identify / "faults.csv", ["block_start"])
+        if len(faults):
+            n_blocks = len(blocks) if blocks is not None else faults["block"].nunique()
+            dropped = (
+                faults.groupby("channel")
+                .agg(
+                    blocks=("block", "nunique"),
+                    first=("block_start", "min"),
+                    last=("block_start", "max"),
+                    reason=("reason", "first"),
+                )
+                .reset_index()
+            )
+            dropped["share [%]"] = 100.0 * dropped["blocks"] / max(n_blocks, 1)
+            dropped = dropped[["channel", "blocks", "share [%]", "first", "last", "reason"]]
+            overview.tables.append(("Dropped channels (blocks identified without them)", dropped))
+            notices.append(
+                f"{len(dropped)} channel(s) dropped in some blocks: {', '.join(dropped['channel'])}"
+            )
+    facts.append(
+        (
+            "sensor layout",
+            run.geometry.name
+            if run.geometry is not None
+            else "none (no sensor_geometry.csv; mode shapes not drawn)",
+        )
+    )
+    mode_table = None
+    if modal is not None:
+        n_blocks_total = (
+            int(blocks["block"].nunique()) if blocks is not None else int(modal["block"].nunique())
+        )
+        grouped = modal.groupby("mode")
+        mode_table = pd.DataFrame(
+            {
+                "mode": grouped.size().index.astype(int),
+                "frequency [Hz]": grouped["frequency_hz"].mean().to_numpy(),
+                "f std [Hz]": grouped["frequency_hz"].std().to_numpy(),
+                "damping [%]": 100 * grouped["damping_ratio"].mean().to_numpy(),
+                "ζ std [%]": 100 * grouped["damping_ratio"].std().to_numpy(),
+                "blocks": grouped["block"].nunique().to_numpy(),
+                "presence [%]": 100
+                * grouped["block"].nunique().to_numpy()
+                / max(n_blocks_total, 1),
+            }
+        )
+        if "mac" in modal.columns:
+            mode_table["mean MAC"] = grouped["mac"].mean().to_numpy()
+        rare = mode_table[mode_table["presence [%]"] < 50]
+        if len(rare):
+            notices.append(
+                "modes " + ", ".join(map(str, rare["mode"])) + " found in fewer than 50 % of the "
+                "blocks: left out of the correlation, regression and forecast stages"
+            )
+        overview.tables.insert(
+            0, ("Modes found (tracked labels; damping ratio in % of critical)", mode_table)
+        )
+    mode_frequencies = (
+        dict(zip(mode_table["mode"], mode_table["frequency [Hz]"], strict=True))
+        if mode_table is not None
+        else {}
+    )
+    overview.tables.insert(0, ("", pd.DataFrame(facts, columns=["what", "value"])))
+    data.blocks, data.faults, data.mode_table = blocks, faults, mode_table
+    data.mode_frequencies = mode_frequencies
+    return overview
