@@ -20,3 +20,7 @@ class OptionError(ValueError):
     constraint (``band_hz=(2.0, 40.0): upper edge must lie below the Nyquist frequency
     32 Hz``).
     """
+
+
+class UsageError(Exception):
+    """Command-line arguments that parse but make no sense together (CLI: exit 2)."""

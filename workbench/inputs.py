@@ -12,12 +12,12 @@ from pathlib import Path
 
 import pandas as pd
 
+from .errors import UsageError
+
 __all__ = ["add_dship_columns", "add_modal_layout", "dship_mapping", "read_modal"]
 
 
 def _usage(message: str) -> Exception:
-    from .cli import UsageError
-
     return UsageError(message)
 
 

@@ -11,17 +11,13 @@ from pathlib import Path
 
 from data_contracts import ContractError
 
-from ..errors import OptionError, WorkbenchError
+from ..errors import OptionError, UsageError, WorkbenchError
 from ..inputs import add_dship_columns, add_modal_layout, dship_mapping, read_modal
 
 EXIT_OK, EXIT_DATA, EXIT_USAGE = 0, 1, 2
 
 
 log = logging.getLogger("workbench")
-
-
-class UsageError(Exception):
-    """Arguments that parse but make no sense together (exit status 2)."""
 
 
 #: Longest simulated voyage: a year (longer ones would write ~10^5 files per month). [h]
