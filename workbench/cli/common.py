@@ -11,6 +11,7 @@ from pathlib import Path
 
 from data_contracts import ContractError
 
+from .. import defaults as D
 from ..errors import OptionError, UsageError, WorkbenchError
 from ..inputs import add_dship_columns, add_modal_layout, dship_mapping, read_modal
 
@@ -92,6 +93,27 @@ def _add_predictor_source(parser: argparse.ArgumentParser) -> None:
         help="use every numeric column of the predictors, not only speed, water/air "
         "temperature, wind speed and relative wind direction",
     )
+
+
+def _add_modal_and_predictors(parser: argparse.ArgumentParser) -> None:
+    """``--modal`` (required) and the predictor source: what correlate, fit and forecast read."""
+    parser.add_argument(
+        "--modal", type=Path, required=True, metavar="FILE", help="tracked modal table"
+    )
+    _add_predictor_source(parser)
+
+
+def _add_min_presence(
+    parser: argparse.ArgumentParser,
+    help: str = "only modes measured in at least this share of the blocks",
+) -> None:
+    parser.add_argument(
+        "--min-presence", type=float, default=D.MIN_PRESENCE, metavar="SHARE", help=help
+    )
+
+
+def _add_out_dir(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
 
 
 def _predictors_for(args: argparse.Namespace, modal):

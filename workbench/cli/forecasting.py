@@ -13,7 +13,9 @@ from ..inputs import add_modal_layout
 from .common import (
     EXIT_OK,
     UsageError,
-    _add_predictor_source,
+    _add_min_presence,
+    _add_modal_and_predictors,
+    _add_out_dir,
     _cases_argument,
     _check_joins,
     _check_positive,
@@ -48,10 +50,7 @@ def _add_forecast(commands: argparse._SubParsersAction) -> None:
         "work's option A) or the pole cluster of its stabilisation diagram inside the "
         "prediction gate (pole-cluster, option B).",
     )
-    parser.add_argument(
-        "--modal", type=Path, required=True, metavar="FILE", help="tracked modal table"
-    )
-    _add_predictor_source(parser)
+    _add_modal_and_predictors(parser)
     parser.add_argument(
         "--poles",
         type=Path,
@@ -140,13 +139,7 @@ def _add_forecast(commands: argparse._SubParsersAction) -> None:
         metavar="N",
         help="worker processes to spread the modes over (for voyage-length tables)",
     )
-    parser.add_argument(
-        "--min-presence",
-        type=float,
-        default=D.MIN_PRESENCE,
-        metavar="SHARE",
-        help="forecast only modes measured in at least this share of the blocks",
-    )
+    _add_min_presence(parser, "forecast only modes measured in at least this share of the blocks")
     add_renamed(
         parser,
         "--mac-min",
@@ -328,7 +321,7 @@ def _add_health(commands: argparse._SubParsersAction) -> None:
         default=D.HEALTH_FALSE_ALARMS_PER_DAY,
         help="expected false alarms per day in control (sets the limit)",
     )
-    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
+    _add_out_dir(parser)
     parser.set_defaults(run=_run_health)
 
 

@@ -11,7 +11,9 @@ from ..arguments import add_renamed
 from .common import (
     EXIT_OK,
     UsageError,
-    _add_predictor_source,
+    _add_min_presence,
+    _add_modal_and_predictors,
+    _add_out_dir,
     _cases_argument,
     _check_share,
     _check_table_path,
@@ -105,10 +107,7 @@ def _add_correlate(commands: argparse._SubParsersAction) -> None:
         "and predictor pair (and among predictors), per operating case and stitched; "
         "flags significant (p < alpha) and useful (|r| >= 0.5 and significant).",
     )
-    parser.add_argument(
-        "--modal", type=Path, required=True, metavar="FILE", help="tracked modal table"
-    )
-    _add_predictor_source(parser)
+    _add_modal_and_predictors(parser)
     parser.add_argument(
         "--cases", type=Path, metavar="FILE", help="operating cases: CSV with case,start,end (UTC)"
     )
@@ -119,14 +118,8 @@ def _add_correlate(commands: argparse._SubParsersAction) -> None:
         default=D.CORRELATE_CORRECTION,
         help="multiple-testing correction of the p-values",
     )
-    parser.add_argument(
-        "--min-presence",
-        type=float,
-        default=D.MIN_PRESENCE,
-        metavar="SHARE",
-        help="only modes measured in at least this share of the blocks",
-    )
-    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
+    _add_min_presence(parser)
+    _add_out_dir(parser)
     parser.set_defaults(run=_run_correlate)
 
 
@@ -158,10 +151,7 @@ def _add_fit(commands: argparse._SubParsersAction) -> None:
         "frequency on the block predictors; write a summary, JSON, a coefficient table and "
         "residual diagnostics.",
     )
-    parser.add_argument(
-        "--modal", type=Path, required=True, metavar="FILE", help="tracked modal table"
-    )
-    _add_predictor_source(parser)
+    _add_modal_and_predictors(parser)
     parser.add_argument(
         "--p-enter", type=float, default=D.FIT_P_ENTER, help="F-test p-value to add a term"
     )
@@ -181,14 +171,8 @@ def _add_fit(commands: argparse._SubParsersAction) -> None:
         "case,start,end (UTC), or 'derive' (stationary below 1 kn, ice at water <= -1.5 C, "
         "else open water)",
     )
-    parser.add_argument(
-        "--min-presence",
-        type=float,
-        default=D.MIN_PRESENCE,
-        metavar="SHARE",
-        help="only modes measured in at least this share of the blocks",
-    )
-    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
+    _add_min_presence(parser)
+    _add_out_dir(parser)
     parser.set_defaults(run=_run_fit)
 
 
