@@ -24,6 +24,7 @@ from data_contracts import MODAL, atomic_path, shapes_from_frame, write_table
 
 from ..blocks import BlockGrid
 from ..errors import WorkbenchError
+from ..identification.engine import BlockTask, channel_check_options, conditioning_band
 from ..identify import IdentifyOptions, identify_block, input_fingerprints, resolved_run
 from ..sid.tracking import ModeTracker, TrackingOptions
 from ..signals.file_conditioning import FileConditioner
@@ -465,11 +466,10 @@ class Monitor:
 
     # ------------------------------------------------------------------ one block
     def _process(self, planned) -> None:
-        from ..identify import _Task
         from ..parallel import _guarded
 
         voyage = self.voyage
-        task = _Task(int(planned.block), planned.block_start, tuple(str(f) for f in planned.files))
+        task = BlockTask(int(planned.block), planned.block_start, tuple(str(f) for f in planned.files))
         conditioner = None
         if voyage.per_file:
             conditioner = self._conditioner(planned)
@@ -516,8 +516,6 @@ class Monitor:
 
     def _conditioner(self, planned) -> _SharedConditioner:
         voyage = self.voyage
-        from ..identify import _fault_options, _filter_band
-
         infos = [f.info for f in self.files]
         position = {info.path: i for i, info in enumerate(infos)}
         used = [position[Path(p)] for p in planned.files if Path(p) in position]
@@ -531,9 +529,9 @@ class Monitor:
             voyage.grid,
             voyage.channels,
             target_rate_hz=float(options.target_rate_hz),
-            band_hz=_filter_band(options),
+            band_hz=conditioning_band(options),
             max_gap_s=options.max_gap_s,
-            fault_options=_fault_options(options),
+            fault_options=channel_check_options(options),
             read_options=options.read_options,
             shared=self._shared,
             counter=self.conditioned_files,
