@@ -111,6 +111,9 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--false-alarms-per-day", type=float, default=HealthOptions.false_alarms_per_day
     )
+    parser.add_argument("--statistic", choices=["cusum", "mewma"], default=HealthOptions.statistic)
+    parser.add_argument("--detect-shift", type=float, default=HealthOptions.detect_shift)
+    parser.add_argument("--model-error-sigma", type=float, default=HealthOptions.model_error_sigma)
     parser.add_argument("--per-seed", action="store_true", help="also print each seed's numbers")
     args = parser.parse_args(argv)
 
@@ -123,6 +126,9 @@ def main(argv=None) -> int:
         reference_start_block=train,
         ewma_lambda=args.ewma_lambda,
         false_alarms_per_day=args.false_alarms_per_day,
+        statistic=args.statistic,
+        detect_shift=args.detect_shift,
+        model_error_sigma=args.model_error_sigma,
     )
     if args.chart == "before":
         options = dataclasses.replace(options, **BEFORE)
