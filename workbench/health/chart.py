@@ -208,6 +208,10 @@ class HealthReference:
     mode_limits : ndarray, shape (n_modes,), optional
         CUSUM: decision interval H_j of each mode; the chart's statistic is
         max_j S_j / H_j and its limit 1. [-]
+    trend_slope : ndarray, shape (n_modes,), optional
+        With ``baseline_hours``: each mode's drift over the reference, per block; the
+        location is then the line's value at the reference end, and a reference block
+        k is charted about location - slope x (end_block - k). [-]
     """
 
     modes: tuple[int, ...]
@@ -225,6 +229,7 @@ class HealthReference:
     statistic: str = "mewma"
     allowance: np.ndarray | None = None
     mode_limits: np.ndarray | None = None
+    trend_slope: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -659,6 +664,13 @@ def learn_reference(
             f"blocks {first_block}-{last_block}"
         )
     ref = residuals[:, keep]
+    trend_slope = None
+    if options.baseline_hours is not None:
+        # a following baseline: the reference may hold a drift the model does not explain
+        # (fuel burn); the in-control scatter is measured about each mode's line, and the
+        # baseline starts from the line's value at the reference end
+        trend_slope, trend_end = _robust_lines(ref, blocks - blocks[-1])
+        ref = ref - (trend_end + np.outer(blocks - blocks[-1], trend_slope))
     location, scale = _robust_location_scale(ref)
     if not np.all(scale > 0):
         raise ValueError(
@@ -706,11 +718,17 @@ def learn_reference(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         relative_median = np.nanmedian(relative[:, keep], axis=0)
+    if trend_slope is not None:
+        location = location + trend_end  # the line at the reference end
     allowance = mode_limits = None
     if options.statistic == "cusum":
         # K_j: half the smallest drop worth detecting, in mode j's standardised units
         # (its relative residuals' robust scale is one unit)
-        relative_scale = _robust_location_scale(relative[:, keep])[1]
+        relative_ref = relative[:, keep]
+        if trend_slope is not None:  # scatter about each mode's drift line, as above
+            rel_slope, rel_end = _robust_lines(relative_ref, blocks - blocks[-1])
+            relative_ref = relative_ref - (rel_end + np.outer(blocks - blocks[-1], rel_slope))
+        relative_scale = _robust_location_scale(relative_ref)[1]
         if not np.all(relative_scale > 0):
             raise ValueError(
                 f"reference blocks {first_block}-{last_block}: a mode's relative residuals "
@@ -755,4 +773,24 @@ def learn_reference(
         statistic=options.statistic,
         allowance=allowance,
         mode_limits=mode_limits,
+        trend_slope=trend_slope,
     )
+
+
+def _robust_lines(values: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per column, slope and value at t = 0 of a least-squares line through the finite
+    values, refitted once without those beyond 4 robust standard deviations (wrong poles).
+    """
+    slopes, ends = np.zeros(values.shape[1]), np.zeros(values.shape[1])
+    for j in range(values.shape[1]):
+        use = np.isfinite(values[:, j])
+        for _ in range(2):
+            if use.sum() < 3:
+                break
+            slope, end = np.polyfit(t[use], values[use, j], 1)
+            residual = values[:, j] - (end + slope * t)
+            scale = 1.4826 * np.nanmedian(np.abs(residual[use]))
+            with np.errstate(invalid="ignore"):
+                use = np.isfinite(values[:, j]) & (np.abs(residual) <= 4.0 * max(scale, 1e-12))
+            slopes[j], ends[j] = slope, end
+    return slopes, ends

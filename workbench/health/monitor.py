@@ -220,6 +220,7 @@ class HealthMonitor:
                 "statistic": ref.statistic,
                 "allowance": None if ref.allowance is None else _arr(ref.allowance),
                 "mode_limits": None if ref.mode_limits is None else _arr(ref.mode_limits),
+                "trend_slope": None if ref.trend_slope is None else _arr(ref.trend_slope),
             }
 
         def item_state(item: dict[str, Any]) -> dict[str, Any]:
@@ -327,6 +328,9 @@ class HealthMonitor:
                 mode_limits=(
                     None if ref["mode_limits"] is None else _from_json(ref["mode_limits"])
                 ),
+                trend_slope=(
+                    None if ref["trend_slope"] is None else _from_json(ref["trend_slope"])
+                ),
             )
         return monitor
 
@@ -382,7 +386,11 @@ class HealthMonitor:
         options = self.options
         assert ref is not None and self._chart_state is not None
         raw = np.array([item["residual"].get(m, np.nan) for m in ref.modes])
+        phase = "reference" if self._charted < options.reference_blocks else "monitor"
         location = ref.location if self._location is None else self._location
+        if phase == "reference" and ref.trend_slope is not None:
+            # the reference's own drift line (the baseline takes over at its end)
+            location = ref.location - ref.trend_slope * (ref.end_block - item["block"])
         with np.errstate(invalid="ignore"):
             x = np.clip((raw - location) / ref.scale, -options.clip_sigma, options.clip_sigma)
         # the model's persistent error at this block, in the chart's units
@@ -412,10 +420,9 @@ class HealthMonitor:
             covariance = ref.ewma_covariance + np.diag(model**2)
             t2_row, parts_row = hotelling(self._chart_state[None, :], covariance)
             t2, parts = float(t2_row[0]), parts_row[0]
-        phase = "reference" if self._charted < options.reference_blocks else "monitor"
         self._charted += 1
         alarm = bool(t2 > ref.limit) and phase == "monitor"
-        if options.baseline_hours is not None and not alarm:
+        if options.baseline_hours is not None and not alarm and phase == "monitor":
             # μ_k = μ_{k-1} + η σ x_k, η = 1 - exp(-step / T): the baseline follows slow
             # drifts; the clipped x keeps a wrong pole from dragging it
             eta = -math.expm1(-float(self._step_s) / (3600.0 * options.baseline_hours))
