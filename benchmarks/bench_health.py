@@ -128,7 +128,7 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--baseline-hours",
         type=float,
-        default=12.0,
+        default=24.0,
         help="time constant of the following baseline of the ols-baseline model [h]",
     )
     parser.add_argument("--per-seed", action="store_true", help="also print each seed's numbers")

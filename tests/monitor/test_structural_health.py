@@ -40,11 +40,11 @@ def test_learning_first_then_the_chart_finds_the_loss_with_and_without_fuel(dama
     before = health[health["block_start"] < damaged.damage_time]
     assert not before["alarm"].any()
 
-    # no soundings in the log: the 12-h baseline follows the fuel burn, the loss is found
+    # no soundings in the log: the 24-h baseline follows the fuel burn, the loss is found
     no_fuel = damaged.predictors.drop(columns="fuel_on_board_t")
     health, alarms, notes = operational_health(damaged.modal, no_fuel, SETTINGS, 300.0)
     assert (
-        "health: no fuel_on_board_t in the ship log; the fuel burn is followed by a 12-h baseline"
+        "health: no fuel_on_board_t in the ship log; the fuel burn is followed by a 24-h baseline"
         in notes
     )
     assert detection_delay_hours(damaged, health) <= 3.0

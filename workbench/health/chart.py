@@ -94,12 +94,15 @@ class HealthOptions:
         error standard deviations (``model_shift_std``), so the chart does not accumulate
         what the model cannot know (1.645: one-sided 95 %). [-]
     baseline_hours : float, optional
-        Let each mode's in-control location follow the residuals slowly, an EWMA with
-        this time constant, held while the chart alarms (None: the reference's location,
-        fixed). For a drift no logged predictor explains (fuel burn without tank
-        soundings, ballast): a step is charted before the baseline takes in more than
-        1 - exp(-delay/T) of it (8 % after 1 h with T = 12 h), but a loss that grows
-        slower than about ``detect_shift``/(2 T) per hour is followed, not detected. [h]
+        Let each mode's in-control location follow the residuals slowly (None: the
+        reference's location, fixed), for a drift no logged predictor explains (fuel burn
+        without tank soundings, ballast). The reference is then measured about each
+        mode's straight line; from its end, the location is Brown's linear exponential
+        smoothing of the residuals (Brown 1963, see :func:`health_chart`) with ω = exp(-step/T): level and slope, so a
+        steady drift is followed without lag; held while the chart alarms. The cost: a
+        step is taken in at about 2/T per hour of its size until detected (17 % after 2 h
+        with T = 24 h), and a loss that grows steadily is followed once T or so has
+        passed: only its onset can be detected. [h]
     """
 
     reference_blocks: int = 72
@@ -383,7 +386,7 @@ def cusum_limits(
     blocks correlate 1 - l/segments at lag l and the long-run variance is *segments*
     times the variance). Each replicate is a reference period of *reference_blocks*,
     whose median and 1.4826 MAD standardise it (the chart's own location and scale, with
-    their estimation error [2]_), scaled to the *variance* the chart's standardised
+    their estimation error, Jones-Farmer et al. 2014), scaled to the *variance* the chart's standardised
     residuals have (a little above 1 where the tails are heavier than normal), followed
     by one day; the CUSUM runs through both. H_j
     is the exp(-rate/p) quantile of the daily maximum of mode j's CUSUM over all p x
@@ -585,6 +588,9 @@ def health_chart(forecast: pd.DataFrame, options: HealthOptions | None = None) -
        overlap structure is known. Measured (``benchmarks/results/health.txt``): no false
        alarm in 60 monitored days with the fitted model (seeds 0-19), where the MEWMA
        had 5 on the hold-out seeds, and shorter worst-case delays.
+    7. *Following baseline* (``baseline_hours``): for a drift no logged predictor
+       explains, the location follows Brown's linear exponential smoothing [8]_ of the
+       residuals from the reference's straight line on (see :class:`HealthOptions`).
 
     References
     ----------
@@ -606,6 +612,8 @@ def health_chart(forecast: pd.DataFrame, options: HealthOptions | None = None) -
     .. [7] D. C. Montgomery, "Introduction to Statistical Quality Control", 7th ed.,
        Wiley, 2013, sections 9.1 (tabular CUSUM, K = δ/2, the change-point and shift
        estimates) and 10.4 (autocorrelated data).
+    .. [8] R. G. Brown, "Smoothing, Forecasting and Prediction of Discrete Time
+       Series", Prentice-Hall, 1963 (double exponential smoothing).
     """
     from .monitor import HealthMonitor
 

@@ -107,7 +107,10 @@ class HealthMonitor:
         self._last_block: int | None = None
         self._charted = 0  # blocks charted since the reference start
         self._chart_state: np.ndarray | None = None  # EWMA z or CUSUM S per mode
-        self._location: np.ndarray | None = None  # in-control location (baseline_hours)
+        # the following baseline (baseline_hours): level, slope per block, level's block
+        self._location: np.ndarray | None = None
+        self._slope: np.ndarray | None = None
+        self._baseline_block: int | None = None
         # CUSUM: sum and count of each mode's x since its S last left 0 (the estimated
         # change point), for the size of the change
         self._run_sum: np.ndarray | None = None
@@ -258,6 +261,8 @@ class HealthMonitor:
             "charted": self._charted,
             "chart_state": None if self._chart_state is None else _arr(self._chart_state),
             "location": None if self._location is None else _arr(self._location),
+            "slope": None if self._slope is None else _arr(self._slope),
+            "baseline_block": self._baseline_block,
             "run_sum": None if self._run_sum is None else _arr(self._run_sum),
             "run_count": None if self._run_count is None else _arr(self._run_count),
             "episodes": self._episodes,
@@ -293,6 +298,8 @@ class HealthMonitor:
         monitor._chart_state = None if chart_state is None else _from_json(chart_state)
         location = state["location"]
         monitor._location = None if location is None else _from_json(location)
+        monitor._slope = None if state["slope"] is None else _from_json(state["slope"])
+        monitor._baseline_block = state["baseline_block"]
         for name in ("run_sum", "run_count"):
             values = state[name]
             setattr(monitor, f"_{name}", None if values is None else _from_json(values))
@@ -376,7 +383,10 @@ class HealthMonitor:
             residuals, relative, modes, blocks, 86400.0 / step_s, self.options, overlap_ratio
         )
         self._chart_state = np.zeros(len(self.reference.modes))
-        self._location = self.reference.location.copy()
+        if self.reference.trend_slope is not None:
+            self._location = self.reference.location.copy()
+            self._slope = self.reference.trend_slope.copy()
+            self._baseline_block = self.reference.end_block
         self._run_sum = np.zeros(len(self.reference.modes))
         self._run_count = np.zeros(len(self.reference.modes))
         self._step_s = step_s
@@ -387,10 +397,13 @@ class HealthMonitor:
         assert ref is not None and self._chart_state is not None
         raw = np.array([item["residual"].get(m, np.nan) for m in ref.modes])
         phase = "reference" if self._charted < options.reference_blocks else "monitor"
-        location = ref.location if self._location is None else self._location
-        if phase == "reference" and ref.trend_slope is not None:
-            # the reference's own drift line (the baseline takes over at its end)
-            location = ref.location - ref.trend_slope * (ref.end_block - item["block"])
+        location = ref.location
+        if ref.trend_slope is not None:
+            if phase == "reference":  # the reference's own drift line
+                location = ref.location - ref.trend_slope * (ref.end_block - item["block"])
+            else:  # the baseline's level and slope, carried to this block
+                assert self._location is not None and self._slope is not None
+                location = self._location + self._slope * (item["block"] - self._baseline_block)
         with np.errstate(invalid="ignore"):
             x = np.clip((raw - location) / ref.scale, -options.clip_sigma, options.clip_sigma)
         # the model's persistent error at this block, in the chart's units
@@ -422,11 +435,16 @@ class HealthMonitor:
             t2, parts = float(t2_row[0]), parts_row[0]
         self._charted += 1
         alarm = bool(t2 > ref.limit) and phase == "monitor"
-        if options.baseline_hours is not None and not alarm and phase == "monitor":
-            # μ_k = μ_{k-1} + η σ x_k, η = 1 - exp(-step / T): the baseline follows slow
-            # drifts; the clipped x keeps a wrong pole from dragging it
-            eta = -math.expm1(-float(self._step_s) / (3600.0 * options.baseline_hours))
-            self._location = location + eta * ref.scale * np.nan_to_num(x, nan=0.0)
+        if ref.trend_slope is not None and not alarm and phase == "monitor":
+            # Brown's linear exponential smoothing, ω = exp(-step / T): level
+            # μ_k = p_k + (1 - ω²) e_k and slope β_k = β_{k-1} + (1 - ω)² e_k with p_k the
+            # carried level and e_k = σ x_k (clipped: a wrong pole cannot drag it); a
+            # drift, even a steady rise, is followed without lag, a step only slowly
+            omega = math.exp(-float(self._step_s) / (3600.0 * float(options.baseline_hours)))
+            error = ref.scale * np.nan_to_num(x, nan=0.0)
+            self._location = location + (1.0 - omega**2) * error
+            self._slope = self._slope + (1.0 - omega) ** 2 * error
+            self._baseline_block = int(item["block"])
         with np.errstate(invalid="ignore", divide="ignore"):
             shares = parts / (parts.sum() if ref.statistic == "cusum" else t2)
         row = {

@@ -39,7 +39,7 @@ _DEFAULTS = {
     "false_alarms_per_day": 0.1,
     "health_model": "operational",
     "health_train_hours": 12.0,
-    "baseline_hours": 12.0,
+    "baseline_hours": 24.0,
     "poll": 1.0,
     "settle": 1.0,
     "late": 900.0,
@@ -173,7 +173,7 @@ def add_monitor(commands: argparse._SubParsersAction) -> None:
         type=float,
         metavar="H",
         help="without fuel_on_board_t in the ship log: time constant of the health chart's "
-        "slowly following baseline (12; 0: fixed)",
+        "slowly following baseline (24; 0: fixed)",
     )
     parser.set_defaults(run=run_monitor)
 

@@ -91,7 +91,7 @@ class ForecastSettings:
     false_alarms_per_day: float = 0.1
     health_model: Literal["operational", "forecast"] = "operational"
     health_train_hours: float = 12.0
-    baseline_hours: float | None = 12.0
+    baseline_hours: float | None = 24.0
 
     def __post_init__(self) -> None:
         options = tuple(self.options)
