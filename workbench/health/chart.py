@@ -570,7 +570,8 @@ def health_chart(forecast: pd.DataFrame, options: HealthOptions | None = None) -
        maximum over per-mode charts does not dilute one mode's change among p - 1 quiet
        ones as T² does. Per mode, S_k = max(0, S_{k-1} - x_k - K_k) on the standardised
        residuals x (step 2), with the reference value K = δ/2 for the smallest drop worth
-       detecting, δ = ``detect_shift`` over the mode's robust scale of relative residuals,
+       detecting, δ = ``detect_shift`` over the mode's robust scale of relative residuals
+       (at most ``clip_sigma``, the largest residual the chart takes at face value),
        and K_k = K + g s_k, s_k the model's persistent error (``model_shift_std`` in chart
        units, g = ``model_error_sigma``), so what the model cannot know does not
        accumulate. Decision intervals H_j come from simulated in-control residuals with
@@ -742,12 +743,15 @@ def learn_reference(
                 f"reference blocks {first_block}-{last_block}: a mode's relative residuals "
                 "do not vary"
             )
-        allowance = 0.5 * options.detect_shift / relative_scale
+        # capped at the clip: residuals beyond ±clip_sigma are not trusted (wrong poles),
+        # so for a very precise mode the chart looks for a drop of clip_sigma scales
+        # (smaller than detect_shift, found as fast)
+        allowance = 0.5 * np.minimum(options.detect_shift / relative_scale, options.clip_sigma)
         # H_j from simulated in-control residuals with the reference's autocorrelation:
         # the blocks' overlap makes the long-run variance length/step times the variance
         # (a floor: slow model errors can only add); the kernel estimate pooled over the
         # modes (the overlap is common to them) raises it when the residuals wander more
-        per_mode = long_run_std(ref_x, options.bootstrap_block_length)
+        per_mode = long_run_std(ref_x, min(options.bootstrap_block_length, len(ref) // 4))
         variance = float(np.nanmean(np.nanvar(ref_x, axis=0)))
         ratio = max(float(np.mean(per_mode**2)) / variance, overlap_ratio)
         mode_limits = cusum_limits(
@@ -761,6 +765,7 @@ def learn_reference(
             clip_sigma=options.clip_sigma,
             rng=rng,
         )
+        mode_limits = np.maximum(mode_limits, allowance)  # never 0: S/H stays defined
         rep_cusum = cusum_hold(rep_x, allowance)[len(ref) :]  # (day, replicates, modes)
         boot_statistic = (rep_cusum / mode_limits).max(axis=2)
         limit = 1.0
