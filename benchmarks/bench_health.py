@@ -11,7 +11,8 @@ the next ``--reference-hours``, then 24 h are monitored. Scenarios:
   transit into colder water (12 kn, water to -1.7 °C, air 10 °C colder: all outside the
   training range), the main false-alarm risk in practice;
 * ``<loss>@<mode>`` (e.g. ``0.02@3``): a step stiffness loss on one mode 12 h into the
-  monitoring (frequency x sqrt(1 - loss)).
+  monitoring (frequency x sqrt(1 - loss)); ``<loss>@<mode>/<ramp>h`` (``0.02@3/12h``):
+  the loss grows linearly over the ramp from that time on.
 
 Operational/environmental models feeding the chart:
 
@@ -21,7 +22,9 @@ Operational/environmental models feeding the chart:
 * ``ols``: :func:`workbench.health.fit_operational_model` on the training period (speed,
   speed², temperatures, speed x water, logged fuel used), with its parameter uncertainty
   relative to the reference period (``model_shift_std``);
-* ``ols-time``: the same with elapsed hours instead of the logged fuel.
+* ``ols-time``: the same with elapsed hours instead of the logged fuel on board;
+* ``ols-baseline``: the same without any fuel term, the chart's baseline following slow
+  drifts (``--baseline-hours``, :attr:`HealthOptions.baseline_hours`).
 
 Chart settings: ``after`` (the current :class:`~workbench.health.HealthOptions` defaults)
 or ``before`` (the previous defaults: upcrossing-calibrated limit, full covariance,
@@ -47,6 +50,7 @@ import numpy as np
 import pandas as pd
 
 from workbench.health import (
+    DEFAULT_TERMS,
     HealthOptions,
     detection_delay_hours,
     fit_operational_model,
@@ -63,6 +67,7 @@ BEFORE = {
     "bootstrap_block_length": 4,
     "model_uncertainty": False,
     "decrease_only": False,
+    "statistic": "mewma",
 }
 
 
@@ -81,11 +86,14 @@ def _forecast(name: str, voyage, train: int, reference: int) -> pd.DataFrame:
     if name == "stepwise":
         return frozen_forecast(voyage, train)
     predictors = voyage.predictors
+    terms = None  # the default terms over the columns present
+    if name in ("ols-time", "ols-baseline"):
+        predictors = predictors.drop(columns="fuel_on_board_t")  # a log without soundings
     if name == "ols-time":
-        predictors = predictors.drop(columns="fuel_burned_t")
+        terms = [*DEFAULT_TERMS[:-1], "elapsed_hours"]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        model = fit_operational_model(voyage.modal, predictors, train_blocks=train)
+        model = fit_operational_model(voyage.modal, predictors, train_blocks=train, terms=terms)
     return model.forecast(
         voyage.modal, predictors, reference_start_block=train, reference_blocks=reference
     )
@@ -98,7 +106,10 @@ def main(argv=None) -> int:
     parser.add_argument("--train-hours", type=float, default=72.0)
     parser.add_argument("--reference-hours", type=float, default=24.0)
     parser.add_argument(
-        "--models", nargs="+", default=["ols"], choices=["law", "stepwise", "ols", "ols-time"]
+        "--models",
+        nargs="+",
+        default=["ols"],
+        choices=["law", "stepwise", "ols", "ols-time", "ols-baseline"],
     )
     parser.add_argument(
         "--scenarios",
@@ -110,6 +121,15 @@ def main(argv=None) -> int:
     parser.add_argument("--ewma-lambda", type=float, default=HealthOptions.ewma_lambda)
     parser.add_argument(
         "--false-alarms-per-day", type=float, default=HealthOptions.false_alarms_per_day
+    )
+    parser.add_argument("--statistic", choices=["cusum", "mewma"], default=HealthOptions.statistic)
+    parser.add_argument("--detect-shift", type=float, default=HealthOptions.detect_shift)
+    parser.add_argument("--model-error-sigma", type=float, default=HealthOptions.model_error_sigma)
+    parser.add_argument(
+        "--baseline-hours",
+        type=float,
+        default=24.0,
+        help="time constant of the following baseline of the ols-baseline model [h]",
     )
     parser.add_argument("--per-seed", action="store_true", help="also print each seed's numbers")
     args = parser.parse_args(argv)
@@ -123,6 +143,9 @@ def main(argv=None) -> int:
         reference_start_block=train,
         ewma_lambda=args.ewma_lambda,
         false_alarms_per_day=args.false_alarms_per_day,
+        statistic=args.statistic,
+        detect_shift=args.detect_shift,
+        model_error_sigma=args.model_error_sigma,
     )
     if args.chart == "before":
         options = dataclasses.replace(options, **BEFORE)
@@ -130,10 +153,15 @@ def main(argv=None) -> int:
         f"{args.seeds} seeds from {args.first_seed}; train {args.train_hours:g} h, reference "
         f"{args.reference_hours:g} h, monitor 24 h; damage at +12 h, regime change at +4 h; "
         f"chart '{args.chart}': lambda {options.ewma_lambda:g}, target "
-        f"{options.false_alarms_per_day:g} false alarms/day, limit {options.limit_method}, "
-        f"covariance {options.covariance}, bootstrap blocks {options.bootstrap_block_length}, "
-        f"model uncertainty {options.model_uncertainty}, decrease only "
-        f"{options.decrease_only}, common shift {options.common_shift}"
+        f"{options.false_alarms_per_day:g} false alarms/day, statistic {options.statistic}"
+        + (
+            f" (detect shift {options.detect_shift:g}, model error sigma "
+            f"{options.model_error_sigma:g}, ols-baseline {args.baseline_hours:g} h)"
+            if options.statistic == "cusum"
+            else f" (limit {options.limit_method}, covariance {options.covariance}, "
+            f"bootstrap blocks {options.bootstrap_block_length}, model uncertainty "
+            f"{options.model_uncertainty}, decrease only {options.decrease_only})"
+        )
     )
     header = (
         f"{'model':9s} {'scenario':>9s} {'false alarms/day':>17s} {'no false alarm':>15s} "
@@ -143,11 +171,14 @@ def main(argv=None) -> int:
     print("-" * len(header))
     for name in args.models:
         for scenario in args.scenarios:
-            loss, mode, regime = 0.0, None, None
+            loss, mode, regime, ramp = 0.0, None, None, 0.0
             if scenario == "regime":
                 regime = args.train_hours + args.reference_hours + 4.0
             elif scenario != "none":
                 text_loss, text_mode = scenario.split("@")
+                if "/" in text_mode:  # LOSS@MODE/RAMPh: a loss growing over RAMP hours
+                    text_mode, text_ramp = text_mode.split("/")
+                    ramp = float(text_ramp.rstrip("h"))
                 loss, mode = float(text_loss), int(text_mode)
             rates, delays = [], []
             for seed in range(args.first_seed, args.first_seed + args.seeds):
@@ -158,8 +189,13 @@ def main(argv=None) -> int:
                     stiffness_loss=loss,
                     damage_after_hours=onset if mode else None,
                     regime_change_after_hours=regime,
+                    damage_ramp_hours=ramp,
                 )
-                table = health_chart(_forecast(name, voyage, train, reference), options).table
+                chart_options = options
+                if name == "ols-baseline":
+                    chart_options = dataclasses.replace(options, baseline_hours=args.baseline_hours)
+                forecast = _forecast(name, voyage, train, reference)
+                table = health_chart(forecast, chart_options).table
                 rates.append(_episodes_per_day(table, voyage.damage_time))
                 if mode:
                     delays.append(detection_delay_hours(voyage, table))

@@ -56,6 +56,9 @@ import pandas as pd
 
 FORECAST = ["--train-blocks", "20", "--trust", "0.65"]
 IDENTIFY = ["--band", "2", "12"]
+#: The health chart's operational model on the first 4 h, its reference on the next 3 h:
+#: the chart starts 7 h into the 12-h demo (the defaults, 12 h + 6 h, suit real voyages)
+HEALTH = ["--health-train-hours", "4", "--reference-hours", "3"]
 
 
 def _cli(*argv) -> None:
@@ -208,7 +211,7 @@ def _replay(
     command = [
         sys.executable, "-m", "workbench.cli", "monitor", "--watch", str(watch),
         "--state", str(state), "--dship", str(log.target), "--option", option,
-        *IDENTIFY, *FORECAST, "--poll", str(poll), "--settle", str(settle),
+        *IDENTIFY, *FORECAST, *HEALTH, "--poll", str(poll), "--settle", str(settle),
     ]  # fmt: skip
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     stderr = open(work / "monitor.log", "w", encoding="utf-8")  # noqa: SIM115

@@ -273,7 +273,12 @@ def demo_ab(n_blocks: int, folder: Path | None) -> None:
     from threadpoolctl import threadpool_limits
 
     from workbench.demo import DEMO_IDENTIFY_OPTIONS
-    from workbench.identify import _identify_data, _Task, acceleration_files, plan_identification
+    from workbench.identify import (
+        BlockTask,
+        _identify_data,
+        acceleration_files,
+        plan_identification,
+    )
 
     with tempfile.TemporaryDirectory() as tmp:
         if folder is None or not (folder / "voyage.json").is_file():
@@ -295,7 +300,7 @@ def demo_ab(n_blocks: int, folder: Path | None) -> None:
         modes: dict[str, int] = {"former": 0, "present": 0}
         with threadpool_limits(limits=1):
             for k, planned in enumerate(blocks):
-                task = _Task(planned.block, planned.block_start, tuple(map(str, planned.files)))
+                task = BlockTask(planned.block, planned.block_start, tuple(map(str, planned.files)))
                 pair = [("former", old), ("present", new)]
                 for name, options in pair if k % 2 else pair[::-1]:
                     started = time.perf_counter()

@@ -46,7 +46,7 @@ from .dship_names import (
     relative_wind,
     resolve_mapping,
 )
-from .tables import CANONICAL_PREDICTORS
+from .tables import CANONICAL_PREDICTORS, OPTIONAL_PREDICTORS
 
 __all__ = ["DEFAULT_DSHIP_MAPPING", "DSHIP_LOG", "read_dship"]
 
@@ -101,11 +101,27 @@ _CONVERSIONS: dict[str, dict[str, object]] = {
     },
     "wind_dir_rel_deg": {"°": None, "degrees": None},
 }
+_CONVERSIONS["fuel_on_board_t"] = {"t": None, "kg": lambda v: v / 1000.0}
 _CONVERSIONS["wind_speed_true_ms"] = _CONVERSIONS["wind_speed_ms"]
 for _angle in ("wind_dir_true_deg", "heading_deg", "course_deg"):
     _CONVERSIONS[_angle] = _CONVERSIONS["wind_dir_rel_deg"]
 #: Units recognised in a unit row besides the convertible ones.
-_OTHER_UNITS = {"%", "hpa", "mbar", "psu", "m", "°n", "°e", "w/m2", "w/m^2", "mm", "1", "-"}
+_OTHER_UNITS = {
+    "%",
+    "hpa",
+    "mbar",
+    "psu",
+    "m",
+    "°n",
+    "°e",
+    "w/m2",
+    "w/m^2",
+    "mm",
+    "1",
+    "-",
+    "m3",
+    "m³",
+}
 
 DSHIP_LOG = TableContract(
     name="dship",
@@ -359,7 +375,11 @@ def read_dship(
         what = "an ISO-8601 time" if used_format == "ISO8601" else f"a time in {used_format}"
         problems.append(Violation(headers[time_index], f"not {what}", shown, n))
 
-    known = [c.name for c in CANONICAL_PREDICTORS] + list(AUXILIARY_COLUMNS)
+    known = (
+        [c.name for c in CANONICAL_PREDICTORS]
+        + [c.name for c in OPTIONAL_PREDICTORS]
+        + list(AUXILIARY_COLUMNS)
+    )
     candidates = resolve_mapping(mapping, known)
     if decimal is None:
         decimal = "," if sep != "," and _has_decimal_commas(table, time_index) else "."
@@ -422,6 +442,20 @@ def read_dship(
         if index is None:
             absent.append(column.name)
             out[column.name] = np.nan
+            continue
+        used.add(index)
+        out[column.name] = convert(index, column.name, column.unit or "")
+    for column in OPTIONAL_PREDICTORS:  # kept when the log has them, never NaN-filled
+        index = find(column.name)
+        if index is None:
+            continue
+        unit = units[index]
+        if unit is not None and _unit_key(unit) not in _CONVERSIONS[column.name]:
+            warnings.warn(
+                f"{source}: column {headers[index]!r} could be {column.name} but its unit "
+                f"'{unit}' is not {column.unit}; kept under its own name",
+                stacklevel=2,
+            )
             continue
         used.add(index)
         out[column.name] = convert(index, column.name, column.unit or "")

@@ -74,6 +74,16 @@ DSHIP_NAMES: dict[str, tuple[str, ...]] = {
     "wind_speed_true_ms": ("Wind speed true", "True wind speed", "ff true"),
     "heading_deg": ("SYS.STR.HDG", "HDG", "Heading", "HDT", "True heading"),
     "course_deg": ("SYS.STR.COG", "COG", "SYS.STR.Course", "Course", "Course over ground"),
+    # Optional predictors (data_contracts.tables.OPTIONAL_PREDICTORS)
+    "fuel_on_board_t": (
+        "Fuel on board",
+        "FOB",
+        "Fuel ROB",
+        "Fuel remaining on board",
+        "Fuel remaining",
+        "Fuel total",
+        "Bunker ROB",
+    ),
 }
 
 #: Columns read only to derive the relative wind (not predictors themselves).

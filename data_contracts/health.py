@@ -19,9 +19,9 @@ def _end_not_before_start(frame: pd.DataFrame) -> list[Violation]:
 
 HEALTH = TableContract(
     name="health",
-    description="Multivariate control chart of the standardised frequency residuals "
-    "(measured minus operational/environmental model), one row per block: the MEWMA "
-    "statistic T², its control limit and whether it alarms.",
+    description="Control chart of the standardised frequency residuals (measured minus "
+    "operational/environmental model), one row per block: the chart's statistic (per-mode "
+    "CUSUM, or MEWMA T²), its control limit and whether it alarms.",
     columns=(
         Column("block", "int", "Block number on the voyage's block grid.", minimum=0),
         Column("block_start", "time", "Start of the block, UTC.", unit="UTC"),
@@ -35,9 +35,10 @@ HEALTH = TableContract(
         Column(
             "statistic",
             "float",
-            "MEWMA Hotelling statistic T² = zᵀ (Σ_z + D)⁻¹ z of the EWMA z of the residuals "
-            "(D: the model's own uncertainty at the block; z reflected at 0 when only "
-            "decreases are charted).",
+            "CUSUM chart (default): max_j S_j / H_j of the modes' lower one-sided CUSUMs "
+            "S_j over their decision intervals H_j (limit 1). MEWMA chart: Hotelling "
+            "T² = zᵀ (Σ_z + D)⁻¹ z of the EWMA z of the residuals (D: the model's own "
+            "uncertainty at the block; z reflected at 0 when only decreases are charted).",
             minimum=0.0,
         ),
         Column("limit", "float", "Control limit of the statistic.", minimum=0.0),
@@ -62,15 +63,16 @@ ALARMS = TableContract(
         Column(
             "modes",
             "str",
-            "Modes contributing most at the peak, with their share of T² "
+            "Modes contributing most at the peak, with their share of the statistic "
             "(e.g. '3 (91 %); 5 (6 %)').",
         ),
         Column("top_mode", "int", "Mode with the largest contribution at the peak.", minimum=1),
         Column(
             "top_mode_shift_percent",
             "float",
-            "Median relative frequency residual of the top mode over the episode minus its "
-            "reference median. [%]",
+            "Estimated change of the top mode's frequency: CUSUM, its mean relative "
+            "residual since the CUSUM last left 0 (the estimated change point); MEWMA, "
+            "its median relative residual over the episode minus its reference median. [%]",
             unit="%",
             nullable=True,
         ),

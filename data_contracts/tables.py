@@ -34,6 +34,7 @@ from ._core import (
 __all__ = [
     "CANONICAL_PREDICTORS",
     "FORECAST",
+    "OPTIONAL_PREDICTORS",
     "MODAL",
     "POLES",
     "PREDICTORS",
@@ -144,6 +145,24 @@ CANONICAL_PREDICTORS: tuple[Column, ...] = (
     ),
 )
 
+#: Optional predictor columns: read from the ship log when it carries them, never filled
+#: with NaN when it does not, and not among the canonical predictors the forecast and
+#: correlation stages use by default (the structural-health model uses them).
+OPTIONAL_PREDICTORS: tuple[Column, ...] = (
+    Column(
+        "fuel_on_board_t",
+        "float",
+        "Fuel on board, the sum of the fuel tanks' soundings (consumption lowers the hull's "
+        "mass and so raises its natural frequencies).",
+        unit="t",
+        required=False,
+        nullable=True,
+        minimum=0.0,
+        maximum=1.0e6,
+        hint="fuel on board is in tonnes (1 t = 1000 kg)",
+    ),
+)
+
 
 def _end_after_start(frame: pd.DataFrame) -> list[Violation]:
     bad = (frame["block_end"] <= frame["block_start"]).to_numpy(dtype=bool, na_value=False)
@@ -199,7 +218,7 @@ PREDICTORS = TableContract(
     name="predictors",
     description="Ship-log predictors averaged over the blocks of the voyage's block grid, "
     "one row per block. NaN where a block had too little valid data.",
-    columns=(_BLOCK, _BLOCK_START, _BLOCK_END, *CANONICAL_PREDICTORS),
+    columns=(_BLOCK, _BLOCK_START, _BLOCK_END, *CANONICAL_PREDICTORS, *OPTIONAL_PREDICTORS),
     unique=("block",),
     checks=(_end_after_start,),
 )

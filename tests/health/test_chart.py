@@ -61,7 +61,15 @@ def test_changes_explained_by_the_model_do_not_alarm_unexplained_ones_do(seed):
         blind[column] = blind.loc[:71, column].median()
     unexplained = health_chart(law_forecast(dataclasses.replace(voyage, predictors=blind)), options)
     monitored = unexplained.table[unexplained.table["phase"] == "monitor"]
-    assert monitored["alarm"].mean() > 0.2
+    # the CUSUM (tuned to a 0.75 % drop) alarms once the warming has lowered a mode by
+    # more than that, in the last hour or more of the 6 h (MEWMA: a larger share)
+    assert monitored["alarm"].mean() > 0.15
+    assert monitored["alarm"].iloc[-12:].sum() >= 10
+    mewma = dataclasses.replace(options, statistic="mewma")
+    blind_mewma = health_chart(
+        law_forecast(dataclasses.replace(voyage, predictors=blind)), mewma
+    ).table
+    assert blind_mewma.loc[blind_mewma["phase"] == "monitor", "alarm"].mean() > 0.2
 
 
 def test_tables_follow_their_contracts_and_round_trip(tmp_path):
@@ -170,3 +178,78 @@ def test_fitted_model_transit_into_cold_water_does_not_alarm_damage_does():
     result = chart(damaged)
     assert detection_delay_hours(damaged, result.table) <= 3.5
     assert result.alarms["top_mode"].iloc[0] == 3
+
+
+def test_cusum_accumulates_decreases_beyond_the_allowance_and_holds_missing():
+    from workbench.health.chart import cusum_hold, cusum_step
+
+    # S_k = max(0, S_{k-1} - x_k - K), K = 0.5: a drop of 2 adds 1.5 per block
+    x = np.array([[-2.0], [-2.0], [np.nan], [1.0], [3.0]])
+    s = cusum_hold(x, np.array([0.5]))
+    assert np.allclose(s[:, 0], [1.5, 3.0, 3.0, 1.5, 0.0])
+    assert np.allclose(cusum_step(np.array([0.2]), np.array([0.1]), np.array([0.5])), 0.0)
+
+
+def test_cusum_limits_match_siegmunds_run_length_for_independent_residuals():
+    # independent N(0, 1) residuals (segments=1) and a long reference (little location
+    # error): H must give the run length Siegmund's approximation gives,
+    # ARL = (e^{2kb} - 2kb - 1) / (2k²), b = H + 1.166 (Siegmund 1985, p. 27; within
+    # about 10 % of the exact ARL for k = 0.5). Target: one false alarm per 10 days per
+    # mode (exp(-0.1) quantile of the daily maximum), 288 blocks a day: ARL ≈ 2880 blocks
+    # (the Poisson daily count holds when the ARL is long against a day)
+    from workbench.health.chart import cusum_limits
+
+    limit = cusum_limits(
+        np.array([0.5]),
+        segments=1,
+        reference_blocks=4000,
+        blocks_per_day=288.0,
+        false_alarms_per_day=0.1,
+        replicates=3000,
+        clip_sigma=10.0,
+        rng=np.random.default_rng(1),
+    )[0]
+    k, b = 0.5, limit + 1.166
+    arl = (math.exp(2 * k * b) - 2 * k * b - 1) / (2 * k * k)
+    # the quantile of 3000 daily maxima at level 0.905 is known to about ±6 % in rate,
+    # the ARL moves by e^{2k} per unit of H: 25 % on the ARL is ±0.2 on H
+    assert arl == pytest.approx(2880.0, rel=0.25)
+
+
+def test_a_slow_drift_is_followed_by_the_baseline_and_a_step_still_alarms():
+    voyage = simulate_health_voyage(24, seed=1)
+    forecast = law_forecast(voyage)
+    # an unexplained slow rise of every frequency (fuel burn the model does not know):
+    # +0.04 % per hour from the reference end on, 0.5 % over the 12 h monitored
+    hours = (forecast["block"] - 143).clip(lower=0) / 12.0
+    drifted = forecast.assign(ssi_frequency_hz=forecast["ssi_frequency_hz"] * (1 - 4e-4 * hours))
+    fixed = health_chart(drifted, OPTIONS)
+    assert fixed.table["alarm"].any()  # the fixed reference alarms on the drift
+    following = health_chart(drifted, dataclasses.replace(OPTIONS, baseline_hours=6.0))
+    assert not following.table["alarm"].any()
+    # a 2 % stiffness loss on mode 3 is still found with the following baseline
+    damaged = simulate_health_voyage(
+        24, seed=1, damaged_mode=3, stiffness_loss=0.02, damage_after_hours=16
+    )
+    result = health_chart(law_forecast(damaged), dataclasses.replace(OPTIONS, baseline_hours=6.0))
+    assert detection_delay_hours(damaged, result.table) <= 2.0
+    assert result.alarms["top_mode"].iloc[0] == 3
+
+
+def test_a_very_precise_mode_is_charted_and_its_drop_found():
+    # mode 1 measured 20 x more precisely than the others (0.01 % scatter): a 0.75 %
+    # drop is 75 of its scales, beyond the 4-scale clip; the chart must still find it
+    # (before the cap, its allowance exceeded every clipped residual and S/H was 0/0)
+    voyage = simulate_health_voyage(
+        24, seed=0, damaged_mode=1, stiffness_loss=0.015, damage_after_hours=16
+    )
+    forecast = law_forecast(voyage)
+    one = forecast["mode"] == 1
+    rng = np.random.default_rng(0)
+    truth = voyage.true_frequency_hz[forecast.loc[one, "block"].to_numpy(), 0]
+    forecast.loc[one, "ssi_frequency_hz"] = truth * (1 + 1e-4 * rng.standard_normal(one.sum()))
+    result = health_chart(forecast, OPTIONS)
+    assert np.isfinite(result.table["statistic"]).all()
+    assert result.reference.allowance[0] == pytest.approx(OPTIONS.clip_sigma / 2)
+    assert detection_delay_hours(voyage, result.table) <= 1.0
+    assert result.alarms["top_mode"].iloc[0] == 1

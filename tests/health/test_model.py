@@ -31,7 +31,7 @@ def test_noise_free_frequencies_are_followed_within_the_log_noise(voyage):
 
 def test_residual_scale_and_parameter_uncertainty(voyage):
     model = fit_operational_model(voyage.modal, voyage.predictors, train_blocks=360)
-    assert model.terms[-1] == "fuel_burned_t"
+    assert model.terms[-1] == "fuel_on_board_t"
     # robust residual scale = the identification scatter the voyage was made with
     # (measured within 12 %; 1.4826 MAD of ~320 correlated blocks has a ~7 % standard error)
     np.testing.assert_allclose(model.residual_std, FREQUENCY_SCATTER, rtol=0.2)

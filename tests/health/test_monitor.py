@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -44,10 +45,20 @@ def _feed(forecast, options, tmp_path, restart_every=None):
     return monitor, table, ALARMS.validate(pd.DataFrame(list(alarms.values())))
 
 
-def test_block_by_block_with_restarts_gives_the_batch_tables(damaged_forecast, tmp_path):
-    batch = health_chart(damaged_forecast, OPTIONS)
+@pytest.mark.parametrize(
+    "options",
+    [
+        OPTIONS,  # per-mode CUSUM, fixed reference location
+        dataclasses.replace(OPTIONS, baseline_hours=4.0),  # CUSUM, following baseline
+        dataclasses.replace(OPTIONS, statistic="mewma"),  # MEWMA T²
+    ],
+    ids=["cusum", "cusum-baseline", "mewma"],
+)
+def test_block_by_block_with_restarts_gives_the_batch_tables(damaged_forecast, tmp_path, options):
+    batch = health_chart(damaged_forecast, options)
     assert len(batch.alarms) >= 1  # the test must see an episode grow and close
-    monitor, table, alarms = _feed(damaged_forecast, OPTIONS, tmp_path, restart_every=7)
+    assert batch.alarms["top_mode"].iloc[0] == 3
+    monitor, table, alarms = _feed(damaged_forecast, options, tmp_path, restart_every=7)
     # the reference is learned from the same blocks with the same seeded bootstrap
     assert monitor.reference.limit == batch.reference.limit
     np.testing.assert_array_equal(monitor.reference.location, batch.reference.location)

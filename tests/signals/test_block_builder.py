@@ -261,12 +261,10 @@ def test_planning_from_read_headers_equals_planning_from_files(voyage):
     """plan_file_infos (headers already read, as the identify planner and the monitor keep
     them) gives the plan plan_blocks gives from the files."""
     from workbench.signals import plan_file_infos, read_file_info
-    from workbench.signals.stream import _plan
 
     files = voyage.acceleration_files
     infos = [read_file_info(f) for f in reversed(files)]
     expected = plan_blocks(files, max_gap_s=1.0).frame()
     pd.testing.assert_frame_equal(plan_file_infos(infos, max_gap_s=1.0).frame(), expected)
-    pd.testing.assert_frame_equal(_plan(infos, None, None, None, 1.0).frame(), expected)
     with pytest.raises(ValueError, match="no acceleration files"):
         plan_file_infos([])

@@ -275,7 +275,8 @@ def _add_health(commands: argparse._SubParsersAction) -> None:
     parser = commands.add_parser(
         "health",
         help="structural-health control chart of a forecast's frequency residuals",
-        description="MEWMA/Hotelling chart of the standardised residuals (SSI minus model) "
+        description="Per-mode CUSUM chart (or MEWMA/Hotelling) of the standardised "
+        "residuals (SSI minus model) "
         "of a forecast table: learns a reference period, then writes health.csv (statistic, "
         "limit, alarm per block) and alarms.csv (episodes with the modes that moved). Use a "
         "forecast whose model is frozen before the reference period (forecast --scheme "

@@ -195,7 +195,7 @@ def health_view(health: pd.DataFrame, *, hours: float) -> dict[str, Any]:
     window = _window(full, hours)
     reference = full[full["phase"] == "reference"]
     newest = full.iloc[-1] if not full.empty else None
-    # share of T² per mode in the newest block (``contribution_<mode>`` columns of
+    # share of the statistic per mode in the newest block (``contribution_<mode>`` columns of
     # :func:`workbench.health.health_chart`, when the table has them)
     contributions = []
     if newest is not None:

@@ -1,7 +1,8 @@
 """Structural-health indicators: a multivariate control chart of frequency residuals.
 
-* :func:`health_chart` - MEWMA/Hotelling chart of the forecast's standardised residuals
-  with a robust reference period and a bootstrap control limit; HEALTH and ALARMS tables;
+* :func:`health_chart` - per-mode CUSUM (default) or MEWMA/Hotelling chart of the
+  forecast's standardised residuals with a robust reference period and control limits
+  for a target false-alarm rate; HEALTH and ALARMS tables;
 * :class:`HealthMonitor` - the same chart fed block by block, with a JSON state;
 * :func:`fit_operational_model` - a per-mode regression of log frequency on the ship log
   (speed, temperatures, fuel) whose FORECAST table feeds the chart;
@@ -10,7 +11,7 @@
 """
 
 from .chart import HealthOptions, HealthReference, HealthResult, health_chart
-from .model import OperationalModel, fit_operational_model
+from .model import DEFAULT_TERMS, OperationalModel, fit_operational_model
 from .monitor import HealthMonitor, MonitorUpdate
 from .scenario import (
     HealthVoyage,
@@ -21,6 +22,7 @@ from .scenario import (
 )
 
 __all__ = [
+    "DEFAULT_TERMS",
     "HealthMonitor",
     "HealthOptions",
     "HealthReference",

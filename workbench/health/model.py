@@ -4,7 +4,7 @@ The health chart needs a model frozen before its reference period whose residual
 honest out of sample. :func:`fit_operational_model` fits, per mode, a robust least-squares
 regression of the log frequency on physics-motivated terms of the ship log (speed and its
 square for the added mass, water and air temperature for the stiffness, their interaction,
-a fuel-state proxy); :meth:`OperationalModel.forecast` writes a FORECAST table whose 95 %
+the fuel on board when the log has tank soundings); :meth:`OperationalModel.forecast` writes a FORECAST table whose 95 %
 bounds carry both the identification scatter and the model's own parameter uncertainty
 (Newey-West, because 75 %-overlapping blocks have correlated errors), so extrapolating
 outside the training range widens them instead of raising alarms.
@@ -25,20 +25,20 @@ from data_contracts import FORECAST, MODAL
 __all__ = ["DEFAULT_TERMS", "OperationalModel", "fit_operational_model"]
 
 #: Terms of the default model: added mass (speed, speed²), stiffness (water and air
-#: temperature), the speed x water interaction of the hull-water coupling, and the mass of
-#: fuel used (``fuel_burned_t``; when the log lacks it, ``elapsed_hours`` stands in, whose
-#: straight line cannot follow a burn rate that falls as the tanks empty). Terms whose
-#: columns the log lacks are left out.
+#: temperature), the speed x water interaction of the hull-water coupling, and the fuel on
+#: board (``fuel_on_board_t``, the tank soundings' sum: burning fuel lowers the mass).
+#: Terms whose columns the log lacks are left out; without the fuel, the chart's slowly
+#: following baseline takes the fuel burn (``HealthOptions.baseline_hours``): a straight
+#: line in elapsed hours cannot follow a burn rate that falls as the tanks empty (5 false
+#: alarms a day in ``benchmarks/bench_health.py``).
 DEFAULT_TERMS: tuple[str, ...] = (
     "speed_kn",
     "speed_kn^2",
     "water_temp_c",
     "air_temp_c",
     "speed_kn*water_temp_c",
-    "fuel_burned_t",
+    "fuel_on_board_t",
 )
-#: Fuel-state proxy used when the log has no ``fuel_burned_t``.
-FUEL_PROXY = "elapsed_hours"
 _Z975 = 1.959963984540054
 _TERM = re.compile(r"^(?P<a>[A-Za-z_][A-Za-z0-9_]*)(?:(?P<op>[*^])(?P<b>[A-Za-z0-9_]+))?$")
 
@@ -235,7 +235,7 @@ def fit_operational_model(
         but the chart then sees less). [blocks]
     terms : sequence of str, optional
         Model terms; default :data:`DEFAULT_TERMS` restricted to the columns present
-        (``elapsed_hours`` for ``fuel_burned_t`` when the log lacks it).
+        (and not all NaN).
     outlier_sigma : float
         Estimates further than this many robust standard deviations from the fit (wrong
         poles, swapped labels) are dropped and the fit repeated (three passes). [-]
@@ -269,10 +269,11 @@ def fit_operational_model(
     if "block" not in predictors.columns:
         raise ValueError("predictors has no column 'block'")
     if terms is None:
-        defaults = DEFAULT_TERMS
-        if "fuel_burned_t" not in predictors.columns:
-            defaults = tuple(FUEL_PROXY if t == "fuel_burned_t" else t for t in defaults)
-        terms = tuple(t for t in defaults if all(c in predictors.columns for c in _parse(t)))
+        terms = tuple(
+            t
+            for t in DEFAULT_TERMS
+            if all(c in predictors.columns and predictors[c].notna().any() for c in _parse(t))
+        )
     terms = tuple(terms)
     names = sorted({c for t in terms for c in _parse(t)})
     missing = [c for c in names if c not in predictors.columns]

@@ -24,10 +24,12 @@ import pandas as pd
 
 from data_contracts import ALARMS, FORECAST, HEALTH, atomic_path, recorded_grid
 
+from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
 from .chart import (
     HealthOptions,
     HealthReference,
     _residual_matrix,
+    cusum_step,
     ewma_step,
     hotelling,
     learn_reference,
@@ -36,7 +38,7 @@ from .chart import (
 __all__ = ["HealthMonitor", "MonitorUpdate"]
 
 #: Version of the JSON state layout.
-STATE_VERSION = 1
+STATE_VERSION = 2
 
 
 @dataclass(frozen=True)
@@ -104,10 +106,19 @@ class HealthMonitor:
         self._pending: list[dict[str, Any]] = []  # reference blocks before learning
         self._last_block: int | None = None
         self._charted = 0  # blocks charted since the reference start
-        self._ewma: np.ndarray | None = None
+        self._chart_state: np.ndarray | None = None  # EWMA z or CUSUM S per mode
+        # the following baseline (baseline_hours): level, slope per block, level's block
+        self._location: np.ndarray | None = None
+        self._slope: np.ndarray | None = None
+        self._baseline_block: int | None = None
+        # CUSUM: sum and count of each mode's x since its S last left 0 (the estimated
+        # change point), for the size of the change
+        self._run_sum: np.ndarray | None = None
+        self._run_count: np.ndarray | None = None
         self._episodes = 0
         self._open: dict[str, Any] | None = None  # the alarm episode in progress
         self._step_s: float | None = None  # block step of the recorded grid, if any
+        self._length_s: float | None = None  # block length of the recorded grid, if any
 
     # ------------------------------------------------------------------ public
     def waiting_reason(self) -> str:
@@ -138,6 +149,7 @@ class HealthMonitor:
         grid = recorded_grid(rows)
         if grid is not None and self._step_s is None:
             self._step_s = float(grid["step_s"])
+            self._length_s = float(grid["length_s"])
         table = FORECAST.validate(rows)
         if self._option is None and len(table):
             if self.options.option is not None:
@@ -208,6 +220,10 @@ class HealthMonitor:
                 "bootstrap_false_alarms_per_day": ref.bootstrap_false_alarms_per_day,
                 "excluded_modes": list(ref.excluded_modes),
                 "relative_median": _arr(ref.relative_median),
+                "statistic": ref.statistic,
+                "allowance": None if ref.allowance is None else _arr(ref.allowance),
+                "mode_limits": None if ref.mode_limits is None else _arr(ref.mode_limits),
+                "trend_slope": None if ref.trend_slope is None else _arr(ref.trend_slope),
             }
 
         def item_state(item: dict[str, Any]) -> dict[str, Any]:
@@ -222,7 +238,12 @@ class HealthMonitor:
         open_episode = None
         if self._open is not None:
             open_episode = {
-                **{k: v for k, v in self._open.items() if k not in ("shares", "relative")},
+                **{
+                    k: v
+                    for k, v in self._open.items()
+                    if k not in ("shares", "relative", "cusum_shift")
+                },
+                "cusum_shift": _arr(self._open.get("cusum_shift", [])),
                 "start_time": self._open["start_time"].isoformat(),
                 "end_time": self._open["end_time"].isoformat(),
                 "shares": _arr(self._open["shares"]),
@@ -234,10 +255,16 @@ class HealthMonitor:
             "option": self._option,
             "reference_start": self._reference_start,
             "step_s": self._step_s,
+            "length_s": self._length_s,
             "pending": [item_state(item) for item in self._pending],
             "last_block": self._last_block,
             "charted": self._charted,
-            "ewma": None if self._ewma is None else _arr(self._ewma),
+            "chart_state": None if self._chart_state is None else _arr(self._chart_state),
+            "location": None if self._location is None else _arr(self._location),
+            "slope": None if self._slope is None else _arr(self._slope),
+            "baseline_block": self._baseline_block,
+            "run_sum": None if self._run_sum is None else _arr(self._run_sum),
+            "run_count": None if self._run_count is None else _arr(self._run_count),
             "episodes": self._episodes,
             "open": open_episode,
             "reference": reference,
@@ -254,6 +281,7 @@ class HealthMonitor:
         monitor._option = state["option"]
         monitor._reference_start = state["reference_start"]
         monitor._step_s = state.get("step_s")
+        monitor._length_s = state.get("length_s")
         monitor._pending = [
             {
                 "block": int(item["block"]),
@@ -266,7 +294,15 @@ class HealthMonitor:
         ]
         monitor._last_block = state["last_block"]
         monitor._charted = int(state["charted"])
-        monitor._ewma = None if state["ewma"] is None else _from_json(state["ewma"])
+        chart_state = state["chart_state"]
+        monitor._chart_state = None if chart_state is None else _from_json(chart_state)
+        location = state["location"]
+        monitor._location = None if location is None else _from_json(location)
+        monitor._slope = None if state["slope"] is None else _from_json(state["slope"])
+        monitor._baseline_block = state["baseline_block"]
+        for name in ("run_sum", "run_count"):
+            values = state[name]
+            setattr(monitor, f"_{name}", None if values is None else _from_json(values))
         monitor._episodes = int(state["episodes"])
         episode = state["open"]
         if episode is not None:
@@ -276,6 +312,7 @@ class HealthMonitor:
                 "end_time": pd.Timestamp(episode["end_time"]),
                 "shares": _from_json(episode["shares"]),
                 "relative": [_from_json(r) for r in episode["relative"]],
+                "cusum_shift": _from_json(episode["cusum_shift"]),
             }
         ref = state["reference"]
         if ref is not None:
@@ -293,6 +330,14 @@ class HealthMonitor:
                 bootstrap_false_alarms_per_day=float(ref["bootstrap_false_alarms_per_day"]),
                 excluded_modes=tuple(ref["excluded_modes"]),
                 relative_median=_from_json(ref["relative_median"]),
+                statistic=ref["statistic"],
+                allowance=None if ref["allowance"] is None else _from_json(ref["allowance"]),
+                mode_limits=(
+                    None if ref["mode_limits"] is None else _from_json(ref["mode_limits"])
+                ),
+                trend_slope=(
+                    None if ref["trend_slope"] is None else _from_json(ref["trend_slope"])
+                ),
             )
         return monitor
 
@@ -330,31 +375,78 @@ class HealthMonitor:
             step_s = float(np.median(np.diff(starts.asi8))) / 1e9
         if not step_s > 0:
             raise ValueError("forecast: cannot infer the block step from block_start")
+        if self._length_s is not None and self._step_s is not None:
+            overlap_ratio = self._length_s / self._step_s
+        else:  # no recorded grid: the project's blocks (20 min every 5 min)
+            overlap_ratio = DEFAULT_BLOCK_LENGTH_S / DEFAULT_BLOCK_STEP_S
         self.reference = learn_reference(
-            residuals, relative, modes, blocks, 86400.0 / step_s, self.options
+            residuals, relative, modes, blocks, 86400.0 / step_s, self.options, overlap_ratio
         )
-        self._ewma = np.zeros(len(self.reference.modes))
+        self._chart_state = np.zeros(len(self.reference.modes))
+        if self.reference.trend_slope is not None:
+            self._location = self.reference.location.copy()
+            self._slope = self.reference.trend_slope.copy()
+            self._baseline_block = self.reference.end_block
+        self._run_sum = np.zeros(len(self.reference.modes))
+        self._run_count = np.zeros(len(self.reference.modes))
+        self._step_s = step_s
 
     def _chart(self, item: dict[str, Any], changed: dict[int, dict[str, Any]]) -> dict[str, Any]:
         ref = self.reference
         options = self.options
-        assert ref is not None and self._ewma is not None
+        assert ref is not None and self._chart_state is not None
         raw = np.array([item["residual"].get(m, np.nan) for m in ref.modes])
-        with np.errstate(invalid="ignore"):
-            x = np.clip((raw - ref.location) / ref.scale, -options.clip_sigma, options.clip_sigma)
-        # z_k = z_{k-1} + λ (x_k - z_{k-1}); a missing mode keeps its z
-        self._ewma = ewma_step(self._ewma, x, options.ewma_lambda, ceiling=options.ewma_ceiling)
-        # the model's persistent error, in the chart's units, widens the in-control
-        # covariance of z (the EWMA passes a persistent error through unattenuated)
-        model = np.array([item["shift_std"].get(m, np.nan) for m in ref.modes]) / ref.scale
-        covariance = ref.ewma_covariance + np.diag(np.nan_to_num(model, nan=0.0) ** 2)
-        t2_row, parts_row = hotelling(self._ewma[None, :], covariance)
-        t2, parts = float(t2_row[0]), parts_row[0]
         phase = "reference" if self._charted < options.reference_blocks else "monitor"
+        location = ref.location
+        if ref.trend_slope is not None:
+            if phase == "reference":  # the reference's own drift line
+                location = ref.location - ref.trend_slope * (ref.end_block - item["block"])
+            else:  # the baseline's level and slope, carried to this block
+                assert self._location is not None and self._slope is not None
+                location = self._location + self._slope * (item["block"] - self._baseline_block)
+        with np.errstate(invalid="ignore"):
+            x = np.clip((raw - location) / ref.scale, -options.clip_sigma, options.clip_sigma)
+        # the model's persistent error at this block, in the chart's units
+        model = np.array([item["shift_std"].get(m, np.nan) for m in ref.modes]) / ref.scale
+        model = np.nan_to_num(model, nan=0.0)
+        if ref.statistic == "cusum":
+            assert ref.allowance is not None and ref.mode_limits is not None
+            # S_k = max(0, S_{k-1} - x_k - K_k), K_k = K + g·s_model: the allowance grows
+            # by what the model cannot know (a persistent error would accumulate)
+            allowance = ref.allowance + options.model_error_sigma * model
+            self._chart_state = cusum_step(self._chart_state, x, allowance)
+            parts = self._chart_state / ref.mode_limits
+            t2 = float(parts.max())
+            # the change's size: mean x since S last left 0 (Page's change-point
+            # estimate), in relative frequency (K is half detect_shift in x units)
+            running = self._chart_state > 0
+            seen = running & np.isfinite(x)
+            self._run_sum = np.where(running, self._run_sum + np.where(seen, x, 0.0), 0.0)
+            self._run_count = np.where(running, self._run_count + seen, 0.0)
+        else:
+            # z_k = z_{k-1} + λ (x_k - z_{k-1}); a missing mode keeps its z
+            self._chart_state = ewma_step(
+                self._chart_state, x, options.ewma_lambda, ceiling=options.ewma_ceiling
+            )
+            # the persistent model error widens the in-control covariance of z (the EWMA
+            # passes a persistent error through unattenuated)
+            covariance = ref.ewma_covariance + np.diag(model**2)
+            t2_row, parts_row = hotelling(self._chart_state[None, :], covariance)
+            t2, parts = float(t2_row[0]), parts_row[0]
         self._charted += 1
         alarm = bool(t2 > ref.limit) and phase == "monitor"
+        if ref.trend_slope is not None and not alarm and phase == "monitor":
+            # Brown's linear exponential smoothing, ω = exp(-step / T): level
+            # μ_k = p_k + (1 - ω²) e_k and slope β_k = β_{k-1} + (1 - ω)² e_k with p_k the
+            # carried level and e_k = σ x_k (clipped: a wrong pole cannot drag it); a
+            # drift, even a steady rise, is followed without lag, a step only slowly
+            omega = math.exp(-float(self._step_s) / (3600.0 * float(options.baseline_hours)))
+            error = ref.scale * np.nan_to_num(x, nan=0.0)
+            self._location = location + (1.0 - omega**2) * error
+            self._slope = self._slope + (1.0 - omega) ** 2 * error
+            self._baseline_block = int(item["block"])
         with np.errstate(invalid="ignore", divide="ignore"):
-            shares = parts / t2
+            shares = parts / (parts.sum() if ref.statistic == "cusum" else t2)
         row = {
             "block": item["block"],
             "block_start": item["block_start"],
@@ -382,6 +474,11 @@ class HealthMonitor:
             elif t2 > self._open["peak_statistic"]:
                 self._open.update(peak_block=item["block"], peak_statistic=t2, shares=shares)
             self._open.update(end_block=item["block"], end_time=item["block_start"])
+            if ref.statistic == "cusum":
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    mean_x = self._run_sum / self._run_count
+                relative_scale = 0.5 * options.detect_shift / ref.allowance
+                self._open["cusum_shift"] = 100.0 * mean_x * relative_scale
             self._open["relative"].append(relative)
             changed[self._open["alarm"]] = self._episode_row(self._open)
         else:
@@ -399,11 +496,12 @@ class HealthMonitor:
         top = int(order[0])
         values = np.array([r[top] for r in episode["relative"]])
         values = values[np.isfinite(values)]
-        shift = (
-            100.0 * (float(np.median(values)) - float(ref.relative_median[top]))
-            if values.size
-            else np.nan
-        )
+        if ref.statistic == "cusum" and len(episode.get("cusum_shift", ())):
+            shift = float(episode["cusum_shift"][top])  # mean since the change point
+        elif values.size:  # median over the episode
+            shift = 100.0 * (float(np.median(values)) - float(ref.relative_median[top]))
+        else:
+            shift = np.nan
         return {
             "alarm": episode["alarm"],
             "start_block": episode["start_block"],

@@ -41,6 +41,8 @@ BLOCK_STEP_SECONDS = 300
 SEGMENTS_PER_BLOCK = BLOCK_SECONDS // BLOCK_STEP_SECONDS
 #: Fuel burn rate at departure; it falls as exp(-t / τ_f) like the hull law's mass. [t/h]
 FUEL_RATE_T_PER_H = 1.2
+#: Fuel on board at departure (more than the law's τ_f x rate = 288 t can burn). [t]
+FUEL_AT_DEPARTURE_T = 400.0
 #: Predictors of the stepwise model of :func:`frozen_forecast` (the log as the forecast
 #: stage reads it: elapsed hours stand for the fuel state).
 STEPWISE_PREDICTORS = ("speed_kn", "water_temp_c", "air_temp_c", "elapsed_hours")
@@ -62,8 +64,8 @@ class HealthVoyage:
         MODAL contract (block, block_start, block_end, mode, frequency_hz, damping_ratio).
     predictors : DataFrame
         PREDICTORS contract (wind block-averaged from the profile, noise-free; the hull
-        law ignores wind) plus ``elapsed_hours`` and ``fuel_burned_t`` (fuel used since
-        departure, as the flow meters log it), as logged (with sensor noise).
+        law ignores wind) with ``fuel_on_board_t`` (tank soundings), plus
+        ``elapsed_hours``, as logged (with sensor noise).
     true_frequency_hz : ndarray, shape (n_blocks, n_modes)
         Block-averaged true frequencies, damage included. [Hz]
     damage_time : Timestamp or None
@@ -93,6 +95,7 @@ def simulate_health_voyage(
     outlier_fraction: float = 0.005,
     modes: tuple[int, ...] = (1, 2, 3, 4, 5, 6, 7),
     regime_change_after_hours: float | None = None,
+    damage_ramp_hours: float = 0.0,
 ) -> HealthVoyage:
     """Simulate a block-level voyage, optionally with a stiffness loss part-way.
 
@@ -121,6 +124,9 @@ def simulate_health_voyage(
         :data:`ICE_AIR_COOLING_C`): speed, water and air temperature leave the range seen
         before, and the hull's law follows them (ice loads on the hull are not modelled).
         [h]
+    damage_ramp_hours : float
+        0: the loss is a step at the onset; otherwise it grows linearly from the onset to
+        its full size over this time (a crack that grows). [h]
 
     Notes
     -----
@@ -130,10 +136,10 @@ def simulate_health_voyage(
     block has relative scatter s_m and neighbouring blocks, sharing 15 of their 20 minutes,
     correlate 0.75, 0.50, 0.25 at lags 1, 2, 3 blocks. A block partly after the damage
     sees the block average of the step. Logged predictors add white noise (speed 0.1 kn,
-    temperatures 0.05 °C, fuel 0.3 % + 0.05 t). ``fuel_burned_t`` is the fuel used since
-    departure as the ship's flow meters log it, :data:`FUEL_RATE_T_PER_H` τ_f (1 - e^{-t/τ_f}),
-    the mass loss the hull law sees; ``elapsed_hours`` is kept for models that use time as
-    the fuel proxy.
+    temperatures 0.05 °C, fuel 0.3 % of the fuel burned + 0.05 t). ``fuel_on_board_t`` is
+    :data:`FUEL_AT_DEPARTURE_T` minus the fuel burned, :data:`FUEL_RATE_T_PER_H` τ_f
+    (1 - e^{-t/τ_f}), the mass loss the hull law sees; ``elapsed_hours`` is kept for models
+    that use time as the fuel proxy.
     """
     if damaged_mode is not None and damaged_mode not in modes:
         raise ValueError(f"damaged_mode={damaged_mode} is not one of modes={modes}")
@@ -163,7 +169,12 @@ def simulate_health_voyage(
     if damaged_mode is not None and stiffness_loss > 0 and damage_after_hours is not None:
         onset_s = damage_after_hours * 3600.0
         damage_time = START_TIME + pd.Timedelta(seconds=onset_s)
-        share_after = np.clip((starts + BLOCK_SECONDS - onset_s) / BLOCK_SECONDS, 0.0, 1.0)
+        if damage_ramp_hours > 0:  # block mean of the ramp, from its 1-s values
+            seconds = np.arange(n_seconds, dtype=float)
+            ramp = np.clip((seconds - onset_s) / (3600.0 * damage_ramp_hours), 0.0, 1.0)
+            share_after = window(ramp, BLOCK_SECONDS)[::BLOCK_STEP_SECONDS][:n_blocks].mean(-1)
+        else:  # the share of the block after the step
+            share_after = np.clip((starts + BLOCK_SECONDS - onset_s) / BLOCK_SECONDS, 0.0, 1.0)
         factor = 1.0 - share_after * (1.0 - np.sqrt(1.0 - stiffness_loss))
         frequency[:, modes.index(damaged_mode)] *= factor
     scatter = FREQUENCY_SCATTER[[m - 1 for m in modes]]
@@ -191,8 +202,9 @@ def simulate_health_voyage(
             "wind_speed_ms": truth["wind_speed_ms"],
             "wind_dir_rel_deg": np.mod(np.degrees(np.arctan2(wind_sin, wind_cos)), 360.0),
             "elapsed_hours": truth["elapsed_hours"],
-            "fuel_burned_t": fuel * (1.0 + 0.003 * rng.standard_normal(n_blocks))
-            + 0.05 * rng.standard_normal(n_blocks),
+            "fuel_on_board_t": FUEL_AT_DEPARTURE_T
+            - fuel * (1.0 + 0.003 * rng.standard_normal(n_blocks))
+            - 0.05 * rng.standard_normal(n_blocks),
         }
     )
     rows, cols = np.nonzero(~missing)

@@ -20,8 +20,9 @@ from .options import IdentifyOptions
 
 
 @dataclass(frozen=True)
-class _Task:
-    """One block to identify (picklable: sent to the workers).
+class BlockTask:
+    """One block to identify (picklable: sent to the workers and to
+    :func:`identify_block`; the live monitor builds one per ready block).
 
     ``infos`` are the planned headers of ``files`` (:class:`~workbench.signals.FileInfo`),
     so a worker does not read every file once more to plan the block (for a CSV file that
@@ -34,11 +35,11 @@ class _Task:
     infos: tuple = ()
 
 
-def _block_tasks(plan, planned) -> list[_Task]:
+def _block_tasks(plan, planned) -> list[BlockTask]:
     """Tasks of the *planned* blocks of *plan*, with their files' headers."""
     header = {info.path: info for info in plan.files}
     return [
-        _Task(
+        BlockTask(
             int(p.block),
             p.block_start,
             tuple(str(f) for f in p.files),
@@ -49,7 +50,7 @@ def _block_tasks(plan, planned) -> list[_Task]:
 
 
 def _identify_data(
-    task: _Task, grid: BlockGrid, options: IdentifyOptions, cross=False, conditioner=None
+    task: BlockTask, grid: BlockGrid, options: IdentifyOptions, cross=False, conditioner=None
 ):
     """Conditioned block, SSI or LSCF result (None if skipped) and mode selection of one
     block; with *cross*, also the result and selection of the other method (or None).
@@ -71,10 +72,10 @@ def _identify_data(
             task.block,
             grid,
             target_rate_hz=options.target_rate_hz,
-            band_hz=_filter_band(options),
+            band_hz=conditioning_band(options),
             max_gap_s=options.max_gap_s,
             read_options=options.read_options,
-            fault_options=_fault_options(options),
+            fault_options=channel_check_options(options),
         )
     if data.acceleration is None:
         return data, None, None
@@ -138,16 +139,18 @@ def _identify_method(method: str, data, reference, options: IdentifyOptions):
     return result, selection
 
 
-def _filter_band(options: IdentifyOptions):
-    """Band-pass edges for the conditioning: a lower edge of 0 means no high-pass."""
+def conditioning_band(options: IdentifyOptions):
+    """Band-pass edges ``(low, high)`` [Hz] for the file conditioning of *options*, or
+    None without a band: a lower edge of 0 means no high-pass (``low`` None)."""
     if not isinstance(options.band_hz, tuple):
         return None
     low, high = options.band_hz
     return (low if low > 0 else None, high)
 
 
-def _fault_options(options: IdentifyOptions) -> dict:
-    """Keyword arguments of the channel check (every check off when disabled)."""
+def channel_check_options(options: IdentifyOptions) -> dict:
+    """Keyword arguments of the channel check of *options* (every check off when
+    ``channel_check`` is disabled), as the conditioning's ``fault_options`` take them."""
     if not options.channel_check:
         return {
             "max_nan_fraction": 1.0,
@@ -169,7 +172,7 @@ def _reachable_orders(options: IdentifyOptions, n_channels: int, n_reference: in
 
 
 def identify_block(
-    task: _Task,
+    task: BlockTask,
     *,
     grid: BlockGrid,
     channels: Sequence[str],
@@ -268,9 +271,9 @@ class _FileTask:
 def _conditioner_settings(options: IdentifyOptions) -> dict:
     return {
         "target_rate_hz": float(options.target_rate_hz),
-        "band_hz": _filter_band(options),
+        "band_hz": conditioning_band(options),
         "max_gap_s": options.max_gap_s,
-        "fault_options": _fault_options(options),
+        "fault_options": channel_check_options(options),
         "read_options": options.read_options,
     }
 
@@ -301,7 +304,7 @@ def identify_from_files(
     )
 
 
-def _file_tasks(tasks: Sequence[_Task], plan, options: IdentifyOptions) -> list[_FileTask]:
+def _file_tasks(tasks: Sequence[BlockTask], plan, options: IdentifyOptions) -> list[_FileTask]:
     """*tasks* as blocks cut from files conditioned once, each file's conditioning shared
     by the blocks holding it."""
     from ..parallel import SharedInput

@@ -3,8 +3,12 @@
 ``workbench monitor --watch DIR --dship FILE --state DIR`` identifies every block as soon
 as its data is complete, tracks the modes and updates the Kalman-blended forecast and the
 structural-health chart block by block, with the same results as the batch commands
-(``identify`` + ``track`` + ``forecast`` + ``health``) over the same files. A dashboard
-reads the state folder.
+(``identify`` + ``track`` + ``forecast``; ``health --modal --predictors``) over the same
+files. A dashboard reads the state folder. The health chart charts the residuals of the
+operational model fitted on the first ``--health-train-hours`` (12 h), with its reference
+period (``--reference-hours``, 6 h) after them; with the ship log's fuel on board
+(``fuel_on_board_t``) as a model term, or else a following baseline (``--baseline-hours``)
+(:mod:`workbench.monitor.structural_health`).
 
 State folder
 ------------
@@ -13,7 +17,7 @@ half-written file::
 
     <state>/tracked.parquet      MODAL contract: the tracked modal table so far
     <state>/forecast.parquet     FORECAST contract: sliding forecast + Kalman, all blocks
-    <state>/health.parquet       HEALTH contract (empty until a reference period is learned)
+    <state>/health.parquet       HEALTH contract (empty until model and reference are learned)
     <state>/alarms.parquet       ALARMS contract (empty until then, and while no alarm)
     <state>/data_health.parquet  one row per decided block, in block order:
                                  block (int64), block_start (UTC), n_channels (int64,

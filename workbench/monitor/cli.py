@@ -37,6 +37,9 @@ _DEFAULTS = {
     "reference_hours": 6.0,
     "ewma_lambda": 0.1,
     "false_alarms_per_day": 0.1,
+    "health_model": "operational",
+    "health_train_hours": 12.0,
+    "baseline_hours": 24.0,
     "poll": 1.0,
     "settle": 1.0,
     "late": 900.0,
@@ -152,6 +155,26 @@ def add_monitor(commands: argparse._SubParsersAction) -> None:
     fore.add_argument("--reference-hours", type=float, help="health reference period [h] (6)")
     fore.add_argument("--ewma-lambda", type=float)
     fore.add_argument("--false-alarms-per-day", type=float)
+    fore.add_argument(
+        "--health-model",
+        choices=("operational", "forecast"),
+        help="chart the residuals of the operational model fitted on the first "
+        "--health-train-hours (default) or of the forecast",
+    )
+    fore.add_argument(
+        "--health-train-hours",
+        type=float,
+        metavar="H",
+        help="hours the health chart's operational model is fitted on (12); its reference "
+        "period follows",
+    )
+    fore.add_argument(
+        "--baseline-hours",
+        type=float,
+        metavar="H",
+        help="without fuel_on_board_t in the ship log: time constant of the health chart's "
+        "slowly following baseline (24; 0: fixed)",
+    )
     parser.set_defaults(run=run_monitor)
 
 
@@ -239,6 +262,9 @@ def _options(args: argparse.Namespace):
             reference_hours=args.reference_hours,
             ewma_lambda=args.ewma_lambda,
             false_alarms_per_day=args.false_alarms_per_day,
+            health_model=args.health_model,
+            health_train_hours=args.health_train_hours,
+            baseline_hours=args.baseline_hours or None,
         )
         return MonitorOptions(
             identify=identify,

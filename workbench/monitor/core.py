@@ -20,36 +20,26 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 
-from data_contracts import MODAL, atomic_path, shapes_from_frame, write_table
+from data_contracts import MODAL, atomic_path, write_table
 
 from ..blocks import BlockGrid
 from ..errors import WorkbenchError
+from ..identification.engine import BlockTask
 from ..identify import IdentifyOptions, identify_block, input_fingerprints, resolved_run
-from ..sid.tracking import ModeTracker, TrackingOptions
-from ..signals.file_conditioning import FileConditioner
+from ..sid.tracking import TrackingOptions
 from ..store import BlockStore, StoreLock
-from .outlook import ForecastSettings, OutlookReport, empty_table, update_outlook
+from .conditioning import block_conditioner, forget_conditioned
+from .data_health import DATA_HEALTH_COLUMNS, data_health_row, write_data_health
+from .outlook import ForecastSettings, OutlookReport, update_outlook
+from .readiness import settled
+from .tracking import IncrementalTracking
 from .watcher import FolderWatcher, LandedFile
 
 log = logging.getLogger("workbench")
 
-__all__ = ["Monitor", "MonitorOptions"]
+__all__ = ["DATA_HEALTH_COLUMNS", "Monitor", "MonitorOptions"]
 
 _NS = 1_000_000_000
-
-#: Columns of ``data_health.parquet`` (the agreed interface first, then status and reason).
-DATA_HEALTH_COLUMNS = (
-    "block",
-    "block_start",
-    "n_channels",
-    "dropped_channels",
-    "gap_seconds",
-    "last_file_landed",
-    "identified_at",
-    "latency_s",
-    "status",
-    "reason",
-)
 
 
 @dataclass(frozen=True)
@@ -98,38 +88,6 @@ class MonitorOptions:
             raise ValueError(f"poll_s={self.poll_s!r} must be positive")
         if self.identify.short_record != "error":
             raise ValueError("short_record='one-block' is for a finished record, not a monitor")
-
-
-class _SharedConditioner(FileConditioner):
-    """A :class:`FileConditioner` over a few files that takes conditioned files from a
-    cache shared by the monitor's blocks, so each file is conditioned once.
-
-    A conditioned file depends on the file and on the raw edges of its contiguous
-    neighbours; the cache key names all three, so a file conditioned before its next
-    neighbour landed is conditioned again once it has (the monitor avoids that by waiting
-    for the neighbour, see ``late_s``).
-    """
-
-    def __init__(self, *args, shared: dict, counter: list, **kwargs):
-        super().__init__(*args, **kwargs)
-        self._shared = shared
-        self._counter = counter
-
-    def _key(self, index: int):
-        before = self.files[index - 1].path if self._contiguous(index - 1, index) else None
-        after = self.files[index + 1].path if self._contiguous(index, index + 1) else None
-        return (self.files[index].path, before, after)
-
-    def _conditioned(self, index: int):
-        key = self._key(index)
-        hit = self._shared.get(key)
-        if hit is not None:
-            self._cache[index] = hit
-            return hit
-        result = super()._conditioned(index)
-        self._shared[key] = result
-        self._counter[0] += 1
-        return result
 
 
 @dataclass
@@ -186,12 +144,7 @@ class Monitor:
         self.conditioned_files = [0]  # files conditioned (per-file path)
         self._shared: dict = {}
         self._health_rows: list[dict] = []
-        self._selected_parts: dict[int, pd.DataFrame] = {}
-        self._tracked_through = -1
-        self._tracker: ModeTracker | None = None
-        self._track_rows: list[tuple[int, int, float]] = []
-        self._frame: pd.DataFrame | None = None
-        self._track_channels: list[str] | None = None
+        self.tracking = IncrementalTracking(self.options.tracking)
         self._last_landing = time.monotonic()
         self._outlook_due = False
         self._outlook_future = None
@@ -206,7 +159,7 @@ class Monitor:
     @property
     def tracked_through(self) -> int:
         """Every block up to this one is decided and in the tracked table (-1: none)."""
-        return self._tracked_through
+        return self.tracking.tracked_through
 
     # ------------------------------------------------------------------ lifecycle
     def close(self, state: str = "stopped") -> None:
@@ -220,7 +173,7 @@ class Monitor:
         if self._executor is not None:
             self._executor.shutdown(wait=True)
             self._executor = None
-        if self.voyage is not None and self._tracked_through >= 0:
+        if self.voyage is not None and self.tracking.tracked_through >= 0:
             if (
                 self.dship is not None
                 and not self._log_complete
@@ -294,7 +247,9 @@ class Monitor:
             decided += 1
         if decided:
             self._outlook_due = True
-        elif self.dship is not None and self._tracked_through >= 0 and not self._log_complete:
+        elif (
+            self.dship is not None and self.tracking.tracked_through >= 0 and not self._log_complete
+        ):
             key = _file_key(self.dship)
             if key != self._dship_key:  # the ship log grew: the newest predictors change
                 self._outlook_due = True
@@ -417,37 +372,16 @@ class Monitor:
         ends = np.array([f.info.end_time.value for f in self.files], dtype=np.int64)
         return starts, ends
 
-    def _settled(self, low: int, high: int, starts, ends, newest: int) -> bool:
-        """No data can still arrive for [low, high) ns: it is covered by files, or every
-        uncovered stretch of it lies ``late_s`` or more before the newest data."""
-        voyage = self.voyage
-        half = int(0.5 / voyage.rate_hz * _NS)
-        late = int(self.options.late_s * _NS)
-        low = max(low, voyage.grid.t0.value)  # nothing comes before the first block
-        cursor = low
-        first = max(0, int(np.searchsorted(ends, low, side="left")) - 1)  # files in time order
-        for start, end in zip(starts[first:], ends[first:], strict=True):
-            if end <= cursor + half:
-                continue
-            if start > high - half:
-                break
-            if start > cursor + half and newest < start + late:  # a hole [cursor, start)
-                return False
-            cursor = max(cursor, end)
-        if cursor < high - half and newest < high + late:
-            return False
-        return True
-
     def _ready_blocks(self, flush: bool):
         """Blocks not yet decided whose data (and, when decimating, whose neighbouring
         files) can no longer change, ascending."""
-        from ..signals.stream import _plan
+        from ..signals.block_plan import plan_file_infos
 
         if not self.files:
             return []
         voyage = self.voyage
-        plan = _plan(
-            [f.info for f in self.files], voyage.grid, None, None, voyage.options.max_gap_s
+        plan = plan_file_infos(
+            [f.info for f in self.files], voyage.grid, max_gap_s=voyage.options.max_gap_s
         )
         starts, ends = self._coverage()
         newest = int(ends.max())
@@ -458,21 +392,39 @@ class Monitor:
                 continue
             low = planned.block_start.value - margin
             high = planned.block_end.value + margin
-            if flush or self._settled(low, high, starts, ends, newest):
+            if flush or settled(
+                low,
+                high,
+                starts,
+                ends,
+                newest=newest,
+                first_ns=voyage.grid.t0.value,
+                sampling_rate_hz=voyage.rate_hz,
+                late_s=self.options.late_s,
+            ):
                 ready.append(planned)
         self._plan = plan
         return ready
 
     # ------------------------------------------------------------------ one block
     def _process(self, planned) -> None:
-        from ..identify import _Task
         from ..parallel import _guarded
 
         voyage = self.voyage
-        task = _Task(int(planned.block), planned.block_start, tuple(str(f) for f in planned.files))
+        task = BlockTask(
+            int(planned.block), planned.block_start, tuple(str(f) for f in planned.files)
+        )
         conditioner = None
         if voyage.per_file:
-            conditioner = self._conditioner(planned)
+            conditioner = block_conditioner(
+                [f.info for f in self.files],
+                planned,
+                voyage.grid,
+                voyage.channels,
+                voyage.options,
+                shared=self._shared,
+                counter=self.conditioned_files,
+            )
         func = functools.partial(
             identify_block,
             grid=voyage.grid,
@@ -484,7 +436,7 @@ class Monitor:
         outcome = _guarded(func, task)
         identified_at = pd.Timestamp.now(tz="UTC")
         cpu = time.process_time() - cpu
-        row = self._health_row(planned, outcome, identified_at)
+        row = data_health_row(planned, outcome, identified_at, self.files)
         tables = {k: v for k, v in outcome.tables.items() if len(v)}
         tables["monitor"] = pd.DataFrame([row])
         blocks = pd.DataFrame(
@@ -500,10 +452,14 @@ class Monitor:
         self._health_rows.append(row)
         selected = outcome.tables.get("selected")
         if not outcome.skipped and selected is not None and len(selected):
-            self._selected_parts[int(outcome.block)] = selected
+            self.tracking.add(int(outcome.block), selected)
         self._advance_tracking()
         self._write_data_health()
-        self._forget_conditioned()
+        forget_conditioned(
+            self._shared,
+            [b.block_start for b in self._plan.blocks if b.block not in self.done],
+            {f.path: f.info.end_time for f in self.files},
+        )
         self._write_status("running")
         log.info(
             "block %d: %s, identification CPU %.3f s, state written %.3f s after its last "
@@ -514,126 +470,13 @@ class Monitor:
             (pd.Timestamp.now(tz="UTC") - row["last_file_landed"]).total_seconds(),
         )
 
-    def _conditioner(self, planned) -> _SharedConditioner:
-        voyage = self.voyage
-        from ..identify import _fault_options, _filter_band
-
-        infos = [f.info for f in self.files]
-        position = {info.path: i for i, info in enumerate(infos)}
-        used = [position[Path(p)] for p in planned.files if Path(p) in position]
-        if used:
-            lo, hi = max(min(used) - 1, 0), min(max(used) + 2, len(infos))
-        else:
-            lo, hi = 0, len(infos)
-        options = voyage.options
-        return _SharedConditioner(
-            infos[lo:hi],
-            voyage.grid,
-            voyage.channels,
-            target_rate_hz=float(options.target_rate_hz),
-            band_hz=_filter_band(options),
-            max_gap_s=options.max_gap_s,
-            fault_options=_fault_options(options),
-            read_options=options.read_options,
-            shared=self._shared,
-            counter=self.conditioned_files,
-        )
-
-    def _forget_conditioned(self) -> None:
-        """Drop conditioned files no block still to come needs."""
-        if not self._shared:
-            return
-        waiting = [b.block_start for b in self._plan.blocks if b.block not in self.done]
-        horizon = min(waiting) if waiting else None
-        ends = {f.path: f.info.end_time for f in self.files}
-        for key in list(self._shared):
-            end = ends.get(key[0])
-            if end is None or horizon is None or end <= horizon:
-                del self._shared[key]
-
-    def _health_row(self, planned, outcome, identified_at: pd.Timestamp) -> dict:
-        by_path = {f.path: f for f in self.files}
-        used = [by_path[Path(p)] for p in planned.files if Path(p) in by_path]
-        landed = max((f.landed for f in used), default=pd.NaT)
-        start, end = planned.block_start.value, planned.block_end.value
-        covered = sum(
-            max(0, min(end, f.info.end_time.value) - max(start, f.info.start_time.value))
-            for f in used
-        )
-        faults = outcome.tables.get("faults")
-        dropped = [] if faults is None or faults.empty else [str(c) for c in faults["channel"]]
-        channels = outcome.tables.get("channels")
-        n_channels = 0 if channels is None or outcome.skipped else int(len(channels))
-        gap = max(0.0, (end - start - covered) / _NS)
-        return {
-            "block": int(outcome.block),
-            "block_start": pd.Timestamp(outcome.block_start).tz_convert("UTC"),
-            "n_channels": n_channels,
-            "dropped_channels": ",".join(dropped),
-            "gap_seconds": round(gap, 6),
-            "last_file_landed": landed,
-            "identified_at": identified_at,
-            "latency_s": (identified_at - landed).total_seconds()
-            if landed is not pd.NaT
-            else np.nan,
-            "status": "skipped" if outcome.skipped else "ok",
-            "reason": outcome.skipped,
-        }
-
     # ------------------------------------------------------------------ tracking
     def _advance_tracking(self) -> None:
-        """Feed the decided blocks to the tracker in block order (the tracker needs them
-        in order; a block waiting for late data holds the ones after it) and write the
-        tracked table when it grew."""
-        from ..sid.tracking import _tracked_table
-
-        grew = False
-        while self._tracked_through + 1 in self.done:
-            block = self._tracked_through + 1
-            part = self._selected_parts.pop(block, None)
-            if part is not None:
-                self._track_block(block, part)
-                grew = True
-            self._tracked_through = block
+        """Feed the decided blocks to the tracker in block order and write the tracked
+        table when it grew (see :class:`IncrementalTracking`)."""
+        grew = self.tracking.advance(self.done)
         if grew or not (self.state / "tracked.parquet").exists():
-            if self._frame is None:
-                table = empty_table(MODAL)
-            else:
-                table = _tracked_table(
-                    self._frame,
-                    list(self._track_rows),
-                    self._tracker,
-                    self._track_channels,
-                    self.options.tracking,
-                )
-            write_table(table, self.state / "tracked.parquet", MODAL)
-
-    def _track_block(self, block: int, part: pd.DataFrame) -> None:
-        # the order `workbench identify` exports a block's modes in (then `track` reads it)
-        if "model_order" in part.columns:
-            part = part.sort_values("model_order", kind="stable")
-        part = part.sort_values("frequency_hz", kind="stable")
-        if self._tracker is None:
-            channels, _ = shapes_from_frame(part.iloc[:0])
-            if not channels:
-                raise WorkbenchError(f"block {block}: selected modes without mode shapes")
-            self._track_channels = channels
-            self._tracker = ModeTracker(len(channels), self.options.tracking)
-        offset = 0 if self._frame is None else len(self._frame)
-        part = part.reset_index(drop=True)
-        part.index = pd.RangeIndex(offset, offset + len(part))
-        self._frame = part if self._frame is None else pd.concat([self._frame, part])
-        _, shapes = shapes_from_frame(part)
-        updates = self._tracker.update(
-            block,
-            part["frequency_hz"].to_numpy(dtype=float),
-            part["damping_ratio"].to_numpy(dtype=float),
-            shapes.T,
-            part.index,
-        )
-        self._track_rows += [(int(part.index[i]), label, score) for i, label, score in updates]
-        self._track_rows += self._tracker.late_assignments
-        self._tracker.late_assignments = []
+            write_table(self.tracking.table(), self.state / "tracked.parquet", MODAL)
 
     def _resume(self) -> None:
         """After a restart: replay the stored blocks into the tracker and the data-health
@@ -649,7 +492,7 @@ class Monitor:
         if len(selected):
             selected = selected.drop(columns=["day"], errors="ignore")
             for block, part in selected.groupby("block", sort=True):
-                self._selected_parts[int(block)] = part
+                self.tracking.add(int(block), part)
         self._plan = SimpleNamespace(blocks=())
         self._advance_tracking()
         self._write_data_health()
@@ -718,22 +561,11 @@ class Monitor:
 
     # ------------------------------------------------------------------ state files
     def _write_data_health(self) -> None:
-        frame = pd.DataFrame(self._health_rows, columns=list(DATA_HEALTH_COLUMNS))
-        frame = frame.sort_values("block", kind="stable").reset_index(drop=True)
-        frame["block"] = frame["block"].astype("int64")
-        frame["n_channels"] = frame["n_channels"].astype("int64")
-        for column in ("block_start", "last_file_landed", "identified_at"):
-            frame[column] = pd.to_datetime(frame[column], utc=True)
-        for column in ("gap_seconds", "latency_s"):
-            frame[column] = frame[column].astype(float)
-        for column in ("dropped_channels", "status", "reason"):
-            frame[column] = frame[column].fillna("").astype(str)
-        with atomic_path(self.state / "data_health.parquet") as tmp:
-            frame.to_parquet(tmp, index=False)
+        write_data_health(self._health_rows, self.state / "data_health.parquet")
 
     def _write_status(self, state: str, message: str | None = None) -> None:
         del self.messages[:-200]  # a long run keeps its recent messages only
-        last = max((b for b in self.done if b <= self._tracked_through), default=None)
+        last = max((b for b in self.done if b <= self.tracking.tracked_through), default=None)
         if message is None:
             message = self.messages[-1] if self.messages else ""
         status = {

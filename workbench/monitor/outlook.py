@@ -63,6 +63,16 @@ class ForecastSettings:
         Reference period of the health chart. [h]
     ewma_lambda, false_alarms_per_day : float
         Health-chart settings (:class:`~workbench.health.HealthOptions`).
+    health_model : {"operational", "forecast"}
+        What the health chart charts: the residuals of the operational model
+        (:func:`~workbench.health.fit_operational_model`, fitted on the first
+        ``health_train_hours``; the reference period follows), or those of the forecast
+        above (as ``workbench health --forecast``; its rolling model absorbs changes).
+    health_train_hours : float
+        Hours the operational model is fitted on. [h]
+    baseline_hours : float or None
+        Without ``fuel_on_board_t`` in the ship log, the chart's baseline follows slow
+        drifts with this time constant (None: fixed). [h]
     """
 
     options: tuple[Literal["A", "B"], ...] = ("A",)
@@ -79,6 +89,9 @@ class ForecastSettings:
     reference_hours: float = 6.0
     ewma_lambda: float = 0.1
     false_alarms_per_day: float = 0.1
+    health_model: Literal["operational", "forecast"] = "operational"
+    health_train_hours: float = 12.0
+    baseline_hours: float | None = 24.0
 
     def __post_init__(self) -> None:
         options = tuple(self.options)
@@ -93,6 +106,16 @@ class ForecastSettings:
             raise ValueError(f"min_presence={self.min_presence!r} must be in [0, 1]")
         if not (math.isfinite(self.reference_hours) and self.reference_hours > 0):
             raise ValueError(f"reference_hours={self.reference_hours!r} must be positive")
+        if self.health_model not in ("operational", "forecast"):
+            raise ValueError(
+                f"health_model={self.health_model!r} must be 'operational' or 'forecast'"
+            )
+        if not (math.isfinite(self.health_train_hours) and self.health_train_hours > 0):
+            raise ValueError(f"health_train_hours={self.health_train_hours!r} must be positive")
+        if self.baseline_hours is not None and not (
+            math.isfinite(self.baseline_hours) and self.baseline_hours > 0
+        ):
+            raise ValueError(f"baseline_hours={self.baseline_hours!r} must be positive or None")
         object.__setattr__(
             self,
             "dship_mapping",
@@ -154,8 +177,8 @@ def block_predictors_of(
     tracked: pd.DataFrame, dship: Path, grid, settings: ForecastSettings
 ) -> pd.DataFrame:
     """The ship log averaged onto the blocks first..last of *tracked* (as ``workbench
-    forecast --dship`` does)."""
-    from data_contracts import CANONICAL_PREDICTORS
+    forecast --dship`` does), with the optional predictors (fuel on board) the log has."""
+    from data_contracts import CANONICAL_PREDICTORS, OPTIONAL_PREDICTORS
 
     from ..predictors import block_predictors
 
@@ -165,7 +188,13 @@ def block_predictors_of(
     table = PREDICTORS.validate(table)
     if settings.all_predictors:
         return table
-    columns = ["block", "block_start", "block_end", *(c.name for c in CANONICAL_PREDICTORS)]
+    columns = [
+        "block",
+        "block_start",
+        "block_end",
+        *(c.name for c in CANONICAL_PREDICTORS),
+        *(c.name for c in OPTIONAL_PREDICTORS),
+    ]
     return table[[c for c in columns if c in table.columns]]
 
 
@@ -223,12 +252,15 @@ def update_outlook(
     is read for the stabilisation diagrams when option B is asked for.
     """
     from ..health import HealthOptions, health_chart
+    from ..predictors.tables import canonical_predictors
+    from .structural_health import operational_health
 
     started, cpu = time.perf_counter(), time.process_time()
     state = Path(state)
     report = OutlookReport()
     tracked_path = state / "tracked.parquet"
     forecast = empty_table(FORECAST)
+    tracked, predictors = empty_table(MODAL), None
     if tracked_path.is_file() and dship is not None:
         tracked = read_table(tracked_path, MODAL)
         report.n_blocks = int(tracked["block"].nunique()) if len(tracked) else 0
@@ -246,9 +278,10 @@ def update_outlook(
                 poles = None
                 if "B" in settings.options and store is not None:
                     poles = _store_poles(Path(store), tracked)
+                shown = predictors if settings.all_predictors else canonical_predictors(predictors)
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")  # other than the forecast's own notes
-                    forecast, notes = forecast_table(tracked, predictors, settings, poles)
+                    forecast, notes = forecast_table(tracked, shown, settings, poles)
                 report.messages += notes
             except (ValueError, ArithmeticError, np.linalg.LinAlgError, OSError) as error:
                 report.messages.append(f"forecast: {str(error).splitlines()[0]}")
@@ -259,7 +292,18 @@ def update_outlook(
     elif dship is None:
         report.messages.append("forecast: no ship log given")
     health, alarms = empty_table(HEALTH), empty_table(ALARMS)
-    if len(forecast):
+    if settings.health_model == "operational":
+        if predictors is not None and len(tracked):
+            try:
+                found = operational_health(tracked, predictors, settings, grid.step_s)
+                if found[0] is not None:
+                    health, alarms = found[0], found[1]
+                report.messages += found[2]
+            except (ValueError, ArithmeticError, np.linalg.LinAlgError) as error:
+                report.messages.append(f"health: {str(error).splitlines()[0]}")
+            except Exception as error:  # noqa: BLE001 - say so; the next block retries
+                report.messages.append(f"health: {type(error).__name__}: {error}")
+    elif len(forecast):
         blocks = int(round(settings.reference_hours * 3600.0 / grid.step_s))
         try:
             chart = health_chart(

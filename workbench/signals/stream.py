@@ -18,12 +18,6 @@ from .block_plan import (
     read_file_info,
 )
 
-
-def _plan(infos, grid, length_s, step_s, max_gap_s):
-    """The former private planner's positional form (use :func:`plan_file_infos`)."""
-    return plan_file_infos(infos, grid, length_s=length_s, step_s=step_s, max_gap_s=max_gap_s)
-
-
 __all__ = [
     "AccelerationBlock",
     "BlockPlan",

@@ -1,4 +1,5 @@
-"""Health stage: MEWMA control chart of a forecast's frequency residuals."""
+"""Health stage: control chart (per-mode CUSUM or MEWMA) of a forecast's frequency
+residuals."""
 
 from __future__ import annotations
 
@@ -45,18 +46,18 @@ class HealthStageResult(StageResult):
         return self.chart.save(out_dir)
 
     def plot(self, ax=None):
-        """The chart: T² statistic per block, the control limit, alarming blocks marked."""
+        """The chart: statistic per block, the control limit, alarming blocks marked."""
         import matplotlib.pyplot as plt
 
         if ax is None:
             _, ax = plt.subplots(figsize=(9, 4), layout="constrained")
         table = self.table
-        ax.plot(table["block"], table["statistic"], "-", lw=0.8, color="0.3", label="T²")
+        ax.plot(table["block"], table["statistic"], "-", lw=0.8, color="0.3", label="statistic")
         ax.plot(table["block"], table["limit"], "--", color="tab:red", lw=1, label="limit")
         alarm = table["alarm"].astype(bool)
         ax.plot(table.loc[alarm, "block"], table.loc[alarm, "statistic"], ".", color="tab:red")
         ax.set_xlabel("block")
-        ax.set_ylabel("MEWMA T²")
+        ax.set_ylabel("CUSUM max S/H" if self.chart.reference.statistic == "cusum" else "MEWMA T²")
         ax.legend(fontsize=8)
         return ax.figure
 

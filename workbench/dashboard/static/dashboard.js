@@ -132,7 +132,7 @@
     const top = d.contributions.filter((c) => c.share >= 0.05).slice(0, 3)
       .map((c) => `mode ${c.mode} ${Math.round(100 * c.share)} %`).join(", ");
     $("#health-sub").textContent =
-      `block ${d.block}: T² ${fmt(d.statistic, 2)}, limit ${fmt(d.limit, 2)} · ${verdict}` +
+      `block ${d.block}: statistic ${fmt(d.statistic, 2)}, limit ${fmt(d.limit, 2)} · ${verdict}` +
       (d.alarm && top ? ` · driven by ${top}` : "");
     section.classList.toggle("alarming", !!d.alarm);
     const p = d.points;
@@ -141,7 +141,7 @@
       limit: { x: p.t, y: p.limit },
       shade: p.reference.some(Boolean) ? { x: p.t, on: p.reference } : null,
       points: { x: p.t, y: p.statistic, on: p.alarm, cls: "alarm-point" },
-      ylabel: "T²", floorZero: true,
+      ylabel: "statistic", floorZero: true,
     });
     return d.block;
   };
