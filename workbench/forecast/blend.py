@@ -60,6 +60,10 @@ __all__ = ["kalman_pass_step", "memory_forecast"]
 _MIN_SELECTION_ROWS = 10
 #: Entry p-value of the short-history selection before the division by the overlap.
 _SHORT_P_ENTER = 0.05
+#: Fewest consecutive large innovations of one sign that mean the model is off (at least
+#: one more than the blocks sharing data with the first: one corrupted stretch of data is
+#: in all the blocks that overlap it).
+_PERSIST_BLOCKS = 3
 #: Oldest history a refit looks at, in forgetting time constants (weight e^-6 beyond).
 _HISTORY_CONSTANTS = 6.0
 
@@ -262,6 +266,10 @@ def memory_forecast(
     # about v̄ + κ σ_v² (workbench.forecast.excitation); σ_v² from the overlapping blocks
     speed_col = columns.index("speed_kn") if "speed_kn" in columns else None
     n_sub = sub_windows_per_block(grid) if model.excitation_bias else None
+    # blocks that share data with a block: its identification error (an ice impact, a
+    # badly excited stretch) is in all of them, so a run of large innovations is evidence
+    # that the model is off only when it reaches a block that shares no data with the first
+    overlap = sub_windows_per_block(grid) or 1
     speed_var = shift_cap = None
     if n_sub is not None and speed_col is not None:
         speed_var = within_block_variance(X_all[:, speed_col], n_sub)
@@ -795,6 +803,7 @@ def memory_forecast(
                 huber,
                 model_variance=v_rows[r],
                 previous_run=run,
+                persist_blocks=max(_PERSIST_BLOCKS, overlap + 1),
             )
             exceed = np.where(np.abs(nu) > huber, np.sign(nu), 0).astype(np.int64)
             grow = (exceed != 0) & (np.sign(run) == exceed)
