@@ -417,6 +417,42 @@ def memory_forecast(
     models_out = []
     t_cache: dict[int, float] = {}
 
+    selection_range: list = [None] * n_modes  # predictor ranges of each term selection
+    # predictors whose range is not a question of operating region: the time trend always
+    # leaves it, by design
+    regional = np.array([name != "elapsed_hours" for name in columns])
+
+    def left_selection_range(j: int, i: int, rows_ok: np.ndarray) -> int | None:
+        """The newest measured block since mode j's term selection outside its range, or None.
+
+        A term selection only judges predictors the history exercised: one made while the
+        ship held one speed has no speed term, whatever the speed law, and keeps none until
+        the next scheduled selection (``reselect_blocks`` later). When a measured block
+        since the selection has a predictor the selected terms do not use outside the range
+        the selection saw, widened by half its width on each side, the selection could not
+        judge that predictor where the ship now is, and the terms are selected again (at
+        most every ``reselect_blocks // 4`` blocks; the time trend is not watched, it leaves
+        its range by design). Predictors in the terms extrapolate as their fit says.
+        """
+        if selection_range[j] is None or i - selected_at[j] < max(1, model.reselect_blocks // 4):
+            return None
+        since = rows_ok[rows_ok >= selected_at[j]]
+        if since.size == 0:
+            return None
+        low, high = selection_range[j]
+        margin = 0.5 * (high - low)
+        watch = regional.copy()  # predictors outside the selected terms
+        if terms_of[j] is not None:
+            use_j, _, _, terms_j = terms_of[j]
+            for term in terms_j:
+                for c in term:
+                    watch[use_j[c]] = False
+        X = X_all[since][:, watch]
+        with np.errstate(invalid="ignore"):
+            outside = (X < (low - margin)[watch]) | (X > (high + margin)[watch])
+        rows = since[outside.any(axis=1)]
+        return int(rows[-1]) if rows.size else None
+
     def refit(j: int, i: int) -> MemoryModel | None:
         """Model of mode j from the measured blocks before grid row i."""
         lo = max(first, i - history_limit)
@@ -432,16 +468,21 @@ def memory_forecast(
         if ok.sum() < min_train:
             return None
         rows_ok = np.flatnonzero(ok) + lo
+        newest_outside = left_selection_range(j, i, rows_ok)
         if (
             terms_of[j] is None
             or i - selected_at[j] >= model.reselect_blocks
             or (labels is not None and case != selected_case[j])
+            or newest_outside is not None
         ):
             selected_case[j] = case
             # non-overlapping blocks only (75 % overlap: every 4th block shares no data), so
-            # the F-tests of the selection do not count one correlated error several times
+            # the F-tests of the selection do not count one correlated error several times;
+            # the spacing keeps the newest block, or the newest block of a new operating
+            # region when that is what triggered the selection
+            anchor = i - 1 if newest_outside is None else newest_outside
             recent = rows_ok[rows_ok >= i - int(model.selection_blocks)]
-            spaced = recent[(i - 1 - recent) % int(model.selection_stride) == 0]
+            spaced = recent[(anchor - recent) % int(model.selection_stride) == 0]
             short = spaced.size < max(min_train, _MIN_SELECTION_ROWS)
             selection_options = model.stepwise_options
             if short and recent.size >= min_train and model.short_history_selection:
@@ -458,6 +499,9 @@ def memory_forecast(
             else:
                 recent, few = spaced, short
             Xs = X_all[recent]
+            with warnings.catch_warnings():  # an all-NaN column: no range, never "left"
+                warnings.simplefilter("ignore", RuntimeWarning)
+                selection_range[j] = (np.nanmin(Xs, axis=0), np.nanmax(Xs, axis=0))
             use, names = [], []
             for c, name in enumerate(columns):
                 v = Xs[:, c]
