@@ -327,3 +327,31 @@ def test_terms_are_selected_again_when_the_ship_leaves_the_selections_speed_rang
     # the speed law moves f by 0.16 Hz between 2 and 10 kn; with the term the model is
     # within a few identification errors (5 mHz) of the truth
     assert float(model_error.median()) < 0.02
+
+
+def test_a_mode_absent_for_longer_than_the_selection_window_is_still_forecast():
+    # mode 0 measured in blocks 0-99 only, then absent for more than the 288 blocks a term
+    # selection looks back: the model keeps its history (the forgetting memory is longer)
+    # and the forecast goes on predict-only instead of failing on an empty selection
+    rng = np.random.default_rng(2)
+    n = 420
+    block = np.arange(n)
+    start = pd.Timestamp("2025-01-01T00:00:00Z") + pd.to_timedelta(block * 300, unit="s")
+    speed = 8.0 + 3.0 * np.sin(block / 30.0) + rng.normal(0, 0.2, n)
+    truth = 5.0 * (1 - 0.002 * speed)
+    predictors = pd.DataFrame({"block": block, "block_start": start, "speed_kn": speed})
+    seen = block < 100
+    modal = pd.DataFrame(
+        {
+            "block": block[seen],
+            "block_start": start[seen],
+            "mode": 0,
+            "frequency_hz": truth[seen] + _ar1(rng, int(seen.sum()), 0.6, 0.005),
+        }
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ForecastWarning)
+        table = sliding_forecast(modal, predictors, method=2, model="memory").table
+    late = table[table["block"] >= 400]
+    assert len(late) == 20 and late["kalman_frequency_hz"].notna().all()
+    assert np.abs(late["model_frequency_hz"] - truth[late["block"].to_numpy()]).max() < 0.05

@@ -499,9 +499,11 @@ def memory_forecast(
             else:
                 recent, few = spaced, short
             Xs = X_all[recent]
-            with warnings.catch_warnings():  # an all-NaN column: no range, never "left"
-                warnings.simplefilter("ignore", RuntimeWarning)
-                selection_range[j] = (np.nanmin(Xs, axis=0), np.nanmax(Xs, axis=0))
+            selection_range[j] = None
+            if Xs.shape[0]:
+                with warnings.catch_warnings():  # an all-NaN column: no range, never "left"
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    selection_range[j] = (np.nanmin(Xs, axis=0), np.nanmax(Xs, axis=0))
             use, names = [], []
             for c, name in enumerate(columns):
                 v = Xs[:, c]
