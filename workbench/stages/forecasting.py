@@ -15,7 +15,7 @@ from data_contracts import FORECAST, MODAL, POLES, PREDICTORS, recorded_grid, se
 
 from .._deprecation import renamed_parameters
 from ..forecast import ForecastWarning, sliding_forecast
-from ..forecast.options import method_label, option_label
+from ..forecast.options import DEFAULT_MODEL, method_label, option_label
 from ..parallel import process_map
 from ..sid.presence import persistent_modes
 from ._base import StageResult, read_any_table, table_path, write_frame
@@ -50,7 +50,7 @@ class ForecastOptions:
     model : {"window", "memory"}, optional
         The predictive model (see :func:`~workbench.forecast.sliding_forecast`). Default:
         ``"memory"``, which measures best on ``benchmarks/bench_forecast_accuracy.py``
-        (``workbench.defaults.FORECAST_MODEL``), or ``"window"`` (the reference
+        (``workbench.forecast.options.DEFAULT_MODEL``), or ``"window"`` (the reference
         configuration) when *trust* is given as a number or None, since only the window
         model takes a hand-set trust.
     predictor_columns : tuple of str, optional
@@ -88,9 +88,7 @@ class ForecastOptions:
         object.__setattr__(self, "options", tuple(option_label(o) for o in self.options))
         object.__setattr__(self, "scheme", method_label(self.scheme))
         if self.model is None:
-            from ..defaults import FORECAST_MODEL
-
-            object.__setattr__(self, "model", FORECAST_MODEL if self.trust == "auto" else "window")
+            object.__setattr__(self, "model", DEFAULT_MODEL if self.trust == "auto" else "window")
         if self.train_blocks < 2:
             raise ValueError(f"train_blocks={self.train_blocks} must be at least 2")
         if not 0.0 <= self.min_presence <= 1.0:
