@@ -113,7 +113,7 @@ def block_level_runs(seeds, n_blocks, methods, options, regimes=REGIMES, shapes_
     return rows
 
 
-def _demo_tables(cache: Path, hours: float):
+def _demo_tables(cache: Path, hours: float, seed: int = 0):
     """Tracked modal table, poles, predictors and truth of the demo voyage (cached)."""
     from data_contracts import CONTRACTS, read_table
     from workbench.identify import IdentifyOptions, identify_voyage
@@ -121,12 +121,16 @@ def _demo_tables(cache: Path, hours: float):
     from workbench.simulate import simulate_voyage
     from workbench.stages import track
 
-    folder = cache / f"demo{hours:g}"
+    folder = cache / (f"demo{hours:g}" if seed == 0 else f"demo{hours:g}_seed{seed}")
     tracked_path = folder / "tracked_modal.csv"
     if not tracked_path.is_file():
         folder.mkdir(parents=True, exist_ok=True)
-        print(f"simulating and identifying the {hours:g}-h demo into {folder} ...", flush=True)
-        simulate_voyage(folder / "voyage", seed=0, hours=hours)
+        print(
+            f"simulating and identifying the {hours:g}-h demo (seed {seed}) into {folder} ...",
+            file=sys.stderr,
+            flush=True,
+        )
+        simulate_voyage(folder / "voyage", seed=seed, hours=hours)
         identify_voyage([folder / "voyage"], folder / "identify", options=IdentifyOptions())
         track(folder / "identify" / "selected.parquet").save(tracked_path)
     tracked = read_table(tracked_path, CONTRACTS["modal"])
@@ -139,20 +143,20 @@ def _demo_tables(cache: Path, hours: float):
     return tracked, poles, predictors, truth
 
 
-def demo_runs(cache: Path, hours_list, methods, options):
+def demo_runs(cache: Path, hours_list, methods, options, seeds=(0,), shapes_list=(True, False)):
     from workbench.sid.presence import persistent_modes
     from workbench.sid.tracking import label_agreement
 
     rows = []
-    for hours in hours_list:
-        tracked, poles, predictors, truth = _demo_tables(cache, hours)
+    for hours, seed in ((h, s) for h in hours_list for s in seeds):
+        tracked, poles, predictors, truth = _demo_tables(cache, hours, seed)
         kept, _ = persistent_modes(tracked, 0.5, n_blocks=predictors["block"].nunique())
         _, mapping = label_agreement(kept, truth)
         kept = kept[kept["mode"].isin(mapping)]
         inverse = {true: label for label, true in mapping.items()}
         truth_l = truth[truth["mode"].isin(inverse)].copy()
         truth_l["mode"] = truth_l["mode"].map(inverse)
-        for shapes in (True, False):
+        for shapes in shapes_list:
             modal = kept if shapes else _drop_shapes(kept)
             pol = poles if shapes else _drop_shapes(poles)
             for option in options:
@@ -162,7 +166,7 @@ def demo_runs(cache: Path, hours_list, methods, options):
                         {
                             "case": f"demo_{hours:g}h",
                             "shapes": shapes,
-                            "seed": 0,
+                            "seed": seed,
                             "option": option,
                             "method": method,
                             **score(table, truth_l, kept),
@@ -194,6 +198,14 @@ def main(argv=None) -> int:
     parser.add_argument("--options", default="A,B")
     parser.add_argument("--demo-hours", default="3,12", help="'' to skip the demo runs")
     parser.add_argument(
+        "--demo-seeds", default="0", help="simulator seeds of the demo voyages (e.g. 0,1,2)"
+    )
+    parser.add_argument(
+        "--prepare-demo",
+        action="store_true",
+        help="only simulate and identify the demo voyages into --cache, no forecasts",
+    )
+    parser.add_argument(
         "--cache", type=Path, default=Path("reports") / "bench_cache", help="demo tables"
     )
     parser.add_argument("--no-regimes", action="store_true")
@@ -215,6 +227,14 @@ def main(argv=None) -> int:
         MODEL_OPTIONS = ModelOptions(excitation_bias=False)
     methods = [int(m) for m in args.methods.split(",")]
     options = args.options.split(",")
+    shapes_list = {"both": (True, False), "with": (True,), "without": (False,)}[args.shapes]
+    hours = [float(h) for h in args.demo_hours.split(",") if h.strip()]
+    demo_seeds = [int(s) for s in args.demo_seeds.split(",") if s.strip()]
+    if args.prepare_demo:
+        for h in hours:
+            for seed in demo_seeds:
+                _demo_tables(args.cache, h, seed)
+        return 0
     start = time.perf_counter()
     rows = []
     if not args.no_regimes:
@@ -224,11 +244,10 @@ def main(argv=None) -> int:
             methods,
             options,
             args.regimes.split(","),
-            {"both": (True, False), "with": (True,), "without": (False,)}[args.shapes],
+            shapes_list,
         )
-    hours = [float(h) for h in args.demo_hours.split(",") if h.strip()]
     if hours:
-        rows += demo_runs(args.cache, hours, methods, options)
+        rows += demo_runs(args.cache, hours, methods, options, demo_seeds, shapes_list)
     runs = pd.DataFrame(rows)
     if args.out is not None:
         runs.to_csv(args.out, index=False)

@@ -32,9 +32,17 @@ def tables(voyage):
     return modal, predictors, truth
 
 
-def test_forecast_modes_split_over_processes_is_identical(tables):
+@pytest.mark.parametrize(
+    "model_kwargs",
+    [
+        dict(model="window", trust=None),
+        # the memory model pools the excitation sensitivity over the modes: one call
+        dict(model="memory"),
+    ],
+)
+def test_forecast_modes_split_over_processes_is_identical(tables, model_kwargs):
     modal, predictors, _ = tables
-    kwargs = dict(option="A", scheme=2, train_blocks=20, horizon=4, trust=None)
+    kwargs = dict(option="A", scheme=2, train_blocks=20, horizon=4, **model_kwargs)
     one, _ = forecast_modes(modal, predictors, n_workers=1, **kwargs)
     two, _ = forecast_modes(modal, predictors, n_workers=2, **kwargs)
     pd.testing.assert_frame_equal(one, two, check_exact=True)

@@ -15,7 +15,7 @@ import inspect
 from pathlib import Path
 
 from .blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
-from .forecast.options import MeasurementOptions
+from .forecast.options import DEFAULT_MODEL, MeasurementOptions
 from .forecast.sliding import DEFAULT_HORIZON
 from .health import HealthOptions
 from .identify import IdentifyOptions
@@ -90,8 +90,8 @@ FORECAST_SCHEME = "rolling"
 FORECAST_TRAIN_BLOCKS = 20
 #: Forecast horizon per scheme. [blocks]
 FORECAST_HORIZON = {"single-window": DEFAULT_HORIZON[1], "rolling": DEFAULT_HORIZON[2]}
-#: The command line runs the reference configuration (the library's default is "memory").
-FORECAST_MODEL = "window"
+#: The predictive model ("memory"; "window" is the reference configuration).
+FORECAST_MODEL = DEFAULT_MODEL
 #: Steady-state weight on the SSI estimate of ``--model window``. [-]
 FORECAST_TRUST = 0.65
 FORECAST_MAC_MIN = _MEASUREMENT.mac_min

@@ -227,11 +227,9 @@ def run_demo(
                 options=("A", "B"),
                 scheme="rolling",
                 train_blocks=20,
-                # the reference configuration: the memory model needs history; on demo
-                # voyages of 3-6 h it is still 16-24 % worse than raw SSI
-                # (bench_forecast_accuracy.py)
-                model="window",
-                trust=0.65,
+                # the default model (memory: measures best on
+                # benchmarks/bench_forecast_accuracy.py, demo voyages included)
+                model="memory",
             ),
         )
         paths = forecasted.save(

@@ -93,6 +93,69 @@ def test_huber_weight_limits_an_isolated_outlier_but_not_a_persistent_one():
     assert s2[0, 0] > 0.4  # the third large same-sign innovation: the model is off
 
 
+def test_a_run_of_large_innovations_within_the_block_overlap_keeps_the_huber_weight():
+    # 75 %-overlapping blocks: one corrupted stretch of data is in 4 consecutive blocks, so
+    # the 3rd and 4th large same-sign innovations are not independent evidence; with
+    # persist_blocks = overlap + 1 = 5 they keep the Huber weight, the 5th (a block that
+    # shares no data with the first) means the model is off
+    args = (np.array([[0.95, 0.5]]), np.array([[1e-6, 1e-6]]))
+    P0 = np.array([[[1e-4, 0.0], [0.0, 1e-4]]])
+    big = np.array([0.5])
+    S = 0.95**2 * 1e-4 + 1e-6 + 0.25 * 1e-4 + 1e-6 + 1e-4
+    huber_step = 2.5 * math.sqrt(S) * (S - 1e-4) / S
+    for before in (2, 3):
+        state, _, _, _ = kalman_pass_step(
+            np.zeros((1, 2)),
+            P0.copy(),
+            *args,
+            big,
+            np.array([1e-4]),
+            2.5,
+            previous_run=np.array([before]),
+            persist_blocks=5,
+        )
+        assert state[0].sum() == pytest.approx(huber_step, rel=1e-6)
+    state, _, _, _ = kalman_pass_step(
+        np.zeros((1, 2)),
+        P0.copy(),
+        *args,
+        big,
+        np.array([1e-4]),
+        2.5,
+        previous_run=np.array([4]),
+        persist_blocks=5,
+    )
+    assert state[0, 0] > 0.4
+
+
+def test_option_b_measures_the_whole_column_when_it_is_wider_than_a_cluster():
+    # a poorly identified block: the mode's column scatters by 0.3 % across the orders
+    # (robust std 0.015 Hz at 5 Hz, 3x the 1e-2 Hz cluster half-width), so it splits into
+    # several +-half-width groups; the measurement must be the column's median (5.000 Hz
+    # to its sampling error 1.25 x 0.015 / sqrt(41) = 0.003 Hz; poles beyond 3 robust
+    # standard deviations may drop out), not one group's centre
+    rng = np.random.default_rng(3)
+    orders = np.arange(20, 101, 2)
+    f = 5.0 + 0.015 * rng.standard_normal(orders.size)
+    poles = pd.DataFrame(
+        {"block": 0, "model_order": orders, "frequency_hz": f, "damping_ratio": 0.01}
+    )
+    poles["stable"] = True
+    chooser = ClusterChooser(
+        PoleIndex(poles, np.array([0])),
+        None,
+        shape_mac_min=0.9,
+        reacquire_blocks=2,
+        reacquire_band=0.05,
+    )
+    # a prediction 0.02 Hz high: the nearest groups are the column's upper end
+    choice = chooser.choose(0, 0, prior_hz=5.02, gate_hz=0.08, damping_ref=0.01)
+    assert choice is not None
+    assert abs(choice.cluster.frequency_hz - 5.0) < 3 * 0.003
+    # one +-0.01 Hz group holds about half the column (+-0.67 sigma): ~20 of 41 orders
+    assert choice.cluster.n_orders >= 30
+
+
 def _block_poles(prior_hz=5.0):
     """One block: the mode's column at 5.02 Hz (damping 1 %), a blade harmonic at 4.995 Hz
     (damping 0.2 %, nearer the prior, as many orders) and scattered noise poles."""
@@ -230,3 +293,65 @@ def test_memory_model_with_operating_cases_learns_each_cases_law():
     # per case: within the measurement noise of 0.002 Hz (measured 0.0003 Hz)
     assert errors["case"] < 0.1 * errors[None]
     assert errors["case"] < 0.002
+
+
+def test_terms_are_selected_again_when_the_ship_leaves_the_selections_speed_range():
+    # the first 40 blocks at 10 kn (the first selection cannot see a speed law), then the
+    # speed cycles 2 / 10 kn every 6 blocks; f = 5 (1 - 0.004 speed) + AR(1) error (0.1 %).
+    # The scheduled reselection is 36 blocks after the first (block 56); leaving the range
+    # the selection saw (block 40) triggers one at the first refit at least 9 blocks after
+    # it, so the model has a speed term from block 44 on and follows the cycles.
+    rng = np.random.default_rng(7)
+    n = 120
+    block = np.arange(n)
+    start = pd.Timestamp("2025-01-01T00:00:00Z") + pd.to_timedelta(block * 300, unit="s")
+    speed = np.where(block < 40, 10.0, np.where((block // 6) % 2 == 0, 2.0, 10.0))
+    speed = speed + rng.normal(0, 0.2, n)
+    truth = 5.0 * (1 - 0.004 * speed)
+    z = truth + _ar1(rng, n, 0.6, 0.005)
+    predictors = pd.DataFrame({"block": block, "block_start": start, "speed_kn": speed})
+    modal = pd.DataFrame({"block": block, "block_start": start, "mode": 0, "frequency_hz": z})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ForecastWarning)
+        result = sliding_forecast(
+            modal,
+            predictors,
+            method=2,
+            model="memory",
+            model_options=ModelOptions(time_trend=False),
+        )
+    with_speed = [m.window_end_block + 1 for m in result.models if "speed_kn" in m.terms]
+    assert with_speed and min(with_speed) <= 48
+    part = result.table[(result.table["phase"] == "forecast") & (result.table["block"] >= 50)]
+    model_error = np.abs(part["model_frequency_hz"] - truth[part["block"].to_numpy()])
+    # the speed law moves f by 0.16 Hz between 2 and 10 kn; with the term the model is
+    # within a few identification errors (5 mHz) of the truth
+    assert float(model_error.median()) < 0.02
+
+
+def test_a_mode_absent_for_longer_than_the_selection_window_is_still_forecast():
+    # mode 0 measured in blocks 0-99 only, then absent for more than the 288 blocks a term
+    # selection looks back: the model keeps its history (the forgetting memory is longer)
+    # and the forecast goes on predict-only instead of failing on an empty selection
+    rng = np.random.default_rng(2)
+    n = 420
+    block = np.arange(n)
+    start = pd.Timestamp("2025-01-01T00:00:00Z") + pd.to_timedelta(block * 300, unit="s")
+    speed = 8.0 + 3.0 * np.sin(block / 30.0) + rng.normal(0, 0.2, n)
+    truth = 5.0 * (1 - 0.002 * speed)
+    predictors = pd.DataFrame({"block": block, "block_start": start, "speed_kn": speed})
+    seen = block < 100
+    modal = pd.DataFrame(
+        {
+            "block": block[seen],
+            "block_start": start[seen],
+            "mode": 0,
+            "frequency_hz": truth[seen] + _ar1(rng, int(seen.sum()), 0.6, 0.005),
+        }
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ForecastWarning)
+        table = sliding_forecast(modal, predictors, method=2, model="memory").table
+    late = table[table["block"] >= 400]
+    assert len(late) == 20 and late["kalman_frequency_hz"].notna().all()
+    assert np.abs(late["model_frequency_hz"] - truth[late["block"].to_numpy()]).max() < 0.05

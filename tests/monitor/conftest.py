@@ -22,7 +22,7 @@ from data_contracts import AccelerationRecord, read_accelerations, write_acceler
 HOURS = 1.5
 KEEP = ("acc01", "acc04", "acc08", "acc12", "acc15", "acc18")
 IDENTIFY = ["--block-rows", "8", "--max-order", "20", "--band", "2", "12"]
-FORECAST = ["--train-blocks", "6"]
+FORECAST = ["--train-blocks", "6", "--model", "window"]  # the monitor outlook's model
 MONITOR_FAST = ["--poll", "0.05", "--settle", "0.2"]
 
 

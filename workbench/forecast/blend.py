@@ -60,6 +60,10 @@ __all__ = ["kalman_pass_step", "memory_forecast"]
 _MIN_SELECTION_ROWS = 10
 #: Entry p-value of the short-history selection before the division by the overlap.
 _SHORT_P_ENTER = 0.05
+#: Fewest consecutive large innovations of one sign that mean the model is off (at least
+#: one more than the blocks sharing data with the first: one corrupted stretch of data is
+#: in all the blocks that overlap it).
+_PERSIST_BLOCKS = 3
 #: Oldest history a refit looks at, in forgetting time constants (weight e^-6 beyond).
 _HISTORY_CONSTANTS = 6.0
 
@@ -262,6 +266,10 @@ def memory_forecast(
     # about v̄ + κ σ_v² (workbench.forecast.excitation); σ_v² from the overlapping blocks
     speed_col = columns.index("speed_kn") if "speed_kn" in columns else None
     n_sub = sub_windows_per_block(grid) if model.excitation_bias else None
+    # blocks that share data with a block: its identification error (an ice impact, a
+    # badly excited stretch) is in all of them, so a run of large innovations is evidence
+    # that the model is off only when it reaches a block that shares no data with the first
+    overlap = sub_windows_per_block(grid) or 1
     speed_var = shift_cap = None
     if n_sub is not None and speed_col is not None:
         speed_var = within_block_variance(X_all[:, speed_col], n_sub)
@@ -409,6 +417,42 @@ def memory_forecast(
     models_out = []
     t_cache: dict[int, float] = {}
 
+    selection_range: list = [None] * n_modes  # predictor ranges of each term selection
+    # predictors whose range is not a question of operating region: the time trend always
+    # leaves it, by design
+    regional = np.array([name != "elapsed_hours" for name in columns])
+
+    def left_selection_range(j: int, i: int, rows_ok: np.ndarray) -> int | None:
+        """The newest measured block since mode j's term selection outside its range, or None.
+
+        A term selection only judges predictors the history exercised: one made while the
+        ship held one speed has no speed term, whatever the speed law, and keeps none until
+        the next scheduled selection (``reselect_blocks`` later). When a measured block
+        since the selection has a predictor the selected terms do not use outside the range
+        the selection saw, widened by half its width on each side, the selection could not
+        judge that predictor where the ship now is, and the terms are selected again (at
+        most every ``reselect_blocks // 4`` blocks; the time trend is not watched, it leaves
+        its range by design). Predictors in the terms extrapolate as their fit says.
+        """
+        if selection_range[j] is None or i - selected_at[j] < max(1, model.reselect_blocks // 4):
+            return None
+        since = rows_ok[rows_ok >= selected_at[j]]
+        if since.size == 0:
+            return None
+        low, high = selection_range[j]
+        margin = 0.5 * (high - low)
+        watch = regional.copy()  # predictors outside the selected terms
+        if terms_of[j] is not None:
+            use_j, _, _, terms_j = terms_of[j]
+            for term in terms_j:
+                for c in term:
+                    watch[use_j[c]] = False
+        X = X_all[since][:, watch]
+        with np.errstate(invalid="ignore"):
+            outside = (X < (low - margin)[watch]) | (X > (high + margin)[watch])
+        rows = since[outside.any(axis=1)]
+        return int(rows[-1]) if rows.size else None
+
     def refit(j: int, i: int) -> MemoryModel | None:
         """Model of mode j from the measured blocks before grid row i."""
         lo = max(first, i - history_limit)
@@ -424,16 +468,21 @@ def memory_forecast(
         if ok.sum() < min_train:
             return None
         rows_ok = np.flatnonzero(ok) + lo
+        newest_outside = left_selection_range(j, i, rows_ok)
         if (
             terms_of[j] is None
             or i - selected_at[j] >= model.reselect_blocks
             or (labels is not None and case != selected_case[j])
+            or newest_outside is not None
         ):
             selected_case[j] = case
             # non-overlapping blocks only (75 % overlap: every 4th block shares no data), so
-            # the F-tests of the selection do not count one correlated error several times
+            # the F-tests of the selection do not count one correlated error several times;
+            # the spacing keeps the newest block, or the newest block of a new operating
+            # region when that is what triggered the selection
+            anchor = i - 1 if newest_outside is None else newest_outside
             recent = rows_ok[rows_ok >= i - int(model.selection_blocks)]
-            spaced = recent[(i - 1 - recent) % int(model.selection_stride) == 0]
+            spaced = recent[(anchor - recent) % int(model.selection_stride) == 0]
             short = spaced.size < max(min_train, _MIN_SELECTION_ROWS)
             selection_options = model.stepwise_options
             if short and recent.size >= min_train and model.short_history_selection:
@@ -450,6 +499,11 @@ def memory_forecast(
             else:
                 recent, few = spaced, short
             Xs = X_all[recent]
+            selection_range[j] = None
+            if Xs.shape[0]:
+                with warnings.catch_warnings():  # an all-NaN column: no range, never "left"
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    selection_range[j] = (np.nanmin(Xs, axis=0), np.nanmax(Xs, axis=0))
             use, names = [], []
             for c, name in enumerate(columns):
                 v = Xs[:, c]
@@ -795,6 +849,7 @@ def memory_forecast(
                 huber,
                 model_variance=v_rows[r],
                 previous_run=run,
+                persist_blocks=max(_PERSIST_BLOCKS, overlap + 1),
             )
             exceed = np.where(np.abs(nu) > huber, np.sign(nu), 0).astype(np.int64)
             grow = (exceed != 0) & (np.sign(run) == exceed)

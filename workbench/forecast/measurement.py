@@ -22,7 +22,8 @@ has a damping ratio unlike the mode's. Hence:
   (a mode's column keeps its length; a short consistent column is a transient such as an
   ice impact, usually in a block where the mode is not excited); with mode shapes,
   only poles whose MAC with the mode's reference shape is at least ``shape_mac_min``
-  count. The measurement is the cluster's median frequency;
+  count. The chosen cluster is grown to its whole column (:meth:`ClusterChooser._column`)
+  and the measurement is the column's median frequency;
 * the per-block measurement scale: the cluster's frequency scatter across model orders,
   relative to the mode's typical scatter (:func:`scatter_scale`), which multiplies the
   measurement-noise variances of that block.
@@ -47,6 +48,8 @@ _LENGTH_HISTORY = 36
 _MIN_LENGTH_HISTORY = 5
 #: Relative half-width of a cluster about its centre. [-]
 CLUSTER_HALF_WIDTH = 2e-3
+#: A chosen cluster grows to the poles within this many robust standard deviations. [-]
+_COLUMN_SIGMA = 3.0
 #: Bounds of the per-block measurement scale. [-]
 SCALE_BOUNDS = (0.3, 6.0)
 #: Scale of a block whose estimate has no cluster of MIN_ORDERS orders around it. [-]
@@ -247,6 +250,7 @@ class ClusterChooser:
         candidates = [c for c in candidates if c[0].n_orders >= shortest]
         best = self._best(candidates, prior_hz, gate_hz, damping_ref)
         if best is not None:
+            best = self._column(i, j, best, gate_hz)
             self.misses[j] = 0
             self._accepted(j, best[0])
             return Choice(best[0], best[1], False)
@@ -266,6 +270,47 @@ class ClusterChooser:
         self.misses[j] = 0
         self._accepted(j, best[0])
         return Choice(best[0], best[1], True)
+
+    def _column(self, i, j, chosen, gate_hz):
+        """The whole column of the chosen cluster: its poles across the model orders.
+
+        A cluster is the densest ±CLUSTER_HALF_WIDTH group; when the block's poles scatter
+        across the orders by more than that (a poorly identified block, ice), the mode's
+        column splits into several such groups, and the one kept is one end or the other
+        of the column, partly chosen by its distance to the prediction. The column is
+        re-centred instead: the poles (with shapes: those passing the MAC check) within
+        ``_COLUMN_SIGMA`` robust standard deviations of the members' median, at least the
+        half-width and at most the gate, repeated until the members no longer change. The
+        measurement is then the median of the column, the estimate a stabilisation
+        diagram's reader would take.
+        """
+        cluster, mac = chosen
+        part = self.index.block(i)
+        f_all = self.index.frequency[part]
+        centre, members = cluster.frequency_hz, None
+        for _ in range(8):
+            width = min(
+                max(CLUSTER_HALF_WIDTH * abs(centre), _COLUMN_SIGMA * cluster.scatter_hz),
+                gate_hz,
+            )
+            a, b = np.searchsorted(f_all, [centre - width, centre + width + 1e-15])
+            pos = np.arange(part.start + a, part.start + b)
+            macs = np.full(pos.size, np.nan)
+            if self.shape_mac is not None and pos.size:
+                macs = self.shape_mac(i, j, pos)
+                if np.isfinite(macs).any():
+                    with np.errstate(invalid="ignore"):
+                        mac_keep = macs >= self.mac_min
+                    pos, macs = pos[mac_keep], macs[mac_keep]
+            if pos.size == 0 or (members is not None and np.array_equal(pos, members)):
+                break
+            members = pos
+            cluster = _summary(
+                self.index.frequency[pos], self.index.damping[pos], self.index.order[pos]
+            )
+            mac = float(np.nanmedian(macs)) if np.isfinite(macs).any() else math.nan
+            centre = cluster.frequency_hz
+        return cluster, mac
 
     @staticmethod
     def _best(candidates, prior_hz, gate_hz, damping_ref, strict=False):

@@ -22,12 +22,18 @@ from typing import Any, Literal
 from .._deprecation import renamed_fields
 
 __all__ = [
+    "DEFAULT_MODEL",
     "MeasurementOptions",
     "ModelOptions",
     "NoiseOptions",
     "method_label",
     "option_label",
 ]
+
+#: The predictive model of the forecast stage, the command line and the demo: "memory"
+#: measures best on benchmarks/bench_forecast_accuracy.py
+#: (benchmarks/results/forecast_accuracy_after.txt); "window" is the reference configuration.
+DEFAULT_MODEL: Literal["memory", "window"] = "memory"
 
 _OPTIONS = {
     "A": "A",

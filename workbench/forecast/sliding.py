@@ -305,17 +305,19 @@ def sliding_forecast(
         prediction, so a long forecast cannot extrapolate a 20-block fit without bound
         (e.g. a time trend); clipped blocks carry a warning.
     model : {"window", "memory"}
-        ``"window"`` (default): the reference configuration, a stepwise model fitted on the
-        last *train_blocks* blocks, Kalman trust *trust*. ``"memory"``: stepwise terms with
+        ``"window"`` (this function's default, so that its reference results stay where
+        they were): the reference configuration, a stepwise model fitted on the last
+        *train_blocks* blocks, Kalman trust *trust*. ``"memory"`` (the default of the
+        forecast stage, the command line and the demo): stepwise terms with
         coefficients over the whole history with exponential forgetting, noise levels from
         the data, an AR(1) measurement-error state (:func:`workbench.forecast.blend.
         memory_forecast`; *model_options*, *noise_options*), and a measurement equation for
         SSI's excitation weighting (:mod:`workbench.forecast.excitation`). With method 2
-        ``"memory"`` beats raw SSI by 30 % or more on every block-level regime of
-        ``benchmarks/bench_forecast_accuracy.py`` and on the demo voyage at 3 h and 12 h
-        (``benchmarks/results/forecast_accuracy_after.txt``). It is not the default yet:
-        in the ice regime the blend is still 6-25 % worse than its model alone, and with
-        method 1 (one 20-block window) it is worse than raw SSI on the 12-h demo.
+        ``"memory"`` beats raw SSI by 30 % or more (median of 3 seeds, never worse in any)
+        on every block-level regime of ``benchmarks/bench_forecast_accuracy.py`` and by
+        15 % or more on the demo voyage at 3 h and 12 h (option B without pole shapes: 13 %
+        at 12 h; ``benchmarks/results/forecast_accuracy_after.txt``); with method 1 (one
+        20-block window) it is worse than raw SSI on the 12-h demo.
     cases : None, "derive", CaseRule, column name, path or DataFrame, optional
         Operating cases (:func:`workbench.stats.cases.case_labels`). Each window then
         trains on its blocks of the case the first forecast block is in, so the forecast

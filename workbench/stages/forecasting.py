@@ -15,7 +15,7 @@ from data_contracts import FORECAST, MODAL, POLES, PREDICTORS, recorded_grid, se
 
 from .._deprecation import renamed_parameters
 from ..forecast import ForecastWarning, sliding_forecast
-from ..forecast.options import method_label, option_label
+from ..forecast.options import DEFAULT_MODEL, method_label, option_label
 from ..parallel import process_map
 from ..sid.presence import persistent_modes
 from ._base import StageResult, read_any_table, table_path, write_frame
@@ -47,8 +47,12 @@ class ForecastOptions:
     trust : float, None or "auto"
         Window model: steady-state weight on SSI in (0, 1); None: Q from the model's own
         prediction variance; "auto": the forecast's default.
-    model : {"window", "memory"}
-        The predictive model (see :func:`~workbench.forecast.sliding_forecast`).
+    model : {"window", "memory"}, optional
+        The predictive model (see :func:`~workbench.forecast.sliding_forecast`). Default:
+        ``"memory"``, which measures best on ``benchmarks/bench_forecast_accuracy.py``
+        (``workbench.forecast.options.DEFAULT_MODEL``), or ``"window"`` (the reference
+        configuration) when *trust* is given as a number or None, since only the window
+        model takes a hand-set trust.
     predictor_columns : tuple of str, optional
         Candidate predictors; default every predictor column.
     stepwise_options : mapping, optional
@@ -68,7 +72,7 @@ class ForecastOptions:
     train_blocks: int = 20
     horizon: int | None = None
     trust: float | None | Literal["auto"] = "auto"
-    model: Literal["window", "memory"] = "window"
+    model: Literal["window", "memory"] | None = None
     predictor_columns: tuple[str, ...] | None = None
     stepwise_options: Mapping[str, Any] | None = None
     min_presence: float = 0.5
@@ -83,6 +87,8 @@ class ForecastOptions:
             )
         object.__setattr__(self, "options", tuple(option_label(o) for o in self.options))
         object.__setattr__(self, "scheme", method_label(self.scheme))
+        if self.model is None:
+            object.__setattr__(self, "model", DEFAULT_MODEL if self.trust == "auto" else "window")
         if self.train_blocks < 2:
             raise ValueError(f"train_blocks={self.train_blocks} must be at least 2")
         if not 0.0 <= self.min_presence <= 1.0:
@@ -176,13 +182,18 @@ def forecast_modes(
 ) -> tuple[pd.DataFrame, list[str]]:
     """:func:`~workbench.forecast.sliding_forecast` with the modes spread over processes.
 
-    Modes are independent (one model and one Kalman filter each), so the table equals that
-    of a single call, whatever *n_workers*. Returns the forecast table (sorted by block, mode)
-    and the forecast warnings' messages.
+    Modes of the window model are independent (one model and one Kalman filter each), so
+    the table equals that of a single call, whatever *n_workers*. The memory model pools
+    the excitation sensitivity of SSI's bias (a property of the excitation, not of a mode;
+    :mod:`workbench.forecast.excitation`) over the modes forecast together, so its modes
+    run in one call (one process) and the table is again that of a single call. Returns the
+    forecast table (sorted by block, mode) and the forecast warnings' messages.
     """
     modes = kwargs.pop("modes", None)
     modes = sorted(int(m) for m in (modal["mode"].unique() if modes is None else modes))
     n_workers = max(1, min(int(n_workers), len(modes)))
+    if kwargs.get("model") == "memory":
+        n_workers = 1
     if n_workers == 1:  # one call: the windows' normalisation is shared by all modes
         calls = [(modal, predictors, modes, kwargs)]
         sizes = [len(modes)]
