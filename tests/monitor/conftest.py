@@ -22,7 +22,7 @@ from data_contracts import AccelerationRecord, read_accelerations, write_acceler
 HOURS = 1.5
 KEEP = ("acc01", "acc04", "acc08", "acc12", "acc15", "acc18")
 IDENTIFY = ["--block-rows", "8", "--max-order", "20", "--band", "2", "12"]
-FORECAST = ["--train-blocks", "6", "--model", "window"]  # the monitor outlook's model
+FORECAST = ["--train-blocks", "6"]  # the batch forecast with the monitor's default model
 MONITOR_FAST = ["--poll", "0.05", "--settle", "0.2"]
 
 
@@ -148,6 +148,8 @@ def assert_same_tables(state: Path, batch: dict[str, pd.DataFrame], min_rows: in
     tracked = pd.read_parquet(state / "tracked.parquet")
     forecast = pd.read_parquet(state / "forecast.parquet")
     # not vacuous: several modes over the blocks, forecast rows after the training window
-    assert len(batch["tracked"]) > 2 * min_rows and len(batch["forecast"]) > min_rows
+    # (the memory model starts forecasting later than the 6-block window on this short voyage)
+    assert len(batch["tracked"]) > 2 * min_rows and len(batch["forecast"]) > min_rows // 2
+    assert batch["forecast"]["kalman_frequency_hz"].notna().sum() > min_rows // 2
     pd.testing.assert_frame_equal(tracked, batch["tracked"])
     pd.testing.assert_frame_equal(forecast, batch["forecast"])

@@ -11,6 +11,8 @@ import argparse
 import signal
 from pathlib import Path
 
+from ..forecast.options import DEFAULT_MODEL
+
 __all__ = ["add_monitor", "prepare_monitor", "run_monitor"]
 
 # dest -> default, applied after the configuration file (flags default to None so that
@@ -32,7 +34,7 @@ _DEFAULTS = {
     "option": "A",
     "scheme": 2,
     "train_blocks": 20,
-    "model": "window",
+    "model": DEFAULT_MODEL,
     "min_presence": 0.5,
     "reference_hours": 6.0,
     "ewma_lambda": 0.1,

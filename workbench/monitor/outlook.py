@@ -32,6 +32,8 @@ import pandas as pd
 
 from data_contracts import ALARMS, FORECAST, HEALTH, MODAL, POLES, PREDICTORS, read_table
 
+from ..forecast.options import DEFAULT_MODEL
+
 __all__ = ["ForecastSettings", "OutlookReport", "empty_table", "update_outlook"]
 
 
@@ -80,7 +82,7 @@ class ForecastSettings:
     train_blocks: int = 20
     horizon: int | None = None
     trust: float | None | str = "auto"
-    model: Literal["window", "memory"] = "window"
+    model: Literal["window", "memory"] = DEFAULT_MODEL
     min_presence: float = 0.5
     mac_min: float = 0.9
     reacquire_blocks: int | None = None
