@@ -26,19 +26,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from .assembly import _assemble, _drop_unusable
+from .fitted_model import _coefficients, _Model
 from .kalman import ModeKalmanBank
+from .pole_selection import _MIN_SHAPE_CHANNELS, _PoleSelector
 from .predictor_grid import predictor_matrix
-from .sliding import (
-    _MIN_SHAPE_CHANNELS,
-    ForecastResult,
-    ForecastWarning,
-    WindowModel,
-    _assemble,
-    _coefficients,
-    _drop_unusable,
-    _Model,
-    _PoleSelector,
-)
+from .sliding import ForecastResult, ForecastWarning, WindowModel
 from .window_kalman import kalman_pass, next_targets
 from .window_model import WindowFrame, fit_window_model, predict_window
 from .window_noise import window_noise_levels

@@ -3,7 +3,7 @@
 Step 3 of :func:`~workbench.forecast.window.window_forecast`, all modes together
 (:class:`~workbench.forecast.kalman.ModeKalmanBank`): a-priori x⁻_k = m_k + φ (x⁺_{k-1} -
 m_{k-1}); the measurement (option A: the tracked pole; option B: the pole chosen inside the
-gate, :class:`~workbench.forecast.sliding._PoleSelector`); the update; a track that leaves
+gate, :class:`~workbench.forecast.pole_selection._PoleSelector`); the update; a track that leaves
 the plausibility band restarts at the model. Then (method 2) the next windows' targets.
 """
 
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .sliding import _plausible
+from .fitted_model import _plausible
 
 __all__ = ["kalman_pass", "next_targets"]
 

@@ -17,7 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from .sliding import (
+from .fitted_model import (
     _DEFAULT_RELATIVE_STD,
     _PLAUSIBLE_FACTOR,
     _constant_prediction,

@@ -12,14 +12,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .kalman import process_variance_for_gain
-from .sliding import (
+from .fitted_model import (
     _DEFAULT_RELATIVE_STD,
     _MIN_DIFFERENCES,
     _MIN_RELATIVE_STD,
     _Model,
     _white_scatter_variance,
 )
+from .kalman import process_variance_for_gain
 
 __all__ = ["window_noise_levels"]
 

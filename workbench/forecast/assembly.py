@@ -1,0 +1,79 @@
+"""Output assembly of the sliding forecast: the per-row arrays to the forecast table.
+
+:func:`_drop_unusable` leaves out rows without a model or Kalman value, :func:`_assemble`
+turns the (grid row, mode) arrays of a forecast run into the FORECAST contract table with
+its ``warning`` column (and option B's selected-pole columns). Shared by the window and
+memory forecasts.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+
+def _drop_unusable(out_phase, model, kalman, notes) -> None:
+    """Rows without a model or Kalman value (a mode without any data yet) get phase 0:
+    no row rather than a NaN row; counted in *notes*."""
+    unusable = (out_phase > 0) & ~(np.isfinite(model) & np.isfinite(kalman))
+    if unusable.any():
+        notes["rows left out: no model value available (mode without data so far)"] += int(
+            unusable.sum()
+        )
+        out_phase[unusable] = 0
+
+
+def _assemble(
+    blocks,
+    block_start,
+    mode_labels,
+    option,
+    phase,
+    ssi,
+    model,
+    lower,
+    upper,
+    kalman,
+    std,
+    w0,
+    w1,
+    order,
+    damping,
+    selected_mac,
+    warning_map,
+) -> pd.DataFrame:
+    rows, cols = np.nonzero(phase)
+    n = rows.size
+    warning_text = np.full(n, "", dtype=object)
+    if warning_map:
+        position = {(int(r), int(c)): p for p, (r, c) in enumerate(zip(rows, cols, strict=True))}
+        for key, messages in warning_map.items():
+            p = position.get(key)
+            if p is not None:
+                warning_text[p] = "; ".join(dict.fromkeys(m for m in messages if m))
+    frame = pd.DataFrame(
+        {
+            "block": blocks[rows],
+            "block_start": pd.to_datetime(block_start[rows], utc=True),
+            "mode": mode_labels[cols].astype(np.int64),
+            "phase": np.where(phase[rows, cols] == 1, "train", "forecast"),
+            "ssi_frequency_hz": ssi[rows, cols],
+            "model_frequency_hz": model[rows, cols],
+            "model_lower_hz": lower[rows, cols],
+            "model_upper_hz": upper[rows, cols],
+            "kalman_frequency_hz": kalman[rows, cols],
+            "kalman_std_hz": std[rows, cols],
+            "option": option,
+            "window_start_block": w0[rows, cols],
+            "window_end_block": w1[rows, cols],
+        }
+    )
+    if option == "B":
+        frame["selected_model_order"] = pd.array(
+            np.where(np.isfinite(order[rows, cols]), order[rows, cols], np.nan)
+        ).astype("Int64")
+        frame["selected_damping_ratio"] = damping[rows, cols]
+        frame["selected_mac"] = selected_mac[rows, cols]
+    frame["warning"] = pd.array(warning_text.tolist(), dtype="string")
+    frame = frame.sort_values(["mode", "block"], kind="stable").reset_index(drop=True)
+    return frame
