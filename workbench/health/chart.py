@@ -14,7 +14,6 @@ import os
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
 import pandas as pd
@@ -22,156 +21,22 @@ from scipy import stats as _scipy_stats
 
 from data_contracts import ALARMS, FORECAST, HEALTH, recorded_grid, set_grid, write_table
 
+from .options import HealthOptions
+from .statistics import (  # noqa: F401  (the public statistics are importable from here too)
+    _limit_for_rate,
+    _moving_block_bootstrap,
+    _robust_location_scale,
+    cusum_hold,
+    cusum_limits,
+    cusum_step,
+    ewma_hold,
+    ewma_step,
+    hotelling,
+    long_run_std,
+    upcrossings_per_day,
+)
+
 __all__ = ["HealthOptions", "HealthReference", "HealthResult", "health_chart"]
-
-
-@dataclass(frozen=True)
-class HealthOptions:
-    """Options of :func:`health_chart`.
-
-    Parameters
-    ----------
-    reference_blocks : int
-        Length of the reference period, in blocks (72: 6 h of 5-min steps). It must be out
-        of sample for the forecast model and span the operating conditions. [blocks]
-    reference_start_block : int, optional
-        First block of the reference period; default the first block in the forecast
-        phase (the first block the model did not train on).
-    option : {"A", "B"}, optional
-        Forecast option whose rows are used; default A when present, else B.
-    ewma_lambda : float
-        EWMA weight λ of the newest block, z_k = z_{k-1} + λ (x_k - z_{k-1}). 0.1 averages
-        over about (2 - λ)/λ = 19 blocks (1.6 h). [-]
-    false_alarms_per_day : float
-        Target rate of false alarm episodes in control; with ``limit_method='day_max'`` a
-        day passes without one with probability exp(-rate). [1/day]
-    clip_sigma : float
-        Standardised residuals are clipped to ±this, so one wrong pole cannot raise an
-        alarm alone. [-]
-    bootstrap_block_length : int
-        Length of the moving blocks resampled from the reference period to build the
-        in-control series. 20-min blocks every 5 min share data with the next 3 blocks
-        (errors correlated up to lag 3) and model errors vary over hours; runs of 24 blocks
-        (2 h, longer than the EWMA's memory) keep the long-run variance. [blocks]
-    bootstrap_days : float
-        Number of resampled in-control days (replicates) the limit is read from. [day]
-    min_valid_fraction : float
-        A mode needs a residual in at least this share of the reference blocks to be
-        charted. [-]
-    seed : int
-        Seed of the bootstrap.
-    limit_method : {"day_max", "upcrossings"}
-        Control limit from the bootstrap: the quantile of the daily maximum of T² (a day
-        without false alarm with probability exp(-rate)), or the smallest limit whose
-        upcrossings per day stay at the rate.
-    common_shift : bool
-        Remove each block's median relative residual over its modes (a change of the
-        whole hull's mass or stiffness) before charting.
-    covariance : {"pooled", "diagonal", "full"}
-        In-control covariance of the EWMA vector from the bootstrap: its mean variance
-        times the identity, its diagonal, or all of it.
-    model_uncertainty : bool
-        Add the forecast's ``model_shift_std`` (when present) to the covariance of each
-        block (see Notes of :func:`health_chart`).
-    decrease_only : bool
-        Chart only decreases of the frequencies: each mode's EWMA is reflected at 0,
-        z_k = min(0, ...). A loss of stiffness can only lower natural frequencies, so this
-        keeps the sensitivity to damage and halves the directions model errors can alarm
-        in; an increase (a mode stiffening) is then not reported. The CUSUM charts
-        decreases only.
-    statistic : {"cusum", "mewma"}
-        ``'cusum'`` (default): a lower one-sided CUSUM per mode, tuned to
-        ``detect_shift``, the modes combined by their maximum with limits from the
-        bootstrap (Notes of :func:`health_chart`); the most powerful chart for a step
-        change of one mode. ``'mewma'``: the MEWMA Hotelling T² of all modes together
-        (better for a change spread thinly over many modes).
-    detect_shift : float
-        CUSUM: smallest relative drop of one mode's frequency worth detecting, 0.005 for
-        a 1 % stiffness loss (f ∝ √k). Each mode's reference value (allowance) is half of
-        it in that mode's residual units. [-]
-    model_error_sigma : float
-        CUSUM: the allowance of each block grows by this many of the model's persistent
-        error standard deviations (``model_shift_std``), so the chart does not accumulate
-        what the model cannot know (1.645: one-sided 95 %). [-]
-    baseline_hours : float, optional
-        Let each mode's in-control location follow the residuals slowly (None: the
-        reference's location, fixed), for a drift no logged predictor explains (fuel burn
-        without tank soundings, ballast). The reference is then measured about each
-        mode's straight line; from its end, the location is Brown's linear exponential
-        smoothing of the residuals (Brown 1963, see :func:`health_chart`) with ω = exp(-step/T): level and slope, so a
-        steady drift is followed without lag; held while the chart alarms. The cost: a
-        step is taken in at about 2/T per hour of its size until detected (17 % after 2 h
-        with T = 24 h), and a loss that grows steadily is followed once T or so has
-        passed: only its onset can be detected. [h]
-    """
-
-    reference_blocks: int = 72
-    reference_start_block: int | None = None
-    option: Literal["A", "B"] | None = None
-    ewma_lambda: float = 0.1
-    false_alarms_per_day: float = 0.1
-    clip_sigma: float = 4.0
-    bootstrap_block_length: int = 24
-    bootstrap_days: float = 400.0
-    min_valid_fraction: float = 0.5
-    seed: int = 0
-    limit_method: Literal["day_max", "upcrossings"] = "day_max"
-    common_shift: bool = False
-    covariance: Literal["pooled", "diagonal", "full"] = "pooled"
-    model_uncertainty: bool = True
-    decrease_only: bool = True
-    statistic: Literal["cusum", "mewma"] = "cusum"
-    detect_shift: float = 0.0075
-    model_error_sigma: float = 1.645
-    baseline_hours: float | None = None
-
-    @property
-    def ewma_ceiling(self) -> float | None:
-        """Reflecting barrier of the EWMA: 0 when only decreases are charted."""
-        return 0.0 if self.decrease_only else None
-
-    def __post_init__(self) -> None:
-        if int(self.reference_blocks) != self.reference_blocks or self.reference_blocks < 12:
-            raise ValueError(f"reference_blocks={self.reference_blocks!r} must be an integer >= 12")
-        if not 0.0 < self.ewma_lambda <= 1.0:
-            raise ValueError(f"ewma_lambda={self.ewma_lambda!r} must be in (0, 1]")
-        if not self.false_alarms_per_day > 0:
-            raise ValueError(f"false_alarms_per_day={self.false_alarms_per_day!r} must be > 0")
-        if not self.clip_sigma > 0:
-            raise ValueError(f"clip_sigma={self.clip_sigma!r} must be > 0")
-        if self.bootstrap_block_length < 1:
-            raise ValueError(f"bootstrap_block_length={self.bootstrap_block_length!r} must be >= 1")
-        if not self.bootstrap_days * self.false_alarms_per_day >= 10:
-            raise ValueError(
-                f"bootstrap_days={self.bootstrap_days!r} must give at least 10 expected false "
-                f"alarms at false_alarms_per_day={self.false_alarms_per_day!r}"
-            )
-        if not 0.0 < self.min_valid_fraction <= 1.0:
-            raise ValueError(f"min_valid_fraction={self.min_valid_fraction!r} must be in (0, 1]")
-        if self.limit_method not in ("day_max", "upcrossings"):
-            raise ValueError(
-                f"limit_method={self.limit_method!r} must be 'day_max' or 'upcrossings'"
-            )
-        if self.covariance not in ("pooled", "diagonal", "full"):
-            raise ValueError(
-                f"covariance={self.covariance!r} must be 'pooled', 'diagonal' or 'full'"
-            )
-        if self.option not in (None, "A", "B"):
-            raise ValueError(f"option={self.option!r} must be 'A', 'B' or None")
-        if self.statistic not in ("cusum", "mewma"):
-            raise ValueError(f"statistic={self.statistic!r} must be 'cusum' or 'mewma'")
-        if self.statistic == "cusum" and not self.decrease_only:
-            raise ValueError(
-                "decrease_only=False needs statistic='mewma' (the CUSUM charts decreases only)"
-            )
-        if not (math.isfinite(self.detect_shift) and 0.0 < self.detect_shift < 0.5):
-            raise ValueError(f"detect_shift={self.detect_shift!r} must be in (0, 0.5)")
-        if not (math.isfinite(self.model_error_sigma) and self.model_error_sigma >= 0):
-            raise ValueError(f"model_error_sigma={self.model_error_sigma!r} must be >= 0")
-        if self.baseline_hours is not None and not (
-            math.isfinite(self.baseline_hours) and self.baseline_hours > 0
-        ):
-            raise ValueError(f"baseline_hours={self.baseline_hours!r} must be positive or None")
 
 
 @dataclass(frozen=True)
@@ -293,172 +158,6 @@ class HealthResult:
                 f"{row.top_mode_shift_percent:+.2f} %"
             )
         return "\n".join(lines)
-
-
-# --------------------------------------------------------------------------- pure functions
-def ewma_hold(
-    values: np.ndarray, ewma_lambda: float, *, ceiling: float | None = None
-) -> np.ndarray:
-    """Column-wise EWMA that holds its value where an input is missing.
-
-    z_k = z_{k-1} + λ (x_k - z_{k-1}) where x_k is finite, z_k = z_{k-1} otherwise;
-    z_{-1} = 0 (the in-control mean of standardised residuals). With *ceiling*, z_k is
-    reflected at it, z_k = min(z_k, ceiling) (a one-sided EWMA for decreases).
-    """
-    x = np.asarray(values, dtype=float)
-    out = np.empty_like(x)
-    z = np.zeros(x.shape[1:])
-    for k in range(x.shape[0]):
-        z = ewma_step(z, x[k], ewma_lambda, ceiling=ceiling)
-        out[k] = z
-    return out
-
-
-def ewma_step(
-    z: np.ndarray, x: np.ndarray, ewma_lambda: float, *, ceiling: float | None = None
-) -> np.ndarray:
-    """One step of :func:`ewma_hold` (the batch and the incremental chart share it)."""
-    z = z + ewma_lambda * np.nan_to_num(x - z, nan=0.0)  # missing: no update
-    return z if ceiling is None else np.minimum(z, ceiling)
-
-
-def cusum_step(cusum: np.ndarray, x: np.ndarray, allowance: np.ndarray) -> np.ndarray:
-    """One step of a lower one-sided CUSUM per column (Page 1954):
-    S_k = max(0, S_{k-1} - x_k - K); S_k = S_{k-1} where x_k is missing.
-
-    *x* are standardised residuals (in-control mean 0); *allowance* K is the reference
-    value, half of the decrease to detect in the same units.
-    """
-    increment = np.nan_to_num(-np.asarray(x, dtype=float) - allowance, nan=0.0)
-    return np.maximum(cusum + increment, 0.0)
-
-
-def cusum_hold(values: np.ndarray, allowance: np.ndarray) -> np.ndarray:
-    """:func:`cusum_step` along axis 0 of *values* from S_{-1} = 0 (columns independent)."""
-    x = np.asarray(values, dtype=float)
-    out = np.empty_like(x)
-    s = np.zeros(x.shape[1:])
-    for k in range(x.shape[0]):
-        s = cusum_step(s, x[k], allowance)
-        out[k] = s
-    return out
-
-
-def long_run_std(values: np.ndarray, lags: int) -> np.ndarray:
-    """Long-run standard deviation of each column, Bartlett-weighted autocovariances up to
-    *lags* (Newey and West 1987), NaN-aware: √(γ₀ + 2 Σ_l (1 - l/(L+1)) γ_l).
-
-    For residuals of 20-min blocks every 5 min (errors are means of four 5-min segments,
-    correlated 0.75, 0.5, 0.25 at lags 1-3) it is about twice the standard deviation.
-    """
-    x = np.asarray(values, dtype=float)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        centred = x - np.nanmean(x, axis=0)
-    valid = np.isfinite(centred)
-    filled = np.where(valid, centred, 0.0)
-    n_valid = valid.sum(axis=0)
-    gamma0 = (filled**2).sum(axis=0) / np.maximum(n_valid, 1)
-    variance = gamma0.copy()
-    for lag in range(1, min(lags, x.shape[0] - 1) + 1):
-        pairs = (valid[lag:] & valid[:-lag]).sum(axis=0)
-        gamma = (filled[lag:] * filled[:-lag]).sum(axis=0) / np.maximum(pairs, 1)
-        variance += 2.0 * (1.0 - lag / (lags + 1.0)) * gamma
-    return np.sqrt(np.maximum(variance, gamma0 * 0.25))  # floor: no negative estimates
-
-
-def cusum_limits(
-    allowance: np.ndarray,
-    *,
-    segments: int,
-    variance: float = 1.0,
-    reference_blocks: int,
-    blocks_per_day: float,
-    false_alarms_per_day: float,
-    replicates: int,
-    clip_sigma: float,
-    rng: np.random.Generator,
-) -> np.ndarray:
-    """Decision intervals H_j of the per-mode CUSUMs for a target false-alarm rate.
-
-    The in-control residuals of overlapping blocks are simulated as they arise: each
-    block's error is the mean of *segments* independent segment errors (so neighbouring
-    blocks correlate 1 - l/segments at lag l and the long-run variance is *segments*
-    times the variance). Each replicate is a reference period of *reference_blocks*,
-    whose median and 1.4826 MAD standardise it (the chart's own location and scale, with
-    their estimation error, Jones-Farmer et al. 2014), scaled to the *variance* the chart's standardised
-    residuals have (a little above 1 where the tails are heavier than normal), followed
-    by one day; the CUSUM runs through both. H_j
-    is the exp(-rate/p) quantile of the daily maximum of mode j's CUSUM over all p x
-    *replicates* simulated series, so that the p modes together pass a day without false
-    alarm with probability exp(-rate) (Šidák's split; the modes' charts are about
-    independent, their residuals being errors of different poles).
-    """
-    allowance = np.asarray(allowance, dtype=float)
-    p = allowance.size
-    day = int(round(blocks_per_day))
-    n = reference_blocks + day
-    window = np.lib.stride_tricks.sliding_window_view
-    u = rng.standard_normal((n + segments - 1, replicates * p))
-    x = window(u, segments, axis=0).mean(-1)  # (n, series), variance 1/segments
-    location, scale = _robust_location_scale(x[:reference_blocks])
-    x = np.clip((x - location) / scale * math.sqrt(variance), -clip_sigma, clip_sigma)
-    level = math.exp(-false_alarms_per_day / p)
-    limits = np.empty(p)
-    for j in range(p):
-        daily_max = cusum_hold(x, np.full(x.shape[1], allowance[j]))[reference_blocks:].max(0)
-        limits[j] = float(np.quantile(daily_max, level))
-    return limits
-
-
-def hotelling(ewma: np.ndarray, covariance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """T² = zᵀ Σ⁻¹ z per row and each component's share z_j (Σ⁻¹ z)_j (they sum to T²)."""
-    precision = np.linalg.pinv(covariance)
-    weighted = ewma @ precision
-    parts = ewma * weighted
-    return parts.sum(axis=1), parts
-
-
-def upcrossings_per_day(statistic: np.ndarray, limit: float, blocks_per_day: float) -> float:
-    """Times *statistic* goes from <= *limit* to above it (or starts above it), per day.
-
-    A 2-D *statistic* holds independent series in its columns (time along axis 0).
-    """
-    above = np.asarray(statistic) > limit
-    if above.ndim == 1:
-        above = above[:, None]
-    n_up = np.count_nonzero(above[1:] & ~above[:-1]) + np.count_nonzero(above[0])
-    return float(n_up) / (above.size / blocks_per_day)
-
-
-def _robust_location_scale(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Median and 1.4826 MAD along axis 0, ignoring NaN (per mode, per replicate)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns give NaN
-        location = np.nanmedian(values, axis=0)
-        scale = 1.4826 * np.nanmedian(np.abs(values - location), axis=0)
-    return location, scale
-
-
-def _moving_block_bootstrap(
-    rows: np.ndarray, n_out: int, length: int, rng: np.random.Generator
-) -> np.ndarray:
-    """Concatenated random runs of *length* consecutive rows of *rows* (Künsch 1989)."""
-    n = rows.shape[0]
-    length = min(length, n)
-    n_runs = -(-n_out // length)
-    starts = rng.integers(0, n - length + 1, n_runs)
-    index = (starts[:, None] + np.arange(length)[None, :]).ravel()[:n_out]
-    return rows[index]
-
-
-def _limit_for_rate(statistic: np.ndarray, rate: float, blocks_per_day: float) -> float:
-    """Smallest limit whose upcrossing rate in *statistic* is at most *rate* per day."""
-    candidates = np.quantile(np.ravel(statistic), np.linspace(0.5, 1.0, 2001))
-    for h in candidates:
-        if upcrossings_per_day(statistic, h, blocks_per_day) <= rate:
-            return float(h)
-    return float(candidates[-1])
 
 
 # --------------------------------------------------------------------------- stage
