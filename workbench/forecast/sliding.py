@@ -344,19 +344,26 @@ def sliding_forecast(
     method = method_label(scheme)
     if model not in ("memory", "window"):
         raise ValueError(f"model={model!r} must be 'memory' or 'window'")
+    for name, frame, needed in (
+        ("modal", modal, ("block", "mode", "frequency_hz")),
+        ("predictors", predictors, ("block", "block_start")),
+    ):
+        missing = [c for c in needed if c not in frame.columns]
+        if missing:
+            raise ValueError(f"{name} lacks column(s) {missing}")
+    if option == "B" and poles is None:
+        raise ValueError("option='B' needs poles (the stabilisation diagrams)")
+    horizon = DEFAULT_HORIZON[method] if horizon is None else int(horizon)
+    if horizon < 1:
+        raise ValueError(f"horizon={horizon} must be >= 1")
     if model == "memory":
         if trust not in ("auto", None):
             raise ValueError(
                 f"trust={trust!r} applies to model='window' (the reference configuration); "
                 "model='memory' estimates its noise levels from the data"
             )
-        if option == "B" and poles is None:
-            raise ValueError("option='B' needs poles (the stabilisation diagrams)")
         from .blend import memory_forecast
 
-        horizon = DEFAULT_HORIZON[method] if horizon is None else int(horizon)
-        if horizon < 1:
-            raise ValueError(f"horizon={horizon} must be >= 1")
         options_m = model_options or ModelOptions(
             train_blocks=train_blocks,
             min_train_blocks=min_train_blocks,
@@ -365,13 +372,6 @@ def sliding_forecast(
             extrapolation_limit=extrapolation_limit,
             alpha=alpha,
         )
-        for name, frame, needed in (
-            ("modal", modal, ("block", "mode", "frequency_hz")),
-            ("predictors", predictors, ("block", "block_start")),
-        ):
-            missing = [c for c in needed if c not in frame.columns]
-            if missing:
-                raise ValueError(f"{name} lacks column(s) {missing}")
         return memory_forecast(
             modal,
             predictors,
@@ -397,14 +397,9 @@ def sliding_forecast(
         trust = 0.65
     if reacquire_blocks is None:
         reacquire_blocks = 1
-    if option == "B" and poles is None:
-        raise ValueError("option='B' needs poles (the stabilisation diagrams)")
     train_blocks = int(train_blocks)
     if train_blocks < 2:
         raise ValueError(f"train_blocks={train_blocks} must be >= 2")
-    horizon = DEFAULT_HORIZON[method] if horizon is None else int(horizon)
-    if horizon < 1:
-        raise ValueError(f"horizon={horizon} must be >= 1")
     if trust is not None and not 0.0 < float(trust) < 1.0:
         raise ValueError(f"trust={trust!r} must be in (0, 1) or None")
     phi = relaxation_factor(correction_time_blocks)
@@ -426,13 +421,6 @@ def sliding_forecast(
     min_train = max(5, train_blocks // 2) if min_train_blocks is None else int(min_train_blocks)
     if not 2 <= min_train <= train_blocks:
         raise ValueError(f"min_train_blocks={min_train} must be in [2, train_blocks]")
-    for name, frame, needed in (
-        ("modal", modal, ("block", "mode", "frequency_hz")),
-        ("predictors", predictors, ("block", "block_start")),
-    ):
-        missing = [c for c in needed if c not in frame.columns]
-        if missing:
-            raise ValueError(f"{name} lacks column(s) {missing}")
     options = dict(stepwise_options or {})
     # a window's model uses the rows complete in every candidate predictor (the rule the
     # forecast was validated with); stepwise_options={"missing": "candidate"} for MATLAB's
