@@ -10,9 +10,12 @@ The steps, each in its own module:
    pole cluster, per-block scatter);
 4. Kalman pass - :func:`~workbench.forecast.memory_kalman.kalman_pass_step`.
 
-:func:`memory_forecast` below runs the windows; each mode's term selection, refits and
-predictions are in :mod:`workbench.forecast.memory_terms`, the excitation bias (κ) in
-:mod:`workbench.forecast.memory_excitation`, the output table in
+:func:`memory_forecast` below runs the windows and the Kalman pass over their rows; each
+mode's term selection, refits and predictions are in :mod:`workbench.forecast.memory_terms`,
+the excitation bias (κ) in :mod:`workbench.forecast.memory_excitation`, the first window's
+noise, the filter matrices and the runs of large innovations in
+:mod:`workbench.forecast.memory_noise`, option B's chooser in
+:mod:`workbench.forecast.memory_poles`, the output table in
 :mod:`workbench.forecast.memory_output`.
 
 Kalman model per mode, with m_k the model's prediction and z_k the block's SSI estimate:
@@ -36,7 +39,6 @@ several times. The blended estimate is x̂ = m + ĉ.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import warnings
 from collections import Counter
@@ -45,18 +47,15 @@ import numpy as np
 import pandas as pd
 
 from .excitation import sub_windows_per_block
-from .measurement import (
-    ClusterChooser,
-    PoleIndex,
-    cluster_around,
-    scatter_scale,
-)
+from .measurement import PoleIndex, cluster_around, scatter_scale
 from .memory import MemoryModel
 from .memory_excitation import excitation_bias
 from .memory_kalman import kalman_pass_step, stationary_covariance
+from .memory_noise import filter_matrices, first_window_noise, update_run
 from .memory_output import OUTPUT_ARRAYS, assemble_table
+from .memory_poles import option_b_chooser
 from .memory_terms import MemoryRefits
-from .noise import MIN_CORRECTION_STD, MIN_RESIDUALS, NoiseModel, estimate_noise, prior_noise
+from .noise import NoiseModel, estimate_noise
 from .options import MeasurementOptions, ModelOptions, NoiseOptions
 from .predictor_grid import predictor_matrix
 
@@ -91,15 +90,7 @@ def memory_forecast(
     Called by :func:`~workbench.forecast.sliding_forecast` for ``model="memory"``;
     returns a :class:`~workbench.forecast.ForecastResult`.
     """
-    from .sliding import (
-        _MIN_SHAPE_CHANNELS,
-        ForecastResult,
-        ForecastWarning,
-        WindowModel,
-        _mac_on_common_channels,
-        _plausible,
-        _PoleSelector,
-    )
+    from .sliding import ForecastResult, ForecastWarning, WindowModel, _plausible
 
     option = measurement.option
     notes: Counter[str] = Counter()
@@ -175,41 +166,7 @@ def memory_forecast(
     if option == "B":
         if index is None:
             raise ValueError("option='B' needs poles (the stabilisation diagrams)")
-        selector = _PoleSelector(
-            poles,
-            modal,
-            blocks,
-            mode_labels,
-            shape_mac_min=measurement.mac_min,
-            reacquire_blocks=measurement.reacquire_blocks,
-            reacquire_band=measurement.reacquire_band,
-        )
-        shape_mac = None
-        if selector.uses_shapes:
-            # selector rows are in the table order of its own sort; map PoleIndex positions
-            table_row_to_selector = np.empty(len(poles), dtype=np.int64)
-            table_row_to_selector[selector.rows] = np.arange(selector.rows.size)
-
-            def shape_mac(i, j, positions):
-                ref = int(selector.reference_row[i, j])
-                if ref < 0:
-                    return np.full(positions.size, np.nan)
-                table_rows = index.rows[positions]
-                shapes = selector.shapes[selector.rows[table_row_to_selector[table_rows]]]
-                return _mac_on_common_channels(selector.reference_shapes[ref], shapes)
-        else:
-            notes[
-                "option B without mode shapes (poles or modal lack shape_re_<channel> columns "
-                f"for {_MIN_SHAPE_CHANNELS}+ shared channels): consistent pole cluster in the "
-                "gate, no MAC check"
-            ] += 1
-        chooser = ClusterChooser(
-            index,
-            shape_mac,
-            shape_mac_min=measurement.mac_min,
-            reacquire_blocks=measurement.reacquire_blocks,
-            reacquire_band=measurement.reacquire_band,
-        )
+        chooser = option_b_chooser(poles, modal, blocks, mode_labels, index, measurement, notes)
 
     shape = (n_blocks, n_modes)
     out_phase = np.zeros(shape, dtype=np.int8)
@@ -304,27 +261,7 @@ def memory_forecast(
             lo = max(first, i0 - int(noise.noise_blocks))
             r_hist = resid[lo:i0, j]
             if np.isfinite(r_hist).sum() == 0 and is_first:
-                # first window: in-sample residuals (estimate_noise falls back to a
-                # conservative prior when there are too few of them)
-                insample = meas[first:i0, j] - out["seen"][first:i0, j]
-                if np.isfinite(insample).sum() >= 3 * MIN_RESIDUALS:
-                    # a long first window: the measurement noise from the in-sample
-                    # residuals; their slow part is not evidence of model error (the fit
-                    # absorbed it), the model's own uncertainty enters as s_m² instead
-                    nz = estimate_noise(insample, level_hz)
-                    nz = dataclasses.replace(
-                        nz,
-                        correction_variance=(MIN_CORRECTION_STD * level_hz) ** 2,
-                        white_variance=nz.white_variance + nz.correction_variance,
-                    )
-                else:  # a short first window: scatter of the measurements themselves
-                    zf = meas[first:i0, j]
-                    zf = zf[np.isfinite(zf)]
-                    nz = prior_noise(
-                        level_hz,
-                        float(np.var(np.diff(zf)) / 2.0) if zf.size >= 3 else None,
-                        float(np.var(zf)) if zf.size >= 3 else None,
-                    )
+                nz = first_window_noise(meas[first:i0, j], out["seen"][first:i0, j], level_hz)
             elif (
                 noise_of[j] is None
                 or i0 - first < int(noise.noise_blocks)  # residual window still filling
@@ -372,20 +309,7 @@ def memory_forecast(
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)
                 typical = np.sqrt(np.nanmean(s**2, axis=0))
-        F = np.array(
-            [[nz.transition, nz.error_correlation] if nz else [1.0, 0.0] for nz in noise_of]
-        )
-        q_c = np.array(
-            [nz.correction_variance * (1 - nz.transition**2) if nz else 0.0 for nz in noise_of]
-        )
-        q_e = np.array(
-            [nz.error_variance * (1 - nz.error_correlation**2) if nz else 0.0 for nz in noise_of]
-        )
-        r_v = np.array([nz.white_variance if nz else 1.0 for nz in noise_of])
-        # no Huber weights while the noise levels are the prior's (nothing to judge by)
-        huber = np.array(
-            [noise.huber_sigma if nz and nz.n_residuals else np.inf for nz in noise_of]
-        )
+        F, q_c, q_e, r_v, huber = filter_matrices(noise_of, noise.huber_sigma)
         have_model = np.array([c is not None for c in current])
 
         # ---- Kalman pass
@@ -465,9 +389,7 @@ def memory_forecast(
                 previous_run=run,
                 persist_blocks=max(_PERSIST_BLOCKS, overlap + 1),
             )
-            exceed = np.where(np.abs(nu) > huber, np.sign(nu), 0).astype(np.int64)
-            grow = (exceed != 0) & (np.sign(run) == exceed)
-            run = np.where(np.isfinite(nu), np.where(grow, run + exceed, exceed), run)
+            run = update_run(run, nu, huber)
             estimate = m_now + state[:, 0] + delta
             lost = have & ~_plausible(estimate, reference_hz)
             for j in np.flatnonzero(lost):
