@@ -1,0 +1,87 @@
+"""Noise levels and innovation runs of the memory forecast's Kalman filter.
+
+The noise model itself (covariance matching of out-of-sample residuals, the prior) is in
+:mod:`workbench.forecast.noise`; here: the noise of the first window, before any
+out-of-sample residual exists; the filter's F, Q and R for all modes of a window; and the
+signed runs of large innovations that tell a model error from an identification error.
+Used by :func:`~workbench.forecast.blend.memory_forecast`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+import numpy as np
+
+from .noise import MIN_CORRECTION_STD, MIN_RESIDUALS, NoiseModel, estimate_noise, prior_noise
+
+__all__ = ["filter_matrices", "first_window_noise", "update_run"]
+
+
+def first_window_noise(measured: np.ndarray, seen: np.ndarray, level_hz: float) -> NoiseModel:
+    """Noise of one mode from the first window's in-sample residuals.
+
+    Parameters
+    ----------
+    measured : ndarray
+        The first window's measurements of the mode (NaN: none). [Hz]
+    seen : ndarray
+        The model's prediction of those measurements. [Hz]
+    level_hz : float
+        Typical frequency of the mode. [Hz]
+    """
+    # first window: in-sample residuals (estimate_noise falls back to a
+    # conservative prior when there are too few of them)
+    insample = measured - seen
+    if np.isfinite(insample).sum() >= 3 * MIN_RESIDUALS:
+        # a long first window: the measurement noise from the in-sample
+        # residuals; their slow part is not evidence of model error (the fit
+        # absorbed it), the model's own uncertainty enters as s_m² instead
+        nz = estimate_noise(insample, level_hz)
+        return dataclasses.replace(
+            nz,
+            correction_variance=(MIN_CORRECTION_STD * level_hz) ** 2,
+            white_variance=nz.white_variance + nz.correction_variance,
+        )
+    # a short first window: scatter of the measurements themselves
+    zf = measured[np.isfinite(measured)]
+    return prior_noise(
+        level_hz,
+        float(np.var(np.diff(zf)) / 2.0) if zf.size >= 3 else None,
+        float(np.var(zf)) if zf.size >= 3 else None,
+    )
+
+
+def filter_matrices(noise_of: Sequence[NoiseModel | None], huber_sigma: float):
+    """Diagonals of F and Q, R and the Huber threshold of every mode's filter.
+
+    A mode without a noise model (no model yet) gets F = (1, 0), Q = 0, R = 1.
+
+    Returns
+    -------
+    F (n, 2), q_c (n,), q_e (n,), r_v (n,), huber (n,)
+    """
+    F = np.array([[nz.transition, nz.error_correlation] if nz else [1.0, 0.0] for nz in noise_of])
+    # Q = diag(σ_c² (1 - φ²), σ_e² (1 - ρ²))
+    q_c = np.array(
+        [nz.correction_variance * (1 - nz.transition**2) if nz else 0.0 for nz in noise_of]
+    )
+    q_e = np.array(
+        [nz.error_variance * (1 - nz.error_correlation**2) if nz else 0.0 for nz in noise_of]
+    )
+    r_v = np.array([nz.white_variance if nz else 1.0 for nz in noise_of])
+    # no Huber weights while the noise levels are the prior's (nothing to judge by)
+    huber = np.array([huber_sigma if nz and nz.n_residuals else np.inf for nz in noise_of])
+    return F, q_c, q_e, r_v, huber
+
+
+def update_run(run: np.ndarray, normalised: np.ndarray, huber: np.ndarray) -> np.ndarray:
+    """Signed runs of consecutive large innovations after one block.
+
+    A normalised innovation beyond *huber* extends a run of its sign or starts a new one;
+    one within resets the run to 0; a block without a measurement (NaN) leaves it.
+    """
+    exceed = np.where(np.abs(normalised) > huber, np.sign(normalised), 0).astype(np.int64)
+    grow = (exceed != 0) & (np.sign(run) == exceed)
+    return np.where(np.isfinite(normalised), np.where(grow, run + exceed, exceed), run)

@@ -1,0 +1,94 @@
+"""Output table of the memory forecast: the sliding forecast's columns plus, for option B,
+the chosen pole cluster's orders and scatter.
+
+Used by :func:`~workbench.forecast.blend.memory_forecast`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["OUTPUT_ARRAYS", "assemble_table"]
+
+#: Per-row x per-mode float outputs of the forecast (NaN where a row has none).
+OUTPUT_ARRAYS = (
+    "ssi",
+    "model",
+    "lower",
+    "upper",
+    "kalman",
+    "std",
+    "order",
+    "damping",
+    "mac",
+    "n_orders",
+    "scatter",
+    "min_order",
+    "max_order",
+    "seen",
+)
+
+
+def assemble_table(
+    blocks: np.ndarray,
+    block_start,
+    mode_labels: np.ndarray,
+    option: str,
+    out_phase: np.ndarray,
+    out: dict[str, np.ndarray],
+    out_w0: np.ndarray,
+    out_w1: np.ndarray,
+    out_warning: dict[tuple[int, int], list[str]],
+    notes,
+) -> pd.DataFrame:
+    """Forecast table from the per-row outputs (rows no model could serve dropped)."""
+    from .sliding import _assemble, _drop_unusable
+
+    _drop_unusable(out_phase, out["model"], out["kalman"], notes)
+    table = _assemble(
+        blocks,
+        block_start,
+        mode_labels,
+        option,
+        out_phase,
+        out["ssi"],
+        out["model"],
+        out["lower"],
+        out["upper"],
+        out["kalman"],
+        out["std"],
+        out_w0,
+        out_w1,
+        out["order"],
+        out["damping"],
+        out["mac"],
+        out_warning,
+    )
+    if option == "B":
+        rows_, cols_ = np.nonzero(out_phase)
+        extra = pd.DataFrame(
+            {
+                "block": blocks[rows_],
+                "mode": mode_labels[cols_].astype(np.int64),
+                "selected_n_orders": pd.array(
+                    np.where(
+                        np.isfinite(out["n_orders"][rows_, cols_]),
+                        out["n_orders"][rows_, cols_],
+                        np.nan,
+                    )
+                ).astype("Int64"),
+                "selected_min_order": pd.array(
+                    np.where(
+                        np.isfinite(out["min_order"][rows_, cols_]),
+                        out["min_order"][rows_, cols_],
+                        np.nan,
+                    )
+                ).astype("Int64"),
+                "selected_scatter_hz": out["scatter"][rows_, cols_],
+            }
+        )
+        table = table.merge(extra, on=["block", "mode"], how="left", validate="one_to_one")
+        table = table.rename(columns={"selected_model_order": "selected_max_order"})
+        table["selected_model_order"] = table["selected_max_order"]
+    return table

@@ -1,0 +1,240 @@
+"""Term selection, refits and predictions of the memory forecast's per-mode models.
+
+For each mode and window of :func:`~workbench.forecast.blend.memory_forecast`: the stepwise
+terms (:func:`~workbench.forecast.memory.select_terms`), reselected on a schedule, on a new
+operating case or when the ship leaves the predictor range the selection saw; the
+exponentially weighted refit of those terms over the history
+(:func:`~workbench.forecast.memory.fit_memory_model`); the prediction with its interval.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from ..stats.distributions import t_quantile
+from .memory import MemoryModel, constant_model, fit_memory_model, select_terms
+from .options import ModelOptions
+
+__all__ = ["MemoryRefits"]
+
+#: Fewest non-overlapping measured blocks for a stepwise term selection; with fewer the
+#: model is the weighted mean (a 20-block window holds only 5 independent SSI estimates,
+#: and a stepwise fit on its 20 overlapping ones extrapolates wildly).
+_MIN_SELECTION_ROWS = 10
+#: Entry p-value of the short-history selection before the division by the overlap.
+_SHORT_P_ENTER = 0.05
+
+
+@dataclass
+class MemoryRefits:
+    """Per-mode term selections and refits over one forecast's predictor grid.
+
+    *meas* (grid rows x modes) is the measurement each block contributed; the caller fills
+    it as the forecast runs and every refit reads the blocks before its grid row.
+    """
+
+    model: ModelOptions
+    X_all: np.ndarray
+    columns: list[str]
+    meas: np.ndarray
+    labels: np.ndarray | None
+    first: int
+    min_train: int
+    history_limit: int
+    memory: float
+    limit: float
+    terms_of: list = field(init=False)
+    selected_case: list = field(init=False)
+    train_y: list = field(init=False)
+    selected_at: np.ndarray = field(init=False)
+    selection_range: list = field(init=False)
+    regional: np.ndarray = field(init=False)
+    t_cache: dict[int, float] = field(init=False)
+
+    def __post_init__(self) -> None:
+        n_modes = self.meas.shape[1]
+        self.terms_of = [None] * n_modes  # (columns, names, (mean, scale), terms) per mode
+        self.selected_case = [None] * n_modes  # operating case of each mode's term selection
+        self.train_y = [None] * n_modes  # targets of each mode's last refit (case rows only)
+        self.selected_at = np.full(n_modes, -(10**9))
+        self.selection_range = [None] * n_modes  # predictor ranges of each term selection
+        # predictors whose range is not a question of operating region: the time trend
+        # always leaves it, by design
+        self.regional = np.array([name != "elapsed_hours" for name in self.columns])
+        self.t_cache = {}
+
+    def left_selection_range(self, j: int, i: int, rows_ok: np.ndarray) -> int | None:
+        """The newest measured block since mode j's term selection outside its range, or None.
+
+        A term selection only judges predictors the history exercised: one made while the
+        ship held one speed has no speed term, whatever the speed law, and keeps none until
+        the next scheduled selection (``reselect_blocks`` later). When a measured block
+        since the selection has a predictor the selected terms do not use outside the range
+        the selection saw, widened by half its width on each side, the selection could not
+        judge that predictor where the ship now is, and the terms are selected again (at
+        most every ``reselect_blocks // 4`` blocks; the time trend is not watched, it leaves
+        its range by design). Predictors in the terms extrapolate as their fit says.
+        """
+        selection_range, selected_at, model = self.selection_range, self.selected_at, self.model
+        terms_of, regional, X_all = self.terms_of, self.regional, self.X_all
+        if selection_range[j] is None or i - selected_at[j] < max(1, model.reselect_blocks // 4):
+            return None
+        since = rows_ok[rows_ok >= selected_at[j]]
+        if since.size == 0:
+            return None
+        low, high = selection_range[j]
+        margin = 0.5 * (high - low)
+        watch = regional.copy()  # predictors outside the selected terms
+        if terms_of[j] is not None:
+            use_j, _, _, terms_j = terms_of[j]
+            for term in terms_j:
+                for c in term:
+                    watch[use_j[c]] = False
+        X = X_all[since][:, watch]
+        with np.errstate(invalid="ignore"):
+            outside = (X < (low - margin)[watch]) | (X > (high + margin)[watch])
+        rows = since[outside.any(axis=1)]
+        return int(rows[-1]) if rows.size else None
+
+    def refit(self, j: int, i: int) -> MemoryModel | None:
+        """Model of mode j from the measured blocks before grid row i."""
+        first, history_limit, meas, labels = self.first, self.history_limit, self.meas, self.labels
+        min_train, train_y, terms_of, model = (
+            self.min_train,
+            self.train_y,
+            self.terms_of,
+            self.model,
+        )
+        selected_at, selected_case, X_all = self.selected_at, self.selected_case, self.X_all
+        selection_range, columns = self.selection_range, self.columns
+        memory, limit = self.memory, self.limit
+        left_selection_range = self.left_selection_range
+        if labels is not None:
+            from workbench.stats import case_training_mask
+        lo = max(first, i - history_limit)
+        y = meas[lo:i, j]
+        case = None
+        if labels is not None:  # the model of the current operating case
+            in_case = case_training_mask(labels, slice(lo, i), i, min_train, np.isfinite(y))
+            if in_case is not None:
+                y = np.where(in_case, y, np.nan)
+                case = labels[i]
+        train_y[j] = y
+        ok = np.isfinite(y)
+        if ok.sum() < min_train:
+            return None
+        rows_ok = np.flatnonzero(ok) + lo
+        newest_outside = left_selection_range(j, i, rows_ok)
+        if (
+            terms_of[j] is None
+            or i - selected_at[j] >= model.reselect_blocks
+            or (labels is not None and case != selected_case[j])
+            or newest_outside is not None
+        ):
+            selected_case[j] = case
+            # non-overlapping blocks only (75 % overlap: every 4th block shares no data), so
+            # the F-tests of the selection do not count one correlated error several times;
+            # the spacing keeps the newest block, or the newest block of a new operating
+            # region when that is what triggered the selection
+            anchor = i - 1 if newest_outside is None else newest_outside
+            recent = rows_ok[rows_ok >= i - int(model.selection_blocks)]
+            spaced = recent[(anchor - recent) % int(model.selection_stride) == 0]
+            short = spaced.size < max(min_train, _MIN_SELECTION_ROWS)
+            selection_options = model.stepwise_options
+            if short and recent.size >= min_train and model.short_history_selection:
+                # a short history (the first window): every measured block, main effects
+                # only, and an entry p-value divided by the overlap (the F-tests count each
+                # correlated error up to `stride` times)
+                selection_options = {
+                    "upper": "linear",
+                    "p_enter": _SHORT_P_ENTER / int(model.selection_stride),
+                    "p_remove": 2 * _SHORT_P_ENTER / int(model.selection_stride),
+                    **dict(model.stepwise_options or {}),
+                }
+                few = False
+            else:
+                recent, few = spaced, short
+            Xs = X_all[recent]
+            selection_range[j] = None
+            if Xs.shape[0]:
+                with warnings.catch_warnings():  # an all-NaN column: no range, never "left"
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    selection_range[j] = (np.nanmin(Xs, axis=0), np.nanmax(Xs, axis=0))
+            use, names = [], []
+            for c, name in enumerate(columns):
+                v = Xs[:, c]
+                valid = np.isfinite(v)
+                if valid.sum() < min_train:
+                    continue
+                if np.ptp(v[valid]) <= 1e-12 * max(1.0, float(np.abs(v[valid]).max())):
+                    continue
+                use.append(c)
+                names.append(name)
+            if use and not few:
+                mean = np.nanmean(Xs[:, use], axis=0)
+                scale = np.nanstd(Xs[:, use], axis=0, ddof=1)
+                Z = pd.DataFrame((Xs[:, use] - mean) / scale, columns=names)
+                try:
+                    terms = select_terms(Z, meas[recent, j], selection_options)
+                except Exception:  # singular selection: keep the last terms
+                    terms = terms_of[j][3] if terms_of[j] is not None else ((),)
+                terms_of[j] = (tuple(use), tuple(names), (mean, scale), terms)
+            else:
+                terms_of[j] = ((), (), (np.empty(0), np.empty(0)), ((),))
+            selected_at[j] = i
+        use, names, (mean, scale), terms = terms_of[j]
+        if use:
+            # z-scores from the newest history (not frozen at the selection): a speed first
+            # seen after the selection is then inside the clipping range
+            newest = X_all[rows_ok[rows_ok >= i - int(model.selection_blocks)]][:, list(use)]
+            if newest.shape[0] >= 2 and np.isfinite(newest).all():  # the usual case: fast
+                m_new = newest.mean(axis=0)
+                s_new = newest.std(axis=0, ddof=1)
+            else:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    m_new = np.nanmean(newest, axis=0)
+                    s_new = np.nanstd(newest, axis=0, ddof=1)
+            good = np.isfinite(s_new) & (s_new > 1e-12 * np.maximum(1.0, np.abs(m_new)))
+            mean = np.where(good, m_new, mean)
+            scale = np.where(good, s_new, scale)
+        # the whole history slice (a view, no copy): the fits skip blocks without a
+        # measurement themselves, so they use exactly the rows of rows_ok, in order
+        age = (i - 1 - np.arange(lo, i)).astype(float)
+        fitted = None
+        if use and terms != ((),):
+            fitted = fit_memory_model(
+                X_all[lo:i],
+                y,
+                age,
+                columns=use,
+                names=names,
+                terms=terms,
+                mean=mean,
+                scale=scale,
+                memory_blocks=memory,
+                limit=limit,
+            )
+        if fitted is None:
+            fitted = constant_model(y, age, memory)
+        return fitted
+
+    def predict(self, m: MemoryModel, rows_: np.ndarray):
+        """Mean, interval bounds, rows without a prediction and s_m² of *m* at rows *rows_*."""
+        X_all, limit, t_cache, model = self.X_all, self.limit, self.t_cache, self.model
+        X = X_all[rows_]
+        mean, mvar = m.predict(X, limit)
+        bad = ~np.isfinite(mean)
+        if bad.any() and m.kind != "constant":
+            level = float(m.coefficients[0])  # z = 0: the weighted centre of the data
+            mean[bad], mvar[bad] = level, m.residual_variance
+        dof = max(int(round(m.dof)), 1)
+        t = t_cache.get(dof)
+        if t is None:
+            t = t_cache[dof] = t_quantile(1 - model.alpha / 2, dof)
+        half = t * np.sqrt(m.residual_variance + mvar)
+        return mean, mean - half, mean + half, bad, mvar
