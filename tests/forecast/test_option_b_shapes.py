@@ -19,7 +19,7 @@ import pytest
 
 from data_contracts import FORECAST, shapes_to_frame
 from workbench.forecast import ForecastWarning, ModeKalmanBank, sliding_forecast
-from workbench.forecast.sliding import _mac_on_common_channels
+from workbench.forecast.pole_selection import _mac_on_common_channels
 from workbench.sid.assurance import mac
 
 START = pd.Timestamp("2024-03-01T00:00:00Z")

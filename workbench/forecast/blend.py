@@ -90,7 +90,8 @@ def memory_forecast(
     Called by :func:`~workbench.forecast.sliding_forecast` for ``model="memory"``;
     returns a :class:`~workbench.forecast.ForecastResult`.
     """
-    from .sliding import ForecastResult, ForecastWarning, WindowModel, _plausible
+    from .fitted_model import _plausible
+    from .sliding import ForecastResult, ForecastWarning, WindowModel
 
     option = measurement.option
     notes: Counter[str] = Counter()
@@ -207,7 +208,6 @@ def memory_forecast(
     # ---- windows
     i0 = first + train
     is_first = True
-    previous_m = np.full(n_modes, np.nan)
     run = np.zeros(n_modes, dtype=np.int64)  # signed run of large innovations per mode
     while i0 <= (last if method == 2 else n_blocks - 1):
         f1 = min(i0 + horizon, (last + 1) if method == 2 else n_blocks)
@@ -416,7 +416,6 @@ def memory_forecast(
                     f"no SSI estimate for {gap[j]} blocks: predict-only",
                     "rows in a long stretch without SSI estimates (predict-only)",
                 )
-            previous_m = np.where(have, m_now, previous_m)
         if method == 1 or f1 > last:
             break
         is_first = False

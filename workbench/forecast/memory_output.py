@@ -43,7 +43,7 @@ def assemble_table(
     notes,
 ) -> pd.DataFrame:
     """Forecast table from the per-row outputs (rows no model could serve dropped)."""
-    from .sliding import _assemble, _drop_unusable
+    from .assembly import _assemble, _drop_unusable
 
     _drop_unusable(out_phase, out["model"], out["kalman"], notes)
     table = _assemble(

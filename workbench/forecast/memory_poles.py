@@ -31,7 +31,7 @@ def option_b_chooser(
 
     Without shape columns the note saying so is counted in *notes*.
     """
-    from .sliding import _MIN_SHAPE_CHANNELS, _mac_on_common_channels, _PoleSelector
+    from .pole_selection import _MIN_SHAPE_CHANNELS, _mac_on_common_channels, _PoleSelector
 
     selector = _PoleSelector(
         poles,

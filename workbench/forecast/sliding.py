@@ -26,17 +26,11 @@ import pandas as pd
 
 from .._deprecation import DEPRECATED, renamed_argument
 
-# Fitted models, option B's pole selection and the output assembly have their own modules;
-# the names imported "as" themselves are re-exported, since the memory forecast (blend.py)
-# and tests import them from here.
-from .assembly import _assemble as _assemble
-from .assembly import _drop_unusable as _drop_unusable
-from .fitted_model import _plausible as _plausible
+# Fitted window models, option B's pole selection and the output assembly have their own
+# modules (fitted_model, pole_selection, assembly); both the window and the memory path use
+# them from there.
 from .kalman import relaxation_factor
 from .options import MeasurementOptions, ModelOptions, NoiseOptions, method_label, option_label
-from .pole_selection import _MIN_SHAPE_CHANNELS as _MIN_SHAPE_CHANNELS
-from .pole_selection import _mac_on_common_channels as _mac_on_common_channels
-from .pole_selection import _PoleSelector as _PoleSelector
 
 __all__ = ["ForecastResult", "ForecastWarning", "WindowModel", "sliding_forecast"]
 
