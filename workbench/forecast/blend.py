@@ -57,7 +57,7 @@ from .memory_poles import option_b_chooser
 from .memory_terms import MemoryRefits
 from .noise import NoiseModel, estimate_noise
 from .options import MeasurementOptions, ModelOptions, NoiseOptions
-from .predictor_grid import predictor_matrix
+from .predictor_grid import forecast_modes, mode_matrix, predictor_matrix
 
 __all__ = ["kalman_pass_step", "memory_forecast"]
 
@@ -109,26 +109,14 @@ def memory_forecast(
     # badly excited stretch) is in all of them, so a run of large innovations is evidence
     # that the model is off only when it reaches a block that shares no data with the first
     overlap = sub_windows_per_block(grid) or 1
-    mode_labels = (
-        np.array(sorted(int(m) for m in modal["mode"].dropna().unique()))
-        if modes is None
-        else np.asarray(modes, dtype=np.int64)
-    )
+    mode_labels = forecast_modes(modal, modes)
     n_modes = mode_labels.size
-    if n_modes == 0:
-        raise ValueError("modal has no modes to forecast")
-    tracked = np.full((n_blocks, n_modes), np.nan)
-    tracked_damping = np.full((n_blocks, n_modes), np.nan)
-    rows = np.searchsorted(blocks, modal["block"].to_numpy(dtype=np.int64))
-    rows_ok = (rows < n_blocks) & (
-        blocks[np.minimum(rows, n_blocks - 1)] == modal["block"].to_numpy()
+    tracked = mode_matrix(modal, blocks, mode_labels, "frequency_hz")
+    tracked_damping = (
+        mode_matrix(modal, blocks, mode_labels, "damping_ratio")
+        if "damping_ratio" in modal.columns
+        else np.full((n_blocks, n_modes), np.nan)
     )
-    mode_index = {int(m): j for j, m in enumerate(mode_labels)}
-    cols = np.array([mode_index.get(int(m), -1) for m in modal["mode"].to_numpy()])
-    keep = rows_ok & (cols >= 0)
-    tracked[rows[keep], cols[keep]] = modal["frequency_hz"].to_numpy(dtype=float)[keep]
-    if "damping_ratio" in modal.columns:
-        tracked_damping[rows[keep], cols[keep]] = modal["damping_ratio"].to_numpy(dtype=float)[keep]
 
     first = 0 if start_block is None else int(np.searchsorted(blocks, start_block))
     if start_block is not None and (first >= n_blocks or blocks[first] != start_block):

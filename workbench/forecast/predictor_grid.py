@@ -1,4 +1,5 @@
-"""The predictor matrix of a forecast: one row per block of the predictor table."""
+"""The matrices of a forecast: the predictors and the tracked modes, one row per block of
+the predictor table."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-__all__ = ["predictor_matrix"]
+__all__ = ["forecast_modes", "mode_matrix", "predictor_matrix"]
 
 
 def predictor_matrix(
@@ -47,3 +48,41 @@ def predictor_matrix(
         else np.empty((len(grid), 0))
     )
     return grid, blocks, block_start, columns, X
+
+
+def forecast_modes(modal: pd.DataFrame, modes: Sequence[int] | None) -> np.ndarray:
+    """The mode labels to forecast: *modes*, or every label of *modal* in ascending order.
+
+    Raises
+    ------
+    ValueError
+        When there is no mode to forecast.
+    """
+    labels = (
+        np.array(sorted(int(m) for m in modal["mode"].dropna().unique()))
+        if modes is None
+        else np.asarray(modes, dtype=np.int64)
+    )
+    if labels.size == 0:
+        raise ValueError("modal has no modes to forecast")
+    return labels
+
+
+def mode_matrix(
+    modal: pd.DataFrame, blocks: np.ndarray, mode_labels: np.ndarray, column: str
+) -> np.ndarray:
+    """*column* of the modal table as a (block, mode) matrix on the rows *blocks* (sorted)
+    and the columns *mode_labels*; NaN where a mode was not measured in a block, and rows of
+    *modal* outside those blocks or modes ignored."""
+    n_blocks = len(blocks)
+    matrix = np.full((n_blocks, len(mode_labels)), np.nan)
+    if n_blocks == 0:
+        return matrix
+    modal_blocks = modal["block"].to_numpy(dtype=np.int64)
+    rows = np.searchsorted(blocks, modal_blocks)
+    rows_ok = (rows < n_blocks) & (blocks[np.minimum(rows, n_blocks - 1)] == modal_blocks)
+    mode_index = {int(m): j for j, m in enumerate(mode_labels)}
+    cols = np.array([mode_index.get(int(m), -1) for m in modal["mode"].to_numpy()])
+    keep = rows_ok & (cols >= 0)
+    matrix[rows[keep], cols[keep]] = modal[column].to_numpy(dtype=float)[keep]
+    return matrix

@@ -30,7 +30,7 @@ from .assembly import _assemble, _drop_unusable
 from .fitted_model import _coefficients, _Model
 from .kalman import ModeKalmanBank
 from .pole_selection import _MIN_SHAPE_CHANNELS, _PoleSelector
-from .predictor_grid import predictor_matrix
+from .predictor_grid import forecast_modes, mode_matrix, predictor_matrix
 from .sliding import ForecastResult, ForecastWarning, WindowModel
 from .window_kalman import kalman_pass, next_targets
 from .window_model import WindowFrame, fit_window_model, predict_window
@@ -59,23 +59,8 @@ def block_grid(
 ) -> BlockGrid:
     """Block grid of *predictors* (consecutive rows: consecutive Kalman steps)."""
     _, blocks, block_start, columns, X_all = predictor_matrix(predictors, predictor_columns)
-    n_blocks = len(blocks)
-    mode_labels = (
-        np.array(sorted(int(m) for m in modal["mode"].dropna().unique()))
-        if modes is None
-        else np.asarray(modes, dtype=np.int64)
-    )
-    if len(mode_labels) == 0:
-        raise ValueError("modal has no modes to forecast")
-    tracked = np.full((n_blocks, len(mode_labels)), np.nan)
-    rows = np.searchsorted(blocks, modal["block"].to_numpy(dtype=np.int64))
-    rows_ok = (rows < n_blocks) & (
-        blocks[np.minimum(rows, n_blocks - 1)] == modal["block"].to_numpy()
-    )
-    mode_index = {int(m): j for j, m in enumerate(mode_labels)}
-    cols = np.array([mode_index.get(int(m), -1) for m in modal["mode"].to_numpy()])
-    keep = rows_ok & (cols >= 0)
-    tracked[rows[keep], cols[keep]] = modal["frequency_hz"].to_numpy(dtype=float)[keep]
+    mode_labels = forecast_modes(modal, modes)
+    tracked = mode_matrix(modal, blocks, mode_labels, "frequency_hz")
     return BlockGrid(blocks, block_start, columns, X_all, mode_labels, tracked)
 
 
