@@ -71,20 +71,8 @@ def assemble_table(
             {
                 "block": blocks[rows_],
                 "mode": mode_labels[cols_].astype(np.int64),
-                "selected_n_orders": pd.array(
-                    np.where(
-                        np.isfinite(out["n_orders"][rows_, cols_]),
-                        out["n_orders"][rows_, cols_],
-                        np.nan,
-                    )
-                ).astype("Int64"),
-                "selected_min_order": pd.array(
-                    np.where(
-                        np.isfinite(out["min_order"][rows_, cols_]),
-                        out["min_order"][rows_, cols_],
-                        np.nan,
-                    )
-                ).astype("Int64"),
+                "selected_n_orders": _counts(out["n_orders"][rows_, cols_]),
+                "selected_min_order": _counts(out["min_order"][rows_, cols_]),
                 "selected_scatter_hz": out["scatter"][rows_, cols_],
             }
         )
@@ -92,3 +80,8 @@ def assemble_table(
         table = table.rename(columns={"selected_model_order": "selected_max_order"})
         table["selected_model_order"] = table["selected_max_order"]
     return table
+
+
+def _counts(values: np.ndarray) -> pd.api.extensions.ExtensionArray:
+    """Whole numbers held as floats (NaN where none) as a nullable integer column."""
+    return pd.array(np.where(np.isfinite(values), values, np.nan)).astype("Int64")
