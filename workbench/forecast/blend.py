@@ -57,7 +57,7 @@ from .memory_poles import option_b_chooser
 from .memory_terms import MemoryRefits
 from .noise import NoiseModel, estimate_noise
 from .options import MeasurementOptions, ModelOptions, NoiseOptions
-from .predictor_grid import forecast_modes, mode_matrix, predictor_matrix
+from .predictor_grid import mode_matrix, modes_to_forecast, predictor_matrix
 
 __all__ = ["kalman_pass_step", "memory_forecast"]
 
@@ -109,7 +109,7 @@ def memory_forecast(
     # badly excited stretch) is in all of them, so a run of large innovations is evidence
     # that the model is off only when it reaches a block that shares no data with the first
     overlap = sub_windows_per_block(grid) or 1
-    mode_labels = forecast_modes(modal, modes)
+    mode_labels = modes_to_forecast(modal, modes)
     n_modes = mode_labels.size
     tracked = mode_matrix(modal, blocks, mode_labels, "frequency_hz")
     tracked_damping = (

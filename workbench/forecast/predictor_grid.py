@@ -8,7 +8,7 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-__all__ = ["forecast_modes", "mode_matrix", "predictor_matrix"]
+__all__ = ["modes_to_forecast", "mode_matrix", "predictor_matrix"]
 
 
 def predictor_matrix(
@@ -50,7 +50,7 @@ def predictor_matrix(
     return grid, blocks, block_start, columns, X
 
 
-def forecast_modes(modal: pd.DataFrame, modes: Sequence[int] | None) -> np.ndarray:
+def modes_to_forecast(modal: pd.DataFrame, modes: Sequence[int] | None) -> np.ndarray:
     """The mode labels to forecast: *modes*, or every label of *modal* in ascending order.
 
     Raises

@@ -30,7 +30,7 @@ from .assembly import _assemble, _drop_unusable
 from .fitted_model import _coefficients, _Model
 from .kalman import ModeKalmanBank
 from .pole_selection import _MIN_SHAPE_CHANNELS, _PoleSelector
-from .predictor_grid import forecast_modes, mode_matrix, predictor_matrix
+from .predictor_grid import mode_matrix, modes_to_forecast, predictor_matrix
 from .sliding import ForecastResult, ForecastWarning, WindowModel
 from .window_kalman import kalman_pass, next_targets
 from .window_model import WindowFrame, fit_window_model, predict_window
@@ -59,7 +59,7 @@ def block_grid(
 ) -> BlockGrid:
     """Block grid of *predictors* (consecutive rows: consecutive Kalman steps)."""
     _, blocks, block_start, columns, X_all = predictor_matrix(predictors, predictor_columns)
-    mode_labels = forecast_modes(modal, modes)
+    mode_labels = modes_to_forecast(modal, modes)
     tracked = mode_matrix(modal, blocks, mode_labels, "frequency_hz")
     return BlockGrid(blocks, block_start, columns, X_all, mode_labels, tracked)
 
