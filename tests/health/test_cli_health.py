@@ -62,3 +62,41 @@ def test_health_fits_its_own_model_from_modal_and_predictors(tmp_path, capsys):
     assert "modes charted: 1, 2, 3, 4, 5, 6, 7" in capsys.readouterr().out
     assert main(["health", "--modal", str(modal), "--out", str(out)]) == 2
     assert "--modal needs --predictors and --train-hours" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("flags", "options"),
+    [
+        (["--statistic", "mewma"], {"statistic": "mewma"}),
+        (["--baseline-hours", "24"], {"baseline_hours": 24.0}),
+    ],
+)
+def test_health_flags_reach_the_chart(forecast_file, tmp_path, flags, options):
+    """--statistic and --baseline-hours give the chart the library computes with the same
+    options (and a chart that differs from the default one)."""
+    from workbench.health import HealthOptions
+    from workbench.stages import health
+
+    common = {"reference_blocks": 144, "reference_start_block": 0}
+    out = tmp_path / "out"
+    argv = ["health", "--forecast", str(forecast_file), "--reference-hours", "12",
+            "--reference-start-block", "0", *flags, "--out", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    written = read_table(out / "health.csv", HEALTH)
+    forecast = read_table(forecast_file, FORECAST)
+    expected = health(forecast, options=HealthOptions(**common, **options)).table
+    default = health(forecast, options=HealthOptions(**common)).table
+    assert written["statistic"].to_numpy() == pytest.approx(
+        expected["statistic"].to_numpy(), rel=1e-9, nan_ok=True
+    )
+    assert written["statistic"].to_numpy() != pytest.approx(
+        default["statistic"].to_numpy(), rel=1e-6, nan_ok=True
+    )
+
+
+def test_health_refuses_a_baseline_that_is_not_positive(forecast_file, tmp_path, capsys):
+    argv = ["health", "--forecast", str(forecast_file), "--baseline-hours", "-1",
+            "--out", str(tmp_path)]  # fmt: skip
+    assert main(argv) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1 and "baseline_hours=-1.0" in error

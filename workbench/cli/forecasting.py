@@ -311,10 +311,24 @@ def _add_health(commands: argparse._SubParsersAction) -> None:
         "phase, or the first after the training hours with --modal)",
     )
     parser.add_argument(
+        "--statistic",
+        choices=("cusum", "mewma"),
+        default=D.HEALTH_STATISTIC,
+        help="per-mode one-sided CUSUM (for a drop of one mode) or MEWMA Hotelling T²",
+    )
+    parser.add_argument(
         "--ewma-lambda",
         type=float,
         default=D.HEALTH_EWMA_LAMBDA,
         help="weight of the newest block in the MEWMA statistic",
+    )
+    parser.add_argument(
+        "--baseline-hours",
+        type=float,
+        metavar="H",
+        help="let each mode's in-control level follow the residuals with this time "
+        "constant, for a drift no logged predictor explains (fuel burn without tank "
+        "soundings); default: the reference's level, fixed",
     )
     parser.add_argument(
         "--false-alarms-per-day",
@@ -377,6 +391,8 @@ def _run_health(args: argparse.Namespace) -> int:
             reference_start_block=args.reference_start_block,
             ewma_lambda=args.ewma_lambda,
             false_alarms_per_day=args.false_alarms_per_day,
+            statistic=args.statistic,
+            baseline_hours=args.baseline_hours,
         )
     except ValueError as error:
         raise UsageError(str(error)) from None
