@@ -37,6 +37,14 @@ def _monitor(watch: Path, state: Path, dship: Path, *extra):
     return prepare_monitor(build_parser().parse_args([str(a) for a in argv]))
 
 
+def _monitor_once(watch: Path, state: Path, dship: Path) -> int:
+    """``workbench monitor --once`` over what is in *watch* (the CLI, as a restart would)."""
+    return cli(
+        "monitor", "--watch", watch, "--state", state, "--dship", dship,
+        *IDENTIFY, *FORECAST, *MONITOR_FAST, "--once",
+    )  # fmt: skip
+
+
 def _wait(condition, timeout_s: float = 300.0) -> None:  # a bound, for busy machines
     deadline = time.monotonic() + timeout_s
     while True:
@@ -221,22 +229,7 @@ def test_kill_9_and_restart_lose_and_repeat_nothing(voyage, batch, tmp_path):
     assert _status(state)["state"] == "running"  # it never got to say it stopped
     for path in files[fed:]:
         land(path, watch)
-    assert (
-        cli(
-            "monitor",
-            "--watch",
-            watch,
-            "--state",
-            state,
-            "--dship",
-            voyage / "dship.tsv",
-            *IDENTIFY,
-            *FORECAST,
-            *MONITOR_FAST,
-            "--once",
-        )
-        == 0
-    )
+    assert _monitor_once(watch, state, voyage / "dship.tsv") == 0
     assert_same_tables(state, batch)
     health = pd.read_parquet(state / "data_health.parquet")
     assert health["block"].tolist() == list(range(len(batch["blocks"])))
@@ -274,22 +267,7 @@ def test_decimated_files_are_conditioned_once_and_equal_batch(tmp_path):
         assert max(monitor.done) == len(batch["blocks"]) - 2  # the last waits for more
     finally:
         running.stop()
-    assert (
-        cli(
-            "monitor",
-            "--watch",
-            watch,
-            "--state",
-            state,
-            "--dship",
-            voyage / "dship.tsv",
-            *IDENTIFY,
-            *FORECAST,
-            *MONITOR_FAST,
-            "--once",
-        )
-        == 0
-    )
+    assert _monitor_once(watch, state, voyage / "dship.tsv") == 0
     assert_same_tables(state, batch, min_rows=10)
     # the live run conditioned every file but the last (its block waited) exactly once
     assert monitor.conditioned_files[0] == len(files) - 1
