@@ -23,6 +23,7 @@ from data_contracts import ALARMS, FORECAST, HEALTH, recorded_grid, set_grid, wr
 
 from .options import HealthOptions
 from .statistics import (  # noqa: F401  (the public statistics are importable from here too)
+    OUTLIER_SIGMA,
     _limit_for_rate,
     _moving_block_bootstrap,
     _robust_location_scale,
@@ -33,6 +34,8 @@ from .statistics import (  # noqa: F401  (the public statistics are importable f
     ewma_step,
     hotelling,
     long_run_std,
+    trimmed_location_scale,
+    truncated_normal_variance,
     upcrossings_per_day,
 )
 
@@ -80,6 +83,11 @@ class HealthReference:
         With ``baseline_hours``: each mode's drift over the reference, per block; the
         location is then the line's value at the reference end, and a reference block
         k is charted about location - slope x (end_block - k). [-]
+    model_offset_std : ndarray, shape (n_modes,), optional
+        CUSUM: root mean square over the reference blocks of the model's persistent error
+        (``model_shift_std``) in the chart's units. The limits H_j hold against a persistent
+        offset of this size; a block's allowance grows only by the excess of its own
+        ``model_shift_std`` over it. [-]
     """
 
     modes: tuple[int, ...]
@@ -98,6 +106,7 @@ class HealthReference:
     allowance: np.ndarray | None = None
     mode_limits: np.ndarray | None = None
     trend_slope: np.ndarray | None = None
+    model_offset_std: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -341,6 +350,7 @@ def learn_reference(
     blocks_per_day: float,
     options: HealthOptions,
     overlap_ratio: float = 1.0,
+    model_shift: np.ndarray | None = None,
 ) -> HealthReference:
     """Learn the in-control state from the reference blocks (steps 2 and 4 of
     :func:`health_chart`).
@@ -360,6 +370,9 @@ def learn_reference(
     overlap_ratio : float
         Block length over block step (4 for 20-min blocks every 5 min): the floor of the
         residuals' long-run variance in units of their variance. [-]
+    model_shift : ndarray, shape (n_reference_blocks, n_modes), optional
+        The forecast's ``model_shift_std`` of the reference blocks in prediction-standardised
+        units (as *residuals*); NaN or None where the forecast has none.
     """
     first_block, last_block = int(blocks[0]), int(blocks[-1])
     valid_share = np.isfinite(residuals).mean(axis=0)
@@ -379,7 +392,12 @@ def learn_reference(
         # baseline starts from the line's value at the reference end
         trend_slope, trend_end = _robust_lines(ref, blocks - blocks[-1])
         ref = ref - (trend_end + np.outer(blocks - blocks[-1], trend_slope))
-    location, scale = _robust_location_scale(ref)
+    # the CUSUM about a fixed location is calibrated by a simulation of the reference's
+    # own errors (Notes of health_chart, step 6): its units are the Gaussian core's mean
+    # and standard deviation; the MEWMA and a following baseline keep the median and MAD
+    detailed = options.statistic == "cusum" and options.baseline_hours is None
+    estimate = trimmed_location_scale if detailed else _robust_location_scale
+    location, scale = estimate(ref)
     if not np.all(scale > 0):
         raise ValueError(
             f"reference blocks {first_block}-{last_block}: a mode's residuals do not vary"
@@ -428,7 +446,7 @@ def learn_reference(
         relative_median = np.nanmedian(relative[:, keep], axis=0)
     if trend_slope is not None:
         location = location + trend_end  # the line at the reference end
-    allowance = mode_limits = None
+    allowance = mode_limits = offset_std = None
     if options.statistic == "cusum":
         # K_j: half the smallest drop worth detecting, in mode j's standardised units
         # (its relative residuals' robust scale is one unit)
@@ -436,7 +454,7 @@ def learn_reference(
         if trend_slope is not None:  # scatter about each mode's drift line, as above
             rel_slope, rel_end = _robust_lines(relative_ref, blocks - blocks[-1])
             relative_ref = relative_ref - (rel_end + np.outer(blocks - blocks[-1], rel_slope))
-        relative_scale = _robust_location_scale(relative_ref)[1]
+        relative_scale = estimate(relative_ref)[1]
         if not np.all(relative_scale > 0):
             raise ValueError(
                 f"reference blocks {first_block}-{last_block}: a mode's relative residuals "
@@ -453,16 +471,39 @@ def learn_reference(
         per_mode = long_run_std(ref_x, min(options.bootstrap_block_length, len(ref) // 4))
         variance = float(np.nanmean(np.nanvar(ref_x, axis=0)))
         ratio = max(float(np.mean(per_mode**2)) / variance, overlap_ratio)
+        simulated = {"variance": variance, "trimmed": False}
+        if detailed:
+            # the reference's wrong poles (beyond OUTLIER_SIGMA) and missing estimates as
+            # they are, the Gaussian core's variance, and the model's persistent error in
+            # the reference's own conditions as a random offset of each simulated day
+            # (the allowance then takes only what a block's model error exceeds it by)
+            finite = np.isfinite(ref_x)
+            wild = finite & (np.abs(np.nan_to_num(ref_x)) >= OUTLIER_SIGMA)
+            core = np.where(finite & ~wild, ref_x, np.nan)
+            offset_std = np.zeros(p)
+            if model_shift is not None and options.model_uncertainty:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    mean_square = np.nanmean((model_shift[:, keep] / scale) ** 2, axis=0)
+                offset_std = np.sqrt(np.nan_to_num(mean_square, nan=0.0))
+            simulated = {
+                "variance": float(np.nanmean(np.nanvar(core, axis=0)))
+                / truncated_normal_variance(OUTLIER_SIGMA),
+                "trimmed": True,
+                "outlier_rate": float(wild.sum() / max(finite.sum(), 1)),
+                "missing_rate": float(1.0 - finite.mean()),
+                "offset_std": offset_std,
+            }
         mode_limits = cusum_limits(
             allowance,
             segments=max(int(round(ratio)), 1),
-            variance=variance,
             reference_blocks=len(ref),
             blocks_per_day=blocks_per_day,
             false_alarms_per_day=options.false_alarms_per_day,
             replicates=n_replicates,
             clip_sigma=options.clip_sigma,
             rng=rng,
+            **simulated,
         )
         mode_limits = np.maximum(mode_limits, allowance)  # never 0: S/H stays defined
         rep_cusum = cusum_hold(rep_x, allowance)[len(ref) :]  # (day, replicates, modes)
@@ -486,6 +527,7 @@ def learn_reference(
         allowance=allowance,
         mode_limits=mode_limits,
         trend_slope=trend_slope,
+        model_offset_std=offset_std if allowance is not None else None,
     )
 
 

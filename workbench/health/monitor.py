@@ -224,6 +224,9 @@ class HealthMonitor:
                 "allowance": None if ref.allowance is None else _arr(ref.allowance),
                 "mode_limits": None if ref.mode_limits is None else _arr(ref.mode_limits),
                 "trend_slope": None if ref.trend_slope is None else _arr(ref.trend_slope),
+                "model_offset_std": (
+                    None if ref.model_offset_std is None else _arr(ref.model_offset_std)
+                ),
             }
 
         def item_state(item: dict[str, Any]) -> dict[str, Any]:
@@ -338,6 +341,11 @@ class HealthMonitor:
                 trend_slope=(
                     None if ref["trend_slope"] is None else _from_json(ref["trend_slope"])
                 ),
+                model_offset_std=(
+                    None
+                    if ref.get("model_offset_std") is None
+                    else _from_json(ref["model_offset_std"])
+                ),
             )
         return monitor
 
@@ -367,6 +375,9 @@ class HealthMonitor:
         modes = tuple(sorted({m for item in items for m in item["residual"]}))
         residuals = np.array([[item["residual"].get(m, np.nan) for m in modes] for item in items])
         relative = np.array([[item["relative"].get(m, np.nan) for m in modes] for item in items])
+        model_shift = np.array(
+            [[item["shift_std"].get(m, np.nan) for m in modes] for item in items]
+        )
         blocks = np.array([item["block"] for item in items])
         starts = pd.DatetimeIndex([item["block_start"] for item in items])
         if self._step_s is not None:  # the recorded grid, not the blocks present
@@ -380,7 +391,14 @@ class HealthMonitor:
         else:  # no recorded grid: the project's blocks (20 min every 5 min)
             overlap_ratio = DEFAULT_BLOCK_LENGTH_S / DEFAULT_BLOCK_STEP_S
         self.reference = learn_reference(
-            residuals, relative, modes, blocks, 86400.0 / step_s, self.options, overlap_ratio
+            residuals,
+            relative,
+            modes,
+            blocks,
+            86400.0 / step_s,
+            self.options,
+            overlap_ratio,
+            model_shift=model_shift,
         )
         self._chart_state = np.zeros(len(self.reference.modes))
         if self.reference.trend_slope is not None:
@@ -413,6 +431,9 @@ class HealthMonitor:
             assert ref.allowance is not None and ref.mode_limits is not None
             # S_k = max(0, S_{k-1} - x_k - K_k), K_k = K + g·s_model: the allowance grows
             # by what the model cannot know (a persistent error would accumulate)
+            # (beyond the reference's own, which the limits H_j already hold against)
+            if ref.model_offset_std is not None:
+                model = np.sqrt(np.maximum(model**2 - ref.model_offset_std**2, 0.0))
             allowance = ref.allowance + options.model_error_sigma * model
             self._chart_state = cusum_step(self._chart_state, x, allowance)
             parts = self._chart_state / ref.mode_limits

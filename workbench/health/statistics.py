@@ -12,6 +12,10 @@ import warnings
 
 import numpy as np
 
+#: Standardised residuals at least this far out are wrong poles, not the Gaussian core of
+#: the identification error (P(|N(0, 1)| >= 3.5) = 0.05 %). [-]
+OUTLIER_SIGMA = 3.5
+
 __all__ = [
     "ewma_hold",
     "ewma_step",
@@ -21,6 +25,7 @@ __all__ = [
     "cusum_limits",
     "hotelling",
     "upcrossings_per_day",
+    "trimmed_location_scale",
 ]
 
 
@@ -106,6 +111,10 @@ def cusum_limits(
     replicates: int,
     clip_sigma: float,
     rng: np.random.Generator,
+    outlier_rate: float = 0.0,
+    missing_rate: float = 0.0,
+    offset_std: np.ndarray | None = None,
+    trimmed: bool = True,
 ) -> np.ndarray:
     """Decision intervals H_j of the per-mode CUSUMs for a target false-alarm rate.
 
@@ -129,12 +138,22 @@ def cusum_limits(
     window = np.lib.stride_tricks.sliding_window_view
     u = rng.standard_normal((n + segments - 1, replicates * p))
     x = window(u, segments, axis=0).mean(-1)  # (n, series), variance 1/segments
-    location, scale = _robust_location_scale(x[:reference_blocks])
-    x = np.clip((x - location) / scale * math.sqrt(variance), -clip_sigma, clip_sigma)
+    if outlier_rate > 0:  # wrong poles: far off either way, clipped like the chart's
+        wrong = rng.random(x.shape) < outlier_rate
+        x = np.where(wrong, rng.choice([-1.0, 1.0], x.shape) * 1e3 * clip_sigma, x)
+    if missing_rate > 0:  # no estimate: the CUSUM holds
+        x = np.where(rng.random(x.shape) < missing_rate, np.nan, x)
+    estimate = trimmed_location_scale if trimmed else _robust_location_scale
+    location, scale = estimate(x[:reference_blocks])
+    x = (x - location) / scale * math.sqrt(variance)
+    offset_std = np.zeros(p) if offset_std is None else np.asarray(offset_std, dtype=float)
+    offset = rng.standard_normal(x.shape[1])  # one persistent model error per day
     level = math.exp(-false_alarms_per_day / p)
     limits = np.empty(p)
     for j in range(p):
-        daily_max = cusum_hold(x, np.full(x.shape[1], allowance[j]))[reference_blocks:].max(0)
+        day_x = x[reference_blocks:] + offset_std[j] * offset
+        day_x = np.clip(np.concatenate([x[:reference_blocks], day_x]), -clip_sigma, clip_sigma)
+        daily_max = cusum_hold(day_x, np.full(x.shape[1], allowance[j]))[reference_blocks:].max(0)
         limits[j] = float(np.quantile(daily_max, level))
     return limits
 
@@ -166,6 +185,37 @@ def _robust_location_scale(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         location = np.nanmedian(values, axis=0)
         scale = 1.4826 * np.nanmedian(np.abs(values - location), axis=0)
     return location, scale
+
+
+def trimmed_location_scale(
+    values: np.ndarray, cut: float = OUTLIER_SIGMA
+) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and standard deviation along axis 0 of the values within *cut* robust standard
+    deviations (1.4826 MAD) of the median, NaN-aware; the standard deviation is divided by
+    that of N(0, 1) truncated at ±*cut* so a Gaussian core is estimated without bias.
+
+    One step of a trimmed (Huber-type "skipped") estimator: the wrong poles beyond *cut*
+    are dropped as the median and MAD would ignore them, while the Gaussian core is
+    estimated with nearly the full efficiency of the mean and standard deviation (the MAD
+    has 37 %; on residuals of overlapping blocks its error alone raised the simulated
+    CUSUM limits by about 10 %).
+    """
+    median, mad = _robust_location_scale(values)
+    with np.errstate(invalid="ignore"):
+        inside = np.abs(values - median) <= cut * mad
+    core = np.where(inside, values, np.nan)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        location = np.nanmean(core, axis=0)
+        scale = np.nanstd(core, axis=0, ddof=1) / math.sqrt(truncated_normal_variance(cut))
+    return location, scale
+
+
+def truncated_normal_variance(cut: float) -> float:
+    """Variance of N(0, 1) truncated to ±*cut*: 1 - 2 c φ(c) / (2 Φ(c) - 1)."""
+    density = math.exp(-0.5 * cut * cut) / math.sqrt(2.0 * math.pi)
+    inside = math.erf(cut / math.sqrt(2.0))
+    return 1.0 - 2.0 * cut * density / inside
 
 
 def _moving_block_bootstrap(
