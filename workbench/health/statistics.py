@@ -121,15 +121,18 @@ def cusum_limits(
     The in-control residuals of overlapping blocks are simulated as they arise: each
     block's error is the mean of *segments* independent segment errors (so neighbouring
     blocks correlate 1 - l/segments at lag l and the long-run variance is *segments*
-    times the variance). Each replicate is a reference period of *reference_blocks*,
-    whose median and 1.4826 MAD standardise it (the chart's own location and scale, with
-    their estimation error, Jones-Farmer et al. 2014), scaled to the *variance* the chart's standardised
-    residuals have (a little above 1 where the tails are heavier than normal), followed
-    by one day; the CUSUM runs through both. H_j
-    is the exp(-rate/p) quantile of the daily maximum of mode j's CUSUM over all p x
-    *replicates* simulated series, so that the p modes together pass a day without false
-    alarm with probability exp(-rate) (Šidák's split; the modes' charts are about
-    independent, their residuals being errors of different poles).
+    times the variance). A share *outlier_rate* of them are wrong poles, far off either
+    way and clipped to ±*clip_sigma* like the chart's, and a share *missing_rate* are
+    missing (the CUSUM holds). Each replicate is a reference period of
+    *reference_blocks*, whose location and scale standardise it (the chart's own:
+    :func:`trimmed_location_scale`, or the median and 1.4826 MAD with ``trimmed=False``,
+    with their estimation error, Jones-Farmer et al. 2014), the Gaussian core then
+    scaled to *variance*, followed by one day to which mode j adds a persistent offset
+    N(0, *offset_std*_j²) (the model's own error, one draw per day); the CUSUM runs
+    through both. H_j is the exp(-rate/p) quantile of the daily maximum of mode j's
+    CUSUM over all p x *replicates* simulated series, so that the p modes together pass
+    a day without false alarm with probability exp(-rate) (Šidák's split; the modes'
+    charts are about independent, their residuals being errors of different poles).
     """
     allowance = np.asarray(allowance, dtype=float)
     p = allowance.size
