@@ -308,9 +308,9 @@ def health_chart(forecast: pd.DataFrame, options: HealthOptions | None = None) -
        and counted no model error in the limits while adding 1.645 s_k to K: H was about
        40 % above the value for known parameters and the fitted model had no false alarm
        in 40 monitored days against 4 by design. Measured
-       (``benchmarks/results/health.txt``, fitted model, seeds 0-39): 6 false alarm
-       episodes in 80 monitored days (design 0.1/day: 8), and a 2 % stiffness loss on
-       mode 3 found in median 1.3 h. Neither prewhitening nor a window-limited GLR can do
+       (``benchmarks/results/health.txt``, fitted model, seeds 0-39): a false alarm on 6
+       of 80 monitored days (design: 1 - exp(-0.1) = 9.5 %, 7.6 days), and a 2 % stiffness
+       loss on mode 3 found in median 1.3 h. Neither prewhitening nor a window-limited GLR can do
        better here: the mean of four 5-min segment errors is a moving average with its
        roots on the unit circle (no stable innovations), and a CUSUM on the segment
        errors themselves, were they observed, has the same delays as the CUSUM of
