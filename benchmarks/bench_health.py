@@ -33,7 +33,9 @@ or ``before`` (the previous defaults: upcrossing-calibrated limit, full covarian
 Printed per model and scenario over ``--seeds`` seeds: alarm episodes per day in the
 monitored hours before any damage (mean, max), seeds without any false alarm, and the
 detection delay (onset to the end of the first alarming block after it; "miss" when
-none) as median and worst.
+none) as median and worst. Last, per model, the share of monitored days without damage
+(scenarios ``none`` and ``regime``) with a false alarm, beside the limit's design
+1 - exp(-rate) (a day passes without one with probability exp(-rate)).
 
 Run: ``python benchmarks/bench_health.py --seeds 10`` (results: benchmarks/results/health.txt)
 """
@@ -169,6 +171,7 @@ def main(argv=None) -> int:
     )
     print(header)
     print("-" * len(header))
+    in_control: dict[str, list[float]] = {}  # model: false alarms/day of undamaged voyages
     for name in args.models:
         for scenario in args.scenarios:
             loss, mode, regime, ramp = 0.0, None, None, 0.0
@@ -197,6 +200,8 @@ def main(argv=None) -> int:
                 forecast = _forecast(name, voyage, train, reference)
                 table = health_chart(forecast, chart_options).table
                 rates.append(_episodes_per_day(table, voyage.damage_time))
+                if not mode:
+                    in_control.setdefault(name, []).append(rates[-1])
                 if mode:
                     delays.append(detection_delay_hours(voyage, table))
             rate = f"{statistics.mean(rates):.2f} (max {max(rates):.1f})"
@@ -219,6 +224,14 @@ def main(argv=None) -> int:
                 shown = delays if mode else rates
                 what = "delays [h]" if mode else "false alarms/day"
                 print(f"{'':19s} per seed {what}: " + " ".join(f"{v:.2f}" for v in shown))
+    # the limit's design: a day passes without a false alarm with probability exp(-rate)
+    design = 1.0 - math.exp(-options.false_alarms_per_day)
+    for name, rates in in_control.items():
+        days = sum(r > 0 for r in rates)
+        print(
+            f"{name}: a false alarm on {days} of {len(rates)} monitored days without damage "
+            f"({days / len(rates):.1%}; design {design:.1%})"
+        )
     return 0
 
 
