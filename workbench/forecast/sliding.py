@@ -381,7 +381,7 @@ def sliding_forecast(
                 option=option,
                 gate_sigma=gate_sigma,
                 mac_min=mac_min,
-                reacquire_blocks=2 if reacquire_blocks is None else reacquire_blocks,
+                reacquire_blocks=1 if reacquire_blocks is None else reacquire_blocks,
                 reacquire_band=reacquire_band,
             ),
             gap_warning_blocks=gap_warning_blocks,
