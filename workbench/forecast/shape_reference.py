@@ -27,7 +27,7 @@ from collections import deque
 import numpy as np
 import pandas as pd
 
-from .pole_selection import _MIN_SHAPE_CHANNELS, _mac_on_common_channels, _shape_matrix
+from .pole_selection import _MIN_SHAPE_CHANNELS, _shape_matrix
 
 __all__ = ["CONSENSUS_SHAPES", "consensus_references"]
 
@@ -36,7 +36,14 @@ CONSENSUS_SHAPES = 12
 
 
 def _mac(a: np.ndarray, b: np.ndarray) -> float:
-    return float(_mac_on_common_channels(a, b[None, :])[0])
+    """MAC of two shapes on the channels both have (NaN: fewer than 3 shared)."""
+    ok = np.isfinite(a) & np.isfinite(b)
+    if ok.sum() < _MIN_SHAPE_CHANNELS:
+        return float("nan")
+    a, b = a[ok], b[ok]
+    # MAC = |a^H b|² / ((a^H a)(b^H b))
+    denominator = np.vdot(a, a).real * np.vdot(b, b).real
+    return float(abs(np.vdot(a, b)) ** 2 / denominator) if denominator > 0 else float("nan")
 
 
 def _aligned_mean(members) -> np.ndarray:
@@ -46,14 +53,17 @@ def _aligned_mean(members) -> np.ndarray:
     shape is defined up to a complex factor), then averaged channel by channel over the
     shapes that have the channel, and scaled to unit norm.
     """
-    stack = np.array(list(members))
+    stack = np.array(members)
     anchor = stack[-1]
-    finite = np.isfinite(stack) & np.isfinite(anchor)[None, :]
-    inner = np.nansum(np.where(finite, np.conj(anchor)[None, :] * stack, 0.0), axis=1)
-    phase = np.where(np.abs(inner) > 0, np.conj(inner) / np.maximum(np.abs(inner), 1e-300), 1.0)
-    rotated = stack * phase[:, None]
-    with np.errstate(invalid="ignore"):
-        mean = np.nanmean(np.where(np.isfinite(rotated), rotated, np.nan + 0j), axis=0)
+    finite = np.isfinite(stack)
+    values = np.where(finite, stack, 0.0)
+    # rotate each shape by the phase of its inner product with the newest one
+    inner = values @ np.conj(np.where(np.isfinite(anchor), anchor, 0.0))
+    size = np.abs(inner)
+    phase = np.where(size > 0, np.conj(inner) / np.maximum(size, 1e-300), 1.0)
+    count = finite.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(count > 0, (values * phase[:, None]).sum(axis=0) / count, np.nan)
     norm = np.sqrt(np.nansum(np.abs(mean) ** 2))
     return mean / norm if norm > 0 else mean
 
