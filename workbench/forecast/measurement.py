@@ -21,9 +21,14 @@ has a damping ratio unlike the mode's. Hence:
   has been chosen in 5 blocks, at least half the median orders of its last 36 clusters
   (a mode's column keeps its length; a short consistent column is a transient such as an
   ice impact, usually in a block where the mode is not excited); with mode shapes,
-  only poles whose MAC with the mode's reference shape is at least ``shape_mac_min``
-  count. The chosen cluster is grown to its whole column (:meth:`ClusterChooser._column`)
-  and the measurement is the column's median frequency;
+  only poles whose MAC with the mode's reference shape (the consensus of its recent
+  tracked shapes, :mod:`workbench.forecast.shape_reference`) is at least
+  ``shape_mac_min`` count. The chosen cluster is grown to its whole column
+  (:meth:`ClusterChooser._column`) and the measurement is the column's median frequency.
+  When the gate holds no such cluster, the best one outside it within ``reacquire_band``
+  (same tests, damping ratio within x3 of the mode's) is the measurement, flagged
+  ``outside_gate``: the Kalman update's Huber weight and its persistence rule, not a
+  count of blocks here, tell an outlier stretch from a mode that moved;
 * the per-block measurement scale: the cluster's frequency scatter across model orders,
   relative to the mode's typical scatter (:func:`scatter_scale`), which multiplies the
   measurement-noise variances of that block.
@@ -153,11 +158,18 @@ def scatter_scale(scatter_hz: float, typical_scatter_hz: float) -> float:
 
 @dataclass
 class Choice:
-    """Option B's choice for one mode in one block (internal)."""
+    """Option B's choice for one mode in one block (internal).
+
+    ``outside_gate``: the cluster is the mode's column seen only outside the gate (a
+    measurement the Kalman update weights down, see :meth:`ClusterChooser.choose`).
+    ``reacquired``: the prior is to be reset onto the cluster (gain about 1); this chooser
+    never asks for it (kept for the caller's re-acquisition branch).
+    """
 
     cluster: PoleCluster
     mac: float
     reacquired: bool
+    outside_gate: bool = False
 
 
 class ClusterChooser:
@@ -171,9 +183,12 @@ class ClusterChooser:
         mode j's reference shape at grid row i (NaN: no reference); None without shapes.
     shape_mac_min : float
     reacquire_blocks : int
-        Consecutive blocks with the mode seen only outside the gate (inside
-        ±reacquire_band) before it is taken from there.
+        Consecutive blocks with the mode's column only outside the gate (inside
+        ±reacquire_band) before it is measured there; it stays the measurement while the
+        column stays outside (1: at once).
     reacquire_band : float
+        Relative half-width about the prediction searched when the gate holds no cluster
+        of the mode. [-]
     """
 
     def __init__(self, index, shape_mac, *, shape_mac_min, reacquire_blocks, reacquire_band):
@@ -182,7 +197,7 @@ class ClusterChooser:
         self.mac_min = float(shape_mac_min)
         self.reacquire_blocks = int(reacquire_blocks)
         self.band = float(reacquire_band)
-        self.misses: dict[int, int] = {}
+        self.misses: dict[int, int] = {}  # consecutive blocks seen only outside the gate
         self.lengths: dict[int, list[int]] = {}  # orders of each mode's recent clusters
 
     def _shortest(self, j: int) -> int:
@@ -253,7 +268,14 @@ class ClusterChooser:
             best = self._column(i, j, best, gate_hz)
             self.misses[j] = 0
             self._accepted(j, best[0])
-            return Choice(best[0], best[1], False)
+            return Choice(best[0], best[1], reacquired=False)
+        # outside the gate (within the band): the column that passes the same tests and
+        # has the mode's damping ratio (within x3) is the mode displaced, by an
+        # identification error (an outlier stretch: the blocks sharing a corrupted stretch of
+        # data all show it) or because the mode moved away from the model. It is the
+        # block's measurement either way: the Kalman update's Huber weight bounds the pull of
+        # an outlier, and a run of large innovations of one sign longer than the blocks
+        # sharing data makes the filter follow a mode that moved (kalman_pass_step).
         band = self.band * abs(prior_hz)
         outside, _ = self._clusters(i, j, prior_hz - band, prior_hz + band)
         outside = [
@@ -262,14 +284,13 @@ class ClusterChooser:
             if abs(c[0].frequency_hz - prior_hz) > gate_hz and c[0].n_orders >= shortest
         ]
         best = self._best(outside, prior_hz, band, damping_ref, strict=True)
-        if best is None:
+        if best is None:  # the mode is not seen in this block: no evidence either way
             return None
         self.misses[j] = self.misses.get(j, 0) + 1
         if self.misses[j] < self.reacquire_blocks:
             return None
-        self.misses[j] = 0
         self._accepted(j, best[0])
-        return Choice(best[0], best[1], True)
+        return Choice(best[0], best[1], reacquired=False, outside_gate=True)
 
     def _column(self, i, j, chosen, gate_hz):
         """The whole column of the chosen cluster: its poles across the model orders.

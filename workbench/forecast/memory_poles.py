@@ -2,7 +2,8 @@
 checked against the mode's shape where the poles carry shapes.
 
 Used by :func:`~workbench.forecast.blend.memory_forecast`; the cluster search itself is in
-:mod:`workbench.forecast.measurement`.
+:mod:`workbench.forecast.measurement`, the mode's reference shape (the consensus of its
+recent tracked shapes) in :mod:`workbench.forecast.shape_reference`.
 """
 
 from __future__ import annotations
@@ -14,6 +15,13 @@ import pandas as pd
 
 from .measurement import ClusterChooser, PoleIndex
 from .options import MeasurementOptions
+from .pole_selection import (
+    _MIN_SHAPE_CHANNELS,
+    _mac_on_common_channels,
+    _shape_channels,
+    _shape_matrix,
+)
+from .shape_reference import consensus_references
 
 __all__ = ["option_b_chooser"]
 
@@ -31,30 +39,19 @@ def option_b_chooser(
 
     Without shape columns the note saying so is counted in *notes*.
     """
-    from .pole_selection import _MIN_SHAPE_CHANNELS, _mac_on_common_channels, _PoleSelector
-
-    selector = _PoleSelector(
-        poles,
-        modal,
-        blocks,
-        mode_labels,
-        shape_mac_min=measurement.mac_min,
-        reacquire_blocks=measurement.reacquire_blocks,
-        reacquire_band=measurement.reacquire_band,
-    )
+    channels = _shape_channels(modal, poles)
     shape_mac = None
-    if selector.uses_shapes:
-        # selector rows are in the table order of its own sort; map PoleIndex positions
-        table_row_to_selector = np.empty(len(poles), dtype=np.int64)
-        table_row_to_selector[selector.rows] = np.arange(selector.rows.size)
+    if len(channels) >= _MIN_SHAPE_CHANNELS:
+        pole_shapes = _shape_matrix(poles, channels)  # table order
+        references, reference_row = consensus_references(
+            modal, blocks, mode_labels, channels, mac_min=measurement.mac_min
+        )
 
         def shape_mac(i, j, positions):
-            ref = int(selector.reference_row[i, j])
+            ref = int(reference_row[i, j])
             if ref < 0:
                 return np.full(positions.size, np.nan)
-            table_rows = index.rows[positions]
-            shapes = selector.shapes[selector.rows[table_row_to_selector[table_rows]]]
-            return _mac_on_common_channels(selector.reference_shapes[ref], shapes)
+            return _mac_on_common_channels(references[ref], pole_shapes[index.rows[positions]])
     else:
         notes[
             "option B without mode shapes (poles or modal lack shape_re_<channel> columns "

@@ -184,7 +184,9 @@ class MeasurementOptions:
     mac_min : float
         Option B with shapes: lowest MAC of a pole with the mode's reference shape.
     reacquire_blocks : int
-        Option B: blocks with the mode seen only outside the gate before it is re-acquired.
+        Option B: blocks with the mode seen only outside the gate before it is re-acquired
+        (model ``"window"``) or measured there, Huber-weighted (model ``"memory"``,
+        :class:`~workbench.forecast.measurement.ClusterChooser`). Default 1.
     reacquire_band : float
         Option B: relative half-width searched outside the gate. [-]
     max_gate : float
@@ -195,7 +197,7 @@ class MeasurementOptions:
     option: str = "A"
     gate_sigma: float = 3.0
     mac_min: float = 0.9
-    reacquire_blocks: int = 2
+    reacquire_blocks: int = 1
     reacquire_band: float = 0.05
     max_gate: float = 0.02
 

@@ -203,7 +203,9 @@ def sliding_forecast(
         outside the gate. Default 1: the MAC check already vouches for the pole, and on
         the demo voyage k = 2 left about 5 % of the blocks predict-only, exactly those in
         which the ship changed speed (cumulative Kalman error over all blocks 8.6 Hz
-        against 7.7 Hz with k = 1). [blocks]
+        against 7.7 Hz with k = 1). With ``model="memory"`` (default 1) the column seen
+        outside the gate is measured there, Huber-weighted, without resetting the prior
+        (:class:`~workbench.forecast.measurement.ClusterChooser`). [blocks]
     reacquire_band : float
         Option B: relative half-width of the band searched for the mode outside the gate,
         around the last chosen pole's frequency and around the a-priori estimate
@@ -381,7 +383,7 @@ def sliding_forecast(
                 option=option,
                 gate_sigma=gate_sigma,
                 mac_min=mac_min,
-                reacquire_blocks=2 if reacquire_blocks is None else reacquire_blocks,
+                reacquire_blocks=1 if reacquire_blocks is None else reacquire_blocks,
                 reacquire_band=reacquire_band,
             ),
             gap_warning_blocks=gap_warning_blocks,
