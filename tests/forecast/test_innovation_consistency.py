@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
+import pandas as pd
 import pytest
 from scipy import integrate
 from scipy.stats import norm
 
 from workbench.forecast.innovation_consistency import (
     MIN_BLOCKS,
+    WINDOW_BLOCKS,
     InnovationConsistency,
     clipped_square_moments,
 )
@@ -85,3 +88,39 @@ def test_in_sample_rows_are_not_recorded_and_nan_rows_are_skipped():
     extra = test.update(50)
     assert extra[0] == 0.0
     assert extra[1] > 0.0
+
+
+def test_noise_option_sets_the_window_and_zero_turns_the_safeguard_off():
+    from workbench.forecast import sliding_forecast
+    from workbench.forecast.options import NoiseOptions
+
+    with pytest.raises(ValueError, match="consistency_blocks"):
+        NoiseOptions(consistency_blocks=MIN_BLOCKS - 1)
+    # a model blind to a 1 % step the log does not record (blocks 60-89), AR(1) SSI errors
+    rng = np.random.default_rng(0)
+    n = 160
+    block = np.arange(n)
+    start = pd.Timestamp("2025-01-01T00:00:00Z") + pd.to_timedelta(block * 300, unit="s")
+    speed = 10 + 3 * np.sin(block / 40.0) + rng.normal(0, 0.2, n)
+    predictors = pd.DataFrame({"block": block, "block_start": start, "speed_kn": speed})
+    truth = 3.0 * (1 - 0.002 * speed) + 0.03 * ((block >= 60) & (block < 90))
+    error = np.zeros(n)
+    for k in range(1, n):
+        error[k] = 0.65 * error[k - 1] + math.sqrt(1 - 0.65**2) * rng.normal(0, 0.006)
+    modal = pd.DataFrame(
+        {"block": block, "block_start": start, "mode": 1, "frequency_hz": truth + error}
+    )
+    tables = {}
+    for blocks in (WINDOW_BLOCKS, 0):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            tables[blocks] = sliding_forecast(
+                modal,
+                predictors,
+                scheme=2,
+                model="memory",
+                noise_options=NoiseOptions(consistency_blocks=blocks),
+            ).table
+    on, off = (tables[b]["kalman_frequency_hz"].to_numpy() for b in (WINDOW_BLOCKS, 0))
+    assert np.array_equal(np.isnan(on), np.isnan(off))
+    assert np.nanmax(np.abs(on - off)) > 1e-6  # the safeguard acted on this case

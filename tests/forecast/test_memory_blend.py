@@ -99,6 +99,20 @@ def test_two_state_step_reduces_to_the_scalar_filter_without_correlated_error():
     assert new_P[0, 0, 0] == pytest.approx(ref.variance, rel=1e-12)
     assert delta[0] == 0.0
     assert nu[0] == pytest.approx(ref.innovation / math.sqrt(ref.innovation_variance))
+    # the innovation variance the normalisation used, S = HPH' + R (+ s_m^2), on request
+    *same, variance = kalman_pass_step(
+        state.copy(),
+        P.copy(),
+        F,
+        Q,
+        np.array([0.03]),
+        np.array([2e-4]),
+        np.inf,
+        model_variance=np.array([1e-4]),
+        return_variance=True,
+    )
+    assert variance[0] == pytest.approx(ref.innovation_variance + 1e-4, rel=1e-12)
+    assert same[3][0] == pytest.approx(ref.innovation / math.sqrt(variance[0]), rel=1e-12)
 
 
 def test_huber_weight_limits_an_isolated_outlier_but_not_a_persistent_one():

@@ -50,7 +50,7 @@ import numpy as np
 import pandas as pd
 
 from .excitation import sub_windows_per_block
-from .innovation_consistency import InnovationConsistency
+from .innovation_consistency import MIN_BLOCKS, InnovationConsistency
 from .measurement import PoleIndex, cluster_around, scatter_scale
 from .memory import MemoryModel
 from .memory_excitation import excitation_bias
@@ -202,7 +202,12 @@ def memory_forecast(
     is_first = True
     run = np.zeros(n_modes, dtype=np.int64)  # signed run of large innovations per mode
     # safeguard: model variance added where the filter's innovations are inconsistent
-    consistency = InnovationConsistency(n_blocks, n_modes, float(noise.huber_sigma))
+    consistency = InnovationConsistency(
+        n_blocks,
+        n_modes,
+        float(noise.huber_sigma),
+        window_blocks=max(int(noise.consistency_blocks), MIN_BLOCKS),
+    )
     while i0 <= (last if method == 2 else n_blocks - 1):
         f1 = min(i0 + horizon, (last + 1) if method == 2 else n_blocks)
         k_first = first if is_first else i0
@@ -306,7 +311,9 @@ def memory_forecast(
                 warnings.simplefilter("ignore", RuntimeWarning)
                 typical = np.sqrt(np.nanmean(s**2, axis=0))
         F, q_c, q_e, r_v, huber = filter_matrices(noise_of, noise.huber_sigma)
-        added_variance = consistency.update(i0).copy()
+        added_variance = (
+            consistency.update(i0).copy() if noise.consistency_blocks else np.zeros(n_modes)
+        )
         have_model = np.array([c is not None for c in current])
 
         # ---- Kalman pass
