@@ -112,6 +112,8 @@ class InnovationConsistency:
     added_variance: np.ndarray = field(init=False)
     _nu: np.ndarray = field(init=False, repr=False)
     _used: np.ndarray = field(init=False, repr=False)
+    _measured: list[list[int]] = field(init=False, repr=False)
+    _constants: tuple[float, float, float, float] = field(init=False, repr=False)
     _variance: np.ndarray = field(init=False, repr=False)
     _residual2: np.ndarray = field(init=False, repr=False)
 
@@ -119,27 +121,45 @@ class InnovationConsistency:
         shape = (self.n_blocks, self.n_modes)
         self._nu = np.full(shape, np.nan)
         self._used = np.zeros(shape)
+        self._measured = [[] for _ in range(self.n_modes)]
         self._variance = np.full(shape, np.nan)
         self._residual2 = np.full(shape, np.nan)
         self.added_variance = np.zeros(self.n_modes)
+        mean_k, sd_k = clipped_square_moments(self.huber_sigma)
+        # moments of ψ² under the model; one- and two-sided normal quantiles at alpha
+        self._constants = (
+            mean_k,
+            sd_k,
+            float(norm.isf(self.alpha)),
+            float(norm.isf(self.alpha / 2)),
+        )
 
     def record(self, row: int, normalised, variance, residual) -> None:
-        """Store block *row*'s normalised innovations ν, their variances S and residuals."""
+        """Store block *row*'s normalised innovations ν, their variances S and residuals.
+
+        Rows are recorded in increasing order, each once; NaN ν: no measurement.
+        """
         nu = np.asarray(normalised, dtype=float)
         self._nu[row] = nu
         self._variance[row] = np.where(np.isfinite(nu), variance, np.nan)
         self._residual2[row] = np.where(np.isfinite(nu), np.asarray(residual) ** 2, np.nan)
         self._used[row] = self.added_variance
+        for j in np.flatnonzero(np.isfinite(nu)):
+            if not self._measured[j] or self._measured[j][-1] != row:
+                self._measured[j].append(row)
 
     def update(self, row: int) -> np.ndarray:
         """Test the newest innovations before grid row *row*; return the added variance. [Hz²]"""
         k = self.huber_sigma
-        mean_k, sd_k = clipped_square_moments(k)
-        z_one = float(norm.isf(self.alpha))
-        z_two = float(norm.isf(self.alpha / 2))
+        mean_k, sd_k, z_one, z_two = self._constants
         for j in range(self.n_modes):
+            # the newest W measured rows before *row*
+            rows = self._measured[j]
+            stop = len(rows)
+            while stop and rows[stop - 1] >= row:
+                stop -= 1
+            have = np.asarray(rows[max(0, stop - self.window_blocks) : stop], dtype=np.int64)
             nu = self._nu[:row, j]
-            have = np.flatnonzero(np.isfinite(nu))[-self.window_blocks :]
             if have.size < MIN_BLOCKS:
                 continue
             n = have.size
