@@ -15,7 +15,8 @@ blocks (lag-1 correlation ρ), and v a white part. Their autocovariances add up,
 so (σ_c², σ_e², σ_v²) follow from the measured γ(0..L) by non-negative least squares for
 each (τ_c, ρ) of a grid, and the pair with the smallest misfit wins (covariance matching,
 [1]_). Safeguards against self-training into drift: the residuals are of raw measurements
-about a model that was fitted before they were seen (never of the filter's own output), they
+about a model that was fitted before they were seen (never of the filter's own output; the
+first window's, to which the model was fitted, are the exception the floor below covers), they
 are winsorised at 4 robust standard deviations (the odd mis-selected pole), the estimate
 needs :data:`MIN_RESIDUALS` residuals and is otherwise a fixed prior, and every variance has
 a floor relative to the frequency. The caller then raises σ_c² to what the out-of-sample
