@@ -193,6 +193,9 @@ def summarise(runs: pd.DataFrame) -> pd.DataFrame:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=4)
+    parser.add_argument(
+        "--first-seed", type=int, default=0, help="regime seeds first..first+seeds-1 (hold-out)"
+    )
     parser.add_argument("--blocks", type=int, default=432, help="blocks per regime (36 h)")
     parser.add_argument("--methods", default="1,2")
     parser.add_argument("--options", default="A,B")
@@ -239,7 +242,7 @@ def main(argv=None) -> int:
     rows = []
     if not args.no_regimes:
         rows += block_level_runs(
-            range(args.seeds),
+            range(args.first_seed, args.first_seed + args.seeds),
             args.blocks,
             methods,
             options,

@@ -84,21 +84,20 @@ def test_demo_tracking_recovers_the_true_modes(demo):
 
 
 def test_demo_kalman_beats_raw_ssi(demo):
-    """The blend beats the model alone and stays close to raw SSI.
+    """The blend beats the model alone and raw SSI.
 
-    On this 6-h voyage the 49 forecast blocks are too few for the blend to beat raw SSI
-    every time. With the window model (the default before issue 11) the Kalman/SSI ratio
-    of the summed cumulative errors, measured with ``workbench demo --hours 6 --seed S``
-    for seeds 0, 1, 2, was 0.985, 1.021, 1.057 (option A) and 0.997, 0.964, 1.018 (B).
-    With the memory model (the default since; 15-35 % better than raw SSI on the 3-h and
-    12-h demos, ``benchmarks/results/forecast_accuracy_after.txt``) it is 1.114 (A) and
-    1.111 (B) for seed 0 here (B was 0.940 while it left the blocks with its column
-    outside the gate predict-only; it measures them since,
-    ``benchmarks/results/forecast_accuracy_11d.txt``), and 1.14, 1.05, 1.05 (A), 1.13,
-    1.05, 1.09 (B) for seeds 0-2 in ``bench_forecast_accuracy.py --demo-hours 6
-    --demo-seeds 0,1,2`` (its blocks with a tracked estimate only): 6 h is the memory
-    model's weak length (a first term selection on the first window's one speed, few
-    blocks to learn the law). The bound below is the largest ratio seen plus a margin.
+    On this 6-h voyage (49 forecast blocks) the window model (the default before issue 11)
+    had Kalman/SSI ratios of the summed cumulative errors, measured with ``workbench demo
+    --hours 6 --seed S`` for seeds 0, 1, 2, of 0.985, 1.021, 1.057 (option A) and 0.997,
+    0.964, 1.018 (B); the memory model first had 1.114 (A) and 0.940 (B) here (its model
+    was trusted where it was off). With the model-error floor from the out-of-sample
+    residuals and the innovation-consistency safeguard (issue 11) it is 0.902 (A) and
+    0.844 (B) for seed 0 here, and 0.88-0.90 for A and B on seeds 0-2 in
+    ``bench_forecast_accuracy.py --demo-hours 6 --demo-seeds 0,1,2`` (its blocks with a
+    tracked estimate only; ``benchmarks/results/forecast_accuracy_11c.txt``). With option
+    B measuring the column it finds outside the gate (``forecast_accuracy_11d.txt``) as
+    well, it is 0.902 (A) and 0.904 (B) here. The bound is raw SSI itself: the blend must
+    not be worse than the better of its two inputs.
     """
     evaluation = pd.read_csv(demo / "evaluation.csv")
     for option, part in evaluation.groupby("option"):
@@ -106,7 +105,7 @@ def test_demo_kalman_beats_raw_ssi(demo):
         model = part["model_cumulative_error_hz"].sum()
         kalman = part["kalman_cumulative_error_hz"].sum()
         assert kalman < model, option
-        assert kalman < 1.20 * ssi, option
+        assert kalman < ssi, option
 
 
 def test_demo_tables_match_the_recorded_summary(demo):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 
@@ -18,7 +19,12 @@ from workbench.forecast import (
 )
 from workbench.forecast.blend import kalman_pass_step
 from workbench.forecast.measurement import ClusterChooser, PoleIndex
-from workbench.forecast.noise import estimate_noise
+from workbench.forecast.noise import (
+    MIN_OUT_OF_SAMPLE,
+    NoiseModel,
+    estimate_noise,
+    model_error_floor,
+)
 from workbench.forecast.options import (
     MeasurementOptions,
     ModelOptions,
@@ -56,6 +62,28 @@ def test_few_residuals_give_the_conservative_prior():
     assert noise.correction_variance >= 4 * noise.white_variance
 
 
+def test_model_error_floor_is_the_out_of_sample_excess_over_the_measurement_noise():
+    # measurement noise sigma_e^2 + sigma_v^2 = 5e-4 Hz^2; the model is off by 0.03 Hz on
+    # blocks it had not seen: E[r^2] = 9e-4 + 5e-4, so the floor is 9e-4. 4000 residuals:
+    # the mean square scatters by ~2 %, 10 % covers it and the winsorising of the tails
+    rng = np.random.default_rng(5)
+    fitted = NoiseModel(1e-8, 6.0, 4e-4, 0.6, 1e-4, n_residuals=40)
+    r = 0.03 + rng.normal(0.0, math.sqrt(5e-4), 4000)
+    raised = model_error_floor(fitted, r)
+    assert raised.correction_variance == pytest.approx(9e-4, rel=0.1)
+    assert (raised.error_variance, raised.error_correlation) == (4e-4, 0.6)
+    # residuals the measurement noise explains leave the fit as it is; the floor never
+    # lowers sigma_c^2, and too few residuals say nothing
+    calm = rng.normal(0.0, math.sqrt(5e-4), 4000)
+    assert model_error_floor(dataclasses.replace(fitted, correction_variance=1e-4), calm) == (
+        dataclasses.replace(fitted, correction_variance=1e-4)
+    )
+    big = dataclasses.replace(fitted, correction_variance=1e-2)
+    assert model_error_floor(big, r) is big
+    few = np.r_[r[: MIN_OUT_OF_SAMPLE - 1], np.nan, np.nan]
+    assert model_error_floor(fitted, few) is fitted
+
+
 def test_two_state_step_reduces_to_the_scalar_filter_without_correlated_error():
     # e has zero variance: the filter is the scalar one on c with R = sigma_v^2
     state = np.array([[0.01, 0.0]])
@@ -71,6 +99,20 @@ def test_two_state_step_reduces_to_the_scalar_filter_without_correlated_error():
     assert new_P[0, 0, 0] == pytest.approx(ref.variance, rel=1e-12)
     assert delta[0] == 0.0
     assert nu[0] == pytest.approx(ref.innovation / math.sqrt(ref.innovation_variance))
+    # the innovation variance the normalisation used, S = HPH' + R (+ s_m^2), on request
+    *same, variance = kalman_pass_step(
+        state.copy(),
+        P.copy(),
+        F,
+        Q,
+        np.array([0.03]),
+        np.array([2e-4]),
+        np.inf,
+        model_variance=np.array([1e-4]),
+        return_variance=True,
+    )
+    assert variance[0] == pytest.approx(ref.innovation_variance + 1e-4, rel=1e-12)
+    assert same[3][0] == pytest.approx(ref.innovation / math.sqrt(variance[0]), rel=1e-12)
 
 
 def test_huber_weight_limits_an_isolated_outlier_but_not_a_persistent_one():

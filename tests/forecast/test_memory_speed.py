@@ -2,8 +2,10 @@
 
 memory_reference.csv was recorded by tests/forecast/results/make_memory_reference.py with the
 memory path of commit 301f99c (before it was vectorised), and re-recorded when the method
-changed on purpose (issue 11, the innovation-run rule across overlapping blocks). The speed-up only reorganises the
-arithmetic (recursive sums instead of refits from scratch), so the values may differ by
+changed on purpose (issue 11, the innovation-run rule across overlapping blocks; the
+model-error floor from the out-of-sample residuals and the innovation-consistency
+safeguard). The speed-up only reorganises the arithmetic (recursive sums instead of refits
+from scratch), so the values may differ by
 floating-point round-off: 1e-9 Hz is ~1e-10 relative on 2-8 Hz modes, far below any
 modelling effect (the SSI scatter of the case is 3e-3 relative) and far above round-off.
 """

@@ -5,7 +5,10 @@ The steps, each in its own module:
 1. window model - :mod:`workbench.forecast.memory` (stepwise terms, exponentially
    weighted least squares over the history, refit every *horizon* blocks);
 2. noise estimation - :mod:`workbench.forecast.noise` (covariance matching of the
-   out-of-sample residuals);
+   residuals, with the model error at least what the out-of-sample residuals show beyond
+   the measurement noise: :func:`~workbench.forecast.noise.model_error_floor`), and the
+   safeguard :mod:`workbench.forecast.innovation_consistency` (model variance added while
+   the filter's innovations are larger or more one-sided than its noise model says);
 3. measurement choice - :mod:`workbench.forecast.measurement` (tracked pole or consistent
    pole cluster, per-block scatter);
 4. Kalman pass - :func:`~workbench.forecast.memory_kalman.kalman_pass_step`.
@@ -47,6 +50,7 @@ import numpy as np
 import pandas as pd
 
 from .excitation import sub_windows_per_block
+from .innovation_consistency import MIN_BLOCKS, InnovationConsistency
 from .measurement import PoleIndex, cluster_around, scatter_scale
 from .memory import MemoryModel
 from .memory_excitation import excitation_bias
@@ -55,7 +59,7 @@ from .memory_noise import filter_matrices, first_window_noise, update_run
 from .memory_output import OUTPUT_ARRAYS, assemble_table
 from .memory_poles import option_b_chooser
 from .memory_terms import MemoryRefits
-from .noise import NoiseModel, estimate_noise
+from .noise import NoiseModel, estimate_noise, model_error_floor
 from .options import MeasurementOptions, ModelOptions, NoiseOptions
 from .predictor_grid import mode_matrix, modes_to_forecast, predictor_matrix
 
@@ -197,6 +201,13 @@ def memory_forecast(
     i0 = first + train
     is_first = True
     run = np.zeros(n_modes, dtype=np.int64)  # signed run of large innovations per mode
+    # safeguard: model variance added where the filter's innovations are inconsistent
+    consistency = InnovationConsistency(
+        n_blocks,
+        n_modes,
+        float(noise.huber_sigma),
+        window_blocks=max(int(noise.consistency_blocks), MIN_BLOCKS),
+    )
     while i0 <= (last if method == 2 else n_blocks - 1):
         f1 = min(i0 + horizon, (last + 1) if method == 2 else n_blocks)
         k_first = first if is_first else i0
@@ -256,6 +267,8 @@ def memory_forecast(
                 or i0 - noise_at[j] >= model.reselect_blocks
             ):  # then with the terms' schedule (the grid search is the costly part)
                 nz = estimate_noise(r_hist, level_hz)
+                if nz.n_residuals:  # fitted, not the prior: no less model error than shown
+                    nz = model_error_floor(nz, resid[max(lo, first + train) : i0, j])
                 noise_at[j] = i0
             else:
                 nz = noise_of[j]
@@ -298,6 +311,9 @@ def memory_forecast(
                 warnings.simplefilter("ignore", RuntimeWarning)
                 typical = np.sqrt(np.nanmean(s**2, axis=0))
         F, q_c, q_e, r_v, huber = filter_matrices(noise_of, noise.huber_sigma)
+        added_variance = (
+            consistency.update(i0).copy() if noise.consistency_blocks else np.zeros(n_modes)
+        )
         have_model = np.array([c is not None for c in current])
 
         # ---- Kalman pass
@@ -365,7 +381,7 @@ def memory_forecast(
             z[~have] = np.nan
             residual = z - z_now  # innovation about what SSI is expected to see
             Q = np.column_stack([q_c, q_e * scale])
-            state, P, delta, nu = kalman_pass_step(
+            state, P, delta, nu, innovation_variance = kalman_pass_step(
                 state,
                 P,
                 F,
@@ -373,10 +389,13 @@ def memory_forecast(
                 residual,
                 r_v * scale,
                 huber,
-                model_variance=v_rows[r],
+                model_variance=v_rows[r] + added_variance,
                 previous_run=run,
                 persist_blocks=max(_PERSIST_BLOCKS, overlap + 1),
+                return_variance=True,
             )
+            if k >= first + train:  # out of sample: the model had not seen block k
+                consistency.record(k, nu, innovation_variance, residual)
             run = update_run(run, nu, huber)
             estimate = m_now + state[:, 0] + delta
             lost = have & ~_plausible(estimate, reference_hz)

@@ -24,6 +24,7 @@ def kalman_pass_step(
     model_variance=None,
     previous_run=None,
     persist_blocks=3,
+    return_variance=False,
 ):
     """One predict + update of the two-state filter for several modes at once.
 
@@ -51,10 +52,13 @@ def kalman_pass_step(
         weight, and P_cc is raised to y² (gain on c about 1). Shorter runs are what an
         AR(1) identification error with heavy tails produces and get the Huber weight.
     persist_blocks : int
+    return_variance : bool
+        Also return the innovation variance S (n,) the normalisation used. [Hz²]
 
     Returns
     -------
     state, P, white model correction δ̂ (n,), normalised innovation y/sqrt(S) (n,)
+    [, S (n,)]
     """
     # x = Fx ; P = FPF' + Q
     state = state * F
@@ -64,9 +68,10 @@ def kalman_pass_step(
     n = state.shape[0]
     delta = np.zeros(n)
     normalised = np.full(n, np.nan)
+    variance = np.full(n, np.nan)
     ok = np.isfinite(residual)
     if not ok.any():
-        return state, P, delta, normalised
+        return (state, P, delta, normalised, variance)[: 5 if return_variance else 4]
     idx = np.flatnonzero(ok)
     Pm, xm = P[idx], state[idx]
     sm2 = np.zeros(idx.size) if model_variance is None else model_variance[idx]
@@ -75,6 +80,7 @@ def kalman_pass_step(
     S = Pm[:, 0, 0] + Pm[:, 1, 1] + 2 * Pm[:, 0, 1] + R[idx] + sm2
     nu = y / np.sqrt(S)
     normalised[idx] = nu
+    variance[idx] = S
     huber_sigma = np.broadcast_to(np.asarray(huber_sigma, dtype=float), (n,))[idx]
     keep_on = np.zeros(idx.size, dtype=bool)
     if previous_run is not None:
@@ -103,7 +109,7 @@ def kalman_pass_step(
         K[:, :, None] * K[:, None, :]
     )
     state[idx], P[idx] = xm, Pm
-    return state, P, delta, normalised
+    return (state, P, delta, normalised, variance)[: 5 if return_variance else 4]
 
 
 def stationary_covariance(noise: NoiseModel) -> np.ndarray:

@@ -15,10 +15,14 @@ blocks (lag-1 correlation ρ), and v a white part. Their autocovariances add up,
 so (σ_c², σ_e², σ_v²) follow from the measured γ(0..L) by non-negative least squares for
 each (τ_c, ρ) of a grid, and the pair with the smallest misfit wins (covariance matching,
 [1]_). Safeguards against self-training into drift: the residuals are of raw measurements
-about a model that was fitted before they were seen (never of the filter's own output), they
+about a model that was fitted before they were seen (never of the filter's own output; the
+first window's, to which the model was fitted, are the exception the floor below covers), they
 are winsorised at 4 robust standard deviations (the odd mis-selected pole), the estimate
 needs :data:`MIN_RESIDUALS` residuals and is otherwise a fixed prior, and every variance has
-a floor relative to the frequency.
+a floor relative to the frequency. The caller then raises σ_c² to what the out-of-sample
+residuals show beyond the measurement variance (:func:`model_error_floor`): the fit's
+split between model error and identification error is ill-determined early on, and this
+makes the blend err toward the measurement.
 
 References
 ----------
@@ -29,14 +33,23 @@ References
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-__all__ = ["MIN_RESIDUALS", "NoiseModel", "estimate_noise", "lagged_autocovariance"]
+__all__ = [
+    "MIN_OUT_OF_SAMPLE",
+    "MIN_RESIDUALS",
+    "NoiseModel",
+    "estimate_noise",
+    "lagged_autocovariance",
+    "model_error_floor",
+]
 
 #: Fewest residuals for the covariance-matching estimate.
 MIN_RESIDUALS = 30
+#: Fewest out-of-sample residuals for the model-error floor (:func:`model_error_floor`).
+MIN_OUT_OF_SAMPLE = 8
 #: Residuals are winsorised at this many robust standard deviations.
 WINSOR = 4.0
 #: Lags matched. [blocks]
@@ -230,3 +243,44 @@ def estimate_noise(residuals: np.ndarray, level_hz: float) -> NoiseModel:
         white_variance=max(sv, 0.05 * floor_m),
         n_residuals=n,
     )
+
+
+def model_error_floor(noise: NoiseModel, out_of_sample: np.ndarray) -> NoiseModel:
+    """Raise σ_c² to what the out-of-sample residuals show beyond the measurement noise.
+
+    A residual r_k = z_k - m_k of a block the model had not seen when it was fitted has
+
+    .. math:: E[r_k^2] = σ_c^2 + σ_e^2 + σ_v^2 \\;(+ s_m^2),
+
+    so the mean square of such residuals in excess of the measurement variance,
+    σ̂_c² = mean(r²) - σ_e² - σ_v², is a method-of-moments estimate of the model error that
+    uses only out-of-sample evidence (s_m², the model's own variance, is left in: the
+    estimate errs toward the measurement). :func:`estimate_noise` fits every residual of
+    the noise window, and until the forecast has run for a while most of them are the
+    first window's in-sample residuals, to which the model was fitted: they flatter it
+    (with 75 %-overlapping blocks a 20-block window holds about five independent SSI
+    estimates, and the fit absorbs part of their error). The fit can then put the model's
+    error into the correlated identification error e, whose autocovariance over a few
+    dozen residuals is hard to tell from that of a model error with a short time constant
+    (ρ = 0.7 against φ = e^{-1/6} = 0.85), and the blend trusts a model that is off.
+
+    The floor only ever raises σ_c², so the blend leans toward the raw measurement, whose
+    error does not depend on the filter: it cannot self-train into drift. The residuals
+    are winsorised like those of the fit (one mis-selected pole cannot raise it), and with
+    fewer than :data:`MIN_OUT_OF_SAMPLE` of them *noise* is returned unchanged.
+
+    Parameters
+    ----------
+    noise : NoiseModel
+        The covariance-matching estimate.
+    out_of_sample : ndarray
+        Residuals of blocks the model was not fitted to (NaN: none). [Hz]
+    """
+    r = np.asarray(out_of_sample, dtype=float)
+    r = r[np.isfinite(r)]
+    if r.size < MIN_OUT_OF_SAMPLE:
+        return noise
+    excess = float(np.mean(_winsorise(r) ** 2)) - noise.error_variance - noise.white_variance
+    if excess <= noise.correction_variance:
+        return noise
+    return replace(noise, correction_variance=excess)

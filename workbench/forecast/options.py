@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from .._deprecation import renamed_fields
+from .innovation_consistency import MIN_BLOCKS, WINDOW_BLOCKS
 
 __all__ = [
     "DEFAULT_MODEL",
@@ -158,15 +159,25 @@ class NoiseOptions:
     pole_scatter : bool
         Scale each block's measurement variance by its cluster's frequency scatter across
         model orders (needs *poles*).
+    consistency_blocks : int
+        Newest out-of-sample blocks whose normalised innovations the consistency tests
+        use (:mod:`workbench.forecast.innovation_consistency`: model variance is added
+        while they are larger or more one-sided than the noise model says); 0 turns the
+        safeguard off. [blocks]
     """
 
     noise_blocks: int = 576
     huber_sigma: float = 2.5
     pole_scatter: bool = True
+    consistency_blocks: int = WINDOW_BLOCKS
 
     def __post_init__(self):
         if int(self.noise_blocks) < 10:
             raise ValueError(f"noise_blocks={self.noise_blocks} must be >= 10")
+        if self.consistency_blocks != 0 and self.consistency_blocks < MIN_BLOCKS:
+            raise ValueError(
+                f"consistency_blocks={self.consistency_blocks} must be 0 (off) or >= {MIN_BLOCKS}"
+            )
         if not self.huber_sigma > 0:
             raise ValueError(f"huber_sigma={self.huber_sigma!r} must be > 0")
 

@@ -5,7 +5,9 @@ Run from the repository root, with the code whose results are the reference:
 memory_reference.csv was first written by the memory path before it was vectorised (commit
 301f99c), so the test checks that the speed-up did not change the results; it was
 re-recorded when the method changed on purpose (issue 11: a run of large innovations must
-reach a block that shares no data with its first before it counts as a model error).
+reach a block that shares no data with its first before it counts as a model error; then
+the model-error variance floored by the out-of-sample residuals, noise.model_error_floor,
+and model variance added where the innovations are inconsistent, innovation_consistency).
 """
 
 from __future__ import annotations
