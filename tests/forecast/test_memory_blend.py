@@ -220,7 +220,7 @@ def test_option_b_chooses_the_consistent_cluster_with_the_modes_damping():
         index, None, shape_mac_min=0.9, reacquire_blocks=2, reacquire_band=0.05
     )
     choice = chooser.choose(0, 0, prior_hz=5.0, gate_hz=0.05, damping_ref=0.011)
-    assert choice is not None and not choice.reacquired
+    assert choice is not None and not choice.outside_gate
     assert choice.cluster.frequency_hz == pytest.approx(5.02, abs=1e-3)
     assert choice.cluster.n_orders >= 21
     assert choice.cluster.damping_ratio == pytest.approx(0.01, rel=0.1)

@@ -155,7 +155,8 @@ def _add_forecast(commands: argparse._SubParsersAction) -> None:
         default=None,
         metavar="K",
         help="pole-cluster: blocks seen only outside the gate before the track is "
-        "re-acquired (default: "
+        "re-acquired (--model window) or the column there is measured, Huber-weighted "
+        "(--model memory) (default: "
         + ", ".join(f"{k} for --model {m}" for m, k in D.FORECAST_REACQUIRE_BLOCKS.items())
         + ")",
     )

@@ -368,15 +368,13 @@ def memory_forecast(
                             if np.isfinite(damping_ref[j]) and damping_ref[j] > 0
                             else cl.damping_ratio
                         )
-                    if choice.reacquired:
-                        y = z[j] - prior_z[j]
-                        P[j, 0, 0] = max(P[j, 0, 0], y * y / max(F[j, 0] ** 2, 1e-12))
+                    if choice.outside_gate:  # measured, Huber-weighted; no reset
                         warn(
                             k,
                             j,
-                            f"track re-acquired: cluster at {z[j]:.4f} Hz outside the gate "
+                            f"measured outside the gate: column at {z[j]:.4f} Hz, gate "
                             f"{prior_z[j]:.4f} ± {gate[j]:.4f} Hz",
-                            "tracks re-acquired outside the gate (option B)",
+                            "option B measurements outside the gate",
                         )
             z[~have] = np.nan
             residual = z - z_now  # innovation about what SSI is expected to see

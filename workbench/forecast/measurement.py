@@ -161,14 +161,12 @@ class Choice:
     """Option B's choice for one mode in one block (internal).
 
     ``outside_gate``: the cluster is the mode's column seen only outside the gate (a
-    measurement the Kalman update weights down, see :meth:`ClusterChooser.choose`).
-    ``reacquired``: the prior is to be reset onto the cluster (gain about 1); this chooser
-    never asks for it (kept for the caller's re-acquisition branch).
+    measurement the Kalman update weights down, see :meth:`ClusterChooser.choose`; the
+    forecast table's ``warning`` names such rows). The prior is never reset onto it.
     """
 
     cluster: PoleCluster
     mac: float
-    reacquired: bool
     outside_gate: bool = False
 
 
@@ -268,7 +266,7 @@ class ClusterChooser:
             best = self._column(i, j, best, gate_hz)
             self.misses[j] = 0
             self._accepted(j, best[0])
-            return Choice(best[0], best[1], reacquired=False)
+            return Choice(best[0], best[1])
         # outside the gate (within the band): the column that passes the same tests and
         # has the mode's damping ratio (within x3) is the mode displaced, by an
         # identification error (an outlier stretch: the blocks sharing a corrupted stretch of
@@ -290,7 +288,7 @@ class ClusterChooser:
         if self.misses[j] < self.reacquire_blocks:
             return None
         self._accepted(j, best[0])
-        return Choice(best[0], best[1], reacquired=False, outside_gate=True)
+        return Choice(best[0], best[1], outside_gate=True)
 
     def _column(self, i, j, chosen, gate_hz):
         """The whole column of the chosen cluster: its poles across the model orders.

@@ -62,7 +62,8 @@ class ForecastOptions:
     mac_min : float
         Option B: lowest MAC of a pole's shape with the mode's tracked shape.
     reacquire_blocks : int, optional
-        Option B: blocks seen only outside the gate before the track is re-acquired.
+        Option B: blocks seen only outside the gate before the track is re-acquired
+        (window model) or the column there is measured, Huber-weighted (memory model).
     n_workers : int
         Processes the modes are spread over (the table is the same whatever the number).
     """
