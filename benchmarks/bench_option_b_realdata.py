@@ -35,7 +35,7 @@ import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_real_data import REALDATA, _write_npz, recordings  # noqa: E402
+from bench_real_data import REALDATA, _write_npz, identify_command, recordings  # noqa: E402
 
 from workbench.forecast.measurement import PoleIndex  # noqa: E402
 from workbench.forecast.memory_poles import option_b_chooser  # noqa: E402
@@ -50,24 +50,8 @@ BLOCK_FRACTION = 0.25
 def _identify(recording, data: Path, out: Path) -> bool:
     record_minutes = recording.block_minutes  # bench_real_data: one block = the record
     minutes = record_minutes * BLOCK_FRACTION
-    command = [
-        sys.executable,
-        "-m",
-        "workbench.cli",
-        "identify",
-        str(data),
-        "--out",
-        str(out),
-        "--scheduler",
-        "synchronous",
-        "--quiet",
-        "--block-minutes",
-        f"{minutes:g}",
-        "--step-minutes",
-        f"{minutes / 4:g}",
-    ]
-    if recording.rate_hz is not None:
-        command += ["--rate", f"{recording.rate_hz:g}"]
+    workbench = [sys.executable, "-m", "workbench.cli"]
+    command = identify_command(recording, data, out, minutes, minutes / 4, workbench)
     done = subprocess.run(command, capture_output=True, text=True)
     if done.returncode != 0:
         print(f"{recording.name}: identify failed: {done.stderr.strip()[-300:]}", file=sys.stderr)

@@ -104,11 +104,17 @@ def _write_npz(recording: Recording, folder: Path) -> Path:
     return write_accelerations(record, path)
 
 
-def _identify(
-    recording: Recording, data: Path, out: Path, band, workbench: list[str], overlap=False
-):
-    minutes = recording.block_minutes * (0.95 if overlap else 1.0)
-    step = recording.block_minutes * (0.05 if overlap else 1.0)
+def identify_command(
+    recording: Recording,
+    data: Path,
+    out: Path,
+    minutes: float,
+    step: float,
+    workbench: list[str],
+    band=None,
+) -> list[str]:
+    """``workbench identify`` of *recording*'s file in *data* into *out*, as a user would
+    run it: block length and step [min], the recording's decimation rate, *band* [Hz]."""
     command = [
         *workbench,
         "identify",
@@ -127,6 +133,15 @@ def _identify(
         command += ["--rate", f"{recording.rate_hz:g}"]
     if band is not None:
         command += ["--band", f"{band[0]:g}", f"{band[1]:g}"]
+    return command
+
+
+def _identify(
+    recording: Recording, data: Path, out: Path, band, workbench: list[str], overlap=False
+):
+    minutes = recording.block_minutes * (0.95 if overlap else 1.0)
+    step = recording.block_minutes * (0.05 if overlap else 1.0)
+    command = identify_command(recording, data, out, minutes, step, workbench, band)
     started = time.perf_counter()
     done = subprocess.run(command, capture_output=True, text=True)
     seconds = time.perf_counter() - started
