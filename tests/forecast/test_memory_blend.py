@@ -90,7 +90,7 @@ def test_two_state_step_reduces_to_the_scalar_filter_without_correlated_error():
     P = np.array([[[4e-4, 0.0], [0.0, 0.0]]])
     F = np.array([[0.95, 0.5]])
     Q = np.array([[1e-5, 0.0]])
-    new_state, new_P, delta, nu = kalman_pass_step(
+    new_state, new_P, delta, nu, _ = kalman_pass_step(
         state.copy(), P.copy(), F, Q, np.array([0.03]), np.array([2e-4]), np.inf
     )
     x, p = scalar_kalman_predict(0.01, 4e-4, process_variance=1e-5, transition=0.95)
@@ -99,7 +99,7 @@ def test_two_state_step_reduces_to_the_scalar_filter_without_correlated_error():
     assert new_P[0, 0, 0] == pytest.approx(ref.variance, rel=1e-12)
     assert delta[0] == 0.0
     assert nu[0] == pytest.approx(ref.innovation / math.sqrt(ref.innovation_variance))
-    # the innovation variance the normalisation used, S = HPH' + R (+ s_m^2), on request
+    # the innovation variance the normalisation used, S = HPH' + R (+ s_m^2)
     *same, variance = kalman_pass_step(
         state.copy(),
         P.copy(),
@@ -109,7 +109,6 @@ def test_two_state_step_reduces_to_the_scalar_filter_without_correlated_error():
         np.array([2e-4]),
         np.inf,
         model_variance=np.array([1e-4]),
-        return_variance=True,
     )
     assert variance[0] == pytest.approx(ref.innovation_variance + 1e-4, rel=1e-12)
     assert same[3][0] == pytest.approx(ref.innovation / math.sqrt(variance[0]), rel=1e-12)
@@ -119,11 +118,13 @@ def test_huber_weight_limits_an_isolated_outlier_but_not_a_persistent_one():
     args = (np.array([[0.95, 0.5]]), np.array([[1e-6, 1e-6]]))
     P0 = np.array([[[1e-4, 0.0], [0.0, 1e-4]]])
     big = np.array([0.5])  # 35 sigma
-    s1, _, _, nu1 = kalman_pass_step(np.zeros((1, 2)), P0.copy(), *args, big, np.array([1e-4]), 2.5)
+    s1, _, _, nu1, _ = kalman_pass_step(
+        np.zeros((1, 2)), P0.copy(), *args, big, np.array([1e-4]), 2.5
+    )
     # Huber: the step is as for an innovation of 2.5 sqrt(S): K y = P/S * 2.5 sqrt(S)
     S = 0.95**2 * 1e-4 + 1e-6 + 0.25 * 1e-4 + 1e-6 + 1e-4
     assert s1[0].sum() == pytest.approx(2.5 * math.sqrt(S) * (S - 1e-4) / S, rel=1e-6)
-    s2, _, _, _ = kalman_pass_step(
+    s2, *_ = kalman_pass_step(
         np.zeros((1, 2)),
         P0.copy(),
         *args,
@@ -146,7 +147,7 @@ def test_a_run_of_large_innovations_within_the_block_overlap_keeps_the_huber_wei
     S = 0.95**2 * 1e-4 + 1e-6 + 0.25 * 1e-4 + 1e-6 + 1e-4
     huber_step = 2.5 * math.sqrt(S) * (S - 1e-4) / S
     for before in (2, 3):
-        state, _, _, _ = kalman_pass_step(
+        state, *_ = kalman_pass_step(
             np.zeros((1, 2)),
             P0.copy(),
             *args,
@@ -157,7 +158,7 @@ def test_a_run_of_large_innovations_within_the_block_overlap_keeps_the_huber_wei
             persist_blocks=5,
         )
         assert state[0].sum() == pytest.approx(huber_step, rel=1e-6)
-    state, _, _, _ = kalman_pass_step(
+    state, *_ = kalman_pass_step(
         np.zeros((1, 2)),
         P0.copy(),
         *args,

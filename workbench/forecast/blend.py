@@ -390,7 +390,6 @@ def memory_forecast(
                 model_variance=v_rows[r] + added_variance,
                 previous_run=run,
                 persist_blocks=max(_PERSIST_BLOCKS, overlap + 1),
-                return_variance=True,
             )
             if k >= first + train:  # out of sample: the model had not seen block k
                 consistency.record(k, nu, innovation_variance, residual)

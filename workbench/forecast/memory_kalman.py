@@ -24,7 +24,6 @@ def kalman_pass_step(
     model_variance=None,
     previous_run=None,
     persist_blocks=3,
-    return_variance=False,
 ):
     """One predict + update of the two-state filter for several modes at once.
 
@@ -52,13 +51,11 @@ def kalman_pass_step(
         weight, and P_cc is raised to y² (gain on c about 1). Shorter runs are what an
         AR(1) identification error with heavy tails produces and get the Huber weight.
     persist_blocks : int
-    return_variance : bool
-        Also return the innovation variance S (n,) the normalisation used. [Hz²]
 
     Returns
     -------
-    state, P, white model correction δ̂ (n,), normalised innovation y/sqrt(S) (n,)
-    [, S (n,)]
+    state, P, white model correction δ̂ (n,), normalised innovation y/sqrt(S) (n,), and
+    the innovation variance S (n,) the normalisation used [Hz²] (NaN: no measurement)
     """
     # x = Fx ; P = FPF' + Q
     state = state * F
@@ -71,7 +68,7 @@ def kalman_pass_step(
     variance = np.full(n, np.nan)
     ok = np.isfinite(residual)
     if not ok.any():
-        return (state, P, delta, normalised, variance)[: 5 if return_variance else 4]
+        return state, P, delta, normalised, variance
     idx = np.flatnonzero(ok)
     Pm, xm = P[idx], state[idx]
     sm2 = np.zeros(idx.size) if model_variance is None else model_variance[idx]
@@ -109,7 +106,7 @@ def kalman_pass_step(
         K[:, :, None] * K[:, None, :]
     )
     state[idx], P[idx] = xm, Pm
-    return (state, P, delta, normalised, variance)[: 5 if return_variance else 4]
+    return state, P, delta, normalised, variance
 
 
 def stationary_covariance(noise: NoiseModel) -> np.ndarray:
