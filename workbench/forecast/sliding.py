@@ -12,8 +12,9 @@ SSI estimate of each block.
 
 Measurement options: A, the block's tracked pole (modal table); B, a pole of the block's
 stabilisation diagram chosen automatically: inside a gate around the a-priori estimate, with
-a mode shape matching the mode's reference shape (MAC), and re-acquired outside the gate
-when the model has lost the mode (an automatic modal parameter selection).
+a mode shape matching the mode's reference shape (MAC); a mode seen only outside the gate
+is re-acquired there (window model) or measured there with a Huber weight, the row's
+``warning`` saying so (memory model) (an automatic modal parameter selection).
 """
 
 from __future__ import annotations
