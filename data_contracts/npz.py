@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["NpzSampleHeader", "read_sample_header", "read_sample_rows"]
+__all__ = ["NpzSampleHeader", "check_sample_header", "read_sample_header", "read_sample_rows"]
 
 _MEMBER = "acceleration.npy"
 _LOCAL_HEADER = b"PK\x03\x04"
@@ -61,8 +61,9 @@ def _read_npy_header(handle) -> tuple[tuple[int, ...], bool, np.dtype]:
     return np.lib.format.read_array_header_2_0(handle)
 
 
-def read_sample_header(path: str | os.PathLike) -> NpzSampleHeader:
-    """Header of the ``acceleration`` array of the ``.npz`` file *path*.
+def read_sample_header(path: str | os.PathLike, member: str = _MEMBER) -> NpzSampleHeader:
+    """Header of the ``acceleration`` array (or of the array *member*, ``channels.npy``)
+    of the ``.npz`` file *path*.
 
     Raises
     ------
@@ -73,7 +74,7 @@ def read_sample_header(path: str | os.PathLike) -> NpzSampleHeader:
     """
     path = Path(path)
     with zipfile.ZipFile(path) as archive:
-        member = archive.getinfo(_MEMBER)
+        member = archive.getinfo(member)
         with archive.open(member) as handle:
             shape, fortran, dtype = _read_npy_header(handle)
             header_bytes = handle.tell()
@@ -94,6 +95,37 @@ def read_sample_header(path: str | os.PathLike) -> NpzSampleHeader:
         int(member.file_size),
         int(member.compress_size),
         offset,
+    )
+
+
+def check_sample_header(header: NpzSampleHeader, path: str | os.PathLike, what: str) -> None:
+    """Refuse an array whose ``.npy`` header claims more than its archive member holds, or
+    more than the memory budget (:func:`data_contracts.limits.check_declared_size`).
+
+    Raises
+    ------
+    ContractError
+        Naming the file and the array, before the array is allocated.
+    """
+    from ._core import ContractError, Violation
+    from .limits import check_declared_size
+
+    path = Path(path)
+    # the member must hold the samples its header claims, the stored bytes lie within the
+    # file, and the compression ratio stays within deflate's (checked with the budget)
+    if header.member_size < header.claimed_bytes or header.compressed_size > path.stat().st_size:
+        shown = "x".join(map(str, header.shape)) or "scalar"
+        raise ContractError(
+            [Violation(None, f"{what} declares {shown} values but the file holds fewer: not read")],
+            source=path,
+            contract="accelerations",
+        )
+    check_declared_size(
+        header.shape,
+        header.dtype.itemsize,
+        stored_bytes=header.compressed_size,
+        source=path,
+        what=what,
     )
 
 
