@@ -160,8 +160,8 @@ def check_channel_count(n_channels: int, *, source, what: str = "the file") -> N
             [
                 Violation(
                     None,
-                    f"{what} has {n_channels} columns; an acceleration file has at most "
-                    f"{MAX_CHANNELS} channels: not read",
+                    f"{what} has {n_channels} channels; an acceleration file has at most "
+                    f"{MAX_CHANNELS}: not read",
                 )
             ],
             source=source,

@@ -36,7 +36,14 @@ import pandas as pd
 from data_contracts import read_accelerations
 from data_contracts.npz import check_sample_header, read_sample_header
 
-from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S, BlockGrid, utc_timestamp
+from ..blocks import (
+    DEFAULT_BLOCK_LENGTH_S,
+    DEFAULT_BLOCK_STEP_S,
+    MAX_BLOCKS,
+    BlockGrid,
+    utc_timestamp,
+)
+from ..errors import OptionError
 
 __all__ = ["BlockPlan", "FileInfo", "PlannedBlock", "plan_blocks", "read_file_info"]
 
@@ -303,6 +310,13 @@ def plan_file_infos(
     starts_ns = np.array([_ns(i.start_time) for i in infos], dtype=np.int64)
     ends_ns = np.array([_ns(i.end_time) for i in infos], dtype=np.int64)
     half = pd.Timedelta(seconds=0.5 / rate)
+    span_s = (infos[-1].end_time - infos[0].start_time).total_seconds()
+    if span_s / grid.step_s > MAX_BLOCKS:  # counted before any block is listed
+        raise OptionError(
+            f"step_s={grid.step_s:g} gives about {span_s / grid.step_s:.3g} blocks over the "
+            f"files' {span_s / 3600:.3g} h; at most {MAX_BLOCKS} blocks: give a step of at "
+            f"least {span_s / MAX_BLOCKS:.3g} s or fewer files"
+        )
     numbers = grid.complete_blocks(infos[0].start_time - half, infos[-1].end_time + half)
     planned = []
     for k in numbers:
