@@ -315,7 +315,9 @@ def _check_mat5_sizes(path: Path, names: set[str]) -> None:
         if name not in names:
             continue
         itemsize = 16 if kind == "cell" else 8  # at most a double per element
-        check_declared_size(shape, itemsize, stored_bytes=size, source=path, what=f"variable {name}")
+        check_declared_size(
+            shape, itemsize, stored_bytes=size, source=path, what=f"variable {name}"
+        )
 
 
 def _read_mat(path: Path, variables: dict[str, str], orientation: str) -> AccelerationRecord:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from .. import defaults as D
 from ..arguments import add_renamed
+from ..errors import printable
 from ..inputs import acceleration_layout, add_acceleration_layout
 from .common import EXIT_OK, UsageError, _add_parallel, _check_positive, _option_names
 
@@ -258,7 +259,9 @@ def identify_options(args: argparse.Namespace):
         raise UsageError(f"--lscf-max-order must be at least 1, got {lscf_max_order}")
     # ranges are checked before the order tuples are built from them
     if args.max_order > MAX_MODEL_ORDER:
-        raise UsageError(f"--max-order {args.max_order} is above the highest order {MAX_MODEL_ORDER}")
+        raise UsageError(
+            f"--max-order {args.max_order} is above the highest order {MAX_MODEL_ORDER}"
+        )
     if lscf_max_order > MAX_LSCF_ORDER:
         raise UsageError(
             f"--lscf-max-order {lscf_max_order} is above the highest order {MAX_LSCF_ORDER}"
@@ -338,7 +341,7 @@ def _run_identify(args: argparse.Namespace) -> int:
     except IdentifyOptionsError as error:
         raise UsageError(str(error)) from None
     for line in result.lines:
-        print(line)
+        print(printable(line))
     if args.stabilisation_figures:
         from ..identify import write_block_figures
 
