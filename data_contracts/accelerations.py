@@ -243,7 +243,7 @@ _NPZ_ARRAYS = ("acceleration", "sampling_rate_hz", "start_time", "channels")
 
 
 def _read_npz(path: Path) -> AccelerationRecord:
-    from .npz import check_sample_header, read_sample_header
+    from .npz import check_sample_header, read_sample_headers
 
     def not_npz() -> ContractError:
         return ContractError([Violation(None, _NOT_NPZ)], source=path, contract="accelerations")
@@ -258,7 +258,8 @@ def _read_npz(path: Path) -> AccelerationRecord:
                 source=path,
                 contract="accelerations",
             )
-        headers = {k: read_sample_header(path, f"{k}.npy") for k in _NPZ_ARRAYS}
+        found = read_sample_headers(path, tuple(f"{k}.npy" for k in _NPZ_ARRAYS))
+        headers = {k: found[f"{k}.npy"] for k in _NPZ_ARRAYS}
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as error:
         if isinstance(error, ContractError):
             raise

@@ -285,6 +285,32 @@ def test_memory_budget_is_one_overridable_limit(tmp_path, monkeypatch):
         assert "memory budget of 102 KB" in message and MAX_ARRAY_BYTES_VARIABLE in message
 
 
+def test_npz_small_array_claiming_billions_is_refused_before_loading(tmp_path):
+    """Every array of an .npz goes through the guard, not only the samples: a channels
+    header claiming 10^10 names in a 1-KB archive (np.load would allocate them first)."""
+    import zipfile
+
+    from workbench.signals.block_plan import read_file_info
+
+    path = tmp_path / "names.npz"
+    arrays = {
+        "acceleration": response(64, 1),
+        "sampling_rate_hz": np.float64(RATE_HZ),
+        "start_time": np.str_(START),
+    }
+    with zipfile.ZipFile(path, "w") as archive:
+        for key, value in arrays.items():
+            with archive.open(f"{key}.npy", "w") as handle:
+                np.lib.format.write_array(handle, np.asarray(value))
+        with archive.open("channels.npy", "w") as handle:
+            header = {"descr": "<U5", "fortran_order": False, "shape": (10**10,)}
+            np.lib.format.write_array_header_1_0(handle, header)
+            handle.write(np.array(CHANNELS, dtype="<U5").tobytes())
+    for read in (read_accelerations, read_file_info):
+        with pytest.raises(ContractError, match="array channels declares 10000000000 values"):
+            read(path)
+
+
 def test_csv_with_too_many_columns_is_refused_before_parsing(tmp_path, capsys, monkeypatch):
     """The reported case: 10^6 columns ran 147 s, then MemoryError (10^5: 101 s)."""
     import data_contracts.formats.text as text

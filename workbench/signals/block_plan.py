@@ -34,7 +34,7 @@ import numpy as np
 import pandas as pd
 
 from data_contracts import read_accelerations
-from data_contracts.npz import check_sample_header, read_sample_header
+from data_contracts.npz import check_sample_header, read_checked_arrays, read_sample_header
 
 from ..blocks import (
     DEFAULT_BLOCK_LENGTH_S,
@@ -86,14 +86,15 @@ class FileInfo:
 
 def _npz_info(path: Path) -> FileInfo:
     header = read_sample_header(path)
-    shape = header.shape
-    # The samples the header claims must be in the archive (a 1-KB file claiming 30 days
-    # would plan thousands of blocks) and fit the memory budget: the readers' one guard.
+    # The samples a header claims must be in the archive (a 1-KB file claiming 30 days
+    # would plan thousands of blocks) and fit the memory budget: the readers' one guard,
+    # also on the small arrays before they are read.
     check_sample_header(header, path, "array acceleration")
-    with np.load(path, allow_pickle=False) as data:
-        rate = float(np.asarray(data["sampling_rate_hz"]).reshape(-1)[0])
-        start = str(np.asarray(data["start_time"]).reshape(-1)[0])
-        channels = tuple(str(c) for c in np.asarray(data["channels"]).ravel())
+    shape = header.shape
+    data = read_checked_arrays(path, ("sampling_rate_hz", "start_time", "channels"))
+    rate = float(np.asarray(data["sampling_rate_hz"]).reshape(-1)[0])
+    start = str(np.asarray(data["start_time"]).reshape(-1)[0])
+    channels = tuple(str(c) for c in np.asarray(data["channels"]).ravel())
     if len(shape) != 2 or shape[1] != len(channels) or not (math.isfinite(rate) and rate > 0):
         raise ValueError("inconsistent header")
     return FileInfo(path, utc_timestamp(start), rate, int(shape[0]), channels)
