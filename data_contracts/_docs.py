@@ -61,8 +61,8 @@ written by `write_accelerations(record, path)`:
 |---|---|
 | `.mat` | v5 (SciPy) or v7.3 (h5py); variables found under their usual names (`data`, `fs`, `t0`, `chanNames`, ...) or named (`variables`, `--variables acceleration=X,...`); `t0` as text, MATLAB datenum or datevec |
 | `.csv`, `.tsv`, `.txt` | a time column (`time`, `Timestamp`, `Time [s]`, ... or `time_column`) in ISO-8601, `yyyy/mm/dd`, `dd.mm.yyyy`, a `time_format`, or relative seconds plus `start_time` (a time, or `filename` for the time in the file name); separator and decimal comma detected; `Start time:` and `Sample rate:` lines above the header are read; one column per channel |
-| `.h5`, `.hdf5` | the 2-D dataset (or a group of one 1-D dataset per channel), rate, start and channel names as datasets beside it or attributes, or named (`variables`); links to other files are not followed |
-| `.uff`, `.unv` | dataset 58 time responses (function type 1) via `pyuff`; channels named by node and direction (`101+Z`); start from the ID lines or `start_time` |
+| `.h5`, `.hdf5` | the 2-D dataset (or a group of one 1-D dataset per channel), rate, start and channel names as datasets beside it or attributes, or named (`variables`) |
+| `.uff`, `.unv` | dataset 58 time responses (function type 1) via `pyuff`; channels named by node and direction (`101+Z`); start from the ID lines or `start_time`; every record complete (a file ending inside a record is refused), evenly spaced with a positive increment, its declared number of points equal to its values, at least 16 samples |
 
 Units come from `units` (one for all channels or per channel), else from the headers or
 HDF5/UFF unit labels (`acc01 [g]`, `[mm/s^2]`), else m/s²; g, mg, mm/s², cm/s², gal and
@@ -74,9 +74,21 @@ is refused, not read as nanoseconds since 1970), no infinite values, |a| below 5
 (larger values mean wrong units). Text-file times must increase strictly (shuffled or
 duplicated rows are refused), every step must lie within half a sample of the sampling
 interval (a gap inside a file would shift the later samples: split the file there) and a
-given sampling rate must agree with the times. MATLAB v7.3 and HDF5 files whose variables
-use HDF5 external storage, external links or virtual datasets are refused before anything
-is read (such a file could make the reader open any local file).
+given sampling rate must agree with the times.
+
+**Files that read other files or memory they do not hold.** One rule for every container
+format (HDF5 `.h5`/`.hdf5`, MATLAB v7.3, any future one; `data_contracts.formats.containers`):
+a file must hold its own data. A file with an HDF5 external link, user-defined link,
+external storage or virtual dataset anywhere is refused before any value is read (such a
+file could make the reader open any local file and show its bytes in a message or a
+table); soft links resolve inside the file; every dataset read is checked again. Before an
+array is allocated, its declared size is checked (`data_contracts.limits`) against the
+bytes the file stores for it (at most 1100:1, deflate's ceiling) and against the memory
+budget of one array, 4 GiB as float64 unless the environment variable
+`WORKBENCH_MAX_ARRAY_BYTES` sets another (`8G`, `500M`, bytes): `.npz`, `.mat` (v5 and
+v7.3) and `.h5` alike. No file may have more than 1024 channels (a text file's header line
+is counted before it is parsed). A file that is not an `.npz` archive of numeric arrays is
+one line, `not a valid .npz acceleration file (...)`; pickled objects are never loaded.
 
 ## Raw ship log (`dship`)
 

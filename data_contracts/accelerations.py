@@ -10,6 +10,7 @@ from __future__ import annotations
 import numbers
 import os
 import re
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from ._core import ContractError, Violation, atomic_path
+from .limits import check_channel_count, check_declared_size
 
 __all__ = [
     "MAX_PLAUSIBLE_ACCELERATION_MS2",
@@ -230,25 +232,55 @@ def _scalar(value):
     return array.reshape(-1)[0] if array.size else np.nan
 
 
+#: The one line for an ``.npz`` file that is not an acceleration archive (whatever NumPy
+#: says: its messages suggest loading pickles, which are never loaded).
+_NOT_NPZ = (
+    "not a valid .npz acceleration file (a NumPy archive of the numeric arrays acceleration, "
+    "sampling_rate_hz, start_time and channels)"
+)
+
+_NPZ_ARRAYS = ("acceleration", "sampling_rate_hz", "start_time", "channels")
+
+
 def _read_npz(path: Path) -> AccelerationRecord:
-    with np.load(path, allow_pickle=False) as data:
-        missing = [
-            k
-            for k in ("acceleration", "sampling_rate_hz", "start_time", "channels")
-            if k not in data.files
-        ]
+    from .npz import check_sample_header, read_sample_headers
+
+    def not_npz() -> ContractError:
+        return ContractError([Violation(None, _NOT_NPZ)], source=path, contract="accelerations")
+
+    try:
+        with zipfile.ZipFile(path) as archive:
+            members = set(archive.namelist())
+        missing = [k for k in _NPZ_ARRAYS if f"{k}.npy" not in members]
         if missing:
             raise ContractError(
                 [Violation(k, "array missing from the .npz file") for k in missing],
                 source=path,
                 contract="accelerations",
             )
-        return AccelerationRecord(
-            data["acceleration"],
-            _scalar(data["sampling_rate_hz"]),
-            _scalar(data["start_time"]),
-            tuple(str(c) for c in data["channels"].ravel()),
-        )
+        found = read_sample_headers(path, tuple(f"{k}.npy" for k in _NPZ_ARRAYS))
+        headers = {k: found[f"{k}.npy"] for k in _NPZ_ARRAYS}
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as error:
+        if isinstance(error, ContractError):
+            raise
+        raise not_npz() from None
+    for key, header in headers.items():
+        if header.dtype.hasobject:  # pickled Python objects: never loaded
+            raise not_npz()
+        check_sample_header(header, path, f"array {key}")
+    shape = headers["acceleration"].shape
+    if len(shape) == 2:
+        check_channel_count(shape[1], source=path, what="array acceleration")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return AccelerationRecord(
+                data["acceleration"],
+                _scalar(data["sampling_rate_hz"]),
+                _scalar(data["start_time"]),
+                tuple(str(c) for c in data["channels"].ravel()),
+            )
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        raise not_npz() from None
 
 
 def _mat_text(value) -> str:
@@ -274,48 +306,19 @@ def _mat_channels(value, n_channels: int) -> tuple[str, ...]:
     return tuple(names)
 
 
-def _refuse_external_hdf5(mat, path: Path) -> None:
-    """Raise ContractError if any object of the HDF5 file reads data from another file.
+def _check_mat5_sizes(path: Path, names: set[str]) -> None:
+    """Declared sizes of the MATLAB v5 variables *names* against the file and the budget
+    (:func:`data_contracts.limits.check_declared_size`), from the headers alone."""
+    import scipy.io
 
-    External links, external raw storage and virtual datasets make the library open files
-    named inside the MATLAB file: a crafted file could read (and an error message echo) any
-    local file. Nothing is read from such a file; the message names only the object.
-    """
-    import h5py
-
-    seen: set = set()
-
-    def refuse(name: str, how: str):
-        return ContractError(
-            [Violation(name, f"{how}: data stored in another file are refused for safety")],
-            source=path,
-            contract="accelerations",
+    size = path.stat().st_size
+    for name, shape, kind in scipy.io.whosmat(path):
+        if name not in names:
+            continue
+        itemsize = 16 if kind == "cell" else 8  # at most a double per element
+        check_declared_size(
+            shape, itemsize, stored_bytes=size, source=path, what=f"variable {name}"
         )
-
-    def walk(group, prefix: str) -> None:
-        for key in group:
-            name = f"{prefix}/{key}"
-            link = group.get(key, getlink=True)
-            if isinstance(link, h5py.ExternalLink):
-                raise refuse(name, "HDF5 external link")
-            if isinstance(link, h5py.SoftLink):
-                continue  # its target is an object of this file, checked where it lies
-            node = group.get(key)
-            if node is None:
-                continue
-            address = h5py.h5o.get_info(node.id).addr
-            if address in seen:
-                continue
-            seen.add(address)
-            if isinstance(node, h5py.Group):
-                walk(node, name)
-            elif isinstance(node, h5py.Dataset):
-                if node.is_virtual:
-                    raise refuse(name, "HDF5 virtual dataset")
-                if node.id.get_create_plist().get_external_count() > 0:
-                    raise refuse(name, "HDF5 external storage")
-
-    walk(mat, "")
 
 
 def _read_mat(path: Path, variables: dict[str, str], orientation: str) -> AccelerationRecord:
@@ -328,21 +331,35 @@ def _read_mat(path: Path, variables: dict[str, str], orientation: str) -> Accele
     if is_hdf5:
         import h5py
 
+        from .formats.containers import container_datasets, read_dataset
+
         with h5py.File(path, "r") as mat:
-            _refuse_external_hdf5(mat, path)
+            # refuses data in other files before any value is read (one rule for HDF5 and
+            # MATLAB v7.3); every read below checks the dataset and its declared size again
+            container_datasets(mat, path)
             for key, name in variables.items():
                 if name not in mat:
                     continue
                 node = mat[name]
-                if isinstance(node, h5py.Dataset) and node.dtype == h5py.ref_dtype:
-                    contents[key] = [np.asarray(mat[ref]) for ref in node[()].ravel()]
+                what = f"variable {name}"
+                if key == "acceleration" and isinstance(node, h5py.Dataset) and node.ndim == 2:
+                    check_channel_count(min(node.shape), source=path, what=what)
+                values = read_dataset(node, path, what=what)
+                if node.dtype == h5py.ref_dtype:
+                    contents[key] = [
+                        read_dataset(mat[ref], path, what=f"{what} (cell)")
+                        for ref in values.ravel()
+                    ]
                 else:
-                    contents[key] = np.asarray(node[()])
+                    contents[key] = values
         # HDF5 stores MATLAB arrays column-major: transpose the 2-D matrix back.
         if "acceleration" in contents:
             contents["acceleration"] = np.asarray(contents["acceleration"]).T
     else:
-        raw = scipy.io.loadmat(path, squeeze_me=False, chars_as_strings=True)
+        _check_mat5_sizes(path, set(variables.values()))
+        raw = scipy.io.loadmat(
+            path, squeeze_me=False, chars_as_strings=True, variable_names=list(variables.values())
+        )
         for key, name in variables.items():
             if name in raw:
                 contents[key] = raw[name]

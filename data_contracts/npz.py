@@ -16,7 +16,14 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["NpzSampleHeader", "read_sample_header", "read_sample_rows"]
+__all__ = [
+    "NpzSampleHeader",
+    "check_sample_header",
+    "read_sample_header",
+    "read_checked_arrays",
+    "read_sample_headers",
+    "read_sample_rows",
+]
 
 _MEMBER = "acceleration.npy"
 _LOCAL_HEADER = b"PK\x03\x04"
@@ -61,39 +68,121 @@ def _read_npy_header(handle) -> tuple[tuple[int, ...], bool, np.dtype]:
     return np.lib.format.read_array_header_2_0(handle)
 
 
-def read_sample_header(path: str | os.PathLike) -> NpzSampleHeader:
-    """Header of the ``acceleration`` array of the ``.npz`` file *path*.
+def read_sample_header(path: str | os.PathLike, member: str = _MEMBER) -> NpzSampleHeader:
+    """Header of the ``acceleration`` array (or of the array *member*, ``channels.npy``)
+    of the ``.npz`` file *path*.
 
     Raises
     ------
     KeyError
-        The archive has no ``acceleration`` member.
+        The archive has no such member.
     OSError, ValueError, zipfile.BadZipFile
         The file or its header cannot be read.
     """
+    return read_sample_headers(path, (member,))[member]
+
+
+def read_sample_headers(
+    path: str | os.PathLike, members: tuple[str, ...]
+) -> dict[str, NpzSampleHeader]:
+    """Headers of the arrays *members* (``acceleration.npy``, ...) of the ``.npz`` file
+    *path*, the archive opened once. Errors as :func:`read_sample_header`."""
     path = Path(path)
+    headers = {}
+    with zipfile.ZipFile(path) as archive, open(path, "rb") as raw:
+        for name in members:
+            member = archive.getinfo(name)
+            with archive.open(member) as handle:
+                shape, fortran, dtype = _read_npy_header(handle)
+                header_bytes = handle.tell()
+            offset = None
+            if member.compress_type == zipfile.ZIP_STORED:
+                raw.seek(member.header_offset)
+                local = raw.read(30)
+                if local[:4] == _LOCAL_HEADER:
+                    name_length = int.from_bytes(local[26:28], "little")
+                    extra_length = int.from_bytes(local[28:30], "little")
+                    offset = member.header_offset + 30 + name_length + extra_length + header_bytes
+            headers[name] = NpzSampleHeader(
+                tuple(int(n) for n in shape),
+                np.dtype(dtype),
+                bool(fortran),
+                int(header_bytes),
+                int(member.file_size),
+                int(member.compress_size),
+                offset,
+            )
+    return headers
+
+
+def read_checked_arrays(path: str | os.PathLike, keys: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """The arrays *keys* (``channels``, ...) of the ``.npz`` file *path*, each header
+    checked (:func:`check_sample_header`, no object arrays) before its array is allocated;
+    the archive opened once.
+
+    Raises
+    ------
+    ContractError
+        For a header claiming more than the archive holds or the memory budget.
+    KeyError, OSError, ValueError, zipfile.BadZipFile
+        For a missing member, an object array or an unreadable file.
+    """
+    values = {}
     with zipfile.ZipFile(path) as archive:
-        member = archive.getinfo(_MEMBER)
-        with archive.open(member) as handle:
-            shape, fortran, dtype = _read_npy_header(handle)
-            header_bytes = handle.tell()
-    offset = None
-    if member.compress_type == zipfile.ZIP_STORED:
-        with open(path, "rb") as handle:
-            handle.seek(member.header_offset)
-            local = handle.read(30)
-        if local[:4] == _LOCAL_HEADER:
-            name_length = int.from_bytes(local[26:28], "little")
-            extra_length = int.from_bytes(local[28:30], "little")
-            offset = member.header_offset + 30 + name_length + extra_length + header_bytes
-    return NpzSampleHeader(
-        tuple(int(n) for n in shape),
-        np.dtype(dtype),
-        bool(fortran),
-        int(header_bytes),
-        int(member.file_size),
-        int(member.compress_size),
-        offset,
+        for key in keys:
+            member = archive.getinfo(f"{key}.npy")
+            with archive.open(member) as handle:
+                shape, fortran, dtype = _read_npy_header(handle)
+                header = NpzSampleHeader(
+                    tuple(int(n) for n in shape),
+                    np.dtype(dtype),
+                    bool(fortran),
+                    int(handle.tell()),
+                    int(member.file_size),
+                    int(member.compress_size),
+                    None,
+                )
+                if header.dtype.hasobject:
+                    raise ValueError(f"array {key} holds Python objects")
+                check_sample_header(header, path, f"array {key}")
+                count = int(np.prod(header.shape))
+                data = handle.read(count * header.dtype.itemsize)
+                if len(data) != count * header.dtype.itemsize:
+                    raise ValueError(f"array {key} is cut short")
+                values[key] = np.frombuffer(data, dtype=header.dtype).reshape(
+                    header.shape, order="F" if header.fortran_order else "C"
+                )
+    return values
+
+
+def check_sample_header(header: NpzSampleHeader, path: str | os.PathLike, what: str) -> None:
+    """Refuse an array whose ``.npy`` header claims more than its archive member holds, or
+    more than the memory budget (:func:`data_contracts.limits.check_declared_size`).
+
+    Raises
+    ------
+    ContractError
+        Naming the file and the array, before the array is allocated.
+    """
+    from ._core import ContractError, Violation
+    from .limits import check_declared_size
+
+    path = Path(path)
+    # the member must hold the samples its header claims, the stored bytes lie within the
+    # file, and the compression ratio stays within deflate's (checked with the budget)
+    if header.member_size < header.claimed_bytes or header.compressed_size > path.stat().st_size:
+        shown = "x".join(map(str, header.shape)) or "scalar"
+        raise ContractError(
+            [Violation(None, f"{what} declares {shown} values but the file holds fewer: not read")],
+            source=path,
+            contract="accelerations",
+        )
+    check_declared_size(
+        header.shape,
+        header.dtype.itemsize,
+        stored_bytes=header.compressed_size,
+        source=path,
+        what=what,
     )
 
 

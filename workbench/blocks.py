@@ -18,6 +18,8 @@ import pandas as pd
 __all__ = [
     "DEFAULT_BLOCK_LENGTH_S",
     "DEFAULT_BLOCK_STEP_S",
+    "MAX_BLOCKS",
+    "MAX_BLOCKS_PER_SAMPLE",
     "BlockGrid",
     "block_grid_of",
     "utc_timestamp",
@@ -27,6 +29,12 @@ __all__ = [
 DEFAULT_BLOCK_LENGTH_S = 1200.0
 #: Default step between block starts (75 % overlap with the default length). [s]
 DEFAULT_BLOCK_STEP_S = 300.0
+
+#: Most blocks one sample may lie in (block length over step): finer steps repeat the same
+#: identification for hardly different data (the default is 4).
+MAX_BLOCKS_PER_SAMPLE = 100
+#: Most blocks one plan may list (ten years of the default 5-min step). [-]
+MAX_BLOCKS = 1_000_000
 
 _NS = 1_000_000_000
 

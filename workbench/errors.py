@@ -1,9 +1,31 @@
-"""Exceptions for user-facing problems that are not contract violations.
+r"""Exceptions for user-facing problems that are not contract violations, and how a
+message is made safe to print.
 
 One rule for exit codes everywhere: :class:`OptionError` (an option that cannot work, with
 this data or at all) is a usage error, exit 2, reported without an input file's name;
 :class:`WorkbenchError` and contract errors are bad data or files, exit 1.
+
+Messages quote file names, column names and cell values, which may hold terminal escape
+sequences (``\x1b]0;...``) or line breaks that fake a second message: :func:`printable`
+shows every control character escaped, as Python's ``repr`` would (``\x1b``, ``\n``).
 """
+
+import re
+
+#: C0 and C1 control characters, DEL, and the Unicode line separators and bidirectional
+#: controls that reorder what a terminal shows.
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029\u200e\u200f\u202a-\u202e\u2066-\u2069]")
+
+
+def _escape(match: re.Match) -> str:
+    character = match.group()
+    return repr(character)[1:-1] if ord(character) < 0x100 else f"\\u{ord(character):04x}"
+
+
+def printable(text) -> str:
+    r"""*text* with every control character escaped (``\x1b``, ``\n``, ``\u202e``), so
+    a message is one line that cannot drive the terminal."""
+    return _CONTROL.sub(_escape, str(text))
 
 
 class WorkbenchError(Exception):

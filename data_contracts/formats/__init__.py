@@ -17,6 +17,12 @@ Readers, by suffix:
 Units are converted to m/s² (:data:`ACCELERATION_UNITS`): per file, per channel, or from the
 headers (``acc01 [g]``). When a file cannot be read, the error lists what it does contain
 (columns, variables, datasets).
+
+Every reader follows two rules. A container file (HDF5, MATLAB v7.3, any future one) must
+hold its own data: :mod:`~data_contracts.formats.containers` refuses external links,
+external storage and virtual datasets before anything is read. No array is allocated
+before its declared size is checked against the file and the memory budget
+(:mod:`data_contracts.limits`, ``WORKBENCH_MAX_ARRAY_BYTES``).
 """
 
 from __future__ import annotations

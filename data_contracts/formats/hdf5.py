@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .._core import ContractError, Violation
+from ..limits import check_channel_count, check_declared_size
 from . import (
     AccelerationLayout,
     convert_units,
@@ -17,6 +18,7 @@ from . import (
     resolve_start,
     warn_if_gravity_in_g,
 )
+from .containers import check_dataset, container_datasets, read_dataset
 
 __all__ = ["HDF5_SUFFIXES", "read_hdf5_accelerations"]
 
@@ -63,8 +65,10 @@ def _texts(value) -> list[str]:
 def read_hdf5_accelerations(path: str | os.PathLike, layout: AccelerationLayout):
     """Read an HDF5 acceleration file (see :class:`AccelerationLayout`).
 
-    Soft and external links and datasets with external storage are not followed: a file
-    must hold its own data.
+    A file must hold its own data: external links, external storage and virtual datasets
+    are refused before anything is read (:mod:`data_contracts.formats.containers`), and
+    every dataset's declared size is checked against the file and the memory budget
+    (:mod:`data_contracts.limits`) before it is read.
     """
     import h5py
 
@@ -72,23 +76,15 @@ def read_hdf5_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
 
     path = Path(path)
     with h5py.File(path, "r") as handle:
-        datasets: dict[str, h5py.Dataset] = {}
-        links: list[str] = []
+        # refuses anything taking data from another file, before any value is read
+        datasets = container_datasets(handle, path)
 
-        def walk(group: h5py.Group, prefix: str) -> None:
-            for key in group:
-                link = group.get(key, getlink=True)
-                name = f"{prefix}{key}"
-                if isinstance(link, h5py.ExternalLink | h5py.SoftLink):
-                    links.append(name)
-                    continue
-                node = group[key]
-                if isinstance(node, h5py.Group):
-                    walk(node, name + "/")
-                else:
-                    datasets[name] = node
+        def value(node, key: str):
+            """A dataset's values (checked, size-guarded) or an attribute's value."""
+            if isinstance(node, h5py.Dataset):
+                return read_dataset(node, path, what=f"{key} dataset {node.name}")
+            return node
 
-        walk(handle, "/")
         listing = [
             f"{n} ({'x'.join(map(str, d.shape)) or 'scalar'} {d.dtype})"
             for n, d in datasets.items()
@@ -119,8 +115,6 @@ def read_hdf5_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
                 for candidate in (clean, f"{beside}{clean}" if not wanted else clean):
                     if candidate in datasets:
                         return datasets[candidate], candidate
-                if clean in links:
-                    raise fail(f"'{clean}' is a link to data outside the file; not followed")
                 for place in places:
                     if name in place.attrs:
                         return place.attrs[name], f"attribute {name} of {place.name}"
@@ -141,7 +135,17 @@ def read_hdf5_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
             if not members:
                 raise fail(f"group '{wanted}' holds no 1-D datasets")
             nodes = [group[k] for k in members]
-            matrix = np.column_stack([_data(n, path, fail) for n in nodes])
+            for node in nodes:
+                check_dataset(node, path)
+            check_channel_count(len(nodes), source=path, what=f"group {wanted}")
+            check_declared_size(
+                (max(n.shape[0] for n in nodes), len(nodes)),
+                max(n.dtype.itemsize for n in nodes),
+                stored_bytes=sum(n.id.get_storage_size() for n in nodes),
+                source=path,
+                what=f"group {wanted}",
+            )
+            matrix = np.column_stack([value(n, "acceleration") for n in nodes])
             group_channels = members
             acc_node = nodes[0]
         else:
@@ -157,7 +161,15 @@ def read_hdf5_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
                 acc_node = numeric[0]
             if not isinstance(acc_node, h5py.Dataset):
                 raise fail("the acceleration is an attribute, not a dataset", "acceleration")
-            matrix = _data(acc_node, path, fail)
+            if acc_node.ndim == 2:
+                shape = acc_node.shape
+                across = {"samples_first": shape[1], "channels_first": shape[0]}
+                check_channel_count(
+                    across.get(layout.orientation, min(shape)),
+                    source=path,
+                    what=f"dataset {acc_node.name}",
+                )
+            matrix = value(acc_node, "acceleration")
         places = (acc_node, acc_node.parent, handle)
         matrix = np.asarray(matrix)
         if matrix.dtype.kind == "c":
@@ -178,15 +190,9 @@ def read_hdf5_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
         rate = layout.sampling_rate_hz
         times = None
         if time_value is not None:
-            times = np.asarray(
-                time_value[()] if isinstance(time_value, h5py.Dataset) else time_value, dtype=float
-            ).ravel()
+            times = np.asarray(value(time_value, "time"), dtype=float).ravel()
         if rate is None and rate_value is not None:
-            rate = float(
-                np.asarray(
-                    rate_value[()] if isinstance(rate_value, h5py.Dataset) else rate_value
-                ).ravel()[0]
-            )
+            rate = float(np.asarray(value(rate_value, "sampling_rate_hz")).ravel()[0])
         if rate is None and times is not None and times.size > 1:
             rate = round(1.0 / float(np.median(np.diff(times))), 9)
         if rate is None:
@@ -196,8 +202,7 @@ def read_hdf5_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
         if layout.start_time is not None:
             start = layout_start(layout, path)
         elif start_value is not None:
-            raw = start_value[()] if isinstance(start_value, h5py.Dataset) else start_value
-            raw = np.asarray(raw)
+            raw = np.asarray(value(start_value, "start_time"))
             start = _text(raw) if raw.dtype.kind in "SOU" else resolve_start(raw, path)
         elif times is not None and times.size and times[0] > 1e8:
             start = resolve_start(times[0], path)
@@ -207,7 +212,7 @@ def read_hdf5_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
         if group_channels is not None:
             channels = list(group_channels)
         elif channel_value is not None:
-            raw = channel_value[()] if isinstance(channel_value, h5py.Dataset) else channel_value
+            raw = value(channel_value, "channels")
             channels = [c.strip() for c in _texts(raw)]
         else:
             channels = [f"acc{j + 1:02d}" for j in range(n)]
@@ -220,7 +225,7 @@ def read_hdf5_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
             channels = list(layout.channels)
         header_units: list[str | None] = [None] * len(channels)
         if unit_value is not None:
-            raw = unit_value[()] if isinstance(unit_value, h5py.Dataset) else unit_value
+            raw = value(unit_value, "units")
             texts: list[str | None] = list(_texts(raw))
             header_units = texts * len(channels) if len(texts) == 1 else texts
         elif group_channels is not None:
@@ -235,8 +240,3 @@ def read_hdf5_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
     warn_if_gravity_in_g(acceleration, channels, stated, path)
     return AccelerationRecord(acceleration, rate, start, tuple(channels))
 
-
-def _data(node, path, fail) -> np.ndarray:
-    if node.external:
-        raise fail(f"{node.name} keeps its data in external files; not followed")
-    return node[()]

@@ -42,7 +42,10 @@ def _names_in(path: Path) -> tuple[list[str], list[str]]:
     if b"MATLAB 7.3" in header or header[:8] == b"\x89HDF\r\n\x1a\n":
         import h5py
 
+        from .containers import container_datasets
+
         with h5py.File(path, "r") as mat:
+            container_datasets(mat, path)  # nothing pointing outside the file, first
             names = [k for k in mat if not k.startswith("#")]
             shown = [
                 f"{k} ({'x'.join(map(str, mat[k].shape[::-1])) or 'scalar'} "

@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 
 from .._core import ContractError, Violation
+from ..limits import check_channel_count
 from ..csv_layout import read_delimited, split_unit
 from ..dship_names import TIME_FORMATS, name_key, parse_log_times
 from . import AccelerationLayout, convert_units, describe, layout_start, warn_if_gravity_in_g
@@ -51,6 +52,7 @@ def read_text_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
         )
 
     n_banner, banner = _banner(path, layout.separator)
+    _check_width(path, n_banner, layout.separator)
     if banner:
         changes = {}
         if layout.start_time is None and "start_time" in banner:
@@ -138,6 +140,21 @@ def read_text_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
     stated = layout.units is not None or any(u is not None for u in header_units)
     warn_if_gravity_in_g(acceleration, channels, stated, path)
     return AccelerationRecord(acceleration, rate, start, tuple(channels))
+
+
+def _check_width(path: Path, n_banner: int, separator: str | None) -> None:
+    """Refuse a header line of more than :data:`~data_contracts.limits.MAX_CHANNELS`
+    columns before parsing (each column costs the parser a fixed overhead: 10^6 columns
+    ran minutes, then out of memory)."""
+    from ..csv_layout import sniff_separator
+
+    with open(path, "rb") as handle:
+        for _ in range(n_banner):
+            handle.readline(65536)
+        line = handle.readline().decode("utf-8", "replace")
+    sep = separator or sniff_separator(line[:65536])
+    # columns besides one time column
+    check_channel_count(line.count(sep), source=path, what="the header line")
 
 
 _BANNER_RATE = {"samplerate", "samplingrate", "samplingfrequency", "fs", "rate", "scanrate"}

@@ -35,6 +35,58 @@ _DATE = re.compile(
 )
 
 
+#: Fewest samples of a time response: fewer is a header, a test record or a cut file. [-]
+MIN_RECORD_SAMPLES = 16
+
+#: A record delimiter: ``    -1`` alone on its line (blanks may pad it to 80 columns).
+_DELIMITER = re.compile(rb"^    -1 *(?:\r?\n|\r|\Z)", re.MULTILINE)
+
+
+def _check_complete(path: Path, fail) -> None:
+    """Refuse a file that ends inside a record (a copy cut short reads as fewer channels).
+
+    Records open and close with a delimiter line, so a whole file has an even number of
+    them and nothing but blanks after the last.
+    """
+    data = path.read_bytes()
+    tags = list(_DELIMITER.finditer(data))
+    tail = data[tags[-1].end() :] if tags else data
+    if len(tags) % 2 or tail.strip():
+        raise fail(
+            f"the file ends inside a record, after {len(tags) // 2} complete record(s): "
+            "cut short?"
+        )
+
+
+def _record_name(record: dict, index: int) -> str:
+    node = record.get("rsp_node", "?")
+    direction = _DIRECTIONS.get(int(record.get("rsp_dir", 0)), str(record.get("rsp_dir", "")))
+    return f"record {index + 1} (node {node}{direction})"
+
+
+def _check_records(responses: list[dict], fail) -> None:
+    """Each time response: evenly spaced with a positive abscissa increment, its declared
+    number of points equal to the values it holds, at least :data:`MIN_RECORD_SAMPLES`."""
+    for index, record in enumerate(responses):
+        name = _record_name(record, index)
+        if int(record.get("abscissa_spacing", 1)) != 1:
+            raise fail(
+                f"{name}: uneven abscissa (spacing 0); a time response must be evenly spaced"
+            )
+        step = float(record.get("abscissa_inc", float("nan")))
+        if not (np.isfinite(step) and step > 0):
+            raise fail(f"{name}: abscissa increment {step:g} s is not a positive time step")
+        declared = int(record.get("num_pts", -1))
+        held = len(record["data"])
+        if declared != held:
+            raise fail(f"{name} declares {declared} points but holds {held}: cut or damaged")
+        if held < MIN_RECORD_SAMPLES:
+            raise fail(
+                f"{name} holds {held} samples; a time response needs at least "
+                f"{MIN_RECORD_SAMPLES}"
+            )
+
+
 def read_uff_accelerations(path: str | os.PathLike, layout: AccelerationLayout):
     """Read the time responses (dataset 58, function type 1) of a UFF file.
 
@@ -53,6 +105,7 @@ def read_uff_accelerations(path: str | os.PathLike, layout: AccelerationLayout):
         import pyuff
     except ImportError:
         raise fail("reading UFF files needs pyuff: pip install 'workbench[formats]'") from None
+    _check_complete(path, fail)
     uff = pyuff.UFF(str(path))
     types = [int(t) for t in uff.get_set_types()]
     sets = uff.read_sets()
@@ -69,6 +122,7 @@ def read_uff_accelerations(path: str | os.PathLike, layout: AccelerationLayout):
             "no time responses (dataset 58 with function type 1); "
             + describe(sorted(set(kinds)), "datasets")
         )
+    _check_records(responses, fail)
     steps = {float(s["abscissa_inc"]) for s in responses}
     lengths = {len(s["data"]) for s in responses}
     if len(lengths) > 1 or max(steps) - min(steps) > 1e-9 * max(steps):
@@ -77,8 +131,6 @@ def read_uff_accelerations(path: str | os.PathLike, layout: AccelerationLayout):
             "a file must hold one record of all channels"
         )
     step = steps.pop()
-    if not step > 0:
-        raise fail(f"abscissa increment {step} is not a time step")
     channels = []
     for s in responses:
         node = int(s.get("rsp_node", 0))

@@ -190,7 +190,7 @@ def test_hdf5_external_links_are_not_followed(tmp_path):
     with h5py.File(path, "w") as handle:
         handle["data"] = h5py.ExternalLink("other.h5", "/data")
         handle["fs"] = RATE
-    with pytest.raises(ContractError, match="'/data' is a link to data outside the file"):
+    with pytest.raises(ContractError, match="/data.*HDF5 external link"):
         read_accelerations(path)
 
 

@@ -28,7 +28,7 @@ from data_contracts import ContractError
 
 from .. import __version__
 from ..arguments import HelpFormatter, Namespace, add_verbosity, stderr_is_terminal
-from ..errors import OptionError, WorkbenchError
+from ..errors import OptionError, WorkbenchError, printable
 from .common import (
     EXIT_DATA,
     EXIT_OK,
@@ -129,10 +129,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_USAGE
     if not stderr_is_terminal():  # no progress bars in logs, pipes and CI
         args.quiet = True
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(_PlainFormatter("%(message)s"))
     logging.basicConfig(
-        level=logging.DEBUG if args.verbose else logging.WARNING,
-        format="%(message)s",
-        stream=sys.stderr,
+        level=logging.DEBUG if args.verbose else logging.WARNING, handlers=[handler]
     )
     log.setLevel(logging.DEBUG if args.verbose else logging.INFO)
     for noisy in ("distributed", "tornado", "bokeh", "asyncio"):  # cluster chatter
@@ -160,7 +160,7 @@ def _apply_config(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -
         try:
             apply_config(parser, load_config(known.config))
         except ConfigError as error:
-            print(f"workbench: error: {error}", file=sys.stderr)
+            print(f"workbench: error: {_plain(error)}", file=sys.stderr)
             raise SystemExit(EXIT_USAGE) from None
 
 
@@ -170,15 +170,25 @@ _NUMPY_REPR = re.compile(r"\bnp\.(?:float|int|uint|complex|bool|str)\w*\(([^()]*
 
 def _plain(message) -> str:
     """*message* with NumPy scalar reprs shown as plain values (``0.5``, not
-    ``np.float64(0.5)``); one rule for every message the CLI prints."""
-    return _NUMPY_REPR.sub(r"\1", str(message))
+    ``np.float64(0.5)``) and control characters escaped (:func:`~workbench.errors.printable`:
+    a file name cannot drive the terminal or fake a line); one rule for every message the
+    CLI prints."""
+    return printable(_NUMPY_REPR.sub(r"\1", str(message)))
+
+
+class _PlainFormatter(logging.Formatter):
+    """Log lines with the message's control characters escaped (tracebacks of --verbose
+    keep their lines)."""
+
+    def formatMessage(self, record: logging.LogRecord) -> str:  # noqa: N802 (logging's name)
+        return printable(super().formatMessage(record))
 
 
 def _os_error_line(error: OSError) -> str:
     """``path: reason`` of a file-system error (read-only folder, disk full, ...)."""
     reason = error.strerror or str(error).splitlines()[0] or type(error).__name__
     names = [n for n in (error.filename, error.filename2) if n is not None]
-    return f"{' -> '.join(map(str, names))}: {reason}" if names else reason
+    return _plain(f"{' -> '.join(map(str, names))}: {reason}" if names else reason)
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -12,7 +12,7 @@ from pathlib import Path
 from data_contracts import ContractError
 
 from .. import defaults as D
-from ..errors import OptionError, UsageError, WorkbenchError
+from ..errors import OptionError, UsageError, WorkbenchError, printable
 from ..inputs import add_dship_columns, add_modal_layout, dship_mapping, read_modal
 
 EXIT_OK, EXIT_DATA, EXIT_USAGE = 0, 1, 2
@@ -67,11 +67,11 @@ def _data_errors(source):
 def _print_result(result, paths=None) -> None:
     """A stage result's warnings (stderr), lines and the files it wrote."""
     for line in result.warnings:
-        print(f"warning: {line}", file=sys.stderr)
+        print(f"warning: {printable(line)}", file=sys.stderr)
     for line in result.lines:
-        print(line)
+        print(printable(line))
     for name, path in dict(paths or {}).items():
-        print(f"{name}: {path}")
+        print(printable(f"{name}: {path}"))
 
 
 def _add_predictor_source(parser: argparse.ArgumentParser) -> None:

@@ -9,6 +9,7 @@ import warnings
 from pathlib import Path
 
 from ..inputs import acceleration_layout, add_acceleration_layout, add_dship_columns, dship_mapping
+from ..errors import printable
 from .common import EXIT_OK, UsageError, _data_errors
 
 
@@ -41,8 +42,8 @@ def _run_validate(args: argparse.Namespace) -> int:
             dship_mapping=dship_mapping(args) if args.kind == "dship" else None,
         )
     for warning in caught:
-        print(f"warning: {warning.message}", file=sys.stderr)
-    print(f"{args.file}: valid {args.kind} file ({checked.summary})")
+        print(f"warning: {printable(warning.message)}", file=sys.stderr)
+    print(printable(f"{args.file}: valid {args.kind} file ({checked.summary})"))
     return EXIT_OK
 
 

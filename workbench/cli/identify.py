@@ -9,6 +9,7 @@ from pathlib import Path
 
 from .. import defaults as D
 from ..arguments import add_renamed
+from ..errors import printable
 from ..inputs import acceleration_layout, add_acceleration_layout
 from .common import EXIT_OK, UsageError, _add_parallel, _check_positive, _option_names
 
@@ -243,7 +244,8 @@ def identify_options(args: argparse.Namespace):
     UsageError
         For contradicting or impossible flags (exit 2).
     """
-    from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
+    from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S, MAX_BLOCKS_PER_SAMPLE
+    from ..identification.options import MAX_LSCF_ORDER, MAX_MODEL_ORDER
     from ..identify import IdentifyOptions
 
     def flag(name: str, default):
@@ -255,6 +257,15 @@ def identify_options(args: argparse.Namespace):
         raise UsageError(f"model orders {args.min_order}..{args.max_order} make no sense")
     if lscf_max_order < 1:
         raise UsageError(f"--lscf-max-order must be at least 1, got {lscf_max_order}")
+    # ranges are checked before the order tuples are built from them
+    if args.max_order > MAX_MODEL_ORDER:
+        raise UsageError(
+            f"--max-order {args.max_order} is above the highest order {MAX_MODEL_ORDER}"
+        )
+    if lscf_max_order > MAX_LSCF_ORDER:
+        raise UsageError(
+            f"--lscf-max-order {lscf_max_order} is above the highest order {MAX_LSCF_ORDER}"
+        )
     if args.no_band and args.band is not None:
         raise UsageError("--band and --no-band contradict each other")
     length_s = DEFAULT_BLOCK_LENGTH_S if args.block_minutes is None else 60.0 * args.block_minutes
@@ -266,6 +277,13 @@ def identify_options(args: argparse.Namespace):
         raise UsageError(
             f"{given}: step {step_s / 60:g} min is longer than the block "
             f"{length_s / 60:g} min; give --step-minutes at most --block-minutes"
+        )
+    if length_s > MAX_BLOCKS_PER_SAMPLE * step_s:  # before any block is listed
+        raise UsageError(
+            f"--step-minutes {step_s / 60:g} puts every sample in {length_s / step_s:.3g} "
+            f"blocks of {length_s / 60:g} min; at most {MAX_BLOCKS_PER_SAMPLE}: give "
+            f"--step-minutes of at least {length_s / 60 / MAX_BLOCKS_PER_SAMPLE:g} "
+            f"(--block-minutes / {MAX_BLOCKS_PER_SAMPLE})"
         )
     try:
         return IdentifyOptions(
@@ -323,7 +341,7 @@ def _run_identify(args: argparse.Namespace) -> int:
     except IdentifyOptionsError as error:
         raise UsageError(str(error)) from None
     for line in result.lines:
-        print(line)
+        print(printable(line))
     if args.stabilisation_figures:
         from ..identify import write_block_figures
 

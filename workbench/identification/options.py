@@ -12,12 +12,36 @@ from typing import Literal
 from data_contracts.formats import ACCELERATION_SUFFIXES as _FORMAT_SUFFIXES
 
 from .._deprecation import renamed_fields
+from ..blocks import MAX_BLOCKS_PER_SAMPLE
 from ..errors import OptionError
 
 #: Acceleration file suffixes picked up from a folder. Text files (.csv, .tsv, .txt) are
 #: taken only when their header looks like an acceleration record: a voyage folder also
 #: holds ship logs and tables (see data_contracts.formats.text.looks_like_acceleration_table).
 ACCELERATION_SUFFIXES = _FORMAT_SUFFIXES
+
+
+#: Highest SSI model order (state-space dimension): beyond what a block of real data
+#: identifies, and each order costs an eigenvalue problem of its size. [-]
+MAX_MODEL_ORDER = 2000
+#: Highest LSCF polynomial order (p·r poles with r references). [-]
+MAX_LSCF_ORDER = 500
+
+
+def _orders(name: str, values, highest: int) -> tuple[int, ...]:
+    """*values* as a tuple of orders in [1, *highest*]; the count is checked before the
+    tuple is built (a ``range(1, 10**12)`` would exhaust memory)."""
+    try:
+        count = len(values)
+    except TypeError:
+        count = None
+    if count is not None and count > highest:
+        raise OptionError(f"{name}: {count} orders given; orders lie in 1..{highest}")
+    orders = tuple(int(o) for o in values)
+    if not orders or min(orders) < 1 or max(orders) > highest:
+        shown = f"{min(orders)}..{max(orders)}" if orders else "none"
+        raise OptionError(f"{name}={shown} must be model orders in 1..{highest}")
+    return orders
 
 
 #: Lower damping limit of the automatic selection (harmonics have ζ ≈ 0). [-]
@@ -132,16 +156,11 @@ class IdentifyOptions:
             raise OptionError(f"method={self.method!r} must be 'cov', 'data' or 'lscf'")
         if self.weighting not in ("pc", "upc", "cva"):
             raise OptionError(f"weighting={self.weighting!r} must be 'pc', 'upc' or 'cva'")
-        lscf_orders = tuple(int(o) for o in self.lscf_orders)
-        if not lscf_orders or min(lscf_orders) < 1:
-            raise OptionError(f"lscf_orders={self.lscf_orders!r} must be positive orders")
+        lscf_orders = _orders("lscf_orders", self.lscf_orders, MAX_LSCF_ORDER)
         object.__setattr__(self, "lscf_orders", lscf_orders)
         if int(self.block_rows) != self.block_rows or self.block_rows < 2:
             raise OptionError(f"block_rows={self.block_rows} must be an integer of at least 2")
-        orders = tuple(int(o) for o in self.orders)
-        if not orders or min(orders) < 1:
-            raise OptionError(f"orders={self.orders!r} must be positive model orders")
-        object.__setattr__(self, "orders", orders)
+        object.__setattr__(self, "orders", _orders("orders", self.orders, MAX_MODEL_ORDER))
         if self.selection not in ("cluster", "library"):
             raise OptionError(f"selection={self.selection!r} must be 'cluster' or 'library'")
         if self.short_record not in ("error", "one-block"):
@@ -155,6 +174,14 @@ class IdentifyOptions:
                 f"block step {self.step_s / 60:g} min is longer than the block length "
                 f"{self.length_s / 60:g} min (blocks would leave gaps); give a step at most "
                 "the length (e.g. --step-minutes)"
+            )
+        if self.length_s > MAX_BLOCKS_PER_SAMPLE * self.step_s:
+            raise OptionError(
+                f"step_s={self.step_s:g} puts every sample in "
+                f"{self.length_s / self.step_s:.3g} blocks of {self.length_s:g} s; at most "
+                f"{MAX_BLOCKS_PER_SAMPLE}: give a step of at least "
+                f"{self.length_s / MAX_BLOCKS_PER_SAMPLE:g} s (block length / "
+                f"{MAX_BLOCKS_PER_SAMPLE})"
             )
         if not (math.isfinite(float(self.max_gap_s)) and self.max_gap_s >= 0):
             raise OptionError(

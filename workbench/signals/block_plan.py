@@ -34,9 +34,16 @@ import numpy as np
 import pandas as pd
 
 from data_contracts import read_accelerations
-from data_contracts.npz import read_sample_header
+from data_contracts.npz import check_sample_header, read_checked_arrays, read_sample_header
 
-from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S, BlockGrid, utc_timestamp
+from ..blocks import (
+    DEFAULT_BLOCK_LENGTH_S,
+    DEFAULT_BLOCK_STEP_S,
+    MAX_BLOCKS,
+    BlockGrid,
+    utc_timestamp,
+)
+from ..errors import OptionError
 
 __all__ = ["BlockPlan", "FileInfo", "PlannedBlock", "plan_blocks", "read_file_info"]
 
@@ -79,20 +86,15 @@ class FileInfo:
 
 def _npz_info(path: Path) -> FileInfo:
     header = read_sample_header(path)
+    # The samples a header claims must be in the archive (a 1-KB file claiming 30 days
+    # would plan thousands of blocks) and fit the memory budget: the readers' one guard,
+    # also on the small arrays before they are read.
+    check_sample_header(header, path, "array acceleration")
     shape = header.shape
-    # The samples the header claims must be in the archive (a 1-KB file claiming 30 days
-    # would plan thousands of blocks): stored bytes lie within the file, and deflate
-    # compresses by at most about 1032:1.
-    if (
-        header.member_size < header.claimed_bytes
-        or header.compressed_size > path.stat().st_size
-        or header.member_size > 1100 * max(header.compressed_size, 1)
-    ):
-        raise ValueError("the array header claims more samples than the file holds")
-    with np.load(path, allow_pickle=False) as data:
-        rate = float(np.asarray(data["sampling_rate_hz"]).reshape(-1)[0])
-        start = str(np.asarray(data["start_time"]).reshape(-1)[0])
-        channels = tuple(str(c) for c in np.asarray(data["channels"]).ravel())
+    data = read_checked_arrays(path, ("sampling_rate_hz", "start_time", "channels"))
+    rate = float(np.asarray(data["sampling_rate_hz"]).reshape(-1)[0])
+    start = str(np.asarray(data["start_time"]).reshape(-1)[0])
+    channels = tuple(str(c) for c in np.asarray(data["channels"]).ravel())
     if len(shape) != 2 or shape[1] != len(channels) or not (math.isfinite(rate) and rate > 0):
         raise ValueError("inconsistent header")
     return FileInfo(path, utc_timestamp(start), rate, int(shape[0]), channels)
@@ -309,6 +311,13 @@ def plan_file_infos(
     starts_ns = np.array([_ns(i.start_time) for i in infos], dtype=np.int64)
     ends_ns = np.array([_ns(i.end_time) for i in infos], dtype=np.int64)
     half = pd.Timedelta(seconds=0.5 / rate)
+    span_s = (infos[-1].end_time - infos[0].start_time).total_seconds()
+    if span_s / grid.step_s > MAX_BLOCKS:  # counted before any block is listed
+        raise OptionError(
+            f"step_s={grid.step_s:g} gives about {span_s / grid.step_s:.3g} blocks over the "
+            f"files' {span_s / 3600:.3g} h; at most {MAX_BLOCKS} blocks: give a step of at "
+            f"least {span_s / MAX_BLOCKS:.3g} s or fewer files"
+        )
     numbers = grid.complete_blocks(infos[0].start_time - half, infos[-1].end_time + half)
     planned = []
     for k in numbers:
