@@ -14,7 +14,13 @@ import pandas as pd
 from .._core import ContractError, Violation
 from ..limits import check_channel_count
 from ..csv_layout import read_delimited, sniff_separator, split_unit
-from ..dship_names import TIME_FORMATS, name_key, parse_log_times
+from ..dship_names import (
+    TIME_FORMATS,
+    bad_time_values,
+    name_key,
+    parse_log_times,
+    time_format_hint,
+)
 from . import AccelerationLayout, convert_units, describe, layout_start, warn_if_gravity_in_g
 
 __all__ = ["TEXT_SUFFIXES", "read_text_accelerations"]
@@ -395,6 +401,12 @@ def _times(path, values: pd.Series, header: str, unit: str | None, layout, fail)
     fmt = layout.time_format
     numbers = pd.to_numeric(values, errors="coerce")
     is_numeric = numbers.notna().all() and len(numbers) > 0
+    if fmt not in (None, "seconds", "unix") and is_numeric:
+        # a date format given for every input: a numeric column is still relative seconds
+        # unless the format reads it (``%Y%m%d%H%M%S``)
+        parsed, _ = parse_log_times(values.astype(str).str.strip(), fmt)
+        if parsed.isna().all():
+            fmt = None
     if fmt in ("seconds", "unix") or (fmt is None and is_numeric):
         if not is_numeric:
             rows = [f"row {r}" for r in np.nonzero(numbers.isna().to_numpy())[0][:5]]
@@ -419,15 +431,20 @@ def _times(path, values: pd.Series, header: str, unit: str | None, layout, fail)
     text = values.astype(str).str.strip()
     times, used = parse_log_times(text, fmt)
     bad = times.isna().to_numpy()
-    if bad.all():
+    if bad.all() and fmt is None:
         raise fail(
-            f"no known time format fits (first value {text.iat[0]!r}; tried ISO-8601, "
-            f"{', '.join(TIME_FORMATS)}, numbers); give the time format",
+            f"no known time format fits ({bad_time_values(text, bad)}; tried ISO-8601, "
+            f"{', '.join(TIME_FORMATS)}, numbers); {time_format_hint(used)}",
             header,
         )
     if bad.any():
         rows = [f"row {r}" for r in np.nonzero(bad)[0][:5]]
-        raise fail(f"not a time in the format {used}", header, rows, int(bad.sum()))
+        raise fail(
+            f"not a time in the format {used}: {bad_time_values(text, bad)}",
+            header,
+            rows,
+            int(bad.sum()),
+        )
     if len(times) < 2:
         return times.iat[0], float("nan"), None
     seconds = (times - times.iat[0]).dt.total_seconds().to_numpy()

@@ -156,3 +156,220 @@ def test_identify_reads_a_folder_of_daq_exports(tmp_path, capsys):
     # both modes of the voyage (3.1 and 5.7 Hz) are found in the exported files
     for f_hz in (3.1, 5.7):
         assert np.min(np.abs(selected["frequency_hz"].to_numpy() - f_hz)) < 0.1
+
+
+# ------------------------------------------------------------ times as other tools print them
+#: First block of the voyage tables: 1 May (day and month both <= 12: ambiguous slash dates).
+VOYAGE_T0 = pd.Timestamp("2024-05-01T08:00:00Z")
+N_BLOCKS = 60
+
+
+def _voyage_tables(folder: Path, time_format: str, *, modal_format: str | None = None):
+    """A wide modal table (time, f1..f3, d1..d3 [%]; 20-min blocks every 5 min) and a
+    DSHIP log at 1 min with the canonical channels plus position and water depth, their
+    times printed with *time_format* (the modal table's with *modal_format* if given).
+
+    Frequencies follow speed and water temperature: f = f0 + 0.02 speed + 0.01 water.
+    """
+    rng = np.random.default_rng(30)
+    folder.mkdir(parents=True, exist_ok=True)
+    minutes = np.arange(0, 5 * N_BLOCKS + 25)
+    times = VOYAGE_T0 + pd.to_timedelta(minutes, unit="min")
+    speed = 8 + 4 * np.sin(2 * np.pi * minutes / 140)
+    water = 6 + 2 * np.cos(2 * np.pi * minutes / 230)
+    log = pd.DataFrame(
+        {
+            "Date/Time": times.strftime(time_format),
+            "SYS.STR.SOG [kn]": speed + 0.05 * rng.standard_normal(len(minutes)),
+            "Temp [°C]": water,
+            "TTT [°C]": 12 + 3 * np.sin(2 * np.pi * minutes / 410),
+            "ff [m/s]": 7 + 2 * np.sin(2 * np.pi * minutes / 95),
+            "RelWindDir [deg]": 40 + 30 * np.sin(2 * np.pi * minutes / 170),
+            "Latitude [deg]": 54.0 + 0.002 * minutes,
+            "Longitude [deg]": 7.5 + 0.003 * minutes,
+            "Water depth [m]": 30 + 10 * np.sin(2 * np.pi * minutes / 300),
+        }
+    )
+    log.to_csv(folder / "dship.dat", sep="\t", index=False, float_format="%.5f")
+    starts = VOYAGE_T0 + pd.to_timedelta(5 * np.arange(N_BLOCKS), unit="min")
+    centre = 5 * np.arange(N_BLOCKS) + 10  # block centres [min]
+    modal = pd.DataFrame({"time": starts.strftime(modal_format or time_format)})
+    for m, f0 in enumerate((2.1, 4.3, 6.8), start=1):
+        modal[f"f{m}"] = (
+            f0
+            + 0.02 * np.interp(centre, minutes, speed)
+            + 0.01 * np.interp(centre, minutes, water)
+            + 0.002 * rng.standard_normal(N_BLOCKS)
+        )
+    for m in (1, 2, 3):
+        modal[f"d{m} [%]"] = 1.5 + 0.1 * rng.standard_normal(N_BLOCKS)
+    modal.to_csv(folder / "modal.csv", index=False, float_format="%.6f")
+    return folder / "modal.csv", folder / "dship.dat"
+
+
+def _fit_argv(modal: Path, dship: Path, out: Path, *extra) -> list:
+    return ["fit", "--modal", modal, "--dship", dship, "--out", out, *extra]
+
+
+def test_day_first_modal_table_is_read_when_a_day_above_12_says_so(tmp_path):
+    """Before: ``'14/05/2024 08:10:00', '14/05/2024 08:10:00', ... not a time`` with no flag
+    to give."""
+    from data_contracts.modal_layout import read_modal_table
+
+    modal, _ = _voyage_tables(tmp_path, "%d/%m/%Y %H:%M:%S")
+    text = modal.read_text().replace("01/05/2024", "14/05/2024")
+    modal.write_text(text)
+    with pytest.warns(UserWarning, match="taken as the start"):
+        table = read_modal_table(modal, time_zone="UTC")
+    assert table["block_start"].min() == pd.Timestamp("2024-05-14T08:00:00Z")
+    assert table["block_start"].max() == pd.Timestamp("2024-05-14T12:55:00Z")
+    assert table["block"].nunique() == N_BLOCKS
+
+
+def test_ambiguous_day_first_times_name_each_value_once_and_one_flag_reads_every_input(
+    tmp_path, capsys
+):
+    """``01/05/2024`` is 1 May or 5 January: the error shows each distinct value once
+    (the wide table repeats it per mode) and says how to state the format; one
+    ``--time-format`` then applies to the modal table and the ship log alike."""
+    modal, dship = _voyage_tables(tmp_path, "%d/%m/%Y %H:%M:%S")
+    assert _run(_fit_argv(modal, dship, tmp_path / "fit")) == 1
+    err = capsys.readouterr().err
+    assert "'01/05/2024 08:00:00'" in err and err.count("'01/05/2024 08:00:00'") == 1
+    assert "no day above 12" in err and "--time-format" in err
+    errors = [line for line in err.splitlines() if not line.startswith("warning:")]
+    assert len(errors) == 1 and "Traceback" not in err
+    for fmt in ("%d/%m/%Y %H:%M:%S", "dd/mm/yyyy HH:MM:SS"):  # strptime or MATLAB symbols
+        out = tmp_path / f"fit {fmt.count('%')}"
+        code = _run([*_fit_argv(modal, dship, out), "--time-format", fmt])
+        captured = capsys.readouterr()
+        assert code == 0, captured.err
+        coefficients = pd.read_csv(out / "coefficients.csv")
+        assert set(coefficients["mode"]) == {1, 2, 3}
+        # the voyage's slope, 0.02 Hz/kn, within the noise of 60 overlapping blocks
+        np.testing.assert_allclose(coefficients["speed_kn"], 0.02, atol=0.004)
+
+
+def test_time_format_from_the_config(tmp_path, capsys):
+    modal, dship = _voyage_tables(tmp_path, "%d/%m/%Y %H:%M:%S")
+    config = tmp_path / "ship.toml"
+    config.write_text('[times]\nformat = "%d/%m/%Y %H:%M:%S"\n', encoding="utf-8")
+    code = _run([*_fit_argv(modal, dship, tmp_path / "fit"), "--config", config])
+    assert code == 0, capsys.readouterr().err
+    assert (tmp_path / "fit" / "coefficients.csv").is_file()
+
+
+def test_time_format_seconds_is_refused_for_modal_tables(tmp_path, capsys):
+    modal, dship = _voyage_tables(tmp_path, "%Y-%m-%dT%H:%M:%SZ")
+    code = _run([*_fit_argv(modal, dship, tmp_path / "fit"), "--time-format", "seconds"])
+    assert code == 2
+    assert "--time-format seconds is for acceleration files" in capsys.readouterr().err
+
+
+def test_matlab_datestr_times_need_no_flag(tmp_path, capsys):
+    """MATLAB's ``datestr`` form (``01-May-2024 08:00:00``) names the month."""
+    modal, dship = _voyage_tables(tmp_path, "%d-%b-%Y %H:%M:%S")
+    code = _run(_fit_argv(modal, dship, tmp_path / "fit"))
+    assert code == 0, capsys.readouterr().err
+
+
+def _mat73(path: Path, data: np.ndarray, t0: str) -> None:
+    """A MATLAB v7.3 file as MATLAB writes it: HDF5 with a 512-byte header, the matrix
+    column-major, text as uint16 characters, ``t0`` from ``datestr``."""
+    import h5py
+
+    with h5py.File(path, "w", userblock_size=512) as mat:
+        mat["data"] = data.T
+        mat["fs"] = np.array([[RATE_HZ]])
+        mat["t0"] = np.array([[ord(c)] for c in t0], dtype=np.uint16)
+        refs = []
+        for j, name in enumerate(CHANNELS):
+            mat[f"#refs#/{j}"] = np.array([ord(c) for c in name], dtype=np.uint16)
+            refs.append(mat[f"#refs#/{j}"].ref)
+        import h5py as _h5
+
+        mat.create_dataset("chanNames", data=np.array(refs, dtype=_h5.ref_dtype))
+    with open(path, "r+b") as handle:
+        handle.write(b"MATLAB 7.3 MAT-file, Platform: GLNXA64".ljust(128, b" "))
+
+
+def test_matlab_v73_t0_in_datestr_form(tmp_path):
+    """Before: ``start_time: not an ISO-8601 time: '14-May-2024 08:00:00'``."""
+    data = response(256, 7)
+    path = tmp_path / "rec.mat"
+    _mat73(path, data, "14-May-2024 08:00:00")
+    record = read_accelerations(path)
+    assert record.start_time == T0 and record.channels == CHANNELS
+    np.testing.assert_array_equal(record.acceleration, data)
+    # an ambiguous slash date needs the format, then reads
+    _mat73(path, data, "05/06/2024 08:00:00")
+    with pytest.raises(ContractError) as caught:
+        read_accelerations(path)
+    assert "'05/06/2024 08:00:00'" in str(caught.value) and "--time-format" in str(caught.value)
+    record = read_accelerations(path, layout={"time_format": "%d/%m/%Y %H:%M:%S"})
+    assert record.start_time == pd.Timestamp("2024-06-05T08:00:00Z")
+
+
+def test_daq_metadata_start_in_a_given_format(tmp_path):
+    data = response(N_FILE, 8)
+    path = tmp_path / "export.csv"
+    _ni_export(path, data, T0)
+    text = path.read_text().replace("Start Time,2024-05-14 08:00:00", "Start Time,05/06/2024 08:00")
+    path.write_text(text)
+    # ambiguous in the metadata and relative times: the start must be stated
+    with pytest.raises(ContractError, match="relative times"):
+        read_accelerations(path)
+    record = read_accelerations(path, layout={"time_format": "%d/%m/%Y %H:%M"})
+    assert record.start_time == pd.Timestamp("2024-06-05T08:00:00Z")
+
+
+# ------------------------------------------------------------ one start time, several files
+def _relative_files(folder: Path, n_files: int, *, continuing: bool = False, seed: int = 9):
+    """*n_files* 60-s CSV files with relative times (restarting at 0, or continuing)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    data = response(n_files * N_FILE, seed)
+    for k in range(n_files):
+        first = k * N_FILE if continuing else 0
+        lines = ["Time [s];" + ";".join(CHANNELS)]
+        for i, row in enumerate(data[k * N_FILE : (k + 1) * N_FILE]):
+            lines.append(";".join([f"{(first + i) / RATE_HZ:.6f}", *(f"{v:.9g}" for v in row)]))
+        (folder / f"rec_{k}.csv").write_text("\n".join(lines) + "\n")
+    return data
+
+
+@pytest.mark.parametrize("continuing", [False, True], ids=["restarting", "continuing"])
+def test_start_time_for_a_folder_of_consecutive_files(tmp_path, capsys, continuing):
+    """Before: ``rec_1.csv: starts 60 s before the end of rec_0.csv (overlapping or
+    duplicate files)``. The start time is the first file's; the others follow on."""
+    folder = tmp_path / "rel"
+    _relative_files(folder, 3, continuing=continuing)
+    out = tmp_path / "out"
+    start = "2024-05-14T08:00:00Z"
+    code = _run(["identify", folder, "--out", out, "--start-time", start, *IDENTIFY_ARGS])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    blocks = pd.read_csv(out / "blocks.csv")
+    # 3 minutes without a gap: 2-minute blocks at 0 and 1 min, both identified
+    assert list(blocks["status"]) == ["ok", "ok"]
+    assert pd.Timestamp(blocks["block_start"].iat[0]) == pd.Timestamp(start)
+
+
+def test_start_time_keeps_a_gap_that_continuing_times_state(tmp_path):
+    from workbench.identification.options import IdentifyOptions
+    from workbench.identification.planning import follow_on_starts
+
+    folder = tmp_path / "rel"
+    _relative_files(folder, 2, continuing=True)
+    # the second file's times say it starts 90 s after the first: a 30-s gap
+    second = folder / "rec_1.csv"
+    lines = second.read_text().splitlines()
+    shifted = [lines[0]]
+    for line in lines[1:]:
+        time, rest = line.split(";", 1)
+        shifted.append(f"{float(time) + 30:.6f};{rest}")
+    second.write_text("\n".join(shifted) + "\n")
+    options = IdentifyOptions(acceleration_layout={"start_time": "2024-05-14T08:00:00Z"})
+    files = sorted(folder.glob("*.csv"))
+    layout = follow_on_starts(files, options).acceleration_layout
+    starts = [read_accelerations(f, layout=layout).start_time for f in files]
+    assert starts == [T0, T0 + pd.Timedelta(seconds=90)]

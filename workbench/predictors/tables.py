@@ -28,6 +28,7 @@ def load_predictors(
     onto: pd.DataFrame | None = None,
     min_coverage: float = 0.5,
     dship_mapping: Mapping[str, str] | None = None,
+    time_format: str | None = None,
 ) -> pd.DataFrame:
     """Block predictors from a predictor table, or averaged from a DSHIP log.
 
@@ -45,6 +46,9 @@ def load_predictors(
         :func:`~workbench.predictors.block_predictors`).
     dship_mapping : mapping, optional
         Column mapping for :func:`~data_contracts.read_dship` (``speed_kn`` -> source name).
+    time_format : str, optional
+        Format of the log's times (``strptime`` or MATLAB ``datestr`` symbols); default:
+        recognised (:func:`data_contracts.dship_names.parse_times`).
     """
     if (predictors is None) == (dship is None):
         raise ValueError("give exactly one of predictors and dship")
@@ -54,7 +58,7 @@ def load_predictors(
         raise ValueError("averaging a DSHIP log needs the blocks of a modal table (onto=)")
     from .averaging import block_predictors
 
-    log = read_dship(dship, mapping=dship_mapping)
+    log = read_dship(dship, mapping=dship_mapping, time_format=time_format)
     t0, length_s, step_s = block_grid_of(onto)
     first, last = int(onto["block"].min()), int(onto["block"].max())
     grid = BlockGrid(t0=t0, length_s=length_s, step_s=step_s)
