@@ -373,3 +373,68 @@ def test_start_time_keeps_a_gap_that_continuing_times_state(tmp_path):
     layout = follow_on_starts(files, options).acceleration_layout
     starts = [read_accelerations(f, layout=layout).start_time for f in files]
     assert starts == [T0, T0 + pd.Timedelta(seconds=90)]
+
+
+# ------------------------------------------------------------ the same defaults everywhere
+def test_api_and_cli_choose_the_same_predictors_and_give_identical_fits(tmp_path, capsys):
+    """Before: ``wb.fit(modal, wb.load_predictors(dship=..., onto=modal))`` regressed on
+    latitude, longitude and water depth too (12 predictors) where ``workbench fit`` used
+    the 5 canonical ones."""
+    import workbench as wb
+    from data_contracts.modal_layout import read_modal_table
+
+    modal_path, dship = _voyage_tables(tmp_path, "%Y-%m-%dT%H:%M:%SZ")
+    assert _run(_fit_argv(modal_path, dship, tmp_path / "cli", "--time-zone", "UTC")) == 0
+    capsys.readouterr()
+    with pytest.warns(UserWarning, match="taken as the start"):
+        modal = read_modal_table(modal_path, time_zone="UTC")
+    predictors = wb.load_predictors(dship=dship, onto=modal)
+    names = [c for c in predictors.columns if c not in ("block", "block_start", "block_end")]
+    assert names == [
+        "speed_kn",
+        "water_temp_c",
+        "air_temp_c",
+        "wind_speed_ms",
+        "wind_dir_rel_deg",
+    ]
+    api = wb.fit(modal, predictors)
+    api.save(tmp_path / "api", figures=False)
+    for table in ("coefficients.csv", "fit_statistics.csv"):
+        pd.testing.assert_frame_equal(
+            pd.read_csv(tmp_path / "api" / table), pd.read_csv(tmp_path / "cli" / table)
+        )
+    # every column only on request, in both
+    every = wb.load_predictors(dship=dship, onto=modal, all_predictors=True)
+    assert {"latitude_deg", "longitude_deg"} <= set(every.columns)
+    code = _run(_fit_argv(modal_path, dship, tmp_path / "cli_all", "--all-predictors"))
+    assert code == 0, capsys.readouterr().err
+    api_all = wb.fit(modal, every)
+    api_all.save(tmp_path / "api_all", figures=False)
+    pd.testing.assert_frame_equal(
+        pd.read_csv(tmp_path / "api_all" / "coefficients.csv"),
+        pd.read_csv(tmp_path / "cli_all" / "coefficients.csv"),
+    )
+
+
+def test_report_with_a_geometry_of_other_channel_names_is_one_line(tmp_path, capsys):
+    """Before: ``attempt to get argmax of an empty sequence``."""
+    from .voyage import write_voyage
+
+    run = tmp_path / "run"
+    write_voyage(tmp_path / "voyage", n_files=4)
+    assert _run(["identify", tmp_path / "voyage", "--out", run / "identify", *IDENTIFY_ARGS]) == 0
+    selected = run / "identify" / "selected.parquet"
+    assert _run(["track", selected, "--out", run / "tracked_modal.csv"]) == 0
+    capsys.readouterr()
+    geometry = tmp_path / "geometry.csv"
+    rows = [f"P{j + 1},N{j + 1},{10.0 * j},0,0,0,0,1" for j in range(len(CHANNELS))]
+    geometry.write_text(
+        "channel,node,x_m,y_m,z_m,direction_x,direction_y,direction_z\n" + "\n".join(rows) + "\n"
+    )
+    code = _run(["report", run, "--geometry", geometry])
+    err = capsys.readouterr().err
+    assert code == 1
+    lines = [line for line in err.splitlines() if not line.startswith("warning:")]
+    assert len(lines) == 1 and "Traceback" not in err and "argmax" not in err
+    assert "P1, P2, P3, P4" in lines[0] and "acc01, acc02, acc03, acc04" in lines[0]
+    assert not (run / "report.html").exists()

@@ -117,16 +117,17 @@ def _add_out_dir(parser: argparse.ArgumentParser) -> None:
 
 
 def _predictors_for(args: argparse.Namespace, modal):
-    from ..predictors import canonical_predictors, load_predictors
+    from ..predictors import load_predictors
 
-    table = load_predictors(
+    # the API's choice (canonical predictors unless all are asked for) in one place
+    return load_predictors(
         predictors=args.predictors,
         dship=args.dship,
         onto=modal,
         dship_mapping=dship_mapping(args),
         time_format=time_format(args),
+        all_predictors=args.all_predictors,
     )
-    return table if args.all_predictors else canonical_predictors(table)
 
 
 def _modal_and_predictors(args: argparse.Namespace):
