@@ -75,6 +75,14 @@ def read_text_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
         if layout.sampling_rate_hz is None and "sampling_rate_hz" in banner:
             changes["sampling_rate_hz"] = banner["sampling_rate_hz"]
         layout = replace(layout, **changes)
+    note = ""  # why a start stated above the header was not taken
+    if layout.start_time is None and "unread_start" in banner:
+        value = banner["unread_start"]
+        used = parse_log_times(pd.Series([value]))[1]
+        note = (
+            f"; the start time {value!r} above the header is not a recognised time "
+            f"({time_format_hint(used)})"
+        )
     frame, _, _ = read_delimited(
         path,
         separator=layout.separator or preamble.separator,
@@ -145,11 +153,19 @@ def read_text_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
     if time_index is None:
         given = layout_start(layout, path)
         if given is None or rate is None:
-            raise fail(f"no time column: give the start time and the sampling rate ({found})")
+            raise fail(
+                f"no time column: give the start time and the sampling rate ({found}){note}"
+            )
         start = given
     else:
         start, step, seconds = _times(
-            path, frame.iloc[:, time_index], headers[time_index], units[time_index], layout, fail
+            path,
+            frame.iloc[:, time_index],
+            headers[time_index],
+            units[time_index],
+            layout,
+            fail,
+            note,
         )
         if seconds is not None:
             _check_steps(seconds, rate, headers[time_index], fail)
@@ -257,9 +273,9 @@ def _table_start(lines: list[str], sep: str) -> tuple[int, int, int] | None:
     separated by *sep*, or None when *sep* does not make one.
 
     The data rows are the numeric lines at the end sharing the field count of the last
-    line; the header is the row above them, among the rows of that count, that names a
-    time column (else the one with the most filled fields, the first on a tie: a
-    spreadsheet pads ``key,value`` lines to the table's width).
+    line; the header is the row above them, among the rows of that count, with every
+    field filled (a spreadsheet pads ``key,value`` lines to the table's width), then
+    naming a time column, then with the most filled fields, the first on a tie.
     """
     filled = [(i, line) for i, line in enumerate(lines) if line.strip()]
     if len(filled) < 2:
@@ -284,11 +300,11 @@ def _table_start(lines: list[str], sep: str) -> tuple[int, int, int] | None:
     if not above:
         return None
 
-    def score(i: int) -> tuple[int, int, int]:
+    def score(i: int) -> tuple[bool, bool, int, int]:
         fields = _fields(lines[i], sep)
         keys = {name_key(split_unit(f)[0]) for f in fields}
         timed = any(_is_time_name(k) for k in keys)
-        return (timed, sum(bool(f) for f in fields), -i)
+        return (all(fields), timed, sum(bool(f) for f in fields), -i)
 
     return max(above, key=score), first_data, n + 1
 
@@ -382,6 +398,8 @@ def _metadata(lines: list[str], sep: str | None, time_format: str | None) -> dic
             start = _text_time(value, time_format)
             if start is not None:
                 found["start_time"] = start.isoformat()
+            else:
+                found.setdefault("unread_start", value)
     if "start_time" not in found and "date" in pairs and "time" in pairs:
         start = _text_time(f"{pairs['date'][0]} {pairs['time'][0]}", time_format)
         if start is not None:
@@ -391,13 +409,14 @@ def _metadata(lines: list[str], sep: str | None, time_format: str | None) -> dic
 
 def _text_time(value: str, time_format: str | None) -> pd.Timestamp | None:
     """*value* as a UTC time (the given format, else the recognised ones), or None."""
-    fmt = time_format if time_format and "%" in time_format else None
+    fmt = time_format if time_format not in (None, "seconds", "unix") else None
     times, _ = parse_log_times(pd.Series([value]), fmt)
     return times.iat[0] if times.notna().all() else None
 
 
-def _times(path, values: pd.Series, header: str, unit: str | None, layout, fail):
-    """Start time, median step [s] and the times [s] of a time column."""
+def _times(path, values: pd.Series, header: str, unit: str | None, layout, fail, note=""):
+    """Start time, median step [s] and the times [s] of a time column (*note*: added to
+    the message asking for a start time)."""
     fmt = layout.time_format
     numbers = pd.to_numeric(values, errors="coerce")
     is_numeric = numbers.notna().all() and len(numbers) > 0
@@ -423,7 +442,7 @@ def _times(path, values: pd.Series, header: str, unit: str | None, layout, fail)
         if layout.start_time is None:
             raise fail(
                 f"holds relative times ({seconds[0]:g} to {seconds[-1]:g} s): give the start "
-                "time of the file",
+                f"time of the file{note}",
                 header,
             )
         start = layout_start(layout, path) + pd.Timedelta(seconds=float(seconds[0]))

@@ -316,11 +316,15 @@ def test_daq_metadata_start_in_a_given_format(tmp_path):
     _ni_export(path, data, T0)
     text = path.read_text().replace("Start Time,2024-05-14 08:00:00", "Start Time,05/06/2024 08:00")
     path.write_text(text)
-    # ambiguous in the metadata and relative times: the start must be stated
-    with pytest.raises(ContractError, match="relative times"):
+    # ambiguous in the metadata and relative times: the message says why and what to do
+    with pytest.raises(ContractError) as caught:
         read_accelerations(path)
-    record = read_accelerations(path, layout={"time_format": "%d/%m/%Y %H:%M"})
-    assert record.start_time == pd.Timestamp("2024-06-05T08:00:00Z")
+    message = str(caught.value)
+    assert "holds relative times" in message and "'05/06/2024 08:00' above the header" in message
+    assert "no day above 12" in message and "--time-format" in message
+    for fmt in ("%d/%m/%Y %H:%M", "dd/mm/yyyy HH:MM"):
+        record = read_accelerations(path, layout={"time_format": fmt})
+        assert record.start_time == pd.Timestamp("2024-06-05T08:00:00Z")
 
 
 # ------------------------------------------------------------ one start time, several files
