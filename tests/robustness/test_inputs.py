@@ -442,3 +442,27 @@ def test_report_with_a_geometry_of_other_channel_names_is_one_line(tmp_path, cap
     assert len(lines) == 1 and "Traceback" not in err and "argmax" not in err
     assert "P1, P2, P3, P4" in lines[0] and "acc01, acc02, acc03, acc04" in lines[0]
     assert not (run / "report.html").exists()
+
+
+def test_one_config_time_format_reads_acceleration_metadata_too(tmp_path, capsys):
+    """``[times] format`` reaches identify: DAQ exports whose metadata start is the
+    ambiguous ``05/06/2024 08:00:00`` (5 June, day first)."""
+    folder = tmp_path / "daq"
+    folder.mkdir()
+    data = response(3 * N_FILE, 11)
+    june = pd.Timestamp("2024-06-05T08:00:00Z")
+    for k in range(3):
+        path = folder / f"daq_{k:03d}.csv"
+        start = june + pd.Timedelta(seconds=k * FILE_S)
+        _ni_export(path, data[k * N_FILE : (k + 1) * N_FILE], start)
+        iso = start.strftime("%Y-%m-%d %H:%M:%S")
+        path.write_text(path.read_text().replace(iso, start.strftime("%d/%m/%Y %H:%M:%S")))
+    out = tmp_path / "out"
+    assert _run(["identify", folder, "--out", out, *IDENTIFY_ARGS]) == 1
+    assert "'05/06/2024 08:00:00' above the header" in capsys.readouterr().err
+    config = tmp_path / "ship.toml"
+    config.write_text('[times]\nformat = "dd/mm/yyyy HH:MM:SS"\n', encoding="utf-8")
+    code = _run(["identify", folder, "--out", out, *IDENTIFY_ARGS, "--config", config])
+    assert code == 0, capsys.readouterr().err
+    blocks = pd.read_csv(out / "blocks.csv")
+    assert pd.Timestamp(blocks["block_start"].iat[0]) == june
