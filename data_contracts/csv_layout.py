@@ -56,6 +56,7 @@ def read_delimited(
     decimal: str | None = None,
     encoding: str | None = None,
     skip_rows: int = 0,
+    skip_after_header: int = 0,
     dtype=None,
 ) -> tuple[pd.DataFrame, str, str]:
     """Read a delimited text table; return it with the separator and decimal mark used.
@@ -72,6 +73,8 @@ def read_delimited(
         Default UTF-8 (with or without BOM), falling back to latin-1.
     skip_rows : int
         Lines before the header line (e.g. a tool's banner).
+    skip_after_header : int
+        Lines between the header line and the data (e.g. a row of units).
     dtype : optional
         Passed to :func:`pandas.read_csv` (``str`` keeps the text of every cell).
 
@@ -83,6 +86,8 @@ def read_delimited(
     text = decode_text(Path(path).read_bytes(), encoding)
     lines = text.splitlines()
     body = lines[skip_rows:]
+    if skip_after_header and body:
+        body = body[:1] + body[1 + skip_after_header :]
     header = next((line for line in body if line.strip()), "")
     sep = separator or sniff_separator(header)
     if decimal is None:

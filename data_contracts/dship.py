@@ -40,11 +40,15 @@ from .csv_layout import decode_text
 from .dship_names import (
     AUXILIARY_COLUMNS,
     DSHIP_NAMES,
+    SLASH_FORMATS,
     TIME_FORMATS,
+    bad_time_values,
     name_key,
     parse_log_times,
     relative_wind,
     resolve_mapping,
+    strptime_format,
+    time_format_hint,
 )
 from .tables import CANONICAL_PREDICTORS, OPTIONAL_PREDICTORS
 
@@ -155,7 +159,8 @@ def _snake(name: str, unit: str | None) -> str:
 
 
 def _looks_like_time(text: str, time_format: str | None) -> bool:
-    formats = (time_format,) if time_format else ("ISO8601", *TIME_FORMATS)
+    slash = [f for pair in SLASH_FORMATS for f in pair]
+    formats = (strptime_format(time_format),) if time_format else ("ISO8601", *TIME_FORMATS, *slash)
     return any(
         not pd.isna(pd.to_datetime(text.strip(), errors="coerce", format=f, utc=True))
         for f in formats
@@ -213,8 +218,10 @@ def read_dship(
         Decimal mark; default ``,`` when the separator is not ``,`` and numbers such as
         ``12,5`` occur, else ``.``.
     time_format : str, optional
-        :func:`~datetime.datetime.strptime` format of the times; default: ISO-8601,
-        ``yyyy/mm/dd HH:MM:SS`` or day-first ``dd.mm.yyyy HH:MM:SS``, whichever fits.
+        Format of the times: :func:`~datetime.datetime.strptime` (``%d/%m/%Y %H:%M:%S``)
+        or MATLAB ``datestr`` symbols (``dd-mmm-yyyy HH:MM:SS``); default: ISO-8601,
+        ``yyyy/mm/dd HH:MM:SS``, day-first ``dd.mm.yyyy HH:MM:SS``, ``dd-mmm-yyyy
+        HH:MM:SS`` or slash dates whose days tell day and month apart, whichever fits.
 
     Returns
     -------
@@ -366,14 +373,21 @@ def read_dship(
         problems.append(
             Violation(
                 headers[time_index],
-                f"no known time format fits (first value {time_text.iat[0]!r}; tried ISO-8601, "
-                f"{', '.join(TIME_FORMATS)}); give the format (time_format)",
+                f"no known time format fits ({bad_time_values(time_text, bad_time)}; tried "
+                f"ISO-8601, {', '.join(TIME_FORMATS)}); {time_format_hint(used_format)}",
             )
         )
     elif bad_time.any():
         shown, n = bad_lines(bad_time)
         what = "an ISO-8601 time" if used_format == "ISO8601" else f"a time in {used_format}"
-        problems.append(Violation(headers[time_index], f"not {what}", shown, n))
+        problems.append(
+            Violation(
+                headers[time_index],
+                f"not {what}: {bad_time_values(time_text, bad_time)}",
+                shown,
+                n,
+            )
+        )
 
     known = (
         [c.name for c in CANONICAL_PREDICTORS]

@@ -21,9 +21,15 @@ import pandas as pd
 __all__ = [
     "AUXILIARY_COLUMNS",
     "DSHIP_NAMES",
+    "DATESTR_FORMATS",
+    "SLASH_FORMATS",
     "TIME_FORMATS",
+    "bad_time_values",
     "parse_column_mapping",
     "parse_log_times",
+    "parse_times",
+    "strptime_format",
+    "time_format_hint",
     "relative_wind",
 ]
 
@@ -89,9 +95,19 @@ DSHIP_NAMES: dict[str, tuple[str, ...]] = {
 #: Columns read only to derive the relative wind (not predictors themselves).
 AUXILIARY_COLUMNS = ("wind_dir_true_deg", "wind_speed_true_ms", "heading_deg", "course_deg")
 
+#: MATLAB's ``datestr`` forms (``14-May-2024 08:00:00``): the month's name makes them
+#: unambiguous (English month abbreviations).
+DATESTR_FORMATS = (
+    "%d-%b-%Y %H:%M:%S.%f",
+    "%d-%b-%Y %H:%M:%S",
+    "%d-%b-%Y %H:%M",
+    "%d-%b-%Y",
+)
+
 #: Time formats recognised without being told, tried after ISO-8601. Only unambiguous ones:
-#: ``dd.mm.yyyy`` is day-first by convention; ``dd/mm/yyyy`` vs ``mm/dd/yyyy`` must be
-#: stated (``time_format``).
+#: ``dd.mm.yyyy`` is day-first by convention and MATLAB's ``dd-mmm-yyyy`` names the month;
+#: ``dd/mm/yyyy`` and ``mm/dd/yyyy`` (:data:`SLASH_FORMATS`) are taken only when the values
+#: tell them apart (a day above 12), else the format must be stated (``time_format``).
 TIME_FORMATS = (
     "%Y/%m/%d %H:%M:%S.%f",
     "%Y/%m/%d %H:%M:%S",
@@ -99,22 +115,87 @@ TIME_FORMATS = (
     "%d.%m.%Y %H:%M:%S.%f",
     "%d.%m.%Y %H:%M:%S",
     "%d.%m.%Y %H:%M",
+    *DATESTR_FORMATS,
+)
+
+#: Day-first and month-first slash dates, in pairs.
+SLASH_FORMATS = tuple(
+    (f"%d/%m/%Y{clock}", f"%m/%d/%Y{clock}") for clock in (" %H:%M:%S.%f", " %H:%M:%S", " %H:%M")
+)
+
+#: MATLAB ``datestr``/``datetime`` format symbols and their ``strptime`` equivalents,
+#: longest first (``mm`` is the month, ``MM`` the minutes, as in MATLAB).
+_MATLAB_SYMBOLS = (
+    ("yyyy", "%Y"),
+    ("mmmm", "%B"),
+    ("mmm", "%b"),
+    ("FFF", "%f"),
+    ("yy", "%y"),
+    ("mm", "%m"),
+    ("dd", "%d"),
+    ("HH", "%H"),
+    ("MM", "%M"),
+    ("SS", "%S"),
+    ("PM", "%p"),
+    ("AM", "%p"),
 )
 
 
-def parse_log_times(text: pd.Series, time_format: str | None = None) -> tuple[pd.Series, str]:
-    """UTC times of *text* and the format used.
+def strptime_format(time_format: str) -> str:
+    """*time_format* as a ``strptime`` format pandas understands.
 
-    Without *time_format*, ISO-8601 (offsets honoured) and the formats of
-    :data:`TIME_FORMATS` are tried; the one that parses most cells wins. Times without an
-    offset are UTC (ship data systems log UTC). Unparseable cells are NaT.
+    ``strptime`` formats (``%d/%m/%Y %H:%M:%S``) pass unchanged, ``ISO8601`` too; MATLAB
+    ``datestr`` formats (``dd/mm/yyyy HH:MM:SS``, ``dd-mmm-yyyy HH:MM:SS.FFF``) are
+    translated.
+
+    Raises
+    ------
+    ValueError
+        For a format with neither ``%`` directives nor MATLAB symbols.
     """
+    text = str(time_format).strip()
+    if "%" in text:
+        return text
+    if text.lower() in ("iso8601", "iso-8601", "iso"):
+        return "ISO8601"
+    out, i = "", 0
+    while i < len(text):
+        for symbol, directive in _MATLAB_SYMBOLS:
+            if text.startswith(symbol, i):
+                out += directive
+                i += len(symbol)
+                break
+        else:
+            out += text[i]
+            i += 1
+    if "%" not in out:
+        raise ValueError(
+            f"time_format={time_format!r} is neither a strptime format (%d/%m/%Y %H:%M:%S) "
+            "nor a MATLAB datestr format (dd/mm/yyyy HH:MM:SS)"
+        )
+    return out
+
+
+def parse_times(
+    text: pd.Series, time_format: str | None = None, *, utc: bool = True
+) -> tuple[pd.Series, str]:
+    """Times of *text* and the format used (``"ambiguous"``: day- or month-first).
+
+    With *time_format* (``strptime`` or MATLAB ``datestr`` symbols, see
+    :func:`strptime_format`) only that format is used. Without one, ISO-8601 and
+    :data:`TIME_FORMATS` are tried, then the slash dates of :data:`SLASH_FORMATS` when
+    exactly one reading of the pair fits every value; the format that parses most cells
+    wins. *utc*: times without an offset are UTC (else they stay naive). Unparseable
+    cells are NaT.
+    """
+    text = text.astype(str).str.strip()
 
     def parse(fmt: str) -> pd.Series:
-        return pd.to_datetime(text, utc=True, errors="coerce", format=fmt)
+        return pd.to_datetime(text, utc=utc, errors="coerce", format=fmt)
 
     if time_format is not None:
-        return parse(time_format), time_format
+        fmt = strptime_format(time_format)
+        return parse(fmt), fmt
     best = parse("ISO8601")
     best_format = "ISO8601"
     if best.notna().all() or not len(text):
@@ -123,7 +204,47 @@ def parse_log_times(text: pd.Series, time_format: str | None = None) -> tuple[pd
         times = parse(fmt)
         if times.notna().sum() > best.notna().sum():
             best, best_format = times, fmt
+    if best.notna().all():
+        return best, best_format
+    for day_first, month_first in SLASH_FORMATS:
+        days, months = parse(day_first), parse(month_first)
+        n_days, n_months = int(days.notna().sum()), int(months.notna().sum())
+        if max(n_days, n_months) <= best.notna().sum():
+            continue
+        if n_days == n_months:  # no day above 12: cannot tell
+            best, best_format = days.where(days.isna()), "ambiguous"
+        elif n_days > n_months:
+            best, best_format = days, day_first
+        else:
+            best, best_format = months, month_first
     return best, best_format
+
+
+def parse_log_times(text: pd.Series, time_format: str | None = None) -> tuple[pd.Series, str]:
+    """UTC times of *text* and the format used (:func:`parse_times`; times without an
+    offset are UTC: ship data systems log UTC)."""
+    return parse_times(text, time_format, utc=True)
+
+
+def bad_time_values(text: pd.Series, bad, limit: int = 3) -> str:
+    """The distinct values of *text* where *bad*, each once: ``'14/05/2024 08:10:00'
+    (5 rows)`` or ``'a', 'b' (+2 more values; 9 rows)``."""
+    values = pd.unique(text[np.asarray(bad)].astype(str))
+    n_rows = int(np.asarray(bad).sum())
+    shown = ", ".join(repr(v) for v in values[:limit])
+    more = len(values) - limit
+    rows = f"{n_rows} row" + ("s" if n_rows != 1 else "")
+    return shown + (f" (+{more} more values; {rows})" if more > 0 else f" ({rows})")
+
+
+def time_format_hint(fmt: str) -> str:
+    """What to do when times do not parse (*fmt*: the format used or ``ambiguous``)."""
+    if fmt == "ambiguous":
+        return (
+            "dd/mm/yyyy or mm/dd/yyyy: no day above 12 tells them apart; give the time "
+            "format, e.g. --time-format %d/%m/%Y %H:%M:%S"
+        )
+    return "give the time format, e.g. --time-format %d/%m/%Y %H:%M:%S or dd-mmm-yyyy HH:MM:SS"
 
 
 def parse_column_mapping(text: str | Sequence[str]) -> dict[str, str]:

@@ -42,7 +42,7 @@ import pandas as pd
 
 from ._core import ContractError, Violation
 from .csv_layout import read_delimited, split_unit
-from .dship_names import TIME_FORMATS, name_key
+from .dship_names import bad_time_values, name_key, parse_times, strptime_format, time_format_hint
 from .grid import GRID_ATTR, attach_grid, read_grid, set_grid
 from .tables import MODAL
 
@@ -107,6 +107,11 @@ class ModalLayout:
     time_zone : str, optional
         Zone of times written without one (``"UTC"``, ``"Europe/Berlin"``); default UTC
         with a warning.
+    time_format : str, optional
+        Format of the times: ``strptime`` (``%d/%m/%Y %H:%M:%S``) or MATLAB ``datestr``
+        symbols (``dd/mm/yyyy HH:MM:SS``); default: ISO-8601, ``yyyy/mm/dd``,
+        ``dd.mm.yyyy``, ``dd-mmm-yyyy`` and slash dates whose values tell day and month
+        apart.
     block_length_s, block_step_s : float
         The block grid. [s]
     grid_t0 : str, optional
@@ -118,6 +123,7 @@ class ModalLayout:
     damping_unit: Literal["fraction", "percent"] | None = None
     time_reference: Literal["start", "centre", "end"] | None = None
     time_zone: str | None = None
+    time_format: str | None = None
     block_length_s: float = 1200.0
     block_step_s: float = 300.0
     grid_t0: str | None = None
@@ -136,6 +142,8 @@ class ModalLayout:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name}={value!r} must be a positive number of seconds")
+        if self.time_format is not None:
+            strptime_format(self.time_format)  # ValueError naming time_format
         if self.block_step_s > self.block_length_s:
             raise ValueError(
                 f"block_step_s={self.block_step_s:g} must not exceed "
@@ -316,7 +324,9 @@ def standardise_modal(
                 stacklevel=3,
             )
             reference = "start"
-        times = _times(long[time_column], time_column, layout.time_zone, head, fail)
+        times = _times(
+            long[time_column], time_column, layout.time_zone, head, fail, layout.time_format
+        )
         offset = {"start": pd.Timedelta(0), "centre": length / 2, "end": length}[reference]
         starts = times - offset
         if layout.grid_t0 is not None:
@@ -466,22 +476,22 @@ def _utc(value, name: str) -> pd.Timestamp:
     return stamp.tz_localize("UTC") if stamp.tzinfo is None else stamp.tz_convert("UTC")
 
 
-def _times(values: pd.Series, column, time_zone, head: str, fail) -> pd.Series:
+def _times(
+    values: pd.Series, column, time_zone, head: str, fail, time_format: str | None = None
+) -> pd.Series:
     text = values.astype(str).str.strip()
     zoned = text.str.contains(r"(?:Z|[+-]\d\d:?\d\d)$", regex=True)
     if zoned.any() and not zoned.all():
         raise fail("some times carry a time zone and some do not", str(column))
+    used = time_format
     if zoned.all():
-        times = pd.to_datetime(text, utc=True, errors="coerce", format="ISO8601")
+        times, used = parse_times(text, time_format, utc=True)
     else:
-        times = pd.to_datetime(text, errors="coerce", format="ISO8601")
-        if times.isna().any():
-            for fmt in TIME_FORMATS:
-                other = pd.to_datetime(text, errors="coerce", format=fmt)
-                if other.notna().sum() > times.notna().sum():
-                    times = other
+        times, used = parse_times(text, time_format, utc=False)
         if times.notna().any():
-            if time_zone is None:
+            if times.dt.tz is not None:  # a format with %z
+                times = times.dt.tz_convert("UTC")
+            elif time_zone is None:
                 warnings.warn(
                     f"{head}: times in '{column}' have no time zone; taken as UTC "
                     "(state the zone if they are local times)",
@@ -497,10 +507,12 @@ def _times(values: pd.Series, column, time_zone, head: str, fail) -> pd.Series:
                     ) from None
     bad = times.isna().to_numpy()
     if bad.any():
+        # a wide table repeats each time once per mode: every distinct value is shown once
+        if time_format is not None:
+            what = f"not a time in the format {time_format}"
+        else:
+            what = "not a time (ISO-8601, yyyy/mm/dd HH:MM:SS, dd.mm.yyyy HH:MM:SS, dd-mmm-yyyy)"
         raise fail(
-            "not a time (ISO-8601, yyyy/mm/dd HH:MM:SS or dd.mm.yyyy HH:MM:SS)",
-            str(column),
-            [repr(v) for v in text[bad].head(5)],
-            int(bad.sum()),
+            f"{what}: {bad_time_values(text, bad)}; {time_format_hint(used)}", str(column)
         )
     return times

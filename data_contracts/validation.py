@@ -46,6 +46,7 @@ def validate_file(
     *,
     layout: Any = None,
     dship_mapping: Mapping[str, str] | None = None,
+    time_format: str | None = None,
 ) -> ValidatedFile:
     """Read *path* as a file of contract *kind* and validate it.
 
@@ -60,6 +61,9 @@ def validate_file(
     dship_mapping : mapping, optional
         Canonical column -> source column of a ship log (see
         :func:`~data_contracts.read_dship`).
+    time_format : str, optional
+        Format of a ship log's times (:func:`~data_contracts.read_dship`); acceleration
+        files take theirs from *layout*.
 
     Raises
     ------
@@ -77,7 +81,7 @@ def validate_file(
         )
         return ValidatedFile(kind, path, record, summary)
     if kind == "dship":
-        table = read_dship(path, mapping=dship_mapping)
+        table = read_dship(path, mapping=dship_mapping, time_format=time_format)
         summary = f"{len(table)} records, columns {', '.join(table.columns[1:])}"
         return ValidatedFile(kind, path, table, summary)
     if kind not in CONTRACTS:

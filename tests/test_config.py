@@ -33,7 +33,7 @@ def test_unknown_sections_keys_and_types_are_refused(tmp_path):
     lines = str(caught.value).splitlines()
     assert lines == [
         f"{path}: [dship] unknown key 'column' (known: file, columns)",
-        f"{path}: unknown section [forecst] (known: output, accelerations, dship, predictors, "
+        f"{path}: unknown section [forecst] (known: output, times, accelerations, dship, predictors, "
         "modal, blocks, identify, track, correlate, fit, forecast, evaluate)",
         f"{path}: [forecast] train_blocks = '20' has the wrong type",
     ]

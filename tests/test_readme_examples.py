@@ -46,6 +46,32 @@ def _csv_in_g(record, path: Path) -> None:
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
+def _daq_export(record, path: Path) -> None:
+    """An NI DAQ CSV export: ``key,value`` metadata lines above the header, relative times."""
+    t = np.arange(record.n_samples) / record.sampling_rate_hz
+    lines = [
+        "Device,NI cDAQ-9189",
+        "Task,HullVibration",
+        f"Start Time,{record.start_time.strftime('%d.%m.%Y %H:%M:%S')}",
+        f"Sample Rate,{record.sampling_rate_hz:g} Hz",
+        f"Samples per Channel,{record.n_samples}",
+        "Operator,J. Hansen",
+        "Time [s]," + ",".join(f"{c} [m/s^2]" for c in record.channels),
+    ]
+    for k in range(record.n_samples):
+        lines.append(",".join([f"{t[k]:.6f}", *(f"{v:.10g}" for v in record.acceleration[k])]))
+    path.write_text("\r\n".join(lines) + "\r\n", encoding="utf-8")
+
+
+def _relative_csv(record, path: Path) -> None:
+    """Relative times restarting at 0 in every file, no start anywhere."""
+    t = np.arange(record.n_samples) / record.sampling_rate_hz
+    lines = ["Time [s]," + ",".join(record.channels)]
+    for k in range(record.n_samples):
+        lines.append(",".join([f"{t[k]:.6f}", *(f"{v:.10g}" for v in record.acceleration[k])]))
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
 def _uff(record, path: Path, n: int) -> None:
     pyuff = pytest.importorskip("pyuff")
     common = dict(
@@ -102,11 +128,14 @@ def mydata(tmp_path_factory) -> Path:
     voyage = root / "voyage"
     assert main(["simulate", "--out", str(voyage), "--hours", "3", "--seed", "1"]) == 0
     data = root / "mydata"
-    for sub in ("recordings", "matlab", "hdf5", "uff", "dship", "modes"):
+    for sub in ("recordings", "matlab", "hdf5", "uff", "dship", "modes", "daq", "relative"):
         (data / sub).mkdir(parents=True)
     files = sorted((voyage / "accelerations").glob("*.npz"))
-    for path in files[:4]:  # 20 min: one 20-min block
-        _csv_in_g(read_accelerations(path), data / "recordings" / f"rec_{path.stem[4:]}.csv")
+    for k, path in enumerate(files[:4]):  # 20 min: one 20-min block
+        record = read_accelerations(path)
+        _csv_in_g(record, data / "recordings" / f"rec_{path.stem[4:]}.csv")
+        _daq_export(record, data / "daq" / f"export_{k:03d}.csv")
+        _relative_csv(record, data / "relative" / f"part{k + 1}.csv")
     first = read_accelerations(files[0])
     datenum = (
         719529 + (first.start_time - pd.Timestamp("1970-01-01T00:00Z")).total_seconds() / 86400

@@ -9,6 +9,9 @@ are refused by name (a mistyped option must not be ignored). Example::
     [output]
     dir = "out"
 
+    [times]                             # every time column and text start time
+    format = "%d/%m/%Y %H:%M:%S"        # (strptime or MATLAB datestr: dd-mmm-yyyy HH:MM:SS)
+
     [accelerations]                     # recordings and how to read them
     inputs = ["recordings/"]
     start_time = "filename"             # relative times; start in the file names
@@ -65,6 +68,7 @@ _PATH, _PATHS = "path", "paths"
 #: Section -> key -> type (``path``: relative to the file; ``paths``: list of them).
 SCHEMA: dict[str, dict[str, Any]] = {
     "output": {"dir": _PATH},
+    "times": {"format": str},
     "accelerations": {
         "inputs": _PATHS,
         "time_column": str,
@@ -254,6 +258,8 @@ def command_defaults(command: str, config: ShipConfig) -> dict[str, Any]:
         if c.has(section, key):
             values[dest] = convert(c.get(section, key))
 
+    # one time format for every time column and text start time a command reads
+    put("time_format", "times", "format")
     # where the modal table and the predictors come from
     modal = c.get("modal", "file") or out / "tracked_modal.csv"
     if command in ("correlate", "fit", "forecast"):

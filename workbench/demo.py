@@ -204,7 +204,9 @@ def run_demo(
     )
 
     with stage("predictors"):
-        predictors = load_predictors(dship=simulation.dship_log, onto=tracked.table)
+        predictors = load_predictors(
+            dship=simulation.dship_log, onto=tracked.table, all_predictors=True
+        )
         write_table(predictors, out_dir / "predictors.csv", PREDICTORS)
     predictors = canonical_predictors(predictors)
 

@@ -14,7 +14,40 @@ import pandas as pd
 
 from .errors import UsageError
 
-__all__ = ["add_dship_columns", "add_modal_layout", "dship_mapping", "read_modal"]
+__all__ = [
+    "TIME_FORMAT_HELP",
+    "add_dship_columns",
+    "add_modal_layout",
+    "dship_mapping",
+    "read_modal",
+    "time_format",
+]
+
+
+#: ``--time-format``: one option for every time column and text start time a command reads.
+TIME_FORMAT_HELP = (
+    "format of every time column and text start time (modal table, ship log, acceleration "
+    "files): strptime (%%d/%%m/%%Y %%H:%%M:%%S) or MATLAB datestr (dd-mmm-yyyy HH:MM:SS); "
+    "default: ISO-8601, yyyy/mm/dd, dd.mm.yyyy, dd-mmm-yyyy and slash dates whose days "
+    "tell day and month apart"
+)
+
+
+def time_format(args: argparse.Namespace) -> str | None:
+    """The ``--time-format`` of a command reading modal tables or ship logs, checked
+    (``seconds``/``unix`` are for acceleration files only)."""
+    from data_contracts.dship_names import strptime_format
+
+    value = getattr(args, "time_format", None)
+    if value is None:
+        return None
+    if value in ("seconds", "unix"):
+        raise _usage(f"--time-format {value} is for acceleration files (identify, validate)")
+    try:
+        strptime_format(value)
+    except ValueError as error:
+        raise _usage(f"--time-format: {error}") from None
+    return value
 
 
 def _usage(message: str) -> Exception:
@@ -75,6 +108,7 @@ def add_modal_layout(parser: argparse.ArgumentParser) -> None:
         help="zone of times written without one, e.g. UTC or Europe/Berlin (default UTC, "
         "with a warning)",
     )
+    group.add_argument("--time-format", metavar="FMT", help=TIME_FORMAT_HELP)
     group.add_argument(
         "--grid",
         metavar="LENGTH_MIN,STEP_MIN[,T0]",
@@ -106,6 +140,7 @@ def _layout(args: argparse.Namespace):
             damping_unit=getattr(args, "damping_unit", None),
             time_reference=getattr(args, "time_reference", None),
             time_zone=getattr(args, "time_zone", None),
+            time_format=time_format(args),
             block_length_s=60.0 * length_min,
             block_step_s=60.0 * step_min,
             grid_t0=t0,
@@ -133,12 +168,17 @@ def add_acceleration_layout(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--time-format",
         metavar="FMT",
-        help="strptime format of the times, 'seconds' (relative to --start-time) or 'unix'",
+        help=TIME_FORMAT_HELP.replace("(modal", "(acceleration files, their metadata, "
+        "MATLAB t0; modal").replace(", acceleration files)", ")")
+        + "; or 'seconds' (relative to --start-time) or 'unix'",
     )
     group.add_argument("--separator", metavar="SEP", help="field separator (';', ',', 'tab')")
     group.add_argument("--decimal", choices=(".", ","), help="decimal mark (default: detected)")
     group.add_argument(
-        "--start-time", metavar="TIME", help="UTC time of the first sample (relative times)"
+        "--start-time",
+        metavar="TIME",
+        help="UTC time of the first sample (relative times), or 'filename' (the time in "
+        "each file's name); with several files: the first file's, the others follow on",
     )
     group.add_argument(
         "--sampling-rate", type=float, metavar="HZ", help="sampling rate (default: from the file)"

@@ -166,10 +166,14 @@ class AccelerationLayout:
         (case-insensitive, with or without a unit); none: every column is a channel and
         *start_time* and *sampling_rate_hz* are needed.
     time_format : str, optional
-        ``strptime`` format of absolute times, or ``"seconds"`` for times relative to
-        *start_time* (the unit in the header, ``Time [ms]``, is honoured), or ``"unix"``
-        for seconds since 1970-01-01 UTC. Default: ISO-8601, ``yyyy/mm/dd HH:MM:SS`` or
-        ``dd.mm.yyyy HH:MM:SS``; numbers are relative seconds when *start_time* is given.
+        Format of absolute times, in the time column and in a text start time (metadata
+        lines, MATLAB ``t0``, HDF5 ``start_time``): ``strptime`` (``%d/%m/%Y %H:%M:%S``) or
+        MATLAB ``datestr`` symbols (``dd-mmm-yyyy HH:MM:SS``); or ``"seconds"`` for times
+        relative to *start_time* (the unit in the header, ``Time [ms]``, is honoured), or
+        ``"unix"`` for seconds since 1970-01-01 UTC. Default: ISO-8601, ``yyyy/mm/dd
+        HH:MM:SS``, ``dd.mm.yyyy HH:MM:SS``, ``dd-mmm-yyyy HH:MM:SS`` and slash dates whose
+        values tell day and month apart; numbers are relative seconds when *start_time* is
+        given (also with a date format: a numeric time column is relative).
     separator : str, optional
         Field separator of text files; default sniffed from the header line.
     decimal : {".", ","}, optional
@@ -192,6 +196,11 @@ class AccelerationLayout:
         ``fs``, ``t0``, ``chanNames``, ...), when exactly one is present.
     orientation : {"auto", "samples_first", "channels_first"}
         Layout of a MATLAB/HDF5 matrix; ``auto`` takes the longer dimension as samples.
+    file_starts : mapping, optional
+        Per file (resolved path): the time that stands for *start_time* in that file. Set
+        by :func:`workbench.identification.planning.follow_on_starts` when one start time
+        is given for several files with relative times: the first file starts at it, the
+        others follow on.
     """
 
     time_column: str | None = None
@@ -204,6 +213,7 @@ class AccelerationLayout:
     channels: tuple[str, ...] | None = None
     variables: Mapping[str, str] = field(default_factory=dict)
     orientation: Literal["auto", "samples_first", "channels_first"] = "auto"
+    file_starts: Mapping[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.orientation not in ("auto", "samples_first", "channels_first"):
@@ -219,6 +229,10 @@ class AccelerationLayout:
                     f"sampling_rate_hz={self.sampling_rate_hz!r} must be a positive number"
                 )
             object.__setattr__(self, "sampling_rate_hz", rate)
+        if self.time_format not in (None, "seconds", "unix"):
+            from ..dship_names import strptime_format
+
+            strptime_format(self.time_format)  # ValueError naming time_format
         if self.start_time is not None and self.start_time != "filename":
             try:
                 stamp = pd.Timestamp(self.start_time)
@@ -242,6 +256,11 @@ class AccelerationLayout:
                 f"variables has unknown key(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}"
             )
         object.__setattr__(self, "variables", dict(self.variables))
+        starts = {str(k): str(v) for k, v in dict(self.file_starts).items()}
+        for name, value in starts.items():
+            if pd.isna(pd.Timestamp(value)):
+                raise ValueError(f"file_starts[{name!r}]={value!r} is not a time")
+        object.__setattr__(self, "file_starts", starts)
 
     def to_dict(self) -> dict:
         """JSON-able form (stored with identification results)."""
@@ -343,6 +362,11 @@ def layout_start(layout: AccelerationLayout, path) -> pd.Timestamp | None:
     """The layout's start time for the file at *path* (UTC), or None when it gives none."""
     if layout.start_time is None:
         return None
+    if layout.file_starts:
+        given = layout.file_starts.get(str(Path(path).resolve()))
+        if given is not None:
+            stamp = pd.Timestamp(given)
+            return stamp.tz_localize("UTC") if stamp.tzinfo is None else stamp.tz_convert("UTC")
     if layout.start_time == "filename":
         match = _NAME_TIME.search(Path(path).stem)
         if match is None:
@@ -358,18 +382,21 @@ def layout_start(layout: AccelerationLayout, path) -> pd.Timestamp | None:
     return stamp.tz_localize("UTC") if stamp.tzinfo is None else stamp.tz_convert("UTC")
 
 
-def resolve_start(value, source) -> pd.Timestamp:
+def resolve_start(value, source, time_format: str | None = None) -> pd.Timestamp:
     """A start time from text, a MATLAB datenum, a MATLAB datevec or POSIX seconds.
 
     Numbers are told apart by size: a datenum of the years 1 to 2737 lies in
     [366, 1e6), POSIX seconds of the years 1973 to 2286 in [1e8, 1e10); a 6-vector is a
-    datevec. Anything else is refused.
+    datevec. Text is read in *time_format* (a ``strptime`` or MATLAB ``datestr`` format),
+    else as ISO-8601, ``dd-mmm-yyyy HH:MM:SS`` (MATLAB's ``datestr``) or another
+    recognised form (:func:`data_contracts.dship_names.parse_times`). Anything else is
+    refused.
     """
     if isinstance(value, str):  # read back as text by the MATLAB reader
         try:
             value = float(value)
         except ValueError:
-            return value
+            return text_start(value, source, time_format)
     array = np.asarray(value)
     if array.dtype.kind in "fiu":
         flat = array.astype(float).ravel()
@@ -397,6 +424,29 @@ def resolve_start(value, source) -> pd.Timestamp:
     return value
 
 
+def text_start(text: str, source, time_format: str | None = None) -> pd.Timestamp:
+    """A start time written as text (UTC unless it states an offset).
+
+    Raises
+    ------
+    ContractError
+        Naming the value and how to state its format.
+    """
+    from ..dship_names import parse_log_times, time_format_hint
+
+    fmt = time_format if time_format not in (None, "seconds", "unix") else None
+    value = str(text).strip()
+    times, used = parse_log_times(pd.Series([value]), fmt)
+    if times.notna().all():
+        return times.iat[0]
+    what = f"not a time in the format {fmt}" if fmt else "not a recognised time"
+    raise ContractError(
+        [Violation("start_time", f"{value!r} is {what}; {time_format_hint(used)}")],
+        source=source,
+        contract="accelerations",
+    )
+
+
 def matlab_record(record, layout: AccelerationLayout, source):
     """A record read from MATLAB with its start time resolved (datenum, datevec or text),
     the layout's start time, rate, channels and units applied."""
@@ -404,7 +454,7 @@ def matlab_record(record, layout: AccelerationLayout, source):
 
     start = layout_start(layout, source)
     if start is None:
-        start = resolve_start(record.start_time, source)
+        start = resolve_start(record.start_time, source, layout.time_format)
     acceleration = np.asarray(record.acceleration, dtype=float)
     channels = list(record.channels)
     if layout.channels is not None:
@@ -437,6 +487,7 @@ __all__ += [
     "layout_start",
     "matlab_record",
     "resolve_start",
+    "text_start",
     "warn_if_gravity_in_g",
 ]
 

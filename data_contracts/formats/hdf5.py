@@ -16,6 +16,7 @@ from . import (
     describe,
     layout_start,
     resolve_start,
+    text_start,
     warn_if_gravity_in_g,
 )
 from .containers import check_dataset, container_datasets, read_dataset
@@ -203,7 +204,11 @@ def read_hdf5_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
             start = layout_start(layout, path)
         elif start_value is not None:
             raw = np.asarray(value(start_value, "start_time"))
-            start = _text(raw) if raw.dtype.kind in "SOU" else resolve_start(raw, path)
+            start = (
+                text_start(_text(raw), path, layout.time_format)
+                if raw.dtype.kind in "SOU"
+                else resolve_start(raw, path)
+            )
         elif times is not None and times.size and times[0] > 1e8:
             start = resolve_start(times[0], path)
         else:

@@ -115,7 +115,7 @@ def test_bad_cells_are_reported_by_file_column_and_line(tmp_path):
         read_dship(path)
     lines = caught.value.lines()
     assert lines == [
-        f"{path}: column 'Date/Time', line 6: not an ISO-8601 time",
+        f"{path}: column 'Date/Time', line 6: not an ISO-8601 time: 'yesterday' (1 row)",
         f"{path}: column 'Speed [kn]', line 7: not a number",
     ]
 

@@ -108,12 +108,25 @@ def test_unknown_layout_names_the_columns_found(tmp_path):
 
 
 def test_unparseable_times_list_the_formats_tried(tmp_path):
-    path = write(tmp_path, "Date/Time;Speed [kn]\n07/31/2016 14:00;5\n")
-    with pytest.raises(ContractError, match="no known time format fits .*'07/31/2016 14:00'"):
+    path = write(tmp_path, "Date/Time;Speed [kn]\n07/06/2016 14:00;5\n07/06/2016 14:00;6\n")
+    with pytest.raises(ContractError) as caught:
         read_dship(path)
+    message = str(caught.value)
+    assert "no known time format fits ('07/06/2016 14:00' (2 rows)" in message
+    assert message.count("07/06/2016") == 1  # each distinct value once
+    assert "no day above 12" in message and "--time-format" in message
     with pytest.warns(UserWarning):
         log = read_dship(path, time_format="%m/%d/%Y %H:%M")
-    assert log.loc[0, "time"] == pd.Timestamp("2016-07-31T14:00Z")
+    assert log.loc[0, "time"] == pd.Timestamp("2016-07-06T14:00Z")
+
+
+def test_slash_dates_whose_days_tell_day_and_month_apart_need_no_format(tmp_path):
+    """A day above 12 in the values settles month-first (07/31) and day-first (31/07)."""
+    for text in ("07/31/2016 14:00", "31/07/2016 14:00"):
+        path = write(tmp_path, f"Date/Time;Speed [kn]\n{text};5\n")
+        with pytest.warns(UserWarning):  # the other predictors are missing
+            log = read_dship(path)
+        assert log.loc[0, "time"] == pd.Timestamp("2016-07-31T14:00Z")
 
 
 def test_parse_column_mapping():

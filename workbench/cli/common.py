@@ -13,7 +13,7 @@ from data_contracts import ContractError
 
 from .. import defaults as D
 from ..errors import OptionError, UsageError, WorkbenchError, printable
-from ..inputs import add_dship_columns, add_modal_layout, dship_mapping, read_modal
+from ..inputs import add_dship_columns, add_modal_layout, dship_mapping, read_modal, time_format
 
 EXIT_OK, EXIT_DATA, EXIT_USAGE = 0, 1, 2
 
@@ -117,12 +117,17 @@ def _add_out_dir(parser: argparse.ArgumentParser) -> None:
 
 
 def _predictors_for(args: argparse.Namespace, modal):
-    from ..predictors import canonical_predictors, load_predictors
+    from ..predictors import load_predictors
 
-    table = load_predictors(
-        predictors=args.predictors, dship=args.dship, onto=modal, dship_mapping=dship_mapping(args)
+    # the API's choice (canonical predictors unless all are asked for) in one place
+    return load_predictors(
+        predictors=args.predictors,
+        dship=args.dship,
+        onto=modal,
+        dship_mapping=dship_mapping(args),
+        time_format=time_format(args),
+        all_predictors=args.all_predictors,
     )
-    return table if args.all_predictors else canonical_predictors(table)
 
 
 def _modal_and_predictors(args: argparse.Namespace):

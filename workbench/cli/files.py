@@ -8,7 +8,13 @@ import sys
 import warnings
 from pathlib import Path
 
-from ..inputs import acceleration_layout, add_acceleration_layout, add_dship_columns, dship_mapping
+from ..inputs import (
+    acceleration_layout,
+    add_acceleration_layout,
+    add_dship_columns,
+    dship_mapping,
+    time_format,
+)
 from ..errors import printable
 from .common import EXIT_OK, UsageError, _data_errors
 
@@ -40,6 +46,7 @@ def _run_validate(args: argparse.Namespace) -> int:
             args.file,
             layout=acceleration_layout(args) if args.kind == "accelerations" else None,
             dship_mapping=dship_mapping(args) if args.kind == "dship" else None,
+            time_format=time_format(args) if args.kind == "dship" else None,
         )
     for warning in caught:
         print(f"warning: {printable(warning.message)}", file=sys.stderr)

@@ -73,6 +73,52 @@ def _records(plan) -> list[tuple[pd.Timestamp, pd.Timestamp, list[str]]]:
     return records
 
 
+def follow_on_starts(files: Sequence[Path], options: IdentifyOptions) -> IdentifyOptions:
+    """*options* with one start time given for several files resolved per file.
+
+    A start time (``--start-time``) stands for the first sample of the first file, in the
+    order the files are found (names sorted). A file whose times are relative (or that has
+    no time column) and restart at 0 follows the previous file without a gap; one whose
+    relative times continue (a second file starting at 300 s) keeps its offset from the
+    start when that lies after the previous file's end. Files with absolute times of their
+    own (ISO-8601 column, ``.npz``, a MATLAB ``t0``) keep them. Each file is read once
+    more for this (only when one start time is given for several files).
+    """
+    from data_contracts import ContractError, read_accelerations
+
+    layout = dict(options.acceleration_layout or {})
+    given = layout.get("start_time")
+    if len(files) < 2 or given in (None, "filename") or layout.get("file_starts"):
+        return options
+    zero = pd.Timestamp(given)
+    zero = zero.tz_localize("UTC") if zero.tzinfo is None else zero.tz_convert("UTC")
+    own = {k: v for k, v in layout.items() if k != "start_time"}
+    starts: dict[str, str] = {}
+    previous_end = None
+    for path in files:
+        try:
+            record = read_accelerations(path, layout=own)
+        except ContractError:
+            record = None  # needs the given start: relative times or no time column
+        if record is None:
+            try:
+                record = read_accelerations(path, layout=layout)
+            except ContractError as error:
+                raise WorkbenchError(error.lines()[0]) from None
+            first = record.start_time
+            if previous_end is not None and first < previous_end:
+                first = previous_end  # restarted relative times: follow on
+            starts[str(Path(path).resolve())] = (zero + (first - record.start_time)).isoformat()
+            record_end = first + record.duration
+        else:
+            record_end = record.end_time
+        previous_end = record_end if previous_end is None else max(previous_end, record_end)
+    if not starts:
+        return options
+    layout["file_starts"] = starts
+    return replace(options, acceleration_layout=layout)
+
+
 def plan_identification(files: Sequence[Path], options: IdentifyOptions):
     """The block plan of *files* and the options resolved for their sampling rate.
 

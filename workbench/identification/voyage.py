@@ -17,7 +17,13 @@ from ..store import BlockStore
 from .engine import _block_tasks, _file_tasks, identify_block, identify_from_files
 from .export import export_store
 from .options import IdentifyOptions
-from .planning import acceleration_files, input_fingerprints, plan_identification, resolved_run
+from .planning import (
+    acceleration_files,
+    follow_on_starts,
+    input_fingerprints,
+    plan_identification,
+    resolved_run,
+)
 
 
 @dataclass
@@ -107,6 +113,7 @@ def identify_voyage(
         if path.exists() and not path.is_dir():
             raise WorkbenchError(f"{path}: {what} is a file, not a folder")
     files = acceleration_files(inputs)
+    options = follow_on_starts(files, options)
     plan, options = plan_identification(files, options)
     options.check_data(plan)
     grid = plan.grid

@@ -28,8 +28,15 @@ def load_predictors(
     onto: pd.DataFrame | None = None,
     min_coverage: float = 0.5,
     dship_mapping: Mapping[str, str] | None = None,
+    time_format: str | None = None,
+    all_predictors: bool = False,
 ) -> pd.DataFrame:
     """Block predictors from a predictor table, or averaged from a DSHIP log.
+
+    The canonical predictors only (speed, water and air temperature, wind speed, relative
+    wind direction: :func:`canonical_predictors`), as ``workbench correlate/fit/forecast``
+    use them; every numeric column (position, depth, heading, ...) with *all_predictors*
+    (``--all-predictors``).
 
     Parameters
     ----------
@@ -45,23 +52,30 @@ def load_predictors(
         :func:`~workbench.predictors.block_predictors`).
     dship_mapping : mapping, optional
         Column mapping for :func:`~data_contracts.read_dship` (``speed_kn`` -> source name).
+    time_format : str, optional
+        Format of the log's times (``strptime`` or MATLAB ``datestr`` symbols); default:
+        recognised (:func:`data_contracts.dship_names.parse_times`).
+    all_predictors : bool
+        Keep every numeric column, not only the canonical predictors.
     """
     if (predictors is None) == (dship is None):
         raise ValueError("give exactly one of predictors and dship")
     if predictors is not None:
-        return read_table(predictors, PREDICTORS)
+        table = read_table(predictors, PREDICTORS)
+        return table if all_predictors else canonical_predictors(table)
     if onto is None:
         raise ValueError("averaging a DSHIP log needs the blocks of a modal table (onto=)")
     from .averaging import block_predictors
 
-    log = read_dship(dship, mapping=dship_mapping)
+    log = read_dship(dship, mapping=dship_mapping, time_format=time_format)
     t0, length_s, step_s = block_grid_of(onto)
     first, last = int(onto["block"].min()), int(onto["block"].max())
     grid = BlockGrid(t0=t0, length_s=length_s, step_s=step_s)
     table = block_predictors(
         log, grid=grid, blocks=np.arange(first, last + 1), min_coverage=min_coverage
     )
-    return set_grid(PREDICTORS.validate(table), grid)
+    table = set_grid(PREDICTORS.validate(table), grid)
+    return table if all_predictors else canonical_predictors(table)
 
 
 def canonical_predictors(predictors: pd.DataFrame) -> pd.DataFrame:

@@ -144,6 +144,31 @@ def _real_shape(shape: np.ndarray) -> np.ndarray:
     return np.where(finite, real, np.nan)
 
 
+def _listed(names, limit: int = 8) -> str:
+    names = [str(n) for n in names]
+    more = len(names) - limit
+    return ", ".join(names[:limit]) + (f" (+{more} more)" if more > 0 else "")
+
+
+def check_geometry_channels(
+    channels, geometry: pd.DataFrame, *, geometry_name: str = "the sensor geometry"
+) -> None:
+    """Refuse a sensor geometry none of whose channels is among the mode shapes' *channels*.
+
+    Raises
+    ------
+    ValueError
+        One line naming both sides' channels.
+    """
+    placed = [str(c) for c in geometry["channel"]]
+    if channels and not set(map(str, channels)) & set(placed):
+        raise ValueError(
+            f"channel names of {geometry_name} ({_listed(placed)}) match none of the mode "
+            f"shapes' channels, i.e. the acceleration files' ({_listed(channels)}); name the "
+            "geometry's channels as the files do"
+        )
+
+
 def plot_mode_shapes(
     modal: pd.DataFrame,
     geometry: pd.DataFrame,
@@ -169,6 +194,7 @@ def plot_mode_shapes(
     """
     modes, channels, shapes = mean_mode_shapes(modal)
     modes, shapes = modes[:max_modes], shapes[:, :max_modes]
+    check_geometry_channels(channels, geometry)
     place = geometry.set_index("channel")
     known = [c for c in channels if c in place.index]
     rows_of = [channels.index(c) for c in known]

@@ -54,10 +54,14 @@ class TrackResult(StageResult):
         """The ship log *dship* averaged onto the tracked blocks (PREDICTORS contract):
         speed, water and air temperature, wind speed and relative wind direction, or
         every numeric column with *all_predictors* (as ``--dship`` of the commands)."""
-        from ..predictors import canonical_predictors, load_predictors
+        from ..predictors import load_predictors
 
-        table = load_predictors(dship=dship, onto=self.table, dship_mapping=dship_mapping)
-        return table if all_predictors else canonical_predictors(table)
+        return load_predictors(
+            dship=dship,
+            onto=self.table,
+            dship_mapping=dship_mapping,
+            all_predictors=all_predictors,
+        )
 
     def correlate(self, predictors: pd.DataFrame, *, cases=None, options=None):
         """:func:`~workbench.stages.correlate` of the tracked modes with *predictors*."""

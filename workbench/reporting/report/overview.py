@@ -67,6 +67,15 @@ def load_run(
         predictors = canonical_predictors(predictors)
     cases = read_cases(run.cases) if run.cases is not None else None
     geometry = read_table(run.geometry, SENSOR_GEOMETRY) if run.geometry is not None else None
+    if geometry is not None and modal is not None:
+        from data_contracts import shapes_from_frame
+
+        from ..mode_views import check_geometry_channels
+
+        # before any figure is drawn: one line naming both sides, not a failure mid-report
+        if any(str(c).startswith("shape_re_") for c in modal.columns):
+            channels, _ = shapes_from_frame(modal)
+            check_geometry_channels(channels, geometry, geometry_name=str(run.geometry))
     signal = signal_pass(run.accelerations, cases, band) if run.accelerations else None
     return RunData(
         run=run,
