@@ -27,8 +27,8 @@ and :mod:`.estimator` (:class:`StepwiseRegressor`).
 # before the package was split
 from .estimator import StepwiseRegressor
 from .regression import DEFAULT_THRESHOLDS, Criterion, MissingRule, stepwise  # noqa: F401
-from .result import StepwiseFit
-from .search import EXACT_FIT_TOLERANCE  # noqa: F401
+from .result import StepwiseFit, StepwiseWarning
+from .search import EXACT_FIT_TOLERANCE, STEPS_PER_TERM, default_step_limit  # noqa: F401
 from .sweep import COLLINEARITY_TOLERANCE  # noqa: F401
 
-__all__ = ["StepwiseFit", "StepwiseRegressor", "stepwise"]
+__all__ = ["StepwiseFit", "StepwiseRegressor", "StepwiseWarning", "stepwise"]
