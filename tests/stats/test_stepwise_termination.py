@@ -9,6 +9,7 @@ a model it has visited. They are derandomized, so CI runs the same examples ever
 from __future__ import annotations
 
 import importlib.util
+import os
 import warnings
 from pathlib import Path
 
@@ -22,6 +23,10 @@ from hypothesis import strategies as st
 from workbench.stats import stepwise
 from workbench.stats.stepwise import StepwiseWarning, default_step_limit
 from workbench.stats.terms import parse_terms
+
+#: Random designs the property tests draw (CI: 1000, about 10 s with the voyage windows);
+#: set WORKBENCH_STEPWISE_EXAMPLES for a longer run (benchmarks/results/stepwise_issue28.txt).
+EXAMPLES = int(os.environ.get("WORKBENCH_STEPWISE_EXAMPLES", "1000"))
 
 # The baseline of benchmarks/bench_stepwise.py: MATLAB's rules written the obvious way,
 # one statsmodels OLS fit per candidate (upper model "interactions", complete rows).
@@ -154,14 +159,25 @@ def test_cycle_with_information_criterion_keeps_the_smallest_aic():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", StepwiseWarning)
         fit = stepwise(MODE3, MODE3_Y, criterion="aic")
-    # whatever path AIC takes, the search ends and a stop row (if any) is the last row
-    actions = fit.steps["action"].tolist()
-    assert "stop" not in actions[:-1]
-    visited = _replay(fit)
-    if actions and actions[-1] == "stop":
-        assert visited[-1] in visited[:-1]
-    else:
-        assert len(set(visited)) == len(visited)
+    assert fit.steps["action"].tolist() == ["add", "add", "remove", "remove", "stop"]
+    # AIC = -2 logL + 2k of each model of the cycle on the 11 rows complete in air and
+    # speed (statsmodels OLS, whose aic is MATLAB's with the intercept counted)
+    rows = MODE3_Y.notna() & MODE3["air_temp_c"].notna()
+    y = MODE3_Y[rows].to_numpy()
+    aic = {}
+    for name, columns in {
+        "1": [],
+        "1 + air_temp_c": ["air_temp_c"],
+        "1 + speed_kn + air_temp_c": ["speed_kn", "air_temp_c"],
+        "1 + speed_kn": ["speed_kn"],
+    }.items():
+        design = np.column_stack([np.ones(rows.sum()), *(MODE3[c][rows] for c in columns)])
+        aic[name] = sm.OLS(y, design).fit().aic
+    best = min(aic, key=aic.get)
+    stop = fit.steps.iloc[-1]
+    assert stop["term"] == best == "1 + speed_kn" and stop["n_obs"] == 11
+    assert stop["aic"] == pytest.approx(aic[best], rel=1e-9)
+    assert fit.terms == ("speed_kn",) and "by the aic criterion" in fit.search_warnings[0]
 
 
 def test_default_step_limit_warns_and_explicit_limit_does_not():
@@ -242,7 +258,7 @@ def _check_the_search_ended(fit, caught, X, y, n_terms):
 
 
 @settings(
-    max_examples=1500,
+    max_examples=EXAMPLES,
     deadline=None,
     derandomize=True,
     database=None,
@@ -273,7 +289,7 @@ def voyage_windows_with_gaps(draw):
     return X, y
 
 
-@settings(max_examples=400, deadline=None, derandomize=True, database=None)
+@settings(max_examples=max(EXAMPLES // 4, 50), deadline=None, derandomize=True, database=None)
 @given(voyage_windows_with_gaps())
 def test_every_search_over_the_voyage_window_with_gaps_ends(case):
     X, y = case

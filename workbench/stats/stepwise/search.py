@@ -359,16 +359,16 @@ class _Search:
             return " + ".join(["1", *terms])
 
         models = " -> ".join(formula(model) for model in [*cycle, cycle[0]])
-        kept = formula(best)
+        kept_model = formula(best)
         record = [f_stat, p_value]
         if self.criterion != "sse":
             record += [value, math.nan]
-        self.steps.append((step + 1, "stop", kept, *record, int(df), int(n)))
+        self.steps.append((step + 1, "stop", kept_model, *record, int(df), int(n)))
         self.warnings.append(
             f"{self.response_name}: stepwise search cycled (step {step} returned to the model "
             f"after step {first_step}: {models}); stopped at the best "
             f"model of the cycle by the {self.criterion} criterion, each fitted on the {n} "
-            f"rows complete in the cycle's variables: {self.response_name} ~ {kept}"
+            f"rows complete in the cycle's variables: {self.response_name} ~ {kept_model}"
         )
         return problem, matrix, rows
 
