@@ -38,14 +38,16 @@ PREDICTORS = ["speed_kn", "water_temp_c", "air_temp_c", "wind_speed_ms", "wind_d
 
 
 # --------------------------------------------------------------------------- baseline
-def baseline_stepwise(X: pd.DataFrame, y: np.ndarray, p_enter=0.05, p_remove=0.10):
+def baseline_stepwise(
+    X: pd.DataFrame, y: np.ndarray, p_enter=0.05, p_remove=0.10, max_steps: int | None = None
+):
     """The MATLAB stepwiselm search written the obvious way: one OLS fit per candidate.
 
     Same rules as :func:`workbench.stats.stepwise` (criterion "sse", upper model
     "interactions", start "constant"): add the smallest partial-F p-value below *p_enter*,
     else remove the largest t-test p-value above *p_remove*; hierarchy; no immediate undo;
-    collinear candidates (rank check) never added. Returns the fitted statsmodels results
-    and the term names.
+    collinear candidates (rank check) never added; at most *max_steps* steps (default no
+    limit). Returns the fitted statsmodels results and the term names.
     """
     names = list(X.columns)
     valid = np.isfinite(y) & np.isfinite(X.to_numpy(dtype=float)).all(axis=1)
@@ -63,7 +65,9 @@ def baseline_stepwise(X: pd.DataFrame, y: np.ndarray, p_enter=0.05, p_remove=0.1
     model: list[str] = []
     current, _ = fit(model)
     just_added = just_removed = None
-    while True:
+    step = 0
+    while max_steps is None or step < max_steps:
+        step += 1
         best = None
         for term in order:
             if term in model or term == just_removed:
@@ -98,7 +102,8 @@ def baseline_stepwise(X: pd.DataFrame, y: np.ndarray, p_enter=0.05, p_remove=0.1
             just_added, just_removed = None, worst[1]
             current, _ = fit(model)
             continue
-        return current, model, columns
+        break
+    return current, model, columns
 
 
 def baseline_predict(result, model, rows: pd.DataFrame, alpha=0.05) -> pd.DataFrame:

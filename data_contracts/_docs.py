@@ -68,7 +68,7 @@ Units come from `units` (one for all channels or per channel), else from the hea
 HDF5/UFF unit labels (`acc01 [g]`, `[mm/s^2]`), else m/s²; g, mg, mm/s², cm/s², gal and
 ft/s² are converted to m/s². A file that cannot be read is reported with what it contains
 (columns, variables, datasets).
-Checks: 2-D real numeric array (complex values refused), one unique name per channel,
+Checks: 2-D real numeric array (complex and boolean values refused), one unique name per channel,
 positive sampling rate, a start time that is a time (ISO-8601 text or a datetime; a number
 is refused, not read as nanoseconds since 1970), no infinite values, |a| below 500 m/s²
 (larger values mean wrong units). Text-file times must increase strictly (shuffled or

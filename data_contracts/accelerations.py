@@ -85,6 +85,15 @@ def validate_accelerations(
         problems.append(
             Violation("acceleration", "complex values: accelerations must be real numbers")
         )
+    elif np.asarray(record.acceleration).dtype.kind == "b":
+        acceleration = None
+        problems.append(
+            Violation(
+                "acceleration",
+                "boolean values (True/False, e.g. a mask or a trigger channel): "
+                "accelerations must be real numbers",
+            )
+        )
     else:
         try:
             acceleration = np.asarray(record.acceleration, dtype=float)

@@ -8,6 +8,7 @@ the separator is not a comma, and header names carry their unit in brackets or p
 
 from __future__ import annotations
 
+import csv
 import io
 import os
 import re
@@ -17,7 +18,7 @@ import pandas as pd
 
 from ._core import CSV_READ_OPTIONS
 
-__all__ = ["read_delimited", "sniff_separator", "split_unit"]
+__all__ = ["ends_mid_row", "read_delimited", "sniff_separator", "split_unit"]
 
 _NAME_UNIT = re.compile(r"^\s*(?P<name>.*?)\s*[\[(](?P<unit>[^\])]*)[\])]\s*$")
 _DECIMAL_COMMA = re.compile(r"(^|;)\s*[+-]?\d+,\d+\s*(?=$|;)", re.MULTILINE)
@@ -47,6 +48,34 @@ def sniff_separator(header_line: str) -> str:
     counts = {sep: header_line.count(sep) for sep in (",", ";", "\t", "|")}
     best = max(counts, key=lambda sep: counts[sep])
     return best if counts[best] else ","
+
+
+def _field_count(line: str, sep: str) -> int:
+    if '"' not in line:
+        return line.count(sep) + 1
+    try:
+        return len(next(csv.reader([line], delimiter=sep)))
+    except (csv.Error, StopIteration):
+        return line.count(sep) + 1
+
+
+def ends_mid_row(lines: list[str], sep: str, first_line: int = 1) -> str | None:
+    """Why the table in *lines* (header first; *first_line* its line number in the file)
+    ends mid-row, or None: its last non-empty line has fewer fields than the header, as a
+    file cut short (a copy interrupted, a disk full, a file still being written) does.
+    pandas would read the missing fields as NaN and the cut number as a valid one."""
+    header = next((k for k, line in enumerate(lines) if line.strip()), None)
+    last = next((k for k in range(len(lines) - 1, -1, -1) if lines[k].strip()), None)
+    if header is None or last is None or last == header:
+        return None
+    expected = _field_count(lines[header], sep)
+    found = _field_count(lines[last], sep)
+    if found >= expected:
+        return None
+    return (
+        f"line {first_line + last}: {found} of the header's {expected} fields: the file ends "
+        "mid-row (cut short or still being written)"
+    )
 
 
 def read_delimited(
@@ -82,6 +111,8 @@ def read_delimited(
     ------
     OSError, UnicodeDecodeError, pandas.errors.ParserError
         For files that cannot be read; the callers turn them into contract errors.
+    ValueError
+        When the file ends mid-row (:func:`ends_mid_row`), naming the line.
     """
     text = decode_text(Path(path).read_bytes(), encoding)
     lines = text.splitlines()
@@ -93,6 +124,9 @@ def read_delimited(
     if decimal is None:
         sample = "\n".join(body[1:50])
         decimal = "," if sep != "," and _DECIMAL_COMMA.search(sample.replace(sep, ";")) else "."
+    cut = ends_mid_row(body, sep, skip_rows + 1)
+    if cut is not None:
+        raise ValueError(cut)
     frame = pd.read_csv(
         io.StringIO("\n".join(body)),
         sep=sep,

@@ -24,6 +24,7 @@ under a snake_case name with its unit (``dd [deg]`` becomes ``dd_deg``).
 
 from __future__ import annotations
 
+import csv
 import io
 import os
 import re
@@ -158,6 +159,16 @@ def _snake(name: str, unit: str | None) -> str:
     return base
 
 
+def _fields(line: str, sep: str) -> list[str]:
+    """The fields of one line, RFC 4180 quotes removed (``"Date/Time"`` -> ``Date/Time``)."""
+    if '"' not in line:
+        return line.split(sep)
+    try:
+        return next(csv.reader([line], delimiter=sep, skipinitialspace=True))
+    except (csv.Error, StopIteration):
+        return line.split(sep)
+
+
 def _looks_like_time(text: str, time_format: str | None) -> bool:
     slash = [f for pair in SLASH_FORMATS for f in pair]
     formats = (strptime_format(time_format),) if time_format else ("ISO8601", *TIME_FORMATS, *slash)
@@ -281,7 +292,7 @@ def read_dship(
                 )
             ]
         )
-    headers = [h.strip() for h in header_text.split(sep)]
+    headers = [h.strip() for h in _fields(header_text, sep)]
     rows = body[1:]
     units: list[str | None] = [_split_name(h)[1] for h in headers]
     names = [_split_name(h)[0] for h in headers]
@@ -312,7 +323,7 @@ def read_dship(
     # Raw DSHIP extractions: up to three header rows (name, description, unit) before
     # the data; the first row whose time cell holds a time starts the data.
     def time_field(line: str) -> str:
-        fields = line.split(sep)
+        fields = _fields(line, sep)
         return fields[time_index] if time_index < len(fields) else ""
 
     n_header = next(
@@ -324,7 +335,7 @@ def read_dship(
         0,
     )
     if 0 < n_header <= 3:
-        extra = [[u.strip() for u in line.split(sep)] for _, line in rows[:n_header]]
+        extra = [[u.strip() for u in _fields(line, sep)] for _, line in rows[:n_header]]
         unit_index = _unit_row(extra)
         if unit_index is not None:
             unit_fields = extra[unit_index]

@@ -30,6 +30,7 @@ from ._core import (
     Violation,
     atomic_path,
 )
+from .csv_layout import decode_text, ends_mid_row
 
 __all__ = [
     "CANONICAL_PREDICTORS",
@@ -475,6 +476,9 @@ def read_table(path: str | os.PathLike, contract: TableContract) -> pd.DataFrame
         )
     try:
         if fmt == "csv":
+            cut = ends_mid_row(decode_text(path.read_bytes(), None).splitlines(), ",")
+            if cut is not None:
+                raise ValueError(cut)
             frame = pd.read_csv(path, low_memory=False, **CSV_READ_OPTIONS)
         else:
             frame = pd.read_parquet(path)

@@ -265,7 +265,8 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     forecast = _read_modal(args, args.forecast, FORECAST)
     truth = _read_modal(args, args.truth)
     check_block_times(forecast, args.forecast, truth, args.truth)
-    result = evaluate(forecast, truth, phase=None if args.phase == "all" else args.phase)
+    with _data_errors(args.forecast):
+        result = evaluate(forecast, truth, phase=None if args.phase == "all" else args.phase)
     paths = result.save(args.out) if args.out is not None else {}
     print(result.table[SUMMARY_COLUMNS].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     _print_result(result, paths)

@@ -37,7 +37,8 @@ def evaluate_against_truth(
         One row per option and mode: ``n_blocks`` (rows with a truth value), ``n_ssi``
         (of those, with an SSI estimate); cumulative absolute errors [Hz] over the blocks
         with an SSI estimate, ``ssi_cumulative_error_hz``, ``model_cumulative_error_hz``,
-        ``kalman_cumulative_error_hz``; over all blocks, ``model_cumulative_error_all_hz``
+        ``kalman_cumulative_error_hz`` (NaN when ``n_ssi`` is 0: nothing to compare on);
+        over all blocks, ``model_cumulative_error_all_hz``
         and ``kalman_cumulative_error_all_hz``; ``improvement_vs_ssi_pct`` and
         ``improvement_vs_model_pct``.
 
@@ -75,7 +76,11 @@ def evaluate_against_truth(
             for key, column in _ESTIMATES.items()
         }
         common = np.isfinite(error["ssi"]) & np.isfinite(truth_hz)
-        cumulative = {key: float(value[common].sum()) for key, value in error.items()}
+        # no SSI estimate in these rows: no data to compare on (NaN), not an error of 0 Hz
+        cumulative = {
+            key: float(value[common].sum()) if common.any() else float("nan")
+            for key, value in error.items()
+        }
         # no SSI estimate in the evaluated rows (or zero error): no improvement to state
         vs_ssi = _improvement(cumulative["kalman"], cumulative["ssi"])
         vs_model = _improvement(cumulative["kalman"], cumulative["model"])

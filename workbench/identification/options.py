@@ -258,6 +258,15 @@ class IdentifyOptions:
                     f"lie below the Nyquist frequency {nyquist:g} Hz of the {out_rate:g} Hz "
                     "blocks"
                 )
+            # a high-pass corner below one cycle per block removes nothing a block can hold
+            # and is numerically degenerate (a corner 1e-9 of the rate: singular fits)
+            lowest = 1.0 / float(self.length_s)
+            if 0 < self.band_hz[0] < lowest:
+                raise OptionError(
+                    f"band_hz=({self.band_hz[0]:g}, {self.band_hz[1]:g}): the lower edge must "
+                    f"be 0 (a low-pass) or at least one cycle per block, {lowest:.3g} Hz for "
+                    f"{float(self.length_s) / 60:g}-min blocks"
+                )
         channels = list(plan.channels)
         if self.reference_channels:
             unknown = [c for c in self.reference_channels if c not in channels]

@@ -175,6 +175,24 @@ def plan_identification(files: Sequence[Path], options: IdentifyOptions):
             f"one block ({options.length_s / 60:g} min): no block to identify; give a shorter "
             "--block-minutes (and --step-minutes), or --short-record one-block"
         )
+    if short and len(short) == len(records) and all(b.skipped_reason for b in plan.blocks):
+        start, end, names = max(records, key=lambda r: r[1] - r[0])
+        gaps = [
+            ((later[0] - earlier[1]).total_seconds(), earlier[2][-1], later[2][0])
+            for earlier, later in zip(records, records[1:], strict=False)
+        ]
+        gap = (
+            f", split by gaps longer than the allowed {options.max_gap_s:g} s (the first: "
+            f"{gaps[0][0]:.1f} s between {gaps[0][1]} and {gaps[0][2]})"
+            if gaps
+            else ""
+        )
+        raise WorkbenchError(
+            f"{records[0][2][0]} .. {records[-1][2][-1]}: each of the {len(records)} records"
+            f"{gap} is shorter than one block ({options.length_s / 60:g} min; the longest "
+            f"{(end - start).total_seconds() / 60:.2f} min): no block to identify; give a "
+            "shorter --block-minutes (and --step-minutes) or a larger --max-gap"
+        )
     for start, end, names in short:
         log.warning(
             "%s: record of %.2f min is shorter than one block (%g min) and is not identified",

@@ -169,6 +169,16 @@ def _cases(cases):
     return table
 
 
+def _voyage_span(joined: pd.DataFrame) -> str:
+    """`` (blocks from START to END)`` of a block table with times, else ``""``."""
+    if "block_start" not in joined.columns or not len(joined):
+        return ""
+    start = pd.to_datetime(joined["block_start"], utc=True).min()
+    column = "block_end" if "block_end" in joined.columns else "block_start"
+    end = pd.to_datetime(joined[column], utc=True).max()
+    return f" (blocks from {start:%Y-%m-%dT%H:%MZ} to {end:%Y-%m-%dT%H:%MZ})"
+
+
 def correlate(
     modal: pd.DataFrame | str | os.PathLike,
     predictors: pd.DataFrame | str | os.PathLike,
@@ -200,6 +210,9 @@ def correlate(
             else ("frequency_hz",)
         )
         options = replace(options, quantities=tuple(quantities))
+    cases_source = (
+        str(cases) if isinstance(cases, str | os.PathLike) and os.path.isfile(cases) else None
+    )
     cases = _cases(cases)
     table = correlation_table(
         modal,
@@ -215,6 +228,16 @@ def correlate(
         modal, predictors, quantities=options.quantities, predictors_used=options.predictors_used
     )
     masks = dict(case_masks(joined.reset_index(), cases))
+    empty = [case for case, mask in masks.items() if case != "all" and not mask.any()]
+    span = _voyage_span(joined)
+    if empty and len(empty) == len(masks) - 1:
+        message = (
+            f"no case holds a block of the voyage{span} (cases {', '.join(map(repr, empty))}); "
+            "check the case times"
+        )
+        if cases_source is None:
+            raise ValueError(message)
+        raise WorkbenchError(f"{cases_source}: {message}")
     result = CorrelateResult(
         table=table,
         joined=joined,
@@ -224,6 +247,11 @@ def correlate(
         options=options,
         lines=list(lines),
     )
+    for case in empty:
+        result.warnings.append(
+            f"case {case!r} holds no block of the voyage{span}: its pairs have n = 0 and are "
+            "not tested; check the case times"
+        )
     n_useful = int(table["useful"].sum())
     result.lines.append(
         f"correlation of {len(mode_columns)} mode quantities with {len(names)} predictors over "

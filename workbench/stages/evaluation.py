@@ -140,9 +140,26 @@ def evaluate(
     """
     forecast = read_any_table(forecast, FORECAST, name="forecast")
     truth = read_any_table(truth, MODAL, name="truth")
+    if phase is not None and "phase" in forecast.columns and not (forecast["phase"] == phase).any():
+        found = ", ".join(map(str, pd.unique(forecast["phase"].dropna()))) or "none"
+        raise ValueError(
+            f"the forecast table has no {phase!r} rows to evaluate (phases in it: {found}); "
+            "evaluate another phase or forecast further"
+        )
     relabelled, agreement, mapping = pair_with_truth(forecast, truth)
     table = evaluate_against_truth(relabelled, truth, phase=phase)
+    if table.empty:
+        raise ValueError(
+            f"no {'' if phase is None else phase + ' '}row of the forecast has a true "
+            "frequency of its mode: nothing to evaluate"
+        )
     result = EvaluateResult(table=table, mapping=mapping, agreement=agreement)
+    for row in table[table["n_ssi"] == 0].itertuples(index=False):
+        result.warnings.append(
+            f"option {row.option}, mode {row.mode}: no SSI estimate in the "
+            f"{'evaluated' if phase is None else phase} rows ({row.n_blocks} with a true "
+            "frequency): its errors are not reported (NaN)"
+        )
     for option, part in table.groupby("option"):
         total = part[
             ["ssi_cumulative_error_hz", "model_cumulative_error_hz", "kalman_cumulative_error_hz"]

@@ -16,6 +16,7 @@ import pandas as pd
 
 from data_contracts import POLES, read_table
 
+from ..errors import WorkbenchError
 from ..identify import IdentifyOptions, IdentifyResult, identify_voyage
 from ._base import StageResult, write_frame
 
@@ -106,6 +107,13 @@ def identify(
         blocks every 5 min).
     scheduler, n_workers, progress, batch_blocks
         Parallel execution (:func:`workbench.identify.identify_voyage`).
+
+    Raises
+    ------
+    WorkbenchError
+        When no block was identified and none was already in the store (every block
+        skipped, e.g. every block's fit failing), naming the reasons; the run's
+        ``blocks.csv`` lists each block and why.
     """
     if isinstance(inputs, str | os.PathLike):
         inputs = [inputs]
@@ -119,4 +127,13 @@ def identify(
         progress=progress,
         batch_blocks=batch_blocks,
     )
+    summary = run.summary
+    if summary.processed == 0 and summary.already_done == 0:
+        # never a silent success with nothing done: say why no block was identified
+        reasons = sorted(summary.skip_reasons.items(), key=lambda item: -item[1])
+        why = "; ".join(f"{reason} ({n})" for reason, n in reasons[:3]) or "no block planned"
+        more = f"; {len(reasons) - 3} more reasons in blocks.csv" if len(reasons) > 3 else ""
+        raise WorkbenchError(
+            f"no block identified: all {summary.skipped} block(s) skipped: {why}{more}"
+        )
     return IdentifyStageResult(run=run, lines=run.lines())

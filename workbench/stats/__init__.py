@@ -34,7 +34,7 @@ from .correlation import (
 )
 from .diagnostics import ResidualDiagnostics, durbin_watson, residual_diagnostics
 from .mode_fits import ModeFit, StatsWarning, coefficient_table, fit_modes, fit_statistics_table
-from .stepwise import StepwiseFit, StepwiseRegressor, stepwise
+from .stepwise import StepwiseFit, StepwiseRegressor, StepwiseWarning, stepwise
 from .terms import parse_terms
 
 __all__ = [
@@ -49,6 +49,7 @@ __all__ = [
     "StatsWarning",
     "StepwiseFit",
     "StepwiseRegressor",
+    "StepwiseWarning",
     "adjust_p_values",
     "case_masks",
     "coefficient_table",

@@ -123,6 +123,7 @@ def model_from_dict(data: dict[str, Any]) -> StepwiseFit:
         search_estimates=None if search is None else _array(search),
         encoding=encoding,
         missing=data.get("missing", "candidate"),
+        search_warnings=tuple(data.get("warnings", ())),
     )
 
 

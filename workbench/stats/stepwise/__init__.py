@@ -3,9 +3,11 @@
 :func:`stepwise` searches between a start model and an upper model by partial F-tests
 (criterion ``"sse"``) or by the change in AIC/BIC, with MATLAB's rules: add first, remove
 only when nothing enters, hierarchy in both directions, no immediate undo, intercept kept.
-It returns a :class:`StepwiseFit` (coefficients, step history, goodness of fit,
-``predict`` with confidence or prediction intervals). :class:`StepwiseRegressor` wraps it as
-a scikit-learn estimator.
+Every search ends: one that returns to a model it visited (rows with NaN make the sample
+change with the model) stops at the best model of the cycle with a :class:`StepwiseWarning`,
+and a default step limit is the second guard. It returns a :class:`StepwiseFit`
+(coefficients, step history, goodness of fit, ``predict`` with confidence or prediction
+intervals). :class:`StepwiseRegressor` wraps it as a scikit-learn estimator.
 
 The search works on the cross-product matrix of the centred and scaled candidate columns
 and the response, built once per fit, with Goodnight's sweep operator: after sweeping the
@@ -27,8 +29,8 @@ and :mod:`.estimator` (:class:`StepwiseRegressor`).
 # before the package was split
 from .estimator import StepwiseRegressor
 from .regression import DEFAULT_THRESHOLDS, Criterion, MissingRule, stepwise  # noqa: F401
-from .result import StepwiseFit
-from .search import EXACT_FIT_TOLERANCE  # noqa: F401
+from .result import StepwiseFit, StepwiseWarning
+from .search import EXACT_FIT_TOLERANCE, STEPS_PER_TERM, default_step_limit  # noqa: F401
 from .sweep import COLLINEARITY_TOLERANCE  # noqa: F401
 
-__all__ = ["StepwiseFit", "StepwiseRegressor", "stepwise"]
+__all__ = ["StepwiseFit", "StepwiseRegressor", "StepwiseWarning", "stepwise"]

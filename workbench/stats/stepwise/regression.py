@@ -4,6 +4,7 @@ numeric predictors centred, the search run (:mod:`.search`)."""
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 from typing import Literal
 
@@ -13,7 +14,7 @@ import pandas as pd
 from ..design import design_columns, encode
 from ..terms import is_square, parents, parse_terms, term_name
 from .layout import _layout
-from .result import StepwiseFit
+from .result import StepwiseFit, StepwiseWarning
 from .search import _Search
 
 __all__ = ["DEFAULT_THRESHOLDS", "stepwise"]
@@ -93,7 +94,9 @@ str or sequence of str
         above *p_remove*, or its R² increase strictly below. Defaults: 0.10, 0.01, 0.01,
         0.05, -0.05.
     max_steps : int, optional
-        Most steps taken; default no limit.
+        Most steps taken (MATLAB ``'NSteps'``). Default: ``STEPS_PER_TERM`` (4) per term of
+        the upper model plus 10, a guard the search is not expected to reach; reaching it
+        warns (:class:`StepwiseWarning`).
     missing : {"candidate", "complete"}
         Rows with NaN in a predictor. ``"candidate"`` (default, MATLAB ``stepwiselm``): each
         model, and each candidate model of a step, is fitted on the rows complete in the
@@ -131,6 +134,19 @@ str or sequence of str
     (SSE at most ``EXACT_FIT_TOLERANCE`` times the total sum of squares, i.e. zero up to
     round-off) no term is added, because every F-test would divide round-off by round-off.
     All three are recorded in :attr:`StepwiseFit.skipped`.
+
+    Every search ends. Each F-test compares its two models on one sample, the rows complete
+    in the variables of the larger model (so with ``missing="candidate"`` the candidates of
+    one step may be tested on different rows, as MATLAB does). Because the rows change with
+    the model, a search over data with gaps can return to a model it has visited (add a,
+    add b, remove a, remove b, add a...). The cycle guard stops it there: the models of
+    the cycle are fitted on one sample, the rows complete in all their variables, and the
+    best by the criterion is kept (``"sse"``: the smallest p-value of the model's F-test
+    against the constant model, which scores *p_enter*; ``"aic"``/``"bic"``: the smallest
+    criterion; ``"rsquared"``/``"adjrsquared"``: the largest), fitted on its own rows. The
+    stop is the last row of :attr:`StepwiseFit.steps` (action ``"stop"``), and a
+    :class:`StepwiseWarning` and :attr:`StepwiseFit.search_warnings` say why. A default
+    step limit is the second guard.
 
     A categorical predictor with L levels is one term of L - 1 columns, tested with L - 1
     numerator degrees of freedom. For a candidate of d columns added to a model of k
@@ -277,9 +293,13 @@ str or sequence of str
         criterion=criterion,
         p_enter=p_enter,
         p_remove=p_remove,
+        response_name=response_name,
     )
     start_index = [position[t] for t in start_terms]
     lower_index = {position[t] for t in lower_terms}
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         search.run(start_index, lower_index, max_steps)
-        return search.result(encoding, response_name, missing)
+        fit = search.result(encoding, response_name, missing)
+    for message in fit.search_warnings:
+        warnings.warn(message, StepwiseWarning, stacklevel=2)
+    return fit

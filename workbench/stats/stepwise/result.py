@@ -16,7 +16,12 @@ from ..design import Encoding, design_columns
 from ..distributions import t_quantile
 from ..terms import Term
 
-__all__ = ["StepwiseFit"]
+__all__ = ["StepwiseFit", "StepwiseWarning"]
+
+
+class StepwiseWarning(UserWarning):
+    """A stepwise search that did not end by its rules: it cycled, or reached the default
+    step limit (the fit's :attr:`StepwiseFit.search_warnings` say which model it kept)."""
 
 _INTERVAL_COLUMNS = pd.Index(["mean", "lower", "upper", "mean_se"], dtype=object)
 _COEFFICIENT_COLUMNS = pd.Index(["estimate", "se", "t_stat", "p_value"], dtype=object)
@@ -65,6 +70,9 @@ class StepwiseFit:
     log_likelihood, aic, bic : float
         Gaussian log-likelihood and MATLAB's information criteria
         (``-2 logL + 2 k`` and ``-2 logL + k ln n``, k coefficients).
+    search_warnings : tuple of str
+        Why the search ended other than by its rules (a cycle of models, the default step
+        limit), with the model kept; empty when it ended by its rules.
 
     Notes
     -----
@@ -105,6 +113,7 @@ class StepwiseFit:
     search_estimates: np.ndarray | None = field(repr=False, default=None)
     encoding: Encoding | None = field(repr=False, default=None)
     missing: str = "candidate"
+    search_warnings: tuple[str, ...] = ()
 
     # ----------------------------------------------------------------- tables
     @functools.cached_property
@@ -127,7 +136,13 @@ class StepwiseFit:
         For the other criteria two more columns give the criterion of the model after the
         step and its change (``aic``, ``aic_change``; for ``rsquared`` the change is the R²
         gained with the term). Then ``df`` (numerator degrees of freedom: the term's
-        columns) and ``n_obs`` (rows of the larger of the two models compared).
+        columns) and ``n_obs`` (rows of the larger of the two models compared; both models
+        of the step's F-test are fitted on these rows).
+
+        A search stopped by the cycle guard ends with a row of action ``"stop"`` whose term
+        is the kept model (``"1 + a + b"``), with its F-test against the constant model
+        (``df`` its coefficients besides the intercept) on the ``n_obs`` rows complete in
+        the variables of every model of the cycle; see :attr:`search_warnings`.
         """
         columns = ["step", "action", "term", "f_stat", "p_value"]
         if self.criterion != "sse":
@@ -300,11 +315,21 @@ class StepwiseFit:
             f"p_remove={self.p_remove:g})",
             f"    {self.formula}",
             f"Missing values: {rows}",
+            "F-tests: each step compares its two models on one sample, the rows complete in "
+            "the larger model's variables ([n rows] when not the final model's)",
+            *(f"Warning: {text}" for text in self.search_warnings),
             "",
         ]
         if len(self.step_records):
             for record in self.step_records:
                 step, action, term, f_stat, p_value = record[:5]
+                if action == "stop":
+                    lines.append(
+                        f"{step}. Stopping: the search cycled; kept {self.response_name} ~ "
+                        f"{term} (best of the cycle by {self.criterion}, "
+                        f"{record[-1]} rows complete in the cycle's variables)"
+                    )
+                    continue
                 verb = "Adding" if action == "add" else "Removing"
                 text = f"{step}. {verb} {term}, FStat = {f_stat:.4f}, pValue = {p_value:.6g}"
                 if self.criterion != "sse":
@@ -364,6 +389,7 @@ class StepwiseFit:
             "predictors": list(self.predictor_names),
             "criterion": self.criterion,
             "missing": self.missing,
+            "warnings": list(self.search_warnings),
             "p_enter": number(self.p_enter),
             "p_remove": number(self.p_remove),
             "coefficients": coefficients,

@@ -17,6 +17,16 @@ from .sweep import COLLINEARITY_TOLERANCE, _Problem, _problem, _sweep
 #: compare round-off with round-off.
 EXACT_FIT_TOLERANCE = 1e-12
 
+#: Default step limit per term of the upper model (intercept included): the second guard
+#: after the cycle guard (a search that never repeats a model ends within 2**m steps anyway,
+#: but a legitimate search takes at most a few steps per term).
+STEPS_PER_TERM = 4
+
+
+def default_step_limit(n_terms: int) -> int:
+    """Steps a search over an upper model of *n_terms* terms takes at most by default."""
+    return STEPS_PER_TERM * max(int(n_terms), 1) + 10
+
 
 def _f_sf(f: np.ndarray | float, df_num: float, df_den: float) -> np.ndarray:
     """Upper tail P(F > f) of the F(df_num, df_den) distribution."""
@@ -26,8 +36,11 @@ def _f_sf(f: np.ndarray | float, df_num: float, df_den: float) -> np.ndarray:
 class _Search:
     """State of one stepwise search (see :func:`stepwise`, Notes)."""
 
-    def __init__(self, *, candidates, y, finite, layout, criterion, p_enter, p_remove):
+    def __init__(
+        self, *, candidates, y, finite, layout, criterion, p_enter, p_remove, response_name="y"
+    ):
         self.candidates = candidates
+        self.response_name = response_name
         self.y = y
         self.finite = finite  # None: no NaN in any used predictor
         self.layout = layout
@@ -44,6 +57,7 @@ class _Search:
         self.model: list[int] = []
         self.swept: dict[int, list[int]] = {}  # term -> its columns swept into the model
         self._columns_cache: list[int] | None = None
+        self.warnings: list[str] = []
 
     # ----------------------------------------------------------------- row sets
     def _rows(self, terms) -> np.ndarray | None:
@@ -175,7 +189,11 @@ class _Search:
         protected |= layout.is_intercept
         just_added = just_removed = -1
         step = 0
-        while max_steps is None or step < max_steps:
+        limit = default_step_limit(n_terms) if max_steps is None else max_steps
+        # cycle guard: the models visited (sorted term indices), in order
+        history = [tuple(self.model)]
+        visited = {history[0]: 0}
+        while step < limit:
             k = 1 + len(self._model_columns())
             n = problem.n
             dfe = n - k
@@ -245,7 +263,114 @@ class _Search:
             if not acted:
                 break
             step += 1
+            key = tuple(self.model)
+            first = visited.get(key)
+            if first is not None:
+                problem, matrix, rows = self._stop_in_cycle(history[first:], first, step)
+                break
+            visited[key] = len(history)
+            history.append(key)
+        else:
+            if max_steps is None and step >= limit:
+                self.warnings.append(
+                    f"{self.response_name}: stepwise search stopped at the default step limit "
+                    f"({limit} steps for {n_terms} terms) before it converged; the model after "
+                    f"step {step} is reported"
+                )
         self.final = (problem, matrix, rows)
+
+    # ----------------------------------------------------------------- cycle guard
+    def _model_score(self, model, problem) -> tuple[float, float, float, float, int, int]:
+        """(score, criterion value, f_stat, p_value, df, n) of *model* fitted on *problem*'s
+        rows; a smaller score is better by the criterion (see :meth:`_stop_in_cycle`)."""
+        layout = self.layout
+        columns = [int(c) for t in model if not layout.is_intercept[t] for c in layout.columns[t]]
+        matrix, swept = self._swept_matrix(problem, columns)
+        n, k = problem.n, 1 + swept
+        sse = max(float(matrix[self.y_slot, self.y_slot]), 0.0)
+        sst = problem.sst
+        dfe = n - k
+        if dfe < 1 or not sst > 0:
+            return math.inf, math.nan, math.nan, math.nan, swept, n
+        if swept:
+            f_stat = ((sst - sse) / swept) / (sse / dfe) if sse > 0 else math.inf
+            p_value = float(_f_sf(f_stat, swept, dfe))
+        else:
+            f_stat = p_value = math.nan
+        criterion = self.criterion
+        if criterion == "sse":
+            # the model's F-test against the constant model; the constant model scores
+            # p_enter, so a larger model is kept only when it is significant at p_enter
+            score = value = self.p_enter if not swept else p_value
+        elif criterion in ("aic", "bic"):
+            penalty = 2.0 if criterion == "aic" else math.log(n)
+            value = n * (math.log(2 * math.pi * max(sse, 1e-300) / n) + 1.0) + penalty * k
+            score = value
+        elif criterion == "rsquared":
+            value = 1.0 - sse / sst
+            score = -value
+        else:
+            value = 1.0 - (sse / dfe) / (sst / (n - 1))
+            score = -value
+        return float(score), float(value), float(f_stat), float(p_value), swept, n
+
+    def _stop_in_cycle(self, cycle, first_step: int, step: int):
+        """Stop a search that returned to a model it visited (at *first_step*): keep the
+        best model of the cycle by the criterion, every model of the cycle fitted on one
+        sample, the rows complete in the variables of all of them. Returns the kept model's
+        (problem, swept matrix, rows) on its own rows and records the stop in the step log
+        and the warnings.
+
+        Scores: ``"sse"`` the p-value of the model's F-test against the constant model (the
+        constant model scores *p_enter*), ``"aic"``/``"bic"`` the criterion, ``"rsquared"``
+        and ``"adjrsquared"`` the (adjusted) R²; ties go to the smaller model, then the one
+        visited first.
+        """
+        layout = self.layout
+        union = sorted({t for model in cycle for t in model})
+        common_rows = self._rows(union)
+        common = self._problem_for(common_rows)
+        scored = []
+        for position, model in enumerate(cycle):
+            score, value, f_stat, p_value, df, n = self._model_score(model, common)
+            scored.append(((score, len(model), position), model, value, f_stat, p_value, df, n))
+        scored.sort(key=lambda item: item[0])
+        _, best, value, f_stat, p_value, df, n = scored[0]
+
+        # the kept model on its own rows (MATLAB's per-candidate rule)
+        self.model = list(best)
+        self.swept = {}
+        rows = self._rows(self.model)
+        problem = self._problem_for(rows)
+        matrix = problem.cross.copy()
+        for term in self.model:
+            if layout.is_intercept[term]:
+                continue
+            kept = []
+            for column in layout.columns[term]:
+                if matrix[column, column] > COLLINEARITY_TOLERANCE:
+                    _sweep(matrix, int(column))
+                    kept.append(int(column))
+            self.swept[term] = kept
+        self._columns_cache = None
+
+        def formula(model) -> str:
+            terms = [layout.display[t] for t in model if not layout.is_intercept[t]]
+            return " + ".join(["1", *terms])
+
+        models = " -> ".join(formula(model) for model in [*cycle, cycle[0]])
+        kept_model = formula(best)
+        record = [f_stat, p_value]
+        if self.criterion != "sse":
+            record += [value, math.nan]
+        self.steps.append((step + 1, "stop", kept_model, *record, int(df), int(n)))
+        self.warnings.append(
+            f"{self.response_name}: stepwise search cycled (step {step} returned to the model "
+            f"after step {first_step}: {models}); stopped at the best "
+            f"model of the cycle by the {self.criterion} criterion, each fitted on the {n} "
+            f"rows complete in the cycle's variables: {self.response_name} ~ {kept_model}"
+        )
+        return problem, matrix, rows
 
     def _best_addition(self, eligible_index, matrix, problem, rows, step):
         """Best candidate: (term, record, columns, rows) or None when none is testable."""
@@ -463,4 +588,5 @@ class _Search:
             search_estimates=search_estimates,
             encoding=encoding,
             missing=missing,
+            search_warnings=tuple(self.warnings),
         )
