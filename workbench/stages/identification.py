@@ -91,6 +91,7 @@ def identify(
     n_workers: int | None = None,
     progress: bool = False,
     batch_blocks: int = 16,
+    keep_removed_inputs: bool = False,
 ) -> IdentifyStageResult:
     """Identify every block of a voyage's acceleration files.
 
@@ -106,6 +107,8 @@ def identify(
         blocks every 5 min).
     scheduler, n_workers, progress, batch_blocks
         Parallel execution (:func:`workbench.identify.identify_voyage`).
+    keep_removed_inputs : bool
+        Keep the stored blocks of input files no longer given (default: drop them).
     """
     if isinstance(inputs, str | os.PathLike):
         inputs = [inputs]
@@ -118,5 +121,6 @@ def identify(
         n_workers=n_workers,
         progress=progress,
         batch_blocks=batch_blocks,
+        keep_removed_inputs=keep_removed_inputs,
     )
-    return IdentifyStageResult(run=run, lines=run.lines())
+    return IdentifyStageResult(run=run, lines=run.lines(), warnings=list(run.notices))
