@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -180,7 +181,14 @@ def test_example_config_keeps_the_demos_forecast_settings(tmp_path):
     assert written["model"] == "memory" and "trust" not in written
 
 
-def test_example_config_runs_to_the_end(example, capsys):
+def test_example_config_runs_to_the_end(example, capsys, monkeypatch):
+    import workbench.identification.voyage as voyage
+
+    # identify in this process (a local cluster's start-up costs more than the 15 blocks)
+    run_blocks = voyage.run_blocks
+    monkeypatch.setattr(
+        voyage, "run_blocks", lambda *a, **k: run_blocks(*a, **{**k, "scheduler": "synchronous"})
+    )
     assert main(["run", str(example)]) == 0, capsys.readouterr().err
     out = capsys.readouterr().out
     for step in ("identify", "track", "correlate", "fit", "forecast", "evaluate"):
@@ -223,3 +231,39 @@ def test_monitor_refuses_what_forecast_refuses(example, tmp_path, capsys):
     assert main([*monitor, "--model", "window"]) == 0
     rows = pd.read_parquet(tmp_path / "state" / "forecast.parquet")
     assert rows["kalman_frequency_hz"].notna().sum() > 0
+
+
+# ------------------------------------------------- poles of the same voyage, of another
+def test_cluster_modes_find_their_poles_and_another_voyages_do_not():
+    """A mode selected as a pole cluster reports the cluster's median frequency (not a
+    pole's); its pole at ``pole_index`` (same order, within the cluster's spread) is
+    found. Poles of another voyage with the same block times are still refused."""
+    from workbench.errors import WorkbenchError
+    from workbench.joins import check_poles_match
+
+    rng = np.random.default_rng(0)
+    orders = np.repeat(np.arange(10, 38, 2), 4)  # 14 orders: medians between two poles
+    blocks, rows = [], []
+    for block in range(12):
+        frequency = np.tile([2.1, 3.4, 5.0, 7.7], len(orders) // 4) + rng.normal(0, 4e-3, len(orders))
+        poles = pd.DataFrame({"block": block, "model_order": orders, "frequency_hz": frequency})
+        poles = poles.sort_values(["model_order", "frequency_hz"]).reset_index(drop=True)
+        blocks.append(poles)
+        for mode in (2.1, 3.4, 5.0, 7.7):
+            members = poles[np.abs(poles["frequency_hz"] - mode) < 0.05]
+            median = float(np.median(members["frequency_hz"]))
+            head = int((members["frequency_hz"] - median).abs().idxmin())
+            rows.append({"block": block, "frequency_hz": median,
+                         "model_order": int(poles.at[head, "model_order"]), "pole_index": head,
+                         "frequency_std_hz": float(members["frequency_hz"].std())})  # fmt: skip
+    poles = pd.concat(blocks, ignore_index=True)
+    modal = pd.DataFrame(rows)
+    # the medians are mostly not poles: the exact rule alone finds too few
+    assert (modal.merge(poles, on=["block", "model_order", "frequency_hz"]).shape[0]
+            < 0.5 * len(modal))  # fmt: skip
+    check_poles_match(modal, "tracked.csv", poles, "poles.parquet")
+    other = poles.copy()  # another voyage: same blocks and orders, its own estimates
+    other["frequency_hz"] += rng.normal(0, 0.02, len(other))
+    with pytest.raises(WorkbenchError) as caught:
+        check_poles_match(modal, "tracked.csv", other, "poles.parquet")
+    assert "tracked poles of tracked.csv are among these poles" in str(caught.value)
