@@ -211,3 +211,26 @@ def test_damaged_file_rewrite_keeps_the_other_blocks_of_its_batch(tmp_path):
         assert store.read("faults").empty
     with BlockStore.open(tmp_path, {}) as store:  # and the rewritten store is whole
         assert store.notices == []
+
+
+# ------------------------------------------------------------------- the live monitor
+def test_monitor_redoes_the_blocks_of_a_damaged_store_file(tmp_path, capsys):
+    """The monitor reuses the store: a block file deleted between two runs is named in its
+    notes and the block is identified again; the tracked table equals the first run's."""
+    write_voyage(tmp_path / "voyage", n_files=6)
+    monitor = ["monitor", "--watch", str(tmp_path / "voyage"), "--state", str(tmp_path / "st"),
+               "--once", "--poll", "0.05", "--settle", "0.2",
+               *[a for a in IDENTIFY_ARGS if a not in ("--scheduler", "synchronous")]]  # fmt: skip
+    assert main(monitor) == 0
+    first = pd.read_parquet(tmp_path / "st" / "tracked.parquet")
+    assert set(first["block"]) == {0, 1, 2, 3, 4}
+    (target,) = (tmp_path / "st" / "store" / "selected").glob("day=*/b0000002-*.parquet")
+    target.unlink()
+    capsys.readouterr()
+    assert main(monitor) == 0
+    out = capsys.readouterr().out
+    (note,) = [line for line in out.splitlines() if target.name in line]
+    assert note.startswith("note: ") and "missing: block(s) 2 are taken out" in note
+    pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "st" / "tracked.parquet"), first)
+    health = pd.read_parquet(tmp_path / "st" / "data_health.parquet")
+    assert sorted(health["block"]) == [0, 1, 2, 3, 4]
