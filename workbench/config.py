@@ -305,12 +305,12 @@ def _together(sections: Mapping[str, Mapping[str, Any]]) -> list[str]:
         return sections.get(section, {}).get(key, default)
 
     if has("forecast", "trust") and get("forecast", "model") != "window":
-        from .forecast.options import DEFAULT_MODEL as DEFAULT_FORECAST_MODEL
-
+        model = get("forecast", "model")
+        which = "the default model" if model is None else f"model = {model!r}"
         problems.append(
             f"[forecast] trust = {get('forecast', 'trust')!r} applies to model = \"window\" "
-            f"only (model is {get('forecast', 'model', DEFAULT_FORECAST_MODEL)!r}, whose noise "
-            "levels come from the data): add model = \"window\" or remove trust"
+            f"only ({which} takes its noise levels from the data): add model = \"window\" "
+            "or remove trust"
         )
     length, step = get("blocks", "length_minutes"), get("blocks", "step_minutes")
     if length is not None and step is not None and step > length:

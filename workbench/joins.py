@@ -176,7 +176,9 @@ def _cluster_rows(tracked: pd.DataFrame, poles: pd.DataFrame) -> set[int]:
     positioned["pole_index"] = positioned.groupby("block").cumcount()
     merged = rows[["row", "block", "pole_index", "model_order", "frequency_hz", "frequency_std_hz"]]
     merged = merged.astype({"pole_index": "int64", "model_order": "int64"}).merge(
-        positioned.astype({"model_order": "int64"}), on=["block", "pole_index"], suffixes=("", "_pole")
+        positioned.astype({"model_order": "int64"}),
+        on=["block", "pole_index"],
+        suffixes=("", "_pole"),
     )
     tolerance = np.maximum(merged["frequency_std_hz"], 1e-6 * merged["frequency_hz"].abs())
     same = (merged["model_order"] == merged["model_order_pole"]) & (

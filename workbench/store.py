@@ -13,8 +13,9 @@ arrive in *batches*: one batch writes one Parquet file per kind and day, and fin
 ``blocks`` file, which lists the blocks it completed (status ``ok`` or ``skipped`` with a
 reason). A block counts as done only once its batch's line is in the manifest (below), and
 every file is written to a temporary name and renamed, so killing the process at any moment
-leaves either a whole batch or files that :meth:`BlockStore.open` removes as orphans. Any Parquet engine
-reads a kind as a hive-partitioned dataset (``pd.read_parquet(root / "poles")``).
+leaves either a whole batch or files that :meth:`BlockStore.open` removes as orphans. Any
+Parquet engine reads a kind as a hive-partitioned dataset (``pd.read_parquet(root /
+"poles")``).
 
 The store checks its own files. ``<root>/manifest.jsonl`` holds one line per batch, appended
 (and flushed to disk) once all the batch's files are written: for every file its path, size,

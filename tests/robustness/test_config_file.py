@@ -245,7 +245,8 @@ def test_cluster_modes_find_their_poles_and_another_voyages_do_not():
     orders = np.repeat(np.arange(10, 38, 2), 4)  # 14 orders: medians between two poles
     blocks, rows = [], []
     for block in range(12):
-        frequency = np.tile([2.1, 3.4, 5.0, 7.7], len(orders) // 4) + rng.normal(0, 4e-3, len(orders))
+        frequency = np.tile([2.1, 3.4, 5.0, 7.7], len(orders) // 4)
+        frequency = frequency + rng.normal(0, 4e-3, len(orders))
         poles = pd.DataFrame({"block": block, "model_order": orders, "frequency_hz": frequency})
         poles = poles.sort_values(["model_order", "frequency_hz"]).reset_index(drop=True)
         blocks.append(poles)
