@@ -18,6 +18,10 @@ refuses it, before any allocation, when
 Text files declare nothing (their memory grows with their size), but a header line can
 name any number of columns, each costing the parser a fixed overhead: no file may have more
 than :data:`MAX_CHANNELS` channels.
+
+Options that size what is built from a file have one limit each too, shared by the command
+line, the ship's configuration file and the library: :data:`MAX_MODEL_ORDER` and
+:data:`MAX_LSCF_ORDER`.
 """
 
 from __future__ import annotations
@@ -32,10 +36,18 @@ __all__ = [
     "MAX_ARRAY_BYTES_VARIABLE",
     "MAX_CHANNELS",
     "MAX_COMPRESSION_RATIO",
+    "MAX_LSCF_ORDER",
+    "MAX_MODEL_ORDER",
     "check_channel_count",
     "check_declared_size",
     "max_array_bytes",
 ]
+
+#: Highest SSI model order (state-space dimension): beyond what a block of real data
+#: identifies, and each order costs an eigenvalue problem of its size. [-]
+MAX_MODEL_ORDER = 2000
+#: Highest LSCF polynomial order (p·r poles with r references). [-]
+MAX_LSCF_ORDER = 500
 
 #: Memory budget of one array a reader allocates, unless overridden. [B]
 DEFAULT_MAX_ARRAY_BYTES = 4 * 1024**3

@@ -32,9 +32,10 @@ def test_unknown_sections_keys_and_types_are_refused(tmp_path):
         load_config(path)
     lines = str(caught.value).splitlines()
     assert lines == [
-        f"{path}: [dship] unknown key 'column' (known: file, columns)",
-        f"{path}: unknown section [forecst] (known: output, times, accelerations, dship, predictors, "
-        "modal, blocks, identify, track, correlate, fit, forecast, evaluate)",
+        f"{path}: [dship] unknown key 'column' (did you mean 'columns'? known: file, columns)",
+        f"{path}: unknown section [forecst] (did you mean 'forecast'? known: output, "
+        "times, accelerations, dship, predictors, modal, blocks, identify, track, correlate, fit, "
+        "forecast, evaluate)",
         f"{path}: [forecast] train_blocks = '20' has the wrong type",
     ]
     assert main(["correlate", "--config", str(path)]) == 2

@@ -113,8 +113,8 @@ def test_cli_forecast_and_evaluate(voyage, tmp_path, capsys):
         (["--option", "B"], "--option pole-cluster (B) needs --poles"),
         (["--option", "pole-cluster"], "--option pole-cluster (B) needs --poles"),
         (["--model", "window", "--trust", "1.5"], "--trust must be in (0, 1)"),
-        (["--model", "memory", "--trust", "0.5"], "--trust applies to --model window"),
-        (["--train-blocks", "1"], "--train-blocks must be at least 2"),
+        (["--model", "memory", "--trust", "0.5"], "--trust 0.5 applies to --model window"),
+        (["--train-blocks", "4"], "--train-blocks must be at least 5"),
     ],
 )
 def test_cli_forecast_usage_errors(voyage, tmp_path, capsys, args, message):

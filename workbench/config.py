@@ -3,8 +3,13 @@
 ``workbench run ship.toml`` runs the chain the file describes (identify -> track ->
 correlate -> fit -> forecast -> evaluate, each where its inputs are given); ``--config
 ship.toml`` on any command takes that command's settings from the file, and flags given on
-the command line win. Paths in the file are relative to the file. Unknown sections and keys
-are refused by name (a mistyped option must not be ignored). Example::
+the command line win. Paths in the file are relative to the file.
+
+The file is checked as a whole before anything runs (:func:`load_config`): every key's type,
+range or choices, unknown sections and keys (named with the nearest known one: a mistyped
+option must not be ignored) and the keys that only make sense together (``trust`` needs
+``model = "window"``; a block step no longer than the block), one line per problem naming
+the section and key. A file that is not UTF-8 TOML is one line. Example::
 
     [output]
     dir = "out"
@@ -32,6 +37,8 @@ are refused by name (a mistyped option must not be ignored). Example::
     [forecast]
     option = "both"                     # tracked-pole (A), pole-cluster (B) or both
     train_blocks = 20
+    model = "window"                    # memory (default) or window (the reference's)
+    trust = 0.65                        # window only: steady-state weight on SSI
 
 A modal table from another tool replaces identification and tracking::
 
@@ -44,6 +51,8 @@ A modal table from another tool replaces identification and tracking::
 from __future__ import annotations
 
 import argparse
+import difflib
+import math
 import os
 import tomllib
 import warnings
@@ -51,6 +60,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+from data_contracts.limits import MAX_MODEL_ORDER
 
 __all__ = [
     "SCHEMA",
@@ -133,6 +144,7 @@ SCHEMA: dict[str, dict[str, Any]] = {
         "min_presence": (int, float),
         "mac_min": (int, float),
         "reacquire_blocks": int,
+        "model": str,
         "figures": bool,
     },
     "evaluate": {"truth": _PATH, "phase": str},
@@ -149,6 +161,187 @@ RENAMED_KEYS: dict[str, dict[str, str]] = {
     },
     "forecast": {"method": "scheme", "train": "train_blocks", "shape_mac_min": "mac_min"},
 }
+
+
+# ------------------------------------------------------------------------- value checks
+#: Highest block rows a file may ask for: far above what any block allows, low enough that
+#: nothing huge is built. Model orders share identify's one limit (``MAX_MODEL_ORDER``).
+MAX_BLOCK_ROWS = 10_000
+
+
+def _number(low=None, high=None, *, low_open=False, high_open=False, whole=False):
+    """A check of a finite number in a range (``whole``: an integer)."""
+
+    def check(value) -> str | None:
+        if whole and not isinstance(value, int):
+            return "must be a whole number"
+        if not math.isfinite(value):
+            return "must be a finite number"
+        if low is not None and (value <= low if low_open else value < low):
+            return f"must be {'above' if low_open else 'at least'} {low:g}"
+        if high is not None and (value >= high if high_open else value > high):
+            return f"must be {'below' if high_open else 'at most'} {high:g}"
+        return None
+
+    return check
+
+
+def _one_of(*choices):
+    def check(value) -> str | None:
+        if value not in choices:
+            near = difflib.get_close_matches(str(value), [str(c) for c in choices], n=1)
+            hint = f" (did you mean {near[0]!r}?)" if near else ""
+            return f"must be one of {', '.join(repr(c) for c in choices)}{hint}"
+        return None
+
+    return check
+
+
+def _texts(value) -> str | None:
+    if not value or not all(isinstance(v, str) and v.strip() for v in value):
+        return "must be a non-empty list of names (text)"
+    return None
+
+
+def _text_map(value) -> str | None:
+    if not value or not all(isinstance(v, str) for v in value.values()):
+        return "must be a table of names (text), e.g. { key = \"name\" }"
+    return None
+
+
+def _band(value) -> str | None:
+    numbers = [v for v in value if isinstance(v, int | float) and not isinstance(v, bool)]
+    if len(value) != 2 or len(numbers) != 2 or not all(math.isfinite(v) for v in numbers):
+        return "must be two finite frequencies [low, high] in Hz"
+    if not 0 <= numbers[0] < numbers[1]:
+        return "must be [low, high] with 0 <= low < high"
+    return None
+
+
+def _rate(value) -> str | None:
+    if isinstance(value, str):
+        return _one_of("auto", "native")(value)
+    return _number(0.0, low_open=True)(value)
+
+
+def _trust(value) -> str | None:
+    if isinstance(value, str):
+        return None if value.strip().lower() == "data" else "must be a number in (0, 1) or 'data'"
+    return _number(0.0, 1.0, low_open=True, high_open=True)(value)
+
+
+def _iso_time(value) -> str | None:
+    import pandas as pd
+
+    try:
+        pd.Timestamp(value)
+    except (ValueError, TypeError):
+        return "must be an ISO-8601 time, e.g. 2024-03-01T00:00:00Z"
+    return None
+
+
+_SHARE = _number(0.0, 1.0)
+_PROBABILITY = _number(0.0, 1.0, low_open=True, high_open=True)
+_POSITIVE = _number(0.0, low_open=True)
+
+#: Section -> key -> check of a value of the right type: None or what is wrong.
+CHECKS: dict[str, dict[str, Any]] = {
+    "accelerations": {
+        "sampling_rate_hz": _POSITIVE,
+        "units": lambda v: None if isinstance(v, str) else _text_map(v),
+        "channels": _texts,
+        "variables": _text_map,
+    },
+    "dship": {"columns": _text_map},
+    "modal": {
+        "damping_unit": _one_of("percent", "fraction"),
+        "time_reference": _one_of("start", "centre", "end"),
+        "grid_t0": _iso_time,
+    },
+    "blocks": {
+        "length_minutes": _POSITIVE,
+        "step_minutes": _POSITIVE,
+        "max_gap_s": _number(0.0),
+    },
+    "identify": {
+        "method": _one_of("cov", "data", "lscf"),
+        "block_rows": _number(1, MAX_BLOCK_ROWS, whole=True),
+        "min_order": _number(1, MAX_MODEL_ORDER, whole=True),
+        "max_order": _number(1, MAX_MODEL_ORDER, whole=True),
+        "weighting": _one_of("pc", "upc", "cva"),
+        "reference_channels": _texts,
+        "rate": _rate,
+        "band": _band,
+    },
+    "track": {
+        "mac_min": _SHARE,
+        "gate": _one_of("mac", "macxp"),
+        "frequency_tol": _POSITIVE,
+    },
+    "correlate": {
+        "alpha": _PROBABILITY,
+        "correction": _one_of("none", "holm", "fdr_bh"),
+        "min_presence": _SHARE,
+    },
+    "fit": {"p_enter": _PROBABILITY, "p_remove": _PROBABILITY, "min_presence": _SHARE},
+    "forecast": {
+        "option": _one_of("tracked-pole", "pole-cluster", "both", "A", "B", "AB"),
+        "scheme": _one_of("single-window", "rolling", 1, 2, "1", "2"),
+        "train_blocks": _number(5, whole=True),  # forecast.options.MIN_TRAIN_BLOCKS
+        "horizon": _number(1, whole=True),
+        "trust": _trust,
+        "model": _one_of("memory", "window"),
+        "min_presence": _SHARE,
+        "mac_min": _SHARE,
+        "reacquire_blocks": _number(1, whole=True),
+    },
+    "evaluate": {"phase": _one_of("forecast", "train", "all")},
+}
+
+
+def _together(sections: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """Problems of keys that only make sense together."""
+    problems = []
+
+    def has(section: str, key: str) -> bool:
+        return key in sections.get(section, {})
+
+    def get(section: str, key: str, default=None):
+        return sections.get(section, {}).get(key, default)
+
+    if has("forecast", "trust") and get("forecast", "model") != "window":
+        model = get("forecast", "model")
+        which = "the default model" if model is None else f"model = {model!r}"
+        problems.append(
+            f"[forecast] trust = {get('forecast', 'trust')!r} applies to model = \"window\" "
+            f"only ({which} takes its noise levels from the data): add model = \"window\" "
+            "or remove trust"
+        )
+    length, step = get("blocks", "length_minutes"), get("blocks", "step_minutes")
+    if length is not None and step is not None and step > length:
+        problems.append(
+            f"[blocks] step_minutes = {step!r} is longer than length_minutes = {length!r}"
+        )
+    low, high = get("identify", "min_order"), get("identify", "max_order")
+    if low is not None and high is not None and low > high:
+        problems.append(f"[identify] min_order = {low!r} is above max_order = {high!r}")
+    if has("identify", "band") and get("identify", "no_band"):
+        problems.append("[identify] band and no_band = true contradict each other")
+    enter, remove = get("fit", "p_enter"), get("fit", "p_remove")
+    if enter is not None and remove is not None and not enter < remove:
+        problems.append(f"[fit] p_enter = {enter!r} must be below p_remove = {remove!r}")
+    return problems
+
+
+def _shown(value) -> str:
+    """A value as the file wrote it, cut to one short line."""
+    text = repr(value)
+    return text if len(text) <= 60 else f"{text[:57]}..."
+
+
+def _nearest(given: str, known) -> str:
+    near = difflib.get_close_matches(given, list(known), n=1, cutoff=0.6)
+    return f"did you mean {near[0]!r}? " if near else ""
 
 
 class ConfigDeprecationWarning(UserWarning):
@@ -180,26 +373,39 @@ class ShipConfig:
 
 
 def load_config(path: str | os.PathLike) -> ShipConfig:
-    """Read and check a TOML configuration.
+    """Read and check a TOML configuration as a whole.
 
     Raises
     ------
     ConfigError
-        Unreadable TOML, unknown sections or keys, values of the wrong type.
+        A file that cannot be read or is not UTF-8 TOML (one line); else every problem at
+        once, one line each naming section and key: unknown sections and keys (with the
+        nearest known one), values of the wrong type, out of range or not among the
+        choices, and keys that contradict each other.
     """
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        text = path.read_bytes().decode("utf-8-sig")
+        data = tomllib.loads(text)
     except OSError as error:
         raise ConfigError(f"{path}: cannot read: {error.strerror or error}") from None
+    except UnicodeDecodeError as error:
+        raise ConfigError(
+            f"{path}: not a UTF-8 text file (byte {error.start}); a configuration is TOML "
+            "written in UTF-8"
+        ) from None
     except tomllib.TOMLDecodeError as error:
-        raise ConfigError(f"{path}: not valid TOML: {error}") from None
+        raise ConfigError(f"{path}: not valid TOML: {str(error).splitlines()[0]}") from None
+    except RecursionError:
+        raise ConfigError(f"{path}: not a configuration: values nested too deeply") from None
     problems = []
     sections: dict[str, dict[str, Any]] = {}
     base = path.parent
     for name, values in data.items():
         if name not in SCHEMA:
-            problems.append(f"unknown section [{name}] (known: {', '.join(SCHEMA)})")
+            problems.append(
+                f"unknown section [{name}] ({_nearest(name, SCHEMA)}known: {', '.join(SCHEMA)})"
+            )
             continue
         if not isinstance(values, dict):
             problems.append(f"[{name}] must be a table")
@@ -221,24 +427,37 @@ def load_config(path: str | os.PathLike) -> ShipConfig:
             kind = SCHEMA[name].get(key)
             if kind is None:
                 problems.append(
-                    f"[{name}] unknown key '{given}' (known: {', '.join(SCHEMA[name])})"
+                    f"[{name}] unknown key '{given}' ({_nearest(given, SCHEMA[name])}"
+                    f"known: {', '.join(SCHEMA[name])})"
                 )
             elif kind == _PATH:
-                if not isinstance(value, str):
-                    problems.append(f"[{name}] {given} must be a path (text)")
+                if not isinstance(value, str) or not value.strip():
+                    problems.append(f"[{name}] {given} = {_shown(value)} must be a path (text)")
                 else:
                     section[key] = base / value
             elif kind == _PATHS:
                 items = [value] if isinstance(value, str) else value
-                if not isinstance(items, list) or not all(isinstance(v, str) for v in items):
-                    problems.append(f"[{name}] {given} must be a path or a list of paths")
+                if (
+                    not isinstance(items, list)
+                    or not items
+                    or not all(isinstance(v, str) and v.strip() for v in items)
+                ):
+                    problems.append(
+                        f"[{name}] {given} = {_shown(value)} must be a path or a list of paths"
+                    )
                 else:
                     section[key] = [base / v for v in items]
             elif not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
-                problems.append(f"[{name}] {given} = {value!r} has the wrong type")
+                problems.append(f"[{name}] {given} = {_shown(value)} has the wrong type")
             else:
-                section[key] = value
+                check = CHECKS.get(name, {}).get(key)
+                wrong = check(value) if check is not None else None
+                if wrong:
+                    problems.append(f"[{name}] {given} = {_shown(value)} {wrong}")
+                else:
+                    section[key] = value
         sections[name] = section
+    problems += _together(sections)
     if problems:
         raise ConfigError("\n".join(f"{path}: {p}" for p in problems))
     return ShipConfig(path, sections)
@@ -324,7 +543,7 @@ def command_defaults(command: str, config: ShipConfig) -> dict[str, Any]:
             put(key, "fit", key)
     elif command == "forecast":
         values["out"] = out / "forecast.csv"
-        for key in ("option", "train_blocks", "horizon", "min_presence", "mac_min"):
+        for key in ("option", "train_blocks", "horizon", "min_presence", "mac_min", "model"):
             put(key, "forecast", key)
         put("scheme", "forecast", "scheme", str)
         put("reacquire_blocks", "forecast", "reacquire_blocks")
@@ -418,11 +637,18 @@ def write_config(
     return path
 
 
-def write_demo_config(out_dir: str | os.PathLike, voyage: str = "voyage") -> Path:
+def write_demo_config(
+    out_dir: str | os.PathLike,
+    voyage: str = "voyage",
+    *,
+    overrides: Mapping[str, Mapping[str, Any]] | None = None,
+) -> Path:
     """The demo voyage's set-up as an example configuration, ``out_dir/ship.toml``.
 
-    ``workbench run out_dir/ship.toml`` repeats the demo's chain on the simulated files
-    into ``out_dir/ship_run`` (the demo's own results are left alone).
+    ``workbench run out_dir/ship.toml`` (and ``workbench monitor --config``) repeats the
+    demo's chain on the simulated files into ``out_dir/ship_run`` (the demo's own results
+    are left alone). *overrides* replace keys of sections (e.g. a smaller model order for
+    a short voyage); the file is checked like any other (:func:`load_config`).
     """
     sections = {
         "output": {"dir": "ship_run"},
@@ -437,14 +663,18 @@ def write_demo_config(out_dir: str | os.PathLike, voyage: str = "voyage") -> Pat
             "option": "both",
             "scheme": "rolling",
             "train_blocks": 20,
-            "trust": 0.65,
+            "model": "memory",  # the demo's (and the default) model; no trust: see comment
             "figures": True,
         },
         "evaluate": {"truth": f"{voyage}/truth_modal.csv"},
     }
+    for name, entries in (overrides or {}).items():
+        sections[name] = {**sections.get(name, {}), **entries}
     comment = (
         "The demo voyage's set-up, written by `workbench demo` as an example.\n"
         "Run it with: workbench run ship.toml   (or any command with --config ship.toml)\n"
-        "Paths are relative to this file. Sections and keys: see workbench/config.py."
+        "Paths are relative to this file. Sections and keys: see workbench/config.py.\n"
+        "[forecast] model = \"window\" (the reference configuration) takes a hand-set\n"
+        "trust = 0.65 (steady-state weight on SSI); the memory model takes its noise from the data."
     )
     return write_config(Path(out_dir) / "ship.toml", sections, comment=comment)

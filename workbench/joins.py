@@ -121,9 +121,13 @@ def check_poles_match(
     """Raise if *poles* do not hold the tracked poles of *modal* (another voyage's poles).
 
     With ``block_start`` in both tables the block times are compared. Otherwise, when the
-    modal table records each mode's ``model_order``, the tracked frequency must be one of
-    the poles of its block and order (relative difference 1e-6) for at least *min_share*
-    of the rows of the blocks they share.
+    modal table records each mode's ``model_order``, at least *min_share* of the rows of
+    the blocks they share must find their pole: the tracked frequency is one of the poles
+    of its block and order (relative difference 1e-6), or - a mode selected as a pole
+    cluster reports the cluster's median frequency, with ``pole_index`` the position in
+    the block's poles of its member nearest the median - the pole at ``pole_index`` has
+    the row's model order and lies within the cluster's ``frequency_std_hz`` of the
+    median.
     """
     if "block_start" in poles.columns:
         check_block_times(modal, modal_name, poles, poles_name)
@@ -147,13 +151,40 @@ def check_poles_match(
     close = np.abs(merged["frequency_hz_pole"] - merged["frequency_hz"]) <= 1e-6 * np.maximum(
         merged["frequency_hz"].abs(), 1.0
     )
-    found = merged.loc[close, "row"].nunique()
+    found_rows = set(merged.loc[close, "row"])
+    if {"pole_index", "frequency_std_hz"} <= set(tracked.columns):
+        found_rows |= _cluster_rows(tracked, poles[poles["block"].isin(common_blocks)])
+    found = len(found_rows)
     if found < min_share * len(keys):
         raise WorkbenchError(
             f"{poles_name}: only {found} of {len(keys)} tracked poles of {modal_name} are "
             "among these poles at their block and model order: poles of another voyage or "
             "shifted blocks"
         )
+
+
+def _cluster_rows(tracked: pd.DataFrame, poles: pd.DataFrame) -> set[int]:
+    """Rows (positions in *tracked*) whose pole at ``pole_index`` in its block's poles
+    (in the pole table's order) has the row's model order and lies within the row's
+    ``frequency_std_hz`` of its frequency."""
+    rows = tracked.reset_index(drop=True).reset_index(names="row").dropna(
+        subset=["pole_index", "frequency_std_hz"]
+    )
+    if rows.empty:
+        return set()
+    positioned = poles[["block", "model_order", "frequency_hz"]].copy()
+    positioned["pole_index"] = positioned.groupby("block").cumcount()
+    merged = rows[["row", "block", "pole_index", "model_order", "frequency_hz", "frequency_std_hz"]]
+    merged = merged.astype({"pole_index": "int64", "model_order": "int64"}).merge(
+        positioned.astype({"model_order": "int64"}),
+        on=["block", "pole_index"],
+        suffixes=("", "_pole"),
+    )
+    tolerance = np.maximum(merged["frequency_std_hz"], 1e-6 * merged["frequency_hz"].abs())
+    same = (merged["model_order"] == merged["model_order_pole"]) & (
+        np.abs(merged["frequency_hz_pole"] - merged["frequency_hz"]) <= tolerance
+    )
+    return set(merged.loc[same, "row"])
 
 
 def _iso(time) -> str:

@@ -5,15 +5,26 @@ Layout under the store root::
     <root>/store.json                      parameters the results were computed with
     <root>/inputs.json                     fingerprints of the input files (see below)
     <root>/lock                            who is running on the store now (see below)
+    <root>/manifest.jsonl                  size and SHA-256 of every batch file (see below)
     <root>/<kind>/day=YYYY-MM-DD/<batch>.parquet
 
 ``kind`` is a result family (``poles``, ``selected``, ``moments``, ``faults``, ...). Results
 arrive in *batches*: one batch writes one Parquet file per kind and day, and finally its
 ``blocks`` file, which lists the blocks it completed (status ``ok`` or ``skipped`` with a
-reason). A block counts as done only once its ``blocks`` file exists, and every file is
-written to a temporary name and renamed, so killing the process at any moment leaves either
-a whole batch or files that :meth:`BlockStore.open` removes as orphans. Any Parquet engine
-reads a kind as a hive-partitioned dataset (``pd.read_parquet(root / "poles")``).
+reason). A block counts as done only once its batch's line is in the manifest (below), and
+every file is written to a temporary name and renamed, so killing the process at any moment
+leaves either a whole batch or files that :meth:`BlockStore.open` removes as orphans. Any
+Parquet engine reads a kind as a hive-partitioned dataset (``pd.read_parquet(root /
+"poles")``).
+
+The store checks its own files. ``<root>/manifest.jsonl`` holds one line per batch, appended
+(and flushed to disk) once all the batch's files are written: for every file its path, size,
+SHA-256 and the blocks it holds. The line commits the batch. :meth:`BlockStore.open` checks
+every file against it: a file missing, truncated or with other content (overwritten with
+another file, renamed away) takes the blocks it held out of the store - the batch is
+rewritten without them, so they are computed again - and a file the manifest does not
+list (a killed write, a file renamed or copied in) is removed. Each finding is one line in
+:attr:`BlockStore.notices` naming the file and the blocks; nothing damaged is ever read.
 
 One run at a time: :meth:`BlockStore.open` takes an exclusive lock (``<root>/lock``, an
 ``flock`` held for the life of the store object, with the holder's pid, host and start
@@ -24,11 +35,15 @@ blocks the next one.
 Inputs are fingerprinted (:meth:`BlockStore.check_inputs`): size, modification time and a
 SHA-256 of the content of every input file, with the time span it covers. A resumed run
 whose file for a stored time span has other content is refused, so results of one voyage
-are never exported as those of another.
+are never exported as those of another. Inputs recorded but no longer given are found by
+:meth:`BlockStore.removed_inputs`; the caller drops the blocks that depended on them
+(:meth:`BlockStore.drop_blocks`, :meth:`BlockStore.forget_inputs`) or keeps them.
 """
 
 from __future__ import annotations
 
+import hashlib
+import io
 import json
 import os
 import socket
@@ -45,13 +60,14 @@ from data_contracts import atomic_path
 
 from .errors import WorkbenchError
 
-__all__ = ["BLOCKS_KIND", "BlockStore"]
+__all__ = ["BLOCKS_KIND", "BlockStore", "block_ranges"]
 
 #: The kind whose files mark blocks as done.
 BLOCKS_KIND = "blocks"
 _CONFIG = "store.json"
 _INPUTS = "inputs.json"
 _LOCK = "lock"
+_MANIFEST = "manifest.jsonl"
 
 try:  # POSIX
     import fcntl
@@ -81,6 +97,29 @@ def _corrupt(root: Path, what: str, error: BaseException) -> WorkbenchError:
         f"{root}: {what} is unreadable ({detail}); the store is damaged: delete the folder "
         "(or use another --store) and run again"
     )
+
+
+def block_ranges(blocks: Iterable[int]) -> str:
+    """Block numbers as ranges: ``[0, 1, 2, 5, 7, 8]`` -> ``"0-2, 5, 7-8"``."""
+    numbers = sorted({int(b) for b in blocks})
+    parts: list[str] = []
+    k = 0
+    while k < len(numbers):
+        j = k
+        while j + 1 < len(numbers) and numbers[j + 1] == numbers[j] + 1:
+            j += 1
+        parts.append(str(numbers[k]) if j == k else f"{numbers[k]}-{numbers[j]}")
+        k = j + 1
+    return ", ".join(parts)
+
+
+def _digest(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def _file_digest(path: Path) -> str:
+    with open(path, "rb") as handle:
+        return hashlib.file_digest(handle, "sha256").hexdigest()
 
 
 def _pid_alive(pid: int) -> bool:
@@ -207,7 +246,11 @@ class BlockStore:
 
     root: Path
     lock: StoreLock | None = None
+    #: What :meth:`open` found wrong with the store's files and did about it, one line each.
+    notices: list[str] = field(default_factory=list)
     _owners_cache: dict | None = field(default=None, repr=False, compare=False)
+    #: The manifest: batch -> relative path -> ``{"size", "sha256", "blocks"}``.
+    _manifest: dict[str, dict[str, dict]] = field(default_factory=dict, repr=False, compare=False)
 
     def close(self) -> None:
         """Release the store's lock (results stay on disk)."""
@@ -271,7 +314,7 @@ class BlockStore:
             with atomic_path(config_path) as tmp:
                 tmp.write_text(json.dumps(wanted, indent=2, sort_keys=True), encoding="utf-8")
         store = cls(root, lock)
-        store._remove_orphans()
+        store._check_files()
         return store
 
     # ------------------------------------------------------------------ inputs
@@ -328,21 +371,195 @@ class BlockStore:
                     encoding="utf-8",
                 )
 
+    def recorded_inputs(self) -> list[dict]:
+        """The input files the stored results came from (their fingerprints)."""
+        path = self.root / _INPUTS
+        if not path.is_file():
+            return []
+        try:
+            recorded = json.loads(path.read_text(encoding="utf-8"))["files"]
+            for r in recorded:
+                str(r["sha256"]), str(r["path"]), str(r["start"]), str(r["end"])
+        except (OSError, ValueError, KeyError, TypeError) as error:
+            raise _corrupt(self.root, _INPUTS, error) from None
+        return recorded
+
+    def removed_inputs(self, fingerprints: Iterable[Mapping[str, object]]) -> list[dict]:
+        """Recorded input files whose content is not among *fingerprints* (the files of
+        this run): the data some stored blocks came from is no longer given."""
+        given = {str(f["sha256"]) for f in fingerprints}
+        return [r for r in self.recorded_inputs() if r["sha256"] not in given]
+
+    def forget_inputs(self, entries: Iterable[Mapping[str, object]]) -> None:
+        """Remove *entries* (by content) from the recorded inputs."""
+        gone = {str(e["sha256"]) for e in entries}
+        recorded = self.recorded_inputs()
+        kept = [r for r in recorded if r["sha256"] not in gone]
+        if len(kept) != len(recorded):
+            with atomic_path(self.root / _INPUTS) as tmp:
+                tmp.write_text(
+                    json.dumps({"files": kept}, indent=1, sort_keys=True), encoding="utf-8"
+                )
+
     # ------------------------------------------------------------------ reading
     def _files(self, kind: str) -> list[Path]:
         return sorted((self.root / kind).glob("day=*/*.parquet"))
 
-    def _remove_orphans(self) -> None:
-        """Delete batch files of kinds whose batch never wrote its ``blocks`` file."""
-        committed = {p.stem for p in self._files(BLOCKS_KIND)}
-        for kind_dir in self.root.iterdir():
-            if not kind_dir.is_dir() or kind_dir.name == BLOCKS_KIND:
+    # ------------------------------------------------------------------ integrity
+    def _read_manifest(self) -> tuple[dict[str, dict[str, dict]], bool]:
+        """The manifest's batches and whether it needs rewriting (a torn or unreadable
+        line: the write of a killed run, or an edit)."""
+        path = self.root / _MANIFEST
+        entries: dict[str, dict[str, dict]] = {}
+        if not path.is_file():
+            return entries, False
+        try:
+            text = path.read_bytes().decode("utf-8", errors="replace")
+        except OSError as error:
+            raise _corrupt(self.root, _MANIFEST, error) from None
+        dirty = bool(text) and not text.endswith("\n")
+        for line in text.splitlines():
+            try:
+                entry = json.loads(line)
+                batch, files = str(entry["batch"]), entry["files"]
+                for info in files.values():
+                    int(info["size"]), str(info["sha256"]), [int(b) for b in info["blocks"]]
+            except (ValueError, KeyError, TypeError, AttributeError):
+                dirty = True
                 continue
-            for path in kind_dir.glob("day=*/*.parquet"):
-                if path.stem not in committed:
-                    path.unlink()
+            entries[batch] = files
+        return entries, dirty
+
+    def _write_manifest(self) -> None:
+        """Rewrite the manifest from :attr:`_manifest` (atomically)."""
+        lines = [
+            json.dumps({"batch": batch, "files": files}, sort_keys=True, separators=(",", ":"))
+            for batch, files in sorted(self._manifest.items())
+        ]
+        with atomic_path(self.root / _MANIFEST) as tmp:
+            tmp.write_text("".join(f"{line}\n" for line in lines), encoding="utf-8")
+
+    def _append_manifest(self, batch: str, files: dict[str, dict]) -> None:
+        """Commit *batch*: its manifest line, appended and flushed to disk."""
+        line = json.dumps({"batch": batch, "files": files}, sort_keys=True, separators=(",", ":"))
+        data = f"{line}\n".encode()
+        fd = os.open(self.root / _MANIFEST, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        try:
+            while data:
+                data = data[os.write(fd, data) :]
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        self._manifest[batch] = files
+
+    def _check_files(self) -> None:
+        """Check every batch file against the manifest; take the blocks of damaged files
+        out of the store and remove files the manifest does not list (see the module)."""
         for leftover in self.root.glob("**/.*.tmp*"):  # temporary files of a killed write
             leftover.unlink(missing_ok=True)
+        self._manifest, dirty = self._read_manifest()
+        present = {
+            path.relative_to(self.root).as_posix(): path
+            for kind_dir in self.root.iterdir()
+            if kind_dir.is_dir()
+            for path in kind_dir.glob("day=*/*.parquet")
+        }
+        damaged: dict[str, set[int]] = {}
+        for batch, files in self._manifest.items():
+            for name, info in files.items():
+                path = self.root / name
+                why = ""
+                try:
+                    size = path.stat().st_size if name in present else None
+                    if size is None:
+                        why = "missing"
+                    elif size != int(info["size"]):
+                        why = (
+                            f"{'shorter' if size < int(info['size']) else 'longer'} than "
+                            f"written ({size} bytes, {int(info['size'])} written: truncated "
+                            "or overwritten)"
+                        )
+                    elif _file_digest(path) != info["sha256"]:
+                        why = "of other content than written (overwritten)"
+                except OSError as error:
+                    why = f"unreadable ({error.strerror or error})"
+                if why:
+                    blocks = {int(b) for b in info["blocks"]}
+                    damaged.setdefault(batch, set()).update(blocks)
+                    self.notices.append(
+                        f"{self.root}: {name} is {why}: "
+                        + (
+                            f"block(s) {block_ranges(blocks)} are taken out of the store and "
+                            "computed again"
+                            if blocks
+                            else "it held no rows"
+                        )
+                    )
+        listed = {name for files in self._manifest.values() for name in files}
+        unlisted = sorted(set(present) - listed)
+        if unlisted:
+            blocks: set[int] = set()
+            for name in unlisted:
+                if name.startswith(f"{BLOCKS_KIND}/"):
+                    try:
+                        frame = pd.read_parquet(present[name], columns=["block"])
+                        blocks.update(int(b) for b in frame["block"])
+                    except Exception:  # noqa: BLE001 - an unreadable stray file is removed too
+                        pass
+                present[name].unlink(missing_ok=True)
+            if blocks or any(not n.startswith(f"{BLOCKS_KIND}/") for n in unlisted):
+                done = f" (blocks {block_ranges(blocks)} are computed again)" if blocks else ""
+                self.notices.append(
+                    f"{self.root}: {len(unlisted)} file(s) the store's manifest does not list "
+                    f"removed{done}: {', '.join(unlisted[:3])}"
+                    + (", ..." if len(unlisted) > 3 else "")
+                )
+        if damaged:
+            self._drop(damaged)
+        elif dirty:
+            self._write_manifest()
+
+    def _drop(self, drops: Mapping[str, set[int]]) -> None:
+        """Rewrite each batch of *drops* without its blocks (a new batch of the remaining
+        rows, committed before the old one is removed)."""
+        self._owners_cache = None
+        old_files = []
+        for batch, drop in drops.items():
+            files = self._manifest.get(batch)
+            if files is None:
+                continue
+            kept_blocks = {int(b) for info in files.values() for b in info["blocks"]} - drop
+            if kept_blocks:
+                new = (
+                    f"b{min(kept_blocks):07d}-{max(kept_blocks):07d}-{uuid.uuid4().hex[:8]}"
+                )
+                written: dict[str, dict] = {}
+                for name, info in sorted(files.items(), key=lambda i: i[0].startswith("blocks/")):
+                    if not {int(b) for b in info["blocks"]} - drop:
+                        continue
+                    frame = self._read_file(self.root / name)
+                    frame = frame[~frame["block"].astype(int).isin(drop)]
+                    kind_day = name.rsplit("/", 1)[0]
+                    written.update(self._write_file(frame, f"{kind_day}/{new}.parquet"))
+                self._append_manifest(new, written)
+            old_files += [self.root / name for name in files]
+            del self._manifest[batch]
+        self._write_manifest()
+        for path in old_files:
+            path.unlink(missing_ok=True)
+
+    def drop_blocks(self, blocks: Iterable[int]) -> set[int]:
+        """Take *blocks* out of the store (their batches are rewritten without them);
+        return those that were stored."""
+        wanted = {int(b) for b in blocks}
+        drops = {}
+        for batch, files in self._manifest.items():
+            held = {int(b) for info in files.values() for b in info["blocks"]} & wanted
+            if held:
+                drops[batch] = held
+        if drops:
+            self._drop(drops)
+        return set().union(*drops.values()) if drops else set()
 
     def _read_file(self, path: Path, **kwargs) -> pd.DataFrame:
         try:
@@ -450,26 +667,38 @@ class BlockStore:
             f"{uuid.uuid4().hex[:8]}"
         )
         self._owners_cache = None
+        if BLOCKS_KIND in results:
+            raise ValueError(f"kind {BLOCKS_KIND!r} is reserved")
+        written: dict[str, dict] = {}
         for kind, frame in results.items():
-            if kind == BLOCKS_KIND:
-                raise ValueError(f"kind {BLOCKS_KIND!r} is reserved")
-            self._write_partitioned(kind, frame, batch, blocks)
-        self._write_partitioned(BLOCKS_KIND, blocks, batch, blocks)
+            written.update(self._write_partitioned(kind, frame, batch, blocks))
+        written.update(self._write_partitioned(BLOCKS_KIND, blocks, batch, blocks))
+        self._append_manifest(batch, written)  # the batch is committed once this returns
         return batch
 
     def _write_partitioned(
         self, kind: str, frame: pd.DataFrame, batch: str, blocks: pd.DataFrame
-    ) -> None:
+    ) -> dict[str, dict]:
         starts = dict(
             zip(blocks["block"], pd.to_datetime(blocks["block_start"], utc=True), strict=True)
         )
         if frame.empty:
-            return
+            return {}
         days = frame["block"].map(starts).dt.strftime("%Y-%m-%d")
+        written: dict[str, dict] = {}
         for day, part in frame.groupby(days.to_numpy(), sort=True):
-            path = self.root / kind / f"day={day}" / f"{batch}.parquet"
-            with atomic_path(path) as tmp:
-                part.reset_index(drop=True).to_parquet(tmp, index=False)
+            written.update(self._write_file(part, f"{kind}/day={day}/{batch}.parquet"))
+        return written
+
+    def _write_file(self, frame: pd.DataFrame, name: str) -> dict[str, dict]:
+        """Write *frame* to ``root/name`` atomically; its manifest record."""
+        buffer = io.BytesIO()
+        frame.reset_index(drop=True).to_parquet(buffer, index=False)
+        data = buffer.getvalue()
+        with atomic_path(self.root / name) as tmp:
+            tmp.write_bytes(data)
+        blocks = sorted({int(b) for b in frame["block"]})
+        return {name: {"size": len(data), "sha256": _digest(data), "blocks": blocks}}
 
 
 def batched(items: Iterable, size: int):

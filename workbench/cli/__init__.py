@@ -171,9 +171,10 @@ _NUMPY_REPR = re.compile(r"\bnp\.(?:float|int|uint|complex|bool|str)\w*\(([^()]*
 def _plain(message) -> str:
     """*message* with NumPy scalar reprs shown as plain values (``0.5``, not
     ``np.float64(0.5)``) and control characters escaped (:func:`~workbench.errors.printable`:
-    a file name cannot drive the terminal or fake a line); one rule for every message the
-    CLI prints."""
-    return printable(_NUMPY_REPR.sub(r"\1", str(message)))
+    a file name cannot drive the terminal); one rule for every message the CLI prints. A
+    message that lists several problems keeps its one line per problem."""
+    plain = _NUMPY_REPR.sub(r"\1", str(message))
+    return "\n".join(printable(line) for line in plain.split("\n"))
 
 
 class _PlainFormatter(logging.Formatter):

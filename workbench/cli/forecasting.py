@@ -175,6 +175,33 @@ def _parse_trust(text: str) -> float | None:
     return value
 
 
+def check_forecast_flags(args: argparse.Namespace) -> float | None | str:
+    """Check the forecast flags ``forecast`` and ``monitor`` share (one rule for both);
+    return ``--trust`` parsed (``"auto"`` when not given).
+
+    Raises
+    ------
+    UsageError
+        Naming the flag (exit 2).
+    """
+    from ..forecast.options import MIN_TRAIN_BLOCKS
+
+    if args.train_blocks < MIN_TRAIN_BLOCKS:
+        raise UsageError(
+            f"--train-blocks must be at least {MIN_TRAIN_BLOCKS} (the fewest blocks a model is "
+            f"fitted on), got {args.train_blocks}"
+        )
+    if args.trust is not None and args.model != "window":
+        raise UsageError(
+            f"--trust {args.trust} applies to --model window; --model {args.model} takes its "
+            "noise levels from the data"
+        )
+    _check_positive(horizon=args.horizon, reacquire_blocks=args.reacquire_blocks)
+    _check_share("min-presence", args.min_presence)
+    _check_share("mac-min", args.mac_min)
+    return "auto" if args.trust is None else _parse_trust(str(args.trust))
+
+
 def _run_forecast(args: argparse.Namespace) -> int:
     from data_contracts import POLES, read_table
 
@@ -183,19 +210,9 @@ def _run_forecast(args: argparse.Namespace) -> int:
     options = ("A", "B") if args.option == "AB" else (args.option,)
     if "B" in options and args.poles is None:
         raise UsageError("--option pole-cluster (B) needs --poles (the stabilisation diagrams)")
-    if args.train_blocks < 2:
-        raise UsageError(f"--train-blocks must be at least 2, got {args.train_blocks}")
-    if args.trust is not None and args.model != "window":
-        raise UsageError(
-            "--trust applies to --model window; --model memory takes its noise levels from the data"
-        )
-    _check_positive(
-        horizon=args.horizon, workers=args.workers, reacquire_blocks=args.reacquire_blocks
-    )
-    _check_share("min-presence", args.min_presence)
-    _check_share("mac-min", args.mac_min)
+    trust = check_forecast_flags(args)
+    _check_positive(workers=args.workers)
     _check_table_path(args.out)
-    trust = "auto" if args.trust is None else _parse_trust(args.trust)
     modal, predictors = _modal_and_predictors(args)
     poles = read_table(args.poles, POLES) if args.poles is not None else None
     truth = _read_modal(args, args.truth) if args.truth is not None else None

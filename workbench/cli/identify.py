@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from pathlib import Path
 
 from .. import defaults as D
@@ -218,6 +219,13 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
         metavar="N",
         help="blocks stored together (an interruption loses at most these)",
     )
+    parser.add_argument(
+        "--keep-removed-inputs",
+        action="store_true",
+        help="an input file the store's results came from is no longer given: keep the "
+        "blocks computed from it (default: drop them, so the rerun equals a fresh run over "
+        "the files given); either way each such file is named",
+    )
     _add_parallel(parser)
     parser.set_defaults(run=_run_identify)
 
@@ -245,7 +253,7 @@ def identify_options(args: argparse.Namespace):
         For contradicting or impossible flags (exit 2).
     """
     from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S, MAX_BLOCKS_PER_SAMPLE
-    from ..identification.options import MAX_LSCF_ORDER, MAX_MODEL_ORDER
+    from data_contracts.limits import MAX_LSCF_ORDER, MAX_MODEL_ORDER
     from ..identify import IdentifyOptions
 
     def flag(name: str, default):
@@ -337,9 +345,12 @@ def _run_identify(args: argparse.Namespace) -> int:
             n_workers=args.workers,
             progress=not args.quiet,
             batch_blocks=args.batch_blocks,
+            keep_removed_inputs=args.keep_removed_inputs,
         )
     except IdentifyOptionsError as error:
         raise UsageError(str(error)) from None
+    for notice in result.warnings:  # what the store found changed, and what was done
+        print(f"warning: {notice}", file=sys.stderr)
     for line in result.lines:
         print(printable(line))
     if args.stabilisation_figures:

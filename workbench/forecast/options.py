@@ -24,6 +24,8 @@ from .innovation_consistency import MIN_BLOCKS, WINDOW_BLOCKS
 
 __all__ = [
     "DEFAULT_MODEL",
+    "check_train_blocks",
+    "check_trust",
     "MeasurementOptions",
     "ModelOptions",
     "NoiseOptions",
@@ -35,6 +37,60 @@ __all__ = [
 #: measures best on benchmarks/bench_forecast_accuracy.py
 #: (benchmarks/results/forecast_accuracy_after.txt); "window" is the reference configuration.
 DEFAULT_MODEL: Literal["memory", "window"] = "memory"
+
+
+
+def check_trust(trust, model: str) -> None:
+    """Refuse a hand-set *trust* for a model that does not take one.
+
+    One rule for the forecast stage, the sliding forecast and the live monitor: only
+    ``model="window"`` (the reference configuration) takes a steady-state weight on SSI;
+    ``"memory"`` estimates its noise levels from the data (*trust* ``"auto"`` or None).
+
+    Raises
+    ------
+    ValueError
+        Naming trust and model.
+    """
+    if model != "window" and trust not in ("auto", None):
+        raise ValueError(
+            f"trust={trust!r} applies to model='window' (the reference configuration); "
+            f"model={model!r} estimates its noise levels from the data"
+        )
+
+
+#: The fewest training blocks a model is fitted on unless ``min_train_blocks`` is given:
+#: ``max(5, train_blocks // 2)``. [blocks]
+MIN_TRAIN_BLOCKS = 5
+
+
+def default_min_train_blocks(train_blocks: int) -> int:
+    """``min_train_blocks`` when not given: ``max(5, train_blocks // 2)``. [blocks]"""
+    return max(MIN_TRAIN_BLOCKS, int(train_blocks) // 2)
+
+
+def check_train_blocks(train_blocks, min_train_blocks: int | None = None) -> None:
+    """Refuse a training window shorter than the fewest blocks a model is fitted on.
+
+    One rule for the forecast stage, the sliding forecast, the live monitor and the
+    configuration file.
+
+    Raises
+    ------
+    ValueError
+        Naming train_blocks and the constraint.
+    """
+    if int(train_blocks) != train_blocks:
+        raise ValueError(f"train_blocks={train_blocks!r} must be a whole number of blocks")
+    low = default_min_train_blocks(train_blocks) if min_train_blocks is None else min_train_blocks
+    if min_train_blocks is None and train_blocks < MIN_TRAIN_BLOCKS:
+        raise ValueError(
+            f"train_blocks={train_blocks} must be at least {MIN_TRAIN_BLOCKS} (the fewest "
+            "blocks a model is fitted on)"
+        )
+    if not 2 <= low <= train_blocks:
+        raise ValueError(f"min_train_blocks={low} must be in [2, train_blocks={train_blocks}]")
+
 
 _OPTIONS = {
     "A": "A",

@@ -31,7 +31,16 @@ from .._deprecation import DEPRECATED, renamed_argument
 # modules (fitted_model, pole_selection, assembly); both the window and the memory path use
 # them from there.
 from .kalman import relaxation_factor
-from .options import MeasurementOptions, ModelOptions, NoiseOptions, method_label, option_label
+from .options import (
+    MeasurementOptions,
+    ModelOptions,
+    NoiseOptions,
+    check_train_blocks,
+    check_trust,
+    default_min_train_blocks,
+    method_label,
+    option_label,
+)
 
 __all__ = ["ForecastResult", "ForecastWarning", "WindowModel", "sliding_forecast"]
 
@@ -353,12 +362,8 @@ def sliding_forecast(
     horizon = DEFAULT_HORIZON[method] if horizon is None else int(horizon)
     if horizon < 1:
         raise ValueError(f"horizon={horizon} must be >= 1")
+    check_trust(trust, model)
     if model == "memory":
-        if trust not in ("auto", None):
-            raise ValueError(
-                f"trust={trust!r} applies to model='window' (the reference configuration); "
-                "model='memory' estimates its noise levels from the data"
-            )
         from .blend import memory_forecast
 
         options_m = model_options or ModelOptions(
@@ -415,9 +420,12 @@ def sliding_forecast(
         raise ValueError(f"extrapolation_limit={extrapolation_limit!r} must be > 0")
     if not 0.0 < alpha < 1.0:
         raise ValueError(f"alpha={alpha!r} must be in (0, 1)")
-    min_train = max(5, train_blocks // 2) if min_train_blocks is None else int(min_train_blocks)
-    if not 2 <= min_train <= train_blocks:
-        raise ValueError(f"min_train_blocks={min_train} must be in [2, train_blocks]")
+    check_train_blocks(train_blocks, min_train_blocks)
+    min_train = (
+        default_min_train_blocks(train_blocks)
+        if min_train_blocks is None
+        else int(min_train_blocks)
+    )
     options = dict(stepwise_options or {})
     # a window's model uses the rows complete in every candidate predictor (the rule the
     # forecast was validated with); stepwise_options={"missing": "candidate"} for MATLAB's

@@ -10,6 +10,7 @@ from dataclasses import asdict, dataclass
 from typing import Literal
 
 from data_contracts.formats import ACCELERATION_SUFFIXES as _FORMAT_SUFFIXES
+from data_contracts.limits import MAX_LSCF_ORDER, MAX_MODEL_ORDER
 
 from .._deprecation import renamed_fields
 from ..blocks import MAX_BLOCKS_PER_SAMPLE
@@ -21,11 +22,6 @@ from ..errors import OptionError
 ACCELERATION_SUFFIXES = _FORMAT_SUFFIXES
 
 
-#: Highest SSI model order (state-space dimension): beyond what a block of real data
-#: identifies, and each order costs an eigenvalue problem of its size. [-]
-MAX_MODEL_ORDER = 2000
-#: Highest LSCF polynomial order (p·r poles with r references). [-]
-MAX_LSCF_ORDER = 500
 
 
 def _orders(name: str, values, highest: int) -> tuple[int, ...]:

@@ -13,7 +13,7 @@ import pandas as pd
 
 from ..errors import OptionError, WorkbenchError
 from ..parallel import RunSummary, run_blocks
-from ..store import BlockStore
+from ..store import BlockStore, block_ranges
 from .engine import _block_tasks, _file_tasks, identify_block, identify_from_files
 from .export import export_store
 from .options import IdentifyOptions
@@ -34,6 +34,9 @@ class IdentifyResult:
     files: dict[str, Path] = field(default_factory=dict)
     n_blocks: int = 0
     n_selected: int = 0
+    #: What the run found changed in its store and did about it (damaged store files,
+    #: input files no longer given), one line each.
+    notices: list[str] = field(default_factory=list)
 
     def lines(self) -> list[str]:
         out = [str(self.summary)]
@@ -70,6 +73,49 @@ def _check_run_options(scheduler, n_workers, batch_blocks) -> None:
         )
 
 
+def _removed_inputs(
+    store: BlockStore, fingerprints: list[dict], grid, *, per_file: bool, keep: bool
+) -> list[str]:
+    """Report the recorded input files no longer given and drop (or, with *keep*, keep)
+    the stored blocks that depended on them; the notices, one line per file.
+
+    A block depends on the files its span overlaps; when files are conditioned once each
+    (*per_file*), also on each file's neighbours (their edges pad the conditioning), so
+    the blocks of the files next to a removed one are dropped too. Dropped blocks and the
+    forgotten file make the store what a fresh run over the remaining files would make.
+    """
+    removed = store.removed_inputs(fingerprints)
+    if not removed:
+        return []
+    recorded = sorted(
+        store.recorded_inputs(), key=lambda r: pd.Timestamp(r["start"])
+    )
+    order = {r["sha256"]: k for k, r in enumerate(recorded)}
+    stored = sorted(store.completed_blocks())
+    notices = []
+    for entry in sorted(removed, key=lambda r: pd.Timestamp(r["start"])):
+        k = order[entry["sha256"]]
+        low = recorded[max(k - 1, 0) if per_file else k]["start"]
+        high = recorded[min(k + 1, len(recorded) - 1) if per_file else k]["end"]
+        low, high = pd.Timestamp(low), pd.Timestamp(high)
+        blocks = [b for b in stored if grid.start(b) < high and grid.end(b) > low]
+        what = f"{entry['path']}: input no longer given (recorded in the store {store.root})"
+        if keep:
+            notices.append(
+                f"{what}: block(s) {block_ranges(blocks) or 'none'} computed from it are kept "
+                "(--keep-removed-inputs)"
+            )
+            continue
+        dropped = store.drop_blocks(blocks)
+        store.forget_inputs([entry])
+        stored = [b for b in stored if b not in dropped]
+        notices.append(
+            f"{what}: block(s) {block_ranges(dropped) or 'none'} computed from it are dropped "
+            "(--keep-removed-inputs keeps them)"
+        )
+    return notices
+
+
 def identify_voyage(
     inputs: Iterable[str | os.PathLike],
     out_dir: str | os.PathLike,
@@ -81,6 +127,7 @@ def identify_voyage(
     progress: bool = False,
     blocks: Sequence[int] | None = None,
     batch_blocks: int = 16,
+    keep_removed_inputs: bool = False,
 ) -> IdentifyResult:
     """Identify every block of a voyage's acceleration files; resumable and parallel.
 
@@ -104,6 +151,10 @@ def identify_voyage(
     batch_blocks : int
         Blocks written to the store together (also every 30 s); an interruption loses at
         most the blocks of the batch under way.
+    keep_removed_inputs : bool
+        An input file recorded in the store and no longer given: keep the blocks computed
+        from it (default: drop them, so the run equals a fresh run over the files given).
+        Either way each such file is one line of :attr:`IdentifyResult.notices`.
     """
     options = options or IdentifyOptions()
     _check_run_options(scheduler, n_workers, batch_blocks)
@@ -121,7 +172,12 @@ def identify_voyage(
     # the analysis rate; decimating blocks are cut from files conditioned once
     options, per_file, parameters = resolved_run(options, plan.sampling_rate_hz, grid, channels)
     with BlockStore.open(store_path, parameters) as store:
-        store.check_inputs(input_fingerprints(plan.files))
+        notices = list(store.notices)
+        fingerprints = input_fingerprints(plan.files)
+        store.check_inputs(fingerprints)
+        notices += _removed_inputs(
+            store, fingerprints, grid, per_file=per_file, keep=keep_removed_inputs
+        )
         wanted = None if blocks is None else {int(b) for b in blocks}
         tasks = _block_tasks(
             plan, [p for p in plan.blocks if wanted is None or int(p.block) in wanted]
@@ -146,7 +202,7 @@ def identify_voyage(
             progress=progress,
             description="identify",
         )
-        result = IdentifyResult(summary, n_blocks=len(tasks))
+        result = IdentifyResult(summary, n_blocks=len(tasks), notices=notices)
         result.files = export_store(store, out, channels, grid=grid)
     selected = result.files.get("selected")
     if selected is not None:

@@ -217,6 +217,7 @@ def _from_config(args: argparse.Namespace) -> None:
         "min_presence": "min_presence",
         "reacquire_blocks": "reacquire_blocks",
         "trust": "trust",
+        "model": "model",
         "dship": "dship",
         "all_predictors": "all_predictors",
     }
@@ -234,15 +235,15 @@ def _options(args: argparse.Namespace):
         FORECAST_OPTIONS,
         FORECAST_SCHEMES,
         UsageError,
-        _parse_trust,
         identify_options,
     )
+    from ..cli.forecasting import check_forecast_flags
     from ..sid.tracking import TrackingOptions
     from .core import MonitorOptions
     from .outlook import ForecastSettings
 
     identify = identify_options(args)
-    trust = "auto" if args.trust is None else _parse_trust(str(args.trust))
+    trust = check_forecast_flags(args)  # what `forecast` refuses, the monitor refuses
     try:
         tracking = TrackingOptions(
             mac_min=args.mac_min, gate=args.gate, frequency_tol=args.frequency_tol

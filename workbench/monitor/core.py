@@ -358,6 +358,9 @@ class Monitor:
             grid, tuple(channels), float(first.sampling_rate_hz), options, per_file, parameters
         )
         self.store = BlockStore.open(self.store_path, parameters)
+        for notice in self.store.notices:  # damaged store files: their blocks are redone
+            self.messages.append(notice)
+            log.warning("%s", notice)
         self.done = self.store.completed_blocks()
         # files taken before the voyage was fixed are checked now
         files, self.files = self.files, []

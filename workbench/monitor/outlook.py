@@ -32,7 +32,7 @@ import pandas as pd
 
 from data_contracts import ALARMS, FORECAST, HEALTH, MODAL, POLES, PREDICTORS, read_table
 
-from ..forecast.options import DEFAULT_MODEL
+from ..forecast.options import DEFAULT_MODEL, check_train_blocks, check_trust
 
 __all__ = ["ForecastSettings", "OutlookReport", "empty_table", "update_outlook"]
 
@@ -102,8 +102,8 @@ class ForecastSettings:
         object.__setattr__(self, "options", options)
         if self.scheme not in (1, 2):
             raise ValueError(f"scheme={self.scheme!r} must be 1 (single-window) or 2 (rolling)")
-        if int(self.train_blocks) != self.train_blocks or self.train_blocks < 2:
-            raise ValueError(f"train_blocks={self.train_blocks!r} must be at least 2")
+        check_trust(self.trust, self.model)
+        check_train_blocks(self.train_blocks)
         if not 0.0 <= self.min_presence <= 1.0:
             raise ValueError(f"min_presence={self.min_presence!r} must be in [0, 1]")
         if not (math.isfinite(self.reference_hours) and self.reference_hours > 0):

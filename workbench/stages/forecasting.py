@@ -15,7 +15,13 @@ from data_contracts import FORECAST, MODAL, POLES, PREDICTORS, recorded_grid, se
 
 from .._deprecation import renamed_parameters
 from ..forecast import ForecastWarning, sliding_forecast
-from ..forecast.options import DEFAULT_MODEL, method_label, option_label
+from ..forecast.options import (
+    DEFAULT_MODEL,
+    check_train_blocks,
+    check_trust,
+    method_label,
+    option_label,
+)
 from ..parallel import process_map
 from ..sid.presence import persistent_modes
 from ._base import StageResult, read_any_table, table_path, write_frame
@@ -90,8 +96,8 @@ class ForecastOptions:
         object.__setattr__(self, "scheme", method_label(self.scheme))
         if self.model is None:
             object.__setattr__(self, "model", DEFAULT_MODEL if self.trust == "auto" else "window")
-        if self.train_blocks < 2:
-            raise ValueError(f"train_blocks={self.train_blocks} must be at least 2")
+        check_trust(self.trust, self.model)
+        check_train_blocks(self.train_blocks)
         if not 0.0 <= self.min_presence <= 1.0:
             raise ValueError(f"min_presence={self.min_presence} must be in [0, 1]")
         if self.n_workers < 1:

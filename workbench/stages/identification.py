@@ -92,6 +92,7 @@ def identify(
     n_workers: int | None = None,
     progress: bool = False,
     batch_blocks: int = 16,
+    keep_removed_inputs: bool = False,
 ) -> IdentifyStageResult:
     """Identify every block of a voyage's acceleration files.
 
@@ -107,6 +108,8 @@ def identify(
         blocks every 5 min).
     scheduler, n_workers, progress, batch_blocks
         Parallel execution (:func:`workbench.identify.identify_voyage`).
+    keep_removed_inputs : bool
+        Keep the stored blocks of input files no longer given (default: drop them).
 
     Raises
     ------
@@ -126,6 +129,7 @@ def identify(
         n_workers=n_workers,
         progress=progress,
         batch_blocks=batch_blocks,
+        keep_removed_inputs=keep_removed_inputs,
     )
     summary = run.summary
     if summary.processed == 0 and summary.already_done == 0:
@@ -136,4 +140,4 @@ def identify(
         raise WorkbenchError(
             f"no block identified: all {summary.skipped} block(s) skipped: {why}{more}"
         )
-    return IdentifyStageResult(run=run, lines=run.lines())
+    return IdentifyStageResult(run=run, lines=run.lines(), warnings=list(run.notices))
