@@ -27,6 +27,7 @@ from ..errors import WorkbenchError
 from ..identification.engine import BlockTask
 from ..identify import IdentifyOptions, identify_block, input_fingerprints, resolved_run
 from ..sid.tracking import TrackingOptions
+from ..processes import interrupts_deferred, worker_initializer
 from ..store import BlockStore, StoreLock
 from .conditioning import block_conditioner, forget_conditioned
 from .data_health import DATA_HEALTH_COLUMNS, data_health_row, write_data_health
@@ -534,15 +535,24 @@ class Monitor:
             from concurrent.futures import ProcessPoolExecutor
 
             # a lower priority: on a busy machine the next block's identification (the
-            # latency users see) goes first, the forecast takes the time left
+            # latency users see) goes first, the forecast takes the time left; the worker
+            # ends with this process, even after a kill -9 (workbench.processes)
             self._executor = ProcessPoolExecutor(
                 max_workers=1,
                 mp_context=multiprocessing.get_context("spawn"),
-                initializer=_lower_priority,
+                initializer=worker_initializer,
+                initargs=(
+                    os.getpid(),
+                    threading.current_thread() is threading.main_thread(),
+                    10,  # niceness
+                ),
             )
-        self._outlook_future = self._executor.submit(
-            update_outlook, *arguments, **keywords, parent_pid=os.getpid()
-        )
+        # the worker is started by the first submit: with Ctrl-C held back, so that it
+        # reaches this process only (which stops the worker in order)
+        with interrupts_deferred():
+            self._outlook_future = self._executor.submit(
+                update_outlook, *arguments, **keywords, parent_pid=os.getpid()
+            )
 
     def _collect(self, report: OutlookReport) -> None:
         self.outlook_reports.append(report)
@@ -579,13 +589,6 @@ class Monitor:
         }
         with atomic_path(self.state / "status.json") as tmp:
             tmp.write_text(json.dumps(status, indent=1), encoding="utf-8")
-
-
-def _lower_priority() -> None:
-    try:
-        os.nice(10)
-    except (AttributeError, OSError):  # pragma: no cover - platforms without nice
-        pass
 
 
 def _file_key(path: Path | None):
