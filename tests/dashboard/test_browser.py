@@ -210,3 +210,45 @@ def test_a_silent_monitor_is_flagged(browser, voyage, tmp_path, serve):
     _settled(page)
     assert page.evaluate("document.getElementById('status-stale').innerText") == ""
     assert "disk full" in page.evaluate("document.getElementById('status').innerText")
+
+
+#: Installed before the page's own scripts: every Content-Security-Policy violation.
+WATCH_CSP = """window.__csp = [];
+document.addEventListener("securitypolicyviolation",
+  (e) => window.__csp.push(`${e.effectiveDirective} ${e.blockedURI}`));"""
+
+
+def test_page_renders_under_its_content_security_policy(browser, voyage, tmp_path, serve):
+    """The strict policy (no inline script or style) blocks nothing the page needs: every
+    panel shows its data, with no violation; an injected inline script or style is
+    refused (so the watcher would see a violation of the page's own)."""
+    newest = int(voyage.alarms["start_block"].iloc[0]) + 6  # every panel has data
+    publish(voyage, tmp_path, newest)
+    served = serve(tmp_path, DashboardOptions(poll_seconds=0.2))
+    page = browser.open("about:blank")
+    page.call("Page.enable")
+    page.call("Page.addScriptToEvaluateOnNewDocument", source=WATCH_CSP)
+    page.navigate(served.url)
+    for panel in ("modes", "tracked", "health", "data_health", "status"):
+        _shows(page, panel, newest)
+    _settled(page)
+    seen = page.evaluate(READ_PAGE)
+    assert len(seen["cards"]) == 7 and len(seen["series"]) == 7
+    assert seen["healthLine"] == 1 and seen["healthRows"] == 12
+    assert seen["placeholders"] == [] and seen["errors"] is None
+    # the mode colours are set through the CSSOM (allowed), not inline style attributes
+    colours = page.evaluate(
+        "[...document.querySelectorAll('.mode-card')].map("
+        "(c) => getComputedStyle(c).getPropertyValue('--mode').trim())"
+    )
+    assert len(set(colours)) == 7 and all(colours)
+    assert page.evaluate("window.__csp") == []
+    page.evaluate(
+        "(() => { const s = document.createElement('script');"
+        " s.textContent = 'window.__injected = 1'; document.body.append(s);"
+        " document.body.setAttribute('style', 'color: red'); })()"
+    )
+    page.wait_for("window.__csp.length >= 2")
+    violations = page.evaluate("window.__csp")
+    assert page.evaluate("window.__injected === undefined")
+    assert {v.split()[0] for v in violations} == {"script-src-elem", "style-src-attr"}
