@@ -252,3 +252,30 @@ def test_page_renders_under_its_content_security_policy(browser, voyage, tmp_pat
     violations = page.evaluate("window.__csp")
     assert page.evaluate("window.__injected === undefined")
     assert {v.split()[0] for v in violations} == {"script-src-elem", "style-src-attr"}
+
+
+def test_given_up_blocks_are_named_on_the_page(browser, voyage, tmp_path, serve):
+    """The blocks the monitor gave up (a file after its late window) appear in the status
+    line with their span, and go away when the status has none."""
+    publish(voyage, tmp_path, 100)
+    status_file = tmp_path / "status.json"
+    status = json.loads(status_file.read_text())
+    spans = [
+        {"first_block": 40, "last_block": 43, "start": "2026-03-01T03:20:00Z",
+         "end": "2026-03-01T03:55:00Z", "reason": "gap of 300.0 s between a.npz and b.npz"},
+        {"first_block": 60, "last_block": 60, "start": "2026-03-01T05:00:00Z",
+         "end": "2026-03-01T05:20:00Z", "reason": "no data (gap between c.npz and d.npz)"},
+    ]  # fmt: skip
+    note = "5 block(s) given up, ...: `workbench identify /data --out DIR` includes them"
+    status_file.write_text(json.dumps({**status, "given_up": spans, "given_up_note": note}))
+    page = browser.open(serve(tmp_path, DashboardOptions(poll_seconds=0.2)).url)
+    text = page.wait_for("document.getElementById('status-given-up').innerText")
+    assert text == (
+        "blocks given up: 40-43 (2026-03-01 03:20 to 2026-03-01 03:55 UTC), "
+        "60 (2026-03-01 05:00 to 2026-03-01 05:20 UTC) - workbench identify over the folder "
+        "includes them"
+    )
+    assert page.evaluate("document.getElementById('status-given-up').title") == note
+    status_file.write_text(json.dumps({**status, "message": "resumed"}))
+    page.wait_for("document.getElementById('status').innerText.includes('resumed')")
+    assert page.evaluate("document.getElementById('status-given-up').innerText") == ""
