@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import WorkbenchError
-from .processes import interrupts_deferred
+from .processes import interrupts_deferred, worker_initializer
 from .store import BlockStore
 
 __all__ = ["BlockOutcome", "BlockTask", "RunSummary", "SharedInput", "process_map", "run_blocks"]
@@ -171,12 +171,21 @@ def process_map(
                 results.append(func(*args))
                 bar.update(size)
             return results
+        import threading
         from concurrent.futures import ProcessPoolExecutor, as_completed
 
-        with ProcessPoolExecutor(max_workers=n_workers) as pool:
-            futures = {
-                pool.submit(func, *args): size for args, size in zip(calls, sizes, strict=True)
-            }
+        # the workers end with this process and leave Ctrl-C to it (workbench.processes)
+        main_thread = threading.current_thread() is threading.main_thread()
+        with ProcessPoolExecutor(
+            max_workers=n_workers,
+            initializer=worker_initializer,
+            initargs=(os.getpid(), main_thread),
+        ) as pool:
+            with interrupts_deferred():  # the workers are started by the first submits
+                futures = {
+                    pool.submit(func, *args): size
+                    for args, size in zip(calls, sizes, strict=True)
+                }
             for done in as_completed(futures):
                 bar.update(futures[done])
             return [future.result() for future in futures]
