@@ -166,3 +166,35 @@ def test_limits_are_checked(field, value):
     with pytest.raises(ValueError, match=field) as caught:
         DashboardOptions(**{field: value})
     assert repr(value) in str(caught.value)
+
+
+def test_closing_the_server_ends_connections_held_by_slow_clients(tmp_path):
+    """server_close neither waits for the slow clients' requests nor leaves a thread."""
+    from workbench.dashboard import make_server
+
+    options = DashboardOptions(threads=2, queued=2, request_seconds=600.0)
+    server = make_server(tmp_path, port=0, options=options)
+    loop = threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05})
+    loop.start()
+
+    class Held:  # what _slow_clients needs of a served dashboard
+        pass
+
+    held = Held()
+    held.server = server
+    clients = _slow_clients(held, 4, pause_s=0.05)  # two taken, two waiting
+    try:
+        time.sleep(0.2)
+        server.shutdown()
+        closing = threading.Thread(target=server.server_close)
+        closing.start()
+        closing.join(timeout=30)  # a bound for a busy machine; it takes milliseconds
+        assert not closing.is_alive()
+        assert not any(thread.is_alive() for thread in server._pool)
+        for client in clients:
+            client.settimeout(5)
+            assert _drained(client)
+    finally:
+        for client in clients:
+            client.close()
+        loop.join(timeout=10)

@@ -347,9 +347,24 @@ class DashboardServer(HTTPServer):
                 pass
 
     def server_close(self) -> None:
+        """Stop listening, close the connections open or waiting, end the pool."""
         super().server_close()
+        with self._reading_lock:
+            open_connections = list(self._reading)
+        for connection in open_connections:  # a thread reading from it ends at once
+            try:
+                connection.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+        while True:
+            try:
+                item = self._waiting.get_nowait()
+            except queue.Empty:
+                break
+            if item is not None:
+                self.shutdown_request(item[0])
         for _ in self._pool:
-            self._waiting.put(None)  # blocks only while connections still wait
+            self._waiting.put(None)  # one stop per thread, taken as each thread is free
         for thread in self._pool:
             thread.join(timeout=self.options.request_seconds + 5)
 
