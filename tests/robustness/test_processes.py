@@ -87,13 +87,16 @@ def _stop_all(process: subprocess.Popen, found) -> None:
 def test_kill_9_of_the_monitor_leaves_no_process(tmp_path):
     watch = tmp_path / "watch"
     write_voyage(watch, n_files=6)
-    process = _start(["monitor", "--watch", watch, "--state", tmp_path / "state", *MONITOR_ARGS])
+    state = tmp_path / "state"
+    process = _start(["monitor", "--watch", watch, "--state", state, *MONITOR_ARGS])
     found = []
     try:
-        # the background forecast worker is started once the first block is decided
-        found = _descendants_when(process, lambda f: len(_workers(f)) == 1)
+        # the background forecast worker is started once the first block is decided;
+        # it has answered once (forecast.parquet) and waits for its next task
+        found = _descendants_when(
+            process, lambda f: len(_workers(f)) == 1 and (state / "forecast.parquet").is_file()
+        )
         assert any("resource_tracker" in " ".join(_cmdline(p)) for p in found)
-        time.sleep(0.5)  # the worker past its start-up, waiting for its next task
         process.send_signal(signal.SIGKILL)
         process.wait(timeout=30)
         gone, alive = psutil.wait_procs(found, timeout=10)
