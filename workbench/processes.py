@@ -126,8 +126,9 @@ def interrupts_deferred() -> Iterator[None]:
     started inside begin with it blocked: the terminal's Ctrl-C never reaches them and
     their parent stops them. In the main thread, a Ctrl-C pressed meanwhile is recorded
     and handed to the previous handler when the block ends (the default one raises
-    :class:`KeyboardInterrupt` there). Without ``pthread_sigmask`` (Windows) it does
-    nothing.
+    :class:`KeyboardInterrupt` there); a second Ctrl-C is handed over at once, so that a
+    start that hangs can still be interrupted. Without ``pthread_sigmask`` (Windows) it
+    does nothing.
     """
     if not hasattr(signal, "pthread_sigmask"):  # pragma: no cover - Windows
         yield
@@ -138,18 +139,36 @@ def interrupts_deferred() -> Iterator[None]:
 
     resource_tracker.ensure_running()
     main = threading.current_thread() is threading.main_thread()
-    pressed: list[object] = []
+    pressed: list[object] = []  # frames of the Ctrl-C held back (at most one)
     handler = None
-    if main:  # another thread (a progress bar's) may take the signal for the process
-        handler = signal.signal(signal.SIGINT, lambda signum, frame: pressed.append(frame))
+
+    def deliver(frame) -> None:
+        if callable(handler):
+            handler(signal.SIGINT, frame)
+        elif handler == signal.SIG_DFL:
+            raise KeyboardInterrupt
+
+    def hold(signum, frame) -> None:  # noqa: ARG001 - signal handler signature
+        if pressed:  # pressed again: the start may hang, act now
+            pressed.clear()
+            deliver(frame)
+        else:
+            pressed.append(frame)
+
+    done = threading.Event()
+    if main:
+        handler = signal.signal(signal.SIGINT, hold)
+        # a thread with SIGINT unblocked (started before the mask below): the system
+        # delivers Ctrl-C to it, and the main thread runs `hold` when it next runs Python
+        # code, instead of the signal waiting, blocked, for the end of the block
+        threading.Thread(target=done.wait, name="workbench-ctrl-c", daemon=True).start()
     previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+        done.set()
         if main:
             signal.signal(signal.SIGINT, handler)
-            if pressed and callable(handler):
-                handler(signal.SIGINT, pressed[0])
-            elif pressed and handler == signal.SIG_DFL:
-                raise KeyboardInterrupt
+            if pressed:
+                deliver(pressed.pop())

@@ -179,3 +179,43 @@ def test_ctrl_c_while_dask_workers_start_is_one_line(tmp_path):
     assert process.returncode == 130, err
     assert err.splitlines() == ["interrupted"]
     assert alive == []
+
+
+def _sigint_blocked_in_a_child() -> bool:
+    status = subprocess.run(
+        [sys.executable, "-c", "print(open('/proc/self/status').read())"],
+        capture_output=True, text=True, check=True,
+    ).stdout  # fmt: skip
+    mask = next(line for line in status.splitlines() if line.startswith("SigBlk:"))
+    return bool(int(mask.split()[1], 16) & (1 << (signal.SIGINT - 1)))
+
+
+def test_ctrl_c_is_held_until_the_start_ends_and_children_never_see_it():
+    from workbench.processes import interrupts_deferred
+
+    reached = []
+    with pytest.raises(KeyboardInterrupt):
+        with interrupts_deferred():
+            assert _sigint_blocked_in_a_child()
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.1)  # the default handler would have raised by now
+            reached.append("end of the start")
+    assert reached == ["end of the start"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    assert not _sigint_blocked_in_a_child()
+
+
+def test_a_second_ctrl_c_acts_at_once():
+    from workbench.processes import interrupts_deferred
+
+    reached = []
+    with pytest.raises(KeyboardInterrupt):
+        with interrupts_deferred():
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.1)
+            reached.append("held")
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.1)
+            reached.append("not reached")
+    assert reached == ["held"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
