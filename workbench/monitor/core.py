@@ -26,8 +26,8 @@ from ..blocks import BlockGrid
 from ..errors import WorkbenchError
 from ..identification.engine import BlockTask
 from ..identify import IdentifyOptions, identify_block, input_fingerprints, resolved_run
-from ..sid.tracking import TrackingOptions
 from ..processes import interrupts_deferred, worker_initializer
+from ..sid.tracking import TrackingOptions
 from ..store import BlockStore, StoreLock
 from .conditioning import block_conditioner, forget_conditioned
 from .data_health import DATA_HEALTH_COLUMNS, data_health_row, write_data_health
