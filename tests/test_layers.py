@@ -24,6 +24,7 @@ LAYERS = {
     "workbench.blocks": 1,
     "workbench.store": 1,
     "workbench.parallel": 1,
+    "workbench.processes": 1,
     "workbench.joins": 1,
     "workbench.config": 1,
     "workbench.signals": 1,

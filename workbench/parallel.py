@@ -18,6 +18,7 @@ import logging
 import os
 import sys
 import time
+import warnings
 from collections import Counter
 from collections.abc import Callable, Hashable, Iterable, Mapping
 from contextlib import ExitStack
@@ -28,6 +29,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import WorkbenchError
+from .processes import interrupts_deferred, worker_initializer
 from .store import BlockStore
 
 __all__ = ["BlockOutcome", "BlockTask", "RunSummary", "SharedInput", "process_map", "run_blocks"]
@@ -169,12 +171,21 @@ def process_map(
                 results.append(func(*args))
                 bar.update(size)
             return results
+        import threading
         from concurrent.futures import ProcessPoolExecutor, as_completed
 
-        with ProcessPoolExecutor(max_workers=n_workers) as pool:
-            futures = {
-                pool.submit(func, *args): size for args, size in zip(calls, sizes, strict=True)
-            }
+        # the workers end with this process and leave Ctrl-C to it (workbench.processes)
+        main_thread = threading.current_thread() is threading.main_thread()
+        with ProcessPoolExecutor(
+            max_workers=n_workers,
+            initializer=worker_initializer,
+            initargs=(os.getpid(), main_thread),
+        ) as pool:
+            with interrupts_deferred():  # the workers are started by the first submits
+                futures = {
+                    pool.submit(func, *args): size
+                    for args, size in zip(calls, sizes, strict=True)
+                }
             for done in as_completed(futures):
                 bar.update(futures[done])
             return [future.result() for future in futures]
@@ -338,14 +349,30 @@ def _client(scheduler: str | None, n_workers: int | None):
     levels = [logger.level for logger in quiet]
     for logger in quiet:  # no cluster start/stop chatter on the user's terminal
         logger.setLevel(logging.ERROR)
-    cluster = LocalCluster(
-        n_workers=n_workers or os.cpu_count() or 1,
-        threads_per_worker=1,
-        processes=True,
-        dashboard_address=None,
-        silence_logs=logging.ERROR,
-    )
-    client = Client(cluster, set_as_default=False)
+    # Ctrl-C is held back while the cluster starts: its workers begin with SIGINT blocked
+    # (the terminal's Ctrl-C reaches this process only) and an interrupted start is closed
+    # in order below instead of being left half-made (workbench.processes)
+    cluster = client = None
+    try:
+        with interrupts_deferred(), warnings.catch_warnings():
+            # the scheduler's HTTP server takes another port when 8787 is busy (another
+            # cluster, another user): not the user's concern, no dashboard is opened
+            warnings.filterwarnings("ignore", message="Port .* is already in use")
+            cluster = LocalCluster(
+                n_workers=n_workers or os.cpu_count() or 1,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.ERROR,
+            )
+            client = Client(cluster, set_as_default=False)
+    except BaseException:  # a Ctrl-C held back until the cluster was up, or a failed start
+        for part in (client, cluster):
+            if part is not None:
+                part.close()
+        for logger, level in zip(quiet, levels, strict=True):
+            logger.setLevel(level)
+        raise
 
     class _Both:
         def __enter__(self):

@@ -210,3 +210,72 @@ def test_a_silent_monitor_is_flagged(browser, voyage, tmp_path, serve):
     _settled(page)
     assert page.evaluate("document.getElementById('status-stale').innerText") == ""
     assert "disk full" in page.evaluate("document.getElementById('status').innerText")
+
+
+#: Installed before the page's own scripts: every Content-Security-Policy violation.
+WATCH_CSP = """window.__csp = [];
+document.addEventListener("securitypolicyviolation",
+  (e) => window.__csp.push(`${e.effectiveDirective} ${e.blockedURI}`));"""
+
+
+def test_page_renders_under_its_content_security_policy(browser, voyage, tmp_path, serve):
+    """The strict policy (no inline script or style) blocks nothing the page needs: every
+    panel shows its data, with no violation; an injected inline script or style is
+    refused (so the watcher would see a violation of the page's own)."""
+    newest = int(voyage.alarms["start_block"].iloc[0]) + 6  # every panel has data
+    publish(voyage, tmp_path, newest)
+    served = serve(tmp_path, DashboardOptions(poll_seconds=0.2))
+    page = browser.open("about:blank")
+    page.call("Page.enable")
+    page.call("Page.addScriptToEvaluateOnNewDocument", source=WATCH_CSP)
+    page.navigate(served.url)
+    for panel in ("modes", "tracked", "health", "data_health", "status"):
+        _shows(page, panel, newest)
+    _settled(page)
+    seen = page.evaluate(READ_PAGE)
+    assert len(seen["cards"]) == 7 and len(seen["series"]) == 7
+    assert seen["healthLine"] == 1 and seen["healthRows"] == 12
+    assert seen["placeholders"] == [] and seen["errors"] is None
+    # the mode colours are set through the CSSOM (allowed), not inline style attributes
+    colours = page.evaluate(
+        "[...document.querySelectorAll('.mode-card')].map("
+        "(c) => getComputedStyle(c).getPropertyValue('--mode').trim())"
+    )
+    assert len(set(colours)) == 7 and all(colours)
+    assert page.evaluate("window.__csp") == []
+    page.evaluate(
+        "(() => { const s = document.createElement('script');"
+        " s.textContent = 'window.__injected = 1'; document.body.append(s);"
+        " document.body.setAttribute('style', 'color: red'); })()"
+    )
+    page.wait_for("window.__csp.length >= 2")
+    violations = page.evaluate("window.__csp")
+    assert page.evaluate("window.__injected === undefined")
+    assert {v.split()[0] for v in violations} == {"script-src-elem", "style-src-attr"}
+
+
+def test_given_up_blocks_are_named_on_the_page(browser, voyage, tmp_path, serve):
+    """The blocks the monitor gave up (a file after its late window) appear in the status
+    line with their span, and go away when the status has none."""
+    publish(voyage, tmp_path, 100)
+    status_file = tmp_path / "status.json"
+    status = json.loads(status_file.read_text())
+    spans = [
+        {"first_block": 40, "last_block": 43, "start": "2026-03-01T03:20:00Z",
+         "end": "2026-03-01T03:55:00Z", "reason": "gap of 300.0 s between a.npz and b.npz"},
+        {"first_block": 60, "last_block": 60, "start": "2026-03-01T05:00:00Z",
+         "end": "2026-03-01T05:20:00Z", "reason": "no data (gap between c.npz and d.npz)"},
+    ]  # fmt: skip
+    note = "5 block(s) given up, ...: `workbench identify /data --out DIR` includes them"
+    status_file.write_text(json.dumps({**status, "given_up": spans, "given_up_note": note}))
+    page = browser.open(serve(tmp_path, DashboardOptions(poll_seconds=0.2)).url)
+    text = page.wait_for("document.getElementById('status-given-up').innerText")
+    assert text == (
+        "blocks given up: 40-43 (2026-03-01 03:20 to 2026-03-01 03:55 UTC), "
+        "60 (2026-03-01 05:00 to 2026-03-01 05:20 UTC) - workbench identify over the folder "
+        "includes them"
+    )
+    assert page.evaluate("document.getElementById('status-given-up').title") == note
+    status_file.write_text(json.dumps({**status, "message": "resumed"}))
+    page.wait_for("document.getElementById('status').innerText.includes('resumed')")
+    assert page.evaluate("document.getElementById('status-given-up').innerText") == ""

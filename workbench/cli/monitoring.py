@@ -77,18 +77,45 @@ def _run_dashboard(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+class _Stopped(BaseException):
+    """SIGTERM or SIGHUP (a service manager's stop, the terminal closed) arrived; a
+    BaseException like KeyboardInterrupt, so that no ``except Exception`` swallows it."""
+
+
 def _serve_demo(args: argparse.Namespace, options) -> int:
+    """Serve a simulated voyage replayed into a temporary folder, removed on every way
+    out: a normal end, an error, Ctrl-C, SIGTERM or SIGHUP (also while the voyage is
+    being simulated, before the server's own SIGTERM handling starts)."""
+    import signal
     import tempfile
+    import threading
 
     from ..dashboard import DemoReplay
 
-    with tempfile.TemporaryDirectory(prefix="workbench-dashboard-demo-") as folder:
-        replay = DemoReplay(folder).start()
-        args.state = Path(folder)
-        try:
-            return _run_dashboard(argparse.Namespace(**{**vars(args), "demo": False}))
-        finally:
-            replay.stop()
+    def stop(signum, frame) -> None:  # noqa: ARG001 - signal handler signature
+        raise _Stopped(signal.Signals(signum).name)
+
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        for name in ("SIGTERM", "SIGHUP"):
+            if hasattr(signal, name):
+                signum = getattr(signal, name)
+                previous[signum] = signal.signal(signum, stop)
+    try:
+        with tempfile.TemporaryDirectory(prefix="workbench-dashboard-demo-") as folder:
+            replay = None
+            try:
+                replay = DemoReplay(folder).start()
+                args.state = Path(folder)
+                return _run_dashboard(argparse.Namespace(**{**vars(args), "demo": False}))
+            finally:
+                if replay is not None:
+                    replay.stop()  # no file written while the folder is removed
+    except _Stopped:
+        return EXIT_OK
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
 
 
 def _add_monitor(commands: argparse._SubParsersAction) -> None:

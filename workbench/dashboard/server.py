@@ -15,14 +15,27 @@ and no parsing. Every panel answers with ``available: false`` and a message whil
 files are absent or unreadable; an internal error gives a one-line JSON 500, never a
 traceback page.
 
-Why the standard library's :class:`~http.server.ThreadingHTTPServer`: the dashboard is a
+Why the standard library's :class:`~http.server.HTTPServer`: the dashboard is a
 read-only view for a handful of screens on a ship's network, serving a fixed set of
 routes (no file serving by path, no uploads, no sessions), so it needs neither an async
 framework nor a WSGI/ASGI server, and it adds no dependency to install on the bridge
-computer. A thread per connection with a read timeout, answers built once per change of
-the state files and shared by all clients, and small JSON bodies keep it light; the
-Python documentation's warning about ``http.server`` concerns its file-serving handlers,
-which are not used.
+computer. Answers built once per change of the state files and shared by all clients,
+and small JSON bodies keep it light; the Python documentation's warning about
+``http.server`` concerns its file-serving handlers, which are not used.
+
+Bounded under load: connections are served by a fixed pool of
+:attr:`DashboardOptions.threads` threads from a queue of at most
+:attr:`DashboardOptions.queued` connections (a listen backlog of 128 in front of it); a
+connection arriving when the queue is full is answered ``503`` with ``Retry-After`` at
+once, and a connection that has not completed a request within
+:attr:`DashboardOptions.request_seconds` (a slow or silent client, an idle keep-alive) is
+closed, so slow clients cannot hold the threads. While connections wait, answers close
+their keep-alive connection to let the next one in.
+
+Every answer carries a strict Content-Security-Policy (the page's script and style sheet
+from this server only, no inline script or style, no framing, requests to this server
+only), ``X-Frame-Options: DENY``, ``Referrer-Policy: no-referrer`` and
+``X-Content-Type-Options: nosniff``.
 """
 
 from __future__ import annotations
@@ -31,13 +44,15 @@ import hashlib
 import ipaddress
 import json
 import logging
+import queue
 import signal
 import socket
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from http import HTTPStatus
-from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from http.server import BaseHTTPRequestHandler, HTTPServer
 from importlib import resources
 from typing import Any
 from urllib.parse import urlsplit
@@ -64,6 +79,20 @@ __all__ = [
 
 log = logging.getLogger("workbench.dashboard")
 
+#: Headers of every answer (see the module notes). The page's configuration is a JSON
+#: data block (``type="application/json"``), which a CSP does not treat as a script.
+SECURITY_HEADERS = {
+    "Content-Security-Policy": (
+        "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self'; "
+        "connect-src 'self'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'"
+    ),
+    "X-Frame-Options": "DENY",
+    "Referrer-Policy": "no-referrer",
+    "X-Content-Type-Options": "nosniff",
+}
+#: Seconds a client refused with 503 is asked to wait before trying again.
+RETRY_AFTER_SECONDS = 1
+
 #: Static files served under /static/, with their content types.
 STATIC_FILES = {
     "dashboard.js": "text/javascript; charset=utf-8",
@@ -89,6 +118,14 @@ class DashboardOptions:
     stale_seconds : float
         A running monitor whose ``status.json`` is older than this is flagged as silent
         (default 15 min: three 5-min blocks missed). [s]
+    threads : int
+        Connections served at once (a handful of bridge screens, each browser keeping a
+        few connections).
+    queued : int
+        Connections waiting for a thread, at most; more are answered 503 at once.
+    request_seconds : float
+        A connection that has not sent a whole request this long after it was taken (or
+        after its previous answer) is closed. [s]
     """
 
     hours: float = 6.0
@@ -96,12 +133,19 @@ class DashboardOptions:
     poll_seconds: float = 1.0
     option: str | None = None
     stale_seconds: float = 900.0
+    threads: int = 16
+    queued: int = 64
+    request_seconds: float = 5.0
 
     def __post_init__(self) -> None:
-        for name in ("hours", "health_hours", "poll_seconds", "stale_seconds"):
+        for name in ("hours", "health_hours", "poll_seconds", "stale_seconds", "request_seconds"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and value > 0):
                 raise ValueError(f"{name}={value!r} must be a positive number")
+        for name in ("threads", "queued"):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and not isinstance(value, bool) and value >= 1):
+                raise ValueError(f"{name}={value!r} must be a whole number of at least 1")
         if self.poll_seconds < 0.1:
             raise ValueError(f"poll_seconds={self.poll_seconds!r} must be >= 0.1")
         if self.option not in (None, "A", "B"):
@@ -204,8 +248,9 @@ def is_loopback(host: str) -> bool:
         return False
 
 
-class DashboardServer(ThreadingHTTPServer):
-    """Threaded HTTP server of one state folder (see the module docstring for routes).
+class DashboardServer(HTTPServer):
+    """HTTP server of one state folder, with a bounded pool of threads (see the module
+    docstring for routes and limits).
 
     Parameters
     ----------
@@ -216,8 +261,9 @@ class DashboardServer(ThreadingHTTPServer):
     options : DashboardOptions, optional
     """
 
-    daemon_threads = True
     allow_reuse_address = True
+    #: listen backlog: connections the system holds before the server takes them
+    request_queue_size = 128
 
     def __init__(self, address: tuple[str, int], state, options: DashboardOptions | None = None):
         self.state = StateFolder(state)
@@ -231,7 +277,96 @@ class DashboardServer(ThreadingHTTPServer):
         #: name, so a web page elsewhere cannot read the dashboard by pointing one of its
         #: own host names at 127.0.0.1 (DNS rebinding)
         self.local_only = is_loopback(address[0])
-        super().__init__(address, _Handler)
+        self._waiting: queue.Queue = queue.Queue(maxsize=self.options.queued)
+        #: connection -> monotonic time since which it owes a request
+        self._reading: dict[socket.socket, float] = {}
+        self._reading_lock = threading.Lock()
+        #: connections answered 503 because the queue was full (for tests and logs)
+        self.refused = 0
+        self._pool: list[threading.Thread] = []
+        super().__init__(address, _Handler)  # closes the server when it cannot bind
+        for k in range(self.options.threads):
+            thread = threading.Thread(target=self._serve_queue, name=f"dashboard-{k}", daemon=True)
+            thread.start()
+            self._pool.append(thread)
+
+    # ------------------------------------------------------------------ the pool
+    def process_request(self, request, client_address) -> None:
+        """Queue the connection for a pool thread; answer 503 when the queue is full."""
+        self.owes_request(request)  # the time spent waiting counts
+        try:
+            self._waiting.put_nowait((request, client_address))
+        except queue.Full:
+            self.forget(request)
+            self.refused += 1
+            _refuse(request)
+            self.shutdown_request(request)
+
+    def _serve_queue(self) -> None:
+        while True:
+            item = self._waiting.get()
+            if item is None:
+                return
+            request, client_address = item
+            try:
+                self.finish_request(request, client_address)
+            except Exception:  # noqa: BLE001 - one connection's failure, logged
+                self.handle_error(request, client_address)
+            finally:
+                self.forget(request)
+                self.shutdown_request(request)
+
+    def handle_error(self, request, client_address) -> None:
+        log.debug("dashboard: connection from %s failed", client_address, exc_info=True)
+
+    def owes_request(self, connection: socket.socket) -> None:
+        """*connection* is now expected to send a request (see ``request_seconds``);
+        counted from when it was accepted, or from its previous answer."""
+        with self._reading_lock:
+            self._reading.setdefault(connection, time.monotonic())
+
+    def forget(self, connection: socket.socket) -> None:
+        with self._reading_lock:
+            self._reading.pop(connection, None)
+
+    def others_waiting(self) -> bool:
+        return not self._waiting.empty()
+
+    def service_actions(self) -> None:
+        """Between two looks at the listening socket: close the connections that owe a
+        request for longer than ``request_seconds`` (their thread then ends them)."""
+        limit = time.monotonic() - self.options.request_seconds
+        with self._reading_lock:
+            late = [c for c, since in self._reading.items() if since < limit]
+            for connection in late:
+                del self._reading[connection]
+        for connection in late:
+            try:
+                connection.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+
+    def server_close(self) -> None:
+        """Stop listening, close the connections open or waiting, end the pool."""
+        super().server_close()
+        with self._reading_lock:
+            open_connections = list(self._reading)
+        for connection in open_connections:  # a thread reading from it ends at once
+            try:
+                connection.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+        while True:
+            try:
+                item = self._waiting.get_nowait()
+            except queue.Empty:
+                break
+            if item is not None:
+                self.shutdown_request(item[0])
+        for _ in self._pool:
+            self._waiting.put(None)  # one stop per thread, taken as each thread is free
+        for thread in self._pool:
+            thread.join(timeout=self.options.request_seconds + 5)
 
     def host_allowed(self, host_header: str | None) -> bool:
         """Whether a request with this ``Host`` header is served."""
@@ -277,6 +412,29 @@ class DashboardServer(ThreadingHTTPServer):
         }
 
 
+def _refuse(connection: socket.socket) -> None:
+    """Answer 503 with Retry-After without reading the request (the server is full)."""
+    body = json.dumps(
+        {"available": False, "message": "the dashboard is busy; try again in a moment"}
+    ).encode()
+    head = [
+        "HTTP/1.1 503 Service Unavailable",
+        "Content-Type: application/json",
+        f"Content-Length: {len(body)}",
+        f"Retry-After: {RETRY_AFTER_SECONDS}",
+        "Cache-Control: no-store",
+        "Connection: close",
+        *(f"{name}: {value}" for name, value in SECURITY_HEADERS.items()),
+    ]
+    try:
+        connection.settimeout(1.0)
+        connection.sendall(("\r\n".join(head) + "\r\n\r\n").encode() + body)
+        connection.setblocking(False)
+        connection.recv(65536)  # what the client sent so far: closing with it unread resets
+    except OSError:
+        pass
+
+
 def _render_page(options: DashboardOptions) -> bytes:
     page = resources.files(__package__).joinpath("static", "index.html").read_text("utf-8")
     config = json.dumps(
@@ -290,8 +448,26 @@ class _Handler(BaseHTTPRequestHandler):
     server_version = "workbench-dashboard"
     sys_version = ""
     protocol_version = "HTTP/1.1"
-    #: seconds a silent connection is kept (a stalled client cannot hold a thread)
-    timeout = 30
+
+    def setup(self) -> None:
+        #: seconds one read or write may block (``request_seconds`` bounds a request)
+        self.timeout = self.server.options.request_seconds
+        super().setup()
+
+    def handle_one_request(self) -> None:
+        self.server.owes_request(self.connection)
+        try:
+            super().handle_one_request()
+        finally:
+            self.server.forget(self.connection)
+
+    def end_headers(self) -> None:
+        for name, value in SECURITY_HEADERS.items():
+            self.send_header(name, value)
+        if self.server.others_waiting():  # let a waiting connection have this thread
+            self.send_header("Connection", "close")
+            self.close_connection = True
+        super().end_headers()
 
     def log_message(self, format: str, *args) -> None:  # noqa: A002 (stdlib signature)
         log.debug("%s - %s", self.address_string(), format % args)
@@ -316,7 +492,6 @@ class _Handler(BaseHTTPRequestHandler):
         self.send_header("Content-Type", content_type)
         self.send_header("Content-Length", str(len(body)))
         self.send_header("Cache-Control", cache)
-        self.send_header("X-Content-Type-Options", "nosniff")
         if etag is not None:
             self.send_header("ETag", etag)
         self.end_headers()

@@ -98,6 +98,20 @@ STATUS_KEYS: dict[str, tuple[type, ...]] = {
     "message": (str,),
 }
 
+#: Keys ``status.json`` may hold (a state without given-up blocks may leave them out).
+STATUS_OPTIONAL_KEYS: dict[str, tuple[type, ...]] = {
+    "given_up": (list,),
+    "given_up_note": (str,),
+}
+#: Keys of each span of ``given_up`` and their JSON types.
+GIVEN_UP_KEYS: dict[str, tuple[type, ...]] = {
+    "first_block": (int,),
+    "last_block": (int,),
+    "start": (str,),
+    "end": (str,),
+    "reason": (str,),
+}
+
 Signature = tuple[int, int, int]
 
 
@@ -151,6 +165,20 @@ def read_status(path: str | os.PathLike) -> dict:
             problems.append(f"missing key '{key}'")
         elif not isinstance(status[key], types) or isinstance(status[key], bool):
             problems.append(f"key '{key}' has type {type(status[key]).__name__}")
+    for key, types in STATUS_OPTIONAL_KEYS.items():
+        if key in status and not isinstance(status[key], types):
+            problems.append(f"key '{key}' has type {type(status[key]).__name__}")
+    for k, span in enumerate(status.get("given_up", []) if not problems else []):
+        wrong = [
+            name
+            for name, types in GIVEN_UP_KEYS.items()
+            if not isinstance(span, dict)
+            or not isinstance(span.get(name), types)
+            or isinstance(span.get(name), bool)
+        ]
+        if wrong:
+            problems.append(f"key 'given_up' item {k}: missing or wrong {', '.join(wrong)}")
+            break
     if not problems:
         try:
             pd.Timestamp(status["updated_at"])

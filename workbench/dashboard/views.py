@@ -75,6 +75,13 @@ def status_view(status: dict | None, now: pd.Timestamp) -> dict[str, Any]:
         "watch": status["watch"],
         "message": status["message"],
         "pid": status["pid"],
+        # blocks the monitor gave up (their file came after the late window), which a
+        # batch identify over the folder includes
+        "given_up": [
+            {key: span[key] for key in ("first_block", "last_block", "start", "end", "reason")}
+            for span in status.get("given_up", [])
+        ],
+        "given_up_note": status.get("given_up_note", ""),
     }
 
 

@@ -30,7 +30,10 @@ half-written file::
                                  'skipped'), reason (why skipped, else '')
     <state>/status.json          {"updated_at": ISO UTC, "last_block": int|null,
                                   "blocks_done": int, "state": "running"|"stopped",
-                                  "pid": int, "watch": str, "message": str}
+                                  "pid": int, "watch": str, "message": str,
+                                  "given_up": [{"first_block": int, "last_block": int,
+                                  "start": ISO UTC, "end": ISO UTC, "reason": str}],
+                                  "given_up_note": str}
     <state>/store/               the per-block store (:class:`~workbench.store.BlockStore`,
                                  the same layout and parameters as ``workbench identify``'s)
 
@@ -51,8 +54,11 @@ When is a block identified
   landing within that window is used as if it had come in order. After it, the blocks
   over the hole are decided as ``workbench identify`` over the files present decides them
   (skipped: gap), and a file landing later still is *not* used for them (a stored block is
-  never redone; its message in ``status.json`` says so) - blocks later in the record that
-  it completes are identified normally. The last blocks of a record (waiting for a next
+  never redone) - blocks later in the record that it completes are identified normally.
+  The blocks given up so, which ``workbench identify`` over the folder identifies, are
+  listed with their span in ``status.json`` (``given_up``; ``given_up_note`` says what to
+  run), on the dashboard's status line and in the command's last lines, also after a
+  restart (:meth:`Monitor.given_up`). The last blocks of a record (waiting for a next
   file that does not come) are decided after ``flush_after_s`` without new files, or at
   once with ``--once``.
 * Blocks are tracked in block order, so a block waiting for a late file holds the tracked

@@ -330,4 +330,7 @@ def run_monitor(args: argparse.Namespace) -> int:
     )
     for message in monitor.messages[-10:]:
         print(f"note: {message}")
+    given_up = monitor.given_up_note()
+    if given_up:
+        print(f"note: {given_up}")
     return 0

@@ -26,6 +26,7 @@ from ..blocks import BlockGrid
 from ..errors import WorkbenchError
 from ..identification.engine import BlockTask
 from ..identify import IdentifyOptions, identify_block, input_fingerprints, resolved_run
+from ..processes import interrupts_deferred, worker_initializer
 from ..sid.tracking import TrackingOptions
 from ..store import BlockStore, StoreLock
 from .conditioning import block_conditioner, forget_conditioned
@@ -155,6 +156,7 @@ class Monitor:
         self._log_complete = False
         self._dirty = True
         self._saved_grid = self._stored_grid()
+        self._given_up: tuple[tuple[int, int], list[dict]] = ((-1, -1), [])
 
     @property
     def tracked_through(self) -> int:
@@ -537,15 +539,24 @@ class Monitor:
             from concurrent.futures import ProcessPoolExecutor
 
             # a lower priority: on a busy machine the next block's identification (the
-            # latency users see) goes first, the forecast takes the time left
+            # latency users see) goes first, the forecast takes the time left; the worker
+            # ends with this process, even after a kill -9 (workbench.processes)
             self._executor = ProcessPoolExecutor(
                 max_workers=1,
                 mp_context=multiprocessing.get_context("spawn"),
-                initializer=_lower_priority,
+                initializer=worker_initializer,
+                initargs=(
+                    os.getpid(),
+                    threading.current_thread() is threading.main_thread(),
+                    10,  # niceness
+                ),
             )
-        self._outlook_future = self._executor.submit(
-            update_outlook, *arguments, **keywords, parent_pid=os.getpid()
-        )
+        # the worker is started by the first submit: with Ctrl-C held back, so that it
+        # reaches this process only (which stops the worker in order)
+        with interrupts_deferred():
+            self._outlook_future = self._executor.submit(
+                update_outlook, *arguments, **keywords, parent_pid=os.getpid()
+            )
 
     def _collect(self, report: OutlookReport) -> None:
         self.outlook_reports.append(report)
@@ -561,6 +572,74 @@ class Monitor:
         for message in report.messages:
             if message not in self.messages[-20:]:
                 self.messages.append(message)
+
+    # ------------------------------------------------------------------ gaps
+    def given_up(self) -> list[dict]:
+        """Blocks given up: decided as skipped for missing data (a gap, no data) that
+        the files present now cover, because the file filling the hole landed after the
+        late window. The monitor does not redo a decided block; ``workbench identify``
+        over the folder identifies them. Consecutive blocks form one span.
+
+        Returns
+        -------
+        list of dict
+            ``first_block``, ``last_block``, ``start`` and ``end`` (UTC ISO-8601, the
+            span of the blocks) and ``reason`` (why the first was skipped then).
+        """
+        key = (len(self.files), len(self._health_rows))
+        if key == self._given_up[0]:
+            return self._given_up[1]
+        spans: list[dict] = []
+        missing = {
+            int(row["block"]): str(row["reason"])
+            for row in self._health_rows
+            if row["status"] == "skipped"
+            and ("gap" in str(row["reason"]) or "no data" in str(row["reason"]))
+        }
+        if missing and self.files and self.voyage is not None:
+            from ..signals.block_plan import plan_file_infos
+
+            grid = self.voyage.grid
+            plan = plan_file_infos(
+                [f.info for f in self.files], grid, max_gap_s=self.voyage.options.max_gap_s
+            )
+            now_built = sorted(
+                b.block for b in plan.blocks if not b.skipped_reason and b.block in missing
+            )
+            for block in now_built:
+                if spans and spans[-1]["last_block"] == block - 1:
+                    spans[-1]["last_block"] = block
+                    spans[-1]["end"] = _iso(grid.end(block))
+                else:
+                    spans.append(
+                        {
+                            "first_block": block,
+                            "last_block": block,
+                            "start": _iso(grid.start(block)),
+                            "end": _iso(grid.end(block)),
+                            "reason": missing[block],
+                        }
+                    )
+        self._given_up = (key, spans)
+        return spans
+
+    def given_up_note(self) -> str:
+        """One line for the user naming the given-up blocks and what includes them ('' when
+        none)."""
+        spans = self.given_up()
+        if not spans:
+            return ""
+        named = ", ".join(
+            f"{s['first_block']}-{s['last_block']} ({s['start']} to {s['end']})"
+            if s["last_block"] > s["first_block"]
+            else f"{s['first_block']} ({s['start']} to {s['end']})"
+            for s in spans
+        )
+        count = sum(s["last_block"] - s["first_block"] + 1 for s in spans)
+        return (
+            f"{count} block(s) given up, their files landed after the late window: {named}; "
+            f"`workbench identify {self.watch} --out DIR` over the folder includes them"
+        )
 
     # ------------------------------------------------------------------ state files
     def _write_data_health(self) -> None:
@@ -579,16 +658,17 @@ class Monitor:
             "pid": os.getpid(),
             "watch": str(self.watch.resolve()),
             "message": message,
+            # blocks a batch identify over the folder would identify and the monitor
+            # gave up (see given_up), and what to run to have them
+            "given_up": self.given_up(),
+            "given_up_note": self.given_up_note(),
         }
         with atomic_path(self.state / "status.json") as tmp:
             tmp.write_text(json.dumps(status, indent=1), encoding="utf-8")
 
 
-def _lower_priority() -> None:
-    try:
-        os.nice(10)
-    except (AttributeError, OSError):  # pragma: no cover - platforms without nice
-        pass
+def _iso(time: pd.Timestamp) -> str:
+    return pd.Timestamp(time).tz_convert("UTC").strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
 def _file_key(path: Path | None):

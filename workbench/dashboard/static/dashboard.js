@@ -54,6 +54,7 @@
       $("#status-block").textContent = "";
       $("#status-updated").textContent = "";
       $("#status-message").textContent = d.message || "";
+      $("#status-given-up").textContent = "";
       return null;
     }
     $("#status-state").textContent = `monitor ${d.state}`;
@@ -62,6 +63,15 @@
     $("#status-updated").textContent = `updated ${hhmm(d.updated_at)}Z`;
     $("#status-updated").dataset.updatedAt = d.updated_at;
     $("#status-message").textContent = d.message || "";
+    // blocks given up (their file landed after the late window): named with their span
+    const spans = (d.given_up || []).map((s) =>
+      (s.first_block === s.last_block ? `${s.first_block}` : `${s.first_block}-${s.last_block}`) +
+      ` (${hhmm(s.start)} to ${hhmm(s.end)} UTC)`);
+    const givenUp = $("#status-given-up");
+    givenUp.textContent = spans.length
+      ? `blocks given up: ${spans.join(", ")} - workbench identify over the folder includes them`
+      : "";
+    givenUp.title = d.given_up_note || "";
     box.dataset.block = d.last_block === null ? "" : d.last_block;
     return d.last_block;
   };

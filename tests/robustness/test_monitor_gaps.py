@@ -1,0 +1,133 @@
+"""The monitor names the blocks it gave up (issue 28, item 4).
+
+A file landing after the monitor's late window does not make it redo the blocks decided
+without it (skipped: gap); a batch ``identify`` over the same folder identifies them, so
+the monitor ended with fewer tracked rows than batch (224 vs 256) without saying which
+blocks. Now ``status.json`` lists them with their span, the command's last lines and the
+dashboard say so, and the list equals the difference from batch exactly.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from workbench.cli import build_parser, main
+from workbench.dashboard.server import make_server
+from workbench.monitor.cli import prepare_monitor
+
+from .voyage import IDENTIFY_ARGS, T0, write_voyage
+
+#: The monitor with the batch settings of the tiny voyage, no patience for late files.
+MONITOR_ARGS = [a for a in IDENTIFY_ARGS if a not in ("--scheduler", "synchronous", "--quiet")]
+MONITOR_ARGS += ["--late", "0", "--settle", "0", "--poll", "0.05", "--foreground"]
+LATE = 3  # acc_003.npz, 180-240 s: blocks 2 (120-240 s) and 3 (180-300 s) lie over it
+
+
+def _status(state: Path) -> dict:
+    return json.loads((state / "status.json").read_text(encoding="utf-8"))
+
+
+@pytest.fixture
+def gave_up(tmp_path):
+    """A monitor that decided blocks 2-3 without acc_003.npz, which landed afterwards."""
+    source, watch, state = tmp_path / "source", tmp_path / "watch", tmp_path / "state"
+    files = write_voyage(source, n_files=8)
+    watch.mkdir()
+    argv = ["monitor", "--watch", watch, "--state", state, *MONITOR_ARGS]
+    monitor = prepare_monitor(build_parser().parse_args([str(a) for a in argv]))
+    try:
+        for path in files[:LATE] + files[LATE + 1 :]:
+            shutil.copy(path, watch / path.name)
+        monitor.step()
+        assert monitor.given_up() == []  # the hole is still a hole: nothing given up
+        shutil.copy(files[LATE], watch / files[LATE].name)
+        assert monitor.step() == 0  # nothing redone
+    finally:
+        monitor.close()
+    return watch, state
+
+
+def test_the_state_names_the_given_up_blocks_with_their_span(gave_up):
+    watch, state = gave_up
+    status = _status(state)
+    step = pd.Timedelta(minutes=1)
+    assert status["given_up"] == [
+        {
+            "first_block": 2,
+            "last_block": 3,
+            "start": (T0 + 2 * step).strftime("%Y-%m-%dT%H:%M:%SZ"),
+            "end": (T0 + 5 * step).strftime("%Y-%m-%dT%H:%M:%SZ"),
+            "reason": status["given_up"][0]["reason"],
+        }
+    ]
+    assert "gap" in status["given_up"][0]["reason"]
+    note = status["given_up_note"]
+    assert note.startswith("2 block(s) given up, their files landed after the late window: 2-3")
+    assert f"workbench identify {watch} --out DIR" in note
+
+
+def test_the_given_up_blocks_are_exactly_what_batch_adds(gave_up, tmp_path):
+    watch, state = gave_up
+    out = tmp_path / "batch"
+    assert main(["identify", str(watch), "--out", str(out), *IDENTIFY_ARGS]) == 0
+    batch = pd.read_csv(out / "blocks.csv")
+    monitor = pd.read_parquet(state / "data_health.parquet")
+    batch_ok = set(batch.loc[batch["status"] == "ok", "block"])
+    monitor_ok = set(monitor.loc[monitor["status"] == "ok", "block"])
+    assert monitor_ok < batch_ok
+    named = {
+        block
+        for span in _status(state)["given_up"]
+        for block in range(span["first_block"], span["last_block"] + 1)
+    }
+    assert batch_ok - monitor_ok == named == {2, 3}
+
+
+def test_a_restart_still_names_them_and_says_so_at_the_end(gave_up, capsys):
+    watch, state = gave_up
+    argv = ["monitor", "--watch", watch, "--state", state, *MONITOR_ARGS, "--once"]
+    assert main([str(a) for a in argv]) == 0
+    out = capsys.readouterr().out
+    assert "note: 2 block(s) given up, their files landed after the late window: 2-3" in out
+    assert _status(state)["given_up"][0]["first_block"] == 2
+
+
+def test_the_dashboard_shows_them(gave_up):
+    _, state = gave_up
+    server = make_server(state, port=0)
+    try:
+        status = server.answer("status")[1]
+    finally:
+        server.server_close()
+    data = json.loads(status)
+    assert [(s["first_block"], s["last_block"]) for s in data["given_up"]] == [(2, 3)]
+    assert "workbench identify" in data["given_up_note"]
+
+
+@pytest.mark.parametrize(
+    "given_up, fragment",
+    [
+        ("blocks 2-3", "key 'given_up' has type str"),
+        ([{"first_block": 2}], "key 'given_up' item 0: missing or wrong last_block, start"),
+        ([{"first_block": True, "last_block": 3, "start": "", "end": "", "reason": ""}],
+         "missing or wrong first_block"),
+    ],
+)  # fmt: skip
+def test_a_malformed_given_up_list_is_named(tmp_path, given_up, fragment):
+    from workbench.dashboard.state import read_status
+
+    status = {
+        "updated_at": "2026-03-01T00:00:00Z", "last_block": 3, "blocks_done": 4,
+        "state": "running", "pid": 1, "watch": "/data", "message": "",
+        "given_up": given_up,
+    }  # fmt: skip
+    path = tmp_path / "status.json"
+    path.write_text(json.dumps(status), encoding="utf-8")
+    with pytest.raises(ValueError, match="status.json") as caught:
+        read_status(path)
+    assert fragment in str(caught.value)
