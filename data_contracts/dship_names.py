@@ -21,6 +21,7 @@ import pandas as pd
 __all__ = [
     "AUXILIARY_COLUMNS",
     "DSHIP_NAMES",
+    "SHAFT_COLUMNS",
     "TIME_FORMATS",
     "parse_column_mapping",
     "parse_log_times",
@@ -84,10 +85,31 @@ DSHIP_NAMES: dict[str, tuple[str, ...]] = {
         "Fuel total",
         "Bunker ROB",
     ),
+    # Shaft speed: read when logged (harmonic orders of identify), not a predictor itself.
+    "shaft_rpm": (
+        "Shaft speed",
+        "Shaft rpm",
+        "ShaftRPM",
+        "Shaft revolutions",
+        "Shaft1 rpm",
+        "Propeller rpm",
+        "Propeller speed",
+        "Prop rpm",
+        "PropRPM",
+        "SYS.PROP.RPM",
+        "SYS.ENG.ShaftRPM",
+        "Main engine rpm",
+        "ME rpm",
+    ),
 }
 
 #: Columns read only to derive the relative wind (not predictors themselves).
 AUXILIARY_COLUMNS = ("wind_dir_true_deg", "wind_speed_true_ms", "heading_deg", "course_deg")
+
+#: Columns kept in the canonical log when the ship log carries them, but not predictors:
+#: the shaft speed gives the frequencies of the shaft and blade-pass orders
+#: (:mod:`workbench.sid.harmonics`). [rpm]
+SHAFT_COLUMNS = ("shaft_rpm",)
 
 #: Time formats recognised without being told, tried after ISO-8601. Only unambiguous ones:
 #: ``dd.mm.yyyy`` is day-first by convention; ``dd/mm/yyyy`` vs ``mm/dd/yyyy`` must be
