@@ -82,6 +82,18 @@ _DAMPING = Column(
     hint="damping ratios are fractions: 1.2 % is 0.012",
 )
 
+_HARMONIC = Column(
+    "harmonic",
+    "float",
+    "Shaft order the row is (1 = the shaft rate, the blade count for the blade pass), from "
+    "the logged shaft speed; 0: a harmonic found from the data (frequency following the "
+    "speed with a fixed shape), order unknown; NaN: not a harmonic. Tracking keeps marked "
+    "rows out of the modes (workbench.sid.harmonics).",
+    required=False,
+    nullable=True,
+    minimum=0.0,
+)
+
 _MPC = Column(
     "mpc",
     "float",
@@ -285,6 +297,7 @@ POLES = TableContract(
             "Pole is stable in frequency, damping and shape against the previous model order.",
         ),
         _MPC,
+        _HARMONIC,
     ),
     patterns=(_SHAPES,),
 )
@@ -346,6 +359,7 @@ SELECTED = TableContract(
             required=False,
             minimum=1,
         ),
+        _HARMONIC,
     ),
     patterns=(_SHAPES,),
     checks=(_end_after_start, _one_start_per_block),

@@ -52,21 +52,23 @@ def _add_simulate(commands: argparse._SubParsersAction) -> None:
         "--shaft-orders",
         default="1",
         metavar="K,K",
-        help="shaft orders in the accelerations (default: 1)",
+        help="shaft orders in the accelerations (default: %(default)s)",
     )
     shaft.add_argument(
         "--blades",
         type=int,
         default=5,
         metavar="N",
-        help="propeller blades: the blade-pass order N x the shaft rate (0: none) (default: 5)",
+        help="propeller blades: the blade-pass order N x the shaft rate (0: none) "
+        "(default: %(default)s)",
     )
     shaft.add_argument(
         "--shaft-hz-per-kn",
         type=float,
         default=0.3,
         metavar="HZ",
-        help="shaft rate per knot of speed [Hz/kn] (default: 0.3, i.e. 180 rpm at 10 kn)",
+        help="shaft rate per knot of speed [Hz/kn]; 0.3 turns the shaft at 180 rpm at 10 kn "
+        "(default: %(default)s)",
     )
     shaft.add_argument(
         "--no-shaft-rpm",

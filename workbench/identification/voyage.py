@@ -28,9 +28,10 @@ class IdentifyResult:
     files: dict[str, Path] = field(default_factory=dict)
     n_blocks: int = 0
     n_selected: int = 0
+    notes: list[str] = field(default_factory=list)
 
     def lines(self) -> list[str]:
-        out = [str(self.summary)]
+        out = [str(self.summary), *self.notes]
         crosscheck = self.files.get("crosscheck")
         if crosscheck is not None:
             from ..sid.crosscheck import agreement_lines
@@ -64,6 +65,17 @@ def _check_run_options(scheduler, n_workers, batch_blocks) -> None:
         )
 
 
+def _ship_log(dship, mapping) -> pd.DataFrame | None:
+    """The canonical ship log of *dship* (a path or a canonical log), or None."""
+    if dship is None:
+        return None
+    if isinstance(dship, pd.DataFrame):
+        return dship
+    from data_contracts import read_dship
+
+    return read_dship(dship, mapping=mapping)
+
+
 def identify_voyage(
     inputs: Iterable[str | os.PathLike],
     out_dir: str | os.PathLike,
@@ -75,6 +87,9 @@ def identify_voyage(
     progress: bool = False,
     blocks: Sequence[int] | None = None,
     batch_blocks: int = 16,
+    dship: str | os.PathLike | pd.DataFrame | None = None,
+    dship_mapping: dict[str, str] | None = None,
+    harmonics=None,
 ) -> IdentifyResult:
     """Identify every block of a voyage's acceleration files; resumable and parallel.
 
@@ -98,9 +113,21 @@ def identify_voyage(
     batch_blocks : int
         Blocks written to the store together (also every 30 s); an interruption loses at
         most the blocks of the batch under way.
+    dship : path-like or DataFrame, optional
+        The voyage's ship log (raw DSHIP file or canonical log): its shaft speed (or, when
+        not logged, its speed) marks the shaft and blade-pass harmonics among the selected
+        modes and poles (``harmonic`` column; :mod:`workbench.sid.harmonics`) and gives
+        ``shaft.csv``. Without it nothing is marked.
+    dship_mapping : dict, optional
+        Column names of the ship log (``{"shaft_rpm": "ME.Shaft.RPM"}``).
+    harmonics : HarmonicOptions, optional
+        Orders, blade count and tolerances of the harmonic tests.
     """
+    from ..sid.harmonics import HarmonicMarker
+
     options = options or IdentifyOptions()
     _check_run_options(scheduler, n_workers, batch_blocks)
+    marker = HarmonicMarker(_ship_log(dship, dship_mapping), harmonics)
     out = Path(out_dir)
     store_path = Path(store_dir) if store_dir is not None else out / "store"
     for what, path in (("output folder", out), ("store", store_path)):
@@ -140,7 +167,8 @@ def identify_voyage(
             description="identify",
         )
         result = IdentifyResult(summary, n_blocks=len(tasks))
-        result.files = export_store(store, out, channels, grid=grid)
+        result.files = export_store(store, out, channels, grid=grid, harmonics=marker)
+        result.notes = marker.lines()
     selected = result.files.get("selected")
     if selected is not None:
         result.n_selected = len(pd.read_parquet(selected, columns=["block"]))

@@ -26,6 +26,7 @@ from ..blocks import BlockGrid
 from ..errors import WorkbenchError
 from ..identification.engine import BlockTask
 from ..identify import IdentifyOptions, identify_block, input_fingerprints, resolved_run
+from ..sid.harmonics import HarmonicOptions
 from ..sid.tracking import TrackingOptions
 from ..store import BlockStore, StoreLock
 from .conditioning import block_conditioner, forget_conditioned
@@ -52,6 +53,11 @@ class MonitorOptions:
         Block grid, conditioning, SSI and selection (as ``workbench identify``).
     tracking : TrackingOptions
         As ``workbench track``.
+    harmonics : HarmonicOptions
+        Shaft orders and blades: with a ship log that logs the shaft speed, each block's
+        selected modes are marked (:func:`~workbench.sid.harmonics.mark_shaft_orders`)
+        before tracking, which keeps the harmonics out of the tracked table. A block
+        decided before the log covers it is not marked.
     forecast : ForecastSettings
         As ``workbench forecast`` and ``workbench health``.
     poll_s : float
@@ -72,6 +78,7 @@ class MonitorOptions:
 
     identify: IdentifyOptions = field(default_factory=IdentifyOptions)
     tracking: TrackingOptions = field(default_factory=TrackingOptions)
+    harmonics: HarmonicOptions = field(default_factory=HarmonicOptions)
     forecast: ForecastSettings = field(default_factory=ForecastSettings)
     poll_s: float = 1.0
     settle_s: float = 1.0
@@ -452,7 +459,7 @@ class Monitor:
         self._health_rows.append(row)
         selected = outcome.tables.get("selected")
         if not outcome.skipped and selected is not None and len(selected):
-            self.tracking.add(int(outcome.block), selected)
+            self.tracking.add(int(outcome.block), self._mark_harmonics(selected))
         self._advance_tracking()
         self._write_data_health()
         forget_conditioned(
@@ -471,12 +478,58 @@ class Monitor:
         )
 
     # ------------------------------------------------------------------ tracking
+    def _mark_harmonics(self, selected: pd.DataFrame) -> pd.DataFrame:
+        """*selected* with its ``harmonic`` column from the logged shaft speed (unchanged
+        without a ship log, or one that does not log the shaft speed)."""
+        if self.dship is None or not self.dship.is_file():
+            return selected
+        from ..sid.harmonics import mark_shaft_orders
+        from .outlook import _ship_log
+
+        try:
+            log = _ship_log(self.dship, dict(self.options.forecast.dship_mapping))
+        except (ValueError, OSError):  # the outlook reports an unreadable log
+            return selected
+        if "shaft_rpm" not in log.columns:
+            return selected
+        return selected.assign(harmonic=mark_shaft_orders(selected, log, self.options.harmonics))
+
+    def _write_harmonic_lines(self, tracked: pd.DataFrame) -> None:
+        """``harmonics.parquet``: each order's frequency at the tracked blocks' mean logged
+        shaft speed (nothing without a logged shaft speed)."""
+        if self.dship is None or not self.dship.is_file() or tracked.empty:
+            return
+        from ..dashboard.state import HARMONIC_LINES
+        from ..sid.harmonics import block_shaft_table, order_list
+        from .outlook import _ship_log
+
+        try:
+            log = _ship_log(self.dship, dict(self.options.forecast.dship_mapping))
+        except (ValueError, OSError):
+            return
+        if "shaft_rpm" not in log.columns:
+            return
+        shaft = block_shaft_table(log, tracked).dropna(subset=["shaft_rpm"])
+        orders = order_list(self.options.harmonics)
+        lines = pd.DataFrame(
+            {
+                "block": np.repeat(shaft["block"].to_numpy(dtype="int64"), len(orders)),
+                "block_start": np.repeat(shaft["block_start"].to_numpy(), len(orders)),
+                "order": np.tile(np.asarray(orders, dtype=float), len(shaft)),
+                "frequency_hz": np.outer(shaft["shaft_rpm"].to_numpy() / 60.0, orders).ravel(),
+            }
+        )
+        lines["block_start"] = pd.to_datetime(lines["block_start"], utc=True)
+        write_table(lines, self.state / "harmonics.parquet", HARMONIC_LINES)
+
     def _advance_tracking(self) -> None:
         """Feed the decided blocks to the tracker in block order and write the tracked
         table when it grew (see :class:`IncrementalTracking`)."""
         grew = self.tracking.advance(self.done)
         if grew or not (self.state / "tracked.parquet").exists():
-            write_table(self.tracking.table(), self.state / "tracked.parquet", MODAL)
+            tracked = self.tracking.table()
+            write_table(tracked, self.state / "tracked.parquet", MODAL)
+            self._write_harmonic_lines(tracked)
 
     def _resume(self) -> None:
         """After a restart: replay the stored blocks into the tracker and the data-health
@@ -492,7 +545,7 @@ class Monitor:
         if len(selected):
             selected = selected.drop(columns=["day"], errors="ignore")
             for block, part in selected.groupby("block", sort=True):
-                self.tracking.add(int(block), part)
+                self.tracking.add(int(block), self._mark_harmonics(part))
         self._plan = SimpleNamespace(blocks=())
         self._advance_tracking()
         self._write_data_health()

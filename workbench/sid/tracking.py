@@ -79,6 +79,11 @@ class TrackingOptions:
         Fewest channels shared by two shapes for them to be compared. [-]
     sort_by_frequency : bool
         Relabel the final modes 1, 2, ... in order of their median frequency.
+    harmonic_share : float
+        Tracked labels with at least this share of rows marked as shaft or blade-pass
+        harmonics (the selected table's ``harmonic`` column, :mod:`workbench.sid.harmonics`)
+        are harmonics, not modes, and are dropped; a mode that an order crosses keeps its
+        rows (its own shape joined the label). [-]
     """
 
     mac_min: float = 0.9
@@ -90,6 +95,7 @@ class TrackingOptions:
     min_blocks: int = 3
     min_channels: int = 3
     sort_by_frequency: bool = True
+    harmonic_share: float = 0.5
 
     def __post_init__(self) -> None:
         if not 0.0 < self.mac_min <= 1.0:
@@ -100,6 +106,8 @@ class TrackingOptions:
             raise ValueError(f"frequency_tol={self.frequency_tol} must be in (0, 1)")
         if not 0.0 <= self.smoothing <= 1.0:
             raise ValueError(f"smoothing={self.smoothing} must be in [0, 1]")
+        if not 0.0 < self.harmonic_share <= 1.0:
+            raise ValueError(f"harmonic_share={self.harmonic_share} must be in (0, 1]")
         for name in ("confirm_within", "candidate_lifetime", "min_blocks", "min_channels"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name}={getattr(self, name)} must be at least 1")
@@ -452,11 +460,26 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
         empty = frame.iloc[:0].copy()
         empty.insert(3, "mode", pd.Series([], dtype="int64"))
         empty["mac"] = pd.Series([], dtype=float)
-        return MODAL.validate(empty)
+        return MODAL.validate(empty.drop(columns="harmonic", errors="ignore"))
     index = np.array([r[0] for r in rows])
     table = frame.loc[index].copy()
     table["mode"] = [r[1] for r in rows]
     table["mac"] = np.clip([r[2] for r in rows], 0.0, 1.0)
+    harmonic_labels: list[dict] = []
+    if "harmonic" in table.columns:
+        marked = table["harmonic"].notna()
+        share = marked.groupby(table["mode"]).mean()
+        for label in share.index[share >= options.harmonic_share]:
+            rows = table[table["mode"] == label]
+            harmonic_labels.append(
+                {
+                    "blocks": len(rows),
+                    "frequency_hz": float(rows["frequency_hz"].median()),
+                    "share": float(share[label]),
+                }
+            )
+        table = table[~table["mode"].isin(share.index[share >= options.harmonic_share])]
+        table = table.drop(columns="harmonic")
     counts = table["mode"].value_counts()
     keep = counts.index[counts >= options.min_blocks]
     table = table[table["mode"].isin(keep)]
@@ -470,7 +493,9 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
     shape = shape_columns(channels)
     rest = [c for c in table.columns if c not in front and c not in shape]
     table = table[[*front, *rest, *shape]].sort_values(["block", "mode"], kind="stable")
-    return MODAL.validate(table.reset_index(drop=True))
+    table = MODAL.validate(table.reset_index(drop=True))
+    table.attrs["harmonic_labels"] = harmonic_labels
+    return table
 
 
 def label_agreement(

@@ -17,6 +17,7 @@ import pandas as pd
 from data_contracts import POLES, read_table
 
 from ..identify import IdentifyOptions, IdentifyResult, identify_voyage
+from ..sid.harmonics import HarmonicOptions
 from ._base import StageResult, write_frame
 
 __all__ = ["IdentifyOptions", "IdentifyStageResult", "identify"]
@@ -91,6 +92,9 @@ def identify(
     n_workers: int | None = None,
     progress: bool = False,
     batch_blocks: int = 16,
+    dship: str | os.PathLike | pd.DataFrame | None = None,
+    dship_mapping: dict[str, str] | None = None,
+    harmonics: HarmonicOptions | None = None,
 ) -> IdentifyStageResult:
     """Identify every block of a voyage's acceleration files.
 
@@ -106,6 +110,11 @@ def identify(
         blocks every 5 min).
     scheduler, n_workers, progress, batch_blocks
         Parallel execution (:func:`workbench.identify.identify_voyage`).
+    dship, dship_mapping : optional
+        The voyage's ship log and its column names: the shaft speed (or the speed) marks
+        the shaft and blade-pass harmonics, which tracking keeps out of the modes.
+    harmonics : HarmonicOptions, optional
+        Orders and blade count of the harmonic tests (:mod:`workbench.sid.harmonics`).
     """
     if isinstance(inputs, str | os.PathLike):
         inputs = [inputs]
@@ -118,5 +127,8 @@ def identify(
         n_workers=n_workers,
         progress=progress,
         batch_blocks=batch_blocks,
+        dship=dship,
+        dship_mapping=dship_mapping,
+        harmonics=harmonics,
     )
     return IdentifyStageResult(run=run, lines=run.lines())
