@@ -60,7 +60,12 @@ def batch_run(source: Path, out: Path, identify=IDENTIFY) -> dict[str, pd.DataFr
     """identify + track + forecast over the complete folder (the reference)."""
     out.mkdir(parents=True, exist_ok=True)
     common = ["--scheduler", "synchronous", "--quiet"]
-    assert cli("identify", source / "accelerations", "--out", out / "id", *identify, *common) == 0
+    # the ship log's shaft speed marks the harmonics, as the monitor's does
+    dship = ["--dship", source / "dship.tsv"]
+    assert (
+        cli("identify", source / "accelerations", "--out", out / "id", *identify, *dship, *common)
+        == 0
+    )
     assert cli("track", out / "id" / "selected.parquet", "--out", out / "tracked.parquet") == 0
     assert (
         cli(

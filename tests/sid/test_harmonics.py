@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from data_contracts import SELECTED, shape_columns
+from data_contracts import SELECTED, read_dship, shape_columns
 from workbench.sid.harmonics import (
     HarmonicOptions,
     block_shaft_table,
@@ -167,3 +167,29 @@ def test_options_are_checked():
         HarmonicOptions(orders=(0.0,))
     with pytest.raises(ValueError, match="harmonic_share"):
         TrackingOptions(harmonic_share=0.0)
+
+
+def test_cli_identify_with_the_ship_log_marks_and_writes_the_shaft_table(tmp_path, capsys):
+    from workbench.cli import main
+
+    voyage = tmp_path / "voyage"
+    assert main(["simulate", "--out", str(voyage), "--hours", "0.5", "--quiet"]) == 0
+    out = tmp_path / "identify"
+    common = ["--band", "2", "12", "--max-order", "30", "--scheduler", "synchronous", "--quiet"]
+    argv = ["identify", str(voyage / "accelerations"), "--out", str(out), *common]
+    assert main([*argv, "--dship", str(voyage / "dship.tsv"), "--blades", "5"]) == 0
+    assert "orders 1, 2, 3, 5, 10 of the logged shaft speed" in capsys.readouterr().out
+    shaft = pd.read_csv(out / "shaft.csv")
+    log = read_dship(voyage / "dship.tsv")
+    first = log[log["time"] < log["time"].iloc[0] + pd.Timedelta(minutes=20)]
+    assert shaft["shaft_rpm"].iloc[0] == pytest.approx(first["shaft_rpm"].mean())
+    selected = SELECTED.validate(pd.read_parquet(out / "selected.parquet"))
+    assert "harmonic" in selected.columns
+    assert "harmonic" in pd.read_parquet(out / "poles.parquet").columns
+    # a bad order list is a usage error; a log that is not one is bad data, one line
+    assert main([*argv, "--dship", str(voyage / "dship.tsv"), "--harmonic-orders", "0"]) == 2
+    assert "--harmonic-orders" in capsys.readouterr().err
+    (tmp_path / "log.tsv").write_text("nothing here\n", encoding="utf-8")
+    assert main([*argv, "--dship", str(tmp_path / "log.tsv")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "log.tsv" in err[0]

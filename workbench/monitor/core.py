@@ -54,10 +54,10 @@ class MonitorOptions:
     tracking : TrackingOptions
         As ``workbench track``.
     harmonics : HarmonicOptions
-        Shaft orders and blades: with a ship log that logs the shaft speed, each block's
-        selected modes are marked (:func:`~workbench.sid.harmonics.mark_shaft_orders`)
-        before tracking, which keeps the harmonics out of the tracked table. A block
-        decided before the log covers it is not marked.
+        Shaft orders and blades: with a ship log that logs the shaft speed, the selected
+        modes are marked (:func:`~workbench.sid.harmonics.mark_shaft_orders`), which keeps
+        the harmonics out of the tracked table; a block's marks are final once the log
+        covers it.
     forecast : ForecastSettings
         As ``workbench forecast`` and ``workbench health``.
     poll_s : float
@@ -162,6 +162,8 @@ class Monitor:
         self._log_complete = False
         self._dirty = True
         self._saved_grid = self._stored_grid()
+        self._harmonic_marks: dict[int, np.ndarray] = {}  # block -> marks, once the log covers it
+        self._marks_pending = False
 
     @property
     def tracked_through(self) -> int:
@@ -181,6 +183,8 @@ class Monitor:
             self._executor.shutdown(wait=True)
             self._executor = None
         if self.voyage is not None and self.tracking.tracked_through >= 0:
+            if self._marks_pending:  # the log may cover the last blocks by now
+                self._advance_tracking()
             if (
                 self.dship is not None
                 and not self._log_complete
@@ -459,7 +463,7 @@ class Monitor:
         self._health_rows.append(row)
         selected = outcome.tables.get("selected")
         if not outcome.skipped and selected is not None and len(selected):
-            self.tracking.add(int(outcome.block), self._mark_harmonics(selected))
+            self.tracking.add(int(outcome.block), selected)
         self._advance_tracking()
         self._write_data_health()
         forget_conditioned(
@@ -478,37 +482,59 @@ class Monitor:
         )
 
     # ------------------------------------------------------------------ tracking
-    def _mark_harmonics(self, selected: pd.DataFrame) -> pd.DataFrame:
-        """*selected* with its ``harmonic`` column from the logged shaft speed (unchanged
-        without a ship log, or one that does not log the shaft speed)."""
+    def _shaft_log(self) -> pd.DataFrame | None:
+        """The ship log when it logs the shaft speed, else None."""
         if self.dship is None or not self.dship.is_file():
-            return selected
-        from ..sid.harmonics import mark_shaft_orders
+            return None
         from .outlook import _ship_log
 
         try:
             log = _ship_log(self.dship, dict(self.options.forecast.dship_mapping))
         except (ValueError, OSError):  # the outlook reports an unreadable log
-            return selected
-        if "shaft_rpm" not in log.columns:
-            return selected
-        return selected.assign(harmonic=mark_shaft_orders(selected, log, self.options.harmonics))
+            return None
+        return log if "shaft_rpm" in log.columns else None
+
+    def _mark_harmonics(self, frame: pd.DataFrame) -> pd.DataFrame:
+        """The selected modes tracked so far with their ``harmonic`` column from the logged
+        shaft speed (:func:`~workbench.sid.harmonics.mark_shaft_orders`). A block's marks
+        are kept once the log covers the block; before that they are recomputed, so the
+        tracked table ends equal to ``identify --dship`` + ``track`` however late the log."""
+        log = self._shaft_log()
+        if log is None:
+            return frame
+        from ..sid.harmonics import mark_shaft_orders
+
+        harmonic = np.full(len(frame), np.nan)
+        positions = frame.groupby("block").indices
+        pending = []
+        for block, rows in positions.items():
+            marks = self._harmonic_marks.get(int(block))
+            if marks is None:
+                pending.append(rows)
+            else:
+                harmonic[rows] = marks
+        self._marks_pending = bool(pending)
+        if pending:
+            rows = np.concatenate(pending)
+            part = frame.iloc[rows]
+            marks = mark_shaft_orders(part, log, self.options.harmonics).to_numpy()
+            harmonic[rows] = marks
+            covered = pd.to_datetime(log["time"], utc=True).max()
+            ends = pd.to_datetime(part["block_end"], utc=True).to_numpy()
+            for block, inside in part.reset_index(drop=True).groupby("block").indices.items():
+                if ends[inside].max() <= covered:
+                    self._harmonic_marks[int(block)] = marks[inside]
+        return frame.assign(harmonic=harmonic)
 
     def _write_harmonic_lines(self, tracked: pd.DataFrame) -> None:
         """``harmonics.parquet``: each order's frequency at the tracked blocks' mean logged
         shaft speed (nothing without a logged shaft speed)."""
-        if self.dship is None or not self.dship.is_file() or tracked.empty:
+        log = self._shaft_log()
+        if log is None or tracked.empty:
             return
         from ..dashboard.state import HARMONIC_LINES
         from ..sid.harmonics import block_shaft_table, order_list
-        from .outlook import _ship_log
 
-        try:
-            log = _ship_log(self.dship, dict(self.options.forecast.dship_mapping))
-        except (ValueError, OSError):
-            return
-        if "shaft_rpm" not in log.columns:
-            return
         shaft = block_shaft_table(log, tracked).dropna(subset=["shaft_rpm"])
         orders = order_list(self.options.harmonics)
         lines = pd.DataFrame(
@@ -526,8 +552,9 @@ class Monitor:
         """Feed the decided blocks to the tracker in block order and write the tracked
         table when it grew (see :class:`IncrementalTracking`)."""
         grew = self.tracking.advance(self.done)
-        if grew or not (self.state / "tracked.parquet").exists():
-            tracked = self.tracking.table()
+        # marks of blocks the log did not cover yet may change: written again with the log
+        if grew or self._marks_pending or not (self.state / "tracked.parquet").exists():
+            tracked = self.tracking.table(marker=self._mark_harmonics)
             write_table(tracked, self.state / "tracked.parquet", MODAL)
             self._write_harmonic_lines(tracked)
 
@@ -545,7 +572,7 @@ class Monitor:
         if len(selected):
             selected = selected.drop(columns=["day"], errors="ignore")
             for block, part in selected.groupby("block", sort=True):
-                self.tracking.add(int(block), self._mark_harmonics(part))
+                self.tracking.add(int(block), part)
         self._plan = SimpleNamespace(blocks=())
         self._advance_tracking()
         self._write_data_health()
