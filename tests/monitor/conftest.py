@@ -153,8 +153,9 @@ def assert_same_tables(state: Path, batch: dict[str, pd.DataFrame], min_rows: in
     tracked = pd.read_parquet(state / "tracked.parquet")
     forecast = pd.read_parquet(state / "forecast.parquet")
     # not vacuous: several modes over the blocks, forecast rows after the training window
-    # (the memory model starts forecasting later than the 6-block window on this short voyage)
-    assert len(batch["tracked"]) > 2 * min_rows and len(batch["forecast"]) > min_rows // 2
+    # (the memory model starts forecasting later than the 6-block window on this short voyage;
+    # with the shaft harmonics left out, 40 rows of modes over the 15 blocks)
+    assert len(batch["tracked"]) >= 2 * min_rows and len(batch["forecast"]) > min_rows // 2
     assert batch["forecast"]["kalman_frequency_hz"].notna().sum() > min_rows // 2
     pd.testing.assert_frame_equal(tracked, batch["tracked"])
     pd.testing.assert_frame_equal(forecast, batch["forecast"])
