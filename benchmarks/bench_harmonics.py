@@ -233,12 +233,17 @@ def _format(name, seed, variant, row) -> list[str]:
     cells = []
     for mode, e in sorted(row["errors"].items()):
         ratio = e["at"] / e["away"] if np.isfinite(e["at"]) and e["away"] > 0 else np.nan
+        if not e["n_crossing"]:
+            cells.append(f"m{mode} -/{100 * e['away']:.2f} %")
+            continue
+        steady = (
+            f"{100 * e['at']:.2f}/{100 * e['away']:.2f} % x{ratio:.1f} "
+            f"[{e['n_at']}/{e['n_steady_crossing']}]"
+            if e["n_steady_crossing"]
+            else f"-/{100 * e['away']:.2f} % [0/0]"
+        )
         cells.append(
-            f"m{mode} {100 * e['at']:.2f}/{100 * e['away']:.2f} % x{ratio:.1f} "
-            f"[{e['n_at']}/{e['n_steady_crossing']}] twin x{e['twin']:.1f} "
-            f"({e['n_crossing_tracked']}/{e['n_crossing']})"
-            if e["n_crossing"]
-            else f"m{mode} -/{100 * e['away']:.2f} %"
+            f"m{mode} {steady} twin x{e['twin']:.1f} ({e['n_crossing_tracked']}/{e['n_crossing']})"
         )
     lines.append("    " + "; ".join(cells))
     return lines
