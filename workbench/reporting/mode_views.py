@@ -229,9 +229,9 @@ def plot_campbell(
     selected : DataFrame
         Selected modes (SELECTED contract) with their ``harmonic`` column.
     shaft : DataFrame
-        Per block ``block``, ``shaft_rpm`` [rpm] and ``speed_kn`` [kn]
-        (``shaft.csv`` of identify). Without a logged shaft speed the abscissa is the speed
-        and no order is drawn.
+        Per block ``block``, ``shaft_rpm`` [rpm] (weighted by rpm⁴, where the harmonics'
+        energy is) and ``speed_kn`` [kn] (``shaft.csv`` of identify). Without a logged
+        shaft speed the abscissa is the speed and no order is drawn.
     modal : DataFrame, optional
         Tracked modal table: its modes drawn in their colours.
     orders : sequence of float

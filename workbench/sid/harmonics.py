@@ -157,8 +157,7 @@ class HarmonicMarks:
         The test used: the logged shaft speed, the speed-following test, or none (no
         usable ship log).
     shaft : DataFrame
-        Per block: ``block``, ``block_start``, ``shaft_rpm`` and ``speed_kn`` (means over
-        the block; NaN where not logged) -- the Campbell view's abscissa.
+        :func:`block_shaft_table` of the blocks: the Campbell view's abscissa.
     orders : tuple of float
         The orders checked (:func:`order_list`).
     lines : list of str
@@ -200,8 +199,9 @@ def _naive(values: pd.Series) -> pd.Series:
 
 
 def block_shaft_table(log: pd.DataFrame, blocks: pd.DataFrame) -> pd.DataFrame:
-    """Block means of the shaft speed and the speed, and the speed weighted by its fourth
-    power (the harmonics' energy).
+    """Per block: the shaft speed weighted by its fourth power (where the harmonics' energy
+    is: on a speed ramp, the harmonic's pole sits near the top speed), the mean speed and the
+    speed weighted the same way.
 
     Parameters
     ----------
@@ -214,7 +214,8 @@ def block_shaft_table(log: pd.DataFrame, blocks: pd.DataFrame) -> pd.DataFrame:
     Returns
     -------
     DataFrame
-        ``block``, ``block_start``, ``shaft_rpm``, ``speed_kn``, ``speed_energy_kn``.
+        ``block``, ``block_start``, ``shaft_rpm`` [rpm], ``speed_kn`` [kn],
+        ``speed_energy_kn`` [kn]; NaN where not logged.
     """
     blocks = _blocks_of(blocks)
     log = log.sort_values("time", kind="stable")
@@ -228,9 +229,11 @@ def block_shaft_table(log: pd.DataFrame, blocks: pd.DataFrame) -> pd.DataFrame:
     for block, lo, hi in _block_slices(times, blocks_naive):
         row = {"block": block, "shaft_rpm": np.nan, "speed_kn": np.nan, "speed_energy_kn": np.nan}
         if rpm is not None and hi > lo:
-            values = rpm[lo:hi]
-            if np.isfinite(values).any():
-                row["shaft_rpm"] = float(np.nanmean(values))
+            values = np.abs(rpm[lo:hi])
+            values = values[np.isfinite(values)]
+            weight = values**POWER_EXPONENT
+            if len(values) and weight.sum() > 0:
+                row["shaft_rpm"] = float((weight * values).sum() / weight.sum())
         if speed is not None and hi > lo:
             values = np.abs(speed[lo:hi])
             values = values[np.isfinite(values)]

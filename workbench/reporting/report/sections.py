@@ -211,8 +211,8 @@ def harmonics_section(data: RunData) -> ReportSection | None:
     section = ReportSection("harmonics", "Shaft harmonics (Campbell view)")
     section.paragraphs += list(summary.get("lines", []))
     section.paragraphs.append(
-        "Every selected mode of every block at the block's mean shaft speed (or speed, when "
-        "the shaft speed is not logged): a structural mode keeps its frequency whatever the "
+        "Every selected mode of every block at the block's shaft speed, weighted by rpm⁴ "
+        "where the harmonics' energy is (or at its speed, when the shaft speed is not logged): a structural mode keeps its frequency whatever the "
         "shaft speed, a shaft order follows its line f = k × rpm / 60 (dashed). Red crosses: "
         "harmonics, kept out of the tracked modes, forecasts and health charts; grey: "
         "selected modes tracked as nothing."
