@@ -85,7 +85,8 @@ def _order_shares(speed: pd.Series, blocks: pd.DataFrame, shaft: ShaftHarmonics)
         lines = orders[:, None] * rate[None, :]
 
         def share(frequency, distance, lines=lines, weight=weight):
-            return float(((np.abs(lines - frequency) <= distance * frequency) * weight).sum(1).max())
+            near = np.abs(lines - frequency) <= distance * frequency
+            return float((near * weight).sum(1).max())
 
         out[int(block)] = share
     return out
@@ -150,7 +151,11 @@ def _score(tracked, truth, shares, steady, twin) -> dict:
         }
         at = [by_block[b] for b in crossing & steady if b in by_block]
         away = [by_block[b] for b in clear & steady if b in by_block]
-        paired = [(by_block[b], twin[mode][b]) for b in crossing if b in by_block and b in twin.get(mode, {})]
+        paired = [
+            (by_block[b], twin[mode][b])
+            for b in crossing
+            if b in by_block and b in twin.get(mode, {})
+        ]
         table[mode] = {
             "at": float(np.median(at)) if at else np.nan,
             "away": float(np.median(away)) if away else np.nan,

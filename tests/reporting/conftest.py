@@ -10,8 +10,8 @@ matplotlib.use("Agg")
 
 def make_run(out, *, hours: float = 2.0):
     """Simulate *hours* of the demo voyage into ``out/voyage`` and run identify (orders up
-    to 30, in this process, shaft harmonics marked from the ship log), track, predictors, fit and a forecast with a 6-block window
-    into *out*, as the CLI stages would."""
+    to 30, in this process, shaft harmonics marked from the ship log), track, predictors,
+    fit and a forecast with a 6-block window into *out*, as the CLI stages would."""
     from data_contracts import CONTRACTS, PREDICTORS, read_table, write_table
     from workbench.identify import IdentifyOptions
     from workbench.sid.harmonics import HarmonicOptions

@@ -50,7 +50,6 @@ References
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -538,9 +537,3 @@ def mark_harmonics(
     return HarmonicMarks(
         selected, poles, marker.method, marker.shaft, marker.orders, marker.lines()
     )
-
-
-def harmonic_share(table: pd.DataFrame, labels: Sequence[int] | np.ndarray) -> pd.Series:
-    """Share of marked rows per label (*labels* aligned with *table*)."""
-    marked = table["harmonic"].notna().to_numpy() if "harmonic" in table else np.zeros(len(table))
-    return pd.Series(marked.astype(float)).groupby(np.asarray(labels)).mean()
