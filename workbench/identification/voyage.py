@@ -16,6 +16,7 @@ from ..parallel import RunSummary, run_blocks
 from ..store import BlockStore
 from .engine import _block_tasks, _file_tasks, identify_block, identify_from_files
 from .export import export_store
+from ..sid.harmonics import HarmonicOptions
 from .options import IdentifyOptions
 from .planning import acceleration_files, input_fingerprints, plan_identification, resolved_run
 
@@ -89,7 +90,7 @@ def identify_voyage(
     batch_blocks: int = 16,
     dship: str | os.PathLike | pd.DataFrame | None = None,
     dship_mapping: dict[str, str] | None = None,
-    harmonics=None,
+    harmonics: HarmonicOptions | None = None,
 ) -> IdentifyResult:
     """Identify every block of a voyage's acceleration files; resumable and parallel.
 

@@ -470,11 +470,11 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
         marked = table["harmonic"].notna()
         share = marked.groupby(table["mode"]).mean()
         for label in share.index[share >= options.harmonic_share]:
-            rows = table[table["mode"] == label]
+            part = table[table["mode"] == label]
             harmonic_labels.append(
                 {
-                    "blocks": len(rows),
-                    "frequency_hz": float(rows["frequency_hz"].median()),
+                    "blocks": len(part),
+                    "frequency_hz": float(part["frequency_hz"].median()),
                     "share": float(share[label]),
                 }
             )
