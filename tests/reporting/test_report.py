@@ -199,9 +199,17 @@ def test_the_report_shows_the_correlate_stage_result(short_run, tmp_path):
     from workbench.reporting import report
     from workbench.stages import CorrelateOptions, correlate
 
+    from data_contracts import write_table
+
     found = find_run(short_run)
-    run = report.RunFiles(short_run, tracked=found.tracked, predictors=found.predictors)
     modal = read_table(found.tracked, MODAL)
+    # a rare mode (3 blocks; the run's shaft harmonics, once such, are left out by tracking)
+    rare = modal[modal["mode"] == modal["mode"].min()].head(3)
+    rare = rare.assign(mode=int(modal["mode"].max()) + 1, frequency_hz=rare["frequency_hz"] * 1.3)
+    modal = pd.concat([modal, rare], ignore_index=True).sort_values(["block", "mode"])
+    tracked = write_table(modal.reset_index(drop=True), tmp_path / "tracked_modal.csv", MODAL)
+    run = report.RunFiles(short_run, tracked=tracked, predictors=found.predictors)
+    modal = read_table(tracked, MODAL)
     predictors = canonical_predictors(read_table(found.predictors, PREDICTORS))
     every_mode = correlate(modal, predictors, options=CorrelateOptions(min_presence=0.0))
     tables = {}
