@@ -86,6 +86,18 @@ def test_ramp_share_is_the_energy_weighted_analytic_value(min_share, marked):
     assert bool(mark.iloc[0] == 1.0) is marked
 
 
+def test_a_heavily_damped_pole_counts_the_energy_within_its_bandwidth():
+    # ramp 0 -> 180 rpm: within ±2 % of 2.4 Hz lies (2.448⁵ - 2.352⁵) / 3⁵ = 0.066 of the
+    # order's energy, within ±ζ = ±7 % of it (2.568⁵ - 2.232⁵) / 3⁵ = 0.232
+    assert (2.448**5 - 2.352**5) / 3.0**5 == pytest.approx(0.0656, abs=1e-4)
+    assert (2.568**5 - 2.232**5) / 3.0**5 == pytest.approx(0.2316, abs=1e-4)
+    selected = _selected([(0, 2.4, SHAPE_FORCED), (0, 2.4, SHAPE_FORCED)])
+    selected["damping_ratio"] = [0.01, 0.07]
+    log = _log(lambda t: 180.0 * t / 1200.0, 1200)
+    marks = mark_shaft_orders(selected, log, HarmonicOptions(orders=(1,)))
+    assert np.isnan(marks.iloc[0]) and marks.iloc[1] == 1.0
+
+
 def test_block_without_logged_shaft_speed_is_not_marked():
     selected = _selected([(0, 3.0, SHAPE_FORCED), (8, 3.0, SHAPE_FORCED)])
     log = _log(lambda t: np.full(t.shape, 180.0), 1200)  # covers block 0 only

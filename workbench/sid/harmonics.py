@@ -275,7 +275,9 @@ def mark_shaft_orders(
 
     .. math:: s_k(f) = \\frac{\\sum_t w(t)\\,[|k\\,n(t)/60 - f| \\le τ f]}{\\sum_t w(t)},
 
-    τ = ``frequency_tol``; the mode is order k when s_k(f) >= ``min_share`` (the order with
+    τ = max(``frequency_tol``, ζ) with ζ the mode's damping ratio (a pole stands for the
+    energy within its half-power bandwidth ±ζ f; a harmonic smeared by a speed ramp is a
+    heavily damped pole); the mode is order k when s_k(f) >= ``min_share`` (the order with
     the largest share when several qualify).
     """
     options = options or HarmonicOptions()
@@ -292,7 +294,14 @@ def mark_shaft_orders(
     )
     rows_of = selected.groupby("block").indices
     frequency = selected["frequency_hz"].to_numpy(float)
-    tol = options.frequency_tol
+    # a pole stands for the energy within its half-power bandwidth, ±ζ f: a harmonic
+    # smeared by a speed ramp is a heavily damped pole
+    damping = (
+        selected["damping_ratio"].to_numpy(float)
+        if "damping_ratio" in selected
+        else np.zeros(len(selected))
+    )
+    tol = np.fmax(options.frequency_tol, np.nan_to_num(np.abs(damping)))
     for block, lo, hi in _block_slices(times, blocks):
         if hi <= lo:
             continue
@@ -304,7 +313,7 @@ def mark_shaft_orders(
         lines = orders[:, None] * rate_hz[None, :]  # (orders, times) [Hz]
         for row in rows_of[block]:
             f = frequency[row]
-            share = ((np.abs(lines - f) <= tol * f) * weight).sum(axis=1) / total
+            share = ((np.abs(lines - f) <= tol[row] * f) * weight).sum(axis=1) / total
             best = int(np.argmax(share))
             if share[best] >= options.min_share:
                 out.iat[row] = orders[best]
