@@ -100,8 +100,8 @@ def test_demo_kalman_beats_raw_ssi(demo):
     tracked estimate only; ``benchmarks/results/forecast_accuracy_11c.txt``). With option
     B measuring the column it finds outside the gate (``forecast_accuracy_11d.txt``) as
     well, it is 0.902 (A) and 0.904 (B) here; with the voyage's shaft speed logged, a blade
-    pass added and the harmonics left out of the tracked table (issue 26), 0.931 (A) and
-    0.887 (B). The bound is raw SSI itself: the blend must
+    pass added and the harmonics left out of the tracked table (issue 26), 0.933 (A) and
+    0.886 (B). The bound is raw SSI itself: the blend must
     not be worse than the better of its two inputs.
     """
     evaluation = pd.read_csv(demo / "evaluation.csv")
