@@ -360,6 +360,18 @@ SELECTED = TableContract(
             minimum=1,
         ),
         _HARMONIC,
+        Column(
+            "harmonic_frequency_hz",
+            "float",
+            "Frequency of the marked order at the block's shaft speed (weighted by rpm⁴; "
+            "from the speed and the shaft rate per knot found, without a logged shaft "
+            "speed); NaN for a mode that is not marked. Tracking checks that a label's "
+            "marked rows follow it.",
+            unit="Hz",
+            required=False,
+            nullable=True,
+            minimum=0.0,
+        ),
     ),
     patterns=(_SHAPES,),
     checks=(_end_after_start, _one_start_per_block),

@@ -206,3 +206,24 @@ def test_cli_identify_with_the_ship_log_marks_and_writes_the_shaft_table(tmp_pat
     assert main([*argv, "--dship", str(tmp_path / "log.tsv")]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "log.tsv" in err[0]
+
+
+def test_a_mode_an_order_sits_on_is_kept_because_it_does_not_follow_the_order():
+    # 12 blocks at 9.5-10.5 kn: order 1 (0.29 Hz/kn) sits within ±1.5 % of the mode at
+    # 2.9 Hz in every block, so all the mode's rows are marked; the mode stays at 2.9 Hz
+    # while the order's frequency follows the shaft (slope 0), the harmonic follows it
+    # (slope 1)
+    speeds = np.linspace(9.85, 10.15, 12)
+    rows = []
+    for k, v in enumerate(speeds):
+        rows.append((k, 0.29 * v * 1.01, SHAPE_FORCED))
+        rows.append((k, 2.9, SHAPE_MODE))
+    selected = _selected(rows)
+    selected["harmonic"] = 1.0
+    selected["harmonic_frequency_hz"] = np.repeat(0.29 * speeds, 2)
+    tracked = track_modes(selected, options=TrackingOptions(frequency_tol=0.5))
+    assert tracked["frequency_hz"].eq(2.9).all() and len(tracked) == 12
+    assert [h["blocks"] for h in tracked.attrs["harmonic_labels"]] == [12]
+    # without the order's frequency the majority rule alone drops both
+    tracked = track_modes(selected.drop(columns="harmonic_frequency_hz"))
+    assert tracked.empty

@@ -349,7 +349,8 @@ def mark_speed_following(
     Returns
     -------
     Series
-        ``0.0`` (a harmonic of unknown order) for the marked modes, NaN for the others.
+        ``0.0`` (a harmonic of unknown order) for the marked modes, NaN for the others;
+        ``attrs["shaft_hz_per_kn"]``: the shaft rate per knot found (when any). [Hz/kn]
 
     Notes
     -----
@@ -406,6 +407,7 @@ def mark_speed_following(
         for order in order_list(options):
             ratio = np.log(base * order / lowest)
             marked |= np.abs(log_ratio - ratio) <= options.ratio_tol
+        out.attrs["shaft_hz_per_kn"] = base / lowest
     out.iloc[rows[marked]] = 0.0
     return out
 
@@ -480,16 +482,34 @@ class HarmonicMarker:
         """*selected* with its ``harmonic`` column."""
         selected = selected.copy()
         selected["harmonic"] = np.nan
+        selected["harmonic_frequency_hz"] = np.nan
         self.n_selected = len(selected)
         if self.log is None or selected.empty:
             return selected
         self.shaft = block_shaft_table(self.log, selected)
+        shaft = self.shaft.set_index("block")
         if self.shaft["shaft_rpm"].notna().any():
             selected["harmonic"] = mark_shaft_orders(selected, self.log, self.options)
             self.method = "shaft speed"
+            rate_hz = selected["block"].map(shaft["shaft_rpm"]).to_numpy(float) / 60.0
+            selected["harmonic_frequency_hz"] = selected["harmonic"].to_numpy(float) * rate_hz
         elif self.shaft["speed_energy_kn"].notna().any():
-            selected["harmonic"] = mark_speed_following(selected, self.shaft, self.options)
+            marks = mark_speed_following(selected, self.shaft, self.options)
+            selected["harmonic"] = marks
             self.method = "speed"
+            per_kn = marks.attrs.get("shaft_hz_per_kn", np.nan)
+            speed = selected["block"].map(shaft["speed_energy_kn"]).to_numpy(float)
+            rate_hz = per_kn * speed
+            # the order whose line is nearest the mode (order unknown: 0 in 'harmonic')
+            orders = np.array(self.orders)
+            nearest = orders[
+                np.argmin(
+                    np.abs(np.log(selected["frequency_hz"].to_numpy(float)[:, None])
+                           - np.log(np.fmax(orders[None, :] * rate_hz[:, None], 1e-300))),
+                    axis=1,
+                )
+            ] if np.isfinite(per_kn) else np.full(len(selected), np.nan)
+            selected["harmonic_frequency_hz"] = np.where(marks.notna(), nearest * rate_hz, np.nan)
         self.marked = selected[selected["harmonic"].notna()]
         return selected
 

@@ -82,8 +82,10 @@ class TrackingOptions:
     harmonic_share : float
         Tracked labels with at least this share of rows marked as shaft or blade-pass
         harmonics (the selected table's ``harmonic`` column, :mod:`workbench.sid.harmonics`)
-        are harmonics, not modes, and are dropped; a mode that an order crosses keeps its
-        rows (its own shape joined the label). [-]
+        whose marked rows follow the order's frequency (``harmonic_frequency_hz``: slope of
+        ln f on it at least 0.5) are harmonics, not modes, and are dropped; a mode that an
+        order crosses, or sits on for hours, keeps its rows (its own shape joined the
+        label, its frequency stays where it is). [-]
     """
 
     mac_min: float = 0.9
@@ -455,12 +457,38 @@ def _reference_modes(reference: pd.DataFrame | None, channels: Sequence[str]):
     return modes
 
 
+#: Spread of ln(order frequency) over a label's marked rows below which whether the label
+#: follows the order cannot be told (a harmonic at one steady shaft speed). [-]
+_FOLLOW_SPREAD = 0.005
+
+
+def _follows_its_order(rows: pd.DataFrame) -> bool:
+    """Whether a label's marked rows follow the order's frequency: the slope of ln f on
+    ln f_order (``harmonic_frequency_hz``) is at least 0.5 (a harmonic's is 1, a structural
+    mode's about 0: an order sitting on a mode for hours marks most of its blocks, but the
+    mode stays where it is while the shaft speed wanders). True when the order's frequency
+    hardly varies (the slope is not determined) or is not known."""
+    if "harmonic_frequency_hz" not in rows.columns:
+        return True
+    known = rows[rows["harmonic_frequency_hz"].notna() & (rows["harmonic_frequency_hz"] > 0)]
+    if len(known) < 3:
+        return True
+    x = np.log(known["harmonic_frequency_hz"].to_numpy(float))
+    y = np.log(known["frequency_hz"].to_numpy(float))
+    if np.std(x) < _FOLLOW_SPREAD:
+        return True
+    slope = np.cov(x, y)[0, 1] / np.var(x, ddof=1)
+    return bool(slope >= 0.5)
+
+
 def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.DataFrame:
     if not rows:
         empty = frame.iloc[:0].copy()
         empty.insert(3, "mode", pd.Series([], dtype="int64"))
         empty["mac"] = pd.Series([], dtype=float)
-        return MODAL.validate(empty.drop(columns="harmonic", errors="ignore"))
+        return MODAL.validate(
+            empty.drop(columns=["harmonic", "harmonic_frequency_hz"], errors="ignore")
+        )
     index = np.array([r[0] for r in rows])
     table = frame.loc[index].copy()
     table["mode"] = [r[1] for r in rows]
@@ -469,7 +497,13 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
     if "harmonic" in table.columns:
         marked = table["harmonic"].notna()
         share = marked.groupby(table["mode"]).mean()
-        for label in share.index[share >= options.harmonic_share]:
+        harmonic = [
+            label
+            for label in share.index[share >= options.harmonic_share]
+            if _follows_its_order(table[(table["mode"] == label) & marked])
+        ]
+        share = share[harmonic]
+        for label in share.index:
             part = table[table["mode"] == label]
             harmonic_labels.append(
                 {
@@ -478,8 +512,8 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
                     "share": float(share[label]),
                 }
             )
-        table = table[~table["mode"].isin(share.index[share >= options.harmonic_share])]
-        table = table.drop(columns="harmonic")
+        table = table[~table["mode"].isin(share.index)]
+        table = table.drop(columns=["harmonic", "harmonic_frequency_hz"], errors="ignore")
     counts = table["mode"].value_counts()
     keep = counts.index[counts >= options.min_blocks]
     table = table[table["mode"].isin(keep)]
