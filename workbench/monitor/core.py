@@ -502,9 +502,10 @@ class Monitor:
         log = self._shaft_log()
         if log is None:
             return frame
-        from ..sid.harmonics import mark_shaft_orders
+        from ..sid.harmonics import block_shaft_table, mark_shaft_orders
 
-        harmonic = np.full(len(frame), np.nan)
+        # per row: the order (NaN: none) and the order's frequency at the block's shaft speed
+        harmonic = np.full((len(frame), 2), np.nan)
         positions = frame.groupby("block").indices
         pending = []
         for block, rows in positions.items():
@@ -517,14 +518,16 @@ class Monitor:
         if pending:
             rows = np.concatenate(pending)
             part = frame.iloc[rows]
-            marks = mark_shaft_orders(part, log, self.options.harmonics).to_numpy()
+            order = mark_shaft_orders(part, log, self.options.harmonics).to_numpy()
+            rpm = part["block"].map(block_shaft_table(log, part).set_index("block")["shaft_rpm"])
+            marks = np.column_stack([order, order * rpm.to_numpy(float) / 60.0])
             harmonic[rows] = marks
             covered = pd.to_datetime(log["time"], utc=True).max()
             ends = pd.to_datetime(part["block_end"], utc=True).to_numpy()
             for block, inside in part.reset_index(drop=True).groupby("block").indices.items():
                 if ends[inside].max() <= covered:
                     self._harmonic_marks[int(block)] = marks[inside]
-        return frame.assign(harmonic=harmonic)
+        return frame.assign(harmonic=harmonic[:, 0], harmonic_frequency_hz=harmonic[:, 1])
 
     def _write_harmonic_lines(self, tracked: pd.DataFrame) -> None:
         """``harmonics.parquet``: each order's frequency at the tracked blocks' mean logged

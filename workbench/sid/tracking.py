@@ -460,6 +460,9 @@ def _reference_modes(reference: pd.DataFrame | None, channels: Sequence[str]):
 #: Spread of ln(order frequency) over a label's marked rows below which whether the label
 #: follows the order cannot be told (a harmonic at one steady shaft speed). [-]
 _FOLLOW_SPREAD = 0.005
+#: Fewest marked rows of a label for the slope to be judged (a short fragment of a
+#: harmonic on a speed ramp does not follow its order closely; the majority rule decides).
+_FOLLOW_ROWS = 10
 
 
 def _follows_its_order(rows: pd.DataFrame) -> bool:
@@ -467,11 +470,12 @@ def _follows_its_order(rows: pd.DataFrame) -> bool:
     ln f_order (``harmonic_frequency_hz``) is at least 0.5 (a harmonic's is 1, a structural
     mode's about 0: an order sitting on a mode for hours marks most of its blocks, but the
     mode stays where it is while the shaft speed wanders). True when the order's frequency
-    hardly varies (the slope is not determined) or is not known."""
+    hardly varies (the slope is not determined), is not known, or the label has fewer
+    than ``_FOLLOW_ROWS`` marked rows."""
     if "harmonic_frequency_hz" not in rows.columns:
         return True
     known = rows[rows["harmonic_frequency_hz"].notna() & (rows["harmonic_frequency_hz"] > 0)]
-    if len(known) < 3:
+    if len(known) < _FOLLOW_ROWS:
         return True
     x = np.log(known["harmonic_frequency_hz"].to_numpy(float))
     y = np.log(known["frequency_hz"].to_numpy(float))
