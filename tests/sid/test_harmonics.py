@@ -209,11 +209,11 @@ def test_cli_identify_with_the_ship_log_marks_and_writes_the_shaft_table(tmp_pat
 
 
 def test_a_mode_an_order_sits_on_is_kept_because_it_does_not_follow_the_order():
-    # 12 blocks at 9.5-10.5 kn: order 1 (0.29 Hz/kn) sits within ±1.5 % of the mode at
-    # 2.9 Hz in every block, so all the mode's rows are marked; the mode stays at 2.9 Hz
-    # while the order's frequency follows the shaft (slope 0), the harmonic follows it
-    # (slope 1)
-    speeds = np.linspace(9.85, 10.15, 12)
+    # 20 blocks at 9.85-10.15 kn: order 1 (0.29 Hz/kn) sits within ±1.5 % of the mode at
+    # 2.9 Hz in 13 of them (marked), the order is elsewhere in the other 7; the mode stays
+    # at 2.9 Hz while the order's frequency follows the shaft (slope 0), the harmonic
+    # follows it (slope 1)
+    speeds = np.linspace(9.85, 10.15, 20)
     rows = []
     for k, v in enumerate(speeds):
         rows.append((k, 0.29 * v * 1.01, SHAPE_FORCED))
@@ -221,9 +221,14 @@ def test_a_mode_an_order_sits_on_is_kept_because_it_does_not_follow_the_order():
     selected = _selected(rows)
     selected["harmonic"] = 1.0
     selected["harmonic_frequency_hz"] = np.repeat(0.29 * speeds, 2)
+    away = selected.index[1::2][13:]  # the mode's last 7 rows: no order near it
+    selected.loc[away, ["harmonic", "harmonic_frequency_hz"]] = np.nan
     tracked = track_modes(selected, options=TrackingOptions(frequency_tol=0.5))
-    assert tracked["frequency_hz"].eq(2.9).all() and len(tracked) == 12
-    assert [h["blocks"] for h in tracked.attrs["harmonic_labels"]] == [12]
+    assert tracked["frequency_hz"].eq(2.9).all() and len(tracked) == 20
+    assert [h["blocks"] for h in tracked.attrs["harmonic_labels"]] == [20]
     # without the order's frequency the majority rule alone drops both
     tracked = track_modes(selected.drop(columns="harmonic_frequency_hz"))
     assert tracked.empty
+    # marked in every block, the mode is taken for a harmonic: nothing tells them apart
+    selected["harmonic"] = 1.0
+    assert track_modes(selected, options=TrackingOptions(frequency_tol=0.5)).empty

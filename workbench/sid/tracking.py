@@ -82,10 +82,11 @@ class TrackingOptions:
     harmonic_share : float
         Tracked labels with at least this share of rows marked as shaft or blade-pass
         harmonics (the selected table's ``harmonic`` column, :mod:`workbench.sid.harmonics`)
-        whose marked rows follow the order's frequency (``harmonic_frequency_hz``: slope of
-        ln f on it at least 0.5) are harmonics, not modes, and are dropped; a mode that an
-        order crosses, or sits on for hours, keeps its rows (its own shape joined the
-        label, its frequency stays where it is). [-]
+        are harmonics, not modes, and are dropped, except a label unmarked in at least a
+        quarter of its blocks whose marked rows do not follow the order's frequency
+        (``harmonic_frequency_hz``: slope of ln f on it below 0.5): a mode that an order
+        sits on for hours. A mode that an order crosses keeps its rows (its own shape
+        joined the label). [-]
     """
 
     mac_min: float = 0.9
@@ -460,6 +461,9 @@ def _reference_modes(reference: pd.DataFrame | None, channels: Sequence[str]):
 #: Spread of ln(order frequency) over a label's marked rows below which whether the label
 #: follows the order cannot be told (a harmonic at one steady shaft speed). [-]
 _FOLLOW_SPREAD = 0.005
+#: Share of a label's blocks without a mark for it to be kept as a mode although most of
+#: its rows are marked (then only if it does not follow its order).
+_SEEN_AWAY = 0.25
 #: Fewest marked rows of a label for the slope to be judged (a short fragment of a
 #: harmonic on a speed ramp does not follow its order closely; the majority rule decides).
 _FOLLOW_ROWS = 10
@@ -501,10 +505,14 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
     if "harmonic" in table.columns:
         marked = table["harmonic"].notna()
         share = marked.groupby(table["mode"]).mean()
+        # most rows marked: a harmonic, unless the label is also seen away from the orders
+        # in at least a quarter of its blocks and does not follow its order (a mode an
+        # order sits on for hours)
         harmonic = [
             label
             for label in share.index[share >= options.harmonic_share]
-            if _follows_its_order(table[(table["mode"] == label) & marked])
+            if share[label] > 1.0 - _SEEN_AWAY
+            or _follows_its_order(table[(table["mode"] == label) & marked])
         ]
         share = share[harmonic]
         for label in share.index:
