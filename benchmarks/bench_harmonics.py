@@ -336,8 +336,8 @@ def main(argv=None) -> int:
     else:
         print("cost of the harmonic tests: not measured (identification resumed from the store)")
     print(
-        "done criteria (every true mode, 0 harmonic labels with rpm and at most 1 without, "
-        "(of at most 12 blocks) without, crossing error within 2x the twin's): "
+        "done criteria (every true mode, 0 harmonic labels with rpm and at most 1 short one "
+        "(at most 12 blocks) without, crossing error within 2x the twin's): "
         + ("met" if not failures else "NOT met: " + "; ".join(failures))
     )
     print(json.dumps({"failures": failures}))
