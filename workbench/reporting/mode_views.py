@@ -275,7 +275,11 @@ def plot_campbell(
             ax.plot(rpm, order * rpm / 60.0, "--", color="k", lw=0.7, alpha=0.6)
             end = min(rpm[-1], top * 60.0 / order)
             ax.annotate(
-                f"{order:g}×", (end, order * end / 60.0), fontsize=7, ha="right", va="bottom"
+                f"{order:g}×",
+                (end, min(order * end / 60.0, 0.97 * top)),
+                fontsize=7,
+                ha="right",
+                va="top" if order * end / 60.0 >= 0.97 * top else "bottom",
             )
     ax.set_ylim(0.0, top)
     ax.set_xlim(left=0.0)
