@@ -108,7 +108,10 @@ direction the wind comes from, clockwise from the bow, and its speed.
 
 Default names (case, spaces and underscores ignored, with or without the bracketed unit; a
 name also matches the last part of a dotted DSHIP name, and two such matches are refused
-rather than guessed). The last four rows are read only to derive the relative wind:
+rather than guessed). `wind_dir_true_deg`, `wind_speed_true_ms`, `heading_deg` and
+`course_deg` are read only to derive the relative wind; `shaft_rpm` (shaft or propeller
+speed, rpm) is kept in the canonical log but is not a predictor: `workbench identify
+--dship` draws the shaft and blade-pass orders from it and keeps them out of the modes.
 
 | canonical column | source names tried |
 |---|---|

@@ -42,6 +42,7 @@ from .dship_names import (
     AUXILIARY_COLUMNS,
     DSHIP_NAMES,
     SLASH_FORMATS,
+    SHAFT_COLUMNS,
     TIME_FORMATS,
     bad_time_values,
     name_key,
@@ -107,6 +108,16 @@ _CONVERSIONS: dict[str, dict[str, object]] = {
     "wind_dir_rel_deg": {"°": None, "degrees": None},
 }
 _CONVERSIONS["fuel_on_board_t"] = {"t": None, "kg": lambda v: v / 1000.0}
+_CONVERSIONS["shaft_rpm"] = {
+    "rpm": None,
+    "1/min": None,
+    "min-1": None,
+    "u/min": None,
+    "r/min": None,
+    "rps": lambda v: v * 60.0,
+    "1/s": lambda v: v * 60.0,
+    "hz": lambda v: v * 60.0,
+}
 _CONVERSIONS["wind_speed_true_ms"] = _CONVERSIONS["wind_speed_ms"]
 for _angle in ("wind_dir_true_deg", "heading_deg", "course_deg"):
     _CONVERSIONS[_angle] = _CONVERSIONS["wind_dir_rel_deg"]
@@ -404,6 +415,7 @@ def read_dship(
         [c.name for c in CANONICAL_PREDICTORS]
         + [c.name for c in OPTIONAL_PREDICTORS]
         + list(AUXILIARY_COLUMNS)
+        + list(SHAFT_COLUMNS)
     )
     candidates = resolve_mapping(mapping, known)
     if decimal is None:
@@ -470,20 +482,30 @@ def read_dship(
             continue
         used.add(index)
         out[column.name] = convert(index, column.name, column.unit or "")
-    for column in OPTIONAL_PREDICTORS:  # kept when the log has them, never NaN-filled
-        index = find(column.name)
+    # kept when the log has them, never NaN-filled
+    for name, unit_text in [(c.name, c.unit or "") for c in OPTIONAL_PREDICTORS] + [
+        (name, "rpm") for name in SHAFT_COLUMNS
+    ]:
+        n_problems = len(problems)
+        index = find(name)
+        if name in SHAFT_COLUMNS and len(problems) > n_problems:
+            # two shafts (or engines) logged: not a reason to refuse the log
+            warnings.warn(
+                f"{source}: {problems.pop().reason}; {name} not read", stacklevel=2
+            )
+            continue
         if index is None:
             continue
         unit = units[index]
-        if unit is not None and _unit_key(unit) not in _CONVERSIONS[column.name]:
+        if unit is not None and _unit_key(unit) not in _CONVERSIONS[name]:
             warnings.warn(
-                f"{source}: column {headers[index]!r} could be {column.name} but its unit "
-                f"'{unit}' is not {column.unit}; kept under its own name",
+                f"{source}: column {headers[index]!r} could be {name} but its unit "
+                f"'{unit}' is not {unit_text}; kept under its own name",
                 stacklevel=2,
             )
             continue
         used.add(index)
-        out[column.name] = convert(index, column.name, column.unit or "")
+        out[name] = convert(index, name, unit_text)
     if "wind_dir_rel_deg" in absent:
         derived = _derive_relative_wind(out, find, used, convert, headers)
         if derived is not None:

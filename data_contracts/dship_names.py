@@ -23,6 +23,7 @@ __all__ = [
     "DSHIP_NAMES",
     "DATESTR_FORMATS",
     "SLASH_FORMATS",
+    "SHAFT_COLUMNS",
     "TIME_FORMATS",
     "bad_time_values",
     "parse_column_mapping",
@@ -90,6 +91,22 @@ DSHIP_NAMES: dict[str, tuple[str, ...]] = {
         "Fuel total",
         "Bunker ROB",
     ),
+    # Shaft speed: read when logged (harmonic orders of identify), not a predictor itself.
+    "shaft_rpm": (
+        "Shaft speed",
+        "Shaft rpm",
+        "ShaftRPM",
+        "Shaft revolutions",
+        "Shaft1 rpm",
+        "Propeller rpm",
+        "Propeller speed",
+        "Prop rpm",
+        "PropRPM",
+        "SYS.PROP.RPM",
+        "SYS.ENG.ShaftRPM",
+        "Main engine rpm",
+        "ME rpm",
+    ),
 }
 
 #: Columns read only to derive the relative wind (not predictors themselves).
@@ -103,6 +120,10 @@ DATESTR_FORMATS = (
     "%d-%b-%Y %H:%M",
     "%d-%b-%Y",
 )
+#: Columns kept in the canonical log when the ship log carries them, but not predictors:
+#: the shaft speed gives the frequencies of the shaft and blade-pass orders
+#: (:mod:`workbench.sid.harmonics`). [rpm]
+SHAFT_COLUMNS = ("shaft_rpm",)
 
 #: Time formats recognised without being told, tried after ISO-8601. Only unambiguous ones:
 #: ``dd.mm.yyyy`` is day-first by convention and MATLAB's ``dd-mmm-yyyy`` names the month;

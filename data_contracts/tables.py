@@ -83,6 +83,18 @@ _DAMPING = Column(
     hint="damping ratios are fractions: 1.2 % is 0.012",
 )
 
+_HARMONIC = Column(
+    "harmonic",
+    "float",
+    "Shaft order the row is (1 = the shaft rate, the blade count for the blade pass), from "
+    "the logged shaft speed; 0: a harmonic found from the data (frequency following the "
+    "speed with a fixed shape), order unknown; NaN: not a harmonic. Tracking keeps marked "
+    "rows out of the modes (workbench.sid.harmonics).",
+    required=False,
+    nullable=True,
+    minimum=0.0,
+)
+
 _MPC = Column(
     "mpc",
     "float",
@@ -286,6 +298,7 @@ POLES = TableContract(
             "Pole is stable in frequency, damping and shape against the previous model order.",
         ),
         _MPC,
+        _HARMONIC,
     ),
     patterns=(_SHAPES,),
 )
@@ -346,6 +359,19 @@ SELECTED = TableContract(
             "Poles in the mode's cluster (one per model order at most).",
             required=False,
             minimum=1,
+        ),
+        _HARMONIC,
+        Column(
+            "harmonic_frequency_hz",
+            "float",
+            "Frequency of the marked order at the block's shaft speed (weighted by rpm⁴; "
+            "from the speed and the shaft rate per knot found, without a logged shaft "
+            "speed); NaN for a mode that is not marked. Tracking checks that a label's "
+            "marked rows follow it.",
+            unit="Hz",
+            required=False,
+            nullable=True,
+            minimum=0.0,
         ),
     ),
     patterns=(_SHAPES,),

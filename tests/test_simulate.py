@@ -22,6 +22,7 @@ from workbench.simulate import (
     MODE_LAWS,
     mode_shapes,
     operating_profile,
+    ShaftHarmonics,
     simulate_voyage,
     true_modal_parameters,
 )
@@ -281,6 +282,7 @@ def test_dship_log_layout_rates_gaps_and_spikes(voyage):
         "TTT [°C]",
         "ff [m/s]",
         "RelWindDir [deg]",
+        "Shaft speed [rpm]",
     ]
     log = read_dship(voyage.dship_log)
     seconds = log["time"].dt.second
@@ -299,6 +301,32 @@ def test_dship_log_layout_rates_gaps_and_spikes(voyage):
     deviation = np.abs(air - truth.reindex(air.index))
     assert int((deviation > 15).sum()) == defects["air_temp_spikes"] >= 5
     assert deviation[deviation < 15].std() < 0.2  # sensor noise 0.1 °C + rounding
+    # the shaft speed: 60 x 0.3 Hz/kn x the true speed, noise 0.2 rpm + 0.05 rpm rounding
+    assert summary["shaft"]["rpm_per_kn"] == pytest.approx(18.0)
+    speed = _profile(voyage).predictors.set_index("time")["speed_kn"]
+    rpm = log.set_index("time")["shaft_rpm"]
+    error = rpm - 18.0 * speed.reindex(rpm.index)
+    assert abs(error.mean()) < 0.02 and 0.18 < error.std() < 0.23
+
+
+def test_shaft_speed_left_out_of_the_log(tmp_path):
+    summary = simulate_voyage(
+        tmp_path, hours=0.5, accelerations=False, shaft=ShaftHarmonics(log_rpm=False)
+    )
+    header = summary.dship_log.read_text(encoding="utf-8").split("*/\n", 1)[1].splitlines()[0]
+    assert "Shaft speed [rpm]" not in header
+    assert "shaft_rpm" not in read_dship(summary.dship_log).columns
+
+
+def test_shaft_harmonics_options_are_checked():
+    with pytest.raises(ValueError, match="orders") as error:
+        ShaftHarmonics(orders=(0, 1))
+    assert "at least 1" in str(error.value)
+    assert ShaftHarmonics(orders=(1, 2), blades=4).components() == [
+        (1.0, 0.008),
+        (2.0, 0.008),
+        (4.0, 0.004),
+    ]
 
 
 # the dead channel is all-NaN on purpose; the contract validator's nanmax warns about it

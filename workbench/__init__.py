@@ -39,6 +39,7 @@ _EXPORTS = {
             "health",
             "read_fit",
             "IdentifyOptions",
+            "HarmonicOptions",
             "TrackingOptions",
             "CorrelateOptions",
             "FitOptions",

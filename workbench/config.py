@@ -33,6 +33,8 @@ the section and key. A file that is not UTF-8 TOML is one line. Example::
     [identify]
     band = [2.0, 12.0]
     rate = 64
+    blades = 5                          # the [dship] log's shaft speed marks the shaft
+    harmonic_orders = [1, 2, 3]         # orders and blade pass, kept out of the modes
 
     [forecast]
     option = "both"                     # tracked-pole (A), pole-cluster (B) or both
@@ -116,6 +118,8 @@ SCHEMA: dict[str, dict[str, Any]] = {
         "rate": (int, float),
         "band": list,
         "no_band": bool,
+        "harmonic_orders": list,
+        "blades": int,
     },
     "track": {
         "mac_min": (int, float),
@@ -525,6 +529,11 @@ def command_defaults(command: str, config: ShipConfig) -> dict[str, Any]:
             put(key, "identify", key)
         put("band", "identify", "band", tuple)
         put("reference", "identify", "reference_channels", lambda v: ",".join(v))
+        # the ship log's shaft speed (or speed) marks the shaft harmonics
+        put("dship", "dship", "file")
+        put("dship_columns", "dship", "columns", lambda m: [_pairs(m)])
+        put("harmonic_orders", "identify", "harmonic_orders", lambda v: ",".join(map(str, v)))
+        put("blades", "identify", "blades")
         put("block_minutes", "blocks", "length_minutes")
         put("step_minutes", "blocks", "step_minutes")
         put("max_gap", "blocks", "max_gap_s")
@@ -655,7 +664,7 @@ def write_demo_config(
         "accelerations": {"inputs": [f"{voyage}/accelerations"]},
         "dship": {"file": f"{voyage}/dship.tsv"},
         "blocks": {"length_minutes": 20, "step_minutes": 5},
-        "identify": {"method": "cov", "band": [2.0, 12.0], "max_order": 60},
+        "identify": {"method": "cov", "band": [2.0, 12.0], "max_order": 60, "blades": 5},
         "track": {"mac_min": 0.9, "gate": "mac"},
         "correlate": {"alpha": 0.05, "cases": f"{voyage}/cases.csv"},
         "fit": {"p_enter": 0.05, "p_remove": 0.10},

@@ -19,6 +19,7 @@ from .forecast.options import DEFAULT_MODEL, MeasurementOptions
 from .forecast.sliding import DEFAULT_HORIZON
 from .health import HealthOptions
 from .identify import IdentifyOptions
+from .sid.harmonics import HarmonicOptions
 from .sid.tracking import TrackingOptions
 from .signals.moments import faulty_channels
 from .simulate.voyage import DEFAULT_HOURS, SAMPLING_RATE_HZ
@@ -48,6 +49,9 @@ SIMULATE_SAMPLING_RATE_HZ = SAMPLING_RATE_HZ
 DEMO_OUT = Path("reports") / "demo"
 
 # --------------------------------------------------------------------------- identify
+#: Shaft orders checked for harmonics, and the propeller's blades (0: no blade pass).
+IDENTIFY_HARMONIC_ORDERS = ",".join(f"{k:g}" for k in HarmonicOptions().orders)
+IDENTIFY_BLADES = HarmonicOptions().blades
 IDENTIFY_METHOD = _IDENTIFY.method
 IDENTIFY_BLOCK_ROWS = _IDENTIFY.block_rows
 IDENTIFY_MIN_ORDER = min(_IDENTIFY.orders)

@@ -114,6 +114,16 @@ def _demo_identify_options():
 DEMO_IDENTIFY_OPTIONS = _demo_identify_options()
 
 
+def _demo_harmonic_options():
+    from .sid.harmonics import HarmonicOptions
+
+    # the demo ship's propeller has 5 blades (workbench.simulate.ShaftHarmonics)
+    return HarmonicOptions(blades=5)
+
+
+DEMO_HARMONIC_OPTIONS = _demo_harmonic_options()
+
+
 def run_demo(
     out_dir: str | os.PathLike = Path("reports") / "demo",
     *,
@@ -174,6 +184,8 @@ def run_demo(
             voyage_dir,
             identify_dir,
             options=DEMO_IDENTIFY_OPTIONS,
+            dship=simulation.dship_log,
+            harmonics=DEMO_HARMONIC_OPTIONS,
             scheduler=scheduler,
             n_workers=n_workers,
             progress=progress,
@@ -182,6 +194,7 @@ def run_demo(
         f"identify: {identified.run.summary.processed} blocks identified, "
         f"{identified.run.summary.skipped} skipped, {identified.run.n_selected} modes selected"
     )
+    summary.lines += identified.run.notes
 
     with stage("SSI/LSCF cross-check"):
         from .identify import cross_check_blocks

@@ -61,20 +61,27 @@ def add_dship_columns(parser: argparse.ArgumentParser) -> None:
         metavar="COLUMN=NAME,...",
         help="ship-log columns by name, e.g. speed_kn=SYS.STR.SOG,air_temp_c=TT (also "
         "water_temp_c, wind_speed_ms, wind_dir_rel_deg, wind_dir_true_deg, "
-        "wind_speed_true_ms, heading_deg, course_deg, time); default: the usual DSHIP names",
+        "wind_speed_true_ms, heading_deg, course_deg, fuel_on_board_t, shaft_rpm, time); "
+        "default: the usual DSHIP names",
     )
 
 
 def dship_mapping(args: argparse.Namespace) -> dict[str, str] | None:
     """The ``--dship-columns`` mapping (None when not given)."""
-    from data_contracts.dship_names import AUXILIARY_COLUMNS, parse_column_mapping
-    from data_contracts.tables import CANONICAL_PREDICTORS
+    from data_contracts.dship_names import AUXILIARY_COLUMNS, SHAFT_COLUMNS, parse_column_mapping
+    from data_contracts.tables import CANONICAL_PREDICTORS, OPTIONAL_PREDICTORS
 
     if not getattr(args, "dship_columns", None):
         return None
     try:
         mapping = parse_column_mapping(args.dship_columns)
-        known = {c.name for c in CANONICAL_PREDICTORS} | set(AUXILIARY_COLUMNS) | {"time"}
+        known = (
+            {c.name for c in CANONICAL_PREDICTORS}
+            | {c.name for c in OPTIONAL_PREDICTORS}
+            | set(AUXILIARY_COLUMNS)
+            | set(SHAFT_COLUMNS)
+            | {"time"}
+        )
         unknown = sorted(set(mapping) - known)
         if unknown:
             raise ValueError(

@@ -279,3 +279,34 @@ def test_given_up_blocks_are_named_on_the_page(browser, voyage, tmp_path, serve)
     status_file.write_text(json.dumps({**status, "message": "resumed"}))
     page.wait_for("document.getElementById('status').innerText.includes('resumed')")
     assert page.evaluate("document.getElementById('status-given-up').innerText") == ""
+def test_tracked_panel_draws_the_shaft_orders_beside_the_modes(browser, voyage, tmp_path, serve):
+    from data_contracts import write_table
+    from workbench.dashboard.state import HARMONIC_LINES
+
+    newest = 150
+    state = publish(voyage, tmp_path, newest)
+    blocks = state.tracked[["block", "block_start"]].drop_duplicates("block")
+    # 180 rpm: order 1 at 3 Hz, among the modes; order 5 at 15 Hz, above them (left out)
+    lines = pd.concat(
+        [blocks.assign(order=k, frequency_hz=k * 3.0) for k in (1.0, 5.0)], ignore_index=True
+    )
+    write_table(lines, tmp_path / "harmonics.parquet", HARMONIC_LINES)
+    served = serve(tmp_path, DashboardOptions(hours=6.0, poll_seconds=0.2))
+    page = browser.open(served.url)
+    _shows(page, "tracked", newest)
+    _settled(page)
+    seen = page.evaluate(
+        """(() => ({
+      harmonic: [...document.querySelectorAll("#tracked-chart path.harmonic")].map(
+        (p) => ({d: p.getAttribute("d").length, circles: p.parentNode.querySelectorAll(
+          "circle").length, dash: getComputedStyle(p).strokeDasharray})),
+      modes: document.querySelectorAll("#tracked-chart g.series").length,
+      legend: [...document.querySelectorAll("#tracked .legend span")].map((n) => n.innerText),
+    }))()"""
+    )
+    window = state.tracked[state.tracked["block"].between(newest - 71, newest)]
+    assert len(seen["harmonic"]) == 1  # order 5 is outside the modes' range
+    assert seen["harmonic"][0]["d"] > 0 and seen["harmonic"][0]["circles"] == 0
+    assert seen["harmonic"][0]["dash"] not in ("", "none")
+    assert seen["modes"] == window["mode"].nunique() + 1
+    assert seen["legend"][-1] == "shaft orders 1×"

@@ -119,6 +119,30 @@ def test_tracked_series_cover_the_window(tmp_path, voyage, serve):
         assert series["t"][0] == rows["block_start"].iloc[0].value // 1_000_000
 
 
+def test_tracked_panel_draws_the_shaft_orders_in_the_modes_range(tmp_path, voyage, serve):
+    from data_contracts import write_table
+    from workbench.dashboard.state import HARMONIC_LINES
+
+    publish(voyage, tmp_path, 150)
+    blocks = voyage.tracked[["block", "block_start"]].drop_duplicates("block")
+    blocks = blocks[blocks["block"] <= 150]
+    # 180 rpm: order 1 at 3 Hz (among the modes), order 5 at 15 Hz (above them)
+    lines = pd.concat(
+        [blocks.assign(order=k, frequency_hz=k * 180.0 / 60.0) for k in (1.0, 5.0)],
+        ignore_index=True,
+    )
+    write_table(lines, tmp_path / "harmonics.parquet", HARMONIC_LINES)
+    data = panel(serve(tmp_path, DashboardOptions(hours=3.0)), "tracked")
+    window = voyage.tracked[voyage.tracked["block"].between(115, 150)]
+    low, high = 0.9 * window["frequency_hz"].min(), 1.1 * window["frequency_hz"].max()
+    assert low < 3.0 < high < 15.0
+    assert [h["order"] for h in data["harmonics"]] == [1.0]  # 15 Hz would stretch the axis
+    assert data["harmonics"][0]["block"] == list(range(115, 151))
+    assert data["harmonics"][0]["frequency_hz"] == [3.0] * 36
+    # the modes are unchanged
+    assert sum(len(s["frequency_hz"]) for s in data["series"]) == len(window)
+
+
 def test_health_and_alarms_follow_the_chart(tmp_path, voyage, serve):
     onset = int(voyage.alarms["start_block"].iloc[0])
     publish(voyage, tmp_path, onset + 5)

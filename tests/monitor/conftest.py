@@ -60,7 +60,12 @@ def batch_run(source: Path, out: Path, identify=IDENTIFY) -> dict[str, pd.DataFr
     """identify + track + forecast over the complete folder (the reference)."""
     out.mkdir(parents=True, exist_ok=True)
     common = ["--scheduler", "synchronous", "--quiet"]
-    assert cli("identify", source / "accelerations", "--out", out / "id", *identify, *common) == 0
+    # the ship log's shaft speed marks the harmonics, as the monitor's does
+    dship = ["--dship", source / "dship.tsv"]
+    assert (
+        cli("identify", source / "accelerations", "--out", out / "id", *identify, *dship, *common)
+        == 0
+    )
     assert cli("track", out / "id" / "selected.parquet", "--out", out / "tracked.parquet") == 0
     assert (
         cli(
@@ -148,8 +153,9 @@ def assert_same_tables(state: Path, batch: dict[str, pd.DataFrame], min_rows: in
     tracked = pd.read_parquet(state / "tracked.parquet")
     forecast = pd.read_parquet(state / "forecast.parquet")
     # not vacuous: several modes over the blocks, forecast rows after the training window
-    # (the memory model starts forecasting later than the 6-block window on this short voyage)
-    assert len(batch["tracked"]) > 2 * min_rows and len(batch["forecast"]) > min_rows // 2
+    # (the memory model starts forecasting later than the 6-block window on this short voyage;
+    # with the shaft harmonics left out, 40 rows of modes over the 15 blocks)
+    assert len(batch["tracked"]) >= 2 * min_rows and len(batch["forecast"]) > min_rows // 2
     assert batch["forecast"]["kalman_frequency_hz"].notna().sum() > min_rows // 2
     pd.testing.assert_frame_equal(tracked, batch["tracked"])
     pd.testing.assert_frame_equal(forecast, batch["forecast"])

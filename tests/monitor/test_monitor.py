@@ -106,6 +106,10 @@ def test_replayed_voyage_equals_batch(voyage, batch, tmp_path):
         running.stop()
     running.monitor.update_outlook()
     assert_same_tables(state, batch)
+    # the shaft orders' lines for the dashboard: 1, 2, 3 x the logged shaft speed per block
+    lines = pd.read_parquet(state / "harmonics.parquet")
+    assert sorted(lines["order"].unique()) == [1.0, 2.0, 3.0]
+    assert set(lines["block"]) == set(pd.read_parquet(state / "tracked.parquet")["block"])
     health = pd.read_parquet(state / "data_health.parquet")
     assert list(health.columns) == list(DATA_HEALTH_COLUMNS)
     assert health["block"].tolist() == list(range(n_blocks))

@@ -10,10 +10,11 @@ matplotlib.use("Agg")
 
 def make_run(out, *, hours: float = 2.0):
     """Simulate *hours* of the demo voyage into ``out/voyage`` and run identify (orders up
-    to 30, in this process), track, predictors, fit and a forecast with a 6-block window
-    into *out*, as the CLI stages would."""
+    to 30, in this process, shaft harmonics marked from the ship log), track, predictors,
+    fit and a forecast with a 6-block window into *out*, as the CLI stages would."""
     from data_contracts import CONTRACTS, PREDICTORS, read_table, write_table
     from workbench.identify import IdentifyOptions
+    from workbench.sid.harmonics import HarmonicOptions
     from workbench.predictors import canonical_predictors, load_predictors
     from workbench.simulate import simulate_voyage
     from workbench.stages import ForecastOptions, evaluate, fit, forecast, identify, track
@@ -24,6 +25,8 @@ def make_run(out, *, hours: float = 2.0):
         out / "identify",
         options=IdentifyOptions(orders=tuple(range(4, 31, 2))),
         scheduler="synchronous",
+        dship=voyage.dship_log,
+        harmonics=HarmonicOptions(blades=5),
     )
     tracked = track(identified.table)
     tracked.save(out / "tracked_modal.csv")

@@ -92,9 +92,40 @@ def test_report_of_a_short_run(short_run):
     page = build_report(short_run, out=short_run / "other" / "page.html", dpi=50)
     text = page.read_text(encoding="utf-8")
     assert (short_run / "other" / "report_files" / "mode_shapes.png").exists()
+    # the Campbell view: orders drawn against the logged shaft speed
+    assert (short_run / "other" / "report_files" / "campbell.png").exists()
+    assert 'id="harmonics"' in text and "of the logged shaft speed" in text
     # evaluation under the tracked labels, the truth's numbers beside
     assert "true mode" in text and "Kalman vs SSI [%]" in text
     assert "store" not in text.replace("stored", "")
+
+
+def test_campbell_view_draws_orders_and_keeps_modes_and_harmonics_apart():
+    import matplotlib.pyplot as plt
+
+    from workbench.reporting.views import plot_campbell
+
+    shaft = pd.DataFrame({"block": [0, 1], "shaft_rpm": [120.0, 180.0], "speed_kn": [6.7, 10.0]})
+    shape = {"shape_re_c0": 1.0, "shape_im_c0": 0.0}
+    selected = pd.DataFrame(
+        [
+            {"block": 0, "frequency_hz": 2.0, "harmonic": 1.0, **shape},  # 120 rpm / 60
+            {"block": 1, "frequency_hz": 3.0, "harmonic": 1.0, **shape},
+            {"block": 0, "frequency_hz": 2.9, "harmonic": np.nan, **shape},
+            {"block": 1, "frequency_hz": 2.88, "harmonic": 1.0, **shape},  # crossed mode
+        ]
+    )
+    modal = selected.iloc[2:].assign(mode=1)
+    fig = plot_campbell(selected, shaft, modal=modal, orders=(1.0, 2.0))
+    lines = {line.get_label(): line for line in fig.axes[0].get_lines()}
+    crosses = lines["harmonic (kept out of the modes)"]
+    np.testing.assert_array_equal(crosses.get_xdata(), [120.0, 180.0])
+    np.testing.assert_array_equal(lines["mode 1"].get_ydata(), [2.9, 2.88])
+    order_lines = [l for l in fig.axes[0].get_lines() if l.get_linestyle() == "--"]
+    assert len(order_lines) == 2
+    rpm, frequency = order_lines[1].get_xdata(), order_lines[1].get_ydata()
+    np.testing.assert_allclose(frequency, 2.0 * rpm / 60.0)
+    plt.close(fig)
 
 
 def test_cli_report_errors_are_one_line(tmp_path, capsys):
@@ -168,9 +199,17 @@ def test_the_report_shows_the_correlate_stage_result(short_run, tmp_path):
     from workbench.reporting import report
     from workbench.stages import CorrelateOptions, correlate
 
+    from data_contracts import write_table
+
     found = find_run(short_run)
-    run = report.RunFiles(short_run, tracked=found.tracked, predictors=found.predictors)
     modal = read_table(found.tracked, MODAL)
+    # a rare mode (3 blocks; the run's shaft harmonics, once such, are left out by tracking)
+    rare = modal[modal["mode"] == modal["mode"].min()].head(3)
+    rare = rare.assign(mode=int(modal["mode"].max()) + 1, frequency_hz=rare["frequency_hz"] * 1.3)
+    modal = pd.concat([modal, rare], ignore_index=True).sort_values(["block", "mode"])
+    tracked = write_table(modal.reset_index(drop=True), tmp_path / "tracked_modal.csv", MODAL)
+    run = report.RunFiles(short_run, tracked=tracked, predictors=found.predictors)
+    modal = read_table(tracked, MODAL)
     predictors = canonical_predictors(read_table(found.predictors, PREDICTORS))
     every_mode = correlate(modal, predictors, options=CorrelateOptions(min_presence=0.0))
     tables = {}

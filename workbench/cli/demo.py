@@ -40,7 +40,58 @@ def _add_simulate(commands: argparse._SubParsersAction) -> None:
         "a recorder's rate: same modal physics, broadband content and a 60 Hz hum above the "
         "band)",
     )
+    shaft = parser.add_argument_group(
+        "shaft harmonics",
+        "Orders of the shaft rate (fixed-pitch propeller: the rate follows the speed) and "
+        "the blade pass in the accelerations; the ship log carries the shaft speed unless "
+        "--no-shaft-rpm. Orders sweep with speed and cross the modes (2.9-8.3 Hz): e.g. "
+        "--shaft-orders 1,2 --shaft-hz-per-kn 0.41 sits order 1 on mode 1 at 7 kn and "
+        "order 2 on mode 7 at 10 kn.",
+    )
+    shaft.add_argument(
+        "--shaft-orders",
+        default="1",
+        metavar="K,K",
+        help="shaft orders in the accelerations (default: %(default)s)",
+    )
+    shaft.add_argument(
+        "--blades",
+        type=int,
+        default=5,
+        metavar="N",
+        help="propeller blades: the blade-pass order N x the shaft rate (0: none) "
+        "(default: %(default)s)",
+    )
+    shaft.add_argument(
+        "--shaft-hz-per-kn",
+        type=float,
+        default=0.3,
+        metavar="HZ",
+        help="shaft rate per knot of speed [Hz/kn]; 0.3 turns the shaft at 180 rpm at 10 kn "
+        "(default: %(default)s)",
+    )
+    shaft.add_argument(
+        "--no-shaft-rpm",
+        action="store_true",
+        help="leave the shaft speed out of the ship log (harmonics found from the data alone)",
+    )
     parser.set_defaults(run=_run_simulate)
+
+
+def _shaft_harmonics(args: argparse.Namespace):
+    """The :class:`~workbench.simulate.ShaftHarmonics` of the simulate flags."""
+    from ..simulate import ShaftHarmonics
+
+    try:
+        orders = tuple(int(k) for k in str(args.shaft_orders).split(",") if k.strip())
+        return ShaftHarmonics(
+            hz_per_kn=args.shaft_hz_per_kn,
+            orders=orders,
+            blades=args.blades,
+            log_rpm=not args.no_shaft_rpm,
+        )
+    except ValueError as error:
+        raise UsageError(f"shaft harmonics: {error}") from None
 
 
 def _run_simulate(args: argparse.Namespace) -> int:
@@ -56,6 +107,7 @@ def _run_simulate(args: argparse.Namespace) -> int:
             hours=args.hours,
             accelerations=not args.no_accelerations,
             sampling_rate_hz=args.sampling_rate,
+            shaft=_shaft_harmonics(args),
         )
     except ValueError as error:  # e.g. a voyage shorter than one block
         raise UsageError(str(error)) from None

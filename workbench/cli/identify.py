@@ -11,7 +11,7 @@ from pathlib import Path
 from .. import defaults as D
 from ..arguments import add_renamed
 from ..errors import printable
-from ..inputs import acceleration_layout, add_acceleration_layout
+from ..inputs import acceleration_layout, add_acceleration_layout, add_dship_columns, dship_mapping
 from .common import EXIT_OK, UsageError, _add_parallel, _check_positive, _option_names
 
 
@@ -204,6 +204,31 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
         help="stabilisation diagrams of K blocks spread over the voyage",
     )
     add_acceleration_layout(parser)
+    harmonic = parser.add_argument_group(
+        "shaft harmonics",
+        "With the voyage's ship log, the shaft orders and the blade pass are marked among "
+        "the selected modes and poles (column 'harmonic') and kept out of tracking: from the "
+        "logged shaft speed, or, without it, from modes whose frequency follows the speed "
+        "with a fixed shape.",
+    )
+    harmonic.add_argument(
+        "--dship", type=Path, metavar="FILE", help="the voyage's ship log (DSHIP export)"
+    )
+    add_dship_columns(harmonic)
+    harmonic.add_argument(
+        "--harmonic-orders",
+        default=D.IDENTIFY_HARMONIC_ORDERS,
+        metavar="K,K",
+        help="shaft orders checked (default: %(default)s)",
+    )
+    harmonic.add_argument(
+        "--blades",
+        type=int,
+        default=D.IDENTIFY_BLADES,
+        metavar="N",
+        help="propeller blades: the blade pass N x the shaft rate (and 2N) is checked too; "
+        "0: none (default: %(default)s)",
+    )
     parser.add_argument(
         "--tpe-figures",
         type=int,
@@ -325,6 +350,18 @@ def identify_options(args: argparse.Namespace):
         raise UsageError(_option_names(str(error))) from None
 
 
+def _harmonic_options(args: argparse.Namespace):
+    """The :class:`~workbench.sid.harmonics.HarmonicOptions` of ``--harmonic-orders`` and
+    ``--blades``."""
+    from ..sid.harmonics import HarmonicOptions
+
+    try:
+        orders = tuple(float(k) for k in str(args.harmonic_orders).split(",") if k.strip())
+        return HarmonicOptions(orders=orders, blades=args.blades)
+    except ValueError as error:
+        raise UsageError(f"--harmonic-orders/--blades: {error}") from None
+
+
 def _run_identify(args: argparse.Namespace) -> int:
     from ..identify import IdentifyOptionsError
     from ..stages import identify
@@ -335,6 +372,7 @@ def _run_identify(args: argparse.Namespace) -> int:
         raise UsageError(
             f"--stabilisation-figures must be 0 or more, got {args.stabilisation_figures}"
         )
+    harmonics = _harmonic_options(args)
     try:
         result = identify(
             args.inputs,
@@ -346,6 +384,9 @@ def _run_identify(args: argparse.Namespace) -> int:
             progress=not args.quiet,
             batch_blocks=args.batch_blocks,
             keep_removed_inputs=args.keep_removed_inputs,
+            dship=args.dship,
+            dship_mapping=dship_mapping(args),
+            harmonics=harmonics,
         )
     except IdentifyOptionsError as error:
         raise UsageError(str(error)) from None

@@ -199,7 +199,9 @@ def _tracked(state: StateFolder, options: DashboardOptions) -> dict[str, Any]:
         return _unavailable(snap.error)
     if snap.data.empty:
         return _unavailable("no block identified yet")
-    return _panel(tracked_view(snap.data, hours=options.hours), snap.error)
+    lines = state.read("harmonics")  # optional: only with a logged shaft speed
+    harmonics = lines.data if lines.available else None
+    return _panel(tracked_view(snap.data, hours=options.hours, harmonics=harmonics), snap.error)
 
 
 def _health(state: StateFolder, options: DashboardOptions) -> dict[str, Any]:
@@ -231,7 +233,7 @@ def _data_health(state: StateFolder, options: DashboardOptions) -> dict[str, Any
 PANELS: dict[str, Panel] = {
     "status": Panel(("status",), _status),
     "modes": Panel(("tracked", "forecast"), _modes),
-    "tracked": Panel(("tracked",), _tracked),
+    "tracked": Panel(("tracked", "harmonics"), _tracked),
     "health": Panel(("health",), _health),
     "alarms": Panel(("alarms", "health"), _alarms),
     "data_health": Panel(("data_health",), _data_health),

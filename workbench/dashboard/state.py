@@ -10,6 +10,8 @@ written atomically (temporary file, then rename). Any file may be absent early o
 ``health.parquet``          HEALTH contract: the control chart, one row per block
 ``alarms.parquet``          ALARMS contract: alarm episodes with their evidence
 ``data_health.parquet``     :data:`DATA_HEALTH`: channels, gaps and latency per block
+``harmonics.parquet``       :data:`HARMONIC_LINES`: frequency of each shaft order per block
+                            (when the ship log carries the shaft speed)
 ``status.json``             :data:`STATUS_KEYS`: the monitor's heartbeat
 ==========================  ============================================================
 
@@ -42,6 +44,7 @@ from data_contracts import (
 
 __all__ = [
     "DATA_HEALTH",
+    "HARMONIC_LINES",
     "STATE_FILES",
     "STATUS_KEYS",
     "FileSnapshot",
@@ -77,6 +80,21 @@ DATA_HEALTH = TableContract(
     unique=("block",),
 )
 
+#: Shaft orders at the logged shaft speed, one row per block and order (written by the
+#: monitor when the ship log carries the shaft speed).
+HARMONIC_LINES = TableContract(
+    name="harmonic_lines",
+    description="Frequency of each shaft order (and the blade pass) at the block's mean "
+    "logged shaft speed: the lines the harmonics follow, drawn beside the tracked modes.",
+    columns=(
+        Column("block", "int", "Block number on the voyage's block grid.", minimum=0),
+        Column("block_start", "time", "Start of the block, UTC.", unit="UTC"),
+        Column("order", "float", "Shaft order (the blade count for the blade pass).", minimum=0),
+        Column("frequency_hz", "float", "order x mean shaft speed / 60.", unit="Hz", minimum=0),
+    ),
+    unique=("block", "order"),
+)
+
 #: File names of the state folder by part, with the contract of each table.
 STATE_FILES: dict[str, tuple[str, TableContract | None]] = {
     "tracked": ("tracked.parquet", MODAL),
@@ -84,6 +102,7 @@ STATE_FILES: dict[str, tuple[str, TableContract | None]] = {
     "health": ("health.parquet", HEALTH),
     "alarms": ("alarms.parquet", ALARMS),
     "data_health": ("data_health.parquet", DATA_HEALTH),
+    "harmonics": ("harmonics.parquet", HARMONIC_LINES),
     "status": ("status.json", None),
 }
 

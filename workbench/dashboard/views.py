@@ -173,10 +173,31 @@ def modes_view(
     }
 
 
-def tracked_view(tracked: pd.DataFrame, *, hours: float) -> dict[str, Any]:
+def tracked_view(
+    tracked: pd.DataFrame, *, hours: float, harmonics: pd.DataFrame | None = None
+) -> dict[str, Any]:
     """Tracked frequencies of the last *hours* before the newest block, one series per
-    mode (blocks, times, frequencies)."""
+    mode (blocks, times, frequencies), and the shaft orders' lines over the same blocks
+    (*harmonics*: :data:`~workbench.dashboard.state.HARMONIC_LINES`), kept to the modes'
+    frequency range (±10 %) so that they do not stretch the axis."""
     window = _window(tracked, hours).sort_values(["mode", "block"])
+    lines = []
+    if harmonics is not None and not harmonics.empty and not window.empty:
+        low = 0.9 * float(window["frequency_hz"].min())
+        high = 1.1 * float(window["frequency_hz"].max())
+        first, last = int(window["block"].min()), int(window["block"].max())
+        shown = harmonics[harmonics["block"].between(first, last)].sort_values("block")
+        for order, rows in shown.groupby("order", sort=True):
+            frequency = rows["frequency_hz"].where(rows["frequency_hz"].between(low, high))
+            if frequency.notna().any():
+                lines.append(
+                    {
+                        "order": float(order),
+                        "block": rows["block"].astype(int).tolist(),
+                        "t": _epoch_ms(rows["block_start"]),
+                        "frequency_hz": _nums(frequency),
+                    }
+                )
     series = []
     for mode, rows in window.groupby("mode", sort=True):
         series.append(
@@ -193,6 +214,7 @@ def tracked_view(tracked: pd.DataFrame, *, hours: float) -> dict[str, Any]:
         "start": iso(window["block_start"].min()) if not window.empty else None,
         "end": iso(window["block_start"].max()) if not window.empty else None,
         "series": series,
+        "harmonics": lines,
     }
 
 

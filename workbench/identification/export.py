@@ -21,28 +21,52 @@ def export_store(
     channels: Sequence[str],
     *,
     grid: BlockGrid | None = None,
+    harmonics=None,
 ):
     """Write the store's results as tables in *out_dir*; return them by kind.
 
-    Poles and selected modes are streamed chunk by chunk into one Parquet file each (rows in
-    block order), so exporting a voyage of any length needs the memory of one chunk. Every
-    table records the block *grid* (Parquet metadata, or a ``<name>.grid.json`` sidecar
-    beside the CSV files; see :mod:`data_contracts.grid`).
+    Poles are streamed chunk by chunk into one Parquet file (rows in block order), so
+    exporting a voyage of any length needs the memory of one chunk of poles (the selected
+    modes, a few per block, are marked as one table). Every table records the block *grid*
+    (Parquet metadata, or a ``<name>.grid.json`` sidecar beside the CSV files; see
+    :mod:`data_contracts.grid`). *harmonics* (a
+    :class:`~workbench.sid.harmonics.HarmonicMarker`) adds the ``harmonic`` column to the
+    selected modes and the poles and writes ``shaft.csv`` (the blocks' shaft speed and
+    speed) when it had a ship log; without it the column is added empty.
     """
+    from ..sid.harmonics import HarmonicMarker
+
+    marker = harmonics if harmonics is not None else HarmonicMarker(None)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files: dict[str, Path] = {}
-    for kind, sort, name, contract in (
-        ("poles", ["block", "model_order", "frequency_hz"], "poles.parquet", POLES),
-        ("selected", ["block", "frequency_hz"], "selected.parquet", SELECTED),
-    ):
-        chunks = (
-            chunk.sort_values(sort, kind="stable").reset_index(drop=True)
-            for chunk in store.read_chunks(kind, blocks_per_chunk=64)
-        )
-        path = _write_parquet_chunks(chunks, out / name, contract, grid=grid)
+    selected_chunks = [
+        chunk.sort_values(["block", "frequency_hz"], kind="stable")
+        for chunk in store.read_chunks("selected", blocks_per_chunk=64)
+    ]
+    if selected_chunks:
+        selected = marker.mark_selected(pd.concat(selected_chunks, ignore_index=True))
+        path = _write_parquet_chunks([selected], out / "selected.parquet", SELECTED, grid=grid)
         if path is not None:
-            files[kind] = path
+            files["selected"] = path
+    chunks = (
+        marker.mark_poles(
+            chunk.sort_values(["block", "model_order", "frequency_hz"], kind="stable")
+        ).reset_index(drop=True)
+        for chunk in store.read_chunks("poles", blocks_per_chunk=64)
+    )
+    path = _write_parquet_chunks(chunks, out / "poles.parquet", POLES, grid=grid)
+    if path is not None:
+        files["poles"] = path
+    if marker.method != "none" and len(marker.shaft):
+        files["shaft"] = _write_csv(marker.shaft.reset_index(drop=True), out / "shaft.csv")
+        write_grid_sidecar(files["shaft"], grid)
+        import json
+
+        summary = {"method": marker.method, "orders": list(marker.orders), "lines": marker.lines()}
+        with atomic_path(out / "harmonics.json") as tmp:
+            tmp.write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+        files["harmonics"] = out / "harmonics.json"
     for kind in ("faults", "channels", "crosscheck", "blocks"):
         table = store.read(kind)
         if kind == "blocks" and not table.empty:

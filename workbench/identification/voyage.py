@@ -16,6 +16,7 @@ from ..parallel import RunSummary, run_blocks
 from ..store import BlockStore, block_ranges
 from .engine import _block_tasks, _file_tasks, identify_block, identify_from_files
 from .export import export_store
+from ..sid.harmonics import HarmonicOptions
 from .options import IdentifyOptions
 from .planning import (
     acceleration_files,
@@ -37,9 +38,11 @@ class IdentifyResult:
     #: What the run found changed in its store and did about it (damaged store files,
     #: input files no longer given), one line each.
     notices: list[str] = field(default_factory=list)
+    #: What the harmonic tests marked (:meth:`workbench.sid.harmonics.HarmonicMarker.lines`).
+    notes: list[str] = field(default_factory=list)
 
     def lines(self) -> list[str]:
-        out = [str(self.summary)]
+        out = [str(self.summary), *self.notes]
         crosscheck = self.files.get("crosscheck")
         if crosscheck is not None:
             from ..sid.crosscheck import agreement_lines
@@ -114,6 +117,15 @@ def _removed_inputs(
             "(--keep-removed-inputs keeps them)"
         )
     return notices
+def _ship_log(dship, mapping) -> pd.DataFrame | None:
+    """The canonical ship log of *dship* (a path or a canonical log), or None."""
+    if dship is None:
+        return None
+    if isinstance(dship, pd.DataFrame):
+        return dship
+    from data_contracts import read_dship
+
+    return read_dship(dship, mapping=mapping)
 
 
 def identify_voyage(
@@ -128,6 +140,9 @@ def identify_voyage(
     blocks: Sequence[int] | None = None,
     batch_blocks: int = 16,
     keep_removed_inputs: bool = False,
+    dship: str | os.PathLike | pd.DataFrame | None = None,
+    dship_mapping: dict[str, str] | None = None,
+    harmonics: HarmonicOptions | None = None,
 ) -> IdentifyResult:
     """Identify every block of a voyage's acceleration files; resumable and parallel.
 
@@ -155,9 +170,21 @@ def identify_voyage(
         An input file recorded in the store and no longer given: keep the blocks computed
         from it (default: drop them, so the run equals a fresh run over the files given).
         Either way each such file is one line of :attr:`IdentifyResult.notices`.
+    dship : path-like or DataFrame, optional
+        The voyage's ship log (raw DSHIP file or canonical log): its shaft speed (or, when
+        not logged, its speed) marks the shaft and blade-pass harmonics among the selected
+        modes and poles (``harmonic`` column; :mod:`workbench.sid.harmonics`) and gives
+        ``shaft.csv``. Without it nothing is marked.
+    dship_mapping : dict, optional
+        Column names of the ship log (``{"shaft_rpm": "ME.Shaft.RPM"}``).
+    harmonics : HarmonicOptions, optional
+        Orders, blade count and tolerances of the harmonic tests.
     """
+    from ..sid.harmonics import HarmonicMarker
+
     options = options or IdentifyOptions()
     _check_run_options(scheduler, n_workers, batch_blocks)
+    marker = HarmonicMarker(_ship_log(dship, dship_mapping), harmonics)
     out = Path(out_dir)
     store_path = Path(store_dir) if store_dir is not None else out / "store"
     for what, path in (("output folder", out), ("store", store_path)):
@@ -203,7 +230,8 @@ def identify_voyage(
             description="identify",
         )
         result = IdentifyResult(summary, n_blocks=len(tasks), notices=notices)
-        result.files = export_store(store, out, channels, grid=grid)
+        result.files = export_store(store, out, channels, grid=grid, harmonics=marker)
+        result.notes = marker.lines()
     selected = result.files.get("selected")
     if selected is not None:
         result.n_selected = len(pd.read_parquet(selected, columns=["block"]))

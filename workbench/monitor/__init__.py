@@ -15,7 +15,11 @@ State folder
 Every file is written atomically (temporary name, then rename), so a reader never sees a
 half-written file::
 
-    <state>/tracked.parquet      MODAL contract: the tracked modal table so far
+    <state>/tracked.parquet      MODAL contract: the tracked modal table so far (labels
+                                 that are shaft harmonics left out, from the logged shaft
+                                 speed)
+    <state>/harmonics.parquet    the shaft orders' frequencies per tracked block (with a
+                                 logged shaft speed; workbench.dashboard.state.HARMONIC_LINES)
     <state>/forecast.parquet     FORECAST contract: sliding forecast + Kalman, all blocks
     <state>/health.parquet       HEALTH contract (empty until model and reference are learned)
     <state>/alarms.parquet       ALARMS contract (empty until then, and while no alarm)

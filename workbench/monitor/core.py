@@ -27,6 +27,7 @@ from ..errors import WorkbenchError
 from ..identification.engine import BlockTask
 from ..identify import IdentifyOptions, identify_block, input_fingerprints, resolved_run
 from ..processes import interrupts_deferred, worker_initializer
+from ..sid.harmonics import HarmonicOptions
 from ..sid.tracking import TrackingOptions
 from ..store import BlockStore, StoreLock
 from .conditioning import block_conditioner, forget_conditioned
@@ -53,6 +54,11 @@ class MonitorOptions:
         Block grid, conditioning, SSI and selection (as ``workbench identify``).
     tracking : TrackingOptions
         As ``workbench track``.
+    harmonics : HarmonicOptions
+        Shaft orders and blades: with a ship log that logs the shaft speed, the selected
+        modes are marked (:func:`~workbench.sid.harmonics.mark_shaft_orders`), which keeps
+        the harmonics out of the tracked table; a block's marks are final once the log
+        covers it.
     forecast : ForecastSettings
         As ``workbench forecast`` and ``workbench health``.
     poll_s : float
@@ -73,6 +79,7 @@ class MonitorOptions:
 
     identify: IdentifyOptions = field(default_factory=IdentifyOptions)
     tracking: TrackingOptions = field(default_factory=TrackingOptions)
+    harmonics: HarmonicOptions = field(default_factory=HarmonicOptions)
     forecast: ForecastSettings = field(default_factory=ForecastSettings)
     poll_s: float = 1.0
     settle_s: float = 1.0
@@ -157,6 +164,8 @@ class Monitor:
         self._dirty = True
         self._saved_grid = self._stored_grid()
         self._given_up: tuple[tuple[int, int], list[dict]] = ((-1, -1), [])
+        self._harmonic_marks: dict[int, np.ndarray] = {}  # block -> marks, once the log covers it
+        self._marks_pending = False
 
     @property
     def tracked_through(self) -> int:
@@ -176,6 +185,8 @@ class Monitor:
             self._executor.shutdown(wait=True)
             self._executor = None
         if self.voyage is not None and self.tracking.tracked_through >= 0:
+            if self._marks_pending:  # the log may cover the last blocks by now
+                self._advance_tracking()
             if (
                 self.dship is not None
                 and not self._log_complete
@@ -476,12 +487,84 @@ class Monitor:
         )
 
     # ------------------------------------------------------------------ tracking
+    def _shaft_log(self) -> pd.DataFrame | None:
+        """The ship log when it logs the shaft speed, else None."""
+        if self.dship is None or not self.dship.is_file():
+            return None
+        from .outlook import _ship_log
+
+        try:
+            log = _ship_log(self.dship, dict(self.options.forecast.dship_mapping))
+        except (ValueError, OSError):  # the outlook reports an unreadable log
+            return None
+        return log if "shaft_rpm" in log.columns else None
+
+    def _mark_harmonics(self, frame: pd.DataFrame) -> pd.DataFrame:
+        """The selected modes tracked so far with their ``harmonic`` column from the logged
+        shaft speed (:func:`~workbench.sid.harmonics.mark_shaft_orders`). A block's marks
+        are kept once the log covers the block; before that they are recomputed, so the
+        tracked table ends equal to ``identify --dship`` + ``track`` however late the log."""
+        log = self._shaft_log()
+        if log is None:
+            return frame
+        from ..sid.harmonics import block_shaft_table, mark_shaft_orders
+
+        # per row: the order (NaN: none) and the order's frequency at the block's shaft speed
+        harmonic = np.full((len(frame), 2), np.nan)
+        positions = frame.groupby("block").indices
+        pending = []
+        for block, rows in positions.items():
+            marks = self._harmonic_marks.get(int(block))
+            if marks is None:
+                pending.append(rows)
+            else:
+                harmonic[rows] = marks
+        self._marks_pending = bool(pending)
+        if pending:
+            rows = np.concatenate(pending)
+            part = frame.iloc[rows]
+            order = mark_shaft_orders(part, log, self.options.harmonics).to_numpy()
+            rpm = part["block"].map(block_shaft_table(log, part).set_index("block")["shaft_rpm"])
+            marks = np.column_stack([order, order * rpm.to_numpy(float) / 60.0])
+            harmonic[rows] = marks
+            covered = pd.to_datetime(log["time"], utc=True).max()
+            ends = pd.to_datetime(part["block_end"], utc=True).to_numpy()
+            for block, inside in part.reset_index(drop=True).groupby("block").indices.items():
+                if ends[inside].max() <= covered:
+                    self._harmonic_marks[int(block)] = marks[inside]
+        return frame.assign(harmonic=harmonic[:, 0], harmonic_frequency_hz=harmonic[:, 1])
+
+    def _write_harmonic_lines(self, tracked: pd.DataFrame) -> None:
+        """``harmonics.parquet``: each order's frequency at the tracked blocks' mean logged
+        shaft speed (nothing without a logged shaft speed)."""
+        log = self._shaft_log()
+        if log is None or tracked.empty:
+            return
+        from ..dashboard.state import HARMONIC_LINES
+        from ..sid.harmonics import block_shaft_table, order_list
+
+        shaft = block_shaft_table(log, tracked).dropna(subset=["shaft_rpm"])
+        orders = order_list(self.options.harmonics)
+        lines = pd.DataFrame(
+            {
+                "block": np.repeat(shaft["block"].to_numpy(dtype="int64"), len(orders)),
+                "block_start": np.repeat(shaft["block_start"].to_numpy(), len(orders)),
+                "order": np.tile(np.asarray(orders, dtype=float), len(shaft)),
+                "frequency_hz": np.outer(shaft["shaft_rpm"].to_numpy() / 60.0, orders).ravel(),
+            }
+        )
+        lines["block_start"] = pd.to_datetime(lines["block_start"], utc=True)
+        write_table(lines, self.state / "harmonics.parquet", HARMONIC_LINES)
+
     def _advance_tracking(self) -> None:
         """Feed the decided blocks to the tracker in block order and write the tracked
         table when it grew (see :class:`IncrementalTracking`)."""
         grew = self.tracking.advance(self.done)
-        if grew or not (self.state / "tracked.parquet").exists():
-            write_table(self.tracking.table(), self.state / "tracked.parquet", MODAL)
+        # marks of blocks the log did not cover yet may change: written again with the log
+        if grew or self._marks_pending or not (self.state / "tracked.parquet").exists():
+            tracked = self.tracking.table(marker=self._mark_harmonics)
+            write_table(tracked, self.state / "tracked.parquet", MODAL)
+            self._write_harmonic_lines(tracked)
 
     def _resume(self) -> None:
         """After a restart: replay the stored blocks into the tracker and the data-health

@@ -52,15 +52,16 @@ class IncrementalTracking:
             self.tracked_through = block
         return grew
 
-    def table(self) -> pd.DataFrame:
-        """The tracked table (MODAL contract) so far."""
+    def table(self, marker=None) -> pd.DataFrame:
+        """The tracked table (MODAL contract) so far. *marker* (called with the selected
+        modes tracked so far) adds their ``harmonic`` column, which decides only which
+        labels are harmonics (never the assignment), so the marks may come late."""
         from ..sid.tracking import _tracked_table
 
         if self._frame is None:
             return empty_table(MODAL)
-        return _tracked_table(
-            self._frame, list(self._rows), self._tracker, self._channels, self.options
-        )
+        frame = self._frame if marker is None else marker(self._frame)
+        return _tracked_table(frame, list(self._rows), self._tracker, self._channels, self.options)
 
     def _track_block(self, block: int, part: pd.DataFrame) -> None:
         # the order `workbench identify` exports a block's modes in (then `track` reads it)

@@ -239,3 +239,78 @@ def plot_mode_shapes(
     for ax in axes.ravel()[2 * len(modes) :]:
         ax.set_visible(False)
     return fig
+
+
+def plot_campbell(
+    selected: pd.DataFrame,
+    shaft: pd.DataFrame,
+    *,
+    modal: pd.DataFrame | None = None,
+    orders: Sequence[float] = (),
+):
+    """Campbell view: frequency against shaft speed, the orders drawn, the modes marked.
+
+    Parameters
+    ----------
+    selected : DataFrame
+        Selected modes (SELECTED contract) with their ``harmonic`` column.
+    shaft : DataFrame
+        Per block ``block``, ``shaft_rpm`` [rpm] (weighted by rpm⁴, where the harmonics'
+        energy is) and ``speed_kn`` [kn] (``shaft.csv`` of identify). Without a logged
+        shaft speed the abscissa is the speed and no order is drawn.
+    modal : DataFrame, optional
+        Tracked modal table: its modes drawn in their colours.
+    orders : sequence of float
+        Orders drawn as lines f = k x rpm / 60.
+    """
+    use_rpm = "shaft_rpm" in shaft and shaft["shaft_rpm"].notna().any()
+    column = "shaft_rpm" if use_rpm else "speed_kn"
+    abscissa = shaft.set_index("block")[column]
+    fig, ax = plt.subplots(figsize=(FIGURE_WIDTH, 4.8), layout="constrained")
+    x = selected["block"].map(abscissa)
+    marked = (
+        selected["harmonic"].notna() if "harmonic" in selected else pd.Series(False, selected.index)
+    )
+    tracked = pd.Series(False, selected.index)
+    if modal is not None and len(modal):
+        keys = set(zip(modal["block"], modal["frequency_hz"].round(9), strict=True))
+        tracked = pd.Series(
+            [(b, f) in keys for b, f in zip(selected["block"], selected["frequency_hz"].round(9))],
+            index=selected.index,
+        )
+    other = ~tracked & ~marked
+    ax.plot(
+        x[other], selected.loc[other, "frequency_hz"], ".", color="0.7", ms=3,
+        label="selected mode, not tracked", zorder=1,
+    )
+    harmonic = marked & ~tracked
+    ax.plot(
+        x[harmonic], selected.loc[harmonic, "frequency_hz"], "x", color="tab:red", ms=4,
+        mew=1.0, label="harmonic (kept out of the modes)", zorder=2,
+    )
+    if modal is not None and len(modal):
+        for mode, part in modal.groupby("mode"):
+            ax.plot(
+                part["block"].map(abscissa), part["frequency_hz"], "o", ms=2.5,
+                color=mode_colour(mode), label=f"mode {mode}", zorder=3,
+            )
+    top = float(selected["frequency_hz"].max()) * 1.05 if len(selected) else 1.0
+    if use_rpm and len(orders):
+        rpm = np.linspace(0.0, float(np.nanmax(abscissa.to_numpy())) * 1.05, 50)
+        for order in orders:
+            ax.plot(rpm, order * rpm / 60.0, "--", color="k", lw=0.7, alpha=0.6)
+            end = min(rpm[-1], top * 60.0 / order)
+            ax.annotate(
+                f"{order:g}×",
+                (end, min(order * end / 60.0, 0.97 * top)),
+                fontsize=7,
+                ha="right",
+                va="top" if order * end / 60.0 >= 0.97 * top else "bottom",
+            )
+    ax.set_ylim(0.0, top)
+    ax.set_xlim(left=0.0)
+    ax.set_xlabel("shaft speed [rpm]" if use_rpm else "speed [kn] (no shaft speed logged)")
+    ax.set_ylabel("frequency [Hz]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7, ncols=4, loc="lower left", bbox_to_anchor=(0, 1))
+    return fig

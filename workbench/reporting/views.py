@@ -17,6 +17,7 @@ from .mode_views import (  # noqa: F401
     _real_shape,
     mean_mode_shapes,
     plot_automac,
+    plot_campbell,
     plot_mode_shapes,
     plot_tracked_modes,
 )
@@ -37,6 +38,7 @@ __all__ = [
     "mean_mode_shapes",
     "mode_colour",
     "plot_automac",
+    "plot_campbell",
     "plot_channel_moments",
     "plot_correlation_heatmap",
     "plot_forecast_overview",

@@ -79,6 +79,14 @@ class TrackingOptions:
         Fewest channels shared by two shapes for them to be compared. [-]
     sort_by_frequency : bool
         Relabel the final modes 1, 2, ... in order of their median frequency.
+    harmonic_share : float
+        Tracked labels with at least this share of rows marked as shaft or blade-pass
+        harmonics (the selected table's ``harmonic`` column, :mod:`workbench.sid.harmonics`)
+        are harmonics, not modes, and are dropped, except a label unmarked in at least a
+        quarter of its blocks whose marked rows do not follow the order's frequency
+        (``harmonic_frequency_hz``: slope of ln f on it below 0.5): a mode that an order
+        sits on for hours. A mode that an order crosses keeps its rows (its own shape
+        joined the label). [-]
     """
 
     mac_min: float = 0.9
@@ -90,6 +98,7 @@ class TrackingOptions:
     min_blocks: int = 3
     min_channels: int = 3
     sort_by_frequency: bool = True
+    harmonic_share: float = 0.5
 
     def __post_init__(self) -> None:
         if not 0.0 < self.mac_min <= 1.0:
@@ -100,6 +109,8 @@ class TrackingOptions:
             raise ValueError(f"frequency_tol={self.frequency_tol} must be in (0, 1)")
         if not 0.0 <= self.smoothing <= 1.0:
             raise ValueError(f"smoothing={self.smoothing} must be in [0, 1]")
+        if not 0.0 < self.harmonic_share <= 1.0:
+            raise ValueError(f"harmonic_share={self.harmonic_share} must be in (0, 1]")
         for name in ("confirm_within", "candidate_lifetime", "min_blocks", "min_channels"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name}={getattr(self, name)} must be at least 1")
@@ -447,16 +458,74 @@ def _reference_modes(reference: pd.DataFrame | None, channels: Sequence[str]):
     return modes
 
 
+#: Spread of ln(order frequency) over a label's marked rows below which whether the label
+#: follows the order cannot be told (a harmonic at one steady shaft speed). [-]
+_FOLLOW_SPREAD = 0.005
+#: Share of a label's blocks without a mark for it to be kept as a mode although most of
+#: its rows are marked (then only if it does not follow its order).
+_SEEN_AWAY = 0.25
+#: Fewest marked rows of a label for the slope to be judged (a short fragment of a
+#: harmonic on a speed ramp does not follow its order closely; the majority rule decides).
+_FOLLOW_ROWS = 10
+
+
+def _follows_its_order(rows: pd.DataFrame) -> bool:
+    """Whether a label's marked rows follow the order's frequency: the slope of ln f on
+    ln f_order (``harmonic_frequency_hz``) is at least 0.5 (a harmonic's is 1, a structural
+    mode's about 0: an order sitting on a mode for hours marks most of its blocks, but the
+    mode stays where it is while the shaft speed wanders). True when the order's frequency
+    hardly varies (the slope is not determined), is not known, or the label has fewer
+    than ``_FOLLOW_ROWS`` marked rows."""
+    if "harmonic_frequency_hz" not in rows.columns:
+        return True
+    known = rows[rows["harmonic_frequency_hz"].notna() & (rows["harmonic_frequency_hz"] > 0)]
+    if len(known) < _FOLLOW_ROWS:
+        return True
+    x = np.log(known["harmonic_frequency_hz"].to_numpy(float))
+    y = np.log(known["frequency_hz"].to_numpy(float))
+    if np.std(x) < _FOLLOW_SPREAD:
+        return True
+    slope = np.cov(x, y)[0, 1] / np.var(x, ddof=1)
+    return bool(slope >= 0.5)
+
+
 def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.DataFrame:
     if not rows:
         empty = frame.iloc[:0].copy()
         empty.insert(3, "mode", pd.Series([], dtype="int64"))
         empty["mac"] = pd.Series([], dtype=float)
-        return MODAL.validate(empty)
+        return MODAL.validate(
+            empty.drop(columns=["harmonic", "harmonic_frequency_hz"], errors="ignore")
+        )
     index = np.array([r[0] for r in rows])
     table = frame.loc[index].copy()
     table["mode"] = [r[1] for r in rows]
     table["mac"] = np.clip([r[2] for r in rows], 0.0, 1.0)
+    harmonic_labels: list[dict] = []
+    if "harmonic" in table.columns:
+        marked = table["harmonic"].notna()
+        share = marked.groupby(table["mode"]).mean()
+        # most rows marked: a harmonic, unless the label is also seen away from the orders
+        # in at least a quarter of its blocks and does not follow its order (a mode an
+        # order sits on for hours)
+        harmonic = [
+            label
+            for label in share.index[share >= options.harmonic_share]
+            if share[label] > 1.0 - _SEEN_AWAY
+            or _follows_its_order(table[(table["mode"] == label) & marked])
+        ]
+        share = share[harmonic]
+        for label in share.index:
+            part = table[table["mode"] == label]
+            harmonic_labels.append(
+                {
+                    "blocks": len(part),
+                    "frequency_hz": float(part["frequency_hz"].median()),
+                    "share": float(share[label]),
+                }
+            )
+        table = table[~table["mode"].isin(share.index)]
+        table = table.drop(columns=["harmonic", "harmonic_frequency_hz"], errors="ignore")
     counts = table["mode"].value_counts()
     keep = counts.index[counts >= options.min_blocks]
     table = table[table["mode"].isin(keep)]
@@ -470,7 +539,9 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
     shape = shape_columns(channels)
     rest = [c for c in table.columns if c not in front and c not in shape]
     table = table[[*front, *rest, *shape]].sort_values(["block", "mode"], kind="stable")
-    return MODAL.validate(table.reset_index(drop=True))
+    table = MODAL.validate(table.reset_index(drop=True))
+    table.attrs["harmonic_labels"] = harmonic_labels
+    return table
 
 
 def label_agreement(

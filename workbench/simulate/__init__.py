@@ -32,6 +32,10 @@ Operating profile (per 12-h cycle, scaled to ``hours`` and repeated for longer v
 stationary 2 h, constant speed (10 kn) 3 h, alternating 0 ↔ ~10 kn (40-min period) 4 h,
 temperature drift (7 kn, water +3 °C, air +2.5 °C) 3 h.
 
+The shaft line (:class:`ShaftHarmonics`): order 1 of the shaft rate (0.3 Hz/kn x speed,
+3 Hz at 10 kn) and the blade pass of a 5-bladed propeller sweep with speed through the
+band of the modes; the ship log carries the shaft speed (``Shaft speed [rpm]``).
+
 Entry point: :func:`simulate_voyage`. Outputs are described there.
 """
 
@@ -47,7 +51,14 @@ from .hull import (
 )
 from .imitation import IdentificationImitation, imitate_identification
 from .profile import CASE_FRACTIONS, OperatingProfile, operating_profile, write_dship_log
-from .voyage import DEFAULT_HOURS, SAMPLING_RATE_HZ, START_TIME, VoyageSummary, simulate_voyage
+from .voyage import (
+    DEFAULT_HOURS,
+    SAMPLING_RATE_HZ,
+    START_TIME,
+    ShaftHarmonics,
+    VoyageSummary,
+    simulate_voyage,
+)
 
 __all__ = [
     "CASE_FRACTIONS",
@@ -58,6 +69,7 @@ __all__ = [
     "SAMPLING_RATE_HZ",
     "SENSORS",
     "START_TIME",
+    "ShaftHarmonics",
     "IdentificationImitation",
     "ModalParameters",
     "ModeLaw",

@@ -186,7 +186,7 @@ Parameter(s):\tDATE/TIME * SHORT_NAME: Date/Time * METHOD/DEVICE: ship data syst
 \tTemperature, air * SHORT_NAME: TTT * UNIT: °C * COMMENT: sampled every 60 s
 \tWind speed * SHORT_NAME: ff * UNIT: m/s * COMMENT: sampled every 10 s
 \tWind direction, relative * SHORT_NAME: RelWindDir * UNIT: deg * COMMENT: sampled every 10 s
-License:\tCC-BY-4.0
+{shaft}License:\tCC-BY-4.0
 Size:\t{size} data points
 */
 """
@@ -203,6 +203,7 @@ def write_dship_log(
     *,
     rng: np.random.Generator,
     seed: int,
+    shaft_rpm: np.ndarray | None = None,
 ) -> tuple[Path, dict]:
     """Write the ship log of *profile* as a PANGAEA-like tab-separated file.
 
@@ -215,6 +216,8 @@ def write_dship_log(
     around 55 % of the voyage (no rows), the water-temperature sensor for 40 min around
     35 % (empty cells), wind for 20 min around 80 %; the air-temperature sensor is faulty
     over 20 % of the voyage from 60 % on: 15 % of its readings are spikes of ±(20-35) °C.
+    With *shaft_rpm* (one value per second of the profile [rpm]) the log also carries
+    ``Shaft speed [rpm]`` every second, rounded to 0.1 rpm.
 
     Returns
     -------
@@ -266,8 +269,7 @@ def write_dship_log(
         _fmt(wind[keep], 1),
         _fmt(wind_dir[keep], 0),
     ]
-    header = "\t".join(
-        [
+    names = [
             "Date/Time",
             "Latitude",
             "Longitude",
@@ -276,13 +278,22 @@ def write_dship_log(
             "TTT [°C]",
             "ff [m/s]",
             "RelWindDir [deg]",
-        ]
-    )
+    ]
+    if shaft_rpm is not None:
+        columns.append(_fmt(np.abs(np.asarray(shaft_rpm, dtype=float))[keep], 1))
+        names.append("Shaft speed [rpm]")
+    header = "\t".join(names)
     lines = ["\t".join(row) for row in zip(*columns, strict=True)]
     first = frame.iloc[0]
     text = (
         _HEADER.format(
-            seed=seed, lat=first["latitude"], lon=first["longitude"], size=int(keep.sum()) * 7
+            seed=seed,
+            lat=first["latitude"],
+            lon=first["longitude"],
+            size=int(keep.sum()) * (len(names) - 1),
+            shaft=""
+            if shaft_rpm is None
+            else "\tShaft speed * SHORT_NAME: Shaft speed * UNIT: rpm\n",
         )
         + header
         + "\n"

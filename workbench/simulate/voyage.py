@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import warnings
 from collections.abc import Callable
@@ -31,10 +32,10 @@ from ..dynamics import (
     stationary_covariance,
 )
 from .hull import CHANNELS, MODE_LAWS, REFERENCE_CONDITIONS, mode_shapes, true_modal_parameters
-from .imitation import SHAFT_HZ_PER_KN, imitate_identification
+from .imitation import imitate_identification
 from .profile import operating_profile, write_dship_log
 
-__all__ = ["DEFAULT_HOURS", "VoyageSummary", "simulate_voyage"]
+__all__ = ["DEFAULT_HOURS", "ShaftHarmonics", "VoyageSummary", "simulate_voyage"]
 
 #: Default voyage length. [h]
 DEFAULT_HOURS = 12.0
@@ -58,6 +59,57 @@ MODE_RMS_MS2 = np.array([0.020, 0.012, 0.015, 0.008, 0.012, 0.010, 0.008])
 SENSOR_NOISE_MS2 = 0.001
 #: Shaft-harmonic amplitude at 10 kn (scales with speed²). [m/s²]
 SHAFT_AMPLITUDE_MS2 = 0.008
+#: Blade-pass amplitude at 10 kn (scales with speed²). [m/s²]
+BLADE_PASS_AMPLITUDE_MS2 = 0.004
+#: Noise of the logged shaft speed. [rpm]
+SHAFT_RPM_NOISE = 0.2
+
+
+@dataclass(frozen=True)
+class ShaftHarmonics:
+    """The shaft line's harmonics in a simulated voyage (fixed-pitch propeller: the shaft
+    rate is proportional to the ship's speed).
+
+    Parameters
+    ----------
+    hz_per_kn : float
+        Shaft rate per knot of speed; the shaft turns at 60 x hz_per_kn x speed_kn rpm. [Hz/kn]
+    orders : tuple of int
+        Shaft orders in the accelerations, each with amplitude
+        :data:`SHAFT_AMPLITUDE_MS2` x (speed / 10 kn)². [-]
+    blades : int
+        Propeller blades: the blade-pass order (blades x shaft rate) is added with
+        amplitude :data:`BLADE_PASS_AMPLITUDE_MS2` x (speed / 10 kn)²; 0 leaves it out. [-]
+    log_rpm : bool
+        Log the shaft speed in the ship log (``Shaft speed [rpm]``, 1 s rows, noise
+        :data:`SHAFT_RPM_NOISE`).
+
+    The orders are phase-locked to the shaft (order k has phase k x the shaft's phase)
+    and share a stern-heavy shape (propeller pressure pulses and shaft-line forces enter
+    at the stern).
+    """
+
+    hz_per_kn: float = 0.3
+    orders: tuple[int, ...] = (1,)
+    blades: int = 5
+    log_rpm: bool = True
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.hz_per_kn) and self.hz_per_kn > 0):
+            raise ValueError(f"hz_per_kn={self.hz_per_kn} must be a positive rate per knot")
+        orders = tuple(int(k) for k in self.orders)
+        if any(k < 1 for k in orders) or any(k != o for k, o in zip(orders, self.orders)):
+            raise ValueError(f"orders={self.orders!r} must be whole orders of at least 1")
+        object.__setattr__(self, "orders", orders)
+        if int(self.blades) != self.blades or self.blades < 0:
+            raise ValueError(f"blades={self.blades} must be a whole number of at least 0")
+
+    def components(self) -> list[tuple[float, float]]:
+        """(order, amplitude at 10 kn [m/s²]) of every harmonic in the accelerations."""
+        out = [(float(k), SHAFT_AMPLITUDE_MS2) for k in self.orders]
+        if self.blades:
+            out.append((float(self.blades), BLADE_PASS_AMPLITUDE_MS2))
+        return out
 #: Channels with short NaN dropouts, and the channel that is dead for an hour.
 DROPOUT_CHANNELS = ("acc07", "acc15")
 DEAD_CHANNEL = "acc12"
@@ -123,6 +175,7 @@ def simulate_voyage(
     accelerations: bool = True,
     progress: Callable[[int, int], None] | None = None,
     sampling_rate_hz: float = SAMPLING_RATE_HZ,
+    shaft: ShaftHarmonics | None = None,
 ) -> VoyageSummary:
     """Simulate a demo voyage and write all its files into *out_dir*.
 
@@ -149,6 +202,10 @@ def simulate_voyage(
         at :data:`GENERATOR_HZ` (60 Hz, 30 mm/s²): content above the band that the
         decimation must remove (it would alias to 4 Hz at 64 Hz). Dropout lengths are the
         same in seconds.
+    shaft : ShaftHarmonics, optional
+        The shaft and blade-pass orders and whether the log carries the shaft speed
+        (default :class:`ShaftHarmonics`: order 1 at 0.3 Hz/kn and the blade pass of 5
+        blades, shaft speed logged).
 
     Returns
     -------
@@ -161,8 +218,9 @@ def simulate_voyage(
     * ``accelerations/acc_YYYYmmddTHHMMSSZ.npz``: 5-min records, 19 channels, 64 Hz [m/s²]:
       response of the 7 modes (:mod:`workbench.dynamics`, white-noise modal forces
       scaled by 0.5 + 0.1 speed_kn, modal parameters constant within a file at the file
-      mean of the law), shaft harmonic at 0.3 Hz/kn x speed (amplitude 8 mm/s² x
-      (speed/10 kn)², stern-heavy shape), sensor noise 1 mm/s², NaN dropouts (short runs
+      mean of the law), shaft orders at k x 0.3 Hz/kn x speed (amplitude 8 mm/s² x
+      (speed/10 kn)², stern-heavy shape) and the blade pass (4 mm/s² x (speed/10 kn)²;
+      :class:`ShaftHarmonics`), sensor noise 1 mm/s², NaN dropouts (short runs
       of 0.5-5 s on acc07 and acc15, acc12 dead for 1 h from 40 % of the voyage).
     * ``dship.tsv``: the ship log (:func:`~workbench.simulate.profile.write_dship_log`).
     * ``truth_predictors.csv`` (PREDICTORS contract, plus ``elapsed_hours``): block means
@@ -177,6 +235,7 @@ def simulate_voyage(
     Only one 5-min file of accelerations is in memory at a time.
     """
     hours = DEFAULT_HOURS if hours is None else float(hours)
+    shaft = ShaftHarmonics() if shaft is None else shaft
     rate = float(sampling_rate_hz)
     multiple = rate / SAMPLING_RATE_HZ
     if not (rate > 0 and multiple >= 1 and abs(multiple - round(multiple)) < 1e-9):
@@ -199,7 +258,15 @@ def simulate_voyage(
 
     profile = operating_profile(start, hours, rng=profile_rng)
     truth = profile.predictors
-    dship_path, defects = write_dship_log(profile, out / "dship.tsv", rng=log_rng, seed=seed)
+    shaft_rpm = None
+    if shaft.log_rpm:
+        # its own stream: the other log columns stay as they were without the shaft
+        rpm_rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(7)[6])
+        true_rpm = 60.0 * shaft.hz_per_kn * truth["speed_kn"].to_numpy()
+        shaft_rpm = true_rpm + SHAFT_RPM_NOISE * rpm_rng.standard_normal(len(true_rpm))
+    dship_path, defects = write_dship_log(
+        profile, out / "dship.tsv", rng=log_rng, seed=seed, shaft_rpm=shaft_rpm
+    )
 
     # modal parameters: law at 1 s, averaged per 5-min file (constant within a file)
     per_second = true_modal_parameters(truth)
@@ -282,6 +349,7 @@ def simulate_voyage(
             (dead_start_file, dead_start_file + dead_files),
             progress,
             rate,
+            shaft,
         )
 
     summary = {
@@ -313,7 +381,17 @@ def simulate_voyage(
             "air_stiffness*(air_temp_c + 2) + speed_water_stiffness*(speed_kn/10)*"
             "(water_temp_c - 2); zeta = zeta0 (1 + speed_damping*speed_kn/10)",
         },
-        "shaft_harmonic_hz_per_kn": SHAFT_HZ_PER_KN,
+        "shaft_harmonic_hz_per_kn": shaft.hz_per_kn,
+        "shaft": {
+            "hz_per_kn": shaft.hz_per_kn,
+            "rpm_per_kn": 60.0 * shaft.hz_per_kn,
+            "orders": list(shaft.orders),
+            "blades": shaft.blades,
+            "rpm_logged": shaft.log_rpm,
+            "harmonics": [
+                {"order": k, "amplitude_ms2_at_10kn": a} for k, a in shaft.components()
+            ],
+        },
         "defects": {
             **defects,
             "dead_channel": DEAD_CHANNEL,
@@ -405,12 +483,15 @@ def _write_accelerations(
     dead_files: tuple[int, int],
     progress,
     rate: float = SAMPLING_RATE_HZ,
+    shaft: ShaftHarmonics | None = None,
 ) -> list[Path]:
     folder.mkdir(parents=True, exist_ok=True)
     n_files = len(file_frequency)
     n_samples = int(round(FILE_SECONDS * rate))
     # white noise keeps its spectral density at any rate: per-sample std ~ sqrt(rate)
     density_scale = np.sqrt(rate / SAMPLING_RATE_HZ)
+    shaft = ShaftHarmonics() if shaft is None else shaft
+    harmonics = shaft.components()
     shaft_shape = _shaft_shape()
     dropout_columns = [CHANNELS.index(c) for c in DROPOUT_CHANNELS]
     dead_column = CHANNELS.index(DEAD_CHANNEL)
@@ -449,13 +530,16 @@ def _write_accelerations(
         )
         state = result.state
         acceleration = result.response
-        # shaft harmonic, phase continuous across files
+        # shaft orders and blade pass, phase-locked to the shaft, continuous across files
         t = k * FILE_SECONDS + np.arange(n_samples) / rate
         speed = np.interp(t, seconds, speed_seconds)
-        phase = shaft_phase + 2 * np.pi * np.cumsum(SHAFT_HZ_PER_KN * speed) / rate
+        phase = shaft_phase + 2 * np.pi * np.cumsum(shaft.hz_per_kn * speed) / rate
         shaft_phase = float(np.mod(phase[-1], 2 * np.pi))
-        amplitude = SHAFT_AMPLITUDE_MS2 * (speed / 10.0) ** 2
-        acceleration += (amplitude * np.sin(phase))[:, None] * shaft_shape
+        speed_level = (speed / 10.0) ** 2
+        forced = np.zeros(n_samples)
+        for order, amplitude in harmonics:
+            forced += amplitude * speed_level * np.sin(order * phase)
+        acceleration += forced[:, None] * shaft_shape
         if rate >= 160.0:
             hum = GENERATOR_AMPLITUDE_MS2 * np.sin(2 * np.pi * GENERATOR_HZ * t)
             acceleration += hum[:, None] * shaft_shape

@@ -34,6 +34,7 @@ import importlib
 _EXPORTS = {
     "identify": "identification",
     "IdentifyOptions": "identification",
+    "HarmonicOptions": "identification",
     "IdentifyStageResult": "identification",
     "track": "tracking",
     "TrackResult": "tracking",

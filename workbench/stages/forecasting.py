@@ -240,7 +240,8 @@ def forecast(
     predictors : DataFrame
         Block predictors (PREDICTORS contract); their blocks are the forecast's grid.
     poles : DataFrame, optional
-        Pole table (POLES contract), needed for option B.
+        Pole table (POLES contract), needed for option B; poles marked as shaft or
+        blade-pass harmonics (``harmonic`` column) are left out.
     cases : None, "derive", path or DataFrame
         Each window forecasts with the model of the current operating case.
     options : ForecastOptions, optional
@@ -255,6 +256,9 @@ def forecast(
     predictors = read_any_table(predictors, PREDICTORS, name="predictors")
     if poles is not None:
         poles = read_any_table(poles, POLES, name="poles")
+        if "harmonic" in poles.columns:
+            # option B measures the pole nearest the prediction: never a shaft harmonic's
+            poles = poles[poles["harmonic"].isna()].reset_index(drop=True)
     if "B" in options.options and poles is None:
         raise ValueError("option B needs the pole table (poles=...)")
     kept, lines = persistent_modes(

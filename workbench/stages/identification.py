@@ -18,6 +18,7 @@ from data_contracts import POLES, read_table
 
 from ..errors import WorkbenchError
 from ..identify import IdentifyOptions, IdentifyResult, identify_voyage
+from ..sid.harmonics import HarmonicOptions
 from ._base import StageResult, write_frame
 
 __all__ = ["IdentifyOptions", "IdentifyStageResult", "identify"]
@@ -93,6 +94,9 @@ def identify(
     progress: bool = False,
     batch_blocks: int = 16,
     keep_removed_inputs: bool = False,
+    dship: str | os.PathLike | pd.DataFrame | None = None,
+    dship_mapping: dict[str, str] | None = None,
+    harmonics: HarmonicOptions | None = None,
 ) -> IdentifyStageResult:
     """Identify every block of a voyage's acceleration files.
 
@@ -110,6 +114,11 @@ def identify(
         Parallel execution (:func:`workbench.identify.identify_voyage`).
     keep_removed_inputs : bool
         Keep the stored blocks of input files no longer given (default: drop them).
+    dship, dship_mapping : optional
+        The voyage's ship log and its column names: the shaft speed (or the speed) marks
+        the shaft and blade-pass harmonics, which tracking keeps out of the modes.
+    harmonics : HarmonicOptions, optional
+        Orders and blade count of the harmonic tests (:mod:`workbench.sid.harmonics`).
 
     Raises
     ------
@@ -130,6 +139,9 @@ def identify(
         progress=progress,
         batch_blocks=batch_blocks,
         keep_removed_inputs=keep_removed_inputs,
+        dship=dship,
+        dship_mapping=dship_mapping,
+        harmonics=harmonics,
     )
     summary = run.summary
     if summary.processed == 0 and summary.already_done == 0:

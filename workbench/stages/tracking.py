@@ -164,4 +164,15 @@ def track(
             for m, r in result.modes.iterrows()
         )
     )
+    harmonic_labels = tracked.attrs.get("harmonic_labels", [])
+    if harmonic_labels:
+        result.lines.append(
+            f"{len(harmonic_labels)} tracked label(s) were shaft or blade-pass harmonics, not "
+            "modes, and were left out: "
+            + ", ".join(
+                f"{h['frequency_hz']:.3f} Hz ({h['blocks']} blocks, {100 * h['share']:.0f} % "
+                "marked)"
+                for h in harmonic_labels
+            )
+        )
     return result

@@ -130,6 +130,17 @@
       item.prepend(swatch);
       legend.append(item);
     }
+    // shaft orders (not modes): dashed grey lines, no markers
+    for (const h of d.harmonics || []) {
+      series.push({ key: `order ${h.order}`, cls: "harmonic", x: h.t, y: h.frequency_hz,
+                    block: h.block, noMarkers: true });
+    }
+    if ((d.harmonics || []).length) {
+      const item = el("span", { "data-harmonics": d.harmonics.map((h) => h.order).join(",") },
+                      `shaft orders ${d.harmonics.map((h) => `${h.order}×`).join(" ")}`);
+      item.prepend(el("i", { class: "harmonic" }));
+      legend.append(item);
+    }
     drawChart(svg, { series, ylabel: "frequency [Hz]", markers: true });
     return d.block;
   };
@@ -279,7 +290,7 @@
       const path = el("svg:path", { d, class: s.cls || "" });
       if (s.colour) { path.setAttribute("stroke", s.colour); }
       g.append(path);
-      if (spec.markers) {
+      if (spec.markers && !s.noMarkers) {
         for (let i = 0; i < s.x.length; i++) {
           if (s.y[i] === null) continue;
           g.append(el("svg:circle", { cx: X(s.x[i]).toFixed(1), cy: Y(s.y[i]).toFixed(1), r: 1.8, fill: s.colour }));

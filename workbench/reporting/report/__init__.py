@@ -33,6 +33,7 @@ from .sections import (
     correlation_section,
     crosscheck_section,
     forecast_section,
+    harmonics_section,
     identification_section,
     modes_section,
     regression_section,
@@ -116,6 +117,7 @@ def build_report(
             data, stabilisation_blocks=stabilisation_blocks, n_stabilisation=n_stabilisation
         ),
         modes_section(data),
+        harmonics_section(data),
         correlation_section(data),
         regression_section(data),
         forecast_section(data),

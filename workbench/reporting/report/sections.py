@@ -193,6 +193,40 @@ def modes_section(data: RunData) -> ReportSection | None:
     return None
 
 
+def harmonics_section(data: RunData) -> ReportSection | None:
+    """Campbell view of the identification: frequency against shaft speed, the shaft and
+    blade-pass orders drawn, the harmonics marked, the tracked modes in their colours."""
+    import json
+
+    folder = data.run.identify
+    if folder is None or not (folder / "shaft.csv").is_file():
+        return None
+    if not (folder / "selected.parquet").is_file():
+        return None
+    selected = pd.read_parquet(folder / "selected.parquet")
+    shaft = pd.read_csv(folder / "shaft.csv")
+    summary = {}
+    if (folder / "harmonics.json").is_file():
+        summary = json.loads((folder / "harmonics.json").read_text(encoding="utf-8"))
+    section = ReportSection("harmonics", "Shaft harmonics (Campbell view)")
+    section.paragraphs += list(summary.get("lines", []))
+    section.paragraphs.append(
+        "Every selected mode of every block at the block's shaft speed, weighted by rpm⁴ "
+        "where the harmonics' energy is (or at its speed, when the shaft speed is not logged): a structural mode keeps its frequency whatever the "
+        "shaft speed, a shaft order follows its line f = k × rpm / 60 (dashed). Red crosses: "
+        "harmonics, kept out of the tracked modes, forecasts and health charts; grey: "
+        "selected modes tracked as nothing."
+    )
+    fig = views.plot_campbell(
+        selected,
+        shaft,
+        modal=data.modal,
+        orders=summary.get("orders", ()) if summary.get("method") == "shaft speed" else (),
+    )
+    section.figures.append(("Campbell view", data.figures.save(fig, "campbell")))
+    return section
+
+
 def correlation_section(data: RunData) -> ReportSection | None:
     """Pearson r of the modes that are present in at least half the blocks with the
     predictors, per case, with significance on the effective number of blocks."""

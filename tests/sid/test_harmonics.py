@@ -1,0 +1,234 @@
+"""Shaft and blade-pass harmonics: marks from the shaft speed and from speed-following.
+
+Reference values are analytic: with a constant shaft speed n the order k sits at exactly
+k n / 60 (all its energy there); with a shaft speed ramping linearly from 0 to N over the
+block and the energy weighted by n⁴, the share of the order within a band [a, b] of
+frequencies is (b⁵ - a⁵) / F⁵, F = k N / 60.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from data_contracts import SELECTED, read_dship, shape_columns
+from workbench.sid.harmonics import (
+    HarmonicOptions,
+    block_shaft_table,
+    mark_harmonics,
+    mark_shaft_orders,
+    mark_speed_following,
+)
+from workbench.sid.tracking import TrackingOptions, track_modes
+
+CHANNELS = [f"c{j}" for j in range(6)]
+START = pd.Timestamp("2024-03-01T00:00:00Z")
+SHAPE_MODE = np.array([1.0, 0.8, 0.3, -0.3, -0.8, -1.0])
+SHAPE_FORCED = np.array([1.0, 0.6, 0.35, 0.2, 0.1, 0.05])
+
+
+def _selected(rows) -> pd.DataFrame:
+    """Selected-modes table of (block, frequency [Hz], shape) rows, 20-min blocks end to end."""
+    frame = pd.DataFrame(
+        {
+            "block": [b for b, _, _ in rows],
+            "block_start": [START + pd.Timedelta(minutes=20 * b) for b, _, _ in rows],
+            "block_end": [START + pd.Timedelta(minutes=20 * b + 20) for b, _, _ in rows],
+            "frequency_hz": [f for _, f, _ in rows],
+            "damping_ratio": 0.01,
+        }
+    )
+    shapes = np.array([s / np.linalg.norm(s) for _, _, s in rows])
+    re, im = shape_columns(CHANNELS)[: len(CHANNELS)], shape_columns(CHANNELS)[len(CHANNELS) :]
+    for j, (r, i) in enumerate(zip(re, im, strict=True)):
+        frame[r] = shapes[:, j]
+        frame[i] = 0.0
+    return frame
+
+
+def _log(rpm_of_second, seconds: int, speed_of_second=None) -> pd.DataFrame:
+    t = np.arange(seconds)
+    log = pd.DataFrame({"time": START + pd.to_timedelta(t, unit="s")})
+    log["shaft_rpm"] = rpm_of_second(t)
+    if speed_of_second is not None:
+        log["speed_kn"] = speed_of_second(t)
+    return log
+
+
+def test_constant_shaft_speed_marks_each_order_and_the_blade_pass():
+    selected = _selected(
+        [
+            (0, 3.0, SHAPE_FORCED),  # order 1 of 180 rpm
+            (0, 2.85, SHAPE_MODE),  # 5 % below it: a mode
+            (0, 6.03, SHAPE_FORCED),  # order 2, 0.5 % off
+            (0, 15.0, SHAPE_FORCED),  # blade pass of 5 blades
+            (0, 7.4, SHAPE_MODE),
+        ]
+    )
+    log = _log(lambda t: np.full(t.shape, 180.0), 1200)
+    marks = mark_shaft_orders(selected, log, HarmonicOptions(blades=5))
+    assert marks.tolist()[0] == 1.0 and marks.tolist()[2] == 2.0 and marks.tolist()[3] == 5.0
+    assert np.isnan(marks.iloc[1]) and np.isnan(marks.iloc[4])
+    # without the blade count, the blade pass (order 5) is not checked
+    assert np.isnan(mark_shaft_orders(selected, log, HarmonicOptions()).iloc[3])
+
+
+@pytest.mark.parametrize(("min_share", "marked"), [(0.152, True), (0.158, False)])
+def test_ramp_share_is_the_energy_weighted_analytic_value(min_share, marked):
+    # shaft speed 0 -> 180 rpm linearly over the block: order 1 sweeps 0 -> 3 Hz; the
+    # share within ±2 % of 2.85 Hz is (2.907⁵ - 2.793⁵) / 3⁵ = 0.1549
+    a, b, top = 2.85 * 0.98, 2.85 * 1.02, 3.0
+    assert (b**5 - a**5) / top**5 == pytest.approx(0.1549, abs=1e-4)
+    selected = _selected([(0, 2.85, SHAPE_MODE)])
+    log = _log(lambda t: 180.0 * t / 1200.0, 1200)
+    mark = mark_shaft_orders(selected, log, HarmonicOptions(orders=(1,), min_share=min_share))
+    assert bool(mark.iloc[0] == 1.0) is marked
+
+
+def test_a_heavily_damped_pole_counts_the_energy_within_its_bandwidth():
+    # ramp 0 -> 180 rpm: within ±2 % of 2.4 Hz lies (2.448⁵ - 2.352⁵) / 3⁵ = 0.066 of the
+    # order's energy, within ±ζ = ±7 % of it (2.568⁵ - 2.232⁵) / 3⁵ = 0.232
+    assert (2.448**5 - 2.352**5) / 3.0**5 == pytest.approx(0.0656, abs=1e-4)
+    assert (2.568**5 - 2.232**5) / 3.0**5 == pytest.approx(0.2316, abs=1e-4)
+    selected = _selected([(0, 2.4, SHAPE_FORCED), (0, 2.4, SHAPE_FORCED)])
+    selected["damping_ratio"] = [0.01, 0.07]
+    log = _log(lambda t: 180.0 * t / 1200.0, 1200)
+    marks = mark_shaft_orders(selected, log, HarmonicOptions(orders=(1,)))
+    assert np.isnan(marks.iloc[0]) and marks.iloc[1] == 1.0
+
+
+def test_block_without_logged_shaft_speed_is_not_marked():
+    selected = _selected([(0, 3.0, SHAPE_FORCED), (8, 3.0, SHAPE_FORCED)])
+    log = _log(lambda t: np.full(t.shape, 180.0), 1200)  # covers block 0 only
+    marks = mark_shaft_orders(selected, log)
+    assert marks.iloc[0] == 1.0 and np.isnan(marks.iloc[1])
+
+
+def _voyage_rows():
+    """12 blocks at 5..10 kn: a forced response at 0.3 Hz/kn (shape fixed) and a mode at
+    2.9 Hz (its own shape)."""
+    speeds = np.linspace(5.0, 10.0, 12)
+    rows = []
+    for k, v in enumerate(speeds):
+        rows.append((k, 0.3 * v, SHAPE_FORCED))
+        rows.append((k, 2.9, SHAPE_MODE))
+    return speeds, rows
+
+
+def test_speed_following_marks_the_forced_response_not_the_mode():
+    speeds, rows = _voyage_rows()
+    selected = _selected(rows)
+    block_speed = np.repeat(speeds, 1200)
+    log = _log(lambda t: np.full(t.shape, np.nan), len(block_speed), lambda t: block_speed[t])
+    shaft = block_shaft_table(log.drop(columns="shaft_rpm"), selected)
+    np.testing.assert_allclose(shaft["speed_energy_kn"], speeds)
+    marks = mark_speed_following(selected, shaft)
+    forced = selected.index[::2]
+    assert (marks[forced] == 0.0).all()
+    # the mode is marked only where an order's ratio (k x 0.3 Hz/kn, k = 1, 2, 3) puts it
+    # on the mode: 2.9 Hz / v within 3 % of 0.3 Hz/kn, i.e. the block at 9.55 kn
+    crossed = np.abs(np.log(2.9 / speeds / 0.3)) <= 0.03
+    assert crossed.sum() == 1
+    np.testing.assert_array_equal(marks.drop(forced).notna().to_numpy(), crossed)
+    # the same through mark_harmonics, which falls back to it without a shaft speed
+    result = mark_harmonics(selected, selected.iloc[:0], log.drop(columns="shaft_rpm"))
+    assert result.method == "speed"
+    assert result.selected["harmonic"].notna().sum() == len(forced) + 1
+
+
+def test_speed_following_needs_a_sweep():
+    # the forced response at one speed only: its frequency does not move, nothing marked
+    rows = [(k, 3.0, SHAPE_FORCED) for k in range(12)]
+    selected = _selected(rows)
+    log = _log(lambda t: np.full(t.shape, np.nan), 12 * 1200, lambda t: np.full(t.shape, 10.0))
+    shaft = block_shaft_table(log.drop(columns="shaft_rpm"), selected)
+    assert mark_speed_following(selected, shaft).isna().all()
+
+
+def test_without_a_log_nothing_is_marked_and_the_columns_exist():
+    _, rows = _voyage_rows()
+    selected = _selected(rows)
+    result = mark_harmonics(selected, selected.iloc[:0].assign(model_order=[]), None)
+    assert result.method == "none"
+    assert result.selected["harmonic"].isna().all()
+    SELECTED.validate(result.selected)
+
+
+def test_tracking_drops_the_harmonic_label_and_keeps_the_crossed_mode():
+    speeds, rows = _voyage_rows()
+    selected = _selected(rows)
+    log = _log(
+        lambda t: 18.0 * np.repeat(speeds, 1200)[t], 12 * 1200
+    )  # rpm = 60 x 0.3 Hz/kn x speed
+    selected["harmonic"] = mark_shaft_orders(selected, log)
+    # order 1 passes the mode (2.9 Hz) at 9.67 kn: the block at 9.55 kn is within 2 %
+    assert selected["harmonic"].iloc[::2].eq(1.0).all()
+    tracked = track_modes(selected, options=TrackingOptions(frequency_tol=0.5))
+    assert tracked["mode"].nunique() == 1
+    assert tracked["frequency_hz"].eq(2.9).all() and len(tracked) == 12
+    assert "harmonic" not in tracked.columns
+    assert [h["blocks"] for h in tracked.attrs["harmonic_labels"]] == [12]
+
+
+def test_options_are_checked():
+    with pytest.raises(ValueError, match="blades") as error:
+        HarmonicOptions(blades=-1)
+    assert "at least 0" in str(error.value)
+    with pytest.raises(ValueError, match="orders"):
+        HarmonicOptions(orders=(0.0,))
+    with pytest.raises(ValueError, match="harmonic_share"):
+        TrackingOptions(harmonic_share=0.0)
+
+
+def test_cli_identify_with_the_ship_log_marks_and_writes_the_shaft_table(tmp_path, capsys):
+    from workbench.cli import main
+
+    voyage = tmp_path / "voyage"
+    assert main(["simulate", "--out", str(voyage), "--hours", "0.5", "--quiet"]) == 0
+    out = tmp_path / "identify"
+    common = ["--band", "2", "12", "--max-order", "30", "--scheduler", "synchronous", "--quiet"]
+    argv = ["identify", str(voyage / "accelerations"), "--out", str(out), *common]
+    assert main([*argv, "--dship", str(voyage / "dship.tsv"), "--blades", "5"]) == 0
+    assert "orders 1, 2, 3, 5, 10 of the logged shaft speed" in capsys.readouterr().out
+    shaft = pd.read_csv(out / "shaft.csv")
+    log = read_dship(voyage / "dship.tsv")
+    first = log[log["time"] < log["time"].iloc[0] + pd.Timedelta(minutes=20)]
+    rpm = first["shaft_rpm"].abs()  # weighted by rpm⁴, where the harmonics' energy is
+    assert shaft["shaft_rpm"].iloc[0] == pytest.approx((rpm**5).sum() / (rpm**4).sum())
+    selected = SELECTED.validate(pd.read_parquet(out / "selected.parquet"))
+    assert "harmonic" in selected.columns
+    assert "harmonic" in pd.read_parquet(out / "poles.parquet").columns
+    # a bad order list is a usage error; a log that is not one is bad data, one line
+    assert main([*argv, "--dship", str(voyage / "dship.tsv"), "--harmonic-orders", "0"]) == 2
+    assert "--harmonic-orders" in capsys.readouterr().err
+    (tmp_path / "log.tsv").write_text("nothing here\n", encoding="utf-8")
+    assert main([*argv, "--dship", str(tmp_path / "log.tsv")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "log.tsv" in err[0]
+
+
+def test_a_mode_an_order_sits_on_is_kept_because_it_does_not_follow_the_order():
+    # 20 blocks at 9.85-10.15 kn: order 1 (0.29 Hz/kn) sits within ±1.5 % of the mode at
+    # 2.9 Hz in 13 of them (marked), the order is elsewhere in the other 7; the mode stays
+    # at 2.9 Hz while the order's frequency follows the shaft (slope 0), the harmonic
+    # follows it (slope 1)
+    speeds = np.linspace(9.85, 10.15, 20)
+    rows = []
+    for k, v in enumerate(speeds):
+        rows.append((k, 0.29 * v * 1.01, SHAPE_FORCED))
+        rows.append((k, 2.9, SHAPE_MODE))
+    selected = _selected(rows)
+    selected["harmonic"] = 1.0
+    selected["harmonic_frequency_hz"] = np.repeat(0.29 * speeds, 2)
+    away = selected.index[1::2][13:]  # the mode's last 7 rows: no order near it
+    selected.loc[away, ["harmonic", "harmonic_frequency_hz"]] = np.nan
+    tracked = track_modes(selected, options=TrackingOptions(frequency_tol=0.5))
+    assert tracked["frequency_hz"].eq(2.9).all() and len(tracked) == 20
+    assert [h["blocks"] for h in tracked.attrs["harmonic_labels"]] == [20]
+    # without the order's frequency the majority rule alone drops both
+    tracked = track_modes(selected.drop(columns="harmonic_frequency_hz"))
+    assert tracked.empty
+    # marked in every block, the mode is taken for a harmonic: nothing tells them apart
+    selected["harmonic"] = 1.0
+    assert track_modes(selected, options=TrackingOptions(frequency_tol=0.5)).empty

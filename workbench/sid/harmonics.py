@@ -1,0 +1,568 @@
+"""Shaft and blade-pass harmonics: which selected modes and poles are orders of the shaft.
+
+A ship's hull carries the shaft rate, its orders and the blade-pass rate (blades x shaft
+rate). They are forced responses: their frequency follows the shaft speed exactly
+(order x rpm / 60), they sweep with the ship's speed and cross the structural modes, and
+SSI identifies them as lightly damped poles whose shape is the hull's forced deflection.
+This module marks them, so that tracking keeps them out of the modal tables.
+
+Two tests, by what the ship log offers:
+
+* **Shaft speed logged** (:func:`mark_shaft_orders`): a selected mode is order k of the
+  shaft when a large share of the order's energy in the block lies within a relative
+  tolerance of the mode's frequency. The order's frequency is k x rpm(t) / 60 at every
+  logged time of the block, and its energy is weighted by rpm⁴ (propeller and shaft-line
+  forces grow as the square of the rate, their power as its fourth power). A harmonic's
+  pole sits where its energy is; a structural mode that an order only sweeps past (a
+  speed ramp) holds a small share and is kept.
+* **Speed logged, shaft speed not** (:func:`mark_speed_following`): with a fixed-pitch
+  propeller the shaft rate is proportional to the speed, so a harmonic's frequency over
+  its energy-weighted block speed, f / v, is the same in every block, while its shape (the
+  forced deflection) stays fixed. A selected mode is marked (order unknown, ``0``) when at
+  least ``min_rows`` selected modes share its shape (MAC) and its ratio f / v and their
+  frequencies spread over more than ``min_sweep``: a structural mode's frequency moves by a
+  few per cent with speed, temperature and loading, never in proportion to the speed.
+
+Neither test touches a recording without a ship log (laboratory data): nothing is marked.
+
+The marks are the ``harmonic`` column of the pole and selected tables: the order (1, 2,
+..., the blade count for the blade pass), ``0`` for a harmonic found from the data whose
+order is unknown, NaN for none. Tracking drops every tracked label most of whose rows are
+marked (:class:`~workbench.sid.tracking.TrackingOptions` ``harmonic_share``), so a
+harmonic is never a row of the tracked modal table; a mode crossed by an order keeps its
+rows, since its shape is its own (the tracker gates on the shape).
+
+A block-wise test of the data alone was measured and left out: the kurtosis of the
+band-filtered modal response (1.5 for a pure sinusoid, 3 for a Gaussian random response;
+Brincker et al. 2000, Jacobsen 2006) does not separate the demo voyage's harmonics from
+its modes (``benchmarks/results/harmonics.txt``).
+
+References
+----------
+.. [1] R. Brincker, P. Andersen, N. Møller, "An indicator for separation of structural and
+   harmonic modes in output-only modal testing", Proceedings of IMAC XVIII, 2000.
+.. [2] N.-J. Jacobsen, "Separating structural modes and harmonic components in operational
+   modal analysis", Proceedings of IMAC XXIV, 2006.
+.. [3] R. B. Randall, B. Peeters, J. Antoni, S. Manzato, "New cepstral methods of signal
+   preprocessing for operational modal analysis", Proceedings of ISMA 2012, Leuven.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
+
+from data_contracts import shape_columns, shapes_from_frame
+
+__all__ = [
+    "HarmonicMarker",
+    "HarmonicMarks",
+    "HarmonicOptions",
+    "block_shaft_table",
+    "mark_harmonics",
+    "mark_poles",
+    "mark_shaft_orders",
+    "mark_speed_following",
+    "order_list",
+]
+
+#: Exponent of the harmonic's power in the shaft rate (force ∝ rate², power ∝ rate⁴). [-]
+POWER_EXPONENT = 4.0
+
+
+@dataclass(frozen=True)
+class HarmonicOptions:
+    """Settings of the harmonic tests (:func:`mark_harmonics`).
+
+    Attributes
+    ----------
+    orders : tuple of float
+        Shaft orders checked (1 = the shaft rate). [-]
+    blades : int
+        Propeller blades: the blade-pass order (and its double) is checked too; 0 for none
+        (or unknown). [-]
+    frequency_tol : float
+        Relative half-width around a selected mode's frequency within which an order's
+        energy counts as on the mode. [-]
+    min_share : float
+        Smallest share of an order's energy in the block within *frequency_tol* of a
+        selected mode for the mode to be that order. [-]
+    mac_min : float
+        Lowest MAC between the shapes of selected modes taken as one harmonic
+        (speed-following test) and between a marked mode and the poles marked with it. [-]
+    ratio_tol : float
+        Largest relative difference of frequency over block speed within one harmonic
+        (speed-following test). [-]
+    min_sweep : float
+        Smallest relative spread of frequency (max / min - 1) of a speed-following group. [-]
+    min_rows : int
+        Fewest selected modes in a speed-following group. [-]
+    min_speed_kn : float
+        Blocks slower than this are not used by the speed-following test. [kn]
+    """
+
+    orders: tuple[float, ...] = (1.0, 2.0, 3.0)
+    blades: int = 0
+    frequency_tol: float = 0.02
+    min_share: float = 0.2
+    mac_min: float = 0.9
+    ratio_tol: float = 0.03
+    min_sweep: float = 0.15
+    min_rows: int = 5
+    min_speed_kn: float = 2.0
+
+    def __post_init__(self) -> None:
+        orders = tuple(float(k) for k in self.orders)
+        if not orders or not all(math.isfinite(k) and k > 0 for k in orders):
+            raise ValueError(f"orders={self.orders!r} must be positive shaft orders")
+        object.__setattr__(self, "orders", orders)
+        if int(self.blades) != self.blades or self.blades < 0:
+            raise ValueError(f"blades={self.blades} must be a whole number of at least 0")
+        object.__setattr__(self, "blades", int(self.blades))
+        for name in ("frequency_tol", "min_share", "mac_min", "ratio_tol"):
+            value = float(getattr(self, name))
+            if not (0.0 < value <= 1.0):
+                raise ValueError(f"{name}={value:g} must lie in (0, 1]")
+        if not (self.min_sweep > 0):
+            raise ValueError(f"min_sweep={self.min_sweep:g} must be positive")
+        if int(self.min_rows) != self.min_rows or self.min_rows < 2:
+            raise ValueError(f"min_rows={self.min_rows} must be a whole number of at least 2")
+        if not (self.min_speed_kn >= 0):
+            raise ValueError(f"min_speed_kn={self.min_speed_kn:g} must be at least 0")
+
+
+def order_list(options: HarmonicOptions) -> tuple[float, ...]:
+    """The orders checked: the shaft orders, then the blade pass and its double."""
+    orders = list(options.orders)
+    if options.blades:
+        orders += [float(options.blades), 2.0 * options.blades]
+    return tuple(dict.fromkeys(orders))
+
+
+@dataclass(frozen=True)
+class HarmonicMarks:
+    """What :func:`mark_harmonics` found.
+
+    Attributes
+    ----------
+    selected, poles : DataFrame
+        The tables with their ``harmonic`` column.
+    method : {"shaft speed", "speed", "none"}
+        The test used: the logged shaft speed, the speed-following test, or none (no
+        usable ship log).
+    shaft : DataFrame
+        :func:`block_shaft_table` of the blocks: the Campbell view's abscissa.
+    orders : tuple of float
+        The orders checked (:func:`order_list`).
+    lines : list of str
+        Summary for the engineer.
+    """
+
+    selected: pd.DataFrame
+    poles: pd.DataFrame
+    method: str
+    shaft: pd.DataFrame
+    orders: tuple[float, ...] = ()
+    lines: list[str] = field(default_factory=list)
+
+
+def _block_slices(times: np.ndarray, blocks: pd.DataFrame):
+    """(block, start index, stop index) of the log rows inside each block's window."""
+    start = pd.to_datetime(blocks["block_start"], utc=True).to_numpy("datetime64[ns]")
+    end = pd.to_datetime(blocks["block_end"], utc=True).to_numpy("datetime64[ns]")
+    lo = np.searchsorted(times, start, side="left")
+    hi = np.searchsorted(times, end, side="left")
+    return zip(blocks["block"].to_numpy(dtype=int), lo, hi, strict=True)
+
+
+def _log_times(log: pd.DataFrame) -> np.ndarray:
+    return pd.to_datetime(log["time"], utc=True).dt.tz_convert(None).to_numpy("datetime64[ns]")
+
+
+def _blocks_of(table: pd.DataFrame) -> pd.DataFrame:
+    return (
+        table[["block", "block_start", "block_end"]]
+        .drop_duplicates("block")
+        .sort_values("block")
+        .reset_index(drop=True)
+    )
+
+
+def _naive(values: pd.Series) -> pd.Series:
+    return pd.to_datetime(values, utc=True).dt.tz_convert(None)
+
+
+def block_shaft_table(log: pd.DataFrame, blocks: pd.DataFrame) -> pd.DataFrame:
+    """Per block: the shaft speed weighted by its fourth power (where the harmonics' energy
+    is: on a speed ramp, the harmonic's pole sits near the top speed), the mean speed and the
+    speed weighted the same way.
+
+    Parameters
+    ----------
+    log : DataFrame
+        Canonical ship log (:func:`data_contracts.read_dship`): ``time`` and, when logged,
+        ``shaft_rpm`` [rpm] and ``speed_kn`` [kn].
+    blocks : DataFrame
+        ``block``, ``block_start``, ``block_end``.
+
+    Returns
+    -------
+    DataFrame
+        ``block``, ``block_start``, ``shaft_rpm`` [rpm], ``speed_kn`` [kn],
+        ``speed_energy_kn`` [kn]; NaN where not logged.
+    """
+    blocks = _blocks_of(blocks)
+    log = log.sort_values("time", kind="stable")
+    times = _log_times(log)
+    blocks_naive = blocks.assign(
+        block_start=_naive(blocks["block_start"]), block_end=_naive(blocks["block_end"])
+    )
+    rpm = log["shaft_rpm"].to_numpy(float) if "shaft_rpm" in log else None
+    speed = log["speed_kn"].to_numpy(float) if "speed_kn" in log else None
+    rows = []
+    for block, lo, hi in _block_slices(times, blocks_naive):
+        row = {"block": block, "shaft_rpm": np.nan, "speed_kn": np.nan, "speed_energy_kn": np.nan}
+        if rpm is not None and hi > lo:
+            values = np.abs(rpm[lo:hi])
+            values = values[np.isfinite(values)]
+            weight = values**POWER_EXPONENT
+            if len(values) and weight.sum() > 0:
+                row["shaft_rpm"] = float((weight * values).sum() / weight.sum())
+        if speed is not None and hi > lo:
+            values = np.abs(speed[lo:hi])
+            values = values[np.isfinite(values)]
+            if len(values):
+                row["speed_kn"] = float(values.mean())
+                weight = values**POWER_EXPONENT
+                if weight.sum() > 0:
+                    row["speed_energy_kn"] = float((weight * values).sum() / weight.sum())
+        rows.append(row)
+    table = pd.DataFrame(rows, columns=["block", "shaft_rpm", "speed_kn", "speed_energy_kn"])
+    table.insert(1, "block_start", pd.to_datetime(blocks["block_start"], utc=True).to_numpy())
+    table["block_start"] = pd.to_datetime(table["block_start"], utc=True)
+    return table
+
+
+def mark_shaft_orders(
+    selected: pd.DataFrame, log: pd.DataFrame, options: HarmonicOptions | None = None
+) -> pd.Series:
+    """The shaft order of each selected mode, from the logged shaft speed.
+
+    Parameters
+    ----------
+    selected : DataFrame
+        Selected modes (SELECTED contract): ``block``, ``block_start``, ``block_end``,
+        ``frequency_hz``.
+    log : DataFrame
+        Canonical ship log with ``time`` and ``shaft_rpm`` [rpm].
+    options : HarmonicOptions, optional
+
+    Returns
+    -------
+    Series
+        Aligned with *selected*: the order (of :func:`order_list`) whose energy in the
+        block lies on the mode, NaN for none (and for blocks without a logged shaft speed).
+
+    Notes
+    -----
+    With n(t) the logged shaft speed [rpm] at the block's log times and w(t) = n(t)⁴ the
+    order's relative energy, the share of order k on a mode at frequency f is
+
+    .. math:: s_k(f) = \\frac{\\sum_t w(t)\\,[|k\\,n(t)/60 - f| \\le τ f]}{\\sum_t w(t)},
+
+    τ = max(``frequency_tol``, ζ) with ζ the mode's damping ratio (a pole stands for the
+    energy within its half-power bandwidth ±ζ f; a harmonic smeared by a speed ramp is a
+    heavily damped pole); the mode is order k when s_k(f) >= ``min_share`` (the order with
+    the largest share when several qualify).
+    """
+    options = options or HarmonicOptions()
+    out = pd.Series(np.nan, index=selected.index, name="harmonic")
+    if "shaft_rpm" not in log.columns or selected.empty:
+        return out
+    orders = np.array(order_list(options))
+    log = log[["time", "shaft_rpm"]].dropna().sort_values("time", kind="stable")
+    times = _log_times(log)
+    rpm = np.abs(log["shaft_rpm"].to_numpy(float))
+    blocks = _blocks_of(selected)
+    blocks = blocks.assign(
+        block_start=_naive(blocks["block_start"]), block_end=_naive(blocks["block_end"])
+    )
+    rows_of = selected.groupby("block").indices
+    frequency = selected["frequency_hz"].to_numpy(float)
+    # a pole stands for the energy within its half-power bandwidth, ±ζ f: a harmonic
+    # smeared by a speed ramp is a heavily damped pole
+    damping = (
+        selected["damping_ratio"].to_numpy(float)
+        if "damping_ratio" in selected
+        else np.zeros(len(selected))
+    )
+    tol = np.fmax(options.frequency_tol, np.nan_to_num(np.abs(damping)))
+    for block, lo, hi in _block_slices(times, blocks):
+        if hi <= lo:
+            continue
+        rate_hz = rpm[lo:hi] / 60.0
+        weight = rate_hz**POWER_EXPONENT
+        total = weight.sum()
+        if not total > 0:
+            continue
+        lines = orders[:, None] * rate_hz[None, :]  # (orders, times) [Hz]
+        for row in rows_of[block]:
+            f = frequency[row]
+            share = ((np.abs(lines - f) <= tol[row] * f) * weight).sum(axis=1) / total
+            best = int(np.argmax(share))
+            if share[best] >= options.min_share:
+                out.iat[row] = orders[best]
+    return out
+
+
+def _shapes(table: pd.DataFrame) -> np.ndarray:
+    """Unit-norm complex shapes (rows), NaN channels as 0."""
+    _, shapes = shapes_from_frame(table[[c for c in table.columns if c.startswith("shape_")]])
+    shapes = np.nan_to_num(shapes)
+    norm = np.linalg.norm(shapes, axis=1, keepdims=True)
+    return shapes / np.where(norm > 0, norm, 1.0)
+
+
+def _mac_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """MAC between the unit-norm rows of *a* and of *b*."""
+    return np.abs(a @ b.conj().T) ** 2
+
+
+def mark_speed_following(
+    selected: pd.DataFrame, shaft: pd.DataFrame, options: HarmonicOptions | None = None
+) -> pd.Series:
+    """Selected modes whose frequency follows the speed while their shape stays fixed.
+
+    Parameters
+    ----------
+    selected : DataFrame
+        Selected modes with shape columns.
+    shaft : DataFrame
+        :func:`block_shaft_table` of the blocks (``speed_energy_kn``).
+    options : HarmonicOptions, optional
+
+    Returns
+    -------
+    Series
+        ``0.0`` (a harmonic of unknown order) for the marked modes, NaN for the others;
+        ``attrs["shaft_hz_per_kn"]``: the shaft rate per knot found (when any). [Hz/kn]
+
+    Notes
+    -----
+    Mode i of a block with energy-weighted speed v_i > ``min_speed_kn`` has the ratio
+    r_i = f_i / v_i. Its group is every mode j with |ln r_j - ln r_i| <= ``ratio_tol``
+    linked to mode i by a chain of shapes with MAC >= ``mac_min`` (a harmonic's forced
+    shape changes gradually with its frequency); mode i is marked when its group holds at
+    least ``min_rows`` modes whose frequencies spread by more than ``min_sweep``
+    (max / min - 1). A structural mode's frequency does not scale with speed, so its
+    group (same ratio, linked shapes) lies at one speed and one frequency.
+
+    The lowest ratio marked this way, r_1, is taken as the lowest order of ``orders``; every
+    mode whose ratio lies within ``ratio_tol`` of k r_1 / min(orders) for an order k of
+    :func:`order_list` (the blade pass included) is marked too: an order the voyage shows
+    at one speed only does not sweep. A structural mode is marked only in the blocks whose
+    speed puts an order on it, a minority of its blocks, so tracking keeps it.
+    """
+    options = options or HarmonicOptions()
+    out = pd.Series(np.nan, index=selected.index, name="harmonic")
+    if selected.empty or "speed_energy_kn" not in shaft:
+        return out
+    speed = selected["block"].map(shaft.set_index("block")["speed_energy_kn"]).to_numpy(float)
+    usable = np.isfinite(speed) & (speed > options.min_speed_kn)
+    if usable.sum() < options.min_rows:
+        return out
+    rows = np.flatnonzero(usable)
+    part = selected.iloc[rows]
+    frequency = part["frequency_hz"].to_numpy(float)
+    log_ratio = np.log(frequency / speed[rows])
+    shapes = _shapes(part)
+    same_shape = _mac_matrix(shapes, shapes) >= options.mac_min
+    same_ratio = np.abs(log_ratio[:, None] - log_ratio[None, :]) <= options.ratio_tol
+    marked = np.zeros(len(rows), dtype=bool)
+    for i in range(len(rows)):
+        if marked[i]:
+            continue
+        window = np.flatnonzero(same_ratio[i])
+        if len(window) < options.min_rows:
+            continue
+        # the modes of this ratio linked by shape, one step at a time (a forced shape
+        # changes gradually with frequency, near a mode it takes on the mode's shape)
+        _, component = connected_components(
+            csr_matrix(same_shape[np.ix_(window, window)]), directed=False
+        )
+        members = window[component == component[np.searchsorted(window, i)]]
+        spread = frequency[members].max() / frequency[members].min() - 1.0
+        if len(members) >= options.min_rows and spread > options.min_sweep:
+            marked[i] = True
+    if marked.any():
+        # the lowest sweeping harmonic is taken as the shaft rate (order 1): the other
+        # orders (and the blade pass) are at k times its ratio, also where they do not sweep
+        base = float(np.exp(np.min(log_ratio[marked])))
+        lowest = min(options.orders)
+        for order in order_list(options):
+            ratio = np.log(base * order / lowest)
+            marked |= np.abs(log_ratio - ratio) <= options.ratio_tol
+        out.attrs["shaft_hz_per_kn"] = base / lowest
+    out.iloc[rows[marked]] = 0.0
+    return out
+
+
+def mark_poles(
+    poles: pd.DataFrame, selected: pd.DataFrame, options: HarmonicOptions | None = None
+) -> pd.Series:
+    """The ``harmonic`` column of the pole table from the marked selected modes.
+
+    A pole of a block is marked with the order of a marked selected mode of that block when
+    its frequency lies within ``frequency_tol`` of the mode's and its shape has
+    MAC >= ``mac_min`` with the mode's (the harmonic's poles over the model orders, not a
+    structural mode's poles nearby).
+    """
+    options = options or HarmonicOptions()
+    out = pd.Series(np.nan, index=poles.index, name="harmonic")
+    if "harmonic" not in selected or poles.empty:
+        return out
+    marked = selected[selected["harmonic"].notna()]
+    if marked.empty:
+        return out
+    channels = [c for c in shape_columns(_channels(selected)) if c in poles.columns]
+    pole_rows = poles.groupby("block").indices
+    pole_frequency = poles["frequency_hz"].to_numpy(float)
+    for block, part in marked.groupby("block"):
+        rows = pole_rows.get(block)
+        if rows is None:
+            continue
+        block_shapes = _shapes(poles.iloc[rows][channels])
+        for _, mode in part.iterrows():
+            f = float(mode["frequency_hz"])
+            near = np.abs(pole_frequency[rows] - f) <= options.frequency_tol * f
+            if not near.any():
+                continue
+            shape = _shapes(mode.to_frame().T[channels])
+            mac = _mac_matrix(block_shapes[near], shape)[:, 0]
+            hit = rows[near][mac >= options.mac_min]
+            out.iloc[hit] = float(mode["harmonic"])
+    return out
+
+
+def _channels(table: pd.DataFrame) -> list[str]:
+    channels, _ = shapes_from_frame(table.iloc[:0])
+    return list(channels)
+
+
+class HarmonicMarker:
+    """Marks the harmonics of one voyage: its selected modes first (the whole table, small),
+    then its poles chunk by chunk (:func:`mark_poles` against the marked modes).
+
+    Parameters
+    ----------
+    log : DataFrame or None
+        Canonical ship log (:func:`data_contracts.read_dship`); None: nothing is marked
+        (the ``harmonic`` columns are added, all NaN).
+    options : HarmonicOptions, optional
+    """
+
+    def __init__(self, log: pd.DataFrame | None, options: HarmonicOptions | None = None):
+        self.log = log
+        self.options = options or HarmonicOptions()
+        self.orders = order_list(self.options)
+        self.method = "none"
+        self.shaft = pd.DataFrame(
+            columns=["block", "block_start", "shaft_rpm", "speed_kn", "speed_energy_kn"]
+        )
+        self.marked = pd.DataFrame()
+        self.n_selected = 0
+        self.n_poles = 0
+
+    def mark_selected(self, selected: pd.DataFrame) -> pd.DataFrame:
+        """*selected* with its ``harmonic`` column."""
+        selected = selected.copy()
+        selected["harmonic"] = np.nan
+        selected["harmonic_frequency_hz"] = np.nan
+        self.n_selected = len(selected)
+        if self.log is None or selected.empty:
+            return selected
+        self.shaft = block_shaft_table(self.log, selected)
+        shaft = self.shaft.set_index("block")
+        if self.shaft["shaft_rpm"].notna().any():
+            selected["harmonic"] = mark_shaft_orders(selected, self.log, self.options)
+            self.method = "shaft speed"
+            rate_hz = selected["block"].map(shaft["shaft_rpm"]).to_numpy(float) / 60.0
+            selected["harmonic_frequency_hz"] = selected["harmonic"].to_numpy(float) * rate_hz
+        elif self.shaft["speed_energy_kn"].notna().any():
+            marks = mark_speed_following(selected, self.shaft, self.options)
+            selected["harmonic"] = marks
+            self.method = "speed"
+            per_kn = marks.attrs.get("shaft_hz_per_kn", np.nan)
+            speed = selected["block"].map(shaft["speed_energy_kn"]).to_numpy(float)
+            rate_hz = per_kn * speed
+            # the order whose line is nearest the mode (order unknown: 0 in 'harmonic')
+            orders = np.array(self.orders)
+            nearest = orders[
+                np.argmin(
+                    np.abs(np.log(selected["frequency_hz"].to_numpy(float)[:, None])
+                           - np.log(np.fmax(orders[None, :] * rate_hz[:, None], 1e-300))),
+                    axis=1,
+                )
+            ] if np.isfinite(per_kn) else np.full(len(selected), np.nan)
+            selected["harmonic_frequency_hz"] = np.where(marks.notna(), nearest * rate_hz, np.nan)
+        self.marked = selected[selected["harmonic"].notna()]
+        return selected
+
+    def mark_poles(self, poles: pd.DataFrame) -> pd.DataFrame:
+        """A chunk of the pole table with its ``harmonic`` column."""
+        poles = poles.copy()
+        poles["harmonic"] = (
+            mark_poles(poles, self.marked, self.options) if len(self.marked) else np.nan
+        )
+        self.n_poles += int(poles["harmonic"].notna().sum())
+        return poles
+
+    def lines(self) -> list[str]:
+        """One line for the engineer: the test used and what it marked."""
+        if self.log is None:
+            return []
+        what = {
+            "shaft speed": "orders "
+            + ", ".join(f"{k:g}" for k in self.orders)
+            + " of the logged shaft speed",
+            "speed": "frequency following the speed with a fixed shape; no shaft speed logged",
+            "none": "no shaft speed or speed in the ship log: none marked",
+        }[self.method]
+        return [
+            f"harmonics ({what}): {len(self.marked)} of {self.n_selected} selected modes and "
+            f"{self.n_poles} poles marked, kept out of tracking"
+        ]
+
+
+def mark_harmonics(
+    selected: pd.DataFrame,
+    poles: pd.DataFrame,
+    log: pd.DataFrame | None,
+    options: HarmonicOptions | None = None,
+) -> HarmonicMarks:
+    """Mark the harmonics among the selected modes and poles of a voyage.
+
+    Parameters
+    ----------
+    selected, poles : DataFrame
+        The identification's tables (SELECTED and POLES contracts).
+    log : DataFrame or None
+        Canonical ship log (:func:`data_contracts.read_dship`); None: nothing is marked.
+    options : HarmonicOptions, optional
+
+    Returns
+    -------
+    HarmonicMarks
+        The tables with a ``harmonic`` column, the test used and a per-block shaft table.
+    """
+    marker = HarmonicMarker(log, options)
+    selected = marker.mark_selected(selected)
+    poles = marker.mark_poles(poles)
+    return HarmonicMarks(
+        selected, poles, marker.method, marker.shaft, marker.orders, marker.lines()
+    )
