@@ -59,6 +59,7 @@ from .memory_noise import filter_matrices, first_window_noise, update_run
 from .memory_output import OUTPUT_ARRAYS, assemble_table
 from .memory_poles import option_b_chooser
 from .memory_terms import MemoryRefits
+from .model_trust import ModelTrust
 from .noise import NoiseModel, estimate_noise, model_error_floor
 from .options import MeasurementOptions, ModelOptions, NoiseOptions
 from .predictor_grid import mode_matrix, modes_to_forecast, predictor_matrix
@@ -197,6 +198,10 @@ def memory_forecast(
     gap = np.zeros(n_modes, dtype=np.int64)
     models_out = []
 
+    # guard: the probability that the model explains each mode, against a model-free filter
+    trust = ModelTrust(n_modes, float(noise.huber_sigma)) if noise.model_trust else None
+    explained_lost = np.zeros(n_modes, dtype=np.int64)  # first block below 0.5, + 1
+
     # ---- windows
     i0 = first + train
     is_first = True
@@ -266,7 +271,7 @@ def memory_forecast(
                 or i0 - first < int(noise.noise_blocks)  # residual window still filling
                 or i0 - noise_at[j] >= model.reselect_blocks
             ):  # then with the terms' schedule (the grid search is the costly part)
-                nz = estimate_noise(r_hist, level_hz)
+                nz = estimate_noise(r_hist, level_hz, correlated_lags=overlap)
                 if nz.n_residuals:  # fitted, not the prior: no less model error than shown
                     nz = model_error_floor(nz, resid[max(lo, first + train) : i0, j])
                 noise_at[j] = i0
@@ -406,12 +411,36 @@ def memory_forecast(
                     "Kalman track implausible: restarted at the model",
                     "Kalman tracks restarted at the model (estimate implausible)",
                 )
+            variance = np.maximum(P[:, 0, 0], 0.0)
+            if trust is not None:
+                out_of_sample = np.full(n_modes, k >= first + train)
+                trust.step(
+                    np.where(have, z, np.nan),
+                    F[:, 1],
+                    q_e * scale / np.maximum(1 - F[:, 1] ** 2, 1e-12),
+                    r_v * scale,
+                    nu,
+                    innovation_variance,
+                    out_of_sample & ~lost,
+                )
+                estimate, variance = trust.combine(estimate, variance)
+                out["probability"][k] = np.where(have, trust.probability, np.nan)
+                for j in np.flatnonzero(have & out_of_sample):
+                    below = trust.probability[j] < 0.5
+                    if below and not explained_lost[j]:
+                        explained_lost[j] = int(blocks[k]) + 1
+                    if below:
+                        notes[
+                            f"mode {mode_labels[j]}: the model stopped explaining it (model "
+                            f"probability below 0.5, first at block {explained_lost[j] - 1}; "
+                            "blocks below, the estimate follows SSI)"
+                        ] += 1
             if k >= first + train:
                 meas[k] = z
             resid[k] = residual
             out["ssi"][k] = z
             out["kalman"][k] = np.where(have, estimate, np.nan)
-            out["std"][k] = np.where(have, np.sqrt(np.maximum(P[:, 0, 0], 0.0)), np.nan)
+            out["std"][k] = np.where(have, np.sqrt(variance), np.nan)
             gap = np.where(np.isfinite(z), 0, gap + have)
             for j in np.flatnonzero(have & (gap >= gap_warning_blocks)):
                 warn(
