@@ -8,10 +8,18 @@ The steps, each in its own module:
    residuals, with the model error at least what the out-of-sample residuals show beyond
    the measurement noise: :func:`~workbench.forecast.noise.model_error_floor`), and the
    safeguard :mod:`workbench.forecast.innovation_consistency` (model variance added while
-   the filter's innovations are larger or more one-sided than its noise model says);
+   the filter's innovations are larger or more one-sided than its noise model says); the
+   identification error is capped at what the residuals' second difference across blocks
+   that share no data allows (:func:`~workbench.forecast.noise.identification_error_bound`),
+   so a model error of a few blocks' time constant is not taken for SSI scatter;
 3. measurement choice - :mod:`workbench.forecast.measurement` (tracked pole or consistent
    pole cluster, per-block scatter);
-4. Kalman pass - :func:`~workbench.forecast.memory_kalman.kalman_pass_step`.
+4. Kalman pass - :func:`~workbench.forecast.memory_kalman.kalman_pass_step`;
+5. guard - :mod:`workbench.forecast.model_trust`: the blend is weighed against a filter
+   that does not use the model by how well each predicts the measurements out of sample;
+   while the model does not explain a mode (an unrecorded change: fuel, ballast, ice) the
+   estimate follows the model-free filter, i.e. SSI. The weight is the forecast table's
+   ``model_probability``, and the run notes say when a mode's model stopped explaining it.
 
 :func:`memory_forecast` below runs the windows and the Kalman pass over their rows; each
 mode's term selection, refits and predictions are in :mod:`workbench.forecast.memory_terms`,
@@ -114,6 +122,9 @@ def memory_forecast(
     # badly excited stretch) is in all of them, so a run of large innovations is evidence
     # that the model is off only when it reaches a block that shares no data with the first
     overlap = sub_windows_per_block(grid) or 1
+    # identification errors of blocks this far apart are independent (None: not known, no
+    # cap on the identification error's variance, :func:`~.noise.estimate_noise`)
+    independent_lag = sub_windows_per_block(grid)
     mode_labels = modes_to_forecast(modal, modes)
     n_modes = mode_labels.size
     tracked = mode_matrix(modal, blocks, mode_labels, "frequency_hz")
@@ -271,7 +282,7 @@ def memory_forecast(
                 or i0 - first < int(noise.noise_blocks)  # residual window still filling
                 or i0 - noise_at[j] >= model.reselect_blocks
             ):  # then with the terms' schedule (the grid search is the costly part)
-                nz = estimate_noise(r_hist, level_hz, correlated_lags=overlap)
+                nz = estimate_noise(r_hist, level_hz, correlated_lags=independent_lag)
                 if nz.n_residuals:  # fitted, not the prior: no less model error than shown
                     nz = model_error_floor(nz, resid[max(lo, first + train) : i0, j])
                 noise_at[j] = i0

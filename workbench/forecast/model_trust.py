@@ -40,15 +40,15 @@ import numpy as np
 
 __all__ = ["ModelTrust"]
 
-#: Probability that the hypothesis changes from one block to the next (about one switch
-#: in 2 days of 5-minute blocks would be 0.002; a larger value lets p come back within a
-#: few hours after the model recovers). [-]
-SWITCH_PROBABILITY = 0.02
-#: Level random-walk variance of the model-free filter per block, in units of the
+#: Probability that the hypothesis changes from one block to the next (one switch in about
+#: 2 days of 5-minute blocks): p follows the accumulated evidence, and stretches in which
+#: both filters predict equally well (the ship holds one speed) leave it where it is. [-]
+SWITCH_PROBABILITY = 0.002
+#: Level random-walk variances of the model-free filters per block, in units of the
 #: identification error's variance σ_e² + σ_v²: a level that moves by about the SSI
-#: scatter in 10 blocks (50 minutes); faster moves are what the model is for, and the
-#: likelihood then favours the blend. [-]
-LEVEL_STEP_VARIANCE = 0.1
+#: scatter in 10 blocks (50 minutes), and one that moves by it every block (the filter is
+#: then close to the raw SSI estimate). [-]
+LEVEL_STEP_VARIANCES = (0.1, 1.0)
 #: Probability that the model explains a mode before its first out-of-sample block. [-]
 PRIOR_PROBABILITY = 0.9
 #: Smallest and largest model probability (neither hypothesis is ever ruled out). [-]
@@ -68,12 +68,28 @@ class ModelTrust:
         Probability of "the model explains the mode" before any measurement. [-]
     """
 
-    def __init__(self, n_modes: int, huber_sigma: float, prior_probability: float = PRIOR_PROBABILITY):
+    def __init__(
+        self,
+        n_modes: int,
+        huber_sigma: float,
+        prior_probability: float = PRIOR_PROBABILITY,
+        level_steps: tuple[float, ...] = LEVEL_STEP_VARIANCES,
+    ):
         self.huber_sigma = float(huber_sigma)
-        self.level = np.full(n_modes, np.nan)  # model-free estimate x̂₀ [Hz]
-        self.error = np.zeros(n_modes)  # its identification-error state ê [Hz]
-        self.P = np.zeros((n_modes, 2, 2))
-        self.probability = np.full(n_modes, float(prior_probability))
+        self.steps = np.asarray(level_steps, dtype=float)  # one model-free filter each
+        n_free = self.steps.size
+        self.level = np.full((n_free, n_modes), np.nan)  # model-free estimates x̂₀ [Hz]
+        self.error = np.zeros((n_free, n_modes))  # their identification-error states ê [Hz]
+        self.P = np.zeros((n_free, n_modes, 2, 2))
+        # hypothesis probabilities: row 0 the blend, then the model-free filters
+        self.weights = np.empty((n_free + 1, n_modes))
+        self.weights[0] = float(prior_probability)
+        self.weights[1:] = (1.0 - float(prior_probability)) / n_free
+
+    @property
+    def probability(self) -> np.ndarray:
+        """Probability that the model explains each mode (the blend's weight). [-]"""
+        return self.weights[0]
 
     def _log_likelihood(self, normalised: np.ndarray, variance: np.ndarray) -> np.ndarray:
         # log N(y; 0, S) with ν² Huber-clipped: -0.5 (log S + ρ_H(ν))
@@ -92,7 +108,7 @@ class ModelTrust:
         blend_variance: np.ndarray,
         learn: np.ndarray,
     ) -> None:
-        """One block: predict and update the model-free filter, then the probability.
+        """One block: predict and update the model-free filters, then the probabilities.
 
         Parameters
         ----------
@@ -100,80 +116,94 @@ class ModelTrust:
             The block's measurement (NaN: none). [Hz]
         error_correlation, error_variance, white_variance : ndarray (n,)
             ρ, σ_e² (stationary) and the block's white variance R of the blend's noise
-            model (the same identification error under both hypotheses). [-], [Hz²], [Hz²]
+            model (the same identification error under every hypothesis). [-], [Hz²], [Hz²]
         blend_normalised, blend_variance : ndarray (n,)
             The blend's normalised innovation and innovation variance S in this block.
         learn : ndarray of bool (n,)
-            Modes whose probability may change in this block (out of sample: the model
+            Modes whose probabilities may change in this block (out of sample: the model
             had not seen the block).
         """
         rho = np.clip(error_correlation, 0.0, 0.99)
         sigma2 = np.maximum(error_variance + white_variance, 1e-300)
-        fresh = np.isfinite(z) & ~np.isfinite(self.level)
+        log_l = np.full(self.weights.shape, np.nan)
+        log_l[0] = self._blend_log_likelihood(blend_normalised, blend_variance)
+        for h, step in enumerate(self.steps):
+            log_l[h + 1] = self._free_step(h, step, z, rho, sigma2, error_variance, white_variance)
+        use = learn & np.isfinite(log_l).all(axis=0)
+        if use.any():
+            # p̄_i = (1 - π) p_i + π (1 - p_i) / (H - 1) ; p_i ∝ p̄_i L_i
+            n_h = self.weights.shape[0]
+            w = self.weights[:, use]
+            prior = (1 - SWITCH_PROBABILITY) * w + SWITCH_PROBABILITY * (1 - w) / (n_h - 1)
+            log_post = np.log(prior) + log_l[:, use]
+            log_post -= log_post.max(axis=0, keepdims=True)
+            post = np.exp(log_post)
+            post /= post.sum(axis=0, keepdims=True)
+            post = np.clip(post, P_MIN, P_MAX)
+            self.weights[:, use] = post / post.sum(axis=0, keepdims=True)
+
+    def _blend_log_likelihood(self, normalised, variance):
+        out = np.full(normalised.shape, np.nan)
+        ok = np.isfinite(normalised) & np.isfinite(variance) & (variance > 0)
+        out[ok] = self._log_likelihood(normalised[ok], variance[ok])
+        return out
+
+    def _free_step(self, h, step, z, rho, sigma2, error_variance, white_variance):
+        """Predict and update model-free filter *h*; its log-likelihood of z (NaN: none)."""
+        out = np.full(z.shape, np.nan)
+        level, error, P_all = self.level[h], self.error[h], self.P[h]
+        fresh = np.isfinite(z) & ~np.isfinite(level)
         if fresh.any():  # start at the first measurement, with the measurement's variance
-            self.level[fresh] = z[fresh]
-            self.error[fresh] = 0.0
-            self.P[fresh] = 0.0
-            self.P[fresh, 0, 0] = sigma2[fresh]
-            self.P[fresh, 1, 1] = error_variance[fresh]
-        on = np.isfinite(self.level) & ~fresh
+            level[fresh] = z[fresh]
+            error[fresh] = 0.0
+            P_all[fresh] = 0.0
+            P_all[fresh, 0, 0] = sigma2[fresh]
+            P_all[fresh, 1, 1] = error_variance[fresh]
+        on = np.isfinite(level) & ~fresh
         if not on.any():
-            return
+            return out
         idx = np.flatnonzero(on)
-        # x = Fx ; P = FPF' + Q with F = diag(1, ρ), Q = diag(q, σ_e²(1 - ρ²))
+        # x = Fx ; P = FPF' + Q with F = diag(1, ρ), Q = diag(q σ², σ_e²(1 - ρ²))
         F = np.stack([np.ones(idx.size), rho[idx]], axis=1)
-        P = self.P[idx] * (F[:, :, None] * F[:, None, :])
-        P[:, 0, 0] += LEVEL_STEP_VARIANCE * sigma2[idx]
+        P = P_all[idx] * (F[:, :, None] * F[:, None, :])
+        P[:, 0, 0] += step * sigma2[idx]
         P[:, 1, 1] += error_variance[idx] * (1 - rho[idx] ** 2)
-        level = self.level[idx]
-        error = self.error[idx] * rho[idx]
+        lv = level[idx]
+        er = error[idx] * rho[idx]
         have = np.isfinite(z[idx])
         if have.any():
-            h = np.flatnonzero(have)
+            k = np.flatnonzero(have)
             # y = z - Hx ; S = HPH' + R  (H = [1 1])
-            y = z[idx][h] - level[h] - error[h]
-            S = P[h, 0, 0] + P[h, 1, 1] + 2 * P[h, 0, 1] + white_variance[idx][h]
+            y = z[idx][k] - lv[k] - er[k]
+            S = P[k, 0, 0] + P[k, 1, 1] + 2 * P[k, 0, 1] + white_variance[idx][k]
             nu = y / np.sqrt(S)
+            out[idx[k]] = self._log_likelihood(nu, S)
             # Huber weight as in the blend: beyond k the measurement counts as if k out
             a = np.abs(nu)
             extra = np.where(a > self.huber_sigma, S * (a / self.huber_sigma - 1.0), 0.0)
-            S_eff = S + extra
             # K = PH'S⁻¹ ; x = x + Ky ; P = (I - KH) P (I - KH)' + K R K' (Joseph form)
-            PH = np.stack([P[h, 0, 0] + P[h, 0, 1], P[h, 1, 0] + P[h, 1, 1]], axis=1)
-            K = PH / S_eff[:, None]
-            level[h] += K[:, 0] * y
-            error[h] += K[:, 1] * y
+            PH = np.stack([P[k, 0, 0] + P[k, 0, 1], P[k, 1, 0] + P[k, 1, 1]], axis=1)
+            K = PH / (S + extra)[:, None]
+            lv[k] += K[:, 0] * y
+            er[k] += K[:, 1] * y
             A = np.eye(2)[None, :, :] - K[:, :, None] * np.ones((1, 1, 2))
-            R_eff = white_variance[idx][h] + extra
-            P[h] = A @ P[h] @ np.transpose(A, (0, 2, 1)) + R_eff[:, None, None] * (
+            R_eff = white_variance[idx][k] + extra
+            P[k] = A @ P[k] @ np.transpose(A, (0, 2, 1)) + R_eff[:, None, None] * (
                 K[:, :, None] * K[:, None, :]
             )
-            # probability: p̄ = (1 - π) p + π (1 - p) ; p ∝ p̄ L₁, 1 - p ∝ (1 - p̄) L₀
-            j = idx[h]
-            use = learn[j] & np.isfinite(blend_normalised[j]) & np.isfinite(blend_variance[j])
-            if use.any():
-                jj = j[use]
-                l1 = self._log_likelihood(blend_normalised[jj], blend_variance[jj])
-                l0 = self._log_likelihood(nu[use], S[use])
-                p = self.probability[jj]
-                prior = (1 - SWITCH_PROBABILITY) * p + SWITCH_PROBABILITY * (1 - p)
-                log_odds = np.log(prior) - np.log1p(-prior) + l1 - l0
-                self.probability[jj] = np.clip(1.0 / (1.0 + np.exp(-log_odds)), P_MIN, P_MAX)
-        self.level[idx], self.error[idx], self.P[idx] = level, error, P
+        level[idx], error[idx], P_all[idx] = lv, er, P
+        return out
 
     def combine(
         self, blend_estimate: np.ndarray, blend_variance: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """Probability-weighted estimate [Hz] and its variance [Hz²] (module docstring)."""
-        p = self.probability
-        x0 = np.where(np.isfinite(self.level), self.level, blend_estimate)
-        P0 = np.where(np.isfinite(self.level), self.P[:, 0, 0], blend_variance)
-        x = p * blend_estimate + (1 - p) * x0
-        P = p * (blend_variance + (blend_estimate - x) ** 2) + (1 - p) * (P0 + (x0 - x) ** 2)
+        started = np.isfinite(self.level)
+        xs = np.concatenate([blend_estimate[None], np.where(started, self.level, blend_estimate)])
+        Ps = np.concatenate(
+            [blend_variance[None], np.where(started, self.P[:, :, 0, 0], blend_variance)]
+        )
+        w = self.weights
+        x = (w * xs).sum(axis=0)
+        P = (w * (Ps + (xs - x) ** 2)).sum(axis=0)
         return x, P
-
-    def reset(self, j: int) -> None:
-        """Forget mode *j*'s model-free filter (it restarts at the next measurement)."""
-        self.level[j] = np.nan
-        self.error[j] = 0.0
-        self.P[j] = 0.0
