@@ -1,29 +1,34 @@
-"""Does the model still explain the mode? Two hypotheses weighed by their predictive likelihood.
+"""Does the model still explain the mode? The blend against model-free filters, by likelihood.
 
 The memory forecast's filter (:mod:`workbench.forecast.memory_kalman`) estimates
 x = m + c with the model's prediction m; when something changes that no predictor
 records (fuel burnt without soundings, ballast, ice on deck), its noise model, fitted on
 residuals from before the change, can trust m more than the data allow, and the blend
-ends up worse than the raw SSI estimate. Beside it, this module runs a filter that does
-not use the model at all:
+ends up worse than the raw SSI estimate. Beside it, this module runs filters that do not
+use the model at all:
 
 .. math::
 
     x_k = x_{k-1} + w_k, \\quad z_k = x_k + e_k + v_k, \\quad e_k = ρ e_{k-1} + u_k,
 
-(the level x a random walk, the identification error e and v as in the blend's noise
-model), and weighs the two hypotheses H₁ "the model explains the mode" (the blend) and
-H₀ "it does not" (the model-free filter) by the likelihood of each block's measurement
+(the level x a random walk, var w = q (σ_e² + σ_v²) with q from
+:data:`LEVEL_STEP_VARIANCES`: one that smooths over about ten blocks and one that stays
+close to the raw SSI estimate; the identification error e and v as in the blend's noise
+model), and weighs the hypotheses H₁ "the model explains the mode" (the blend) and H₀
+"it does not" (each model-free filter) by the likelihood of each block's measurement
 under each filter's one-step prediction, with a small probability of switching between
-blocks (a two-model multiple-model filter without state mixing, [1]_ §11.6). The
-likelihood uses Huber-clipped normalised innovations (one mis-selected pole cannot decide
-it). The estimate is the probability-weighted mean of the two filters' estimates:
+blocks (a multiple-model filter without state mixing, [1]_ §11.6). The likelihood uses
+Huber-clipped normalised innovations (one mis-selected pole cannot decide it), and only
+out-of-sample blocks count (the model was fitted to the training blocks). The estimate is
+the probability-weighted mean of the filters' estimates,
 
-.. math:: \\hat x = p \\hat x_1 + (1 - p) \\hat x_0, \\qquad
-          P = p (P_1 + (\\hat x_1 - \\hat x)^2) + (1 - p) (P_0 + (\\hat x_0 - \\hat x)^2).
+.. math:: \\hat x = \\sum_i p_i \\hat x_i, \\qquad
+          P = \\sum_i p_i (P_i + (\\hat x_i - \\hat x)^2),
 
-The one-step prediction of a block's measurement is out of sample for both filters, so p
-measures which of them predicts the data better as the voyage goes on: a guard that
+and p₁, the blend's weight, is the forecast table's ``model_probability``.
+
+The one-step prediction of a block's measurement is out of sample for every filter, so the
+weights measure which of them predicts the data better as the voyage goes on: a guard that
 measures whether leaning on the model still helps, and falls back to the model-free
 estimate (which follows SSI) when it does not.
 
@@ -56,7 +61,7 @@ P_MIN, P_MAX = 1e-4, 1.0 - 1e-4
 
 
 class ModelTrust:
-    """Model-free filter and the probability that the model explains each mode.
+    """Model-free filters and the probability that the model explains each mode.
 
     Parameters
     ----------
