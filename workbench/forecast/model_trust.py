@@ -20,12 +20,15 @@ under each filter's one-step prediction, with a small probability of switching b
 blocks (a multiple-model filter without state mixing, [1]_ §11.6). The likelihood uses
 Huber-clipped normalised innovations (one mis-selected pole cannot decide it), and only
 out-of-sample blocks count (the model was fitted to the training blocks). The estimate is
-the probability-weighted mean of the filters' estimates,
+the weighted mean of the filters' estimates,
 
-.. math:: \\hat x = \\sum_i p_i \\hat x_i, \\qquad
-          P = \\sum_i p_i (P_i + (\\hat x_i - \\hat x)^2),
+.. math:: \\hat x = \\sum_i w_i \\hat x_i, \\qquad
+          P = \\sum_i w_i (P_i + (\\hat x_i - \\hat x)^2),
 
-and p₁, the blend's weight, is the forecast table's ``model_probability``.
+with the blend's weight w₁ = min(1, p₁ / :data:`FULL_WEIGHT_PROBABILITY`) and the rest
+shared by the model-free filters in proportion to their probabilities; p₁, the
+probability that the model explains the mode, is the forecast table's
+``model_probability``.
 
 The one-step prediction of a block's measurement is out of sample for every filter, so the
 weights measure which of them predicts the data better as the voyage goes on: a guard that
@@ -56,6 +59,11 @@ SWITCH_PROBABILITY = 0.002
 LEVEL_STEP_VARIANCES = (0.1, 1.0)
 #: Probability that the model explains a mode before its first out-of-sample block. [-]
 PRIOR_PROBABILITY = 0.9
+#: The blend's probability below which the estimate starts to move to the model-free
+#: filters (a model-free filter three times as probable as the blend): while the
+#: evidence is weaker, the blend, which measures best where the model explains the mode,
+#: keeps its whole weight. [-]
+FULL_WEIGHT_PROBABILITY = 0.25
 #: Smallest and largest model probability (neither hypothesis is ever ruled out). [-]
 P_MIN, P_MAX = 1e-4, 1.0 - 1e-4
 
@@ -208,7 +216,13 @@ class ModelTrust:
         Ps = np.concatenate(
             [blend_variance[None], np.where(started, self.P[:, :, 0, 0], blend_variance)]
         )
-        w = self.weights
+        # the blend keeps its whole weight until its probability falls below
+        # FULL_WEIGHT_PROBABILITY; below, its weight is p / FULL_WEIGHT_PROBABILITY and the
+        # rest goes to the model-free filters in proportion to their probabilities
+        w = self.weights.copy()
+        w[0] = np.clip(self.weights[0] / FULL_WEIGHT_PROBABILITY, 0.0, 1.0)
+        rest = self.weights[1:].sum(axis=0)
+        w[1:] = self.weights[1:] / np.where(rest > 0, rest, 1.0) * (1.0 - w[0])
         x = (w * xs).sum(axis=0)
         P = (w * (Ps + (xs - x) ** 2)).sum(axis=0)
         return x, P
