@@ -31,6 +31,18 @@ errors rather than white noise:
 
 Nothing here knows the forecast method; the regimes were written before the method was
 changed (see the issue-11 report for the before/after table).
+
+Unrecorded changes (issue 27, :data:`UNRECORDED`): the same tables with a disturbance of the
+true frequencies that no predictor records (fuel without soundings, ballast, ice on deck):
+a slow rise, a held step, an AR(1) wander at two time constants and two sizes, and a model
+trained in open water and carried into ice (ice SSI errors, an unrecorded added-mass offset
+and a wander with ice concentration). Each comes with an *oracle*: a Kalman filter that
+knows the hull's law exactly (a perfect model of the recorded part), the identification
+error's model (AR(1), its per-block size, the tracking scatter, which tracked poles are
+mislabelled) and the disturbance's statistics, but not its realisation (AR(1) wander with
+its true time constant and size; a rise or step as a random walk with the same mean-square
+change over the voyage; the ice offset as an unknown constant from the known entry time).
+What it reaches is the distance to the reachable that the suite prints beside each case.
 """
 
 from __future__ import annotations
@@ -44,6 +56,20 @@ from data_contracts import shapes_to_frame
 from workbench.simulate.hull import CHANNELS, mode_shapes, true_modal_parameters
 
 REGIMES = ("alternating_speed", "slow_speed", "stationary", "temperature_drift", "ice_breaking")
+#: Regimes with an unrecorded change (issue 27): name -> (base profile, disturbance kind,
+#: size, time constant [min]). Sizes: relative change of the frequency for "rise" (per
+#: 12 h) and "step"; multiples of the identification error's standard deviation for
+#: "wander".
+UNRECORDED = {
+    "rise_0.8pct_12h": ("slow_speed", "rise", 0.008, None),
+    "step_-0.6pct": ("slow_speed", "step", -0.006, None),
+    "wander_40min_2x": ("slow_speed", "wander", 2.0, 40.0),
+    "wander_40min_1x": ("slow_speed", "wander", 1.0, 40.0),
+    "wander_160min_2x": ("slow_speed", "wander", 2.0, 160.0),
+    "wander_160min_1x": ("slow_speed", "wander", 1.0, 160.0),
+    "open_water_into_ice": ("open_water_into_ice", "ice", 0.005, 60.0),
+}
+ALL_REGIMES = (*REGIMES, *UNRECORDED)
 #: Modes of the demo hull used (0-based indices into MODE_LAWS): VB1, HB1, T1, VB3.
 MODE_INDEX = (0, 1, 3, 4)
 #: Relative standard deviation of the identification error per mode. [-]
@@ -63,6 +89,7 @@ class RegimeData:
     truth: pd.DataFrame
     tracked: pd.DataFrame
     poles: pd.DataFrame
+    oracle: pd.DataFrame | None = None
 
 
 def _smooth(rng, n, correlation_min):
@@ -140,6 +167,16 @@ def _profile(name: str, rng, n_min: int):
         air = air - 13.0
         # ice impacts: impulsive excitation, heavy-tailed in power
         excitation_spikes = np.exp(1.5 * rng.standard_normal(n_min))
+    elif name == "open_water_into_ice":
+        # alternating speed in open water, then ice breaking from the middle of the voyage
+        _, v_open, w_open, a_open, *_ = _profile("alternating_speed", rng, n_min)
+        _, v_ice, w_ice, a_ice, _, _, spikes_ice = _profile("ice_breaking", rng, n_min)
+        entry = n_min // 2
+        into = np.clip((np.arange(n_min) - entry) / 30.0, 0.0, 1.0)  # 30 min transition
+        speed = np.where(np.arange(n_min) < entry, v_open, v_ice)
+        water = (1 - into) * w_open + into * w_ice
+        air = (1 - into) * a_open + into * a_ice
+        excitation_spikes = np.where(np.arange(n_min) < entry, 1.0, spikes_ice)
     else:
         raise ValueError(f"unknown regime {name!r}")
     return t_h, speed, water, air, wind, wind_dir, excitation_spikes
@@ -147,9 +184,16 @@ def _profile(name: str, rng, n_min: int):
 
 def make_regime(name: str, seed: int, *, n_blocks: int = 432, shapes: bool = True) -> RegimeData:
     """Block-level tables of one regime and seed (see the module docstring)."""
-    rng = np.random.default_rng([REGIMES.index(name), seed])
+    if name in REGIMES:
+        number, profile, disturbance = REGIMES.index(name), name, None
+    elif name in UNRECORDED:
+        number = len(REGIMES) + list(UNRECORDED).index(name)
+        profile, disturbance = UNRECORDED[name][0], UNRECORDED[name]
+    else:
+        raise ValueError(f"unknown regime {name!r}")
+    rng = np.random.default_rng([number, seed])
     n_min = (n_blocks - 1) * STEP_MIN + BLOCK_MIN
-    t_h, speed, water, air, wind, wind_dir, spikes = _profile(name, rng, n_min)
+    t_h, speed, water, air, wind, wind_dir, spikes = _profile(profile, rng, n_min)
     minute = {
         "speed_kn": speed,
         "water_temp_c": water,
@@ -157,6 +201,10 @@ def make_regime(name: str, seed: int, *, n_blocks: int = 432, shapes: bool = Tru
         "elapsed_hours": t_h,
     }
     freq_min = true_modal_parameters(minute).frequency_hz[:, MODE_INDEX]
+    freq0_min = freq_min.copy()  # what the predictors explain
+    oracle_spec = None
+    if disturbance is not None:  # the unrecorded change, from its own random stream
+        freq_min, oracle_spec = _disturb(freq0_min, t_h, disturbance, (number, seed))
     damp_min = true_modal_parameters(minute).damping_ratio[:, MODE_INDEX]
     n_modes = len(MODE_INDEX)
     starts = np.arange(n_blocks) * STEP_MIN
@@ -166,19 +214,29 @@ def make_regime(name: str, seed: int, *, n_blocks: int = 432, shapes: bool = Tru
     w = w / w.sum(axis=1, keepdims=True)
     truth_f = freq_min[index].mean(axis=1)  # (n_blocks, n_modes): time average
     seen_f = np.einsum("bm,bmj->bj", w, freq_min[index])  # excitation-weighted
+    truth0_f = freq0_min[index].mean(axis=1)  # without the unrecorded change
+    seen0_f = np.einsum("bm,bmj->bj", w, freq0_min[index])
     damping = damp_min[index].mean(axis=1)
     speed_change = np.ptp(speed[index], axis=1)
 
-    ice = name == "ice_breaking"
+    if profile == "open_water_into_ice":
+        ice_block = starts >= n_min // 2
+    else:
+        ice_block = np.full(n_blocks, profile == "ice_breaking")
+    ice = bool(ice_block.any())
     size = (
         RELATIVE_ERROR[None, :] * truth_f * np.exp(0.35 * rng.standard_normal((n_blocks, n_modes)))
     )
     size *= 1.0 + 0.15 * speed_change[:, None]
-    if ice:
+    if ice_block.all():
         size *= 2.5
         shocks = rng.standard_t(3, (n_blocks, n_modes)) / np.sqrt(3.0)
-    else:
+    elif not ice:
         shocks = rng.standard_normal((n_blocks, n_modes))
+    else:
+        size *= np.where(ice_block, 2.5, 1.0)[:, None]
+        heavy = rng.standard_t(3, (n_blocks, n_modes)) / np.sqrt(3.0)
+        shocks = np.where(ice_block[:, None], heavy, rng.standard_normal((n_blocks, n_modes)))
     error = np.empty((n_blocks, n_modes))
     error[0] = size[0] * shocks[0]
     for k in range(1, n_blocks):
@@ -227,7 +285,7 @@ def make_regime(name: str, seed: int, *, n_blocks: int = 432, shapes: bool = Tru
     rows_block, rows_order, rows_f, rows_d, rows_stable, rows_shape = [], [], [], [], [], []
     tracked_rows = []
     order_scatter = 0.4 * size * np.exp(0.3 * rng.standard_normal((n_blocks, n_modes)))
-    mislabel = 0.04 if ice else 0.015
+    mislabelled = np.zeros((n_blocks, n_modes), dtype=bool)
 
     def add(b, orders, freqs, damps, stable, shape_rows):
         rows_block.append(np.full(orders.size, b))
@@ -242,6 +300,8 @@ def make_regime(name: str, seed: int, *, n_blocks: int = 432, shapes: bool = Tru
         return base[None, :] + level * noise / np.sqrt(2 * n_ch)
 
     for b in range(n_blocks):
+        ice = bool(ice_block[b])
+        mislabel = 0.04 if ice else 0.015
         for j in range(n_modes):
             if not present[b, j]:
                 continue
@@ -261,6 +321,7 @@ def make_regime(name: str, seed: int, *, n_blocks: int = 432, shapes: bool = Tru
             pick = int(rng.choice(upper)) if upper.size else orders.size - 1
             f_tracked, d_tracked, s_tracked = f[pick], d[pick], shp[pick]
             if rng.random() < mislabel:
+                mislabelled[b, j] = True
                 f_tracked = centre[b, j] * (1 + rng.choice([-1, 1]) * rng.uniform(0.01, 0.03))
                 d_tracked = rng.uniform(0.005, 0.05)
                 s_tracked = noisy_shapes(ref_shapes[j], 1, 0.6)[0]
@@ -332,4 +393,109 @@ def make_regime(name: str, seed: int, *, n_blocks: int = 432, shapes: bool = Tru
         poles = pd.concat([poles, shapes_to_frame(CHANNELS, pole_shapes)], axis=1)
         tracked = pd.concat([tracked, shapes_to_frame(CHANNELS, np.asarray(ts))], axis=1)
     poles = poles.sort_values(["block", "model_order"], kind="stable").reset_index(drop=True)
-    return RegimeData(name, seed, predictors, truth, tracked, poles)
+    oracle = None
+    if oracle_spec is not None:
+        measured = np.full((n_blocks, n_modes), np.nan)
+        measured[np.asarray(tb), np.asarray(tm) - 1] = np.asarray(tf)
+        measured[mislabelled] = np.nan  # the oracle knows which poles are mislabelled
+        estimate = _oracle_filter(
+            measured, seen0_f, truth0_f, size, order_scatter, oracle_spec, starts, n_min
+        )
+        oracle = pd.DataFrame(
+            {
+                "block": np.repeat(blocks, n_modes),
+                "mode": np.tile(labels, n_blocks),
+                "frequency_hz": estimate.ravel(),
+            }
+        )
+    return RegimeData(name, seed, predictors, truth, tracked, poles, oracle)
+
+
+def _disturb(freq0_min, t_h, disturbance, stream):
+    """True frequencies with the unrecorded change, and what the oracle knows of it.
+
+    Returns the disturbed minute frequencies [Hz] and a dict of the oracle's block-level
+    disturbance model per mode: random-walk variance per block ``q_level`` [Hz²], a jump
+    of the level's variance ``jump`` [Hz²] at minute ``jump_min``, and an AR(1) wander with
+    time constant ``tau_min`` [min] and variance ``wander`` [Hz²] from minute ``wander_min``.
+    """
+    _, kind, size, tau = disturbance
+    drng = np.random.default_rng([*stream, 27])
+    n_min, n_modes = freq0_min.shape
+    level = freq0_min.mean(axis=0)  # [Hz]
+    gain = drng.uniform(0.5, 1.5, n_modes)  # each mode feels the change differently
+    n_blocks = (n_min - BLOCK_MIN) // STEP_MIN + 1
+    spec = {
+        "q_level": np.zeros(n_modes),
+        "jump": np.zeros(n_modes),
+        "jump_min": 0,
+        "tau_min": 1.0,
+        "wander": np.zeros(n_modes),
+        "wander_min": 0,
+    }
+    relative = np.zeros((n_min, n_modes))
+    if kind == "rise":
+        relative = size * (t_h / 12.0)[:, None] * gain[None, :]
+        spec["q_level"] = (size * t_h[-1] / 12.0 * gain * level) ** 2 / n_blocks
+    elif kind == "step":
+        at = int(drng.uniform(0.25, 0.6) * n_min)
+        relative[at:] = size * gain[None, :]
+        spec["q_level"] = (size * gain * level) ** 2 / n_blocks
+    elif kind == "wander":
+        std = size * RELATIVE_ERROR
+        relative = np.column_stack([std[j] * _smooth(drng, n_min, tau) for j in range(n_modes)])
+        spec.update(tau_min=tau, wander=(std * level) ** 2)
+    elif kind == "ice":
+        entry = n_min // 2
+        into = np.clip((np.arange(n_min) - entry) / 30.0, 0.0, 1.0)[:, None]
+        std = RELATIVE_ERROR
+        wander = np.column_stack([std[j] * _smooth(drng, n_min, tau) for j in range(n_modes)])
+        relative = into * (-size * gain[None, :] + wander)
+        spec.update(
+            jump=(size * gain * level) ** 2,
+            jump_min=entry,
+            tau_min=tau,
+            wander=(std * level) ** 2,
+            wander_min=entry,
+        )
+    else:
+        raise ValueError(f"unknown disturbance {kind!r}")
+    return freq0_min * (1.0 + relative), spec
+
+
+def _oracle_filter(measured, seen0, truth0, size, order_scatter, spec, starts, n_min):
+    """Kalman filter that knows the law, the identification error and the disturbance model.
+
+    State per mode [a, w, e]: the disturbance's level a (random walk), its AR(1) wander w
+    and the identification error e (AR(1), lag-1 correlation :data:`LAG1`, the block's
+    size); z_k - seen0_k = a + w + e + v, v the tracking scatter. Estimate truth0 + a + w.
+    """
+    n_blocks, n_modes = measured.shape
+    phi_w = np.exp(-STEP_MIN / spec["tau_min"])
+    estimate = np.full((n_blocks, n_modes), np.nan)
+    for j in range(n_modes):
+        x = np.zeros(3)
+        P = np.diag([0.0, 0.0, size[0, j] ** 2])
+        for k in range(n_blocks):
+            wander_on = starts[k] >= spec["wander_min"] and spec["wander"][j] > 0
+            if k > 0:
+                F = np.diag([1.0, phi_w, LAG1])
+                x = F @ x  # x = Fx
+                P = F @ P @ F.T  # P = FPF' + Q
+                P[0, 0] += spec["q_level"][j]
+                P[1, 1] += spec["wander"][j] * (1 - phi_w**2) if wander_on else 0.0
+                P[2, 2] += (1 - LAG1**2) * size[k, j] ** 2
+            if spec["jump"][j] > 0 and starts[k] >= spec["jump_min"] > starts[max(k - 1, 0)]:
+                P[0, 0] += spec["jump"][j]
+            if wander_on and (k == 0 or starts[k - 1] < spec["wander_min"]):
+                P[1, 1] += spec["wander"][j]
+            if np.isfinite(measured[k, j]):
+                H = np.ones(3)
+                y = measured[k, j] - seen0[k, j] - H @ x  # y = z - Hx
+                S = H @ P @ H + order_scatter[k, j] ** 2  # S = HPH' + R
+                K = P @ H / S  # K = PH'S^-1
+                x = x + K * y
+                A = np.eye(3) - np.outer(K, H)
+                P = A @ P @ A.T + order_scatter[k, j] ** 2 * np.outer(K, K)  # Joseph form
+            estimate[k, j] = truth0[k, j] + x[0] + x[1]
+    return estimate

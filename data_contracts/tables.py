@@ -421,6 +421,19 @@ FORECAST = TableContract(
         ),
         Column("window_start_block", "int", "First block of the training window used.", minimum=0),
         Column("window_end_block", "int", "Last block of the training window used.", minimum=0),
+        Column(
+            "model_probability",
+            "float",
+            "How much the Kalman estimate leaned on the model in this block: the "
+            "probability that the model explains the mode, weighed against a filter that "
+            "does not use the model by how well each predicted the measurements (1: the "
+            "blend of model and SSI; 0: the model-free estimate, which follows SSI). NaN "
+            "where the row has no estimate or the forecast does not weigh them.",
+            required=False,
+            nullable=True,
+            minimum=0.0,
+            maximum=1.0,
+        ),
     ),
     unique=("block", "mode", "option"),
     checks=(_interval_contains_model, _window_order),

@@ -8,10 +8,18 @@ The steps, each in its own module:
    residuals, with the model error at least what the out-of-sample residuals show beyond
    the measurement noise: :func:`~workbench.forecast.noise.model_error_floor`), and the
    safeguard :mod:`workbench.forecast.innovation_consistency` (model variance added while
-   the filter's innovations are larger or more one-sided than its noise model says);
+   the filter's innovations are larger or more one-sided than its noise model says); the
+   identification error is capped at what the residuals' second difference across blocks
+   that share no data allows (:func:`~workbench.forecast.noise.identification_error_bound`),
+   so a model error of a few blocks' time constant is not taken for SSI scatter;
 3. measurement choice - :mod:`workbench.forecast.measurement` (tracked pole or consistent
    pole cluster, per-block scatter);
-4. Kalman pass - :func:`~workbench.forecast.memory_kalman.kalman_pass_step`.
+4. Kalman pass - :func:`~workbench.forecast.memory_kalman.kalman_pass_step`;
+5. guard - :mod:`workbench.forecast.model_trust`: the blend is weighed against a filter
+   that does not use the model by how well each predicts the measurements out of sample;
+   while the model does not explain a mode (an unrecorded change: fuel, ballast, ice) the
+   estimate follows the model-free filter, i.e. SSI. The weight is the forecast table's
+   ``model_probability``, and the run notes say when a mode's model stopped explaining it.
 
 :func:`memory_forecast` below runs the windows and the Kalman pass over their rows; each
 mode's term selection, refits and predictions are in :mod:`workbench.forecast.memory_terms`,
@@ -59,6 +67,7 @@ from .memory_noise import filter_matrices, first_window_noise, update_run
 from .memory_output import OUTPUT_ARRAYS, assemble_table
 from .memory_poles import option_b_chooser
 from .memory_terms import MemoryRefits
+from .model_trust import ModelTrust
 from .noise import NoiseModel, estimate_noise, model_error_floor
 from .options import MeasurementOptions, ModelOptions, NoiseOptions
 from .predictor_grid import mode_matrix, modes_to_forecast, predictor_matrix
@@ -113,6 +122,9 @@ def memory_forecast(
     # badly excited stretch) is in all of them, so a run of large innovations is evidence
     # that the model is off only when it reaches a block that shares no data with the first
     overlap = sub_windows_per_block(grid) or 1
+    # identification errors of blocks this far apart are independent (None: not known, no
+    # cap on the identification error's variance, :func:`~.noise.estimate_noise`)
+    independent_lag = sub_windows_per_block(grid)
     mode_labels = modes_to_forecast(modal, modes)
     n_modes = mode_labels.size
     tracked = mode_matrix(modal, blocks, mode_labels, "frequency_hz")
@@ -197,6 +209,10 @@ def memory_forecast(
     gap = np.zeros(n_modes, dtype=np.int64)
     models_out = []
 
+    # guard: the probability that the model explains each mode, against a model-free filter
+    trust = ModelTrust(n_modes, float(noise.huber_sigma)) if noise.model_trust else None
+    explained_lost = np.zeros(n_modes, dtype=np.int64)  # first block below 0.5, + 1
+
     # ---- windows
     i0 = first + train
     is_first = True
@@ -266,7 +282,7 @@ def memory_forecast(
                 or i0 - first < int(noise.noise_blocks)  # residual window still filling
                 or i0 - noise_at[j] >= model.reselect_blocks
             ):  # then with the terms' schedule (the grid search is the costly part)
-                nz = estimate_noise(r_hist, level_hz)
+                nz = estimate_noise(r_hist, level_hz, correlated_lags=independent_lag)
                 if nz.n_residuals:  # fitted, not the prior: no less model error than shown
                     nz = model_error_floor(nz, resid[max(lo, first + train) : i0, j])
                 noise_at[j] = i0
@@ -406,12 +422,36 @@ def memory_forecast(
                     "Kalman track implausible: restarted at the model",
                     "Kalman tracks restarted at the model (estimate implausible)",
                 )
+            variance = np.maximum(P[:, 0, 0], 0.0)
+            if trust is not None:
+                out_of_sample = np.full(n_modes, k >= first + train)
+                trust.step(
+                    np.where(have, z, np.nan),
+                    F[:, 1],
+                    q_e * scale / np.maximum(1 - F[:, 1] ** 2, 1e-12),
+                    r_v * scale,
+                    nu,
+                    innovation_variance,
+                    out_of_sample & ~lost,
+                )
+                estimate, variance = trust.combine(estimate, variance)
+                out["probability"][k] = np.where(have, trust.probability, np.nan)
+                for j in np.flatnonzero(have & out_of_sample):
+                    below = trust.probability[j] < 0.5
+                    if below and not explained_lost[j]:
+                        explained_lost[j] = int(blocks[k]) + 1
+                    if below:
+                        notes[
+                            f"mode {mode_labels[j]}: the model stopped explaining it (model "
+                            f"probability below 0.5, first at block {explained_lost[j] - 1}; "
+                            "blocks below, the estimate follows SSI)"
+                        ] += 1
             if k >= first + train:
                 meas[k] = z
             resid[k] = residual
             out["ssi"][k] = z
             out["kalman"][k] = np.where(have, estimate, np.nan)
-            out["std"][k] = np.where(have, np.sqrt(np.maximum(P[:, 0, 0], 0.0)), np.nan)
+            out["std"][k] = np.where(have, np.sqrt(variance), np.nan)
             gap = np.where(np.isfinite(z), 0, gap + have)
             for j in np.flatnonzero(have & (gap >= gap_warning_blocks)):
                 warn(

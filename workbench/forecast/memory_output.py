@@ -27,6 +27,7 @@ OUTPUT_ARRAYS = (
     "min_order",
     "max_order",
     "seen",
+    "probability",
 )
 
 
@@ -65,8 +66,16 @@ def assemble_table(
         out["mac"],
         out_warning,
     )
+    rows_, cols_ = np.nonzero(out_phase)
+    probability = pd.DataFrame(
+        {
+            "block": blocks[rows_],
+            "mode": mode_labels[cols_].astype(np.int64),
+            "model_probability": out["probability"][rows_, cols_],
+        }
+    )
+    table = table.merge(probability, on=["block", "mode"], how="left", validate="one_to_one")
     if option == "B":
-        rows_, cols_ = np.nonzero(out_phase)
         extra = pd.DataFrame(
             {
                 "block": blocks[rows_],

@@ -43,6 +43,7 @@ __all__ = [
     "NoiseModel",
     "estimate_noise",
     "lagged_autocovariance",
+    "identification_error_bound",
     "model_error_floor",
 ]
 
@@ -204,7 +205,31 @@ def _grid_nnls(lags: np.ndarray, target: np.ndarray, weight: np.ndarray):
     return float(CORRECTION_TIMES[tau_g[g]]), float(rhos[rho_g[g]]), best_coef[g]
 
 
-def estimate_noise(residuals: np.ndarray, level_hz: float) -> NoiseModel:
+def identification_error_bound(residuals: np.ndarray, correlated_lags: int) -> float | None:
+    """Upper bound of the identification error's variance that does not depend on the model.
+
+    Blocks *correlated_lags* apart share no data, so their identification errors are
+    independent. The residual's second difference across them,
+    d_k = r_k - (r_{k-L} + r_{k+L}) / 2, holds the identification error of three blocks,
+    1.5 σ_ε², plus the model error's curvature over 2L blocks, which is >= 0; so
+    mean(d²) / 1.5 bounds σ_ε² = σ_e² + σ_v² from above whatever the model error is (an
+    offset or a linear drift of the model cancels in d). None with fewer than
+    :data:`MIN_RESIDUALS` triples.
+    """
+    r = np.asarray(residuals, dtype=float)
+    L = int(correlated_lags)
+    if r.size <= 2 * L:
+        return None
+    d = r[L:-L] - 0.5 * (r[: -2 * L] + r[2 * L :])
+    d = d[np.isfinite(d)]
+    if d.size < MIN_RESIDUALS:
+        return None
+    return float(np.mean(d * d) / 1.5)
+
+
+def estimate_noise(
+    residuals: np.ndarray, level_hz: float, *, correlated_lags: int | None = None
+) -> NoiseModel:
     """Covariance-matching estimate of the residual model (module docstring).
 
     Parameters
@@ -213,6 +238,11 @@ def estimate_noise(residuals: np.ndarray, level_hz: float) -> NoiseModel:
         r_k = z_k - m_k on consecutive blocks (NaN: no measurement), oldest first. [Hz]
     level_hz : float
         Typical frequency of the mode, for the floors. [Hz]
+    correlated_lags : int, optional
+        Blocks that share data with a block (4 for 20-minute blocks every 5 minutes):
+        identification errors this many blocks apart are independent, and σ_e² + σ_v² is
+        capped at :func:`identification_error_bound` (the excess goes to the model error
+        σ_c²). None: no cap.
     """
     r = np.asarray(residuals, dtype=float)
     n = int(np.isfinite(r).sum())
@@ -231,6 +261,16 @@ def estimate_noise(residuals: np.ndarray, level_hz: float) -> NoiseModel:
     sc, se, sv = (float(c) for c in coef)
     if rho == 0.0:  # e and v coincide: all white
         sv, se = sv + se, 0.0
+    if correlated_lags is not None:
+        # the fit cannot tell a model error of a few blocks' time constant from the
+        # identification error; the second difference across non-overlapping blocks bounds
+        # the latter whatever the model does: what the fit put into e and v beyond the
+        # bound is model error
+        bound = identification_error_bound(r, int(correlated_lags))
+        if bound is not None and se + sv > bound:
+            excess = se + sv - bound
+            shrink = bound / (se + sv)
+            se, sv, sc = se * shrink, sv * shrink, sc + excess
     floor_c = (MIN_CORRECTION_STD * level_hz) ** 2
     floor_m = (MIN_MEASUREMENT_STD * level_hz) ** 2
     if se + sv < floor_m:

@@ -220,12 +220,19 @@ class NoiseOptions:
         use (:mod:`workbench.forecast.innovation_consistency`: model variance is added
         while they are larger or more one-sided than the noise model says); 0 turns the
         safeguard off. [blocks]
+    model_trust : bool
+        Weigh the blend against a filter that does not use the model by how well each
+        predicts the measurements (:mod:`workbench.forecast.model_trust`): the estimate
+        falls back to the model-free filter, which follows SSI, while the model does not
+        explain the mode (an unrecorded change: fuel, ballast, ice). False: the blend
+        alone.
     """
 
     noise_blocks: int = 576
     huber_sigma: float = 2.5
     pole_scatter: bool = True
     consistency_blocks: int = WINDOW_BLOCKS
+    model_trust: bool = True
 
     def __post_init__(self):
         if int(self.noise_blocks) < 10:

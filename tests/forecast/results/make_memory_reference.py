@@ -7,7 +7,10 @@ memory_reference.csv was first written by the memory path before it was vectoris
 re-recorded when the method changed on purpose (issue 11: a run of large innovations must
 reach a block that shares no data with its first before it counts as a model error; then
 the model-error variance floored by the out-of-sample residuals, noise.model_error_floor,
-and model variance added where the innovations are inconsistent, innovation_consistency).
+and model variance added where the innovations are inconsistent, innovation_consistency;
+issue 27: the identification error capped by noise.identification_error_bound, and the
+estimate weighed against a model-free filter, model_trust, whose weight is the new
+model_probability column).
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ COLUMNS = [
     "ssi_frequency_hz",
     "kalman_frequency_hz",
     "kalman_std_hz",
+    "model_probability",
 ]
 
 

@@ -1,0 +1,184 @@
+"""Issue 27: the identification-error bound and the guard that weighs the model against a
+model-free filter (estimate falls back to SSI when the model stops explaining a mode)."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from data_contracts import FORECAST
+from workbench.forecast import ForecastWarning, sliding_forecast
+from workbench.forecast.model_trust import PRIOR_PROBABILITY, ModelTrust
+from workbench.forecast.noise import estimate_noise, identification_error_bound
+from workbench.forecast.options import NoiseOptions
+
+
+def _overlap_error(rng, n, std, overlap=4):
+    """Identification error of blocks made of *overlap* shared sub-windows: the mean of
+    *overlap* consecutive independent sub-window errors (correlation 1 - h/overlap, zero
+    from lag *overlap* on), scaled to standard deviation *std*."""
+    sub = rng.normal(0.0, std * math.sqrt(overlap), n + overlap - 1)
+    return np.convolve(sub, np.ones(overlap) / overlap, mode="valid")
+
+
+def _ar1(rng, n, phi, std):
+    out = np.empty(n)
+    out[0] = rng.normal(0, std)
+    for k in range(1, n):
+        out[k] = phi * out[k - 1] + math.sqrt(1 - phi * phi) * rng.normal(0, std)
+    return out
+
+
+def test_identification_error_bound_is_the_error_variance_whatever_the_model_does():
+    # r = a + b k + e: an offset and a linear drift of the model cancel in the second
+    # difference, and e (overlap 4) is independent 4 blocks apart, so mean(d^2) / 1.5 has
+    # expectation sigma_e^2 exactly. 40 000 blocks: the mean of d^2 (correlated over ~8
+    # blocks) scatters by ~2 %; 6 % covers it.
+    rng = np.random.default_rng(3)
+    n = 40000
+    e = _overlap_error(rng, n, 0.01)
+    r = 0.05 + 1e-6 * np.arange(n) + e
+    assert identification_error_bound(r, 4) == pytest.approx(1e-4, rel=0.06)
+    # a model error adds its curvature: the bound is an upper bound, never below sigma_e^2
+    c = _ar1(rng, n, math.exp(-1 / 8), 0.02)
+    assert identification_error_bound(r + c, 4) > 1e-4
+    # too few triples say nothing
+    assert identification_error_bound(r[:20], 4) is None
+
+
+def test_noise_fit_caps_the_identification_error_at_the_bound():
+    # wander of the model error (tau 8 blocks, twice the SSI scatter) beside an overlap
+    # error: without the cap the joint fit can put the wander's short-lag part into e;
+    # with it, sigma_e^2 + sigma_v^2 is at most the bound and the total variance is kept
+    rng = np.random.default_rng(11)
+    n = 576
+    r = _ar1(rng, n, math.exp(-1 / 8), 0.02) + _overlap_error(rng, n, 0.01)
+    free = estimate_noise(r, level_hz=5.0)
+    capped = estimate_noise(r, level_hz=5.0, correlated_lags=4)
+    bound = identification_error_bound(r, 4)
+    # (the white variance keeps its floor, 0.05 x (1e-4 x 5 Hz)^2 = 1.25e-8 Hz^2)
+    assert capped.error_variance + capped.white_variance <= bound + 1.25e-8 * (1 + 1e-9)
+    assert free.error_variance + free.white_variance > bound  # the cap acted
+    total_free = free.correction_variance + free.error_variance + free.white_variance
+    total_capped = capped.correction_variance + capped.error_variance + capped.white_variance
+    assert total_capped == pytest.approx(total_free, rel=1e-6)
+    assert capped.correction_variance >= free.correction_variance
+
+
+def _trust_run(blend_bias_hz, n=200, seed=0):
+    """ModelTrust fed one mode whose frequency moves with a recorded predictor,
+    x_k = 5 Hz + 0.03 Hz sin(k / 8), measured with a white SSI error (0.01 Hz); the
+    blend's innovations are those of a model that knows x_k but is off by *blend_bias_hz*,
+    with a claimed S of (0.005 Hz)^2 + the SSI variance."""
+    rng = np.random.default_rng(seed)
+    trust = ModelTrust(1, huber_sigma=2.5)
+    sigma2 = 1e-4
+    for k in range(n):
+        x = 5.0 + 0.03 * math.sin(k / 8)
+        z = x + rng.normal(0.0, 0.01)
+        S = 0.005**2 + sigma2
+        y = z - (x + blend_bias_hz)
+        trust.step(
+            np.array([z]),
+            np.array([0.0]),
+            np.array([0.0]),
+            np.array([sigma2]),
+            np.array([y / math.sqrt(S)]),
+            np.array([S]),
+            np.array([True]),
+        )
+    return trust
+
+
+def test_trust_stays_with_a_model_that_predicts_and_leaves_one_that_does_not():
+    right = _trust_run(0.0)
+    assert right.probability[0] > 0.9
+    wrong = _trust_run(0.03)  # 3 SSI standard deviations off, every block
+    assert wrong.probability[0] < 0.01
+    # the combined estimate is then the model-free filter's (it follows the measurements):
+    # the blend's estimate is 0.03 Hz off, the combination within 0.015 Hz of the truth
+    # (the model-free filter lags the 0.03 Hz oscillation a little)
+    x = 5.0 + 0.03 * math.sin(199 / 8)
+    estimate, variance = wrong.combine(np.array([x + 0.03]), np.array([1e-6]))
+    assert abs(estimate[0] - x) < 0.015
+    assert variance[0] > 0
+
+
+def test_trust_ignores_in_sample_blocks():
+    trust = ModelTrust(1, huber_sigma=2.5)
+    for _ in range(20):
+        trust.step(
+            np.array([5.0]),
+            np.array([0.0]),
+            np.array([0.0]),
+            np.array([1e-4]),
+            np.array([10.0]),  # a huge innovation, but in sample: not evidence
+            np.array([1e-4]),
+            np.array([False]),
+        )
+    assert trust.probability[0] == PRIOR_PROBABILITY
+
+
+def _voyage_with_unrecorded_step(seed=0, n=288, step_hz=0.06):
+    """One mode whose frequency follows speed (recorded) and, from the middle on, an
+    unrecorded step of *step_hz* (6 SSI standard deviations); SSI error white, 0.01 Hz."""
+    rng = np.random.default_rng(seed)
+    start = pd.Timestamp("2025-01-01T00:00:00Z") + pd.to_timedelta(np.arange(n) * 5, unit="min")
+    speed = 8 + 4 * np.sin(np.arange(n) / 30.0) + rng.normal(0, 0.2, n)
+    truth = 5.0 - 0.02 * (speed - 8) + np.where(np.arange(n) >= n // 2, step_hz, 0.0)
+    predictors = pd.DataFrame(
+        {
+            "block": np.arange(n),
+            "block_start": start,
+            "block_end": start + pd.Timedelta(minutes=5),
+            "speed_kn": speed,
+        }
+    )
+    modal = pd.DataFrame(
+        {
+            "block": np.arange(n),
+            "block_start": start,
+            "mode": 1,
+            "frequency_hz": truth + rng.normal(0, 0.01, n),
+            "damping_ratio": 0.01,
+        }
+    )
+    return predictors, modal, truth
+
+
+def test_forecast_falls_back_to_ssi_after_an_unrecorded_step_and_says_so():
+    predictors, modal, truth = _voyage_with_unrecorded_step()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = sliding_forecast(modal, predictors, option="A", scheme=2, model="memory")
+    table = result.table
+    FORECAST.validate(table)
+    after = table[(table["block"] >= 160) & (table["phase"] == "forecast")]
+    truth_after = truth[after["block"].to_numpy()]
+    error_kalman = np.abs(after["kalman_frequency_hz"].to_numpy() - truth_after).mean()
+    error_ssi = np.abs(after["ssi_frequency_hz"].to_numpy() - truth_after).mean()
+    assert error_kalman < error_ssi  # not worse than raw SSI after the change
+    probability = table.set_index("block")["model_probability"]
+    # the model's probability collapses in the blocks right after the step
+    assert probability.loc[144 + 4 : 144 + 24].min() < 0.5
+    notes = [str(w.message) for w in caught if issubclass(w.category, ForecastWarning)]
+    assert any("the model stopped explaining it" in note for note in notes)
+
+
+def test_model_trust_can_be_switched_off():
+    predictors, modal, _ = _voyage_with_unrecorded_step(n=120)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        table = sliding_forecast(
+            modal,
+            predictors,
+            option="A",
+            scheme=2,
+            model="memory",
+            noise_options=NoiseOptions(model_trust=False),
+        ).table
+    assert table["model_probability"].isna().all()

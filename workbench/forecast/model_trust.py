@@ -1,0 +1,237 @@
+"""Does the model still explain the mode? The blend against model-free filters, by likelihood.
+
+The memory forecast's filter (:mod:`workbench.forecast.memory_kalman`) estimates
+x = m + c with the model's prediction m; when something changes that no predictor
+records (fuel burnt without soundings, ballast, ice on deck), its noise model, fitted on
+residuals from before the change, can trust m more than the data allow, and the blend
+ends up worse than the raw SSI estimate. Beside it, this module runs filters that do not
+use the model at all:
+
+.. math::
+
+    x_k = x_{k-1} + w_k, \\quad z_k = x_k + e_k + v_k, \\quad e_k = ρ e_{k-1} + u_k,
+
+(the level x a random walk, var w = q (σ_e² + σ_v²) with q from
+:data:`LEVEL_STEP_VARIANCES`, a filter that stays close to the raw SSI estimate; the
+identification error e and v as in the blend's noise model), and weighs the hypotheses H₁ "the model explains the mode" (the blend) and H₀
+"it does not" (each model-free filter) by the likelihood of each block's measurement
+under each filter's one-step prediction, with a small probability of switching between
+blocks (a multiple-model filter without state mixing, [1]_ §11.6). The likelihood uses
+Huber-clipped normalised innovations (one mis-selected pole cannot decide it), each
+block's evidence is capped at :data:`EVIDENCE_CAP`, and only out-of-sample blocks count (the model was fitted to the training blocks). The estimate is
+the weighted mean of the filters' estimates,
+
+.. math:: \\hat x = \\sum_i w_i \\hat x_i, \\qquad
+          P = \\sum_i w_i (P_i + (\\hat x_i - \\hat x)^2),
+
+with the blend's weight w₁ = min(1, p₁ / :data:`FULL_WEIGHT_PROBABILITY`) and the rest
+shared by the model-free filters in proportion to their probabilities; p₁, the
+probability that the model explains the mode, is the forecast table's
+``model_probability``.
+
+The one-step prediction of a block's measurement is out of sample for every filter, so the
+weights measure which of them predicts the data better as the voyage goes on: a guard that
+measures whether leaning on the model still helps, and falls back to the model-free
+estimate (which follows SSI) when it does not.
+
+References
+----------
+.. [1] Y. Bar-Shalom, X. R. Li, T. Kirubarajan, "Estimation with Applications to Tracking
+   and Navigation", Wiley, 2001, ch. 11.6 (multiple-model estimation).
+   doi:10.1002/0471221279
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["ModelTrust"]
+
+#: Probability that the hypothesis changes from one block to the next (one switch in about
+#: 2 days of 5-minute blocks): p follows the accumulated evidence, and stretches in which
+#: both filters predict equally well (the ship holds one speed) leave it where it is. [-]
+SWITCH_PROBABILITY = 0.002
+#: Level random-walk variances of the model-free filters per block, in units of the
+#: identification error's variance σ_e² + σ_v²: a level that moves by about the SSI
+#: scatter every block, so the filter stays close to the raw SSI estimate (a slower
+#: filter, 0.1, measured better on slow unrecorded wander but lagged real moves and
+#: cost the 12-h demo 2-4 points; benchmarks/results/forecast_accuracy_27.txt). [-]
+LEVEL_STEP_VARIANCES = (1.0,)
+#: Probability that the model explains a mode before its first out-of-sample block. [-]
+PRIOR_PROBABILITY = 0.9
+#: The blend's probability below which the estimate starts to move to the model-free
+#: filters (a model-free filter three times as probable as the blend): while the
+#: evidence is weaker, the blend, which measures best where the model explains the mode,
+#: keeps its whole weight. [-]
+FULL_WEIGHT_PROBABILITY = 0.25
+#: Most evidence one block can give against the best-predicting hypothesis (log
+#: likelihood ratio): a stretch of outliers as long as the blocks sharing data, or the
+#: first blocks of a real move (which the blend takes once it persists), cannot decide
+#: alone. [nats]
+EVIDENCE_CAP = 1.0
+#: Smallest and largest model probability (neither hypothesis is ever ruled out). [-]
+P_MIN, P_MAX = 1e-4, 1.0 - 1e-4
+
+
+class ModelTrust:
+    """Model-free filters and the probability that the model explains each mode.
+
+    Parameters
+    ----------
+    n_modes : int
+    huber_sigma : float
+        Normalised innovations are clipped at this many standard deviations in the
+        likelihood. [-]
+    prior_probability : float
+        Probability of "the model explains the mode" before any measurement. [-]
+    """
+
+    def __init__(
+        self,
+        n_modes: int,
+        huber_sigma: float,
+        prior_probability: float = PRIOR_PROBABILITY,
+        level_steps: tuple[float, ...] = LEVEL_STEP_VARIANCES,
+    ):
+        self.huber_sigma = float(huber_sigma)
+        self.steps = np.asarray(level_steps, dtype=float)  # one model-free filter each
+        n_free = self.steps.size
+        self.level = np.full((n_free, n_modes), np.nan)  # model-free estimates x̂₀ [Hz]
+        self.error = np.zeros((n_free, n_modes))  # their identification-error states ê [Hz]
+        self.P = np.zeros((n_free, n_modes, 2, 2))
+        # hypothesis probabilities: row 0 the blend, then the model-free filters
+        self.weights = np.empty((n_free + 1, n_modes))
+        self.weights[0] = float(prior_probability)
+        self.weights[1:] = (1.0 - float(prior_probability)) / n_free
+
+    @property
+    def probability(self) -> np.ndarray:
+        """Probability that the model explains each mode (the blend's weight). [-]"""
+        return self.weights[0]
+
+    def _log_likelihood(self, normalised: np.ndarray, variance: np.ndarray) -> np.ndarray:
+        # log N(y; 0, S) with ν² Huber-clipped: -0.5 (log S + ρ_H(ν))
+        a = np.abs(normalised)
+        k = self.huber_sigma
+        rho = np.where(a <= k, a * a, 2 * k * a - k * k)
+        return -0.5 * (np.log(variance) + rho)
+
+    def step(
+        self,
+        z: np.ndarray,
+        error_correlation: np.ndarray,
+        error_variance: np.ndarray,
+        white_variance: np.ndarray,
+        blend_normalised: np.ndarray,
+        blend_variance: np.ndarray,
+        learn: np.ndarray,
+    ) -> None:
+        """One block: predict and update the model-free filters, then the probabilities.
+
+        Parameters
+        ----------
+        z : ndarray (n,)
+            The block's measurement (NaN: none). [Hz]
+        error_correlation, error_variance, white_variance : ndarray (n,)
+            ρ, σ_e² (stationary) and the block's white variance R of the blend's noise
+            model (the same identification error under every hypothesis). [-], [Hz²], [Hz²]
+        blend_normalised, blend_variance : ndarray (n,)
+            The blend's normalised innovation and innovation variance S in this block.
+        learn : ndarray of bool (n,)
+            Modes whose probabilities may change in this block (out of sample: the model
+            had not seen the block).
+        """
+        rho = np.clip(error_correlation, 0.0, 0.99)
+        sigma2 = np.maximum(error_variance + white_variance, 1e-300)
+        log_l = np.full(self.weights.shape, np.nan)
+        log_l[0] = self._blend_log_likelihood(blend_normalised, blend_variance)
+        for h, step in enumerate(self.steps):
+            log_l[h + 1] = self._free_step(h, step, z, rho, sigma2, error_variance, white_variance)
+        use = learn & np.isfinite(log_l).all(axis=0)
+        if use.any():
+            # p̄_i = (1 - π) p_i + π (1 - p_i) / (H - 1) ; p_i ∝ p̄_i L_i
+            n_h = self.weights.shape[0]
+            w = self.weights[:, use]
+            prior = (1 - SWITCH_PROBABILITY) * w + SWITCH_PROBABILITY * (1 - w) / (n_h - 1)
+            # evidence per block at most EVIDENCE_CAP nats against the best hypothesis: a
+            # stretch of outliers as long as the blocks sharing data cannot decide alone
+            ll = log_l[:, use]
+            ll = np.maximum(ll, ll.max(axis=0, keepdims=True) - EVIDENCE_CAP)
+            log_post = np.log(prior) + ll
+            log_post -= log_post.max(axis=0, keepdims=True)
+            post = np.exp(log_post)
+            post /= post.sum(axis=0, keepdims=True)
+            post = np.clip(post, P_MIN, P_MAX)
+            self.weights[:, use] = post / post.sum(axis=0, keepdims=True)
+
+    def _blend_log_likelihood(self, normalised, variance):
+        out = np.full(normalised.shape, np.nan)
+        ok = np.isfinite(normalised) & np.isfinite(variance) & (variance > 0)
+        out[ok] = self._log_likelihood(normalised[ok], variance[ok])
+        return out
+
+    def _free_step(self, h, step, z, rho, sigma2, error_variance, white_variance):
+        """Predict and update model-free filter *h*; its log-likelihood of z (NaN: none)."""
+        out = np.full(z.shape, np.nan)
+        level, error, P_all = self.level[h], self.error[h], self.P[h]
+        fresh = np.isfinite(z) & ~np.isfinite(level)
+        if fresh.any():  # start at the first measurement, with the measurement's variance
+            level[fresh] = z[fresh]
+            error[fresh] = 0.0
+            P_all[fresh] = 0.0
+            P_all[fresh, 0, 0] = sigma2[fresh]
+            P_all[fresh, 1, 1] = error_variance[fresh]
+        on = np.isfinite(level) & ~fresh
+        if not on.any():
+            return out
+        idx = np.flatnonzero(on)
+        # x = Fx ; P = FPF' + Q with F = diag(1, ρ), Q = diag(q σ², σ_e²(1 - ρ²))
+        F = np.stack([np.ones(idx.size), rho[idx]], axis=1)
+        P = P_all[idx] * (F[:, :, None] * F[:, None, :])
+        P[:, 0, 0] += step * sigma2[idx]
+        P[:, 1, 1] += error_variance[idx] * (1 - rho[idx] ** 2)
+        lv = level[idx]
+        er = error[idx] * rho[idx]
+        have = np.isfinite(z[idx])
+        if have.any():
+            k = np.flatnonzero(have)
+            # y = z - Hx ; S = HPH' + R  (H = [1 1])
+            y = z[idx][k] - lv[k] - er[k]
+            S = P[k, 0, 0] + P[k, 1, 1] + 2 * P[k, 0, 1] + white_variance[idx][k]
+            nu = y / np.sqrt(S)
+            out[idx[k]] = self._log_likelihood(nu, S)
+            # Huber weight as in the blend: beyond k the measurement counts as if k out
+            a = np.abs(nu)
+            extra = np.where(a > self.huber_sigma, S * (a / self.huber_sigma - 1.0), 0.0)
+            # K = PH'S⁻¹ ; x = x + Ky ; P = (I - KH) P (I - KH)' + K R K' (Joseph form)
+            PH = np.stack([P[k, 0, 0] + P[k, 0, 1], P[k, 1, 0] + P[k, 1, 1]], axis=1)
+            K = PH / (S + extra)[:, None]
+            lv[k] += K[:, 0] * y
+            er[k] += K[:, 1] * y
+            A = np.eye(2)[None, :, :] - K[:, :, None] * np.ones((1, 1, 2))
+            R_eff = white_variance[idx][k] + extra
+            P[k] = A @ P[k] @ np.transpose(A, (0, 2, 1)) + R_eff[:, None, None] * (
+                K[:, :, None] * K[:, None, :]
+            )
+        level[idx], error[idx], P_all[idx] = lv, er, P
+        return out
+
+    def combine(
+        self, blend_estimate: np.ndarray, blend_variance: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Probability-weighted estimate [Hz] and its variance [Hz²] (module docstring)."""
+        started = np.isfinite(self.level)
+        xs = np.concatenate([blend_estimate[None], np.where(started, self.level, blend_estimate)])
+        Ps = np.concatenate(
+            [blend_variance[None], np.where(started, self.P[:, :, 0, 0], blend_variance)]
+        )
+        # the blend keeps its whole weight until its probability falls below
+        # FULL_WEIGHT_PROBABILITY; below, its weight is p / FULL_WEIGHT_PROBABILITY and the
+        # rest goes to the model-free filters in proportion to their probabilities
+        w = self.weights.copy()
+        w[0] = np.clip(self.weights[0] / FULL_WEIGHT_PROBABILITY, 0.0, 1.0)
+        rest = self.weights[1:].sum(axis=0)
+        w[1:] = self.weights[1:] / np.where(rest > 0, rest, 1.0) * (1.0 - w[0])
+        x = (w * xs).sum(axis=0)
+        P = (w * (Ps + (xs - x) ** 2)).sum(axis=0)
+        return x, P
