@@ -157,12 +157,12 @@ class _Search:
             columns.append(kept)
         return decrease, df, columns
 
-    # ----------------------------------------------------------------- the search
-    def run(self, start: list[int], lower: set[int], max_steps: int | None) -> None:
+    def _sweep_model(self, *, start: bool):
+        """The rows, problem and swept cross-product matrix of :attr:`model` on its own rows
+        (MATLAB's per-candidate rule), recording each term's swept columns in
+        :attr:`swept`; a *start* model with a term collinear with those before it is
+        refused."""
         layout = self.layout
-        display = layout.display
-        n_terms = len(layout.terms)
-        self.model = sorted(start)
         rows = self._rows(self.model)
         problem = self._problem_for(rows)
         matrix = problem.cross.copy()
@@ -174,13 +174,22 @@ class _Search:
                 if matrix[column, column] > COLLINEARITY_TOLERANCE:
                     _sweep(matrix, int(column))
                     kept.append(int(column))
-            if not kept:
+            if start and not kept:
                 raise ValueError(
-                    f"start model is rank deficient: term {display[term]!r} is collinear with "
-                    "the terms before it"
+                    f"start model is rank deficient: term {layout.display[term]!r} is collinear "
+                    "with the terms before it"
                 )
             self.swept[term] = kept
         self._columns_cache = None
+        return rows, problem, matrix
+
+    # ----------------------------------------------------------------- the search
+    def run(self, start: list[int], lower: set[int], max_steps: int | None) -> None:
+        layout = self.layout
+        display = layout.display
+        n_terms = len(layout.terms)
+        self.model = sorted(start)
+        rows, problem, matrix = self._sweep_model(start=True)
         in_model = np.zeros(n_terms, dtype=bool)
         in_model[self.model] = True
         in_extended = np.zeros(n_terms + 1, dtype=bool)
@@ -340,19 +349,7 @@ class _Search:
         # the kept model on its own rows (MATLAB's per-candidate rule)
         self.model = list(best)
         self.swept = {}
-        rows = self._rows(self.model)
-        problem = self._problem_for(rows)
-        matrix = problem.cross.copy()
-        for term in self.model:
-            if layout.is_intercept[term]:
-                continue
-            kept = []
-            for column in layout.columns[term]:
-                if matrix[column, column] > COLLINEARITY_TOLERANCE:
-                    _sweep(matrix, int(column))
-                    kept.append(int(column))
-            self.swept[term] = kept
-        self._columns_cache = None
+        rows, problem, matrix = self._sweep_model(start=False)
 
         def formula(model) -> str:
             terms = [layout.display[t] for t in model if not layout.is_intercept[t]]
