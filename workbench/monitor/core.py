@@ -612,8 +612,8 @@ class Monitor:
                 self._collect(future.result())
             except Exception as error:  # noqa: BLE001 - a crashed worker: say so, go on
                 self.messages.append(f"forecast: background update failed ({error})")
-                self.check_worker()  # a worker that died breaks the pool: replaced next
-                self._outlook_due = True
+                if self.check_worker() == "stopped":  # its work is redone by a new worker
+                    self._outlook_due = True
         if self._outlook_due:
             self._log_complete = False
             self.update_outlook(background=self.options.background)
