@@ -353,8 +353,9 @@ class StateFolder:
                     reason = "; ".join(str(v) for v in error.violations[:3])
                     snapshot = FileSnapshot(name, signature, last_good, f"{filename}: {reason}")
                 except (OSError, ValueError) as error:
-                    snapshot = FileSnapshot(
-                        name, signature, last_good, f"{filename}: {_first_line(error)}"
-                    )
+                    reason = _first_line(error)  # the JSON readers name the file already
+                    if not reason.startswith(f"{filename}: "):
+                        reason = f"{filename}: {reason}"
+                    snapshot = FileSnapshot(name, signature, last_good, reason)
             self._cache[name] = snapshot
             return snapshot
