@@ -343,7 +343,8 @@ def test_killed_monitor_turns_from_running_to_not_responding(browser, tmp_path, 
         served = serve(state, DashboardOptions(poll_seconds=0.2))
         page = browser.open(served.url)
         running = "document.getElementById('status-state').innerText === 'monitor running'"
-        named = f"document.getElementById('status-heartbeat').innerText.includes('{files[-1].name}')"
+        heartbeat = "document.getElementById('status-heartbeat').innerText"
+        named = f"{heartbeat}.includes('{files[-1].name}')"
         page.wait_for(f"{running} && {named}", timeout=120)
         green = page.evaluate("getComputedStyle(document.getElementById('status-state')).color")
         assert green == "rgb(63, 185, 80)"  # --ok
