@@ -310,3 +310,97 @@ def test_tracked_panel_draws_the_shaft_orders_beside_the_modes(browser, voyage, 
     assert seen["harmonic"][0]["dash"] not in ("", "none")
     assert seen["modes"] == window["mode"].nunique() + 1
     assert seen["legend"][-1] == "shaft orders 1×"
+
+
+def test_killed_monitor_turns_from_running_to_not_responding(browser, tmp_path, serve):
+    """Issue 29: a real ``workbench monitor`` is ``kill -9``'d while the page watches. The
+    status line turns from green "monitor running" to red "monitor not responding" within
+    two of the monitor's poll intervals (plus the page's own poll), naming the last file the
+    monitor took and when, without a reload."""
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    from workbench.dashboard.state import read_heartbeat
+
+    from ..robustness.voyage import write_voyage
+
+    watch, state = tmp_path / "watch", tmp_path / "state"
+    files = write_voyage(watch, n_files=3)
+    poll_s = 0.5
+    monitor = subprocess.Popen(
+        [sys.executable, "-m", "workbench.cli", "monitor", "--watch", str(watch),
+         "--state", str(state), "--poll", str(poll_s), "--settle", "0.1", "--foreground",
+         "--block-minutes", "2", "--step-minutes", "1", "--block-rows", "10",
+         "--min-order", "4", "--max-order", "16"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])},
+    )  # fmt: skip
+    try:
+        served = serve(state, DashboardOptions(poll_seconds=0.2))
+        page = browser.open(served.url)
+        running = "document.getElementById('status-state').innerText === 'monitor running'"
+        heartbeat = "document.getElementById('status-heartbeat').innerText"
+        named = f"{heartbeat}.includes('{files[-1].name}')"
+        page.wait_for(f"{running} && {named}", timeout=120)
+        green = page.evaluate("getComputedStyle(document.getElementById('status-state')).color")
+        assert green == "rgb(63, 185, 80)"  # --ok
+        taken = read_heartbeat(state / "heartbeat.json")["last_file_taken_at"]
+        page.evaluate("window.__notReloaded = 'yes'")
+        monitor.send_signal(signal.SIGKILL)
+        monitor.wait(timeout=30)
+        killed = time.monotonic()
+        page.wait_for(
+            "document.getElementById('status-state').innerText === 'monitor not responding'",
+            timeout=30,
+        )
+        # two poll intervals after the last heartbeat, then the page's next poll (0.2 s);
+        # a generous margin for a busy machine, far below the 15-min silence of old
+        assert time.monotonic() - killed < 2 * poll_s + 5.0
+        seen = page.evaluate(READ_PAGE)
+        colour = page.evaluate("getComputedStyle(document.getElementById('status-state')).color")
+    finally:
+        if monitor.poll() is None:
+            monitor.kill()
+            monitor.wait(timeout=30)
+    assert colour == "rgb(248, 81, 73)" != green  # --bad, not the green of running
+    assert "monitor running" not in seen["status"]
+    assert f"last file taken: {files[-1].name} at {taken[11:19]}Z" in seen["status"]
+    assert "no heartbeat for" in seen["status"] and "on " in seen["status"]
+    assert seen["marker"] == "yes"  # the same page, never reloaded
+
+
+def test_a_stopped_background_worker_is_shown(browser, tmp_path, serve):
+    """The heartbeat's worker state reaches the status line: stopped in red with the
+    monitor's message, a replaced worker as a note, nothing while all is well."""
+    status = {"updated_at": pd.Timestamp.now(tz="UTC").isoformat(), "last_block": 7,
+              "blocks_done": 8, "state": "running", "pid": 11, "watch": "/acc", "message": ""}
+    message = "background forecast/health worker (pid 12) stopped at 2026-03-01T06:00:00Z"
+
+    def beat(worker: dict) -> None:
+        heartbeat = {"time": pd.Timestamp.now(tz="UTC").isoformat(), "pid": 11, "host": "pc",
+                     "poll_s": 600.0, "state": "running", "last_file": "acc_007.npz",
+                     "last_file_taken_at": "2026-03-01T05:59:00Z", "worker": worker}
+        (tmp_path / "heartbeat.json").write_text(json.dumps(heartbeat))
+
+    (tmp_path / "status.json").write_text(json.dumps(status))
+    beat({"state": "alive", "pid": 12, "message": ""})
+    served = serve(tmp_path, DashboardOptions(poll_seconds=0.2))
+    page = browser.open(served.url)
+    page.wait_for("document.getElementById('status-state').innerText === 'monitor running'")
+    page.wait_for("document.getElementById('status-heartbeat').innerText !== ''")
+    assert page.evaluate("document.getElementById('status-worker').innerText") == ""
+    assert "last file acc_007.npz taken 2026-03-01 05:59Z" in page.evaluate(
+        "document.getElementById('status').innerText"
+    )
+    beat({"state": "stopped", "pid": 12, "message": message})
+    text = page.wait_for("document.getElementById('status-worker').innerText")
+    colour = page.evaluate("getComputedStyle(document.getElementById('status-worker')).color")
+    assert text == f"background worker stopped: {message}" and colour == "rgb(248, 81, 73)"
+    beat({"state": "alive", "pid": 13, "message": f"{message}; replaced by pid 13"})
+    page.wait_for("document.getElementById('status-worker').innerText.endsWith('pid 13')")
+    colour = page.evaluate("getComputedStyle(document.getElementById('status-worker')).color")
+    assert colour == "rgb(210, 153, 34)"  # --warn: a note, no longer an outage

@@ -180,7 +180,19 @@ def _status(state: StateFolder, options: DashboardOptions) -> dict[str, Any]:
     snap = state.read("status")
     if not snap.available:
         return _unavailable(snap.error)
-    return _panel(status_view(snap.data, _now()), snap.error)
+    beat = state.read("heartbeat")
+    # an absent heartbeat is no error (a state written by something else than the monitor)
+    note = beat.error if beat.signature is not None else None
+    return _panel(status_view(snap.data, _now(), beat.data), snap.error, note)
+
+
+def _liveness(state: StateFolder) -> str | None:
+    """The status panel's liveness verdict now (part of its ETag, so that the page fetches
+    the panel again when a heartbeat is missed although no file changed)."""
+    snap = state.read("status")
+    if not snap.available:
+        return None
+    return status_view(snap.data, _now(), state.read("heartbeat").data)["liveness"]
 
 
 def _modes(state: StateFolder, options: DashboardOptions) -> dict[str, Any]:
@@ -231,7 +243,7 @@ def _data_health(state: StateFolder, options: DashboardOptions) -> dict[str, Any
 
 #: Panels by name, in the order the page shows them.
 PANELS: dict[str, Panel] = {
-    "status": Panel(("status",), _status),
+    "status": Panel(("status", "heartbeat"), _status),
     "modes": Panel(("tracked", "forecast"), _modes),
     "tracked": Panel(("tracked", "harmonics"), _tracked),
     "health": Panel(("health",), _health),
@@ -388,7 +400,8 @@ class DashboardServer(HTTPServer):
     def etag(self, panel: str) -> str:
         """ETag of *panel*: digest of its files' signatures and the options."""
         signatures = [self.state.signature(name) for name in PANELS[panel].files]
-        text = repr((panel, signatures, self.options))
+        verdict = _liveness(self.state) if panel == "status" else None
+        text = repr((panel, signatures, verdict, self.options))
         return '"' + hashlib.blake2s(text.encode(), digest_size=10).hexdigest() + '"'
 
     def answer(self, panel: str) -> tuple[str, bytes]:

@@ -12,7 +12,10 @@ written atomically (temporary file, then rename). Any file may be absent early o
 ``data_health.parquet``     :data:`DATA_HEALTH`: channels, gaps and latency per block
 ``harmonics.parquet``       :data:`HARMONIC_LINES`: frequency of each shaft order per block
                             (when the ship log carries the shaft speed)
-``status.json``             :data:`STATUS_KEYS`: the monitor's heartbeat
+``status.json``             :data:`STATUS_KEYS`: the monitor's progress (per block)
+``heartbeat.json``          :data:`HEARTBEAT_KEYS`: the monitor's heartbeat (every poll
+                            interval, from a timer thread), with the last file it took
+                            and its background worker's state
 ==========================  ============================================================
 
 :class:`StateFolder` reads a file again only when its signature (modification time in
@@ -23,6 +26,7 @@ never writes, creates or locks anything in the folder.
 from __future__ import annotations
 
 import json
+import math
 import os
 import threading
 from dataclasses import dataclass
@@ -45,10 +49,12 @@ from data_contracts import (
 __all__ = [
     "DATA_HEALTH",
     "HARMONIC_LINES",
+    "HEARTBEAT_KEYS",
     "STATE_FILES",
     "STATUS_KEYS",
     "FileSnapshot",
     "StateFolder",
+    "read_heartbeat",
     "read_status",
 ]
 
@@ -104,6 +110,7 @@ STATE_FILES: dict[str, tuple[str, TableContract | None]] = {
     "data_health": ("data_health.parquet", DATA_HEALTH),
     "harmonics": ("harmonics.parquet", HARMONIC_LINES),
     "status": ("status.json", None),
+    "heartbeat": ("heartbeat.json", None),
 }
 
 #: Keys of ``status.json`` and the JSON types each takes.
@@ -130,6 +137,27 @@ GIVEN_UP_KEYS: dict[str, tuple[type, ...]] = {
     "end": (str,),
     "reason": (str,),
 }
+
+#: Keys of ``heartbeat.json`` and the JSON types each takes (``null`` where allowed).
+HEARTBEAT_KEYS: dict[str, tuple[type, ...]] = {
+    "time": (str,),
+    "pid": (int,),
+    "host": (str,),
+    "poll_s": (float, int),
+    "state": (str,),
+    "last_file": (str, type(None)),
+    "last_file_taken_at": (str, type(None)),
+    "worker": (dict,),
+}
+#: Keys of the heartbeat's ``worker`` object and their JSON types.
+WORKER_KEYS: dict[str, tuple[type, ...]] = {
+    "state": (str,),
+    "pid": (int, type(None)),
+    "message": (str,),
+}
+#: Values of the heartbeat's ``state`` and of its worker's ``state``.
+HEARTBEAT_STATES = ("running", "stopped")
+WORKER_STATES = ("none", "alive", "stopped")
 
 Signature = tuple[int, int, int]
 
@@ -208,6 +236,55 @@ def read_status(path: str | os.PathLike) -> dict:
     return status
 
 
+def _wrong_keys(mapping: dict, keys: dict[str, tuple[type, ...]]) -> list[str]:
+    problems = []
+    for key, types in keys.items():
+        if key not in mapping:
+            problems.append(f"missing key '{key}'")
+        elif not isinstance(mapping[key], types) or isinstance(mapping[key], bool):
+            problems.append(f"key '{key}' has type {type(mapping[key]).__name__}")
+    return problems
+
+
+def read_heartbeat(path: str | os.PathLike) -> dict:
+    """Read and check ``heartbeat.json`` (see :data:`HEARTBEAT_KEYS`).
+
+    Raises
+    ------
+    ValueError
+        The file is not a JSON object with the keys, types and values of
+        :data:`HEARTBEAT_KEYS` (message names the file and every failing key).
+    """
+    path = Path(path)
+    try:
+        beat = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ValueError(f"{path.name}: not valid JSON ({error})") from None
+    if not isinstance(beat, dict):
+        raise ValueError(f"{path.name}: expected a JSON object, got {type(beat).__name__}")
+    problems = _wrong_keys(beat, HEARTBEAT_KEYS)
+    if not problems:
+        problems += [f"key 'worker': {p}" for p in _wrong_keys(beat["worker"], WORKER_KEYS)]
+    if not problems:
+        if beat["state"] not in HEARTBEAT_STATES:
+            problems.append(f"key 'state' is {beat['state']!r}, not one of {HEARTBEAT_STATES}")
+        if beat["worker"]["state"] not in WORKER_STATES:
+            problems.append(
+                f"key 'worker': state {beat['worker']['state']!r} is not one of {WORKER_STATES}"
+            )
+        if not (math.isfinite(beat["poll_s"]) and beat["poll_s"] > 0):
+            problems.append(f"key 'poll_s' is {beat['poll_s']!r}, not a positive number")
+        for key in ("time", "last_file_taken_at"):
+            if beat[key] is not None:
+                try:
+                    pd.Timestamp(beat[key])
+                except ValueError:
+                    problems.append(f"key '{key}' is not an ISO-8601 time: {beat[key]!r}")
+    if problems:
+        raise ValueError(f"{path.name}: " + "; ".join(problems))
+    return beat
+
+
 def _first_line(error: BaseException) -> str:
     text = str(error).strip()
     return text.splitlines()[0] if text else type(error).__name__
@@ -267,7 +344,8 @@ class StateFolder:
             else:
                 try:
                     if contract is None:
-                        data = read_status(self.path(name))
+                        reader = read_heartbeat if name == "heartbeat" else read_status
+                        data = reader(self.path(name))
                     else:
                         data = read_table(self.path(name), contract)
                     snapshot = FileSnapshot(name, signature, data, None)
@@ -275,8 +353,9 @@ class StateFolder:
                     reason = "; ".join(str(v) for v in error.violations[:3])
                     snapshot = FileSnapshot(name, signature, last_good, f"{filename}: {reason}")
                 except (OSError, ValueError) as error:
-                    snapshot = FileSnapshot(
-                        name, signature, last_good, f"{filename}: {_first_line(error)}"
-                    )
+                    reason = _first_line(error)  # the JSON readers name the file already
+                    if not reason.startswith(f"{filename}: "):
+                        reason = f"{filename}: {reason}"
+                    snapshot = FileSnapshot(name, signature, last_good, reason)
             self._cache[name] = snapshot
             return snapshot

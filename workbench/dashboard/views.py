@@ -17,6 +17,7 @@ __all__ = [
     "alarms_view",
     "data_health_view",
     "health_view",
+    "heartbeat_stale",
     "iso",
     "modes_view",
     "status_view",
@@ -60,14 +61,59 @@ def _window(frame: pd.DataFrame, hours: float) -> pd.DataFrame:
     return frame[frame["block_start"] > newest - pd.Timedelta(hours=hours)]
 
 
-def status_view(status: dict | None, now: pd.Timestamp) -> dict[str, Any]:
-    """The monitor's heartbeat with its age at *now*. [s]"""
+#: A heartbeat older than this many of the monitor's poll intervals: not responding.
+HEARTBEAT_INTERVALS = 2.0
+
+
+def _utc(text: str) -> pd.Timestamp:
+    stamp = pd.Timestamp(text)
+    return stamp.tz_localize("UTC") if stamp.tzinfo is None else stamp.tz_convert("UTC")
+
+
+def heartbeat_stale(
+    beat_time: pd.Timestamp,
+    now: pd.Timestamp,
+    poll_s: float,
+    *,
+    intervals: float = HEARTBEAT_INTERVALS,
+) -> bool:
+    """Whether a heartbeat written at *beat_time* is missed at *now*.
+
+    The monitor writes its heartbeat every *poll_s* from a timer thread of its own, so a
+    heartbeat older than *intervals* poll intervals means the monitor is not responding
+    (killed, hung, its machine or disk gone), whatever its ``status.json`` last said.
+
+    Parameters
+    ----------
+    beat_time, now : pandas.Timestamp
+        When the heartbeat was written and the time it is judged at. [UTC]
+    poll_s : float
+        The monitor's poll interval, as written in the heartbeat. [s]
+    intervals : float
+        Poll intervals a heartbeat may be late. [-]
+    """
+    if not (math.isfinite(poll_s) and poll_s > 0):
+        raise ValueError(f"poll_s={poll_s!r} must be a positive number of seconds")
+    return (now - beat_time).total_seconds() > intervals * poll_s
+
+
+def status_view(
+    status: dict | None, now: pd.Timestamp, heartbeat: dict | None = None
+) -> dict[str, Any]:
+    """The monitor's progress (``status.json``) and liveness (``heartbeat.json``) at
+    *now*.
+
+    ``liveness`` is ``"not responding"`` when the status says running and the heartbeat is
+    missed (:func:`heartbeat_stale`); else the status's state (``"running"``, ``"stopped"``).
+    Without a heartbeat file (a state folder written by something else than the monitor,
+    such as the demo) the status's state stands as written.
+    """
     if status is None:
         return {}
-    updated = pd.Timestamp(status["updated_at"])
-    updated = updated.tz_localize("UTC") if updated.tzinfo is None else updated
-    return {
+    updated = _utc(status["updated_at"])
+    view = {
         "state": status["state"],
+        "liveness": status["state"],
         "last_block": status["last_block"],
         "blocks_done": status["blocks_done"],
         "updated_at": iso(updated),
@@ -82,7 +128,27 @@ def status_view(status: dict | None, now: pd.Timestamp) -> dict[str, Any]:
             for span in status.get("given_up", [])
         ],
         "given_up_note": status.get("given_up_note", ""),
+        "heartbeat": None,
     }
+    if heartbeat is not None:
+        beat = _utc(heartbeat["time"])
+        stale = heartbeat_stale(beat, now, float(heartbeat["poll_s"]))
+        if status["state"] == "running" and heartbeat["state"] == "running" and stale:
+            view["liveness"] = "not responding"
+        elif heartbeat["state"] == "stopped":
+            view["liveness"] = "stopped"
+        taken = heartbeat["last_file_taken_at"]
+        view["heartbeat"] = {
+            "time": iso(beat),
+            "age_s": _num((now - beat).total_seconds()),
+            "limit_s": HEARTBEAT_INTERVALS * float(heartbeat["poll_s"]),
+            "pid": heartbeat["pid"],
+            "host": heartbeat["host"],
+            "last_file": heartbeat["last_file"],
+            "last_file_taken_at": None if taken is None else iso(_utc(taken)),
+            "worker": {k: heartbeat["worker"][k] for k in ("state", "pid", "message")},
+        }
+    return view
 
 
 def choose_option(forecast: pd.DataFrame, option: str | None) -> str | None:

@@ -38,11 +38,30 @@ half-written file::
                                   "given_up": [{"first_block": int, "last_block": int,
                                   "start": ISO UTC, "end": ISO UTC, "reason": str}],
                                   "given_up_note": str}
+    <state>/heartbeat.json       {"time": ISO UTC, "pid": int, "host": str,
+                                  "poll_s": float, "state": "running"|"stopped",
+                                  "last_file": str|null, "last_file_taken_at": ISO UTC|null,
+                                  "worker": {"state": "none"|"alive"|"stopped",
+                                             "pid": int|null, "message": str}}
     <state>/store/               the per-block store (:class:`~workbench.store.BlockStore`,
                                  the same layout and parameters as ``workbench identify``'s)
 
 ``last_block`` is the newest block of the tracked table's span (every block up to it is
 decided); ``blocks_done`` counts decided blocks (identified or skipped).
+
+Liveness
+--------
+``status.json`` changes when a block is decided; ``heartbeat.json`` is written every
+``poll_s`` by a thread of its own, whatever the blocks or the forecast are doing, and once
+more with ``"state": "stopped"`` on a clean stop. A reader takes a running monitor whose
+heartbeat is older than two poll intervals for *not responding* (killed, hung, its machine
+or disk gone; :func:`workbench.dashboard.views.heartbeat_stale`); ``last_file`` and
+``last_file_taken_at`` say which acquisition file it took last and when (UTC).
+``worker`` is the background forecast/health process (``--foreground``/``--once``:
+``"none"``): ``"stopped"`` once the monitor notices it died (its ``message`` says when and
+how; forecast and health stop updating), ``"alive"`` again once a new worker took over at
+the next update (the message then says which one it replaced). The dashboard's status
+line shows all three and validates the file (:func:`workbench.dashboard.state.read_heartbeat`).
 
 When is a block identified
 --------------------------

@@ -61,7 +61,7 @@ def add_monitor(commands: argparse._SubParsersAction) -> None:
         description="Identify every block as soon as its files are complete, track the "
         "modes, update the forecast and the health chart incrementally, and keep a state "
         "folder (tracked.parquet, forecast.parquet, health.parquet, alarms.parquet, "
-        "data_health.parquet, status.json) that a dashboard reads. Resumable: stop it "
+        "data_health.parquet, status.json, heartbeat.json) that a dashboard reads. Resumable: stop it "
         "(Ctrl-C, SIGTERM, even kill -9) and start it again, it carries on without losing "
         "or repeating a block. Results equal those of identify + track + forecast over "
         "the same files.",
@@ -79,7 +79,13 @@ def add_monitor(commands: argparse._SubParsersAction) -> None:
         action="store_true",
         help="process the files present (as all there will be) and exit",
     )
-    parser.add_argument("--poll", type=float, metavar="S", help="seconds between polls (1)")
+    parser.add_argument(
+        "--poll",
+        type=float,
+        metavar="S",
+        help="seconds between polls and between heartbeats (heartbeat.json; a dashboard "
+        "says 'not responding' after two missed) (1)",
+    )
     parser.add_argument(
         "--settle",
         type=float,

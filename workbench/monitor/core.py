@@ -11,6 +11,7 @@ import json
 import logging
 import math
 import os
+import socket
 import threading
 import time
 from dataclasses import dataclass, field
@@ -62,7 +63,8 @@ class MonitorOptions:
     forecast : ForecastSettings
         As ``workbench forecast`` and ``workbench health``.
     poll_s : float
-        Time between two looks at the folder. [s]
+        Time between two looks at the folder, and between two heartbeats (written by a
+        thread of their own, whatever the blocks are doing; see :mod:`workbench.monitor`). [s]
     settle_s : float
         A file is taken once unmodified this long (see :mod:`workbench.monitor.watcher`). [s]
     late_s : float
@@ -166,6 +168,13 @@ class Monitor:
         self._given_up: tuple[tuple[int, int], list[dict]] = ((-1, -1), [])
         self._harmonic_marks: dict[int, np.ndarray] = {}  # block -> marks, once the log covers it
         self._marks_pending = False
+        # liveness (heartbeat.json): the last file taken and the background worker's state
+        self._last_taken: tuple[str, pd.Timestamp] | None = None
+        self._worker = {"state": "none", "pid": None, "message": ""}
+        self._worker_lock = threading.Lock()
+        self._heartbeat_stop = threading.Event()
+        self._heartbeat_thread: threading.Thread | None = None
+        self.host = socket.gethostname()
 
     @property
     def tracked_through(self) -> int:
@@ -175,6 +184,7 @@ class Monitor:
     # ------------------------------------------------------------------ lifecycle
     def close(self, state: str = "stopped") -> None:
         """Finish the background work, write the final status and release the store."""
+        self._stop_heartbeat()
         if self._outlook_future is not None:
             try:
                 self._collect(self._outlook_future.result())
@@ -196,6 +206,7 @@ class Monitor:
             if self._outlook_due:  # a clean stop leaves the outlook of every block
                 self.update_outlook(background=False)
         self._write_status(state)
+        self.write_heartbeat("stopped")
         if self.store is not None:
             self.store.close()
             self.store = None
@@ -215,6 +226,7 @@ class Monitor:
         being written to settle, then decides every block (also those over holes and the
         last ones) as ``workbench identify`` over the same files would.
         """
+        self.start_heartbeat()
         self._write_status("running", "starting")
         self._defer_outlook = once
         if once:
@@ -319,6 +331,7 @@ class Monitor:
             self.watcher.refuse(item.path)
             return
         self.files.append(item)
+        self._last_taken = (item.path.name, pd.Timestamp.now(tz="UTC"))
         self.files.sort(key=lambda f: (f.info.start_time, str(f.path)))
         self._dirty = True
         if self.voyage is not None:
@@ -599,6 +612,8 @@ class Monitor:
                 self._collect(future.result())
             except Exception as error:  # noqa: BLE001 - a crashed worker: say so, go on
                 self.messages.append(f"forecast: background update failed ({error})")
+                if self.check_worker() == "stopped":  # its work is redone by a new worker
+                    self._outlook_due = True
         if self._outlook_due:
             self._log_complete = False
             self.update_outlook(background=self.options.background)
@@ -617,6 +632,10 @@ class Monitor:
         if not background:
             self._collect(update_outlook(*arguments, **keywords))
             return
+        if self._executor is not None and self.check_worker() == "stopped":
+            # the worker died (killed, out of memory): a new one takes over, said so
+            self._executor.shutdown(wait=False, cancel_futures=True)
+            self._executor = None
         if self._executor is None:
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
@@ -640,6 +659,102 @@ class Monitor:
             self._outlook_future = self._executor.submit(
                 update_outlook, *arguments, **keywords, parent_pid=os.getpid()
             )
+        self.check_worker()
+
+    # ------------------------------------------------------------------ liveness
+    def check_worker(self) -> str:
+        """Look at the background worker; returns its state (``"none"``: no worker,
+        ``"alive"``, ``"stopped"``: it died, see the heartbeat's ``worker.message``).
+
+        Called by the heartbeat thread every poll interval and by the monitor before it
+        hands the worker new work; a stopped worker is replaced at the next update, and
+        the message stays in the heartbeat (and in ``status.json``'s messages)."""
+        executor = self._executor
+        with self._worker_lock:
+            worker = self._worker
+            if executor is None:
+                return worker["state"] if worker["state"] == "stopped" else "none"
+            # the pool's processes (a CPython attribute; none before the first submit)
+            processes = dict(getattr(executor, "_processes", None) or {})
+            broken = bool(getattr(executor, "_broken", False))
+            dead = {pid: p.exitcode for pid, p in processes.items() if p.exitcode is not None}
+            if not broken and not dead:
+                alive = next(iter(processes), None)
+                if alive is not None:
+                    if worker["state"] == "stopped" or worker["pid"] != alive:
+                        note = worker["message"]
+                        if worker["state"] == "stopped":
+                            note = f"{note}; replaced by pid {alive}"
+                        self._worker = {"state": "alive", "pid": int(alive), "message": note}
+                    return "alive"
+                return worker["state"] if worker["state"] == "stopped" else "none"
+            if worker["state"] == "stopped" and worker.get("_pool") == id(executor):
+                return "stopped"
+            pid = next(iter(dead), worker["pid"])
+            code = dead.get(pid)
+            how = (
+                f"killed by signal {-code}"
+                if code is not None and code < 0
+                else f"exit code {code}"
+                if code is not None
+                else "the pool broke"
+            )
+            when = pd.Timestamp.now(tz="UTC").strftime("%Y-%m-%dT%H:%M:%SZ")
+            message = (
+                f"background forecast/health worker (pid {pid}) stopped at {when} ({how}); "
+                "forecast and health are not updated until a new one is started at the "
+                "next update"
+            )
+            self._worker = {"state": "stopped", "pid": pid, "message": message}
+            self._worker["_pool"] = id(executor)  # this pool's death is reported once
+        log.warning("%s", message)
+        self.messages.append(message)
+        return "stopped"
+
+    def write_heartbeat(self, state: str = "running") -> None:
+        """Write ``heartbeat.json`` (see :mod:`workbench.monitor`): now, pid, host, poll
+        interval, the last file taken and the background worker's state."""
+        self.check_worker()
+        taken = self._last_taken
+        with self._worker_lock:
+            worker = {k: self._worker[k] for k in ("state", "pid", "message")}
+        beat = {
+            "time": pd.Timestamp.now(tz="UTC").strftime("%Y-%m-%dT%H:%M:%S.%fZ"),
+            "pid": os.getpid(),
+            "host": self.host,
+            "poll_s": float(self.options.poll_s),
+            "state": state,
+            "last_file": None if taken is None else taken[0],
+            "last_file_taken_at": None if taken is None else _iso(taken[1]),
+            "worker": worker,
+        }
+        with atomic_path(self.state / "heartbeat.json") as tmp:
+            tmp.write_text(json.dumps(beat, indent=1), encoding="utf-8")
+
+    def start_heartbeat(self) -> None:
+        """Write the heartbeat now and then every poll interval from a thread of its own
+        (so a long block or outlook never delays it), until :meth:`close`."""
+        if self._heartbeat_thread is not None:
+            return
+        self.write_heartbeat()
+
+        def beat() -> None:
+            while not self._heartbeat_stop.wait(self.options.poll_s):
+                try:
+                    self.write_heartbeat()
+                except OSError as error:  # a full or vanished disk: said by the silence
+                    log.warning("heartbeat not written: %s", error)
+
+        self._heartbeat_thread = threading.Thread(
+            target=beat, name="workbench-heartbeat", daemon=True
+        )
+        self._heartbeat_thread.start()
+
+    def _stop_heartbeat(self) -> None:
+        self._heartbeat_stop.set()
+        if self._heartbeat_thread is not None:
+            self._heartbeat_thread.join(timeout=10)
+            self._heartbeat_thread = None
 
     def _collect(self, report: OutlookReport) -> None:
         self.outlook_reports.append(report)

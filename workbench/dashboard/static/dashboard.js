@@ -48,16 +48,27 @@
 
   render.status = function (d) {
     const box = document.getElementById("status");
-    box.className = "status " + (d.available ? d.state : "waiting");
+    const liveness = d.available ? (d.liveness || d.state) : "waiting";
+    box.className = "status " + liveness.replace(/ /g, "-");
+    const beat = d.available ? d.heartbeat : null;
+    $("#status-heartbeat").dataset.time = beat ? beat.time : "";
     if (!d.available) {
       $("#status-state").textContent = "waiting for data";
-      $("#status-block").textContent = "";
-      $("#status-updated").textContent = "";
+      for (const id of ["block", "updated", "heartbeat", "worker", "given-up"]) {
+        $(`#status-${id}`).textContent = "";
+      }
       $("#status-message").textContent = d.message || "";
-      $("#status-given-up").textContent = "";
       return null;
     }
-    $("#status-state").textContent = `monitor ${d.state}`;
+    $("#status-state").textContent = `monitor ${liveness}`;
+    state.heartbeat = beat;
+    heartbeatText();
+    // the background forecast/health worker: stopped, or restarted after it stopped
+    const worker = beat ? beat.worker : null;
+    const workerNote = $("#status-worker");
+    workerNote.textContent = worker && (worker.state === "stopped" || worker.message)
+      ? (worker.state === "stopped" ? "background worker stopped: " : "") + worker.message : "";
+    workerNote.className = worker && worker.state === "stopped" ? "stopped" : "";
     $("#status-block").textContent =
       d.last_block === null ? "no block yet" : `last block ${d.last_block} (${d.blocks_done} done)`;
     $("#status-updated").textContent = `updated ${hhmm(d.updated_at)}Z`;
@@ -316,6 +327,24 @@
     }
   }
 
+  // the heartbeat: when missed, how long ago and the last file the monitor took
+  function heartbeatText() {
+    const node = $("#status-heartbeat");
+    const beat = state.heartbeat;
+    const box = document.getElementById("status");
+    if (!beat || !box.classList.contains("not-responding")) {
+      node.textContent = beat && beat.last_file
+        ? `last file ${beat.last_file} taken ${hhmm(beat.last_file_taken_at)}Z` : "";
+      return;
+    }
+    const age = (Date.now() + state.serverOffsetMs - Date.parse(beat.time)) / 1000;
+    const file = beat.last_file
+      ? `last file taken: ${beat.last_file} at ${beat.last_file_taken_at.slice(11, 19)}Z`
+      : "no file taken yet";
+    node.textContent = `no heartbeat for ${ago(age).replace(" ago", "")} ` +
+      `(pid ${beat.pid} on ${beat.host}); ${file}`;
+  }
+
   // ------------------------------------------------------------------ polling
   const connection = document.getElementById("connection");
   async function fetchPanel(name) {
@@ -349,6 +378,7 @@
         box.classList.toggle("stale", silent);
         $("#status-stale").textContent = silent ? `no news from the monitor for ${ago(age).replace(" ago", "")}` : "";
       }
+      heartbeatText();
     } catch (error) {
       state.errors += 1;
       state.lastError = String(error);
