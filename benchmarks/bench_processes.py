@@ -61,8 +61,7 @@ def main() -> None:
             alive = [c for c in started if c.is_running() and c.status() != psutil.STATUS_ZOMBIE]
             memory = [round(c.memory_info().rss / 1e6) for c in alive]
             print(
-                f"kill {k + 1}: {len(started)} started, {len(alive)} alive 10 s later "
-                f"{memory} MB"
+                f"kill {k + 1}: {len(started)} started, {len(alive)} alive 10 s later {memory} MB"
             )
             total += len(alive)
             for child in alive:

@@ -41,8 +41,8 @@ from .csv_layout import decode_text
 from .dship_names import (
     AUXILIARY_COLUMNS,
     DSHIP_NAMES,
-    SLASH_FORMATS,
     SHAFT_COLUMNS,
+    SLASH_FORMATS,
     TIME_FORMATS,
     bad_time_values,
     name_key,
@@ -490,9 +490,7 @@ def read_dship(
         index = find(name)
         if name in SHAFT_COLUMNS and len(problems) > n_problems:
             # two shafts (or engines) logged: not a reason to refuse the log
-            warnings.warn(
-                f"{source}: {problems.pop().reason}; {name} not read", stacklevel=2
-            )
+            warnings.warn(f"{source}: {problems.pop().reason}; {name} not read", stacklevel=2)
             continue
         if index is None:
             continue

@@ -512,7 +512,5 @@ def _times(
             what = f"not a time in the format {time_format}"
         else:
             what = "not a time (ISO-8601, yyyy/mm/dd HH:MM:SS, dd.mm.yyyy HH:MM:SS, dd-mmm-yyyy)"
-        raise fail(
-            f"{what}: {bad_time_values(text, bad)}; {time_format_hint(used)}", str(column)
-        )
+        raise fail(f"{what}: {bad_time_values(text, bad)}; {time_format_hint(used)}", str(column))
     return times

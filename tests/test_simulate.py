@@ -20,9 +20,9 @@ from data_contracts import (
 from workbench.simulate import (
     CHANNELS,
     MODE_LAWS,
+    ShaftHarmonics,
     mode_shapes,
     operating_profile,
-    ShaftHarmonics,
     simulate_voyage,
     true_modal_parameters,
 )

@@ -209,7 +209,7 @@ def _texts(value) -> str | None:
 
 def _text_map(value) -> str | None:
     if not value or not all(isinstance(v, str) for v in value.values()):
-        return "must be a table of names (text), e.g. { key = \"name\" }"
+        return 'must be a table of names (text), e.g. { key = "name" }'
     return None
 
 
@@ -317,8 +317,8 @@ def _together(sections: Mapping[str, Mapping[str, Any]]) -> list[str]:
         model = get("forecast", "model")
         which = "the default model" if model is None else f"model = {model!r}"
         problems.append(
-            f"[forecast] trust = {get('forecast', 'trust')!r} applies to model = \"window\" "
-            f"only ({which} takes its noise levels from the data): add model = \"window\" "
+            f'[forecast] trust = {get("forecast", "trust")!r} applies to model = "window" '
+            f'only ({which} takes its noise levels from the data): add model = "window" '
             "or remove trust"
         )
     length, step = get("blocks", "length_minutes"), get("blocks", "step_minutes")
@@ -683,7 +683,7 @@ def write_demo_config(
         "The demo voyage's set-up, written by `workbench demo` as an example.\n"
         "Run it with: workbench run ship.toml   (or any command with --config ship.toml)\n"
         "Paths are relative to this file. Sections and keys: see workbench/config.py.\n"
-        "[forecast] model = \"window\" (the reference configuration) takes a hand-set\n"
+        '[forecast] model = "window" (the reference configuration) takes a hand-set\n'
         "trust = 0.65 (steady-state weight on SSI); the memory model takes its noise from the data."
     )
     return write_config(Path(out_dir) / "ship.toml", sections, comment=comment)

@@ -175,8 +175,9 @@ def add_acceleration_layout(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--time-format",
         metavar="FMT",
-        help=TIME_FORMAT_HELP.replace("(modal", "(acceleration files, their metadata, "
-        "MATLAB t0; modal").replace(", acceleration files)", ")")
+        help=TIME_FORMAT_HELP.replace(
+            "(modal", "(acceleration files, their metadata, MATLAB t0; modal"
+        ).replace(", acceleration files)", ")")
         + "; or 'seconds' (relative to --start-time) or 'unix'",
     )
     group.add_argument("--separator", metavar="SEP", help="field separator (';', ',', 'tab')")

@@ -167,8 +167,10 @@ def _cluster_rows(tracked: pd.DataFrame, poles: pd.DataFrame) -> set[int]:
     """Rows (positions in *tracked*) whose pole at ``pole_index`` in its block's poles
     (in the pole table's order) has the row's model order and lies within the row's
     ``frequency_std_hz`` of its frequency."""
-    rows = tracked.reset_index(drop=True).reset_index(names="row").dropna(
-        subset=["pole_index", "frequency_std_hz"]
+    rows = (
+        tracked.reset_index(drop=True)
+        .reset_index(names="row")
+        .dropna(subset=["pole_index", "frequency_std_hz"])
     )
     if rows.empty:
         return set()

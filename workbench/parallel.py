@@ -183,8 +183,7 @@ def process_map(
         ) as pool:
             with interrupts_deferred():  # the workers are started by the first submits
                 futures = {
-                    pool.submit(func, *args): size
-                    for args, size in zip(calls, sizes, strict=True)
+                    pool.submit(func, *args): size for args, size in zip(calls, sizes, strict=True)
                 }
             for done in as_completed(futures):
                 bar.update(futures[done])

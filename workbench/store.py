@@ -530,9 +530,7 @@ class BlockStore:
                 continue
             kept_blocks = {int(b) for info in files.values() for b in info["blocks"]} - drop
             if kept_blocks:
-                new = (
-                    f"b{min(kept_blocks):07d}-{max(kept_blocks):07d}-{uuid.uuid4().hex[:8]}"
-                )
+                new = f"b{min(kept_blocks):07d}-{max(kept_blocks):07d}-{uuid.uuid4().hex[:8]}"
                 written: dict[str, dict] = {}
                 for name, info in sorted(files.items(), key=lambda i: i[0].startswith("blocks/")):
                     if not {int(b) for b in info["blocks"]} - drop:

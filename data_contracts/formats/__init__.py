@@ -424,7 +424,7 @@ def resolve_start(value, source, time_format: str | None = None) -> pd.Timestamp
     return value
 
 
-def text_start(text: str, source, time_format: str | None = None) -> pd.Timestamp:
+def text_start(written: str, source, time_format: str | None = None) -> pd.Timestamp:
     """A start time written as text (UTC unless it states an offset).
 
     Raises
@@ -435,7 +435,7 @@ def text_start(text: str, source, time_format: str | None = None) -> pd.Timestam
     from ..dship_names import parse_log_times, time_format_hint
 
     fmt = time_format if time_format not in (None, "seconds", "unix") else None
-    value = str(text).strip()
+    value = str(written).strip()
     times, used = parse_log_times(pd.Series([value]), fmt)
     if times.notna().all():
         return times.iat[0]

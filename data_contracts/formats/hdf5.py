@@ -244,4 +244,3 @@ def read_hdf5_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
     stated = layout.units is not None or any(u is not None for u in header_units)
     warn_if_gravity_in_g(acceleration, channels, stated, path)
     return AccelerationRecord(acceleration, rate, start, tuple(channels))
-

@@ -12,7 +12,6 @@ import numpy as np
 import pandas as pd
 
 from .._core import ContractError, Violation
-from ..limits import check_channel_count
 from ..csv_layout import read_delimited, sniff_separator, split_unit
 from ..dship_names import (
     TIME_FORMATS,
@@ -21,6 +20,7 @@ from ..dship_names import (
     parse_log_times,
     time_format_hint,
 )
+from ..limits import check_channel_count
 from . import AccelerationLayout, convert_units, describe, layout_start, warn_if_gravity_in_g
 
 __all__ = ["TEXT_SUFFIXES", "read_text_accelerations"]
@@ -153,9 +153,7 @@ def read_text_accelerations(path: str | os.PathLike, layout: AccelerationLayout)
     if time_index is None:
         given = layout_start(layout, path)
         if given is None or rate is None:
-            raise fail(
-                f"no time column: give the start time and the sampling rate ({found}){note}"
-            )
+            raise fail(f"no time column: give the start time and the sampling rate ({found}){note}")
         start = given
     else:
         start, step, seconds = _times(

@@ -53,8 +53,7 @@ def _check_complete(path: Path, fail) -> None:
     tail = data[tags[-1].end() :] if tags else data
     if len(tags) % 2 or tail.strip():
         raise fail(
-            f"the file ends inside a record, after {len(tags) // 2} complete record(s): "
-            "cut short?"
+            f"the file ends inside a record, after {len(tags) // 2} complete record(s): cut short?"
         )
 
 
@@ -82,8 +81,7 @@ def _check_records(responses: list[dict], fail) -> None:
             raise fail(f"{name} declares {declared} points but holds {held}: cut or damaged")
         if held < MIN_RECORD_SAMPLES:
             raise fail(
-                f"{name} holds {held} samples; a time response needs at least "
-                f"{MIN_RECORD_SAMPLES}"
+                f"{name} holds {held} samples; a time response needs at least {MIN_RECORD_SAMPLES}"
             )
 
 

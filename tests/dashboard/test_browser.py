@@ -279,6 +279,8 @@ def test_given_up_blocks_are_named_on_the_page(browser, voyage, tmp_path, serve)
     status_file.write_text(json.dumps({**status, "message": "resumed"}))
     page.wait_for("document.getElementById('status').innerText.includes('resumed')")
     assert page.evaluate("document.getElementById('status-given-up').innerText") == ""
+
+
 def test_tracked_panel_draws_the_shaft_orders_beside_the_modes(browser, voyage, tmp_path, serve):
     from data_contracts import write_table
     from workbench.dashboard.state import HARMONIC_LINES
@@ -376,14 +378,28 @@ def test_killed_monitor_turns_from_running_to_not_responding(browser, tmp_path, 
 def test_a_stopped_background_worker_is_shown(browser, tmp_path, serve):
     """The heartbeat's worker state reaches the status line: stopped in red with the
     monitor's message, a replaced worker as a note, nothing while all is well."""
-    status = {"updated_at": pd.Timestamp.now(tz="UTC").isoformat(), "last_block": 7,
-              "blocks_done": 8, "state": "running", "pid": 11, "watch": "/acc", "message": ""}
+    status = {
+        "updated_at": pd.Timestamp.now(tz="UTC").isoformat(),
+        "last_block": 7,
+        "blocks_done": 8,
+        "state": "running",
+        "pid": 11,
+        "watch": "/acc",
+        "message": "",
+    }
     message = "background forecast/health worker (pid 12) stopped at 2026-03-01T06:00:00Z"
 
     def beat(worker: dict) -> None:
-        heartbeat = {"time": pd.Timestamp.now(tz="UTC").isoformat(), "pid": 11, "host": "pc",
-                     "poll_s": 600.0, "state": "running", "last_file": "acc_007.npz",
-                     "last_file_taken_at": "2026-03-01T05:59:00Z", "worker": worker}
+        heartbeat = {
+            "time": pd.Timestamp.now(tz="UTC").isoformat(),
+            "pid": 11,
+            "host": "pc",
+            "poll_s": 600.0,
+            "state": "running",
+            "last_file": "acc_007.npz",
+            "last_file_taken_at": "2026-03-01T05:59:00Z",
+            "worker": worker,
+        }
         (tmp_path / "heartbeat.json").write_text(json.dumps(heartbeat))
 
     (tmp_path / "status.json").write_text(json.dumps(status))

@@ -158,10 +158,12 @@ def test_a_killed_background_worker_is_reported_and_replaced(tmp_path):
         for name in ("acc_006.npz", "acc_007.npz"):
             os.replace(tmp_path / "later" / name, watch / name)
         again = _wait(
-            lambda: (b := _beat(state))["worker"]["state"] == "alive"
-            and b["worker"]["pid"] != worker
-            and b["last_file"] == "acc_007.npz"
-            and b
+            lambda: (
+                (b := _beat(state))["worker"]["state"] == "alive"
+                and b["worker"]["pid"] != worker
+                and b["last_file"] == "acc_007.npz"
+                and b
+            )
         )
         assert f"pid {worker}" in again["worker"]["message"]
         assert f"replaced by pid {again['worker']['pid']}" in again["worker"]["message"]

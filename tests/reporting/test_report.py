@@ -121,7 +121,7 @@ def test_campbell_view_draws_orders_and_keeps_modes_and_harmonics_apart():
     crosses = lines["harmonic (kept out of the modes)"]
     np.testing.assert_array_equal(crosses.get_xdata(), [120.0, 180.0])
     np.testing.assert_array_equal(lines["mode 1"].get_ydata(), [2.9, 2.88])
-    order_lines = [l for l in fig.axes[0].get_lines() if l.get_linestyle() == "--"]
+    order_lines = [ln for ln in fig.axes[0].get_lines() if ln.get_linestyle() == "--"]
     assert len(order_lines) == 2
     rpm, frequency = order_lines[1].get_xdata(), order_lines[1].get_ydata()
     np.testing.assert_allclose(frequency, 2.0 * rpm / 60.0)
@@ -194,12 +194,10 @@ def test_the_report_shows_the_correlate_stage_result(short_run, tmp_path):
     # the report draws the correlations from the correlate stage: the result it is given
     # (here with every mode, however rare) and the stage it runs itself agree on the modes
     # the report keeps (present in at least half the blocks), digit for digit
-    from data_contracts import MODAL, PREDICTORS, read_table
+    from data_contracts import MODAL, PREDICTORS, read_table, write_table
     from workbench.predictors import canonical_predictors
     from workbench.reporting import report
     from workbench.stages import CorrelateOptions, correlate
-
-    from data_contracts import write_table
 
     found = find_run(short_run)
     modal = read_table(found.tracked, MODAL)

@@ -98,7 +98,7 @@ def test_a_file_that_is_not_utf8_toml_is_one_line(tmp_path, capsys, content, fra
         ("[blocks]\nlength_minutes = 5\nstep_minutes = 10\n", "step_minutes = 10 is longer"),
         ("[blocks]\nstep_minutes = inf\n", "[blocks] step_minutes = inf must be a finite"),
         ("[dship]\ncolumns = { speed_kn = { a = { b = 1 } } }\n", "[dship] columns = "),
-        ("[forecast]\ntrust = 0.65\n", "[forecast] trust = 0.65 applies to model = \"window\""),
+        ("[forecast]\ntrust = 0.65\n", '[forecast] trust = 0.65 applies to model = "window"'),
         ("[fit]\np_enter = 0.2\np_remove = 0.1\n", "[fit] p_enter = 0.2 must be below p_remove"),
     ],
 )

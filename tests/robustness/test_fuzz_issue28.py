@@ -170,11 +170,14 @@ def test_case_wholly_outside_the_voyage_is_named(root, tmp_path, capsys):
     table = result.table
     assert (table.loc[table["case"] == "harbour", "n"] == 0).all()
     assert (table.loc[table["case"] == "stationary", "n"] > 0).all()
-    assert correlate(
-        root / "sim" / "tracked_modal.csv",
-        root / "sim" / "truth_predictors.csv",
-        cases=root / "sim" / "cases.csv",
-    ).warnings == []
+    assert (
+        correlate(
+            root / "sim" / "tracked_modal.csv",
+            root / "sim" / "truth_predictors.csv",
+            cases=root / "sim" / "cases.csv",
+        ).warnings
+        == []
+    )
     argv = [
         "correlate",
         "--modal",

@@ -339,7 +339,6 @@ def test_complete_data_search_equals_the_matlab_rule_baseline(case):
     assert "stop" not in fit.steps["action"].tolist()
 
 
-
 def test_reaching_the_default_step_limit_warns(monkeypatch):
     from workbench.stats.stepwise import search
 

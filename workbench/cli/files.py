@@ -8,6 +8,7 @@ import sys
 import warnings
 from pathlib import Path
 
+from ..errors import printable
 from ..inputs import (
     acceleration_layout,
     add_acceleration_layout,
@@ -15,7 +16,6 @@ from ..inputs import (
     dship_mapping,
     time_format,
 )
-from ..errors import printable
 from .common import EXIT_OK, UsageError, _data_errors
 
 

@@ -277,8 +277,9 @@ def identify_options(args: argparse.Namespace):
     UsageError
         For contradicting or impossible flags (exit 2).
     """
-    from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S, MAX_BLOCKS_PER_SAMPLE
     from data_contracts.limits import MAX_LSCF_ORDER, MAX_MODEL_ORDER
+
+    from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S, MAX_BLOCKS_PER_SAMPLE
     from ..identify import IdentifyOptions
 
     def flag(name: str, default):

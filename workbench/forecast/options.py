@@ -39,7 +39,6 @@ __all__ = [
 DEFAULT_MODEL: Literal["memory", "window"] = "memory"
 
 
-
 def check_trust(trust, model: str) -> None:
     """Refuse a hand-set *trust* for a model that does not take one.
 

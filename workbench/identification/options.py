@@ -22,8 +22,6 @@ from ..errors import OptionError
 ACCELERATION_SUFFIXES = _FORMAT_SUFFIXES
 
 
-
-
 def _orders(name: str, values, highest: int) -> tuple[int, ...]:
     """*values* as a tuple of orders in [1, *highest*]; the count is checked before the
     tuple is built (a ``range(1, 10**12)`` would exhaust memory)."""

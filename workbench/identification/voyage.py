@@ -13,10 +13,10 @@ import pandas as pd
 
 from ..errors import OptionError, WorkbenchError
 from ..parallel import RunSummary, run_blocks
+from ..sid.harmonics import HarmonicOptions
 from ..store import BlockStore, block_ranges
 from .engine import _block_tasks, _file_tasks, identify_block, identify_from_files
 from .export import export_store
-from ..sid.harmonics import HarmonicOptions
 from .options import IdentifyOptions
 from .planning import (
     acceleration_files,
@@ -90,9 +90,7 @@ def _removed_inputs(
     removed = store.removed_inputs(fingerprints)
     if not removed:
         return []
-    recorded = sorted(
-        store.recorded_inputs(), key=lambda r: pd.Timestamp(r["start"])
-    )
+    recorded = sorted(store.recorded_inputs(), key=lambda r: pd.Timestamp(r["start"]))
     order = {r["sha256"]: k for k, r in enumerate(recorded)}
     stored = sorted(store.completed_blocks())
     notices = []
@@ -117,6 +115,8 @@ def _removed_inputs(
             "(--keep-removed-inputs keeps them)"
         )
     return notices
+
+
 def _ship_log(dship, mapping) -> pd.DataFrame | None:
     """The canonical ship log of *dship* (a path or a canonical log), or None."""
     if dship is None:

@@ -275,24 +275,43 @@ def plot_campbell(
     if modal is not None and len(modal):
         keys = set(zip(modal["block"], modal["frequency_hz"].round(9), strict=True))
         tracked = pd.Series(
-            [(b, f) in keys for b, f in zip(selected["block"], selected["frequency_hz"].round(9))],
+            [
+                (b, f) in keys
+                for b, f in zip(selected["block"], selected["frequency_hz"].round(9), strict=True)
+            ],
             index=selected.index,
         )
     other = ~tracked & ~marked
     ax.plot(
-        x[other], selected.loc[other, "frequency_hz"], ".", color="0.7", ms=3,
-        label="selected mode, not tracked", zorder=1,
+        x[other],
+        selected.loc[other, "frequency_hz"],
+        ".",
+        color="0.7",
+        ms=3,
+        label="selected mode, not tracked",
+        zorder=1,
     )
     harmonic = marked & ~tracked
     ax.plot(
-        x[harmonic], selected.loc[harmonic, "frequency_hz"], "x", color="tab:red", ms=4,
-        mew=1.0, label="harmonic (kept out of the modes)", zorder=2,
+        x[harmonic],
+        selected.loc[harmonic, "frequency_hz"],
+        "x",
+        color="tab:red",
+        ms=4,
+        mew=1.0,
+        label="harmonic (kept out of the modes)",
+        zorder=2,
     )
     if modal is not None and len(modal):
         for mode, part in modal.groupby("mode"):
             ax.plot(
-                part["block"].map(abscissa), part["frequency_hz"], "o", ms=2.5,
-                color=mode_colour(mode), label=f"mode {mode}", zorder=3,
+                part["block"].map(abscissa),
+                part["frequency_hz"],
+                "o",
+                ms=2.5,
+                color=mode_colour(mode),
+                label=f"mode {mode}",
+                zorder=3,
             )
     top = float(selected["frequency_hz"].max()) * 1.05 if len(selected) else 1.0
     if use_rpm and len(orders):

@@ -502,13 +502,19 @@ class HarmonicMarker:
             rate_hz = per_kn * speed
             # the order whose line is nearest the mode (order unknown: 0 in 'harmonic')
             orders = np.array(self.orders)
-            nearest = orders[
-                np.argmin(
-                    np.abs(np.log(selected["frequency_hz"].to_numpy(float)[:, None])
-                           - np.log(np.fmax(orders[None, :] * rate_hz[:, None], 1e-300))),
-                    axis=1,
-                )
-            ] if np.isfinite(per_kn) else np.full(len(selected), np.nan)
+            nearest = (
+                orders[
+                    np.argmin(
+                        np.abs(
+                            np.log(selected["frequency_hz"].to_numpy(float)[:, None])
+                            - np.log(np.fmax(orders[None, :] * rate_hz[:, None], 1e-300))
+                        ),
+                        axis=1,
+                    )
+                ]
+                if np.isfinite(per_kn)
+                else np.full(len(selected), np.nan)
+            )
             selected["harmonic_frequency_hz"] = np.where(marks.notna(), nearest * rate_hz, np.nan)
         self.marked = selected[selected["harmonic"].notna()]
         return selected

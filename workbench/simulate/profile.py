@@ -270,14 +270,14 @@ def write_dship_log(
         _fmt(wind_dir[keep], 0),
     ]
     names = [
-            "Date/Time",
-            "Latitude",
-            "Longitude",
-            "Speed [kn]",
-            "Temp [°C]",
-            "TTT [°C]",
-            "ff [m/s]",
-            "RelWindDir [deg]",
+        "Date/Time",
+        "Latitude",
+        "Longitude",
+        "Speed [kn]",
+        "Temp [°C]",
+        "TTT [°C]",
+        "ff [m/s]",
+        "RelWindDir [deg]",
     ]
     if shaft_rpm is not None:
         columns.append(_fmt(np.abs(np.asarray(shaft_rpm, dtype=float))[keep], 1))

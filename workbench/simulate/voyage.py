@@ -98,7 +98,9 @@ class ShaftHarmonics:
         if not (math.isfinite(self.hz_per_kn) and self.hz_per_kn > 0):
             raise ValueError(f"hz_per_kn={self.hz_per_kn} must be a positive rate per knot")
         orders = tuple(int(k) for k in self.orders)
-        if any(k < 1 for k in orders) or any(k != o for k, o in zip(orders, self.orders)):
+        if any(k < 1 for k in orders) or any(
+            k != o for k, o in zip(orders, self.orders, strict=True)
+        ):
             raise ValueError(f"orders={self.orders!r} must be whole orders of at least 1")
         object.__setattr__(self, "orders", orders)
         if int(self.blades) != self.blades or self.blades < 0:
@@ -110,6 +112,8 @@ class ShaftHarmonics:
         if self.blades:
             out.append((float(self.blades), BLADE_PASS_AMPLITUDE_MS2))
         return out
+
+
 #: Channels with short NaN dropouts, and the channel that is dead for an hour.
 DROPOUT_CHANNELS = ("acc07", "acc15")
 DEAD_CHANNEL = "acc12"
@@ -388,9 +392,7 @@ def simulate_voyage(
             "orders": list(shaft.orders),
             "blades": shaft.blades,
             "rpm_logged": shaft.log_rpm,
-            "harmonics": [
-                {"order": k, "amplitude_ms2_at_10kn": a} for k, a in shaft.components()
-            ],
+            "harmonics": [{"order": k, "amplitude_ms2_at_10kn": a} for k, a in shaft.components()],
         },
         "defects": {
             **defects,

@@ -23,6 +23,7 @@ class StepwiseWarning(UserWarning):
     """A stepwise search that did not end by its rules: it cycled, or reached the default
     step limit (the fit's :attr:`StepwiseFit.search_warnings` say which model it kept)."""
 
+
 _INTERVAL_COLUMNS = pd.Index(["mean", "lower", "upper", "mean_se"], dtype=object)
 _COEFFICIENT_COLUMNS = pd.Index(["estimate", "se", "t_stat", "p_value"], dtype=object)
 
