@@ -481,3 +481,27 @@ def test_evaluate_without_ssi_in_the_phase_gives_nan_improvement(root, tmp_path)
     blind = table[table["mode"] == table["mode"].min()]
     assert (blind["n_ssi"] == 0).all() and blind["improvement_vs_ssi_pct"].isna().all()
     assert table["improvement_vs_ssi_pct"].notna().any()
+
+
+def test_a_file_lacking_a_channel_is_identified_without_it(tmp_path, capsys, caplog):
+    """A recorder that drops a channel for one file: identify goes on (before: exit 1 for
+    the whole voyage), warns naming the file, and drops the channel only in the blocks
+    holding that file; the summary's notes are lines of their own (before: a literal
+    backslash-n joined them)."""
+    paths = write_voyage(tmp_path / "voyage", n_files=4)
+    record = np.load(paths[1], allow_pickle=False)
+    _npz(
+        paths[1],
+        acceleration=record["acceleration"][:, [0, 1, 3]],
+        sampling_rate_hz=record["sampling_rate_hz"],
+        start_time=record["start_time"],
+        channels=np.array([c for c in CHANNELS if c != "acc03"]),
+    )
+    argv = ["identify", str(tmp_path / "voyage"), "--out", str(tmp_path / "out"), *IDENTIFY_ARGS]
+    assert main(argv) == 0
+    out, err = capsys.readouterr()
+    assert "acc_001.npz: channel(s) acc03 missing" in caplog.text + err
+    assert "\\n" not in out
+    assert "  note (2): channel acc03 dropped (nan fraction)" in out.splitlines()
+    faults = pd.read_csv(tmp_path / "out" / "faults.csv")
+    assert faults.loc[faults["channel"] == "acc03", "block"].tolist() == [0, 1]

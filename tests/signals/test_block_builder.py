@@ -20,6 +20,7 @@ from scipy import signal
 from data_contracts import AccelerationRecord, read_accelerations, write_accelerations
 from workbench.blocks import BlockGrid
 from workbench.signals import block_builder, iter_blocks, load_block, plan_blocks
+from workbench.signals.block_plan import lacking_channels
 from workbench.simulate import simulate_voyage
 
 
@@ -213,7 +214,7 @@ def test_channel_order_is_unified(tmp_path):
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [
-        ({"channels": ("a", "b", "d")}, r"f0060\.npz: channels differ .*missing c; extra d"),
+        ({"channels": ("a", "d", "e")}, r"f0060\.npz: channels differ .*missing b, c; extra d, e"),
         ({"rate": 16.0}, r"f0060\.npz: sampling rate 16 Hz differs"),
     ],
 )
@@ -223,6 +224,34 @@ def test_inconsistent_files_are_errors_naming_the_file(tmp_path, kwargs, match):
         plan_blocks(files)
     with pytest.raises(ValueError, match=match):
         iter_blocks(files)
+
+
+@pytest.mark.parametrize("lacking", [0, 1])
+def test_a_file_lacking_a_channel_loses_it_only_in_its_blocks(tmp_path, lacking):
+    """A recorder that drops a channel writes files without it: the channel set is the one
+    most files carry (also when the first file is the one lacking it), the lacking file
+    reads it as NaN and the blocks holding that file drop it as faulty; the others keep it."""
+    files = [
+        _write(tmp_path, 60 * k, channels=("a", "c") if k == lacking else CHANNELS)
+        for k in range(4)
+    ]
+    plan = plan_blocks(files, BlockGrid(T0, 120, 60))
+    assert plan.channels == CHANNELS
+    assert lacking_channels(plan.files, plan.channels) == {("b",): [files[lacking].name]}
+    blocks = list(iter_blocks(files, grid=plan.grid, detrend=False))
+    holding = {b.block for b in plan.blocks if files[lacking] in b.files}
+    assert holding == ({0} if lacking == 0 else {0, 1})
+    for block in blocks:
+        assert not block.skipped
+        if block.block in holding:
+            assert block.channels == ("a", "c")
+            (channel, reason), *_ = block.dropped
+            assert channel == "b" and "nan run 60.0 s" in reason
+        else:
+            assert block.channels == CHANNELS and block.dropped == ()
+    # the kept channels are the files' samples
+    first = read_accelerations(files[0]).acceleration
+    np.testing.assert_array_equal(blocks[0].acceleration[:480, 0], first[:, 0])
 
 
 def test_overlapping_files_are_an_error(tmp_path):

@@ -392,7 +392,7 @@ def _run_identify(args: argparse.Namespace) -> int:
     except IdentifyOptionsError as error:
         raise UsageError(str(error)) from None
     for notice in result.warnings:  # what the store found changed, and what was done
-        print(f"warning: {notice}", file=sys.stderr)
+        print(f"warning: {printable(notice)}", file=sys.stderr)
     for line in result.lines:
         print(printable(line))
     if args.stabilisation_figures:

@@ -43,7 +43,9 @@ def cross_check_blocks(
     for task in tasks:
         try:
             with threadpool_limits(limits=1):
-                _, result, selection, *other = _identify_data(task, plan.grid, options, cross=True)
+                _, result, selection, *other = _identify_data(
+                    task, plan.grid, options, cross=True, channels=plan.channels
+                )
         except ValueError:
             continue
         if result is None or other[0] is None:

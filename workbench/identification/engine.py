@@ -50,7 +50,12 @@ def _block_tasks(plan, planned) -> list[BlockTask]:
 
 
 def _identify_data(
-    task: BlockTask, grid: BlockGrid, options: IdentifyOptions, cross=False, conditioner=None
+    task: BlockTask,
+    grid: BlockGrid,
+    options: IdentifyOptions,
+    cross=False,
+    conditioner=None,
+    channels: Sequence[str] | None = None,
 ):
     """Conditioned block, SSI or LSCF result (None if skipped) and mode selection of one
     block; with *cross*, also the result and selection of the other method (or None).
@@ -76,6 +81,7 @@ def _identify_data(
             max_gap_s=options.max_gap_s,
             read_options=options.read_options,
             fault_options=channel_check_options(options),
+            channels=channels,
         )
     if data.acceleration is None:
         return data, None, None
@@ -195,7 +201,12 @@ def identify_block(
     # scheduler (a resumed job may mix blocks computed either way).
     with threadpool_limits(limits=1):
         data, result, selection, *other = _identify_data(
-            task, grid, options, cross=options.cross_check, conditioner=conditioner
+            task,
+            grid,
+            options,
+            cross=options.cross_check,
+            conditioner=conditioner,
+            channels=channels,
         )
     start = pd.Timestamp(task.block_start)
     end = grid.end(task.block)

@@ -35,7 +35,9 @@ def write_block_figures(
     paths = []
     for task in tasks:
         try:
-            data, result, selection = _identify_data(task, plan.grid, options)
+            data, result, selection = _identify_data(
+                task, plan.grid, options, channels=plan.channels
+            )
         except ValueError:
             continue
         if result is None:
@@ -79,7 +81,9 @@ def write_tpe_figures(
     paths = []
     for task in tasks:
         try:
-            data, result, selection = _identify_data(task, plan.grid, options)
+            data, result, selection = _identify_data(
+                task, plan.grid, options, channels=plan.channels
+            )
             if result is None:
                 continue
             errors = total_prediction_error(

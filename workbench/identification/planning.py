@@ -135,7 +135,7 @@ def plan_identification(files: Sequence[Path], options: IdentifyOptions):
         Options that do not fit the files (band, rate; exit 2).
     """
     from ..signals import plan_blocks
-    from ..signals.block_plan import plan_file_infos
+    from ..signals.block_plan import lacking_channels, plan_file_infos
 
     try:
         plan = plan_blocks(
@@ -154,6 +154,13 @@ def plan_identification(files: Sequence[Path], options: IdentifyOptions):
     except ValueError as error:
         raise WorkbenchError(str(error).splitlines()[0]) from None
     options = options.resolved(plan.sampling_rate_hz)
+    for missing, names in lacking_channels(plan.files, plan.channels).items():
+        what = names[0] if len(names) == 1 else f"{len(names)} files ({names[0]} .. {names[-1]})"
+        log.warning(
+            "%s: channel(s) %s missing; NaN there, dropped as faulty in the blocks holding it",
+            what,
+            ", ".join(missing),
+        )
     records = _records(plan)
     short = [r for r in records if (r[1] - r[0]).total_seconds() < options.length_s - 1e-6]
     if not plan.blocks:

@@ -42,7 +42,7 @@ class IdentifyResult:
     notes: list[str] = field(default_factory=list)
 
     def lines(self) -> list[str]:
-        out = [str(self.summary), *self.notes]
+        out = [*str(self.summary).splitlines(), *self.notes]
         crosscheck = self.files.get("crosscheck")
         if crosscheck is not None:
             from ..sid.crosscheck import agreement_lines

@@ -41,6 +41,7 @@ from .block_plan import (
     PlannedBlock,
     _block_files_and_gap,
     _ns,
+    align_channels,
     plan_blocks,
     plan_file_infos,
     read_file_info,
@@ -143,10 +144,8 @@ def _load(info: FileInfo, channels: tuple[str, ...], read_options: Mapping) -> A
     if record.sampling_rate_hz != info.sampling_rate_hz or record.n_samples != info.n_samples:
         raise ValueError(f"{info.path}: file changed since it was planned")
     if record.channels != channels:
-        order = [record.channels.index(c) for c in channels]
-        record = AccelerationRecord(
-            record.acceleration[:, order], record.sampling_rate_hz, record.start_time, channels
-        )
+        values = align_channels(record.acceleration, record.channels, channels)
+        record = AccelerationRecord(values, record.sampling_rate_hz, record.start_time, channels)
     return record
 
 
@@ -382,6 +381,7 @@ def load_block(
     fault_options: Mapping | None = None,
     max_gap_s: float = 0.0,
     read_options: Mapping | None = None,
+    channels: Sequence[str] | None = None,
 ) -> AccelerationBlock:
     """Build one block from its files, e.g. in a parallel worker.
 
@@ -396,6 +396,10 @@ def load_block(
         The voyage's grid (``BlockPlan.grid``).
     target_rate_hz, band_hz, detrend, fault_options, max_gap_s, read_options
         As for :func:`iter_blocks`.
+    channels : sequence of str, optional
+        The voyage's channels (``BlockPlan.channels``); default: those of the block's files
+        (:func:`~workbench.signals.block_plan.reference_channels`). A channel a file lacks
+        is NaN in it, and dropped as faulty.
 
     Returns
     -------
@@ -420,7 +424,7 @@ def load_block(
             infos[0].sampling_rate_hz,
             "outside the span of the acceleration files",
         )
-    plan = plan_file_infos(touching, grid, max_gap_s=max_gap_s)
+    plan = plan_file_infos(touching, grid, max_gap_s=max_gap_s, channels=channels)
     if all(b.block != k for b in plan.blocks):
         # The block reaches past the touching files into an allowed gap (the next file
         # starts after the block's end): plan it on its own, as the full plan does.

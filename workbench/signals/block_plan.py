@@ -197,26 +197,76 @@ class BlockPlan:
         return max((len(b.files) for b in self.blocks), default=0)
 
 
-def _check_consistent(infos: Sequence[FileInfo]) -> None:
+def reference_channels(
+    infos: Sequence[FileInfo], channels: Sequence[str] | None = None
+) -> tuple[str, ...]:
+    """The channels of a set of files: *channels* when given (a voyage's, for a few of its
+    files), else the channel set most files carry (ties: the earliest), in the order of the
+    first file carrying it.
+
+    A recorder that drops a channel for a while writes files lacking it; those files are
+    read with the channel all-NaN (:func:`align_channels`), and the blocks holding them drop
+    it as faulty. Raises ValueError naming the file when a file differs in sampling rate
+    or lacks more than half of the channels (then it is not the same recorder's file).
+    """
     first = infos[0]
-    for info in infos[1:]:
+    counts: dict[frozenset, int] = {}
+    order: dict[frozenset, tuple[str, ...]] = {}
+    for info in infos:
+        key = frozenset(info.channels)
+        counts[key] = counts.get(key, 0) + 1
+        order.setdefault(key, tuple(info.channels))
+    if channels is None:
+        channels = order[max(counts, key=lambda key: counts[key])]  # first maximum: earliest
+    channels = tuple(channels)
+    for info in infos:
         if info.sampling_rate_hz != first.sampling_rate_hz:
             raise ValueError(
                 f"{info.path}: sampling rate {info.sampling_rate_hz:g} Hz differs from "
                 f"{first.sampling_rate_hz:g} Hz of {first.name}"
             )
-        if set(info.channels) != set(first.channels) or len(info.channels) != len(first.channels):
-            missing = [c for c in first.channels if c not in info.channels]
-            extra = [c for c in info.channels if c not in first.channels]
-            parts = []
-            if missing:
-                parts.append(f"missing {', '.join(missing)}")
-            if extra:
-                parts.append(f"extra {', '.join(extra)}")
-            raise ValueError(
-                f"{info.path}: channels differ from those of {first.name} ({'; '.join(parts)})"
+        if len(set(info.channels)) != len(info.channels):
+            raise ValueError(f"{info.path}: a channel name appears twice")
+        missing = [c for c in channels if c not in info.channels]
+        if 2 * len(missing) > len(channels):
+            extra = [c for c in info.channels if c not in channels]
+            parts = [f"missing {', '.join(missing)}"] + (
+                [f"extra {', '.join(extra)}"] * bool(extra)
             )
-    rate = first.sampling_rate_hz
+            raise ValueError(
+                f"{info.path}: channels differ from those of the other files ({'; '.join(parts)})"
+            )
+    return channels
+
+
+def lacking_channels(
+    infos: Sequence[FileInfo], channels: Sequence[str]
+) -> dict[tuple[str, ...], list[str]]:
+    """Files lacking some of *channels*: the missing channels -> the names of the files."""
+    out: dict[tuple[str, ...], list[str]] = {}
+    for info in infos:
+        missing = tuple(c for c in channels if c not in info.channels)
+        if missing:
+            out.setdefault(missing, []).append(info.name)
+    return out
+
+
+def align_channels(values: np.ndarray, names: Sequence[str], channels: Sequence[str]) -> np.ndarray:
+    """*values*' columns (named *names*) in *channels* order; a channel not among *names* is
+    all-NaN and a name not among *channels* is left out."""
+    names = tuple(names)
+    if names == tuple(channels):
+        return values
+    out = np.full((values.shape[0], len(channels)), np.nan)
+    for j, channel in enumerate(channels):
+        if channel in names:
+            out[:, j] = values[:, names.index(channel)]
+    return out
+
+
+def _check_no_overlap(infos: Sequence[FileInfo]) -> None:
+    """Files sorted by start time must not overlap."""
+    rate = infos[0].sampling_rate_hz
     for previous, info in zip(infos[:-1], infos[1:], strict=True):
         overlap_s = (previous.end_time - info.start_time).total_seconds()
         if overlap_s > 0.5 / rate:
@@ -293,19 +343,22 @@ def plan_file_infos(
     length_s: float | None = None,
     step_s: float | None = None,
     max_gap_s: float = 0.0,
+    channels: Sequence[str] | None = None,
 ) -> BlockPlan:
     """:func:`plan_blocks` for files whose headers are already read (:class:`FileInfo`).
 
     Callers that keep the headers (the identify planner, the monitor re-planning as files
-    arrive) plan from them without reading the files again. Parameters and errors as in
-    :func:`plan_blocks`.
+    arrive) plan from them without reading the files again. *channels*: the voyage's
+    channels when these files are a few of its files (:func:`reference_channels`).
+    Parameters and errors as in :func:`plan_blocks`.
     """
     if not infos:
         raise ValueError("no acceleration files given")
     if not (math.isfinite(float(max_gap_s)) and max_gap_s >= 0):
         raise ValueError(f"max_gap_s={max_gap_s} must be a non-negative number of seconds")
     infos = sorted(infos, key=lambda i: (i.start_time, str(i.path)))
-    _check_consistent(infos)
+    channels = reference_channels(infos, channels)
+    _check_no_overlap(infos)
     rate = infos[0].sampling_rate_hz
     grid = _resolve_grid(grid, length_s, step_s, infos[0].start_time)
     starts_ns = np.array([_ns(i.start_time) for i in infos], dtype=np.int64)
@@ -328,7 +381,7 @@ def plan_file_infos(
         planned.append(
             PlannedBlock(int(k), start, end, tuple(infos[i].path for i in indices), reason)
         )
-    return BlockPlan(grid, tuple(infos), infos[0].channels, rate, tuple(planned), float(max_gap_s))
+    return BlockPlan(grid, tuple(infos), channels, rate, tuple(planned), float(max_gap_s))
 
 
 def plan_blocks(
@@ -365,8 +418,8 @@ def plan_blocks(
     Raises
     ------
     ValueError
-        No files; files differing in channel set or sampling rate; overlapping files. The
-        message names the file.
+        No files; files differing in sampling rate or lacking more than half of the
+        channels (:func:`reference_channels`); overlapping files. The message names the file.
     """
     infos = [read_file_info(f, read_options=read_options) for f in files]
     return plan_file_infos(infos, grid, length_s=length_s, step_s=step_s, max_gap_s=max_gap_s)

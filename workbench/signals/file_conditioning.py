@@ -63,7 +63,7 @@ from data_contracts import read_accelerations
 
 from ..blocks import BlockGrid
 from .block_builder import AccelerationBlock, _finished, _verdicts, load_block
-from .block_plan import FileInfo, PlannedBlock
+from .block_plan import FileInfo, PlannedBlock, align_channels
 from .conditioning import (
     MAX_INTERPOLATED_NAN_RUN_S,
     bandpass,
@@ -202,10 +202,7 @@ class FileConditioner:
             record = _read_whole(info.path, self.read_options)
         if record.sampling_rate_hz != info.sampling_rate_hz or record.n_samples != info.n_samples:
             raise ValueError(f"{info.path}: file changed since it was planned")
-        x = record.acceleration
-        if record.channels != self.channels:
-            x = x[:, [record.channels.index(c) for c in self.channels]]
-        return x
+        return align_channels(record.acceleration, record.channels, self.channels)
 
     def _conditioned(self, index: int) -> _ConditionedFile:
         cached = self._cache.get(index)
@@ -296,6 +293,7 @@ class FileConditioner:
                 fault_options=self.fault_options,
                 max_gap_s=self.max_gap_s,
                 read_options=self.read_options,
+                channels=self.channels,
             )
         return built
 

@@ -12,7 +12,7 @@ import numpy as np
 from data_contracts import read_accelerations
 from data_contracts.npz import read_sample_rows
 
-from .block_plan import FileInfo
+from .block_plan import FileInfo, align_channels
 
 # ----------------------------------------------------------------------------------------
 # partial reads
@@ -61,9 +61,7 @@ def _read_rows(
         rows, names = record.acceleration[first:stop], record.channels
     else:
         names = info.channels
-    if tuple(names) != tuple(channels):
-        rows = rows[:, [list(names).index(c) for c in channels]]
-    return np.asarray(rows, dtype=float)
+    return align_channels(np.asarray(rows, dtype=float), names, channels)
 
 
 def _edge_rows(info: FileInfo, channels, first: int, stop: int | None = None, read_options=None):
