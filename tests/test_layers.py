@@ -42,6 +42,8 @@ LAYERS = {
     "workbench.demo": 7,
     "workbench.inputs": 7,
     "workbench.cli": 7,
+    "workbench.launch": 7,  # the command's entry point, importing the CLI on call
+    "workbench.__main__": 7,
     "workbench.defaults": 7,  # the command line's defaults, read from the library
     "workbench.arguments": 7,
     "workbench.dashboard": 7,

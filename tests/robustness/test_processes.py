@@ -219,3 +219,38 @@ def test_a_second_ctrl_c_acts_at_once():
             reached.append("not reached")
     assert reached == ["held"]
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+_INTERRUPTED_IMPORT = """
+import os, signal, sys
+class CtrlCOnPandas:  # the user's Ctrl-C arrives while the CLI imports pandas
+    def find_spec(self, name, path=None, target=None):
+        if name == "pandas":
+            os.kill(os.getpid(), signal.SIGINT)
+        return None
+sys.meta_path.insert(0, CtrlCOnPandas())
+from {module} import main
+sys.exit(main(["--help"]))
+"""
+
+
+def test_ctrl_c_while_the_command_line_imports_is_one_line():
+    """The ``workbench`` entry point: Ctrl-C during the second of imports before any
+    command runs is ``interrupted``, exit 130, no traceback (importing workbench.cli
+    directly, the old entry point, printed a KeyboardInterrupt traceback)."""
+    process = subprocess.run(
+        [sys.executable, "-c", _INTERRUPTED_IMPORT.format(module="workbench.launch")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])},
+    )
+    assert process.returncode == 130, process.stderr
+    assert process.stderr.splitlines() == ["interrupted"]
+    assert process.stdout == ""
+
+
+def test_the_entry_point_is_the_launcher():
+    """pyproject's console script is the light launcher, not the CLI module itself."""
+    text = (Path(__file__).resolve().parents[2] / "pyproject.toml").read_text()
+    assert 'workbench = "workbench.launch:main"' in text

@@ -29,6 +29,7 @@ from data_contracts import ContractError
 from .. import __version__
 from ..arguments import HelpFormatter, Namespace, add_verbosity, stderr_is_terminal
 from ..errors import OptionError, WorkbenchError, printable
+from ..launch import EXIT_INTERRUPTED
 from .common import (
     EXIT_DATA,
     EXIT_OK,
@@ -217,4 +218,4 @@ def _run(args: argparse.Namespace) -> int:
         return EXIT_DATA
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED

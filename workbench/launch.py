@@ -1,0 +1,26 @@
+"""The ``workbench`` command's entry point: Ctrl-C while the command line starts is the
+same one line as Ctrl-C while it runs.
+
+Importing the command line (:mod:`workbench.cli`) takes numpy, pandas, scipy and the
+stages: a second or more on a loaded machine. An interrupt in that time would otherwise
+print a ``KeyboardInterrupt`` traceback from deep inside an import; this module imports
+nothing heavy itself, so it can catch it.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+
+#: Exit status of a command ended by Ctrl-C (128 + SIGINT, as the shells report it).
+EXIT_INTERRUPTED = 130
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Import the command line and run it; ``interrupted`` and exit 130 on Ctrl-C."""
+    try:
+        from .cli import main as run
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    return run(argv)
