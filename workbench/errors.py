@@ -12,6 +12,9 @@ shows every control character escaped, as Python's ``repr`` would (``\x1b``, ``\
 
 import re
 
+#: Exit status of a command ended by Ctrl-C (128 + SIGINT, as the shells report it).
+EXIT_INTERRUPTED = 130
+
 #: C0 and C1 control characters, DEL, and the Unicode line separators and bidirectional
 #: controls that reorder what a terminal shows.
 _CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029\u200e\u200f\u202a-\u202e\u2066-\u2069]")

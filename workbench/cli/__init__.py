@@ -28,8 +28,7 @@ from data_contracts import ContractError
 
 from .. import __version__
 from ..arguments import HelpFormatter, Namespace, add_verbosity, stderr_is_terminal
-from ..errors import OptionError, WorkbenchError, printable
-from ..launch import EXIT_INTERRUPTED
+from ..errors import EXIT_INTERRUPTED, OptionError, WorkbenchError, printable
 from .common import (
     EXIT_DATA,
     EXIT_OK,
