@@ -466,3 +466,54 @@ def test_one_config_time_format_reads_acceleration_metadata_too(tmp_path, capsys
     assert code == 0, capsys.readouterr().err
     blocks = pd.read_csv(out / "blocks.csv")
     assert pd.Timestamp(blocks["block_start"].iat[0]) == june
+
+
+# ------------------------------------------------------------ the monitor reads as identify does
+def _european_export(path: Path, data: np.ndarray, start: pd.Timestamp) -> None:
+    """A European spreadsheet export: ``;``-separated, decimal commas, channels in g, and
+    day-first slash dates whose days (5 June) do not tell day and month apart."""
+    times = start + pd.to_timedelta(np.arange(len(data)) / RATE_HZ, unit="s")
+    lines = ["Zeit;" + ";".join(f"Beschl{j + 1} [g]" for j in range(data.shape[1]))]
+    for time, row in zip(
+        times.strftime("%d/%m/%Y %H:%M:%S.%f"), data / STANDARD_GRAVITY_MS2, strict=True
+    ):
+        lines.append(time + ";" + ";".join(f"{v:.9f}".replace(".", ",") for v in row))
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+def test_monitor_reads_what_identify_reads_and_names_a_file_it_cannot(tmp_path, capsys):
+    """Before: ``no complete acceleration file to monitor`` without a reason, and no flag
+    or config entry for the monitor (identify read the files with ``--time-format``)."""
+    folder = tmp_path / "watch"
+    folder.mkdir()
+    data = response(4 * N_FILE, 12)
+    june = pd.Timestamp("2024-06-05T08:00:00Z")
+    for k in range(4):
+        start = june + pd.Timedelta(seconds=k * FILE_S)
+        _european_export(folder / f"mess_{k:03d}.csv", data[k * N_FILE : (k + 1) * N_FILE], start)
+    block = [a for a in IDENTIFY_ARGS if a not in ("--scheduler", "synchronous", "--quiet")]
+    monitor = ["monitor", "--watch", folder, "--once", "--settle", "0", *block]
+    assert _run([*monitor, "--state", tmp_path / "refused"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+    assert err.startswith(f"error: {folder / 'mess_000.csv'}: cannot be monitored")
+    assert "--time-format" in err and "(3 more file(s) refused)" in err
+    # one config entry reads them, in identify and in the monitor alike
+    config = tmp_path / "ship.toml"
+    config.write_text('[times]\nformat = "dd/mm/yyyy HH:MM:SS.FFF"\n', encoding="utf-8")
+    out = tmp_path / "identify"
+    assert _run(["identify", folder, "--out", out, *IDENTIFY_ARGS, "--config", config]) == 0
+    state = tmp_path / "state"
+    assert _run([*monitor, "--state", state, "--config", config]) == 0, capsys.readouterr().err
+    batch = pd.read_parquet(out / "selected.parquet")
+    live = pd.read_parquet(state / "tracked.parquet")
+    assert pd.Timestamp(live["block_start"].min()) == june
+    assert sorted(live["block"].unique()) == sorted(batch["block"].unique()) == [0, 1, 2]
+    # the same files give the same modes (in m/s²: the headers' [g] applied by both)
+    for f_hz in (3.1, 5.7):
+        nearest = live["frequency_hz"].to_numpy()[np.argmin(np.abs(live["frequency_hz"] - f_hz))]
+        assert abs(nearest - f_hz) < 0.1
+        assert np.min(np.abs(batch["frequency_hz"].to_numpy() - nearest)) < 1e-9
+    # one start time cannot place a growing folder's files
+    code = _run([*monitor, "--state", tmp_path / "s", "--start-time", "2024-06-05T08:00Z"])
+    assert code == 2 and "--start-time filename" in capsys.readouterr().err
