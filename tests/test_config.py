@@ -76,6 +76,7 @@ def test_demo_config_reads_back_and_runs_the_whole_chain(tmp_path):
         "fit",
         "forecast",
         "evaluate",
+        "report",
     ]
     identify = command_defaults("identify", config)
     assert identify["inputs"] == [tmp_path / "voyage" / "accelerations"]

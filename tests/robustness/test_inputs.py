@@ -517,3 +517,103 @@ def test_monitor_reads_what_identify_reads_and_names_a_file_it_cannot(tmp_path, 
     # one start time cannot place a growing folder's files
     code = _run([*monitor, "--state", tmp_path / "s", "--start-time", "2024-06-05T08:00Z"])
     assert code == 2 and "--start-time filename" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------ a run and its report
+#: Ship-log columns under a ship's own names, given once in the configuration.
+SHIP_COLUMNS = {
+    "speed_kn": "SOG",
+    "water_temp_c": "SST",
+    "air_temp_c": "AirT",
+    "wind_speed_ms": "WS_port",
+    "wind_dir_rel_deg": "WD_port",
+}
+
+
+def _ship_run(folder: Path, n_files: int = 24) -> Path:
+    """Recordings with relative times (``Time [s]`` from 0 in every file), a ship log
+    under the ship's own column names with two water-temperature spikes, and the
+    configuration that says how to read both; returns the configuration's path."""
+    recordings = folder / "recordings"
+    recordings.mkdir(parents=True)
+    data = response(n_files * N_FILE, 5)
+    for k in range(n_files):
+        frame = pd.DataFrame(
+            data[k * N_FILE : (k + 1) * N_FILE], columns=[f"{c} [m/s^2]" for c in CHANNELS]
+        )
+        frame.insert(0, "Time [s]", np.arange(N_FILE) / RATE_HZ)
+        frame.to_csv(recordings / f"rec_{k:03d}.csv", index=False, float_format="%.8g")
+    minutes = np.arange(n_files + 2)
+    log = pd.DataFrame(
+        {
+            "Date/Time": (T0 + pd.to_timedelta(minutes, unit="min")).strftime("%Y-%m-%dT%H:%M:%SZ"),
+            "SOG": 8 + 3 * np.sin(minutes / 5),
+            "SST": 6 + np.cos(minutes / 7),
+            "AirT": 12 + np.sin(minutes / 9),
+            "WS_port": 7 + 2 * np.sin(minutes / 4),
+            "WD_port": 40 + 30 * np.sin(minutes / 6),
+        }
+    )
+    log.loc[[7, 19], "SST"] = 25.0  # a faulty sensor's spikes: despiked, with a warning
+    log.to_csv(folder / "log.dat", sep="\t", index=False, float_format="%.5f")
+    columns = ", ".join(f'{k} = "{v}"' for k, v in SHIP_COLUMNS.items())
+    config = folder / "ship.toml"
+    config.write_text(
+        f'[output]\ndir = "out"\n'
+        f'[accelerations]\ninputs = ["recordings"]\nstart_time = "{T0.isoformat()}"\n'
+        f'[dship]\nfile = "log.dat"\ncolumns = {{ {columns} }}\n'
+        "[blocks]\nlength_minutes = 2\nstep_minutes = 1\n"
+        "[identify]\nblock_rows = 10\nmin_order = 4\nmax_order = 16\n"
+        "[forecast]\ntrain_blocks = 10\n",
+        encoding="utf-8",
+    )
+    return config
+
+
+def test_run_warns_once_and_ends_with_a_report_of_its_own_results(tmp_path, capsys, monkeypatch):
+    """Before: each stage's warnings once per stage (3x), no report; ``workbench report``
+    read the relative-time files without the configuration's start ("relative times",
+    no spectra), read the ship log again without the configuration's column names (wind
+    columns blank) and correlated again."""
+    import workbench as wb
+    import workbench.identification.voyage as voyage
+    from data_contracts.modal_layout import read_modal_table
+
+    run_blocks = voyage.run_blocks  # identify in this process: no local cluster to start
+    monkeypatch.setattr(
+        voyage, "run_blocks", lambda *a, **k: run_blocks(*a, **{**k, "scheduler": "synchronous"})
+    )
+    config = _ship_run(tmp_path)
+    assert _run(["run", config]) == 0, capsys.readouterr().err
+    out, err = capsys.readouterr()
+    despiked = [line for line in err.splitlines() if "despiked" in line]
+    assert len(despiked) == 1 and despiked[0].startswith("warning: ship log: despiked")
+    assert "each shown once (2 repeat(s) by later stages left out)" in err
+    assert out.rstrip().endswith(f"report: {tmp_path / 'out' / 'report.html'}")
+    run = tmp_path / "out"
+    page = (run / "report.html").read_text(encoding="utf-8")
+    # the recordings read as identify read them: signal views, no file skipped
+    assert (run / "report_files" / "spectra.png").is_file() and "could not be read" not in page
+    assert "24 (4 channels at 32 Hz)" in page
+    # the correlate stage's own pairs, wind columns included (the configuration's names)
+    shown = pd.read_csv(run / "report_files" / "correlation_effective.csv")
+    own = wb.read_correlation(run / "correlation").effective()
+    assert len(shown) == len(own) == 4 * 5 + 10  # 4 mode quantities x 5 predictors + pairs
+    np.testing.assert_allclose(shown["r"], own["r"], rtol=1e-5)
+    wind = shown[shown["x"].str.startswith("wind") & shown["y"].str.startswith("mode")]
+    assert len(wind) == 2 * 4 and wind["r"].notna().all() and (wind["n"] >= 23).all()
+    # the API on the same files gives the CLI's fit
+    with pytest.warns(UserWarning):
+        modal = read_modal_table(run / "tracked_modal.csv")
+        predictors = wb.load_predictors(
+            dship=tmp_path / "log.dat", onto=modal, dship_mapping=SHIP_COLUMNS
+        )
+    wb.fit(modal, predictors).save(tmp_path / "api", figures=False)
+    for table in ("coefficients.csv", "fit_statistics.csv"):
+        pd.testing.assert_frame_equal(
+            pd.read_csv(tmp_path / "api" / table), pd.read_csv(run / "fit" / table)
+        )
+    # the report alone takes the same settings from the configuration
+    (run / "report.html").unlink()
+    assert _run(["report", "--config", config]) == 0, capsys.readouterr().err
+    assert (run / "report.html").is_file()
