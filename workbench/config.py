@@ -1,7 +1,8 @@
 """A ship's set-up in one TOML file: inputs and their layouts, block grid, models, forecast.
 
 ``workbench run ship.toml`` runs the chain the file describes (identify -> track ->
-correlate -> fit -> forecast -> evaluate, each where its inputs are given); ``--config
+correlate -> fit -> forecast -> evaluate, each where its inputs are given, then the run's
+report); ``--config
 ship.toml`` on any command takes that command's settings from the file, and flags given on
 the command line win. Paths in the file are relative to the file.
 
