@@ -594,7 +594,8 @@ def test_run_warns_once_and_ends_with_a_report_of_its_own_results(tmp_path, caps
     page = (run / "report.html").read_text(encoding="utf-8")
     # the recordings read as identify read them: signal views, no file skipped
     assert (run / "report_files" / "spectra.png").is_file() and "could not be read" not in page
-    assert "24 (4 channels at 32 Hz)" in page
+    span = f"{T0:%Y-%m-%d %H:%M} to {T0 + pd.Timedelta(minutes=24):%Y-%m-%d %H:%M} UTC"
+    assert "24 (4 channels at 32 Hz)" in page and span in page  # the files follow on
     # the correlate stage's own pairs, wind columns included (the configuration's names)
     shown = pd.read_csv(run / "report_files" / "correlation_effective.csv")
     own = wb.read_correlation(run / "correlation").effective()
@@ -616,4 +617,10 @@ def test_run_warns_once_and_ends_with_a_report_of_its_own_results(tmp_path, caps
     # the report alone takes the same settings from the configuration
     (run / "report.html").unlink()
     assert _run(["report", "--config", config]) == 0, capsys.readouterr().err
-    assert (run / "report.html").is_file()
+    assert span in (run / "report.html").read_text(encoding="utf-8")
+    # and a start given on the command line places the files as identify places them
+    later = T0 + pd.Timedelta(hours=1)
+    code = _run(["report", "--config", config, "--start-time", later.isoformat()])
+    assert code == 0, capsys.readouterr().err
+    shifted = f"{later:%Y-%m-%d %H:%M} to {later + pd.Timedelta(minutes=24):%Y-%m-%d %H:%M} UTC"
+    assert shifted in (run / "report.html").read_text(encoding="utf-8")

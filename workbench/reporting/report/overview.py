@@ -68,8 +68,9 @@ def load_run(
     if run.identify is not None and (run.identify / "store" / "store.json").exists():
         parameters = json.loads((run.identify / "store" / "store.json").read_text())
     band = tuple(parameters["band_hz"]) if parameters.get("band_hz") else None
-    if acceleration_layout is None:  # the files are read as identification read them
-        acceleration_layout = parameters.get("acceleration_layout") or None
+    acceleration_layout = _reading_layout(
+        acceleration_layout, parameters.get("acceleration_layout") or None, run.accelerations
+    )
 
     if modal is None and run.tracked is not None:
         modal = read_table(run.tracked, MODAL)
@@ -121,6 +122,25 @@ def load_run(
         correlation=correlation,
         notices=notices,
     )
+
+
+def _reading_layout(given, recorded, files) -> dict | None:
+    """How the report reads the acceleration files: as identification read them (the
+    layout it recorded, with each file's start) unless *given* says otherwise; a start
+    time given for several files is resolved per file as identify resolves it."""
+    if given is None:
+        return recorded
+    given = dict(given)
+    if recorded is not None and given == {k: v for k, v in recorded.items() if k != "file_starts"}:
+        return recorded  # the same settings: identification's resolved starts
+    start = given.get("start_time")
+    if len(files) > 1 and start not in (None, "filename") and not given.get("file_starts"):
+        from workbench.identification.planning import follow_on_starts
+        from workbench.identify import IdentifyOptions
+
+        resolved = follow_on_starts(files, IdentifyOptions(acceleration_layout=given))
+        return dict(resolved.acceleration_layout or given)
+    return given
 
 
 def overview_section(data: RunData, summary_lines=()) -> ReportSection:
