@@ -282,3 +282,18 @@ def test_forecast_options_are_checked():
         wb.ForecastOptions(train_blocks=1)
     with pytest.raises(ValueError, match="p_enter"):
         wb.FitOptions(p_enter=0.2, p_remove=0.1)
+
+
+def test_summary_has_a_text_and_an_html_view():
+    """A summary is shown as HTML in a notebook and as text by print (issue 30: before, a
+    plain string that the notebook showed quoted, newlines escaped)."""
+    from workbench.stages import Summary
+
+    table = pd.DataFrame({"r_squared": [0.95, 0.5]}, index=pd.Index([1, 2], name="mode"))
+    summary = Summary("models <per mode>", ["2 modes fitted", "warning: a & b"], [("", table)])
+    text = str(summary)
+    assert text.splitlines()[:2] == ["2 modes fitted", "warning: a & b"]
+    assert "0.95" in text and repr(summary) == text and "2 modes fitted" in summary
+    page = summary._repr_html_()
+    assert "models &lt;per mode&gt;" in page and "warning: a &amp; b" in page
+    assert page.count("<tr") == 4  # the header, the index name row and two modes

@@ -50,6 +50,7 @@ _EXPORTS = {
     "PredictionResults": "fitting",
     "read_fit": "fitting",
     "FitDataMissing": "fitting",
+    "Summary": "_base",
     "forecast": "forecasting",
     "ForecastOptions": "forecasting",
     "ForecastStageResult": "forecasting",
