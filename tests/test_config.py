@@ -76,6 +76,7 @@ def test_demo_config_reads_back_and_runs_the_whole_chain(tmp_path):
         "fit",
         "forecast",
         "evaluate",
+        "report",
     ]
     identify = command_defaults("identify", config)
     assert identify["inputs"] == [tmp_path / "voyage" / "accelerations"]
@@ -113,5 +114,9 @@ def test_run_a_foreign_modal_table_and_ship_log(tmp_path, capsys):
     for step in ("correlate", "fit", "forecast", "evaluate"):
         assert f"== workbench {step} --config" in out
     assert "Kalman" in out and (tmp_path / "out" / "evaluation.csv").is_file()
+    # the run ends with its report, drawn from the foreign table the run started from
+    assert "== workbench report --config" in out
+    page = (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
+    assert "Modes found" in page and "Forecast" in page
     forecast = pd.read_csv(tmp_path / "out" / "forecast.csv")
     assert set(forecast["block"]) <= set(tracked["block"])

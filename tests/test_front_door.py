@@ -187,8 +187,25 @@ def test_fit_saved_as_json_predicts_the_same(tables, tmp_path):
         b = back[mode].get_prediction(new).summary_frame()
         pd.testing.assert_frame_equal(a, b, rtol=1e-13)
         pd.testing.assert_series_equal(result[mode].params, back[mode].params)
-    with pytest.raises(ValueError, match="fitted data"):
+    with pytest.raises(ValueError, match="fitted blocks' data"):
         back[1].resid  # noqa: B018
+    # the notebook's view (issue 30): modes iterate, a length, pandas out where pandas came
+    # in, and a model read back says in one line what it cannot do
+    assert list(back) == [1, 2] and len(back) == 2 and 2 in back and 3 not in back
+    assert [mode for mode, _ in result.items()] == list(result) == [1, 2]
+    predicted = back[2].predict(new)
+    assert isinstance(predicted, pd.Series) and predicted.index.equals(new.index)
+    np.testing.assert_allclose(predicted, result[2].predict(new), rtol=1e-13)
+    assert isinstance(
+        back[2].predict(new[list(back[2].model.predictor_names)].to_numpy()), np.ndarray
+    )
+    from workbench.stages import FitDataMissing
+
+    with pytest.raises(FitDataMissing) as caught:
+        back[1].fittedvalues  # noqa: B018
+    message = str(caught.value)
+    assert "\n" not in message and message.startswith("fittedvalues of mode 1")
+    assert str(tmp_path / "fit" / "fit.json") in message
 
 
 def test_correlate_result(tables, tmp_path):
@@ -209,7 +226,13 @@ def test_correlate_result(tables, tmp_path):
 
     plt.close(figure)
     paths = result.save(tmp_path / "corr", figures=False)
-    assert list(paths) == ["csv"] and paths["csv"].is_file()
+    assert list(paths) == ["csv", "blocks", "state"] and paths["csv"].is_file()
+    # read back as it was computed (what `workbench report` takes from a run)
+    back = wb.read_correlation(tmp_path / "corr")
+    pd.testing.assert_frame_equal(back.table, result.table)
+    pd.testing.assert_frame_equal(back.effective(), result.effective())
+    pd.testing.assert_frame_equal(back.predictors, result.predictors)
+    assert back.options == result.options
 
 
 def test_track_forecast_evaluate_on_a_simulated_voyage(tmp_path):
@@ -259,3 +282,18 @@ def test_forecast_options_are_checked():
         wb.ForecastOptions(train_blocks=1)
     with pytest.raises(ValueError, match="p_enter"):
         wb.FitOptions(p_enter=0.2, p_remove=0.1)
+
+
+def test_summary_has_a_text_and_an_html_view():
+    """A summary is shown as HTML in a notebook and as text by print (issue 30: before, a
+    plain string that the notebook showed quoted, newlines escaped)."""
+    from workbench.stages import Summary
+
+    table = pd.DataFrame({"r_squared": [0.95, 0.5]}, index=pd.Index([1, 2], name="mode"))
+    summary = Summary("models <per mode>", ["2 modes fitted", "warning: a & b"], [("", table)])
+    text = str(summary)
+    assert text.splitlines()[:2] == ["2 modes fitted", "warning: a & b"]
+    assert "0.95" in text and repr(summary) == text and "2 modes fitted" in summary
+    page = summary._repr_html_()
+    assert "models &lt;per mode&gt;" in page and "warning: a &amp; b" in page
+    assert page.count("<tr") == 4  # the header, the index name row and two modes

@@ -21,6 +21,7 @@ LAYERS = {
     "workbench": 0,  # the package itself: lazy names only
     "workbench.errors": 0,
     "workbench.dynamics": 0,
+    "workbench.progress": 0,
     "workbench.blocks": 1,
     "workbench.store": 1,
     "workbench.parallel": 1,

@@ -38,6 +38,7 @@ _EXPORTS = {
             "evaluate",
             "health",
             "read_fit",
+            "read_correlation",
             "IdentifyOptions",
             "HarmonicOptions",
             "TrackingOptions",

@@ -1,7 +1,8 @@
 """A ship's set-up in one TOML file: inputs and their layouts, block grid, models, forecast.
 
 ``workbench run ship.toml`` runs the chain the file describes (identify -> track ->
-correlate -> fit -> forecast -> evaluate, each where its inputs are given); ``--config
+correlate -> fit -> forecast -> evaluate, each where its inputs are given, then the run's
+report); ``--config
 ship.toml`` on any command takes that command's settings from the file, and flags given on
 the command line win. Paths in the file are relative to the file.
 
@@ -492,7 +493,9 @@ def command_defaults(command: str, config: ShipConfig) -> dict[str, Any]:
         put("all_predictors", "predictors", "all")
     if command in ("correlate", "fit", "forecast", "validate"):
         put("dship_columns", "dship", "columns", lambda m: [_pairs(m)])
-    if command in ("correlate", "fit", "forecast", "evaluate"):
+    if command == "report" and c.has("modal", "file"):
+        values["modal"] = modal
+    if command in ("correlate", "fit", "forecast", "evaluate", "report"):
         put("damping_unit", "modal", "damping_unit")
         put("time_reference", "modal", "time_reference")
         put("time_zone", "modal", "time_zone")
@@ -504,7 +507,7 @@ def command_defaults(command: str, config: ShipConfig) -> dict[str, Any]:
             if c.has("modal", "grid_t0"):
                 grid.append(c.get("modal", "grid_t0"))
             values["grid"] = ",".join(str(g) for g in grid)
-    if command in ("identify", "validate"):
+    if command in ("identify", "validate", "report"):
         put("time_column", "accelerations", "time_column")
         put("time_format", "accelerations", "time_format")
         put("separator", "accelerations", "separator")
@@ -562,6 +565,14 @@ def command_defaults(command: str, config: ShipConfig) -> dict[str, Any]:
         option = str(c.get("forecast", "option", "A"))
         if option in ("B", "AB", "pole-cluster", "both") and c.has("accelerations", "inputs"):
             values["poles"] = out / "identify" / "poles.parquet"
+    elif command == "report":
+        # the run's own folder, files and reading settings (its results are taken as
+        # the stages left them: see workbench.reporting.report)
+        values["dir"] = out
+        put("accelerations", "accelerations", "inputs")
+        put("dship", "dship", "file")
+        put("dship_columns", "dship", "columns", lambda m: [_pairs(m)])
+        put("cases", "correlate", "cases")
     elif command == "evaluate":
         values["forecast"] = out / "forecast.csv"
         put("truth", "evaluate", "truth")
@@ -598,7 +609,8 @@ def apply_config(parser: argparse.ArgumentParser, config: ShipConfig) -> None:
 
 
 def chain(config: ShipConfig) -> list[list[str]]:
-    """The commands ``workbench run`` runs for *config*, in order."""
+    """The commands ``workbench run`` runs for *config*, in order; the last builds the
+    run's report."""
     flag = ["--config", str(config.path)]
     steps: list[list[str]] = []
     if config.has("accelerations", "inputs"):
@@ -613,6 +625,7 @@ def chain(config: ShipConfig) -> list[list[str]]:
         steps += [["correlate", *flag], ["fit", *flag], ["forecast", *flag]]
         if config.has("evaluate", "truth"):
             steps.append(["evaluate", *flag])
+    steps.append(["report", *flag])  # the run's report, from the results above
     return steps
 
 

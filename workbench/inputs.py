@@ -92,7 +92,9 @@ def dship_mapping(args: argparse.Namespace) -> dict[str, str] | None:
     return mapping
 
 
-def add_modal_layout(parser: argparse.ArgumentParser) -> None:
+def add_modal_layout(parser: argparse.ArgumentParser, *, time_format: bool = True) -> None:
+    """The modal-table layout flags (*time_format*: also ``--time-format``, left out where
+    the acceleration layout adds it, which applies to every time column too)."""
     group = parser.add_argument_group(
         "modal tables from other tools",
         "Long (time, mode, frequency, damping), wide (f1, f2, ..., d1, d2, ...) and "
@@ -115,7 +117,8 @@ def add_modal_layout(parser: argparse.ArgumentParser) -> None:
         help="zone of times written without one, e.g. UTC or Europe/Berlin (default UTC, "
         "with a warning)",
     )
-    group.add_argument("--time-format", metavar="FMT", help=TIME_FORMAT_HELP)
+    if time_format:
+        group.add_argument("--time-format", metavar="FMT", help=TIME_FORMAT_HELP)
     group.add_argument(
         "--grid",
         metavar="LENGTH_MIN,STEP_MIN[,T0]",

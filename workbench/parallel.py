@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import logging
 import os
-import sys
 import time
 import warnings
 from collections import Counter
@@ -124,16 +123,10 @@ def _guarded(func: Callable[..., BlockOutcome], task: Any, inputs=None) -> Block
 
 
 def _progress(total: int | None, enabled: bool, description: str):
-    from tqdm.auto import tqdm
+    from .progress import progress_bar
 
-    return tqdm(
-        total=total,
-        desc=description,
-        unit="block",
-        disable=not enabled,
-        file=sys.stderr,
-        dynamic_ncols=True,
-        smoothing=0.1,
+    return progress_bar(
+        total=total, description=description, unit="block", enabled=enabled, smoothing=0.1
     )
 
 
@@ -153,17 +146,10 @@ def process_map(
     *func* must be picklable (module level) when *n_workers* > 1. *sizes* weighs each call in
     the progress bar (default 1 each). Results come back in the order of *calls*.
     """
-    from tqdm.auto import tqdm
+    from .progress import progress_bar
 
     sizes = [1] * len(calls) if sizes is None else list(sizes)
-    bar = tqdm(
-        total=sum(sizes),
-        desc=description,
-        unit=unit,
-        disable=not progress,
-        file=sys.stderr,
-        dynamic_ncols=True,
-    )
+    bar = progress_bar(total=sum(sizes), description=description, unit=unit, enabled=progress)
     with bar:
         if n_workers <= 1 or len(calls) <= 1:
             results = []

@@ -466,3 +466,161 @@ def test_one_config_time_format_reads_acceleration_metadata_too(tmp_path, capsys
     assert code == 0, capsys.readouterr().err
     blocks = pd.read_csv(out / "blocks.csv")
     assert pd.Timestamp(blocks["block_start"].iat[0]) == june
+
+
+# ------------------------------------------------------------ the monitor reads as identify does
+def _european_export(path: Path, data: np.ndarray, start: pd.Timestamp) -> None:
+    """A European spreadsheet export: ``;``-separated, decimal commas, channels in g, and
+    day-first slash dates whose days (5 June) do not tell day and month apart."""
+    times = start + pd.to_timedelta(np.arange(len(data)) / RATE_HZ, unit="s")
+    lines = ["Zeit;" + ";".join(f"Beschl{j + 1} [g]" for j in range(data.shape[1]))]
+    for time, row in zip(
+        times.strftime("%d/%m/%Y %H:%M:%S.%f"), data / STANDARD_GRAVITY_MS2, strict=True
+    ):
+        lines.append(time + ";" + ";".join(f"{v:.9f}".replace(".", ",") for v in row))
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+def test_monitor_reads_what_identify_reads_and_names_a_file_it_cannot(tmp_path, capsys):
+    """Before: ``no complete acceleration file to monitor`` without a reason, and no flag
+    or config entry for the monitor (identify read the files with ``--time-format``)."""
+    folder = tmp_path / "watch"
+    folder.mkdir()
+    data = response(4 * N_FILE, 12)
+    june = pd.Timestamp("2024-06-05T08:00:00Z")
+    for k in range(4):
+        start = june + pd.Timedelta(seconds=k * FILE_S)
+        _european_export(folder / f"mess_{k:03d}.csv", data[k * N_FILE : (k + 1) * N_FILE], start)
+    block = [a for a in IDENTIFY_ARGS if a not in ("--scheduler", "synchronous", "--quiet")]
+    monitor = ["monitor", "--watch", folder, "--once", "--settle", "0", *block]
+    assert _run([*monitor, "--state", tmp_path / "refused"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+    assert err.startswith(f"error: {folder / 'mess_000.csv'}: cannot be monitored")
+    assert "--time-format" in err and "(3 more file(s) refused)" in err
+    # one config entry reads them, in identify and in the monitor alike
+    config = tmp_path / "ship.toml"
+    config.write_text('[times]\nformat = "dd/mm/yyyy HH:MM:SS.FFF"\n', encoding="utf-8")
+    out = tmp_path / "identify"
+    assert _run(["identify", folder, "--out", out, *IDENTIFY_ARGS, "--config", config]) == 0
+    state = tmp_path / "state"
+    assert _run([*monitor, "--state", state, "--config", config]) == 0, capsys.readouterr().err
+    batch = pd.read_parquet(out / "selected.parquet")
+    live = pd.read_parquet(state / "tracked.parquet")
+    assert pd.Timestamp(live["block_start"].min()) == june
+    assert sorted(live["block"].unique()) == sorted(batch["block"].unique()) == [0, 1, 2]
+    # the same files give the same modes (in m/s²: the headers' [g] applied by both)
+    for f_hz in (3.1, 5.7):
+        nearest = live["frequency_hz"].to_numpy()[np.argmin(np.abs(live["frequency_hz"] - f_hz))]
+        assert abs(nearest - f_hz) < 0.1
+        assert np.min(np.abs(batch["frequency_hz"].to_numpy() - nearest)) < 1e-9
+    # one start time cannot place a growing folder's files
+    code = _run([*monitor, "--state", tmp_path / "s", "--start-time", "2024-06-05T08:00Z"])
+    assert code == 2 and "--start-time filename" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------ a run and its report
+#: Ship-log columns under a ship's own names, given once in the configuration.
+SHIP_COLUMNS = {
+    "speed_kn": "SOG",
+    "water_temp_c": "SST",
+    "air_temp_c": "AirT",
+    "wind_speed_ms": "WS_port",
+    "wind_dir_rel_deg": "WD_port",
+}
+
+
+def _ship_run(folder: Path, n_files: int = 24) -> Path:
+    """Recordings with relative times (``Time [s]`` from 0 in every file), a ship log
+    under the ship's own column names with two water-temperature spikes, and the
+    configuration that says how to read both; returns the configuration's path."""
+    recordings = folder / "recordings"
+    recordings.mkdir(parents=True)
+    data = response(n_files * N_FILE, 5)
+    for k in range(n_files):
+        frame = pd.DataFrame(
+            data[k * N_FILE : (k + 1) * N_FILE], columns=[f"{c} [m/s^2]" for c in CHANNELS]
+        )
+        frame.insert(0, "Time [s]", np.arange(N_FILE) / RATE_HZ)
+        frame.to_csv(recordings / f"rec_{k:03d}.csv", index=False, float_format="%.8g")
+    minutes = np.arange(n_files + 2)
+    log = pd.DataFrame(
+        {
+            "Date/Time": (T0 + pd.to_timedelta(minutes, unit="min")).strftime("%Y-%m-%dT%H:%M:%SZ"),
+            "SOG": 8 + 3 * np.sin(minutes / 5),
+            "SST": 6 + np.cos(minutes / 7),
+            "AirT": 12 + np.sin(minutes / 9),
+            "WS_port": 7 + 2 * np.sin(minutes / 4),
+            "WD_port": 40 + 30 * np.sin(minutes / 6),
+        }
+    )
+    log.loc[[7, 19], "SST"] = 25.0  # a faulty sensor's spikes: despiked, with a warning
+    log.to_csv(folder / "log.dat", sep="\t", index=False, float_format="%.5f")
+    columns = ", ".join(f'{k} = "{v}"' for k, v in SHIP_COLUMNS.items())
+    config = folder / "ship.toml"
+    config.write_text(
+        f'[output]\ndir = "out"\n'
+        f'[accelerations]\ninputs = ["recordings"]\nstart_time = "{T0.isoformat()}"\n'
+        f'[dship]\nfile = "log.dat"\ncolumns = {{ {columns} }}\n'
+        "[blocks]\nlength_minutes = 2\nstep_minutes = 1\n"
+        "[identify]\nblock_rows = 10\nmin_order = 4\nmax_order = 16\n"
+        "[forecast]\ntrain_blocks = 10\n",
+        encoding="utf-8",
+    )
+    return config
+
+
+def test_run_warns_once_and_ends_with_a_report_of_its_own_results(tmp_path, capsys, monkeypatch):
+    """Before: each stage's warnings once per stage (3x), no report; ``workbench report``
+    read the relative-time files without the configuration's start ("relative times",
+    no spectra), read the ship log again without the configuration's column names (wind
+    columns blank) and correlated again."""
+    import workbench as wb
+    import workbench.identification.voyage as voyage
+    from data_contracts.modal_layout import read_modal_table
+
+    run_blocks = voyage.run_blocks  # identify in this process: no local cluster to start
+    monkeypatch.setattr(
+        voyage, "run_blocks", lambda *a, **k: run_blocks(*a, **{**k, "scheduler": "synchronous"})
+    )
+    config = _ship_run(tmp_path)
+    assert _run(["run", config]) == 0, capsys.readouterr().err
+    out, err = capsys.readouterr()
+    despiked = [line for line in err.splitlines() if "despiked" in line]
+    assert len(despiked) == 1 and despiked[0].startswith("warning: ship log: despiked")
+    assert "each shown once (2 repeat(s) by later stages left out)" in err
+    assert out.rstrip().endswith(f"report: {tmp_path / 'out' / 'report.html'}")
+    run = tmp_path / "out"
+    page = (run / "report.html").read_text(encoding="utf-8")
+    # the recordings read as identify read them: signal views, no file skipped
+    assert (run / "report_files" / "spectra.png").is_file() and "could not be read" not in page
+    span = f"{T0:%Y-%m-%d %H:%M} to {T0 + pd.Timedelta(minutes=24):%Y-%m-%d %H:%M} UTC"
+    assert "24 (4 channels at 32 Hz)" in page and span in page  # the files follow on
+    # the correlate stage's own pairs, wind columns included (the configuration's names)
+    shown = pd.read_csv(run / "report_files" / "correlation_effective.csv")
+    own = wb.read_correlation(run / "correlation").effective()
+    assert len(shown) == len(own) == 4 * 5 + 10  # 4 mode quantities x 5 predictors + pairs
+    np.testing.assert_allclose(shown["r"], own["r"], rtol=1e-5)
+    wind = shown[shown["x"].str.startswith("wind") & shown["y"].str.startswith("mode")]
+    assert len(wind) == 2 * 4 and wind["r"].notna().all() and (wind["n"] >= 23).all()
+    # the API on the same files gives the CLI's fit
+    with pytest.warns(UserWarning):
+        modal = read_modal_table(run / "tracked_modal.csv")
+        predictors = wb.load_predictors(
+            dship=tmp_path / "log.dat", onto=modal, dship_mapping=SHIP_COLUMNS
+        )
+    wb.fit(modal, predictors).save(tmp_path / "api", figures=False)
+    for table in ("coefficients.csv", "fit_statistics.csv"):
+        pd.testing.assert_frame_equal(
+            pd.read_csv(tmp_path / "api" / table), pd.read_csv(run / "fit" / table)
+        )
+    # the report alone takes the same settings from the configuration
+    (run / "report.html").unlink()
+    assert _run(["report", "--config", config]) == 0, capsys.readouterr().err
+    assert span in (run / "report.html").read_text(encoding="utf-8")
+    # and a start given on the command line places the files as identify places them
+    later = T0 + pd.Timedelta(hours=1)
+    code = _run(["report", "--config", config, "--start-time", later.isoformat()])
+    assert code == 0, capsys.readouterr().err
+    shifted = f"{later:%Y-%m-%d %H:%M} to {later + pd.Timedelta(minutes=24):%Y-%m-%d %H:%M} UTC"
+    assert shifted in (run / "report.html").read_text(encoding="utf-8")

@@ -86,6 +86,8 @@ def test_write_correlation_report(block_tables, tmp_path, close_figures):
         "corrplot_frequency_hz",
         "corrplot_damping_ratio",
         "heatmap",
+        "blocks",  # correlation_blocks.parquet and correlation.json: read_correlation
+        "state",
     }
     for path in paths.values():
         assert path.is_file() and path.stat().st_size > 0

@@ -153,13 +153,62 @@ def _add_run(commands: argparse._SubParsersAction) -> None:
         help="run the chain a ship's TOML configuration describes",
         description="Run identify, track, correlate, fit, forecast and evaluate as far as "
         "the configuration gives their inputs (see workbench.config; `workbench demo` "
-        "writes an example, ship.toml).",
+        "writes an example, ship.toml), then build the run's report from their results. "
+        "A warning that several stages meet (the same ship log read by each) is shown once.",
     )
     parser.add_argument("config_file", type=Path, metavar="SHIP.TOML")
     parser.set_defaults(run=_run_chain)
 
 
+class _WarningsOnce:
+    """A text stream in front of stderr that lets each ``warning: ...`` line through
+    once: the stages of a run read the same inputs, and their warnings are the same.
+
+    Only a line that may become a warning is held until its end; everything else (progress
+    bars redrawn with carriage returns, errors) passes at once.
+    """
+
+    PREFIX = "warning: "
+
+    def __init__(self, stream):
+        self._stream = stream
+        self._pending = ""
+        self.seen: set[str] = set()
+        self.repeated = 0
+
+    def write(self, text: str) -> int:
+        self._pending += text
+        while "\n" in self._pending:
+            line, self._pending = self._pending.split("\n", 1)
+            self._emit(line + "\n")
+        if self._pending and not (
+            self._pending.startswith(self.PREFIX) or self.PREFIX.startswith(self._pending)
+        ):
+            self._stream.write(self._pending)
+            self._pending = ""
+        return len(text)
+
+    def _emit(self, line: str) -> None:
+        if line.startswith(self.PREFIX):
+            if line in self.seen:
+                self.repeated += 1
+                return
+            self.seen.add(line)
+        self._stream.write(line)
+
+    def flush(self) -> None:
+        if self._pending:
+            self._emit(self._pending)
+            self._pending = ""
+        self._stream.flush()
+
+    def __getattr__(self, name: str):  # isatty, fileno, encoding, ... of stderr
+        return getattr(self._stream, name)
+
+
 def _run_chain(args: argparse.Namespace) -> int:
+    import sys
+
     from ..config import ConfigError, chain, load_config
     from . import main
 
@@ -167,9 +216,22 @@ def _run_chain(args: argparse.Namespace) -> int:
         steps = chain(load_config(args.config_file))
     except ConfigError as error:
         raise UsageError(str(error)) from None
-    for step in steps:
-        print(f"== workbench {' '.join(step)}", flush=True)
-        code = main((["--verbose"] if args.verbose else []) + step)
-        if code != EXIT_OK:
-            return code
+    stderr = sys.stderr
+    once = _WarningsOnce(stderr)
+    sys.stderr = once
+    try:
+        for step in steps:
+            print(f"== workbench {' '.join(step)}", flush=True)
+            code = main((["--verbose"] if args.verbose else []) + step)
+            once.flush()
+            if code != EXIT_OK:
+                return code
+    finally:
+        sys.stderr = stderr
+    if once.repeated:
+        print(
+            f"{len(once.seen)} warning(s), each shown once ({once.repeated} repeat(s) by "
+            "later stages left out)",
+            file=sys.stderr,
+        )
     return EXIT_OK

@@ -13,6 +13,7 @@ from ..inputs import (
     acceleration_layout,
     add_acceleration_layout,
     add_dship_columns,
+    add_modal_layout,
     dship_mapping,
     time_format,
 )
@@ -61,9 +62,14 @@ def _add_report(commands: argparse._SubParsersAction) -> None:
         description="Build one HTML page of the run in DIR (the folder the stages wrote "
         "into): an overview (what ran, on which data, modes found, warnings, skipped blocks, "
         "dropped channels), then spectra, stabilisation diagrams, tracked modes, mode shapes, "
-        "correlation, regression and forecasts, as far as the run has them.",
+        "correlation, regression and forecasts, as far as the run has them. The run's "
+        "own results are shown as its stages left them (the correlate stage's pairs and "
+        "predictors, the fit's models); acceleration files are read as identification "
+        "read them (its recorded layout), unless the flags below or --config say otherwise.",
     )
-    parser.add_argument("dir", type=Path, metavar="DIR", help="the run's folder")
+    parser.add_argument(
+        "dir", type=Path, metavar="DIR", help="the run's folder (with --config: its output dir)"
+    )
     parser.add_argument(
         "--out", type=Path, metavar="FILE", help="report to write (default DIR/report.html)"
     )
@@ -84,6 +90,17 @@ def _add_report(commands: argparse._SubParsersAction) -> None:
         "--blocks", metavar="N,N,...", help="blocks whose stabilisation diagrams are drawn"
     )
     parser.add_argument("--title", help="page title")
+    parser.add_argument(
+        "--modal",
+        type=Path,
+        metavar="FILE",
+        help="the run's modal table when it is not DIR's tracked_modal.* (e.g. another "
+        "tool's, in any layout correlate reads)",
+    )
+    add_dship_columns(parser)
+    add_modal_layout(parser, time_format=False)
+    # how to read the acceleration files: default the layout identification recorded
+    add_acceleration_layout(parser)
     parser.set_defaults(run=_run_report)
 
 
@@ -105,9 +122,25 @@ def _run_report(args: argparse.Namespace) -> int:
         cases=args.cases,
         geometry=args.geometry,
     )
+    layout = acceleration_layout(args)
+    mapping = dship_mapping(args)
+    modal = None
+    if args.modal is not None:
+        from .common import _read_modal
+
+        with _data_errors(args.modal):
+            modal = _read_modal(args, args.modal)
     with _data_errors(args.dir):
         path = build_report(
-            args.dir, out=args.out, run=run, title=args.title, stabilisation_blocks=blocks
+            args.dir,
+            out=args.out,
+            run=run,
+            title=args.title,
+            stabilisation_blocks=blocks,
+            modal=modal,
+            acceleration_layout=layout,
+            dship_mapping=mapping,
+            time_format=time_format(args) if args.time_format not in ("seconds", "unix") else None,
         )
     print(f"report: {path}")
     return EXIT_OK

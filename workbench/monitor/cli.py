@@ -53,6 +53,7 @@ def add_monitor(commands: argparse._SubParsersAction) -> None:
     """Add the ``monitor`` subcommand."""
     from ..arguments import add_renamed
     from ..cli import FORECAST_OPTIONS, FORECAST_SCHEMES
+    from ..inputs import add_acceleration_layout
 
     parser = commands.add_parser(
         "monitor",
@@ -144,6 +145,8 @@ def add_monitor(commands: argparse._SubParsersAction) -> None:
     )
     track.add_argument("--gate", choices=("mac", "macxp"))
     add_renamed(track, "--frequency-tol", ["--frequency-tolerance"], type=float)
+    # the files are read as identify reads them: the same reader registry and layout flags
+    add_acceleration_layout(parser)
     fore = parser.add_argument_group("forecast and health (as workbench forecast / health)")
     fore.add_argument("--option", type=FORECAST_OPTIONS, metavar=FORECAST_OPTIONS.metavar)
     add_renamed(
@@ -186,6 +189,21 @@ def add_monitor(commands: argparse._SubParsersAction) -> None:
     parser.set_defaults(run=run_monitor)
 
 
+#: The acceleration layout flags (workbench.inputs.add_acceleration_layout): read from the
+#: configuration's [times] and [accelerations] sections as identify reads them.
+_LAYOUT_DESTS = (
+    "time_column",
+    "time_format",
+    "separator",
+    "decimal",
+    "start_time",
+    "sampling_rate",
+    "units",
+    "channels",
+    "variables",
+)
+
+
 def _from_config(args: argparse.Namespace) -> None:
     """Fill the flags not given from ``--config`` (the batch commands' sections)."""
     from ..config import command_defaults, load_config
@@ -205,6 +223,7 @@ def _from_config(args: argparse.Namespace) -> None:
         "block_minutes",
         "step_minutes",
         "max_gap",
+        *_LAYOUT_DESTS,
     ):
         if getattr(args, dest, None) is None and dest in identify:
             setattr(args, dest, identify[dest])
@@ -306,6 +325,12 @@ def prepare_monitor(args: argparse.Namespace):
         raise UsageError("monitor needs --state DIR")
     if not args.watch.is_dir():
         raise UsageError(f"--watch {args.watch}: no such folder")
+    if args.start_time not in (None, "filename"):
+        raise UsageError(
+            f"--start-time {args.start_time}: one start time cannot place the files of a "
+            "growing folder; give --start-time filename (the time in each file's name) or "
+            "files with times of their own"
+        )
     return Monitor(args.watch, args.state, dship=args.dship, options=_options(args))
 
 
@@ -328,6 +353,11 @@ def run_monitor(args: argparse.Namespace) -> int:
     if args.once and monitor.voyage is None:
         from ..errors import WorkbenchError
 
+        refused = monitor.watcher.refused_reasons
+        if refused:  # say why, naming the first file (identify would stop at it too)
+            path, reason = next(iter(refused.items()))
+            more = f" ({len(refused) - 1} more file(s) refused)" if len(refused) > 1 else ""
+            raise WorkbenchError(f"{path}: cannot be monitored: {reason}{more}")
         raise WorkbenchError(f"{args.watch}: no complete acceleration file to monitor")
     through = monitor.tracked_through
     print(

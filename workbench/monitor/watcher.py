@@ -85,6 +85,8 @@ class FolderWatcher:
         self._changed: set[Path] = set()
         #: Files seen but not yet complete at the last poll.
         self.pending: set[Path] = set()
+        #: Why each refused file was not taken (its reader's first line), by path.
+        self.refused_reasons: dict[Path, str] = {}
 
     def _candidates(self) -> list[Path]:
         from data_contracts.formats import ACCELERATION_SUFFIXES
@@ -142,15 +144,22 @@ class FolderWatcher:
                 continue
             if path.suffix.lower() in TEXT_SUFFIXES and not looks_like_acceleration_table(path):
                 self._refused[path] = key  # a table or log, not an acceleration record
+                self.refused_reasons[path] = (
+                    "no acceleration header (a time column and numeric channels) found; "
+                    "left out as a table or log"
+                )
                 continue
             try:
                 info = read_file_info(path, read_options=self.read_options)
             except Exception as error:  # noqa: BLE001 - any reader failure: not complete
                 detail = str(error).splitlines()[0] if str(error) else type(error).__name__
+                detail = detail.removeprefix(f"{path}: ")  # the message names the file once
                 self._refused[path] = key
+                self.refused_reasons[path] = detail
                 messages.append(f"{path.name}: unreadable ({detail}); taken when it changes")
                 continue
             self._taken[path] = key
+            self.refused_reasons.pop(path, None)
             landed.append(
                 LandedFile(
                     info,

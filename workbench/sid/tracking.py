@@ -24,7 +24,6 @@ References
 from __future__ import annotations
 
 import math
-import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
@@ -415,18 +414,10 @@ def track_modes(
 
     frame = selected.sort_values("block", kind="stable").reset_index(drop=True)
     rows: list[tuple[int, int, float]] = []  # (row in frame, label, macxp)
-    from tqdm.auto import tqdm
+    from ..progress import progress_bar
 
     groups = frame.groupby("block", sort=True)
-    bar = tqdm(
-        groups,
-        total=groups.ngroups,
-        desc="track",
-        unit="block",
-        disable=not progress,
-        file=sys.stderr,
-        dynamic_ncols=True,
-    )
+    bar = progress_bar(groups, total=groups.ngroups, description="track", enabled=progress)
     for _, part in bar:
         frequency, damping, shapes = _selected_arrays(part, channels)
         block = int(part["block"].iat[0])

@@ -14,10 +14,87 @@ import pandas as pd
 
 from data_contracts import atomic_path, read_table, write_table
 
-__all__ = ["StageResult", "read_any_table", "table_path", "write_frame", "write_json"]
+__all__ = [
+    "StageResult",
+    "Summary",
+    "read_any_table",
+    "shown_once",
+    "table_path",
+    "write_frame",
+    "write_json",
+]
 
 #: Suffixes of the table files a stage writes or reads.
 TABLE_SUFFIXES = (".csv", ".parquet", ".pq")
+
+
+class Summary:
+    """What a result found, as statsmodels' ``Summary``: text lines and tables, shown as
+    text by ``print`` / ``str`` and as HTML in a notebook.
+
+    Parameters
+    ----------
+    title : str
+    lines : sequence of str
+        Sentences a person reads (warnings start with ``warning:``).
+    tables : sequence of (caption, DataFrame)
+        Tables shown below the lines.
+    """
+
+    def __init__(self, title: str, lines=(), tables=()):
+        self.title = str(title)
+        self.lines = [str(line) for line in lines]
+        self.tables = [(str(caption), table) for caption, table in tables]
+
+    def as_text(self) -> str:
+        parts = ["\n".join(self.lines)] if self.lines else []
+        for caption, table in self.tables:
+            text = table.to_string() if isinstance(table, pd.DataFrame) else str(table)
+            parts.append(f"{caption}\n{text}" if caption else text)
+        return "\n".join(parts)
+
+    def as_html(self) -> str:
+        body = [f"<strong>{html.escape(self.title)}</strong>"] if self.title else []
+        if self.lines:
+            body.append("<pre>" + html.escape("\n".join(self.lines)) + "</pre>")
+        for caption, table in self.tables:
+            if caption:
+                body.append(f"<p>{html.escape(caption)}</p>")
+            if isinstance(table, pd.DataFrame):
+                named = any(name is not None for name in table.index.names)
+                body.append(table.to_html(index=named, border=0, max_rows=60, max_cols=14))
+            else:
+                body.append("<pre>" + html.escape(str(table)) + "</pre>")
+        return "<div>" + "".join(body) + "</div>"
+
+    def __str__(self) -> str:
+        return self.as_text()
+
+    def __repr__(self) -> str:  # the text view where no HTML is shown (a terminal)
+        return self.as_text()
+
+    def _repr_html_(self) -> str:
+        return self.as_html()
+
+    def __contains__(self, text: str) -> bool:
+        return text in self.as_text()
+
+
+def shown_once(figure):
+    """*figure*, taken out of pyplot's list of open figures when a notebook's inline
+    backend draws them: the notebook then shows the returned figure once (not also as
+    a figure left open at the end of the cell). In scripts and GUI sessions the figure
+    stays with pyplot, so ``plt.show()`` shows it."""
+    import sys
+
+    pyplot = sys.modules.get("matplotlib.pyplot")
+    if pyplot is None or figure is None:
+        return figure
+    import matplotlib
+
+    if "inline" in matplotlib.get_backend().lower():
+        pyplot.close(figure)
+    return figure
 
 
 class StageResult:
@@ -34,12 +111,13 @@ class StageResult:
     #: Title of the notebook view.
     title = "result"
 
-    def summary(self) -> str:
-        """What the stage found, in a few lines a person reads."""
-        return "\n".join([*self.lines, *(f"warning: {w}" for w in self.warnings)])
+    def summary(self) -> Summary:
+        """What the stage found, in a few lines a person reads (``print`` it; a notebook
+        shows it as HTML)."""
+        return Summary(self.title, [*self.lines, *(f"warning: {w}" for w in self.warnings)])
 
     def __str__(self) -> str:
-        return self.summary()
+        return str(self.summary())
 
     def _repr_html_(self) -> str:
         rows = len(self.table)
@@ -48,7 +126,7 @@ class StageResult:
         more = f"<p>{rows} rows; first 10 shown.</p>" if rows > 10 else ""
         return (
             f"<div><strong>{html.escape(self.title)}</strong>"
-            f"<pre>{html.escape(self.summary())}</pre>{head}{more}</div>"
+            f"<pre>{html.escape(str(self.summary()))}</pre>{head}{more}</div>"
         )
 
     def save(self, out_dir: str | os.PathLike) -> dict[str, Path]:  # pragma: no cover

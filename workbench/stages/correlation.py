@@ -22,9 +22,12 @@ from ..stats.correlation import (
     joined_blocks,
     read_cases,
 )
-from ._base import StageResult, read_any_table, write_frame
+from ._base import StageResult, read_any_table, shown_once, write_frame, write_json
 
-__all__ = ["CorrelateOptions", "CorrelateResult", "correlate"]
+__all__ = ["CorrelateOptions", "CorrelateResult", "correlate", "read_correlation"]
+
+#: Files beside correlation.csv that let :func:`read_correlation` rebuild the result.
+BLOCKS_FILE, STATE_FILE = "correlation_blocks.parquet", "correlation.json"
 
 
 @dataclass(frozen=True)
@@ -133,23 +136,113 @@ class CorrelateResult(StageResult):
             min_blocks=min_blocks,
         )
 
+    @property
+    def predictors(self) -> pd.DataFrame:
+        """The block predictors correlated (PREDICTORS contract: block, block times and
+        the predictor columns), as the run read them."""
+        keep = [c for c in ("block_start", "block_end") if c in self.joined.columns]
+        return self.joined[keep + list(self.predictor_names)].reset_index()
+
     def plot(self, quantity: str = "frequency_hz"):
         """corrplot of *quantity* of every mode and the predictors, all cases stitched."""
         from ..reporting.correlation import corrplot_of
 
-        return corrplot_of(self, quantity)
+        return shown_once(corrplot_of(self, quantity))
 
     def save(
         self, out_dir: str | os.PathLike, *, figures: bool = True, dpi: int = 110
     ) -> dict[str, Path]:
         """correlation.csv and, with *figures*, the corrplots, the heatmap and
-        correlation.html (figures embedded) in *out_dir*."""
+        correlation.html (figures embedded) in *out_dir*; with them the blocks correlated
+        and the options (correlation_blocks.parquet, correlation.json), so that
+        :func:`read_correlation` (and ``workbench report``) takes this result as it is."""
         if figures:
             from ..reporting.correlation import write_correlation_report
 
-            return write_correlation_report(self, out_dir, dpi=dpi)
-        path = Path(out_dir) / "correlation.csv"
-        return {"csv": write_frame(self.table, path, float_format="%.10g")}
+            paths = write_correlation_report(self, out_dir, dpi=dpi)
+        else:
+            path = Path(out_dir) / "correlation.csv"
+            paths = {"csv": write_frame(self.table, path, float_format="%.10g")}
+        blocks = self.joined.reset_index()
+        paths["blocks"] = write_frame(blocks, Path(out_dir) / BLOCKS_FILE)
+        state = {
+            "options": {
+                "alpha": self.options.alpha,
+                "correction": self.options.correction,
+                "quantities": list(self.options.quantities or ()) or None,
+                "predictors_used": list(self.options.predictors_used or ()) or None,
+                "useful_r": self.options.useful_r,
+                "min_presence": self.options.min_presence,
+            },
+            "mode_columns": list(self.mode_columns),
+            "predictor_names": list(self.predictor_names),
+            "cases": {
+                case: [int(b) for b in self.joined.index[np.asarray(mask, dtype=bool)]]
+                for case, mask in self.case_blocks.items()
+            },
+            "lines": list(self.lines),
+            "warnings": list(self.warnings),
+        }
+        paths["state"] = write_json(state, Path(out_dir) / STATE_FILE)
+        return paths
+
+
+def read_correlation(path: str | os.PathLike) -> CorrelateResult:
+    """The :class:`CorrelateResult` saved in the folder *path* by :meth:`CorrelateResult.save`
+    (correlation.csv, correlation_blocks.parquet, correlation.json), as it was computed.
+
+    Raises
+    ------
+    WorkbenchError
+        A folder without these files, or files that do not belong together (one line
+        naming the file).
+    """
+    import json
+
+    folder = Path(path)
+    if folder.is_file():
+        folder = folder.parent
+    missing = [
+        n for n in ("correlation.csv", BLOCKS_FILE, STATE_FILE) if not (folder / n).is_file()
+    ]
+    if missing:
+        raise WorkbenchError(
+            f"{folder}: no saved correlation to read ({', '.join(missing)} missing; written "
+            "by `workbench correlate` and CorrelateResult.save)"
+        )
+    try:
+        state = json.loads((folder / STATE_FILE).read_text(encoding="utf-8"))
+        known = state["options"]
+        options = CorrelateOptions(
+            alpha=known["alpha"],
+            correction=known["correction"],
+            quantities=tuple(known["quantities"]) if known["quantities"] else None,
+            predictors_used=tuple(known["predictors_used"]) if known["predictors_used"] else None,
+            useful_r=known["useful_r"],
+            min_presence=known["min_presence"],
+        )
+        joined = pd.read_parquet(folder / BLOCKS_FILE).set_index("block")
+        table = pd.read_csv(folder / "correlation.csv")
+        names, mode_columns = list(state["predictor_names"]), list(state["mode_columns"])
+        absent = sorted(set(names + mode_columns) - set(joined.columns))
+        if absent:
+            raise ValueError(f"{BLOCKS_FILE} has no column {absent[0]!r}")
+        cases = {
+            case: np.isin(joined.index.to_numpy(), np.asarray(blocks, dtype="int64"))
+            for case, blocks in state["cases"].items()
+        }
+    except (OSError, KeyError, TypeError, ValueError) as error:
+        raise WorkbenchError(f"{folder / STATE_FILE}: unreadable correlation ({error})") from None
+    return CorrelateResult(
+        table=table,
+        joined=joined,
+        mode_columns=mode_columns,
+        predictor_names=names,
+        case_blocks=cases,
+        options=options,
+        lines=list(state.get("lines", [])),
+        warnings=list(state.get("warnings", [])),
+    )
 
 
 def _cases(cases):

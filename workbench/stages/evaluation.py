@@ -14,7 +14,7 @@ from data_contracts import FORECAST, MODAL
 from ..errors import WorkbenchError
 from ..forecast import evaluate_against_truth
 from ..sid.tracking import label_agreement
-from ._base import StageResult, read_any_table, table_path, write_frame
+from ._base import StageResult, read_any_table, shown_once, table_path, write_frame
 
 __all__ = ["EvaluateResult", "evaluate", "pair_with_truth", "relabel_truth"]
 
@@ -97,6 +97,7 @@ class EvaluateResult(StageResult):
         """Cumulative absolute error of SSI, model and Kalman per mode and option."""
         import matplotlib.pyplot as plt
 
+        drawn_here = ax is None
         if ax is None:
             _, ax = plt.subplots(figsize=(9, 4), layout="constrained")
         table = self.table.sort_values(["option", "mode"])
@@ -114,7 +115,7 @@ class EvaluateResult(StageResult):
         ax.set_xlabel("option and true mode")
         ax.set_ylabel("cumulative |error| [Hz]")
         ax.legend(fontsize=8)
-        return ax.figure
+        return shown_once(ax.figure) if drawn_here else ax.figure
 
     def save(self, out: str | os.PathLike) -> dict[str, Path]:
         """The table (``out`` a .csv/.parquet file, or a folder: evaluation.csv)."""

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -28,7 +28,7 @@ from ..stats.cases import STITCHED, CaseFits, fit_cases
 from ..stats.fit_io import design_matrix, model_from_dict, model_to_dict
 from ..stats.mode_fits import ModeFit, coefficient_table, fit_modes, fit_statistics_table
 from ..stats.stepwise import StepwiseFit
-from ._base import StageResult, read_any_table
+from ._base import StageResult, Summary, read_any_table, shown_once
 
 __all__ = ["FitOptions", "FitResult", "ModeResults", "PredictionResults", "fit", "read_fit"]
 
@@ -104,8 +104,9 @@ class PredictionResults:
         self._exog = exog
 
     @property
-    def predicted_mean(self) -> np.ndarray:
-        return np.asarray(self._model.predict(self._exog), dtype=float)
+    def predicted_mean(self) -> np.ndarray | pd.Series:
+        """Predicted means: a Series on the index of a DataFrame given, else an array."""
+        return _as_given(self._model.predict(self._exog), self._exog, "predicted_mean")
 
     @property
     def se_mean(self) -> np.ndarray:
@@ -148,6 +149,8 @@ class ModeResults:
     model: StepwiseFit
     fit: ModeFit | None = None
     exog: pd.DataFrame | None = None
+    #: The fit.json the model was read from (None: fitted in this session).
+    source: Path | None = None
 
     # coefficients -------------------------------------------------------------------
     @property
@@ -234,7 +237,11 @@ class ModeResults:
     # data ---------------------------------------------------------------------------
     def _needs_data(self, what: str) -> ModeFit:
         if self.fit is None:
-            raise ValueError(f"{what} needs the fitted data; a model read from JSON has none")
+            raise FitDataMissing(
+                f"{what} of mode {self.mode} needs the fitted blocks' data (observed, fitted, "
+                f"residuals), which {self.source or 'fit.json'} does not keep (it keeps the "
+                "model: params, bse, pvalues, predict); fit the tables again with wb.fit"
+            )
         return self.fit
 
     @property
@@ -254,9 +261,10 @@ class ModeResults:
         return self._needs_data("diagnostics").diagnostics
 
     # prediction ---------------------------------------------------------------------
-    def predict(self, exog: pd.DataFrame) -> np.ndarray:
-        """Predicted means for new predictor values (columns named as in the fit)."""
-        return np.asarray(self.model.predict(exog), dtype=float)
+    def predict(self, exog: pd.DataFrame) -> pd.Series | np.ndarray:
+        """Predicted means for new predictor values (columns named as in the fit): a
+        Series on *exog*'s index when *exog* is a DataFrame, else an array."""
+        return _as_given(self.model.predict(exog), exog, self.model.response_name)
 
     def get_prediction(self, exog: pd.DataFrame) -> PredictionResults:
         """Predictions with standard errors and intervals (``.summary_frame(alpha)``)."""
@@ -280,11 +288,12 @@ class ModeResults:
         ols = OLS(np.asarray(item.observed, dtype=float), design).fit()
         return ols.get_influence()
 
-    def summary(self) -> str:
-        text = f"Mode {self.mode}\n{self.model.summary()}"
+    def summary(self) -> Summary:
+        """The model's coefficients and fit (and residual diagnostics when fitted here)."""
+        lines = [f"Mode {self.mode}", *str(self.model.summary()).splitlines()]
         if self.fit is not None:
-            text += f"\n\nResidual diagnostics\n{self.fit.diagnostics.summary()}"
-        return text
+            lines += ["", "Residual diagnostics", *self.fit.diagnostics.summary().splitlines()]
+        return Summary(f"mode {self.mode}: {self.formula}", lines)
 
     def __repr__(self) -> str:
         return f"<ModeResults mode {self.mode}: {self.formula}, R² {self.rsquared:.3f}>"
@@ -315,6 +324,24 @@ class FitResult(StageResult):
             return self.models[int(mode)]
         except KeyError:
             raise KeyError(f"no model of mode {mode}; modes: {sorted(self.models)}") from None
+
+    def __iter__(self) -> Iterator[int]:
+        """The modes, ascending (``for mode in fit: fit[mode]``)."""
+        return iter(self.modes)
+
+    def __len__(self) -> int:
+        """Number of modes with a model."""
+        return len(self.models)
+
+    def __contains__(self, mode: object) -> bool:
+        try:
+            return int(mode) in self.models  # type: ignore[call-overload]
+        except (TypeError, ValueError):
+            return False
+
+    def items(self) -> Iterator[tuple[int, ModeResults]]:
+        """(mode, model) pairs, ascending by mode."""
+        return ((mode, self.models[mode]) for mode in self.modes)
 
     @property
     def modes(self) -> list[int]:
@@ -391,10 +418,11 @@ class FitResult(StageResult):
             raise ValueError("influence needs the fitted data; models read from JSON have none")
         return pd.concat(frames, ignore_index=True)
 
-    def summary(self) -> str:
-        head = super().summary()
-        table = self.table[["formula", "n_obs", "r_squared", "rmse"]].to_string()
-        return f"{head}\n{table}" if head else table
+    def summary(self) -> Summary:
+        """The lines of the stage and the models side by side (formula, blocks, R², RMSE)."""
+        summary = super().summary()
+        summary.tables.append(("", self.table[["formula", "n_obs", "r_squared", "rmse"]]))
+        return summary
 
     def plot(self, mode: int | None = None):
         """Residual diagnostics figure of *mode* (default the first mode)."""
@@ -402,12 +430,14 @@ class FitResult(StageResult):
 
         item = self[self.modes[0] if mode is None else mode]
         data = item._needs_data("plot")
-        return plot_residual_diagnostics(
-            data.residuals,
-            data.fitted,
-            diagnostics=data.diagnostics,
-            title=f"Mode {item.mode}: {item.formula}",
-            unit="Hz" if data.quantity.endswith("_hz") else "",
+        return shown_once(
+            plot_residual_diagnostics(
+                data.residuals,
+                data.fitted,
+                diagnostics=data.diagnostics,
+                title=f"Mode {item.mode}: {item.formula}",
+                unit="Hz" if data.quantity.endswith("_hz") else "",
+            )
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -502,7 +532,8 @@ def read_fit(path: str | os.PathLike) -> FitResult:
     """The models of a ``fit.json`` written by :meth:`FitResult.save`, ready to predict.
 
     The fitted data (residuals, diagnostics) are not part of the JSON: ``resid``,
-    ``get_influence()`` and ``plot()`` need the original fit.
+    ``fittedvalues``, ``diagnostics``, ``get_influence()`` and ``plot()`` raise
+    :class:`FitDataMissing` (a ValueError naming what is missing) and need the original fit.
     """
     path = Path(path)
     if path.is_dir():
@@ -515,10 +546,22 @@ def read_fit(path: str | os.PathLike) -> FitResult:
             model = model_from_dict(item["model"])
         except (KeyError, ValueError) as error:
             raise ValueError(f"{path}: mode {item.get('mode')}: {error}") from None
-        models[int(item["mode"])] = ModeResults(int(item["mode"]), model)
+        models[int(item["mode"])] = ModeResults(int(item["mode"]), model, source=path)
     return FitResult(
         models=models, options=options, lines=[f"{len(models)} models read from {path}"]
     )
+
+
+class FitDataMissing(ValueError):
+    """A model read back from fit.json asked for the fitted blocks' data it does not keep."""
+
+
+def _as_given(values, exog, name: str | None) -> pd.Series | np.ndarray:
+    """*values* as a Series on *exog*'s index when *exog* is a DataFrame, else an array."""
+    values = np.asarray(values, dtype=float)
+    if isinstance(exog, pd.DataFrame):
+        return pd.Series(values, index=exog.index, name=name)
+    return values
 
 
 def _options_from(data: Mapping[str, Any]) -> FitOptions:

@@ -24,7 +24,7 @@ from ..forecast.options import (
 )
 from ..parallel import process_map
 from ..sid.presence import persistent_modes
-from ._base import StageResult, read_any_table, table_path, write_frame
+from ._base import StageResult, read_any_table, shown_once, table_path, write_frame
 
 __all__ = ["ForecastOptions", "ForecastStageResult", "forecast", "forecast_modes"]
 
@@ -149,7 +149,7 @@ class ForecastStageResult(StageResult):
         from ..reporting.forecast_plot import plot_forecast_mode
 
         mode = int(self.table["mode"].min()) if mode is None else int(mode)
-        return plot_forecast_mode(self.table, mode, truth_modal=truth, option=option)
+        return shown_once(plot_forecast_mode(self.table, mode, truth_modal=truth, option=option))
 
     def save(
         self,

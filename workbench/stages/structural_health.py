@@ -12,7 +12,7 @@ import pandas as pd
 from data_contracts import FORECAST
 
 from ..health import HealthOptions, HealthResult, health_chart
-from ._base import StageResult, read_any_table
+from ._base import StageResult, Summary, read_any_table, shown_once
 
 __all__ = ["HealthStageResult", "health"]
 
@@ -38,8 +38,8 @@ class HealthStageResult(StageResult):
     warnings: list[str] = field(default_factory=list)
     title = "structural health"
 
-    def summary(self) -> str:
-        return self.chart.summary()
+    def summary(self) -> Summary:
+        return Summary(self.title, [*self.chart.summary().splitlines(), *self.lines])
 
     def save(self, out_dir: str | os.PathLike) -> dict[str, Path]:
         """health.csv and alarms.csv in *out_dir*."""
@@ -49,6 +49,7 @@ class HealthStageResult(StageResult):
         """The chart: statistic per block, the control limit, alarming blocks marked."""
         import matplotlib.pyplot as plt
 
+        drawn_here = ax is None
         if ax is None:
             _, ax = plt.subplots(figsize=(9, 4), layout="constrained")
         table = self.table
@@ -59,7 +60,7 @@ class HealthStageResult(StageResult):
         ax.set_xlabel("block")
         ax.set_ylabel("CUSUM max S/H" if self.chart.reference.statistic == "cusum" else "MEWMA T²")
         ax.legend(fontsize=8)
-        return ax.figure
+        return shown_once(ax.figure) if drawn_here else ax.figure
 
 
 def health(

@@ -13,7 +13,7 @@ from data_contracts import MODAL, SELECTED, recorded_grid, set_grid
 from .._deprecation import renamed_parameters
 from ..errors import WorkbenchError
 from ..sid.tracking import TrackingOptions, track_modes
-from ._base import StageResult, read_any_table, table_path, write_frame
+from ._base import StageResult, read_any_table, shown_once, table_path, write_frame
 
 __all__ = ["TrackResult", "track"]
 
@@ -106,6 +106,7 @@ class TrackResult(StageResult):
         """Frequency of each tracked mode over the blocks; returns the figure."""
         import matplotlib.pyplot as plt
 
+        drawn_here = ax is None
         if ax is None:
             _, ax = plt.subplots(figsize=(9, 4.5), layout="constrained")
         for mode, part in self.table.groupby("mode"):
@@ -113,7 +114,7 @@ class TrackResult(StageResult):
         ax.set_xlabel("block")
         ax.set_ylabel("frequency [Hz]")
         ax.legend(fontsize=7, ncols=2, loc="best")
-        return ax.figure
+        return shown_once(ax.figure) if drawn_here else ax.figure
 
 
 @renamed_parameters(reference="reference_modes")

@@ -26,6 +26,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import pandas as pd
+
 from .overview import load_run, overview_section
 from .render import Figures, write_page
 from .run import ReportSection, RunFiles, find_run
@@ -75,6 +77,10 @@ def build_report(
     summary_lines: Sequence[str] = (),
     extra_sections: Sequence[ReportSection] = (),
     correlation: CorrelateResult | None = None,
+    modal: pd.DataFrame | None = None,
+    acceleration_layout=None,
+    dship_mapping=None,
+    time_format: str | None = None,
     dpi: int = 100,
 ) -> Path:
     """Build the HTML report of the run in *root* and return its path.
@@ -99,17 +105,39 @@ def build_report(
         The correlate stage's result of this run (default: the stage run on the modes
         present in at least half the blocks and the speed, temperature and wind
         predictors); the report shows its pairs of the modes present in half the blocks.
+        Default: the run's own, as the correlate stage saved it (``correlation.json``),
+        with the predictors it correlated; else the stage run here.
+    modal : DataFrame, optional
+        The run's modal table (MODAL contract) when it is not the folder's
+        ``tracked_modal.*`` (e.g. another tool's table the run started from).
+    acceleration_layout : AccelerationLayout or mapping, optional
+        How to read the acceleration files (default: the layout identification recorded
+        in its store, so the report reads them as the run did).
+    dship_mapping : mapping, optional
+        Ship-log column names, when the predictors are read from the DSHIP log (a run
+        without a saved correlation or predictor table).
+    time_format : str, optional
+        Format of the ship log's times, likewise.
     """
     root = Path(root)
     run = run or find_run(root)
-    if run.identify is None and run.tracked is None and not run.accelerations:
+    if run.identify is None and run.tracked is None and modal is None and not run.accelerations:
         raise ValueError(
             "no run found: neither identification results (blocks.csv), a tracked modal "
             "table (tracked_modal.csv) nor acceleration files"
         )
     out = Path(out) if out is not None else root / "report.html"
     figures = Figures(out, dpi)
-    data = load_run(run, out, figures, correlation)
+    data = load_run(
+        run,
+        out,
+        figures,
+        correlation,
+        modal=modal,
+        acceleration_layout=acceleration_layout,
+        dship_mapping=dship_mapping,
+        time_format=time_format,
+    )
     overview = overview_section(data, summary_lines)
     built = [
         signals_section(data),

@@ -44,27 +44,47 @@ class RunData:
 
 
 def load_run(
-    run: RunFiles, out: Path, figures: Figures, correlation: CorrelateResult | None = None
+    run: RunFiles,
+    out: Path,
+    figures: Figures,
+    correlation: CorrelateResult | None = None,
+    *,
+    modal: pd.DataFrame | None = None,
+    acceleration_layout=None,
+    dship_mapping=None,
+    time_format: str | None = None,
 ) -> RunData:
-    """Read the run's tables once: identification parameters, tracked modes, predictors
-    (from the table, or the DSHIP log onto the modal blocks), cases, sensor geometry and
-    the pass over the acceleration files."""
+    """Read the run's tables once: identification parameters, tracked modes, the
+    correlate stage's result (as saved, :func:`~workbench.stages.read_correlation`) and
+    its predictors (else a predictor table, else the DSHIP log onto the modal blocks, read
+    with *dship_mapping* and *time_format*), cases, sensor geometry and the pass over the
+    acceleration files (read with *acceleration_layout*, else the layout identification
+    recorded)."""
     from workbench.predictors import canonical_predictors, load_predictors
+    from workbench.stages import read_correlation
     from workbench.stats.correlation import read_cases
 
     parameters = {}
     if run.identify is not None and (run.identify / "store" / "store.json").exists():
         parameters = json.loads((run.identify / "store" / "store.json").read_text())
     band = tuple(parameters["band_hz"]) if parameters.get("band_hz") else None
+    acceleration_layout = _reading_layout(
+        acceleration_layout, parameters.get("acceleration_layout") or None, run.accelerations
+    )
 
-    modal = read_table(run.tracked, MODAL) if run.tracked is not None else None
+    if modal is None and run.tracked is not None:
+        modal = read_table(run.tracked, MODAL)
+    if correlation is None and run.correlation is not None:
+        correlation = read_correlation(run.correlation)  # the run's own, not recomputed
     predictors = None
-    if run.predictors is not None:
-        predictors = read_table(run.predictors, PREDICTORS)
+    if correlation is not None:
+        predictors = correlation.predictors  # as the run read them: no second reading
+    elif run.predictors is not None:
+        predictors = canonical_predictors(read_table(run.predictors, PREDICTORS))
     elif run.dship is not None and modal is not None:
-        predictors = load_predictors(dship=run.dship, onto=modal)
-    if predictors is not None:
-        predictors = canonical_predictors(predictors)
+        predictors = load_predictors(
+            dship=run.dship, onto=modal, dship_mapping=dship_mapping, time_format=time_format
+        )
     cases = read_cases(run.cases) if run.cases is not None else None
     geometry = read_table(run.geometry, SENSOR_GEOMETRY) if run.geometry is not None else None
     if geometry is not None and modal is not None:
@@ -76,7 +96,18 @@ def load_run(
         if any(str(c).startswith("shape_re_") for c in modal.columns):
             channels, _ = shapes_from_frame(modal)
             check_geometry_channels(channels, geometry, geometry_name=str(run.geometry))
-    signal = signal_pass(run.accelerations, cases, band) if run.accelerations else None
+    skipped: list[str] = []
+    signal = (
+        signal_pass(run.accelerations, cases, band, layout=acceleration_layout, skipped=skipped)
+        if run.accelerations
+        else None
+    )
+    notices = []
+    if skipped:  # said in the report, not only in a log
+        notices.append(
+            f"{len(skipped)} of {len(run.accelerations)} acceleration file(s) could not be "
+            f"read for the signal views; the first: {skipped[0]}"
+        )
     return RunData(
         run=run,
         out=out,
@@ -89,7 +120,27 @@ def load_run(
         geometry=geometry,
         signal=signal,
         correlation=correlation,
+        notices=notices,
     )
+
+
+def _reading_layout(given, recorded, files) -> dict | None:
+    """How the report reads the acceleration files: as identification read them (the
+    layout it recorded, with each file's start) unless *given* says otherwise; a start
+    time given for several files is resolved per file as identify resolves it."""
+    if given is None:
+        return recorded
+    given = dict(given)
+    if recorded is not None and given == {k: v for k, v in recorded.items() if k != "file_starts"}:
+        return recorded  # the same settings: identification's resolved starts
+    start = given.get("start_time")
+    if len(files) > 1 and start not in (None, "filename") and not given.get("file_starts"):
+        from workbench.identification.planning import follow_on_starts
+        from workbench.identify import IdentifyOptions
+
+        resolved = follow_on_starts(files, IdentifyOptions(acceleration_layout=given))
+        return dict(resolved.acceleration_layout or given)
+    return given
 
 
 def overview_section(data: RunData, summary_lines=()) -> ReportSection:

@@ -24,6 +24,7 @@ class RunFiles:
     cases: Path | None = None
     geometry: Path | None = None
     accelerations: list[Path] = field(default_factory=list)
+    correlation: Path | None = None
     fit: Path | None = None
     forecast: Path | None = None
     evaluation: Path | None = None
@@ -71,7 +72,8 @@ def find_run(
 
     Looked for (in *root*, then one and two folders down): ``blocks.csv`` next to
     ``poles.parquet``/``selected.parquet`` (identification), ``tracked_modal.*``,
-    ``predictors.*``, ``fit_statistics.csv``, ``forecast.*``, ``evaluation.csv``,
+    ``predictors.*``, the correlate stage's folder (``correlation.json``),
+    ``fit_statistics.csv``, ``forecast.*``, ``evaluation.csv``,
     ``cases.csv``, ``sensor_geometry.csv``, a DSHIP log (``*.tsv``/``*.tab``) and an
     ``accelerations`` folder. Explicit arguments win.
     """
@@ -90,6 +92,8 @@ def find_run(
     run.dship = Path(dship) if dship else _first(root, ["dship.tsv", "*.tab", "*.tsv"])
     run.cases = Path(cases) if cases else _first(root, ["cases.csv"])
     run.geometry = Path(geometry) if geometry else _first(root, ["sensor_geometry.csv"])
+    correlation = _first(root, ["correlation.json"])
+    run.correlation = correlation.parent if correlation is not None else None
     fit = _first(root, ["fit_statistics.csv"])
     run.fit = fit.parent if fit is not None else None
     run.forecast = _first(root, ["forecast.csv", "forecast.parquet"], depth=1)

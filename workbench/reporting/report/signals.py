@@ -30,6 +30,7 @@ class SignalSummary:
     moments: pd.DataFrame
     spectra: dict[str, tuple[np.ndarray, np.ndarray]]
     spectrogram: tuple[np.ndarray, np.ndarray, np.ndarray]
+    layout: dict | None = None
 
 
 def segment_length(rate: float) -> int:
@@ -89,13 +90,18 @@ def signal_pass(
     *,
     max_files: int = 720,
     max_chunks: int = 600,
+    layout=None,
+    skipped: list[str] | None = None,
 ) -> SignalSummary | None:
     """One pass over the acceleration files: per-chunk channel moments, the first singular
     value of each chunk's spectral matrix (spectrogram) and the mean spectral matrix of each
     operating case (its singular values).
 
     Long runs are read at *max_files* files spread evenly over the run; chunks are sized so
-    that about *max_chunks* of them cover it (at least two spectral segments each).
+    that about *max_chunks* of them cover it (at least two spectral segments each). The
+    files are read with *layout* (:class:`~data_contracts.formats.AccelerationLayout` or
+    its fields), the one identification used; a file that cannot be read is skipped, its
+    reason appended to *skipped* when given.
     """
     n_files = len(files)
     if len(files) > max_files:
@@ -117,11 +123,15 @@ def signal_pass(
     per_chunk = 0
     channels: tuple[str, ...] = ()
     spans = []
+    skipped = [] if skipped is None else skipped
+    layout = dict(layout) if layout else None
     for path in files:
         try:
-            record = read_accelerations(path)
+            record = read_accelerations(path, layout=layout)
         except Exception as error:  # a bad file is reported by identify; skip it here
-            log.warning("report: %s skipped (%s)", path, error)
+            reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+            log.warning("report: %s skipped (%s)", path, reason)
+            skipped.append(reason)
             continue
         if rate is None:
             rate, channels = record.sampling_rate_hz, record.channels
@@ -176,6 +186,7 @@ def signal_pass(
         moments=_moments_frame(times, moments, channels),
         spectra={case: spectra[case] for case in order},
         spectrogram=(np.array(times), frequency[shown], np.array(first_sv)),
+        layout=layout,
     )
 
 
@@ -186,7 +197,7 @@ def block_singular_values(signal: SignalSummary, start: pd.Timestamp, length_s: 
     for file_start, file_end, path in signal.files:
         if file_end <= start or file_start >= end:
             continue
-        record = read_accelerations(path)
+        record = read_accelerations(path, layout=signal.layout)
         t = file_start + pd.to_timedelta(
             np.arange(record.n_samples) / record.sampling_rate_hz, unit="s"
         )
