@@ -18,6 +18,13 @@ half-written file::
     <state>/tracked.parquet      MODAL contract: the tracked modal table so far (labels
                                  that are shaft harmonics left out, from the logged shaft
                                  speed)
+    <state>/labels.json          {"schema": "workbench.monitor.labels/1", "labels":
+                                 [{"mode": int, "labelled_block": int, "frequency_hz":
+                                 float}]}: every label shown so far, the block it was
+                                 first shown at and the mode's frequency then; labels
+                                 are never renumbered, and a restart checks that the
+                                 replayed tracker gives them again (else it stops with
+                                 a message naming the label)
     <state>/harmonics.parquet    the shaft orders' frequencies per tracked block (with a
                                  logged shaft speed; workbench.dashboard.state.HARMONIC_LINES)
     <state>/forecast.parquet     FORECAST contract: sliding forecast + Kalman, all blocks
@@ -94,7 +101,8 @@ Resuming
 A block is stored (with its data-health row) before the state files mention it, as one
 batch of the store, so killing the monitor at any moment (``kill -9`` included) and
 starting it again loses no block and repeats none: the store says which blocks are done,
-the tracker is replayed from their stored modes, and the forecast is recomputed.
+the tracker is replayed from their stored modes (the labels shown before the restart come
+back on the same modes: ``labels.json`` is checked), and the forecast is recomputed.
 """
 
 from .core import DATA_HEALTH_COLUMNS, Monitor, MonitorOptions

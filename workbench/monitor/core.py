@@ -569,15 +569,17 @@ class Monitor:
         lines["block_start"] = pd.to_datetime(lines["block_start"], utc=True)
         write_table(lines, self.state / "harmonics.parquet", HARMONIC_LINES)
 
-    def _advance_tracking(self) -> None:
+    def _advance_tracking(self, *, grew: bool = False) -> None:
         """Feed the decided blocks to the tracker in block order and write the tracked
-        table when it grew (see :class:`IncrementalTracking`)."""
-        grew = self.tracking.advance(self.done)
+        table and the labels shown when it grew (see :class:`IncrementalTracking`)."""
+        grew = self.tracking.advance(self.done) or grew
         # marks of blocks the log did not cover yet may change: written again with the log
         if grew or self._marks_pending or not (self.state / "tracked.parquet").exists():
             tracked = self.tracking.table(marker=self._mark_harmonics)
             write_table(tracked, self.state / "tracked.parquet", MODAL)
             self._write_harmonic_lines(tracked)
+            # after the table: a label in labels.json is in the store's blocks
+            self.tracking.write_labels(self.state / "labels.json")
 
     def _resume(self) -> None:
         """After a restart: replay the stored blocks into the tracker and the data-health
@@ -595,7 +597,10 @@ class Monitor:
             for block, part in selected.groupby("block", sort=True):
                 self.tracking.add(int(block), part)
         self._plan = SimpleNamespace(blocks=())
-        self._advance_tracking()
+        grew = self.tracking.advance(self.done)
+        # the labels shown before the restart must come back with the same modes
+        self.tracking.check_labels(self.state / "labels.json")
+        self._advance_tracking(grew=grew)
         self._write_data_health()
         self._outlook_due = True
 

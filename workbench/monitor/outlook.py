@@ -9,9 +9,8 @@ blocks (:func:`~workbench.predictors.block_predictors`), modes measured in fewer
 runs over the whole table for each measurement option.
 
 The forecast is recomputed over the whole table (not resumed from the last Kalman state):
-the tracked labels may be renumbered by a new block (``sort_by_frequency``), the modes
-kept depend on the presence over all blocks, and the newest block's predictors change while
-the ship log grows. Recomputing is exact by construction; its cost grows with the table
+the modes kept depend on the presence over all blocks, and the newest block's predictors
+change while the ship log grows. Recomputing is exact by construction; its cost grows with the table
 (measured in ``benchmarks/bench_monitor.py``) and it runs in a background process, so it
 never delays the identification of the next block.
 """
