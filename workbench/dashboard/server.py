@@ -221,7 +221,10 @@ def _health(state: StateFolder, options: DashboardOptions) -> dict[str, Any]:
     if not snap.available:
         return _unavailable(snap.error)
     if snap.data.empty:
-        return _unavailable("the health chart has no block yet")
+        # the monitor's status says when the chart starts (model and reference hours)
+        status = state.read("status")
+        when = status.data.get("health_note", "") if status.available else ""
+        return _unavailable("the health chart has no block yet", when.removeprefix("health: "))
     return _panel(health_view(snap.data, hours=options.health_hours), snap.error)
 
 
@@ -246,7 +249,7 @@ PANELS: dict[str, Panel] = {
     "status": Panel(("status", "heartbeat"), _status),
     "modes": Panel(("tracked", "forecast"), _modes),
     "tracked": Panel(("tracked", "harmonics"), _tracked),
-    "health": Panel(("health",), _health),
+    "health": Panel(("health", "status"), _health),
     "alarms": Panel(("alarms", "health"), _alarms),
     "data_health": Panel(("data_health",), _data_health),
 }

@@ -44,7 +44,7 @@ half-written file::
                                   "pid": int, "watch": str, "message": str,
                                   "given_up": [{"first_block": int, "last_block": int,
                                   "start": ISO UTC, "end": ISO UTC, "reason": str}],
-                                  "given_up_note": str}
+                                  "given_up_note": str, "health_note": str}
     <state>/heartbeat.json       {"time": ISO UTC, "pid": int, "host": str,
                                   "poll_s": float, "state": "running"|"stopped",
                                   "last_file": str|null, "last_file_taken_at": ISO UTC|null,
@@ -52,6 +52,10 @@ half-written file::
                                              "pid": int|null, "message": str}}
     <state>/store/               the per-block store (:class:`~workbench.store.BlockStore`,
                                  the same layout and parameters as ``workbench identify``'s)
+
+``health_note`` says from which block (and UTC time) the health chart monitors: after the
+operational model's and the reference's hours of this voyage, or from the first block
+with a saved baseline (``--baseline``); '' until the first forecast/health update.
 
 ``last_block`` is the newest block of the tracked table's span (every block up to it is
 decided); ``blocks_done`` counts decided blocks (identified or skipped).

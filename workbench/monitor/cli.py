@@ -177,6 +177,15 @@ def add_monitor(commands: argparse._SubParsersAction) -> None:
         "period follows",
     )
     fore.add_argument(
+        "--baseline",
+        type=Path,
+        metavar="FILE",
+        help="the ship's health baseline from an earlier voyage (workbench health "
+        "--save-model): its modes start the tracker (their labels kept) and its model and "
+        "limits chart every block from the first; without it the chart starts after "
+        "--health-train-hours + --reference-hours (18 h)",
+    )
+    fore.add_argument(
         "--baseline-hours",
         type=float,
         metavar="H",
@@ -274,6 +283,7 @@ def _options(args: argparse.Namespace):
             health_model=args.health_model,
             health_train_hours=args.health_train_hours,
             baseline_hours=args.baseline_hours or None,
+            health_baseline=None if args.baseline is None else str(args.baseline),
         )
         return MonitorOptions(
             identify=identify,

@@ -154,7 +154,12 @@ class Monitor:
         self.conditioned_files = [0]  # files conditioned (per-file path)
         self._shared: dict = {}
         self._health_rows: list[dict] = []
-        self.tracking = IncrementalTracking(self.options.tracking)
+        self.baseline = None  # the ship's health baseline (--baseline), checked here
+        reference_modes = None
+        if self.options.forecast.health_baseline is not None:
+            self.baseline = self._load_baseline()
+            reference_modes = self.baseline.modes
+        self.tracking = IncrementalTracking(self.options.tracking, reference_modes)
         self._last_landing = time.monotonic()
         self._outlook_due = False
         self._outlook_future = None
@@ -167,6 +172,7 @@ class Monitor:
         self._saved_grid = self._stored_grid()
         self._given_up: tuple[tuple[int, int], list[dict]] = ((-1, -1), [])
         self._harmonic_marks: dict[int, np.ndarray] = {}  # block -> marks, once the log covers it
+        self._health_schedule = ""  # from which block the health chart monitors
         self._marks_pending = False
         # liveness (heartbeat.json): the last file taken and the background worker's state
         self._last_taken: tuple[str, pd.Timestamp] | None = None
@@ -175,6 +181,41 @@ class Monitor:
         self._heartbeat_stop = threading.Event()
         self._heartbeat_thread: threading.Thread | None = None
         self.host = socket.gethostname()
+
+    def _load_baseline(self):
+        """The health baseline, refused (one line, exit 1) when unreadable or when the ship
+        log present lacks a column its model needs."""
+        from ..health import BaselineError
+        from .structural_health import load_baseline
+
+        path = self.options.forecast.health_baseline
+        try:
+            baseline = load_baseline(path)
+        except OSError as error:
+            self._lock.release()
+            raise WorkbenchError(f"{path}: cannot read ({error.strerror or error})") from None
+        except BaselineError as error:
+            self._lock.release()
+            raise WorkbenchError(str(error)) from None
+        log = self._shaft_log_any()
+        if log is not None:
+            try:
+                baseline.check_predictors(log, str(self.dship))
+            except BaselineError as error:
+                self._lock.release()
+                raise WorkbenchError(str(error)) from None
+        return baseline
+
+    def _shaft_log_any(self) -> pd.DataFrame | None:
+        """The ship log as read now (None when absent or unreadable: the outlook says so)."""
+        if self.dship is None or not self.dship.is_file():
+            return None
+        from .outlook import _ship_log
+
+        try:
+            return _ship_log(self.dship, dict(self.options.forecast.dship_mapping))
+        except (ValueError, OSError):
+            return None
 
     @property
     def tracked_through(self) -> int:
@@ -380,6 +421,13 @@ class Monitor:
         options, per_file, parameters = resolved_run(
             options, first.sampling_rate_hz, grid, channels
         )
+        if self.baseline is not None:  # a baseline of another ship or sensor layout
+            from ..health import BaselineError
+
+            try:
+                self.baseline.check_channels(channels, str(self.watch))
+            except BaselineError as error:
+                raise WorkbenchError(str(error)) from None
         self.voyage = _Voyage(
             grid, tuple(channels), float(first.sampling_rate_hz), options, per_file, parameters
         )
@@ -765,6 +813,8 @@ class Monitor:
         self.outlook_reports.append(report)
         # a log that already covered the newest block changes no predictor when it grows
         self._log_complete = report.log_complete
+        if report.health_schedule:
+            self._health_schedule = report.health_schedule
         log.info(
             "outlook: %d blocks, %d forecast rows, %.3f s (CPU %.3f s)",
             report.n_blocks,
@@ -865,6 +915,8 @@ class Monitor:
             # gave up (see given_up), and what to run to have them
             "given_up": self.given_up(),
             "given_up_note": self.given_up_note(),
+            # from which block (and when) the health chart monitors, once known
+            "health_note": self._health_schedule,
         }
         with atomic_path(self.state / "status.json") as tmp:
             tmp.write_text(json.dumps(status, indent=1), encoding="utf-8")
