@@ -114,6 +114,7 @@ def test_the_monitor_charts_from_block_one_with_a_baseline(earlier, damaged, tmp
     start = modal["block_start"].min() + pd.Timedelta(hours=18)
     assert health is None
     assert f"the chart starts at block 216 ({start:%Y-%m-%d %H:%M}Z)" in notes[0]
+    assert notes[1] == "health: learning, 12 of 217 blocks"
 
 
 def test_a_baseline_of_another_ship_is_refused_in_one_line(earlier, damaged, tmp_path):

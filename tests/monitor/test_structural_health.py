@@ -29,9 +29,10 @@ def test_learning_first_then_the_chart_finds_the_loss_with_and_without_fuel(dama
     assert health is None and alarms is None
     start = damaged.modal["block_start"].min() + pd.Timedelta(hours=36)
     assert notes == [
-        "health: learning, 300 of 433 blocks (24 h model, 12 h reference); the chart starts "
-        f"at block 432 ({start:%Y-%m-%d %H:%M}Z); with a saved baseline (monitor --baseline) "
-        "it starts at the first block"
+        f"health: the chart starts at block 432 ({start:%Y-%m-%d %H:%M}Z), after this "
+        "voyage's 24-h model and 12-h reference; with a saved baseline (monitor --baseline) it "
+        "starts at the first block",
+        "health: learning, 300 of 433 blocks",
     ]
 
     # with the tank soundings: fuel is a model term, the baseline stays fixed

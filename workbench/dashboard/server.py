@@ -221,7 +221,8 @@ def _health(state: StateFolder, options: DashboardOptions) -> dict[str, Any]:
     if not snap.available:
         return _unavailable(snap.error)
     if snap.data.empty:
-        # the monitor's status says when the chart starts (model and reference hours)
+        # the monitor's status says when the chart starts (a note that does not change
+        # while the chart learns, so the panel need not follow status.json's every write)
         status = state.read("status")
         when = status.data.get("health_note", "") if status.available else ""
         return _unavailable("the health chart has no block yet", when.removeprefix("health: "))
@@ -249,7 +250,7 @@ PANELS: dict[str, Panel] = {
     "status": Panel(("status", "heartbeat"), _status),
     "modes": Panel(("tracked", "forecast"), _modes),
     "tracked": Panel(("tracked", "harmonics"), _tracked),
-    "health": Panel(("health", "status"), _health),
+    "health": Panel(("health",), _health),
     "alarms": Panel(("alarms", "health"), _alarms),
     "data_health": Panel(("data_health",), _data_health),
 }

@@ -112,12 +112,13 @@ def operational_health(
     start = first + train + reference
     if have <= train + reference:
         note = (
-            f"health: learning, {have} of {train + reference + 1} blocks "
-            f"({settings.health_train_hours:g} h model, {settings.reference_hours:g} h "
-            f"reference); the chart starts at block {start} ({_at(tracked, start, step_s)}); "
-            "with a saved baseline (monitor --baseline) it starts at the first block"
+            f"health: the chart starts at block {start} ({_at(tracked, start, step_s)}), after "
+            f"this voyage's {settings.health_train_hours:g}-h model and "
+            f"{settings.reference_hours:g}-h reference; with a saved baseline (monitor "
+            "--baseline) it starts at the first block"
         )
-        return None, None, [n for n in (note, refused) if n]
+        learning = f"health: learning, {have} of {train + reference + 1} blocks"
+        return None, None, [n for n in (note, learning, refused) if n]
     has_fuel = FUEL_COLUMN in predictors.columns and predictors[FUEL_COLUMN].notna().any()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")  # modes too rarely seen: noted, not modelled
