@@ -20,9 +20,10 @@ half-written file::
                                  speed)
     <state>/labels.json          {"schema": "workbench.monitor.labels/1", "labels":
                                  [{"mode": int, "labelled_block": int, "frequency_hz":
-                                 float}]}: every label shown so far, the block it was
-                                 first shown at and the mode's frequency then; labels
-                                 are never renumbered, and a restart checks that the
+                                 float}]}: every label given so far (also those of
+                                 harmonics, left out of the table), the block it was
+                                 given at and the mode's frequency then; labels are
+                                 never renumbered, and a restart checks that the
                                  replayed tracker gives them again (else it stops with
                                  a message naming the label)
     <state>/harmonics.parquet    the shaft orders' frequencies per tracked block (with a

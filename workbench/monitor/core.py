@@ -197,7 +197,7 @@ class Monitor:
         except BaselineError as error:
             self._lock.release()
             raise WorkbenchError(str(error)) from None
-        log = self._shaft_log_any()
+        log = self._read_log()
         if log is not None:
             try:
                 baseline.check_predictors(log, str(self.dship))
@@ -206,7 +206,7 @@ class Monitor:
                 raise WorkbenchError(str(error)) from None
         return baseline
 
-    def _shaft_log_any(self) -> pd.DataFrame | None:
+    def _read_log(self) -> pd.DataFrame | None:
         """The ship log as read now (None when absent or unreadable: the outlook says so)."""
         if self.dship is None or not self.dship.is_file():
             return None
@@ -550,15 +550,8 @@ class Monitor:
     # ------------------------------------------------------------------ tracking
     def _shaft_log(self) -> pd.DataFrame | None:
         """The ship log when it logs the shaft speed, else None."""
-        if self.dship is None or not self.dship.is_file():
-            return None
-        from .outlook import _ship_log
-
-        try:
-            log = _ship_log(self.dship, dict(self.options.forecast.dship_mapping))
-        except (ValueError, OSError):  # the outlook reports an unreadable log
-            return None
-        return log if "shaft_rpm" in log.columns else None
+        log = self._read_log()  # an unreadable log: the outlook reports it
+        return log if log is not None and "shaft_rpm" in log.columns else None
 
     def _mark_harmonics(self, frame: pd.DataFrame) -> pd.DataFrame:
         """The selected modes tracked so far with their ``harmonic`` column from the logged

@@ -112,9 +112,10 @@ class IncrementalTracking:
 
     # ------------------------------------------------------------------ labels shown
     def shown_labels(self) -> list[dict]:
-        """The labels given so far, in order: ``mode``, ``labelled_block`` (the block at
-        which it was first shown; -1 for a reference mode) and ``frequency_hz`` (its
-        frequency then)."""
+        """The labels given so far, in order (those of harmonics, which the table leaves
+        out, included): ``mode``, ``labelled_block`` (the block it was given at, from which
+        the table shows it; -1 for a reference mode) and ``frequency_hz`` (its frequency
+        then)."""
         if self._tracker is None:
             return []
         modes = sorted(
