@@ -368,8 +368,9 @@ def _add_health(commands: argparse._SubParsersAction) -> None:
         type=Path,
         metavar="FILE",
         help="with --modal --predictors: chart every block, from the first, with the model "
-        "and limits of an earlier voyage (written by --save-model); the modal table should "
-        "be tracked from its modes (track --reference-modes FILE)",
+        "and limits of an earlier voyage (written by --save-model; its chart options are "
+        "used, not --statistic, --ewma-lambda, --false-alarms-per-day, --reference-hours); "
+        "the modal table should be tracked from its modes (track --reference-modes FILE)",
     )
     _add_out_dir(parser)
     parser.set_defaults(run=_run_health)
