@@ -78,12 +78,14 @@ def test_labels_once_shown_keep_their_mode_across_a_restart(blocks, tmp_path):
     for block, part in enumerate(blocks):
         if block == 35:  # a restart: the tracker replayed from the stored blocks
             live = IncrementalTracking(options)
+            live.expect_labels(labels)
             for earlier, stored in enumerate(blocks[:35]):
                 live.add(earlier, stored)
             live.advance(set(range(35)))
-            live.check_labels(labels)
+            live.check_labels()
         live.add(block, part)
         live.advance(set(range(block + 1)))
+        live.check_labels()
         live.write_labels(labels)
         table = live.table()
         # every block: each label shown is the mode it was first shown as
@@ -111,12 +113,41 @@ def test_restart_with_other_tracking_options_is_refused(blocks, tmp_path):
     live.write_labels(labels)
     # a restart asking for more blocks before a label would label the modes later
     again = IncrementalTracking(TrackingOptions(min_blocks=5))
+    again.expect_labels(labels)
     for block, part in enumerate(blocks[:20]):
         again.add(block, part)
     again.advance(set(range(20)))
     with pytest.raises(WorkbenchError) as caught:
-        again.check_labels(labels)
+        again.check_labels()
     message = str(caught.value)
     assert "\n" not in message
     assert str(labels) in message and "mode 1 was shown from block 2" in message
     assert "block 4" in message
+
+
+def test_labels_of_blocks_not_replayed_yet_are_checked_when_reached(blocks, tmp_path):
+    """A damaged store file takes block 1 out: the replay stops at block 0, before the
+    labels were given (block 2); they are kept in labels.json and checked once block 1 is
+    identified again and the tracker reaches block 2."""
+    labels = tmp_path / "labels.json"
+    first = IncrementalTracking(TrackingOptions())
+    for block, part in enumerate(blocks[:20]):
+        first.add(block, part)
+    first.advance(set(range(20)))
+    first.write_labels(labels)
+    written = json.loads(labels.read_text())
+    again = IncrementalTracking(TrackingOptions())
+    again.expect_labels(labels)
+    done = set(range(20)) - {1}
+    for block in done:
+        again.add(block, blocks[block])
+    again.advance(done)
+    again.check_labels()  # nothing reached yet
+    again.write_labels(labels)
+    assert json.loads(labels.read_text()) == written  # the earlier run's labels kept
+    again.add(1, blocks[1])  # block 1 identified again
+    again.advance(done | {1})
+    again.check_labels()
+    again.write_labels(labels)
+    assert json.loads(labels.read_text()) == written  # given again, alike
+    pd.testing.assert_frame_equal(again.table(), first.table())

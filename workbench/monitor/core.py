@@ -610,10 +610,12 @@ class Monitor:
         lines["block_start"] = pd.to_datetime(lines["block_start"], utc=True)
         write_table(lines, self.state / "harmonics.parquet", HARMONIC_LINES)
 
-    def _advance_tracking(self, *, grew: bool = False) -> None:
+    def _advance_tracking(self) -> None:
         """Feed the decided blocks to the tracker in block order and write the tracked
         table and the labels shown when it grew (see :class:`IncrementalTracking`)."""
-        grew = self.tracking.advance(self.done) or grew
+        grew = self.tracking.advance(self.done)
+        # the labels an earlier run gave come back with the same modes (after a restart)
+        self.tracking.check_labels()
         # marks of blocks the log did not cover yet may change: written again with the log
         if grew or self._marks_pending or not (self.state / "tracked.parquet").exists():
             tracked = self.tracking.table(marker=self._mark_harmonics)
@@ -638,10 +640,9 @@ class Monitor:
             for block, part in selected.groupby("block", sort=True):
                 self.tracking.add(int(block), part)
         self._plan = SimpleNamespace(blocks=())
-        grew = self.tracking.advance(self.done)
-        # the labels shown before the restart must come back with the same modes
-        self.tracking.check_labels(self.state / "labels.json")
-        self._advance_tracking(grew=grew)
+        # the labels given before the restart must come back with the same modes
+        self.tracking.expect_labels(self.state / "labels.json")
+        self._advance_tracking()
         self._write_data_health()
         self._outlook_due = True
 

@@ -51,6 +51,9 @@ class IncrementalTracking:
         self._frame: pd.DataFrame | None = None
         self._channels: list[str] | None = None
         self._written_labels: list[dict] | None = None
+        # labels an earlier run gave, not yet given again by the replay: mode -> (block, Hz)
+        self._expected: dict[int, tuple[int, float]] = {}
+        self._labels_path: Path | None = None
 
     def add(self, block: int, selected: pd.DataFrame) -> None:
         """Hold the selected modes of a decided *block* until its turn."""
@@ -132,8 +135,16 @@ class IncrementalTracking:
 
     def write_labels(self, path: str | Path) -> None:
         """Write :meth:`shown_labels` to *path* (``labels.json``) atomically when they
-        changed since the last write."""
+        changed since the last write; labels of an earlier run that the replay has not
+        reached yet (:meth:`expect_labels`) are kept in the file."""
         labels = self.shown_labels()
+        given = {e["mode"] for e in labels}
+        pending = [
+            {"mode": mode, "labelled_block": block, "frequency_hz": frequency}
+            for mode, (block, frequency) in self._expected.items()
+            if mode not in given
+        ]
+        labels = sorted(labels + pending, key=lambda e: e["mode"])
         if labels == self._written_labels:
             return
         with atomic_path(Path(path)) as tmp:
@@ -143,31 +154,47 @@ class IncrementalTracking:
             )
         self._written_labels = labels
 
-    def check_labels(self, path: str | Path) -> None:
-        """After a restart (the tracker replayed from the store): every label *path*
-        says was shown must be given again at the same block to the same mode.
+    def expect_labels(self, path: str | Path) -> None:
+        """After a restart: the labels an earlier run gave (*path*, ``labels.json``) must
+        be given again, at the same blocks to the same modes, as the tracker is replayed
+        from the store and fed on (:meth:`check_labels`, once it has reached each label's
+        block: a block of a damaged store file is identified again first).
 
         Raises
         ------
         WorkbenchError
-            One line naming the file and the first label that differs (the tracking
-            options changed since the labels were shown, or the state was edited).
+            *path* is unreadable (one line naming it).
         """
         path = Path(path)
+        self._labels_path = path
         if not path.is_file():
             return
         try:
             found = json.loads(path.read_text(encoding="utf-8"))
             if found.get("schema") != LABELS_SCHEMA:
                 raise ValueError(f"schema {found.get('schema')!r}, expected {LABELS_SCHEMA!r}")
-            shown = [
-                (int(e["mode"]), int(e["labelled_block"]), float(e["frequency_hz"]))
+            self._expected = {
+                int(e["mode"]): (int(e["labelled_block"]), float(e["frequency_hz"]))
                 for e in found["labels"]
-            ]
+            }
         except (OSError, ValueError, KeyError, TypeError, AttributeError) as error:
             raise WorkbenchError(f"{path}: unreadable ({error}); use another --state") from None
+
+    def check_labels(self) -> None:
+        """Check the expected labels (:meth:`expect_labels`) of the blocks tracked so far.
+
+        Raises
+        ------
+        WorkbenchError
+            One line naming the file and the first label that differs (the tracking
+            options changed since the labels were given, or the state was edited).
+        """
+        if not self._expected or self._tracker is None:
+            return
         now = {e["mode"]: e for e in self.shown_labels()}
-        for mode, block, frequency in shown:
+        for mode, (block, frequency) in sorted(self._expected.items()):
+            if block > self.tracked_through:
+                continue
             again = now.get(mode)
             if (
                 again is None
@@ -180,8 +207,9 @@ class IncrementalTracking:
                     else f"block {again['labelled_block']}, {again['frequency_hz']:.4f} Hz"
                 )
                 raise WorkbenchError(
-                    f"{path}: mode {mode} was shown from block {block} at {frequency:.4f} Hz, "
-                    f"tracking the stored blocks again gives {replayed}: the tracking options "
-                    "(--mac-min, --gate, --frequency-tol, --baseline) differ from the first "
-                    "run's; use them, or another --state"
+                    f"{self._labels_path}: mode {mode} was shown from block {block} at "
+                    f"{frequency:.4f} Hz, tracking the stored blocks again gives {replayed}: "
+                    "the tracking options (--mac-min, --gate, --frequency-tol, --baseline) "
+                    "differ from the first run's; use them, or another --state"
                 )
+            del self._expected[mode]
