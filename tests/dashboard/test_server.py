@@ -379,3 +379,27 @@ def test_many_screens_while_blocks_arrive(tmp_path, voyage, serve):
             thread.join(timeout=30)
     assert failures == []
     assert panel(served, "modes")["block"] == 244
+
+
+def test_empty_health_chart_says_when_it_starts(tmp_path, voyage, serve):
+    """While the chart learns, the health panel says from which block and when it charts
+    (the monitor's status.json ``health_note``, issue 29)."""
+    from data_contracts import HEALTH, write_table
+
+    publish(voyage, tmp_path, 20)
+    write_table(
+        pd.DataFrame(columns=list(HEALTH.column_names)), tmp_path / "health.parquet", HEALTH
+    )
+    status_file = tmp_path / "status.json"
+    status = json.loads(status_file.read_text())
+    note = (
+        "health: the chart starts at block 216 (2024-03-01 18:00Z), after this voyage's 12-h "
+        "model and 6-h reference; with a saved baseline (monitor --baseline) it starts at the "
+        "first block"
+    )
+    status_file.write_text(json.dumps({**status, "health_note": note}))
+    served = serve(tmp_path)
+    data = panel(served, "health")
+    assert data["available"] is False
+    assert data["message"] == "the health chart has no block yet; " + note.removeprefix("health: ")
+    assert panel(served, "status")["state"] == status["state"]  # the key is valid there

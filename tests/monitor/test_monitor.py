@@ -319,7 +319,7 @@ def test_settings_from_a_ship_configuration(voyage, tmp_path):
             "accelerations": {"inputs": [str(voyage / "accelerations")]},
             "dship": {"file": str(voyage / "dship.tsv")},
             "blocks": {"length_minutes": 20, "step_minutes": 5},
-            "identify": {"band": [2.0, 12.0], "block_rows": 8, "max_order": 20},
+            "identify": {"band": [2.0, 12.0], "block_rows": 8, "max_order": 20, "blades": 5},
             "track": {"mac_min": 0.85},
             "forecast": {"option": "AB", "train_blocks": 6, "scheme": 2},
         },
@@ -334,6 +334,9 @@ def test_settings_from_a_ship_configuration(voyage, tmp_path):
         assert options.identify.band_hz == (2.0, 12.0) and options.identify.block_rows == 8
         assert max(options.identify.orders) == 20
         assert options.tracking.mac_min == 0.85
+        # the blade pass is marked as identify --blades marks it (issue 29: the 12-h demo's
+        # 10.58 Hz blade pass was a mode in the monitor's table, not in track's)
+        assert options.harmonics.blades == 5 and options.harmonics.orders == (1.0, 2.0, 3.0)
         assert options.forecast.options == ("A", "B") and options.forecast.train_blocks == 7
     finally:
         monitor.close()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import pandas as pd
 import pytest
 
 from workbench.health import detection_delay_hours, simulate_health_voyage
@@ -26,13 +27,19 @@ def test_learning_first_then_the_chart_finds_the_loss_with_and_without_fuel(dama
     short = damaged.modal[damaged.modal["block"] < 300]
     health, alarms, notes = operational_health(short, damaged.predictors, SETTINGS, 300.0)
     assert health is None and alarms is None
+    start = damaged.modal["block_start"].min() + pd.Timedelta(hours=36)
     assert notes == [
-        "health: learning, 300 of 433 blocks (24 h model, 12 h reference, then the chart)"
+        f"health: the chart starts at block 432 ({start:%Y-%m-%d %H:%M}Z), after this "
+        "voyage's 24-h model and 12-h reference; with a saved baseline (monitor --baseline) it "
+        "starts at the first block",
+        "health: learning, 300 of 433 blocks",
     ]
 
     # with the tank soundings: fuel is a model term, the baseline stays fixed
     health, alarms, notes = operational_health(damaged.modal, damaged.predictors, SETTINGS, 300.0)
     assert health["block"].min() == 288 and (health["phase"] == "reference").sum() == 144
+    assert health.loc[health["phase"] == "monitor", "block"].min() == 432
+    assert notes[0].startswith("health: charting from block 432 (")
     assert not any("fuel_on_board_t" in n for n in notes)
     delay = detection_delay_hours(damaged, health)
     assert delay <= 2.0  # 1.08 h when written (the goal: within 2 h)

@@ -355,6 +355,23 @@ def _add_health(commands: argparse._SubParsersAction) -> None:
         default=D.HEALTH_FALSE_ALARMS_PER_DAY,
         help="expected false alarms per day in control (sets the limit)",
     )
+    parser.add_argument(
+        "--save-model",
+        type=Path,
+        metavar="FILE",
+        help="with --modal --predictors --train-hours: write the operational model, the "
+        "chart's reference and limits and the tracked modes to FILE (JSON), the baseline a "
+        "later voyage of the ship is charted with from its first block (--baseline)",
+    )
+    parser.add_argument(
+        "--baseline",
+        type=Path,
+        metavar="FILE",
+        help="with --modal --predictors: chart every block, from the first, with the model "
+        "and limits of an earlier voyage (written by --save-model; its chart options are "
+        "used, not --statistic, --ewma-lambda, --false-alarms-per-day, --reference-hours); "
+        "the modal table should be tracked from its modes (track --reference-modes FILE)",
+    )
     _add_out_dir(parser)
     parser.set_defaults(run=_run_health)
 
@@ -373,10 +390,15 @@ def _block_step_s(table) -> float:
 def _run_health(args: argparse.Namespace) -> int:
     from data_contracts import FORECAST, MODAL, PREDICTORS, read_table
 
-    from ..health import HealthOptions, fit_operational_model
+    from ..health import BaselineError, HealthBaseline, HealthOptions, fit_operational_model
     from ..stages import health
 
+    if args.baseline is not None:
+        return _run_health_baseline(args)
     source = args.forecast
+    model = modal = predictors = None
+    if args.save_model is not None and (args.modal is None or args.train_hours is None):
+        raise UsageError("--save-model needs --modal, --predictors and --train-hours")
     if args.modal is not None:
         if args.predictors is None or args.train_hours is None:
             raise UsageError("--modal needs --predictors and --train-hours")
@@ -418,6 +440,69 @@ def _run_health(args: argparse.Namespace) -> int:
     with _data_errors(source):
         result = health(forecast, options=options)
     paths = result.save(args.out)
+    if args.save_model is not None:
+        from data_contracts import recorded_grid
+
+        grid = recorded_grid(modal) or recorded_grid(predictors) or {}
+        try:
+            baseline = HealthBaseline.from_chart(
+                modal,
+                predictors,
+                model,
+                result.chart,
+                step_s=_block_step_s(predictors),
+                length_s=grid.get("length_s"),
+                source={"modal": str(args.modal), "predictors": str(args.predictors)},
+            )
+            paths["baseline"] = baseline.save(args.save_model)
+        except (BaselineError, ValueError) as error:
+            raise WorkbenchError(f"{args.save_model}: {error}") from None
+    print(result.summary())
+    for path in paths.values():
+        print(f"wrote {path}")
+    return EXIT_OK
+
+
+def _run_health_baseline(args: argparse.Namespace) -> int:
+    """``health --baseline FILE --modal --predictors``: the chart with an earlier voyage's
+    model and limits, from the first block."""
+    from data_contracts import MODAL, PREDICTORS, read_table
+
+    from ..health import BaselineError, HealthBaseline
+    from ..stages import health
+
+    if args.modal is None or args.predictors is None:
+        raise UsageError("--baseline needs --modal and --predictors (not --forecast)")
+    for flag, value in (
+        ("--train-hours", args.train_hours),
+        ("--reference-start-block", args.reference_start_block),
+        ("--save-model", args.save_model),
+        ("--baseline-hours", args.baseline_hours),
+    ):
+        if value is not None:
+            raise UsageError(f"{flag} cannot be used with --baseline (the baseline fixes it)")
+    try:
+        baseline = HealthBaseline.load(args.baseline)
+    except BaselineError as error:
+        raise WorkbenchError(str(error)) from None
+    modal = read_table(args.modal, MODAL)
+    predictors = read_table(args.predictors, PREDICTORS)
+    try:
+        channels = [c[len("shape_re_") :] for c in modal.columns if c.startswith("shape_re_")]
+        baseline.check_channels(channels, str(args.modal))
+        baseline.check_predictors(predictors, str(args.predictors))
+        baseline.check_modes(modal, str(args.modal))
+    except BaselineError as error:
+        raise WorkbenchError(str(error)) from None
+    with _data_errors(args.modal):
+        forecast = baseline.forecast(modal, predictors)
+        result = health(forecast, baseline=baseline)
+    paths = result.save(args.out)
+    print(
+        f"baseline {args.baseline}: model of blocks {baseline.model.train_start_block}-"
+        f"{baseline.model.train_end_block} of {baseline.source.get('modal', 'an earlier voyage')}"
+        f"; charting from block {int(result.table['block'].min())}"
+    )
     print(result.summary())
     for path in paths.values():
         print(f"wrote {path}")

@@ -48,7 +48,8 @@ def _add_track(commands: argparse._SubParsersAction) -> None:
         ["--reference"],
         type=Path,
         metavar="FILE",
-        help="modal table whose modes start the tracker's library (labels kept)",
+        help="modal table whose modes start the tracker's library (labels kept), or a "
+        "health baseline (.json, health --save-model): its modes",
     )
     add_renamed(
         parser,

@@ -221,7 +221,11 @@ def _health(state: StateFolder, options: DashboardOptions) -> dict[str, Any]:
     if not snap.available:
         return _unavailable(snap.error)
     if snap.data.empty:
-        return _unavailable("the health chart has no block yet")
+        # the monitor's status says when the chart starts (a note that does not change
+        # while the chart learns, so the panel need not follow status.json's every write)
+        status = state.read("status")
+        when = status.data.get("health_note", "") if status.available else ""
+        return _unavailable("the health chart has no block yet", when.removeprefix("health: "))
     return _panel(health_view(snap.data, hours=options.health_hours), snap.error)
 
 

@@ -128,6 +128,7 @@ STATUS_KEYS: dict[str, tuple[type, ...]] = {
 STATUS_OPTIONAL_KEYS: dict[str, tuple[type, ...]] = {
     "given_up": (list,),
     "given_up_note": (str,),
+    "health_note": (str,),
 }
 #: Keys of each span of ``given_up`` and their JSON types.
 GIVEN_UP_KEYS: dict[str, tuple[type, ...]] = {

@@ -6,10 +6,13 @@
 * :class:`HealthMonitor` - the same chart fed block by block, with a JSON state;
 * :func:`fit_operational_model` - a per-mode regression of log frequency on the ship log
   (speed, temperatures, fuel) whose FORECAST table feeds the chart;
+* :class:`HealthBaseline` - model, chart reference and tracked modes of an earlier voyage,
+  saved as JSON, so a new voyage is charted from its first block;
 * :func:`simulate_health_voyage` - block-level voyages with a stiffness loss part-way, for
   tests and ``benchmarks/bench_health.py``.
 """
 
+from .baseline import BaselineError, HealthBaseline
 from .chart import HealthOptions, HealthReference, HealthResult, health_chart
 from .model import DEFAULT_TERMS, OperationalModel, fit_operational_model
 from .monitor import HealthMonitor, MonitorUpdate
@@ -23,6 +26,8 @@ from .scenario import (
 
 __all__ = [
     "DEFAULT_TERMS",
+    "BaselineError",
+    "HealthBaseline",
     "HealthMonitor",
     "HealthOptions",
     "HealthReference",

@@ -203,7 +203,12 @@ def _residual_matrix(
     return wide, rel, shift
 
 
-def health_chart(forecast: pd.DataFrame, options: HealthOptions | None = None) -> HealthResult:
+def health_chart(
+    forecast: pd.DataFrame,
+    options: HealthOptions | None = None,
+    *,
+    reference: HealthReference | None = None,
+) -> HealthResult:
     """Structural-health control chart of a forecast table's frequency residuals.
 
     Parameters
@@ -212,6 +217,10 @@ def health_chart(forecast: pd.DataFrame, options: HealthOptions | None = None) -
         FORECAST contract (:func:`workbench.forecast.sliding_forecast`): per block and mode
         the SSI frequency, the model prediction and its 95 % bounds.
     options : HealthOptions, optional
+    reference : HealthReference, optional
+        The in-control state learned on an earlier voyage (a saved baseline,
+        :mod:`workbench.health.baseline`): every block is charted from the first, none
+        is a reference block.
 
     Returns
     -------
@@ -352,7 +361,7 @@ def health_chart(forecast: pd.DataFrame, options: HealthOptions | None = None) -
     table = FORECAST.validate(forecast)
     if options.option is not None and not (table["option"] == options.option).any():
         raise ValueError(f"forecast has no rows for option {options.option!r}")
-    monitor = HealthMonitor(options)
+    monitor = HealthMonitor(options, reference=reference)
     update = monitor.update(table)
     if monitor.reference is None:
         raise ValueError(monitor.waiting_reason())

@@ -97,6 +97,25 @@ class OperationalModel:
         """Design matrix [1, terms...] of *predictors* (NaN rows where a column is missing)."""
         return _design(predictors, self.terms, self.centre, self.spread)
 
+    def reference_design(
+        self, predictors: pd.DataFrame, start_block: int, blocks: int
+    ) -> np.ndarray:
+        """Mean design row [1, terms...] over the reference blocks *start_block* ..
+        *start_block* + *blocks* - 1 of *predictors* (x̄_ref of :meth:`forecast`).
+
+        Raises
+        ------
+        ValueError
+            When no reference block is in *predictors*.
+        """
+        stop = start_block + int(blocks) - 1
+        inside = predictors["block"].between(start_block, stop).to_numpy()
+        if not inside.any():
+            raise ValueError(f"reference blocks {start_block}-{stop} are not in predictors")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            return np.nanmean(self.design(predictors)[inside], axis=0)
+
     def predict_log(self, predictors: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
         """Predicted log frequency and its standard error from the coefficients alone.
 
@@ -114,6 +133,8 @@ class OperationalModel:
         *,
         reference_start_block: int | None = None,
         reference_blocks: int | None = None,
+        reference_design: np.ndarray | None = None,
+        same_voyage: bool = True,
     ) -> pd.DataFrame:
         """FORECAST table (option A) of this model on the blocks of *predictors*.
 
@@ -129,21 +150,24 @@ class OperationalModel:
         √((x - x̄_ref)ᵀ C (x - x̄_ref)) with C the coefficients' covariance. [-] (relative)
         The chart learns the reference's mean error away; what is left is persistent
         (the EWMA does not average it out), so the chart adds it to its covariance.
+        *reference_design* gives x̄_ref directly (the reference period of an earlier
+        voyage, :meth:`reference_design`), instead of the reference blocks.
+
+        With *same_voyage* False (a model saved from an earlier voyage), no block of
+        *predictors* is a training block: every row is in the 'forecast' phase.
         """
         modal = MODAL.validate(modal)
         grid = predictors.sort_values("block").reset_index(drop=True)
         blocks = grid["block"].to_numpy()
         mean, parameter_std = self.predict_log(grid)
         shift_std = None
-        if reference_start_block is not None and reference_blocks is not None:
-            x = self.design(grid)
-            stop = reference_start_block + int(reference_blocks) - 1
-            inside_ref = (blocks >= reference_start_block) & (blocks <= stop)
-            if not inside_ref.any():
-                raise ValueError(
-                    f"reference blocks {reference_start_block}-{stop} are not in predictors"
+        if reference_design is None and reference_start_block is not None:
+            if reference_blocks is not None:
+                reference_design = self.reference_design(
+                    grid, reference_start_block, reference_blocks
                 )
-            dx = x - np.nanmean(x[inside_ref], axis=0)
+        if reference_design is not None:
+            dx = self.design(grid) - np.asarray(reference_design, dtype=float)
             shift_std = np.sqrt(
                 np.maximum(np.einsum("bi,mij,bj->bm", dx, self.covariance, dx), 0.0)
             )
@@ -157,6 +181,7 @@ class OperationalModel:
         n_blocks, n_modes = mean.shape
         block = np.repeat(blocks, n_modes)
         inside = (block >= self.train_start_block) & (block <= self.train_end_block)
+        inside &= same_voyage
         frequency = np.exp(mean)
         table = pd.DataFrame(
             {

@@ -38,7 +38,7 @@ from .chart import (
 __all__ = ["HealthMonitor", "MonitorUpdate"]
 
 #: Version of the JSON state layout.
-STATE_VERSION = 2
+STATE_VERSION = 3
 
 
 @dataclass(frozen=True)
@@ -80,6 +80,10 @@ class HealthMonitor:
     ----------
     options : HealthOptions, optional
         As for :func:`~workbench.health.health_chart`.
+    reference : HealthReference, optional
+        An in-control state learned before (an earlier voyage's, from a saved
+        :class:`~workbench.health.baseline.HealthBaseline`): every block is charted from
+        the first, in the ``monitor`` phase; ``reference_blocks`` is not used.
 
     Notes
     -----
@@ -98,11 +102,17 @@ class HealthMonitor:
     ...     monitor.save_state("health_state.json")
     """
 
-    def __init__(self, options: HealthOptions | None = None) -> None:
+    def __init__(
+        self, options: HealthOptions | None = None, reference: HealthReference | None = None
+    ) -> None:
         self.options = options or HealthOptions()
         self.reference: HealthReference | None = None
+        self._given_reference = reference is not None
         self._option: str | None = None
-        self._reference_start: int | None = self.options.reference_start_block
+        # with a saved reference: the first block in the forecast phase (every block)
+        self._reference_start: int | None = (
+            None if reference is not None else self.options.reference_start_block
+        )
         self._pending: list[dict[str, Any]] = []  # reference blocks before learning
         self._last_block: int | None = None
         self._charted = 0  # blocks charted since the reference start
@@ -119,6 +129,9 @@ class HealthMonitor:
         self._open: dict[str, Any] | None = None  # the alarm episode in progress
         self._step_s: float | None = None  # block step of the recorded grid, if any
         self._length_s: float | None = None  # block length of the recorded grid, if any
+        if reference is not None:
+            self._start_chart(reference)
+            self._step_s = 86400.0 / reference.blocks_per_day
 
     # ------------------------------------------------------------------ public
     def waiting_reason(self) -> str:
@@ -204,30 +217,7 @@ class HealthMonitor:
     # ------------------------------------------------------------------ state
     def state(self) -> dict[str, Any]:
         """The monitor's state as plain JSON types."""
-        ref = self.reference
-        reference = None
-        if ref is not None:
-            reference = {
-                "modes": list(ref.modes),
-                "start_block": ref.start_block,
-                "end_block": ref.end_block,
-                "location": _arr(ref.location),
-                "scale": _arr(ref.scale),
-                "correlation": _arr(ref.correlation),
-                "ewma_covariance": _arr(ref.ewma_covariance),
-                "limit": ref.limit,
-                "blocks_per_day": ref.blocks_per_day,
-                "bootstrap_false_alarms_per_day": ref.bootstrap_false_alarms_per_day,
-                "excluded_modes": list(ref.excluded_modes),
-                "relative_median": _arr(ref.relative_median),
-                "statistic": ref.statistic,
-                "allowance": None if ref.allowance is None else _arr(ref.allowance),
-                "mode_limits": None if ref.mode_limits is None else _arr(ref.mode_limits),
-                "trend_slope": None if ref.trend_slope is None else _arr(ref.trend_slope),
-                "model_offset_std": (
-                    None if ref.model_offset_std is None else _arr(ref.model_offset_std)
-                ),
-            }
+        reference = None if self.reference is None else reference_state(self.reference)
 
         def item_state(item: dict[str, Any]) -> dict[str, Any]:
             return {
@@ -255,6 +245,7 @@ class HealthMonitor:
         return {
             "version": STATE_VERSION,
             "options": dataclasses.asdict(self.options),
+            "given_reference": self._given_reference,
             "option": self._option,
             "reference_start": self._reference_start,
             "step_s": self._step_s,
@@ -281,6 +272,7 @@ class HealthMonitor:
                 f"health monitor state version {state.get('version')!r} is not {STATE_VERSION}"
             )
         monitor = cls(HealthOptions(**state["options"]))
+        monitor._given_reference = bool(state["given_reference"])
         monitor._option = state["option"]
         monitor._reference_start = state["reference_start"]
         monitor._step_s = state.get("step_s")
@@ -317,36 +309,8 @@ class HealthMonitor:
                 "relative": [_from_json(r) for r in episode["relative"]],
                 "cusum_shift": _from_json(episode["cusum_shift"]),
             }
-        ref = state["reference"]
-        if ref is not None:
-            p = len(ref["modes"])
-            monitor.reference = HealthReference(
-                modes=tuple(ref["modes"]),
-                start_block=ref["start_block"],
-                end_block=ref["end_block"],
-                location=_from_json(ref["location"]),
-                scale=_from_json(ref["scale"]),
-                correlation=_from_json(ref["correlation"]).reshape(p, p),
-                ewma_covariance=_from_json(ref["ewma_covariance"]).reshape(p, p),
-                limit=float(ref["limit"]),
-                blocks_per_day=float(ref["blocks_per_day"]),
-                bootstrap_false_alarms_per_day=float(ref["bootstrap_false_alarms_per_day"]),
-                excluded_modes=tuple(ref["excluded_modes"]),
-                relative_median=_from_json(ref["relative_median"]),
-                statistic=ref["statistic"],
-                allowance=None if ref["allowance"] is None else _from_json(ref["allowance"]),
-                mode_limits=(
-                    None if ref["mode_limits"] is None else _from_json(ref["mode_limits"])
-                ),
-                trend_slope=(
-                    None if ref["trend_slope"] is None else _from_json(ref["trend_slope"])
-                ),
-                model_offset_std=(
-                    None
-                    if ref.get("model_offset_std") is None
-                    else _from_json(ref["model_offset_std"])
-                ),
-            )
+        if state["reference"] is not None:
+            monitor.reference = reference_from_state(state["reference"])
         return monitor
 
     def save_state(self, path: str | os.PathLike) -> Path:
@@ -390,7 +354,7 @@ class HealthMonitor:
             overlap_ratio = self._length_s / self._step_s
         else:  # no recorded grid: the project's blocks (20 min every 5 min)
             overlap_ratio = DEFAULT_BLOCK_LENGTH_S / DEFAULT_BLOCK_STEP_S
-        self.reference = learn_reference(
+        reference = learn_reference(
             residuals,
             relative,
             modes,
@@ -400,21 +364,31 @@ class HealthMonitor:
             overlap_ratio,
             model_shift=model_shift,
         )
-        self._chart_state = np.zeros(len(self.reference.modes))
-        if self.reference.trend_slope is not None:
-            self._location = self.reference.location.copy()
-            self._slope = self.reference.trend_slope.copy()
-            self._baseline_block = self.reference.end_block
-        self._run_sum = np.zeros(len(self.reference.modes))
-        self._run_count = np.zeros(len(self.reference.modes))
+        self._start_chart(reference)
         self._step_s = step_s
+
+    def _start_chart(self, reference: HealthReference) -> None:
+        """Charting with *reference*: statistics at 0, the baseline at its level."""
+        self.reference = reference
+        self._chart_state = np.zeros(len(reference.modes))
+        if reference.trend_slope is not None:
+            self._location = reference.location.copy()
+            self._slope = reference.trend_slope.copy()
+            # a reference of this voyage: carried from its end; a saved one: from the
+            # first block charted (its level at the earlier reference's end)
+            self._baseline_block = None if self._given_reference else reference.end_block
+        self._run_sum = np.zeros(len(reference.modes))
+        self._run_count = np.zeros(len(reference.modes))
 
     def _chart(self, item: dict[str, Any], changed: dict[int, dict[str, Any]]) -> dict[str, Any]:
         ref = self.reference
         options = self.options
         assert ref is not None and self._chart_state is not None
         raw = np.array([item["residual"].get(m, np.nan) for m in ref.modes])
-        phase = "reference" if self._charted < options.reference_blocks else "monitor"
+        in_reference = not self._given_reference and self._charted < options.reference_blocks
+        phase = "reference" if in_reference else "monitor"
+        if self._baseline_block is None and ref.trend_slope is not None:
+            self._baseline_block = int(item["block"])
         location = ref.location
         if ref.trend_slope is not None:
             if phase == "reference":  # the reference's own drift line
@@ -558,6 +532,57 @@ class HealthMonitor:
 def _no_alarms() -> pd.DataFrame:
     """An empty ALARMS table (validated once: most blocks change no alarm)."""
     return ALARMS.validate(pd.DataFrame(columns=list(ALARMS.column_names)))
+
+
+def reference_state(ref: HealthReference) -> dict[str, Any]:
+    """*ref* as plain JSON types (:func:`reference_from_state` reads it back)."""
+    return {
+        "modes": list(ref.modes),
+        "start_block": ref.start_block,
+        "end_block": ref.end_block,
+        "location": _arr(ref.location),
+        "scale": _arr(ref.scale),
+        "correlation": _arr(ref.correlation),
+        "ewma_covariance": _arr(ref.ewma_covariance),
+        "limit": ref.limit,
+        "blocks_per_day": ref.blocks_per_day,
+        "bootstrap_false_alarms_per_day": ref.bootstrap_false_alarms_per_day,
+        "excluded_modes": list(ref.excluded_modes),
+        "relative_median": _arr(ref.relative_median),
+        "statistic": ref.statistic,
+        "allowance": None if ref.allowance is None else _arr(ref.allowance),
+        "mode_limits": None if ref.mode_limits is None else _arr(ref.mode_limits),
+        "trend_slope": None if ref.trend_slope is None else _arr(ref.trend_slope),
+        "model_offset_std": (None if ref.model_offset_std is None else _arr(ref.model_offset_std)),
+    }
+
+
+def reference_from_state(ref: dict[str, Any]) -> HealthReference:
+    """The :class:`HealthReference` of :func:`reference_state`."""
+    p = len(ref["modes"])
+
+    def vector(name: str) -> np.ndarray | None:
+        return None if ref.get(name) is None else _from_json(ref[name])
+
+    return HealthReference(
+        modes=tuple(int(m) for m in ref["modes"]),
+        start_block=int(ref["start_block"]),
+        end_block=int(ref["end_block"]),
+        location=_from_json(ref["location"]),
+        scale=_from_json(ref["scale"]),
+        correlation=_from_json(ref["correlation"]).reshape(p, p),
+        ewma_covariance=_from_json(ref["ewma_covariance"]).reshape(p, p),
+        limit=float(ref["limit"]),
+        blocks_per_day=float(ref["blocks_per_day"]),
+        bootstrap_false_alarms_per_day=float(ref["bootstrap_false_alarms_per_day"]),
+        excluded_modes=tuple(int(m) for m in ref["excluded_modes"]),
+        relative_median=_from_json(ref["relative_median"]),
+        statistic=str(ref["statistic"]),
+        allowance=vector("allowance"),
+        mode_limits=vector("mode_limits"),
+        trend_slope=vector("trend_slope"),
+        model_offset_std=vector("model_offset_std"),
+    )
 
 
 def _nan(value) -> float:

@@ -18,6 +18,14 @@ half-written file::
     <state>/tracked.parquet      MODAL contract: the tracked modal table so far (labels
                                  that are shaft harmonics left out, from the logged shaft
                                  speed)
+    <state>/labels.json          {"schema": "workbench.monitor.labels/1", "labels":
+                                 [{"mode": int, "labelled_block": int, "frequency_hz":
+                                 float}]}: every label given so far (also those of
+                                 harmonics, left out of the table), the block it was
+                                 given at and the mode's frequency then; labels are
+                                 never renumbered, and a restart checks that the
+                                 replayed tracker gives them again (else it stops with
+                                 a message naming the label)
     <state>/harmonics.parquet    the shaft orders' frequencies per tracked block (with a
                                  logged shaft speed; workbench.dashboard.state.HARMONIC_LINES)
     <state>/forecast.parquet     FORECAST contract: sliding forecast + Kalman, all blocks
@@ -37,7 +45,7 @@ half-written file::
                                   "pid": int, "watch": str, "message": str,
                                   "given_up": [{"first_block": int, "last_block": int,
                                   "start": ISO UTC, "end": ISO UTC, "reason": str}],
-                                  "given_up_note": str}
+                                  "given_up_note": str, "health_note": str}
     <state>/heartbeat.json       {"time": ISO UTC, "pid": int, "host": str,
                                   "poll_s": float, "state": "running"|"stopped",
                                   "last_file": str|null, "last_file_taken_at": ISO UTC|null,
@@ -45,6 +53,10 @@ half-written file::
                                              "pid": int|null, "message": str}}
     <state>/store/               the per-block store (:class:`~workbench.store.BlockStore`,
                                  the same layout and parameters as ``workbench identify``'s)
+
+``health_note`` says from which block (and UTC time) the health chart monitors: after the
+operational model's and the reference's hours of this voyage, or from the first block
+with a saved baseline (``--baseline``); '' until the first forecast/health update.
 
 ``last_block`` is the newest block of the tracked table's span (every block up to it is
 decided); ``blocks_done`` counts decided blocks (identified or skipped).
@@ -94,7 +106,8 @@ Resuming
 A block is stored (with its data-health row) before the state files mention it, as one
 batch of the store, so killing the monitor at any moment (``kill -9`` included) and
 starting it again loses no block and repeats none: the store says which blocks are done,
-the tracker is replayed from their stored modes, and the forecast is recomputed.
+the tracker is replayed from their stored modes (the labels shown before the restart come
+back on the same modes: ``labels.json`` is checked), and the forecast is recomputed.
 """
 
 from .core import DATA_HEALTH_COLUMNS, Monitor, MonitorOptions

@@ -11,6 +11,7 @@ import argparse
 import signal
 from pathlib import Path
 
+from .. import defaults as D
 from ..forecast.options import DEFAULT_MODEL
 
 __all__ = ["add_monitor", "prepare_monitor", "run_monitor"]
@@ -28,6 +29,8 @@ _DEFAULTS = {
     "max_gap": 0.0,
     "selection": "cluster",
     "conditioning": "per-file",
+    "harmonic_orders": D.IDENTIFY_HARMONIC_ORDERS,
+    "blades": D.IDENTIFY_BLADES,
     "mac_min": 0.9,
     "gate": "mac",
     "frequency_tol": 0.05,
@@ -133,6 +136,18 @@ def add_monitor(commands: argparse._SubParsersAction) -> None:
     ident.add_argument("--selection", choices=("cluster", "library"))
     ident.add_argument("--no-channel-check", action="store_true", default=None)
     ident.add_argument("--conditioning", choices=("per-file", "per-block"))
+    ident.add_argument(
+        "--harmonic-orders",
+        metavar="K,K",
+        help=f"shaft orders kept out of the modes ({D.IDENTIFY_HARMONIC_ORDERS})",
+    )
+    ident.add_argument(
+        "--blades",
+        type=int,
+        metavar="N",
+        help=f"propeller blades: the blade pass N x the shaft rate (and 2N) too; 0: none "
+        f"({D.IDENTIFY_BLADES})",
+    )
     track = parser.add_argument_group("tracking (as workbench track)")
     add_renamed(
         track,
@@ -180,6 +195,15 @@ def add_monitor(commands: argparse._SubParsersAction) -> None:
         "period follows",
     )
     fore.add_argument(
+        "--baseline",
+        type=Path,
+        metavar="FILE",
+        help="the ship's health baseline from an earlier voyage (workbench health "
+        "--save-model): its modes start the tracker (their labels kept) and its model and "
+        "limits chart every block from the first; without it the chart starts after "
+        "--health-train-hours + --reference-hours (18 h)",
+    )
+    fore.add_argument(
         "--baseline-hours",
         type=float,
         metavar="H",
@@ -224,6 +248,8 @@ def _from_config(args: argparse.Namespace) -> None:
         "step_minutes",
         "max_gap",
         *_LAYOUT_DESTS,
+        "harmonic_orders",
+        "blades",
     ):
         if getattr(args, dest, None) is None and dest in identify:
             setattr(args, dest, identify[dest])
@@ -263,11 +289,13 @@ def _options(args: argparse.Namespace):
         identify_options,
     )
     from ..cli.forecasting import check_forecast_flags
+    from ..cli.identify import _harmonic_options
     from ..sid.tracking import TrackingOptions
     from .core import MonitorOptions
     from .outlook import ForecastSettings
 
     identify = identify_options(args)
+    harmonics = _harmonic_options(args)  # as identify --dship marks them
     trust = check_forecast_flags(args)  # what `forecast` refuses, the monitor refuses
     try:
         tracking = TrackingOptions(
@@ -293,10 +321,12 @@ def _options(args: argparse.Namespace):
             health_model=args.health_model,
             health_train_hours=args.health_train_hours,
             baseline_hours=args.baseline_hours or None,
+            health_baseline=None if args.baseline is None else str(args.baseline),
         )
         return MonitorOptions(
             identify=identify,
             tracking=tracking,
+            harmonics=harmonics,
             forecast=forecast,
             poll_s=args.poll,
             settle_s=args.settle,

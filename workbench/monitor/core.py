@@ -154,7 +154,12 @@ class Monitor:
         self.conditioned_files = [0]  # files conditioned (per-file path)
         self._shared: dict = {}
         self._health_rows: list[dict] = []
-        self.tracking = IncrementalTracking(self.options.tracking)
+        self.baseline = None  # the ship's health baseline (--baseline), checked here
+        reference_modes = None
+        if self.options.forecast.health_baseline is not None:
+            self.baseline = self._load_baseline()
+            reference_modes = self.baseline.modes
+        self.tracking = IncrementalTracking(self.options.tracking, reference_modes)
         self._last_landing = time.monotonic()
         self._outlook_due = False
         self._outlook_future = None
@@ -167,6 +172,7 @@ class Monitor:
         self._saved_grid = self._stored_grid()
         self._given_up: tuple[tuple[int, int], list[dict]] = ((-1, -1), [])
         self._harmonic_marks: dict[int, np.ndarray] = {}  # block -> marks, once the log covers it
+        self._health_schedule = ""  # from which block the health chart monitors
         self._marks_pending = False
         # liveness (heartbeat.json): the last file taken and the background worker's state
         self._last_taken: tuple[str, pd.Timestamp] | None = None
@@ -175,6 +181,41 @@ class Monitor:
         self._heartbeat_stop = threading.Event()
         self._heartbeat_thread: threading.Thread | None = None
         self.host = socket.gethostname()
+
+    def _load_baseline(self):
+        """The health baseline, refused (one line, exit 1) when unreadable or when the ship
+        log present lacks a column its model needs."""
+        from ..health import BaselineError
+        from .structural_health import load_baseline
+
+        path = self.options.forecast.health_baseline
+        try:
+            baseline = load_baseline(path)
+        except OSError as error:
+            self._lock.release()
+            raise WorkbenchError(f"{path}: cannot read ({error.strerror or error})") from None
+        except BaselineError as error:
+            self._lock.release()
+            raise WorkbenchError(str(error)) from None
+        log = self._read_log()
+        if log is not None:
+            try:
+                baseline.check_predictors(log, str(self.dship))
+            except BaselineError as error:
+                self._lock.release()
+                raise WorkbenchError(str(error)) from None
+        return baseline
+
+    def _read_log(self) -> pd.DataFrame | None:
+        """The ship log as read now (None when absent or unreadable: the outlook says so)."""
+        if self.dship is None or not self.dship.is_file():
+            return None
+        from .outlook import _ship_log
+
+        try:
+            return _ship_log(self.dship, dict(self.options.forecast.dship_mapping))
+        except (ValueError, OSError):
+            return None
 
     @property
     def tracked_through(self) -> int:
@@ -380,6 +421,13 @@ class Monitor:
         options, per_file, parameters = resolved_run(
             options, first.sampling_rate_hz, grid, channels
         )
+        if self.baseline is not None:  # a baseline of another ship or sensor layout
+            from ..health import BaselineError
+
+            try:
+                self.baseline.check_channels(channels, str(self.watch))
+            except BaselineError as error:
+                raise WorkbenchError(str(error)) from None
         self.voyage = _Voyage(
             grid, tuple(channels), float(first.sampling_rate_hz), options, per_file, parameters
         )
@@ -502,15 +550,8 @@ class Monitor:
     # ------------------------------------------------------------------ tracking
     def _shaft_log(self) -> pd.DataFrame | None:
         """The ship log when it logs the shaft speed, else None."""
-        if self.dship is None or not self.dship.is_file():
-            return None
-        from .outlook import _ship_log
-
-        try:
-            log = _ship_log(self.dship, dict(self.options.forecast.dship_mapping))
-        except (ValueError, OSError):  # the outlook reports an unreadable log
-            return None
-        return log if "shaft_rpm" in log.columns else None
+        log = self._read_log()  # an unreadable log: the outlook reports it
+        return log if log is not None and "shaft_rpm" in log.columns else None
 
     def _mark_harmonics(self, frame: pd.DataFrame) -> pd.DataFrame:
         """The selected modes tracked so far with their ``harmonic`` column from the logged
@@ -571,13 +612,17 @@ class Monitor:
 
     def _advance_tracking(self) -> None:
         """Feed the decided blocks to the tracker in block order and write the tracked
-        table when it grew (see :class:`IncrementalTracking`)."""
+        table and the labels shown when it grew (see :class:`IncrementalTracking`)."""
         grew = self.tracking.advance(self.done)
+        # the labels an earlier run gave come back with the same modes (after a restart)
+        self.tracking.check_labels()
         # marks of blocks the log did not cover yet may change: written again with the log
         if grew or self._marks_pending or not (self.state / "tracked.parquet").exists():
             tracked = self.tracking.table(marker=self._mark_harmonics)
             write_table(tracked, self.state / "tracked.parquet", MODAL)
             self._write_harmonic_lines(tracked)
+            # after the table: a label in labels.json is in the store's blocks
+            self.tracking.write_labels(self.state / "labels.json")
 
     def _resume(self) -> None:
         """After a restart: replay the stored blocks into the tracker and the data-health
@@ -595,6 +640,8 @@ class Monitor:
             for block, part in selected.groupby("block", sort=True):
                 self.tracking.add(int(block), part)
         self._plan = SimpleNamespace(blocks=())
+        # the labels given before the restart must come back with the same modes
+        self.tracking.expect_labels(self.state / "labels.json")
         self._advance_tracking()
         self._write_data_health()
         self._outlook_due = True
@@ -760,6 +807,8 @@ class Monitor:
         self.outlook_reports.append(report)
         # a log that already covered the newest block changes no predictor when it grows
         self._log_complete = report.log_complete
+        if report.health_schedule:
+            self._health_schedule = report.health_schedule
         log.info(
             "outlook: %d blocks, %d forecast rows, %.3f s (CPU %.3f s)",
             report.n_blocks,
@@ -860,6 +909,8 @@ class Monitor:
             # gave up (see given_up), and what to run to have them
             "given_up": self.given_up(),
             "given_up_note": self.given_up_note(),
+            # from which block (and when) the health chart monitors, once known
+            "health_note": self._health_schedule,
         }
         with atomic_path(self.state / "status.json") as tmp:
             tmp.write_text(json.dumps(status, indent=1), encoding="utf-8")

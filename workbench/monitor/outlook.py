@@ -9,9 +9,8 @@ blocks (:func:`~workbench.predictors.block_predictors`), modes measured in fewer
 runs over the whole table for each measurement option.
 
 The forecast is recomputed over the whole table (not resumed from the last Kalman state):
-the tracked labels may be renumbered by a new block (``sort_by_frequency``), the modes
-kept depend on the presence over all blocks, and the newest block's predictors change while
-the ship log grows. Recomputing is exact by construction; its cost grows with the table
+the modes kept depend on the presence over all blocks, and the newest block's predictors
+change while the ship log grows. Recomputing is exact by construction; its cost grows with the table
 (measured in ``benchmarks/bench_monitor.py``) and it runs in a background process, so it
 never delays the identification of the next block.
 """
@@ -75,6 +74,12 @@ class ForecastSettings:
     baseline_hours : float or None
         Without ``fuel_on_board_t`` in the ship log, the chart's baseline follows slow
         drifts with this time constant (None: fixed). [h]
+    health_baseline : str, optional
+        A saved health baseline (:class:`~workbench.health.HealthBaseline`, ``workbench
+        health --save-model``): the operational model and chart limits of an earlier
+        voyage, so the chart starts at the first block (``health_train_hours``,
+        ``reference_hours``, ``baseline_hours``, ``ewma_lambda`` and
+        ``false_alarms_per_day`` are then the baseline's).
     """
 
     options: tuple[Literal["A", "B"], ...] = ("A",)
@@ -94,6 +99,7 @@ class ForecastSettings:
     health_model: Literal["operational", "forecast"] = "operational"
     health_train_hours: float = 12.0
     baseline_hours: float | None = 24.0
+    health_baseline: str | None = None
 
     def __post_init__(self) -> None:
         options = tuple(self.options)
@@ -139,6 +145,9 @@ class OutlookReport:
     written: bool = True
     #: The ship log reached the end of the newest tracked block (its predictors are final).
     log_complete: bool = False
+    #: From which block (and when) the health chart monitors, or that it is learning until
+    #: then ('' when not known: no ship log, or the forecast's chart).
+    health_schedule: str = ""
 
 
 def empty_table(contract) -> pd.DataFrame:
@@ -301,6 +310,7 @@ def update_outlook(
                 if found[0] is not None:
                     health, alarms = found[0], found[1]
                 report.messages += found[2]
+                report.health_schedule = found[2][0] if found[2] else ""
             except (ValueError, ArithmeticError, np.linalg.LinAlgError) as error:
                 report.messages.append(f"health: {str(error).splitlines()[0]}")
             except Exception as error:  # noqa: BLE001 - say so; the next block retries

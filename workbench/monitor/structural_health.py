@@ -10,6 +10,13 @@ charts every block after them. When the ship log carries ``fuel_on_board_t`` (ta
 soundings) the model has the fuel mass as a term; without it, the slow rise of the
 frequencies as fuel is burned is left to a slowly following baseline of the chart
 (``baseline_hours``), which a step change outruns.
+
+With a saved baseline (``ForecastSettings.health_baseline``, ``workbench monitor
+--baseline FILE``) the model and the chart's reference and limits are an earlier voyage's
+(:class:`~workbench.health.HealthBaseline`) and every block is charted from the first;
+a baseline whose modes are not this voyage's tracked modes, or whose model needs a column
+the ship log lacks, is refused (a note) and the chart learns its own as above.
+:func:`charting_starts` says from which block (and when) the chart draws.
 """
 
 from __future__ import annotations
@@ -19,17 +26,47 @@ import warnings
 
 import pandas as pd
 
-__all__ = ["FUEL_COLUMN", "operational_health"]
+__all__ = ["FUEL_COLUMN", "charting_starts", "load_baseline", "operational_health"]
 
 #: The optional ship-log column with the fuel on board (tank soundings). [t]
 FUEL_COLUMN = "fuel_on_board_t"
+
+
+_BASELINES: dict[str, tuple[tuple[int, int], object]] = {}
+
+
+def load_baseline(path: str):
+    """The :class:`~workbench.health.HealthBaseline` in *path*, read again only when the
+    file changed. Raises :class:`~workbench.health.BaselineError` (one line)."""
+    import os
+
+    from ..health import HealthBaseline
+
+    stat = os.stat(path)
+    key = (stat.st_size, stat.st_mtime_ns)
+    cached = _BASELINES.get(path)
+    if cached is None or cached[0] != key:
+        cached = (key, HealthBaseline.load(path))
+        _BASELINES.clear()
+        _BASELINES[path] = cached
+    return cached[1]
+
+
+def charting_starts(first_block: int, settings, step_s: float) -> int:
+    """First block the chart monitors (alarms possible): the first tracked block with a
+    baseline, else the first after the model's training and the reference hours."""
+    if settings.health_baseline is not None:
+        return int(first_block)
+    hours = settings.health_train_hours + settings.reference_hours
+    return int(first_block) + int(round(hours * 3600.0 / step_s))
 
 
 def operational_health(
     tracked: pd.DataFrame, predictors: pd.DataFrame, settings, step_s: float
 ) -> tuple[pd.DataFrame | None, pd.DataFrame | None, list[str]]:
     """HEALTH and ALARMS tables of the tracked table so far, or (None, None) while the
-    model or the reference is still being learned; and notes for the status.
+    model or the reference is still being learned; and notes for the status, the first of
+    which says from which block (and time) the chart monitors.
 
     Parameters
     ----------
@@ -44,23 +81,44 @@ def operational_health(
     step_s : float
         Block step. [s]
     """
-    from ..health import HealthOptions, fit_operational_model, health_chart
+    from ..health import BaselineError, HealthOptions, fit_operational_model, health_chart
 
     train = int(round(settings.health_train_hours * 3600.0 / step_s))
     reference = int(round(settings.reference_hours * 3600.0 / step_s))
     first = int(tracked["block"].min())
     last = int(tracked["block"].max())
     have = last - first + 1
+    refused = ""
+    if settings.health_baseline is not None:
+        try:
+            baseline = load_baseline(settings.health_baseline)
+            baseline.check_predictors(predictors, "the ship log")
+            baseline.check_modes(tracked, "the tracked modes")
+            chart = baseline.chart(baseline.forecast(tracked, predictors))
+        except (BaselineError, OSError) as error:
+            refused = f"health: baseline refused: {error}; learning this voyage's own model"
+        else:
+            model = baseline.model
+            return (
+                chart.table,
+                chart.alarms,
+                [
+                    f"health: charting from block {first} ({_at(tracked, first, step_s)}) with "
+                    f"the baseline {settings.health_baseline} (model of blocks "
+                    f"{model.train_start_block}-{model.train_end_block} of the voyage from "
+                    f"{baseline.source.get('first_block_start', '?')})"
+                ],
+            )
+    start = first + train + reference
     if have <= train + reference:
-        return (
-            None,
-            None,
-            [
-                f"health: learning, {have} of {train + reference + 1} blocks "
-                f"({settings.health_train_hours:g} h model, {settings.reference_hours:g} h "
-                "reference, then the chart)"
-            ],
+        note = (
+            f"health: the chart starts at block {start} ({_at(tracked, start, step_s)}), after "
+            f"this voyage's {settings.health_train_hours:g}-h model and "
+            f"{settings.reference_hours:g}-h reference; with a saved baseline (monitor "
+            "--baseline) it starts at the first block"
         )
+        learning = f"health: learning, {have} of {train + reference + 1} blocks"
+        return None, None, [n for n in (note, learning, refused) if n]
     has_fuel = FUEL_COLUMN in predictors.columns and predictors[FUEL_COLUMN].notna().any()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")  # modes too rarely seen: noted, not modelled
@@ -68,7 +126,13 @@ def operational_health(
         model = fit_operational_model(
             tracked, predictors, train_start_block=first, train_blocks=train
         )
-    notes = list(dict.fromkeys(f"health: {w.message}" for w in caught))
+    notes = [
+        f"health: charting from block {start} ({_at(tracked, start, step_s)}), after this "
+        f"voyage's {settings.health_train_hours:g}-h model and {settings.reference_hours:g}-h "
+        "reference"
+    ]
+    notes += [n for n in (refused,) if n]
+    notes += list(dict.fromkeys(f"health: {w.message}" for w in caught))
     forecast = model.forecast(
         tracked, predictors, reference_start_block=first + train, reference_blocks=reference
     )
@@ -91,3 +155,12 @@ def operational_health(
             else f"health: no {FUEL_COLUMN} in the ship log and no baseline"
         )
     return chart.table, chart.alarms, notes
+
+
+def _at(tracked: pd.DataFrame, block: int, step_s: float) -> str:
+    """UTC start of *block* on the grid of *tracked* ('YYYY-MM-DD HH:MMZ')."""
+    first = tracked.loc[tracked["block"].idxmin()]
+    when = pd.Timestamp(first["block_start"]) + pd.Timedelta(
+        seconds=(block - int(first["block"])) * step_s
+    )
+    return f"{when.tz_convert('UTC'):%Y-%m-%d %H:%MZ}"

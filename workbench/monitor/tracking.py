@@ -2,15 +2,23 @@
 
 from __future__ import annotations
 
+import json
+import math
+from pathlib import Path
+
 import pandas as pd
 
-from data_contracts import MODAL, shapes_from_frame
+from data_contracts import MODAL, atomic_path, shapes_from_frame
 
 from ..errors import WorkbenchError
-from ..sid.tracking import ModeTracker, TrackingOptions
+from ..sid.tracking import ModeTracker, TrackingOptions, tracker_for
 from .outlook import empty_table
 
-__all__ = ["IncrementalTracking"]
+__all__ = ["LABELS_SCHEMA", "IncrementalTracking"]
+
+#: ``schema`` of ``labels.json`` (the labels shown so far; see :meth:`IncrementalTracking.
+#: check_labels`).
+LABELS_SCHEMA = "workbench.monitor.labels/1"
 
 
 class IncrementalTracking:
@@ -19,21 +27,33 @@ class IncrementalTracking:
     Blocks may be decided out of order (one waits for late data while later ones are
     ready); :class:`~workbench.sid.tracking.ModeTracker` needs them in order, so selected
     modes are held until every block before them is decided (:meth:`advance`). The
-    table equals ``workbench track`` over the same selected modes.
+    table equals ``workbench track`` over the same selected modes, labels included: the
+    tracker labels a mode once, when it has been seen in ``min_blocks`` blocks, and never
+    renumbers (:mod:`workbench.sid.tracking`), so a label shown at any block keeps its mode.
 
     Parameters
     ----------
     options : TrackingOptions
+    reference_modes : DataFrame, optional
+        Modal table whose modes start the library, labels kept (``workbench track
+        --reference-modes``; the modes of a saved health baseline).
     """
 
-    def __init__(self, options: TrackingOptions) -> None:
+    def __init__(
+        self, options: TrackingOptions, reference_modes: pd.DataFrame | None = None
+    ) -> None:
         self.options = options
+        self.reference_modes = reference_modes
         self.tracked_through = -1  # every block up to this one is in the tracker
         self._parts: dict[int, pd.DataFrame] = {}  # selected modes waiting for their turn
         self._tracker: ModeTracker | None = None
         self._rows: list[tuple[int, int, float]] = []
         self._frame: pd.DataFrame | None = None
         self._channels: list[str] | None = None
+        self._written_labels: list[dict] | None = None
+        # labels an earlier run gave, not yet given again by the replay: mode -> (block, Hz)
+        self._expected: dict[int, tuple[int, float]] = {}
+        self._labels_path: Path | None = None
 
     def add(self, block: int, selected: pd.DataFrame) -> None:
         """Hold the selected modes of a decided *block* until its turn."""
@@ -73,7 +93,10 @@ class IncrementalTracking:
             if not channels:
                 raise WorkbenchError(f"block {block}: selected modes without mode shapes")
             self._channels = channels
-            self._tracker = ModeTracker(len(channels), self.options)
+            try:
+                self._tracker = tracker_for(channels, self.options, self.reference_modes)
+            except ValueError as error:
+                raise WorkbenchError(f"reference modes: {error}") from None
         offset = 0 if self._frame is None else len(self._frame)
         part = part.reset_index(drop=True)
         part.index = pd.RangeIndex(offset, offset + len(part))
@@ -86,6 +109,107 @@ class IncrementalTracking:
             shapes.T,
             part.index,
         )
-        self._rows += [(int(part.index[i]), label, score) for i, label, score in updates]
+        self._rows += [(int(part.index[i]), serial, score) for i, serial, score in updates]
         self._rows += self._tracker.late_assignments
         self._tracker.late_assignments = []
+
+    # ------------------------------------------------------------------ labels shown
+    def shown_labels(self) -> list[dict]:
+        """The labels given so far, in order (those of harmonics, which the table leaves
+        out, included): ``mode``, ``labelled_block`` (the block it was given at, from which
+        the table shows it; -1 for a reference mode) and ``frequency_hz`` (its frequency
+        then)."""
+        if self._tracker is None:
+            return []
+        modes = sorted(
+            (m for m in self._tracker.library if m.label is not None), key=lambda m: m.label
+        )
+        return [
+            {
+                "mode": int(m.label),
+                "labelled_block": int(m.labelled_block),
+                "frequency_hz": float(m.labelled_frequency_hz),
+            }
+            for m in modes
+        ]
+
+    def write_labels(self, path: str | Path) -> None:
+        """Write :meth:`shown_labels` to *path* (``labels.json``) atomically when they
+        changed since the last write; labels of an earlier run that the replay has not
+        reached yet (:meth:`expect_labels`) are kept in the file."""
+        labels = self.shown_labels()
+        given = {e["mode"] for e in labels}
+        pending = [
+            {"mode": mode, "labelled_block": block, "frequency_hz": frequency}
+            for mode, (block, frequency) in self._expected.items()
+            if mode not in given
+        ]
+        labels = sorted(labels + pending, key=lambda e: e["mode"])
+        if labels == self._written_labels:
+            return
+        with atomic_path(Path(path)) as tmp:
+            tmp.write_text(
+                json.dumps({"schema": LABELS_SCHEMA, "labels": labels}, indent=1),
+                encoding="utf-8",
+            )
+        self._written_labels = labels
+
+    def expect_labels(self, path: str | Path) -> None:
+        """After a restart: the labels an earlier run gave (*path*, ``labels.json``) must
+        be given again, at the same blocks to the same modes, as the tracker is replayed
+        from the store and fed on (:meth:`check_labels`, once it has reached each label's
+        block: a block of a damaged store file is identified again first).
+
+        Raises
+        ------
+        WorkbenchError
+            *path* is unreadable (one line naming it).
+        """
+        path = Path(path)
+        self._labels_path = path
+        if not path.is_file():
+            return
+        try:
+            found = json.loads(path.read_text(encoding="utf-8"))
+            if found.get("schema") != LABELS_SCHEMA:
+                raise ValueError(f"schema {found.get('schema')!r}, expected {LABELS_SCHEMA!r}")
+            self._expected = {
+                int(e["mode"]): (int(e["labelled_block"]), float(e["frequency_hz"]))
+                for e in found["labels"]
+            }
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as error:
+            raise WorkbenchError(f"{path}: unreadable ({error}); use another --state") from None
+
+    def check_labels(self) -> None:
+        """Check the expected labels (:meth:`expect_labels`) of the blocks tracked so far.
+
+        Raises
+        ------
+        WorkbenchError
+            One line naming the file and the first label that differs (the tracking
+            options changed since the labels were given, or the state was edited).
+        """
+        if not self._expected or self._tracker is None:
+            return
+        now = {e["mode"]: e for e in self.shown_labels()}
+        for mode, (block, frequency) in sorted(self._expected.items()):
+            if block > self.tracked_through:
+                continue
+            again = now.get(mode)
+            if (
+                again is None
+                or again["labelled_block"] != block
+                or not math.isclose(again["frequency_hz"], frequency, rel_tol=1e-9)
+            ):
+                replayed = (
+                    "no such label"
+                    if again is None
+                    else f"block {again['labelled_block']}, {again['frequency_hz']:.4f} Hz"
+                )
+                raise WorkbenchError(
+                    f"{self._labels_path}: mode {mode} was shown from block {block} at "
+                    f"{frequency:.4f} Hz, tracking the stored blocks again gives {replayed}: "
+                    "the tracking options (--mac-min, --gate, --frequency-tol, --baseline) "
+                    "differ from the first run's; use them, or another --state"
+                )
+            del self._expected[mode]

@@ -10,6 +10,15 @@ break the track, and a library mode that is not seen for a while keeps its label
 picked up again when it returns. Because matching uses shapes as well as poles, two modes
 whose frequencies cross keep their labels.
 
+Labels are append-only: a library mode is labelled when it has been seen in ``min_blocks``
+blocks (the table shows it from then on), with the next unused number; modes labelled at
+the same block are numbered in order of frequency. A label keeps its mode for the rest of
+the voyage (a mode that returns keeps it, a new or intermittent mode gets a new one, a
+number is never reused, even when its mode is later dropped as a shaft harmonic), so the
+table of the first blocks is never relabelled by later ones: ``workbench track`` over a
+voyage and the live monitor block by block (:mod:`workbench.monitor.tracking`) give the
+same labels.
+
 Blocks may lack channels (faulty channels dropped for that block): shapes are compared on
 the channels both have.
 
@@ -72,12 +81,10 @@ class TrackingOptions:
     candidate_lifetime : int
         Candidates not confirmed within this many blocks are forgotten. [blocks]
     min_blocks : int
-        Library modes seen in fewer blocks than this at the end are dropped from the table
-        (spurious). [blocks]
+        A library mode is labelled (and shown in the table) once it has been seen in this
+        many blocks; modes seen in fewer are dropped from the table (spurious). [blocks]
     min_channels : int
         Fewest channels shared by two shapes for them to be compared. [-]
-    sort_by_frequency : bool
-        Relabel the final modes 1, 2, ... in order of their median frequency.
     harmonic_share : float
         Tracked labels with at least this share of rows marked as shaft or blade-pass
         harmonics (the selected table's ``harmonic`` column, :mod:`workbench.sid.harmonics`)
@@ -96,7 +103,6 @@ class TrackingOptions:
     candidate_lifetime: int = 3
     min_blocks: int = 3
     min_channels: int = 3
-    sort_by_frequency: bool = True
     harmonic_share: float = 0.5
 
     def __post_init__(self) -> None:
@@ -117,9 +123,15 @@ class TrackingOptions:
 
 @dataclass
 class LibraryMode:
-    """A reference mode of the tracker (or a candidate not yet confirmed)."""
+    """A reference mode of the tracker (or a candidate not yet confirmed).
 
-    label: int
+    ``serial`` numbers the library modes in order of birth (0 for a candidate); ``label``
+    is the label shown, given once the mode has been seen in ``min_blocks`` blocks (None
+    before), at block ``labelled_block`` (-1: a reference mode), when the mode's frequency
+    was ``labelled_frequency_hz``.
+    """
+
+    serial: int
     frequency_hz: float
     damping_ratio: float
     shape: np.ndarray  # complex, n_channels; NaN where never observed
@@ -128,6 +140,9 @@ class LibraryMode:
     n_blocks: int = 1
     frequencies: list[float] = field(default_factory=list)
     keys: list = field(default_factory=list)  # identifiers of a candidate's observations
+    label: int | None = None
+    labelled_block: int | None = None
+    labelled_frequency_hz: float | None = None
 
     @property
     def pole(self) -> complex:
@@ -186,26 +201,50 @@ class ModeTracker:
         n_channels: int,
         options: TrackingOptions | None = None,
         reference: Sequence[tuple[float, float, np.ndarray]] | None = None,
+        *,
+        reference_labels: Sequence[int] | None = None,
     ):
         self.n_channels = int(n_channels)
         self.options = options or TrackingOptions()
         self.library: list[LibraryMode] = []
         self.candidates: list[LibraryMode] = []
-        #: (key, label, score) of candidate observations from earlier blocks, assigned when
-        #: the candidate was confirmed; drained by the caller.
+        #: (key, serial, score) of candidate observations from earlier blocks, assigned
+        #: when the candidate was confirmed; drained by the caller.
         self.late_assignments: list[tuple[object, int, float]] = []
-        self._next_label = 1
-        for frequency, damping, shape in reference or ():
+        reference = list(reference or ())
+        if reference_labels is None:
+            reference_labels = range(1, len(reference) + 1)
+        reference_labels = [int(label) for label in reference_labels]
+        if len(reference_labels) != len(reference) or len(set(reference_labels)) != len(
+            reference_labels
+        ):
+            raise ValueError(
+                f"reference_labels={reference_labels!r} must be {len(reference)} distinct labels"
+            )
+        # reference modes keep their labels; new modes are numbered after them
+        self._next_serial = max(reference_labels, default=0) + 1
+        self._next_label = self._next_serial
+        for (frequency, damping, shape), label in zip(reference, reference_labels, strict=True):
             shape = np.asarray(shape, dtype=complex)
             if shape.shape != (self.n_channels,):
                 raise ValueError(
                     f"reference shape has {shape.size} channels, expected {self.n_channels}"
                 )
-            self.library.append(self._new_mode(frequency, damping, shape, block=-1, seen=0))
+            mode = self._new_mode(frequency, damping, shape, block=-1, seen=0, serial=label)
+            mode.label, mode.labelled_block = label, -1
+            mode.labelled_frequency_hz = mode.frequency_hz
+            self.library.append(mode)
 
-    def _new_mode(self, frequency, damping, shape, block, seen=1) -> LibraryMode:
-        mode = LibraryMode(
-            label=self._next_label,
+    def labels(self) -> dict[int, int]:
+        """Label shown of each labelled library mode, by serial."""
+        return {m.serial: m.label for m in self.library if m.label is not None}
+
+    def _new_mode(self, frequency, damping, shape, block, seen=1, serial=None) -> LibraryMode:
+        if serial is None:
+            serial = self._next_serial
+            self._next_serial += 1
+        return LibraryMode(
+            serial=int(serial),
             frequency_hz=float(frequency),
             damping_ratio=float(damping),
             shape=_normalise(np.asarray(shape, dtype=complex).copy()),
@@ -213,8 +252,15 @@ class ModeTracker:
             last_block=int(block),
             n_blocks=seen,
         )
-        self._next_label += 1
-        return mode
+
+    def _label_new_modes(self, block: int) -> None:
+        """Label the library modes seen in ``min_blocks`` blocks by now (in order of
+        frequency when several reach it in one block): the next unused numbers."""
+        due = [m for m in self.library if m.label is None and m.n_blocks >= self.options.min_blocks]
+        for mode in sorted(due, key=lambda m: (m.frequency_hz, m.serial)):
+            mode.label, mode.labelled_block = self._next_label, int(block)
+            mode.labelled_frequency_hz = mode.frequency_hz
+            self._next_label += 1
 
     def _scores(
         self, frequency: np.ndarray, damping: np.ndarray, shapes: np.ndarray, modes
@@ -288,9 +334,10 @@ class ModeTracker:
 
         Returns
         -------
-        list of (index, label, macxp)
-            For each block mode that joined a library mode: its column index, the label and
-            the MACXP with the library mode before the update.
+        list of (index, serial, macxp)
+            For each block mode that joined a library mode: its column index, the library
+            mode's serial (:meth:`labels` maps serials to the labels shown) and the MACXP
+            with the library mode before the update.
         """
         frequency = np.asarray(frequency_hz, dtype=float).ravel()
         keys = list(range(frequency.size)) if keys is None else list(keys)
@@ -311,7 +358,7 @@ class ModeTracker:
         for i, j, score in matches:
             mode = self.library[j]
             self._absorb(mode, frequency[i], damping[i], shapes[:, i], block)
-            assigned.append((int(index[i]), mode.label, score))
+            assigned.append((int(index[i]), mode.serial, score))
             taken.add(i)
 
         # Unmatched modes: confirm a waiting candidate or become one.
@@ -330,11 +377,11 @@ class ModeTracker:
                     continue
                 i = int(sub[r])
                 self._absorb(candidate, frequency[i], damping[i], shapes[:, i], block)
-                candidate.label = self._next_label
-                self._next_label += 1
+                candidate.serial = self._next_serial
+                self._next_serial += 1
                 self.library.append(candidate)
-                assigned.append((int(index[i]), candidate.label, score))
-                self.late_assignments += [(key, candidate.label, score) for key in candidate.keys]
+                assigned.append((int(index[i]), candidate.serial, score))
+                self.late_assignments += [(key, candidate.serial, score) for key in candidate.keys]
                 confirmed.add(c)
                 taken.add(i)
             self.candidates = [c for k, c in enumerate(self.candidates) if k not in confirmed]
@@ -342,7 +389,7 @@ class ModeTracker:
                 if i in taken:
                     continue
                 candidate = LibraryMode(
-                    label=0,
+                    serial=0,
                     frequency_hz=float(frequency[i]),
                     damping_ratio=float(damping[i]),
                     shape=_normalise(shapes[:, i].copy()),
@@ -352,6 +399,7 @@ class ModeTracker:
                     keys=[keys[int(index[i])]],
                 )
                 self.candidates.append(candidate)
+        self._label_new_modes(block)
         return sorted(assigned)
 
 
@@ -392,7 +440,9 @@ def track_modes(
     -------
     DataFrame
         The tracked modal table (MODAL contract): one row per block and tracked mode, with
-        ``mac`` the MACXP against the library mode when it joined.
+        ``mac`` the MACXP against the library mode when it joined. Labels are numbered
+        in the order the modes were confirmed (see the module notes), not by frequency,
+        and the numbers of modes later dropped (harmonics) are not reused.
     """
     options = options or TrackingOptions()
     missing = [
@@ -405,15 +455,10 @@ def track_modes(
     channels, _ = shapes_from_frame(selected.iloc[:0])
     if not channels:
         raise ValueError("selected modes: no mode-shape columns (shape_re_<channel>)")
-    reference = reference_modes
-    tracker = ModeTracker(len(channels), options, _reference_modes(reference, channels))
-    if reference is not None:
-        tracker._next_label = int(reference["mode"].max()) + 1
-        for mode, label in zip(tracker.library, sorted(reference["mode"].unique()), strict=True):
-            mode.label = int(label)
+    tracker = tracker_for(channels, options, reference_modes)
 
     frame = selected.sort_values("block", kind="stable").reset_index(drop=True)
-    rows: list[tuple[int, int, float]] = []  # (row in frame, label, macxp)
+    rows: list[tuple[int, int, float]] = []  # (row in frame, serial, macxp)
     from ..progress import progress_bar
 
     groups = frame.groupby("block", sort=True)
@@ -421,11 +466,31 @@ def track_modes(
     for _, part in bar:
         frequency, damping, shapes = _selected_arrays(part, channels)
         block = int(part["block"].iat[0])
-        for i, label, score in tracker.update(block, frequency, damping, shapes, part.index):
-            rows.append((int(part.index[i]), label, score))
+        for i, serial, score in tracker.update(block, frequency, damping, shapes, part.index):
+            rows.append((int(part.index[i]), serial, score))
         rows += tracker.late_assignments
         tracker.late_assignments = []
     return _tracked_table(frame, rows, tracker, channels, options)
+
+
+def tracker_for(
+    channels: Sequence[str],
+    options: TrackingOptions,
+    reference_modes: pd.DataFrame | None = None,
+) -> ModeTracker:
+    """A :class:`ModeTracker` for *channels*, its library started from *reference_modes*
+    (a modal table; its labels kept) when given."""
+    if reference_modes is None:
+        return ModeTracker(len(channels), options)
+    if "mode" not in reference_modes.columns:
+        raise ValueError("reference modal table: missing column 'mode'")
+    labels = sorted(int(m) for m in reference_modes["mode"].unique())
+    return ModeTracker(
+        len(channels),
+        options,
+        _reference_modes(reference_modes, channels),
+        reference_labels=labels,
+    )
 
 
 def _reference_modes(reference: pd.DataFrame | None, channels: Sequence[str]):
@@ -481,6 +546,10 @@ def _follows_its_order(rows: pd.DataFrame) -> bool:
 
 
 def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.DataFrame:
+    """The tracked table of *rows* ((row of *frame*, serial, macxp)): the labelled modes'
+    rows under their labels, shaft harmonics left out."""
+    labels = tracker.labels() if tracker is not None else {}
+    rows = [(r, labels[serial], score) for r, serial, score in rows if serial in labels]
     if not rows:
         empty = frame.iloc[:0].copy()
         empty.insert(3, "mode", pd.Series([], dtype="int64"))
@@ -490,7 +559,7 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
         )
     index = np.array([r[0] for r in rows])
     table = frame.loc[index].copy()
-    table["mode"] = [r[1] for r in rows]
+    table["mode"] = np.array([r[1] for r in rows], dtype="int64")
     table["mac"] = np.clip([r[2] for r in rows], 0.0, 1.0)
     harmonic_labels: list[dict] = []
     if "harmonic" in table.columns:
@@ -517,13 +586,6 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
             )
         table = table[~table["mode"].isin(share.index)]
         table = table.drop(columns=["harmonic", "harmonic_frequency_hz"], errors="ignore")
-    counts = table["mode"].value_counts()
-    keep = counts.index[counts >= options.min_blocks]
-    table = table[table["mode"].isin(keep)]
-    if options.sort_by_frequency and len(table):
-        order = table.groupby("mode")["frequency_hz"].median().sort_values().index
-        relabel = {old: new for new, old in enumerate(order, start=1)}
-        table["mode"] = table["mode"].map(relabel).astype("int64")
     front = ["block", "block_start", "block_end", "mode", "frequency_hz", "damping_ratio", "mac"]
     if "model_order" in table.columns:
         front.append("model_order")

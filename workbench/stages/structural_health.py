@@ -11,7 +11,7 @@ import pandas as pd
 
 from data_contracts import FORECAST
 
-from ..health import HealthOptions, HealthResult, health_chart
+from ..health import HealthBaseline, HealthOptions, HealthResult, health_chart
 from ._base import StageResult, Summary, read_any_table, shown_once
 
 __all__ = ["HealthStageResult", "health"]
@@ -68,6 +68,7 @@ def health(
     *,
     options: HealthOptions | None = None,
     reference_hours: float | None = None,
+    baseline: HealthBaseline | None = None,
 ) -> HealthStageResult:
     """Structural-health chart of a forecast's standardised frequency residuals.
 
@@ -80,9 +81,16 @@ def health(
     reference_hours : float, optional
         Length of the reference period in hours; sets ``options.reference_blocks`` from
         the forecast's block step.
+    baseline : HealthBaseline, optional
+        An earlier voyage's chart (its options and reference, limits included): every
+        block of *forecast* is charted, from the first (*forecast* should be the
+        baseline's model's, :meth:`HealthBaseline.forecast`).
     """
-    options = options or HealthOptions()
     forecast = read_any_table(forecast, FORECAST, name="forecast")
+    if baseline is not None:
+        chart = baseline.chart(forecast)
+        return HealthStageResult(table=chart.table, alarms=chart.alarms, chart=chart)
+    options = options or HealthOptions()
     if reference_hours is not None:
         step = forecast["block_start"].drop_duplicates().sort_values().diff().median()
         blocks = int(round(reference_hours * 3600 / step.total_seconds()))

@@ -132,7 +132,8 @@ def track(
     selected : DataFrame or path
         Selected modes per block (``selected.parquet`` of :func:`identify`).
     reference_modes : DataFrame or path, optional
-        A modal table whose modes start the library (their labels are kept).
+        A modal table whose modes start the library (their labels are kept), or a health
+        baseline file (``.json``, ``workbench health --save-model``): its modes.
     options : TrackingOptions, optional
         Gate, threshold, frequency tolerance... (:class:`~workbench.sid.tracking.TrackingOptions`).
     progress : bool
@@ -145,7 +146,17 @@ def track(
     """
     source = selected
     selected = read_any_table(selected, SELECTED, name="selected")
-    if reference_modes is not None:
+    if isinstance(reference_modes, str | os.PathLike) and str(reference_modes).endswith(".json"):
+        from ..health import BaselineError, HealthBaseline
+
+        try:
+            baseline = HealthBaseline.load(reference_modes)
+            channels = [c[9:] for c in selected.columns if str(c).startswith("shape_re_")]
+            baseline.check_channels(channels, str(source))
+        except BaselineError as error:
+            raise WorkbenchError(str(error)) from None
+        reference_modes = baseline.modes
+    elif reference_modes is not None:
         reference_modes = read_any_table(reference_modes, MODAL, name="reference modes")
     tracked = track_modes(
         selected,
