@@ -19,7 +19,9 @@ __all__ = [
     "health_view",
     "heartbeat_stale",
     "iso",
+    "mode_references",
     "modes_view",
+    "shaft_view",
     "status_view",
     "tracked_view",
 ]
@@ -239,21 +241,98 @@ def modes_view(
     }
 
 
+def _percent(values, reference: float) -> list[float | None]:
+    """Relative change of *values* against *reference*, in %."""
+    return _nums(100.0 * (np.asarray(values, dtype=float) / reference - 1.0))
+
+
+def mode_references(
+    tracked: pd.DataFrame,
+    forecast: pd.DataFrame | None = None,
+    health: pd.DataFrame | None = None,
+    *,
+    option: str | None = None,
+) -> tuple[dict[int, float], str]:
+    """Each mode's reference frequency, against which its relative change is shown, and
+    what it is (one line for the reader).
+
+    The first available of: the median of the mode's tracked frequency over the health
+    chart's reference period (the in-control state the chart compares with); the median
+    of the forecast model's prediction so far; the median of its tracked frequency so far.
+    A mode without a value in the first gets it from the next.
+
+    Returns
+    -------
+    references : dict of int to float
+        Mode -> reference frequency. [Hz]
+    what : str
+        How the references were taken (of the first mode that has one).
+    """
+    references: dict[int, float] = {}
+    used: list[str] = []
+
+    def take(medians: pd.Series, what: str) -> None:
+        for mode, value in medians.items():
+            value = float(value)
+            if int(mode) not in references and math.isfinite(value) and value > 0:
+                references[int(mode)] = value
+                if what not in used:
+                    used.append(what)
+
+    if health is not None and not health.empty:
+        blocks = health.loc[health["phase"] == "reference", "block"].to_numpy()
+        if blocks.size:
+            rows = tracked[np.isin(tracked["block"].to_numpy(), blocks)]
+            first, last = int(blocks.min()), int(blocks.max())
+            take(
+                rows.groupby("mode")["frequency_hz"].median(),
+                f"median over the health reference period (blocks {first}-{last})",
+            )
+    if forecast is not None and not forecast.empty:
+        shown = choose_option(forecast, option)
+        rows = forecast[forecast["option"] == shown]
+        take(rows.groupby("mode")["model_frequency_hz"].median(), "median of the model so far")
+    take(tracked.groupby("mode")["frequency_hz"].median(), "median tracked frequency so far")
+    return references, "; ".join(used)
+
+
+#: A shaft order is drawn in a mode's panel when it comes this close to the mode's
+#: reference frequency in the window (relative): where a harmonic could pass for a change.
+ORDER_NEAR_MODE = 0.05
+
+
 def tracked_view(
-    tracked: pd.DataFrame, *, hours: float, harmonics: pd.DataFrame | None = None
+    tracked: pd.DataFrame,
+    *,
+    hours: float,
+    harmonics: pd.DataFrame | None = None,
+    forecast: pd.DataFrame | None = None,
+    health: pd.DataFrame | None = None,
+    option: str | None = None,
 ) -> dict[str, Any]:
-    """Tracked frequencies of the last *hours* before the newest block, one series per
-    mode (blocks, times, frequencies), and the shaft orders' lines over the same blocks
-    (*harmonics*: :data:`~workbench.dashboard.state.HARMONIC_LINES`), kept to the modes'
-    frequency range (±10 %) so that they do not stretch the axis."""
+    """Tracked frequencies of the last *hours* before the newest block, one panel per
+    mode, in relative change (%) against the mode's reference
+    (:func:`mode_references`), with the forecast model's prediction and 95 % band
+    (*forecast*, option *option*) in the same unit.
+
+    Each series has the absolute ``frequency_hz`` too, and ``orders``: the shaft orders
+    (*harmonics*: :data:`~workbench.dashboard.state.HARMONIC_LINES`) that come within
+    :data:`ORDER_NEAR_MODE` of the mode's reference in the window, in % of it (a line a
+    reader must not take for the mode). ``harmonics`` lists the orders within the modes'
+    frequency range (±10 %) in Hz.
+    """
     window = _window(tracked, hours).sort_values(["mode", "block"])
+    references, what = mode_references(tracked, forecast, health, option=option)
     lines = []
-    if harmonics is not None and not harmonics.empty and not window.empty:
+    first = last = None
+    shown_harmonics = None
+    if not window.empty:
+        first, last = int(window["block"].min()), int(window["block"].max())
+    if harmonics is not None and not harmonics.empty and first is not None:
         low = 0.9 * float(window["frequency_hz"].min())
         high = 1.1 * float(window["frequency_hz"].max())
-        first, last = int(window["block"].min()), int(window["block"].max())
-        shown = harmonics[harmonics["block"].between(first, last)].sort_values("block")
-        for order, rows in shown.groupby("order", sort=True):
+        shown_harmonics = harmonics[harmonics["block"].between(first, last)].sort_values("block")
+        for order, rows in shown_harmonics.groupby("order", sort=True):
             frequency = rows["frequency_hz"].where(rows["frequency_hz"].between(low, high))
             if frequency.notna().any():
                 lines.append(
@@ -264,24 +343,133 @@ def tracked_view(
                         "frequency_hz": _nums(frequency),
                     }
                 )
+    bands: dict[int, pd.DataFrame] = {}
+    shown_option = None
+    if forecast is not None and not forecast.empty and first is not None:
+        shown_option = choose_option(forecast, option)
+        rows = forecast[
+            (forecast["option"] == shown_option) & forecast["block"].between(first, last)
+        ]
+        bands = dict(tuple(rows.sort_values("block").groupby("mode", sort=True)))
     series = []
     for mode, rows in window.groupby("mode", sort=True):
-        series.append(
-            {
-                "mode": int(mode),
-                "block": rows["block"].astype(int).tolist(),
-                "t": _epoch_ms(rows["block_start"]),
-                "frequency_hz": _nums(rows["frequency_hz"]),
-            }
-        )
+        reference = references.get(int(mode))
+        item = {
+            "mode": int(mode),
+            "block": rows["block"].astype(int).tolist(),
+            "t": _epoch_ms(rows["block_start"]),
+            "frequency_hz": _nums(rows["frequency_hz"]),
+            "reference_hz": reference,
+            "change_percent": None,
+            "band": None,
+            "orders": [],
+        }
+        if reference is not None:
+            item["change_percent"] = _percent(rows["frequency_hz"], reference)
+            band = bands.get(int(mode))
+            if band is not None and band["model_frequency_hz"].notna().any():
+                item["band"] = {
+                    "block": band["block"].astype(int).tolist(),
+                    "t": _epoch_ms(band["block_start"]),
+                    "model_percent": _percent(band["model_frequency_hz"], reference),
+                    "lower_percent": _percent(band["model_lower_hz"], reference),
+                    "upper_percent": _percent(band["model_upper_hz"], reference),
+                }
+            if shown_harmonics is not None:
+                for order, part in shown_harmonics.groupby("order", sort=True):
+                    relative = part["frequency_hz"].to_numpy(float) / reference - 1.0
+                    if np.nanmin(np.abs(relative), initial=np.inf) <= ORDER_NEAR_MODE:
+                        item["orders"].append(
+                            {
+                                "order": float(order),
+                                "block": part["block"].astype(int).tolist(),
+                                "t": _epoch_ms(part["block_start"]),
+                                "change_percent": _nums(100.0 * relative),
+                            }
+                        )
+        series.append(item)
     return {
         "hours": hours,
         "block": int(tracked["block"].max()) if not tracked.empty else None,
         "start": iso(window["block_start"].min()) if not window.empty else None,
         "end": iso(window["block_start"].max()) if not window.empty else None,
+        "reference": what,
+        "option": shown_option,
         "series": series,
         "harmonics": lines,
     }
+
+
+def shaft_view(
+    harmonics: pd.DataFrame | None,
+    harmonic_tracks: pd.DataFrame | None,
+    *,
+    hours: float,
+) -> dict[str, Any]:
+    """The shaft orders and the tracked lines that are harmonics (not modes) over the
+    last *hours*.
+
+    Parameters
+    ----------
+    harmonics : DataFrame or None
+        :data:`~workbench.dashboard.state.HARMONIC_LINES`: each order's frequency per
+        block at the logged shaft speed.
+    harmonic_tracks : DataFrame or None
+        :data:`~workbench.dashboard.state.HARMONIC_TRACKS`: the identified lines the
+        tracking recognised as shaft or blade-pass harmonics and kept out of the modes.
+    """
+    newest_block = None
+    newest_start = None
+    for table in (harmonics, harmonic_tracks):
+        if table is not None and not table.empty:
+            block = int(table["block"].max())
+            if newest_block is None or block > newest_block:
+                newest_block = block
+                newest_start = table.loc[table["block"] == block, "block_start"].iloc[0]
+    view: dict[str, Any] = {
+        "hours": hours,
+        "block": newest_block,
+        "block_start": iso(newest_start),
+        "shaft_rpm": None,
+        "orders": [],
+        "tracks": [],
+    }
+    if newest_block is None:
+        return view
+    cut = newest_start - pd.Timedelta(hours=hours)
+    if harmonics is not None and not harmonics.empty:
+        lines = harmonics[harmonics["block_start"] > cut].sort_values("block")
+        newest = harmonics[harmonics["block"] == int(harmonics["block"].max())]
+        rpm = newest["frequency_hz"] / newest["order"] * 60.0
+        view["shaft_rpm"] = _num(rpm.median()) if len(rpm) else None
+        now = newest.set_index("order")["frequency_hz"]
+        for order, rows in lines.groupby("order", sort=True):
+            view["orders"].append(
+                {
+                    "order": float(order),
+                    "frequency_hz": _num(now.get(order)),
+                    "block": rows["block"].astype(int).tolist(),
+                    "t": _epoch_ms(rows["block_start"]),
+                    "line_hz": _nums(rows["frequency_hz"]),
+                }
+            )
+    if harmonic_tracks is not None and not harmonic_tracks.empty:
+        for track, rows in harmonic_tracks.sort_values("block").groupby("track", sort=True):
+            orders = rows["order"].dropna()
+            recent = rows[rows["block_start"] > cut]
+            view["tracks"].append(
+                {
+                    "track": int(track),
+                    "median_frequency_hz": _num(rows["frequency_hz"].median()),
+                    "blocks": len(rows),
+                    "order": _num(orders.mode().iloc[0]) if len(orders) else None,
+                    "last_block": int(rows["block"].max()),
+                    "block": recent["block"].astype(int).tolist(),
+                    "t": _epoch_ms(recent["block_start"]),
+                    "frequency_hz": _nums(recent["frequency_hz"]),
+                }
+            )
+    return view
 
 
 def health_view(health: pd.DataFrame, *, hours: float) -> dict[str, Any]:
