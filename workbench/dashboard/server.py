@@ -229,8 +229,10 @@ def _tracked(state: StateFolder, options: DashboardOptions) -> dict[str, Any]:
 def _shaft(state: StateFolder, options: DashboardOptions) -> dict[str, Any]:
     lines, tracks = state.read("harmonics"), state.read("harmonic_tracks")
     if not (lines.available or tracks.available):
+        # the monitor writes them only when the ship log carries the shaft speed
         return _unavailable(
-            "no shaft speed in the ship log (shaft_rpm): the shaft orders are not known"
+            f"{lines.error}: the shaft orders are known only from a ship log with the "
+            "shaft speed (shaft_rpm)"
         )
     view = shaft_view(lines.data, tracks.data, hours=options.hours)
     if view["block"] is None:

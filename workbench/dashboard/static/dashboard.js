@@ -152,9 +152,8 @@
         if (i >= 0 && last !== null && band.lower_percent[i] !== null &&
             (last < band.lower_percent[i] || last > band.upper_percent[i])) now.classList.add("outside");
       }
-      head.append(now);
-      head.append(el("span", { class: "ref" },
-        s.reference_hz === null ? " no reference yet" : ` vs ${fmt(s.reference_hz, 3)} Hz`));
+      head.append(" ", now, " ", el("span", { class: "ref" },
+        s.reference_hz === null ? "no reference yet" : `vs ${fmt(s.reference_hz, 3)} Hz`));
       panel.append(head);
       const svg = el("svg:svg", { class: "chart", "data-mode": s.mode, role: "img",
                                   "aria-label": `mode ${s.mode}, change against its reference in %` });
