@@ -241,9 +241,15 @@ def modes_view(
     }
 
 
-def _percent(values, reference: float) -> list[float | None]:
-    """Relative change of *values* against *reference*, in %."""
-    return _nums(100.0 * (np.asarray(values, dtype=float) / reference - 1.0))
+#: Decimals of the relative changes sent to the page: 1e-4 % (a millionth of the
+#: frequency), far below what SSI resolves, and a third of the JSON of full floats.
+PERCENT_DECIMALS = 4
+
+
+def _percent(values: np.ndarray, reference: float) -> list[float | None]:
+    """Relative change of *values* against *reference*, in % (None for NaN)."""
+    change = np.round(100.0 * (np.asarray(values, dtype=float) / reference - 1.0), PERCENT_DECIMALS)
+    return [float(v) if math.isfinite(v) else None for v in change]
 
 
 def mode_references(
@@ -252,6 +258,7 @@ def mode_references(
     health: pd.DataFrame | None = None,
     *,
     option: str | None = None,
+    modes=None,
 ) -> tuple[dict[int, float], str]:
     """Each mode's reference frequency, against which its relative change is shown, and
     what it is (one line for the reader).
@@ -261,20 +268,32 @@ def mode_references(
     of the forecast model's prediction so far; the median of its tracked frequency so far.
     A mode without a value in the first gets it from the next.
 
+    Parameters
+    ----------
+    modes : iterable of int, optional
+        The modes wanted (default: all); the later sources are read only for those the
+        earlier ones leave without a reference.
+
     Returns
     -------
     references : dict of int to float
         Mode -> reference frequency. [Hz]
     what : str
-        How the references were taken (of the first mode that has one).
+        How the references were taken ("; "-separated when several sources were used).
     """
     references: dict[int, float] = {}
     used: list[str] = []
+    wanted = None if modes is None else {int(m) for m in modes}
+
+    def missing() -> bool:
+        return wanted is None or not wanted <= references.keys()
 
     def take(medians: pd.Series, what: str) -> None:
         for mode, value in medians.items():
             value = float(value)
             if int(mode) not in references and math.isfinite(value) and value > 0:
+                if wanted is not None and int(mode) not in wanted:
+                    continue
                 references[int(mode)] = value
                 if what not in used:
                     used.append(what)
@@ -282,23 +301,38 @@ def mode_references(
     if health is not None and not health.empty:
         blocks = health.loc[health["phase"] == "reference", "block"].to_numpy()
         if blocks.size:
-            rows = tracked[np.isin(tracked["block"].to_numpy(), blocks)]
+            inside = np.isin(tracked["block"].to_numpy(), blocks)
+            frequency = pd.Series(tracked["frequency_hz"].to_numpy(dtype=float)[inside])
             first, last = int(blocks.min()), int(blocks.max())
             take(
-                rows.groupby("mode")["frequency_hz"].median(),
+                frequency.groupby(tracked["mode"].to_numpy()[inside]).median(),
                 f"median over the health reference period (blocks {first}-{last})",
             )
-    if forecast is not None and not forecast.empty:
-        shown = choose_option(forecast, option)
-        rows = forecast[forecast["option"] == shown]
-        take(rows.groupby("mode")["model_frequency_hz"].median(), "median of the model so far")
-    take(tracked.groupby("mode")["frequency_hz"].median(), "median tracked frequency so far")
+    if forecast is not None and not forecast.empty and missing():
+        shown = (forecast["option"] == choose_option(forecast, option)).to_numpy()
+        model = pd.Series(forecast["model_frequency_hz"].to_numpy(dtype=float)[shown])
+        take(
+            model.groupby(forecast["mode"].to_numpy()[shown]).median(),
+            "median of the model so far",
+        )
+    if missing():
+        take(tracked.groupby("mode")["frequency_hz"].median(), "median tracked frequency so far")
     return references, "; ".join(used)
 
 
 #: A shaft order is drawn in a mode's panel when it comes this close to the mode's
 #: reference frequency in the window (relative): where a harmonic could pass for a change.
 ORDER_NEAR_MODE = 0.05
+
+
+def _split(frame: pd.DataFrame, key: str) -> list[tuple[int, slice]]:
+    """(key value, row slice) of a frame sorted by *key*."""
+    values = frame[key].to_numpy()
+    if values.size == 0:
+        return []
+    keys, starts = np.unique(values, return_index=True)
+    ends = np.append(starts[1:], values.size)
+    return [(k, slice(int(a), int(b))) for k, a, b in zip(keys.tolist(), starts, ends, strict=True)]
 
 
 def tracked_view(
@@ -315,79 +349,105 @@ def tracked_view(
     (:func:`mode_references`), with the forecast model's prediction and 95 % band
     (*forecast*, option *option*) in the same unit.
 
-    Each series has the absolute ``frequency_hz`` too, and ``orders``: the shaft orders
-    (*harmonics*: :data:`~workbench.dashboard.state.HARMONIC_LINES`) that come within
+    Each series has the absolute ``frequency_hz`` too; its ``band`` gives the model per
+    block of the window (``block``: the times are those of ``blocks``, the window's
+    blocks and their start times); ``orders`` are the shaft orders (*harmonics*:
+    :data:`~workbench.dashboard.state.HARMONIC_LINES`) that come within
     :data:`ORDER_NEAR_MODE` of the mode's reference in the window, in % of it (a line a
     reader must not take for the mode). ``harmonics`` lists the orders within the modes'
     frequency range (±10 %) in Hz.
     """
-    window = _window(tracked, hours).sort_values(["mode", "block"])
-    references, what = mode_references(tracked, forecast, health, option=option)
-    lines = []
+    columns = ["block", "block_start", "mode", "frequency_hz"]
+    window = _window(tracked[columns], hours).sort_values(["mode", "block"], kind="stable")
     first = last = None
-    shown_harmonics = None
     if not window.empty:
         first, last = int(window["block"].min()), int(window["block"].max())
+    groups = _split(window, "mode")
+    references, what = mode_references(
+        tracked, forecast, health, option=option, modes=[mode for mode, _ in groups]
+    )
+    block = window["block"].to_numpy(dtype="int64")
+    t = np.asarray(_epoch_ms(window["block_start"]), dtype="int64")
+    frequency = window["frequency_hz"].to_numpy(dtype=float)
+    # the window's blocks and times, shared by the bands and the order lines
+    times = dict(zip(block.tolist(), t.tolist(), strict=True))
+    lines, near = [], []
     if harmonics is not None and not harmonics.empty and first is not None:
-        low = 0.9 * float(window["frequency_hz"].min())
-        high = 1.1 * float(window["frequency_hz"].max())
-        shown_harmonics = harmonics[harmonics["block"].between(first, last)].sort_values("block")
-        for order, rows in shown_harmonics.groupby("order", sort=True):
-            frequency = rows["frequency_hz"].where(rows["frequency_hz"].between(low, high))
-            if frequency.notna().any():
-                lines.append(
-                    {
-                        "order": float(order),
-                        "block": rows["block"].astype(int).tolist(),
-                        "t": _epoch_ms(rows["block_start"]),
-                        "frequency_hz": _nums(frequency),
-                    }
-                )
-    bands: dict[int, pd.DataFrame] = {}
+        low, high = 0.9 * float(np.nanmin(frequency)), 1.1 * float(np.nanmax(frequency))
+        shown = harmonics[harmonics["block"].between(first, last)]
+        shown = shown.sort_values(["order", "block"], kind="stable")
+        order_block = shown["block"].to_numpy(dtype="int64")
+        order_t = np.asarray(_epoch_ms(shown["block_start"]), dtype="int64")
+        order_hz = shown["frequency_hz"].to_numpy(dtype=float)
+        for order, rows in _split(shown, "order"):
+            hz = order_hz[rows]
+            inside = (hz >= low) & (hz <= high)
+            item = {
+                "order": float(order),
+                "block": order_block[rows].tolist(),
+                "t": order_t[rows].tolist(),
+            }
+            near.append((item, hz))
+            if inside.any():
+                lines.append({**item, "frequency_hz": _nums(np.where(inside, hz, np.nan))})
+    bands: dict[int, tuple[np.ndarray, ...]] = {}
     shown_option = None
     if forecast is not None and not forecast.empty and first is not None:
         shown_option = choose_option(forecast, option)
-        rows = forecast[
-            (forecast["option"] == shown_option) & forecast["block"].between(first, last)
+        inside = (forecast["option"] == shown_option) & forecast["block"].between(first, last)
+        wanted = ["block", "block_start", "mode"]
+        wanted += ["model_frequency_hz", "model_lower_hz", "model_upper_hz"]
+        rows = forecast[wanted][inside.to_numpy()].sort_values(["mode", "block"], kind="stable")
+        columns = [
+            rows[c].to_numpy(dtype=float)
+            for c in ("model_frequency_hz", "model_lower_hz", "model_upper_hz")
         ]
-        bands = dict(tuple(rows.sort_values("block").groupby("mode", sort=True)))
+        band_block = rows["block"].to_numpy(dtype="int64")
+        for mode, part in _split(rows, "mode"):
+            bands[int(mode)] = (band_block[part], *(c[part] for c in columns))
+        for blocks in bands.values():  # forecast blocks without a tracked estimate
+            for b in blocks[0][~np.isin(blocks[0], block)].tolist():
+                times.setdefault(b, None)
+        missing = [b for b, v in times.items() if v is None]
+        if missing:
+            extra = rows[rows["block"].isin(missing)].drop_duplicates("block")
+            times.update(zip(extra["block"].tolist(), _epoch_ms(extra["block_start"]), strict=True))
     series = []
-    for mode, rows in window.groupby("mode", sort=True):
+    for mode, rows in groups:
         reference = references.get(int(mode))
         item = {
             "mode": int(mode),
-            "block": rows["block"].astype(int).tolist(),
-            "t": _epoch_ms(rows["block_start"]),
-            "frequency_hz": _nums(rows["frequency_hz"]),
+            "block": block[rows].tolist(),
+            "t": t[rows].tolist(),
+            "frequency_hz": _nums(frequency[rows]),
             "reference_hz": reference,
             "change_percent": None,
             "band": None,
             "orders": [],
         }
         if reference is not None:
-            item["change_percent"] = _percent(rows["frequency_hz"], reference)
+            item["change_percent"] = _percent(frequency[rows], reference)
             band = bands.get(int(mode))
-            if band is not None and band["model_frequency_hz"].notna().any():
+            if band is not None and np.isfinite(band[1]).any():
                 item["band"] = {
-                    "block": band["block"].astype(int).tolist(),
-                    "t": _epoch_ms(band["block_start"]),
-                    "model_percent": _percent(band["model_frequency_hz"], reference),
-                    "lower_percent": _percent(band["model_lower_hz"], reference),
-                    "upper_percent": _percent(band["model_upper_hz"], reference),
+                    "block": band[0].tolist(),
+                    "model_percent": _percent(band[1], reference),
+                    "lower_percent": _percent(band[2], reference),
+                    "upper_percent": _percent(band[3], reference),
                 }
-            if shown_harmonics is not None:
-                for order, part in shown_harmonics.groupby("order", sort=True):
-                    relative = part["frequency_hz"].to_numpy(float) / reference - 1.0
-                    if np.nanmin(np.abs(relative), initial=np.inf) <= ORDER_NEAR_MODE:
-                        item["orders"].append(
-                            {
-                                "order": float(order),
-                                "block": part["block"].astype(int).tolist(),
-                                "t": _epoch_ms(part["block_start"]),
-                                "change_percent": _nums(100.0 * relative),
-                            }
-                        )
+            for order, hz in near:
+                relative = hz / reference - 1.0
+                if np.nanmin(np.abs(relative), initial=np.inf) <= ORDER_NEAR_MODE:
+                    item["orders"].append(
+                        {
+                            "order": order["order"],
+                            "block": order["block"],
+                            "t": order["t"],
+                            "change_percent": _percent(hz, reference),
+                        }
+                    )
         series.append(item)
+    ordered = sorted(times)
     return {
         "hours": hours,
         "block": int(tracked["block"].max()) if not tracked.empty else None,
@@ -395,6 +455,7 @@ def tracked_view(
         "end": iso(window["block_start"].max()) if not window.empty else None,
         "reference": what,
         "option": shown_option,
+        "blocks": {"block": ordered, "t": [times[b] for b in ordered]},
         "series": series,
         "harmonics": lines,
     }

@@ -137,6 +137,7 @@
     if (!d.available) return null;
     $("#tracked-sub").textContent = (d.start ? `last ${d.hours} h: ${hhmm(d.start)}Z – ${hhmm(d.end)}Z` : "") +
       (d.reference ? ` · reference: ${d.reference}` : "") + (d.option ? ` · band: forecast option ${d.option}` : "");
+    const when = new Map(d.blocks.block.map((b, i) => [b, d.blocks.t[i]]));
     for (const s of d.series) {
       const panel = el("div", { class: "mode-panel", "data-mode": s.mode });
       panel.style.setProperty("--mode", modeColour(s.mode));
@@ -161,8 +162,9 @@
       panels.append(panel);
       if (s.change_percent === null) continue;
       const series = [];
+      const bandT = band ? band.block.map((b) => when.get(b)) : null;
       if (band) {
-        series.push({ key: "model", cls: "model", x: band.t, y: band.model_percent, block: band.block,
+        series.push({ key: "model", cls: "model", x: bandT, y: band.model_percent, block: band.block,
                       noMarkers: true });
       }
       series.push({ key: s.mode, colour: modeColour(s.mode), x: s.t, y: s.change_percent, block: s.block });
@@ -172,7 +174,7 @@
       }
       drawChart(svg, {
         series, markers: true, zero: true, ylabel: "change [%]",
-        band: band ? { x: band.t, lo: band.lower_percent, hi: band.upper_percent, block: band.block } : null,
+        band: band ? { x: bandT, lo: band.lower_percent, hi: band.upper_percent, block: band.block } : null,
       });
     }
     return d.block;
