@@ -181,7 +181,8 @@ def modes_view(
     if tracked is not None and not tracked.empty:
         newest_block = int(tracked["block"].max())
         newest_start = tracked["block_start"].max()
-        last = tracked.sort_values("block").groupby("mode", sort=True).tail(1)
+        # each mode's newest row (block and mode are unique together)
+        last = tracked.loc[tracked.groupby("mode", sort=True)["block"].idxmax()]
         for row in last.itertuples(index=False):
             cards[int(row.mode)] = {
                 "mode": int(row.mode),
@@ -198,7 +199,7 @@ def modes_view(
             if newest_block is None or block > newest_block:
                 newest_block = block
                 newest_start = rows.loc[rows["block"] == block, "block_start"].iloc[0]
-            newest = rows.sort_values("block").groupby("mode", sort=True).tail(1)
+            newest = rows.loc[rows.groupby("mode", sort=True)["block"].idxmax()]
             for row in newest.itertuples(index=False):
                 card = cards.setdefault(int(row.mode), {"mode": int(row.mode)})
                 card.update(
@@ -357,18 +358,29 @@ def tracked_view(
     reader must not take for the mode). ``harmonics`` lists the orders within the modes'
     frequency range (±10 %) in Hz.
     """
-    columns = ["block", "block_start", "mode", "frequency_hz"]
-    window = _window(tracked[columns], hours).sort_values(["mode", "block"], kind="stable")
+    # the window's rows by mode and block, as arrays (the tracked table may be long)
+    start_ns = tracked["block_start"].to_numpy(dtype="datetime64[ns]")
+    newest = start_ns.max() if start_ns.size else np.datetime64("NaT")
+    inside = np.flatnonzero(start_ns > newest - np.timedelta64(int(hours * 3.6e12), "ns"))
+    mode_all = tracked["mode"].to_numpy(dtype="int64")[inside]
+    block = tracked["block"].to_numpy(dtype="int64")[inside]
+    order = np.lexsort((block, mode_all))
+    mode_all, block, inside = mode_all[order], block[order], inside[order]
+    frequency = tracked["frequency_hz"].to_numpy(dtype=float)[inside]
+    t = start_ns[inside].astype("datetime64[ms]").astype("int64")
     first = last = None
-    if not window.empty:
-        first, last = int(window["block"].min()), int(window["block"].max())
-    groups = _split(window, "mode")
+    if block.size:
+        first, last = int(block.min()), int(block.max())
+    groups = []
+    if mode_all.size:
+        keys, starts = np.unique(mode_all, return_index=True)
+        ends = np.append(starts[1:], mode_all.size)
+        groups = [
+            (int(k), slice(int(a), int(b))) for k, a, b in zip(keys, starts, ends, strict=True)
+        ]
     references, what = mode_references(
         tracked, forecast, health, option=option, modes=[mode for mode, _ in groups]
     )
-    block = window["block"].to_numpy(dtype="int64")
-    t = np.asarray(_epoch_ms(window["block_start"]), dtype="int64")
-    frequency = window["frequency_hz"].to_numpy(dtype=float)
     # the window's blocks and times, shared by the bands and the order lines
     times = dict(zip(block.tolist(), t.tolist(), strict=True))
     lines, near = [], []
@@ -381,23 +393,23 @@ def tracked_view(
         order_hz = shown["frequency_hz"].to_numpy(dtype=float)
         for order, rows in _split(shown, "order"):
             hz = order_hz[rows]
-            inside = (hz >= low) & (hz <= high)
+            in_range = (hz >= low) & (hz <= high)
             item = {
                 "order": float(order),
                 "block": order_block[rows].tolist(),
                 "t": order_t[rows].tolist(),
             }
             near.append((item, hz))
-            if inside.any():
-                lines.append({**item, "frequency_hz": _nums(np.where(inside, hz, np.nan))})
+            if in_range.any():
+                lines.append({**item, "frequency_hz": _nums(np.where(in_range, hz, np.nan))})
     bands: dict[int, tuple[np.ndarray, ...]] = {}
     shown_option = None
     if forecast is not None and not forecast.empty and first is not None:
         shown_option = choose_option(forecast, option)
-        inside = (forecast["option"] == shown_option) & forecast["block"].between(first, last)
+        chosen = (forecast["option"] == shown_option) & forecast["block"].between(first, last)
         wanted = ["block", "block_start", "mode"]
         wanted += ["model_frequency_hz", "model_lower_hz", "model_upper_hz"]
-        rows = forecast[wanted][inside.to_numpy()].sort_values(["mode", "block"], kind="stable")
+        rows = forecast[wanted][chosen.to_numpy()].sort_values(["mode", "block"], kind="stable")
         columns = [
             rows[c].to_numpy(dtype=float)
             for c in ("model_frequency_hz", "model_lower_hz", "model_upper_hz")
@@ -451,8 +463,8 @@ def tracked_view(
     return {
         "hours": hours,
         "block": int(tracked["block"].max()) if not tracked.empty else None,
-        "start": iso(window["block_start"].min()) if not window.empty else None,
-        "end": iso(window["block_start"].max()) if not window.empty else None,
+        "start": iso(pd.Timestamp(start_ns[inside].min(), tz="UTC")) if block.size else None,
+        "end": iso(pd.Timestamp(start_ns[inside].max(), tz="UTC")) if block.size else None,
         "reference": what,
         "option": shown_option,
         "blocks": {"block": ordered, "t": [times[b] for b in ordered]},
