@@ -13,6 +13,7 @@ import pytest
 
 from data_contracts import ALARMS, MODAL, write_table
 from workbench.monitor import Monitor, MonitorOptions
+from workbench.monitor.outlook import OutlookReport
 from workbench.monitor.shore import (
     INDICATOR_COLUMNS,
     AlarmHook,
@@ -88,7 +89,8 @@ def test_on_alarm_command_gets_each_new_episode_once_as_json(tmp_path):
     state.mkdir()
     write_table(_alarms(first), state / "alarms.parquet", ALARMS)
     with Monitor(watch, state, options=options) as monitor:
-        monitor.hand_on()
+        # what the monitor does with each forecast/health update it collects
+        monitor._collect(OutlookReport())
         monitor.alarm_hook.wait()
         got = _wait_lines(received, 1)
         # the episode grows and a second one starts: only the second is new

@@ -138,6 +138,7 @@
     $("#tracked-sub").textContent = (d.start ? `last ${d.hours} h: ${hhmm(d.start)}Z – ${hhmm(d.end)}Z` : "") +
       (d.reference ? ` · reference: ${d.reference}` : "") + (d.option ? ` · band: forecast option ${d.option}` : "");
     const when = new Map(d.blocks.block.map((b, i) => [b, d.blocks.t[i]]));
+    const charts = [];  // drawn once every panel is in place: one layout, not one per panel
     for (const s of d.series) {
       const panel = el("div", { class: "mode-panel", "data-mode": s.mode });
       panel.style.setProperty("--mode", modeColour(s.mode));
@@ -172,11 +173,13 @@
         series.push({ key: `order ${o.order}`, cls: "harmonic", x: o.t, y: o.change_percent, block: o.block,
                       noMarkers: true, clip: true, label: `order ${orderName(o.order)}` });
       }
-      drawChart(svg, {
+      charts.push([svg, {
         series, markers: true, zero: true, ylabel: "change [%]",
         band: band ? { x: bandT, lo: band.lower_percent, hi: band.upper_percent, block: band.block } : null,
-      });
+      }]);
     }
+    const sizes = charts.map(([svg]) => [svg.clientWidth, svg.clientHeight]);
+    charts.forEach(([svg, spec], i) => drawChart(svg, { ...spec, size: sizes[i] }));
     return d.block;
   };
 
@@ -298,7 +301,8 @@
   }
 
   function drawChart(svg, spec) {
-    const width = svg.clientWidth || 1000, height = svg.clientHeight || 280;
+    const [w, h] = spec.size || [svg.clientWidth, svg.clientHeight];
+    const width = w || 1000, height = h || 280;
     const m = { left: 58, right: 12, top: 10, bottom: 26 };
     svg.setAttribute("viewBox", `0 0 ${width} ${height}`);
     svg.replaceChildren();
@@ -447,11 +451,13 @@
     const response = await fetch(`api/${name}`, { cache: "no-store", headers });
     if (response.status === 304) return;
     const data = await response.json();
+    const started = performance.now();
     const shown = render[name](data);
+    const ms = performance.now() - started;  // drawing time, for benchmarks
     etags[name] = response.headers.get("ETag");
     const section = document.getElementById(name);
     if (section) section.dataset.block = shown === null || shown === undefined ? "" : shown;
-    state.rendered[name] = { at: Date.now(), value: shown };
+    state.rendered[name] = { at: Date.now(), value: shown, ms };
   }
 
   async function poll() {
