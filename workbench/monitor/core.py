@@ -204,6 +204,8 @@ class Monitor:
                 host=self.host,
             )
         self._indicators_through = -1  # newest block in the daily key-indicator files
+        self._alarms_seen: tuple = (None, None)  # (size, mtime) of alarms.parquet, table
+        self._tracked: pd.DataFrame | None = None  # the tracked table last written
 
     @property
     def tracked_through(self) -> int:
@@ -640,6 +642,7 @@ class Monitor:
 
             tracked = self.tracking.table(marker=marker)
             write_table(tracked, self.state / "tracked.parquet", MODAL)
+            self._tracked = tracked  # what the state folder holds, for the key indicators
             self._write_harmonic_lines(tracked)
             self._write_harmonic_tracks(tracked.attrs.get("harmonic_labels", []))
 
@@ -845,17 +848,21 @@ class Monitor:
         """After an outlook: run the alarm hook for the new alarm episodes and write the
         daily key indicators of the days with new blocks (:mod:`workbench.monitor.shore`).
         A failure is reported in the messages; the monitor goes on."""
-        from data_contracts import ALARMS, FORECAST, read_table
+        from data_contracts import ALARMS, read_table
 
         from .shore import days_of_blocks, write_daily_indicators
 
         alarms = None
         path = self.state / "alarms.parquet"
         try:
-            if path.is_file():
+            key = _file_key(path)
+            if key is not None and key == self._alarms_seen[0]:
+                alarms = self._alarms_seen[1]  # unchanged: nothing new to hand on
+            elif key is not None:
                 alarms = read_table(path, ALARMS)
-            if self.alarm_hook is not None and alarms is not None:
-                self.alarm_hook.notify(alarms)
+                if self.alarm_hook is not None:
+                    self.alarm_hook.notify(alarms)
+                self._alarms_seen = (key, alarms)
         except (OSError, ValueError) as error:  # ContractError is a ValueError
             self._report(f"on-alarm: alarms.parquet not read ({str(error).splitlines()[0]})")
         if not self.options.key_indicators or self.voyage is None:
@@ -874,13 +881,32 @@ class Monitor:
             first = max(
                 0, int(math.ceil((day_start - grid.t0) / pd.Timedelta(seconds=grid.step_s)))
             )
-            tracked = pd.read_parquet(
-                self.state / "tracked.parquet", filters=[("block", ">=", first)]
-            )
+            # only the columns and days needed (written by this monitor under their
+            # contracts), so the cost stays a day's worth however long the voyage
+            since = [("block", ">=", first)]
+            columns = ["block", "block_start", "mode", "frequency_hz", "damping_ratio"]
+            if self._tracked is not None:
+                tracked = self._tracked
+                tracked = tracked.loc[tracked["block"].to_numpy() >= first, columns]
+            else:
+                tracked = pd.read_parquet(
+                    self.state / "tracked.parquet", columns=columns, filters=since
+                )
             forecast = None
             if (self.state / "forecast.parquet").is_file():
-                forecast = read_table(self.state / "forecast.parquet", FORECAST)
-                forecast = forecast[forecast["block"] >= first]
+                forecast = pd.read_parquet(
+                    self.state / "forecast.parquet",
+                    columns=[
+                        "block",
+                        "mode",
+                        "option",
+                        "ssi_frequency_hz",
+                        "model_frequency_hz",
+                        "model_lower_hz",
+                        "model_upper_hz",
+                    ],
+                    filters=since,
+                )
             if len(tracked):
                 days = days_of_blocks(tracked.loc[tracked["block"] >= first_new, "block_start"])
                 days = days or days_of_blocks(tracked["block_start"].iloc[-1:])

@@ -265,7 +265,9 @@ def daily_indicators(
         ``option``, ``modes`` (one dict per mode with the :data:`INDICATOR_COLUMNS`
         values) and ``alarms`` (the day's episodes).
     """
-    rows = tracked[_day_of(tracked["block_start"]) == day]
+    start = pd.Timestamp(day, tz="UTC")
+    end = start + pd.Timedelta(days=1)
+    rows = tracked[(tracked["block_start"] >= start) & (tracked["block_start"] < end)]
     if len(rows):
         first, last = int(rows["block"].min()), int(rows["block"].max())
     else:
@@ -287,8 +289,6 @@ def daily_indicators(
         )
     episodes = []
     if alarms is not None and len(alarms):
-        start = pd.Timestamp(day, tz="UTC")
-        end = start + pd.Timedelta(days=1)
         on = alarms[(alarms["start_time"] < end) & (alarms["end_time"] >= start)]
         for row in on.sort_values("start_block").itertuples(index=False):
             episodes.append(
