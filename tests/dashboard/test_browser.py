@@ -13,6 +13,7 @@ import json
 import math
 import os
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -26,15 +27,16 @@ READ_PAGE = """(() => {
   const text = (sel) => [...document.querySelectorAll(sel)].map((n) => n.innerText.trim());
   const visible = (sel) => { const n = document.querySelector(sel);
                              return !!n && n.getClientRects().length > 0; };
-  const series = [...document.querySelectorAll("#tracked-chart g.series")];
+  const panels = [...document.querySelectorAll("#mode-panels .mode-panel")];
+  const ssi = (p) => p.querySelector(`g.series[data-key="${p.dataset.mode}"]`);
   return {
     status: document.getElementById("status").innerText,
     cards: [...document.querySelectorAll("#modes .mode-card")].map((c) => ({
       mode: +c.dataset.mode, text: c.innerText, stale: c.classList.contains("stale")})),
     modesHeading: document.querySelector("#modes h2").innerText,
-    series: series.map((g) => ({key: +g.dataset.key, points: +g.dataset.points,
-                                circles: g.querySelectorAll("circle").length,
-                                colour: g.querySelector("path").getAttribute("stroke")})),
+    series: panels.filter(ssi).map((p) => ({key: +p.dataset.mode, points: +ssi(p).dataset.points,
+                                circles: ssi(p).querySelectorAll("circle").length,
+                                colour: ssi(p).querySelector("path").getAttribute("stroke")})),
     legend: text("#tracked .legend span"),
     healthHeading: document.querySelector("#health h2").innerText,
     healthLimit: document.querySelectorAll("#health-chart path.limit").length,
@@ -111,7 +113,12 @@ def test_reader_sees_modes_series_health_alarms_and_data_health(browser, voyage,
     assert [s["points"] for s in seen["series"]] == counts.tolist()
     assert [s["circles"] for s in seen["series"]] == counts.tolist()
     assert len({s["colour"] for s in seen["series"]}) == len(counts)
-    assert seen["legend"] == [f"mode {m}" for m in counts.index]
+    assert seen["legend"] == [
+        "tracked (SSI)",
+        "model",
+        "model 95 % band",
+        "shaft order (not a mode)",
+    ]
     # health chart: the statistic, its limit, the alarming blocks
     health = state.health[state.health["block"] <= newest]
     assert seen["healthLine"] == 1 and seen["healthLimit"] == 1
@@ -281,37 +288,171 @@ def test_given_up_blocks_are_named_on_the_page(browser, voyage, tmp_path, serve)
     assert page.evaluate("document.getElementById('status-given-up').innerText") == ""
 
 
-def test_tracked_panel_draws_the_shaft_orders_beside_the_modes(browser, voyage, tmp_path, serve):
-    from data_contracts import write_table
-    from workbench.dashboard.state import HARMONIC_LINES
+#: Per mode panel: its heading, the y-axis (tick values and positions), the newest SSI
+#: point and the model band's outline, in the SVG's own coordinates.
+READ_MODE_PANELS = """(() => [...document.querySelectorAll("#mode-panels .mode-panel")].map((p) => {
+  const svg = p.querySelector("svg");
+  const ticks = [...svg.querySelectorAll("g.axes text")].filter(
+    (t) => t.getAttribute("text-anchor") === "end" && !t.getAttribute("transform"));
+  const ssi = svg.querySelector(`g.series[data-key="${p.dataset.mode}"]`);
+  const circles = ssi ? [...ssi.querySelectorAll("circle")] : [];
+  const last = circles[circles.length - 1];
+  return {
+    mode: +p.dataset.mode,
+    heading: p.querySelector("h3").innerText,
+    nowOutside: p.querySelector("h3 .now").classList.contains("outside"),
+    ylabel: [...svg.querySelectorAll("g.axes text[transform]")].map((t) => t.textContent),
+    ticks: ticks.map((t) => [+t.textContent, +t.getAttribute("y") - 4]),
+    points: circles.length,
+    last: last ? [+last.getAttribute("cx"), +last.getAttribute("cy")] : null,
+    bands: [...svg.querySelectorAll("path.band")].map((b) => b.getAttribute("d")),
+    model: svg.querySelectorAll("g.series[data-key=model] path.model").length,
+    orders: [...svg.querySelectorAll("path.harmonic")].map((h) => ({
+      label: h.parentNode.querySelector("text.series-label").textContent,
+      circles: h.parentNode.querySelectorAll("circle").length,
+      dash: getComputedStyle(h).strokeDasharray})),
+  };
+}))()"""
 
-    newest = 150
+
+def _scale(ticks: list[list[float]]) -> tuple[float, float]:
+    """(pixels per %, pixel of 0 %) from the y-axis tick labels (value, pixel)."""
+    (v0, y0), (v1, y1) = ticks[0], ticks[-1]
+    per = (y0 - y1) / (v1 - v0)
+    return per, y0 + v0 * per
+
+
+def _points(path: str) -> list[tuple[float, float]]:
+    return [tuple(map(float, p.split(","))) for p in path.strip("MZ").split("L")]
+
+
+def test_mode_panels_show_the_change_in_percent_with_the_model_band(
+    browser, voyage, tmp_path, serve
+):
+    """Issue 29: one panel per mode, in % against the mode's reference (the median of its
+    tracked frequency over the health chart's reference period), with the model's 95 %
+    band; 0.5 % spans several pixels (on the former shared 2.8-8.3 Hz axis of 244 px it
+    was 0.6 px for mode 1), the newest point sits at its relative change, and mode 3's
+    stiffness loss reads as a drop out of its band."""
+    onset = int(voyage.alarms["start_block"].iloc[0])
+    newest = onset + 6
     state = publish(voyage, tmp_path, newest)
-    blocks = state.tracked[["block", "block_start"]].drop_duplicates("block")
-    # 180 rpm: order 1 at 3 Hz, among the modes; order 5 at 15 Hz, above them (left out)
-    lines = pd.concat(
-        [blocks.assign(order=k, frequency_hz=k * 3.0) for k in (1.0, 5.0)], ignore_index=True
-    )
-    write_table(lines, tmp_path / "harmonics.parquet", HARMONIC_LINES)
     served = serve(tmp_path, DashboardOptions(hours=6.0, poll_seconds=0.2))
     page = browser.open(served.url)
     _shows(page, "tracked", newest)
     _settled(page)
-    seen = page.evaluate(
+    panels = page.evaluate(READ_MODE_PANELS)
+    sub = page.evaluate("document.getElementById('tracked-sub').innerText")
+    reference_blocks = state.health.loc[state.health["phase"] == "reference", "block"]
+    first, last = int(reference_blocks.min()), int(reference_blocks.max())
+    assert f"reference: median over the health reference period (blocks {first}-{last})" in sub
+    tracked = state.tracked[state.tracked["block"] <= newest]
+    in_reference = tracked[tracked["block"].between(first, last)]
+    references = in_reference.groupby("mode")["frequency_hz"].median()
+    window = tracked[tracked["block"].between(newest - 71, newest)]
+    forecast = state.forecast[state.forecast["block"].between(newest - 71, newest)]
+    assert [p["mode"] for p in panels] == list(range(1, 8))
+    for panel in panels:
+        mode = panel["mode"]
+        reference = references[mode]
+        rows = window[window["mode"] == mode].sort_values("block")
+        change = 100.0 * (rows["frequency_hz"].iloc[-1] / reference - 1.0)
+        sign = "+" if change > 0 else "−"
+        assert panel["heading"] == f"Mode {mode} {sign}{abs(change):.2f} % vs {reference:.3f} Hz"
+        assert panel["ylabel"] == ["change [%]"] and panel["points"] == len(rows)
+        per_percent, zero = _scale(panel["ticks"])
+        # half a per cent is visible: 5 px at least here (the demo's daily temperature
+        # swing widens some panels), 10x what the shared axis gave the lowest mode
+        shared = 244.0 * 0.005 * references.min() / (1.1 * np.ptp(window["frequency_hz"]))
+        assert per_percent * 0.5 > max(5.0, 10.0 * shared)
+        # the newest point is drawn at its relative change (SVG coordinates to 0.1 px)
+        assert (zero - panel["last"][1]) / per_percent == pytest.approx(change, abs=0.02)
+        # the band: one outline over the 72 blocks, upper bounds then lower bounds
+        band = forecast[forecast["mode"] == mode].sort_values("block")
+        assert len(panel["bands"]) == 1 and panel["model"] == 1
+        outline = _points(panel["bands"][0])
+        assert len(outline) == 2 * len(band) == 144
+        upper = 100.0 * (band["model_upper_hz"].iloc[-1] / reference - 1.0)
+        lower = 100.0 * (band["model_lower_hz"].iloc[-1] / reference - 1.0)
+        assert (zero - outline[len(band) - 1][1]) / per_percent == pytest.approx(upper, abs=0.02)
+        assert (zero - outline[len(band)][1]) / per_percent == pytest.approx(lower, abs=0.02)
+        assert panel["nowOutside"] == (not lower <= change <= upper)
+        assert panel["orders"] == []  # no shaft speed logged: no order drawn
+    # the 3 % stiffness loss of mode 3 (1.5 % in frequency): below its band, in amber
+    mode3 = panels[2]
+    assert mode3["heading"].startswith("Mode 3 −1.") and mode3["nowOutside"]
+    # without a logged shaft speed the shaft panel says why it is empty
+    assert page.evaluate("document.querySelector('#shaft .placeholder').innerText") == (
+        "waiting for data: harmonics.parquet not written yet: the shaft orders are known "
+        "only from a ship log with the shaft speed (shaft_rpm)"
+    )
+
+
+def test_shaft_orders_and_harmonic_lines_are_shown_as_such_never_as_modes(
+    browser, voyage, tmp_path, serve
+):
+    """The shaft orders at the logged shaft speed (174 rpm: order 1 at 2.9 Hz, 1.5 % above
+    mode 1) and a tracked line that is order 1's harmonic: listed and drawn as shaft
+    orders and harmonics, the order dashed and labelled in mode 1's panel only, no card
+    or panel of their own."""
+    from data_contracts import write_table
+    from workbench.dashboard.state import HARMONIC_LINES, HARMONIC_TRACKS
+
+    newest = 150
+    state = publish(voyage, tmp_path, newest)
+    blocks = state.tracked[["block", "block_start"]].drop_duplicates("block")
+    blocks = blocks[blocks["block"] <= newest]
+    rpm = 174.0
+    lines = pd.concat(
+        [blocks.assign(order=k, frequency_hz=k * rpm / 60.0) for k in (1.0, 2.0, 3.0, 5.0)],
+        ignore_index=True,
+    )
+    write_table(lines, tmp_path / "harmonics.parquet", HARMONIC_LINES)
+    track = blocks.iloc[::2].assign(track=1, frequency_hz=2.906, order=1.0)
+    write_table(track, tmp_path / "harmonic_tracks.parquet", HARMONIC_TRACKS)
+    served = serve(tmp_path, DashboardOptions(hours=6.0, poll_seconds=0.2))
+    page = browser.open(served.url)
+    for panel in ("tracked", "shaft", "modes"):
+        _shows(page, panel, newest)
+    _settled(page)
+    panels = page.evaluate(READ_MODE_PANELS)
+    seen = page.evaluate(READ_PAGE)
+    shaft = page.evaluate(
         """(() => ({
-      harmonic: [...document.querySelectorAll("#tracked-chart path.harmonic")].map(
-        (p) => ({d: p.getAttribute("d").length, circles: p.parentNode.querySelectorAll(
-          "circle").length, dash: getComputedStyle(p).strokeDasharray})),
-      modes: document.querySelectorAll("#tracked-chart g.series").length,
-      legend: [...document.querySelectorAll("#tracked .legend span")].map((n) => n.innerText),
+      sub: document.getElementById("shaft-sub").innerText,
+      orders: [...document.querySelectorAll("#shaft-orders dd")].map((d) => [
+        d.previousElementSibling.innerText, d.innerText]),
+      tracks: [...document.querySelectorAll("#shaft-tracks li")].map((l) => l.innerText),
+      lines: [...document.querySelectorAll("#shaft-chart path.harmonic")].map((p) =>
+        p.parentNode.querySelector("text.series-label").textContent),
+      points: document.querySelectorAll("#shaft-chart circle.harmonic-point").length,
     }))()"""
     )
-    window = state.tracked[state.tracked["block"].between(newest - 71, newest)]
-    assert len(seen["harmonic"]) == 1  # order 5 is outside the modes' range
-    assert seen["harmonic"][0]["d"] > 0 and seen["harmonic"][0]["circles"] == 0
-    assert seen["harmonic"][0]["dash"] not in ("", "none")
-    assert seen["modes"] == window["mode"].nunique() + 1
-    assert seen["legend"][-1] == "shaft orders 1×"
+    # modes only among the cards and the mode panels
+    assert [c["mode"] for c in seen["cards"]] == [p["mode"] for p in panels] == list(range(1, 8))
+    # order 1 passes 1.5 % above mode 1 (reference 2.857 Hz): drawn dashed and named there
+    near = [p["mode"] for p in panels if p["orders"]]
+    assert near == [1]
+    assert [o["label"] for o in panels[0]["orders"]] == ["order 1×"]
+    assert panels[0]["orders"][0]["circles"] == 0
+    assert panels[0]["orders"][0]["dash"] not in ("", "none")
+    per_percent, zero = _scale(panels[0]["ticks"])
+    assert per_percent > 0
+    # the shaft panel: the orders' frequencies now, the harmonic line as such
+    assert shaft["sub"] == f"block {newest} · shaft 174.0 rpm · last 6 h"
+    assert shaft["orders"] == [
+        ["order 1×", "2.900 Hz"],
+        ["order 2×", "5.800 Hz"],
+        ["order 3×", "8.700 Hz"],
+        ["order 5×", "14.500 Hz"],
+    ]
+    assert shaft["tracks"] == [
+        f"harmonic 1: 2.906 Hz on order 1×, {len(track)} blocks (last {track['block'].max()}) "
+        "- not a mode"
+    ]
+    assert shaft["lines"] == ["order 1×", "order 2×", "order 3×", "order 5×"]
+    in_window = track[track["block"] > newest - 72]
+    assert shaft["points"] == len(in_window)
 
 
 def test_killed_monitor_turns_from_running_to_not_responding(browser, tmp_path, serve):

@@ -143,6 +143,47 @@ def test_tracked_panel_draws_the_shaft_orders_in_the_modes_range(tmp_path, voyag
     assert sum(len(s["frequency_hz"]) for s in data["series"]) == len(window)
 
 
+def test_tracked_panel_in_percent_of_each_modes_reference(tmp_path, voyage, serve):
+    """Before the health chart exists the reference is the model's median so far; the
+    changes, the band and the shared block times follow from the tables."""
+    from workbench.dashboard.views import mode_references
+
+    publish(voyage, tmp_path, 150)  # the health chart starts after its reference (block 215)
+    data = panel(serve(tmp_path, DashboardOptions(hours=3.0)), "tracked")
+    tracked = voyage.tracked[voyage.tracked["block"] <= 150]
+    forecast = voyage.forecast[voyage.forecast["block"] <= 150]
+    model = forecast[forecast["option"] == "A"].groupby("mode")["model_frequency_hz"].median()
+    assert data["reference"] == "median of the model so far" and data["option"] == "A"
+    assert data["start"] == "2024-03-01T09:35:00Z" and data["end"] == "2024-03-01T12:30:00Z"
+    assert data["blocks"]["block"] == list(range(115, 151))
+    times = dict(zip(data["blocks"]["block"], data["blocks"]["t"], strict=True))
+    for series in data["series"]:
+        reference = model[series["mode"]]
+        assert series["reference_hz"] == reference
+        rows = tracked[(tracked["mode"] == series["mode"]) & (tracked["block"] >= 115)]
+        np.testing.assert_allclose(
+            series["change_percent"], 100 * (rows["frequency_hz"] / reference - 1), atol=5e-5
+        )
+        band = forecast[(forecast["mode"] == series["mode"]) & (forecast["block"] >= 115)]
+        assert series["band"]["block"] == band["block"].tolist()
+        np.testing.assert_allclose(
+            series["band"]["upper_percent"],
+            100 * (band["model_upper_hz"] / reference - 1),
+            atol=5e-5,
+        )
+        assert [times[b] for b in series["block"]] == series["t"]
+    # without forecast nor health: the tracked median; with the health chart: its reference
+    alone, what = mode_references(tracked)
+    assert what == "median tracked frequency so far"
+    assert alone == tracked.groupby("mode")["frequency_hz"].median().to_dict()
+    health = voyage.health
+    charted, what = mode_references(voyage.tracked, voyage.forecast, health)
+    blocks = health.loc[health["phase"] == "reference", "block"]
+    assert what == f"median over the health reference period (blocks {blocks.min()}-{blocks.max()})"
+    in_reference = voyage.tracked[voyage.tracked["block"].isin(blocks)]
+    assert charted == in_reference.groupby("mode")["frequency_hz"].median().to_dict()
+
+
 def test_health_and_alarms_follow_the_chart(tmp_path, voyage, serve):
     onset = int(voyage.alarms["start_block"].iloc[0])
     publish(voyage, tmp_path, onset + 5)

@@ -9,6 +9,7 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -110,6 +111,24 @@ def test_replayed_voyage_equals_batch(voyage, batch, tmp_path):
     lines = pd.read_parquet(state / "harmonics.parquet")
     assert sorted(lines["order"].unique()) == [1.0, 2.0, 3.0]
     assert set(lines["block"]) == set(pd.read_parquet(state / "tracked.parquet")["block"])
+    # the shore's key indicators of the day (the voyage is 1.5 h of one day): the tracked
+    # table's medians per mode, and the forecast's residuals
+    tracked = pd.read_parquet(state / "tracked.parquet")
+    day = tracked["block_start"].iloc[0].strftime("%Y-%m-%d")
+    assert sorted(p.name for p in (state / "shore").iterdir()) == [
+        f"key_indicators_{day}.csv",
+        f"key_indicators_{day}.json",
+    ]
+    indicators = pd.read_csv(state / "shore" / f"key_indicators_{day}.csv")
+    medians = tracked.groupby("mode")["frequency_hz"].median()
+    assert indicators["mode"].tolist() == medians.index.tolist()
+    np.testing.assert_allclose(indicators["median_frequency_hz"], medians, rtol=1e-15)
+    forecast = pd.read_parquet(state / "forecast.parquet")
+    residual = (forecast["ssi_frequency_hz"] - forecast["model_frequency_hz"]).dropna()
+    shown = indicators.set_index("mode")["median_model_residual_hz"].dropna()
+    expected = residual.groupby(forecast["mode"]).median()
+    assert len(shown) >= 1
+    np.testing.assert_allclose(shown, expected.reindex(shown.index), rtol=1e-12)
     health = pd.read_parquet(state / "data_health.parquet")
     assert list(health.columns) == list(DATA_HEALTH_COLUMNS)
     assert health["block"].tolist() == list(range(n_blocks))

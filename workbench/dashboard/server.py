@@ -6,7 +6,7 @@ Routes (GET and HEAD only; the server never writes into the state folder):
 ``/static/<file>``        its script and style sheet, from the package data
 ``/api/versions``         one ETag per panel and the server's clock
 ``/api/<panel>``          a panel's data as JSON (``status``, ``modes``, ``tracked``,
-                          ``health``, ``alarms``, ``data_health``)
+                          ``shaft``, ``health``, ``alarms``, ``data_health``)
 
 The page polls ``/api/versions`` and fetches only the panels whose ETag changed. A
 panel's ETag is a digest of the signatures (mtime in ns, size, inode) of the state files
@@ -65,6 +65,7 @@ from .views import (
     data_health_view,
     health_view,
     modes_view,
+    shaft_view,
     status_view,
     tracked_view,
 )
@@ -211,9 +212,32 @@ def _tracked(state: StateFolder, options: DashboardOptions) -> dict[str, Any]:
         return _unavailable(snap.error)
     if snap.data.empty:
         return _unavailable("no block identified yet")
-    lines = state.read("harmonics")  # optional: only with a logged shaft speed
-    harmonics = lines.data if lines.available else None
-    return _panel(tracked_view(snap.data, hours=options.hours, harmonics=harmonics), snap.error)
+    # optional: the shaft orders only with a logged shaft speed; the model's band and the
+    # health chart's reference period once they exist
+    lines, forecast, health = (state.read(n) for n in ("harmonics", "forecast", "health"))
+    view = tracked_view(
+        snap.data,
+        hours=options.hours,
+        harmonics=lines.data,
+        forecast=forecast.data,
+        health=health.data,
+        option=options.option,
+    )
+    return _panel(view, snap.error)
+
+
+def _shaft(state: StateFolder, options: DashboardOptions) -> dict[str, Any]:
+    lines, tracks = state.read("harmonics"), state.read("harmonic_tracks")
+    if not (lines.available or tracks.available):
+        # the monitor writes them only when the ship log carries the shaft speed
+        return _unavailable(
+            f"{lines.error}: the shaft orders are known only from a ship log with the "
+            "shaft speed (shaft_rpm)"
+        )
+    view = shaft_view(lines.data, tracks.data, hours=options.hours)
+    if view["block"] is None:
+        return _unavailable("no block with a logged shaft speed yet")
+    return _panel(view, lines.error, tracks.error)
 
 
 def _health(state: StateFolder, options: DashboardOptions) -> dict[str, Any]:
@@ -249,7 +273,8 @@ def _data_health(state: StateFolder, options: DashboardOptions) -> dict[str, Any
 PANELS: dict[str, Panel] = {
     "status": Panel(("status", "heartbeat"), _status),
     "modes": Panel(("tracked", "forecast"), _modes),
-    "tracked": Panel(("tracked", "harmonics"), _tracked),
+    "tracked": Panel(("tracked", "harmonics", "forecast", "health"), _tracked),
+    "shaft": Panel(("harmonics", "harmonic_tracks"), _shaft),
     "health": Panel(("health",), _health),
     "alarms": Panel(("alarms", "health"), _alarms),
     "data_health": Panel(("data_health",), _data_health),

@@ -12,6 +12,8 @@ written atomically (temporary file, then rename). Any file may be absent early o
 ``data_health.parquet``     :data:`DATA_HEALTH`: channels, gaps and latency per block
 ``harmonics.parquet``       :data:`HARMONIC_LINES`: frequency of each shaft order per block
                             (when the ship log carries the shaft speed)
+``harmonic_tracks.parquet`` :data:`HARMONIC_TRACKS`: the tracked lines recognised as shaft
+                            or blade-pass harmonics (kept out of the modes), per block
 ``status.json``             :data:`STATUS_KEYS`: the monitor's progress (per block)
 ``heartbeat.json``          :data:`HEARTBEAT_KEYS`: the monitor's heartbeat (every poll
                             interval, from a timer thread), with the last file it took
@@ -49,6 +51,7 @@ from data_contracts import (
 __all__ = [
     "DATA_HEALTH",
     "HARMONIC_LINES",
+    "HARMONIC_TRACKS",
     "HEARTBEAT_KEYS",
     "STATE_FILES",
     "STATUS_KEYS",
@@ -101,6 +104,28 @@ HARMONIC_LINES = TableContract(
     unique=("block", "order"),
 )
 
+#: The tracked lines that are shaft or blade-pass harmonics, not modes (written by the
+#: monitor when the ship log carries the shaft speed): one row per block and line.
+HARMONIC_TRACKS = TableContract(
+    name="harmonic_tracks",
+    description="Lines the tracking followed from block to block and recognised as shaft "
+    "or blade-pass harmonics (most of their blocks on a shaft order), so kept out of the "
+    "tracked modes, forecasts and health chart: shown as harmonics, never as modes.",
+    columns=(
+        Column("block", "int", "Block number on the voyage's block grid.", minimum=0),
+        Column("block_start", "time", "Start of the block, UTC.", unit="UTC"),
+        Column("track", "int", "Number of the harmonic line (by median frequency).", minimum=1),
+        Column("frequency_hz", "float", "Identified frequency in the block.", unit="Hz"),
+        Column(
+            "order",
+            "float",
+            "Shaft order the block's frequency sits on (empty: none in this block).",
+            nullable=True,
+        ),
+    ),
+    unique=("block", "track"),
+)
+
 #: File names of the state folder by part, with the contract of each table.
 STATE_FILES: dict[str, tuple[str, TableContract | None]] = {
     "tracked": ("tracked.parquet", MODAL),
@@ -109,6 +134,7 @@ STATE_FILES: dict[str, tuple[str, TableContract | None]] = {
     "alarms": ("alarms.parquet", ALARMS),
     "data_health": ("data_health.parquet", DATA_HEALTH),
     "harmonics": ("harmonics.parquet", HARMONIC_LINES),
+    "harmonic_tracks": ("harmonic_tracks.parquet", HARMONIC_TRACKS),
     "status": ("status.json", None),
     "heartbeat": ("heartbeat.json", None),
 }

@@ -19,7 +19,9 @@ __all__ = [
     "health_view",
     "heartbeat_stale",
     "iso",
+    "mode_references",
     "modes_view",
+    "shaft_view",
     "status_view",
     "tracked_view",
 ]
@@ -179,7 +181,8 @@ def modes_view(
     if tracked is not None and not tracked.empty:
         newest_block = int(tracked["block"].max())
         newest_start = tracked["block_start"].max()
-        last = tracked.sort_values("block").groupby("mode", sort=True).tail(1)
+        # each mode's newest row (block and mode are unique together)
+        last = tracked.loc[tracked.groupby("mode", sort=True)["block"].idxmax()]
         for row in last.itertuples(index=False):
             cards[int(row.mode)] = {
                 "mode": int(row.mode),
@@ -196,7 +199,7 @@ def modes_view(
             if newest_block is None or block > newest_block:
                 newest_block = block
                 newest_start = rows.loc[rows["block"] == block, "block_start"].iloc[0]
-            newest = rows.sort_values("block").groupby("mode", sort=True).tail(1)
+            newest = rows.loc[rows.groupby("mode", sort=True)["block"].idxmax()]
             for row in newest.itertuples(index=False):
                 card = cards.setdefault(int(row.mode), {"mode": int(row.mode)})
                 card.update(
@@ -239,49 +242,307 @@ def modes_view(
     }
 
 
-def tracked_view(
-    tracked: pd.DataFrame, *, hours: float, harmonics: pd.DataFrame | None = None
-) -> dict[str, Any]:
-    """Tracked frequencies of the last *hours* before the newest block, one series per
-    mode (blocks, times, frequencies), and the shaft orders' lines over the same blocks
-    (*harmonics*: :data:`~workbench.dashboard.state.HARMONIC_LINES`), kept to the modes'
-    frequency range (±10 %) so that they do not stretch the axis."""
-    window = _window(tracked, hours).sort_values(["mode", "block"])
-    lines = []
-    if harmonics is not None and not harmonics.empty and not window.empty:
-        low = 0.9 * float(window["frequency_hz"].min())
-        high = 1.1 * float(window["frequency_hz"].max())
-        first, last = int(window["block"].min()), int(window["block"].max())
-        shown = harmonics[harmonics["block"].between(first, last)].sort_values("block")
-        for order, rows in shown.groupby("order", sort=True):
-            frequency = rows["frequency_hz"].where(rows["frequency_hz"].between(low, high))
-            if frequency.notna().any():
-                lines.append(
-                    {
-                        "order": float(order),
-                        "block": rows["block"].astype(int).tolist(),
-                        "t": _epoch_ms(rows["block_start"]),
-                        "frequency_hz": _nums(frequency),
-                    }
-                )
-    series = []
-    for mode, rows in window.groupby("mode", sort=True):
-        series.append(
-            {
-                "mode": int(mode),
-                "block": rows["block"].astype(int).tolist(),
-                "t": _epoch_ms(rows["block_start"]),
-                "frequency_hz": _nums(rows["frequency_hz"]),
-            }
+#: Decimals of the relative changes sent to the page: 1e-4 % (a millionth of the
+#: frequency), far below what SSI resolves, and a third of the JSON of full floats.
+PERCENT_DECIMALS = 4
+
+
+def _percent(values: np.ndarray, reference: float) -> list[float | None]:
+    """Relative change of *values* against *reference*, in % (None for NaN)."""
+    change = np.round(100.0 * (np.asarray(values, dtype=float) / reference - 1.0), PERCENT_DECIMALS)
+    return [float(v) if math.isfinite(v) else None for v in change]
+
+
+def mode_references(
+    tracked: pd.DataFrame,
+    forecast: pd.DataFrame | None = None,
+    health: pd.DataFrame | None = None,
+    *,
+    option: str | None = None,
+    modes=None,
+) -> tuple[dict[int, float], str]:
+    """Each mode's reference frequency, against which its relative change is shown, and
+    what it is (one line for the reader).
+
+    The first available of: the median of the mode's tracked frequency over the health
+    chart's reference period (the in-control state the chart compares with); the median
+    of the forecast model's prediction so far; the median of its tracked frequency so far.
+    A mode without a value in the first gets it from the next.
+
+    Parameters
+    ----------
+    modes : iterable of int, optional
+        The modes wanted (default: all); the later sources are read only for those the
+        earlier ones leave without a reference.
+
+    Returns
+    -------
+    references : dict of int to float
+        Mode -> reference frequency. [Hz]
+    what : str
+        How the references were taken ("; "-separated when several sources were used).
+    """
+    references: dict[int, float] = {}
+    used: list[str] = []
+    wanted = None if modes is None else {int(m) for m in modes}
+
+    def missing() -> bool:
+        return wanted is None or not wanted <= references.keys()
+
+    def take(medians: pd.Series, what: str) -> None:
+        for mode, value in medians.items():
+            value = float(value)
+            if int(mode) not in references and math.isfinite(value) and value > 0:
+                if wanted is not None and int(mode) not in wanted:
+                    continue
+                references[int(mode)] = value
+                if what not in used:
+                    used.append(what)
+
+    if health is not None and not health.empty:
+        blocks = health.loc[health["phase"] == "reference", "block"].to_numpy()
+        if blocks.size:
+            inside = np.isin(tracked["block"].to_numpy(), blocks)
+            frequency = pd.Series(tracked["frequency_hz"].to_numpy(dtype=float)[inside])
+            first, last = int(blocks.min()), int(blocks.max())
+            take(
+                frequency.groupby(tracked["mode"].to_numpy()[inside]).median(),
+                f"median over the health reference period (blocks {first}-{last})",
+            )
+    if forecast is not None and not forecast.empty and missing():
+        shown = (forecast["option"] == choose_option(forecast, option)).to_numpy()
+        model = pd.Series(forecast["model_frequency_hz"].to_numpy(dtype=float)[shown])
+        take(
+            model.groupby(forecast["mode"].to_numpy()[shown]).median(),
+            "median of the model so far",
         )
+    if missing():
+        take(tracked.groupby("mode")["frequency_hz"].median(), "median tracked frequency so far")
+    return references, "; ".join(used)
+
+
+#: A shaft order is drawn in a mode's panel when it comes this close to the mode's
+#: reference frequency in the window (relative): where a harmonic could pass for a change.
+ORDER_NEAR_MODE = 0.05
+
+
+def _split(frame: pd.DataFrame, key: str) -> list[tuple[int, slice]]:
+    """(key value, row slice) of a frame sorted by *key*."""
+    values = frame[key].to_numpy()
+    if values.size == 0:
+        return []
+    keys, starts = np.unique(values, return_index=True)
+    ends = np.append(starts[1:], values.size)
+    return [(k, slice(int(a), int(b))) for k, a, b in zip(keys.tolist(), starts, ends, strict=True)]
+
+
+def tracked_view(
+    tracked: pd.DataFrame,
+    *,
+    hours: float,
+    harmonics: pd.DataFrame | None = None,
+    forecast: pd.DataFrame | None = None,
+    health: pd.DataFrame | None = None,
+    option: str | None = None,
+) -> dict[str, Any]:
+    """Tracked frequencies of the last *hours* before the newest block, one panel per
+    mode, in relative change (%) against the mode's reference
+    (:func:`mode_references`), with the forecast model's prediction and 95 % band
+    (*forecast*, option *option*) in the same unit.
+
+    Each series has the absolute ``frequency_hz`` too; its ``band`` gives the model per
+    block of the window (``block``: the times are those of ``blocks``, the window's
+    blocks and their start times); ``orders`` are the shaft orders (*harmonics*:
+    :data:`~workbench.dashboard.state.HARMONIC_LINES`) that come within
+    :data:`ORDER_NEAR_MODE` of the mode's reference in the window, in % of it (a line a
+    reader must not take for the mode). ``harmonics`` lists the orders within the modes'
+    frequency range (±10 %) in Hz.
+    """
+    # the window's rows by mode and block, as arrays (the tracked table may be long)
+    start_ns = tracked["block_start"].to_numpy(dtype="datetime64[ns]")
+    newest = start_ns.max() if start_ns.size else np.datetime64("NaT")
+    inside = np.flatnonzero(start_ns > newest - np.timedelta64(int(hours * 3.6e12), "ns"))
+    mode_all = tracked["mode"].to_numpy(dtype="int64")[inside]
+    block = tracked["block"].to_numpy(dtype="int64")[inside]
+    order = np.lexsort((block, mode_all))
+    mode_all, block, inside = mode_all[order], block[order], inside[order]
+    frequency = tracked["frequency_hz"].to_numpy(dtype=float)[inside]
+    t = start_ns[inside].astype("datetime64[ms]").astype("int64")
+    first = last = None
+    if block.size:
+        first, last = int(block.min()), int(block.max())
+    groups = []
+    if mode_all.size:
+        keys, starts = np.unique(mode_all, return_index=True)
+        ends = np.append(starts[1:], mode_all.size)
+        groups = [
+            (int(k), slice(int(a), int(b))) for k, a, b in zip(keys, starts, ends, strict=True)
+        ]
+    references, what = mode_references(
+        tracked, forecast, health, option=option, modes=[mode for mode, _ in groups]
+    )
+    # the window's blocks and times, shared by the bands and the order lines
+    times = dict(zip(block.tolist(), t.tolist(), strict=True))
+    lines, near = [], []
+    if harmonics is not None and not harmonics.empty and first is not None:
+        low, high = 0.9 * float(np.nanmin(frequency)), 1.1 * float(np.nanmax(frequency))
+        shown = harmonics[harmonics["block"].between(first, last)]
+        shown = shown.sort_values(["order", "block"], kind="stable")
+        order_block = shown["block"].to_numpy(dtype="int64")
+        order_t = np.asarray(_epoch_ms(shown["block_start"]), dtype="int64")
+        order_hz = shown["frequency_hz"].to_numpy(dtype=float)
+        for order, rows in _split(shown, "order"):
+            hz = order_hz[rows]
+            in_range = (hz >= low) & (hz <= high)
+            item = {
+                "order": float(order),
+                "block": order_block[rows].tolist(),
+                "t": order_t[rows].tolist(),
+            }
+            near.append((item, hz))
+            if in_range.any():
+                lines.append({**item, "frequency_hz": _nums(np.where(in_range, hz, np.nan))})
+    bands: dict[int, tuple[np.ndarray, ...]] = {}
+    shown_option = None
+    if forecast is not None and not forecast.empty and first is not None:
+        shown_option = choose_option(forecast, option)
+        chosen = (forecast["option"] == shown_option) & forecast["block"].between(first, last)
+        wanted = ["block", "block_start", "mode"]
+        wanted += ["model_frequency_hz", "model_lower_hz", "model_upper_hz"]
+        rows = forecast[wanted][chosen.to_numpy()].sort_values(["mode", "block"], kind="stable")
+        columns = [
+            rows[c].to_numpy(dtype=float)
+            for c in ("model_frequency_hz", "model_lower_hz", "model_upper_hz")
+        ]
+        band_block = rows["block"].to_numpy(dtype="int64")
+        for mode, part in _split(rows, "mode"):
+            bands[int(mode)] = (band_block[part], *(c[part] for c in columns))
+        for blocks in bands.values():  # forecast blocks without a tracked estimate
+            for b in blocks[0][~np.isin(blocks[0], block)].tolist():
+                times.setdefault(b, None)
+        missing = [b for b, v in times.items() if v is None]
+        if missing:
+            extra = rows[rows["block"].isin(missing)].drop_duplicates("block")
+            times.update(zip(extra["block"].tolist(), _epoch_ms(extra["block_start"]), strict=True))
+    series = []
+    for mode, rows in groups:
+        reference = references.get(int(mode))
+        item = {
+            "mode": int(mode),
+            "block": block[rows].tolist(),
+            "t": t[rows].tolist(),
+            "frequency_hz": _nums(frequency[rows]),
+            "reference_hz": reference,
+            "change_percent": None,
+            "band": None,
+            "orders": [],
+        }
+        if reference is not None:
+            item["change_percent"] = _percent(frequency[rows], reference)
+            band = bands.get(int(mode))
+            if band is not None and np.isfinite(band[1]).any():
+                item["band"] = {
+                    "block": band[0].tolist(),
+                    "model_percent": _percent(band[1], reference),
+                    "lower_percent": _percent(band[2], reference),
+                    "upper_percent": _percent(band[3], reference),
+                }
+            for order, hz in near:
+                relative = hz / reference - 1.0
+                if np.nanmin(np.abs(relative), initial=np.inf) <= ORDER_NEAR_MODE:
+                    item["orders"].append(
+                        {
+                            "order": order["order"],
+                            "block": order["block"],
+                            "t": order["t"],
+                            "change_percent": _percent(hz, reference),
+                        }
+                    )
+        series.append(item)
+    ordered = sorted(times)
     return {
         "hours": hours,
         "block": int(tracked["block"].max()) if not tracked.empty else None,
-        "start": iso(window["block_start"].min()) if not window.empty else None,
-        "end": iso(window["block_start"].max()) if not window.empty else None,
+        "start": iso(pd.Timestamp(start_ns[inside].min(), tz="UTC")) if block.size else None,
+        "end": iso(pd.Timestamp(start_ns[inside].max(), tz="UTC")) if block.size else None,
+        "reference": what,
+        "option": shown_option,
+        "blocks": {"block": ordered, "t": [times[b] for b in ordered]},
         "series": series,
         "harmonics": lines,
     }
+
+
+def shaft_view(
+    harmonics: pd.DataFrame | None,
+    harmonic_tracks: pd.DataFrame | None,
+    *,
+    hours: float,
+) -> dict[str, Any]:
+    """The shaft orders and the tracked lines that are harmonics (not modes) over the
+    last *hours*.
+
+    Parameters
+    ----------
+    harmonics : DataFrame or None
+        :data:`~workbench.dashboard.state.HARMONIC_LINES`: each order's frequency per
+        block at the logged shaft speed.
+    harmonic_tracks : DataFrame or None
+        :data:`~workbench.dashboard.state.HARMONIC_TRACKS`: the identified lines the
+        tracking recognised as shaft or blade-pass harmonics and kept out of the modes.
+    """
+    newest_block = None
+    newest_start = None
+    for table in (harmonics, harmonic_tracks):
+        if table is not None and not table.empty:
+            block = int(table["block"].max())
+            if newest_block is None or block > newest_block:
+                newest_block = block
+                newest_start = table.loc[table["block"] == block, "block_start"].iloc[0]
+    view: dict[str, Any] = {
+        "hours": hours,
+        "block": newest_block,
+        "block_start": iso(newest_start),
+        "shaft_rpm": None,
+        "orders": [],
+        "tracks": [],
+    }
+    if newest_block is None:
+        return view
+    cut = newest_start - pd.Timedelta(hours=hours)
+    if harmonics is not None and not harmonics.empty:
+        lines = harmonics[harmonics["block_start"] > cut].sort_values("block")
+        newest = harmonics[harmonics["block"] == int(harmonics["block"].max())]
+        rpm = newest["frequency_hz"] / newest["order"] * 60.0
+        view["shaft_rpm"] = _num(rpm.median()) if len(rpm) else None
+        now = newest.set_index("order")["frequency_hz"]
+        for order, rows in lines.groupby("order", sort=True):
+            view["orders"].append(
+                {
+                    "order": float(order),
+                    "frequency_hz": _num(now.get(order)),
+                    "block": rows["block"].astype(int).tolist(),
+                    "t": _epoch_ms(rows["block_start"]),
+                    "line_hz": _nums(rows["frequency_hz"]),
+                }
+            )
+    if harmonic_tracks is not None and not harmonic_tracks.empty:
+        for track, rows in harmonic_tracks.sort_values("block").groupby("track", sort=True):
+            orders = rows["order"].dropna()
+            recent = rows[rows["block_start"] > cut]
+            view["tracks"].append(
+                {
+                    "track": int(track),
+                    "median_frequency_hz": _num(rows["frequency_hz"].median()),
+                    "blocks": len(rows),
+                    "order": _num(orders.mode().iloc[0]) if len(orders) else None,
+                    "last_block": int(rows["block"].max()),
+                    "block": recent["block"].astype(int).tolist(),
+                    "t": _epoch_ms(recent["block_start"]),
+                    "frequency_hz": _nums(recent["frequency_hz"]),
+                }
+            )
+    return view
 
 
 def health_view(health: pd.DataFrame, *, hours: float) -> dict[str, Any]:

@@ -28,6 +28,8 @@ half-written file::
                                  a message naming the label)
     <state>/harmonics.parquet    the shaft orders' frequencies per tracked block (with a
                                  logged shaft speed; workbench.dashboard.state.HARMONIC_LINES)
+    <state>/harmonic_tracks.parquet  the tracked lines left out as shaft harmonics, per
+                                 block (workbench.dashboard.state.HARMONIC_TRACKS)
     <state>/forecast.parquet     FORECAST contract: sliding forecast + Kalman, all blocks
     <state>/health.parquet       HEALTH contract (empty until model and reference are learned)
     <state>/alarms.parquet       ALARMS contract (empty until then, and while no alarm)
@@ -51,6 +53,10 @@ half-written file::
                                   "last_file": str|null, "last_file_taken_at": ISO UTC|null,
                                   "worker": {"state": "none"|"alive"|"stopped",
                                              "pid": int|null, "message": str}}
+    <state>/shore/key_indicators_YYYY-MM-DD.json and .csv
+                                 the day's key indicators for the shore, per mode
+                                 (workbench.monitor.shore.write_daily_indicators)
+    <state>/alarm_hook.json      the alarm episodes handed to --on-alarm (by first block)
     <state>/store/               the per-block store (:class:`~workbench.store.BlockStore`,
                                  the same layout and parameters as ``workbench identify``'s)
 
@@ -100,6 +106,13 @@ When is a block identified
   table (not the identification) of the blocks after it.
 * The block grid is anchored at the first file (as in ``workbench identify``) and kept in
   the store: a file starting before it is refused with a message.
+
+Handing on
+----------
+After each forecast/health update the monitor runs ``--on-alarm COMMAND`` once per new
+alarm episode (the episode as JSON on its stdin, in a thread of its own with a timeout;
+a failure becomes a message, the monitor goes on) and rewrites the key indicators of the
+days that got blocks (:mod:`workbench.monitor.shore`).
 
 Resuming
 --------

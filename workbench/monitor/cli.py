@@ -49,6 +49,7 @@ _DEFAULTS = {
     "settle": 1.0,
     "late": 900.0,
     "flush_after": 900.0,
+    "on_alarm_timeout": 30.0,
 }
 
 
@@ -65,7 +66,8 @@ def add_monitor(commands: argparse._SubParsersAction) -> None:
         description="Identify every block as soon as its files are complete, track the "
         "modes, update the forecast and the health chart incrementally, and keep a state "
         "folder (tracked.parquet, forecast.parquet, health.parquet, alarms.parquet, "
-        "data_health.parquet, status.json, heartbeat.json) that a dashboard reads. Resumable: stop it "
+        "data_health.parquet, status.json, heartbeat.json) that a dashboard reads, and the "
+        "daily key indicators for the shore (shore/key_indicators_DAY.json and .csv). Resumable: stop it "
         "(Ctrl-C, SIGTERM, even kill -9) and start it again, it carries on without losing "
         "or repeating a block. Results equal those of identify + track + forecast over "
         "the same files.",
@@ -113,6 +115,19 @@ def add_monitor(commands: argparse._SubParsersAction) -> None:
         "--foreground",
         action="store_true",
         help="recompute forecast and health in this process (default: a background process)",
+    )
+    parser.add_argument(
+        "--on-alarm",
+        metavar="COMMAND",
+        help="run COMMAND (split like a shell command line, run without a shell) once per "
+        "new alarm episode, the alarm as JSON on its stdin; its failure is reported in the "
+        "monitor's messages and the monitor goes on",
+    )
+    parser.add_argument(
+        "--on-alarm-timeout",
+        type=float,
+        metavar="S",
+        help="stop an --on-alarm command after S seconds and report it (30)",
     )
     ident = parser.add_argument_group("identification (as workbench identify)")
     ident.add_argument("--method", choices=("cov", "data", "lscf"))
@@ -293,6 +308,7 @@ def _options(args: argparse.Namespace):
     from ..sid.tracking import TrackingOptions
     from .core import MonitorOptions
     from .outlook import ForecastSettings
+    from .shore import parse_command
 
     identify = identify_options(args)
     harmonics = _harmonic_options(args)  # as identify --dship marks them
@@ -333,6 +349,8 @@ def _options(args: argparse.Namespace):
             late_s=args.late,
             flush_after_s=args.flush_after,
             background=not (args.foreground or args.once),
+            on_alarm=parse_command(args.on_alarm) if args.on_alarm is not None else (),
+            on_alarm_timeout_s=args.on_alarm_timeout,
         )
     except (ValueError, argparse.ArgumentTypeError) as error:
         raise UsageError(str(error)) from None

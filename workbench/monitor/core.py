@@ -33,8 +33,9 @@ from ..sid.tracking import TrackingOptions
 from ..store import BlockStore, StoreLock
 from .conditioning import block_conditioner, forget_conditioned
 from .data_health import DATA_HEALTH_COLUMNS, data_health_row, write_data_health
-from .outlook import ForecastSettings, OutlookReport, update_outlook
+from .outlook import ForecastSettings, OutlookReport, empty_table, update_outlook
 from .readiness import settled
+from .shore import AlarmHook
 from .tracking import IncrementalTracking
 from .watcher import FolderWatcher, LandedFile
 
@@ -77,6 +78,15 @@ class MonitorOptions:
     background : bool
         Recompute forecast and health in a background process, so that they never delay
         the next block (live mode); ``False``: in this process after the blocks.
+    on_alarm : tuple of str
+        Command (argument vector, run without a shell) run once per new alarm episode
+        with the alarm as JSON on its stdin (:class:`~workbench.monitor.shore.AlarmHook`);
+        empty: none.
+    on_alarm_timeout_s : float
+        A run of *on_alarm* longer than this is stopped and reported. [s]
+    key_indicators : bool
+        Write the daily key indicators for the shore (``<state>/shore/``,
+        :func:`~workbench.monitor.shore.write_daily_indicators`).
     """
 
     identify: IdentifyOptions = field(default_factory=IdentifyOptions)
@@ -88,8 +98,15 @@ class MonitorOptions:
     late_s: float = 900.0
     flush_after_s: float = 900.0
     background: bool = True
+    on_alarm: tuple[str, ...] = ()
+    on_alarm_timeout_s: float = 30.0
+    key_indicators: bool = True
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "on_alarm", tuple(str(a) for a in self.on_alarm))
+        timeout = self.on_alarm_timeout_s
+        if not (isinstance(timeout, int | float) and math.isfinite(timeout) and timeout > 0):
+            raise ValueError(f"on_alarm_timeout_s={timeout!r} must be a positive number of seconds")
         for name in ("poll_s", "settle_s", "late_s", "flush_after_s"):
             value = float(getattr(self, name))
             if not (math.isfinite(value) and value >= 0):
@@ -174,6 +191,7 @@ class Monitor:
         self._harmonic_marks: dict[int, np.ndarray] = {}  # block -> marks, once the log covers it
         self._health_schedule = ""  # from which block the health chart monitors
         self._marks_pending = False
+        self._marked: pd.DataFrame | None = None  # selected modes with their marks
         # liveness (heartbeat.json): the last file taken and the background worker's state
         self._last_taken: tuple[str, pd.Timestamp] | None = None
         self._worker = {"state": "none", "pid": None, "message": ""}
@@ -181,6 +199,19 @@ class Monitor:
         self._heartbeat_stop = threading.Event()
         self._heartbeat_thread: threading.Thread | None = None
         self.host = socket.gethostname()
+        # handed on: the alarm hook and the shore's daily key indicators
+        self.alarm_hook = None
+        if self.options.on_alarm:
+            self.alarm_hook = AlarmHook(
+                self.options.on_alarm,
+                self.state,
+                timeout_s=self.options.on_alarm_timeout_s,
+                report=self._report,
+                host=self.host,
+            )
+        self._indicators_through = -1  # newest block in the daily key-indicator files
+        self._alarms_seen: tuple = (None, None)  # (size, mtime) of alarms.parquet, table
+        self._tracked: pd.DataFrame | None = None  # the tracked table last written
 
     def _load_baseline(self):
         """The health baseline, refused (one line, exit 1) when unreadable or when the ship
@@ -246,6 +277,8 @@ class Monitor:
                 self._outlook_due = True
             if self._outlook_due:  # a clean stop leaves the outlook of every block
                 self.update_outlook(background=False)
+        if self.alarm_hook is not None:
+            self.alarm_hook.wait()
         self._write_status(state)
         self.write_heartbeat("stopped")
         if self.store is not None:
@@ -610,6 +643,32 @@ class Monitor:
         lines["block_start"] = pd.to_datetime(lines["block_start"], utc=True)
         write_table(lines, self.state / "harmonics.parquet", HARMONIC_LINES)
 
+    def _write_harmonic_tracks(self, labels: list[dict]) -> None:
+        """``harmonic_tracks.parquet``: the rows of the tracked lines recognised as shaft
+        or blade-pass harmonics (left out of ``tracked.parquet``), so that a reader sees
+        them as harmonics, never as modes (nothing without a logged shaft speed)."""
+        from ..dashboard.state import HARMONIC_TRACKS
+
+        path = self.state / "harmonic_tracks.parquet"
+        frame = self._marked
+        if frame is None or not labels:
+            if path.exists():  # the lines once recognised are modes after all
+                write_table(empty_table(HARMONIC_TRACKS), path, HARMONIC_TRACKS)
+            return
+        labels = sorted(labels, key=lambda h: h["frequency_hz"])
+        rows = self.tracking.rows_of(h["label"] for h in labels)
+        parts = []
+        for track, found in enumerate(labels, start=1):
+            part = frame.loc[rows[found["label"]], ["block", "block_start", "frequency_hz"]]
+            order = frame.loc[rows[found["label"]], "harmonic"]
+            parts.append(part.assign(track=track, order=order.to_numpy(float)))
+        table = pd.concat(parts, ignore_index=True).drop_duplicates(["block", "track"])
+        table["block_start"] = pd.to_datetime(table["block_start"], utc=True)
+        table = table.sort_values(["block", "track"], kind="stable").reset_index(drop=True)
+        write_table(
+            table[["block", "block_start", "track", "frequency_hz", "order"]], path, HARMONIC_TRACKS
+        )
+
     def _advance_tracking(self) -> None:
         """Feed the decided blocks to the tracker in block order and write the tracked
         table and the labels shown when it grew (see :class:`IncrementalTracking`)."""
@@ -618,9 +677,17 @@ class Monitor:
         self.tracking.check_labels()
         # marks of blocks the log did not cover yet may change: written again with the log
         if grew or self._marks_pending or not (self.state / "tracked.parquet").exists():
-            tracked = self.tracking.table(marker=self._mark_harmonics)
+            self._marked = None
+
+            def marker(frame: pd.DataFrame) -> pd.DataFrame:
+                self._marked = self._mark_harmonics(frame)  # kept for the harmonic lines
+                return self._marked
+
+            tracked = self.tracking.table(marker=marker)
             write_table(tracked, self.state / "tracked.parquet", MODAL)
+            self._tracked = tracked  # what the state folder holds, for the key indicators
             self._write_harmonic_lines(tracked)
+            self._write_harmonic_tracks(tracked.attrs.get("harmonic_labels", []))
             # after the table: a label in labels.json is in the store's blocks
             self.tracking.write_labels(self.state / "labels.json")
 
@@ -819,6 +886,90 @@ class Monitor:
         for message in report.messages:
             if message not in self.messages[-20:]:
                 self.messages.append(message)
+        if report.written:
+            self.hand_on()
+
+    def _report(self, message: str) -> None:
+        log.warning("%s", message)
+        self.messages.append(message)
+
+    def hand_on(self) -> None:
+        """After an outlook: run the alarm hook for the new alarm episodes and write the
+        daily key indicators of the days with new blocks (:mod:`workbench.monitor.shore`).
+        A failure is reported in the messages; the monitor goes on."""
+        from data_contracts import ALARMS, read_table
+
+        from .shore import days_of_blocks, write_daily_indicators
+
+        alarms = None
+        path = self.state / "alarms.parquet"
+        try:
+            key = _file_key(path)
+            if key is not None and key == self._alarms_seen[0]:
+                alarms = self._alarms_seen[1]  # unchanged: nothing new to hand on
+            elif key is not None:
+                alarms = read_table(path, ALARMS)
+                if self.alarm_hook is not None:
+                    self.alarm_hook.notify(alarms)
+                self._alarms_seen = (key, alarms)
+        except (OSError, ValueError) as error:  # ContractError is a ValueError
+            self._report(f"on-alarm: alarms.parquet not read ({str(error).splitlines()[0]})")
+        if not self.options.key_indicators or self.voyage is None:
+            return
+        newest = self.tracking.tracked_through
+        if newest < 0:
+            return
+        try:
+            # the days with new blocks, and the newest day again (its forecast may have
+            # caught up with its blocks): a day's worth of rows at most, after a restart all
+            grid = self.voyage.grid
+            first_new = min(self._indicators_through + 1, newest)
+            days = days_of_blocks([grid.start(first_new), grid.start(newest)])
+            # whole days: from the first block of the earliest day touched
+            day_start = pd.Timestamp(days[0], tz="UTC")
+            first = max(
+                0, int(math.ceil((day_start - grid.t0) / pd.Timedelta(seconds=grid.step_s)))
+            )
+            # only the columns and days needed (written by this monitor under their
+            # contracts), so the cost stays a day's worth however long the voyage
+            since = [("block", ">=", first)]
+            columns = ["block", "block_start", "mode", "frequency_hz", "damping_ratio"]
+            if self._tracked is not None:
+                tracked = self._tracked
+                tracked = tracked.loc[tracked["block"].to_numpy() >= first, columns]
+            else:
+                tracked = pd.read_parquet(
+                    self.state / "tracked.parquet", columns=columns, filters=since
+                )
+            forecast = None
+            if (self.state / "forecast.parquet").is_file():
+                forecast = pd.read_parquet(
+                    self.state / "forecast.parquet",
+                    columns=[
+                        "block",
+                        "mode",
+                        "option",
+                        "ssi_frequency_hz",
+                        "model_frequency_hz",
+                        "model_lower_hz",
+                        "model_upper_hz",
+                    ],
+                    filters=since,
+                )
+            if len(tracked):
+                days = days_of_blocks(tracked.loc[tracked["block"] >= first_new, "block_start"])
+                days = days or days_of_blocks(tracked["block_start"].iloc[-1:])
+                write_daily_indicators(
+                    self.state,
+                    tracked,
+                    forecast,
+                    alarms,
+                    days=days,
+                    option=self.options.forecast.options[0],
+                )
+            self._indicators_through = newest
+        except (OSError, ValueError) as error:
+            self._report(f"key indicators: not written ({str(error).splitlines()[0]})")
 
     # ------------------------------------------------------------------ gaps
     def given_up(self) -> list[dict]:

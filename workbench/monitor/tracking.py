@@ -83,6 +83,16 @@ class IncrementalTracking:
         frame = self._frame if marker is None else marker(self._frame)
         return _tracked_table(frame, list(self._rows), self._tracker, self._channels, self.options)
 
+    def rows_of(self, labels) -> dict[int, list[int]]:
+        """Rows of the selected modes tracked so far (index of the frame :meth:`table`
+        passes to its *marker*) that carry each tracker label of *labels*."""
+        wanted = {int(label) for label in labels}
+        found: dict[int, list[int]] = {label: [] for label in wanted}
+        for index, label, _ in self._rows:
+            if label in wanted:
+                found[label].append(index)
+        return found
+
     def _track_block(self, block: int, part: pd.DataFrame) -> None:
         # the order `workbench identify` exports a block's modes in (then `track` reads it)
         if "model_order" in part.columns:

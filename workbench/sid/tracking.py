@@ -579,6 +579,7 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
             part = table[table["mode"] == label]
             harmonic_labels.append(
                 {
+                    "label": int(label),
                     "blocks": len(part),
                     "frequency_hz": float(part["frequency_hz"].median()),
                     "share": float(share[label]),

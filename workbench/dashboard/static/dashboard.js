@@ -124,35 +124,93 @@
     return d.block;
   };
 
+  const signed = (v, digits) => (v === null || v === undefined) ? "–"
+    : `${v > 0 ? "+" : (v < 0 ? "−" : "")}${Math.abs(v).toFixed(digits)}`;
+  const orderName = (order) => `${Number.isInteger(order) ? order : order.toFixed(1)}×`;
+
+  // one panel per mode: relative change [%] against the mode's reference, with the model's
+  // prediction and 95 % band; the shaft orders near the mode drawn dashed, never as modes
   render.tracked = function (d) {
     const section = setPanel("tracked", d);
-    const legend = $(".legend", section);
-    legend.replaceChildren();
-    const svg = document.getElementById("tracked-chart");
-    if (!d.available) { svg.replaceChildren(); return null; }
-    $("#tracked-sub").textContent = d.start ? `last ${d.hours} h: ${hhmm(d.start)}Z – ${hhmm(d.end)}Z` : "";
-    const series = d.series.map((s) => ({
-      key: s.mode, colour: modeColour(s.mode), x: s.t, y: s.frequency_hz, block: s.block,
-    }));
+    const panels = document.getElementById("mode-panels");
+    panels.replaceChildren();
+    if (!d.available) return null;
+    $("#tracked-sub").textContent = (d.start ? `last ${d.hours} h: ${hhmm(d.start)}Z – ${hhmm(d.end)}Z` : "") +
+      (d.reference ? ` · reference: ${d.reference}` : "") + (d.option ? ` · band: forecast option ${d.option}` : "");
+    const when = new Map(d.blocks.block.map((b, i) => [b, d.blocks.t[i]]));
+    const charts = [];  // drawn once every panel is in place: one layout, not one per panel
     for (const s of d.series) {
-      const item = el("span", { "data-mode": s.mode }, `mode ${s.mode}`);
-      const swatch = el("i");
-      swatch.style.setProperty("--mode", modeColour(s.mode));
-      item.prepend(swatch);
-      legend.append(item);
+      const panel = el("div", { class: "mode-panel", "data-mode": s.mode });
+      panel.style.setProperty("--mode", modeColour(s.mode));
+      const head = el("h3");
+      head.append(el("b", {}, `Mode ${s.mode}`));
+      let last = null;
+      if (s.change_percent) for (const v of s.change_percent) if (v !== null) last = v;
+      const now = el("span", { class: "now" }, last === null ? "– %" : `${signed(last, 2)} %`);
+      // the newest estimate outside the model's band, as the mode card says
+      const band = s.band;
+      if (band && s.block.length) {
+        const i = band.block.indexOf(s.block[s.block.length - 1]);
+        if (i >= 0 && last !== null && band.lower_percent[i] !== null &&
+            (last < band.lower_percent[i] || last > band.upper_percent[i])) now.classList.add("outside");
+      }
+      head.append(" ", now, " ", el("span", { class: "ref" },
+        s.reference_hz === null ? "no reference yet" : `vs ${fmt(s.reference_hz, 3)} Hz`));
+      panel.append(head);
+      const svg = el("svg:svg", { class: "chart", "data-mode": s.mode, role: "img",
+                                  "aria-label": `mode ${s.mode}, change against its reference in %` });
+      panel.append(svg);
+      panels.append(panel);
+      if (s.change_percent === null) continue;
+      const series = [];
+      const bandT = band ? band.block.map((b) => when.get(b)) : null;
+      if (band) {
+        series.push({ key: "model", cls: "model", x: bandT, y: band.model_percent, block: band.block,
+                      noMarkers: true });
+      }
+      series.push({ key: s.mode, colour: modeColour(s.mode), x: s.t, y: s.change_percent, block: s.block });
+      for (const o of s.orders) {
+        series.push({ key: `order ${o.order}`, cls: "harmonic", x: o.t, y: o.change_percent, block: o.block,
+                      noMarkers: true, clip: true, label: `order ${orderName(o.order)}` });
+      }
+      charts.push([svg, {
+        series, markers: true, zero: true, ylabel: "change [%]",
+        band: band ? { x: bandT, lo: band.lower_percent, hi: band.upper_percent, block: band.block } : null,
+      }]);
     }
-    // shaft orders (not modes): dashed grey lines, no markers
-    for (const h of d.harmonics || []) {
-      series.push({ key: `order ${h.order}`, cls: "harmonic", x: h.t, y: h.frequency_hz,
-                    block: h.block, noMarkers: true });
+    const sizes = charts.map(([svg]) => [svg.clientWidth, svg.clientHeight]);
+    charts.forEach(([svg, spec], i) => drawChart(svg, { ...spec, size: sizes[i] }));
+    return d.block;
+  };
+
+  render.shaft = function (d) {
+    const section = setPanel("shaft", d);
+    const orders = document.getElementById("shaft-orders");
+    const tracks = document.getElementById("shaft-tracks");
+    const svg = document.getElementById("shaft-chart");
+    orders.replaceChildren();
+    tracks.replaceChildren();
+    if (!d.available) { svg.replaceChildren(); return null; }
+    $("#shaft-sub").textContent = `block ${d.block}` +
+      (d.shaft_rpm === null ? "" : ` · shaft ${fmt(d.shaft_rpm, 1)} rpm`) + ` · last ${d.hours} h`;
+    for (const o of d.orders) {
+      orders.append(el("dt", {}, `order ${orderName(o.order)}`));
+      orders.append(el("dd", { "data-order": o.order },
+        o.frequency_hz === null ? "– Hz" : `${fmt(o.frequency_hz, 3)} Hz`));
     }
-    if ((d.harmonics || []).length) {
-      const item = el("span", { "data-harmonics": d.harmonics.map((h) => h.order).join(",") },
-                      `shaft orders ${d.harmonics.map((h) => `${h.order}×`).join(" ")}`);
-      item.prepend(el("i", { class: "harmonic" }));
-      legend.append(item);
+    if (!d.tracks.length) {
+      tracks.append(el("li", { class: "none" }, "no tracked line is a harmonic"));
     }
-    drawChart(svg, { series, ylabel: "frequency [Hz]", markers: true });
+    for (const h of d.tracks) {
+      const on = h.order === null ? "" : ` on order ${orderName(h.order)}`;
+      tracks.append(el("li", { "data-track": h.track },
+        `harmonic ${h.track}: ${fmt(h.median_frequency_hz, 3)} Hz${on}, ${h.blocks} blocks (last ${h.last_block}) - not a mode`));
+    }
+    const series = d.orders.map((o) => ({ key: `order ${o.order}`, cls: "harmonic", x: o.t, y: o.line_hz,
+                                          block: o.block, noMarkers: true, label: `order ${orderName(o.order)}` }));
+    const points = d.tracks.map((h) => ({ key: `harmonic ${h.track}`, cls: "harmonic-line", x: h.t,
+                                          y: h.frequency_hz, block: h.block, dots: "harmonic-point" }));
+    drawChart(svg, { series: series.concat(points), ylabel: "frequency [Hz]", markers: true });
     return d.block;
   };
 
@@ -243,13 +301,22 @@
   }
 
   function drawChart(svg, spec) {
-    const width = svg.clientWidth || 1000, height = svg.clientHeight || 280;
+    const [w, h] = spec.size || [svg.clientWidth, svg.clientHeight];
+    const width = w || 1000, height = h || 280;
     const m = { left: 58, right: 12, top: 10, bottom: 26 };
     svg.setAttribute("viewBox", `0 0 ${width} ${height}`);
     svg.replaceChildren();
     const xs = [], ys = [];
-    for (const s of spec.series) { xs.push(...s.x); ys.push(...s.y.filter((v) => v !== null)); }
+    for (const s of spec.series) {
+      if (s.clip) continue;  // drawn inside the others' range, never stretching it
+      xs.push(...s.x); ys.push(...s.y.filter((v) => v !== null));
+    }
     if (spec.limit) ys.push(...spec.limit.y.filter((v) => v !== null));
+    if (spec.band) {
+      xs.push(...spec.band.x);
+      ys.push(...spec.band.lo.filter((v) => v !== null), ...spec.band.hi.filter((v) => v !== null));
+    }
+    if (spec.zero && ys.length) ys.push(0);
     if (!xs.length || !ys.length) return;
     let x0 = Math.min(...xs), x1 = Math.max(...xs);
     if (x1 === x0) { x0 -= 150000; x1 += 150000; }
@@ -275,6 +342,29 @@
     axes.append(el("svg:text", { x: 12, y: m.top + 8, transform: `rotate(-90 12 ${m.top + 8})`,
                                  "text-anchor": "end" }, spec.ylabel));
     svg.append(axes);
+    if (spec.zero) {
+      svg.append(el("svg:line", { class: "zero", x1: m.left, x2: width - m.right, y1: Y(0), y2: Y(0) }));
+    }
+    if (spec.band) {
+      // the model's band as one polygon per run of blocks with bounds
+      const b = spec.band;
+      let run = [];
+      const flush = () => {
+        if (run.length) {
+          const upper = run.map((i) => `${X(b.x[i]).toFixed(1)},${Y(b.hi[i]).toFixed(1)}`);
+          const lower = run.slice().reverse().map((i) => `${X(b.x[i]).toFixed(1)},${Y(b.lo[i]).toFixed(1)}`);
+          svg.append(el("svg:path", { class: "band", d: `M${upper.join("L")}L${lower.join("L")}Z` }));
+        }
+        run = [];
+      };
+      for (let i = 0; i < b.x.length; i++) {
+        const ok = b.lo[i] !== null && b.hi[i] !== null;
+        const joined = run.length && (!b.block || b.block[i] - b.block[run[run.length - 1]] === 1);
+        if (!ok || !joined) flush();
+        if (ok) run.push(i);
+      }
+      flush();
+    }
     if (spec.shade) {
       const on = spec.shade.on, x = spec.shade.x;
       let start = null;
@@ -289,23 +379,32 @@
       }
     }
     for (const s of spec.series) {
-      // break the line where a block is missing or has no value
-      let d = "";
+      // break the line where a block is missing or has no value (or, clipped, is off the axis)
+      const y = s.clip ? s.y.map((v) => (v === null || v < yt.lo || v > yt.hi) ? null : v) : s.y;
+      let d = "", lastX = null, lastY = null;
       for (let i = 0; i < s.x.length; i++) {
-        if (s.y[i] === null) continue;
-        const joined = i > 0 && s.y[i - 1] !== null && (!s.block || s.block[i] - s.block[i - 1] === 1);
-        d += `${joined ? "L" : "M"}${X(s.x[i]).toFixed(1)},${Y(s.y[i]).toFixed(1)}`;
+        if (y[i] === null) continue;
+        const joined = i > 0 && y[i - 1] !== null && (!s.block || s.block[i] - s.block[i - 1] === 1);
+        lastX = X(s.x[i]); lastY = Y(y[i]);
+        d += `${joined ? "L" : "M"}${lastX.toFixed(1)},${lastY.toFixed(1)}`;
       }
-      const g = el("svg:g", { class: "series", "data-key": s.key, "data-points": s.y.filter((v) => v !== null).length });
+      const g = el("svg:g", { class: "series", "data-key": s.key, "data-points": y.filter((v) => v !== null).length });
       if (s.block && s.block.length) g.setAttribute("data-last-block", s.block[s.block.length - 1]);
       const path = el("svg:path", { d, class: s.cls || "" });
       if (s.colour) { path.setAttribute("stroke", s.colour); }
       g.append(path);
       if (spec.markers && !s.noMarkers) {
         for (let i = 0; i < s.x.length; i++) {
-          if (s.y[i] === null) continue;
-          g.append(el("svg:circle", { cx: X(s.x[i]).toFixed(1), cy: Y(s.y[i]).toFixed(1), r: 1.8, fill: s.colour }));
+          if (y[i] === null) continue;
+          const dot = el("svg:circle", { cx: X(s.x[i]).toFixed(1), cy: Y(y[i]).toFixed(1), r: s.dots ? 2.2 : 1.8 });
+          if (s.dots) dot.setAttribute("class", s.dots); else dot.setAttribute("fill", s.colour);
+          g.append(dot);
         }
+      }
+      // a line that is not a mode says what it is where it ends
+      if (s.label && lastX !== null) {
+        g.append(el("svg:text", { class: "series-label", x: Math.min(lastX, width - m.right - 2),
+                                  y: lastY - 4, "text-anchor": "end" }, s.label));
       }
       svg.append(g);
     }
@@ -352,11 +451,13 @@
     const response = await fetch(`api/${name}`, { cache: "no-store", headers });
     if (response.status === 304) return;
     const data = await response.json();
+    const started = performance.now();
     const shown = render[name](data);
+    const ms = performance.now() - started;  // drawing time, for benchmarks
     etags[name] = response.headers.get("ETag");
     const section = document.getElementById(name);
     if (section) section.dataset.block = shown === null || shown === undefined ? "" : shown;
-    state.rendered[name] = { at: Date.now(), value: shown };
+    state.rendered[name] = { at: Date.now(), value: shown, ms };
   }
 
   async function poll() {
