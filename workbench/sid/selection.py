@@ -293,6 +293,7 @@ def select_modes(
     damping_tol: float = 0.50,
     mac_min: float = 0.98,
     mpc_min: float = 0.0,
+    second_look: bool = True,
 ) -> ModeSelection:
     """Select the physical modes of a stabilisation diagram.
 
@@ -330,6 +331,9 @@ def select_modes(
         shapes of twin clusters (``"cluster"``). [-]
     mpc_min : float
         Smallest modal phase collinearity of a considered pole (0 disables). [-]
+    second_look : bool
+        ``"cluster"``: look again at the poles left over for close and weakly excited
+        modes (stage 4 of the module docstring).
 
     Returns
     -------
@@ -372,6 +376,7 @@ def select_modes(
         frequency_tol=frequency_tol,
         mac_min=mac_min,
         mpc_min=mpc_min,
+        second_look=second_look,
     )
 
 
@@ -385,6 +390,7 @@ def _select_clusters(
     mac_min: float,
     mpc_min: float,
     pole_distance: float | None = None,
+    second_look: bool = True,
 ) -> ModeSelection:
     """The clustering rule of the module docstring."""
     orders = tuple(sorted(result.orders))
@@ -443,7 +449,7 @@ def _select_clusters(
         c for c in clusters if c.size >= needed and low_damping <= np.median(z[c]) <= high_damping
     ]
     accepted.sort(key=lambda c: -c.size)
-    heads, statistics = [], {}
+    heads, statistics, kept_members = [], {}, []
     for members in accepted:
         centre = np.median(f[members])
         head = int(members[np.argmin(np.abs(f[members] - centre))])
@@ -456,16 +462,162 @@ def _select_clusters(
         if twin:
             continue
         heads.append(head)
-        ddof = 1 if members.size > 1 else 0
-        statistics[int(index[head])] = {
-            "frequency_hz": float(centre),
-            "damping_ratio": float(np.median(z[members])),
-            "frequency_std_hz": float(np.std(f[members], ddof=ddof)),
-            "damping_std": float(np.std(z[members], ddof=ddof)),
-            "n_poles": int(members.size),
-        }
+        statistics[int(index[head])] = _cluster_statistics(f, z, members)
+        kept_members.append(members)
+    # stage 4: a second look at the poles left over, for close and weakly excited modes
+    if second_look:
+        taken = np.concatenate(kept_members) if kept_members else np.zeros(0, dtype=int)
+        rescued = _second_look(
+            f,
+            z,
+            shape,
+            rank,
+            nearest,
+            taken,
+            kept_members,
+            len(orders),
+            min_orders=needed_second_look(min_orders, needed),
+            damping_limits=(low_damping, high_damping),
+            mac_min=mac_min,
+        )
+        for members in rescued:
+            centre = np.median(f[members])
+            head = int(members[np.argmin(np.abs(f[members] - centre))])
+            heads.append(head)
+            statistics[int(index[head])] = _cluster_statistics(f, z, members)
+        thresholds["second_look"] = len(rescued)
     chosen = index[np.array(heads, dtype=int)]
     return _mode_selection(poles, shapes, chosen, statistics, orders, thresholds)
+
+
+#: The second look's clusters need at least this share of stage 3's number of orders. [-]
+SECOND_LOOK_SHARE = 0.5
+#: ... and poles at this share of the orders between their lowest and highest. [-]
+SECOND_LOOK_CONTINUITY = 0.8
+#: A second-look cluster within NEAR_MODE (relative) of a mode is a mode of its own only
+#: when both have poles at this share of its orders (two poles of one model). [-]
+SECOND_LOOK_COEXISTENCE = 0.75
+#: Relative frequency distance within which a second-look cluster is tested against a mode
+#: for being a fragment of it. [-]
+NEAR_MODE = 0.03
+#: Largest relative spread (median absolute deviation / median) of a second-look cluster's
+#: damping ratios. [-]
+SECOND_LOOK_DAMPING_SPREAD = 0.25
+#: The second look clusters at most this many leftover poles (those recurring most
+#: tightly), bounding its distance matrix.
+MAX_SECOND_LOOK_POLES = 3000
+
+
+def needed_second_look(min_orders: int, needed: int) -> int:
+    """Fewest orders of a cluster found by the second look."""
+    return max(int(min_orders), int(np.ceil(SECOND_LOOK_SHARE * needed)))
+
+
+def _cluster_statistics(f, z, members) -> dict:
+    """Median frequency and damping, their scatter and the number of orders of a cluster."""
+    ddof = 1 if members.size > 1 else 0
+    return {
+        "frequency_hz": float(np.median(f[members])),
+        "damping_ratio": float(np.median(z[members])),
+        "frequency_std_hz": float(np.std(f[members], ddof=ddof)),
+        "damping_std": float(np.std(z[members], ddof=ddof)),
+        "n_poles": int(members.size),
+    }
+
+
+def _second_look(
+    f, z, shape, rank, nearest, taken, kept, n_ranks, *, min_orders, damping_limits, mac_min
+) -> list[np.ndarray]:
+    """Clusters of close and weakly excited modes among the poles stage 3 left over.
+
+    The data-derived cut of stage 1 is tight where most modes recur to 1e-5: the poles of a
+    mode close to another (whose shapes mix from order to order) or weakly excited
+    (present only from a higher order on, with more scatter) then fall apart into short
+    single-linkage chains below stage 3's threshold. The second look takes the poles not in
+    a selected mode that recur within the fixed limit :data:`MAX_CLUSTER_DISTANCE` (0.02),
+    joins them by complete linkage at that limit (every pair of a cluster within it: no
+    chaining from one mode into its neighbour) and keeps a cluster, one pole per order, as a
+    mode when it is *order-consistent*:
+
+    * poles at no fewer than :func:`needed_second_look` orders, and at
+      :data:`SECOND_LOOK_CONTINUITY` of the orders from its lowest to its highest (a weak
+      mode appears from some order on and stays; noise recurs in patches);
+    * frequency scatter (1.4826 x the median absolute deviation, relative) no larger than
+      the largest relative standard deviation of a stage-3 mode's frequencies (without
+      stage-3 modes there is no second look);
+    * median damping within the limits, damping spread (MAD / median) at most
+      :data:`SECOND_LOOK_DAMPING_SPREAD`;
+    * near a mode (within :data:`NEAR_MODE`), a mode of its own only if the two have poles
+      at the same orders (at :data:`SECOND_LOOK_COEXISTENCE` of its orders: one model
+      holds both) and their shapes differ (MAC below *mac_min*); otherwise it is a fragment
+      of that mode.
+
+    Returns the clusters as arrays of positions (into *f*), largest first.
+    """
+    from scipy.cluster.hierarchy import fcluster, linkage
+    from scipy.spatial.distance import squareform
+
+    from .pole_clustering import _pole_distance
+
+    low_damping, high_damping = damping_limits
+    # no looser in frequency than the least consistent mode of stage 3
+    max_scatter = max(
+        (float(np.std(f[m], ddof=1) / np.median(f[m])) for m in kept if m.size > 1),
+        default=0.0,
+    )
+    pool = np.setdiff1d(np.flatnonzero(nearest < MAX_CLUSTER_DISTANCE), taken)
+    if pool.size > MAX_SECOND_LOOK_POLES:
+        pool = np.sort(pool[np.argsort(nearest[pool], kind="stable")[:MAX_SECOND_LOOK_POLES]])
+    if pool.size < max(min_orders, 2):
+        return []
+    distance = _pole_distance(f[pool], shape[:, pool], f[pool], shape[:, pool])
+    distance = np.clip(0.5 * (distance + distance.T), 0.0, None)
+    np.fill_diagonal(distance, 0.0)
+    tree = linkage(squareform(distance, checks=False), method="complete")
+    labels = fcluster(tree, MAX_CLUSTER_DISTANCE, criterion="distance")
+    candidates = []
+    for label in np.unique(labels):
+        members = pool[labels == label]
+        if members.size < min_orders:
+            continue
+        centre = np.median(f[members])
+        by_order = np.lexsort((np.abs(f[members] - centre), rank[members]))
+        members = members[by_order]
+        first = np.concatenate(([True], rank[members][1:] != rank[members][:-1]))
+        members = members[first]
+        span = rank[members].max() - rank[members].min() + 1
+        damping = np.median(z[members])
+        spread = np.median(np.abs(z[members] - damping)) / damping if damping > 0 else np.inf
+        scatter = 1.4826 * np.median(np.abs(f[members] - centre)) / centre
+        if (
+            scatter <= max_scatter
+            and members.size >= min_orders
+            and members.size >= SECOND_LOOK_CONTINUITY * span
+            and low_damping <= damping <= high_damping
+            and spread <= SECOND_LOOK_DAMPING_SPREAD
+        ):
+            candidates.append(members)
+    candidates.sort(key=lambda c: -c.size)
+    modes = list(kept)
+    rescued = []
+    for members in candidates:
+        centre = np.median(f[members])
+        head = members[np.argmin(np.abs(f[members] - centre))]
+        fragment = False
+        for other in modes:
+            other_centre = np.median(f[other])
+            if abs(centre / other_centre - 1.0) >= NEAR_MODE:
+                continue
+            shared = np.intersect1d(rank[members], rank[other]).size
+            other_head = other[np.argmin(np.abs(f[other] - other_centre))]
+            similar = float(mac(shape[:, head], shape[:, other_head])) >= mac_min
+            if similar or shared < SECOND_LOOK_COEXISTENCE * members.size:
+                fragment = True
+                break
+        if not fragment:
+            modes.append(members)
+            rescued.append(members)
+    return rescued
 
 
 def _mode_selection(poles, shapes, heads, statistics, orders, thresholds) -> ModeSelection:
