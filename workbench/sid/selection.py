@@ -491,7 +491,7 @@ def _select_clusters(
 
 
 #: The second look's clusters need at least this share of stage 3's number of orders. [-]
-SECOND_LOOK_SHARE = 0.5
+SECOND_LOOK_SHARE = 0.8
 #: ... and poles at this share of the orders between their lowest and highest. [-]
 SECOND_LOOK_CONTINUITY = 0.8
 #: A second-look cluster within NEAR_MODE (relative) of a mode is a mode of its own only
@@ -506,6 +506,57 @@ SECOND_LOOK_DAMPING_SPREAD = 0.25
 #: The second look clusters at most this many leftover poles (those recurring most
 #: tightly), bounding its distance matrix.
 MAX_SECOND_LOOK_POLES = 3000
+
+
+#: A second-look column's relative frequency scatter is at most this multiple of the
+#: largest of the stage-3 modes. [-]
+SECOND_LOOK_SCATTER = 2.0
+#: Two fragments are one column when their frequencies differ by less than this multiple
+#: of their relative scatter (floored at FRAGMENT_FLOOR), their shapes have a MAC of at
+#: least FRAGMENT_MAC, and they share at most FRAGMENT_SHARED of the smaller's orders.
+FRAGMENT_SIGMA = 3.0
+FRAGMENT_FLOOR = 1e-4
+FRAGMENT_MAC = 0.8
+FRAGMENT_SHARED = 0.2
+
+
+def _one_per_order(members, f, rank) -> np.ndarray:
+    """*members* reduced to one pole per model order (the one closest to their median)."""
+    if members.size == 0:
+        return members
+    centre = np.median(f[members])
+    members = members[np.lexsort((np.abs(f[members] - centre), rank[members]))]
+    first = np.concatenate(([True], rank[members][1:] != rank[members][:-1]))
+    return members[first]
+
+
+def _join_fragments(fragments, f, shape, rank) -> list[np.ndarray]:
+    """Fragments of one column joined: the poles of a mode whose shape estimate wanders
+    from order to order (a close neighbour mixes into it) fall into several tight
+    clusters at complementary orders; two close modes instead have poles at the same
+    orders. Largest fragments first, each joins the first column it matches."""
+    columns: list[np.ndarray] = []
+    for members in sorted(fragments, key=lambda m: -m.size):
+        centre = np.median(f[members])
+        scatter = 1.4826 * np.median(np.abs(f[members] - centre)) / centre
+        head = members[np.argmin(np.abs(f[members] - centre))]
+        for k, column in enumerate(columns):
+            column_centre = np.median(f[column])
+            column_scatter = 1.4826 * np.median(np.abs(f[column] - column_centre)) / column_centre
+            tolerance = FRAGMENT_SIGMA * max(scatter, column_scatter, FRAGMENT_FLOOR)
+            if abs(centre / column_centre - 1.0) >= tolerance:
+                continue
+            shared = np.intersect1d(rank[members], rank[column]).size
+            if shared > FRAGMENT_SHARED * min(members.size, column.size):
+                continue
+            column_head = column[np.argmin(np.abs(f[column] - column_centre))]
+            if float(mac(shape[:, head], shape[:, column_head])) < FRAGMENT_MAC:
+                continue
+            columns[k] = _one_per_order(np.concatenate([column, members]), f, rank)
+            break
+        else:
+            columns.append(members)
+    return columns
 
 
 def needed_second_look(min_orders: int, needed: int) -> int:
@@ -575,22 +626,17 @@ def _second_look(
     np.fill_diagonal(distance, 0.0)
     tree = linkage(squareform(distance, checks=False), method="complete")
     labels = fcluster(tree, MAX_CLUSTER_DISTANCE, criterion="distance")
+    fragments = [_one_per_order(pool[labels == label], f, rank) for label in np.unique(labels)]
+    fragments = [m for m in fragments if m.size >= 2]
     candidates = []
-    for label in np.unique(labels):
-        members = pool[labels == label]
-        if members.size < min_orders:
-            continue
+    for members in _join_fragments(fragments, f, shape, rank):
         centre = np.median(f[members])
-        by_order = np.lexsort((np.abs(f[members] - centre), rank[members]))
-        members = members[by_order]
-        first = np.concatenate(([True], rank[members][1:] != rank[members][:-1]))
-        members = members[first]
         span = rank[members].max() - rank[members].min() + 1
         damping = np.median(z[members])
         spread = np.median(np.abs(z[members] - damping)) / damping if damping > 0 else np.inf
         scatter = 1.4826 * np.median(np.abs(f[members] - centre)) / centre
         if (
-            scatter <= max_scatter
+            scatter <= SECOND_LOOK_SCATTER * max_scatter
             and members.size >= min_orders
             and members.size >= SECOND_LOOK_CONTINUITY * span
             and low_damping <= damping <= high_damping
