@@ -16,8 +16,10 @@ Every block is identified as ``workbench identify`` does with its defaults
 lies within 0.4 x its distance to the nearest other true mode (at most 2 %) of it,
 one-to-one; every other selected mode is *spurious*. Printed per case and method: blocks,
 the found rate of the case's mode of interest (the pair's upper mode or the weak mode), of
-all modes, missed and spurious counts over all blocks, and the median and worst
-|df|/f of the found modes.
+all modes, missed and spurious counts over all blocks, the median and worst |df|/f of the
+found modes, and (``common``) of the modes every method found in the block (the fair
+comparison of the estimates). ``combined`` is the default combination (SSI's estimate
+where SSI found the mode), ``weighted`` the inverse-variance mean of SSI and LSCF.
 
 Run: ``python benchmarks/bench_close_weak.py [--seeds 10] [--cases close,weak]``.
 """
@@ -27,7 +29,6 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-import time
 from types import SimpleNamespace
 
 import numpy as np
@@ -128,8 +129,17 @@ def identify(record, methods):
     return out
 
 
-def run(cases, seeds, combine=True, first_seed=0) -> pd.DataFrame:
+def run(cases, seeds, combine=True, first_seed=0, second_look=True) -> pd.DataFrame:
+    import functools
+
     from threadpoolctl import threadpool_limits
+
+    import workbench.sid
+
+    if not second_look:  # the selection as it was before its second look (A/B)
+        workbench.sid.select_modes = functools.partial(
+            workbench.sid.selection.select_modes, second_look=False
+        )
 
     rows = []
     for case in cases:
@@ -137,9 +147,7 @@ def run(cases, seeds, combine=True, first_seed=0) -> pd.DataFrame:
         for seed in range(first_seed, first_seed + seeds):
             record, interest = build(case, seed)
             with threadpool_limits(limits=1):
-                started = time.perf_counter()
                 results = identify(record, ("cov", "lscf"))
-                seconds = time.perf_counter() - started
             estimates = {
                 "SSI": results["cov"][1].modes["frequency_hz"].to_numpy(),
                 "LSCF": results["lscf"][1].modes["frequency_hz"].to_numpy(),
@@ -147,19 +155,31 @@ def run(cases, seeds, combine=True, first_seed=0) -> pd.DataFrame:
             if combine:
                 from workbench.sid.combined import combine_modes
 
-                combined = combine_modes({"ssi": results["cov"][1], "lscf": results["lscf"][1]})
-                estimates["combined"] = combined["frequency_hz"].to_numpy()
-            for method, estimate in estimates.items():
-                found, error, spurious = score(record.frequency_hz, estimate)
+                pair = {"ssi": results["cov"][1], "lscf": results["lscf"][1]}
+                estimates["combined"] = combine_modes(pair)["frequency_hz"].to_numpy()
+                for variant in ("weighted", "reference"):
+                    other = combine_modes(pair, estimate=variant)
+                    estimates[variant] = other["frequency_hz"].to_numpy()
+            scored = {m: score(record.frequency_hz, e) for m, e in estimates.items()}
+            common = np.logical_and.reduce([found for found, _, _ in scored.values()])
+            for method, (found, error, spurious) in scored.items():
                 t = tally.setdefault(
-                    method, {"interest": 0, "found": 0, "missed": 0, "spurious": 0, "errors": []}
+                    method,
+                    {
+                        "interest": 0,
+                        "found": 0,
+                        "missed": 0,
+                        "spurious": 0,
+                        "errors": [],
+                        "common": [],
+                    },
                 )
                 t["interest"] += int(found[interest])
                 t["found"] += int(found.sum())
                 t["missed"] += int((~found).sum())
                 t["spurious"] += spurious
                 t["errors"].extend(error[found].tolist())
-                t.setdefault("seconds", []).append(seconds)
+                t["common"].extend(error[common].tolist())
         for method, t in tally.items():
             errors = np.array(t["errors"])
             rows.append(
@@ -173,6 +193,8 @@ def run(cases, seeds, combine=True, first_seed=0) -> pd.DataFrame:
                     "spurious": t["spurious"],
                     "median |df|/f": float(np.median(errors)) if errors.size else math.nan,
                     "max |df|/f": float(np.max(errors)) if errors.size else math.nan,
+                    "common median": float(np.median(t["common"])) if t["common"] else math.nan,
+                    "common max": float(np.max(t["common"])) if t["common"] else math.nan,
                 }
             )
     return pd.DataFrame(rows)
@@ -184,6 +206,9 @@ def main(argv=None) -> int:
     parser.add_argument("--cases", default="close,weak", help="close, weak or both")
     parser.add_argument("--no-combined", action="store_true", help="SSI and LSCF only")
     parser.add_argument("--first-seed", type=int, default=0, help="seed of the first block")
+    parser.add_argument(
+        "--no-second-look", action="store_true", help="selection without its second look"
+    )
     args = parser.parse_args(argv)
     if not 1 <= args.seeds <= 200:
         print(f"--seeds {args.seeds} must lie in 1..200", file=sys.stderr)
@@ -193,6 +218,7 @@ def main(argv=None) -> int:
         args.seeds,
         combine=not args.no_combined,
         first_seed=args.first_seed,
+        second_look=not args.no_second_look,
     )
     with pd.option_context("display.width", 200, "display.max_columns", 20):
         print(table.to_string(index=False, float_format=lambda v: f"{v:.3g}"))

@@ -13,15 +13,20 @@ cross_check`: relative frequency difference below ``frequency_tol``, MAC at leas
     σ^2 = \\frac{1}{\\sum_m w_m} + \\frac{\\sum_m w_m (f_m - \\hat f)^2}{\\sum_m w_m}
 
 with σ_m a method's scatter over its orders (floored at :data:`RELATIVE_FLOOR` x f): the
-inverse-variance mean, and an uncertainty from each method's scatter (first term) and from
-their disagreement (second term: methods that differ by more than their scatter make the
-estimate less certain). A mode seen by one method keeps that method's estimate and
-scatter. The damping ratio is combined the same way with ``damping_std``.
+inverse-variance mean (``estimate="weighted"``), and an uncertainty σ from each method's
+scatter (first term) and from their disagreement (second term: methods that differ by more
+than their scatter make the estimate less certain). By default (``estimate="reference"``)
+each method is used where it is strong: the mode's frequency and damping are the first
+method's (SSI) where it found the mode, the other methods add the modes it missed (close
+and weakly excited ones, which LSCF's frequency-domain fit often separates) and their
+agreement to σ. A mode seen by one method keeps that method's estimate and scatter. The
+damping ratio is combined the same way with ``damping_std``.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Literal
 
 import numpy as np
 import pandas as pd
@@ -51,6 +56,7 @@ def combine_modes(
     *,
     frequency_tol: float = 0.01,
     mac_min: float = 0.8,
+    estimate: Literal["reference", "weighted"] = "reference",
 ) -> pd.DataFrame:
     """Combine the selected modes of several methods of one block into one estimate each.
 
@@ -64,18 +70,27 @@ def combine_modes(
         Largest relative frequency difference of a pair. [-]
     mac_min : float
         Smallest MAC of a pair. [-]
+    estimate : {"reference", "weighted"}
+        The mode's frequency and damping ratio: those of the first method that found it
+        (``"reference"``; the others add modes it missed and their agreement to the
+        uncertainty), or the inverse-variance mean of all methods (``"weighted"``; a
+        method's scatter over its orders does not show its bias, see
+        ``benchmarks/results/identification_32.txt`` for how the two compare).
 
     Returns
     -------
     pandas.DataFrame
         One row per mode, sorted by frequency: :data:`COMBINED_COLUMNS` (``frequency_std_hz``
         and ``damping_std`` the combined uncertainties, ``methods`` the names joined by
-        ``+``) and ``<method>_frequency_hz`` for every method (NaN where it has no mode).
+        ``+``), and for every method ``<method>_frequency_hz`` (NaN where it has no mode)
+        and ``<method>_mode`` (the mode's row in that method's selection, -1 if none).
     """
     if not (np.isfinite(frequency_tol) and frequency_tol > 0):
         raise ValueError(f"frequency_tol={frequency_tol} must be a positive number")
     if not 0.0 <= mac_min <= 1.0:
         raise ValueError(f"mac_min={mac_min} must lie in [0, 1]")
+    if estimate not in ("reference", "weighted"):
+        raise ValueError(f"estimate={estimate!r} must be 'reference' or 'weighted'")
     names = list(selections)
     if not names:
         raise ValueError("selections is empty: give at least one method's selection")
@@ -104,7 +119,7 @@ def combine_modes(
                 ok = admissible[rows, cols]
                 paired[cols[ok]] = rows[ok]
         for k in range(f.size):
-            entry = (f[k], z[k], sf[k], sz[k])
+            entry = (f[k], z[k], sf[k], sz[k], k)
             if paired[k] >= 0:
                 groups[paired[k]][name] = entry
             else:
@@ -112,7 +127,7 @@ def combine_modes(
                 shapes.append(shape[:, k])
     rows = []
     for group in groups:
-        frequency, frequency_std, damping, damping_std = _estimate(group)
+        frequency, frequency_std, damping, damping_std = _estimate(group, estimate)
         row = {
             "frequency_hz": frequency,
             "damping_ratio": damping,
@@ -122,10 +137,16 @@ def combine_modes(
             "methods": "+".join(n for n in names if n in group),
         }
         row.update({f"{n}_frequency_hz": group[n][0] if n in group else np.nan for n in names})
+        row.update({f"{n}_mode": group[n][4] if n in group else -1 for n in names})
         rows.append(row)
-    columns = [*COMBINED_COLUMNS, *(f"{n}_frequency_hz" for n in names)]
+    columns = [
+        *COMBINED_COLUMNS,
+        *(f"{n}_frequency_hz" for n in names),
+        *(f"{n}_mode" for n in names),
+    ]
     frame = pd.DataFrame(rows, columns=columns)
-    frame["n_methods"] = frame["n_methods"].astype(np.int64)
+    for column in ["n_methods", *(f"{n}_mode" for n in names)]:
+        frame[column] = frame[column].astype(np.int64)
     return frame.sort_values("frequency_hz", kind="stable").reset_index(drop=True)
 
 
@@ -147,9 +168,13 @@ def _weighted(values: np.ndarray, scatter: np.ndarray) -> tuple[float, float]:
     return mean, float(np.sqrt(1.0 / np.sum(weight) + spread))
 
 
-def _estimate(group: dict) -> tuple[float, float, float, float]:
-    """Combined frequency, its uncertainty, damping ratio and its uncertainty of a group."""
-    entries = np.array(list(group.values()), dtype=float)
+def _estimate(group: dict, estimate: str = "weighted") -> tuple[float, float, float, float]:
+    """Combined frequency, its uncertainty, damping ratio and its uncertainty of a group
+    (``estimate="reference"``: the first method's frequency and damping where it has the
+    mode, with the combined uncertainties)."""
+    entries = np.array([entry[:4] for entry in group.values()], dtype=float)
     frequency, frequency_std = _weighted(entries[:, 0], entries[:, 2])
     damping, damping_std = _weighted(entries[:, 1], entries[:, 3])
+    if estimate == "reference":
+        frequency, damping = float(entries[0, 0]), float(entries[0, 1])
     return frequency, frequency_std, damping, damping_std

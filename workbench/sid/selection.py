@@ -492,6 +492,8 @@ def _select_clusters(
 
 #: The second look's clusters need at least this share of stage 3's number of orders. [-]
 SECOND_LOOK_SHARE = 0.8
+#: ... and at least this share of the median number of orders of the stage-3 modes. [-]
+SECOND_LOOK_KEPT_SHARE = 0.4
 #: ... and poles at this share of the orders between their lowest and highest. [-]
 SECOND_LOOK_CONTINUITY = 0.8
 #: A second-look cluster within NEAR_MODE (relative) of a mode is a mode of its own only
@@ -590,7 +592,8 @@ def _second_look(
     chaining from one mode into its neighbour) and keeps a cluster, one pole per order, as a
     mode when it is *order-consistent*:
 
-    * poles at no fewer than :func:`needed_second_look` orders, and at
+    * poles at no fewer than :func:`needed_second_look` orders and
+      :data:`SECOND_LOOK_KEPT_SHARE` of the median orders of the stage-3 modes, and at
       :data:`SECOND_LOOK_CONTINUITY` of the orders from its lowest to its highest (a weak
       mode appears from some order on and stays; noise recurs in patches);
     * frequency scatter (1.4826 x the median absolute deviation, relative) no larger than
@@ -616,6 +619,7 @@ def _second_look(
         (float(np.std(f[m], ddof=1) / np.median(f[m])) for m in kept if m.size > 1),
         default=0.0,
     )
+    typical_length = float(np.median([m.size for m in kept])) if kept else 0.0
     pool = np.setdiff1d(np.flatnonzero(nearest < MAX_CLUSTER_DISTANCE), taken)
     if pool.size > MAX_SECOND_LOOK_POLES:
         pool = np.sort(pool[np.argsort(nearest[pool], kind="stable")[:MAX_SECOND_LOOK_POLES]])
@@ -638,6 +642,7 @@ def _second_look(
         if (
             scatter <= SECOND_LOOK_SCATTER * max_scatter
             and members.size >= min_orders
+            and members.size >= SECOND_LOOK_KEPT_SHARE * typical_length
             and members.size >= SECOND_LOOK_CONTINUITY * span
             and low_damping <= damping <= high_damping
             and spread <= SECOND_LOOK_DAMPING_SPREAD
