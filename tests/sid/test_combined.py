@@ -87,3 +87,26 @@ def test_bad_options_are_refused():
         combine_modes({})
     with pytest.raises(ValueError, match="frequency_tol"):
         combine_modes({"ssi": ssi}, frequency_tol=0.0)
+
+
+def test_a_later_methods_second_look_mode_alone_is_left_out():
+    ssi = _selection([2.0], [0.01], [0.002], [0.001], SHAPES[:, :1])
+    modes = pd.DataFrame(
+        {
+            "frequency_hz": [2.001, 3.0, 4.0],
+            "damping_ratio": [0.01, 0.01, 0.01],
+            "frequency_std_hz": [0.001, 0.001, 0.001],
+            "damping_std": [0.001, 0.001, 0.001],
+            "pole_index": [10, 20, 30],
+        }
+    )
+    shapes = np.eye(4)[:, [0, 1, 2]].astype(complex)
+    # the modes at 2.001 and 3.0 Hz are second-look modes of LSCF: the first pairs with
+    # SSI's and counts, the second stands alone and is left out; 4.0 Hz is a stage-3 mode
+    lscf = ModeSelection(modes, shapes, None, (), "cluster", {"second_look_poles": (10, 20)})
+    table = combine_modes({"ssi": ssi, "lscf": lscf})
+    assert list(table["frequency_hz"]) == [2.0, 4.0]
+    assert list(table["n_methods"]) == [2, 1]
+    # the first method's second-look modes stand alone
+    alone = combine_modes({"lscf": lscf})
+    assert list(alone["frequency_hz"]) == [2.001, 3.0, 4.0]

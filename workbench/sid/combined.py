@@ -65,7 +65,9 @@ def combine_modes(
     selections : mapping of str to ModeSelection
         Method name (e.g. ``"ssi"``, ``"lscf"``) to its selection, on the same channels;
         the first method is the reference the others are paired with, one after the
-        other (a mode of a later method pairs with at most one earlier mode).
+        other (a mode of a later method pairs with at most one earlier mode). A mode that
+        only a later method found, and only by its second look (close and weak modes,
+        :mod:`~workbench.sid.selection`), is not taken: alone it is too weak a case.
     frequency_tol : float
         Largest relative frequency difference of a pair. [-]
     mac_min : float
@@ -118,11 +120,12 @@ def combine_modes(
                 rows, cols = linear_sum_assignment(cost)
                 ok = admissible[rows, cols]
                 paired[cols[ok]] = rows[ok]
+        second_look = _second_look_rows(selection)
         for k in range(f.size):
             entry = (f[k], z[k], sf[k], sz[k], k)
             if paired[k] >= 0:
                 groups[paired[k]][name] = entry
-            else:
+            elif name == names[0] or not second_look[k]:
                 groups.append({name: entry})
                 shapes.append(shape[:, k])
     rows = []
@@ -148,6 +151,16 @@ def combine_modes(
     for column in ["n_methods", *(f"{n}_mode" for n in names)]:
         frame[column] = frame[column].astype(np.int64)
     return frame.sort_values("frequency_hz", kind="stable").reset_index(drop=True)
+
+
+def _second_look_rows(selection) -> np.ndarray:
+    """Which modes of a selection its second look added (``thresholds["second_look_poles"]``
+    of :func:`~workbench.sid.selection.select_modes`)."""
+    modes = selection.modes
+    poles = getattr(selection, "thresholds", {}).get("second_look_poles", ())
+    if not len(poles) or "pole_index" not in modes.columns:
+        return np.zeros(len(modes), dtype=bool)
+    return modes["pole_index"].isin(poles).to_numpy()
 
 
 def _column(modes: pd.DataFrame, name: str, n: int) -> np.ndarray:

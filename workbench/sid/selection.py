@@ -37,6 +37,20 @@ diagram itself:
    frequencies within ``frequency_tol`` and MAC above ``mac_min`` are one mode (the larger
    cluster is kept).
 
+5. **Second look** (``second_look=True``, close and weakly excited modes): where most
+   modes recur to 1e-5 the cut of stage 1 is tight, and the poles of a mode whose shape
+   estimate wanders between orders (a close neighbour mixes into it) or that appears only
+   from a higher order on (weakly excited) fall apart into chains shorter than stage 3's
+   threshold. The poles left over that recur within 0.02 are clustered again by complete
+   linkage at 0.02 (no chaining into a neighbour), fragments at complementary orders are
+   joined into columns (two close modes have poles at the *same* orders; one mode's
+   fragments do not), and a column is a mode when it is order-consistent: long enough
+   (0.8 x stage 3's threshold and 0.4 x the median length of the stage-3 modes), present
+   at 80 % of the orders it spans, no more scattered in frequency than twice the least
+   consistent stage-3 mode, with a consistent damping ratio; near a selected mode (3 %)
+   it must coexist with it at the same orders and differ in shape (MAC below
+   ``mac_min``). See :func:`_second_look`.
+
 Each mode is reported by the cluster's median frequency and median damping ratio, the shape
 (and ``pole_index``, ``model_order``, ``mpc``) of its pole nearest the median frequency,
 and the cluster scatter: ``frequency_std_hz``, ``damping_std`` (sample standard deviations
@@ -144,8 +158,10 @@ class ModeSelection:
     method : {"cluster", "library"}
         The rule used.
     thresholds : dict
-        The data-derived thresholds of the clustering rule: ``pole_distance`` (d_cut) and
-        ``min_orders`` (smallest number of orders of an accepted cluster).
+        The data-derived thresholds of the clustering rule: ``pole_distance`` (d_cut),
+        ``min_orders`` (smallest number of orders of an accepted cluster),
+        ``second_look`` (number of modes added by the second look) and
+        ``second_look_poles`` (their ``pole_index`` values).
     """
 
     modes: pd.DataFrame
@@ -480,12 +496,15 @@ def _select_clusters(
             damping_limits=(low_damping, high_damping),
             mac_min=mac_min,
         )
+        second_look_poles = []
         for members in rescued:
             centre = np.median(f[members])
             head = int(members[np.argmin(np.abs(f[members] - centre))])
             heads.append(head)
             statistics[int(index[head])] = _cluster_statistics(f, z, members)
+            second_look_poles.append(int(index[head]))
         thresholds["second_look"] = len(rescued)
+        thresholds["second_look_poles"] = tuple(sorted(second_look_poles))
     chosen = index[np.array(heads, dtype=int)]
     return _mode_selection(poles, shapes, chosen, statistics, orders, thresholds)
 
