@@ -21,6 +21,11 @@ lies within ``--match`` (default 2 %) of it, one-to-one (Hungarian assignment on
 relative frequency difference); the shear frame's target is 0.5 %, shown in its own
 column.
 
+``--methods`` also prints, per recording and block, the found, missed and spurious
+reference modes and the errors of SSI-cov, LSCF and their combined modal model
+(:func:`workbench.sid.combined.combine_modes`), identified as ``identify --cross-check``
+does.
+
 Run: ``python benchmarks/bench_real_data.py`` (needs ``../shared/realdata``; about a
 minute on one core). ``--band LOW HIGH`` overrides the band of every recording (to compare
 with a version whose default band does not suit these structures).
@@ -187,6 +192,9 @@ def main(argv=None) -> int:
     parser.add_argument("--match", type=float, default=0.02, help="relative tolerance of a match")
     parser.add_argument("--work", type=Path, help="folder for the files (default: a temporary one)")
     parser.add_argument("--details", action="store_true", help="print every selected mode")
+    parser.add_argument(
+        "--methods", action="store_true", help="also SSI, LSCF and combined, block by block"
+    )
     parser.add_argument("--demo-ab", type=int, default=0, metavar="N", help="A/B timing")
     parser.add_argument("--demo", type=Path, help="demo voyage folder to reuse (--demo-ab)")
     args = parser.parse_args(argv)
@@ -262,7 +270,72 @@ def main(argv=None) -> int:
     table = pd.DataFrame(rows)
     with pd.option_context("display.width", 200, "display.max_columns", 20):
         print(table.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+        if args.methods:
+            print()
+            print(methods_table(args.match).to_string(index=False, float_format=_short))
     return 0
+
+
+def _short(value: float) -> str:
+    return f"{value:.3g}"
+
+
+def methods_table(match_tol: float) -> pd.DataFrame:
+    """SSI-cov, LSCF and their combination (:func:`workbench.sid.combined.combine_modes`)
+    on every recording, block by block, as ``identify --cross-check`` computes them (the
+    same conditioning and options as the command line above, in this process)."""
+    from threadpoolctl import threadpool_limits
+
+    from workbench.identification.options import IdentifyOptions
+    from workbench.identify import (
+        BlockTask,
+        _identify_data,
+        acceleration_files,
+        plan_identification,
+    )
+    from workbench.sid.combined import combine_modes
+
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for recording in recordings():
+            data = _write_npz(recording, Path(tmp) / recording.name.replace("/", "_"))
+            options = IdentifyOptions(
+                length_s=60.0 * recording.block_minutes,
+                step_s=60.0 * recording.block_minutes,
+                target_rate_hz=recording.rate_hz or "auto",
+                cross_check=True,
+            )
+            plan, options = plan_identification(acceleration_files([data]), options)
+            reference = recording.reference
+            required = np.flatnonzero(
+                reference["frequency_hz"].to_numpy() < recording.scored_below_hz
+            )
+            for planned in [b for b in plan.blocks if not b.skipped_reason]:
+                task = BlockTask(planned.block, planned.block_start, tuple(map(str, planned.files)))
+                with threadpool_limits(limits=1):
+                    _, _, ssi, other = _identify_data(task, plan.grid, options, cross=True)
+                selections = {"SSI": ssi.modes, "LSCF": other[1].modes}
+                pair = {"ssi": ssi, "lscf": other[1]}
+                selections["combined"] = combine_modes(pair)
+                for variant in ("weighted", "reference"):
+                    selections[variant] = combine_modes(pair, estimate=variant)
+                for method, modes in selections.items():
+                    result = score(modes, reference, match_tol)
+                    found = np.isin(required, result["found_rows"])
+                    rows.append(
+                        {
+                            "recording": recording.name,
+                            "block": planned.block,
+                            "method": method,
+                            "found": int(found.sum()),
+                            "missed": int(required.size - found.sum()),
+                            "spurious": result["spurious"],
+                            "median |df|/f": _median(result["frequency_error"]),
+                            "max |df|/f": _max(result["frequency_error"]),
+                            "median |dz|/z": _median(result["damping_error"]),
+                        }
+                    )
+    return pd.DataFrame(rows)
 
 
 def _overlap(selected: pd.DataFrame | None) -> str:

@@ -227,6 +227,54 @@ def _window_order(frame: pd.DataFrame) -> list[Violation]:
     return [Violation("window_end_block", "window ends before it starts", rows, int(bad.sum()))]
 
 
+#: The combined modal model of identify --cross-check (SSI and LSCF of one block, see
+#: workbench.sid.combined): optional in the selected and the tracked modal tables.
+_COMBINED = (
+    Column(
+        "combined_frequency_hz",
+        "float",
+        "Inverse-variance mean of the methods' frequencies of this mode (SSI and LSCF with "
+        "--cross-check; the method's own where the other has no such mode).",
+        unit="Hz",
+        required=False,
+        nullable=True,
+        minimum=0.0,
+    ),
+    Column(
+        "combined_frequency_std_hz",
+        "float",
+        "Uncertainty of combined_frequency_hz: each method's scatter over its model orders "
+        "and their disagreement. The forecast's per-block measurement noise when present.",
+        unit="Hz",
+        required=False,
+        nullable=True,
+        minimum=0.0,
+    ),
+    Column(
+        "combined_damping_ratio",
+        "float",
+        "Combined damping ratio (as combined_frequency_hz).",
+        required=False,
+        nullable=True,
+    ),
+    Column(
+        "combined_damping_std",
+        "float",
+        "Uncertainty of combined_damping_ratio.",
+        required=False,
+        nullable=True,
+        minimum=0.0,
+    ),
+    Column(
+        "combined_methods",
+        "nullable_int",
+        "Number of methods that found the mode (2: SSI and LSCF agree on it).",
+        required=False,
+        nullable=True,
+        minimum=1,
+    ),
+)
+
 PREDICTORS = TableContract(
     name="predictors",
     description="Ship-log predictors averaged over the blocks of the voyage's block grid, "
@@ -272,6 +320,7 @@ MODAL = TableContract(
             nullable=True,
             minimum=1,
         ),
+        *_COMBINED,
     ),
     patterns=(_SHAPES,),
     unique=("block", "mode"),
@@ -373,6 +422,7 @@ SELECTED = TableContract(
             nullable=True,
             minimum=0.0,
         ),
+        *_COMBINED,
     ),
     patterns=(_SHAPES,),
     checks=(_end_after_start, _one_start_per_block),

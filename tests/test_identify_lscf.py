@@ -42,6 +42,24 @@ def test_lscf_identify_with_cross_check(voyage, tmp_path):
     assert set(poles["block"]) == set(range(voyage.n_blocks))
     selected = pd.read_parquet(tmp_path / "selected.parquet")
     assert selected.groupby("block").size().min() >= 5  # of the seven hull modes
+    # the combined modal model: LSCF's own estimate (the block's method, the reference of
+    # the combination) with the uncertainty of both methods' scatter and agreement
+    np.testing.assert_array_equal(selected["combined_frequency_hz"], selected["frequency_hz"])
+    both = selected[selected["combined_methods"] == 2]
+    assert len(both) >= 4 * voyage.n_blocks
+    assert (both["combined_frequency_std_hz"] > 0).all()
+    assert (both["combined_frequency_std_hz"] < 0.01 * both["frequency_hz"]).all()
+    # the tracked modal table carries them (optional MODAL columns)
+    from workbench.sid.tracking import track_modes
+
+    tracked = track_modes(selected)
+    assert {"combined_frequency_hz", "combined_frequency_std_hz"} <= set(tracked.columns)
+    assert tracked["combined_frequency_std_hz"].notna().all()
+    alone = selected[selected["combined_methods"] == 1]
+    np.testing.assert_allclose(
+        alone["combined_frequency_std_hz"],
+        np.maximum(alone["frequency_std_hz"], 1e-4 * alone["frequency_hz"]),
+    )
     table = pd.read_csv(tmp_path / "crosscheck.csv")
     assert list(table.columns[:1]) == ["block"]
     assert set(CROSS_CHECK_COLUMNS) <= set(table.columns)

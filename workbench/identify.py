@@ -10,7 +10,10 @@ BlockStore`, and exports the store as contract tables:
 * ``selected.parquet`` - the automatically selected modes of each block (input of
   ``workbench track``), with the scatter of each mode's pole cluster
   (``frequency_std_hz``, ``damping_std``, ``n_poles``; see
-  :mod:`workbench.sid.selection`);
+  :mod:`workbench.sid.selection`); with ``cross_check`` also the combined modal model of
+  the two methods (``combined_frequency_hz``, ``combined_frequency_std_hz``, ...; see
+  :mod:`workbench.sid.combined`), which tracking carries into the tracked modal table and
+  the forecast takes as the block's measurement scatter;
 * ``faults.csv`` - channels dropped per block and why;
 * ``channels.csv`` - per block and channel: RMS and kurtosis of the conditioned signal;
 * ``blocks.csv`` - every block: ``ok`` or ``skipped`` and the reason;

@@ -60,7 +60,9 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
         "--cross-check",
         action="store_true",
         help="also identify with the other method (LSCF for SSI, SSI-cov for LSCF) and pair "
-        "the modes of both per block (crosscheck.csv, agreement in the summary)",
+        "the modes of both per block (crosscheck.csv, agreement in the summary); the "
+        "selected modes then carry the combined estimate and its uncertainty "
+        "(combined_* columns, the forecast's per-block measurement noise)",
     )
     parser.add_argument(
         "--block-rows",

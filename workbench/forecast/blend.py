@@ -128,6 +128,13 @@ def memory_forecast(
     mode_labels = modes_to_forecast(modal, modes)
     n_modes = mode_labels.size
     tracked = mode_matrix(modal, blocks, mode_labels, "frequency_hz")
+    # the combined modal model's uncertainty per block (identify --cross-check), when the
+    # tracked table carries it: the block's measurement scatter instead of the pole cluster's
+    combined_std = (
+        mode_matrix(modal, blocks, mode_labels, "combined_frequency_std_hz")
+        if "combined_frequency_std_hz" in modal.columns
+        else None
+    )
     tracked_damping = (
         mode_matrix(modal, blocks, mode_labels, "damping_ratio")
         if "damping_ratio" in modal.columns
@@ -320,7 +327,7 @@ def memory_forecast(
 
         # typical cluster scatter per mode (RMS over the noise window)
         typical = np.full(n_modes, np.nan)
-        if index is not None and noise.pole_scatter:
+        if (index is not None or combined_std is not None) and noise.pole_scatter:
             lo = max(first, i0 - int(noise.noise_blocks))
             s = scatter[lo:i0]
             with warnings.catch_warnings():
@@ -341,8 +348,14 @@ def memory_forecast(
             scale = np.ones(n_modes)
             if option == "A" or k < first + train:
                 z = tracked[k].copy()
-                if index is not None and noise.pole_scatter:
+                if (index is not None or combined_std is not None) and noise.pole_scatter:
                     for j in np.flatnonzero(np.isfinite(z) & have):
+                        if combined_std is not None and np.isfinite(combined_std[k, j]):
+                            scatter[k, j] = combined_std[k, j]
+                            scale[j] = scatter_scale(combined_std[k, j], typical[j])
+                            continue
+                        if index is None:
+                            continue
                         cl = cluster_around(index, k, z[j])
                         if cl is not None and cl.n_orders >= 3:
                             scatter[k, j] = cl.scatter_hz

@@ -225,9 +225,10 @@ def identify_block(
         )
     kept = list(data.channels)
     poles = _full_channels(result.poles_frame(kept, block=task.block), kept, channels)
-    selected_frame = _selected_frame(
-        selection.modes_frame(kept), kept, channels, task.block, start, end
-    )
+    modes = selection.modes_frame(kept)
+    if other and other[0] is not None:
+        modes = _with_combined(modes, selection, other[0][1], options.method)
+    selected_frame = _selected_frame(modes, kept, channels, task.block, start, end)
     channel_stats = _channel_statistics(data.acceleration, kept, task.block, start)
     tables = {
         "poles": poles,
@@ -240,6 +241,35 @@ def identify_block(
             selection, other[0][1], options.method, task.block, start
         )
     return BlockOutcome(task.block, start, tables, notes=notes)
+
+
+#: Columns the combined modal model adds to the selected table (see
+#: :func:`~workbench.sid.combined.combine_modes`).
+COMBINED_SELECTED_COLUMNS = {
+    "frequency_hz": "combined_frequency_hz",
+    "frequency_std_hz": "combined_frequency_std_hz",
+    "damping_ratio": "combined_damping_ratio",
+    "damping_std": "combined_damping_std",
+    "n_methods": "combined_methods",
+}
+
+
+def _with_combined(modes: pd.DataFrame, selection, other_selection, method) -> pd.DataFrame:
+    """The block's selected *modes* with the combined estimate of this method and the other
+    family (:func:`~workbench.sid.combined.combine_modes`): ``combined_frequency_hz``,
+    ``combined_frequency_std_hz``, ``combined_damping_ratio``, ``combined_damping_std`` and
+    ``combined_methods`` (1 where the other method has no such mode)."""
+    from ..sid.combined import combine_modes
+
+    own = "lscf" if method == "lscf" else "ssi"
+    other = "ssi" if own == "lscf" else "lscf"
+    combined = combine_modes({own: selection, other: other_selection})
+    combined = combined[combined[f"{own}_mode"] >= 0].set_index(f"{own}_mode")
+    modes = modes.copy()
+    for source, column in COMBINED_SELECTED_COLUMNS.items():
+        values = combined[source].reindex(range(len(modes)))
+        modes[column] = values.to_numpy(dtype=np.int64 if source == "n_methods" else float)
+    return modes
 
 
 def _cross_check_frame(selection, other_selection, method, block, start) -> pd.DataFrame:

@@ -96,7 +96,9 @@ class IdentifyOptions:
         lscf`).
     cross_check : bool
         Also identify every block with the other family (LSCF for SSI, SSI-cov for LSCF)
-        and pair the selected modes of both (``crosscheck.csv``).
+        and pair the selected modes of both (``crosscheck.csv``); the selected table then
+        carries their combined estimate and its uncertainty (``combined_*`` columns,
+        :func:`~workbench.sid.combined.combine_modes`).
     acceleration_layout : mapping, optional
         How to read the acceleration files (fields of
         :class:`data_contracts.formats.AccelerationLayout`: time column and format, units,

@@ -16,6 +16,7 @@ import sys as _sys
 from workbench.sid import assurance as _assurance
 from workbench.sid import plscf as _plscf
 from workbench.sid.assurance import continuous_pole, mac, macxp
+from workbench.sid.combined import combine_modes
 from workbench.sid.crosscheck import agreement_by_block, cross_check
 from workbench.sid.modal import modal_phase_collinearity, normalise_shapes
 from workbench.sid.plscf import LSCFResult, lscf
@@ -33,6 +34,7 @@ __all__ = [
     "StabilityCriteria",
     "StochasticStateSpace",
     "agreement_by_block",
+    "combine_modes",
     "continuous_pole",
     "cross_check",
     "lscf",

@@ -37,6 +37,20 @@ diagram itself:
    frequencies within ``frequency_tol`` and MAC above ``mac_min`` are one mode (the larger
    cluster is kept).
 
+5. **Second look** (``second_look=True``, close and weakly excited modes): where most
+   modes recur to 1e-5 the cut of stage 1 is tight, and the poles of a mode whose shape
+   estimate wanders between orders (a close neighbour mixes into it) or that appears only
+   from a higher order on (weakly excited) fall apart into chains shorter than stage 3's
+   threshold. The poles left over that recur within 0.02 are clustered again by complete
+   linkage at 0.02 (no chaining into a neighbour), fragments at complementary orders are
+   joined into columns (two close modes have poles at the *same* orders; one mode's
+   fragments do not), and a column is a mode when it is order-consistent: long enough
+   (0.8 x stage 3's threshold and 0.4 x the median length of the stage-3 modes), present
+   at 80 % of the orders it spans, no more scattered in frequency than twice the least
+   consistent stage-3 mode, with a consistent damping ratio; near a selected mode (3 %)
+   it must coexist with it at the same orders and differ in shape (MAC below
+   ``mac_min``). See :func:`_second_look`.
+
 Each mode is reported by the cluster's median frequency and median damping ratio, the shape
 (and ``pole_index``, ``model_order``, ``mpc``) of its pole nearest the median frequency,
 and the cluster scatter: ``frequency_std_hz``, ``damping_std`` (sample standard deviations
@@ -144,8 +158,10 @@ class ModeSelection:
     method : {"cluster", "library"}
         The rule used.
     thresholds : dict
-        The data-derived thresholds of the clustering rule: ``pole_distance`` (d_cut) and
-        ``min_orders`` (smallest number of orders of an accepted cluster).
+        The data-derived thresholds of the clustering rule: ``pole_distance`` (d_cut),
+        ``min_orders`` (smallest number of orders of an accepted cluster),
+        ``second_look`` (number of modes added by the second look) and
+        ``second_look_poles`` (their ``pole_index`` values).
     """
 
     modes: pd.DataFrame
@@ -293,6 +309,7 @@ def select_modes(
     damping_tol: float = 0.50,
     mac_min: float = 0.98,
     mpc_min: float = 0.0,
+    second_look: bool = True,
 ) -> ModeSelection:
     """Select the physical modes of a stabilisation diagram.
 
@@ -330,6 +347,9 @@ def select_modes(
         shapes of twin clusters (``"cluster"``). [-]
     mpc_min : float
         Smallest modal phase collinearity of a considered pole (0 disables). [-]
+    second_look : bool
+        ``"cluster"``: look again at the poles left over for close and weakly excited
+        modes (stage 4 of the module docstring).
 
     Returns
     -------
@@ -372,6 +392,7 @@ def select_modes(
         frequency_tol=frequency_tol,
         mac_min=mac_min,
         mpc_min=mpc_min,
+        second_look=second_look,
     )
 
 
@@ -385,6 +406,7 @@ def _select_clusters(
     mac_min: float,
     mpc_min: float,
     pole_distance: float | None = None,
+    second_look: bool = True,
 ) -> ModeSelection:
     """The clustering rule of the module docstring."""
     orders = tuple(sorted(result.orders))
@@ -443,7 +465,7 @@ def _select_clusters(
         c for c in clusters if c.size >= needed and low_damping <= np.median(z[c]) <= high_damping
     ]
     accepted.sort(key=lambda c: -c.size)
-    heads, statistics = [], {}
+    heads, statistics, kept_members = [], {}, []
     for members in accepted:
         centre = np.median(f[members])
         head = int(members[np.argmin(np.abs(f[members] - centre))])
@@ -456,16 +478,216 @@ def _select_clusters(
         if twin:
             continue
         heads.append(head)
-        ddof = 1 if members.size > 1 else 0
-        statistics[int(index[head])] = {
-            "frequency_hz": float(centre),
-            "damping_ratio": float(np.median(z[members])),
-            "frequency_std_hz": float(np.std(f[members], ddof=ddof)),
-            "damping_std": float(np.std(z[members], ddof=ddof)),
-            "n_poles": int(members.size),
-        }
+        statistics[int(index[head])] = _cluster_statistics(f, z, members)
+        kept_members.append(members)
+    # stage 4: a second look at the poles left over, for close and weakly excited modes
+    if second_look:
+        taken = np.concatenate(kept_members) if kept_members else np.zeros(0, dtype=int)
+        rescued = _second_look(
+            f,
+            z,
+            shape,
+            rank,
+            nearest,
+            taken,
+            kept_members,
+            len(orders),
+            min_orders=needed_second_look(min_orders, needed),
+            damping_limits=(low_damping, high_damping),
+            mac_min=mac_min,
+        )
+        second_look_poles = []
+        for members in rescued:
+            centre = np.median(f[members])
+            head = int(members[np.argmin(np.abs(f[members] - centre))])
+            heads.append(head)
+            statistics[int(index[head])] = _cluster_statistics(f, z, members)
+            second_look_poles.append(int(index[head]))
+        thresholds["second_look"] = len(rescued)
+        thresholds["second_look_poles"] = tuple(sorted(second_look_poles))
     chosen = index[np.array(heads, dtype=int)]
     return _mode_selection(poles, shapes, chosen, statistics, orders, thresholds)
+
+
+#: The second look's clusters need at least this share of stage 3's number of orders. [-]
+SECOND_LOOK_SHARE = 0.8
+#: ... and at least this share of the median number of orders of the stage-3 modes. [-]
+SECOND_LOOK_KEPT_SHARE = 0.4
+#: ... and poles at this share of the orders between their lowest and highest. [-]
+SECOND_LOOK_CONTINUITY = 0.8
+#: A second-look cluster within NEAR_MODE (relative) of a mode is a mode of its own only
+#: when both have poles at this share of its orders (two poles of one model). [-]
+SECOND_LOOK_COEXISTENCE = 0.75
+#: Relative frequency distance within which a second-look cluster is tested against a mode
+#: for being a fragment of it. [-]
+NEAR_MODE = 0.03
+#: Largest relative spread (median absolute deviation / median) of a second-look cluster's
+#: damping ratios. [-]
+SECOND_LOOK_DAMPING_SPREAD = 0.25
+#: The second look clusters at most this many leftover poles (those recurring most
+#: tightly), bounding its distance matrix.
+MAX_SECOND_LOOK_POLES = 3000
+
+
+#: A second-look column's relative frequency scatter is at most this multiple of the
+#: largest of the stage-3 modes. [-]
+SECOND_LOOK_SCATTER = 2.0
+#: Two fragments are one column when their frequencies differ by less than this multiple
+#: of their relative scatter (floored at FRAGMENT_FLOOR), their shapes have a MAC of at
+#: least FRAGMENT_MAC, and they share at most FRAGMENT_SHARED of the smaller's orders.
+FRAGMENT_SIGMA = 3.0
+FRAGMENT_FLOOR = 1e-4
+FRAGMENT_MAC = 0.8
+FRAGMENT_SHARED = 0.2
+
+
+def _one_per_order(members, f, rank) -> np.ndarray:
+    """*members* reduced to one pole per model order (the one closest to their median)."""
+    if members.size == 0:
+        return members
+    centre = np.median(f[members])
+    members = members[np.lexsort((np.abs(f[members] - centre), rank[members]))]
+    first = np.concatenate(([True], rank[members][1:] != rank[members][:-1]))
+    return members[first]
+
+
+def _join_fragments(fragments, f, shape, rank) -> list[np.ndarray]:
+    """Fragments of one column joined: the poles of a mode whose shape estimate wanders
+    from order to order (a close neighbour mixes into it) fall into several tight
+    clusters at complementary orders; two close modes instead have poles at the same
+    orders. Largest fragments first, each joins the first column it matches."""
+    columns: list[np.ndarray] = []
+    for members in sorted(fragments, key=lambda m: -m.size):
+        centre = np.median(f[members])
+        scatter = 1.4826 * np.median(np.abs(f[members] - centre)) / centre
+        head = members[np.argmin(np.abs(f[members] - centre))]
+        for k, column in enumerate(columns):
+            column_centre = np.median(f[column])
+            column_scatter = 1.4826 * np.median(np.abs(f[column] - column_centre)) / column_centre
+            tolerance = FRAGMENT_SIGMA * max(scatter, column_scatter, FRAGMENT_FLOOR)
+            if abs(centre / column_centre - 1.0) >= tolerance:
+                continue
+            shared = np.intersect1d(rank[members], rank[column]).size
+            if shared > FRAGMENT_SHARED * min(members.size, column.size):
+                continue
+            column_head = column[np.argmin(np.abs(f[column] - column_centre))]
+            if float(mac(shape[:, head], shape[:, column_head])) < FRAGMENT_MAC:
+                continue
+            columns[k] = _one_per_order(np.concatenate([column, members]), f, rank)
+            break
+        else:
+            columns.append(members)
+    return columns
+
+
+def needed_second_look(min_orders: int, needed: int) -> int:
+    """Fewest orders of a cluster found by the second look."""
+    return max(int(min_orders), int(np.ceil(SECOND_LOOK_SHARE * needed)))
+
+
+def _cluster_statistics(f, z, members) -> dict:
+    """Median frequency and damping, their scatter and the number of orders of a cluster."""
+    ddof = 1 if members.size > 1 else 0
+    return {
+        "frequency_hz": float(np.median(f[members])),
+        "damping_ratio": float(np.median(z[members])),
+        "frequency_std_hz": float(np.std(f[members], ddof=ddof)),
+        "damping_std": float(np.std(z[members], ddof=ddof)),
+        "n_poles": int(members.size),
+    }
+
+
+def _second_look(
+    f, z, shape, rank, nearest, taken, kept, n_ranks, *, min_orders, damping_limits, mac_min
+) -> list[np.ndarray]:
+    """Clusters of close and weakly excited modes among the poles stage 3 left over.
+
+    The data-derived cut of stage 1 is tight where most modes recur to 1e-5: the poles of a
+    mode close to another (whose shapes mix from order to order) or weakly excited
+    (present only from a higher order on, with more scatter) then fall apart into short
+    single-linkage chains below stage 3's threshold. The second look takes the poles not in
+    a selected mode that recur within the fixed limit :data:`MAX_CLUSTER_DISTANCE` (0.02),
+    joins them by complete linkage at that limit (every pair of a cluster within it: no
+    chaining from one mode into its neighbour) and keeps a cluster, one pole per order, as a
+    mode when it is *order-consistent*:
+
+    * poles at no fewer than :func:`needed_second_look` orders and
+      :data:`SECOND_LOOK_KEPT_SHARE` of the median orders of the stage-3 modes, and at
+      :data:`SECOND_LOOK_CONTINUITY` of the orders from its lowest to its highest (a weak
+      mode appears from some order on and stays; noise recurs in patches);
+    * frequency scatter (1.4826 x the median absolute deviation, relative) no larger than
+      the largest relative standard deviation of a stage-3 mode's frequencies (without
+      stage-3 modes there is no second look);
+    * median damping within the limits, damping spread (MAD / median) at most
+      :data:`SECOND_LOOK_DAMPING_SPREAD`;
+    * near a mode (within :data:`NEAR_MODE`), a mode of its own only if the two have poles
+      at the same orders (at :data:`SECOND_LOOK_COEXISTENCE` of its orders: one model
+      holds both) and their shapes differ (MAC below *mac_min*); otherwise it is a fragment
+      of that mode.
+
+    Returns the clusters as arrays of positions (into *f*), largest first.
+    """
+    from scipy.cluster.hierarchy import fcluster, linkage
+    from scipy.spatial.distance import squareform
+
+    from .pole_clustering import _pole_distance
+
+    low_damping, high_damping = damping_limits
+    # no looser in frequency than the least consistent mode of stage 3
+    max_scatter = max(
+        (float(np.std(f[m], ddof=1) / np.median(f[m])) for m in kept if m.size > 1),
+        default=0.0,
+    )
+    typical_length = float(np.median([m.size for m in kept])) if kept else 0.0
+    pool = np.setdiff1d(np.flatnonzero(nearest < MAX_CLUSTER_DISTANCE), taken)
+    if pool.size > MAX_SECOND_LOOK_POLES:
+        pool = np.sort(pool[np.argsort(nearest[pool], kind="stable")[:MAX_SECOND_LOOK_POLES]])
+    if pool.size < max(min_orders, 2):
+        return []
+    distance = _pole_distance(f[pool], shape[:, pool], f[pool], shape[:, pool])
+    distance = np.clip(0.5 * (distance + distance.T), 0.0, None)
+    np.fill_diagonal(distance, 0.0)
+    tree = linkage(squareform(distance, checks=False), method="complete")
+    labels = fcluster(tree, MAX_CLUSTER_DISTANCE, criterion="distance")
+    fragments = [_one_per_order(pool[labels == label], f, rank) for label in np.unique(labels)]
+    fragments = [m for m in fragments if m.size >= 2]
+    candidates = []
+    for members in _join_fragments(fragments, f, shape, rank):
+        centre = np.median(f[members])
+        span = rank[members].max() - rank[members].min() + 1
+        damping = np.median(z[members])
+        spread = np.median(np.abs(z[members] - damping)) / damping if damping > 0 else np.inf
+        scatter = 1.4826 * np.median(np.abs(f[members] - centre)) / centre
+        if (
+            scatter <= SECOND_LOOK_SCATTER * max_scatter
+            and members.size >= min_orders
+            and members.size >= SECOND_LOOK_KEPT_SHARE * typical_length
+            and members.size >= SECOND_LOOK_CONTINUITY * span
+            and low_damping <= damping <= high_damping
+            and spread <= SECOND_LOOK_DAMPING_SPREAD
+        ):
+            candidates.append(members)
+    candidates.sort(key=lambda c: -c.size)
+    modes = list(kept)
+    rescued = []
+    for members in candidates:
+        centre = np.median(f[members])
+        head = members[np.argmin(np.abs(f[members] - centre))]
+        fragment = False
+        for other in modes:
+            other_centre = np.median(f[other])
+            if abs(centre / other_centre - 1.0) >= NEAR_MODE:
+                continue
+            shared = np.intersect1d(rank[members], rank[other]).size
+            other_head = other[np.argmin(np.abs(f[other] - other_centre))]
+            similar = float(mac(shape[:, head], shape[:, other_head])) >= mac_min
+            if similar or shared < SECOND_LOOK_COEXISTENCE * members.size:
+                fragment = True
+                break
+        if not fragment:
+            modes.append(members)
+            rescued.append(members)
+    return rescued
 
 
 def _mode_selection(poles, shapes, heads, statistics, orders, thresholds) -> ModeSelection:
