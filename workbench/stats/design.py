@@ -107,6 +107,19 @@ def _is_categorical(column: pd.Series) -> bool:
     )
 
 
+def column_labels(columns: pd.Index) -> tuple:
+    """The labels of a frame's *columns* as Python objects.
+
+    A column index of pandas' Arrow-backed string dtype is converted through its Arrow
+    array, which costs a fraction of ``Index.tolist()`` (a noticeable share of a small
+    stepwise fit); any other index through ``tolist()``.
+    """
+    array = columns.array
+    if isinstance(array, pd.arrays.ArrowStringArray) and not columns.hasnans:
+        return tuple(array.__arrow_array__().to_pylist())
+    return tuple(columns.tolist())
+
+
 def _all_numeric(frame: pd.DataFrame) -> bool:
     """Every column numeric and not bool (checked on the frame's blocks when possible:
     ``frame.dtypes`` builds a Series, which costs more than a small stepwise fit)."""
@@ -134,7 +147,7 @@ def encode(
         stored as integers (MATLAB ``CategoricalVars``).
     """
     if isinstance(X, pd.DataFrame):
-        names = tuple(X.columns.tolist())
+        names = column_labels(X.columns)
         if not all(type(name) is str for name in names):
             names = tuple(map(str, names))
         frame = X
