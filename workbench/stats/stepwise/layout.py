@@ -124,3 +124,25 @@ def _removable_terms(
     terms.setflags(write=False)
     removable.setflags(write=False)
     return terms, removable
+
+
+@dataclass(frozen=True)
+class _ModelLabels:
+    """Columns and names of a model's terms (cached per layout and model)."""
+
+    columns: tuple[int, ...]  # design columns, the intercept's first
+    display: tuple[str, ...]  # non-constant terms
+    terms: tuple[Term, ...]
+    column_names: tuple[str, ...]
+    column_terms: tuple[Term, ...]  # the term of each design column
+
+
+@functools.lru_cache(maxsize=4096)
+def _model_labels(layout: _Layout, model: tuple[int, ...]) -> _ModelLabels:
+    return _ModelLabels(
+        columns=tuple(int(c) for t in model for c in layout.columns[t]),
+        display=tuple(layout.display[t] for t in model[1:]),
+        terms=tuple(layout.terms[t] for t in model),
+        column_names=tuple(layout.column_names[c] for t in model for c in layout.columns[t]),
+        column_terms=tuple(layout.terms[t] for t in model for _ in layout.columns[t]),
+    )

@@ -9,7 +9,7 @@ import numpy as np
 from scipy import special as _special
 
 from ..design import Encoding, raw_transform
-from .layout import _eligible_terms, _removable_terms
+from .layout import _eligible_terms, _model_labels, _removable_terms
 from .result import StepwiseFit
 from .sweep import COLLINEARITY_TOLERANCE, _Problem, _problem, _sweep
 
@@ -503,8 +503,9 @@ class _Search:
         layout = self.layout
         problem, matrix, rows = self.final
         model = self.model
+        labels = _model_labels(layout, tuple(model))
         n = problem.n
-        model_columns = [int(c) for t in model for c in layout.columns[t]]
+        model_columns = list(labels.columns)
         swept = self._model_columns()
         k = 1 + len(swept)
         dfe = n - k
@@ -536,7 +537,7 @@ class _Search:
         full[0, 1:] = full[1:, 0] = -(covariance @ term_means)
         full[1:, 1:] = covariance
         search_estimates = np.concatenate([[intercept], slopes])
-        terms = [layout.terms[t] for t in model]
+        terms = labels.terms
         transform = raw_transform(terms, encoding)
         if transform is None:  # cannot happen with the hierarchy kept; stay in search units
             transform = np.eye(m + 1)
@@ -551,9 +552,8 @@ class _Search:
         else:
             f_stat = f_p_value = math.nan
         log_likelihood = -0.5 * n * (math.log(2 * math.pi * sse / n) + 1.0) if sse > 0 else math.inf
-        names = [layout.column_names[c] for c in model_columns]
         return StepwiseFit(
-            terms=tuple(layout.display[t] for t in model[1:]),
+            terms=labels.display,
             predictor_names=encoding.names,
             response_name=response_name,
             criterion=self.criterion,
@@ -570,15 +570,15 @@ class _Search:
             log_likelihood=float(log_likelihood),
             aic=float(-2.0 * log_likelihood + 2.0 * k),
             bic=float(-2.0 * log_likelihood + math.log(n) * k),
-            model_terms=tuple(terms),
+            model_terms=terms,
             estimates=estimates,
             standard_errors=standard_errors,
             term_means=term_means,
             slope_covariance=covariance,
             step_records=tuple(self.steps),
             skipped_records=tuple((s, term, reason) for (term, reason), s in self.skipped.items()),
-            coefficient_names=tuple(names),
-            coefficient_terms=tuple(layout.terms[t] for t in model for _ in layout.columns[t]),
+            coefficient_names=labels.column_names,
+            coefficient_terms=labels.column_terms,
             search_estimates=search_estimates,
             encoding=encoding,
             missing=missing,
