@@ -1,5 +1,15 @@
-"""Benchmark: identification at a recorder's rate (2048 Hz, 19 channels), files conditioned
-once against the per-block path (issue 18).
+"""Benchmark: identification at a recorder's rate (2048 Hz, 19 channels) against a plain
+script (issue 33) and the per-block path (issue 18).
+
+Plain baseline (issue 33; needs koma-python): ``workbench identify --band 2 12`` with the
+largest ``--workers`` against the single-process script a user would otherwise run (per
+20-min block: read the files, ``scipy.signal.decimate`` 4 x 8 to 64 Hz, koma ``covssi``
+i = 20, orders 4..60), interleaved, ``--repeats`` pairs; printed: wall-clock and CPU-second
+ratios (the machine may be shared: the CPU ratio is the steadier). Then a profile of the
+same command in-process (synchronous scheduler) under cProfile with a CPU clock, one line
+per stage (reading, decimation, validation, conditioning, SSI, selection, store writes,
+planning and orchestration); library time counts in the stage of the workbench function
+that called it. ``--skip-baseline``, ``--skip-profile``, ``--skip-per-block`` leave parts out.
 
 ``workbench identify`` runs on a voyage simulated at 2048 Hz (``workbench simulate --rate
 2048``; default 1 h, ``--hours 24`` for a day) with the default analysis rate (2048 Hz ->
@@ -40,6 +50,8 @@ a folder). Run: ``python benchmarks/bench_identify_rate.py`` (about 25 minutes o
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import itertools
 import os
 import shutil
@@ -169,9 +181,10 @@ def _profile(voyage: Path, out: Path) -> None:
     profiler = cProfile.Profile(time.process_time)
     command = ["identify", str(voyage), "--out", str(out), "--band", "2", "12"]
     command += ["--scheduler", "synchronous", "--quiet"]
-    profiler.enable()
-    workbench_main(command)
-    profiler.disable()
+    with contextlib.redirect_stdout(io.StringIO()):  # the command's own summary
+        profiler.enable()
+        workbench_main(command)
+        profiler.disable()
     shutil.rmtree(out, ignore_errors=True)
     stats = pstats.Stats(profiler).stats  # {function: (cc, nc, own, cumulative, callers)}
     shares: dict = {}
