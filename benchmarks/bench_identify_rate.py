@@ -1,5 +1,15 @@
-"""Benchmark: identification at a recorder's rate (2048 Hz, 19 channels), files conditioned
-once against the per-block path (issue 18).
+"""Benchmark: identification at a recorder's rate (2048 Hz, 19 channels) against a plain
+script (issue 33) and the per-block path (issue 18).
+
+Plain baseline (issue 33; needs koma-python): ``workbench identify --band 2 12`` with the
+largest ``--workers`` against the single-process script a user would otherwise run (per
+20-min block: read the files, ``scipy.signal.decimate`` 4 x 8 to 64 Hz, koma ``covssi``
+i = 20, orders 4..60), interleaved, ``--repeats`` pairs; printed: wall-clock and CPU-second
+ratios (the machine may be shared: the CPU ratio is the steadier). Then a profile of the
+same command in-process (synchronous scheduler) under cProfile with a CPU clock, one line
+per stage (reading, decimation, validation, conditioning, SSI, selection, store writes,
+planning and orchestration); library time counts in the stage of the workbench function
+that called it. ``--skip-baseline``, ``--skip-profile``, ``--skip-per-block`` leave parts out.
 
 ``workbench identify`` runs on a voyage simulated at 2048 Hz (``workbench simulate --rate
 2048``; default 1 h, ``--hours 24`` for a day) with the default analysis rate (2048 Hz ->
@@ -40,6 +50,8 @@ a folder). Run: ``python benchmarks/bench_identify_rate.py`` (about 25 minutes o
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import itertools
 import os
 import shutil
@@ -94,6 +106,166 @@ def _identify(voyage: Path, out: Path, *extra: str) -> tuple[float, int, int, fl
     return seconds, peak_kib // 1024, blocks, cpu
 
 
+_PLAIN_SCRIPT = """
+import sys
+from pathlib import Path
+
+import numpy as np
+from scipy import signal
+
+import koma.oma
+
+files = sorted(Path(sys.argv[1]).glob("*.npz"))
+blocks = 0
+for first in range(len(files) - 3):  # 20-min blocks of four 5-min files, 5-min step
+    data = np.concatenate([np.load(f)["acceleration"] for f in files[first : first + 4]])
+    data = data[:, np.isfinite(data).all(axis=0)]  # channels with gaps left out
+    data = signal.decimate(signal.decimate(data, 4, axis=0), 8, axis=0)  # 2048 -> 64 Hz
+    data -= data.mean(axis=0)
+    koma.oma.covssi(data, 64.0, 20, list(range(4, 61, 2)), showinfo=False)
+    blocks += 1
+print(blocks, "block(s) processed")
+"""
+
+
+def _plain(voyage: Path) -> tuple[float, int, int, float]:
+    """The plain single-process script (per 20-min block: read the files, scipy.signal.decimate
+    4 x 8 to 64 Hz, koma covssi i = 20, orders 4..60) in a child process: (seconds, peak
+    RSS MiB, blocks, CPU seconds)."""
+    command = [sys.executable, "-c", _PLAIN_SCRIPT, str(voyage)]
+    start = time.perf_counter()
+    finished = subprocess.run(
+        [sys.executable, "-c", _WRAPPER, *command], capture_output=True, text=True
+    )
+    seconds = time.perf_counter() - start
+    if finished.returncode:
+        raise SystemExit(finished.stderr)
+    usage = finished.stdout.rsplit("PEAK_KIB", 1)[1].split()
+    blocks = int(finished.stdout.split(" block(s) processed")[0].split()[-1])
+    return seconds, int(usage[0]) // 1024, blocks, float(usage[2])
+
+
+#: Stages of the profile: (name, path fragments of the modules whose time counts there);
+#: the first match wins, library time goes to the calling workbench function's stage.
+_STAGES = (
+    ("reading", ("data_contracts/npz", "signals/file_reads", "data_contracts/formats")),
+    ("decimation", ("signals/filter_cascade",)),
+    ("validation", ("signals/moments", "signals/step_sums", "data_contracts/accelerations")),
+    ("conditioning", ("workbench/signals/",)),
+    ("SSI", ("sid/ssi/", "sid/modal", "sid/_lapack", "sid/threads")),
+    ("LSCF / cross-check", ("sid/plscf", "sid/crosscheck", "identification/crosscheck")),
+    ("selection", ("workbench/sid/",)),
+    ("store writes", ("workbench/store", "identification/export")),
+    ("planning, orchestration", ("workbench/", "data_contracts/")),
+)
+
+
+def _stage_of(filename: str) -> str | None:
+    if "workbench" not in filename and "data_contracts" not in filename:
+        return None
+    for name, fragments in _STAGES:
+        if any(fragment in filename for fragment in fragments):
+            return name
+    return None
+
+
+def _profile(voyage: Path, out: Path) -> None:
+    """CPU time per stage of ``workbench identify`` run in this process (synchronous
+    scheduler) under cProfile with a CPU-time clock; one line per stage."""
+    import cProfile
+    import pstats
+
+    from workbench.cli import main as workbench_main
+
+    shutil.rmtree(out, ignore_errors=True)
+    profiler = cProfile.Profile(time.process_time)
+    command = ["identify", str(voyage), "--out", str(out), "--band", "2", "12"]
+    command += ["--scheduler", "synchronous", "--quiet"]
+    with contextlib.redirect_stdout(io.StringIO()):  # the command's own summary
+        profiler.enable()
+        workbench_main(command)
+        profiler.disable()
+    shutil.rmtree(out, ignore_errors=True)
+    stats = pstats.Stats(profiler).stats  # {function: (cc, nc, own, cumulative, callers)}
+    shares: dict = {}
+
+    def attribute(function, depth: int = 0) -> dict:
+        """{stage: share} of *function*'s own time: its module's stage, or its callers'."""
+        if function in shares:
+            return shares[function]
+        stage = _stage_of(function[0])
+        if stage is not None:
+            shares[function] = {stage: 1.0}
+            return shares[function]
+        callers = stats[function][4] if function in stats else {}
+        total = sum(edge[3] for edge in callers.values())
+        if depth > 50 or total <= 0:
+            shares[function] = {"other": 1.0}
+            return shares[function]
+        shares[function] = {"other": 1.0}  # a recursion through this function
+        result: dict = {}
+        for caller, edge in callers.items():
+            for name, share in attribute(caller, depth + 1).items():
+                result[name] = result.get(name, 0.0) + share * edge[3] / total
+        shares[function] = result
+        return result
+
+    seconds: dict = {}
+    for function, (_, _, own, _, _) in stats.items():
+        for name, share in attribute(function).items():
+            seconds[name] = seconds.get(name, 0.0) + own * share
+    total = sum(seconds.values())
+    print(
+        f"\nprofile: workbench identify --band 2 12, in-process, CPU time under cProfile "
+        f"({total:.1f} s; the profiler adds to the Python-level stages)"
+    )
+    for name, value in sorted(seconds.items(), key=lambda item: -item[1]):
+        print(f"  profile {name:24s} {value:7.2f} s  {100 * value / total:5.1f} %")
+
+
+def _baseline(args, voyage: Path, work: Path) -> None:
+    """Plain single-process script against ``workbench identify --band 2 12`` with the
+    largest --workers, interleaved."""
+    try:
+        import koma.oma  # noqa: F401
+    except ImportError:
+        print("koma-python is not installed (pip install koma-python): no plain baseline")
+        return
+    workers = max(args.workers)
+    plain, ours, plain_cpu, ours_cpu, pairs = [], [], [], [], []
+    blocks = 0
+    for repeat in range(args.repeats):
+        order = ("plain", "ours") if repeat % 2 == 0 else ("ours", "plain")
+        pair = {}
+        for name in order:
+            if name == "plain":
+                took, peak, blocks, cpu = _plain(voyage)
+                plain.append(took)
+                plain_cpu.append(cpu)
+            else:
+                took, peak, blocks, cpu = _identify(
+                    voyage, work / "out", "--band", "2", "12", "--workers", str(workers)
+                )
+                ours.append(took)
+                ours_cpu.append(cpu)
+            pair[name] = took
+            print(
+                f"  run {repeat + 1}, {name:5s}: {took:7.1f} s wall, CPU {cpu:.1f} s, peak "
+                f"{peak} MiB, load average {_load()}",
+                flush=True,
+            )
+        pairs.append(pair["plain"] / pair["ours"])
+    wall_ratio = statistics.median(plain) / statistics.median(ours)
+    cpu_ratio = statistics.median(plain_cpu) / statistics.median(ours_cpu)
+    factor = blocks * STEP_S / statistics.median(ours)
+    print(
+        f"plain script / workbench identify ({workers} workers): {wall_ratio:.2f}x wall "
+        f"(ratio of medians; pairs median {statistics.median(pairs):.2f}x), {cpu_ratio:.2f}x "
+        f"CPU seconds; real-time factor {factor:.1f} (a day in "
+        f"{DAY_BLOCKS * STEP_S / factor / 60:.1f} min)"
+    )
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, help="folder for (or with) the simulated voyages")
@@ -109,6 +281,13 @@ def main(argv=None) -> int:
         help="also identify voyages of these lengths (per-file, largest --workers)",
     )
     parser.add_argument("--skip-ratio", action="store_true", help="only the long stretches")
+    parser.add_argument(
+        "--skip-per-block", action="store_true", help="no per-block / per-file comparison"
+    )
+    parser.add_argument(
+        "--skip-baseline", action="store_true", help="no plain-script (scipy + koma) baseline"
+    )
+    parser.add_argument("--skip-profile", action="store_true", help="no profile per stage")
     args = parser.parse_args(argv)
     root = args.data or Path(tempfile.mkdtemp(prefix="bench_identify_rate_"))
     root.mkdir(parents=True, exist_ok=True)
@@ -118,7 +297,11 @@ def main(argv=None) -> int:
         f"machine: {os.cpu_count()} cores, load average {_load()}; voyage {args.hours:g} h "
         f"at {RATE_HZ:g} Hz, 19 channels"
     )
-    if not args.skip_ratio:
+    if not args.skip_baseline:
+        _baseline(args, voyage, work)
+    if not args.skip_profile:
+        _profile(voyage, work / "profile")
+    if not args.skip_ratio and not args.skip_per_block:
         _ratios(args, root, voyage, work)
     if args.long_hours:
         _long_stretches(args, root, work, max(args.workers))

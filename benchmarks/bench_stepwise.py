@@ -1,11 +1,15 @@
 """Benchmark: stepwise regression with interactions, ours against a statsmodels-OLS search.
 
-Target (issue 3, item 7): fitting 5 predictors plus their 10 two-way interactions on 20
-observations (one training window of the sliding forecast) at least 10x faster than a
+Target (issue 3, item 7; raised by issue 33): fitting 5 predictors plus their 10 two-way
+interactions on 20 observations (one training window of the sliding forecast) at least 15x
+faster than a
 straightforward implementation of the same search that refits ``statsmodels.OLS`` for every
 candidate, with the same selected terms. Both run here, in the same process, on the same
 windows. Printed: median time per window (fit plus 95 % prediction bounds for the next 4
-blocks) over ``--repeats`` runs, the ratio, and the same for 500-row data sets.
+blocks) over ``--repeats`` runs, wall clock and CPU time of the process, the ratios, a
+profile line (CPU time of our search and of our prediction), and the same for 500-row data
+sets. The target is judged on the CPU-time ratio: on a shared machine the wall clock
+mostly measures the run queue.
 
 Windows are realistic: ship-log-like predictors (speed with manoeuvres, slowly drifting
 water and air temperature, gusty wind, wind direction) z-scored per window as the sliding
@@ -33,7 +37,7 @@ from scipy import stats
 
 from workbench.stats import stepwise
 
-TARGET_RATIO = 10.0
+TARGET_RATIO = 15.0
 PREDICTORS = ["speed_kn", "water_temp_c", "air_temp_c", "wind_speed_ms", "wind_dir_rel_deg"]
 
 
@@ -209,40 +213,76 @@ def run_baseline(windows):
     return terms
 
 
-def measure(windows, repeats: int) -> tuple[float, float, list, list]:
-    """Median time per window of ours and of the baseline, interleaved run by run so that
-    both see the same machine load."""
-    ours_times, base_times = [], []
+def run_ours_stages(windows) -> tuple[float, float]:
+    """CPU seconds of our two stages over *windows*: the search (checks, design, sweeps,
+    fitted model) and the prediction with bounds."""
+    fits = []
+    start = time.process_time()
+    for X, y, _ in windows:
+        fits.append(stepwise(X, y))
+    search = time.process_time() - start
+    start = time.process_time()
+    for fit, (_, _, ahead) in zip(fits, windows, strict=True):
+        fit.predict(ahead, interval="prediction")
+    return search, time.process_time() - start
+
+
+def measure(windows, repeats: int):
+    """Median wall-clock and CPU time per window of ours and of the baseline, interleaved
+    run by run so that both see the same machine load, and the median CPU time of our
+    stages."""
+    wall = {"ours": [], "base": []}
+    cpu = {"ours": [], "base": []}
+    stages = []
     ours_terms = base_terms = None
     for _ in range(repeats):
-        start = time.perf_counter()
-        ours_terms = run_ours(windows)
-        ours_times.append(time.perf_counter() - start)
-        start = time.perf_counter()
-        base_terms = run_baseline(windows)
-        base_times.append(time.perf_counter() - start)
+        for name in ("ours", "base"):
+            start, start_cpu = time.perf_counter(), time.process_time()
+            terms = run_ours(windows) if name == "ours" else run_baseline(windows)
+            wall[name].append(time.perf_counter() - start)
+            cpu[name].append(time.process_time() - start_cpu)
+            if name == "ours":
+                ours_terms = terms
+            else:
+                base_terms = terms
+        stages.append(run_ours_stages(windows))
     per_window = len(windows)
-    return (
-        statistics.median(ours_times) / per_window,
-        statistics.median(base_times) / per_window,
-        ours_terms,
-        base_terms,
-    )
+    medians = {
+        key: statistics.median(values) / per_window
+        for key, values in (
+            ("ours", wall["ours"]),
+            ("base", wall["base"]),
+            ("ours_cpu", cpu["ours"]),
+            ("base_cpu", cpu["base"]),
+        )
+    }
+    medians["search_cpu"] = statistics.median(s for s, _ in stages) / per_window
+    medians["predict_cpu"] = statistics.median(p for _, p in stages) / per_window
+    return medians, ours_terms, base_terms
 
 
 def compare(label: str, windows, repeats: int) -> float:
-    ours, base, ours_terms, base_terms = measure(windows, repeats)
+    """Print the comparison; returns the CPU-time ratio (0 when the terms differ)."""
+    times, ours_terms, base_terms = measure(windows, repeats)
     same = sum(a == b for a, b in zip(ours_terms, base_terms, strict=True))
+    ours, base = times["ours"], times["base"]
     ratio = base / ours
+    ratio_cpu = times["base_cpu"] / times["ours_cpu"]
     mean_terms = np.mean([len(t) for t in ours_terms])
     print(
         f"{label}: {len(windows)} fits, {mean_terms:.1f} terms selected on average\n"
-        f"  ours      {ours * 1e3:8.3f} ms per fit+predict (median of {repeats} runs)\n"
-        f"  baseline  {base * 1e3:8.3f} ms per fit+predict (statsmodels OLS per candidate, "
+        f"  ours      {ours * 1e3:8.3f} ms per fit+predict wall, "
+        f"{times['ours_cpu'] * 1e3:.3f} ms CPU (median of {repeats} runs)\n"
+        f"  baseline  {base * 1e3:8.3f} ms per fit+predict wall, "
+        f"{times['base_cpu'] * 1e3:.3f} ms CPU (statsmodels OLS per candidate, "
         f"median of {repeats} runs, interleaved with ours)\n"
-        f"  ratio     {ratio:8.1f}x  (target >= {TARGET_RATIO:g}x)\n"
+        f"  profile   search {times['search_cpu'] * 1e3:.3f} ms CPU, predict with bounds "
+        f"{times['predict_cpu'] * 1e3:.3f} ms CPU per window\n"
+        f"  ratio     {ratio_cpu:8.1f}x CPU time, {ratio:.1f}x wall clock "
+        f"(target >= {TARGET_RATIO:g}x)\n"
         f"  same selected terms in {same}/{len(windows)} fits"
     )
+    ratio = ratio_cpu
     if same != len(windows):
         differing = [
             (i, a, b) for i, (a, b) in enumerate(zip(ours_terms, base_terms, strict=True)) if a != b

@@ -45,7 +45,10 @@ def _step_sums(x: np.ndarray, first_ns: int, rate: float, chunk: int = 2048) -> 
     if any_missing:
         count = n - missing.sum(axis=0)
         with np.errstate(invalid="ignore"):
-            offset = np.where(count > 0, np.nansum(x, axis=0) / np.maximum(count, 1), 0.0)
+            # the sum of the finite samples: np.nansum's value (NaN read as 0, same order),
+            # without its copy of the whole file
+            total = np.sum(x, axis=0, where=~missing)
+            offset = np.where(count > 0, total / np.maximum(count, 1), 0.0)
     else:
         offset = x.mean(axis=0) if n else np.zeros(n_channels)
     sums = np.zeros((5, 5, n_channels))

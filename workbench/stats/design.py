@@ -107,6 +107,19 @@ def _is_categorical(column: pd.Series) -> bool:
     )
 
 
+def column_labels(columns: pd.Index) -> tuple:
+    """The labels of a frame's *columns* as Python objects.
+
+    A column index of pandas' Arrow-backed string dtype is converted through its Arrow
+    array, which costs a fraction of ``Index.tolist()`` (a noticeable share of a small
+    stepwise fit); any other index through ``tolist()``.
+    """
+    array = columns.array
+    if isinstance(array, pd.arrays.ArrowStringArray) and not columns.hasnans:
+        return tuple(array.__arrow_array__().to_pylist())
+    return tuple(columns.tolist())
+
+
 def _all_numeric(frame: pd.DataFrame) -> bool:
     """Every column numeric and not bool (checked on the frame's blocks when possible:
     ``frame.dtypes`` builds a Series, which costs more than a small stepwise fit)."""
@@ -134,7 +147,7 @@ def encode(
         stored as integers (MATLAB ``CategoricalVars``).
     """
     if isinstance(X, pd.DataFrame):
-        names = tuple(X.columns.tolist())
+        names = column_labels(X.columns)
         if not all(type(name) is str for name in names):
             names = tuple(map(str, names))
         frame = X
@@ -381,18 +394,37 @@ def raw_transform(terms: Sequence[Term], encoding: Encoding) -> np.ndarray | Non
 def _numeric_transform(terms: Sequence[Term], centres: np.ndarray) -> np.ndarray | None:
     """:func:`raw_transform` when every term has one column (numeric predictors only):
     x - c, (x - c)(z - d) = xz - d x - c z + c d and (x - c)² = x² - 2 c x + c²."""
-    position = {term: k for k, term in enumerate(terms)}
+    plan = _numeric_transform_plan(tuple(terms))
+    if plan is None:
+        return None
+    intercept, single, single_predictor, pair, row_a, row_b, a, b = plan
     A = np.eye(len(terms))
-    for j, term in enumerate(terms):
-        if not term:
-            continue
-        if len(term) == 1:
-            A[position[()], j] = -centres[term[0]]
-            continue
-        a, b = term
-        if (a,) not in position or (b,) not in position:
-            return None
-        A[position[(a,)], j] -= centres[b]
-        A[position[(b,)], j] -= centres[a]
-        A[position[()], j] += centres[a] * centres[b]
+    A[intercept, single] = -centres[single_predictor]
+    A[row_a, pair] -= centres[b]
+    A[row_b, pair] -= centres[a]
+    A[intercept, pair] += centres[a] * centres[b]
     return A
+
+
+@functools.lru_cache(maxsize=256)
+def _numeric_transform_plan(terms: tuple[Term, ...]):
+    """Positions used by :func:`_numeric_transform`: the intercept's row, the main effects'
+    columns and predictors, the products' columns, their factors' rows and predictors
+    (None when a factor's main effect is not among *terms*)."""
+    position = {term: k for k, term in enumerate(terms)}
+    single = [j for j, term in enumerate(terms) if len(term) == 1]
+    pair = [j for j, term in enumerate(terms) if len(term) == 2]
+    if any((terms[j][0],) not in position or (terms[j][1],) not in position for j in pair):
+        return None
+    if (single or pair) and () not in position:
+        return None
+    return (
+        position.get((), 0),
+        np.array(single, dtype=int),
+        np.array([terms[j][0] for j in single], dtype=int),
+        np.array(pair, dtype=int),
+        np.array([position[(terms[j][0],)] for j in pair], dtype=int),
+        np.array([position[(terms[j][1],)] for j in pair], dtype=int),
+        np.array([terms[j][0] for j in pair], dtype=int),
+        np.array([terms[j][1] for j in pair], dtype=int),
+    )

@@ -12,9 +12,10 @@ from ..design import Encoding, column_names, term_width
 from ..terms import Term, parents, term_name
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class _Layout:
-    """Columns, names and hierarchy of an upper model's terms (cached per model)."""
+    """Columns, names and hierarchy of an upper model's terms (cached per model; compared
+    and hashed by identity, so that the per-model caches below can key on it)."""
 
     terms: tuple[Term, ...]
     widths: tuple[int, ...]
@@ -83,3 +84,65 @@ def _layout(upper_terms: tuple[Term, ...], names: tuple[str, ...], levels: tuple
     ):
         array.setflags(write=False)
     return out
+
+
+@functools.lru_cache(maxsize=4096)
+def _eligible_terms(layout: _Layout, model: tuple[int, ...], just_removed: int) -> np.ndarray:
+    """Terms that may enter *model*: not in it, both parents in it (hierarchy), not the
+    term removed in the step before (-1: none). Cached: windows of a sliding fit visit the
+    same few models."""
+    n_terms = len(layout.terms)
+    in_extended = np.zeros(n_terms + 1, dtype=bool)  # slot n_terms: no such parent
+    in_extended[list(model)] = True
+    in_model = in_extended[:n_terms]
+    eligible = ~in_model & (
+        ~layout.has_parents | (in_extended[layout.parent_a] & in_extended[layout.parent_b])
+    )
+    if just_removed >= 0:
+        eligible[just_removed] = False
+    out = np.flatnonzero(eligible)
+    out.setflags(write=False)
+    return out
+
+
+@functools.lru_cache(maxsize=4096)
+def _removable_terms(
+    layout: _Layout, model: tuple[int, ...], protected: frozenset[int], just_added: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """(model terms as an array, which of them may leave): not *protected* (the lower
+    model), not the intercept, no child in the model (hierarchy), not the term added in the
+    step before (-1: none). Cached like :func:`_eligible_terms`."""
+    terms = np.array(model, dtype=int)
+    in_model = np.zeros(len(layout.terms), dtype=bool)
+    in_model[terms] = True
+    has_child = (layout.parents[:, terms] & in_model[:, None]).any(axis=0)
+    removable = ~layout.is_intercept[terms] & ~has_child
+    if protected:
+        removable &= ~np.isin(terms, list(protected))
+    if just_added >= 0:
+        removable &= terms != just_added
+    terms.setflags(write=False)
+    removable.setflags(write=False)
+    return terms, removable
+
+
+@dataclass(frozen=True)
+class _ModelLabels:
+    """Columns and names of a model's terms (cached per layout and model)."""
+
+    columns: tuple[int, ...]  # design columns, the intercept's first
+    display: tuple[str, ...]  # non-constant terms
+    terms: tuple[Term, ...]
+    column_names: tuple[str, ...]
+    column_terms: tuple[Term, ...]  # the term of each design column
+
+
+@functools.lru_cache(maxsize=4096)
+def _model_labels(layout: _Layout, model: tuple[int, ...]) -> _ModelLabels:
+    return _ModelLabels(
+        columns=tuple(int(c) for t in model for c in layout.columns[t]),
+        display=tuple(layout.display[t] for t in model[1:]),
+        terms=tuple(layout.terms[t] for t in model),
+        column_names=tuple(layout.column_names[c] for t in model for c in layout.columns[t]),
+        column_terms=tuple(layout.terms[t] for t in model for _ in layout.columns[t]),
+    )

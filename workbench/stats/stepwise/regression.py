@@ -3,9 +3,11 @@ numeric predictors centred, the search run (:mod:`.search`)."""
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -215,12 +217,121 @@ str or sequence of str
         raise ValueError(
             f"y has shape {np.shape(y)}; expected ({values.shape[0]},) to match X's rows"
         )
-    squarable = [not flag for flag in encoding.categorical]
+    models = _models(upper, start, lower, names, encoding.levels)
+    upper_terms, layout = models.upper_terms, models.layout
+    used_columns = layout.used_columns
+    valid = np.isfinite(y_values)
+    if not valid.any():
+        raise ValueError(f"response {response_name!r} has no finite value")
+    finite = np.isfinite(values)
+    # complete data (the common case) needs none of the row bookkeeping below
+    complete = bool(valid.all()) and bool(finite.all())
+    usable = True if complete else (finite[:, used_columns] & valid[:, None]).any(axis=0)
+    if not complete and not usable.all():
+        column = used_columns[int(np.argmin(usable))]
+        where = "" if finite[:, column].any() else " (all NaN)"
+        raise ValueError(
+            f"X column {names[column]!r} has no finite value where the response "
+            f"{response_name!r} is finite{where}"
+        )
+    if missing == "complete" and used_columns:
+        valid &= finite[:, used_columns].all(axis=1)
+    if not complete and not valid.all():
+        values = values[valid]
+        y_values = y_values[valid]
+        finite = finite[valid]
+    n = int(y_values.shape[0])
+    start_columns = list(models.start_columns)
+    start_rows = (
+        int(finite[:, start_columns].all(axis=1).sum()) if start_columns and not complete else n
+    )
+    width = models.start_width
+    if start_rows < width + 1:
+        raise ValueError(
+            f"stepwise needs at least {width + 1} complete rows for the start model "
+            f"({width} coefficients), got {start_rows}"
+        )
+    # numeric predictors enter centred (their mean over the usable rows)
+    centres = np.zeros(len(names))
+    numeric = models.numeric
+    has_missing = not complete and bool(used_columns) and not finite[:, used_columns].all()
+    if numeric.size:
+        block = values[:, numeric]
+        # sum / n: the value of block.mean(axis=0) without its overhead
+        centres[numeric] = np.nanmean(block, axis=0) if has_missing else block.sum(axis=0) / n
+    encoding = encoding.with_centres(centres)
+    with np.errstate(invalid="ignore"):
+        candidates = design_columns(values, upper_terms, encoding, widths=layout.widths)
+    search = _Search(
+        candidates=candidates,
+        y=y_values,
+        finite=finite if has_missing else None,
+        layout=layout,
+        criterion=criterion,
+        p_enter=p_enter,
+        p_remove=p_remove,
+        response_name=response_name,
+    )
+    start_index = models.start_index
+    lower_index = models.lower_index
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        search.run(start_index, lower_index, max_steps)
+        fit = search.result(encoding, response_name, missing)
+    for message in fit.search_warnings:
+        warnings.warn(message, StepwiseWarning, stacklevel=2)
+    return fit
+
+
+@dataclass(frozen=True, eq=False)
+class _Models:
+    """The upper, start and lower models of a search, checked, with what the search needs
+    of them (cached per specification and predictors: a sliding fit repeats them)."""
+
+    upper_terms: tuple
+    layout: object
+    start_columns: tuple[int, ...]  # predictor columns of the start model
+    start_width: int  # design columns of the start model
+    numeric: np.ndarray  # numeric predictor columns used by the upper model
+    start_index: tuple[int, ...]
+    lower_index: frozenset[int]
+
+
+def _read_only(values) -> np.ndarray:
+    out = np.array(values, dtype=int)
+    out.setflags(write=False)
+    return out
+
+
+def _hashable(spec):
+    """*spec* as a cache key: text as is, a sequence as a tuple, otherwise None."""
+    if isinstance(spec, str):
+        return spec
+    if isinstance(spec, (list, tuple)) and all(isinstance(item, str) for item in spec):
+        return tuple(spec)
+    return None
+
+
+def _models(upper, start, lower, names: tuple[str, ...], levels: tuple) -> _Models:
+    keys = (_hashable(upper), _hashable(start), _hashable(lower))
+    if any(key is None for key in keys):
+        return _check_models(upper, start, lower, names, levels)
+    return _cached_models(*keys, names, levels)
+
+
+@functools.lru_cache(maxsize=256)
+def _cached_models(upper, start, lower, names, levels) -> _Models:
+    return _check_models(upper, start, lower, names, levels)
+
+
+def _check_models(upper, start, lower, names: tuple[str, ...], levels: tuple) -> _Models:
+    """Parse and check the model specifications (see :func:`stepwise`, Raises)."""
+    categorical = [level is not None for level in levels]
+    squarable = [not flag for flag in categorical]
     models = {}
     for parameter, spec in (("upper", upper), ("start", start), ("lower", lower)):
         terms = parse_terms(spec, names, parameter=parameter, squarable=squarable)
-        for term in terms if any(encoding.categorical) else ():
-            if is_square(term) and encoding.categorical[term[0]]:
+        for term in terms if any(categorical) else ():
+            if is_square(term) and categorical[term[0]]:
                 raise ValueError(
                     f"{parameter} term {term_name(term, names)!r}: a categorical predictor "
                     "cannot be squared"
@@ -246,60 +357,13 @@ str or sequence of str
                     "in the start model (hierarchy)"
                 )
 
-    layout = _layout(upper_terms, names, encoding.levels)
-    used_columns = layout.used_columns
-    valid = np.isfinite(y_values)
-    if not valid.any():
-        raise ValueError(f"response {response_name!r} has no finite value")
-    finite = np.isfinite(values)
-    usable = (finite[:, used_columns] & valid[:, None]).any(axis=0)
-    if not usable.all():
-        column = used_columns[int(np.argmin(usable))]
-        where = "" if finite[:, column].any() else " (all NaN)"
-        raise ValueError(
-            f"X column {names[column]!r} has no finite value where the response "
-            f"{response_name!r} is finite{where}"
-        )
-    if missing == "complete" and used_columns:
-        valid &= finite[:, used_columns].all(axis=1)
-    if not valid.all():
-        values = values[valid]
-        y_values = y_values[valid]
-        finite = finite[valid]
-    n = int(y_values.shape[0])
-    start_columns = sorted({c for t in start_terms for c in t})
-    start_rows = int(finite[:, start_columns].all(axis=1).sum()) if start_columns else n
-    width = sum(layout.widths[position[t]] for t in start_terms)
-    if start_rows < width + 1:
-        raise ValueError(
-            f"stepwise needs at least {width + 1} complete rows for the start model "
-            f"({width} coefficients), got {start_rows}"
-        )
-    # numeric predictors enter centred (their mean over the usable rows)
-    centres = np.zeros(len(names))
-    numeric = [c for c in used_columns if encoding.levels[c] is None]
-    has_missing = bool(used_columns) and not finite[:, used_columns].all()
-    if numeric:
-        block = values[:, numeric]
-        centres[numeric] = np.nanmean(block, axis=0) if has_missing else block.mean(axis=0)
-    encoding = encoding.with_centres(centres)
-    with np.errstate(invalid="ignore"):
-        candidates = design_columns(values, upper_terms, encoding, widths=layout.widths)
-    search = _Search(
-        candidates=candidates,
-        y=y_values,
-        finite=finite if has_missing else None,
+    layout = _layout(upper_terms, names, levels)
+    return _Models(
+        upper_terms=upper_terms,
         layout=layout,
-        criterion=criterion,
-        p_enter=p_enter,
-        p_remove=p_remove,
-        response_name=response_name,
+        start_columns=tuple(sorted({c for t in start_terms for c in t})),
+        start_width=sum(layout.widths[position[t]] for t in start_terms),
+        numeric=_read_only([c for c in layout.used_columns if levels[c] is None]),
+        start_index=tuple(position[t] for t in start_terms),
+        lower_index=frozenset(position[t] for t in lower_terms),
     )
-    start_index = [position[t] for t in start_terms]
-    lower_index = {position[t] for t in lower_terms}
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        search.run(start_index, lower_index, max_steps)
-        fit = search.result(encoding, response_name, missing)
-    for message in fit.search_warnings:
-        warnings.warn(message, StepwiseWarning, stacklevel=2)
-    return fit

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 from scipy import special as _special
 
-from ..design import Encoding, design_columns
+from ..design import Encoding, column_labels, design_columns
 from ..distributions import t_quantile
 from ..terms import Term
 
@@ -182,7 +182,7 @@ class StepwiseFit:
             return self._encoded_values(X)
         if isinstance(X, pd.DataFrame):
             needed = self.used_predictors
-            columns = X.columns.tolist()
+            columns = column_labels(X.columns)
             if not all(type(name) is str for name in columns):
                 columns = [str(name) for name in columns]
             lookup = {name: i for i, name in enumerate(columns)}

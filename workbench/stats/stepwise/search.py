@@ -9,6 +9,7 @@ import numpy as np
 from scipy import special as _special
 
 from ..design import Encoding, raw_transform
+from .layout import _eligible_terms, _model_labels, _removable_terms
 from .result import StepwiseFit
 from .sweep import COLLINEARITY_TOLERANCE, _Problem, _problem, _sweep
 
@@ -117,23 +118,24 @@ class _Search:
 
     def _gains(self, matrix: np.ndarray, terms: np.ndarray):
         """SSE decrease, degrees of freedom and columns of adding each term to the model
-        swept into *matrix* (collinear columns of a term are left out)."""
+        swept into *matrix* (collinear columns of a term are left out). Degrees of freedom
+        None: every term one column, none collinear; columns None: each term's one column."""
         layout = self.layout
         y = self.y_slot
-        decrease = np.zeros(len(terms))
-        df = np.zeros(len(terms))
-        columns: list[list[int]] = []
         if layout.single:
             index = layout.first_column[terms]
             unexplained = matrix[index, index]
             ok = unexplained > COLLINEARITY_TOLERANCE
-            if ok.all():
-                decrease = matrix[index, y] ** 2 / unexplained
-                df.fill(1.0)
-            else:
-                decrease[ok] = matrix[index[ok], y] ** 2 / unexplained[ok]
-                df[ok] = 1.0
+            if ok.all():  # df None: one column each, none collinear
+                return matrix[index, y] ** 2 / unexplained, None, None
+            decrease = np.zeros(len(terms))
+            df = np.zeros(len(terms))
+            decrease[ok] = matrix[index[ok], y] ** 2 / unexplained[ok]
+            df[ok] = 1.0
             return decrease, df, None  # columns: the term's one column
+        decrease = np.zeros(len(terms))
+        df = np.zeros(len(terms))
+        columns: list[list[int]] = []
         for position, term in enumerate(terms):
             cols = [int(c) for c in layout.columns[term]]
             if len(cols) == 1:
@@ -190,12 +192,7 @@ class _Search:
         n_terms = len(layout.terms)
         self.model = sorted(start)
         rows, problem, matrix = self._sweep_model(start=True)
-        in_model = np.zeros(n_terms, dtype=bool)
-        in_model[self.model] = True
-        in_extended = np.zeros(n_terms + 1, dtype=bool)
-        protected = np.zeros(n_terms, dtype=bool)
-        protected[list(lower)] = True
-        protected |= layout.is_intercept
+        protected = frozenset(int(t) for t in lower)
         just_added = just_removed = -1
         step = 0
         limit = default_step_limit(n_terms) if max_steps is None else max_steps
@@ -211,14 +208,8 @@ class _Search:
             acted = False
 
             # ---- try to add: not in the model, hierarchy satisfied, not just removed
-            # hierarchy: both parents in the model (slot n_terms: no such parent, False)
-            in_extended[:n_terms] = in_model
-            eligible = ~in_model & (
-                ~layout.has_parents | (in_extended[layout.parent_a] & in_extended[layout.parent_b])
-            )
-            if just_removed >= 0:
-                eligible[just_removed] = False
-            eligible_index = np.flatnonzero(eligible)
+            model_key = tuple(self.model)
+            eligible_index = _eligible_terms(layout, model_key, just_removed)
             exact = sse <= EXACT_FIT_TOLERANCE * sst
             if eligible_index.size and exact:
                 reason = (
@@ -236,7 +227,6 @@ class _Search:
                         self.model = sorted([*self.model, index])
                         self.swept[index] = columns
                         self._columns_cache = None
-                        in_model[index] = True
                         if new_rows is not None and not np.array_equal(new_rows, rows):
                             rows = new_rows
                             problem = self._problem_for(rows)
@@ -249,11 +239,7 @@ class _Search:
 
             # ---- otherwise try to remove: not protected, not just added, no child in model
             if not acted and dfe >= 1:
-                terms = np.array(self.model)
-                has_child = (layout.parents[:, terms] & in_model[:, None]).any(axis=0)
-                removable = ~protected[terms] & ~has_child
-                if just_added >= 0:
-                    removable &= terms != just_added
+                terms, removable = _removable_terms(layout, model_key, protected, just_added)
                 if removable.any():
                     worst = self._worst_removal(terms, removable, matrix, n, k, sse, sst)
                     if worst is not None and worst[1][0] > self.remove_threshold:
@@ -262,7 +248,6 @@ class _Search:
                         self.model = [t for t in self.model if t != index]
                         self.swept.pop(index, None)
                         self._columns_cache = None
-                        in_model[index] = False
                         rows = self._rows(self.model)
                         problem = self._problem_for(rows)
                         # afresh: no drift from sweeping back
@@ -404,10 +389,19 @@ class _Search:
             n = group_problem.n
             sse = max(float(group_matrix[self.y_slot, self.y_slot]), 0.0)
             decrease, df, columns = self._gains(group_matrix, terms_array)
-            collinear = df == 0
-            short = ~collinear & (n - group_k - df < 1)
-            ok = ~collinear & ~short
-            if not ok.all():
+            if df is None:  # one column each, none collinear: every test has one dfe
+                df = 1.0
+                if n - group_k - 1 < 1:
+                    reason = f"too few observations: n={n} leaves no error degrees of freedom"
+                    for term in terms_array.tolist():
+                        self.skipped.setdefault((display[term], reason), step + 1)
+                    continue
+                ok = None
+            else:
+                collinear = df == 0
+                short = ~collinear & (n - group_k - df < 1)
+                ok = ~collinear & ~short
+            if ok is not None and not ok.all():
                 for term in terms_array[collinear].tolist():
                     self.skipped.setdefault(
                         (display[term], "collinear with the model's terms"), step + 1
@@ -423,13 +417,16 @@ class _Search:
             f_stat, p_value, score, value = self._score_add(
                 n, group_k, sse, group_problem.sst, decrease, df
             )
-            score = np.where(score != score, np.inf, score)  # NaN (0/0) never enters
             j = int(np.argmin(score))  # terms in canonical order: ties go to the first
+            if score[j] != score[j]:  # argmin found a NaN (0/0), which never enters
+                score = np.where(score != score, np.inf, score)
+                j = int(np.argmin(score))
             term = int(terms_array[j])
             candidate = (float(score[j]), term)
             if best is None or candidate < best[0]:
                 change = score[j] if self.criterion in ("aic", "bic") else -score[j]
-                record = self._record(f_stat[j], p_value[j], value[j], change, df[j], n)
+                df_j = df if np.ndim(df) == 0 else df[j]
+                record = self._record(f_stat[j], p_value[j], value[j], change, df_j, n)
                 chosen = [int(self.layout.first_column[term])] if columns is None else columns[j]
                 best = (candidate, term, (float(score[j]), *record), chosen, group_rows[key])
         if best is None:
@@ -506,8 +503,9 @@ class _Search:
         layout = self.layout
         problem, matrix, rows = self.final
         model = self.model
+        labels = _model_labels(layout, tuple(model))
         n = problem.n
-        model_columns = [int(c) for t in model for c in layout.columns[t]]
+        model_columns = list(labels.columns)
         swept = self._model_columns()
         k = 1 + len(swept)
         dfe = n - k
@@ -539,7 +537,7 @@ class _Search:
         full[0, 1:] = full[1:, 0] = -(covariance @ term_means)
         full[1:, 1:] = covariance
         search_estimates = np.concatenate([[intercept], slopes])
-        terms = [layout.terms[t] for t in model]
+        terms = labels.terms
         transform = raw_transform(terms, encoding)
         if transform is None:  # cannot happen with the hierarchy kept; stay in search units
             transform = np.eye(m + 1)
@@ -554,9 +552,8 @@ class _Search:
         else:
             f_stat = f_p_value = math.nan
         log_likelihood = -0.5 * n * (math.log(2 * math.pi * sse / n) + 1.0) if sse > 0 else math.inf
-        names = [layout.column_names[c] for c in model_columns]
         return StepwiseFit(
-            terms=tuple(layout.display[t] for t in model[1:]),
+            terms=labels.display,
             predictor_names=encoding.names,
             response_name=response_name,
             criterion=self.criterion,
@@ -573,15 +570,15 @@ class _Search:
             log_likelihood=float(log_likelihood),
             aic=float(-2.0 * log_likelihood + 2.0 * k),
             bic=float(-2.0 * log_likelihood + math.log(n) * k),
-            model_terms=tuple(terms),
+            model_terms=terms,
             estimates=estimates,
             standard_errors=standard_errors,
             term_means=term_means,
             slope_covariance=covariance,
             step_records=tuple(self.steps),
             skipped_records=tuple((s, term, reason) for (term, reason), s in self.skipped.items()),
-            coefficient_names=tuple(names),
-            coefficient_terms=tuple(layout.terms[t] for t in model for _ in layout.columns[t]),
+            coefficient_names=labels.column_names,
+            coefficient_terms=labels.column_terms,
             search_estimates=search_estimates,
             encoding=encoding,
             missing=missing,
