@@ -16,7 +16,10 @@ use the model at all:
 identification error e and v as in the blend's noise model), and weighs the hypotheses H₁ "the model explains the mode" (the blend) and H₀
 "it does not" (each model-free filter) by the likelihood of each block's measurement
 under each filter's one-step prediction, with a small probability of switching between
-blocks (a multiple-model filter without state mixing, [1]_ §11.6). The likelihood uses
+blocks (a multiple-model filter without state mixing, [1]_ §11.6). The model-free filters
+take the blend's persistence rule (a run of large innovations of one sign as long as the
+blocks sharing data is a move of the level, which they then follow with a gain of about 1),
+so that after a real jump they predict as well as the blend does. The likelihood uses
 Huber-clipped normalised innovations (one mis-selected pole cannot decide it), each
 block's evidence is capped at :data:`EVIDENCE_CAP`, and only out-of-sample blocks count (the model was fitted to the training blocks). The estimate is
 the weighted mean of the filters' estimates,
