@@ -72,8 +72,9 @@ UNRECORDED = {
 ALL_REGIMES = (*REGIMES, *UNRECORDED)
 #: Modes of the demo hull used (0-based indices into MODE_LAWS): VB1, HB1, T1, VB3.
 MODE_INDEX = (0, 1, 3, 4)
-#: Relative standard deviation of the identification error per mode. [-]
-RELATIVE_ERROR = np.array([0.003, 0.004, 0.003, 0.004])
+#: Relative standard deviation of the identification error of each of the hull's seven
+#: modes (VB1, HB1, VB2, T1, VB3, HB2, T2). [-]
+RELATIVE_ERROR_ALL = np.array([0.003, 0.004, 0.003, 0.003, 0.004, 0.004, 0.004])
 LAG1 = 0.65
 STEP_MIN = 5
 BLOCK_MIN = 20
@@ -182,8 +183,22 @@ def _profile(name: str, rng, n_min: int):
     return t_h, speed, water, air, wind, wind_dir, excitation_spikes
 
 
-def make_regime(name: str, seed: int, *, n_blocks: int = 432, shapes: bool = True) -> RegimeData:
-    """Block-level tables of one regime and seed (see the module docstring)."""
+def make_regime(
+    name: str,
+    seed: int,
+    *,
+    n_blocks: int = 432,
+    shapes: bool = True,
+    mode_index: tuple[int, ...] = MODE_INDEX,
+    first_label: int = 1,
+) -> RegimeData:
+    """Block-level tables of one regime and seed (see the module docstring).
+
+    *mode_index* picks the hull's modes (0-based indices into its seven), labelled
+    *first_label*, *first_label* + 1, ... in the tables.
+    """
+    mode_index = tuple(int(m) for m in mode_index)
+    relative_error = RELATIVE_ERROR_ALL[list(mode_index)]
     if name in REGIMES:
         number, profile, disturbance = REGIMES.index(name), name, None
     elif name in UNRECORDED:
@@ -200,13 +215,15 @@ def make_regime(name: str, seed: int, *, n_blocks: int = 432, shapes: bool = Tru
         "air_temp_c": air,
         "elapsed_hours": t_h,
     }
-    freq_min = true_modal_parameters(minute).frequency_hz[:, MODE_INDEX]
+    freq_min = true_modal_parameters(minute).frequency_hz[:, mode_index]
     freq0_min = freq_min.copy()  # what the predictors explain
     oracle_spec = None
     if disturbance is not None:  # the unrecorded change, from its own random stream
-        freq_min, oracle_spec = _disturb(freq0_min, t_h, disturbance, (number, seed))
-    damp_min = true_modal_parameters(minute).damping_ratio[:, MODE_INDEX]
-    n_modes = len(MODE_INDEX)
+        freq_min, oracle_spec = _disturb(
+            freq0_min, t_h, disturbance, (number, seed), relative_error
+        )
+    damp_min = true_modal_parameters(minute).damping_ratio[:, mode_index]
+    n_modes = len(mode_index)
     starts = np.arange(n_blocks) * STEP_MIN
     index = starts[:, None] + np.arange(BLOCK_MIN)[None, :]
     weights = (0.2 + (np.abs(speed) / 10.0) ** 2) * spikes
@@ -225,7 +242,7 @@ def make_regime(name: str, seed: int, *, n_blocks: int = 432, shapes: bool = Tru
         ice_block = np.full(n_blocks, profile == "ice_breaking")
     ice = bool(ice_block.any())
     size = (
-        RELATIVE_ERROR[None, :] * truth_f * np.exp(0.35 * rng.standard_normal((n_blocks, n_modes)))
+        relative_error[None, :] * truth_f * np.exp(0.35 * rng.standard_normal((n_blocks, n_modes)))
     )
     size *= 1.0 + 0.15 * speed_change[:, None]
     if ice_block.all():
@@ -267,7 +284,7 @@ def make_regime(name: str, seed: int, *, n_blocks: int = 432, shapes: bool = Tru
             "wind_dir_rel_deg": wind_dir[index].mean(axis=1),
         }
     )
-    labels = np.arange(1, n_modes + 1)
+    labels = np.arange(first_label, first_label + n_modes)
     truth = pd.DataFrame(
         {
             "block": np.repeat(blocks, n_modes),
@@ -278,7 +295,7 @@ def make_regime(name: str, seed: int, *, n_blocks: int = 432, shapes: bool = Tru
     )
 
     # ---- stabilisation diagrams
-    ref_shapes = mode_shapes()[list(MODE_INDEX)].astype(complex)
+    ref_shapes = mode_shapes()[list(mode_index)].astype(complex)
     n_ch = len(CHANNELS)
     blade_shape = np.exp(-3.0 * np.linspace(0, 1, n_ch)).astype(complex)
     blade_shape /= np.linalg.norm(blade_shape)
@@ -396,7 +413,7 @@ def make_regime(name: str, seed: int, *, n_blocks: int = 432, shapes: bool = Tru
     oracle = None
     if oracle_spec is not None:
         measured = np.full((n_blocks, n_modes), np.nan)
-        measured[np.asarray(tb), np.asarray(tm) - 1] = np.asarray(tf)
+        measured[np.asarray(tb), np.asarray(tm) - first_label] = np.asarray(tf)
         measured[mislabelled] = np.nan  # the oracle knows which poles are mislabelled
         estimate = _oracle_filter(
             measured, seen0_f, truth0_f, size, order_scatter, oracle_spec, starts, n_min
@@ -411,7 +428,7 @@ def make_regime(name: str, seed: int, *, n_blocks: int = 432, shapes: bool = Tru
     return RegimeData(name, seed, predictors, truth, tracked, poles, oracle)
 
 
-def _disturb(freq0_min, t_h, disturbance, stream):
+def _disturb(freq0_min, t_h, disturbance, stream, relative_error):
     """True frequencies with the unrecorded change, and what the oracle knows of it.
 
     Returns the disturbed minute frequencies [Hz] and a dict of the oracle's block-level
@@ -442,13 +459,13 @@ def _disturb(freq0_min, t_h, disturbance, stream):
         relative[at:] = size * gain[None, :]
         spec["q_level"] = (size * gain * level) ** 2 / n_blocks
     elif kind == "wander":
-        std = size * RELATIVE_ERROR
+        std = size * relative_error
         relative = np.column_stack([std[j] * _smooth(drng, n_min, tau) for j in range(n_modes)])
         spec.update(tau_min=tau, wander=(std * level) ** 2)
     elif kind == "ice":
         entry = n_min // 2
         into = np.clip((np.arange(n_min) - entry) / 30.0, 0.0, 1.0)[:, None]
-        std = RELATIVE_ERROR
+        std = relative_error
         wander = np.column_stack([std[j] * _smooth(drng, n_min, tau) for j in range(n_modes)])
         relative = into * (-size * gain[None, :] + wander)
         spec.update(

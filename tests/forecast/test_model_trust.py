@@ -182,3 +182,41 @@ def test_model_trust_can_be_switched_off():
             noise_options=NoiseOptions(model_trust=False),
         ).table
     assert table["model_probability"].isna().all()
+
+
+def _level_step_run(persist_blocks, step_hz=0.3, n_before=40, n_after=12, seed=4):
+    """ModelTrust's model-free filter fed a constant level (5 Hz) with white SSI error
+    (0.01 Hz) that jumps by *step_hz* (30 SSI standard deviations) and stays; returns the
+    filter's distance to the new level after each block past the jump. [Hz]"""
+    rng = np.random.default_rng(seed)
+    trust = ModelTrust(1, huber_sigma=2.5, persist_blocks=persist_blocks)
+    sigma2 = 1e-4
+    distance = []
+    for k in range(n_before + n_after):
+        level = 5.0 + (step_hz if k >= n_before else 0.0)
+        z = level + rng.normal(0.0, 0.01)
+        trust.step(
+            np.array([z]),
+            np.array([0.0]),
+            np.array([0.0]),
+            np.array([sigma2]),
+            np.array([0.0]),
+            np.array([sigma2]),
+            np.array([True]),
+        )
+        if k >= n_before:
+            distance.append(abs(trust.level[0, 0] - level))
+    return np.asarray(distance)
+
+
+def test_model_free_filter_follows_a_held_jump_under_the_persistence_rule():
+    # the blend's rule: a run of persist_blocks large innovations of one sign is a move of
+    # the level, not an outlier. With persist_blocks = 5, the 5th block after the jump
+    # takes the gain about 1 (the filter lands within 3 SSI standard deviations of the new
+    # level); with Huber weights only, each block moves the level by about
+    # huber_sigma x sqrt(S) ~ 0.035 Hz, so after 6 blocks it is still > 0.05 Hz short.
+    followed = _level_step_run(persist_blocks=5)
+    assert followed[:3].min() > 0.1  # the first blocks of a run are treated as outliers
+    assert followed[4:].max() < 0.03
+    lagged = _level_step_run(persist_blocks=None)
+    assert lagged[5] > 0.05

@@ -217,7 +217,13 @@ def memory_forecast(
     models_out = []
 
     # guard: the probability that the model explains each mode, against a model-free filter
-    trust = ModelTrust(n_modes, float(noise.huber_sigma)) if noise.model_trust else None
+    trust = (
+        ModelTrust(
+            n_modes, float(noise.huber_sigma), persist_blocks=max(_PERSIST_BLOCKS, overlap + 1)
+        )
+        if noise.model_trust
+        else None
+    )
     explained_lost = np.zeros(n_modes, dtype=np.int64)  # first block below 0.5, + 1
 
     # ---- windows

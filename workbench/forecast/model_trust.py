@@ -16,7 +16,10 @@ use the model at all:
 identification error e and v as in the blend's noise model), and weighs the hypotheses H₁ "the model explains the mode" (the blend) and H₀
 "it does not" (each model-free filter) by the likelihood of each block's measurement
 under each filter's one-step prediction, with a small probability of switching between
-blocks (a multiple-model filter without state mixing, [1]_ §11.6). The likelihood uses
+blocks (a multiple-model filter without state mixing, [1]_ §11.6). The model-free filters
+take the blend's persistence rule (a run of large innovations of one sign as long as the
+blocks sharing data is a move of the level, which they then follow with a gain of about 1),
+so that after a real jump they predict as well as the blend does. The likelihood uses
 Huber-clipped normalised innovations (one mis-selected pole cannot decide it), each
 block's evidence is capped at :data:`EVIDENCE_CAP`, and only out-of-sample blocks count (the model was fitted to the training blocks). The estimate is
 the weighted mean of the filters' estimates,
@@ -45,6 +48,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .memory_noise import update_run
+
 __all__ = ["ModelTrust"]
 
 #: Probability that the hypothesis changes from one block to the next (one switch in about
@@ -57,8 +62,12 @@ SWITCH_PROBABILITY = 0.002
 #: filter, 0.1, measured better on slow unrecorded wander but lagged real moves and
 #: cost the 12-h demo 2-4 points; benchmarks/results/forecast_accuracy_27.txt). [-]
 LEVEL_STEP_VARIANCES = (1.0,)
-#: Probability that the model explains a mode before its first out-of-sample block. [-]
-PRIOR_PROBABILITY = 0.9
+#: Probability that the model explains a mode before its first out-of-sample block: the
+#: model-free hypothesis is favoured (4 : 1) until the model has predicted blocks it had not
+#: seen (the start-up blocks, and method 1's single window, whose model is fitted once on the
+#: first window); with :data:`FULL_WEIGHT_PROBABILITY` the blend still starts with weight
+#: 0.8, and evidence of up to :data:`EVIDENCE_CAP` per block moves it either way. [-]
+PRIOR_PROBABILITY = 0.2
 #: The blend's probability below which the estimate starts to move to the model-free
 #: filters (a model-free filter three times as probable as the blend): while the
 #: evidence is weaker, the blend, which measures best where the model explains the mode,
@@ -84,6 +93,12 @@ class ModelTrust:
         likelihood. [-]
     prior_probability : float
         Probability of "the model explains the mode" before any measurement. [-]
+    persist_blocks : int or None
+        The blend's persistence rule, applied to the model-free filters too: a run of
+        this many consecutive normalised innovations of one sign beyond *huber_sigma* is
+        a move of the level, not an outlier (no Huber weight, P_xx raised to y², the gain
+        about 1), so a model-free filter follows a real jump of the frequency as fast as
+        the blend does. None: Huber weights only.
     """
 
     def __init__(
@@ -92,13 +107,17 @@ class ModelTrust:
         huber_sigma: float,
         prior_probability: float = PRIOR_PROBABILITY,
         level_steps: tuple[float, ...] = LEVEL_STEP_VARIANCES,
+        persist_blocks: int | None = None,
     ):
         self.huber_sigma = float(huber_sigma)
+        self.persist_blocks = None if persist_blocks is None else int(persist_blocks)
         self.steps = np.asarray(level_steps, dtype=float)  # one model-free filter each
         n_free = self.steps.size
         self.level = np.full((n_free, n_modes), np.nan)  # model-free estimates x̂₀ [Hz]
         self.error = np.zeros((n_free, n_modes))  # their identification-error states ê [Hz]
         self.P = np.zeros((n_free, n_modes, 2, 2))
+        # signed runs of large innovations of each model-free filter (memory_noise.update_run)
+        self.run = np.zeros((n_free, n_modes), dtype=np.int64)
         # hypothesis probabilities: row 0 the blend, then the model-free filters
         self.weights = np.empty((n_free + 1, n_modes))
         self.weights[0] = float(prior_probability)
@@ -200,9 +219,24 @@ class ModelTrust:
             S = P[k, 0, 0] + P[k, 1, 1] + 2 * P[k, 0, 1] + white_variance[idx][k]
             nu = y / np.sqrt(S)
             out[idx[k]] = self._log_likelihood(nu, S)
-            # Huber weight as in the blend: beyond k the measurement counts as if k out
             a = np.abs(nu)
-            extra = np.where(a > self.huber_sigma, S * (a / self.huber_sigma - 1.0), 0.0)
+            run = self.run[h, idx[k]]
+            keep_on = np.zeros(k.size, dtype=bool)
+            if self.persist_blocks is not None:
+                # the blend's persistence rule: the run reaches persist_blocks, the level
+                # moved: P_xx ← max(P_xx, y²) and no Huber weight
+                keep_on = (a > self.huber_sigma) & (np.abs(run) >= self.persist_blocks - 1)
+                keep_on &= np.sign(nu) == np.sign(run)
+            self.run[h, idx[k]] = update_run(run, nu, np.full(k.size, self.huber_sigma))
+            if keep_on.any():
+                rows = k[keep_on]
+                grow = np.maximum(y[keep_on] ** 2 - P[rows, 0, 0], 0.0)
+                P[rows, 0, 0] += grow
+                S[keep_on] += grow
+            # Huber weight as in the blend: beyond k the measurement counts as if k out
+            extra = np.where(
+                (a > self.huber_sigma) & ~keep_on, S * (a / self.huber_sigma - 1.0), 0.0
+            )
             # K = PH'S⁻¹ ; x = x + Ky ; P = (I - KH) P (I - KH)' + K R K' (Joseph form)
             PH = np.stack([P[k, 0, 0] + P[k, 0, 1], P[k, 1, 0] + P[k, 1, 1]], axis=1)
             K = PH / (S + extra)[:, None]

@@ -10,7 +10,8 @@ the model-error variance floored by the out-of-sample residuals, noise.model_err
 and model variance added where the innovations are inconsistent, innovation_consistency;
 issue 27: the identification error capped by noise.identification_error_bound, and the
 estimate weighed against a model-free filter, model_trust, whose weight is the new
-model_probability column).
+model_probability column; then the model-free filter under the blend's persistence rule and a
+prior probability of 0.2 that the model explains a mode before it has predicted unseen blocks).
 """
 
 from __future__ import annotations
