@@ -169,6 +169,21 @@ def test_forecast_falls_back_to_ssi_after_an_unrecorded_step_and_says_so():
     assert any("the model stopped explaining it" in note for note in notes)
 
 
+def test_no_note_while_the_model_explains_the_mode():
+    """The same voyage without the step: the model earns its weight (probability >= 0.5
+    on unseen blocks) and no note says it stopped explaining the mode; the probability
+    starting low (the prior) is not news."""
+    predictors, modal, truth = _voyage_with_unrecorded_step(step_hz=0.0)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        table = sliding_forecast(modal, predictors, option="A", scheme=2, model="memory").table
+    forecast = table[table["phase"] == "forecast"]
+    assert forecast["model_probability"].iloc[0] < 0.5  # the prior
+    assert forecast["model_probability"].max() >= 0.5
+    notes = [str(w.message) for w in caught if issubclass(w.category, ForecastWarning)]
+    assert not any("stopped explaining" in note or "never explained" in note for note in notes)
+
+
 def test_model_trust_can_be_switched_off():
     predictors, modal, _ = _voyage_with_unrecorded_step(n=120)
     with warnings.catch_warnings():

@@ -225,6 +225,10 @@ def memory_forecast(
         else None
     )
     explained_lost = np.zeros(n_modes, dtype=np.int64)  # first block below 0.5, + 1
+    # a mode's model explains it once its probability reached 0.5 on unseen blocks; only
+    # then is a fall below 0.5 news (the prior starts low, :data:`~workbench.forecast.model_trust.PRIOR_PROBABILITY`)
+    explained = np.zeros(n_modes, dtype=bool)
+    forecast_blocks = np.zeros(n_modes, dtype=np.int64)
 
     # ---- windows
     i0 = first + train
@@ -456,10 +460,12 @@ def memory_forecast(
                 estimate, variance = trust.combine(estimate, variance)
                 out["probability"][k] = np.where(have, trust.probability, np.nan)
                 for j in np.flatnonzero(have & out_of_sample):
+                    forecast_blocks[j] += 1
                     below = trust.probability[j] < 0.5
-                    if below and not explained_lost[j]:
+                    explained[j] |= not below
+                    if below and explained[j] and not explained_lost[j]:
                         explained_lost[j] = int(blocks[k]) + 1
-                    if below:
+                    if below and explained[j]:
                         notes[
                             f"mode {mode_labels[j]}: the model stopped explaining it (model "
                             f"probability below 0.5, first at block {explained_lost[j] - 1}; "
@@ -484,6 +490,12 @@ def memory_forecast(
         is_first = False
         i0 = f1
 
+    for j in np.flatnonzero((forecast_blocks > 0) & ~explained):
+        notes[
+            f"mode {mode_labels[j]}: the model never explained it well enough to be leaned on "
+            f"(model probability below 0.5 in all {forecast_blocks[j]} forecast blocks; the "
+            "estimate follows SSI)"
+        ] += 1
     table = assemble_table(
         blocks,
         block_start,
