@@ -89,6 +89,25 @@ def test_tables_follow_their_contracts_and_round_trip(tmp_path):
     assert "alarm 1: blocks" in result.summary()
 
 
+@pytest.mark.parametrize(
+    ("statistic", "title", "peak"),
+    [("cusum", "per-mode CUSUM", "peak max S/H"), ("mewma", "MEWMA", "peak T2")],
+)
+def test_summary_names_the_chart_it_ran(statistic, title, peak):
+    """The summary said 'MEWMA' and 'T2' whatever the chart (CUSUM is the default)."""
+    voyage = simulate_health_voyage(
+        24, seed=0, damaged_mode=3, stiffness_loss=0.02, damage_after_hours=16
+    )
+    result = health_chart(law_forecast(voyage), dataclasses.replace(OPTIONS, statistic=statistic))
+    summary = result.summary()
+    assert summary.splitlines()[0].endswith(f"({title} of frequency residuals)")
+    assert f"limit {result.reference.limit:.2f}" in summary or (
+        f"limit T2 = {result.reference.limit:.2f}" in summary
+    )
+    assert len(result.alarms) >= 1 and peak in summary
+    assert ("MEWMA" in summary) == (statistic == "mewma")
+
+
 def test_a_mode_missing_from_the_reference_is_left_out():
     voyage = simulate_health_voyage(24, seed=0)
     forecast = law_forecast(voyage)

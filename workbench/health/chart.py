@@ -144,16 +144,26 @@ class HealthResult:
         ref = self.reference
         monitor = self.table[self.table["phase"] == "monitor"]
         hours = len(monitor) / ref.blocks_per_day * 24.0
+        if ref.statistic == "cusum":
+            title = "Structural-health chart (per-mode CUSUM of frequency residuals)"
+            chart = (
+                f"detect shift {100 * self.options.detect_shift:g} %; statistic max S/H, "
+                f"limit {ref.limit:.2f}"
+            )
+            peak = "peak max S/H"
+        else:
+            title = "Structural-health chart (MEWMA of frequency residuals)"
+            chart = f"EWMA lambda {self.options.ewma_lambda:g}; limit T2 = {ref.limit:.2f}"
+            peak = "peak T2"
         lines = [
-            "Structural-health chart (MEWMA of frequency residuals)",
+            title,
             f"  modes charted: {', '.join(map(str, ref.modes))}"
             + (
                 f" (excluded: {', '.join(map(str, ref.excluded_modes))})"
                 if ref.excluded_modes
                 else ""
             ),
-            f"  reference: blocks {ref.start_block}-{ref.end_block}; "
-            f"EWMA lambda {self.options.ewma_lambda:g}; limit T2 = {ref.limit:.2f} "
+            f"  reference: blocks {ref.start_block}-{ref.end_block}; {chart} "
             f"(target {self.options.false_alarms_per_day:g} false alarms/day, "
             f"bootstrap {ref.bootstrap_false_alarms_per_day:.3f}/day)",
             f"  monitored: {len(monitor)} blocks ({hours:.1f} h), "
@@ -162,7 +172,7 @@ class HealthResult:
         for row in self.alarms.itertuples():
             lines.append(
                 f"  alarm {row.alarm}: blocks {row.start_block}-{row.end_block} "
-                f"({row.start_time:%Y-%m-%d %H:%M}Z), peak T2 {row.peak_statistic:.1f}, "
+                f"({row.start_time:%Y-%m-%d %H:%M}Z), {peak} {row.peak_statistic:.1f}, "
                 f"modes {row.modes}, mode {row.top_mode} shifted "
                 f"{row.top_mode_shift_percent:+.2f} %"
             )
