@@ -29,6 +29,8 @@ has a damping ratio unlike the mode's. Hence:
   (same tests, damping ratio within x3 of the mode's) is the measurement, flagged
   ``outside_gate``: the Kalman update's Huber weight and its persistence rule, not a
   count of blocks here, tell an outlier stretch from a mode that moved;
+* :func:`nearer_to_another_mode` - without shapes, the check of a pick against the other
+  modes' tracked poles of the block (a close neighbour's column is not the mode);
 * the per-block measurement scale: the cluster's frequency scatter across model orders,
   relative to the mode's typical scatter (:func:`scatter_scale`), which multiplies the
   measurement-noise variances of that block.
