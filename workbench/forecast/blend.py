@@ -59,7 +59,7 @@ import pandas as pd
 
 from .excitation import sub_windows_per_block
 from .innovation_consistency import MIN_BLOCKS, InnovationConsistency
-from .measurement import PoleIndex, cluster_around, scatter_scale
+from .measurement import PoleIndex, cluster_around, nearer_to_another_mode, scatter_scale
 from .memory import MemoryModel
 from .memory_excitation import excitation_bias
 from .memory_kalman import kalman_pass_step, stationary_covariance
@@ -383,11 +383,40 @@ def memory_forecast(
                 gate = np.minimum(
                     measurement.gate_sigma * np.sqrt(S), measurement.max_gate * np.abs(prior_z)
                 )
+                # without shapes a cluster in the gate may be a close neighbour's column:
+                # each mode's anchor is its tracked pole of the block (else its prior)
+                anchors = np.where(np.isfinite(tracked[k]), tracked[k], prior_z)
                 for j in np.flatnonzero(have):
                     choice = chooser.choose(k, j, prior_z[j], gate[j], damping_ref[j])
                     if choice is None:
                         continue
                     cl = choice.cluster
+                    if chooser.shape_mac is None and nearer_to_another_mode(
+                        cl.frequency_hz, j, anchors
+                    ):
+                        other = int(np.nanargmin(np.abs(np.delete(anchors, j) - cl.frequency_hz)))
+                        other += other >= j
+                        warn(
+                            k,
+                            j,
+                            f"option B pole {cl.frequency_hz:.4f} Hz nearer to mode "
+                            f"{mode_labels[other]} than to this mode's "
+                            f"{anchors[j]:.4f} Hz: "
+                            + ("tracked pole used" if np.isfinite(tracked[k, j]) else "refused"),
+                            "option B poles nearer to another mode (tracked pole used or "
+                            "predict-only)",
+                        )
+                        if not np.isfinite(tracked[k, j]):
+                            continue
+                        z[j] = tracked[k, j]
+                        cl = cluster_around(index, k, z[j])
+                        if cl is not None and cl.n_orders >= 3:
+                            scatter[k, j] = cl.scatter_hz
+                            if noise.pole_scatter:
+                                scale[j] = scatter_scale(cl.scatter_hz, typical[j])
+                        elif np.isfinite(typical[j]) and noise.pole_scatter:
+                            scale[j] = scatter_scale(math.nan, typical[j])
+                        continue
                     z[j] = cl.frequency_hz
                     out["order"][k, j] = cl.max_order
                     out["damping"][k, j] = cl.damping_ratio

@@ -29,6 +29,8 @@ has a damping ratio unlike the mode's. Hence:
   (same tests, damping ratio within x3 of the mode's) is the measurement, flagged
   ``outside_gate``: the Kalman update's Huber weight and its persistence rule, not a
   count of blocks here, tell an outlier stretch from a mode that moved;
+* :func:`nearer_to_another_mode` - without shapes, the check of a pick against the other
+  modes' tracked poles of the block (a close neighbour's column is not the mode);
 * the per-block measurement scale: the cluster's frequency scatter across model orders,
   relative to the mode's typical scatter (:func:`scatter_scale`), which multiplies the
   measurement-noise variances of that block.
@@ -42,7 +44,14 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-__all__ = ["ClusterChooser", "PoleCluster", "PoleIndex", "cluster_around", "scatter_scale"]
+__all__ = [
+    "ClusterChooser",
+    "PoleCluster",
+    "PoleIndex",
+    "cluster_around",
+    "nearer_to_another_mode",
+    "scatter_scale",
+]
 
 #: Fewest distinct model orders of a consistent cluster.
 MIN_ORDERS = 3
@@ -154,6 +163,27 @@ def scatter_scale(scatter_hz: float, typical_scatter_hz: float) -> float:
     if typical_scatter_hz <= 0:
         return 1.0
     return float(np.clip((max(scatter_hz, 0.0) / typical_scatter_hz) ** 2, *SCALE_BOUNDS))
+
+
+def nearer_to_another_mode(pick_hz: float, j: int, anchors_hz: np.ndarray) -> bool:
+    """Whether option B's pick for mode j lies nearer to another mode than to mode j.
+
+    *anchors_hz* (n_modes,) holds each mode's frequency in the block: its tracked pole when
+    the tracked table has one, else its a-priori estimate (NaN: unknown). Without mode
+    shapes a consistent cluster in the gate of a mode may be the column of a close
+    neighbour (5.2 and 5.5 Hz on the demo hull); a pick nearer (strictly) to another mode's
+    anchor than to the mode's own is that neighbour, and a pick equal to another mode's
+    tracked pole is the neighbour's measurement. NaN pick or own anchor: False (nothing to
+    compare).
+    """
+    own = anchors_hz[j]
+    if not (np.isfinite(pick_hz) and np.isfinite(own)):
+        return False
+    others = np.delete(anchors_hz, j)
+    others = others[np.isfinite(others)]
+    if others.size == 0:
+        return False
+    return bool(np.min(np.abs(others - pick_hz)) < abs(own - pick_hz))
 
 
 @dataclass

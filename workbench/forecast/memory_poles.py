@@ -56,7 +56,8 @@ def option_b_chooser(
         notes[
             "option B without mode shapes (poles or modal lack shape_re_<channel> columns "
             f"for {_MIN_SHAPE_CHANNELS}+ shared channels): consistent pole cluster in the "
-            "gate, no MAC check"
+            "gate, no MAC check; a pick nearer to another mode's tracked pole than to "
+            "the mode's own is refused and the tracked pole measured"
         ] += 1
     return ClusterChooser(
         index,

@@ -173,7 +173,10 @@ def sliding_forecast(
         mode's reference shape (MAC >= *mac_min*), the best by a score; a mode seen
         only outside the gate for *reacquire_blocks* blocks is re-acquired (Notes).
         Without shape columns in *poles* and *modal*: the nearest pole inside the gate,
-        stable poles preferred, no MAC check (with a warning).
+        stable poles preferred, no MAC check (with a warning); with ``model="memory"`` a
+        pick nearer to another mode's tracked pole of the block (else its a-priori
+        estimate) than to the mode's own is refused and the mode's tracked pole measured
+        (:func:`~workbench.forecast.measurement.nearer_to_another_mode`).
     scheme : {1, 2, "single_window", "rolling"}
         How the forecast slides (the reference work's methods 1 and 2).
         ``"single_window"`` (1): one training window, one forward prediction of *horizon*

@@ -69,6 +69,7 @@ SUMMARY_COLUMNS = [
     "model_cumulative_error_hz",
     "kalman_cumulative_error_hz",
     "improvement_vs_ssi_pct",
+    "improvement_vs_tracked_pct",
 ]
 
 
@@ -171,10 +172,23 @@ def evaluate(
             if ssi_error > 0
             else "no gain vs SSI defined (SSI error is zero)"
         )
+        tracked_error = float(part["tracked_cumulative_error_hz"].sum(min_count=1))
+        versus_tracked = ""
+        if option != "A" and np.isfinite(tracked_error) and tracked_error > 0:
+            # option B's SSI column is its own chosen pole: also against the tracked pole
+            gain = 100.0 * (
+                1.0 - float(part["kalman_cumulative_error_tracked_hz"].sum()) / tracked_error
+            )
+            versus_tracked = f", {gain:+.1f} % vs the tracked pole (option A's SSI)"
+            if gain < 0:
+                result.warnings.append(
+                    f"option {option}: the Kalman estimate is {-gain:.1f} % worse than the "
+                    "tracked pole (option A's SSI estimate); use option A"
+                )
         result.lines.append(
             f"option {option}: cumulative |error| SSI {ssi_error:.3f} Hz,"
             f" model {total['model_cumulative_error_hz']:.3f} Hz, Kalman "
-            f"{total['kalman_cumulative_error_hz']:.3f} Hz -> Kalman {verdict}"
+            f"{total['kalman_cumulative_error_hz']:.3f} Hz -> Kalman {verdict}{versus_tracked}"
         )
         if ssi_error == 0 and part["n_ssi"].sum() > 0:
             result.warnings.append(
