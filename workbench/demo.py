@@ -176,12 +176,15 @@ def run_demo(
     summary.lines.append(f"simulated voyage: {describe_voyage(simulation)}")
     truth = read_table(simulation.truth_modal, CONTRACTS["modal"])
 
+    # the folder of the acceleration files (the voyage folder also holds the ship log and
+    # the true tables, which a folder scan would list as text files left out)
+    accelerations_dir = Path(simulation.acceleration_files[0]).parent
     identify_dir = out_dir / "identify"
     # the voyage was just (re)written: results of an earlier demo run must not be resumed
     shutil.rmtree(identify_dir, ignore_errors=True)
     with stage("identify"):
         identified = identify(
-            voyage_dir,
+            accelerations_dir,
             identify_dir,
             options=DEMO_IDENTIFY_OPTIONS,
             dship=simulation.dship_log,
@@ -200,7 +203,7 @@ def run_demo(
         from .identify import cross_check_blocks
         from .sid.crosscheck import agreement_lines
 
-        cross = cross_check_blocks([voyage_dir], identify_dir, n_blocks=6)
+        cross = cross_check_blocks([accelerations_dir], identify_dir, n_blocks=6)
     summary.lines += agreement_lines(cross) if len(cross) else ["cross-check: no block"]
 
     with stage("track"):
