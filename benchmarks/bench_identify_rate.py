@@ -86,24 +86,31 @@ def _voyage(root: Path, hours: float) -> Path:
     return folder / "accelerations"
 
 
+def _measured(command: list[str]) -> tuple[float, int, int, float]:
+    """*command* in a child process under :data:`_WRAPPER`: (seconds, peak RSS MiB, blocks
+    it reports processed, CPU seconds of the process tree)."""
+    start = time.perf_counter()
+    finished = subprocess.run(
+        [sys.executable, "-c", _WRAPPER, *command], capture_output=True, text=True
+    )
+    seconds = time.perf_counter() - start
+    if finished.returncode:
+        raise SystemExit(finished.stderr)
+    usage = finished.stdout.rsplit("PEAK_KIB", 1)[1].split()
+    blocks = int(finished.stdout.split(" block(s) processed")[0].split()[-1])
+    return seconds, int(usage[0]) // 1024, blocks, float(usage[2])
+
+
 def _identify(voyage: Path, out: Path, *extra: str) -> tuple[float, int, int, float]:
     """``workbench identify`` in a child process: (seconds, peak RSS MiB, blocks done, CPU
     seconds of the process tree)."""
     shutil.rmtree(out, ignore_errors=True)
     command = [sys.executable, "-m", "workbench.cli", "identify", str(voyage)]
     command += ["--out", str(out), "--quiet", *extra]
-    start = time.perf_counter()
-    finished = subprocess.run(
-        [sys.executable, "-c", _WRAPPER, *command], capture_output=True, text=True
-    )
-    seconds = time.perf_counter() - start
-    shutil.rmtree(out, ignore_errors=True)
-    if finished.returncode:
-        raise SystemExit(finished.stderr)
-    usage = finished.stdout.rsplit("PEAK_KIB", 1)[1].split()
-    peak_kib, cpu = int(usage[0]), float(usage[2])
-    blocks = int(finished.stdout.split(" block(s) processed")[0].split()[-1])
-    return seconds, peak_kib // 1024, blocks, cpu
+    try:
+        return _measured(command)
+    finally:
+        shutil.rmtree(out, ignore_errors=True)
 
 
 _PLAIN_SCRIPT = """
@@ -133,16 +140,7 @@ def _plain(voyage: Path) -> tuple[float, int, int, float]:
     4 x 8 to 64 Hz, koma covssi i = 20, orders 4..60) in a child process: (seconds, peak
     RSS MiB, blocks, CPU seconds)."""
     command = [sys.executable, "-c", _PLAIN_SCRIPT, str(voyage)]
-    start = time.perf_counter()
-    finished = subprocess.run(
-        [sys.executable, "-c", _WRAPPER, *command], capture_output=True, text=True
-    )
-    seconds = time.perf_counter() - start
-    if finished.returncode:
-        raise SystemExit(finished.stderr)
-    usage = finished.stdout.rsplit("PEAK_KIB", 1)[1].split()
-    blocks = int(finished.stdout.split(" block(s) processed")[0].split()[-1])
-    return seconds, int(usage[0]) // 1024, blocks, float(usage[2])
+    return _measured(command)
 
 
 #: Stages of the profile: (name, path fragments of the modules whose time counts there);
