@@ -43,7 +43,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from forecast_regimes import ALL_REGIMES, REGIMES, UNRECORDED, make_regime  # noqa: E402
 
-from workbench.forecast import sliding_forecast  # noqa: E402
+from workbench.forecasting import sliding_forecast  # noqa: E402
 
 
 def score(
@@ -133,7 +133,7 @@ def block_level_runs(seeds, n_blocks, methods, options, regimes=REGIMES, shapes_
 def _demo_tables(cache: Path, hours: float, seed: int = 0):
     """Tracked modal table, poles, predictors and truth of the demo voyage (cached)."""
     from data_contracts import CONTRACTS, read_table
-    from workbench.identify import IdentifyOptions, identify_voyage
+    from workbench.identification import IdentifyOptions, identify_voyage
     from workbench.predictors import canonical_predictors, load_predictors
     from workbench.simulate import simulate_voyage
     from workbench.stages import track
@@ -261,7 +261,7 @@ def main(argv=None) -> int:
     global MODEL, MODEL_OPTIONS
     MODEL = args.model
     if args.no_excitation_bias:
-        from workbench.forecast.options import ModelOptions
+        from workbench.forecasting.options import ModelOptions
 
         MODEL_OPTIONS = ModelOptions(excitation_bias=False)
     methods = [int(m) for m in args.methods.split(",")]

@@ -52,7 +52,7 @@ sys.path.insert(0, str(ROOT))
 
 from data_contracts import read_dship  # noqa: E402
 from workbench.demo import DEMO_IDENTIFY_OPTIONS  # noqa: E402
-from workbench.identify import identify_voyage  # noqa: E402
+from workbench.identification import identify_voyage  # noqa: E402
 from workbench.sid.harmonics import HarmonicOptions, mark_harmonics  # noqa: E402
 from workbench.sid.tracking import TrackingOptions, label_agreement, track_modes  # noqa: E402
 from workbench.simulate import ShaftHarmonics, operating_profile, simulate_voyage  # noqa: E402

@@ -1,6 +1,6 @@
 """Benchmark: detection delay and false alarms of the structural-health chart.
 
-Block-level voyages from :func:`workbench.health.simulate_health_voyage` (the demo hull's
+Block-level voyages from :func:`workbench.shm.simulate_health_voyage` (the demo hull's
 modal law driven by the demo operating profile, identification errors correlated as
 75 %-overlapping blocks give, 10 % missing estimates, 0.5 % wrong poles). Timeline: the
 operational model trains on the first ``--train-hours``, the chart's reference period is
@@ -17,16 +17,16 @@ the next ``--reference-hours``, then 24 h are monitored. Scenarios:
 Operational/environmental models feeding the chart:
 
 * ``law``: the hull's own law at the logged predictors (the best any model can do);
-* ``stepwise``: the project's :func:`workbench.forecast.sliding_forecast`, method 1,
+* ``stepwise``: the project's :func:`workbench.forecasting.sliding_forecast`, method 1,
   trained once on the training period (elapsed hours as the fuel proxy);
-* ``ols``: :func:`workbench.health.fit_operational_model` on the training period (speed,
+* ``ols``: :func:`workbench.shm.fit_operational_model` on the training period (speed,
   speed², temperatures, speed x water, logged fuel used), with its parameter uncertainty
   relative to the reference period (``model_shift_std``);
 * ``ols-time``: the same with elapsed hours instead of the logged fuel on board;
 * ``ols-baseline``: the same without any fuel term, the chart's baseline following slow
   drifts (``--baseline-hours``, :attr:`HealthOptions.baseline_hours`).
 
-Chart settings: ``after`` (the current :class:`~workbench.health.HealthOptions` defaults)
+Chart settings: ``after`` (the current :class:`~workbench.shm.HealthOptions` defaults)
 or ``before`` (the previous defaults: upcrossing-calibrated limit, full covariance,
 4-block bootstrap, no model uncertainty, two-sided EWMA).
 
@@ -51,7 +51,7 @@ import warnings
 import numpy as np
 import pandas as pd
 
-from workbench.health import (
+from workbench.shm import (
     DEFAULT_TERMS,
     HealthOptions,
     detection_delay_hours,

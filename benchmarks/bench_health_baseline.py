@@ -1,8 +1,8 @@
 """Benchmark: a new voyage charted from its first block with a saved health baseline.
 
-An earlier voyage of the ship (:func:`workbench.health.simulate_health_voyage`, seed 1)
+An earlier voyage of the ship (:func:`workbench.shm.simulate_health_voyage`, seed 1)
 gives the baseline: the operational model fitted on its first ``--train-hours`` and the
-chart's reference on the next 6 h (:class:`workbench.health.HealthBaseline`, written to
+chart's reference on the next 6 h (:class:`workbench.shm.HealthBaseline`, written to
 JSON and read back, as ``workbench health --save-model`` / ``--baseline`` do). New 12-h
 voyages (seeds 2..) lose 2 % of mode 3's stiffness ``--damage-hours`` in; quiet 24-h
 voyages with the same seeds count false alarms. Without a baseline the voyage's own
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.health import (
+from workbench.shm import (
     HealthBaseline,
     HealthOptions,
     detection_delay_hours,

@@ -1,7 +1,7 @@
 """Validation of option B's pole choice on recordings this project did not generate.
 
 Option B measures, in each block, the stabilisation-diagram column nearest the Kalman
-prediction (:class:`workbench.forecast.measurement.ClusterChooser`). This benchmark checks
+prediction (:class:`workbench.forecasting.measurement.ClusterChooser`). This benchmark checks
 that choice on the real and third-party recordings in ``../shared/realdata`` (see its
 README), whose modes do not move: a prediction that is off by a known amount must still
 lead to the mode's own column.
@@ -37,9 +37,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_real_data import REALDATA, _write_npz, identify_command, recordings  # noqa: E402
 
-from workbench.forecast.measurement import PoleIndex  # noqa: E402
-from workbench.forecast.memory_poles import option_b_chooser  # noqa: E402
-from workbench.forecast.options import MeasurementOptions  # noqa: E402
+from workbench.forecasting.measurement import PoleIndex  # noqa: E402
+from workbench.forecasting.memory_poles import option_b_chooser  # noqa: E402
+from workbench.forecasting.options import MeasurementOptions  # noqa: E402
 
 #: Relative offsets of the prediction from the reference frequency. [-]
 OFFSETS = (0.0, 0.01, -0.01)

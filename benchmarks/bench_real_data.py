@@ -286,13 +286,9 @@ def methods_table(match_tol: float) -> pd.DataFrame:
     same conditioning and options as the command line above, in this process)."""
     from threadpoolctl import threadpool_limits
 
+    from workbench.identification.engine import BlockTask, _identify_data
     from workbench.identification.options import IdentifyOptions
-    from workbench.identify import (
-        BlockTask,
-        _identify_data,
-        acceleration_files,
-        plan_identification,
-    )
+    from workbench.identification.planning import acceleration_files, plan_identification
     from workbench.sid.combined import combine_modes
 
     rows = []
@@ -361,12 +357,8 @@ def demo_ab(n_blocks: int, folder: Path | None) -> None:
     from threadpoolctl import threadpool_limits
 
     from workbench.demo import DEMO_IDENTIFY_OPTIONS
-    from workbench.identify import (
-        BlockTask,
-        _identify_data,
-        acceleration_files,
-        plan_identification,
-    )
+    from workbench.identification.engine import BlockTask, _identify_data
+    from workbench.identification.planning import acceleration_files, plan_identification
 
     with tempfile.TemporaryDirectory() as tmp:
         if folder is None or not (folder / "voyage.json").is_file():

@@ -12,7 +12,7 @@ import pytest
 
 from data_contracts import POLES, read_table
 from workbench.cli import main
-from workbench.identify import (
+from workbench.identification import (
     IdentifyOptions,
     cross_check_blocks,
     identify_voyage,

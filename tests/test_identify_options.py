@@ -84,7 +84,7 @@ def test_a_short_record_beside_a_long_one_is_named(tmp_path, caplog):
     warning (not silently left out)."""
     _record(tmp_path / "data", 21.0, "2024-01-01T10:00:00Z", name="long.npz")
     _record(tmp_path / "data", 4.0, "2024-01-01T11:30:00Z", seed=1, name="short.npz")
-    with caplog.at_level("WARNING", logger="workbench.identify"):
+    with caplog.at_level("WARNING", logger="workbench"):
         assert _identify(tmp_path) == 0
     blocks = pd.read_csv(tmp_path / "out" / "blocks.csv")
     assert (blocks["status"] == "ok").sum() == 1  # blocks over the gap: skipped, with reason

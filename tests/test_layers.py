@@ -4,7 +4,7 @@ Layers, bottom up: data contracts; infrastructure (errors, blocks, the per-block
 parallel runs, joins, configuration) with signals and predictors; sid; stats and the
 simulator (which imitates identification with sid's functions); forecast and health; the figure modules of reporting (they draw from tables and
 stage results and import nothing above stats); the stages (``workbench.stages`` and the
-identify engine ``workbench.identify``); at the top the run report builder, the demo, the
+identify engine ``workbench.identification``); at the top the run report builder, the demo, the
 CLI and its argument helpers, the monitor and the dashboard.
 """
 
@@ -33,10 +33,9 @@ LAYERS = {
     "workbench.simulate": 3,  # the simulator imitates identification with sid's own functions
     "workbench.sid": 2,
     "workbench.stats": 3,
-    "workbench.forecast": 4,
-    "workbench.health": 4,
+    "workbench.forecasting": 4,
+    "workbench.shm": 4,
     "workbench.reporting": 5,
-    "workbench.identify": 6,
     "workbench.identification": 6,  # the identify engine, one module per responsibility
     "workbench.stages": 6,
     "workbench.reporting.report": 7,

@@ -78,8 +78,8 @@ def test_every_option_with_a_default_shows_it(command):
 def test_defaults_are_the_library_defaults():
     """The command line shows the library's defaults (defaults.py reads them; a copy here
     would let them drift apart silently)."""
-    from workbench.forecast.options import MeasurementOptions
-    from workbench.identify import IdentifyOptions
+    from workbench.forecasting.options import MeasurementOptions
+    from workbench.identification import IdentifyOptions
     from workbench.sid.tracking import TrackingOptions
 
     identify = IdentifyOptions()
@@ -223,8 +223,8 @@ def test_deprecated_keywords_map_onto_the_new_ones():
 
 
 def test_deprecated_fields_of_the_options():
-    from workbench.forecast.options import MeasurementOptions
-    from workbench.identify import IdentifyOptions
+    from workbench.forecasting.options import MeasurementOptions
+    from workbench.identification import IdentifyOptions
     from workbench.sid.tracking import TrackingOptions
 
     with pytest.warns(DeprecationWarning, match="is deprecated"):

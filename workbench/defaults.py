@@ -15,10 +15,10 @@ import inspect
 from pathlib import Path
 
 from .blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
-from .forecast.options import DEFAULT_MODEL, MeasurementOptions
-from .forecast.sliding import DEFAULT_HORIZON
-from .health import HealthOptions
-from .identify import IdentifyOptions
+from .forecasting.options import DEFAULT_MODEL, MeasurementOptions
+from .forecasting.sliding import DEFAULT_HORIZON
+from .identification import IdentifyOptions
+from .shm import HealthOptions
 from .sid.harmonics import HarmonicOptions
 from .sid.tracking import TrackingOptions
 from .signals.moments import faulty_channels

@@ -105,7 +105,7 @@ class _Stages:
 
 
 def _demo_identify_options():
-    from .identify import IdentifyOptions
+    from .identification import IdentifyOptions
 
     # the structure-level setting of the demo hull: its global modes lie in 2-12 Hz
     return IdentifyOptions(band_hz=(2.0, 12.0))
@@ -200,7 +200,7 @@ def run_demo(
     summary.lines += identified.run.notes
 
     with stage("SSI/LSCF cross-check"):
-        from .identify import cross_check_blocks
+        from .identification import cross_check_blocks
         from .sid.crosscheck import agreement_lines
 
         cross = cross_check_blocks([accelerations_dir], identify_dir, n_blocks=6)

@@ -12,7 +12,7 @@ import scipy.io
 from data_contracts import ContractError, read_accelerations
 from data_contracts.formats import STANDARD_GRAVITY_MS2, AccelerationLayout
 from workbench.cli import main
-from workbench.identify import acceleration_files
+from workbench.identification import acceleration_files
 
 START = pd.Timestamp("2026-03-01T12:05:00Z")
 RATE = 64.0

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from workbench.forecast import (
+from workbench.forecasting import (
     chain_natural_frequencies,
     evaluate_against_truth,
     simulate_temperature_experiment,

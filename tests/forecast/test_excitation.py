@@ -7,13 +7,13 @@ import warnings
 import numpy as np
 import pandas as pd
 
-from workbench.forecast import sliding_forecast
-from workbench.forecast.excitation import (
+from workbench.forecasting import sliding_forecast
+from workbench.forecasting.excitation import (
     sub_windows_per_block,
     within_block_profile,
     within_block_variance,
 )
-from workbench.forecast.options import ModelOptions
+from workbench.forecasting.options import ModelOptions
 
 
 def _block_means(sub_windows: np.ndarray, n_sub: int = 4) -> np.ndarray:

@@ -7,7 +7,7 @@ import math
 import matplotlib
 import pytest
 
-from workbench.forecast import (
+from workbench.forecasting import (
     run_temperature_experiment,
 )
 
@@ -30,7 +30,7 @@ def _pooled_improvement(trust):
     return {mode: 100 * (1 - kalman / ssi) for mode, (ssi, kalman) in totals.items()}
 
 
-@pytest.mark.filterwarnings("ignore::workbench.forecast.ForecastWarning")
+@pytest.mark.filterwarnings("ignore::workbench.forecasting.ForecastWarning")
 def test_reference_experiment_improvement_matches_or_beats_85_and_89_percent():
     # Reference: 85 % (mode 3) and 89 % (mode 4) lower cumulative absolute error of the
     # Kalman estimates than of the raw observations over 20 noisy observations per mode.
@@ -43,7 +43,7 @@ def test_reference_experiment_improvement_matches_or_beats_85_and_89_percent():
     assert min(improvement.values()) >= 85.0
 
 
-@pytest.mark.filterwarnings("ignore::workbench.forecast.ForecastWarning")
+@pytest.mark.filterwarnings("ignore::workbench.forecasting.ForecastWarning")
 def test_fixed_trust_is_bounded_by_the_white_noise_limit():
     # A fixed gain K on white noise keeps an error σ sqrt(K/(2-K)) even with a perfect
     # model: for K = 0.65 the expected improvement is at most 1 - sqrt(0.65/1.35) = 30.6 %.
@@ -55,7 +55,7 @@ def test_fixed_trust_is_bounded_by_the_white_noise_limit():
         assert limit - 8.0 < value < limit + 6.0
 
 
-@pytest.mark.filterwarnings("ignore::workbench.forecast.ForecastWarning")
+@pytest.mark.filterwarnings("ignore::workbench.forecasting.ForecastWarning")
 def test_forecast_figures_written_and_closed(tmp_path):
     import matplotlib.pyplot as plt
 

@@ -1,4 +1,4 @@
-"""Innovation-consistency safeguard of the memory forecast (workbench.forecast.innovation_consistency)."""
+"""Innovation-consistency safeguard of the memory forecast (workbench.forecasting.innovation_consistency)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 from scipy import integrate
 from scipy.stats import norm
 
-from workbench.forecast.innovation_consistency import (
+from workbench.forecasting.innovation_consistency import (
     MIN_BLOCKS,
     WINDOW_BLOCKS,
     InnovationConsistency,
@@ -91,8 +91,8 @@ def test_in_sample_rows_are_not_recorded_and_nan_rows_are_skipped():
 
 
 def test_noise_option_sets_the_window_and_zero_turns_the_safeguard_off():
-    from workbench.forecast import sliding_forecast
-    from workbench.forecast.options import NoiseOptions
+    from workbench.forecasting import sliding_forecast
+    from workbench.forecasting.options import NoiseOptions
 
     with pytest.raises(ValueError, match="consistency_blocks"):
         NoiseOptions(consistency_blocks=MIN_BLOCKS - 1)

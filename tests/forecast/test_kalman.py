@@ -10,7 +10,7 @@ from filterpy.kalman import KalmanFilter
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from workbench.forecast.kalman import (
+from workbench.forecasting.kalman import (
     ModeKalmanBank,
     ScalarKalmanFilter,
     process_variance_for_gain,

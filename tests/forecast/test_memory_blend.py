@@ -11,21 +11,21 @@ import pandas as pd
 import pytest
 
 from data_contracts import FORECAST
-from workbench.forecast import (
+from workbench.forecasting import (
     ForecastWarning,
     scalar_kalman_predict,
     scalar_kalman_update,
     sliding_forecast,
 )
-from workbench.forecast.blend import kalman_pass_step
-from workbench.forecast.measurement import ClusterChooser, PoleIndex
-from workbench.forecast.noise import (
+from workbench.forecasting.blend import kalman_pass_step
+from workbench.forecasting.measurement import ClusterChooser, PoleIndex
+from workbench.forecasting.noise import (
     MIN_OUT_OF_SAMPLE,
     NoiseModel,
     estimate_noise,
     model_error_floor,
 )
-from workbench.forecast.options import (
+from workbench.forecasting.options import (
     MeasurementOptions,
     ModelOptions,
     method_label,

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from data_contracts import FORECAST, MODAL, ContractError
-from workbench.forecast import ForecastWarning, sliding_forecast
+from workbench.forecasting import ForecastWarning, sliding_forecast
 
 START = pd.Timestamp("2024-03-01T00:00:00Z")
 

@@ -11,10 +11,10 @@ import pandas as pd
 import pytest
 
 from data_contracts import FORECAST
-from workbench.forecast import ForecastWarning, sliding_forecast
-from workbench.forecast.model_trust import PRIOR_PROBABILITY, ModelTrust
-from workbench.forecast.noise import estimate_noise, identification_error_bound
-from workbench.forecast.options import NoiseOptions
+from workbench.forecasting import ForecastWarning, sliding_forecast
+from workbench.forecasting.model_trust import PRIOR_PROBABILITY, ModelTrust
+from workbench.forecasting.noise import estimate_noise, identification_error_bound
+from workbench.forecasting.options import NoiseOptions
 
 
 def _overlap_error(rng, n, std, overlap=4):

@@ -15,8 +15,8 @@ import warnings
 import numpy as np
 import pandas as pd
 
-from workbench.forecast import evaluate_against_truth, sliding_forecast
-from workbench.forecast.measurement import nearer_to_another_mode
+from workbench.forecasting import evaluate_against_truth, sliding_forecast
+from workbench.forecasting.measurement import nearer_to_another_mode
 
 MODES_HZ = np.array([2.9, 4.7, 5.3, 5.5, 7.1, 7.6, 8.3])
 CLOSE = 3  # the 5.5-Hz mode; its neighbour is mode 2 at 5.3 Hz

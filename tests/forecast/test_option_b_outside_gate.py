@@ -13,8 +13,8 @@ import warnings
 import numpy as np
 import pandas as pd
 
-from workbench.forecast import sliding_forecast
-from workbench.forecast.measurement import ClusterChooser, PoleIndex
+from workbench.forecasting import sliding_forecast
+from workbench.forecasting.measurement import ClusterChooser, PoleIndex
 
 ORDERS = np.arange(20, 61, 2)
 

@@ -18,8 +18,8 @@ import pandas as pd
 import pytest
 
 from data_contracts import FORECAST, shapes_to_frame
-from workbench.forecast import ForecastWarning, ModeKalmanBank, sliding_forecast
-from workbench.forecast.pole_selection import _mac_on_common_channels
+from workbench.forecasting import ForecastWarning, ModeKalmanBank, sliding_forecast
+from workbench.forecasting.pole_selection import _mac_on_common_channels
 from workbench.sid.assurance import mac
 
 START = pd.Timestamp("2024-03-01T00:00:00Z")

@@ -14,8 +14,8 @@ import numpy as np
 import pandas as pd
 
 from data_contracts import shapes_to_frame
-from workbench.forecast.pole_selection import _mac_on_common_channels
-from workbench.forecast.shape_reference import consensus_references
+from workbench.forecasting.pole_selection import _mac_on_common_channels
+from workbench.forecasting.shape_reference import consensus_references
 
 CHANNELS = [f"ch{c:02d}" for c in range(19)]
 

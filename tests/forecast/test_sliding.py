@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from data_contracts import FORECAST
-from workbench.forecast import ForecastWarning, relaxation_factor, sliding_forecast
+from workbench.forecasting import ForecastWarning, relaxation_factor, sliding_forecast
 
 START = pd.Timestamp("2024-03-01T00:00:00Z")
 

@@ -1,7 +1,7 @@
 """A saved health baseline: an earlier voyage's model and limits chart a new voyage from
 its first block; a baseline of another ship, or a damaged file, is refused in one line.
 
-The earlier voyage is 48 h of :func:`workbench.health.simulate_health_voyage` (seed 1): a
+The earlier voyage is 48 h of :func:`workbench.shm.simulate_health_voyage` (seed 1): a
 36-h model (its operating cycles at several fuel states) and a 6-h reference, as
 ``workbench health --train-hours 36 --reference-hours 6 --save-model`` fits them.
 """
@@ -16,7 +16,9 @@ import pytest
 
 from data_contracts import HEALTH, MODAL, PREDICTORS, read_table, shapes_to_frame, write_table
 from workbench.cli import main
-from workbench.health import (
+from workbench.monitor.outlook import ForecastSettings
+from workbench.monitor.structural_health import operational_health
+from workbench.shm import (
     BaselineError,
     HealthBaseline,
     HealthOptions,
@@ -25,8 +27,6 @@ from workbench.health import (
     health_chart,
     simulate_health_voyage,
 )
-from workbench.monitor.outlook import ForecastSettings
-from workbench.monitor.structural_health import operational_health
 
 CHANNELS = tuple(f"acc{k:02d}" for k in range(1, 9))
 TRAIN, REFERENCE = 432, 72  # 36 h and 6 h of 5-min steps
@@ -183,7 +183,7 @@ def test_cli_save_model_then_chart_a_new_voyage_from_block_one(earlier, damaged,
          "--train-hours", "36", "--reference-hours", "6", "--save-model", str(saved),
          "--out", str(tmp_path / "old")]
     )  # fmt: skip
-    assert status == 0 and json.loads(saved.read_text())["schema"] == "workbench.health.baseline"
+    assert status == 0 and json.loads(saved.read_text())["schema"] == "workbench.shm.baseline"
     capsys.readouterr()
     out = tmp_path / "new"
     status = main(

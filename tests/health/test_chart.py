@@ -1,6 +1,6 @@
 """Structural-health chart: invariants on block-level voyages with known damage.
 
-Voyages come from :func:`workbench.health.simulate_health_voyage` (demo hull law, SSI-like
+Voyages come from :func:`workbench.shm.simulate_health_voyage` (demo hull law, SSI-like
 errors correlated as 75 %-overlapping blocks give). The operational model is the hull's law
 at the logged predictors (:func:`law_forecast`), so what is tested is the chart; the real
 stepwise forecast is measured in ``benchmarks/bench_health.py``.
@@ -16,14 +16,14 @@ import pandas as pd
 import pytest
 
 from data_contracts import ALARMS, HEALTH, ContractError, read_table, write_table
-from workbench.health import (
+from workbench.shm import (
     HealthOptions,
     detection_delay_hours,
     health_chart,
     law_forecast,
     simulate_health_voyage,
 )
-from workbench.health.chart import ewma_hold, hotelling, upcrossings_per_day
+from workbench.shm.chart import ewma_hold, hotelling, upcrossings_per_day
 
 #: 12 h reference (one full operating cycle: rest, 10 kn, alternating, temperature drift).
 OPTIONS = HealthOptions(reference_blocks=144, reference_start_block=0)
@@ -177,7 +177,7 @@ def test_fitted_model_transit_into_cold_water_does_not_alarm_damage_does():
     # monitored. Seeds 0-39 in benchmarks/bench_health.py: a false alarm on 6 of 80
     # monitored days with or without the transit (the design's 9.5 %: 7.6); here seed 3,
     # one without
-    from workbench.health import fit_operational_model
+    from workbench.shm import fit_operational_model
 
     def chart(voyage):
         model = fit_operational_model(voyage.modal, voyage.predictors, train_blocks=864)
@@ -206,8 +206,8 @@ def test_the_limits_hold_against_the_models_error_in_the_reference():
     # the fitted model's persistent error over the reference (model_shift_std, 0.04-0.05 %
     # of the frequency, about 0.12 of the residuals' scale) is simulated as an offset of
     # each day: model_offset_std is its root mean square in the chart's units
-    from workbench.health import fit_operational_model
-    from workbench.health.chart import _residual_matrix
+    from workbench.shm import fit_operational_model
+    from workbench.shm.chart import _residual_matrix
 
     voyage = simulate_health_voyage(120, seed=3)
     model = fit_operational_model(voyage.modal, voyage.predictors, train_blocks=864)
@@ -226,7 +226,7 @@ def test_the_limits_hold_against_the_models_error_in_the_reference():
 
 
 def test_cusum_accumulates_decreases_beyond_the_allowance_and_holds_missing():
-    from workbench.health.chart import cusum_hold, cusum_step
+    from workbench.shm.chart import cusum_hold, cusum_step
 
     # S_k = max(0, S_{k-1} - x_k - K), K = 0.5: a drop of 2 adds 1.5 per block
     x = np.array([[-2.0], [-2.0], [np.nan], [1.0], [3.0]])
@@ -242,7 +242,7 @@ def test_cusum_limits_match_siegmunds_run_length_for_independent_residuals():
     # about 10 % of the exact ARL for k = 0.5). Target: one false alarm per 10 days per
     # mode (exp(-0.1) quantile of the daily maximum), 288 blocks a day: ARL ≈ 2880 blocks
     # (the Poisson daily count holds when the ARL is long against a day)
-    from workbench.health.chart import cusum_limits
+    from workbench.shm.chart import cusum_limits
 
     limit = cusum_limits(
         np.array([0.5]),

@@ -6,7 +6,7 @@ import pytest
 
 from data_contracts import ALARMS, FORECAST, HEALTH, read_table, write_table
 from workbench.cli import main
-from workbench.health import law_forecast, simulate_health_voyage
+from workbench.shm import law_forecast, simulate_health_voyage
 
 
 @pytest.fixture(scope="module")
@@ -74,7 +74,7 @@ def test_health_fits_its_own_model_from_modal_and_predictors(tmp_path, capsys):
 def test_health_flags_reach_the_chart(forecast_file, tmp_path, flags, options):
     """--statistic and --baseline-hours give the chart the library computes with the same
     options (and a chart that differs from the default one)."""
-    from workbench.health import HealthOptions
+    from workbench.shm import HealthOptions
     from workbench.stages import health
 
     common = {"reference_blocks": 144, "reference_start_block": 0}

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from workbench.health import fit_operational_model, simulate_health_voyage
+from workbench.shm import fit_operational_model, simulate_health_voyage
 from workbench.simulate.imitation import FREQUENCY_SCATTER
 
 

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from data_contracts import ALARMS
-from workbench.health import (
+from workbench.shm import (
     HealthMonitor,
     HealthOptions,
     health_chart,

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from workbench.health.statistics import (
+from workbench.shm.statistics import (
     OUTLIER_SIGMA,
     _robust_location_scale,
     cusum_limits,

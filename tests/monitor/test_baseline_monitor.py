@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 
 from data_contracts import MODAL, shapes_to_frame
-from workbench.health import (
+from workbench.shm import (
     HealthBaseline,
     HealthOptions,
     fit_operational_model,

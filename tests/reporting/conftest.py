@@ -13,7 +13,7 @@ def make_run(out, *, hours: float = 2.0):
     to 30, in this process, shaft harmonics marked from the ship log), track, predictors,
     fit and a forecast with a 6-block window into *out*, as the CLI stages would."""
     from data_contracts import CONTRACTS, PREDICTORS, read_table, write_table
-    from workbench.identify import IdentifyOptions
+    from workbench.identification import IdentifyOptions
     from workbench.predictors import canonical_predictors, load_predictors
     from workbench.sid.harmonics import HarmonicOptions
     from workbench.simulate import simulate_voyage

@@ -377,7 +377,7 @@ def test_max_order_from_a_config_is_checked_too(voyage, tmp_path, capsys):
 
 def test_library_options_refuse_huge_ranges_without_building_them():
     from workbench.errors import OptionError
-    from workbench.identify import IdentifyOptions
+    from workbench.identification import IdentifyOptions
 
     with pytest.raises(OptionError) as caught:
         IdentifyOptions(orders=range(2, 10**12, 2))  # a tuple of it would not fit in memory

@@ -14,7 +14,7 @@ from scipy import signal
 
 from data_contracts import read_accelerations
 from workbench.cli import main
-from workbench.identify import IdentifyOptions, analysis_rate, identify_voyage
+from workbench.identification import IdentifyOptions, analysis_rate, identify_voyage
 from workbench.signals import decimate
 from workbench.simulate import simulate_voyage
 

@@ -18,7 +18,7 @@ import pandas as pd
 import pytest
 
 from data_contracts import POLES, read_table
-from workbench.identify import IdentifyOptions, identify_voyage
+from workbench.identification import IdentifyOptions, identify_voyage
 
 #: Small but real settings: 10 block rows, orders 4..40 (fast enough for a test).
 OPTIONS = IdentifyOptions(block_rows=10, orders=tuple(range(4, 41, 2)))

@@ -161,7 +161,7 @@ def test_case_training_mask_hook():
 
 
 def test_sliding_forecast_trains_on_the_current_case():
-    from workbench.forecast import sliding_forecast
+    from workbench.forecasting import sliding_forecast
 
     modal, predictors, moving = _voyage(150, seed=1)
     labels = derive_cases(predictors).to_numpy()

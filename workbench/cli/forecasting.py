@@ -184,7 +184,7 @@ def check_forecast_flags(args: argparse.Namespace) -> float | None | str:
     UsageError
         Naming the flag (exit 2).
     """
-    from ..forecast.options import MIN_TRAIN_BLOCKS
+    from ..forecasting.options import MIN_TRAIN_BLOCKS
 
     if args.train_blocks < MIN_TRAIN_BLOCKS:
         raise UsageError(
@@ -390,7 +390,7 @@ def _block_step_s(table) -> float:
 def _run_health(args: argparse.Namespace) -> int:
     from data_contracts import FORECAST, MODAL, PREDICTORS, read_table
 
-    from ..health import BaselineError, HealthBaseline, HealthOptions, fit_operational_model
+    from ..shm import BaselineError, HealthBaseline, HealthOptions, fit_operational_model
     from ..stages import health
 
     if args.baseline is not None:
@@ -468,7 +468,7 @@ def _run_health_baseline(args: argparse.Namespace) -> int:
     model and limits, from the first block."""
     from data_contracts import MODAL, PREDICTORS, read_table
 
-    from ..health import BaselineError, HealthBaseline
+    from ..shm import BaselineError, HealthBaseline
     from ..stages import health
 
     if args.modal is None or args.predictors is None:

@@ -271,7 +271,7 @@ def _analysis_rate(text: str):
 
 
 def identify_options(args: argparse.Namespace):
-    """The :class:`~workbench.identify.IdentifyOptions` that parsed identification flags
+    """The :class:`~workbench.identification.IdentifyOptions` that parsed identification flags
     describe (``identify`` and ``monitor``); options a command lacks take their defaults.
 
     Raises
@@ -282,7 +282,7 @@ def identify_options(args: argparse.Namespace):
     from data_contracts.limits import MAX_LSCF_ORDER, MAX_MODEL_ORDER
 
     from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S, MAX_BLOCKS_PER_SAMPLE
-    from ..identify import IdentifyOptions
+    from ..identification import IdentifyOptions
 
     def flag(name: str, default):
         value = getattr(args, name, None)
@@ -366,7 +366,7 @@ def _harmonic_options(args: argparse.Namespace):
 
 
 def _run_identify(args: argparse.Namespace) -> int:
-    from ..identify import IdentifyOptionsError
+    from ..identification import IdentifyOptionsError
     from ..stages import identify
 
     options = identify_options(args)
@@ -398,7 +398,7 @@ def _run_identify(args: argparse.Namespace) -> int:
     for line in result.lines:
         print(printable(line))
     if args.stabilisation_figures:
-        from ..identify import write_block_figures
+        from ..identification import write_block_figures
 
         for path in write_block_figures(
             args.inputs,
@@ -408,7 +408,7 @@ def _run_identify(args: argparse.Namespace) -> int:
         ):
             print(f"figure: {path}")
     if args.tpe_figures > 0:
-        from ..identify import write_tpe_figures
+        from ..identification import write_tpe_figures
 
         for path in write_tpe_figures(
             args.inputs, args.out / "figures", options=options, n_blocks=args.tpe_figures

@@ -1,11 +1,11 @@
 """A state folder like the monitor's, from the batch stages, for demos, tests and benchmarks.
 
 :func:`demo_state` simulates a block-level voyage with
-:func:`workbench.health.simulate_health_voyage` (the demo hull's modal law, the demo
+:func:`workbench.shm.simulate_health_voyage` (the demo hull's modal law, the demo
 operating profile, SSI-like scatter, optionally a stiffness loss part-way), forecasts it
 with the real sliding model frozen after a training period
-(:func:`workbench.health.frozen_forecast`, Kalman-blended, option A) and runs the health
-chart (:func:`workbench.health.health_chart`) over it. :meth:`DemoState.write` then
+(:func:`workbench.shm.frozen_forecast`, Kalman-blended, option A) and runs the health
+chart (:func:`workbench.shm.health_chart`) over it. :meth:`DemoState.write` then
 publishes the state as the monitor would after a given block, each file atomically, and
 :meth:`DemoState.append` publishes the next block, to exercise a live dashboard.
 
@@ -203,7 +203,7 @@ def demo_state(
     DemoState
         Call :meth:`DemoState.append` to publish further blocks.
     """
-    from ..health import HealthOptions, frozen_forecast, health_chart, simulate_health_voyage
+    from ..shm import HealthOptions, frozen_forecast, health_chart, simulate_health_voyage
 
     train_blocks = int(round(train_hours * 3600 / _STEP_SECONDS))
     reference_blocks = int(round(reference_hours * 3600 / _STEP_SECONDS))

@@ -552,7 +552,7 @@ def health_view(health: pd.DataFrame, *, hours: float) -> dict[str, Any]:
     reference = full[full["phase"] == "reference"]
     newest = full.iloc[-1] if not full.empty else None
     # share of the statistic per mode in the newest block (``contribution_<mode>`` columns of
-    # :func:`workbench.health.health_chart`, when the table has them)
+    # :func:`workbench.shm.health_chart`, when the table has them)
     contributions = []
     if newest is not None:
         for column in full.columns:

@@ -6,5 +6,33 @@
 :mod:`~workbench.identification.voyage` (every block, in parallel and resumable),
 :mod:`~workbench.identification.export` (the store as contract tables),
 :mod:`~workbench.identification.figures` and :mod:`~workbench.identification.crosscheck`
-(a few blocks identified again). :mod:`workbench.identify` gathers their names.
+(a few blocks identified again). The package gathers their public names.
 """
+
+from __future__ import annotations
+
+from .crosscheck import cross_check_blocks
+from .engine import identify_block, identify_from_files
+from .export import export_store
+from .figures import write_block_figures, write_tpe_figures
+from .options import IdentifyOptions, IdentifyOptionsError, analysis_rate
+from .planning import acceleration_files, input_fingerprints, plan_identification, resolved_run
+from .voyage import IdentifyResult, identify_voyage
+
+__all__ = [
+    "IdentifyOptions",
+    "IdentifyOptionsError",
+    "IdentifyResult",
+    "acceleration_files",
+    "analysis_rate",
+    "cross_check_blocks",
+    "export_store",
+    "identify_block",
+    "identify_from_files",
+    "identify_voyage",
+    "input_fingerprints",
+    "plan_identification",
+    "resolved_run",
+    "write_block_figures",
+    "write_tpe_figures",
+]

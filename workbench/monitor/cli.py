@@ -12,7 +12,7 @@ import signal
 from pathlib import Path
 
 from .. import defaults as D
-from ..forecast.options import DEFAULT_MODEL
+from ..forecasting.options import DEFAULT_MODEL
 
 __all__ = ["add_monitor", "prepare_monitor", "run_monitor"]
 

@@ -25,8 +25,8 @@ from data_contracts import MODAL, atomic_path, write_table
 
 from ..blocks import BlockGrid
 from ..errors import WorkbenchError
+from ..identification import IdentifyOptions, identify_block, input_fingerprints, resolved_run
 from ..identification.engine import BlockTask
-from ..identify import IdentifyOptions, identify_block, input_fingerprints, resolved_run
 from ..processes import interrupts_deferred, worker_initializer
 from ..sid.harmonics import HarmonicOptions
 from ..sid.tracking import TrackingOptions
@@ -216,7 +216,7 @@ class Monitor:
     def _load_baseline(self):
         """The health baseline, refused (one line, exit 1) when unreadable or when the ship
         log present lacks a column its model needs."""
-        from ..health import BaselineError
+        from ..shm import BaselineError
         from .structural_health import load_baseline
 
         path = self.options.forecast.health_baseline
@@ -443,7 +443,7 @@ class Monitor:
                 SimpleNamespace(sampling_rate_hz=first.sampling_rate_hz, channels=first.channels)
             )
         except ValueError as error:
-            from ..identify import IdentifyOptionsError
+            from ..identification import IdentifyOptionsError
 
             raise IdentifyOptionsError(str(error)) from None
         if self._saved_grid is not None:
@@ -455,7 +455,7 @@ class Monitor:
             options, first.sampling_rate_hz, grid, channels
         )
         if self.baseline is not None:  # a baseline of another ship or sensor layout
-            from ..health import BaselineError
+            from ..shm import BaselineError
 
             try:
                 self.baseline.check_channels(channels, str(self.watch))

@@ -5,7 +5,7 @@
 exactly as ``workbench forecast --modal tracked.parquet --dship LOG ...`` followed by
 ``workbench health`` would over the same data: the ship log is averaged onto the tracked
 blocks (:func:`~workbench.predictors.block_predictors`), modes measured in fewer than
-``min_presence`` of the blocks are left out, and :func:`~workbench.forecast.sliding_forecast`
+``min_presence`` of the blocks are left out, and :func:`~workbench.forecasting.sliding_forecast`
 runs over the whole table for each measurement option.
 
 The forecast is recomputed over the whole table (not resumed from the last Kalman state):
@@ -31,7 +31,7 @@ import pandas as pd
 
 from data_contracts import ALARMS, FORECAST, HEALTH, MODAL, POLES, PREDICTORS, read_table
 
-from ..forecast.options import DEFAULT_MODEL, check_train_blocks, check_trust
+from ..forecasting.options import DEFAULT_MODEL, check_train_blocks, check_trust
 
 __all__ = ["ForecastSettings", "OutlookReport", "empty_table", "update_outlook"]
 
@@ -63,10 +63,10 @@ class ForecastSettings:
     reference_hours : float
         Reference period of the health chart. [h]
     ewma_lambda, false_alarms_per_day : float
-        Health-chart settings (:class:`~workbench.health.HealthOptions`).
+        Health-chart settings (:class:`~workbench.shm.HealthOptions`).
     health_model : {"operational", "forecast"}
         What the health chart charts: the residuals of the operational model
-        (:func:`~workbench.health.fit_operational_model`, fitted on the first
+        (:func:`~workbench.shm.fit_operational_model`, fitted on the first
         ``health_train_hours``; the reference period follows), or those of the forecast
         above (as ``workbench health --forecast``; its rolling model absorbs changes).
     health_train_hours : float
@@ -75,7 +75,7 @@ class ForecastSettings:
         Without ``fuel_on_board_t`` in the ship log, the chart's baseline follows slow
         drifts with this time constant (None: fixed). [h]
     health_baseline : str, optional
-        A saved health baseline (:class:`~workbench.health.HealthBaseline`, ``workbench
+        A saved health baseline (:class:`~workbench.shm.HealthBaseline`, ``workbench
         health --save-model``): the operational model and chart limits of an earlier
         voyage, so the chart starts at the first block (``health_train_hours``,
         ``reference_hours``, ``baseline_hours``, ``ewma_lambda`` and
@@ -262,8 +262,8 @@ def update_outlook(
     empty, with the reason in the report's messages. *store* (the monitor's block store)
     is read for the stabilisation diagrams when option B is asked for.
     """
-    from ..health import HealthOptions, health_chart
     from ..predictors.tables import canonical_predictors
+    from ..shm import HealthOptions, health_chart
     from .structural_health import operational_health
 
     started, cpu = time.perf_counter(), time.process_time()

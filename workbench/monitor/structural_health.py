@@ -2,7 +2,7 @@
 
 The chart needs a model of how speed, temperatures and fuel move the frequencies that is
 frozen before its reference period and honest about its own uncertainty out of sample
-(:func:`~workbench.health.fit_operational_model`); the project's rolling stepwise forecast
+(:func:`~workbench.shm.fit_operational_model`); the project's rolling stepwise forecast
 is neither (5.4 false alarms a day through the chart, ``benchmarks/results/health.txt``).
 So the monitor learns in two steps from the first tracked block: the operational model on
 ``health_train_hours``, then the chart's reference on the next ``reference_hours``, and
@@ -13,7 +13,7 @@ frequencies as fuel is burned is left to a slowly following baseline of the char
 
 With a saved baseline (``ForecastSettings.health_baseline``, ``workbench monitor
 --baseline FILE``) the model and the chart's reference and limits are an earlier voyage's
-(:class:`~workbench.health.HealthBaseline`) and every block is charted from the first;
+(:class:`~workbench.shm.HealthBaseline`) and every block is charted from the first;
 a baseline whose modes are not this voyage's tracked modes, or whose model needs a column
 the ship log lacks, is refused (a note) and the chart learns its own as above.
 :func:`charting_starts` says from which block (and when) the chart draws.
@@ -36,11 +36,11 @@ _BASELINES: dict[str, tuple[tuple[int, int], object]] = {}
 
 
 def load_baseline(path: str):
-    """The :class:`~workbench.health.HealthBaseline` in *path*, read again only when the
-    file changed. Raises :class:`~workbench.health.BaselineError` (one line)."""
+    """The :class:`~workbench.shm.HealthBaseline` in *path*, read again only when the
+    file changed. Raises :class:`~workbench.shm.BaselineError` (one line)."""
     import os
 
-    from ..health import HealthBaseline
+    from ..shm import HealthBaseline
 
     stat = os.stat(path)
     key = (stat.st_size, stat.st_mtime_ns)
@@ -81,7 +81,7 @@ def operational_health(
     step_s : float
         Block step. [s]
     """
-    from ..health import BaselineError, HealthOptions, fit_operational_model, health_chart
+    from ..shm import BaselineError, HealthOptions, fit_operational_model, health_chart
 
     train = int(round(settings.health_train_hours * 3600.0 / step_s))
     reference = int(round(settings.reference_hours * 3600.0 / step_s))

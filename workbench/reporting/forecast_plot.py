@@ -28,7 +28,7 @@ def plot_forecast_mode(
     Parameters
     ----------
     forecast_table : DataFrame
-        FORECAST table (:func:`~workbench.forecast.sliding_forecast`).
+        FORECAST table (:func:`~workbench.forecasting.sliding_forecast`).
     mode : int
         Mode label.
     truth_modal : DataFrame, optional

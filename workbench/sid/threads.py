@@ -4,7 +4,7 @@ The kernels run BLAS single-threaded and spread independent pieces of work (the 
 eigenvalue problems, FFT batches) over Python threads instead. How many is
 :func:`thread_budget`: the BLAS thread limit in effect when the SSI function is called,
 at most :data:`MAX_THREADS` — so a caller that limits BLAS to one thread per process (as
-:mod:`workbench.identify` does for its worker processes) gets fully serial SSI.
+:mod:`workbench.identification` does for its worker processes) gets fully serial SSI.
 """
 
 from __future__ import annotations

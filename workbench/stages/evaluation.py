@@ -12,7 +12,7 @@ import pandas as pd
 from data_contracts import FORECAST, MODAL
 
 from ..errors import WorkbenchError
-from ..forecast import evaluate_against_truth
+from ..forecasting import evaluate_against_truth
 from ..sid.tracking import label_agreement
 from ._base import StageResult, read_any_table, shown_once, table_path, write_frame
 
@@ -80,7 +80,7 @@ class EvaluateResult(StageResult):
     Attributes
     ----------
     table : DataFrame
-        One row per option and mode (:func:`~workbench.forecast.evaluate_against_truth`).
+        One row per option and mode (:func:`~workbench.forecasting.evaluate_against_truth`).
     mapping : dict of int -> int
         Tracked label -> true label.
     agreement : float

@@ -14,8 +14,8 @@ import pandas as pd
 from data_contracts import FORECAST, MODAL, POLES, PREDICTORS, recorded_grid, set_grid
 
 from .._deprecation import renamed_parameters
-from ..forecast import ForecastWarning, sliding_forecast
-from ..forecast.options import (
+from ..forecasting import ForecastWarning, sliding_forecast
+from ..forecasting.options import (
     DEFAULT_MODEL,
     check_train_blocks,
     check_trust,
@@ -54,9 +54,9 @@ class ForecastOptions:
         Window model: steady-state weight on SSI in (0, 1); None: Q from the model's own
         prediction variance; "auto": the forecast's default.
     model : {"window", "memory"}, optional
-        The predictive model (see :func:`~workbench.forecast.sliding_forecast`). Default:
+        The predictive model (see :func:`~workbench.forecasting.sliding_forecast`). Default:
         ``"memory"``, which measures best on ``benchmarks/bench_forecast_accuracy.py``
-        (``workbench.forecast.options.DEFAULT_MODEL``), or ``"window"`` (the reference
+        (``workbench.forecasting.options.DEFAULT_MODEL``), or ``"window"`` (the reference
         configuration) when *trust* is given as a number or None, since only the window
         model takes a hand-set trust.
     predictor_columns : tuple of str, optional
@@ -104,7 +104,7 @@ class ForecastOptions:
             raise ValueError(f"n_workers={self.n_workers} must be at least 1")
 
     def sliding_options(self, option: str) -> dict[str, Any]:
-        """Keyword arguments of :func:`~workbench.forecast.sliding_forecast` for *option*."""
+        """Keyword arguments of :func:`~workbench.forecasting.sliding_forecast` for *option*."""
         kwargs: dict[str, Any] = dict(
             option=option,
             scheme=self.scheme,
@@ -187,12 +187,12 @@ def forecast_modes(
     progress: bool = False,
     **kwargs: Any,
 ) -> tuple[pd.DataFrame, list[str]]:
-    """:func:`~workbench.forecast.sliding_forecast` with the modes spread over processes.
+    """:func:`~workbench.forecasting.sliding_forecast` with the modes spread over processes.
 
     Modes of the window model are independent (one model and one Kalman filter each), so
     the table equals that of a single call, whatever *n_workers*. The memory model pools
     the excitation sensitivity of SSI's bias (a property of the excitation, not of a mode;
-    :mod:`workbench.forecast.excitation`) over the modes forecast together, so its modes
+    :mod:`workbench.forecasting.excitation`) over the modes forecast together, so its modes
     run in one call (one process) and the table is again that of a single call. Returns the
     forecast table (sorted by block, mode) and the forecast warnings' messages.
     """

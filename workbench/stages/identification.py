@@ -1,6 +1,6 @@
 """Identify stage: SSI (or LSCF) of every block of acceleration files, resumable, parallel.
 
-The work itself lives in :mod:`workbench.identify` (block planning, conditioning, the
+The work itself lives in :mod:`workbench.identification` (block planning, conditioning, the
 per-block store); this is its one entry point with the result every stage returns.
 """
 
@@ -17,7 +17,7 @@ import pandas as pd
 from data_contracts import POLES, read_table
 
 from ..errors import WorkbenchError
-from ..identify import IdentifyOptions, IdentifyResult, identify_voyage
+from ..identification import IdentifyOptions, IdentifyResult, identify_voyage
 from ..sid.harmonics import HarmonicOptions
 from ._base import StageResult, write_frame
 
@@ -111,7 +111,7 @@ def identify(
         Method, block rows, orders, band, block length... (defaults: SSI-cov, 20-min
         blocks every 5 min).
     scheduler, n_workers, progress, batch_blocks
-        Parallel execution (:func:`workbench.identify.identify_voyage`).
+        Parallel execution (:func:`workbench.identification.identify_voyage`).
     keep_removed_inputs : bool
         Keep the stored blocks of input files no longer given (default: drop them).
     dship, dship_mapping : optional

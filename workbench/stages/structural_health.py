@@ -11,7 +11,7 @@ import pandas as pd
 
 from data_contracts import FORECAST
 
-from ..health import HealthBaseline, HealthOptions, HealthResult, health_chart
+from ..shm import HealthBaseline, HealthOptions, HealthResult, health_chart
 from ._base import StageResult, Summary, read_any_table, shown_once
 
 __all__ = ["HealthStageResult", "health"]

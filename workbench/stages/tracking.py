@@ -147,7 +147,7 @@ def track(
     source = selected
     selected = read_any_table(selected, SELECTED, name="selected")
     if isinstance(reference_modes, str | os.PathLike) and str(reference_modes).endswith(".json"):
-        from ..health import BaselineError, HealthBaseline
+        from ..shm import BaselineError, HealthBaseline
 
         try:
             baseline = HealthBaseline.load(reference_modes)

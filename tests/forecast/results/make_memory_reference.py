@@ -80,7 +80,7 @@ def case() -> tuple[pd.DataFrame, pd.DataFrame]:
 
 
 def forecast() -> pd.DataFrame:
-    from workbench.forecast import ForecastWarning, sliding_forecast
+    from workbench.forecasting import ForecastWarning, sliding_forecast
 
     modal, predictors = case()
     with warnings.catch_warnings():

@@ -135,8 +135,8 @@ def _reading_layout(given, recorded, files) -> dict | None:
         return recorded  # the same settings: identification's resolved starts
     start = given.get("start_time")
     if len(files) > 1 and start not in (None, "filename") and not given.get("file_starts"):
+        from workbench.identification import IdentifyOptions
         from workbench.identification.planning import follow_on_starts
-        from workbench.identify import IdentifyOptions
 
         resolved = follow_on_starts(files, IdentifyOptions(acceleration_layout=given))
         return dict(resolved.acceleration_layout or given)

@@ -1,6 +1,6 @@
 """Incremental structural-health chart: feed forecast rows block by block.
 
-:class:`HealthMonitor` keeps what :func:`~workbench.health.health_chart` needs between
+:class:`HealthMonitor` keeps what :func:`~workbench.shm.health_chart` needs between
 blocks (the reference blocks until the reference is learned, then the EWMA vector and the
 open alarm episode), so a live monitor feeds it each block's FORECAST rows as they come and
 gets the new HEALTH rows and the new or changed ALARMS rows back. Fed a voyage block by
@@ -79,10 +79,10 @@ class HealthMonitor:
     Parameters
     ----------
     options : HealthOptions, optional
-        As for :func:`~workbench.health.health_chart`.
+        As for :func:`~workbench.shm.health_chart`.
     reference : HealthReference, optional
         An in-control state learned before (an earlier voyage's, from a saved
-        :class:`~workbench.health.baseline.HealthBaseline`): every block is charted from
+        :class:`~workbench.shm.baseline.HealthBaseline`): every block is charted from
         the first, in the ``monitor`` phase; ``reference_blocks`` is not used.
 
     Notes

@@ -1,5 +1,5 @@
-"""The control-chart statistics behind :func:`~workbench.health.chart.health_chart` and
-:class:`~workbench.health.monitor.HealthMonitor`, as plain array functions: EWMA and
+"""The control-chart statistics behind :func:`~workbench.shm.chart.health_chart` and
+:class:`~workbench.shm.monitor.HealthMonitor`, as plain array functions: EWMA and
 one-sided CUSUM recursions (Page 1954), Hotelling's T² of the EWMA vector (Lowry et al.
 1992), CUSUM decision intervals for a false-alarm rate, long-run standard deviations of
 autocorrelated residuals, and the empirical limit for a target up-crossing rate.

@@ -7,7 +7,7 @@ proportional to E, so every natural frequency scales as sqrt(E(T) / E0). Noisy
 temperature, stepwise) in a training window; the model then predicts the following blocks
 and the Kalman filter blends each prediction with that block's noisy observation. The
 cumulative absolute error of the Kalman track against the true frequencies is compared with
-that of the raw observations (:func:`~workbench.forecast.evaluate.evaluate_against_truth`).
+that of the raw observations (:func:`~workbench.forecasting.evaluate.evaluate_against_truth`).
 
 The reference work reports 85 % (mode 3) and 89 % (mode 4) lower cumulative error for the
 Kalman estimates than for the raw observations, over 20 noisy observations of each
@@ -110,7 +110,7 @@ class ExperimentResult:
     Parameters
     ----------
     evaluation : DataFrame
-        :func:`~workbench.forecast.evaluate.evaluate_against_truth` over the forecast
+        :func:`~workbench.forecasting.evaluate.evaluate_against_truth` over the forecast
         blocks, one row per mode.
     forecast : ForecastResult
     data : ExperimentData
@@ -216,12 +216,12 @@ def run_temperature_experiment(
         Seed of the observation noise.
     trust : float or None
         Kalman trust in the observations (see
-        :func:`~workbench.forecast.sliding.sliding_forecast`). Default ``None``: Q from the
+        :func:`~workbench.forecasting.sliding.sliding_forecast`). Default ``None``: Q from the
         model's mean-prediction variance, R from the observation scatter about the model.
     correction_time_blocks : float
         Time constant of the Kalman correction (model ``"window"``). [blocks]
     model : {"memory", "window"}, optional
-        Predictive model (:func:`~workbench.forecast.sliding_forecast`); default
+        Predictive model (:func:`~workbench.forecasting.sliding_forecast`); default
         ``"window"``, the reference configuration this experiment reproduces. (The
         ``"memory"`` model reaches 79-87 % here, pooled over 8 seeds: its exponential
         forgetting and thinned term selection cost accuracy on a stationary law.)

@@ -1,10 +1,10 @@
 """Noise levels and innovation runs of the memory forecast's Kalman filter.
 
 The noise model itself (covariance matching of out-of-sample residuals, the prior) is in
-:mod:`workbench.forecast.noise`; here: the noise of the first window, before any
+:mod:`workbench.forecasting.noise`; here: the noise of the first window, before any
 out-of-sample residual exists; the filter's F, Q and R for all modes of a window; and the
 signed runs of large innovations that tell a model error from an identification error.
-Used by :func:`~workbench.forecast.blend.memory_forecast`.
+Used by :func:`~workbench.forecasting.blend.memory_forecast`.
 """
 
 from __future__ import annotations

@@ -1,10 +1,10 @@
 """Term selection, refits and predictions of the memory forecast's per-mode models.
 
-For each mode and window of :func:`~workbench.forecast.blend.memory_forecast`: the stepwise
-terms (:func:`~workbench.forecast.memory.select_terms`), reselected on a schedule, on a new
+For each mode and window of :func:`~workbench.forecasting.blend.memory_forecast`: the stepwise
+terms (:func:`~workbench.forecasting.memory.select_terms`), reselected on a schedule, on a new
 operating case or when the ship leaves the predictor range the selection saw; the
 exponentially weighted refit of those terms over the history
-(:func:`~workbench.forecast.memory.fit_memory_model`); the prediction with its interval.
+(:func:`~workbench.forecasting.memory.fit_memory_model`); the prediction with its interval.
 """
 
 from __future__ import annotations

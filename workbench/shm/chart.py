@@ -224,12 +224,12 @@ def health_chart(
     Parameters
     ----------
     forecast : DataFrame
-        FORECAST contract (:func:`workbench.forecast.sliding_forecast`): per block and mode
+        FORECAST contract (:func:`workbench.forecasting.sliding_forecast`): per block and mode
         the SSI frequency, the model prediction and its 95 % bounds.
     options : HealthOptions, optional
     reference : HealthReference, optional
         The in-control state learned on an earlier voyage (a saved baseline,
-        :mod:`workbench.health.baseline`): every block is charted from the first, none
+        :mod:`workbench.shm.baseline`): every block is charted from the first, none
         is a reference block.
 
     Returns
@@ -248,7 +248,7 @@ def health_chart(
     1. *Residuals.* r = (f_SSI - f_model) / s_pred per block and mode, with s_pred the
        prediction standard deviation read from the 95 % bounds, (upper - lower) / (2 · 1.96).
        The model should be frozen over the reference and monitoring periods (method 1, or
-       :func:`~workbench.health.fit_operational_model`, trained before the reference
+       :func:`~workbench.shm.fit_operational_model`, trained before the reference
        period): a model re-trained on recent blocks (method 2) absorbs a persistent change
        within about one training window. With ``common_shift``, each block's median
        relative residual over its modes is removed first: a change of the whole hull's

@@ -130,7 +130,7 @@ class ModelOptions:
     ----------
     kind : {"memory", "window"}
         ``"memory"`` (default): stepwise terms, coefficients by exponentially weighted least
-        squares over all measured blocks so far (:mod:`workbench.forecast.memory`);
+        squares over all measured blocks so far (:mod:`workbench.forecasting.memory`);
         ``"window"``: the reference configuration, a stepwise fit on the last
         *train_blocks* blocks (method 2: on the Kalman estimates).
     train_blocks : int
@@ -152,7 +152,7 @@ class ModelOptions:
         given.
     excitation_bias : bool
         ``"memory"``: model the bias of SSI in a block whose speed changes (it weights the
-        faster part, :mod:`workbench.forecast.excitation`): the measurement equation
+        faster part, :mod:`workbench.forecasting.excitation`): the measurement equation
         evaluates the model at the excitation-weighted speed v̄ + κ σ_v², σ_v² the
         within-block speed variance recovered from the overlapping blocks' means, κ >= 0
         estimated from the data (pooled over the modes); the state (the block's time
@@ -206,7 +206,7 @@ class NoiseOptions:
     ----------
     noise_blocks : int
         Newest blocks whose residuals the covariance matching uses
-        (:mod:`workbench.forecast.noise`). [blocks]
+        (:mod:`workbench.forecasting.noise`). [blocks]
     huber_sigma : float
         Innovations beyond this many standard deviations get a Huber weight (the
         measurement counts as if it were this far out): mis-selected poles and
@@ -216,12 +216,12 @@ class NoiseOptions:
         model orders (needs *poles*).
     consistency_blocks : int
         Newest out-of-sample blocks whose normalised innovations the consistency tests
-        use (:mod:`workbench.forecast.innovation_consistency`: model variance is added
+        use (:mod:`workbench.forecasting.innovation_consistency`: model variance is added
         while they are larger or more one-sided than the noise model says); 0 turns the
         safeguard off. [blocks]
     model_trust : bool
         Weigh the blend against a filter that does not use the model by how well each
-        predicts the measurements (:mod:`workbench.forecast.model_trust`): the estimate
+        predicts the measurements (:mod:`workbench.forecasting.model_trust`): the estimate
         falls back to the model-free filter, which follows SSI, while the model does not
         explain the mode (an unrecorded change: fuel, ballast, ice). False: the blend
         alone.
@@ -259,7 +259,7 @@ class MeasurementOptions:
     reacquire_blocks : int
         Option B: blocks with the mode seen only outside the gate before it is re-acquired
         (model ``"window"``) or measured there, Huber-weighted (model ``"memory"``,
-        :class:`~workbench.forecast.measurement.ClusterChooser`). Default 1.
+        :class:`~workbench.forecasting.measurement.ClusterChooser`). Default 1.
     reacquire_band : float
         Option B: relative half-width searched outside the gate. [-]
     max_gate : float

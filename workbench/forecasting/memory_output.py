@@ -1,7 +1,7 @@
 """Output table of the memory forecast: the sliding forecast's columns plus, for option B,
 the chosen pole cluster's orders and scatter.
 
-Used by :func:`~workbench.forecast.blend.memory_forecast`.
+Used by :func:`~workbench.forecasting.blend.memory_forecast`.
 """
 
 from __future__ import annotations

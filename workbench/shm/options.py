@@ -1,5 +1,5 @@
-"""Options of the structural-health chart (:func:`~workbench.health.chart.health_chart`,
-:class:`~workbench.health.monitor.HealthMonitor`)."""
+"""Options of the structural-health chart (:func:`~workbench.shm.chart.health_chart`,
+:class:`~workbench.shm.monitor.HealthMonitor`)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ __all__ = ["HealthOptions"]
 
 @dataclass(frozen=True)
 class HealthOptions:
-    """Options of :func:`~workbench.health.chart.health_chart`.
+    """Options of :func:`~workbench.shm.chart.health_chart`.
 
     Parameters
     ----------
@@ -57,7 +57,7 @@ class HealthOptions:
         times the identity, its diagonal, or all of it.
     model_uncertainty : bool
         Add the forecast's ``model_shift_std`` (when present) to the covariance of each
-        block (see Notes of :func:`~workbench.health.chart.health_chart`).
+        block (see Notes of :func:`~workbench.shm.chart.health_chart`).
     decrease_only : bool
         Chart only decreases of the frequencies: each mode's EWMA is reflected at 0,
         z_k = min(0, ...). A loss of stiffness can only lower natural frequencies, so this
@@ -67,7 +67,7 @@ class HealthOptions:
     statistic : {"cusum", "mewma"}
         ``'cusum'`` (default): a lower one-sided CUSUM per mode, tuned to
         ``detect_shift``, the modes combined by their maximum with limits from the
-        bootstrap (Notes of :func:`~workbench.health.chart.health_chart`); the most powerful chart for a step
+        bootstrap (Notes of :func:`~workbench.shm.chart.health_chart`); the most powerful chart for a step
         change of one mode. ``'mewma'``: the MEWMA Hotelling T² of all modes together
         (better for a change spread thinly over many modes).
     detect_shift : float
@@ -85,7 +85,7 @@ class HealthOptions:
         reference's location, fixed), for a drift no logged predictor explains (fuel burn
         without tank soundings, ballast). The reference is then measured about each
         mode's straight line; from its end, the location is Brown's linear exponential
-        smoothing of the residuals (Brown 1963, see :func:`~workbench.health.chart.health_chart`) with ω = exp(-step/T): level and slope, so a
+        smoothing of the residuals (Brown 1963, see :func:`~workbench.shm.chart.health_chart`) with ω = exp(-step/T): level and slope, so a
         steady drift is followed without lag; held while the chart alarms. The cost: a
         step is taken in at about 2/T per hour of its size until detected (17 % after 2 h
         with T = 24 h), and a loss that grows steadily is followed once T or so has

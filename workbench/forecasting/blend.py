@@ -2,32 +2,32 @@
 
 The steps, each in its own module:
 
-1. window model - :mod:`workbench.forecast.memory` (stepwise terms, exponentially
+1. window model - :mod:`workbench.forecasting.memory` (stepwise terms, exponentially
    weighted least squares over the history, refit every *horizon* blocks);
-2. noise estimation - :mod:`workbench.forecast.noise` (covariance matching of the
+2. noise estimation - :mod:`workbench.forecasting.noise` (covariance matching of the
    residuals, with the model error at least what the out-of-sample residuals show beyond
-   the measurement noise: :func:`~workbench.forecast.noise.model_error_floor`), and the
-   safeguard :mod:`workbench.forecast.innovation_consistency` (model variance added while
+   the measurement noise: :func:`~workbench.forecasting.noise.model_error_floor`), and the
+   safeguard :mod:`workbench.forecasting.innovation_consistency` (model variance added while
    the filter's innovations are larger or more one-sided than its noise model says); the
    identification error is capped at what the residuals' second difference across blocks
-   that share no data allows (:func:`~workbench.forecast.noise.identification_error_bound`),
+   that share no data allows (:func:`~workbench.forecasting.noise.identification_error_bound`),
    so a model error of a few blocks' time constant is not taken for SSI scatter;
-3. measurement choice - :mod:`workbench.forecast.measurement` (tracked pole or consistent
+3. measurement choice - :mod:`workbench.forecasting.measurement` (tracked pole or consistent
    pole cluster, per-block scatter);
-4. Kalman pass - :func:`~workbench.forecast.memory_kalman.kalman_pass_step`;
-5. guard - :mod:`workbench.forecast.model_trust`: the blend is weighed against a filter
+4. Kalman pass - :func:`~workbench.forecasting.memory_kalman.kalman_pass_step`;
+5. guard - :mod:`workbench.forecasting.model_trust`: the blend is weighed against a filter
    that does not use the model by how well each predicts the measurements out of sample;
    while the model does not explain a mode (an unrecorded change: fuel, ballast, ice) the
    estimate follows the model-free filter, i.e. SSI. The weight is the forecast table's
    ``model_probability``, and the run notes say when a mode's model stopped explaining it.
 
 :func:`memory_forecast` below runs the windows and the Kalman pass over their rows; each
-mode's term selection, refits and predictions are in :mod:`workbench.forecast.memory_terms`,
-the excitation bias (κ) in :mod:`workbench.forecast.memory_excitation`, the first window's
+mode's term selection, refits and predictions are in :mod:`workbench.forecasting.memory_terms`,
+the excitation bias (κ) in :mod:`workbench.forecasting.memory_excitation`, the first window's
 noise, the filter matrices and the runs of large innovations in
-:mod:`workbench.forecast.memory_noise`, option B's chooser in
-:mod:`workbench.forecast.memory_poles`, the output table in
-:mod:`workbench.forecast.memory_output`.
+:mod:`workbench.forecasting.memory_noise`, option B's chooser in
+:mod:`workbench.forecasting.memory_poles`, the output table in
+:mod:`workbench.forecasting.memory_output`.
 
 Kalman model per mode, with m_k the model's prediction and z_k the block's SSI estimate:
 
@@ -40,7 +40,7 @@ Kalman model per mode, with m_k the model's prediction and z_k the block's SSI e
 
 Q = diag(σ_c²(1 - φ²), σ_e²(1 - ρ²) s_k), R_k = σ_v² s_k, H = [1 1], with s_k the block's
 measurement scale (pole scatter across model orders). With the excitation term
-(:mod:`workbench.forecast.excitation`) the measurement is about the model at the
+(:mod:`workbench.forecasting.excitation`) the measurement is about the model at the
 excitation-weighted speed: z_k = m̃_k + c_k + e_k + v_k, m̃_k = m(v̄_k + κ σ²_{v,k}, ...),
 while the state stays x_k = m_k + c_k: SSI's bias in a block whose speed changes goes into
 the measurement equation, not into the estimate. The identification error e is a state
@@ -98,10 +98,10 @@ def memory_forecast(
     gap_warning_blocks: int = 12,
     cases=None,
 ):
-    """Forecast with :mod:`memory <workbench.forecast.memory>` models (see module docs).
+    """Forecast with :mod:`memory <workbench.forecasting.memory>` models (see module docs).
 
-    Called by :func:`~workbench.forecast.sliding_forecast` for ``model="memory"``;
-    returns a :class:`~workbench.forecast.ForecastResult`.
+    Called by :func:`~workbench.forecasting.sliding_forecast` for ``model="memory"``;
+    returns a :class:`~workbench.forecasting.ForecastResult`.
     """
     from .fitted_model import _plausible
     from .sliding import ForecastResult, ForecastWarning, WindowModel
@@ -226,7 +226,7 @@ def memory_forecast(
     )
     explained_lost = np.zeros(n_modes, dtype=np.int64)  # first block below 0.5, + 1
     # a mode's model explains it once its probability reached 0.5 on unseen blocks; only
-    # then is a fall below 0.5 news (the prior starts low, :data:`~workbench.forecast.model_trust.PRIOR_PROBABILITY`)
+    # then is a fall below 0.5 news (the prior starts low, :data:`~workbench.forecasting.model_trust.PRIOR_PROBABILITY`)
     explained = np.zeros(n_modes, dtype=bool)
     forecast_blocks = np.zeros(n_modes, dtype=np.int64)
 

@@ -3,9 +3,9 @@
 * :func:`sliding_forecast` - stepwise model per mode on a sliding training window,
   methods 1 (one long forecast) and 2 (refit every *horizon* blocks on Kalman estimates),
   measurement options A (tracked pole) and B (nearest stabilisation-diagram pole in a gate);
-* :mod:`~workbench.forecast.kalman` - scalar Kalman functions, steady state, trust -> Q;
+* :mod:`~workbench.forecasting.kalman` - scalar Kalman functions, steady state, trust -> Q;
 * :func:`evaluate_against_truth` - cumulative absolute errors and improvements;
-* :mod:`~workbench.forecast.experiment` - the 5-DOF temperature experiment.
+* :mod:`~workbench.forecasting.experiment` - the 5-DOF temperature experiment.
 """
 
 from .evaluate import evaluate_against_truth

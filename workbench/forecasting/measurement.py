@@ -22,7 +22,7 @@ has a damping ratio unlike the mode's. Hence:
   (a mode's column keeps its length; a short consistent column is a transient such as an
   ice impact, usually in a block where the mode is not excited); with mode shapes,
   only poles whose MAC with the mode's reference shape (the consensus of its recent
-  tracked shapes, :mod:`workbench.forecast.shape_reference`) is at least
+  tracked shapes, :mod:`workbench.forecasting.shape_reference`) is at least
   ``shape_mac_min`` count. The chosen cluster is grown to its whole column
   (:meth:`ClusterChooser._column`) and the measurement is the column's median frequency.
   When the gate holds no such cluster, the best one outside it within ``reacquire_band``

@@ -4,7 +4,7 @@
 demo hull's modal law (:func:`workbench.simulate.true_modal_parameters`) driven by the
 demo operating profile, a stiffness loss on one mode from a chosen time, and identification
 errors with the correlation that 75 %-overlapping blocks give. It returns a tracked modal
-table and block predictors that :func:`workbench.forecast.sliding_forecast` takes as they
+table and block predictors that :func:`workbench.forecasting.sliding_forecast` takes as they
 are, so the health chart can be tested on the real forecast's residuals in seconds.
 """
 
@@ -255,7 +255,7 @@ def frozen_forecast(
 ) -> pd.DataFrame:
     """FORECAST table of a model trained once on the first *train_blocks* blocks.
 
-    :func:`workbench.forecast.sliding_forecast`, method 1 (one window, one forward
+    :func:`workbench.forecasting.sliding_forecast`, method 1 (one window, one forward
     prediction to the end of the voyage), option A, every linear term in the start model
     (``stepwise_options=STEPWISE``; interactions are left to the stepwise
     search), so the fuel-burn trend is part of the model even when 24 h show it weakly.
@@ -263,7 +263,7 @@ def frozen_forecast(
     """
     import warnings
 
-    from ..forecast import sliding_forecast
+    from ..forecasting import sliding_forecast
 
     horizon = len(voyage.predictors) - int(train_blocks)
     if horizon < 1:

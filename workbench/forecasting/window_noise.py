@@ -1,10 +1,10 @@
 """Noise levels of the reference forecast's Kalman filter for one window and mode.
 
-Step 2 of :func:`~workbench.forecast.window.window_forecast`. R is the scatter of the
+Step 2 of :func:`~workbench.forecasting.window.window_forecast`. R is the scatter of the
 window's measurements about the window model, its white part:
 σ² = (1.4826 MAD(Δr))² / 2 (differencing removes the slowly varying model error, the MAD
 the odd wrong pole; plain residual variance for fewer values). Q follows from the hand-set
-trust (the steady-state gain, :func:`~workbench.forecast.kalman.process_variance_for_gain`)
+trust (the steady-state gain, :func:`~workbench.forecasting.kalman.process_variance_for_gain`)
 or, with ``trust=None``, from the model's own mean-prediction variance.
 """
 

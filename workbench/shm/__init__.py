@@ -1,4 +1,5 @@
-"""Structural-health indicators: a multivariate control chart of frequency residuals.
+"""Structural health monitoring (SHM) indicators: a multivariate control chart of frequency
+residuals (the package of the `health` stage, :func:`workbench.stages.health`).
 
 * :func:`health_chart` - per-mode CUSUM (default) or MEWMA/Hotelling chart of the
   forecast's standardised residuals with a robust reference period and control limits

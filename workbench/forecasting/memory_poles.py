@@ -1,9 +1,9 @@
 """Option B's measurement chooser for the memory forecast: the pole cluster in the gate,
 checked against the mode's shape where the poles carry shapes.
 
-Used by :func:`~workbench.forecast.blend.memory_forecast`; the cluster search itself is in
-:mod:`workbench.forecast.measurement`, the mode's reference shape (the consensus of its
-recent tracked shapes) in :mod:`workbench.forecast.shape_reference`.
+Used by :func:`~workbench.forecasting.blend.memory_forecast`; the cluster search itself is in
+:mod:`workbench.forecasting.measurement`, the mode's reference shape (the consensus of its
+recent tracked shapes) in :mod:`workbench.forecasting.shape_reference`.
 """
 
 from __future__ import annotations

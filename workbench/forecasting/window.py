@@ -4,14 +4,14 @@
 *horizon* blocks, the Kalman estimates as the next targets):
 
 1. the window's candidate predictors and each mode's model and predictions
-   (:mod:`workbench.forecast.window_model`);
-2. the Kalman noise levels R and Q (:mod:`workbench.forecast.window_noise`);
+   (:mod:`workbench.forecasting.window_model`);
+2. the Kalman noise levels R and Q (:mod:`workbench.forecasting.window_noise`);
 3. the Kalman pass over the rows the window reports, with option A's or B's measurement
-   (:mod:`workbench.forecast.window_kalman`).
+   (:mod:`workbench.forecasting.window_kalman`).
 
 Everything the steps share lives on one :class:`WindowRun`: the block grid, the settings
 and the output arrays, so a step reads like the equations in the
-:func:`~workbench.forecast.sliding_forecast` docstring. Arguments arrive validated.
+:func:`~workbench.forecasting.sliding_forecast` docstring. Arguments arrive validated.
 """
 
 from __future__ import annotations
@@ -152,7 +152,7 @@ def window_forecast(
     cases,
 ) -> ForecastResult:
     """The reference forecast (module docstring; parameters as
-    :func:`~workbench.forecast.sliding_forecast`, validated there)."""
+    :func:`~workbench.forecasting.sliding_forecast`, validated there)."""
     from workbench.stats import case_labels
 
     grid = block_grid(modal, predictors, predictor_columns, modes)

@@ -25,7 +25,7 @@ def evaluate_against_truth(
     Parameters
     ----------
     forecast_table : DataFrame
-        FORECAST table (:func:`~workbench.forecast.sliding_forecast`).
+        FORECAST table (:func:`~workbench.forecasting.sliding_forecast`).
     truth_modal : DataFrame
         True modal parameters: block, mode, frequency_hz (MODAL contract or a subset).
     phase : {"forecast", "train"} or None

@@ -2,7 +2,7 @@
 
 For every tracked mode a stepwise regression of the frequency on the block predictors is
 trained on the last ``train_blocks`` blocks and predicts ahead with 95 % prediction bounds;
-a Kalman filter per mode (:mod:`workbench.forecast.kalman`) blends the prediction with the
+a Kalman filter per mode (:mod:`workbench.forecasting.kalman`) blends the prediction with the
 SSI estimate of each block.
 
 * method 1: one training window, one long forward prediction of ``horizon`` blocks;
@@ -176,7 +176,7 @@ def sliding_forecast(
         stable poles preferred, no MAC check (with a warning); with ``model="memory"`` a
         pick nearer to another mode's tracked pole of the block (else its a-priori
         estimate) than to the mode's own is refused and the mode's tracked pole measured
-        (:func:`~workbench.forecast.measurement.nearer_to_another_mode`).
+        (:func:`~workbench.forecasting.measurement.nearer_to_another_mode`).
     scheme : {1, 2, "single_window", "rolling"}
         How the forecast slides (the reference work's methods 1 and 2).
         ``"single_window"`` (1): one training window, one forward prediction of *horizon*
@@ -193,7 +193,7 @@ def sliding_forecast(
         Last block forecast (method 2); default the last block of *predictors*.
     trust : float or None
         Steady-state Kalman gain, the weight on the SSI estimate (0.65: 65 % SSI, 35 %
-        model). Q follows from R (:func:`~workbench.forecast.kalman.process_variance_for_gain`).
+        model). Q follows from R (:func:`~workbench.forecasting.kalman.process_variance_for_gain`).
         ``None``: data-driven, Q = s_m² (1 - φ²) with s_m² the model's mean-prediction
         variance over the window's forecast blocks, i.e. the correction's stationary
         variance equals the model's own uncertainty.
@@ -218,7 +218,7 @@ def sliding_forecast(
         which the ship changed speed (cumulative Kalman error over all blocks 8.6 Hz
         against 7.7 Hz with k = 1). With ``model="memory"`` (default 1) the column seen
         outside the gate is measured there, Huber-weighted, without resetting the prior
-        (:class:`~workbench.forecast.measurement.ClusterChooser`). [blocks]
+        (:class:`~workbench.forecasting.measurement.ClusterChooser`). [blocks]
     reacquire_band : float
         Option B: relative half-width of the band searched for the mode outside the gate,
         around the last chosen pole's frequency and around the a-priori estimate
@@ -248,9 +248,9 @@ def sliding_forecast(
         *train_blocks* blocks, Kalman trust *trust*. ``"memory"`` (the default of the
         forecast stage, the command line and the demo): stepwise terms with
         coefficients over the whole history with exponential forgetting, noise levels from
-        the data, an AR(1) measurement-error state (:func:`workbench.forecast.blend.
+        the data, an AR(1) measurement-error state (:func:`workbench.forecasting.blend.
         memory_forecast`; *model_options*, *noise_options*), and a measurement equation for
-        SSI's excitation weighting (:mod:`workbench.forecast.excitation`). With method 2
+        SSI's excitation weighting (:mod:`workbench.forecasting.excitation`). With method 2
         ``"memory"`` beats raw SSI by 30 % or more (median of 3 seeds, never worse in any)
         on every block-level regime of ``benchmarks/bench_forecast_accuracy.py`` and by
         15 % or more on the demo voyage at 3 h and 12 h (option B without pole shapes: 13 %
@@ -282,7 +282,7 @@ def sliding_forecast(
     *No look-ahead*: each window's predictors are z-scored with that window's mean and
     standard deviation only, and a window model sees only its own blocks.
 
-    *Kalman blending* per mode (see :mod:`workbench.forecast.kalman`): state = frequency;
+    *Kalman blending* per mode (see :mod:`workbench.forecasting.kalman`): state = frequency;
     a-priori x⁻_k = m_k + φ (x⁺_{k-1} - m_{k-1}) with m the current window model's
     prediction (F = φ, B u = m_k - φ m_{k-1}); P⁻ = φ² P⁺ + Q; update with the SSI estimate
     z_k (H = 1) in Joseph form. R is the scatter of the block measurements about the window

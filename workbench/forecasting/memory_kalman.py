@@ -1,7 +1,7 @@
 """Kalman step of the memory forecast: two states (model correction c, identification
 error e) per mode, H = [1 1], Huber-weighted update, Joseph-form covariance.
 
-Used by :func:`~workbench.forecast.blend.memory_forecast` (model in that module's docs).
+Used by :func:`~workbench.forecasting.blend.memory_forecast` (model in that module's docs).
 """
 
 from __future__ import annotations

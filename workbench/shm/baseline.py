@@ -9,7 +9,7 @@ a JSON file (never pickle); ``workbench health --baseline FILE`` and ``workbench
 
 The file (``schema`` :data:`SCHEMA`, ``version`` :data:`VERSION`)::
 
-    {"schema": "workbench.health.baseline", "version": 1, "created": ISO UTC,
+    {"schema": "workbench.shm.baseline", "version": 1, "created": ISO UTC,
      "source": {"modal": str, "predictors": str, "first_block_start": ISO UTC,
                 "last_block_start": ISO UTC},
      "grid": {"step_s": float, "length_s": float|null},
@@ -55,7 +55,7 @@ from .monitor import reference_from_state, reference_state
 
 __all__ = ["SCHEMA", "VERSION", "BaselineError", "HealthBaseline"]
 
-SCHEMA = "workbench.health.baseline"
+SCHEMA = "workbench.shm.baseline"
 VERSION = 1
 #: Largest relative difference between a mode's median frequency in the baseline and in
 #: a new voyage's tracked table for the label to be the same mode (the tracker's
@@ -77,7 +77,7 @@ class HealthBaseline:
     model : OperationalModel
     reference_design : ndarray, shape (1 + n_terms,)
         Mean design row over the earlier voyage's reference period (x̄_ref of
-        :meth:`~workbench.health.OperationalModel.forecast`).
+        :meth:`~workbench.shm.OperationalModel.forecast`).
     options : HealthOptions
         The chart options the reference and limits were learned with.
     reference : HealthReference

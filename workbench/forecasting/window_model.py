@@ -1,6 +1,6 @@
 """Window model of the reference forecast: candidates, stepwise fit, prediction.
 
-Step 1 of :func:`~workbench.forecast.window.window_forecast` for one window: which
+Step 1 of :func:`~workbench.forecasting.window.window_forecast` for one window: which
 predictors the window can use (:func:`candidate_columns`), the model of each mode
 (:func:`fit_window_model`: stepwise, else the last good model, else a constant model) and
 its predictions with 95 % bounds over the window's training and forecast rows

@@ -1,9 +1,9 @@
 """Kalman pass of the reference forecast over the rows one window reports.
 
-Step 3 of :func:`~workbench.forecast.window.window_forecast`, all modes together
-(:class:`~workbench.forecast.kalman.ModeKalmanBank`): a-priori x⁻_k = m_k + φ (x⁺_{k-1} -
+Step 3 of :func:`~workbench.forecasting.window.window_forecast`, all modes together
+(:class:`~workbench.forecasting.kalman.ModeKalmanBank`): a-priori x⁻_k = m_k + φ (x⁺_{k-1} -
 m_{k-1}); the measurement (option A: the tracked pole; option B: the pole chosen inside the
-gate, :class:`~workbench.forecast.pole_selection._PoleSelector`); the update; a track that leaves
+gate, :class:`~workbench.forecasting.pole_selection._PoleSelector`); the update; a track that leaves
 the plausibility band restarts at the model. Then (method 2) the next windows' targets.
 """
 

@@ -4,8 +4,8 @@ For each mode, among the poles inside the Kalman gate around the a-priori estima
 mode shape matches the mode's reference shape (MAC on the channels both shapes have), the
 best by a score; a mode seen only outside the gate is re-acquired there
 (:class:`_PoleSelector`; the rules are written out in the Notes of
-:func:`~workbench.forecast.sliding_forecast`). Used by the window forecast
-(:mod:`workbench.forecast.window`) and the memory forecast (:mod:`workbench.forecast.blend`).
+:func:`~workbench.forecasting.sliding_forecast`). Used by the window forecast
+(:mod:`workbench.forecasting.window`) and the memory forecast (:mod:`workbench.forecasting.blend`).
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """Excitation bias of the memory forecast: κ pooled over the modes, de-biased refits, and
 the model of what SSI sees in a block whose speed changes.
 
-Physics in :mod:`workbench.forecast.excitation`; used by
-:func:`~workbench.forecast.blend.memory_forecast`.
+Physics in :mod:`workbench.forecasting.excitation`; used by
+:func:`~workbench.forecasting.blend.memory_forecast`.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ def _excitation_statistics(fitted, X, y, age, speed_col, speed_var, memory, limi
     """Weighted normal-equation terms of κ for one mode, and the model's speed slope.
 
     With d_k = ∂m/∂v the model's speed slope at block k (1-kn difference) the
-    measurement's excitation bias is d_k κ σ_k² (:mod:`~workbench.forecast.excitation`);
+    measurement's excitation bias is d_k κ σ_k² (:mod:`~workbench.forecasting.excitation`);
     the least-squares κ of the residuals r_k on g_k = d_k σ_k², with forgetting weights
     w_k, is Σ w g r / Σ w g². Each mode's sums are divided by its residual variance, so
     that κ (a property of the excitation, common to all modes) is pooled by precision.
@@ -158,7 +158,7 @@ def excitation_bias(
 ) -> ExcitationBias:
     """The :class:`ExcitationBias` of a predictor grid (no term without speed or sub-windows)."""
     # SSI's excitation weighting: in a block whose speed changes, SSI sees the frequency at
-    # about v̄ + κ σ_v² (workbench.forecast.excitation); σ_v² from the overlapping blocks
+    # about v̄ + κ σ_v² (workbench.forecasting.excitation); σ_v² from the overlapping blocks
     speed_col = columns.index("speed_kn") if "speed_kn" in columns else None
     n_sub = sub_windows_per_block(grid) if enabled else None
     speed_var = shift_cap = None
