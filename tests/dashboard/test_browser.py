@@ -530,7 +530,7 @@ def test_a_stopped_background_worker_is_shown(browser, tmp_path, serve):
     }
     message = "background forecast/health worker (pid 12) stopped at 2026-03-01T06:00:00Z"
 
-    def beat(worker: dict) -> None:
+    def beat(worker: dict, doing: str = "waiting for files", busy_s: float = 0.0) -> None:
         heartbeat = {
             "time": pd.Timestamp.now(tz="UTC").isoformat(),
             "pid": 11,
@@ -539,6 +539,9 @@ def test_a_stopped_background_worker_is_shown(browser, tmp_path, serve):
             "state": "running",
             "last_file": "acc_007.npz",
             "last_file_taken_at": "2026-03-01T05:59:00Z",
+            "doing": doing,
+            "doing_since": (pd.Timestamp.now(tz="UTC") - pd.Timedelta(seconds=busy_s)).isoformat(),
+            "stall_s": 300.0,
             "worker": worker,
         }
         (tmp_path / "heartbeat.json").write_text(json.dumps(heartbeat))
@@ -561,3 +564,9 @@ def test_a_stopped_background_worker_is_shown(browser, tmp_path, serve):
     page.wait_for("document.getElementById('status-worker').innerText.endsWith('pid 13')")
     colour = page.evaluate("getComputedStyle(document.getElementById('status-worker')).color")
     assert colour == "rgb(210, 153, 34)"  # --warn: a note, no longer an outage
+    # the heartbeat thread beats on while the main loop hangs in one block for 7 min
+    beat({"state": "alive", "pid": 13, "message": ""}, "identifying block 44", 420.0)
+    page.wait_for("document.getElementById('status-state').innerText === 'monitor not responding'")
+    line = page.wait_for("document.getElementById('status-heartbeat').innerText")
+    assert line.startswith("main loop stuck 7 min identifying block 44 (since "), line
+    assert "pid 11 on pc" in line and "last file taken: acc_007.npz" in line

@@ -28,7 +28,14 @@ def _status(state: str = "running") -> dict:
     }
 
 
-def _heartbeat(state: str = "running", *, poll_s: float = 5.0, worker=None) -> dict:
+def _heartbeat(
+    state: str = "running",
+    *,
+    poll_s: float = 5.0,
+    worker=None,
+    doing: str = "waiting for files",
+    doing_since: str = "2026-03-01T05:59:58.000000Z",
+) -> dict:
     return {
         "time": "2026-03-01T06:00:00.000000Z",
         "pid": 4242,
@@ -37,6 +44,9 @@ def _heartbeat(state: str = "running", *, poll_s: float = 5.0, worker=None) -> d
         "state": state,
         "last_file": "acc_20260301_0555.npz",
         "last_file_taken_at": "2026-03-01T05:55:03Z",
+        "doing": doing,
+        "doing_since": doing_since,
+        "stall_s": 300.0,
         "worker": worker or {"state": "alive", "pid": 4243, "message": ""},
     }
 
@@ -80,6 +90,25 @@ def test_status_view_says_not_responding_and_names_the_last_file():
     assert stopped["liveness"] == "stopped"
     # no heartbeat file (a state written by something else): the status stands as written
     assert status_view(_status(), T0 + pd.Timedelta(hours=5))["liveness"] == "running"
+
+
+@pytest.mark.parametrize(
+    ("busy_s", "liveness"),
+    [(0.0, "running"), (299.0, "running"), (300.0, "running"), (301.0, "not responding")],
+)
+def test_a_main_loop_stuck_beside_a_live_heartbeat_is_not_responding(busy_s, liveness):
+    """The heartbeat thread beats on while the main loop hangs in one block: longer than
+    stall_s (300 s) in one activity is not responding, and the view says in which."""
+    since = T0 - pd.Timedelta(seconds=busy_s)
+    beat = _heartbeat(doing="identifying block 44", doing_since=since.isoformat())
+    view = status_view(_status(), T0 + pd.Timedelta(seconds=1), beat)  # a fresh heartbeat
+    assert view["liveness"] == liveness
+    assert view["heartbeat"]["stalled"] is (liveness == "not responding")
+    assert view["heartbeat"]["doing"] == "identifying block 44"
+    assert view["heartbeat"]["busy_s"] == pytest.approx(busy_s)
+    # a stopped monitor is stopped, whatever its last activity
+    stopped = status_view(_status("stopped"), T0, {**beat, "state": "stopped"})
+    assert stopped["liveness"] == "stopped" and not stopped["heartbeat"]["stalled"]
 
 
 def test_a_stopped_worker_reaches_the_status_panel():

@@ -126,6 +126,11 @@ def test_heartbeat_is_written_advances_during_a_block_and_names_the_last_file(
         assert first["last_file"] == files[-1].name
         assert pd.Timestamp(first["last_file_taken_at"]) >= before.floor("s")
         assert first["worker"] == {"state": "none", "pid": None, "message": ""}
+        # the main loop's activity: inside the block, named, since before this beat
+        assert first["doing"].startswith("identifying block "), first["doing"]
+        busy = (pd.Timestamp(first["time"]) - pd.Timestamp(first["doing_since"])).total_seconds()
+        assert 0.0 <= busy < 60.0, busy
+        assert first["stall_s"] == 300.0
     finally:
         running.stop()
     # a clean stop says so: a reader does not take it for a dead monitor

@@ -174,6 +174,9 @@ HEARTBEAT_KEYS: dict[str, tuple[type, ...]] = {
     "state": (str,),
     "last_file": (str, type(None)),
     "last_file_taken_at": (str, type(None)),
+    "doing": (str,),
+    "doing_since": (str,),
+    "stall_s": (float, int),
     "worker": (dict,),
 }
 #: Keys of the heartbeat's ``worker`` object and their JSON types.

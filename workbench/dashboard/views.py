@@ -106,7 +106,10 @@ def status_view(
     *now*.
 
     ``liveness`` is ``"not responding"`` when the status says running and the heartbeat is
-    missed (:func:`heartbeat_stale`); else the status's state (``"running"``, ``"stopped"``).
+    missed (:func:`heartbeat_stale`), or when the heartbeat (written by a thread of its own)
+    says the monitor's main loop has been in one activity (reading a file, identifying a
+    block) longer than its ``stall_s`` (a hung loop beside a live thread); else the status's
+    state (``"running"``, ``"stopped"``).
     Without a heartbeat file (a state folder written by something else than the monitor,
     such as the demo) the status's state stands as written.
     """
@@ -135,7 +138,13 @@ def status_view(
     if heartbeat is not None:
         beat = _utc(heartbeat["time"])
         stale = heartbeat_stale(beat, now, float(heartbeat["poll_s"]))
-        if status["state"] == "running" and heartbeat["state"] == "running" and stale:
+        # the heartbeat is written at *beat*: the main loop had then been in its activity
+        # for (beat - since); it still is at *now* unless a newer heartbeat says otherwise
+        since = _utc(heartbeat["doing_since"])
+        busy_s = (min(now, beat) - since).total_seconds()
+        stalled = busy_s > float(heartbeat["stall_s"])
+        running = status["state"] == "running" and heartbeat["state"] == "running"
+        if running and (stale or stalled):
             view["liveness"] = "not responding"
         elif heartbeat["state"] == "stopped":
             view["liveness"] = "stopped"
@@ -148,6 +157,11 @@ def status_view(
             "host": heartbeat["host"],
             "last_file": heartbeat["last_file"],
             "last_file_taken_at": None if taken is None else iso(_utc(taken)),
+            "doing": heartbeat["doing"],
+            "doing_since": iso(since),
+            "busy_s": _num(busy_s),
+            "stall_s": float(heartbeat["stall_s"]),
+            "stalled": bool(running and stalled and not stale),
             "worker": {k: heartbeat["worker"][k] for k in ("state", "pid", "message")},
         }
     return view

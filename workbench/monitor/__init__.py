@@ -51,6 +51,7 @@ half-written file::
     <state>/heartbeat.json       {"time": ISO UTC, "pid": int, "host": str,
                                   "poll_s": float, "state": "running"|"stopped",
                                   "last_file": str|null, "last_file_taken_at": ISO UTC|null,
+                                  "doing": str, "doing_since": ISO UTC, "stall_s": float,
                                   "worker": {"state": "none"|"alive"|"stopped",
                                              "pid": int|null, "message": str}}
     <state>/shore/key_indicators_YYYY-MM-DD.json and .csv
@@ -75,6 +76,11 @@ more with ``"state": "stopped"`` on a clean stop. A reader takes a running monit
 heartbeat is older than two poll intervals for *not responding* (killed, hung, its machine
 or disk gone; :func:`workbench.dashboard.views.heartbeat_stale`); ``last_file`` and
 ``last_file_taken_at`` say which acquisition file it took last and when (UTC).
+``doing`` and ``doing_since`` say what the main loop is doing (``"reading FILE"``,
+``"identifying block N"``, ``"waiting for files"``, ...) and since when: the heartbeat
+thread lives on when the main loop hangs, so a reader also takes a running monitor whose
+loop has stayed in one activity longer than ``stall_s`` for *not responding*
+(:data:`workbench.monitor.core.STALL_S`, one file period, or 20 poll intervals if longer).
 ``worker`` is the background forecast/health process (``--foreground``/``--once``:
 ``"none"``): ``"stopped"`` once the monitor notices it died (its ``message`` says when and
 how; forecast and health stop updating), ``"alive"`` again once a new worker took over at

@@ -194,6 +194,9 @@ class Monitor:
         self._marked: pd.DataFrame | None = None  # selected modes with their marks
         # liveness (heartbeat.json): the last file taken and the background worker's state
         self._last_taken: tuple[str, pd.Timestamp] | None = None
+        # what the main loop is doing and since when: a heartbeat from a live thread beside
+        # a main loop stuck in one activity longer than stall_s is "not responding" too
+        self._activity: tuple[str, pd.Timestamp] = ("starting", pd.Timestamp.now(tz="UTC"))
         self._worker = {"state": "none", "pid": None, "message": ""}
         self._worker_lock = threading.Lock()
         self._heartbeat_stop = threading.Event()
@@ -327,9 +330,11 @@ class Monitor:
     def step(self, *, flush: bool = False) -> int:
         """Take the new complete files, identify every block that is ready, update the
         state folder; return the number of blocks decided."""
+        self._doing("looking for new files")
         landed, messages = self.watcher.poll()
         self.messages += messages
         for item in landed:
+            self._doing(f"reading {item.path.name}")
             self._take(item)
         if self.voyage is None and not self._anchor():
             self._write_status("running", "waiting for the first complete files")
@@ -342,6 +347,7 @@ class Monitor:
             if self.stop_event.is_set():
                 self._dirty = True  # the rest is still ready next time
                 break
+            self._doing(f"identifying block {int(planned.block)}")
             self._process(planned)
             decided += 1
         if decided:
@@ -354,7 +360,12 @@ class Monitor:
                 self._outlook_due = True
         self._poll_outlook()
         self._write_status("running")
+        self._doing("waiting for files")
         return decided
+
+    def _doing(self, what: str) -> None:
+        """Record the main loop's current activity for the heartbeat."""
+        self._activity = (what, pd.Timestamp.now(tz="UTC"))
 
     # ------------------------------------------------------------------ files
     def _stored_grid(self):
@@ -744,6 +755,7 @@ class Monitor:
         arguments = (self.state, self.dship, self.options.forecast, self.voyage.grid)
         keywords = {"store": self.store_path}
         if not background:
+            self._doing("updating forecast and health")
             self._collect(update_outlook(*arguments, **keywords))
             return
         if self._executor is not None and self.check_worker() == "stopped":
@@ -827,9 +839,11 @@ class Monitor:
 
     def write_heartbeat(self, state: str = "running") -> None:
         """Write ``heartbeat.json`` (see :mod:`workbench.monitor`): now, pid, host, poll
-        interval, the last file taken and the background worker's state."""
+        interval, the last file taken, the main loop's activity and since when, and the
+        background worker's state."""
         self.check_worker()
         taken = self._last_taken
+        doing, since = self._activity
         with self._worker_lock:
             worker = {k: self._worker[k] for k in ("state", "pid", "message")}
         beat = {
@@ -840,6 +854,9 @@ class Monitor:
             "state": state,
             "last_file": None if taken is None else taken[0],
             "last_file_taken_at": None if taken is None else _iso(taken[1]),
+            "doing": doing,
+            "doing_since": _iso(since),
+            "stall_s": stall_limit_s(self.options.poll_s),
             "worker": worker,
         }
         with atomic_path(self.state / "heartbeat.json") as tmp:
@@ -1065,6 +1082,17 @@ class Monitor:
         }
         with atomic_path(self.state / "status.json") as tmp:
             tmp.write_text(json.dumps(status, indent=1), encoding="utf-8")
+
+
+#: The longest one activity of the main loop (reading one file, identifying one block, a
+#: forecast update in the foreground) may take before the monitor counts as not responding
+#: although its heartbeat thread still beats. [s]
+STALL_S = 300.0
+
+
+def stall_limit_s(poll_s: float) -> float:
+    """Seconds the main loop may stay in one activity: :data:`STALL_S` or 20 polls."""
+    return max(STALL_S, 20.0 * float(poll_s))
 
 
 def _iso(time: pd.Timestamp) -> str:

@@ -440,6 +440,13 @@
     const file = beat.last_file
       ? `last file taken: ${beat.last_file} at ${beat.last_file_taken_at.slice(11, 19)}Z`
       : "no file taken yet";
+    if (beat.stalled) {  // the heartbeat thread lives, the main loop does not move
+      const busy = (Date.now() + state.serverOffsetMs - Date.parse(beat.doing_since)) / 1000;
+      node.textContent = `main loop stuck ${ago(busy).replace(" ago", "")} ` +
+        `${beat.doing} (since ${beat.doing_since.slice(11, 19)}Z; pid ${beat.pid} on ` +
+        `${beat.host}); ${file}`;
+      return;
+    }
     node.textContent = `no heartbeat for ${ago(age).replace(" ago", "")} ` +
       `(pid ${beat.pid} on ${beat.host}); ${file}`;
   }
