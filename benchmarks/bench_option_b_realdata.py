@@ -38,7 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_real_data import REALDATA, _write_npz, identify_command, recordings  # noqa: E402
 
 from workbench.forecasting.measurement import PoleIndex  # noqa: E402
-from workbench.forecasting.memory_poles import option_b_chooser  # noqa: E402
+from workbench.forecasting.memory.poles import option_b_chooser  # noqa: E402
 from workbench.forecasting.options import MeasurementOptions  # noqa: E402
 
 #: Relative offsets of the prediction from the reference frequency. [-]

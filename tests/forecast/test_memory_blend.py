@@ -17,8 +17,8 @@ from workbench.forecasting import (
     scalar_kalman_update,
     sliding_forecast,
 )
-from workbench.forecasting.blend import kalman_pass_step
 from workbench.forecasting.measurement import ClusterChooser, PoleIndex
+from workbench.forecasting.memory.forecast import kalman_pass_step
 from workbench.forecasting.noise import (
     MIN_OUT_OF_SAMPLE,
     NoiseModel,

@@ -5,17 +5,17 @@
   measurement options A (tracked pole) and B (nearest stabilisation-diagram pole in a gate);
 * :mod:`~workbench.forecasting.kalman` - scalar Kalman functions, steady state, trust -> Q;
 * :func:`evaluate_against_truth` - cumulative absolute errors and improvements;
-* :mod:`~workbench.forecasting.experiment` - the 5-DOF temperature experiment.
+* :mod:`~workbench.simulate.experiment` - the 5-DOF temperature experiment.
 """
 
-from .evaluate import evaluate_against_truth
-from .experiment import (
+from ..simulate.experiment import (
     ExperimentData,
     ExperimentResult,
     chain_natural_frequencies,
     run_temperature_experiment,
     simulate_temperature_experiment,
 )
+from .evaluate import evaluate_against_truth
 from .kalman import (
     ModeKalmanBank,
     ScalarKalmanFilter,

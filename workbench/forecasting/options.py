@@ -130,7 +130,7 @@ class ModelOptions:
     ----------
     kind : {"memory", "window"}
         ``"memory"`` (default): stepwise terms, coefficients by exponentially weighted least
-        squares over all measured blocks so far (:mod:`workbench.forecasting.memory`);
+        squares over all measured blocks so far (:mod:`workbench.forecasting.memory.model`);
         ``"window"``: the reference configuration, a stepwise fit on the last
         *train_blocks* blocks (method 2: on the Kalman estimates).
     train_blocks : int

@@ -248,7 +248,7 @@ def sliding_forecast(
         *train_blocks* blocks, Kalman trust *trust*. ``"memory"`` (the default of the
         forecast stage, the command line and the demo): stepwise terms with
         coefficients over the whole history with exponential forgetting, noise levels from
-        the data, an AR(1) measurement-error state (:func:`workbench.forecasting.blend.
+        the data, an AR(1) measurement-error state (:func:`workbench.forecasting.memory.forecast.
         memory_forecast`; *model_options*, *noise_options*), and a measurement equation for
         SSI's excitation weighting (:mod:`workbench.forecasting.excitation`). With method 2
         ``"memory"`` beats raw SSI by 30 % or more (median of 3 seeds, never worse in any)
@@ -367,7 +367,7 @@ def sliding_forecast(
         raise ValueError(f"horizon={horizon} must be >= 1")
     check_trust(trust, model)
     if model == "memory":
-        from .blend import memory_forecast
+        from .memory.forecast import memory_forecast
 
         options_m = model_options or ModelOptions(
             train_blocks=train_blocks,
@@ -433,7 +433,7 @@ def sliding_forecast(
     # a window's model uses the rows complete in every candidate predictor (the rule the
     # forecast was validated with); stepwise_options={"missing": "candidate"} for MATLAB's
     options.setdefault("missing", "complete")
-    from .window import window_forecast
+    from .window.forecast import window_forecast
 
     return window_forecast(
         modal,

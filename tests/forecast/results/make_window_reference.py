@@ -3,7 +3,7 @@
 Run from the repository root, with the code whose results are the reference:
 ``python tests/forecast/results/make_window_reference.py``. window_reference.csv was
 written by the window path as one function (before it was split into named steps in
-:mod:`workbench.forecasting.window`), so tests/forecast/test_window_reference.py checks that
+:mod:`workbench.forecasting.window.forecast`), so tests/forecast/test_window_reference.py checks that
 the split did not change the results: option A methods 1 and 2, option B method 2 (pole
 table without shapes), 400 blocks, 3 modes.
 """

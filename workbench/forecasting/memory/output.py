@@ -1,7 +1,7 @@
 """Output table of the memory forecast: the sliding forecast's columns plus, for option B,
 the chosen pole cluster's orders and scatter.
 
-Used by :func:`~workbench.forecasting.blend.memory_forecast`.
+Used by :func:`~workbench.forecasting.memory.forecast.memory_forecast`.
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ def assemble_table(
     notes,
 ) -> pd.DataFrame:
     """Forecast table from the per-row outputs (rows no model could serve dropped)."""
-    from .assembly import _assemble, _drop_unusable
+    from ..assembly import _assemble, _drop_unusable
 
     _drop_unusable(out_phase, out["model"], out["kalman"], notes)
     table = _assemble(

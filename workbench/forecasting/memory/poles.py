@@ -1,7 +1,7 @@
 """Option B's measurement chooser for the memory forecast: the pole cluster in the gate,
 checked against the mode's shape where the poles carry shapes.
 
-Used by :func:`~workbench.forecasting.blend.memory_forecast`; the cluster search itself is in
+Used by :func:`~workbench.forecasting.memory.forecast.memory_forecast`; the cluster search itself is in
 :mod:`workbench.forecasting.measurement`, the mode's reference shape (the consensus of its
 recent tracked shapes) in :mod:`workbench.forecasting.shape_reference`.
 """
@@ -13,15 +13,15 @@ from collections import Counter
 import numpy as np
 import pandas as pd
 
-from .measurement import ClusterChooser, PoleIndex
-from .options import MeasurementOptions
-from .pole_selection import (
+from ..measurement import ClusterChooser, PoleIndex
+from ..options import MeasurementOptions
+from ..pole_selection import (
     _MIN_SHAPE_CHANNELS,
     _mac_on_common_channels,
     _shape_channels,
     _shape_matrix,
 )
-from .shape_reference import consensus_references
+from ..shape_reference import consensus_references
 
 __all__ = ["option_b_chooser"]
 

@@ -4,10 +4,10 @@
 *horizon* blocks, the Kalman estimates as the next targets):
 
 1. the window's candidate predictors and each mode's model and predictions
-   (:mod:`workbench.forecasting.window_model`);
-2. the Kalman noise levels R and Q (:mod:`workbench.forecasting.window_noise`);
+   (:mod:`workbench.forecasting.window.model`);
+2. the Kalman noise levels R and Q (:mod:`workbench.forecasting.window.noise`);
 3. the Kalman pass over the rows the window reports, with option A's or B's measurement
-   (:mod:`workbench.forecasting.window_kalman`).
+   (:mod:`workbench.forecasting.window.kalman`).
 
 Everything the steps share lives on one :class:`WindowRun`: the block grid, the settings
 and the output arrays, so a step reads like the equations in the
@@ -26,15 +26,15 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .assembly import _assemble, _drop_unusable
-from .fitted_model import _coefficients, _Model
-from .kalman import ModeKalmanBank
-from .pole_selection import _MIN_SHAPE_CHANNELS, _PoleSelector
-from .predictor_grid import mode_matrix, modes_to_forecast, predictor_matrix
-from .sliding import ForecastResult, ForecastWarning, WindowModel
-from .window_kalman import kalman_pass, next_targets
-from .window_model import WindowFrame, fit_window_model, predict_window
-from .window_noise import window_noise_levels
+from ..assembly import _assemble, _drop_unusable
+from ..fitted_model import _coefficients, _Model
+from ..kalman import ModeKalmanBank
+from ..pole_selection import _MIN_SHAPE_CHANNELS, _PoleSelector
+from ..predictor_grid import mode_matrix, modes_to_forecast, predictor_matrix
+from ..sliding import ForecastResult, ForecastWarning, WindowModel
+from .kalman import kalman_pass, next_targets
+from .model import WindowFrame, fit_window_model, predict_window
+from .noise import window_noise_levels
 
 __all__ = ["WindowRun", "block_grid", "window_forecast"]
 

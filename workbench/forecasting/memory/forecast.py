@@ -2,7 +2,7 @@
 
 The steps, each in its own module:
 
-1. window model - :mod:`workbench.forecasting.memory` (stepwise terms, exponentially
+1. window model - :mod:`workbench.forecasting.memory.model` (stepwise terms, exponentially
    weighted least squares over the history, refit every *horizon* blocks);
 2. noise estimation - :mod:`workbench.forecasting.noise` (covariance matching of the
    residuals, with the model error at least what the out-of-sample residuals show beyond
@@ -14,7 +14,7 @@ The steps, each in its own module:
    so a model error of a few blocks' time constant is not taken for SSI scatter;
 3. measurement choice - :mod:`workbench.forecasting.measurement` (tracked pole or consistent
    pole cluster, per-block scatter);
-4. Kalman pass - :func:`~workbench.forecasting.memory_kalman.kalman_pass_step`;
+4. Kalman pass - :func:`~workbench.forecasting.memory.kalman.kalman_pass_step`;
 5. guard - :mod:`workbench.forecasting.model_trust`: the blend is weighed against a filter
    that does not use the model by how well each predicts the measurements out of sample;
    while the model does not explain a mode (an unrecorded change: fuel, ballast, ice) the
@@ -22,12 +22,12 @@ The steps, each in its own module:
    ``model_probability``, and the run notes say when a mode's model stopped explaining it.
 
 :func:`memory_forecast` below runs the windows and the Kalman pass over their rows; each
-mode's term selection, refits and predictions are in :mod:`workbench.forecasting.memory_terms`,
-the excitation bias (κ) in :mod:`workbench.forecasting.memory_excitation`, the first window's
+mode's term selection, refits and predictions are in :mod:`workbench.forecasting.memory.terms`,
+the excitation bias (κ) in :mod:`workbench.forecasting.memory.excitation`, the first window's
 noise, the filter matrices and the runs of large innovations in
-:mod:`workbench.forecasting.memory_noise`, option B's chooser in
-:mod:`workbench.forecasting.memory_poles`, the output table in
-:mod:`workbench.forecasting.memory_output`.
+:mod:`workbench.forecasting.memory.noise`, option B's chooser in
+:mod:`workbench.forecasting.memory.poles`, the output table in
+:mod:`workbench.forecasting.memory.output`.
 
 Kalman model per mode, with m_k the model's prediction and z_k the block's SSI estimate:
 
@@ -57,20 +57,20 @@ from collections import Counter
 import numpy as np
 import pandas as pd
 
-from .excitation import sub_windows_per_block
-from .innovation_consistency import MIN_BLOCKS, InnovationConsistency
-from .measurement import PoleIndex, cluster_around, nearer_to_another_mode, scatter_scale
-from .memory import MemoryModel
-from .memory_excitation import excitation_bias
-from .memory_kalman import kalman_pass_step, stationary_covariance
-from .memory_noise import filter_matrices, first_window_noise, update_run
-from .memory_output import OUTPUT_ARRAYS, assemble_table
-from .memory_poles import option_b_chooser
-from .memory_terms import MemoryRefits
-from .model_trust import ModelTrust
-from .noise import NoiseModel, estimate_noise, model_error_floor
-from .options import MeasurementOptions, ModelOptions, NoiseOptions
-from .predictor_grid import mode_matrix, modes_to_forecast, predictor_matrix
+from ..excitation import sub_windows_per_block
+from ..innovation_consistency import MIN_BLOCKS, InnovationConsistency
+from ..measurement import PoleIndex, cluster_around, nearer_to_another_mode, scatter_scale
+from ..model_trust import ModelTrust
+from ..noise import NoiseModel, estimate_noise, model_error_floor
+from ..options import MeasurementOptions, ModelOptions, NoiseOptions
+from ..predictor_grid import mode_matrix, modes_to_forecast, predictor_matrix
+from .excitation import excitation_bias
+from .kalman import kalman_pass_step, stationary_covariance
+from .model import MemoryModel
+from .noise import filter_matrices, first_window_noise, update_run
+from .output import OUTPUT_ARRAYS, assemble_table
+from .poles import option_b_chooser
+from .terms import MemoryRefits
 
 __all__ = ["kalman_pass_step", "memory_forecast"]
 
@@ -98,13 +98,13 @@ def memory_forecast(
     gap_warning_blocks: int = 12,
     cases=None,
 ):
-    """Forecast with :mod:`memory <workbench.forecasting.memory>` models (see module docs).
+    """Forecast with :mod:`memory <workbench.forecasting.memory.model>` models (see module docs).
 
     Called by :func:`~workbench.forecasting.sliding_forecast` for ``model="memory"``;
     returns a :class:`~workbench.forecasting.ForecastResult`.
     """
-    from .fitted_model import _plausible
-    from .sliding import ForecastResult, ForecastWarning, WindowModel
+    from ..fitted_model import _plausible
+    from ..sliding import ForecastResult, ForecastWarning, WindowModel
 
     option = measurement.option
     notes: Counter[str] = Counter()

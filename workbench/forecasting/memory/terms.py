@@ -1,6 +1,6 @@
 """Term selection, refits and predictions of the memory forecast's per-mode models.
 
-For each mode and window of :func:`~workbench.forecasting.blend.memory_forecast`: the stepwise
+For each mode and window of :func:`~workbench.forecasting.memory.forecast.memory_forecast`: the stepwise
 terms (:func:`~workbench.forecasting.memory.select_terms`), reselected on a schedule, on a new
 operating case or when the ship leaves the predictor range the selection saw; the
 exponentially weighted refit of those terms over the history
@@ -15,9 +15,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..stats.distributions import t_quantile
-from .memory import MemoryModel, constant_model, fit_memory_model, select_terms
-from .options import ModelOptions
+from ...stats.distributions import t_quantile
+from ..options import ModelOptions
+from .model import MemoryModel, constant_model, fit_memory_model, select_terms
 
 __all__ = ["MemoryRefits"]
 

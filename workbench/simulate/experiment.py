@@ -23,8 +23,8 @@ import numpy as np
 import pandas as pd
 import scipy.linalg
 
-from .evaluate import evaluate_against_truth
-from .sliding import ForecastResult, sliding_forecast
+from ..forecasting.evaluate import evaluate_against_truth
+from ..forecasting.sliding import ForecastResult, sliding_forecast
 
 __all__ = [
     "ExperimentData",

@@ -2,7 +2,7 @@
 the model of what SSI sees in a block whose speed changes.
 
 Physics in :mod:`workbench.forecasting.excitation`; used by
-:func:`~workbench.forecasting.blend.memory_forecast`.
+:func:`~workbench.forecasting.memory.forecast.memory_forecast`.
 """
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .excitation import sub_windows_per_block, within_block_variance
-from .memory import MemoryModel, fit_memory_model
+from ..excitation import sub_windows_per_block, within_block_variance
+from .model import MemoryModel, fit_memory_model
 
 __all__ = ["ExcitationBias", "excitation_bias"]
 
