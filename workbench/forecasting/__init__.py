@@ -5,17 +5,11 @@
   measurement options A (tracked pole) and B (nearest stabilisation-diagram pole in a gate);
 * :mod:`~workbench.forecasting.kalman` - scalar Kalman functions, steady state, trust -> Q;
 * :func:`evaluate_against_truth` - cumulative absolute errors and improvements;
-* :mod:`~workbench.simulate.experiment` - the 5-DOF temperature experiment.
+* :func:`run_temperature_experiment` - the 5-DOF temperature experiment
+  (simulated by :mod:`workbench.simulate.experiment`).
 """
 
-from ..simulate.experiment import (
-    ExperimentData,
-    ExperimentResult,
-    chain_natural_frequencies,
-    run_temperature_experiment,
-    simulate_temperature_experiment,
-)
-from .evaluate import evaluate_against_truth
+from .evaluate import ExperimentResult, evaluate_against_truth, run_temperature_experiment
 from .kalman import (
     ModeKalmanBank,
     ScalarKalmanFilter,
@@ -30,7 +24,6 @@ from .kalman import (
 from .sliding import ForecastResult, ForecastWarning, WindowModel, sliding_forecast
 
 __all__ = [
-    "ExperimentData",
     "ExperimentResult",
     "ForecastResult",
     "ForecastWarning",
@@ -39,14 +32,12 @@ __all__ = [
     "ScalarUpdate",
     "SteadyState",
     "WindowModel",
-    "chain_natural_frequencies",
     "evaluate_against_truth",
     "process_variance_for_gain",
     "relaxation_factor",
     "run_temperature_experiment",
     "scalar_kalman_predict",
     "scalar_kalman_update",
-    "simulate_temperature_experiment",
     "sliding_forecast",
     "steady_state",
 ]
