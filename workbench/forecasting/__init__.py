@@ -21,7 +21,8 @@ from .kalman import (
     scalar_kalman_update,
     steady_state,
 )
-from .sliding import ForecastResult, ForecastWarning, WindowModel, sliding_forecast
+from .results import ForecastResult, ForecastWarning, WindowModel
+from .sliding import sliding_forecast
 
 __all__ = [
     "ExperimentResult",

@@ -10,7 +10,8 @@ import numpy as np
 import pandas as pd
 
 from ..simulate.experiment import ExperimentData, simulate_temperature_experiment
-from .sliding import ForecastResult, sliding_forecast
+from .results import ForecastResult
+from .sliding import sliding_forecast
 
 __all__ = ["ExperimentResult", "evaluate_against_truth", "run_temperature_experiment"]
 

@@ -58,12 +58,14 @@ import numpy as np
 import pandas as pd
 
 from ..excitation import sub_windows_per_block
+from ..fitted_model import _plausible
 from ..innovation_consistency import MIN_BLOCKS, InnovationConsistency
 from ..measurement import PoleIndex, cluster_around, nearer_to_another_mode, scatter_scale
 from ..model_trust import ModelTrust
 from ..noise import NoiseModel, estimate_noise, model_error_floor
 from ..options import MeasurementOptions, ModelOptions, NoiseOptions
 from ..predictor_grid import mode_matrix, modes_to_forecast, predictor_matrix
+from ..results import ForecastResult, ForecastWarning, WindowModel
 from .excitation import excitation_bias
 from .kalman import kalman_pass_step, stationary_covariance
 from .model import MemoryModel
@@ -103,9 +105,6 @@ def memory_forecast(
     Called by :func:`~workbench.forecasting.sliding_forecast` for ``model="memory"``;
     returns a :class:`~workbench.forecasting.ForecastResult`.
     """
-    from ..fitted_model import _plausible
-    from ..sliding import ForecastResult, ForecastWarning, WindowModel
-
     option = measurement.option
     notes: Counter[str] = Counter()
     grid, blocks, block_start, columns, X_all = predictor_matrix(

@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from ..assembly import _assemble, _drop_unusable
+
 __all__ = ["OUTPUT_ARRAYS", "assemble_table"]
 
 #: Per-row x per-mode float outputs of the forecast (NaN where a row has none).
@@ -44,8 +46,6 @@ def assemble_table(
     notes,
 ) -> pd.DataFrame:
     """Forecast table from the per-row outputs (rows no model could serve dropped)."""
-    from ..assembly import _assemble, _drop_unusable
-
     _drop_unusable(out_phase, out["model"], out["kalman"], notes)
     table = _assemble(
         blocks,

@@ -31,17 +31,18 @@ from ..fitted_model import _coefficients, _Model
 from ..kalman import ModeKalmanBank
 from ..pole_selection import _MIN_SHAPE_CHANNELS, _PoleSelector
 from ..predictor_grid import mode_matrix, modes_to_forecast, predictor_matrix
-from ..sliding import ForecastResult, ForecastWarning, WindowModel
+from ..results import ForecastResult, ForecastWarning, WindowModel
 from .kalman import kalman_pass, next_targets
 from .model import WindowFrame, fit_window_model, predict_window
 from .noise import window_noise_levels
 
-__all__ = ["WindowRun", "block_grid", "window_forecast"]
+__all__ = ["WindowRun", "forecast_data", "window_forecast"]
 
 
 @dataclass
-class BlockGrid:
-    """The forecast's block grid: predictor matrix and tracked frequencies per mode."""
+class ForecastData:
+    """The matrices of a window forecast on its blocks: predictors and tracked frequencies
+    per mode (the grid itself is :class:`workbench.blocks.BlockGrid`)."""
 
     blocks: np.ndarray  # block numbers, sorted
     block_start: np.ndarray
@@ -51,24 +52,25 @@ class BlockGrid:
     tracked: np.ndarray  # (n_blocks, n_modes) tracked frequency, NaN where missing [Hz]
 
 
-def block_grid(
+def forecast_data(
     modal: pd.DataFrame,
     predictors: pd.DataFrame,
     predictor_columns: Sequence[str] | None,
     modes: Sequence[int] | None,
-) -> BlockGrid:
-    """Block grid of *predictors* (consecutive rows: consecutive Kalman steps)."""
+) -> ForecastData:
+    """Predictor and tracked-frequency matrices on the blocks of *predictors* (consecutive
+    rows: consecutive Kalman steps)."""
     _, blocks, block_start, columns, X_all = predictor_matrix(predictors, predictor_columns)
     mode_labels = modes_to_forecast(modal, modes)
     tracked = mode_matrix(modal, blocks, mode_labels, "frequency_hz")
-    return BlockGrid(blocks, block_start, columns, X_all, mode_labels, tracked)
+    return ForecastData(blocks, block_start, columns, X_all, mode_labels, tracked)
 
 
 @dataclass
 class WindowRun:
     """Settings, grid, running filter state and outputs of one reference forecast."""
 
-    grid: BlockGrid
+    grid: ForecastData
     option: str
     method: int
     train_blocks: int
@@ -155,7 +157,7 @@ def window_forecast(
     :func:`~workbench.forecasting.sliding_forecast`, validated there)."""
     from workbench.stats import case_labels
 
-    grid = block_grid(modal, predictors, predictor_columns, modes)
+    grid = forecast_data(modal, predictors, predictor_columns, modes)
     frame = predictors.sort_values("block").drop_duplicates("block", keep="last")
     labels = None if cases is None else case_labels(frame, cases).to_numpy()
     notes: Counter[str] = Counter()
