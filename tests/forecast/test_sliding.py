@@ -10,7 +10,12 @@ import pandas as pd
 import pytest
 
 from data_contracts import FORECAST
-from workbench.forecasting import ForecastWarning, relaxation_factor, sliding_forecast
+from workbench.forecasting import (
+    ForecastOptions,
+    ForecastWarning,
+    relaxation_factor,
+    sliding_forecast,
+)
 
 START = pd.Timestamp("2024-03-01T00:00:00Z")
 
@@ -49,11 +54,15 @@ def _tables(n_blocks=80, n_modes=2, noise=0.002, seed=0):
     return modal, predictors, truth
 
 
-def _quiet(**kwargs):
+def _quiet(modal, predictors, poles=None, option="A", **settings):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ForecastWarning)
-        # the reference configuration (20-block window, trust) unless a test says otherwise
-        return sliding_forecast(**{"model": "window", **kwargs})
+        # the reference configuration (20-block window, trust, single window) unless a test
+        # says otherwise
+        options = ForecastOptions(
+            **{"model": "window", "scheme": 1, "options": (option,), **settings}
+        )
+        return sliding_forecast(modal, predictors, options, poles=poles)
 
 
 def test_table_validates_against_forecast_contract_options_a_and_b():
@@ -197,7 +206,7 @@ def test_no_look_ahead_window_model_ignores_later_predictors():
 
 def test_method_2_slides_by_horizon_and_trains_on_kalman_estimates():
     modal, predictors, _ = _tables(n_blocks=60, n_modes=1)
-    result = _quiet(modal=modal, predictors=predictors, method=2, horizon=4)
+    result = _quiet(modal=modal, predictors=predictors, scheme=2, horizon=4)
     table = result.table.set_index("block")
     assert table.index.tolist() == list(range(60))  # continuous
     starts = [m.window_start_block for m in result.models]
@@ -215,7 +224,9 @@ def test_too_few_valid_blocks_falls_back_and_warns():
     modal, predictors, _ = _tables(n_modes=1)
     modal = modal[~modal["block"].between(3, 18)]  # 4 of 20 training blocks left
     with pytest.warns(ForecastWarning, match="too few valid blocks"):
-        result = sliding_forecast(modal, predictors, horizon=30, model="window")
+        result = sliding_forecast(
+            modal, predictors, ForecastOptions(horizon=30, model="window", scheme=1)
+        )
     assert result.models[0].kind == "constant"
     table = result.table
     assert len(table) == 50 and table["kalman_frequency_hz"].notna().all()
@@ -229,7 +240,9 @@ def test_last_good_model_reused_when_a_later_window_cannot_be_fitted():
     modal, predictors, _ = _tables(n_blocks=60, n_modes=1)
     predictors.loc[predictors["block"] >= 24, ["water_temp_c", "speed_kn"]] = np.nan
     with pytest.warns(ForecastWarning):
-        result = sliding_forecast(modal, predictors, method=2, horizon=4, model="window")
+        result = sliding_forecast(
+            modal, predictors, ForecastOptions(scheme=2, horizon=4, model="window")
+        )
     kinds = [m.kind for m in result.models]
     assert kinds[0] == "stepwise"
     assert "constant" in kinds or "last_good" in kinds
@@ -246,7 +259,9 @@ def test_constant_and_nan_predictors_are_left_out_with_warning():
     predictors["speed_kn"] = 12.0  # constant
     predictors["air_temp_c"] = np.nan  # dead channel for the whole voyage
     with pytest.warns(ForecastWarning) as record:
-        result = sliding_forecast(modal, predictors, horizon=20, model="window")
+        result = sliding_forecast(
+            modal, predictors, ForecastOptions(horizon=20, model="window", scheme=1)
+        )
     text = " ".join(str(w.message) for w in record)
     assert "'speed_kn' left out: constant" in text
     assert "'air_temp_c' left out" in text
@@ -259,7 +274,11 @@ def test_predictor_nan_for_hours_uses_constant_model_for_those_blocks():
     predictors.loc[predictors["block"].between(30, 45), "water_temp_c"] = np.nan
     with pytest.warns(ForecastWarning, match="constant model"):
         result = sliding_forecast(
-            modal, predictors, horizon=40, predictor_columns=["water_temp_c"], model="window"
+            modal,
+            predictors,
+            ForecastOptions(
+                horizon=40, predictor_columns=["water_temp_c"], model="window", scheme=1
+            ),
         )
     table = result.table.set_index("block")
     level = modal.loc[modal["block"] < 20, "frequency_hz"].mean()
@@ -273,7 +292,9 @@ def test_mode_that_disappears_and_returns_rejoins_its_track():
     modal, predictors, truth = _tables(n_blocks=100, n_modes=2, noise=0.001)
     modal = modal[~((modal["mode"] == 2) & modal["block"].between(25, 64))]
     with pytest.warns(ForecastWarning, match="without SSI"):
-        result = sliding_forecast(modal, predictors, horizon=80, model="window")
+        result = sliding_forecast(
+            modal, predictors, ForecastOptions(horizon=80, model="window", scheme=1)
+        )
     table = result.table[result.table["mode"] == 2].set_index("block")
     assert len(table) == 100
     kalman = table["kalman_frequency_hz"].to_numpy()
@@ -284,21 +305,29 @@ def test_mode_that_disappears_and_returns_rejoins_its_track():
 def test_bad_arguments_raise():
     modal, predictors, _ = _tables()
     with pytest.raises(ValueError, match="option='B' needs poles"):
-        sliding_forecast(modal, predictors, option="B")
+        sliding_forecast(
+            modal, predictors, ForecastOptions(options=("B",), model="window", scheme=1)
+        )
     with pytest.raises(ValueError, match="train_blocks=90 needs at least 91 blocks"):
-        sliding_forecast(modal, predictors, train_blocks=90)
+        sliding_forecast(
+            modal, predictors, ForecastOptions(train_blocks=90, model="window", scheme=1)
+        )
     with pytest.raises(ValueError, match="trust=1.5"):
-        sliding_forecast(modal, predictors, trust=1.5)
+        sliding_forecast(modal, predictors, ForecastOptions(trust=1.5, model="window", scheme=1))
     with pytest.raises(ValueError, match="start_block=7.5"):
-        sliding_forecast(modal, predictors, start_block=7.5)
+        sliding_forecast(
+            modal, predictors, ForecastOptions(model="window", scheme=1), start_block=7.5
+        )
 
 
 def test_mode_without_data_at_first_starts_later_and_does_not_disturb_others():
     modal, predictors, _ = _tables(n_blocks=60, n_modes=2)
-    reference = _quiet(modal=modal, predictors=predictors, method=2, horizon=4)
+    reference = _quiet(modal=modal, predictors=predictors, scheme=2, horizon=4)
     late = modal[~((modal["mode"] == 2) & (modal["block"] < 30))]
     with pytest.warns(ForecastWarning, match="no data yet"):
-        result = sliding_forecast(late, predictors, method=2, horizon=4, model="window")
+        result = sliding_forecast(
+            late, predictors, ForecastOptions(scheme=2, horizon=4, model="window")
+        )
     mode_2 = result.table[result.table["mode"] == 2]
     assert mode_2["block"].min() >= 30 and mode_2["block"].max() == 59
     assert np.isfinite(mode_2["kalman_frequency_hz"]).all()

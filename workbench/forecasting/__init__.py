@@ -1,5 +1,7 @@
 """Sliding-window regression forecasts of modal frequencies and Kalman blending with SSI.
 
+* :class:`ForecastOptions` - every setting of a forecast, one object from the command
+  line or the API down to the filter;
 * :func:`sliding_forecast` - stepwise model per mode on a sliding training window,
   methods 1 (one long forecast) and 2 (refit every *horizon* blocks on Kalman estimates),
   measurement options A (tracked pole) and B (nearest stabilisation-diagram pole in a gate);
@@ -21,14 +23,17 @@ from .kalman import (
     scalar_kalman_update,
     steady_state,
 )
+from .options import ForecastOptions, NoiseOptions
 from .results import ForecastResult, ForecastWarning, WindowModel
 from .sliding import sliding_forecast
 
 __all__ = [
     "ExperimentResult",
+    "ForecastOptions",
     "ForecastResult",
     "ForecastWarning",
     "ModeKalmanBank",
+    "NoiseOptions",
     "ScalarKalmanFilter",
     "ScalarUpdate",
     "SteadyState",

@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 
 from ..simulate.experiment import ExperimentData, simulate_temperature_experiment
+from .options import ForecastOptions
 from .results import ForecastResult
 from .sliding import sliding_forecast
 
@@ -227,17 +228,16 @@ def run_temperature_experiment(
     """
     data = simulate_temperature_experiment(seed=seed, **simulation)
     n_forecast = int(data.predictors["block"].size - data.n_train)
-    forecast = sliding_forecast(
-        data.modal,
-        data.predictors,
-        option="A",
-        method=1,
+    options = ForecastOptions(
+        options=("A",),
+        scheme="single_window",
+        model=model or "window",
         train_blocks=data.n_train,
         horizon=n_forecast,
         trust=trust,
         correction_time_blocks=correction_time_blocks,
-        predictor_columns=["temperature_c"],
-        model=model or "window",
+        predictor_columns=("temperature_c",),
     )
+    forecast = sliding_forecast(data.modal, data.predictors, options)
     evaluation = evaluate_against_truth(forecast.table, data.truth)
     return ExperimentResult(evaluation=evaluation, forecast=forecast, data=data)

@@ -68,7 +68,7 @@ def tables() -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
 
 
 def forecast() -> pd.DataFrame:
-    from workbench.forecasting import ForecastWarning, sliding_forecast
+    from workbench.forecasting import ForecastOptions, ForecastWarning, sliding_forecast
 
     modal, predictors, poles = tables()
     out = []
@@ -76,7 +76,10 @@ def forecast() -> pd.DataFrame:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ForecastWarning)
             table = sliding_forecast(
-                modal, predictors, poles=poles, option=option, method=method, model="window"
+                modal,
+                predictors,
+                ForecastOptions(options=(option,), scheme=method, model="window"),
+                poles=poles,
             ).table
         table = table[["block", "mode", "phase", *COLUMNS, "warning"]]
         out.append(table.assign(run=f"{option}{method}"))

@@ -63,7 +63,7 @@ from ..innovation_consistency import MIN_BLOCKS, InnovationConsistency
 from ..measurement import PoleIndex, cluster_around, nearer_to_another_mode, scatter_scale
 from ..model_trust import ModelTrust
 from ..noise import NoiseModel, estimate_noise, model_error_floor
-from ..options import MeasurementOptions, ModelOptions, NoiseOptions
+from ..options import ForecastOptions
 from ..predictor_grid import mode_matrix, modes_to_forecast, predictor_matrix
 from ..results import ForecastResult, ForecastWarning, WindowModel
 from .excitation import excitation_bias
@@ -87,25 +87,25 @@ _HISTORY_CONSTANTS = 6.0
 def memory_forecast(
     modal: pd.DataFrame,
     predictors: pd.DataFrame,
+    options: ForecastOptions,
     *,
     poles: pd.DataFrame | None,
-    method: int,
-    horizon: int,
+    modes,
     start_block: int | None,
     end_block: int | None,
-    modes,
-    model: ModelOptions,
-    noise: NoiseOptions,
-    measurement: MeasurementOptions,
-    gap_warning_blocks: int = 12,
     cases=None,
 ):
-    """Forecast with :mod:`memory <workbench.forecasting.memory.model>` models (see module docs).
+    """Forecast with :mod:`memory <workbench.forecasting.memory.model>` models (module
+    docs) for the one measurement option of *options*.
 
     Called by :func:`~workbench.forecasting.sliding_forecast` for ``model="memory"``;
     returns a :class:`~workbench.forecasting.ForecastResult`.
     """
-    option = measurement.option
+    model = measurement = options  # the model's and the measurement's settings
+    noise = options.noise
+    method, horizon = options.scheme, options.horizon_blocks
+    gap_warning_blocks = options.gap_warning_blocks
+    option = options.options[0]
     notes: Counter[str] = Counter()
     grid, blocks, block_start, columns, X_all = predictor_matrix(
         predictors, model.predictor_columns

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from ..measurement import ClusterChooser, PoleIndex
-from ..options import MeasurementOptions
+from ..options import ForecastOptions
 from ..pole_selection import (
     _MIN_SHAPE_CHANNELS,
     _mac_on_common_channels,
@@ -32,7 +32,7 @@ def option_b_chooser(
     blocks: np.ndarray,
     mode_labels: np.ndarray,
     index: PoleIndex,
-    measurement: MeasurementOptions,
+    options: ForecastOptions,
     notes: Counter[str],
 ) -> ClusterChooser:
     """Chooser of each block's pole cluster per mode (MAC check when shapes are there).
@@ -44,7 +44,7 @@ def option_b_chooser(
     if len(channels) >= _MIN_SHAPE_CHANNELS:
         pole_shapes = _shape_matrix(poles, channels)  # table order
         references, reference_row = consensus_references(
-            modal, blocks, mode_labels, channels, mac_min=measurement.mac_min
+            modal, blocks, mode_labels, channels, mac_min=options.mac_min
         )
 
         def shape_mac(i, j, positions):
@@ -62,7 +62,7 @@ def option_b_chooser(
     return ClusterChooser(
         index,
         shape_mac,
-        shape_mac_min=measurement.mac_min,
-        reacquire_blocks=measurement.reacquire_blocks,
-        reacquire_band=measurement.reacquire_band,
+        shape_mac_min=options.mac_min,
+        reacquire_blocks=options.reacquire_blocks,
+        reacquire_band=options.reacquire_band,
     )

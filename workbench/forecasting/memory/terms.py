@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from ...stats.distributions import t_quantile
-from ..options import ModelOptions
+from ..options import ForecastOptions
 from .model import MemoryModel, constant_model, fit_memory_model, select_terms
 
 __all__ = ["MemoryRefits"]
@@ -37,7 +37,7 @@ class MemoryRefits:
     it as the forecast runs and every refit reads the blocks before its grid row.
     """
 
-    model: ModelOptions
+    model: ForecastOptions
     X_all: np.ndarray
     columns: list[str]
     meas: np.ndarray

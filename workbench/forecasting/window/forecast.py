@@ -29,6 +29,7 @@ import pandas as pd
 from ..assembly import _assemble, _drop_unusable
 from ..fitted_model import _coefficients, _Model
 from ..kalman import ModeKalmanBank
+from ..options import ForecastOptions
 from ..pole_selection import _MIN_SHAPE_CHANNELS, _PoleSelector
 from ..predictor_grid import mode_matrix, modes_to_forecast, predictor_matrix
 from ..results import ForecastResult, ForecastWarning, WindowModel
@@ -71,19 +72,7 @@ class WindowRun:
     """Settings, grid, running filter state and outputs of one reference forecast."""
 
     grid: ForecastData
-    option: str
-    method: int
-    train_blocks: int
-    horizon: int
-    trust: float | None
-    phi: float
-    gate_sigma: float
-    reacquire_blocks: int
-    min_train: int
-    alpha: float
-    extrapolation_limit: float
-    gap_warning_blocks: int
-    stepwise_options: Mapping[str, Any]
+    options: ForecastOptions  # one measurement option
     first: int
     last: int
     labels: np.ndarray | None = None  # operating case per grid row
@@ -121,6 +110,61 @@ class WindowRun:
     def n_modes(self) -> int:
         return self.tracked.shape[1]
 
+    # the settings the steps read, from the one options object
+    @property
+    def option(self) -> str:
+        return self.options.options[0]
+
+    @property
+    def method(self) -> int:
+        return self.options.scheme
+
+    @property
+    def train_blocks(self) -> int:
+        return int(self.options.train_blocks)
+
+    @property
+    def horizon(self) -> int:
+        return self.options.horizon_blocks
+
+    @property
+    def trust(self) -> float | None:
+        return self.options.window_trust
+
+    @property
+    def phi(self) -> float:
+        return self.options.transition
+
+    @property
+    def gate_sigma(self) -> float:
+        return self.options.gate_sigma
+
+    @property
+    def reacquire_blocks(self) -> int:
+        return int(self.options.reacquire_blocks)
+
+    @property
+    def min_train(self) -> int:
+        return self.options.min_train
+
+    @property
+    def alpha(self) -> float:
+        return self.options.alpha
+
+    @property
+    def extrapolation_limit(self) -> float:
+        return self.options.extrapolation_limit
+
+    @property
+    def gap_warning_blocks(self) -> int:
+        return self.options.gap_warning_blocks
+
+    @property
+    def stepwise_options(self) -> Mapping[str, Any]:
+        # a window's model uses the rows complete in every candidate predictor (the rule
+        # the forecast was validated with); {"missing": "candidate"} for MATLAB's
+        return {"missing": "complete", **dict(self.options.stepwise_options or {})}
+
     def warn_rows(self, row_slice, j: int, message: str, kind: str) -> None:
         self.notes[kind] += 1
         for i in row_slice:
@@ -130,47 +174,33 @@ class WindowRun:
 def window_forecast(
     modal: pd.DataFrame,
     predictors: pd.DataFrame,
+    options: ForecastOptions,
     *,
     poles: pd.DataFrame | None,
-    option: str,
-    method: int,
-    train_blocks: int,
-    horizon: int,
+    modes: Sequence[int] | None,
     start_block: int | None,
     end_block: int | None,
-    trust: float | None,
-    phi: float,
-    gate_sigma: float,
-    shape_mac_min: float,
-    reacquire_blocks: int,
-    reacquire_band: float,
-    predictor_columns: Sequence[str] | None,
-    stepwise_options: Mapping[str, Any],
-    min_train: int,
-    gap_warning_blocks: int,
-    modes: Sequence[int] | None,
-    alpha: float,
-    extrapolation_limit: float,
     cases,
 ) -> ForecastResult:
-    """The reference forecast (module docstring; parameters as
-    :func:`~workbench.forecasting.sliding_forecast`, validated there)."""
+    """The reference forecast of the one measurement option of *options* (module
+    docstring; arguments as :func:`~workbench.forecasting.sliding_forecast`, checked there
+    and by :class:`~workbench.forecasting.options.ForecastOptions`)."""
     from workbench.stats import case_labels
 
-    grid = forecast_data(modal, predictors, predictor_columns, modes)
+    grid = forecast_data(modal, predictors, options.predictor_columns, modes)
     frame = predictors.sort_values("block").drop_duplicates("block", keep="last")
     labels = None if cases is None else case_labels(frame, cases).to_numpy()
     notes: Counter[str] = Counter()
     selector = None
-    if option == "B":
+    if options.options[0] == "B":
         selector = _PoleSelector(
             poles,
             modal,
             grid.blocks,
             grid.mode_labels,
-            shape_mac_min=shape_mac_min,
-            reacquire_blocks=reacquire_blocks,
-            reacquire_band=reacquire_band,
+            shape_mac_min=options.mac_min,
+            reacquire_blocks=int(options.reacquire_blocks),
+            reacquire_band=options.reacquire_band,
         )
         if not selector.uses_shapes:
             notes[
@@ -178,27 +208,21 @@ def window_forecast(
                 f"for {_MIN_SHAPE_CHANNELS}+ shared channels): nearest pole in the gate, "
                 "no MAC check"
             ] += 1
-    first, last = _forecast_span(grid.blocks, start_block, end_block, train_blocks)
+    first, last = _forecast_span(grid.blocks, start_block, end_block, int(options.train_blocks))
     run = WindowRun(
         grid=grid,
-        option=option,
-        method=method,
-        train_blocks=train_blocks,
-        horizon=horizon,
-        trust=trust,
-        phi=phi,
-        gate_sigma=gate_sigma,
-        reacquire_blocks=reacquire_blocks,
-        min_train=min_train,
-        alpha=alpha,
-        extrapolation_limit=extrapolation_limit,
-        gap_warning_blocks=gap_warning_blocks,
-        stepwise_options=stepwise_options,
+        options=options,
         first=first,
         last=last,
         labels=labels,
         selector=selector,
         notes=notes,
+    )
+    train_blocks, horizon, method, min_train = (
+        run.train_blocks,
+        run.horizon,
+        run.method,
+        run.min_train,
     )
     n_blocks = len(grid.blocks)
     window_start = first
@@ -225,7 +249,7 @@ def window_forecast(
         grid.blocks,
         grid.block_start,
         grid.mode_labels,
-        option,
+        run.option,
         run.out_phase,
         run.out_ssi,
         run.out_model,
