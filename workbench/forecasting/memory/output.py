@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..assembly import _assemble, _drop_unusable
+from ..assembly import assemble_rows, drop_unusable
 
 __all__ = ["OUTPUT_ARRAYS", "assemble_table"]
 
@@ -46,25 +46,9 @@ def assemble_table(
     notes,
 ) -> pd.DataFrame:
     """Forecast table from the per-row outputs (rows no model could serve dropped)."""
-    _drop_unusable(out_phase, out["model"], out["kalman"], notes)
-    table = _assemble(
-        blocks,
-        block_start,
-        mode_labels,
-        option,
-        out_phase,
-        out["ssi"],
-        out["model"],
-        out["lower"],
-        out["upper"],
-        out["kalman"],
-        out["std"],
-        out_w0,
-        out_w1,
-        out["order"],
-        out["damping"],
-        out["mac"],
-        out_warning,
+    drop_unusable(out_phase, out["model"], out["kalman"], notes)
+    table = assemble_rows(
+        blocks, block_start, mode_labels, option, out_phase, out, (out_w0, out_w1), out_warning
     )
     rows_, cols_ = np.nonzero(out_phase)
     probability = pd.DataFrame(

@@ -19,19 +19,18 @@ from __future__ import annotations
 import math
 import warnings
 from collections import Counter
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from ..assembly import _assemble, _drop_unusable
+from ..assembly import ASSEMBLED, assemble_rows, drop_unusable
 from ..fitted_model import _coefficients, _Model
 from ..kalman import ModeKalmanBank
 from ..options import ForecastOptions
 from ..pole_selection import _MIN_SHAPE_CHANNELS, _PoleSelector
-from ..predictor_grid import mode_matrix, modes_to_forecast, predictor_matrix
+from ..predictor_grid import forecast_span, mode_matrix, modes_to_forecast, predictor_matrix
 from ..results import ForecastResult, ForecastWarning, WindowModel
 from .kalman import kalman_pass, next_targets
 from .model import WindowFrame, fit_window_model, predict_window
@@ -81,6 +80,19 @@ class WindowRun:
     out_warning: dict = field(default_factory=dict)
 
     def __post_init__(self):
+        # the settings the steps read, from the one options object
+        o = self.options
+        self.option, self.method, self.train_blocks = o.options[0], o.scheme, int(o.train_blocks)
+        self.horizon, self.trust, self.phi = o.horizon_blocks, o.window_trust, o.transition
+        self.gate_sigma, self.reacquire_blocks = o.gate_sigma, int(o.reacquire_blocks)
+        self.min_train, self.alpha = o.min_train, o.alpha
+        self.extrapolation_limit, self.gap_warning_blocks = (
+            o.extrapolation_limit,
+            o.gap_warning_blocks,
+        )
+        # a window's model uses the rows complete in every candidate predictor (the rule
+        # the forecast was validated with); {"missing": "candidate"} for MATLAB's
+        self.stepwise_options = {"missing": "complete", **dict(o.stepwise_options or {})}
         g = self.grid
         n_blocks, n_modes = g.tracked.shape
         shape = (n_blocks, n_modes)
@@ -109,61 +121,6 @@ class WindowRun:
     @property
     def n_modes(self) -> int:
         return self.tracked.shape[1]
-
-    # the settings the steps read, from the one options object
-    @property
-    def option(self) -> str:
-        return self.options.options[0]
-
-    @property
-    def method(self) -> int:
-        return self.options.scheme
-
-    @property
-    def train_blocks(self) -> int:
-        return int(self.options.train_blocks)
-
-    @property
-    def horizon(self) -> int:
-        return self.options.horizon_blocks
-
-    @property
-    def trust(self) -> float | None:
-        return self.options.window_trust
-
-    @property
-    def phi(self) -> float:
-        return self.options.transition
-
-    @property
-    def gate_sigma(self) -> float:
-        return self.options.gate_sigma
-
-    @property
-    def reacquire_blocks(self) -> int:
-        return int(self.options.reacquire_blocks)
-
-    @property
-    def min_train(self) -> int:
-        return self.options.min_train
-
-    @property
-    def alpha(self) -> float:
-        return self.options.alpha
-
-    @property
-    def extrapolation_limit(self) -> float:
-        return self.options.extrapolation_limit
-
-    @property
-    def gap_warning_blocks(self) -> int:
-        return self.options.gap_warning_blocks
-
-    @property
-    def stepwise_options(self) -> Mapping[str, Any]:
-        # a window's model uses the rows complete in every candidate predictor (the rule
-        # the forecast was validated with); {"missing": "candidate"} for MATLAB's
-        return {"missing": "complete", **dict(self.options.stepwise_options or {})}
 
     def warn_rows(self, row_slice, j: int, message: str, kind: str) -> None:
         self.notes[kind] += 1
@@ -208,7 +165,7 @@ def window_forecast(
                 f"for {_MIN_SHAPE_CHANNELS}+ shared channels): nearest pole in the gate, "
                 "no MAC check"
             ] += 1
-    first, last = _forecast_span(grid.blocks, start_block, end_block, int(options.train_blocks))
+    first, last = forecast_span(grid.blocks, start_block, end_block, int(options.train_blocks))
     run = WindowRun(
         grid=grid,
         options=options,
@@ -244,50 +201,21 @@ def window_forecast(
             break
         window_start += horizon
 
-    _drop_unusable(run.out_phase, run.out_model, run.out_kalman, notes)
-    table = _assemble(
+    drop_unusable(run.out_phase, run.out_model, run.out_kalman, notes)
+    table = assemble_rows(
         grid.blocks,
         grid.block_start,
         grid.mode_labels,
         run.option,
         run.out_phase,
-        run.out_ssi,
-        run.out_model,
-        run.out_lower,
-        run.out_upper,
-        run.out_kalman,
-        run.out_std,
-        run.out_w0,
-        run.out_w1,
-        run.out_order,
-        run.out_damping,
-        run.out_mac,
+        {name: getattr(run, f"out_{name}") for name in ASSEMBLED},
+        (run.out_w0, run.out_w1),
         run.out_warning,
     )
     messages = tuple(f"{kind} (x{count})" for kind, count in notes.items())
     for message in messages:
         warnings.warn(message, ForecastWarning, stacklevel=3)
     return ForecastResult(table=table, warnings=messages, models=tuple(run.models_out))
-
-
-def _forecast_span(blocks, start_block, end_block, train_blocks) -> tuple[int, int]:
-    """Grid rows of the first training block and of the last block forecast."""
-    n_blocks = len(blocks)
-    if start_block is None:
-        first = 0
-    else:
-        first = int(np.searchsorted(blocks, start_block))
-        if first >= n_blocks or blocks[first] != start_block:
-            raise ValueError(f"start_block={start_block} is not a block of predictors")
-    last = n_blocks - 1
-    if end_block is not None:
-        last = int(np.searchsorted(blocks, int(end_block), side="right")) - 1
-    if last - first + 1 < train_blocks + 1:
-        raise ValueError(
-            f"train_blocks={train_blocks} needs at least {train_blocks + 1} blocks from "
-            f"start_block to end_block, got {max(last - first + 1, 0)}"
-        )
-    return first, last
 
 
 def model_window(run: WindowRun, j: int, window: WindowFrame) -> None:
