@@ -199,15 +199,15 @@ def run_temperature_experiment(
         Seed of the observation noise.
     trust : float or None
         Kalman trust in the observations (see
-        :func:`~workbench.forecasting.sliding.sliding_forecast`). Default ``None``: Q from the
+        :class:`~workbench.forecasting.options.ForecastOptions`). Default ``None``: Q from the
         model's mean-prediction variance, R from the observation scatter about the model.
     correction_time_blocks : float
         Time constant of the Kalman correction (model ``"window"``). [blocks]
     model : {"memory", "window"}, optional
         Predictive model (:func:`~workbench.forecasting.sliding_forecast`); default
         ``"window"``, the reference configuration this experiment reproduces. (The
-        ``"memory"`` model reaches 79-87 % here, pooled over 8 seeds: its exponential
-        forgetting and thinned term selection cost accuracy on a stationary law.)
+        ``"memory"`` model's exponential forgetting and thinned term selection cost
+        accuracy on a stationary law: ``benchmarks/results/temperature_experiment.txt``.)
     **simulation
         Passed to :func:`~workbench.simulate.experiment.simulate_temperature_experiment`.
 
