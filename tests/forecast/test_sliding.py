@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -13,9 +14,11 @@ from data_contracts import FORECAST
 from workbench.forecasting import (
     ForecastOptions,
     ForecastWarning,
+    NoiseOptions,
     relaxation_factor,
     sliding_forecast,
 )
+from workbench.forecasting.options import DEFAULT_HORIZON, DEFAULT_TRUST
 
 START = pd.Timestamp("2024-03-01T00:00:00Z")
 
@@ -335,3 +338,126 @@ def test_mode_without_data_at_first_starts_later_and_does_not_disturb_others():
     expected = reference.table[reference.table["mode"] == 1].reset_index(drop=True)
     assert np.array_equal(mode_1["kalman_frequency_hz"], expected["kalman_frequency_hz"])
     FORECAST.validate(result.table)
+
+
+# ------------------------------------------ one ForecastOptions, one set of defaults
+def _forecast_parser():
+    import argparse
+
+    from workbench.cli import build_parser
+
+    parser = build_parser()
+    commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return commands.choices["forecast"]
+
+
+def test_the_command_line_the_stage_and_sliding_forecast_share_one_set_of_defaults():
+    options = ForecastOptions()
+    parser = _forecast_parser()
+    # the command line's defaults are the options' (scheme by name, option by name)
+    assert parser.get_default("scheme") == "rolling" and options.scheme == 2
+    assert parser.get_default("option") == "tracked-pole" and options.options == ("A",)
+    assert parser.get_default("model") == options.model == "memory"
+    assert parser.get_default("train_blocks") == options.train_blocks == 20
+    assert parser.get_default("mac_min") == options.mac_min == 0.9
+    assert parser.get_default("workers") == options.n_workers == 1
+    assert options.horizon_blocks == DEFAULT_HORIZON[2] == 4
+    assert replace(options, scheme="single_window").horizon_blocks == DEFAULT_HORIZON[1] == 34
+    # a window model with trust "auto" takes the documented default weight on SSI
+    assert ForecastOptions(model="window").window_trust == DEFAULT_TRUST == 0.65
+    # sliding_forecast without options runs ForecastOptions(): the memory model, rolling
+    modal, predictors, _ = _tables(n_blocks=60, n_modes=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        plain = sliding_forecast(modal, predictors).table
+        explicit = sliding_forecast(modal, predictors, ForecastOptions()).table
+    pd.testing.assert_frame_equal(plain, explicit)
+    assert "model_probability" in plain.columns  # only the memory model writes it
+    # rolling scheme, horizon 4: the last forecast block is the last block of the data
+    assert plain["block"].max() == 59
+
+
+@pytest.mark.parametrize(
+    ("name", "value"),
+    [
+        ("train_blocks", 3),
+        ("horizon", 0),
+        ("trust", 1.5),
+        ("gate_sigma", 0.0),
+        ("mac_min", 1.0),
+        ("reacquire_blocks", 0),
+        ("reacquire_band", -0.1),
+        ("max_gate", 0.0),
+        ("alpha", 1.0),
+        ("extrapolation_limit", 0.0),
+        ("memory_blocks", 0.0),
+        ("selection_blocks", 4),
+        ("reselect_blocks", 0),
+        ("min_presence", 1.5),
+        ("n_workers", 0),
+        ("model", "ridge"),
+        ("scheme", 3),
+    ],
+)
+def test_a_bad_setting_is_refused_naming_it(name, value):
+    with pytest.raises(ValueError) as error:
+        ForecastOptions(**{name: value})
+    assert str(error.value).startswith(f"{name}={value!r}")
+
+
+def test_trust_only_for_the_window_model():
+    with pytest.raises(ValueError) as error:
+        ForecastOptions(model="memory", trust=0.5)
+    assert "model='window'" in str(error.value)
+    # a number or None given without a model: the window model, the one that takes it
+    assert ForecastOptions(trust=0.5).model == "window"
+    assert ForecastOptions(trust=None).model == "window"
+
+
+def test_each_measurement_option_runs_in_turn_into_one_result():
+    modal, predictors, _ = _tables(n_blocks=60)
+    poles = modal[["block", "frequency_hz", "damping_ratio"]].assign(model_order=20, stable=True)
+    both = ForecastOptions(options=("A", "B"), model="window", scheme=1, horizon=40)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        together = sliding_forecast(modal, predictors, both, poles=poles)
+        alone = [
+            sliding_forecast(modal, predictors, replace(both, options=(o,)), poles=poles)
+            for o in ("A", "B")
+        ]
+    expected = pd.concat([r.table for r in alone], ignore_index=True)
+    pd.testing.assert_frame_equal(together.table, expected)
+    assert list(together.table["option"].unique()) == ["A", "B"]
+    assert len(together.models) == sum(len(r.models) for r in alone) == 4  # 2 modes x 2
+
+
+def test_the_stage_passes_its_options_to_the_filter_unchanged(monkeypatch):
+    """workbench.forecast hands sliding_forecast the caller's ForecastOptions, narrowed to
+    one measurement option at a time, not a dict of keywords rebuilt on the way."""
+    from workbench.stages import forecast
+    from workbench.stages import forecasting as stage
+
+    seen = []
+    real = stage.sliding_forecast
+
+    def spy(modal, predictors, options, **run):
+        seen.append(options)
+        return real(modal, predictors, options, **run)
+
+    monkeypatch.setattr(stage, "sliding_forecast", spy)
+    modal, predictors, _ = _tables(n_blocks=60)
+    poles = modal[["block", "frequency_hz", "damping_ratio"]].assign(model_order=20, stable=True)
+    given = ForecastOptions(
+        options=("A", "B"),
+        model="window",
+        scheme="rolling",
+        train_blocks=24,
+        gate_sigma=2.5,
+        noise=NoiseOptions(huber_sigma=3.0),
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = forecast(modal, predictors, poles=poles, options=given)
+    assert seen == [replace(given, options=("A",)), replace(given, options=("B",))]
+    assert result.options is given
+    assert set(result.table["option"]) == {"A", "B"}

@@ -124,7 +124,7 @@ def method_label(method: int | str) -> Literal[1, 2]:
         return _METHODS[method]  # type: ignore[return-value]
     except (KeyError, TypeError):
         raise ValueError(
-            f"method={method!r} must be 1 ('single_window') or 2 ('rolling')"
+            f"scheme={method!r} must be 'single_window' (1) or 'rolling' (2)"
         ) from None
 
 
