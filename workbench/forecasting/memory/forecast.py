@@ -58,6 +58,7 @@ from collections import Counter
 import numpy as np
 import pandas as pd
 
+from ..assembly import drop_unusable
 from ..excitation import sub_windows_per_block
 from ..fitted_model import _plausible
 from ..innovation_consistency import MIN_BLOCKS, InnovationConsistency
@@ -141,12 +142,10 @@ class MemoryRun:
             self.grid,
             self.X_all,
             self.columns,
-            enabled=options.excitation_bias,
+            options,
             n_modes=self.n_modes,
             first=self.first,
             history_limit=self.history_limit,
-            memory=memory,
-            limit=limit,
         )
         # ---- poles: per-block scatter and option B's chooser
         self.index = PoleIndex(poles, self.blocks) if poles is not None else None
@@ -602,6 +601,7 @@ class MemoryRun:
                 f"leaned on (model probability below 0.5 in all {self.forecast_blocks[j]} "
                 "forecast blocks; the estimate follows SSI)"
             ] += 1
+        drop_unusable(self.out_phase, self.out["model"], self.out["kalman"], self.notes)
         table = assemble_table(
             self.blocks,
             self.block_start,
@@ -609,10 +609,8 @@ class MemoryRun:
             self.option,
             self.out_phase,
             self.out,
-            self.out_w0,
-            self.out_w1,
+            (self.out_w0, self.out_w1),
             self.out_warning,
-            self.notes,
         )
         messages = tuple(f"{kind} (x{count})" for kind, count in self.notes.items())
         for message in messages:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..assembly import assemble_rows, drop_unusable
+from ..assembly import assemble_rows
 
 __all__ = ["OUTPUT_ARRAYS", "assemble_table"]
 
@@ -40,15 +40,13 @@ def assemble_table(
     option: str,
     out_phase: np.ndarray,
     out: dict[str, np.ndarray],
-    out_w0: np.ndarray,
-    out_w1: np.ndarray,
+    windows: tuple[np.ndarray, np.ndarray],
     out_warning: dict[tuple[int, int], list[str]],
-    notes,
 ) -> pd.DataFrame:
-    """Forecast table from the per-row outputs (rows no model could serve dropped)."""
-    drop_unusable(out_phase, out["model"], out["kalman"], notes)
+    """Forecast table from the per-row outputs (rows without a phase left out:
+    :func:`~workbench.forecasting.assembly.drop_unusable` first)."""
     table = assemble_rows(
-        blocks, block_start, mode_labels, option, out_phase, out, (out_w0, out_w1), out_warning
+        blocks, block_start, mode_labels, option, out_phase, out, windows, out_warning
     )
     rows_, cols_ = np.nonzero(out_phase)
     probability = pd.DataFrame(

@@ -11,7 +11,7 @@
 
 Everything the steps share lives on one :class:`WindowRun`: the block grid, the settings
 and the output arrays, so a step reads like the equations in the
-:func:`~workbench.forecasting.sliding_forecast` docstring. Arguments arrive validated.
+:mod:`workbench.forecasting.sliding` docstring. Arguments arrive validated.
 """
 
 from __future__ import annotations
