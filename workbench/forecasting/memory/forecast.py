@@ -137,7 +137,6 @@ class MemoryRun:
         self.train = int(options.train_blocks)
         memory = float(options.memory_blocks)
         self.history_limit = int(math.ceil(_HISTORY_CONSTANTS * memory))
-        limit = float(options.extrapolation_limit)
         self.bias = excitation_bias(
             self.grid,
             self.X_all,
@@ -163,16 +162,7 @@ class MemoryRun:
 
             labels = case_labels(self.grid, cases).to_numpy()
         self.refits = MemoryRefits(
-            options,
-            self.X_all,
-            self.columns,
-            self.meas,
-            labels,
-            self.first,
-            options.min_train,
-            self.history_limit,
-            memory,
-            limit,
+            options, self.X_all, self.columns, self.meas, labels, self.first, self.history_limit
         )
 
     def _grid_and_modes(self, modal, predictors, modes) -> None:
