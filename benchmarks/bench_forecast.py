@@ -25,6 +25,7 @@ from pathlib import Path
 import pandas as pd
 
 from data_contracts import MODAL, PREDICTORS, read_table
+from workbench.forecasting import ForecastOptions
 from workbench.stages import forecast_modes
 
 TARGET_S = 60.0
@@ -79,13 +80,15 @@ def main(argv=None) -> int:
                 table, _ = forecast_modes(
                     modal,
                     predictors,
-                    option="A",
-                    scheme=2,
-                    train_blocks=20,
-                    horizon=4,
-                    trust=None,
-                    model=name,
-                    n_workers=jobs,
+                    ForecastOptions(
+                        options=("A",),
+                        scheme=2,
+                        train_blocks=20,
+                        horizon=4,
+                        trust=None,
+                        model=name,
+                        n_workers=jobs,
+                    ),
                 )
                 times[name, jobs].append(time.perf_counter() - start)
                 tables[name, jobs] = table

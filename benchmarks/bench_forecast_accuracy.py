@@ -43,7 +43,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from forecast_regimes import ALL_REGIMES, REGIMES, UNRECORDED, make_regime  # noqa: E402
 
-from workbench.forecasting import sliding_forecast  # noqa: E402
+from workbench.forecasting import (
+    ForecastOptions,
+    sliding_forecast,  # noqa: E402
+)
 
 
 def score(
@@ -84,7 +87,8 @@ def score(
 
 
 MODEL = "memory"
-MODEL_OPTIONS = None
+#: Settings of ForecastOptions other than the defaults (--no-excitation-bias).
+MODEL_OPTIONS: dict = {}
 
 
 def _forecast(modal, predictors, poles, option, method):
@@ -93,11 +97,8 @@ def _forecast(modal, predictors, poles, option, method):
         return sliding_forecast(
             modal,
             predictors,
+            ForecastOptions(options=(option,), scheme=method, model=MODEL, **MODEL_OPTIONS),
             poles=poles,
-            option=option,
-            scheme=method,
-            model=MODEL,
-            model_options=MODEL_OPTIONS,
         ).table
 
 
@@ -261,9 +262,7 @@ def main(argv=None) -> int:
     global MODEL, MODEL_OPTIONS
     MODEL = args.model
     if args.no_excitation_bias:
-        from workbench.forecasting.options import ModelOptions
-
-        MODEL_OPTIONS = ModelOptions(excitation_bias=False)
+        MODEL_OPTIONS = {"excitation_bias": False}
     methods = [int(m) for m in args.methods.split(",")]
     options = args.options.split(",")
     shapes_list = {"both": (True, False), "with": (True,), "without": (False,)}[args.shapes]

@@ -38,8 +38,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_real_data import REALDATA, _write_npz, identify_command, recordings  # noqa: E402
 
 from workbench.forecasting.measurement import PoleIndex  # noqa: E402
-from workbench.forecasting.memory_poles import option_b_chooser  # noqa: E402
-from workbench.forecasting.options import MeasurementOptions  # noqa: E402
+from workbench.forecasting.memory.poles import option_b_chooser  # noqa: E402
+from workbench.forecasting.options import ForecastOptions  # noqa: E402
 
 #: Relative offsets of the prediction from the reference frequency. [-]
 OFFSETS = (0.0, 0.01, -0.01)
@@ -81,7 +81,7 @@ def evaluate(recording, poles: pd.DataFrame, tracked: pd.DataFrame) -> list[dict
         index = PoleIndex(pol, blocks)
         for offset in OFFSETS:
             chooser = option_b_chooser(
-                pol, mod, blocks, labels, index, MeasurementOptions(option="B"), Counter()
+                pol, mod, blocks, labels, index, ForecastOptions(options=("B",)), Counter()
             )
             errors, a_errors = [], []
             n = 0

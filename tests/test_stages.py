@@ -10,6 +10,7 @@ from data_contracts import FORECAST, MODAL, PREDICTORS, read_table
 from workbench.blocks import block_grid_of
 from workbench.cli import main
 from workbench.errors import WorkbenchError
+from workbench.forecasting import ForecastOptions
 from workbench.stages import evaluate, forecast_modes
 
 PREDICTOR_COLUMNS = ["speed_kn", "water_temp_c", "air_temp_c", "wind_speed_ms", "wind_dir_rel_deg"]
@@ -42,9 +43,9 @@ def tables(voyage):
 )
 def test_forecast_modes_split_over_processes_is_identical(tables, model_kwargs):
     modal, predictors, _ = tables
-    kwargs = dict(option="A", scheme=2, train_blocks=20, horizon=4, **model_kwargs)
-    one, _ = forecast_modes(modal, predictors, n_workers=1, **kwargs)
-    two, _ = forecast_modes(modal, predictors, n_workers=2, **kwargs)
+    kwargs = dict(options=("A",), scheme=2, train_blocks=20, horizon=4, **model_kwargs)
+    one, _ = forecast_modes(modal, predictors, ForecastOptions(n_workers=1, **kwargs))
+    two, _ = forecast_modes(modal, predictors, ForecastOptions(n_workers=2, **kwargs))
     pd.testing.assert_frame_equal(one, two, check_exact=True)
     FORECAST.validate(one)
     assert sorted(one["mode"].unique()) == list(range(1, 8))
@@ -54,7 +55,11 @@ def test_evaluate_pairs_labels_and_beats_ssi(tables):
     """Kalman estimates beat the imitated SSI scatter on the demo voyage; relabelling the
     modes (as tracking with an extra spurious mode would) does not change the result."""
     modal, predictors, truth = tables
-    table, _ = forecast_modes(modal, predictors, option="A", scheme=2, train_blocks=20, horizon=4)
+    table, _ = forecast_modes(
+        modal,
+        predictors,
+        ForecastOptions(options=("A",), scheme=2, train_blocks=20, horizon=4, model="window"),
+    )
     plain = evaluate(table, truth).table
     shifted = table.assign(mode=table["mode"] + 10)
     relabelled = evaluate(shifted, truth).table

@@ -78,7 +78,7 @@ def test_every_option_with_a_default_shows_it(command):
 def test_defaults_are_the_library_defaults():
     """The command line shows the library's defaults (defaults.py reads them; a copy here
     would let them drift apart silently)."""
-    from workbench.forecasting.options import MeasurementOptions
+    from workbench.forecasting.options import ForecastOptions
     from workbench.identification import IdentifyOptions
     from workbench.sid.tracking import TrackingOptions
 
@@ -91,7 +91,7 @@ def test_defaults_are_the_library_defaults():
     assert get["identify"]("method") == identify.method
     assert get["track"]("mac_min") == TrackingOptions().mac_min
     assert get["track"]("frequency_tol") == TrackingOptions().frequency_tol
-    assert get["forecast"]("mac_min") == MeasurementOptions().mac_min
+    assert get["forecast"]("mac_min") == ForecastOptions().mac_min
     assert get["fit"]("p_enter") == defaults.FIT_P_ENTER == 0.05
     # the model-order step is no longer hard-coded in the command
     assert defaults.IDENTIFY_ORDER_STEP == identify.orders[1] - identify.orders[0]
@@ -223,7 +223,6 @@ def test_deprecated_keywords_map_onto_the_new_ones():
 
 
 def test_deprecated_fields_of_the_options():
-    from workbench.forecasting.options import MeasurementOptions
     from workbench.identification import IdentifyOptions
     from workbench.sid.tracking import TrackingOptions
 
@@ -232,8 +231,6 @@ def test_deprecated_fields_of_the_options():
     assert old == TrackingOptions(mac_min=0.8, frequency_tol=0.02)
     with pytest.warns(DeprecationWarning):
         assert old.threshold == 0.8
-    with pytest.warns(DeprecationWarning, match="shape_mac_min"):
-        assert MeasurementOptions(shape_mac_min=0.7).mac_min == 0.7
     with pytest.warns(DeprecationWarning, match="max_damping"):
         identify = IdentifyOptions(max_damping=0.2)
     assert identify.damping_limits == (0.001, 0.2)

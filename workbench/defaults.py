@@ -15,8 +15,7 @@ import inspect
 from pathlib import Path
 
 from .blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
-from .forecasting.options import DEFAULT_MODEL, MeasurementOptions
-from .forecasting.sliding import DEFAULT_HORIZON
+from .forecasting.options import DEFAULT_HORIZON, DEFAULT_TRUST, ForecastOptions
 from .identification import IdentifyOptions
 from .shm import HealthOptions
 from .sid.harmonics import HarmonicOptions
@@ -32,7 +31,7 @@ def _keyword_default(function, name: str):
 
 _IDENTIFY = IdentifyOptions()
 _TRACK = TrackingOptions()
-_MEASUREMENT = MeasurementOptions()
+_FORECAST = ForecastOptions()
 _HEALTH = HealthOptions()
 
 # --------------------------------------------------------------------------- blocks
@@ -91,16 +90,19 @@ FIT_UPPER = "interactions"
 FORECAST_OPTION = "tracked-pole"
 #: The reference work's method 2.
 FORECAST_SCHEME = "rolling"
-FORECAST_TRAIN_BLOCKS = 20
+FORECAST_TRAIN_BLOCKS = _FORECAST.train_blocks
 #: Forecast horizon per scheme. [blocks]
 FORECAST_HORIZON = {"single-window": DEFAULT_HORIZON[1], "rolling": DEFAULT_HORIZON[2]}
 #: The predictive model ("memory"; "window" is the reference configuration).
-FORECAST_MODEL = DEFAULT_MODEL
+FORECAST_MODEL = _FORECAST.model
 #: Steady-state weight on the SSI estimate of ``--model window``. [-]
-FORECAST_TRUST = 0.65
-FORECAST_MAC_MIN = _MEASUREMENT.mac_min
-FORECAST_REACQUIRE_BLOCKS = {"memory": _MEASUREMENT.reacquire_blocks, "window": 1}
-FORECAST_WORKERS = 1
+FORECAST_TRUST = DEFAULT_TRUST
+FORECAST_MAC_MIN = _FORECAST.mac_min
+FORECAST_REACQUIRE_BLOCKS = {
+    "memory": _FORECAST.reacquire_blocks,
+    "window": _FORECAST.reacquire_blocks,
+}
+FORECAST_WORKERS = _FORECAST.n_workers
 
 # --------------------------------------------------------------------------- evaluate, health
 EVALUATE_PHASE = "forecast"

@@ -8,11 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from workbench.forecasting import (
-    chain_natural_frequencies,
-    evaluate_against_truth,
-    simulate_temperature_experiment,
-)
+from workbench.forecasting import evaluate_against_truth
+from workbench.simulate.experiment import chain_natural_frequencies, simulate_temperature_experiment
 
 
 def test_chain_frequencies_match_closed_form():

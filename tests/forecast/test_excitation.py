@@ -7,13 +7,12 @@ import warnings
 import numpy as np
 import pandas as pd
 
-from workbench.forecasting import sliding_forecast
+from workbench.forecasting import ForecastOptions, sliding_forecast
 from workbench.forecasting.excitation import (
     sub_windows_per_block,
     within_block_profile,
     within_block_variance,
 )
-from workbench.forecasting.options import ModelOptions
 
 
 def _block_means(sub_windows: np.ndarray, n_sub: int = 4) -> np.ndarray:
@@ -117,9 +116,9 @@ def _kalman_error(predictors, modal, truth, excitation_bias):
         table = sliding_forecast(
             modal,
             predictors,
-            method=2,
-            model="memory",
-            model_options=ModelOptions(excitation_bias=excitation_bias, time_trend=False),
+            ForecastOptions(
+                scheme=2, model="memory", excitation_bias=excitation_bias, time_trend=False
+            ),
         ).table
     part = table[table["phase"] == "forecast"]
     estimate = part.pivot(index="block", columns="mode", values="kalman_frequency_hz")

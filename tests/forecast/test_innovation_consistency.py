@@ -91,7 +91,7 @@ def test_in_sample_rows_are_not_recorded_and_nan_rows_are_skipped():
 
 
 def test_noise_option_sets_the_window_and_zero_turns_the_safeguard_off():
-    from workbench.forecasting import sliding_forecast
+    from workbench.forecasting import ForecastOptions, sliding_forecast
     from workbench.forecasting.options import NoiseOptions
 
     with pytest.raises(ValueError, match="consistency_blocks"):
@@ -117,9 +117,9 @@ def test_noise_option_sets_the_window_and_zero_turns_the_safeguard_off():
             tables[blocks] = sliding_forecast(
                 modal,
                 predictors,
-                scheme=2,
-                model="memory",
-                noise_options=NoiseOptions(consistency_blocks=blocks),
+                ForecastOptions(
+                    scheme=2, model="memory", noise=NoiseOptions(consistency_blocks=blocks)
+                ),
             ).table
     on, off = (tables[b]["kalman_frequency_hz"].to_numpy() for b in (WINDOW_BLOCKS, 0))
     assert np.array_equal(np.isnan(on), np.isnan(off))

@@ -12,25 +12,21 @@ import pytest
 
 from data_contracts import FORECAST
 from workbench.forecasting import (
+    ForecastOptions,
     ForecastWarning,
     scalar_kalman_predict,
     scalar_kalman_update,
     sliding_forecast,
 )
-from workbench.forecasting.blend import kalman_pass_step
 from workbench.forecasting.measurement import ClusterChooser, PoleIndex
+from workbench.forecasting.memory.forecast import kalman_pass_step
 from workbench.forecasting.noise import (
     MIN_OUT_OF_SAMPLE,
     NoiseModel,
     estimate_noise,
     model_error_floor,
 )
-from workbench.forecasting.options import (
-    MeasurementOptions,
-    ModelOptions,
-    method_label,
-    option_label,
-)
+from workbench.forecasting.options import method_label, option_label
 
 
 def _ar1(rng, n, rho, std):
@@ -270,7 +266,7 @@ def test_names_and_aliases():
     with pytest.raises(ValueError, match="option"):
         option_label("C")
     with pytest.raises(ValueError, match="max_gate"):
-        MeasurementOptions(max_gate=0.0)
+        ForecastOptions(max_gate=0.0)
 
 
 def test_memory_model_learns_the_law_across_speeds_and_table_validates():
@@ -288,7 +284,7 @@ def test_memory_model_learns_the_law_across_speeds_and_table_validates():
     modal = pd.DataFrame({"block": block, "block_start": start, "mode": 0, "frequency_hz": z})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ForecastWarning)
-        table = sliding_forecast(modal, predictors, method=2, model="memory").table
+        table = sliding_forecast(modal, predictors, ForecastOptions(scheme=2, model="memory")).table
     FORECAST.validate(table)
     part = table[table["phase"] == "forecast"]
     t = truth[part["block"].to_numpy()]
@@ -323,10 +319,8 @@ def test_memory_model_with_operating_cases_learns_each_cases_law():
             table = sliding_forecast(
                 modal,
                 predictors,
-                method=2,
-                model="memory",
+                ForecastOptions(scheme=2, model="memory", time_trend=False),
                 cases=cases,
-                model_options=ModelOptions(time_trend=False),
             ).table
             part = table[(table["phase"] == "forecast") & (table["block"] >= 120)]
             errors[cases] = float(
@@ -357,11 +351,7 @@ def test_terms_are_selected_again_when_the_ship_leaves_the_selections_speed_rang
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ForecastWarning)
         result = sliding_forecast(
-            modal,
-            predictors,
-            method=2,
-            model="memory",
-            model_options=ModelOptions(time_trend=False),
+            modal, predictors, ForecastOptions(scheme=2, model="memory", time_trend=False)
         )
     with_speed = [m.window_end_block + 1 for m in result.models if "speed_kn" in m.terms]
     assert with_speed and min(with_speed) <= 48
@@ -394,7 +384,7 @@ def test_a_mode_absent_for_longer_than_the_selection_window_is_still_forecast():
     )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ForecastWarning)
-        table = sliding_forecast(modal, predictors, method=2, model="memory").table
+        table = sliding_forecast(modal, predictors, ForecastOptions(scheme=2, model="memory")).table
     late = table[table["block"] >= 400]
     assert len(late) == 20 and late["kalman_frequency_hz"].notna().all()
     assert np.abs(late["model_frequency_hz"] - truth[late["block"].to_numpy()]).max() < 0.05
@@ -423,7 +413,9 @@ def test_the_combined_uncertainty_is_the_blocks_measurement_noise():
     ]:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ForecastWarning)
-            out = sliding_forecast(table, predictors, scheme=2, model="memory").table
+            out = sliding_forecast(
+                table, predictors, ForecastOptions(scheme=2, model="memory")
+            ).table
         part = out[out["phase"] == "forecast"]
         t = truth[part["block"].to_numpy()]
         errors[name] = float(np.abs(part["kalman_frequency_hz"] - t).mean())

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from data_contracts import FORECAST, MODAL, ContractError
-from workbench.forecasting import ForecastWarning, sliding_forecast
+from workbench.forecasting import ForecastOptions, ForecastWarning, sliding_forecast
 
 START = pd.Timestamp("2024-03-01T00:00:00Z")
 
@@ -42,7 +42,9 @@ def test_any_integer_label_is_accepted_and_kept(labels):
     MODAL.validate(modal)  # used to refuse 0 ("values outside [1, None]")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ForecastWarning)
-        table = sliding_forecast(modal, predictors, horizon=10).table
+        table = sliding_forecast(
+            modal, predictors, ForecastOptions(horizon=10, model="window", scheme=1)
+        ).table
     FORECAST.validate(table)
     assert sorted(table["mode"].unique()) == sorted(labels)
     # each label's forecast follows its own mode (3 Hz and 5 Hz), not a renumbered one

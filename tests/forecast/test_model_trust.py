@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from data_contracts import FORECAST
-from workbench.forecasting import ForecastWarning, sliding_forecast
+from workbench.forecasting import ForecastOptions, ForecastWarning, sliding_forecast
 from workbench.forecasting.model_trust import PRIOR_PROBABILITY, ModelTrust
 from workbench.forecasting.noise import estimate_noise, identification_error_bound
 from workbench.forecasting.options import NoiseOptions
@@ -154,7 +154,9 @@ def test_forecast_falls_back_to_ssi_after_an_unrecorded_step_and_says_so():
     predictors, modal, truth = _voyage_with_unrecorded_step()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = sliding_forecast(modal, predictors, option="A", scheme=2, model="memory")
+        result = sliding_forecast(
+            modal, predictors, ForecastOptions(options=("A",), scheme=2, model="memory")
+        )
     table = result.table
     FORECAST.validate(table)
     after = table[(table["block"] >= 160) & (table["phase"] == "forecast")]
@@ -176,7 +178,9 @@ def test_no_note_while_the_model_explains_the_mode():
     predictors, modal, truth = _voyage_with_unrecorded_step(step_hz=0.0)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        table = sliding_forecast(modal, predictors, option="A", scheme=2, model="memory").table
+        table = sliding_forecast(
+            modal, predictors, ForecastOptions(options=("A",), scheme=2, model="memory")
+        ).table
     forecast = table[table["phase"] == "forecast"]
     assert forecast["model_probability"].iloc[0] < 0.5  # the prior
     assert forecast["model_probability"].max() >= 0.5
@@ -191,10 +195,9 @@ def test_model_trust_can_be_switched_off():
         table = sliding_forecast(
             modal,
             predictors,
-            option="A",
-            scheme=2,
-            model="memory",
-            noise_options=NoiseOptions(model_trust=False),
+            ForecastOptions(
+                options=("A",), scheme=2, model="memory", noise=NoiseOptions(model_trust=False)
+            ),
         ).table
     assert table["model_probability"].isna().all()
 

@@ -15,7 +15,7 @@ import warnings
 import numpy as np
 import pandas as pd
 
-from workbench.forecasting import evaluate_against_truth, sliding_forecast
+from workbench.forecasting import ForecastOptions, evaluate_against_truth, sliding_forecast
 from workbench.forecasting.measurement import nearer_to_another_mode
 
 MODES_HZ = np.array([2.9, 4.7, 5.3, 5.5, 7.1, 7.6, 8.3])
@@ -77,7 +77,10 @@ def test_option_b_without_shapes_is_not_worse_than_the_tracked_pole_on_a_close_p
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             results[option] = sliding_forecast(
-                modal, predictors, poles=poles, option=option, scheme="rolling", model="memory"
+                modal,
+                predictors,
+                ForecastOptions(options=(option,), scheme="rolling", model="memory"),
+                poles=poles,
             ).table
     both = pd.concat([results["A"].assign(option="A"), results["B"].assign(option="B")])
     evaluation = evaluate_against_truth(both, truth).set_index(["option", "mode"])

@@ -13,7 +13,7 @@ import warnings
 import numpy as np
 import pandas as pd
 
-from workbench.forecasting import sliding_forecast
+from workbench.forecasting import ForecastOptions, sliding_forecast
 from workbench.forecasting.measurement import ClusterChooser, PoleIndex
 
 ORDERS = np.arange(20, 61, 2)
@@ -97,7 +97,10 @@ def _voyage(seed=0, n=200, outlier=range(100, 104), step_block=150, step_hz=0.08
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         table = sliding_forecast(
-            modal, predictors, poles=poles, option="B", scheme="rolling", model="memory"
+            modal,
+            predictors,
+            ForecastOptions(options=("B",), scheme="rolling", model="memory"),
+            poles=poles,
         ).table
     return table.set_index("block"), truth
 

@@ -18,7 +18,7 @@ import pandas as pd
 import pytest
 
 from data_contracts import FORECAST, shapes_to_frame
-from workbench.forecasting import ForecastWarning, ModeKalmanBank, sliding_forecast
+from workbench.forecasting import ForecastOptions, ForecastWarning, ModeKalmanBank, sliding_forecast
 from workbench.forecasting.pole_selection import _mac_on_common_channels
 from workbench.sid.assurance import mac
 
@@ -99,16 +99,14 @@ def _regime_change_case(seed: int = 3):
 def _run(modal, predictors, poles, **kwargs):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ForecastWarning)
-        result = sliding_forecast(
-            modal,
-            predictors,
-            poles=poles,
-            option="B",
-            method=1,
+        options = ForecastOptions(
+            options=("B",),
+            scheme=1,
             horizon=N_BLOCKS - 20,
             predictor_columns=["water_temp_c", "speed_kn"],
             **{"model": "window", **kwargs},
         )
+        result = sliding_forecast(modal, predictors, options, poles=poles)
     messages = [str(w.message) for w in caught if issubclass(w.category, ForecastWarning)]
     return result.table.set_index("block"), messages
 
@@ -184,9 +182,8 @@ def test_stricter_shape_threshold_than_any_pole_means_predict_only():
     ],
 )
 def test_bad_option_b_parameters_raise(name, value):
-    modal, predictors, poles, _, _ = _regime_change_case()
     with pytest.raises(ValueError, match=name):
-        sliding_forecast(modal, predictors, poles=poles, option="B", **{name: value})
+        ForecastOptions(options=("B",), **{name: value})
 
 
 def test_mac_on_common_channels_matches_mac_of_the_shared_components():

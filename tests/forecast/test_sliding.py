@@ -4,13 +4,21 @@ from __future__ import annotations
 
 import math
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
 import pytest
 
 from data_contracts import FORECAST
-from workbench.forecasting import ForecastWarning, relaxation_factor, sliding_forecast
+from workbench.forecasting import (
+    ForecastOptions,
+    ForecastWarning,
+    NoiseOptions,
+    relaxation_factor,
+    sliding_forecast,
+)
+from workbench.forecasting.options import DEFAULT_HORIZON, DEFAULT_TRUST
 
 START = pd.Timestamp("2024-03-01T00:00:00Z")
 
@@ -49,11 +57,15 @@ def _tables(n_blocks=80, n_modes=2, noise=0.002, seed=0):
     return modal, predictors, truth
 
 
-def _quiet(**kwargs):
+def _quiet(modal, predictors, poles=None, option="A", **settings):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ForecastWarning)
-        # the reference configuration (20-block window, trust) unless a test says otherwise
-        return sliding_forecast(**{"model": "window", **kwargs})
+        # the reference configuration (20-block window, trust, single window) unless a test
+        # says otherwise
+        options = ForecastOptions(
+            **{"model": "window", "scheme": 1, "options": (option,), **settings}
+        )
+        return sliding_forecast(modal, predictors, options, poles=poles)
 
 
 def test_table_validates_against_forecast_contract_options_a_and_b():
@@ -197,7 +209,7 @@ def test_no_look_ahead_window_model_ignores_later_predictors():
 
 def test_method_2_slides_by_horizon_and_trains_on_kalman_estimates():
     modal, predictors, _ = _tables(n_blocks=60, n_modes=1)
-    result = _quiet(modal=modal, predictors=predictors, method=2, horizon=4)
+    result = _quiet(modal=modal, predictors=predictors, scheme=2, horizon=4)
     table = result.table.set_index("block")
     assert table.index.tolist() == list(range(60))  # continuous
     starts = [m.window_start_block for m in result.models]
@@ -215,7 +227,9 @@ def test_too_few_valid_blocks_falls_back_and_warns():
     modal, predictors, _ = _tables(n_modes=1)
     modal = modal[~modal["block"].between(3, 18)]  # 4 of 20 training blocks left
     with pytest.warns(ForecastWarning, match="too few valid blocks"):
-        result = sliding_forecast(modal, predictors, horizon=30, model="window")
+        result = sliding_forecast(
+            modal, predictors, ForecastOptions(horizon=30, model="window", scheme=1)
+        )
     assert result.models[0].kind == "constant"
     table = result.table
     assert len(table) == 50 and table["kalman_frequency_hz"].notna().all()
@@ -229,7 +243,9 @@ def test_last_good_model_reused_when_a_later_window_cannot_be_fitted():
     modal, predictors, _ = _tables(n_blocks=60, n_modes=1)
     predictors.loc[predictors["block"] >= 24, ["water_temp_c", "speed_kn"]] = np.nan
     with pytest.warns(ForecastWarning):
-        result = sliding_forecast(modal, predictors, method=2, horizon=4, model="window")
+        result = sliding_forecast(
+            modal, predictors, ForecastOptions(scheme=2, horizon=4, model="window")
+        )
     kinds = [m.kind for m in result.models]
     assert kinds[0] == "stepwise"
     assert "constant" in kinds or "last_good" in kinds
@@ -246,7 +262,9 @@ def test_constant_and_nan_predictors_are_left_out_with_warning():
     predictors["speed_kn"] = 12.0  # constant
     predictors["air_temp_c"] = np.nan  # dead channel for the whole voyage
     with pytest.warns(ForecastWarning) as record:
-        result = sliding_forecast(modal, predictors, horizon=20, model="window")
+        result = sliding_forecast(
+            modal, predictors, ForecastOptions(horizon=20, model="window", scheme=1)
+        )
     text = " ".join(str(w.message) for w in record)
     assert "'speed_kn' left out: constant" in text
     assert "'air_temp_c' left out" in text
@@ -259,7 +277,11 @@ def test_predictor_nan_for_hours_uses_constant_model_for_those_blocks():
     predictors.loc[predictors["block"].between(30, 45), "water_temp_c"] = np.nan
     with pytest.warns(ForecastWarning, match="constant model"):
         result = sliding_forecast(
-            modal, predictors, horizon=40, predictor_columns=["water_temp_c"], model="window"
+            modal,
+            predictors,
+            ForecastOptions(
+                horizon=40, predictor_columns=["water_temp_c"], model="window", scheme=1
+            ),
         )
     table = result.table.set_index("block")
     level = modal.loc[modal["block"] < 20, "frequency_hz"].mean()
@@ -273,7 +295,9 @@ def test_mode_that_disappears_and_returns_rejoins_its_track():
     modal, predictors, truth = _tables(n_blocks=100, n_modes=2, noise=0.001)
     modal = modal[~((modal["mode"] == 2) & modal["block"].between(25, 64))]
     with pytest.warns(ForecastWarning, match="without SSI"):
-        result = sliding_forecast(modal, predictors, horizon=80, model="window")
+        result = sliding_forecast(
+            modal, predictors, ForecastOptions(horizon=80, model="window", scheme=1)
+        )
     table = result.table[result.table["mode"] == 2].set_index("block")
     assert len(table) == 100
     kalman = table["kalman_frequency_hz"].to_numpy()
@@ -284,21 +308,29 @@ def test_mode_that_disappears_and_returns_rejoins_its_track():
 def test_bad_arguments_raise():
     modal, predictors, _ = _tables()
     with pytest.raises(ValueError, match="option='B' needs poles"):
-        sliding_forecast(modal, predictors, option="B")
+        sliding_forecast(
+            modal, predictors, ForecastOptions(options=("B",), model="window", scheme=1)
+        )
     with pytest.raises(ValueError, match="train_blocks=90 needs at least 91 blocks"):
-        sliding_forecast(modal, predictors, train_blocks=90)
+        sliding_forecast(
+            modal, predictors, ForecastOptions(train_blocks=90, model="window", scheme=1)
+        )
     with pytest.raises(ValueError, match="trust=1.5"):
-        sliding_forecast(modal, predictors, trust=1.5)
+        sliding_forecast(modal, predictors, ForecastOptions(trust=1.5, model="window", scheme=1))
     with pytest.raises(ValueError, match="start_block=7.5"):
-        sliding_forecast(modal, predictors, start_block=7.5)
+        sliding_forecast(
+            modal, predictors, ForecastOptions(model="window", scheme=1), start_block=7.5
+        )
 
 
 def test_mode_without_data_at_first_starts_later_and_does_not_disturb_others():
     modal, predictors, _ = _tables(n_blocks=60, n_modes=2)
-    reference = _quiet(modal=modal, predictors=predictors, method=2, horizon=4)
+    reference = _quiet(modal=modal, predictors=predictors, scheme=2, horizon=4)
     late = modal[~((modal["mode"] == 2) & (modal["block"] < 30))]
     with pytest.warns(ForecastWarning, match="no data yet"):
-        result = sliding_forecast(late, predictors, method=2, horizon=4, model="window")
+        result = sliding_forecast(
+            late, predictors, ForecastOptions(scheme=2, horizon=4, model="window")
+        )
     mode_2 = result.table[result.table["mode"] == 2]
     assert mode_2["block"].min() >= 30 and mode_2["block"].max() == 59
     assert np.isfinite(mode_2["kalman_frequency_hz"]).all()
@@ -306,3 +338,126 @@ def test_mode_without_data_at_first_starts_later_and_does_not_disturb_others():
     expected = reference.table[reference.table["mode"] == 1].reset_index(drop=True)
     assert np.array_equal(mode_1["kalman_frequency_hz"], expected["kalman_frequency_hz"])
     FORECAST.validate(result.table)
+
+
+# ------------------------------------------ one ForecastOptions, one set of defaults
+def _forecast_parser():
+    import argparse
+
+    from workbench.cli import build_parser
+
+    parser = build_parser()
+    commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return commands.choices["forecast"]
+
+
+def test_the_command_line_the_stage_and_sliding_forecast_share_one_set_of_defaults():
+    options = ForecastOptions()
+    parser = _forecast_parser()
+    # the command line's defaults are the options' (scheme by name, option by name)
+    assert parser.get_default("scheme") == "rolling" and options.scheme == 2
+    assert parser.get_default("option") == "tracked-pole" and options.options == ("A",)
+    assert parser.get_default("model") == options.model == "memory"
+    assert parser.get_default("train_blocks") == options.train_blocks == 20
+    assert parser.get_default("mac_min") == options.mac_min == 0.9
+    assert parser.get_default("workers") == options.n_workers == 1
+    assert options.horizon_blocks == DEFAULT_HORIZON[2] == 4
+    assert replace(options, scheme="single_window").horizon_blocks == DEFAULT_HORIZON[1] == 34
+    # a window model with trust "auto" takes the documented default weight on SSI
+    assert ForecastOptions(model="window").window_trust == DEFAULT_TRUST == 0.65
+    # sliding_forecast without options runs ForecastOptions(): the memory model, rolling
+    modal, predictors, _ = _tables(n_blocks=60, n_modes=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        plain = sliding_forecast(modal, predictors).table
+        explicit = sliding_forecast(modal, predictors, ForecastOptions()).table
+    pd.testing.assert_frame_equal(plain, explicit)
+    assert "model_probability" in plain.columns  # only the memory model writes it
+    # rolling scheme, horizon 4: the last forecast block is the last block of the data
+    assert plain["block"].max() == 59
+
+
+@pytest.mark.parametrize(
+    ("name", "value"),
+    [
+        ("train_blocks", 3),
+        ("horizon", 0),
+        ("trust", 1.5),
+        ("gate_sigma", 0.0),
+        ("mac_min", 1.0),
+        ("reacquire_blocks", 0),
+        ("reacquire_band", -0.1),
+        ("max_gate", 0.0),
+        ("alpha", 1.0),
+        ("extrapolation_limit", 0.0),
+        ("memory_blocks", 0.0),
+        ("selection_blocks", 4),
+        ("reselect_blocks", 0),
+        ("min_presence", 1.5),
+        ("n_workers", 0),
+        ("model", "ridge"),
+        ("scheme", 3),
+    ],
+)
+def test_a_bad_setting_is_refused_naming_it(name, value):
+    with pytest.raises(ValueError) as error:
+        ForecastOptions(**{name: value})
+    assert str(error.value).startswith(f"{name}={value!r}")
+
+
+def test_trust_only_for_the_window_model():
+    with pytest.raises(ValueError) as error:
+        ForecastOptions(model="memory", trust=0.5)
+    assert "model='window'" in str(error.value)
+    # a number or None given without a model: the window model, the one that takes it
+    assert ForecastOptions(trust=0.5).model == "window"
+    assert ForecastOptions(trust=None).model == "window"
+
+
+def test_each_measurement_option_runs_in_turn_into_one_result():
+    modal, predictors, _ = _tables(n_blocks=60)
+    poles = modal[["block", "frequency_hz", "damping_ratio"]].assign(model_order=20, stable=True)
+    both = ForecastOptions(options=("A", "B"), model="window", scheme=1, horizon=40)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        together = sliding_forecast(modal, predictors, both, poles=poles)
+        alone = [
+            sliding_forecast(modal, predictors, replace(both, options=(o,)), poles=poles)
+            for o in ("A", "B")
+        ]
+    expected = pd.concat([r.table for r in alone], ignore_index=True)
+    pd.testing.assert_frame_equal(together.table, expected)
+    assert list(together.table["option"].unique()) == ["A", "B"]
+    assert len(together.models) == sum(len(r.models) for r in alone) == 4  # 2 modes x 2
+
+
+def test_the_stage_passes_its_options_to_the_filter_unchanged(monkeypatch):
+    """workbench.forecast hands sliding_forecast the caller's ForecastOptions, narrowed to
+    one measurement option at a time, not a dict of keywords rebuilt on the way."""
+    from workbench.stages import forecast
+    from workbench.stages import forecasting as stage
+
+    seen = []
+    real = stage.sliding_forecast
+
+    def spy(modal, predictors, options, **run):
+        seen.append(options)
+        return real(modal, predictors, options, **run)
+
+    monkeypatch.setattr(stage, "sliding_forecast", spy)
+    modal, predictors, _ = _tables(n_blocks=60)
+    poles = modal[["block", "frequency_hz", "damping_ratio"]].assign(model_order=20, stable=True)
+    given = ForecastOptions(
+        options=("A", "B"),
+        model="window",
+        scheme="rolling",
+        train_blocks=24,
+        gate_sigma=2.5,
+        noise=NoiseOptions(huber_sigma=3.0),
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = forecast(modal, predictors, poles=poles, options=given)
+    assert seen == [replace(given, options=("A",)), replace(given, options=("B",))]
+    assert result.options is given
+    assert set(result.table["option"]) == {"A", "B"}

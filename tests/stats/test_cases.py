@@ -162,15 +162,16 @@ def test_case_training_mask_hook():
 
 def test_sliding_forecast_trains_on_the_current_case():
     from workbench.forecasting import sliding_forecast
+    from workbench.forecasting.options import ForecastOptions
 
     modal, predictors, moving = _voyage(150, seed=1)
     labels = derive_cases(predictors).to_numpy()
-    common = {"method": 1, "train_blocks": 40, "horizon": 10, "trust": 0.65}
+    common = ForecastOptions(model="window", scheme=1, train_blocks=40, horizon=10, trust=0.65)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         # window 15-54: blocks 30-54 are under way (25 rows), the forecast starts at 55
-        result = sliding_forecast(modal, predictors, start_block=15, cases="derive", **common)
-        stitched = sliding_forecast(modal, predictors, start_block=15, **common)
+        result = sliding_forecast(modal, predictors, common, start_block=15, cases="derive")
+        stitched = sliding_forecast(modal, predictors, common, start_block=15)
     model = result.models[0]
     assert labels[55] == "open_water"
     assert model.n_train == int((labels[15:55] == "open_water").sum()) == 25

@@ -205,7 +205,8 @@ def check_forecast_flags(args: argparse.Namespace) -> float | None | str:
 def _run_forecast(args: argparse.Namespace) -> int:
     from data_contracts import POLES, read_table
 
-    from ..stages import ForecastOptions, forecast
+    from ..forecasting.options import ForecastOptions
+    from ..stages import forecast
 
     options = ("A", "B") if args.option == "AB" else (args.option,)
     if "B" in options and args.poles is None:
@@ -227,7 +228,7 @@ def _run_forecast(args: argparse.Namespace) -> int:
         n_workers=args.workers,
         min_presence=args.min_presence,
         mac_min=args.mac_min,
-        reacquire_blocks=args.reacquire_blocks,
+        **({} if args.reacquire_blocks is None else {"reacquire_blocks": args.reacquire_blocks}),
     )
     with _data_errors(args.modal):
         result = forecast(

@@ -1,21 +1,27 @@
 """Sliding-window regression forecasts of modal frequencies and Kalman blending with SSI.
 
-* :func:`sliding_forecast` - stepwise model per mode on a sliding training window,
-  methods 1 (one long forecast) and 2 (refit every *horizon* blocks on Kalman estimates),
-  measurement options A (tracked pole) and B (nearest stabilisation-diagram pole in a gate);
-* :mod:`~workbench.forecasting.kalman` - scalar Kalman functions, steady state, trust -> Q;
-* :func:`evaluate_against_truth` - cumulative absolute errors and improvements;
-* :mod:`~workbench.forecasting.experiment` - the 5-DOF temperature experiment.
+Laid out by responsibility:
+
+* :mod:`.options` - :class:`ForecastOptions`, every setting of a forecast, one object from
+  the command line or the API down to the filter, with the defaults;
+* :mod:`.sliding` - :func:`sliding_forecast`, the run of each measurement option with the
+  window or the memory model (the method in its docstring);
+* :mod:`.window` - the reference model (stepwise fit on the last *train_blocks* blocks,
+  hand-set trust): model, noise levels, Kalman pass;
+* :mod:`.memory` - the default model (stepwise terms, coefficients over the history with
+  forgetting, noise levels from the data): terms, excitation bias, noise, option B's
+  chooser, Kalman step, output table; the safeguards :mod:`.noise`,
+  :mod:`.innovation_consistency` and :mod:`.model_trust`;
+* :mod:`.kalman` - scalar Kalman functions, steady state, trust -> Q;
+* :mod:`.measurement` - option B's pole clusters (pole index, cluster chooser);
+  :mod:`.pole_selection` and :mod:`.shape_reference` - mode-shape checks;
+* :mod:`.results` - :class:`ForecastResult`, :class:`ForecastWarning`, :class:`WindowModel`;
+* :mod:`.evaluate` - :func:`evaluate_against_truth` (cumulative absolute errors and
+  improvements) and :func:`run_temperature_experiment` (the 5-DOF temperature experiment,
+  simulated by :mod:`workbench.simulate.experiment`).
 """
 
-from .evaluate import evaluate_against_truth
-from .experiment import (
-    ExperimentData,
-    ExperimentResult,
-    chain_natural_frequencies,
-    run_temperature_experiment,
-    simulate_temperature_experiment,
-)
+from .evaluate import ExperimentResult, evaluate_against_truth, run_temperature_experiment
 from .kalman import (
     ModeKalmanBank,
     ScalarKalmanFilter,
@@ -27,26 +33,27 @@ from .kalman import (
     scalar_kalman_update,
     steady_state,
 )
-from .sliding import ForecastResult, ForecastWarning, WindowModel, sliding_forecast
+from .options import ForecastOptions, NoiseOptions
+from .results import ForecastResult, ForecastWarning, WindowModel
+from .sliding import sliding_forecast
 
 __all__ = [
-    "ExperimentData",
     "ExperimentResult",
+    "ForecastOptions",
     "ForecastResult",
     "ForecastWarning",
     "ModeKalmanBank",
+    "NoiseOptions",
     "ScalarKalmanFilter",
     "ScalarUpdate",
     "SteadyState",
     "WindowModel",
-    "chain_natural_frequencies",
     "evaluate_against_truth",
     "process_variance_for_gain",
     "relaxation_factor",
     "run_temperature_experiment",
     "scalar_kalman_predict",
     "scalar_kalman_update",
-    "simulate_temperature_experiment",
     "sliding_forecast",
     "steady_state",
 ]

@@ -1,6 +1,6 @@
 """Output assembly of the sliding forecast: the per-row arrays to the forecast table.
 
-:func:`_drop_unusable` leaves out rows without a model or Kalman value, :func:`_assemble`
+:func:`drop_unusable` leaves out rows without a model or Kalman value, :func:`assemble_rows`
 turns the (grid row, mode) arrays of a forecast run into the FORECAST contract table with
 its ``warning`` column (and option B's selected-pole columns). Shared by the window and
 memory forecasts.
@@ -8,11 +8,19 @@ memory forecasts.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 import pandas as pd
 
+__all__ = ["ASSEMBLED", "assemble_rows", "drop_unusable"]
 
-def _drop_unusable(out_phase, model, kalman, notes) -> None:
+#: The (grid row, mode) arrays :func:`assemble_rows` reads: SSI, model with bounds, Kalman
+#: with its standard deviation, and option B's chosen pole (order, damping ratio, MAC).
+ASSEMBLED = ("ssi", "model", "lower", "upper", "kalman", "std", "order", "damping", "mac")
+
+
+def drop_unusable(out_phase, model, kalman, notes) -> None:
     """Rows without a model or Kalman value (a mode without any data yet) get phase 0:
     no row rather than a NaN row; counted in *notes*."""
     unusable = (out_phase > 0) & ~(np.isfinite(model) & np.isfinite(kalman))
@@ -23,25 +31,23 @@ def _drop_unusable(out_phase, model, kalman, notes) -> None:
         out_phase[unusable] = 0
 
 
-def _assemble(
-    blocks,
+def assemble_rows(
+    blocks: np.ndarray,
     block_start,
-    mode_labels,
-    option,
-    phase,
-    ssi,
-    model,
-    lower,
-    upper,
-    kalman,
-    std,
-    w0,
-    w1,
-    order,
-    damping,
-    selected_mac,
-    warning_map,
+    mode_labels: np.ndarray,
+    option: str,
+    phase: np.ndarray,
+    out: Mapping[str, np.ndarray],
+    windows: tuple[np.ndarray, np.ndarray],
+    warning_map: Mapping[tuple[int, int], list[str]],
 ) -> pd.DataFrame:
+    """FORECAST table of the rows with a phase (1 train, 2 forecast): the arrays of
+    :data:`ASSEMBLED` in *out*, the training window's first and last block per row
+    (*windows*) and the row warnings."""
+    ssi, model, lower, upper, kalman, std, order, damping, selected_mac = (
+        out[name] for name in ASSEMBLED
+    )
+    w0, w1 = windows
     rows, cols = np.nonzero(phase)
     n = rows.size
     warning_text = np.full(n, "", dtype=object)

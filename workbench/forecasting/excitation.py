@@ -16,7 +16,7 @@ response power at speed v and w_i = P(v_i) / Σ P the weights of the block's par
 
 with σ_v² the variance of the speed inside the block. The bias of the SSI estimate is
 therefore proportional to σ_v² (and always towards the faster part's frequency, whatever
-the sign of the speed change). The memory model (:mod:`workbench.forecasting.blend`) writes
+the sign of the speed change). The memory model (:mod:`workbench.forecasting.memory.forecast`) writes
 the measurement equation as its model evaluated at the excitation-weighted speed
 v̄ + κ σ_v², κ = d ln P / dv >= 0 estimated from the data and shared by the modes (it is a
 property of the excitation), while the state, the block's time average, is the model at

@@ -5,9 +5,9 @@ the normalisation of its window), its predictions with prediction bounds
 (:func:`_predict`, :func:`_constant_prediction` for the constant model ȳ ± t s sqrt(1 + 1/n)),
 the z-scoring of predictors (:func:`_z_scores`), the plausibility band of a mode's frequency
 (:func:`_plausible`) and the robust white-scatter estimate of the measurement variance R
-(:func:`_white_scatter_variance`). Used by :mod:`workbench.forecasting.window_model`,
-:mod:`workbench.forecasting.window_noise`, :mod:`workbench.forecasting.window_kalman` and the
-memory forecast (:mod:`workbench.forecasting.blend`).
+(:func:`_white_scatter_variance`). Used by :mod:`workbench.forecasting.window.model`,
+:mod:`workbench.forecasting.window.noise`, :mod:`workbench.forecasting.window.kalman` and the
+memory forecast (:mod:`workbench.forecasting.memory.forecast`).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Does the model still explain the mode? The blend against model-free filters, by likelihood.
 
-The memory forecast's filter (:mod:`workbench.forecasting.memory_kalman`) estimates
+The memory forecast's filter (:mod:`workbench.forecasting.memory.kalman`) estimates
 x = m + c with the model's prediction m; when something changes that no predictor
 records (fuel burnt without soundings, ballast, ice on deck), its noise model, fitted on
 residuals from before the change, can trust m more than the data allow, and the blend
@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .memory_noise import update_run
+from .memory.noise import update_run
 
 __all__ = ["ModelTrust"]
 

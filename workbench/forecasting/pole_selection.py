@@ -5,7 +5,7 @@ mode shape matches the mode's reference shape (MAC on the channels both shapes h
 best by a score; a mode seen only outside the gate is re-acquired there
 (:class:`_PoleSelector`; the rules are written out in the Notes of
 :func:`~workbench.forecasting.sliding_forecast`). Used by the window forecast
-(:mod:`workbench.forecasting.window`) and the memory forecast (:mod:`workbench.forecasting.blend`).
+(:mod:`workbench.forecasting.window.forecast`) and the memory forecast (:mod:`workbench.forecasting.memory.forecast`).
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-__all__ = ["modes_to_forecast", "mode_matrix", "predictor_matrix"]
+__all__ = ["forecast_span", "mode_matrix", "modes_to_forecast", "predictor_matrix"]
 
 
 def predictor_matrix(
@@ -86,3 +86,23 @@ def mode_matrix(
     keep = rows_ok & (cols >= 0)
     matrix[rows[keep], cols[keep]] = modal[column].to_numpy(dtype=float)[keep]
     return matrix
+
+
+def forecast_span(blocks, start_block, end_block, train_blocks: int) -> tuple[int, int]:
+    """Grid rows of the first training block and of the last block forecast."""
+    n_blocks = len(blocks)
+    if start_block is None:
+        first = 0
+    else:
+        first = int(np.searchsorted(blocks, start_block))
+        if first >= n_blocks or blocks[first] != start_block:
+            raise ValueError(f"start_block={start_block} is not a block of predictors")
+    last = n_blocks - 1
+    if end_block is not None:
+        last = int(np.searchsorted(blocks, int(end_block), side="right")) - 1
+    if last - first + 1 < train_blocks + 1:
+        raise ValueError(
+            f"train_blocks={train_blocks} needs at least {train_blocks + 1} blocks from "
+            f"start_block to end_block, got {max(last - first + 1, 0)}"
+        )
+    return first, last

@@ -237,7 +237,11 @@ def forecast_table(
         model=settings.model,
         min_presence=settings.min_presence,
         mac_min=settings.mac_min,
-        reacquire_blocks=settings.reacquire_blocks,
+        **(
+            {}
+            if settings.reacquire_blocks is None
+            else {"reacquire_blocks": settings.reacquire_blocks}
+        ),
     )
     try:
         result = forecast(tracked, predictors, poles=poles, options=options)

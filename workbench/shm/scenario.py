@@ -264,6 +264,7 @@ def frozen_forecast(
     import warnings
 
     from ..forecasting import sliding_forecast
+    from ..forecasting.options import ForecastOptions
 
     horizon = len(voyage.predictors) - int(train_blocks)
     if horizon < 1:
@@ -273,17 +274,17 @@ def frozen_forecast(
         )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        result = sliding_forecast(
-            voyage.modal,
-            voyage.predictors,
-            method=1,
-            option="A",
+        options = ForecastOptions(
+            model="window",
+            scheme="single_window",
+            options=("A",),
             train_blocks=int(train_blocks),
             horizon=horizon,
             stepwise_options=STEPWISE,
             extrapolation_limit=EXTRAPOLATION_LIMIT,
             predictor_columns=list(predictor_columns),
         )
+        result = sliding_forecast(voyage.modal, voyage.predictors, options)
     return result.table
 
 

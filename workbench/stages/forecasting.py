@@ -4,24 +4,15 @@ from __future__ import annotations
 
 import os
 import warnings
-from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Literal
 
 import pandas as pd
 
 from data_contracts import FORECAST, MODAL, POLES, PREDICTORS, recorded_grid, set_grid
 
-from .._deprecation import renamed_parameters
 from ..forecasting import ForecastWarning, sliding_forecast
-from ..forecasting.options import (
-    DEFAULT_MODEL,
-    check_train_blocks,
-    check_trust,
-    method_label,
-    option_label,
-)
+from ..forecasting.options import ForecastOptions
 from ..parallel import process_map
 from ..sid.presence import persistent_modes
 from ._base import StageResult, read_any_table, shown_once, table_path, write_frame
@@ -31,93 +22,6 @@ __all__ = ["ForecastOptions", "ForecastStageResult", "forecast", "forecast_modes
 
 #: Descriptive names of the forecast schemes (the reference work's methods 1 and 2).
 SCHEME_NAMES = {1: "single-window", 2: "rolling"}
-
-
-@dataclass(frozen=True)
-class ForecastOptions:
-    """Options of :func:`forecast`.
-
-    Parameters
-    ----------
-    options : tuple of {"A", "B"}
-        Measurement options run into one table (A: tracked pole; B: the stabilisation-
-        diagram pole cluster nearest the prediction; ``"tracked_pole"``/``"pole_cluster"``
-        are accepted).
-    scheme : {"rolling", "single-window"} or {2, 1}
-        ``"rolling"`` (the reference work's method 2): predict *horizon* blocks, filter,
-        slide, refit; ``"single-window"`` (method 1): one long forecast.
-    train_blocks : int
-        Training window. [blocks]
-    horizon : int, optional
-        Blocks per forecast (default 34 for single-window, 4 for rolling).
-    trust : float, None or "auto"
-        Window model: steady-state weight on SSI in (0, 1); None: Q from the model's own
-        prediction variance; "auto": the forecast's default.
-    model : {"window", "memory"}, optional
-        The predictive model (see :func:`~workbench.forecasting.sliding_forecast`). Default:
-        ``"memory"``, which measures best on ``benchmarks/bench_forecast_accuracy.py``
-        (``workbench.forecasting.options.DEFAULT_MODEL``), or ``"window"`` (the reference
-        configuration) when *trust* is given as a number or None, since only the window
-        model takes a hand-set trust.
-    predictor_columns : tuple of str, optional
-        Candidate predictors; default every predictor column.
-    stepwise_options : mapping, optional
-        Options of the stepwise fits.
-    min_presence : float
-        Only modes measured in at least this share of the predictor blocks are forecast.
-    mac_min : float
-        Option B: lowest MAC of a pole's shape with the mode's tracked shape.
-    reacquire_blocks : int, optional
-        Option B: blocks seen only outside the gate before the track is re-acquired
-        (window model) or the column there is measured, Huber-weighted (memory model).
-    n_workers : int
-        Processes the modes are spread over (the table is the same whatever the number).
-    """
-
-    options: tuple[str, ...] = ("A",)
-    scheme: int | str = 2
-    train_blocks: int = 20
-    horizon: int | None = None
-    trust: float | None | Literal["auto"] = "auto"
-    model: Literal["window", "memory"] | None = None
-    predictor_columns: tuple[str, ...] | None = None
-    stepwise_options: Mapping[str, Any] | None = None
-    min_presence: float = 0.5
-    mac_min: float = 0.9
-    reacquire_blocks: int | None = None
-    n_workers: int = 1
-
-    def __post_init__(self) -> None:
-        if isinstance(self.options, str):
-            object.__setattr__(
-                self, "options", tuple(self.options) if self.options == "AB" else (self.options,)
-            )
-        object.__setattr__(self, "options", tuple(option_label(o) for o in self.options))
-        object.__setattr__(self, "scheme", method_label(self.scheme))
-        if self.model is None:
-            object.__setattr__(self, "model", DEFAULT_MODEL if self.trust == "auto" else "window")
-        check_trust(self.trust, self.model)
-        check_train_blocks(self.train_blocks)
-        if not 0.0 <= self.min_presence <= 1.0:
-            raise ValueError(f"min_presence={self.min_presence} must be in [0, 1]")
-        if self.n_workers < 1:
-            raise ValueError(f"n_workers={self.n_workers} must be at least 1")
-
-    def sliding_options(self, option: str) -> dict[str, Any]:
-        """Keyword arguments of :func:`~workbench.forecasting.sliding_forecast` for *option*."""
-        kwargs: dict[str, Any] = dict(
-            option=option,
-            scheme=self.scheme,
-            train_blocks=self.train_blocks,
-            horizon=self.horizon,
-            trust=self.trust,
-            model=self.model,
-            predictor_columns=self.predictor_columns,
-            stepwise_options=self.stepwise_options,
-        )
-        if option == "B":
-            kwargs.update(mac_min=self.mac_min, reacquire_blocks=self.reacquire_blocks)
-        return kwargs
 
 
 @dataclass
@@ -169,43 +73,48 @@ class ForecastStageResult(StageResult):
         return paths
 
 
-def _forecast_part(modal, predictors, modes, kwargs):
+def _forecast_part(modal, predictors, options, modes, poles, cases):
     """One process's share of :func:`forecast_modes` (module level: picklable)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ForecastWarning)
-        result = sliding_forecast(modal, predictors, modes=modes, **kwargs)
+        result = sliding_forecast(modal, predictors, options, modes=modes, poles=poles, cases=cases)
     messages = [str(w.message) for w in caught if issubclass(w.category, ForecastWarning)]
     return result.table, messages
 
 
-@renamed_parameters(n_jobs="n_workers")
 def forecast_modes(
     modal: pd.DataFrame,
     predictors: pd.DataFrame,
+    options: ForecastOptions,
     *,
-    n_workers: int = 1,
+    modes=None,
+    poles: pd.DataFrame | None = None,
+    cases=None,
     progress: bool = False,
-    **kwargs: Any,
 ) -> tuple[pd.DataFrame, list[str]]:
-    """:func:`~workbench.forecasting.sliding_forecast` with the modes spread over processes.
+    """:func:`~workbench.forecasting.sliding_forecast` with the modes spread over
+    ``options.n_workers`` processes.
 
     Modes of the window model are independent (one model and one Kalman filter each), so
-    the table equals that of a single call, whatever *n_workers*. The memory model pools
-    the excitation sensitivity of SSI's bias (a property of the excitation, not of a mode;
-    :mod:`workbench.forecasting.excitation`) over the modes forecast together, so its modes
-    run in one call (one process) and the table is again that of a single call. Returns the
-    forecast table (sorted by block, mode) and the forecast warnings' messages.
+    the table equals that of a single call, whatever the number of workers. The memory
+    model pools the excitation sensitivity of SSI's bias (a property of the excitation, not
+    of a mode; :mod:`workbench.forecasting.excitation`) over the modes forecast together,
+    so its modes run in one call (one process) and the table is again that of a single
+    call. Returns the forecast table (sorted by block, mode) and the forecast warnings'
+    messages.
     """
-    modes = kwargs.pop("modes", None)
     modes = sorted(int(m) for m in (modal["mode"].unique() if modes is None else modes))
-    n_workers = max(1, min(int(n_workers), len(modes)))
-    if kwargs.get("model") == "memory":
+    n_workers = max(1, min(int(options.n_workers), len(modes)))
+    if options.model == "memory":
         n_workers = 1
     if n_workers == 1:  # one call: the windows' normalisation is shared by all modes
-        calls = [(modal, predictors, modes, kwargs)]
+        calls = [(modal, predictors, options, modes, poles, cases)]
         sizes = [len(modes)]
     else:
-        calls = [(modal[modal["mode"] == mode], predictors, [mode], kwargs) for mode in modes]
+        calls = [
+            (modal[modal["mode"] == mode], predictors, options, [mode], poles, cases)
+            for mode in modes
+        ]
         sizes = None
     parts = process_map(
         _forecast_part,
@@ -245,6 +154,7 @@ def forecast(
     cases : None, "derive", path or DataFrame
         Each window forecasts with the model of the current operating case.
     options : ForecastOptions, optional
+        Every setting, down to the filter (:class:`~workbench.forecasting.options.ForecastOptions`).
     progress : bool
         Progress bar on stderr.
 
@@ -271,12 +181,11 @@ def forecast(
         table, messages = forecast_modes(
             modal,
             predictors,
-            n_workers=options.n_workers,
-            progress=progress,
+            replace(options, options=(option,)),
             modes=modes,
             poles=poles,
             cases=cases,
-            **options.sliding_options(option),
+            progress=progress,
         )
         result.warnings += [f"option {option}: {m}" for m in messages]
         frames.append(table)

@@ -80,12 +80,12 @@ def case() -> tuple[pd.DataFrame, pd.DataFrame]:
 
 
 def forecast() -> pd.DataFrame:
-    from workbench.forecasting import ForecastWarning, sliding_forecast
+    from workbench.forecasting import ForecastOptions, ForecastWarning, sliding_forecast
 
     modal, predictors = case()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ForecastWarning)
-        table = sliding_forecast(modal, predictors, method=2, model="memory").table
+        table = sliding_forecast(modal, predictors, ForecastOptions(scheme=2, model="memory")).table
     return table[["block", "mode", "phase", *COLUMNS]].reset_index(drop=True)
 
 

@@ -3,7 +3,7 @@
 Run from the repository root, with the code whose results are the reference:
 ``python tests/forecast/results/make_window_reference.py``. window_reference.csv was
 written by the window path as one function (before it was split into named steps in
-:mod:`workbench.forecasting.window`), so tests/forecast/test_window_reference.py checks that
+:mod:`workbench.forecasting.window.forecast`), so tests/forecast/test_window_reference.py checks that
 the split did not change the results: option A methods 1 and 2, option B method 2 (pole
 table without shapes), 400 blocks, 3 modes.
 """
@@ -68,7 +68,7 @@ def tables() -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
 
 
 def forecast() -> pd.DataFrame:
-    from workbench.forecasting import ForecastWarning, sliding_forecast
+    from workbench.forecasting import ForecastOptions, ForecastWarning, sliding_forecast
 
     modal, predictors, poles = tables()
     out = []
@@ -76,7 +76,10 @@ def forecast() -> pd.DataFrame:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ForecastWarning)
             table = sliding_forecast(
-                modal, predictors, poles=poles, option=option, method=method, model="window"
+                modal,
+                predictors,
+                ForecastOptions(options=(option,), scheme=method, model="window"),
+                poles=poles,
             ).table
         table = table[["block", "mode", "phase", *COLUMNS, "warning"]]
         out.append(table.assign(run=f"{option}{method}"))

@@ -2,7 +2,7 @@
 the model of what SSI sees in a block whose speed changes.
 
 Physics in :mod:`workbench.forecasting.excitation`; used by
-:func:`~workbench.forecasting.blend.memory_forecast`.
+:func:`~workbench.forecasting.memory.forecast.memory_forecast`.
 """
 
 from __future__ import annotations
@@ -11,8 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .excitation import sub_windows_per_block, within_block_variance
-from .memory import MemoryModel, fit_memory_model
+from ..excitation import sub_windows_per_block, within_block_variance
+from ..options import ForecastOptions
+from .model import MemoryModel, fit_memory_model
 
 __all__ = ["ExcitationBias", "excitation_bias"]
 
@@ -148,19 +149,18 @@ def excitation_bias(
     grid,
     X_all: np.ndarray,
     columns: list[str],
+    options: ForecastOptions,
     *,
-    enabled: bool,
     n_modes: int,
     first: int,
     history_limit: int,
-    memory: float,
-    limit: float,
 ) -> ExcitationBias:
-    """The :class:`ExcitationBias` of a predictor grid (no term without speed or sub-windows)."""
+    """The :class:`ExcitationBias` of a predictor grid (no term without speed or sub-windows,
+    none unless ``options.excitation_bias``)."""
     # SSI's excitation weighting: in a block whose speed changes, SSI sees the frequency at
     # about v̄ + κ σ_v² (workbench.forecasting.excitation); σ_v² from the overlapping blocks
     speed_col = columns.index("speed_kn") if "speed_kn" in columns else None
-    n_sub = sub_windows_per_block(grid) if enabled else None
+    n_sub = sub_windows_per_block(grid) if options.excitation_bias else None
     speed_var = shift_cap = None
     if n_sub is not None and speed_col is not None:
         speed_var = within_block_variance(X_all[:, speed_col], n_sub)
@@ -177,6 +177,6 @@ def excitation_bias(
         np.zeros(n_modes),
         first,
         history_limit,
-        memory,
-        limit,
+        float(options.memory_blocks),
+        float(options.extrapolation_limit),
     )

@@ -1,13 +1,15 @@
 """Output table of the memory forecast: the sliding forecast's columns plus, for option B,
 the chosen pole cluster's orders and scatter.
 
-Used by :func:`~workbench.forecasting.blend.memory_forecast`.
+Used by :func:`~workbench.forecasting.memory.forecast.memory_forecast`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+
+from ..assembly import assemble_rows
 
 __all__ = ["OUTPUT_ARRAYS", "assemble_table"]
 
@@ -38,33 +40,13 @@ def assemble_table(
     option: str,
     out_phase: np.ndarray,
     out: dict[str, np.ndarray],
-    out_w0: np.ndarray,
-    out_w1: np.ndarray,
+    windows: tuple[np.ndarray, np.ndarray],
     out_warning: dict[tuple[int, int], list[str]],
-    notes,
 ) -> pd.DataFrame:
-    """Forecast table from the per-row outputs (rows no model could serve dropped)."""
-    from .assembly import _assemble, _drop_unusable
-
-    _drop_unusable(out_phase, out["model"], out["kalman"], notes)
-    table = _assemble(
-        blocks,
-        block_start,
-        mode_labels,
-        option,
-        out_phase,
-        out["ssi"],
-        out["model"],
-        out["lower"],
-        out["upper"],
-        out["kalman"],
-        out["std"],
-        out_w0,
-        out_w1,
-        out["order"],
-        out["damping"],
-        out["mac"],
-        out_warning,
+    """Forecast table from the per-row outputs (rows without a phase left out:
+    :func:`~workbench.forecasting.assembly.drop_unusable` first)."""
+    table = assemble_rows(
+        blocks, block_start, mode_labels, option, out_phase, out, windows, out_warning
     )
     rows_, cols_ = np.nonzero(out_phase)
     probability = pd.DataFrame(

@@ -1,6 +1,6 @@
 """Term selection, refits and predictions of the memory forecast's per-mode models.
 
-For each mode and window of :func:`~workbench.forecasting.blend.memory_forecast`: the stepwise
+For each mode and window of :func:`~workbench.forecasting.memory.forecast.memory_forecast`: the stepwise
 terms (:func:`~workbench.forecasting.memory.select_terms`), reselected on a schedule, on a new
 operating case or when the ship leaves the predictor range the selection saw; the
 exponentially weighted refit of those terms over the history
@@ -15,9 +15,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..stats.distributions import t_quantile
-from .memory import MemoryModel, constant_model, fit_memory_model, select_terms
-from .options import ModelOptions
+from ...stats.distributions import t_quantile
+from ..options import ForecastOptions
+from .model import MemoryModel, constant_model, fit_memory_model, select_terms
 
 __all__ = ["MemoryRefits"]
 
@@ -37,16 +37,13 @@ class MemoryRefits:
     it as the forecast runs and every refit reads the blocks before its grid row.
     """
 
-    model: ModelOptions
+    model: ForecastOptions  # the model's settings
     X_all: np.ndarray
     columns: list[str]
     meas: np.ndarray
     labels: np.ndarray | None
     first: int
-    min_train: int
     history_limit: int
-    memory: float
-    limit: float
     terms_of: list = field(init=False)
     selected_case: list = field(init=False)
     train_y: list = field(init=False)
@@ -54,6 +51,9 @@ class MemoryRefits:
     selection_range: list = field(init=False)
     regional: np.ndarray = field(init=False)
     t_cache: dict[int, float] = field(init=False)
+    min_train: int = field(init=False)
+    memory: float = field(init=False)
+    limit: float = field(init=False)
 
     def __post_init__(self) -> None:
         n_modes = self.meas.shape[1]
@@ -66,6 +66,9 @@ class MemoryRefits:
         # always leaves it, by design
         self.regional = np.array([name != "elapsed_hours" for name in self.columns])
         self.t_cache = {}
+        self.min_train = self.model.min_train  # fewest targets of a fit [blocks]
+        self.memory = float(self.model.memory_blocks)  # forgetting time constant [blocks]
+        self.limit = float(self.model.extrapolation_limit)  # z-score clip [-]
 
     def left_selection_range(self, j: int, i: int, rows_ok: np.ndarray) -> int | None:
         """The newest measured block since mode j's term selection outside its range, or None.

@@ -4,7 +4,7 @@ The noise model itself (covariance matching of out-of-sample residuals, the prio
 :mod:`workbench.forecasting.noise`; here: the noise of the first window, before any
 out-of-sample residual exists; the filter's F, Q and R for all modes of a window; and the
 signed runs of large innovations that tell a model error from an identification error.
-Used by :func:`~workbench.forecasting.blend.memory_forecast`.
+Used by :func:`~workbench.forecasting.memory.forecast.memory_forecast`.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .noise import MIN_CORRECTION_STD, MIN_RESIDUALS, NoiseModel, estimate_noise, prior_noise
+from ..noise import MIN_CORRECTION_STD, MIN_RESIDUALS, NoiseModel, estimate_noise, prior_noise
 
 __all__ = ["filter_matrices", "first_window_noise", "update_run"]
 

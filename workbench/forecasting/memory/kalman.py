@@ -1,14 +1,14 @@
 """Kalman step of the memory forecast: two states (model correction c, identification
 error e) per mode, H = [1 1], Huber-weighted update, Joseph-form covariance.
 
-Used by :func:`~workbench.forecasting.blend.memory_forecast` (model in that module's docs).
+Used by :func:`~workbench.forecasting.memory.forecast.memory_forecast` (model in that module's docs).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .noise import NoiseModel
+from ..noise import NoiseModel
 
 __all__ = ["kalman_pass_step", "stationary_covariance"]
 

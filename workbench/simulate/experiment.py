@@ -7,7 +7,8 @@ proportional to E, so every natural frequency scales as sqrt(E(T) / E0). Noisy
 temperature, stepwise) in a training window; the model then predicts the following blocks
 and the Kalman filter blends each prediction with that block's noisy observation. The
 cumulative absolute error of the Kalman track against the true frequencies is compared with
-that of the raw observations (:func:`~workbench.forecasting.evaluate.evaluate_against_truth`).
+that of the raw observations: :func:`~workbench.forecasting.evaluate.run_temperature_experiment`
+forecasts and evaluates what :func:`simulate_temperature_experiment` simulates.
 
 The reference work reports 85 % (mode 3) and 89 % (mode 4) lower cumulative error for the
 Kalman estimates than for the raw observations, over 20 noisy observations of each
@@ -23,14 +24,9 @@ import numpy as np
 import pandas as pd
 import scipy.linalg
 
-from .evaluate import evaluate_against_truth
-from .sliding import ForecastResult, sliding_forecast
-
 __all__ = [
     "ExperimentData",
-    "ExperimentResult",
     "chain_natural_frequencies",
-    "run_temperature_experiment",
     "simulate_temperature_experiment",
 ]
 
@@ -103,31 +99,6 @@ class ExperimentData:
     n_train: int
 
 
-@dataclass(frozen=True)
-class ExperimentResult:
-    """Outcome of :func:`run_temperature_experiment`.
-
-    Parameters
-    ----------
-    evaluation : DataFrame
-        :func:`~workbench.forecasting.evaluate.evaluate_against_truth` over the forecast
-        blocks, one row per mode.
-    forecast : ForecastResult
-    data : ExperimentData
-    """
-
-    evaluation: pd.DataFrame
-    forecast: ForecastResult
-    data: ExperimentData
-
-    def improvement_pct(self, mode: int) -> float:
-        """Kalman vs raw observations: 100 (1 - E_kalman / E_ssi) for *mode*. [%]"""
-        row = self.evaluation.loc[self.evaluation["mode"] == mode]
-        if row.empty:
-            raise ValueError(f"mode={mode} is not in the evaluation")
-        return float(row["improvement_vs_ssi_pct"].iloc[0])
-
-
 def simulate_temperature_experiment(
     *,
     seed: int = 0,
@@ -198,64 +169,3 @@ def simulate_temperature_experiment(
         )
 
     return ExperimentData(modal_frame(observed_hz), predictors, modal_frame(truth_hz), n_train)
-
-
-def run_temperature_experiment(
-    *,
-    seed: int = 0,
-    trust: float | None = None,
-    correction_time_blocks: float = 36.0,
-    model: str | None = None,
-    **simulation,
-) -> ExperimentResult:
-    """Simulate, forecast (method 1, option A) and evaluate the temperature experiment.
-
-    Parameters
-    ----------
-    seed : int
-        Seed of the observation noise.
-    trust : float or None
-        Kalman trust in the observations (see
-        :func:`~workbench.forecasting.sliding.sliding_forecast`). Default ``None``: Q from the
-        model's mean-prediction variance, R from the observation scatter about the model.
-    correction_time_blocks : float
-        Time constant of the Kalman correction (model ``"window"``). [blocks]
-    model : {"memory", "window"}, optional
-        Predictive model (:func:`~workbench.forecasting.sliding_forecast`); default
-        ``"window"``, the reference configuration this experiment reproduces. (The
-        ``"memory"`` model reaches 79-87 % here, pooled over 8 seeds: its exponential
-        forgetting and thinned term selection cost accuracy on a stationary law.)
-    **simulation
-        Passed to :func:`simulate_temperature_experiment`.
-
-    Returns
-    -------
-    ExperimentResult
-
-    Notes
-    -----
-    With white observation noise of standard deviation σ, an estimate that moves a fixed
-    fraction K of the way to each observation keeps a noise error of
-    σ sqrt(K / (2 - K)) even with a perfect model, so a trust of 0.65 cannot lower the
-    cumulative error by more than about 31 %. Large improvements need the filter to lean
-    on the model, which the data-driven setting (``trust=None``) does when the model is
-    well determined: its error is then about σ sqrt(p / n_train) (p = 2 parameters), e.g.
-    0.08 σ for a day of 5-min blocks, against the mean absolute error 0.8 σ of the raw
-    observations.
-    """
-    data = simulate_temperature_experiment(seed=seed, **simulation)
-    n_forecast = int(data.predictors["block"].size - data.n_train)
-    forecast = sliding_forecast(
-        data.modal,
-        data.predictors,
-        option="A",
-        method=1,
-        train_blocks=data.n_train,
-        horizon=n_forecast,
-        trust=trust,
-        correction_time_blocks=correction_time_blocks,
-        predictor_columns=["temperature_c"],
-        model=model or "window",
-    )
-    evaluation = evaluate_against_truth(forecast.table, data.truth)
-    return ExperimentResult(evaluation=evaluation, forecast=forecast, data=data)

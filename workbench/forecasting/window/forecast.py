@@ -4,14 +4,14 @@
 *horizon* blocks, the Kalman estimates as the next targets):
 
 1. the window's candidate predictors and each mode's model and predictions
-   (:mod:`workbench.forecasting.window_model`);
-2. the Kalman noise levels R and Q (:mod:`workbench.forecasting.window_noise`);
+   (:mod:`workbench.forecasting.window.model`);
+2. the Kalman noise levels R and Q (:mod:`workbench.forecasting.window.noise`);
 3. the Kalman pass over the rows the window reports, with option A's or B's measurement
-   (:mod:`workbench.forecasting.window_kalman`).
+   (:mod:`workbench.forecasting.window.kalman`).
 
 Everything the steps share lives on one :class:`WindowRun`: the block grid, the settings
 and the output arrays, so a step reads like the equations in the
-:func:`~workbench.forecasting.sliding_forecast` docstring. Arguments arrive validated.
+:mod:`workbench.forecasting.sliding` docstring. Arguments arrive validated.
 """
 
 from __future__ import annotations
@@ -19,29 +19,30 @@ from __future__ import annotations
 import math
 import warnings
 from collections import Counter
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from .assembly import _assemble, _drop_unusable
-from .fitted_model import _coefficients, _Model
-from .kalman import ModeKalmanBank
-from .pole_selection import _MIN_SHAPE_CHANNELS, _PoleSelector
-from .predictor_grid import mode_matrix, modes_to_forecast, predictor_matrix
-from .sliding import ForecastResult, ForecastWarning, WindowModel
-from .window_kalman import kalman_pass, next_targets
-from .window_model import WindowFrame, fit_window_model, predict_window
-from .window_noise import window_noise_levels
+from ..assembly import ASSEMBLED, assemble_rows, drop_unusable
+from ..fitted_model import _coefficients, _Model
+from ..kalman import ModeKalmanBank
+from ..options import ForecastOptions
+from ..pole_selection import _MIN_SHAPE_CHANNELS, _PoleSelector
+from ..predictor_grid import forecast_span, mode_matrix, modes_to_forecast, predictor_matrix
+from ..results import ForecastResult, ForecastWarning, WindowModel
+from .kalman import kalman_pass, next_targets
+from .model import WindowFrame, fit_window_model, predict_window
+from .noise import window_noise_levels
 
-__all__ = ["WindowRun", "block_grid", "window_forecast"]
+__all__ = ["WindowRun", "forecast_data", "window_forecast"]
 
 
 @dataclass
-class BlockGrid:
-    """The forecast's block grid: predictor matrix and tracked frequencies per mode."""
+class ForecastData:
+    """The matrices of a window forecast on its blocks: predictors and tracked frequencies
+    per mode (the grid itself is :class:`workbench.blocks.BlockGrid`)."""
 
     blocks: np.ndarray  # block numbers, sorted
     block_start: np.ndarray
@@ -51,37 +52,26 @@ class BlockGrid:
     tracked: np.ndarray  # (n_blocks, n_modes) tracked frequency, NaN where missing [Hz]
 
 
-def block_grid(
+def forecast_data(
     modal: pd.DataFrame,
     predictors: pd.DataFrame,
     predictor_columns: Sequence[str] | None,
     modes: Sequence[int] | None,
-) -> BlockGrid:
-    """Block grid of *predictors* (consecutive rows: consecutive Kalman steps)."""
+) -> ForecastData:
+    """Predictor and tracked-frequency matrices on the blocks of *predictors* (consecutive
+    rows: consecutive Kalman steps)."""
     _, blocks, block_start, columns, X_all = predictor_matrix(predictors, predictor_columns)
     mode_labels = modes_to_forecast(modal, modes)
     tracked = mode_matrix(modal, blocks, mode_labels, "frequency_hz")
-    return BlockGrid(blocks, block_start, columns, X_all, mode_labels, tracked)
+    return ForecastData(blocks, block_start, columns, X_all, mode_labels, tracked)
 
 
 @dataclass
 class WindowRun:
     """Settings, grid, running filter state and outputs of one reference forecast."""
 
-    grid: BlockGrid
-    option: str
-    method: int
-    train_blocks: int
-    horizon: int
-    trust: float | None
-    phi: float
-    gate_sigma: float
-    reacquire_blocks: int
-    min_train: int
-    alpha: float
-    extrapolation_limit: float
-    gap_warning_blocks: int
-    stepwise_options: Mapping[str, Any]
+    grid: ForecastData
+    options: ForecastOptions  # one measurement option
     first: int
     last: int
     labels: np.ndarray | None = None  # operating case per grid row
@@ -90,6 +80,19 @@ class WindowRun:
     out_warning: dict = field(default_factory=dict)
 
     def __post_init__(self):
+        # the settings the steps read, from the one options object
+        o = self.options
+        self.option, self.method, self.train_blocks = o.options[0], o.scheme, int(o.train_blocks)
+        self.horizon, self.trust, self.phi = o.horizon_blocks, o.window_trust, o.transition
+        self.gate_sigma, self.reacquire_blocks = o.gate_sigma, int(o.reacquire_blocks)
+        self.min_train, self.alpha = o.min_train, o.alpha
+        self.extrapolation_limit, self.gap_warning_blocks = (
+            o.extrapolation_limit,
+            o.gap_warning_blocks,
+        )
+        # a window's model uses the rows complete in every candidate predictor (the rule
+        # the forecast was validated with); {"missing": "candidate"} for MATLAB's
+        self.stepwise_options = {"missing": "complete", **dict(o.stepwise_options or {})}
         g = self.grid
         n_blocks, n_modes = g.tracked.shape
         shape = (n_blocks, n_modes)
@@ -128,47 +131,33 @@ class WindowRun:
 def window_forecast(
     modal: pd.DataFrame,
     predictors: pd.DataFrame,
+    options: ForecastOptions,
     *,
     poles: pd.DataFrame | None,
-    option: str,
-    method: int,
-    train_blocks: int,
-    horizon: int,
+    modes: Sequence[int] | None,
     start_block: int | None,
     end_block: int | None,
-    trust: float | None,
-    phi: float,
-    gate_sigma: float,
-    shape_mac_min: float,
-    reacquire_blocks: int,
-    reacquire_band: float,
-    predictor_columns: Sequence[str] | None,
-    stepwise_options: Mapping[str, Any],
-    min_train: int,
-    gap_warning_blocks: int,
-    modes: Sequence[int] | None,
-    alpha: float,
-    extrapolation_limit: float,
     cases,
 ) -> ForecastResult:
-    """The reference forecast (module docstring; parameters as
-    :func:`~workbench.forecasting.sliding_forecast`, validated there)."""
+    """The reference forecast of the one measurement option of *options* (module
+    docstring; arguments as :func:`~workbench.forecasting.sliding_forecast`, checked there
+    and by :class:`~workbench.forecasting.options.ForecastOptions`)."""
     from workbench.stats import case_labels
 
-    grid = block_grid(modal, predictors, predictor_columns, modes)
+    grid = forecast_data(modal, predictors, options.predictor_columns, modes)
     frame = predictors.sort_values("block").drop_duplicates("block", keep="last")
     labels = None if cases is None else case_labels(frame, cases).to_numpy()
     notes: Counter[str] = Counter()
     selector = None
-    if option == "B":
+    if options.options[0] == "B":
         selector = _PoleSelector(
             poles,
             modal,
             grid.blocks,
             grid.mode_labels,
-            shape_mac_min=shape_mac_min,
-            reacquire_blocks=reacquire_blocks,
-            reacquire_band=reacquire_band,
+            shape_mac_min=options.mac_min,
+            reacquire_blocks=int(options.reacquire_blocks),
+            reacquire_band=options.reacquire_band,
         )
         if not selector.uses_shapes:
             notes[
@@ -176,27 +165,21 @@ def window_forecast(
                 f"for {_MIN_SHAPE_CHANNELS}+ shared channels): nearest pole in the gate, "
                 "no MAC check"
             ] += 1
-    first, last = _forecast_span(grid.blocks, start_block, end_block, train_blocks)
+    first, last = forecast_span(grid.blocks, start_block, end_block, int(options.train_blocks))
     run = WindowRun(
         grid=grid,
-        option=option,
-        method=method,
-        train_blocks=train_blocks,
-        horizon=horizon,
-        trust=trust,
-        phi=phi,
-        gate_sigma=gate_sigma,
-        reacquire_blocks=reacquire_blocks,
-        min_train=min_train,
-        alpha=alpha,
-        extrapolation_limit=extrapolation_limit,
-        gap_warning_blocks=gap_warning_blocks,
-        stepwise_options=stepwise_options,
+        options=options,
         first=first,
         last=last,
         labels=labels,
         selector=selector,
         notes=notes,
+    )
+    train_blocks, horizon, method, min_train = (
+        run.train_blocks,
+        run.horizon,
+        run.method,
+        run.min_train,
     )
     n_blocks = len(grid.blocks)
     window_start = first
@@ -218,50 +201,21 @@ def window_forecast(
             break
         window_start += horizon
 
-    _drop_unusable(run.out_phase, run.out_model, run.out_kalman, notes)
-    table = _assemble(
+    drop_unusable(run.out_phase, run.out_model, run.out_kalman, notes)
+    table = assemble_rows(
         grid.blocks,
         grid.block_start,
         grid.mode_labels,
-        option,
+        run.option,
         run.out_phase,
-        run.out_ssi,
-        run.out_model,
-        run.out_lower,
-        run.out_upper,
-        run.out_kalman,
-        run.out_std,
-        run.out_w0,
-        run.out_w1,
-        run.out_order,
-        run.out_damping,
-        run.out_mac,
+        {name: getattr(run, f"out_{name}") for name in ASSEMBLED},
+        (run.out_w0, run.out_w1),
         run.out_warning,
     )
     messages = tuple(f"{kind} (x{count})" for kind, count in notes.items())
     for message in messages:
         warnings.warn(message, ForecastWarning, stacklevel=3)
     return ForecastResult(table=table, warnings=messages, models=tuple(run.models_out))
-
-
-def _forecast_span(blocks, start_block, end_block, train_blocks) -> tuple[int, int]:
-    """Grid rows of the first training block and of the last block forecast."""
-    n_blocks = len(blocks)
-    if start_block is None:
-        first = 0
-    else:
-        first = int(np.searchsorted(blocks, start_block))
-        if first >= n_blocks or blocks[first] != start_block:
-            raise ValueError(f"start_block={start_block} is not a block of predictors")
-    last = n_blocks - 1
-    if end_block is not None:
-        last = int(np.searchsorted(blocks, int(end_block), side="right")) - 1
-    if last - first + 1 < train_blocks + 1:
-        raise ValueError(
-            f"train_blocks={train_blocks} needs at least {train_blocks + 1} blocks from "
-            f"start_block to end_block, got {max(last - first + 1, 0)}"
-        )
-    return first, last
 
 
 def model_window(run: WindowRun, j: int, window: WindowFrame) -> None:

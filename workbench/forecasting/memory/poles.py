@@ -1,7 +1,7 @@
 """Option B's measurement chooser for the memory forecast: the pole cluster in the gate,
 checked against the mode's shape where the poles carry shapes.
 
-Used by :func:`~workbench.forecasting.blend.memory_forecast`; the cluster search itself is in
+Used by :func:`~workbench.forecasting.memory.forecast.memory_forecast`; the cluster search itself is in
 :mod:`workbench.forecasting.measurement`, the mode's reference shape (the consensus of its
 recent tracked shapes) in :mod:`workbench.forecasting.shape_reference`.
 """
@@ -13,15 +13,15 @@ from collections import Counter
 import numpy as np
 import pandas as pd
 
-from .measurement import ClusterChooser, PoleIndex
-from .options import MeasurementOptions
-from .pole_selection import (
+from ..measurement import ClusterChooser, PoleIndex
+from ..options import ForecastOptions
+from ..pole_selection import (
     _MIN_SHAPE_CHANNELS,
     _mac_on_common_channels,
     _shape_channels,
     _shape_matrix,
 )
-from .shape_reference import consensus_references
+from ..shape_reference import consensus_references
 
 __all__ = ["option_b_chooser"]
 
@@ -32,7 +32,7 @@ def option_b_chooser(
     blocks: np.ndarray,
     mode_labels: np.ndarray,
     index: PoleIndex,
-    measurement: MeasurementOptions,
+    options: ForecastOptions,
     notes: Counter[str],
 ) -> ClusterChooser:
     """Chooser of each block's pole cluster per mode (MAC check when shapes are there).
@@ -44,7 +44,7 @@ def option_b_chooser(
     if len(channels) >= _MIN_SHAPE_CHANNELS:
         pole_shapes = _shape_matrix(poles, channels)  # table order
         references, reference_row = consensus_references(
-            modal, blocks, mode_labels, channels, mac_min=measurement.mac_min
+            modal, blocks, mode_labels, channels, mac_min=options.mac_min
         )
 
         def shape_mac(i, j, positions):
@@ -62,7 +62,7 @@ def option_b_chooser(
     return ClusterChooser(
         index,
         shape_mac,
-        shape_mac_min=measurement.mac_min,
-        reacquire_blocks=measurement.reacquire_blocks,
-        reacquire_band=measurement.reacquire_band,
+        shape_mac_min=options.mac_min,
+        reacquire_blocks=options.reacquire_blocks,
+        reacquire_band=options.reacquire_band,
     )

@@ -1,6 +1,6 @@
 """Window model of the reference forecast: candidates, stepwise fit, prediction.
 
-Step 1 of :func:`~workbench.forecasting.window.window_forecast` for one window: which
+Step 1 of :func:`~workbench.forecasting.window.forecast.window_forecast` for one window: which
 predictors the window can use (:func:`candidate_columns`), the model of each mode
 (:func:`fit_window_model`: stepwise, else the last good model, else a constant model) and
 its predictions with 95 % bounds over the window's training and forecast rows
@@ -17,7 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from .fitted_model import (
+from ..fitted_model import (
     _DEFAULT_RELATIVE_STD,
     _PLAUSIBLE_FACTOR,
     _constant_prediction,

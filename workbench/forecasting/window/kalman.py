@@ -1,6 +1,6 @@
 """Kalman pass of the reference forecast over the rows one window reports.
 
-Step 3 of :func:`~workbench.forecasting.window.window_forecast`, all modes together
+Step 3 of :func:`~workbench.forecasting.window.forecast.window_forecast`, all modes together
 (:class:`~workbench.forecasting.kalman.ModeKalmanBank`): a-priori x⁻_k = m_k + φ (x⁺_{k-1} -
 m_{k-1}); the measurement (option A: the tracked pole; option B: the pole chosen inside the
 gate, :class:`~workbench.forecasting.pole_selection._PoleSelector`); the update; a track that leaves
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .fitted_model import _plausible
+from ..fitted_model import _plausible
 
 __all__ = ["kalman_pass", "next_targets"]
 

@@ -1,6 +1,6 @@
 """Noise levels of the reference forecast's Kalman filter for one window and mode.
 
-Step 2 of :func:`~workbench.forecasting.window.window_forecast`. R is the scatter of the
+Step 2 of :func:`~workbench.forecasting.window.forecast.window_forecast`. R is the scatter of the
 window's measurements about the window model, its white part:
 σ² = (1.4826 MAD(Δr))² / 2 (differencing removes the slowly varying model error, the MAD
 the odd wrong pole; plain residual variance for fewer values). Q follows from the hand-set
@@ -12,14 +12,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .fitted_model import (
+from ..fitted_model import (
     _DEFAULT_RELATIVE_STD,
     _MIN_DIFFERENCES,
     _MIN_RELATIVE_STD,
     _Model,
     _white_scatter_variance,
 )
-from .kalman import process_variance_for_gain
+from ..kalman import process_variance_for_gain
 
 __all__ = ["window_noise_levels"]
 

@@ -1,0 +1,608 @@
+"""Forecast with a model that has memory, noise from the data and an AR(1) measurement error.
+
+The steps, each in its own module:
+
+1. window model - :mod:`workbench.forecasting.memory.model` (stepwise terms, exponentially
+   weighted least squares over the history, refit every *horizon* blocks);
+2. noise estimation - :mod:`workbench.forecasting.noise` (covariance matching of the
+   residuals, with the model error at least what the out-of-sample residuals show beyond
+   the measurement noise: :func:`~workbench.forecasting.noise.model_error_floor`), and the
+   safeguard :mod:`workbench.forecasting.innovation_consistency` (model variance added while
+   the filter's innovations are larger or more one-sided than its noise model says); the
+   identification error is capped at what the residuals' second difference across blocks
+   that share no data allows (:func:`~workbench.forecasting.noise.identification_error_bound`),
+   so a model error of a few blocks' time constant is not taken for SSI scatter;
+3. measurement choice - :mod:`workbench.forecasting.measurement` (tracked pole or consistent
+   pole cluster, per-block scatter);
+4. Kalman pass - :func:`~workbench.forecasting.memory.kalman.kalman_pass_step`;
+5. guard - :mod:`workbench.forecasting.model_trust`: the blend is weighed against a filter
+   that does not use the model by how well each predicts the measurements out of sample;
+   while the model does not explain a mode (an unrecorded change: fuel, ballast, ice) the
+   estimate follows the model-free filter, i.e. SSI. The weight is the forecast table's
+   ``model_probability``, and the run notes say when a mode's model stopped explaining it.
+
+:func:`memory_forecast` below runs the windows (:class:`MemoryRun`: the models of a window,
+the measurement of each row, the Kalman step) over their rows; each
+mode's term selection, refits and predictions are in :mod:`workbench.forecasting.memory.terms`,
+the excitation bias (κ) in :mod:`workbench.forecasting.memory.excitation`, the first window's
+noise, the filter matrices and the runs of large innovations in
+:mod:`workbench.forecasting.memory.noise`, option B's chooser in
+:mod:`workbench.forecasting.memory.poles`, the output table in
+:mod:`workbench.forecasting.memory.output`.
+
+Kalman model per mode, with m_k the model's prediction and z_k the block's SSI estimate:
+
+.. math::
+
+    x_k = m_k + c_k, \\quad z_k = x_k + e_k + v_k, \\quad
+    \\begin{bmatrix} c_k \\\\ e_k \\end{bmatrix} =
+    \\begin{bmatrix} φ & 0 \\\\ 0 & ρ \\end{bmatrix}
+    \\begin{bmatrix} c_{k-1} \\\\ e_{k-1} \\end{bmatrix} + w_k,
+
+Q = diag(σ_c²(1 - φ²), σ_e²(1 - ρ²) s_k), R_k = σ_v² s_k, H = [1 1], with s_k the block's
+measurement scale (pole scatter across model orders). With the excitation term
+(:mod:`workbench.forecasting.excitation`) the measurement is about the model at the
+excitation-weighted speed: z_k = m̃_k + c_k + e_k + v_k, m̃_k = m(v̄_k + κ σ²_{v,k}, ...),
+while the state stays x_k = m_k + c_k: SSI's bias in a block whose speed changes goes into
+the measurement equation, not into the estimate. The identification error e is a state
+because 75 %-overlapping blocks share their data: a white R would count the same error
+several times. The blended estimate is x̂ = m + ĉ.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections import Counter
+
+import numpy as np
+import pandas as pd
+
+from ..assembly import drop_unusable
+from ..excitation import sub_windows_per_block
+from ..fitted_model import _plausible
+from ..innovation_consistency import MIN_BLOCKS, InnovationConsistency
+from ..measurement import PoleIndex, cluster_around, nearer_to_another_mode, scatter_scale
+from ..model_trust import ModelTrust
+from ..noise import NoiseModel, estimate_noise, model_error_floor
+from ..options import ForecastOptions
+from ..predictor_grid import forecast_span, mode_matrix, modes_to_forecast, predictor_matrix
+from ..results import ForecastResult, ForecastWarning, WindowModel
+from .excitation import excitation_bias
+from .kalman import kalman_pass_step, stationary_covariance
+from .model import MemoryModel
+from .noise import filter_matrices, first_window_noise, update_run
+from .output import OUTPUT_ARRAYS, assemble_table
+from .poles import option_b_chooser
+from .terms import MemoryRefits
+
+__all__ = ["kalman_pass_step", "memory_forecast"]
+
+#: Fewest consecutive large innovations of one sign that mean the model is off (at least
+#: one more than the blocks sharing data with the first: one corrupted stretch of data is
+#: in all the blocks that overlap it).
+_PERSIST_BLOCKS = 3
+#: Oldest history a refit looks at, in forgetting time constants (weight e^-6 beyond).
+_HISTORY_CONSTANTS = 6.0
+
+
+def memory_forecast(
+    modal: pd.DataFrame,
+    predictors: pd.DataFrame,
+    options: ForecastOptions,
+    *,
+    poles: pd.DataFrame | None,
+    modes,
+    start_block: int | None,
+    end_block: int | None,
+    cases=None,
+) -> ForecastResult:
+    """Forecast with :mod:`memory <workbench.forecasting.memory.model>` models (module
+    docs) for the one measurement option of *options*.
+
+    Called by :func:`~workbench.forecasting.sliding_forecast` for ``model="memory"``.
+    """
+    run = MemoryRun(modal, predictors, options, poles, modes, start_block, end_block, cases)
+    method, last, n_blocks = options.scheme, run.last, run.blocks.size
+    i0 = run.first + run.train
+    is_first = True
+    while i0 <= (last if method == 2 else n_blocks - 1):
+        f1 = min(i0 + options.horizon_blocks, (last + 1) if method == 2 else n_blocks)
+        k_first = run.first if is_first else i0
+        rows = run.model_rows(i0, k_first, f1, is_first)
+        run.kalman_pass(i0, np.arange(k_first, f1), rows)
+        if method == 1 or f1 > last:
+            break
+        is_first = False
+        i0 = f1
+    return run.result()
+
+
+class MemoryRun:
+    """Data, settings, running filter state and outputs of one memory forecast.
+
+    Built from the arguments of :func:`memory_forecast`; its steps are
+    :meth:`model_rows` (each mode's model and noise levels for a window's rows) and
+    :meth:`kalman_pass` (the measurement and the Kalman step of each row).
+    """
+
+    def __init__(self, modal, predictors, options, poles, modes, start_block, end_block, cases):
+        self.options, self.noise = options, options.noise
+        self.option = options.options[0]
+        self.notes: Counter[str] = Counter()
+        self._grid_and_modes(modal, predictors, modes)
+        self.first, self.last = forecast_span(
+            self.blocks, start_block, end_block, int(options.train_blocks)
+        )
+        self.train = int(options.train_blocks)
+        memory = float(options.memory_blocks)
+        self.history_limit = int(math.ceil(_HISTORY_CONSTANTS * memory))
+        self.bias = excitation_bias(
+            self.grid,
+            self.X_all,
+            self.columns,
+            options,
+            n_modes=self.n_modes,
+            first=self.first,
+            history_limit=self.history_limit,
+        )
+        # ---- poles: per-block scatter and option B's chooser
+        self.index = PoleIndex(poles, self.blocks) if poles is not None else None
+        self.chooser = None
+        if self.option == "B":
+            if self.index is None:
+                raise ValueError("option='B' needs poles (the stabilisation diagrams)")
+            self.chooser = option_b_chooser(
+                poles, modal, self.blocks, self.mode_labels, self.index, options, self.notes
+            )
+        self._outputs_and_state()
+        labels = None
+        if cases is not None:
+            from workbench.stats import case_labels
+
+            labels = case_labels(self.grid, cases).to_numpy()
+        self.refits = MemoryRefits(
+            options, self.X_all, self.columns, self.meas, labels, self.first, self.history_limit
+        )
+
+    def _grid_and_modes(self, modal, predictors, modes) -> None:
+        """Predictor matrix (with the time trend), tracked matrices, mode labels."""
+        options = self.options
+        grid, blocks, block_start, columns, X_all = predictor_matrix(
+            predictors, options.predictor_columns
+        )
+        if options.time_trend and options.predictor_columns is None:  # explicit: as given
+            # slow drifts no log records (fuel burn, ballast): a trend term with memory
+            start_ns = pd.to_datetime(grid["block_start"], utc=True).astype("int64").to_numpy()
+            hours = (start_ns - start_ns[0]) / 3.6e12
+            X_all = np.column_stack([X_all, hours.astype(float)])
+            columns = [*columns, "elapsed_hours"]
+        self.grid, self.blocks, self.block_start = grid, blocks, block_start
+        self.columns, self.X_all = columns, X_all
+        # blocks that share data with a block: its identification error (an ice impact, a
+        # badly excited stretch) is in all of them, so a run of large innovations is
+        # evidence that the model is off only when it reaches a block that shares no data
+        # with the first
+        self.overlap = sub_windows_per_block(grid) or 1
+        # identification errors of blocks this far apart are independent (None: not known,
+        # no cap on the identification error's variance, :func:`~.noise.estimate_noise`)
+        self.independent_lag = sub_windows_per_block(grid)
+        self.mode_labels = mode_labels = modes_to_forecast(modal, modes)
+        self.n_modes = n_modes = mode_labels.size
+        self.tracked = mode_matrix(modal, blocks, mode_labels, "frequency_hz")
+        # the combined modal model's uncertainty per block (identify --cross-check), when the
+        # tracked table carries it: the block's measurement scatter instead of the cluster's
+        self.combined_std = (
+            mode_matrix(modal, blocks, mode_labels, "combined_frequency_std_hz")
+            if "combined_frequency_std_hz" in modal.columns
+            else None
+        )
+        self.tracked_damping = (
+            mode_matrix(modal, blocks, mode_labels, "damping_ratio")
+            if "damping_ratio" in modal.columns
+            else np.full((blocks.size, n_modes), np.nan)
+        )
+
+    def _outputs_and_state(self) -> None:
+        """Output arrays, the filter's state and the guards, before the first window."""
+        first, train, n_modes, noise = self.first, self.train, self.n_modes, self.noise
+        shape = (self.blocks.size, n_modes)
+        self.out_phase = np.zeros(shape, dtype=np.int8)
+        self.out = {k: np.full(shape, np.nan) for k in OUTPUT_ARRAYS}
+        self.out_w0 = np.zeros(shape, dtype=np.int64)
+        self.out_w1 = np.zeros(shape, dtype=np.int64)
+        self.out_warning: dict[tuple[int, int], list[str]] = {}
+        self.meas = np.full(shape, np.nan)  # measurement used per block (training: tracked)
+        self.meas[first : first + train] = self.tracked[first : first + train]
+        self.resid = np.full(shape, np.nan)  # z - m, out of sample after the first window
+        self.scatter = np.full(shape, np.nan)  # cluster scatter of the block's measurement
+        with warnings.catch_warnings():  # a mode without data in the first window: NaN
+            warnings.simplefilter("ignore", RuntimeWarning)
+            self.reference_hz = np.nanmedian(self.tracked[first : first + train], axis=0)
+            self.damping_ref = np.nanmedian(self.tracked_damping[first : first + train], axis=0)
+        self.current: list[MemoryModel | None] = [None] * n_modes
+        self.noise_of: list[NoiseModel | None] = [None] * n_modes
+        self.noise_at = np.full(n_modes, -(10**9))  # grid row of each mode's last noise fit
+        self.state = np.zeros((n_modes, 2))
+        self.P = np.zeros((n_modes, 2, 2))
+        self.started = np.zeros(n_modes, dtype=bool)
+        self.gap = np.zeros(n_modes, dtype=np.int64)
+        self.models_out: list[WindowModel] = []
+        self.persist_blocks = max(_PERSIST_BLOCKS, self.overlap + 1)
+        # guard: the probability that the model explains each mode, against a model-free
+        # filter
+        self.trust = (
+            ModelTrust(n_modes, float(noise.huber_sigma), persist_blocks=self.persist_blocks)
+            if noise.model_trust
+            else None
+        )
+        self.explained_lost = np.zeros(n_modes, dtype=np.int64)  # first block below 0.5, + 1
+        # a mode's model explains it once its probability reached 0.5 on unseen blocks; only
+        # then is a fall below 0.5 news (the prior starts low,
+        # :data:`~workbench.forecasting.model_trust.PRIOR_PROBABILITY`)
+        self.explained = np.zeros(n_modes, dtype=bool)
+        self.forecast_blocks = np.zeros(n_modes, dtype=np.int64)
+        self.run = np.zeros(n_modes, dtype=np.int64)  # signed run of large innovations
+        # safeguard: model variance added where the filter's innovations are inconsistent
+        self.consistency = InnovationConsistency(
+            self.blocks.size,
+            n_modes,
+            float(noise.huber_sigma),
+            window_blocks=max(int(noise.consistency_blocks), MIN_BLOCKS),
+        )
+
+    def warn(self, i: int, j: int, message: str, kind: str) -> None:
+        self.notes[kind] += 1
+        self.out_warning.setdefault((i, j), []).append(message)
+
+    # ------------------------------------------------------------------ models of a window
+    def model_rows(self, i0: int, k_first: int, f1: int, is_first: bool):
+        """Refit (first window, rolling scheme) and each mode's model of the state, of the
+        measurement and its variance for rows *k_first*..*f1* - 1; noise levels from the
+        out-of-sample residuals before row *i0*."""
+        n_rows = f1 - k_first
+        m_rows = np.full((n_rows, self.n_modes), np.nan)  # model of the state
+        z_rows = np.full((n_rows, self.n_modes), np.nan)  # model of the measurement
+        v_rows = np.zeros((n_rows, self.n_modes))
+        if is_first or self.options.scheme == 2:
+            fits = [self.refits.refit(j, i0) for j in range(self.n_modes)]
+            self.bias.refit(fits, i0, self.refits.train_y)
+            for j in range(self.n_modes):
+                if fits[j] is not None:
+                    self.current[j] = fits[j]
+        for j in range(self.n_modes):
+            m = self.current[j]
+            if m is None:
+                self.notes[f"mode {self.mode_labels[j]}: too few measured blocks, no forecast"] += 1
+                continue
+            mean, seen, mvar, level_hz = self._mode_predictions(j, m, i0, k_first, f1)
+            m_rows[:, j], z_rows[:, j], v_rows[:, j] = mean, seen, mvar
+            nz = self._mode_noise(j, i0, is_first, level_hz)
+            self.models_out.append(self._window_model(j, m, nz, i0))
+        return m_rows, z_rows, v_rows
+
+    def _mode_predictions(self, j: int, m: MemoryModel, i0: int, k_first: int, f1: int):
+        """Mode *j*'s model of the state and of the measurement, and its variance, on rows
+        *k_first*..*f1* - 1, and its level [Hz]; the reported model track and bounds written."""
+        first, out = self.first, self.out
+        # predictions from the row before (model switch) to the end of this window
+        from_row = max(k_first - 1, first)
+        rows = np.arange(from_row, f1)
+        mean, lower, upper, bad, mvar = self.refits.predict(m, rows)
+        # what SSI sees (measurement equation); the state is the time average
+        seen = self.bias.seen_by_ssi(m, rows, j, mean)
+        implausible = np.isfinite(mean) & ~_plausible(mean, self.reference_hz[j])
+        implausible |= np.isfinite(seen) & ~_plausible(seen, self.reference_hz[j])
+        if implausible.any():
+            level = float(np.nanmedian(self.meas[max(first, i0 - 36) : i0, j]))
+            mean[implausible] = level
+            seen[implausible] = level
+            lower[implausible] = level - (upper - lower)[implausible] / 2
+            upper[implausible] = level + (upper - lower)[implausible] / 2
+        # c carries over unchanged: successive models are fitted on nearly the same
+        # history, so the model error c is the same quantity before and after a refit
+        sl = slice(1, None) if from_row < k_first else slice(None)
+        report = np.arange(k_first, f1)
+        out["seen"][report, j] = seen[sl]
+        out["model"][report, j] = mean[sl]
+        out["lower"][report, j] = lower[sl]
+        out["upper"][report, j] = upper[sl]
+        self.out_w0[report, j] = self.blocks[max(first, i0 - self.history_limit)]
+        self.out_w1[report, j] = self.blocks[i0 - 1]
+        self.out_phase[report, j] = np.where(report < first + self.train, 1, 2)
+        for k in report[bad[sl]]:
+            self.warn(k, j, "predictor NaN: model centre", "blocks with a needed predictor NaN")
+        return mean[sl], seen[sl], mvar[sl], float(abs(np.nanmedian(mean)))
+
+    def _mode_noise(self, j: int, i0: int, is_first: bool, level_hz: float) -> NoiseModel:
+        """Mode *j*'s noise levels from the out-of-sample residuals before row *i0*."""
+        first, noise = self.first, self.noise
+        lo = max(first, i0 - int(noise.noise_blocks))
+        r_hist = self.resid[lo:i0, j]
+        if np.isfinite(r_hist).sum() == 0 and is_first:
+            nz = first_window_noise(self.meas[first:i0, j], self.out["seen"][first:i0, j], level_hz)
+        elif (
+            self.noise_of[j] is None
+            or i0 - first < int(noise.noise_blocks)  # residual window still filling
+            or i0 - self.noise_at[j] >= self.options.reselect_blocks
+        ):  # then with the terms' schedule (the grid search is the costly part)
+            nz = estimate_noise(r_hist, level_hz, correlated_lags=self.independent_lag)
+            if nz.n_residuals:  # fitted, not the prior: no less model error than shown
+                nz = model_error_floor(nz, self.resid[max(lo, first + self.train) : i0, j])
+            self.noise_at[j] = i0
+        else:
+            nz = self.noise_of[j]
+        self.noise_of[j] = nz
+        if not self.started[j]:
+            self.P[j] = stationary_covariance(nz)
+            self.state[j] = 0.0
+            self.started[j] = True
+        return nz
+
+    def _window_model(self, j: int, m: MemoryModel, nz: NoiseModel, i0: int) -> WindowModel:
+        """The record of mode *j*'s model for the window ending before row *i0*."""
+        start = int(self.blocks[max(self.first, i0 - self.history_limit)])
+        return WindowModel(
+            mode=int(self.mode_labels[j]),
+            window_start_block=start,
+            window_end_block=int(self.blocks[i0 - 1]),
+            kind="stepwise" if m.kind == "memory" else "constant",
+            terms=m.term_names(),
+            coefficients=dict(
+                zip(["(Intercept)", *m.term_names()], map(float, m.coefficients), strict=False)
+            ),
+            n_train=m.n_train,
+            rmse_hz=float(math.sqrt(m.residual_variance)),
+            measurement_variance=float(nz.error_variance + nz.white_variance),
+            process_variance=float(nz.correction_variance * (1 - nz.transition**2)),
+            normalisation={
+                n: (float(a), float(b)) for n, a, b in zip(m.names, m.mean, m.scale, strict=True)
+            },
+        )
+
+    # ------------------------------------------------------------------ the Kalman pass
+    def kalman_pass(self, i0: int, report: np.ndarray, rows) -> None:
+        """Measurement and Kalman step of every row in *report* (the rows of the window
+        whose models start at row *i0*)."""
+        m_rows, z_rows, v_rows = rows
+        noise = self.noise
+        typical = self._typical_scatter(i0)
+        F, q_c, q_e, r_v, huber = filter_matrices(self.noise_of, noise.huber_sigma)
+        added_variance = (
+            self.consistency.update(i0).copy()
+            if noise.consistency_blocks
+            else np.zeros(self.n_modes)
+        )
+        have_model = np.array([c is not None for c in self.current])
+        for r, k in enumerate(report):
+            have = np.isfinite(m_rows[r]) & have_model
+            if self.option == "A" or k < self.first + self.train:
+                z, scale = self._tracked_measurement(k, have, typical)
+            else:
+                z, scale = self._cluster_measurement(
+                    k, have, typical, z_rows[r], (F, q_c, q_e, r_v)
+                )
+            z[~have] = np.nan
+            filter_step = (F, q_c, q_e, r_v, huber, v_rows[r] + added_variance)
+            self._kalman_step(k, have, z, scale, m_rows[r], z_rows[r], filter_step)
+
+    def _typical_scatter(self, i0: int) -> np.ndarray:
+        """Typical cluster scatter per mode (RMS over the noise window before row *i0*)."""
+        typical = np.full(self.n_modes, np.nan)
+        if (self.index is not None or self.combined_std is not None) and self.noise.pole_scatter:
+            lo = max(self.first, i0 - int(self.noise.noise_blocks))
+            s = self.scatter[lo:i0]
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                typical = np.sqrt(np.nanmean(s**2, axis=0))
+        return typical
+
+    def _tracked_measurement(self, k: int, have: np.ndarray, typical: np.ndarray):
+        """Option A (and the first window): the tracked pole, scaled by its scatter."""
+        z = self.tracked[k].copy()
+        scale = np.ones(self.n_modes)
+        if (self.index is not None or self.combined_std is not None) and self.noise.pole_scatter:
+            for j in np.flatnonzero(np.isfinite(z) & have):
+                if self.combined_std is not None and np.isfinite(self.combined_std[k, j]):
+                    self.scatter[k, j] = self.combined_std[k, j]
+                    scale[j] = scatter_scale(self.combined_std[k, j], typical[j])
+                    continue
+                if self.index is None:
+                    continue
+                self._scale_by_cluster(k, j, z[j], scale, typical)
+        return z, scale
+
+    def _scale_by_cluster(self, k, j, frequency_hz, scale, typical, *, use=True) -> None:
+        """Scatter of the cluster around *frequency_hz* at row *k*, and the measurement
+        scale of mode *j* from it (with *use*)."""
+        cl = cluster_around(self.index, k, frequency_hz)
+        if cl is not None and cl.n_orders >= 3:
+            self.scatter[k, j] = cl.scatter_hz
+            if use:
+                scale[j] = scatter_scale(cl.scatter_hz, typical[j])
+        elif np.isfinite(typical[j]) and use:
+            scale[j] = scatter_scale(math.nan, typical[j])
+
+    def _cluster_measurement(self, k, have, typical, z_now, matrices):
+        """Option B: the pole cluster of each mode's gate, chosen by :attr:`chooser`."""
+        measurement, out = self.options, self.out
+        F, q_c, q_e, r_v = matrices
+        z = np.full(self.n_modes, np.nan)
+        scale = np.ones(self.n_modes)
+        # gate on the innovation standard deviation of the a-priori state
+        prior_state = self.state * F
+        Pp = self.P * (F[:, :, None] * F[:, None, :])
+        S = Pp[:, 0, 0] + Pp[:, 1, 1] + 2 * Pp[:, 0, 1] + q_c + q_e + r_v
+        prior_z = z_now + prior_state[:, 0] + prior_state[:, 1]
+        # g = gate_sigma sqrt(S), at most max_gate x the frequency: a filter that has
+        # lost confidence must not open its gate onto other modes and harmonics
+        gate = np.minimum(
+            measurement.gate_sigma * np.sqrt(S), measurement.max_gate * np.abs(prior_z)
+        )
+        # without shapes a cluster in the gate may be a close neighbour's column:
+        # each mode's anchor is its tracked pole of the block (else its prior)
+        anchors = np.where(np.isfinite(self.tracked[k]), self.tracked[k], prior_z)
+        for j in np.flatnonzero(have):
+            choice = self.chooser.choose(k, j, prior_z[j], gate[j], self.damping_ref[j])
+            if choice is None:
+                continue
+            cl = choice.cluster
+            if self.chooser.shape_mac is None and nearer_to_another_mode(
+                cl.frequency_hz, j, anchors
+            ):
+                self._refuse_neighbour(k, j, cl.frequency_hz, anchors, z, scale, typical)
+                continue
+            z[j] = cl.frequency_hz
+            for key, value in (
+                ("order", cl.max_order),
+                ("damping", cl.damping_ratio),
+                ("mac", choice.mac),
+                ("n_orders", cl.n_orders),
+                ("scatter", cl.scatter_hz),
+                ("min_order", cl.min_order),
+                ("max_order", cl.max_order),
+            ):
+                out[key][k, j] = value
+            self.scatter[k, j] = cl.scatter_hz
+            if self.noise.pole_scatter:
+                scale[j] = scatter_scale(cl.scatter_hz, typical[j])
+            self._follow_damping(j, cl.damping_ratio)
+            if choice.outside_gate:  # measured, Huber-weighted; no reset
+                self.warn(
+                    k,
+                    j,
+                    f"measured outside the gate: column at {z[j]:.4f} Hz, gate "
+                    f"{prior_z[j]:.4f} ± {gate[j]:.4f} Hz",
+                    "option B measurements outside the gate",
+                )
+        return z, scale
+
+    def _refuse_neighbour(self, k, j, pick_hz, anchors, z, scale, typical) -> None:
+        """An option B pick nearer to another mode: the tracked pole instead, if any."""
+        other = int(np.nanargmin(np.abs(np.delete(anchors, j) - pick_hz)))
+        other += other >= j
+        tracked = self.tracked[k, j]
+        self.warn(
+            k,
+            j,
+            f"option B pole {pick_hz:.4f} Hz nearer to mode {self.mode_labels[other]} than "
+            f"to this mode's {anchors[j]:.4f} Hz: "
+            + ("tracked pole used" if np.isfinite(tracked) else "refused"),
+            "option B poles nearer to another mode (tracked pole used or predict-only)",
+        )
+        if not np.isfinite(tracked):
+            return
+        z[j] = tracked
+        self._scale_by_cluster(k, j, z[j], scale, typical, use=self.noise.pole_scatter)
+
+    def _follow_damping(self, j: int, damping_ratio: float) -> None:
+        """Mode *j*'s reference damping follows the chosen poles' (geometric, 5 %)."""
+        if np.isfinite(damping_ratio) and damping_ratio > 0:
+            ref = self.damping_ref[j]
+            self.damping_ref[j] = (
+                math.exp(0.95 * math.log(ref) + 0.05 * math.log(damping_ratio))
+                if np.isfinite(ref) and ref > 0
+                else damping_ratio
+            )
+
+    def _kalman_step(self, k, have, z, scale, m_now, z_now, filter_step) -> None:
+        """Kalman update of row *k* with the measurements *z*; the guard, the outputs."""
+        F, q_c, q_e, r_v, huber, model_variance = filter_step
+        n_modes, in_sample = self.n_modes, k < self.first + self.train
+        residual = z - z_now  # innovation about what SSI is expected to see
+        Q = np.column_stack([q_c, q_e * scale])
+        self.state, self.P, delta, nu, innovation_variance = kalman_pass_step(
+            self.state,
+            self.P,
+            F,
+            Q,
+            residual,
+            r_v * scale,
+            huber,
+            model_variance=model_variance,
+            previous_run=self.run,
+            persist_blocks=self.persist_blocks,
+        )
+        if not in_sample:  # out of sample: the model had not seen block k
+            self.consistency.record(k, nu, innovation_variance, residual)
+        self.run = update_run(self.run, nu, huber)
+        estimate = m_now + self.state[:, 0] + delta
+        lost = have & ~_plausible(estimate, self.reference_hz)
+        for j in np.flatnonzero(lost):
+            self.state[j] = 0.0
+            self.P[j] = stationary_covariance(self.noise_of[j])
+            estimate[j] = m_now[j]
+            self.warn(
+                k,
+                j,
+                "Kalman track implausible: restarted at the model",
+                "Kalman tracks restarted at the model (estimate implausible)",
+            )
+        variance = np.maximum(self.P[:, 0, 0], 0.0)
+        if self.trust is not None:
+            self.trust.step(
+                np.where(have, z, np.nan),
+                F[:, 1],
+                q_e * scale / np.maximum(1 - F[:, 1] ** 2, 1e-12),
+                r_v * scale,
+                nu,
+                innovation_variance,
+                np.full(n_modes, not in_sample) & ~lost,
+            )
+            estimate, variance = self.trust.combine(estimate, variance)
+            self.out["probability"][k] = np.where(have, self.trust.probability, np.nan)
+            if not in_sample:
+                self._explained(k, have)
+        if not in_sample:
+            self.meas[k] = z
+        self.resid[k] = residual
+        self.out["ssi"][k] = z
+        self.out["kalman"][k] = np.where(have, estimate, np.nan)
+        self.out["std"][k] = np.where(have, np.sqrt(variance), np.nan)
+        self.gap = np.where(np.isfinite(z), 0, self.gap + have)
+        for j in np.flatnonzero(have & (self.gap >= self.options.gap_warning_blocks)):
+            self.warn(
+                k,
+                j,
+                f"no SSI estimate for {self.gap[j]} blocks: predict-only",
+                "rows in a long stretch without SSI estimates (predict-only)",
+            )
+
+    def _explained(self, k: int, have: np.ndarray) -> None:
+        """Count forecast blocks and note when a mode's model stops explaining it."""
+        for j in np.flatnonzero(have):
+            self.forecast_blocks[j] += 1
+            below = self.trust.probability[j] < 0.5
+            self.explained[j] |= not below
+            if below and self.explained[j] and not self.explained_lost[j]:
+                self.explained_lost[j] = int(self.blocks[k]) + 1
+            if below and self.explained[j]:
+                self.notes[
+                    f"mode {self.mode_labels[j]}: the model stopped explaining it (model "
+                    f"probability below 0.5, first at block {self.explained_lost[j] - 1}; "
+                    "blocks below, the estimate follows SSI)"
+                ] += 1
+
+    def result(self) -> ForecastResult:
+        """The forecast table, the warnings (also issued) and the window models."""
+        for j in np.flatnonzero((self.forecast_blocks > 0) & ~self.explained):
+            self.notes[
+                f"mode {self.mode_labels[j]}: the model never explained it well enough to be "
+                f"leaned on (model probability below 0.5 in all {self.forecast_blocks[j]} "
+                "forecast blocks; the estimate follows SSI)"
+            ] += 1
+        drop_unusable(self.out_phase, self.out["model"], self.out["kalman"], self.notes)
+        table = assemble_table(
+            self.blocks,
+            self.block_start,
+            self.mode_labels,
+            self.option,
+            self.out_phase,
+            self.out,
+            (self.out_w0, self.out_w1),
+            self.out_warning,
+        )
+        messages = tuple(f"{kind} (x{count})" for kind, count in self.notes.items())
+        for message in messages:
+            warnings.warn(message, ForecastWarning, stacklevel=4)
+        return ForecastResult(table=table, warnings=messages, models=tuple(self.models_out))
