@@ -18,6 +18,7 @@ from .blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
 from .forecasting.options import DEFAULT_MODEL, MeasurementOptions
 from .forecasting.sliding import DEFAULT_HORIZON
 from .identification import IdentifyOptions
+from .monitor import ForecastSettings, MonitorOptions
 from .shm import HealthOptions
 from .sid.harmonics import HarmonicOptions
 from .sid.tracking import TrackingOptions
@@ -34,6 +35,8 @@ _IDENTIFY = IdentifyOptions()
 _TRACK = TrackingOptions()
 _MEASUREMENT = MeasurementOptions()
 _HEALTH = HealthOptions()
+_MONITOR = MonitorOptions()
+_MONITOR_FORECAST = ForecastSettings()
 
 # --------------------------------------------------------------------------- blocks
 #: Block length and step of the block grid. [min]
@@ -108,3 +111,19 @@ HEALTH_REFERENCE_HOURS = 6.0
 HEALTH_EWMA_LAMBDA = _HEALTH.ewma_lambda
 HEALTH_FALSE_ALARMS_PER_DAY = _HEALTH.false_alarms_per_day
 HEALTH_STATISTIC = _HEALTH.statistic
+
+# --------------------------------------------------------------------------- monitor
+# (the monitor's identification, tracking, forecast and health options are the batch
+# commands': workbench.cli.monitoring copies their declarations)
+#: Seconds between polls of the watched folder and between heartbeats. [s]
+MONITOR_POLL_S = _MONITOR.poll_s
+#: A file is taken once unmodified this long. [s]
+MONITOR_SETTLE_S = _MONITOR.settle_s
+MONITOR_LATE_S = _MONITOR.late_s
+MONITOR_FLUSH_AFTER_S = _MONITOR.flush_after_s
+MONITOR_ON_ALARM_TIMEOUT_S = _MONITOR.on_alarm_timeout_s
+MONITOR_HEALTH_MODEL = _MONITOR_FORECAST.health_model
+#: Hours the health chart's operational model is fitted on. [h]
+MONITOR_HEALTH_TRAIN_HOURS = _MONITOR_FORECAST.health_train_hours
+#: Time constant of the health chart's slowly following baseline (0: fixed). [h]
+MONITOR_BASELINE_HOURS = _MONITOR_FORECAST.baseline_hours

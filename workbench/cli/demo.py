@@ -7,7 +7,6 @@ import argparse
 from pathlib import Path
 
 from .. import defaults as D
-from ..arguments import add_renamed
 from .common import EXIT_OK, UsageError, _add_parallel, _check_hours, _check_positive
 
 
@@ -29,10 +28,8 @@ def _add_simulate(commands: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--no-accelerations", action="store_true", help="skip the acceleration files (tables only)"
     )
-    add_renamed(
-        parser,
+    parser.add_argument(
         "--sampling-rate",
-        ["--rate"],
         type=float,
         default=D.SIMULATE_SAMPLING_RATE_HZ,
         metavar="HZ",
