@@ -196,7 +196,7 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--stabilisation-figures",
         type=int,
-        default=0,
+        default=D.IDENTIFY_STABILISATION_FIGURES,
         metavar="K",
         help="stabilisation diagrams of K blocks spread over the voyage",
     )
@@ -229,7 +229,7 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--tpe-figures",
         type=int,
-        default=0,
+        default=D.IDENTIFY_TPE_FIGURES,
         metavar="K",
         help="SSI-data stabilisation diagrams with the total prediction error per model "
         "order beside them, for K blocks",

@@ -42,13 +42,21 @@ def _add_dashboard(commands: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--host",
-        default="127.0.0.1",
+        default=D.DASHBOARD_HOST,
         help="interface to listen on (default: %(default)s, this machine only)",
     )
-    parser.add_argument("--port", type=int, default=8050, help="port (0: any free port)")
-    parser.add_argument("--hours", type=float, default=6.0, help="tracked-frequency span [h]")
-    parser.add_argument("--health-hours", type=float, default=24.0, help="health-chart span [h]")
-    parser.add_argument("--poll", type=float, default=1.0, help="page checks for changes every [s]")
+    parser.add_argument(
+        "--port", type=int, default=D.DASHBOARD_PORT, help="port (0: any free port)"
+    )
+    parser.add_argument(
+        "--hours", type=float, default=D.DASHBOARD_HOURS, help="tracked-frequency span [h]"
+    )
+    parser.add_argument(
+        "--health-hours", type=float, default=D.DASHBOARD_HEALTH_HOURS, help="health-chart span [h]"
+    )
+    parser.add_argument(
+        "--poll", type=float, default=D.DASHBOARD_POLL_S, help="page checks for changes every [s]"
+    )
     parser.add_argument("--option", choices=("A", "B"), help="forecast option on the mode cards")
     parser.set_defaults(run=_run_dashboard)
 
