@@ -66,6 +66,8 @@ from typing import Any
 
 from data_contracts.limits import MAX_MODEL_ORDER
 
+from .blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
+
 __all__ = [
     "SCHEMA",
     "ConfigDeprecationWarning",
@@ -515,8 +517,8 @@ def command_defaults(command: str, config: ShipConfig) -> dict[str, Any]:
         put("time_zone", "modal", "time_zone")
         if c.has("modal") and (c.has("blocks") or c.has("modal", "grid_t0")):
             grid = [
-                c.get("blocks", "length_minutes", 20.0),
-                c.get("blocks", "step_minutes", 5.0),
+                c.get("blocks", "length_minutes", DEFAULT_BLOCK_LENGTH_S / 60.0),
+                c.get("blocks", "step_minutes", DEFAULT_BLOCK_STEP_S / 60.0),
             ]
             if c.has("modal", "grid_t0"):
                 grid.append(c.get("modal", "grid_t0"))
