@@ -19,7 +19,7 @@ from pathlib import Path
 from .. import defaults as D
 from ..arguments import copy_flags
 from ..errors import WorkbenchError
-from ..inputs import add_acceleration_layout, dship_mapping
+from ..inputs import add_acceleration_layout, add_dship_columns, dship_mapping
 from .common import EXIT_OK, UsageError
 from .forecasting import FORECAST_OPTIONS, FORECAST_SCHEMES, check_forecast_flags
 from .identify import harmonic_options, identify_options
@@ -200,7 +200,7 @@ def _add_monitor(commands: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--watch", type=Path, metavar="DIR", help="folder the files arrive in")
     parser.add_argument("--dship", type=Path, metavar="FILE", help="the ship log (growing)")
-    copy_flags(batch["identify"], parser, ("dship_columns",))
+    add_dship_columns(parser)
     parser.add_argument(
         "--state",
         type=Path,
