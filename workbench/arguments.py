@@ -1,6 +1,6 @@
-"""Pieces every command's argument parser shares: help that shows defaults, renamed
-options whose old spelling still works, descriptive choices with short aliases, and the
-``--verbose``/``--quiet`` switches accepted before or after the command.
+"""Pieces every command's argument parser shares: help that shows defaults, options one
+command takes over from another (:func:`copy_flags`), descriptive choices with short
+aliases, and the ``--verbose``/``--quiet`` switches accepted before or after the command.
 
 Kept apart from :mod:`workbench.cli` so that the commands only declare their options.
 """
@@ -13,12 +13,10 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 __all__ = [
-    "RENAMED",
     "HelpFormatter",
-    "Namespace",
-    "add_renamed",
     "add_verbosity",
     "choice",
+    "copy_flags",
     "stderr_is_terminal",
 ]
 
@@ -42,63 +40,45 @@ class HelpFormatter(argparse.HelpFormatter):
         return f"{text} (default: %(default)s)"
 
 
-#: Namespace attribute holding a command's renamed destinations (old name -> new name).
-RENAMED = "renamed_destinations"
+def copy_flags(
+    source: argparse.ArgumentParser,
+    target: argparse.ArgumentParser | argparse._ArgumentGroup,
+    dests: Sequence[str],
+    *,
+    help: Mapping[str, str] | None = None,
+) -> None:
+    """Add to *target* the options of *source* whose destinations are *dests*: the same
+    flags, type, choices, default and help (*help* replaces the text of some), in
+    *source*'s order. A command that shares another's options (``monitor`` those of
+    ``identify``, ``track``, ``forecast`` and ``health``) declares them this way, so that
+    each option is declared once.
 
-
-class Namespace(argparse.Namespace):
-    """Parsed arguments that also answer the old names of renamed destinations, so code
-    written against them (in other branches) still runs."""
-
-    def __getattr__(self, name: str) -> Any:
-        renamed = self.__dict__.get(RENAMED) or {}
-        if name not in renamed:
-            raise AttributeError(name)
-        return getattr(self, renamed[name])
-
-
-class _Deprecated(argparse.Action):
-    """An old spelling of an option: hidden from ``--help``, stores into the new option's
-    destination and prints a one-line deprecation note on stderr."""
-
-    def __init__(self, option_strings, dest, *, new: str, **kwargs):
-        self.new = new
-        kwargs["help"] = argparse.SUPPRESS
-        kwargs["default"] = argparse.SUPPRESS
-        super().__init__(option_strings, dest, **kwargs)
-
-    def __call__(self, parser, namespace, values, option_string=None):
-        print(
-            f"workbench: warning: {option_string} is deprecated; use {self.new}",
-            file=sys.stderr,
-        )
-        setattr(namespace, self.dest, values)
-
-
-def add_renamed(
-    parser: argparse.ArgumentParser | argparse._ArgumentGroup,
-    flag: str,
-    old_flags: Sequence[str],
-    **kwargs: Any,
-) -> argparse.Action:
-    """Add option *flag* (with argparse's *kwargs*) and its old spellings *old_flags*."""
-    action = parser.add_argument(flag, **kwargs)
-    renamed = dict(parser.get_default(RENAMED) or {})  # a group shares its parser's defaults
-    for old in old_flags:
-        old_dest = old.lstrip("-").replace("-", "_")
-        if old_dest != action.dest:
-            renamed[old_dest] = action.dest
-    parser.set_defaults(**{RENAMED: renamed})
-    parser.add_argument(
-        *old_flags,
-        dest=action.dest,
-        action=_Deprecated,
-        new=flag,
-        nargs=action.nargs,
-        type=action.type,
-        metavar=action.metavar,
-    )
-    return action
+    Raises
+    ------
+    KeyError
+        A destination *source* has no option for.
+    """
+    wanted = set(dests)
+    actions = [a for a in source._actions if a.dest in wanted and a.option_strings]  # noqa: SLF001
+    missing = wanted - {a.dest for a in actions}
+    if missing:
+        raise KeyError(f"{source.prog} has no option for {', '.join(sorted(missing))}")
+    for action in actions:
+        kwargs: dict[str, Any] = {
+            "action": type(action),
+            "dest": action.dest,
+            "default": action.default,
+            "help": dict(help or {}).get(action.dest, action.help),
+        }
+        if action.nargs != 0:  # not a switch: the value's reading and display
+            kwargs.update(
+                nargs=action.nargs,
+                const=action.const,
+                type=action.type,
+                choices=action.choices,
+                metavar=action.metavar,
+            )
+        target.add_argument(*action.option_strings, **kwargs)
 
 
 class choice:  # noqa: N801 (used like a type: ``type=choice(...)``)

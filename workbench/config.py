@@ -66,6 +66,8 @@ from typing import Any
 
 from data_contracts.limits import MAX_MODEL_ORDER
 
+from .blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
+
 __all__ = [
     "SCHEMA",
     "ConfigDeprecationWarning",
@@ -473,7 +475,21 @@ def _pairs(mapping: Mapping[str, Any]) -> str:
 
 
 def command_defaults(command: str, config: ShipConfig) -> dict[str, Any]:
-    """argparse destinations -> values of *command* taken from *config*."""
+    """argparse destinations -> values of *command* taken from *config*.
+
+    ``monitor`` reads the sections the batch commands read (its options are theirs):
+    identify's, track's and forecast's values (``mac_min`` from ``[track]``), the watched
+    folder from ``[accelerations] inputs`` and the state folder ``OUTPUT/monitor``.
+    """
+    if command == "monitor":
+        forecast = command_defaults("forecast", config)
+        forecast.pop("mac_min", None)  # the monitor's one --mac-min is track's
+        identify = command_defaults("identify", config)
+        values = {**forecast, **identify, **command_defaults("track", config)}
+        if identify.get("inputs"):
+            values["watch"] = Path(identify["inputs"][0])
+        values["state"] = config.out_dir / "monitor"
+        return values
     c = config
     out = c.out_dir
     values: dict[str, Any] = {}
@@ -501,8 +517,8 @@ def command_defaults(command: str, config: ShipConfig) -> dict[str, Any]:
         put("time_zone", "modal", "time_zone")
         if c.has("modal") and (c.has("blocks") or c.has("modal", "grid_t0")):
             grid = [
-                c.get("blocks", "length_minutes", 20.0),
-                c.get("blocks", "step_minutes", 5.0),
+                c.get("blocks", "length_minutes", DEFAULT_BLOCK_LENGTH_S / 60.0),
+                c.get("blocks", "step_minutes", DEFAULT_BLOCK_STEP_S / 60.0),
             ]
             if c.has("modal", "grid_t0"):
                 grid.append(c.get("modal", "grid_t0"))
@@ -531,7 +547,7 @@ def command_defaults(command: str, config: ShipConfig) -> dict[str, Any]:
         ):
             put(key, "identify", key)
         put("band", "identify", "band", tuple)
-        put("reference", "identify", "reference_channels", lambda v: ",".join(v))
+        put("reference_channels", "identify", "reference_channels", lambda v: ",".join(v))
         # the ship log's shaft speed (or speed) marks the shaft harmonics
         put("dship", "dship", "file")
         put("dship_columns", "dship", "columns", lambda m: [_pairs(m)])

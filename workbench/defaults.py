@@ -15,13 +15,15 @@ import inspect
 from pathlib import Path
 
 from .blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
+from .dashboard import DashboardOptions, make_server
 from .forecasting.options import DEFAULT_HORIZON, DEFAULT_TRUST, ForecastOptions
 from .identification import IdentifyOptions
+from .monitor import ForecastSettings, MonitorOptions
 from .shm import HealthOptions
 from .sid.harmonics import HarmonicOptions
 from .sid.tracking import TrackingOptions
 from .signals.moments import faulty_channels
-from .simulate.voyage import DEFAULT_HOURS, SAMPLING_RATE_HZ
+from .simulate.voyage import DEFAULT_HOURS, SAMPLING_RATE_HZ, ShaftHarmonics
 from .stats.stepwise import DEFAULT_THRESHOLDS
 
 
@@ -33,6 +35,10 @@ _IDENTIFY = IdentifyOptions()
 _TRACK = TrackingOptions()
 _FORECAST = ForecastOptions()
 _HEALTH = HealthOptions()
+_MONITOR = MonitorOptions()
+_SHAFT = ShaftHarmonics()
+_DASHBOARD = DashboardOptions()
+_MONITOR_FORECAST = ForecastSettings()
 
 # --------------------------------------------------------------------------- blocks
 #: Block length and step of the block grid. [min]
@@ -46,6 +52,11 @@ HOURS = DEFAULT_HOURS
 #: Sampling rate of simulated acceleration files (the analysis rate of the demo). [Hz]
 SIMULATE_SAMPLING_RATE_HZ = SAMPLING_RATE_HZ
 DEMO_OUT = Path("reports") / "demo"
+#: Shaft orders and propeller blades in simulated accelerations, and the shaft rate per
+#: knot of speed. [-], [-], [Hz/kn]
+SIMULATE_SHAFT_ORDERS = ",".join(f"{k:d}" for k in _SHAFT.orders)
+SIMULATE_BLADES = _SHAFT.blades
+SIMULATE_SHAFT_HZ_PER_KN = _SHAFT.hz_per_kn
 
 # --------------------------------------------------------------------------- identify
 #: Shaft orders checked for harmonics, and the propeller's blades (0: no blade pass).
@@ -70,6 +81,9 @@ IDENTIFY_VARIANCE_Z_MAX = _keyword_default(faulty_channels, "max_variance_z")
 IDENTIFY_MAX_NAN_FRACTION = _keyword_default(faulty_channels, "max_nan_fraction")
 #: Blocks the per-block store writes together (an interruption loses at most these).
 IDENTIFY_BATCH_BLOCKS = 16
+#: Blocks drawn as stabilisation diagrams (and with their total prediction errors); none
+#: unless asked for: the figures are a look at chosen blocks, not a result of identify.
+IDENTIFY_STABILISATION_FIGURES = IDENTIFY_TPE_FIGURES = 0
 
 # --------------------------------------------------------------------------- track
 TRACK_MAC_MIN = _TRACK.mac_min
@@ -110,3 +124,27 @@ HEALTH_REFERENCE_HOURS = 6.0
 HEALTH_EWMA_LAMBDA = _HEALTH.ewma_lambda
 HEALTH_FALSE_ALARMS_PER_DAY = _HEALTH.false_alarms_per_day
 HEALTH_STATISTIC = _HEALTH.statistic
+
+# --------------------------------------------------------------------------- monitor
+# (the monitor's identification, tracking, forecast and health options are the batch
+# commands': workbench.cli.monitoring copies their declarations)
+#: Seconds between polls of the watched folder and between heartbeats. [s]
+MONITOR_POLL_S = _MONITOR.poll_s
+#: A file is taken once unmodified this long. [s]
+MONITOR_SETTLE_S = _MONITOR.settle_s
+MONITOR_LATE_S = _MONITOR.late_s
+MONITOR_FLUSH_AFTER_S = _MONITOR.flush_after_s
+MONITOR_ON_ALARM_TIMEOUT_S = _MONITOR.on_alarm_timeout_s
+MONITOR_HEALTH_MODEL = _MONITOR_FORECAST.health_model
+#: Hours the health chart's operational model is fitted on. [h]
+MONITOR_HEALTH_TRAIN_HOURS = _MONITOR_FORECAST.health_train_hours
+#: Time constant of the health chart's slowly following baseline (0: fixed). [h]
+MONITOR_BASELINE_HOURS = _MONITOR_FORECAST.baseline_hours
+
+# --------------------------------------------------------------------------- dashboard
+DASHBOARD_HOST = _keyword_default(make_server, "host")
+DASHBOARD_PORT = _keyword_default(make_server, "port")
+#: Spans of the tracked frequencies and of the health chart; the page's poll. [h], [h], [s]
+DASHBOARD_HOURS = _DASHBOARD.hours
+DASHBOARD_HEALTH_HOURS = _DASHBOARD.health_hours
+DASHBOARD_POLL_S = _DASHBOARD.poll_seconds

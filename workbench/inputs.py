@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from . import defaults as D
 from .errors import UsageError
 
 __all__ = [
@@ -123,14 +124,15 @@ def add_modal_layout(parser: argparse.ArgumentParser, *, time_format: bool = Tru
         "--grid",
         metavar="LENGTH_MIN,STEP_MIN[,T0]",
         help="block grid of the table's windows: block length and step in minutes and the "
-        "start of block 0 (default 20,5 and t0 from the first window)",
+        f"start of block 0 (default {D.BLOCK_MINUTES:g},{D.STEP_MINUTES:g} and t0 from the "
+        "first window)",
     )
 
 
 def _layout(args: argparse.Namespace):
     from data_contracts.modal_layout import ModalLayout
 
-    length_min, step_min, t0 = 20.0, 5.0, None
+    length_min, step_min, t0 = D.BLOCK_MINUTES, D.STEP_MINUTES, None
     if getattr(args, "grid", None):
         parts = [p.strip() for p in args.grid.split(",")]
         try:

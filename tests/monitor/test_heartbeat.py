@@ -18,10 +18,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from workbench.cli import build_parser
+from workbench.cli import parse_arguments
+from workbench.cli.monitoring import prepare_monitor
 from workbench.dashboard.state import read_heartbeat
 from workbench.monitor import Monitor
-from workbench.monitor.cli import prepare_monitor
 
 
 def _tiny_voyage():
@@ -46,7 +46,7 @@ MONITOR_ARGS = [
 
 def _monitor(watch: Path, state: Path, *extra) -> Monitor:
     argv = ["monitor", "--watch", watch, "--state", state, *MONITOR_ARGS, *extra]
-    return prepare_monitor(build_parser().parse_args([str(a) for a in argv]))
+    return prepare_monitor(parse_arguments([str(a) for a in argv]))
 
 
 def _beat(state: Path) -> dict:

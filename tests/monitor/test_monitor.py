@@ -13,9 +13,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from workbench.cli import build_parser
+from workbench.cli import parse_arguments
+from workbench.cli.monitoring import prepare_monitor
 from workbench.monitor import DATA_HEALTH_COLUMNS, FolderWatcher
-from workbench.monitor.cli import prepare_monitor
 
 from .conftest import (
     FORECAST,
@@ -35,7 +35,7 @@ from .conftest import (
 def _monitor(watch: Path, state: Path, dship: Path, *extra):
     argv = ["monitor", "--watch", watch, "--state", state, "--dship", dship]
     argv += [*IDENTIFY, *FORECAST, *MONITOR_FAST, "--foreground", *extra]
-    return prepare_monitor(build_parser().parse_args([str(a) for a in argv]))
+    return prepare_monitor(parse_arguments([str(a) for a in argv]))
 
 
 def _monitor_once(watch: Path, state: Path, dship: Path) -> int:
@@ -344,7 +344,7 @@ def test_settings_from_a_ship_configuration(voyage, tmp_path):
         },
     )
     argv = ["monitor", "--config", str(config), "--train-blocks", "7"]
-    monitor = prepare_monitor(build_parser().parse_args(argv))
+    monitor = prepare_monitor(parse_arguments(argv))
     try:
         options = monitor.options
         assert monitor.watch == voyage / "accelerations"

@@ -16,9 +16,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from workbench.cli import build_parser, main
+from workbench.cli import main, parse_arguments
+from workbench.cli.monitoring import prepare_monitor
 from workbench.dashboard.server import make_server
-from workbench.monitor.cli import prepare_monitor
 
 from .voyage import IDENTIFY_ARGS, T0, write_voyage
 
@@ -39,7 +39,7 @@ def gave_up(tmp_path):
     files = write_voyage(source, n_files=8)
     watch.mkdir()
     argv = ["monitor", "--watch", watch, "--state", state, *MONITOR_ARGS]
-    monitor = prepare_monitor(build_parser().parse_args([str(a) for a in argv]))
+    monitor = prepare_monitor(parse_arguments([str(a) for a in argv]))
     try:
         for path in files[:LATE] + files[LATE + 1 :]:
             shutil.copy(path, watch / path.name)

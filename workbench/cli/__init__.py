@@ -6,12 +6,14 @@ success, 1 on bad data (one line per problem on stderr, naming file, column and 
 
 One module per group of commands, each declaring its commands' options (``_add_*``) and
 running them (``_run_*``): :mod:`~workbench.cli.demo` (demo, run, simulate),
-:mod:`~workbench.cli.identify` (identify, and the identification options the monitor
-shares), :mod:`~workbench.cli.modelling` (track, correlate, fit),
+:mod:`~workbench.cli.identify` (identify; :func:`identify_options` reads the
+identification flags for identify and monitor), :mod:`~workbench.cli.modelling` (track, correlate, fit),
 :mod:`~workbench.cli.forecasting` (forecast, evaluate, health),
 :mod:`~workbench.cli.files` (report, validate), :mod:`~workbench.cli.monitoring`
-(dashboard, monitor); :mod:`~workbench.cli.common` holds what they share. This module
-assembles the parser and runs a command (:func:`main`).
+(dashboard, and monitor, whose identification, tracking, forecast and health options are
+copied from those commands' declarations); :mod:`~workbench.cli.common` holds what they
+share. This module assembles the parser, applies ``--config`` (:func:`parse_arguments`)
+and runs a command (:func:`main`).
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from pathlib import Path
 from data_contracts import ContractError
 
 from .. import __version__
-from ..arguments import HelpFormatter, Namespace, add_verbosity, stderr_is_terminal
+from ..arguments import HelpFormatter, add_verbosity, stderr_is_terminal
 from ..errors import EXIT_INTERRUPTED, OptionError, WorkbenchError, printable
 from .common import (
     EXIT_DATA,
@@ -46,7 +48,6 @@ from .forecasting import (
     _add_evaluate,
     _add_forecast,
     _add_health,
-    _parse_trust,  # noqa: F401 (monitor.cli reads --trust with it)
 )
 from .identify import _add_identify, identify_options
 from .modelling import _add_correlate, _add_fit, _add_track
@@ -63,10 +64,12 @@ __all__ = [
     "build_parser",
     "identify_options",
     "main",
+    "parse_arguments",
 ]
 
 
-#: Subcommands in the order ``--help`` lists them.
+#: Subcommands in the order ``--help`` lists them (``monitor`` copies options of identify,
+#: track, forecast and health, so it comes after them).
 COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_demo,
     _add_run,
@@ -120,8 +123,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI with *argv* (default ``sys.argv[1:]``) and return the exit status."""
     parser = build_parser()
     try:
-        _apply_config(parser, argv)
-        args = parser.parse_args(argv, namespace=Namespace())
+        args = parse_arguments(argv, parser)
     except SystemExit as exit_:  # argparse exits 2 on usage errors, 0 on --help
         return int(exit_.code or 0)
     if not hasattr(args, "run"):
@@ -147,6 +149,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _run(args)
     finally:
         warnings.showwarning = shown
+
+
+def parse_arguments(
+    argv: Sequence[str] | None, parser: argparse.ArgumentParser | None = None
+) -> argparse.Namespace:
+    """The parsed arguments of *argv*, defaults taken from ``--config FILE`` where given
+    (flags win). Exits (``SystemExit``) as argparse does: 2 on usage errors, 0 on --help."""
+    parser = build_parser() if parser is None else parser
+    _apply_config(parser, argv)
+    return parser.parse_args(argv)
 
 
 def _apply_config(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> None:

@@ -7,7 +7,6 @@ import argparse
 from pathlib import Path
 
 from .. import defaults as D
-from ..arguments import add_renamed
 from .common import EXIT_OK, UsageError, _add_parallel, _check_hours, _check_positive
 
 
@@ -29,10 +28,8 @@ def _add_simulate(commands: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--no-accelerations", action="store_true", help="skip the acceleration files (tables only)"
     )
-    add_renamed(
-        parser,
+    parser.add_argument(
         "--sampling-rate",
-        ["--rate"],
         type=float,
         default=D.SIMULATE_SAMPLING_RATE_HZ,
         metavar="HZ",
@@ -50,14 +47,14 @@ def _add_simulate(commands: argparse._SubParsersAction) -> None:
     )
     shaft.add_argument(
         "--shaft-orders",
-        default="1",
+        default=D.SIMULATE_SHAFT_ORDERS,
         metavar="K,K",
         help="shaft orders in the accelerations (default: %(default)s)",
     )
     shaft.add_argument(
         "--blades",
         type=int,
-        default=5,
+        default=D.SIMULATE_BLADES,
         metavar="N",
         help="propeller blades: the blade-pass order N x the shaft rate (0: none) "
         "(default: %(default)s)",
@@ -65,7 +62,7 @@ def _add_simulate(commands: argparse._SubParsersAction) -> None:
     shaft.add_argument(
         "--shaft-hz-per-kn",
         type=float,
-        default=0.3,
+        default=D.SIMULATE_SHAFT_HZ_PER_KN,
         metavar="HZ",
         help="shaft rate per knot of speed [Hz/kn]; 0.3 turns the shaft at 180 rpm at 10 kn "
         "(default: %(default)s)",

@@ -7,7 +7,7 @@ import argparse
 from pathlib import Path
 
 from .. import defaults as D
-from ..arguments import add_renamed, choice
+from ..arguments import choice
 from ..errors import WorkbenchError
 from ..inputs import add_modal_layout
 from .common import (
@@ -66,20 +66,16 @@ def _add_forecast(commands: argparse._SubParsersAction) -> None:
         "stabilisation diagram nearest the prediction (alias B), or both into one table "
         "(alias AB); the table's option column says A or B",
     )
-    add_renamed(
-        parser,
+    parser.add_argument(
         "--scheme",
-        ["--method"],
         type=FORECAST_SCHEMES,
         metavar=FORECAST_SCHEMES.metavar,
         default=D.FORECAST_SCHEME,
         help="single-window (alias 1): one training window, one long forecast; rolling "
         "(alias 2): predict H blocks, filter them, slide the window, refit",
     )
-    add_renamed(
-        parser,
+    parser.add_argument(
         "--train-blocks",
-        ["--train"],
         type=int,
         default=D.FORECAST_TRAIN_BLOCKS,
         metavar="N",
@@ -130,20 +126,16 @@ def _add_forecast(commands: argparse._SubParsersAction) -> None:
         metavar="FILE",
         help="true modal table to draw in the figures (simulations)",
     )
-    add_renamed(
-        parser,
+    parser.add_argument(
         "--workers",
-        ["--jobs"],
         type=int,
         default=D.FORECAST_WORKERS,
         metavar="N",
         help="worker processes to spread the modes over (for voyage-length tables)",
     )
     _add_min_presence(parser, "forecast only modes measured in at least this share of the blocks")
-    add_renamed(
-        parser,
+    parser.add_argument(
         "--mac-min",
-        ["--shape-mac-min"],
         type=float,
         default=D.FORECAST_MAC_MIN,
         metavar="MAC",

@@ -9,7 +9,6 @@ import sys
 from pathlib import Path
 
 from .. import defaults as D
-from ..arguments import add_renamed
 from ..errors import printable
 from ..inputs import acceleration_layout, add_acceleration_layout, add_dship_columns, dship_mapping
 from .common import EXIT_OK, UsageError, _add_parallel, _check_positive, _option_names
@@ -91,10 +90,8 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
         default=D.IDENTIFY_WEIGHTING,
         help="SSI-data weighting",
     )
-    add_renamed(
-        parser,
+    parser.add_argument(
         "--reference-channels",
-        ["--reference"],
         metavar="CH,CH,...",
         help="SSI reference channels (default: all)",
     )
@@ -196,12 +193,10 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
         metavar="S",
         help="NaN-pad gaps between files up to S seconds inside a block",
     )
-    add_renamed(
-        parser,
+    parser.add_argument(
         "--stabilisation-figures",
-        ["--figures"],
         type=int,
-        default=0,
+        default=D.IDENTIFY_STABILISATION_FIGURES,
         metavar="K",
         help="stabilisation diagrams of K blocks spread over the voyage",
     )
@@ -234,7 +229,7 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--tpe-figures",
         type=int,
-        default=0,
+        default=D.IDENTIFY_TPE_FIGURES,
         metavar="K",
         help="SSI-data stabilisation diagrams with the total prediction error per model "
         "order beside them, for K blocks",
@@ -353,7 +348,7 @@ def identify_options(args: argparse.Namespace):
         raise UsageError(_option_names(str(error))) from None
 
 
-def _harmonic_options(args: argparse.Namespace):
+def harmonic_options(args: argparse.Namespace):
     """The :class:`~workbench.sid.harmonics.HarmonicOptions` of ``--harmonic-orders`` and
     ``--blades``."""
     from ..sid.harmonics import HarmonicOptions
@@ -375,7 +370,7 @@ def _run_identify(args: argparse.Namespace) -> int:
         raise UsageError(
             f"--stabilisation-figures must be 0 or more, got {args.stabilisation_figures}"
         )
-    harmonics = _harmonic_options(args)
+    harmonics = harmonic_options(args)
     try:
         result = identify(
             args.inputs,

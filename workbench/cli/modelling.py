@@ -7,7 +7,6 @@ import argparse
 from pathlib import Path
 
 from .. import defaults as D
-from ..arguments import add_renamed
 from .common import (
     EXIT_OK,
     UsageError,
@@ -42,19 +41,15 @@ def _add_track(commands: argparse._SubParsersAction) -> None:
         metavar="FILE",
         help="tracked modal table to write (.csv or .parquet)",
     )
-    add_renamed(
-        parser,
+    parser.add_argument(
         "--reference-modes",
-        ["--reference"],
         type=Path,
         metavar="FILE",
         help="modal table whose modes start the tracker's library (labels kept), or a "
         "health baseline (.json, health --save-model): its modes",
     )
-    add_renamed(
-        parser,
+    parser.add_argument(
         "--mac-min",
-        ["--threshold"],
         type=float,
         default=D.TRACK_MAC_MIN,
         metavar="MAC",
@@ -66,10 +61,8 @@ def _add_track(commands: argparse._SubParsersAction) -> None:
         default=D.TRACK_GATE,
         help="criterion --mac-min applies to",
     )
-    add_renamed(
-        parser,
+    parser.add_argument(
         "--frequency-tol",
-        ["--frequency-tolerance"],
         type=float,
         default=D.TRACK_FREQUENCY_TOL,
         metavar="REL",

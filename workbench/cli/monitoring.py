@@ -1,14 +1,28 @@
-"""``workbench dashboard`` and ``monitor``: the live bridge page and the folder follower
-(its options live in :mod:`workbench.monitor.cli`)."""
+"""``workbench dashboard`` and ``monitor``: the live bridge page and the folder follower.
+
+The monitor's identification, tracking, forecast and health options are those of
+``identify``, ``track``, ``forecast`` and ``health``: :func:`_add_monitor` copies their
+declarations (:func:`workbench.arguments.copy_flags`), defaults and help included, and
+:func:`_monitor_options` reads them into the options objects with the batch commands'
+functions (:func:`identify_options`, :func:`check_forecast_flags`). Settings come from
+flags, or from ``--config ship.toml`` (the sections the batch commands read:
+:func:`workbench.config.command_defaults`); flags win.
+"""
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from pathlib import Path
 
+from .. import defaults as D
+from ..arguments import copy_flags
 from ..errors import WorkbenchError
+from ..inputs import add_acceleration_layout, add_dship_columns, dship_mapping
 from .common import EXIT_OK, UsageError
+from .forecasting import FORECAST_OPTIONS, FORECAST_SCHEMES, check_forecast_flags
+from .identify import harmonic_options, identify_options
 
 
 def _add_dashboard(commands: argparse._SubParsersAction) -> None:
@@ -28,13 +42,21 @@ def _add_dashboard(commands: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--host",
-        default="127.0.0.1",
+        default=D.DASHBOARD_HOST,
         help="interface to listen on (default: %(default)s, this machine only)",
     )
-    parser.add_argument("--port", type=int, default=8050, help="port (0: any free port)")
-    parser.add_argument("--hours", type=float, default=6.0, help="tracked-frequency span [h]")
-    parser.add_argument("--health-hours", type=float, default=24.0, help="health-chart span [h]")
-    parser.add_argument("--poll", type=float, default=1.0, help="page checks for changes every [s]")
+    parser.add_argument(
+        "--port", type=int, default=D.DASHBOARD_PORT, help="port (0: any free port)"
+    )
+    parser.add_argument(
+        "--hours", type=float, default=D.DASHBOARD_HOURS, help="tracked-frequency span [h]"
+    )
+    parser.add_argument(
+        "--health-hours", type=float, default=D.DASHBOARD_HEALTH_HOURS, help="health-chart span [h]"
+    )
+    parser.add_argument(
+        "--poll", type=float, default=D.DASHBOARD_POLL_S, help="page checks for changes every [s]"
+    )
     parser.add_argument("--option", choices=("A", "B"), help="forecast option on the mode cards")
     parser.set_defaults(run=_run_dashboard)
 
@@ -118,7 +140,282 @@ def _serve_demo(args: argparse.Namespace, options) -> int:
             signal.signal(signum, handler)
 
 
-def _add_monitor(commands: argparse._SubParsersAction) -> None:
-    from ..monitor.cli import add_monitor
+#: The options ``monitor`` takes over from the batch commands, by destination (each
+#: declared once, in the command named; copied in its order, defaults and help included).
+MONITOR_IDENTIFY_FLAGS = (
+    "method",
+    "lscf_max_order",
+    "block_rows",
+    "max_order",
+    "min_order",
+    "weighting",
+    "reference_channels",
+    "rate",
+    "band",
+    "no_band",
+    "block_minutes",
+    "step_minutes",
+    "selection",
+    "no_channel_check",
+    "kurtosis_max",
+    "kurtosis_z_max",
+    "variance_z_max",
+    "max_nan_fraction",
+    "conditioning",
+    "max_gap",
+    "harmonic_orders",
+    "blades",
+)
+MONITOR_TRACK_FLAGS = ("mac_min", "gate", "frequency_tol")
+MONITOR_FORECAST_FLAGS = (
+    "option",
+    "scheme",
+    "train_blocks",
+    "horizon",
+    "model",
+    "trust",
+    "min_presence",
+    "reacquire_blocks",
+    "all_predictors",
+)
+MONITOR_HEALTH_FLAGS = ("reference_hours", "ewma_lambda", "false_alarms_per_day")
 
-    add_monitor(commands)
+
+def _add_monitor(commands: argparse._SubParsersAction) -> None:
+    """Add the ``monitor`` subcommand (after ``identify``, ``track``, ``forecast`` and
+    ``health``, whose options it copies)."""
+    batch = commands.choices
+    parser = commands.add_parser(
+        "monitor",
+        help="follow a folder of acceleration files and the ship log: identify, track, "
+        "forecast and chart structural health block by block",
+        description="Identify every block as soon as its files are complete, track the "
+        "modes, update the forecast and the health chart incrementally, and keep a state "
+        "folder (tracked.parquet, forecast.parquet, health.parquet, alarms.parquet, "
+        "data_health.parquet, status.json, heartbeat.json) that a dashboard reads, and the "
+        "daily key indicators for the shore (shore/key_indicators_DAY.json and .csv). Resumable: stop it "
+        "(Ctrl-C, SIGTERM, even kill -9) and start it again, it carries on without losing "
+        "or repeating a block. Results equal those of identify + track + forecast over "
+        "the same files.",
+    )
+    parser.add_argument("--watch", type=Path, metavar="DIR", help="folder the files arrive in")
+    parser.add_argument("--dship", type=Path, metavar="FILE", help="the ship log (growing)")
+    add_dship_columns(parser)
+    parser.add_argument(
+        "--state",
+        type=Path,
+        metavar="DIR",
+        help="state folder (default: OUTPUT/monitor with --config)",
+    )
+    parser.add_argument(
+        "--once",
+        action="store_true",
+        help="process the files present (as all there will be) and exit",
+    )
+    parser.add_argument(
+        "--poll",
+        type=float,
+        default=D.MONITOR_POLL_S,
+        metavar="S",
+        help="seconds between polls and between heartbeats (heartbeat.json; a dashboard "
+        "says 'not responding' after two missed)",
+    )
+    parser.add_argument(
+        "--settle",
+        type=float,
+        default=D.MONITOR_SETTLE_S,
+        metavar="S",
+        help="a file is taken once unmodified for S seconds; hidden temporary files are "
+        "never taken",
+    )
+    parser.add_argument(
+        "--late",
+        type=float,
+        default=D.MONITOR_LATE_S,
+        metavar="S",
+        help="missing data is waited for until data S seconds newer has landed",
+    )
+    parser.add_argument(
+        "--flush-after",
+        type=float,
+        default=D.MONITOR_FLUSH_AFTER_S,
+        metavar="S",
+        help="with no new file for S seconds, decide the blocks still waiting",
+    )
+    parser.add_argument(
+        "--foreground",
+        action="store_true",
+        help="recompute forecast and health in this process (default: a background process)",
+    )
+    parser.add_argument(
+        "--on-alarm",
+        metavar="COMMAND",
+        help="run COMMAND (split like a shell command line, run without a shell) once per "
+        "new alarm episode, the alarm as JSON on its stdin; its failure is reported in the "
+        "monitor's messages and the monitor goes on",
+    )
+    parser.add_argument(
+        "--on-alarm-timeout",
+        type=float,
+        default=D.MONITOR_ON_ALARM_TIMEOUT_S,
+        metavar="S",
+        help="stop an --on-alarm command after S seconds and report it",
+    )
+    identification = parser.add_argument_group("identification (as workbench identify)")
+    copy_flags(batch["identify"], identification, MONITOR_IDENTIFY_FLAGS)
+    tracking = parser.add_argument_group("tracking (as workbench track)")
+    copy_flags(
+        batch["track"],
+        tracking,
+        MONITOR_TRACK_FLAGS,
+        help={
+            "mac_min": "lowest MAC (or MACXP with --gate macxp) to join a mode, and of an "
+            "option-B pole's shape with its mode's (forecast --mac-min)"
+        },
+    )
+    # the files are read as identify reads them: the same reader registry and layout flags
+    add_acceleration_layout(parser)
+    forecast = parser.add_argument_group("forecast and health (as workbench forecast / health)")
+    copy_flags(batch["forecast"], forecast, MONITOR_FORECAST_FLAGS)
+    copy_flags(batch["health"], forecast, MONITOR_HEALTH_FLAGS)
+    forecast.add_argument(
+        "--health-model",
+        choices=("operational", "forecast"),
+        default=D.MONITOR_HEALTH_MODEL,
+        help="chart the residuals of the operational model fitted on the first "
+        "--health-train-hours, or of the forecast",
+    )
+    forecast.add_argument(
+        "--health-train-hours",
+        type=float,
+        default=D.MONITOR_HEALTH_TRAIN_HOURS,
+        metavar="H",
+        help="hours the health chart's operational model is fitted on; its reference "
+        "period follows",
+    )
+    forecast.add_argument(
+        "--baseline",
+        type=Path,
+        metavar="FILE",
+        help="the ship's health baseline from an earlier voyage (workbench health "
+        "--save-model): its modes start the tracker (their labels kept) and its model and "
+        "limits chart every block from the first; without it the chart starts after "
+        "--health-train-hours + --reference-hours",
+    )
+    forecast.add_argument(
+        "--baseline-hours",
+        type=float,
+        default=D.MONITOR_BASELINE_HOURS,
+        metavar="H",
+        help="without fuel_on_board_t in the ship log: time constant of the health chart's "
+        "slowly following baseline (0: fixed)",
+    )
+    parser.set_defaults(run=_run_monitor)
+
+
+def _monitor_options(args: argparse.Namespace):
+    """The :class:`~workbench.monitor.MonitorOptions` of parsed ``monitor`` arguments: the
+    identification, tracking and forecast options read as the batch commands read them."""
+    from ..monitor import ForecastSettings, MonitorOptions
+    from ..monitor.shore import parse_command
+    from ..sid.tracking import TrackingOptions
+
+    identify = identify_options(args)
+    harmonics = harmonic_options(args)  # as identify --dship marks them
+    trust = check_forecast_flags(args)  # what `forecast` refuses, the monitor refuses
+    try:
+        tracking = TrackingOptions(
+            mac_min=args.mac_min, gate=args.gate, frequency_tol=args.frequency_tol
+        )
+        option = FORECAST_OPTIONS(str(args.option))  # a configuration gives names or letters
+        forecast = ForecastSettings(
+            options=("A", "B") if option == "AB" else (option,),
+            scheme=FORECAST_SCHEMES(str(args.scheme)),
+            train_blocks=args.train_blocks,
+            horizon=args.horizon,
+            trust=trust,
+            model=args.model,
+            min_presence=args.min_presence,
+            mac_min=args.mac_min,
+            reacquire_blocks=args.reacquire_blocks,
+            all_predictors=bool(args.all_predictors),
+            dship_mapping=tuple((dship_mapping(args) or {}).items()),
+            reference_hours=args.reference_hours,
+            ewma_lambda=args.ewma_lambda,
+            false_alarms_per_day=args.false_alarms_per_day,
+            health_model=args.health_model,
+            health_train_hours=args.health_train_hours,
+            baseline_hours=args.baseline_hours or None,
+            health_baseline=None if args.baseline is None else str(args.baseline),
+        )
+        return MonitorOptions(
+            identify=identify,
+            tracking=tracking,
+            harmonics=harmonics,
+            forecast=forecast,
+            poll_s=args.poll,
+            settle_s=args.settle,
+            late_s=args.late,
+            flush_after_s=args.flush_after,
+            background=not (args.foreground or args.once),
+            on_alarm=parse_command(args.on_alarm) if args.on_alarm is not None else (),
+            on_alarm_timeout_s=args.on_alarm_timeout,
+        )
+    except (ValueError, argparse.ArgumentTypeError) as error:
+        raise UsageError(str(error)) from None
+
+
+def prepare_monitor(args: argparse.Namespace):
+    """The :class:`~workbench.monitor.Monitor` that parsed ``monitor`` arguments describe
+    (parsed by :func:`workbench.cli.parse_arguments`: ``--config`` applied)."""
+    from ..monitor import Monitor
+
+    if args.watch is None:
+        raise UsageError("monitor needs --watch DIR (or [accelerations] inputs in --config)")
+    if args.state is None:
+        raise UsageError("monitor needs --state DIR")
+    if not args.watch.is_dir():
+        raise UsageError(f"--watch {args.watch}: no such folder")
+    if args.start_time not in (None, "filename"):
+        raise UsageError(
+            f"--start-time {args.start_time}: one start time cannot place the files of a "
+            "growing folder; give --start-time filename (the time in each file's name) or "
+            "files with times of their own"
+        )
+    return Monitor(args.watch, args.state, dship=args.dship, options=_monitor_options(args))
+
+
+def _run_monitor(args: argparse.Namespace) -> int:
+    """Run ``workbench monitor``; returns the exit status."""
+    monitor = prepare_monitor(args)
+    previous = {}
+
+    def stop(signum, frame) -> None:  # noqa: ARG001 - signal handler signature
+        monitor.stop_event.set()
+
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        previous[signum] = signal.signal(signum, stop)
+    try:
+        monitor.run(once=args.once)
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        monitor.close()
+    if args.once and monitor.voyage is None:
+        refused = monitor.watcher.refused_reasons
+        if refused:  # say why, naming the first file (identify would stop at it too)
+            path, reason = next(iter(refused.items()))
+            more = f" ({len(refused) - 1} more file(s) refused)" if len(refused) > 1 else ""
+            raise WorkbenchError(f"{path}: cannot be monitored: {reason}{more}")
+        raise WorkbenchError(f"{args.watch}: no complete acceleration file to monitor")
+    through = monitor.tracked_through
+    print(
+        f"{len(monitor.done)} block(s) decided, tracked up to block "
+        f"{through if through >= 0 else '-'}; state in {args.state}"
+    )
+    for message in monitor.messages[-10:]:
+        print(f"note: {message}")
+    given_up = monitor.given_up_note()
+    if given_up:
+        print(f"note: {given_up}")
+    return EXIT_OK
