@@ -17,23 +17,26 @@ identification:
 * the log's state where known (``cases``: ice, transit, station, ...): a block does not
   straddle a change of state.
 
-Lengths are the step times 1, 2, 4, 8 within the limits (5, 10, 20, 40 min by default):
-each halving doubles the time resolution and, for the same excitation, the scatter's
-variance, so intermediate lengths add little. Every block ``k`` stays centred where the
-fixed grid's block ``k`` is centred (``t0 + k step + reference / 2``, the default
-20-min grid's centres), so the block numbers, the regular step between block times the
-forecast counts in, and the joins on block number are those of fixed blocks; only each
-block's span (``block_start`` / ``block_end``) differs. The step stays the fixed
-grid's step (5 min, the file period of a typical recorder): a step tied to the length
-would give blocks at irregular times, which the tracking's and the forecast's block
-indexing does not take; a 5-min step is also the finest time resolution worth sampling
-the shortest (5-min) blocks at.
+Every block ``k`` is centred at ``t0 + step / 2 + k step`` and is an odd number of steps
+long: 5, 15, 25 or 35 min with the default 5-min step. The step stays the file period
+of a typical recorder (5 min): with the centres in the middle of a step and odd lengths,
+every block is a whole number of steps (of whole files, when the files are a step long),
+so no block cuts a file in two and the shortest block is exactly the fixed 5-min grid's
+block. A step tied to the length would put blocks at irregular times, which the
+tracking's and the forecast's block indexing does not take: with one step, block numbers
+are regular times whatever each block's length, only the spans (``block_start`` /
+``block_end``) differ. The lengths grow by two steps (x3, x5, x7 the shortest): each
+longer block adds the same time on either side, and SSI's frequency scatter falls
+roughly as one over the square root of the length, so the longest steady length is taken.
 
 :func:`identify_adaptive` runs the identification once per length on the blocks that
 chose it (each length a grid of its own, shifted so the centres agree, and a store of its
 own so a rerun resumes) and merges the tables. The merged tables record the grid with
 ``"varying_length": true`` (:mod:`data_contracts.grid`) and carry ``block_length_s``,
-``excitation_range_db`` and ``speed_range_kn``.
+``excitation_range_db`` and ``speed_range_kn``; ``excitation.csv`` keeps the half-steps'
+excitation power (and speed), from which the predictors can be averaged as SSI reads a
+block (``--excitation`` of the commands taking ``--dship``;
+:func:`~workbench.predictors.averaging.excitation_weighted_predictors`).
 """
 
 from __future__ import annotations
@@ -69,11 +72,8 @@ class AdaptiveBlockOptions:
     min_length_s, max_length_s : float
         Shortest and longest block. [s]
     step_s : float
-        Step between block centres; the lengths are ``step_s`` x 1, 2, 4, 8, ... within
-        the limits. [s]
-    reference_length_s : float
-        Block ``k`` is centred at ``t0 + k * step_s + reference_length_s / 2`` (the
-        centres of the fixed grid of this length). [s]
+        Step between block centres (block ``k`` is centred at ``t0 + step_s / 2 + k *
+        step_s``); the lengths are the odd multiples of ``step_s`` within the limits. [s]
     max_excitation_range_db : float
         Largest excitation range of a stationary block (ratio of its largest to its
         smallest half-step power). [dB]
@@ -84,12 +84,11 @@ class AdaptiveBlockOptions:
     min_length_s: float = 300.0
     max_length_s: float = 2400.0
     step_s: float = 300.0
-    reference_length_s: float = 1200.0
     max_excitation_range_db: float = 3.0
     max_speed_range_kn: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("min_length_s", "max_length_s", "step_s", "reference_length_s"):
+        for name in ("min_length_s", "max_length_s", "step_s"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise OptionError(f"{name}={value!r} must be a positive number of seconds")
@@ -102,16 +101,18 @@ class AdaptiveBlockOptions:
                 f"max_length_s={self.max_length_s:g} must be at least "
                 f"min_length_s={self.min_length_s:g}"
             )
-        if self.max_length_s > 64 * self.step_s:
+        if self.max_length_s > 15 * self.step_s:
             raise OptionError(
-                f"max_length_s={self.max_length_s:g} must be at most 64 x step_s "
-                f"({64 * self.step_s:g})"
+                f"max_length_s={self.max_length_s:g} must be at most 15 x step_s "
+                f"({15 * self.step_s:g}; at most 8 lengths)"
             )
-        ratio = self.reference_length_s / self.step_s
-        if abs(ratio - round(ratio)) > 1e-9:
+        if not any(
+            self.min_length_s * (1 - 1e-9) <= n * self.step_s <= self.max_length_s * (1 + 1e-9)
+            for n in range(1, 16, 2)
+        ):
             raise OptionError(
-                f"reference_length_s={self.reference_length_s:g} must be a whole multiple of "
-                f"step_s={self.step_s:g} (the blocks' centres)"
+                f"min_length_s={self.min_length_s:g} .. max_length_s={self.max_length_s:g} "
+                f"holds no odd multiple of step_s={self.step_s:g}"
             )
         for name in ("max_excitation_range_db", "max_speed_range_kn"):
             value = getattr(self, name)
@@ -119,14 +120,12 @@ class AdaptiveBlockOptions:
                 raise OptionError(f"{name}={value!r} must be a positive number")
 
     def lengths(self) -> tuple[float, ...]:
-        """The candidate lengths, longest first. [s]"""
-        out = []
-        length = self.step_s
-        while length <= self.max_length_s * (1 + 1e-9):  # at most 7 doublings (64 x step)
-            if length >= self.min_length_s * (1 - 1e-9):
-                out.append(length)
-            length *= 2
-        return tuple(sorted(out, reverse=True)) or (self.min_length_s,)
+        """The candidate lengths (odd multiples of the step), longest first. [s]"""
+        return tuple(
+            float(n * self.step_s)
+            for n in range(15, 0, -2)
+            if self.min_length_s * (1 - 1e-9) <= n * self.step_s <= self.max_length_s * (1 + 1e-9)
+        )
 
 
 def block_conditions(plan, options, *, dship=None) -> pd.DataFrame:
@@ -205,7 +204,7 @@ def plan_block_lengths(
         Half-steps of :func:`block_conditions` (``start``, ``end``, ``power``,
         ``speed_kn``), consecutive from *t0*.
     t0 : time-like
-        Start of the data (block ``k`` is centred at ``t0 + k step + reference / 2``).
+        Start of the data (block ``k`` is centred at ``t0 + step / 2 + k step``).
     options : AdaptiveBlockOptions, optional
     cases : DataFrame, optional
         The log's states: ``case``, ``start``, ``end`` (UTC); a block does not straddle a
@@ -240,7 +239,7 @@ def plan_block_lengths(
         for number, (a, b) in enumerate(zip(starts, ends, strict=True), start=1):
             state[((mid >= a) & (mid < b)).to_numpy()] = number
     lengths = options.lengths()
-    centre_offset = options.reference_length_s / 2
+    centre_offset = options.step_s / 2
     # block k's centre in half-steps from t0: (centre_offset + k step) / half; the last
     # block is the last whose shortest span ends inside the data
     last = math.floor(
@@ -366,9 +365,7 @@ def identify_adaptive(
     store_root = Path(store_dir) if store_dir is not None else out / "store"
     files = acceleration_files(inputs)
     options = follow_on_starts(files, options)
-    reference = dataclasses.replace(
-        options, length_s=adaptive.reference_length_s, step_s=adaptive.step_s
-    )
+    reference = dataclasses.replace(options, length_s=adaptive.step_s, step_s=adaptive.step_s)
     plan, resolved = plan_identification(files, reference)
     first = plan.files[0].start_time
     log = _ship_log(dship, dship_mapping)
@@ -382,7 +379,7 @@ def identify_adaptive(
     parts = []
     for length, group in lengths.groupby("block_length_s", sort=True):
         label = f"{length / 60:g}min"
-        grid_t0 = first + pd.Timedelta(seconds=(adaptive.reference_length_s - length) / 2)
+        grid_t0 = first + pd.Timedelta(seconds=(adaptive.step_s - length) / 2)
         part = identify_voyage(
             files,
             out / "by_length" / label,
@@ -397,11 +394,14 @@ def identify_adaptive(
         parts.append(part)
     grid = {
         "t0": first,
-        "length_s": adaptive.reference_length_s,
+        "length_s": adaptive.step_s,
         "step_s": adaptive.step_s,
         "varying_length": True,
     }
     merged = _merge_tables([p.files for p in parts], out, lengths, grid)
+    from .export import _write_csv
+
+    merged["excitation"] = _write_csv(conditions, out / "excitation.csv")
     summary = RunSummary(
         processed=sum(p.summary.processed for p in parts),
         skipped=sum(p.summary.skipped for p in parts),
