@@ -227,3 +227,49 @@ def test_bad_block_minutes_are_usage_errors(tmp_path, capsys, flags, message):
     assert code == 2
     assert message in err
     assert "Traceback" not in err
+
+
+def test_forecast_of_blocks_of_varying_length_follows_the_speed_law():
+    """Frequencies f0 (1 - 0.003 v) with 0.05 % identification noise on blocks of 5-35 min,
+    the speed averaged over each block's own span: the forecast's model and Kalman
+    estimate are closer to the law than the identified frequencies (each block counted
+    as one step of the regular block times)."""
+    from data_contracts import PREDICTORS
+    from workbench.forecasting import sliding_forecast
+
+    rng = np.random.default_rng(1)
+    modal = _varying_modal(80)
+    spans = modal.drop_duplicates("block")[["block", "block_start", "block_end"]]
+    spans = spans.reset_index(drop=True)
+    centre_s = ((spans["block_start"] - T0) + (spans["block_end"] - T0)).dt.total_seconds() / 2
+    speed = 5.0 + 5.0 * np.sin(2 * np.pi * centre_s.to_numpy() / 5400.0)
+    n = len(spans)
+    predictors = spans.assign(
+        speed_kn=speed,
+        water_temp_c=2.0 + 0.1 * rng.standard_normal(n),
+        air_temp_c=rng.standard_normal(n),
+        wind_speed_ms=5.0 + rng.standard_normal(n),
+        wind_dir_rel_deg=rng.uniform(0, 360, n),
+    )
+    predictors = PREDICTORS.validate(predictors)
+    law = {1: 2.0, 2: 3.5}
+    by_block = pd.Series(speed, index=spans["block"])
+    for mode, f0 in law.items():
+        rows = modal["mode"] == mode
+        v = by_block.reindex(modal.loc[rows, "block"]).to_numpy()
+        noise = 1 + 0.0005 * rng.standard_normal(rows.sum())
+        modal.loc[rows, "frequency_hz"] = f0 * (1 - 0.003 * v) * noise
+    table = sliding_forecast(
+        modal, predictors, option="A", scheme=2, train_blocks=20, horizon=4
+    ).table
+    table = table[table["phase"] == "forecast"]
+    assert set(table["block"]) <= set(spans["block"])
+    for mode, f0 in law.items():
+        part = table[table["mode"] == mode]
+        assert len(part) >= 20
+        truth = f0 * (1 - 0.003 * by_block.reindex(part["block"]).to_numpy())
+        ssi = np.median(np.abs(part["ssi_frequency_hz"] / truth - 1))
+        model = np.median(np.abs(part["model_frequency_hz"] / truth - 1))
+        kalman = np.median(np.abs(part["kalman_frequency_hz"] / truth - 1))
+        assert model < 0.6 * ssi
+        assert kalman < ssi

@@ -44,6 +44,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -174,7 +175,7 @@ def block_conditions(plan, options, *, dship=None) -> pd.DataFrame:
     table = pd.DataFrame(rows, columns=["start", "end", "power"])
     table["speed_kn"] = np.nan
     if dship is not None and len(table) and "speed_kn" in dship.columns:
-        from ..predictors import block_predictors
+        from ..predictors import PredictorWarning, block_predictors
 
         spans = pd.DataFrame(
             {
@@ -184,7 +185,9 @@ def block_conditions(plan, options, *, dship=None) -> pd.DataFrame:
             }
         )
         log = dship[["time", "speed_kn"]]
-        averaged = block_predictors(log, blocks=spans, min_coverage=0.5)
+        with warnings.catch_warnings():  # the speed is all it needs of the log
+            warnings.simplefilter("ignore", PredictorWarning)
+            averaged = block_predictors(log, blocks=spans, min_coverage=0.5)
         table["speed_kn"] = averaged["speed_kn"].to_numpy(dtype=float)
     return table
 
