@@ -22,6 +22,15 @@ seed, stretch (``ice`` / ``open water``) and run: blocks, median block length, f
 the median and 90th percentile of the path error, the median block error and the median of
 block error x length.
 
+A second table checks what SSI reads in a fixed 20-min block whose excitation changes
+(speed changes, ice): each found mode's relative error against the block's time-mean truth
+and against its excitation-weighted truth (file truths weighted by the files' excitation
+power from the auto run's ``excitation.csv``), by the block's excitation range. Where the
+weighted truth is the closer one, the predictors should be averaged with the same weights
+(``--excitation``).
+
+A third table gives the auto run's block lengths per stretch.
+
 Run: ``python benchmarks/bench_adaptive_blocks.py [--seeds 0,1,2] [--hours 4]
 [--ice-hours 1.5] [--work /tmp/bench_adaptive]`` (a voyage and its runs are reused when
 their folders exist).
@@ -186,6 +195,50 @@ def summarise(folder: Path, seed: int) -> list[dict]:
     return out
 
 
+def weighting(folder: Path, seed: int) -> pd.DataFrame:
+    """Fixed 20-min blocks: error against the time-mean and the excitation-weighted truth."""
+    truth = pd.read_csv(folder / "truth_files.csv", parse_dates=["file_start"])
+    paths = truth.pivot(index="file_start", columns="mode", values="frequency_hz")
+    file_start = pd.DatetimeIndex(paths.index)
+    excitation = pd.read_csv(folder / "run_auto" / "excitation.csv", parse_dates=["start"])
+    power = (
+        excitation.groupby(excitation["start"].dt.floor("300s"))["power"]
+        .mean()
+        .reindex(file_start)
+        .to_numpy()
+    )
+    cases = stretches(folder)
+    ice = cases.loc[cases["case"] == "ice", "start"]
+    ice_start = pd.Timestamp(ice.iat[0]) if len(ice) else None
+    selected = pd.read_parquet(folder / "run_fixed_20_min" / "selected.parquet")
+    if "harmonic" in selected.columns:
+        selected = selected[selected["harmonic"].isna()]
+    rows = []
+    for _, part in selected.groupby("block"):
+        start, end = part["block_start"].iat[0], part["block_end"].iat[0]
+        inside = (file_start >= start) & (file_start < end)
+        weights = power[inside]
+        if inside.sum() != 4 or not np.all(np.isfinite(weights) & (weights > 0)):
+            continue
+        f = paths.to_numpy()[inside]
+        plain = f.mean(axis=0)
+        weighted = (weights[:, None] * f).sum(axis=0) / weights.sum()
+        estimate = _assign(plain, part["frequency_hz"].to_numpy(dtype=float))
+        for m in np.flatnonzero(np.isfinite(estimate)):
+            rows.append(
+                {
+                    "seed": seed,
+                    "stretch": "ice"
+                    if ice_start is not None and start >= ice_start
+                    else "open water",
+                    "range_db": 10 * np.log10(weights.max() / weights.min()),
+                    "vs time mean": estimate[m] / plain[m] - 1.0,
+                    "vs weighted": estimate[m] / weighted[m] - 1.0,
+                }
+            )
+    return pd.DataFrame(rows)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", default="0,1,2", help="voyage seeds, comma-separated")
@@ -201,11 +254,22 @@ def main(argv=None) -> int:
     if not 1 <= len(seeds) <= 20:
         print("--seeds: give 1 to 20 seeds", file=sys.stderr)
         return 2
-    rows = []
+    rows, weights, lengths = [], [], []
     for seed in seeds:
         folder = args.work / f"h{args.hours:g}_ice{args.ice_hours:g}_seed{seed}"
         simulate(folder, seed, args.hours, args.ice_hours)
         rows += summarise(folder, seed)
+        weights.append(weighting(folder, seed))
+        blocks = pd.read_csv(folder / "run_auto" / "blocks.csv", parse_dates=["block_start"])
+        cases = stretches(folder)
+        ice = cases.loc[cases["case"] == "ice", "start"]
+        in_ice = blocks["block_start"] >= (
+            pd.Timestamp(ice.iat[0])
+            if len(ice)
+            else blocks["block_start"].max() + pd.Timedelta(days=1)
+        )
+        blocks["stretch"] = np.where(in_ice, "ice", "open water")
+        lengths.append(blocks.assign(seed=seed))
     table = pd.DataFrame(rows)
     if len(seeds) > 1:
         pooled = (
@@ -217,8 +281,28 @@ def main(argv=None) -> int:
         )
         pooled.insert(0, "seed", "median")
         table = pd.concat([table, pooled], ignore_index=True)
+    weights = pd.concat(weights, ignore_index=True)
+    weights["excitation range"] = pd.cut(weights["range_db"], [0, 1, 3, 6, 100])
+    bias = (
+        weights.groupby(["stretch", "excitation range"], observed=True)
+        .agg(
+            modes=("vs time mean", "size"),
+            median_vs_time_mean=("vs time mean", "median"),
+            median_vs_weighted=("vs weighted", "median"),
+            abs_vs_time_mean=("vs time mean", lambda x: np.median(np.abs(x))),
+            abs_vs_weighted=("vs weighted", lambda x: np.median(np.abs(x))),
+        )
+        .reset_index()
+    )
+    lengths = pd.concat(lengths, ignore_index=True)
+    lengths["minutes"] = lengths["block_length_s"] / 60
+    counts = lengths.groupby(["stretch", "minutes"]).size().unstack(fill_value=0)
     with pd.option_context("display.width", 200, "display.max_columns", 20):
         print(table.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+        print("\nfixed 20-min blocks: identified frequency against the block's truth")
+        print(bias.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+        print("\nauto: blocks per length [min], all seeds")
+        print(counts.to_string())
     return 0
 
 
