@@ -134,7 +134,9 @@ def grid_mismatch(frame: pd.DataFrame, grid: Mapping[str, Any]) -> str | None:
     t0 = pd.Timestamp(grid["t0"])
     block = pd.to_numeric(frame["block"], errors="coerce").to_numpy(dtype=float)
     tolerance = 1e-3
-    if grid.get("varying_length") and {"block_start", "block_end"} <= set(frame.columns):
+    if grid.get("varying_length") and not {"block_start", "block_end"} <= set(frame.columns):
+        return None  # a block's start alone does not tell where a block of its own length lies
+    if grid.get("varying_length"):
         start = pd.to_datetime(frame["block_start"], utc=True, errors="coerce")
         end = pd.to_datetime(frame["block_end"], utc=True, errors="coerce")
         centre = ((start - t0).dt.total_seconds() + (end - t0).dt.total_seconds()) / 2

@@ -273,3 +273,23 @@ def test_forecast_of_blocks_of_varying_length_follows_the_speed_law():
         kalman = np.median(np.abs(part["kalman_frequency_hz"] / truth - 1))
         assert model < 0.6 * ssi
         assert kalman < ssi
+
+
+def test_joins_check_the_centres_of_blocks_of_varying_length():
+    from workbench.errors import WorkbenchError
+    from workbench.joins import check_block_grid, check_block_times
+
+    modal = _varying_modal()
+    check_block_grid(modal, "modal.csv")  # starts off any grid, centres on it
+    fixed = modal.assign(block_end=modal["block_start"] + pd.Timedelta(seconds=300))
+    with pytest.raises(WorkbenchError, match="off the grid") as error:
+        check_block_grid(fixed, "modal.csv")
+    assert "modal.csv: block" in str(error.value)
+    spans = modal[["block", "block_start", "block_end"]].drop_duplicates("block")
+    check_block_times(modal, "modal.csv", spans, "predictors.csv")
+    shifted = spans.assign(block_end=spans["block_end"] + pd.Timedelta(seconds=600))
+    with pytest.raises(WorkbenchError, match="predictors.csv: block"):
+        check_block_times(modal, "modal.csv", shifted, "predictors.csv")
+    # a table with starts only (a forecast) cannot be placed on a grid of varying length
+    grid = {"t0": T0, "length_s": 300.0, "step_s": 300.0, "varying_length": True}
+    assert grid_mismatch(spans.drop(columns="block_end"), grid) is None
