@@ -226,6 +226,7 @@ def test_bad_block_minutes_are_usage_errors(tmp_path, capsys, flags, message):
     err = capsys.readouterr().err
     assert code == 2
     assert message in err
+    assert len(err.strip().splitlines()) == 1
     assert "Traceback" not in err
 
 

@@ -121,7 +121,6 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--no-band", action="store_true", help="no band-pass filter")
     parser.add_argument(
         "--block-minutes",
-        type=_block_minutes,
         default=None,
         metavar="MIN|auto",
         help=f"block length [min] (default: {D.BLOCK_MINUTES:g}); a length below the default "
@@ -269,16 +268,25 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
     parser.set_defaults(run=_run_identify)
 
 
-def _block_minutes(text: str):
-    """``--block-minutes``: a positive number of minutes or ``auto``."""
+def _block_minutes(value):
+    """``--block-minutes``: None, a positive number of minutes or ``"auto"``.
+
+    Raises
+    ------
+    UsageError
+        For anything else (exit 2, one line).
+    """
+    if value is None or isinstance(value, int | float):
+        return value
+    text = str(value)
     if text.strip().lower() == "auto":
         return "auto"
     try:
         minutes = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number of minutes or 'auto'") from None
+        raise UsageError(f"--block-minutes {text!r} is not a number of minutes or 'auto'") from None
     if not (math.isfinite(minutes) and minutes > 0):
-        raise argparse.ArgumentTypeError(f"{text} must be a positive number of minutes or 'auto'")
+        raise UsageError(f"--block-minutes {text} must be a positive number of minutes or 'auto'")
     return minutes
 
 
@@ -294,7 +302,7 @@ def adaptive_options(args: argparse.Namespace):
     from ..errors import OptionError
     from ..identification import AdaptiveBlockOptions
 
-    if getattr(args, "block_minutes", None) != "auto":
+    if _block_minutes(getattr(args, "block_minutes", None)) != "auto":
         if getattr(args, "cases", None) is not None:
             raise UsageError("--cases is used with --block-minutes auto only")
         return None
@@ -353,7 +361,7 @@ def identify_options(args: argparse.Namespace):
         )
     if args.no_band and args.band is not None:
         raise UsageError("--band and --no-band contradict each other")
-    minutes = args.block_minutes
+    minutes = _block_minutes(args.block_minutes)
     step_s = DEFAULT_BLOCK_STEP_S if args.step_minutes is None else 60.0 * args.step_minutes
     if minutes == "auto":  # the lengths are the adaptive options' (adaptive_options)
         length_s = step_s
