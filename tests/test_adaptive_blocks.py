@@ -294,3 +294,35 @@ def test_joins_check_the_centres_of_blocks_of_varying_length():
     # a table with starts only (a forecast) cannot be placed on a grid of varying length
     grid = {"t0": T0, "length_s": 300.0, "step_s": 300.0, "varying_length": True}
     assert grid_mismatch(spans.drop(columns="block_end"), grid) is None
+
+
+def test_conditions_of_recorded_files_give_long_calm_and_short_impact_blocks(tmp_path):
+    """Twelve 5-min files at 16 Hz: 40 min of steady broadband excitation, then 20 min
+    of ice-like excitation whose level jumps by 6-12 dB from file to file. The half-steps
+    conditioned as identify conditions blocks give 35-min blocks in the steady part and
+    5-min blocks where the level jumps."""
+    from data_contracts import AccelerationRecord, write_accelerations
+    from workbench.identification import IdentifyOptions
+    from workbench.identification.adaptive import block_conditions
+    from workbench.identification.planning import acceleration_files, plan_identification
+
+    rng = np.random.default_rng(7)
+    rate, seconds = 16.0, 300
+    gains = [1.0] * 8 + [2.0, 8.0, 3.0, 12.0]
+    for k, gain in enumerate(gains):
+        start = T0 + pd.Timedelta(seconds=k * seconds)
+        data = gain * 0.01 * rng.standard_normal((int(rate * seconds), 4))
+        record = AccelerationRecord(data, rate, start, ("a", "b", "c", "d"))
+        write_accelerations(record, tmp_path / f"acc_{k:02d}.npz")
+    options = IdentifyOptions(length_s=300.0, step_s=300.0)
+    plan, resolved = plan_identification(acceleration_files([tmp_path]), options)
+    conditions = block_conditions(plan, resolved)
+    assert len(conditions) == 24 and conditions["speed_kn"].isna().all()
+    ratio = conditions["power"].iloc[20] / conditions["power"].iloc[2]  # 3rd ice file vs calm
+    assert ratio == pytest.approx(9.0, rel=0.15)
+    plan_table = plan_block_lengths(conditions, T0)
+    calm = plan_table["block_end"] <= T0 + pd.Timedelta(minutes=40)
+    ice = plan_table["block_start"] >= T0 + pd.Timedelta(minutes=40)
+    assert plan_table.loc[calm, "block_length_s"].max() == 2100.0
+    assert set(plan_table.loc[ice, "block_length_s"]) == {300.0}
+    assert (plan_table.loc[ice, "excitation_range_db"] < 0.5).all()  # one file each
