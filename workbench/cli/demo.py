@@ -46,8 +46,8 @@ def _add_simulate(commands: argparse._SubParsersAction) -> None:
         default=0.0,
         metavar="H",
         help="end the voyage with H hours of ice breaking (ramming at 3.5 +- 1.5 kn, strong "
-        "intermittent excitation, frequencies changing within minutes); also writes "
-        "truth_files.csv, the true modal parameters of every 5-min file (default: none)",
+        "intermittent excitation, frequencies changing within minutes; 0: none); also writes "
+        "truth_files.csv, the true modal parameters of every 5-min file",
     )
     shaft = parser.add_argument_group(
         "shaft harmonics",
