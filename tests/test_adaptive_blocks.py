@@ -326,3 +326,65 @@ def test_conditions_of_recorded_files_give_long_calm_and_short_impact_blocks(tmp
     assert plan_table.loc[calm, "block_length_s"].max() == 2100.0
     assert set(plan_table.loc[ice, "block_length_s"]) == {300.0}
     assert (plan_table.loc[ice, "excitation_range_db"] < 0.5).all()  # one file each
+
+
+def _write_voyage(folder, gains, rate=16.0, seconds=300, seed=7):
+    """5-min files of two resonances (2.0 and 3.1 Hz, 2 % damping) driven by white noise
+    scaled by *gains* (one per file), on four channels with 5 % sensor noise."""
+    from scipy.signal import lfilter
+
+    from data_contracts import AccelerationRecord, write_accelerations
+
+    rng = np.random.default_rng(seed)
+    n = int(rate * seconds) * len(gains)
+    drive = rng.standard_normal((n, 2)) * np.repeat(gains, int(rate * seconds))[:, None]
+    modal = np.empty_like(drive)
+    for j, f in enumerate((2.0, 3.1)):
+        pole = np.exp((-0.02 + 1j) * 2 * np.pi * f / rate)
+        modal[:, j] = lfilter([1.0], [1.0, -2 * pole.real, abs(pole) ** 2], drive[:, j])
+    shapes = np.array([[1.0, 0.6, -0.4, 0.2], [0.3, -0.8, 0.5, 1.0]])
+    data = modal @ shapes
+    data += 0.05 * data.std() * rng.standard_normal(data.shape)
+    per_file = int(rate * seconds)
+    for k in range(len(gains)):
+        record = AccelerationRecord(
+            data[k * per_file : (k + 1) * per_file],
+            rate,
+            T0 + pd.Timedelta(seconds=k * seconds),
+            ("a", "b", "c", "d"),
+        )
+        write_accelerations(record, folder / f"acc_{k:02d}.npz")
+
+
+def test_identify_auto_end_to_end(tmp_path, capsys):
+    """``workbench identify --block-minutes auto`` on 40 steady minutes and 20 minutes of
+    level jumps: 35-min blocks where steady, 5-min blocks in the jumps, both resonances
+    found in every block, tables merged on the varying-length grid; a rerun resumes."""
+    from data_contracts import SELECTED, read_table
+    from workbench.cli import main
+
+    _write_voyage(tmp_path, [1.0] * 8 + [2.0, 8.0, 3.0, 12.0])
+    out = tmp_path / "out"
+    argv = ["identify", str(tmp_path), "--out", str(out), "--block-minutes", "auto"]
+    argv += ["--scheduler", "synchronous", "--max-order", "16", "--band", "0.5", "6", "-q"]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "block lengths (auto):" in printed
+    blocks = pd.read_csv(out / "blocks.csv", parse_dates=["block_start"])
+    assert (blocks["status"] == "ok").all()
+    steady = blocks["block_start"] + pd.to_timedelta(blocks["block_length_s"], unit="s")
+    calm = (steady <= T0 + pd.Timedelta(minutes=40)).to_numpy()
+    assert blocks.loc[calm, "block_length_s"].max() == 2100.0
+    jumps = (blocks["block_start"] >= T0 + pd.Timedelta(minutes=40)).to_numpy()
+    assert set(blocks.loc[jumps, "block_length_s"]) == {300.0}
+    selected = read_table(out / "selected.parquet", SELECTED)
+    assert recorded_grid(selected)["varying_length"] is True
+    for _, part in selected.groupby("block"):
+        f = np.sort(part["frequency_hz"].to_numpy())
+        assert np.min(np.abs(f - 2.0)) < 0.02 and np.min(np.abs(f - 3.1)) < 0.03
+    np.testing.assert_allclose(
+        (selected["block_end"] - selected["block_start"]).dt.total_seconds(),
+        selected["block_length_s"],
+    )
+    assert main(argv) == 0
+    assert "0 block(s) processed" in capsys.readouterr().out
