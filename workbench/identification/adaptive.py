@@ -275,9 +275,10 @@ def plan_block_lengths(
                 and np.unique(state[lo:hi]).size == 1
             )
             if steady or length == min(lengths):
+                # a longer span holds the shorter ones (same centre): if the shortest
+                # does not fit (a gap), none does and the block is left out
                 chosen = candidate
                 break
-            chosen = candidate  # the shortest fitting so far, kept if none is steady
         if chosen is not None:
             length, lo, hi, excitation, speed_range = chosen
             rows.append(
