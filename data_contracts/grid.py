@@ -13,6 +13,10 @@ table with a single block):
 * beside CSV files: a sidecar ``<file name>.grid.json`` holding the same JSON (the CSV
   itself stays a plain table any tool reads).
 
+Blocks of varying length (``identify --block-minutes auto``) record ``"varying_length":
+true``: block ``k`` is then centred at ``t0 + k * step + length / 2`` (the centres of the
+fixed grid of *length*), and its own span is the table's ``block_start`` / ``block_end``.
+
 :func:`~data_contracts.read_table` attaches a recorded grid to the frame it returns and
 :func:`~data_contracts.write_table` writes the frame's grid (or the one it is given). A
 recorded grid that contradicts the table's ``block``/``block_start``/``block_end`` columns
@@ -68,8 +72,10 @@ def grid_record(grid: Any) -> dict[str, Any]:
     fields = ("t0", "length_s", "step_s")
     if isinstance(grid, Mapping):
         t0, length, step = (grid.get(name) for name in fields)
+        varying = grid.get("varying_length", False)
     else:
         t0, length, step = (getattr(grid, name, None) for name in fields)
+        varying = getattr(grid, "varying_length", False)
     if t0 is None or length is None or step is None:
         raise ValueError("a block grid needs t0, length_s and step_s")
     try:
@@ -87,7 +93,12 @@ def grid_record(grid: Any) -> dict[str, Any]:
             f"block grid: length_s={length:g} and step_s={step:g} must be positive with "
             "step_s <= length_s"
         )
-    return {"t0": stamp.isoformat(), "length_s": length, "step_s": step}
+    record = {"t0": stamp.isoformat(), "length_s": length, "step_s": step}
+    if varying is True:
+        record["varying_length"] = True
+    elif varying is not False:
+        raise ValueError(f"block grid: varying_length={varying!r} must be true or false")
+    return record
 
 
 def recorded_grid(frame: pd.DataFrame) -> dict[str, Any] | None:
@@ -115,13 +126,32 @@ def grid_mismatch(frame: pd.DataFrame, grid: Mapping[str, Any]) -> str | None:
     """Why *grid* cannot be the grid of *frame*'s blocks, or None when it fits.
 
     Checked where the columns exist: ``block_start == t0 + block * step`` and
-    ``block_end - block_start == length`` (to a millisecond).
+    ``block_end - block_start == length`` (to a millisecond); for a grid of varying
+    length, that each block's centre is ``t0 + block * step + length / 2``.
     """
     if "block" not in frame.columns or frame.empty:
         return None
     t0 = pd.Timestamp(grid["t0"])
     block = pd.to_numeric(frame["block"], errors="coerce").to_numpy(dtype=float)
     tolerance = 1e-3
+    if grid.get("varying_length") and not {"block_start", "block_end"} <= set(frame.columns):
+        return None  # a block's start alone does not tell where a block of its own length lies
+    if grid.get("varying_length"):
+        start = pd.to_datetime(frame["block_start"], utc=True, errors="coerce")
+        end = pd.to_datetime(frame["block_end"], utc=True, errors="coerce")
+        centre = ((start - t0).dt.total_seconds() + (end - t0).dt.total_seconds()) / 2
+        expected = block * float(grid["step_s"]) + float(grid["length_s"]) / 2
+        with np.errstate(invalid="ignore"):
+            off = np.abs(centre.to_numpy(dtype=float) - expected) > tolerance
+        if off.any():
+            row = int(np.flatnonzero(off)[0])
+            return (
+                f"block {block[row]:.0f}: centre of {start.iat[row].isoformat()} .. "
+                f"{end.iat[row].isoformat()} is not on the recorded grid of varying length "
+                f"(t0 {grid['t0']}, centres every {grid['step_s']:g} s from "
+                f"{float(grid['length_s']) / 2:g} s)"
+            )
+        return None
     for column, offset in (("block_start", 0.0), ("block_end", float(grid["length_s"]))):
         if column not in frame.columns:
             continue

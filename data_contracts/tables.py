@@ -275,6 +275,42 @@ _COMBINED = (
     ),
 )
 
+#: Adaptive block length (identify --block-minutes auto): optional in the selected and the
+#: tracked modal tables (and in blocks.csv).
+_ADAPTIVE = (
+    Column(
+        "block_length_s",
+        "float",
+        "Length of the block the mode was identified in (block_end - block_start); with "
+        "--block-minutes auto it differs from block to block.",
+        unit="s",
+        required=False,
+        nullable=True,
+        minimum=0.0,
+    ),
+    Column(
+        "excitation_range_db",
+        "float",
+        "Stationarity of the block: ratio of the largest to the smallest excitation power "
+        "(median over channels of the conditioned accelerations' variance) over the "
+        "block's half-steps, in dB (0: steady excitation).",
+        unit="dB",
+        required=False,
+        nullable=True,
+        minimum=0.0,
+    ),
+    Column(
+        "speed_range_kn",
+        "float",
+        "Range of the ship's speed over the block (largest minus smallest half-step mean of "
+        "the ship log); NaN without a log.",
+        unit="kn",
+        required=False,
+        nullable=True,
+        minimum=0.0,
+    ),
+)
+
 PREDICTORS = TableContract(
     name="predictors",
     description="Ship-log predictors averaged over the blocks of the voyage's block grid, "
@@ -321,6 +357,7 @@ MODAL = TableContract(
             minimum=1,
         ),
         *_COMBINED,
+        *_ADAPTIVE,
     ),
     patterns=(_SHAPES,),
     unique=("block", "mode"),
@@ -423,6 +460,7 @@ SELECTED = TableContract(
             minimum=0.0,
         ),
         *_COMBINED,
+        *_ADAPTIVE,
     ),
     patterns=(_SHAPES,),
     checks=(_end_after_start, _one_start_per_block),

@@ -380,3 +380,34 @@ def test_too_short_voyage_is_rejected(tmp_path):
     with pytest.raises(ValueError, match="hours") as error:
         simulate_voyage(tmp_path, hours=0.2, accelerations=False)
     assert "at least" in str(error.value)
+
+
+def test_ice_stretch_lowers_and_moves_the_frequencies_and_raises_the_excitation(tmp_path):
+    """simulate --ice-hours: the last hour breaks ice (ramming at 2-5 kn); each mode's
+    frequency changes from file to file with the ice load (up to ICE_FREQUENCY_DROP); the
+    excitation gain is 1 outside the ice, about ICE_EXCITATION_GAIN inside and
+    intermittent; without ice no truth_files.csv is written."""
+    from workbench.simulate.voyage import ICE_EXCITATION_GAIN, ICE_FREQUENCY_DROP
+
+    summary = simulate_voyage(tmp_path / "ice", seed=4, hours=3, ice_hours=1, accelerations=False)
+    cases = pd.read_csv(summary.cases)
+    assert cases["case"].iloc[-1] == "ice"
+    assert cases["start"].iloc[-1] == "2024-03-01T02:00:00Z"
+    files = pd.read_csv(tmp_path / "ice" / "truth_files.csv", parse_dates=["file_start"])
+    ice = files["file_start"] >= pd.Timestamp("2024-03-01T02:00:00Z")
+    assert (files.loc[~ice, "excitation_gain"] == 1.0).all()
+    gain = files.loc[ice].drop_duplicates("file_start")["excitation_gain"]
+    assert 0.6 * ICE_EXCITATION_GAIN < gain.median() < 1.6 * ICE_EXCITATION_GAIN
+    assert gain.max() / gain.min() > 2.0  # intermittent
+    speed = files.loc[ice].drop_duplicates("file_start")["speed_kn"]
+    assert 2.0 < speed.median() < 5.0
+    # the ice load moves every mode's frequency from one 5-min file to the next
+    for mode in (1, 7):
+        part = files[files["mode"] == mode]
+        in_ice = part[ice[part.index]]["frequency_hz"].to_numpy()
+        steps = np.abs(np.diff(in_ice)) / in_ice[:-1]
+        assert steps.max() > 0.25 * ICE_FREQUENCY_DROP[mode - 1]  # moves within 5 min
+    plain = simulate_voyage(tmp_path / "plain", seed=4, hours=3, accelerations=False)
+    assert not (plain.out_dir / "truth_files.csv").exists()
+    with pytest.raises(ValueError, match="ice_hours"):
+        simulate_voyage(tmp_path / "bad", seed=4, hours=1, ice_hours=1, accelerations=False)

@@ -26,9 +26,27 @@ __all__ = [
 _TIME_TOLERANCE_S = 1e-3
 
 
-def _starts(table: pd.DataFrame) -> pd.Series:
-    starts = table[["block", "block_start"]].drop_duplicates("block").set_index("block")
-    return pd.to_datetime(starts["block_start"], utc=True)
+def _varying(table: pd.DataFrame) -> bool:
+    """Blocks of varying length (``identify --block-minutes auto``): their centres, not
+    their starts, lie on the grid."""
+    if "block_end" not in table.columns or table.empty:
+        return False
+    spans = table[["block", "block_start", "block_end"]].drop_duplicates("block")
+    length = pd.to_datetime(spans["block_end"], utc=True) - pd.to_datetime(
+        spans["block_start"], utc=True
+    )
+    seconds = length.dt.total_seconds().to_numpy()
+    return bool(np.ptp(seconds) > _TIME_TOLERANCE_S) if seconds.size else False
+
+
+def _starts(table: pd.DataFrame, centres: bool = False) -> pd.Series:
+    """Block start per block (or, with *centres*, the middle of each block's span)."""
+    columns = ["block", "block_start", "block_end"] if centres else ["block", "block_start"]
+    spans = table[columns].drop_duplicates("block").set_index("block")
+    start = pd.to_datetime(spans["block_start"], utc=True)
+    if not centres:
+        return start
+    return start + (pd.to_datetime(spans["block_end"], utc=True) - start) / 2
 
 
 def check_block_times(
@@ -49,7 +67,10 @@ def check_block_times(
         return
     if not {"block", "block_start"} <= set(reference.columns) & set(other.columns):
         return
-    ref, oth = _starts(reference), _starts(other)
+    centres = _varying(reference) or _varying(other)
+    if centres and not {"block_end"} <= set(reference.columns) & set(other.columns):
+        return  # blocks of varying length are told apart by their centres
+    ref, oth = _starts(reference, centres), _starts(other, centres)
     common = ref.index.intersection(oth.index)
     if not len(common):
         raise WorkbenchError(
@@ -76,7 +97,7 @@ def check_block_grid(table: pd.DataFrame, name) -> None:
     """
     if table.empty or not {"block", "block_start"} <= set(table.columns):
         return
-    starts = _starts(table).sort_index()
+    starts = _starts(table, _varying(table)).sort_index()
     if len(starts) < 2:
         return
     blocks = starts.index.to_numpy(dtype=float)

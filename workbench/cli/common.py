@@ -88,6 +88,13 @@ def _add_predictor_source(parser: argparse.ArgumentParser) -> None:
     add_dship_columns(parser)
     add_modal_layout(parser)
     parser.add_argument(
+        "--excitation",
+        type=Path,
+        metavar="FILE",
+        help="with --dship: the excitation.csv of identify --block-minutes auto; the log is "
+        "averaged over each block weighted by the excitation, as SSI reads the block",
+    )
+    parser.add_argument(
         "--all-predictors",
         action="store_true",
         help="use every numeric column of the predictors, not only speed, water/air "
@@ -120,7 +127,11 @@ def _predictors_for(args: argparse.Namespace, modal):
     from ..predictors import load_predictors
 
     # the API's choice (canonical predictors unless all are asked for) in one place
+    excitation = getattr(args, "excitation", None)
+    if excitation is not None and args.dship is None:
+        raise UsageError("--excitation weights the averaging of --dship; give --dship")
     return load_predictors(
+        excitation=excitation,
         predictors=args.predictors,
         dship=args.dship,
         onto=modal,

@@ -37,6 +37,15 @@ def _add_simulate(commands: argparse._SubParsersAction) -> None:
         "a recorder's rate: same modal physics, broadband content and a 60 Hz hum above the "
         "band)",
     )
+    parser.add_argument(
+        "--ice-hours",
+        type=float,
+        default=0.0,
+        metavar="H",
+        help="end the voyage with H hours of ice breaking (ramming at 3.5 +- 1.5 kn, strong "
+        "intermittent excitation, frequencies changing within minutes; 0: none); also writes "
+        "truth_files.csv, the true modal parameters of every 5-min file",
+    )
     shaft = parser.add_argument_group(
         "shaft harmonics",
         "Orders of the shaft rate (fixed-pitch propeller: the rate follows the speed) and "
@@ -105,6 +114,7 @@ def _run_simulate(args: argparse.Namespace) -> int:
             accelerations=not args.no_accelerations,
             sampling_rate_hz=args.sampling_rate,
             shaft=_shaft_harmonics(args),
+            ice_hours=args.ice_hours,
         )
     except ValueError as error:  # e.g. a voyage shorter than one block
         raise UsageError(str(error)) from None

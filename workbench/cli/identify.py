@@ -118,11 +118,22 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--no-band", action="store_true", help="no band-pass filter")
     parser.add_argument(
         "--block-minutes",
-        type=float,
         default=None,
-        metavar="MIN",
+        metavar="MIN|auto",
         help=f"block length [min] (default: {D.BLOCK_MINUTES:g}); a length below the default "
-        "step needs --step-minutes too",
+        "step needs --step-minutes too. 'auto': each block's length from the conditions, "
+        "5-35 min (odd multiples of the step, centred in the middle of a step), the longest "
+        "over which the excitation (within 3 dB), the ship's speed (within 1 kn, with "
+        "--dship) and the state (--cases) stay steady; tables carry block_length_s and "
+        "excitation_range_db",
+    )
+    parser.add_argument(
+        "--cases",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="with --block-minutes auto: the voyage's states (CSV with case, start, end: "
+        "ice, transit, station, ...); a block does not straddle a change of state",
     )
     parser.add_argument(
         "--step-minutes",
@@ -252,6 +263,52 @@ def _add_identify(commands: argparse._SubParsersAction) -> None:
     parser.set_defaults(run=_run_identify)
 
 
+def _block_minutes(value):
+    """``--block-minutes``: None, a positive number of minutes or ``"auto"``.
+
+    Raises
+    ------
+    UsageError
+        For anything else (exit 2, one line).
+    """
+    if value is None or isinstance(value, int | float):
+        return value
+    text = str(value)
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        minutes = float(text)
+    except ValueError:
+        raise UsageError(f"--block-minutes {text!r} is not a number of minutes or 'auto'") from None
+    if not (math.isfinite(minutes) and minutes > 0):
+        raise UsageError(f"--block-minutes {text} must be a positive number of minutes or 'auto'")
+    return minutes
+
+
+def adaptive_options(args: argparse.Namespace):
+    """The :class:`~workbench.identification.AdaptiveBlockOptions` of ``--block-minutes
+    auto`` (with ``--step-minutes``), or None for a fixed length.
+
+    Raises
+    ------
+    UsageError
+        For limits that do not fit the step (exit 2).
+    """
+    from ..errors import OptionError
+    from ..identification import AdaptiveBlockOptions
+
+    if _block_minutes(getattr(args, "block_minutes", None)) != "auto":
+        if getattr(args, "cases", None) is not None:
+            raise UsageError("--cases is used with --block-minutes auto only")
+        return None
+    defaults = AdaptiveBlockOptions()
+    step_s = defaults.step_s if args.step_minutes is None else 60.0 * args.step_minutes
+    try:
+        return AdaptiveBlockOptions(min_length_s=max(defaults.min_length_s, step_s), step_s=step_s)
+    except OptionError as error:
+        raise UsageError(f"--block-minutes auto with --step-minutes: {error}") from None
+
+
 def _analysis_rate(text: str):
     """``--rate``: a rate in Hz, ``auto`` or ``native`` (None: the files' rate)."""
     if text.lower() in ("auto", "native"):
@@ -299,8 +356,12 @@ def identify_options(args: argparse.Namespace):
         )
     if args.no_band and args.band is not None:
         raise UsageError("--band and --no-band contradict each other")
-    length_s = DEFAULT_BLOCK_LENGTH_S if args.block_minutes is None else 60.0 * args.block_minutes
+    minutes = _block_minutes(args.block_minutes)
     step_s = DEFAULT_BLOCK_STEP_S if args.step_minutes is None else 60.0 * args.step_minutes
+    if minutes == "auto":  # the lengths are the adaptive options' (adaptive_options)
+        length_s = step_s
+    else:
+        length_s = DEFAULT_BLOCK_LENGTH_S if minutes is None else 60.0 * minutes
     if not (length_s > 0 and step_s > 0):
         raise UsageError("--block-minutes and --step-minutes must be positive")
     if step_s > length_s:
@@ -365,6 +426,7 @@ def _run_identify(args: argparse.Namespace) -> int:
     from ..stages import identify
 
     options = identify_options(args)
+    adaptive = adaptive_options(args)
     _check_positive(workers=args.workers, batch_blocks=args.batch_blocks)
     if args.stabilisation_figures < 0:
         raise UsageError(
@@ -385,6 +447,8 @@ def _run_identify(args: argparse.Namespace) -> int:
             dship=args.dship,
             dship_mapping=dship_mapping(args),
             harmonics=harmonics,
+            adaptive=adaptive,
+            cases=args.cases,
         )
     except IdentifyOptionsError as error:
         raise UsageError(str(error)) from None

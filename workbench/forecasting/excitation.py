@@ -41,13 +41,19 @@ def sub_windows_per_block(grid: pd.DataFrame) -> int | None:
     """n when the blocks are n-fold overlapping (length = n x step), else None.
 
     Needs ``block_start`` and ``block_end``; the step is the median spacing of
-    consecutive block numbers' starts.
+    consecutive block numbers' starts. Blocks of varying length (``identify
+    --block-minutes auto``) are not the means of a fixed number of sub-windows: None (their
+    predictors can be averaged with the excitation's weights instead,
+    :func:`~workbench.predictors.averaging.excitation_weighted_predictors`).
     """
     if "block_end" not in grid.columns or len(grid) < 3:
         return None
     start = pd.to_datetime(grid["block_start"], utc=True)
     end = pd.to_datetime(grid["block_end"], utc=True)
-    length_s = float(np.median((end - start).dt.total_seconds()))
+    lengths = (end - start).dt.total_seconds().to_numpy()
+    if np.ptp(lengths) > 1.0:
+        return None
+    length_s = float(np.median(lengths))
     blocks = grid["block"].to_numpy(dtype=np.int64)
     d_block = np.diff(blocks)
     d_start = start.diff().dt.total_seconds().to_numpy()[1:]

@@ -4,6 +4,7 @@
 :mod:`~workbench.identification.planning` (which files, which blocks),
 :mod:`~workbench.identification.engine` (one block identified),
 :mod:`~workbench.identification.voyage` (every block, in parallel and resumable),
+:mod:`~workbench.identification.adaptive` (block length by conditions),
 :mod:`~workbench.identification.export` (the store as contract tables),
 :mod:`~workbench.identification.figures` and :mod:`~workbench.identification.crosscheck`
 (a few blocks identified again). The package gathers their public names.
@@ -11,6 +12,7 @@
 
 from __future__ import annotations
 
+from .adaptive import AdaptiveBlockOptions, identify_adaptive
 from .crosscheck import cross_check_blocks
 from .engine import identify_block, identify_from_files
 from .export import export_store
@@ -20,6 +22,7 @@ from .planning import acceleration_files, input_fingerprints, plan_identificatio
 from .voyage import IdentifyResult, identify_voyage
 
 __all__ = [
+    "AdaptiveBlockOptions",
     "IdentifyOptions",
     "IdentifyOptionsError",
     "IdentifyResult",
@@ -27,6 +30,7 @@ __all__ = [
     "analysis_rate",
     "cross_check_blocks",
     "export_store",
+    "identify_adaptive",
     "identify_block",
     "identify_from_files",
     "identify_voyage",

@@ -119,10 +119,11 @@ def follow_on_starts(files: Sequence[Path], options: IdentifyOptions) -> Identif
     return replace(options, acceleration_layout=layout)
 
 
-def plan_identification(files: Sequence[Path], options: IdentifyOptions):
+def plan_identification(files: Sequence[Path], options: IdentifyOptions, *, grid_t0=None):
     """The block plan of *files* and the options resolved for their sampling rate.
 
-    The grid starts at the first sample (blocks lie inside the record from its start).
+    The grid starts at the first sample (blocks lie inside the record from its start), or
+    at *grid_t0* when given (the grids of :mod:`~workbench.identification.adaptive`).
     Data without a single complete block is an error naming the record, unless
     ``options.short_record == "one-block"``: then a single continuous record shorter than
     a block is identified as one block of its own length.
@@ -145,7 +146,7 @@ def plan_identification(files: Sequence[Path], options: IdentifyOptions):
             max_gap_s=options.max_gap_s,
             read_options=options.read_options,
         )
-        first = plan.files[0].start_time
+        first = plan.files[0].start_time if grid_t0 is None else pd.Timestamp(grid_t0)
         if plan.grid.t0 != first:  # anchor the grid at the first sample, not a round time
             grid = BlockGrid(first, options.length_s, options.step_s)
             plan = plan_file_infos(plan.files, grid, max_gap_s=options.max_gap_s)

@@ -143,6 +143,7 @@ def identify_voyage(
     dship: str | os.PathLike | pd.DataFrame | None = None,
     dship_mapping: dict[str, str] | None = None,
     harmonics: HarmonicOptions | None = None,
+    grid_t0=None,
 ) -> IdentifyResult:
     """Identify every block of a voyage's acceleration files; resumable and parallel.
 
@@ -179,6 +180,9 @@ def identify_voyage(
         Column names of the ship log (``{"shaft_rpm": "ME.Shaft.RPM"}``).
     harmonics : HarmonicOptions, optional
         Orders, blade count and tolerances of the harmonic tests.
+    grid_t0 : time-like, optional
+        Start of block 0 (default: the first sample; the shifted grids of
+        :func:`~workbench.identification.adaptive.identify_adaptive`).
     """
     from ..sid.harmonics import HarmonicMarker
 
@@ -192,7 +196,7 @@ def identify_voyage(
             raise WorkbenchError(f"{path}: {what} is a file, not a folder")
     files = acceleration_files(inputs)
     options = follow_on_starts(files, options)
-    plan, options = plan_identification(files, options)
+    plan, options = plan_identification(files, options, grid_t0=grid_t0)
     options.check_data(plan)
     grid = plan.grid
     channels = tuple(plan.channels)

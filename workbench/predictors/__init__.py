@@ -2,7 +2,9 @@
 
 * :func:`block_predictors` -- average the canonical ship log (read it with
   :func:`read_dship`) over the blocks: coverage threshold, circular means for directions,
-  despiking; returns the PREDICTORS table. :func:`block_coverage` gives the coverage.
+  despiking; returns the PREDICTORS table. :func:`block_coverage` gives the coverage;
+  :func:`excitation_weighted_predictors` weights the average by the excitation, as SSI
+  reads a block.
 * :func:`flag_faulty` -- spikes (robust rolling z-score), faulty stretches and columns.
 * :class:`Normaliser` -- z-scores whose parameters are kept (JSON) for new data.
 * :func:`load_predictors` -- the PREDICTORS table of a stage, read or averaged from a
@@ -12,7 +14,12 @@
 from data_contracts import read_dship
 
 from ._common import PredictorWarning
-from .averaging import block_coverage, block_predictors, circular_mean_deg
+from .averaging import (
+    block_coverage,
+    block_predictors,
+    circular_mean_deg,
+    excitation_weighted_predictors,
+)
 from .faults import FaultFlags, flag_faulty
 from .normalise import Normaliser
 from .tables import canonical_predictors, load_predictors
@@ -25,6 +32,7 @@ __all__ = [
     "block_predictors",
     "canonical_predictors",
     "circular_mean_deg",
+    "excitation_weighted_predictors",
     "flag_faulty",
     "load_predictors",
     "read_dship",

@@ -30,7 +30,12 @@ from ._common import (
 )
 from .faults import flag_faulty
 
-__all__ = ["block_coverage", "block_predictors", "circular_mean_deg"]
+__all__ = [
+    "block_coverage",
+    "block_predictors",
+    "circular_mean_deg",
+    "excitation_weighted_predictors",
+]
 
 _NS = 1_000_000_000
 
@@ -356,3 +361,101 @@ def _warn_faults(flags, dropped_stretches: bool) -> None:
         )
         parts.append(("blanked" if dropped_stretches else "faulty") + f" stretches: {shown}")
     warnings.warn("ship log: " + "; ".join(parts), PredictorWarning, stacklevel=3)
+
+
+def excitation_weighted_predictors(
+    log: pd.DataFrame,
+    blocks: pd.DataFrame,
+    excitation: pd.DataFrame,
+    *,
+    min_coverage: float = 0.5,
+    direction_columns: Sequence[str] = ("wind_dir_rel_deg",),
+    **options,
+) -> pd.DataFrame:
+    """The ship log averaged over *blocks* as SSI reads a block: weighted by excitation.
+
+    SSI identifies a block from its output covariances, the time average of the local
+    covariances, each proportional to the local excitation power; where the excitation
+    changes inside a block (the ship speeds up), the block's modal estimate leans toward
+    its strongly excited part. The predictors the estimate is compared with are therefore
+    averaged with the same weights.
+
+    Parameters
+    ----------
+    log : DataFrame
+        Canonical ship log (as :func:`block_predictors` takes it).
+    blocks : DataFrame
+        ``block``, ``block_start``, ``block_end``: each block's own span.
+    excitation : DataFrame
+        Consecutive intervals ``start``, ``end`` (UTC) and ``power`` (the excitation
+        power of the conditioned accelerations, e.g. the half-steps of ``excitation.csv``
+        that ``identify --block-minutes auto`` writes). [(m/s²)²]
+    min_coverage, direction_columns, **options
+        As :func:`block_predictors` (applied to the intervals).
+
+    Returns
+    -------
+    DataFrame
+        PREDICTORS contract, one row per block. Column :math:`c` of block :math:`k` is
+        :math:`\\sum_i w_i \\bar x_i / \\sum_i w_i` over the intervals :math:`i` inside
+        the block with a valid mean :math:`\\bar x_i`, :math:`w_i` their power times their
+        duration; directions are the weighted vector mean. A block no interval lies in
+        keeps its plain mean (:func:`block_predictors`).
+    """
+    plain = block_predictors(
+        log,
+        blocks=blocks,
+        min_coverage=min_coverage,
+        direction_columns=direction_columns,
+        **options,
+    )
+    intervals = pd.DataFrame(
+        {
+            "block": np.arange(len(excitation), dtype=np.int64),
+            "block_start": pd.to_datetime(excitation["start"], utc=True),
+            "block_end": pd.to_datetime(excitation["end"], utc=True),
+        }
+    )
+    if intervals.empty:
+        return plain
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PredictorWarning)  # reported once, for the blocks
+        parts = block_predictors(
+            log,
+            blocks=intervals,
+            min_coverage=min_coverage,
+            direction_columns=direction_columns,
+            **options,
+        )
+    power = excitation["power"].to_numpy(dtype=float)
+    duration = (intervals["block_end"] - intervals["block_start"]).dt.total_seconds().to_numpy()
+    weight = np.where(np.isfinite(power) & (power > 0), power * duration, 0.0)
+    part_start = pd.DatetimeIndex(intervals["block_start"]).as_unit("ns").asi8
+    part_end = pd.DatetimeIndex(intervals["block_end"]).as_unit("ns").asi8
+    starts = pd.DatetimeIndex(pd.to_datetime(plain["block_start"], utc=True)).as_unit("ns").asi8
+    ends = pd.DatetimeIndex(pd.to_datetime(plain["block_end"], utc=True)).as_unit("ns").asi8
+    first = np.searchsorted(part_start, starts, side="left")
+    last = np.searchsorted(part_end, ends, side="right")  # intervals [first, last) inside
+    columns = [c for c in plain.columns if c not in BLOCK_COLUMNS and c in parts.columns]
+    out = plain.copy()
+    for column in columns:
+        values = parts[column].to_numpy(dtype=float)
+        direction = column in direction_columns
+        result = out[column].to_numpy(dtype=float).copy()
+        for row in range(len(out)):  # one pass over the blocks, each over its intervals
+            lo, hi = int(first[row]), int(last[row])
+            if hi <= lo:
+                continue
+            x, w = values[lo:hi], weight[lo:hi]
+            ok = np.isfinite(x) & (w > 0)
+            if not ok.any():
+                continue
+            if direction:
+                radians = np.deg2rad(x[ok])
+                result[row] = float(
+                    _angle(np.sum(w[ok] * np.sin(radians)), np.sum(w[ok] * np.cos(radians)))
+                )
+            else:
+                result[row] = float(np.sum(w[ok] * x[ok]) / np.sum(w[ok]))
+        out[column] = result
+    return PREDICTORS.validate(out)

@@ -30,6 +30,7 @@ def load_predictors(
     dship_mapping: Mapping[str, str] | None = None,
     time_format: str | None = None,
     all_predictors: bool = False,
+    excitation: str | os.PathLike | pd.DataFrame | None = None,
 ) -> pd.DataFrame:
     """Block predictors from a predictor table, or averaged from a DSHIP log.
 
@@ -57,6 +58,17 @@ def load_predictors(
         recognised (:func:`data_contracts.dship_names.parse_times`).
     all_predictors : bool
         Keep every numeric column, not only the canonical predictors.
+    excitation : path or DataFrame, optional
+        The excitation of the voyage (``start``, ``end``, ``power``; the ``excitation.csv``
+        of ``identify --block-minutes auto``): the log is averaged over each block with
+        the excitation's weights, as SSI reads the block
+        (:func:`~workbench.predictors.averaging.excitation_weighted_predictors`).
+
+    Notes
+    -----
+    Blocks of varying length (a table whose recorded grid has ``varying_length``) are
+    averaged over their own spans; blocks of the range missing from *onto* over the
+    grid's nominal span (same centre).
     """
     if (predictors is None) == (dship is None):
         raise ValueError("give exactly one of predictors and dship")
@@ -65,16 +77,37 @@ def load_predictors(
         return table if all_predictors else canonical_predictors(table)
     if onto is None:
         raise ValueError("averaging a DSHIP log needs the blocks of a modal table (onto=)")
-    from .averaging import block_predictors
+    from data_contracts import recorded_grid
+
+    from .averaging import block_predictors, excitation_weighted_predictors
 
     log = read_dship(dship, mapping=dship_mapping, time_format=time_format)
     t0, length_s, step_s = block_grid_of(onto)
     first, last = int(onto["block"].min()), int(onto["block"].max())
     grid = BlockGrid(t0=t0, length_s=length_s, step_s=step_s)
-    table = block_predictors(
-        log, grid=grid, blocks=np.arange(first, last + 1), min_coverage=min_coverage
+    recorded = recorded_grid(onto)
+    spans = grid.frame(np.arange(first, last + 1))
+    if recorded is not None and recorded.get("varying_length"):
+        own = onto[["block", "block_start", "block_end"]].drop_duplicates("block")
+        own = own.set_index("block")
+        present = spans["block"].isin(own.index).to_numpy()
+        for column in ("block_start", "block_end"):
+            values = pd.to_datetime(own[column], utc=True).reindex(spans["block"][present])
+            spans.loc[present, column] = values.to_numpy()
+    if excitation is not None:
+        weights = excitation
+        if not isinstance(weights, pd.DataFrame):
+            weights = pd.read_csv(excitation)
+        missing = [c for c in ("start", "end", "power") if c not in weights.columns]
+        if missing:
+            raise ValueError(f"{excitation}: excitation table lacks column(s) {', '.join(missing)}")
+        table = excitation_weighted_predictors(log, spans, weights, min_coverage=min_coverage)
+    else:
+        table = block_predictors(log, blocks=spans, min_coverage=min_coverage)
+    table = set_grid(
+        PREDICTORS.validate(table),
+        recorded if recorded is not None and recorded.get("varying_length") else grid,
     )
-    table = set_grid(PREDICTORS.validate(table), grid)
     return table if all_predictors else canonical_predictors(table)
 
 

@@ -41,6 +41,10 @@ ALTERNATION_PERIOD_S = 2400.0
 DRIFT_WATER_RISE_C = 3.0
 #: Air-temperature rise over a temperature-drift stretch. [°C]
 DRIFT_AIR_RISE_C = 2.5
+#: Mean speed while breaking ice, and the RMS of the ramming (the ship slows on a floe and
+#: speeds up in the broken channel, about every 1.5 min). [kn]
+ICE_SPEED_KN = 3.5
+ICE_RAMMING_KN = 1.5
 
 
 @dataclass(frozen=True)
@@ -74,9 +78,19 @@ def _ramp(t: np.ndarray, start: float, stop: float) -> np.ndarray:
 
 
 def operating_profile(
-    start_time: pd.Timestamp, hours: float, *, rng: np.random.Generator
+    start_time: pd.Timestamp,
+    hours: float,
+    *,
+    rng: np.random.Generator,
+    ice_hours: float = 0.0,
+    ice_rng: np.random.Generator | None = None,
 ) -> OperatingProfile:
     """Build the true predictors of a voyage of *hours* starting at *start_time*.
+
+    With *ice_hours* > 0 the voyage ends in an ice-breaking stretch of that length (case
+    ``ice``, replacing the end of the cycle's cases): speed :data:`ICE_SPEED_KN` with
+    ramming of :data:`ICE_RAMMING_KN` RMS (correlation 90 s), drawn from *ice_rng*; the
+    other predictors and everything before the stretch are what they are without it.
 
     Notes
     -----
@@ -133,6 +147,22 @@ def operating_profile(
     speed = speed + moving * 0.3 * _smooth_noise(rng, n_seconds, 300.0)
     speed = speed + (1 - moving) * 0.2 * np.abs(_smooth_noise(rng, n_seconds, 900.0))
     speed = np.clip(speed, 0.0, None)
+    if ice_hours > 0:
+        if not ice_hours < hours:
+            raise ValueError(f"ice_hours={ice_hours} must be shorter than the voyage ({hours} h)")
+        if ice_rng is None:
+            raise ValueError("ice_hours > 0 needs ice_rng")
+        ice_start = n_seconds - int(round(ice_hours * 3600))
+        inside = t >= ice_start
+        ramming = ICE_SPEED_KN + ICE_RAMMING_KN * _smooth_noise(ice_rng, int(inside.sum()), 90.0)
+        # the speed eases into the ice over 3 min
+        blend = _ramp(t[inside], ice_start, ice_start + 180.0)
+        speed[inside] = (1 - blend) * speed[inside] + blend * np.clip(ramming, 0.5, None)
+        kept = []
+        for case, a, b in case_rows:
+            if a < ice_start:
+                kept.append((case, a, min(b, float(ice_start))))
+        case_rows = [*kept, ("ice", float(ice_start), float(n_seconds))]
 
     water = 2.0 + 0.3 * _smooth_noise(rng, n_seconds, 5400.0) + DRIFT_WATER_RISE_C * drift
     day = 2 * np.pi * t / 86400.0

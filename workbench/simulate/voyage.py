@@ -63,6 +63,18 @@ SHAFT_AMPLITUDE_MS2 = 0.008
 BLADE_PASS_AMPLITUDE_MS2 = 0.004
 #: Noise of the logged shaft speed. [rpm]
 SHAFT_RPM_NOISE = 0.2
+#: Ice breaking (``ice_hours``): relative frequency drop of each mode at full ice load
+#: (floes in contact with the hull add mass and contact stiffness; the lower, global modes
+#: feel it less than the local ones). [-]
+ICE_FREQUENCY_DROP = np.array([0.010, 0.012, 0.015, 0.015, 0.018, 0.020, 0.020])
+#: Correlation time of the ice load (floe after floe). [s]
+ICE_LOAD_CORRELATION_S = 240.0
+#: Damping ratio increase at full ice load (friction of the floes), as a factor. [-]
+ICE_DAMPING_RISE = 0.5
+#: Modal excitation in ice over that of open water at the same speed (median), and the
+#: file-to-file scatter of its logarithm (intermittent impacts). [-]
+ICE_EXCITATION_GAIN = 3.0
+ICE_EXCITATION_LOG_STD = 0.5
 
 
 @dataclass(frozen=True)
@@ -180,6 +192,7 @@ def simulate_voyage(
     progress: Callable[[int, int], None] | None = None,
     sampling_rate_hz: float = SAMPLING_RATE_HZ,
     shaft: ShaftHarmonics | None = None,
+    ice_hours: float = 0.0,
 ) -> VoyageSummary:
     """Simulate a demo voyage and write all its files into *out_dir*.
 
@@ -210,6 +223,18 @@ def simulate_voyage(
         The shaft and blade-pass orders and whether the log carries the shaft speed
         (default :class:`ShaftHarmonics`: order 1 at 0.3 Hz/kn and the blade pass of 5
         blades, shaft speed logged).
+    ice_hours : float
+        Length of an ice-breaking stretch at the end of the voyage (0: none). [h] Ramming
+        at 3.5 ± 1.5 kn (:func:`~workbench.simulate.profile.operating_profile`); the ice
+        load l(t) = |AR(1) noise| (correlation :data:`ICE_LOAD_CORRELATION_S`) lowers each
+        mode's frequency by :data:`ICE_FREQUENCY_DROP` x l and raises its damping by
+        :data:`ICE_DAMPING_RISE` x l; the modal excitation is :data:`ICE_EXCITATION_GAIN`
+        times that of open water with a log-normal file-to-file scatter
+        (:data:`ICE_EXCITATION_LOG_STD`): strong, broadband and intermittent. The voyage
+        then also writes ``truth_files.csv``: the true modal frequencies and damping of
+        every 5-min file (the path the identification should follow) and each file's
+        excitation level. Random numbers of the ice come from their own stream, so
+        ``ice_hours=0`` writes what it wrote before.
 
     Returns
     -------
@@ -260,7 +285,13 @@ def simulate_voyage(
     start = START_TIME
     end = start + pd.Timedelta(hours=hours)
 
-    profile = operating_profile(start, hours, rng=profile_rng)
+    ice_rng = None
+    if ice_hours:
+        ice_hours = float(ice_hours)
+        if not (math.isfinite(ice_hours) and 0 < ice_hours < hours):
+            raise ValueError(f"ice_hours={ice_hours} must lie in (0, {hours:g}) h")
+        ice_rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(8)[7])
+    profile = operating_profile(start, hours, rng=profile_rng, ice_hours=ice_hours, ice_rng=ice_rng)
     truth = profile.predictors
     shaft_rpm = None
     if shaft.log_rpm:
@@ -274,8 +305,14 @@ def simulate_voyage(
 
     # modal parameters: law at 1 s, averaged per 5-min file (constant within a file)
     per_second = true_modal_parameters(truth)
-    file_frequency = _chunk_means(per_second.frequency_hz, n_files, FILE_SECONDS)
-    file_damping = _chunk_means(per_second.damping_ratio, n_files, FILE_SECONDS)
+    second_frequency, second_damping = per_second.frequency_hz, per_second.damping_ratio
+    file_gain = np.ones(n_files)
+    if ice_rng is not None:
+        second_frequency, second_damping, file_gain = _ice(
+            second_frequency, second_damping, n_files, ice_hours, ice_rng
+        )
+    file_frequency = _chunk_means(second_frequency, n_files, FILE_SECONDS)
+    file_damping = _chunk_means(second_damping, n_files, FILE_SECONDS)
     file_speed = _chunk_means(truth["speed_kn"].to_numpy(), n_files, FILE_SECONDS)
 
     # block grid and truth tables
@@ -354,6 +391,11 @@ def simulate_voyage(
             progress,
             rate,
             shaft,
+            file_gain,
+        )
+    if ice_rng is not None:
+        paths["truth_files"] = _write_file_truth(
+            out / "truth_files.csv", start, file_frequency, file_damping, file_speed, file_gain
         )
 
     summary = {
@@ -408,6 +450,9 @@ def simulate_voyage(
             "weak_mode_blocks": list(imitation.weak_mode_blocks),
         },
     }
+    if ice_rng is not None:
+        summary["ice_hours"] = ice_hours
+        summary["files"]["truth_files"] = "truth_files.csv"
     summary_path = out / "voyage.json"
     with atomic_path(summary_path) as tmp:
         tmp.write_text(json.dumps(summary, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
@@ -486,6 +531,7 @@ def _write_accelerations(
     progress,
     rate: float = SAMPLING_RATE_HZ,
     shaft: ShaftHarmonics | None = None,
+    file_gain: np.ndarray | None = None,
 ) -> list[Path]:
     folder.mkdir(parents=True, exist_ok=True)
     n_files = len(file_frequency)
@@ -512,6 +558,8 @@ def _write_accelerations(
     paths = []
     for k in range(n_files):
         level = 0.5 + 0.1 * file_speed[k]
+        if file_gain is not None:
+            level = level * file_gain[k]
         if state is None:
             state = draw_stationary_state(
                 file_frequency[k],
@@ -564,6 +612,51 @@ def _write_accelerations(
         if progress is not None:
             progress(k + 1, n_files)
     return paths
+
+
+def _ice(frequency, damping, n_files: int, ice_hours: float, rng: np.random.Generator):
+    """Per-second frequencies and damping ratios with the ice load of the last *ice_hours*,
+    and the excitation gain of every file (see :func:`simulate_voyage`)."""
+    from .profile import _smooth_noise
+
+    n_seconds = frequency.shape[0]
+    ice_seconds = int(round(ice_hours * 3600))
+    load = np.zeros(n_seconds)
+    load[n_seconds - ice_seconds :] = np.abs(
+        _smooth_noise(rng, ice_seconds, ICE_LOAD_CORRELATION_S)
+    )
+    frequency = frequency * (1.0 - ICE_FREQUENCY_DROP[None, :] * load[:, None])
+    damping = damping * (1.0 + ICE_DAMPING_RISE * load[:, None])
+    gain = np.ones(n_files)
+    first_ice_file = (n_seconds - ice_seconds) // FILE_SECONDS
+    n_ice = n_files - first_ice_file
+    gain[first_ice_file:] = ICE_EXCITATION_GAIN * np.exp(
+        ICE_EXCITATION_LOG_STD * rng.standard_normal(n_ice)
+    )
+    return frequency, damping, gain
+
+
+def _write_file_truth(path: Path, start, frequency, damping, speed, gain) -> Path:
+    """``truth_files.csv``: file start and end, mode, true frequency and damping ratio of
+    every 5-min file, its mean speed and excitation gain."""
+    n_files, n_modes = frequency.shape
+    file_start = start + pd.to_timedelta(np.arange(n_files) * FILE_SECONDS, unit="s")
+    f = np.repeat(np.arange(n_files), n_modes)
+    m = np.tile(np.arange(n_modes), n_files)
+    frame = pd.DataFrame(
+        {
+            "file_start": [_iso(t) for t in file_start[f]],
+            "file_end": [_iso(t + pd.Timedelta(seconds=FILE_SECONDS)) for t in file_start[f]],
+            "mode": m + 1,
+            "frequency_hz": frequency[f, m],
+            "damping_ratio": damping[f, m],
+            "speed_kn": speed[f],
+            "excitation_gain": gain[f],
+        }
+    )
+    with atomic_path(path) as tmp:
+        frame.to_csv(tmp, index=False, lineterminator="\n")
+    return path
 
 
 def _acceleration_variance(covariance: np.ndarray, frequency_hz: float, damping: float) -> float:

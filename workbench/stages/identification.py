@@ -17,7 +17,12 @@ import pandas as pd
 from data_contracts import POLES, read_table
 
 from ..errors import WorkbenchError
-from ..identification import IdentifyOptions, IdentifyResult, identify_voyage
+from ..identification import (
+    AdaptiveBlockOptions,
+    IdentifyOptions,
+    IdentifyResult,
+    identify_voyage,
+)
 from ..sid.harmonics import HarmonicOptions
 from ._base import StageResult, write_frame
 
@@ -97,6 +102,8 @@ def identify(
     dship: str | os.PathLike | pd.DataFrame | None = None,
     dship_mapping: dict[str, str] | None = None,
     harmonics: HarmonicOptions | None = None,
+    adaptive: AdaptiveBlockOptions | None = None,
+    cases: str | os.PathLike | pd.DataFrame | None = None,
 ) -> IdentifyStageResult:
     """Identify every block of a voyage's acceleration files.
 
@@ -119,6 +126,14 @@ def identify(
         the shaft and blade-pass harmonics, which tracking keeps out of the modes.
     harmonics : HarmonicOptions, optional
         Orders and blade count of the harmonic tests (:mod:`workbench.sid.harmonics`).
+    adaptive : AdaptiveBlockOptions, optional
+        Block length by conditions (``--block-minutes auto``,
+        :mod:`workbench.identification.adaptive`): each block's length from its
+        excitation, the log's speed and *cases*; *options*' block length and step are
+        then replaced.
+    cases : path or DataFrame, optional
+        The log's states (``case``, ``start``, ``end``: ice, transit, station, ...) for
+        *adaptive*: a block does not straddle a change of state.
 
     Raises
     ------
@@ -129,20 +144,32 @@ def identify(
     """
     if isinstance(inputs, str | os.PathLike):
         inputs = [inputs]
-    run = identify_voyage(
-        list(inputs),
-        out_dir,
-        options=options,
-        store_dir=store_dir,
-        scheduler=scheduler,
-        n_workers=n_workers,
-        progress=progress,
-        batch_blocks=batch_blocks,
-        keep_removed_inputs=keep_removed_inputs,
-        dship=dship,
-        dship_mapping=dship_mapping,
-        harmonics=harmonics,
-    )
+    run_options = {
+        "store_dir": store_dir,
+        "scheduler": scheduler,
+        "n_workers": n_workers,
+        "progress": progress,
+        "batch_blocks": batch_blocks,
+        "keep_removed_inputs": keep_removed_inputs,
+        "dship": dship,
+        "dship_mapping": dship_mapping,
+        "harmonics": harmonics,
+    }
+    if adaptive is not None:
+        from ..identification.adaptive import identify_adaptive
+
+        run = identify_adaptive(
+            list(inputs),
+            out_dir,
+            options=options or IdentifyOptions(),
+            adaptive=adaptive,
+            cases=cases,
+            **run_options,
+        )
+    else:
+        if cases is not None:
+            raise ValueError("cases are used by the adaptive block length only (adaptive=)")
+        run = identify_voyage(list(inputs), out_dir, options=options, **run_options)
     summary = run.summary
     if summary.processed == 0 and summary.already_done == 0:
         # never a silent success with nothing done: say why no block was identified

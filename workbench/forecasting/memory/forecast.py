@@ -173,7 +173,12 @@ class MemoryRun:
         )
         if options.time_trend and options.predictor_columns is None:  # explicit: as given
             # slow drifts no log records (fuel burn, ballast): a trend term with memory
+            # block centres: the same hours as the starts for blocks of one length, the
+            # blocks' own times for blocks of varying length (--block-minutes auto)
             start_ns = pd.to_datetime(grid["block_start"], utc=True).astype("int64").to_numpy()
+            if "block_end" in grid.columns:
+                end_ns = pd.to_datetime(grid["block_end"], utc=True).astype("int64").to_numpy()
+                start_ns = start_ns + (end_ns - start_ns) // 2
             hours = (start_ns - start_ns[0]) / 3.6e12
             X_all = np.column_stack([X_all, hours.astype(float)])
             columns = [*columns, "elapsed_hours"]
