@@ -237,6 +237,7 @@ def test_forecast_of_blocks_of_varying_length_follows_the_speed_law():
     as one step of the regular block times)."""
     from data_contracts import PREDICTORS
     from workbench.forecasting import sliding_forecast
+    from workbench.forecasting.options import ForecastOptions
 
     rng = np.random.default_rng(1)
     modal = _varying_modal(80)
@@ -260,9 +261,8 @@ def test_forecast_of_blocks_of_varying_length_follows_the_speed_law():
         v = by_block.reindex(modal.loc[rows, "block"]).to_numpy()
         noise = 1 + 0.0005 * rng.standard_normal(rows.sum())
         modal.loc[rows, "frequency_hz"] = f0 * (1 - 0.003 * v) * noise
-    table = sliding_forecast(
-        modal, predictors, option="A", scheme=2, train_blocks=20, horizon=4
-    ).table
+    options = ForecastOptions(options=("A",), scheme=2, train_blocks=20, horizon=4, model="window")
+    table = sliding_forecast(modal, predictors, options).table
     table = table[table["phase"] == "forecast"]
     assert set(table["block"]) <= set(spans["block"])
     for mode, f0 in law.items():
