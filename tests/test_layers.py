@@ -22,6 +22,7 @@ LAYERS = {
     "workbench.errors": 0,
     "workbench.dynamics": 0,
     "workbench.progress": 0,
+    "workbench.results": 1,  # what every stage result has, so each library returns it
     "workbench.blocks": 1,
     "workbench.store": 1,
     "workbench.parallel": 1,

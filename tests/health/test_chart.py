@@ -99,7 +99,7 @@ def test_summary_names_the_chart_it_ran(statistic, title, peak):
         24, seed=0, damaged_mode=3, stiffness_loss=0.02, damage_after_hours=16
     )
     result = health_chart(law_forecast(voyage), dataclasses.replace(OPTIONS, statistic=statistic))
-    summary = result.summary()
+    summary = str(result.summary())
     assert summary.splitlines()[0].endswith(f"({title} of frequency residuals)")
     assert f"limit {result.reference.limit:.2f}" in summary or (
         f"limit T2 = {result.reference.limit:.2f}" in summary

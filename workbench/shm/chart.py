@@ -21,6 +21,7 @@ from scipy import stats as _scipy_stats
 
 from data_contracts import ALARMS, FORECAST, HEALTH, recorded_grid, set_grid, write_table
 
+from ..results import StageResult, Summary, shown_once
 from .options import HealthOptions
 from .statistics import (  # noqa: F401  (the public statistics are importable from here too)
     OUTLIER_SIGMA,
@@ -110,8 +111,9 @@ class HealthReference:
 
 
 @dataclass(frozen=True)
-class HealthResult:
-    """Output of :func:`health_chart`.
+class HealthResult(StageResult):
+    """Result of the health stage (:func:`workbench.stages.health`, :func:`health_chart`,
+    :meth:`HealthBaseline.chart <workbench.shm.HealthBaseline.chart>`).
 
     Parameters
     ----------
@@ -123,12 +125,17 @@ class HealthResult:
     reference : HealthReference
         What was learned over the reference period.
     options : HealthOptions
+    lines, warnings : list of str
+        Further lines of the summary (none from the chart itself).
     """
 
     table: pd.DataFrame
     alarms: pd.DataFrame
     reference: HealthReference
     options: HealthOptions = field(default_factory=HealthOptions)
+    lines: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    title = "structural health"
 
     def save(self, out: str | os.PathLike) -> dict[str, Path]:
         """Write ``health.csv`` and ``alarms.csv`` into folder *out* (each atomically)."""
@@ -139,8 +146,32 @@ class HealthResult:
             "alarms": write_table(self.alarms, folder / "alarms.csv", ALARMS),
         }
 
-    def summary(self) -> str:
-        """A few lines a structural engineer reads."""
+    def summary(self) -> Summary:
+        """A few lines a structural engineer reads (``print`` it)."""
+        return Summary(
+            self.title,
+            [*self._chart_lines(), *self.lines, *(f"warning: {w}" for w in self.warnings)],
+        )
+
+    def plot(self, ax=None):
+        """The chart: statistic per block, the control limit, alarming blocks marked."""
+        import matplotlib.pyplot as plt
+
+        drawn_here = ax is None
+        if ax is None:
+            _, ax = plt.subplots(figsize=(9, 4), layout="constrained")
+        table = self.table
+        ax.plot(table["block"], table["statistic"], "-", lw=0.8, color="0.3", label="statistic")
+        ax.plot(table["block"], table["limit"], "--", color="tab:red", lw=1, label="limit")
+        alarm = table["alarm"].astype(bool)
+        ax.plot(table.loc[alarm, "block"], table.loc[alarm, "statistic"], ".", color="tab:red")
+        ax.set_xlabel("block")
+        ax.set_ylabel("CUSUM max S/H" if self.reference.statistic == "cusum" else "MEWMA T²")
+        ax.legend(fontsize=8)
+        return shown_once(ax.figure) if drawn_here else ax.figure
+
+    def _chart_lines(self) -> list[str]:
+        """The chart run, its reference and every alarm episode, one line each."""
         ref = self.reference
         monitor = self.table[self.table["phase"] == "monitor"]
         hours = len(monitor) / ref.blocks_per_day * 24.0
@@ -176,7 +207,7 @@ class HealthResult:
                 f"modes {row.modes}, mode {row.top_mode} shifted "
                 f"{row.top_mode_shift_percent:+.2f} %"
             )
-        return "\n".join(lines)
+        return lines
 
 
 # --------------------------------------------------------------------------- stage

@@ -23,8 +23,8 @@ from ..forecasting.options import (
     option_label,
 )
 from ..parallel import process_map
+from ..results import StageResult, read_any_table, shown_once, table_path, write_frame
 from ..sid.presence import persistent_modes
-from ._base import StageResult, read_any_table, shown_once, table_path, write_frame
 
 __all__ = ["ForecastOptions", "ForecastStageResult", "forecast", "forecast_modes"]
 
