@@ -23,7 +23,7 @@ from workbench.shm import (
     law_forecast,
     simulate_health_voyage,
 )
-from workbench.shm.chart import ewma_hold, hotelling, upcrossings_per_day
+from workbench.shm.statistics import ewma_hold, hotelling, upcrossings_per_day
 
 #: 12 h reference (one full operating cycle: rest, 10 kn, alternating, temperature drift).
 OPTIONS = HealthOptions(reference_blocks=144, reference_start_block=0)
@@ -226,7 +226,7 @@ def test_the_limits_hold_against_the_models_error_in_the_reference():
 
 
 def test_cusum_accumulates_decreases_beyond_the_allowance_and_holds_missing():
-    from workbench.shm.chart import cusum_hold, cusum_step
+    from workbench.shm.statistics import cusum_hold, cusum_step
 
     # S_k = max(0, S_{k-1} - x_k - K), K = 0.5: a drop of 2 adds 1.5 per block
     x = np.array([[-2.0], [-2.0], [np.nan], [1.0], [3.0]])
@@ -242,7 +242,7 @@ def test_cusum_limits_match_siegmunds_run_length_for_independent_residuals():
     # about 10 % of the exact ARL for k = 0.5). Target: one false alarm per 10 days per
     # mode (exp(-0.1) quantile of the daily maximum), 288 blocks a day: ARL ≈ 2880 blocks
     # (the Poisson daily count holds when the ARL is long against a day)
-    from workbench.shm.chart import cusum_limits
+    from workbench.shm.statistics import cusum_limits
 
     limit = cusum_limits(
         np.array([0.5]),

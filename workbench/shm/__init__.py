@@ -14,9 +14,10 @@ residuals (the package of the `health` stage, :func:`workbench.stages.health`).
 """
 
 from .baseline import BaselineError, HealthBaseline
-from .chart import HealthOptions, HealthReference, HealthResult, health_chart
+from .chart import HealthReference, HealthResult, health_chart
 from .model import DEFAULT_TERMS, OperationalModel, fit_operational_model
 from .monitor import HealthMonitor, MonitorUpdate
+from .options import HealthOptions
 from .scenario import (
     HealthVoyage,
     detection_delay_hours,

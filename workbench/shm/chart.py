@@ -23,16 +23,14 @@ from data_contracts import ALARMS, FORECAST, HEALTH, recorded_grid, set_grid, wr
 
 from ..results import StageResult, Summary, shown_once
 from .options import HealthOptions
-from .statistics import (  # noqa: F401  (the public statistics are importable from here too)
+from .statistics import (
     OUTLIER_SIGMA,
     _limit_for_rate,
     _moving_block_bootstrap,
     _robust_location_scale,
     cusum_hold,
     cusum_limits,
-    cusum_step,
     ewma_hold,
-    ewma_step,
     hotelling,
     long_run_std,
     trimmed_location_scale,
@@ -40,7 +38,7 @@ from .statistics import (  # noqa: F401  (the public statistics are importable f
     upcrossings_per_day,
 )
 
-__all__ = ["HealthOptions", "HealthReference", "HealthResult", "health_chart"]
+__all__ = ["HealthReference", "HealthResult", "health_chart"]
 
 
 @dataclass(frozen=True)

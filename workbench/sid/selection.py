@@ -120,9 +120,8 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import linear_sum_assignment
 
-from .._deprecation import renamed_parameters
 from .assurance import continuous_pole, mac
-from .pole_clustering import (  # otsu_threshold and the constants also importable from here
+from .pole_clustering import (
     DISTANCE_FLOOR,
     MAX_CLUSTER_DISTANCE,
     _components,
@@ -295,7 +294,6 @@ def _drop_twins(
     return poles[keep]
 
 
-@renamed_parameters(method="selection", frequency_band="band_hz")
 def select_modes(
     result: SSIResult,
     *,

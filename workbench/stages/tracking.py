@@ -10,7 +10,6 @@ import pandas as pd
 
 from data_contracts import MODAL, SELECTED, recorded_grid, set_grid
 
-from .._deprecation import renamed_parameters
 from ..errors import WorkbenchError
 from ..results import StageResult, read_any_table, shown_once, table_path, write_frame
 from ..sid.tracking import TrackingOptions, track_modes
@@ -117,7 +116,6 @@ class TrackResult(StageResult):
         return shown_once(ax.figure) if drawn_here else ax.figure
 
 
-@renamed_parameters(reference="reference_modes")
 def track(
     selected: pd.DataFrame | str | os.PathLike,
     *,
