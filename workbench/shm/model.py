@@ -29,8 +29,8 @@ __all__ = ["DEFAULT_TERMS", "OperationalModel", "fit_operational_model"]
 #: board (``fuel_on_board_t``, the tank soundings' sum: burning fuel lowers the mass).
 #: Terms whose columns the log lacks are left out; without the fuel, the chart's slowly
 #: following baseline takes the fuel burn (``HealthOptions.baseline_hours``): a straight
-#: line in elapsed hours cannot follow a burn rate that falls as the tanks empty (5 false
-#: alarms a day in ``benchmarks/bench_health.py``).
+#: line in elapsed hours cannot follow a burn rate that falls as the tanks empty (false
+#: alarms every day: model ``ols-time`` in ``benchmarks/results/health.txt``).
 DEFAULT_TERMS: tuple[str, ...] = (
     "speed_kn",
     "speed_kn^2",

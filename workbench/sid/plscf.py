@@ -178,9 +178,9 @@ def lscf(
         basis z^j is well conditioned when the band covers most of 0..Nyquist; in a
         narrow band high orders lose precision (normal equations): decimate first, or fit
         the whole range and select the modes in the band (:func:`~workbench.sid.
-        select_modes` ``band_hz``). On the KOMA shear frame (modes 0.18-1.18 Hz at
-        12 Hz) the band 0.05-2 Hz gave too few stable poles to select from, the whole
-        range all five modes within 0.3 %.
+        select_modes` ``band_hz``); on the KOMA shear frame a narrow band left too few
+        stable poles to select from, the whole range found every mode
+        (``benchmarks/results/docstring_numbers.txt``).
     n_lags : int, optional
         Correlation lags 0..n_lags-1 (default 512, at most a quarter of the record). More
         lags give a finer frequency grid and a weaker window (less added damping).
