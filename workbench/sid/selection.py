@@ -84,7 +84,8 @@ with the previous order keeps the selected poles close to the library even where
 spurious pole perturbs a few orders. The damping tolerance is much wider than the
 diagram's 5 %: single-block damping estimates scatter by 5-20 % between orders near the
 maximum order, and a mode must not drop out of the library for that alone (with 20 % a
-simulated hull block lost modes far more often than with 50 %, ``benchmarks/results/docstring_numbers.txt``).
+simulated hull block lost modes far more often than with 50 %,
+``benchmarks/results/docstring_numbers.txt``).
 
 The lowest order at which all library modes exist is the most parsimonious model that
 still holds every mode consistently seen at high order. Spurious noise poles are rarely
