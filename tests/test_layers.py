@@ -20,7 +20,6 @@ LAYERS = {
     "data_contracts": 0,
     "workbench": 0,  # the package itself: lazy names only
     "workbench.errors": 0,
-    "workbench.dynamics": 0,
     "workbench.progress": 0,
     "workbench.results": 1,  # what every stage result has, so each library returns it
     "workbench.blocks": 1,

@@ -1,6 +1,6 @@
 """Structural-health chart: invariants on block-level voyages with known damage.
 
-Voyages come from :func:`workbench.shm.simulate_health_voyage` (demo hull law, SSI-like
+Voyages come from :func:`workbench.simulate.simulate_health_voyage` (demo hull law, SSI-like
 errors correlated as 75 %-overlapping blocks give). The operational model is the hull's law
 at the logged predictors (:func:`law_forecast`), so what is tested is the chart; the real
 stepwise forecast is measured in ``benchmarks/bench_health.py``.
@@ -16,14 +16,9 @@ import pandas as pd
 import pytest
 
 from data_contracts import ALARMS, HEALTH, ContractError, read_table, write_table
-from workbench.shm import (
-    HealthOptions,
-    detection_delay_hours,
-    health_chart,
-    law_forecast,
-    simulate_health_voyage,
-)
+from workbench.shm import HealthOptions, health_chart
 from workbench.shm.statistics import ewma_hold, hotelling, upcrossings_per_day
+from workbench.simulate import detection_delay_hours, law_forecast, simulate_health_voyage
 
 #: 12 h reference (one full operating cycle: rest, 10 kn, alternating, temperature drift).
 OPTIONS = HealthOptions(reference_blocks=144, reference_start_block=0)
