@@ -41,6 +41,10 @@ def test_lscf_identify_with_cross_check(voyage, tmp_path):
     poles = read_table(tmp_path / "poles.parquet", POLES)
     assert set(poles["block"]) == set(range(voyage.n_blocks))
     selected = pd.read_parquet(tmp_path / "selected.parquet")
+    # the library's result is the identify stage's: the tables it wrote, its summary
+    assert len(result.table) == result.n_selected == len(selected)
+    pd.testing.assert_frame_equal(result.poles, poles)
+    assert str(result.summary()).splitlines()[0] == str(result.run).splitlines()[0]
     assert selected.groupby("block").size().min() >= 5  # of the seven hull modes
     # the combined modal model: LSCF's own estimate (the block's method, the reference of
     # the combination) with the uncertainty of both methods' scatter and agreement
