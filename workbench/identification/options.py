@@ -9,16 +9,10 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from typing import Literal
 
-from data_contracts.formats import ACCELERATION_SUFFIXES as _FORMAT_SUFFIXES
 from data_contracts.limits import MAX_LSCF_ORDER, MAX_MODEL_ORDER
 
 from ..blocks import MAX_BLOCKS_PER_SAMPLE
 from ..errors import OptionError
-
-#: Acceleration file suffixes picked up from a folder. Text files (.csv, .tsv, .txt) are
-#: taken only when their header looks like an acceleration record: a voyage folder also
-#: holds ship logs and tables (see data_contracts.formats.text.looks_like_acceleration_table).
-ACCELERATION_SUFFIXES = _FORMAT_SUFFIXES
 
 
 def _orders(name: str, values, highest: int) -> tuple[int, ...]:
