@@ -186,7 +186,7 @@ def _track(selected: pd.DataFrame) -> pd.DataFrame:
 def _identified(folder: Path, shaft: ShaftHarmonics, seed: int, hours: float, workers):
     voyage = simulate_voyage(folder / "voyage", seed=seed, hours=hours, shaft=shaft)
     started = time.perf_counter()
-    run = identify_voyage(
+    result = identify_voyage(
         [folder / "voyage" / "accelerations"],
         folder / "identify",
         options=DEMO_IDENTIFY_OPTIONS,
@@ -195,11 +195,11 @@ def _identified(folder: Path, shaft: ShaftHarmonics, seed: int, hours: float, wo
     )
     # the identification's time counts only when every block was identified in this run
     # (a reused --work folder resumes from the store)
-    fresh = run.summary.already_done == 0
+    fresh = result.run.already_done == 0
     seconds = time.perf_counter() - started if fresh else np.nan
     columns = ["harmonic", "harmonic_frequency_hz"]
-    selected = pd.read_parquet(run.files["selected"]).drop(columns=columns, errors="ignore")
-    poles = pd.read_parquet(run.files["poles"]).drop(columns=columns, errors="ignore")
+    selected = pd.read_parquet(result.files["selected"]).drop(columns=columns, errors="ignore")
+    poles = pd.read_parquet(result.files["poles"]).drop(columns=columns, errors="ignore")
     return voyage, selected, poles, seconds
 
 

@@ -1,6 +1,6 @@
 """Benchmark: detection delay and false alarms of the structural-health chart.
 
-Block-level voyages from :func:`workbench.shm.simulate_health_voyage` (the demo hull's
+Block-level voyages from :func:`workbench.simulate.simulate_health_voyage` (the demo hull's
 modal law driven by the demo operating profile, identification errors correlated as
 75 %-overlapping blocks give, 10 % missing estimates, 0.5 % wrong poles). Timeline: the
 operational model trains on the first ``--train-hours``, the chart's reference period is
@@ -54,13 +54,11 @@ import pandas as pd
 from workbench.shm import (
     DEFAULT_TERMS,
     HealthOptions,
-    detection_delay_hours,
     fit_operational_model,
     frozen_forecast,
     health_chart,
-    law_forecast,
-    simulate_health_voyage,
 )
+from workbench.simulate import detection_delay_hours, law_forecast, simulate_health_voyage
 
 #: The chart settings before this benchmark's second round (kept to measure against).
 BEFORE = {

@@ -1,6 +1,6 @@
 """Benchmark: a new voyage charted from its first block with a saved health baseline.
 
-An earlier voyage of the ship (:func:`workbench.shm.simulate_health_voyage`, seed 1)
+An earlier voyage of the ship (:func:`workbench.simulate.simulate_health_voyage`, seed 1)
 gives the baseline: the operational model fitted on its first ``--train-hours`` and the
 chart's reference on the next 6 h (:class:`workbench.shm.HealthBaseline`, written to
 JSON and read back, as ``workbench health --save-model`` / ``--baseline`` do). New 12-h
@@ -22,14 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.shm import (
-    HealthBaseline,
-    HealthOptions,
-    detection_delay_hours,
-    fit_operational_model,
-    health_chart,
-    simulate_health_voyage,
-)
+from workbench.shm import HealthBaseline, HealthOptions, fit_operational_model, health_chart
+from workbench.simulate import detection_delay_hours, simulate_health_voyage
 
 
 def main(argv=None) -> int:

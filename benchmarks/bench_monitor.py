@@ -199,7 +199,7 @@ def _replay(
     settle: float,
     dashboard: float | None = None,
 ):
-    from workbench.signals.stream import read_file_info
+    from workbench.signals.block_plan import read_file_info
 
     watch, state = work / "watch", work / "state"
     shutil.rmtree(work, ignore_errors=True)

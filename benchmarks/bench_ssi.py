@@ -44,9 +44,9 @@ import warnings
 
 import numpy as np
 
-from workbench.dynamics import simulate_modal_response
 from workbench.sid.selection import select_modes
 from workbench.sid.ssi import SSIWarning, ssi_cov, ssi_data
+from workbench.simulate.dynamics import simulate_modal_response
 from workbench.simulate.hull import REFERENCE_CONDITIONS, mode_shapes, true_modal_parameters
 
 TARGET_RATIO = 8.0

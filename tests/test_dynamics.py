@@ -1,4 +1,4 @@
-"""Tests for workbench.dynamics: exact discretisation, variances, continuity across calls."""
+"""Tests for workbench.simulate.dynamics: exact discretisation, variances, continuity across calls."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import integrate, linalg, signal
 
-from workbench.dynamics import (
+from workbench.simulate.dynamics import (
     ModalState,
     discretize_modes,
     draw_stationary_state,

@@ -268,6 +268,28 @@ def test_track_forecast_evaluate_on_a_simulated_voyage(tmp_path):
     plt.close(figure)
 
 
+def test_health_stage_returns_the_charts_result(tmp_path):
+    """wb.health returns the chart's own result (one type per stage): the same table as
+    health_chart, its summary and tables saved."""
+    from workbench.shm import HealthOptions, HealthResult, health_chart
+    from workbench.simulate import law_forecast, simulate_health_voyage
+
+    voyage = simulate_health_voyage(
+        24, seed=0, damaged_mode=3, stiffness_loss=0.02, damage_after_hours=16
+    )
+    forecast = law_forecast(voyage)
+    options = HealthOptions(reference_blocks=96)
+    result = wb.health(forecast, options=options)
+    assert type(result) is HealthResult
+    chart = health_chart(forecast, options)
+    pd.testing.assert_frame_equal(result.table, chart.table)
+    assert len(result.alarms) >= 1  # the 2 % stiffness loss on mode 3
+    text = str(result.summary())
+    assert text.splitlines()[0].startswith("Structural-health chart") and "alarm 1:" in text
+    paths = result.save(tmp_path)
+    assert sorted(paths) == ["alarms", "health"] and paths["health"].is_file()
+
+
 def test_forecast_options_are_checked():
     with pytest.raises(ValueError, match="option"):
         wb.ForecastOptions(options=("C",))

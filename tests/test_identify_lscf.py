@@ -37,10 +37,14 @@ def test_lscf_identify_with_cross_check(voyage, tmp_path):
         cross_check=True,
     )
     result = identify_voyage([voyage.out_dir], tmp_path, options=options, scheduler="synchronous")
-    assert result.summary.processed == voyage.n_blocks
+    assert result.run.processed == voyage.n_blocks
     poles = read_table(tmp_path / "poles.parquet", POLES)
     assert set(poles["block"]) == set(range(voyage.n_blocks))
     selected = pd.read_parquet(tmp_path / "selected.parquet")
+    # the library's result is the identify stage's: the tables it wrote, its summary
+    assert len(result.table) == result.n_selected == len(selected)
+    pd.testing.assert_frame_equal(result.poles, poles)
+    assert str(result.summary()).splitlines()[0] == str(result.run).splitlines()[0]
     assert selected.groupby("block").size().min() >= 5  # of the seven hull modes
     # the combined modal model: LSCF's own estimate (the block's method, the reference of
     # the combination) with the uncertainty of both methods' scatter and agreement
@@ -69,7 +73,7 @@ def test_lscf_identify_with_cross_check(voyage, tmp_path):
     # median is far inside it
     assert np.median(paired["frequency_difference"].abs()) < 0.002
     assert (paired["mac"] > 0.95).all()
-    lines = result.lines()
+    lines = result.lines
     assert any(line.startswith("SSI/LSCF cross-check over 3 block(s)") for line in lines)
 
 
@@ -155,6 +159,6 @@ def test_a_failing_cross_check_leaves_the_block_identified(voyage, tmp_path):
     result = identify_voyage(
         [voyage.out_dir], tmp_path, options=options, scheduler="synchronous", blocks=[0]
     )
-    assert result.summary.processed == 1 and result.summary.skipped == 0
+    assert result.run.processed == 1 and result.run.skipped == 0
     assert result.n_selected >= 5
     assert "crosscheck" not in result.files

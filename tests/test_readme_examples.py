@@ -188,7 +188,7 @@ def mydata(tmp_path_factory) -> Path:
     wide.reset_index().to_csv(data / "modes" / "wide_modes.csv", index=False)
     (data / "ship.toml").write_text(
         '[modal]\nfile = "modes/artemis_modes.csv"\ntime_reference = "centre"\n'
-        '[dship]\nfile = "dship/extraction.dat"\n[forecast]\ntrain = 10\n',
+        '[dship]\nfile = "dship/extraction.dat"\n[forecast]\ntrain_blocks = 10\n',
         encoding="utf-8",
     )
     return root

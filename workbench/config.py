@@ -58,7 +58,6 @@ import difflib
 import math
 import os
 import tomllib
-import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -70,7 +69,6 @@ from .blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
 
 __all__ = [
     "SCHEMA",
-    "ConfigDeprecationWarning",
     "ShipConfig",
     "apply_config",
     "chain",
@@ -155,18 +153,6 @@ SCHEMA: dict[str, dict[str, Any]] = {
         "figures": bool,
     },
     "evaluate": {"truth": _PATH, "phase": str},
-}
-
-
-#: Keys renamed with the vocabulary (README, "Glossary"): section -> old key -> new key. The
-#: old keys are still read, with a warning.
-RENAMED_KEYS: dict[str, dict[str, str]] = {
-    "track": {
-        "threshold": "mac_min",
-        "frequency_tolerance": "frequency_tol",
-        "reference": "reference_modes",
-    },
-    "forecast": {"method": "scheme", "train": "train_blocks", "shape_mac_min": "mac_min"},
 }
 
 
@@ -351,10 +337,6 @@ def _nearest(given: str, known) -> str:
     return f"did you mean {near[0]!r}? " if near else ""
 
 
-class ConfigDeprecationWarning(UserWarning):
-    """A configuration key under its old name (still read; shown to the user)."""
-
-
 class ConfigError(ValueError):
     """A configuration file that cannot be used (the message names file and key)."""
 
@@ -418,28 +400,16 @@ def load_config(path: str | os.PathLike) -> ShipConfig:
             problems.append(f"[{name}] must be a table")
             continue
         section = {}
-        for given, value in values.items():
-            key = given
-            new = RENAMED_KEYS.get(name, {}).get(key)
-            if new is not None:
-                if new in values:
-                    problems.append(f"[{name}] give {new} only ({key} is its old name)")
-                    continue
-                warnings.warn(
-                    f"{path}: [{name}] {key} is deprecated; use {new}",
-                    ConfigDeprecationWarning,
-                    stacklevel=2,
-                )
-                key = new
+        for key, value in values.items():
             kind = SCHEMA[name].get(key)
             if kind is None:
                 problems.append(
-                    f"[{name}] unknown key '{given}' ({_nearest(given, SCHEMA[name])}"
+                    f"[{name}] unknown key '{key}' ({_nearest(key, SCHEMA[name])}"
                     f"known: {', '.join(SCHEMA[name])})"
                 )
             elif kind == _PATH:
                 if not isinstance(value, str) or not value.strip():
-                    problems.append(f"[{name}] {given} = {_shown(value)} must be a path (text)")
+                    problems.append(f"[{name}] {key} = {_shown(value)} must be a path (text)")
                 else:
                     section[key] = base / value
             elif kind == _PATHS:
@@ -450,17 +420,17 @@ def load_config(path: str | os.PathLike) -> ShipConfig:
                     or not all(isinstance(v, str) and v.strip() for v in items)
                 ):
                     problems.append(
-                        f"[{name}] {given} = {_shown(value)} must be a path or a list of paths"
+                        f"[{name}] {key} = {_shown(value)} must be a path or a list of paths"
                     )
                 else:
                     section[key] = [base / v for v in items]
             elif not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
-                problems.append(f"[{name}] {given} = {_shown(value)} has the wrong type")
+                problems.append(f"[{name}] {key} = {_shown(value)} has the wrong type")
             else:
                 check = CHECKS.get(name, {}).get(key)
                 wrong = check(value) if check is not None else None
                 if wrong:
-                    problems.append(f"[{name}] {given} = {_shown(value)} {wrong}")
+                    problems.append(f"[{name}] {key} = {_shown(value)} {wrong}")
                 else:
                     section[key] = value
         sections[name] = section

@@ -24,7 +24,7 @@ from .sid.harmonics import HarmonicOptions
 from .sid.tracking import TrackingOptions
 from .signals.moments import faulty_channels
 from .simulate.voyage import DEFAULT_HOURS, SAMPLING_RATE_HZ, ShaftHarmonics
-from .stats.stepwise import DEFAULT_THRESHOLDS
+from .stats.stepwise.regression import DEFAULT_THRESHOLDS
 
 
 def _keyword_default(function, name: str):

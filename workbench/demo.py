@@ -194,10 +194,10 @@ def run_demo(
             progress=progress,
         )
     summary.lines.append(
-        f"identify: {identified.run.summary.processed} blocks identified, "
-        f"{identified.run.summary.skipped} skipped, {identified.run.n_selected} modes selected"
+        f"identify: {identified.run.processed} blocks identified, "
+        f"{identified.run.skipped} skipped, {identified.n_selected} modes selected"
     )
-    summary.lines += identified.run.notes
+    summary.lines += identified.notes
 
     with stage("SSI/LSCF cross-check"):
         from .identification import cross_check_blocks

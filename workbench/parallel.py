@@ -323,7 +323,7 @@ def run_blocks(
 #: ``MALLOC_TRIM_THRESHOLD_=65536``, which also fixes glibc's mmap threshold at 128 KiB, so
 #: that every temporary array of a block (channel rows, filter passes, Hankel matrices) is
 #: mapped afresh and its pages faulted in and zeroed again: with 2048-Hz files that kernel
-#: time was about as large as the numerical work. Arrays up to 32 MiB are reused from the
+#: time was a large share of the work (benchmarks/results/docstring_numbers.txt). Arrays up to 32 MiB are reused from the
 #: heap instead (as in a plain process) and free memory beyond 64 MiB is still returned.
 _WORKER_MALLOC = {
     "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": 64 * 2**20,

@@ -1,7 +1,7 @@
 """A saved health baseline: an earlier voyage's model and limits chart a new voyage from
 its first block; a baseline of another ship, or a damaged file, is refused in one line.
 
-The earlier voyage is 48 h of :func:`workbench.shm.simulate_health_voyage` (seed 1): a
+The earlier voyage is 48 h of :func:`workbench.simulate.simulate_health_voyage` (seed 1): a
 36-h model (its operating cycles at several fuel states) and a 6-h reference, as
 ``workbench health --train-hours 36 --reference-hours 6 --save-model`` fits them.
 """
@@ -22,11 +22,10 @@ from workbench.shm import (
     BaselineError,
     HealthBaseline,
     HealthOptions,
-    detection_delay_hours,
     fit_operational_model,
     health_chart,
-    simulate_health_voyage,
 )
+from workbench.simulate import detection_delay_hours, simulate_health_voyage
 
 CHANNELS = tuple(f"acc{k:02d}" for k in range(1, 9))
 TRAIN, REFERENCE = 432, 72  # 36 h and 6 h of 5-min steps

@@ -1,6 +1,6 @@
 """Structural-health chart: invariants on block-level voyages with known damage.
 
-Voyages come from :func:`workbench.shm.simulate_health_voyage` (demo hull law, SSI-like
+Voyages come from :func:`workbench.simulate.simulate_health_voyage` (demo hull law, SSI-like
 errors correlated as 75 %-overlapping blocks give). The operational model is the hull's law
 at the logged predictors (:func:`law_forecast`), so what is tested is the chart; the real
 stepwise forecast is measured in ``benchmarks/bench_health.py``.
@@ -16,14 +16,9 @@ import pandas as pd
 import pytest
 
 from data_contracts import ALARMS, HEALTH, ContractError, read_table, write_table
-from workbench.shm import (
-    HealthOptions,
-    detection_delay_hours,
-    health_chart,
-    law_forecast,
-    simulate_health_voyage,
-)
-from workbench.shm.chart import ewma_hold, hotelling, upcrossings_per_day
+from workbench.shm import HealthOptions, health_chart
+from workbench.shm.statistics import ewma_hold, hotelling, upcrossings_per_day
+from workbench.simulate import detection_delay_hours, law_forecast, simulate_health_voyage
 
 #: 12 h reference (one full operating cycle: rest, 10 kn, alternating, temperature drift).
 OPTIONS = HealthOptions(reference_blocks=144, reference_start_block=0)
@@ -99,7 +94,7 @@ def test_summary_names_the_chart_it_ran(statistic, title, peak):
         24, seed=0, damaged_mode=3, stiffness_loss=0.02, damage_after_hours=16
     )
     result = health_chart(law_forecast(voyage), dataclasses.replace(OPTIONS, statistic=statistic))
-    summary = result.summary()
+    summary = str(result.summary())
     assert summary.splitlines()[0].endswith(f"({title} of frequency residuals)")
     assert f"limit {result.reference.limit:.2f}" in summary or (
         f"limit T2 = {result.reference.limit:.2f}" in summary
@@ -226,7 +221,7 @@ def test_the_limits_hold_against_the_models_error_in_the_reference():
 
 
 def test_cusum_accumulates_decreases_beyond_the_allowance_and_holds_missing():
-    from workbench.shm.chart import cusum_hold, cusum_step
+    from workbench.shm.statistics import cusum_hold, cusum_step
 
     # S_k = max(0, S_{k-1} - x_k - K), K = 0.5: a drop of 2 adds 1.5 per block
     x = np.array([[-2.0], [-2.0], [np.nan], [1.0], [3.0]])
@@ -242,7 +237,7 @@ def test_cusum_limits_match_siegmunds_run_length_for_independent_residuals():
     # about 10 % of the exact ARL for k = 0.5). Target: one false alarm per 10 days per
     # mode (exp(-0.1) quantile of the daily maximum), 288 blocks a day: ARL ≈ 2880 blocks
     # (the Poisson daily count holds when the ARL is long against a day)
-    from workbench.shm.chart import cusum_limits
+    from workbench.shm.statistics import cusum_limits
 
     limit = cusum_limits(
         np.array([0.5]),

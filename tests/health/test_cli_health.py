@@ -6,7 +6,7 @@ import pytest
 
 from data_contracts import ALARMS, FORECAST, HEALTH, read_table, write_table
 from workbench.cli import main
-from workbench.shm import law_forecast, simulate_health_voyage
+from workbench.simulate import law_forecast, simulate_health_voyage
 
 
 @pytest.fixture(scope="module")

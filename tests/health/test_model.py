@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from workbench.shm import fit_operational_model, simulate_health_voyage
+from workbench.shm import fit_operational_model
+from workbench.simulate import simulate_health_voyage
 from workbench.simulate.imitation import FREQUENCY_SCATTER
 
 

@@ -10,13 +10,8 @@ import pandas as pd
 import pytest
 
 from data_contracts import ALARMS
-from workbench.shm import (
-    HealthMonitor,
-    HealthOptions,
-    health_chart,
-    law_forecast,
-    simulate_health_voyage,
-)
+from workbench.shm import HealthMonitor, HealthOptions, health_chart
+from workbench.simulate import law_forecast, simulate_health_voyage
 
 #: 6-h reference from the first block; 16-h voyage, 3 % stiffness loss on mode 3 at 11 h
 #: (large enough that every variant, the 4-h following baseline too, raises an episode)

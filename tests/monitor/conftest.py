@@ -144,7 +144,7 @@ def land_slowly(path: Path, folder: Path, pieces: int = 4, pause_s: float = 0.05
 
 
 def file_end(path: Path) -> pd.Timestamp:
-    from workbench.signals.stream import read_file_info
+    from workbench.signals.block_plan import read_file_info
 
     return read_file_info(path).end_time
 

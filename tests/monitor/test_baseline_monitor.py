@@ -9,13 +9,8 @@ import numpy as np
 import pandas as pd
 
 from data_contracts import MODAL, shapes_to_frame
-from workbench.shm import (
-    HealthBaseline,
-    HealthOptions,
-    fit_operational_model,
-    health_chart,
-    simulate_health_voyage,
-)
+from workbench.shm import HealthBaseline, HealthOptions, fit_operational_model, health_chart
+from workbench.simulate import simulate_health_voyage
 
 from .conftest import IDENTIFY, MONITOR_FAST, cli
 

@@ -9,7 +9,7 @@ import pytest
 
 from workbench.monitor.outlook import ForecastSettings
 from workbench.monitor.structural_health import operational_health
-from workbench.shm import detection_delay_hours, simulate_health_voyage
+from workbench.simulate import detection_delay_hours, simulate_health_voyage
 
 #: 24 h model, 12 h reference: the chart starts 36 h into the voyage
 SETTINGS = ForecastSettings(health_train_hours=24.0, reference_hours=12.0)

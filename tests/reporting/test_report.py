@@ -12,7 +12,9 @@ import pytest
 from data_contracts import shapes_to_frame
 from workbench.cli import main
 from workbench.reporting import views
-from workbench.reporting.report import _chunk_moments, _csd, build_report, find_run
+from workbench.reporting.mode_views import _real_shape
+from workbench.reporting.report import build_report, find_run
+from workbench.reporting.report.signals import _chunk_moments, _csd
 
 
 @pytest.fixture(autouse=True)
@@ -57,7 +59,7 @@ def test_mean_shape_undoes_block_phases():
     modal, _ = _modal_with_shapes(shape)
     modes, _, mean = views.mean_mode_shapes(modal)
     assert modes == [1]
-    real = views._real_shape(mean[:, 0])
+    real = _real_shape(mean[:, 0])
     np.testing.assert_allclose(real, -shape / np.linalg.norm(shape), atol=1e-12)
 
 

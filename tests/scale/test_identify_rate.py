@@ -98,7 +98,7 @@ def identified(voyages, tmp_path_factory):
 def test_per_file_conditioning_gives_the_per_block_modes(identified):
     tables = {m: pd.read_parquet(out / "selected.parquet") for m, (out, _) in identified.items()}
     for mode, (_, result) in identified.items():
-        assert result.summary.processed == 5, mode
+        assert result.run.processed == 5, mode
     a, b = tables["per-file"], tables["per-block"]
     assert sorted(a["block"].unique()) == sorted(b["block"].unique())
     # the same modes to the blocks' edge effects: each per-block mode has a per-file mode
@@ -127,8 +127,8 @@ def test_resume_of_runs_of_blocks_gives_the_same_tables(voyages, identified, tmp
         [fast.out_dir], tmp_path, options=OPTIONS, scheduler="synchronous", blocks=[1, 3]
     )
     result = identify_voyage([fast.out_dir], tmp_path, options=OPTIONS, scheduler="synchronous")
-    assert result.summary.already_done == 2
-    assert result.summary.processed == 3
+    assert result.run.already_done == 2
+    assert result.run.processed == 3
     again = pd.read_parquet(tmp_path / "selected.parquet")
     pd.testing.assert_frame_equal(again, reference)
 

@@ -53,7 +53,7 @@ def test_reference_run_covers_every_block(reference, voyage):
     out, result = reference
     tables = _tables(out)
     n_blocks = voyage.n_blocks
-    assert result.summary.processed + result.summary.skipped == n_blocks
+    assert result.run.processed + result.run.skipped == n_blocks
     assert sorted(tables["blocks"]["block"]) == list(range(n_blocks))
     assert tables["selected"]["block"].nunique() >= n_blocks - 1
     # acc12 is dead during the voyage's second hour: the faults table says so
@@ -132,7 +132,7 @@ def test_local_dask_cluster_gives_the_same_tables(voyage, reference, tmp_path):
     result = identify_voyage(
         [voyage.out_dir], out, options=OPTIONS, n_workers=2, blocks=range(0, 8)
     )
-    assert result.summary.processed + result.summary.skipped == 8
+    assert result.run.processed + result.run.skipped == 8
     ours = _tables(out)
     theirs = _tables(ref_out)
     for kind in ("poles", "selected"):

@@ -3,7 +3,7 @@
 Spring-mass chains (fixed-free, proportional damping) have real normal modes from the
 generalised eigenproblem K φ = ω² M φ and damping ratios ζ = α/(2ω) + βω/2 (Rayleigh
 damping C = αM + βK). White-noise forces act at every mass; with mass-normalised shapes
-the modal forces are Φᵀ F, simulated exactly (ZOH) by :mod:`workbench.dynamics`. The demo
+the modal forces are Φᵀ F, simulated exactly (ZOH) by :mod:`workbench.simulate.dynamics`. The demo
 hull uses its own modal model (:mod:`workbench.simulate.hull`).
 """
 
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from scipy import linalg
 
-from workbench.dynamics import simulate_modal_response
+from workbench.simulate.dynamics import simulate_modal_response
 from workbench.simulate.hull import (
     CHANNELS,
     REFERENCE_CONDITIONS,

@@ -139,9 +139,3 @@ def test_package_functions_are_not_shadowed_by_modules():
     # importing every submodule leaves the package's functions in place
     assert callable(sid.mac) and sid.mac.__module__ == "workbench.sid.assurance"
     assert callable(sid.lscf) and sid.lscf.__module__ == "workbench.sid.plscf"
-    # imports written against the old module names still work
-    from workbench.sid.lscf import half_spectra  # noqa: F401
-    from workbench.sid.mac import macxp as old_macxp
-
-    assert old_macxp is macxp
-    assert callable(sid.mac)

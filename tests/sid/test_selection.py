@@ -208,7 +208,7 @@ def test_cluster_rule_is_repeatable_and_twins_count_once():
 
 
 def test_otsu_threshold_splits_two_groups():
-    from workbench.sid.selection import otsu_threshold
+    from workbench.sid.pole_clustering import otsu_threshold
 
     values = np.r_[np.full(5, 1.0), np.full(3, 10.0)]
     assert otsu_threshold(values) == pytest.approx(5.5)

@@ -17,16 +17,9 @@ from scipy import signal
 
 from data_contracts import POLES
 from workbench.sid.assurance import mac
-from workbench.sid.ssi import (
-    SSIWarning,
-    _hankel_gram,
-    _lagged_products,
-    _leading_eigh,
-    _toeplitz_gram,
-    decomposition,
-    ssi_cov,
-    ssi_data,
-)
+from workbench.sid.ssi import SSIWarning, decomposition, ssi_cov, ssi_data
+from workbench.sid.ssi.decomposition import _leading_eigh
+from workbench.sid.ssi.hankel import _hankel_gram, _lagged_products, _toeplitz_gram
 from workbench.sid.threads import sid_threads, thread_budget
 from workbench.simulate.hull import CHANNELS
 

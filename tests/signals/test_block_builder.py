@@ -276,16 +276,6 @@ def test_all_faulty_block_is_skipped_and_options_are_checked(tmp_path):
         iter_blocks(files, grid=grid, target_rate_hz=4.0, band_hz=(0.5, 3.0))
 
 
-def test_the_former_stream_module_names_the_same_objects():
-    """workbench.signals.stream was split into block_plan and block_builder; imports from the
-    old module still work."""
-    from workbench.signals import block_plan, stream
-
-    for name in stream.__all__:
-        home = block_plan if hasattr(block_plan, name) else block_builder
-        assert getattr(stream, name) is getattr(home, name), name
-
-
 def test_planning_from_read_headers_equals_planning_from_files(voyage):
     """plan_file_infos (headers already read, as the identify planner and the monitor keep
     them) gives the plan plan_blocks gives from the files."""

@@ -25,10 +25,10 @@ import pytest
 
 from data_contracts import AccelerationRecord, read_accelerations, write_accelerations
 from workbench.signals import bandpass, decimate, load_block, plan_blocks
-from workbench.signals.file_conditioning import (
-    FileConditioner,
+from workbench.signals.file_conditioning import FileConditioner
+from workbench.signals.file_reads import _read_rows
+from workbench.signals.filter_cascade import (
     _decimate_channels_last,
-    _read_rows,
     default_decimation_rate,
     padding_samples,
 )

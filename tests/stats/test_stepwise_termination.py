@@ -21,7 +21,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from workbench.stats import stepwise
-from workbench.stats.stepwise import StepwiseWarning, default_step_limit
+from workbench.stats.stepwise import StepwiseWarning
+from workbench.stats.stepwise.search import default_step_limit
 from workbench.stats.terms import parse_terms
 
 #: Random designs the property tests draw (CI: 1000, about 10 s with the voyage windows);

@@ -442,7 +442,7 @@ def _run_health(args: argparse.Namespace) -> int:
                 modal,
                 predictors,
                 model,
-                result.chart,
+                result,
                 step_s=_block_step_s(predictors),
                 length_s=grid.get("length_s"),
                 source={"modal": str(args.modal), "predictors": str(args.predictors)},

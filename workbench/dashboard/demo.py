@@ -1,7 +1,7 @@
 """A state folder like the monitor's, from the batch stages, for demos, tests and benchmarks.
 
 :func:`demo_state` simulates a block-level voyage with
-:func:`workbench.shm.simulate_health_voyage` (the demo hull's modal law, the demo
+:func:`workbench.simulate.simulate_health_voyage` (the demo hull's modal law, the demo
 operating profile, SSI-like scatter, optionally a stiffness loss part-way), forecasts it
 with the real sliding model frozen after a training period
 (:func:`workbench.shm.frozen_forecast`, Kalman-blended, option A) and runs the health
@@ -203,7 +203,8 @@ def demo_state(
     DemoState
         Call :meth:`DemoState.append` to publish further blocks.
     """
-    from ..shm import HealthOptions, frozen_forecast, health_chart, simulate_health_voyage
+    from ..shm import HealthOptions, frozen_forecast, health_chart
+    from ..simulate import simulate_health_voyage
 
     train_blocks = int(round(train_hours * 3600 / _STEP_SECONDS))
     reference_blocks = int(round(reference_hours * 3600 / _STEP_SECONDS))

@@ -407,15 +407,15 @@ def identify_adaptive(
 
     merged["excitation"] = _write_csv(conditions, out / "excitation.csv")
     summary = RunSummary(
-        processed=sum(p.summary.processed for p in parts),
-        skipped=sum(p.summary.skipped for p in parts),
-        already_done=sum(p.summary.already_done for p in parts),
-        skip_reasons=_summed(p.summary.skip_reasons for p in parts),
-        notes=_summed(p.summary.notes for p in parts),
-        seconds=sum(p.summary.seconds for p in parts),
+        processed=sum(p.run.processed for p in parts),
+        skipped=sum(p.run.skipped for p in parts),
+        already_done=sum(p.run.already_done for p in parts),
+        skip_reasons=_summed(p.run.skip_reasons for p in parts),
+        notes=_summed(p.run.notes for p in parts),
+        seconds=sum(p.run.seconds for p in parts),
     )
     result = IdentifyResult(summary, files=merged, n_blocks=sum(p.n_blocks for p in parts))
-    result.notices = [n for p in parts for n in p.notices]
+    result.warnings = [n for p in parts for n in p.warnings]
     result.notes = [n for p in parts for n in p.notes]
     counts = lengths["block_length_s"].value_counts().sort_index()
     result.notes.insert(

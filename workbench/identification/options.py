@@ -9,17 +9,10 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from typing import Literal
 
-from data_contracts.formats import ACCELERATION_SUFFIXES as _FORMAT_SUFFIXES
 from data_contracts.limits import MAX_LSCF_ORDER, MAX_MODEL_ORDER
 
-from .._deprecation import renamed_fields
 from ..blocks import MAX_BLOCKS_PER_SAMPLE
 from ..errors import OptionError
-
-#: Acceleration file suffixes picked up from a folder. Text files (.csv, .tsv, .txt) are
-#: taken only when their header looks like an acceleration record: a voyage folder also
-#: holds ship logs and tables (see data_contracts.formats.text.looks_like_acceleration_table).
-ACCELERATION_SUFFIXES = _FORMAT_SUFFIXES
 
 
 def _orders(name: str, values, highest: int) -> tuple[int, ...]:
@@ -42,9 +35,6 @@ def _orders(name: str, values, highest: int) -> tuple[int, ...]:
 _LOWEST_DAMPING = 0.001
 
 
-@renamed_fields(
-    max_damping=("damping_limits", lambda high: (_LOWEST_DAMPING, high), lambda lim: lim[1])
-)
 @dataclass(frozen=True)
 class IdentifyOptions:
     """Settings of block-wise identification (all stored with the results).
@@ -302,13 +292,7 @@ class IdentifyOptions:
             list(self.reference_channels) if self.reference_channels else None
         )
         values["lscf_orders"] = list(self.lscf_orders)
-        # recorded as the former max_damping while the lower limit is the former fixed one,
-        # so stores written before the rename still resume
-        del values["damping_limits"]
-        if self.damping_limits[0] == _LOWEST_DAMPING:
-            values["max_damping"] = self.damping_limits[1]
-        else:
-            values["damping_limits"] = list(self.damping_limits)
+        values["damping_limits"] = list(self.damping_limits)
         # options added with LSCF are recorded only when used, so stores written before
         # them still resume
         if not self.cross_check:
@@ -397,7 +381,7 @@ def analysis_rate(options: IdentifyOptions, sampling_rate_hz: float) -> float:
     derived from the rate itself) or None, the edge is :data:`DEFAULT_MODE_CEILING_HZ`, so
     2048-Hz files are analysed at 128 Hz, 256 Hz at 128 Hz and 64 Hz at 64 Hz.
     """
-    from ..signals.file_conditioning import default_decimation_rate
+    from ..signals.filter_cascade import default_decimation_rate
 
     if options.target_rate_hz is None:
         return float(sampling_rate_hz)

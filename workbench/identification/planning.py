@@ -214,7 +214,7 @@ def plan_identification(files: Sequence[Path], options: IdentifyOptions, *, grid
 def input_fingerprints(files) -> list[dict]:
     """Fingerprint of each planned file: path, span, size, mtime and SHA-256 of the content.
 
-    *files* are :class:`~workbench.signals.stream.FileInfo` of a plan. The content hash
+    *files* are :class:`~workbench.signals.block_plan.FileInfo` of a plan. The content hash
     covers every byte (header and samples), so data changed in place with its size and
     modification time kept is still told apart.
     """

@@ -7,12 +7,16 @@ import functools
 import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import pandas as pd
 
+from data_contracts import POLES, read_table
+
 from ..errors import OptionError, WorkbenchError
 from ..parallel import RunSummary, run_blocks
+from ..results import StageResult, write_frame
 from ..sid.harmonics import HarmonicOptions
 from ..store import BlockStore, block_ranges
 from .engine import _block_tasks, _file_tasks, identify_block, identify_from_files
@@ -28,21 +32,42 @@ from .planning import (
 
 
 @dataclass
-class IdentifyResult:
-    """What :func:`identify_voyage` did and wrote."""
+class IdentifyResult(StageResult):
+    """What an identification run did and wrote: the result of :func:`identify_voyage` and of
+    the identify stage (:func:`workbench.stages.identify`).
 
-    summary: RunSummary
+    ``table`` holds the modes selected per block (the input of :meth:`track`), ``poles`` the
+    poles of every model order and block.
+
+    Attributes
+    ----------
+    run : RunSummary
+        Blocks processed, already in the store, skipped (and why).
+    files : dict of str to Path
+        The tables written (``selected``, ``poles``, ``blocks``, ``faults``...).
+    n_blocks : int
+        Blocks of the run.
+    n_selected : int
+        Rows of the selected-modes table.
+    warnings : list of str
+        What the run found changed in its store and did about it (damaged store files,
+        input files no longer given), one line each.
+    notes : list of str
+        What the harmonic tests marked (:meth:`workbench.sid.harmonics.HarmonicMarker.lines`).
+    """
+
+    run: RunSummary
     files: dict[str, Path] = field(default_factory=dict)
     n_blocks: int = 0
     n_selected: int = 0
-    #: What the run found changed in its store and did about it (damaged store files,
-    #: input files no longer given), one line each.
-    notices: list[str] = field(default_factory=list)
-    #: What the harmonic tests marked (:meth:`workbench.sid.harmonics.HarmonicMarker.lines`).
+    warnings: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    title = "identified modes"
 
-    def lines(self) -> list[str]:
-        out = [*str(self.summary).splitlines(), *self.notes]
+    @property
+    def lines(self) -> list[str]:  # type: ignore[override]
+        """The run summary, the harmonic notes, the SSI/LSCF agreement and the files."""
+        out = [*str(self.run).splitlines(), *self.notes]
         crosscheck = self.files.get("crosscheck")
         if crosscheck is not None:
             from ..sid.crosscheck import agreement_lines
@@ -50,6 +75,45 @@ class IdentifyResult:
             out += agreement_lines(pd.read_csv(crosscheck))
         out += [f"{kind}: {path}" for kind, path in self.files.items()]
         return out
+
+    @cached_property
+    def table(self) -> pd.DataFrame:  # type: ignore[override]
+        """Selected modes, one row per block and mode (the input of :meth:`track`)."""
+        path = self.files.get("selected")
+        if path is None:
+            return pd.DataFrame(columns=["block", "block_start", "block_end", "frequency_hz"])
+        frame = pd.read_parquet(path)
+        for column in ("block_start", "block_end"):
+            if column in frame.columns:
+                frame[column] = pd.to_datetime(frame[column], utc=True)
+        return frame
+
+    @cached_property
+    def poles(self) -> pd.DataFrame:
+        """Poles of every model order and block (POLES contract)."""
+        path = self.files.get("poles")
+        if path is None:
+            raise ValueError("the run wrote no pole table (no block was identified)")
+        return read_table(path, POLES)
+
+    def track(self, *, reference_modes=None, options=None, progress: bool = False):
+        """:func:`~workbench.stages.track` of the selected modes; the tracked result keeps
+        this run's poles for the forecast's pole-cluster option (B)."""
+        from ..stages.tracking import track
+
+        result = track(
+            self.table, reference_modes=reference_modes, options=options, progress=progress
+        )
+        result.poles = self.poles if "poles" in self.files else None
+        return result
+
+    def save(self, out_dir: str | os.PathLike) -> dict[str, Path]:
+        """selected.parquet and poles.parquet in *out_dir*."""
+        out = Path(out_dir)
+        return {
+            "selected": write_frame(self.table, out / "selected.parquet"),
+            "poles": write_frame(self.poles, out / "poles.parquet", POLES),
+        }
 
 
 def _check_run_options(scheduler, n_workers, batch_blocks) -> None:
@@ -170,7 +234,7 @@ def identify_voyage(
     keep_removed_inputs : bool
         An input file recorded in the store and no longer given: keep the blocks computed
         from it (default: drop them, so the run equals a fresh run over the files given).
-        Either way each such file is one line of :attr:`IdentifyResult.notices`.
+        Either way each such file is one line of :attr:`IdentifyResult.warnings`.
     dship : path-like or DataFrame, optional
         The voyage's ship log (raw DSHIP file or canonical log): its shaft speed (or, when
         not logged, its speed) marks the shaft and blade-pass harmonics among the selected
@@ -233,7 +297,7 @@ def identify_voyage(
             progress=progress,
             description="identify",
         )
-        result = IdentifyResult(summary, n_blocks=len(tasks), notices=notices)
+        result = IdentifyResult(summary, n_blocks=len(tasks), warnings=notices)
         result.files = export_store(store, out, channels, grid=grid, harmonics=marker)
         result.notes = marker.lines()
     selected = result.files.get("selected")

@@ -3,7 +3,8 @@
 The chart needs a model of how speed, temperatures and fuel move the frequencies that is
 frozen before its reference period and honest about its own uncertainty out of sample
 (:func:`~workbench.shm.fit_operational_model`); the project's rolling stepwise forecast
-is neither (5.4 false alarms a day through the chart, ``benchmarks/results/health.txt``).
+is neither (false alarms every day through the chart: model ``stepwise`` in
+``benchmarks/results/health.txt``).
 So the monitor learns in two steps from the first tracked block: the operational model on
 ``health_train_hours``, then the chart's reference on the next ``reference_hours``, and
 charts every block after them. When the ship log carries ``fuel_on_board_t`` (tank

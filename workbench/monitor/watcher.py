@@ -8,7 +8,7 @@ A file is *complete* when
 2. it has not been modified for ``settle_s`` seconds (its modification time is at least
    that old at a poll), so a file written in place is left alone while the writer appends
    to it;
-3. its header reads and is consistent (:func:`~workbench.signals.stream.read_file_info`:
+3. its header reads and is consistent (:func:`~workbench.signals.block_plan.read_file_info`:
    for ``.npz`` files the archive's directory, which a writer puts last, and the sample
    array's header against the bytes stored; other formats are read whole).
 
@@ -30,7 +30,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..signals.stream import FileInfo, read_file_info
+from ..signals.block_plan import FileInfo, read_file_info
 
 __all__ = ["FolderWatcher", "LandedFile"]
 

@@ -200,8 +200,8 @@ def flag_faulty(
     :math:`\\sigma\\sqrt 2`); :math:`\\delta` keeps rounded, locally constant values from
     giving infinite z. With a known scale, ``z=7`` flags a Gaussian sample with probability
     3e-12; the estimated scale varies by some 15 % (MAD of 63 samples), which the margin
-    absorbs: no false spikes in 100 000 simulated Gaussian samples, and on the demo voyages
-    (seeds 0-3) every injected air-temperature spike is found and no other sample.
+    absorbs (simulated Gaussian samples and the demo voyages' injected spikes:
+    ``benchmarks/results/docstring_numbers.txt``).
 
     References
     ----------

@@ -14,13 +14,11 @@ import pandas as pd
 
 from data_contracts import CANONICAL_PREDICTORS, PREDICTORS, read_dship, read_table, set_grid
 
-from .._deprecation import renamed_parameters
 from ..blocks import BlockGrid, block_grid_of
 
 __all__ = ["canonical_predictors", "load_predictors"]
 
 
-@renamed_parameters(like="onto")
 def load_predictors(
     *,
     predictors: str | os.PathLike | None = None,

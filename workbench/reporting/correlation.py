@@ -112,7 +112,7 @@ def corrplot(
         Diagonal: histograms. Below: scatter with least-squares line, r in the corner.
         Above: r on a colour scale. Significant pairs framed in red, r in bold. Damping
         ratios are shown in percent. The figure is drawn in a single axes (panels placed
-        by hand) so that a 13 x 13 matrix renders in about a second.
+        by hand) so that a large matrix renders quickly (``benchmarks/results/docstring_numbers.txt``).
     """
     if columns is None:
         columns = [

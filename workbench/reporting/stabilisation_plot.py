@@ -18,7 +18,6 @@ import matplotlib.pyplot as plt
 import numpy as np
 from scipy import fft, signal
 
-from .._deprecation import renamed_parameters
 from ..sid.selection import ModeSelection
 from ..sid.ssi import SSIResult
 from .figures import save_figure
@@ -116,7 +115,6 @@ def mode_indicator(
     return frequency, np.clip(values, 0.0, None)
 
 
-@renamed_parameters(frequency_band="band_hz")
 def plot_stabilisation(
     result: SSIResult,
     acceleration: np.ndarray | None = None,

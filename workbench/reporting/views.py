@@ -13,16 +13,14 @@ them under one name.
 
 from __future__ import annotations
 
-from .mode_views import (  # noqa: F401
-    _real_shape,
+from .mode_views import (
     mean_mode_shapes,
     plot_automac,
     plot_campbell,
     plot_mode_shapes,
     plot_tracked_modes,
 )
-from .model_views import (  # noqa: F401
-    _short,
+from .model_views import (
     plot_correlation_heatmap,
     plot_forecast_overview,
     plot_observed_vs_predicted,
@@ -32,7 +30,7 @@ from .signal_views import (
     plot_spectra_by_case,
     plot_stabilisation_block,
 )
-from .view_style import FIGURE_WIDTH, mode_colour  # noqa: F401
+from .view_style import mode_colour
 
 __all__ = [
     "mean_mode_shapes",

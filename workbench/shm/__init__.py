@@ -9,21 +9,17 @@ residuals (the package of the `health` stage, :func:`workbench.stages.health`).
   (speed, temperatures, fuel) whose FORECAST table feeds the chart;
 * :class:`HealthBaseline` - model, chart reference and tracked modes of an earlier voyage,
   saved as JSON, so a new voyage is charted from its first block;
-* :func:`simulate_health_voyage` - block-level voyages with a stiffness loss part-way, for
-  tests and ``benchmarks/bench_health.py``.
+* :func:`frozen_forecast` - the forecast of a stepwise model trained once, over a
+  block-level voyage of :func:`workbench.simulate.simulate_health_voyage` (the simulator
+  lives with the other simulators; this stays here because it runs the forecast package,
+  a layer above the simulator).
 """
 
 from .baseline import BaselineError, HealthBaseline
-from .chart import HealthOptions, HealthReference, HealthResult, health_chart
-from .model import DEFAULT_TERMS, OperationalModel, fit_operational_model
+from .chart import HealthReference, HealthResult, health_chart
+from .model import DEFAULT_TERMS, OperationalModel, fit_operational_model, frozen_forecast
 from .monitor import HealthMonitor, MonitorUpdate
-from .scenario import (
-    HealthVoyage,
-    detection_delay_hours,
-    frozen_forecast,
-    law_forecast,
-    simulate_health_voyage,
-)
+from .options import HealthOptions
 
 __all__ = [
     "DEFAULT_TERMS",
@@ -33,13 +29,9 @@ __all__ = [
     "HealthOptions",
     "HealthReference",
     "HealthResult",
-    "HealthVoyage",
     "MonitorUpdate",
     "OperationalModel",
-    "detection_delay_hours",
     "fit_operational_model",
     "frozen_forecast",
     "health_chart",
-    "law_forecast",
-    "simulate_health_voyage",
 ]

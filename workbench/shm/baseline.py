@@ -49,9 +49,10 @@ import pandas as pd
 
 from data_contracts import MODAL, atomic_path, shape_columns, shapes_from_frame, shapes_to_frame
 
-from .chart import HealthOptions, HealthReference, HealthResult, health_chart
+from .chart import HealthReference, HealthResult, health_chart
 from .model import OperationalModel, _parse
 from .monitor import reference_from_state, reference_state
+from .options import HealthOptions
 
 __all__ = ["SCHEMA", "VERSION", "BaselineError", "HealthBaseline"]
 

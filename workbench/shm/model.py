@@ -16,21 +16,25 @@ import re
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
 from data_contracts import FORECAST, MODAL
 
-__all__ = ["DEFAULT_TERMS", "OperationalModel", "fit_operational_model"]
+if TYPE_CHECKING:
+    from ..simulate.health_voyage import HealthVoyage
+
+__all__ = ["DEFAULT_TERMS", "OperationalModel", "fit_operational_model", "frozen_forecast"]
 
 #: Terms of the default model: added mass (speed, speed²), stiffness (water and air
 #: temperature), the speed x water interaction of the hull-water coupling, and the fuel on
 #: board (``fuel_on_board_t``, the tank soundings' sum: burning fuel lowers the mass).
 #: Terms whose columns the log lacks are left out; without the fuel, the chart's slowly
 #: following baseline takes the fuel burn (``HealthOptions.baseline_hours``): a straight
-#: line in elapsed hours cannot follow a burn rate that falls as the tanks empty (5 false
-#: alarms a day in ``benchmarks/bench_health.py``).
+#: line in elapsed hours cannot follow a burn rate that falls as the tanks empty (false
+#: alarms every day: model ``ols-time`` in ``benchmarks/results/health.txt``).
 DEFAULT_TERMS: tuple[str, ...] = (
     "speed_kn",
     "speed_kn^2",
@@ -368,3 +372,53 @@ def fit_operational_model(
         train_end_block=int(window["block"].iloc[-1]),
         n_used=np.array(counts),
     )
+
+
+#: Stepwise options of the frozen model (see :func:`frozen_forecast`).
+STEPWISE = {"start": "linear"}
+#: Predictor clipping of the frozen model, in training-window standard deviations: high
+#: enough that the fuel-burn trend extrapolates over the monitoring period.
+EXTRAPOLATION_LIMIT = 100.0
+#: Predictors of the stepwise model of :func:`frozen_forecast` (the log as the forecast
+#: stage reads it: elapsed hours stand for the fuel state).
+STEPWISE_PREDICTORS = ("speed_kn", "water_temp_c", "air_temp_c", "elapsed_hours")
+
+
+def frozen_forecast(
+    voyage: HealthVoyage,
+    train_blocks: int,
+    *,
+    predictor_columns: tuple[str, ...] = STEPWISE_PREDICTORS,
+) -> pd.DataFrame:
+    """FORECAST table of a model trained once on the first *train_blocks* blocks.
+
+    :func:`workbench.forecasting.sliding_forecast`, scheme 1 (single window: one forward
+    prediction to the end of the voyage) on a voyage of
+    :func:`~workbench.simulate.simulate_health_voyage`, option A, every linear term in the start model
+    (``stepwise_options=STEPWISE``; interactions are left to the stepwise
+    search), so the fuel-burn trend is part of the model even when 24 h show it weakly.
+    Forecast warnings are silenced (they are kept in the table's ``warning`` column).
+    """
+    from ..forecasting import sliding_forecast
+    from ..forecasting.options import ForecastOptions
+
+    horizon = len(voyage.predictors) - int(train_blocks)
+    if horizon < 1:
+        raise ValueError(
+            f"train_blocks={train_blocks} leaves no block to forecast "
+            f"(voyage has {len(voyage.predictors)})"
+        )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        options = ForecastOptions(
+            model="window",
+            scheme="single_window",
+            options=("A",),
+            train_blocks=int(train_blocks),
+            horizon=horizon,
+            stepwise_options=STEPWISE,
+            extrapolation_limit=EXTRAPOLATION_LIMIT,
+            predictor_columns=list(predictor_columns),
+        )
+        result = sliding_forecast(voyage.modal, voyage.predictors, options)
+    return result.table

@@ -25,15 +25,9 @@ import pandas as pd
 from data_contracts import ALARMS, FORECAST, HEALTH, atomic_path, recorded_grid
 
 from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S
-from .chart import (
-    HealthOptions,
-    HealthReference,
-    _residual_matrix,
-    cusum_step,
-    ewma_step,
-    hotelling,
-    learn_reference,
-)
+from .chart import HealthReference, _residual_matrix, learn_reference
+from .options import HealthOptions
+from .statistics import cusum_step, ewma_step, hotelling
 
 __all__ = ["HealthMonitor", "MonitorUpdate"]
 

@@ -78,8 +78,8 @@ class HealthOptions:
         CUSUM: the allowance of each block grows by this many of the model's persistent
         error standard deviations (``model_shift_std``) beyond the reference's own (which
         the limits hold against), so the chart does not accumulate what the model cannot
-        know (1.645: one-sided 95 %; 1.0 gave 7 false alarm episodes in 20 days of transit
-        out of the training range, ``benchmarks/results/health.txt``). [-]
+        know (1.645: one-sided 95 %; 1.0 let a transit out of the training range alarm,
+        ``benchmarks/results/health.txt``, "model_error_sigma 1.0"). [-]
     baseline_hours : float, optional
         Let each mode's in-control location follow the residuals slowly (None: the
         reference's location, fixed), for a drift no logged predictor explains (fuel burn

@@ -201,7 +201,7 @@ def trimmed_location_scale(
     are dropped as the median and MAD would ignore them, while the Gaussian core is
     estimated with nearly the full efficiency of the mean and standard deviation (the MAD
     has 37 %; on residuals of overlapping blocks its error alone raised the simulated
-    CUSUM limits by about 10 %).
+    CUSUM limits, ``benchmarks/results/health.txt``, "CALIBRATED CUSUM LIMITS").
     """
     median, mad = _robust_location_scale(values)
     with np.errstate(invalid="ignore"):

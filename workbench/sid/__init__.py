@@ -11,10 +11,6 @@ pole clustering in :mod:`workbench.sid.pole_clustering`),
 LSCF modes paired per block), :mod:`workbench.sid.tpe` (total prediction error per order).
 """
 
-import sys as _sys
-
-from workbench.sid import assurance as _assurance
-from workbench.sid import plscf as _plscf
 from workbench.sid.assurance import continuous_pole, mac, macxp
 from workbench.sid.combined import combine_modes
 from workbench.sid.crosscheck import agreement_by_block, cross_check
@@ -49,10 +45,3 @@ __all__ = [
     "stability_flags",
     "total_prediction_error",
 ]
-
-# The modules were named ``mac`` and ``lscf`` until they stopped sharing their names with
-# the functions above (``workbench.sid.mac`` was the module or the function depending on
-# what had been imported). Old imports such as ``from workbench.sid.mac import macxp`` still
-# find the modules; ``workbench.sid.mac`` and ``workbench.sid.lscf`` are the functions.
-_sys.modules.setdefault("workbench.sid.mac", _assurance)
-_sys.modules.setdefault("workbench.sid.lscf", _plscf)

@@ -2,7 +2,7 @@
 
 A second, independent identification method beside SSI (:mod:`workbench.sid.ssi`), for
 cross-checks. The output correlations are those SSI-cov computes
-(:func:`workbench.sid.ssi._lagged_products`, exact sums by segmented FFT); their positive
+(:func:`workbench.sid.ssi.hankel._lagged_products`, exact sums by segmented FFT); their positive
 half-spectra are fitted in a frequency band by a right matrix-fraction model in the
 z-domain, the poles are the eigenvalues of the companion matrix of its denominator and the
 mode shapes follow from the residues of the fitted model.
@@ -33,9 +33,10 @@ import numpy as np
 import pandas as pd
 from scipy import fft, linalg
 
-from .._deprecation import renamed_fields, renamed_parameters
 from .modal import modal_parameters, modal_phase_collinearity, normalise_shapes
-from .ssi import PoleTableMixin, _lagged_products, _prepare
+from .ssi.hankel import _lagged_products
+from .ssi.preparation import _prepare
+from .ssi.results import PoleTableMixin
 from .stabilisation import StabilityCriteria, stability_flags
 from .threads import sid_threads, thread_budget
 
@@ -104,7 +105,6 @@ def half_spectra(
     return HalfSpectra(frequency, spectra, scale, float(decay), int(n_lags))
 
 
-@renamed_fields(frequency_band_hz="band_hz")
 @dataclass(frozen=True, eq=False)
 class LSCFResult(PoleTableMixin):
     """Poles of every model order of one pLSCF run (a stabilisation diagram).
@@ -152,7 +152,6 @@ class LSCFResult(PoleTableMixin):
     criteria: StabilityCriteria = field(default_factory=StabilityCriteria)
 
 
-@renamed_parameters(frequency_band_hz="band_hz")
 def lscf(
     acceleration: np.ndarray,
     sampling_rate_hz: float,
@@ -179,9 +178,9 @@ def lscf(
         basis z^j is well conditioned when the band covers most of 0..Nyquist; in a
         narrow band high orders lose precision (normal equations): decimate first, or fit
         the whole range and select the modes in the band (:func:`~workbench.sid.
-        select_modes` ``band_hz``). On the KOMA shear frame (modes 0.18-1.18 Hz at
-        12 Hz) the band 0.05-2 Hz gave too few stable poles to select from, the whole
-        range all five modes within 0.3 %.
+        select_modes` ``band_hz``); on the KOMA shear frame a narrow band left too few
+        stable poles to select from, the whole range found every mode
+        (``benchmarks/results/docstring_numbers.txt``).
     n_lags : int, optional
         Correlation lags 0..n_lags-1 (default 512, at most a quarter of the record). More
         lags give a finer frequency grid and a weaker window (less added damping).

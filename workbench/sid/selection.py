@@ -84,8 +84,8 @@ with the previous order keeps the selected poles close to the library even where
 spurious pole perturbs a few orders. The damping tolerance is much wider than the
 diagram's 5 %: single-block damping estimates scatter by 5-20 % between orders near the
 maximum order, and a mode must not drop out of the library for that alone (with 20 % a
-simulated hull block lost one of its seven modes in a third of the trials; with 50 %
-in one of twelve).
+simulated hull block lost modes far more often than with 50 %,
+``benchmarks/results/docstring_numbers.txt``).
 
 The lowest order at which all library modes exist is the most parsimonious model that
 still holds every mode consistently seen at high order. Spurious noise poles are rarely
@@ -120,9 +120,8 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import linear_sum_assignment
 
-from .._deprecation import renamed_parameters
 from .assurance import continuous_pole, mac
-from .pole_clustering import (  # otsu_threshold and the constants also importable from here
+from .pole_clustering import (
     DISTANCE_FLOOR,
     MAX_CLUSTER_DISTANCE,
     _components,
@@ -295,7 +294,6 @@ def _drop_twins(
     return poles[keep]
 
 
-@renamed_parameters(method="selection", frequency_band="band_hz")
 def select_modes(
     result: SSIResult,
     *,

@@ -72,7 +72,7 @@ def sid_threads() -> Iterator[int]:
 
     Single-threaded BLAS: the per-order eigenvalue problems are small (n <= a few hundred),
     and multi-threaded LAPACK on them is slower, badly so when other processes compete for
-    the cores (a 100-order diagram took 26 s instead of 0.9 s).
+    the cores (``benchmarks/results/docstring_numbers.txt``).
     """
     fixed = _BUDGET.get()
     if fixed is not None:  # nested in an SSI call: already set up

@@ -27,15 +27,10 @@ import numpy as np
 import pandas as pd
 from scipy import linalg, signal
 
-from .ssi import (
-    DEFAULT_BLOCK_ROWS,
-    DEFAULT_ORDERS,
-    SSIWarning,
-    Weighting,
-    _prepare,
-    _stochastic_model,
-    _weighted_projection,
-)
+from .ssi import SSIWarning
+from .ssi.data_driven import _weighted_projection
+from .ssi.preparation import DEFAULT_BLOCK_ROWS, DEFAULT_ORDERS, Weighting, _prepare
+from .ssi.realisation import _stochastic_model
 from .threads import sid_threads
 
 __all__ = ["PredictionErrors", "one_step_prediction", "total_prediction_error"]

@@ -43,7 +43,6 @@ from scipy.optimize import linear_sum_assignment
 
 from data_contracts import MODAL, shape_columns, shapes_from_frame
 
-from .._deprecation import renamed_fields, renamed_parameters
 from .assurance import continuous_pole, mac, macxp
 
 __all__ = ["LibraryMode", "ModeTracker", "TrackingOptions", "label_agreement", "track_modes"]
@@ -51,7 +50,6 @@ __all__ = ["LibraryMode", "ModeTracker", "TrackingOptions", "label_agreement", "
 _BLOCK_COLUMNS = ("block", "block_start", "block_end")
 
 
-@renamed_fields(threshold="mac_min", frequency_tolerance="frequency_tol")
 @dataclass(frozen=True)
 class TrackingOptions:
     """Parameters of :class:`ModeTracker`.
@@ -413,7 +411,6 @@ def _selected_arrays(frame: pd.DataFrame, channels: Sequence[str]):
     )
 
 
-@renamed_parameters(reference="reference_modes")
 def track_modes(
     selected: pd.DataFrame,
     *,

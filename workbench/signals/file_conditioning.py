@@ -70,10 +70,9 @@ from .conditioning import (
     interpolate_nan_runs,
 )
 from .conditioning import detrend as linear_detrend
-from .file_reads import _edge_rows, _read_rows, _read_whole  # noqa: F401  (_read_rows: tests)
-from .filter_cascade import (  # noqa: F401  (_decimate_channels_last: tests)
+from .file_reads import _edge_rows, _read_whole
+from .filter_cascade import (
     _decimate_channels_last,
-    default_decimation_rate,
     padding_samples,
 )
 from .moments import CoherenceNeeded, channel_verdicts
@@ -83,7 +82,6 @@ __all__ = [
     "FileConditioner",
     "FileConditioning",
     "condition_file",
-    "default_decimation_rate",
     "padding_samples",
 ]
 

@@ -37,8 +37,21 @@ The shaft line (:class:`ShaftHarmonics`): order 1 of the shaft rate (0.3 Hz/kn x
 band of the modes; the ship log carries the shaft speed (``Shaft speed [rpm]``).
 
 Entry point: :func:`simulate_voyage`. Outputs are described there.
+
+The simulators, one module each: :mod:`.dynamics` (random vibration of the modes by
+modal superposition, exact ZOH discretisation), :mod:`.voyage` (the demo voyage's
+acceleration files, ship log and true tables), :mod:`.prescribed` (records of structures with
+prescribed modes: close pairs, weakly excited modes), :mod:`.imitation` (the tracked
+modal table and poles identification would produce, with documented imperfections), :mod:`.health_voyage` (block-level voyages with a stiffness loss, for
+the health chart: :func:`simulate_health_voyage`).
 """
 
+from .health_voyage import (
+    HealthVoyage,
+    detection_delay_hours,
+    law_forecast,
+    simulate_health_voyage,
+)
 from .hull import (
     CHANNELS,
     MODE_LAWS,
@@ -70,14 +83,18 @@ __all__ = [
     "SENSORS",
     "START_TIME",
     "ShaftHarmonics",
+    "HealthVoyage",
     "IdentificationImitation",
     "ModalParameters",
     "ModeLaw",
     "OperatingProfile",
     "VoyageSummary",
+    "detection_delay_hours",
     "imitate_identification",
+    "law_forecast",
     "mode_shapes",
     "operating_profile",
+    "simulate_health_voyage",
     "simulate_voyage",
     "true_modal_parameters",
     "write_dship_log",

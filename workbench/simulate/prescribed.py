@@ -3,7 +3,7 @@
 The identification's hard cases, built from physics rather than from a modal table: a few
 uncoupled modal oscillators (frequencies, damping ratios and real mode shapes given) driven
 by independent Gaussian white-noise modal forces, simulated exactly (zero-order hold, see
-:mod:`workbench.dynamics`), each mode's force scaled so that its modal acceleration has a
+:mod:`workbench.simulate.dynamics`), each mode's force scaled so that its modal acceleration has a
 prescribed level; the channels are the modal superposition plus white sensor noise.
 
 * :func:`shapes_with_mac` - two real shapes whose MAC is exactly a given value (a close
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..dynamics import simulate_modal_response
+from .dynamics import simulate_modal_response
 
 __all__ = ["PrescribedRecord", "prescribed_mode_record", "shapes_with_mac"]
 

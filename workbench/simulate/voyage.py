@@ -25,7 +25,7 @@ from data_contracts import (
 )
 
 from ..blocks import BlockGrid
-from ..dynamics import (
+from .dynamics import (
     ModalState,
     draw_stationary_state,
     simulate_modal_response,
@@ -245,7 +245,7 @@ def simulate_voyage(
     Files written:
 
     * ``accelerations/acc_YYYYmmddTHHMMSSZ.npz``: 5-min records, 19 channels, 64 Hz [m/s²]:
-      response of the 7 modes (:mod:`workbench.dynamics`, white-noise modal forces
+      response of the 7 modes (:mod:`workbench.simulate.dynamics`, white-noise modal forces
       scaled by 0.5 + 0.1 speed_kn, modal parameters constant within a file at the file
       mean of the law), shaft orders at k x 0.3 Hz/kn x speed (amplitude 8 mm/s² x
       (speed/10 kn)², stern-heavy shape) and the blade pass (4 mm/s² x (speed/10 kn)²;

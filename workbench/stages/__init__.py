@@ -3,13 +3,13 @@
 =============  ===========================  ====================================  ===================
 stage          module                       takes                                 returns
 =============  ===========================  ====================================  ===================
-``identify``   :mod:`.identification`       acceleration files, IdentifyOptions   IdentifyStageResult
+``identify``   :mod:`.identification`       acceleration files, IdentifyOptions   IdentifyResult
 ``track``      :mod:`.tracking`             selected modes, TrackingOptions       TrackResult
 ``correlate``  :mod:`.correlation`          modal + predictors, CorrelateOptions  CorrelateResult
 ``fit``        :mod:`.fitting`              modal + predictors, FitOptions        FitResult
 ``forecast``   :mod:`.forecasting`          modal + predictors, ForecastOptions   ForecastStageResult
 ``evaluate``   :mod:`.evaluation`           forecast + true modal table           EvaluateResult
-``health``     :mod:`.structural_health`    forecast, HealthOptions               HealthStageResult
+``health``     :mod:`.structural_health`    forecast, HealthOptions               HealthResult
 =============  ===========================  ====================================  ===================
 
 Modules are named by noun so that ``workbench.stages.track`` is always the function (a
@@ -30,12 +30,12 @@ from __future__ import annotations
 
 import importlib
 
-#: Public name -> module of this package that defines it.
+#: Public name -> module of this package that defines it (or a dotted module path).
 _EXPORTS = {
     "identify": "identification",
     "IdentifyOptions": "identification",
     "HarmonicOptions": "identification",
-    "IdentifyStageResult": "identification",
+    "IdentifyResult": "identification",
     "track": "tracking",
     "TrackResult": "tracking",
     "TrackingOptions": "tracking",
@@ -50,7 +50,7 @@ _EXPORTS = {
     "PredictionResults": "fitting",
     "read_fit": "fitting",
     "FitDataMissing": "fitting",
-    "Summary": "_base",
+    "Summary": "workbench.results",
     "forecast": "forecasting",
     "ForecastOptions": "forecasting",
     "ForecastStageResult": "forecasting",
@@ -61,7 +61,7 @@ _EXPORTS = {
     "relabel_truth": "evaluation",
     "health": "structural_health",
     "HealthOptions": "structural_health",
-    "HealthStageResult": "structural_health",
+    "HealthResult": "structural_health",
 }
 
 __all__ = sorted(_EXPORTS)
@@ -71,7 +71,8 @@ def __getattr__(name: str):
     module = _EXPORTS.get(name)
     if module is None:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    path = module if "." in module else f"{__name__}.{module}"
+    value = getattr(importlib.import_module(path), name)
     globals()[name] = value
     return value
 

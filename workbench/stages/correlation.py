@@ -14,6 +14,7 @@ import pandas as pd
 from data_contracts import MODAL, PREDICTORS
 
 from ..errors import WorkbenchError
+from ..results import StageResult, read_any_table, shown_once, write_frame, write_json
 from ..sid.presence import persistent_modes
 from ..stats.correlation import (
     case_masks,
@@ -22,7 +23,6 @@ from ..stats.correlation import (
     joined_blocks,
     read_cases,
 )
-from ._base import StageResult, read_any_table, shown_once, write_frame, write_json
 
 __all__ = ["CorrelateOptions", "CorrelateResult", "correlate", "read_correlation"]
 

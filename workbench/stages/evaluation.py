@@ -13,8 +13,8 @@ from data_contracts import FORECAST, MODAL
 
 from ..errors import WorkbenchError
 from ..forecasting import evaluate_against_truth
+from ..results import StageResult, read_any_table, shown_once, table_path, write_frame
 from ..sid.tracking import label_agreement
-from ._base import StageResult, read_any_table, shown_once, table_path, write_frame
 
 __all__ = ["EvaluateResult", "evaluate", "pair_with_truth", "relabel_truth"]
 

@@ -23,12 +23,12 @@ from scipy import stats as _scipy_stats
 
 from data_contracts import MODAL, PREDICTORS
 
+from ..results import StageResult, Summary, read_any_table, shown_once
 from ..sid.presence import persistent_modes
 from ..stats.cases import STITCHED, CaseFits, fit_cases
 from ..stats.fit_io import design_matrix, model_from_dict, model_to_dict
 from ..stats.mode_fits import ModeFit, coefficient_table, fit_modes, fit_statistics_table
 from ..stats.stepwise import StepwiseFit
-from ._base import StageResult, Summary, read_any_table, shown_once
 
 __all__ = ["FitOptions", "FitResult", "ModeResults", "PredictionResults", "fit", "read_fit"]
 

@@ -14,8 +14,8 @@ from data_contracts import FORECAST, MODAL, POLES, PREDICTORS, recorded_grid, se
 from ..forecasting import ForecastWarning, sliding_forecast
 from ..forecasting.options import ForecastOptions
 from ..parallel import process_map
+from ..results import StageResult, read_any_table, shown_once, table_path, write_frame
 from ..sid.presence import persistent_modes
-from ._base import StageResult, read_any_table, shown_once, table_path, write_frame
 
 __all__ = ["ForecastOptions", "ForecastStageResult", "forecast", "forecast_modes"]
 

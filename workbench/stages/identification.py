@@ -1,20 +1,16 @@
 """Identify stage: SSI (or LSCF) of every block of acceleration files, resumable, parallel.
 
 The work itself lives in :mod:`workbench.identification` (block planning, conditioning, the
-per-block store); this is its one entry point with the result every stage returns.
+per-block store) and its result (:class:`~workbench.identification.IdentifyResult`); this is
+its one entry point, refusing a run that identified nothing.
 """
 
 from __future__ import annotations
 
 import os
 from collections.abc import Iterable
-from dataclasses import dataclass, field
-from functools import cached_property
-from pathlib import Path
 
 import pandas as pd
-
-from data_contracts import POLES, read_table
 
 from ..errors import WorkbenchError
 from ..identification import (
@@ -24,68 +20,8 @@ from ..identification import (
     identify_voyage,
 )
 from ..sid.harmonics import HarmonicOptions
-from ._base import StageResult, write_frame
 
-__all__ = ["IdentifyOptions", "IdentifyStageResult", "identify"]
-
-
-@dataclass
-class IdentifyStageResult(StageResult):
-    """Modes selected per block (``table``), the pole tables and what the run did.
-
-    Attributes
-    ----------
-    run : IdentifyResult
-        Run summary (blocks processed, skipped and why) and the files written.
-    """
-
-    run: IdentifyResult
-    lines: list[str] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
-    title = "identified modes"
-
-    @property
-    def files(self) -> dict[str, Path]:
-        return dict(self.run.files)
-
-    @cached_property
-    def table(self) -> pd.DataFrame:  # type: ignore[override]
-        """Selected modes, one row per block and mode (the input of :func:`track`)."""
-        path = self.run.files.get("selected")
-        if path is None:
-            return pd.DataFrame(columns=["block", "block_start", "block_end", "frequency_hz"])
-        frame = pd.read_parquet(path)
-        for column in ("block_start", "block_end"):
-            if column in frame.columns:
-                frame[column] = pd.to_datetime(frame[column], utc=True)
-        return frame
-
-    @cached_property
-    def poles(self) -> pd.DataFrame:
-        """Poles of every model order and block (POLES contract)."""
-        path = self.run.files.get("poles")
-        if path is None:
-            raise ValueError("the run wrote no pole table (no block was identified)")
-        return read_table(path, POLES)
-
-    def track(self, *, reference_modes=None, options=None, progress: bool = False):
-        """:func:`~workbench.stages.track` of the selected modes; the tracked result keeps
-        this run's poles for the forecast's pole-cluster option (B)."""
-        from .tracking import track
-
-        result = track(
-            self.table, reference_modes=reference_modes, options=options, progress=progress
-        )
-        result.poles = self.poles if "poles" in self.run.files else None
-        return result
-
-    def save(self, out_dir: str | os.PathLike) -> dict[str, Path]:
-        """selected.parquet and poles.parquet in *out_dir*."""
-        out = Path(out_dir)
-        return {
-            "selected": write_frame(self.table, out / "selected.parquet"),
-            "poles": write_frame(self.poles, out / "poles.parquet", POLES),
-        }
+__all__ = ["IdentifyOptions", "IdentifyResult", "identify"]
 
 
 def identify(
@@ -104,7 +40,7 @@ def identify(
     harmonics: HarmonicOptions | None = None,
     adaptive: AdaptiveBlockOptions | None = None,
     cases: str | os.PathLike | pd.DataFrame | None = None,
-) -> IdentifyStageResult:
+) -> IdentifyResult:
     """Identify every block of a voyage's acceleration files.
 
     Parameters
@@ -158,7 +94,7 @@ def identify(
     if adaptive is not None:
         from ..identification.adaptive import identify_adaptive
 
-        run = identify_adaptive(
+        result = identify_adaptive(
             list(inputs),
             out_dir,
             options=options or IdentifyOptions(),
@@ -169,8 +105,8 @@ def identify(
     else:
         if cases is not None:
             raise ValueError("cases are used by the adaptive block length only (adaptive=)")
-        run = identify_voyage(list(inputs), out_dir, options=options, **run_options)
-    summary = run.summary
+        result = identify_voyage(list(inputs), out_dir, options=options, **run_options)
+    summary = result.run
     if summary.processed == 0 and summary.already_done == 0:
         # never a silent success with nothing done: say why no block was identified
         reasons = sorted(summary.skip_reasons.items(), key=lambda item: -item[1])
@@ -179,4 +115,4 @@ def identify(
         raise WorkbenchError(
             f"no block identified: all {summary.skipped} block(s) skipped: {why}{more}"
         )
-    return IdentifyStageResult(run=run, lines=run.lines(), warnings=list(run.notices))
+    return result

@@ -10,10 +10,9 @@ import pandas as pd
 
 from data_contracts import MODAL, SELECTED, recorded_grid, set_grid
 
-from .._deprecation import renamed_parameters
 from ..errors import WorkbenchError
+from ..results import StageResult, read_any_table, shown_once, table_path, write_frame
 from ..sid.tracking import TrackingOptions, track_modes
-from ._base import StageResult, read_any_table, shown_once, table_path, write_frame
 
 __all__ = ["TrackResult", "track"]
 
@@ -30,7 +29,7 @@ class TrackResult(StageResult):
         Blocks of the selected-modes table.
     poles : DataFrame, optional
         Poles of every model order and block (POLES contract) when tracked from an
-        identification (:meth:`IdentifyStageResult.track`): what :meth:`forecast`
+        identification (:meth:`IdentifyResult.track`): what :meth:`forecast`
         measures with ``option B``.
 
     The next stages run on the tracked table: :meth:`predictors` (the ship log onto its
@@ -117,7 +116,6 @@ class TrackResult(StageResult):
         return shown_once(ax.figure) if drawn_here else ax.figure
 
 
-@renamed_parameters(reference="reference_modes")
 def track(
     selected: pd.DataFrame | str | os.PathLike,
     *,

@@ -21,7 +21,8 @@ import pandas as pd
 
 from .correlation import joined_blocks
 from .diagnostics import ResidualDiagnostics, residual_diagnostics
-from .stepwise import COLLINEARITY_TOLERANCE, StepwiseFit, stepwise
+from .stepwise import StepwiseFit, stepwise
+from .stepwise.sweep import COLLINEARITY_TOLERANCE
 from .terms import term_key
 
 __all__ = [

@@ -41,7 +41,6 @@ from .sections import (
     regression_section,
     signals_section,
 )
-from .signals import _chunk_moments, _csd  # noqa: F401 (tested as the report's own)
 
 if TYPE_CHECKING:
     from ...stages import CorrelateResult

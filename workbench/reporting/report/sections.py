@@ -13,6 +13,7 @@ import pandas as pd
 from data_contracts import FORECAST, MODAL, atomic_path, read_table
 
 from .. import views
+from ..model_views import _short
 from .overview import RunData
 from .render import read_csv_times, warning_counts
 from .run import ReportSection, RunFiles
@@ -268,7 +269,7 @@ def correlation_section(data: RunData) -> ReportSection | None:
         shown = pd.DataFrame(
             {
                 "predictor": top["x"],
-                "mode quantity": [views._short(y) for y in top["y"]],
+                "mode quantity": [_short(y) for y in top["y"]],
                 "case": top["case"],
                 "r": top["r"],
                 "n": top["n"],

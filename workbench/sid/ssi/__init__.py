@@ -45,21 +45,9 @@ References
    Kluwer, 1996. doi:10.1007/978-1-4613-0465-4
 """
 
-# the private kernels are imported from here by workbench.sid.tpe, workbench.sid.plscf and
-# the tests, as before the module became a package
 from .covariance_driven import ssi_cov
-from .data_driven import _weighted_projection, ssi_data  # noqa: F401
-from .decomposition import _leading_eigh, _leading_singular  # noqa: F401
-from .hankel import _cholesky, _hankel_gram, _lagged_products, _toeplitz_gram  # noqa: F401
-from .preparation import (  # noqa: F401
-    DEFAULT_BLOCK_ROWS,
-    DEFAULT_ORDERS,
-    Weighting,
-    _order_limits,
-    _prepare,
-)
-from .realisation import _stochastic_model  # noqa: F401
-from .results import PoleTableMixin, SSIResult, SSIWarning, StochasticStateSpace  # noqa: F401
+from .data_driven import ssi_data
+from .results import SSIResult, SSIWarning, StochasticStateSpace
 
 __all__ = [
     "SSIResult",

@@ -18,8 +18,8 @@ def _leading_singular(
     """Left singular vectors and singular values of the *count* largest singular triplets.
 
     Computed from the eigendecomposition of M Mᵀ restricted to its largest eigenvalues
-    (:func:`_leading_eigh`), 3-5 times faster than a full SVD of the block Toeplitz /
-    weighted projection matrices used here. Squaring costs relative accuracy ε σ₁²/σ_k² on
+    (:func:`_leading_eigh`), faster than a full SVD of the block Toeplitz / weighted
+    projection matrices used here (``benchmarks/results/docstring_numbers.txt``). Squaring costs relative accuracy ε σ₁²/σ_k² on
     σ_k; when σ_k/σ₁ < 1e-5 for a requested triplet the full SVD is used instead. *gram*,
     if given, is M Mᵀ (at least its upper triangle).
     """

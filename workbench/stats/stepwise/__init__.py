@@ -25,12 +25,8 @@ one row set), :mod:`.layout` (columns and hierarchy of the upper model's terms),
 and :mod:`.estimator` (:class:`StepwiseRegressor`).
 """
 
-# DEFAULT_THRESHOLDS, Criterion, MissingRule and the tolerances are importable from here as
-# before the package was split
 from .estimator import StepwiseRegressor
-from .regression import DEFAULT_THRESHOLDS, Criterion, MissingRule, stepwise  # noqa: F401
+from .regression import stepwise
 from .result import StepwiseFit, StepwiseWarning
-from .search import EXACT_FIT_TOLERANCE, STEPS_PER_TERM, default_step_limit  # noqa: F401
-from .sweep import COLLINEARITY_TOLERANCE  # noqa: F401
 
 __all__ = ["StepwiseFit", "StepwiseRegressor", "StepwiseWarning", "stepwise"]

@@ -16,24 +16,19 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..simulate import START_TIME, operating_profile, true_modal_parameters
-from ..simulate.hull import FUEL_TIME_CONSTANT_H
-from ..simulate.imitation import FREQUENCY_SCATTER
+from .hull import FUEL_TIME_CONSTANT_H, true_modal_parameters
+from .imitation import FREQUENCY_SCATTER
+from .profile import operating_profile
+from .voyage import START_TIME
 
 __all__ = [
     "HealthVoyage",
     "detection_delay_hours",
-    "frozen_forecast",
     "law_forecast",
     "simulate_health_voyage",
 ]
 
 #: Block length and step of the demo grid (20 min, 75 % overlap). [s]
-#: Stepwise options of the frozen model (see :func:`frozen_forecast`).
-STEPWISE = {"start": "linear"}
-#: Predictor clipping of the frozen model, in training-window standard deviations: high
-#: enough that the fuel-burn trend extrapolates over the monitoring period.
-EXTRAPOLATION_LIMIT = 100.0
 BLOCK_SECONDS = 1200
 BLOCK_STEP_SECONDS = 300
 #: Block length in steps: a block's identification error is the mean of this many
@@ -43,9 +38,6 @@ SEGMENTS_PER_BLOCK = BLOCK_SECONDS // BLOCK_STEP_SECONDS
 FUEL_RATE_T_PER_H = 1.2
 #: Fuel on board at departure (more than the law's τ_f x rate = 288 t can burn). [t]
 FUEL_AT_DEPARTURE_T = 400.0
-#: Predictors of the stepwise model of :func:`frozen_forecast` (the log as the forecast
-#: stage reads it: elapsed hours stand for the fuel state).
-STEPWISE_PREDICTORS = ("speed_kn", "water_temp_c", "air_temp_c", "elapsed_hours")
 #: Regime after :func:`simulate_health_voyage`'s ``regime_change_after_hours``: transit
 #: towards the ice edge at 11.5-13 kn, water cooling to -1.7 °C (sea-water freezing point)
 #: with a 2-h time constant, air cooling by 10 °C with a 4-h time constant. [kn, °C, °C]
@@ -230,7 +222,7 @@ def simulate_health_voyage(
 
 def _regime_change(profile: pd.DataFrame, onset_s: float, rng: np.random.Generator) -> pd.DataFrame:
     """The 1-s profile with the transit regime from *onset_s* on (see the constants)."""
-    from ..simulate.profile import _smooth_noise
+    from .profile import _smooth_noise
 
     t = profile["elapsed_hours"].to_numpy() * 3600.0
     after = np.clip(t - onset_s, 0.0, None)
@@ -245,47 +237,6 @@ def _regime_change(profile: pd.DataFrame, onset_s: float, rng: np.random.Generat
     )
     out["air_temp_c"] = profile["air_temp_c"] - ICE_AIR_COOLING_C * (1.0 - np.exp(-after / 14400.0))
     return out
-
-
-def frozen_forecast(
-    voyage: HealthVoyage,
-    train_blocks: int,
-    *,
-    predictor_columns: tuple[str, ...] = STEPWISE_PREDICTORS,
-) -> pd.DataFrame:
-    """FORECAST table of a model trained once on the first *train_blocks* blocks.
-
-    :func:`workbench.forecasting.sliding_forecast`, method 1 (one window, one forward
-    prediction to the end of the voyage), option A, every linear term in the start model
-    (``stepwise_options=STEPWISE``; interactions are left to the stepwise
-    search), so the fuel-burn trend is part of the model even when 24 h show it weakly.
-    Forecast warnings are silenced (they are kept in the table's ``warning`` column).
-    """
-    import warnings
-
-    from ..forecasting import sliding_forecast
-    from ..forecasting.options import ForecastOptions
-
-    horizon = len(voyage.predictors) - int(train_blocks)
-    if horizon < 1:
-        raise ValueError(
-            f"train_blocks={train_blocks} leaves no block to forecast "
-            f"(voyage has {len(voyage.predictors)})"
-        )
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        options = ForecastOptions(
-            model="window",
-            scheme="single_window",
-            options=("A",),
-            train_blocks=int(train_blocks),
-            horizon=horizon,
-            stepwise_options=STEPWISE,
-            extrapolation_limit=EXTRAPOLATION_LIMIT,
-            predictor_columns=list(predictor_columns),
-        )
-        result = sliding_forecast(voyage.modal, voyage.predictors, options)
-    return result.table
 
 
 def detection_delay_hours(voyage: HealthVoyage, health: pd.DataFrame) -> float:
@@ -311,7 +262,7 @@ def law_forecast(voyage: HealthVoyage) -> pd.DataFrame:
     only from the log's noise. The 95 % bounds are ±1.96 s_m f with s_m the identification
     scatter of :data:`~workbench.simulate.imitation.FREQUENCY_SCATTER`. This separates
     what the chart does from how well a regression model extrapolates
-    (:func:`frozen_forecast`).
+    (:func:`workbench.shm.frozen_forecast`).
     """
     modes = tuple(sorted(voyage.modal["mode"].unique().tolist()))
     columns = [m - 1 for m in modes]

@@ -179,7 +179,7 @@ def read_any_table(
     With *contract* the file is read and checked by :func:`~data_contracts.read_table`;
     without, times in ``block_start`` / ``block_end`` are parsed as UTC.
     """
-    from ..errors import WorkbenchError
+    from .errors import WorkbenchError
 
     if isinstance(table, pd.DataFrame):
         return table
