@@ -8,7 +8,7 @@ import math
 import numpy as np
 from scipy import special as _special
 
-from ..design import Encoding, raw_transform
+from ..design import Encoding
 from .layout import _eligible_terms, _model_labels, _removable_terms
 from .result import StepwiseFit
 from .sweep import COLLINEARITY_TOLERANCE, _Problem, _problem, _sweep
@@ -531,19 +531,9 @@ class _Search:
         sst = problem.sst
         mse = sse / dfe if dfe > 0 else math.nan
         rmse = math.sqrt(mse) if mse == mse else math.nan
-        # full covariance of (intercept, slopes) in the search's centred units, per σ²
-        full = np.empty((m + 1, m + 1))
-        full[0, 0] = 1.0 / n + float(term_means @ covariance @ term_means)
-        full[0, 1:] = full[1:, 0] = -(covariance @ term_means)
-        full[1:, 1:] = covariance
-        search_estimates = np.concatenate([[intercept], slopes])
-        terms = labels.terms
-        transform = raw_transform(terms, encoding)
-        if transform is None:  # cannot happen with the hierarchy kept; stay in search units
-            transform = np.eye(m + 1)
-        estimates = transform @ search_estimates
-        raw_covariance = transform @ full @ transform.T
-        standard_errors = rmse * np.sqrt(np.maximum(np.diagonal(raw_covariance), 0.0))
+        search_estimates = np.empty(m + 1)
+        search_estimates[0] = intercept
+        search_estimates[1:] = slopes
         r_squared = 1.0 - sse / sst if sst > 0 else math.nan
         adj_r_squared = 1.0 - (sse / dfe) / (sst / (n - 1)) if sst > 0 and dfe > 0 else math.nan
         if k > 1 and dfe > 0 and mse > 0:
@@ -570,16 +560,14 @@ class _Search:
             log_likelihood=float(log_likelihood),
             aic=float(-2.0 * log_likelihood + 2.0 * k),
             bic=float(-2.0 * log_likelihood + math.log(n) * k),
-            model_terms=terms,
-            estimates=estimates,
-            standard_errors=standard_errors,
+            model_terms=labels.terms,
+            search_estimates=search_estimates,
             term_means=term_means,
             slope_covariance=covariance,
             step_records=tuple(self.steps),
             skipped_records=tuple((s, term, reason) for (term, reason), s in self.skipped.items()),
             coefficient_names=labels.column_names,
             coefficient_terms=labels.column_terms,
-            search_estimates=search_estimates,
             encoding=encoding,
             missing=missing,
             search_warnings=tuple(self.warnings),
