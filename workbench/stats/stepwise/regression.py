@@ -220,26 +220,32 @@ str or sequence of str
     models = _models(upper, start, lower, names, encoding.levels)
     upper_terms, layout = models.upper_terms, models.layout
     used_columns = layout.used_columns
-    valid = np.isfinite(y_values)
-    if not valid.any():
-        raise ValueError(f"response {response_name!r} has no finite value")
-    finite = np.isfinite(values)
-    # complete data (the common case) needs none of the row bookkeeping below
-    complete = bool(valid.all()) and bool(finite.all())
-    usable = True if complete else (finite[:, used_columns] & valid[:, None]).any(axis=0)
-    if not complete and not usable.all():
-        column = used_columns[int(np.argmin(usable))]
-        where = "" if finite[:, column].any() else " (all NaN)"
-        raise ValueError(
-            f"X column {names[column]!r} has no finite value where the response "
-            f"{response_name!r} is finite{where}"
-        )
-    if missing == "complete" and used_columns:
-        valid &= finite[:, used_columns].all(axis=1)
-    if not complete and not valid.all():
-        values = values[valid]
-        y_values = y_values[valid]
-        finite = finite[valid]
+    # complete data (the common case) needs none of the row bookkeeping below; a finite
+    # total means that every value is finite (NaN and inf propagate; a sum that overflows
+    # only takes the longer way)
+    complete = y_values.shape[0] > 0 and math.isfinite(
+        float(values.sum()) + float(y_values.sum())
+    )
+    finite = None
+    if not complete:
+        valid = np.isfinite(y_values)
+        if not valid.any():
+            raise ValueError(f"response {response_name!r} has no finite value")
+        finite = np.isfinite(values)
+        usable = (finite[:, used_columns] & valid[:, None]).any(axis=0)
+        if not usable.all():
+            column = used_columns[int(np.argmin(usable))]
+            where = "" if finite[:, column].any() else " (all NaN)"
+            raise ValueError(
+                f"X column {names[column]!r} has no finite value where the response "
+                f"{response_name!r} is finite{where}"
+            )
+        if missing == "complete" and used_columns:
+            valid &= finite[:, used_columns].all(axis=1)
+        if not valid.all():
+            values = values[valid]
+            y_values = y_values[valid]
+            finite = finite[valid]
     n = int(y_values.shape[0])
     start_columns = list(models.start_columns)
     start_rows = (
@@ -260,22 +266,19 @@ str or sequence of str
         # sum / n: the value of block.mean(axis=0) without its overhead
         centres[numeric] = np.nanmean(block, axis=0) if has_missing else block.sum(axis=0) / n
     encoding = encoding.with_centres(centres)
-    with np.errstate(invalid="ignore"):
-        candidates = design_columns(values, upper_terms, encoding, widths=layout.widths)
-    search = _Search(
-        candidates=candidates,
-        y=y_values,
-        finite=finite if has_missing else None,
-        layout=layout,
-        criterion=criterion,
-        p_enter=p_enter,
-        p_remove=p_remove,
-        response_name=response_name,
-    )
-    start_index = models.start_index
-    lower_index = models.lower_index
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        search.run(start_index, lower_index, max_steps)
+        candidates = design_columns(values, upper_terms, encoding, widths=layout.widths)
+        search = _Search(
+            candidates=candidates,
+            y=y_values,
+            finite=finite if has_missing else None,
+            layout=layout,
+            criterion=criterion,
+            p_enter=p_enter,
+            p_remove=p_remove,
+            response_name=response_name,
+        )
+        search.run(models.start_index, models.lower_index, max_steps)
         fit = search.result(encoding, response_name, missing)
     for message in fit.search_warnings:
         warnings.warn(message, StepwiseWarning, stacklevel=2)

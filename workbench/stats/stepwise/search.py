@@ -98,7 +98,10 @@ class _Search:
         """F, p and score of adding terms with SSE decrease *decrease* and *df* columns."""
         dfe_new = n - k - df
         sse_new = np.maximum(sse - decrease, 0.0)
-        f_stat = (decrease / df) / (sse_new / dfe_new)
+        # decrease / 1.0 is decrease: one division less for one-column candidates
+        f_stat = (decrease if isinstance(df, float) and df == 1.0 else decrease / df) / (
+            sse_new / dfe_new
+        )
         p_value = _f_sf(f_stat, df, dfe_new)
         criterion = self.criterion
         if criterion == "sse":
@@ -417,18 +420,20 @@ class _Search:
             f_stat, p_value, score, value = self._score_add(
                 n, group_k, sse, group_problem.sst, decrease, df
             )
-            j = int(np.argmin(score))  # terms in canonical order: ties go to the first
-            if score[j] != score[j]:  # argmin found a NaN (0/0), which never enters
+            j = int(score.argmin())  # terms in canonical order: ties go to the first
+            best_score = float(score[j])
+            if best_score != best_score:  # argmin found a NaN (0/0), which never enters
                 score = np.where(score != score, np.inf, score)
-                j = int(np.argmin(score))
+                j = int(score.argmin())
+                best_score = float(score[j])
             term = int(terms_array[j])
-            candidate = (float(score[j]), term)
+            candidate = (best_score, term)
             if best is None or candidate < best[0]:
-                change = score[j] if self.criterion in ("aic", "bic") else -score[j]
-                df_j = df if np.ndim(df) == 0 else df[j]
+                change = best_score if self.criterion in ("aic", "bic") else -best_score
+                df_j = df if isinstance(df, float) else df[j]
                 record = self._record(f_stat[j], p_value[j], value[j], change, df_j, n)
                 chosen = [int(self.layout.first_column[term])] if columns is None else columns[j]
-                best = (candidate, term, (float(score[j]), *record), chosen, group_rows[key])
+                best = (candidate, term, (best_score, *record), chosen, group_rows[key])
         if best is None:
             return None
         _, term, record, columns, new_rows = best
@@ -514,7 +519,7 @@ class _Search:
         scale = problem.scale[swept]
         # back from centred-scaled columns: b = b_z / s, V = (X_cᵀX_c)⁻¹ = V_z / (s sᵀ)
         swept_slopes = matrix[swept, self.y_slot] / scale
-        swept_covariance = -matrix[swept][:, swept] / np.outer(scale, scale)
+        swept_covariance = -matrix[np.ix_(swept, swept)] / (scale[:, None] * scale)
         if swept == slope_columns:
             slopes, covariance = swept_slopes, swept_covariance
         else:  # columns left out as collinear: estimate 0 (MATLAB's rank-deficient fit)

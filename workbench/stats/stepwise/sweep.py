@@ -22,11 +22,12 @@ def _sweep(matrix: np.ndarray, pivot: int) -> None:
     last column, -(XᵀX)⁻¹ in the pivot block and the residual sum of squares in the corner.
     """
     column = matrix[:, pivot].copy()
-    scaled = column / column[pivot]
-    matrix -= np.outer(column, scaled)
+    pivot_value = column[pivot]
+    scaled = column / pivot_value
+    matrix -= column[:, None] * scaled  # the outer product a aᵀ / d
     matrix[:, pivot] = scaled
     matrix[pivot, :] = scaled
-    matrix[pivot, pivot] = -1.0 / column[pivot]
+    matrix[pivot, pivot] = -1.0 / pivot_value
 
 
 @dataclass
