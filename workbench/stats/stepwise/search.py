@@ -510,28 +510,31 @@ class _Search:
         model = self.model
         labels = _model_labels(layout, tuple(model))
         n = problem.n
-        model_columns = list(labels.columns)
         swept = self._model_columns()
         k = 1 + len(swept)
         dfe = n - k
-        slope_columns = model_columns[1:]  # model_columns[0] is the intercept
+        slope_columns = labels.slope_columns  # labels.columns[0] is the intercept
         m = len(slope_columns)
-        scale = problem.scale[swept]
         # back from centred-scaled columns: b = b_z / s, V = (X_cᵀX_c)⁻¹ = V_z / (s sᵀ)
-        swept_slopes = matrix[swept, self.y_slot] / scale
-        swept_covariance = -matrix[np.ix_(swept, swept)] / (scale[:, None] * scale)
         if swept == slope_columns:
-            slopes, covariance = swept_slopes, swept_covariance
+            index = labels.slope_index
+            scale = problem.scale[index]
+            slopes = matrix[index, self.y_slot] / scale
+            covariance = -matrix[labels.slope_rows, index] / (scale[:, None] * scale)
         else:  # columns left out as collinear: estimate 0 (MATLAB's rank-deficient fit)
+            index = labels.slope_index
+            scale = problem.scale[swept]
+            swept_slopes = matrix[swept, self.y_slot] / scale
+            swept_covariance = -matrix[np.ix_(swept, swept)] / (scale[:, None] * scale)
             position = {c: j for j, c in enumerate(slope_columns)}
             swept_position = [position[c] for c in swept]
             slopes = np.zeros(m)
             covariance = np.zeros((m, m))
             slopes[swept_position] = swept_slopes
             covariance[np.ix_(swept_position, swept_position)] = swept_covariance
-        term_means = problem.means[slope_columns]
+        term_means = problem.means[index]
         intercept = problem.y_mean - float(term_means @ slopes)
-        residual = problem.y_centred - problem.centred[:, slope_columns] @ slopes
+        residual = problem.y_centred - problem.centred[:, index] @ slopes
         sse = float(residual @ residual)
         sst = problem.sst
         mse = sse / dfe if dfe > 0 else math.nan
