@@ -112,11 +112,15 @@ def column_labels(columns: pd.Index) -> tuple:
 
     A column index of pandas' Arrow-backed string dtype is converted through its Arrow
     array, which costs a fraction of ``Index.tolist()`` (a noticeable share of a small
-    stepwise fit); any other index through ``tolist()``.
+    stepwise fit); any other index, or one with a missing label (None from Arrow, which
+    ``tolist()`` gives as NaN), through ``tolist()``. Missing labels are looked for in the
+    converted tuple: ``Index.hasnans`` of a new index costs more than the conversion.
     """
     array = columns.array
-    if isinstance(array, pd.arrays.ArrowStringArray) and not columns.hasnans:
-        return tuple(array.__arrow_array__().to_pylist())
+    if isinstance(array, pd.arrays.ArrowStringArray):
+        labels = tuple(array.__arrow_array__().to_pylist())
+        if None not in labels:
+            return labels
     return tuple(columns.tolist())
 
 

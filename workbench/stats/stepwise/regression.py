@@ -223,9 +223,7 @@ str or sequence of str
     # complete data (the common case) needs none of the row bookkeeping below; a finite
     # total means that every value is finite (NaN and inf propagate; a sum that overflows
     # only takes the longer way)
-    complete = y_values.shape[0] > 0 and math.isfinite(
-        float(values.sum()) + float(y_values.sum())
-    )
+    complete = y_values.shape[0] > 0 and math.isfinite(float(values.sum()) + float(y_values.sum()))
     finite = None
     if not complete:
         valid = np.isfinite(y_values)
