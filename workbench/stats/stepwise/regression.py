@@ -223,7 +223,9 @@ str or sequence of str
     # complete data (the common case) needs none of the row bookkeeping below; a finite
     # total means that every value is finite (NaN and inf propagate; a sum that overflows
     # only takes the longer way)
-    complete = y_values.shape[0] > 0 and math.isfinite(float(values.sum()) + float(y_values.sum()))
+    with np.errstate(over="ignore", invalid="ignore"):
+        total = float(values.sum()) + float(y_values.sum()) if y_values.shape[0] else math.nan
+    complete = math.isfinite(total)
     finite = None
     if not complete:
         valid = np.isfinite(y_values)
