@@ -515,14 +515,13 @@ class _Search:
         dfe = n - k
         slope_columns = labels.slope_columns  # labels.columns[0] is the intercept
         m = len(slope_columns)
+        index = labels.slope_index  # slope_columns as an index array (cached per model)
         # back from centred-scaled columns: b = b_z / s, V = (X_cᵀX_c)⁻¹ = V_z / (s sᵀ)
         if swept == slope_columns:
-            index = labels.slope_index
             scale = problem.scale[index]
             slopes = matrix[index, self.y_slot] / scale
             covariance = -matrix[labels.slope_rows, index] / (scale[:, None] * scale)
         else:  # columns left out as collinear: estimate 0 (MATLAB's rank-deficient fit)
-            index = labels.slope_index
             scale = problem.scale[swept]
             swept_slopes = matrix[swept, self.y_slot] / scale
             swept_covariance = -matrix[np.ix_(swept, swept)] / (scale[:, None] * scale)
