@@ -137,6 +137,18 @@ def _all_numeric(frame: pd.DataFrame) -> bool:
     )
 
 
+@functools.lru_cache(maxsize=256)
+def _name_problem(names: tuple[str, ...]) -> str | None:
+    """What is wrong with predictor *names* (duplicates, reserved characters), or None
+    (cached: a sliding fit checks the same names for every window)."""
+    if len(set(names)) != len(names):
+        return f"has duplicate column names: {list(names)}"
+    bad = [c for c in names if ":" in c or "^" in c]
+    if bad:
+        return f"column {bad[0]!r}: ':' and '^' are reserved for terms"
+    return None
+
+
 def encode(
     X, categorical: Sequence[str | int] | None = None, parameter: str = "X"
 ) -> tuple[np.ndarray, Encoding]:
@@ -171,11 +183,9 @@ def encode(
                 raise TypeError(f"{parameter} is not numeric") from None
             return matrix, Encoding(names, (None,) * len(names), np.zeros(len(names)))
         frame = pd.DataFrame(values, columns=list(names))
-    if len(set(names)) != len(names):
-        raise ValueError(f"{parameter} has duplicate column names: {list(names)}")
-    bad = [c for c in names if ":" in c or "^" in c]
-    if bad:
-        raise ValueError(f"{parameter} column {bad[0]!r}: ':' and '^' are reserved for terms")
+    problem = _name_problem(names)
+    if problem is not None:
+        raise ValueError(f"{parameter} {problem}")
     if not categorical and _all_numeric(frame):
         # one conversion of the whole frame (the common, fast case)
         try:
@@ -258,9 +268,17 @@ def design_columns(
     """Design matrix of *terms* (intercept ones, centred numeric factors, dummies)."""
     simple = not any(encoding.categorical)
     if simple:
-        intercept, single, pair_a, pair_b = _numeric_plan(tuple(terms))
-        centred = values - encoding.centres
+        intercept, single, pair_a, pair_b, canonical = _numeric_plan(tuple(terms))
         out = np.empty((values.shape[0], len(terms)))
+        if canonical is not None and values.shape[1] == canonical[0]:
+            # intercept, every main effect in column order, then products (MATLAB's order
+            # for "interactions"): slices instead of scattered columns, the same numbers
+            p = canonical[0]
+            out[:, 0] = 1.0
+            centred = np.subtract(values, encoding.centres, out=out[:, 1 : p + 1])
+            np.multiply(centred[:, pair_a[1]], centred[:, pair_b], out=out[:, p + 1 :])
+            return out
+        centred = values - encoding.centres
         out[:, intercept] = 1.0
         out[:, single[0]] = centred[:, single[1]]
         out[:, pair_a[0]] = centred[:, pair_a[1]] * centred[:, pair_b]
@@ -310,7 +328,18 @@ def _numeric_plan(terms: tuple[Term, ...]):
         np.array([a for _, a, _ in pairs], dtype=int),
     )
     pair_b = np.array([b for _, _, b in pairs], dtype=int)
-    return np.array(intercept, dtype=int), single_index, pair_a, pair_b
+    # (number of predictors,) when the terms are the intercept, the main effects of
+    # predictors 0..p-1 in order, then products only; else None
+    p = len(single)
+    canonical = (
+        (p,)
+        if terms[:1] == ((),)
+        and [k for k, _ in single] == list(range(1, p + 1))
+        and [i for _, i in single] == list(range(p))
+        and [k for k, _, _ in pairs] == list(range(p + 1, len(terms)))
+        else None
+    )
+    return np.array(intercept, dtype=int), single_index, pair_a, pair_b, canonical
 
 
 def _factor_labels(encoding: Encoding, predictor: int) -> list[str]:

@@ -207,6 +207,22 @@ str or sequence of str
         if max_steps < 0:
             raise ValueError(f"max_steps={max_steps} must be >= 0")
 
+    # floating-point exceptions of the search are expected (0/0 of an exact fit, a column
+    # of NaN): silenced once for the whole fit
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        fit = _fit(
+            X, y, start, upper, lower, criterion, p_enter, p_remove, max_steps, missing, categorical
+        )
+    for message in fit.search_warnings:
+        warnings.warn(message, StepwiseWarning, stacklevel=2)
+    return fit
+
+
+def _fit(
+    X, y, start, upper, lower, criterion, p_enter, p_remove, max_steps, missing, categorical
+) -> StepwiseFit:
+    """The search of :func:`stepwise` with its options checked: data and model
+    specifications checked, numeric predictors centred, the search run."""
     values, encoding = encode(X, categorical)
     names = encoding.names
     response_name = str(y.name) if isinstance(y, pd.Series) and y.name is not None else "y"
@@ -223,8 +239,7 @@ str or sequence of str
     # complete data (the common case) needs none of the row bookkeeping below; a finite
     # total means that every value is finite (NaN and inf propagate; a sum that overflows
     # only takes the longer way)
-    with np.errstate(over="ignore", invalid="ignore"):
-        total = float(values.sum()) + float(y_values.sum()) if y_values.shape[0] else math.nan
+    total = float(values.sum()) + float(y_values.sum()) if y_values.shape[0] else math.nan
     complete = math.isfinite(total)
     finite = None
     if not complete:
@@ -266,23 +281,19 @@ str or sequence of str
         # sum / n: the value of block.mean(axis=0) without its overhead
         centres[numeric] = np.nanmean(block, axis=0) if has_missing else block.sum(axis=0) / n
     encoding = encoding.with_centres(centres)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        candidates = design_columns(values, upper_terms, encoding, widths=layout.widths)
-        search = _Search(
-            candidates=candidates,
-            y=y_values,
-            finite=finite if has_missing else None,
-            layout=layout,
-            criterion=criterion,
-            p_enter=p_enter,
-            p_remove=p_remove,
-            response_name=response_name,
-        )
-        search.run(models.start_index, models.lower_index, max_steps)
-        fit = search.result(encoding, response_name, missing)
-    for message in fit.search_warnings:
-        warnings.warn(message, StepwiseWarning, stacklevel=2)
-    return fit
+    candidates = design_columns(values, upper_terms, encoding, widths=layout.widths)
+    search = _Search(
+        candidates=candidates,
+        y=y_values,
+        finite=finite if has_missing else None,
+        layout=layout,
+        criterion=criterion,
+        p_enter=p_enter,
+        p_remove=p_remove,
+        response_name=response_name,
+    )
+    search.run(models.start_index, models.lower_index, max_steps)
+    return search.result(encoding, response_name, missing)
 
 
 @dataclass(frozen=True, eq=False)
