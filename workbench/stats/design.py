@@ -20,7 +20,7 @@ from __future__ import annotations
 import functools
 import itertools
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -48,11 +48,12 @@ class Encoding:
     names: tuple[str, ...]
     levels: tuple[tuple[str, ...] | None, ...]
     centres: np.ndarray
+    #: Per predictor, whether it is categorical (from *levels*; set on construction, which
+    #: costs less than a cached property's first access on the encoding of every fit).
+    categorical: tuple[bool, ...] = field(init=False, repr=False)
 
-    @functools.cached_property
-    def categorical(self) -> tuple[bool, ...]:
-        """Per predictor, whether it is categorical."""
-        return tuple(level is not None for level in self.levels)
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "categorical", tuple(level is not None for level in self.levels))
 
     def width(self, predictor: int) -> int:
         """Design columns of the predictor's main effect."""

@@ -327,7 +327,7 @@ def _hashable(spec):
 
 def _models(upper, start, lower, names: tuple[str, ...], levels: tuple) -> _Models:
     keys = (_hashable(upper), _hashable(start), _hashable(lower))
-    if any(key is None for key in keys):
+    if None in keys:
         return _check_models(upper, start, lower, names, levels)
     return _cached_models(*keys, names, levels)
 
