@@ -17,7 +17,10 @@ forecast does, and a frequency following a hull law with a speed x water-tempera
 interaction plus measurement noise. ``--data DIR`` takes the windows from a simulated voyage
 instead (``truth_predictors.csv`` and ``tracked_modal.csv``).
 
-Run: ``python benchmarks/bench_stepwise.py [--windows 300] [--repeats 5] [--data DIR]``
+``--threads N`` limits BLAS to N threads for both (threadpoolctl).
+
+Run: ``python benchmarks/bench_stepwise.py [--windows 300] [--repeats 5] [--data DIR]
+[--threads 1]``
 """
 
 from __future__ import annotations
@@ -296,7 +299,21 @@ def main(argv=None) -> int:
     parser.add_argument("--windows", type=int, default=300, help="20-row windows to fit")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--data", type=Path, help="simulated voyage folder (optional)")
+    parser.add_argument(
+        "--threads",
+        type=int,
+        help="limit BLAS to this many threads for ours and statsmodels alike (threadpoolctl)",
+    )
     args = parser.parse_args(argv)
+    if args.threads is not None:
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(limits=args.threads, user_api="blas"):
+            return _main(args)
+    return _main(args)
+
+
+def _main(args) -> int:
     warnings.simplefilter("ignore")
     if args.data is not None:
         windows = voyage_windows(args.data, 20, args.windows)
@@ -305,6 +322,8 @@ def main(argv=None) -> int:
         windows = synthetic_windows(args.windows, 20)
         source = "synthetic ship-log windows"
     print("stepwise, upper = 5 predictors + 10 interactions, p_enter 0.05, p_remove 0.10")
+    threads = "library defaults" if args.threads is None else f"BLAS limited to {args.threads}"
+    print(f"threads: {threads}")
     ratio_small = compare(f"20-row windows ({source})", windows, args.repeats)
     large = synthetic_windows(6, 500, seed=1)
     ratio_large = compare("500-row data sets", large, args.repeats)

@@ -207,6 +207,33 @@ def test_leading_eigh_falls_back_to_syevr_when_mrrr_fails(monkeypatch):
     np.testing.assert_allclose(symmetric @ vectors, vectors * values, atol=1e-10 * values[0])
 
 
+def test_leading_eigh_runs_blas_single_threaded_whatever_the_budget(monkeypatch):
+    """The tridiagonalisation and the back-transformation run single-threaded BLAS (issue
+    33: on a shared machine multi-threaded BLAS spent several times the CPU time there),
+    so a budget of two threads gives the eigenpairs of a serial call bit for bit (40 pairs:
+    dstemr is not split either)."""
+    rng = np.random.default_rng(33)
+    factor = rng.standard_normal((300, 320)) * np.geomspace(1.0, 1e-3, 320)
+    symmetric = np.triu(factor @ factor.T)
+    requested = []
+    limit_blas = decomposition.blas_threads
+
+    def recorded(limit):
+        requested.append(limit)
+        return limit_blas(limit)
+
+    monkeypatch.setattr(decomposition, "blas_threads", recorded)
+    results = {}
+    for budget in (1, 2):
+        monkeypatch.setattr(decomposition, "thread_budget", lambda budget=budget: budget)
+        results[budget] = _leading_eigh(symmetric, 40)
+    assert requested == [1, 1, 1, 1]  # dsytrd and dormqr, for each budget
+    np.testing.assert_array_equal(results[2][0], results[1][0])
+    np.testing.assert_array_equal(results[2][1], results[1][1])
+    expected = np.linalg.eigvalsh(factor @ factor.T)[::-1][:40]
+    np.testing.assert_allclose(results[2][0], expected, rtol=1e-10)
+
+
 def test_thread_budget_follows_the_blas_limit(chain3):
     """Serial under threadpool_limits(1) (identify's worker processes), and the same poles
     whatever the budget."""

@@ -20,7 +20,7 @@ from __future__ import annotations
 import functools
 import itertools
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -48,11 +48,12 @@ class Encoding:
     names: tuple[str, ...]
     levels: tuple[tuple[str, ...] | None, ...]
     centres: np.ndarray
+    #: Per predictor, whether it is categorical (from *levels*; set on construction, which
+    #: costs less than a cached property's first access on the encoding of every fit).
+    categorical: tuple[bool, ...] = field(init=False, repr=False)
 
-    @functools.cached_property
-    def categorical(self) -> tuple[bool, ...]:
-        """Per predictor, whether it is categorical."""
-        return tuple(level is not None for level in self.levels)
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "categorical", tuple(level is not None for level in self.levels))
 
     def width(self, predictor: int) -> int:
         """Design columns of the predictor's main effect."""
@@ -112,11 +113,15 @@ def column_labels(columns: pd.Index) -> tuple:
 
     A column index of pandas' Arrow-backed string dtype is converted through its Arrow
     array, which costs a fraction of ``Index.tolist()`` (a noticeable share of a small
-    stepwise fit); any other index through ``tolist()``.
+    stepwise fit); any other index, or one with a missing label (None from Arrow, which
+    ``tolist()`` gives as NaN), through ``tolist()``. Missing labels are looked for in the
+    converted tuple: ``Index.hasnans`` of a new index costs more than the conversion.
     """
     array = columns.array
-    if isinstance(array, pd.arrays.ArrowStringArray) and not columns.hasnans:
-        return tuple(array.__arrow_array__().to_pylist())
+    if isinstance(array, pd.arrays.ArrowStringArray):
+        labels = tuple(array.__arrow_array__().to_pylist())
+        if None not in labels:
+            return labels
     return tuple(columns.tolist())
 
 
@@ -131,6 +136,18 @@ def _all_numeric(frame: pd.DataFrame) -> bool:
         pd.api.types.is_numeric_dtype(dtype) and not pd.api.types.is_bool_dtype(dtype)
         for dtype in frame.dtypes
     )
+
+
+@functools.lru_cache(maxsize=256)
+def _name_problem(names: tuple[str, ...]) -> str | None:
+    """What is wrong with predictor *names* (duplicates, reserved characters), or None
+    (cached: a sliding fit checks the same names for every window)."""
+    if len(set(names)) != len(names):
+        return f"has duplicate column names: {list(names)}"
+    bad = [c for c in names if ":" in c or "^" in c]
+    if bad:
+        return f"column {bad[0]!r}: ':' and '^' are reserved for terms"
+    return None
 
 
 def encode(
@@ -167,11 +184,9 @@ def encode(
                 raise TypeError(f"{parameter} is not numeric") from None
             return matrix, Encoding(names, (None,) * len(names), np.zeros(len(names)))
         frame = pd.DataFrame(values, columns=list(names))
-    if len(set(names)) != len(names):
-        raise ValueError(f"{parameter} has duplicate column names: {list(names)}")
-    bad = [c for c in names if ":" in c or "^" in c]
-    if bad:
-        raise ValueError(f"{parameter} column {bad[0]!r}: ':' and '^' are reserved for terms")
+    problem = _name_problem(names)
+    if problem is not None:
+        raise ValueError(f"{parameter} {problem}")
     if not categorical and _all_numeric(frame):
         # one conversion of the whole frame (the common, fast case)
         try:
@@ -254,9 +269,17 @@ def design_columns(
     """Design matrix of *terms* (intercept ones, centred numeric factors, dummies)."""
     simple = not any(encoding.categorical)
     if simple:
-        intercept, single, pair_a, pair_b = _numeric_plan(tuple(terms))
-        centred = values - encoding.centres
+        intercept, single, pair_a, pair_b, canonical = _numeric_plan(tuple(terms))
         out = np.empty((values.shape[0], len(terms)))
+        if canonical is not None and values.shape[1] == canonical[0]:
+            # intercept, every main effect in column order, then products (MATLAB's order
+            # for "interactions"): slices instead of scattered columns, the same numbers
+            p = canonical[0]
+            out[:, 0] = 1.0
+            centred = np.subtract(values, encoding.centres, out=out[:, 1 : p + 1])
+            np.multiply(centred[:, pair_a[1]], centred[:, pair_b], out=out[:, p + 1 :])
+            return out
+        centred = values - encoding.centres
         out[:, intercept] = 1.0
         out[:, single[0]] = centred[:, single[1]]
         out[:, pair_a[0]] = centred[:, pair_a[1]] * centred[:, pair_b]
@@ -306,7 +329,18 @@ def _numeric_plan(terms: tuple[Term, ...]):
         np.array([a for _, a, _ in pairs], dtype=int),
     )
     pair_b = np.array([b for _, _, b in pairs], dtype=int)
-    return np.array(intercept, dtype=int), single_index, pair_a, pair_b
+    # (number of predictors,) when the terms are the intercept, the main effects of
+    # predictors 0..p-1 in order, then products only; else None
+    p = len(single)
+    canonical = (
+        (p,)
+        if terms[:1] == ((),)
+        and [k for k, _ in single] == list(range(1, p + 1))
+        and [i for _, i in single] == list(range(p))
+        and [k for k, _, _ in pairs] == list(range(p + 1, len(terms)))
+        else None
+    )
+    return np.array(intercept, dtype=int), single_index, pair_a, pair_b, canonical
 
 
 def _factor_labels(encoding: Encoding, predictor: int) -> list[str]:

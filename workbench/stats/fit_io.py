@@ -48,9 +48,7 @@ def model_to_dict(fit: StepwiseFit) -> dict[str, Any]:
         "coefficient_terms": [list(map(int, term)) for term in fit.coefficient_terms],
         "estimates": _numbers(fit.estimates),
         "standard_errors": _numbers(fit.standard_errors),
-        "search_estimates": None
-        if fit.search_estimates is None
-        else _numbers(fit.search_estimates),
+        "search_estimates": _numbers(fit.search_estimates),
         "term_means": _numbers(fit.term_means),
         "slope_covariance": _numbers(fit.slope_covariance),
         "encoding": None
@@ -91,6 +89,8 @@ def model_from_dict(data: dict[str, Any]) -> StepwiseFit:
     n_slopes = len(design["term_means"])
     covariance = _array(design["slope_covariance"]).reshape(n_slopes, n_slopes)
     search = design.get("search_estimates")
+    if search is None:
+        raise ValueError("the model's 'design' has no 'search_estimates'; it cannot predict")
     return StepwiseFit(
         terms=tuple(data["terms"]),
         predictor_names=tuple(data["predictors"]),
@@ -110,8 +110,7 @@ def model_from_dict(data: dict[str, Any]) -> StepwiseFit:
         aic=_float(data["aic"]),
         bic=_float(data["bic"]),
         model_terms=tuple(tuple(term) for term in design["model_terms"]),
-        estimates=_array(design["estimates"]),
-        standard_errors=_array(design["standard_errors"]),
+        search_estimates=_array(search),
         term_means=_array(design["term_means"]),
         slope_covariance=covariance,
         step_records=tuple(
@@ -120,7 +119,6 @@ def model_from_dict(data: dict[str, Any]) -> StepwiseFit:
         skipped_records=tuple(tuple(record) for record in design["skipped_records"]),
         coefficient_names=tuple(design["coefficient_names"]),
         coefficient_terms=tuple(tuple(term) for term in design["coefficient_terms"]),
-        search_estimates=None if search is None else _array(search),
         encoding=encoding,
         missing=data.get("missing", "candidate"),
         search_warnings=tuple(data.get("warnings", ())),

@@ -44,15 +44,19 @@ def _leading_eigh(symmetric: np.ndarray, count: int) -> tuple[np.ndarray, np.nda
     back-transformation of those vectors only (dormqr). This is what dsyevr does for the
     whole spectrum; for an index subset dsyevr switches to bisection and inverse iteration
     (slower on the Gram matrices here). The two BLAS-bound steps, the tridiagonalisation
-    (the largest single step of SSI-cov) and the back-transformation, run BLAS on
-    :func:`thread_budget` threads. Falls back to dsyevr if dstemr fails.
+    (the largest single step of SSI-cov) and the back-transformation, run single-threaded
+    BLAS like every other step of SSI (:func:`~workbench.sid.threads.sid_threads`):
+    multi-threaded BLAS gained little here on two cores and, with other processes on the
+    cores, spent several times the CPU time (benchmarks/results/throughput_33_kernels.txt);
+    the wanted eigenpairs are split over the :func:`thread_budget` threads instead. Falls
+    back to dsyevr if dstemr fails.
     """
     n = symmetric.shape[0]
     lapack = linalg.lapack
     threads = thread_budget()
     # the Fortran-ordered view of the symmetric matrix is its transpose, equal to it
     work = int(lapack.dsytrd_lwork(n, lower=1)[0])
-    with blas_threads(threads):
+    with blas_threads(1):
         reduced, diagonal, off_diagonal, tau, info = lapack.dsytrd(
             symmetric.T, lower=1, lwork=max(work, 1)
         )
@@ -71,7 +75,7 @@ def _leading_eigh(symmetric: np.ndarray, count: int) -> tuple[np.ndarray, np.nda
         # Q = H(1)···H(n-1); reflector k acts on rows k+1..n-1: a QR factor of reduced[1:, :n-1]
         reflectors = reduced[1:, : n - 1]
         work = int(lapack.dormqr("L", "N", reflectors, tau, vectors[1:], -1)[1][0])
-        with blas_threads(threads):
+        with blas_threads(1):
             vectors[1:], _, info = lapack.dormqr(
                 "L", "N", reflectors, tau, vectors[1:], max(work, 1), overwrite_c=1
             )

@@ -131,6 +131,9 @@ class _ModelLabels:
     """Columns and names of a model's terms (cached per layout and model)."""
 
     columns: tuple[int, ...]  # design columns, the intercept's first
+    slope_columns: list[int]  # columns[1:]
+    slope_index: np.ndarray  # columns[1:] as an index array
+    slope_rows: np.ndarray  # columns[1:] as a column of indices (rows of a sub-matrix)
     display: tuple[str, ...]  # non-constant terms
     terms: tuple[Term, ...]
     column_names: tuple[str, ...]
@@ -139,8 +142,14 @@ class _ModelLabels:
 
 @functools.lru_cache(maxsize=4096)
 def _model_labels(layout: _Layout, model: tuple[int, ...]) -> _ModelLabels:
+    columns = tuple(int(c) for t in model for c in layout.columns[t])
+    slope_index = np.array(columns[1:], dtype=int)
+    slope_index.setflags(write=False)
     return _ModelLabels(
-        columns=tuple(int(c) for t in model for c in layout.columns[t]),
+        columns=columns,
+        slope_columns=list(columns[1:]),
+        slope_index=slope_index,
+        slope_rows=slope_index[:, None],
         display=tuple(layout.display[t] for t in model[1:]),
         terms=tuple(layout.terms[t] for t in model),
         column_names=tuple(layout.column_names[c] for t in model for c in layout.columns[t]),

@@ -207,6 +207,22 @@ str or sequence of str
         if max_steps < 0:
             raise ValueError(f"max_steps={max_steps} must be >= 0")
 
+    # floating-point exceptions of the search are expected (0/0 of an exact fit, a column
+    # of NaN): silenced once for the whole fit
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        fit = _fit(
+            X, y, start, upper, lower, criterion, p_enter, p_remove, max_steps, missing, categorical
+        )
+    for message in fit.search_warnings:
+        warnings.warn(message, StepwiseWarning, stacklevel=2)
+    return fit
+
+
+def _fit(
+    X, y, start, upper, lower, criterion, p_enter, p_remove, max_steps, missing, categorical
+) -> StepwiseFit:
+    """The search of :func:`stepwise` with its options checked: data and model
+    specifications checked, numeric predictors centred, the search run."""
     values, encoding = encode(X, categorical)
     names = encoding.names
     response_name = str(y.name) if isinstance(y, pd.Series) and y.name is not None else "y"
@@ -220,26 +236,31 @@ str or sequence of str
     models = _models(upper, start, lower, names, encoding.levels)
     upper_terms, layout = models.upper_terms, models.layout
     used_columns = layout.used_columns
-    valid = np.isfinite(y_values)
-    if not valid.any():
-        raise ValueError(f"response {response_name!r} has no finite value")
-    finite = np.isfinite(values)
-    # complete data (the common case) needs none of the row bookkeeping below
-    complete = bool(valid.all()) and bool(finite.all())
-    usable = True if complete else (finite[:, used_columns] & valid[:, None]).any(axis=0)
-    if not complete and not usable.all():
-        column = used_columns[int(np.argmin(usable))]
-        where = "" if finite[:, column].any() else " (all NaN)"
-        raise ValueError(
-            f"X column {names[column]!r} has no finite value where the response "
-            f"{response_name!r} is finite{where}"
-        )
-    if missing == "complete" and used_columns:
-        valid &= finite[:, used_columns].all(axis=1)
-    if not complete and not valid.all():
-        values = values[valid]
-        y_values = y_values[valid]
-        finite = finite[valid]
+    # complete data (the common case) needs none of the row bookkeeping below; a finite
+    # total means that every value is finite (NaN and inf propagate; a sum that overflows
+    # only takes the longer way)
+    total = float(values.sum()) + float(y_values.sum()) if y_values.shape[0] else math.nan
+    complete = math.isfinite(total)
+    finite = None
+    if not complete:
+        valid = np.isfinite(y_values)
+        if not valid.any():
+            raise ValueError(f"response {response_name!r} has no finite value")
+        finite = np.isfinite(values)
+        usable = (finite[:, used_columns] & valid[:, None]).any(axis=0)
+        if not usable.all():
+            column = used_columns[int(np.argmin(usable))]
+            where = "" if finite[:, column].any() else " (all NaN)"
+            raise ValueError(
+                f"X column {names[column]!r} has no finite value where the response "
+                f"{response_name!r} is finite{where}"
+            )
+        if missing == "complete" and used_columns:
+            valid &= finite[:, used_columns].all(axis=1)
+        if not valid.all():
+            values = values[valid]
+            y_values = y_values[valid]
+            finite = finite[valid]
     n = int(y_values.shape[0])
     start_columns = list(models.start_columns)
     start_rows = (
@@ -260,8 +281,7 @@ str or sequence of str
         # sum / n: the value of block.mean(axis=0) without its overhead
         centres[numeric] = np.nanmean(block, axis=0) if has_missing else block.sum(axis=0) / n
     encoding = encoding.with_centres(centres)
-    with np.errstate(invalid="ignore"):
-        candidates = design_columns(values, upper_terms, encoding, widths=layout.widths)
+    candidates = design_columns(values, upper_terms, encoding, widths=layout.widths)
     search = _Search(
         candidates=candidates,
         y=y_values,
@@ -272,14 +292,8 @@ str or sequence of str
         p_remove=p_remove,
         response_name=response_name,
     )
-    start_index = models.start_index
-    lower_index = models.lower_index
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        search.run(start_index, lower_index, max_steps)
-        fit = search.result(encoding, response_name, missing)
-    for message in fit.search_warnings:
-        warnings.warn(message, StepwiseWarning, stacklevel=2)
-    return fit
+    search.run(models.start_index, models.lower_index, max_steps)
+    return search.result(encoding, response_name, missing)
 
 
 @dataclass(frozen=True, eq=False)
@@ -313,7 +327,7 @@ def _hashable(spec):
 
 def _models(upper, start, lower, names: tuple[str, ...], levels: tuple) -> _Models:
     keys = (_hashable(upper), _hashable(start), _hashable(lower))
-    if any(key is None for key in keys):
+    if None in keys:
         return _check_models(upper, start, lower, names, levels)
     return _cached_models(*keys, names, levels)
 

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 from scipy import special as _special
 
-from ..design import Encoding, column_labels, design_columns
+from ..design import Encoding, column_labels, design_columns, raw_transform
 from ..distributions import t_quantile
 from ..terms import Term
 
@@ -81,8 +81,11 @@ class StepwiseFit:
     on first access. Coefficients are in raw units of the predictors (one row per design
     column: a categorical term has one row per non-reference level, ``Year_76``).
     Standard errors are ``rmse * sqrt(diag((X'X)^-1))`` and p-values two-sided from
-    Student's t with ``dfe`` degrees of freedom. Internally the model is held in the
-    search's centred units (:attr:`search_estimates`), which :meth:`predict` uses.
+    Student's t with ``dfe`` degrees of freedom. The model is held in the search's
+    centred units (:attr:`search_estimates`, :attr:`term_means`,
+    :attr:`slope_covariance`), which :meth:`predict` uses; the raw-unit
+    :attr:`estimates` and :attr:`standard_errors` are computed from them on first access
+    (a sliding forecast that only predicts never needs them).
     """
 
     terms: tuple[str, ...]
@@ -103,18 +106,53 @@ class StepwiseFit:
     aic: float
     bic: float
     model_terms: tuple[Term, ...] = field(repr=False)
-    estimates: np.ndarray = field(repr=False)
-    standard_errors: np.ndarray = field(repr=False)
+    search_estimates: np.ndarray = field(repr=False)
     term_means: np.ndarray = field(repr=False)
     slope_covariance: np.ndarray = field(repr=False)
     step_records: tuple[tuple, ...] = field(repr=False, default=())
     skipped_records: tuple[tuple, ...] = field(repr=False, default=())
     coefficient_names: tuple[str, ...] = field(repr=False, default=())
     coefficient_terms: tuple[Term, ...] = field(repr=False, default=())
-    search_estimates: np.ndarray | None = field(repr=False, default=None)
     encoding: Encoding | None = field(repr=False, default=None)
     missing: str = "candidate"
     search_warnings: tuple[str, ...] = ()
+
+    # ----------------------------------------------------------------- raw units
+    @functools.cached_property
+    def _raw_coefficients(self) -> tuple[np.ndarray, np.ndarray]:
+        """(estimates, standard errors) in raw units from the model in centred units.
+
+        With x̄ the term means and V = (X_cᵀX_c)⁻¹ of the centred slope columns, the
+        covariance of (intercept, slopes) per σ² is [[1/n + x̄ᵀVx̄, -(Vx̄)ᵀ], [-Vx̄, V]];
+        b_raw = A b and Cov_raw = A Cov Aᵀ with A of
+        :func:`~workbench.stats.design.raw_transform`.
+        """
+        covariance = self.slope_covariance
+        term_means = self.term_means
+        m = term_means.shape[0]
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            full = np.empty((m + 1, m + 1))
+            full[0, 0] = 1.0 / self.n_obs + float(term_means @ covariance @ term_means)
+            full[0, 1:] = full[1:, 0] = -(covariance @ term_means)
+            full[1:, 1:] = covariance
+            encoding = self.encoding
+            transform = None if encoding is None else raw_transform(self.model_terms, encoding)
+            if transform is None:  # cannot happen with the hierarchy kept: centred units
+                transform = np.eye(m + 1)
+            estimates = transform @ self.search_estimates
+            raw_covariance = transform @ full @ transform.T
+            standard_errors = self.rmse * np.sqrt(np.maximum(np.diagonal(raw_covariance), 0.0))
+        return estimates, standard_errors
+
+    @property
+    def estimates(self) -> np.ndarray:
+        """Coefficients in raw units, intercept first (one per design column)."""
+        return self._raw_coefficients[0]
+
+    @property
+    def standard_errors(self) -> np.ndarray:
+        """Standard errors of :attr:`estimates`. [units of the coefficients]"""
+        return self._raw_coefficients[1]
 
     # ----------------------------------------------------------------- tables
     @functools.cached_property
@@ -169,7 +207,7 @@ class StepwiseFit:
         """The final model in Wilkinson notation, e.g. ``"y ~ 1 + x1 + x2"``."""
         return f"{self.response_name} ~ " + " + ".join(["1", *self.terms])
 
-    @property
+    @functools.cached_property
     def used_predictors(self) -> tuple[str, ...]:
         """Predictor columns appearing in the final model's terms, in column order."""
         used = sorted({i for term in self.model_terms for i in term})
@@ -181,8 +219,15 @@ class StepwiseFit:
         if encoding is not None and any(encoding.categorical):
             return self._encoded_values(X)
         if isinstance(X, pd.DataFrame):
-            needed = self.used_predictors
             columns = column_labels(X.columns)
+            if columns == self.predictor_names:
+                # the fitted columns in the fitted order (a sliding forecast's windows): the
+                # whole frame as is; columns the model does not use are never read
+                try:
+                    return _to_float(X), X.index
+                except (TypeError, ValueError):
+                    pass  # a column the model does not use is not numeric
+            needed = self.used_predictors
             if not all(type(name) is str for name in columns):
                 columns = [str(name) for name in columns]
             lookup = {name: i for i, name in enumerate(columns)}
@@ -292,8 +337,14 @@ class StepwiseFit:
         if interval == "prediction":
             leverage = leverage + 1.0
         half = t_quantile(1.0 - alpha / 2.0, self.dfe) * self.rmse * np.sqrt(leverage)
+        # one (4, n) block, handed to pandas transposed: its column layout, no copy
+        table = np.empty((4, len(mean)))
+        table[0] = mean
+        np.subtract(mean, half, out=table[1])
+        np.add(mean, half, out=table[2])
+        table[3] = mean_se
         return pd.DataFrame(
-            np.column_stack([mean, mean - half, mean + half, mean_se]),
+            table.T,
             columns=_INTERVAL_COLUMNS,
             index=index if index is not None else pd.RangeIndex(len(mean)),
             copy=False,

@@ -8,7 +8,7 @@ import math
 import numpy as np
 from scipy import special as _special
 
-from ..design import Encoding, raw_transform
+from ..design import Encoding
 from .layout import _eligible_terms, _model_labels, _removable_terms
 from .result import StepwiseFit
 from .sweep import COLLINEARITY_TOLERANCE, _Problem, _problem, _sweep
@@ -98,7 +98,10 @@ class _Search:
         """F, p and score of adding terms with SSE decrease *decrease* and *df* columns."""
         dfe_new = n - k - df
         sse_new = np.maximum(sse - decrease, 0.0)
-        f_stat = (decrease / df) / (sse_new / dfe_new)
+        # decrease / 1.0 is decrease: one division less for one-column candidates
+        f_stat = (decrease if isinstance(df, float) and df == 1.0 else decrease / df) / (
+            sse_new / dfe_new
+        )
         p_value = _f_sf(f_stat, df, dfe_new)
         criterion = self.criterion
         if criterion == "sse":
@@ -417,18 +420,20 @@ class _Search:
             f_stat, p_value, score, value = self._score_add(
                 n, group_k, sse, group_problem.sst, decrease, df
             )
-            j = int(np.argmin(score))  # terms in canonical order: ties go to the first
-            if score[j] != score[j]:  # argmin found a NaN (0/0), which never enters
+            j = int(score.argmin())  # terms in canonical order: ties go to the first
+            best_score = float(score[j])
+            if best_score != best_score:  # argmin found a NaN (0/0), which never enters
                 score = np.where(score != score, np.inf, score)
-                j = int(np.argmin(score))
+                j = int(score.argmin())
+                best_score = float(score[j])
             term = int(terms_array[j])
-            candidate = (float(score[j]), term)
+            candidate = (best_score, term)
             if best is None or candidate < best[0]:
-                change = score[j] if self.criterion in ("aic", "bic") else -score[j]
-                df_j = df if np.ndim(df) == 0 else df[j]
+                change = best_score if self.criterion in ("aic", "bic") else -best_score
+                df_j = df if isinstance(df, float) else df[j]
                 record = self._record(f_stat[j], p_value[j], value[j], change, df_j, n)
                 chosen = [int(self.layout.first_column[term])] if columns is None else columns[j]
-                best = (candidate, term, (float(score[j]), *record), chosen, group_rows[key])
+                best = (candidate, term, (best_score, *record), chosen, group_rows[key])
         if best is None:
             return None
         _, term, record, columns, new_rows = best
@@ -505,45 +510,37 @@ class _Search:
         model = self.model
         labels = _model_labels(layout, tuple(model))
         n = problem.n
-        model_columns = list(labels.columns)
         swept = self._model_columns()
         k = 1 + len(swept)
         dfe = n - k
-        slope_columns = model_columns[1:]  # model_columns[0] is the intercept
+        slope_columns = labels.slope_columns  # labels.columns[0] is the intercept
         m = len(slope_columns)
-        scale = problem.scale[swept]
+        index = labels.slope_index  # slope_columns as an index array (cached per model)
         # back from centred-scaled columns: b = b_z / s, V = (X_cᵀX_c)⁻¹ = V_z / (s sᵀ)
-        swept_slopes = matrix[swept, self.y_slot] / scale
-        swept_covariance = -matrix[swept][:, swept] / np.outer(scale, scale)
         if swept == slope_columns:
-            slopes, covariance = swept_slopes, swept_covariance
+            scale = problem.scale[index]
+            slopes = matrix[index, self.y_slot] / scale
+            covariance = -matrix[labels.slope_rows, index] / (scale[:, None] * scale)
         else:  # columns left out as collinear: estimate 0 (MATLAB's rank-deficient fit)
+            scale = problem.scale[swept]
+            swept_slopes = matrix[swept, self.y_slot] / scale
+            swept_covariance = -matrix[np.ix_(swept, swept)] / (scale[:, None] * scale)
             position = {c: j for j, c in enumerate(slope_columns)}
             swept_position = [position[c] for c in swept]
             slopes = np.zeros(m)
             covariance = np.zeros((m, m))
             slopes[swept_position] = swept_slopes
             covariance[np.ix_(swept_position, swept_position)] = swept_covariance
-        term_means = problem.means[slope_columns]
+        term_means = problem.means[index]
         intercept = problem.y_mean - float(term_means @ slopes)
-        residual = problem.y_centred - problem.centred[:, slope_columns] @ slopes
+        residual = problem.y_centred - problem.centred[:, index] @ slopes
         sse = float(residual @ residual)
         sst = problem.sst
         mse = sse / dfe if dfe > 0 else math.nan
         rmse = math.sqrt(mse) if mse == mse else math.nan
-        # full covariance of (intercept, slopes) in the search's centred units, per σ²
-        full = np.empty((m + 1, m + 1))
-        full[0, 0] = 1.0 / n + float(term_means @ covariance @ term_means)
-        full[0, 1:] = full[1:, 0] = -(covariance @ term_means)
-        full[1:, 1:] = covariance
-        search_estimates = np.concatenate([[intercept], slopes])
-        terms = labels.terms
-        transform = raw_transform(terms, encoding)
-        if transform is None:  # cannot happen with the hierarchy kept; stay in search units
-            transform = np.eye(m + 1)
-        estimates = transform @ search_estimates
-        raw_covariance = transform @ full @ transform.T
-        standard_errors = rmse * np.sqrt(np.maximum(np.diagonal(raw_covariance), 0.0))
+        search_estimates = np.empty(m + 1)
+        search_estimates[0] = intercept
+        search_estimates[1:] = slopes
         r_squared = 1.0 - sse / sst if sst > 0 else math.nan
         adj_r_squared = 1.0 - (sse / dfe) / (sst / (n - 1)) if sst > 0 and dfe > 0 else math.nan
         if k > 1 and dfe > 0 and mse > 0:
@@ -570,16 +567,14 @@ class _Search:
             log_likelihood=float(log_likelihood),
             aic=float(-2.0 * log_likelihood + 2.0 * k),
             bic=float(-2.0 * log_likelihood + math.log(n) * k),
-            model_terms=terms,
-            estimates=estimates,
-            standard_errors=standard_errors,
+            model_terms=labels.terms,
+            search_estimates=search_estimates,
             term_means=term_means,
             slope_covariance=covariance,
             step_records=tuple(self.steps),
             skipped_records=tuple((s, term, reason) for (term, reason), s in self.skipped.items()),
             coefficient_names=labels.column_names,
             coefficient_terms=labels.column_terms,
-            search_estimates=search_estimates,
             encoding=encoding,
             missing=missing,
             search_warnings=tuple(self.warnings),

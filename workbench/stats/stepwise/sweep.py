@@ -22,11 +22,12 @@ def _sweep(matrix: np.ndarray, pivot: int) -> None:
     last column, -(XᵀX)⁻¹ in the pivot block and the residual sum of squares in the corner.
     """
     column = matrix[:, pivot].copy()
-    scaled = column / column[pivot]
-    matrix -= np.outer(column, scaled)
+    pivot_value = column[pivot]
+    scaled = column / pivot_value
+    matrix -= column[:, None] * scaled  # the outer product a aᵀ / d
     matrix[:, pivot] = scaled
     matrix[pivot, :] = scaled
-    matrix[pivot, pivot] = -1.0 / column[pivot]
+    matrix[pivot, pivot] = -1.0 / pivot_value
 
 
 @dataclass
@@ -44,21 +45,25 @@ class _Problem:
 
 
 def _problem(candidates: np.ndarray, y: np.ndarray) -> _Problem:
-    n = y.shape[0]
+    n, m = candidates.shape
     means = candidates.sum(axis=0) / n
     centred = candidates - means
     scale = np.sqrt(np.einsum("ij,ij->j", centred, centred))
     # a column constant up to rounding carries no information beyond the intercept; a
     # column with NaN on these rows is never a candidate here (zeroed)
-    flat = ~(scale > 1e-13 * np.maximum(np.abs(means) * math.sqrt(n), 1e-300))
+    threshold = np.abs(means)
+    threshold *= math.sqrt(n)
+    np.maximum(threshold, 1e-300, out=threshold)
+    threshold *= 1e-13
+    flat = np.logical_not(scale > threshold)
     flat[0] = True  # the intercept is handled by the centring
     scale = np.where(flat, 1.0, scale)
     y_mean = float(y.sum() / n)
-    y_centred = y - y_mean
-    augmented = np.empty((n, candidates.shape[1] + 1))
-    np.divide(centred, scale, out=augmented[:, :-1])
-    augmented[:, :-1][:, flat] = 0.0
-    augmented[:, -1] = y_centred
+    augmented = np.empty((n, m + 1))
+    y_centred = np.subtract(y, y_mean, out=augmented[:, m])
+    np.divide(centred, scale, out=augmented[:, :m])
+    if flat[1:].any():  # column 0, the intercept's, is 0 already (1 - 1)
+        augmented[:, :m][:, flat] = 0.0
     cross = augmented.T @ augmented
     sst = float(cross[-1, -1])
     return _Problem(n, centred, means, scale, y_mean, y_centred, sst, cross)
