@@ -41,25 +41,35 @@ the caller.
 from __future__ import annotations
 
 import copy
+import json
 import math
+import os
 import warnings
 from collections import Counter, deque
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from .excitation import sub_windows_per_block, within_block_profile
 from .innovation_consistency import MIN_BLOCKS, InnovationConsistency
+from .memory import MemoryModel
 from .memory_excitation import ExcitationBias
 from .memory_kalman import kalman_pass_step, stationary_covariance
 from .memory_noise import filter_matrices, first_window_noise, update_run
 from .memory_output import OUTPUT_ARRAYS
 from .memory_terms import MemoryRefits
 from .model_trust import ModelTrust
-from .noise import estimate_noise, model_error_floor
+from .noise import NoiseModel, estimate_noise, model_error_floor
 from .options import ModelOptions, NoiseOptions
 
-__all__ = ["CHECKPOINT_SCHEMA", "IncrementalMemoryForecast", "NeedsFullHistory"]
+__all__ = [
+    "CHECKPOINT_SCHEMA",
+    "IncrementalMemoryForecast",
+    "NeedsFullHistory",
+    "load_state",
+    "save_state",
+]
 
 #: ``schema`` of the checkpoint's JSON part (:meth:`IncrementalMemoryForecast.save`).
 CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/1"
@@ -251,6 +261,41 @@ class IncrementalMemoryForecast:
         if len(table):
             table = table.sort_values(["block", "mode"], kind="stable").reset_index(drop=True)
         return table, self._messages(core)
+
+    # ------------------------------------------------------------------ checkpoint
+    def checkpoint(self) -> dict | None:
+        """The state to resume from (the newest committed window's), or None before the
+        first committed window. The committed output rows are not in it: the caller keeps
+        them (the forecast table's rows before :attr:`inputs_from`)."""
+        if not self._snapshots:
+            return None
+        block, core, _ = self._snapshots[-1]
+        return {"block": int(block), "first_block": self._first_block, "core": core}
+
+    def resume(self, checkpoint: dict, committed: pd.DataFrame) -> None:
+        """Take up *checkpoint* (:meth:`checkpoint`) with *committed*, the forecast table's
+        rows of the blocks before the checkpoint's block.
+
+        Raises
+        ------
+        ValueError
+            When *committed* does not end at the checkpoint's block.
+        """
+        block, core = int(checkpoint["block"]), checkpoint["core"]
+        if not isinstance(core, _Core):
+            raise ValueError("checkpoint without a forecast state")
+        committed = committed[committed["block"] < block]
+        if len(committed) and int(committed["block"].max()) != block - 1:
+            raise ValueError(
+                f"the forecast table ends at block {int(committed['block'].max())}, the "
+                f"checkpoint at block {block}"
+            )
+        self.reset()
+        self._point(core)
+        self._first_block = int(checkpoint["first_block"])
+        self._core = core
+        self._snapshots.append((block, copy.deepcopy(core), 0))
+        self._old = [committed.reset_index(drop=True)] if len(committed) else []
 
     def _messages(self, core) -> list[str]:
         notes = Counter(core.notes)
@@ -824,3 +869,163 @@ def _same(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     if np.issubdtype(np.asarray(a).dtype, np.floating):
         equal |= np.isnan(a) & np.isnan(b)
     return equal
+
+
+# --------------------------------------------------------------------------- checkpoint
+def _classes() -> dict[str, type]:
+    """The classes a checkpoint may hold (nothing else is ever constructed from one)."""
+    from .options import ModelOptions, NoiseOptions
+
+    return {
+        cls.__name__: cls
+        for cls in (
+            _Core,
+            MemoryModel,
+            NoiseModel,
+            MemoryRefits,
+            ExcitationBias,
+            InnovationConsistency,
+            ModelTrust,
+            ModelOptions,
+            NoiseOptions,
+        )
+    }
+
+
+class _Encoder:
+    """Plain JSON for the state's Python objects, ``.npy`` entries for its arrays (shared
+    arrays stored once and shared again when read)."""
+
+    def __init__(self) -> None:
+        self.arrays: dict[str, np.ndarray] = {}
+        self._seen: dict[int, str] = {}
+        self._classes = _classes()
+
+    def encode(self, value):
+        if value is None or isinstance(value, bool | str):
+            return value
+        if isinstance(value, int | np.integer):
+            return int(value)
+        if isinstance(value, float | np.floating):
+            value = float(value)
+            return value if math.isfinite(value) else {"float": repr(value)}
+        if isinstance(value, np.ndarray):
+            if value.dtype == object:
+                if not all(isinstance(v, pd.Timestamp) for v in value.ravel()):
+                    raise TypeError("object arrays other than of times are not stored")
+                # block starts (tz-aware, as the batch forecast holds them)
+                return {"times": [v.isoformat() for v in value.ravel()], "shape": value.shape}
+            key = self._seen.get(id(value))
+            if key is None:
+                key = self._seen[id(value)] = f"a{len(self.arrays)}"
+                self.arrays[key] = value
+            return {"array": key}
+        if isinstance(value, pd.Timestamp):
+            return {"time": value.isoformat()}
+        if isinstance(value, Counter):
+            return {"counter": [[k, int(n)] for k, n in value.items()]}
+        if isinstance(value, tuple):
+            return {"tuple": [self.encode(v) for v in value]}
+        if isinstance(value, list):
+            return [self.encode(v) for v in value]
+        if isinstance(value, dict):
+            return {"dict": [[self.encode(k), self.encode(v)] for k, v in value.items()]}
+        name = type(value).__name__
+        if self._classes.get(name) is type(value):
+            state = vars(value)  # every stored class keeps its fields in __dict__
+            return {"object": name, "state": {k: self.encode(v) for k, v in state.items()}}
+        raise TypeError(f"{name} is not stored in a checkpoint")
+
+
+class _Decoder:
+    def __init__(self, arrays) -> None:
+        self.arrays = arrays
+        self._loaded: dict[str, np.ndarray] = {}
+        self._classes = _classes()
+
+    def decode(self, value):
+        if isinstance(value, list):
+            return [self.decode(v) for v in value]
+        if not isinstance(value, dict):
+            return value
+        if "float" in value:
+            return float(value["float"])
+        if "times" in value:
+            times = np.empty(len(value["times"]), dtype=object)
+            times[:] = [pd.Timestamp(str(t)) for t in value["times"]]
+            return times.reshape(tuple(value["shape"]))
+        if "time" in value:
+            return pd.Timestamp(str(value["time"]))
+        if "array" in value:
+            key = str(value["array"])
+            if key not in self._loaded:
+                self._loaded[key] = np.array(self.arrays[key])
+            return self._loaded[key]
+        if "counter" in value:
+            return Counter({str(k): int(n) for k, n in value["counter"]})
+        if "tuple" in value:
+            return tuple(self.decode(v) for v in value["tuple"])
+        if "dict" in value:
+            return {_hashable(self.decode(k)): self.decode(v) for k, v in value["dict"]}
+        if "object" in value:
+            cls = self._classes.get(str(value["object"]))
+            if cls is None:
+                raise ValueError(f"class {value['object']!r} is not stored in a checkpoint")
+            obj = cls.__new__(cls)
+            for name, item in value["state"].items():
+                object.__setattr__(obj, str(name), self.decode(item))
+            return obj
+        raise ValueError(f"unreadable checkpoint entry {sorted(value)}")
+
+
+def _hashable(key):
+    return tuple(_hashable(k) for k in key) if isinstance(key, list | tuple) else key
+
+
+def save_state(path: str | os.PathLike, payload: dict) -> None:
+    """Write *payload* (JSON types, the state's objects and arrays) to *path* (``.json``)
+    and its arrays beside it (``.npz``), each atomically; the JSON names the arrays' file
+    and is written last, so a reader never pairs a JSON with another write's arrays."""
+    from data_contracts import atomic_path
+
+    path = Path(path)
+    encoder = _Encoder()
+    document = {"schema": CHECKPOINT_SCHEMA, "state": encoder.encode(payload)}
+    arrays = path.with_name(f"{path.stem}.{os.getpid()}.{id(document)}.npz")
+    with atomic_path(arrays) as tmp:
+        with open(tmp, "wb") as handle:
+            np.savez(handle, **encoder.arrays)
+    document["arrays"] = arrays.name
+    previous = _arrays_file(path)
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(document), encoding="utf-8")
+    if previous is not None and previous != arrays and previous.exists():
+        previous.unlink()
+
+
+def _arrays_file(path: Path) -> Path | None:
+    try:
+        name = json.loads(path.read_text(encoding="utf-8"))["arrays"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return path.with_name(Path(str(name)).name)
+
+
+def load_state(path: str | os.PathLike) -> dict:
+    """The payload :func:`save_state` wrote to *path*.
+
+    Raises
+    ------
+    ValueError
+        When *path* or its arrays are unreadable or of another schema (one line).
+    """
+    path = Path(path)
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+        if document.get("schema") != CHECKPOINT_SCHEMA:
+            raise ValueError(f"schema {document.get('schema')!r}, expected {CHECKPOINT_SCHEMA!r}")
+        arrays_path = path.with_name(Path(str(document["arrays"])).name)
+        with np.load(arrays_path, allow_pickle=False) as arrays:
+            return _Decoder(arrays).decode(document["state"])
+    except (OSError, KeyError, TypeError, AttributeError, ValueError) as error:
+        raise ValueError(f"{path}: unreadable checkpoint ({error})") from None

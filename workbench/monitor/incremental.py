@@ -38,8 +38,10 @@ from __future__ import annotations
 import copy
 import math
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
+from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from data_contracts import ALARMS, FORECAST, HEALTH, recorded_grid, set_grid
@@ -195,6 +197,88 @@ class IncrementalOutlook:
         health, alarms, notes = self._health(tracked, predictors, first_block, final_through)
         messages += notes
         return OutlookTables(forecast, health, alarms, messages, notes[0] if notes else "")
+
+    # ------------------------------------------------------------------ checkpoint
+    def _key(self) -> tuple:
+        checkpoint = self.forecast.checkpoint()
+        return (None if checkpoint is None else checkpoint["block"], self._charted_through)
+
+    def save(self, folder) -> bool:
+        """Write the state to resume from into *folder* (``outlook.json`` and its arrays),
+        when it moved since the last save; True when written."""
+        from ..forecasting.incremental import save_state
+
+        key = self._key()
+        if key == getattr(self, "_saved_key", None):
+            return False
+        health = None
+        if self._model is not None:
+            health = {
+                "model": {f.name: getattr(self._model, f.name) for f in fields(self._model)},
+                "model_notes": list(self._model_notes),
+                "has_fuel": bool(self._has_fuel),
+                "reference_design": np.asarray(self._reference_design, dtype=float),
+                "options": {f.name: getattr(self._options, f.name) for f in fields(self._options)},
+                "monitor": self._monitor.state(),
+                "charted_through": self._charted_through,
+                "alarms": dict(self._alarms),
+                "first_block": self._first_block,
+            }
+        payload = {
+            "settings": repr(self.settings),
+            "step_s": self.step_s,
+            "modes": None if self._modes is None else list(self._modes),
+            "restarts": self.restarts,
+            "forecast": self.forecast.checkpoint(),
+            "health": health,
+        }
+        Path(folder).mkdir(parents=True, exist_ok=True)
+        save_state(Path(folder) / "outlook.json", payload)
+        self._saved_key = key
+        return True
+
+    @classmethod
+    def load(cls, folder, settings, step_s: float, *, forecast: pd.DataFrame, health: pd.DataFrame):
+        """The outlook saved in *folder* (:meth:`save`), with the state folder's current
+        *forecast* and *health* tables (their committed rows are taken up).
+
+        Raises
+        ------
+        ValueError
+            When there is none, it is unreadable, or it was saved with other settings.
+        """
+        from ..forecasting.incremental import load_state
+        from ..shm import HealthOptions
+        from ..shm.model import OperationalModel
+        from ..shm.monitor import HealthMonitor
+
+        path = Path(folder) / "outlook.json"
+        if not path.is_file():
+            raise ValueError(f"{path}: no saved outlook")
+        payload = load_state(path)
+        if payload.get("settings") != repr(settings) or payload.get("step_s") != float(step_s):
+            raise ValueError(f"{path}: saved with other forecast/health settings")
+        outlook = cls(settings, step_s)
+        if payload["forecast"] is not None:
+            outlook.forecast.resume(payload["forecast"], forecast)
+            outlook._modes = tuple(int(m) for m in payload["modes"])
+        outlook.restarts = int(payload["restarts"])
+        saved = payload["health"]
+        if saved is not None:
+            outlook._model = OperationalModel(**saved["model"])
+            outlook._model_notes = list(saved["model_notes"])
+            outlook._has_fuel = bool(saved["has_fuel"])
+            outlook._reference_design = saved["reference_design"]
+            outlook._options = HealthOptions(**saved["options"])
+            outlook._monitor = HealthMonitor.from_state(saved["monitor"])
+            outlook._charted_through = saved["charted_through"]
+            outlook._alarms = {int(k): v for k, v in saved["alarms"].items()}
+            outlook._first_block = saved["first_block"]
+            if outlook._charted_through is not None and len(health):
+                done = health[health["block"] <= outlook._charted_through]
+                outlook._health_rows = [done.reset_index(drop=True)] if len(done) else []
+        outlook._saved_key = outlook._key()
+        return outlook
 
     # ------------------------------------------------------------------ health
     def _health(self, tracked, predictors, first_block, final_through):
