@@ -194,7 +194,14 @@ class IncrementalOutlook:
                 "forecast: no mode is measured in at least "
                 f"{100 * settings.min_presence:.0f} % of the blocks"
             )
-        health, alarms, notes = self._health(tracked, predictors, first_block, final_through)
+        try:
+            health, alarms, notes = self._health(tracked, predictors, first_block, final_through)
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError) as error:
+            # as update_outlook says it; the model is fitted again at the next update
+            self._reset_health()
+            return OutlookTables(
+                forecast, None, None, [*messages, f"health: {str(error).splitlines()[0]}"]
+            )
         messages += notes
         return OutlookTables(forecast, health, alarms, messages, notes[0] if notes else "")
 
