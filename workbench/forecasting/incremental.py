@@ -257,9 +257,8 @@ class IncrementalMemoryForecast:
                 provisional.append(chunk)
         self._core = core
         pieces = [*self._old, *(c for _, c in self._chunks), *provisional]
+        # each piece is sorted by (block, mode) and follows the one before: no sort needed
         table = pd.concat(pieces, ignore_index=True) if pieces else pd.DataFrame()
-        if len(table):
-            table = table.sort_values(["block", "mode"], kind="stable").reset_index(drop=True)
         return table, self._messages(core)
 
     # ------------------------------------------------------------------ checkpoint
@@ -285,7 +284,9 @@ class IncrementalMemoryForecast:
         if not isinstance(core, _Core):
             raise ValueError("checkpoint without a forecast state")
         committed = committed[committed["block"] < block]
-        if len(committed) and int(committed["block"].max()) != block - 1:
+        if not len(committed):
+            raise ValueError(f"the forecast table has no rows before block {block}")
+        if int(committed["block"].max()) != block - 1:
             raise ValueError(
                 f"the forecast table ends at block {int(committed['block'].max())}, the "
                 f"checkpoint at block {block}"
@@ -295,7 +296,7 @@ class IncrementalMemoryForecast:
         self._first_block = int(checkpoint["first_block"])
         self._core = core
         self._snapshots.append((block, copy.deepcopy(core), 0))
-        self._old = [committed.reset_index(drop=True)] if len(committed) else []
+        self._old = [committed.reset_index(drop=True)]
 
     def _messages(self, core) -> list[str]:
         notes = Counter(core.notes)
@@ -839,7 +840,8 @@ class IncrementalMemoryForecast:
         found, modes = np.nonzero(phase)
         order = np.lexsort((blocks[found], core.mode_labels[modes]))
         table["model_probability"] = out["probability"][found, modes][order]
-        return table
+        # the forecast stage's order: by block, then mode
+        return table.sort_values(["block", "mode"], kind="stable").reset_index(drop=True)
 
 
 class SimpleInputs:

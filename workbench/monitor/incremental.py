@@ -281,9 +281,11 @@ class IncrementalOutlook:
             outlook._charted_through = saved["charted_through"]
             outlook._alarms = {int(k): v for k, v in saved["alarms"].items()}
             outlook._first_block = saved["first_block"]
-            if outlook._charted_through is not None and len(health):
+            if outlook._monitor.reference is not None:  # rows charted for good: in the table
                 done = health[health["block"] <= outlook._charted_through]
-                outlook._health_rows = [done.reset_index(drop=True)] if len(done) else []
+                if not len(done):
+                    raise ValueError(f"{path}: the health table lacks the charted blocks")
+                outlook._health_rows = [done.reset_index(drop=True)]
         outlook._saved_key = outlook._key()
         return outlook
 
