@@ -81,9 +81,9 @@ class Replay:
 
     def update(self, last: int) -> dict[str, float]:
         """Blocks up to *last* landed: write the tracked table, then one worker update."""
-        from data_contracts import ALARMS, FORECAST, HEALTH, MODAL, read_table, write_table
+        from data_contracts import ALARMS, FORECAST, HEALTH, MODAL, write_table
         from workbench.monitor.incremental import NeedsFullHistory
-        from workbench.monitor.outlook import empty_table
+        from workbench.monitor.outlook import empty_table, read_tracked
 
         times = {}
         wall, cpu = time.perf_counter(), time.process_time()
@@ -91,7 +91,7 @@ class Replay:
         write_table(self.tracked.iloc[:stop], self.state / "tracked.parquet", MODAL)
         times["tracked_written_s"] = time.perf_counter() - wall
         started, cpu_update = time.perf_counter(), time.process_time()
-        tracked = read_table(self.state / "tracked.parquet", MODAL)
+        tracked = read_tracked(self.state / "tracked.parquet")
         part = self.predictors[self.predictors["block"] <= last]
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -125,6 +125,86 @@ class Replay:
         return times
 
 
+def _tracking_costs(tracked: pd.DataFrame, days: list[int], sample: int) -> list[str]:
+    """The monitor process's own per-block work (tracking the block, the tracked table
+    rebuilt and written, the data-health table written) at the last blocks of *days*.
+
+    The selected modes are the simulated tracked rows with cosine mode shapes on 8
+    channels (1 % noise), so the tracker follows the same modes."""
+    from data_contracts import MODAL, shapes_to_frame, write_table
+    from workbench.monitor.data_health import write_data_health
+    from workbench.monitor.tracking import IncrementalTracking
+    from workbench.sid.tracking import TrackingOptions
+
+    rng = np.random.default_rng(1)
+    channels = [f"c{k:02d}" for k in range(8)]
+    x = (np.arange(8) + 0.5) / 8
+    shapes = np.array([np.cos(m * np.pi * x) for m in tracked["mode"].to_numpy()]).astype(complex)
+    shapes += 0.01 * (rng.normal(size=shapes.shape) + 1j * rng.normal(size=shapes.shape))
+    selected = pd.concat(
+        [
+            tracked[["block", "block_start", "block_end", "frequency_hz", "damping_ratio"]]
+            .assign(model_order=40)
+            .reset_index(drop=True),
+            shapes_to_frame(channels, shapes),
+        ],
+        axis=1,
+    )
+    parts = dict(tuple(selected.groupby("block", sort=True)))
+    ends = {min(d * BLOCKS_PER_DAY, int(tracked["block"].max()) + 1) - 1: d for d in days}
+    timed: dict[int, list[tuple[float, float, float]]] = {d: [] for d in days}
+    tracking = IncrementalTracking(TrackingOptions())
+    rows: list[dict] = []
+    root = Path(tempfile.mkdtemp(prefix="bench_tracking_"))
+    try:
+        done: set[int] = set()
+        for block in range(int(tracked["block"].max()) + 1):
+            day = next((d for end, d in ends.items() if end - sample < block <= end), None)
+            started = time.perf_counter()
+            if block in parts:
+                tracking.add(block, parts[block])
+            done.add(block)
+            tracking.advance(done)
+            advanced = time.perf_counter()
+            rows.append(
+                {
+                    "block": block,
+                    "block_start": pd.Timestamp("2026-01-01T00:00Z")
+                    + pd.Timedelta(seconds=STEP_S * block),
+                    "n_channels": 8,
+                    "dropped_channels": "",
+                    "gap_seconds": 0.0,
+                    "last_file_landed": pd.Timestamp("2026-01-01T00:00Z"),
+                    "identified_at": pd.Timestamp("2026-01-01T00:00Z"),
+                    "latency_s": 1.0,
+                    "status": "ok",
+                    "reason": "",
+                }
+            )
+            if day is None:
+                continue
+            table = tracking.table()
+            write_table(table, root / "tracked.parquet", MODAL)
+            written = time.perf_counter()
+            write_data_health(rows, root / "data_health.parquet")
+            timed[day].append(
+                (advanced - started, written - advanced, time.perf_counter() - written)
+            )
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+    lines = [
+        "monitor process per block (tracker fed, tracked table rebuilt + written, "
+        "data_health written), median seconds over the day's last blocks:"
+    ]
+    for day in days:
+        a, b, c = np.median(np.array(timed[day]), axis=0)
+        lines.append(
+            f"  day {day:3d}: tracker {a:.3f}, tracked table rebuilt + written {b:.3f}, "
+            f"data_health written {c:.3f}, total {a + b + c:.3f}"
+        )
+    return lines
+
+
 def _before(tracked, predictors, last: int) -> tuple[float, float]:
     """Wall and CPU seconds of the update as it was: both stages over the whole tables."""
     from workbench.monitor.outlook import ForecastSettings, forecast_table
@@ -150,6 +230,12 @@ def main() -> None:
     parser.add_argument("--days", default="1,10,25,51", help="days whose last blocks are timed")
     parser.add_argument("--before-days", default="1,10", help="days the old update is timed at")
     parser.add_argument("--no-check", action="store_true", help="skip the batch comparison")
+    parser.add_argument(
+        "--tracking", action="store_true", help="also time the monitor process's own work"
+    )
+    parser.add_argument(
+        "--tracking-only", action="store_true", help="time only the monitor process's work"
+    )
     parser.add_argument("--out", type=Path, help="report file")
     args = parser.parse_args()
     out = args.out or Path(__file__).parent / "results" / "monitor_constant_cost.txt"
@@ -165,6 +251,12 @@ def main() -> None:
         "health model 12 h + 6 h reference, CUSUM)",
     ]
     days = [int(d) for d in args.days.split(",")]
+    if args.tracking or args.tracking_only:
+        lines += _tracking_costs(tracked, days, args.sample)
+        print("\n".join(lines), flush=True)
+        if args.tracking_only:
+            out.write_text("\n".join(lines) + "\n", encoding="utf-8")
+            return
     ends = {d: min(d * BLOCKS_PER_DAY, args.blocks) - 1 for d in days}
     root = Path(tempfile.mkdtemp(prefix="bench_monitor_blocks_"))
     try:

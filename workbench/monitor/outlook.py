@@ -382,7 +382,11 @@ def _incremental_outlook(
 
     forecast, health, alarms = empty_table(FORECAST), empty_table(HEALTH), empty_table(ALARMS)
     tracked_path = state / "tracked.parquet"
-    tracked = read_table(tracked_path, MODAL) if tracked_path.is_file() else empty_table(MODAL)
+    try:
+        tracked = read_tracked(tracked_path) if tracked_path.is_file() else empty_table(MODAL)
+    except (ValueError, OSError) as error:  # ContractError is a ValueError
+        report.messages.append(f"forecast: {str(error).splitlines()[0]}")
+        tracked = empty_table(MODAL)
     report.n_blocks = int(tracked["block"].nunique()) if len(tracked) else 0
     folder = state / "outlook"
     outlook = _OUTLOOKS.get(str(state))
@@ -455,6 +459,36 @@ def _incremental_outlook(
         outlook.save(folder)
     except (OSError, TypeError, ValueError) as error:
         report.messages.append(f"forecast: state not saved ({error}); a restart computes it again")
+
+
+#: The tracked table's columns the forecast and the health chart read.
+TRACKED_COLUMNS = (
+    "block",
+    "block_start",
+    "block_end",
+    "mode",
+    "frequency_hz",
+    "damping_ratio",
+    "combined_frequency_std_hz",
+)
+
+
+def read_tracked(path: Path) -> pd.DataFrame:
+    """``tracked.parquet`` with the columns the forecast and the chart read
+    (:data:`TRACKED_COLUMNS`; not the mode shapes, two per channel), validated (MODAL)
+    and with its block grid."""
+    import pyarrow.parquet as pq
+
+    from data_contracts import grid as _grid
+
+    try:
+        names = set(pq.read_schema(path).names)
+        frame = pd.read_parquet(path, columns=[c for c in TRACKED_COLUMNS if c in names])
+    except Exception as error:  # noqa: BLE001 - pyarrow raises many types for a bad file
+        raise ValueError(f"{path}: cannot read ({str(error).splitlines()[0]})") from None
+    frame.attrs.pop(_grid.GRID_ATTR, None)
+    table = MODAL.validate(frame, source=path)
+    return _grid.attach_grid(table, _grid.read_grid(path, "parquet"), path)
 
 
 def _read_or_empty(path: Path, contract) -> pd.DataFrame:
