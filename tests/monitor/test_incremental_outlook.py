@@ -159,3 +159,42 @@ def test_settings_carried_or_batch():
     assert not supported(ForecastSettings(health_model="forecast"))
     with pytest.raises(ValueError, match="batch"):
         IncrementalOutlook(ForecastSettings(scheme=1), STEP_S)
+
+
+def test_update_outlook_takes_up_the_saved_state_after_a_restart(
+    voyage, batch, tmp_path, monkeypatch
+):
+    """``update_outlook`` (the monitor's worker) over a state folder, stopped and started
+    again: the second process takes up ``<state>/outlook/`` and the forecast equals the
+    batch ``workbench forecast`` of the whole tracked table."""
+    from data_contracts import write_table
+    from workbench.blocks import BlockGrid
+    from workbench.monitor import outlook as worker
+    from workbench.monitor.outlook import update_outlook
+
+    monkeypatch.setattr(worker, "FINAL_AFTER_S", 0.0)  # a 1.5-h log: commit what it covers
+    loads = []
+    real_load = IncrementalOutlook.load.__func__
+
+    def counted(cls, *args, **kwargs):
+        outlook = real_load(cls, *args, **kwargs)
+        loads.append(outlook.forecast.inputs_from)  # where the loaded state resumes
+        return outlook
+
+    monkeypatch.setattr(IncrementalOutlook, "load", classmethod(counted))
+    tracked = MODAL.validate(batch["tracked"])
+    first = tracked[tracked["block"] == tracked["block"].min()].iloc[0]
+    length = (first["block_end"] - first["block_start"]).total_seconds()
+    grid = BlockGrid(first["block_start"], length, 300.0)
+    settings = ForecastSettings(train_blocks=6)
+    state = tmp_path / "state"
+    state.mkdir()
+    for last in (12, int(tracked["block"].max())):  # a restart between the two
+        worker._OUTLOOKS.clear()
+        write_table(tracked[tracked["block"] <= last], state / "tracked.parquet", MODAL)
+        report = update_outlook(state, voyage / "dship.tsv", settings, grid)
+        assert report.written and report.forecast_rows > 0
+    # the saved state taken up: the forecast resumed from its newest committed window
+    assert len(loads) == 1 and loads[0] is not None and loads[0] > 6
+    forecast = pd.read_parquet(state / "forecast.parquet")
+    pd.testing.assert_frame_equal(forecast, batch["forecast"], rtol=1e-9)
