@@ -131,7 +131,8 @@ class IncrementalMemoryForecast:
             raise ValueError(f"horizon={horizon} must be >= 1")
         if self.n_snapshots < 1:
             raise ValueError(f"snapshots={snapshots} must be >= 1")
-        self.restarts = 0  # starts from the first block (not counting the first one)
+        self.restarts = 0  # starts from the first block after a committed window
+        self._committed = False
         self.rollbacks = 0  # returns to an earlier committed window
         self.reset()
 
@@ -234,7 +235,8 @@ class IncrementalMemoryForecast:
                 raise NeedsFullHistory(
                     f"the state starts over: the tables must start at block {self._first_block}"
                 )
-            restarted = bool(self._snapshots)
+            # a start over once a window was committed (before: every update starts at 0)
+            restarted = self._committed
             self.reset()
             self.restarts += restarted
             core = self._start(new)
@@ -296,6 +298,7 @@ class IncrementalMemoryForecast:
         self._first_block = int(checkpoint["first_block"])
         self._core = core
         self._snapshots.append((block, copy.deepcopy(core), 0))
+        self._committed = True
         self._old = [committed.reset_index(drop=True)]
 
     def _messages(self, core) -> list[str]:
@@ -565,6 +568,7 @@ class IncrementalMemoryForecast:
         self._snapshots.append(
             (int(core.base_block + core.i0), copy.deepcopy(core), len(self._chunks))
         )
+        self._committed = True
         while len(self._snapshots) > self.n_snapshots:
             self._snapshots.popleft()
             # the output of windows before the oldest copy can no longer change
