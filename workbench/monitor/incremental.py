@@ -53,6 +53,8 @@ __all__ = ["HEALTH_LAG_BLOCKS", "IncrementalOutlook", "NeedsFullHistory", "Outlo
 #: The newest blocks charted again at every update (their tracked rows may still change:
 #: the tracker confirms a new mode up to ``confirm_within`` = 3 blocks back). [blocks]
 HEALTH_LAG_BLOCKS = 4
+#: The state is saved when the committed blocks moved this far since the last save. [blocks]
+SAVE_EVERY_BLOCKS = 12
 
 
 @dataclass
@@ -212,11 +214,18 @@ class IncrementalOutlook:
 
     def save(self, folder) -> bool:
         """Write the state to resume from into *folder* (``outlook.json`` and its arrays),
-        when it moved since the last save; True when written."""
+        when the committed blocks moved :data:`SAVE_EVERY_BLOCKS` since the last save (the
+        first time: always); True when written."""
         from ..forecasting.incremental import save_state
 
         key = self._key()
-        if key == getattr(self, "_saved_key", None):
+        saved = getattr(self, "_saved_key", None)
+        if saved is not None and key != saved and None not in key and None not in saved:
+            # at most every SAVE_EVERY_BLOCKS committed blocks: the state holds an open alarm
+            # episode's residuals, which grow with it; a restart redoes the blocks since
+            if max(k - s for k, s in zip(key, saved, strict=True)) < SAVE_EVERY_BLOCKS:
+                return False
+        if key == saved:
             return False
         health = None
         if self._model is not None:
@@ -376,6 +385,8 @@ class IncrementalOutlook:
             update = self._monitor.update(done)
             if len(update.health):
                 self._health_rows.append(update.health)
+                if len(self._health_rows) > 8:  # one frame, not one per update
+                    self._health_rows = [pd.concat(self._health_rows, ignore_index=True)]
             for row in update.alarms.to_dict("records"):
                 self._alarms[int(row["alarm"])] = row
             self._charted_through = int(done["block"].max())
