@@ -8,7 +8,14 @@ the measurements of at most the last ``history_limit`` = 6 x ``memory_blocks`` b
 are shorter). :class:`IncrementalMemoryForecast` keeps that state between calls: a call
 with a few more blocks runs only the windows they complete, so its cost does not grow with
 the voyage, and the table it returns equals the batch forecast's over the same tables to
-round-off (``tests/forecast/test_incremental.py``).
+round-off (``tests/monitor/test_incremental_outlook.py``, and over a 51-day replay in
+``benchmarks/bench_monitor_blocks.py``).
+
+:meth:`IncrementalMemoryForecast._window` is a copy of the option-A path of
+:func:`~workbench.forecasting.blend.memory_forecast`'s window loop (the same helpers, the
+same order of operations): a change there must be made here too, and the equality tests
+above fail until it is. One copy would be better (``memory_forecast`` run as this class fed
+once); left for after the forecasting package's restructuring.
 
 Why the history is carried as rows and not as discounted cross-product sums (recursive
 least squares): every refit z-scores the candidate predictors with the mean and standard
