@@ -58,6 +58,10 @@ half-written file::
                                  the day's key indicators for the shore, per mode
                                  (workbench.monitor.shore.write_daily_indicators)
     <state>/alarm_hook.json      the alarm episodes handed to --on-alarm (by first block)
+    <state>/outlook/             the forecast's and health chart's state after the newest
+                                 committed blocks (outlook.json and its .npz arrays, no
+                                 pickle; :class:`~workbench.monitor.incremental.
+                                 IncrementalOutlook`): each update runs only the new blocks
     <state>/store/               the per-block store (:class:`~workbench.store.BlockStore`,
                                  the same layout and parameters as ``workbench identify``'s)
 
@@ -126,7 +130,9 @@ A block is stored (with its data-health row) before the state files mention it, 
 batch of the store, so killing the monitor at any moment (``kill -9`` included) and
 starting it again loses no block and repeats none: the store says which blocks are done,
 the tracker is replayed from their stored modes (the labels shown before the restart come
-back on the same modes: ``labels.json`` is checked), and the forecast is recomputed.
+back on the same modes: ``labels.json`` is checked), and the forecast and health chart go on
+from the state saved in ``outlook/`` (computed again from the first block when it is
+missing, unreadable or of other settings).
 """
 
 from .core import DATA_HEALTH_COLUMNS, Monitor, MonitorOptions

@@ -8,10 +8,12 @@ blocks (:func:`~workbench.predictors.block_predictors`), modes measured in fewer
 ``min_presence`` of the blocks are left out, and :func:`~workbench.forecasting.sliding_forecast`
 runs over the whole table for each measurement option.
 
-The forecast is recomputed over the whole table (not resumed from the last Kalman state):
-the modes kept depend on the presence over all blocks, and the newest block's predictors
-change while the ship log grows. Recomputing is exact by construction; its cost grows with the table
-(measured in ``benchmarks/bench_monitor.py``) and it runs in a background process, so it
+With the default settings (memory model, rolling scheme, option A, the operational
+model's health chart) the forecast and the chart are resumed from update to update
+(:class:`~workbench.monitor.incremental.IncrementalOutlook`, its state saved in
+``<state>/outlook/``), at a cost that does not grow with the voyage and with the batch
+tables; other settings are recomputed over the whole table at every update, exact by
+construction at a cost growing with the table. Either runs in a background process, so it
 never delays the identification of the next block.
 """
 
@@ -185,16 +187,24 @@ def _ship_log(path: Path, mapping: Mapping[str, str] | None) -> pd.DataFrame:
 
 
 def block_predictors_of(
-    tracked: pd.DataFrame, dship: Path, grid, settings: ForecastSettings
+    tracked: pd.DataFrame,
+    dship: Path,
+    grid,
+    settings: ForecastSettings,
+    from_block: int | None = None,
 ) -> pd.DataFrame:
     """The ship log averaged onto the blocks first..last of *tracked* (as ``workbench
-    forecast --dship`` does), with the optional predictors (fuel on board) the log has."""
+    forecast --dship`` does), with the optional predictors (fuel on board) the log has;
+    with *from_block*, only the blocks from it on (each block's values are those of the
+    whole table)."""
     from data_contracts import CANONICAL_PREDICTORS, OPTIONAL_PREDICTORS
 
     from ..predictors import block_predictors
 
     log = _ship_log(Path(dship), dict(settings.dship_mapping))
     first, last = int(tracked["block"].min()), int(tracked["block"].max())
+    if from_block is not None:
+        first = max(first, int(from_block))
     table = block_predictors(log, grid=grid, blocks=np.arange(first, last + 1), min_coverage=0.5)
     table = PREDICTORS.validate(table)
     if settings.all_predictors:
@@ -273,6 +283,13 @@ def update_outlook(
     started, cpu = time.perf_counter(), time.process_time()
     state = Path(state)
     report = OutlookReport()
+    from .incremental import supported
+
+    if dship is not None and supported(settings):
+        _incremental_outlook(state, Path(dship), settings, grid, report, parent_pid)
+        report.seconds = time.perf_counter() - started
+        report.cpu_seconds = time.process_time() - cpu
+        return report
     tracked_path = state / "tracked.parquet"
     forecast = empty_table(FORECAST)
     tracked, predictors = empty_table(MODAL), None
@@ -349,6 +366,137 @@ def update_outlook(
     report.seconds = time.perf_counter() - started
     report.cpu_seconds = time.process_time() - cpu
     return report
+
+
+#: The monitors' resumed outlooks in this process, by state folder.
+_OUTLOOKS: dict[str, object] = {}
+#: A block's predictors are taken as final (its forecast window committed) once the ship
+#: log reaches this long past its end: the log's spike filter looks at samples on both
+#: sides of each one (a later change of a committed block is followed all the same, by
+#: going back to an earlier committed window). [s]
+FINAL_AFTER_S = 3600.0
+
+
+def _incremental_outlook(
+    state: Path, dship: Path, settings: ForecastSettings, grid, report: OutlookReport, parent_pid
+) -> None:
+    """:func:`update_outlook` with the state of :class:`~workbench.monitor.incremental.
+    IncrementalOutlook` carried between updates (and saved in ``<state>/outlook/``)."""
+    from .incremental import IncrementalOutlook, NeedsFullHistory
+
+    forecast, health, alarms = empty_table(FORECAST), empty_table(HEALTH), empty_table(ALARMS)
+    tracked_path = state / "tracked.parquet"
+    try:
+        tracked = read_tracked(tracked_path) if tracked_path.is_file() else empty_table(MODAL)
+    except (ValueError, OSError) as error:  # ContractError is a ValueError
+        report.messages.append(f"forecast: {str(error).splitlines()[0]}")
+        tracked = empty_table(MODAL)
+    report.n_blocks = int(tracked["block"].nunique()) if len(tracked) else 0
+    folder = state / "outlook"
+    outlook = _OUTLOOKS.get(str(state))
+    if outlook is None or outlook.settings != settings:
+        try:
+            outlook = IncrementalOutlook.load(
+                folder,
+                settings,
+                grid.step_s,
+                forecast=_read_or_empty(state / "forecast.parquet", FORECAST),
+                health=_read_or_empty(state / "health.parquet", HEALTH),
+            )
+        except (ValueError, OSError) as error:
+            if (folder / "outlook.json").is_file():
+                report.messages.append(f"forecast: {error}; computed again from the first block")
+            outlook = IncrementalOutlook(settings, grid.step_s)
+        _OUTLOOKS.clear()
+        _OUTLOOKS[str(state)] = outlook
+    if len(tracked):
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                log = _ship_log(dship, dict(settings.dship_mapping))
+                first, newest = int(tracked["block"].min()), int(tracked["block"].max())
+                report.log_complete = bool(len(log) and log["time"].max() >= grid.end(newest))
+                final_through = None
+                if len(log):
+                    covered = pd.Timestamp(log["time"].max()) - pd.Timedelta(seconds=FINAL_AFTER_S)
+                    final_through = int(
+                        np.floor(
+                            ((covered - grid.t0) / pd.Timedelta(seconds=grid.step_s))
+                            - grid.length_s / grid.step_s
+                        )
+                    )
+                for attempt in range(2):  # resumed, else once from the first block
+                    start = None if attempt else outlook.inputs_from
+                    predictors = block_predictors_of(tracked, dship, grid, settings, start)
+                    try:
+                        found = outlook.update(
+                            tracked, predictors, first_block=first, final_through=final_through
+                        )
+                        break
+                    except NeedsFullHistory:
+                        if attempt:
+                            raise
+            report.messages += list(dict.fromkeys(str(w.message) for w in caught))
+            report.messages += found.messages
+            report.health_schedule = found.health_schedule
+            forecast = found.forecast
+            if found.health is not None:
+                health, alarms = found.health, found.alarms
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError, OSError) as error:
+            report.messages.append(f"forecast: {str(error).splitlines()[0]}")
+        except Exception as error:  # noqa: BLE001 - a contract or data error of the log
+            report.messages.append(f"forecast: {type(error).__name__}: {error}")
+    report.forecast_rows, report.health_rows, report.alarms = (
+        len(forecast),
+        len(health),
+        len(alarms),
+    )
+    for frame, name, contract in (
+        (forecast, "forecast.parquet", FORECAST),
+        (health, "health.parquet", HEALTH),
+        (alarms, "alarms.parquet", ALARMS),
+    ):
+        if not _write(frame, state / name, contract, parent_pid):
+            report.written = False
+            return
+    try:
+        outlook.save(folder)
+    except (OSError, TypeError, ValueError) as error:
+        report.messages.append(f"forecast: state not saved ({error}); a restart computes it again")
+
+
+#: The tracked table's columns the forecast and the health chart read.
+TRACKED_COLUMNS = (
+    "block",
+    "block_start",
+    "block_end",
+    "mode",
+    "frequency_hz",
+    "damping_ratio",
+    "combined_frequency_std_hz",
+)
+
+
+def read_tracked(path: Path) -> pd.DataFrame:
+    """``tracked.parquet`` with the columns the forecast and the chart read
+    (:data:`TRACKED_COLUMNS`; not the mode shapes, two per channel), validated (MODAL)
+    and with its block grid."""
+    import pyarrow.parquet as pq
+
+    from data_contracts import grid as _grid
+
+    try:
+        names = set(pq.read_schema(path).names)
+        frame = pd.read_parquet(path, columns=[c for c in TRACKED_COLUMNS if c in names])
+    except Exception as error:  # noqa: BLE001 - pyarrow raises many types for a bad file
+        raise ValueError(f"{path}: cannot read ({str(error).splitlines()[0]})") from None
+    frame.attrs.pop(_grid.GRID_ATTR, None)
+    table = MODAL.validate(frame, source=path)
+    return _grid.attach_grid(table, _grid.read_grid(path, "parquet"), path)
+
+
+def _read_or_empty(path: Path, contract) -> pd.DataFrame:
+    return read_table(path, contract) if path.is_file() else empty_table(contract)
 
 
 def _store_poles(store: Path, tracked: pd.DataFrame) -> pd.DataFrame | None:

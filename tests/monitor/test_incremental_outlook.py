@@ -1,0 +1,200 @@
+"""The monitor's outlook resumed from update to update equals the batch forecast and health
+chart (``workbench forecast`` + ``workbench health`` over the same tables), also across a
+restart from the saved state and after a changed input of a committed block."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from data_contracts import MODAL, PREDICTORS
+from workbench.forecasting.incremental import IncrementalMemoryForecast, NeedsFullHistory
+from workbench.monitor.incremental import IncrementalOutlook, supported
+from workbench.monitor.outlook import ForecastSettings, forecast_table
+from workbench.monitor.structural_health import operational_health
+from workbench.predictors.tables import canonical_predictors
+
+STEP_S = 300.0
+#: Health model on the first 4 h, reference the next 2 h: the chart starts at block 72.
+SETTINGS = ForecastSettings(health_train_hours=4.0, reference_hours=2.0)
+
+
+def voyage(n_blocks: int = 170, seed: int = 3) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Block-level tables of a voyage: 20-min blocks every 5 min, speed changes, three
+    modes following speed and water temperature with AR(1) identification errors and
+    missing estimates, a fourth seen in a fifth of the blocks (not forecast), and mode 2
+    dropping 5 % from block 80 (an alarm)."""
+    rng = np.random.default_rng(seed)
+    block = np.arange(n_blocks)
+    start = pd.Timestamp("2026-03-01T00:00:00Z") + pd.to_timedelta(block * STEP_S, unit="s")
+    speed = np.clip(10 + np.cumsum(rng.normal(0, 0.4, n_blocks)), 2, 16)
+    water = 4 + 0.5 * np.sin(block / 40.0) + rng.normal(0, 0.02, n_blocks)
+    predictors = pd.DataFrame(
+        {
+            "block": block,
+            "block_start": start,
+            "block_end": start + pd.Timedelta(seconds=4 * STEP_S),
+            "speed_kn": speed,
+            "water_temp_c": water,
+            "air_temp_c": 2 + rng.normal(0, 0.3, n_blocks),
+            "wind_speed_ms": 8 + rng.normal(0, 1, n_blocks),
+            "wind_dir_rel_deg": (90 + np.cumsum(rng.normal(0, 5, n_blocks))) % 360,
+        }
+    )
+    rows = []
+    base = {1: 2.9, 2: 4.6, 3: 5.4, 4: 7.1}
+    error = np.zeros(4)
+    for k in range(n_blocks):
+        error = 0.65 * error + rng.normal(0, 0.003, 4)
+        for j, mode in enumerate(base):
+            seen = rng.random() < (0.2 if mode == 4 else 0.9)
+            if not seen:
+                continue
+            f = base[mode] * (1 - 0.004 * (speed[k] - 10) + 0.002 * (water[k] - 4))
+            if mode == 2 and k >= 80:
+                f *= 0.95
+            rows.append(
+                {
+                    "block": k,
+                    "block_start": start[k],
+                    "block_end": start[k] + pd.Timedelta(seconds=4 * STEP_S),
+                    "mode": mode,
+                    "frequency_hz": f * (1 + error[j]),
+                    "damping_ratio": 0.01 + 0.001 * rng.random(),
+                }
+            )
+    return MODAL.validate(pd.DataFrame(rows)), PREDICTORS.validate(predictors)
+
+
+def batch(modal: pd.DataFrame, predictors: pd.DataFrame):
+    """What ``update_outlook`` recomputed at every update (the batch stages)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        forecast, _ = forecast_table(modal, canonical_predictors(predictors), SETTINGS)
+        health, alarms, _ = operational_health(modal, predictors, SETTINGS, STEP_S)
+    return forecast, health, alarms
+
+
+def feed(outlook, modal, predictors, last, final_through):
+    """One update with the tables up to block *last*, from the block the state needs."""
+    start = outlook.inputs_from
+    part = predictors[predictors["block"] <= last]
+    try:
+        return outlook.update(
+            modal[modal["block"] <= last],
+            part if start is None else part[part["block"] >= start],
+            first_block=0,
+            final_through=final_through,
+        )
+    except NeedsFullHistory:
+        return outlook.update(
+            modal[modal["block"] <= last], part, first_block=0, final_through=final_through
+        )
+
+
+def assert_equal_to_batch(found, modal, predictors) -> None:
+    forecast, health, alarms = batch(modal, predictors)
+    # round-off only: the state carries the same arithmetic, in the same order
+    pd.testing.assert_frame_equal(found.forecast, forecast, rtol=1e-9)
+    pd.testing.assert_frame_equal(found.health.reset_index(drop=True), health, rtol=1e-9)
+    pd.testing.assert_frame_equal(found.alarms.reset_index(drop=True), alarms, rtol=1e-9)
+
+
+def test_resumed_outlook_equals_batch_with_restart_and_changed_input(tmp_path):
+    modal, predictors = voyage()
+    outlook = IncrementalOutlook(SETTINGS, STEP_S)
+    found = None
+    for last in range(30, 170, 11):
+        found = feed(outlook, modal, predictors, last, final_through=last - 2)
+        if last == 107:  # the monitor stops and starts again: the state is read back
+            assert outlook.save(tmp_path / "outlook")
+            outlook = IncrementalOutlook.load(
+                tmp_path / "outlook",
+                SETTINGS,
+                STEP_S,
+                forecast=found.forecast,
+                health=found.health,
+            )
+            assert outlook.inputs_from is not None and outlook.inputs_from > 60
+        if last == 140:  # a committed block's estimate changes (a late assignment)
+            row = modal.index[(modal["block"] == 134) & (modal["mode"] == 1)][0]
+            modal.loc[row, "frequency_hz"] *= 1.002
+    found = feed(outlook, modal, predictors, 169, final_through=169)
+    assert outlook.forecast.rollbacks >= 1  # the change took the state back, not to block 0
+    assert set(found.forecast["mode"]) == {1, 2, 3}  # mode 4: seen in too few blocks
+    assert len(found.alarms) >= 1  # mode 2's drop is charted
+    assert_equal_to_batch(found, modal, predictors)
+
+
+def test_every_block_and_partial_windows_equal_batch():
+    modal, predictors = voyage(100, seed=5)
+    outlook = IncrementalOutlook(SETTINGS, STEP_S)
+    found = feed(outlook, modal, predictors, 70, final_through=None)  # nothing final yet
+    for last in range(71, 100):  # one block at a time, the newest predictors provisional
+        found = feed(outlook, modal, predictors, last, final_through=last - 1)
+        if last in (80, 99):
+            assert_equal_to_batch(
+                found, modal[modal["block"] <= last], predictors[predictors["block"] <= last]
+            )
+
+
+def test_state_needs_the_first_blocks_to_start_over():
+    modal, predictors = voyage(60)
+    engine = IncrementalMemoryForecast(train_blocks=20)
+    engine.update(modal, predictors, modes=[1, 2, 3], final_through=59)
+    assert engine.inputs_from is not None and engine.inputs_from > 20
+    late = predictors[predictors["block"] >= 40]
+    with pytest.raises(NeedsFullHistory) as caught:
+        engine.update(modal, late, modes=[1, 3], final_through=59)  # another set of modes
+    assert "block 0" in str(caught.value)
+
+
+def test_settings_carried_or_batch():
+    assert supported(ForecastSettings())
+    assert not supported(ForecastSettings(options=("A", "B")))
+    assert not supported(ForecastSettings(model="window", trust=0.65))
+    assert not supported(ForecastSettings(health_model="forecast"))
+    with pytest.raises(ValueError, match="batch"):
+        IncrementalOutlook(ForecastSettings(scheme=1), STEP_S)
+
+
+def test_update_outlook_takes_up_the_saved_state_after_a_restart(
+    voyage, batch, tmp_path, monkeypatch
+):
+    """``update_outlook`` (the monitor's worker) over a state folder, stopped and started
+    again: the second process takes up ``<state>/outlook/`` and the forecast equals the
+    batch ``workbench forecast`` of the whole tracked table."""
+    from data_contracts import write_table
+    from workbench.blocks import BlockGrid
+    from workbench.monitor import outlook as worker
+    from workbench.monitor.outlook import update_outlook
+
+    monkeypatch.setattr(worker, "FINAL_AFTER_S", 0.0)  # a 1.5-h log: commit what it covers
+    loads = []
+    real_load = IncrementalOutlook.load.__func__
+
+    def counted(cls, *args, **kwargs):
+        outlook = real_load(cls, *args, **kwargs)
+        loads.append(outlook.forecast.inputs_from)  # where the loaded state resumes
+        return outlook
+
+    monkeypatch.setattr(IncrementalOutlook, "load", classmethod(counted))
+    tracked = MODAL.validate(batch["tracked"])
+    first = tracked[tracked["block"] == tracked["block"].min()].iloc[0]
+    length = (first["block_end"] - first["block_start"]).total_seconds()
+    grid = BlockGrid(first["block_start"], length, 300.0)
+    settings = ForecastSettings(train_blocks=6)
+    state = tmp_path / "state"
+    state.mkdir()
+    for last in (12, int(tracked["block"].max())):  # a restart between the two
+        worker._OUTLOOKS.clear()
+        write_table(tracked[tracked["block"] <= last], state / "tracked.parquet", MODAL)
+        report = update_outlook(state, voyage / "dship.tsv", settings, grid)
+        assert report.written and report.forecast_rows > 0
+    # the saved state taken up: the forecast resumed from its newest committed window
+    assert len(loads) == 1 and loads[0] is not None and loads[0] > 6
+    forecast = pd.read_parquet(state / "forecast.parquet")
+    pd.testing.assert_frame_equal(forecast, batch["forecast"], rtol=1e-9)

@@ -1,0 +1,1044 @@
+"""The memory forecast carried from block to block: constant cost per new block.
+
+:func:`~workbench.forecasting.blend.memory_forecast` runs its windows (``horizon`` blocks
+each, method 2) in order; a window reads the state the windows before it left (Kalman
+state, noise models, term selections, the model-trust filters, the innovation record) and
+the measurements of at most the last ``history_limit`` = 6 x ``memory_blocks`` blocks
+(the refits' exponentially weighted history; the noise, selection and consistency windows
+are shorter). :class:`IncrementalMemoryForecast` keeps that state between calls: a call
+with a few more blocks runs only the windows they complete, so its cost does not grow with
+the voyage, and the table it returns equals the batch forecast's over the same tables to
+round-off (``tests/monitor/test_incremental_outlook.py``, and over a 51-day replay in
+``benchmarks/bench_monitor_blocks.py``).
+
+:meth:`IncrementalMemoryForecast._window` is a copy of the option-A path of
+:func:`~workbench.forecasting.blend.memory_forecast`'s window loop (the same helpers, the
+same order of operations): a change there must be made here too, and the equality tests
+above fail until it is. One copy would be better (``memory_forecast`` run as this class fed
+once); left for after the forecasting package's restructuring.
+
+Why the history is carried as rows and not as discounted cross-product sums (recursive
+least squares): every refit z-scores the candidate predictors with the mean and standard
+deviation of the newest ``selection_blocks`` blocks and *clips* the z-scores at
+±``extrapolation_limit`` before it forms the design, and the history is cut at
+``history_limit`` blocks. A clipped term is not a linear combination of the raw terms, so
+sums of raw cross-products reproduce the batch estimate only while no old block falls
+outside the newest normalisation's clip range; the last ``history_limit`` rows are the
+exact sufficient statistic, and their size is fixed (3456 blocks with the defaults).
+
+What a call must be told, and what it re-runs:
+
+* the windows whose blocks all have final inputs (``final_through``: the ship log covers
+  them) are committed: their output rows are kept, and a copy of the state after them is
+  kept (the newest ``snapshots`` of them);
+* the blocks after the newest committed window are provisional: they are run again at the
+  next call (the newest block's predictors change while the ship log grows, the last
+  window is partial);
+* inputs of a committed block that changed (a late assignment of the tracker, a block's
+  predictors recomputed) take the state back to the newest copy before it; a change before
+  the oldest copy, another set of modes or predictor columns, or another block grid
+  starts over from the voyage's first block (:class:`NeedsFullHistory`: the caller then
+  passes the whole tables once).
+
+Supported: model ``"memory"``, method 2 (rolling), option A (the tracked pole), without
+pole table or operating cases - the monitor's defaults. Other settings are run in batch by
+the caller.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import os
+import warnings
+from collections import Counter, deque
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .excitation import sub_windows_per_block, within_block_profile
+from .innovation_consistency import MIN_BLOCKS, InnovationConsistency
+from .memory import MemoryModel
+from .memory_excitation import ExcitationBias
+from .memory_kalman import kalman_pass_step, stationary_covariance
+from .memory_noise import filter_matrices, first_window_noise, update_run
+from .memory_output import OUTPUT_ARRAYS
+from .memory_terms import MemoryRefits
+from .model_trust import ModelTrust
+from .noise import NoiseModel, estimate_noise, model_error_floor
+from .options import ModelOptions, NoiseOptions
+
+__all__ = [
+    "CHECKPOINT_SCHEMA",
+    "IncrementalMemoryForecast",
+    "NeedsFullHistory",
+    "load_state",
+    "save_state",
+]
+
+#: ``schema`` of the checkpoint's JSON part (:meth:`IncrementalMemoryForecast.save`).
+CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/1"
+
+#: As in :mod:`workbench.forecasting.blend` (the same constants, the same algorithm).
+_PERSIST_BLOCKS = 3
+_HISTORY_CONSTANTS = 6.0
+#: Rows kept before the newest committed window beyond the refits' history. [blocks]
+_MARGIN_ROWS = 64
+
+
+class NeedsFullHistory(Exception):
+    """The state cannot be resumed with the tables given: pass the whole voyage's tables."""
+
+
+class _Core:
+    """Everything the windows of one run share (one copy per committed window)."""
+
+
+def _start_ticks(grid: pd.DataFrame) -> np.ndarray:
+    """The blocks' starts as integers, as :func:`~workbench.forecasting.blend.memory_forecast`
+    takes them for its time trend (in the column's own resolution)."""
+    return pd.to_datetime(grid["block_start"], utc=True).astype("int64").to_numpy()
+
+
+class IncrementalMemoryForecast:
+    """Option A, method 2 memory forecast, resumed from block to block (module notes).
+
+    Parameters
+    ----------
+    train_blocks : int
+        First training window. [blocks]
+    horizon : int
+        Blocks per window (method 2's refit interval). [blocks]
+    model, noise : ModelOptions, NoiseOptions, optional
+        As :func:`~workbench.forecasting.sliding_forecast` builds them for ``model="memory"``.
+    gap_warning_blocks : int
+    snapshots : int
+        Committed windows whose state is kept to go back to (a changed input up to about
+        ``snapshots x horizon`` blocks back is followed without starting over).
+    """
+
+    def __init__(
+        self,
+        *,
+        train_blocks: int = 20,
+        horizon: int = 4,
+        model: ModelOptions | None = None,
+        noise: NoiseOptions | None = None,
+        gap_warning_blocks: int = 12,
+        snapshots: int = 16,
+    ) -> None:
+        self.model = model or ModelOptions(train_blocks=train_blocks)
+        self.noise = noise or NoiseOptions()
+        self.horizon = int(horizon)
+        self.gap_warning_blocks = int(gap_warning_blocks)
+        self.n_snapshots = int(snapshots)
+        if self.horizon < 1:
+            raise ValueError(f"horizon={horizon} must be >= 1")
+        if self.n_snapshots < 1:
+            raise ValueError(f"snapshots={snapshots} must be >= 1")
+        self.restarts = 0  # starts from the first block after a committed window
+        self._committed = False
+        self.rollbacks = 0  # returns to an earlier committed window
+        self.reset()
+
+    # ------------------------------------------------------------------ bookkeeping
+    def reset(self) -> None:
+        """Forget everything: the next :meth:`update` starts at the voyage's first block."""
+        self._snapshots: deque[tuple[int, _Core, int]] = deque()  # (i0 block, core, chunks)
+        self._chunks: list[tuple[int, pd.DataFrame]] = []  # committed output per window
+        self._old: list[pd.DataFrame] = []  # output older than every snapshot, consolidated
+        self._core: _Core | None = None
+        self._first_block: int | None = None  # the voyage's first block
+
+    @property
+    def inputs_from(self) -> int | None:
+        """First block whose inputs :meth:`update` needs (None: the whole voyage)."""
+        if not self._snapshots:
+            return None
+        return int(self._snapshots[0][0])
+
+    # ------------------------------------------------------------------ inputs
+    def _inputs(self, modal, predictors, modes):
+        grid = predictors.sort_values("block").drop_duplicates("block", keep="last")
+        blocks = grid["block"].to_numpy(dtype=np.int64)
+        if blocks.size and not (np.diff(blocks) == 1).all():
+            raise NeedsFullHistory("the predictor blocks are not consecutive")
+        columns = [
+            c
+            for c in grid.columns
+            if c != "block"
+            and pd.api.types.is_numeric_dtype(grid[c].dtype)
+            and not pd.api.types.is_bool_dtype(grid[c].dtype)
+        ]
+        X = grid[columns].to_numpy(dtype=float, na_value=np.nan) if columns else None
+        if X is None:
+            X = np.empty((len(grid), 0))
+        block_start = pd.to_datetime(grid["block_start"], utc=True).to_numpy()
+        labels = np.asarray(modes, dtype=np.int64)
+        from .predictor_grid import mode_matrix
+
+        tracked = mode_matrix(modal, blocks, labels, "frequency_hz")
+        combined = (
+            mode_matrix(modal, blocks, labels, "combined_frequency_std_hz")
+            if "combined_frequency_std_hz" in modal.columns
+            else None
+        )
+        damping = (
+            mode_matrix(modal, blocks, labels, "damping_ratio")
+            if "damping_ratio" in modal.columns
+            else np.full((blocks.size, labels.size), np.nan)
+        )
+        return SimpleInputs(
+            grid,
+            blocks,
+            block_start,
+            _start_ticks(grid),
+            columns,
+            X,
+            labels,
+            tracked,
+            combined,
+            damping,
+        )
+
+    # ------------------------------------------------------------------ the call
+    def update(
+        self,
+        modal: pd.DataFrame,
+        predictors: pd.DataFrame,
+        *,
+        modes,
+        final_through: int | None = None,
+    ) -> tuple[pd.DataFrame, list[str]]:
+        """The forecast table of the voyage so far and the forecast's notes.
+
+        Parameters
+        ----------
+        modal : DataFrame
+            Tracked modal table (MODAL contract), at least the blocks of *predictors*.
+        predictors : DataFrame
+            Block predictors on consecutive blocks, from :attr:`inputs_from` (or the
+            voyage's first block) to the newest block.
+        modes : sequence of int
+            The modes to forecast (the forecast stage's persistent modes).
+        final_through : int, optional
+            Newest block whose inputs no longer change (default: none is final, nothing
+            is committed).
+
+        Raises
+        ------
+        NeedsFullHistory
+            When the tables must start at the voyage's first block (module notes).
+        ValueError
+            As the batch forecast: too few blocks for the first training window.
+        """
+        new = self._inputs(modal, predictors, modes)
+        final_through = -(10**18) if final_through is None else int(final_through)
+        core = self._resume_point(new)
+        if core is None:
+            if self._first_block is not None and int(new.blocks[0]) != self._first_block:
+                raise NeedsFullHistory(
+                    f"the state starts over: the tables must start at block {self._first_block}"
+                )
+            # a start over once a window was committed (before: every update starts at 0)
+            restarted = self._committed
+            self.reset()
+            self.restarts += restarted
+            core = self._start(new)
+            self._first_block = int(new.blocks[0])
+        self._append(core, new)
+        provisional: list[pd.DataFrame] = []
+        committing = True
+        while core.i0 <= core.n - 1:
+            f1 = min(core.i0 + self.horizon, core.n)
+            start_block = int(core.blocks[core.i0 if not core.is_first else core.first])
+            complete = f1 == core.i0 + self.horizon and int(core.blocks[f1 - 1]) <= final_through
+            chunk = self._window(core, f1)
+            core.is_first = False
+            core.i0 = f1
+            if committing and complete:
+                self._chunks.append((start_block, chunk))
+                self._commit(core)
+            else:
+                committing = False
+                provisional.append(chunk)
+        self._core = core
+        pieces = [*self._old, *(c for _, c in self._chunks), *provisional]
+        # each piece is sorted by (block, mode) and follows the one before: no sort needed
+        table = pd.concat(pieces, ignore_index=True) if pieces else pd.DataFrame()
+        return table, self._messages(core)
+
+    # ------------------------------------------------------------------ checkpoint
+    def checkpoint(self) -> dict | None:
+        """The state to resume from (the newest committed window's), or None before the
+        first committed window. The committed output rows are not in it: the caller keeps
+        them (the forecast table's rows before :attr:`inputs_from`)."""
+        if not self._snapshots:
+            return None
+        block, core, _ = self._snapshots[-1]
+        return {"block": int(block), "first_block": self._first_block, "core": core}
+
+    def resume(self, checkpoint: dict, committed: pd.DataFrame) -> None:
+        """Take up *checkpoint* (:meth:`checkpoint`) with *committed*, the forecast table's
+        rows of the blocks before the checkpoint's block.
+
+        Raises
+        ------
+        ValueError
+            When *committed* does not end at the checkpoint's block.
+        """
+        block, core = int(checkpoint["block"]), checkpoint["core"]
+        if not isinstance(core, _Core):
+            raise ValueError("checkpoint without a forecast state")
+        committed = committed[committed["block"] < block]
+        if not len(committed):
+            raise ValueError(f"the forecast table has no rows before block {block}")
+        if int(committed["block"].max()) != block - 1:
+            raise ValueError(
+                f"the forecast table ends at block {int(committed['block'].max())}, the "
+                f"checkpoint at block {block}"
+            )
+        self.reset()
+        self._point(core)
+        self._first_block = int(checkpoint["first_block"])
+        self._core = core
+        self._snapshots.append((block, copy.deepcopy(core), 0))
+        self._committed = True
+        self._old = [committed.reset_index(drop=True)]
+
+    def _messages(self, core) -> list[str]:
+        notes = Counter(core.notes)
+        for j in np.flatnonzero((core.forecast_blocks > 0) & ~core.explained):
+            notes[
+                f"mode {core.mode_labels[j]}: the model never explained it well enough to be "
+                f"leaned on (model probability below 0.5 in all {core.forecast_blocks[j]} "
+                "forecast blocks; the estimate follows SSI)"
+            ] += 1
+        return [f"{kind} (x{count})" for kind, count in notes.items()]
+
+    # ------------------------------------------------------------------ resume or start
+    def _resume_point(self, new) -> _Core | None:
+        """A copy of the newest committed state whose inputs *new* leaves unchanged, with
+        the chunks after it dropped; None: start over."""
+        if self._core is None or not self._snapshots:
+            return None
+        last = self._core
+        if (
+            list(new.columns) != list(last.columns)
+            or not np.array_equal(new.labels, last.mode_labels)
+            or new.blocks.size == 0
+        ):
+            return None
+        if new.blocks[0] > self._snapshots[0][0]:
+            raise NeedsFullHistory(
+                f"the tables start at block {new.blocks[0]}, the state needs them from "
+                f"block {self._snapshots[0][0]}"
+            )
+        if sub_windows_per_block(new.grid) != last.n_sub and new.blocks.size >= 3:
+            return None
+        # the earliest block whose inputs differ from those the state was run with
+        changed = self._first_change(last, new)
+        while self._snapshots and self._snapshots[-1][0] > changed:
+            self._snapshots.pop()
+            self.rollbacks += 1
+        if not self._snapshots:
+            return None
+        i0_block, saved, n_chunks = self._snapshots[-1]
+        del self._chunks[n_chunks:]
+        return copy.deepcopy(saved)
+
+    @staticmethod
+    def _first_change(core, new) -> int:
+        """First block of *new* whose inputs differ from *core*'s (beyond: no change)."""
+        lo = max(int(new.blocks[0]), core.base_block)
+        hi = min(int(new.blocks[-1]), core.base_block + core.n - 1)
+        if hi < lo:
+            return lo
+        a = slice(lo - core.base_block, hi - core.base_block + 1)
+        b = slice(lo - int(new.blocks[0]), hi - int(new.blocks[0]) + 1)
+        differ = ~_same(core.X[a, : len(core.columns)], new.X[b]).all(axis=1)
+        differ |= ~_same(core.tracked[a], new.tracked[b]).all(axis=1)
+        differ |= ~_same(core.tracked_damping[a], new.damping[b]).all(axis=1)
+        if (core.combined_std is None) != (new.combined is None):
+            return lo
+        if core.combined_std is not None:
+            differ |= ~_same(core.combined_std[a], new.combined[b]).all(axis=1)
+        differ |= core.block_start[a] != new.block_start[b]
+        where = np.flatnonzero(differ)
+        return lo + int(where[0]) if where.size else hi + 1
+
+    def _start(self, new) -> _Core:
+        """The state before the first window (memory_forecast's set-up)."""
+        model, noise = self.model, self.noise
+        core = _Core()
+        n_blocks = new.blocks.size
+        if n_blocks == 0:
+            raise ValueError("predictors has no blocks")
+        core.columns = list(new.columns)
+        core.t0_ticks = int(new.ticks[0])
+        core.time_trend = bool(model.time_trend and model.predictor_columns is None)
+        core.n_sub = sub_windows_per_block(new.grid)
+        core.overlap = core.n_sub or 1
+        core.mode_labels = new.labels
+        n_modes = new.labels.size
+        train = int(model.train_blocks)
+        if n_blocks < train + 1:
+            raise ValueError(
+                f"train_blocks={train} needs at least {train + 1} blocks from "
+                f"start_block to end_block, got {max(n_blocks, 0)}"
+            )
+        core.train = train
+        core.min_train = (
+            max(5, train // 2) if model.min_train_blocks is None else model.min_train_blocks
+        )
+        if not 2 <= core.min_train <= train:
+            raise ValueError(f"min_train_blocks={core.min_train} must be in [2, train_blocks]")
+        core.limit = float(model.extrapolation_limit)
+        core.memory = float(model.memory_blocks)
+        core.history_limit = int(math.ceil(_HISTORY_CONSTANTS * core.memory))
+        core.base_block = int(new.blocks[0])
+        core.first = 0
+        core.n = 0
+        n_columns = len(core.columns) + (1 if core.time_trend else 0)
+        core.X = np.empty((0, n_columns))
+        core.blocks = np.empty(0, dtype=np.int64)
+        core.block_start = np.empty(0, dtype=new.block_start.dtype)
+        core.tracked = np.empty((0, n_modes))
+        core.tracked_damping = np.empty((0, n_modes))
+        core.combined_std = None if new.combined is None else np.empty((0, n_modes))
+        all_columns = [*core.columns, "elapsed_hours"] if core.time_trend else core.columns
+        core.speed_col = all_columns.index("speed_kn") if "speed_kn" in all_columns else None
+        core.has_speed_var = bool(
+            model.excitation_bias and core.n_sub and core.speed_col is not None
+        )
+        core.speed_var = np.empty(0) if core.has_speed_var else None
+        core.shift_cap = np.empty(0) if core.has_speed_var else None
+        for name in ("meas", "resid", "scatter"):
+            setattr(core, name, np.empty((0, n_modes)))
+        core.out = {k: np.empty((0, n_modes)) for k in OUTPUT_ARRAYS}
+        core.out_phase = np.zeros((0, n_modes), dtype=np.int8)
+        core.out_w0 = np.zeros((0, n_modes), dtype=np.int64)
+        core.out_w1 = np.zeros((0, n_modes), dtype=np.int64)
+        core.out_warning = {}
+        core.notes = Counter()
+        # the first window's measurements and references need its rows: set in _append
+        core.reference_hz = None
+        core.damping_ref = None
+        core.refits = MemoryRefits(
+            model,
+            core.X,
+            all_columns,
+            core.meas,
+            None,
+            0,
+            core.min_train,
+            core.history_limit,
+            core.memory,
+            core.limit,
+        )
+        core.bias = ExcitationBias(
+            core.X,
+            core.speed_col,
+            core.speed_var,
+            core.shift_cap,
+            np.zeros(n_modes),
+            0,
+            core.history_limit,
+            core.memory,
+            core.limit,
+        )
+        core.current = [None] * n_modes
+        core.noise_of = [None] * n_modes
+        core.noise_at = np.full(n_modes, -(10**9))
+        core.state = np.zeros((n_modes, 2))
+        core.P = np.zeros((n_modes, 2, 2))
+        core.started = np.zeros(n_modes, dtype=bool)
+        core.gap = np.zeros(n_modes, dtype=np.int64)
+        core.trust = (
+            ModelTrust(
+                n_modes,
+                float(noise.huber_sigma),
+                persist_blocks=max(_PERSIST_BLOCKS, core.overlap + 1),
+            )
+            if noise.model_trust
+            else None
+        )
+        core.explained_lost = np.zeros(n_modes, dtype=np.int64)
+        core.explained = np.zeros(n_modes, dtype=bool)
+        core.forecast_blocks = np.zeros(n_modes, dtype=np.int64)
+        core.run = np.zeros(n_modes, dtype=np.int64)
+        core.consistency = InnovationConsistency(
+            0,
+            n_modes,
+            float(noise.huber_sigma),
+            window_blocks=max(int(noise.consistency_blocks), MIN_BLOCKS),
+        )
+        core.i0 = train
+        core.is_first = True
+        return core
+
+    # ------------------------------------------------------------------ rows
+    def _append(self, core: _Core, new) -> None:
+        """Replace the rows from the newest block *core* has not run yet with *new*'s."""
+        keep = core.i0 if not core.is_first else 0
+        end_block = core.base_block + keep  # first block taken from *new*
+        take = slice(int(end_block - new.blocks[0]), None)
+        if take.start < 0:
+            raise NeedsFullHistory(f"the tables start after block {end_block}")
+        n_new = new.blocks.size - take.start
+        n_modes = core.mode_labels.size
+        X = new.X[take]
+        if core.time_trend:
+            X = np.column_stack([X, (new.ticks[take] - core.t0_ticks) / 3.6e12])
+        rows = {
+            "X": X,
+            "blocks": new.blocks[take],
+            "block_start": new.block_start[take],
+            "tracked": new.tracked[take],
+            "tracked_damping": new.damping[take],
+        }
+        if core.combined_std is not None:
+            rows["combined_std"] = new.combined[take]
+        for name, value in rows.items():
+            setattr(core, name, np.concatenate([getattr(core, name)[:keep], value]))
+        for name in ("meas", "resid", "scatter"):
+            old = getattr(core, name)[:keep]
+            setattr(core, name, np.concatenate([old, np.full((n_new, n_modes), np.nan)]))
+        for k in OUTPUT_ARRAYS:
+            core.out[k] = np.concatenate([core.out[k][:keep], np.full((n_new, n_modes), np.nan)])
+        for name in ("out_phase", "out_w0", "out_w1"):
+            old = getattr(core, name)[:keep]
+            setattr(core, name, np.concatenate([old, np.zeros((n_new, n_modes), old.dtype)]))
+        core.out_warning = {key: v for key, v in core.out_warning.items() if key[0] < keep}
+        core.n = keep + n_new
+        if core.has_speed_var:
+            # σ_v² of a block from it and the 2 n_sub blocks before (no look-ahead)
+            history = 2 * core.n_sub + 1
+            at = keep - (history - 1)
+            speed = core.X[:, core.speed_col]
+            if at <= 0 and core.base_block == core.blocks[0] and core.first == 0:
+                variance = within_block_profile(speed, core.n_sub).var(axis=1)
+                variance = variance[keep:]
+            else:
+                at = max(at, 0)
+                variance = within_block_profile(speed[at:], core.n_sub).var(axis=1)
+                variance = variance[keep - at :]
+            variance = np.where(np.isfinite(variance), variance, 0.0)
+            core.speed_var = np.concatenate([core.speed_var[:keep], variance])
+            core.shift_cap = np.sqrt((core.n_sub - 1) * core.speed_var)
+        self._consistency_rows(core, keep)
+        if core.is_first:
+            first, train = core.first, core.train
+            core.meas[first : first + train] = core.tracked[first : first + train]
+            with warnings.catch_warnings():  # a mode without data in the first window: NaN
+                warnings.simplefilter("ignore", RuntimeWarning)
+                core.reference_hz = np.nanmedian(core.tracked[first : first + train], axis=0)
+                core.damping_ref = np.nanmedian(core.tracked_damping[first : first + train], axis=0)
+        self._point(core)
+
+    @staticmethod
+    def _consistency_rows(core, keep: int) -> None:
+        """The innovation record's rows: those before *keep* kept, the rest empty."""
+        c = core.consistency
+        n_new = core.n - keep
+        n_modes = core.mode_labels.size
+        for name, fill in (("_nu", np.nan), ("_variance", np.nan), ("_residual2", np.nan)):
+            old = getattr(c, name)[:keep]
+            setattr(c, name, np.concatenate([old, np.full((n_new, n_modes), fill)]))
+        c._used = np.concatenate([c._used[:keep], np.zeros((n_new, n_modes))])
+        c._measured = [[r for r in rows if r < keep] for rows in c._measured]
+        c.n_blocks = core.n
+
+    @staticmethod
+    def _point(core) -> None:
+        """Point the refits and the excitation term at the core's arrays."""
+        core.refits.X_all = core.X
+        core.refits.meas = core.meas
+        core.refits.first = core.first
+        core.bias.X_all = core.X
+        core.bias.speed_var = core.speed_var
+        core.bias.shift_cap = core.shift_cap
+        core.bias.first = core.first
+
+    def _commit(self, core: _Core) -> None:
+        """Keep a copy of the state after a committed window; drop old rows and copies."""
+        drop = core.i0 - (core.history_limit + _MARGIN_ROWS + self.horizon * self.n_snapshots)
+        if drop > 2 * _MARGIN_ROWS:
+            self._rebase(core, drop)
+        # rows before the window are in the committed output; the innovation test reads
+        # only the newest window_blocks measured rows
+        core.out_warning = {key: v for key, v in core.out_warning.items() if key[0] >= core.i0}
+        keep = 2 * core.consistency.window_blocks
+        core.consistency._measured = [rows[-keep:] for rows in core.consistency._measured]
+        self._snapshots.append(
+            (int(core.base_block + core.i0), copy.deepcopy(core), len(self._chunks))
+        )
+        self._committed = True
+        while len(self._snapshots) > self.n_snapshots:
+            self._snapshots.popleft()
+            # the output of windows before the oldest copy can no longer change
+            n_old = self._snapshots[0][2]
+            if n_old > 4 * self.n_snapshots:
+                self._old = [
+                    pd.concat(
+                        [*self._old, *(c for _, c in self._chunks[:n_old])], ignore_index=True
+                    )
+                ]
+                del self._chunks[:n_old]
+                self._snapshots = deque((b, s, n - n_old) for b, s, n in self._snapshots)
+
+    @staticmethod
+    def _rebase(core: _Core, drop: int) -> None:
+        """Forget the oldest *drop* rows (never read again: older than every window's
+        history)."""
+        for name in (
+            "X",
+            "blocks",
+            "block_start",
+            "tracked",
+            "tracked_damping",
+            "combined_std",
+            "speed_var",
+            "shift_cap",
+            "meas",
+            "resid",
+            "scatter",
+            "out_phase",
+            "out_w0",
+            "out_w1",
+        ):
+            value = getattr(core, name)
+            if value is not None:
+                setattr(core, name, value[drop:].copy())
+        core.out = {k: v[drop:].copy() for k, v in core.out.items()}
+        core.out_warning = {(r - drop, j): v for (r, j), v in core.out_warning.items() if r >= drop}
+        c = core.consistency
+        for name in ("_nu", "_variance", "_residual2", "_used"):
+            setattr(c, name, getattr(c, name)[drop:].copy())
+        c._measured = [[r - drop for r in rows if r >= drop] for rows in c._measured]
+        core.base_block += drop
+        core.first -= drop
+        core.i0 -= drop
+        core.n -= drop
+        c.n_blocks = core.n
+        core.noise_at = core.noise_at - drop
+        core.refits.selected_at = core.refits.selected_at - drop
+        IncrementalMemoryForecast._point(core)
+
+    # ------------------------------------------------------------------ one window
+    def _window(self, core: _Core, f1: int) -> pd.DataFrame:
+        """Run one window (memory_forecast's loop body, option A, method 2) and return its
+        rows of the forecast table."""
+        from .fitted_model import _plausible
+        from .measurement import scatter_scale
+
+        model, noise = self.model, self.noise
+        n_modes = core.mode_labels.size
+        first, train, i0 = core.first, core.train, core.i0
+        blocks, tracked, meas, resid, scatter = (
+            core.blocks,
+            core.tracked,
+            core.meas,
+            core.resid,
+            core.scatter,
+        )
+        out, current, noise_of = core.out, core.current, core.noise_of
+        history_limit, notes = core.history_limit, core.notes
+        refits, bias = core.refits, core.bias
+
+        def warn(i, j, message, kind):
+            notes[kind] += 1
+            core.out_warning.setdefault((i, j), []).append(message)
+
+        is_first = core.is_first
+        k_first = first if is_first else i0
+        report = np.arange(k_first, f1)
+        m_rows = np.full((f1 - k_first, n_modes), np.nan)
+        z_rows = np.full((f1 - k_first, n_modes), np.nan)
+        v_rows = np.zeros((f1 - k_first, n_modes))
+        fits = [refits.refit(j, i0) for j in range(n_modes)]
+        bias.refit(fits, i0, refits.train_y)
+        for j in range(n_modes):
+            if fits[j] is not None:
+                current[j] = fits[j]
+        for j in range(n_modes):
+            m = current[j]
+            if m is None:
+                notes[f"mode {core.mode_labels[j]}: too few measured blocks, no forecast"] += 1
+                continue
+            from_row = max(k_first - 1, first)
+            mean, lower, upper, bad, mvar = refits.predict(m, np.arange(from_row, f1))
+            seen = bias.seen_by_ssi(m, np.arange(from_row, f1), j, mean)
+            implausible = np.isfinite(mean) & ~_plausible(mean, core.reference_hz[j])
+            implausible |= np.isfinite(seen) & ~_plausible(seen, core.reference_hz[j])
+            if implausible.any():
+                level = float(np.nanmedian(meas[max(first, i0 - 36) : i0, j]))
+                mean[implausible] = level
+                seen[implausible] = level
+                lower[implausible] = level - (upper - lower)[implausible] / 2
+                upper[implausible] = level + (upper - lower)[implausible] / 2
+            shift = from_row < k_first
+            sl = slice(1, None) if shift else slice(None)
+            m_rows[:, j] = mean[sl]
+            z_rows[:, j] = seen[sl]
+            out["seen"][report, j] = seen[sl]
+            v_rows[:, j] = mvar[sl]
+            out["model"][report, j] = mean[sl]
+            out["lower"][report, j] = lower[sl]
+            out["upper"][report, j] = upper[sl]
+            core.out_w0[report, j] = blocks[max(first, i0 - history_limit)]
+            core.out_w1[report, j] = blocks[i0 - 1]
+            core.out_phase[report, j] = np.where(report < first + train, 1, 2)
+            for k in report[bad[sl]]:
+                warn(k, j, "predictor NaN: model centre", "blocks with a needed predictor NaN")
+            level_hz = float(abs(np.nanmedian(mean)))
+            lo = max(first, i0 - int(noise.noise_blocks))
+            r_hist = resid[lo:i0, j]
+            if np.isfinite(r_hist).sum() == 0 and is_first:
+                nz = first_window_noise(meas[first:i0, j], out["seen"][first:i0, j], level_hz)
+            elif (
+                noise_of[j] is None
+                or i0 - first < int(noise.noise_blocks)
+                or i0 - core.noise_at[j] >= model.reselect_blocks
+            ):
+                nz = estimate_noise(r_hist, level_hz, correlated_lags=core.n_sub)
+                if nz.n_residuals:
+                    nz = model_error_floor(nz, resid[max(lo, first + train) : i0, j])
+                core.noise_at[j] = i0
+            else:
+                nz = noise_of[j]
+            noise_of[j] = nz
+            if not core.started[j]:
+                core.P[j] = stationary_covariance(nz)
+                core.state[j] = 0.0
+                core.started[j] = True
+
+        typical = np.full(n_modes, np.nan)
+        combined_std = core.combined_std
+        if combined_std is not None and noise.pole_scatter:
+            lo = max(first, i0 - int(noise.noise_blocks))
+            s = scatter[lo:i0]
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                typical = np.sqrt(np.nanmean(s**2, axis=0))
+        F, q_c, q_e, r_v, huber = filter_matrices(noise_of, noise.huber_sigma)
+        added_variance = (
+            core.consistency.update(i0).copy() if noise.consistency_blocks else np.zeros(n_modes)
+        )
+        have_model = np.array([c is not None for c in current])
+        trust = core.trust
+        persist = max(_PERSIST_BLOCKS, core.overlap + 1)
+        for r, k in enumerate(report):
+            m_now = m_rows[r]
+            z_now = z_rows[r]
+            have = np.isfinite(m_now) & have_model
+            scale = np.ones(n_modes)
+            z = tracked[k].copy()
+            if combined_std is not None and noise.pole_scatter:
+                for j in np.flatnonzero(np.isfinite(z) & have):
+                    if np.isfinite(combined_std[k, j]):
+                        scatter[k, j] = combined_std[k, j]
+                        scale[j] = scatter_scale(combined_std[k, j], typical[j])
+            z[~have] = np.nan
+            residual = z - z_now
+            Q = np.column_stack([q_c, q_e * scale])
+            core.state, core.P, delta, nu, innovation_variance = kalman_pass_step(
+                core.state,
+                core.P,
+                F,
+                Q,
+                residual,
+                r_v * scale,
+                huber,
+                model_variance=v_rows[r] + added_variance,
+                previous_run=core.run,
+                persist_blocks=persist,
+            )
+            if k >= first + train:
+                core.consistency.record(k, nu, innovation_variance, residual)
+            core.run = update_run(core.run, nu, huber)
+            estimate = m_now + core.state[:, 0] + delta
+            lost = have & ~_plausible(estimate, core.reference_hz)
+            for j in np.flatnonzero(lost):
+                core.state[j] = 0.0
+                core.P[j] = stationary_covariance(noise_of[j])
+                estimate[j] = m_now[j]
+                warn(
+                    k,
+                    j,
+                    "Kalman track implausible: restarted at the model",
+                    "Kalman tracks restarted at the model (estimate implausible)",
+                )
+            variance = np.maximum(core.P[:, 0, 0], 0.0)
+            if trust is not None:
+                out_of_sample = np.full(n_modes, k >= first + train)
+                trust.step(
+                    np.where(have, z, np.nan),
+                    F[:, 1],
+                    q_e * scale / np.maximum(1 - F[:, 1] ** 2, 1e-12),
+                    r_v * scale,
+                    nu,
+                    innovation_variance,
+                    out_of_sample & ~lost,
+                )
+                estimate, variance = trust.combine(estimate, variance)
+                out["probability"][k] = np.where(have, trust.probability, np.nan)
+                for j in np.flatnonzero(have & out_of_sample):
+                    core.forecast_blocks[j] += 1
+                    below = trust.probability[j] < 0.5
+                    core.explained[j] |= not below
+                    if below and core.explained[j] and not core.explained_lost[j]:
+                        core.explained_lost[j] = int(blocks[k]) + 1
+                    if below and core.explained[j]:
+                        notes[
+                            f"mode {core.mode_labels[j]}: the model stopped explaining it "
+                            "(model probability below 0.5, first at block "
+                            f"{core.explained_lost[j] - 1}; blocks below, the estimate "
+                            "follows SSI)"
+                        ] += 1
+            if k >= first + train:
+                meas[k] = z
+            resid[k] = residual
+            out["ssi"][k] = z
+            out["kalman"][k] = np.where(have, estimate, np.nan)
+            out["std"][k] = np.where(have, np.sqrt(variance), np.nan)
+            core.gap = np.where(np.isfinite(z), 0, core.gap + have)
+            for j in np.flatnonzero(have & (core.gap >= self.gap_warning_blocks)):
+                warn(
+                    k,
+                    j,
+                    f"no SSI estimate for {core.gap[j]} blocks: predict-only",
+                    "rows in a long stretch without SSI estimates (predict-only)",
+                )
+        return self._table(core, k_first, f1)
+
+    @staticmethod
+    def _table(core: _Core, start: int, stop: int) -> pd.DataFrame:
+        """Rows *start*..*stop* of the forecast table (:func:`~workbench.forecasting.
+        memory_output.assemble_table`'s columns, without its merge)."""
+        from .assembly import _assemble, _drop_unusable
+
+        rows = slice(start, stop)
+        phase = core.out_phase[rows].copy()
+        out = {k: v[rows] for k, v in core.out.items()}
+        _drop_unusable(phase, out["model"], out["kalman"], core.notes)
+        warning_rows = {
+            (r - start, j): v for (r, j), v in core.out_warning.items() if start <= r < stop
+        }
+        blocks = core.blocks[rows]
+        table = _assemble(
+            blocks,
+            core.block_start[rows],
+            core.mode_labels,
+            "A",
+            phase,
+            out["ssi"],
+            out["model"],
+            out["lower"],
+            out["upper"],
+            out["kalman"],
+            out["std"],
+            core.out_w0[rows],
+            core.out_w1[rows],
+            out["order"],
+            out["damping"],
+            out["mac"],
+            warning_rows,
+        )
+        # _assemble's rows: np.nonzero order, sorted stably by (mode, block)
+        found, modes = np.nonzero(phase)
+        order = np.lexsort((blocks[found], core.mode_labels[modes]))
+        table["model_probability"] = out["probability"][found, modes][order]
+        # the forecast stage's order: by block, then mode
+        return table.sort_values(["block", "mode"], kind="stable").reset_index(drop=True)
+
+
+class SimpleInputs:
+    """The arrays of one call's tables (see :meth:`IncrementalMemoryForecast._inputs`)."""
+
+    __slots__ = (
+        "grid",
+        "blocks",
+        "block_start",
+        "ticks",
+        "columns",
+        "X",
+        "labels",
+        "tracked",
+        "combined",
+        "damping",
+    )
+
+    def __init__(self, *values) -> None:
+        for name, value in zip(self.__slots__, values, strict=True):
+            setattr(self, name, value)
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Element-wise equality with NaN equal to NaN."""
+    equal = a == b
+    if np.issubdtype(np.asarray(a).dtype, np.floating):
+        equal |= np.isnan(a) & np.isnan(b)
+    return equal
+
+
+# --------------------------------------------------------------------------- checkpoint
+def _classes() -> dict[str, type]:
+    """The classes a checkpoint may hold (nothing else is ever constructed from one)."""
+    from .options import ModelOptions, NoiseOptions
+
+    return {
+        cls.__name__: cls
+        for cls in (
+            _Core,
+            MemoryModel,
+            NoiseModel,
+            MemoryRefits,
+            ExcitationBias,
+            InnovationConsistency,
+            ModelTrust,
+            ModelOptions,
+            NoiseOptions,
+        )
+    }
+
+
+class _Encoder:
+    """Plain JSON for the state's Python objects, ``.npy`` entries for its arrays (shared
+    arrays stored once and shared again when read)."""
+
+    def __init__(self) -> None:
+        self.arrays: dict[str, np.ndarray] = {}
+        self._seen: dict[int, str] = {}
+        self._classes = _classes()
+
+    def encode(self, value):
+        if value is None or isinstance(value, bool | str):
+            return value
+        if isinstance(value, int | np.integer):
+            return int(value)
+        if isinstance(value, float | np.floating):
+            value = float(value)
+            return value if math.isfinite(value) else {"float": repr(value)}
+        if isinstance(value, np.ndarray):
+            if value.dtype == object:
+                if not all(isinstance(v, pd.Timestamp) for v in value.ravel()):
+                    raise TypeError("object arrays other than of times are not stored")
+                # block starts (tz-aware, as the batch forecast holds them)
+                return {"times": [v.isoformat() for v in value.ravel()], "shape": value.shape}
+            key = self._seen.get(id(value))
+            if key is None:
+                key = self._seen[id(value)] = f"a{len(self.arrays)}"
+                self.arrays[key] = value
+            return {"array": key}
+        if isinstance(value, pd.Timestamp):
+            return {"time": value.isoformat()}
+        if isinstance(value, Counter):
+            return {"counter": [[k, int(n)] for k, n in value.items()]}
+        if isinstance(value, tuple):
+            return {"tuple": [self.encode(v) for v in value]}
+        if isinstance(value, list):
+            return [self.encode(v) for v in value]
+        if isinstance(value, dict):
+            return {"dict": [[self.encode(k), self.encode(v)] for k, v in value.items()]}
+        name = type(value).__name__
+        if self._classes.get(name) is type(value):
+            state = vars(value)  # every stored class keeps its fields in __dict__
+            return {"object": name, "state": {k: self.encode(v) for k, v in state.items()}}
+        raise TypeError(f"{name} is not stored in a checkpoint")
+
+
+class _Decoder:
+    def __init__(self, arrays) -> None:
+        self.arrays = arrays
+        self._loaded: dict[str, np.ndarray] = {}
+        self._classes = _classes()
+
+    def decode(self, value):
+        if isinstance(value, list):
+            return [self.decode(v) for v in value]
+        if not isinstance(value, dict):
+            return value
+        if "float" in value:
+            return float(value["float"])
+        if "times" in value:
+            times = np.empty(len(value["times"]), dtype=object)
+            times[:] = [pd.Timestamp(str(t)) for t in value["times"]]
+            return times.reshape(tuple(value["shape"]))
+        if "time" in value:
+            return pd.Timestamp(str(value["time"]))
+        if "array" in value:
+            key = str(value["array"])
+            if key not in self._loaded:
+                self._loaded[key] = np.array(self.arrays[key])
+            return self._loaded[key]
+        if "counter" in value:
+            return Counter({str(k): int(n) for k, n in value["counter"]})
+        if "tuple" in value:
+            return tuple(self.decode(v) for v in value["tuple"])
+        if "dict" in value:
+            return {_hashable(self.decode(k)): self.decode(v) for k, v in value["dict"]}
+        if "object" in value:
+            cls = self._classes.get(str(value["object"]))
+            if cls is None:
+                raise ValueError(f"class {value['object']!r} is not stored in a checkpoint")
+            obj = cls.__new__(cls)
+            for name, item in value["state"].items():
+                object.__setattr__(obj, str(name), self.decode(item))
+            return obj
+        raise ValueError(f"unreadable checkpoint entry {sorted(value)}")
+
+
+def _hashable(key):
+    return tuple(_hashable(k) for k in key) if isinstance(key, list | tuple) else key
+
+
+def save_state(path: str | os.PathLike, payload: dict) -> None:
+    """Write *payload* (JSON types, the state's objects and arrays) to *path* (``.json``)
+    and its arrays beside it (``.npz``), each atomically; the JSON names the arrays' file
+    and is written last, so a reader never pairs a JSON with another write's arrays."""
+    from data_contracts import atomic_path
+
+    path = Path(path)
+    encoder = _Encoder()
+    document = {"schema": CHECKPOINT_SCHEMA, "state": encoder.encode(payload)}
+    arrays = path.with_name(f"{path.stem}.{os.getpid()}.{id(document)}.npz")
+    with atomic_path(arrays) as tmp:
+        with open(tmp, "wb") as handle:
+            np.savez(handle, **encoder.arrays)
+    document["arrays"] = arrays.name
+    previous = _arrays_file(path)
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(document), encoding="utf-8")
+    if previous is not None and previous != arrays and previous.exists():
+        previous.unlink()
+
+
+def _arrays_file(path: Path) -> Path | None:
+    try:
+        name = json.loads(path.read_text(encoding="utf-8"))["arrays"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return path.with_name(Path(str(name)).name)
+
+
+def load_state(path: str | os.PathLike) -> dict:
+    """The payload :func:`save_state` wrote to *path*.
+
+    Raises
+    ------
+    ValueError
+        When *path* or its arrays are unreadable or of another schema (one line).
+    """
+    path = Path(path)
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+        if document.get("schema") != CHECKPOINT_SCHEMA:
+            raise ValueError(f"schema {document.get('schema')!r}, expected {CHECKPOINT_SCHEMA!r}")
+        arrays_path = path.with_name(Path(str(document["arrays"])).name)
+        with np.load(arrays_path, allow_pickle=False) as arrays:
+            return _Decoder(arrays).decode(document["state"])
+    except (OSError, KeyError, TypeError, AttributeError, ValueError) as error:
+        raise ValueError(f"{path}: unreadable checkpoint ({error})") from None
