@@ -41,7 +41,13 @@ import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from forecast_regimes import ALL_REGIMES, REGIMES, UNRECORDED, make_regime  # noqa: E402
+from forecast_regimes import (  # noqa: E402
+    ALL_REGIMES,
+    ERROR_MODELS,
+    REGIMES,
+    UNRECORDED,
+    make_regime,
+)
 
 from workbench.forecasting import (
     ForecastOptions,
@@ -106,11 +112,21 @@ def _drop_shapes(frame: pd.DataFrame) -> pd.DataFrame:
     return frame[[c for c in frame.columns if not str(c).startswith("shape_")]]
 
 
-def block_level_runs(seeds, n_blocks, methods, options, regimes=REGIMES, shapes_list=(True, False)):
+def block_level_runs(
+    seeds,
+    n_blocks,
+    methods,
+    options,
+    regimes=REGIMES,
+    shapes_list=(True, False),
+    error_model="ar1",
+):
     rows = []
     for regime in regimes:
         for seed in seeds:
-            data = make_regime(regime, seed, n_blocks=n_blocks, shapes=True)
+            data = make_regime(
+                regime, seed, n_blocks=n_blocks, shapes=True, error_model=error_model
+            )
             for shapes in shapes_list:
                 tracked = data.tracked if shapes else _drop_shapes(data.tracked)
                 poles = data.poles if shapes else _drop_shapes(data.poles)
@@ -258,6 +274,14 @@ def main(argv=None) -> int:
         help="block-level regimes; 'issue11' for the explained ones, 'unrecorded' for the "
         "unrecorded changes of issue 27",
     )
+    parser.add_argument(
+        "--error-model",
+        choices=ERROR_MODELS,
+        default="ar1",
+        help="identification error of the block-level regimes: 'ar1' (the original "
+        "generator) or 'segments' (overlapping blocks' mean of independent 5-minute "
+        "segment errors; forecast_regimes.py)",
+    )
     args = parser.parse_args(argv)
     global MODEL, MODEL_OPTIONS
     MODEL = args.model
@@ -283,6 +307,7 @@ def main(argv=None) -> int:
             options,
             _regime_names(args.regimes),
             shapes_list,
+            args.error_model,
         )
     if hours:
         rows += demo_runs(args.cache, hours, methods, options, demo_seeds, shapes_list)

@@ -16,9 +16,15 @@ errors rather than white noise:
   average that is the block's truth, so a block in which the speed changes is biased
   towards its faster part;
 * *correlated errors*: 75 %-overlapping blocks share most of their data, so the
-  identification error is AR(1) from block to block (lag-1 correlation 0.65), with a size
-  that varies from block to block (log-normal, larger when the speed changes inside the
-  block, 2.5x larger and heavy-tailed, Student t with 3 degrees of freedom, in ice);
+  identification error is correlated from block to block, with a size that varies from
+  block to block (log-normal, larger when the speed changes inside the block, 2.5x larger
+  and heavy-tailed, Student t with 3 degrees of freedom, in ice). Two generators
+  (*error_model*): ``"ar1"`` (the suite's original, used for every record before issue 27's
+  second round) draws it AR(1) with lag-1 correlation 0.65, so it still correlates beyond
+  the overlap (0.65^4 = 0.18 at lag 4); ``"segments"`` follows the physics of overlapping
+  blocks: a 20-minute block with a new block every 5 minutes is made of four 5-minute
+  segments with independent errors, and its error is their mean (to first order), an MA(3)
+  with correlations 3/4, 2/4, 1/4 and exactly zero from lag 4;
 * *stabilisation diagrams*: each mode is a column of poles over the model orders 10-60,
   scattered about the block's identified value by an amount that follows the block's error
   size (imperfectly); noise poles at random orders; a propeller blade-rate harmonic that
@@ -76,6 +82,8 @@ MODE_INDEX = (0, 1, 3, 4)
 #: modes (VB1, HB1, VB2, T1, VB3, HB2, T2). [-]
 RELATIVE_ERROR_ALL = np.array([0.003, 0.004, 0.003, 0.003, 0.004, 0.004, 0.004])
 LAG1 = 0.65
+#: Identification-error generators (module docstring).
+ERROR_MODELS = ("ar1", "segments")
 STEP_MIN = 5
 BLOCK_MIN = 20
 ORDERS = np.arange(10, 61, 2)
@@ -191,12 +199,17 @@ def make_regime(
     shapes: bool = True,
     mode_index: tuple[int, ...] = MODE_INDEX,
     first_label: int = 1,
+    error_model: str = "ar1",
 ) -> RegimeData:
     """Block-level tables of one regime and seed (see the module docstring).
 
     *mode_index* picks the hull's modes (0-based indices into its seven), labelled
-    *first_label*, *first_label* + 1, ... in the tables.
+    *first_label*, *first_label* + 1, ... in the tables. *error_model* picks the
+    identification error's generator (:data:`ERROR_MODELS`); every other draw is the same
+    for both, so the two differ only in the error's correlation.
     """
+    if error_model not in ERROR_MODELS:
+        raise ValueError(f"error_model={error_model!r} must be one of {ERROR_MODELS}")
     mode_index = tuple(int(m) for m in mode_index)
     relative_error = RELATIVE_ERROR_ALL[list(mode_index)]
     if name in REGIMES:
@@ -254,10 +267,16 @@ def make_regime(
         size *= np.where(ice_block, 2.5, 1.0)[:, None]
         heavy = rng.standard_t(3, (n_blocks, n_modes)) / np.sqrt(3.0)
         shocks = np.where(ice_block[:, None], heavy, rng.standard_normal((n_blocks, n_modes)))
-    error = np.empty((n_blocks, n_modes))
-    error[0] = size[0] * shocks[0]
-    for k in range(1, n_blocks):
-        error[k] = LAG1 * error[k - 1] + np.sqrt(1 - LAG1**2) * size[k] * shocks[k]
+    n_segments = BLOCK_MIN // STEP_MIN  # blocks sharing data with a block (4)
+    extra = None
+    if error_model == "segments":  # the voyage's last blocks end in segments of their own
+        extra_rng = np.random.default_rng([number, seed, n_segments])
+        shape = (n_segments - 1, n_modes)
+        if ice_block[-1]:  # heavy-tailed like the ice blocks' shocks
+            extra = extra_rng.standard_t(3, shape) / np.sqrt(3.0)
+        else:
+            extra = extra_rng.standard_normal(shape)
+    error, segment_size = identification_error(size, shocks, extra, n_segments)
     centre = seen_f + error  # the column's centre in the block's stabilisation diagram
 
     # presence: missing at random and in runs
@@ -415,9 +434,14 @@ def make_regime(
         measured = np.full((n_blocks, n_modes), np.nan)
         measured[np.asarray(tb), np.asarray(tm) - first_label] = np.asarray(tf)
         measured[mislabelled] = np.nan  # the oracle knows which poles are mislabelled
-        estimate = _oracle_filter(
-            measured, seen0_f, truth0_f, size, order_scatter, oracle_spec, starts, n_min
-        )
+        if segment_size is None:
+            estimate = _oracle_filter(
+                measured, seen0_f, truth0_f, size, order_scatter, oracle_spec, starts, n_min
+            )
+        else:
+            estimate = _oracle_filter_segments(
+                measured, seen0_f, truth0_f, segment_size, order_scatter, oracle_spec, starts
+            )
         oracle = pd.DataFrame(
             {
                 "block": np.repeat(blocks, n_modes),
@@ -426,6 +450,42 @@ def make_regime(
             }
         )
     return RegimeData(name, seed, predictors, truth, tracked, poles, oracle)
+
+
+def identification_error(size, shocks, extra=None, n_segments=BLOCK_MIN // STEP_MIN):
+    """Identification error of every block (module docstring, *correlated errors*).
+
+    Parameters
+    ----------
+    size : ndarray (n_blocks, n_modes)
+        Standard deviation of each block's error. [Hz]
+    shocks : ndarray (n_blocks, n_modes)
+        Unit-variance shocks, one per block.
+    extra : ndarray (n_segments - 1, n_modes), optional
+        None: the ``"ar1"`` generator, e_k = ρ e_{k-1} + sqrt(1 - ρ²) size_k shock_k with
+        ρ = :data:`LAG1`. Given: the ``"segments"`` generator; block k spans the segments
+        k .. k + n_segments - 1, segment i has the shock ``shocks[i]`` (``extra`` for the
+        segments after the last block's first) and the size of the block it starts (the
+        last block's for the final ones), and e_k = Σ_i size_i shock_i / sqrt(n_segments):
+        variance size² for a constant size, correlation (n_segments - h) / n_segments at
+        lag h < n_segments and zero from lag n_segments.
+
+    Returns
+    -------
+    error (n_blocks, n_modes) [Hz], and the segments' sizes (n_blocks + n_segments - 1,
+    n_modes) [Hz] (None for ``"ar1"``).
+    """
+    n_blocks = size.shape[0]
+    if extra is None:
+        error = np.empty_like(size)
+        error[0] = size[0] * shocks[0]
+        for k in range(1, n_blocks):
+            error[k] = LAG1 * error[k - 1] + np.sqrt(1 - LAG1**2) * size[k] * shocks[k]
+        return error, None
+    segment_size = np.concatenate([size, np.repeat(size[-1:], n_segments - 1, axis=0)])
+    segment = segment_size * np.concatenate([shocks, extra]) / np.sqrt(n_segments)
+    error = np.stack([segment[k : k + n_segments].sum(axis=0) for k in range(n_blocks)])
+    return error, segment_size
 
 
 def _disturb(freq0_min, t_h, disturbance, stream, relative_error):
@@ -514,5 +574,50 @@ def _oracle_filter(measured, seen0, truth0, size, order_scatter, spec, starts, n
                 x = x + K * y
                 A = np.eye(3) - np.outer(K, H)
                 P = A @ P @ A.T + order_scatter[k, j] ** 2 * np.outer(K, K)  # Joseph form
+            estimate[k, j] = truth0[k, j] + x[0] + x[1]
+    return estimate
+
+
+def _oracle_filter_segments(measured, seen0, truth0, segment_size, order_scatter, spec, starts):
+    """The knowing filter for the ``"segments"`` identification error.
+
+    As :func:`_oracle_filter`, with the identification error of block k the sum of its L
+    segment terms g_i = size_i u_i / sqrt(L), i = k .. k + L - 1 (u_i independent, unit
+    variance; the oracle knows every segment's size): state [a, w, g_k, ..., g_{k+L-1}];
+    from block to block the segment terms shift by one and the newest one is new.
+    """
+    n_blocks, n_modes = measured.shape
+    L = segment_size.shape[0] - n_blocks + 1
+    n_state = 2 + L
+    phi_w = np.exp(-STEP_MIN / spec["tau_min"])
+    F = np.zeros((n_state, n_state))
+    F[0, 0], F[1, 1] = 1.0, phi_w
+    F[2 : 2 + L - 1, 3 : 2 + L] = np.eye(L - 1)  # g_{k+1..k+L-1} carry over
+    H = np.ones(n_state)
+    estimate = np.full((n_blocks, n_modes), np.nan)
+    for j in range(n_modes):
+        x = np.zeros(n_state)
+        P = np.zeros((n_state, n_state))
+        P[2:, 2:] = np.diag(segment_size[:L, j] ** 2 / L)
+        for k in range(n_blocks):
+            wander_on = starts[k] >= spec["wander_min"] and spec["wander"][j] > 0
+            if k > 0:
+                x = F @ x  # x = Fx
+                P = F @ P @ F.T  # P = FPF' + Q
+                P[0, 0] += spec["q_level"][j]
+                P[1, 1] += spec["wander"][j] * (1 - phi_w**2) if wander_on else 0.0
+                P[-1, -1] += segment_size[k + L - 1, j] ** 2 / L
+            if spec["jump"][j] > 0 and starts[k] >= spec["jump_min"] > starts[max(k - 1, 0)]:
+                P[0, 0] += spec["jump"][j]
+            if wander_on and (k == 0 or starts[k - 1] < spec["wander_min"]):
+                P[1, 1] += spec["wander"][j]
+            if np.isfinite(measured[k, j]):
+                R = order_scatter[k, j] ** 2
+                y = measured[k, j] - seen0[k, j] - H @ x  # y = z - Hx
+                S = H @ P @ H + R  # S = HPH' + R
+                K = P @ H / S  # K = PH'S^-1
+                x = x + K * y
+                A = np.eye(n_state) - np.outer(K, H)
+                P = A @ P @ A.T + R * np.outer(K, K)  # Joseph form
             estimate[k, j] = truth0[k, j] + x[0] + x[1]
     return estimate

@@ -13,9 +13,11 @@ from scipy.stats import norm
 
 from workbench.forecasting.innovation_consistency import (
     MIN_BLOCKS,
+    TEST_CLIP,
     WINDOW_BLOCKS,
     InnovationConsistency,
     clipped_square_moments,
+    variance_factor,
 )
 
 
@@ -50,7 +52,8 @@ def _run(nu_std, n_blocks=600, n_modes=1, seed=0, variance=1e-4, window_updates=
 def test_consistent_innovations_add_little():
     # ν ~ N(0, 1) with S as the filter states it: a one-sided test at 5 % fires in a few
     # windows and a consistent window keeps what is in force, so small additions come and
-    # go; over 5 seeds x 149 windows they stay a small fraction of S (measured 0.17 S),
+    # go; over 5 seeds x 149 windows they stay a small fraction of S (measured 0.17 S with
+    # the factor T̄ / m_k and the clip 2.5, 0.30 S with the inverted factor and the clip 1.5),
     # against 3 S for innovations twice too large (next test)
     variance = 1e-4
     means = [_run(1.0, seed=seed, variance=variance)[:, 0].mean() for seed in range(5)]
@@ -78,6 +81,49 @@ def test_a_persistent_innovation_mean_is_detected_even_with_a_consistent_varianc
         test.record(row, nu, np.array([1e-4]), nu * 1e-2)
     extra = test.update(n)[0]
     assert extra == pytest.approx((0.8 * 1e-2) ** 2, rel=0.5)
+
+
+@pytest.mark.parametrize("factor", [0.3, 1.0, 2.0, 4.0, 30.0])
+@pytest.mark.parametrize("k", [1.5, 2.5])
+def test_variance_factor_inverts_the_clipped_mean_square_of_a_scaled_normal(factor, k):
+    # E[min(λν², k²)] = λ m(k/√λ) (ν ~ N(0, 1)); the bisection recovers λ to ~1e-12
+    mean = factor * clipped_square_moments(k / math.sqrt(factor))[0]
+    assert variance_factor(mean, k) == pytest.approx(factor, rel=1e-9)
+    assert variance_factor(k * k, k) == pytest.approx(1e3)  # at the clip: the bound
+
+
+def _run_with_gross_errors(test_clip, rate, seed):
+    # ν ~ N(0, 1) as the filter states it, plus gross errors (a mislabelled pole: ±8 S^½)
+    # at *rate*; returns the mean addition over the run in units of S
+    n, variance = 600, 1e-4
+    rng = np.random.default_rng(seed)
+    test = InnovationConsistency(n, 1, huber_sigma=2.5, test_clip=test_clip)
+    extras = []
+    for row in range(n):
+        if row and row % 4 == 0:
+            extras.append(test.update(row)[0])
+        nu = rng.normal(0.0, 1.0, 1)
+        if rng.random() < rate:
+            nu = np.array([8.0 * rng.choice([-1.0, 1.0])])
+        test.record(row, nu, np.array([variance]), nu * math.sqrt(variance))
+    return float(np.mean(extras)) / variance
+
+
+def test_a_few_per_cent_gross_errors_do_not_read_as_a_too_small_variance():
+    # 2 % gross errors (ice: mislabelled poles, impacts) beside a consistent bulk. Clipped
+    # at the Huber threshold 2.5 each counts 6.25 and the test adds model variance beyond
+    # what consistent innovations alone get (means over 5 seeds, units of S, measured:
+    # 0.63 against 0.31); clipped at TEST_CLIP = 1.5, 0.41 against 0.30: the excess the
+    # gross errors cause is a third (0.11 against 0.32)
+    assert TEST_CLIP == 1.5
+
+    def mean_addition(clip, rate):
+        return np.mean([_run_with_gross_errors(clip, rate, seed) for seed in range(5)])
+
+    wide = mean_addition(2.5, 0.02) - mean_addition(2.5, 0.0)
+    tight = mean_addition(TEST_CLIP, 0.02) - mean_addition(TEST_CLIP, 0.0)
+    assert wide > 0.2
+    assert tight < 0.5 * wide
 
 
 def test_in_sample_rows_are_not_recorded_and_nan_rows_are_skipped():

@@ -11,7 +11,10 @@ and model variance added where the innovations are inconsistent, innovation_cons
 issue 27: the identification error capped by noise.identification_error_bound, and the
 estimate weighed against a model-free filter, model_trust, whose weight is the new
 model_probability column; then the model-free filter under the blend's persistence rule and a
-prior probability of 0.2 that the model explains a mode before it has predicted unseen blocks).
+prior probability of 0.2 that the model explains a mode before it has predicted unseen blocks;
+then the innovation-consistency tests with their own clip, 1.5, and the inverted variance factor:
+kalman_frequency_hz moved by at most 0.019 Hz, and the forecast's cumulative error against the
+case's true frequencies went from +69.9 % to +69.3 % better than SSI).
 """
 
 from __future__ import annotations
