@@ -73,6 +73,7 @@ from .conditioning import detrend as linear_detrend
 from .file_reads import _edge_rows, _read_rows, _read_whole  # noqa: F401  (_read_rows: tests)
 from .filter_cascade import (  # noqa: F401  (_decimate_channels_last: tests)
     _decimate_channels_last,
+    _RowDecimator,
     default_decimation_rate,
     padding_samples,
 )
@@ -158,6 +159,7 @@ class FileConditioner:
             self.fault_options.get("max_nan_run_s", MAX_INTERPOLATED_NAN_RUN_S)
         )
         self.padding = padding_samples(self.rate, self.target_rate_hz, self.band_hz)
+        self._decimator = _RowDecimator(self.factor)
         self._t0_ns = pd.Timestamp(grid.t0).as_unit("ns").value
         self._starts_ns = np.array([_start_ns(i) for i in self.files], dtype=np.int64)
         self._cache: dict[int, _ConditionedFile] = {}
@@ -235,16 +237,7 @@ class FileConditioner:
         origin = start - before  # raw lattice index of the first padded sample
         lead = (-origin) % f  # samples before the first one on the analysis lattice
         parts[0] = parts[0][lead:]
-        # one copy: the padded record as (n_channels, n_samples), filtered along its rows
-        x = np.concatenate([p.T for p in parts], axis=1)
-        bad = np.zeros(x.shape[0], dtype=bool)
-        holes = np.flatnonzero(np.isnan(x).any(axis=1))
-        if holes.size:
-            bridged = interpolate_nan_runs(x[holes].T, self.rate, max_run_s=self.max_nan_run_s).T
-            bad[holes] = np.isnan(bridged).any(axis=1)
-            x[holes] = np.where(np.isnan(bridged), 0.0, bridged)  # unbridged: faulty there
-        y = _decimate_channels_last(x, self.factor).T
-        del x
+        y, bad = self._decimated(parts)
         if self.band_hz is not None:
             y = bandpass(y, self.target_rate_hz, *self.band_hz)
         # analysis samples m * f with start <= m * f < start + n belong to this file
@@ -256,6 +249,39 @@ class FileConditioner:
         conditioned = _ConditionedFile(first_out, samples, steps)
         self._cache[index] = conditioned
         return conditioned
+
+    def _decimated(self, parts: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """The padded record made of *parts* ((n, n_channels) pieces in time order),
+        decimated one channel at a time: (n_out, n_channels) and the channels whose NaN
+        runs could not be bridged (decimated as zeros there).
+
+        Each channel's samples are gathered from the pieces straight into the decimator's
+        buffer (no copy of the whole record); short NaN runs are bridged on the whole
+        padded channel, as :func:`~workbench.signals.conditioning.interpolate_nan_runs`
+        does column by column.
+        """
+        decimator = self._decimator
+        n = sum(p.shape[0] for p in parts)
+        edge = decimator.edge
+        n_channels = len(self.channels)
+        bad = np.zeros(n_channels, dtype=bool)
+        out = None
+        for channel in range(n_channels):
+            row = decimator.buffer(n)[edge : edge + n]
+            position = 0
+            for part in parts:
+                row[position : position + part.shape[0]] = part[:, channel]
+                position += part.shape[0]
+            if np.isnan(row).any():
+                bridged = interpolate_nan_runs(row, self.rate, max_run_s=self.max_nan_run_s)
+                missing = np.isnan(bridged)
+                bad[channel] = missing.any()
+                row[:] = np.where(missing, 0.0, bridged)  # unbridged: faulty there
+            decimated = decimator.decimate(n)
+            if out is None:
+                out = np.empty((n_channels, decimated.shape[0]))
+            out[channel] = decimated
+        return out.T, bad
 
     def _step_sums(self, index: int, raw: np.ndarray, start: int) -> dict:
         """Faulty-channel sums of the file's pieces, one per grid step it touches."""
