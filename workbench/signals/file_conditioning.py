@@ -238,8 +238,8 @@ class FileConditioner:
         lead = (-origin) % f  # samples before the first one on the analysis lattice
         parts[0] = parts[0][lead:]
         y, bad = self._decimated(parts)
-        if self.band_hz is not None:
-            y = bandpass(y, self.target_rate_hz, *self.band_hz)
+        if self.band_hz is not None and not bad.all():  # column by column: bad ones stay NaN
+            y[:, ~bad] = bandpass(y[:, ~bad], self.target_rate_hz, *self.band_hz)
         # analysis samples m * f with start <= m * f < start + n belong to this file
         first_out = -(-start // f)
         skip = first_out - (origin + lead) // f
@@ -253,7 +253,8 @@ class FileConditioner:
     def _decimated(self, parts: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """The padded record made of *parts* ((n, n_channels) pieces in time order),
         decimated one channel at a time: (n_out, n_channels) and the channels whose NaN
-        runs could not be bridged (decimated as zeros there).
+        runs could not be bridged (NaN throughout, not filtered: the file's conditioned
+        samples of such a channel are NaN whatever the filters give).
 
         Each channel's samples are gathered from the pieces straight into the decimator's
         buffer (no copy of the whole record); short NaN runs are bridged on the whole
@@ -274,13 +275,17 @@ class FileConditioner:
                 position += part.shape[0]
             if np.isnan(row).any():
                 bridged = interpolate_nan_runs(row, self.rate, max_run_s=self.max_nan_run_s)
-                missing = np.isnan(bridged)
-                bad[channel] = missing.any()
-                row[:] = np.where(missing, 0.0, bridged)  # unbridged: faulty there
+                bad[channel] = np.isnan(bridged).any()
+                if bad[channel]:
+                    continue  # a run left unbridged: the whole channel of this file is NaN
+                row[:] = bridged
             decimated = decimator.decimate(n)
             if out is None:
-                out = np.empty((n_channels, decimated.shape[0]))
+                out = np.full((n_channels, decimated.shape[0]), np.nan)
             out[channel] = decimated
+        if out is None:  # every channel unbridgeable
+            n_out = len(range(0, n, self.factor))
+            out = np.full((n_channels, n_out), np.nan)
         return out.T, bad
 
     def _step_sums(self, index: int, raw: np.ndarray, start: int) -> dict:
