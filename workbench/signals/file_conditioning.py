@@ -35,18 +35,27 @@ The per-block builder filters each block on its own, so its first and last sampl
 the filters' start-up transients; the conditioned files carry none (inside a chain). The
 two agree in the block's interior: samples farther than
 :func:`~workbench.signals.filter_cascade.padding_samples` from both block ends differ only
-by the transients' remainder (below ``1e-6`` of the signal RMS for the default filters;
-``tests/signals/test_file_conditioning.py`` checks it). The faulty-channel statistics are
-equal up to rounding.
+by the transients' remainder, in practice by rounding (``tests/signals/
+test_file_conditioning.py`` checks 1e-10 of the signal RMS; the measured differences are
+in ``benchmarks/results/throughput_33_identify.txt``). Near the block ends the per-block
+builder's start-up transients remain, so the two paths' modes differ by those. The
+faulty-channel statistics are equal up to rounding.
 
 Memory: a :class:`FileConditioner` keeps the conditioned files of the blocks under way (at
 the analysis rate) and one raw file; it does not grow with the voyage.
 
+A file is conditioned channel by channel: each channel is gathered from the raw file and
+its neighbours' edges into a buffer reused from channel to channel and filtered there in
+place (:class:`~workbench.signals.filter_cascade._RowDecimator`), the same numbers as
+decimating the padded file as one array (tested to the last bit).
+
 In parallel runs each file is conditioned once by :func:`condition_file` (a
-:class:`~workbench.parallel.SharedInput` of the blocks holding it, on any worker) and the
-blocks take the conditioned files with :meth:`FileConditioner.reuse`: only the small
-conditioned files (a few MB at the analysis rate) travel between processes, never the raw
-samples.
+:class:`~workbench.parallel.SharedInput` of the blocks holding it) and the blocks take the
+conditioned files with :meth:`FileConditioner.reuse`. Local workers are forked with a
+contiguous range of blocks each (:mod:`workbench.local_workers`), so a file is read and
+conditioned in the worker whose blocks hold it; only the small conditioned files at the
+join of two ranges (a few MB at the analysis rate) travel between processes, never the
+raw samples.
 """
 
 from __future__ import annotations
