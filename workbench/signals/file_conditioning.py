@@ -98,6 +98,13 @@ __all__ = [
 ]
 
 
+#: Channels gathered from a raw file in one pass (their first-stage filter buffers, about
+#: 5 MB each for a 5-min 2048-Hz file, are reused from file to file). [-]
+_GATHER_CHANNELS = 4
+#: Rows of a raw file copied at a time when gathering channels (cache-sized). [-]
+_GATHER_ROWS = 4096
+
+
 # ----------------------------------------------------------------------------------------
 # the conditioner
 # ----------------------------------------------------------------------------------------
@@ -168,7 +175,7 @@ class FileConditioner:
             self.fault_options.get("max_nan_run_s", MAX_INTERPOLATED_NAN_RUN_S)
         )
         self.padding = padding_samples(self.rate, self.target_rate_hz, self.band_hz)
-        self._decimator = _RowDecimator(self.factor)
+        self._decimator = _RowDecimator(self.factor, rows=_GATHER_CHANNELS)
         self._t0_ns = pd.Timestamp(grid.t0).as_unit("ns").value
         self._starts_ns = np.array([_start_ns(i) for i in self.files], dtype=np.int64)
         self._cache: dict[int, _ConditionedFile] = {}
@@ -276,22 +283,30 @@ class FileConditioner:
         n_channels = len(self.channels)
         bad = np.zeros(n_channels, dtype=bool)
         out = None
-        for channel in range(n_channels):
-            row = decimator.buffer(n)[edge : edge + n]
-            position = 0
+        stack = decimator.buffers(n)
+        for first in range(0, n_channels, decimator.rows):
+            group = min(decimator.rows, n_channels - first)
+            # the group's channels copied in row chunks that stay in the CPU cache: one
+            # pass over the file per group instead of one per channel
+            position = edge
             for part in parts:
-                row[position : position + part.shape[0]] = part[:, channel]
-                position += part.shape[0]
-            if np.isnan(row).any():
-                bridged = interpolate_nan_runs(row, self.rate, max_run_s=self.max_nan_run_s)
-                bad[channel] = np.isnan(bridged).any()
-                if bad[channel]:
-                    continue  # a run left unbridged: the whole channel of this file is NaN
-                row[:] = bridged
-            decimated = decimator.decimate(n)
-            if out is None:
-                out = np.full((n_channels, decimated.shape[0]), np.nan)
-            out[channel] = decimated
+                for lo in range(0, part.shape[0], _GATHER_ROWS):
+                    chunk = part[lo : lo + _GATHER_ROWS, first : first + group]
+                    stack[:group, position : position + chunk.shape[0]] = chunk.T
+                    position += chunk.shape[0]
+            for j in range(group):
+                channel = first + j
+                row = stack[j, edge : edge + n]
+                if np.isnan(row).any():
+                    bridged = interpolate_nan_runs(row, self.rate, max_run_s=self.max_nan_run_s)
+                    bad[channel] = np.isnan(bridged).any()
+                    if bad[channel]:
+                        continue  # a run left unbridged: the whole channel of this file is NaN
+                    row[:] = bridged
+                decimated = decimator.decimate(n, row=j)
+                if out is None:
+                    out = np.full((n_channels, decimated.shape[0]), np.nan)
+                out[channel] = decimated
         if out is None:  # every channel unbridgeable
             n_out = len(range(0, n, self.factor))
             out = np.full((n_channels, n_out), np.nan)

@@ -139,7 +139,10 @@ class _RowDecimator:
     straight into the first stage's buffer (:meth:`buffer`) and both passes run in place.
     """
 
-    def __init__(self, factor: int, order: int = 8, ripple_db: float = 0.05) -> None:
+    def __init__(
+        self, factor: int, order: int = 8, ripple_db: float = 0.05, *, rows: int = 1
+    ) -> None:
+        self.rows = int(rows)  # channels the first stage's buffer holds at once
         self.stages = []
         for q in decimation_stages(factor):
             sos = signal.cheby1(int(order), ripple_db, 0.8 / q, output="sos")
@@ -158,22 +161,31 @@ class _RowDecimator:
         size = n + 2 * self.stages[stage][3]
         forward = self._forward.get(stage)
         if forward is None or forward.shape[1] != size:
-            forward = self._forward[stage] = np.empty((1, size))
+            forward = self._forward[stage] = np.empty((self.rows if stage == 0 else 1, size))
             self._backward[stage] = np.empty((1, size))
         return forward, self._backward[stage]
 
-    def buffer(self, n: int) -> np.ndarray:
-        """The first stage's input buffer for *n* samples: write them to
-        ``buffer[edge : edge + n]``, then call :meth:`decimate` with *n*."""
-        return self._buffers(0, n)[0][0]
+    def buffers(self, n: int) -> np.ndarray:
+        """The first stage's input buffers for *n* samples of :attr:`rows` channels, shape
+        (rows, n + 2 edge): write channel j to ``buffers[j, edge : edge + n]``, then call
+        :meth:`decimate` with *n* and ``row=j``."""
+        return self._buffers(0, n)[0]
 
-    def decimate(self, n: int) -> np.ndarray:
-        """The *n* samples written to :meth:`buffer`, decimated (a new array)."""
+    def buffer(self, n: int) -> np.ndarray:
+        """The first row of :meth:`buffers`."""
+        return self.buffers(n)[0]
+
+    def decimate(self, n: int, row: int = 0) -> np.ndarray:
+        """The *n* samples written to row *row* of :meth:`buffers`, decimated (a new
+        array; the row is overwritten)."""
         from scipy.signal._sosfilt import _sosfilt  # the kernel of scipy.signal.sosfilt
 
+        first = row
         row = None
         for stage, (q, sos, zi, edge) in enumerate(self.stages):
             forward, backward = self._buffers(stage, n)
+            if stage == 0:
+                forward = forward[first : first + 1]
             ext = forward[0]
             if row is not None:
                 ext[edge : edge + n] = row
