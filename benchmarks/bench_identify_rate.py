@@ -117,12 +117,28 @@ def _voyage(root: Path, hours: float) -> Path:
     return folder / "accelerations"
 
 
+def _child_environment() -> dict:
+    """Environment of the measured children: the ``workbench`` this benchmark imports comes
+    first on their path, and they run in a scratch folder, so that ``python -m
+    workbench.cli`` cannot pick up a ``workbench`` package in the working directory (e.g.
+    a checkout other than the tree measured, when comparing before and after)."""
+    import workbench
+
+    tree = str(Path(workbench.__file__).resolve().parent.parent)
+    paths = [tree, *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))]
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(paths)}
+
+
 def _measured(command: list[str]) -> tuple[float, int, int, float]:
     """*command* in a child process under :data:`_WRAPPER`: (seconds, peak RSS MiB, blocks
     it reports processed, CPU seconds of the process tree)."""
     start = time.perf_counter()
     finished = subprocess.run(
-        [sys.executable, "-c", _WRAPPER, *command], capture_output=True, text=True
+        [sys.executable, "-c", _WRAPPER, *command],
+        capture_output=True,
+        text=True,
+        env=_child_environment(),
+        cwd=tempfile.gettempdir(),
     )
     seconds = time.perf_counter() - start
     if finished.returncode:
@@ -324,7 +340,7 @@ def main(argv=None) -> int:
     voyage = _voyage(root, args.hours)
     print(
         f"machine: {os.cpu_count()} cores, load average {_load()}; voyage {args.hours:g} h "
-        f"at {RATE_HZ:g} Hz, 19 channels"
+        f"at {RATE_HZ:g} Hz, 19 channels; workbench from {_child_environment()['PYTHONPATH']}"
     )
     if not args.skip_baseline:
         _baseline(args, voyage, work)
