@@ -28,7 +28,7 @@ Real-time factor = recording identified per second of wall clock, counted as one
 (5 min) of new recording per block: a voyage of N five-minute files has N - 3 blocks, so a
 short voyage is not credited with the three files that only complete the first block. The
 time for a day (288 blocks) is extrapolated from the measured factor (not measured, unless
-``--hours 24``). Wall clock includes starting the Dask cluster.
+``--hours 24``). Wall clock includes starting the worker processes.
 
 Peak memory: the largest process of each run (``getrusage`` of the child processes), and
 the per-file path in-process (``--scheduler synchronous``) on a voyage of ``--hours`` and

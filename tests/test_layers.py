@@ -26,6 +26,7 @@ LAYERS = {
     "workbench.store": 1,
     "workbench.parallel": 1,
     "workbench.processes": 1,
+    "workbench.local_workers": 1,
     "workbench.joins": 1,
     "workbench.config": 1,
     "workbench.signals": 1,
