@@ -1,6 +1,7 @@
 """Run independent per-block work in parallel with Dask, into a resumable :class:`BlockStore`.
 
-The same code runs on a local cluster (all cores by default), on an existing
+The same code runs on local worker processes (all cores by default; forked, a contiguous
+range of the tasks each: :mod:`workbench.local_workers`), on an existing
 ``dask.distributed`` cluster (``scheduler="tcp://host:8786"``) or in-process
 (``scheduler="synchronous"``, for debugging and tiny jobs). Memory stays bounded: tasks are
 streamed from an iterator with at most ``max_in_flight`` submitted at a time, and finished
@@ -14,6 +15,7 @@ computing it again.
 
 from __future__ import annotations
 
+import functools
 import logging
 import os
 import time
@@ -28,6 +30,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import WorkbenchError
+from .local_workers import fork_available, run_forked
 from .processes import interrupts_deferred, worker_initializer
 from .store import BlockStore
 
@@ -207,11 +210,12 @@ def run_blocks(
     store : BlockStore
         Where results go; also tells which blocks are done (resume).
     scheduler : str, optional
-        ``None``: a local Dask cluster with *n_workers* processes (default: all cores);
-        ``"synchronous"``: in this process; otherwise the address of a running
-        ``dask.distributed`` scheduler.
+        ``None``: *n_workers* local processes (default: all cores), forked with a
+        contiguous range of the tasks each (:mod:`workbench.local_workers`; a local Dask
+        cluster where processes cannot be forked); ``"synchronous"``: in this process;
+        otherwise the address of a running ``dask.distributed`` scheduler.
     n_workers : int, optional
-        Worker processes of the local cluster (default ``os.cpu_count()``).
+        Local worker processes (default ``os.cpu_count()``).
     batch_blocks : int
         Blocks per store batch (files written together).
     flush_seconds : float
@@ -302,6 +306,15 @@ def run_blocks(
                             values[need.key] = _compute_shared(need.compute, need.argument)
                     accept(_guarded(func, task, {n.key: values[n.key] for n in needs}), bar)
                 values.clear()
+            elif scheduler is None and fork_available():
+                # local: forked workers, a contiguous range of the tasks each
+                run_forked(
+                    list(remaining()),
+                    functools.partial(_guarded, func),
+                    _compute_shared,
+                    n_workers or os.cpu_count() or 1,
+                    lambda o: accept(o, bar),
+                )
             else:
                 client = stack.enter_context(_client(scheduler, n_workers))
                 workers = max(len(client.scheduler_info().get("workers", {})), 1)

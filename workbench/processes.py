@@ -1,7 +1,8 @@
 """Child processes that end with their parent and leave Ctrl-C to it.
 
 Two rules for every process a workbench command starts (the monitor's background
-forecast worker, the local Dask cluster's workers):
+forecast worker, the forked identify workers of :mod:`workbench.local_workers`, a local
+Dask cluster's workers):
 
 1. **A child ends when its parent ends**, however the parent ended (``kill -9``, an
    out-of-memory kill, a crash). A worker of :class:`~concurrent.futures.ProcessPoolExecutor`

@@ -141,3 +141,28 @@ def test_cli_rate_arguments(tmp_path, capsys):
     assert "sampling_rate_hz" in capsys.readouterr().err
     assert main(["identify", str(tmp_path), "--out", str(tmp_path / "o"), "--rate", "fast"]) == 2
     assert "'fast' is not a rate" in capsys.readouterr().err
+
+
+def test_two_forked_workers_give_the_tables_of_one_and_of_this_process(
+    voyages, identified, tmp_path
+):
+    """Two workers (a contiguous range of the 5 blocks each, the files at the ranges' join
+    conditioned once and handed over) give exactly the tables of one worker and of the
+    in-process run (issue 33)."""
+    fast, _ = voyages
+    reference, _ = identified["per-file"]
+    tables = {}
+    for workers in (1, 2):
+        out = tmp_path / f"w{workers}"
+        result = identify_voyage([fast.out_dir], out, options=OPTIONS, n_workers=workers)
+        assert result.summary.processed == 5
+        tables[workers] = {
+            name: pd.read_parquet(out / f"{name}.parquet") for name in ("poles", "selected")
+        }
+    for name in ("poles", "selected"):
+        expected = pd.read_parquet(reference / f"{name}.parquet")
+        assert len(expected) > 0
+        pd.testing.assert_frame_equal(tables[2][name], tables[1][name], check_exact=True)
+        pd.testing.assert_frame_equal(tables[1][name], expected, check_exact=True)
+    for name in ("faults.csv", "channels.csv", "blocks.csv"):
+        assert (tmp_path / "w2" / name).read_bytes() == (reference / name).read_bytes()

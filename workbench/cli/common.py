@@ -158,13 +158,13 @@ def _add_parallel(parser: argparse.ArgumentParser) -> None:
         metavar="ADDRESS",
         help="address of a running dask.distributed scheduler "
         "(tcp://host:8786), or 'synchronous' to run in this process; "
-        "default: a local cluster on all cores",
+        "default: local worker processes on all cores",
     )
     group.add_argument(
         "--workers",
         type=int,
         metavar="N",
-        help="worker processes of the local cluster (default: all cores)",
+        help="local worker processes (default: all cores)",
     )
 
 

@@ -222,7 +222,8 @@ def identify_voyage(
         The per-block store (default ``out_dir / "store"``). Running again with the same
         store resumes; other options than the store's raise :class:`WorkbenchError`.
     scheduler : str, optional
-        ``None``: local Dask cluster with *n_workers* processes (default all cores);
+        ``None``: *n_workers* local worker processes (default all cores; see
+        :func:`~workbench.parallel.run_blocks`);
         ``"synchronous"``: this process; else a ``dask.distributed`` scheduler address.
     progress : bool
         Progress bar on stderr.

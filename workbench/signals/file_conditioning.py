@@ -35,18 +35,27 @@ The per-block builder filters each block on its own, so its first and last sampl
 the filters' start-up transients; the conditioned files carry none (inside a chain). The
 two agree in the block's interior: samples farther than
 :func:`~workbench.signals.filter_cascade.padding_samples` from both block ends differ only
-by the transients' remainder (below ``1e-6`` of the signal RMS for the default filters;
-``tests/signals/test_file_conditioning.py`` checks it). The faulty-channel statistics are
-equal up to rounding.
+by the transients' remainder, in practice by rounding (``tests/signals/
+test_file_conditioning.py`` checks 1e-10 of the signal RMS; the measured differences are
+in ``benchmarks/results/throughput_33_identify.txt``). Near the block ends the per-block
+builder's start-up transients remain, so the two paths' modes differ by those. The
+faulty-channel statistics are equal up to rounding.
 
 Memory: a :class:`FileConditioner` keeps the conditioned files of the blocks under way (at
 the analysis rate) and one raw file; it does not grow with the voyage.
 
+A file is conditioned channel by channel: each channel is gathered from the raw file and
+its neighbours' edges into a buffer reused from channel to channel and filtered there in
+place (:class:`~workbench.signals.filter_cascade._RowDecimator`), the same numbers as
+decimating the padded file as one array (tested to the last bit).
+
 In parallel runs each file is conditioned once by :func:`condition_file` (a
-:class:`~workbench.parallel.SharedInput` of the blocks holding it, on any worker) and the
-blocks take the conditioned files with :meth:`FileConditioner.reuse`: only the small
-conditioned files (a few MB at the analysis rate) travel between processes, never the raw
-samples.
+:class:`~workbench.parallel.SharedInput` of the blocks holding it) and the blocks take the
+conditioned files with :meth:`FileConditioner.reuse`. Local workers are forked with a
+contiguous range of blocks each (:mod:`workbench.local_workers`), so a file is read and
+conditioned in the worker whose blocks hold it; only the small conditioned files at the
+join of two ranges (a few MB at the analysis rate) travel between processes, never the
+raw samples.
 """
 
 from __future__ import annotations
@@ -72,7 +81,7 @@ from .conditioning import (
 from .conditioning import detrend as linear_detrend
 from .file_reads import _edge_rows, _read_whole
 from .filter_cascade import (
-    _decimate_channels_last,
+    _RowDecimator,
     padding_samples,
 )
 from .moments import CoherenceNeeded, channel_verdicts
@@ -84,6 +93,13 @@ __all__ = [
     "condition_file",
     "padding_samples",
 ]
+
+
+#: Channels gathered from a raw file in one pass (their first-stage filter buffers, about
+#: 5 MB each for a 5-min 2048-Hz file, are reused from file to file). [-]
+_GATHER_CHANNELS = 4
+#: Rows of a raw file copied at a time when gathering channels (cache-sized). [-]
+_GATHER_ROWS = 4096
 
 
 # ----------------------------------------------------------------------------------------
@@ -156,6 +172,7 @@ class FileConditioner:
             self.fault_options.get("max_nan_run_s", MAX_INTERPOLATED_NAN_RUN_S)
         )
         self.padding = padding_samples(self.rate, self.target_rate_hz, self.band_hz)
+        self._decimator = _RowDecimator(self.factor, rows=_GATHER_CHANNELS)
         self._t0_ns = pd.Timestamp(grid.t0).as_unit("ns").value
         self._starts_ns = np.array([_start_ns(i) for i in self.files], dtype=np.int64)
         self._cache: dict[int, _ConditionedFile] = {}
@@ -233,18 +250,9 @@ class FileConditioner:
         origin = start - before  # raw lattice index of the first padded sample
         lead = (-origin) % f  # samples before the first one on the analysis lattice
         parts[0] = parts[0][lead:]
-        # one copy: the padded record as (n_channels, n_samples), filtered along its rows
-        x = np.concatenate([p.T for p in parts], axis=1)
-        bad = np.zeros(x.shape[0], dtype=bool)
-        holes = np.flatnonzero(np.isnan(x).any(axis=1))
-        if holes.size:
-            bridged = interpolate_nan_runs(x[holes].T, self.rate, max_run_s=self.max_nan_run_s).T
-            bad[holes] = np.isnan(bridged).any(axis=1)
-            x[holes] = np.where(np.isnan(bridged), 0.0, bridged)  # unbridged: faulty there
-        y = _decimate_channels_last(x, self.factor).T
-        del x
-        if self.band_hz is not None:
-            y = bandpass(y, self.target_rate_hz, *self.band_hz)
+        y, bad = self._decimated(parts)
+        if self.band_hz is not None and not bad.all():  # column by column: bad ones stay NaN
+            y[:, ~bad] = bandpass(y[:, ~bad], self.target_rate_hz, *self.band_hz)
         # analysis samples m * f with start <= m * f < start + n belong to this file
         first_out = -(-start // f)
         skip = first_out - (origin + lead) // f
@@ -254,6 +262,52 @@ class FileConditioner:
         conditioned = _ConditionedFile(first_out, samples, steps)
         self._cache[index] = conditioned
         return conditioned
+
+    def _decimated(self, parts: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """The padded record made of *parts* ((n, n_channels) pieces in time order),
+        decimated one channel at a time: (n_out, n_channels) and the channels whose NaN
+        runs could not be bridged (NaN throughout, not filtered: the file's conditioned
+        samples of such a channel are NaN whatever the filters give).
+
+        Each channel's samples are gathered from the pieces straight into the decimator's
+        buffer (no copy of the whole record); short NaN runs are bridged on the whole
+        padded channel, as :func:`~workbench.signals.conditioning.interpolate_nan_runs`
+        does column by column.
+        """
+        decimator = self._decimator
+        n = sum(p.shape[0] for p in parts)
+        edge = decimator.edge
+        n_channels = len(self.channels)
+        bad = np.zeros(n_channels, dtype=bool)
+        out = None
+        stack = decimator.buffers(n)
+        for first in range(0, n_channels, decimator.rows):
+            group = min(decimator.rows, n_channels - first)
+            # the group's channels copied in row chunks that stay in the CPU cache: one
+            # pass over the file per group instead of one per channel
+            position = edge
+            for part in parts:
+                for lo in range(0, part.shape[0], _GATHER_ROWS):
+                    chunk = part[lo : lo + _GATHER_ROWS, first : first + group]
+                    stack[:group, position : position + chunk.shape[0]] = chunk.T
+                    position += chunk.shape[0]
+            for j in range(group):
+                channel = first + j
+                row = stack[j, edge : edge + n]
+                if np.isnan(row).any():
+                    bridged = interpolate_nan_runs(row, self.rate, max_run_s=self.max_nan_run_s)
+                    bad[channel] = np.isnan(bridged).any()
+                    if bad[channel]:
+                        continue  # a run left unbridged: the whole channel of this file is NaN
+                    row[:] = bridged
+                decimated = decimator.decimate(n, row=j)
+                if out is None:
+                    out = np.full((n_channels, decimated.shape[0]), np.nan)
+                out[channel] = decimated
+        if out is None:  # every channel unbridgeable
+            n_out = len(range(0, n, self.factor))
+            out = np.full((n_channels, n_out), np.nan)
+        return out.T, bad
 
     def _step_sums(self, index: int, raw: np.ndarray, start: int) -> dict:
         """Faulty-channel sums of the file's pieces, one per grid step it touches."""

@@ -126,29 +126,97 @@ def padding_samples(
     return int(math.ceil(total / factor) * factor)
 
 
+class _RowDecimator:
+    """:func:`~workbench.signals.conditioning.decimate` of one channel at a time, in buffers
+    reused from channel to channel and file to file.
+
+    Each stage is ``scipy.signal.sosfiltfilt`` (odd extension of ``3 (2 n_sections + 1)``
+    samples, forward pass from the steady state scaled by the first sample, backward pass
+    likewise) followed by keeping every q-th sample, computed with scipy's own second-order
+    section kernel on the same numbers in the same order: equal to ``decimate`` to the last
+    bit (tested). What it saves is memory traffic: ``sosfiltfilt`` makes a padded copy and
+    each of its two passes another copy of the channel; here the caller writes the samples
+    straight into the first stage's buffer (:meth:`buffer`) and both passes run in place.
+    """
+
+    def __init__(
+        self, factor: int, order: int = 8, ripple_db: float = 0.05, *, rows: int = 1
+    ) -> None:
+        self.rows = int(rows)  # channels the first stage's buffer holds at once
+        self.stages = []
+        for q in decimation_stages(factor):
+            sos = signal.cheby1(int(order), ripple_db, 0.8 / q, output="sos")
+            n_sections = sos.shape[0]
+            taps = 2 * n_sections + 1 - min((sos[:, 2] == 0).sum(), (sos[:, 5] == 0).sum())
+            self.stages.append((q, sos, signal.sosfilt_zi(sos), 3 * int(taps)))
+        self._forward: dict[int, np.ndarray] = {}
+        self._backward: dict[int, np.ndarray] = {}
+
+    @property
+    def edge(self) -> int:
+        """Samples of odd extension in front of the first stage's input in :meth:`buffer`."""
+        return self.stages[0][3]
+
+    def _buffers(self, stage: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+        size = n + 2 * self.stages[stage][3]
+        forward = self._forward.get(stage)
+        if forward is None or forward.shape[1] != size:
+            forward = self._forward[stage] = np.empty((self.rows if stage == 0 else 1, size))
+            self._backward[stage] = np.empty((1, size))
+        return forward, self._backward[stage]
+
+    def buffers(self, n: int) -> np.ndarray:
+        """The first stage's input buffers for *n* samples of :attr:`rows` channels, shape
+        (rows, n + 2 edge): write channel j to ``buffers[j, edge : edge + n]``, then call
+        :meth:`decimate` with *n* and ``row=j``."""
+        return self._buffers(0, n)[0]
+
+    def buffer(self, n: int) -> np.ndarray:
+        """The first row of :meth:`buffers`."""
+        return self.buffers(n)[0]
+
+    def decimate(self, n: int, row: int = 0) -> np.ndarray:
+        """The *n* samples written to row *row* of :meth:`buffers`, decimated (a new
+        array; the row is overwritten)."""
+        from scipy.signal._sosfilt import _sosfilt  # the kernel of scipy.signal.sosfilt
+
+        first = row
+        row = None
+        for stage, (q, sos, zi, edge) in enumerate(self.stages):
+            forward, backward = self._buffers(stage, n)
+            if stage == 0:
+                forward = forward[first : first + 1]
+            ext = forward[0]
+            if row is not None:
+                ext[edge : edge + n] = row
+            if n <= edge:
+                raise ValueError(f"{n} samples are too few to filter (need more than {edge})")
+            # odd extension: 2 x[0] - x[edge:0:-1] before, 2 x[-1] - x[-2:-edge-2:-1] after
+            ext[:edge] = 2 * ext[edge : edge + 1] - ext[2 * edge : edge : -1]
+            ext[edge + n :] = 2 * ext[edge + n - 1 : edge + n] - ext[edge + n - 2 : n - 2 : -1]
+            _sosfilt(sos, forward, np.ascontiguousarray((zi * ext[0])[None]))
+            back = backward[0]
+            back[:] = ext[::-1]
+            _sosfilt(sos, backward, np.ascontiguousarray((zi * back[0])[None]))
+            row = back[::-1][edge : edge + n][::q]
+            n = row.shape[0]
+        return np.array(row)
+
+
 def _decimate_channels_last(x: np.ndarray, factor: int, order: int = 8, ripple_db: float = 0.05):
     """:func:`~workbench.signals.conditioning.decimate` of finite samples laid out as
-    (n_channels, n_samples): the same Chebyshev type I stages and zero-phase filtering
-    (equal to the last bit, tested), filtering along the contiguous axis, which is twice as
-    fast as along the rows of an (n_samples, n_channels) array.
-
-    One channel at a time through all stages: the filter's temporaries (padded copy,
-    forward and backward passes) are then the size of one channel, stay in cache and are
-    reused by the allocator instead of being mapped afresh for the whole file; each row is
-    filtered by the same code either way, so the result is the same to the last bit.
-    """
-    stages = [
-        (q, signal.cheby1(int(order), ripple_db, 0.8 / q, output="sos"))
-        for q in decimation_stages(factor)
-    ]
-    if not stages:
+    (n_channels, n_samples), one channel at a time (:class:`_RowDecimator`): equal to the
+    last bit (tested)."""
+    if not decimation_stages(factor):
         return x
+    decimator = _RowDecimator(factor, order, ripple_db)
     out = None
+    n = x.shape[1]
+    edge = decimator.edge
     for channel in range(x.shape[0]):
-        row = x[channel : channel + 1]
-        for q, sos in stages:
-            row = signal.sosfiltfilt(sos, row, axis=-1)[:, ::q]
+        decimator.buffer(n)[edge : edge + n] = x[channel]
+        row = decimator.decimate(n)
         if out is None:
-            out = np.empty((x.shape[0], row.shape[1]), dtype=row.dtype)
-        out[channel] = row[0]
-    return out if out is not None else x[:, :: int(factor)]
+            out = np.empty((x.shape[0], row.shape[0]), dtype=row.dtype)
+        out[channel] = row
+    return out
