@@ -155,7 +155,7 @@ def test_two_forked_workers_give_the_tables_of_one_and_of_this_process(
     for workers in (1, 2):
         out = tmp_path / f"w{workers}"
         result = identify_voyage([fast.out_dir], out, options=OPTIONS, n_workers=workers)
-        assert result.summary.processed == 5
+        assert result.run.processed == 5
         tables[workers] = {
             name: pd.read_parquet(out / f"{name}.parquet") for name in ("poles", "selected")
         }
