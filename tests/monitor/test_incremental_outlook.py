@@ -12,6 +12,7 @@ import pytest
 
 from data_contracts import MODAL, PREDICTORS
 from workbench.forecasting.incremental import IncrementalMemoryForecast, NeedsFullHistory
+from workbench.forecasting.options import ForecastOptions
 from workbench.monitor.incremental import IncrementalOutlook, supported
 from workbench.monitor.outlook import ForecastSettings, forecast_table
 from workbench.monitor.structural_health import operational_health
@@ -143,7 +144,7 @@ def test_every_block_and_partial_windows_equal_batch():
 
 def test_state_needs_the_first_blocks_to_start_over():
     modal, predictors = voyage(60)
-    engine = IncrementalMemoryForecast(train_blocks=20)
+    engine = IncrementalMemoryForecast(ForecastOptions(train_blocks=20))
     engine.update(modal, predictors, modes=[1, 2, 3], final_through=59)
     assert engine.inputs_from is not None and engine.inputs_from > 20
     late = predictors[predictors["block"] >= 40]

@@ -1,6 +1,6 @@
 """The memory forecast carried from block to block: constant cost per new block.
 
-:func:`~workbench.forecasting.blend.memory_forecast` runs its windows (``horizon`` blocks
+:func:`~workbench.forecasting.memory.forecast.memory_forecast` runs its windows (``horizon`` blocks
 each, method 2) in order; a window reads the state the windows before it left (Kalman
 state, noise models, term selections, the model-trust filters, the innovation record) and
 the measurements of at most the last ``history_limit`` = 6 x ``memory_blocks`` blocks
@@ -12,7 +12,7 @@ round-off (``tests/monitor/test_incremental_outlook.py``, and over a 51-day repl
 ``benchmarks/bench_monitor_blocks.py``).
 
 :meth:`IncrementalMemoryForecast._window` is a copy of the option-A path of
-:func:`~workbench.forecasting.blend.memory_forecast`'s window loop (the same helpers, the
+:class:`~workbench.forecasting.memory.forecast.MemoryRun`'s window loop (the same helpers, the
 same order of operations): a change there must be made here too, and the equality tests
 above fail until it is. One copy would be better (``memory_forecast`` run as this class fed
 once); left for after the forecasting package's restructuring.
@@ -60,15 +60,15 @@ import pandas as pd
 
 from .excitation import sub_windows_per_block, within_block_profile
 from .innovation_consistency import MIN_BLOCKS, InnovationConsistency
-from .memory import MemoryModel
-from .memory_excitation import ExcitationBias
-from .memory_kalman import kalman_pass_step, stationary_covariance
-from .memory_noise import filter_matrices, first_window_noise, update_run
-from .memory_output import OUTPUT_ARRAYS
-from .memory_terms import MemoryRefits
+from .memory.excitation import ExcitationBias
+from .memory.kalman import kalman_pass_step, stationary_covariance
+from .memory.model import MemoryModel
+from .memory.noise import filter_matrices, first_window_noise, update_run
+from .memory.output import OUTPUT_ARRAYS
+from .memory.terms import MemoryRefits
 from .model_trust import ModelTrust
 from .noise import NoiseModel, estimate_noise, model_error_floor
-from .options import ModelOptions, NoiseOptions
+from .options import ForecastOptions, NoiseOptions
 
 __all__ = [
     "CHECKPOINT_SCHEMA",
@@ -81,7 +81,7 @@ __all__ = [
 #: ``schema`` of the checkpoint's JSON part (:meth:`IncrementalMemoryForecast.save`).
 CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/1"
 
-#: As in :mod:`workbench.forecasting.blend` (the same constants, the same algorithm).
+#: As in :mod:`workbench.forecasting.memory.forecast` (the same constants, the same algorithm).
 _PERSIST_BLOCKS = 3
 _HISTORY_CONSTANTS = 6.0
 #: Rows kept before the newest committed window beyond the refits' history. [blocks]
@@ -97,9 +97,13 @@ class _Core:
 
 
 def _start_ticks(grid: pd.DataFrame) -> np.ndarray:
-    """The blocks' starts as integers, as :func:`~workbench.forecasting.blend.memory_forecast`
-    takes them for its time trend (in the column's own resolution)."""
-    return pd.to_datetime(grid["block_start"], utc=True).astype("int64").to_numpy()
+    """The blocks' centres (starts without ``block_end``) in nanoseconds, as
+    :class:`~workbench.forecasting.memory.forecast.MemoryRun` takes them for its time trend."""
+    start_ns = pd.to_datetime(grid["block_start"], utc=True).astype("int64").to_numpy()
+    if "block_end" in grid.columns:
+        end_ns = pd.to_datetime(grid["block_end"], utc=True).astype("int64").to_numpy()
+        start_ns = start_ns + (end_ns - start_ns) // 2
+    return start_ns
 
 
 class IncrementalMemoryForecast:
@@ -111,31 +115,32 @@ class IncrementalMemoryForecast:
         First training window. [blocks]
     horizon : int
         Blocks per window (method 2's refit interval). [blocks]
-    model, noise : ModelOptions, NoiseOptions, optional
-        As :func:`~workbench.forecasting.sliding_forecast` builds them for ``model="memory"``.
-    gap_warning_blocks : int
+    options : ForecastOptions, optional
+        As :func:`~workbench.forecasting.sliding_forecast` takes them: ``model="memory"``
+        (or None), ``scheme=2``, ``options=("A",)``, no ``predictor_columns``; its
+        ``train_blocks``, ``horizon_blocks``, ``gap_warning_blocks`` and ``noise`` apply.
     snapshots : int
         Committed windows whose state is kept to go back to (a changed input up to about
         ``snapshots x horizon`` blocks back is followed without starting over).
     """
 
-    def __init__(
-        self,
-        *,
-        train_blocks: int = 20,
-        horizon: int = 4,
-        model: ModelOptions | None = None,
-        noise: NoiseOptions | None = None,
-        gap_warning_blocks: int = 12,
-        snapshots: int = 16,
-    ) -> None:
-        self.model = model or ModelOptions(train_blocks=train_blocks)
-        self.noise = noise or NoiseOptions()
-        self.horizon = int(horizon)
-        self.gap_warning_blocks = int(gap_warning_blocks)
+    def __init__(self, options: ForecastOptions | None = None, *, snapshots: int = 16) -> None:
+        options = options or ForecastOptions()
+        if options.model not in (None, "memory"):
+            raise ValueError(f"model={options.model!r}: only the memory forecast is resumed")
+        if options.scheme != 2 or tuple(options.options) != ("A",):
+            raise ValueError(
+                f"scheme={options.scheme!r}, options={options.options!r}: only scheme 2 "
+                "with option A is resumed"
+            )
+        if options.predictor_columns is not None:
+            raise ValueError("predictor_columns: only the default predictor columns are resumed")
+        self.options = options
+        self.model = options  # the settings the window loop reads (as the batch's MemoryRun)
+        self.noise = options.noise
+        self.horizon = options.horizon_blocks
+        self.gap_warning_blocks = int(options.gap_warning_blocks)
         self.n_snapshots = int(snapshots)
-        if self.horizon < 1:
-            raise ValueError(f"horizon={horizon} must be >= 1")
         if self.n_snapshots < 1:
             raise ValueError(f"snapshots={snapshots} must be >= 1")
         self.restarts = 0  # starts from the first block after a committed window
@@ -390,11 +395,7 @@ class IncrementalMemoryForecast:
                 f"start_block to end_block, got {max(n_blocks, 0)}"
             )
         core.train = train
-        core.min_train = (
-            max(5, train // 2) if model.min_train_blocks is None else model.min_train_blocks
-        )
-        if not 2 <= core.min_train <= train:
-            raise ValueError(f"min_train_blocks={core.min_train} must be in [2, train_blocks]")
+        core.min_train = model.min_train
         core.limit = float(model.extrapolation_limit)
         core.memory = float(model.memory_blocks)
         core.history_limit = int(math.ceil(_HISTORY_CONSTANTS * core.memory))
@@ -427,16 +428,7 @@ class IncrementalMemoryForecast:
         core.reference_hz = None
         core.damping_ref = None
         core.refits = MemoryRefits(
-            model,
-            core.X,
-            all_columns,
-            core.meas,
-            None,
-            0,
-            core.min_train,
-            core.history_limit,
-            core.memory,
-            core.limit,
+            model, core.X, all_columns, core.meas, None, 0, core.history_limit
         )
         core.bias = ExcitationBias(
             core.X,
@@ -817,37 +809,28 @@ class IncrementalMemoryForecast:
     @staticmethod
     def _table(core: _Core, start: int, stop: int) -> pd.DataFrame:
         """Rows *start*..*stop* of the forecast table (:func:`~workbench.forecasting.
-        memory_output.assemble_table`'s columns, without its merge)."""
-        from .assembly import _assemble, _drop_unusable
+        memory.output.assemble_table`'s columns, without its merge)."""
+        from .assembly import assemble_rows, drop_unusable
 
         rows = slice(start, stop)
         phase = core.out_phase[rows].copy()
         out = {k: v[rows] for k, v in core.out.items()}
-        _drop_unusable(phase, out["model"], out["kalman"], core.notes)
+        drop_unusable(phase, out["model"], out["kalman"], core.notes)
         warning_rows = {
             (r - start, j): v for (r, j), v in core.out_warning.items() if start <= r < stop
         }
         blocks = core.blocks[rows]
-        table = _assemble(
+        table = assemble_rows(
             blocks,
             core.block_start[rows],
             core.mode_labels,
             "A",
             phase,
-            out["ssi"],
-            out["model"],
-            out["lower"],
-            out["upper"],
-            out["kalman"],
-            out["std"],
-            core.out_w0[rows],
-            core.out_w1[rows],
-            out["order"],
-            out["damping"],
-            out["mac"],
+            out,
+            (core.out_w0[rows], core.out_w1[rows]),
             warning_rows,
         )
-        # _assemble's rows: np.nonzero order, sorted stably by (mode, block)
+        # assemble_rows' rows: np.nonzero order, sorted stably by (mode, block)
         found, modes = np.nonzero(phase)
         order = np.lexsort((blocks[found], core.mode_labels[modes]))
         table["model_probability"] = out["probability"][found, modes][order]
@@ -887,8 +870,6 @@ def _same(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------- checkpoint
 def _classes() -> dict[str, type]:
     """The classes a checkpoint may hold (nothing else is ever constructed from one)."""
-    from .options import ModelOptions, NoiseOptions
-
     return {
         cls.__name__: cls
         for cls in (
@@ -899,7 +880,7 @@ def _classes() -> dict[str, type]:
             ExcitationBias,
             InnovationConsistency,
             ModelTrust,
-            ModelOptions,
+            ForecastOptions,
             NoiseOptions,
         )
     }
