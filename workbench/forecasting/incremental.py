@@ -469,7 +469,7 @@ class IncrementalMemoryForecast:
 
     def _commit(self, core: MemoryRun) -> None:
         """Keep a copy of the state after a committed window; drop old rows and copies."""
-        drop = core.i0 - (core.history_limit + _MARGIN_ROWS + self.horizon * self.n_snapshots)
+        drop = core.i0 - (self._rows_read(core) + _MARGIN_ROWS + self.horizon * self.n_snapshots)
         if drop > 2 * _MARGIN_ROWS:
             self._rebase(core, drop)
         # rows before the window are in the committed output; the innovation test reads
@@ -493,6 +493,16 @@ class IncrementalMemoryForecast:
                 ]
                 del self._chunks[:n_old]
                 self._snapshots = deque((b, s, n - n_old) for b, s, n in self._snapshots)
+
+    def _rows_read(self, core: MemoryRun) -> int:
+        """Rows before a window that the window reads: the refits' history, the noise and
+        term selection windows, the innovation record (whichever is longest). [blocks]"""
+        return max(
+            core.history_limit,
+            int(self.noise.noise_blocks),
+            int(self.options.selection_blocks),
+            2 * core.consistency.window_blocks,
+        )
 
     @staticmethod
     def _rebase(core: MemoryRun, drop: int) -> None:
