@@ -12,6 +12,7 @@ import pytest
 
 from data_contracts import MODAL, PREDICTORS
 from workbench.forecasting.incremental import IncrementalMemoryForecast, NeedsFullHistory
+from workbench.forecasting.options import ForecastOptions
 from workbench.monitor.incremental import IncrementalOutlook, supported
 from workbench.monitor.outlook import ForecastSettings, forecast_table
 from workbench.monitor.structural_health import operational_health
@@ -143,7 +144,7 @@ def test_every_block_and_partial_windows_equal_batch():
 
 def test_state_needs_the_first_blocks_to_start_over():
     modal, predictors = voyage(60)
-    engine = IncrementalMemoryForecast(train_blocks=20)
+    engine = IncrementalMemoryForecast(ForecastOptions(train_blocks=20))
     engine.update(modal, predictors, modes=[1, 2, 3], final_through=59)
     assert engine.inputs_from is not None and engine.inputs_from > 20
     late = predictors[predictors["block"] >= 40]
@@ -198,3 +199,37 @@ def test_update_outlook_takes_up_the_saved_state_after_a_restart(
     assert len(loads) == 1 and loads[0] is not None and loads[0] > 6
     forecast = pd.read_parquet(state / "forecast.parquet")
     pd.testing.assert_frame_equal(forecast, batch["forecast"], rtol=1e-9)
+
+
+def test_forecast_equals_batch_after_the_oldest_rows_are_dropped():
+    """With a short memory (history 60 blocks) the state drops its oldest rows as the voyage
+    grows (constant size); the forecast still equals the batch memory forecast."""
+    from workbench.forecasting.memory.forecast import memory_forecast
+    from workbench.forecasting.options import NoiseOptions
+
+    modal, predictors = voyage(400, seed=3)
+    options = ForecastOptions(
+        train_blocks=20,
+        memory_blocks=10.0,
+        selection_blocks=40,
+        reselect_blocks=12,
+        noise=NoiseOptions(noise_blocks=40),
+    )
+    engine = IncrementalMemoryForecast(options, snapshots=4)
+    modes = [1, 2, 3]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for last in (*range(30, 400, 7), 399):
+            start = engine.inputs_from or 0
+            part = predictors[(predictors["block"] <= last) & (predictors["block"] >= start)]
+            table, _ = engine.update(
+                modal[modal["block"] <= last], part, modes=modes, final_through=last - 1
+            )
+        expected = memory_forecast(
+            modal, predictors, options, poles=None, modes=modes, start_block=None, end_block=None
+        ).table
+    assert engine._core.base_block > 100  # the rows before it were dropped
+    assert engine.inputs_from > 350  # the last update was given its newest 50 blocks only
+    expected = expected.sort_values(["block", "mode"], kind="stable").reset_index(drop=True)
+    assert len(table) == 1200
+    pd.testing.assert_frame_equal(table, expected, rtol=1e-9)

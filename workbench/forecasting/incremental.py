@@ -1,6 +1,6 @@
 """The memory forecast carried from block to block: constant cost per new block.
 
-:func:`~workbench.forecasting.blend.memory_forecast` runs its windows (``horizon`` blocks
+:func:`~workbench.forecasting.memory.forecast.memory_forecast` runs its windows (``horizon`` blocks
 each, method 2) in order; a window reads the state the windows before it left (Kalman
 state, noise models, term selections, the model-trust filters, the innovation record) and
 the measurements of at most the last ``history_limit`` = 6 x ``memory_blocks`` blocks
@@ -11,11 +11,14 @@ the voyage, and the table it returns equals the batch forecast's over the same t
 round-off (``tests/monitor/test_incremental_outlook.py``, and over a 51-day replay in
 ``benchmarks/bench_monitor_blocks.py``).
 
-:meth:`IncrementalMemoryForecast._window` is a copy of the option-A path of
-:func:`~workbench.forecasting.blend.memory_forecast`'s window loop (the same helpers, the
-same order of operations): a change there must be made here too, and the equality tests
-above fail until it is. One copy would be better (``memory_forecast`` run as this class fed
-once); left for after the forecasting package's restructuring.
+The state is the batch forecast's own :class:`~workbench.forecasting.memory.forecast.
+MemoryRun`, and :meth:`IncrementalMemoryForecast._window` runs a window with its
+:meth:`~workbench.forecasting.memory.forecast.MemoryRun.model_rows` and
+:meth:`~workbench.forecasting.memory.forecast.MemoryRun.kalman_pass`, as
+:func:`~workbench.forecasting.memory.forecast.memory_forecast` does: one implementation of
+the window. What this module adds is the bookkeeping: the rows appended as blocks come and
+dropped once older than every window's history, the copies of committed states, the
+checkpoint.
 
 Why the history is carried as rows and not as discounted cross-product sums (recursive
 least squares): every refit z-scores the candidate predictors with the mean and standard
@@ -59,16 +62,16 @@ import numpy as np
 import pandas as pd
 
 from .excitation import sub_windows_per_block, within_block_profile
-from .innovation_consistency import MIN_BLOCKS, InnovationConsistency
-from .memory import MemoryModel
-from .memory_excitation import ExcitationBias
-from .memory_kalman import kalman_pass_step, stationary_covariance
-from .memory_noise import filter_matrices, first_window_noise, update_run
-from .memory_output import OUTPUT_ARRAYS
-from .memory_terms import MemoryRefits
+from .innovation_consistency import InnovationConsistency
+from .memory.excitation import ExcitationBias
+from .memory.forecast import MemoryRun
+from .memory.model import MemoryModel
+from .memory.output import OUTPUT_ARRAYS
+from .memory.terms import MemoryRefits
 from .model_trust import ModelTrust
-from .noise import NoiseModel, estimate_noise, model_error_floor
-from .options import ModelOptions, NoiseOptions
+from .noise import NoiseModel
+from .options import ForecastOptions, NoiseOptions
+from .predictor_grid import mode_matrix, predictor_matrix
 
 __all__ = [
     "CHECKPOINT_SCHEMA",
@@ -79,11 +82,8 @@ __all__ = [
 ]
 
 #: ``schema`` of the checkpoint's JSON part (:meth:`IncrementalMemoryForecast.save`).
-CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/1"
+CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/2"
 
-#: As in :mod:`workbench.forecasting.blend` (the same constants, the same algorithm).
-_PERSIST_BLOCKS = 3
-_HISTORY_CONSTANTS = 6.0
 #: Rows kept before the newest committed window beyond the refits' history. [blocks]
 _MARGIN_ROWS = 64
 
@@ -92,14 +92,14 @@ class NeedsFullHistory(Exception):
     """The state cannot be resumed with the tables given: pass the whole voyage's tables."""
 
 
-class _Core:
-    """Everything the windows of one run share (one copy per committed window)."""
-
-
 def _start_ticks(grid: pd.DataFrame) -> np.ndarray:
-    """The blocks' starts as integers, as :func:`~workbench.forecasting.blend.memory_forecast`
-    takes them for its time trend (in the column's own resolution)."""
-    return pd.to_datetime(grid["block_start"], utc=True).astype("int64").to_numpy()
+    """The blocks' centres (starts without ``block_end``) in nanoseconds, as
+    :class:`~workbench.forecasting.memory.forecast.MemoryRun` takes them for its time trend."""
+    start_ns = pd.to_datetime(grid["block_start"], utc=True).astype("int64").to_numpy()
+    if "block_end" in grid.columns:
+        end_ns = pd.to_datetime(grid["block_end"], utc=True).astype("int64").to_numpy()
+        start_ns = start_ns + (end_ns - start_ns) // 2
+    return start_ns
 
 
 class IncrementalMemoryForecast:
@@ -111,31 +111,32 @@ class IncrementalMemoryForecast:
         First training window. [blocks]
     horizon : int
         Blocks per window (method 2's refit interval). [blocks]
-    model, noise : ModelOptions, NoiseOptions, optional
-        As :func:`~workbench.forecasting.sliding_forecast` builds them for ``model="memory"``.
-    gap_warning_blocks : int
+    options : ForecastOptions, optional
+        As :func:`~workbench.forecasting.sliding_forecast` takes them: ``model="memory"``
+        (or None), ``scheme=2``, ``options=("A",)``, no ``predictor_columns``; its
+        ``train_blocks``, ``horizon_blocks``, ``gap_warning_blocks`` and ``noise`` apply.
     snapshots : int
         Committed windows whose state is kept to go back to (a changed input up to about
         ``snapshots x horizon`` blocks back is followed without starting over).
     """
 
-    def __init__(
-        self,
-        *,
-        train_blocks: int = 20,
-        horizon: int = 4,
-        model: ModelOptions | None = None,
-        noise: NoiseOptions | None = None,
-        gap_warning_blocks: int = 12,
-        snapshots: int = 16,
-    ) -> None:
-        self.model = model or ModelOptions(train_blocks=train_blocks)
-        self.noise = noise or NoiseOptions()
-        self.horizon = int(horizon)
-        self.gap_warning_blocks = int(gap_warning_blocks)
+    def __init__(self, options: ForecastOptions | None = None, *, snapshots: int = 16) -> None:
+        options = options or ForecastOptions()
+        if options.model not in (None, "memory"):
+            raise ValueError(f"model={options.model!r}: only the memory forecast is resumed")
+        if options.scheme != 2 or tuple(options.options) != ("A",):
+            raise ValueError(
+                f"scheme={options.scheme!r}, options={options.options!r}: only scheme 2 "
+                "with option A is resumed"
+            )
+        if options.predictor_columns is not None:
+            raise ValueError("predictor_columns: only the default predictor columns are resumed")
+        self.options = options
+        self.model = options  # the settings the window loop reads (as the batch's MemoryRun)
+        self.noise = options.noise
+        self.horizon = options.horizon_blocks
+        self.gap_warning_blocks = int(options.gap_warning_blocks)
         self.n_snapshots = int(snapshots)
-        if self.horizon < 1:
-            raise ValueError(f"horizon={horizon} must be >= 1")
         if self.n_snapshots < 1:
             raise ValueError(f"snapshots={snapshots} must be >= 1")
         self.restarts = 0  # starts from the first block after a committed window
@@ -146,10 +147,10 @@ class IncrementalMemoryForecast:
     # ------------------------------------------------------------------ bookkeeping
     def reset(self) -> None:
         """Forget everything: the next :meth:`update` starts at the voyage's first block."""
-        self._snapshots: deque[tuple[int, _Core, int]] = deque()  # (i0 block, core, chunks)
+        self._snapshots: deque[tuple[int, MemoryRun, int]] = deque()  # (i0 block, core, chunks)
         self._chunks: list[tuple[int, pd.DataFrame]] = []  # committed output per window
         self._old: list[pd.DataFrame] = []  # output older than every snapshot, consolidated
-        self._core: _Core | None = None
+        self._core: MemoryRun | None = None
         self._first_block: int | None = None  # the voyage's first block
 
     @property
@@ -161,24 +162,11 @@ class IncrementalMemoryForecast:
 
     # ------------------------------------------------------------------ inputs
     def _inputs(self, modal, predictors, modes):
-        grid = predictors.sort_values("block").drop_duplicates("block", keep="last")
-        blocks = grid["block"].to_numpy(dtype=np.int64)
+        """The arrays of one call's tables, read as the batch forecast reads them."""
+        grid, blocks, block_start, columns, X = predictor_matrix(predictors, None)
         if blocks.size and not (np.diff(blocks) == 1).all():
             raise NeedsFullHistory("the predictor blocks are not consecutive")
-        columns = [
-            c
-            for c in grid.columns
-            if c != "block"
-            and pd.api.types.is_numeric_dtype(grid[c].dtype)
-            and not pd.api.types.is_bool_dtype(grid[c].dtype)
-        ]
-        X = grid[columns].to_numpy(dtype=float, na_value=np.nan) if columns else None
-        if X is None:
-            X = np.empty((len(grid), 0))
-        block_start = pd.to_datetime(grid["block_start"], utc=True).to_numpy()
         labels = np.asarray(modes, dtype=np.int64)
-        from .predictor_grid import mode_matrix
-
         tracked = mode_matrix(modal, blocks, labels, "frequency_hz")
         combined = (
             mode_matrix(modal, blocks, labels, "combined_frequency_std_hz")
@@ -246,7 +234,7 @@ class IncrementalMemoryForecast:
             restarted = self._committed
             self.reset()
             self.restarts += restarted
-            core = self._start(new)
+            core = self._start(modal, predictors, new)
             self._first_block = int(new.blocks[0])
         self._append(core, new)
         provisional: list[pd.DataFrame] = []
@@ -290,7 +278,7 @@ class IncrementalMemoryForecast:
             When *committed* does not end at the checkpoint's block.
         """
         block, core = int(checkpoint["block"]), checkpoint["core"]
-        if not isinstance(core, _Core):
+        if not isinstance(core, MemoryRun):
             raise ValueError("checkpoint without a forecast state")
         committed = committed[committed["block"] < block]
         if not len(committed):
@@ -319,14 +307,14 @@ class IncrementalMemoryForecast:
         return [f"{kind} (x{count})" for kind, count in notes.items()]
 
     # ------------------------------------------------------------------ resume or start
-    def _resume_point(self, new) -> _Core | None:
+    def _resume_point(self, new) -> MemoryRun | None:
         """A copy of the newest committed state whose inputs *new* leaves unchanged, with
         the chunks after it dropped; None: start over."""
         if self._core is None or not self._snapshots:
             return None
         last = self._core
         if (
-            list(new.columns) != list(last.columns)
+            list(new.columns) != list(last.input_columns)
             or not np.array_equal(new.labels, last.mode_labels)
             or new.blocks.size == 0
         ):
@@ -358,7 +346,7 @@ class IncrementalMemoryForecast:
             return lo
         a = slice(lo - core.base_block, hi - core.base_block + 1)
         b = slice(lo - int(new.blocks[0]), hi - int(new.blocks[0]) + 1)
-        differ = ~_same(core.X[a, : len(core.columns)], new.X[b]).all(axis=1)
+        differ = ~_same(core.X_all[a, : len(core.input_columns)], new.X[b]).all(axis=1)
         differ |= ~_same(core.tracked[a], new.tracked[b]).all(axis=1)
         differ |= ~_same(core.tracked_damping[a], new.damping[b]).all(axis=1)
         if (core.combined_std is None) != (new.combined is None):
@@ -369,118 +357,35 @@ class IncrementalMemoryForecast:
         where = np.flatnonzero(differ)
         return lo + int(where[0]) if where.size else hi + 1
 
-    def _start(self, new) -> _Core:
-        """The state before the first window (memory_forecast's set-up)."""
-        model, noise = self.model, self.noise
-        core = _Core()
-        n_blocks = new.blocks.size
-        if n_blocks == 0:
+    def _start(self, modal, predictors, new) -> MemoryRun:
+        """The state before the first window: the batch forecast's set-up
+        (:class:`~workbench.forecasting.memory.forecast.MemoryRun`) over the first call's
+        tables, with what carrying it from call to call needs."""
+        options = self.options
+        if new.blocks.size == 0:
             raise ValueError("predictors has no blocks")
-        core.columns = list(new.columns)
+        core = MemoryRun(modal, predictors, options, None, new.labels, None, None, None)
+        core.grid = None  # read by the set-up only (not kept in a checkpoint)
+        core.input_columns = list(new.columns)  # the predictor columns, without the trend
         core.t0_ticks = int(new.ticks[0])
-        core.time_trend = bool(model.time_trend and model.predictor_columns is None)
+        core.time_trend = bool(options.time_trend and options.predictor_columns is None)
         core.n_sub = sub_windows_per_block(new.grid)
-        core.overlap = core.n_sub or 1
-        core.mode_labels = new.labels
-        n_modes = new.labels.size
-        train = int(model.train_blocks)
-        if n_blocks < train + 1:
-            raise ValueError(
-                f"train_blocks={train} needs at least {train + 1} blocks from "
-                f"start_block to end_block, got {max(n_blocks, 0)}"
-            )
-        core.train = train
-        core.min_train = (
-            max(5, train // 2) if model.min_train_blocks is None else model.min_train_blocks
-        )
-        if not 2 <= core.min_train <= train:
-            raise ValueError(f"min_train_blocks={core.min_train} must be in [2, train_blocks]")
-        core.limit = float(model.extrapolation_limit)
-        core.memory = float(model.memory_blocks)
-        core.history_limit = int(math.ceil(_HISTORY_CONSTANTS * core.memory))
-        core.base_block = int(new.blocks[0])
-        core.first = 0
-        core.n = 0
-        n_columns = len(core.columns) + (1 if core.time_trend else 0)
-        core.X = np.empty((0, n_columns))
-        core.blocks = np.empty(0, dtype=np.int64)
-        core.block_start = np.empty(0, dtype=new.block_start.dtype)
-        core.tracked = np.empty((0, n_modes))
-        core.tracked_damping = np.empty((0, n_modes))
-        core.combined_std = None if new.combined is None else np.empty((0, n_modes))
-        all_columns = [*core.columns, "elapsed_hours"] if core.time_trend else core.columns
-        core.speed_col = all_columns.index("speed_kn") if "speed_kn" in all_columns else None
+        core.speed_col = core.bias.speed_col
+        # the excitation term from the rows as they come (the batch leaves it out when the
+        # whole voyage's speed never changes within a block: a future no update knows)
         core.has_speed_var = bool(
-            model.excitation_bias and core.n_sub and core.speed_col is not None
+            options.excitation_bias and core.n_sub and core.speed_col is not None
         )
         core.speed_var = np.empty(0) if core.has_speed_var else None
         core.shift_cap = np.empty(0) if core.has_speed_var else None
-        for name in ("meas", "resid", "scatter"):
-            setattr(core, name, np.empty((0, n_modes)))
-        core.out = {k: np.empty((0, n_modes)) for k in OUTPUT_ARRAYS}
-        core.out_phase = np.zeros((0, n_modes), dtype=np.int8)
-        core.out_w0 = np.zeros((0, n_modes), dtype=np.int64)
-        core.out_w1 = np.zeros((0, n_modes), dtype=np.int64)
-        core.out_warning = {}
-        core.notes = Counter()
-        # the first window's measurements and references need its rows: set in _append
-        core.reference_hz = None
-        core.damping_ref = None
-        core.refits = MemoryRefits(
-            model,
-            core.X,
-            all_columns,
-            core.meas,
-            None,
-            0,
-            core.min_train,
-            core.history_limit,
-            core.memory,
-            core.limit,
-        )
-        core.bias = ExcitationBias(
-            core.X,
-            core.speed_col,
-            core.speed_var,
-            core.shift_cap,
-            np.zeros(n_modes),
-            0,
-            core.history_limit,
-            core.memory,
-            core.limit,
-        )
-        core.current = [None] * n_modes
-        core.noise_of = [None] * n_modes
-        core.noise_at = np.full(n_modes, -(10**9))
-        core.state = np.zeros((n_modes, 2))
-        core.P = np.zeros((n_modes, 2, 2))
-        core.started = np.zeros(n_modes, dtype=bool)
-        core.gap = np.zeros(n_modes, dtype=np.int64)
-        core.trust = (
-            ModelTrust(
-                n_modes,
-                float(noise.huber_sigma),
-                persist_blocks=max(_PERSIST_BLOCKS, core.overlap + 1),
-            )
-            if noise.model_trust
-            else None
-        )
-        core.explained_lost = np.zeros(n_modes, dtype=np.int64)
-        core.explained = np.zeros(n_modes, dtype=bool)
-        core.forecast_blocks = np.zeros(n_modes, dtype=np.int64)
-        core.run = np.zeros(n_modes, dtype=np.int64)
-        core.consistency = InnovationConsistency(
-            0,
-            n_modes,
-            float(noise.huber_sigma),
-            window_blocks=max(int(noise.consistency_blocks), MIN_BLOCKS),
-        )
-        core.i0 = train
+        core.base_block = int(new.blocks[0])
+        core.n = 0
+        core.i0 = core.first + core.train
         core.is_first = True
         return core
 
     # ------------------------------------------------------------------ rows
-    def _append(self, core: _Core, new) -> None:
+    def _append(self, core: MemoryRun, new) -> None:
         """Replace the rows from the newest block *core* has not run yet with *new*'s."""
         keep = core.i0 if not core.is_first else 0
         end_block = core.base_block + keep  # first block taken from *new*
@@ -493,7 +398,7 @@ class IncrementalMemoryForecast:
         if core.time_trend:
             X = np.column_stack([X, (new.ticks[take] - core.t0_ticks) / 3.6e12])
         rows = {
-            "X": X,
+            "X_all": X,
             "blocks": new.blocks[take],
             "block_start": new.block_start[take],
             "tracked": new.tracked[take],
@@ -517,7 +422,7 @@ class IncrementalMemoryForecast:
             # σ_v² of a block from it and the 2 n_sub blocks before (no look-ahead)
             history = 2 * core.n_sub + 1
             at = keep - (history - 1)
-            speed = core.X[:, core.speed_col]
+            speed = core.X_all[:, core.speed_col]
             if at <= 0 and core.base_block == core.blocks[0] and core.first == 0:
                 variance = within_block_profile(speed, core.n_sub).var(axis=1)
                 variance = variance[keep:]
@@ -554,17 +459,17 @@ class IncrementalMemoryForecast:
     @staticmethod
     def _point(core) -> None:
         """Point the refits and the excitation term at the core's arrays."""
-        core.refits.X_all = core.X
+        core.refits.X_all = core.X_all
         core.refits.meas = core.meas
         core.refits.first = core.first
-        core.bias.X_all = core.X
+        core.bias.X_all = core.X_all
         core.bias.speed_var = core.speed_var
         core.bias.shift_cap = core.shift_cap
         core.bias.first = core.first
 
-    def _commit(self, core: _Core) -> None:
+    def _commit(self, core: MemoryRun) -> None:
         """Keep a copy of the state after a committed window; drop old rows and copies."""
-        drop = core.i0 - (core.history_limit + _MARGIN_ROWS + self.horizon * self.n_snapshots)
+        drop = core.i0 - (self._rows_read(core) + _MARGIN_ROWS + self.horizon * self.n_snapshots)
         if drop > 2 * _MARGIN_ROWS:
             self._rebase(core, drop)
         # rows before the window are in the committed output; the innovation test reads
@@ -589,12 +494,22 @@ class IncrementalMemoryForecast:
                 del self._chunks[:n_old]
                 self._snapshots = deque((b, s, n - n_old) for b, s, n in self._snapshots)
 
+    def _rows_read(self, core: MemoryRun) -> int:
+        """Rows before a window that the window reads: the refits' history, the noise and
+        term selection windows, the innovation record (whichever is longest). [blocks]"""
+        return max(
+            core.history_limit,
+            int(self.noise.noise_blocks),
+            int(self.options.selection_blocks),
+            2 * core.consistency.window_blocks,
+        )
+
     @staticmethod
-    def _rebase(core: _Core, drop: int) -> None:
+    def _rebase(core: MemoryRun, drop: int) -> None:
         """Forget the oldest *drop* rows (never read again: older than every window's
         history)."""
         for name in (
-            "X",
+            "X_all",
             "blocks",
             "block_start",
             "tracked",
@@ -628,226 +543,43 @@ class IncrementalMemoryForecast:
         IncrementalMemoryForecast._point(core)
 
     # ------------------------------------------------------------------ one window
-    def _window(self, core: _Core, f1: int) -> pd.DataFrame:
-        """Run one window (memory_forecast's loop body, option A, method 2) and return its
-        rows of the forecast table."""
-        from .fitted_model import _plausible
-        from .measurement import scatter_scale
-
-        model, noise = self.model, self.noise
-        n_modes = core.mode_labels.size
-        first, train, i0 = core.first, core.train, core.i0
-        blocks, tracked, meas, resid, scatter = (
-            core.blocks,
-            core.tracked,
-            core.meas,
-            core.resid,
-            core.scatter,
-        )
-        out, current, noise_of = core.out, core.current, core.noise_of
-        history_limit, notes = core.history_limit, core.notes
-        refits, bias = core.refits, core.bias
-
-        def warn(i, j, message, kind):
-            notes[kind] += 1
-            core.out_warning.setdefault((i, j), []).append(message)
-
-        is_first = core.is_first
-        k_first = first if is_first else i0
-        report = np.arange(k_first, f1)
-        m_rows = np.full((f1 - k_first, n_modes), np.nan)
-        z_rows = np.full((f1 - k_first, n_modes), np.nan)
-        v_rows = np.zeros((f1 - k_first, n_modes))
-        fits = [refits.refit(j, i0) for j in range(n_modes)]
-        bias.refit(fits, i0, refits.train_y)
-        for j in range(n_modes):
-            if fits[j] is not None:
-                current[j] = fits[j]
-        for j in range(n_modes):
-            m = current[j]
-            if m is None:
-                notes[f"mode {core.mode_labels[j]}: too few measured blocks, no forecast"] += 1
-                continue
-            from_row = max(k_first - 1, first)
-            mean, lower, upper, bad, mvar = refits.predict(m, np.arange(from_row, f1))
-            seen = bias.seen_by_ssi(m, np.arange(from_row, f1), j, mean)
-            implausible = np.isfinite(mean) & ~_plausible(mean, core.reference_hz[j])
-            implausible |= np.isfinite(seen) & ~_plausible(seen, core.reference_hz[j])
-            if implausible.any():
-                level = float(np.nanmedian(meas[max(first, i0 - 36) : i0, j]))
-                mean[implausible] = level
-                seen[implausible] = level
-                lower[implausible] = level - (upper - lower)[implausible] / 2
-                upper[implausible] = level + (upper - lower)[implausible] / 2
-            shift = from_row < k_first
-            sl = slice(1, None) if shift else slice(None)
-            m_rows[:, j] = mean[sl]
-            z_rows[:, j] = seen[sl]
-            out["seen"][report, j] = seen[sl]
-            v_rows[:, j] = mvar[sl]
-            out["model"][report, j] = mean[sl]
-            out["lower"][report, j] = lower[sl]
-            out["upper"][report, j] = upper[sl]
-            core.out_w0[report, j] = blocks[max(first, i0 - history_limit)]
-            core.out_w1[report, j] = blocks[i0 - 1]
-            core.out_phase[report, j] = np.where(report < first + train, 1, 2)
-            for k in report[bad[sl]]:
-                warn(k, j, "predictor NaN: model centre", "blocks with a needed predictor NaN")
-            level_hz = float(abs(np.nanmedian(mean)))
-            lo = max(first, i0 - int(noise.noise_blocks))
-            r_hist = resid[lo:i0, j]
-            if np.isfinite(r_hist).sum() == 0 and is_first:
-                nz = first_window_noise(meas[first:i0, j], out["seen"][first:i0, j], level_hz)
-            elif (
-                noise_of[j] is None
-                or i0 - first < int(noise.noise_blocks)
-                or i0 - core.noise_at[j] >= model.reselect_blocks
-            ):
-                nz = estimate_noise(r_hist, level_hz, correlated_lags=core.n_sub)
-                if nz.n_residuals:
-                    nz = model_error_floor(nz, resid[max(lo, first + train) : i0, j])
-                core.noise_at[j] = i0
-            else:
-                nz = noise_of[j]
-            noise_of[j] = nz
-            if not core.started[j]:
-                core.P[j] = stationary_covariance(nz)
-                core.state[j] = 0.0
-                core.started[j] = True
-
-        typical = np.full(n_modes, np.nan)
-        combined_std = core.combined_std
-        if combined_std is not None and noise.pole_scatter:
-            lo = max(first, i0 - int(noise.noise_blocks))
-            s = scatter[lo:i0]
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", RuntimeWarning)
-                typical = np.sqrt(np.nanmean(s**2, axis=0))
-        F, q_c, q_e, r_v, huber = filter_matrices(noise_of, noise.huber_sigma)
-        added_variance = (
-            core.consistency.update(i0).copy() if noise.consistency_blocks else np.zeros(n_modes)
-        )
-        have_model = np.array([c is not None for c in current])
-        trust = core.trust
-        persist = max(_PERSIST_BLOCKS, core.overlap + 1)
-        for r, k in enumerate(report):
-            m_now = m_rows[r]
-            z_now = z_rows[r]
-            have = np.isfinite(m_now) & have_model
-            scale = np.ones(n_modes)
-            z = tracked[k].copy()
-            if combined_std is not None and noise.pole_scatter:
-                for j in np.flatnonzero(np.isfinite(z) & have):
-                    if np.isfinite(combined_std[k, j]):
-                        scatter[k, j] = combined_std[k, j]
-                        scale[j] = scatter_scale(combined_std[k, j], typical[j])
-            z[~have] = np.nan
-            residual = z - z_now
-            Q = np.column_stack([q_c, q_e * scale])
-            core.state, core.P, delta, nu, innovation_variance = kalman_pass_step(
-                core.state,
-                core.P,
-                F,
-                Q,
-                residual,
-                r_v * scale,
-                huber,
-                model_variance=v_rows[r] + added_variance,
-                previous_run=core.run,
-                persist_blocks=persist,
-            )
-            if k >= first + train:
-                core.consistency.record(k, nu, innovation_variance, residual)
-            core.run = update_run(core.run, nu, huber)
-            estimate = m_now + core.state[:, 0] + delta
-            lost = have & ~_plausible(estimate, core.reference_hz)
-            for j in np.flatnonzero(lost):
-                core.state[j] = 0.0
-                core.P[j] = stationary_covariance(noise_of[j])
-                estimate[j] = m_now[j]
-                warn(
-                    k,
-                    j,
-                    "Kalman track implausible: restarted at the model",
-                    "Kalman tracks restarted at the model (estimate implausible)",
-                )
-            variance = np.maximum(core.P[:, 0, 0], 0.0)
-            if trust is not None:
-                out_of_sample = np.full(n_modes, k >= first + train)
-                trust.step(
-                    np.where(have, z, np.nan),
-                    F[:, 1],
-                    q_e * scale / np.maximum(1 - F[:, 1] ** 2, 1e-12),
-                    r_v * scale,
-                    nu,
-                    innovation_variance,
-                    out_of_sample & ~lost,
-                )
-                estimate, variance = trust.combine(estimate, variance)
-                out["probability"][k] = np.where(have, trust.probability, np.nan)
-                for j in np.flatnonzero(have & out_of_sample):
-                    core.forecast_blocks[j] += 1
-                    below = trust.probability[j] < 0.5
-                    core.explained[j] |= not below
-                    if below and core.explained[j] and not core.explained_lost[j]:
-                        core.explained_lost[j] = int(blocks[k]) + 1
-                    if below and core.explained[j]:
-                        notes[
-                            f"mode {core.mode_labels[j]}: the model stopped explaining it "
-                            "(model probability below 0.5, first at block "
-                            f"{core.explained_lost[j] - 1}; blocks below, the estimate "
-                            "follows SSI)"
-                        ] += 1
-            if k >= first + train:
-                meas[k] = z
-            resid[k] = residual
-            out["ssi"][k] = z
-            out["kalman"][k] = np.where(have, estimate, np.nan)
-            out["std"][k] = np.where(have, np.sqrt(variance), np.nan)
-            core.gap = np.where(np.isfinite(z), 0, core.gap + have)
-            for j in np.flatnonzero(have & (core.gap >= self.gap_warning_blocks)):
-                warn(
-                    k,
-                    j,
-                    f"no SSI estimate for {core.gap[j]} blocks: predict-only",
-                    "rows in a long stretch without SSI estimates (predict-only)",
-                )
+    def _window(self, core: MemoryRun, f1: int) -> pd.DataFrame:
+        """Run one window (the batch's :meth:`~workbench.forecasting.memory.forecast.
+        MemoryRun.model_rows` and :meth:`~workbench.forecasting.memory.forecast.MemoryRun.
+        kalman_pass`, as :func:`~workbench.forecasting.memory.forecast.memory_forecast`
+        runs them) and return its rows of the forecast table."""
+        i0 = core.i0
+        k_first = core.first if core.is_first else i0
+        rows = core.model_rows(i0, k_first, f1, core.is_first)
+        core.models_out.clear()  # the window models are not part of the monitor's output
+        core.kalman_pass(i0, np.arange(k_first, f1), rows)
         return self._table(core, k_first, f1)
 
     @staticmethod
-    def _table(core: _Core, start: int, stop: int) -> pd.DataFrame:
+    def _table(core: MemoryRun, start: int, stop: int) -> pd.DataFrame:
         """Rows *start*..*stop* of the forecast table (:func:`~workbench.forecasting.
-        memory_output.assemble_table`'s columns, without its merge)."""
-        from .assembly import _assemble, _drop_unusable
+        memory.output.assemble_table`'s columns, without its merge)."""
+        from .assembly import assemble_rows, drop_unusable
 
         rows = slice(start, stop)
         phase = core.out_phase[rows].copy()
         out = {k: v[rows] for k, v in core.out.items()}
-        _drop_unusable(phase, out["model"], out["kalman"], core.notes)
+        drop_unusable(phase, out["model"], out["kalman"], core.notes)
         warning_rows = {
             (r - start, j): v for (r, j), v in core.out_warning.items() if start <= r < stop
         }
         blocks = core.blocks[rows]
-        table = _assemble(
+        table = assemble_rows(
             blocks,
             core.block_start[rows],
             core.mode_labels,
             "A",
             phase,
-            out["ssi"],
-            out["model"],
-            out["lower"],
-            out["upper"],
-            out["kalman"],
-            out["std"],
-            core.out_w0[rows],
-            core.out_w1[rows],
-            out["order"],
-            out["damping"],
-            out["mac"],
+            out,
+            (core.out_w0[rows], core.out_w1[rows]),
             warning_rows,
         )
-        # _assemble's rows: np.nonzero order, sorted stably by (mode, block)
+        # assemble_rows' rows: np.nonzero order, sorted stably by (mode, block)
         found, modes = np.nonzero(phase)
         order = np.lexsort((blocks[found], core.mode_labels[modes]))
         table["model_probability"] = out["probability"][found, modes][order]
@@ -887,19 +619,17 @@ def _same(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------- checkpoint
 def _classes() -> dict[str, type]:
     """The classes a checkpoint may hold (nothing else is ever constructed from one)."""
-    from .options import ModelOptions, NoiseOptions
-
     return {
         cls.__name__: cls
         for cls in (
-            _Core,
+            MemoryRun,
             MemoryModel,
             NoiseModel,
             MemoryRefits,
             ExcitationBias,
             InnovationConsistency,
             ModelTrust,
-            ModelOptions,
+            ForecastOptions,
             NoiseOptions,
         )
     }

@@ -116,7 +116,7 @@ class ModelTrust:
         self.level = np.full((n_free, n_modes), np.nan)  # model-free estimates x̂₀ [Hz]
         self.error = np.zeros((n_free, n_modes))  # their identification-error states ê [Hz]
         self.P = np.zeros((n_free, n_modes, 2, 2))
-        # signed runs of large innovations of each model-free filter (memory_noise.update_run)
+        # signed runs of large innovations of each model-free filter (memory.noise.update_run)
         self.run = np.zeros((n_free, n_modes), dtype=np.int64)
         # hypothesis probabilities: row 0 the blend, then the model-free filters
         self.weights = np.empty((n_free + 1, n_modes))

@@ -93,16 +93,11 @@ class IncrementalOutlook:
     def __init__(self, settings, step_s: float) -> None:
         if not supported(settings):
             raise ValueError("these forecast/health settings are run in batch")
-        from ..forecasting.options import ModelOptions
-        from ..forecasting.sliding import DEFAULT_HORIZON
+        from .outlook import forecast_options
 
         self.settings = settings
         self.step_s = float(step_s)
-        self.forecast = IncrementalMemoryForecast(
-            train_blocks=settings.train_blocks,
-            horizon=DEFAULT_HORIZON[2] if settings.horizon is None else int(settings.horizon),
-            model=ModelOptions(train_blocks=settings.train_blocks),
-        )
+        self.forecast = IncrementalMemoryForecast(forecast_options(settings))
         self._modes: tuple[int, ...] | None = None
         self.restarts = 0  # forecast or chart started over from the first block
         self._reset_health()

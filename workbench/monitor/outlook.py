@@ -234,11 +234,23 @@ def forecast_table(
         When no mode is measured often enough or the table is too short to forecast.
     """
     from ..errors import WorkbenchError
-    from ..stages.forecasting import ForecastOptions, forecast
+    from ..stages.forecasting import forecast
 
     if "B" in settings.options and poles is None:
         raise ValueError("option B needs the stabilisation diagrams (poles)")
-    options = ForecastOptions(
+    try:
+        result = forecast(tracked, predictors, poles=poles, options=forecast_options(settings))
+    except WorkbenchError as error:
+        raise ValueError(str(error)) from None
+    return result.table, list(result.warnings)
+
+
+def forecast_options(settings: ForecastSettings):
+    """The :class:`~workbench.forecasting.options.ForecastOptions` of *settings* (the one
+    options object of the forecast stage and of the resumed forecast)."""
+    from ..forecasting.options import ForecastOptions
+
+    return ForecastOptions(
         options=settings.options,
         scheme=settings.scheme,
         train_blocks=settings.train_blocks,
@@ -253,11 +265,6 @@ def forecast_table(
             else {"reacquire_blocks": settings.reacquire_blocks}
         ),
     )
-    try:
-        result = forecast(tracked, predictors, poles=poles, options=options)
-    except WorkbenchError as error:
-        raise ValueError(str(error)) from None
-    return result.table, list(result.warnings)
 
 
 def update_outlook(

@@ -123,7 +123,9 @@ class MemoryRun:
 
     Built from the arguments of :func:`memory_forecast`; its steps are
     :meth:`model_rows` (each mode's model and noise levels for a window's rows) and
-    :meth:`kalman_pass` (the measurement and the Kalman step of each row).
+    :meth:`kalman_pass` (the measurement and the Kalman step of each row). The monitor's
+    resumed forecast (:class:`~workbench.forecasting.incremental.IncrementalMemoryForecast`)
+    runs the same steps window by window on a run whose rows it appends and trims.
     """
 
     def __init__(self, modal, predictors, options, poles, modes, start_block, end_block, cases):
