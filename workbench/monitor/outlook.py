@@ -168,6 +168,25 @@ def _write(frame: pd.DataFrame, path: Path, contract, parent_pid: int | None) ->
     return True
 
 
+def _write_outlook(report, state: Path, forecast, health, alarms, parent_pid) -> bool:
+    """Count the rows into *report* and write the three tables (False, and
+    ``report.written`` False, when the monitor that asked has died meanwhile)."""
+    report.forecast_rows, report.health_rows, report.alarms = (
+        len(forecast),
+        len(health),
+        len(alarms),
+    )
+    for frame, name, contract in (
+        (forecast, "forecast.parquet", FORECAST),
+        (health, "health.parquet", HEALTH),
+        (alarms, "alarms.parquet", ALARMS),
+    ):
+        if not _write(frame, state / name, contract, parent_pid):
+            report.written = False
+            return False
+    return True
+
+
 _DSHIP_CACHE: dict[str, tuple[tuple[int, int], pd.DataFrame]] = {}
 
 
@@ -357,19 +376,7 @@ def update_outlook(
             health, alarms = chart.table, chart.alarms
         except ValueError as error:
             report.messages.append(f"health: {str(error).splitlines()[0]}")
-    report.forecast_rows, report.health_rows, report.alarms = (
-        len(forecast),
-        len(health),
-        len(alarms),
-    )
-    for frame, name, contract in (
-        (forecast, "forecast.parquet", FORECAST),
-        (health, "health.parquet", HEALTH),
-        (alarms, "alarms.parquet", ALARMS),
-    ):
-        if not _write(frame, state / name, contract, parent_pid):
-            report.written = False
-            break
+    _write_outlook(report, state, forecast, health, alarms, parent_pid)
     report.seconds = time.perf_counter() - started
     report.cpu_seconds = time.process_time() - cpu
     return report
@@ -453,19 +460,8 @@ def _incremental_outlook(
             report.messages.append(f"forecast: {str(error).splitlines()[0]}")
         except Exception as error:  # noqa: BLE001 - a contract or data error of the log
             report.messages.append(f"forecast: {type(error).__name__}: {error}")
-    report.forecast_rows, report.health_rows, report.alarms = (
-        len(forecast),
-        len(health),
-        len(alarms),
-    )
-    for frame, name, contract in (
-        (forecast, "forecast.parquet", FORECAST),
-        (health, "health.parquet", HEALTH),
-        (alarms, "alarms.parquet", ALARMS),
-    ):
-        if not _write(frame, state / name, contract, parent_pid):
-            report.written = False
-            return
+    if not _write_outlook(report, state, forecast, health, alarms, parent_pid):
+        return
     try:
         outlook.save(folder)
     except (OSError, TypeError, ValueError) as error:
