@@ -155,11 +155,11 @@ def test_state_needs_the_first_blocks_to_start_over():
 
 def test_settings_carried_or_batch():
     assert supported(ForecastSettings())
-    assert not supported(ForecastSettings(options=("A", "B")))
-    assert not supported(ForecastSettings(model="window", trust=0.65))
+    assert not supported(ForecastSettings(forecast=ForecastOptions(options=("A", "B"))))
+    assert not supported(ForecastSettings(forecast=ForecastOptions(model="window", trust=0.65)))
     assert not supported(ForecastSettings(health_model="forecast"))
     with pytest.raises(ValueError, match="batch"):
-        IncrementalOutlook(ForecastSettings(scheme=1), STEP_S)
+        IncrementalOutlook(ForecastSettings(forecast=ForecastOptions(scheme=1)), STEP_S)
 
 
 def test_update_outlook_takes_up_the_saved_state_after_a_restart(
@@ -187,7 +187,7 @@ def test_update_outlook_takes_up_the_saved_state_after_a_restart(
     first = tracked[tracked["block"] == tracked["block"].min()].iloc[0]
     length = (first["block_end"] - first["block_start"]).total_seconds()
     grid = BlockGrid(first["block_start"], length, 300.0)
-    settings = ForecastSettings(train_blocks=6)
+    settings = ForecastSettings(forecast=ForecastOptions(train_blocks=6))
     state = tmp_path / "state"
     state.mkdir()
     for last in (12, int(tracked["block"].max())):  # a restart between the two

@@ -356,7 +356,8 @@ def test_settings_from_a_ship_configuration(voyage, tmp_path):
         # the blade pass is marked as identify --blades marks it (issue 29: the 12-h demo's
         # 10.58 Hz blade pass was a mode in the monitor's table, not in track's)
         assert options.harmonics.blades == 5 and options.harmonics.orders == (1.0, 2.0, 3.0)
-        assert options.forecast.options == ("A", "B") and options.forecast.train_blocks == 7
+        assert options.forecast.forecast.options == ("A", "B")
+        assert options.forecast.forecast.train_blocks == 7
     finally:
         monitor.close()
 

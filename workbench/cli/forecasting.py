@@ -194,10 +194,30 @@ def check_forecast_flags(args: argparse.Namespace) -> float | None | str:
     return "auto" if args.trust is None else _parse_trust(str(args.trust))
 
 
+def forecast_options(args: argparse.Namespace, trust, **more):
+    """The one :class:`~workbench.forecasting.options.ForecastOptions` of parsed forecast
+    flags, for ``workbench forecast`` and ``workbench monitor`` alike (*trust* as
+    :func:`check_forecast_flags` returns it; a configuration file gives names or letters)."""
+    from ..forecasting.options import ForecastOptions
+
+    option = FORECAST_OPTIONS(str(args.option))
+    return ForecastOptions(
+        options=("A", "B") if option == "AB" else (option,),
+        scheme=FORECAST_SCHEMES(str(args.scheme)),
+        train_blocks=args.train_blocks,
+        horizon=args.horizon,
+        trust=trust,
+        model=args.model,
+        min_presence=args.min_presence,
+        mac_min=args.mac_min,
+        **({} if args.reacquire_blocks is None else {"reacquire_blocks": args.reacquire_blocks}),
+        **more,
+    )
+
+
 def _run_forecast(args: argparse.Namespace) -> int:
     from data_contracts import POLES, read_table
 
-    from ..forecasting.options import ForecastOptions
     from ..stages import forecast
 
     options = ("A", "B") if args.option == "AB" else (args.option,)
@@ -210,18 +230,7 @@ def _run_forecast(args: argparse.Namespace) -> int:
     poles = read_table(args.poles, POLES) if args.poles is not None else None
     truth = _read_modal(args, args.truth) if args.truth is not None else None
     _check_joins(args, modal, None, poles)
-    stage_options = ForecastOptions(
-        options=options,
-        scheme=args.scheme,
-        train_blocks=args.train_blocks,
-        horizon=args.horizon,
-        trust=trust,
-        model=args.model,
-        n_workers=args.workers,
-        min_presence=args.min_presence,
-        mac_min=args.mac_min,
-        **({} if args.reacquire_blocks is None else {"reacquire_blocks": args.reacquire_blocks}),
-    )
+    stage_options = forecast_options(args, trust, n_workers=args.workers)
     with _data_errors(args.modal):
         result = forecast(
             modal,

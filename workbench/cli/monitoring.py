@@ -21,7 +21,7 @@ from ..arguments import copy_flags
 from ..errors import WorkbenchError
 from ..inputs import add_acceleration_layout, add_dship_columns, dship_mapping
 from .common import EXIT_OK, UsageError
-from .forecasting import FORECAST_OPTIONS, FORECAST_SCHEMES, check_forecast_flags
+from .forecasting import check_forecast_flags, forecast_options
 from .identify import harmonic_options, identify_options
 
 
@@ -327,17 +327,8 @@ def _monitor_options(args: argparse.Namespace):
         tracking = TrackingOptions(
             mac_min=args.mac_min, gate=args.gate, frequency_tol=args.frequency_tol
         )
-        option = FORECAST_OPTIONS(str(args.option))  # a configuration gives names or letters
         forecast = ForecastSettings(
-            options=("A", "B") if option == "AB" else (option,),
-            scheme=FORECAST_SCHEMES(str(args.scheme)),
-            train_blocks=args.train_blocks,
-            horizon=args.horizon,
-            trust=trust,
-            model=args.model,
-            min_presence=args.min_presence,
-            mac_min=args.mac_min,
-            reacquire_blocks=args.reacquire_blocks,
+            forecast=forecast_options(args, trust),
             all_predictors=bool(args.all_predictors),
             dship_mapping=tuple((dship_mapping(args) or {}).items()),
             reference_hours=args.reference_hours,

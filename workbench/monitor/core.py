@@ -982,7 +982,7 @@ class Monitor:
                     forecast,
                     alarms,
                     days=days,
-                    option=self.options.forecast.options[0],
+                    option=self.options.forecast.forecast.options[0],
                 )
             self._indicators_through = newest
         except (OSError, ValueError) as error:

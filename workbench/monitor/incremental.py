@@ -71,9 +71,9 @@ class OutlookTables:
 def supported(settings) -> bool:
     """Whether :class:`IncrementalOutlook` carries these settings' state (module notes)."""
     return (
-        settings.model == "memory"
-        and settings.scheme == 2
-        and tuple(settings.options) == ("A",)
+        settings.forecast.model == "memory"
+        and settings.forecast.scheme == 2
+        and settings.forecast.options == ("A",)
         and settings.health_model == "operational"
         and settings.health_baseline is None
     )
@@ -93,11 +93,10 @@ class IncrementalOutlook:
     def __init__(self, settings, step_s: float) -> None:
         if not supported(settings):
             raise ValueError("these forecast/health settings are run in batch")
-        from .outlook import forecast_options
 
         self.settings = settings
         self.step_s = float(step_s)
-        self.forecast = IncrementalMemoryForecast(forecast_options(settings))
+        self.forecast = IncrementalMemoryForecast(settings.forecast)
         self._modes: tuple[int, ...] | None = None
         self.restarts = 0  # forecast or chart started over from the first block
         self._reset_health()
@@ -164,7 +163,9 @@ class IncrementalOutlook:
         # the forecast stage's modes: measured in at least min_presence of the blocks
         counts = tracked.groupby("mode")["block"].nunique()
         presence = counts / max(n_blocks, 1)
-        modes = tuple(sorted(int(m) for m in presence.index[presence >= settings.min_presence]))
+        modes = tuple(
+            sorted(int(m) for m in presence.index[presence >= settings.forecast.min_presence])
+        )
         forecast = _empty(FORECAST)
         if self._modes is not None and modes != self._modes:
             self.restarts += 1
@@ -189,7 +190,7 @@ class IncrementalOutlook:
         else:
             messages.append(
                 "forecast: no mode is measured in at least "
-                f"{100 * settings.min_presence:.0f} % of the blocks"
+                f"{100 * settings.forecast.min_presence:.0f} % of the blocks"
             )
         try:
             health, alarms, notes = self._health(tracked, predictors, first_block, final_through)

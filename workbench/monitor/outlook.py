@@ -33,7 +33,7 @@ import pandas as pd
 
 from data_contracts import ALARMS, FORECAST, HEALTH, MODAL, POLES, PREDICTORS, read_table
 
-from ..forecasting.options import DEFAULT_MODEL, check_train_blocks, check_trust
+from ..forecasting.options import ForecastOptions
 
 __all__ = ["ForecastSettings", "OutlookReport", "empty_table", "update_outlook"]
 
@@ -45,19 +45,10 @@ class ForecastSettings:
 
     Attributes
     ----------
-    options : tuple of {"A", "B"}
-        Measurement options (B needs the stabilisation diagrams, read from the store).
-    scheme : {1, 2}
-        Forecast scheme: 1 single-window, 2 rolling (as ``workbench forecast --scheme``).
-    train_blocks : int
-    horizon : int, optional
-    trust : float, None or "auto"
-    model : {"window", "memory"}
-    min_presence : float
-        Modes measured in fewer than this share of the blocks are not forecast. [-]
-    mac_min : float
-        Option B: lowest MAC of a pole's shape with the mode's tracked shape.
-    reacquire_blocks : int, optional
+    forecast : ForecastOptions
+        The forecast's settings, the one options object of ``workbench forecast``
+        (:class:`~workbench.forecasting.options.ForecastOptions`; option B needs the
+        stabilisation diagrams, read from the store).
     all_predictors : bool
         Use every numeric column of the ship log, not only the canonical predictors.
     dship_mapping : tuple of (str, str)
@@ -84,15 +75,7 @@ class ForecastSettings:
         ``false_alarms_per_day`` are then the baseline's).
     """
 
-    options: tuple[Literal["A", "B"], ...] = ("A",)
-    scheme: Literal[1, 2] = 2
-    train_blocks: int = 20
-    horizon: int | None = None
-    trust: float | None | str = "auto"
-    model: Literal["window", "memory"] = DEFAULT_MODEL
-    min_presence: float = 0.5
-    mac_min: float = 0.9
-    reacquire_blocks: int | None = None
+    forecast: ForecastOptions = field(default_factory=ForecastOptions)
     all_predictors: bool = False
     dship_mapping: tuple[tuple[str, str], ...] = ()
     reference_hours: float = 6.0
@@ -104,16 +87,6 @@ class ForecastSettings:
     health_baseline: str | None = None
 
     def __post_init__(self) -> None:
-        options = tuple(self.options)
-        if not options or any(o not in ("A", "B") for o in options):
-            raise ValueError(f"options={self.options!r} must be 'A', 'B' or both")
-        object.__setattr__(self, "options", options)
-        if self.scheme not in (1, 2):
-            raise ValueError(f"scheme={self.scheme!r} must be 1 (single-window) or 2 (rolling)")
-        check_trust(self.trust, self.model)
-        check_train_blocks(self.train_blocks)
-        if not 0.0 <= self.min_presence <= 1.0:
-            raise ValueError(f"min_presence={self.min_presence!r} must be in [0, 1]")
         if not (math.isfinite(self.reference_hours) and self.reference_hours > 0):
             raise ValueError(f"reference_hours={self.reference_hours!r} must be positive")
         if self.health_model not in ("operational", "forecast"):
@@ -255,35 +228,13 @@ def forecast_table(
     from ..errors import WorkbenchError
     from ..stages.forecasting import forecast
 
-    if "B" in settings.options and poles is None:
+    if "B" in settings.forecast.options and poles is None:
         raise ValueError("option B needs the stabilisation diagrams (poles)")
     try:
-        result = forecast(tracked, predictors, poles=poles, options=forecast_options(settings))
+        result = forecast(tracked, predictors, poles=poles, options=settings.forecast)
     except WorkbenchError as error:
         raise ValueError(str(error)) from None
     return result.table, list(result.warnings)
-
-
-def forecast_options(settings: ForecastSettings):
-    """The :class:`~workbench.forecasting.options.ForecastOptions` of *settings* (the one
-    options object of the forecast stage and of the resumed forecast)."""
-    from ..forecasting.options import ForecastOptions
-
-    return ForecastOptions(
-        options=settings.options,
-        scheme=settings.scheme,
-        train_blocks=settings.train_blocks,
-        horizon=settings.horizon,
-        trust=settings.trust,
-        model=settings.model,
-        min_presence=settings.min_presence,
-        mac_min=settings.mac_min,
-        **(
-            {}
-            if settings.reacquire_blocks is None
-            else {"reacquire_blocks": settings.reacquire_blocks}
-        ),
-    )
 
 
 def update_outlook(
@@ -334,7 +285,7 @@ def update_outlook(
                 newest_end = grid.end(int(tracked["block"].max()))
                 report.log_complete = bool(len(log) and log["time"].max() >= newest_end)
                 poles = None
-                if "B" in settings.options and store is not None:
+                if "B" in settings.forecast.options and store is not None:
                     poles = _store_poles(Path(store), tracked)
                 shown = predictors if settings.all_predictors else canonical_predictors(predictors)
                 with warnings.catch_warnings():
