@@ -423,3 +423,32 @@ def test_the_combined_uncertainty_is_the_blocks_measurement_noise():
     # measured (this seed): mean |error| 0.0061 Hz without the column, 0.0034 Hz with it
     assert errors["combined"] < 0.8 * errors["plain"], errors
     assert errors["combined"] < 0.25 * noisy
+
+
+@pytest.mark.parametrize("unit", ["s", "ms", "us", "ns"])
+def test_time_trend_is_in_hours_whatever_the_resolution_of_block_start(unit):
+    # a drift of 0.01 Hz per hour that no logged predictor explains: the trend term must
+    # read elapsed time in hours whether block_start was parsed from text (pandas: us),
+    # read from Parquet (ns) or built in seconds. 5-min blocks: the first window's 40
+    # blocks span 0-3.25 h, mean 1.625 h, standard deviation 0.95 h.
+    rng = np.random.default_rng(3)
+    n = 120
+    block = np.arange(n)
+    start = pd.Series(
+        pd.Timestamp("2025-01-01T00:00:00Z") + pd.to_timedelta(block * 300, unit="s")
+    ).dt.as_unit(unit)
+    hours = block * 300 / 3600.0
+    speed = 8 + 2 * np.sin(block / 7.0)
+    z = 5.0 + 0.01 * hours + rng.normal(0, 0.002, n)
+    predictors = pd.DataFrame({"block": block, "block_start": start, "speed_kn": speed})
+    modal = pd.DataFrame({"block": block, "block_start": start, "mode": 0, "frequency_hz": z})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ForecastWarning)
+        result = sliding_forecast(
+            modal, predictors, ForecastOptions(scheme=2, model="memory", train_blocks=40)
+        )
+    first = result.models[0]
+    mean, std = first.normalisation["elapsed_hours"]
+    window = hours[first.window_start_block : first.window_end_block + 1]
+    assert mean == pytest.approx(window.mean(), rel=1e-9)
+    assert std == pytest.approx(window.std(ddof=1), rel=1e-9)

@@ -71,7 +71,7 @@ from .memory.terms import MemoryRefits
 from .model_trust import ModelTrust
 from .noise import NoiseModel
 from .options import ForecastOptions, NoiseOptions
-from .predictor_grid import mode_matrix, predictor_matrix
+from .predictor_grid import NS_PER_HOUR, block_centre_ns, mode_matrix, predictor_matrix
 
 __all__ = [
     "CHECKPOINT_SCHEMA",
@@ -81,8 +81,10 @@ __all__ = [
     "save_state",
 ]
 
-#: ``schema`` of the checkpoint's JSON part (:meth:`IncrementalMemoryForecast.save`).
-CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/2"
+#: ``schema`` of the checkpoint's JSON part (:meth:`IncrementalMemoryForecast.save`);
+#: /3: block times in nanoseconds whatever the tables' resolution (/2 could hold
+#: microseconds, which put the time trend in thousands of hours).
+CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/3"
 
 #: Rows kept before the newest committed window beyond the refits' history. [blocks]
 _MARGIN_ROWS = 64
@@ -90,16 +92,6 @@ _MARGIN_ROWS = 64
 
 class NeedsFullHistory(Exception):
     """The state cannot be resumed with the tables given: pass the whole voyage's tables."""
-
-
-def _start_ticks(grid: pd.DataFrame) -> np.ndarray:
-    """The blocks' centres (starts without ``block_end``) in nanoseconds, as
-    :class:`~workbench.forecasting.memory.forecast.MemoryRun` takes them for its time trend."""
-    start_ns = pd.to_datetime(grid["block_start"], utc=True).astype("int64").to_numpy()
-    if "block_end" in grid.columns:
-        end_ns = pd.to_datetime(grid["block_end"], utc=True).astype("int64").to_numpy()
-        start_ns = start_ns + (end_ns - start_ns) // 2
-    return start_ns
 
 
 class IncrementalMemoryForecast:
@@ -182,7 +174,7 @@ class IncrementalMemoryForecast:
             grid,
             blocks,
             block_start,
-            _start_ticks(grid),
+            block_centre_ns(grid),
             columns,
             X,
             labels,
@@ -396,7 +388,7 @@ class IncrementalMemoryForecast:
         n_modes = core.mode_labels.size
         X = new.X[take]
         if core.time_trend:
-            X = np.column_stack([X, (new.ticks[take] - core.t0_ticks) / 3.6e12])
+            X = np.column_stack([X, (new.ticks[take] - core.t0_ticks) / NS_PER_HOUR])
         rows = {
             "X_all": X,
             "blocks": new.blocks[take],

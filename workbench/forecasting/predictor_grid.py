@@ -8,7 +8,16 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-__all__ = ["forecast_span", "mode_matrix", "modes_to_forecast", "predictor_matrix"]
+__all__ = [
+    "block_centre_ns",
+    "forecast_span",
+    "mode_matrix",
+    "modes_to_forecast",
+    "predictor_matrix",
+]
+
+#: Nanoseconds in an hour. [ns/h]
+NS_PER_HOUR = 3.6e12
 
 
 def predictor_matrix(
@@ -48,6 +57,22 @@ def predictor_matrix(
         else np.empty((len(grid), 0))
     )
     return grid, blocks, block_start, columns, X
+
+
+def block_centre_ns(grid: pd.DataFrame) -> np.ndarray:
+    """The blocks' centres as int64 nanoseconds since the epoch (UTC).
+
+    Without ``block_end`` the starts stand for the centres (blocks of one length: the
+    same hours of elapsed time). The times are read in nanoseconds whatever the
+    resolution the table was stored with (pandas parses text at microsecond resolution).
+    """
+    start_ns = pd.DatetimeIndex(pd.to_datetime(grid["block_start"], utc=True))
+    start_ns = start_ns.as_unit("ns").asi8
+    if "block_end" in grid.columns:
+        end_ns = pd.DatetimeIndex(pd.to_datetime(grid["block_end"], utc=True))
+        end_ns = end_ns.as_unit("ns").asi8
+        start_ns = start_ns + (end_ns - start_ns) // 2
+    return start_ns
 
 
 def modes_to_forecast(modal: pd.DataFrame, modes: Sequence[int] | None) -> np.ndarray:

@@ -341,7 +341,7 @@ class HealthMonitor:
         if self._step_s is not None:  # the recorded grid, not the blocks present
             step_s = self._step_s
         else:
-            step_s = float(np.median(np.diff(starts.asi8))) / 1e9
+            step_s = float(np.median(np.diff(starts.as_unit("ns").asi8))) / 1e9
         if not step_s > 0:
             raise ValueError("forecast: cannot infer the block step from block_start")
         if self._length_s is not None and self._step_s is not None:

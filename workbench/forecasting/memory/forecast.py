@@ -66,7 +66,14 @@ from ..measurement import PoleIndex, cluster_around, nearer_to_another_mode, sca
 from ..model_trust import ModelTrust
 from ..noise import NoiseModel, estimate_noise, model_error_floor
 from ..options import ForecastOptions
-from ..predictor_grid import forecast_span, mode_matrix, modes_to_forecast, predictor_matrix
+from ..predictor_grid import (
+    NS_PER_HOUR,
+    block_centre_ns,
+    forecast_span,
+    mode_matrix,
+    modes_to_forecast,
+    predictor_matrix,
+)
 from ..results import ForecastResult, ForecastWarning, WindowModel
 from .excitation import excitation_bias
 from .kalman import kalman_pass_step, stationary_covariance
@@ -177,11 +184,8 @@ class MemoryRun:
             # slow drifts no log records (fuel burn, ballast): a trend term with memory
             # block centres: the same hours as the starts for blocks of one length, the
             # blocks' own times for blocks of varying length (--block-minutes auto)
-            start_ns = pd.to_datetime(grid["block_start"], utc=True).astype("int64").to_numpy()
-            if "block_end" in grid.columns:
-                end_ns = pd.to_datetime(grid["block_end"], utc=True).astype("int64").to_numpy()
-                start_ns = start_ns + (end_ns - start_ns) // 2
-            hours = (start_ns - start_ns[0]) / 3.6e12
+            centre_ns = block_centre_ns(grid)
+            hours = (centre_ns - centre_ns[0]) / NS_PER_HOUR
             X_all = np.column_stack([X_all, hours.astype(float)])
             columns = [*columns, "elapsed_hours"]
         self.grid, self.blocks, self.block_start = grid, blocks, block_start
