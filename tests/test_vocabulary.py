@@ -206,10 +206,14 @@ def test_glossary_columns_are_contract_columns():
 
 
 # --------------------------------------------------------------------------- former names
-#: Flags renamed with the vocabulary: the former spellings are refused (0.x, no shims). A
-#: former name that begins a current flag of its command (``--train``, ``--reference``) is
-#: argparse's abbreviation of that flag, so it is not listed.
+#: Flags renamed with the vocabulary: the former spellings are refused (0.x, no shims), also
+#: where a former name begins a current flag of its command (``--train`` of
+#: ``--train-blocks``): abbreviations are not accepted.
 FORMER_FLAGS = [
+    ["forecast", "--modal", "m", "--dship", "d", "--out", "f.csv", "--train", "20"],
+    ["identify", "D", "--out", "o", "--reference", "0,1"],
+    ["track", "S", "--out", "o.csv", "--reference", "modes.json"],
+    ["monitor", "--watch", "w", "--state", "s", "--train", "20"],
     ["track", "S", "--out", "o.csv", "--threshold", "0.8"],
     ["track", "S", "--out", "o.csv", "--frequency-tolerance", "0.1"],
     ["forecast", "--modal", "m", "--dship", "d", "--out", "f.csv", "--method", "1"],

@@ -99,6 +99,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Hull vibration monitoring: identify, track, model and forecast a ship's "
         "structural modes from accelerations and the ship's log.",
         formatter_class=HelpFormatter,
+        allow_abbrev=False,
     )
     parser.add_argument("--version", action="version", version=f"workbench {__version__}")
     add_verbosity(parser, top_level=True)
@@ -107,6 +108,9 @@ def build_parser() -> argparse.ArgumentParser:
         add(commands)
     for name, sub in commands.choices.items():
         sub.formatter_class = HelpFormatter
+        # a flag is its whole name: a prefix (a former ``--train`` for ``--train-blocks``)
+        # is refused like any unknown flag, not read as another option
+        sub.allow_abbrev = False
         add_verbosity(sub)
         if name in ("demo", "simulate", "run"):
             continue
@@ -165,7 +169,7 @@ def _apply_config(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -
     """Defaults from ``--config FILE`` (bad files: message and exit 2)."""
     from ..config import ConfigError, apply_config, load_config
 
-    pre = argparse.ArgumentParser(add_help=False)
+    pre = argparse.ArgumentParser(add_help=False, allow_abbrev=False)
     pre.add_argument("--config", type=Path)
     known, _ = pre.parse_known_args(argv)
     if known.config is not None:
