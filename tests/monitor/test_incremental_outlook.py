@@ -233,3 +233,32 @@ def test_forecast_equals_batch_after_the_oldest_rows_are_dropped():
     expected = expected.sort_values(["block", "mode"], kind="stable").reset_index(drop=True)
     assert len(table) == 1200
     pd.testing.assert_frame_equal(table, expected, rtol=1e-9)
+
+
+def test_forecast_equals_batch_when_the_speed_never_changes():
+    """A voyage held at one speed: the batch leaves the excitation term out (no block has
+    a within-block speed variance), the resumed forecast carries it with zero variance,
+    which gives it no weight: the same table."""
+    from workbench.forecasting.memory.forecast import memory_forecast
+
+    modal, predictors = voyage(120, seed=5)
+    predictors = predictors.assign(speed_kn=11.0)
+    options = ForecastOptions(train_blocks=20)
+    engine = IncrementalMemoryForecast(options)
+    modes = [1, 2, 3]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for last in (*range(30, 120, 9), 119):
+            table, _ = engine.update(
+                modal[modal["block"] <= last],
+                predictors[predictors["block"] <= last],
+                modes=modes,
+                final_through=last - 1,
+            )
+        expected = memory_forecast(
+            modal, predictors, options, poles=None, modes=modes, start_block=None, end_block=None
+        ).table
+    assert engine._core.has_speed_var  # the resumed run kept the term
+    expected = expected.sort_values(["block", "mode"], kind="stable").reset_index(drop=True)
+    assert len(table) == 3 * 120
+    pd.testing.assert_frame_equal(table, expected, rtol=1e-9)
