@@ -75,8 +75,9 @@ def test_raw_unit_estimates_on_first_access_equal_ols_and_survive_the_json_round
     assert "cannot predict" in str(error.value)
 
 
-# the centre of a column holding ±inf is taken by nanmean, which warns (as before issue 33)
-@pytest.mark.filterwarnings("ignore:invalid value encountered:RuntimeWarning")
+# the centre of a column holding ±inf is that of its finite values (it was nanmean's
+# inf, with a RuntimeWarning): an error here makes the warning fail the test
+@pytest.mark.filterwarnings("error::RuntimeWarning")
 def test_infinite_values_are_missing_values_whatever_their_signs():
     # the complete-data short cut tests one total: +inf and -inf in it make NaN, one sign
     # makes inf; either way the rows are treated as missing, as NaN there would be
@@ -98,6 +99,29 @@ def test_infinite_values_are_missing_values_whatever_their_signs():
     fit, reference = stepwise(X, response), stepwise(X, nan_response)
     assert fit.n_obs == reference.n_obs == 19
     np.testing.assert_array_equal(fit.search_estimates, reference.search_estimates)
+
+
+@pytest.mark.parametrize("values", [[np.inf, np.inf], [-np.inf, np.inf], [np.inf, np.nan]])
+def test_a_predictor_with_infinite_values_enters_as_with_nan(values):
+    # water temperature drives the response (0.2 per unit, 40 standard errors): with two
+    # rows missing it is selected, and it must be with those rows infinite too (an
+    # infinite centre made its whole column non-finite: the empty model, no warning shown)
+    rng = np.random.default_rng(5)
+    X = pd.DataFrame(rng.standard_normal((20, 3)), columns=NAMES)
+    y = (
+        2.9
+        - 0.04 * X["speed_kn"]
+        + 0.2 * X["water_temp_c"]
+        + 0.05 * X["air_temp_c"]
+        + 0.005 * rng.standard_normal(20)
+    ).to_numpy()
+    nan, infinite = X.copy(), X.copy()
+    nan.loc[[2, 7], "water_temp_c"] = np.nan
+    infinite.loc[[2, 7], "water_temp_c"] = values
+    reference, fit = stepwise(nan, y), stepwise(infinite, y)
+    assert "water_temp_c" in reference.terms
+    assert fit.terms == reference.terms and fit.n_obs == reference.n_obs == 18
+    np.testing.assert_allclose(fit.search_estimates, reference.search_estimates, rtol=1e-12)
 
 
 def test_column_labels_of_an_index_with_a_missing_label_are_those_of_tolist():

@@ -279,7 +279,11 @@ def _fit(
     if numeric.size:
         block = values[:, numeric]
         # sum / n: the value of block.mean(axis=0) without its overhead
-        centres[numeric] = np.nanmean(block, axis=0) if has_missing else block.sum(axis=0) / n
+        if has_missing:  # over the finite values: ±inf is missing as NaN is (rows above)
+            block = np.where(finite[:, numeric], block, np.nan)
+            centres[numeric] = np.nanmean(block, axis=0)
+        else:
+            centres[numeric] = block.sum(axis=0) / n
     encoding = encoding.with_centres(centres)
     candidates = design_columns(values, upper_terms, encoding, widths=layout.widths)
     search = _Search(
