@@ -322,7 +322,7 @@ class MemoryRun:
         self.out_w1[report, j] = self.blocks[i0 - 1]
         self.out_phase[report, j] = np.where(report < first + self.train, 1, 2)
         for k in report[bad[sl]]:
-            self.warn(k, j, "predictor NaN: model centre", "blocks with a needed predictor NaN")
+            self.warn(k, j, "predictor NaN: filled", "blocks with a needed predictor NaN")
         return mean[sl], seen[sl], mvar[sl], float(abs(np.nanmedian(mean)))
 
     def _mode_noise(self, j: int, i0: int, is_first: bool, level_hz: float) -> NoiseModel:
@@ -396,6 +396,16 @@ class MemoryRun:
             z[~have] = np.nan
             filter_step = (F, q_c, q_e, r_v, huber, v_rows[r] + added_variance)
             self._kalman_step(k, have, z, scale, m_rows[r], z_rows[r], filter_step)
+
+    def _filled(self, k: int) -> np.ndarray:
+        """Per mode: whether its current model needs a predictor row *k* lacks."""
+        x = self.X_all[k]
+        return np.array(
+            [
+                m is not None and m.kind != "constant" and not np.isfinite(x[list(m.columns)]).all()
+                for m in self.current
+            ]
+        )
 
     def _typical_scatter(self, i0: int) -> np.ndarray:
         """Typical cluster scatter per mode (RMS over the noise window before row *i0*)."""
@@ -521,6 +531,10 @@ class MemoryRun:
         F, q_c, q_e, r_v, huber, model_variance = filter_step
         n_modes, in_sample = self.n_modes, k < self.first + self.train
         residual = z - z_now  # innovation about what SSI is expected to see
+        # a model that fills a missing predictor (a gap in the log): a large innovation is
+        # the fill's error more likely than SSI's, so no Huber weight on the measurement
+        filled = self._filled(k)
+        huber = np.where(filled, np.inf, huber)
         Q = np.column_stack([q_c, q_e * scale])
         self.state, self.P, delta, nu, innovation_variance = kalman_pass_step(
             self.state,
@@ -558,7 +572,9 @@ class MemoryRun:
                 r_v * scale,
                 nu,
                 innovation_variance,
-                np.full(n_modes, not in_sample) & ~lost,
+                # a block whose model fills a missing predictor says nothing of whether
+                # the model explains the mode: the probabilities wait for the log
+                np.full(n_modes, not in_sample) & ~lost & ~filled,
             )
             estimate, variance = self.trust.combine(estimate, variance)
             self.out["probability"][k] = np.where(have, self.trust.probability, np.nan)

@@ -27,6 +27,9 @@ __all__ = ["MemoryRefits"]
 _MIN_SELECTION_ROWS = 10
 #: Entry p-value of the short-history selection before the division by the overlap.
 _SHORT_P_ENTER = 0.05
+#: Fewest history rows that measure the error of filling a missing predictor
+#: (:meth:`MemoryRefits.fill_missing`). [blocks]
+_MIN_FILL_ROWS = 12
 
 
 @dataclass
@@ -113,7 +116,7 @@ class MemoryRefits:
             self.model,
         )
         selected_at, selected_case, X_all = self.selected_at, self.selected_case, self.X_all
-        selection_range, columns = self.selection_range, self.columns
+        selection_range, columns, regional = self.selection_range, self.columns, self.regional
         memory, limit = self.memory, self.limit
         left_selection_range = self.left_selection_range
         if labels is not None:
@@ -132,19 +135,30 @@ class MemoryRefits:
             return None
         rows_ok = np.flatnonzero(ok) + lo
         newest_outside = left_selection_range(j, i, rows_ok)
-        if (
+        reselect = (
             terms_of[j] is None
             or i - selected_at[j] >= model.reselect_blocks
             or (labels is not None and case != selected_case[j])
             or newest_outside is not None
-        ):
+        )
+        if reselect:
+            # blocks the ship's log covers: in a gap of the log (every predictor missing) a
+            # block can neither judge nor fit a term; a selection that would see fewer such
+            # blocks than a fit needs waits for the log to come back, keeping its terms
+            recent = rows_ok[rows_ok >= i - int(model.selection_blocks)]
+            if regional.any():  # the time trend is never missing
+                logged = recent[np.isfinite(X_all[recent][:, regional]).any(axis=1)]
+            else:
+                logged = recent
+            reselect = terms_of[j] is None or logged.size >= min_train
+        if reselect:
             selected_case[j] = case
             # non-overlapping blocks only (75 % overlap: every 4th block shares no data), so
             # the F-tests of the selection do not count one correlated error several times;
             # the spacing keeps the newest block, or the newest block of a new operating
             # region when that is what triggered the selection
             anchor = i - 1 if newest_outside is None else newest_outside
-            recent = rows_ok[rows_ok >= i - int(model.selection_blocks)]
+            recent = logged
             spaced = recent[(anchor - recent) % int(model.selection_stride) == 0]
             short = spaced.size < max(min_train, _MIN_SELECTION_ROWS)
             selection_options = model.stepwise_options
@@ -227,17 +241,78 @@ class MemoryRefits:
         return fitted
 
     def predict(self, m: MemoryModel, rows_: np.ndarray):
-        """Mean, interval bounds, rows without a prediction and s_m² of *m* at rows *rows_*."""
+        """Mean, interval bounds, rows with a needed predictor missing and s_m² of *m* at rows
+        *rows_* (missing predictors filled, :meth:`fill_missing`)."""
         X_all, limit, t_cache, model = self.X_all, self.limit, self.t_cache, self.model
         X = X_all[rows_]
         mean, mvar = m.predict(X, limit)
         bad = ~np.isfinite(mean)
         if bad.any() and m.kind != "constant":
-            level = float(m.coefficients[0])  # z = 0: the weighted centre of the data
-            mean[bad], mvar[bad] = level, m.residual_variance
+            for r in np.flatnonzero(bad):
+                filled = self.fill_missing(m, int(rows_[r]))
+                if filled is None:  # no history to fill from: the weighted centre of the data
+                    mean[r], mvar[r] = float(m.coefficients[0]), m.residual_variance
+                else:
+                    mean[r], mvar[r] = filled
         dof = max(int(round(m.dof)), 1)
         t = t_cache.get(dof)
         if t is None:
             t = t_cache[dof] = t_quantile(1 - model.alpha / 2, dof)
         half = t * np.sqrt(m.residual_variance + mvar)
         return mean, mean - half, mean + half, bad, mvar
+
+    def fill_missing(self, m: MemoryModel, row: int) -> tuple[float, float] | None:
+        """Prediction of *m* at grid row *row*, where a predictor it needs is missing (a gap
+        in the ship's log), and its variance [Hz], [Hz²].
+
+        Each missing predictor is filled with its newest value before the row (the last
+        logged value) or with its mean over the history, whichever the history says errs
+        less: the error of a fill is measured by applying the same fill to the history's
+        rows (the model's output with the predictor lagged by the same number of blocks,
+        or set to its mean, against its output with the logged value), over the newest
+        ``selection_blocks`` rows before *row*. The variance added to the prediction is
+        the larger of the two mean square errors: a history that held its predictors
+        steady measures a small error of the last value that a change inside the gap need
+        not keep, and knowing nothing of the missing predictors costs the mean fill's
+        error. So the blend leans on SSI as far as the gap makes the model uncertain:
+        little for a temperature term worth millihertz, much for the speed. None when
+        the history has too few rows to measure it.
+        """
+        X_all, limit = self.X_all, self.limit
+        columns = np.asarray(m.columns, dtype=np.int64)
+        x = X_all[row]
+        missing = columns[~np.isfinite(x[columns])]
+        lo = max(self.first, row - int(self.model.selection_blocks))
+        history = X_all[lo:row]
+        if missing.size == 0 or history.shape[0] < _MIN_FILL_ROWS:
+            return None
+        logged = m.predict(history, limit)[0]  # the model's output where nothing is missing
+        filled_rows, errors = [], []
+        for fill in ("last", "mean"):
+            filled_row = x.copy()
+            filled_history = history.copy()
+            for c in missing:
+                values = history[:, c]
+                finite = np.flatnonzero(np.isfinite(values))
+                if finite.size == 0:
+                    return None
+                if fill == "last":
+                    lag = history.shape[0] - int(finite[-1])  # blocks since the last value
+                    filled_row[c] = values[finite[-1]]
+                    filled_history[lag:, c] = values[:-lag]
+                    filled_history[:lag, c] = np.nan
+                else:
+                    centre = float(values[finite].mean())
+                    filled_row[c] = centre
+                    filled_history[:, c] = centre
+            error = logged - m.predict(filled_history, limit)[0]
+            error = error[np.isfinite(error)]
+            if error.size < _MIN_FILL_ROWS:
+                return None
+            filled_rows.append(filled_row)
+            errors.append(float(np.mean(error**2)))
+        best = int(np.argmin(errors))
+        mean, variance = m.predict(filled_rows[best][None, :], limit)
+        if not np.isfinite(mean[0]):
+            return None
+        return float(mean[0]), float(variance[0]) + max(errors)

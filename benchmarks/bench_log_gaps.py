@@ -1,0 +1,157 @@
+"""Gaps in the ship's log: the forecast with every predictor missing for a stretch.
+
+A ship's data system drops out (a network switch, a logger restart): for that stretch the
+log has timestamps and empty cells. Each case is an 8-h voyage of ``workbench simulate``
+(its own sensor dropouts included: water temperature or wind missing for 20-40 min) whose
+log is cut again, every column empty, for
+
+* ``none``  — nothing more cut (the voyage as simulated),
+* ``short`` — 40 min (03:20-04:00),
+* ``long``  — 2 h (03:00-05:00),
+
+then run through the command line as a user runs it (``workbench forecast --option both``,
+``workbench evaluate`` against the simulator's true modal table). Printed per seed, gap and
+option: the Kalman estimate against raw SSI over the whole voyage (``workbench evaluate``'s
+summary), the same over the gap's blocks only, and the share of the gap's blocks whose
+model bounds (95 %) hold the truth. Beside each gap row: the same voyage with its log
+complete (``complete``: the forecast that knows the missing values, the reachable), over
+the same blocks.
+
+Run: ``python benchmarks/bench_log_gaps.py --seeds 1,2,3,4 --work /tmp/log_gaps``
+(about 10 minutes on 2 quiet cores).
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+#: Cut stretches [minute of the voyage, end minute).
+GAPS = {"none": None, "short": (200, 240), "long": (180, 300)}
+
+
+def _workbench(*args: str) -> str:
+    done = subprocess.run(
+        [sys.executable, "-m", "workbench.cli", "-q", *args],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    if done.returncode != 0:
+        raise RuntimeError(f"workbench {args[0]} exit {done.returncode}: {done.stderr.strip()}")
+    return done.stdout
+
+
+def cut_log(source: Path, target: Path, minutes: tuple[int, int] | None) -> None:
+    """*source* (a PANGAEA-style DSHIP export) with every value of the rows whose time of day
+    falls in *minutes* removed (the timestamps kept)."""
+    lines = source.read_text(encoding="utf-8").split("\n")
+    header = next(k for k, line in enumerate(lines) if line.startswith("*/")) + 1
+    out = lines[: header + 1]
+    for line in lines[header + 1 :]:
+        fields = line.split("\t")
+        if minutes is not None and line:
+            minute = int(fields[0][11:13]) * 60 + int(fields[0][14:16])
+            if minutes[0] <= minute < minutes[1]:
+                fields = [fields[0]] + [""] * (len(fields) - 1)
+        out.append("\t".join(fields))
+    target.write_text("\n".join(out), encoding="utf-8")
+
+
+def gap_blocks(forecast: pd.DataFrame, minutes: tuple[int, int] | None) -> np.ndarray:
+    """Blocks whose 20-min span overlaps the cut stretch by more than half (their log
+    averages are missing)."""
+    if minutes is None:
+        return np.array([], dtype=int)
+    start = pd.to_datetime(forecast["block_start"], utc=True)
+    minute = (start - start.min()).dt.total_seconds() / 60.0
+    overlap = np.minimum(minute + 20, minutes[1]) - np.maximum(minute, minutes[0])
+    return np.unique(forecast.loc[overlap > 10, "block"].to_numpy())
+
+
+def scores(forecast: pd.DataFrame, truth: pd.DataFrame, blocks: np.ndarray | None) -> dict:
+    """Kalman against SSI [%] and the bounds' coverage on *blocks* (None: all) per option."""
+    rows = forecast[forecast["phase"] == "forecast"].merge(
+        truth[["block", "mode", "frequency_hz"]].rename(columns={"frequency_hz": "true"}),
+        on=["block", "mode"],
+    )
+    if blocks is not None:
+        rows = rows[rows["block"].isin(blocks)]
+    out = {}
+    for option, part in rows.groupby("option"):
+        both = part.dropna(subset=["ssi_frequency_hz", "kalman_frequency_hz"])
+        ssi = (both["ssi_frequency_hz"] - both["true"]).abs().sum()
+        kalman = (both["kalman_frequency_hz"] - both["true"]).abs().sum()
+        inside = (part["model_lower_hz"] <= part["true"]) & (part["true"] <= part["model_upper_hz"])
+        out[option] = (100.0 * (1.0 - kalman / ssi) if ssi > 0 else np.nan, inside.mean())
+    return out
+
+
+def run_seed(seed: int, work: Path) -> list[dict]:
+    folder = work / f"seed{seed}"
+    voyage = folder / "voyage"
+    if not (voyage / "truth_modal.csv").is_file():
+        _workbench("simulate", "--out", str(voyage), "--hours", "8", "--seed", str(seed))
+    truth = pd.read_csv(voyage / "truth_modal.csv")
+    tables = {}
+    for gap, minutes in GAPS.items():
+        log = folder / f"dship_{gap}.tsv"
+        cut_log(voyage / "dship.tsv", log, minutes)
+        out = folder / f"forecast_{gap}.csv"
+        _workbench(
+            "forecast", "--modal", str(voyage / "tracked_modal.csv"), "--dship", str(log),
+            "--poles", str(voyage / "poles.parquet"), "--option", "both", "--out", str(out),
+        )  # fmt: skip
+        tables[gap] = pd.read_csv(out)
+    rows = []
+    for gap, minutes in GAPS.items():
+        blocks = gap_blocks(tables[gap], minutes)
+        whole = scores(tables[gap], truth, None)
+        inside = scores(tables[gap], truth, blocks) if blocks.size else {}
+        reach = scores(tables["none"], truth, blocks) if blocks.size else {}
+        for option, (gain, _) in whole.items():
+            rows.append(
+                {
+                    "seed": seed,
+                    "gap": gap,
+                    "option": option,
+                    "K_vs_ssi_pct": gain,
+                    "gap_blocks": blocks.size,
+                    "in_gap_K_vs_ssi_pct": inside.get(option, (np.nan, np.nan))[0],
+                    "in_gap_bounds_hold": inside.get(option, (np.nan, np.nan))[1],
+                    "complete_log_in_gap_pct": reach.get(option, (np.nan, np.nan))[0],
+                }
+            )
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", default="1,2,3,4", help="comma-separated seeds")
+    parser.add_argument("--work", type=Path, default=Path("/tmp/log_gaps"))
+    args = parser.parse_args()
+    rows = []
+    for seed in (int(s) for s in args.seeds.split(",")):
+        rows += run_seed(seed, args.work)
+    table = pd.DataFrame(rows)
+    with pd.option_context("display.width", 200, "display.max_columns", 20):
+        print(table.round(3).to_string(index=False))
+        summary = table.groupby(["gap", "option"]).agg(
+            median=("K_vs_ssi_pct", "median"),
+            worst=("K_vs_ssi_pct", "min"),
+            in_gap_median=("in_gap_K_vs_ssi_pct", "median"),
+            in_gap_worst=("in_gap_K_vs_ssi_pct", "min"),
+            bounds_hold=("in_gap_bounds_hold", "median"),
+            complete_log=("complete_log_in_gap_pct", "median"),
+        )
+        print()
+        print(summary.round(3).to_string())
+
+
+if __name__ == "__main__":
+    main()
