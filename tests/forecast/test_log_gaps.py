@@ -71,3 +71,24 @@ def test_a_gap_in_the_log_is_filled_widened_and_never_worse_than_ssi(seed):
     # gap's blocks found no predictor with enough values: the constant model)
     after = [m for m in result.models if GAP[0] <= m.window_end_block < GAP[1] + 40]
     assert after and all("speed_kn" in m.terms for m in after)
+
+
+def test_a_missing_predictor_the_terms_do_not_use_changes_nothing():
+    # water temperature is noise here and never enters the model: its gap must not mark
+    # the blocks as filled, nor move the blend (a candidate column is not a needed one)
+    modal, predictors, _ = _voyage(0)
+    logged = predictors.copy()
+    logged["speed_kn"] = logged["speed_kn"].fillna(8.0)  # the speed logged throughout
+    missing = logged.copy()
+    missing.loc[GAP[0] : GAP[1] - 1, "water_temp_c"] = np.nan
+    logged.loc[GAP[0] : GAP[1] - 1, "water_temp_c"] = 3.0
+    options = ForecastOptions(options=("A",), time_trend=False, reselect_blocks=1000)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ForecastWarning)
+        with_gap = sliding_forecast(modal, missing, options)
+        without = sliding_forecast(modal, logged, options)
+    assert all("water_temp_c" not in m.terms for m in with_gap.models)
+    assert not with_gap.table["warning"].fillna("").str.contains("predictor NaN").any()
+    pd.testing.assert_series_equal(
+        with_gap.table["kalman_frequency_hz"], without.table["kalman_frequency_hz"]
+    )

@@ -402,7 +402,9 @@ class MemoryRun:
         x = self.X_all[k]
         return np.array(
             [
-                m is not None and m.kind != "constant" and not np.isfinite(x[list(m.columns)]).all()
+                m is not None
+                and m.kind != "constant"
+                and not np.isfinite(x[m.needed_columns()]).all()
                 for m in self.current
             ]
         )

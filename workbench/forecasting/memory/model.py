@@ -68,6 +68,10 @@ class MemoryModel:
     dof: float
     n_train: int
 
+    def needed_columns(self) -> list[int]:
+        """Positions in the predictor matrix of the predictors its terms use."""
+        return sorted({self.columns[c] for term in self.terms for c in term})
+
     def term_names(self) -> tuple[str, ...]:
         return tuple(":".join(self.names[c] for c in term) for term in self.terms if term)
 

@@ -279,7 +279,7 @@ class MemoryRefits:
         the history has too few rows to measure it.
         """
         X_all, limit = self.X_all, self.limit
-        columns = np.asarray(m.columns, dtype=np.int64)
+        columns = np.asarray(m.needed_columns(), dtype=np.int64)
         x = X_all[row]
         missing = columns[~np.isfinite(x[columns])]
         lo = max(self.first, row - int(self.model.selection_blocks))
