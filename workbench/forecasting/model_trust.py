@@ -251,13 +251,9 @@ class ModelTrust:
         return out
 
     def combine(
-        self,
-        blend_estimate: np.ndarray,
-        blend_variance: np.ndarray,
-        blend_only: np.ndarray | None = None,
+        self, blend_estimate: np.ndarray, blend_variance: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Probability-weighted estimate [Hz] and its variance [Hz²] (module docstring); the
-        modes of *blend_only* (bool) take the blend's whole weight."""
+        """Probability-weighted estimate [Hz] and its variance [Hz²] (module docstring)."""
         started = np.isfinite(self.level)
         xs = np.concatenate([blend_estimate[None], np.where(started, self.level, blend_estimate)])
         Ps = np.concatenate(
@@ -268,8 +264,6 @@ class ModelTrust:
         # rest goes to the model-free filters in proportion to their probabilities
         w = self.weights.copy()
         w[0] = np.clip(self.weights[0] / FULL_WEIGHT_PROBABILITY, 0.0, 1.0)
-        if blend_only is not None:
-            w[0] = np.where(blend_only, 1.0, w[0])
         rest = self.weights[1:].sum(axis=0)
         w[1:] = self.weights[1:] / np.where(rest > 0, rest, 1.0) * (1.0 - w[0])
         x = (w * xs).sum(axis=0)

@@ -574,12 +574,11 @@ class MemoryRun:
                 r_v * scale,
                 nu,
                 innovation_variance,
-                np.full(n_modes, not in_sample) & ~lost,
+                # a block whose model fills a missing predictor says nothing of whether
+                # the model explains the mode: the probabilities wait for the log
+                np.full(n_modes, not in_sample) & ~lost & ~filled,
             )
-            # where the model fills a missing predictor its variance already sends the blend
-            # to SSI; the model-free filters, which cannot follow what the log would have
-            # explained (a speed change in the gap), are not mixed in
-            estimate, variance = self.trust.combine(estimate, variance, filled)
+            estimate, variance = self.trust.combine(estimate, variance)
             self.out["probability"][k] = np.where(have, self.trust.probability, np.nan)
             if not in_sample:
                 self._explained(k, have)
