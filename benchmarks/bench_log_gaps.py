@@ -24,27 +24,18 @@ Run: ``python benchmarks/bench_log_gaps.py --seeds 1,2,3,4 --work /tmp/log_gaps`
 from __future__ import annotations
 
 import argparse
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from bench_forecast_new_user import _workbench  # noqa: E402
+
 #: Cut stretches [minute of the voyage, end minute).
 GAPS = {"none": None, "short": (200, 240), "long": (180, 300)}
-
-
-def _workbench(*args: str) -> str:
-    done = subprocess.run(
-        [sys.executable, "-m", "workbench.cli", "-q", *args],
-        capture_output=True,
-        text=True,
-        check=False,
-    )
-    if done.returncode != 0:
-        raise RuntimeError(f"workbench {args[0]} exit {done.returncode}: {done.stderr.strip()}")
-    return done.stdout
 
 
 def cut_log(source: Path, target: Path, minutes: tuple[int, int] | None) -> None:

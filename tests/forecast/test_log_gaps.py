@@ -10,6 +10,7 @@ import warnings
 import numpy as np
 import pandas as pd
 import pytest
+from scipy.signal import lfilter
 
 from workbench.forecasting import ForecastOptions, ForecastWarning, sliding_forecast
 
@@ -18,11 +19,10 @@ GAP = (150, 190)
 
 
 def _ar1(rng, n, rho, std):
-    out = np.empty(n)
-    out[0] = rng.normal(0, std)
-    for k in range(1, n):
-        out[k] = rho * out[k - 1] + math.sqrt(1 - rho * rho) * rng.normal(0, std)
-    return out
+    """AR(1) of standard deviation *std* started in its stationary state."""
+    white = rng.normal(0.0, std, n)
+    white[1:] *= math.sqrt(1 - rho * rho)
+    return lfilter([1.0], [1.0, -rho], white)
 
 
 def _voyage(seed: int, n: int = 300):
