@@ -44,8 +44,8 @@ def tables(voyage):
 def test_forecast_modes_split_over_processes_is_identical(tables, model_kwargs):
     modal, predictors, _ = tables
     kwargs = dict(options=("A",), scheme=2, train_blocks=20, horizon=4, **model_kwargs)
-    one, _ = forecast_modes(modal, predictors, ForecastOptions(n_workers=1, **kwargs))
-    two, _ = forecast_modes(modal, predictors, ForecastOptions(n_workers=2, **kwargs))
+    one = forecast_modes(modal, predictors, ForecastOptions(n_workers=1, **kwargs)).table
+    two = forecast_modes(modal, predictors, ForecastOptions(n_workers=2, **kwargs)).table
     pd.testing.assert_frame_equal(one, two, check_exact=True)
     FORECAST.validate(one)
     assert sorted(one["mode"].unique()) == list(range(1, 8))
@@ -55,11 +55,11 @@ def test_evaluate_pairs_labels_and_beats_ssi(tables):
     """Kalman estimates beat the imitated SSI scatter on the demo voyage; relabelling the
     modes (as tracking with an extra spurious mode would) does not change the result."""
     modal, predictors, truth = tables
-    table, _ = forecast_modes(
+    table = forecast_modes(
         modal,
         predictors,
         ForecastOptions(options=("A",), scheme=2, train_blocks=20, horizon=4, model="window"),
-    )
+    ).table
     plain = evaluate(table, truth).table
     shifted = table.assign(mode=table["mode"] + 10)
     relabelled = evaluate(shifted, truth).table
