@@ -203,3 +203,37 @@ def test_cli_identify_bad_inputs_are_one_line_errors(tmp_path, capsys):
         ]
     )
     assert status == 2
+
+
+def test_library_and_stage_return_one_forecast_result(tables, tmp_path):
+    """sliding_forecast and the forecast stage return the same type: the stage's table is
+    the library's rows sorted by block and mode, and the library's result plots,
+    evaluates (as the evaluate stage) and saves as the stage's does."""
+    import dataclasses
+
+    import matplotlib.pyplot as plt
+
+    from workbench.forecasting import ForecastResult, sliding_forecast
+    from workbench.stages import forecast
+
+    modal, predictors, truth = tables
+    options = ForecastOptions(options=("A",), scheme=2, train_blocks=20, horizon=4, model="window")
+    with pytest.warns(Warning):  # the library issues its ForecastWarnings; the stage keeps them
+        library = sliding_forecast(modal, predictors, options)
+    every_mode = dataclasses.replace(options, min_presence=0.0)
+    stage = forecast(modal, predictors, options=every_mode)
+    assert type(library) is type(stage) is ForecastResult
+    assert dataclasses.is_dataclass(stage) and stage.__dataclass_params__.frozen
+    assert (library.options, stage.options) == (options, every_mode)
+    in_blocks = library.table.sort_values(["block", "mode"], kind="stable", ignore_index=True)
+    pd.testing.assert_frame_equal(in_blocks, stage.table, check_exact=True)
+    assert len(library.models) == len(stage.models) > 0
+    assert [f"option A: {w}" for w in library.warnings] == list(stage.warnings)
+    assert "forecast of 7 modes" in str(stage.summary())
+    pd.testing.assert_frame_equal(library.evaluate(truth).table, evaluate(stage.table, truth).table)
+    figure = library.plot(1, truth=truth)
+    assert figure.axes and figure.axes[0].get_title() == "Mode 1: sliding forecast, option A"
+    plt.close(figure)
+    paths = library.save(tmp_path / "forecast.csv", figures=tmp_path / "figures")
+    FORECAST.validate(read_table(paths["forecast"], FORECAST))
+    assert (tmp_path / "figures" / "forecast_mode1.png").is_file()
