@@ -97,66 +97,72 @@ def evaluate_against_truth(
     )
     if not tracked.empty:
         merged = merged.merge(tracked, on=["block", "mode"], how="left")
-    rows = []
-    for (option, mode), group in merged.groupby(["option", "mode"], sort=True):
-        truth_hz = group["truth_hz"].to_numpy(dtype=float)
-        tracked_error = kalman_tracked_error = vs_tracked = np.nan
-        if not tracked.empty:
-            on_tracked = np.abs(group["tracked_hz"].to_numpy(dtype=float) - truth_hz)
-            kalman_error = np.abs(group["kalman_frequency_hz"].to_numpy(dtype=float) - truth_hz)
-            rows_tracked = np.isfinite(on_tracked)
-            if rows_tracked.any():
-                tracked_error = float(on_tracked[rows_tracked].sum())
-                kalman_tracked_error = float(np.nansum(kalman_error[rows_tracked]))
-                vs_tracked = _improvement(kalman_tracked_error, tracked_error)
-        error = {
-            key: np.abs(group[column].to_numpy(dtype=float) - truth_hz)
-            for key, column in _ESTIMATES.items()
-        }
-        common = np.isfinite(error["ssi"]) & np.isfinite(truth_hz)
-        # no SSI estimate in these rows: no data to compare on (NaN), not an error of 0 Hz
-        cumulative = {
-            key: float(value[common].sum()) if common.any() else float("nan")
-            for key, value in error.items()
-        }
-        # no SSI estimate in the evaluated rows (or zero error): no improvement to state
-        vs_ssi = _improvement(cumulative["kalman"], cumulative["ssi"])
-        vs_model = _improvement(cumulative["kalman"], cumulative["model"])
-        rows.append(
-            {
-                "option": option,
-                "mode": int(mode),
-                "n_blocks": int(np.isfinite(truth_hz).sum()),
-                "n_ssi": int(common.sum()),
-                "ssi_cumulative_error_hz": cumulative["ssi"],
-                "model_cumulative_error_hz": cumulative["model"],
-                "kalman_cumulative_error_hz": cumulative["kalman"],
-                "model_cumulative_error_all_hz": float(np.nansum(error["model"])),
-                "kalman_cumulative_error_all_hz": float(np.nansum(error["kalman"])),
-                "improvement_vs_ssi_pct": vs_ssi if common.any() else np.nan,
-                "improvement_vs_model_pct": vs_model if common.any() else np.nan,
-                "tracked_cumulative_error_hz": tracked_error,
-                "kalman_cumulative_error_tracked_hz": kalman_tracked_error,
-                "improvement_vs_tracked_pct": vs_tracked,
-            }
-        )
-    columns = [
-        "option",
-        "mode",
-        "n_blocks",
-        "n_ssi",
-        "ssi_cumulative_error_hz",
-        "model_cumulative_error_hz",
-        "kalman_cumulative_error_hz",
-        "model_cumulative_error_all_hz",
-        "kalman_cumulative_error_all_hz",
-        "improvement_vs_ssi_pct",
-        "improvement_vs_model_pct",
-        "tracked_cumulative_error_hz",
-        "kalman_cumulative_error_tracked_hz",
-        "improvement_vs_tracked_pct",
+    rows = [
+        {"option": option, "mode": int(mode), **_mode_errors(group, with_tracked=not tracked.empty)}
+        for (option, mode), group in merged.groupby(["option", "mode"], sort=True)
     ]
-    return pd.DataFrame(rows, columns=columns)
+    return pd.DataFrame(rows, columns=_COLUMNS)
+
+
+#: Columns of :func:`evaluate_against_truth`, in order.
+_COLUMNS = [
+    "option",
+    "mode",
+    "n_blocks",
+    "n_ssi",
+    "ssi_cumulative_error_hz",
+    "model_cumulative_error_hz",
+    "kalman_cumulative_error_hz",
+    "model_cumulative_error_all_hz",
+    "kalman_cumulative_error_all_hz",
+    "improvement_vs_ssi_pct",
+    "improvement_vs_model_pct",
+    "tracked_cumulative_error_hz",
+    "kalman_cumulative_error_tracked_hz",
+    "improvement_vs_tracked_pct",
+]
+
+
+def _mode_errors(group: pd.DataFrame, *, with_tracked: bool) -> dict[str, float | int]:
+    """The errors of one option and mode (:func:`evaluate_against_truth`'s row after the
+    option and mode); *with_tracked*: *group* has the tracked pole's ``tracked_hz``."""
+    truth_hz = group["truth_hz"].to_numpy(dtype=float)
+    tracked_error = kalman_tracked_error = vs_tracked = np.nan
+    if with_tracked:
+        on_tracked = np.abs(group["tracked_hz"].to_numpy(dtype=float) - truth_hz)
+        kalman_error = np.abs(group["kalman_frequency_hz"].to_numpy(dtype=float) - truth_hz)
+        rows_tracked = np.isfinite(on_tracked)
+        if rows_tracked.any():
+            tracked_error = float(on_tracked[rows_tracked].sum())
+            kalman_tracked_error = float(np.nansum(kalman_error[rows_tracked]))
+            vs_tracked = _improvement(kalman_tracked_error, tracked_error)
+    error = {
+        key: np.abs(group[column].to_numpy(dtype=float) - truth_hz)
+        for key, column in _ESTIMATES.items()
+    }
+    common = np.isfinite(error["ssi"]) & np.isfinite(truth_hz)
+    # no SSI estimate in these rows: no data to compare on (NaN), not an error of 0 Hz
+    cumulative = {
+        key: float(value[common].sum()) if common.any() else float("nan")
+        for key, value in error.items()
+    }
+    # no SSI estimate in the evaluated rows (or zero error): no improvement to state
+    vs_ssi = _improvement(cumulative["kalman"], cumulative["ssi"])
+    vs_model = _improvement(cumulative["kalman"], cumulative["model"])
+    return {
+        "n_blocks": int(np.isfinite(truth_hz).sum()),
+        "n_ssi": int(common.sum()),
+        "ssi_cumulative_error_hz": cumulative["ssi"],
+        "model_cumulative_error_hz": cumulative["model"],
+        "kalman_cumulative_error_hz": cumulative["kalman"],
+        "model_cumulative_error_all_hz": float(np.nansum(error["model"])),
+        "kalman_cumulative_error_all_hz": float(np.nansum(error["kalman"])),
+        "improvement_vs_ssi_pct": vs_ssi if common.any() else np.nan,
+        "improvement_vs_model_pct": vs_model if common.any() else np.nan,
+        "tracked_cumulative_error_hz": tracked_error,
+        "kalman_cumulative_error_tracked_hz": kalman_tracked_error,
+        "improvement_vs_tracked_pct": vs_tracked,
+    }
 
 
 def _improvement(error: float, baseline: float) -> float:
