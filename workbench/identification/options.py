@@ -101,7 +101,9 @@ class IdentifyOptions:
     channel_check : bool
         Drop faulty channels per block (:func:`~workbench.signals.moments.faulty_channels`).
     fault_options : tuple of (str, value)
-        Thresholds of the channel check, e.g. ``(("kurtosis_limits", (1.3, 10.0)),)``.
+        Thresholds of the channel check that differ from the defaults, fields of
+        :class:`~workbench.signals.moments.ChannelCheckOptions`, e.g.
+        ``(("kurtosis_limits", (1.3, 10.0)),)``.
     conditioning : {"per-file", "per-block"}
         When decimating: condition each file once and cut the blocks from the conditioned
         files (default), or build every block from its raw files (the reference path, four

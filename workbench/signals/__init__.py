@@ -30,12 +30,13 @@ from .conditioning import (
     interpolate_nan_runs,
     nan_runs,
 )
-from .moments import WindowMoments, faulty_channels, moments
+from .moments import ChannelCheckOptions, WindowMoments, faulty_channels, moments
 
 __all__ = [
     "MAX_INTERPOLATED_NAN_RUN_S",
     "AccelerationBlock",
     "BlockPlan",
+    "ChannelCheckOptions",
     "FileInfo",
     "PlannedBlock",
     "SignalWarning",

@@ -46,9 +46,9 @@ from .block_plan import (
     plan_file_infos,
     read_file_info,
 )
-from .conditioning import MAX_INTERPOLATED_NAN_RUN_S, bandpass, decimate, interpolate_nan_runs
+from .conditioning import bandpass, decimate, interpolate_nan_runs
 from .conditioning import detrend as linear_detrend
-from .moments import _channel_groups, faulty_channels
+from .moments import ChannelCheckOptions, _channel_groups, faulty_channels
 
 __all__ = ["AccelerationBlock", "iter_blocks", "load_block"]
 
@@ -104,25 +104,24 @@ class _Conditioning:
     target_rate_hz: float | None
     band_hz: tuple[float | None, float | None] | None
     detrend: bool
-    fault_options: Mapping
+    channel_check: ChannelCheckOptions
     read_options: Mapping
 
     @classmethod
     def make(cls, target_rate_hz, band_hz, detrend, fault_options, read_options) -> _Conditioning:
-        options = dict(fault_options or {})
         # fail early on a mistyped option, not in the middle of a voyage
-        faulty_channels(np.zeros((4, 1)) + np.arange(4)[:, None], 1.0, **options)
+        check = ChannelCheckOptions(**dict(fault_options or {}))
         if band_hz is not None:
             band = tuple(band_hz)
             if len(band) != 2:
                 raise ValueError(f"band_hz={band_hz!r} must be (low_hz, high_hz)")
         else:
             band = None
-        return cls(target_rate_hz, band, bool(detrend), options, dict(read_options or {}))
+        return cls(target_rate_hz, band, bool(detrend), check, dict(read_options or {}))
 
     @property
     def max_nan_run_s(self) -> float:
-        return float(self.fault_options.get("max_nan_run_s", MAX_INTERPOLATED_NAN_RUN_S))
+        return float(self.channel_check.max_nan_run_s)
 
     def check_rate(self, rate: float) -> None:
         """Raise now (not at the first block) if decimation or band-pass cannot work."""
@@ -182,7 +181,7 @@ def _condition(
     planned: PlannedBlock,
     notes: list[str],
 ) -> AccelerationBlock:
-    report = faulty_channels(raw, rate, channels, **options.fault_options)
+    report = faulty_channels(raw, rate, channels, options=options.channel_check)
     faulty, dropped, names, notes = _verdicts(report, channels, notes)
     if not names:
         return _finished(planned, None, rate, (), dropped, notes, report, "all channels faulty")

@@ -74,7 +74,6 @@ from ..blocks import BlockGrid
 from .block_builder import AccelerationBlock, _finished, _verdicts, load_block
 from .block_plan import FileInfo, PlannedBlock, align_channels
 from .conditioning import (
-    MAX_INTERPOLATED_NAN_RUN_S,
     bandpass,
     interpolate_nan_runs,
 )
@@ -84,7 +83,7 @@ from .filter_cascade import (
     _RowDecimator,
     padding_samples,
 )
-from .moments import CoherenceNeeded, channel_verdicts
+from .moments import ChannelCheckOptions, CoherenceNeeded, channel_verdicts
 from .step_sums import _NS, _block_statistics, _step_sums
 
 __all__ = [
@@ -168,9 +167,8 @@ class FileConditioner:
         self.fault_options = dict(fault_options or {})
         self.read_options = dict(read_options or {})
         self.detrend = bool(detrend)
-        self.max_nan_run_s = float(
-            self.fault_options.get("max_nan_run_s", MAX_INTERPOLATED_NAN_RUN_S)
-        )
+        self.channel_check = ChannelCheckOptions(**self.fault_options)
+        self.max_nan_run_s = float(self.channel_check.max_nan_run_s)
         self.padding = padding_samples(self.rate, self.target_rate_hz, self.band_hz)
         self._decimator = _RowDecimator(self.factor, rows=_GATHER_CHANNELS)
         self._t0_ns = pd.Timestamp(grid.t0).as_unit("ns").value
@@ -394,7 +392,12 @@ class FileConditioner:
         nan_fraction, longest, variance, kurtosis = _block_statistics(pieces, n_raw, self.rate)
         try:
             report = channel_verdicts(
-                self.channels, nan_fraction, longest, variance, kurtosis, **self.fault_options
+                self.channels,
+                nan_fraction,
+                longest,
+                variance,
+                kurtosis,
+                options=self.channel_check,
             )
         except CoherenceNeeded:
             return None  # a variance outlier's coherence needs the raw block: load_block
