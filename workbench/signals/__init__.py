@@ -11,7 +11,7 @@ policy is described in :mod:`~workbench.signals.conditioning`, the faulty-channe
 :mod:`~workbench.signals.block_plan`.
 """
 
-from .block_builder import AccelerationBlock, iter_blocks, load_block
+from .block_builder import AccelerationBlock, ConditioningOptions, iter_blocks, load_block
 from .block_plan import (
     BlockPlan,
     FileInfo,
@@ -37,6 +37,7 @@ __all__ = [
     "AccelerationBlock",
     "BlockPlan",
     "ChannelCheckOptions",
+    "ConditioningOptions",
     "FileInfo",
     "PlannedBlock",
     "SignalWarning",
