@@ -77,7 +77,7 @@ def main(argv=None) -> int:
         for name in models:
             for jobs in (1, 2):
                 start = time.perf_counter()
-                table, _ = forecast_modes(
+                table = forecast_modes(
                     modal,
                     predictors,
                     ForecastOptions(
@@ -89,7 +89,7 @@ def main(argv=None) -> int:
                         model=name,
                         n_workers=jobs,
                     ),
-                )
+                ).table
                 times[name, jobs].append(time.perf_counter() - start)
                 tables[name, jobs] = table
     status = 0

@@ -44,8 +44,8 @@ def tables(voyage):
 def test_forecast_modes_split_over_processes_is_identical(tables, model_kwargs):
     modal, predictors, _ = tables
     kwargs = dict(options=("A",), scheme=2, train_blocks=20, horizon=4, **model_kwargs)
-    one, _ = forecast_modes(modal, predictors, ForecastOptions(n_workers=1, **kwargs))
-    two, _ = forecast_modes(modal, predictors, ForecastOptions(n_workers=2, **kwargs))
+    one = forecast_modes(modal, predictors, ForecastOptions(n_workers=1, **kwargs)).table
+    two = forecast_modes(modal, predictors, ForecastOptions(n_workers=2, **kwargs)).table
     pd.testing.assert_frame_equal(one, two, check_exact=True)
     FORECAST.validate(one)
     assert sorted(one["mode"].unique()) == list(range(1, 8))
@@ -55,11 +55,11 @@ def test_evaluate_pairs_labels_and_beats_ssi(tables):
     """Kalman estimates beat the imitated SSI scatter on the demo voyage; relabelling the
     modes (as tracking with an extra spurious mode would) does not change the result."""
     modal, predictors, truth = tables
-    table, _ = forecast_modes(
+    table = forecast_modes(
         modal,
         predictors,
         ForecastOptions(options=("A",), scheme=2, train_blocks=20, horizon=4, model="window"),
-    )
+    ).table
     plain = evaluate(table, truth).table
     shifted = table.assign(mode=table["mode"] + 10)
     relabelled = evaluate(shifted, truth).table
@@ -203,3 +203,37 @@ def test_cli_identify_bad_inputs_are_one_line_errors(tmp_path, capsys):
         ]
     )
     assert status == 2
+
+
+def test_library_and_stage_return_one_forecast_result(tables, tmp_path):
+    """sliding_forecast and the forecast stage return the same type: the stage's table is
+    the library's rows sorted by block and mode, and the library's result plots,
+    evaluates (as the evaluate stage) and saves as the stage's does."""
+    import dataclasses
+
+    import matplotlib.pyplot as plt
+
+    from workbench.forecasting import ForecastResult, sliding_forecast
+    from workbench.stages import forecast
+
+    modal, predictors, truth = tables
+    options = ForecastOptions(options=("A",), scheme=2, train_blocks=20, horizon=4, model="window")
+    with pytest.warns(Warning):  # the library issues its ForecastWarnings; the stage keeps them
+        library = sliding_forecast(modal, predictors, options)
+    every_mode = dataclasses.replace(options, min_presence=0.0)
+    stage = forecast(modal, predictors, options=every_mode)
+    assert type(library) is type(stage) is ForecastResult
+    assert dataclasses.is_dataclass(stage) and stage.__dataclass_params__.frozen
+    assert (library.options, stage.options) == (options, every_mode)
+    in_blocks = library.table.sort_values(["block", "mode"], kind="stable", ignore_index=True)
+    pd.testing.assert_frame_equal(in_blocks, stage.table, check_exact=True)
+    assert len(library.models) == len(stage.models) > 0
+    assert [f"option A: {w}" for w in library.warnings] == list(stage.warnings)
+    assert "forecast of 7 modes" in str(stage.summary())
+    pd.testing.assert_frame_equal(library.evaluate(truth).table, evaluate(stage.table, truth).table)
+    figure = library.plot(1, truth=truth)
+    assert figure.axes and figure.axes[0].get_title() == "Mode 1: sliding forecast, option A"
+    plt.close(figure)
+    paths = library.save(tmp_path / "forecast.csv", figures=tmp_path / "figures")
+    FORECAST.validate(read_table(paths["forecast"], FORECAST))
+    assert (tmp_path / "figures" / "forecast_mode1.png").is_file()

@@ -22,7 +22,7 @@ from .monitor import ForecastSettings, MonitorOptions
 from .shm import HealthOptions
 from .sid.harmonics import HarmonicOptions
 from .sid.tracking import TrackingOptions
-from .signals.moments import faulty_channels
+from .signals.moments import ChannelCheckOptions
 from .simulate.voyage import DEFAULT_HOURS, SAMPLING_RATE_HZ, ShaftHarmonics
 from .stats.stepwise.regression import DEFAULT_THRESHOLDS
 
@@ -32,6 +32,7 @@ def _keyword_default(function, name: str):
 
 
 _IDENTIFY = IdentifyOptions()
+_CHANNEL_CHECK = ChannelCheckOptions()
 _TRACK = TrackingOptions()
 _FORECAST = ForecastOptions()
 _HEALTH = HealthOptions()
@@ -75,10 +76,10 @@ IDENTIFY_MAX_GAP_S = _IDENTIFY.max_gap_s
 IDENTIFY_SELECTION = _IDENTIFY.selection
 IDENTIFY_SHORT_RECORD = _IDENTIFY.short_record
 IDENTIFY_CONDITIONING = _IDENTIFY.conditioning
-IDENTIFY_KURTOSIS_MAX = _keyword_default(faulty_channels, "kurtosis_limits")[1]
-IDENTIFY_KURTOSIS_Z_MAX = _keyword_default(faulty_channels, "max_kurtosis_z")
-IDENTIFY_VARIANCE_Z_MAX = _keyword_default(faulty_channels, "max_variance_z")
-IDENTIFY_MAX_NAN_FRACTION = _keyword_default(faulty_channels, "max_nan_fraction")
+IDENTIFY_KURTOSIS_MIN, IDENTIFY_KURTOSIS_MAX = _CHANNEL_CHECK.kurtosis_limits
+IDENTIFY_KURTOSIS_Z_MAX = _CHANNEL_CHECK.max_kurtosis_z
+IDENTIFY_VARIANCE_Z_MAX = _CHANNEL_CHECK.max_variance_z
+IDENTIFY_MAX_NAN_FRACTION = _CHANNEL_CHECK.max_nan_fraction
 #: Blocks the per-block store writes together (an interruption loses at most these).
 IDENTIFY_BATCH_BLOCKS = 16
 #: Blocks drawn as stabilisation diagrams (and with their total prediction errors); none

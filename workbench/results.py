@@ -1,4 +1,5 @@
-"""What every stage result has: a table, a summary, an HTML view, atomic saving."""
+"""What every stage result has: a table, a summary, an HTML view, atomic saving (tables,
+JSON, figures)."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ __all__ = [
     "StageResult",
     "Summary",
     "read_any_table",
+    "save_figure",
     "shown_once",
     "table_path",
     "write_frame",
@@ -151,6 +153,27 @@ def write_frame(frame: pd.DataFrame, path: str | os.PathLike, contract=None, **c
             frame.to_parquet(tmp, index=False)
         else:
             frame.to_csv(tmp, index=csv.pop("index", False), **csv)
+    return path
+
+
+def save_figure(fig, path: str | os.PathLike, *, dpi: int = 110) -> Path:
+    """Write *fig* as PNG to *path* atomically (folders created) and close it: the one
+    helper for every PNG a result, a report or a command writes.
+
+    The figure is closed even when writing fails, so a long report run does not pile up
+    open figures. Nothing in the library chooses a matplotlib backend: in a notebook
+    figures go to the notebook's backend, and the command line selects the non-interactive
+    Agg backend itself (:func:`workbench.cli.main`). Without a display, matplotlib falls
+    back to Agg on its own.
+    """
+    import matplotlib.pyplot as plt  # only when a figure is written
+
+    path = Path(path)
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=dpi, format="png")
+    finally:
+        plt.close(fig)
     return path
 
 

@@ -59,7 +59,7 @@ def test_fixed_trust_is_bounded_by_the_white_noise_limit():
 def test_forecast_figures_written_and_closed(tmp_path):
     import matplotlib.pyplot as plt
 
-    from workbench.reporting.forecast_plot import write_forecast_figures
+    from workbench.forecasting.plot import write_forecast_figures
 
     result = run_temperature_experiment(seed=0, n_train=40, n_observations=20, period_blocks=40)
     before = len(plt.get_fignums())

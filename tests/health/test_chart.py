@@ -237,11 +237,11 @@ def test_cusum_limits_match_siegmunds_run_length_for_independent_residuals():
     # about 10 % of the exact ARL for k = 0.5). Target: one false alarm per 10 days per
     # mode (exp(-0.1) quantile of the daily maximum), 288 blocks a day: ARL ≈ 2880 blocks
     # (the Poisson daily count holds when the ARL is long against a day)
-    from workbench.shm.statistics import cusum_limits
+    from workbench.shm.statistics import InControlResiduals, cusum_limits
 
     limit = cusum_limits(
         np.array([0.5]),
-        segments=1,
+        InControlResiduals(segments=1),
         reference_blocks=4000,
         blocks_per_day=288.0,
         false_alarms_per_day=0.1,

@@ -12,6 +12,7 @@ from scipy import stats
 
 from workbench.shm.statistics import (
     OUTLIER_SIGMA,
+    InControlResiduals,
     _robust_location_scale,
     cusum_limits,
     trimmed_location_scale,
@@ -60,7 +61,6 @@ def test_trimmed_scale_is_about_three_times_as_efficient_as_the_mad():
 
 def _limit(**kw):
     options = {
-        "segments": 1,
         "reference_blocks": 4000,  # a long reference: little location and scale error
         "blocks_per_day": 288.0,
         "false_alarms_per_day": 0.1,
@@ -68,8 +68,9 @@ def _limit(**kw):
         "clip_sigma": 10.0,
         "rng": np.random.default_rng(2),
     }
+    residuals = {"segments": 1, **{k: kw.pop(k) for k in list(kw) if k not in options}}
     options.update(kw)
-    return cusum_limits(np.array([0.5]), **options)[0]
+    return cusum_limits(np.array([0.5]), InControlResiduals(**residuals), **options)[0]
 
 
 def test_missing_estimates_count_as_fewer_blocks_a_day():
@@ -113,14 +114,13 @@ def test_wrong_poles_cost_less_than_the_variance_they_add():
     def limit(**kw):
         return cusum_limits(
             np.array([1.0]),
-            segments=4,
+            InControlResiduals(segments=4, **kw),
             reference_blocks=4000,
             blocks_per_day=288.0,
             false_alarms_per_day=0.1,
             replicates=3000,
             clip_sigma=4.0,
             rng=np.random.default_rng(2),
-            **kw,
         )[0]
 
     clean, wrong, inflated = limit(), limit(outlier_rate=0.005), limit(variance=1.08)

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from data_contracts import read_dship
-from workbench.predictors import flag_faulty
+from workbench.predictors import LogFaultOptions, flag_faulty
 from workbench.simulate import simulate_voyage
 
 
@@ -94,7 +94,7 @@ def test_heavy_tails_flag_a_stretch_by_kurtosis():
     rng = np.random.default_rng(6)
     # Student-t noise with 3 degrees of freedom: infinite kurtosis, few 6-sigma spikes
     log["air_temp_c"] = -2.0 + 0.1 * rng.standard_t(3, len(log))
-    flags = flag_faulty(log, columns=["air_temp_c"], kurtosis_limit=6.0)
+    flags = flag_faulty(log, columns=["air_temp_c"], options=LogFaultOptions(kurtosis_limit=6.0))
     assert flags.stretches["faulty"].any()
     reasons = flags.stretches.loc[flags.stretches["faulty"], "reason"]
     assert reasons.str.contains("kurtosis").any()
@@ -103,7 +103,7 @@ def test_heavy_tails_flag_a_stretch_by_kurtosis():
 def test_options_are_checked():
     log = _log(100)
     with pytest.raises(ValueError, match="odd"):
-        flag_faulty(log, window=20)
+        flag_faulty(log, options=LogFaultOptions(window=20))
     with pytest.raises(ValueError, match="not in the log"):
         flag_faulty(log, columns=["heave_m"])
 

@@ -19,7 +19,14 @@ from scipy import signal
 
 from data_contracts import AccelerationRecord, read_accelerations, write_accelerations
 from workbench.blocks import BlockGrid
-from workbench.signals import block_builder, iter_blocks, load_block, plan_blocks
+from workbench.signals import (
+    ChannelCheckOptions,
+    ConditioningOptions,
+    block_builder,
+    iter_blocks,
+    load_block,
+    plan_blocks,
+)
 from workbench.signals.block_plan import lacking_channels
 from workbench.simulate import simulate_voyage
 
@@ -76,7 +83,7 @@ def test_block_samples_are_the_files_samples(voyage, voyage_blocks):
     np.testing.assert_allclose(
         block.acceleration[:, column], signal.detrend(raw[:, 0]), rtol=0, atol=1e-12
     )
-    plain = next(iter_blocks(files, blocks=[2], detrend=False))
+    plain = next(iter_blocks(files, blocks=[2], options=ConditioningOptions(detrend=False)))
     np.testing.assert_array_equal(plain.acceleration[:, column], raw[:, 0])
 
 
@@ -118,7 +125,7 @@ def test_memory_is_bounded(voyage, monkeypatch):
 
     monkeypatch.setattr(block_builder, "read_accelerations", tracking)
     peak = 0
-    for block in iter_blocks(voyage.acceleration_files, detrend=False):
+    for block in iter_blocks(voyage.acceleration_files, options=ConditioningOptions(detrend=False)):
         del block
         gc.collect()
         peak = max(peak, sum(ref() is not None for ref in arrays))
@@ -127,7 +134,11 @@ def test_memory_is_bounded(voyage, monkeypatch):
 
 def test_decimation_and_band_options(voyage):
     block = next(
-        iter_blocks(voyage.acceleration_files, blocks=[0], target_rate_hz=32.0, band_hz=(2, 12))
+        iter_blocks(
+            voyage.acceleration_files,
+            blocks=[0],
+            options=ConditioningOptions(target_rate_hz=32.0, band_hz=(2, 12)),
+        )
     )
     assert block.sampling_rate_hz == 32.0
     assert block.acceleration.shape == (38400, 19)
@@ -189,7 +200,12 @@ def test_gaps_skip_blocks_with_the_reason(gappy):
 
 def test_short_gaps_are_nan_padded_when_allowed(gappy):
     grid = BlockGrid(T0, 120, 60)
-    blocks = {b.block: b for b in iter_blocks(gappy, grid=grid, max_gap_s=5.0, detrend=False)}
+    blocks = {
+        b.block: b
+        for b in iter_blocks(
+            gappy, grid=grid, options=ConditioningOptions(max_gap_s=5.0, detrend=False)
+        )
+    }
     assert not blocks[2].skipped and not blocks[3].skipped and blocks[4].skipped
     block = blocks[2]
     assert block.acceleration.shape == (960, 3)
@@ -205,7 +221,9 @@ def test_channel_order_is_unified(tmp_path):
         _write(tmp_path, 0),
         _write(tmp_path, 60, channels=("c", "a", "b"), seed=5),
     ]
-    block = next(iter_blocks(files, grid=BlockGrid(T0, 120, 60), detrend=False))
+    block = next(
+        iter_blocks(files, grid=BlockGrid(T0, 120, 60), options=ConditioningOptions(detrend=False))
+    )
     assert block.channels == CHANNELS
     second = read_accelerations(files[1]).acceleration
     np.testing.assert_array_equal(block.acceleration[480:, 0], second[:, 1])  # "a"
@@ -238,7 +256,7 @@ def test_a_file_lacking_a_channel_loses_it_only_in_its_blocks(tmp_path, lacking)
     plan = plan_blocks(files, BlockGrid(T0, 120, 60))
     assert plan.channels == CHANNELS
     assert lacking_channels(plan.files, plan.channels) == {("b",): [files[lacking].name]}
-    blocks = list(iter_blocks(files, grid=plan.grid, detrend=False))
+    blocks = list(iter_blocks(files, grid=plan.grid, options=ConditioningOptions(detrend=False)))
     holding = {b.block for b in plan.blocks if files[lacking] in b.files}
     assert holding == ({0} if lacking == 0 else {0, 1})
     for block in blocks:
@@ -263,17 +281,25 @@ def test_overlapping_files_are_an_error(tmp_path):
 def test_all_faulty_block_is_skipped_and_options_are_checked(tmp_path):
     files = [_write(tmp_path, 0), _write(tmp_path, 60)]
     grid = BlockGrid(T0, 120, 60)
-    (block,) = iter_blocks(files, grid=grid, fault_options={"kurtosis_limits": (3.5, 10.0)})
+    (block,) = iter_blocks(
+        files,
+        grid=grid,
+        options=ConditioningOptions(channel_check=ChannelCheckOptions(kurtosis_limits=(3.5, 10.0))),
+    )
     assert block.skipped and block.skipped_reason == "all channels faulty"
     assert len(block.dropped) == 3
     with pytest.raises(TypeError, match="kurtosis_limit"):
-        iter_blocks(files, grid=grid, fault_options={"kurtosis_limit": 5})
+        ChannelCheckOptions(kurtosis_limit=5)
     with pytest.raises(ValueError, match="contradicts"):
         iter_blocks(files, grid=grid, length_s=600)
     with pytest.raises(ValueError, match="whole number"):
-        iter_blocks(files, grid=grid, target_rate_hz=3.0)  # 8 Hz / 3 Hz
+        iter_blocks(
+            files, grid=grid, options=ConditioningOptions(target_rate_hz=3.0)
+        )  # 8 Hz / 3 Hz
     with pytest.raises(ValueError, match="Nyquist"):
-        iter_blocks(files, grid=grid, target_rate_hz=4.0, band_hz=(0.5, 3.0))
+        iter_blocks(
+            files, grid=grid, options=ConditioningOptions(target_rate_hz=4.0, band_hz=(0.5, 3.0))
+        )
 
 
 def test_planning_from_read_headers_equals_planning_from_files(voyage):

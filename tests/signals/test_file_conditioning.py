@@ -23,7 +23,7 @@ import pandas as pd
 import pytest
 
 from data_contracts import AccelerationRecord, read_accelerations, write_accelerations
-from workbench.signals import bandpass, decimate, load_block, plan_blocks
+from workbench.signals import ConditioningOptions, bandpass, decimate, load_block, plan_blocks
 from workbench.signals.file_conditioning import FileConditioner
 from workbench.signals.file_reads import _read_rows
 from workbench.signals.filter_cascade import (
@@ -105,7 +105,10 @@ def test_partial_read_equals_the_rows_of_the_whole_file(voyage):
 def test_blocks_equal_the_per_block_builder_within_the_filter_transients(voyage):
     _, paths, plan = voyage
     conditioner = FileConditioner(
-        plan.files, plan.grid, plan.channels, target_rate_hz=TARGET, band_hz=BAND
+        plan.files,
+        plan.grid,
+        plan.channels,
+        options=ConditioningOptions(target_rate_hz=TARGET, band_hz=BAND),
     )
     edge = padding_samples(RATE, TARGET, BAND) // int(RATE / TARGET)
     n_out = int(4 * FILE_S * TARGET)
@@ -113,7 +116,12 @@ def test_blocks_equal_the_per_block_builder_within_the_filter_transients(voyage)
     built = 0
     for planned in plan.blocks:
         fast = conditioner.block(planned)
-        slow = load_block(paths, planned.block, plan.grid, target_rate_hz=TARGET, band_hz=BAND)
+        slow = load_block(
+            paths,
+            planned.block,
+            plan.grid,
+            options=ConditioningOptions(target_rate_hz=TARGET, band_hz=BAND),
+        )
         columns = ["nan_fraction", "longest_nan_run_s", "variance", "kurtosis", "variance_z"]
         np.testing.assert_allclose(
             fast.channel_report[columns].to_numpy(float),
@@ -142,7 +150,10 @@ def test_blocks_equal_the_per_block_builder_within_the_filter_transients(voyage)
 def test_file_joins_equal_filtering_the_whole_record(voyage):
     full, _, plan = voyage
     conditioner = FileConditioner(
-        plan.files, plan.grid, plan.channels, target_rate_hz=TARGET, band_hz=BAND
+        plan.files,
+        plan.grid,
+        plan.channels,
+        options=ConditioningOptions(target_rate_hz=TARGET, band_hz=BAND),
     )
     clean = [0, 2, 4]  # channels without NaN runs longer than can be bridged
     whole = bandpass(decimate(full[:, clean], RATE, TARGET), TARGET, *BAND)
@@ -163,12 +174,18 @@ def test_blocks_with_a_padded_gap_fall_back_to_the_per_block_builder(tmp_path):
         paths.append(path)
     plan = plan_blocks(paths, length_s=4 * FILE_S, step_s=FILE_S, max_gap_s=3.0)
     conditioner = FileConditioner(
-        plan.files, plan.grid, plan.channels, target_rate_hz=TARGET, band_hz=BAND, max_gap_s=3.0
+        plan.files,
+        plan.grid,
+        plan.channels,
+        options=ConditioningOptions(target_rate_hz=TARGET, band_hz=BAND, max_gap_s=3.0),
     )
     planned = plan.blocks[0]
     fast = conditioner.block(planned)
     slow = load_block(
-        paths, planned.block, plan.grid, target_rate_hz=TARGET, band_hz=BAND, max_gap_s=3.0
+        paths,
+        planned.block,
+        plan.grid,
+        options=ConditioningOptions(target_rate_hz=TARGET, band_hz=BAND, max_gap_s=3.0),
     )
     assert conditioner.fallbacks == 1
     np.testing.assert_array_equal(fast.acceleration, slow.acceleration)
@@ -177,9 +194,19 @@ def test_blocks_with_a_padded_gap_fall_back_to_the_per_block_builder(tmp_path):
 def test_conditioner_rejects_a_rate_that_is_not_a_decimation(voyage):
     _, _, plan = voyage
     with pytest.raises(ValueError, match="target_rate_hz"):
-        FileConditioner(plan.files, plan.grid, plan.channels, target_rate_hz=300.0, band_hz=BAND)
+        FileConditioner(
+            plan.files,
+            plan.grid,
+            plan.channels,
+            options=ConditioningOptions(target_rate_hz=300.0, band_hz=BAND),
+        )
     with pytest.raises(ValueError, match="target_rate_hz"):
-        FileConditioner(plan.files, plan.grid, plan.channels, target_rate_hz=RATE, band_hz=BAND)
+        FileConditioner(
+            plan.files,
+            plan.grid,
+            plan.channels,
+            options=ConditioningOptions(target_rate_hz=RATE, band_hz=BAND),
+        )
 
 
 def test_an_unreadable_neighbour_breaks_the_chain_only(voyage, tmp_path):
@@ -192,7 +219,10 @@ def test_an_unreadable_neighbour_breaks_the_chain_only(voyage, tmp_path):
     plan = plan_blocks(copies, length_s=4 * FILE_S, step_s=FILE_S)
     copies[4].write_bytes(b"not an npz file")  # after planning: the file went bad
     conditioner = FileConditioner(
-        plan.files, plan.grid, plan.channels, target_rate_hz=TARGET, band_hz=BAND
+        plan.files,
+        plan.grid,
+        plan.channels,
+        options=ConditioningOptions(target_rate_hz=TARGET, band_hz=BAND),
     )
     first = conditioner.block(plan.blocks[0])  # files 0-3; file 4 only pads file 3
     assert first.acceleration is not None and conditioner.fallbacks == 0
@@ -233,12 +263,13 @@ def test_text_files_are_parsed_once_and_give_the_npz_blocks(voyage, tmp_path, mo
         text_plan.files,
         text_plan.grid,
         text_plan.channels,
-        target_rate_hz=TARGET,
-        band_hz=BAND,
-        read_options=options,
+        options=ConditioningOptions(target_rate_hz=TARGET, band_hz=BAND, read_options=options),
     )
     binary = FileConditioner(
-        plan.files, plan.grid, plan.channels, target_rate_hz=TARGET, band_hz=BAND
+        plan.files,
+        plan.grid,
+        plan.channels,
+        options=ConditioningOptions(target_rate_hz=TARGET, band_hz=BAND),
     )
     for planned_text, planned in zip(text_plan.blocks, plan.blocks, strict=True):
         a, b = text.block(planned_text), binary.block(planned)
@@ -277,7 +308,10 @@ def test_conditioned_files_equal_decimating_the_padded_file_whole_to_the_last_bi
     not filtered) gives the very numbers of conditioning the padded file as one array."""
     full, _, plan = voyage
     conditioner = FileConditioner(
-        plan.files, plan.grid, plan.channels, target_rate_hz=TARGET, band_hz=BAND
+        plan.files,
+        plan.grid,
+        plan.channels,
+        options=ConditioningOptions(target_rate_hz=TARGET, band_hz=BAND),
     )
     n_file = int(FILE_S * RATE)
     pad = conditioner.padding

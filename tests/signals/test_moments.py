@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from workbench.signals import faulty_channels, moments
+from workbench.signals import ChannelCheckOptions, faulty_channels, moments
 
 RATE = 64.0
 
@@ -121,7 +121,7 @@ def test_faulty_channels_low_kurtosis_and_options():
     report = faulty_channels(x, RATE)
     assert report["faulty"].tolist() == [True, False, False, False]
     assert report["reason"].iloc[0] == "kurtosis 1.00 < 1.3"
-    relaxed = faulty_channels(x, RATE, kurtosis_limits=(0.5, 10.0))
+    relaxed = faulty_channels(x, RATE, options=ChannelCheckOptions(kurtosis_limits=(0.5, 10.0)))
     assert not relaxed["faulty"].any()
     with pytest.raises(ValueError, match="channel names"):
         faulty_channels(x, RATE, ["a"])
@@ -159,7 +159,7 @@ def test_impulsive_excitation_is_not_a_fault_but_a_spiking_sensor_is():
     assert (report["kurtosis"] > 6).all()
     assert not report["faulty"].any(), report["reason"].tolist()
     # the former absolute rule takes the excitation for faults
-    absolute = faulty_channels(x, RATE, max_kurtosis_z=-np.inf)
+    absolute = faulty_channels(x, RATE, options=ChannelCheckOptions(max_kurtosis_z=-np.inf))
     assert absolute["faulty"].sum() >= 1
     spiky = x.copy()
     spiky[rng.choice(len(x), 40, replace=False), 2] += 60 * x[:, 2].std()
@@ -185,7 +185,9 @@ def test_variance_outlier_kept_when_coherent_dropped_when_not():
     # without the coherence test a variance outlier is dropped on its z-score alone
     x = _structure(rng)
     x[:, 1] *= 1000.0
-    assert faulty_channels(x, RATE, coherence_check=False)["faulty"].iloc[1]
+    assert faulty_channels(x, RATE, options=ChannelCheckOptions(coherence_check=False))[
+        "faulty"
+    ].iloc[1]
 
 
 def test_coherence_of_independent_noise_is_not_significant():

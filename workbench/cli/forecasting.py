@@ -275,9 +275,9 @@ def _add_evaluate(commands: argparse._SubParsersAction) -> None:
 def _run_evaluate(args: argparse.Namespace) -> int:
     from data_contracts import FORECAST
 
+    from ..forecasting.evaluate import SUMMARY_COLUMNS
     from ..joins import check_block_times
     from ..stages import evaluate
-    from ..stages.evaluation import SUMMARY_COLUMNS
 
     if args.out is not None:
         _check_table_path(args.out)

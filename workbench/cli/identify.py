@@ -398,7 +398,10 @@ def identify_options(args: argparse.Namespace):
             short_record=flag("short_record", D.IDENTIFY_SHORT_RECORD),
             channel_check=not args.no_channel_check,
             fault_options=(
-                ("kurtosis_limits", (1.3, flag("kurtosis_max", D.IDENTIFY_KURTOSIS_MAX))),
+                (
+                    "kurtosis_limits",
+                    (D.IDENTIFY_KURTOSIS_MIN, flag("kurtosis_max", D.IDENTIFY_KURTOSIS_MAX)),
+                ),
                 ("max_variance_z", flag("variance_z_max", D.IDENTIFY_VARIANCE_Z_MAX)),
                 ("max_kurtosis_z", flag("kurtosis_z_max", D.IDENTIFY_KURTOSIS_Z_MAX)),
                 ("max_nan_fraction", flag("max_nan_fraction", D.IDENTIFY_MAX_NAN_FRACTION)),

@@ -15,13 +15,19 @@ Laid out by responsibility:
 * :mod:`.kalman` - scalar Kalman functions, steady state, trust -> Q;
 * :mod:`.measurement` - option B's pole clusters (pole index, cluster chooser);
   :mod:`.pole_selection` and :mod:`.shape_reference` - mode-shape checks;
-* :mod:`.results` - :class:`ForecastResult`, :class:`ForecastWarning`, :class:`WindowModel`;
-* :mod:`.evaluate` - :func:`evaluate_against_truth` (cumulative absolute errors and
-  improvements) and :func:`run_temperature_experiment` (the 5-DOF temperature experiment,
-  simulated by :mod:`workbench.simulate.experiment`).
+* :mod:`.results` - :class:`ForecastResult` (what a forecast returns, the library's and
+  the forecast stage's: table, warnings, window models, ``summary()``, ``plot()``,
+  ``evaluate()``, ``save()``), :class:`ForecastWarning`, :class:`WindowModel`;
+* :mod:`.plot` - the forecast figure of a mode (matplotlib, imported when drawing);
+* :mod:`.evaluate` - a forecast against the truth: :func:`evaluate_against_truth`
+  (cumulative absolute errors and improvements), the pairing of tracked and true mode
+  labels, :class:`~.evaluate.EvaluateResult` (the evaluate stage's result);
+* :mod:`.experiment` - :func:`run_temperature_experiment` (the 5-DOF temperature
+  experiment, simulated by :mod:`workbench.simulate.experiment`).
 """
 
-from .evaluate import ExperimentResult, evaluate_against_truth, run_temperature_experiment
+from .evaluate import evaluate_against_truth
+from .experiment import ExperimentResult, run_temperature_experiment
 from .kalman import (
     ModeKalmanBank,
     ScalarKalmanFilter,

@@ -1,20 +1,28 @@
-"""Evaluation of SSI-only, model-only and Kalman frequency estimates against ground truth,
-and the forecast of the 5-DOF temperature experiment
-(:mod:`workbench.simulate.experiment` simulates it) evaluated so."""
+"""A forecast against the true frequencies: cumulative absolute errors of the SSI-only,
+model-only and Kalman estimates (:func:`evaluate_against_truth`), the pairing of tracked
+mode labels with the true ones, and the evaluate stage's result (:class:`EvaluateResult`,
+also :meth:`ForecastResult.evaluate <workbench.forecasting.results.ForecastResult.evaluate>`)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from ..simulate.experiment import ExperimentData, simulate_temperature_experiment
-from .options import ForecastOptions
-from .results import ForecastResult
-from .sliding import sliding_forecast
+from ..errors import WorkbenchError
+from ..results import StageResult, shown_once, table_path, write_frame
+from ..sid.tracking import label_agreement
 
-__all__ = ["ExperimentResult", "evaluate_against_truth", "run_temperature_experiment"]
+__all__ = [
+    "EvaluateResult",
+    "evaluate_against_truth",
+    "evaluate_forecast",
+    "pair_with_truth",
+    "relabel_truth",
+]
 
 _ESTIMATES = {
     "ssi": "ssi_frequency_hz",
@@ -89,66 +97,72 @@ def evaluate_against_truth(
     )
     if not tracked.empty:
         merged = merged.merge(tracked, on=["block", "mode"], how="left")
-    rows = []
-    for (option, mode), group in merged.groupby(["option", "mode"], sort=True):
-        truth_hz = group["truth_hz"].to_numpy(dtype=float)
-        tracked_error = kalman_tracked_error = vs_tracked = np.nan
-        if not tracked.empty:
-            on_tracked = np.abs(group["tracked_hz"].to_numpy(dtype=float) - truth_hz)
-            kalman_error = np.abs(group["kalman_frequency_hz"].to_numpy(dtype=float) - truth_hz)
-            rows_tracked = np.isfinite(on_tracked)
-            if rows_tracked.any():
-                tracked_error = float(on_tracked[rows_tracked].sum())
-                kalman_tracked_error = float(np.nansum(kalman_error[rows_tracked]))
-                vs_tracked = _improvement(kalman_tracked_error, tracked_error)
-        error = {
-            key: np.abs(group[column].to_numpy(dtype=float) - truth_hz)
-            for key, column in _ESTIMATES.items()
-        }
-        common = np.isfinite(error["ssi"]) & np.isfinite(truth_hz)
-        # no SSI estimate in these rows: no data to compare on (NaN), not an error of 0 Hz
-        cumulative = {
-            key: float(value[common].sum()) if common.any() else float("nan")
-            for key, value in error.items()
-        }
-        # no SSI estimate in the evaluated rows (or zero error): no improvement to state
-        vs_ssi = _improvement(cumulative["kalman"], cumulative["ssi"])
-        vs_model = _improvement(cumulative["kalman"], cumulative["model"])
-        rows.append(
-            {
-                "option": option,
-                "mode": int(mode),
-                "n_blocks": int(np.isfinite(truth_hz).sum()),
-                "n_ssi": int(common.sum()),
-                "ssi_cumulative_error_hz": cumulative["ssi"],
-                "model_cumulative_error_hz": cumulative["model"],
-                "kalman_cumulative_error_hz": cumulative["kalman"],
-                "model_cumulative_error_all_hz": float(np.nansum(error["model"])),
-                "kalman_cumulative_error_all_hz": float(np.nansum(error["kalman"])),
-                "improvement_vs_ssi_pct": vs_ssi if common.any() else np.nan,
-                "improvement_vs_model_pct": vs_model if common.any() else np.nan,
-                "tracked_cumulative_error_hz": tracked_error,
-                "kalman_cumulative_error_tracked_hz": kalman_tracked_error,
-                "improvement_vs_tracked_pct": vs_tracked,
-            }
-        )
-    columns = [
-        "option",
-        "mode",
-        "n_blocks",
-        "n_ssi",
-        "ssi_cumulative_error_hz",
-        "model_cumulative_error_hz",
-        "kalman_cumulative_error_hz",
-        "model_cumulative_error_all_hz",
-        "kalman_cumulative_error_all_hz",
-        "improvement_vs_ssi_pct",
-        "improvement_vs_model_pct",
-        "tracked_cumulative_error_hz",
-        "kalman_cumulative_error_tracked_hz",
-        "improvement_vs_tracked_pct",
+    rows = [
+        {"option": option, "mode": int(mode), **_mode_errors(group, with_tracked=not tracked.empty)}
+        for (option, mode), group in merged.groupby(["option", "mode"], sort=True)
     ]
-    return pd.DataFrame(rows, columns=columns)
+    return pd.DataFrame(rows, columns=_COLUMNS)
+
+
+#: Columns of :func:`evaluate_against_truth`, in order.
+_COLUMNS = [
+    "option",
+    "mode",
+    "n_blocks",
+    "n_ssi",
+    "ssi_cumulative_error_hz",
+    "model_cumulative_error_hz",
+    "kalman_cumulative_error_hz",
+    "model_cumulative_error_all_hz",
+    "kalman_cumulative_error_all_hz",
+    "improvement_vs_ssi_pct",
+    "improvement_vs_model_pct",
+    "tracked_cumulative_error_hz",
+    "kalman_cumulative_error_tracked_hz",
+    "improvement_vs_tracked_pct",
+]
+
+
+def _mode_errors(group: pd.DataFrame, *, with_tracked: bool) -> dict[str, float | int]:
+    """The errors of one option and mode (:func:`evaluate_against_truth`'s row after the
+    option and mode); *with_tracked*: *group* has the tracked pole's ``tracked_hz``."""
+    truth_hz = group["truth_hz"].to_numpy(dtype=float)
+    tracked_error = kalman_tracked_error = vs_tracked = np.nan
+    if with_tracked:
+        on_tracked = np.abs(group["tracked_hz"].to_numpy(dtype=float) - truth_hz)
+        kalman_error = np.abs(group["kalman_frequency_hz"].to_numpy(dtype=float) - truth_hz)
+        rows_tracked = np.isfinite(on_tracked)
+        if rows_tracked.any():
+            tracked_error = float(on_tracked[rows_tracked].sum())
+            kalman_tracked_error = float(np.nansum(kalman_error[rows_tracked]))
+            vs_tracked = _improvement(kalman_tracked_error, tracked_error)
+    error = {
+        key: np.abs(group[column].to_numpy(dtype=float) - truth_hz)
+        for key, column in _ESTIMATES.items()
+    }
+    common = np.isfinite(error["ssi"]) & np.isfinite(truth_hz)
+    # no SSI estimate in these rows: no data to compare on (NaN), not an error of 0 Hz
+    cumulative = {
+        key: float(value[common].sum()) if common.any() else float("nan")
+        for key, value in error.items()
+    }
+    # no SSI estimate in the evaluated rows (or zero error): no improvement to state
+    vs_ssi = _improvement(cumulative["kalman"], cumulative["ssi"])
+    vs_model = _improvement(cumulative["kalman"], cumulative["model"])
+    return {
+        "n_blocks": int(np.isfinite(truth_hz).sum()),
+        "n_ssi": int(common.sum()),
+        "ssi_cumulative_error_hz": cumulative["ssi"],
+        "model_cumulative_error_hz": cumulative["model"],
+        "kalman_cumulative_error_hz": cumulative["kalman"],
+        "model_cumulative_error_all_hz": float(np.nansum(error["model"])),
+        "kalman_cumulative_error_all_hz": float(np.nansum(error["kalman"])),
+        "improvement_vs_ssi_pct": vs_ssi if common.any() else np.nan,
+        "improvement_vs_model_pct": vs_model if common.any() else np.nan,
+        "tracked_cumulative_error_hz": tracked_error,
+        "kalman_cumulative_error_tracked_hz": kalman_tracked_error,
+        "improvement_vs_tracked_pct": vs_tracked,
+    }
 
 
 def _improvement(error: float, baseline: float) -> float:
@@ -158,86 +172,183 @@ def _improvement(error: float, baseline: float) -> float:
     return 100.0 * (1.0 - error / baseline)
 
 
-@dataclass(frozen=True)
-class ExperimentResult:
-    """Outcome of :func:`run_temperature_experiment`.
+def pair_with_truth(
+    forecast: pd.DataFrame, truth: pd.DataFrame
+) -> tuple[pd.DataFrame, float, dict[int, int]]:
+    """The forecast's rows of modes paired with a true mode, under the true labels.
 
-    Parameters
-    ----------
-    evaluation : DataFrame
-        :func:`evaluate_against_truth` over the forecast
-        blocks, one row per mode.
-    forecast : ForecastResult
-    data : ExperimentData
-    """
-
-    evaluation: pd.DataFrame
-    forecast: ForecastResult
-    data: ExperimentData
-
-    def improvement_pct(self, mode: int) -> float:
-        """Kalman vs raw observations: 100 (1 - E_kalman / E_ssi) for *mode*. [%]"""
-        row = self.evaluation.loc[self.evaluation["mode"] == mode]
-        if row.empty:
-            raise ValueError(f"mode={mode} is not in the evaluation")
-        return float(row["improvement_vs_ssi_pct"].iloc[0])
-
-
-def run_temperature_experiment(
-    *,
-    seed: int = 0,
-    trust: float | None = None,
-    correction_time_blocks: float = 36.0,
-    model: str | None = None,
-    **simulation,
-) -> ExperimentResult:
-    """Simulate, forecast (method 1, option A) and evaluate the temperature experiment.
-
-    Parameters
-    ----------
-    seed : int
-        Seed of the observation noise.
-    trust : float or None
-        Kalman trust in the observations (see
-        :class:`~workbench.forecasting.options.ForecastOptions`). Default ``None``: Q from the
-        model's mean-prediction variance, R from the observation scatter about the model.
-    correction_time_blocks : float
-        Time constant of the Kalman correction (model ``"window"``). [blocks]
-    model : {"memory", "window"}, optional
-        Predictive model (:func:`~workbench.forecasting.sliding_forecast`); default
-        ``"window"``, the reference configuration this experiment reproduces. (The
-        ``"memory"`` model's exponential forgetting and thinned term selection cost
-        accuracy on a stationary law: ``benchmarks/results/temperature_experiment.txt``.)
-    **simulation
-        Passed to :func:`~workbench.simulate.experiment.simulate_temperature_experiment`.
+    The forecast's mode labels come from tracking; they are paired with the true modes by
+    :func:`workbench.sid.tracking.label_agreement` on the SSI estimates, so that extra
+    tracked modes (e.g. a shaft harmonic) or a different numbering do not matter.
 
     Returns
     -------
-    ExperimentResult
-
-    Notes
-    -----
-    With white observation noise of standard deviation σ, an estimate that moves a fixed
-    fraction K of the way to each observation keeps a noise error of
-    σ sqrt(K / (2 - K)) even with a perfect model, so a trust of 0.65 cannot lower the
-    cumulative error by more than about 31 %. Large improvements need the filter to lean
-    on the model, which the data-driven setting (``trust=None``) does when the model is
-    well determined: its error is then about σ sqrt(p / n_train) (p = 2 parameters), e.g.
-    0.08 σ for a day of 5-min blocks, against the mean absolute error 0.8 σ of the raw
-    observations.
+    relabelled : DataFrame
+        Rows of the paired modes, ``mode`` the true label.
+    agreement : float
+        Share of measured rows whose label agrees with the pairing.
+    mapping : dict of int -> int
+        Tracked label -> true label.
     """
-    data = simulate_temperature_experiment(seed=seed, **simulation)
-    n_forecast = int(data.predictors["block"].size - data.n_train)
-    options = ForecastOptions(
-        options=("A",),
-        scheme="single_window",
-        model=model or "window",
-        train_blocks=data.n_train,
-        horizon=n_forecast,
-        trust=trust,
-        correction_time_blocks=correction_time_blocks,
-        predictor_columns=("temperature_c",),
+    measured = forecast.dropna(subset=["ssi_frequency_hz"])
+    pseudo = (
+        measured[["block", "mode", "ssi_frequency_hz"]]
+        .rename(columns={"ssi_frequency_hz": "frequency_hz"})
+        .drop_duplicates(["block", "mode"])
     )
-    forecast = sliding_forecast(data.modal, data.predictors, options)
-    evaluation = evaluate_against_truth(forecast.table, data.truth)
-    return ExperimentResult(evaluation=evaluation, forecast=forecast, data=data)
+    agreement, mapping = label_agreement(pseudo, truth)
+    if not mapping:
+        raise WorkbenchError("no forecast mode could be paired with a true mode")
+    relabelled = forecast[forecast["mode"].isin(mapping)].copy()
+    relabelled["mode"] = relabelled["mode"].map(mapping).astype("int64")
+    return relabelled, agreement, mapping
+
+
+def relabel_truth(truth: pd.DataFrame, mapping: dict[int, int]) -> pd.DataFrame:
+    """The truth table under the tracked labels of *mapping* (tracked -> true label), e.g.
+    for drawing it beside a forecast."""
+    inverse = {true: label for label, true in mapping.items()}
+    part = truth[truth["mode"].isin(inverse)].copy()
+    part["mode"] = part["mode"].map(inverse).astype("int64")
+    return part
+
+
+#: Columns the CLI prints.
+SUMMARY_COLUMNS = [
+    "option",
+    "mode",
+    "n_ssi",
+    "ssi_cumulative_error_hz",
+    "model_cumulative_error_hz",
+    "kalman_cumulative_error_hz",
+    "improvement_vs_ssi_pct",
+    "improvement_vs_tracked_pct",
+]
+
+
+@dataclass
+class EvaluateResult(StageResult):
+    """Cumulative absolute errors per option and mode against the truth.
+
+    Attributes
+    ----------
+    table : DataFrame
+        One row per option and mode (:func:`~workbench.forecasting.evaluate_against_truth`).
+    mapping : dict of int -> int
+        Tracked label -> true label.
+    agreement : float
+        Share of measured rows whose label agrees with the pairing.
+    """
+
+    table: pd.DataFrame
+    mapping: dict[int, int]
+    agreement: float
+    lines: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    title = "forecast against the truth"
+
+    def plot(self, ax=None):
+        """Cumulative absolute error of SSI, model and Kalman per mode and option."""
+        import matplotlib.pyplot as plt
+
+        drawn_here = ax is None
+        if ax is None:
+            _, ax = plt.subplots(figsize=(9, 4), layout="constrained")
+        table = self.table.sort_values(["option", "mode"])
+        labels = [f"{o}{m}" for o, m in zip(table["option"], table["mode"], strict=True)]
+        x = np.arange(len(table))
+        for k, (column, name) in enumerate(
+            (
+                ("ssi_cumulative_error_hz", "SSI"),
+                ("model_cumulative_error_hz", "model"),
+                ("kalman_cumulative_error_hz", "Kalman"),
+            )
+        ):
+            ax.bar(x + (k - 1) * 0.27, table[column], width=0.27, label=name)
+        ax.set_xticks(x, labels)
+        ax.set_xlabel("option and true mode")
+        ax.set_ylabel("cumulative |error| [Hz]")
+        ax.legend(fontsize=8)
+        return shown_once(ax.figure) if drawn_here else ax.figure
+
+    def save(self, out: str | os.PathLike) -> dict[str, Path]:
+        """The table (``out`` a .csv/.parquet file, or a folder: evaluation.csv)."""
+        return {"evaluation": write_frame(self.table, table_path(out, "evaluation.csv"))}
+
+
+def evaluate_forecast(
+    forecast: pd.DataFrame, truth: pd.DataFrame, *, phase: str | None = "forecast"
+) -> EvaluateResult:
+    """Compare a forecast's SSI-only, model-only and Kalman estimates with the true
+    frequencies: the evaluate stage (:func:`workbench.stages.evaluate`, which reads the
+    tables) and :meth:`ForecastResult.evaluate
+    <workbench.forecasting.results.ForecastResult.evaluate>`.
+
+    Parameters
+    ----------
+    forecast : DataFrame
+        Forecast table (FORECAST contract).
+    truth : DataFrame
+        True modal table (MODAL contract), e.g. of a simulated voyage.
+    phase : {"forecast", "train", None}
+        Rows compared: forecast blocks, training blocks, or all (None).
+    """
+    if phase is not None and "phase" in forecast.columns and not (forecast["phase"] == phase).any():
+        found = ", ".join(map(str, pd.unique(forecast["phase"].dropna()))) or "none"
+        raise ValueError(
+            f"the forecast table has no {phase!r} rows to evaluate (phases in it: {found}); "
+            "evaluate another phase or forecast further"
+        )
+    relabelled, agreement, mapping = pair_with_truth(forecast, truth)
+    table = evaluate_against_truth(relabelled, truth, phase=phase)
+    if table.empty:
+        raise ValueError(
+            f"no {'' if phase is None else phase + ' '}row of the forecast has a true "
+            "frequency of its mode: nothing to evaluate"
+        )
+    result = EvaluateResult(table=table, mapping=mapping, agreement=agreement)
+    for row in table[table["n_ssi"] == 0].itertuples(index=False):
+        result.warnings.append(
+            f"option {row.option}, mode {row.mode}: no SSI estimate in the "
+            f"{'evaluated' if phase is None else phase} rows ({row.n_blocks} with a true "
+            "frequency): its errors are not reported (NaN)"
+        )
+    for option, part in table.groupby("option"):
+        total = part[
+            ["ssi_cumulative_error_hz", "model_cumulative_error_hz", "kalman_cumulative_error_hz"]
+        ].sum()
+        ssi_error = float(total["ssi_cumulative_error_hz"])
+        verdict = (
+            f"{100.0 * (1.0 - total['kalman_cumulative_error_hz'] / ssi_error):+.1f} % vs SSI"
+            if ssi_error > 0
+            else "no gain vs SSI defined (SSI error is zero)"
+        )
+        tracked_error = float(part["tracked_cumulative_error_hz"].sum(min_count=1))
+        versus_tracked = ""
+        if option != "A" and np.isfinite(tracked_error) and tracked_error > 0:
+            # option B's SSI column is its own chosen pole: also against the tracked pole
+            gain = 100.0 * (
+                1.0 - float(part["kalman_cumulative_error_tracked_hz"].sum()) / tracked_error
+            )
+            versus_tracked = f", {gain:+.1f} % vs the tracked pole (option A's SSI)"
+            if gain < 0:
+                result.warnings.append(
+                    f"option {option}: the Kalman estimate is {-gain:.1f} % worse than the "
+                    "tracked pole (option A's SSI estimate); use option A"
+                )
+        result.lines.append(
+            f"option {option}: cumulative |error| SSI {ssi_error:.3f} Hz,"
+            f" model {total['model_cumulative_error_hz']:.3f} Hz, Kalman "
+            f"{total['kalman_cumulative_error_hz']:.3f} Hz -> Kalman {verdict}{versus_tracked}"
+        )
+        if ssi_error == 0 and part["n_ssi"].sum() > 0:
+            result.warnings.append(
+                f"option {option}: the truth equals the SSI estimates on every measured block "
+                "(an observed table, not an independent reference): errors measure the model "
+                "and the Kalman filter against the measurements, and gains vs SSI are undefined"
+            )
+    result.lines.append(
+        f"tracked labels paired with true modes {mapping} ({100 * agreement:.1f} % of "
+        "measured rows agree)"
+    )
+    return result

@@ -99,7 +99,7 @@ import pandas as pd
 
 from .memory.forecast import memory_forecast
 from .options import ForecastOptions
-from .results import ForecastResult
+from .results import ForecastResult, combined
 from .window.forecast import window_forecast
 
 __all__ = ["sliding_forecast"]
@@ -192,10 +192,4 @@ def sliding_forecast(
                 cases=cases,
             )
         )
-    if len(results) == 1:
-        return results[0]
-    return ForecastResult(
-        table=pd.concat([r.table for r in results], ignore_index=True),
-        warnings=tuple(w for r in results for w in r.warnings),
-        models=tuple(m for r in results for m in r.models),
-    )
+    return combined(results, options)

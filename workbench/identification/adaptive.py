@@ -152,7 +152,7 @@ def block_conditions(plan, options, *, dship=None) -> pd.DataFrame:
     """
     from ..blocks import BlockGrid
     from ..signals import iter_blocks
-    from .engine import channel_check_options, conditioning_band
+    from .engine import conditioning_options
 
     half = plan.grid.step_s / 2.0
     first = plan.files[0].start_time
@@ -161,11 +161,7 @@ def block_conditions(plan, options, *, dship=None) -> pd.DataFrame:
     for block in iter_blocks(
         [info.path for info in plan.files],
         grid=grid,
-        target_rate_hz=options.target_rate_hz,
-        band_hz=conditioning_band(options),
-        fault_options=channel_check_options(options),
-        max_gap_s=options.max_gap_s,
-        read_options=options.read_options,
+        options=conditioning_options(options),
     ):
         power = math.nan
         if block.acceleration is not None and block.acceleration.size:

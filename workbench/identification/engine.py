@@ -16,6 +16,8 @@ from data_contracts import shape_columns
 
 from ..blocks import BlockGrid
 from ..parallel import BlockOutcome
+from ..signals.block_builder import ConditioningOptions
+from ..signals.moments import ChannelCheckOptions
 from .options import IdentifyOptions
 
 
@@ -76,11 +78,7 @@ def _identify_data(
             infos if len(infos) == len(task.files) else task.files,
             task.block,
             grid,
-            target_rate_hz=options.target_rate_hz,
-            band_hz=conditioning_band(options),
-            max_gap_s=options.max_gap_s,
-            read_options=options.read_options,
-            fault_options=channel_check_options(options),
+            options=conditioning_options(options),
             channels=channels,
         )
     if data.acceleration is None:
@@ -154,18 +152,31 @@ def conditioning_band(options: IdentifyOptions):
     return (low if low > 0 else None, high)
 
 
-def channel_check_options(options: IdentifyOptions) -> dict:
-    """Keyword arguments of the channel check of *options* (every check off when
-    ``channel_check`` is disabled), as the conditioning's ``fault_options`` take them."""
+def channel_check_options(options: IdentifyOptions) -> ChannelCheckOptions:
+    """The channel check of *options* (every check off when ``channel_check`` is
+    disabled)."""
     if not options.channel_check:
-        return {
-            "max_nan_fraction": 1.0,
-            "max_nan_run_s": math.inf,
-            "kurtosis_limits": (0.0, math.inf),
-            "flat_variance": -1.0,
-            "max_variance_z": math.inf,
-        }
-    return dict(options.fault_options)
+        return ChannelCheckOptions(
+            max_nan_fraction=1.0,
+            max_nan_run_s=math.inf,
+            kurtosis_limits=(0.0, math.inf),
+            flat_variance=-1.0,
+            max_variance_z=math.inf,
+        )
+    return ChannelCheckOptions(**dict(options.fault_options))
+
+
+def conditioning_options(options: IdentifyOptions) -> ConditioningOptions:
+    """How *options* condition a block's accelerations, one object for every path that
+    builds blocks (from their files, each file conditioned once, the adaptive block
+    length's half-steps, the monitor)."""
+    return ConditioningOptions(
+        target_rate_hz=options.target_rate_hz,
+        band_hz=conditioning_band(options),
+        channel_check=channel_check_options(options),
+        max_gap_s=options.max_gap_s,
+        read_options=options.read_options,
+    )
 
 
 def _reachable_orders(options: IdentifyOptions, n_channels: int, n_reference: int):
@@ -309,16 +320,6 @@ class _FileTask:
     shared_inputs: tuple = ()
 
 
-def _conditioner_settings(options: IdentifyOptions) -> dict:
-    return {
-        "target_rate_hz": float(options.target_rate_hz),
-        "band_hz": conditioning_band(options),
-        "max_gap_s": options.max_gap_s,
-        "fault_options": channel_check_options(options),
-        "read_options": options.read_options,
-    }
-
-
 def identify_from_files(
     task: _FileTask,
     conditioned: Mapping | None = None,
@@ -338,7 +339,9 @@ def identify_from_files(
 
     if not task.window:  # a planned block without files: the per-block path says why
         return identify_block(task, grid=grid, channels=channels, options=options)
-    conditioner = FileConditioner(task.window, grid, channels, **_conditioner_settings(options))
+    conditioner = FileConditioner(
+        task.window, grid, channels, options=conditioning_options(options)
+    )
     conditioner.reuse(conditioned or {})
     return identify_block(
         task, grid=grid, channels=channels, options=options, conditioner=conditioner
@@ -352,7 +355,7 @@ def _file_tasks(tasks: Sequence[BlockTask], plan, options: IdentifyOptions) -> l
     from ..signals.file_conditioning import FileConditioning, condition_file
 
     position = {info.path: i for i, info in enumerate(plan.files)}
-    settings = _conditioner_settings(options)
+    conditioning = conditioning_options(options)
     channels = tuple(plan.channels)
     jobs: dict[int, SharedInput] = {}
     out = []
@@ -365,7 +368,7 @@ def _file_tasks(tasks: Sequence[BlockTask], plan, options: IdentifyOptions) -> l
             if i not in jobs:
                 lo = max(i - 1, 0)
                 job = FileConditioning(
-                    tuple(plan.files[lo : i + 2]), i - lo, plan.grid, channels, settings
+                    tuple(plan.files[lo : i + 2]), i - lo, plan.grid, channels, conditioning
                 )
                 jobs[i] = SharedInput(str(plan.files[i].path), condition_file, job)
         lo, hi = max(used[0] - 1, 0), min(used[-1] + 2, len(plan.files))

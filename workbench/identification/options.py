@@ -13,6 +13,7 @@ from data_contracts.limits import MAX_LSCF_ORDER, MAX_MODEL_ORDER
 
 from ..blocks import MAX_BLOCKS_PER_SAMPLE
 from ..errors import OptionError
+from ..signals.moments import ChannelCheckOptions
 
 
 def _orders(name: str, values, highest: int) -> tuple[int, ...]:
@@ -101,7 +102,9 @@ class IdentifyOptions:
     channel_check : bool
         Drop faulty channels per block (:func:`~workbench.signals.moments.faulty_channels`).
     fault_options : tuple of (str, value)
-        Thresholds of the channel check, e.g. ``(("kurtosis_limits", (1.3, 10.0)),)``.
+        Thresholds of the channel check that differ from the defaults, fields of
+        :class:`~workbench.signals.moments.ChannelCheckOptions`, e.g.
+        ``(("kurtosis_limits", (1.3, 10.0)),)``.
     conditioning : {"per-file", "per-block"}
         When decimating: condition each file once and cut the blocks from the conditioned
         files (default), or build every block from its raw files (the reference path, four
@@ -187,6 +190,10 @@ class IdentifyOptions:
         object.__setattr__(
             self, "fault_options", tuple((str(k), v) for k, v in dict(self.fault_options).items())
         )
+        try:  # a mistyped threshold fails here, not in the middle of a voyage
+            ChannelCheckOptions(**dict(self.fault_options))
+        except TypeError as error:
+            raise OptionError(f"fault_options: {error}") from None
         if isinstance(self.band_hz, str):
             if self.band_hz != "auto":
                 raise OptionError(f"band_hz={self.band_hz!r} must be (low, high), 'auto' or None")

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..identification.engine import channel_check_options, conditioning_band
+from ..identification.engine import conditioning_options
 from ..signals.file_conditioning import FileConditioner
 
 __all__ = ["SharedConditioner", "block_conditioner", "forget_conditioned"]
@@ -81,11 +81,7 @@ def block_conditioner(
         list(infos[lo:hi]),
         grid,
         channels,
-        target_rate_hz=float(options.target_rate_hz),
-        band_hz=conditioning_band(options),
-        max_gap_s=options.max_gap_s,
-        fault_options=channel_check_options(options),
-        read_options=options.read_options,
+        options=conditioning_options(options),
         shared=shared,
         counter=counter,
     )

@@ -20,12 +20,13 @@ from .averaging import (
     circular_mean_deg,
     excitation_weighted_predictors,
 )
-from .faults import FaultFlags, flag_faulty
+from .faults import FaultFlags, LogFaultOptions, flag_faulty
 from .normalise import Normaliser
 from .tables import canonical_predictors, load_predictors
 
 __all__ = [
     "FaultFlags",
+    "LogFaultOptions",
     "Normaliser",
     "PredictorWarning",
     "block_coverage",

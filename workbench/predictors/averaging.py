@@ -28,7 +28,7 @@ from ._common import (
     numeric_columns,
     time_ns,
 )
-from .faults import flag_faulty
+from .faults import LogFaultOptions, flag_faulty
 
 __all__ = [
     "block_coverage",
@@ -240,7 +240,7 @@ def block_predictors(
     direction_columns: Sequence[str] = ("wind_dir_rel_deg",),
     despike: bool = True,
     drop_faulty_stretches: bool = False,
-    fault_options: dict | None = None,
+    fault_options: LogFaultOptions | None = None,
 ) -> pd.DataFrame:
     """Average a ship log over the blocks of the block grid (PREDICTORS table).
 
@@ -271,8 +271,8 @@ def block_predictors(
         any faulty stretches).
     drop_faulty_stretches : bool
         With *despike*, also blank the canonical columns inside their faulty stretches.
-    fault_options : dict, optional
-        Keyword arguments for :func:`~workbench.predictors.faults.flag_faulty`.
+    fault_options : LogFaultOptions, optional
+        Thresholds of :func:`~workbench.predictors.faults.flag_faulty`.
 
     Returns
     -------
@@ -306,9 +306,12 @@ def block_predictors(
             stacklevel=2,
         )
     if despike and canonical and len(log):
-        options = {"direction_columns": tuple(direction_columns), **(fault_options or {})}
-        options.setdefault("columns", canonical)
-        flags = flag_faulty(log, **options)
+        flags = flag_faulty(
+            log,
+            columns=canonical,
+            direction_columns=tuple(direction_columns),
+            options=fault_options,
+        )
         log = flags.apply(log, drop_faulty_stretches=drop_faulty_stretches)
         _warn_faults(flags, drop_faulty_stretches)
     names = canonical + extras

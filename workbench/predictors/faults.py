@@ -27,7 +27,7 @@ from scipy import ndimage
 
 from ._common import CANONICAL_NAMES, check_numeric_columns, time_ns
 
-__all__ = ["FaultFlags", "flag_faulty"]
+__all__ = ["FaultFlags", "LogFaultOptions", "flag_faulty"]
 
 _NS = 1_000_000_000
 
@@ -139,27 +139,12 @@ def _robust_residuals(
     return residual, 1.4826 * np.maximum(mad_residual, mad_difference / np.sqrt(2.0))
 
 
-def flag_faulty(
-    log: pd.DataFrame,
-    *,
-    columns: Sequence[str] | None = None,
-    window: int = 21,
-    scale_window: int | None = None,
-    z: float = 7.0,
-    kurtosis_limit: float = 10.0,
-    max_spike_fraction: float = 0.05,
-    stretch_s: float = 3600.0,
-    direction_columns: Sequence[str] = ("wind_dir_rel_deg",),
-) -> FaultFlags:
-    """Find spikes, faulty stretches and faulty columns in a ship log.
+@dataclass(frozen=True)
+class LogFaultOptions:
+    """Thresholds of the ship-log fault check (:func:`flag_faulty`; Notes there).
 
-    Parameters
+    Attributes
     ----------
-    log : DataFrame
-        Canonical log (``time`` and numeric columns), e.g. from
-        :func:`data_contracts.read_dship`.
-    columns : sequence of str, optional
-        Columns to check; default the canonical predictor columns present.
     window : int
         Length (odd) of the centred rolling window, in valid samples of each column (a
         column logged every 60 s gets a 21-min window with the default 21, one logged
@@ -175,9 +160,38 @@ def flag_faulty(
         A stretch with a larger fraction of spikes is faulty.
     stretch_s : float
         Length of the stretches (bins aligned to multiples of it since the epoch). [s]
+    """
+
+    window: int = 21
+    scale_window: int | None = None
+    z: float = 7.0
+    kurtosis_limit: float = 10.0
+    max_spike_fraction: float = 0.05
+    stretch_s: float = 3600.0
+
+
+def flag_faulty(
+    log: pd.DataFrame,
+    *,
+    columns: Sequence[str] | None = None,
+    direction_columns: Sequence[str] = ("wind_dir_rel_deg",),
+    options: LogFaultOptions | None = None,
+) -> FaultFlags:
+    """Find spikes, faulty stretches and faulty columns in a ship log.
+
+    Parameters
+    ----------
+    log : DataFrame
+        Canonical log (``time`` and numeric columns), e.g. from
+        :func:`data_contracts.read_dship`.
+    columns : sequence of str, optional
+        Columns to check; default the canonical predictor columns present.
     direction_columns : sequence of str
         Angular columns [deg]: unwrapped before the rolling median, residuals wrapped to
         [-180, 180).
+
+    options : LogFaultOptions, optional
+        Window lengths and thresholds; default ``LogFaultOptions()``.
 
     Returns
     -------
@@ -212,7 +226,10 @@ def flag_faulty(
     if columns is None:
         columns = [c for c in CANONICAL_NAMES if c in log.columns]
     columns = check_numeric_columns(log, columns)
-    window = int(window)
+    options = options or LogFaultOptions()
+    scale_window, z, kurtosis_limit = options.scale_window, options.z, options.kurtosis_limit
+    max_spike_fraction, stretch_s = options.max_spike_fraction, options.stretch_s
+    window = int(options.window)
     if window < 5 or window % 2 == 0:
         raise ValueError(f"window={window} must be an odd number of samples, at least 5")
     scale_window = 3 * window if scale_window is None else int(scale_window)

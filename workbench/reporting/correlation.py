@@ -26,7 +26,7 @@ from matplotlib.ticker import MaxNLocator
 from data_contracts import atomic_path
 from workbench.stats.correlation import adjust_p_values, pairwise_pearson
 
-from .figures import save_figure
+from ..results import save_figure
 
 __all__ = [
     "corrplot",

@@ -23,7 +23,7 @@ from workbench.stats.cases import STITCHED
 from workbench.stats.diagnostics import ResidualDiagnostics, residual_diagnostics
 from workbench.stats.mode_fits import ModeFit
 
-from .figures import save_figure
+from ..results import save_figure
 
 __all__ = ["plot_residual_diagnostics", "write_diagnostics_figures", "write_fit_report"]
 

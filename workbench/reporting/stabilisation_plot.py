@@ -18,9 +18,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 from scipy import fft, signal
 
+from ..results import save_figure
 from ..sid.selection import ModeSelection
 from ..sid.ssi import SSIResult
-from .figures import save_figure
 
 __all__ = [
     "cross_spectral_density",

@@ -16,8 +16,8 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
+from ..results import save_figure
 from ..sid.tpe import PredictionErrors
-from .figures import save_figure
 from .stabilisation_plot import plot_stabilisation
 
 __all__ = ["plot_stabilisation_with_tpe", "write_stabilisation_tpe_figure"]

@@ -25,6 +25,7 @@ from ..results import StageResult, Summary, shown_once
 from .options import HealthOptions
 from .statistics import (
     OUTLIER_SIGMA,
+    InControlResiduals,
     _limit_for_rate,
     _moving_block_bootstrap,
     _robust_location_scale,
@@ -564,14 +565,13 @@ def learn_reference(
             }
         mode_limits = cusum_limits(
             allowance,
-            segments=max(int(round(ratio)), 1),
+            InControlResiduals(segments=max(int(round(ratio)), 1), **simulated),
             reference_blocks=len(ref),
             blocks_per_day=blocks_per_day,
             false_alarms_per_day=options.false_alarms_per_day,
             replicates=n_replicates,
             clip_sigma=options.clip_sigma,
             rng=rng,
-            **simulated,
         )
         mode_limits = np.maximum(mode_limits, allowance)  # never 0: S/H stays defined
         rep_cusum = cusum_hold(rep_x, allowance)[len(ref) :]  # (day, replicates, modes)

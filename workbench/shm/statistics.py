@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -22,6 +23,7 @@ __all__ = [
     "cusum_step",
     "cusum_hold",
     "long_run_std",
+    "InControlResiduals",
     "cusum_limits",
     "hotelling",
     "upcrossings_per_day",
@@ -100,25 +102,53 @@ def long_run_std(values: np.ndarray, lags: int) -> np.ndarray:
     return np.sqrt(np.maximum(variance, gamma0 * 0.25))  # floor: no negative estimates
 
 
+@dataclass(frozen=True)
+class InControlResiduals:
+    """How :func:`cusum_limits` simulates the in-control residuals of a chart.
+
+    Attributes
+    ----------
+    segments : int
+        Independent segment errors averaged into a block's error (overlapping blocks: the
+        block length over the step), so neighbouring blocks correlate 1 - l/segments at
+        lag l.
+    variance : float
+        Variance the Gaussian core is scaled to after standardisation.
+    outlier_rate : float
+        Share of wrong poles, far off either way (clipped like the chart's).
+    missing_rate : float
+        Share of missing estimates (the CUSUM holds).
+    offset_std : ndarray, optional
+        Standard deviation of each mode's persistent offset over a simulated day (the
+        model's own error); default none.
+    trimmed : bool
+        Standardise with the chart's :func:`trimmed_location_scale` (else the median
+        and 1.4826 MAD).
+    """
+
+    segments: int
+    variance: float = 1.0
+    outlier_rate: float = 0.0
+    missing_rate: float = 0.0
+    offset_std: np.ndarray | None = None
+    trimmed: bool = True
+
+
 def cusum_limits(
     allowance: np.ndarray,
+    residuals: InControlResiduals,
     *,
-    segments: int,
-    variance: float = 1.0,
     reference_blocks: int,
     blocks_per_day: float,
     false_alarms_per_day: float,
     replicates: int,
     clip_sigma: float,
     rng: np.random.Generator,
-    outlier_rate: float = 0.0,
-    missing_rate: float = 0.0,
-    offset_std: np.ndarray | None = None,
-    trimmed: bool = True,
 ) -> np.ndarray:
     """Decision intervals H_j of the per-mode CUSUMs for a target false-alarm rate.
 
-    The in-control residuals of overlapping blocks are simulated as they arise: each
+    The in-control residuals of overlapping blocks are simulated as they arise (the
+    italic names are fields of *residuals*, :class:`InControlResiduals`): each
     block's error is the mean of *segments* independent segment errors (so neighbouring
     blocks correlate 1 - l/segments at lag l and the long-run variance is *segments*
     times the variance). A share *outlier_rate* of them are wrong poles, far off either
@@ -135,6 +165,9 @@ def cusum_limits(
     charts are about independent, their residuals being errors of different poles).
     """
     allowance = np.asarray(allowance, dtype=float)
+    segments, variance = residuals.segments, residuals.variance
+    outlier_rate, missing_rate = residuals.outlier_rate, residuals.missing_rate
+    offset_std, trimmed = residuals.offset_std, residuals.trimmed
     p = allowance.size
     day = int(round(blocks_per_day))
     n = reference_blocks + day

@@ -11,7 +11,7 @@ policy is described in :mod:`~workbench.signals.conditioning`, the faulty-channe
 :mod:`~workbench.signals.block_plan`.
 """
 
-from .block_builder import AccelerationBlock, iter_blocks, load_block
+from .block_builder import AccelerationBlock, ConditioningOptions, iter_blocks, load_block
 from .block_plan import (
     BlockPlan,
     FileInfo,
@@ -30,12 +30,14 @@ from .conditioning import (
     interpolate_nan_runs,
     nan_runs,
 )
-from .moments import WindowMoments, faulty_channels, moments
+from .moments import ChannelCheckOptions, WindowMoments, faulty_channels, moments
 
 __all__ = [
     "MAX_INTERPOLATED_NAN_RUN_S",
     "AccelerationBlock",
     "BlockPlan",
+    "ChannelCheckOptions",
+    "ConditioningOptions",
     "FileInfo",
     "PlannedBlock",
     "SignalWarning",

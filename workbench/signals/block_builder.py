@@ -46,11 +46,11 @@ from .block_plan import (
     plan_file_infos,
     read_file_info,
 )
-from .conditioning import MAX_INTERPOLATED_NAN_RUN_S, bandpass, decimate, interpolate_nan_runs
+from .conditioning import bandpass, decimate, interpolate_nan_runs
 from .conditioning import detrend as linear_detrend
-from .moments import _channel_groups, faulty_channels
+from .moments import ChannelCheckOptions, _channel_groups, faulty_channels
 
-__all__ = ["AccelerationBlock", "iter_blocks", "load_block"]
+__all__ = ["AccelerationBlock", "ConditioningOptions", "iter_blocks", "load_block"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -100,29 +100,50 @@ class AccelerationBlock:
 
 
 @dataclass(frozen=True)
-class _Conditioning:
-    target_rate_hz: float | None
-    band_hz: tuple[float | None, float | None] | None
-    detrend: bool
-    fault_options: Mapping
-    read_options: Mapping
+class ConditioningOptions:
+    """How raw accelerations become a conditioned block (:func:`iter_blocks`,
+    :func:`load_block`, :class:`~workbench.signals.file_conditioning.FileConditioner`).
 
-    @classmethod
-    def make(cls, target_rate_hz, band_hz, detrend, fault_options, read_options) -> _Conditioning:
-        options = dict(fault_options or {})
-        # fail early on a mistyped option, not in the middle of a voyage
-        faulty_channels(np.zeros((4, 1)) + np.arange(4)[:, None], 1.0, **options)
-        if band_hz is not None:
-            band = tuple(band_hz)
+    Attributes
+    ----------
+    target_rate_hz : float, optional
+        Decimate to this rate (:func:`~workbench.signals.conditioning.decimate`); the
+        file conditioner needs one that divides the files' rate by a whole number > 1. [Hz]
+    band_hz : (float or None, float or None), optional
+        Band-pass edges after decimation (:func:`~workbench.signals.conditioning.bandpass`).
+        [Hz]
+    detrend : bool
+        Remove a straight line from each channel of each block (the file conditioner:
+        without a lower band edge, the band-pass having removed it otherwise).
+    channel_check : ChannelCheckOptions
+        Thresholds of :func:`~workbench.signals.moments.faulty_channels`; its
+        ``max_nan_run_s`` also sets the longest NaN run that is interpolated.
+    max_gap_s : float
+        Gaps between files up to this length inside a block are NaN-padded (see the module
+        notes); blocks overlapping longer gaps are skipped. [s]
+    read_options : mapping
+        Keyword arguments for :func:`data_contracts.read_accelerations` (file layout).
+    """
+
+    target_rate_hz: float | None = None
+    band_hz: tuple[float | None, float | None] | None = None
+    detrend: bool = True
+    channel_check: ChannelCheckOptions = field(default_factory=ChannelCheckOptions)
+    max_gap_s: float = 0.0
+    read_options: Mapping = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.band_hz is not None:
+            band = tuple(self.band_hz)
             if len(band) != 2:
-                raise ValueError(f"band_hz={band_hz!r} must be (low_hz, high_hz)")
-        else:
-            band = None
-        return cls(target_rate_hz, band, bool(detrend), options, dict(read_options or {}))
+                raise ValueError(f"band_hz={self.band_hz!r} must be (low_hz, high_hz)")
+            object.__setattr__(self, "band_hz", band)
+        object.__setattr__(self, "detrend", bool(self.detrend))
+        object.__setattr__(self, "read_options", dict(self.read_options or {}))
 
     @property
     def max_nan_run_s(self) -> float:
-        return float(self.fault_options.get("max_nan_run_s", MAX_INTERPOLATED_NAN_RUN_S))
+        return float(self.channel_check.max_nan_run_s)
 
     def check_rate(self, rate: float) -> None:
         """Raise now (not at the first block) if decimation or band-pass cannot work."""
@@ -178,11 +199,11 @@ def _condition(
     raw: np.ndarray,
     rate: float,
     channels: tuple[str, ...],
-    options: _Conditioning,
+    options: ConditioningOptions,
     planned: PlannedBlock,
     notes: list[str],
 ) -> AccelerationBlock:
-    report = faulty_channels(raw, rate, channels, **options.fault_options)
+    report = faulty_channels(raw, rate, channels, options=options.channel_check)
     faulty, dropped, names, notes = _verdicts(report, channels, notes)
     if not names:
         return _finished(planned, None, rate, (), dropped, notes, report, "all channels faulty")
@@ -254,7 +275,7 @@ def _build(
     plan: BlockPlan,
     planned: PlannedBlock,
     records: Sequence[AccelerationRecord],
-    options: _Conditioning,
+    options: ConditioningOptions,
 ) -> AccelerationBlock:
     raw, notes = _assemble(records, planned.block_start, plan.grid.length_s, plan.sampling_rate_hz)
     return _condition(raw, plan.sampling_rate_hz, plan.channels, options, planned, notes)
@@ -266,13 +287,8 @@ def iter_blocks(
     grid: BlockGrid | None = None,
     length_s: float | None = None,
     step_s: float | None = None,
-    target_rate_hz: float | None = None,
-    band_hz: tuple[float | None, float | None] | None = None,
-    detrend: bool = True,
-    fault_options: Mapping | None = None,
     blocks: Iterable[int] | None = None,
-    max_gap_s: float = 0.0,
-    read_options: Mapping | None = None,
+    options: ConditioningOptions | None = None,
 ) -> Iterator[AccelerationBlock]:
     """Stream conditioned blocks of accelerations from consecutive files.
 
@@ -285,25 +301,13 @@ def iter_blocks(
         *length_s* / *step_s* (default 1200 s / 300 s).
     length_s, step_s : float, optional
         Block length and step when *grid* is not given. [s]
-    target_rate_hz : float, optional
-        Decimate to this rate (:func:`~workbench.signals.conditioning.decimate`). [Hz]
-    band_hz : (float or None, float or None), optional
-        Band-pass edges after decimation (:func:`~workbench.signals.conditioning.bandpass`).
-        [Hz]
-    detrend : bool
-        Remove a straight line from each channel of each block.
-    fault_options : mapping, optional
-        Keyword arguments for :func:`~workbench.signals.moments.faulty_channels`;
-        ``max_nan_run_s`` also sets the longest NaN run that is interpolated.
     blocks : iterable of int, optional
         Build only these blocks (e.g. those not yet done when resuming); files not needed by
         them are never read. Requested blocks outside the files' span are yielded as
         skipped.
-    max_gap_s : float
-        Gaps between files up to this length inside a block are NaN-padded (see the module
-        notes); blocks overlapping longer gaps are skipped. [s]
-    read_options : mapping, optional
-        Keyword arguments for :func:`data_contracts.read_accelerations`.
+    options : ConditioningOptions, optional
+        Decimation, band-pass, detrend, channel check, gaps and file layout; default
+        ``ConditioningOptions()``.
 
     Yields
     ------
@@ -315,7 +319,7 @@ def iter_blocks(
     ------
     ValueError
         Before the first block: files inconsistent in channels or sampling rate, or
-        overlapping; an unknown fault option raises TypeError.
+        overlapping, or a *target_rate_hz* that does not divide their rate.
 
     Notes
     -----
@@ -323,21 +327,21 @@ def iter_blocks(
     are released before new ones are read, so at most ``ceil(length / file duration) + 1``
     files are held (5 for 20-min blocks of 5-min files) plus the block being built.
     """
-    options = _Conditioning.make(target_rate_hz, band_hz, detrend, fault_options, read_options)
+    options = options or ConditioningOptions()
     plan = plan_blocks(
         files,
         grid,
         length_s=length_s,
         step_s=step_s,
-        max_gap_s=max_gap_s,
-        read_options=read_options,
+        max_gap_s=options.max_gap_s,
+        read_options=options.read_options,
     )
     options.check_rate(plan.sampling_rate_hz)
     return _stream(plan, options, blocks)
 
 
 def _stream(
-    plan: BlockPlan, options: _Conditioning, blocks: Iterable[int] | None
+    plan: BlockPlan, options: ConditioningOptions, blocks: Iterable[int] | None
 ) -> Iterator[AccelerationBlock]:
     index = {info.path: i for i, info in enumerate(plan.files)}
     by_number = {b.block: b for b in plan.blocks}
@@ -375,12 +379,7 @@ def load_block(
     block: int,
     grid: BlockGrid,
     *,
-    target_rate_hz: float | None = None,
-    band_hz: tuple[float | None, float | None] | None = None,
-    detrend: bool = True,
-    fault_options: Mapping | None = None,
-    max_gap_s: float = 0.0,
-    read_options: Mapping | None = None,
+    options: ConditioningOptions | None = None,
     channels: Sequence[str] | None = None,
 ) -> AccelerationBlock:
     """Build one block from its files, e.g. in a parallel worker.
@@ -394,7 +393,7 @@ def load_block(
         Block number on *grid*.
     grid : BlockGrid
         The voyage's grid (``BlockPlan.grid``).
-    target_rate_hz, band_hz, detrend, fault_options, max_gap_s, read_options
+    options : ConditioningOptions, optional
         As for :func:`iter_blocks`.
     channels : sequence of str, optional
         The voyage's channels (``BlockPlan.channels``); default: those of the block's files
@@ -407,9 +406,9 @@ def load_block(
         Identical to the one :func:`iter_blocks` yields for this block; skipped (with the
         reason) when the files do not cover it.
     """
-    options = _Conditioning.make(target_rate_hz, band_hz, detrend, fault_options, read_options)
+    options = options or ConditioningOptions()
     infos = [
-        f if isinstance(f, FileInfo) else read_file_info(f, read_options=read_options)
+        f if isinstance(f, FileInfo) else read_file_info(f, read_options=options.read_options)
         for f in files
     ]
     k = int(block)
@@ -424,7 +423,7 @@ def load_block(
             infos[0].sampling_rate_hz,
             "outside the span of the acceleration files",
         )
-    plan = plan_file_infos(touching, grid, max_gap_s=max_gap_s, channels=channels)
+    plan = plan_file_infos(touching, grid, max_gap_s=options.max_gap_s, channels=channels)
     if all(b.block != k for b in plan.blocks):
         # The block reaches past the touching files into an allowed gap (the next file
         # starts after the block's end): plan it on its own, as the full plan does.
@@ -437,7 +436,7 @@ def load_block(
             _ns(start),
             _ns(end),
             plan.sampling_rate_hz,
-            float(max_gap_s),
+            float(options.max_gap_s),
         )
         single = PlannedBlock(k, start, end, tuple(plan.files[i].path for i in indices), reason)
         plan = dataclasses.replace(plan, blocks=(single,))

@@ -34,6 +34,7 @@ __all__ = [
     "decimation_stages",
     "detrend",
     "interpolate_nan_runs",
+    "line_from_sums",
     "nan_runs",
 ]
 
@@ -166,15 +167,26 @@ def detrend(x: np.ndarray) -> np.ndarray:
     sum_tt = (t * t) @ weight
     sum_x = values.sum(axis=0)
     sum_tx = t @ values
+    slope, intercept = line_from_sums(count, sum_t, sum_tt, sum_x, sum_tx)
+    trend = np.outer(t, slope)
+    trend += intercept
+    return _restore(np.where(finite, array - trend, np.nan), was_1d)
+
+
+def line_from_sums(count, sum_t, sum_tt, sum_x, sum_tx) -> tuple[np.ndarray, np.ndarray]:
+    """Slope b and intercept a of the least-squares line x = a + b t of each channel, from
+    its sums over the samples: n, Σt, Σt², Σx, Σtx (:func:`detrend`'s Notes).
+
+    b = 0 where the times do not spread (Σ(t - t̄)² = 0); NaN where n = 0.
+    """
     with np.errstate(invalid="ignore", divide="ignore"):
         t_mean = sum_t / count
         x_mean = sum_x / count
         sxx = sum_tt - count * t_mean * t_mean
         sxy = sum_tx - count * t_mean * x_mean
         slope = np.where(sxx > 0, sxy / np.where(sxx > 0, sxx, 1.0), 0.0)
-    trend = np.outer(t, slope)
-    trend += x_mean - slope * t_mean
-    return _restore(np.where(finite, array - trend, np.nan), was_1d)
+        intercept = x_mean - slope * t_mean
+    return slope, intercept
 
 
 def _finite_for_filtering(array: np.ndarray, rate: float, max_nan_run_s: float) -> np.ndarray:

@@ -71,10 +71,15 @@ import pandas as pd
 from data_contracts import read_accelerations
 
 from ..blocks import BlockGrid
-from .block_builder import AccelerationBlock, _finished, _verdicts, load_block
+from .block_builder import (
+    AccelerationBlock,
+    ConditioningOptions,
+    _finished,
+    _verdicts,
+    load_block,
+)
 from .block_plan import FileInfo, PlannedBlock, align_channels
 from .conditioning import (
-    MAX_INTERPOLATED_NAN_RUN_S,
     bandpass,
     interpolate_nan_runs,
 )
@@ -123,20 +128,11 @@ class FileConditioner:
     grid : BlockGrid
     channels : tuple of str
         Channel order of the blocks.
-    target_rate_hz : float
-        Analysis rate; must divide the files' rate by a whole number > 1. [Hz]
-    band_hz : (float or None, float or None) or None
-        Band-pass edges. [Hz]
-    max_gap_s : float
-        As for :func:`~workbench.signals.block_builder.load_block` (blocks with a NaN-padded gap
-        are built by it). [s]
-    fault_options : mapping, optional
-        Keyword arguments of :func:`~workbench.signals.moments.faulty_channels`.
-    detrend : bool
-        Without a lower band edge, remove a straight line from each block (with one, the
-        band-pass has already removed it).
-    read_options : mapping, optional
-        Keyword arguments of :func:`data_contracts.read_accelerations` (file layout).
+    options : ConditioningOptions
+        Decimation (a *target_rate_hz* that divides the files' rate by a whole number > 1),
+        band-pass, detrend (without a lower band edge: with one, the band-pass has already
+        removed the line), channel check, gaps (blocks with a NaN-padded gap are built by
+        :func:`~workbench.signals.block_builder.load_block`) and file layout.
     """
 
     def __init__(
@@ -145,17 +141,14 @@ class FileConditioner:
         grid: BlockGrid,
         channels: Sequence[str],
         *,
-        target_rate_hz: float,
-        band_hz: tuple[float | None, float | None] | None,
-        max_gap_s: float = 0.0,
-        fault_options: Mapping | None = None,
-        detrend: bool = True,
-        read_options: Mapping | None = None,
+        options: ConditioningOptions,
     ) -> None:
         self.files = tuple(sorted(files, key=lambda i: i.start_time))
         self.grid = grid
         self.channels = tuple(channels)
         self.rate = float(self.files[0].sampling_rate_hz)
+        self.options = options
+        target_rate_hz = options.target_rate_hz
         self.target_rate_hz = float(target_rate_hz)
         self.factor = int(round(self.rate / self.target_rate_hz))
         if self.factor < 2 or abs(self.rate / self.target_rate_hz - self.factor) > 1e-9:
@@ -163,14 +156,12 @@ class FileConditioner:
                 f"target_rate_hz={target_rate_hz:g} must divide {self.rate:g} Hz by a whole "
                 "number above 1"
             )
-        self.band_hz = None if band_hz is None else tuple(band_hz)
-        self.max_gap_s = float(max_gap_s)
-        self.fault_options = dict(fault_options or {})
-        self.read_options = dict(read_options or {})
-        self.detrend = bool(detrend)
-        self.max_nan_run_s = float(
-            self.fault_options.get("max_nan_run_s", MAX_INTERPOLATED_NAN_RUN_S)
-        )
+        self.band_hz = options.band_hz
+        self.max_gap_s = float(options.max_gap_s)
+        self.read_options = options.read_options
+        self.detrend = options.detrend
+        self.channel_check = options.channel_check
+        self.max_nan_run_s = float(self.channel_check.max_nan_run_s)
         self.padding = padding_samples(self.rate, self.target_rate_hz, self.band_hz)
         self._decimator = _RowDecimator(self.factor, rows=_GATHER_CHANNELS)
         self._t0_ns = pd.Timestamp(grid.t0).as_unit("ns").value
@@ -339,12 +330,7 @@ class FileConditioner:
                 self.files,
                 planned.block,
                 self.grid,
-                target_rate_hz=self.target_rate_hz,
-                band_hz=self.band_hz,
-                detrend=self.detrend,
-                fault_options=self.fault_options,
-                max_gap_s=self.max_gap_s,
-                read_options=self.read_options,
+                options=self.options,
                 channels=self.channels,
             )
         return built
@@ -394,7 +380,12 @@ class FileConditioner:
         nan_fraction, longest, variance, kurtosis = _block_statistics(pieces, n_raw, self.rate)
         try:
             report = channel_verdicts(
-                self.channels, nan_fraction, longest, variance, kurtosis, **self.fault_options
+                self.channels,
+                nan_fraction,
+                longest,
+                variance,
+                kurtosis,
+                options=self.channel_check,
             )
         except CoherenceNeeded:
             return None  # a variance outlier's coherence needs the raw block: load_block
@@ -440,22 +431,21 @@ class FileConditioning:
         Position of the file in *files*.
     grid : BlockGrid
     channels : tuple of str
-    settings : mapping
-        Keyword arguments of :class:`FileConditioner` (``target_rate_hz``, ``band_hz``,
-        ...).
+    options : ConditioningOptions
+        As for :class:`FileConditioner`.
     """
 
     files: tuple
     index: int
     grid: BlockGrid
     channels: tuple
-    settings: Mapping
+    options: ConditioningOptions
 
 
 def condition_file(job: FileConditioning) -> _ConditionedFile:
     """One file conditioned once, for every block holding it: the value a
     :class:`FileConditioner` of those blocks takes with :meth:`FileConditioner.reuse`."""
-    conditioner = FileConditioner(job.files, job.grid, job.channels, **dict(job.settings))
+    conditioner = FileConditioner(job.files, job.grid, job.channels, options=job.options)
     return conditioner.conditioned_file(conditioner.files.index(job.files[job.index]))
 
 

@@ -37,6 +37,7 @@ import pandas as pd
 from .conditioning import MAX_INTERPOLATED_NAN_RUN_S, _as_2d, _positive, detrend, nan_runs
 
 __all__ = [
+    "ChannelCheckOptions",
     "CoherenceNeeded",
     "WindowMoments",
     "channel_verdicts",
@@ -202,29 +203,12 @@ def moments(
     )
 
 
-def faulty_channels(
-    x: np.ndarray,
-    sampling_rate_hz: float,
-    channels: Sequence[str] | None = None,
-    *,
-    max_nan_fraction: float = 0.05,
-    max_nan_run_s: float = MAX_INTERPOLATED_NAN_RUN_S,
-    kurtosis_limits: tuple[float, float] = (1.3, 10.0),
-    flat_variance: float = 1e-12,
-    max_variance_z: float = 6.0,
-    max_kurtosis_z: float = 3.0,
-    coherence_check: bool = True,
-) -> pd.DataFrame:
-    """Check each channel of one block and say which are faulty and why.
+@dataclass(frozen=True)
+class ChannelCheckOptions:
+    """Thresholds of the channel check (:func:`faulty_channels`, :func:`channel_verdicts`).
 
-    Parameters
+    Attributes
     ----------
-    x : ndarray, shape (n_samples, n_channels)
-        Raw accelerations of one block, NaN for dropouts. [m/s²]
-    sampling_rate_hz : float
-        Sampling rate. [Hz]
-    channels : sequence of str, optional
-        Channel names (default ``"0"``, ``"1"``, ...).
     max_nan_fraction : float
         Largest accepted fraction of NaN samples.
     max_nan_run_s : float
@@ -246,6 +230,41 @@ def faulty_channels(
     coherence_check : bool
         Confirm a variance outlier by a lost coherence with every other channel
         (:func:`coherent_with_others`); False drops on the variance z-score alone.
+    """
+
+    max_nan_fraction: float = 0.05
+    max_nan_run_s: float = MAX_INTERPOLATED_NAN_RUN_S
+    kurtosis_limits: tuple[float, float] = (1.3, 10.0)
+    flat_variance: float = 1e-12
+    max_variance_z: float = 6.0
+    max_kurtosis_z: float = 3.0
+    coherence_check: bool = True
+
+    def __post_init__(self) -> None:
+        low, high = (float(v) for v in self.kurtosis_limits)
+        if not low < high:
+            raise ValueError(f"kurtosis_limits={self.kurtosis_limits} must be (lower, upper)")
+
+
+def faulty_channels(
+    x: np.ndarray,
+    sampling_rate_hz: float,
+    channels: Sequence[str] | None = None,
+    *,
+    options: ChannelCheckOptions | None = None,
+) -> pd.DataFrame:
+    """Check each channel of one block and say which are faulty and why.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n_samples, n_channels)
+        Raw accelerations of one block, NaN for dropouts. [m/s²]
+    sampling_rate_hz : float
+        Sampling rate. [Hz]
+    channels : sequence of str, optional
+        Channel names (default ``"0"``, ``"1"``, ...).
+    options : ChannelCheckOptions, optional
+        The thresholds; default ``ChannelCheckOptions()``.
 
     Returns
     -------
@@ -274,9 +293,6 @@ def faulty_channels(
     )
     if len(names) != n_channels:
         raise ValueError(f"{len(names)} channel names for {n_channels} channels")
-    low, high = (float(v) for v in kurtosis_limits)
-    if not low < high:
-        raise ValueError(f"kurtosis_limits={kurtosis_limits} must be (lower, upper)")
 
     nan_fraction = np.ones(n_channels)
     longest = np.zeros(n_channels)
@@ -300,13 +316,7 @@ def faulty_channels(
         longest,
         variance,
         kurtosis,
-        max_nan_fraction=max_nan_fraction,
-        max_nan_run_s=max_nan_run_s,
-        kurtosis_limits=kurtosis_limits,
-        flat_variance=flat_variance,
-        max_variance_z=max_variance_z,
-        max_kurtosis_z=max_kurtosis_z,
-        coherence_check=coherence_check,
+        options=options,
         coherence=lambda outliers, healthy: coherent_with_others(array, rate, outliers, healthy),
     )
 
@@ -323,13 +333,7 @@ def channel_verdicts(
     variance: np.ndarray,
     kurtosis: np.ndarray,
     *,
-    max_nan_fraction: float = 0.05,
-    max_nan_run_s: float = MAX_INTERPOLATED_NAN_RUN_S,
-    kurtosis_limits: tuple[float, float] = (1.3, 10.0),
-    flat_variance: float = 1e-12,
-    max_variance_z: float = 6.0,
-    max_kurtosis_z: float = 3.0,
-    coherence_check: bool = True,
+    options: ChannelCheckOptions | None = None,
     coherence: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
 ) -> pd.DataFrame:
     """The verdicts of :func:`faulty_channels` from the block statistics it computes.
@@ -340,9 +344,8 @@ def channel_verdicts(
     nan_fraction, longest, variance, kurtosis : ndarray, shape (n_channels,)
         Fraction of NaN samples, longest NaN run [s], variance [(m/s²)²] and kurtosis of
         the linearly detrended block (NaN where undefined).
-    max_nan_fraction, max_nan_run_s, kurtosis_limits, flat_variance, max_variance_z
-    max_kurtosis_z, coherence_check
-        As for :func:`faulty_channels`.
+    options : ChannelCheckOptions, optional
+        The thresholds; default ``ChannelCheckOptions()``.
     coherence : callable, optional
         ``coherence(outliers, healthy)`` -> 1.0 / 0.0 per outlier channel: whether it is
         coherent with any healthy channel (:func:`coherent_with_others` on the block).
@@ -359,9 +362,10 @@ def channel_verdicts(
     """
     names = [str(c) for c in channels]
     n_channels = len(names)
-    low, high = (float(v) for v in kurtosis_limits)
-    if not low < high:
-        raise ValueError(f"kurtosis_limits={kurtosis_limits} must be (lower, upper)")
+    check = options or ChannelCheckOptions()
+    max_nan_fraction, max_nan_run_s = check.max_nan_fraction, check.max_nan_run_s
+    flat_variance, max_variance_z = check.flat_variance, check.max_variance_z
+    low, high = (float(v) for v in check.kurtosis_limits)
     usable = np.isfinite(variance) & (variance > flat_variance)
     z = _robust_z(np.log(np.where(usable, variance, 1.0)), usable, MIN_LOG_VARIANCE_SPREAD)
     usable_kurtosis = usable & np.isfinite(kurtosis) & (kurtosis > 0)
@@ -371,7 +375,7 @@ def channel_verdicts(
     # variance outliers: faulty only if they also lost coherence with every other channel
     outliers = np.flatnonzero(np.isfinite(z) & (np.abs(z) > max_variance_z))
     coherent = np.full(n_channels, np.nan)
-    if coherence_check and outliers.size:
+    if check.coherence_check and outliers.size:
         healthy = usable & (nan_fraction <= max_nan_fraction) & (longest <= max_nan_run_s)
         if coherence is None:
             raise CoherenceNeeded(f"variance outliers {outliers.tolist()} need the block's samples")
@@ -392,7 +396,7 @@ def channel_verdicts(
             if not variance[j] > flat_variance:
                 shown = 0.0 if variance[j] < 1e-30 else variance[j]  # round-off of a constant
                 why.append(f"flat (variance {shown:.3g})")
-            elif kurtosis[j] > high and not (kurtosis_z[j] <= max_kurtosis_z):
+            elif kurtosis[j] > high and not (kurtosis_z[j] <= check.max_kurtosis_z):
                 # out of line with the other channels (or too few channels to compare)
                 why.append(f"kurtosis {kurtosis[j]:.1f} > {high:g}")
             elif kurtosis[j] < low:

@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .conditioning import line_from_sums
+
 _NS = 1_000_000_000
 
 
@@ -105,13 +107,7 @@ def _block_statistics(pieces: Sequence[_StepSums], n_block: int, rate: float):
         sum_tt += d * d * s[0, 0] + 2 * d * h * s[0, 1] + h * h * s[0, 2]
         sum_x += s[1, 0] + p.offset * s[0, 0]
         sum_xt += d * s[1, 0] + h * s[1, 1] + p.offset * (d * s[0, 0] + h * s[0, 1])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        t_mean = sum_t / count
-        x_mean = sum_x / count
-        sxx = sum_tt - count * t_mean * t_mean
-        sxy = sum_xt - count * t_mean * x_mean
-        slope = np.where(sxx > 0, sxy / np.where(sxx > 0, sxx, 1.0), 0.0)
-        intercept = x_mean - slope * t_mean
+    slope, intercept = line_from_sums(count, sum_t, sum_tt, sum_x, sum_xt)
     # power sums of the residual r = u - alpha - beta tau on each piece
     power = np.zeros((5, n_channels))
     binomial = [[math.comb(k, m) for m in range(k + 1)] for k in range(5)]

@@ -7,7 +7,7 @@ proportional to E, so every natural frequency scales as sqrt(E(T) / E0). Noisy
 temperature, stepwise) in a training window; the model then predicts the following blocks
 and the Kalman filter blends each prediction with that block's noisy observation. The
 cumulative absolute error of the Kalman track against the true frequencies is compared with
-that of the raw observations: :func:`~workbench.forecasting.evaluate.run_temperature_experiment`
+that of the raw observations: :func:`~workbench.forecasting.experiment.run_temperature_experiment`
 forecasts and evaluates what :func:`simulate_temperature_experiment` simulates.
 
 The reference work reports 85 % (mode 3) and 89 % (mode 4) lower cumulative error for the

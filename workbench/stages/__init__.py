@@ -7,7 +7,7 @@ stage          module                       takes                               
 ``track``      :mod:`.tracking`             selected modes, TrackingOptions       TrackResult
 ``correlate``  :mod:`.correlation`          modal + predictors, CorrelateOptions  CorrelateResult
 ``fit``        :mod:`.fitting`              modal + predictors, FitOptions        FitResult
-``forecast``   :mod:`.forecasting`          modal + predictors, ForecastOptions   ForecastStageResult
+``forecast``   :mod:`.forecasting`          modal + predictors, ForecastOptions   ForecastResult
 ``evaluate``   :mod:`.evaluation`           forecast + true modal table           EvaluateResult
 ``health``     :mod:`.structural_health`    forecast, HealthOptions               HealthResult
 =============  ===========================  ====================================  ===================
@@ -23,7 +23,7 @@ this package is light: each stage module is imported on first use.
 A result leads to the next stage with the same call on its table:
 ``identify(...).track()`` (keeping the poles for forecast option B), then
 ``TrackResult.predictors(dship)``, ``.correlate``, ``.fit``, ``.forecast``, and
-``ForecastStageResult.evaluate(truth)``.
+``ForecastResult.evaluate(truth)``.
 """
 
 from __future__ import annotations
@@ -53,12 +53,12 @@ _EXPORTS = {
     "Summary": "workbench.results",
     "forecast": "forecasting",
     "ForecastOptions": "forecasting",
-    "ForecastStageResult": "forecasting",
+    "ForecastResult": "forecasting",
     "forecast_modes": "forecasting",
     "evaluate": "evaluation",
     "EvaluateResult": "evaluation",
-    "pair_with_truth": "evaluation",
-    "relabel_truth": "evaluation",
+    "pair_with_truth": "workbench.forecasting.evaluate",
+    "relabel_truth": "workbench.forecasting.evaluate",
     "health": "structural_health",
     "HealthOptions": "structural_health",
     "HealthResult": "structural_health",

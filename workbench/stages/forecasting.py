@@ -4,82 +4,32 @@ from __future__ import annotations
 
 import os
 import warnings
-from dataclasses import dataclass, field, replace
-from pathlib import Path
+from dataclasses import replace
 
 import pandas as pd
 
-from data_contracts import FORECAST, MODAL, POLES, PREDICTORS, recorded_grid, set_grid
+from data_contracts import MODAL, POLES, PREDICTORS, recorded_grid, set_grid
 
-from ..forecasting import ForecastWarning, sliding_forecast
+from ..forecasting import ForecastResult, ForecastWarning, sliding_forecast
 from ..forecasting.options import ForecastOptions
+from ..forecasting.results import combined
 from ..parallel import process_map
-from ..results import StageResult, read_any_table, shown_once, table_path, write_frame
+from ..results import read_any_table
 from ..sid.presence import persistent_modes
 
-__all__ = ["ForecastOptions", "ForecastStageResult", "forecast", "forecast_modes"]
+__all__ = ["ForecastOptions", "ForecastResult", "forecast", "forecast_modes"]
 
 
 #: Descriptive names of the forecast schemes (the reference work's methods 1 and 2).
 SCHEME_NAMES = {1: "single-window", 2: "rolling"}
 
 
-@dataclass
-class ForecastStageResult(StageResult):
-    """The forecast table (FORECAST contract) of every option, and its notes.
-
-    Attributes
-    ----------
-    table : DataFrame
-        One row per block, mode and option: SSI, model and Kalman estimates with bounds.
-    options : ForecastOptions
-    """
-
-    table: pd.DataFrame
-    options: ForecastOptions
-    lines: list[str] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
-    title = "forecast"
-
-    def evaluate(self, truth: pd.DataFrame | str | os.PathLike, *, phase="forecast"):
-        """:func:`~workbench.stages.evaluate` of this forecast against the true modal
-        table *truth*."""
-        from .evaluation import evaluate
-
-        return evaluate(self.table, truth, phase=phase)
-
-    def plot(self, mode: int | None = None, *, truth: pd.DataFrame | None = None, option=None):
-        """Forecast figure of *mode* (default the first): SSI, model with bounds, Kalman."""
-        from ..reporting.forecast_plot import plot_forecast_mode
-
-        mode = int(self.table["mode"].min()) if mode is None else int(mode)
-        return shown_once(plot_forecast_mode(self.table, mode, truth_modal=truth, option=option))
-
-    def save(
-        self,
-        out: str | os.PathLike,
-        *,
-        figures: str | os.PathLike | None = None,
-        truth: pd.DataFrame | None = None,
-    ) -> dict[str, Path]:
-        """The table (``out`` a .csv/.parquet file, or a folder: forecast.csv) and, with
-        *figures* (a folder), one figure per mode (the *truth* drawn beside)."""
-        paths = {"forecast": write_frame(self.table, table_path(out, "forecast.csv"), FORECAST)}
-        if figures is not None:
-            from ..reporting.forecast_plot import write_forecast_figures
-
-            for path in write_forecast_figures(self.table, figures, truth_modal=truth):
-                paths[path.stem] = path
-        return paths
-
-
 def _forecast_part(modal, predictors, options, modes, poles, cases):
-    """One process's share of :func:`forecast_modes` (module level: picklable)."""
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", ForecastWarning)
-        result = sliding_forecast(modal, predictors, options, modes=modes, poles=poles, cases=cases)
-    messages = [str(w.message) for w in caught if issubclass(w.category, ForecastWarning)]
-    return result.table, messages
+    """One process's share of :func:`forecast_modes` (module level: picklable); its
+    warnings are in the result, not issued."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ForecastWarning)
+        return sliding_forecast(modal, predictors, options, modes=modes, poles=poles, cases=cases)
 
 
 def forecast_modes(
@@ -91,7 +41,7 @@ def forecast_modes(
     poles: pd.DataFrame | None = None,
     cases=None,
     progress: bool = False,
-) -> tuple[pd.DataFrame, list[str]]:
+) -> ForecastResult:
     """:func:`~workbench.forecasting.sliding_forecast` with the modes spread over
     ``options.n_workers`` processes.
 
@@ -100,8 +50,8 @@ def forecast_modes(
     model pools the excitation sensitivity of SSI's bias (a property of the excitation, not
     of a mode; :mod:`workbench.forecasting.excitation`) over the modes forecast together,
     so its modes run in one call (one process) and the table is again that of a single
-    call. Returns the forecast table (sorted by block, mode) and the forecast warnings'
-    messages.
+    call. Returns that forecast, its table sorted by block and mode and its warnings
+    collected (not issued).
     """
     modes = sorted(int(m) for m in (modal["mode"].unique() if modes is None else modes))
     n_workers = max(1, min(int(options.n_workers), len(modes)))
@@ -125,10 +75,11 @@ def forecast_modes(
         unit="mode",
         sizes=sizes,
     )
-    table = pd.concat([p[0] for p in parts], ignore_index=True)
-    keys = [c for c in ("block", "mode", "option") if c in table.columns]
-    table = table.sort_values(keys, kind="stable").reset_index(drop=True)
-    return table, [m for p in parts for m in p[1]]
+    result = combined(parts, options)
+    keys = [c for c in ("block", "mode", "option") if c in result.table.columns]
+    return replace(
+        result, table=result.table.sort_values(keys, kind="stable").reset_index(drop=True)
+    )
 
 
 def forecast(
@@ -139,7 +90,7 @@ def forecast(
     cases=None,
     options: ForecastOptions | None = None,
     progress: bool = False,
-) -> ForecastStageResult:
+) -> ForecastResult:
     """Sliding forecasts of every persistent mode, for each measurement option.
 
     Parameters
@@ -175,10 +126,9 @@ def forecast(
         modal, options.min_presence, n_blocks=predictors["block"].nunique()
     )
     modes = sorted(int(m) for m in kept["mode"].unique())
-    result = ForecastStageResult(table=pd.DataFrame(), options=options, lines=list(lines))
-    frames = []
+    parts, messages = [], []
     for option in options.options:
-        table, messages = forecast_modes(
+        part = forecast_modes(
             modal,
             predictors,
             replace(options, options=(option,)),
@@ -187,13 +137,13 @@ def forecast(
             cases=cases,
             progress=progress,
         )
-        result.warnings += [f"option {option}: {m}" for m in messages]
-        frames.append(table)
-    result.table = pd.concat(frames, ignore_index=True)
-    set_grid(result.table, recorded_grid(modal) or recorded_grid(predictors))
-    result.lines.append(
-        f"forecast of {result.table['mode'].nunique()} modes over "
-        f"{result.table['block'].nunique()} blocks, option(s) {'/'.join(options.options)}, "
-        f"scheme {SCHEME_NAMES[options.scheme]}, train {options.train_blocks}"
+        messages += [f"option {option}: {m}" for m in part.warnings]
+        parts.append(part)
+    table = pd.concat([p.table for p in parts], ignore_index=True)
+    set_grid(table, recorded_grid(modal) or recorded_grid(predictors))
+    done = (
+        f"forecast of {table['mode'].nunique()} modes over {table['block'].nunique()} blocks, "
+        f"option(s) {'/'.join(options.options)}, scheme {SCHEME_NAMES[options.scheme]}, "
+        f"train {options.train_blocks}"
     )
-    return result
+    return combined(parts, options, table=table, warnings=tuple(messages), lines=(*lines, done))

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..excitation import sub_windows_per_block, within_block_variance
 from ..options import ForecastOptions
-from .model import MemoryModel, fit_memory_model
+from .model import MemoryModel
 
 __all__ = ["ExcitationBias", "excitation_bias"]
 
@@ -54,18 +54,8 @@ def _excitation_statistics(fitted, X, y, age, speed_col, speed_var, memory, limi
 
 def _debiased_refit(fitted, X, y, age, bias, memory, limit):
     """Refit *fitted*'s terms on the targets minus the excitation bias (time averages)."""
-    refitted = fit_memory_model(
-        X,
-        y - np.where(np.isfinite(bias), bias, 0.0),
-        age,
-        columns=fitted.columns,
-        names=fitted.names,
-        terms=fitted.terms,
-        mean=fitted.mean,
-        scale=fitted.scale,
-        memory_blocks=memory,
-        limit=limit,
-    )
+    debiased = y - np.where(np.isfinite(bias), bias, 0.0)
+    refitted = fitted.refit(X, debiased, age, memory_blocks=memory, limit=limit)
     return fitted if refitted is None else refitted
 
 

@@ -634,4 +634,6 @@ class MemoryRun:
         messages = tuple(f"{kind} (x{count})" for kind, count in self.notes.items())
         for message in messages:
             warnings.warn(message, ForecastWarning, stacklevel=4)
-        return ForecastResult(table=table, warnings=messages, models=tuple(self.models_out))
+        return ForecastResult(
+            table=table, options=self.options, warnings=messages, models=tuple(self.models_out)
+        )

@@ -20,13 +20,13 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-__all__ = ["MemoryModel", "fit_memory_model", "select_terms"]
+__all__ = ["MemoryModel", "constant_model", "select_terms"]
 
 
 @dataclass(frozen=True)
@@ -96,6 +96,88 @@ class MemoryModel:
         variance = self.residual_variance * np.einsum("ij,jk,ik->i", D, self.covariance, D)
         return mean, variance
 
+    @classmethod
+    def unfitted(
+        cls,
+        columns: Sequence[int],
+        names: Sequence[str],
+        terms: Sequence[Sequence[int]],
+        mean: np.ndarray,
+        scale: np.ndarray,
+    ) -> MemoryModel:
+        """The selected *terms* of predictors *columns* (*names*, z-scored with *mean* and
+        *scale*) before any estimate: :meth:`refit` estimates its coefficients."""
+        return cls(
+            "memory",
+            tuple(columns),
+            tuple(names),
+            tuple(tuple(t) for t in terms),
+            np.asarray(mean, dtype=float),
+            np.asarray(scale, dtype=float),
+            np.empty(0),
+            np.empty((0, 0)),
+            math.nan,
+            math.nan,
+            0,
+        )
+
+    def refit(
+        self, X: np.ndarray, y: np.ndarray, age: np.ndarray, *, memory_blocks: float, limit: float
+    ) -> MemoryModel | None:
+        """This model's terms and normalisation, the coefficients estimated again by
+        exponentially weighted least squares of *y* on them.
+
+        Parameters
+        ----------
+        X : ndarray, shape (n, n_predictors)
+            Raw predictor rows of the measured blocks.
+        y : ndarray, shape (n,)
+            Measurements. [Hz]
+        age : ndarray, shape (n,)
+            Blocks between each row and the newest training block (0 for the newest). [blocks]
+        memory_blocks : float
+            Forgetting time constant, λ = exp(-1/memory_blocks). [blocks]
+        limit : float
+            Clipping of the z-scores (:meth:`design`).
+
+        Returns
+        -------
+        MemoryModel or None when the rows cannot determine the terms.
+        """
+        D = self.design(X, limit)
+        ok = np.isfinite(D).all(axis=1) & np.isfinite(y)
+        D, y, age = D[ok], y[ok], age[ok]
+        p = D.shape[1]
+        w = np.exp(-age / memory_blocks)  # w = λ^age, newest block 1
+        n_eff = w.sum() ** 2 / (w @ w) if w.size else 0.0
+        if n_eff < p + 3:
+            return None
+        Dw = D * w[:, None]
+        normal = Dw.T @ D  # XᵀWX
+        solved = _solve_well_conditioned(normal, Dw.T @ y)
+        if solved is not None:
+            # β = (XᵀWX)⁻¹ XᵀWy: the same estimate as the SVD path below, to round-off
+            beta, covariance = solved
+        else:
+            sw = np.sqrt(w)
+            # β = argmin Σ w_k (y_k - x_k β)²
+            beta, _, rank, _ = np.linalg.lstsq(D * sw[:, None], y * sw, rcond=None)
+            if rank < p:
+                return None
+            covariance = np.linalg.pinv(normal)  # (XᵀWX)⁻¹
+        resid = y - D @ beta
+        dof = n_eff - p
+        s2 = float((w * resid**2).sum() / w.sum() * n_eff / dof)  # weighted residual variance
+        return replace(
+            self,
+            kind="memory",
+            coefficients=beta,
+            covariance=covariance,
+            residual_variance=s2,
+            dof=float(dof),
+            n_train=int(ok.sum()),
+        )
+
 
 def select_terms(
     Z: pd.DataFrame, y: np.ndarray, stepwise_options: Mapping[str, Any] | None
@@ -108,88 +190,6 @@ def select_terms(
         fit = stepwise(Z, y, **dict(stepwise_options or {}))
     terms = tuple(tuple(int(c) for c in term) for term in fit.model_terms)
     return terms if () in terms else ((), *terms)
-
-
-def fit_memory_model(
-    X: np.ndarray,
-    y: np.ndarray,
-    age: np.ndarray,
-    *,
-    columns: Sequence[int],
-    names: Sequence[str],
-    terms: Sequence[Sequence[int]],
-    mean: np.ndarray,
-    scale: np.ndarray,
-    memory_blocks: float,
-    limit: float,
-) -> MemoryModel | None:
-    """Exponentially weighted least squares of *y* on the *terms*.
-
-    Parameters
-    ----------
-    X : ndarray, shape (n, n_predictors)
-        Raw predictor rows of the measured blocks.
-    y : ndarray, shape (n,)
-        Measurements. [Hz]
-    age : ndarray, shape (n,)
-        Blocks between each row and the newest training block (0 for the newest). [blocks]
-    memory_blocks : float
-        Forgetting time constant, λ = exp(-1/memory_blocks). [blocks]
-
-    Returns
-    -------
-    MemoryModel or None when the rows cannot determine the terms.
-    """
-    model = MemoryModel(
-        "memory",
-        tuple(columns),
-        tuple(names),
-        tuple(tuple(t) for t in terms),
-        np.asarray(mean, dtype=float),
-        np.asarray(scale, dtype=float),
-        np.empty(0),
-        np.empty((0, 0)),
-        math.nan,
-        math.nan,
-        0,
-    )
-    D = model.design(X, limit)
-    ok = np.isfinite(D).all(axis=1) & np.isfinite(y)
-    D, y, age = D[ok], y[ok], age[ok]
-    p = D.shape[1]
-    w = np.exp(-age / memory_blocks)  # w = λ^age, newest block 1
-    n_eff = w.sum() ** 2 / (w @ w) if w.size else 0.0
-    if n_eff < p + 3:
-        return None
-    Dw = D * w[:, None]
-    normal = Dw.T @ D  # XᵀWX
-    solved = _solve_well_conditioned(normal, Dw.T @ y)
-    if solved is not None:
-        # β = (XᵀWX)⁻¹ XᵀWy: the same estimate as the SVD path below, to round-off
-        beta, covariance = solved
-    else:
-        sw = np.sqrt(w)
-        # β = argmin Σ w_k (y_k - x_k β)²
-        beta, _, rank, _ = np.linalg.lstsq(D * sw[:, None], y * sw, rcond=None)
-        if rank < p:
-            return None
-        covariance = np.linalg.pinv(normal)  # (XᵀWX)⁻¹
-    resid = y - D @ beta
-    dof = n_eff - p
-    s2 = float((w * resid**2).sum() / w.sum() * n_eff / dof)  # weighted residual variance
-    return MemoryModel(
-        "memory",
-        model.columns,
-        model.names,
-        model.terms,
-        model.mean,
-        model.scale,
-        beta,
-        covariance,
-        s2,
-        float(dof),
-        int(ok.sum()),
-    )
 
 
 #: Largest condition number of XᵀWX solved through the normal equations; beyond it (rank

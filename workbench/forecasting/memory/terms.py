@@ -4,7 +4,7 @@ For each mode and window of :func:`~workbench.forecasting.memory.forecast.memory
 terms (:func:`~workbench.forecasting.memory.select_terms`), reselected on a schedule, on a new
 operating case or when the ship leaves the predictor range the selection saw; the
 exponentially weighted refit of those terms over the history
-(:func:`~workbench.forecasting.memory.fit_memory_model`); the prediction with its interval.
+(:meth:`~workbench.forecasting.memory.model.MemoryModel.refit`); the prediction with its interval.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import pandas as pd
 
 from ...stats.distributions import t_quantile
 from ..options import ForecastOptions
-from .model import MemoryModel, constant_model, fit_memory_model, select_terms
+from .model import MemoryModel, constant_model, select_terms
 
 __all__ = ["MemoryRefits"]
 
@@ -224,17 +224,8 @@ class MemoryRefits:
         age = (i - 1 - np.arange(lo, i)).astype(float)
         fitted = None
         if use and terms != ((),):
-            fitted = fit_memory_model(
-                X_all[lo:i],
-                y,
-                age,
-                columns=use,
-                names=names,
-                terms=terms,
-                mean=mean,
-                scale=scale,
-                memory_blocks=memory,
-                limit=limit,
+            fitted = MemoryModel.unfitted(use, names, terms, mean, scale).refit(
+                X_all[lo:i], y, age, memory_blocks=memory, limit=limit
             )
         if fitted is None:
             fitted = constant_model(y, age, memory)

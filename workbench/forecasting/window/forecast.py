@@ -215,7 +215,9 @@ def window_forecast(
     messages = tuple(f"{kind} (x{count})" for kind, count in notes.items())
     for message in messages:
         warnings.warn(message, ForecastWarning, stacklevel=3)
-    return ForecastResult(table=table, warnings=messages, models=tuple(run.models_out))
+    return ForecastResult(
+        table=table, options=options, warnings=messages, models=tuple(run.models_out)
+    )
 
 
 def model_window(run: WindowRun, j: int, window: WindowFrame) -> None:

@@ -11,6 +11,7 @@ import pandas as pd
 
 from data_contracts import atomic_path
 
+from ...results import save_figure
 from .run import ReportSection
 
 _FIGURE_DIR = "report_files"
@@ -24,8 +25,6 @@ class Figures:
         self.dpi = dpi
 
     def save(self, fig, name: str) -> str:
-        from ..figures import save_figure  # matplotlib only when a report draws
-
         path = save_figure(fig, self.folder / f"{name}.png", dpi=self.dpi)
         return path.relative_to(self.report_dir).as_posix()
 

@@ -10,7 +10,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from .figures import save_figure
+from ..results import save_figure
 
 __all__ = ["plot_forecast_mode", "write_forecast_figures"]
 
