@@ -37,9 +37,10 @@ diagram itself:
    frequencies within ``frequency_tol`` or :data:`NEAR_MODE` (3 %), whichever is wider,
    and shapes that agree (MAC above ``mac_min``) are one mode, and the larger cluster is
    kept: the smaller is the second pole an over-fitted model puts beside a strong mode
-   (pLSCF at its upper orders: 1-1.5 % off, the mode's shape to MAC 0.998, present at
-   half the orders), and two modes of one shape a few per cent apart could not be told
-   apart from output-only data anyway. The second look tests its clusters the same way.
+   (pLSCF at its upper orders: a per cent or so off, with the mode's shape, at part of
+   the orders; ``benchmarks/results/identification_32c.txt``), and two modes of one
+   shape a few per cent apart could not be told apart from output-only data anyway. The
+   second look tests its clusters the same way.
 
 5. **Second look** (``second_look=True``, close and weakly excited modes): where most
    modes recur to 1e-5 the cut of stage 1 is tight, and the poles of a mode whose shape
