@@ -24,10 +24,11 @@ damping ratio is combined the same way with ``damping_std``.
 
 A mode enters the model on the evidence of one method only when that method's main rule
 (stage 3 of the clustering: a column over most model orders) found it; a column the
-selection's second look found (shorter, looser, for close and weak modes) needs the other
-method's pole at the same frequency and shape. On the simulated close and weak modes of
-``benchmarks/bench_close_weak.py`` the unconfirmed second-look modes were spurious ones,
-the confirmed ones the close and weak modes (``benchmarks/results/identification_32c.txt``).
+selection's second look found (shorter, looser, for close and weak modes) needs a mode of
+another method paired with it (within ``frequency_tol``, MAC at least ``mac_min``). On the
+simulated close and weak modes of ``benchmarks/bench_close_weak.py`` every spurious
+second-look mode was unconfirmed, and few true ones were (upper modes of the closest
+pairs, the price of the rule; ``benchmarks/results/identification_32c.txt``).
 """
 
 from __future__ import annotations
