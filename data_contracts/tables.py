@@ -268,7 +268,9 @@ _COMBINED = (
     Column(
         "combined_methods",
         "nullable_int",
-        "Number of methods that found the mode (2: SSI and LSCF agree on it).",
+        "Number of methods that found the mode (2: SSI and LSCF agree on it); missing, "
+        "with the other combined columns, where the combined model leaves the mode out (a "
+        "second-look mode the other method does not confirm).",
         required=False,
         nullable=True,
         minimum=1,

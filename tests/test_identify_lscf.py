@@ -162,3 +162,29 @@ def test_a_failing_cross_check_leaves_the_block_identified(voyage, tmp_path):
     assert result.run.processed == 1 and result.run.skipped == 0
     assert result.n_selected >= 5
     assert "crosscheck" not in result.files
+
+
+def test_a_mode_the_combined_model_leaves_out_has_no_combined_values():
+    """An own second-look mode the other method does not confirm is not in the combined
+    model (workbench.sid.combined): its combined columns are missing, the others filled."""
+    from workbench.identification.engine import _with_combined
+    from workbench.sid.selection import ModeSelection
+
+    shapes = np.eye(3, dtype=complex)[:, :2]
+    modes = pd.DataFrame(
+        {
+            "frequency_hz": [2.0, 3.0],
+            "damping_ratio": [0.01, 0.014],
+            "frequency_std_hz": [0.001, 0.003],
+            "damping_std": [0.001, 0.004],
+            "pole_index": [10, 20],
+        }
+    )
+    own = ModeSelection(modes, shapes, None, (), "cluster", {"second_look_poles": (20,)})
+    other = ModeSelection(modes.iloc[:1].copy(), shapes[:, :1], None, (), "cluster")
+    table = _with_combined(modes, own, other, "cov")
+    assert str(table["combined_methods"].dtype) == "Int64"
+    assert table["combined_methods"].iat[0] == 2
+    assert table["combined_methods"].isna().tolist() == [False, True]
+    assert np.isnan(table["combined_frequency_hz"].iat[1])
+    assert table["combined_frequency_hz"].iat[0] == 2.0

@@ -269,7 +269,9 @@ def _with_combined(modes: pd.DataFrame, selection, other_selection, method) -> p
     """The block's selected *modes* with the combined estimate of this method and the other
     family (:func:`~workbench.sid.combined.combine_modes`): ``combined_frequency_hz``,
     ``combined_frequency_std_hz``, ``combined_damping_ratio``, ``combined_damping_std`` and
-    ``combined_methods`` (1 where the other method has no such mode)."""
+    ``combined_methods`` (1 where the other method has no such mode; all five missing
+    where the combined model leaves the mode out: a second-look mode of this method that
+    the other does not confirm)."""
     from ..sid.combined import combine_modes
 
     own = "lscf" if method == "lscf" else "ssi"
@@ -279,7 +281,10 @@ def _with_combined(modes: pd.DataFrame, selection, other_selection, method) -> p
     modes = modes.copy()
     for source, column in COMBINED_SELECTED_COLUMNS.items():
         values = combined[source].reindex(range(len(modes)))
-        modes[column] = values.to_numpy(dtype=np.int64 if source == "n_methods" else float)
+        if source == "n_methods":
+            modes[column] = pd.array(values.to_numpy(dtype=float), dtype="Int64")
+        else:
+            modes[column] = values.to_numpy(dtype=float)
     return modes
 
 

@@ -21,6 +21,14 @@ method's (SSI) where it found the mode, the other methods add the modes it misse
 and weakly excited ones, which LSCF's frequency-domain fit often separates) and their
 agreement to σ. A mode seen by one method keeps that method's estimate and scatter. The
 damping ratio is combined the same way with ``damping_std``.
+
+A mode enters the model on the evidence of one method only when that method's main rule
+(stage 3 of the clustering: a column over most model orders) found it; a column the
+selection's second look found (shorter, looser, for close and weak modes) needs a mode of
+another method paired with it (within ``frequency_tol``, MAC at least ``mac_min``). On the
+simulated close and weak modes of ``benchmarks/bench_close_weak.py`` every spurious
+second-look mode was unconfirmed, and few true ones were (upper modes of the closest
+pairs, the price of the rule; ``benchmarks/results/identification_32c.txt``).
 """
 
 from __future__ import annotations
@@ -66,8 +74,10 @@ def combine_modes(
         Method name (e.g. ``"ssi"``, ``"lscf"``) to its selection, on the same channels;
         the first method is the reference the others are paired with, one after the
         other (a mode of a later method pairs with at most one earlier mode). A mode that
-        only a later method found, and only by its second look (close and weak modes,
-        :mod:`~workbench.sid.selection`), is not taken: alone it is too weak a case.
+        only one method found, and that one only by its second look (close and weak
+        modes, :mod:`~workbench.sid.selection`: a looser test of order consistency), is
+        not taken when other methods were run: unconfirmed it is too weak a case (with
+        one method its selection stands).
     frequency_tol : float
         Largest relative frequency difference of a pair. [-]
     mac_min : float
@@ -99,6 +109,7 @@ def combine_modes(
     # groups: one dict per mode, method -> (f, zeta, sigma_f, sigma_zeta); shape of the first
     groups: list[dict] = []
     shapes: list[np.ndarray] = []
+    unconfirmed: list[bool] = []  # the group was opened by a second-look mode
     for name in names:
         selection = selections[name]
         modes = selection.modes
@@ -125,9 +136,12 @@ def combine_modes(
             entry = (f[k], z[k], sf[k], sz[k], k)
             if paired[k] >= 0:
                 groups[paired[k]][name] = entry
-            elif name == names[0] or not second_look[k]:
+            else:
                 groups.append({name: entry})
                 shapes.append(shape[:, k])
+                unconfirmed.append(bool(second_look[k]))
+    if len(names) > 1:  # a second-look mode stands only with another method's support
+        groups = [g for g, weak in zip(groups, unconfirmed, strict=True) if not weak or len(g) > 1]
     rows = []
     for group in groups:
         frequency, frequency_std, damping, damping_std = _estimate(group, estimate)

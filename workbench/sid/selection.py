@@ -34,8 +34,13 @@ diagram itself:
    cluster's (when every cluster is a mode there is no group of small ones to split off),
    and at least ``min_orders``.
    Its median damping must lie within the damping limits. Two accepted clusters with
-   frequencies within ``frequency_tol`` and MAC above ``mac_min`` are one mode (the larger
-   cluster is kept).
+   frequencies within ``frequency_tol`` or :data:`NEAR_MODE` (3 %), whichever is wider,
+   and shapes that agree (MAC above ``mac_min``) are one mode, and the larger cluster is
+   kept: the smaller is the second pole an over-fitted model puts beside a strong mode
+   (pLSCF at its upper orders: a per cent or so off, with the mode's shape, at part of
+   the orders; ``benchmarks/results/identification_32c.txt``), and two modes of one
+   shape a few per cent apart could not be told apart from output-only data anyway. The
+   second look tests its clusters the same way.
 
 5. **Second look** (``second_look=True``, close and weakly excited modes): where most
    modes recur to 1e-5 the cut of stage 1 is tight, and the poles of a mode whose shape
@@ -335,8 +340,8 @@ def select_modes(
         appear in to enter the library.
     frequency_tol : float
         ``"library"``: largest relative frequency difference between a pole and a
-        reference pole; ``"cluster"``: two clusters closer than this with MAC above
-        ``mac_min`` are one mode. [-]
+        reference pole; ``"cluster"``: two clusters closer than this or than
+        :data:`NEAR_MODE`, whichever is wider, with MAC above ``mac_min`` are one mode. [-]
     damping_tol : float
         ``"library"``: largest relative damping difference between a pole and a reference
         pole. [-]
@@ -469,7 +474,9 @@ def _select_clusters(
         head = int(members[np.argmin(np.abs(f[members] - centre))])
         twin = False
         for other in heads:
-            close = abs(f[head] / f[other] - 1.0) < frequency_tol
+            # the window of the second look's fragment test: a pole 1-3 % beside a mode
+            # with its shape is a second pole of that mode, not a mode
+            close = abs(f[head] / f[other] - 1.0) < max(frequency_tol, NEAR_MODE)
             if close and mac(shape[:, head], shape[:, other]) > mac_min:
                 twin = True
                 break
