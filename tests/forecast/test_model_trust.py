@@ -84,7 +84,8 @@ def _trust_run(blend_bias_hz, n=200, seed=0):
         y = z - (x + blend_bias_hz)
         trust.step(
             np.array([z]),
-            np.array([0.0]),
+            np.zeros((1, 2, 2)),  # no identification-error state: all white
+            np.zeros((1, 2)),
             np.array([0.0]),
             np.array([sigma2]),
             np.array([y / math.sqrt(S)]),
@@ -113,7 +114,8 @@ def test_trust_ignores_in_sample_blocks():
     for _ in range(20):
         trust.step(
             np.array([5.0]),
-            np.array([0.0]),
+            np.zeros((1, 2, 2)),
+            np.zeros((1, 2)),
             np.array([0.0]),
             np.array([1e-4]),
             np.array([10.0]),  # a huge innovation, but in sample: not evidence
@@ -215,7 +217,8 @@ def _level_step_run(persist_blocks, step_hz=0.3, n_before=40, n_after=12, seed=4
         z = level + rng.normal(0.0, 0.01)
         trust.step(
             np.array([z]),
-            np.array([0.0]),
+            np.zeros((1, 2, 2)),  # no identification-error state: all white
+            np.zeros((1, 2)),
             np.array([0.0]),
             np.array([sigma2]),
             np.array([0.0]),

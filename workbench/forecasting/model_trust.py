@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .memory.kalman import kalman_pass_step
 from .memory.noise import update_run
 
 __all__ = ["ModelTrust"]
@@ -108,14 +109,17 @@ class ModelTrust:
         prior_probability: float = PRIOR_PROBABILITY,
         level_steps: tuple[float, ...] = LEVEL_STEP_VARIANCES,
         persist_blocks: int | None = None,
+        states: int = 2,
     ):
         self.huber_sigma = float(huber_sigma)
         self.persist_blocks = None if persist_blocks is None else int(persist_blocks)
         self.steps = np.asarray(level_steps, dtype=float)  # one model-free filter each
         n_free = self.steps.size
         self.level = np.full((n_free, n_modes), np.nan)  # model-free estimates x̂₀ [Hz]
-        self.error = np.zeros((n_free, n_modes))  # their identification-error states ê [Hz]
-        self.P = np.zeros((n_free, n_modes, 2, 2))
+        # their identification-error states (the blend's layout: one AR(1) state or the
+        # overlap's segment terms) [Hz]
+        self.error = np.zeros((n_free, n_modes, states - 1))
+        self.P = np.zeros((n_free, n_modes, states, states))
         # signed runs of large innovations of each model-free filter (memory.noise.update_run)
         self.run = np.zeros((n_free, n_modes), dtype=np.int64)
         # hypothesis probabilities: row 0 the blend, then the model-free filters
@@ -138,7 +142,8 @@ class ModelTrust:
     def step(
         self,
         z: np.ndarray,
-        error_correlation: np.ndarray,
+        transition: np.ndarray,
+        error_step_variance: np.ndarray,
         error_variance: np.ndarray,
         white_variance: np.ndarray,
         blend_normalised: np.ndarray,
@@ -151,21 +156,27 @@ class ModelTrust:
         ----------
         z : ndarray (n,)
             The block's measurement (NaN: none). [Hz]
-        error_correlation, error_variance, white_variance : ndarray (n,)
-            ρ, σ_e² (stationary) and the block's white variance R of the blend's noise
-            model (the same identification error under every hypothesis). [-], [Hz²], [Hz²]
+        transition : ndarray (n, s, s)
+            The blend's F (:func:`~workbench.forecasting.memory.kalman.transition_matrices`);
+            its identification-error part (rows and columns 1 ..) is used.
+        error_step_variance : ndarray (n, s)
+            The blend's Q of the identification error's states (this block's scale). [Hz²]
+        error_variance, white_variance : ndarray (n,)
+            σ_e² (stationary) and the block's white variance R of the blend's noise model
+            (the same identification error under every hypothesis). [Hz²]
         blend_normalised, blend_variance : ndarray (n,)
             The blend's normalised innovation and innovation variance S in this block.
         learn : ndarray of bool (n,)
             Modes whose probabilities may change in this block (out of sample: the model
             had not seen the block).
         """
-        rho = np.clip(error_correlation, 0.0, 0.99)
         sigma2 = np.maximum(error_variance + white_variance, 1e-300)
         log_l = np.full(self.weights.shape, np.nan)
         log_l[0] = self._blend_log_likelihood(blend_normalised, blend_variance)
         for h, step in enumerate(self.steps):
-            log_l[h + 1] = self._free_step(h, step, z, rho, sigma2, error_variance, white_variance)
+            log_l[h + 1] = self._free_step(
+                h, step, z, transition, error_step_variance, sigma2, white_variance
+            )
         use = learn & np.isfinite(log_l).all(axis=0)
         if use.any():
             # p̄_i = (1 - π) p_i + π (1 - p_i) / (H - 1) ; p_i ∝ p̄_i L_i
@@ -189,65 +200,49 @@ class ModelTrust:
         out[ok] = self._log_likelihood(normalised[ok], variance[ok])
         return out
 
-    def _free_step(self, h, step, z, rho, sigma2, error_variance, white_variance):
-        """Predict and update model-free filter *h*; its log-likelihood of z (NaN: none)."""
+    def _free_step(self, h, step, z, transition, error_step_variance, sigma2, white_variance):
+        """Predict and update model-free filter *h*; its log-likelihood of z (NaN: none).
+
+        States [x, identification error's states]: F = the blend's with 1 for the level,
+        Q = the blend's identification part and q (σ_e² + σ_v²) for the level; the step is
+        the blend's (:func:`~workbench.forecasting.memory.kalman.kalman_pass_step`: Huber
+        weights, the persistence rule, Joseph form).
+        """
         out = np.full(z.shape, np.nan)
         level, error, P_all = self.level[h], self.error[h], self.P[h]
         fresh = np.isfinite(z) & ~np.isfinite(level)
         if fresh.any():  # start at the first measurement, with the measurement's variance
             level[fresh] = z[fresh]
             error[fresh] = 0.0
-            P_all[fresh] = 0.0
+            P_all[fresh] = _stationary(transition[fresh], error_step_variance[fresh])
             P_all[fresh, 0, 0] = sigma2[fresh]
-            P_all[fresh, 1, 1] = error_variance[fresh]
         on = np.isfinite(level) & ~fresh
         if not on.any():
             return out
         idx = np.flatnonzero(on)
-        # x = Fx ; P = FPF' + Q with F = diag(1, ρ), Q = diag(q σ², σ_e²(1 - ρ²))
-        F = np.stack([np.ones(idx.size), rho[idx]], axis=1)
-        P = P_all[idx] * (F[:, :, None] * F[:, None, :])
-        P[:, 0, 0] += step * sigma2[idx]
-        P[:, 1, 1] += error_variance[idx] * (1 - rho[idx] ** 2)
-        lv = level[idx]
-        er = error[idx] * rho[idx]
-        have = np.isfinite(z[idx])
-        if have.any():
-            k = np.flatnonzero(have)
-            # y = z - Hx ; S = HPH' + R  (H = [1 1])
-            y = z[idx][k] - lv[k] - er[k]
-            S = P[k, 0, 0] + P[k, 1, 1] + 2 * P[k, 0, 1] + white_variance[idx][k]
-            nu = y / np.sqrt(S)
-            out[idx[k]] = self._log_likelihood(nu, S)
-            a = np.abs(nu)
-            run = self.run[h, idx[k]]
-            keep_on = np.zeros(k.size, dtype=bool)
-            if self.persist_blocks is not None:
-                # the blend's persistence rule: the run reaches persist_blocks, the level
-                # moved: P_xx ← max(P_xx, y²) and no Huber weight
-                keep_on = (a > self.huber_sigma) & (np.abs(run) >= self.persist_blocks - 1)
-                keep_on &= np.sign(nu) == np.sign(run)
-            self.run[h, idx[k]] = update_run(run, nu, np.full(k.size, self.huber_sigma))
-            if keep_on.any():
-                rows = k[keep_on]
-                grow = np.maximum(y[keep_on] ** 2 - P[rows, 0, 0], 0.0)
-                P[rows, 0, 0] += grow
-                S[keep_on] += grow
-            # Huber weight as in the blend: beyond k the measurement counts as if k out
-            extra = np.where(
-                (a > self.huber_sigma) & ~keep_on, S * (a / self.huber_sigma - 1.0), 0.0
-            )
-            # K = PH'S⁻¹ ; x = x + Ky ; P = (I - KH) P (I - KH)' + K R K' (Joseph form)
-            PH = np.stack([P[k, 0, 0] + P[k, 0, 1], P[k, 1, 0] + P[k, 1, 1]], axis=1)
-            K = PH / (S + extra)[:, None]
-            lv[k] += K[:, 0] * y
-            er[k] += K[:, 1] * y
-            A = np.eye(2)[None, :, :] - K[:, :, None] * np.ones((1, 1, 2))
-            R_eff = white_variance[idx][k] + extra
-            P[k] = A @ P[k] @ np.transpose(A, (0, 2, 1)) + R_eff[:, None, None] * (
-                K[:, :, None] * K[:, None, :]
-            )
-        level[idx], error[idx], P_all[idx] = lv, er, P
+        F = transition[idx].copy()
+        F[:, 0, :] = 0.0
+        F[:, :, 0] = 0.0
+        F[:, 0, 0] = 1.0
+        Q = error_step_variance[idx].copy()
+        Q[:, 0] = step * sigma2[idx]
+        state = np.concatenate([level[idx, None], error[idx]], axis=1)
+        run = self.run[h, idx]
+        state, P, _, nu, S = kalman_pass_step(
+            state,
+            P_all[idx],
+            F,
+            Q,
+            z[idx],
+            white_variance[idx],
+            self.huber_sigma,
+            previous_run=run if self.persist_blocks is not None else None,
+            persist_blocks=self.persist_blocks or 0,
+        )
+        have = np.isfinite(nu)
+        out[idx[have]] = self._log_likelihood(nu[have], S[have])
+        self.run[h, idx] = update_run(run, nu, np.full(idx.size, self.huber_sigma))
+        level[idx], error[idx], P_all[idx] = state[:, 0], state[:, 1:], P
         return out
 
     def combine(
@@ -269,3 +264,19 @@ class ModelTrust:
         x = (w * xs).sum(axis=0)
         P = (w * (Ps + (xs - x) ** 2)).sum(axis=0)
         return x, P
+
+
+def _stationary(transition: np.ndarray, step_variance: np.ndarray) -> np.ndarray:
+    """Stationary covariance Σ_i F^i Q F'^i of the identification error's states (rows
+    and columns 1 ..; F's spectral radius below 1 there), by doubling. [Hz²]"""
+    n, s = step_variance.shape
+    A = transition.copy()
+    A[:, 0, :] = 0.0
+    A[:, :, 0] = 0.0
+    P = np.zeros((n, s, s))
+    P[:, np.arange(s), np.arange(s)] = step_variance
+    P[:, 0, 0] = 0.0
+    for _ in range(7):  # P ← P + A P A', A ← A²: 2^7 terms of the sum
+        P = P + A @ P @ np.transpose(A, (0, 2, 1))
+        A = A @ A
+    return P

@@ -69,7 +69,7 @@ from ..options import ForecastOptions
 from ..predictor_grid import forecast_span, mode_matrix, modes_to_forecast, predictor_matrix
 from ..results import ForecastResult, ForecastWarning, WindowModel
 from .excitation import excitation_bias
-from .kalman import kalman_pass_step, stationary_covariance
+from .kalman import kalman_pass_step, n_states, stationary_covariance
 from .model import MemoryModel
 from .noise import filter_matrices, first_window_noise, update_run
 from .output import OUTPUT_ARRAYS, assemble_table
@@ -194,6 +194,12 @@ class MemoryRun:
         # identification errors of blocks this far apart are independent (None: not known,
         # no cap on the identification error's variance, :func:`~.noise.estimate_noise`)
         self.independent_lag = sub_windows_per_block(grid)
+        # the identification error as the mean of the segments a block shares with its
+        # neighbours (MA, zero correlation from the independent lag on), its L terms states
+        # of the filter; without overlap (or an unknown grid) an AR(1) state
+        lag = self.independent_lag or 0
+        self.error_segments = lag if lag >= 2 else 0
+        self.states = n_states(self.error_segments)
         self.mode_labels = mode_labels = modes_to_forecast(modal, modes)
         self.n_modes = n_modes = mode_labels.size
         self.tracked = mode_matrix(modal, blocks, mode_labels, "frequency_hz")
@@ -230,8 +236,8 @@ class MemoryRun:
         self.current: list[MemoryModel | None] = [None] * n_modes
         self.noise_of: list[NoiseModel | None] = [None] * n_modes
         self.noise_at = np.full(n_modes, -(10**9))  # grid row of each mode's last noise fit
-        self.state = np.zeros((n_modes, 2))
-        self.P = np.zeros((n_modes, 2, 2))
+        self.state = np.zeros((n_modes, self.states))
+        self.P = np.zeros((n_modes, self.states, self.states))
         self.started = np.zeros(n_modes, dtype=bool)
         self.gap = np.zeros(n_modes, dtype=np.int64)
         self.models_out: list[WindowModel] = []
@@ -239,7 +245,12 @@ class MemoryRun:
         # guard: the probability that the model explains each mode, against a model-free
         # filter
         self.trust = (
-            ModelTrust(n_modes, float(noise.huber_sigma), persist_blocks=self.persist_blocks)
+            ModelTrust(
+                n_modes,
+                float(noise.huber_sigma),
+                persist_blocks=self.persist_blocks,
+                states=self.states,
+            )
             if noise.model_trust
             else None
         )
@@ -327,13 +338,23 @@ class MemoryRun:
         lo = max(first, i0 - int(noise.noise_blocks))
         r_hist = self.resid[lo:i0, j]
         if np.isfinite(r_hist).sum() == 0 and is_first:
-            nz = first_window_noise(self.meas[first:i0, j], self.out["seen"][first:i0, j], level_hz)
+            nz = first_window_noise(
+                self.meas[first:i0, j],
+                self.out["seen"][first:i0, j],
+                level_hz,
+                error_segments=self.error_segments,
+            )
         elif (
             self.noise_of[j] is None
             or i0 - first < int(noise.noise_blocks)  # residual window still filling
             or i0 - self.noise_at[j] >= self.options.reselect_blocks
         ):  # then with the terms' schedule (the grid search is the costly part)
-            nz = estimate_noise(r_hist, level_hz, correlated_lags=self.independent_lag)
+            nz = estimate_noise(
+                r_hist,
+                level_hz,
+                correlated_lags=self.independent_lag,
+                error_segments=self.error_segments,
+            )
             if nz.n_residuals:  # fitted, not the prior: no less model error than shown
                 nz = model_error_floor(nz, self.resid[max(lo, first + self.train) : i0, j])
             self.noise_at[j] = i0
@@ -341,7 +362,7 @@ class MemoryRun:
             nz = self.noise_of[j]
         self.noise_of[j] = nz
         if not self.started[j]:
-            self.P[j] = stationary_covariance(nz)
+            self.P[j] = stationary_covariance(nz, self.states)
             self.state[j] = 0.0
             self.started[j] = True
         return nz
@@ -374,7 +395,7 @@ class MemoryRun:
         m_rows, z_rows, v_rows = rows
         noise = self.noise
         typical = self._typical_scatter(i0)
-        F, q_c, q_e, r_v, huber = filter_matrices(self.noise_of, noise.huber_sigma)
+        F, q_c, q_e, r_v, huber = filter_matrices(self.noise_of, noise.huber_sigma, self.states)
         added_variance = (
             self.consistency.update(i0).copy()
             if noise.consistency_blocks
@@ -437,10 +458,10 @@ class MemoryRun:
         z = np.full(self.n_modes, np.nan)
         scale = np.ones(self.n_modes)
         # gate on the innovation standard deviation of the a-priori state
-        prior_state = self.state * F
-        Pp = self.P * (F[:, :, None] * F[:, None, :])
-        S = Pp[:, 0, 0] + Pp[:, 1, 1] + 2 * Pp[:, 0, 1] + q_c + q_e + r_v
-        prior_z = z_now + prior_state[:, 0] + prior_state[:, 1]
+        prior_state = np.einsum("nij,nj->ni", F, self.state)
+        Pp = F @ self.P @ np.transpose(F, (0, 2, 1))
+        S = Pp.sum(axis=(1, 2)) + q_c.sum(axis=1) + q_e.sum(axis=1) + r_v
+        prior_z = z_now + prior_state.sum(axis=1)
         # g = gate_sigma sqrt(S), at most max_gate x the frequency: a filter that has
         # lost confidence must not open its gate onto other modes and harmonics
         gate = np.minimum(
@@ -517,7 +538,7 @@ class MemoryRun:
         F, q_c, q_e, r_v, huber, model_variance = filter_step
         n_modes, in_sample = self.n_modes, k < self.first + self.train
         residual = z - z_now  # innovation about what SSI is expected to see
-        Q = np.column_stack([q_c, q_e * scale])
+        Q = q_c + q_e * scale[:, None]
         self.state, self.P, delta, nu, innovation_variance = kalman_pass_step(
             self.state,
             self.P,
@@ -537,7 +558,7 @@ class MemoryRun:
         lost = have & ~_plausible(estimate, self.reference_hz)
         for j in np.flatnonzero(lost):
             self.state[j] = 0.0
-            self.P[j] = stationary_covariance(self.noise_of[j])
+            self.P[j] = stationary_covariance(self.noise_of[j], self.states)
             estimate[j] = m_now[j]
             self.warn(
                 k,
@@ -549,8 +570,9 @@ class MemoryRun:
         if self.trust is not None:
             self.trust.step(
                 np.where(have, z, np.nan),
-                F[:, 1],
-                q_e * scale / np.maximum(1 - F[:, 1] ** 2, 1e-12),
+                F,
+                q_e * scale[:, None],
+                np.array([nz.error_variance if nz else 0.0 for nz in self.noise_of]) * scale,
                 r_v * scale,
                 nu,
                 innovation_variance,
