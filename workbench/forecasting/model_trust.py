@@ -79,6 +79,12 @@ FULL_WEIGHT_PROBABILITY = 0.25
 #: first blocks of a real move (which the blend takes once it persists), cannot decide
 #: alone. [nats]
 EVIDENCE_CAP = 1.0
+#: Probability that the blend predicts the measurement lead_blocks ahead better than the
+#: model-free filter, before any such prediction was scored (no evidence either way). [-]
+LEAD_PRIOR = 0.5
+#: Forgetting of the scale of the lead test's squared errors (time constant 1/LEAD_FORGET
+#: blocks). [-]
+LEAD_FORGET = 1.0 / 96
 #: Smallest and largest model probability (neither hypothesis is ever ruled out). [-]
 P_MIN, P_MAX = 1e-4, 1.0 - 1e-4
 
@@ -110,6 +116,7 @@ class ModelTrust:
         level_steps: tuple[float, ...] = LEVEL_STEP_VARIANCES,
         persist_blocks: int | None = None,
         states: int = 2,
+        lead_blocks: int = 0,
     ):
         self.huber_sigma = float(huber_sigma)
         self.persist_blocks = None if persist_blocks is None else int(persist_blocks)
@@ -126,6 +133,15 @@ class ModelTrust:
         self.weights = np.empty((n_free + 1, n_modes))
         self.weights[0] = float(prior_probability)
         self.weights[1:] = (1.0 - float(prior_probability)) / n_free
+        # the lead test: each filter's prediction of the measurement lead_blocks ahead (the
+        # blend's without the model's value then), the test's probability that the blend
+        # predicts better, and the scale of the squared prediction errors
+        self.lead = int(lead_blocks)
+        self.lead_blend = np.full((max(self.lead, 1), n_modes), np.nan)
+        self.lead_free = np.full((max(self.lead, 1), n_modes), np.nan)
+        self.lead_at = 0
+        self.lead_probability = np.full(n_modes, LEAD_PRIOR)
+        self.lead_scale = np.full(n_modes, np.nan)
 
     @property
     def probability(self) -> np.ndarray:
@@ -149,6 +165,8 @@ class ModelTrust:
         blend_normalised: np.ndarray,
         blend_variance: np.ndarray,
         learn: np.ndarray,
+        blend_state: np.ndarray | None = None,
+        measurement_model: np.ndarray | None = None,
     ) -> None:
         """One block: predict and update the model-free filters, then the probabilities.
 
@@ -169,6 +187,11 @@ class ModelTrust:
         learn : ndarray of bool (n,)
             Modes whose probabilities may change in this block (out of sample: the model
             had not seen the block).
+        blend_state : ndarray (n, s), optional
+            The blend's a-posteriori state of this block, for the lead test.
+        measurement_model : ndarray (n,), optional
+            The model's value of this block's measurement (the blend predicts z = this +
+            H x). [Hz]
         """
         sigma2 = np.maximum(error_variance + white_variance, 1e-300)
         log_l = np.full(self.weights.shape, np.nan)
@@ -193,6 +216,42 @@ class ModelTrust:
             post /= post.sum(axis=0, keepdims=True)
             post = np.clip(post, P_MIN, P_MAX)
             self.weights[:, use] = post / post.sum(axis=0, keepdims=True)
+        if self.lead and blend_state is not None:
+            self._lead_step(z, transition, blend_state, measurement_model, learn)
+
+    def _lead_step(self, z, transition, blend_state, measurement_model, learn) -> None:
+        """The lead test (module docstring): score the predictions made lead_blocks ago,
+        then store this block's."""
+        slot = self.lead_at % self.lead
+        blend = measurement_model + self.lead_blend[slot]
+        free = self.lead_free[slot]
+        e_b, e_f = z - blend, z - free
+        ok = learn & np.isfinite(e_b) & np.isfinite(e_f)
+        if ok.any():
+            square = 0.5 * (e_b[ok] ** 2 + e_f[ok] ** 2)
+            old = self.lead_scale[ok]
+            scale = np.where(np.isfinite(old), old + LEAD_FORGET * (square - old), square)
+            self.lead_scale[ok] = scale
+            # log-likelihood ratio of the two point predictions under one error variance
+            ratio = (e_f[ok] ** 2 - e_b[ok] ** 2) / (2.0 * np.maximum(scale, 1e-300))
+            ratio = np.clip(ratio, -EVIDENCE_CAP, EVIDENCE_CAP) / self.lead
+            p = self.lead_probability[ok]
+            p = (1 - SWITCH_PROBABILITY) * p + SWITCH_PROBABILITY * (1 - p)
+            odds = np.log(p) - np.log1p(-p) + ratio
+            self.lead_probability[ok] = np.clip(1.0 / (1.0 + np.exp(-odds)), P_MIN, P_MAX)
+        # predictions of the measurement lead_blocks ahead: H F^L x (the blend's correction
+        # and identification error; the model's value is added then), the level and the
+        # identification error of the model-free filter
+        F_lead = np.linalg.matrix_power(transition, self.lead)
+        self.lead_blend[slot] = np.einsum("nij,nj->n", F_lead, blend_state)
+        free_F = transition.copy()
+        free_F[:, 0, :] = 0.0
+        free_F[:, :, 0] = 0.0
+        free_F[:, 0, 0] = 1.0
+        F_free = np.linalg.matrix_power(free_F, self.lead)
+        free_state = np.concatenate([self.level[0][:, None], self.error[0]], axis=1)
+        self.lead_free[slot] = np.einsum("nij,nj->n", F_free, free_state)
+        self.lead_at += 1
 
     def _blend_log_likelihood(self, normalised, variance):
         out = np.full(normalised.shape, np.nan)
@@ -259,6 +318,8 @@ class ModelTrust:
         # rest goes to the model-free filters in proportion to their probabilities
         w = self.weights.copy()
         w[0] = np.clip(self.weights[0] / FULL_WEIGHT_PROBABILITY, 0.0, 1.0)
+        if self.lead:
+            w[0] *= np.clip(self.lead_probability / LEAD_PRIOR, 0.0, 1.0)
         rest = self.weights[1:].sum(axis=0)
         w[1:] = self.weights[1:] / np.where(rest > 0, rest, 1.0) * (1.0 - w[0])
         x = (w * xs).sum(axis=0)

@@ -250,6 +250,7 @@ class MemoryRun:
                 float(noise.huber_sigma),
                 persist_blocks=self.persist_blocks,
                 states=self.states,
+                lead_blocks=max(int(self.independent_lag or 1), 1),
             )
             if noise.model_trust
             else None
@@ -577,6 +578,8 @@ class MemoryRun:
                 nu,
                 innovation_variance,
                 np.full(n_modes, not in_sample) & ~lost,
+                blend_state=self.state,
+                measurement_model=z_now,
             )
             estimate, variance = self.trust.combine(estimate, variance)
             self.out["probability"][k] = np.where(have, self.trust.probability, np.nan)
