@@ -250,7 +250,9 @@ class MemoryRun:
                 float(noise.huber_sigma),
                 persist_blocks=self.persist_blocks,
                 states=self.states,
-                lead_blocks=max(int(self.independent_lag or 1), 1),
+                # the lead test needs the lag from which identification errors are
+                # independent: off when the grid does not say (no block_end)
+                lead_blocks=int(self.independent_lag or 0),
             )
             if noise.model_trust
             else None
