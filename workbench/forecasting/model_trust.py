@@ -9,11 +9,13 @@ use the model at all:
 
 .. math::
 
-    x_k = x_{k-1} + w_k, \\quad z_k = x_k + e_k + v_k, \\quad e_k = ρ e_{k-1} + u_k,
+    x_k = x_{k-1} + w_k, \\quad z_k = x_k + e_k + v_k,
 
 (the level x a random walk, var w = q (σ_e² + σ_v²) with q from
 :data:`LEVEL_STEP_VARIANCES`, a filter that stays close to the raw SSI estimate; the
-identification error e and v as in the blend's noise model), and weighs the hypotheses H₁ "the model explains the mode" (the blend) and H₀
+identification error e, with the blend's states - one AR(1) state or the overlap's
+segment terms, :mod:`workbench.forecasting.memory.kalman` - and v as in the blend's noise
+model), and weighs the hypotheses H₁ "the model explains the mode" (the blend) and H₀
 "it does not" (each model-free filter) by the likelihood of each block's measurement
 under each filter's one-step prediction, with a small probability of switching between
 blocks (a multiple-model filter without state mixing, [1]_ §11.6). The model-free filters
@@ -27,8 +29,8 @@ the weighted mean of the filters' estimates,
 .. math:: \\hat x = \\sum_i w_i \\hat x_i, \\qquad
           P = \\sum_i w_i (P_i + (\\hat x_i - \\hat x)^2),
 
-with the blend's weight w₁ = min(1, p₁ / :data:`FULL_WEIGHT_PROBABILITY`) and the rest
-shared by the model-free filters in proportion to their probabilities; p₁, the
+with the blend's weight w₁ = min(1, p₁ / :data:`FULL_WEIGHT_PROBABILITY`) f_L and the rest
+shared by the model-free filters in proportion to their probabilities; p₁ f_L, the
 probability that the model explains the mode, is the forecast table's
 ``model_probability``.
 
@@ -36,6 +38,26 @@ The one-step prediction of a block's measurement is out of sample for every filt
 weights measure which of them predicts the data better as the voyage goes on: a guard that
 measures whether leaning on the model still helps, and falls back to the model-free
 estimate (which follows SSI) when it does not.
+
+*The lead test* (factor f_L). The one-step prediction includes the identification error
+the next block shares with this one, so a noise model that gives part of the model's
+error to the identification error (the split of the residuals is ill-determined,
+:mod:`workbench.forecasting.noise`) still predicts the next block well while its estimate
+of x, which leaves that part out, is worse than SSI's. L blocks ahead (L = the blocks
+that share data, 4 for 20-minute blocks every 5 minutes) the measured block shares no
+data with any block either filter has seen: its identification error is independent of
+both predictions, the blend's overlap states predict 0 for it, and the difference of the
+two filters' mean squared errors of prediction is an unbiased estimate of the difference
+of their errors about the true frequency L blocks ahead. The blend's prediction is the
+model's value of that block's measurement plus H F^L x̂ (its correction decayed over L
+blocks), the model-free filter's its level. Each block's evidence is the log-likelihood
+ratio of the two errors under one variance (their mean square, averaged over
+1 / :data:`LEAD_FORGET` blocks), capped at :data:`EVIDENCE_CAP` and divided by L
+(predictions made at consecutive blocks overlap); it updates p_L, the probability that
+the blend predicts better (prior :data:`LEAD_PRIOR`, switching as above), and
+f_L = min(1, p_L / :data:`LEAD_PRIOR`): the blend keeps its whole weight until the
+measured evidence is against it. The test is weak where the unexplained change has a time
+constant of about L blocks (both predictions then nearly as poor as the mean).
 
 References
 ----------
@@ -144,9 +166,19 @@ class ModelTrust:
         self.lead_scale = np.full(n_modes, np.nan)
 
     @property
+    def lead_factor(self) -> np.ndarray:
+        """The lead test's factor on the blend's weight, min(1, p_lead / LEAD_PRIOR)
+        (1 without the test). [-]"""
+        if not self.lead:
+            return np.ones(self.weights.shape[1])
+        return np.clip(self.lead_probability / LEAD_PRIOR, 0.0, 1.0)
+
+    @property
     def probability(self) -> np.ndarray:
-        """Probability that the model explains each mode (the blend's weight). [-]"""
-        return self.weights[0]
+        """Probability that the model explains each mode: the one-step hypothesis
+        probability times :attr:`lead_factor` (the forecast table's
+        ``model_probability``). [-]"""
+        return self.weights[0] * self.lead_factor
 
     def _log_likelihood(self, normalised: np.ndarray, variance: np.ndarray) -> np.ndarray:
         # log N(y; 0, S) with ν² Huber-clipped: -0.5 (log S + ρ_H(ν))
@@ -318,8 +350,7 @@ class ModelTrust:
         # rest goes to the model-free filters in proportion to their probabilities
         w = self.weights.copy()
         w[0] = np.clip(self.weights[0] / FULL_WEIGHT_PROBABILITY, 0.0, 1.0)
-        if self.lead:
-            w[0] *= np.clip(self.lead_probability / LEAD_PRIOR, 0.0, 1.0)
+        w[0] *= self.lead_factor
         rest = self.weights[1:].sum(axis=0)
         w[1:] = self.weights[1:] / np.where(rest > 0, rest, 1.0) * (1.0 - w[0])
         x = (w * xs).sum(axis=0)

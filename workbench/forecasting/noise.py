@@ -14,7 +14,11 @@ blocks (lag-1 correlation ρ), and v a white part. Their autocovariances add up,
 
 so (σ_c², σ_e², σ_v²) follow from the measured γ(0..L) by non-negative least squares for
 each (τ_c, ρ) of a grid, and the pair with the smallest misfit wins (covariance matching,
-[1]_). Safeguards against self-training into drift: the residuals are of raw measurements
+[1]_). For blocks that share data with their L - 1 neighbours the identification error is
+the mean of the L independent errors of the segments they share, and ρ^h is replaced by
+its correlation (L - h) / L, zero from lag L (``error_segments``,
+:func:`error_autocorrelation`): an AR(1) e with ρ = 0.7 still has 0.24 at lag 4 and can
+take a model error of a few blocks' time constant; the overlap's shape cannot. Safeguards against self-training into drift: the residuals are of raw measurements
 about a model that was fitted before they were seen (never of the filter's own output; the
 first window's, to which the model was fitted, are the exception the floor below covers), they
 are winsorised at 4 robust standard deviations (the odd mis-selected pole), the estimate

@@ -1,4 +1,4 @@
-"""Forecast with a model that has memory, noise from the data and an AR(1) measurement error.
+"""Forecast with a model that has memory, noise from the data and the overlap's identification error.
 
 The steps, each in its own module:
 
@@ -40,7 +40,14 @@ Kalman model per mode, with m_k the model's prediction and z_k the block's SSI e
     \\begin{bmatrix} c_{k-1} \\\\ e_{k-1} \\end{bmatrix} + w_k,
 
 Q = diag(σ_c²(1 - φ²), σ_e²(1 - ρ²) s_k), R_k = σ_v² s_k, H = [1 1], with s_k the block's
-measurement scale (pole scatter across model orders). With the excitation term
+measurement scale (pole scatter across model orders). That is the form for a grid whose
+overlap is not known; for blocks of L steps, a new one every step (20 minutes every 5:
+L = 4), e_k is the sum of the L segment terms g_k .. g_{k+L-1} of the data the block shares
+with its neighbours, states of the filter (1 + L states, H = [1 ... 1]): from block to block
+they shift by one, the newest is new with variance σ_e² s_k / L, so e is an MA(L - 1) with
+correlation (L - h) / L and none from lag L, as the overlap makes it
+(:func:`~workbench.forecasting.memory.kalman.transition_matrices`; the covariance matching
+fits that shape, :func:`~workbench.forecasting.noise.estimate_noise`). With the excitation term
 (:mod:`workbench.forecasting.excitation`) the measurement is about the model at the
 excitation-weighted speed: z_k = m̃_k + c_k + e_k + v_k, m̃_k = m(v̄_k + κ σ²_{v,k}, ...),
 while the state stays x_k = m_k + c_k: SSI's bias in a block whose speed changes goes into
