@@ -289,7 +289,7 @@ def test_lead_test_falls_back_to_ssi_when_the_split_hides_the_model_error():
     # right) and the estimate is better than SSI's, the blend's much worse. A blend that
     # tracks the wander (c = the wander) predicts better than the model-free filter: the
     # probability stays high and the estimate is the blend's. 1000 blocks, seed 2, the last
-    # 700 (measured: mean probabilities 0.25 and 0.94, the guarded estimate's error 0.97
+    # 700 (measured: mean probabilities 0.25 and 0.93, the guarded estimate's error 0.97
     # of SSI's, the right blend's 0: it kept its whole weight). For a wander of 40
     # minutes (tau 8 = 2 L) the two predictions 4 blocks ahead are nearly as poor
     # (2 (1 - e^-0.5) = 0.79 of the variance): the test is weak there.
