@@ -82,7 +82,9 @@ __all__ = [
 ]
 
 #: ``schema`` of the checkpoint's JSON part (:meth:`IncrementalMemoryForecast.save`).
-CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/2"
+#: /3: the filter's identification error as the overlap's segment states, the noise
+#: model's ``error_segments`` and the model-trust lead test (issue 27).
+CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/3"
 
 #: Rows kept before the newest committed window beyond the refits' history. [blocks]
 _MARGIN_ROWS = 64
