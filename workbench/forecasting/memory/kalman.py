@@ -32,8 +32,16 @@ def transition_matrices(noise: NoiseModel | None, states: int):
     σ_e²(1 - ρ²), 0, ...). Segments (L = states - 1): F shifts g_{k+1} .. g_{k+L-1} into
     places 1 .. L - 1, Q = diag(σ_c²(1 - φ²), 0, ..., 0, σ_e² / L): each term has variance
     σ_e² / L and the block's error, their sum, σ_e². No noise model (no model yet):
-    F = diag(1, 0, ...), Q = 0. Returns F (states, states), q (states,), P∞ (states,
-    states), with q split as (model part, identification part): q_c (states,), q_e (states,).
+    F = diag(1, 0, ...), Q = 0.
+
+    Returns
+    -------
+    F : ndarray (states, states)
+    q_c, q_e : ndarray (states,)
+        The diagonal of Q split into the model correction's part and the identification
+        error's (which the block's measurement scale multiplies). [Hz²]
+    P : ndarray (states, states)
+        The stationary covariance (:func:`stationary_covariance`). [Hz²]
     """
     F = np.zeros((states, states))
     q_c, q_e = np.zeros(states), np.zeros(states)
