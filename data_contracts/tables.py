@@ -516,7 +516,8 @@ FORECAST = TableContract(
             "float",
             "How much the Kalman estimate leaned on the model in this block: the "
             "probability that the model explains the mode, weighed against a filter that "
-            "does not use the model by how well each predicted the measurements (1: the "
+            "does not use the model by how well each predicted the measurements (the next "
+            "block's, and the first block that shares no data with the present; 1: the "
             "blend of model and SSI; 0: the model-free estimate, which follows SSI). NaN "
             "where the row has no estimate or the forecast does not weigh them.",
             required=False,

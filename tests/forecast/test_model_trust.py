@@ -84,7 +84,8 @@ def _trust_run(blend_bias_hz, n=200, seed=0):
         y = z - (x + blend_bias_hz)
         trust.step(
             np.array([z]),
-            np.array([0.0]),
+            np.zeros((1, 2, 2)),  # no identification-error state: all white
+            np.zeros((1, 2)),
             np.array([0.0]),
             np.array([sigma2]),
             np.array([y / math.sqrt(S)]),
@@ -113,7 +114,8 @@ def test_trust_ignores_in_sample_blocks():
     for _ in range(20):
         trust.step(
             np.array([5.0]),
-            np.array([0.0]),
+            np.zeros((1, 2, 2)),
+            np.zeros((1, 2)),
             np.array([0.0]),
             np.array([1e-4]),
             np.array([10.0]),  # a huge innovation, but in sample: not evidence
@@ -215,7 +217,8 @@ def _level_step_run(persist_blocks, step_hz=0.3, n_before=40, n_after=12, seed=4
         z = level + rng.normal(0.0, 0.01)
         trust.step(
             np.array([z]),
-            np.array([0.0]),
+            np.zeros((1, 2, 2)),  # no identification-error state: all white
+            np.zeros((1, 2)),
             np.array([0.0]),
             np.array([sigma2]),
             np.array([0.0]),
@@ -238,3 +241,71 @@ def test_model_free_filter_follows_a_held_jump_under_the_persistence_rule():
     assert followed[4:].max() < 0.03
     lagged = _level_step_run(persist_blocks=None)
     assert lagged[5] > 0.05
+
+
+def _lead_run(blend_correction, z, model, error_variance, states=5):
+    """ModelTrust over one mode with the lead test (L = 4): the blend's state is
+    [c, 0, 0, 0, 0] with c = *blend_correction*, its model *model*, the identification error
+    the overlap's MA(3) of variance *error_variance* (the blend's and the model-free
+    filter's). Returns the lead probabilities and the combined estimates."""
+    L = states - 1
+    trust = ModelTrust(1, 2.5, persist_blocks=L + 1, states=states, lead_blocks=L)
+    F = np.zeros((1, states, states))
+    F[0, 0, 0] = math.exp(-1 / 36)
+    F[0, 1:L, 2 : L + 1] = np.eye(L - 1)
+    q_e = np.zeros((1, states))
+    q_e[0, L] = error_variance / L
+    probability, estimate = [], []
+    for k in range(z.size):
+        state = np.zeros((1, states))
+        state[0, 0] = blend_correction[k]
+        # the blend's innovation as if its noise model held (the one-step likelihood is
+        # not what is tested here)
+        trust.step(
+            z[k : k + 1],
+            F,
+            q_e,
+            np.array([error_variance]),
+            np.array([1e-12]),
+            np.array([0.0]),
+            np.array([error_variance]),
+            np.array([True]),
+            blend_state=state,
+            measurement_model=np.array([model]),
+        )
+        x, _ = trust.combine(np.array([model + blend_correction[k]]), np.array([1e-6]))
+        probability.append(trust.lead_probability[0])
+        estimate.append(x[0])
+    return np.array(probability), np.array(estimate)
+
+
+def test_lead_test_falls_back_to_ssi_when_the_split_hides_the_model_error():
+    # truth 5 Hz + a 3-hour wander (tau 36 blocks) twice the identification error
+    # (0.01 Hz, overlap MA(3)). A blend whose correction misses the wander (the split put
+    # it into the identification error: c = 0) predicts the measurement 4 blocks ahead with
+    # the wander's whole variance (5e-4 Hz² with the error), the model-free filter (a level
+    # that follows SSI) with about half of it where the wander is away from 0: the lead
+    # probability is low on average (it rises where the wander passes 0, where the model is
+    # right) and the estimate is better than SSI's, the blend's much worse. A blend that
+    # tracks the wander (c = the wander) predicts better than the model-free filter: the
+    # probability stays high and the estimate is the blend's. 1000 blocks, seed 2, the last
+    # 700 (measured: mean probabilities 0.25 and 0.93, the guarded estimate's error 0.97
+    # of SSI's, the right blend's 0: it kept its whole weight). For a wander of 40
+    # minutes (tau 8 = 2 L) the two predictions 4 blocks ahead are nearly as poor
+    # (2 (1 - e^-0.5) = 0.79 of the variance): the test is weak there.
+    rng = np.random.default_rng(2)
+    n, se = 1000, 0.01
+    wander = _ar1(rng, n, math.exp(-1 / 36), 2 * se)
+    z = 5.0 + wander + _overlap_error(rng, n, se)
+    p_wrong, x_wrong = _lead_run(np.zeros(n), z, 5.0, se**2)
+    p_right, x_right = _lead_run(wander, z, 5.0, se**2)
+    late = slice(300, None)
+    assert p_wrong[late].mean() < 0.35
+    assert p_right[late].mean() > 0.85
+    truth = 5.0 + wander
+    error_ssi = np.abs(z - truth)[late].mean()
+    # the wrong blend alone (x = 5 Hz) is worse than SSI; the guarded estimate is not
+    assert np.abs(5.0 - truth)[late].mean() > 1.5 * error_ssi
+    assert np.abs(x_wrong - truth)[late].mean() < error_ssi
+    # the right blend keeps (nearly) its whole weight
+    assert np.abs(x_right - truth)[late].mean() < 0.1 * error_ssi

@@ -83,7 +83,9 @@ __all__ = [
 
 #: ``schema`` of the checkpoint's JSON part (:meth:`IncrementalMemoryForecast.save`);
 #: /3: block times in nanoseconds whatever the tables' resolution (/2 could hold
-#: microseconds, which put the time trend in thousands of hours).
+#: microseconds, which put the time trend in thousands of hours), the filter's
+#: identification error as the overlap's segment states, the noise model's
+#: ``error_segments`` and the model-trust lead test (issue 27).
 CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/3"
 
 #: Rows kept before the newest committed window beyond the refits' history. [blocks]

@@ -9,11 +9,13 @@ use the model at all:
 
 .. math::
 
-    x_k = x_{k-1} + w_k, \\quad z_k = x_k + e_k + v_k, \\quad e_k = ρ e_{k-1} + u_k,
+    x_k = x_{k-1} + w_k, \\quad z_k = x_k + e_k + v_k,
 
 (the level x a random walk, var w = q (σ_e² + σ_v²) with q from
 :data:`LEVEL_STEP_VARIANCES`, a filter that stays close to the raw SSI estimate; the
-identification error e and v as in the blend's noise model), and weighs the hypotheses H₁ "the model explains the mode" (the blend) and H₀
+identification error e, with the blend's states - one AR(1) state or the overlap's
+segment terms, :mod:`workbench.forecasting.memory.kalman` - and v as in the blend's noise
+model), and weighs the hypotheses H₁ "the model explains the mode" (the blend) and H₀
 "it does not" (each model-free filter) by the likelihood of each block's measurement
 under each filter's one-step prediction, with a small probability of switching between
 blocks (a multiple-model filter without state mixing, [1]_ §11.6). The model-free filters
@@ -27,8 +29,8 @@ the weighted mean of the filters' estimates,
 .. math:: \\hat x = \\sum_i w_i \\hat x_i, \\qquad
           P = \\sum_i w_i (P_i + (\\hat x_i - \\hat x)^2),
 
-with the blend's weight w₁ = min(1, p₁ / :data:`FULL_WEIGHT_PROBABILITY`) and the rest
-shared by the model-free filters in proportion to their probabilities; p₁, the
+with the blend's weight w₁ = min(1, p₁ / :data:`FULL_WEIGHT_PROBABILITY`) f_L and the rest
+shared by the model-free filters in proportion to their probabilities; p₁ f_L, the
 probability that the model explains the mode, is the forecast table's
 ``model_probability``.
 
@@ -36,6 +38,32 @@ The one-step prediction of a block's measurement is out of sample for every filt
 weights measure which of them predicts the data better as the voyage goes on: a guard that
 measures whether leaning on the model still helps, and falls back to the model-free
 estimate (which follows SSI) when it does not.
+
+*The lead test* (factor f_L). The one-step prediction includes the identification error
+the next block shares with this one, so a noise model that gives part of the model's
+error to the identification error (the split of the residuals is ill-determined,
+:mod:`workbench.forecasting.noise`) still predicts the next block well while its estimate
+of x, which leaves that part out, is worse than SSI's. L blocks ahead (L = the blocks
+that share data, 4 for 20-minute blocks every 5 minutes) the measured block shares no
+data with any block either filter has seen: its identification error is independent of
+both predictions, the blend's overlap states predict 0 for it, and the difference of the
+two filters' mean squared errors of prediction is an unbiased estimate of the difference
+of their errors about the true frequency L blocks ahead. Each filter holds its present
+estimate of what the model does not explain: the blend predicts the model's value of that
+block's measurement plus its present correction ĉ, the model-free filter its present
+level. The two differ by the model's change over the L blocks (what the predictors
+record) and by the split of the present residual; the blend's decay of c (φ^L) is left
+out, because the test is about the split, and τ_c, ill-determined from a short record,
+hardly matters to the estimate but would decide the test (a decayed correction measured
+worse on the 12-h demo and on the 40-minute wander:
+``benchmarks/results/forecast_accuracy_27c.txt``). Each block's evidence is the log-likelihood
+ratio of the two errors under one variance (their mean square, averaged over
+1 / :data:`LEAD_FORGET` blocks), capped at :data:`EVIDENCE_CAP` and divided by L
+(predictions made at consecutive blocks overlap); it updates p_L, the probability that
+the blend predicts better (prior :data:`LEAD_PRIOR`, switching as above), and
+f_L = min(1, p_L / :data:`LEAD_PRIOR`): the blend keeps its whole weight until the
+measured evidence is against it. The test is weak where the unexplained change has a time
+constant of about L blocks (both predictions then nearly as poor as the mean).
 
 References
 ----------
@@ -48,6 +76,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .memory.kalman import kalman_pass_step
 from .memory.noise import update_run
 
 __all__ = ["ModelTrust"]
@@ -78,6 +107,12 @@ FULL_WEIGHT_PROBABILITY = 0.25
 #: first blocks of a real move (which the blend takes once it persists), cannot decide
 #: alone. [nats]
 EVIDENCE_CAP = 1.0
+#: Probability that the blend predicts the measurement lead_blocks ahead better than the
+#: model-free filter, before any such prediction was scored (no evidence either way). [-]
+LEAD_PRIOR = 0.5
+#: Forgetting of the scale of the lead test's squared errors (time constant 1/LEAD_FORGET
+#: blocks). [-]
+LEAD_FORGET = 1.0 / 96
 #: Smallest and largest model probability (neither hypothesis is ever ruled out). [-]
 P_MIN, P_MAX = 1e-4, 1.0 - 1e-4
 
@@ -108,25 +143,48 @@ class ModelTrust:
         prior_probability: float = PRIOR_PROBABILITY,
         level_steps: tuple[float, ...] = LEVEL_STEP_VARIANCES,
         persist_blocks: int | None = None,
+        states: int = 2,
+        lead_blocks: int = 0,
     ):
         self.huber_sigma = float(huber_sigma)
         self.persist_blocks = None if persist_blocks is None else int(persist_blocks)
         self.steps = np.asarray(level_steps, dtype=float)  # one model-free filter each
         n_free = self.steps.size
         self.level = np.full((n_free, n_modes), np.nan)  # model-free estimates x̂₀ [Hz]
-        self.error = np.zeros((n_free, n_modes))  # their identification-error states ê [Hz]
-        self.P = np.zeros((n_free, n_modes, 2, 2))
+        # their identification-error states (the blend's layout: one AR(1) state or the
+        # overlap's segment terms) [Hz]
+        self.error = np.zeros((n_free, n_modes, states - 1))
+        self.P = np.zeros((n_free, n_modes, states, states))
         # signed runs of large innovations of each model-free filter (memory.noise.update_run)
         self.run = np.zeros((n_free, n_modes), dtype=np.int64)
         # hypothesis probabilities: row 0 the blend, then the model-free filters
         self.weights = np.empty((n_free + 1, n_modes))
         self.weights[0] = float(prior_probability)
         self.weights[1:] = (1.0 - float(prior_probability)) / n_free
+        # the lead test: each filter's prediction of the measurement lead_blocks ahead (the
+        # blend's without the model's value then), the test's probability that the blend
+        # predicts better, and the scale of the squared prediction errors
+        self.lead = int(lead_blocks)
+        self.lead_blend = np.full((max(self.lead, 1), n_modes), np.nan)
+        self.lead_free = np.full((max(self.lead, 1), n_modes), np.nan)
+        self.lead_at = 0
+        self.lead_probability = np.full(n_modes, LEAD_PRIOR)
+        self.lead_scale = np.full(n_modes, np.nan)
+
+    @property
+    def lead_factor(self) -> np.ndarray:
+        """The lead test's factor on the blend's weight, min(1, p_lead / LEAD_PRIOR)
+        (1 without the test). [-]"""
+        if not self.lead:
+            return np.ones(self.weights.shape[1])
+        return np.clip(self.lead_probability / LEAD_PRIOR, 0.0, 1.0)
 
     @property
     def probability(self) -> np.ndarray:
-        """Probability that the model explains each mode (the blend's weight). [-]"""
-        return self.weights[0]
+        """Probability that the model explains each mode: the one-step hypothesis
+        probability times :attr:`lead_factor` (the forecast table's
+        ``model_probability``). [-]"""
+        return self.weights[0] * self.lead_factor
 
     def _log_likelihood(self, normalised: np.ndarray, variance: np.ndarray) -> np.ndarray:
         # log N(y; 0, S) with ν² Huber-clipped: -0.5 (log S + ρ_H(ν))
@@ -138,12 +196,15 @@ class ModelTrust:
     def step(
         self,
         z: np.ndarray,
-        error_correlation: np.ndarray,
+        transition: np.ndarray,
+        error_step_variance: np.ndarray,
         error_variance: np.ndarray,
         white_variance: np.ndarray,
         blend_normalised: np.ndarray,
         blend_variance: np.ndarray,
         learn: np.ndarray,
+        blend_state: np.ndarray | None = None,
+        measurement_model: np.ndarray | None = None,
     ) -> None:
         """One block: predict and update the model-free filters, then the probabilities.
 
@@ -151,21 +212,32 @@ class ModelTrust:
         ----------
         z : ndarray (n,)
             The block's measurement (NaN: none). [Hz]
-        error_correlation, error_variance, white_variance : ndarray (n,)
-            ρ, σ_e² (stationary) and the block's white variance R of the blend's noise
-            model (the same identification error under every hypothesis). [-], [Hz²], [Hz²]
+        transition : ndarray (n, s, s)
+            The blend's F (:func:`~workbench.forecasting.memory.kalman.transition_matrices`);
+            its identification-error part (rows and columns 1 ..) is used.
+        error_step_variance : ndarray (n, s)
+            The blend's Q of the identification error's states (this block's scale). [Hz²]
+        error_variance, white_variance : ndarray (n,)
+            σ_e² (stationary) and the block's white variance R of the blend's noise model
+            (the same identification error under every hypothesis). [Hz²]
         blend_normalised, blend_variance : ndarray (n,)
             The blend's normalised innovation and innovation variance S in this block.
         learn : ndarray of bool (n,)
             Modes whose probabilities may change in this block (out of sample: the model
             had not seen the block).
+        blend_state : ndarray (n, s), optional
+            The blend's a-posteriori state of this block, for the lead test.
+        measurement_model : ndarray (n,), optional
+            The model's value of this block's measurement (the blend predicts z = this +
+            H x). [Hz]
         """
-        rho = np.clip(error_correlation, 0.0, 0.99)
         sigma2 = np.maximum(error_variance + white_variance, 1e-300)
         log_l = np.full(self.weights.shape, np.nan)
         log_l[0] = self._blend_log_likelihood(blend_normalised, blend_variance)
         for h, step in enumerate(self.steps):
-            log_l[h + 1] = self._free_step(h, step, z, rho, sigma2, error_variance, white_variance)
+            log_l[h + 1] = self._free_step(
+                h, step, z, transition, error_step_variance, sigma2, white_variance
+            )
         use = learn & np.isfinite(log_l).all(axis=0)
         if use.any():
             # p̄_i = (1 - π) p_i + π (1 - p_i) / (H - 1) ; p_i ∝ p̄_i L_i
@@ -182,6 +254,36 @@ class ModelTrust:
             post /= post.sum(axis=0, keepdims=True)
             post = np.clip(post, P_MIN, P_MAX)
             self.weights[:, use] = post / post.sum(axis=0, keepdims=True)
+        if self.lead and blend_state is not None:
+            self._lead_step(z, blend_state, measurement_model, learn)
+
+    def _lead_step(self, z, blend_state, measurement_model, learn) -> None:
+        """The lead test (module docstring): score the predictions made lead_blocks ago,
+        then store this block's."""
+        slot = self.lead_at % self.lead
+        blend = measurement_model + self.lead_blend[slot]
+        free = self.lead_free[slot]
+        e_b, e_f = z - blend, z - free
+        ok = learn & np.isfinite(e_b) & np.isfinite(e_f)
+        if ok.any():
+            square = 0.5 * (e_b[ok] ** 2 + e_f[ok] ** 2)
+            old = self.lead_scale[ok]
+            scale = np.where(np.isfinite(old), old + LEAD_FORGET * (square - old), square)
+            self.lead_scale[ok] = scale
+            # log-likelihood ratio of the two point predictions under one error variance
+            ratio = (e_f[ok] ** 2 - e_b[ok] ** 2) / (2.0 * np.maximum(scale, 1e-300))
+            ratio = np.clip(ratio, -EVIDENCE_CAP, EVIDENCE_CAP) / self.lead
+            p = self.lead_probability[ok]
+            p = (1 - SWITCH_PROBABILITY) * p + SWITCH_PROBABILITY * (1 - p)
+            odds = np.log(p) - np.log1p(-p) + ratio
+            self.lead_probability[ok] = np.clip(1.0 / (1.0 + np.exp(-odds)), P_MIN, P_MAX)
+        # predictions of the measurement lead_blocks ahead, each filter holding its present
+        # estimate of what the model does not explain: the blend's correction c (the
+        # model's value of that block is added then), the model-free filter's level; the
+        # identification error of that block is independent of both (predicted 0)
+        self.lead_blend[slot] = blend_state[:, 0]
+        self.lead_free[slot] = self.level[0]
+        self.lead_at += 1
 
     def _blend_log_likelihood(self, normalised, variance):
         out = np.full(normalised.shape, np.nan)
@@ -189,65 +291,49 @@ class ModelTrust:
         out[ok] = self._log_likelihood(normalised[ok], variance[ok])
         return out
 
-    def _free_step(self, h, step, z, rho, sigma2, error_variance, white_variance):
-        """Predict and update model-free filter *h*; its log-likelihood of z (NaN: none)."""
+    def _free_step(self, h, step, z, transition, error_step_variance, sigma2, white_variance):
+        """Predict and update model-free filter *h*; its log-likelihood of z (NaN: none).
+
+        States [x, identification error's states]: F = the blend's with 1 for the level,
+        Q = the blend's identification part and q (σ_e² + σ_v²) for the level; the step is
+        the blend's (:func:`~workbench.forecasting.memory.kalman.kalman_pass_step`: Huber
+        weights, the persistence rule, Joseph form).
+        """
         out = np.full(z.shape, np.nan)
         level, error, P_all = self.level[h], self.error[h], self.P[h]
         fresh = np.isfinite(z) & ~np.isfinite(level)
         if fresh.any():  # start at the first measurement, with the measurement's variance
             level[fresh] = z[fresh]
             error[fresh] = 0.0
-            P_all[fresh] = 0.0
+            P_all[fresh] = _stationary(transition[fresh], error_step_variance[fresh])
             P_all[fresh, 0, 0] = sigma2[fresh]
-            P_all[fresh, 1, 1] = error_variance[fresh]
         on = np.isfinite(level) & ~fresh
         if not on.any():
             return out
         idx = np.flatnonzero(on)
-        # x = Fx ; P = FPF' + Q with F = diag(1, ρ), Q = diag(q σ², σ_e²(1 - ρ²))
-        F = np.stack([np.ones(idx.size), rho[idx]], axis=1)
-        P = P_all[idx] * (F[:, :, None] * F[:, None, :])
-        P[:, 0, 0] += step * sigma2[idx]
-        P[:, 1, 1] += error_variance[idx] * (1 - rho[idx] ** 2)
-        lv = level[idx]
-        er = error[idx] * rho[idx]
-        have = np.isfinite(z[idx])
-        if have.any():
-            k = np.flatnonzero(have)
-            # y = z - Hx ; S = HPH' + R  (H = [1 1])
-            y = z[idx][k] - lv[k] - er[k]
-            S = P[k, 0, 0] + P[k, 1, 1] + 2 * P[k, 0, 1] + white_variance[idx][k]
-            nu = y / np.sqrt(S)
-            out[idx[k]] = self._log_likelihood(nu, S)
-            a = np.abs(nu)
-            run = self.run[h, idx[k]]
-            keep_on = np.zeros(k.size, dtype=bool)
-            if self.persist_blocks is not None:
-                # the blend's persistence rule: the run reaches persist_blocks, the level
-                # moved: P_xx ← max(P_xx, y²) and no Huber weight
-                keep_on = (a > self.huber_sigma) & (np.abs(run) >= self.persist_blocks - 1)
-                keep_on &= np.sign(nu) == np.sign(run)
-            self.run[h, idx[k]] = update_run(run, nu, np.full(k.size, self.huber_sigma))
-            if keep_on.any():
-                rows = k[keep_on]
-                grow = np.maximum(y[keep_on] ** 2 - P[rows, 0, 0], 0.0)
-                P[rows, 0, 0] += grow
-                S[keep_on] += grow
-            # Huber weight as in the blend: beyond k the measurement counts as if k out
-            extra = np.where(
-                (a > self.huber_sigma) & ~keep_on, S * (a / self.huber_sigma - 1.0), 0.0
-            )
-            # K = PH'S⁻¹ ; x = x + Ky ; P = (I - KH) P (I - KH)' + K R K' (Joseph form)
-            PH = np.stack([P[k, 0, 0] + P[k, 0, 1], P[k, 1, 0] + P[k, 1, 1]], axis=1)
-            K = PH / (S + extra)[:, None]
-            lv[k] += K[:, 0] * y
-            er[k] += K[:, 1] * y
-            A = np.eye(2)[None, :, :] - K[:, :, None] * np.ones((1, 1, 2))
-            R_eff = white_variance[idx][k] + extra
-            P[k] = A @ P[k] @ np.transpose(A, (0, 2, 1)) + R_eff[:, None, None] * (
-                K[:, :, None] * K[:, None, :]
-            )
-        level[idx], error[idx], P_all[idx] = lv, er, P
+        F = transition[idx].copy()
+        F[:, 0, :] = 0.0
+        F[:, :, 0] = 0.0
+        F[:, 0, 0] = 1.0
+        Q = error_step_variance[idx].copy()
+        Q[:, 0] = step * sigma2[idx]
+        state = np.concatenate([level[idx, None], error[idx]], axis=1)
+        run = self.run[h, idx]
+        state, P, _, nu, S = kalman_pass_step(
+            state,
+            P_all[idx],
+            F,
+            Q,
+            z[idx],
+            white_variance[idx],
+            self.huber_sigma,
+            previous_run=run if self.persist_blocks is not None else None,
+            persist_blocks=self.persist_blocks or 0,
+        )
+        have = np.isfinite(nu)
+        out[idx[have]] = self._log_likelihood(nu[have], S[have])
+        self.run[h, idx] = update_run(run, nu, np.full(idx.size, self.huber_sigma))
+        level[idx], error[idx], P_all[idx] = state[:, 0], state[:, 1:], P
         return out
 
     def combine(
@@ -264,8 +350,25 @@ class ModelTrust:
         # rest goes to the model-free filters in proportion to their probabilities
         w = self.weights.copy()
         w[0] = np.clip(self.weights[0] / FULL_WEIGHT_PROBABILITY, 0.0, 1.0)
+        w[0] *= self.lead_factor
         rest = self.weights[1:].sum(axis=0)
         w[1:] = self.weights[1:] / np.where(rest > 0, rest, 1.0) * (1.0 - w[0])
         x = (w * xs).sum(axis=0)
         P = (w * (Ps + (xs - x) ** 2)).sum(axis=0)
         return x, P
+
+
+def _stationary(transition: np.ndarray, step_variance: np.ndarray) -> np.ndarray:
+    """Stationary covariance Σ_i F^i Q F'^i of the identification error's states (rows
+    and columns 1 ..; F's spectral radius below 1 there), by doubling. [Hz²]"""
+    n, s = step_variance.shape
+    A = transition.copy()
+    A[:, 0, :] = 0.0
+    A[:, :, 0] = 0.0
+    P = np.zeros((n, s, s))
+    P[:, np.arange(s), np.arange(s)] = step_variance
+    P[:, 0, 0] = 0.0
+    for _ in range(7):  # P ← P + A P A', A ← A²: 2^7 terms of the sum
+        P = P + A @ P @ np.transpose(A, (0, 2, 1))
+        A = A @ A
+    return P

@@ -14,7 +14,11 @@ blocks (lag-1 correlation ρ), and v a white part. Their autocovariances add up,
 
 so (σ_c², σ_e², σ_v²) follow from the measured γ(0..L) by non-negative least squares for
 each (τ_c, ρ) of a grid, and the pair with the smallest misfit wins (covariance matching,
-[1]_). Safeguards against self-training into drift: the residuals are of raw measurements
+[1]_). For blocks that share data with their L - 1 neighbours the identification error is
+the mean of the L independent errors of the segments they share, and ρ^h is replaced by
+its correlation (L - h) / L, zero from lag L (``error_segments``,
+:func:`error_autocorrelation`): an AR(1) e with ρ = 0.7 still has 0.24 at lag 4 and can
+take a model error of a few blocks' time constant; the overlap's shape cannot. Safeguards against self-training into drift: the residuals are of raw measurements
 about a model that was fitted before they were seen (never of the filter's own output; the
 first window's, to which the model was fitted, are the exception the floor below covers), they
 are winsorised at 4 robust standard deviations (the odd mis-selected pole), the estimate
@@ -41,6 +45,7 @@ __all__ = [
     "MIN_OUT_OF_SAMPLE",
     "MIN_RESIDUALS",
     "NoiseModel",
+    "error_autocorrelation",
     "estimate_noise",
     "lagged_autocovariance",
     "identification_error_bound",
@@ -82,6 +87,11 @@ class NoiseModel:
         σ_v². [Hz²]
     n_residuals : int
         Residuals the estimate used (0: prior).
+    error_segments : int
+        0: e is AR(1) with lag-1 correlation ρ. L >= 2: e is the mean of the L independent
+        errors of the segments a block shares with its neighbours (blocks of L steps, a
+        new one every step), an MA(L - 1) with correlation (L - h) / L at lag h < L and
+        zero from lag L (:func:`error_autocorrelation`); ρ is then (L - 1) / L.
     """
 
     correction_variance: float
@@ -90,10 +100,27 @@ class NoiseModel:
     error_correlation: float
     white_variance: float
     n_residuals: int = 0
+    error_segments: int = 0
 
     @property
     def transition(self) -> float:
         return math.exp(-1.0 / self.correction_time_blocks)
+
+
+def error_autocorrelation(lags: np.ndarray, *, rho: float = 0.0, segments: int = 0) -> np.ndarray:
+    """Autocorrelation of the identification error e at *lags* (>= 0). [-]
+
+    AR(1) (``segments`` 0): ρ^h. Mean of L = ``segments`` independent segment errors,
+    block k spanning segments k .. k + L - 1: blocks h apart share L - h of them, so the
+    correlation is (L - h) / L for h < L and exactly 0 from h = L (blocks that share no
+    data).
+    """
+    h = np.asarray(lags, dtype=float)
+    if segments >= 2:
+        return np.clip(1.0 - h / segments, 0.0, None)
+    if rho > 0:
+        return rho**h
+    return (h == 0) * 1.0
 
 
 def lagged_autocovariance(values: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.ndarray]:
@@ -155,21 +182,31 @@ def prior_noise(
 _SUBSETS = tuple(tuple(c for c in range(3) if mask >> c & 1) for mask in range(1, 8))
 
 
-def _grid_nnls(lags: np.ndarray, target: np.ndarray, weight: np.ndarray):
+def _grid_nnls(lags: np.ndarray, target: np.ndarray, weight: np.ndarray, segments: int = 0):
     """Non-negative least squares of γ(h) on [φ^h, ρ^h, [h=0]] for every (τ_c, ρ) of the grid.
 
     Exact NNLS for three unknowns: the optimum is the least-squares solution on its set of
     positive coefficients, so the best of the least-squares solutions on the 7 column
     subsets that come out non-negative is the NNLS solution (batched over the grid).
+    With *segments* L >= 2 the identification error's column is the overlap's
+    (L - h) / L (:func:`error_autocorrelation`) instead of a grid of ρ^h.
     Returns (τ_c, ρ, coefficients) of the smallest misfit.
     """
     phis = np.exp(-1.0 / np.asarray(CORRECTION_TIMES))
-    rhos = np.asarray(ERROR_CORRELATIONS, dtype=float)
+    if segments >= 2:
+        rhos = np.array([(segments - 1) / segments])
+    else:
+        rhos = np.asarray(ERROR_CORRELATIONS, dtype=float)
     tau_g, rho_g = np.meshgrid(np.arange(phis.size), np.arange(rhos.size), indexing="ij")
     tau_g, rho_g = tau_g.ravel(), rho_g.ravel()
     h = lags[None, :].astype(float)
     zero = (lags == 0)[None, :] * 1.0
-    rho_col = np.where(rhos[rho_g][:, None] > 0, rhos[rho_g][:, None] ** h, zero)
+    if segments >= 2:
+        rho_col = np.broadcast_to(
+            error_autocorrelation(lags, segments=segments), (rho_g.size, lags.size)
+        )
+    else:
+        rho_col = np.where(rhos[rho_g][:, None] > 0, rhos[rho_g][:, None] ** h, zero)
     design = (
         np.stack([phis[tau_g][:, None] ** h, rho_col, np.broadcast_to(zero, rho_col.shape)], axis=2)
         * weight[None, :, None]
@@ -228,7 +265,11 @@ def identification_error_bound(residuals: np.ndarray, correlated_lags: int) -> f
 
 
 def estimate_noise(
-    residuals: np.ndarray, level_hz: float, *, correlated_lags: int | None = None
+    residuals: np.ndarray,
+    level_hz: float,
+    *,
+    correlated_lags: int | None = None,
+    error_segments: int = 0,
 ) -> NoiseModel:
     """Covariance-matching estimate of the residual model (module docstring).
 
@@ -243,6 +284,12 @@ def estimate_noise(
         identification errors this many blocks apart are independent, and σ_e² + σ_v² is
         capped at :func:`identification_error_bound` (the excess goes to the model error
         σ_c²). None: no cap.
+    error_segments : int
+        0: the identification error e is AR(1), ρ from a grid. L >= 2: e is the mean of
+        the L segment errors a block shares with its neighbours, with the overlap's
+        correlation (L - h) / L, zero from lag L (:func:`error_autocorrelation`): with that
+        shape known, a correlation that outlasts the overlap can only be model error, so
+        the fit cannot give the model's error to e.
     """
     r = np.asarray(residuals, dtype=float)
     n = int(np.isfinite(r).sum())
@@ -257,7 +304,8 @@ def estimate_noise(
     lags = np.flatnonzero(use)
     target = gamma[use]
     weight = np.sqrt(count[use] / count[0])
-    tau, rho, coef = _grid_nnls(lags, target, weight)
+    segments = int(error_segments) if error_segments and error_segments >= 2 else 0
+    tau, rho, coef = _grid_nnls(lags, target, weight, segments)
     sc, se, sv = (float(c) for c in coef)
     if rho == 0.0:  # e and v coincide: all white
         sv, se = sv + se, 0.0
@@ -282,6 +330,7 @@ def estimate_noise(
         error_correlation=float(rho),
         white_variance=max(sv, 0.05 * floor_m),
         n_residuals=n,
+        error_segments=segments,
     )
 
 

@@ -1,4 +1,4 @@
-"""Forecast with a model that has memory, noise from the data and an AR(1) measurement error.
+"""Forecast with a model that has memory, noise from the data and the overlap's identification error.
 
 The steps, each in its own module:
 
@@ -40,7 +40,14 @@ Kalman model per mode, with m_k the model's prediction and z_k the block's SSI e
     \\begin{bmatrix} c_{k-1} \\\\ e_{k-1} \\end{bmatrix} + w_k,
 
 Q = diag(σ_c²(1 - φ²), σ_e²(1 - ρ²) s_k), R_k = σ_v² s_k, H = [1 1], with s_k the block's
-measurement scale (pole scatter across model orders). With the excitation term
+measurement scale (pole scatter across model orders). That is the form for a grid whose
+overlap is not known; for blocks of L steps, a new one every step (20 minutes every 5:
+L = 4), e_k is the sum of the L segment terms g_k .. g_{k+L-1} of the data the block shares
+with its neighbours, states of the filter (1 + L states, H = [1 ... 1]): from block to block
+they shift by one, the newest is new with variance σ_e² s_k / L, so e is an MA(L - 1) with
+correlation (L - h) / L and none from lag L, as the overlap makes it
+(:func:`~workbench.forecasting.memory.kalman.transition_matrices`; the covariance matching
+fits that shape, :func:`~workbench.forecasting.noise.estimate_noise`). With the excitation term
 (:mod:`workbench.forecasting.excitation`) the measurement is about the model at the
 excitation-weighted speed: z_k = m̃_k + c_k + e_k + v_k, m̃_k = m(v̄_k + κ σ²_{v,k}, ...),
 while the state stays x_k = m_k + c_k: SSI's bias in a block whose speed changes goes into
@@ -76,7 +83,7 @@ from ..predictor_grid import (
 )
 from ..results import ForecastResult, ForecastWarning, WindowModel
 from .excitation import excitation_bias
-from .kalman import kalman_pass_step, stationary_covariance
+from .kalman import kalman_pass_step, n_states, stationary_covariance
 from .model import MemoryModel
 from .noise import filter_matrices, first_window_noise, update_run
 from .output import OUTPUT_ARRAYS, assemble_table
@@ -198,6 +205,12 @@ class MemoryRun:
         # identification errors of blocks this far apart are independent (None: not known,
         # no cap on the identification error's variance, :func:`~.noise.estimate_noise`)
         self.independent_lag = sub_windows_per_block(grid)
+        # the identification error as the mean of the segments a block shares with its
+        # neighbours (MA, zero correlation from the independent lag on), its L terms states
+        # of the filter; without overlap (or an unknown grid) an AR(1) state
+        lag = self.independent_lag or 0
+        self.error_segments = lag if lag >= 2 else 0
+        self.states = n_states(self.error_segments)
         self.mode_labels = mode_labels = modes_to_forecast(modal, modes)
         self.n_modes = n_modes = mode_labels.size
         self.tracked = mode_matrix(modal, blocks, mode_labels, "frequency_hz")
@@ -234,8 +247,8 @@ class MemoryRun:
         self.current: list[MemoryModel | None] = [None] * n_modes
         self.noise_of: list[NoiseModel | None] = [None] * n_modes
         self.noise_at = np.full(n_modes, -(10**9))  # grid row of each mode's last noise fit
-        self.state = np.zeros((n_modes, 2))
-        self.P = np.zeros((n_modes, 2, 2))
+        self.state = np.zeros((n_modes, self.states))
+        self.P = np.zeros((n_modes, self.states, self.states))
         self.started = np.zeros(n_modes, dtype=bool)
         self.gap = np.zeros(n_modes, dtype=np.int64)
         self.models_out: list[WindowModel] = []
@@ -243,7 +256,15 @@ class MemoryRun:
         # guard: the probability that the model explains each mode, against a model-free
         # filter
         self.trust = (
-            ModelTrust(n_modes, float(noise.huber_sigma), persist_blocks=self.persist_blocks)
+            ModelTrust(
+                n_modes,
+                float(noise.huber_sigma),
+                persist_blocks=self.persist_blocks,
+                states=self.states,
+                # the lead test needs the lag from which identification errors are
+                # independent: off when the grid does not say (no block_end)
+                lead_blocks=int(self.independent_lag or 0),
+            )
             if noise.model_trust
             else None
         )
@@ -331,13 +352,23 @@ class MemoryRun:
         lo = max(first, i0 - int(noise.noise_blocks))
         r_hist = self.resid[lo:i0, j]
         if np.isfinite(r_hist).sum() == 0 and is_first:
-            nz = first_window_noise(self.meas[first:i0, j], self.out["seen"][first:i0, j], level_hz)
+            nz = first_window_noise(
+                self.meas[first:i0, j],
+                self.out["seen"][first:i0, j],
+                level_hz,
+                error_segments=self.error_segments,
+            )
         elif (
             self.noise_of[j] is None
             or i0 - first < int(noise.noise_blocks)  # residual window still filling
             or i0 - self.noise_at[j] >= self.options.reselect_blocks
         ):  # then with the terms' schedule (the grid search is the costly part)
-            nz = estimate_noise(r_hist, level_hz, correlated_lags=self.independent_lag)
+            nz = estimate_noise(
+                r_hist,
+                level_hz,
+                correlated_lags=self.independent_lag,
+                error_segments=self.error_segments,
+            )
             if nz.n_residuals:  # fitted, not the prior: no less model error than shown
                 nz = model_error_floor(nz, self.resid[max(lo, first + self.train) : i0, j])
             self.noise_at[j] = i0
@@ -345,7 +376,7 @@ class MemoryRun:
             nz = self.noise_of[j]
         self.noise_of[j] = nz
         if not self.started[j]:
-            self.P[j] = stationary_covariance(nz)
+            self.P[j] = stationary_covariance(nz, self.states)
             self.state[j] = 0.0
             self.started[j] = True
         return nz
@@ -378,7 +409,7 @@ class MemoryRun:
         m_rows, z_rows, v_rows = rows
         noise = self.noise
         typical = self._typical_scatter(i0)
-        F, q_c, q_e, r_v, huber = filter_matrices(self.noise_of, noise.huber_sigma)
+        F, q_c, q_e, r_v, huber = filter_matrices(self.noise_of, noise.huber_sigma, self.states)
         added_variance = (
             self.consistency.update(i0).copy()
             if noise.consistency_blocks
@@ -453,10 +484,10 @@ class MemoryRun:
         z = np.full(self.n_modes, np.nan)
         scale = np.ones(self.n_modes)
         # gate on the innovation standard deviation of the a-priori state
-        prior_state = self.state * F
-        Pp = self.P * (F[:, :, None] * F[:, None, :])
-        S = Pp[:, 0, 0] + Pp[:, 1, 1] + 2 * Pp[:, 0, 1] + q_c + q_e + r_v
-        prior_z = z_now + prior_state[:, 0] + prior_state[:, 1]
+        prior_state = np.einsum("nij,nj->ni", F, self.state)
+        Pp = F @ self.P @ np.transpose(F, (0, 2, 1))
+        S = Pp.sum(axis=(1, 2)) + q_c.sum(axis=1) + q_e.sum(axis=1) + r_v
+        prior_z = z_now + prior_state.sum(axis=1)
         # g = gate_sigma sqrt(S), at most max_gate x the frequency: a filter that has
         # lost confidence must not open its gate onto other modes and harmonics
         gate = np.minimum(
@@ -537,7 +568,7 @@ class MemoryRun:
         # the fill's error more likely than SSI's, so no Huber weight on the measurement
         filled = self._filled(k)
         huber = np.where(filled, np.inf, huber)
-        Q = np.column_stack([q_c, q_e * scale])
+        Q = q_c + q_e * scale[:, None]
         self.state, self.P, delta, nu, innovation_variance = kalman_pass_step(
             self.state,
             self.P,
@@ -557,7 +588,7 @@ class MemoryRun:
         lost = have & ~_plausible(estimate, self.reference_hz)
         for j in np.flatnonzero(lost):
             self.state[j] = 0.0
-            self.P[j] = stationary_covariance(self.noise_of[j])
+            self.P[j] = stationary_covariance(self.noise_of[j], self.states)
             estimate[j] = m_now[j]
             self.warn(
                 k,
@@ -569,14 +600,17 @@ class MemoryRun:
         if self.trust is not None:
             self.trust.step(
                 np.where(have, z, np.nan),
-                F[:, 1],
-                q_e * scale / np.maximum(1 - F[:, 1] ** 2, 1e-12),
+                F,
+                q_e * scale[:, None],
+                np.array([nz.error_variance if nz else 0.0 for nz in self.noise_of]) * scale,
                 r_v * scale,
                 nu,
                 innovation_variance,
                 # a block whose model fills a missing predictor says nothing of whether
                 # the model explains the mode: the probabilities wait for the log
                 np.full(n_modes, not in_sample) & ~lost & ~filled,
+                blend_state=self.state,
+                measurement_model=z_now,
             )
             estimate, variance = self.trust.combine(estimate, variance)
             self.out["probability"][k] = np.where(have, self.trust.probability, np.nan)

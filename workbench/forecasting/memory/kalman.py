@@ -1,5 +1,10 @@
-"""Kalman step of the memory forecast: two states (model correction c, identification
-error e) per mode, H = [1 1], Huber-weighted update, Joseph-form covariance.
+"""Kalman step of the memory forecast: the model correction c and the identification error
+per mode, H = [1 1 ... 1], Huber-weighted update, Joseph-form covariance.
+
+The identification error is one AR(1) state e (two states in all), or, for blocks that
+share data with their L - 1 neighbours, the L segment terms g_k .. g_{k+L-1} whose sum is
+the block's error (1 + L states): from block to block the terms shift by one and the
+newest is new (:func:`transition_matrices`).
 
 Used by :func:`~workbench.forecasting.memory.forecast.memory_forecast` (model in that module's docs).
 """
@@ -10,7 +15,57 @@ import numpy as np
 
 from ..noise import NoiseModel
 
-__all__ = ["kalman_pass_step", "stationary_covariance"]
+__all__ = ["kalman_pass_step", "n_states", "stationary_covariance", "transition_matrices"]
+
+
+def n_states(error_segments: int) -> int:
+    """States of the filter: c and one AR(1) state (``error_segments`` < 2), or c and the
+    L = ``error_segments`` segment terms."""
+    return 1 + error_segments if error_segments >= 2 else 2
+
+
+def transition_matrices(noise: NoiseModel | None, states: int):
+    """F, the diagonal of Q (without the block's measurement scale) and the stationary
+    covariance of one mode's states in a filter of *states* states.
+
+    AR(1) error (``noise.error_segments`` 0): F = diag(φ, ρ, 0, ...), Q = diag(σ_c²(1 - φ²),
+    σ_e²(1 - ρ²), 0, ...). Segments (L = states - 1): F shifts g_{k+1} .. g_{k+L-1} into
+    places 1 .. L - 1, Q = diag(σ_c²(1 - φ²), 0, ..., 0, σ_e² / L): each term has variance
+    σ_e² / L and the block's error, their sum, σ_e². No noise model (no model yet):
+    F = diag(1, 0, ...), Q = 0.
+
+    Returns
+    -------
+    F : ndarray (states, states)
+    q_c, q_e : ndarray (states,)
+        The diagonal of Q split into the model correction's part and the identification
+        error's (which the block's measurement scale multiplies). [Hz²]
+    P : ndarray (states, states)
+        The stationary covariance (:func:`stationary_covariance`). [Hz²]
+    """
+    F = np.zeros((states, states))
+    q_c, q_e = np.zeros(states), np.zeros(states)
+    P = np.zeros((states, states))
+    if noise is None:
+        F[0, 0] = 1.0
+        return F, q_c, q_e, P
+    phi = noise.transition
+    F[0, 0] = phi
+    q_c[0] = noise.correction_variance * (1 - phi**2)
+    P[0, 0] = noise.correction_variance
+    L = noise.error_segments
+    if L >= 2:
+        if states != 1 + L:
+            raise ValueError(f"noise with error_segments={L} needs {1 + L} states, got {states}")
+        F[1:L, 2 : 1 + L] = np.eye(L - 1)  # g_{k+1} .. g_{k+L-1} carry over
+        q_e[L] = noise.error_variance / L
+        P[1:, 1:] = np.eye(L) * noise.error_variance / L
+    else:
+        rho = noise.error_correlation
+        F[1, 1] = rho
+        q_e[1] = noise.error_variance * (1 - rho**2)
+        P[1, 1] = noise.error_variance + 1e-300
+    return F, q_c, q_e, P
 
 
 def kalman_pass_step(
@@ -25,16 +80,17 @@ def kalman_pass_step(
     previous_run=None,
     persist_blocks=3,
 ):
-    """One predict + update of the two-state filter for several modes at once.
+    """One predict + update of the filter (c and the identification error's states) for
+    several modes at once.
 
     Parameters
     ----------
-    state : ndarray (n, 2)
-        [c, e] a-posteriori of the previous block.
-    P : ndarray (n, 2, 2)
-    F : ndarray (n, 2)
-        Diagonal of F: (φ, ρ).
-    Q : ndarray (n, 2)
+    state : ndarray (n, s)
+        [c, e] (or [c, g_k, ..., g_{k+L-1}]) a-posteriori of the previous block.
+    P : ndarray (n, s, s)
+    F : ndarray (n, s) or (n, s, s)
+        The diagonal of F (e.g. (φ, ρ)) or F itself (:func:`transition_matrices`).
+    Q : ndarray (n, s)
         Diagonal of Q.
     residual : ndarray (n,)
         z - m (NaN: predict only). [Hz]
@@ -58,11 +114,14 @@ def kalman_pass_step(
     the innovation variance S (n,) the normalisation used [Hz²] (NaN: no measurement)
     """
     # x = Fx ; P = FPF' + Q
-    state = state * F
-    P = P * (F[:, :, None] * F[:, None, :])
-    P[:, 0, 0] += Q[:, 0]
-    P[:, 1, 1] += Q[:, 1]
-    n = state.shape[0]
+    if F.ndim == 2:
+        state = state * F
+        P = P * (F[:, :, None] * F[:, None, :])
+    else:
+        state = np.einsum("nij,nj->ni", F, state)
+        P = F @ P @ np.transpose(F, (0, 2, 1))
+    n, s = state.shape
+    P[:, np.arange(s), np.arange(s)] += Q
     delta = np.zeros(n)
     normalised = np.full(n, np.nan)
     variance = np.full(n, np.nan)
@@ -72,9 +131,9 @@ def kalman_pass_step(
     idx = np.flatnonzero(ok)
     Pm, xm = P[idx], state[idx]
     sm2 = np.zeros(idx.size) if model_variance is None else model_variance[idx]
-    # y = z - Hx ; S = HPH' + R + s_m²  (H = [1 1])
+    # y = z - Hx ; S = HPH' + R + s_m²  (H = [1 ... 1])
     y = residual[idx] - xm.sum(axis=1)
-    S = Pm[:, 0, 0] + Pm[:, 1, 1] + 2 * Pm[:, 0, 1] + R[idx] + sm2
+    S = Pm.sum(axis=(1, 2)) + R[idx] + sm2
     nu = y / np.sqrt(S)
     normalised[idx] = nu
     variance[idx] = S
@@ -96,12 +155,12 @@ def kalman_pass_step(
     S = S + extra
     delta[idx] = sm2 / S * y  # δ̂ = s_m² S⁻¹ y
     # K = PH'S⁻¹
-    PH = np.stack([Pm[:, 0, 0] + Pm[:, 0, 1], Pm[:, 1, 0] + Pm[:, 1, 1]], axis=1)
+    PH = Pm.sum(axis=2)
     K = PH / S[:, None]
     # x = x + Ky
     xm = xm + K * y[:, None]
     # P = (I - KH) P (I - KH)' + K R K'   (Joseph form)
-    A = np.eye(2)[None, :, :] - K[:, :, None] * np.ones((1, 1, 2))
+    A = np.eye(s)[None, :, :] - K[:, :, None] * np.ones((1, 1, s))
     Pm = A @ Pm @ np.transpose(A, (0, 2, 1)) + (R_eff + sm2)[:, None, None] * (
         K[:, :, None] * K[:, None, :]
     )
@@ -109,6 +168,7 @@ def kalman_pass_step(
     return state, P, delta, normalised, variance
 
 
-def stationary_covariance(noise: NoiseModel) -> np.ndarray:
-    """Stationary covariance diag(σ_c², σ_e²) of the two states under *noise*. [Hz²]"""
-    return np.diag([noise.correction_variance, noise.error_variance + 1e-300])
+def stationary_covariance(noise: NoiseModel, states: int = 2) -> np.ndarray:
+    """Stationary covariance of the *states* states under *noise*: diag(σ_c², σ_e²), or
+    diag(σ_c², σ_e²/L, ..., σ_e²/L) for L segment terms. [Hz²]"""
+    return transition_matrices(noise, states)[3]

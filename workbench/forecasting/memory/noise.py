@@ -15,11 +15,14 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..noise import MIN_CORRECTION_STD, MIN_RESIDUALS, NoiseModel, estimate_noise, prior_noise
+from .kalman import transition_matrices
 
 __all__ = ["filter_matrices", "first_window_noise", "update_run"]
 
 
-def first_window_noise(measured: np.ndarray, seen: np.ndarray, level_hz: float) -> NoiseModel:
+def first_window_noise(
+    measured: np.ndarray, seen: np.ndarray, level_hz: float, error_segments: int = 0
+) -> NoiseModel:
     """Noise of one mode from the first window's in-sample residuals.
 
     Parameters
@@ -30,6 +33,8 @@ def first_window_noise(measured: np.ndarray, seen: np.ndarray, level_hz: float) 
         The model's prediction of those measurements. [Hz]
     level_hz : float
         Typical frequency of the mode. [Hz]
+    error_segments : int
+        The identification error's shape (:func:`~workbench.forecasting.noise.estimate_noise`).
     """
     # first window: in-sample residuals (estimate_noise falls back to a
     # conservative prior when there are too few of them)
@@ -38,7 +43,7 @@ def first_window_noise(measured: np.ndarray, seen: np.ndarray, level_hz: float) 
         # a long first window: the measurement noise from the in-sample
         # residuals; their slow part is not evidence of model error (the fit
         # absorbed it), the model's own uncertainty enters as s_m² instead
-        nz = estimate_noise(insample, level_hz)
+        nz = estimate_noise(insample, level_hz, error_segments=error_segments)
         return dataclasses.replace(
             nz,
             correction_variance=(MIN_CORRECTION_STD * level_hz) ** 2,
@@ -53,23 +58,21 @@ def first_window_noise(measured: np.ndarray, seen: np.ndarray, level_hz: float) 
     )
 
 
-def filter_matrices(noise_of: Sequence[NoiseModel | None], huber_sigma: float):
-    """Diagonals of F and Q, R and the Huber threshold of every mode's filter.
+def filter_matrices(noise_of: Sequence[NoiseModel | None], huber_sigma: float, states: int = 2):
+    """F, the diagonal of Q (model part and identification part), R and the Huber
+    threshold of every mode's filter of *states* states
+    (:func:`~workbench.forecasting.memory.kalman.transition_matrices`).
 
-    A mode without a noise model (no model yet) gets F = (1, 0), Q = 0, R = 1.
+    A mode without a noise model (no model yet) gets F = diag(1, 0, ...), Q = 0, R = 1.
 
     Returns
     -------
-    F (n, 2), q_c (n,), q_e (n,), r_v (n,), huber (n,)
+    F (n, s, s), q_c (n, s), q_e (n, s), r_v (n,), huber (n,)
     """
-    F = np.array([[nz.transition, nz.error_correlation] if nz else [1.0, 0.0] for nz in noise_of])
-    # Q = diag(σ_c² (1 - φ²), σ_e² (1 - ρ²))
-    q_c = np.array(
-        [nz.correction_variance * (1 - nz.transition**2) if nz else 0.0 for nz in noise_of]
-    )
-    q_e = np.array(
-        [nz.error_variance * (1 - nz.error_correlation**2) if nz else 0.0 for nz in noise_of]
-    )
+    parts = [transition_matrices(nz, states) for nz in noise_of]
+    F = np.array([p[0] for p in parts]).reshape(len(parts), states, states)
+    q_c = np.array([p[1] for p in parts]).reshape(len(parts), states)
+    q_e = np.array([p[2] for p in parts]).reshape(len(parts), states)
     r_v = np.array([nz.white_variance if nz else 1.0 for nz in noise_of])
     # no Huber weights while the noise levels are the prior's (nothing to judge by)
     huber = np.array([huber_sigma if nz and nz.n_residuals else np.inf for nz in noise_of])
