@@ -12,7 +12,7 @@ import pytest
 
 from data_contracts import FORECAST
 from workbench.forecasting import ForecastOptions, ForecastWarning, sliding_forecast
-from workbench.forecasting.model_trust import PRIOR_PROBABILITY, ModelTrust
+from workbench.forecasting.model_trust import PRIOR_PROBABILITY, BlendStep, ModelTrust
 from workbench.forecasting.noise import estimate_noise, identification_error_bound
 from workbench.forecasting.options import NoiseOptions
 
@@ -88,8 +88,7 @@ def _trust_run(blend_bias_hz, n=200, seed=0):
             np.zeros((1, 2)),
             np.array([0.0]),
             np.array([sigma2]),
-            np.array([y / math.sqrt(S)]),
-            np.array([S]),
+            BlendStep(np.array([y / math.sqrt(S)]), np.array([S])),
             np.array([True]),
         )
     return trust
@@ -118,8 +117,8 @@ def test_trust_ignores_in_sample_blocks():
             np.zeros((1, 2)),
             np.array([0.0]),
             np.array([1e-4]),
-            np.array([10.0]),  # a huge innovation, but in sample: not evidence
-            np.array([1e-4]),
+            # a huge innovation, but in sample: not evidence
+            BlendStep(np.array([10.0]), np.array([1e-4])),
             np.array([False]),
         )
     assert trust.probability[0] == PRIOR_PROBABILITY
@@ -221,8 +220,7 @@ def _level_step_run(persist_blocks, step_hz=0.3, n_before=40, n_after=12, seed=4
             np.zeros((1, 2)),
             np.array([0.0]),
             np.array([sigma2]),
-            np.array([0.0]),
-            np.array([sigma2]),
+            BlendStep(np.array([0.0]), np.array([sigma2])),
             np.array([True]),
         )
         if k >= n_before:
@@ -267,11 +265,8 @@ def _lead_run(blend_correction, z, model, error_variance, states=5):
             q_e,
             np.array([error_variance]),
             np.array([1e-12]),
-            np.array([0.0]),
-            np.array([error_variance]),
+            BlendStep(np.array([0.0]), np.array([error_variance]), state, np.array([model])),
             np.array([True]),
-            blend_state=state,
-            measurement_model=np.array([model]),
         )
         x, _ = trust.combine(np.array([model + blend_correction[k]]), np.array([1e-6]))
         probability.append(trust.lead_probability[0])

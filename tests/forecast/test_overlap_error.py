@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 from workbench.forecasting.memory.kalman import (
-    kalman_pass_step,
+    kalman_predict,
+    kalman_update,
     n_states,
     stationary_covariance,
     transition_matrices,
@@ -26,6 +27,11 @@ from workbench.forecasting.memory.kalman import (
 from workbench.forecasting.noise import NoiseModel, error_autocorrelation, estimate_noise
 
 L = 4
+
+
+def _step(state, P, F, Q, *update, **options):
+    """One predict + update of the blend's filter (kalman_predict, then kalman_update)."""
+    return kalman_update(*kalman_predict(state, P, F, Q), *update, **options)
 
 
 def _segments_error(rng, n, std, segments=L):
@@ -81,9 +87,7 @@ def test_kalman_estimate_of_a_constant_is_gls_with_the_overlap_covariance():
             first = False
         else:
             Fk, Qk = F[None], q_e[None]
-        state, P, *_ = kalman_pass_step(
-            state, P, Fk, Qk, np.array([value]), np.array([sv2]), np.inf
-        )
+        state, P, *_ = _step(state, P, Fk, Qk, np.array([value]), np.array([sv2]), np.inf)
     lag = np.abs(np.subtract.outer(np.arange(n), np.arange(n)))
     sigma = se2 * np.clip(1 - lag / L, 0, None) + sv2 * np.eye(n)
     w = np.linalg.solve(sigma, np.ones(n))

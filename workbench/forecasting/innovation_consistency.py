@@ -28,7 +28,7 @@ newest W out-of-sample blocks with a measurement, two tests at level α:
   (a drifting model whose error the filter put into e passes the size test: e follows it).
 
 The larger excess is added to the model's own variance s_m² (the white model error δ in
-x = m + δ + c, :func:`~workbench.forecasting.memory.kalman.kalman_pass_step`), on top of
+x = m + δ + c, :func:`~workbench.forecasting.memory.kalman.kalman_update`), on top of
 what was in force while the window's innovations were normalised: an innovation-based
 adaptive estimate of the noise ([2]_), whose fixed point is a consistent filter. A window
 whose T̄ is below m_k takes the same share back, so the addition goes when the model

@@ -303,7 +303,7 @@ class ClusterChooser:
         # data all show it) or because the mode moved away from the model. It is the
         # block's measurement either way: the Kalman update's Huber weight bounds the pull of
         # an outlier, and a run of large innovations of one sign longer than the blocks
-        # sharing data makes the filter follow a mode that moved (kalman_pass_step).
+        # sharing data makes the filter follow a mode that moved (kalman_update).
         band = self.band * abs(prior_hz)
         outside, _ = self._clusters(i, j, prior_hz - band, prior_hz + band)
         outside = [

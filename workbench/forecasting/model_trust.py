@@ -74,12 +74,14 @@ References
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-from .memory.kalman import kalman_pass_step
+from .memory.kalman import kalman_predict, kalman_update
 from .memory.noise import update_run
 
-__all__ = ["ModelTrust"]
+__all__ = ["BlendStep", "ModelTrust"]
 
 #: Probability that the hypothesis changes from one block to the next (one switch in about
 #: 2 days of 5-minute blocks): p follows the accumulated evidence, and stretches in which
@@ -115,6 +117,27 @@ LEAD_PRIOR = 0.5
 LEAD_FORGET = 1.0 / 96
 #: Smallest and largest model probability (neither hypothesis is ever ruled out). [-]
 P_MIN, P_MAX = 1e-4, 1.0 - 1e-4
+
+
+@dataclass(frozen=True)
+class BlendStep:
+    """The blend's filter in one block, as :meth:`ModelTrust.step` weighs it.
+
+    Parameters
+    ----------
+    normalised, variance : ndarray (n,)
+        The blend's normalised innovation and innovation variance S in this block. [-], [Hz²]
+    state : ndarray (n, s), optional
+        The blend's a-posteriori state of this block, for the lead test (None: no test).
+    measurement_model : ndarray (n,), optional
+        The model's value of this block's measurement (the blend predicts z = this +
+        H x). [Hz]
+    """
+
+    normalised: np.ndarray
+    variance: np.ndarray
+    state: np.ndarray | None = None
+    measurement_model: np.ndarray | None = None
 
 
 class ModelTrust:
@@ -200,11 +223,8 @@ class ModelTrust:
         error_step_variance: np.ndarray,
         error_variance: np.ndarray,
         white_variance: np.ndarray,
-        blend_normalised: np.ndarray,
-        blend_variance: np.ndarray,
+        blend: BlendStep,
         learn: np.ndarray,
-        blend_state: np.ndarray | None = None,
-        measurement_model: np.ndarray | None = None,
     ) -> None:
         """One block: predict and update the model-free filters, then the probabilities.
 
@@ -220,17 +240,14 @@ class ModelTrust:
         error_variance, white_variance : ndarray (n,)
             σ_e² (stationary) and the block's white variance R of the blend's noise model
             (the same identification error under every hypothesis). [Hz²]
-        blend_normalised, blend_variance : ndarray (n,)
-            The blend's normalised innovation and innovation variance S in this block.
+        blend : BlendStep
+            The blend's filter in this block.
         learn : ndarray of bool (n,)
             Modes whose probabilities may change in this block (out of sample: the model
             had not seen the block).
-        blend_state : ndarray (n, s), optional
-            The blend's a-posteriori state of this block, for the lead test.
-        measurement_model : ndarray (n,), optional
-            The model's value of this block's measurement (the blend predicts z = this +
-            H x). [Hz]
         """
+        blend_normalised, blend_variance = blend.normalised, blend.variance
+        blend_state, measurement_model = blend.state, blend.measurement_model
         sigma2 = np.maximum(error_variance + white_variance, 1e-300)
         log_l = np.full(self.weights.shape, np.nan)
         log_l[0] = self._blend_log_likelihood(blend_normalised, blend_variance)
@@ -296,7 +313,7 @@ class ModelTrust:
 
         States [x, identification error's states]: F = the blend's with 1 for the level,
         Q = the blend's identification part and q (σ_e² + σ_v²) for the level; the step is
-        the blend's (:func:`~workbench.forecasting.memory.kalman.kalman_pass_step`: Huber
+        the blend's (:func:`~workbench.forecasting.memory.kalman.kalman_update`: Huber
         weights, the persistence rule, Joseph form).
         """
         out = np.full(z.shape, np.nan)
@@ -319,11 +336,8 @@ class ModelTrust:
         Q[:, 0] = step * sigma2[idx]
         state = np.concatenate([level[idx, None], error[idx]], axis=1)
         run = self.run[h, idx]
-        state, P, _, nu, S = kalman_pass_step(
-            state,
-            P_all[idx],
-            F,
-            Q,
+        state, P, _, nu, S = kalman_update(
+            *kalman_predict(state, P_all[idx], F, Q),
             z[idx],
             white_variance[idx],
             self.huber_sigma,

@@ -14,7 +14,8 @@ The steps, each in its own module:
    so a model error of a few blocks' time constant is not taken for SSI scatter;
 3. measurement choice - :mod:`workbench.forecasting.measurement` (tracked pole or consistent
    pole cluster, per-block scatter);
-4. Kalman pass - :func:`~workbench.forecasting.memory.kalman.kalman_pass_step`;
+4. Kalman pass - :func:`~workbench.forecasting.memory.kalman.kalman_predict` and
+   :func:`~workbench.forecasting.memory.kalman.kalman_update`;
 5. guard - :mod:`workbench.forecasting.model_trust`: the blend is weighed against a filter
    that does not use the model by how well each predicts the measurements out of sample;
    while the model does not explain a mode (an unrecorded change: fuel, ballast, ice) the
@@ -70,7 +71,7 @@ from ..excitation import sub_windows_per_block
 from ..fitted_model import _plausible
 from ..innovation_consistency import MIN_BLOCKS, InnovationConsistency
 from ..measurement import PoleIndex, cluster_around, nearer_to_another_mode, scatter_scale
-from ..model_trust import ModelTrust
+from ..model_trust import BlendStep, ModelTrust
 from ..noise import NoiseModel, estimate_noise, model_error_floor
 from ..options import ForecastOptions
 from ..predictor_grid import (
@@ -83,14 +84,14 @@ from ..predictor_grid import (
 )
 from ..results import ForecastResult, ForecastWarning, WindowModel
 from .excitation import excitation_bias
-from .kalman import kalman_pass_step, n_states, stationary_covariance
+from .kalman import kalman_predict, kalman_update, n_states, stationary_covariance
 from .model import MemoryModel
 from .noise import filter_matrices, first_window_noise, update_run
 from .output import OUTPUT_ARRAYS, assemble_table
 from .poles import option_b_chooser
 from .terms import MemoryRefits
 
-__all__ = ["kalman_pass_step", "memory_forecast"]
+__all__ = ["memory_forecast"]
 
 #: Fewest consecutive large innovations of one sign that mean the model is off (at least
 #: one more than the blocks sharing data with the first: one corrupted stretch of data is
@@ -569,11 +570,8 @@ class MemoryRun:
         filled = self._filled(k)
         huber = np.where(filled, np.inf, huber)
         Q = q_c + q_e * scale[:, None]
-        self.state, self.P, delta, nu, innovation_variance = kalman_pass_step(
-            self.state,
-            self.P,
-            F,
-            Q,
+        self.state, self.P, delta, nu, innovation_variance = kalman_update(
+            *kalman_predict(self.state, self.P, F, Q),
             residual,
             r_v * scale,
             huber,
@@ -604,13 +602,10 @@ class MemoryRun:
                 q_e * scale[:, None],
                 np.array([nz.error_variance if nz else 0.0 for nz in self.noise_of]) * scale,
                 r_v * scale,
-                nu,
-                innovation_variance,
+                BlendStep(nu, innovation_variance, self.state, z_now),
                 # a block whose model fills a missing predictor says nothing of whether
                 # the model explains the mode: the probabilities wait for the log
                 np.full(n_modes, not in_sample) & ~lost & ~filled,
-                blend_state=self.state,
-                measurement_model=z_now,
             )
             estimate, variance = self.trust.combine(estimate, variance)
             self.out["probability"][k] = np.where(have, self.trust.probability, np.nan)

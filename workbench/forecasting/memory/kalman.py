@@ -15,7 +15,13 @@ import numpy as np
 
 from ..noise import NoiseModel
 
-__all__ = ["kalman_pass_step", "n_states", "stationary_covariance", "transition_matrices"]
+__all__ = [
+    "kalman_predict",
+    "kalman_update",
+    "n_states",
+    "stationary_covariance",
+    "transition_matrices",
+]
 
 
 def n_states(error_segments: int) -> int:
@@ -68,20 +74,9 @@ def transition_matrices(noise: NoiseModel | None, states: int):
     return F, q_c, q_e, P
 
 
-def kalman_pass_step(
-    state,
-    P,
-    F,
-    Q,
-    residual,
-    R,
-    huber_sigma,
-    model_variance=None,
-    previous_run=None,
-    persist_blocks=3,
-):
-    """One predict + update of the filter (c and the identification error's states) for
-    several modes at once.
+def kalman_predict(state, P, F, Q):
+    """Predict step of the filter (c and the identification error's states) for several
+    modes at once: x = Fx, P = FPF' + Q.
 
     Parameters
     ----------
@@ -92,8 +87,43 @@ def kalman_pass_step(
         The diagonal of F (e.g. (φ, ρ)) or F itself (:func:`transition_matrices`).
     Q : ndarray (n, s)
         Diagonal of Q.
+
+    Returns
+    -------
+    state, P a-priori (new arrays)
+    """
+    # x = Fx ; P = FPF' + Q
+    if F.ndim == 2:
+        state = state * F
+        P = P * (F[:, :, None] * F[:, None, :])
+    else:
+        state = np.einsum("nij,nj->ni", F, state)
+        P = F @ P @ np.transpose(F, (0, 2, 1))
+    s = state.shape[1]
+    P[:, np.arange(s), np.arange(s)] += Q
+    return state, P
+
+
+def kalman_update(
+    state,
+    P,
+    residual,
+    R,
+    huber_sigma,
+    model_variance=None,
+    previous_run=None,
+    persist_blocks=3,
+):
+    """Huber-weighted update of the filter's a-priori *state* and *P*
+    (:func:`kalman_predict`) with the measurements' residuals, H = [1 ... 1], Joseph form.
+
+    Parameters
+    ----------
+    state : ndarray (n, s)
+    P : ndarray (n, s, s)
+        A-priori state and covariance (not modified: the update returns new arrays).
     residual : ndarray (n,)
-        z - m (NaN: predict only). [Hz]
+        z - m (NaN: no measurement, the a-priori values are returned). [Hz]
     R : ndarray (n,)
         White measurement variance. [Hz²]
     huber_sigma : float or ndarray (n,)
@@ -113,15 +143,8 @@ def kalman_pass_step(
     state, P, white model correction δ̂ (n,), normalised innovation y/sqrt(S) (n,), and
     the innovation variance S (n,) the normalisation used [Hz²] (NaN: no measurement)
     """
-    # x = Fx ; P = FPF' + Q
-    if F.ndim == 2:
-        state = state * F
-        P = P * (F[:, :, None] * F[:, None, :])
-    else:
-        state = np.einsum("nij,nj->ni", F, state)
-        P = F @ P @ np.transpose(F, (0, 2, 1))
+    state, P = state.copy(), P.copy()
     n, s = state.shape
-    P[:, np.arange(s), np.arange(s)] += Q
     delta = np.zeros(n)
     normalised = np.full(n, np.nan)
     variance = np.full(n, np.nan)
