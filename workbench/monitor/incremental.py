@@ -66,6 +66,11 @@ class OutlookTables:
     alarms: pd.DataFrame | None
     messages: list[str] = field(default_factory=list)
     health_schedule: str = ""
+    #: The forecast's (health table's) rows of the blocks before this one are those of the
+    #: previous update's table (None: any row may have changed), so a writer rewrites only
+    #: the parts from it on (:class:`data_contracts.parts.PartWriter`).
+    forecast_from: int | None = None
+    health_from: int | None = None
 
 
 def supported(settings) -> bool:
@@ -112,6 +117,7 @@ class IncrementalOutlook:
         self._health_rows: list[pd.DataFrame] = []
         self._alarms: dict[int, dict] = {}
         self._first_block: int | None = None
+        self._health_resets = getattr(self, "_health_resets", -1) + 1
 
     @property
     def inputs_from(self) -> int | None:
@@ -133,13 +139,15 @@ class IncrementalOutlook:
         *,
         first_block: int,
         final_through: int | None,
+        mode_blocks: dict[int, int] | None = None,
     ) -> OutlookTables:
         """Forecast and health chart of the voyage so far.
 
         Parameters
         ----------
         tracked : DataFrame
-            The whole tracked table so far (MODAL contract).
+            The tracked table so far (MODAL contract): the whole table, or with
+            *mode_blocks* its rows from :attr:`inputs_from` on.
         predictors : DataFrame
             The block predictors (PREDICTORS contract, the optional fuel column included)
             of the consecutive blocks from :attr:`inputs_from` (or *first_block*) to the
@@ -148,6 +156,9 @@ class IncrementalOutlook:
             The voyage's first tracked block.
         final_through : int, optional
             Newest block whose predictors no longer change (the ship log covers it).
+        mode_blocks : dict, optional
+            Blocks per mode over the whole tracked table (default: counted in *tracked*,
+            which must then be whole).
 
         Raises
         ------
@@ -160,8 +171,15 @@ class IncrementalOutlook:
         last = int(predictors["block"].max())
         n_blocks = last - int(first_block) + 1
         messages: list[str] = []
+        forecast_from = self.forecast.inputs_from
+        forecast_resets = (self.restarts, self.forecast.restarts)
+        health_from = None if self._charted_through is None else self._charted_through + 1
+        health_resets = self._health_resets
         # the forecast stage's modes: measured in at least min_presence of the blocks
-        counts = tracked.groupby("mode")["block"].nunique()
+        if mode_blocks is None:
+            counts = tracked.groupby("mode")["block"].nunique()
+        else:
+            counts = pd.Series(mode_blocks, dtype=float)
         presence = counts / max(n_blocks, 1)
         modes = tuple(
             sorted(int(m) for m in presence.index[presence >= settings.forecast.min_presence])
@@ -183,25 +201,43 @@ class IncrementalOutlook:
                     )
                 self._modes = modes
                 forecast = table if len(table) else forecast
+                if not len(table) or forecast_resets != (self.restarts, self.forecast.restarts):
+                    forecast_from = None
                 set_grid(forecast, recorded_grid(tracked) or recorded_grid(predictors))
                 messages += [f"option A: {m}" for m in notes]
             except ValueError as error:
                 messages.append(f"forecast: {str(error).splitlines()[0]}")
+                forecast_from = None
         else:
             messages.append(
                 "forecast: no mode is measured in at least "
                 f"{100 * settings.forecast.min_presence:.0f} % of the blocks"
             )
+            forecast_from = None
         try:
             health, alarms, notes = self._health(tracked, predictors, first_block, final_through)
         except (ValueError, ArithmeticError, np.linalg.LinAlgError) as error:
             # as update_outlook says it; the model is fitted again at the next update
             self._reset_health()
             return OutlookTables(
-                forecast, None, None, [*messages, f"health: {str(error).splitlines()[0]}"]
+                forecast,
+                None,
+                None,
+                [*messages, f"health: {str(error).splitlines()[0]}"],
+                forecast_from=forecast_from,
             )
         messages += notes
-        return OutlookTables(forecast, health, alarms, messages, notes[0] if notes else "")
+        if health is None or health_resets != self._health_resets:
+            health_from = None
+        return OutlookTables(
+            forecast,
+            health,
+            alarms,
+            messages,
+            notes[0] if notes else "",
+            forecast_from=forecast_from,
+            health_from=health_from,
+        )
 
     # ------------------------------------------------------------------ checkpoint
     def _key(self) -> tuple:
