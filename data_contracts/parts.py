@@ -326,8 +326,9 @@ class PartWriter:
         """Write *frame* (sorted by block): the parts from the one holding *since_block*
         on are compared with what this writer wrote and replaced where they differ (all
         parts when *since_block* is None); the parts before it are kept as they are (the
-        caller says their rows did not change; *frame* may then start at *since_block*'s
-        part). Parts left without rows are removed. Returns the keys replaced.
+        caller says their rows did not change; *frame* may then start at the first block
+        of *since_block*'s part, whose rows it must hold whole). Parts left without rows
+        are removed. Returns the keys replaced.
 
         Raises
         ------

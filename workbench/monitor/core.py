@@ -711,7 +711,9 @@ class Monitor:
 
             tracked = self.tracking.table(marker=marker)
             # a day per part; only the parts whose rows changed are written
-            part_writer(self.state / "tracked.parquet", MODAL, self._step_s()).write(tracked)
+            part_writer(self.state / "tracked.parquet", MODAL, self._step_s()).write(
+                tracked, since_block=self.tracking.changed_from
+            )
             self._tracked = tracked  # what the state folder holds, for the key indicators
             self._write_harmonic_lines(tracked)
             self._write_harmonic_tracks(tracked.attrs.get("harmonic_labels", []))
