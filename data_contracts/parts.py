@@ -303,10 +303,17 @@ class PartWriter:
                 for file in part_files(self.path).values():
                     file.unlink()
         files = part_files(self.path)
-        self._summaries = {k: v for k, v in self._summaries.items() if k in files}
-        for key, file in files.items():
-            if key not in self._summaries:
-                self._summaries[key] = self._summary(key, file, None)
+        kept = {}
+        for key, file in files.items():  # a summary older than its part is made again
+            summary = self._summaries.get(key)
+            stat = file.stat()
+            if summary is None or (summary.get("size"), summary.get("mtime_ns")) != (
+                stat.st_size,
+                stat.st_mtime_ns,
+            ):
+                summary = self._summary(key, file, None)
+            kept[key] = summary
+        self._summaries = kept
 
     def _summary(self, key: int, file: Path, part: pd.DataFrame | None) -> dict:
         if part is None:
