@@ -119,11 +119,16 @@ class Replay:
                     first_block=0,
                     final_through=last - 1,
                     mode_blocks=summary["mode_blocks"],
+                    tails=True,
                 )
             except NeedsFullHistory:
                 self.full_updates += 1
                 found = self.outlook.update(
-                    read_tracked(tracked_path), part, first_block=0, final_through=last - 1
+                    read_tracked(tracked_path),
+                    part,
+                    first_block=0,
+                    final_through=last - 1,
+                    tails=True,
                 )
         times["update_s"] = time.perf_counter() - started
         written = time.perf_counter()

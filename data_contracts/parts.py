@@ -259,8 +259,9 @@ def _mode_blocks(frame: pd.DataFrame) -> dict[int, int]:
 
 
 class PartWriter:
-    """Writes a table (sorted by block) into the parted table *path*, rewriting only the
-    parts whose rows changed.
+    """Writes a table into the parted table *path*, rewriting only the parts whose rows
+    changed. The parts hold the rows in block order (a table not sorted by block, such as
+    a forecast of several options, one after the other, is sorted by block, stable).
 
     Parameters
     ----------
@@ -284,6 +285,7 @@ class PartWriter:
         self.part_blocks = int(part_blocks)
         self._written: dict[int, pd.DataFrame] = {}  # the parts this writer wrote
         self._summaries: dict[int, dict] | None = None
+        self._index_stale = False  # the index found does not match the parts
         self.rewritten: list[int] = []  # keys of the parts the last write replaced
 
     def _start(self) -> None:
@@ -312,7 +314,10 @@ class PartWriter:
                 stat.st_mtime_ns,
             ):
                 summary = self._summary(key, file, None)
+                self._index_stale = True
             kept[key] = summary
+        if set(kept) != set(self._summaries):
+            self._index_stale = True
         self._summaries = kept
 
     def _summary(self, key: int, file: Path, part: pd.DataFrame | None) -> dict:
@@ -330,12 +335,11 @@ class PartWriter:
         }
 
     def write(self, frame: pd.DataFrame, *, since_block: int | None = None) -> list[int]:
-        """Write *frame* (sorted by block): the parts from the one holding *since_block*
+        """Write *frame*: the parts from the one holding *since_block*
         on are compared with what this writer wrote and replaced where they differ (all
-        parts when *since_block* is None); the parts before it are kept as they are (the
-        caller says their rows did not change; *frame* may then start at the first block
-        of *since_block*'s part, whose rows it must hold whole). Parts left without rows
-        are removed. Returns the keys replaced.
+        parts when *since_block* is None); the rows of the blocks before it are kept as
+        they are (the caller says they did not change; *frame* may then start at
+        *since_block*). Parts left without rows are removed. Returns the keys replaced.
 
         Raises
         ------
@@ -346,10 +350,22 @@ class PartWriter:
 
         if self._summaries is None:
             self._start()
+        grid_attrs = dict(frame.attrs)  # the block grid, written with each part
         blocks = frame["block"].to_numpy(dtype=np.int64) if len(frame) else np.array([], int)
-        if blocks.size and (np.diff(blocks) < 0).any():
-            raise ValueError("the table must be sorted by block")
+        if blocks.size and (np.diff(blocks) < 0).any():  # e.g. a forecast's options in turn
+            order = np.argsort(blocks, kind="stable")
+            frame, blocks = frame.iloc[order], blocks[order]
         first_key = 0 if since_block is None else max(int(since_block), 0) // self.part_blocks
+        if since_block is not None:
+            # the part holding since_block keeps its rows before it: the frame may start
+            # at since_block
+            since_block = max(int(since_block), 0)
+            frame = frame.iloc[int(np.searchsorted(blocks, since_block)) :]
+            blocks = blocks[blocks >= since_block]
+            head = self._rows_before(first_key, since_block)
+            if head is not None and len(head):
+                frame = pd.concat([head, frame], ignore_index=True) if len(frame) else head
+                blocks = frame["block"].to_numpy(dtype=np.int64)
         keys = blocks // self.part_blocks
         new_keys = np.unique(keys[keys >= first_key]).tolist()
         if not blocks.size and since_block is None:
@@ -359,7 +375,6 @@ class PartWriter:
             np.searchsorted(keys, new_keys, side="right"),
         )
         rewritten = []
-        grid_attrs = dict(frame.attrs)
         for key, lo, hi in zip(new_keys, *bounds, strict=True):
             part = frame.iloc[lo:hi].reset_index(drop=True)
             part.attrs.update(grid_attrs)
@@ -381,10 +396,24 @@ class PartWriter:
             self._summaries.pop(key, None)
             self._written.pop(key, None)
             rewritten.append(int(key))
-        if rewritten or not (self.path / INDEX_NAME).is_file():
+        if rewritten or self._index_stale or not (self.path / INDEX_NAME).is_file():
             self._write_index()
+            self._index_stale = False
         self.rewritten = sorted(rewritten)
         return self.rewritten
+
+    def _rows_before(self, key: int, block: int) -> pd.DataFrame | None:
+        """The rows of part *key* before *block*, as this writer wrote them (else as its
+        file holds them; None without such a part)."""
+        old = self._written.get(key)
+        file = self.path / _part_name(key)
+        if old is None:
+            if not file.is_file():
+                return None
+            old = pd.read_parquet(file)
+            self._written[key] = old
+        stop = int(np.searchsorted(old["block"].to_numpy(dtype=np.int64), block))
+        return old.iloc[:stop]
 
     def _write_index(self) -> None:
         index = {

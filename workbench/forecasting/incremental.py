@@ -142,6 +142,11 @@ class IncrementalMemoryForecast:
         self.restarts = 0  # starts from the first block after a committed window
         self._committed = False
         self.rollbacks = 0  # returns to an earlier committed window
+        #: The last :meth:`update`'s table has the rows of the table before it for the
+        #: blocks before this one (None: it started over, any row may have changed).
+        self.changed_from: int | None = None
+        #: Rows of the last :meth:`update`'s whole table (also when it returned a tail).
+        self.table_rows = 0
         self.reset()
 
     # ------------------------------------------------------------------ bookkeeping
@@ -199,6 +204,7 @@ class IncrementalMemoryForecast:
         *,
         modes,
         final_through: int | None = None,
+        tail: bool = False,
     ) -> tuple[pd.DataFrame, list[str]]:
         """The forecast table of the voyage so far and the forecast's notes.
 
@@ -214,6 +220,10 @@ class IncrementalMemoryForecast:
         final_through : int, optional
             Newest block whose inputs no longer change (default: none is final, nothing
             is committed).
+        tail : bool
+            Return only the rows from :attr:`changed_from` on (all when it is None): a
+            writer of the parts that changed needs no more, and the whole table is not
+            assembled (its cost grows with the voyage).
 
         Raises
         ------
@@ -224,8 +234,11 @@ class IncrementalMemoryForecast:
         """
         new = self._inputs(modal, predictors, modes)
         final_through = -(10**18) if final_through is None else int(final_through)
+        # rows before the oldest committed copy can no longer change (unless started over)
+        self.changed_from = self.inputs_from
         core = self._resume_point(new)
         if core is None:
+            self.changed_from = None
             if self._first_block is not None and int(new.blocks[0]) != self._first_block:
                 raise NeedsFullHistory(
                     f"the state starts over: the tables must start at block {self._first_block}"
@@ -254,6 +267,9 @@ class IncrementalMemoryForecast:
                 provisional.append(chunk)
         self._core = core
         pieces = [*self._old, *(c for _, c in self._chunks), *provisional]
+        self.table_rows = sum(len(p) for p in pieces)
+        if tail and self.changed_from is not None:
+            pieces = _rows_from(pieces, self.changed_from)
         # each piece is sorted by (block, mode) and follows the one before: no sort needed
         table = pd.concat(pieces, ignore_index=True) if pieces else pd.DataFrame()
         return table, self._messages(core)
@@ -606,6 +622,22 @@ class SimpleInputs:
     def __init__(self, *values) -> None:
         for name, value in zip(self.__slots__, values, strict=True):
             setattr(self, name, value)
+
+
+def _rows_from(pieces: list[pd.DataFrame], block: int) -> list[pd.DataFrame]:
+    """The rows of the blocks from *block* on of *pieces* (frames sorted by block, each
+    after the one before)."""
+    kept = []
+    for piece in pieces:
+        if not len(piece):
+            continue
+        blocks = piece["block"].to_numpy()
+        if blocks[-1] < block:
+            continue
+        kept.append(
+            piece if blocks[0] >= block else piece.iloc[int(np.searchsorted(blocks, block)) :]
+        )
+    return kept
 
 
 def _same(a: np.ndarray, b: np.ndarray) -> np.ndarray:

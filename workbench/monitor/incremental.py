@@ -35,7 +35,6 @@ restart when the settings are the same.
 
 from __future__ import annotations
 
-import copy
 import math
 import warnings
 from dataclasses import dataclass, field, fields
@@ -46,7 +45,7 @@ import pandas as pd
 
 from data_contracts import ALARMS, FORECAST, HEALTH, recorded_grid, set_grid
 
-from ..forecasting.incremental import IncrementalMemoryForecast, NeedsFullHistory
+from ..forecasting.incremental import IncrementalMemoryForecast, NeedsFullHistory, _rows_from
 
 __all__ = ["HEALTH_LAG_BLOCKS", "IncrementalOutlook", "NeedsFullHistory", "OutlookTables"]
 
@@ -71,6 +70,10 @@ class OutlookTables:
     #: the parts from it on (:class:`data_contracts.parts.PartWriter`).
     forecast_from: int | None = None
     health_from: int | None = None
+    #: Rows of the whole forecast and health tables (*forecast* and *health* hold only
+    #: the rows from forecast_from and health_from on when the update was asked for tails).
+    forecast_rows: int = 0
+    health_rows: int = 0
 
 
 def supported(settings) -> bool:
@@ -118,6 +121,7 @@ class IncrementalOutlook:
         self._alarms: dict[int, dict] = {}
         self._first_block: int | None = None
         self._health_resets = getattr(self, "_health_resets", -1) + 1
+        self._health_total = 0  # rows of the whole health table
 
     @property
     def inputs_from(self) -> int | None:
@@ -140,6 +144,7 @@ class IncrementalOutlook:
         first_block: int,
         final_through: int | None,
         mode_blocks: dict[int, int] | None = None,
+        tails: bool = False,
     ) -> OutlookTables:
         """Forecast and health chart of the voyage so far.
 
@@ -159,6 +164,10 @@ class IncrementalOutlook:
         mode_blocks : dict, optional
             Blocks per mode over the whole tracked table (default: counted in *tracked*,
             which must then be whole).
+        tails : bool
+            The tables returned hold only the rows from ``forecast_from`` and
+            ``health_from`` on (the whole tables when those are None): what a writer of
+            the changed parts needs, without assembling the whole tables.
 
         Raises
         ------
@@ -171,8 +180,8 @@ class IncrementalOutlook:
         last = int(predictors["block"].max())
         n_blocks = last - int(first_block) + 1
         messages: list[str] = []
-        forecast_from = self.forecast.inputs_from
-        forecast_resets = (self.restarts, self.forecast.restarts)
+        forecast_from = None
+        forecast_rows = 0
         health_from = None if self._charted_through is None else self._charted_through + 1
         health_resets = self._health_resets
         # the forecast stage's modes: measured in at least min_presence of the blocks
@@ -197,12 +206,12 @@ class IncrementalOutlook:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
                     table, notes = self.forecast.update(
-                        tracked, shown, modes=modes, final_through=final_through
+                        tracked, shown, modes=modes, final_through=final_through, tail=tails
                     )
                 self._modes = modes
                 forecast = table if len(table) else forecast
-                if not len(table) or forecast_resets != (self.restarts, self.forecast.restarts):
-                    forecast_from = None
+                forecast_rows = self.forecast.table_rows
+                forecast_from = self.forecast.changed_from if forecast_rows else None
                 set_grid(forecast, recorded_grid(tracked) or recorded_grid(predictors))
                 messages += [f"option A: {m}" for m in notes]
             except ValueError as error:
@@ -215,7 +224,13 @@ class IncrementalOutlook:
             )
             forecast_from = None
         try:
-            health, alarms, notes = self._health(tracked, predictors, first_block, final_through)
+            health, alarms, notes = self._health(
+                tracked,
+                predictors,
+                first_block,
+                final_through,
+                tail_from=health_from if tails else None,
+            )
         except (ValueError, ArithmeticError, np.linalg.LinAlgError) as error:
             # as update_outlook says it; the model is fitted again at the next update
             self._reset_health()
@@ -225,8 +240,10 @@ class IncrementalOutlook:
                 None,
                 [*messages, f"health: {str(error).splitlines()[0]}"],
                 forecast_from=forecast_from,
+                forecast_rows=forecast_rows,
             )
         messages += notes
+        health_rows = self._health_total
         if health is None or health_resets != self._health_resets:
             health_from = None
         return OutlookTables(
@@ -237,6 +254,8 @@ class IncrementalOutlook:
             notes[0] if notes else "",
             forecast_from=forecast_from,
             health_from=health_from,
+            forecast_rows=forecast_rows,
+            health_rows=health_rows,
         )
 
     # ------------------------------------------------------------------ checkpoint
@@ -331,9 +350,11 @@ class IncrementalOutlook:
         return outlook
 
     # ------------------------------------------------------------------ health
-    def _health(self, tracked, predictors, first_block, final_through):
+    def _health(self, tracked, predictors, first_block, final_through, tail_from=None):
         """HEALTH and ALARMS tables (None while learning) and the notes, as
-        :func:`~workbench.monitor.structural_health.operational_health` gives them."""
+        :func:`~workbench.monitor.structural_health.operational_health` gives them; with
+        *tail_from*, the HEALTH rows from that block on (all if the chart started over)."""
+        resets = self._health_resets
         from ..shm import HealthOptions, fit_operational_model
         from ..shm.monitor import HealthMonitor
         from .structural_health import FUEL_COLUMN, _at
@@ -428,7 +449,7 @@ class IncrementalOutlook:
             rows["block"] > (self._charted_through if self._charted_through is not None else -1)
         ]
         if len(rest):
-            monitor = copy.deepcopy(self._monitor)
+            monitor = self._monitor.provisional_copy()
             update = monitor.update(rest)
             if len(update.health):
                 charted.append(update.health)
@@ -439,6 +460,9 @@ class IncrementalOutlook:
             reference_known = self._monitor.reference is not None
         if not reference_known:
             raise ValueError(self._monitor.waiting_reason())
+        self._health_total = sum(len(c) for c in charted)
+        if tail_from is not None and resets == self._health_resets:
+            charted = _rows_from(charted, tail_from)
         health = pd.concat(charted, ignore_index=True) if charted else _empty(HEALTH)
         health = set_grid(health, recorded_grid(rows))
         alarms_table = (

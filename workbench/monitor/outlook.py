@@ -175,16 +175,15 @@ def _write_outlook(
     *,
     forecast_from: int | None = None,
     health_from: int | None = None,
+    rows: tuple[int, int] | None = None,
 ) -> bool:
     """Count the rows into *report* and write the three tables (False, and
     ``report.written`` False, when the monitor that asked has died meanwhile): forecast
     and health as parted tables (a day per part; only the parts from *forecast_from* and
-    *health_from* on are compared and rewritten), alarms (a row per episode) whole."""
-    report.forecast_rows, report.health_rows, report.alarms = (
-        len(forecast),
-        len(health),
-        len(alarms),
-    )
+    *health_from* on are compared and rewritten; *forecast* and *health* may hold only
+    those rows, *rows* then counts the whole tables), alarms (a row per episode) whole."""
+    report.forecast_rows, report.health_rows = rows or (len(forecast), len(health))
+    report.alarms = len(alarms)
     for frame, name, contract, since in (
         (forecast, "forecast.parquet", FORECAST, forecast_from),
         (health, "health.parquet", HEALTH, health_from),
@@ -394,7 +393,7 @@ def _incremental_outlook(
     from .incremental import IncrementalOutlook, NeedsFullHistory
 
     forecast, health, alarms = empty_table(FORECAST), empty_table(HEALTH), empty_table(ALARMS)
-    forecast_from = health_from = None
+    forecast_from = health_from = rows = None
     tracked_path = state / "tracked.parquet"
     folder = state / "outlook"
     outlook = _OUTLOOKS.get(str(state))
@@ -451,6 +450,7 @@ def _incremental_outlook(
                             first_block=first,
                             final_through=final_through,
                             mode_blocks=summary["mode_blocks"],
+                            tails=True,
                         )
                         break
                     except NeedsFullHistory:
@@ -460,8 +460,10 @@ def _incremental_outlook(
             report.messages += found.messages
             report.health_schedule = found.health_schedule
             forecast, forecast_from = found.forecast, found.forecast_from
+            rows = (found.forecast_rows, 0)
             if found.health is not None:
                 health, alarms, health_from = found.health, found.alarms, found.health_from
+                rows = (found.forecast_rows, found.health_rows)
         except (ValueError, ArithmeticError, np.linalg.LinAlgError, OSError) as error:
             report.messages.append(f"forecast: {str(error).splitlines()[0]}")
         except Exception as error:  # noqa: BLE001 - a contract or data error of the log
@@ -476,6 +478,7 @@ def _incremental_outlook(
         grid.step_s,
         forecast_from=forecast_from,
         health_from=health_from,
+        rows=rows,
     ):
         return
     try:
