@@ -9,11 +9,14 @@ so that 14 700 blocks (51 days of 5-minute blocks) take minutes, not days:
    ``--regime``, seed 0: the demo hull's modes following speed and temperatures, SSI-like
    correlated errors, missing estimates) is simulated (not timed);
 2. the blocks are fed in order into a state folder the way the monitor's worker sees
-   them: the tracked table so far is written (``tracked.parquet``), then one update reads
-   it, runs :class:`~workbench.monitor.incremental.IncrementalOutlook` with the block
-   predictors it needs, writes ``forecast.parquet``, ``health.parquet`` and
-   ``alarms.parquet`` and saves the state (``outlook/``), exactly the worker's update
-   minus averaging the ship log (the predictors are given);
+   them: the tracked table's changed parts are written (``tracked.parquet/``, a parted
+   table, :mod:`data_contracts.parts`: the parts from 3 blocks before the new ones, as
+   the monitor writes them from its tracker's first changed block), then one update reads
+   the tracked rows it needs (from ``inputs_from``) and the per-mode counts of the index,
+   runs :class:`~workbench.monitor.incremental.IncrementalOutlook` with the block
+   predictors it needs, writes the changed parts of ``forecast.parquet/`` and
+   ``health.parquet/``, ``alarms.parquet`` and saves the state (``outlook/``), exactly the
+   worker's update minus averaging the ship log (the predictors are given);
 3. around day 1, 10, 25 and 51 every block is one update (``--sample`` consecutive
    blocks at the end of the day, the newest block's predictors provisional, the block
    before final); between them the blocks are fed a day at a time. Latency = wall time of

@@ -269,7 +269,7 @@ class IncrementalMemoryForecast:
         pieces = [*self._old, *(c for _, c in self._chunks), *provisional]
         self.table_rows = sum(len(p) for p in pieces)
         if tail and self.changed_from is not None:
-            pieces = _rows_from(pieces, self.changed_from)
+            pieces = pieces_from(pieces, self.changed_from)
         # each piece is sorted by (block, mode) and follows the one before: no sort needed
         table = pd.concat(pieces, ignore_index=True) if pieces else pd.DataFrame()
         return table, self._messages(core)
@@ -502,11 +502,7 @@ class IncrementalMemoryForecast:
             # the output of windows before the oldest copy can no longer change
             n_old = self._snapshots[0][2]
             if n_old > 4 * self.n_snapshots:
-                self._old = [
-                    pd.concat(
-                        [*self._old, *(c for _, c in self._chunks[:n_old])], ignore_index=True
-                    )
-                ]
+                self._old = consolidate([*self._old, *(c for _, c in self._chunks[:n_old])])
                 del self._chunks[:n_old]
                 self._snapshots = deque((b, s, n - n_old) for b, s, n in self._snapshots)
 
@@ -624,7 +620,24 @@ class SimpleInputs:
             setattr(self, name, value)
 
 
-def _rows_from(pieces: list[pd.DataFrame], block: int) -> list[pd.DataFrame]:
+#: A consolidated piece of a table kept in pieces is left alone from this many rows on.
+CONSOLIDATED_ROWS = 4096
+
+
+def consolidate(pieces: list[pd.DataFrame]) -> list[pd.DataFrame]:
+    """*pieces* (frames of one table, in order) with the pieces after the last one of
+    :data:`CONSOLIDATED_ROWS` rows or more joined into one: a few frames instead of one
+    per update, and a cost bounded by that size (not the whole table's, as joining them
+    all would be)."""
+    first = len(pieces)
+    while first > 0 and len(pieces[first - 1]) < CONSOLIDATED_ROWS:
+        first -= 1
+    if len(pieces) - first < 2:
+        return list(pieces)
+    return [*pieces[:first], pd.concat(pieces[first:], ignore_index=True)]
+
+
+def pieces_from(pieces: list[pd.DataFrame], block: int) -> list[pd.DataFrame]:
     """The rows of the blocks from *block* on of *pieces* (frames sorted by block, each
     after the one before)."""
     kept = []

@@ -45,7 +45,12 @@ import pandas as pd
 
 from data_contracts import ALARMS, FORECAST, HEALTH, recorded_grid, set_grid
 
-from ..forecasting.incremental import IncrementalMemoryForecast, NeedsFullHistory, _rows_from
+from ..forecasting.incremental import (
+    IncrementalMemoryForecast,
+    NeedsFullHistory,
+    consolidate,
+    pieces_from,
+)
 
 __all__ = ["HEALTH_LAG_BLOCKS", "IncrementalOutlook", "NeedsFullHistory", "OutlookTables"]
 
@@ -438,8 +443,8 @@ class IncrementalOutlook:
             update = self._monitor.update(done)
             if len(update.health):
                 self._health_rows.append(update.health)
-                if len(self._health_rows) > 8:  # one frame, not one per update
-                    self._health_rows = [pd.concat(self._health_rows, ignore_index=True)]
+                if len(self._health_rows) > 8:  # a few frames, not one per update
+                    self._health_rows = consolidate(self._health_rows)
             for row in update.alarms.to_dict("records"):
                 self._alarms[int(row["alarm"])] = row
             self._charted_through = int(done["block"].max())
@@ -462,7 +467,7 @@ class IncrementalOutlook:
             raise ValueError(self._monitor.waiting_reason())
         self._health_total = sum(len(c) for c in charted)
         if tail_from is not None and resets == self._health_resets:
-            charted = _rows_from(charted, tail_from)
+            charted = pieces_from(charted, tail_from)
         health = pd.concat(charted, ignore_index=True) if charted else _empty(HEALTH)
         health = set_grid(health, recorded_grid(rows))
         alarms_table = (

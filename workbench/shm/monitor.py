@@ -497,14 +497,15 @@ class HealthMonitor:
             f"{ref.modes[j]} ({100 * shares[j]:.0f} %)" for j in order[:3] if shares[j] >= 0.05
         ]
         top = int(order[0])
-        values = np.array([r[top] for r in episode["relative"]])
-        values = values[np.isfinite(values)]
         if ref.statistic == "cusum" and len(episode.get("cusum_shift", ())):
             shift = float(episode["cusum_shift"][top])  # mean since the change point
-        elif values.size:  # median over the episode
-            shift = 100.0 * (float(np.median(values)) - float(ref.relative_median[top]))
-        else:
-            shift = np.nan
+        else:  # median over the episode (read only here: the episode grows per block)
+            values = np.array([r[top] for r in episode["relative"]])
+            values = values[np.isfinite(values)]
+            if values.size:
+                shift = 100.0 * (float(np.median(values)) - float(ref.relative_median[top]))
+            else:
+                shift = np.nan
         return {
             "alarm": episode["alarm"],
             "start_block": episode["start_block"],
