@@ -34,7 +34,14 @@ from ..sid.tracking import TrackingOptions
 from ..store import BlockStore, StoreLock
 from .conditioning import block_conditioner, forget_conditioned
 from .data_health import DATA_HEALTH_COLUMNS, data_health_frame, data_health_row
-from .outlook import ForecastSettings, OutlookReport, empty_table, part_writer, update_outlook
+from .outlook import (
+    ForecastSettings,
+    OutlookReport,
+    empty_table,
+    forget_writers,
+    part_writer,
+    update_outlook,
+)
 from .readiness import settled
 from .shore import AlarmHook
 from .state_format import check_state_format
@@ -165,6 +172,7 @@ class Monitor:
             raise
         if migrated is not None:
             log.warning("%s", migrated)
+        forget_writers(self.state)  # parts written by an earlier run are read again
         self.watcher = FolderWatcher(
             self.watch,
             settle_s=self.options.settle_s,

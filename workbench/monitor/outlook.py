@@ -159,6 +159,13 @@ def part_writer(path: Path, contract, step_s: float):
     return writer
 
 
+def forget_writers(state: Path) -> None:
+    """Drop this process's part writers of the state folder *state* (a monitor starting
+    on it: another process may have written its parts since)."""
+    for key in [k for k in _WRITERS if Path(k).parent == Path(state)]:
+        del _WRITERS[key]
+
+
 def part_blocks(step_s: float) -> int:
     """Blocks per part of the state folder's growing tables: a day's. [blocks]"""
     return max(1, int(round(86400.0 / float(step_s))))
