@@ -9,11 +9,14 @@ so that 14 700 blocks (51 days of 5-minute blocks) take minutes, not days:
    ``--regime``, seed 0: the demo hull's modes following speed and temperatures, SSI-like
    correlated errors, missing estimates) is simulated (not timed);
 2. the blocks are fed in order into a state folder the way the monitor's worker sees
-   them: the tracked table so far is written (``tracked.parquet``), then one update reads
-   it, runs :class:`~workbench.monitor.incremental.IncrementalOutlook` with the block
-   predictors it needs, writes ``forecast.parquet``, ``health.parquet`` and
-   ``alarms.parquet`` and saves the state (``outlook/``), exactly the worker's update
-   minus averaging the ship log (the predictors are given);
+   them: the tracked table's changed parts are written (``tracked.parquet/``, a parted
+   table, :mod:`data_contracts.parts`: the parts from 3 blocks before the new ones, as
+   the monitor writes them from its tracker's first changed block), then one update reads
+   the tracked rows it needs (from ``inputs_from``) and the per-mode counts of the index,
+   runs :class:`~workbench.monitor.incremental.IncrementalOutlook` with the block
+   predictors it needs, writes the changed parts of ``forecast.parquet/`` and
+   ``health.parquet/``, ``alarms.parquet`` and saves the state (``outlook/``), exactly the
+   worker's update minus averaging the ship log (the predictors are given);
 3. around day 1, 10, 25 and 51 every block is one update (``--sample`` consecutive
    blocks at the end of the day, the newest block's predictors provisional, the block
    before final); between them the blocks are fed a day at a time. Latency = wall time of
@@ -77,41 +80,69 @@ class Replay:
         self.settings = ForecastSettings()
         self.outlook = IncrementalOutlook(self.settings, STEP_S)
         self.tracked_blocks = tracked["block"].to_numpy()
+        self.tracked_through: int | None = None
         self.full_updates = 0
 
     def update(self, last: int) -> dict[str, float]:
         """Blocks up to *last* landed: write the tracked table, then one worker update."""
         from data_contracts import ALARMS, FORECAST, HEALTH, MODAL, write_table
         from workbench.monitor.incremental import NeedsFullHistory
-        from workbench.monitor.outlook import empty_table, read_tracked
+        from workbench.monitor.outlook import (
+            empty_table,
+            part_writer,
+            read_tracked,
+            tracked_summary,
+        )
 
         times = {}
         wall, cpu = time.perf_counter(), time.process_time()
         stop = int(np.searchsorted(self.tracked_blocks, last, side="right"))
-        write_table(self.tracked.iloc[:stop], self.state / "tracked.parquet", MODAL)
+        # the monitor's write: the parts from the tracker's first changed block on (the
+        # blocks new since the last write, and 3 before them: a late assignment)
+        since = None if self.tracked_through is None else max(0, self.tracked_through - 3)
+        part_start = 0 if since is None else since // BLOCKS_PER_DAY * BLOCKS_PER_DAY
+        first = int(np.searchsorted(self.tracked_blocks, part_start))  # a part's rows whole
+        tracked_path = self.state / "tracked.parquet"
+        part_writer(tracked_path, MODAL, STEP_S).write(
+            self.tracked.iloc[first:stop], since_block=since
+        )
+        self.tracked_through = last
         times["tracked_written_s"] = time.perf_counter() - wall
         started, cpu_update = time.perf_counter(), time.process_time()
-        tracked = read_tracked(self.state / "tracked.parquet")
+        start = self.outlook.inputs_from
+        summary = tracked_summary(tracked_path)
+        tracked = read_tracked(tracked_path, since_block=start)
         part = self.predictors[self.predictors["block"] <= last]
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             try:
-                start = self.outlook.inputs_from
                 found = self.outlook.update(
                     tracked,
                     part if start is None else part[part["block"] >= start],
                     first_block=0,
                     final_through=last - 1,
+                    mode_blocks=summary["mode_blocks"],
+                    tails=True,
                 )
             except NeedsFullHistory:
                 self.full_updates += 1
-                found = self.outlook.update(tracked, part, first_block=0, final_through=last - 1)
+                found = self.outlook.update(
+                    read_tracked(tracked_path),
+                    part,
+                    first_block=0,
+                    final_through=last - 1,
+                    tails=True,
+                )
         times["update_s"] = time.perf_counter() - started
         written = time.perf_counter()
         health = found.health if found.health is not None else empty_table(HEALTH)
         alarms = found.alarms if found.alarms is not None else empty_table(ALARMS)
-        write_table(found.forecast, self.state / "forecast.parquet", FORECAST)
-        write_table(health, self.state / "health.parquet", HEALTH)
+        part_writer(self.state / "forecast.parquet", FORECAST, STEP_S).write(
+            found.forecast, since_block=found.forecast_from
+        )
+        part_writer(self.state / "health.parquet", HEALTH, STEP_S).write(
+            health, since_block=found.health_from if found.health is not None else None
+        )
         write_table(alarms, self.state / "alarms.parquet", ALARMS)
         times["tables_written_s"] = time.perf_counter() - written
         saved = time.perf_counter()
@@ -131,8 +162,9 @@ def _tracking_costs(tracked: pd.DataFrame, days: list[int], sample: int) -> list
 
     The selected modes are the simulated tracked rows with cosine mode shapes on 8
     channels (1 % noise), so the tracker follows the same modes."""
-    from data_contracts import MODAL, shapes_to_frame, write_table
-    from workbench.monitor.data_health import write_data_health
+    from data_contracts import MODAL, shapes_to_frame
+    from workbench.monitor.data_health import data_health_frame
+    from workbench.monitor.outlook import part_writer
     from workbench.monitor.tracking import IncrementalTracking
     from workbench.sid.tracking import TrackingOptions
 
@@ -156,6 +188,7 @@ def _tracking_costs(tracked: pd.DataFrame, days: list[int], sample: int) -> list
     tracking = IncrementalTracking(TrackingOptions())
     rows: list[dict] = []
     root = Path(tempfile.mkdtemp(prefix="bench_tracking_"))
+    health_since = None  # the data-health rows written up to this block
     try:
         done: set[int] = set()
         for block in range(int(tracked["block"].max()) + 1):
@@ -184,9 +217,19 @@ def _tracking_costs(tracked: pd.DataFrame, days: list[int], sample: int) -> list
             if day is None:
                 continue
             table = tracking.table()
-            write_table(table, root / "tracked.parquet", MODAL)
+            # as the monitor writes them: the parts whose rows changed
+            part_writer(root / "tracked.parquet", MODAL, STEP_S).write(
+                table, since_block=tracking.changed_from
+            )
             written = time.perf_counter()
-            write_data_health(rows, root / "data_health.parquet")
+            health_writer = part_writer(root / "data_health.parquet", None, STEP_S)
+            blocks = health_writer.part_blocks
+            first = 0 if health_since is None else health_since // blocks * blocks
+            health_writer.write(
+                data_health_frame([r for r in rows if r["block"] >= first]),
+                since_block=health_since,
+            )
+            health_since = block + 1
             timed[day].append(
                 (advanced - started, written - advanced, time.perf_counter() - written)
             )

@@ -588,6 +588,9 @@ def _format_of(path: Path) -> str:
 def read_table(path: str | os.PathLike, contract: TableContract) -> pd.DataFrame:
     """Read a CSV or Parquet table and validate it against *contract*.
 
+    A parted table (a folder of parts with its index, :mod:`data_contracts.parts`) is
+    read as the one table its parts make.
+
     The block grid recorded with the file (Parquet metadata, or the CSV's
     ``<name>.grid.json`` sidecar; see :mod:`data_contracts.grid`) is attached to the
     returned frame as ``frame.attrs["block_grid"]``.
@@ -600,6 +603,11 @@ def read_table(path: str | os.PathLike, contract: TableContract) -> pd.DataFrame
     """
     path = Path(path)
     fmt = _format_of(path)
+    if fmt == "parquet" and path.is_dir():
+        from .parts import is_parted, read_parts
+
+        if is_parted(path):  # a table written a part at a time (data_contracts.parts)
+            return read_parts(path, contract)
     if not path.is_file():
         raise ContractError(
             [Violation(None, "file not found")], source=path, contract=contract.name

@@ -191,7 +191,8 @@ def test_update_outlook_takes_up_the_saved_state_after_a_restart(
     state = tmp_path / "state"
     state.mkdir()
     for last in (12, int(tracked["block"].max())):  # a restart between the two
-        worker._OUTLOOKS.clear()
+        worker._OUTLOOKS.clear()  # a new worker process
+        worker._WRITERS.clear()
         write_table(tracked[tracked["block"] <= last], state / "tracked.parquet", MODAL)
         report = update_outlook(state, voyage / "dship.tsv", settings, grid)
         assert report.written and report.forecast_rows > 0

@@ -141,7 +141,7 @@ def test_replayed_voyage_equals_batch(voyage, batch, tmp_path):
     assert status["state"] == "stopped" and status["blocks_done"] == n_blocks
     assert status["last_block"] == n_blocks - 1 and status["pid"] == os.getpid()
     for name in ("health.parquet", "alarms.parquet"):  # 1.5 h: no 6-h reference yet
-        assert (state / name).is_file() and pd.read_parquet(state / name).empty
+        assert (state / name).exists() and pd.read_parquet(state / name).empty
 
 
 def test_late_file_holds_its_blocks_and_partial_file_is_waited_for(voyage, batch, tmp_path):
@@ -241,7 +241,7 @@ def test_kill_9_and_restart_lose_and_repeat_nothing(voyage, batch, tmp_path):
             land(path, watch)
             time.sleep(0.05)
         rows = state / "data_health.parquet"
-        _wait(lambda: rows.is_file() and len(pd.read_parquet(rows)) >= 3)
+        _wait(lambda: rows.exists() and len(pd.read_parquet(rows)) >= 3)
         process.send_signal(signal.SIGKILL)
         process.wait(timeout=30)
     finally:
@@ -312,7 +312,7 @@ def test_sigterm_stops_cleanly(voyage, tmp_path):
     )
     try:
         rows = state / "data_health.parquet"
-        _wait(lambda: rows.is_file() and len(pd.read_parquet(rows)) >= 2)
+        _wait(lambda: rows.exists() and len(pd.read_parquet(rows)) >= 2)
         process.send_signal(signal.SIGTERM)
         out, _ = process.communicate(timeout=300)
     finally:

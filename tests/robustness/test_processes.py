@@ -94,7 +94,7 @@ def test_kill_9_of_the_monitor_leaves_no_process(tmp_path):
         # the background forecast worker is started once the first block is decided;
         # it has answered once (forecast.parquet) and waits for its next task
         found = _descendants_when(
-            process, lambda f: len(_workers(f)) == 1 and (state / "forecast.parquet").is_file()
+            process, lambda f: len(_workers(f)) == 1 and (state / "forecast.parquet").exists()
         )
         assert any("resource_tracker" in " ".join(_cmdline(p)) for p in found)
         process.send_signal(signal.SIGKILL)

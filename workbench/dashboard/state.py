@@ -1,7 +1,10 @@
 """Read-only access to a monitor's state folder.
 
 The monitor (``workbench monitor``) publishes its results into a state folder, each file
-written atomically (temporary file, then rename). Any file may be absent early on:
+written atomically (temporary file, then rename). Any file may be absent early on. The
+tables that grow with the voyage (tracked, forecast, health, data health) are folders of
+a Parquet part per day of blocks (:mod:`data_contracts.parts`), read as one table by
+``read_table``:
 
 ==========================  ============================================================
 ``tracked.parquet``         MODAL contract: the tracked modal table so far

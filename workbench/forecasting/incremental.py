@@ -136,6 +136,11 @@ class IncrementalMemoryForecast:
         self.restarts = 0  # starts from the first block after a committed window
         self._committed = False
         self.rollbacks = 0  # returns to an earlier committed window
+        #: The last :meth:`update`'s table has the rows of the table before it for the
+        #: blocks before this one (None: it started over, any row may have changed).
+        self.changed_from: int | None = None
+        #: Rows of the last :meth:`update`'s whole table (also when it returned a tail).
+        self.table_rows = 0
         self.reset()
 
     # ------------------------------------------------------------------ bookkeeping
@@ -193,6 +198,7 @@ class IncrementalMemoryForecast:
         *,
         modes,
         final_through: int | None = None,
+        tail: bool = False,
     ) -> tuple[pd.DataFrame, list[str]]:
         """The forecast table of the voyage so far and the forecast's notes.
 
@@ -208,6 +214,10 @@ class IncrementalMemoryForecast:
         final_through : int, optional
             Newest block whose inputs no longer change (default: none is final, nothing
             is committed).
+        tail : bool
+            Return only the rows from :attr:`changed_from` on (all when it is None): a
+            writer of the parts that changed needs no more, and the whole table is not
+            assembled (its cost grows with the voyage).
 
         Raises
         ------
@@ -218,8 +228,11 @@ class IncrementalMemoryForecast:
         """
         new = self._inputs(modal, predictors, modes)
         final_through = -(10**18) if final_through is None else int(final_through)
+        # rows before the oldest committed copy can no longer change (unless started over)
+        self.changed_from = self.inputs_from
         core = self._resume_point(new)
         if core is None:
+            self.changed_from = None
             if self._first_block is not None and int(new.blocks[0]) != self._first_block:
                 raise NeedsFullHistory(
                     f"the state starts over: the tables must start at block {self._first_block}"
@@ -248,6 +261,9 @@ class IncrementalMemoryForecast:
                 provisional.append(chunk)
         self._core = core
         pieces = [*self._old, *(c for _, c in self._chunks), *provisional]
+        self.table_rows = sum(len(p) for p in pieces)
+        if tail and self.changed_from is not None:
+            pieces = pieces_from(pieces, self.changed_from)
         # each piece is sorted by (block, mode) and follows the one before: no sort needed
         table = pd.concat(pieces, ignore_index=True) if pieces else pd.DataFrame()
         return table, self._messages(core)
@@ -480,11 +496,7 @@ class IncrementalMemoryForecast:
             # the output of windows before the oldest copy can no longer change
             n_old = self._snapshots[0][2]
             if n_old > 4 * self.n_snapshots:
-                self._old = [
-                    pd.concat(
-                        [*self._old, *(c for _, c in self._chunks[:n_old])], ignore_index=True
-                    )
-                ]
+                self._old = consolidate([*self._old, *(c for _, c in self._chunks[:n_old])])
                 del self._chunks[:n_old]
                 self._snapshots = deque((b, s, n - n_old) for b, s, n in self._snapshots)
 
@@ -600,6 +612,39 @@ class SimpleInputs:
     def __init__(self, *values) -> None:
         for name, value in zip(self.__slots__, values, strict=True):
             setattr(self, name, value)
+
+
+#: A consolidated piece of a table kept in pieces is left alone from this many rows on.
+CONSOLIDATED_ROWS = 4096
+
+
+def consolidate(pieces: list[pd.DataFrame]) -> list[pd.DataFrame]:
+    """*pieces* (frames of one table, in order) with the pieces after the last one of
+    :data:`CONSOLIDATED_ROWS` rows or more joined into one: a few frames instead of one
+    per update, and a cost bounded by that size (not the whole table's, as joining them
+    all would be)."""
+    first = len(pieces)
+    while first > 0 and len(pieces[first - 1]) < CONSOLIDATED_ROWS:
+        first -= 1
+    if len(pieces) - first < 2:
+        return list(pieces)
+    return [*pieces[:first], pd.concat(pieces[first:], ignore_index=True)]
+
+
+def pieces_from(pieces: list[pd.DataFrame], block: int) -> list[pd.DataFrame]:
+    """The rows of the blocks from *block* on of *pieces* (frames sorted by block, each
+    after the one before)."""
+    kept = []
+    for piece in pieces:
+        if not len(piece):
+            continue
+        blocks = piece["block"].to_numpy()
+        if blocks[-1] < block:
+            continue
+        kept.append(
+            piece if blocks[0] >= block else piece.iloc[int(np.searchsorted(blocks, block)) :]
+        )
+    return kept
 
 
 def _same(a: np.ndarray, b: np.ndarray) -> np.ndarray:

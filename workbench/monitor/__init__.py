@@ -13,8 +13,19 @@ period (``--reference-hours``, 6 h) after them; with the ship log's fuel on boar
 State folder
 ------------
 Every file is written atomically (temporary name, then rename), so a reader never sees a
-half-written file::
+half-written file. The tables that grow with the voyage (``tracked``, ``forecast``,
+``health``, ``data_health``) are *parted tables* (:mod:`data_contracts.parts`): a folder of
+that name holding one Parquet file per day of blocks (``part-000000.parquet`` the blocks
+of the first day, ...) and an index (``_parts.json``); an update rewrites only the parts
+whose rows changed (the newest day's, as a rule), so its cost does not grow with the
+voyage. ``data_contracts.read_table`` (and ``pandas.read_parquet``) read such a folder as
+the one table its parts make, in block order::
 
+    <state>/state_format.json    {"schema": "workbench.monitor.state/2"}: the folder's
+                                 format; a folder without it (format 1, every table one
+                                 file) is migrated at the start, one of another format
+                                 refused in one line
+                                 (:mod:`workbench.monitor.state_format`)
     <state>/tracked.parquet      MODAL contract: the tracked modal table so far (labels
                                  that are shaft harmonics left out, from the logged shaft
                                  speed)
@@ -31,6 +42,7 @@ half-written file::
     <state>/harmonic_tracks.parquet  the tracked lines left out as shaft harmonics, per
                                  block (workbench.dashboard.state.HARMONIC_TRACKS)
     <state>/forecast.parquet     FORECAST contract: sliding forecast + Kalman, all blocks
+                                 (several options: each block's rows, option after option)
     <state>/health.parquet       HEALTH contract (empty until model and reference are learned)
     <state>/alarms.parquet       ALARMS contract (empty until then, and while no alarm)
     <state>/data_health.parquet  one row per decided block, in block order:

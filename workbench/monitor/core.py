@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 
 from data_contracts import MODAL, atomic_path, write_table
+from data_contracts.parts import read_since
 
 from ..blocks import BlockGrid
 from ..errors import WorkbenchError
@@ -32,10 +33,18 @@ from ..sid.harmonics import HarmonicOptions
 from ..sid.tracking import TrackingOptions
 from ..store import BlockStore, StoreLock
 from .conditioning import block_conditioner, forget_conditioned
-from .data_health import DATA_HEALTH_COLUMNS, data_health_row, write_data_health
-from .outlook import ForecastSettings, OutlookReport, empty_table, update_outlook
+from .data_health import DATA_HEALTH_COLUMNS, data_health_frame, data_health_row
+from .outlook import (
+    ForecastSettings,
+    OutlookReport,
+    empty_table,
+    forget_writers,
+    part_writer,
+    update_outlook,
+)
 from .readiness import settled
 from .shore import AlarmHook
+from .state_format import check_state_format
 from .tracking import IncrementalTracking
 from .watcher import FolderWatcher, LandedFile
 
@@ -156,6 +165,14 @@ class Monitor:
         self.store_path.mkdir(exist_ok=True)
         # one monitor per state folder: the store's lock, held for the monitor's life
         self._lock = StoreLock(self.store_path).acquire()
+        try:  # an older folder is migrated, a newer one refused
+            migrated = check_state_format(self.state)
+        except WorkbenchError:
+            self._lock.release()
+            raise
+        if migrated is not None:
+            log.warning("%s", migrated)
+        forget_writers(self.state)  # parts written by an earlier run are read again
         self.watcher = FolderWatcher(
             self.watch,
             settle_s=self.options.settle_s,
@@ -171,6 +188,10 @@ class Monitor:
         self.conditioned_files = [0]  # files conditioned (per-file path)
         self._shared: dict = {}
         self._health_rows: list[dict] = []
+        # data_health.parquet: every part is written next (at the start), else the parts
+        # from the oldest block added since the last write
+        self._health_rows_all = True
+        self._health_rows_from: int | None = None
         self.baseline = None  # the ship's health baseline (--baseline), checked here
         reference_modes = None
         if self.options.forecast.health_baseline is not None:
@@ -571,6 +592,8 @@ class Monitor:
         self.store.write_batch(blocks, tables)  # the block is done once this returns
         self.done.add(int(outcome.block))
         self._health_rows.append(row)
+        since = self._health_rows_from
+        self._health_rows_from = int(row["block"]) if since is None else min(since, row["block"])
         selected = outcome.tables.get("selected")
         if not outcome.skipped and selected is not None and len(selected):
             self.tracking.add(int(outcome.block), selected)
@@ -695,7 +718,10 @@ class Monitor:
                 return self._marked
 
             tracked = self.tracking.table(marker=marker)
-            write_table(tracked, self.state / "tracked.parquet", MODAL)
+            # a day per part; only the parts whose rows changed are written
+            part_writer(self.state / "tracked.parquet", MODAL, self._step_s()).write(
+                tracked, since_block=self.tracking.changed_from
+            )
             self._tracked = tracked  # what the state folder holds, for the key indicators
             self._write_harmonic_lines(tracked)
             self._write_harmonic_tracks(tracked.attrs.get("harmonic_labels", []))
@@ -949,20 +975,17 @@ class Monitor:
             )
             # only the columns and days needed (written by this monitor under their
             # contracts), so the cost stays a day's worth however long the voyage
-            since = [("block", ">=", first)]
             columns = ["block", "block_start", "mode", "frequency_hz", "damping_ratio"]
             if self._tracked is not None:
                 tracked = self._tracked
                 tracked = tracked.loc[tracked["block"].to_numpy() >= first, columns]
             else:
-                tracked = pd.read_parquet(
-                    self.state / "tracked.parquet", columns=columns, filters=since
-                )
+                tracked = read_since(self.state / "tracked.parquet", columns, first)
             forecast = None
-            if (self.state / "forecast.parquet").is_file():
-                forecast = pd.read_parquet(
+            if (self.state / "forecast.parquet").exists():
+                forecast = read_since(
                     self.state / "forecast.parquet",
-                    columns=[
+                    [
                         "block",
                         "mode",
                         "option",
@@ -971,7 +994,7 @@ class Monitor:
                         "model_lower_hz",
                         "model_upper_hz",
                     ],
-                    filters=since,
+                    first,
                 )
             if len(tracked):
                 days = days_of_blocks(tracked.loc[tracked["block"] >= first_new, "block_start"])
@@ -1057,8 +1080,24 @@ class Monitor:
         )
 
     # ------------------------------------------------------------------ state files
+    def _step_s(self) -> float:
+        """Block step of the voyage (a day's blocks per part of the growing tables). [s]"""
+        return self.voyage.grid.step_s if self.voyage is not None else 300.0
+
     def _write_data_health(self) -> None:
-        write_data_health(self._health_rows, self.state / "data_health.parquet")
+        """``data_health.parquet``, a day per part: the parts of the rows added since the
+        last write (all after a restart)."""
+        writer = part_writer(self.state / "data_health.parquet", None, self._step_s())
+        since, rows = self._health_rows_from, self._health_rows
+        if self._health_rows_all:
+            since = None
+        elif since is None:
+            return  # no row added
+        else:
+            first = since // writer.part_blocks * writer.part_blocks
+            rows = [r for r in rows if r["block"] >= first]
+        writer.write(data_health_frame(rows), since_block=since)
+        self._health_rows_all, self._health_rows_from = False, None
 
     def _write_status(self, state: str, message: str | None = None) -> None:
         del self.messages[:-200]  # a long run keeps its recent messages only

@@ -10,7 +10,7 @@ import pandas as pd
 
 from data_contracts import atomic_path
 
-__all__ = ["DATA_HEALTH_COLUMNS", "data_health_row", "write_data_health"]
+__all__ = ["DATA_HEALTH_COLUMNS", "data_health_frame", "data_health_row", "write_data_health"]
 
 _NS = 1_000_000_000
 
@@ -71,6 +71,12 @@ def data_health_row(planned, outcome, identified_at: pd.Timestamp, files: Sequen
 
 def write_data_health(rows: Sequence[dict], path: Path) -> None:
     """Write the rows, sorted by block, to *path* (Parquet, atomically)."""
+    with atomic_path(path) as tmp:
+        data_health_frame(rows).to_parquet(tmp, index=False)
+
+
+def data_health_frame(rows: Sequence[dict]) -> pd.DataFrame:
+    """The data-health table of *rows*, sorted by block, with its column types."""
     frame = pd.DataFrame(list(rows), columns=list(DATA_HEALTH_COLUMNS))
     frame = frame.sort_values("block", kind="stable").reset_index(drop=True)
     frame["block"] = frame["block"].astype("int64")
@@ -81,5 +87,4 @@ def write_data_health(rows: Sequence[dict], path: Path) -> None:
         frame[column] = frame[column].astype(float)
     for column in ("dropped_channels", "status", "reason"):
         frame[column] = frame[column].fillna("").astype(str)
-    with atomic_path(path) as tmp:
-        frame.to_parquet(tmp, index=False)
+    return frame

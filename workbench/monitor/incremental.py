@@ -35,7 +35,6 @@ restart when the settings are the same.
 
 from __future__ import annotations
 
-import copy
 import math
 import warnings
 from dataclasses import dataclass, field, fields
@@ -46,7 +45,12 @@ import pandas as pd
 
 from data_contracts import ALARMS, FORECAST, HEALTH, recorded_grid, set_grid
 
-from ..forecasting.incremental import IncrementalMemoryForecast, NeedsFullHistory
+from ..forecasting.incremental import (
+    IncrementalMemoryForecast,
+    NeedsFullHistory,
+    consolidate,
+    pieces_from,
+)
 
 __all__ = ["HEALTH_LAG_BLOCKS", "IncrementalOutlook", "NeedsFullHistory", "OutlookTables"]
 
@@ -66,6 +70,15 @@ class OutlookTables:
     alarms: pd.DataFrame | None
     messages: list[str] = field(default_factory=list)
     health_schedule: str = ""
+    #: The forecast's (health table's) rows of the blocks before this one are those of the
+    #: previous update's table (None: any row may have changed), so a writer rewrites only
+    #: the parts from it on (:class:`data_contracts.parts.PartWriter`).
+    forecast_from: int | None = None
+    health_from: int | None = None
+    #: Rows of the whole forecast and health tables (*forecast* and *health* hold only
+    #: the rows from forecast_from and health_from on when the update was asked for tails).
+    forecast_rows: int = 0
+    health_rows: int = 0
 
 
 def supported(settings) -> bool:
@@ -112,6 +125,8 @@ class IncrementalOutlook:
         self._health_rows: list[pd.DataFrame] = []
         self._alarms: dict[int, dict] = {}
         self._first_block: int | None = None
+        self._health_resets = getattr(self, "_health_resets", -1) + 1
+        self._health_total = 0  # rows of the whole health table
 
     @property
     def inputs_from(self) -> int | None:
@@ -133,13 +148,16 @@ class IncrementalOutlook:
         *,
         first_block: int,
         final_through: int | None,
+        mode_blocks: dict[int, int] | None = None,
+        tails: bool = False,
     ) -> OutlookTables:
         """Forecast and health chart of the voyage so far.
 
         Parameters
         ----------
         tracked : DataFrame
-            The whole tracked table so far (MODAL contract).
+            The tracked table so far (MODAL contract): the whole table, or with
+            *mode_blocks* its rows from :attr:`inputs_from` on.
         predictors : DataFrame
             The block predictors (PREDICTORS contract, the optional fuel column included)
             of the consecutive blocks from :attr:`inputs_from` (or *first_block*) to the
@@ -148,6 +166,13 @@ class IncrementalOutlook:
             The voyage's first tracked block.
         final_through : int, optional
             Newest block whose predictors no longer change (the ship log covers it).
+        mode_blocks : dict, optional
+            Blocks per mode over the whole tracked table (default: counted in *tracked*,
+            which must then be whole).
+        tails : bool
+            The tables returned hold only the rows from ``forecast_from`` and
+            ``health_from`` on (the whole tables when those are None): what a writer of
+            the changed parts needs, without assembling the whole tables.
 
         Raises
         ------
@@ -160,8 +185,15 @@ class IncrementalOutlook:
         last = int(predictors["block"].max())
         n_blocks = last - int(first_block) + 1
         messages: list[str] = []
+        forecast_from = None
+        forecast_rows = 0
+        health_from = None if self._charted_through is None else self._charted_through + 1
+        health_resets = self._health_resets
         # the forecast stage's modes: measured in at least min_presence of the blocks
-        counts = tracked.groupby("mode")["block"].nunique()
+        if mode_blocks is None:
+            counts = tracked.groupby("mode")["block"].nunique()
+        else:
+            counts = pd.Series(mode_blocks, dtype=float)
         presence = counts / max(n_blocks, 1)
         modes = tuple(
             sorted(int(m) for m in presence.index[presence >= settings.forecast.min_presence])
@@ -179,29 +211,57 @@ class IncrementalOutlook:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
                     table, notes = self.forecast.update(
-                        tracked, shown, modes=modes, final_through=final_through
+                        tracked, shown, modes=modes, final_through=final_through, tail=tails
                     )
                 self._modes = modes
                 forecast = table if len(table) else forecast
+                forecast_rows = self.forecast.table_rows
+                forecast_from = self.forecast.changed_from if forecast_rows else None
                 set_grid(forecast, recorded_grid(tracked) or recorded_grid(predictors))
                 messages += [f"option A: {m}" for m in notes]
             except ValueError as error:
                 messages.append(f"forecast: {str(error).splitlines()[0]}")
+                forecast_from = None
         else:
             messages.append(
                 "forecast: no mode is measured in at least "
                 f"{100 * settings.forecast.min_presence:.0f} % of the blocks"
             )
+            forecast_from = None
         try:
-            health, alarms, notes = self._health(tracked, predictors, first_block, final_through)
+            health, alarms, notes = self._health(
+                tracked,
+                predictors,
+                first_block,
+                final_through,
+                tail_from=health_from if tails else None,
+            )
         except (ValueError, ArithmeticError, np.linalg.LinAlgError) as error:
             # as update_outlook says it; the model is fitted again at the next update
             self._reset_health()
             return OutlookTables(
-                forecast, None, None, [*messages, f"health: {str(error).splitlines()[0]}"]
+                forecast,
+                None,
+                None,
+                [*messages, f"health: {str(error).splitlines()[0]}"],
+                forecast_from=forecast_from,
+                forecast_rows=forecast_rows,
             )
         messages += notes
-        return OutlookTables(forecast, health, alarms, messages, notes[0] if notes else "")
+        health_rows = self._health_total
+        if health is None or health_resets != self._health_resets:
+            health_from = None
+        return OutlookTables(
+            forecast,
+            health,
+            alarms,
+            messages,
+            notes[0] if notes else "",
+            forecast_from=forecast_from,
+            health_from=health_from,
+            forecast_rows=forecast_rows,
+            health_rows=health_rows,
+        )
 
     # ------------------------------------------------------------------ checkpoint
     def _key(self) -> tuple:
@@ -295,9 +355,11 @@ class IncrementalOutlook:
         return outlook
 
     # ------------------------------------------------------------------ health
-    def _health(self, tracked, predictors, first_block, final_through):
+    def _health(self, tracked, predictors, first_block, final_through, tail_from=None):
         """HEALTH and ALARMS tables (None while learning) and the notes, as
-        :func:`~workbench.monitor.structural_health.operational_health` gives them."""
+        :func:`~workbench.monitor.structural_health.operational_health` gives them; with
+        *tail_from*, the HEALTH rows from that block on (all if the chart started over)."""
+        resets = self._health_resets
         from ..shm import HealthOptions, fit_operational_model
         from ..shm.monitor import HealthMonitor
         from .structural_health import FUEL_COLUMN, _at
@@ -381,8 +443,8 @@ class IncrementalOutlook:
             update = self._monitor.update(done)
             if len(update.health):
                 self._health_rows.append(update.health)
-                if len(self._health_rows) > 8:  # one frame, not one per update
-                    self._health_rows = [pd.concat(self._health_rows, ignore_index=True)]
+                if len(self._health_rows) > 8:  # a few frames, not one per update
+                    self._health_rows = consolidate(self._health_rows)
             for row in update.alarms.to_dict("records"):
                 self._alarms[int(row["alarm"])] = row
             self._charted_through = int(done["block"].max())
@@ -392,7 +454,7 @@ class IncrementalOutlook:
             rows["block"] > (self._charted_through if self._charted_through is not None else -1)
         ]
         if len(rest):
-            monitor = copy.deepcopy(self._monitor)
+            monitor = self._monitor.provisional_copy()
             update = monitor.update(rest)
             if len(update.health):
                 charted.append(update.health)
@@ -403,6 +465,9 @@ class IncrementalOutlook:
             reference_known = self._monitor.reference is not None
         if not reference_known:
             raise ValueError(self._monitor.waiting_reason())
+        self._health_total = sum(len(c) for c in charted)
+        if tail_from is not None and resets == self._health_resets:
+            charted = pieces_from(charted, tail_from)
         health = pd.concat(charted, ignore_index=True) if charted else _empty(HEALTH)
         health = set_grid(health, recorded_grid(rows))
         alarms_table = (

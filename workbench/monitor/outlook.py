@@ -141,22 +141,67 @@ def _write(frame: pd.DataFrame, path: Path, contract, parent_pid: int | None) ->
     return True
 
 
-def _write_outlook(report, state: Path, forecast, health, alarms, parent_pid) -> bool:
+#: The writers of the state folder's parted tables in this process, by path.
+_WRITERS: dict[str, object] = {}
+
+
+def part_writer(path: Path, contract, step_s: float):
+    """The :class:`~data_contracts.parts.PartWriter` of the parted table *path* (a day's
+    blocks per part, :func:`part_blocks`), kept between updates: it rewrites only the
+    parts that changed since its last write."""
+    from data_contracts.parts import PartWriter
+
+    blocks = part_blocks(step_s)
+    writer = _WRITERS.get(str(path))
+    if writer is None or writer.part_blocks != blocks or writer.contract is not contract:
+        writer = PartWriter(path, contract, part_blocks=blocks)
+        _WRITERS[str(path)] = writer
+    return writer
+
+
+def forget_writers(state: Path) -> None:
+    """Drop this process's part writers of the state folder *state* (a monitor starting
+    on it: another process may have written its parts since)."""
+    for key in [k for k in _WRITERS if Path(k).parent == Path(state)]:
+        del _WRITERS[key]
+
+
+def part_blocks(step_s: float) -> int:
+    """Blocks per part of the state folder's growing tables: a day's. [blocks]"""
+    return max(1, int(round(86400.0 / float(step_s))))
+
+
+def _write_outlook(
+    report,
+    state: Path,
+    forecast,
+    health,
+    alarms,
+    parent_pid,
+    step_s: float,
+    *,
+    forecast_from: int | None = None,
+    health_from: int | None = None,
+    rows: tuple[int, int] | None = None,
+) -> bool:
     """Count the rows into *report* and write the three tables (False, and
-    ``report.written`` False, when the monitor that asked has died meanwhile)."""
-    report.forecast_rows, report.health_rows, report.alarms = (
-        len(forecast),
-        len(health),
-        len(alarms),
-    )
-    for frame, name, contract in (
-        (forecast, "forecast.parquet", FORECAST),
-        (health, "health.parquet", HEALTH),
-        (alarms, "alarms.parquet", ALARMS),
+    ``report.written`` False, when the monitor that asked has died meanwhile): forecast
+    and health as parted tables (a day per part; only the parts from *forecast_from* and
+    *health_from* on are compared and rewritten; *forecast* and *health* may hold only
+    those rows, *rows* then counts the whole tables), alarms (a row per episode) whole."""
+    report.forecast_rows, report.health_rows = rows or (len(forecast), len(health))
+    report.alarms = len(alarms)
+    for frame, name, contract, since in (
+        (forecast, "forecast.parquet", FORECAST, forecast_from),
+        (health, "health.parquet", HEALTH, health_from),
     ):
-        if not _write(frame, state / name, contract, parent_pid):
+        if parent_pid is not None and os.getppid() != parent_pid:
             report.written = False
             return False
+        part_writer(state / name, contract, step_s).write(frame, since_block=since)
+    if not _write(alarms, state / "alarms.parquet", ALARMS, parent_pid):
+        report.written = False
+        return False
     return True
 
 
@@ -184,17 +229,22 @@ def block_predictors_of(
     grid,
     settings: ForecastSettings,
     from_block: int | None = None,
+    *,
+    first_block: int | None = None,
 ) -> pd.DataFrame:
     """The ship log averaged onto the blocks first..last of *tracked* (as ``workbench
     forecast --dship`` does), with the optional predictors (fuel on board) the log has;
     with *from_block*, only the blocks from it on (each block's values are those of the
-    whole table)."""
+    whole table). *first_block*: the whole table's first block, when *tracked* holds only
+    its newest rows."""
     from data_contracts import CANONICAL_PREDICTORS, OPTIONAL_PREDICTORS
 
     from ..predictors import block_predictors
 
     log = _ship_log(Path(dship), dict(settings.dship_mapping))
     first, last = int(tracked["block"].min()), int(tracked["block"].max())
+    if first_block is not None:
+        first = int(first_block)
     if from_block is not None:
         first = max(first, int(from_block))
     table = block_predictors(log, grid=grid, blocks=np.arange(first, last + 1), min_coverage=0.5)
@@ -270,7 +320,7 @@ def update_outlook(
     tracked_path = state / "tracked.parquet"
     forecast = empty_table(FORECAST)
     tracked, predictors = empty_table(MODAL), None
-    if tracked_path.is_file() and dship is not None:
+    if tracked_path.exists() and dship is not None:
         tracked = read_table(tracked_path, MODAL)
         report.n_blocks = int(tracked["block"].nunique()) if len(tracked) else 0
         if len(tracked):
@@ -327,7 +377,7 @@ def update_outlook(
             health, alarms = chart.table, chart.alarms
         except ValueError as error:
             report.messages.append(f"health: {str(error).splitlines()[0]}")
-    _write_outlook(report, state, forecast, health, alarms, parent_pid)
+    _write_outlook(report, state, forecast, health, alarms, parent_pid, grid.step_s)
     report.seconds = time.perf_counter() - started
     report.cpu_seconds = time.process_time() - cpu
     return report
@@ -350,13 +400,8 @@ def _incremental_outlook(
     from .incremental import IncrementalOutlook, NeedsFullHistory
 
     forecast, health, alarms = empty_table(FORECAST), empty_table(HEALTH), empty_table(ALARMS)
+    forecast_from = health_from = rows = None
     tracked_path = state / "tracked.parquet"
-    try:
-        tracked = read_tracked(tracked_path) if tracked_path.is_file() else empty_table(MODAL)
-    except (ValueError, OSError) as error:  # ContractError is a ValueError
-        report.messages.append(f"forecast: {str(error).splitlines()[0]}")
-        tracked = empty_table(MODAL)
-    report.n_blocks = int(tracked["block"].nunique()) if len(tracked) else 0
     folder = state / "outlook"
     outlook = _OUTLOOKS.get(str(state))
     if outlook is None or outlook.settings != settings:
@@ -374,12 +419,20 @@ def _incremental_outlook(
             outlook = IncrementalOutlook(settings, grid.step_s)
         _OUTLOOKS.clear()
         _OUTLOOKS[str(state)] = outlook
+    # the tracked rows the update reads (from inputs_from on) and the whole table's counts
+    try:
+        summary = tracked_summary(tracked_path)
+        tracked = read_tracked(tracked_path, since_block=outlook.inputs_from)
+    except (ValueError, OSError) as error:  # ContractError is a ValueError
+        report.messages.append(f"forecast: {str(error).splitlines()[0]}")
+        summary, tracked = None, empty_table(MODAL)
+    report.n_blocks = summary["blocks"] if summary is not None else 0
     if len(tracked):
         try:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
                 log = _ship_log(dship, dict(settings.dship_mapping))
-                first, newest = int(tracked["block"].min()), int(tracked["block"].max())
+                first, newest = summary["first_block"], summary["last_block"]
                 report.log_complete = bool(len(log) and log["time"].max() >= grid.end(newest))
                 final_through = None
                 if len(log):
@@ -392,10 +445,19 @@ def _incremental_outlook(
                     )
                 for attempt in range(2):  # resumed, else once from the first block
                     start = None if attempt else outlook.inputs_from
-                    predictors = block_predictors_of(tracked, dship, grid, settings, start)
+                    if attempt and int(tracked["block"].min()) != first:
+                        tracked = read_tracked(tracked_path)  # the whole table, once
+                    predictors = block_predictors_of(
+                        tracked, dship, grid, settings, start, first_block=first
+                    )
                     try:
                         found = outlook.update(
-                            tracked, predictors, first_block=first, final_through=final_through
+                            tracked,
+                            predictors,
+                            first_block=first,
+                            final_through=final_through,
+                            mode_blocks=summary["mode_blocks"],
+                            tails=True,
                         )
                         break
                     except NeedsFullHistory:
@@ -404,14 +466,27 @@ def _incremental_outlook(
             report.messages += list(dict.fromkeys(str(w.message) for w in caught))
             report.messages += found.messages
             report.health_schedule = found.health_schedule
-            forecast = found.forecast
+            forecast, forecast_from = found.forecast, found.forecast_from
+            rows = (found.forecast_rows, 0)
             if found.health is not None:
-                health, alarms = found.health, found.alarms
+                health, alarms, health_from = found.health, found.alarms, found.health_from
+                rows = (found.forecast_rows, found.health_rows)
         except (ValueError, ArithmeticError, np.linalg.LinAlgError, OSError) as error:
             report.messages.append(f"forecast: {str(error).splitlines()[0]}")
         except Exception as error:  # noqa: BLE001 - a contract or data error of the log
             report.messages.append(f"forecast: {type(error).__name__}: {error}")
-    if not _write_outlook(report, state, forecast, health, alarms, parent_pid):
+    if not _write_outlook(
+        report,
+        state,
+        forecast,
+        health,
+        alarms,
+        parent_pid,
+        grid.step_s,
+        forecast_from=forecast_from,
+        health_from=health_from,
+        rows=rows,
+    ):
         return
     try:
         outlook.save(folder)
@@ -431,26 +506,65 @@ TRACKED_COLUMNS = (
 )
 
 
-def read_tracked(path: Path) -> pd.DataFrame:
+def read_tracked(path: Path, since_block: int | None = None) -> pd.DataFrame:
     """``tracked.parquet`` with the columns the forecast and the chart read
     (:data:`TRACKED_COLUMNS`; not the mode shapes, two per channel), validated (MODAL)
-    and with its block grid."""
+    and with its block grid; with *since_block*, only the rows from that block on (of a
+    parted table, only the parts holding them are read)."""
     import pyarrow.parquet as pq
 
     from data_contracts import grid as _grid
+    from data_contracts.parts import is_parted, read_parts
 
+    if is_parted(path):
+        return read_parts(path, MODAL, columns=list(TRACKED_COLUMNS), since_block=since_block)
+    if not Path(path).is_file():
+        return empty_table(MODAL)
     try:
         names = set(pq.read_schema(path).names)
         frame = pd.read_parquet(path, columns=[c for c in TRACKED_COLUMNS if c in names])
     except Exception as error:  # noqa: BLE001 - pyarrow raises many types for a bad file
         raise ValueError(f"{path}: cannot read ({str(error).splitlines()[0]})") from None
+    if since_block is not None:
+        frame = frame[frame["block"].to_numpy() >= int(since_block)].reset_index(drop=True)
     frame.attrs.pop(_grid.GRID_ATTR, None)
     table = MODAL.validate(frame, source=path)
     return _grid.attach_grid(table, _grid.read_grid(path, "parquet"), path)
 
 
+def tracked_summary(path: Path) -> dict | None:
+    """The whole tracked table in a few numbers: ``first_block``, ``last_block``,
+    ``blocks`` (tracked blocks) and ``mode_blocks`` (blocks per mode); None when it has no
+    rows. From the index of a parted table (:func:`data_contracts.parts.summarize`),
+    else from the file."""
+    from data_contracts.parts import is_parted, summarize
+
+    if is_parted(path):
+        found = summarize(path)
+        if found["first_block"] is None:
+            return None
+        return found
+    if not Path(path).is_file():
+        return None
+    try:
+        frame = pd.read_parquet(path, columns=["block", "mode"])
+    except Exception as error:  # noqa: BLE001 - pyarrow raises many types for a bad file
+        raise ValueError(f"{path}: cannot read ({str(error).splitlines()[0]})") from None
+    if not len(frame):
+        return None
+    return {
+        "first_block": int(frame["block"].min()),
+        "last_block": int(frame["block"].max()),
+        "rows": len(frame),
+        "blocks": int(frame["block"].nunique()),
+        "mode_blocks": {
+            int(m): int(n) for m, n in frame.groupby("mode")["block"].nunique().items()
+        },
+    }
+
+
 def _read_or_empty(path: Path, contract) -> pd.DataFrame:
-    return read_table(path, contract) if path.is_file() else empty_table(contract)
+    return read_table(path, contract) if path.exists() else empty_table(contract)
 
 
 def _store_poles(store: Path, tracked: pd.DataFrame) -> pd.DataFrame | None:

@@ -6,6 +6,7 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from data_contracts import MODAL, atomic_path, shapes_from_frame
@@ -54,6 +55,11 @@ class IncrementalTracking:
         # labels an earlier run gave, not yet given again by the replay: mode -> (block, Hz)
         self._expected: dict[int, tuple[int, float]] = {}
         self._labels_path: Path | None = None
+        # the table :meth:`table` built last: (table, rows then, labels then, harmonic labels)
+        self._built: tuple[pd.DataFrame, int, dict[int, int], list] | None = None
+        #: The last :meth:`table`'s rows of the blocks before this one are those of the
+        #: table before it (None: any row may have changed).
+        self.changed_from: int | None = None
 
     def add(self, block: int, selected: pd.DataFrame) -> None:
         """Hold the selected modes of a decided *block* until its turn."""
@@ -78,10 +84,54 @@ class IncrementalTracking:
         labels are harmonics (never the assignment), so the marks may come late."""
         from ..sid.tracking import _tracked_table
 
+        self.changed_from = None
         if self._frame is None:
             return empty_table(MODAL)
         frame = self._frame if marker is None else marker(self._frame)
-        return _tracked_table(frame, list(self._rows), self._tracker, self._channels, self.options)
+        labels = self._tracker.labels()
+        since = self._changed_from(labels)
+        if since is not None and "harmonic" not in frame.columns:
+            # the rows of the blocks from `since` on built again, the others kept: the
+            # table is sorted by (block, mode), stable in the order of the rows
+            head = self._built[0]
+            head = head.iloc[: int(np.searchsorted(head["block"].to_numpy(), since))]
+            blocks = frame["block"].to_numpy()
+            rows = [r for r in self._rows if blocks[r[0]] >= since]
+            tail = _tracked_table(frame, rows, self._tracker, self._channels, self.options)
+            if len(tail):
+                table = pd.concat([head, tail], ignore_index=True)
+            else:
+                table = head.reset_index(drop=True)
+            table.attrs["harmonic_labels"] = []
+        else:
+            table = _tracked_table(
+                frame, list(self._rows), self._tracker, self._channels, self.options
+            )
+        harmonic = table.attrs.get("harmonic_labels", [])
+        if self._built is not None and since is not None and harmonic != self._built[3]:
+            since = None  # a line became (or stopped being) a harmonic: its rows everywhere
+        self.changed_from = since
+        self._built = (table, len(self._rows), labels, harmonic)
+        return table
+
+    def _changed_from(self, labels: dict[int, int]) -> int | None:
+        """First block whose table rows may differ from the table built last (None: any,
+        or nothing built yet): the blocks of the rows tracked since, and of every row of
+        a mode labelled since (its rows before the label join the table)."""
+        if self._built is None or self._built[0].empty:
+            return None
+        _, n_rows, before, _ = self._built
+        if any(before.get(serial, label) != label for serial, label in labels.items()):
+            return None  # labels are never renumbered: not expected
+        if len(before) > len(labels):
+            return None
+        blocks = self._frame["block"].to_numpy()
+        new_serials = {serial for serial in labels if serial not in before}
+        changed = [int(blocks[r[0]]) for r in self._rows[n_rows:]]
+        if new_serials:
+            changed += [int(blocks[r[0]]) for r in self._rows if r[1] in new_serials]
+        newest = int(self._built[0]["block"].iloc[-1])
+        return min([*changed, newest])
 
     def rows_of(self, labels) -> dict[int, list[int]]:
         """Rows of the selected modes tracked so far (index of the frame :meth:`table`

@@ -10,6 +10,7 @@ once). Its state saves to and loads from JSON (no pickle).
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
 import json
@@ -128,6 +129,19 @@ class HealthMonitor:
             self._step_s = 86400.0 / reference.blocks_per_day
 
     # ------------------------------------------------------------------ public
+    def provisional_copy(self) -> HealthMonitor:
+        """A copy to chart provisional blocks on, the same as ``copy.deepcopy`` at a cost
+        that does not grow with an open alarm episode: the chart's arrays are replaced,
+        never changed in place, by :meth:`update`, and the episode's per-block arrays are
+        never changed once appended, so they are shared; the lists and the episode's
+        dict are new."""
+        other = copy.copy(self)
+        other._pending = list(self._pending)
+        if self._open is not None:
+            other._open = dict(self._open)
+            other._open["relative"] = list(self._open["relative"])
+        return other
+
     def waiting_reason(self) -> str:
         """Why the reference is not learned yet (one line)."""
         if self._reference_start is None:
@@ -483,14 +497,15 @@ class HealthMonitor:
             f"{ref.modes[j]} ({100 * shares[j]:.0f} %)" for j in order[:3] if shares[j] >= 0.05
         ]
         top = int(order[0])
-        values = np.array([r[top] for r in episode["relative"]])
-        values = values[np.isfinite(values)]
         if ref.statistic == "cusum" and len(episode.get("cusum_shift", ())):
             shift = float(episode["cusum_shift"][top])  # mean since the change point
-        elif values.size:  # median over the episode
-            shift = 100.0 * (float(np.median(values)) - float(ref.relative_median[top]))
-        else:
-            shift = np.nan
+        else:  # median over the episode (read only here: the episode grows per block)
+            values = np.array([r[top] for r in episode["relative"]])
+            values = values[np.isfinite(values)]
+            if values.size:
+                shift = 100.0 * (float(np.median(values)) - float(ref.relative_median[top]))
+            else:
+                shift = np.nan
         return {
             "alarm": episode["alarm"],
             "start_block": episode["start_block"],
