@@ -362,7 +362,7 @@ class IncrementalOutlook:
         resets = self._health_resets
         from ..shm import HealthOptions, fit_operational_model
         from ..shm.monitor import HealthMonitor
-        from .structural_health import FUEL_COLUMN, _at
+        from .structural_health import FUEL_COLUMN, _at, learning_notes
 
         settings, step_s = self.settings, self.step_s
         train = int(round(settings.health_train_hours * 3600.0 / step_s))
@@ -372,14 +372,7 @@ class IncrementalOutlook:
         have = last - first + 1
         start = first + train + reference
         if have <= train + reference:
-            note = (
-                f"health: the chart starts at block {start} ({_at(tracked, start, step_s)}), "
-                f"after this voyage's {settings.health_train_hours:g}-h model and "
-                f"{settings.reference_hours:g}-h reference; with a saved baseline (monitor "
-                "--baseline) it starts at the first block"
-            )
-            learning = f"health: learning, {have} of {train + reference + 1} blocks"
-            return None, None, [note, learning]
+            return None, None, learning_notes(tracked, settings, step_s, first, have)
         has_fuel = bool(
             FUEL_COLUMN in predictors.columns and predictors[FUEL_COLUMN].notna().any()
         ) or bool(self._has_fuel)

@@ -62,6 +62,23 @@ def charting_starts(first_block: int, settings, step_s: float) -> int:
     return int(first_block) + int(round(hours * 3600.0 / step_s))
 
 
+def learning_notes(
+    tracked: pd.DataFrame, settings, step_s: float, first: int, have: int
+) -> list[str]:
+    """The notes of a health chart still learning this voyage's own model: when it will
+    start and how far the learning is, after *have* blocks from block *first*."""
+    train = int(round(settings.health_train_hours * 3600.0 / step_s))
+    reference = int(round(settings.reference_hours * 3600.0 / step_s))
+    start = first + train + reference
+    return [
+        f"health: the chart starts at block {start} ({_at(tracked, start, step_s)}), after "
+        f"this voyage's {settings.health_train_hours:g}-h model and "
+        f"{settings.reference_hours:g}-h reference; with a saved baseline (monitor "
+        "--baseline) it starts at the first block",
+        f"health: learning, {have} of {train + reference + 1} blocks",
+    ]
+
+
 def operational_health(
     tracked: pd.DataFrame, predictors: pd.DataFrame, settings, step_s: float
 ) -> tuple[pd.DataFrame | None, pd.DataFrame | None, list[str]]:
@@ -112,14 +129,8 @@ def operational_health(
             )
     start = first + train + reference
     if have <= train + reference:
-        note = (
-            f"health: the chart starts at block {start} ({_at(tracked, start, step_s)}), after "
-            f"this voyage's {settings.health_train_hours:g}-h model and "
-            f"{settings.reference_hours:g}-h reference; with a saved baseline (monitor "
-            "--baseline) it starts at the first block"
-        )
-        learning = f"health: learning, {have} of {train + reference + 1} blocks"
-        return None, None, [n for n in (note, learning, refused) if n]
+        notes = learning_notes(tracked, settings, step_s, first, have)
+        return None, None, [n for n in (*notes, refused) if n]
     has_fuel = FUEL_COLUMN in predictors.columns and predictors[FUEL_COLUMN].notna().any()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")  # modes too rarely seen: noted, not modelled
