@@ -14,6 +14,7 @@ Run: ``python benchmarks/bench_shore.py --days 51 --repeats 20``
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
 import sys
 import tempfile
@@ -25,9 +26,11 @@ import numpy as np
 import pandas as pd
 
 from data_contracts import ALARMS, FORECAST, write_table
+from data_contracts.parts import PartWriter
 from workbench.blocks import BlockGrid
 from workbench.monitor import Monitor, MonitorOptions
 from workbench.monitor.outlook import empty_table
+from workbench.monitor.state_format import FORMAT_FILE, STATE_FORMAT
 
 STEP_S = 300.0
 MODES = 7
@@ -52,7 +55,10 @@ def _state(folder: Path, n_blocks: int, seed: int) -> tuple[BlockGrid, pd.DataFr
         }
     )
     folder.mkdir(parents=True)
-    tracked.to_parquet(folder / "tracked.parquet", index=False)
+    # the state folder's layout (workbench.monitor.state_format): growing tables a day per part
+    per_day = int(round(86400 / STEP_S))
+    (folder / FORMAT_FILE).write_text(json.dumps({"schema": STATE_FORMAT}), encoding="utf-8")
+    PartWriter(folder / "tracked.parquet", None, part_blocks=per_day).write(tracked)
     model = 2.0 + modes
     forecast = pd.DataFrame(
         {
@@ -72,7 +78,7 @@ def _state(folder: Path, n_blocks: int, seed: int) -> tuple[BlockGrid, pd.DataFr
             "warning": "",
         }
     )
-    write_table(forecast, folder / "forecast.parquet", FORECAST)
+    PartWriter(folder / "forecast.parquet", FORECAST, part_blocks=per_day).write(forecast)
     write_table(empty_table(ALARMS), folder / "alarms.parquet", ALARMS)
     return grid, tracked
 
