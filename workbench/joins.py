@@ -10,6 +10,8 @@ without times, the tracked poles themselves) and raise a one-line
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pandas as pd
 
@@ -117,7 +119,9 @@ def check_block_grid(table: pd.DataFrame, name) -> None:
 
 def check_predictors_overlap(modal: pd.DataFrame, predictors: pd.DataFrame, name) -> None:
     """Raise if *predictors* have no value at all on the blocks of *modal* (e.g. a ship log
-    of another voyage averaged onto the modal table's blocks)."""
+    of another voyage averaged onto the modal table's blocks); warn when some blocks have
+    none (a log that ends early, starts late or stops for a while), naming how many and
+    the first and last of them."""
     columns = [
         c
         for c in predictors.columns
@@ -126,8 +130,20 @@ def check_predictors_overlap(modal: pd.DataFrame, predictors: pd.DataFrame, name
     ]
     if not columns or modal.empty:
         return
-    rows = predictors[predictors["block"].isin(modal["block"].unique())]
-    if len(rows) and rows[columns].notna().to_numpy().any():
+    blocks = np.unique(modal["block"].to_numpy())
+    rows = predictors[predictors["block"].isin(blocks)]
+    logged = rows.loc[rows[columns].notna().to_numpy().any(axis=1), "block"].unique()
+    if len(logged):
+        unlogged = np.setdiff1d(blocks, logged)
+        if len(unlogged):
+            starts = modal.drop_duplicates("block").set_index("block")["block_start"]
+            warnings.warn(
+                f"{name}: no predictor value on {len(unlogged)} of {len(blocks)} blocks of "
+                f"the modal table (blocks {int(unlogged[0])} to {int(unlogged[-1])}, "
+                f"{_iso(starts[unlogged[0]])} to {_iso(starts[unlogged[-1]])}): correlations and "
+                "fits leave them out, forecasts fill them from the logged blocks",
+                stacklevel=2,
+            )
         return
     first, last = modal["block_start"].min(), modal["block_start"].max()
     raise WorkbenchError(
