@@ -430,6 +430,12 @@ def length_scales(length_s: np.ndarray, reference_rows: slice) -> np.ndarray | N
     if reference.size == 0:
         reference = span
     reference_s = reference.size / np.sum(1.0 / reference)
+    import os as _os  # SCRATCH
+
+    if _os.environ.get("WB_REF") == "min":
+        reference_s = float(np.min(span))
+    elif _os.environ.get("WB_REF") == "max":
+        reference_s = float(np.max(span))
     with np.errstate(divide="ignore", invalid="ignore"):
         scale = reference_s / length_s
     return np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)

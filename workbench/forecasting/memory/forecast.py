@@ -364,9 +364,18 @@ class MemoryRun:
         first, noise = self.first, self.noise
         lo = max(first, i0 - int(noise.noise_blocks))
         r_hist = self.resid[lo:i0, j]
+        import os as _os  # SCRATCH
+
+        meas_first = self.meas[first:i0, j]
+        if _os.environ.get("WB_NORM") and self.block_length_s is not None:
+            sc = length_scales(self.block_length_s[:i0], slice(lo, i0))
+            if sc is not None:
+                r_hist = r_hist / np.sqrt(sc[lo:i0])
+                seen = self.out["seen"][first:i0, j]
+                meas_first = seen + (meas_first - seen) / np.sqrt(sc[first:i0])
         if np.isfinite(r_hist).sum() == 0 and is_first:
             nz = first_window_noise(
-                self.meas[first:i0, j],
+                meas_first,
                 self.out["seen"][first:i0, j],
                 level_hz,
                 error_segments=self.error_segments,
