@@ -15,7 +15,8 @@ option A, rolling). Four forecasts per seed:
   :func:`~workbench.forecasting.measurement.recorded_uncertainty_holds`).
 
 "Before" runs the same code with the block lengths withheld from the forecast (they are
-then one length to it). Scored on the forecast rows against each block's truth (the
+then one length to it). The scale was measured and not kept (identification_32d.txt); on a
+tree without it, one forecast per measurement is printed (``length scale`` "none"). Scored on the forecast rows against each block's truth (the
 simulator's file truths averaged over the block's span, as in
 :mod:`bench_adaptive_blocks`); a tracked mode is the true mode nearest its median
 frequency (within 2 %). Printed per seed and stretch: the median and 90th percentile of
@@ -40,6 +41,14 @@ import pandas as pd
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import bench_adaptive_blocks as adaptive  # noqa: E402
+
+
+def _has_length_scale() -> bool:
+    """Whether the forecast has the block-length scale (commit 70c0fe9 of issue-32-s39;
+    not kept: benchmarks/results/identification_32d.txt)."""
+    from workbench.forecasting.memory import forecast
+
+    return hasattr(forecast, "block_lengths_s")
 
 
 def _forecast(modal, predictors, poles, *, lengths: bool) -> pd.DataFrame:
@@ -81,7 +90,7 @@ def run_seed(folder: Path, seed: int) -> list[dict]:
     level = truth.median()
     rows = []
     for recorded in ("no poles", "poles"):
-        for lengths in (False, True):
+        for lengths in (False, True) if _has_length_scale() else (True,):
             table = _forecast(
                 modal, predictors, poles if recorded == "poles" else None, lengths=lengths
             )
@@ -116,7 +125,9 @@ def run_seed(folder: Path, seed: int) -> list[dict]:
                         "seed": seed,
                         "stretch": stretch,
                         "measurement": recorded,
-                        "length scale": "on" if lengths else "off",
+                        "length scale": ("on" if lengths else "off")
+                        if _has_length_scale()
+                        else "none",
                         "rows": len(part),
                         "ssi median": ssi,
                         "ssi p90": part["ssi"].quantile(0.9),

@@ -63,7 +63,6 @@ import pandas as pd
 
 from .excitation import sub_windows_per_block, within_block_profile
 from .innovation_consistency import InnovationConsistency
-from .measurement import block_lengths_s
 from .memory.excitation import ExcitationBias
 from .memory.forecast import MemoryRun
 from .memory.model import MemoryModel
@@ -417,8 +416,6 @@ class IncrementalMemoryForecast:
         }
         if core.combined_std is not None:
             rows["combined_std"] = new.combined[take]
-        if getattr(core, "block_length_s", None) is not None:  # blocks of varying length
-            rows["block_length_s"] = block_lengths_s(new.grid)[take]
         for name, value in rows.items():
             setattr(core, name, np.concatenate([getattr(core, name)[:keep], value]))
         for name in ("meas", "resid", "scatter"):
@@ -524,7 +521,6 @@ class IncrementalMemoryForecast:
             "tracked",
             "tracked_damping",
             "combined_std",
-            "block_length_s",
             "speed_var",
             "shift_cap",
             "meas",
@@ -534,7 +530,7 @@ class IncrementalMemoryForecast:
             "out_w0",
             "out_w1",
         ):
-            value = getattr(core, name, None)
+            value = getattr(core, name)
             if value is not None:
                 setattr(core, name, value[drop:].copy())
         core.out = {k: v[drop:].copy() for k, v in core.out.items()}

@@ -33,10 +33,7 @@ has a damping ratio unlike the mode's. Hence:
   modes' tracked poles of the block (a close neighbour's column is not the mode);
 * the per-block measurement scale: the cluster's frequency scatter across model orders,
   relative to the mode's typical scatter (:func:`scatter_scale`), which multiplies the
-  measurement-noise variances of that block; for blocks of varying length (``identify
-  --block-minutes auto``) the length's T_ref / T_k (:func:`length_scales`) instead,
-  unless the recorded scatter explains the residuals at least as well
-  (:func:`recorded_uncertainty_holds`).
+  measurement-noise variances of that block.
 """
 
 from __future__ import annotations
@@ -51,11 +48,8 @@ __all__ = [
     "ClusterChooser",
     "PoleCluster",
     "PoleIndex",
-    "block_lengths_s",
     "cluster_around",
-    "length_scales",
     "nearer_to_another_mode",
-    "recorded_uncertainty_holds",
     "scatter_scale",
 ]
 
@@ -388,83 +382,3 @@ class ClusterChooser:
             if score > best_score:
                 best, best_score = (cluster, mac), score
         return best
-
-
-# ---------------------------------------------------------------- blocks of varying length
-#: Lengths within this much of one another are one length (nothing is scaled). [s]
-SAME_LENGTH_S = 1.0
-#: Fewest residuals of a mode before its recorded per-block uncertainty (cluster scatter,
-#: combined estimate's standard deviation) is weighed against the block length. [blocks]
-MIN_GUARD_RESIDUALS = 12
-
-
-def block_lengths_s(grid: pd.DataFrame) -> np.ndarray | None:
-    """Length of every block of *grid* (``block_end`` - ``block_start``), or None when the
-    grid has no ``block_end``. [s]"""
-    if "block_end" not in grid.columns:
-        return None
-    start = pd.to_datetime(grid["block_start"], utc=True)
-    end = pd.to_datetime(grid["block_end"], utc=True)
-    return (end - start).dt.total_seconds().to_numpy(dtype=float)
-
-
-def length_scales(length_s: np.ndarray, reference_rows: slice) -> np.ndarray | None:
-    """Per-block measurement scale from the block length: T_ref / T_k.
-
-    SSI's frequency variance falls as one over the block length (the estimation error of
-    a stationary record of length T has variance ~ 1/T), so a block of length T_k scatters
-    T_ref / T_k times as much as one of T_ref. T_ref is the harmonic mean of the lengths
-    of the *reference_rows* (the blocks whose residuals set the noise levels): the scales
-    of those blocks average 1, so the noise levels fitted to their residuals, which treat
-    every block alike, stay the levels of the average block.
-
-    Returns None when the lengths of the reference rows and after are one length (within
-    :data:`SAME_LENGTH_S`) or not known: nothing to scale.
-    """
-    span = length_s[reference_rows.start :]
-    span = span[np.isfinite(span) & (span > 0)]
-    if span.size == 0 or np.ptp(span) <= SAME_LENGTH_S:
-        return None
-    reference = length_s[reference_rows]
-    reference = reference[np.isfinite(reference) & (reference > 0)]
-    if reference.size == 0:
-        reference = span
-    reference_s = reference.size / np.sum(1.0 / reference)
-    import os as _os  # SCRATCH
-
-    if _os.environ.get("WB_REF") == "min":
-        reference_s = float(np.min(span))
-    elif _os.environ.get("WB_REF") == "max":
-        reference_s = float(np.max(span))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        scale = reference_s / length_s
-    return np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
-
-
-def recorded_uncertainty_holds(
-    residual_hz: np.ndarray, recorded_scale: np.ndarray, length_scale: np.ndarray
-) -> bool:
-    """Whether a mode's recorded per-block uncertainty explains its residuals' scatter at
-    least as well as the block length does.
-
-    Each candidate gives the blocks' relative measurement variances w_k (the recorded
-    one: (scatter / typical scatter)², :func:`scatter_scale`; the length's: T_ref / T_k,
-    :func:`length_scales`); with a common level σ² fitted to the residuals r_k (less
-    their median), the Gaussian log-likelihood is, up to constants,
-
-    .. math:: -\\tfrac12 \\Big[\\sum_k \\ln w_k + n \\ln\\Big(\\tfrac1n \\sum_k r_k^2 / w_k\\Big)\\Big].
-
-    The recorded uncertainty is kept where its likelihood is at least the length's; with
-    fewer than :data:`MIN_GUARD_RESIDUALS` residuals it is not yet shown to hold: False.
-    """
-    ok = np.isfinite(residual_hz) & np.isfinite(recorded_scale) & np.isfinite(length_scale)
-    ok &= (recorded_scale > 0) & (length_scale > 0)
-    if ok.sum() < MIN_GUARD_RESIDUALS:
-        return False
-    r = residual_hz[ok] - np.median(residual_hz[ok])
-    r2 = np.maximum(r**2, 1e-300)
-
-    def cost(w: np.ndarray) -> float:  # -2 log-likelihood, constants left out
-        return float(np.sum(np.log(w)) + w.size * np.log(np.mean(r2 / w)))
-
-    return cost(recorded_scale[ok]) <= cost(length_scale[ok])

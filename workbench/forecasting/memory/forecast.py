@@ -41,9 +41,7 @@ Kalman model per mode, with m_k the model's prediction and z_k the block's SSI e
     \\begin{bmatrix} c_{k-1} \\\\ e_{k-1} \\end{bmatrix} + w_k,
 
 Q = diag(σ_c²(1 - φ²), σ_e²(1 - ρ²) s_k), R_k = σ_v² s_k, H = [1 1], with s_k the block's
-measurement scale (pole scatter across model orders; for blocks of varying length T_ref / T_k,
-SSI's variance ~ 1/length, unless the recorded scatter explains the residuals at least as
-well: :meth:`MemoryRun._length_scales`). That is the form for a grid whose
+measurement scale (pole scatter across model orders). That is the form for a grid whose
 overlap is not known; for blocks of L steps, a new one every step (20 minutes every 5:
 L = 4), e_k is the sum of the L segment terms g_k .. g_{k+L-1} of the data the block shares
 with its neighbours, states of the filter (1 + L states, H = [1 ... 1]): from block to block
@@ -72,15 +70,7 @@ from ..assembly import drop_unusable
 from ..excitation import sub_windows_per_block
 from ..fitted_model import _plausible
 from ..innovation_consistency import MIN_BLOCKS, InnovationConsistency
-from ..measurement import (
-    PoleIndex,
-    block_lengths_s,
-    cluster_around,
-    length_scales,
-    nearer_to_another_mode,
-    recorded_uncertainty_holds,
-    scatter_scale,
-)
+from ..measurement import PoleIndex, cluster_around, nearer_to_another_mode, scatter_scale
 from ..model_trust import BlendStep, ModelTrust
 from ..noise import NoiseModel, estimate_noise, model_error_floor
 from ..options import ForecastOptions
@@ -208,8 +198,6 @@ class MemoryRun:
             columns = [*columns, "elapsed_hours"]
         self.grid, self.blocks, self.block_start = grid, blocks, block_start
         self.columns, self.X_all = columns, X_all
-        # each block's length: SSI's scatter grows as blocks shorten (--block-minutes auto)
-        self.block_length_s = block_lengths_s(grid)
         # blocks that share data with a block: its identification error (an ice impact, a
         # badly excited stretch) is in all of them, so a run of large innovations is
         # evidence that the model is off only when it reaches a block that shares no data
@@ -364,18 +352,9 @@ class MemoryRun:
         first, noise = self.first, self.noise
         lo = max(first, i0 - int(noise.noise_blocks))
         r_hist = self.resid[lo:i0, j]
-        import os as _os  # SCRATCH
-
-        meas_first = self.meas[first:i0, j]
-        if _os.environ.get("WB_NORM") and self.block_length_s is not None:
-            sc = length_scales(self.block_length_s[:i0], slice(lo, i0))
-            if sc is not None:
-                r_hist = r_hist / np.sqrt(sc[lo:i0])
-                seen = self.out["seen"][first:i0, j]
-                meas_first = seen + (meas_first - seen) / np.sqrt(sc[first:i0])
         if np.isfinite(r_hist).sum() == 0 and is_first:
             nz = first_window_noise(
-                meas_first,
+                self.meas[first:i0, j],
                 self.out["seen"][first:i0, j],
                 level_hz,
                 error_segments=self.error_segments,
@@ -438,7 +417,6 @@ class MemoryRun:
             else np.zeros(self.n_modes)
         )
         have_model = np.array([c is not None for c in self.current])
-        by_length = self._length_scales(i0, int(report[-1]) + 1 if report.size else i0, typical)
         for r, k in enumerate(report):
             have = np.isfinite(m_rows[r]) & have_model
             if self.option == "A" or k < self.first + self.train:
@@ -447,9 +425,6 @@ class MemoryRun:
                 z, scale = self._cluster_measurement(
                     k, have, typical, z_rows[r], (F, q_c, q_e, r_v)
                 )
-            if by_length is not None:
-                length_scale, use_length = by_length
-                scale = np.where(use_length, length_scale[k], scale)
             z[~have] = np.nan
             filter_step = (F, q_c, q_e, r_v, huber, v_rows[r] + added_variance)
             self._kalman_step(k, have, z, scale, m_rows[r], z_rows[r], filter_step)
@@ -476,31 +451,6 @@ class MemoryRun:
                 warnings.simplefilter("ignore", RuntimeWarning)
                 typical = np.sqrt(np.nanmean(s**2, axis=0))
         return typical
-
-    def _length_scales(self, i0: int, f1: int, typical: np.ndarray):
-        """Blocks of varying length: the length's measurement scale of rows before *f1*
-        (:func:`~workbench.forecasting.measurement.length_scales`, reference: the blocks
-        whose residuals set the noise levels) and, per mode, whether it replaces the
-        recorded scale (cluster scatter, combined standard deviation: kept where it explains
-        the residuals at least as well, :func:`~workbench.forecasting.measurement.
-        recorded_uncertainty_holds`). None for blocks of one length: nothing changes."""
-        lengths = getattr(self, "block_length_s", None)
-        if lengths is None:
-            return None
-        lo = max(self.first, i0 - int(self.noise.noise_blocks))
-        scale = length_scales(lengths[:f1], slice(lo, i0))
-        if scale is None:
-            return None
-        recorded = self.combined_std is not None or self.index is not None
-        use_length = np.ones(self.n_modes, dtype=bool)
-        if recorded and self.noise.pole_scatter:
-            for j in range(self.n_modes):
-                scatter = self.scatter[lo:i0, j]
-                recorded_scale = np.array([scatter_scale(s, typical[j]) for s in scatter])
-                use_length[j] = not recorded_uncertainty_holds(
-                    self.resid[lo:i0, j], recorded_scale, scale[lo:i0]
-                )
-        return scale, use_length
 
     def _tracked_measurement(self, k: int, have: np.ndarray, typical: np.ndarray):
         """Option A (and the first window): the tracked pole, scaled by its scatter."""
