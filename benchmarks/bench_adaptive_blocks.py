@@ -14,13 +14,20 @@ simulator's truth of every 5-min file (``truth_files.csv``):
   A long block smears a fast change, a short one scatters: both show up here.
 * **block error x length**: each found mode's |df|/f against its block's own truth (the
   mean of the file truths over the block's span) times the block's length in minutes;
-  median over blocks and modes. Small is good: accurate and sharp in time.
+  median over blocks and modes. Small is good: accurate and sharp in time. It grows as
+  sqrt(length) where nothing changes (the error falls only as 1/sqrt(length)), so it
+  favours the shortest block even in a steady stretch.
+* **block error² x length** (the variance-time product): each found mode's (|df|/f)²
+  against its block's own truth times the block's length in minutes; median over blocks
+  and modes. For a pure 1/sqrt(length) scatter it is the same for every length, so it
+  rewards a short block only where a long one would smear a change and a long block only
+  where the stretch is steady: neutral between resolution and averaging.
 
 A true mode is found in a block when a selected (non-harmonic) mode lies within
 0.4 x its distance to the nearest other true mode (at most 2 %), one-to-one. Printed per
 seed, stretch (``ice`` / ``open water``) and run: blocks, median block length, found share,
-the median and 90th percentile of the path error, the median block error and the median of
-block error x length.
+the median and 90th percentile of the path error, the median block error and the medians of
+block error x length and block error² x length.
 
 A second table checks what SSI reads in a fixed 20-min block whose excitation changes
 (speed changes, ice): each found mode's relative error against the block's time-mean truth
@@ -178,6 +185,7 @@ def summarise(folder: Path, seed: int) -> list[dict]:
             found = b["estimate_hz"].notna()
             error = (b["estimate_hz"] / b["truth_hz"] - 1.0).abs()[found]
             product = error * b["length_min"][found]
+            variance_time = error**2 * b["length_min"][found]
             out.append(
                 {
                     "seed": seed,
@@ -190,6 +198,9 @@ def summarise(folder: Path, seed: int) -> list[dict]:
                     "path p90": float(p["error"].quantile(0.9)) if len(p) else math.nan,
                     "block median": float(error.median()) if len(error) else math.nan,
                     "error x length": float(product.median()) if len(product) else math.nan,
+                    "error2 x length": float(variance_time.median())
+                    if len(variance_time)
+                    else math.nan,
                 }
             )
     return out
@@ -274,7 +285,14 @@ def main(argv=None) -> int:
     if len(seeds) > 1:
         pooled = (
             table.groupby(["stretch", "run"], sort=False)[
-                ["path median", "path p90", "block median", "error x length", "found"]
+                [
+                    "path median",
+                    "path p90",
+                    "block median",
+                    "error x length",
+                    "error2 x length",
+                    "found",
+                ]
             ]
             .median()
             .reset_index()

@@ -368,6 +368,11 @@ def test_settings_from_a_ship_configuration(voyage, tmp_path):
         (["monitor", "--state", "s"], "--watch"),
         (["monitor", "--watch", "nowhere", "--state", "s"], "no such folder"),
         (["monitor", "--watch", ".", "--state", "s", "--poll", "0"], "poll_s"),
+        # auto was read as fixed blocks of one step (5 min) without a word
+        (
+            ["monitor", "--watch", ".", "--state", "s", "--once", "--block-minutes", "auto"],
+            "--block-minutes auto: the monitor identifies blocks of one length",
+        ),
     ],
 )
 def test_usage_errors_exit_2(argv, needle, tmp_path, capsys, monkeypatch):

@@ -22,7 +22,7 @@ from ..errors import WorkbenchError
 from ..inputs import add_acceleration_layout, add_dship_columns, dship_mapping
 from .common import EXIT_OK, UsageError
 from .forecasting import check_forecast_flags, forecast_options
-from .identify import harmonic_options, identify_options
+from .identify import _block_minutes, harmonic_options, identify_options
 
 
 def _add_dashboard(commands: argparse._SubParsersAction) -> None:
@@ -320,6 +320,13 @@ def _monitor_options(args: argparse.Namespace):
     from ..monitor.shore import parse_command
     from ..sid.tracking import TrackingOptions
 
+    if _block_minutes(getattr(args, "block_minutes", None)) == "auto":
+        # identify_options reads auto as the step (the shortest length): refused here rather
+        # than monitored as fixed blocks of one step
+        raise UsageError(
+            "--block-minutes auto: the monitor identifies blocks of one length; give the "
+            "minutes (identify takes auto)"
+        )
     identify = identify_options(args)
     harmonics = harmonic_options(args)  # as identify --dship marks them
     trust = check_forecast_flags(args)  # what `forecast` refuses, the monitor refuses

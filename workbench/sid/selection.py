@@ -117,6 +117,7 @@ References
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
@@ -138,7 +139,7 @@ from .ssi import SSIResult
 from .ssi.results import _with_shapes
 from .stabilisation import StabilityCriteria
 
-__all__ = ["ModeSelection", "select_modes"]
+__all__ = ["ModeSelection", "confirmed_second_look", "select_modes"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -786,3 +787,73 @@ def _select_library(
         }
     )
     return ModeSelection(modes, shapes[:, heads], selected_order, window, "library")
+
+
+#: A second-look mode is confirmed by a mode of another estimate within this relative
+#: frequency difference ... [-]
+CONFIRM_FREQUENCY_TOL = 0.01
+#: ... whose shape has at least this MAC with it (the pairing of
+#: :func:`~workbench.sid.combined.combine_modes`). [-]
+CONFIRM_MAC = 0.8
+
+
+def confirmed_second_look(
+    selection: ModeSelection,
+    others: Sequence[ModeSelection],
+    *,
+    frequency_tol: float = CONFIRM_FREQUENCY_TOL,
+    mac_min: float = CONFIRM_MAC,
+) -> ModeSelection:
+    """*selection* without the second-look modes that no estimate in *others* confirms.
+
+    The second look (:func:`_second_look`) finds shorter, looser columns than stage 3: the
+    modes of close pairs and weakly excited modes, and now and then a column of the
+    estimator's own (a noise pattern of this record's model). A structural mode is in the
+    data throughout a stationary block, so an independent estimate - another method on the
+    same block (:func:`~workbench.sid.combined.combine_modes`), or the same method on each
+    half of the block (``identify``'s default, :func:`~workbench.identification.engine.
+    identify_block`) - shows it too. A second-look mode is kept when a mode of one of
+    *others* lies within *frequency_tol* of it with a MAC of at least *mac_min*; stage-3
+    modes are kept as they are.
+
+    The thresholds gain ``second_look_unconfirmed`` (modes left out); ``second_look`` and
+    ``second_look_poles`` count the modes kept. With no other estimate (*others* empty)
+    nothing is judged and *selection* is returned unchanged.
+    """
+    poles = selection.thresholds.get("second_look_poles", ())
+    modes = selection.modes
+    if not len(poles) or not others or "pole_index" not in modes.columns:
+        return selection
+    second = modes["pole_index"].isin(poles).to_numpy()
+    keep = np.ones(len(modes), dtype=bool)
+    for k in np.flatnonzero(second):
+        f = float(modes["frequency_hz"].iat[k])
+        confirmed = False
+        for other in others:
+            near = np.flatnonzero(
+                np.abs(other.modes["frequency_hz"].to_numpy(dtype=float) / f - 1.0) < frequency_tol
+            )
+            if near.size and np.any(
+                np.atleast_1d(mac(selection.mode_shapes[:, k], other.mode_shapes[:, near]))
+                >= mac_min
+            ):
+                confirmed = True
+                break
+        keep[k] = confirmed
+    if keep.all():
+        return dataclasses.replace(
+            selection, thresholds={**selection.thresholds, "second_look_unconfirmed": 0}
+        )
+    kept_poles = tuple(int(p) for p in modes["pole_index"].to_numpy()[keep & second])
+    thresholds = {
+        **selection.thresholds,
+        "second_look": len(kept_poles),
+        "second_look_poles": kept_poles,
+        "second_look_unconfirmed": int((~keep).sum()),
+    }
+    return dataclasses.replace(
+        selection,
+        modes=modes[keep].reset_index(drop=True),
+        mode_shapes=selection.mode_shapes[:, keep],
+        thresholds=thresholds,
+    )
