@@ -23,8 +23,13 @@ frequency (within 2 %). Printed per seed and stretch: the median and 90th percen
 |df|/f of the raw SSI estimate and of the Kalman estimate, and Kalman vs SSI = 1 -
 median Kalman / median SSI (positive: the Kalman estimate is the better).
 
+``--runs`` adds the fixed-length runs of the same voyages (``fixed 20 min``, the product's
+default, and ``fixed 5 min``; their log averaged over each block's span): the blend
+against raw SSI where an unlogged ice load moves the modes by 1-2 % with a 4-minute
+correlation (:data:`workbench.simulate.voyage.ICE_FREQUENCY_DROP`).
+
 Run: ``python benchmarks/bench_adaptive_forecast.py [--seeds 0,1,2,3,4] [--hours 4]
-[--ice-hours 1.5] [--work /tmp/bench_adaptive]``.
+[--ice-hours 1.5] [--work /tmp/bench_adaptive] [--runs "auto,fixed 20 min,fixed 5 min"]``.
 """
 
 from __future__ import annotations
@@ -68,11 +73,11 @@ def _forecast(modal, predictors, poles, *, lengths: bool) -> pd.DataFrame:
     return table[table["phase"] == "forecast"]
 
 
-def run_seed(folder: Path, seed: int) -> list[dict]:
+def run_seed(folder: Path, seed: int, run: str = "auto") -> list[dict]:
     from workbench.predictors import load_predictors
     from workbench.stages.tracking import track
 
-    selected = adaptive.identify(folder, "auto")
+    selected = adaptive.identify(folder, run)
     blocks, _ = adaptive.score(folder, selected)
     truth = blocks.pivot(index="block", columns="mode", values="truth_hz")
     modal = track(selected).table
@@ -81,9 +86,9 @@ def run_seed(folder: Path, seed: int) -> list[dict]:
         predictors = load_predictors(
             dship=folder / "dship.tsv",
             onto=modal,
-            excitation=folder / "run_auto" / "excitation.csv",
+            excitation=folder / "run_auto" / "excitation.csv" if run == "auto" else None,
         )
-    poles = pd.read_parquet(folder / "run_auto" / "poles.parquet")
+    poles = pd.read_parquet(selected.parent / "poles.parquet")
     cases = adaptive.stretches(folder)
     ice = cases.loc[cases["case"] == "ice", "start"]
     ice_start = pd.Timestamp(ice.iat[0]) if len(ice) else None
@@ -123,6 +128,7 @@ def run_seed(folder: Path, seed: int) -> list[dict]:
                 rows.append(
                     {
                         "seed": seed,
+                        "blocks": run,
                         "stretch": stretch,
                         "measurement": recorded,
                         "length scale": ("on" if lengths else "off")
@@ -145,11 +151,21 @@ def main(argv=None) -> int:
     parser.add_argument("--hours", type=float, default=4.0, help="voyage length [h]")
     parser.add_argument("--ice-hours", type=float, default=1.5, help="ice stretch [h]")
     parser.add_argument("--work", type=Path, default=Path("/tmp/bench_adaptive"))
+    parser.add_argument(
+        "--runs",
+        default="auto",
+        help="block runs, comma-separated: auto, 'fixed 20 min', 'fixed 5 min'",
+    )
     args = parser.parse_args(argv)
     try:
         seeds = [int(s) for s in args.seeds.split(",") if s.strip()]
     except ValueError:
         print(f"--seeds {args.seeds!r} must be whole numbers separated by commas", file=sys.stderr)
+        return 2
+    runs = [r.strip() for r in args.runs.split(",") if r.strip()]
+    unknown = [r for r in runs if r not in adaptive.RUNS]
+    if unknown or not runs:
+        print(f"--runs: give some of {', '.join(adaptive.RUNS)}", file=sys.stderr)
         return 2
     if not 1 <= len(seeds) <= 20:
         print("--seeds: give 1 to 20 seeds", file=sys.stderr)
@@ -158,9 +174,10 @@ def main(argv=None) -> int:
     for seed in seeds:
         folder = args.work / f"h{args.hours:g}_ice{args.ice_hours:g}_seed{seed}"
         adaptive.simulate(folder, seed, args.hours, args.ice_hours)
-        rows += run_seed(folder, seed)
+        for run in runs:
+            rows += run_seed(folder, seed, run)
     table = pd.DataFrame(rows)
-    keys = ["stretch", "measurement", "length scale"]
+    keys = ["blocks", "stretch", "measurement", "length scale"]
     if len(seeds) > 1:
         values = ["ssi median", "kalman median", "kalman vs ssi %"]
         median = table.groupby(keys, sort=False)[values].median().reset_index()
