@@ -252,7 +252,7 @@ _NPZ_ARRAYS = ("acceleration", "sampling_rate_hz", "start_time", "channels")
 
 
 def _read_npz(path: Path) -> AccelerationRecord:
-    from .npz import check_sample_header, read_sample_headers
+    from .npz import check_sample_header, read_sample_headers, read_stored_samples
 
     def not_npz() -> ContractError:
         return ContractError([Violation(None, _NOT_NPZ)], source=path, contract="accelerations")
@@ -281,9 +281,10 @@ def _read_npz(path: Path) -> AccelerationRecord:
     if len(shape) == 2:
         check_channel_count(shape[1], source=path, what="array acceleration")
     try:
+        samples = read_stored_samples(path, headers["acceleration"])
         with np.load(path, allow_pickle=False) as data:
             return AccelerationRecord(
-                data["acceleration"],
+                data["acceleration"] if samples is None else samples,
                 _scalar(data["sampling_rate_hz"]),
                 _scalar(data["start_time"]),
                 tuple(str(c) for c in data["channels"].ravel()),

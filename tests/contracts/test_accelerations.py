@@ -169,3 +169,39 @@ def test_infinite_and_implausible_channels_are_named(tmp_path):
     text = str(caught.value)
     assert "infinite values in channel(s) b" in text
     assert "above 500 m/s² in channel(s) c:" in text
+
+
+@pytest.mark.parametrize("layout", ["C", "F", "big-endian", "float32", "compressed"])
+def test_npz_samples_read_in_place_equal_numpy_load(tmp_path, layout):
+    """The uncompressed member is read straight into its array (its CRC-32 checked);
+    every layout gives what ``np.load`` gives, a compressed member is read by np.load."""
+    data = record(n_samples=1000, n_channels=4).acceleration
+    if layout == "F":
+        data = np.asfortranarray(data)
+    elif layout == "big-endian":
+        data = data.astype(">f8")
+    elif layout == "float32":
+        data = data.astype(np.float32)
+    path = tmp_path / "a.npz"
+    save = np.savez_compressed if layout == "compressed" else np.savez
+    save(
+        path,
+        acceleration=data,
+        sampling_rate_hz=np.float64(64.0),
+        start_time=np.str_("2026-03-01T12:05:00Z"),
+        channels=np.array(["a", "b", "c", "d"]),
+    )
+    with np.load(path) as stored:
+        expected = stored["acceleration"].astype(float)
+    np.testing.assert_array_equal(read_accelerations(path).acceleration, expected)
+
+
+def test_npz_with_a_damaged_sample_is_refused(tmp_path):
+    """A flipped byte among the samples fails the member's CRC-32, as zipfile checks it."""
+    path = write_accelerations(record(), tmp_path / "a.npz")
+    raw = bytearray(path.read_bytes())
+    position = raw.index(b"acceleration.npy") + 200  # inside the samples
+    raw[position] ^= 0x40
+    path.write_bytes(bytes(raw))
+    with pytest.raises(ContractError, match="not a valid .npz acceleration file"):
+        read_accelerations(path)
