@@ -141,22 +141,29 @@ def test_pickled_npz_is_refused(tmp_path):
     assert "pickle" not in " ".join(v.reason for v in caught.value.violations)
 
 
-def test_one_pass_peaks_equal_the_per_column_definition():
-    """``_column_peaks`` (chunked, one pass) against max |a| over the non-NaN samples per
-    column (0 for a dead column, inf where an infinite value is), across chunk edges."""
+@pytest.mark.parametrize("order", ["C", "F"])
+def test_one_pass_peaks_equal_the_per_column_definition(order):
+    """``_column_peaks`` (one pass: wide rows for a C-ordered array, row chunks otherwise)
+    against max |a| over the non-NaN samples per column (0 for a dead column, inf where an
+    infinite value is), across chunk edges and in the rows left over by the wide view."""
     from data_contracts import accelerations
 
     rng = np.random.default_rng(3)
     n_rows = 3 * accelerations._PEAK_CHUNK_VALUES // 19 + 7  # several chunks and a rest
+    assert n_rows % (accelerations._PEAK_ROW_VALUES // 19) > 1  # rows left over
     x = rng.standard_normal((n_rows, 19))
     x[rng.random(x.shape) < 0.01] = np.nan
     x[:, 4] = np.nan  # dead channel
     x[n_rows - 1, 7] = -np.inf  # in the last, partial chunk
     x[accelerations._PEAK_CHUNK_VALUES // 19, 11] = 42.0  # first row of the second chunk
+    x[n_rows - 2, 12] = -17.0  # a negative peak among the rows left over
+    x[5, 13] = -np.inf  # in the wide rows
+    x = np.asarray(x, order=order)
     peaks = accelerations._column_peaks(x)
     expected = np.where(np.isnan(x), 0.0, np.abs(x)).max(axis=0)
     np.testing.assert_array_equal(peaks, expected)
     assert peaks[4] == 0.0 and peaks[7] == np.inf and peaks[11] == 42.0
+    assert peaks[12] == 17.0 and peaks[13] == np.inf
 
 
 def test_infinite_and_implausible_channels_are_named(tmp_path):
