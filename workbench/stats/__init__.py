@@ -34,7 +34,7 @@ from .correlation import (
 )
 from .diagnostics import ResidualDiagnostics, durbin_watson, residual_diagnostics
 from .mode_fits import ModeFit, StatsWarning, coefficient_table, fit_modes, fit_statistics_table
-from .stepwise import StepwiseFit, StepwiseRegressor, StepwiseWarning, stepwise
+from .stepwise import StepwiseFit, StepwiseWarning, stepwise
 from .terms import parse_terms
 
 __all__ = [
@@ -64,3 +64,16 @@ __all__ = [
     "residual_diagnostics",
     "stepwise",
 ]
+
+
+def __getattr__(name: str):
+    """:class:`StepwiseRegressor` on first use (scikit-learn is imported for it only)."""
+    if name == "StepwiseRegressor":
+        from .stepwise import StepwiseRegressor
+
+        return StepwiseRegressor
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), "StepwiseRegressor"})
