@@ -206,12 +206,12 @@ def identify_block(
         reason (gap, too few good channels, ...). Raises ValueError for data problems,
         which :func:`~workbench.parallel.run_blocks` records as a skipped block.
     """
-    from threadpoolctl import threadpool_limits
+    from ..sid.threads import single_threaded
 
     # One BLAS thread per block, in workers and in-process alike: the parallelism is over
     # blocks, and the same arithmetic everywhere makes results bit-identical whatever the
     # scheduler (a resumed job may mix blocks computed either way).
-    with threadpool_limits(limits=1):
+    with single_threaded():
         data, result, selection, *other = _identify_data(
             task,
             grid,
