@@ -68,3 +68,18 @@ def test_step_sums_count_and_runs_of_missing_samples():
     # only the sums of u**i tau**j with i + j <= 4 are kept
     for i in range(5):
         assert (sums.sums[i, 5 - i :] == 0).all()
+
+
+def test_offset_of_a_channel_finite_only_between_the_subsample_rows():
+    """A channel NaN but for a short stretch (none of it in the offset's subsample) keeps
+    a well-conditioned offset: a large mean over a small variance still gives its
+    statistics to rounding."""
+    rng = np.random.default_rng(5)
+    x = rng.standard_normal((40_000, 2))
+    x[:, 1] = np.nan
+    x[20_001:20_008, 1] = 9.81 + 0.001 * rng.standard_normal(7)  # between subsample rows
+    sums = _step_sums(x, 0, RATE)
+    assert sums.offset[1] == pytest.approx(9.81, abs=0.01)
+    _, _, variance, _ = _block_statistics([sums], len(x), RATE)
+    reference = faulty_channels(x, RATE)
+    np.testing.assert_allclose(variance, reference["variance"], rtol=1e-9)

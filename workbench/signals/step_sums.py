@@ -47,7 +47,8 @@ _OFFSET_ROWS = 4096
 
 def _offsets(x: np.ndarray) -> np.ndarray:
     """Per channel, the mean of the finite samples of an evenly spaced subsample of about
-    :data:`_OFFSET_ROWS` rows of *x* (0 without any finite one).
+    :data:`_OFFSET_ROWS` rows of *x* (of all its finite samples where the subsample has
+    none; 0 without any finite sample).
 
     The offset only keeps the power sums about it well conditioned (the statistics are
     assembled about the block's own detrended mean, whatever the offset), so a mean
@@ -58,7 +59,13 @@ def _offsets(x: np.ndarray) -> np.ndarray:
     finite = ~np.isnan(sample)
     count = finite.sum(axis=0)
     total = np.where(finite, sample, 0.0).sum(axis=0)
-    return np.where(count > 0, total / np.maximum(count, 1), 0.0)
+    offset = np.where(count > 0, total / np.maximum(count, 1), 0.0)
+    for c in np.flatnonzero(count == 0):  # finite samples only between the subsample's
+        column = x[:, c]
+        column = column[~np.isnan(column)]
+        if column.size:
+            offset[c] = column.mean()
+    return offset
 
 
 def _step_sums(x: np.ndarray, first_ns: int, rate: float, chunk: int = _SUM_ROWS) -> _StepSums:
