@@ -120,7 +120,7 @@ def _voyage(root: Path, hours: float) -> Path:
 def _child_environment() -> dict:
     """Environment of the measured children: the ``workbench`` this benchmark imports comes
     first on their path, and they run in a scratch folder, so that ``python -m
-    workbench.cli`` cannot pick up a ``workbench`` package in the working directory (e.g.
+    workbench`` cannot pick up a ``workbench`` package in the working directory (e.g.
     a checkout other than the tree measured, when comparing before and after)."""
     import workbench
 
@@ -149,10 +149,13 @@ def _measured(command: list[str]) -> tuple[float, int, int, float]:
 
 
 def _identify(voyage: Path, out: Path, *extra: str) -> tuple[float, int, int, float]:
-    """``workbench identify`` in a child process: (seconds, peak RSS MiB, blocks done, CPU
-    seconds of the process tree)."""
+    """``workbench identify`` in a child process, started as the ``workbench`` command
+    starts (``python -m workbench``: the entry point :mod:`workbench.launch`, which hashes
+    the inputs while the command line imports; ``-m workbench.cli`` would import the
+    command line first): (seconds, peak RSS MiB, blocks done, CPU seconds of the process
+    tree)."""
     shutil.rmtree(out, ignore_errors=True)
-    command = [sys.executable, "-m", "workbench.cli", "identify", str(voyage)]
+    command = [sys.executable, "-m", "workbench", "identify", str(voyage)]
     command += ["--out", str(out), "--quiet", *extra]
     try:
         return _measured(command)

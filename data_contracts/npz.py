@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -23,6 +24,7 @@ __all__ = [
     "read_checked_arrays",
     "read_sample_headers",
     "read_sample_rows",
+    "read_stored_samples",
 ]
 
 _MEMBER = "acceleration.npy"
@@ -45,6 +47,8 @@ class NpzSampleHeader:
     data_offset : int or None
         Offset of the first sample in the ``.npz`` file when the member is stored
         uncompressed, else None. [B]
+    crc32 : int or None
+        The member's CRC-32 as the archive records it (None where not read).
     """
 
     shape: tuple[int, ...]
@@ -54,6 +58,7 @@ class NpzSampleHeader:
     member_size: int
     compressed_size: int
     data_offset: int | None
+    crc32: int | None = None
 
     @property
     def claimed_bytes(self) -> int:
@@ -111,6 +116,7 @@ def read_sample_headers(
                 int(member.file_size),
                 int(member.compress_size),
                 offset,
+                int(member.CRC),
             )
     return headers
 
@@ -208,3 +214,38 @@ def read_sample_rows(path: str | os.PathLike, first: int, stop: int) -> np.ndarr
         return rows.reshape(stop - first, n_channels)
     except (OSError, ValueError, KeyError, zipfile.BadZipFile):
         return None
+
+
+def read_stored_samples(path: str | os.PathLike, header: NpzSampleHeader) -> np.ndarray | None:
+    """The whole array of an uncompressed member read straight into its array (one copy
+    from the file, where ``np.load`` copies each chunk twice), its CRC-32 checked against
+    the archive's as ``zipfile`` checks it.
+
+    *header* is the member's header from :func:`read_sample_headers` (already checked with
+    :func:`check_sample_header`). Returns None where the member is not read this way
+    (compressed, object dtype, no CRC recorded): read it with ``np.load`` then.
+
+    Raises
+    ------
+    ValueError
+        The member is cut short or its CRC-32 differs from the archive's (a damaged file).
+    OSError
+        The file cannot be read.
+    """
+    if header.data_offset is None or header.crc32 is None or header.dtype.hasobject:
+        return None
+    count = int(np.prod(header.shape))
+    array = np.empty(count, dtype=header.dtype)
+    data = array.view(np.uint8)  # the bytes, whatever the byte order
+    start = header.data_offset - header.header_bytes  # the member's first byte
+    with open(path, "rb") as handle:
+        handle.seek(start)
+        npy_header = handle.read(header.header_bytes)
+        read = handle.readinto(data)
+        rest = handle.read(max(header.member_size - header.claimed_bytes, 0))
+    if len(npy_header) != header.header_bytes or read != data.nbytes:
+        raise ValueError(f"{path}: array data cut short")
+    crc = zlib.crc32(rest, zlib.crc32(data, zlib.crc32(npy_header)))
+    if crc != header.crc32 or len(rest) != header.member_size - header.claimed_bytes:
+        raise ValueError(f"{path}: bad CRC-32 of the array data")
+    return array.reshape(header.shape, order="F" if header.fortran_order else "C")

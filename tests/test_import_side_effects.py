@@ -52,3 +52,25 @@ def test_the_cli_selects_agg_for_itself(tmp_path):
         [sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=300
     )
     assert done.stdout.lower().split() == ["1", "agg"], done.stderr
+
+
+def test_the_cli_selects_agg_before_matplotlib_is_imported(tmp_path):
+    # a command that draws nothing does not import matplotlib; one imported afterwards (by
+    # a later command in the same process) still comes up with Agg, not the user's "pdf"
+    script = textwrap.dedent(
+        f"""
+        import sys
+        from workbench.cli import main
+        status = main(["validate", "modal", {str(tmp_path / "missing.csv")!r}])
+        imported = "matplotlib" in sys.modules
+        import matplotlib
+        print(status, imported, matplotlib.get_backend())
+        """
+    )
+    env = {**os.environ, "MPLBACKEND": "pdf"}
+    done = subprocess.run(
+        [sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=300
+    )
+    status, imported, backend = done.stdout.split()
+    assert (status, backend.lower()) == ("1", "agg"), done.stderr
+    assert imported in ("True", "False")  # either way the backend is Agg

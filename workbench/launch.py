@@ -16,8 +16,17 @@ from .errors import EXIT_INTERRUPTED
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Import the command line and run it; ``interrupted`` and exit 130 on Ctrl-C."""
+    """Import the command line and run it; ``interrupted`` and exit 130 on Ctrl-C.
+
+    For ``identify``, the input files named first on the command line are hashed for the
+    store's fingerprints while the command line imports (:mod:`workbench.fingerprints`).
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
     try:
+        if argv[:1] == ["identify"]:
+            from .fingerprints import prefetch
+
+            prefetch(argv[1:])
         from .cli import main as run
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)

@@ -10,9 +10,12 @@ of each finished block (and the few shared inputs two ranges both need) travel b
 Each worker runs its range in order, like the in-process scheduler, so the shared inputs of
 consecutive tasks (an acquisition file conditioned once for the four overlapping blocks
 holding it) are computed once in that worker and dropped once no later task of its range
-names them. An input needed by two neighbouring ranges is computed once, by the later
-worker (it needs it for its first tasks, the earlier one only for its last), and handed to
-the earlier one through this process. The tasks must be in time order, as
+names them. An input needed by two neighbouring ranges is computed once, by whichever of
+the two has less work (its tasks, plus :data:`SHARED_INPUT_WEIGHT` tasks per input it
+computes; e.g. a 1-h voyage's 9 blocks and 12 files: 5 blocks and 6 files against 4 and
+6, where handing every shared file to the later worker gave 5 and 5 against 4 and 7), and
+handed to the other through this process; workers compute what they hand over before
+their own tasks, so the receiver does not wait. The tasks must be in time order, as
 :func:`~workbench.parallel.run_blocks` documents for shared inputs.
 
 Workers follow :mod:`workbench.processes`: they start with Ctrl-C blocked, end with this
@@ -37,11 +40,15 @@ from .processes import end_with_parent, interrupts_deferred
 
 __all__ = ["fork_available", "run_forked", "split_ranges"]
 
-#: glibc ``mallopt`` parameters of the workers (see ``workbench.parallel._WORKER_MALLOC``):
-#: arrays up to 32 MiB are reused from the heap instead of being mapped and zeroed afresh.
+#: glibc ``mallopt`` parameters of the workers: arrays up to 256 MiB (a raw 5-min file of
+#: 19 channels at 2048 Hz is 93 MB, read once per file) are reused from the heap instead of
+#: being mapped and zeroed afresh, and up to 512 MiB of freed heap is kept for them. A
+#: worker's peak memory is what it holds at once either way; the kernel's page faults and
+#: zeroing of every file's fresh mapping were 0.25 s of system CPU per 1-h voyage.
+#: (Dask workers, which hold no raw files, keep ``workbench.parallel._WORKER_MALLOC``.)
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
-_MMAP_THRESHOLD_BYTES = 32 * 2**20
-_TRIM_THRESHOLD_BYTES = 64 * 2**20
+_MMAP_THRESHOLD_BYTES = 256 * 2**20
+_TRIM_THRESHOLD_BYTES = 512 * 2**20
 
 
 def fork_available() -> bool:
@@ -74,13 +81,43 @@ def _allocate_like_a_plain_process() -> None:
         pass
 
 
-def _owners(needs: Sequence[Sequence[Hashable]], ranges: Sequence[range]) -> dict:
-    """Key -> the worker computing it: the last worker whose range names it."""
-    owner: dict = {}
+#: Work of computing a shared input, in tasks (the balance of :func:`_owners`): in
+#: ``workbench identify`` a shared input is a raw file read, checked and decimated, about
+#: twice a block's identification at 2048 Hz (0.37 s against 0.18 s of CPU). [-]
+SHARED_INPUT_WEIGHT = 2.0
+
+
+def _owners(
+    needs: Sequence[Sequence[Hashable]],
+    ranges: Sequence[range],
+    weight: float = SHARED_INPUT_WEIGHT,
+) -> dict:
+    """Key -> the worker computing it.
+
+    A key named by one worker's range is that worker's. A key named by several (the
+    inputs at the join of two ranges) goes, in time order, to whichever of them has the
+    least work so far: its tasks plus *weight* per key it computes; a tie goes to the later
+    worker (it needs the key for its first tasks). Workers compute the keys they hand
+    over before their own tasks (:func:`_worker`), so none waits long for a neighbour.
+    """
+    naming: dict = {}  # key -> workers whose range names it, in order
     for worker, span in enumerate(ranges):
         for i in span:
             for key in needs[i]:
-                owner[key] = worker
+                workers = naming.setdefault(key, [])
+                if worker not in workers:
+                    workers.append(worker)
+    load = [float(len(span)) for span in ranges]
+    owner: dict = {}
+    for key, workers in naming.items():
+        if len(workers) == 1:
+            owner[key] = workers[0]
+            load[workers[0]] += weight
+    for key, workers in naming.items():
+        if len(workers) > 1:
+            chosen = min(reversed(workers), key=lambda w: load[w])
+            owner[key] = chosen
+            load[chosen] += weight
     return owner
 
 
@@ -103,28 +140,37 @@ def _worker(
     _allocate_like_a_plain_process()
     received: dict = {}
     values: dict = {}
+    needs = [tuple(getattr(task, "shared_inputs", None) or ()) for task in tasks]
+    last_use: dict = {}  # key -> index of the last of this worker's tasks needing it
+    for i, task_needs in enumerate(needs):
+        for need in task_needs:
+            last_use[need.key] = i
     try:
-        for task in tasks:
-            needs = tuple(getattr(task, "shared_inputs", None) or ())
-            if not needs:
+        # the inputs handed to other workers first: they may need them for their first
+        # tasks; each is kept here only while a task of this range still needs it
+        handed = {n.key: n for task_needs in needs for n in task_needs if n.key in exported}
+        for key, need in handed.items():
+            value = compute_shared(need.compute, need.argument)
+            outbox.send(("shared", key, value))
+            if key in last_use:
+                values[key] = value
+        for i, task in enumerate(tasks):
+            if not needs[i]:
                 outbox.send(("outcome", run_task(task, None)))
                 continue
-            keys = {need.key for need in needs}
-            for key in [k for k in values if k not in keys]:
-                del values[key]  # consecutive tasks share; older inputs are done
-            for need in needs:
+            for key in [k for k in values if last_use.get(k, -1) < i]:
+                del values[key]  # no later task of this range needs it
+            for need in needs[i]:
                 if need.key in values:
                     continue
                 if owner[need.key] == worker:
                     values[need.key] = compute_shared(need.compute, need.argument)
-                    if need.key in exported:
-                        outbox.send(("shared", need.key, values[need.key]))
                     continue
                 while need.key not in received:  # ends: the parent forwards or exits
                     key, value = inbox.recv()
                     received[key] = value
                 values[need.key] = received.pop(need.key)
-            outbox.send(("outcome", run_task(task, {n.key: values[n.key] for n in needs})))
+            outbox.send(("outcome", run_task(task, {n.key: values[n.key] for n in needs[i]})))
         outbox.send(("done",))
     except BaseException as error:  # noqa: BLE001 - handed to the parent, which raises it
         try:

@@ -141,22 +141,29 @@ def test_pickled_npz_is_refused(tmp_path):
     assert "pickle" not in " ".join(v.reason for v in caught.value.violations)
 
 
-def test_one_pass_peaks_equal_the_per_column_definition():
-    """``_column_peaks`` (chunked, one pass) against max |a| over the non-NaN samples per
-    column (0 for a dead column, inf where an infinite value is), across chunk edges."""
+@pytest.mark.parametrize("order", ["C", "F"])
+def test_one_pass_peaks_equal_the_per_column_definition(order):
+    """``_column_peaks`` (one pass: wide rows for a C-ordered array, row chunks otherwise)
+    against max |a| over the non-NaN samples per column (0 for a dead column, inf where an
+    infinite value is), across chunk edges and in the rows left over by the wide view."""
     from data_contracts import accelerations
 
     rng = np.random.default_rng(3)
     n_rows = 3 * accelerations._PEAK_CHUNK_VALUES // 19 + 7  # several chunks and a rest
+    assert n_rows % (accelerations._PEAK_ROW_VALUES // 19) > 1  # rows left over
     x = rng.standard_normal((n_rows, 19))
     x[rng.random(x.shape) < 0.01] = np.nan
     x[:, 4] = np.nan  # dead channel
     x[n_rows - 1, 7] = -np.inf  # in the last, partial chunk
     x[accelerations._PEAK_CHUNK_VALUES // 19, 11] = 42.0  # first row of the second chunk
+    x[n_rows - 2, 12] = -17.0  # a negative peak among the rows left over
+    x[5, 13] = -np.inf  # in the wide rows
+    x = np.asarray(x, order=order)
     peaks = accelerations._column_peaks(x)
     expected = np.where(np.isnan(x), 0.0, np.abs(x)).max(axis=0)
     np.testing.assert_array_equal(peaks, expected)
     assert peaks[4] == 0.0 and peaks[7] == np.inf and peaks[11] == 42.0
+    assert peaks[12] == 17.0 and peaks[13] == np.inf
 
 
 def test_infinite_and_implausible_channels_are_named(tmp_path):
@@ -169,3 +176,39 @@ def test_infinite_and_implausible_channels_are_named(tmp_path):
     text = str(caught.value)
     assert "infinite values in channel(s) b" in text
     assert "above 500 m/s² in channel(s) c:" in text
+
+
+@pytest.mark.parametrize("layout", ["C", "F", "big-endian", "float32", "compressed"])
+def test_npz_samples_read_in_place_equal_numpy_load(tmp_path, layout):
+    """The uncompressed member is read straight into its array (its CRC-32 checked);
+    every layout gives what ``np.load`` gives, a compressed member is read by np.load."""
+    data = record(n_samples=1000, n_channels=4).acceleration
+    if layout == "F":
+        data = np.asfortranarray(data)
+    elif layout == "big-endian":
+        data = data.astype(">f8")
+    elif layout == "float32":
+        data = data.astype(np.float32)
+    path = tmp_path / "a.npz"
+    save = np.savez_compressed if layout == "compressed" else np.savez
+    save(
+        path,
+        acceleration=data,
+        sampling_rate_hz=np.float64(64.0),
+        start_time=np.str_("2026-03-01T12:05:00Z"),
+        channels=np.array(["a", "b", "c", "d"]),
+    )
+    with np.load(path) as stored:
+        expected = stored["acceleration"].astype(float)
+    np.testing.assert_array_equal(read_accelerations(path).acceleration, expected)
+
+
+def test_npz_with_a_damaged_sample_is_refused(tmp_path):
+    """A flipped byte among the samples fails the member's CRC-32, as zipfile checks it."""
+    path = write_accelerations(record(), tmp_path / "a.npz")
+    raw = bytearray(path.read_bytes())
+    position = raw.index(b"acceleration.npy") + 200  # inside the samples
+    raw[position] ^= 0x40
+    path.write_bytes(bytes(raw))
+    with pytest.raises(ContractError, match="not a valid .npz acceleration file"):
+        read_accelerations(path)

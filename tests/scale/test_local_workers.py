@@ -4,6 +4,7 @@ the same store as in-process."""
 
 from __future__ import annotations
 
+import collections
 import os
 import signal
 import sys
@@ -14,7 +15,7 @@ import pandas as pd
 import pytest
 
 from workbench import parallel
-from workbench.local_workers import fork_available, run_forked, split_ranges
+from workbench.local_workers import _owners, fork_available, run_forked, split_ranges
 from workbench.parallel import BlockOutcome, SharedInput, run_blocks
 from workbench.store import BlockStore
 
@@ -57,6 +58,23 @@ def test_split_ranges_is_contiguous_and_balanced():
     assert split_ranges(0, 2) == []
     with pytest.raises(ValueError, match="n_workers=0"):
         split_ranges(3, 0)
+
+
+def test_inputs_at_the_join_go_to_the_worker_with_less_work():
+    # a 1-h voyage: 9 blocks of 4 five-minute files; ranges of 5 and 4 blocks. The files
+    # 5-7 both ranges need: counted at two blocks' work each, 5 and 6 go to the second
+    # worker, 7 to the first (5 blocks + 6 files against 4 blocks + 6 files)
+    needs = [tuple(f"file{k}" for k in range(b, b + 4)) for b in range(9)]
+    owner = _owners(needs, split_ranges(9, 2))
+    mine = {w: sorted(int(k[4:]) for k, o in owner.items() if o == w) for w in (0, 1)}
+    assert mine == {0: [0, 1, 2, 3, 4, 7], 1: [5, 6, 8, 9, 10, 11]}
+    # counted at one task's work, the later worker takes the ties (its first tasks)
+    owner = _owners(needs, split_ranges(9, 2), weight=1.0)
+    assert sorted(int(k[4:]) for k, o in owner.items() if o == 1) == [5, 6, 7, 8, 9, 10, 11]
+    # a day: 288 blocks, 291 files, split 145 / 146
+    needs = [tuple(range(b, b + 4)) for b in range(288)]
+    counts = collections.Counter(_owners(needs, split_ranges(288, 2)).values())
+    assert sorted(counts.values()) == [145, 146]
 
 
 @pytest.mark.parametrize("n_workers", [2, 3])

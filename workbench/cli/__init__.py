@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import re
 import sys
 import warnings
@@ -143,9 +144,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     log.setLevel(logging.DEBUG if args.verbose else logging.INFO)
     for noisy in ("distributed", "tornado", "bokeh", "asyncio"):  # cluster chatter
         logging.getLogger(noisy).setLevel(logging.DEBUG if args.verbose else logging.ERROR)
-    import matplotlib
-
-    matplotlib.use("Agg")  # commands write figures to files and never open a window
+    # commands write figures to files and never open a window: Agg, set before matplotlib
+    # is imported where no command has imported it yet (a command that draws nothing,
+    # such as identify, then never pays for its import)
+    if "matplotlib" in sys.modules:
+        sys.modules["matplotlib"].use("Agg")
+    else:
+        os.environ["MPLBACKEND"] = "Agg"
     shown = warnings.showwarning
     if not args.verbose:
         warnings.showwarning = _show_warning

@@ -4,6 +4,7 @@ from files conditioned once), and the rows it adds to the store."""
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -247,12 +248,12 @@ def identify_block(
         reason (gap, too few good channels, ...). Raises ValueError for data problems,
         which :func:`~workbench.parallel.run_blocks` records as a skipped block.
     """
-    from threadpoolctl import threadpool_limits
+    from ..sid.threads import single_threaded
 
     # One BLAS thread per block, in workers and in-process alike: the parallelism is over
     # blocks, and the same arithmetic everywhere makes results bit-identical whatever the
     # scheduler (a resumed job may mix blocks computed either way).
-    with threadpool_limits(limits=1):
+    with single_threaded():
         data, result, selection, *other = _identify_data(
             task,
             grid,
@@ -462,12 +463,47 @@ def _selected_frame(selected, kept, channels, block, start, end) -> pd.DataFrame
 
 
 def _channel_statistics(acceleration: np.ndarray, kept, block, start) -> pd.DataFrame:
+    if np.isnan(acceleration).any():
+        rms = np.sqrt(np.nanmean(acceleration**2, axis=0))
+        kurtosis = scipy_stats.kurtosis(acceleration, axis=0, fisher=False, nan_policy="omit")
+    else:
+        rms, kurtosis = _rms_and_kurtosis(acceleration)
     return pd.DataFrame(
         {
             "block": np.int64(block),
             "block_start": pd.to_datetime([start] * len(kept), utc=True),
             "channel": list(kept),
-            "rms": np.sqrt(np.nanmean(acceleration**2, axis=0)),
-            "kurtosis": scipy_stats.kurtosis(acceleration, axis=0, fisher=False, nan_policy="omit"),
+            "rms": rms,
+            "kurtosis": kurtosis,
         }
     )
+
+
+def _rms_and_kurtosis(acceleration: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """RMS and kurtosis (Pearson's) of each column of a block without NaN: the numbers of
+    ``np.sqrt(np.nanmean(x**2, axis=0))`` and ``scipy.stats.kurtosis(x, axis=0,
+    fisher=False)``, the same operations in the same order (to the last bit; tested), with
+    the deviations from the mean and their squares computed once for both moments
+    instead of once per moment."""
+    square = acceleration**2
+    rms = np.sqrt(np.mean(square, axis=0))
+    mean = np.mean(acceleration, axis=0, keepdims=True)
+    deviation = np.subtract(acceleration, mean, out=square)  # the squares are done with
+    with np.errstate(divide="ignore", invalid="ignore"):
+        precision = np.max(np.abs(deviation), axis=0, keepdims=True) / np.abs(mean)
+    if acceleration.shape[0] > 1 and np.any(precision < np.finfo(float).eps * 10):
+        warnings.warn(
+            "Precision loss occurred in moment calculation due to catastrophic cancellation. "
+            "This occurs when the data are nearly identical. Results may be unreliable.",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+    np.square(deviation, out=deviation)
+    m2 = np.mean(deviation, axis=0)
+    np.square(deviation, out=deviation)
+    m4 = np.mean(deviation, axis=0)
+    mean = mean[0]
+    with np.errstate(all="ignore"):
+        zero = m2 <= (np.finfo(m2.dtype).eps * mean) ** 2
+        kurtosis = np.where(zero, np.nan, m4 / m2**2.0)
+    return rms, kurtosis

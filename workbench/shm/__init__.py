@@ -15,11 +15,46 @@ residuals (the package of the `health` stage, :func:`workbench.stages.health`).
   a layer above the simulator).
 """
 
-from .baseline import BaselineError, HealthBaseline
-from .chart import HealthReference, HealthResult, health_chart
-from .model import DEFAULT_TERMS, OperationalModel, fit_operational_model, frozen_forecast
-from .monitor import HealthMonitor, MonitorUpdate
-from .options import HealthOptions
+from importlib import import_module
+from typing import TYPE_CHECKING
+
+#: Public names and the module defining each, imported on first use (PEP 562): the command
+#: line's defaults read :mod:`.options` alone, not the charts and models.
+_EXPORTS = {
+    "BaselineError": ".baseline",
+    "HealthBaseline": ".baseline",
+    "HealthReference": ".chart",
+    "HealthResult": ".chart",
+    "health_chart": ".chart",
+    "DEFAULT_TERMS": ".model",
+    "OperationalModel": ".model",
+    "fit_operational_model": ".model",
+    "frozen_forecast": ".model",
+    "HealthMonitor": ".monitor",
+    "MonitorUpdate": ".monitor",
+    "HealthOptions": ".options",
+}
+
+if TYPE_CHECKING:
+    from .baseline import BaselineError, HealthBaseline
+    from .chart import HealthReference, HealthResult, health_chart
+    from .model import DEFAULT_TERMS, OperationalModel, fit_operational_model, frozen_forecast
+    from .monitor import HealthMonitor, MonitorUpdate
+    from .options import HealthOptions
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(module, __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})
+
 
 __all__ = [
     "DEFAULT_TERMS",

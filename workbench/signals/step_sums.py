@@ -38,43 +38,95 @@ class _StepSums:
     longest_nan: np.ndarray
 
 
-def _step_sums(x: np.ndarray, first_ns: int, rate: float, chunk: int = 2048) -> _StepSums:
+#: Rows of a file piece summed at a time by :func:`_step_sums` (its five power arrays of
+#: 19 channels, 3 MB, stay in the CPU cache). [-]
+_SUM_ROWS = 4096
+#: Rows of the subsample whose mean is a piece's offset (see :func:`_offsets`). [-]
+_OFFSET_ROWS = 4096
+
+
+def _offsets(x: np.ndarray) -> np.ndarray:
+    """Per channel, the mean of the finite samples of an evenly spaced subsample of about
+    :data:`_OFFSET_ROWS` rows of *x* (of all its finite samples where the subsample has
+    none; 0 without any finite sample).
+
+    The offset only keeps the power sums about it well conditioned (the statistics are
+    assembled about the block's own detrended mean, whatever the offset), so a mean
+    within a few hundredths of a standard deviation of the channel's does; it costs a
+    fraction of a pass over the piece.
+    """
+    sample = x[:: max(1, x.shape[0] // _OFFSET_ROWS)]
+    finite = ~np.isnan(sample)
+    count = finite.sum(axis=0)
+    total = np.where(finite, sample, 0.0).sum(axis=0)
+    offset = np.where(count > 0, total / np.maximum(count, 1), 0.0)
+    for c in np.flatnonzero(count == 0):  # finite samples only between the subsample's
+        column = x[:, c]
+        column = column[~np.isnan(column)]
+        if column.size:
+            offset[c] = column.mean()
+    return offset
+
+
+def _step_sums(x: np.ndarray, first_ns: int, rate: float, chunk: int = _SUM_ROWS) -> _StepSums:
+    """The sums of one piece *x* (n, n_channels) of a file inside one grid step.
+
+    Row chunks that stay in the CPU cache: per chunk, ``u = x - offset`` and its powers
+    are written once (contiguous, one array per power) and summed against the chunk's
+    time powers with one stacked matrix product. A channel with missing samples in a
+    chunk is summed again for that chunk over its finite samples alone (NaN read as
+    absent: ``u`` and the weight set to 0 there); the time sums of the weight of a chunk
+    without missing samples are the chunk's time sums.
+    """
     n, n_channels = x.shape
-    missing = np.isnan(x)
-    any_missing = bool(missing.any())
     half = (n - 1) / 2.0
     scale = half if half > 0 else 1.0
-    if any_missing:
-        count = n - missing.sum(axis=0)
-        with np.errstate(invalid="ignore"):
-            # the sum of the finite samples: np.nansum's value (NaN read as 0, same order),
-            # without its copy of the whole file
-            total = np.sum(x, axis=0, where=~missing)
-            offset = np.where(count > 0, total / np.maximum(count, 1), 0.0)
-    else:
-        offset = x.mean(axis=0) if n else np.zeros(n_channels)
-    sums = np.zeros((5, 5, n_channels))
-    # row chunks that stay in cache: sums[i, j] = sum_t u_t**i tau_t**j (finite samples)
-    for lo in range(0, n, chunk):
-        hi = min(n, lo + chunk)
-        tau = (np.arange(lo, hi) - half) / scale
-        basis = np.vander(tau, 5, increasing=True)  # (m, 5): 1, tau, ..., tau**4
-        u = x[lo:hi] - offset
-        if any_missing:
-            weight = ~missing[lo:hi]
-            u = np.where(weight, u, 0.0)
-            power = weight.astype(float)
-        else:
-            power = np.ones_like(u)
-        for i in range(5):
-            sums[i, : 5 - i] += (power.T @ basis[:, : 5 - i]).T
-            if i < 4:
-                power = power * u
+    offset = _offsets(x) if n else np.zeros(n_channels)
+    sums = np.zeros((5, 5, n_channels))  # [i, j]: sum of u**i tau**j
+    rows = max(1, min(chunk, n))
+    powers = np.empty((5, rows, n_channels))  # u**0 .. u**4 (the first row left unused)
+    basis = np.empty((5, rows))  # tau**0 .. tau**4
+    gaps = np.zeros(n_channels, dtype=bool)  # channels with a missing sample
+    with np.errstate(invalid="ignore", over="ignore"):
+        for lo in range(0, n, rows):
+            hi = min(n, lo + rows)
+            m = hi - lo
+            u = powers[1, :m]
+            np.subtract(x[lo:hi], offset, out=u)
+            np.multiply(u, u, out=powers[2, :m])
+            np.multiply(powers[2, :m], u, out=powers[3, :m])
+            np.multiply(powers[3, :m], u, out=powers[4, :m])
+            tau = basis[:, :m]
+            tau[0] = 1.0
+            np.subtract(np.arange(lo, hi, dtype=float), half, out=tau[1])
+            tau[1] /= scale
+            for j in range(2, 5):
+                np.multiply(tau[j - 1], tau[1], out=tau[j])
+            part = np.matmul(tau, powers[1:, :m])  # (4, 5, n_channels): [i - 1, j]
+            missing = np.isnan(part[0, 0])
+            np.add(sums[0], tau.sum(axis=1)[:, None], out=sums[0], where=~missing)
+            for c in np.flatnonzero(missing):  # this chunk again over the finite samples
+                column = x[lo:hi, c] - offset[c]
+                absent = np.isnan(column)
+                column[absent] = 0.0
+                power = (~absent).astype(float)
+                for i in range(5):
+                    if i:
+                        power = power * column
+                    total = tau @ power
+                    if i:
+                        part[i - 1, :, c] = total
+                    else:
+                        sums[0, :, c] += total
+            gaps |= missing
+            sums[1:] += part
+    for i in range(5):  # only i + j <= 4 are sums of the piece's statistics
+        sums[i, 5 - i :] = 0.0
     leading = np.zeros(n_channels, dtype=np.int64)
     trailing = np.zeros(n_channels, dtype=np.int64)
     longest = np.zeros(n_channels, dtype=np.int64)
-    for j in np.flatnonzero(missing.any(axis=0)) if any_missing else ():
-        column = missing[:, j]
+    for j in np.flatnonzero(gaps):
+        column = np.isnan(x[:, j])
         if column.all():
             leading[j] = trailing[j] = longest[j] = n
             continue

@@ -46,32 +46,79 @@ modal table and poles identification would produce, with documented imperfection
 the health chart: :func:`simulate_health_voyage`).
 """
 
-from .health_voyage import (
-    HealthVoyage,
-    detection_delay_hours,
-    law_forecast,
-    simulate_health_voyage,
-)
-from .hull import (
-    CHANNELS,
-    MODE_LAWS,
-    REFERENCE_CONDITIONS,
-    SENSORS,
-    ModalParameters,
-    ModeLaw,
-    mode_shapes,
-    true_modal_parameters,
-)
-from .imitation import IdentificationImitation, imitate_identification
-from .profile import CASE_FRACTIONS, OperatingProfile, operating_profile, write_dship_log
-from .voyage import (
-    DEFAULT_HOURS,
-    SAMPLING_RATE_HZ,
-    START_TIME,
-    ShaftHarmonics,
-    VoyageSummary,
-    simulate_voyage,
-)
+from importlib import import_module
+from typing import TYPE_CHECKING
+
+#: Public names and the module defining each, imported on first use (PEP 562): the command
+#: line's defaults read :mod:`.voyage` alone, not every simulation.
+_EXPORTS = {
+    "HealthVoyage": ".health_voyage",
+    "detection_delay_hours": ".health_voyage",
+    "law_forecast": ".health_voyage",
+    "simulate_health_voyage": ".health_voyage",
+    "CHANNELS": ".hull",
+    "MODE_LAWS": ".hull",
+    "REFERENCE_CONDITIONS": ".hull",
+    "SENSORS": ".hull",
+    "ModalParameters": ".hull",
+    "ModeLaw": ".hull",
+    "mode_shapes": ".hull",
+    "true_modal_parameters": ".hull",
+    "IdentificationImitation": ".imitation",
+    "imitate_identification": ".imitation",
+    "CASE_FRACTIONS": ".profile",
+    "OperatingProfile": ".profile",
+    "operating_profile": ".profile",
+    "write_dship_log": ".profile",
+    "DEFAULT_HOURS": ".voyage",
+    "SAMPLING_RATE_HZ": ".voyage",
+    "START_TIME": ".voyage",
+    "ShaftHarmonics": ".voyage",
+    "VoyageSummary": ".voyage",
+    "simulate_voyage": ".voyage",
+}
+
+if TYPE_CHECKING:
+    from .health_voyage import (
+        HealthVoyage,
+        detection_delay_hours,
+        law_forecast,
+        simulate_health_voyage,
+    )
+    from .hull import (
+        CHANNELS,
+        MODE_LAWS,
+        REFERENCE_CONDITIONS,
+        SENSORS,
+        ModalParameters,
+        ModeLaw,
+        mode_shapes,
+        true_modal_parameters,
+    )
+    from .imitation import IdentificationImitation, imitate_identification
+    from .profile import CASE_FRACTIONS, OperatingProfile, operating_profile, write_dship_log
+    from .voyage import (
+        DEFAULT_HOURS,
+        SAMPLING_RATE_HZ,
+        START_TIME,
+        ShaftHarmonics,
+        VoyageSummary,
+        simulate_voyage,
+    )
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(module, __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})
+
 
 __all__ = [
     "CASE_FRACTIONS",

@@ -16,26 +16,75 @@
   :func:`fit_statistics_table`.
 """
 
-from .cases import (
-    CaseFits,
-    CaseRule,
-    case_labels,
-    case_training_mask,
-    derive_cases,
-    fit_cases,
-)
-from .correlation import (
-    adjust_p_values,
-    case_masks,
-    correlation_table,
-    modal_wide,
-    pairwise_pearson,
-    read_cases,
-)
-from .diagnostics import ResidualDiagnostics, durbin_watson, residual_diagnostics
-from .mode_fits import ModeFit, StatsWarning, coefficient_table, fit_modes, fit_statistics_table
-from .stepwise import StepwiseFit, StepwiseRegressor, StepwiseWarning, stepwise
-from .terms import parse_terms
+from importlib import import_module
+from typing import TYPE_CHECKING
+
+# eager: the command line's defaults import it anyway, and the function's name is also the
+# subpackage's (a lazy name would be shadowed by the subpackage once imported)
+from .stepwise import StepwiseFit, StepwiseWarning, stepwise
+
+#: Public names and the module defining each, imported on first use (PEP 562): the command
+#: line's defaults read the stepwise thresholds alone, not every statistic.
+_EXPORTS = {
+    "CaseFits": ".cases",
+    "CaseRule": ".cases",
+    "case_labels": ".cases",
+    "case_training_mask": ".cases",
+    "derive_cases": ".cases",
+    "fit_cases": ".cases",
+    "adjust_p_values": ".correlation",
+    "case_masks": ".correlation",
+    "correlation_table": ".correlation",
+    "modal_wide": ".correlation",
+    "pairwise_pearson": ".correlation",
+    "read_cases": ".correlation",
+    "ResidualDiagnostics": ".diagnostics",
+    "durbin_watson": ".diagnostics",
+    "residual_diagnostics": ".diagnostics",
+    "ModeFit": ".mode_fits",
+    "StatsWarning": ".mode_fits",
+    "coefficient_table": ".mode_fits",
+    "fit_modes": ".mode_fits",
+    "fit_statistics_table": ".mode_fits",
+    "StepwiseRegressor": ".stepwise",
+    "parse_terms": ".terms",
+}
+
+if TYPE_CHECKING:
+    from .cases import (
+        CaseFits,
+        CaseRule,
+        case_labels,
+        case_training_mask,
+        derive_cases,
+        fit_cases,
+    )
+    from .correlation import (
+        adjust_p_values,
+        case_masks,
+        correlation_table,
+        modal_wide,
+        pairwise_pearson,
+        read_cases,
+    )
+    from .diagnostics import ResidualDiagnostics, durbin_watson, residual_diagnostics
+    from .mode_fits import ModeFit, StatsWarning, coefficient_table, fit_modes, fit_statistics_table
+    from .stepwise import StepwiseRegressor
+    from .terms import parse_terms
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(module, __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})
+
 
 __all__ = [
     "CaseFits",

@@ -25,8 +25,21 @@ one row set), :mod:`.layout` (columns and hierarchy of the upper model's terms),
 and :mod:`.estimator` (:class:`StepwiseRegressor`).
 """
 
-from .estimator import StepwiseRegressor
 from .regression import stepwise
 from .result import StepwiseFit, StepwiseWarning
 
 __all__ = ["StepwiseFit", "StepwiseRegressor", "StepwiseWarning", "stepwise"]
+
+
+def __getattr__(name: str):
+    """:class:`StepwiseRegressor` on first use: scikit-learn is imported for the estimator
+    only, so a command that fits none does not pay for its import (0.13 s of CPU)."""
+    if name == "StepwiseRegressor":
+        from .estimator import StepwiseRegressor
+
+        return StepwiseRegressor
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), "StepwiseRegressor"})
