@@ -118,28 +118,3 @@ def test_covariance_matching_with_the_overlap_shape_separates_a_wander_from_the_
     # the AR(1) grid on the same residuals over-states e (it takes part of the wander)
     ar1 = estimate_noise(r, 5.0, correlated_lags=L)
     assert ar1.error_variance > 1.05 * noise.error_variance
-
-
-def test_a_model_error_of_a_few_overlaps_does_not_take_the_identification_error():
-    # r = c + e + v, c AR(1) with τ = 8 blocks (a 40-minute wander, between the grid's 6
-    # and 12), std 2 σ_e; e the overlap's MA(3), σ_e = 0.01 Hz; v 0.45 σ_e; 576 residuals
-    # (the default noise window), 40 records. With τ_c from 6 = 1.5 L on the grid the fit
-    # gave σ_e < 0.3 x the truth in 10 % of the records (σ_e² = 0 at τ_c = 6: the blend
-    # then takes SSI's correlated error for model error), 10th percentile 0.30; with τ_c
-    # from 3 L = 12 (noise.MIN_CORRECTION_TIME_SEGMENTS) 1.20 .. 1.65 (10th-90th
-    # percentile; the shorter wander's curvature read as e, the bias the test allows).
-    ratios = []
-    for seed in range(40):
-        rng = np.random.default_rng(seed)
-        n, phi = 576, math.exp(-1 / 8)
-        c = np.empty(n)
-        c[0] = rng.normal(0, 0.02)
-        for k in range(1, n):
-            c[k] = phi * c[k - 1] + math.sqrt(1 - phi**2) * rng.normal(0, 0.02)
-        r = c + _segments_error(rng, n, 0.01) + rng.normal(0, 0.0045, n)
-        noise = estimate_noise(r, 5.0, correlated_lags=L, error_segments=L)
-        assert noise.correction_time_blocks >= 3 * L
-        ratios.append(math.sqrt(noise.error_variance) / 0.01)
-    low, high = np.quantile(ratios, [0.1, 0.9])
-    assert low >= 0.9
-    assert high <= 2.0

@@ -14,9 +14,7 @@ blocks (lag-1 correlation ρ), and v a white part. Their autocovariances add up,
 
 so (σ_c², σ_e², σ_v²) follow from the measured γ(0..L) by non-negative least squares for
 each (τ_c, ρ) of a grid, and the pair with the smallest misfit wins (covariance matching,
-[1]_); with the overlap's shape the grid of τ_c starts at
-:data:`MIN_CORRECTION_TIME_SEGMENTS` x L (a shorter model error is not told apart from the
-identification error). For blocks that share data with their L - 1 neighbours the identification error is
+[1]_). For blocks that share data with their L - 1 neighbours the identification error is
 the mean of the L independent errors of the segments they share, and ρ^h is replaced by
 its correlation (L - h) / L, zero from lag L (``error_segments``,
 :func:`error_autocorrelation`): an AR(1) e with ρ = 0.7 still has 0.24 at lag 4 and can
@@ -64,17 +62,6 @@ WINSOR = 4.0
 MAX_LAG = 12
 #: Grid of time constants of the model error. [blocks]
 CORRECTION_TIMES = (6.0, 12.0, 24.0, 48.0, 96.0, 192.0, 384.0)
-#: With the overlap's identification error (L segments), the shortest model-error time
-#: constant the fit may use, in units of L. The shorter τ_c, the more of the overlap's
-#: shape (L - h) / L a model error and the white part reproduce together (over lags
-#: 0 .. 12, the cosine of e's shape to their span: 0.94 at τ_c = L, 0.90 at 1.5 L, 0.85 at
-#: 3 L): from a few hundred residuals of a model error with τ_c between 1.5 L and 3 L (a
-#: 40-minute wander, τ_c = 8 for L = 4) the fit on a grid from 1.5 L flipped from one refit
-#: to the next between σ_e² = 0 at τ_c = 6 (the whole identification error taken for model
-#: error: the blend follows SSI's correlated error) and σ_e = 1.6 σ at τ_c = 12; from 3 L
-#: σ_e stays 1.2-1.7 x the truth (tests/forecast/test_overlap_error.py). 3 L measured best
-#: of 1.5 L, 2 L and 3 L (benchmarks/results/forecast_accuracy_27d.txt). [-]
-MIN_CORRECTION_TIME_SEGMENTS = 3.0
 #: Grid of lag-1 correlations of the identification error.
 ERROR_CORRELATIONS = tuple(np.round(np.arange(0.0, 0.71, 0.05), 2))
 #: Relative floors: model-error and measurement standard deviations, x frequency. [-]
@@ -205,10 +192,7 @@ def _grid_nnls(lags: np.ndarray, target: np.ndarray, weight: np.ndarray, segment
     (L - h) / L (:func:`error_autocorrelation`) instead of a grid of ρ^h.
     Returns (τ_c, ρ, coefficients) of the smallest misfit.
     """
-    times = np.asarray(CORRECTION_TIMES)
-    if segments >= 2:
-        times = times[times >= MIN_CORRECTION_TIME_SEGMENTS * segments]
-    phis = np.exp(-1.0 / times)
+    phis = np.exp(-1.0 / np.asarray(CORRECTION_TIMES))
     if segments >= 2:
         rhos = np.array([(segments - 1) / segments])
     else:
@@ -255,7 +239,7 @@ def _grid_nnls(lags: np.ndarray, target: np.ndarray, weight: np.ndarray, segment
         full[:, subset] = coef
         best_coef[better] = full[better]
     g = int(np.argmin(best_misfit))
-    return float(times[tau_g[g]]), float(rhos[rho_g[g]]), best_coef[g]
+    return float(CORRECTION_TIMES[tau_g[g]]), float(rhos[rho_g[g]]), best_coef[g]
 
 
 def identification_error_bound(residuals: np.ndarray, correlated_lags: int) -> float | None:
