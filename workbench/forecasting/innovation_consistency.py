@@ -16,8 +16,7 @@ newest W out-of-sample blocks with a measurement, two tests at level α:
   :func:`clipped_square_moments`); T̄ > m_k + z_{1-α} s_k / √W says the innovation
   variance is too small by the factor λ that solves λ m(k/√λ) = T̄ (the clipped mean
   square of N(0, λ), :func:`variance_factor`), i.e. by (λ - 1) S̄ with S̄ the window's mean
-  S. The clip is at most the filter's Huber threshold (the same 1.5 by default, once 2.5)
-  because the test measures the
+  S. The clip is tighter than the filter's Huber threshold because the test measures the
   spread of the bulk of the innovations: gross errors (a mislabelled pole, an ice impact)
   are the Huber weight's business, and at the rate ice brings them (a few per cent) a clip
   at 2.5 reads them as an innovation variance 20 % too small and adds model variance,

@@ -140,13 +140,7 @@ class NoiseOptions:
     huber_sigma : float
         Innovations beyond this many standard deviations get a Huber weight (the
         measurement counts as if it were this far out): mis-selected poles and
-        heavy-tailed errors cannot pull the estimate far. The same threshold clips the
-        model guard's likelihoods and starts its runs of large innovations. Default 1.5,
-        Huber's proposal 2 (efficiency 0.96 at the Gaussian, [Huber 1964]), the clip of the
-        consistency tests too: at 2.5 a tracked pole from another column (1-3 % off,
-        3-10 σ) still moved the blend by 2.5 σ x the gain, and option A, whose measurement
-        keeps those poles, stayed below half the knowing filter on the 40- and 160-minute
-        wanders (benchmarks/results/forecast_accuracy_27d.txt). [-]
+        heavy-tailed errors cannot pull the estimate far. [-]
     pole_scatter : bool
         Scale each block's measurement variance by its cluster's frequency scatter across
         model orders (needs *poles*).
@@ -164,7 +158,7 @@ class NoiseOptions:
     """
 
     noise_blocks: int = 576
-    huber_sigma: float = 1.5
+    huber_sigma: float = 2.5
     pole_scatter: bool = True
     consistency_blocks: int = WINDOW_BLOCKS
     model_trust: bool = True

@@ -16,10 +16,7 @@ then the innovation-consistency tests with their own clip, 1.5, and the inverted
 kalman_frequency_hz moved by at most 0.019 Hz, and the forecast's cumulative error against the
 case's true frequencies went from +69.9 % to +69.3 % better than SSI; then kalman_std_hz as
 the posterior std of the whole blended estimate, var(δ + c) with the model term's variance,
-issue 27d: only that column moved, new / old median 1.08, 0.92 .. 39; then the Huber threshold
-1.5 instead of 2.5, issue 27d: kalman_frequency_hz moved by at most 0.033 Hz, the case's
-cumulative error against its true frequencies +69.3 % -> +65.7 % better than SSI: its
-identification error is Gaussian, where a tighter Huber weight gives up efficiency).
+issue 27d: only that column moved, new / old median 1.08, 0.92 .. 39).
 """
 
 from __future__ import annotations
