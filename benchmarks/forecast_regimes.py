@@ -574,8 +574,19 @@ def _oracle_filter(measured, seen0, truth0, size, order_scatter, spec, starts, n
                 x = x + K * y
                 A = np.eye(3) - np.outer(K, H)
                 P = A @ P @ A.T + order_scatter[k, j] ** 2 * np.outer(K, K)  # Joseph form
-            estimate[k, j] = truth0[k, j] + x[0] + x[1]
+            # before the change begins the disturbance's states have no variance: the
+            # estimate would be truth0 by construction (the filter knows the law exactly), not
+            # a reachable; no estimate there (_oracle_known)
+            estimate[k, j] = truth0[k, j] + x[0] + x[1] if _oracle_known(P) else np.nan
     return estimate
+
+
+def _oracle_known(P) -> bool:
+    """Whether the knowing filter's disturbance states (a, w: the first two) have any
+    variance, i.e. the unrecorded change has begun (module docstring: before it, e.g. in
+    open water before the ice, the knowing filter is the truth itself: a perfect model of
+    the recorded part and a disturbance known to be zero)."""
+    return bool(P[0, 0] + P[1, 1] > 0.0)
 
 
 def _oracle_filter_segments(measured, seen0, truth0, segment_size, order_scatter, spec, starts):
@@ -619,5 +630,5 @@ def _oracle_filter_segments(measured, seen0, truth0, segment_size, order_scatter
                 x = x + K * y
                 A = np.eye(n_state) - np.outer(K, H)
                 P = A @ P @ A.T + R * np.outer(K, K)  # Joseph form
-            estimate[k, j] = truth0[k, j] + x[0] + x[1]
+            estimate[k, j] = truth0[k, j] + x[0] + x[1] if _oracle_known(P) else np.nan
     return estimate

@@ -91,7 +91,7 @@ def test_two_state_step_reduces_to_the_scalar_filter_without_correlated_error():
     P = np.array([[[4e-4, 0.0], [0.0, 0.0]]])
     F = np.array([[0.95, 0.5]])
     Q = np.array([[1e-5, 0.0]])
-    new_state, new_P, delta, nu, _ = _step(
+    new_state, new_P, delta, nu, *_ = _step(
         state.copy(), P.copy(), F, Q, np.array([0.03]), np.array([2e-4]), np.inf
     )
     x, p = scalar_kalman_predict(0.01, 4e-4, process_variance=1e-5, transition=0.95)
@@ -101,7 +101,7 @@ def test_two_state_step_reduces_to_the_scalar_filter_without_correlated_error():
     assert delta[0] == 0.0
     assert nu[0] == pytest.approx(ref.innovation / math.sqrt(ref.innovation_variance))
     # the innovation variance the normalisation used, S = HPH' + R (+ s_m^2)
-    *same, variance = _step(
+    *same, variance, _ = _step(
         state.copy(),
         P.copy(),
         F,
@@ -119,7 +119,7 @@ def test_huber_weight_limits_an_isolated_outlier_but_not_a_persistent_one():
     args = (np.array([[0.95, 0.5]]), np.array([[1e-6, 1e-6]]))
     P0 = np.array([[[1e-4, 0.0], [0.0, 1e-4]]])
     big = np.array([0.5])  # 35 sigma
-    s1, _, _, nu1, _ = _step(np.zeros((1, 2)), P0.copy(), *args, big, np.array([1e-4]), 2.5)
+    s1, _, _, nu1, *_ = _step(np.zeros((1, 2)), P0.copy(), *args, big, np.array([1e-4]), 2.5)
     # Huber: the step is as for an innovation of 2.5 sqrt(S): K y = P/S * 2.5 sqrt(S)
     S = 0.95**2 * 1e-4 + 1e-6 + 0.25 * 1e-4 + 1e-6 + 1e-4
     assert s1[0].sum() == pytest.approx(2.5 * math.sqrt(S) * (S - 1e-4) / S, rel=1e-6)

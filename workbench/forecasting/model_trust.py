@@ -336,7 +336,7 @@ class ModelTrust:
         Q[:, 0] = step * sigma2[idx]
         state = np.concatenate([level[idx, None], error[idx]], axis=1)
         run = self.run[h, idx]
-        state, P, _, nu, S = kalman_update(
+        state, P, _, nu, S, _ = kalman_update(
             *kalman_predict(state, P_all[idx], F, Q),
             z[idx],
             white_variance[idx],

@@ -14,7 +14,9 @@ model_probability column; then the model-free filter under the blend's persisten
 prior probability of 0.2 that the model explains a mode before it has predicted unseen blocks;
 then the innovation-consistency tests with their own clip, 1.5, and the inverted variance factor:
 kalman_frequency_hz moved by at most 0.019 Hz, and the forecast's cumulative error against the
-case's true frequencies went from +69.9 % to +69.3 % better than SSI).
+case's true frequencies went from +69.9 % to +69.3 % better than SSI; then kalman_std_hz as
+the posterior std of the whole blended estimate, var(δ + c) with the model term's variance,
+issue 27d: only that column moved, new / old median 1.08, 0.92 .. 39).
 """
 
 from __future__ import annotations

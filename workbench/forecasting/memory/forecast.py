@@ -570,7 +570,7 @@ class MemoryRun:
         filled = self._filled(k)
         huber = np.where(filled, np.inf, huber)
         Q = q_c + q_e * scale[:, None]
-        self.state, self.P, delta, nu, innovation_variance = kalman_update(
+        self.state, self.P, delta, nu, innovation_variance, variance = kalman_update(
             *kalman_predict(self.state, self.P, F, Q),
             residual,
             r_v * scale,
@@ -588,13 +588,13 @@ class MemoryRun:
             self.state[j] = 0.0
             self.P[j] = stationary_covariance(self.noise_of[j], self.states)
             estimate[j] = m_now[j]
+            variance[j] = self.P[j, 0, 0] + model_variance[j]
             self.warn(
                 k,
                 j,
                 "Kalman track implausible: restarted at the model",
                 "Kalman tracks restarted at the model (estimate implausible)",
             )
-        variance = np.maximum(self.P[:, 0, 0], 0.0)
         if self.trust is not None:
             self.trust.step(
                 np.where(have, z, np.nan),

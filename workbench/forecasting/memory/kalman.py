@@ -16,6 +16,7 @@ import numpy as np
 from ..noise import NoiseModel
 
 __all__ = [
+    "estimate_variance",
     "kalman_predict",
     "kalman_update",
     "n_states",
@@ -140,20 +141,33 @@ def kalman_update(
 
     Returns
     -------
-    state, P, white model correction δ̂ (n,), normalised innovation y/sqrt(S) (n,), and
-    the innovation variance S (n,) the normalisation used [Hz²] (NaN: no measurement)
+    state, P, white model correction δ̂ (n,), normalised innovation y/sqrt(S) (n,), the
+    innovation variance S (n,) the normalisation used [Hz²] (NaN: no measurement), and the
+    posterior variance of the estimate's error, var(δ + c) (n,) [Hz²]
+    (:func:`estimate_variance`; without a measurement the a-priori P_cc + s_m²).
+
+    Notes
+    -----
+    δ is a white state beside c and the identification error's states: the a-priori
+    covariance of [δ, c, ...] is diag(s_m², P⁻), H = [1 1 ... 1]. Its Joseph-form update
+    restricted to [c, ...] is the one below with R + s_m² as the measurement variance (δ is
+    noise to c); the estimate m + δ̂ + ĉ needs the variance of δ + c, with their posterior
+    covariance (negative: one measurement informs both).
     """
     state, P = state.copy(), P.copy()
     n, s = state.shape
     delta = np.zeros(n)
     normalised = np.full(n, np.nan)
     variance = np.full(n, np.nan)
+    sm2_all = np.zeros(n) if model_variance is None else np.asarray(model_variance, dtype=float)
+    # no measurement: the a-priori variance of c plus the model's
+    estimated = np.maximum(P[:, 0, 0], 0.0) + sm2_all
     ok = np.isfinite(residual)
     if not ok.any():
-        return state, P, delta, normalised, variance
+        return state, P, delta, normalised, variance, estimated
     idx = np.flatnonzero(ok)
     Pm, xm = P[idx], state[idx]
-    sm2 = np.zeros(idx.size) if model_variance is None else model_variance[idx]
+    sm2 = sm2_all[idx]
     # y = z - Hx ; S = HPH' + R + s_m²  (H = [1 ... 1])
     y = residual[idx] - xm.sum(axis=1)
     S = Pm.sum(axis=(1, 2)) + R[idx] + sm2
@@ -180,6 +194,7 @@ def kalman_update(
     # K = PH'S⁻¹
     PH = Pm.sum(axis=2)
     K = PH / S[:, None]
+    estimated[idx] = estimate_variance(Pm, sm2, S, R_eff)
     # x = x + Ky
     xm = xm + K * y[:, None]
     # P = (I - KH) P (I - KH)' + K R K'   (Joseph form)
@@ -188,7 +203,48 @@ def kalman_update(
         K[:, :, None] * K[:, None, :]
     )
     state[idx], P[idx] = xm, Pm
-    return state, P, delta, normalised, variance
+    return state, P, delta, normalised, variance, estimated
+
+
+def estimate_variance(P_prior, model_variance, innovation_variance, measurement_variance):
+    """Posterior variance of δ + c, the part of the blended estimate m + δ̂ + ĉ the
+    measurement updates, after one update with H = [1 ... 1] (:func:`kalman_update`). [Hz²]
+
+    Parameters
+    ----------
+    P_prior : ndarray (n, s, s)
+        A-priori covariance of [c, identification error's states]. [Hz²]
+    model_variance : ndarray (n,)
+        s_m², a-priori variance of the white model error δ. [Hz²]
+    innovation_variance : ndarray (n,)
+        S = s_m² + H P⁻ H' + R (R with the Huber weight's extra variance). [Hz²]
+    measurement_variance : ndarray (n,)
+        That R. [Hz²]
+
+    Notes
+    -----
+    With the augmented state a = [δ, c, ...], P_a = diag(s_m², P⁻), gain K_a = P_a H' / S and
+    u = [1, 1, 0, ...] (δ + c), the Joseph form gives
+
+    .. math::
+
+        var(u'â - u'a) = b' P_a b + κ^2 R, \\quad κ = u'K_a = (s_m^2 + (P^- H')_c) / S,
+        \\quad b = u - κ H',
+
+    i.e. (1 - κ)² s_m² + P⁻_cc - 2κ (P⁻H')_c + κ² H P⁻ H' + κ² R, which is
+    s_m² + P⁻_cc - (s_m² + (P⁻H')_c)² / S when R is the filter's own (no Huber weight).
+    """
+    PH_c = P_prior[:, 0, :].sum(axis=1)  # (P⁻H')_c
+    HPH = P_prior.sum(axis=(1, 2))  # H P⁻ H'
+    kappa = (model_variance + PH_c) / innovation_variance
+    # var(δ + c)⁺ = (1 - κ)² s_m² + P_cc - 2κ (P⁻H')_c + κ² (H P⁻ H' + R)
+    value = (
+        (1.0 - kappa) ** 2 * model_variance
+        + P_prior[:, 0, 0]
+        - 2.0 * kappa * PH_c
+        + kappa**2 * (HPH + measurement_variance)
+    )
+    return np.maximum(value, 0.0)
 
 
 def stationary_covariance(noise: NoiseModel, states: int = 2) -> np.ndarray:
