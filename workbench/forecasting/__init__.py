@@ -26,8 +26,9 @@ Laid out by responsibility:
   experiment, simulated by :mod:`workbench.simulate.experiment`).
 """
 
-from importlib import import_module
 from typing import TYPE_CHECKING
+
+from .._lazy import attach
 
 #: Public names and the module defining each, imported on first use (PEP 562): importing
 #: :mod:`.options` for a command's defaults does not import the forecast machinery (the
@@ -72,17 +73,7 @@ if TYPE_CHECKING:
     from .sliding import sliding_forecast
 
 
-def __getattr__(name: str):
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(import_module(module, __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_EXPORTS})
+__getattr__, __dir__ = attach(__name__, _EXPORTS, globals())
 
 
 __all__ = [

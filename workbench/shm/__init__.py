@@ -15,8 +15,9 @@ residuals (the package of the `health` stage, :func:`workbench.stages.health`).
   a layer above the simulator).
 """
 
-from importlib import import_module
 from typing import TYPE_CHECKING
+
+from .._lazy import attach
 
 #: Public names and the module defining each, imported on first use (PEP 562): the command
 #: line's defaults read :mod:`.options` alone, not the charts and models.
@@ -43,17 +44,7 @@ if TYPE_CHECKING:
     from .options import HealthOptions
 
 
-def __getattr__(name: str):
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(import_module(module, __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_EXPORTS})
+__getattr__, __dir__ = attach(__name__, _EXPORTS, globals())
 
 
 __all__ = [

@@ -46,8 +46,9 @@ modal table and poles identification would produce, with documented imperfection
 the health chart: :func:`simulate_health_voyage`).
 """
 
-from importlib import import_module
 from typing import TYPE_CHECKING
+
+from .._lazy import attach
 
 #: Public names and the module defining each, imported on first use (PEP 562): the command
 #: line's defaults read :mod:`.voyage` alone, not every simulation.
@@ -107,17 +108,7 @@ if TYPE_CHECKING:
     )
 
 
-def __getattr__(name: str):
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(import_module(module, __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_EXPORTS})
+__getattr__, __dir__ = attach(__name__, _EXPORTS, globals())
 
 
 __all__ = [

@@ -16,8 +16,9 @@
   :func:`fit_statistics_table`.
 """
 
-from importlib import import_module
 from typing import TYPE_CHECKING
+
+from .._lazy import attach
 
 # eager: the command line's defaults import it anyway, and the function's name is also the
 # subpackage's (a lazy name would be shadowed by the subpackage once imported)
@@ -73,17 +74,7 @@ if TYPE_CHECKING:
     from .terms import parse_terms
 
 
-def __getattr__(name: str):
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(import_module(module, __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_EXPORTS})
+__getattr__, __dir__ = attach(__name__, _EXPORTS, globals())
 
 
 __all__ = [
