@@ -250,25 +250,44 @@ def weighting(folder: Path, seed: int) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--seeds", default="0,1,2", help="voyage seeds, comma-separated")
+def add_voyage_arguments(parser: argparse.ArgumentParser, seeds: str) -> None:
+    """The ice voyages' flags (seeds, length, ice stretch, work folder), shared with
+    ``bench_adaptive_forecast.py``."""
+    parser.add_argument("--seeds", default=seeds, help="voyage seeds, comma-separated")
     parser.add_argument("--hours", type=float, default=4.0, help="voyage length [h]")
     parser.add_argument("--ice-hours", type=float, default=1.5, help="ice stretch [h]")
     parser.add_argument("--work", type=Path, default=Path("/tmp/bench_adaptive"))
-    args = parser.parse_args(argv)
+
+
+def voyages(args: argparse.Namespace) -> list[tuple[int, Path]] | None:
+    """(seed, folder) of each voyage *args* name, simulated where missing; None (the
+    reason printed) when --seeds is not 1 to 20 whole numbers."""
     try:
         seeds = [int(s) for s in args.seeds.split(",") if s.strip()]
     except ValueError:
         print(f"--seeds {args.seeds!r} must be whole numbers separated by commas", file=sys.stderr)
-        return 2
+        return None
     if not 1 <= len(seeds) <= 20:
         print("--seeds: give 1 to 20 seeds", file=sys.stderr)
-        return 2
-    rows, weights, lengths = [], [], []
+        return None
+    out = []
     for seed in seeds:
         folder = args.work / f"h{args.hours:g}_ice{args.ice_hours:g}_seed{seed}"
         simulate(folder, seed, args.hours, args.ice_hours)
+        out.append((seed, folder))
+    return out
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    add_voyage_arguments(parser, "0,1,2")
+    args = parser.parse_args(argv)
+    voyage_list = voyages(args)
+    if voyage_list is None:
+        return 2
+    seeds = [seed for seed, _ in voyage_list]
+    rows, weights, lengths = [], [], []
+    for seed, folder in voyage_list:
         rows += summarise(folder, seed)
         weights.append(weighting(folder, seed))
         blocks = pd.read_csv(folder / "run_auto" / "blocks.csv", parse_dates=["block_start"])

@@ -147,33 +147,24 @@ def run_seed(folder: Path, seed: int, run: str = "auto") -> list[dict]:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--seeds", default="0,1,2,3,4", help="voyage seeds, comma-separated")
-    parser.add_argument("--hours", type=float, default=4.0, help="voyage length [h]")
-    parser.add_argument("--ice-hours", type=float, default=1.5, help="ice stretch [h]")
-    parser.add_argument("--work", type=Path, default=Path("/tmp/bench_adaptive"))
+    adaptive.add_voyage_arguments(parser, "0,1,2,3,4")
     parser.add_argument(
         "--runs",
         default="auto",
         help="block runs, comma-separated: auto, 'fixed 20 min', 'fixed 5 min'",
     )
     args = parser.parse_args(argv)
-    try:
-        seeds = [int(s) for s in args.seeds.split(",") if s.strip()]
-    except ValueError:
-        print(f"--seeds {args.seeds!r} must be whole numbers separated by commas", file=sys.stderr)
-        return 2
     runs = [r.strip() for r in args.runs.split(",") if r.strip()]
     unknown = [r for r in runs if r not in adaptive.RUNS]
     if unknown or not runs:
         print(f"--runs: give some of {', '.join(adaptive.RUNS)}", file=sys.stderr)
         return 2
-    if not 1 <= len(seeds) <= 20:
-        print("--seeds: give 1 to 20 seeds", file=sys.stderr)
+    voyage_list = adaptive.voyages(args)
+    if voyage_list is None:
         return 2
+    seeds = [seed for seed, _ in voyage_list]
     rows = []
-    for seed in seeds:
-        folder = args.work / f"h{args.hours:g}_ice{args.ice_hours:g}_seed{seed}"
-        adaptive.simulate(folder, seed, args.hours, args.ice_hours)
+    for seed, folder in voyage_list:
         for run in runs:
             rows += run_seed(folder, seed, run)
     table = pd.DataFrame(rows)
