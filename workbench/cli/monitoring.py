@@ -22,7 +22,7 @@ from ..errors import WorkbenchError
 from ..inputs import add_acceleration_layout, add_dship_columns, dship_mapping
 from .common import EXIT_OK, UsageError
 from .forecasting import check_forecast_flags, forecast_options
-from .identify import _block_minutes, harmonic_options, identify_options
+from .identify import adaptive_options, harmonic_options, identify_options
 
 
 def _add_dashboard(commands: argparse._SubParsersAction) -> None:
@@ -154,6 +154,7 @@ MONITOR_IDENTIFY_FLAGS = (
     "band",
     "no_band",
     "block_minutes",
+    "cases",
     "step_minutes",
     "selection",
     "no_channel_check",
@@ -320,14 +321,8 @@ def _monitor_options(args: argparse.Namespace):
     from ..monitor.shore import parse_command
     from ..sid.tracking import TrackingOptions
 
-    if _block_minutes(getattr(args, "block_minutes", None)) == "auto":
-        # identify_options reads auto as the step (the shortest length): refused here rather
-        # than monitored as fixed blocks of one step
-        raise UsageError(
-            "--block-minutes auto: the monitor identifies blocks of one length; give the "
-            "minutes (identify takes auto)"
-        )
-    identify = identify_options(args)
+    identify = identify_options(args)  # with auto: blocks of one step, the lengths below
+    adaptive = adaptive_options(args)  # --block-minutes auto (and --cases)
     harmonics = harmonic_options(args)  # as identify --dship marks them
     trust = check_forecast_flags(args)  # what `forecast` refuses, the monitor refuses
     try:
@@ -358,6 +353,8 @@ def _monitor_options(args: argparse.Namespace):
             background=not (args.foreground or args.once),
             on_alarm=parse_command(args.on_alarm) if args.on_alarm is not None else (),
             on_alarm_timeout_s=args.on_alarm_timeout,
+            adaptive=adaptive,
+            cases=None if args.cases is None else str(args.cases),
         )
     except (ValueError, argparse.ArgumentTypeError) as error:
         raise UsageError(str(error)) from None

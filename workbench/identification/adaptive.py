@@ -57,7 +57,12 @@ from ..errors import OptionError, WorkbenchError
 __all__ = [
     "AdaptiveBlockOptions",
     "block_conditions",
+    "decision_horizon",
+    "half_step_grid",
+    "half_step_power",
+    "half_step_speeds",
     "identify_adaptive",
+    "length_grid",
     "plan_block_lengths",
 ]
 
@@ -150,42 +155,80 @@ def block_conditions(plan, options, *, dship=None) -> pd.DataFrame:
         variance, [(m/s²)²]; NaN for a half-step that could not be built) and
         ``speed_kn`` (NaN without a log).
     """
-    from ..blocks import BlockGrid
     from ..signals import iter_blocks
     from .engine import conditioning_options
 
-    half = plan.grid.step_s / 2.0
-    first = plan.files[0].start_time
-    grid = BlockGrid(first, half, half)
     rows = []
     for block in iter_blocks(
         [info.path for info in plan.files],
-        grid=grid,
+        grid=half_step_grid(plan.files[0].start_time, plan.grid.step_s),
         options=conditioning_options(options),
     ):
-        power = math.nan
-        if block.acceleration is not None and block.acceleration.size:
-            with np.errstate(invalid="ignore"):
-                power = float(np.nanmedian(np.nanvar(block.acceleration, axis=0)))
-        rows.append({"start": block.block_start, "end": block.block_end, "power": power})
-    table = pd.DataFrame(rows, columns=["start", "end", "power"])
-    table["speed_kn"] = np.nan
-    if dship is not None and len(table) and "speed_kn" in dship.columns:
-        from ..predictors import PredictorWarning, block_predictors
-
-        spans = pd.DataFrame(
-            {
-                "block": np.arange(len(table)),
-                "block_start": table["start"],
-                "block_end": table["end"],
-            }
+        rows.append(
+            {"start": block.block_start, "end": block.block_end, "power": half_step_power(block)}
         )
-        log = dship[["time", "speed_kn"]]
-        with warnings.catch_warnings():  # the speed is all it needs of the log
-            warnings.simplefilter("ignore", PredictorWarning)
-            averaged = block_predictors(log, blocks=spans, min_coverage=0.5)
-        table["speed_kn"] = averaged["speed_kn"].to_numpy(dtype=float)
+    table = pd.DataFrame(rows, columns=["start", "end", "power"])
+    table["speed_kn"] = half_step_speeds(table, dship)
     return table
+
+
+def half_step_grid(t0, step_s: float):
+    """The grid of the half-steps whose conditions decide the lengths: half-step ``j``
+    covers ``[t0 + j step_s / 2, t0 + (j + 1) step_s / 2)``."""
+    from ..blocks import BlockGrid
+
+    return BlockGrid(pd.Timestamp(t0), step_s / 2.0, step_s / 2.0)
+
+
+def length_grid(t0, length_s: float, step_s: float):
+    """The grid of the blocks *length_s* long: block ``k`` centred at ``t0 + step_s / 2 +
+    k step_s`` as on every length's grid (its ``t0`` shifted by ``(step_s - length_s) /
+    2``), so a block's number does not depend on its length."""
+    from ..blocks import BlockGrid
+
+    start = pd.Timestamp(t0) + pd.Timedelta(seconds=(step_s - length_s) / 2)
+    return BlockGrid(start, float(length_s), float(step_s))
+
+
+def half_step_power(block) -> float:
+    """Excitation power of one conditioned half-step (an ``AccelerationBlock``): the
+    median over the kept channels of the variance, NaN when it could not be built.
+    [(m/s²)²]"""
+    if block.acceleration is None or not block.acceleration.size:
+        return math.nan
+    with np.errstate(invalid="ignore"):
+        return float(np.nanmedian(np.nanvar(block.acceleration, axis=0)))
+
+
+def half_step_speeds(table: pd.DataFrame, dship=None) -> np.ndarray:
+    """The log's mean speed over each half-step of *table* (``start``, ``end``), as
+    :func:`~workbench.predictors.block_predictors` averages it (half the span covered at
+    least); NaN without a log or a ``speed_kn`` column. [kn]"""
+    speed = np.full(len(table), np.nan)
+    if dship is None or not len(table) or "speed_kn" not in dship.columns:
+        return speed
+    from ..predictors import PredictorWarning, block_predictors
+
+    spans = pd.DataFrame(
+        {
+            "block": np.arange(len(table)),
+            "block_start": pd.to_datetime(table["start"], utc=True),
+            "block_end": pd.to_datetime(table["end"], utc=True),
+        }
+    )
+    log = dship[["time", "speed_kn"]]
+    with warnings.catch_warnings():  # the speed is all it needs of the log
+        warnings.simplefilter("ignore", PredictorWarning)
+        averaged = block_predictors(log, blocks=spans, min_coverage=0.5)
+    return averaged["speed_kn"].to_numpy(dtype=float)
+
+
+def decision_horizon(block: int, options: AdaptiveBlockOptions) -> int:
+    """Half-steps (from ``t0``) that decide block *block*'s length: those before the
+    returned number, the end of its longest candidate span (a live run decides the block
+    once they are known, :mod:`workbench.monitor`)."""
+    centre_half = 1 + 2 * int(block)  # (step / 2 + k step) / (step / 2)
+    return int(math.ceil(centre_half + max(options.lengths()) / options.step_s - 1e-9))
 
 
 def plan_block_lengths(
@@ -379,7 +422,7 @@ def identify_adaptive(
     parts = []
     for length, group in lengths.groupby("block_length_s", sort=True):
         label = f"{length / 60:g}min"
-        grid_t0 = first + pd.Timedelta(seconds=(adaptive.step_s - length) / 2)
+        grid_t0 = length_grid(first, length, adaptive.step_s).t0
         part = identify_voyage(
             files,
             out / "by_length" / label,

@@ -14,24 +14,26 @@ import os
 import socket
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
 
-from data_contracts import MODAL, atomic_path, write_table
+from data_contracts import MODAL, atomic_path, set_grid, write_table
 from data_contracts.parts import read_since
 
 from ..blocks import BlockGrid
 from ..errors import WorkbenchError
 from ..identification import IdentifyOptions, identify_block, input_fingerprints, resolved_run
+from ..identification.adaptive import AdaptiveBlockOptions
 from ..identification.engine import BlockTask
 from ..processes import interrupts_deferred, worker_initializer
 from ..sid.harmonics import HarmonicOptions
 from ..sid.tracking import TrackingOptions
 from ..store import BlockStore, StoreLock
+from .adaptive import LEFT_OUT, AdaptiveLengths
 from .conditioning import block_conditioner, forget_conditioned
 from .data_health import DATA_HEALTH_COLUMNS, data_health_frame, data_health_row
 from .outlook import (
@@ -96,6 +98,14 @@ class MonitorOptions:
     key_indicators : bool
         Write the daily key indicators for the shore (``<state>/shore/``,
         :func:`~workbench.monitor.shore.write_daily_indicators`).
+    adaptive : AdaptiveBlockOptions, optional
+        Block length by conditions (``--block-minutes auto``): each block's length decided
+        as ``identify --block-minutes auto`` decides it, as the data lands
+        (:mod:`workbench.monitor.adaptive`); *identify*'s ``length_s`` and ``step_s`` are
+        then the step. None: blocks of *identify*'s one length.
+    cases : str, optional
+        With *adaptive*: the voyage's states (CSV with ``case``, ``start``, ``end``); a
+        block does not straddle a change of state. Read again when it changes.
     """
 
     identify: IdentifyOptions = field(default_factory=IdentifyOptions)
@@ -110,6 +120,8 @@ class MonitorOptions:
     on_alarm: tuple[str, ...] = ()
     on_alarm_timeout_s: float = 30.0
     key_indicators: bool = True
+    adaptive: AdaptiveBlockOptions | None = None
+    cases: str | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "on_alarm", tuple(str(a) for a in self.on_alarm))
@@ -124,6 +136,17 @@ class MonitorOptions:
             raise ValueError(f"poll_s={self.poll_s!r} must be positive")
         if self.identify.short_record != "error":
             raise ValueError("short_record='one-block' is for a finished record, not a monitor")
+        if self.cases is not None and self.adaptive is None:
+            raise ValueError("cases are used by the adaptive block length only (adaptive=)")
+        if self.adaptive is not None and (
+            self.identify.length_s != self.adaptive.step_s
+            or self.identify.step_s != self.adaptive.step_s
+        ):
+            raise ValueError(
+                f"adaptive block length: identify's length_s={self.identify.length_s:g} and "
+                f"step_s={self.identify.step_s:g} must be the adaptive step "
+                f"{self.adaptive.step_s:g} s"
+            )
 
 
 @dataclass
@@ -136,6 +159,24 @@ class _Voyage:
     options: IdentifyOptions
     per_file: bool
     parameters: dict
+    #: With blocks of varying length: the lengths' decider, and per length the grid,
+    #: the resolved options and whether files are conditioned once each.
+    lengths: AdaptiveLengths | None = None
+    by_length: dict = field(default_factory=dict)
+
+    def length_run(self, length_s: float):
+        """(grid, options, per_file) of the blocks *length_s* long (as ``identify
+        --block-minutes auto`` runs each length)."""
+        found = self.by_length.get(length_s)
+        if found is None:
+            grid = self.lengths.grid(length_s)
+            options = replace(self.unresolved, length_s=float(length_s))
+            options = options.resolved(self.rate_hz)
+            options, per_file, _ = resolved_run(options, self.rate_hz, grid, self.channels)
+            found = self.by_length[length_s] = (grid, options, per_file)
+        return found
+
+    unresolved: IdentifyOptions | None = None
 
 
 class Monitor:
@@ -236,6 +277,9 @@ class Monitor:
         self._indicators_through = -1  # newest block in the daily key-indicator files
         self._alarms_seen: tuple = (None, None)  # (size, mtime) of alarms.parquet, table
         self._tracked: pd.DataFrame | None = None  # the tracked table last written
+        # with blocks of varying length: each decided block's length and stationarity
+        # (plan row), None for a block no length fits
+        self._lengths: dict[int, dict | None] = {}
 
     def _load_baseline(self):
         """The health baseline, refused (one line, exit 1) when unreadable or when the ship
@@ -486,6 +530,9 @@ class Monitor:
         options, per_file, parameters = resolved_run(
             options, first.sampling_rate_hz, grid, channels
         )
+        adaptive = self.options.adaptive
+        if adaptive is not None:  # a store of fixed blocks is not resumed with auto
+            parameters["adaptive"] = asdict(adaptive)
         if self.baseline is not None:  # a baseline of another ship or sensor layout
             from ..shm import BaselineError
 
@@ -496,6 +543,16 @@ class Monitor:
         self.voyage = _Voyage(
             grid, tuple(channels), float(first.sampling_rate_hz), options, per_file, parameters
         )
+        if adaptive is not None:
+            self.voyage.unresolved = self.options.identify
+            self.voyage.lengths = AdaptiveLengths(
+                adaptive,
+                grid.t0,
+                tuple(channels),
+                options,
+                path=self.state / "excitation.csv",
+                cases=self.options.cases,
+            )
         self.store = BlockStore.open(self.store_path, parameters)
         for notice in self.store.notices:  # damaged store files: their blocks are redone
             self.messages.append(notice)
@@ -522,6 +579,8 @@ class Monitor:
         if not self.files:
             return []
         voyage = self.voyage
+        if voyage.lengths is not None:
+            return self._ready_adaptive(flush)
         plan = plan_file_infos(
             [f.info for f in self.files], voyage.grid, max_gap_s=voyage.options.max_gap_s
         )
@@ -548,34 +607,120 @@ class Monitor:
         self._plan = plan
         return ready
 
+    def _ready_adaptive(self, flush: bool):
+        """:meth:`_ready_blocks` for blocks of varying length: the half-steps whose data
+        can no longer change are measured, the blocks whose length they decide get it
+        (:class:`~workbench.monitor.adaptive.AdaptiveLengths`), and those of them whose
+        data (and, when decimating, whose neighbouring files) can no longer change are
+        ready, ascending. A block no length fits is ready as left out."""
+        from ..signals.block_plan import PlannedBlock, plan_file_infos
+
+        voyage, lengths = self.voyage, self.voyage.lengths
+        self._doing("measuring the excitation")
+        lengths.measure(self.files, flush=flush, late_s=self.options.late_s)
+        starts, ends = self._coverage()
+        newest = int(ends.max())
+        waiting = [b for b in self._undecided() if b not in self._lengths]
+        decided, left_out = lengths.decide(
+            waiting,
+            self._speed_log(),
+            newest=pd.Timestamp(newest, tz="UTC"),
+            flush=flush,
+            late_s=self.options.late_s,
+        )
+        for row in decided.to_dict("records"):
+            self._lengths[int(row["block"])] = row
+        for block in left_out:
+            self._lengths[block] = None
+        for message in lengths.messages:
+            if message not in self.messages[-50:]:
+                self.messages.append(message)
+        lengths.messages.clear()
+        plans: dict[float, object] = {}
+        ready = []
+        infos = [f.info for f in self.files]
+        for block in sorted(b for b in self._lengths if b not in self.done):
+            row = self._lengths[block]
+            if row is None:
+                span = voyage.grid
+                ready.append(PlannedBlock(block, span.start(block), span.end(block), (), LEFT_OUT))
+                continue
+            length = float(row["block_length_s"])
+            grid, options, per_file = voyage.length_run(length)
+            plan = plans.get(length)
+            if plan is None:
+                plan = plans[length] = plan_file_infos(infos, grid, max_gap_s=options.max_gap_s)
+            planned = next((b for b in plan.blocks if b.block == block), None)
+            if planned is None:  # cannot happen: the length fits the data
+                continue
+            margin = int(2.0 / voyage.rate_hz * _NS) if per_file else 0
+            if flush or settled(
+                planned.block_start.value - margin,
+                planned.block_end.value + margin,
+                starts,
+                ends,
+                newest=newest,
+                first_ns=voyage.grid.t0.value,
+                sampling_rate_hz=voyage.rate_hz,
+                late_s=self.options.late_s,
+            ):
+                ready.append(planned)
+        self._plan = SimpleNamespace(blocks=[b for b in ready if b.block not in self.done])
+        return ready
+
+    def _undecided(self) -> list[int]:
+        """Blocks not yet decided, up to the last block the data present holds."""
+        lengths = self.voyage.lengths
+        last = lengths._last_block()
+        return [b for b in range(0, last + 1) if b not in self.done]
+
+    def _speed_log(self) -> pd.DataFrame | None:
+        """The ship log when it logs the speed (the adaptive length reads it), else None."""
+        if self.dship is None:
+            return None
+        log = self._read_log()
+        if log is None:  # not there yet, or unreadable: waited for, then decided without
+            return pd.DataFrame({"time": pd.Series([], dtype="datetime64[ns, UTC]")})
+        return log if "speed_kn" in log.columns else None
+
     # ------------------------------------------------------------------ one block
     def _process(self, planned) -> None:
-        from ..parallel import _guarded
+        from ..parallel import BlockOutcome, _guarded
 
         voyage = self.voyage
+        grid, options, per_file = voyage.grid, voyage.options, voyage.per_file
+        measures = None
+        if voyage.lengths is not None and planned.skipped_reason != LEFT_OUT:
+            measures = self._lengths[int(planned.block)]
+            grid, options, per_file = voyage.length_run(float(measures["block_length_s"]))
         task = BlockTask(
             int(planned.block), planned.block_start, tuple(str(f) for f in planned.files)
         )
         conditioner = None
-        if voyage.per_file:
+        if per_file:
             conditioner = block_conditioner(
                 [f.info for f in self.files],
                 planned,
-                voyage.grid,
+                grid,
                 voyage.channels,
-                voyage.options,
+                options,
                 shared=self._shared,
                 counter=self.conditioned_files,
             )
         func = functools.partial(
             identify_block,
-            grid=voyage.grid,
+            grid=grid,
             channels=voyage.channels,
-            options=voyage.options,
+            options=options,
             conditioner=conditioner,
         )
         cpu = time.process_time()
-        outcome = _guarded(func, task)
+        if planned.skipped_reason == LEFT_OUT:
+            outcome = BlockOutcome(int(planned.block), planned.block_start, skipped=LEFT_OUT)
+        else:
+            outcome = _guarded(func, task)
+        if measures is not None:  # the block's length and stationarity, as identify's tables
+            outcome = _with_measures(outcome, measures)
         identified_at = pd.Timestamp.now(tz="UTC")
         cpu = time.process_time() - cpu
         row = data_health_row(planned, outcome, identified_at, self.files)
@@ -599,11 +744,13 @@ class Monitor:
             self.tracking.add(int(outcome.block), selected)
         self._advance_tracking()
         self._write_data_health()
-        forget_conditioned(
-            self._shared,
-            [b.block_start for b in self._plan.blocks if b.block not in self.done],
-            {f.path: f.info.end_time for f in self.files},
-        )
+        waiting = [b.block_start for b in self._plan.blocks if b.block not in self.done]
+        if voyage.lengths is not None:  # and the longest span of the next block to decide
+            undecided = [b for b in self._undecided() if b not in self._lengths]
+            if undecided:
+                span = voyage.lengths.grid(max(voyage.lengths.adaptive.lengths()))
+                waiting.append(span.start(undecided[0]))
+        forget_conditioned(self._shared, waiting, {f.path: f.info.end_time for f in self.files})
         self._write_status("running")
         log.info(
             "block %d: %s, identification CPU %.3f s, state written %.3f s after its last "
@@ -718,6 +865,15 @@ class Monitor:
                 return self._marked
 
             tracked = self.tracking.table(marker=marker)
+            if self.voyage is not None and self.voyage.lengths is not None:
+                # blocks of varying length: readers take each block's own span (forecast,
+                # predictors), as they do from track's table of identify --block-minutes auto
+                grid = self.voyage.grid
+                set_grid(
+                    tracked,
+                    {"t0": grid.t0, "length_s": grid.step_s, "step_s": grid.step_s,
+                     "varying_length": True},
+                )  # fmt: skip
             # a day per part; only the parts whose rows changed are written
             part_writer(self.state / "tracked.parquet", MODAL, self._step_s()).write(
                 tracked, since_block=self.tracking.changed_from
@@ -1127,6 +1283,34 @@ class Monitor:
 #: forecast update in the foreground) may take before the monitor counts as not responding
 #: although its heartbeat thread still beats. [s]
 STALL_S = 300.0
+
+
+#: Columns ``identify --block-minutes auto`` adds to its ``selected`` and ``blocks`` tables.
+ADAPTIVE_COLUMNS = ("block_length_s", "excitation_range_db", "speed_range_kn")
+
+
+def _with_measures(outcome, measures: dict):
+    """*outcome* with the block's length and stationarity in its ``selected`` rows (as
+    ``identify --block-minutes auto`` merges them) and a ``lengths`` table of its own (the
+    block's decision, kept in the store with the block)."""
+    from dataclasses import replace as replaced
+
+    tables = dict(outcome.tables)
+    selected = tables.get("selected")
+    if selected is not None:
+        selected = selected.copy()
+        for column in ADAPTIVE_COLUMNS:
+            selected[column] = float(measures[column])
+        tables["selected"] = selected
+    tables["lengths"] = pd.DataFrame(
+        {
+            "block": [int(outcome.block)],
+            "block_start": pd.to_datetime([measures["block_start"]], utc=True),
+            "block_end": pd.to_datetime([measures["block_end"]], utc=True),
+            **{column: [float(measures[column])] for column in ADAPTIVE_COLUMNS},
+        }
+    )
+    return replaced(outcome, tables=tables)
 
 
 def stall_limit_s(poll_s: float) -> float:

@@ -237,7 +237,7 @@ def block_predictors_of(
     with *from_block*, only the blocks from it on (each block's values are those of the
     whole table). *first_block*: the whole table's first block, when *tracked* holds only
     its newest rows."""
-    from data_contracts import CANONICAL_PREDICTORS, OPTIONAL_PREDICTORS
+    from data_contracts import CANONICAL_PREDICTORS, OPTIONAL_PREDICTORS, recorded_grid, set_grid
 
     from ..predictors import block_predictors
 
@@ -247,8 +247,24 @@ def block_predictors_of(
         first = int(first_block)
     if from_block is not None:
         first = max(first, int(from_block))
-    table = block_predictors(log, grid=grid, blocks=np.arange(first, last + 1), min_coverage=0.5)
-    table = PREDICTORS.validate(table)
+    recorded = recorded_grid(tracked)
+    if recorded is not None and recorded.get("varying_length"):
+        # blocks of varying length: each block's own span, as load_predictors averages
+        # them for `workbench forecast` (a block missing from the table: the grid's span)
+        spans = grid.frame(np.arange(first, last + 1))
+        own = tracked[["block", "block_start", "block_end"]].drop_duplicates("block")
+        own = own.set_index("block")
+        present = spans["block"].isin(own.index).to_numpy()
+        for column in ("block_start", "block_end"):
+            values = pd.to_datetime(own[column], utc=True).reindex(spans["block"][present])
+            spans.loc[present, column] = values.to_numpy()
+        table = block_predictors(log, blocks=spans, min_coverage=0.5)
+        table = set_grid(PREDICTORS.validate(table), recorded)
+    else:
+        table = block_predictors(
+            log, grid=grid, blocks=np.arange(first, last + 1), min_coverage=0.5
+        )
+        table = PREDICTORS.validate(table)
     if settings.all_predictors:
         return table
     columns = [
@@ -332,7 +348,7 @@ def update_outlook(
                     predictors = block_predictors_of(tracked, Path(dship), grid, settings)
                 report.messages += list(dict.fromkeys(str(w.message) for w in caught))
                 log = _ship_log(Path(dship), dict(settings.dship_mapping))
-                newest_end = grid.end(int(tracked["block"].max()))
+                newest_end = _newest_end(tracked, grid, int(tracked["block"].max()))
                 report.log_complete = bool(len(log) and log["time"].max() >= newest_end)
                 poles = None
                 if "B" in settings.forecast.options and store is not None:
@@ -433,7 +449,8 @@ def _incremental_outlook(
                 warnings.simplefilter("always")
                 log = _ship_log(dship, dict(settings.dship_mapping))
                 first, newest = summary["first_block"], summary["last_block"]
-                report.log_complete = bool(len(log) and log["time"].max() >= grid.end(newest))
+                newest_end = _newest_end(tracked, grid, newest)
+                report.log_complete = bool(len(log) and log["time"].max() >= newest_end)
                 final_through = None
                 if len(log):
                     covered = pd.Timestamp(log["time"].max()) - pd.Timedelta(seconds=FINAL_AFTER_S)
@@ -492,6 +509,17 @@ def _incremental_outlook(
         outlook.save(folder)
     except (OSError, TypeError, ValueError) as error:
         report.messages.append(f"forecast: state not saved ({error}); a restart computes it again")
+
+
+def _newest_end(tracked: pd.DataFrame, grid, newest: int) -> pd.Timestamp:
+    """End of block *newest*: the grid's, or its own when it is longer (blocks of
+    varying length)."""
+    end = grid.end(newest)
+    if "block_end" in tracked.columns:
+        own = tracked.loc[tracked["block"].to_numpy() == newest, "block_end"]
+        if len(own):
+            end = max(end, pd.Timestamp(own.max()))
+    return end
 
 
 #: The tracked table's columns the forecast and the health chart read.
