@@ -368,10 +368,10 @@ def test_settings_from_a_ship_configuration(voyage, tmp_path):
         (["monitor", "--state", "s"], "--watch"),
         (["monitor", "--watch", "nowhere", "--state", "s"], "no such folder"),
         (["monitor", "--watch", ".", "--state", "s", "--poll", "0"], "poll_s"),
-        # auto was read as fixed blocks of one step (5 min) without a word
+        # --block-minutes auto is monitored (test_adaptive_monitor.py); its bad values not
         (
-            ["monitor", "--watch", ".", "--state", "s", "--once", "--block-minutes", "auto"],
-            "--block-minutes auto: the monitor identifies blocks of one length",
+            ["monitor", "--watch", ".", "--state", "s", "--once", "--block-minutes", "fast"],
+            "--block-minutes 'fast' is not a number of minutes or 'auto'",
         ),
     ],
 )

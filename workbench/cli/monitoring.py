@@ -263,7 +263,23 @@ def _add_monitor(commands: argparse._SubParsersAction) -> None:
         help="stop an --on-alarm command after S seconds and report it",
     )
     identification = parser.add_argument_group("identification (as workbench identify)")
-    copy_flags(batch["identify"], identification, MONITOR_IDENTIFY_FLAGS)
+    copy_flags(
+        batch["identify"],
+        identification,
+        MONITOR_IDENTIFY_FLAGS,
+        help={
+            "block_minutes": f"block length [min] (default: {D.BLOCK_MINUTES:g}); a length "
+            "below the default step needs --step-minutes too. 'auto': each block's length "
+            "as identify --block-minutes auto decides it (5-35 min, the longest over which "
+            "excitation, speed and state stay steady), decided once the data up to its "
+            "longest span's end (17.5 min past its centre) and the ship log over it have "
+            "landed (a log behind is waited for --late seconds of data); at the end of the "
+            "input the last blocks take the lengths that fit the data present",
+            "cases": "with --block-minutes auto: the voyage's states (CSV with case, start, "
+            "end: ice, transit, station, ...), read again when it changes; a block does not "
+            "straddle a change of state",
+        },
+    )
     tracking = parser.add_argument_group("tracking (as workbench track)")
     copy_flags(
         batch["track"],
@@ -371,6 +387,12 @@ def prepare_monitor(args: argparse.Namespace):
         raise UsageError("monitor needs --state DIR")
     if not args.watch.is_dir():
         raise UsageError(f"--watch {args.watch}: no such folder")
+    if args.cases is not None:
+        if not args.cases.is_file():
+            raise UsageError(f"--cases {args.cases}: no such file")
+        from ..identification.adaptive import _read_cases
+
+        _read_cases(args.cases)  # a table it cannot read: one line naming it, exit 1
     if args.start_time not in (None, "filename"):
         raise UsageError(
             f"--start-time {args.start_time}: one start time cannot place the files of a "

@@ -34,6 +34,7 @@ import pandas as pd
 
 from data_contracts import atomic_path
 
+from ..errors import WorkbenchError
 from ..identification.adaptive import (
     AdaptiveBlockOptions,
     _read_cases,
@@ -301,7 +302,11 @@ class AdaptiveLengths:
             return None  # not there yet: no states known
         key = (stat.st_size, stat.st_mtime_ns)
         if self._cases[0] != key:
-            self._cases = (key, _read_cases(self.cases))
+            try:
+                self._cases = (key, _read_cases(self.cases))
+            except WorkbenchError as error:  # being rewritten, or broken: said, not fatal
+                self._say(f"{error}; the states read before are used")
+                self._cases = (key, self._cases[1])
         return self._cases[1]
 
     # ------------------------------------------------------------------ persistence
