@@ -107,6 +107,10 @@ class AdaptiveLengths:
         self.cases = None if cases is None else Path(cases)
         self._cases: tuple = (None, None)
         self.power: dict[int, float] = {}  # half-step -> power (NaN: could not be built)
+        self.speed: dict[int, float] = {}  # half-step -> the log's mean speed, once final
+        self._log_end: pd.Timestamp | None = None  # the log's end at the last decision
+        #: A block's length waits for the ship log (:meth:`decide`): look again when it grows.
+        self.waiting_for_log = False
         self.n_half = 0  # half-steps the data present spans
         self.messages: list[str] = []
         self._dship: pd.DataFrame | None = None  # the ship log of the last decision
@@ -183,20 +187,38 @@ class AdaptiveLengths:
             self._save(self.conditions(self._dship))
         return measured
 
-    def conditions(self, dship: pd.DataFrame | None) -> pd.DataFrame:
-        """Half-steps ``0 .. n_half - 1`` as :func:`~workbench.identification.adaptive.
-        block_conditions` gives them (power NaN where not measured yet)."""
-        j = np.arange(self.n_half)
+    def conditions(self, dship: pd.DataFrame | None, first: int = 0) -> pd.DataFrame:
+        """Half-steps ``first .. n_half - 1`` as :func:`~workbench.identification.adaptive.
+        block_conditions` gives them (power NaN where not measured yet).
+
+        A half-step's speed is kept once the log reaches :data:`~workbench.monitor.outlook.
+        FINAL_AFTER_S` past it (the log's spike filter looks at samples on both sides), so
+        only the newest hour's are averaged again: the cost does not grow with the voyage.
+        """
+        from .outlook import FINAL_AFTER_S
+
+        j = np.arange(int(first), self.n_half)
+        start = self.half_grid.t0 + pd.to_timedelta(j * self.half_grid.step_s, unit="s")
         table = pd.DataFrame(
             {
-                "start": [self.half_grid.start(k) for k in j],
-                "end": [self.half_grid.end(k) for k in j],
+                "start": start,
+                "end": start + pd.Timedelta(seconds=self.half_grid.length_s),
                 "power": [self.power.get(int(k), math.nan) for k in j],
+                "speed_kn": [self.speed.get(int(k), math.nan) for k in j],
             }
         )
-        table["start"] = pd.to_datetime(table["start"], utc=True)
-        table["end"] = pd.to_datetime(table["end"], utc=True)
-        table["speed_kn"] = half_step_speeds(table, dship)
+        if dship is None:
+            return table
+        fresh = np.array([int(k) not in self.speed for k in j], dtype=bool)
+        if fresh.any():
+            speeds = half_step_speeds(table.loc[fresh].reset_index(drop=True), dship)
+            table.loc[fresh, "speed_kn"] = speeds
+            if self._log_end is not None:
+                final = self._log_end - pd.Timedelta(seconds=FINAL_AFTER_S)
+                ends = table.loc[fresh, "end"].to_numpy()
+                for k, value, end in zip(j[fresh], speeds, ends, strict=True):
+                    if end <= final:
+                        self.speed[int(k)] = float(value)
         return table
 
     # ------------------------------------------------------------------ decisions
@@ -232,6 +254,8 @@ class AdaptiveLengths:
             times = pd.to_datetime(dship["time"], utc=True).iloc[-64:]
             interval = times.diff().median() if len(times) > 1 else pd.Timedelta(0)
             log_end = times.max() + (interval if pd.notna(interval) else pd.Timedelta(0))
+        self._log_end = log_end
+        self.waiting_for_log = False
         ready, truncated, without_log = [], [], []
         for block in sorted(int(b) for b in undecided):
             horizon = self.horizon(block)
@@ -243,6 +267,7 @@ class AdaptiveLengths:
             end = self.half_grid.start(through)
             if dship is not None and (log_end is None or log_end < end):
                 if not flush and newest < end + pd.Timedelta(seconds=late_s):
+                    self.waiting_for_log = True
                     continue  # the log's speed over the span is waited for
                 without_log.append(block)
             if horizon > self.n_half:
@@ -250,15 +275,19 @@ class AdaptiveLengths:
             ready.append(block)
         if not ready:
             return _empty_plan(self.t0), []
-        conditions = self.conditions(dship)
-        plan = plan_block_lengths(conditions, self.t0, self.adaptive, cases=self._read_cases())
-        self._save(conditions)
+        # the half-steps from the first span of the first block decided on (an even
+        # number: the blocks keep their centres, numbered from that half-step's block)
+        first = self._first(ready[0])
+        t0 = self.half_grid.start(first)
+        window = self.conditions(dship, first)
+        plan = plan_block_lengths(window, t0, self.adaptive, cases=self._read_cases())
+        plan["block"] += first // 2
+        self._save(self.conditions(dship) if first else window)
         decided = plan[plan["block"].isin(ready)].reset_index(drop=True)
         # blocks the plan holds no row for although their data is there: no span fits
-        last = int(plan["block"].max()) if len(plan) else -1
         planned = set(decided["block"])
         present = self._last_block()
-        left_out = [b for b in ready if b not in planned and b <= max(last, present)]
+        left_out = [b for b in ready if b not in planned and b <= present]
         if truncated:
             kept = [b for b in truncated if b in planned]
             if kept:

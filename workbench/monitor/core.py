@@ -280,6 +280,7 @@ class Monitor:
         # with blocks of varying length: each decided block's length and stationarity
         # (plan row), None for a block no length fits
         self._lengths: dict[int, dict | None] = {}
+        self._length_log_key = None  # the ship log's (size, mtime) when lengths last waited
 
     def _load_baseline(self):
         """The health baseline, refused (one line, exit 1) when unreadable or when the ship
@@ -405,6 +406,12 @@ class Monitor:
             self._write_status("running", "waiting for the first complete files")
             return 0
         decided = 0
+        lengths = self.voyage.lengths
+        if lengths is not None and lengths.waiting_for_log:
+            key = _file_key(self.dship)
+            if key != self._length_log_key:  # a length waits for the log, which grew
+                self._length_log_key = key
+                self._dirty = True
         # blocks become ready only when data lands (or at a flush): plan only then
         ready = self._ready_blocks(flush) if (self._dirty or flush) else []
         self._dirty = False
