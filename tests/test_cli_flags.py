@@ -19,8 +19,9 @@ COPIED = {
     "forecast": M.MONITOR_FORECAST_FLAGS,
     "health": M.MONITOR_HEALTH_FLAGS,
 }
-#: The one help text the monitor rewords: its --mac-min serves track and forecast.
-REWORDED = {"mac_min"}
+#: The help texts the monitor rewords: its --mac-min serves track and forecast; its
+#: --block-minutes auto and --cases say when a live block's length is decided.
+REWORDED = {"mac_min", "block_minutes", "cases"}
 
 
 def _subparsers() -> dict[str, argparse.ArgumentParser]:

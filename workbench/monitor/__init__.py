@@ -129,6 +129,31 @@ When is a block identified
 * The block grid is anchored at the first file (as in ``workbench identify``) and kept in
   the store: a file starting before it is refused with a message.
 
+Blocks of varying length
+------------------------
+With ``--block-minutes auto`` (:attr:`MonitorOptions.adaptive`) each block takes the length
+``identify --block-minutes auto`` gives it over the whole voyage (the rule of
+:mod:`workbench.identification.adaptive`, run live by :mod:`workbench.monitor.adaptive`):
+every half-step's excitation power is measured once its data can no longer change (the
+rule above), and block ``k`` (centred at ``t0 + step / 2 + k step``) gets its length once
+the half-steps of its longest candidate span (17.5 min past its centre with the default
+5-35 min) are measured and the ship log covers them. So a block is identified at the
+earliest 17.5 min after its centre (a fixed 20-min block: 10 min). A ship log behind the
+data is waited for until data ``late_s`` newer has landed, then the lengths are decided
+without its speed (said in the messages); at the end of the input (``--once``, or no file
+for ``flush_after_s``) the last blocks take the lengths that fit the data present, as the
+batch run over the same files gives them (said too). A block no length fits (a gap) is
+stored as skipped (the batch run leaves it out of its tables). Each block is identified
+on its length's grid and stored with its decision (store kind ``lengths``:
+``block_start``, ``block_end``, ``block_length_s``, ``excitation_range_db``,
+``speed_range_kn``, also columns of its selected modes); ``tracked.parquet`` records the
+grid with ``"varying_length": true`` and each row its block's own span; the forecast and
+the health chart average the ship log over each block's own span (not weighted by the
+excitation: ``forecast --excitation`` over ``<state>/excitation.csv`` does that). The
+half-steps measured are kept in ``<state>/excitation.csv`` (the batch run's
+``excitation.csv``), read back after a restart. The store records the adaptive options:
+a state folder of fixed blocks is not resumed with ``auto``, nor the reverse.
+
 Handing on
 ----------
 After each forecast/health update the monitor runs ``--on-alarm COMMAND`` once per new
