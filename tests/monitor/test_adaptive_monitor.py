@@ -238,6 +238,34 @@ def test_restart_after_kill_loses_and_repeats_nothing(voyage, batch_auto, tmp_pa
     )
 
 
+def test_states_split_blocks_as_identify_cases_does(voyage, tmp_path):
+    """--cases: no block straddles a change of state, in the monitor as in identify."""
+    cases = tmp_path / "cases.csv"
+    cases.write_text(
+        "case,start,end\n"
+        "transit,2024-03-01T00:00:00Z,2024-03-01T00:40:00Z\n"
+        "station,2024-03-01T00:40:00Z,2024-03-01T02:00:00Z\n"
+    )
+    out, state = tmp_path / "batch", tmp_path / "state"
+    assert cli(
+        "identify", voyage / "accelerations", "--out", out, *IDENTIFY, *AUTO, "--cases", cases,
+        "--dship", voyage / "dship.tsv", "--scheduler", "synchronous", "--quiet",
+    ) == 0  # fmt: skip
+    assert cli(
+        "monitor", "--watch", voyage / "accelerations", "--state", state, "--dship",
+        voyage / "dship.tsv", *AUTO, "--cases", cases, *IDENTIFY, *MONITOR_FAST, "--once",
+    ) == 0  # fmt: skip
+    blocks = pd.read_csv(out / "blocks.csv", parse_dates=["block_start"])
+    lengths = _store(state, "lengths")
+    assert lengths["block"].tolist() == blocks["block"].tolist()
+    np.testing.assert_array_equal(lengths["block_length_s"], blocks["block_length_s"])
+    change = pd.Timestamp("2024-03-01T00:40:00Z")
+    start = pd.to_datetime(lengths["block_start"], utc=True)
+    end = pd.to_datetime(lengths["block_end"], utc=True)
+    assert not ((start < change) & (end > change)).any()
+    assert (lengths["block_length_s"] > 300).any()  # not vacuous: longer blocks elsewhere
+
+
 @pytest.mark.parametrize(
     ("extra", "code", "needle"),
     [

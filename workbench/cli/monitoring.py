@@ -272,7 +272,7 @@ def _add_monitor(commands: argparse._SubParsersAction) -> None:
             "below the default step needs --step-minutes too. 'auto': each block's length "
             "as identify --block-minutes auto decides it (5-35 min, the longest over which "
             "excitation, speed and state stay steady), decided once the data up to its "
-            "longest span's end (17.5 min past its centre) and the ship log over it have "
+            "longest span's end (17.5 min past its centre with the default step) and the ship log over it have "
             "landed (a log behind is waited for --late seconds of data); at the end of the "
             "input the last blocks take the lengths that fit the data present",
             "cases": "with --block-minutes auto: the voyage's states (CSV with case, start, "
