@@ -238,6 +238,39 @@ def test_restart_after_kill_loses_and_repeats_nothing(voyage, batch_auto, tmp_pa
     )
 
 
+def test_decimated_files_fed_one_by_one_equal_batch(tmp_path):
+    """128-Hz files decimated to 64 Hz (each file conditioned once per length's grid: a
+    conditioned file is cut on its grid, so the lengths do not share it), fed one by one:
+    the tables of identify --block-minutes auto + track."""
+    from .conftest import write_voyage
+
+    voyage = write_voyage(tmp_path / "v128", rate_hz=128.0, seed=4, hours=1.0)
+    out = tmp_path / "batch"
+    assert cli(
+        "identify", voyage / "accelerations", "--out", out / "id", *IDENTIFY, *AUTO,
+        "--dship", voyage / "dship.tsv", "--scheduler", "synchronous", "--quiet",
+    ) == 0  # fmt: skip
+    assert cli("track", out / "id" / "selected.parquet", "--out", out / "tracked.parquet") == 0
+    blocks = pd.read_csv(out / "id" / "blocks.csv")
+    assert sorted(blocks["block_length_s"].value_counts().items()) == [(300.0, 11), (900.0, 1)]
+    watch, state = tmp_path / "watch", tmp_path / "state"
+    watch.mkdir()
+    monitor = _monitor(watch, state, voyage / "dship.tsv", "--settle", "0")
+    try:
+        for path in sorted((voyage / "accelerations").glob("*.npz")):
+            land(path, watch)
+            monitor.step()
+        monitor.step(flush=True)
+    finally:
+        monitor.close()
+    pd.testing.assert_frame_equal(
+        pd.read_parquet(state / "tracked.parquet"), pd.read_parquet(out / "tracked.parquet")
+    )
+    lengths = _store(state, "lengths")
+    np.testing.assert_array_equal(lengths["block_length_s"], blocks["block_length_s"])
+    assert monitor.conditioned_files[0] >= 12  # every file once on the 5-min grid at least
+
+
 def test_states_split_blocks_as_identify_cases_does(voyage, tmp_path):
     """--cases: no block straddles a change of state, in the monitor as in identify."""
     cases = tmp_path / "cases.csv"

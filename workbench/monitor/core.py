@@ -711,7 +711,9 @@ class Monitor:
                 grid,
                 voyage.channels,
                 options,
-                shared=self._shared,
+                # a conditioned file is cut on its grid (steps and samples counted from
+                # the grid's t0): the blocks of one length share it, not those of another
+                shared=self._shared.setdefault(grid.t0, {}) if measures else self._shared,
                 counter=self.conditioned_files,
             )
         func = functools.partial(
@@ -757,7 +759,12 @@ class Monitor:
             if undecided:
                 span = voyage.lengths.grid(max(voyage.lengths.adaptive.lengths()))
                 waiting.append(span.start(undecided[0]))
-        forget_conditioned(self._shared, waiting, {f.path: f.info.end_time for f in self.files})
+        ends = {f.path: f.info.end_time for f in self.files}
+        if voyage.lengths is None:
+            forget_conditioned(self._shared, waiting, ends)
+        else:  # a cache per length's grid
+            for shared in self._shared.values():
+                forget_conditioned(shared, waiting, ends)
         self._write_status("running")
         log.info(
             "block %d: %s, identification CPU %.3f s, state written %.3f s after its last "
