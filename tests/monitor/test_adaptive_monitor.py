@@ -187,7 +187,7 @@ def test_ship_log_behind_is_waited_for_within_the_late_window(voyage, batch_auto
         )
 
 
-def test_restart_after_kill_loses_and_repeats_nothing(voyage, batch_auto, tmp_path):
+def test_restart_after_kill_loses_and_repeats_nothing(voyage, batch_auto, tmp_path, capsys):
     """kill -9 mid-run, then ``--once``: the blocks stored before the kill are kept (their
     lengths too), the half-steps measured are read back, the tables equal the batch's."""
     import signal
@@ -231,6 +231,14 @@ def test_restart_after_kill_loses_and_repeats_nothing(voyage, batch_auto, tmp_pa
     kept = health.set_index("block").loc[before["block"], "identified_at"]
     assert (kept.to_numpy() == before["identified_at"].to_numpy()).all()
     assert _store(state, "lengths")["block"].is_unique
+    # the store remembers the adaptive rule: fixed blocks are not resumed from it
+    capsys.readouterr()
+    assert cli(
+        "monitor", "--watch", watch, "--state", state, *IDENTIFY, *MONITOR_FAST, "--once",
+    ) == 1  # fmt: skip
+    err = capsys.readouterr().err
+    assert "store was made with other parameters (adaptive, length_s)" in err
+    assert "use another --state folder" in err and "Traceback" not in err
     # the half-steps measured before the kill were read back: the file is the batch run's
     excitation = pd.read_csv(state / "excitation.csv")
     np.testing.assert_allclose(

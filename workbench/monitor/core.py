@@ -560,7 +560,14 @@ class Monitor:
                 path=self.state / "excitation.csv",
                 cases=self.options.cases,
             )
-        self.store = BlockStore.open(self.store_path, parameters)
+        try:
+            self.store = BlockStore.open(self.store_path, parameters)
+        except WorkbenchError as error:  # the monitor's store is its state folder's
+            told = "use another --store directory or delete this one"
+            if told not in str(error):
+                raise
+            message = str(error).replace(told, "use another --state folder (or delete its store)")
+            raise WorkbenchError(message) from None
         for notice in self.store.notices:  # damaged store files: their blocks are redone
             self.messages.append(notice)
             log.warning("%s", notice)
