@@ -156,7 +156,7 @@ def live(folder: Path, speed: float) -> dict:
 
     from bench_monitor import _ShipLog
 
-    from workbench.identification.adaptive import AdaptiveBlockOptions, decision_horizon
+    from workbench.identification.adaptive import AdaptiveBlockOptions, decision_span
     from workbench.signals.block_plan import read_file_info
 
     work = folder / "monitor_bench_live"
@@ -220,7 +220,7 @@ def live(folder: Path, speed: float) -> dict:
     waits, flushed = [], []
     data_end = landed[-1][0]
     for block in health.index:
-        span_end = t0 + half * decision_horizon(block, options)
+        span_end = t0 + half * decision_span(block, options)[1]
         if span_end > data_end:  # decided at the end of the input
             flushed.append(block)
             continue

@@ -55,6 +55,50 @@ def batch_auto(voyage, tmp_path_factory):
     }
 
 
+def test_a_block_decided_on_its_span_is_decided_as_on_the_whole_voyage():
+    """What the monitor relies on: the plan of a prefix of the half-steps (or of a window
+    from a decision span's first half-step) gives every block whose decision span it
+    holds the row the whole voyage's plan gives it."""
+    from workbench.identification.adaptive import (
+        AdaptiveBlockOptions,
+        decision_span,
+        last_block,
+        plan_block_lengths,
+    )
+
+    options = AdaptiveBlockOptions()
+    assert decision_span(0, options) == (0, 8) and decision_span(5, options) == (4, 18)
+    assert last_block(36, options) == 17 and last_block(1, options) == -1
+    rng = np.random.default_rng(7)
+    n = 120  # 5 h of half-steps: calm and ice, speed steps, a gap
+    t0 = pd.Timestamp("2024-03-01T00:00:00Z")
+    start = t0 + pd.Timedelta(seconds=150) * np.arange(n)
+    power_db = np.where(np.arange(n) < 60, 0.4 * rng.random(n), 6.0 * rng.standard_normal(n))
+    power = 1e-5 * 10 ** (power_db / 10)
+    power[[70, 71]] = np.nan
+    speed = np.where(np.arange(n) % 40 < 20, 10.0, 4.0) + 0.1 * rng.standard_normal(n)
+    half_steps = pd.DataFrame(
+        {"start": start, "end": start + pd.Timedelta(seconds=150), "power": power}
+    )
+    half_steps["speed_kn"] = speed
+    whole = plan_block_lengths(half_steps, t0).set_index("block")
+    assert set(whole["block_length_s"]) == {300.0, 900.0, 1500.0, 2100.0}
+    for prefix in range(10, n, 7):
+        part = plan_block_lengths(half_steps.iloc[:prefix], t0).set_index("block")
+        held = [b for b in part.index if decision_span(b, options)[1] <= prefix]
+        assert held, prefix
+        spans_in = [b for b in range(last_block(prefix, options) + 1)
+                    if decision_span(b, options)[1] <= prefix]  # fmt: skip
+        # the same blocks left out (a gap in every span)
+        assert [b in part.index for b in spans_in] == [b in whole.index for b in spans_in]
+        pd.testing.assert_frame_equal(part.loc[held], whole.loc[held])
+        first = decision_span(held[-1], options)[0]
+        window = half_steps.iloc[first:prefix].reset_index(drop=True)
+        shifted = plan_block_lengths(window, start[first]).set_index("block")
+        shifted.index += first // 2
+        pd.testing.assert_frame_equal(shifted.loc[[held[-1]]], whole.loc[[held[-1]]])
+
+
 def _monitor(watch: Path, state: Path, dship: Path, *extra):
     argv = ["monitor", "--watch", watch, "--state", state, "--dship", dship, *AUTO]
     argv += [*IDENTIFY, *FORECAST, *MONITOR_FAST, "--foreground", *extra]

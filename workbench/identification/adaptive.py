@@ -57,11 +57,12 @@ from ..errors import OptionError, WorkbenchError
 __all__ = [
     "AdaptiveBlockOptions",
     "block_conditions",
-    "decision_horizon",
+    "decision_span",
     "half_step_grid",
     "half_step_power",
     "half_step_speeds",
     "identify_adaptive",
+    "last_block",
     "length_grid",
     "plan_block_lengths",
 ]
@@ -223,12 +224,26 @@ def half_step_speeds(table: pd.DataFrame, dship=None) -> np.ndarray:
     return averaged["speed_kn"].to_numpy(dtype=float)
 
 
-def decision_horizon(block: int, options: AdaptiveBlockOptions) -> int:
-    """Half-steps (from ``t0``) that decide block *block*'s length: those before the
-    returned number, the end of its longest candidate span (a live run decides the block
-    once they are known, :mod:`workbench.monitor`)."""
+def decision_span(block: int, options: AdaptiveBlockOptions) -> tuple[int, int]:
+    """Half-steps (from ``t0``) that decide block *block*'s length: ``first`` to ``end``
+    (excluded), its longest candidate span, clipped at the start of the data (a live run
+    decides the block once they are known, :mod:`workbench.monitor.adaptive`). ``first``
+    is even: the blocks from ``first // 2`` on keep their numbers on a plan that starts at
+    half-step ``first``."""
     centre_half = 1 + 2 * int(block)  # (step / 2 + k step) / (step / 2)
-    return int(math.ceil(centre_half + max(options.lengths()) / options.step_s - 1e-9))
+    half_width = int(round(max(options.lengths()) / options.step_s))  # odd: 2L/step / 2
+    return max(0, centre_half - half_width), centre_half + half_width
+
+
+def last_block(n_half: int, options: AdaptiveBlockOptions) -> int:
+    """The last block whose shortest span ends inside *n_half* half-steps of data (-1:
+    none)."""
+    # block k's centre in half-steps from t0: (step / 2 + k step) / half
+    return math.floor(
+        (n_half * options.step_s / 2 - min(options.lengths()) / 2 - options.step_s / 2)
+        / options.step_s
+        + 1e-9
+    )
 
 
 def plan_block_lengths(
@@ -282,11 +297,7 @@ def plan_block_lengths(
             state[((mid >= a) & (mid < b)).to_numpy()] = number
     lengths = options.lengths()
     centre_offset = options.step_s / 2
-    # block k's centre in half-steps from t0: (centre_offset + k step) / half; the last
-    # block is the last whose shortest span ends inside the data
-    last = math.floor(
-        (n_half * options.step_s / 2 - min(lengths) / 2 - centre_offset) / options.step_s + 1e-9
-    )
+    last = last_block(n_half, options)
     rows = []
     for k in range(max(last + 1, 0)):
         centre_half = (centre_offset + k * options.step_s) / (options.step_s / 2)

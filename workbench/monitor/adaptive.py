@@ -7,7 +7,7 @@ default 5-min step) whose span is steady. A live run cannot look at the whole vo
 :class:`AdaptiveLengths` measures each half-step once its data can no longer change (the
 monitor's rule for blocks, :func:`~workbench.monitor.readiness.settled`) and decides a
 block once every half-step of its longest candidate span is measured
-(:func:`~workbench.identification.adaptive.decision_horizon`: 17.5 min after the block's
+(:func:`~workbench.identification.adaptive.decision_span`: 17.5 min after the block's
 centre by default) and the ship log covers them: the decision then reads exactly what the
 batch run reads, so it is the batch run's.
 
@@ -38,10 +38,11 @@ from ..errors import WorkbenchError
 from ..identification.adaptive import (
     AdaptiveBlockOptions,
     _read_cases,
-    decision_horizon,
+    decision_span,
     half_step_grid,
     half_step_power,
     half_step_speeds,
+    last_block,
     length_grid,
     plan_block_lengths,
 )
@@ -123,7 +124,7 @@ class AdaptiveLengths:
 
     def horizon(self, block: int) -> int:
         """Half-steps before this one decide *block*'s length."""
-        return decision_horizon(block, self.adaptive)
+        return decision_span(block, self.adaptive)[1]
 
     def horizon_end(self, block: int) -> pd.Timestamp:
         """End of the data that decides *block*'s length (UTC)."""
@@ -262,7 +263,9 @@ class AdaptiveLengths:
             if horizon > self.n_half and not flush:
                 break  # the blocks after it reach further still
             through = min(horizon, self.n_half)
-            if not flush and any(j not in self.power for j in range(self._first(block), through)):
+            if not flush and any(
+                j not in self.power for j in range(decision_span(block, self.adaptive)[0], through)
+            ):
                 continue  # a hole in it: its late file is waited for
             end = self.half_grid.start(through)
             if dship is not None and (log_end is None or log_end < end):
@@ -277,7 +280,7 @@ class AdaptiveLengths:
             return _empty_plan(self.t0), []
         # the half-steps from the first span of the first block decided on (an even
         # number: the blocks keep their centres, numbered from that half-step's block)
-        first = self._first(ready[0])
+        first = decision_span(ready[0], self.adaptive)[0]
         t0 = self.half_grid.start(first)
         window = self.conditions(dship, first)
         plan = plan_block_lengths(window, t0, self.adaptive, cases=self._read_cases())
@@ -286,7 +289,7 @@ class AdaptiveLengths:
         decided = plan[plan["block"].isin(ready)].reset_index(drop=True)
         # blocks the plan holds no row for although their data is there: no span fits
         planned = set(decided["block"])
-        present = self._last_block()
+        present = self.last_block()
         left_out = [b for b in ready if b not in planned and b <= present]
         if truncated:
             kept = [b for b in truncated if b in planned]
@@ -303,19 +306,9 @@ class AdaptiveLengths:
             )
         return decided, left_out
 
-    def _first(self, block: int) -> int:
-        """First half-step of *block*'s longest candidate span (0 at the start)."""
-        width = int(round(max(self.adaptive.lengths()) / self.adaptive.step_s))
-        return max(0, 2 * int(block) + 1 - width)
-
-    def _last_block(self) -> int:
-        """The last block whose shortest span ends inside the data present."""
-        shortest = min(self.adaptive.lengths())
-        half = self.adaptive.step_s / 2
-        return math.floor(
-            (self.n_half * half - shortest / 2 - self.adaptive.step_s / 2) / self.adaptive.step_s
-            + 1e-9
-        )
+    def last_block(self) -> int:
+        """The last block whose shortest span ends inside the data present (-1: none)."""
+        return last_block(self.n_half, self.adaptive)
 
     def _say(self, message: str) -> None:
         if message not in self.messages:

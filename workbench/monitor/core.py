@@ -102,7 +102,7 @@ class MonitorOptions:
         Block length by conditions (``--block-minutes auto``): each block's length decided
         as ``identify --block-minutes auto`` decides it, as the data lands
         (:mod:`workbench.monitor.adaptive`); *identify*'s ``length_s`` and ``step_s`` are
-        then the step. None: blocks of *identify*'s one length.
+        replaced by the adaptive step. None: blocks of *identify*'s one length.
     cases : str, optional
         With *adaptive*: the voyage's states (CSV with ``case``, ``start``, ``end``); a
         block does not straddle a change of state. Read again when it changes.
@@ -138,15 +138,12 @@ class MonitorOptions:
             raise ValueError("short_record='one-block' is for a finished record, not a monitor")
         if self.cases is not None and self.adaptive is None:
             raise ValueError("cases are used by the adaptive block length only (adaptive=)")
-        if self.adaptive is not None and (
-            self.identify.length_s != self.adaptive.step_s
-            or self.identify.step_s != self.adaptive.step_s
-        ):
-            raise ValueError(
-                f"adaptive block length: identify's length_s={self.identify.length_s:g} and "
-                f"step_s={self.identify.step_s:g} must be the adaptive step "
-                f"{self.adaptive.step_s:g} s"
-            )
+        if self.adaptive is not None:  # the reference grid: blocks of one step
+            step = float(self.adaptive.step_s)
+            if (self.identify.length_s, self.identify.step_s) != (step, step):
+                object.__setattr__(
+                    self, "identify", replace(self.identify, length_s=step, step_s=step)
+                )
 
 
 @dataclass
@@ -685,8 +682,9 @@ class Monitor:
     def _undecided(self) -> list[int]:
         """Blocks not yet decided, up to the last block the data present holds."""
         lengths = self.voyage.lengths
-        last = lengths._last_block()
-        return [b for b in range(0, last + 1) if b not in self.done]
+        last = lengths.last_block()
+        first = self.tracking.tracked_through + 1  # every block before it is decided
+        return [b for b in range(first, last + 1) if b not in self.done]
 
     def _speed_log(self) -> pd.DataFrame | None:
         """The ship log when it logs the speed (the adaptive length reads it), else None."""
