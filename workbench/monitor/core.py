@@ -548,6 +548,8 @@ class Monitor:
             grid, tuple(channels), float(first.sampling_rate_hz), options, per_file, parameters
         )
         if adaptive is not None:
+            if self.dship is not None and _OWN_SPANS not in self.messages:
+                self.messages.append(_OWN_SPANS)
             self.voyage.unresolved = self.options.identify
             self.voyage.lengths = AdaptiveLengths(
                 adaptive,
@@ -1303,6 +1305,13 @@ class Monitor:
 #: although its heartbeat thread still beats. [s]
 STALL_S = 300.0
 
+
+#: What the outlook does with blocks of varying length (said once per run).
+_OWN_SPANS = (
+    "forecast and health: blocks of varying length, the ship log averaged over each block's "
+    "own span as `workbench forecast` does (not weighted by the excitation: forecast "
+    "--excitation with the state folder's excitation.csv weights it as SSI reads a block)"
+)
 
 #: Columns ``identify --block-minutes auto`` adds to its ``selected`` and ``blocks`` tables.
 ADAPTIVE_COLUMNS = ("block_length_s", "excitation_range_db", "speed_range_kn")
