@@ -11,19 +11,32 @@ apart; the block itself can. SSI on each half of the block
 ``half_difference_hz``) measures the block estimate's error variance,
 R ≈ ((f₁ - f₂) / 2)², independently of any model of how the modes move.
 
-The test. Write the blend's error a = x̂ - x and SSI's e = z - x, so d = x̂ - z = a - e.
-For a blend whose noise model is right, E[d²] = R - P ≤ R (P the blend's posterior
-variance: the estimate lies within SSI's scatter of SSI). The guarded estimate is
+*The test.* Write the blend's error a = x̂ - x and SSI's e = z - x, so d = x̂ - z = a - e.
+For a blend whose noise model is right, E[d²] = R - P ≤ R (P its posterior variance): the
+estimate lies within SSI's scatter of SSI. The guard compares the means of d² and R over
+the last :data:`GUARD_BLOCKS` blocks of the mode; while mean d² ≤ mean R the blend stands.
 
-.. math:: \\tilde x = z + λ (\\hat x - z), \\qquad λ = \\min(1, \\bar R / \\overline{d^2}),
+*The guarded estimate*, where the test fails. The blend's error is then not known, and its
+correlation with e (the blend took part of z in) is not known either. Its *prediction* of
+the block from L blocks back (L the blocks that share data: 4 for 20-minute blocks every 5
+minutes, 1 without overlap), x̂⁻ₖ = x̂ₖ₋ₗ + (mₖ - mₖ₋ₗ) (the estimate then, moved by what the
+model's predictors record since), shares no data with block k, so its error a⁻ is
+independent of e, and the mean of d⁻² = (x̂⁻ - z)² is E[a⁻²] + R: the prediction's error
+variance A⁻ is measured. The best combination of the prediction and SSI is then
 
-with both means over the last :data:`GUARD_BLOCKS` blocks of the mode. λ is the
-mean-squared-error optimum of both readings: where the blend is right
-(E[e d] = -E[d²]), the MSE R - 2λE[d²] + λ²E[d²] is least at λ = 1; where its error does
-not come from SSI's (a lagging or smoothing blend, E[a e] = 0), the MSE R - 2λR + λ²E[d²]
-is least at λ = R / E[d²]. So the blend stands while its distance from SSI is within SSI's
-own error, and is drawn toward SSI by as much as that distance exceeds it. The guarded
-variance is (1 - λ)² R̄ + λ² P (the two errors taken as independent).
+.. math:: \\tilde x = z + λ (\\hat x^- - z), \\qquad λ = \\bar R / \\overline{d^{-2}},
+          \\qquad \\operatorname{var} \\tilde x = \\bar R (1 - λ),
+
+(a Kalman update with a measured prior), whose error variance A⁻R / (A⁻ + R) is below R:
+not worse than raw SSI. Where the prediction's mean is not above R̄ (or it has too few
+blocks) the blend itself is drawn toward SSI, λ = R̄ / mean d² (the best weight when its
+error is independent of SSI's), with variance (1 - λ)² R̄ + λ² P.
+
+The one block of the window whose squared distance is more than :data:`OUTLIER_SIGMA`²
+times the mean of the others' is taken for an outlier of SSI (another column's pole): it
+leaves the means, and the blend's own outlier weighting stands at that block, so one
+mislabelled pole draws neither its own nor the next blocks' estimates toward SSI. A fast
+unlogged change gives many large distances, none alone.
 
 A mode moving inside the block adds its move to f₁ - f₂, so R̄ errs on the large side and
 the guard on the side of leaving the blend alone. Blocks without both halves (LSCF, a half
@@ -35,30 +48,72 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["GUARD_BLOCKS", "MIN_PAIRS", "SSIGuard"]
+__all__ = ["GUARD_BLOCKS", "MIN_PAIRS", "OUTLIER_SIGMA", "SSIGuard"]
 
 #: Blocks over which the distance from SSI and SSI's own error are averaged (40 minutes of
 #: 5-minute steps: two 20-minute blocks that share no data). [-]
 GUARD_BLOCKS = 8
 #: Fewest blocks of the window holding both a distance and a half-block error. [-]
 MIN_PAIRS = 3
+#: The one block of the window whose d² is more than this squared times the mean of the
+#: others' is an outlier of SSI (a mislabelled pole, 1-3 % off where SSI scatters by
+#: 0.1-0.3 %): it leaves the means, and the blend's estimate of it stands. [-]
+OUTLIER_SIGMA = 5.0
+
+
+class _Window:
+    """The last *blocks* values of a quantity per mode (NaN: none), and their means."""
+
+    def __init__(self, blocks: int, n_modes: int):
+        self.values = np.full((blocks, n_modes), np.nan)
+
+    def push(self, slot: int, value: np.ndarray) -> None:
+        self.values[slot] = value
+
+    def mean(self, exclude: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and count per mode, without the slots *exclude* marks (n_modes,; -1: none)."""
+        values = self.values
+        if exclude is not None:
+            values = values.copy()
+            modes = np.flatnonzero(exclude >= 0)
+            values[exclude[modes], modes] = np.nan
+        count = np.isfinite(values).sum(axis=0)
+        return np.nansum(values, axis=0) / np.maximum(count, 1), count
+
+    def lone_outlier(self) -> np.ndarray:
+        """Per mode, the slot of a value more than OUTLIER_SIGMA² times the mean of the
+        others (one mislabelled pole among the window's blocks), else -1."""
+        filled = np.where(np.isfinite(self.values), self.values, -np.inf)
+        top = np.argmax(filled, axis=0)
+        modes = np.arange(self.values.shape[1])
+        largest = filled[top, modes]
+        rest, count = self.mean(top)
+        lone = (count >= MIN_PAIRS - 1) & np.isfinite(largest) & (largest > OUTLIER_SIGMA**2 * rest)
+        return np.where(lone, top, -1)
 
 
 class SSIGuard:
-    """The running test of the module docstring, one per forecast, all modes at once.
+    """The running test and estimate of the module docstring, all modes at once.
 
     Parameters
     ----------
     n_modes : int
         Modes of the forecast.
+    lag : int
+        L, the blocks sharing data with a block (1 without overlap).
     blocks : int
         Window of the means (:data:`GUARD_BLOCKS`).
     """
 
-    def __init__(self, n_modes: int, blocks: int = GUARD_BLOCKS):
-        self.blocks = int(blocks)
-        self._d2 = np.full((self.blocks, n_modes), np.nan)
-        self._r = np.full((self.blocks, n_modes), np.nan)
+    def __init__(self, n_modes: int, lag: int = 1, blocks: int = GUARD_BLOCKS):
+        self.blocks, self.lag = int(blocks), max(1, int(lag))
+        self._d2 = _Window(self.blocks, n_modes)
+        self._d2_prior = _Window(self.blocks, n_modes)
+        self._r = _Window(self.blocks, n_modes)
+        self._r_prior = _Window(self.blocks, n_modes)
+        # the estimates and model values of the last L blocks (ring, oldest at _next % L)
+        self._estimates = np.full((self.lag, n_modes), np.nan)
+        self._models = np.full((self.lag, n_modes), np.nan)
         self._next = 0
         #: λ of the last block (1: the blend as it is). [-]
         self.weight = np.ones(n_modes)
@@ -69,6 +124,7 @@ class SSIGuard:
         variance: np.ndarray,
         measured: np.ndarray,
         half_difference_hz: np.ndarray,
+        model: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray]:
         """The guarded estimate and variance of one block.
 
@@ -80,25 +136,49 @@ class SSIGuard:
             SSI's estimate of the block (NaN: none). [Hz]
         half_difference_hz : ndarray, shape (n_modes,)
             f₁ - f₂ of the block's halves (NaN: not known). [Hz]
+        model : ndarray, shape (n_modes,)
+            The model's prediction of the block (NaN: none). [Hz]
         """
-        d2 = (estimate - measured) ** 2
+        back = self._next % self.lag
+        prior = self._estimates[back] + (model - self._models[back])
         r = (0.5 * half_difference_hz) ** 2
-        both = np.isfinite(d2) & np.isfinite(r)
         slot = self._next % self.blocks
-        self._d2[slot] = np.where(both, d2, np.nan)
-        self._r[slot] = np.where(both, r, np.nan)
-        self._next += 1
-        pairs = np.isfinite(self._d2).sum(axis=0)
-        count = np.maximum(pairs, 1)
-        r_mean = np.nansum(self._r, axis=0) / count
-        d2_mean = np.nansum(self._d2, axis=0) / count
+        for window, variance_window, value in (
+            (self._d2, self._r, (estimate - measured) ** 2),
+            (self._d2_prior, self._r_prior, (prior - measured) ** 2),
+        ):
+            both = np.isfinite(value) & np.isfinite(r)
+            window.push(slot, np.where(both, value, np.nan))
+            variance_window.push(slot, np.where(both, r, np.nan))
+        # a lone outlier of SSI (another column's pole) is the blend's to weigh, not
+        # evidence against it: it leaves the means, and its block the blend's estimate
+        lone = self._d2.lone_outlier()
+        outlier = lone == slot
+        d2, pairs = self._d2.mean(lone)
+        r_mean, _ = self._r.mean(lone)
+        lone_prior = self._d2_prior.lone_outlier()
+        d2_prior, prior_pairs = self._d2_prior.mean(lone_prior)
+        r_prior, _ = self._r_prior.mean(lone_prior)
+        have = np.isfinite(measured)
+        fail = have & ~outlier & (pairs >= MIN_PAIRS) & (d2 > r_mean)
+        from_prior = fail & np.isfinite(prior) & (prior_pairs >= MIN_PAIRS) & (d2_prior > r_prior)
         weight = np.ones_like(r_mean)
-        pull = (pairs >= MIN_PAIRS) & (d2_mean > r_mean)
-        weight[pull] = r_mean[pull] / d2_mean[pull]
-        weight = np.where(np.isfinite(measured) & np.isfinite(weight), weight, 1.0)
+        guarded, guarded_variance = estimate.copy(), variance.copy()
+        blend = fail & ~from_prior
+        weight[blend] = r_mean[blend] / d2[blend]
+        guarded[blend] = measured[blend] + weight[blend] * (estimate[blend] - measured[blend])
+        guarded_variance[blend] = (1 - weight[blend]) ** 2 * r_mean[blend] + weight[
+            blend
+        ] ** 2 * variance[blend]
+        p = from_prior
+        weight[p] = r_prior[p] / d2_prior[p]
+        guarded[p] = measured[p] + weight[p] * (prior[p] - measured[p])
+        guarded_variance[p] = r_prior[p] * (1 - weight[p])
         self.weight = weight
-        guarded = np.where(weight < 1.0, measured + weight * (estimate - measured), estimate)
-        guarded_variance = np.where(
-            weight < 1.0, (1.0 - weight) ** 2 * r_mean + weight**2 * variance, variance
-        )
+        # the predictions go on from the guarded estimates; at a lone outlier from the
+        # prediction itself (the blend's estimate there is the one the guard could not judge)
+        keep = np.where(outlier & np.isfinite(prior), prior, guarded)
+        self._estimates[back] = np.where(np.isfinite(keep), keep, self._estimates[back])
+        self._models[back] = np.where(np.isfinite(keep), model, self._models[back])
+        self._next += 1
         return guarded, guarded_variance

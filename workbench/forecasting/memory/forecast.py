@@ -278,7 +278,11 @@ class MemoryRun:
             else None
         )
         # do no harm: the estimate no farther from SSI than SSI's own error allows
-        self.ssi_guard = SSIGuard(n_modes) if self.half_difference is not None else None
+        self.ssi_guard = (
+            SSIGuard(n_modes, lag=int(self.independent_lag or 1))
+            if self.half_difference is not None
+            else None
+        )
         self.explained_lost = np.zeros(n_modes, dtype=np.int64)  # first block below 0.5, + 1
         # a mode's model explains it once its probability reached 0.5 on unseen blocks; only
         # then is a fall below 0.5 news (the prior starts low,
@@ -623,7 +627,7 @@ class MemoryRun:
                 self._explained(k, have)
         if self.ssi_guard is not None:
             estimate, variance = self.ssi_guard.step(
-                estimate, variance, np.where(have, z, np.nan), self.half_difference[k]
+                estimate, variance, np.where(have, z, np.nan), self.half_difference[k], m_now
             )
             self.out["guard"][k] = np.where(have, self.ssi_guard.weight, np.nan)
             for j in np.flatnonzero(have & (self.ssi_guard.weight < 1.0)):
