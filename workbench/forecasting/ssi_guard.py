@@ -53,8 +53,16 @@ __all__ = ["GUARD_BLOCKS", "MIN_PAIRS", "OUTLIER_SIGMA", "SSIGuard"]
 #: Blocks over which the distance from SSI and SSI's own error are averaged (40 minutes of
 #: 5-minute steps: two 20-minute blocks that share no data). [-]
 GUARD_BLOCKS = 8
+#: Blocks over which SSI's error R̄ is averaged: one block's ((f₁ - f₂) / 2)² is a
+#: one-degree-of-freedom estimate, and the error of a mode changes with the excitation
+#: more slowly than an unlogged change moves the mode (2 hours of 5-minute steps). [-]
+R_BLOCKS = 24
 #: Fewest blocks of the window holding both a distance and a half-block error. [-]
 MIN_PAIRS = 3
+#: The test fails where the window's mean d² exceeds its mean R̄ by more than this factor:
+#: eight blocks' means scatter (chi-square with heavy tails), and a consistent blend's
+#: E[d²] = R - P would cross R̄ itself in a third of the windows. [-]
+FAIL_RATIO = 1.5
 #: The one block of the window whose d² is more than this squared times the mean of the
 #: others' is an outlier of SSI (a mislabelled pole, 1-3 % off where SSI scatters by
 #: 0.1-0.3 %): it leaves the means, and the blend's estimate of it stands. [-]
@@ -109,8 +117,7 @@ class SSIGuard:
         self.blocks, self.lag = int(blocks), max(1, int(lag))
         self._d2 = _Window(self.blocks, n_modes)
         self._d2_prior = _Window(self.blocks, n_modes)
-        self._r = _Window(self.blocks, n_modes)
-        self._r_prior = _Window(self.blocks, n_modes)
+        self._r = _Window(R_BLOCKS, n_modes)
         # the estimates and model values of the last L blocks (ring, oldest at _next % L)
         self._estimates = np.full((self.lag, n_modes), np.nan)
         self._models = np.full((self.lag, n_modes), np.nan)
@@ -143,25 +150,23 @@ class SSIGuard:
         prior = self._estimates[back] + (model - self._models[back])
         r = (0.5 * half_difference_hz) ** 2
         slot = self._next % self.blocks
-        for window, variance_window, value in (
-            (self._d2, self._r, (estimate - measured) ** 2),
-            (self._d2_prior, self._r_prior, (prior - measured) ** 2),
+        r_slot = self._next % R_BLOCKS
+        for window, value in (
+            (self._d2, (estimate - measured) ** 2),
+            (self._d2_prior, (prior - measured) ** 2),
         ):
-            both = np.isfinite(value) & np.isfinite(r)
-            window.push(slot, np.where(both, value, np.nan))
-            variance_window.push(slot, np.where(both, r, np.nan))
+            window.push(slot, np.where(np.isfinite(value) & np.isfinite(r), value, np.nan))
+        self._r.push(r_slot, np.where(np.isfinite(measured), r, np.nan))
+        r_mean, _ = self._r.mean()
         # a lone outlier of SSI (another column's pole) is the blend's to weigh, not
         # evidence against it: it leaves the means, and its block the blend's estimate
         lone = self._d2.lone_outlier()
         outlier = lone == slot
         d2, pairs = self._d2.mean(lone)
-        r_mean, _ = self._r.mean(lone)
-        lone_prior = self._d2_prior.lone_outlier()
-        d2_prior, prior_pairs = self._d2_prior.mean(lone_prior)
-        r_prior, _ = self._r_prior.mean(lone_prior)
+        d2_prior, prior_pairs = self._d2_prior.mean(self._d2_prior.lone_outlier())
         have = np.isfinite(measured)
-        fail = have & ~outlier & (pairs >= MIN_PAIRS) & (d2 > r_mean)
-        from_prior = fail & np.isfinite(prior) & (prior_pairs >= MIN_PAIRS) & (d2_prior > r_prior)
+        fail = have & ~outlier & (pairs >= MIN_PAIRS) & (d2 > FAIL_RATIO * r_mean)
+        from_prior = fail & np.isfinite(prior) & (prior_pairs >= MIN_PAIRS) & (d2_prior > r_mean)
         weight = np.ones_like(r_mean)
         guarded, guarded_variance = estimate.copy(), variance.copy()
         blend = fail & ~from_prior
@@ -171,9 +176,9 @@ class SSIGuard:
             blend
         ] ** 2 * variance[blend]
         p = from_prior
-        weight[p] = r_prior[p] / d2_prior[p]
+        weight[p] = r_mean[p] / d2_prior[p]
         guarded[p] = measured[p] + weight[p] * (prior[p] - measured[p])
-        guarded_variance[p] = r_prior[p] * (1 - weight[p])
+        guarded_variance[p] = r_mean[p] * (1 - weight[p])
         self.weight = weight
         # the predictions go on from the guarded estimates; at a lone outlier from the
         # prediction itself (the blend's estimate there is the one the guard could not judge)
