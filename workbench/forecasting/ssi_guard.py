@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["GUARD_BLOCKS", "MIN_PAIRS", "OUTLIER_SIGMA", "SSIGuard"]
+__all__ = ["GUARD_BLOCKS", "MIN_PAIRS", "OUTLIER_SIGMA", "GuardWindow", "SSIGuard"]
 
 #: Blocks over which the distance from SSI and SSI's own error are averaged (40 minutes of
 #: 5-minute steps: two 20-minute blocks that share no data). [-]
@@ -69,7 +69,7 @@ FAIL_RATIO = 1.5
 OUTLIER_SIGMA = 5.0
 
 
-class _Window:
+class GuardWindow:
     """The last *blocks* values of a quantity per mode (NaN: none), and their means."""
 
     def __init__(self, blocks: int, n_modes: int):
@@ -115,9 +115,9 @@ class SSIGuard:
 
     def __init__(self, n_modes: int, lag: int = 1, blocks: int = GUARD_BLOCKS):
         self.blocks, self.lag = int(blocks), max(1, int(lag))
-        self._d2 = _Window(self.blocks, n_modes)
-        self._d2_prior = _Window(self.blocks, n_modes)
-        self._r = _Window(R_BLOCKS, n_modes)
+        self._d2 = GuardWindow(self.blocks, n_modes)
+        self._d2_prior = GuardWindow(self.blocks, n_modes)
+        self._r = GuardWindow(R_BLOCKS, n_modes)
         # the estimates and model values of the last L blocks (ring, oldest at _next % L)
         self._estimates = np.full((self.lag, n_modes), np.nan)
         self._models = np.full((self.lag, n_modes), np.nan)
