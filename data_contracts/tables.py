@@ -549,8 +549,9 @@ FORECAST = TableContract(
             "How far the estimate was left where the blend put it: 1 where its distance "
             "from SSI is within SSI's own error (measured on the blocks' halves, "
             "half_difference_hz); below 1, the estimate was drawn toward SSI in that "
-            "proportion (SSI + weight x (blend - SSI)). NaN where the row has no estimate "
-            "or the modal table has no half-block errors.",
+            "proportion (SSI + weight x (blend, or its prediction of the block, - SSI)). "
+            "NaN where the row has no estimate, the modal table has no half-block errors, "
+            "or the blocks overlap (the guard's test needs blocks that share no data).",
             required=False,
             nullable=True,
             minimum=0.0,

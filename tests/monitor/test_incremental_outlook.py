@@ -31,8 +31,10 @@ def voyage(
     missing estimates, a fourth seen in a fifth of the blocks (not forecast), and mode 2
     dropping 5 % from block 80 (an alarm). With *halves*, the blocks' half differences
     (identify's ``half_difference_hz``, each half twice the block's error variance) from a
-    random stream of their own: the forecast's SSI guard runs."""
+    random stream of their own, and blocks that share no data (5 minutes every 5): the
+    forecast's SSI guard runs there."""
     rng = np.random.default_rng(seed)
+    length_s = STEP_S if halves else 4 * STEP_S
     block = np.arange(n_blocks)
     start = pd.Timestamp("2026-03-01T00:00:00Z") + pd.to_timedelta(block * STEP_S, unit="s")
     speed = np.clip(10 + np.cumsum(rng.normal(0, 0.4, n_blocks)), 2, 16)
@@ -41,7 +43,7 @@ def voyage(
         {
             "block": block,
             "block_start": start,
-            "block_end": start + pd.Timedelta(seconds=4 * STEP_S),
+            "block_end": start + pd.Timedelta(seconds=length_s),
             "speed_kn": speed,
             "water_temp_c": water,
             "air_temp_c": 2 + rng.normal(0, 0.3, n_blocks),
@@ -65,7 +67,7 @@ def voyage(
                 {
                     "block": k,
                     "block_start": start[k],
-                    "block_end": start[k] + pd.Timedelta(seconds=4 * STEP_S),
+                    "block_end": start[k] + pd.Timedelta(seconds=length_s),
                     "mode": mode,
                     "frequency_hz": f * (1 + error[j]),
                     "damping_ratio": 0.01 + 0.001 * rng.random(),

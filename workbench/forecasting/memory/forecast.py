@@ -277,10 +277,12 @@ class MemoryRun:
             if noise.model_trust
             else None
         )
-        # do no harm: the estimate no farther from SSI than SSI's own error allows
+        # do no harm: the estimate no farther from SSI than SSI's own error allows, where
+        # blocks share no data (the guard's test needs SSI errors independent from block to
+        # block; :mod:`~workbench.forecasting.ssi_guard`)
         self.ssi_guard = (
-            SSIGuard(n_modes, lag=int(self.independent_lag or 1))
-            if self.half_difference is not None
+            SSIGuard(n_modes)
+            if self.half_difference is not None and (self.independent_lag or 1) <= 1
             else None
         )
         self.explained_lost = np.zeros(n_modes, dtype=np.int64)  # first block below 0.5, + 1
