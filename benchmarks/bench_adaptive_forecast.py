@@ -23,6 +23,10 @@ frequency (within 2 %). Printed per seed and stretch: the median and 90th percen
 |df|/f of the raw SSI estimate and of the Kalman estimate, and Kalman vs SSI = 1 -
 median Kalman / median SSI (positive: the Kalman estimate is the better).
 
+Where identify recorded the blocks' halves (``half_difference_hz``), each forecast runs with
+the SSI guard (``guard`` "on", :mod:`workbench.forecasting.ssi_guard`) and with the column
+withheld ("off"); tables identified before the column read "none".
+
 ``--runs`` adds the fixed-length runs of the same voyages (``fixed 20 min``, the product's
 default, and ``fixed 5 min``; their log averaged over each block's span): the blend
 against raw SSI where an unlogged ice load moves the modes by 1-2 % with a 4-minute
@@ -35,6 +39,7 @@ Run: ``python benchmarks/bench_adaptive_forecast.py [--seeds 0,1,2,3,4] [--hours
 from __future__ import annotations
 
 import argparse
+import itertools
 import sys
 import warnings
 from pathlib import Path
@@ -94,54 +99,60 @@ def run_seed(folder: Path, seed: int, run: str = "auto") -> list[dict]:
     ice_start = pd.Timestamp(ice.iat[0]) if len(ice) else None
     level = truth.median()
     rows = []
-    for recorded in ("no poles", "poles"):
-        for lengths in (False, True) if _has_length_scale() else (True,):
-            table = _forecast(
-                modal, predictors, poles if recorded == "poles" else None, lengths=lengths
-            )
-            scored = []
-            for _, part in table.groupby("mode"):
-                f = part["ssi_frequency_hz"].median()
-                nearest = int((level / f - 1).abs().idxmin())
-                if abs(level[nearest] / f - 1) > 0.02:
-                    continue
-                t = truth[nearest].reindex(part["block"]).to_numpy()
-                scored.append(
-                    pd.DataFrame(
-                        {
-                            "block_start": pd.to_datetime(part["block_start"], utc=True),
-                            "ssi": np.abs(part["ssi_frequency_hz"].to_numpy() / t - 1),
-                            "kalman": np.abs(part["kalman_frequency_hz"].to_numpy() / t - 1),
-                        }
-                    )
-                )
-            scored = pd.concat(scored, ignore_index=True)
-            scored = scored[np.isfinite(scored["ssi"]) & np.isfinite(scored["kalman"])]
-            for stretch in ("ice", "open water", "all"):
-                if stretch == "all" or ice_start is None:
-                    part = scored
-                elif stretch == "ice":
-                    part = scored[scored["block_start"] >= ice_start]
-                else:
-                    part = scored[scored["block_start"] < ice_start]
-                ssi, kalman = part["ssi"].median(), part["kalman"].median()
-                rows.append(
+    # the SSI guard measures against the blocks' halves (identify's half_difference_hz);
+    # "off" is the same forecast with the column withheld
+    guards = ("off", "on") if "half_difference_hz" in modal.columns else ("none",)
+    for recorded, lengths, guard in itertools.product(
+        ("no poles", "poles"), (False, True) if _has_length_scale() else (True,), guards
+    ):
+        table = _forecast(
+            modal if guard != "off" else modal.drop(columns="half_difference_hz"),
+            predictors,
+            poles if recorded == "poles" else None,
+            lengths=lengths,
+        )
+        scored = []
+        for _, part in table.groupby("mode"):
+            f = part["ssi_frequency_hz"].median()
+            nearest = int((level / f - 1).abs().idxmin())
+            if abs(level[nearest] / f - 1) > 0.02:
+                continue
+            t = truth[nearest].reindex(part["block"]).to_numpy()
+            scored.append(
+                pd.DataFrame(
                     {
-                        "seed": seed,
-                        "blocks": run,
-                        "stretch": stretch,
-                        "measurement": recorded,
-                        "length scale": ("on" if lengths else "off")
-                        if _has_length_scale()
-                        else "none",
-                        "rows": len(part),
-                        "ssi median": ssi,
-                        "ssi p90": part["ssi"].quantile(0.9),
-                        "kalman median": kalman,
-                        "kalman p90": part["kalman"].quantile(0.9),
-                        "kalman vs ssi %": 100 * (1 - kalman / ssi),
+                        "block_start": pd.to_datetime(part["block_start"], utc=True),
+                        "ssi": np.abs(part["ssi_frequency_hz"].to_numpy() / t - 1),
+                        "kalman": np.abs(part["kalman_frequency_hz"].to_numpy() / t - 1),
                     }
                 )
+            )
+        scored = pd.concat(scored, ignore_index=True)
+        scored = scored[np.isfinite(scored["ssi"]) & np.isfinite(scored["kalman"])]
+        for stretch in ("ice", "open water", "all"):
+            if stretch == "all" or ice_start is None:
+                part = scored
+            elif stretch == "ice":
+                part = scored[scored["block_start"] >= ice_start]
+            else:
+                part = scored[scored["block_start"] < ice_start]
+            ssi, kalman = part["ssi"].median(), part["kalman"].median()
+            rows.append(
+                {
+                    "seed": seed,
+                    "blocks": run,
+                    "stretch": stretch,
+                    "measurement": recorded,
+                    "length scale": ("on" if lengths else "off") if _has_length_scale() else "none",
+                    "guard": guard,
+                    "rows": len(part),
+                    "ssi median": ssi,
+                    "ssi p90": part["ssi"].quantile(0.9),
+                    "kalman median": kalman,
+                    "kalman p90": part["kalman"].quantile(0.9),
+                    "kalman vs ssi %": 100 * (1 - kalman / ssi),
+                }
+            )
     return rows
 
 
@@ -168,7 +179,7 @@ def main(argv=None) -> int:
         for run in runs:
             rows += run_seed(folder, seed, run)
     table = pd.DataFrame(rows)
-    keys = ["blocks", "stretch", "measurement", "length scale"]
+    keys = ["blocks", "stretch", "measurement", "length scale", "guard"]
     if len(seeds) > 1:
         values = ["ssi median", "kalman median", "kalman vs ssi %"]
         median = table.groupby(keys, sort=False)[values].median().reset_index()

@@ -134,12 +134,18 @@ def block_level_runs(
     regimes=REGIMES,
     shapes_list=(True, False),
     error_model="ar1",
+    halves=False,
 ):
     rows = []
     for regime in regimes:
         for seed in seeds:
             data = make_regime(
-                regime, seed, n_blocks=n_blocks, shapes=True, error_model=error_model
+                regime,
+                seed,
+                n_blocks=n_blocks,
+                shapes=True,
+                error_model=error_model,
+                halves=halves,
             )
             for shapes in shapes_list:
                 tracked = data.tracked if shapes else _drop_shapes(data.tracked)
@@ -298,6 +304,12 @@ def main(argv=None) -> int:
         "generator) or 'segments' (overlapping blocks' mean of independent 5-minute "
         "segment errors; forecast_regimes.py)",
     )
+    parser.add_argument(
+        "--halves",
+        action="store_true",
+        help="block-level tables with half_difference_hz (SSI on each half of the block, "
+        "as identify records it): the forecast's SSI guard measures against it",
+    )
     args = parser.parse_args(argv)
     global MODEL, MODEL_OPTIONS
     MODEL = args.model
@@ -324,6 +336,7 @@ def main(argv=None) -> int:
             _regime_names(args.regimes),
             shapes_list,
             args.error_model,
+            args.halves,
         )
     if hours:
         rows += demo_runs(args.cache, hours, methods, options, demo_seeds, shapes_list)

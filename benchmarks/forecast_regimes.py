@@ -38,6 +38,12 @@ errors rather than white noise:
 Nothing here knows the forecast method; the regimes were written before the method was
 changed (see the issue-11 report for the before/after table).
 
+*Halves* (optional, ``make_regime(..., halves=True)``): SSI on each half of the block, as
+identify records it (``half_difference_hz``), for the forecast's SSI guard: each half's
+frequency is the excitation-weighted truth over its 10 minutes plus an error with twice the
+block's variance whose mean over the halves is the block's error (``"segments"``: each half's
+own two segments; ``"ar1"``: the block's error ± an independent term of its size).
+
 Unrecorded changes (issue 27, :data:`UNRECORDED`): the same tables with a disturbance of the
 true frequencies that no predictor records (fuel without soundings, ballast, ice on deck):
 a slow rise, a held step, an AR(1) wander at two time constants and two sizes, and a model
@@ -200,8 +206,12 @@ def make_regime(
     mode_index: tuple[int, ...] = MODE_INDEX,
     first_label: int = 1,
     error_model: str = "ar1",
+    halves: bool = False,
 ) -> RegimeData:
     """Block-level tables of one regime and seed (see the module docstring).
+
+    *halves* adds the tracked table's ``half_difference_hz`` (module docstring, *halves*),
+    drawn from a random stream of its own: every other draw is the same with and without.
 
     *mode_index* picks the hull's modes (0-based indices into its seven), labelled
     *first_label*, *first_label* + 1, ... in the tables. *error_model* picks the
@@ -278,6 +288,11 @@ def make_regime(
             extra = extra_rng.standard_normal(shape)
     error, segment_size = identification_error(size, shocks, extra, n_segments)
     centre = seen_f + error  # the column's centre in the block's stabilisation diagram
+    half_difference = (
+        _half_differences(freq_min, w, index, error, size, shocks, extra, ice_block, (number, seed))
+        if halves
+        else None
+    )
 
     # presence: missing at random and in runs
     present = rng.random((n_blocks, n_modes)) > 0.12
@@ -424,6 +439,12 @@ def make_regime(
         }
     )
     tracked.insert(1, "block_start", block_start[tracked["block"].to_numpy()])
+    if half_difference is not None:
+        # a mislabelled tracked pole keeps its mode's halves: the guard then sees a usual
+        # yardstick beside a large distance from SSI, its hardest case
+        tracked["half_difference_hz"] = half_difference[
+            tracked["block"].to_numpy(), tracked["mode"].to_numpy() - first_label
+        ]
     if shapes:
         pole_shapes = np.concatenate(rows_shape)
         poles = pd.concat([poles, shapes_to_frame(CHANNELS, pole_shapes)], axis=1)
@@ -450,6 +471,33 @@ def make_regime(
             }
         )
     return RegimeData(name, seed, predictors, truth, tracked, poles, oracle)
+
+
+def _half_differences(freq_min, w, index, error, size, shocks, extra, ice_block, stream):
+    """f₁ - f₂ of SSI on the two halves of every block (module docstring, *halves*)."""
+    n_blocks, n_modes = error.shape
+    half = BLOCK_MIN // 2
+    seen = []
+    for part in (slice(0, half), slice(half, None)):
+        wh = w[:, part] / w[:, part].sum(axis=1, keepdims=True)
+        seen.append(np.einsum("bm,bmj->bj", wh, freq_min[index[:, part]]))
+    n_segments = BLOCK_MIN // STEP_MIN
+    if extra is not None:  # "segments": each half is the mean of its own segments' errors
+        segment_size = np.concatenate([size, np.repeat(size[-1:], n_segments - 1, axis=0)])
+        segment = segment_size * np.concatenate([shocks, extra]) / np.sqrt(n_segments)
+        k = np.arange(n_blocks)[:, None]
+        first = segment[k + np.arange(n_segments // 2)].sum(axis=1)
+        second = segment[k + np.arange(n_segments // 2, n_segments)].sum(axis=1)
+        errors = (2 * first, 2 * second)
+    else:  # "ar1": halves about the block's error, each with twice its variance
+        rng = np.random.default_rng([*stream, 2])
+        u = np.where(
+            ice_block[:, None],
+            rng.standard_t(3, (n_blocks, n_modes)) / np.sqrt(3.0),
+            rng.standard_normal((n_blocks, n_modes)),
+        )
+        errors = (error + size * u, error - size * u)
+    return (seen[0] + errors[0]) - (seen[1] + errors[1])
 
 
 def identification_error(size, shocks, extra=None, n_segments=BLOCK_MIN // STEP_MIN):

@@ -277,6 +277,22 @@ _COMBINED = (
     ),
 )
 
+#: The block's own uncertainty, from SSI on each half of the block: optional in the selected
+#: and the tracked modal tables.
+_HALVES = (
+    Column(
+        "half_difference_hz",
+        "float",
+        "The mode's frequency in the first half of the block minus that in the second "
+        "(SSI on each half; missing where a half does not show the mode, and for LSCF). "
+        "(difference / 2)² estimates the variance of frequency_hz; the forecast's guard "
+        "measures its distance from SSI against it.",
+        unit="Hz",
+        required=False,
+        nullable=True,
+    ),
+)
+
 #: Adaptive block length (identify --block-minutes auto): optional in the selected and the
 #: tracked modal tables (and in blocks.csv).
 _ADAPTIVE = (
@@ -359,6 +375,7 @@ MODAL = TableContract(
             minimum=1,
         ),
         *_COMBINED,
+        *_HALVES,
         *_ADAPTIVE,
     ),
     patterns=(_SHAPES,),
@@ -462,6 +479,7 @@ SELECTED = TableContract(
             minimum=0.0,
         ),
         *_COMBINED,
+        *_HALVES,
         *_ADAPTIVE,
     ),
     patterns=(_SHAPES,),
@@ -520,6 +538,20 @@ FORECAST = TableContract(
             "block's, and the first block that shares no data with the present; 1: the "
             "blend of model and SSI; 0: the model-free estimate, which follows SSI). NaN "
             "where the row has no estimate or the forecast does not weigh them.",
+            required=False,
+            nullable=True,
+            minimum=0.0,
+            maximum=1.0,
+        ),
+        Column(
+            "guard_weight",
+            "float",
+            "How far the estimate was left where the blend put it: 1 where its distance "
+            "from SSI is within SSI's own error (measured on the blocks' halves, "
+            "half_difference_hz); below 1, the estimate was drawn toward SSI in that "
+            "proportion (SSI + weight x (blend, or its prediction of the block, - SSI)). "
+            "NaN where the row has no estimate, the modal table has no half-block errors, "
+            "or the blocks overlap (the guard's test needs blocks that share no data).",
             required=False,
             nullable=True,
             minimum=0.0,

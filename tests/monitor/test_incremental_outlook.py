@@ -23,12 +23,18 @@ STEP_S = 300.0
 SETTINGS = ForecastSettings(health_train_hours=4.0, reference_hours=2.0)
 
 
-def voyage(n_blocks: int = 170, seed: int = 3) -> tuple[pd.DataFrame, pd.DataFrame]:
+def voyage(
+    n_blocks: int = 170, seed: int = 3, halves: bool = False
+) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Block-level tables of a voyage: 20-min blocks every 5 min, speed changes, three
     modes following speed and water temperature with AR(1) identification errors and
     missing estimates, a fourth seen in a fifth of the blocks (not forecast), and mode 2
-    dropping 5 % from block 80 (an alarm)."""
+    dropping 5 % from block 80 (an alarm). With *halves*, the blocks' half differences
+    (identify's ``half_difference_hz``, each half twice the block's error variance) from a
+    random stream of their own, and blocks that share no data (5 minutes every 5): the
+    forecast's SSI guard runs there."""
     rng = np.random.default_rng(seed)
+    length_s = STEP_S if halves else 4 * STEP_S
     block = np.arange(n_blocks)
     start = pd.Timestamp("2026-03-01T00:00:00Z") + pd.to_timedelta(block * STEP_S, unit="s")
     speed = np.clip(10 + np.cumsum(rng.normal(0, 0.4, n_blocks)), 2, 16)
@@ -37,7 +43,7 @@ def voyage(n_blocks: int = 170, seed: int = 3) -> tuple[pd.DataFrame, pd.DataFra
         {
             "block": block,
             "block_start": start,
-            "block_end": start + pd.Timedelta(seconds=4 * STEP_S),
+            "block_end": start + pd.Timedelta(seconds=length_s),
             "speed_kn": speed,
             "water_temp_c": water,
             "air_temp_c": 2 + rng.normal(0, 0.3, n_blocks),
@@ -61,13 +67,17 @@ def voyage(n_blocks: int = 170, seed: int = 3) -> tuple[pd.DataFrame, pd.DataFra
                 {
                     "block": k,
                     "block_start": start[k],
-                    "block_end": start[k] + pd.Timedelta(seconds=4 * STEP_S),
+                    "block_end": start[k] + pd.Timedelta(seconds=length_s),
                     "mode": mode,
                     "frequency_hz": f * (1 + error[j]),
                     "damping_ratio": 0.01 + 0.001 * rng.random(),
                 }
             )
-    return MODAL.validate(pd.DataFrame(rows)), PREDICTORS.validate(predictors)
+    modal = pd.DataFrame(rows)
+    if halves:
+        draw = np.random.default_rng(seed + 100).standard_normal(len(modal))
+        modal["half_difference_hz"] = 2 * 0.003 * modal["frequency_hz"] * draw
+    return MODAL.validate(modal), PREDICTORS.validate(predictors)
 
 
 def batch(modal: pd.DataFrame, predictors: pd.DataFrame):
@@ -104,8 +114,9 @@ def assert_equal_to_batch(found, modal, predictors) -> None:
     pd.testing.assert_frame_equal(found.alarms.reset_index(drop=True), alarms, rtol=1e-9)
 
 
-def test_resumed_outlook_equals_batch_with_restart_and_changed_input(tmp_path):
-    modal, predictors = voyage()
+@pytest.mark.parametrize("halves", [False, True])
+def test_resumed_outlook_equals_batch_with_restart_and_changed_input(tmp_path, halves):
+    modal, predictors = voyage(halves=halves)
     outlook = IncrementalOutlook(SETTINGS, STEP_S)
     found = None
     for last in range(30, 170, 11):
@@ -128,6 +139,11 @@ def test_resumed_outlook_equals_batch_with_restart_and_changed_input(tmp_path):
     assert set(found.forecast["mode"]) == {1, 2, 3}  # mode 4: seen in too few blocks
     assert len(found.alarms) >= 1  # mode 2's drop is charted
     assert_equal_to_batch(found, modal, predictors)
+    if halves:  # the guard ran, and drew some estimates toward SSI
+        weight = found.forecast["guard_weight"]
+        assert weight.notna().all() and (weight < 1).any()
+    else:
+        assert found.forecast["guard_weight"].isna().all()
 
 
 def test_every_block_and_partial_windows_equal_batch():

@@ -72,6 +72,7 @@ from .model_trust import ModelTrust
 from .noise import NoiseModel
 from .options import ForecastOptions, NoiseOptions
 from .predictor_grid import NS_PER_HOUR, block_centre_ns, mode_matrix, predictor_matrix
+from .ssi_guard import GuardWindow, SSIGuard
 
 __all__ = [
     "CHECKPOINT_SCHEMA",
@@ -85,8 +86,9 @@ __all__ = [
 #: /3: block times in nanoseconds whatever the tables' resolution (/2 could hold
 #: microseconds, which put the time trend in thousands of hours), the filter's
 #: identification error as the overlap's segment states, the noise model's
-#: ``error_segments`` and the model-trust lead test (issue 27).
-CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/3"
+#: ``error_segments`` and the model-trust lead test (issue 27); /4: the SSI guard's
+#: windows (:mod:`workbench.forecasting.ssi_guard`).
+CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/4"
 
 #: Rows kept before the newest committed window beyond the refits' history. [blocks]
 _MARGIN_ROWS = 64
@@ -172,6 +174,11 @@ class IncrementalMemoryForecast:
             if "combined_frequency_std_hz" in modal.columns
             else None
         )
+        halves = (
+            mode_matrix(modal, blocks, labels, "half_difference_hz")
+            if "half_difference_hz" in modal.columns
+            else None
+        )
         damping = (
             mode_matrix(modal, blocks, labels, "damping_ratio")
             if "damping_ratio" in modal.columns
@@ -188,6 +195,7 @@ class IncrementalMemoryForecast:
             tracked,
             combined,
             damping,
+            halves,
         )
 
     # ------------------------------------------------------------------ the call
@@ -363,6 +371,10 @@ class IncrementalMemoryForecast:
             return lo
         if core.combined_std is not None:
             differ |= ~_same(core.combined_std[a], new.combined[b]).all(axis=1)
+        if (core.half_difference is None) != (new.halves is None):
+            return lo
+        if core.half_difference is not None:
+            differ |= ~_same(core.half_difference[a], new.halves[b]).all(axis=1)
         differ |= core.block_start[a] != new.block_start[b]
         where = np.flatnonzero(differ)
         return lo + int(where[0]) if where.size else hi + 1
@@ -416,6 +428,8 @@ class IncrementalMemoryForecast:
         }
         if core.combined_std is not None:
             rows["combined_std"] = new.combined[take]
+        if core.half_difference is not None:
+            rows["half_difference"] = new.halves[take]
         for name, value in rows.items():
             setattr(core, name, np.concatenate([getattr(core, name)[:keep], value]))
         for name in ("meas", "resid", "scatter"):
@@ -521,6 +535,7 @@ class IncrementalMemoryForecast:
             "tracked",
             "tracked_damping",
             "combined_std",
+            "half_difference",
             "speed_var",
             "shift_cap",
             "meas",
@@ -589,6 +604,7 @@ class IncrementalMemoryForecast:
         found, modes = np.nonzero(phase)
         order = np.lexsort((blocks[found], core.mode_labels[modes]))
         table["model_probability"] = out["probability"][found, modes][order]
+        table["guard_weight"] = out["guard"][found, modes][order]
         # the forecast stage's order: by block, then mode
         return table.sort_values(["block", "mode"], kind="stable").reset_index(drop=True)
 
@@ -607,6 +623,7 @@ class SimpleInputs:
         "tracked",
         "combined",
         "damping",
+        "halves",
     )
 
     def __init__(self, *values) -> None:
@@ -668,6 +685,8 @@ def _classes() -> dict[str, type]:
             ExcitationBias,
             InnovationConsistency,
             ModelTrust,
+            SSIGuard,
+            GuardWindow,
             ForecastOptions,
             NoiseOptions,
         )

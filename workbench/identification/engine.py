@@ -87,11 +87,7 @@ def _identify_data(
     kept = list(data.channels)
     if len(kept) < 2:
         raise ValueError(f"block {task.block}: only {len(kept)} good channel(s) left")
-    reference = None
-    if options.reference_channels:
-        reference = [kept.index(c) for c in options.reference_channels if c in kept]
-        if not reference:
-            raise ValueError(f"block {task.block}: no reference channel left")
+    reference = _reference_columns(options, kept, task.block)
     result, selection = _identify_method(options.method, data, reference, options)
     if not cross:
         return data, result, selection
@@ -101,6 +97,95 @@ def _identify_data(
     except (ValueError, np.linalg.LinAlgError):
         checked = None  # the block's own result stands; it just has no cross-check
     return data, result, selection, checked
+
+
+def _reference_columns(options: IdentifyOptions, kept: Sequence[str], block: int):
+    """Columns of the reference channels among the block's *kept* channels (None: all)."""
+    if not options.reference_channels:
+        return None
+    reference = [kept.index(c) for c in options.reference_channels if c in kept]
+    if not reference:
+        raise ValueError(f"block {block}: no reference channel left")
+    return reference
+
+
+#: Each half of a block is identified at every HALF_ORDER_STEP-th order of the upper half
+#: of the block's model orders (a physical mode's column is longest there), enough to find
+#: the modes the block already selected without a stabilisation diagram of its own. [-]
+HALF_ORDER_STEP = 2
+#: A half's pole belongs to a selected mode when within this relative frequency of it ... [-]
+HALF_FREQUENCY_TOL = 0.02
+#: ... with a MAC of at least this with its shape (the pairing of the combined model). [-]
+HALF_MAC = 0.8
+#: Fewest model orders at which a half shows the mode. [-]
+HALF_MIN_ORDERS = 2
+
+
+def half_differences(method: str, data, reference, options: IdentifyOptions, selection):
+    """f₁ - f₂ of every selected mode: its frequency in the first and in the second half of
+    the block [Hz] (NaN where a half does not show it, and for LSCF).
+
+    The two halves are independent records of the same structure, each with twice the
+    block's variance of the frequency estimate (that variance goes as 1 / length), so
+    E[(f₁ - f₂)²] / 4 is the variance of the block's own estimate, measured from the block
+    itself and not from a model of how the modes move: the forecast's yardstick for how far
+    its estimate may lie from SSI (:mod:`workbench.forecasting.ssi_guard`). A mode that
+    moves inside the block adds its move between the halves, so the yardstick errs on the
+    large side there. Each half's frequency is the median, over the orders that show it, of
+    the pole nearest the mode within :data:`HALF_FREQUENCY_TOL` with a MAC of at least
+    :data:`HALF_MAC` and a damping ratio within the selection's limits.
+    """
+    from ..sid import ssi_cov, ssi_data
+    from ..sid.assurance import mac
+
+    modes = selection.modes
+    out = np.full(len(modes), np.nan)
+    if method not in ("cov", "data") or not len(modes):
+        return out
+    n = data.acceleration.shape[0]
+    orders = _reachable_orders(options, len(data.channels), len(reference or data.channels))
+    orders = orders[len(orders) // 2 :: HALF_ORDER_STEP]
+    if not orders:
+        return out
+    f_mode = modes["frequency_hz"].to_numpy(dtype=float)
+    low, high = options.damping_limits
+    halves = []
+    for part in (slice(0, n // 2), slice(n // 2, None)):
+        ssi = {"block_rows": options.block_rows, "orders": orders, "reference_channels": reference}
+        try:
+            if method == "cov":
+                result = ssi_cov(data.acceleration[part], data.sampling_rate_hz, **ssi)
+            else:
+                result = ssi_data(
+                    data.acceleration[part],
+                    data.sampling_rate_hz,
+                    **ssi,
+                    weighting=options.weighting,
+                )
+        except (ValueError, np.linalg.LinAlgError):
+            return out
+        poles = result.poles
+        f = poles["frequency_hz"].to_numpy(dtype=float)
+        zeta = poles["damping_ratio"].to_numpy(dtype=float)
+        order = poles["model_order"].to_numpy()
+        usable = (zeta >= low) & (zeta <= high)
+        found = np.full(len(modes), np.nan)
+        for i, fi in enumerate(f_mode):
+            near = np.flatnonzero(usable & (np.abs(f / fi - 1.0) < HALF_FREQUENCY_TOL))
+            if not near.size:
+                continue
+            near = near[
+                np.atleast_1d(mac(selection.mode_shapes[:, i], result.mode_shapes[:, near]))
+                >= HALF_MAC
+            ]
+            picks = []
+            for o in np.unique(order[near]):
+                at = near[order[near] == o]
+                picks.append(f[at[np.argmin(np.abs(f[at] - fi))]])
+            if len(picks) >= HALF_MIN_ORDERS:
+                found[i] = float(np.median(picks))
+        halves.append(found)
+    return halves[0] - halves[1]
 
 
 def _identify_method(
@@ -280,6 +365,10 @@ def identify_block(
     kept = list(data.channels)
     poles = _full_channels(result.poles_frame(kept, block=task.block), kept, channels)
     modes = selection.modes_frame(kept)
+    with single_threaded():
+        modes["half_difference_hz"] = half_differences(
+            options.method, data, _reference_columns(options, kept, task.block), options, selection
+        )
     if other and other[0] is not None:
         modes = _with_combined(modes, selection, other[0][1], options.method)
     selected_frame = _selected_frame(modes, kept, channels, task.block, start, end)

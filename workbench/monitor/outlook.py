@@ -531,6 +531,7 @@ TRACKED_COLUMNS = (
     "frequency_hz",
     "damping_ratio",
     "combined_frequency_std_hz",
+    "half_difference_hz",
 )
 
 

@@ -83,6 +83,7 @@ from ..predictor_grid import (
     predictor_matrix,
 )
 from ..results import ForecastResult, ForecastWarning, WindowModel
+from ..ssi_guard import SSIGuard
 from .excitation import excitation_bias
 from .kalman import kalman_predict, kalman_update, n_states, stationary_covariance
 from .model import MemoryModel
@@ -222,6 +223,13 @@ class MemoryRun:
             if "combined_frequency_std_hz" in modal.columns
             else None
         )
+        # SSI's own error per block, from each half of the block (identify): the yardstick
+        # of the guard (:mod:`~workbench.forecasting.ssi_guard`); None for a table without it
+        self.half_difference = (
+            mode_matrix(modal, blocks, mode_labels, "half_difference_hz")
+            if "half_difference_hz" in modal.columns
+            else None
+        )
         self.tracked_damping = (
             mode_matrix(modal, blocks, mode_labels, "damping_ratio")
             if "damping_ratio" in modal.columns
@@ -267,6 +275,14 @@ class MemoryRun:
                 lead_blocks=int(self.independent_lag or 0),
             )
             if noise.model_trust
+            else None
+        )
+        # do no harm: the estimate no farther from SSI than SSI's own error allows, where
+        # blocks share no data (the guard's test needs SSI errors independent from block to
+        # block; :mod:`~workbench.forecasting.ssi_guard`)
+        self.ssi_guard = (
+            SSIGuard(n_modes)
+            if self.half_difference is not None and (self.independent_lag or 1) <= 1
             else None
         )
         self.explained_lost = np.zeros(n_modes, dtype=np.int64)  # first block below 0.5, + 1
@@ -611,6 +627,16 @@ class MemoryRun:
             self.out["probability"][k] = np.where(have, self.trust.probability, np.nan)
             if not in_sample:
                 self._explained(k, have)
+        if self.ssi_guard is not None:
+            estimate, variance = self.ssi_guard.step(
+                estimate, variance, np.where(have, z, np.nan), self.half_difference[k], m_now
+            )
+            self.out["guard"][k] = np.where(have, self.ssi_guard.weight, np.nan)
+            for j in np.flatnonzero(have & (self.ssi_guard.weight < 1.0)):
+                self.notes[
+                    f"mode {self.mode_labels[j]}: estimate drawn toward SSI (its distance "
+                    "from SSI beyond SSI's own error, measured on the blocks' halves)"
+                ] += 1
         if not in_sample:
             self.meas[k] = z
         self.resid[k] = residual

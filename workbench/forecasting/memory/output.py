@@ -30,6 +30,7 @@ OUTPUT_ARRAYS = (
     "max_order",
     "seen",
     "probability",
+    "guard",
 )
 
 
@@ -54,6 +55,7 @@ def assemble_table(
             "block": blocks[rows_],
             "mode": mode_labels[cols_].astype(np.int64),
             "model_probability": out["probability"][rows_, cols_],
+            "guard_weight": out["guard"][rows_, cols_],
         }
     )
     table = table.merge(probability, on=["block", "mode"], how="left", validate="one_to_one")
