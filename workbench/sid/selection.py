@@ -586,6 +586,62 @@ def _join_fragments(fragments, f, shape, rank) -> list[np.ndarray]:
     return columns
 
 
+def _orders_held(columns, kept, f, shape, rank, taken) -> list[np.ndarray]:
+    """The model orders at which each of *columns* holds a pole: its own poles' orders and
+    those of the orders inside its span where an eligible pole of no stage-3 mode (*taken*)
+    lies nearer to this column's head than to any other column's or mode's head (pole
+    distance |Δf|/f + 1 - MAC), within :data:`NEAR_MODE` of it and with a MAC of at least
+    :data:`FRAGMENT_MAC`.
+
+    Two modes a per cent apart mix their shapes at some orders: there the model still holds
+    a pole of each, but one the neighbour has pulled (MAC 0.85-0.95 with the mode's own,
+    frequency a few 1e-3 off), whose distance to the next order exceeds the second look's
+    limit or whose fragment is too far in frequency to be joined. Counting these orders
+    measures order consistency by shape, as the physical mode is present at every order
+    from its first on; a column of noise has no pole of its shape in its gaps.
+    """
+    from .pole_clustering import _pole_distance
+
+    heads = []
+    for members in [*columns, *kept]:
+        centre = np.median(f[members])
+        heads.append(int(members[np.argmin(np.abs(f[members] - centre))]))
+    heads = np.asarray(heads, dtype=int)
+    head_mac = np.atleast_2d(mac(shape[:, heads], shape[:, heads]))
+    free = np.setdiff1d(np.arange(f.size), taken)
+    out = []
+    for k, members in enumerate(columns):
+        low, high = rank[members].min(), rank[members].max()
+        head = heads[k]
+        near = free[
+            (rank[free] >= low)
+            & (rank[free] <= high)
+            & (np.abs(f[free] / f[head] - 1.0) < NEAR_MODE)
+            & ~np.isin(rank[free], rank[members])
+        ]
+        orders = rank[members]
+        if near.size:
+            # the other heads a pole may belong to: every stage-3 mode, and every column
+            # that is not a fragment of this one (a fragment has its shape at other orders)
+            rivals = [k]
+            for j, other in enumerate(columns):
+                shared = np.intersect1d(rank[members], rank[other]).size
+                fragment = head_mac[k, j] >= FRAGMENT_MAC and shared <= FRAGMENT_SHARED * min(
+                    members.size, other.size
+                )
+                if j != k and not fragment:
+                    rivals.append(j)
+            rivals.extend(range(len(columns), heads.size))
+            distance = _pole_distance(
+                f[near], shape[:, near], f[heads[rivals]], shape[:, heads[rivals]]
+            )
+            nearest_head = np.argmin(distance, axis=1) == 0
+            similar = np.atleast_2d(mac(shape[:, near], shape[:, [head]]))[:, 0] >= FRAGMENT_MAC
+            orders = np.union1d(orders, rank[near[nearest_head & similar]])
+        out.append(np.unique(orders))
+    return out
+
+
 def needed_second_look(min_orders: int, needed: int) -> int:
     """Fewest orders of a cluster found by the second look."""
     return max(int(min_orders), int(np.ceil(SECOND_LOOK_SHARE * needed)))
@@ -657,8 +713,10 @@ def _second_look(
     labels = fcluster(tree, MAX_CLUSTER_DISTANCE, criterion="distance")
     fragments = [_one_per_order(pool[labels == label], f, rank) for label in np.unique(labels)]
     fragments = [m for m in fragments if m.size >= 2]
+    columns = _join_fragments(fragments, f, shape, rank)
+    held = _orders_held(columns, kept, f, shape, rank, taken)
     candidates = []
-    for members in _join_fragments(fragments, f, shape, rank):
+    for members, orders_held in zip(columns, held, strict=True):
         centre = np.median(f[members])
         span = rank[members].max() - rank[members].min() + 1
         damping = np.median(z[members])
@@ -666,9 +724,9 @@ def _second_look(
         scatter = 1.4826 * np.median(np.abs(f[members] - centre)) / centre
         if (
             scatter <= SECOND_LOOK_SCATTER * max_scatter
-            and members.size >= min_orders
-            and members.size >= SECOND_LOOK_KEPT_SHARE * typical_length
-            and members.size >= SECOND_LOOK_CONTINUITY * span
+            and orders_held.size >= min_orders
+            and orders_held.size >= SECOND_LOOK_KEPT_SHARE * typical_length
+            and orders_held.size >= SECOND_LOOK_CONTINUITY * span
             and low_damping <= damping <= high_damping
             and spread <= SECOND_LOOK_DAMPING_SPREAD
         ):
@@ -684,10 +742,12 @@ def _second_look(
             other_centre = np.median(f[other])
             if abs(centre / other_centre - 1.0) >= NEAR_MODE:
                 continue
+            # one model holds both wherever the shorter of the two has a pole (a
+            # neighbour with gaps at the orders where the pair's shapes mix is no fragment)
             shared = np.intersect1d(rank[members], rank[other]).size
             other_head = other[np.argmin(np.abs(f[other] - other_centre))]
             similar = float(mac(shape[:, head], shape[:, other_head])) >= mac_min
-            if similar or shared < SECOND_LOOK_COEXISTENCE * members.size:
+            if similar or shared < SECOND_LOOK_COEXISTENCE * min(members.size, other.size):
                 fragment = True
                 break
         if not fragment:
