@@ -51,10 +51,13 @@ diagram itself:
    joined into columns (two close modes have poles at the *same* orders; one mode's
    fragments do not), and a column is a mode when it is order-consistent: long enough
    (0.8 x stage 3's threshold and 0.4 x the median length of the stage-3 modes), present
-   at 80 % of the orders it spans, no more scattered in frequency than twice the least
-   consistent stage-3 mode, with a consistent damping ratio; near a selected mode (3 %)
-   it must coexist with it at the same orders and differ in shape (MAC below
-   ``mac_min``). See :func:`_second_look`.
+   at 80 % of the orders it spans (beside a close mode, an order also holds the column
+   where a pole nearer its head than any other head, with its shape, was pulled out of
+   it by the neighbour), no more scattered in frequency than twice the least consistent
+   stage-3 mode (or, beside a close mode it coexists with, than a third of their
+   separation: the neighbour pulls it), with a consistent damping ratio; near a selected
+   mode (3 %) it must coexist with it at the orders of the shorter of the two and differ
+   in shape (MAC below ``mac_min``). See :func:`_second_look`.
 
 Each mode is reported by the cluster's median frequency and median damping ratio, the shape
 (and ``pole_index``, ``model_order``, ``mpc``) of its pole nearest the median frequency,
@@ -586,7 +589,7 @@ def _join_fragments(fragments, f, shape, rank) -> list[np.ndarray]:
     return columns
 
 
-def _orders_held(columns, kept, f, shape, rank, taken) -> list[np.ndarray]:
+def _orders_held(columns, kept, f, shape, rank, taken, min_orders) -> list[np.ndarray]:
     """The model orders at which each of *columns* holds a pole: its own poles' orders and
     those of the orders inside its span where an eligible pole of no stage-3 mode (*taken*)
     lies nearer to this column's head than to any other column's or mode's head (pole
@@ -608,7 +611,8 @@ def _orders_held(columns, kept, f, shape, rank, taken) -> list[np.ndarray]:
         heads.append(int(members[np.argmin(np.abs(f[members] - centre))]))
     heads = np.asarray(heads, dtype=int)
     head_mac = np.atleast_2d(mac(shape[:, heads], shape[:, heads]))
-    free = np.setdiff1d(np.arange(f.size), taken)
+    # poles of no stage-3 mode and of no column (a column's poles are its own)
+    free = np.setdiff1d(np.arange(f.size), np.concatenate([taken, *columns]))
     out = []
     for k, members in enumerate(columns):
         low, high = rank[members].min(), rank[members].max()
@@ -632,6 +636,17 @@ def _orders_held(columns, kept, f, shape, rank, taken) -> list[np.ndarray]:
                 if j != k and not fragment:
                     rivals.append(j)
             rivals.extend(range(len(columns), heads.size))
+            # gaps are filled only beside a close mode that can pull this one's poles: a
+            # stage-3 mode or a column long enough to be a mode, within NEAR_MODE
+            close = [
+                j
+                for j in rivals[1:]
+                if abs(f[heads[j]] / f[head] - 1.0) < NEAR_MODE
+                and (j >= len(columns) or columns[j].size >= min_orders)
+            ]
+            if not close:
+                out.append(np.unique(orders))
+                continue
             distance = _pole_distance(
                 f[near], shape[:, near], f[heads[rivals]], shape[:, heads[rivals]]
             )
@@ -676,16 +691,21 @@ def _second_look(
     * poles at no fewer than :func:`needed_second_look` orders and
       :data:`SECOND_LOOK_KEPT_SHARE` of the median orders of the stage-3 modes, and at
       :data:`SECOND_LOOK_CONTINUITY` of the orders from its lowest to its highest (a weak
-      mode appears from some order on and stays; noise recurs in patches);
+      mode appears from some order on and stays; noise recurs in patches); the orders are
+      those the column holds (:func:`_orders_held`: beside a close mode also the orders
+      where the neighbour pulled its pole out of the column);
     * frequency scatter (1.4826 x the median absolute deviation, relative) no larger than
-      the largest relative standard deviation of a stage-3 mode's frequencies (without
-      stage-3 modes there is no second look);
+      :data:`SECOND_LOOK_SCATTER` x the largest relative standard deviation of a stage-3
+      mode's frequencies (without stage-3 modes there is no second look); a column that
+      wanders more is a mode only beside a mode it coexists with and is separated from
+      by at least :data:`FRAGMENT_SIGMA` x its scatter (the converse of the fragment
+      join: the neighbour's pull explains the wander, and the two columns cannot be one);
     * median damping within the limits, damping spread (MAD / median) at most
       :data:`SECOND_LOOK_DAMPING_SPREAD`;
     * near a mode (within :data:`NEAR_MODE`), a mode of its own only if the two have poles
-      at the same orders (at :data:`SECOND_LOOK_COEXISTENCE` of its orders: one model
-      holds both) and their shapes differ (MAC below *mac_min*); otherwise it is a fragment
-      of that mode.
+      at the same orders (at :data:`SECOND_LOOK_COEXISTENCE` of the orders of the shorter
+      of the two: one model holds both) and their shapes differ (MAC below *mac_min*);
+      otherwise it is a fragment of that mode.
 
     Returns the clusters as arrays of positions (into *f*), largest first.
     """
@@ -714,8 +734,8 @@ def _second_look(
     fragments = [_one_per_order(pool[labels == label], f, rank) for label in np.unique(labels)]
     fragments = [m for m in fragments if m.size >= 2]
     columns = _join_fragments(fragments, f, shape, rank)
-    held = _orders_held(columns, kept, f, shape, rank, taken)
-    candidates = []
+    held = _orders_held(columns, kept, f, shape, rank, taken, min_orders)
+    candidates = []  # (members, orders held, relative scatter, needs a pulling neighbour)
     for members, orders_held in zip(columns, held, strict=True):
         centre = np.median(f[members])
         span = rank[members].max() - rank[members].min() + 1
@@ -723,36 +743,47 @@ def _second_look(
         spread = np.median(np.abs(z[members] - damping)) / damping if damping > 0 else np.inf
         scatter = 1.4826 * np.median(np.abs(f[members] - centre)) / centre
         if (
-            scatter <= SECOND_LOOK_SCATTER * max_scatter
-            and orders_held.size >= min_orders
+            orders_held.size >= min_orders
             and orders_held.size >= SECOND_LOOK_KEPT_SHARE * typical_length
             and orders_held.size >= SECOND_LOOK_CONTINUITY * span
             and low_damping <= damping <= high_damping
             and spread <= SECOND_LOOK_DAMPING_SPREAD
+            and scatter < NEAR_MODE / FRAGMENT_SIGMA
         ):
-            candidates.append(members)
-    candidates.sort(key=lambda c: -c.size)
-    modes = list(kept)
+            wanders = scatter > SECOND_LOOK_SCATTER * max_scatter
+            candidates.append((members, orders_held, scatter, wanders))
+    candidates.sort(key=lambda c: -c[0].size)
+    modes = [(m, rank[m]) for m in kept]
     rescued = []
-    for members in candidates:
-        centre = np.median(f[members])
-        head = members[np.argmin(np.abs(f[members] - centre))]
-        fragment = False
-        for other in modes:
-            other_centre = np.median(f[other])
-            if abs(centre / other_centre - 1.0) >= NEAR_MODE:
+    # columns as consistent as the stage-3 modes first; then those that wander more, each
+    # only beside a mode that explains it (see _pulled_by_neighbour)
+    for second_pass in (False, True):
+        for members, orders_held, scatter, wanders in candidates:
+            if wanders != second_pass:
                 continue
-            # one model holds both wherever the shorter of the two has a pole (a
-            # neighbour with gaps at the orders where the pair's shapes mix is no fragment)
-            shared = np.intersect1d(rank[members], rank[other]).size
-            other_head = other[np.argmin(np.abs(f[other] - other_centre))]
-            similar = float(mac(shape[:, head], shape[:, other_head])) >= mac_min
-            if similar or shared < SECOND_LOOK_COEXISTENCE * min(members.size, other.size):
-                fragment = True
-                break
-        if not fragment:
-            modes.append(members)
-            rescued.append(members)
+            centre = np.median(f[members])
+            head = members[np.argmin(np.abs(f[members] - centre))]
+            fragment, pulled = False, False
+            for other, other_orders in modes:
+                other_centre = np.median(f[other])
+                separation = abs(centre / other_centre - 1.0)
+                if separation >= NEAR_MODE:
+                    continue
+                # one model holds both wherever the shorter of the two has a pole (a
+                # neighbour with gaps at the orders where the pair's shapes mix is no
+                # fragment)
+                shared = np.intersect1d(orders_held, other_orders).size
+                other_head = other[np.argmin(np.abs(f[other] - other_centre))]
+                similar = float(mac(shape[:, head], shape[:, other_head])) >= mac_min
+                if similar or shared < SECOND_LOOK_COEXISTENCE * min(
+                    orders_held.size, other_orders.size
+                ):
+                    fragment = True
+                    break
+                pulled |= separation >= FRAGMENT_SIGMA * scatter
+            if not fragment and (not wanders or pulled):
+                modes.append((members, orders_held))
+                rescued.append(members)
     return rescued
 
 
