@@ -108,9 +108,9 @@ def _identify_method(
 ):
     """Result of *method* on a conditioned block, stabilised, and its mode selection.
 
-    SSI (``cov``, ``data``): the modes the selection's second look added are kept only when
-    the same method on either half of the block confirms them (*confirm*,
-    :func:`_confirmed_by_halves`).
+    The modes the selection's second look added are kept only when the same method on
+    either half of the block confirms them (*confirm*, :func:`_confirmed_by_halves`): SSI
+    (``cov``, ``data``) and LSCF alike.
     """
     from ..sid import select_modes, ssi_cov, ssi_data, stabilise
     from ..sid.plscf import lscf
@@ -148,7 +148,7 @@ def _identify_method(
         band_hz=options.selection_band(data.sampling_rate_hz),
         damping_limits=options.damping_limits,
     )
-    if confirm and method in ("cov", "data") and selection.thresholds.get("second_look"):
+    if confirm and selection.thresholds.get("second_look"):
         selection = _confirmed_by_halves(method, data, reference, options, selection)
     return result, selection
 

@@ -904,8 +904,11 @@ def confirmed_second_look(
     same block (:func:`~workbench.sid.combined.combine_modes`), or the same method on each
     half of the block (``identify``'s default, :func:`~workbench.identification.engine.
     identify_block`) - shows it too. A second-look mode is kept when a mode of one of
-    *others* lies within *frequency_tol* of it with a MAC of at least *mac_min*; stage-3
-    modes are kept as they are.
+    *others* lies within *frequency_tol* of it with a MAC of at least *mac_min* and is
+    nearer to it than to any other mode of *selection* (pole distance |Δf|/f + 1 - MAC):
+    a mode of the other estimate confirms one mode only, so the strong mode beside an
+    estimator's second pole a per cent off (pLSCF's over-fitted orders) confirms itself,
+    not that pole. Stage-3 modes are kept as they are.
 
     The thresholds gain ``second_look_unconfirmed`` (modes left out); ``second_look`` and
     ``second_look_poles`` count the modes kept. With no other estimate (*others* empty)
@@ -915,22 +918,30 @@ def confirmed_second_look(
     modes = selection.modes
     if not len(poles) or not others or "pole_index" not in modes.columns:
         return selection
+    from .pole_clustering import _pole_distance
+
     second = modes["pole_index"].isin(poles).to_numpy()
-    keep = np.ones(len(modes), dtype=bool)
-    for k in np.flatnonzero(second):
-        f = float(modes["frequency_hz"].iat[k])
-        confirmed = False
-        for other in others:
-            near = np.flatnonzero(
-                np.abs(other.modes["frequency_hz"].to_numpy(dtype=float) / f - 1.0) < frequency_tol
-            )
-            if near.size and np.any(
-                np.atleast_1d(mac(selection.mode_shapes[:, k], other.mode_shapes[:, near]))
-                >= mac_min
+    frequency = modes["frequency_hz"].to_numpy(dtype=float)
+    confirmed = np.zeros(len(modes), dtype=bool)
+    for other in others:
+        other_frequency = other.modes["frequency_hz"].to_numpy(dtype=float)
+        if not other_frequency.size:
+            continue
+        # each mode of the other estimate speaks for the mode of this block nearest to it
+        # (frequency and shape): the strong mode a half finds beside a column 1 % off
+        # confirms that mode, not the column
+        distance = _pole_distance(
+            other_frequency, other.mode_shapes, frequency, selection.mode_shapes
+        )
+        nearest = np.argmin(distance, axis=1)
+        shape_mac = np.atleast_2d(mac(other.mode_shapes, selection.mode_shapes))
+        for j, k in enumerate(nearest):
+            if (
+                abs(other_frequency[j] / frequency[k] - 1.0) < frequency_tol
+                and shape_mac[j, k] >= mac_min
             ):
-                confirmed = True
-                break
-        keep[k] = confirmed
+                confirmed[k] = True
+    keep = ~second | confirmed
     if keep.all():
         return dataclasses.replace(
             selection, thresholds={**selection.thresholds, "second_look_unconfirmed": 0}
