@@ -54,8 +54,8 @@ diagram itself:
    at 80 % of the orders it spans (beside a close mode, an order also holds the column
    where a pole nearer its head than any other head, with its shape, was pulled out of
    it by the neighbour), no more scattered in frequency than twice the least consistent
-   stage-3 mode (or, beside a close mode it coexists with, than a third of their
-   separation: the neighbour pulls it), with a consistent damping ratio; near a selected
+   stage-3 mode (or, beside a close mode of another shape it coexists with, than a third
+   of their separation: the neighbour pulls it), with a consistent damping ratio; near a selected
    mode (3 %) it must coexist with it at the orders of the shorter of the two and differ
    in shape (MAC below ``mac_min``). See :func:`_second_look`.
 
@@ -697,9 +697,10 @@ def _second_look(
     * frequency scatter (1.4826 x the median absolute deviation, relative) no larger than
       :data:`SECOND_LOOK_SCATTER` x the largest relative standard deviation of a stage-3
       mode's frequencies (without stage-3 modes there is no second look); a column that
-      wanders more is a mode only beside a mode it coexists with and is separated from
-      by at least :data:`FRAGMENT_SIGMA` x its scatter (the converse of the fragment
-      join: the neighbour's pull explains the wander, and the two columns cannot be one);
+      wanders more is a mode only beside a mode of another shape (MAC below
+      :data:`FRAGMENT_MAC`) it coexists with and is separated from by at least
+      :data:`FRAGMENT_SIGMA` x its scatter (the converse of the fragment join: the
+      neighbour's pull explains the wander, and the two columns cannot be one);
     * median damping within the limits, damping spread (MAD / median) at most
       :data:`SECOND_LOOK_DAMPING_SPREAD`;
     * near a mode (within :data:`NEAR_MODE`), a mode of its own only if the two have poles
@@ -780,7 +781,10 @@ def _second_look(
                 ):
                     fragment = True
                     break
-                pulled |= separation >= FRAGMENT_SIGMA * scatter
+                # a neighbour of its own shape pulls nothing: a column with a mode's
+                # shape wandering beside it is a ghost of that mode
+                distinct = float(mac(shape[:, head], shape[:, other_head])) < FRAGMENT_MAC
+                pulled |= distinct and separation >= FRAGMENT_SIGMA * scatter
             if not fragment and (not wanders or pulled):
                 modes.append((members, orders_held))
                 rescued.append(members)
@@ -886,6 +890,12 @@ CONFIRM_FREQUENCY_TOL = 0.01
 #: ... whose shape has at least this MAC with it (the pairing of
 #: :func:`~workbench.sid.combined.combine_modes`). [-]
 CONFIRM_MAC = 0.8
+#: The frequency tolerance of a confirmation widens to this share of the mode's relative
+#: distance to its nearest neighbouring mode in the block (at most NEAR_MODE): a mode
+#: that moves inside a non-stationary block (ice: 1-2 % within minutes) differs between
+#: the halves by more than CONFIRM_FREQUENCY_TOL, and a half's mode nearer to it than to
+#: any other mode cannot be another mode's. [-]
+CONFIRM_NEIGHBOUR_SHARE = 0.5
 
 
 def confirmed_second_look(
@@ -894,6 +904,7 @@ def confirmed_second_look(
     *,
     frequency_tol: float = CONFIRM_FREQUENCY_TOL,
     mac_min: float = CONFIRM_MAC,
+    neighbour_share: float = CONFIRM_NEIGHBOUR_SHARE,
 ) -> ModeSelection:
     """*selection* without the second-look modes that no estimate in *others* confirms.
 
@@ -904,11 +915,15 @@ def confirmed_second_look(
     same block (:func:`~workbench.sid.combined.combine_modes`), or the same method on each
     half of the block (``identify``'s default, :func:`~workbench.identification.engine.
     identify_block`) - shows it too. A second-look mode is kept when a mode of one of
-    *others* lies within *frequency_tol* of it with a MAC of at least *mac_min* and is
-    nearer to it than to any other mode of *selection* (pole distance |Δf|/f + 1 - MAC):
-    a mode of the other estimate confirms one mode only, so the strong mode beside an
-    estimator's second pole a per cent off (pLSCF's over-fitted orders) confirms itself,
-    not that pole. Stage-3 modes are kept as they are.
+    *others* lies near it with a MAC of at least *mac_min* and is nearer to it than to any
+    other mode of *selection* (pole distance |Δf|/f + 1 - MAC): a mode of the other
+    estimate confirms one mode only, so the strong mode beside an estimator's second pole a
+    per cent off (pLSCF's over-fitted orders) confirms itself, not that pole. *Near* is
+    within *frequency_tol*, or *neighbour_share* of the mode's relative distance to the
+    nearest other mode of *selection* where that is wider (at most :data:`NEAR_MODE`): a
+    mode that moves inside the block (ice) reads differently in the halves, and a mode far
+    from any other can be confirmed across that move. Stage-3 modes are kept as they
+    are.
 
     The thresholds gain ``second_look_unconfirmed`` (modes left out); ``second_look`` and
     ``second_look_poles`` count the modes kept. With no other estimate (*others* empty)
@@ -922,6 +937,10 @@ def confirmed_second_look(
 
     second = modes["pole_index"].isin(poles).to_numpy()
     frequency = modes["frequency_hz"].to_numpy(dtype=float)
+    separation = np.abs(frequency[:, None] / frequency[None, :] - 1.0)
+    np.fill_diagonal(separation, np.inf)
+    tolerance = np.clip(neighbour_share * separation.min(axis=1), frequency_tol, None)
+    tolerance = np.minimum(tolerance, max(frequency_tol, NEAR_MODE))
     confirmed = np.zeros(len(modes), dtype=bool)
     for other in others:
         other_frequency = other.modes["frequency_hz"].to_numpy(dtype=float)
@@ -937,7 +956,7 @@ def confirmed_second_look(
         shape_mac = np.atleast_2d(mac(other.mode_shapes, selection.mode_shapes))
         for j, k in enumerate(nearest):
             if (
-                abs(other_frequency[j] / frequency[k] - 1.0) < frequency_tol
+                abs(other_frequency[j] / frequency[k] - 1.0) < tolerance[k]
                 and shape_mac[j, k] >= mac_min
             ):
                 confirmed[k] = True
