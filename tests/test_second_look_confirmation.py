@@ -1,5 +1,7 @@
-"""SSI's second-look modes need an independent estimate (either half of the block) to
-confirm them (issue 32: 0 spurious modes with identify's default method, SSI alone)."""
+"""Second-look modes need an independent estimate (either half of the block) to confirm
+them, for SSI and LSCF alike (issue 32: 0 spurious modes with identify's default method,
+SSI alone, and with LSCF alone); the second look's order consistency by shape finds both
+modes of 1 % pairs."""
 
 from __future__ import annotations
 
@@ -36,13 +38,14 @@ def _selection(frequencies, shapes, second=()) -> ModeSelection:
 def test_a_second_look_mode_stays_only_with_a_confirming_estimate():
     """Modes at 2, 3.40 (second look) and 5 Hz on 4 channels: a half with a mode 0.5 %
     from 3.40 Hz and the same shape confirms it; one at 3.40 Hz with an orthogonal shape
-    (MAC 0), one 1.5 % away, or none does not; stage-3 modes are never judged."""
+    (MAC 0), one 3.5 % away (beyond NEAR_MODE), or none does not; stage-3 modes are never
+    judged."""
     shapes = np.array([[1, 0, 1], [1, 1, 0], [0, 1, 1], [0, 1, -1]], dtype=float)
     full = _selection([2.0, 3.40, 5.0], shapes, second=(1,))
     same = _selection([3.40 * 1.005], shapes[:, [1]])
     orthogonal_shape = np.array([[1.0], [0.0], [0.0], [0.0]])  # MAC 0 with (0, 1, 1, 1)
     other_shape = _selection([3.40], orthogonal_shape)
-    farther = _selection([3.40 * 1.015], shapes[:, [1]])
+    farther = _selection([3.40 * 1.035], shapes[:, [1]])
     kept = confirmed_second_look(full, [other_shape, same])
     assert kept.modes["frequency_hz"].tolist() == [2.0, 3.40, 5.0]
     assert kept.thresholds["second_look_unconfirmed"] == 0
@@ -58,6 +61,45 @@ def test_a_second_look_mode_stays_only_with_a_confirming_estimate():
     # a stage-3 mode with no partner anywhere stays
     stage3 = _selection([2.0, 3.40, 5.0], shapes)
     assert confirmed_second_look(stage3, [farther]) is stage3
+
+
+def test_the_tolerance_widens_with_the_distance_to_the_nearest_mode():
+    """A mode that moves inside the block reads differently in its halves. 3.40 Hz with its
+    nearest mode at 2 Hz (41 % away): a half's mode 1.5 % off confirms it (tolerance
+    min(0.5 x 41 %, NEAR_MODE) = 3 %). The same second-look mode 1 % from a stage-3 mode
+    of another shape (a close pair): the tolerance stays 1 %, and 1.5 % does not confirm."""
+    shapes = np.array([[1, 0, 1], [1, 1, 0], [0, 1, 1], [0, 1, -1]], dtype=float)
+    moved = _selection([3.40 * 1.015], shapes[:, [1]])
+    isolated = _selection([2.0, 3.40, 5.0], shapes, second=(1,))
+    assert confirmed_second_look(isolated, [moved]).modes["frequency_hz"].tolist() == [
+        2.0,
+        3.40,
+        5.0,
+    ]
+    pair = _selection([3.40 / 1.01, 3.40, 5.0], shapes[:, [0, 1, 2]], second=(1,))
+    kept = confirmed_second_look(pair, [moved])
+    assert kept.modes["frequency_hz"].tolist() == [3.40 / 1.01, 5.0]
+    # with neighbour_share=0 the fixed 1 % pairing of before: the moved mode is lost
+    fixed = confirmed_second_look(isolated, [moved], neighbour_share=0.0)
+    assert fixed.thresholds["second_look_unconfirmed"] == 1
+
+
+def test_a_mode_of_the_other_estimate_confirms_only_its_nearest_mode():
+    """pLSCF puts a second pole 1 % beside a strong mode, with nearly its shape. A half's
+    mode at the strong mode's frequency lies within 1 % and MAC 0.98 of that pole too,
+    but it is nearer (frequency and shape) to the strong mode: it confirms that mode, and
+    the pole goes."""
+    strong = np.array([1.0, 0.5, -0.3, 0.8])
+    ghost = strong + np.array([0.0, 0.1, 0.15, -0.05])  # MAC 0.982 with strong
+    shapes = np.column_stack([[1.0, -1.0, 0.0, 0.0], strong, ghost])
+    full = _selection([3.0, 5.89, 5.89 * 1.009], shapes, second=(2,))
+    half = _selection([5.89], strong[:, None])
+    kept = confirmed_second_look(full, [half])
+    assert kept.modes["frequency_hz"].tolist() == [3.0, 5.89]
+    assert kept.thresholds["second_look_unconfirmed"] == 1
+    # alone beside nothing (the strong mode not in the block) the same half confirms it
+    alone = _selection([3.0, 5.89 * 1.009], shapes[:, [0, 2]], second=(1,))
+    assert confirmed_second_look(alone, [half]).thresholds["second_look_unconfirmed"] == 0
 
 
 def _close_weak_block(level_db: float, seed: int):
@@ -119,3 +161,76 @@ def test_a_confirmed_weak_mode_found_by_the_second_look_stays(seed):
     assert selection.thresholds["second_look_unconfirmed"] == 0
     found = selection.modes["frequency_hz"].to_numpy()
     assert np.min(np.abs(found / 2.3 - 1)) < 5e-3
+
+
+def _close_pair_block(mac_value: float, seed: int):
+    """bench_close_weak.py's "close 1% MAC m" block: the five modes above at the same level
+    and a sixth 1 % above 3.4 Hz whose shape has MAC *mac_value* with the 3.4-Hz mode."""
+    from workbench.simulate.prescribed import prescribed_mode_record, shapes_with_mac
+
+    rng = np.random.default_rng(1000 + seed)
+    shapes = rng.standard_normal((8, 5))
+    shapes = np.column_stack([shapes, shapes_with_mac(shapes[:, 2], mac_value, rng)])
+    frequency = np.array([1.1, 2.3, 3.4, 4.6, 5.9, 3.4 * 1.01])
+    record = prescribed_mode_record(
+        frequency,
+        0.01,
+        shapes,
+        sampling_rate_hz=16.0,
+        duration_s=1200.0,
+        level_db=np.zeros(6),
+        sensor_noise=0.2,
+        seed=seed,
+    )
+    data = SimpleNamespace(
+        acceleration=record.acceleration - record.acceleration.mean(axis=0),
+        sampling_rate_hz=record.sampling_rate_hz,
+        channels=tuple(f"ch{j}" for j in range(8)),
+    )
+    return data, np.sort(frequency)
+
+
+@pytest.mark.parametrize(
+    "seed",
+    [62, 101, 134],
+    ids=[
+        "gaps where the pair mixes (16 of 24 orders in the column)",
+        "upper mode wandering 4x the stage-3 scatter",
+        "beside a lower mode with gaps (10 shared orders of 13)",
+    ],
+)
+def test_ssi_now_finds_both_modes_of_a_1_percent_pair(seed):
+    """Close 1 % MAC 0.2, seeds 62, 101 and 134 (of the 6 + 8 blocks of seeds 60-179 whose
+    3.434-Hz mode the selection missed, benchmarks/results/identification_32e.txt):
+    identify's default SSI now holds all six modes, each within 0.4 % (the benchmark's
+    score for a 1 % pair), and nothing else."""
+    from workbench.identification.engine import _identify_method
+    from workbench.identification.options import IdentifyOptions
+
+    data, truth = _close_pair_block(0.2, seed)
+    _, selection = _identify_method("cov", data, None, IdentifyOptions())
+    found = np.sort(selection.modes["frequency_hz"].to_numpy())
+    assert found.size == truth.size
+    np.testing.assert_allclose(found, truth, rtol=4e-3)
+    assert selection.thresholds["second_look"] >= 1
+    assert selection.thresholds["second_look_unconfirmed"] == 0
+
+
+def test_lscf_alone_leaves_out_its_second_pole_beside_a_strong_mode():
+    """Close 1 % MAC 0.2, seed 86, LSCF alone: its second look adds a column at 5.953 Hz,
+    1.0 % above the 5.894-Hz mode (7 orders, the mode's shape); the halves of the block
+    show the 5.9-Hz mode, which confirms itself, not the column (before, LSCF was not
+    judged by halves and the column stayed: one of its 11 spurious modes on seeds
+    60-119). The six true modes stay within 0.4 %."""
+    from workbench.identification.engine import _identify_method
+    from workbench.identification.options import IdentifyOptions
+
+    data, truth = _close_pair_block(0.2, 86)
+    options = IdentifyOptions()
+    _, unconfirmed = _identify_method("lscf", data, None, options, confirm=False)
+    _, selection = _identify_method("lscf", data, None, options)
+    assert np.any(np.abs(unconfirmed.modes["frequency_hz"] - 5.953) < 0.005)
+    assert selection.thresholds["second_look_unconfirmed"] == 1
+    found = np.sort(selection.modes["frequency_hz"].to_numpy())
+    assert found.size == truth.size
+    np.testing.assert_allclose(found, truth, rtol=4e-3)

@@ -51,10 +51,13 @@ diagram itself:
    joined into columns (two close modes have poles at the *same* orders; one mode's
    fragments do not), and a column is a mode when it is order-consistent: long enough
    (0.8 x stage 3's threshold and 0.4 x the median length of the stage-3 modes), present
-   at 80 % of the orders it spans, no more scattered in frequency than twice the least
-   consistent stage-3 mode, with a consistent damping ratio; near a selected mode (3 %)
-   it must coexist with it at the same orders and differ in shape (MAC below
-   ``mac_min``). See :func:`_second_look`.
+   at 80 % of the orders it spans (beside a close mode, an order also holds the column
+   where a pole nearer its head than any other head, with its shape, was pulled out of
+   it by the neighbour), no more scattered in frequency than twice the least consistent
+   stage-3 mode (or, beside a close mode of another shape it coexists with, than a third
+   of their separation: the neighbour pulls it), with a consistent damping ratio; near a selected
+   mode (3 %) it must coexist with it at the orders of the shorter of the two and differ
+   in shape (MAC below ``mac_min``). See :func:`_second_look`.
 
 Each mode is reported by the cluster's median frequency and median damping ratio, the shape
 (and ``pole_index``, ``model_order``, ``mpc``) of its pole nearest the median frequency,
@@ -586,6 +589,74 @@ def _join_fragments(fragments, f, shape, rank) -> list[np.ndarray]:
     return columns
 
 
+def _orders_held(columns, kept, f, shape, rank, taken, min_orders) -> list[np.ndarray]:
+    """The model orders at which each of *columns* holds a pole: its own poles' orders and
+    those of the orders inside its span where an eligible pole of no stage-3 mode (*taken*)
+    lies nearer to this column's head than to any other column's or mode's head (pole
+    distance |Δf|/f + 1 - MAC), within :data:`NEAR_MODE` of it and with a MAC of at least
+    :data:`FRAGMENT_MAC`.
+
+    Two modes a per cent apart mix their shapes at some orders: there the model still holds
+    a pole of each, but one the neighbour has pulled (MAC 0.85-0.95 with the mode's own,
+    frequency a few 1e-3 off), whose distance to the next order exceeds the second look's
+    limit or whose fragment is too far in frequency to be joined. Counting these orders
+    measures order consistency by shape, as the physical mode is present at every order
+    from its first on; a column of noise has no pole of its shape in its gaps.
+    """
+    from .pole_clustering import _pole_distance
+
+    heads = []
+    for members in [*columns, *kept]:
+        centre = np.median(f[members])
+        heads.append(int(members[np.argmin(np.abs(f[members] - centre))]))
+    heads = np.asarray(heads, dtype=int)
+    head_mac = np.atleast_2d(mac(shape[:, heads], shape[:, heads]))
+    # poles of no stage-3 mode and of no column (a column's poles are its own)
+    free = np.setdiff1d(np.arange(f.size), np.concatenate([taken, *columns]))
+    out = []
+    for k, members in enumerate(columns):
+        low, high = rank[members].min(), rank[members].max()
+        head = heads[k]
+        near = free[
+            (rank[free] >= low)
+            & (rank[free] <= high)
+            & (np.abs(f[free] / f[head] - 1.0) < NEAR_MODE)
+            & ~np.isin(rank[free], rank[members])
+        ]
+        orders = rank[members]
+        if near.size:
+            # the other heads a pole may belong to: every stage-3 mode, and every column
+            # that is not a fragment of this one (a fragment has its shape at other orders)
+            rivals = [k]
+            for j, other in enumerate(columns):
+                shared = np.intersect1d(rank[members], rank[other]).size
+                fragment = head_mac[k, j] >= FRAGMENT_MAC and shared <= FRAGMENT_SHARED * min(
+                    members.size, other.size
+                )
+                if j != k and not fragment:
+                    rivals.append(j)
+            rivals.extend(range(len(columns), heads.size))
+            # gaps are filled only beside a close mode that can pull this one's poles: a
+            # stage-3 mode or a column long enough to be a mode, within NEAR_MODE
+            close = [
+                j
+                for j in rivals[1:]
+                if abs(f[heads[j]] / f[head] - 1.0) < NEAR_MODE
+                and (j >= len(columns) or columns[j].size >= min_orders)
+            ]
+            if not close:
+                out.append(np.unique(orders))
+                continue
+            distance = _pole_distance(
+                f[near], shape[:, near], f[heads[rivals]], shape[:, heads[rivals]]
+            )
+            nearest_head = np.argmin(distance, axis=1) == 0
+            similar = np.atleast_2d(mac(shape[:, near], shape[:, [head]]))[:, 0] >= FRAGMENT_MAC
+            orders = np.union1d(orders, rank[near[nearest_head & similar]])
+        out.append(np.unique(orders))
+    return out
+
+
 def needed_second_look(min_orders: int, needed: int) -> int:
     """Fewest orders of a cluster found by the second look."""
     return max(int(min_orders), int(np.ceil(SECOND_LOOK_SHARE * needed)))
@@ -620,16 +691,22 @@ def _second_look(
     * poles at no fewer than :func:`needed_second_look` orders and
       :data:`SECOND_LOOK_KEPT_SHARE` of the median orders of the stage-3 modes, and at
       :data:`SECOND_LOOK_CONTINUITY` of the orders from its lowest to its highest (a weak
-      mode appears from some order on and stays; noise recurs in patches);
+      mode appears from some order on and stays; noise recurs in patches); the orders are
+      those the column holds (:func:`_orders_held`: beside a close mode also the orders
+      where the neighbour pulled its pole out of the column);
     * frequency scatter (1.4826 x the median absolute deviation, relative) no larger than
-      the largest relative standard deviation of a stage-3 mode's frequencies (without
-      stage-3 modes there is no second look);
+      :data:`SECOND_LOOK_SCATTER` x the largest relative standard deviation of a stage-3
+      mode's frequencies (without stage-3 modes there is no second look); a column that
+      wanders more is a mode only beside a mode of another shape (MAC below
+      :data:`FRAGMENT_MAC`) it coexists with and is separated from by at least
+      :data:`FRAGMENT_SIGMA` x its scatter (the converse of the fragment join: the
+      neighbour's pull explains the wander, and the two columns cannot be one);
     * median damping within the limits, damping spread (MAD / median) at most
       :data:`SECOND_LOOK_DAMPING_SPREAD`;
     * near a mode (within :data:`NEAR_MODE`), a mode of its own only if the two have poles
-      at the same orders (at :data:`SECOND_LOOK_COEXISTENCE` of its orders: one model
-      holds both) and their shapes differ (MAC below *mac_min*); otherwise it is a fragment
-      of that mode.
+      at the same orders (at :data:`SECOND_LOOK_COEXISTENCE` of the orders of the shorter
+      of the two: one model holds both) and their shapes differ (MAC below *mac_min*);
+      otherwise it is a fragment of that mode.
 
     Returns the clusters as arrays of positions (into *f*), largest first.
     """
@@ -657,42 +734,60 @@ def _second_look(
     labels = fcluster(tree, MAX_CLUSTER_DISTANCE, criterion="distance")
     fragments = [_one_per_order(pool[labels == label], f, rank) for label in np.unique(labels)]
     fragments = [m for m in fragments if m.size >= 2]
-    candidates = []
-    for members in _join_fragments(fragments, f, shape, rank):
+    columns = _join_fragments(fragments, f, shape, rank)
+    held = _orders_held(columns, kept, f, shape, rank, taken, min_orders)
+    candidates = []  # (members, orders held, relative scatter, needs a pulling neighbour)
+    for members, orders_held in zip(columns, held, strict=True):
         centre = np.median(f[members])
         span = rank[members].max() - rank[members].min() + 1
         damping = np.median(z[members])
         spread = np.median(np.abs(z[members] - damping)) / damping if damping > 0 else np.inf
         scatter = 1.4826 * np.median(np.abs(f[members] - centre)) / centre
         if (
-            scatter <= SECOND_LOOK_SCATTER * max_scatter
-            and members.size >= min_orders
-            and members.size >= SECOND_LOOK_KEPT_SHARE * typical_length
-            and members.size >= SECOND_LOOK_CONTINUITY * span
+            orders_held.size >= min_orders
+            and orders_held.size >= SECOND_LOOK_KEPT_SHARE * typical_length
+            and orders_held.size >= SECOND_LOOK_CONTINUITY * span
             and low_damping <= damping <= high_damping
             and spread <= SECOND_LOOK_DAMPING_SPREAD
+            and scatter < NEAR_MODE / FRAGMENT_SIGMA
         ):
-            candidates.append(members)
-    candidates.sort(key=lambda c: -c.size)
-    modes = list(kept)
+            wanders = scatter > SECOND_LOOK_SCATTER * max_scatter
+            candidates.append((members, orders_held, scatter, wanders))
+    candidates.sort(key=lambda c: -c[0].size)
+    modes = [(m, rank[m]) for m in kept]
     rescued = []
-    for members in candidates:
-        centre = np.median(f[members])
-        head = members[np.argmin(np.abs(f[members] - centre))]
-        fragment = False
-        for other in modes:
-            other_centre = np.median(f[other])
-            if abs(centre / other_centre - 1.0) >= NEAR_MODE:
+    # columns as consistent as the stage-3 modes first; then those that wander more, each
+    # only beside a mode that explains it (see _pulled_by_neighbour)
+    for second_pass in (False, True):
+        for members, orders_held, scatter, wanders in candidates:
+            if wanders != second_pass:
                 continue
-            shared = np.intersect1d(rank[members], rank[other]).size
-            other_head = other[np.argmin(np.abs(f[other] - other_centre))]
-            similar = float(mac(shape[:, head], shape[:, other_head])) >= mac_min
-            if similar or shared < SECOND_LOOK_COEXISTENCE * members.size:
-                fragment = True
-                break
-        if not fragment:
-            modes.append(members)
-            rescued.append(members)
+            centre = np.median(f[members])
+            head = members[np.argmin(np.abs(f[members] - centre))]
+            fragment, pulled = False, False
+            for other, other_orders in modes:
+                other_centre = np.median(f[other])
+                separation = abs(centre / other_centre - 1.0)
+                if separation >= NEAR_MODE:
+                    continue
+                # one model holds both wherever the shorter of the two has a pole (a
+                # neighbour with gaps at the orders where the pair's shapes mix is no
+                # fragment)
+                shared = np.intersect1d(orders_held, other_orders).size
+                other_head = other[np.argmin(np.abs(f[other] - other_centre))]
+                similar = float(mac(shape[:, head], shape[:, other_head])) >= mac_min
+                if similar or shared < SECOND_LOOK_COEXISTENCE * min(
+                    orders_held.size, other_orders.size
+                ):
+                    fragment = True
+                    break
+                # a neighbour of its own shape pulls nothing: a column with a mode's
+                # shape wandering beside it is a ghost of that mode
+                distinct = float(mac(shape[:, head], shape[:, other_head])) < FRAGMENT_MAC
+                pulled |= distinct and separation >= FRAGMENT_SIGMA * scatter
+            if not fragment and (not wanders or pulled):
+                modes.append((members, orders_held))
+                rescued.append(members)
     return rescued
 
 
@@ -795,6 +890,12 @@ CONFIRM_FREQUENCY_TOL = 0.01
 #: ... whose shape has at least this MAC with it (the pairing of
 #: :func:`~workbench.sid.combined.combine_modes`). [-]
 CONFIRM_MAC = 0.8
+#: The frequency tolerance of a confirmation widens to this share of the mode's relative
+#: distance to its nearest neighbouring mode in the block (at most NEAR_MODE): a mode
+#: that moves inside a non-stationary block (ice: 1-2 % within minutes) differs between
+#: the halves by more than CONFIRM_FREQUENCY_TOL, and a half's mode nearer to it than to
+#: any other mode cannot be another mode's. [-]
+CONFIRM_NEIGHBOUR_SHARE = 0.5
 
 
 def confirmed_second_look(
@@ -803,6 +904,7 @@ def confirmed_second_look(
     *,
     frequency_tol: float = CONFIRM_FREQUENCY_TOL,
     mac_min: float = CONFIRM_MAC,
+    neighbour_share: float = CONFIRM_NEIGHBOUR_SHARE,
 ) -> ModeSelection:
     """*selection* without the second-look modes that no estimate in *others* confirms.
 
@@ -813,8 +915,15 @@ def confirmed_second_look(
     same block (:func:`~workbench.sid.combined.combine_modes`), or the same method on each
     half of the block (``identify``'s default, :func:`~workbench.identification.engine.
     identify_block`) - shows it too. A second-look mode is kept when a mode of one of
-    *others* lies within *frequency_tol* of it with a MAC of at least *mac_min*; stage-3
-    modes are kept as they are.
+    *others* lies near it with a MAC of at least *mac_min* and is nearer to it than to any
+    other mode of *selection* (pole distance |Δf|/f + 1 - MAC): a mode of the other
+    estimate confirms one mode only, so the strong mode beside an estimator's second pole a
+    per cent off (pLSCF's over-fitted orders) confirms itself, not that pole. *Near* is
+    within *frequency_tol*, or *neighbour_share* of the mode's relative distance to the
+    nearest other mode of *selection* where that is wider (at most :data:`NEAR_MODE`): a
+    mode that moves inside the block (ice) reads differently in the halves, and a mode far
+    from any other can be confirmed across that move. Stage-3 modes are kept as they
+    are.
 
     The thresholds gain ``second_look_unconfirmed`` (modes left out); ``second_look`` and
     ``second_look_poles`` count the modes kept. With no other estimate (*others* empty)
@@ -824,22 +933,34 @@ def confirmed_second_look(
     modes = selection.modes
     if not len(poles) or not others or "pole_index" not in modes.columns:
         return selection
+    from .pole_clustering import _pole_distance
+
     second = modes["pole_index"].isin(poles).to_numpy()
-    keep = np.ones(len(modes), dtype=bool)
-    for k in np.flatnonzero(second):
-        f = float(modes["frequency_hz"].iat[k])
-        confirmed = False
-        for other in others:
-            near = np.flatnonzero(
-                np.abs(other.modes["frequency_hz"].to_numpy(dtype=float) / f - 1.0) < frequency_tol
-            )
-            if near.size and np.any(
-                np.atleast_1d(mac(selection.mode_shapes[:, k], other.mode_shapes[:, near]))
-                >= mac_min
+    frequency = modes["frequency_hz"].to_numpy(dtype=float)
+    separation = np.abs(frequency[:, None] / frequency[None, :] - 1.0)
+    np.fill_diagonal(separation, np.inf)
+    tolerance = np.clip(neighbour_share * separation.min(axis=1), frequency_tol, None)
+    tolerance = np.minimum(tolerance, max(frequency_tol, NEAR_MODE))
+    confirmed = np.zeros(len(modes), dtype=bool)
+    for other in others:
+        other_frequency = other.modes["frequency_hz"].to_numpy(dtype=float)
+        if not other_frequency.size:
+            continue
+        # each mode of the other estimate speaks for the mode of this block nearest to it
+        # (frequency and shape): the strong mode a half finds beside a column 1 % off
+        # confirms that mode, not the column
+        distance = _pole_distance(
+            other_frequency, other.mode_shapes, frequency, selection.mode_shapes
+        )
+        nearest = np.argmin(distance, axis=1)
+        shape_mac = np.atleast_2d(mac(other.mode_shapes, selection.mode_shapes))
+        for j, k in enumerate(nearest):
+            if (
+                abs(other_frequency[j] / frequency[k] - 1.0) < tolerance[k]
+                and shape_mac[j, k] >= mac_min
             ):
-                confirmed = True
-                break
-        keep[k] = confirmed
+                confirmed[k] = True
+    keep = ~second | confirmed
     if keep.all():
         return dataclasses.replace(
             selection, thresholds={**selection.thresholds, "second_look_unconfirmed": 0}
