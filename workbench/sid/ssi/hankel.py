@@ -10,8 +10,20 @@ from scipy import fft, linalg
 
 from ..threads import thread_budget
 
+#: Shortest FFT of :func:`_lagged_products` (the default; a longer one for long lags). [-]
+_LAGGED_FFT_LENGTH = 2048
+#: The FFT length the halves of a block use (:func:`_halves_lagged_products`): with lags up
+#: to 39, 512 took 2/3 of the time of 2048 on a 19-channel half block (the inverse FFT of
+#: every channel pair is 4 times shorter; ``benchmarks/results/halves_cost_40.txt``). [-]
+_HALVES_FFT_LENGTH = 512
 
-def _lagged_products(data: np.ndarray, max_lag: int, columns: np.ndarray) -> np.ndarray:
+
+def _lagged_products(
+    data: np.ndarray,
+    max_lag: int,
+    columns: np.ndarray,
+    shortest_fft: int = _LAGGED_FFT_LENGTH,
+) -> np.ndarray:
     """Sums of lagged products S[d] = Σ_{m=0}^{N-1-d} y_{m+d} y_m[columns]ᵀ, d = 0..max_lag.
 
     Returns an array (max_lag + 1, n_channels, n_columns). Computed exactly (up to
@@ -20,10 +32,12 @@ def _lagged_products(data: np.ndarray, max_lag: int, columns: np.ndarray) -> np.
     circularly with the data from the segment start over L + max_lag samples, which has no
     wrap-around for lags up to max_lag, and the cross spectra are summed over segments
     before one inverse FFT. Cost O(N l r) instead of O(N l r max_lag) for direct sums.
+    n_fft is at least *shortest_fft* and 8 (max_lag + 1); it changes the sums only by
+    rounding.
     """
     n_samples, n_channels = data.shape
     workers = thread_budget()
-    n_fft = fft.next_fast_len(max(8 * (max_lag + 1), 2048), real=True)
+    n_fft = fft.next_fast_len(max(8 * (max_lag + 1), shortest_fft), real=True)
     segment = n_fft - max_lag
     n_segments = -(-n_samples // segment)
     padded = np.zeros((n_segments * segment + max_lag, n_channels))
@@ -83,10 +97,10 @@ def _halves_lagged_products(
                  - δ \\Big(\\sum_{k=0}^{n_h-1-d} w_k[c]\\Big)^T - (n_h - d)\\, δ δ[c]^T,
 
     where both sums are w's total (zero up to rounding) less d samples at one end. The
-    second half's sums come from :func:`_lagged_products` of the half alone (bit for bit
-    those of the half on its own), the first half's from the whole record's less the
-    second half's and the crossing products: one FFT pass instead of two and no pass over
-    the first half but its sum, the same sums up to rounding of order ε·|S[0]|
+    second half's sums come from :func:`_lagged_products` of the half alone (with the
+    shorter FFT :data:`_HALVES_FFT_LENGTH`), the first half's from the whole record's less
+    the second half's and the crossing products: one FFT pass instead of two and no pass
+    over the first half but its sum, the same sums up to rounding of order ε·|S[0]|
     (``tests/sid/test_ssi_cov_halves.py``).
     """
     data = np.asarray(acceleration, dtype=float)
@@ -97,7 +111,7 @@ def _halves_lagged_products(
     first_mean = first_sum / middle
     second_mean = data[middle:].mean(axis=0)  # as the second half was centred
     whole_mean = (middle * first_mean + (n_samples - middle) * second_mean) / n_samples
-    second = _lagged_products(second_centred, max_lag, columns)
+    second = _lagged_products(second_centred, max_lag, columns, _HALVES_FFT_LENGTH)
 
     def centring(ends: np.ndarray, total: np.ndarray, n_h: int, delta: np.ndarray):
         # S_h[d] - A[d] from the first and last max_lag samples of w (ends) and its total
