@@ -136,9 +136,10 @@ def half_differences(method: str, data, reference, options: IdentifyOptions, sel
     :data:`HALF_MAC` and a damping ratio within the selection's limits.
 
     *whole*, the block's SSI-cov result (with its ``output_correlations``), lets the halves
-    start from the block's lagged products (:func:`~workbench.sid.ssi.ssi_cov_halves`: one
-    FFT pass instead of two, no system matrices or stability flags): the same poles up to
-    rounding (``benchmarks/results/halves_cost_40.txt``). Without it each half runs
+    start from the block's lagged products
+    (:func:`~workbench.sid.ssi.covariance_driven.ssi_cov_halves`: one FFT pass instead of
+    two, no system matrices or stability flags): the same poles up to rounding
+    (``benchmarks/results/halves_cost_40.txt``). Without it each half runs
     :func:`~workbench.sid.ssi_cov` (or :func:`~workbench.sid.ssi_data`) on its own.
     """
     from ..sid import ssi_cov, ssi_data
