@@ -121,7 +121,7 @@ HALF_MAC = 0.8
 HALF_MIN_ORDERS = 2
 
 
-def half_differences(method: str, data, reference, options: IdentifyOptions, selection):
+def half_differences(method: str, data, reference, options: IdentifyOptions, selection, whole=None):
     """f₁ - f₂ of every selected mode: its frequency in the first and in the second half of
     the block [Hz] (NaN where a half does not show it, and for LSCF).
 
@@ -134,9 +134,16 @@ def half_differences(method: str, data, reference, options: IdentifyOptions, sel
     large side there. Each half's frequency is the median, over the orders that show it, of
     the pole nearest the mode within :data:`HALF_FREQUENCY_TOL` with a MAC of at least
     :data:`HALF_MAC` and a damping ratio within the selection's limits.
+
+    *whole*, the block's SSI-cov result (with its ``output_correlations``), lets the halves
+    start from the block's lagged products
+    (:func:`~workbench.sid.ssi.covariance_driven.ssi_cov_halves`: one FFT pass instead of
+    two, no system matrices or stability flags): the same poles up to rounding
+    (``benchmarks/results/halves_cost_40.txt``). Without it each half runs
+    :func:`~workbench.sid.ssi_cov` (or :func:`~workbench.sid.ssi_data`) on its own.
     """
     from ..sid import ssi_cov, ssi_data
-    from ..sid.assurance import mac
+    from ..sid.ssi.covariance_driven import ssi_cov_halves
 
     modes = selection.modes
     out = np.full(len(modes), np.nan)
@@ -147,45 +154,80 @@ def half_differences(method: str, data, reference, options: IdentifyOptions, sel
     orders = orders[len(orders) // 2 :: HALF_ORDER_STEP]
     if not orders:
         return out
+    ssi = {"block_rows": options.block_rows, "orders": orders, "reference_channels": reference}
+    correlations = getattr(whole, "output_correlations", None)
+    try:
+        if method == "cov" and correlations is not None:
+            halves = ssi_cov_halves(data.acceleration, data.sampling_rate_hz, correlations, **ssi)
+        else:
+            halves = []
+            for part in (slice(0, n // 2), slice(n // 2, None)):
+                if method == "cov":
+                    result = ssi_cov(data.acceleration[part], data.sampling_rate_hz, **ssi)
+                else:
+                    result = ssi_data(
+                        data.acceleration[part],
+                        data.sampling_rate_hz,
+                        **ssi,
+                        weighting=options.weighting,
+                    )
+                halves.append(_half_poles(result))
+    except (ValueError, np.linalg.LinAlgError):
+        return out
     f_mode = modes["frequency_hz"].to_numpy(dtype=float)
-    low, high = options.damping_limits
-    halves = []
-    for part in (slice(0, n // 2), slice(n // 2, None)):
-        ssi = {"block_rows": options.block_rows, "orders": orders, "reference_channels": reference}
-        try:
-            if method == "cov":
-                result = ssi_cov(data.acceleration[part], data.sampling_rate_hz, **ssi)
-            else:
-                result = ssi_data(
-                    data.acceleration[part],
-                    data.sampling_rate_hz,
-                    **ssi,
-                    weighting=options.weighting,
-                )
-        except (ValueError, np.linalg.LinAlgError):
-            return out
-        poles = result.poles
-        f = poles["frequency_hz"].to_numpy(dtype=float)
-        zeta = poles["damping_ratio"].to_numpy(dtype=float)
-        order = poles["model_order"].to_numpy()
-        usable = (zeta >= low) & (zeta <= high)
-        found = np.full(len(modes), np.nan)
-        for i, fi in enumerate(f_mode):
-            near = np.flatnonzero(usable & (np.abs(f / fi - 1.0) < HALF_FREQUENCY_TOL))
-            if not near.size:
-                continue
-            near = near[
-                np.atleast_1d(mac(selection.mode_shapes[:, i], result.mode_shapes[:, near]))
-                >= HALF_MAC
-            ]
-            picks = []
-            for o in np.unique(order[near]):
-                at = near[order[near] == o]
-                picks.append(f[at[np.argmin(np.abs(f[at] - fi))]])
-            if len(picks) >= HALF_MIN_ORDERS:
-                found[i] = float(np.median(picks))
-        halves.append(found)
-    return halves[0] - halves[1]
+    found = [
+        _half_frequencies(f_mode, selection.mode_shapes, half, options.damping_limits)
+        for half in halves
+    ]
+    return found[0] - found[1]
+
+
+def _half_poles(result):
+    """The pole columns :func:`_half_frequencies` reads, from an :class:`SSIResult`."""
+    from types import SimpleNamespace
+
+    poles = result.poles
+    return SimpleNamespace(
+        model_order=poles["model_order"].to_numpy(),
+        frequency_hz=poles["frequency_hz"].to_numpy(dtype=float),
+        damping_ratio=poles["damping_ratio"].to_numpy(dtype=float),
+        mode_shapes=result.mode_shapes,
+    )
+
+
+def _half_frequencies(f_mode, mode_shapes, poles, damping_limits) -> np.ndarray:
+    """Frequency of each mode (*f_mode*, shapes *mode_shapes*) in one half's *poles*
+    (``model_order``, ``frequency_hz``, ``damping_ratio``, ``mode_shapes``): the median over
+    orders of the nearest pole within :data:`HALF_FREQUENCY_TOL`, of usable damping and
+    MAC >= :data:`HALF_MAC`; NaN with fewer than :data:`HALF_MIN_ORDERS` orders."""
+    from ..sid.assurance import mac
+
+    f = poles.frequency_hz
+    zeta = poles.damping_ratio
+    order = poles.model_order
+    low, high = damping_limits
+    found = np.full(len(f_mode), np.nan)
+    usable = np.flatnonzero((zeta >= low) & (zeta <= high))
+    # (pole, mode) pairs within the frequency tolerance; MAC only for those
+    pole, mode = np.nonzero(np.abs(f[usable, None] / f_mode[None, :] - 1.0) < HALF_FREQUENCY_TOL)
+    if not pole.size:
+        return found
+    pole = usable[pole]
+    cross = mac(mode_shapes, poles.mode_shapes[:, np.unique(pole)])
+    column = np.searchsorted(np.unique(pole), pole)
+    keep = cross[mode, column] >= HALF_MAC
+    pole, mode = pole[keep], mode[keep]
+    # per (mode, order) the pole nearest the mode (the first of equals, in pole order)
+    rank = np.lexsort((pole, np.abs(f[pole] - f_mode[mode]), order[pole], mode))
+    pole, mode = pole[rank], mode[rank]
+    first = np.ones(pole.size, dtype=bool)
+    first[1:] = (mode[1:] != mode[:-1]) | (order[pole[1:]] != order[pole[:-1]])
+    pole, mode = pole[first], mode[first]
+    for i in np.unique(mode):
+        picks = f[pole[mode == i]]
+        if picks.size >= HALF_MIN_ORDERS:
+            found[i] = float(np.median(picks))
+    return found
 
 
 def _identify_method(
@@ -370,7 +412,12 @@ def identify_block(
     modes = selection.modes_frame(kept)
     with single_threaded():
         modes["half_difference_hz"] = half_differences(
-            options.method, data, _reference_columns(options, kept, task.block), options, selection
+            options.method,
+            data,
+            _reference_columns(options, kept, task.block),
+            options,
+            selection,
+            whole=result,
         )
     if other and other[0] is not None:
         modes = _with_combined(modes, selection, other[0][1], options.method)

@@ -10,8 +10,20 @@ from scipy import fft, linalg
 
 from ..threads import thread_budget
 
+#: Shortest FFT of :func:`_lagged_products` (the default; a longer one for long lags). [-]
+_LAGGED_FFT_LENGTH = 2048
+#: The FFT length the halves of a block use (:func:`_halves_lagged_products`): with lags up
+#: to 39, 512 took 2/3 of the time of 2048 on a 19-channel half block (the inverse FFT of
+#: every channel pair is 4 times shorter; ``benchmarks/results/halves_cost_40.txt``). [-]
+_HALVES_FFT_LENGTH = 512
 
-def _lagged_products(data: np.ndarray, max_lag: int, columns: np.ndarray) -> np.ndarray:
+
+def _lagged_products(
+    data: np.ndarray,
+    max_lag: int,
+    columns: np.ndarray,
+    shortest_fft: int = _LAGGED_FFT_LENGTH,
+) -> np.ndarray:
     """Sums of lagged products S[d] = Σ_{m=0}^{N-1-d} y_{m+d} y_m[columns]ᵀ, d = 0..max_lag.
 
     Returns an array (max_lag + 1, n_channels, n_columns). Computed exactly (up to
@@ -20,10 +32,12 @@ def _lagged_products(data: np.ndarray, max_lag: int, columns: np.ndarray) -> np.
     circularly with the data from the segment start over L + max_lag samples, which has no
     wrap-around for lags up to max_lag, and the cross spectra are summed over segments
     before one inverse FFT. Cost O(N l r) instead of O(N l r max_lag) for direct sums.
+    n_fft is at least *shortest_fft* and 8 (max_lag + 1); it changes the sums only by
+    rounding.
     """
     n_samples, n_channels = data.shape
     workers = thread_budget()
-    n_fft = fft.next_fast_len(max(8 * (max_lag + 1), 2048), real=True)
+    n_fft = fft.next_fast_len(max(8 * (max_lag + 1), shortest_fft), real=True)
     segment = n_fft - max_lag
     n_segments = -(-n_samples // segment)
     padded = np.zeros((n_segments * segment + max_lag, n_channels))
@@ -51,6 +65,84 @@ def _lagged_products(data: np.ndarray, max_lag: int, columns: np.ndarray) -> np.
         band(0)
     correlation = fft.irfft(cross, n=n_fft, axis=0, workers=workers)
     return np.ascontiguousarray(correlation[: max_lag + 1])
+
+
+def _halves_lagged_products(
+    acceleration: np.ndarray,
+    second_centred: np.ndarray,
+    whole_sums: np.ndarray,
+    max_lag: int,
+    columns: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Lagged-product sums S[d] (as :func:`_lagged_products`) of each half of a record, the
+    first n₁ = N // 2 samples and the rest, each half centred on its own mean, from the sums
+    of the whole record centred on its mean (*whole_sums*) and one FFT pass over the second
+    half (*second_centred*: ``acceleration[n₁:]`` less its mean).
+
+    Notes
+    -----
+    With x the record centred on its whole mean and A[d] = Σ_{k=a}^{b-1-d} x_{k+d} x_k[c]ᵀ
+    the sums over a stretch [a, b), the whole record's sums split into those of its halves
+    and the d products that cross the middle:
+
+    .. math::
+
+        S[d] = A_1[d] + A_2[d] + \\sum_{j<d} x_{n_1+j} x_{n_1-d+j}[c]^T.
+
+    A stretch of n_h samples centred on its own mean, w = x - δ, has the sums
+
+    .. math::
+
+        S_h[d] = A[d] - \\Big(\\sum_{k=d}^{n_h-1} w_k\\Big) δ[c]^T
+                 - δ \\Big(\\sum_{k=0}^{n_h-1-d} w_k[c]\\Big)^T - (n_h - d)\\, δ δ[c]^T,
+
+    where both sums are w's total (zero up to rounding) less d samples at one end. The
+    second half's sums come from :func:`_lagged_products` of the half alone (with the
+    shorter FFT :data:`_HALVES_FFT_LENGTH`), the first half's from the whole record's less
+    the second half's and the crossing products: one FFT pass instead of two and no pass
+    over the first half but its sum, the same sums up to rounding of order ε·|S[0]|
+    (``tests/sid/test_ssi_cov_halves.py``).
+    """
+    data = np.asarray(acceleration, dtype=float)
+    n_samples, n_channels = data.shape
+    middle = n_samples // 2
+    lags = np.arange(max_lag + 1)
+    first_sum = data[:middle].sum(axis=0)
+    first_mean = first_sum / middle
+    second_mean = data[middle:].mean(axis=0)  # as the second half was centred
+    whole_mean = (middle * first_mean + (n_samples - middle) * second_mean) / n_samples
+    second = _lagged_products(second_centred, max_lag, columns, _HALVES_FFT_LENGTH)
+
+    def centring(ends: np.ndarray, total: np.ndarray, n_h: int, delta: np.ndarray):
+        # S_h[d] - A[d] from the first and last max_lag samples of w (ends) and its total
+        head = np.zeros((max_lag + 1, n_channels))  # Σ_{k<d} w_k
+        np.cumsum(ends[:max_lag], axis=0, out=head[1:])
+        tail = np.zeros((max_lag + 1, n_channels))  # Σ_{k>=n_h-d} w_k
+        np.cumsum(ends[::-1][:max_lag], axis=0, out=tail[1:])
+        later = total - head  # Σ_{k=d}^{n_h-1} w_k
+        earlier = (total - tail)[:, columns]  # Σ_{k=0}^{n_h-1-d} w_k[c]
+        return -(
+            (n_h - lags)[:, None, None] * np.outer(delta, delta[columns])
+            + later[:, :, None] * delta[columns]
+            + delta[:, None] * earlier[:, None, :]
+        )
+
+    second_ends = np.concatenate([second_centred[:max_lag], second_centred[-max_lag:]])
+    second_whole = second - centring(
+        second_ends,
+        second_centred.sum(axis=0),
+        n_samples - middle,
+        second_mean - whole_mean,
+    )  # A₂
+    # x around the middle, and the products that cross it: Σ_{j<d} x_{n₁+j} x_{n₁-d+j}[c]ᵀ
+    near = data[middle - max_lag : middle + max_lag] - whole_mean
+    crossing = np.zeros_like(second)
+    for d in range(1, max_lag + 1):
+        crossing[d] = near[max_lag : max_lag + d].T @ near[max_lag - d : max_lag, columns]
+    first_whole = whole_sums - second_whole - crossing  # A₁
+    first_ends = np.concatenate([data[:max_lag], data[middle - max_lag : middle]]) - first_mean
+    first_total = first_sum - middle * first_mean
+    return first_whole + centring(first_ends, first_total, middle, first_mean - whole_mean), second
 
 
 def _hankel_gram(data: np.ndarray, n_blocks: int, lag_sums: np.ndarray) -> np.ndarray:

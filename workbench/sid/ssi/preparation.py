@@ -79,14 +79,19 @@ def _prepare(
             f"orders up to {order_list[-1]} need block_rows >= {needed} with "
             f"{n_refs} reference and {n_channels} channels, got block_rows={block_rows}"
         )
+    _check_length(n_samples, n_channels, n_refs, block_rows)
+    data = data - mean
+    return data, references, tuple(order_list)
+
+
+def _check_length(n_samples: int, n_channels: int, n_refs: int, block_rows: int) -> None:
+    """ValueError if *n_samples* are too few for *block_rows* block rows."""
     min_samples = (n_channels + n_refs + 2) * block_rows
     if n_samples < min_samples:
         raise ValueError(
             f"block_rows={block_rows} needs at least {min_samples} samples with "
             f"{n_channels} channels, got {n_samples}"
         )
-    data = data - mean
-    return data, references, tuple(order_list)
 
 
 def _order_limits(n_max: int, singular_values: np.ndarray) -> None:

@@ -25,6 +25,7 @@ def _assemble(
     method: str,
     system: StochasticStateSpace,
     channel_order: np.ndarray | None = None,
+    output_correlations: np.ndarray | None = None,
 ) -> SSIResult:
     shapes = poles.mode_shapes
     if channel_order is not None:  # back to the input column order
@@ -59,6 +60,7 @@ def _assemble(
         method=method,
         system=system,
         criteria=criteria,
+        output_correlations=output_correlations,
     )
 
 

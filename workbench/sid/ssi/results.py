@@ -171,6 +171,11 @@ class SSIResult(PoleTableMixin):
         The state-space model of the largest order.
     criteria : StabilityCriteria
         Criteria behind the ``stable`` column.
+    output_correlations : ndarray, shape (2·block_rows, n_channels, n_references), optional
+        SSI-cov: the estimated output correlations R_0 .. R_{2i-1} the block Toeplitz
+        matrix is built from (R_k = Σ y_{m+k} y_{m,ref}ᵀ / (N - k), the data centred);
+        :func:`~workbench.sid.ssi.covariance_driven.ssi_cov_halves` starts from them.
+        None for SSI-data. [(m/s²)²]
     """
 
     poles: pd.DataFrame
@@ -183,3 +188,4 @@ class SSIResult(PoleTableMixin):
     method: str
     system: StochasticStateSpace
     criteria: StabilityCriteria = field(default_factory=StabilityCriteria)
+    output_correlations: np.ndarray | None = field(default=None, repr=False)
