@@ -66,6 +66,26 @@ def test_paths_relative_to_the_file_and_flags_win(tmp_path):
     assert args.alpha == 0.01
 
 
+def test_block_length_auto_reaches_identify_and_the_monitor(tmp_path):
+    """``[blocks] length_minutes = "auto"``: identify and the monitor parse
+    ``--block-minutes auto`` from it; the commands that read a modal file get no grid of
+    one length from it (blocks of varying length carry their own grid record)."""
+    path = write(
+        tmp_path / "ship.toml",
+        '[accelerations]\ninputs = ["acc"]\n[modal]\nfile = "modes.csv"\n'
+        '[blocks]\nlength_minutes = "auto"\nstep_minutes = 5\n',
+    )
+    config = load_config(path)
+    assert command_defaults("identify", config)["block_minutes"] == "auto"
+    assert command_defaults("monitor", config)["block_minutes"] == "auto"
+    assert "grid" not in command_defaults("forecast", config)
+    parser = build_parser()
+    apply_config(parser, config)
+    for command in ("identify", "monitor"):
+        args = parser.parse_args([command])
+        assert args.block_minutes == "auto", (command, args.block_minutes)
+
+
 def test_demo_config_reads_back_and_runs_the_whole_chain(tmp_path):
     path = write_demo_config(tmp_path)
     config = load_config(path)

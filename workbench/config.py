@@ -28,7 +28,7 @@ the section and key. A file that is not UTF-8 TOML is one line. Example::
     columns = { speed_kn = "SYS.STR.SOG" }
 
     [blocks]
-    length_minutes = 20
+    length_minutes = 20                 # or "auto": the length from the conditions
     step_minutes = 5
 
     [identify]
@@ -105,7 +105,7 @@ SCHEMA: dict[str, dict[str, Any]] = {
         "grid_t0": str,
     },
     "blocks": {
-        "length_minutes": (int, float),
+        "length_minutes": (int, float, str),
         "step_minutes": (int, float),
         "max_gap_s": (int, float),
     },
@@ -252,7 +252,12 @@ CHECKS: dict[str, dict[str, Any]] = {
         "grid_t0": _iso_time,
     },
     "blocks": {
-        "length_minutes": _POSITIVE,
+        # minutes, or "auto": identify's and the monitor's length from the conditions
+        "length_minutes": lambda v: (
+            (None if v == "auto" else 'must be minutes or "auto"')
+            if isinstance(v, str)
+            else _POSITIVE(v)
+        ),
         "step_minutes": _POSITIVE,
         "max_gap_s": _number(0.0),
     },
@@ -311,7 +316,7 @@ def _together(sections: Mapping[str, Mapping[str, Any]]) -> list[str]:
             "or remove trust"
         )
     length, step = get("blocks", "length_minutes"), get("blocks", "step_minutes")
-    if length is not None and step is not None and step > length:
+    if length not in (None, "auto") and step is not None and step > length:
         problems.append(
             f"[blocks] step_minutes = {step!r} is longer than length_minutes = {length!r}"
         )
@@ -485,7 +490,12 @@ def command_defaults(command: str, config: ShipConfig) -> dict[str, Any]:
         put("damping_unit", "modal", "damping_unit")
         put("time_reference", "modal", "time_reference")
         put("time_zone", "modal", "time_zone")
-        if c.has("modal") and (c.has("blocks") or c.has("modal", "grid_t0")):
+        # a grid of one length (blocks of varying length: the table's own grid record)
+        if (
+            c.has("modal")
+            and (c.has("blocks") or c.has("modal", "grid_t0"))
+            and c.get("blocks", "length_minutes") != "auto"
+        ):
             grid = [
                 c.get("blocks", "length_minutes", DEFAULT_BLOCK_LENGTH_S / 60.0),
                 c.get("blocks", "step_minutes", DEFAULT_BLOCK_STEP_S / 60.0),

@@ -96,6 +96,7 @@ def test_a_file_that_is_not_utf8_toml_is_one_line(tmp_path, capsys, content, fra
         ("[identify]\nband = [12.0, 2.0]\n", "[identify] band = [12.0, 2.0] must be [low, high]"),
         ("[identify]\nband = [[1], {a = 2}]\n", "[identify] band = [[1], {'a': 2}] must be two"),
         ("[blocks]\nlength_minutes = 5\nstep_minutes = 10\n", "step_minutes = 10 is longer"),
+        ("[blocks]\nlength_minutes = 'fast'\n", "length_minutes = 'fast' must be minutes or"),
         ("[blocks]\nstep_minutes = inf\n", "[blocks] step_minutes = inf must be a finite"),
         ("[dship]\ncolumns = { speed_kn = { a = { b = 1 } } }\n", "[dship] columns = "),
         ("[forecast]\ntrust = 0.65\n", '[forecast] trust = 0.65 applies to model = "window"'),
