@@ -599,26 +599,30 @@ class Monitor:
         )
         starts, ends = self._coverage()
         newest = int(ends.max())
-        margin = int(2.0 / voyage.rate_hz * _NS) if voyage.per_file else 0
-        ready = []
-        for planned in plan.blocks:
-            if planned.block in self.done:
-                continue
-            low = planned.block_start.value - margin
-            high = planned.block_end.value + margin
-            if flush or settled(
-                low,
-                high,
-                starts,
-                ends,
-                newest=newest,
-                first_ns=voyage.grid.t0.value,
-                sampling_rate_hz=voyage.rate_hz,
-                late_s=self.options.late_s,
-            ):
-                ready.append(planned)
+        ready = [
+            planned
+            for planned in plan.blocks
+            if planned.block not in self.done
+            and (flush or self._settled(planned, voyage.per_file, starts, ends, newest))
+        ]
         self._plan = plan
         return ready
+
+    def _settled(self, planned, per_file: bool, starts, ends, newest: int) -> bool:
+        """Whether the data of *planned* (and, when files are decimated one by one, of
+        their neighbours' edges) can no longer change (:func:`settled`)."""
+        voyage = self.voyage
+        margin = int(2.0 / voyage.rate_hz * _NS) if per_file else 0
+        return settled(
+            planned.block_start.value - margin,
+            planned.block_end.value + margin,
+            starts,
+            ends,
+            newest=newest,
+            first_ns=voyage.grid.t0.value,
+            sampling_rate_hz=voyage.rate_hz,
+            late_s=self.options.late_s,
+        )
 
     def _ready_adaptive(self, flush: bool):
         """:meth:`_ready_blocks` for blocks of varying length: the half-steps whose data
@@ -666,17 +670,7 @@ class Monitor:
             planned = next((b for b in plan.blocks if b.block == block), None)
             if planned is None:  # cannot happen: the length fits the data
                 continue
-            margin = int(2.0 / voyage.rate_hz * _NS) if per_file else 0
-            if flush or settled(
-                planned.block_start.value - margin,
-                planned.block_end.value + margin,
-                starts,
-                ends,
-                newest=newest,
-                first_ns=voyage.grid.t0.value,
-                sampling_rate_hz=voyage.rate_hz,
-                late_s=self.options.late_s,
-            ):
+            if flush or self._settled(planned, per_file, starts, ends, newest):
                 ready.append(planned)
         self._plan = SimpleNamespace(blocks=[b for b in ready if b.block not in self.done])
         return ready
