@@ -43,10 +43,16 @@ distances, none alone.
 *Where it runs* (:class:`~workbench.forecasting.memory.forecast.MemoryRun`): on blocks that
 share no data with their neighbours, and on blocks of varying length or an unknown grid.
 Where blocks overlap n-fold (20-minute blocks every 5 minutes), consecutive SSI errors are
-correlated, a blend that estimates the shared error can rightly lie farther than R from
-SSI, and the test above does not hold: on the overlapping block-level suite it fired in
-regimes the model explains and cost option A 5-19 points (the results file), so it is off
-there (``guard_weight`` NaN).
+correlated. The bound itself still holds for the best filter (its x̂ - z is minus its
+estimate of e given all the blocks, whose variance is at most R), but the blend is not that
+filter there: the split of the residuals into a model error and the overlap's correlated
+identification error is ill-determined (:mod:`~workbench.forecasting.innovation_consistency`),
+and a blend that books part of one as the other lies farther than R from SSI while still
+nearer the truth. On the overlapping block-level suite the test fired in regimes the model
+explains and cost option A 0-11 points (the results file), so it is off there
+(``guard_weight`` NaN). A test that needs no halves, the blend against SSI by how well
+each predicts the block L on, was too weak where it was needed (the mode moves by more in
+L blocks than either estimate errs; ``benchmarks/results/ice_voyage_blend_41.txt``).
 
 A mode moving inside the block adds its move to f₁ - f₂, so R̄ errs on the large side and
 the guard on the side of leaving the blend alone. Blocks without both halves (LSCF, a half
