@@ -60,10 +60,13 @@ from data_contracts import atomic_path
 
 from .errors import WorkbenchError
 
-__all__ = ["BLOCKS_KIND", "BlockStore", "block_ranges"]
+__all__ = ["BLOCKS_KIND", "UNREADABLE_COLUMN", "BlockStore", "block_ranges"]
 
 #: The kind whose files mark blocks as done.
 BLOCKS_KIND = "blocks"
+#: Column of the ``blocks`` kind naming the input files (resolved paths, one a line) a
+#: skipped block could not read; written only by batches holding such a block.
+UNREADABLE_COLUMN = "unreadable_input"
 _CONFIG = "store.json"
 _INPUTS = "inputs.json"
 _LOCK = "lock"
@@ -584,6 +587,24 @@ class BlockStore:
         keep = frame["block"].map(lambda b: owners.get(int(b)) == path.stem).to_numpy(bool)
         return frame if keep.all() else frame[keep]
 
+    def unreadable_inputs(self) -> dict[str, dict]:
+        """The input files stored blocks were skipped for because they could not be read
+        (:data:`UNREADABLE_COLUMN`): resolved path -> ``{"blocks": set of int, "reason":
+        str}`` (the reason of its first block)."""
+        table = self.read(BLOCKS_KIND)
+        if table.empty or UNREADABLE_COLUMN not in table.columns:
+            return {}
+        found: dict[str, dict] = {}
+        for block, reason, paths in zip(
+            table["block"], table["reason"], table[UNREADABLE_COLUMN], strict=True
+        ):
+            if not isinstance(paths, str) or not paths:
+                continue
+            for path in paths.split("\n"):
+                entry = found.setdefault(path, {"blocks": set(), "reason": str(reason)})
+                entry["blocks"].add(int(block))
+        return found
+
     def completed_blocks(self) -> set[int]:
         """Blocks already processed (successfully or skipped with a recorded reason)."""
         table = self.read(BLOCKS_KIND)
@@ -649,7 +670,8 @@ class BlockStore:
         ----------
         blocks : DataFrame
             One row per block of the batch: ``block``, ``block_start``, ``status``
-            (``ok``/``skipped``), ``reason``.
+            (``ok``/``skipped``), ``reason`` (and :data:`UNREADABLE_COLUMN` where a block was
+            skipped for an input file that cannot be read).
         results : mapping of kind -> DataFrame
             Result rows; each must have ``block`` and ``block_start`` columns.
 

@@ -118,7 +118,49 @@ def follow_on_starts(files: Sequence[Path], options: IdentifyOptions) -> Identif
     return replace(options, acceleration_layout=layout)
 
 
-def plan_identification(files: Sequence[Path], options: IdentifyOptions, *, grid_t0=None):
+def _file_list(paths: Sequence[str]) -> str:
+    """``a.npz`` or ``3 files (a.npz .. c.npz)``."""
+    return paths[0] if len(paths) == 1 else f"{len(paths)} files ({paths[0]} .. {paths[-1]})"
+
+
+def readable_file_infos(
+    files: Sequence[Path], read_options, unreadable: dict[str, str] | None
+) -> list:
+    """Headers of *files* (:func:`~workbench.signals.block_plan.read_file_info`).
+
+    With *unreadable* (a dict), a file whose header cannot be read is left out and added
+    there (its path as given -> why, one line without the file's name); without it, such
+    a file raises. When no file can be read the error names them (exit 1).
+    """
+    from ..errors import UnreadableInputError
+    from ..signals.block_plan import read_file_info
+
+    if unreadable is None:
+        return [read_file_info(f, read_options=read_options) for f in files]
+    infos = []
+    for path in files:
+        try:
+            infos.append(read_file_info(path, read_options=read_options))
+        except (OSError, ValueError, KeyError, EOFError) as error:
+            if isinstance(error, OptionError):
+                raise
+            unreadable[str(path)] = UnreadableInputError.of(path, error).detail
+    if files and not infos:
+        names = list(unreadable)
+        raise WorkbenchError(
+            f"{_file_list(names)}: unreadable ({unreadable[names[0]]}); no acceleration "
+            "file can be read, nothing identified"
+        )
+    return infos
+
+
+def plan_identification(
+    files: Sequence[Path],
+    options: IdentifyOptions,
+    *,
+    grid_t0=None,
+    unreadable: dict[str, str] | None = None,
+):
     """The block plan of *files* and the options resolved for their sampling rate.
 
     The grid starts at the first sample (blocks lie inside the record from its start), or
@@ -127,23 +169,40 @@ def plan_identification(files: Sequence[Path], options: IdentifyOptions, *, grid
     ``options.short_record == "one-block"``: then a single continuous record shorter than
     a block is identified as one block of its own length.
 
+    *unreadable* (a dict) leaves out the files whose header cannot be read, adding them
+    there (path as given -> why): the plan is that of the other files, as if those were
+    not there (:func:`readable_file_infos`). Without it such a file is an error.
+
     Raises
     ------
     WorkbenchError
-        Inconsistent files; no complete block (exit 1).
+        Inconsistent files; no complete block (exit 1); no file readable.
     IdentifyOptionsError
         Options that do not fit the files (band, rate; exit 2).
     """
-    from ..signals import plan_blocks
+    try:
+        return _plan_identification(files, options, grid_t0=grid_t0, unreadable=unreadable)
+    except WorkbenchError as error:
+        left_out = list(unreadable or ())
+        if not left_out or str(error).startswith(_file_list(left_out)):
+            raise
+        # what is left without the unreadable files gives no block: name them first
+        raise WorkbenchError(
+            f"{_file_list(left_out)}: unreadable ({unreadable[left_out[0]]}), left out; "
+            f"then {error}"
+        ) from None
+
+
+def _plan_identification(files, options, *, grid_t0, unreadable):
     from ..signals.block_plan import lacking_channels, plan_file_infos
 
     try:
-        plan = plan_blocks(
-            files,
+        infos = readable_file_infos(files, options.read_options, unreadable)
+        plan = plan_file_infos(
+            infos,
             length_s=options.length_s,
             step_s=options.step_s,
             max_gap_s=options.max_gap_s,
-            read_options=options.read_options,
         )
         first = plan.files[0].start_time if grid_t0 is None else pd.Timestamp(grid_t0)
         if plan.grid.t0 != first:  # anchor the grid at the first sample, not a round time

@@ -3,6 +3,7 @@ a :class:`~workbench.store.BlockStore`, then exported."""
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import os
 from collections.abc import Iterable, Sequence
@@ -15,7 +16,7 @@ import pandas as pd
 from data_contracts import POLES, read_table
 
 from ..errors import OptionError, WorkbenchError
-from ..parallel import RunSummary, run_blocks
+from ..parallel import RunSummary, UnreadableBlock, run_blocks
 from ..results import StageResult, write_frame
 from ..sid.harmonics import HarmonicOptions
 from ..store import BlockStore, block_ranges
@@ -181,6 +182,110 @@ def _removed_inputs(
     return notices
 
 
+def _unreadable_blocks(files, plan, unreadable: dict[str, str]) -> dict[int, UnreadableBlock]:
+    """The planned blocks that need a file whose header cannot be read, as tasks recorded
+    skipped with that file as the reason.
+
+    Such a file is left out of the plan, so its span is not known: it is taken to lie in
+    its place among *files* (in the order found, by name within a folder), between the
+    readable files before and after it when those leave a gap where it belongs. The blocks
+    the plan skips over that gap are the file's. A file at either end of the data needs no
+    block the plan holds.
+    """
+    infos = {str(info.path): info for info in plan.files}
+    half = pd.Timedelta(seconds=0.5 / plan.sampling_rate_hz)
+    order = [str(f) for f in files]
+    out: dict[int, UnreadableBlock] = {}
+    for k, name in enumerate(order):
+        if name not in unreadable:
+            continue
+        before = next((infos[n] for n in reversed(order[:k]) if n in infos), None)
+        after = next((infos[n] for n in order[k + 1 :] if n in infos), None)
+        if before is None or after is None or after.start_time - before.end_time <= half:
+            continue
+        if any(before.end_time <= i.start_time < after.start_time for i in plan.files):
+            continue  # a readable file lies in the gap: the file's place is not known
+        reason = f"{name}: unreadable ({unreadable[name]})"
+        path = str(Path(name).resolve())
+        for planned in plan.blocks:
+            if not planned.skipped_reason or planned.block_end - half <= before.end_time:
+                continue
+            if planned.block_start + half >= after.start_time:
+                continue
+            task = out.get(planned.block)
+            out[planned.block] = (
+                UnreadableBlock(planned.block, planned.block_start, reason, (path,))
+                if task is None
+                else dataclasses.replace(task, paths=(*task.paths, path))
+            )
+    return out
+
+
+def _retry_unreadable(store: BlockStore, plan, fingerprints: list[dict], per_file: bool):
+    """Take out of the store the blocks of input files an earlier run could not read and
+    that have changed since (repaired, replaced or gone), so they are computed again; the
+    notices, one line per file readable again.
+
+    A file readable now takes with it the blocks its samples feed (with *per_file*
+    conditioning also those of its neighbours, whose filters its edges pad, left unpadded
+    before), and its recorded fingerprint (of the damaged content) is forgotten, so the
+    repaired file is not refused as a changed input. A file unchanged since (its content
+    recorded) keeps its blocks skipped.
+    """
+    recorded = store.unreadable_inputs()
+    if not recorded:
+        return []
+    inputs = store.recorded_inputs()
+    known = {r["sha256"] for r in inputs}
+    given = {f["path"]: f for f in fingerprints}
+    position = {str(Path(info.path).resolve()): k for k, info in enumerate(plan.files)}
+    shown = {str(Path(info.path).resolve()): info.path for info in plan.files}
+    stored = store.completed_blocks()
+    drop: set[int] = set()
+    forget: list[dict] = []
+    notices = []
+    for path, entry in sorted(recorded.items()):
+        now = given.get(path)
+        if now is not None and now["sha256"] in known:
+            continue  # the same content: still unreadable, its blocks stay skipped
+        blocks = set(entry["blocks"])
+        if now is not None:
+            forget += [r for r in inputs if r["path"] == path]
+            k, files = position[path], plan.files
+            low = files[max(k - 1, 0) if per_file else k].start_time
+            high = files[min(k + 1, len(files) - 1) if per_file else k].end_time
+            blocks |= {b for b in stored if plan.grid.start(b) < high and plan.grid.end(b) > low}
+            notices.append(
+                f"{shown[path]}: unreadable in an earlier run and changed since: block(s) "
+                f"{block_ranges(blocks & stored)} are computed again"
+            )
+        drop |= blocks
+    if forget:
+        store.forget_inputs(forget)
+    if drop:
+        store.drop_blocks(drop)
+    return notices
+
+
+def _unreadable_warnings(store: BlockStore, files, unreadable: dict[str, str]) -> list[str]:
+    """One line per input file that cannot be read, naming it and the blocks not
+    identified for it (those found now and those an earlier run stored)."""
+    stored = store.unreadable_inputs()
+    lines = []
+    for name in dict.fromkeys(str(f) for f in files):
+        entry = stored.get(str(Path(name).resolve()))
+        if entry is None and name not in unreadable:
+            continue
+        reason = f"{name}: unreadable ({unreadable[name]})" if name in unreadable else None
+        reason = reason or entry["reason"]
+        blocks = entry["blocks"] if entry is not None else set()
+        lines.append(
+            f"{reason}; left out"
+            + (f": block(s) {block_ranges(blocks)} not identified" if blocks else "")
+        )
+    return lines
+
+
 def _ship_log(dship, mapping) -> pd.DataFrame | None:
     """The canonical ship log of *dship* (a path or a canonical log), or None."""
     if dship is None:
@@ -208,8 +313,16 @@ def identify_voyage(
     dship_mapping: dict[str, str] | None = None,
     harmonics: HarmonicOptions | None = None,
     grid_t0=None,
+    warn_unreadable: bool = True,
 ) -> IdentifyResult:
     """Identify every block of a voyage's acceleration files; resumable and parallel.
+
+    An input file that cannot be read (cut short, a bad checksum) is left out: the blocks
+    that need it are skipped with ``"<path>: unreadable (<why>)"`` as the reason
+    (``blocks.csv``) and every other block is what a run without the file gives. Each such
+    file is one line of :attr:`IdentifyResult.warnings`. The store keeps those blocks as
+    skipped only while the file stays as it is: once it changes (repaired), its blocks
+    are computed again.
 
     Parameters
     ----------
@@ -248,6 +361,15 @@ def identify_voyage(
     grid_t0 : time-like, optional
         Start of block 0 (default: the first sample; the shifted grids of
         :func:`~workbench.identification.adaptive.identify_adaptive`).
+    warn_unreadable : bool
+        Name each unreadable input file in :attr:`IdentifyResult.warnings` (the adaptive
+        run, which calls this once per block length, names them once itself).
+
+    Raises
+    ------
+    WorkbenchError
+        No input file can be read, or those that can give no block (naming the
+        unreadable ones); inconsistent files; a store made with other options.
     """
     from ..sid.harmonics import HarmonicMarker
 
@@ -261,7 +383,8 @@ def identify_voyage(
             raise WorkbenchError(f"{path}: {what} is a file, not a folder")
     files = acceleration_files(inputs)
     options = follow_on_starts(files, options)
-    plan, options = plan_identification(files, options, grid_t0=grid_t0)
+    unreadable: dict[str, str] = {}  # files whose header cannot be read: left out
+    plan, options = plan_identification(files, options, grid_t0=grid_t0, unreadable=unreadable)
     options.check_data(plan)
     grid = plan.grid
     channels = tuple(plan.channels)
@@ -270,6 +393,8 @@ def identify_voyage(
     with BlockStore.open(store_path, parameters) as store:
         notices = list(store.notices)
         fingerprints = input_fingerprints(plan.files)
+        # before the check: a repaired file is not another voyage's data
+        notices += _retry_unreadable(store, plan, fingerprints, per_file)
         store.check_inputs(fingerprints)
         notices += _removed_inputs(
             store, fingerprints, grid, per_file=per_file, keep=keep_removed_inputs
@@ -287,6 +412,9 @@ def identify_voyage(
         else:
             units = tasks
             func = functools.partial(identify_block, grid=grid, channels=channels, options=options)
+        unreadable_blocks = _unreadable_blocks(files, plan, unreadable)
+        if unreadable_blocks:
+            units = [unreadable_blocks.get(int(unit.block), unit) for unit in units]
         summary = run_blocks(
             units,
             func,
@@ -298,6 +426,8 @@ def identify_voyage(
             progress=progress,
             description="identify",
         )
+        if warn_unreadable:
+            notices += _unreadable_warnings(store, files, unreadable)
         result = IdentifyResult(summary, n_blocks=len(tasks), warnings=notices)
         result.files = export_store(store, out, channels, grid=grid, harmonics=marker)
         result.notes = marker.lines()
