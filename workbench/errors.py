@@ -47,13 +47,15 @@ class OptionError(ValueError):
     """
 
 
-class UnreadableInputError(ValueError):
+class UnreadableInputError(WorkbenchError, ValueError):
     """An input file whose samples cannot be read: cut short, a bad checksum, not the
     format its name says.
 
-    A batch run leaves the file out: the blocks that need it are skipped with
-    ``"<path>: unreadable (<detail>)"`` as the reason and every other block is identified
-    as if the file were not there (``workbench identify`` names the file in one warning).
+    Bad data (exit 1) where it ends a command; a ``ValueError`` too, so a block that meets
+    it is skipped like any block whose data is bad. A batch run leaves the file out: the
+    blocks that need it are skipped with ``"<path>: unreadable (<detail>)"`` as the
+    reason and every other block is identified as if the file were not there
+    (``workbench identify`` names the file in one warning).
 
     Parameters
     ----------

@@ -368,11 +368,7 @@ class BlockStore:
             new.append(item)
             known.add(item["sha256"])
         if new or not path.is_file():
-            with atomic_path(path) as tmp:
-                tmp.write_text(
-                    json.dumps({"files": recorded + new}, indent=1, sort_keys=True),
-                    encoding="utf-8",
-                )
+            self._write_inputs(recorded + new)
 
     def recorded_inputs(self) -> list[dict]:
         """The input files the stored results came from (their fingerprints)."""
@@ -399,10 +395,37 @@ class BlockStore:
         recorded = self.recorded_inputs()
         kept = [r for r in recorded if r["sha256"] not in gone]
         if len(kept) != len(recorded):
-            with atomic_path(self.root / _INPUTS) as tmp:
-                tmp.write_text(
-                    json.dumps({"files": kept}, indent=1, sort_keys=True), encoding="utf-8"
-                )
+            self._write_inputs(kept)
+
+    def unreadable_files(self) -> list[str]:
+        """The input files the last run left out as unreadable (resolved paths; see
+        :meth:`set_unreadable_files`)."""
+        path = self.root / _INPUTS
+        if not path.is_file():
+            return []
+        try:
+            return [
+                str(p) for p in json.loads(path.read_text(encoding="utf-8")).get("unreadable", [])
+            ]
+        except (OSError, ValueError, TypeError, AttributeError) as error:
+            raise _corrupt(self.root, _INPUTS, error) from None
+
+    def set_unreadable_files(self, paths: Iterable[str]) -> None:
+        """Record the input files this run leaves out as unreadable (resolved paths), so a
+        later run can tell when one has changed and redo the blocks it left unpadded."""
+        paths = sorted({str(p) for p in paths})
+        if paths != self.unreadable_files():
+            self._write_inputs(self.recorded_inputs(), unreadable=paths)
+
+    def _write_inputs(self, files: list[dict], unreadable: list[str] | None = None) -> None:
+        """Write ``inputs.json``: the fingerprints *files* and the unreadable files (kept
+        as they are unless given)."""
+        content: dict = {"files": files}
+        unreadable = self.unreadable_files() if unreadable is None else unreadable
+        if unreadable:
+            content["unreadable"] = unreadable
+        with atomic_path(self.root / _INPUTS) as tmp:
+            tmp.write_text(json.dumps(content, indent=1, sort_keys=True), encoding="utf-8")
 
     # ------------------------------------------------------------------ reading
     def _files(self, kind: str) -> list[Path]:

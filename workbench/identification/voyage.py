@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -182,20 +182,21 @@ def _removed_inputs(
     return notices
 
 
-def _unreadable_blocks(files, plan, unreadable: dict[str, str]) -> dict[int, UnreadableBlock]:
-    """The planned blocks that need a file whose header cannot be read, as tasks recorded
-    skipped with that file as the reason.
+def unreadable_places(files, plan, unreadable: Mapping[str, str]) -> dict[str, tuple]:
+    """Where each file of *unreadable* (path as given -> why) left out of *plan* lies:
+    path -> ``(after, before)``, the end of the readable file before it and the start of
+    the one after it (UTC).
 
-    Such a file is left out of the plan, so its span is not known: it is taken to lie in
+    Such a file's span is not known (its header may be what fails): it is taken to lie in
     its place among *files* (in the order found, by name within a folder), between the
-    readable files before and after it when those leave a gap where it belongs. The blocks
-    the plan skips over that gap are the file's. A file at either end of the data needs no
-    block the plan holds.
+    readable files before and after it, when those leave a gap where it belongs and no
+    readable file lies in that gap. A file at either end of the data, or whose place is
+    not known that way, is not listed.
     """
     infos = {str(info.path): info for info in plan.files}
     half = pd.Timedelta(seconds=0.5 / plan.sampling_rate_hz)
     order = [str(f) for f in files]
-    out: dict[int, UnreadableBlock] = {}
+    places = {}
     for k, name in enumerate(order):
         if name not in unreadable:
             continue
@@ -205,12 +206,23 @@ def _unreadable_blocks(files, plan, unreadable: dict[str, str]) -> dict[int, Unr
             continue
         if any(before.end_time <= i.start_time < after.start_time for i in plan.files):
             continue  # a readable file lies in the gap: the file's place is not known
+        places[name] = (before.end_time, after.start_time)
+    return places
+
+
+def _unreadable_blocks(files, plan, unreadable: Mapping[str, str]) -> dict[int, UnreadableBlock]:
+    """The planned blocks that need a file of *unreadable* left out of *plan* (the blocks
+    the plan skips over its place, :func:`unreadable_places`), as tasks recorded skipped
+    with that file as the reason."""
+    half = pd.Timedelta(seconds=0.5 / plan.sampling_rate_hz)
+    out: dict[int, UnreadableBlock] = {}
+    for name, (low, high) in unreadable_places(files, plan, unreadable).items():
         reason = f"{name}: unreadable ({unreadable[name]})"
         path = str(Path(name).resolve())
         for planned in plan.blocks:
-            if not planned.skipped_reason or planned.block_end - half <= before.end_time:
+            if not planned.skipped_reason or planned.block_end - half <= low:
                 continue
-            if planned.block_start + half >= after.start_time:
+            if planned.block_start + half >= high:
                 continue
             task = out.get(planned.block)
             out[planned.block] = (
@@ -221,18 +233,27 @@ def _unreadable_blocks(files, plan, unreadable: dict[str, str]) -> dict[int, Unr
     return out
 
 
-def _retry_unreadable(store: BlockStore, plan, fingerprints: list[dict], per_file: bool):
+def _retry_unreadable(
+    store: BlockStore, plan, fingerprints: list[dict], per_file: bool, unreadable: Iterable[str]
+):
     """Take out of the store the blocks of input files an earlier run could not read and
-    that have changed since (repaired, replaced or gone), so they are computed again; the
-    notices, one line per file readable again.
+    that have changed since (repaired, replaced or gone), so they are computed again, and
+    record the files this run leaves out (*unreadable*, paths as given); the notices, one
+    line per file readable again.
 
-    A file readable now takes with it the blocks its samples feed (with *per_file*
-    conditioning also those of its neighbours, whose filters its edges pad, left unpadded
-    before), and its recorded fingerprint (of the damaged content) is forgotten, so the
-    repaired file is not refused as a changed input. A file unchanged since (its content
-    recorded) keeps its blocks skipped.
+    The files of earlier runs are those the store's skipped blocks name and those it
+    listed as left out (:meth:`~workbench.store.BlockStore.unreadable_files`). A file
+    readable now takes with it the blocks its samples feed (with *per_file* conditioning
+    also those of its neighbours, whose filters its edges pad, left unpadded before), and
+    its recorded fingerprint (of the damaged content) is forgotten, so the repaired file
+    is not refused as a changed input. A file unchanged since (its content recorded)
+    keeps its blocks skipped.
     """
-    recorded = store.unreadable_inputs()
+    recorded = {
+        **{path: {"blocks": set(), "reason": ""} for path in store.unreadable_files()},
+        **store.unreadable_inputs(),
+    }
+    store.set_unreadable_files(str(Path(name).resolve()) for name in unreadable)
     if not recorded:
         return []
     inputs = store.recorded_inputs()
@@ -255,9 +276,10 @@ def _retry_unreadable(store: BlockStore, plan, fingerprints: list[dict], per_fil
             low = files[max(k - 1, 0) if per_file else k].start_time
             high = files[min(k + 1, len(files) - 1) if per_file else k].end_time
             blocks |= {b for b in stored if plan.grid.start(b) < high and plan.grid.end(b) > low}
+            again = block_ranges(blocks & stored)
             notices.append(
-                f"{shown[path]}: unreadable in an earlier run and changed since: block(s) "
-                f"{block_ranges(blocks & stored)} are computed again"
+                f"{shown[path]}: unreadable in an earlier run and changed since: read now"
+                + (f", block(s) {again} stored near it computed again" if again else "")
             )
         drop |= blocks
     if forget:
@@ -313,6 +335,7 @@ def identify_voyage(
     dship_mapping: dict[str, str] | None = None,
     harmonics: HarmonicOptions | None = None,
     grid_t0=None,
+    unreadable: Mapping[str, str] | None = None,
     warn_unreadable: bool = True,
 ) -> IdentifyResult:
     """Identify every block of a voyage's acceleration files; resumable and parallel.
@@ -361,6 +384,9 @@ def identify_voyage(
     grid_t0 : time-like, optional
         Start of block 0 (default: the first sample; the shifted grids of
         :func:`~workbench.identification.adaptive.identify_adaptive`).
+    unreadable : mapping, optional
+        Input files (paths as given -> why) known to be unreadable: left out as those
+        whose header cannot be read are (the adaptive run finds those whose samples fail).
     warn_unreadable : bool
         Name each unreadable input file in :attr:`IdentifyResult.warnings` (the adaptive
         run, which calls this once per block length, names them once itself).
@@ -383,8 +409,14 @@ def identify_voyage(
             raise WorkbenchError(f"{path}: {what} is a file, not a folder")
     files = acceleration_files(inputs)
     options = follow_on_starts(files, options)
-    unreadable: dict[str, str] = {}  # files whose header cannot be read: left out
-    plan, options = plan_identification(files, options, grid_t0=grid_t0, unreadable=unreadable)
+    # files whose header cannot be read (and those known unreadable): left out
+    unreadable = {str(f): why for f, why in (unreadable or {}).items()}
+    plan, options = plan_identification(
+        [f for f in files if str(f) not in unreadable],
+        options,
+        grid_t0=grid_t0,
+        unreadable=unreadable,
+    )
     options.check_data(plan)
     grid = plan.grid
     channels = tuple(plan.channels)
@@ -394,7 +426,7 @@ def identify_voyage(
         notices = list(store.notices)
         fingerprints = input_fingerprints(plan.files)
         # before the check: a repaired file is not another voyage's data
-        notices += _retry_unreadable(store, plan, fingerprints, per_file)
+        notices += _retry_unreadable(store, plan, fingerprints, per_file, unreadable)
         store.check_inputs(fingerprints)
         notices += _removed_inputs(
             store, fingerprints, grid, per_file=per_file, keep=keep_removed_inputs
