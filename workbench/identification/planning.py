@@ -312,8 +312,8 @@ def _fingerprint(info) -> dict:
 
 def _pick_tasks(inputs, options: IdentifyOptions, n_blocks: int, blocks):
     """Plan, resolved options and the tasks of *blocks*, or of *n_blocks* identifiable
-    blocks spread evenly."""
-    plan, options = plan_identification(acceleration_files(inputs), options)
+    blocks spread evenly (files that cannot be read left out, as identify leaves them)."""
+    plan, options = plan_identification(acceleration_files(inputs), options, unreadable={})
     planned = [p for p in plan.blocks if not p.skipped_reason]
     if blocks is None:
         picks = np.unique(np.linspace(0, len(planned) - 1, max(n_blocks, 1)).round().astype(int))

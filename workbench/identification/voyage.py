@@ -289,6 +289,57 @@ def _retry_unreadable(
     return notices
 
 
+def _without_unread_edges(store: BlockStore, plan, known, unreadable: dict, run, summary):
+    """With files conditioned once each, the blocks next to a file whose samples this run
+    found unreadable again, without it; the run's summary over both passes.
+
+    A file's conditioning is padded with its neighbours' edges, read in place without the
+    checksum of the whole file (that would read every neighbour twice), so a file whose
+    checksum fails lent its edges to the blocks beside it before its own blocks found it
+    bad. Those blocks are taken out of the store and identified again from the plan
+    without the file (added to *unreadable*), as a run without it identifies them.
+    *known*: the files the store named as unreadable before this run.
+    """
+    index = {str(Path(info.path).resolve()): k for k, info in enumerate(plan.files)}
+    found = {p: e for p, e in store.unreadable_inputs().items() if p not in known and p in index}
+    if not found or len(found) == len(plan.files):
+        return summary
+    from collections import Counter
+
+    from ..signals.block_plan import plan_file_infos
+
+    files = plan.files
+    stored = store.completed_blocks()
+    again: set[int] = set()
+    for path, entry in found.items():
+        k = index[path]
+        name = str(files[k].path)
+        unreadable[name] = entry["reason"].removeprefix(f"{name}: unreadable (")[:-1]
+        low = files[max(k - 1, 0)].start_time
+        high = files[min(k + 1, len(files) - 1)].end_time
+        near = {b for b in stored if plan.grid.start(b) < high and plan.grid.end(b) > low}
+        again |= near - set(entry["blocks"])
+    table = store.read("blocks")
+    redone = table[table["block"].astype(int).isin(again)]
+    store.drop_blocks(again)
+    rest = [info for k, info in enumerate(files) if str(Path(info.path).resolve()) not in found]
+    second, _ = run(
+        plan_file_infos(rest, plan.grid, max_gap_s=plan.max_gap_s, channels=plan.channels)
+    )
+    ok = int((redone["status"] == "ok").sum())
+    reasons = Counter(summary.skip_reasons)
+    reasons.subtract(Counter(redone.loc[redone["status"] != "ok", "reason"].astype(str)))
+    reasons.update(second.skip_reasons)
+    return RunSummary(
+        processed=max(summary.processed - ok, 0) + second.processed,
+        skipped=max(summary.skipped - (len(redone) - ok), 0) + second.skipped,
+        already_done=summary.already_done,
+        skip_reasons={reason: n for reason, n in reasons.items() if n > 0},
+        notes=dict(Counter(summary.notes) + Counter(second.notes)),
+        seconds=summary.seconds + second.seconds,
+    )
+
+
 def _unreadable_warnings(store: BlockStore, files, unreadable: dict[str, str]) -> list[str]:
     """One line per input file that cannot be read, naming it and the blocks not
     identified for it (those found now and those an earlier run stored)."""
@@ -432,35 +483,45 @@ def identify_voyage(
             store, fingerprints, grid, per_file=per_file, keep=keep_removed_inputs
         )
         wanted = None if blocks is None else {int(b) for b in blocks}
-        tasks = _block_tasks(
-            plan, [p for p in plan.blocks if wanted is None or int(p.block) in wanted]
-        )
-        if per_file:
-            # each file conditioned once, on any worker, for the blocks holding it
-            units = _file_tasks(tasks, plan, options)
-            func = functools.partial(
-                identify_from_files, grid=grid, channels=channels, options=options
+
+        def run(plan_now):
+            tasks = _block_tasks(
+                plan_now, [p for p in plan_now.blocks if wanted is None or int(p.block) in wanted]
             )
-        else:
-            units = tasks
-            func = functools.partial(identify_block, grid=grid, channels=channels, options=options)
-        unreadable_blocks = _unreadable_blocks(files, plan, unreadable)
-        if unreadable_blocks:
-            units = [unreadable_blocks.get(int(unit.block), unit) for unit in units]
-        summary = run_blocks(
-            units,
-            func,
-            store=store,
-            scheduler=scheduler,
-            n_workers=n_workers,
-            total=len(tasks),
-            batch_blocks=batch_blocks,
-            progress=progress,
-            description="identify",
-        )
+            if per_file:
+                # each file conditioned once, on any worker, for the blocks holding it
+                units = _file_tasks(tasks, plan_now, options)
+                func = functools.partial(
+                    identify_from_files, grid=grid, channels=channels, options=options
+                )
+            else:
+                units = tasks
+                func = functools.partial(
+                    identify_block, grid=grid, channels=channels, options=options
+                )
+            unreadable_blocks = _unreadable_blocks(files, plan_now, unreadable)
+            if unreadable_blocks:
+                units = [unreadable_blocks.get(int(unit.block), unit) for unit in units]
+            summary = run_blocks(
+                units,
+                func,
+                store=store,
+                scheduler=scheduler,
+                n_workers=n_workers,
+                total=len(tasks),
+                batch_blocks=batch_blocks,
+                progress=progress,
+                description="identify",
+            )
+            return summary, len(tasks)
+
+        known = set(store.unreadable_inputs())
+        summary, n_tasks = run(plan)
+        if per_file:
+            summary = _without_unread_edges(store, plan, known, unreadable, run, summary)
         if warn_unreadable:
             notices += _unreadable_warnings(store, files, unreadable)
-        result = IdentifyResult(summary, n_blocks=len(tasks), warnings=notices)
+        result = IdentifyResult(summary, n_blocks=n_tasks, warnings=notices)
         result.files = export_store(store, out, channels, grid=grid, harmonics=marker)
         result.notes = marker.lines()
     selected = result.files.get("selected")
