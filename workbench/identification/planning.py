@@ -81,7 +81,8 @@ def follow_on_starts(files: Sequence[Path], options: IdentifyOptions) -> Identif
     relative times continue (a second file starting at 300 s) keeps its offset from the
     start when that lies after the previous file's end. Files with absolute times of their
     own (ISO-8601 column, ``.npz``, a MATLAB ``t0``) keep them. Each file is read once
-    more for this (only when one start time is given for several files).
+    more for this (only when one start time is given for several files). A file that
+    cannot be read is passed over: the next follows the one before it, as without it.
     """
     from data_contracts import ContractError, read_accelerations
 
@@ -94,6 +95,7 @@ def follow_on_starts(files: Sequence[Path], options: IdentifyOptions) -> Identif
     own = {k: v for k, v in layout.items() if k != "start_time"}
     starts: dict[str, str] = {}
     previous_end = None
+    first_error = ""
     for path in files:
         try:
             record = read_accelerations(path, layout=own)
@@ -103,7 +105,8 @@ def follow_on_starts(files: Sequence[Path], options: IdentifyOptions) -> Identif
             try:
                 record = read_accelerations(path, layout=layout)
             except ContractError as error:
-                raise WorkbenchError(error.lines()[0]) from None
+                first_error = first_error or error.lines()[0]
+                continue  # unreadable: the planner leaves it out and names it
             first = record.start_time
             if previous_end is not None and first < previous_end:
                 first = previous_end  # restarted relative times: follow on
@@ -112,6 +115,8 @@ def follow_on_starts(files: Sequence[Path], options: IdentifyOptions) -> Identif
         else:
             record_end = record.end_time
         previous_end = record_end if previous_end is None else max(previous_end, record_end)
+    if previous_end is None and first_error:  # no file read: the layout, not one file
+        raise WorkbenchError(first_error)
     if not starts:
         return options
     layout["file_starts"] = starts
