@@ -184,8 +184,8 @@ def _removed_inputs(
 
 def unreadable_places(files, plan, unreadable: Mapping[str, str]) -> dict[str, tuple]:
     """Where each file of *unreadable* (path as given -> why) left out of *plan* lies:
-    path -> ``(after, before)``, the end of the readable file before it and the start of
-    the one after it (UTC).
+    path -> ``(low, high)``, the end of the readable file before it and the start of the
+    one after it (UTC).
 
     Such a file's span is not known (its header may be what fails): it is taken to lie in
     its place among *files* (in the order found, by name within a folder), between the
@@ -289,6 +289,20 @@ def _retry_unreadable(
     return notices
 
 
+def _plan_without(plan, paths: set[str]):
+    """*plan* (same grid and channels) without the files of *paths* (resolved)."""
+    from ..signals.block_plan import plan_file_infos
+
+    rest = [info for info in plan.files if str(Path(info.path).resolve()) not in paths]
+    return plan_file_infos(rest, plan.grid, max_gap_s=plan.max_gap_s, channels=plan.channels)
+
+
+def _detail(entry: dict, name: str) -> str:
+    """Why a file stored blocks name is unreadable: their reason without ``"<name>:
+    unreadable (...)"`` around it."""
+    return entry["reason"].removeprefix(f"{name}: unreadable (").removesuffix(")")
+
+
 def _without_unread_edges(store: BlockStore, plan, known, unreadable: dict, run, summary):
     """With files conditioned once each, the blocks next to a file whose samples this run
     found unreadable again, without it; the run's summary over both passes.
@@ -306,15 +320,13 @@ def _without_unread_edges(store: BlockStore, plan, known, unreadable: dict, run,
         return summary
     from collections import Counter
 
-    from ..signals.block_plan import plan_file_infos
-
     files = plan.files
     stored = store.completed_blocks()
     again: set[int] = set()
     for path, entry in found.items():
         k = index[path]
         name = str(files[k].path)
-        unreadable[name] = entry["reason"].removeprefix(f"{name}: unreadable (")[:-1]
+        unreadable[name] = _detail(entry, name)
         low = files[max(k - 1, 0)].start_time
         high = files[min(k + 1, len(files) - 1)].end_time
         near = {b for b in stored if plan.grid.start(b) < high and plan.grid.end(b) > low}
@@ -322,10 +334,7 @@ def _without_unread_edges(store: BlockStore, plan, known, unreadable: dict, run,
     table = store.read("blocks")
     redone = table[table["block"].astype(int).isin(again)]
     store.drop_blocks(again)
-    rest = [info for k, info in enumerate(files) if str(Path(info.path).resolve()) not in found]
-    second, _ = run(
-        plan_file_infos(rest, plan.grid, max_gap_s=plan.max_gap_s, channels=plan.channels)
-    )
+    second, _ = run(_plan_without(plan, set(found)))
     ok = int((redone["status"] == "ok").sum())
     reasons = Counter(summary.skip_reasons)
     reasons.subtract(Counter(redone.loc[redone["status"] != "ok", "reason"].astype(str)))
@@ -515,10 +524,19 @@ def identify_voyage(
             )
             return summary, len(tasks)
 
-        known = set(store.unreadable_inputs())
-        summary, n_tasks = run(plan)
+        known = store.unreadable_inputs()
+        plan_run = plan
         if per_file:
-            summary = _without_unread_edges(store, plan, known, unreadable, run, summary)
+            # files whose samples an earlier run found unreadable (unchanged since): their
+            # edges pad no neighbour now either (they stay fingerprinted, in *plan*)
+            shown = {str(Path(info.path).resolve()): str(info.path) for info in plan.files}
+            damaged = {path: shown[path] for path in known if path in shown}
+            if damaged and len(damaged) < len(plan.files):
+                unreadable.update({name: _detail(known[p], name) for p, name in damaged.items()})
+                plan_run = _plan_without(plan, set(damaged))
+        summary, n_tasks = run(plan_run)
+        if per_file:
+            summary = _without_unread_edges(store, plan, set(known), unreadable, run, summary)
         if warn_unreadable:
             notices += _unreadable_warnings(store, files, unreadable)
         result = IdentifyResult(summary, n_blocks=n_tasks, warnings=notices)
