@@ -247,3 +247,23 @@ def test_unreadable_input_error_names_the_file_once(tmp_path):
     assert str(error) == f"{path}: unreadable ({error.detail})"
     assert str(path) not in error.detail and error.detail.startswith("not a valid .npz")
     assert isinstance(error, ValueError) and isinstance(error, WorkbenchError)
+
+
+def test_a_file_cut_short_after_a_run_is_left_out_by_the_next(tmp_path, capsys):
+    """A file the store's results came from, cut short since (a bad disk): the rerun leaves
+    it out as a fresh run without it would (its blocks and, with files decimated once
+    each, its neighbours' dropped), in one warning line and no 'input no longer given'."""
+    paths = write_voyage(tmp_path / "voyage", n_files=8)
+    out = tmp_path / "out"
+    assert _identify(capsys, tmp_path / "voyage", out, "--rate", "16")[0] == 0
+    _cut(paths[DAMAGED])
+    status, _, err = _identify(capsys, tmp_path / "voyage", out, "--rate", "16")
+    assert status == 0, err
+    assert [line for line in err.splitlines() if "acc_003.npz" in line] == [
+        f"warning: {paths[DAMAGED]}: unreadable (not a valid .npz acceleration file (a NumPy "
+        "archive of the numeric arrays acceleration, sampling_rate_hz, start_time and "
+        "channels)); left out: block(s) 2-3 not identified"
+    ]
+    reference = _without(tmp_path / "voyage", paths[DAMAGED].name, tmp_path / "deleted")
+    assert _identify(capsys, reference, tmp_path / "reference", "--rate", "16")[0] == 0
+    _assert_same_tables(out, tmp_path / "reference")

@@ -142,7 +142,13 @@ def _check_run_options(scheduler, n_workers, batch_blocks) -> None:
 
 
 def _removed_inputs(
-    store: BlockStore, fingerprints: list[dict], grid, *, per_file: bool, keep: bool
+    store: BlockStore,
+    fingerprints: list[dict],
+    grid,
+    *,
+    per_file: bool,
+    keep: bool,
+    unreadable: Iterable[str] = (),
 ) -> list[str]:
     """Report the recorded input files no longer given and drop (or, with *keep*, keep)
     the stored blocks that depended on them; the notices, one line per file.
@@ -151,7 +157,10 @@ def _removed_inputs(
     (*per_file*), also on each file's neighbours (their edges pad the conditioning), so
     the blocks of the files next to a removed one are dropped too. Dropped blocks and the
     forgotten file make the store what a fresh run over the remaining files would make.
+    A file still given but left out as unreadable (*unreadable*, paths as given) is
+    treated alike without a notice: its warning names it.
     """
+    quiet = {str(Path(name).resolve()) for name in unreadable}
     removed = store.removed_inputs(fingerprints)
     if not removed:
         return []
@@ -167,6 +176,8 @@ def _removed_inputs(
         blocks = [b for b in stored if grid.start(b) < high and grid.end(b) > low]
         what = f"{entry['path']}: input no longer given (recorded in the store {store.root})"
         if keep:
+            if entry["path"] in quiet:
+                continue
             notices.append(
                 f"{what}: block(s) {block_ranges(blocks) or 'none'} computed from it are kept "
                 "(--keep-removed-inputs)"
@@ -175,6 +186,8 @@ def _removed_inputs(
         dropped = store.drop_blocks(blocks)
         store.forget_inputs([entry])
         stored = [b for b in stored if b not in dropped]
+        if entry["path"] in quiet:
+            continue
         notices.append(
             f"{what}: block(s) {block_ranges(dropped) or 'none'} computed from it are dropped "
             "(--keep-removed-inputs keeps them)"
@@ -489,7 +502,12 @@ def identify_voyage(
         notices += _retry_unreadable(store, plan, fingerprints, per_file, unreadable)
         store.check_inputs(fingerprints)
         notices += _removed_inputs(
-            store, fingerprints, grid, per_file=per_file, keep=keep_removed_inputs
+            store,
+            fingerprints,
+            grid,
+            per_file=per_file,
+            keep=keep_removed_inputs,
+            unreadable=unreadable,
         )
         wanted = None if blocks is None else {int(b) for b in blocks}
 
