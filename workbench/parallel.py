@@ -256,7 +256,10 @@ def run_blocks(
         the block as skipped with the message as reason. A task of several consecutive
         blocks (with a ``blocks`` attribute) returns a list of outcomes, one per block.
         A task with ``shared_inputs`` (:class:`SharedInput`) is run as
-        ``func(task, inputs)``.
+        ``func(task, inputs)``; an :class:`UnreadableBlock` is recorded skipped without
+        calling *func*. The files a skipped block could not read (``BlockOutcome.
+        unreadable``) are kept with it in the store's ``blocks``
+        (:data:`~workbench.store.UNREADABLE_COLUMN`).
     store : BlockStore
         Where results go; also tells which blocks are done (resume).
     scheduler : str, optional
