@@ -417,7 +417,7 @@ def identify_adaptive(
         Summed over the lengths; ``files`` are the merged tables in *out_dir*.
     """
     from ..parallel import RunSummary
-    from .planning import acceleration_files, follow_on_starts, plan_identification
+    from .planning import _file_list, acceleration_files, follow_on_starts, plan_identification
     from .voyage import IdentifyResult, _ship_log, identify_voyage
 
     adaptive = adaptive or AdaptiveBlockOptions()
@@ -437,10 +437,10 @@ def identify_adaptive(
     unreadable.update({name: error.detail for name, error in failed.items()})
     lengths = plan_block_lengths(conditions, first, adaptive, cases=_read_cases(cases))
     if lengths.empty:
+        names = list(unreadable)
         damaged = (
-            f"{', '.join(unreadable)}: unreadable ({next(iter(unreadable.values()))}), left "
-            "out; then "
-            if unreadable
+            f"{_file_list(names)}: unreadable ({unreadable[names[0]]}), left out; then "
+            if names
             else ""
         )
         raise WorkbenchError(
