@@ -47,5 +47,38 @@ class OptionError(ValueError):
     """
 
 
+class UnreadableInputError(WorkbenchError, ValueError):
+    """An input file whose samples cannot be read: cut short, a bad checksum, not the
+    format its name says.
+
+    Bad data (exit 1) where it ends a command; a ``ValueError`` too, so a block that meets
+    it is skipped like any block whose data is bad. A batch run leaves the file out: the
+    blocks that need it are skipped with ``"<path>: unreadable (<detail>)"`` as the
+    reason and every other block is identified as if the file were not there
+    (``workbench identify`` names the file in one warning).
+
+    Parameters
+    ----------
+    path : path-like
+        The file, as it was given.
+    detail : str
+        Why it cannot be read, without the file's name (one line).
+    """
+
+    def __init__(self, path, detail: str):
+        self.path = str(path)
+        self.detail = detail
+        super().__init__(f"{self.path}: unreadable ({detail})")
+
+    @classmethod
+    def of(cls, path, error: BaseException) -> "UnreadableInputError":
+        """The error for *path* that a reader's *error* stands for: its first line, the
+        file's name taken off its front (the message names the file once)."""
+        detail = str(error).splitlines()[0] if str(error) else type(error).__name__
+        for prefix in (f"{path}: ", f"{getattr(path, 'name', path)}: "):
+            detail = detail.removeprefix(prefix)
+        return cls(path, detail)
+
+
 class UsageError(Exception):
     """Command-line arguments that parse but make no sense together (CLI: exit 2)."""

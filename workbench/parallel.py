@@ -24,17 +24,26 @@ from collections import Counter
 from collections.abc import Callable, Hashable, Iterable, Mapping
 from contextlib import ExitStack
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
 import pandas as pd
 
-from .errors import WorkbenchError
+from .errors import UnreadableInputError, WorkbenchError
 from .local_workers import fork_available, run_forked
 from .processes import interrupts_deferred, worker_initializer
-from .store import BlockStore
+from .store import UNREADABLE_COLUMN, BlockStore
 
-__all__ = ["BlockOutcome", "BlockTask", "RunSummary", "SharedInput", "process_map", "run_blocks"]
+__all__ = [
+    "BlockOutcome",
+    "BlockTask",
+    "RunSummary",
+    "SharedInput",
+    "UnreadableBlock",
+    "process_map",
+    "run_blocks",
+]
 
 log = logging.getLogger(__name__)
 
@@ -85,13 +94,41 @@ def _needs(task: Any) -> tuple[SharedInput, ...]:
 
 @dataclass(frozen=True)
 class BlockOutcome:
-    """Result of one block: tables by kind, or a reason why the block was skipped."""
+    """Result of one block: tables by kind, or a reason why the block was skipped.
+
+    ``unreadable`` names (resolved paths) the input files the block was skipped for
+    because they cannot be read (:class:`~workbench.errors.UnreadableInputError`); the
+    store keeps them with the block, so a later run can tell when such a file has changed.
+    """
 
     block: int
     block_start: pd.Timestamp
     tables: Mapping[str, pd.DataFrame] = field(default_factory=dict)
     skipped: str = ""
     notes: tuple[str, ...] = ()
+    unreadable: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class UnreadableBlock:
+    """A task for a block known before the run to need input files that cannot be read
+    (their headers already fail): :func:`run_blocks` records it as skipped with *reason*
+    without calling the block function.
+
+    Parameters
+    ----------
+    block : int
+    block_start : pandas.Timestamp
+    reason : str
+        ``"<path>: unreadable (<why>)"``.
+    paths : tuple of str
+        The files (resolved paths).
+    """
+
+    block: int
+    block_start: pd.Timestamp
+    reason: str
+    paths: tuple[str, ...]
 
 
 @dataclass(frozen=True)
@@ -117,12 +154,25 @@ class RunSummary:
 
 def _guarded(func: Callable[..., BlockOutcome], task: Any, inputs=None) -> BlockOutcome:
     """Run *func* (with the task's shared *inputs*, if it has any); a failure of one block
-    becomes a skipped block with the reason."""
+    becomes a skipped block with the reason (an :class:`UnreadableBlock` is one without
+    running)."""
+    if isinstance(task, UnreadableBlock):
+        return BlockOutcome(
+            int(task.block),
+            pd.Timestamp(task.block_start),
+            skipped=task.reason,
+            unreadable=task.paths,
+        )
     try:
         return func(task) if inputs is None else func(task, inputs)
     except (ValueError, WorkbenchError, ArithmeticError, np.linalg.LinAlgError) as error:
         reason = str(error).splitlines()[0] if str(error) else type(error).__name__
-        return BlockOutcome(int(task.block), pd.Timestamp(task.block_start), skipped=reason)
+        unreadable = ()
+        if isinstance(error, UnreadableInputError):
+            unreadable = (str(Path(error.path).resolve()),)
+        return BlockOutcome(
+            int(task.block), pd.Timestamp(task.block_start), skipped=reason, unreadable=unreadable
+        )
 
 
 def _progress(total: int | None, enabled: bool, description: str):
@@ -206,7 +256,10 @@ def run_blocks(
         the block as skipped with the message as reason. A task of several consecutive
         blocks (with a ``blocks`` attribute) returns a list of outcomes, one per block.
         A task with ``shared_inputs`` (:class:`SharedInput`) is run as
-        ``func(task, inputs)``.
+        ``func(task, inputs)``; an :class:`UnreadableBlock` is recorded skipped without
+        calling *func*. The files a skipped block could not read (``BlockOutcome.
+        unreadable``) are kept with it in the store's ``blocks``
+        (:data:`~workbench.store.UNREADABLE_COLUMN`).
     store : BlockStore
         Where results go; also tells which blocks are done (resume).
     scheduler : str, optional
@@ -254,6 +307,8 @@ def run_blocks(
                 "reason": [o.skipped for o in pending],
             }
         )
+        if any(o.unreadable for o in pending):  # the files, for the next run to look at
+            blocks[UNREADABLE_COLUMN] = ["\n".join(o.unreadable) for o in pending]
         kinds = sorted({k for o in pending for k in o.tables})
         results = {}
         for kind in kinds:

@@ -60,10 +60,13 @@ from data_contracts import atomic_path
 
 from .errors import WorkbenchError
 
-__all__ = ["BLOCKS_KIND", "BlockStore", "block_ranges"]
+__all__ = ["BLOCKS_KIND", "UNREADABLE_COLUMN", "BlockStore", "block_ranges"]
 
 #: The kind whose files mark blocks as done.
 BLOCKS_KIND = "blocks"
+#: Column of the ``blocks`` kind naming the input files (resolved paths, one a line) a
+#: skipped block could not read; written only by batches holding such a block.
+UNREADABLE_COLUMN = "unreadable_input"
 _CONFIG = "store.json"
 _INPUTS = "inputs.json"
 _LOCK = "lock"
@@ -365,11 +368,7 @@ class BlockStore:
             new.append(item)
             known.add(item["sha256"])
         if new or not path.is_file():
-            with atomic_path(path) as tmp:
-                tmp.write_text(
-                    json.dumps({"files": recorded + new}, indent=1, sort_keys=True),
-                    encoding="utf-8",
-                )
+            self._write_inputs(recorded + new)
 
     def recorded_inputs(self) -> list[dict]:
         """The input files the stored results came from (their fingerprints)."""
@@ -396,10 +395,37 @@ class BlockStore:
         recorded = self.recorded_inputs()
         kept = [r for r in recorded if r["sha256"] not in gone]
         if len(kept) != len(recorded):
-            with atomic_path(self.root / _INPUTS) as tmp:
-                tmp.write_text(
-                    json.dumps({"files": kept}, indent=1, sort_keys=True), encoding="utf-8"
-                )
+            self._write_inputs(kept)
+
+    def unreadable_files(self) -> list[str]:
+        """The input files the last run left out as unreadable (resolved paths; see
+        :meth:`set_unreadable_files`)."""
+        path = self.root / _INPUTS
+        if not path.is_file():
+            return []
+        try:
+            return [
+                str(p) for p in json.loads(path.read_text(encoding="utf-8")).get("unreadable", [])
+            ]
+        except (OSError, ValueError, TypeError, AttributeError) as error:
+            raise _corrupt(self.root, _INPUTS, error) from None
+
+    def set_unreadable_files(self, paths: Iterable[str]) -> None:
+        """Record the input files this run leaves out as unreadable (resolved paths), so a
+        later run can tell when one has changed and redo the blocks it left unpadded."""
+        paths = sorted({str(p) for p in paths})
+        if paths != self.unreadable_files():
+            self._write_inputs(self.recorded_inputs(), unreadable=paths)
+
+    def _write_inputs(self, files: list[dict], unreadable: list[str] | None = None) -> None:
+        """Write ``inputs.json``: the fingerprints *files* and the unreadable files (kept
+        as they are unless given)."""
+        content: dict = {"files": files}
+        unreadable = self.unreadable_files() if unreadable is None else unreadable
+        if unreadable:
+            content["unreadable"] = unreadable
+        with atomic_path(self.root / _INPUTS) as tmp:
+            tmp.write_text(json.dumps(content, indent=1, sort_keys=True), encoding="utf-8")
 
     # ------------------------------------------------------------------ reading
     def _files(self, kind: str) -> list[Path]:
@@ -584,6 +610,24 @@ class BlockStore:
         keep = frame["block"].map(lambda b: owners.get(int(b)) == path.stem).to_numpy(bool)
         return frame if keep.all() else frame[keep]
 
+    def unreadable_inputs(self) -> dict[str, dict]:
+        """The input files stored blocks were skipped for because they could not be read
+        (:data:`UNREADABLE_COLUMN`): resolved path -> ``{"blocks": set of int, "reason":
+        str}`` (the reason of its first block)."""
+        table = self.read(BLOCKS_KIND)
+        if table.empty or UNREADABLE_COLUMN not in table.columns:
+            return {}
+        found: dict[str, dict] = {}
+        for block, reason, paths in zip(
+            table["block"], table["reason"], table[UNREADABLE_COLUMN], strict=True
+        ):
+            if not isinstance(paths, str) or not paths:
+                continue
+            for path in paths.split("\n"):
+                entry = found.setdefault(path, {"blocks": set(), "reason": str(reason)})
+                entry["blocks"].add(int(block))
+        return found
+
     def completed_blocks(self) -> set[int]:
         """Blocks already processed (successfully or skipped with a recorded reason)."""
         table = self.read(BLOCKS_KIND)
@@ -649,7 +693,8 @@ class BlockStore:
         ----------
         blocks : DataFrame
             One row per block of the batch: ``block``, ``block_start``, ``status``
-            (``ok``/``skipped``), ``reason``.
+            (``ok``/``skipped``), ``reason`` (and :data:`UNREADABLE_COLUMN` where a block was
+            skipped for an input file that cannot be read).
         results : mapping of kind -> DataFrame
             Result rows; each must have ``block`` and ``block_start`` columns.
 

@@ -136,6 +136,12 @@ def _derived_accelerations(base: Path) -> None:
         for key in ("sampling_rate_hz", "start_time", "channels"):
             with archive.open(f"{key}.npy", "w") as handle:
                 np.lib.format.write_array(handle, np.asarray(good[key]))
+    # a file cut short mid-way among good ones, and the 1-KB liar among good ones: left
+    # out, named in one warning (before: exit 1 for the whole voyage)
+    paths = write_voyage(base / "one_cut", n_files=4)
+    paths[1].write_bytes(paths[1].read_bytes()[: paths[1].stat().st_size // 2])
+    write_voyage(base / "liar_among_good", n_files=4)
+    (base / "liar_among_good" / "acc_004.npz").write_bytes((base / "liar" / "a.npz").read_bytes())
     # leftover of an interrupted write beside good files
     write_voyage(base / "leftover", n_files=4)
     (base / "leftover" / ".acc_004.npz.abc.tmp.npz").write_bytes(b"PK\x03\x04 truncated")
@@ -205,10 +211,20 @@ CASES = {
         0,
         "3 block(s) processed",
     ),
-    "header claims 30 days": (
+    "header claims 30 days": (  # the only file: nothing can be identified
         ["identify", "{root}/liar", "--out", "{tmp}/out", *IDENTIFY_ARGS],
         1,
-        "a.npz",
+        "a.npz: unreadable (array acceleration declares",
+    ),
+    "header claims 30 days beside good files": (
+        ["identify", "{root}/liar_among_good", "--out", "{tmp}/out", *IDENTIFY_ARGS],
+        0,
+        "acc_004.npz: unreadable (array acceleration declares",
+    ),
+    "a file cut short among good ones": (
+        ["identify", "{root}/one_cut", "--out", "{tmp}/out", *IDENTIFY_ARGS],
+        0,
+        "acc_001.npz: unreadable (not a valid .npz acceleration file",
     ),
     "numeric start_time": (
         ["validate", "accelerations", "{root}/numeric_start/a.npz"],

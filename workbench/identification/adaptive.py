@@ -53,6 +53,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import OptionError, WorkbenchError
+from ..store import block_ranges
 
 __all__ = [
     "AdaptiveBlockOptions",
@@ -135,7 +136,7 @@ class AdaptiveBlockOptions:
         )
 
 
-def block_conditions(plan, options, *, dship=None) -> pd.DataFrame:
+def block_conditions(plan, options, *, dship=None, unreadable=None) -> pd.DataFrame:
     """Excitation (and speed) of every half-step of a planned voyage.
 
     Parameters
@@ -148,6 +149,10 @@ def block_conditions(plan, options, *, dship=None) -> pd.DataFrame:
         band-pass, channel check).
     dship : DataFrame, optional
         Canonical ship log (:func:`data_contracts.read_dship`); gives ``speed_kn``.
+    unreadable : dict, optional
+        Given: a file whose samples cannot be read leaves the half-steps that need it
+        unbuilt (NaN power: no block spans them) and is added here (path as given ->
+        :class:`~workbench.errors.UnreadableInputError`); without it, such a file raises.
 
     Returns
     -------
@@ -161,9 +166,10 @@ def block_conditions(plan, options, *, dship=None) -> pd.DataFrame:
 
     rows = []
     for block in iter_blocks(
-        [info.path for info in plan.files],
+        plan.files,  # the headers as planned: not read again
         grid=half_step_grid(plan.files[0].start_time, plan.grid.step_s),
         options=conditioning_options(options),
+        unreadable=unreadable,
     ):
         rows.append(
             {"start": block.block_start, "end": block.block_end, "power": half_step_power(block)}
@@ -411,7 +417,7 @@ def identify_adaptive(
         Summed over the lengths; ``files`` are the merged tables in *out_dir*.
     """
     from ..parallel import RunSummary
-    from .planning import acceleration_files, follow_on_starts, plan_identification
+    from .planning import _file_list, acceleration_files, follow_on_starts, plan_identification
     from .voyage import IdentifyResult, _ship_log, identify_voyage
 
     adaptive = adaptive or AdaptiveBlockOptions()
@@ -420,17 +426,30 @@ def identify_adaptive(
     files = acceleration_files(inputs)
     options = follow_on_starts(files, options)
     reference = dataclasses.replace(options, length_s=adaptive.step_s, step_s=adaptive.step_s)
-    plan, resolved = plan_identification(files, reference)
+    # files that cannot be read are left out: their headers fail here, their samples when
+    # the half-steps are conditioned (no block then spans them)
+    unreadable: dict[str, str] = {}
+    plan, resolved = plan_identification(files, reference, unreadable=unreadable)
     first = plan.files[0].start_time
     log = _ship_log(dship, dship_mapping)
-    conditions = block_conditions(plan, resolved, dship=log)
+    failed: dict = {}
+    conditions = block_conditions(plan, resolved, dship=log, unreadable=failed)
+    unreadable.update({name: error.detail for name, error in failed.items()})
     lengths = plan_block_lengths(conditions, first, adaptive, cases=_read_cases(cases))
     if lengths.empty:
-        raise WorkbenchError(
-            f"{plan.files[0].name}: no block of {adaptive.min_length_s / 60:g} min or more "
-            "could be built from the data"
+        names = list(unreadable)
+        damaged = (
+            f"{_file_list(names)}: unreadable ({unreadable[names[0]]}), left out; then "
+            if names
+            else ""
         )
+        raise WorkbenchError(
+            f"{damaged}{plan.files[0].name}: no block of {adaptive.min_length_s / 60:g} min "
+            "or more could be built from the data"
+        )
+    left_out = _unreadable_left_out(files, plan, unreadable, failed, lengths, adaptive)
     parts = []
+    groups = []
     for length, group in lengths.groupby("block_length_s", sort=True):
         label = f"{length / 60:g}min"
         grid_t0 = length_grid(first, length, adaptive.step_s).t0
@@ -443,16 +462,19 @@ def identify_adaptive(
             dship=log,
             dship_mapping=dship_mapping,
             grid_t0=grid_t0,
+            unreadable=unreadable,
+            warn_unreadable=False,
             **run,
         )
         parts.append(part)
+        groups.append(set(group["block"].tolist()))
     grid = {
         "t0": first,
         "length_s": adaptive.step_s,
         "step_s": adaptive.step_s,
         "varying_length": True,
     }
-    merged = _merge_tables([p.files for p in parts], out, lengths, grid)
+    merged = _merge_tables([p.files for p in parts], out, lengths, grid, groups, left_out)
     from .export import _write_csv
 
     merged["excitation"] = _write_csv(conditions, out / "excitation.csv")
@@ -465,7 +487,14 @@ def identify_adaptive(
         seconds=sum(p.run.seconds for p in parts),
     )
     result = IdentifyResult(summary, files=merged, n_blocks=sum(p.n_blocks for p in parts))
-    result.warnings = [n for p in parts for n in p.warnings]
+    result.warnings = list(dict.fromkeys(n for p in parts for n in p.warnings))
+    for name in dict.fromkeys(str(f) for f in files):
+        if name in unreadable:
+            blocks = left_out.loc[left_out["reason"].str.startswith(f"{name}: "), "block"]
+            result.warnings.append(
+                f"{name}: unreadable ({unreadable[name]}); left out"
+                + (f": block(s) {block_ranges(blocks)} not identified" if len(blocks) else "")
+            )
     result.notes = [n for p in parts for n in p.notes]
     counts = lengths["block_length_s"].value_counts().sort_index()
     result.notes.insert(
@@ -479,6 +508,50 @@ def identify_adaptive(
     return result
 
 
+def _unreadable_left_out(files, plan, unreadable, failed, lengths, adaptive) -> pd.DataFrame:
+    """The blocks left out of *lengths* because a file of *unreadable* lies in their
+    shortest span, as rows of ``blocks.csv`` (``block``, ``block_start`` of that span,
+    ``status`` skipped, ``reason`` naming the file).
+
+    A file whose samples fail (*failed*) spans what its header says; one whose header
+    fails lies in its place among the files
+    (:func:`~workbench.identification.voyage.unreadable_places`).
+    """
+    from .voyage import unreadable_places
+
+    spans = {
+        str(info.path): (info.start_time, info.end_time)
+        for info in plan.files
+        if str(info.path) in failed
+    }
+    spans.update(unreadable_places(files, plan, unreadable))
+    shortest = min(adaptive.lengths())
+    centre0 = plan.files[0].start_time + pd.Timedelta(seconds=adaptive.step_s / 2)
+    end = plan.files[-1].end_time + pd.Timedelta(seconds=0.5 / plan.sampling_rate_hz)
+    chosen = set(lengths["block"].tolist())
+    rows = []
+    k = 0
+    while spans:
+        centre = centre0 + pd.Timedelta(seconds=k * adaptive.step_s)
+        low = centre - pd.Timedelta(seconds=shortest / 2)
+        high = centre + pd.Timedelta(seconds=shortest / 2)
+        if high > end:
+            break
+        if k not in chosen:
+            name = next((n for n, (a, b) in spans.items() if low < b and high > a), None)
+            if name is not None:
+                rows.append(
+                    {
+                        "block": k,
+                        "block_start": low,
+                        "status": "skipped",
+                        "reason": f"{name}: unreadable ({unreadable[name]})",
+                    }
+                )
+        k += 1
+    return pd.DataFrame(rows, columns=["block", "block_start", "status", "reason"])
+
+
 def _summed(mappings) -> dict:
     total: dict = {}
     for mapping in mappings:
@@ -490,9 +563,20 @@ def _summed(mappings) -> dict:
 _ADAPTIVE_COLUMNS = ("block_length_s", "excitation_range_db", "speed_range_kn")
 
 
-def _merge_tables(parts: list[dict], out: Path, lengths: pd.DataFrame, grid: dict) -> dict:
+def _merge_tables(
+    parts: list[dict],
+    out: Path,
+    lengths: pd.DataFrame,
+    grid: dict,
+    groups: list[set] | None = None,
+    left_out: pd.DataFrame | None = None,
+) -> dict:
     """The tables of every length merged into *out* (rows in block order), with the
-    blocks' length and stationarity, recorded with the *grid* of varying length."""
+    blocks' length and stationarity, recorded with the *grid* of varying length.
+
+    *groups* (one per part): the blocks that chose that part's length now; a part's rows
+    of other blocks (stored by an earlier run that gave them that length) are left out.
+    *left_out*: rows added to ``blocks.csv`` (blocks no length was given, and why)."""
     from data_contracts import POLES, SELECTED
     from data_contracts.tables import write_grid_sidecar
 
@@ -502,15 +586,24 @@ def _merge_tables(parts: list[dict], out: Path, lengths: pd.DataFrame, grid: dic
     files: dict[str, Path] = {}
     kinds = sorted({kind for part in parts for kind in part})
     for kind in kinds:
-        paths = [part[kind] for part in parts if kind in part]
         if kind == "harmonics":
             continue
-        if paths[0].suffix == ".parquet":
-            frame = pd.concat([pd.read_parquet(p) for p in paths], ignore_index=True)
-        else:
-            frame = pd.concat(
-                [pd.read_csv(p) for p in paths if p.stat().st_size > 1], ignore_index=True
-            )
+        frames = []
+        for k, part in enumerate(parts):
+            path = part.get(kind)
+            if path is None or path.stat().st_size <= 1:
+                continue
+            frame = pd.read_parquet(path) if path.suffix == ".parquet" else pd.read_csv(path)
+            if groups is not None and "block" in frame.columns:
+                frame = frame[frame["block"].isin(groups[k])]
+            frames.append(frame)
+        if kind == "blocks" and left_out is not None and len(left_out):
+            rows = left_out.copy()
+            rows["block_start"] = rows["block_start"].dt.strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+            frames.append(rows)
+        if not frames:
+            continue
+        frame = pd.concat(frames, ignore_index=True)
         if "block" in frame.columns:
             frame = frame.sort_values(
                 [c for c in ("block", "model_order", "frequency_hz") if c in frame.columns],

@@ -81,7 +81,8 @@ def follow_on_starts(files: Sequence[Path], options: IdentifyOptions) -> Identif
     relative times continue (a second file starting at 300 s) keeps its offset from the
     start when that lies after the previous file's end. Files with absolute times of their
     own (ISO-8601 column, ``.npz``, a MATLAB ``t0``) keep them. Each file is read once
-    more for this (only when one start time is given for several files).
+    more for this (only when one start time is given for several files). A file that
+    cannot be read is passed over: the next follows the one before it, as without it.
     """
     from data_contracts import ContractError, read_accelerations
 
@@ -94,6 +95,7 @@ def follow_on_starts(files: Sequence[Path], options: IdentifyOptions) -> Identif
     own = {k: v for k, v in layout.items() if k != "start_time"}
     starts: dict[str, str] = {}
     previous_end = None
+    first_error = ""
     for path in files:
         try:
             record = read_accelerations(path, layout=own)
@@ -103,7 +105,8 @@ def follow_on_starts(files: Sequence[Path], options: IdentifyOptions) -> Identif
             try:
                 record = read_accelerations(path, layout=layout)
             except ContractError as error:
-                raise WorkbenchError(error.lines()[0]) from None
+                first_error = first_error or error.lines()[0]
+                continue  # unreadable: the planner leaves it out and names it
             first = record.start_time
             if previous_end is not None and first < previous_end:
                 first = previous_end  # restarted relative times: follow on
@@ -112,13 +115,57 @@ def follow_on_starts(files: Sequence[Path], options: IdentifyOptions) -> Identif
         else:
             record_end = record.end_time
         previous_end = record_end if previous_end is None else max(previous_end, record_end)
+    if previous_end is None and first_error:  # no file read: the layout, not one file
+        raise WorkbenchError(first_error)
     if not starts:
         return options
     layout["file_starts"] = starts
     return replace(options, acceleration_layout=layout)
 
 
-def plan_identification(files: Sequence[Path], options: IdentifyOptions, *, grid_t0=None):
+def _file_list(paths: Sequence[str]) -> str:
+    """``a.npz`` or ``3 files (a.npz .. c.npz)``."""
+    return paths[0] if len(paths) == 1 else f"{len(paths)} files ({paths[0]} .. {paths[-1]})"
+
+
+def readable_file_infos(
+    files: Sequence[Path], read_options, unreadable: dict[str, str] | None
+) -> list:
+    """Headers of *files* (:func:`~workbench.signals.block_plan.read_file_info`).
+
+    With *unreadable* (a dict), a file whose header cannot be read is left out and added
+    there (its path as given -> why, one line without the file's name); without it, such
+    a file raises. When no file can be read the error names them (exit 1).
+    """
+    from ..errors import UnreadableInputError
+    from ..signals.block_plan import read_file_info
+
+    if unreadable is None:
+        return [read_file_info(f, read_options=read_options) for f in files]
+    infos = []
+    for path in files:
+        try:
+            infos.append(read_file_info(path, read_options=read_options))
+        except (OSError, ValueError, KeyError, EOFError) as error:
+            if isinstance(error, OptionError):
+                raise
+            unreadable[str(path)] = UnreadableInputError.of(path, error).detail
+    if files and not infos:
+        names = list(unreadable)
+        raise WorkbenchError(
+            f"{_file_list(names)}: unreadable ({unreadable[names[0]]}); no acceleration "
+            "file can be read, nothing identified"
+        )
+    return infos
+
+
+def plan_identification(
+    files: Sequence[Path],
+    options: IdentifyOptions,
+    *,
+    grid_t0=None,
+    unreadable: dict[str, str] | None = None,
+):
     """The block plan of *files* and the options resolved for their sampling rate.
 
     The grid starts at the first sample (blocks lie inside the record from its start), or
@@ -127,23 +174,40 @@ def plan_identification(files: Sequence[Path], options: IdentifyOptions, *, grid
     ``options.short_record == "one-block"``: then a single continuous record shorter than
     a block is identified as one block of its own length.
 
+    *unreadable* (a dict) leaves out the files whose header cannot be read, adding them
+    there (path as given -> why): the plan is that of the other files, as if those were
+    not there (:func:`readable_file_infos`). Without it such a file is an error.
+
     Raises
     ------
     WorkbenchError
-        Inconsistent files; no complete block (exit 1).
+        Inconsistent files; no complete block (exit 1); no file readable.
     IdentifyOptionsError
         Options that do not fit the files (band, rate; exit 2).
     """
-    from ..signals import plan_blocks
+    try:
+        return _plan_identification(files, options, grid_t0=grid_t0, unreadable=unreadable)
+    except WorkbenchError as error:
+        left_out = list(unreadable or ())
+        if not left_out or str(error).startswith(_file_list(left_out)):
+            raise
+        # what is left without the unreadable files gives no block: name them first
+        raise WorkbenchError(
+            f"{_file_list(left_out)}: unreadable ({unreadable[left_out[0]]}), left out; "
+            f"then {error}"
+        ) from None
+
+
+def _plan_identification(files, options, *, grid_t0, unreadable):
     from ..signals.block_plan import lacking_channels, plan_file_infos
 
     try:
-        plan = plan_blocks(
-            files,
+        infos = readable_file_infos(files, options.read_options, unreadable)
+        plan = plan_file_infos(
+            infos,
             length_s=options.length_s,
             step_s=options.step_s,
             max_gap_s=options.max_gap_s,
-            read_options=options.read_options,
         )
         first = plan.files[0].start_time if grid_t0 is None else pd.Timestamp(grid_t0)
         if plan.grid.t0 != first:  # anchor the grid at the first sample, not a round time
@@ -253,8 +317,8 @@ def _fingerprint(info) -> dict:
 
 def _pick_tasks(inputs, options: IdentifyOptions, n_blocks: int, blocks):
     """Plan, resolved options and the tasks of *blocks*, or of *n_blocks* identifiable
-    blocks spread evenly."""
-    plan, options = plan_identification(acceleration_files(inputs), options)
+    blocks spread evenly (files that cannot be read left out, as identify leaves them)."""
+    plan, options = plan_identification(acceleration_files(inputs), options, unreadable={})
     planned = [p for p in plan.blocks if not p.skipped_reason]
     if blocks is None:
         picks = np.unique(np.linspace(0, len(planned) - 1, max(n_blocks, 1)).round().astype(int))

@@ -3,9 +3,10 @@ a :class:`~workbench.store.BlockStore`, then exported."""
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -15,7 +16,7 @@ import pandas as pd
 from data_contracts import POLES, read_table
 
 from ..errors import OptionError, WorkbenchError
-from ..parallel import RunSummary, run_blocks
+from ..parallel import RunSummary, UnreadableBlock, run_blocks
 from ..results import StageResult, write_frame
 from ..sid.harmonics import HarmonicOptions
 from ..store import BlockStore, block_ranges
@@ -141,7 +142,13 @@ def _check_run_options(scheduler, n_workers, batch_blocks) -> None:
 
 
 def _removed_inputs(
-    store: BlockStore, fingerprints: list[dict], grid, *, per_file: bool, keep: bool
+    store: BlockStore,
+    fingerprints: list[dict],
+    grid,
+    *,
+    per_file: bool,
+    keep: bool,
+    unreadable: Iterable[str] = (),
 ) -> list[str]:
     """Report the recorded input files no longer given and drop (or, with *keep*, keep)
     the stored blocks that depended on them; the notices, one line per file.
@@ -150,7 +157,10 @@ def _removed_inputs(
     (*per_file*), also on each file's neighbours (their edges pad the conditioning), so
     the blocks of the files next to a removed one are dropped too. Dropped blocks and the
     forgotten file make the store what a fresh run over the remaining files would make.
+    A file still given but left out as unreadable (*unreadable*, paths as given) is
+    treated alike without a notice: its warning names it.
     """
+    quiet = {str(Path(name).resolve()) for name in unreadable}
     removed = store.removed_inputs(fingerprints)
     if not removed:
         return []
@@ -166,6 +176,8 @@ def _removed_inputs(
         blocks = [b for b in stored if grid.start(b) < high and grid.end(b) > low]
         what = f"{entry['path']}: input no longer given (recorded in the store {store.root})"
         if keep:
+            if entry["path"] in quiet:
+                continue
             notices.append(
                 f"{what}: block(s) {block_ranges(blocks) or 'none'} computed from it are kept "
                 "(--keep-removed-inputs)"
@@ -174,11 +186,199 @@ def _removed_inputs(
         dropped = store.drop_blocks(blocks)
         store.forget_inputs([entry])
         stored = [b for b in stored if b not in dropped]
+        if entry["path"] in quiet:
+            continue
         notices.append(
             f"{what}: block(s) {block_ranges(dropped) or 'none'} computed from it are dropped "
             "(--keep-removed-inputs keeps them)"
         )
     return notices
+
+
+def unreadable_places(files, plan, unreadable: Mapping[str, str]) -> dict[str, tuple]:
+    """Where each file of *unreadable* (path as given -> why) left out of *plan* lies:
+    path -> ``(low, high)``, the end of the readable file before it and the start of the
+    one after it (UTC).
+
+    Such a file's span is not known (its header may be what fails): it is taken to lie in
+    its place among *files* (in the order found, by name within a folder), between the
+    readable files before and after it, when those leave a gap where it belongs and no
+    readable file lies in that gap. A file at either end of the data, or whose place is
+    not known that way, is not listed.
+    """
+    infos = {str(info.path): info for info in plan.files}
+    half = pd.Timedelta(seconds=0.5 / plan.sampling_rate_hz)
+    order = [str(f) for f in files]
+    places = {}
+    for k, name in enumerate(order):
+        if name not in unreadable:
+            continue
+        before = next((infos[n] for n in reversed(order[:k]) if n in infos), None)
+        after = next((infos[n] for n in order[k + 1 :] if n in infos), None)
+        if before is None or after is None or after.start_time - before.end_time <= half:
+            continue
+        if any(before.end_time <= i.start_time < after.start_time for i in plan.files):
+            continue  # a readable file lies in the gap: the file's place is not known
+        places[name] = (before.end_time, after.start_time)
+    return places
+
+
+def _unreadable_blocks(files, plan, unreadable: Mapping[str, str]) -> dict[int, UnreadableBlock]:
+    """The planned blocks that need a file of *unreadable* left out of *plan* (the blocks
+    the plan skips over its place, :func:`unreadable_places`), as tasks recorded skipped
+    with that file as the reason."""
+    half = pd.Timedelta(seconds=0.5 / plan.sampling_rate_hz)
+    out: dict[int, UnreadableBlock] = {}
+    for name, (low, high) in unreadable_places(files, plan, unreadable).items():
+        reason = f"{name}: unreadable ({unreadable[name]})"
+        path = str(Path(name).resolve())
+        for planned in plan.blocks:
+            if not planned.skipped_reason or planned.block_end - half <= low:
+                continue
+            if planned.block_start + half >= high:
+                continue
+            task = out.get(planned.block)
+            out[planned.block] = (
+                UnreadableBlock(planned.block, planned.block_start, reason, (path,))
+                if task is None
+                else dataclasses.replace(task, paths=(*task.paths, path))
+            )
+    return out
+
+
+def _retry_unreadable(
+    store: BlockStore, plan, fingerprints: list[dict], per_file: bool, unreadable: Iterable[str]
+):
+    """Take out of the store the blocks of input files an earlier run could not read and
+    that have changed since (repaired, replaced or gone), so they are computed again, and
+    record the files this run leaves out (*unreadable*, paths as given); the notices, one
+    line per file readable again.
+
+    The files of earlier runs are those the store's skipped blocks name and those it
+    listed as left out (:meth:`~workbench.store.BlockStore.unreadable_files`). A file
+    readable now takes with it the blocks its samples feed (with *per_file* conditioning
+    also those of its neighbours, whose filters its edges pad, left unpadded before), and
+    its recorded fingerprint (of the damaged content) is forgotten, so the repaired file
+    is not refused as a changed input. A file unchanged since (its content recorded)
+    keeps its blocks skipped.
+    """
+    recorded = {
+        **{path: {"blocks": set(), "reason": ""} for path in store.unreadable_files()},
+        **store.unreadable_inputs(),
+    }
+    store.set_unreadable_files(str(Path(name).resolve()) for name in unreadable)
+    if not recorded:
+        return []
+    inputs = store.recorded_inputs()
+    known = {r["sha256"] for r in inputs}
+    given = {f["path"]: f for f in fingerprints}
+    position = {str(Path(info.path).resolve()): k for k, info in enumerate(plan.files)}
+    shown = {str(Path(info.path).resolve()): info.path for info in plan.files}
+    stored = store.completed_blocks()
+    drop: set[int] = set()
+    forget: list[dict] = []
+    notices = []
+    for path, entry in sorted(recorded.items()):
+        now = given.get(path)
+        if now is not None and now["sha256"] in known:
+            continue  # the same content: still unreadable, its blocks stay skipped
+        blocks = set(entry["blocks"])
+        if now is not None:
+            forget += [r for r in inputs if r["path"] == path]
+            k, files = position[path], plan.files
+            low = files[max(k - 1, 0) if per_file else k].start_time
+            high = files[min(k + 1, len(files) - 1) if per_file else k].end_time
+            blocks |= {b for b in stored if plan.grid.start(b) < high and plan.grid.end(b) > low}
+            again = block_ranges(blocks & stored)
+            notices.append(
+                f"{shown[path]}: unreadable in an earlier run and changed since: read now"
+                + (f", block(s) {again} stored near it computed again" if again else "")
+            )
+        drop |= blocks
+    if forget:
+        store.forget_inputs(forget)
+    if drop:
+        store.drop_blocks(drop)
+    return notices
+
+
+def _plan_without(plan, paths: set[str]):
+    """*plan* (same grid and channels) without the files of *paths* (resolved)."""
+    from ..signals.block_plan import plan_file_infos
+
+    rest = [info for info in plan.files if str(Path(info.path).resolve()) not in paths]
+    return plan_file_infos(rest, plan.grid, max_gap_s=plan.max_gap_s, channels=plan.channels)
+
+
+def _detail(entry: dict, name: str) -> str:
+    """Why a file stored blocks name is unreadable: their reason without ``"<name>:
+    unreadable (...)"`` around it."""
+    return entry["reason"].removeprefix(f"{name}: unreadable (").removesuffix(")")
+
+
+def _without_unread_edges(store: BlockStore, plan, known, unreadable: dict, run, summary):
+    """With files conditioned once each, the blocks next to a file whose samples this run
+    found unreadable again, without it; the run's summary over both passes.
+
+    A file's conditioning is padded with its neighbours' edges, read in place without the
+    checksum of the whole file (that would read every neighbour twice), so a file whose
+    checksum fails lent its edges to the blocks beside it before its own blocks found it
+    bad. Those blocks are taken out of the store and identified again from the plan
+    without the file (added to *unreadable*), as a run without it identifies them.
+    *known*: the files the store named as unreadable before this run.
+    """
+    index = {str(Path(info.path).resolve()): k for k, info in enumerate(plan.files)}
+    found = {p: e for p, e in store.unreadable_inputs().items() if p not in known and p in index}
+    if not found or len(found) == len(plan.files):
+        return summary
+    from collections import Counter
+
+    files = plan.files
+    stored = store.completed_blocks()
+    again: set[int] = set()
+    for path, entry in found.items():
+        k = index[path]
+        name = str(files[k].path)
+        unreadable[name] = _detail(entry, name)
+        low = files[max(k - 1, 0)].start_time
+        high = files[min(k + 1, len(files) - 1)].end_time
+        near = {b for b in stored if plan.grid.start(b) < high and plan.grid.end(b) > low}
+        again |= near - set(entry["blocks"])
+    table = store.read("blocks")
+    redone = table[table["block"].astype(int).isin(again)]
+    store.drop_blocks(again)
+    second, _ = run(_plan_without(plan, set(found)))
+    ok = int((redone["status"] == "ok").sum())
+    reasons = Counter(summary.skip_reasons)
+    reasons.subtract(Counter(redone.loc[redone["status"] != "ok", "reason"].astype(str)))
+    reasons.update(second.skip_reasons)
+    return RunSummary(
+        processed=max(summary.processed - ok, 0) + second.processed,
+        skipped=max(summary.skipped - (len(redone) - ok), 0) + second.skipped,
+        already_done=summary.already_done,
+        skip_reasons={reason: n for reason, n in reasons.items() if n > 0},
+        notes=dict(Counter(summary.notes) + Counter(second.notes)),
+        seconds=summary.seconds + second.seconds,
+    )
+
+
+def _unreadable_warnings(store: BlockStore, files, unreadable: dict[str, str]) -> list[str]:
+    """One line per input file that cannot be read, naming it and the blocks not
+    identified for it (those found now and those an earlier run stored)."""
+    stored = store.unreadable_inputs()
+    lines = []
+    for name in dict.fromkeys(str(f) for f in files):
+        entry = stored.get(str(Path(name).resolve()))
+        if entry is None and name not in unreadable:
+            continue
+        reason = f"{name}: unreadable ({unreadable[name]})" if name in unreadable else None
+        reason = reason or entry["reason"]
+        blocks = entry["blocks"] if entry is not None else set()
+        lines.append(
+            f"{reason}; left out"
+            + (f": block(s) {block_ranges(blocks)} not identified" if blocks else "")
+        )
+    return lines
 
 
 def _ship_log(dship, mapping) -> pd.DataFrame | None:
@@ -208,8 +408,17 @@ def identify_voyage(
     dship_mapping: dict[str, str] | None = None,
     harmonics: HarmonicOptions | None = None,
     grid_t0=None,
+    unreadable: Mapping[str, str] | None = None,
+    warn_unreadable: bool = True,
 ) -> IdentifyResult:
     """Identify every block of a voyage's acceleration files; resumable and parallel.
+
+    An input file that cannot be read (cut short, a bad checksum) is left out: the blocks
+    that need it are skipped with ``"<path>: unreadable (<why>)"`` as the reason
+    (``blocks.csv``) and every other block is what a run without the file gives. Each such
+    file is one line of :attr:`IdentifyResult.warnings`. The store keeps those blocks as
+    skipped only while the file stays as it is: once it changes (repaired), its blocks
+    are computed again.
 
     Parameters
     ----------
@@ -248,6 +457,18 @@ def identify_voyage(
     grid_t0 : time-like, optional
         Start of block 0 (default: the first sample; the shifted grids of
         :func:`~workbench.identification.adaptive.identify_adaptive`).
+    unreadable : mapping, optional
+        Input files (paths as given -> why) known to be unreadable: left out as those
+        whose header cannot be read are (the adaptive run finds those whose samples fail).
+    warn_unreadable : bool
+        Name each unreadable input file in :attr:`IdentifyResult.warnings` (the adaptive
+        run, which calls this once per block length, names them once itself).
+
+    Raises
+    ------
+    WorkbenchError
+        No input file can be read, or those that can give no block (naming the
+        unreadable ones); inconsistent files; a store made with other options.
     """
     from ..sid.harmonics import HarmonicMarker
 
@@ -261,7 +482,14 @@ def identify_voyage(
             raise WorkbenchError(f"{path}: {what} is a file, not a folder")
     files = acceleration_files(inputs)
     options = follow_on_starts(files, options)
-    plan, options = plan_identification(files, options, grid_t0=grid_t0)
+    # files whose header cannot be read (and those known unreadable): left out
+    unreadable = {str(f): why for f, why in (unreadable or {}).items()}
+    plan, options = plan_identification(
+        [f for f in files if str(f) not in unreadable],
+        options,
+        grid_t0=grid_t0,
+        unreadable=unreadable,
+    )
     options.check_data(plan)
     grid = plan.grid
     channels = tuple(plan.channels)
@@ -270,35 +498,66 @@ def identify_voyage(
     with BlockStore.open(store_path, parameters) as store:
         notices = list(store.notices)
         fingerprints = input_fingerprints(plan.files)
+        # before the check: a repaired file is not another voyage's data
+        notices += _retry_unreadable(store, plan, fingerprints, per_file, unreadable)
         store.check_inputs(fingerprints)
         notices += _removed_inputs(
-            store, fingerprints, grid, per_file=per_file, keep=keep_removed_inputs
+            store,
+            fingerprints,
+            grid,
+            per_file=per_file,
+            keep=keep_removed_inputs,
+            unreadable=unreadable,
         )
         wanted = None if blocks is None else {int(b) for b in blocks}
-        tasks = _block_tasks(
-            plan, [p for p in plan.blocks if wanted is None or int(p.block) in wanted]
-        )
-        if per_file:
-            # each file conditioned once, on any worker, for the blocks holding it
-            units = _file_tasks(tasks, plan, options)
-            func = functools.partial(
-                identify_from_files, grid=grid, channels=channels, options=options
+
+        def run(plan_now):
+            tasks = _block_tasks(
+                plan_now, [p for p in plan_now.blocks if wanted is None or int(p.block) in wanted]
             )
-        else:
-            units = tasks
-            func = functools.partial(identify_block, grid=grid, channels=channels, options=options)
-        summary = run_blocks(
-            units,
-            func,
-            store=store,
-            scheduler=scheduler,
-            n_workers=n_workers,
-            total=len(tasks),
-            batch_blocks=batch_blocks,
-            progress=progress,
-            description="identify",
-        )
-        result = IdentifyResult(summary, n_blocks=len(tasks), warnings=notices)
+            if per_file:
+                # each file conditioned once, on any worker, for the blocks holding it
+                units = _file_tasks(tasks, plan_now, options)
+                func = functools.partial(
+                    identify_from_files, grid=grid, channels=channels, options=options
+                )
+            else:
+                units = tasks
+                func = functools.partial(
+                    identify_block, grid=grid, channels=channels, options=options
+                )
+            unreadable_blocks = _unreadable_blocks(files, plan_now, unreadable)
+            if unreadable_blocks:
+                units = [unreadable_blocks.get(int(unit.block), unit) for unit in units]
+            summary = run_blocks(
+                units,
+                func,
+                store=store,
+                scheduler=scheduler,
+                n_workers=n_workers,
+                total=len(tasks),
+                batch_blocks=batch_blocks,
+                progress=progress,
+                description="identify",
+            )
+            return summary, len(tasks)
+
+        known = store.unreadable_inputs()
+        plan_run = plan
+        if per_file:
+            # files whose samples an earlier run found unreadable (unchanged since): their
+            # edges pad no neighbour now either (they stay fingerprinted, in *plan*)
+            shown = {str(Path(info.path).resolve()): str(info.path) for info in plan.files}
+            damaged = {path: shown[path] for path in known if path in shown}
+            if damaged and len(damaged) < len(plan.files):
+                unreadable.update({name: _detail(known[p], name) for p, name in damaged.items()})
+                plan_run = _plan_without(plan, set(damaged))
+        summary, n_tasks = run(plan_run)
+        if per_file:
+            summary = _without_unread_edges(store, plan, set(known), unreadable, run, summary)
+        if warn_unreadable:
+            notices += _unreadable_warnings(store, files, unreadable)
+        result = IdentifyResult(summary, n_blocks=n_tasks, warnings=notices)
         result.files = export_store(store, out, channels, grid=grid, harmonics=marker)
         result.notes = marker.lines()
     selected = result.files.get("selected")

@@ -35,6 +35,7 @@ import pandas as pd
 from data_contracts import AccelerationRecord, read_accelerations
 
 from ..blocks import BlockGrid
+from ..errors import UnreadableInputError
 from .block_plan import (
     BlockPlan,
     FileInfo,
@@ -161,7 +162,19 @@ class ConditioningOptions:
 
 
 def _load(info: FileInfo, channels: tuple[str, ...], read_options: Mapping) -> AccelerationRecord:
-    record = read_accelerations(info.path, **dict(read_options))
+    """The samples of the planned file *info*, channels in *channels* order.
+
+    Raises
+    ------
+    UnreadableInputError
+        The file's samples cannot be read (cut short, a bad checksum, ...).
+    ValueError
+        The file is no longer what was planned.
+    """
+    try:
+        record = read_accelerations(info.path, **dict(read_options))
+    except (OSError, ValueError) as error:
+        raise UnreadableInputError.of(info.path, error) from None
     if record.sampling_rate_hz != info.sampling_rate_hz or record.n_samples != info.n_samples:
         raise ValueError(f"{info.path}: file changed since it was planned")
     if record.channels != channels:
@@ -289,13 +302,15 @@ def iter_blocks(
     step_s: float | None = None,
     blocks: Iterable[int] | None = None,
     options: ConditioningOptions | None = None,
+    unreadable: dict[str, UnreadableInputError] | None = None,
 ) -> Iterator[AccelerationBlock]:
     """Stream conditioned blocks of accelerations from consecutive files.
 
     Parameters
     ----------
-    files : iterable of path-like
-        Acceleration files (any order, any format ``read_accelerations`` reads).
+    files : iterable of path-like or FileInfo
+        Acceleration files (any order, any format ``read_accelerations`` reads), or their
+        headers as planned (:class:`~workbench.signals.block_plan.FileInfo`: not read again).
     grid : BlockGrid, optional
         Block grid; default: anchored at the first file's start floored to the step, with
         *length_s* / *step_s* (default 1200 s / 300 s).
@@ -308,6 +323,11 @@ def iter_blocks(
     options : ConditioningOptions, optional
         Decimation, band-pass, detrend, channel check, gaps and file layout; default
         ``ConditioningOptions()``.
+    unreadable : dict, optional
+        Given: a file whose samples cannot be read does not end the stream; the blocks
+        needing it are yielded skipped (its error as the reason) and the file is added here
+        (its path as given -> the :class:`~workbench.errors.UnreadableInputError`).
+        Without it such a file raises that error.
 
     Yields
     ------
@@ -337,11 +357,14 @@ def iter_blocks(
         read_options=options.read_options,
     )
     options.check_rate(plan.sampling_rate_hz)
-    return _stream(plan, options, blocks)
+    return _stream(plan, options, blocks, unreadable)
 
 
 def _stream(
-    plan: BlockPlan, options: ConditioningOptions, blocks: Iterable[int] | None
+    plan: BlockPlan,
+    options: ConditioningOptions,
+    blocks: Iterable[int] | None,
+    unreadable: dict[str, UnreadableInputError] | None = None,
 ) -> Iterator[AccelerationBlock]:
     index = {info.path: i for i, info in enumerate(plan.files)}
     by_number = {b.block: b for b in plan.blocks}
@@ -366,9 +389,23 @@ def _stream(
         if cache and cache[-1][0] > needed[-1]:  # cannot happen for ascending blocks
             cache.clear()
         loaded = {i for i, _ in cache}
+        failed = None
         for i in needed:
+            path = str(plan.files[i].path)
+            if unreadable is not None and path in unreadable:
+                failed = unreadable[path]
+                break
             if i not in loaded:
-                cache.append((i, _load(plan.files[i], plan.channels, options.read_options)))
+                try:
+                    cache.append((i, _load(plan.files[i], plan.channels, options.read_options)))
+                except UnreadableInputError as error:
+                    if unreadable is None:
+                        raise
+                    unreadable[path] = failed = error
+                    break
+        if failed is not None:
+            yield _skipped(planned, rate, str(failed))
+            continue
         records = [r for i, r in cache if needed[0] <= i <= needed[-1]]
         yield _build(plan, planned, records, options)
         del records

@@ -397,9 +397,9 @@ def plan_blocks(
 
     Parameters
     ----------
-    files : iterable of path-like
+    files : iterable of path-like or FileInfo
         Acceleration files in any order (any format :func:`data_contracts.read_accelerations`
-        reads); they are sorted by start time.
+        reads), or their headers already read; they are sorted by start time.
     grid : BlockGrid, optional
         Block grid; default: anchored at the first file's start floored to the step.
     length_s, step_s : float, optional
@@ -421,5 +421,8 @@ def plan_blocks(
         No files; files differing in sampling rate or lacking more than half of the
         channels (:func:`reference_channels`); overlapping files. The message names the file.
     """
-    infos = [read_file_info(f, read_options=read_options) for f in files]
+    infos = [
+        f if isinstance(f, FileInfo) else read_file_info(f, read_options=read_options)
+        for f in files
+    ]
     return plan_file_infos(infos, grid, length_s=length_s, step_s=step_s, max_gap_s=max_gap_s)

@@ -71,6 +71,7 @@ import pandas as pd
 from data_contracts import read_accelerations
 
 from ..blocks import BlockGrid
+from ..errors import UnreadableInputError
 from .block_builder import (
     AccelerationBlock,
     ConditioningOptions,
@@ -202,10 +203,13 @@ class FileConditioner:
     # -- conditioning of one file -----------------------------------------------------------
     def _raw_file(self, index: int) -> np.ndarray:
         info = self.files[index]
-        if info.path.suffix.lower() == ".npz":
-            record = read_accelerations(info.path, **self.read_options)
-        else:  # parsed whole: the neighbours' conditioning reads it again
-            record = _read_whole(info.path, self.read_options)
+        try:
+            if info.path.suffix.lower() == ".npz":
+                record = read_accelerations(info.path, **self.read_options)
+            else:  # parsed whole: the neighbours' conditioning reads it again
+                record = _read_whole(info.path, self.read_options)
+        except (OSError, ValueError) as error:
+            raise UnreadableInputError.of(info.path, error) from None
         if record.sampling_rate_hz != info.sampling_rate_hz or record.n_samples != info.n_samples:
             raise ValueError(f"{info.path}: file changed since it was planned")
         return align_channels(record.acceleration, record.channels, self.channels)

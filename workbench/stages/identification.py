@@ -74,9 +74,10 @@ def identify(
     Raises
     ------
     WorkbenchError
-        When no block was identified and none was already in the store (every block
-        skipped, e.g. every block's fit failing), naming the reasons; the run's
-        ``blocks.csv`` lists each block and why.
+        When no block was identified, now or by an earlier run into the store (every
+        block skipped, e.g. every block's fit failing or every block needing a file that
+        cannot be read), naming the reasons; the run's ``blocks.csv`` lists each block
+        and why.
     """
     if isinstance(inputs, str | os.PathLike):
         inputs = [inputs]
@@ -107,12 +108,18 @@ def identify(
             raise ValueError("cases are used by the adaptive block length only (adaptive=)")
         result = identify_voyage(list(inputs), out_dir, options=options, **run_options)
     summary = result.run
-    if summary.processed == 0 and summary.already_done == 0:
-        # never a silent success with nothing done: say why no block was identified
-        reasons = sorted(summary.skip_reasons.items(), key=lambda item: -item[1])
+    if summary.processed == 0 and (summary.already_done == 0 or "poles" not in result.files):
+        # never a silent success with nothing done: say why no block was identified (a
+        # rerun over blocks an earlier run skipped gives the reasons it stored)
+        skip_reasons = summary.skip_reasons
+        if not skip_reasons and "blocks" in result.files:
+            blocks = pd.read_csv(result.files["blocks"], usecols=["reason"], dtype=str)
+            skip_reasons = blocks["reason"].dropna().value_counts().to_dict()
+        reasons = sorted(skip_reasons.items(), key=lambda item: -item[1])
         why = "; ".join(f"{reason} ({n})" for reason, n in reasons[:3]) or "no block planned"
         more = f"; {len(reasons) - 3} more reasons in blocks.csv" if len(reasons) > 3 else ""
         raise WorkbenchError(
-            f"no block identified: all {summary.skipped} block(s) skipped: {why}{more}"
+            f"no block identified: all {summary.skipped + summary.already_done} block(s) "
+            f"skipped: {why}{more}"
         )
     return result
