@@ -217,20 +217,22 @@ def test_ssi_now_finds_both_modes_of_a_1_percent_pair(seed):
 
 
 def test_lscf_alone_leaves_out_its_second_pole_beside_a_strong_mode():
-    """Close 1 % MAC 0.2, seed 86, LSCF alone: its second look adds a column at 5.953 Hz,
-    1.0 % above the 5.894-Hz mode (7 orders, the mode's shape); the halves of the block
-    show the 5.9-Hz mode, which confirms itself, not the column (before, LSCF was not
-    judged by halves and the column stayed: one of its 11 spurious modes on seeds
-    60-119). The six true modes stay within 0.4 %."""
+    """Close 1 % MAC 0.2, seed 86, LSCF alone: the diagram holds a column at 5.953 Hz,
+    1.0 % above the 5.894-Hz mode, at the upper orders, with the mode's shape (MAC 0.974).
+    Before, the second look added it and only the halves left it out (their 5.9-Hz mode
+    confirms itself, not the column); now the second look does not add it (its shape lies
+    within 3 x its scatter over the orders of the mode's: no shape of its own), so neither
+    selection holds it. The six true modes stay within 0.4 %."""
     from workbench.identification.engine import _identify_method
     from workbench.identification.options import IdentifyOptions
 
     data, truth = _close_pair_block(0.2, 86)
     options = IdentifyOptions()
-    _, unconfirmed = _identify_method("lscf", data, None, options, confirm=False)
+    result, unconfirmed = _identify_method("lscf", data, None, options, confirm=False)
     _, selection = _identify_method("lscf", data, None, options)
-    assert np.any(np.abs(unconfirmed.modes["frequency_hz"] - 5.953) < 0.005)
-    assert selection.thresholds["second_look_unconfirmed"] == 1
-    found = np.sort(selection.modes["frequency_hz"].to_numpy())
-    assert found.size == truth.size
-    np.testing.assert_allclose(found, truth, rtol=4e-3)
+    column = np.abs(result.poles["frequency_hz"] - 5.953) < 0.01
+    assert result.poles.loc[column, "model_order"].nunique() >= 5
+    for chosen in (unconfirmed, selection):
+        found = np.sort(chosen.modes["frequency_hz"].to_numpy())
+        assert found.size == truth.size
+        np.testing.assert_allclose(found, truth, rtol=4e-3)

@@ -292,8 +292,12 @@ def _confirmed_by_halves(method: str, data, reference, options: IdentifyOptions,
     and LSCF alike: on the simulated close and weak modes of
     ``benchmarks/bench_close_weak.py`` (seeds 0-179) SSI keeps 0 spurious modes and LSCF
     alone goes from 10 / 27 / 38 spurious modes (seeds 0-59 / 60-119 / 120-179) to 1 / 2 /
-    4 (``benchmarks/results/identification_32e.txt``). Only blocks whose second look added a
-    mode pay for the two half-length identifications. A half that cannot be identified
+    4 (``benchmarks/results/identification_32e.txt``). The halves cannot judge a column
+    the estimator puts into every record of the block's length (pLSCF's second pole of a
+    strong resonance): the second look leaves those out by their shape
+    (:func:`~workbench.sid.selection._shape_of_its_own`), 0 / 1 / 2 left, each a close
+    pair's lower mode read 0.40-0.46 % low (``identification_32f.txt``). Only blocks whose
+    second look added a mode pay for the two half-length identifications. A half that cannot be identified
     (too short for the block rows) confirms nothing; with neither half the selection
     stands.
     """
