@@ -289,17 +289,14 @@ def _confirmed_by_halves(method: str, data, reference, options: IdentifyOptions,
     (:func:`~workbench.sid.selection.confirmed_second_look`: a mode of a half nearer to it
     than to any other mode of the block, within 1 % - or half the distance to its nearest
     neighbour, at most 3 %, for a mode that moves inside the block - and MAC >= 0.8). SSI
-    and LSCF alike: on the simulated close and weak modes of
-    ``benchmarks/bench_close_weak.py`` (seeds 0-179) SSI keeps 0 spurious modes and LSCF
-    alone goes from 10 / 27 / 38 spurious modes (seeds 0-59 / 60-119 / 120-179) to 1 / 2 /
-    4 (``benchmarks/results/identification_32e.txt``). The halves cannot judge a column
-    the estimator puts into every record of the block's length (pLSCF's second pole of a
-    strong resonance): the second look leaves those out by their shape
-    (:func:`~workbench.sid.selection._shape_of_its_own`), 0 / 1 / 2 left, each a close
-    pair's lower mode read 0.40-0.46 % low (``identification_32f.txt``). Only blocks whose
-    second look added a mode pay for the two half-length identifications. A half that cannot be identified
-    (too short for the block rows) confirms nothing; with neither half the selection
-    stands.
+    and LSCF alike (the spurious modes before and after, on the simulated close and weak
+    modes of ``benchmarks/bench_close_weak.py``: ``benchmarks/results/identification_32e.txt``).
+    The halves cannot judge a column the estimator puts into every record of the block's
+    length (pLSCF's second pole of a strong resonance): the second look leaves those out by
+    their shape (:func:`~workbench.sid.selection._shape_of_its_own`;
+    ``identification_32f.txt``). Only blocks whose second look added a mode pay for the two
+    half-length identifications. A half that cannot be identified (too short for the block
+    rows) confirms nothing; with neither half the selection stands.
     """
     from types import SimpleNamespace
 

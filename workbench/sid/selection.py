@@ -823,10 +823,10 @@ def _shape_of_its_own(members, head, other, other_head, shape) -> bool:
     neighbour itself, estimated again: an over-fitted model (pLSCF at its upper orders)
     puts several poles with a strong mode's shape into that mode's resonance, and the
     second look can string one of them into a column (a numerical splitting of one mode).
-    On ``benchmarks/bench_close_weak.py`` (seeds 0-179, SSI and LSCF) the spurious
-    second-look columns lie a median 1.35 times their scatter from their neighbour's
-    shape (95 % below 2.5), the second-look modes of close pairs 3.16 times and more
-    (the MAC 0.9 pairs 1 % apart: 3.16-4.6) (``benchmarks/results/identification_32f.txt``).
+    How far the spurious second-look columns and the close pairs' true second modes lie
+    from their neighbours' shapes, in units of that scatter, on the close and weak cases of
+    ``benchmarks/bench_close_weak.py``: ``benchmarks/results/identification_32f.txt`` (the
+    closest true pairs, 1 % apart with MAC 0.9, lie just beyond the limit).
     """
     scatter = max(
         float(np.median(_shape_angle(shape[:, members], shape[:, head]))),
