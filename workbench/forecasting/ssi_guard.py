@@ -49,10 +49,10 @@ filter there: the split of the residuals into a model error and the overlap's co
 identification error is ill-determined (:mod:`~workbench.forecasting.innovation_consistency`),
 and a blend that books part of one as the other lies farther than R from SSI while still
 nearer the truth. On the overlapping block-level suite the test fired in regimes the model
-explains and cost option A 0-11 points (the results file), so it is off there
-(``guard_weight`` NaN). A test that needs no halves, the blend against SSI by how well
-each predicts the block L on, was too weak where it was needed (the mode moves by more in
-L blocks than either estimate errs; ``benchmarks/results/ice_voyage_blend_41.txt``).
+explains and cost option A points of median (``ice_voyage_blend_40.txt``), so it is off
+there (``guard_weight`` NaN). A test that needs no halves, the blend against SSI by how
+well each predicts the block L on, was too weak where it was needed (the mode moves by
+more in L blocks than either estimate errs; ``benchmarks/results/ice_voyage_blend_41.txt``).
 
 A mode moving inside the block adds its move to f₁ - f₂, so R̄ errs on the large side and
 the guard on the side of leaving the blend alone. Blocks without both halves (LSCF, a half
