@@ -6,7 +6,9 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
+import os
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 from data_contracts import ContractError
@@ -50,6 +52,43 @@ def _check_share(name: str, value: float, *, low_open: bool = False) -> None:
     if not ok:
         interval = "(0, 1]" if low_open else "[0, 1]"
         raise UsageError(f"--{name} must be in {interval}, got {value:g}")
+
+
+#: Arguments that name a file the command writes; every other file argument is read.
+OUTPUT_ARGUMENTS = ("out", "save_model")
+
+
+def check_outputs_are_not_inputs(
+    args: argparse.Namespace, actions: Sequence[argparse.Action] = ()
+) -> None:
+    """Usage error when a file the command writes is a file it reads (``--out`` naming the
+    ``--modal`` table, by the same or another path): the output would replace the input.
+
+    *actions* are the command's parser actions, for the flags' names in the message.
+    """
+    labels = {
+        action.dest: action.option_strings[-1] if action.option_strings else action.metavar
+        for action in actions
+    }
+    for output in OUTPUT_ARGUMENTS:
+        target = getattr(args, output, None)
+        if target is None or not Path(target).is_file():
+            continue  # a new file (or a folder) replaces no input
+        for dest, value in vars(args).items():
+            if dest in OUTPUT_ARGUMENTS:
+                continue
+            for item in value if isinstance(value, list | tuple) else (value,):
+                if (
+                    isinstance(item, str | os.PathLike)
+                    and Path(item).is_file()
+                    and os.path.samefile(item, target)
+                ):
+                    flag = labels.get(output) or f"--{output.replace('_', '-')}"
+                    given = labels.get(dest) or dest
+                    raise UsageError(
+                        f"{flag} {target} is also the input {given}: writing it would "
+                        "replace that input; choose another file"
+                    )
 
 
 @contextlib.contextmanager

@@ -1,0 +1,132 @@
+"""Inputs a ship's data system produces, and slips of the hand, that ended in lost data, a
+success that did nothing or a wrong message (audit of every command, session 41).
+
+* An output named like one of the command's inputs (``forecast --out`` the ``--modal``
+  table, ``report --out`` the run's tracked table): refused before anything is written,
+  the input kept.
+
+Inputs are small (a 4-h simulated table set without accelerations), so the file runs in
+seconds.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from workbench.cli import main
+
+
+@pytest.fixture(scope="module")
+def root(tmp_path_factory) -> Path:
+    """A 4-h simulated voyage (tables only), its forecast and a `selected` table."""
+    from workbench.simulate import simulate_voyage
+
+    base = tmp_path_factory.mktemp("audit")
+    sim = base / "sim"
+    simulate_voyage(sim, seed=0, hours=4, accelerations=False)
+    modal = pd.read_csv(sim / "tracked_modal.csv")
+    modal.drop(columns=["mode", "mac"]).to_csv(base / "selected.csv", index=False)
+    argv = ["forecast", "--modal", str(sim / "tracked_modal.csv"), "--predictors"]
+    assert main([*argv, str(sim / "truth_predictors.csv"), "--out", str(base / "fc.csv")]) == 0
+    return base
+
+
+def _run(capsys, argv) -> tuple[int, str, str]:
+    status = main([str(part) for part in argv])
+    out, err = capsys.readouterr()
+    assert "Traceback" not in err
+    return status, out, err
+
+
+def _one_error_line(err: str) -> str:
+    lines = [line for line in err.splitlines() if not line.startswith("warning:")]
+    assert len(lines) == 1, err
+    return lines[0]
+
+
+# ----------------------------------------------------------------- output equal to an input
+def _copies(root: Path, tmp_path: Path) -> dict[str, Path]:
+    names = {
+        "modal": root / "sim" / "tracked_modal.csv",
+        "predictors": root / "sim" / "truth_predictors.csv",
+        "truth": root / "sim" / "truth_modal.csv",
+        "selected": root / "selected.csv",
+        "forecast": root / "fc.csv",
+    }
+    copies = {}
+    for key, source in names.items():
+        copies[key] = tmp_path / source.name
+        shutil.copyfile(source, copies[key])
+    return copies
+
+
+@pytest.mark.parametrize(
+    ("command", "output", "flag"),
+    [
+        (["forecast", "--modal", "{modal}", "--predictors", "{predictors}"], "modal", "--modal"),
+        (
+            ["forecast", "--modal", "{modal}", "--predictors", "{predictors}"],
+            "predictors",
+            "--predictors",
+        ),
+        (["track", "{selected}"], "selected", "SELECTED"),
+        (["evaluate", "--forecast", "{forecast}", "--truth", "{truth}"], "truth", "--truth"),
+        (["evaluate", "--forecast", "{forecast}", "--truth", "{truth}"], "forecast", "--forecast"),
+    ],
+    ids=[
+        "forecast-modal",
+        "forecast-predictors",
+        "track-selected",
+        "evaluate-truth",
+        "evaluate-fc",
+    ],
+)
+def test_out_naming_an_input_is_refused_and_the_input_kept(
+    root, tmp_path, capsys, command, output, flag
+):
+    """Before: exit 0, the input replaced by the output (a tracked modal table by the
+    forecast, the truth by the evaluation)."""
+    files = _copies(root, tmp_path)
+    before = files[output].read_bytes()
+    argv = [part.format(**files) for part in command] + ["--out", files[output]]
+    status, _, err = _run(capsys, argv)
+    assert status == 2, err
+    line = _one_error_line(err)
+    assert "--out" in line and flag in line and "replace" in line
+    assert files[output].read_bytes() == before
+
+
+def test_out_naming_the_same_file_by_another_path_is_refused(root, tmp_path, capsys):
+    files = _copies(root, tmp_path)
+    before = files["modal"].read_bytes()
+    other = tmp_path / "sub" / ".." / files["modal"].name
+    (tmp_path / "sub").mkdir()
+    argv = ["forecast", "--modal", files["modal"], "--predictors", files["predictors"]]
+    status, _, err = _run(capsys, [*argv, "--out", other])
+    assert status == 2 and "--modal" in _one_error_line(err)
+    assert files["modal"].read_bytes() == before
+
+
+def test_report_out_naming_a_table_of_the_run_is_refused(root, tmp_path, capsys):
+    """Before: exit 0, the run's tracked modal table replaced by the HTML page."""
+    run = tmp_path / "run"
+    run.mkdir()
+    shutil.copyfile(root / "sim" / "tracked_modal.csv", run / "tracked_modal.csv")
+    before = (run / "tracked_modal.csv").read_bytes()
+    status, _, err = _run(capsys, ["report", run, "--out", run / "tracked_modal.csv"])
+    assert status == 2, err
+    assert "tracked modal table" in _one_error_line(err)
+    assert (run / "tracked_modal.csv").read_bytes() == before
+    assert not list(run.glob("report_files"))
+
+
+def test_out_beside_the_inputs_is_written(root, tmp_path, capsys):
+    files = _copies(root, tmp_path)
+    argv = ["forecast", "--modal", files["modal"], "--predictors", files["predictors"]]
+    status, _, err = _run(capsys, [*argv, "--out", tmp_path / "forecast.csv"])
+    assert status == 0, err
+    assert (tmp_path / "forecast.csv").is_file()
