@@ -164,8 +164,13 @@ def check_poles_match(
     cluster reports the cluster's median frequency, with ``pole_index`` the position in
     the block's poles of its member nearest the median - the pole at ``pole_index`` has
     the row's model order and lies within the cluster's ``frequency_std_hz`` of the
-    median.
+    median. A pole table without rows holds none of them.
     """
+    if poles.empty and not modal.empty:
+        raise WorkbenchError(
+            f"{poles_name}: the pole table has a header but no rows: no stabilisation "
+            "diagram to measure the modes in"
+        )
     if "block_start" in poles.columns:
         check_block_times(modal, modal_name, poles, poles_name)
         return

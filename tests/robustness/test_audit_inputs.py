@@ -4,6 +4,8 @@ success that did nothing or a wrong message (audit of every command, session 41)
 * An output named like one of the command's inputs (``forecast --out`` the ``--modal``
   table, ``report --out`` the run's tracked table): refused before anything is written,
   the input kept.
+* A pole table with a header but no rows for ``forecast --option pole-cluster``: refused
+  naming the file (before: exit 0, a forecast whose option B never measured a block).
 
 Inputs are small (a 4-h simulated table set without accelerations), so the file runs in
 seconds.
@@ -130,3 +132,35 @@ def test_out_beside_the_inputs_is_written(root, tmp_path, capsys):
     status, _, err = _run(capsys, [*argv, "--out", tmp_path / "forecast.csv"])
     assert status == 0, err
     assert (tmp_path / "forecast.csv").is_file()
+
+
+# ----------------------------------------------------------------------- empty pole table
+def test_option_b_with_a_pole_table_without_rows_is_refused(root, tmp_path, capsys):
+    poles = pd.read_parquet(root / "sim" / "poles.parquet")
+    poles.iloc[:0].to_parquet(tmp_path / "poles.parquet")
+    sim = root / "sim"
+    argv = ["forecast", "--modal", sim / "tracked_modal.csv"]
+    argv += ["--predictors", sim / "truth_predictors.csv", "--option", "B"]
+    status, _, err = _run(
+        capsys, [*argv, "--poles", tmp_path / "poles.parquet", "--out", tmp_path / "f.csv"]
+    )
+    assert status == 1, err
+    line = _one_error_line(err)
+    assert line.startswith(f"error: {tmp_path / 'poles.parquet'}: ") and "no rows" in line
+    assert not (tmp_path / "f.csv").exists()
+
+
+def test_forecast_stage_refuses_option_b_without_poles_rows(root):
+    from workbench.forecasting.options import ForecastOptions
+    from workbench.stages import forecast
+
+    sim = root / "sim"
+    poles = pd.read_parquet(sim / "poles.parquet").iloc[:0]
+    with pytest.raises(ValueError, match="no rows") as raised:
+        forecast(
+            sim / "tracked_modal.csv",
+            sim / "truth_predictors.csv",
+            poles=poles,
+            options=ForecastOptions(options=("B",)),
+        )
+    assert "option B" in str(raised.value)
