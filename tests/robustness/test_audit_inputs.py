@@ -6,6 +6,9 @@ success that did nothing or a wrong message (audit of every command, session 41)
   the input kept.
 * A pole table with a header but no rows for ``forecast --option pole-cluster``: refused
   naming the file (before: exit 0, a forecast whose option B never measured a block).
+* A ship-log column that is there but holds no value in any row (a sensor dead for the
+  whole export): a warning naming the column, as for a column that is missing (before:
+  nothing said, the predictor quietly left out of every fit and correlation).
 
 Inputs are small (a 4-h simulated table set without accelerations), so the file runs in
 seconds.
@@ -164,3 +167,35 @@ def test_forecast_stage_refuses_option_b_without_poles_rows(root):
             options=ForecastOptions(options=("B",)),
         )
     assert "option B" in str(raised.value)
+
+
+# ------------------------------------------------------------- ship-log column with no value
+def _log_without_speed(root: Path, target: Path) -> Path:
+    """The simulated ship log with every cell of its speed column emptied."""
+    lines = (root / "sim" / "dship.tsv").read_text(encoding="utf-8").splitlines(keepends=True)
+    head = next(i for i, line in enumerate(lines) if line.startswith("Date/Time"))
+    column = lines[head].rstrip("\n").split("\t").index("Speed [kn]")
+    rows = []
+    for line in lines[head + 1 :]:
+        fields = line.rstrip("\n").split("\t")
+        fields[column] = ""
+        rows.append("\t".join(fields) + "\n")
+    target.write_text("".join(lines[: head + 1] + rows), encoding="utf-8")
+    return target
+
+
+def test_ship_log_column_without_any_value_is_named(root, tmp_path):
+    from data_contracts import read_dship
+
+    path = _log_without_speed(root, tmp_path / "dship.tsv")
+    with pytest.warns(UserWarning, match=r"'Speed \[kn\]' \(speed_kn\) holds no value"):
+        log = read_dship(path)
+    assert log["speed_kn"].isna().all() and log["water_temp_c"].notna().any()
+
+
+def test_correlate_says_the_speed_column_of_the_log_is_empty(root, tmp_path, capsys):
+    path = _log_without_speed(root, tmp_path / "dship.tsv")
+    argv = ["correlate", "--modal", root / "sim" / "tracked_modal.csv", "--dship", path]
+    status, _, err = _run(capsys, [*argv, "--out", tmp_path / "c"])
+    assert status == 0, err
+    assert f"warning: {path}: column 'Speed [kn]' (speed_kn) holds no value" in err
