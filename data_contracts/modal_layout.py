@@ -305,6 +305,10 @@ def standardise_modal(
         long = pd.concat(parts, ignore_index=True)
 
     missing = long["frequency_hz"].isna().to_numpy()
+    if frame.empty:
+        raise fail("the table has a header but no rows")
+    if missing.all():  # nothing to place on the block grid
+        raise fail(f"no row has a frequency ({len(frame)} rows)")
     if missing.any():
         rows = sorted(set(long.loc[missing, "_row"].tolist()))
         warnings.warn(
@@ -384,6 +388,12 @@ def standardise_modal(
 def _finish(table: pd.DataFrame, head: str, source: str | None) -> pd.DataFrame:
     if "frequency_hz" in table.columns:
         missing = table["frequency_hz"].isna().to_numpy()
+        if len(table) and missing.all():
+            raise ContractError(
+                [Violation("frequency_hz", f"no row has a frequency ({len(table)} rows)")],
+                source=source,
+                contract="modal",
+            )
         if missing.any():
             rows = table.index[missing][:5].tolist()
             warnings.warn(

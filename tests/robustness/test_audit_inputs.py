@@ -9,6 +9,9 @@ success that did nothing or a wrong message (audit of every command, session 41)
 * A ship-log column that is there but holds no value in any row (a sensor dead for the
   whole export): a warning naming the column, as for a column that is missing (before:
   nothing said, the predictor quietly left out of every fit and correlation).
+* A modal table whose every row lacks a frequency (an export of a failed analysis), or
+  another tool's with a header only: one line saying so (before: "the table has a header
+  but no rows" of a table of 279 rows, or a traceback for another tool's layout).
 
 Inputs are small (a 4-h simulated table set without accelerations), so the file runs in
 seconds.
@@ -199,3 +202,38 @@ def test_correlate_says_the_speed_column_of_the_log_is_empty(root, tmp_path, cap
     status, _, err = _run(capsys, [*argv, "--out", tmp_path / "c"])
     assert status == 0, err
     assert f"warning: {path}: column 'Speed [kn]' (speed_kn) holds no value" in err
+
+
+# -------------------------------------------------------------- modal table without frequency
+@pytest.mark.parametrize("layout", ["contract", "long", "wide"])
+def test_modal_table_whose_every_frequency_is_missing_says_so(root, tmp_path, capsys, layout):
+    """Before: the MODAL layout said "header but no rows"; another tool's long or wide
+    table ended in a traceback (OutOfBoundsDatetime: the grid's t0 from no time)."""
+    modal = pd.read_csv(root / "sim" / "tracked_modal.csv")
+    modal["frequency_hz"] = float("nan")
+    if layout == "long":  # another tool's table: time, mode, frequency, damping
+        modal = modal[["block_start", "mode", "frequency_hz", "damping_ratio"]]
+        modal = modal.rename(columns={"block_start": "time", "frequency_hz": "Frequency [Hz]"})
+    elif layout == "wide":  # time, f1, f2, ...
+        modal = modal.pivot(index="block_start", columns="mode", values="frequency_hz")
+        modal = modal.rename(columns=lambda mode: f"f{mode}").rename_axis("time").reset_index()
+    path = tmp_path / "modal.csv"
+    modal.to_csv(path, index=False)
+    sim = root / "sim"
+    argv = ["correlate", "--modal", path, "--predictors", sim / "truth_predictors.csv"]
+    status, _, err = _run(capsys, [*argv, "--out", tmp_path / "c"])
+    assert status == 1, err
+    line = _one_error_line(err)
+    assert str(path) in line and f"no row has a frequency ({len(modal)} rows)" in line
+    assert "header but no rows" not in line
+
+
+def test_long_modal_table_with_a_header_only_says_so(root, tmp_path, capsys):
+    """Before: a traceback (OutOfBoundsDatetime)."""
+    path = tmp_path / "modal.csv"
+    path.write_text("time,mode,Frequency [Hz],damping_ratio\n", encoding="utf-8")
+    sim = root / "sim"
+    argv = ["correlate", "--modal", path, "--predictors", sim / "truth_predictors.csv"]
+    status, _, err = _run(capsys, [*argv, "--out", tmp_path / "c"])
+    assert status == 1, err
+    assert _one_error_line(err) == f"{path}: the table has a header but no rows"
