@@ -12,6 +12,9 @@ success that did nothing or a wrong message (audit of every command, session 41)
 * A modal table whose every row lacks a frequency (an export of a failed analysis), or
   another tool's with a header only: one line saying so (before: "the table has a header
   but no rows" of a table of 279 rows, or a traceback for another tool's layout).
+* ``health --train-hours`` or ``--reference-hours`` not a positive number (nan, inf, 0,
+  -1): a usage error naming the flag (before: a traceback, or exit 1 naming the library's
+  ``train_blocks=-12`` against the modal file).
 
 Inputs are small (a 4-h simulated table set without accelerations), so the file runs in
 seconds.
@@ -237,3 +240,27 @@ def test_long_modal_table_with_a_header_only_says_so(root, tmp_path, capsys):
     status, _, err = _run(capsys, [*argv, "--out", tmp_path / "c"])
     assert status == 1, err
     assert _one_error_line(err) == f"{path}: the table has a header but no rows"
+
+
+# ------------------------------------------------------------------------ health hour flags
+@pytest.mark.parametrize("value", ["nan", "inf", "0", "-1"])
+@pytest.mark.parametrize("flag", ["--train-hours", "--reference-hours"])
+def test_health_hours_that_are_not_a_positive_number_are_a_usage_error(
+    root, tmp_path, capsys, flag, value
+):
+    sim = root / "sim"
+    argv = ["health", "--modal", sim / "tracked_modal.csv"]
+    argv += ["--predictors", sim / "truth_predictors.csv", "--train-hours", "2"]
+    status, _, err = _run(capsys, [*argv, flag, value, "--out", tmp_path / "h"])
+    assert status == 2, err
+    line = _one_error_line(err)
+    assert line.startswith(f"workbench: error: {flag} must be a positive number of hours")
+    assert not (tmp_path / "h").exists()
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), 0.0])
+def test_health_stage_refuses_reference_hours_that_are_not_positive(root, value):
+    from workbench.stages import health
+
+    with pytest.raises(ValueError, match="reference_hours"):
+        health(root / "fc.csv", reference_hours=value)

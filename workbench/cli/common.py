@@ -44,6 +44,18 @@ def _check_positive(**values) -> None:
             raise UsageError(f"--{name.replace('_', '-')} must be at least 1, got {value}")
 
 
+def _check_hours_flags(**values) -> None:
+    """Usage error unless every given option in hours is a positive finite number (None
+    passes)."""
+    import math
+
+    for name, value in values.items():
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise UsageError(
+                f"--{name.replace('_', '-')} must be a positive number of hours, got {value:g}"
+            )
+
+
 def _check_share(name: str, value: float, *, low_open: bool = False) -> None:
     """Usage error unless *value* lies in [0, 1] ((0, 1] with *low_open*)."""
     import math
