@@ -15,6 +15,9 @@ success that did nothing or a wrong message (audit of every command, session 41)
 * ``health --train-hours`` or ``--reference-hours`` not a positive number (nan, inf, 0,
   -1): a usage error naming the flag (before: a traceback, or exit 1 naming the library's
   ``train_blocks=-12`` against the modal file).
+* ``--grid`` with a block length or step of years, or block numbers that reach past the
+  calendar on the grid: one line (before: a traceback, OutOfBoundsTimedelta or
+  OverflowError).
 
 Inputs are small (a 4-h simulated table set without accelerations), so the file runs in
 seconds.
@@ -264,3 +267,38 @@ def test_health_stage_refuses_reference_hours_that_are_not_positive(root, value)
 
     with pytest.raises(ValueError, match="reference_hours"):
         health(root / "fc.csv", reference_hours=value)
+
+
+# ----------------------------------------------------------------------- grids past the calendar
+@pytest.fixture()
+def block_only(root, tmp_path) -> Path:
+    """Another tool's table with block numbers and no times."""
+    modal = pd.read_csv(root / "sim" / "tracked_modal.csv")
+    path = tmp_path / "blocks.csv"
+    modal[["block", "mode", "frequency_hz", "damping_ratio"]].to_csv(path, index=False)
+    return path
+
+
+@pytest.mark.parametrize("grid", ["1e30,1e30", "1e7,1e7,2024-03-01", "1e12,1e12,2024-03-01"])
+def test_grid_of_years_long_blocks_is_a_usage_error(root, tmp_path, capsys, block_only, grid):
+    sim = root / "sim"
+    argv = ["correlate", "--modal", block_only, "--grid", grid]
+    status, _, err = _run(
+        capsys, [*argv, "--predictors", sim / "truth_predictors.csv", "--out", tmp_path / "c"]
+    )
+    assert status == 2, err
+    assert _one_error_line(err).startswith("workbench: error: --grid: block_")
+
+
+def test_block_numbers_past_the_calendar_are_named(root, tmp_path, capsys, block_only):
+    table = pd.read_csv(block_only)
+    table.loc[0, "block"] = 10**15  # 10^15 blocks of 5 min: ~10^10 years after t0
+    table.to_csv(block_only, index=False)
+    sim = root / "sim"
+    argv = ["correlate", "--modal", block_only, "--grid", "20,5,2024-03-01T00:00Z"]
+    status, _, err = _run(
+        capsys, [*argv, "--predictors", sim / "truth_predictors.csv", "--out", tmp_path / "c"]
+    )
+    assert status == 1, err
+    line = _one_error_line(err)
+    assert line.startswith(f"{block_only}: column 'block'") and "1000000000000000" in line
