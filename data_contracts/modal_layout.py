@@ -515,7 +515,11 @@ def _times(
     text = values.astype(str).str.strip()
     zoned = text.str.contains(r"(?:Z|[+-]\d\d:?\d\d)$", regex=True)
     if zoned.any() and not zoned.all():
-        raise fail("some times carry a time zone and some do not", str(column))
+        unzoned, _ = parse_times(text[~zoned], time_format, utc=False)
+        if unzoned.notna().any():
+            raise fail("some times carry a time zone and some do not", str(column))
+        # the cells without a zone are no times at all: named as such below
+        zoned = pd.Series(True, index=text.index)
     used = time_format
     if zoned.all():
         times, used = parse_times(text, time_format, utc=True)

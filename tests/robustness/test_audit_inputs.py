@@ -18,6 +18,8 @@ success that did nothing or a wrong message (audit of every command, session 41)
 * ``--grid`` with a block length or step of years, or block numbers that reach past the
   calendar on the grid: one line (before: a traceback, OutOfBoundsTimedelta or
   OverflowError).
+* Another tool's modal table with one cell of its zoned time column that is not a time:
+  that cell named (before: "some times carry a time zone and some do not").
 
 Inputs are small (a 4-h simulated table set without accelerations), so the file runs in
 seconds.
@@ -302,3 +304,33 @@ def test_block_numbers_past_the_calendar_are_named(root, tmp_path, capsys, block
     assert status == 1, err
     line = _one_error_line(err)
     assert line.startswith(f"{block_only}: column 'block'") and "1000000000000000" in line
+
+
+# ------------------------------------------------------------------- a cell that is no time
+def test_a_cell_that_is_not_a_time_among_zoned_times_is_named(root, tmp_path, capsys):
+    modal = pd.read_csv(root / "sim" / "tracked_modal.csv")
+    modal = modal[["block_start", "mode", "frequency_hz", "damping_ratio"]]
+    modal = modal.rename(columns={"block_start": "time"})
+    modal.loc[5, "time"] = "sensor fault"
+    path = tmp_path / "modal.csv"
+    modal.to_csv(path, index=False)
+    sim = root / "sim"
+    argv = ["correlate", "--modal", path, "--predictors", sim / "truth_predictors.csv"]
+    status, _, err = _run(capsys, [*argv, "--out", tmp_path / "c"])
+    assert status == 1, err
+    line = _one_error_line(err)
+    assert "'sensor fault'" in line and "time zone" not in line
+
+
+def test_times_with_and_without_a_zone_are_still_refused_as_mixed(root, tmp_path, capsys):
+    modal = pd.read_csv(root / "sim" / "tracked_modal.csv")
+    modal = modal[["block_start", "mode", "frequency_hz", "damping_ratio"]]
+    modal = modal.rename(columns={"block_start": "time"})
+    modal.loc[5, "time"] = modal.loc[5, "time"].rstrip("Z")
+    path = tmp_path / "modal.csv"
+    modal.to_csv(path, index=False)
+    sim = root / "sim"
+    argv = ["correlate", "--modal", path, "--predictors", sim / "truth_predictors.csv"]
+    status, _, err = _run(capsys, [*argv, "--out", tmp_path / "c"])
+    assert status == 1, err
+    assert "some times carry a time zone and some do not" in _one_error_line(err)
