@@ -20,6 +20,9 @@ success that did nothing or a wrong message (audit of every command, session 41)
   OverflowError).
 * Another tool's modal table with one cell of its zoned time column that is not a time:
   that cell named (before: "some times carry a time zone and some do not").
+* A predictor (or any contract) table re-saved by a spreadsheet in a decimal-comma locale
+  (``;`` between fields, ``12,5``): read as the modal table of that kind already was
+  (before: eight lines "required column is missing" for columns that are there).
 
 Inputs are small (a 4-h simulated table set without accelerations), so the file runs in
 seconds.
@@ -334,3 +337,26 @@ def test_times_with_and_without_a_zone_are_still_refused_as_mixed(root, tmp_path
     status, _, err = _run(capsys, [*argv, "--out", tmp_path / "c"])
     assert status == 1, err
     assert "some times carry a time zone and some do not" in _one_error_line(err)
+
+
+# ------------------------------------------------------------- spreadsheet re-saves with ';'
+@pytest.mark.parametrize("decimal", [",", "."])
+def test_contract_table_with_semicolons_is_read_as_written(root, tmp_path, decimal):
+    from data_contracts import PREDICTORS, read_table
+
+    source = root / "sim" / "truth_predictors.csv"
+    path = tmp_path / "predictors.csv"
+    pd.read_csv(source).to_csv(path, sep=";", decimal=decimal, index=False)
+    pd.testing.assert_frame_equal(read_table(path, PREDICTORS), read_table(source, PREDICTORS))
+
+
+def test_forecast_reads_a_semicolon_predictor_table(root, tmp_path, capsys):
+    path = tmp_path / "predictors.csv"
+    pd.read_csv(root / "sim" / "truth_predictors.csv").to_csv(
+        path, sep=";", decimal=",", index=False
+    )
+    argv = ["forecast", "--modal", root / "sim" / "tracked_modal.csv", "--predictors", path]
+    status, _, err = _run(capsys, [*argv, "--out", tmp_path / "f.csv"])
+    assert status == 0, err
+    expected = pd.read_csv(root / "fc.csv")
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "f.csv"), expected)
