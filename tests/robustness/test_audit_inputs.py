@@ -23,6 +23,10 @@ success that did nothing or a wrong message (audit of every command, session 41)
 * A predictor (or any contract) table re-saved by a spreadsheet in a decimal-comma locale
   (``;`` between fields, ``12,5``): read as the modal table of that kind already was
   (before: eight lines "required column is missing" for columns that are there).
+* ``--excitation`` tables: one that is not an excitation table, or holds a cell that is no
+  time, is one line naming the file (before: a traceback); intervals in another order
+  (two files joined the wrong way round) weigh the log as the sorted table does (before:
+  the predictors silently several knots off).
 
 Inputs are small (a 4-h simulated table set without accelerations), so the file runs in
 seconds.
@@ -31,8 +35,10 @@ seconds.
 from __future__ import annotations
 
 import shutil
+import warnings
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -360,3 +366,56 @@ def test_forecast_reads_a_semicolon_predictor_table(root, tmp_path, capsys):
     assert status == 0, err
     expected = pd.read_csv(root / "fc.csv")
     pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "f.csv"), expected)
+
+
+# -------------------------------------------------------------------------- excitation tables
+def _excitation(path: Path) -> pd.DataFrame:
+    """Half-steps of 150 s over the 4-h voyage with made-up powers."""
+    times = pd.date_range("2024-03-01T00:00:00Z", "2024-03-01T04:00:00Z", freq="150s")
+    table = pd.DataFrame(
+        {
+            "start": times[:-1].strftime("%Y-%m-%dT%H:%M:%SZ"),
+            "end": times[1:].strftime("%Y-%m-%dT%H:%M:%SZ"),
+            "power": np.random.default_rng(0).uniform(0.1, 10.0, len(times) - 1),
+        }
+    )
+    table.to_csv(path, index=False)
+    return table
+
+
+@pytest.mark.parametrize(
+    ("content", "fragment"),
+    [
+        ("x\n1\n", "lacks column(s) start, end, power"),
+        ("start,end,power\nnot a time,2024-03-01T00:10:00Z,1\n", "'not a time'"),
+    ],
+    ids=["not-an-excitation-table", "no-time"],
+)
+def test_bad_excitation_table_is_one_line_naming_it(root, tmp_path, capsys, content, fragment):
+    path = tmp_path / "excitation.csv"
+    path.write_text(content, encoding="utf-8")
+    sim = root / "sim"
+    argv = ["correlate", "--modal", sim / "tracked_modal.csv", "--dship", sim / "dship.tsv"]
+    status, _, err = _run(capsys, [*argv, "--excitation", path, "--out", tmp_path / "c"])
+    assert status == 1, err
+    line = _one_error_line(err)
+    assert str(path) in line and fragment in line
+
+
+def test_excitation_intervals_in_any_order_weigh_the_log_alike(root, tmp_path):
+    from data_contracts import MODAL, read_table
+    from workbench.predictors import load_predictors
+
+    sim = root / "sim"
+    modal = read_table(sim / "tracked_modal.csv", MODAL)
+    table = _excitation(tmp_path / "sorted.csv")
+    table.sample(frac=1.0, random_state=0).to_csv(tmp_path / "shuffled.csv", index=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        expected = load_predictors(
+            dship=sim / "dship.tsv", onto=modal, excitation=tmp_path / "sorted.csv"
+        )
+        shuffled = load_predictors(
+            dship=sim / "dship.tsv", onto=modal, excitation=tmp_path / "shuffled.csv"
+        )
+    pd.testing.assert_frame_equal(shuffled, expected)
