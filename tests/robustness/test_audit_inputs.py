@@ -27,6 +27,8 @@ success that did nothing or a wrong message (audit of every command, session 41)
   time, is one line naming the file (before: a traceback); intervals in another order
   (two files joined the wrong way round) weigh the log as the sorted table does (before:
   the predictors silently several knots off).
+* ``simulate``/``demo --seed -1``: a usage error naming --seed (before: "expected
+  non-negative integer", naming nothing, and a traceback from demo).
 
 Inputs are small (a 4-h simulated table set without accelerations), so the file runs in
 seconds.
@@ -419,3 +421,21 @@ def test_excitation_intervals_in_any_order_weigh_the_log_alike(root, tmp_path):
             dship=sim / "dship.tsv", onto=modal, excitation=tmp_path / "shuffled.csv"
         )
     pd.testing.assert_frame_equal(shuffled, expected)
+
+
+# ------------------------------------------------------------------------------ negative seed
+@pytest.mark.parametrize("command", ["simulate", "demo"])
+def test_negative_seed_is_a_usage_error_naming_the_flag(tmp_path, capsys, command):
+    argv = [command, "--seed", "-1", "--hours", "0.5", "--out", tmp_path / "out"]
+    status, _, err = _run(capsys, argv)
+    assert status == 2, err
+    assert _one_error_line(err) == "workbench: error: --seed must be a non-negative integer, got -1"
+    assert not (tmp_path / "out").exists()
+
+
+def test_simulate_voyage_refuses_a_negative_seed_before_writing(tmp_path):
+    from workbench.simulate import simulate_voyage
+
+    with pytest.raises(ValueError, match="seed=-1 must be a non-negative integer"):
+        simulate_voyage(tmp_path / "sim", seed=-1, hours=0.5, accelerations=False)
+    assert not (tmp_path / "sim").exists()

@@ -37,6 +37,12 @@ def _check_hours(hours) -> None:
         )
 
 
+def _check_seed(seed) -> None:
+    """Usage error unless --seed is a non-negative integer (what NumPy's seeding takes)."""
+    if seed is not None and seed < 0:
+        raise UsageError(f"--seed must be a non-negative integer, got {seed}")
+
+
 def _check_positive(**values) -> None:
     """Usage error unless every given integer option is at least 1 (None passes)."""
     for name, value in values.items():
