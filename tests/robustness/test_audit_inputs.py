@@ -29,6 +29,9 @@ success that did nothing or a wrong message (audit of every command, session 41)
   the predictors silently several knots off).
 * ``simulate``/``demo --seed -1``: a usage error naming --seed (before: "expected
   non-negative integer", naming nothing, and a traceback from demo).
+* A predictor table that ends before the modal table: the warning says the forecast does
+  not reach the blocks without a predictor row (before: "forecasts fill them from the
+  logged blocks", while the forecast left them out).
 
 Inputs are small (a 4-h simulated table set without accelerations), so the file runs in
 seconds.
@@ -439,3 +442,20 @@ def test_simulate_voyage_refuses_a_negative_seed_before_writing(tmp_path):
     with pytest.raises(ValueError, match="seed=-1 must be a non-negative integer"):
         simulate_voyage(tmp_path / "sim", seed=-1, hours=0.5, accelerations=False)
     assert not (tmp_path / "sim").exists()
+
+
+# ------------------------------------------------------- predictor table shorter than modal
+def test_blocks_without_a_predictor_row_are_said_to_be_left_out_of_the_forecast(
+    root, tmp_path, capsys
+):
+    sim = root / "sim"
+    predictors = pd.read_csv(sim / "truth_predictors.csv")
+    path = tmp_path / "predictors.csv"
+    predictors[predictors["block"] <= 30].to_csv(path, index=False)
+    argv = ["forecast", "--modal", sim / "tracked_modal.csv", "--predictors", path]
+    status, _, err = _run(capsys, [*argv, "--out", tmp_path / "f.csv"])
+    assert status == 0, err
+    warning = next(line for line in err.splitlines() if "blocks of the modal table" in line)
+    assert "no predictor row for 14 of 45 blocks" in warning and "blocks 31 to 44" in warning
+    assert "forecasts fill them" not in warning and "forecasts do not reach them" in warning
+    assert pd.read_csv(tmp_path / "f.csv")["block"].max() == 30
