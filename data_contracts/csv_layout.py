@@ -18,7 +18,7 @@ import pandas as pd
 
 from ._core import CSV_READ_OPTIONS
 
-__all__ = ["ends_mid_row", "read_delimited", "sniff_separator", "split_unit"]
+__all__ = ["ends_mid_row", "read_delimited", "sniff_layout", "sniff_separator", "split_unit"]
 
 _NAME_UNIT = re.compile(r"^\s*(?P<name>.*?)\s*[\[(](?P<unit>[^\])]*)[\])]\s*$")
 _DECIMAL_COMMA = re.compile(r"(^|;)\s*[+-]?\d+,\d+\s*(?=$|;)", re.MULTILINE)
@@ -48,6 +48,21 @@ def sniff_separator(header_line: str) -> str:
     counts = {sep: header_line.count(sep) for sep in (",", ";", "\t", "|")}
     best = max(counts, key=lambda sep: counts[sep])
     return best if counts[best] else ","
+
+
+def sniff_layout(
+    lines: list[str], *, separator: str | None = None, decimal: str | None = None
+) -> tuple[str, str]:
+    """Separator and decimal mark of the table in *lines* (header first): the separator
+    :func:`sniff_separator` finds in the header line, the decimal mark ``,`` when the
+    separator is not a comma and the first lines hold numbers such as ``12,5``, else
+    ``.``; a given *separator* or *decimal* is kept."""
+    header = next((line for line in lines if line.strip()), "")
+    sep = separator or sniff_separator(header)
+    if decimal is None:
+        sample = "\n".join(lines[1:50])
+        decimal = "," if sep != "," and _DECIMAL_COMMA.search(sample.replace(sep, ";")) else "."
+    return sep, decimal
 
 
 def _field_count(line: str, sep: str) -> int:
@@ -119,11 +134,7 @@ def read_delimited(
     body = lines[skip_rows:]
     if skip_after_header and body:
         body = body[:1] + body[1 + skip_after_header :]
-    header = next((line for line in body if line.strip()), "")
-    sep = separator or sniff_separator(header)
-    if decimal is None:
-        sample = "\n".join(body[1:50])
-        decimal = "," if sep != "," and _DECIMAL_COMMA.search(sample.replace(sep, ";")) else "."
+    sep, decimal = sniff_layout(body, separator=separator, decimal=decimal)
     cut = ends_mid_row(body, sep, skip_rows + 1)
     if cut is not None:
         raise ValueError(cut)

@@ -250,7 +250,8 @@ def read_dship(
     DataFrame
         ``time`` (UTC) and the canonical predictor columns in canonical units, then the
         other numeric columns, sorted by time. Canonical columns absent from the file are
-        NaN (with a warning). Exact duplicate time stamps keep their first row (warning).
+        NaN (with a warning), and so are those present with no value in any row (with a
+        warning naming them: a sensor dead for the whole export). Exact duplicate time stamps keep their first row (warning).
 
     Raises
     ------
@@ -423,6 +424,7 @@ def read_dship(
     out = pd.DataFrame({"time": times})
     used: set[int] = {time_index}
     absent: list[str] = []
+    empty: list[str] = []  # columns found whose every cell is empty (a sensor dead throughout)
 
     def find(name: str) -> int | None:
         """Column index of canonical *name*: exact names first, then dotted suffixes."""
@@ -482,6 +484,8 @@ def read_dship(
             continue
         used.add(index)
         out[column.name] = convert(index, column.name, column.unit or "")
+        if len(table) and out[column.name].isna().all():
+            empty.append(f"{headers[index]!r} ({column.name})")
     # kept when the log has them, never NaN-filled
     for name, unit_text in [(c.name, c.unit or "") for c in OPTIONAL_PREDICTORS] + [
         (name, "rpm") for name in SHAFT_COLUMNS
@@ -535,6 +539,12 @@ def read_dship(
                 ]
             )
         warnings.warn(f"{source}: no column for {', '.join(absent)}; filled with NaN", stacklevel=2)
+    if empty:
+        warnings.warn(
+            f"{source}: column{'s' if len(empty) > 1 else ''} {', '.join(empty)} "
+            f"{'hold' if len(empty) > 1 else 'holds'} no value in any row; left empty",
+            stacklevel=2,
+        )
     order = np.argsort(out["time"].to_numpy(), kind="stable")
     if (np.diff(order) < 0).any():
         warnings.warn(

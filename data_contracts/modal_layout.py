@@ -67,6 +67,9 @@ _TIME_NAMES = {
     "end": ("blockend", "windowend", "endtime", "tend", "end", "timeend"),
     None: ("time", "timestamp", "datetime", "date/time", "datetimeutc", "timeutc", "date"),
 }
+#: Longest block length and step of a grid: an analysis window of a week. [s]
+MAX_BLOCK_S = 7 * 86400.0
+
 _BLOCK_NAMES = ("block", "blockindex", "blockno", "blocknumber", "blocknr")
 _MODE_NAMES = ("mode", "modeid", "modeno", "modenumber", "modenr", "modelabel")
 _FREQUENCY_NAMES = (
@@ -113,7 +116,7 @@ class ModalLayout:
         ``dd.mm.yyyy``, ``dd-mmm-yyyy`` and slash dates whose values tell day and month
         apart.
     block_length_s, block_step_s : float
-        The block grid. [s]
+        The block grid, each at most :data:`MAX_BLOCK_S` (a week). [s]
     grid_t0 : str, optional
         Start of block 0 (ISO-8601); default: the first window start floored to a multiple
         of the step since the Unix epoch (as ``workbench identify`` does).
@@ -142,6 +145,11 @@ class ModalLayout:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name}={value!r} must be a positive number of seconds")
+            if value > MAX_BLOCK_S:
+                raise ValueError(
+                    f"{name}={value:g} must be at most {MAX_BLOCK_S:g} s (a week): an "
+                    "analysis window, not a voyage"
+                )
         if self.time_format is not None:
             strptime_format(self.time_format)  # ValueError naming time_format
         if self.block_step_s > self.block_length_s:
@@ -305,6 +313,10 @@ def standardise_modal(
         long = pd.concat(parts, ignore_index=True)
 
     missing = long["frequency_hz"].isna().to_numpy()
+    if frame.empty:
+        raise fail("the table has a header but no rows")
+    if missing.all():  # nothing to place on the block grid
+        raise fail(f"no row has a frequency ({len(frame)} rows)")
     if missing.any():
         rows = sorted(set(long.loc[missing, "_row"].tolist()))
         warnings.warn(
@@ -369,6 +381,21 @@ def standardise_modal(
         block = pd.to_numeric(long[block_column], errors="coerce").to_numpy()
         if np.isnan(block).any() or (block < 0).any() or (block != np.round(block)).any():
             raise fail("block numbers must be whole numbers >= 0", block_column)
+        # block k starts at t0 + k * step: past the last representable time the product
+        # of nanoseconds would wrap round silently to a time centuries earlier
+        last_s = (pd.Timestamp.max.tz_localize("UTC") - t0).total_seconds() - layout.block_length_s
+        beyond = block * layout.block_step_s > last_s
+        if beyond.any():
+            rows = sorted(set(long.loc[beyond, "_row"].tolist()))
+            raise fail(
+                f"block {int(block[beyond].max())} would start after "
+                f"{pd.Timestamp.max.year} on a grid of a block every "
+                f"{layout.block_step_s / 60:g} min from {t0.isoformat()}: block numbers "
+                "beyond any time",
+                block_column,
+                [f"row {r}" for r in rows[:5]],
+                len(rows),
+            )
         block = block.astype(np.int64)
     block_start = t0 + pd.to_timedelta(block * step_ns, unit="ns")
     table = long.drop(columns=[c for c in (time_column, block_column) if c is not None])
@@ -384,6 +411,12 @@ def standardise_modal(
 def _finish(table: pd.DataFrame, head: str, source: str | None) -> pd.DataFrame:
     if "frequency_hz" in table.columns:
         missing = table["frequency_hz"].isna().to_numpy()
+        if len(table) and missing.all():
+            raise ContractError(
+                [Violation("frequency_hz", f"no row has a frequency ({len(table)} rows)")],
+                source=source,
+                contract="modal",
+            )
         if missing.any():
             rows = table.index[missing][:5].tolist()
             warnings.warn(
@@ -482,7 +515,11 @@ def _times(
     text = values.astype(str).str.strip()
     zoned = text.str.contains(r"(?:Z|[+-]\d\d:?\d\d)$", regex=True)
     if zoned.any() and not zoned.all():
-        raise fail("some times carry a time zone and some do not", str(column))
+        unzoned, _ = parse_times(text[~zoned], time_format, utc=False)
+        if unzoned.notna().any():
+            raise fail("some times carry a time zone and some do not", str(column))
+        # the cells without a zone are no times at all: named as such below
+        zoned = pd.Series(True, index=text.index)
     used = time_format
     if zoned.all():
         times, used = parse_times(text, time_format, utc=True)

@@ -30,7 +30,7 @@ from ._core import (
     Violation,
     atomic_path,
 )
-from .csv_layout import decode_text, ends_mid_row
+from .csv_layout import decode_text, ends_mid_row, sniff_layout
 
 __all__ = [
     "CANONICAL_PREDICTORS",
@@ -620,6 +620,10 @@ def _format_of(path: Path) -> str:
 def read_table(path: str | os.PathLike, contract: TableContract) -> pd.DataFrame:
     """Read a CSV or Parquet table and validate it against *contract*.
 
+    A CSV file is comma-separated with decimal points, as :func:`write_table` writes it,
+    or ``;``-separated with decimal commas or points, as a spreadsheet re-saves it in
+    such a locale (:func:`~data_contracts.csv_layout.sniff_layout`).
+
     A parted table (a folder of parts with its index, :mod:`data_contracts.parts`) is
     read as the one table its parts make.
 
@@ -646,10 +650,15 @@ def read_table(path: str | os.PathLike, contract: TableContract) -> pd.DataFrame
         )
     try:
         if fmt == "csv":
-            cut = ends_mid_row(decode_text(path.read_bytes(), None).splitlines(), ",")
+            # ',' as written here; ';' with decimal commas as a spreadsheet re-saves it
+            lines = decode_text(path.read_bytes(), None).splitlines()
+            sep, decimal = sniff_layout(lines)
+            cut = ends_mid_row(lines, sep)
             if cut is not None:
                 raise ValueError(cut)
-            frame = pd.read_csv(path, low_memory=False, **CSV_READ_OPTIONS)
+            frame = pd.read_csv(
+                path, sep=sep, decimal=decimal, low_memory=False, **CSV_READ_OPTIONS
+            )
         else:
             frame = pd.read_parquet(path)
     except Exception as error:  # pandas/pyarrow raise many types for unreadable files

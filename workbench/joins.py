@@ -134,16 +134,23 @@ def check_predictors_overlap(modal: pd.DataFrame, predictors: pd.DataFrame, name
     rows = predictors[predictors["block"].isin(blocks)]
     logged = rows.loc[rows[columns].notna().to_numpy().any(axis=1), "block"].unique()
     if len(logged):
-        unlogged = np.setdiff1d(blocks, logged)
-        if len(unlogged):
-            starts = modal.drop_duplicates("block").set_index("block")["block_start"]
-            warnings.warn(
-                f"{name}: no predictor value on {len(unlogged)} of {len(blocks)} blocks of "
-                f"the modal table (blocks {int(unlogged[0])} to {int(unlogged[-1])}, "
-                f"{_iso(starts[unlogged[0]])} to {_iso(starts[unlogged[-1]])}): correlations and "
-                "fits leave them out, forecasts fill them from the logged blocks",
-                stacklevel=2,
-            )
+        starts = modal.drop_duplicates("block").set_index("block")["block_start"]
+        # a row of NaN (the log stopped) is filled by the forecast; a block with no row
+        # at all lies outside the forecast's grid, which is the predictor table's blocks
+        absent = np.setdiff1d(blocks, rows["block"].unique())
+        empty = np.setdiff1d(np.setdiff1d(blocks, logged), absent)
+        for unlogged, what, forecast in (
+            (empty, "no predictor value on", "forecasts fill them from the logged blocks"),
+            (absent, "no predictor row for", "forecasts do not reach them"),
+        ):
+            if len(unlogged):
+                warnings.warn(
+                    f"{name}: {what} {len(unlogged)} of {len(blocks)} blocks of the modal "
+                    f"table (blocks {int(unlogged[0])} to {int(unlogged[-1])}, "
+                    f"{_iso(starts[unlogged[0]])} to {_iso(starts[unlogged[-1]])}): "
+                    f"correlations and fits leave them out, {forecast}",
+                    stacklevel=2,
+                )
         return
     first, last = modal["block_start"].min(), modal["block_start"].max()
     raise WorkbenchError(
@@ -164,8 +171,13 @@ def check_poles_match(
     cluster reports the cluster's median frequency, with ``pole_index`` the position in
     the block's poles of its member nearest the median - the pole at ``pole_index`` has
     the row's model order and lies within the cluster's ``frequency_std_hz`` of the
-    median.
+    median. A pole table without rows holds none of them.
     """
+    if poles.empty and not modal.empty:
+        raise WorkbenchError(
+            f"{poles_name}: the pole table has a header but no rows: no stabilisation "
+            "diagram to measure the modes in"
+        )
     if "block_start" in poles.columns:
         check_block_times(modal, modal_name, poles, poles_name)
         return

@@ -39,6 +39,7 @@ from .common import (
     MAX_SIMULATED_HOURS,
     UsageError,
     _option_names,
+    check_outputs_are_not_inputs,
     log,
 )
 from .demo import _add_demo, _add_run, _add_simulate
@@ -155,7 +156,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args.verbose:
         warnings.showwarning = _show_warning
     try:
-        return _run(args)
+        return _run(args, _command_actions(parser, args))
     finally:
         warnings.showwarning = shown
 
@@ -213,9 +214,22 @@ def _os_error_line(error: OSError) -> str:
     return _plain(f"{' -> '.join(map(str, names))}: {reason}" if names else reason)
 
 
-def _run(args: argparse.Namespace) -> int:
+def _command_actions(
+    parser: argparse.ArgumentParser, args: argparse.Namespace
+) -> list[argparse.Action]:
+    """The arguments of the command *args* were parsed for (none if not found)."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                if sub.get_default("run") is args.run:
+                    return list(sub._actions)
+    return []
+
+
+def _run(args: argparse.Namespace, actions: Sequence[argparse.Action] = ()) -> int:
     """Run the chosen command; user errors become messages and exit statuses."""
     try:
+        check_outputs_are_not_inputs(args, actions)
         return int(args.run(args) or EXIT_OK)
     except ContractError as error:
         if args.verbose:

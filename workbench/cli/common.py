@@ -6,7 +6,9 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
+import os
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 from data_contracts import ContractError
@@ -35,11 +37,29 @@ def _check_hours(hours) -> None:
         )
 
 
+def _check_seed(seed) -> None:
+    """Usage error unless --seed is a non-negative integer (what NumPy's seeding takes)."""
+    if seed is not None and seed < 0:
+        raise UsageError(f"--seed must be a non-negative integer, got {seed}")
+
+
 def _check_positive(**values) -> None:
     """Usage error unless every given integer option is at least 1 (None passes)."""
     for name, value in values.items():
         if value is not None and value < 1:
             raise UsageError(f"--{name.replace('_', '-')} must be at least 1, got {value}")
+
+
+def _check_hours_flags(**values) -> None:
+    """Usage error unless every given option in hours is a positive finite number (None
+    passes)."""
+    import math
+
+    for name, value in values.items():
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise UsageError(
+                f"--{name.replace('_', '-')} must be a positive number of hours, got {value:g}"
+            )
 
 
 def _check_share(name: str, value: float, *, low_open: bool = False) -> None:
@@ -50,6 +70,43 @@ def _check_share(name: str, value: float, *, low_open: bool = False) -> None:
     if not ok:
         interval = "(0, 1]" if low_open else "[0, 1]"
         raise UsageError(f"--{name} must be in {interval}, got {value:g}")
+
+
+#: Arguments that name a file the command writes; every other file argument is read.
+OUTPUT_ARGUMENTS = ("out", "save_model")
+
+
+def check_outputs_are_not_inputs(
+    args: argparse.Namespace, actions: Sequence[argparse.Action] = ()
+) -> None:
+    """Usage error when a file the command writes is a file it reads (``--out`` naming the
+    ``--modal`` table, by the same or another path): the output would replace the input.
+
+    *actions* are the command's parser actions, for the flags' names in the message.
+    """
+    labels = {
+        action.dest: action.option_strings[-1] if action.option_strings else action.metavar
+        for action in actions
+    }
+    for output in OUTPUT_ARGUMENTS:
+        target = getattr(args, output, None)
+        if target is None or not Path(target).is_file():
+            continue  # a new file (or a folder) replaces no input
+        for dest, value in vars(args).items():
+            if dest in OUTPUT_ARGUMENTS:
+                continue
+            for item in value if isinstance(value, list | tuple) else (value,):
+                if (
+                    isinstance(item, str | os.PathLike)
+                    and Path(item).is_file()
+                    and os.path.samefile(item, target)
+                ):
+                    flag = labels.get(output) or f"--{output.replace('_', '-')}"
+                    given = labels.get(dest) or dest
+                    raise UsageError(
+                        f"{flag} {target} is also the input {given}: writing it would "
+                        "replace that input; choose another file"
+                    )
 
 
 @contextlib.contextmanager

@@ -7,7 +7,14 @@ import argparse
 from pathlib import Path
 
 from .. import defaults as D
-from .common import EXIT_OK, UsageError, _add_parallel, _check_hours, _check_positive
+from .common import (
+    EXIT_OK,
+    UsageError,
+    _add_parallel,
+    _check_hours,
+    _check_positive,
+    _check_seed,
+)
 
 
 def _add_simulate(commands: argparse._SubParsersAction) -> None:
@@ -104,6 +111,7 @@ def _run_simulate(args: argparse.Namespace) -> int:
     from ..simulate import simulate_voyage
 
     _check_hours(args.hours)
+    _check_seed(args.seed)
     from ..demo import describe_voyage
 
     try:
@@ -141,6 +149,7 @@ def _run_demo(args: argparse.Namespace) -> int:
     from ..demo import run_demo
 
     _check_hours(args.hours)
+    _check_seed(args.seed)
     _check_positive(workers=args.workers)
     summary = run_demo(
         args.out,

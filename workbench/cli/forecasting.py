@@ -17,6 +17,7 @@ from .common import (
     _add_modal_and_predictors,
     _add_out_dir,
     _cases_argument,
+    _check_hours_flags,
     _check_joins,
     _check_positive,
     _check_share,
@@ -397,6 +398,7 @@ def _run_health(args: argparse.Namespace) -> int:
 
     if args.baseline is not None:
         return _run_health_baseline(args)
+    _check_hours_flags(train_hours=args.train_hours, reference_hours=args.reference_hours)
     source = args.forecast
     model = modal = predictors = None
     if args.save_model is not None and (args.modal is None or args.train_hours is None):

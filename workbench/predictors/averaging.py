@@ -390,9 +390,9 @@ def excitation_weighted_predictors(
     blocks : DataFrame
         ``block``, ``block_start``, ``block_end``: each block's own span.
     excitation : DataFrame
-        Consecutive intervals ``start``, ``end`` (UTC) and ``power`` (the excitation
-        power of the conditioned accelerations, e.g. the half-steps of ``excitation.csv``
-        that ``identify --block-minutes auto`` writes). [(m/s²)²]
+        Consecutive intervals ``start``, ``end`` (UTC; in any order) and ``power`` (the
+        excitation power of the conditioned accelerations, e.g. the half-steps of
+        ``excitation.csv`` that ``identify --block-minutes auto`` writes). [(m/s²)²]
     min_coverage, direction_columns, **options
         As :func:`block_predictors` (applied to the intervals).
 
@@ -411,6 +411,13 @@ def excitation_weighted_predictors(
         min_coverage=min_coverage,
         direction_columns=direction_columns,
         **options,
+    )
+    # the blocks find their intervals by binary search: in time order, whatever the
+    # table's (two files joined the wrong way round)
+    excitation = (
+        excitation.assign(_start=pd.to_datetime(excitation["start"], utc=True))
+        .sort_values("_start", kind="stable")
+        .reset_index(drop=True)
     )
     intervals = pd.DataFrame(
         {

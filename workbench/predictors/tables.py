@@ -16,7 +16,7 @@ from data_contracts import CANONICAL_PREDICTORS, PREDICTORS, read_dship, read_ta
 
 from ..blocks import BlockGrid, block_grid_of
 
-__all__ = ["canonical_predictors", "load_predictors"]
+__all__ = ["canonical_predictors", "load_predictors", "read_excitation"]
 
 
 def load_predictors(
@@ -93,12 +93,7 @@ def load_predictors(
             values = pd.to_datetime(own[column], utc=True).reindex(spans["block"][present])
             spans.loc[present, column] = values.to_numpy()
     if excitation is not None:
-        weights = excitation
-        if not isinstance(weights, pd.DataFrame):
-            weights = pd.read_csv(excitation)
-        missing = [c for c in ("start", "end", "power") if c not in weights.columns]
-        if missing:
-            raise ValueError(f"{excitation}: excitation table lacks column(s) {', '.join(missing)}")
+        weights = read_excitation(excitation)
         table = excitation_weighted_predictors(log, spans, weights, min_coverage=min_coverage)
     else:
         table = block_predictors(log, blocks=spans, min_coverage=min_coverage)
@@ -107,6 +102,51 @@ def load_predictors(
         recorded if recorded is not None and recorded.get("varying_length") else grid,
     )
     return table if all_predictors else canonical_predictors(table)
+
+
+def read_excitation(excitation: str | os.PathLike | pd.DataFrame) -> pd.DataFrame:
+    """The excitation table (``start``, ``end``, ``power``; the ``excitation.csv`` of
+    ``identify --block-minutes auto``) with its times as UTC, in the file's order.
+
+    Raises
+    ------
+    ContractError
+        A file that cannot be read, lacks a column, or holds a start or end that is no
+        time; the message names the file, the column and the rows.
+    """
+    from data_contracts import ContractError, Violation
+    from data_contracts.csv_layout import read_delimited
+
+    source = "<excitation>" if isinstance(excitation, pd.DataFrame) else str(excitation)
+
+    def fail(column, reason, rows=(), n_rows=0) -> ContractError:
+        return ContractError(
+            [Violation(column, reason, tuple(rows), n_rows)], source=source, contract="excitation"
+        )
+
+    if isinstance(excitation, pd.DataFrame):
+        table = excitation.copy()
+    else:
+        try:
+            table, _, _ = read_delimited(excitation)
+        except FileNotFoundError:
+            raise fail(None, "file not found") from None
+        except Exception as error:  # pandas raises many types for what is no table
+            reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+            raise fail(None, f"cannot read file: {reason}") from None
+    missing = [c for c in ("start", "end", "power") if c not in table.columns]
+    if missing:
+        raise fail(None, f"excitation table lacks column(s) {', '.join(missing)}")
+    for column in ("start", "end"):
+        times = pd.to_datetime(table[column], utc=True, errors="coerce", format="ISO8601")
+        bad = times.isna().to_numpy()
+        if bad.any():
+            values = ", ".join(repr(str(v)) for v in table.loc[bad, column].unique()[:3])
+            rows = [f"row {r}" for r in np.flatnonzero(bad)[:5]]
+            raise fail(column, f"not an ISO-8601 time: {values}", rows, int(bad.sum()))
+        table[column] = times
+    table["power"] = pd.to_numeric(table["power"], errors="coerce")
+    return table
 
 
 def canonical_predictors(predictors: pd.DataFrame) -> pd.DataFrame:

@@ -263,6 +263,8 @@ def simulate_voyage(
 
     Only one 5-min file of accelerations is in memory at a time.
     """
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+        raise ValueError(f"seed={seed!r} must be a non-negative integer")
     hours = DEFAULT_HOURS if hours is None else float(hours)
     shaft = ShaftHarmonics() if shaft is None else shaft
     rate = float(sampling_rate_hz)

@@ -117,9 +117,16 @@ def forecast(
     predictors = read_any_table(predictors, PREDICTORS, name="predictors")
     if poles is not None:
         poles = read_any_table(poles, POLES, name="poles")
+        if "B" in options.options and poles.empty:
+            raise ValueError("option B needs poles: the pole table has no rows")
         if "harmonic" in poles.columns:
             # option B measures the pole nearest the prediction: never a shaft harmonic's
             poles = poles[poles["harmonic"].isna()].reset_index(drop=True)
+            if "B" in options.options and poles.empty:
+                raise ValueError(
+                    "option B needs poles: every pole of the table is marked as a shaft "
+                    "harmonic (column harmonic)"
+                )
     if "B" in options.options and poles is None:
         raise ValueError("option B needs the pole table (poles=...)")
     kept, lines = persistent_modes(

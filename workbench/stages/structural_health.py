@@ -3,6 +3,7 @@ residuals."""
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import replace
 
@@ -44,6 +45,10 @@ def health(
         return baseline.chart(forecast)
     options = options or HealthOptions()
     if reference_hours is not None:
+        if not (math.isfinite(reference_hours) and reference_hours > 0):
+            raise ValueError(
+                f"reference_hours={reference_hours!r} must be a positive number of hours"
+            )
         step = forecast["block_start"].drop_duplicates().sort_values().diff().median()
         blocks = int(round(reference_hours * 3600 / step.total_seconds()))
         options = replace(options, reference_blocks=blocks)

@@ -65,6 +65,37 @@ def register_section(
     return builder
 
 
+#: The files of a run the report reads, by their RunFiles field.
+_RUN_INPUTS = {
+    "tracked": "tracked modal table",
+    "predictors": "predictor table",
+    "dship": "ship log",
+    "cases": "operating cases",
+    "geometry": "sensor geometry",
+    "forecast": "forecast table",
+    "evaluation": "evaluation table",
+    "truth": "true modal table",
+}
+
+
+def _check_out_is_not_an_input(out: Path, run: RunFiles) -> None:
+    """Raise OptionError when the report file *out* is a file the report reads (the run's
+    tracked modal table, ship log, an acceleration file): writing the page would replace it.
+    """
+    from ...errors import OptionError
+
+    if not out.is_file():
+        return
+    named = [(getattr(run, field), label) for field, label in _RUN_INPUTS.items()]
+    named += [(path, "acceleration file") for path in run.accelerations]
+    for path, label in named:
+        if path is not None and Path(path).is_file() and os.path.samefile(path, out):
+            raise OptionError(
+                f"report file {out} is the run's {label}: writing the report would replace it; "
+                "choose another file"
+            )
+
+
 def build_report(
     root: str | os.PathLike,
     *,
@@ -126,6 +157,7 @@ def build_report(
             "table (tracked_modal.csv) nor acceleration files"
         )
     out = Path(out) if out is not None else root / "report.html"
+    _check_out_is_not_an_input(out, run)
     figures = Figures(out, dpi)
     data = load_run(
         run,
