@@ -311,7 +311,10 @@ def test_bad_arguments_raise():
         sliding_forecast(
             modal, predictors, ForecastOptions(options=("B",), model="window", scheme=1)
         )
-    with pytest.raises(ValueError, match="train_blocks=90 needs at least 91 blocks"):
+    with pytest.raises(
+        ValueError,
+        match=r"90 training blocks \(train_blocks\) and one to forecast need at least 91",
+    ):
         sliding_forecast(
             modal, predictors, ForecastOptions(train_blocks=90, model="window", scheme=1)
         )

@@ -39,8 +39,28 @@ def test_health_reports_bad_data_and_usage_in_one_line(forecast_file, tmp_path, 
     assert len(error.splitlines()) == 1 and "forecast.csv" in error and "360 blocks" in error
     bad_lambda = ["--ewma-lambda", "2", "--out", str(tmp_path)]
     assert main(["health", "--forecast", str(forecast_file), *bad_lambda]) == 2
-    assert "ewma_lambda=2.0" in capsys.readouterr().err
+    assert "--ewma-lambda 2.0 must be in (0, 1]" in capsys.readouterr().err
     assert main(["health", "--forecast", str(tmp_path / "none.csv"), "--out", "x"]) == 1
+
+
+@pytest.mark.parametrize(
+    "flag, value, says",
+    [
+        ("--false-alarms-per-day", "inf", "--false-alarms-per-day inf must be finite"),
+        ("--false-alarms-per-day", "nan", "--false-alarms-per-day nan must be finite"),
+        ("--reference-start-block", "-5", "--reference-start-block -5 must be a block number"),
+    ],
+)
+def test_health_refuses_a_chart_option_without_meaning(
+    forecast_file, tmp_path, capsys, flag, value, says
+):
+    # an infinite false-alarm rate has no limit to read, and a reference period that
+    # starts before block 0 would quietly start at the first block instead
+    out = tmp_path / "out"
+    assert main(["health", "--forecast", str(forecast_file), flag, value, "--out", str(out)]) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1 and says in error
+    assert not out.exists()
 
 
 def test_health_fits_its_own_model_from_modal_and_predictors(tmp_path, capsys):
@@ -99,4 +119,4 @@ def test_health_refuses_a_baseline_that_is_not_positive(forecast_file, tmp_path,
             "--out", str(tmp_path)]  # fmt: skip
     assert main(argv) == 2
     error = capsys.readouterr().err.strip()
-    assert len(error.splitlines()) == 1 and "baseline_hours=-1.0" in error
+    assert len(error.splitlines()) == 1 and "--baseline-hours -1.0 must be positive" in error

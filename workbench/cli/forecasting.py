@@ -440,7 +440,10 @@ def _run_health(args: argparse.Namespace) -> int:
             baseline_hours=args.baseline_hours,
         )
     except ValueError as error:
-        raise UsageError(str(error)) from None
+        # "ewma_lambda=2.0 must be ..." names the flag: "--ewma-lambda 2.0 must be ..."
+        name, equals, rest = str(error).partition("=")
+        message = f"--{name.replace('_', '-')} {rest}" if equals and name.isidentifier() else ""
+        raise UsageError(message or str(error)) from None
     with _data_errors(source):
         result = health(forecast, options=options)
     paths = result.save(args.out)

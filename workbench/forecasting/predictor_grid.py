@@ -127,7 +127,8 @@ def forecast_span(blocks, start_block, end_block, train_blocks: int) -> tuple[in
         last = int(np.searchsorted(blocks, int(end_block), side="right")) - 1
     if last - first + 1 < train_blocks + 1:
         raise ValueError(
-            f"train_blocks={train_blocks} needs at least {train_blocks + 1} blocks from "
-            f"start_block to end_block, got {max(last - first + 1, 0)}"
+            f"only {max(last - first + 1, 0)} block(s) with predictors in the span to "
+            f"forecast: {train_blocks} training blocks (train_blocks) and one to forecast "
+            f"need at least {train_blocks + 1}"
         )
     return first, last

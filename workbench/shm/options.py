@@ -122,8 +122,18 @@ class HealthOptions:
             raise ValueError(f"reference_blocks={self.reference_blocks!r} must be an integer >= 12")
         if not 0.0 < self.ewma_lambda <= 1.0:
             raise ValueError(f"ewma_lambda={self.ewma_lambda!r} must be in (0, 1]")
-        if not self.false_alarms_per_day > 0:
-            raise ValueError(f"false_alarms_per_day={self.false_alarms_per_day!r} must be > 0")
+        if not (math.isfinite(self.false_alarms_per_day) and self.false_alarms_per_day > 0):
+            raise ValueError(
+                f"false_alarms_per_day={self.false_alarms_per_day!r} must be finite and > 0"
+            )
+        if self.reference_start_block is not None and not (
+            int(self.reference_start_block) == self.reference_start_block
+            and self.reference_start_block >= 0
+        ):
+            raise ValueError(
+                f"reference_start_block={self.reference_start_block!r} must be a block number "
+                "(an integer >= 0)"
+            )
         if not self.clip_sigma > 0:
             raise ValueError(f"clip_sigma={self.clip_sigma!r} must be > 0")
         if self.bootstrap_block_length < 1:
