@@ -102,31 +102,37 @@ def test_a_mode_of_the_other_estimate_confirms_only_its_nearest_mode():
     assert confirmed_second_look(alone, [half]).thresholds["second_look_unconfirmed"] == 0
 
 
-def _close_weak_block(level_db: float, seed: int):
-    """bench_close_weak.py's "weak L dB" block: modes 1.1/2.3/3.4/4.6/5.9 Hz at 1 %
-    damping, random shapes on 8 channels, the 2.3-Hz mode L dB down, 20 min at 16 Hz,
-    sensor noise 20 % of each channel's RMS."""
+def _record(frequency, shapes, level_db, seed):
+    """bench_close_weak.py's block of modes *frequency* at 1 % damping with *shapes* on 8
+    channels and levels *level_db*: 20 min at 16 Hz, sensor noise 20 % of each channel's
+    RMS, as the identification engine reads it (mean removed)."""
     from workbench.simulate.prescribed import prescribed_mode_record
 
-    rng = np.random.default_rng(1000 + seed)
-    shapes = rng.standard_normal((8, 5))
-    frequency = np.array([1.1, 2.3, 3.4, 4.6, 5.9])
     record = prescribed_mode_record(
         frequency,
         0.01,
         shapes,
         sampling_rate_hz=16.0,
         duration_s=1200.0,
-        level_db=np.array([0.0, -level_db, 0.0, 0.0, 0.0]),
+        level_db=level_db,
         sensor_noise=0.2,
         seed=seed,
     )
-    data = SimpleNamespace(
+    return SimpleNamespace(
         acceleration=record.acceleration - record.acceleration.mean(axis=0),
         sampling_rate_hz=record.sampling_rate_hz,
         channels=tuple(f"ch{j}" for j in range(8)),
     )
-    return data, frequency
+
+
+def _close_weak_block(level_db: float, seed: int):
+    """bench_close_weak.py's "weak L dB" block: modes 1.1/2.3/3.4/4.6/5.9 Hz at 1 %
+    damping, random shapes on 8 channels, the 2.3-Hz mode L dB down, 20 min at 16 Hz,
+    sensor noise 20 % of each channel's RMS."""
+    rng = np.random.default_rng(1000 + seed)
+    shapes = rng.standard_normal((8, 5))
+    frequency = np.array([1.1, 2.3, 3.4, 4.6, 5.9])
+    return _record(frequency, shapes, np.array([0.0, -level_db, 0.0, 0.0, 0.0]), seed), frequency
 
 
 def test_identify_leaves_out_the_unconfirmed_column_of_a_weak_mode_block():
@@ -166,28 +172,13 @@ def test_a_confirmed_weak_mode_found_by_the_second_look_stays(seed):
 def _close_pair_block(mac_value: float, seed: int):
     """bench_close_weak.py's "close 1% MAC m" block: the five modes above at the same level
     and a sixth 1 % above 3.4 Hz whose shape has MAC *mac_value* with the 3.4-Hz mode."""
-    from workbench.simulate.prescribed import prescribed_mode_record, shapes_with_mac
+    from workbench.simulate.prescribed import shapes_with_mac
 
     rng = np.random.default_rng(1000 + seed)
     shapes = rng.standard_normal((8, 5))
     shapes = np.column_stack([shapes, shapes_with_mac(shapes[:, 2], mac_value, rng)])
     frequency = np.array([1.1, 2.3, 3.4, 4.6, 5.9, 3.4 * 1.01])
-    record = prescribed_mode_record(
-        frequency,
-        0.01,
-        shapes,
-        sampling_rate_hz=16.0,
-        duration_s=1200.0,
-        level_db=np.zeros(6),
-        sensor_noise=0.2,
-        seed=seed,
-    )
-    data = SimpleNamespace(
-        acceleration=record.acceleration - record.acceleration.mean(axis=0),
-        sampling_rate_hz=record.sampling_rate_hz,
-        channels=tuple(f"ch{j}" for j in range(8)),
-    )
-    return data, np.sort(frequency)
+    return _record(frequency, shapes, np.zeros(6), seed), np.sort(frequency)
 
 
 @pytest.mark.parametrize(

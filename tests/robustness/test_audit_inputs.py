@@ -227,6 +227,29 @@ def test_correlate_says_the_speed_column_of_the_log_is_empty(root, tmp_path, cap
 
 
 # -------------------------------------------------------------- modal table without frequency
+def _correlate_refuses(root, tmp_path, capsys, modal):
+    """Write *modal* (a table, or a file's text) as tmp_path/modal.csv, run ``correlate``
+    on it with the simulated voyage's predictors: exit 1; the path and the one error line."""
+    path = tmp_path / "modal.csv"
+    if isinstance(modal, str):
+        path.write_text(modal, encoding="utf-8")
+    else:
+        modal.to_csv(path, index=False)
+    predictors = root / "sim" / "truth_predictors.csv"
+    argv = ["correlate", "--modal", path, "--predictors", predictors, "--out", tmp_path / "c"]
+    status, _, err = _run(capsys, argv)
+    assert status == 1, err
+    return path, _one_error_line(err)
+
+
+def _long_modal(root) -> pd.DataFrame:
+    """The simulated voyage's tracked table as another tool's long table (time, mode,
+    frequency, damping)."""
+    modal = pd.read_csv(root / "sim" / "tracked_modal.csv")
+    modal = modal[["block_start", "mode", "frequency_hz", "damping_ratio"]]
+    return modal.rename(columns={"block_start": "time"})
+
+
 @pytest.mark.parametrize("layout", ["contract", "long", "wide"])
 def test_modal_table_whose_every_frequency_is_missing_says_so(root, tmp_path, capsys, layout):
     """Before: the MODAL layout said "header but no rows"; another tool's long or wide
@@ -239,26 +262,17 @@ def test_modal_table_whose_every_frequency_is_missing_says_so(root, tmp_path, ca
     elif layout == "wide":  # time, f1, f2, ...
         modal = modal.pivot(index="block_start", columns="mode", values="frequency_hz")
         modal = modal.rename(columns=lambda mode: f"f{mode}").rename_axis("time").reset_index()
-    path = tmp_path / "modal.csv"
-    modal.to_csv(path, index=False)
-    sim = root / "sim"
-    argv = ["correlate", "--modal", path, "--predictors", sim / "truth_predictors.csv"]
-    status, _, err = _run(capsys, [*argv, "--out", tmp_path / "c"])
-    assert status == 1, err
-    line = _one_error_line(err)
+    path, line = _correlate_refuses(root, tmp_path, capsys, modal)
     assert str(path) in line and f"no row has a frequency ({len(modal)} rows)" in line
     assert "header but no rows" not in line
 
 
 def test_long_modal_table_with_a_header_only_says_so(root, tmp_path, capsys):
     """Before: a traceback (OutOfBoundsDatetime)."""
-    path = tmp_path / "modal.csv"
-    path.write_text("time,mode,Frequency [Hz],damping_ratio\n", encoding="utf-8")
-    sim = root / "sim"
-    argv = ["correlate", "--modal", path, "--predictors", sim / "truth_predictors.csv"]
-    status, _, err = _run(capsys, [*argv, "--out", tmp_path / "c"])
-    assert status == 1, err
-    assert _one_error_line(err) == f"{path}: the table has a header but no rows"
+    path, line = _correlate_refuses(
+        root, tmp_path, capsys, "time,mode,Frequency [Hz],damping_ratio\n"
+    )
+    assert line == f"{path}: the table has a header but no rows"
 
 
 # ------------------------------------------------------------------------ health hour flags
@@ -322,32 +336,17 @@ def test_block_numbers_past_the_calendar_are_named(root, tmp_path, capsys, block
 
 # ------------------------------------------------------------------- a cell that is no time
 def test_a_cell_that_is_not_a_time_among_zoned_times_is_named(root, tmp_path, capsys):
-    modal = pd.read_csv(root / "sim" / "tracked_modal.csv")
-    modal = modal[["block_start", "mode", "frequency_hz", "damping_ratio"]]
-    modal = modal.rename(columns={"block_start": "time"})
+    modal = _long_modal(root)
     modal.loc[5, "time"] = "sensor fault"
-    path = tmp_path / "modal.csv"
-    modal.to_csv(path, index=False)
-    sim = root / "sim"
-    argv = ["correlate", "--modal", path, "--predictors", sim / "truth_predictors.csv"]
-    status, _, err = _run(capsys, [*argv, "--out", tmp_path / "c"])
-    assert status == 1, err
-    line = _one_error_line(err)
+    _, line = _correlate_refuses(root, tmp_path, capsys, modal)
     assert "'sensor fault'" in line and "time zone" not in line
 
 
 def test_times_with_and_without_a_zone_are_still_refused_as_mixed(root, tmp_path, capsys):
-    modal = pd.read_csv(root / "sim" / "tracked_modal.csv")
-    modal = modal[["block_start", "mode", "frequency_hz", "damping_ratio"]]
-    modal = modal.rename(columns={"block_start": "time"})
+    modal = _long_modal(root)
     modal.loc[5, "time"] = modal.loc[5, "time"].rstrip("Z")
-    path = tmp_path / "modal.csv"
-    modal.to_csv(path, index=False)
-    sim = root / "sim"
-    argv = ["correlate", "--modal", path, "--predictors", sim / "truth_predictors.csv"]
-    status, _, err = _run(capsys, [*argv, "--out", tmp_path / "c"])
-    assert status == 1, err
-    assert "some times carry a time zone and some do not" in _one_error_line(err)
+    _, line = _correlate_refuses(root, tmp_path, capsys, modal)
+    assert "some times carry a time zone and some do not" in line
 
 
 # ------------------------------------------------------------- spreadsheet re-saves with ';'
