@@ -64,7 +64,7 @@ import pandas as pd
 from .excitation import sub_windows_per_block, within_block_profile
 from .innovation_consistency import InnovationConsistency
 from .memory.excitation import ExcitationBias
-from .memory.forecast import MemoryRun
+from .memory.forecast import MemoryRun, never_explained_notes
 from .memory.model import MemoryModel
 from .memory.output import OUTPUT_ARRAYS
 from .memory.terms import MemoryRefits
@@ -315,13 +315,7 @@ class IncrementalMemoryForecast:
         self._old = [committed.reset_index(drop=True)]
 
     def _messages(self, core) -> list[str]:
-        notes = Counter(core.notes)
-        for j in np.flatnonzero((core.forecast_blocks > 0) & ~core.explained):
-            notes[
-                f"mode {core.mode_labels[j]}: the model never explained it well enough to be "
-                f"leaned on (model probability below 0.5 in all {core.forecast_blocks[j]} "
-                "forecast blocks; the estimate follows SSI)"
-            ] += 1
+        notes = Counter(core.notes) + never_explained_notes(core)
         return [f"{kind} (x{count})" for kind, count in notes.items()]
 
     # ------------------------------------------------------------------ resume or start

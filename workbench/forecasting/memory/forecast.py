@@ -19,7 +19,9 @@ The steps, each in its own module:
 5. guard - :mod:`workbench.forecasting.model_trust`: the blend is weighed against a filter
    that does not use the model by how well each predicts the measurements out of sample;
    while the model does not explain a mode (an unrecorded change: fuel, ballast, ice) the
-   estimate follows the model-free filter, i.e. SSI. The weight is the forecast table's
+   estimate follows the model-free filter, a smoothed SSI (on blocks that overlap it can
+   lag a mode that moves within minutes: ``benchmarks/results/ice_voyage_blend_42.txt``).
+   The weight is the forecast table's
    ``model_probability``, and the run notes say when a mode's model stopped explaining it.
 
 :func:`memory_forecast` below runs the windows (:class:`MemoryRun`: the models of a window,
@@ -100,6 +102,24 @@ __all__ = ["memory_forecast"]
 _PERSIST_BLOCKS = 3
 #: Oldest history a refit looks at, in forgetting time constants (weight e^-6 beyond).
 _HISTORY_CONSTANTS = 6.0
+
+
+#: What the estimate follows where the model does not explain a mode: the model-free
+#: filters of :mod:`~workbench.forecasting.model_trust` (close to SSI; how close, on blocks
+#: that overlap, is not measured: ``benchmarks/results/ice_voyage_blend_42.txt``).
+_FALLBACK = "a filter of the SSI estimates that does not use the model"
+
+
+def never_explained_notes(run: MemoryRun) -> Counter:
+    """The run note of each forecast mode whose model never reached probability 0.5."""
+    notes: Counter = Counter()
+    for j in np.flatnonzero((run.forecast_blocks > 0) & ~run.explained):
+        notes[
+            f"mode {run.mode_labels[j]}: the model never explained it well enough to be "
+            f"leaned on (model probability below 0.5 in all {run.forecast_blocks[j]} "
+            f"forecast blocks; the estimate follows {_FALLBACK})"
+        ] += 1
+    return notes
 
 
 def memory_forecast(
@@ -664,17 +684,12 @@ class MemoryRun:
                 self.notes[
                     f"mode {self.mode_labels[j]}: the model stopped explaining it (model "
                     f"probability below 0.5, first at block {self.explained_lost[j] - 1}; "
-                    "blocks below, the estimate follows SSI)"
+                    f"blocks below, the estimate follows {_FALLBACK})"
                 ] += 1
 
     def result(self) -> ForecastResult:
         """The forecast table, the warnings (also issued) and the window models."""
-        for j in np.flatnonzero((self.forecast_blocks > 0) & ~self.explained):
-            self.notes[
-                f"mode {self.mode_labels[j]}: the model never explained it well enough to be "
-                f"leaned on (model probability below 0.5 in all {self.forecast_blocks[j]} "
-                "forecast blocks; the estimate follows SSI)"
-            ] += 1
+        self.notes.update(never_explained_notes(self))
         drop_unusable(self.out_phase, self.out["model"], self.out["kalman"], self.notes)
         table = assemble_table(
             self.blocks,
