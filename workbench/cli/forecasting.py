@@ -24,6 +24,7 @@ from .common import (
     _check_table_path,
     _data_errors,
     _modal_and_predictors,
+    _predictor_source,
     _print_result,
     _read_modal,
 )
@@ -232,7 +233,8 @@ def _run_forecast(args: argparse.Namespace) -> int:
     truth = _read_modal(args, args.truth) if args.truth is not None else None
     _check_joins(args, modal, None, poles)
     stage_options = forecast_options(args, trust, n_workers=args.workers)
-    with _data_errors(args.modal):
+    train = {"train_blocks": f"--train-blocks {args.train_blocks}"}
+    with _data_errors(args.modal, predictors=_predictor_source(args), flags=train):
         result = forecast(
             modal,
             predictors,
@@ -415,7 +417,11 @@ def _run_health(args: argparse.Namespace) -> int:
         first = int(predictors["block"].min())
         if args.reference_start_block is None:
             args.reference_start_block = first + train
-        try:
+        flags = {
+            "train_blocks": f"--train-hours {args.train_hours:g}: {train} blocks",
+            "reference_start_block": f"--reference-start-block {args.reference_start_block}",
+        }
+        with _data_errors(args.modal, predictors=args.predictors, flags=flags):
             model = fit_operational_model(
                 modal, predictors, train_start_block=first, train_blocks=train
             )
@@ -425,8 +431,6 @@ def _run_health(args: argparse.Namespace) -> int:
                 reference_start_block=args.reference_start_block,
                 reference_blocks=reference,
             )
-        except ValueError as error:
-            raise WorkbenchError(f"{args.modal}: {error}") from None
     else:
         forecast = read_table(args.forecast, FORECAST)
     blocks = int(round(args.reference_hours * 3600 / _block_step_s(forecast)))
@@ -501,7 +505,7 @@ def _run_health_baseline(args: argparse.Namespace) -> int:
         baseline.check_modes(modal, str(args.modal))
     except BaselineError as error:
         raise WorkbenchError(str(error)) from None
-    with _data_errors(args.modal):
+    with _data_errors(args.modal, predictors=args.predictors):
         forecast = baseline.forecast(modal, predictors)
         result = health(forecast, baseline=baseline)
     paths = result.save(args.out)
