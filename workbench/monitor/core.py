@@ -32,7 +32,7 @@ from ..identification.engine import BlockTask
 from ..processes import interrupts_deferred, worker_initializer
 from ..sid.harmonics import HarmonicOptions
 from ..sid.tracking import TrackingOptions
-from ..store import BlockStore, StoreLock
+from ..store import BlockStore, StoreLock, block_ranges
 from .adaptive import LEFT_OUT, AdaptiveLengths
 from .conditioning import block_conditioner, forget_conditioned
 from .data_health import DATA_HEALTH_COLUMNS, data_health_frame, data_health_row
@@ -222,10 +222,12 @@ class Monitor:
         self.store: BlockStore | None = None
         self.files: list[LandedFile] = []
         self.done: set[int] = set()
-        #: The blocks this process decided (not those a restart found stored), each as
-        #: ``block``, ``files`` (names), ``reason`` ('' when identified) and ``faults``
-        #: (the dropped channels' reasons): what :meth:`nothing_identified` reads.
-        self.decided_here: list[dict] = []
+        #: Of the blocks this process decided (not those a restart found stored): how
+        #: many were identified, and each skipped one as ``block``, ``files`` (names),
+        #: ``reason`` and ``faults`` (the dropped channels' reasons), what
+        #: :meth:`nothing_identified` reads.
+        self.identified_here = 0
+        self.skipped_here: list[dict] = []
         self.messages: list[str] = []
         self.conditioned_files = [0]  # files conditioned (per-file path)
         self._shared: dict = {}
@@ -751,17 +753,20 @@ class Monitor:
         self.store.write_batch(blocks, tables)  # the block is done once this returns
         self.done.add(int(outcome.block))
         self._health_rows.append(row)
-        faults = outcome.tables.get("faults")
-        self.decided_here.append(
-            {
-                "block": int(outcome.block),
-                "files": [Path(f).name for f in planned.files],
-                "reason": outcome.skipped,
-                "faults": sorted(set(faults["reason"].astype(str)))
-                if faults is not None and "reason" in faults and len(faults)
-                else [],
-            }
-        )
+        if outcome.skipped:
+            faults = outcome.tables.get("faults")
+            self.skipped_here.append(
+                {
+                    "block": int(outcome.block),
+                    "files": [Path(f).name for f in planned.files],
+                    "reason": outcome.skipped,
+                    "faults": sorted(set(faults["reason"].astype(str)))
+                    if faults is not None and "reason" in faults and len(faults)
+                    else [],
+                }
+            )
+        else:
+            self.identified_here += 1
         since = self._health_rows_from
         self._health_rows_from = int(row["block"]) if since is None else min(since, row["block"])
         selected = outcome.tables.get("selected")
@@ -1278,17 +1283,13 @@ class Monitor:
         does when no block is identified; the blocks stay stored and in
         ``data_health.parquet`` as they were decided.
         """
-        here = self.decided_here
+        here = [] if self.identified_here else self.skipped_here
         stored = [
             {"block": int(r["block"]), "files": [], "reason": str(r["reason"]), "faults": []}
             for r in self._health_rows
         ]
-        faults_here = (
-            here
-            and all(d["reason"] for d in here)
-            and not all(_missing_data(d["reason"]) for d in here)
-        )
-        none_stored = stored and all(d["reason"] for d in stored)
+        faults_here = bool(here) and not all(_missing_data(d["reason"]) for d in here)
+        none_stored = bool(stored) and all(d["reason"] for d in stored)
         if not (faults_here or none_stored):
             return ""
         decided, earlier = (here, "") if here else (stored, " by an earlier run")
@@ -1307,7 +1308,7 @@ class Monitor:
         files = f"; files {files}, {len(names)} in all" if names else ""
         return (
             f"no block identified: {len(decided)} block(s) decided{earlier} "
-            f"({_spans(d['block'] for d in decided)}{files}) were all skipped: {why}; "
+            f"({block_ranges(d['block'] for d in decided)}{files}) were all skipped: {why}; "
             f"each block's reason is in {self.state / 'data_health.parquet'}"
         )
 
@@ -1400,17 +1401,6 @@ def _missing_data(reason: str) -> bool:
     """Whether a block was skipped for data missing (a gap, no data, no length fitting
     a gap): the file filling the hole may still come, unlike faulty data."""
     return "gap" in reason or "no data" in reason
-
-
-def _spans(blocks) -> str:
-    """Block numbers as spans: ``0-4, 7``."""
-    spans: list[list[int]] = []
-    for block in sorted(set(blocks)):
-        if spans and spans[-1][1] == block - 1:
-            spans[-1][1] = block
-        else:
-            spans.append([block, block])
-    return ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in spans)
 
 
 def stall_limit_s(poll_s: float) -> float:
