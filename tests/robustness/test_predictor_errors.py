@@ -131,3 +131,18 @@ def test_the_library_says_the_parameter(sim):
     assert str(voyage.value).startswith("the modal table holds only 45 block(s)")
     with pytest.raises(PredictorError, match="the predictor table has no column 'block_start'"):
         sliding_forecast(modal, predictors.drop(columns=["block_start"]), options)
+
+
+def test_health_train_hours_too_short_for_the_model_is_a_usage_error(sim, tmp_path, capsys):
+    """Before: "error: tracked_modal.csv: train_blocks=6 must be an integer >= 12" (exit 1,
+    the modal file and the library's name for what is the flag's value)."""
+    argv = ["health", "--modal", sim / "tracked_modal.csv"]
+    argv += ["--predictors", sim / "truth_predictors.csv", "--train-hours", "0.5"]
+    status = main([str(a) for a in [*argv, "--out", tmp_path / "health"]])
+    err = capsys.readouterr().err
+    assert status == 2
+    assert err.strip().splitlines()[-1] == (
+        "workbench: error: --train-hours 0.5 gives 6 block(s) of 5 min; the operational "
+        "model needs at least 12 (1 h)"
+    )
+    assert not (tmp_path / "health").exists()

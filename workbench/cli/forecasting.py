@@ -396,6 +396,7 @@ def _run_health(args: argparse.Namespace) -> int:
     from data_contracts import FORECAST, MODAL, PREDICTORS, read_table
 
     from ..shm import BaselineError, HealthBaseline, HealthOptions, fit_operational_model
+    from ..shm.model import MIN_TRAIN_BLOCKS
     from ..stages import health
 
     if args.baseline is not None:
@@ -413,6 +414,12 @@ def _run_health(args: argparse.Namespace) -> int:
         predictors = read_table(args.predictors, PREDICTORS)
         step_s = _block_step_s(predictors)
         train = int(round(args.train_hours * 3600 / step_s))
+        if train < MIN_TRAIN_BLOCKS:
+            raise UsageError(
+                f"--train-hours {args.train_hours:g} gives {train} block(s) of "
+                f"{step_s / 60:g} min; the operational model needs at least "
+                f"{MIN_TRAIN_BLOCKS} ({MIN_TRAIN_BLOCKS * step_s / 3600:g} h)"
+            )
         reference = int(round(args.reference_hours * 3600 / step_s))
         first = int(predictors["block"].min())
         if args.reference_start_block is None:

@@ -28,7 +28,17 @@ from ..errors import PredictorError
 if TYPE_CHECKING:
     from ..simulate.health_voyage import HealthVoyage
 
-__all__ = ["DEFAULT_TERMS", "OperationalModel", "fit_operational_model", "frozen_forecast"]
+__all__ = [
+    "DEFAULT_TERMS",
+    "MIN_TRAIN_BLOCKS",
+    "OperationalModel",
+    "fit_operational_model",
+    "frozen_forecast",
+]
+
+#: The fewest training blocks the operational model is fitted on (its default terms and
+#: the Newey-West covariance need a dozen blocks at least).
+MIN_TRAIN_BLOCKS = 12
 
 #: Terms of the default model: added mass (speed, speed²), stiffness (water and air
 #: temperature), the speed x water interaction of the hull-water coupling, and the fuel on
@@ -298,8 +308,8 @@ def fit_operational_model(
        and autocorrelation consistent covariance matrix", Econometrica 55(3), 1987.
        doi:10.2307/1913610
     """
-    if int(train_blocks) != train_blocks or train_blocks < 12:
-        raise ValueError(f"train_blocks={train_blocks!r} must be an integer >= 12")
+    if int(train_blocks) != train_blocks or train_blocks < MIN_TRAIN_BLOCKS:
+        raise ValueError(f"train_blocks={train_blocks!r} must be an integer >= {MIN_TRAIN_BLOCKS}")
     modal = MODAL.validate(modal)
     if "block" not in predictors.columns:
         raise PredictorError("the predictor table has no column 'block'")
