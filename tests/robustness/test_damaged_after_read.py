@@ -161,3 +161,22 @@ def test_other_content_that_reads_is_still_a_changed_input(tmp_path, capsys):
     status, _, err = _identify(capsys, voyage, out, "native")
     assert status == 1
     assert f"{voyage / other[DAMAGED].name}: input changed since the store" in err
+
+
+def test_a_file_damaged_from_the_first_run_on_is_not_said_to_have_been_read(tmp_path, capsys):
+    """Damaged on the first run, damaged otherwise on the next (another byte): still the
+    first run's case, its blocks skipped and the warning of an unreadable file."""
+    paths = write_voyage(tmp_path / "voyage", n_files=8)
+    out = tmp_path / "out"
+    DAMAGE["bad checksum"](paths[DAMAGED])
+    assert _identify(capsys, tmp_path / "voyage", out, "native")[0] == 0
+    data = bytearray(paths[DAMAGED].read_bytes())
+    data[len(data) // 2] ^= 0xFF  # a second byte: other damaged content
+    paths[DAMAGED].write_bytes(bytes(data))
+    status, _, err = _identify(capsys, tmp_path / "voyage", out, "native")
+    assert status == 0, err
+    named = _warnings(err)  # read again (other content), unreadable again: as on main
+    assert not [line for line in named if "damaged since" in line], err
+    assert named[-1].endswith("left out: block(s) 2-3 not identified")
+    blocks = pd.read_csv(out / "blocks.csv")
+    assert blocks.loc[blocks["status"] == "skipped", "block"].tolist() == [2, 3]

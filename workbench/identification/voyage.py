@@ -356,13 +356,16 @@ def _damaged_since_read(
     from ..fingerprints import sha256
 
     recorded = store.recorded_inputs()
+    flagged = {r["sha256"]: r for r in recorded if r.get("damaged")}
+    # a file unreadable from the first run on was never read whole: not one of these
+    never_read = set(store.unreadable_inputs()) | set(store.unreadable_files())
+    never_read -= {r["path"] for r in flagged.values()}
     good: dict[str, dict] = {}
     for r in recorded:
-        if not r.get("damaged"):
+        if not r.get("damaged") and r["path"] not in never_read:
             good[r["path"]] = r
     if not good:
         return {}
-    flagged = {r["sha256"]: r for r in recorded if r.get("damaged")}
     known = {r["sha256"] for r in recorded}
     shown = {str(Path(info.path).resolve()): str(info.path) for info in plan.files}
     found: dict[str, dict] = {}
