@@ -122,6 +122,8 @@ class Column:
         Whether missing values (NaN, NaT, <NA>) are allowed.
     minimum, maximum : float, optional
         Inclusive bounds on the values.
+    exclusive_minimum : bool
+        The values must lie above *minimum*, not on it (a natural frequency: > 0 Hz).
     allowed : tuple, optional
         Closed set of permitted values.
     hint : str, optional
@@ -136,6 +138,7 @@ class Column:
     nullable: bool = False
     minimum: float | None = None
     maximum: float | None = None
+    exclusive_minimum: bool = False
     allowed: tuple | None = None
     hint: str = ""
 
@@ -315,13 +318,20 @@ class TableContract:
         ):
             values = coerced.to_numpy(dtype="float64", na_value=np.nan)
             with np.errstate(invalid="ignore"):
-                low = values < column.minimum if column.minimum is not None else False
+                low = False
+                if column.minimum is not None:
+                    low = (
+                        values <= column.minimum
+                        if column.exclusive_minimum
+                        else values < column.minimum
+                    )
                 high = values > column.maximum if column.maximum is not None else False
             outside = np.asarray(low | high, dtype=bool) & np.isfinite(values)
             infinite = np.isinf(values)
             if outside.any():
                 rows, n = _row_labels(index, outside)
-                bounds = f"[{column.minimum}, {column.maximum}]"
+                opening = "(" if column.exclusive_minimum else "["
+                bounds = f"{opening}{column.minimum}, {column.maximum}]"
                 unit = f" {column.unit}" if column.unit else ""
                 reason = f"values outside {bounds}{unit}"
                 if column.hint:

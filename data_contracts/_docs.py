@@ -131,7 +131,7 @@ def _columns_table(contract: TableContract) -> str:
         elif column.minimum is not None or column.maximum is not None:
             low = "−∞" if column.minimum is None else f"{column.minimum:g}"
             high = "∞" if column.maximum is None else f"{column.maximum:g}"
-            limits = f"[{low}, {high}]"
+            limits = f"{'(' if column.exclusive_minimum else '['}{low}, {high}]"
         else:
             limits = ""
         lines.append(

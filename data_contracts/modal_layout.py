@@ -444,7 +444,21 @@ def _wide_index(pattern: re.Pattern, column) -> int | None:
 
 
 def _frequency(values: pd.Series, unit: str | None, fail) -> np.ndarray:
+    """The column's frequencies in Hz; a value at or below 0 is refused naming this
+    column and its rows (the MODAL contract's rule, said before the table is reshaped:
+    a wide table's ``f2`` row 4, not the long table's row 13)."""
     numbers = pd.to_numeric(values, errors="coerce").to_numpy(dtype=float)
+    rule = next(c for c in MODAL.columns if c.name == "frequency_hz")
+    with np.errstate(invalid="ignore"):
+        low = np.isfinite(numbers) & (numbers <= rule.minimum)
+    if low.any():
+        rows = values.index[low]
+        raise fail(
+            f"values at or below {rule.minimum:g} ({rule.hint})",
+            str(values.name),
+            rows[:5].tolist(),
+            len(rows),
+        )
     if unit is None:
         return numbers
     key = unit.strip().lower().replace(" ", "")

@@ -72,7 +72,24 @@ _MODE = Column(
     "negative labels included).",
 )
 _FREQUENCY = Column(
-    "frequency_hz", "float", "Natural frequency.", unit="Hz", minimum=0.0, maximum=1.0e4
+    "frequency_hz",
+    "float",
+    "Frequency of the pole; a real pole (no oscillation) is at 0 Hz.",
+    unit="Hz",
+    minimum=0.0,
+    maximum=1.0e4,
+)
+#: A mode's natural frequency: above 0 Hz (a row at 0 Hz is no mode; the poles at 0 Hz of a
+#: stabilisation diagram are real poles, which selection leaves out, ζ = 1 > its limit).
+_NATURAL_FREQUENCY = Column(
+    "frequency_hz",
+    "float",
+    "Natural frequency.",
+    unit="Hz",
+    minimum=0.0,
+    maximum=1.0e4,
+    exclusive_minimum=True,
+    hint="a natural frequency lies above 0 Hz",
 )
 _DAMPING = Column(
     "damping_ratio",
@@ -346,7 +363,7 @@ MODAL = TableContract(
         _BLOCK_START,
         _BLOCK_END,
         _MODE,
-        _FREQUENCY,
+        _NATURAL_FREQUENCY,
         Column(
             "damping_ratio",
             "float",
@@ -417,7 +434,7 @@ SELECTED = TableContract(
         _BLOCK,
         _BLOCK_START,
         _BLOCK_END,
-        _FREQUENCY,
+        _NATURAL_FREQUENCY,
         _DAMPING,
         Column(
             "model_order",

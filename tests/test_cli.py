@@ -47,7 +47,8 @@ def test_validate_reports_each_problem_on_one_line(tmp_path, capsys):
     assert err == [
         f"{path}: column 'block_end': required column is missing (End of the block "
         "(exclusive), UTC.)",
-        f"{path}: column 'frequency_hz', row 0: values outside [0.0, 10000.0] Hz",
+        f"{path}: column 'frequency_hz', row 0: values outside (0.0, 10000.0] Hz (a natural "
+        "frequency lies above 0 Hz)",
         f"{path}: column 'damping_ratio', row 1: values outside [-1.0, 1.0] (damping ratios "
         "are fractions: 1.2 % is 0.012)",
     ]

@@ -47,6 +47,45 @@ class OptionError(ValueError):
     """
 
 
+class DataError(ValueError):
+    """Data that cannot serve a computation as asked (too few blocks for a window): bad
+    data (exit 1), said with the parameter that asked for it.
+
+    The message speaks of the table's blocks and columns by the names the table holds; it
+    does not name a file (a stage takes DataFrames): the CLI names the file and shows
+    *parameter* as the flag that set it, where a library caller reads ``parameter=value``.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong, one line.
+    parameter : str, optional
+        The parameter that set the size asked for (``train_blocks``), shown with *value*.
+    value : optional
+        Its value.
+    """
+
+    def __init__(self, message: str, *, parameter: str | None = None, value=None):
+        self.message = message
+        self.parameter = parameter
+        self.value = value
+        shown = f" ({parameter}={value!r})" if parameter is not None else ""
+        super().__init__(f"{message}{shown}")
+
+    def for_user(self, flags: dict[str, str] | None = None) -> str:
+        """The message with *parameter* shown as the flag *flags* maps it to (its text
+        as given, e.g. ``{"train_blocks": "--train-blocks 6"}``), or as ``name=value``."""
+        if self.parameter is not None and flags and self.parameter in flags:
+            return f"{self.message} ({flags[self.parameter]})"
+        return str(self)
+
+
+class PredictorError(DataError):
+    """A :class:`DataError` of the predictor table (the ship log's values per block):
+    too few blocks in a span, a column missing. The CLI names the predictor file
+    (``--predictors``, or the ship log given as ``--dship``), not the modal table."""
+
+
 class UnreadableInputError(WorkbenchError, ValueError):
     """An input file whose samples cannot be read: cut short, a bad checksum, not the
     format its name says.

@@ -35,7 +35,10 @@ blocks the next one.
 Inputs are fingerprinted (:meth:`BlockStore.check_inputs`): size, modification time and a
 SHA-256 of the content of every input file, with the time span it covers. A resumed run
 whose file for a stored time span has other content is refused, so results of one voyage
-are never exported as those of another. Inputs recorded but no longer given are found by
+are never exported as those of another. Content that cannot be read whole (a file
+damaged on disk after a run read it) is no other voyage's data: the caller records it
+flagged (:meth:`BlockStore.record_damaged`), keeping the content read before and the
+blocks computed from it. Inputs recorded but no longer given are found by
 :meth:`BlockStore.removed_inputs`; the caller drops the blocks that depended on them
 (:meth:`BlockStore.drop_blocks`, :meth:`BlockStore.forget_inputs`) or keeps them.
 """
@@ -388,6 +391,26 @@ class BlockStore:
         this run): the data some stored blocks came from is no longer given."""
         given = {str(f["sha256"]) for f in fingerprints}
         return [r for r in self.recorded_inputs() if r["sha256"] not in given]
+
+    def record_damaged(self, entries: Iterable[Mapping[str, object]]) -> None:
+        """Record the contents of input files found damaged after an earlier run read them
+        whole: fingerprints (``path``, ``start``, ``end``, ``size``, ``mtime_ns``,
+        ``sha256``) flagged ``"damaged": True`` with ``"why"`` (the reader's complaint).
+
+        The entry of the content read before stays, and with it the blocks computed from
+        it; the damaged content fed no block. Recorded, it is no changed input to
+        :meth:`check_inputs`, and the next run knows the file is still damaged (the same
+        content) or repaired (another).
+        """
+        recorded = self.recorded_inputs()
+        known = {r["sha256"] for r in recorded}
+        new = []
+        for entry in entries:
+            if entry["sha256"] not in known:
+                new.append({**dict(entry), "damaged": True})
+                known.add(entry["sha256"])
+        if new:
+            self._write_inputs(recorded + new)
 
     def forget_inputs(self, entries: Iterable[Mapping[str, object]]) -> None:
         """Remove *entries* (by content) from the recorded inputs."""

@@ -87,7 +87,7 @@ def test_every_violation_is_reported_at_once():
     lines = caught.value.lines()
     assert len(lines) == 4
     assert "tracked.csv: column 'block_end': required column is missing" in lines[0]
-    assert any("'frequency_hz', row 1: values outside [0.0" in line for line in lines)
+    assert any("'frequency_hz', row 1: values outside (0.0" in line for line in lines)
     assert any("'damping_ratio', rows 2, 3" in line and "0.012" in line for line in lines)
     assert any("'mode', row 4" in line for line in lines)
 

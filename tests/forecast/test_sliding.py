@@ -313,7 +313,7 @@ def test_bad_arguments_raise():
         )
     with pytest.raises(
         ValueError,
-        match=r"90 training blocks \(train_blocks\) and one to forecast need at least 91",
+        match=r"window of 90 blocks and one block to forecast need at least 91 \(train_blocks=90\)",
     ):
         sliding_forecast(
             modal, predictors, ForecastOptions(train_blocks=90, model="window", scheme=1)

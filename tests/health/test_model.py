@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from workbench.errors import PredictorError
 from workbench.shm import fit_operational_model
 from workbench.simulate import simulate_health_voyage
 from workbench.simulate.imitation import FREQUENCY_SCATTER
@@ -59,5 +60,5 @@ def test_bad_terms_and_short_windows_are_reported(voyage):
         fit_operational_model(
             voyage.modal, voyage.predictors, train_blocks=100, terms=["draught_m"]
         )
-    with pytest.raises(ValueError, match="predictors have only 573 of them"):
+    with pytest.raises(PredictorError, match="holds only 573 of the 1000 blocks"):
         fit_operational_model(voyage.modal, voyage.predictors, train_blocks=1000)

@@ -14,7 +14,14 @@ from pathlib import Path
 from data_contracts import ContractError
 
 from .. import defaults as D
-from ..errors import OptionError, UsageError, WorkbenchError, printable
+from ..errors import (
+    DataError,
+    OptionError,
+    PredictorError,
+    UsageError,
+    WorkbenchError,
+    printable,
+)
 from ..inputs import add_dship_columns, add_modal_layout, dship_mapping, read_modal, time_format
 
 EXIT_OK, EXIT_DATA, EXIT_USAGE = 0, 1, 2
@@ -110,15 +117,29 @@ def check_outputs_are_not_inputs(
 
 
 @contextlib.contextmanager
-def _data_errors(source):
+def _data_errors(source, *, predictors=None, flags: dict[str, str] | None = None):
     """A ValueError of the library about the data becomes a one-line error naming *source*
-    (contract errors pass unchanged: they name file, column and rows themselves)."""
+    (contract errors pass unchanged: they name file, column and rows themselves).
+
+    One about the predictor table (:class:`~workbench.errors.PredictorError`) names
+    *predictors* (the ``--predictors`` file or the ``--dship`` log) instead; a
+    :class:`~workbench.errors.DataError` shows its parameter as the flag *flags* maps it
+    to (``{"train_blocks": "--train-blocks 6"}``)."""
     try:
         yield
     except (ContractError, OptionError):
         raise
+    except PredictorError as error:
+        raise WorkbenchError(f"{predictors or source}: {error.for_user(flags)}") from None
+    except DataError as error:
+        raise WorkbenchError(f"{source}: {error.for_user(flags)}") from None
     except ValueError as error:
         raise WorkbenchError(f"{source}: {error}") from None
+
+
+def _predictor_source(args: argparse.Namespace):
+    """The file the predictors come from: ``--predictors``, or the ``--dship`` log."""
+    return args.predictors if getattr(args, "predictors", None) is not None else args.dship
 
 
 def _print_result(result, paths=None) -> None:
@@ -256,7 +277,7 @@ def _check_joins(args, modal, predictors=None, poles=None) -> None:
     from ..joins import check_block_times, check_poles_match, check_predictors_overlap
 
     if predictors is not None:
-        source = args.predictors if args.predictors is not None else args.dship
+        source = _predictor_source(args)
         check_block_times(modal, args.modal, predictors, source)
         check_predictors_overlap(modal, predictors, source)
     if poles is not None:

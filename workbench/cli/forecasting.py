@@ -24,6 +24,7 @@ from .common import (
     _check_table_path,
     _data_errors,
     _modal_and_predictors,
+    _predictor_source,
     _print_result,
     _read_modal,
 )
@@ -232,7 +233,8 @@ def _run_forecast(args: argparse.Namespace) -> int:
     truth = _read_modal(args, args.truth) if args.truth is not None else None
     _check_joins(args, modal, None, poles)
     stage_options = forecast_options(args, trust, n_workers=args.workers)
-    with _data_errors(args.modal):
+    train = {"train_blocks": f"--train-blocks {args.train_blocks}"}
+    with _data_errors(args.modal, predictors=_predictor_source(args), flags=train):
         result = forecast(
             modal,
             predictors,
@@ -394,6 +396,7 @@ def _run_health(args: argparse.Namespace) -> int:
     from data_contracts import FORECAST, MODAL, PREDICTORS, read_table
 
     from ..shm import BaselineError, HealthBaseline, HealthOptions, fit_operational_model
+    from ..shm.model import MIN_TRAIN_BLOCKS
     from ..stages import health
 
     if args.baseline is not None:
@@ -411,11 +414,21 @@ def _run_health(args: argparse.Namespace) -> int:
         predictors = read_table(args.predictors, PREDICTORS)
         step_s = _block_step_s(predictors)
         train = int(round(args.train_hours * 3600 / step_s))
+        if train < MIN_TRAIN_BLOCKS:
+            raise UsageError(
+                f"--train-hours {args.train_hours:g} gives {train} block(s) of "
+                f"{step_s / 60:g} min; the operational model needs at least "
+                f"{MIN_TRAIN_BLOCKS} ({MIN_TRAIN_BLOCKS * step_s / 3600:g} h)"
+            )
         reference = int(round(args.reference_hours * 3600 / step_s))
         first = int(predictors["block"].min())
         if args.reference_start_block is None:
             args.reference_start_block = first + train
-        try:
+        flags = {
+            "train_blocks": f"--train-hours {args.train_hours:g}: {train} blocks",
+            "reference_start_block": f"--reference-start-block {args.reference_start_block}",
+        }
+        with _data_errors(args.modal, predictors=args.predictors, flags=flags):
             model = fit_operational_model(
                 modal, predictors, train_start_block=first, train_blocks=train
             )
@@ -425,8 +438,6 @@ def _run_health(args: argparse.Namespace) -> int:
                 reference_start_block=args.reference_start_block,
                 reference_blocks=reference,
             )
-        except ValueError as error:
-            raise WorkbenchError(f"{args.modal}: {error}") from None
     else:
         forecast = read_table(args.forecast, FORECAST)
     blocks = int(round(args.reference_hours * 3600 / _block_step_s(forecast)))
@@ -501,7 +512,7 @@ def _run_health_baseline(args: argparse.Namespace) -> int:
         baseline.check_modes(modal, str(args.modal))
     except BaselineError as error:
         raise WorkbenchError(str(error)) from None
-    with _data_errors(args.modal):
+    with _data_errors(args.modal, predictors=args.predictors):
         forecast = baseline.forecast(modal, predictors)
         result = health(forecast, baseline=baseline)
     paths = result.save(args.out)

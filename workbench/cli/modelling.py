@@ -19,6 +19,7 @@ from .common import (
     _data_errors,
     _modal_and_predictors,
     _option_names,
+    _predictor_source,
     _print_result,
 )
 
@@ -129,7 +130,7 @@ def _run_correlate(args: argparse.Namespace) -> int:
         min_presence=args.min_presence,
     )
     modal, predictors = _modal_and_predictors(args)
-    with _data_errors(args.modal):
+    with _data_errors(args.modal, predictors=_predictor_source(args)):
         result = correlate(modal, predictors, cases=args.cases, options=options)
         paths = result.save(args.out)
     _print_result(result, paths)
@@ -186,7 +187,7 @@ def _run_fit(args: argparse.Namespace) -> int:
     )
     modal, predictors = _modal_and_predictors(args)
     _check_upper(args.upper, predictors)
-    with _data_errors(args.modal):
+    with _data_errors(args.modal, predictors=_predictor_source(args)):
         result = fit(modal, predictors, cases=_cases_argument(args.cases), options=options)
         paths = result.save(args.out)
     _print_result(result, paths)

@@ -425,6 +425,10 @@ def _run_monitor(args: argparse.Namespace) -> int:
             more = f" ({len(refused) - 1} more file(s) refused)" if len(refused) > 1 else ""
             raise WorkbenchError(f"{path}: cannot be monitored: {reason}{more}")
         raise WorkbenchError(f"{args.watch}: no complete acceleration file to monitor")
+    if args.once and not monitor.stop_event.is_set():
+        nothing = monitor.nothing_identified()
+        if nothing:  # never a silent exit 0 with nothing done (identify says it too)
+            raise WorkbenchError(nothing)
     through = monitor.tracked_through
     print(
         f"{len(monitor.done)} block(s) decided, tracked up to block "

@@ -61,6 +61,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..errors import PredictorError
 from .excitation import sub_windows_per_block, within_block_profile
 from .innovation_consistency import InnovationConsistency
 from .memory.excitation import ExcitationBias
@@ -379,7 +380,7 @@ class IncrementalMemoryForecast:
         tables, with what carrying it from call to call needs."""
         options = self.options
         if new.blocks.size == 0:
-            raise ValueError("predictors has no blocks")
+            raise PredictorError("the predictor table has no blocks")
         core = MemoryRun(modal, predictors, options, None, new.labels, None, None, None)
         core.grid = None  # read by the set-up only (not kept in a checkpoint)
         core.input_columns = list(new.columns)  # the predictor columns, without the trend

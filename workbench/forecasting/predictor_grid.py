@@ -8,6 +8,8 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
+from ..errors import DataError, PredictorError
+
 __all__ = [
     "block_centre_ns",
     "forecast_span",
@@ -32,7 +34,7 @@ def predictor_matrix(
 
     Raises
     ------
-    ValueError
+    PredictorError
         When a named predictor column is not in *predictors*.
     """
     grid = predictors.sort_values("block").drop_duplicates("block", keep="last")
@@ -50,7 +52,11 @@ def predictor_matrix(
         columns = list(predictor_columns)
         missing = [c for c in columns if c not in grid.columns]
         if missing:
-            raise ValueError(f"predictor_columns {missing} are not columns of predictors")
+            raise PredictorError(
+                f"the predictor table has no column {', '.join(map(repr, missing))}",
+                parameter="predictor_columns",
+                value=columns,
+            )
     X = (
         grid[columns].to_numpy(dtype=float, na_value=np.nan)
         if columns
@@ -113,8 +119,34 @@ def mode_matrix(
     return matrix
 
 
-def forecast_span(blocks, start_block, end_block, train_blocks: int) -> tuple[int, int]:
-    """Grid rows of the first training block and of the last block forecast."""
+def forecast_span(
+    blocks, start_block, end_block, train_blocks: int, modal_blocks=None
+) -> tuple[int, int]:
+    """Grid rows of the first training block and of the last block forecast.
+
+    Parameters
+    ----------
+    blocks : ndarray of int
+        The predictor table's blocks, sorted (the grid's rows).
+    start_block, end_block : int or None
+        The span to forecast (None: from the first row, to the last).
+    train_blocks : int
+        The training window. [blocks]
+    modal_blocks : array-like of int, optional
+        The modal table's blocks: when the predictor table has a row for each of them in
+        the span, a span too short is the modal table's (the voyage's), not the
+        predictor table's.
+
+    Raises
+    ------
+    ValueError
+        When *start_block* is not a block of the predictor table.
+    PredictorError
+        When the predictor table holds fewer than *train_blocks* + 1 blocks in the span
+        and misses blocks of the modal table there.
+    DataError
+        When it holds every block of the modal table there, and they are too few.
+    """
     n_blocks = len(blocks)
     if start_block is None:
         first = 0
@@ -125,10 +157,39 @@ def forecast_span(blocks, start_block, end_block, train_blocks: int) -> tuple[in
     last = n_blocks - 1
     if end_block is not None:
         last = int(np.searchsorted(blocks, int(end_block), side="right")) - 1
-    if last - first + 1 < train_blocks + 1:
-        raise ValueError(
-            f"only {max(last - first + 1, 0)} block(s) with predictors in the span to "
-            f"forecast: {train_blocks} training blocks (train_blocks) and one to forecast "
-            f"need at least {train_blocks + 1}"
-        )
-    return first, last
+    if last - first + 1 >= train_blocks + 1:
+        return first, last
+    held = max(last - first + 1, 0)
+    need = (
+        f"a training window of {train_blocks} blocks and one block to forecast need at "
+        f"least {train_blocks + 1}"
+    )
+    if modal_blocks is not None:
+        voyage = np.unique(np.asarray(modal_blocks, dtype=np.int64))
+        if start_block is not None:
+            voyage = voyage[voyage >= start_block]
+        if end_block is not None:
+            voyage = voyage[voyage <= int(end_block)]
+        if held and np.isin(voyage, blocks[first : last + 1]).all():
+            raise DataError(
+                f"the modal table holds only {voyage.size} block(s) in the span to forecast"
+                f"{_which(voyage)}, each with predictors: {need}",
+                parameter="train_blocks",
+                value=train_blocks,
+            )
+    raise PredictorError(
+        f"the predictor table holds only {held} block(s) in the span to forecast"
+        f"{_which(blocks[first : last + 1])}: {need}",
+        parameter="train_blocks",
+        value=train_blocks,
+    )
+
+
+def _which(blocks) -> str:
+    """`` (blocks 0 to 20)`` for consecutive *blocks*, `` (6 of blocks 0 to 20)`` else."""
+    if len(blocks) == 0:
+        return ""
+    low, high = int(blocks[0]), int(blocks[-1])
+    if len(blocks) == high - low + 1:
+        return f" (blocks {low} to {high})"
+    return f" ({len(blocks)} of blocks {low} to {high})"

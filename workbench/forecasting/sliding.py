@@ -97,6 +97,7 @@ from dataclasses import replace
 
 import pandas as pd
 
+from ..errors import PredictorError
 from .memory.forecast import memory_forecast
 from .options import ForecastOptions
 from .results import ForecastResult, combined
@@ -167,13 +168,12 @@ def sliding_forecast(
     options = ForecastOptions() if options is None else options
     if not isinstance(options, ForecastOptions):
         raise TypeError(f"options must be a ForecastOptions, got {type(options).__name__}")
-    for name, frame, needed in (
-        ("modal", modal, ("block", "mode", "frequency_hz")),
-        ("predictors", predictors, ("block", "block_start")),
-    ):
-        missing = [c for c in needed if c not in frame.columns]
-        if missing:
-            raise ValueError(f"{name} lacks column(s) {missing}")
+    missing = [c for c in ("block", "mode", "frequency_hz") if c not in modal.columns]
+    if missing:
+        raise ValueError(f"modal lacks column(s) {missing}")
+    missing = [c for c in ("block", "block_start") if c not in predictors.columns]
+    if missing:
+        raise PredictorError(f"the predictor table has no column {', '.join(map(repr, missing))}")
     if "B" in options.options and poles is None:
         raise ValueError("option='B' needs poles (the stabilisation diagrams)")
     run = memory_forecast if options.model == "memory" else window_forecast

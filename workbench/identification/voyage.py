@@ -15,7 +15,7 @@ import pandas as pd
 
 from data_contracts import POLES, read_table
 
-from ..errors import OptionError, WorkbenchError
+from ..errors import OptionError, UnreadableInputError, WorkbenchError
 from ..parallel import RunSummary, UnreadableBlock, run_blocks
 from ..results import StageResult, write_frame
 from ..sid.harmonics import HarmonicOptions
@@ -149,9 +149,15 @@ def _removed_inputs(
     per_file: bool,
     keep: bool,
     unreadable: Iterable[str] = (),
+    damaged: Iterable[str] = (),
 ) -> list[str]:
     """Report the recorded input files no longer given and drop (or, with *keep*, keep)
     the stored blocks that depended on them; the notices, one line per file.
+
+    The content a file read whole before had is not *removed* while the file is still
+    given but damaged (*damaged*, resolved paths; :func:`_damaged_since_read`): the
+    blocks computed from it stay. A damaged content recorded and no longer given (the
+    file repaired, replaced or gone) fed no block: it is forgotten without a notice.
 
     A block depends on the files its span overlaps; when files are conditioned once each
     (*per_file*), also on each file's neighbours (their edges pad the conditioning), so
@@ -161,10 +167,18 @@ def _removed_inputs(
     treated alike without a notice: its warning names it.
     """
     quiet = {str(Path(name).resolve()) for name in unreadable}
+    damaged = set(damaged)
     removed = store.removed_inputs(fingerprints)
+    gone = [r for r in removed if r.get("damaged") and r["path"] not in damaged]
+    if gone:
+        store.forget_inputs(gone)
+    removed = [r for r in removed if not r.get("damaged") and r["path"] not in damaged]
     if not removed:
         return []
-    recorded = sorted(store.recorded_inputs(), key=lambda r: pd.Timestamp(r["start"]))
+    recorded = sorted(
+        (r for r in store.recorded_inputs() if not r.get("damaged")),
+        key=lambda r: pd.Timestamp(r["start"]),
+    )
     order = {r["sha256"]: k for k, r in enumerate(recorded)}
     stored = sorted(store.completed_blocks())
     notices = []
@@ -247,7 +261,12 @@ def _unreadable_blocks(files, plan, unreadable: Mapping[str, str]) -> dict[int, 
 
 
 def _retry_unreadable(
-    store: BlockStore, plan, fingerprints: list[dict], per_file: bool, unreadable: Iterable[str]
+    store: BlockStore,
+    plan,
+    fingerprints: list[dict],
+    per_file: bool,
+    unreadable: Iterable[str],
+    damaged: Iterable[str] = (),
 ):
     """Take out of the store the blocks of input files an earlier run could not read and
     that have changed since (repaired, replaced or gone), so they are computed again, and
@@ -261,8 +280,17 @@ def _retry_unreadable(
     its recorded fingerprint (of the damaged content) is forgotten, so the repaired file
     is not refused as a changed input. A file unchanged since (its content recorded)
     keeps its blocks skipped.
+
+    A file read whole before and damaged since (its damaged content recorded,
+    :meth:`~workbench.store.BlockStore.record_damaged`) is still damaged while it is in
+    *damaged* (resolved paths, :func:`_damaged_since_read`); with any other content now
+    (repaired or replaced) its blocks and those near it are computed again, every
+    fingerprint of it forgotten.
     """
+    damaged = set(damaged)
+    flagged = {r["path"] for r in store.recorded_inputs() if r.get("damaged")}
     recorded = {
+        **{path: {"blocks": set(), "reason": ""} for path in flagged},
         **{path: {"blocks": set(), "reason": ""} for path in store.unreadable_files()},
         **store.unreadable_inputs(),
     }
@@ -280,7 +308,9 @@ def _retry_unreadable(
     notices = []
     for path, entry in sorted(recorded.items()):
         now = given.get(path)
-        if now is not None and now["sha256"] in known:
+        if path in damaged:
+            continue  # damaged after a read, still: its blocks stay (kept or skipped)
+        if path not in flagged and now is not None and now["sha256"] in known:
             continue  # the same content: still unreadable, its blocks stay skipped
         blocks = set(entry["blocks"])
         if now is not None:
@@ -300,6 +330,115 @@ def _retry_unreadable(
     if drop:
         store.drop_blocks(drop)
     return notices
+
+
+def _damaged_since_read(
+    store: BlockStore, plan, fingerprints: list[dict], unreadable: Mapping[str, str], read_options
+) -> dict[str, dict]:
+    """The input files an earlier run read whole whose content cannot be read now (a bad
+    checksum, cut short: damaged on disk since).
+
+    A file whose content is new, at a path whose content the store recorded, is read
+    whole: when that fails, the file is damaged, not changed (a file that reads is a
+    changed input, refused by :meth:`~workbench.store.BlockStore.check_inputs`). A file
+    whose damaged content is recorded already, or whose header cannot be read now (in
+    *unreadable*, paths as given -> why), is damaged too. The blocks computed from the
+    content read before are of good data: they are kept, and the content recorded
+    (:meth:`~workbench.store.BlockStore.record_damaged`).
+
+    Returns
+    -------
+    dict
+        Resolved path -> ``name`` (as given), ``why`` (the reader's complaint), ``entry``
+        (the damaged content's fingerprint, with ``why``) and ``good`` (the recorded
+        fingerprint of the content read before).
+    """
+    from ..fingerprints import sha256
+
+    recorded = store.recorded_inputs()
+    flagged = {r["sha256"]: r for r in recorded if r.get("damaged")}
+    # a file unreadable from the first run on was never read whole: not one of these
+    never_read = set(store.unreadable_inputs()) | set(store.unreadable_files())
+    never_read -= {r["path"] for r in flagged.values()}
+    good: dict[str, dict] = {}
+    for r in recorded:
+        if not r.get("damaged") and r["path"] not in never_read:
+            good[r["path"]] = r
+    if not good:
+        return {}
+    known = {r["sha256"] for r in recorded}
+    shown = {str(Path(info.path).resolve()): str(info.path) for info in plan.files}
+    found: dict[str, dict] = {}
+    for item in fingerprints:
+        path = item["path"]
+        if path not in good:
+            continue
+        before = flagged.get(item["sha256"])
+        if before is not None:  # the damaged content an earlier run found
+            found[path] = {"name": shown[path], "why": str(before.get("why", "")), "entry": before}
+        elif item["sha256"] not in known:
+            why = _unreadable_now(shown[path], read_options)
+            if why is not None:
+                found[path] = {"name": shown[path], "why": why, "entry": {**item, "why": why}}
+    for name, why in unreadable.items():  # the header unreadable now
+        path = str(Path(name).resolve())
+        if path not in good or path in found:
+            continue
+        try:
+            stat, digest = Path(name).stat(), sha256(Path(name))
+        except OSError:
+            continue  # gone since it was listed: a removed input
+        entry = {
+            "path": path,
+            "start": good[path]["start"],
+            "end": good[path]["end"],
+            "size": int(stat.st_size),
+            "mtime_ns": int(stat.st_mtime_ns),
+            "sha256": digest,
+            "why": why,
+        }
+        found[path] = {"name": name, "why": why, "entry": entry}
+    for path, item in found.items():
+        item["good"] = good[path]
+    return found
+
+
+def _unreadable_now(name: str, read_options) -> str | None:
+    """Why the acceleration file *name* cannot be read whole now (None: it can)."""
+    from data_contracts import read_accelerations
+
+    try:
+        read_accelerations(name, **dict(read_options))
+    except (OSError, ValueError, KeyError, EOFError) as error:
+        if isinstance(error, OptionError):
+            raise
+        return UnreadableInputError.of(name, error).detail
+    return None
+
+
+def _damaged_warnings(store: BlockStore, damaged: Mapping[str, dict], grid) -> list[str]:
+    """One line per file damaged since an earlier run read it: the blocks computed from
+    that read, kept, and those that need it and are not identified."""
+    if not damaged:
+        return []
+    table = store.read("blocks")
+    ok = [] if table.empty else table.loc[table["status"] == "ok", "block"].astype(int).tolist()
+    skipped = store.unreadable_inputs()
+    lines = []
+    for path, item in sorted(damaged.items(), key=lambda kv: kv[1]["name"]):
+        low, high = pd.Timestamp(item["good"]["start"]), pd.Timestamp(item["good"]["end"])
+        kept = sorted(b for b in ok if grid.start(b) < high and grid.end(b) > low)
+        line = f"{item['name']}: unreadable ({item['why']}), damaged since an earlier run read it"
+        line += (
+            f"; block(s) {block_ranges(kept)} computed from that read are kept"
+            if kept
+            else "; no block computed from that read is stored"
+        )
+        missed = skipped.get(path, {}).get("blocks", set())
+        if missed:
+            line += f"; block(s) {block_ranges(missed)} that need it not identified"
+        lines.append(line)
+    return lines
 
 
 def _plan_without(plan, paths: set[str]):
@@ -362,12 +501,18 @@ def _without_unread_edges(store: BlockStore, plan, known, unreadable: dict, run,
     )
 
 
-def _unreadable_warnings(store: BlockStore, files, unreadable: dict[str, str]) -> list[str]:
+def _unreadable_warnings(
+    store: BlockStore, files, unreadable: dict[str, str], damaged: Iterable[str] = ()
+) -> list[str]:
     """One line per input file that cannot be read, naming it and the blocks not
-    identified for it (those found now and those an earlier run stored)."""
+    identified for it (those found now and those an earlier run stored); not those of
+    *damaged* (resolved paths: :func:`_damaged_warnings` names them)."""
     stored = store.unreadable_inputs()
+    damaged = set(damaged)
     lines = []
     for name in dict.fromkeys(str(f) for f in files):
+        if str(Path(name).resolve()) in damaged:
+            continue
         entry = stored.get(str(Path(name).resolve()))
         if entry is None and name not in unreadable:
             continue
@@ -498,8 +643,12 @@ def identify_voyage(
     with BlockStore.open(store_path, parameters) as store:
         notices = list(store.notices)
         fingerprints = input_fingerprints(plan.files)
+        # a file read whole before and damaged on disk since: its blocks are kept, its
+        # damaged content is no changed input
+        damaged = _damaged_since_read(store, plan, fingerprints, unreadable, options.read_options)
+        store.record_damaged(item["entry"] for item in damaged.values())
         # before the check: a repaired file is not another voyage's data
-        notices += _retry_unreadable(store, plan, fingerprints, per_file, unreadable)
+        notices += _retry_unreadable(store, plan, fingerprints, per_file, unreadable, damaged)
         store.check_inputs(fingerprints)
         notices += _removed_inputs(
             store,
@@ -508,6 +657,7 @@ def identify_voyage(
             per_file=per_file,
             keep=keep_removed_inputs,
             unreadable=unreadable,
+            damaged=damaged,
         )
         wanted = None if blocks is None else {int(b) for b in blocks}
 
@@ -545,18 +695,28 @@ def identify_voyage(
         known = store.unreadable_inputs()
         plan_run = plan
         if per_file:
-            # files whose samples an earlier run found unreadable (unchanged since): their
-            # edges pad no neighbour now either (they stay fingerprinted, in *plan*)
+            # files whose samples an earlier run found unreadable (unchanged since), or
+            # that are damaged since a run read them: their edges pad no neighbour now
+            # either (they stay fingerprinted, in *plan*)
             shown = {str(Path(info.path).resolve()): str(info.path) for info in plan.files}
-            damaged = {path: shown[path] for path in known if path in shown}
-            if damaged and len(damaged) < len(plan.files):
-                unreadable.update({name: _detail(known[p], name) for p, name in damaged.items()})
-                plan_run = _plan_without(plan, set(damaged))
+            left_out = {path: shown[path] for path in known if path in shown}
+            left_out |= {path: shown[path] for path in damaged if path in shown}
+            if left_out and len(left_out) < len(plan.files):
+                unreadable.update(
+                    {
+                        name: _detail(known[p], name) if p in known else damaged[p]["why"]
+                        for p, name in left_out.items()
+                    }
+                )
+                plan_run = _plan_without(plan, set(left_out))
         summary, n_tasks = run(plan_run)
         if per_file:
-            summary = _without_unread_edges(store, plan, set(known), unreadable, run, summary)
+            summary = _without_unread_edges(
+                store, plan, set(known) | set(damaged), unreadable, run, summary
+            )
         if warn_unreadable:
-            notices += _unreadable_warnings(store, files, unreadable)
+            notices += _damaged_warnings(store, damaged, grid)
+            notices += _unreadable_warnings(store, files, unreadable, damaged)
         result = IdentifyResult(summary, n_blocks=n_tasks, warnings=notices)
         result.files = export_store(store, out, channels, grid=grid, harmonics=marker)
         result.notes = marker.lines()

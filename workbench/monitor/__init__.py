@@ -126,6 +126,12 @@ When is a block identified
   once with ``--once``.
 * Blocks are tracked in block order, so a block waiting for a late file holds the tracked
   table (not the identification) of the blocks after it.
+* A block skipped (every channel faulty, a gap, ...) is said once in the log with its
+  reason, and stored with its data-health row like any block. ``--once`` ends with exit
+  1 and one line naming the blocks, their files and the reasons when the blocks it
+  decided were all skipped, one at least for what its data holds (not a gap), or when
+  no block of the state folder is identified (:meth:`Monitor.nothing_identified`); the
+  monitor without ``--once`` goes on.
 * The block grid is anchored at the first file (as in ``workbench identify``) and kept in
   the store: a file starting before it is refused with a message.
 

@@ -32,7 +32,7 @@ from ..identification.engine import BlockTask
 from ..processes import interrupts_deferred, worker_initializer
 from ..sid.harmonics import HarmonicOptions
 from ..sid.tracking import TrackingOptions
-from ..store import BlockStore, StoreLock
+from ..store import BlockStore, StoreLock, block_ranges
 from .adaptive import LEFT_OUT, AdaptiveLengths
 from .conditioning import block_conditioner, forget_conditioned
 from .data_health import DATA_HEALTH_COLUMNS, data_health_frame, data_health_row
@@ -222,6 +222,12 @@ class Monitor:
         self.store: BlockStore | None = None
         self.files: list[LandedFile] = []
         self.done: set[int] = set()
+        #: Of the blocks this process decided (not those a restart found stored): how
+        #: many were identified, and each skipped one as ``block``, ``files`` (names),
+        #: ``reason`` and ``faults`` (the dropped channels' reasons), what
+        #: :meth:`nothing_identified` reads.
+        self.identified_here = 0
+        self.skipped_here: list[dict] = []
         self.messages: list[str] = []
         self.conditioned_files = [0]  # files conditioned (per-file path)
         self._shared: dict = {}
@@ -747,6 +753,20 @@ class Monitor:
         self.store.write_batch(blocks, tables)  # the block is done once this returns
         self.done.add(int(outcome.block))
         self._health_rows.append(row)
+        if outcome.skipped:
+            faults = outcome.tables.get("faults")
+            self.skipped_here.append(
+                {
+                    "block": int(outcome.block),
+                    "files": [Path(f).name for f in planned.files],
+                    "reason": outcome.skipped,
+                    "faults": sorted(set(faults["reason"].astype(str)))
+                    if faults is not None and "reason" in faults and len(faults)
+                    else [],
+                }
+            )
+        else:
+            self.identified_here += 1
         since = self._health_rows_from
         self._health_rows_from = int(row["block"]) if since is None else min(since, row["block"])
         selected = outcome.tables.get("selected")
@@ -771,7 +791,7 @@ class Monitor:
             "block %d: %s, identification CPU %.3f s, state written %.3f s after its last "
             "file landed",
             outcome.block,
-            row["status"],
+            f"skipped ({outcome.skipped})" if outcome.skipped else row["status"],
             cpu,
             (pd.Timestamp.now(tz="UTC") - row["last_file_landed"]).total_seconds(),
         )
@@ -1202,8 +1222,7 @@ class Monitor:
         missing = {
             int(row["block"]): str(row["reason"])
             for row in self._health_rows
-            if row["status"] == "skipped"
-            and ("gap" in str(row["reason"]) or "no data" in str(row["reason"]))
+            if row["status"] == "skipped" and _missing_data(str(row["reason"]))
         }
         if missing and self.files and self.voyage is not None:
             from ..signals.block_plan import plan_file_infos
@@ -1248,6 +1267,49 @@ class Monitor:
         return (
             f"{count} block(s) given up, their files landed after the late window: {named}; "
             f"`workbench identify {self.watch} --out DIR` over the folder includes them"
+        )
+
+    def nothing_identified(self) -> str:
+        """One line saying why no block was identified ('' when there is nothing to say).
+
+        Said when the blocks this process decided were all skipped and at least one for
+        what its data holds (faulty channels, a failed fit, an unreadable file) rather
+        than for data missing (a gap, which a file landing later may fill for the blocks
+        after it), or when the state holds no identified block at all (whatever the
+        reasons, also on a rerun that decides no new block: ``workbench identify`` over
+        the same files ends so too).
+
+        ``workbench monitor --once`` ends with exit 1 on it, as ``workbench identify``
+        does when no block is identified; the blocks stay stored and in
+        ``data_health.parquet`` as they were decided.
+        """
+        here = [] if self.identified_here else self.skipped_here
+        stored = [
+            {"block": int(r["block"]), "files": [], "reason": str(r["reason"]), "faults": []}
+            for r in self._health_rows
+        ]
+        faults_here = bool(here) and not all(_missing_data(d["reason"]) for d in here)
+        none_stored = bool(stored) and all(d["reason"] for d in stored)
+        if not (faults_here or none_stored):
+            return ""
+        decided, earlier = (here, "") if here else (stored, " by an earlier run")
+        counts: dict[str, int] = {}
+        for d in decided:
+            why = d["reason"]
+            if d["faults"]:
+                why += f": {', '.join(d['faults'])}"
+            counts[why] = counts.get(why, 0) + 1
+        reasons = sorted(counts.items(), key=lambda item: -item[1])
+        why = "; ".join(f"{reason} ({n} block(s))" for reason, n in reasons[:3])
+        if len(reasons) > 3:
+            why += f"; {len(reasons) - 3} more reasons"
+        names = sorted({name for d in decided for name in d["files"]})
+        files = ", ".join(names) if len(names) <= 3 else f"{names[0]} ... {names[-1]}"
+        files = f"; files {files}, {len(names)} in all" if names else ""
+        return (
+            f"no block identified: {len(decided)} block(s) decided{earlier} "
+            f"({block_ranges(d['block'] for d in decided)}{files}) were all skipped: {why}; "
+            f"each block's reason is in {self.state / 'data_health.parquet'}"
         )
 
     # ------------------------------------------------------------------ state files
@@ -1333,6 +1395,12 @@ def _with_measures(outcome, measures: dict):
         }
     )
     return replaced(outcome, tables=tables)
+
+
+def _missing_data(reason: str) -> bool:
+    """Whether a block was skipped for data missing (a gap, no data, no length fitting
+    a gap): the file filling the hole may still come, unlike faulty data."""
+    return "gap" in reason or "no data" in reason
 
 
 def stall_limit_s(poll_s: float) -> float:

@@ -23,10 +23,22 @@ import pandas as pd
 
 from data_contracts import FORECAST, MODAL
 
+from ..errors import PredictorError
+
 if TYPE_CHECKING:
     from ..simulate.health_voyage import HealthVoyage
 
-__all__ = ["DEFAULT_TERMS", "OperationalModel", "fit_operational_model", "frozen_forecast"]
+__all__ = [
+    "DEFAULT_TERMS",
+    "MIN_TRAIN_BLOCKS",
+    "OperationalModel",
+    "fit_operational_model",
+    "frozen_forecast",
+]
+
+#: The fewest training blocks the operational model is fitted on (its default terms and
+#: the Newey-West covariance need a dozen blocks at least).
+MIN_TRAIN_BLOCKS = 12
 
 #: Terms of the default model: added mass (speed, speed²), stiffness (water and air
 #: temperature), the speed x water interaction of the hull-water coupling, and the fuel on
@@ -109,13 +121,17 @@ class OperationalModel:
 
         Raises
         ------
-        ValueError
+        PredictorError
             When no reference block is in *predictors*.
         """
         stop = start_block + int(blocks) - 1
         inside = predictors["block"].between(start_block, stop).to_numpy()
         if not inside.any():
-            raise ValueError(f"reference blocks {start_block}-{stop} are not in predictors")
+            raise PredictorError(
+                f"the predictor table holds none of the reference blocks {start_block} to {stop}",
+                parameter="reference_start_block",
+                value=start_block,
+            )
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
             return np.nanmean(self.design(predictors)[inside], axis=0)
@@ -292,11 +308,11 @@ def fit_operational_model(
        and autocorrelation consistent covariance matrix", Econometrica 55(3), 1987.
        doi:10.2307/1913610
     """
-    if int(train_blocks) != train_blocks or train_blocks < 12:
-        raise ValueError(f"train_blocks={train_blocks!r} must be an integer >= 12")
+    if int(train_blocks) != train_blocks or train_blocks < MIN_TRAIN_BLOCKS:
+        raise ValueError(f"train_blocks={train_blocks!r} must be an integer >= {MIN_TRAIN_BLOCKS}")
     modal = MODAL.validate(modal)
     if "block" not in predictors.columns:
-        raise ValueError("predictors has no column 'block'")
+        raise PredictorError("the predictor table has no column 'block'")
     if terms is None:
         terms = tuple(
             t
@@ -307,14 +323,20 @@ def fit_operational_model(
     names = sorted({c for t in terms for c in _parse(t)})
     missing = [c for c in names if c not in predictors.columns]
     if missing:
-        raise ValueError(f"predictors has no column {', '.join(map(repr, missing))} (terms)")
+        raise PredictorError(
+            f"the predictor table has no column {', '.join(map(repr, missing))}",
+            parameter="terms",
+            value=terms,
+        )
     grid = predictors.sort_values("block").reset_index(drop=True)
     stop = train_start_block + int(train_blocks) - 1
     window = grid[(grid["block"] >= train_start_block) & (grid["block"] <= stop)]
     if len(window) < train_blocks:
-        raise ValueError(
-            f"training window of {train_blocks} blocks from block {train_start_block}: "
-            f"predictors have only {len(window)} of them"
+        raise PredictorError(
+            f"the predictor table holds only {len(window)} of the {train_blocks} blocks of "
+            f"the training window from block {train_start_block}",
+            parameter="train_blocks",
+            value=train_blocks,
         )
     centre, spread = {}, {}
     for name in names:

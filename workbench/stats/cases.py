@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from ..errors import PredictorError
 from .correlation import case_masks
 from .mode_fits import ModeFit, StatsWarning, coefficient_table, fit_modes
 
@@ -113,7 +114,9 @@ def derive_cases(predictors: pd.DataFrame, rule: CaseRule | None = None) -> pd.S
     """
     rule = rule or CaseRule()
     if "speed_kn" not in predictors.columns:
-        raise ValueError("deriving operating cases needs the column 'speed_kn'")
+        raise PredictorError(
+            "the predictor table has no column 'speed_kn', which deriving operating cases needs"
+        )
     speed = pd.to_numeric(predictors["speed_kn"], errors="coerce").to_numpy(dtype=float)
     labels = np.full(len(predictors), None, dtype=object)
     under_way = speed >= rule.stationary_below_kn

@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 from scipy import special as _special
 
+from ..errors import PredictorError
 from .effective_sample import effective_p_value, effective_sample_size, effective_significance
 
 __all__ = [
@@ -110,16 +111,16 @@ def joined_blocks(
     present), the mode-quantity column names and the predictor column names.
     """
     if "block" not in predictors.columns:
-        raise ValueError("predictor table has no column 'block'")
+        raise PredictorError("predictor table has no column 'block'")
     if predictors["block"].duplicated().any():
         block = int(predictors.loc[predictors["block"].duplicated(), "block"].iloc[0])
-        raise ValueError(f"predictor table has more than one row for block {block}")
+        raise PredictorError(f"predictor table has more than one row for block {block}")
     names = list(predictors_used) if predictors_used is not None else predictor_columns(predictors)
     missing = [c for c in names if c not in predictors.columns]
     if missing:
-        raise ValueError(f"predictor table has no column {missing[0]!r}")
+        raise PredictorError(f"predictor table has no column {missing[0]!r}")
     if not names:
-        raise ValueError("predictor table has no numeric predictor columns")
+        raise PredictorError("predictor table has no numeric predictor columns")
     wide = modal_wide(modal, quantities)
     frame = predictors.set_index("block")
     frame.index = frame.index.astype("int64")

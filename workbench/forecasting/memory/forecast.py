@@ -170,7 +170,7 @@ class MemoryRun:
         self.notes: Counter[str] = Counter()
         self._grid_and_modes(modal, predictors, modes)
         self.first, self.last = forecast_span(
-            self.blocks, start_block, end_block, int(options.train_blocks)
+            self.blocks, start_block, end_block, int(options.train_blocks), modal["block"]
         )
         self.train = int(options.train_blocks)
         memory = float(options.memory_blocks)

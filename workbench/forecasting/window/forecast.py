@@ -165,7 +165,9 @@ def window_forecast(
                 f"for {_MIN_SHAPE_CHANNELS}+ shared channels): nearest pole in the gate, "
                 "no MAC check"
             ] += 1
-    first, last = forecast_span(grid.blocks, start_block, end_block, int(options.train_blocks))
+    first, last = forecast_span(
+        grid.blocks, start_block, end_block, int(options.train_blocks), modal["block"]
+    )
     run = WindowRun(
         grid=grid,
         options=options,
