@@ -274,6 +274,9 @@ def _identify_method(
         selection=options.selection,
         band_hz=options.selection_band(data.sampling_rate_hz),
         damping_limits=options.damping_limits,
+        # pLSCF's over-fitted orders pull its poles: its modes are read from the orders
+        # where the column agrees with itself
+        frequency_from="consistent_orders" if method == "lscf" else "all_orders",
     )
     if confirm and selection.thresholds.get("second_look"):
         selection = _confirmed_by_halves(method, data, reference, options, selection)

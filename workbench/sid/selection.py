@@ -63,7 +63,10 @@ diagram itself:
 
 Each mode is reported by the cluster's median frequency and median damping ratio, the shape
 (and ``pole_index``, ``model_order``, ``mpc``) of its pole nearest the median frequency,
-and the cluster scatter: ``frequency_std_hz``, ``damping_std`` (sample standard deviations
+and the cluster scatter (all over the cluster's orders; with
+``frequency_from="consistent_orders"``, what ``identify`` uses for pLSCF, the frequency of
+a cluster that drifts with the model order is the median of its lower orders,
+:func:`_consistent_orders`): ``frequency_std_hz``, ``damping_std`` (sample standard deviations
 over the cluster's poles) and ``n_poles`` (orders in the cluster) - a measurement-noise
 estimate for the forecast's Kalman filter.
 
@@ -319,6 +322,7 @@ def select_modes(
     mac_min: float = 0.98,
     mpc_min: float = 0.0,
     second_look: bool = True,
+    frequency_from: Literal["all_orders", "consistent_orders"] = "all_orders",
 ) -> ModeSelection:
     """Select the physical modes of a stabilisation diagram.
 
@@ -359,6 +363,11 @@ def select_modes(
     second_look : bool
         ``"cluster"``: look again at the poles left over for close and weakly excited
         modes (stage 4 of the module docstring).
+    frequency_from : {"all_orders", "consistent_orders"}
+        ``"cluster"``: a mode's frequency is the median over all the orders of its column,
+        or (``"consistent_orders"``, for pLSCF) over its lower orders where the column
+        drifts with the model order (:func:`_consistent_orders`). Which modes are
+        selected, their damping ratio, shape and scatter do not depend on it.
 
     Returns
     -------
@@ -392,6 +401,10 @@ def select_modes(
         raise ValueError(f"min_orders={min_orders} must be at least 2")
     if pole_distance is not None and not 0 < pole_distance <= 1:
         raise ValueError(f"pole_distance={pole_distance} must lie in (0, 1]")
+    if frequency_from not in ("all_orders", "consistent_orders"):
+        raise ValueError(
+            f"frequency_from={frequency_from!r} must be 'all_orders' or 'consistent_orders'"
+        )
     return _select_clusters(
         result,
         frequency_band=band_hz,
@@ -402,6 +415,7 @@ def select_modes(
         mac_min=mac_min,
         mpc_min=mpc_min,
         second_look=second_look,
+        consistent_orders=frequency_from == "consistent_orders",
     )
 
 
@@ -416,8 +430,10 @@ def _select_clusters(
     mpc_min: float,
     pole_distance: float | None = None,
     second_look: bool = True,
+    consistent_orders: bool = False,
 ) -> ModeSelection:
-    """The clustering rule of the module docstring."""
+    """The clustering rule of the module docstring (*consistent_orders*: a mode's frequency
+    from :func:`_consistent_orders`)."""
     orders = tuple(sorted(result.orders))
     poles = result.poles
     frequency = poles["frequency_hz"].to_numpy(dtype=float)
@@ -489,7 +505,9 @@ def _select_clusters(
         if twin:
             continue
         heads.append(head)
-        statistics[int(index[head])] = _cluster_statistics(f, z, members)
+        statistics[int(index[head])] = _cluster_statistics(
+            f, z, members, rank if consistent_orders else None
+        )
         kept_members.append(members)
     # stage 4: a second look at the poles left over, for close and weakly excited modes
     if second_look:
@@ -512,7 +530,9 @@ def _select_clusters(
             centre = np.median(f[members])
             head = int(members[np.argmin(np.abs(f[members] - centre))])
             heads.append(head)
-            statistics[int(index[head])] = _cluster_statistics(f, z, members)
+            statistics[int(index[head])] = _cluster_statistics(
+                f, z, members, rank if consistent_orders else None
+            )
             second_look_poles.append(int(index[head]))
         thresholds["second_look"] = len(rescued)
         thresholds["second_look_poles"] = tuple(sorted(second_look_poles))
@@ -664,16 +684,72 @@ def needed_second_look(min_orders: int, needed: int) -> int:
     return max(int(min_orders), int(np.ceil(SECOND_LOOK_SHARE * needed)))
 
 
-def _cluster_statistics(f, z, members) -> dict:
-    """Median frequency and damping, their scatter and the number of orders of a cluster."""
+def _cluster_statistics(f, z, members, rank=None) -> dict:
+    """Median frequency and damping, their scatter and the number of orders of a cluster;
+    with the poles' order ranks *rank*, the frequency is the median over the orders
+    :func:`_consistent_orders` picks."""
     ddof = 1 if members.size > 1 else 0
+    frequency = f[members] if rank is None else f[_consistent_orders(members, f, rank)]
     return {
-        "frequency_hz": float(np.median(f[members])),
+        "frequency_hz": float(np.median(frequency)),
         "damping_ratio": float(np.median(z[members])),
         "frequency_std_hz": float(np.std(f[members], ddof=ddof)),
         "damping_std": float(np.std(z[members], ddof=ddof)),
         "n_poles": int(members.size),
     }
+
+
+#: A column drifts with the model order when the medians of its lower and upper orders
+#: differ by more than this multiple of its pole-to-pole scatter. [-]
+ORDER_DRIFT_SIGMA = 2.0
+
+
+def _consistent_orders(members, f, rank) -> np.ndarray:
+    """The poles of a column (one per model order) its frequency is read from: the lower
+    half of its orders where the column drifts with the order, else all of them.
+
+    An over-fitted frequency-domain model shifts its physical poles with the order. pLSCF
+    [1]_ fits the half-spectra by linear least squares of the equation error, whose pole
+    estimates are biased by noise (the bias of least-squares all-pole fits to noisy data,
+    [2]_); every order beyond the one that holds the band's modes adds r poles that fit
+    noise and the spectral window, and those that fall into a resonance share its peak
+    with the mode and pull its pole - most where a close neighbour shares the peak too
+    (the lower mode of a 1 % pair in ``benchmarks/bench_close_weak.py``: 3.389-3.392 Hz at
+    polynomial orders 2-6, 3.356-3.376 Hz at 9-15, the truth 3.4 Hz). The estimates of
+    the orders all come from the same spectra: their median over more orders averages
+    out little noise, but takes in the drift of the over-fitted orders.
+
+    The column's *pole-to-pole scatter* is the robust standard deviation of its steps from
+    one order to the next about their median step (1.4826 x MAD / √2, so a steady drift
+    does not count as scatter). When the median of the upper half of its orders lies more
+    than :data:`ORDER_DRIFT_SIGMA` such scatters from the median of the lower half, the
+    orders do not estimate one frequency and the lower half, the least over-fitted models
+    that hold the mode, is kept; otherwise all orders are (a column that agrees with
+    itself keeps the median of all its poles). A drift is kept with a low threshold
+    because the two errors cost differently: the lower half of a column that does not
+    drift is still a median of its estimates, a drift taken in is a bias. Columns of
+    fewer than four orders are kept whole. What this does to the selected modes of pLSCF
+    on the close and weak modes of ``bench_close_weak.py`` (and to SSI, where it is not
+    used): ``benchmarks/results/identification_32g.txt``.
+
+    References
+    ----------
+    .. [1] B. Peeters, H. Van der Auweraer, P. Guillaume, J. Leuridan, "The PolyMAX
+       frequency-domain method: a new standard for modal parameter estimation?", Shock
+       and Vibration 11(3-4), 395-409, 2004. doi:10.1155/2004/523692
+    .. [2] D. P. McGinn, D. H. Johnson, "Estimation of all-pole model parameters from
+       noise-corrupted sequences", IEEE Transactions on Acoustics, Speech, and Signal
+       Processing 37(3), March 1989.
+    """
+    members = members[np.argsort(rank[members], kind="stable")]
+    if members.size < 4:
+        return members
+    frequency = f[members]
+    lower = (members.size + 1) // 2
+    step = np.diff(frequency)
+    scatter = 1.4826 * np.median(np.abs(step - np.median(step))) / np.sqrt(2.0)
+    drift = abs(np.median(frequency[lower:]) - np.median(frequency[:lower]))
+    return members[:lower] if drift > ORDER_DRIFT_SIGMA * scatter else members
 
 
 def _second_look(
