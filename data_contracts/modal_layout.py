@@ -213,6 +213,11 @@ def standardise_modal(
             [Violation(column, reason, tuple(rows), n_rows)], source=source, contract="modal"
         )
 
+    def fail_at(reason: str, column: str, mask: np.ndarray) -> ContractError:
+        """:func:`fail` naming the first five of the file's rows *mask* marks in ``long``."""
+        rows = _file_rows(long, mask)
+        return fail(reason, column, [f"row {r}" for r in rows[:5]], len(rows))
+
     found = f"columns in the file: {', '.join(map(str, frame.columns))}"
     keys: dict[str, str] = {}
     units: dict[str, str | None] = {}
@@ -318,7 +323,7 @@ def standardise_modal(
     if missing.all():  # nothing to place on the block grid
         raise fail(f"no row has a frequency ({len(frame)} rows)")
     if missing.any():
-        rows = sorted(set(long.loc[missing, "_row"].tolist()))
+        rows = _file_rows(long, missing)
         warnings.warn(
             f"{head}: dropped {int(missing.sum())} mode estimate(s) without a frequency "
             f"(in {len(rows)} row(s), first: row {rows[0]})",
@@ -352,16 +357,13 @@ def standardise_modal(
         tolerance_s = min(1.0, layout.block_step_s / 100.0)
         off = off_s > tolerance_s
         if off.any() or (block < 0).any():
-            bad = off | (block < 0)
-            rows = sorted(set(long.loc[bad, "_row"].tolist()))
-            raise fail(
+            raise fail_at(
                 f"{time_column} ({reference} of a {layout.block_length_s / 60:g}-min window) "
                 f"is not on the block grid (t0 {t0.isoformat()}, a block every "
                 f"{layout.block_step_s / 60:g} min; up to {off_s.max():.3g} s off): give the "
                 "block length, step and t0 of the tool's analysis windows",
                 time_column,
-                [f"row {r}" for r in rows[:5]],
-                len(rows),
+                off | (block < 0),
             )
         if block_column is not None:
             given = pd.to_numeric(long[block_column], errors="coerce").to_numpy()
@@ -386,15 +388,13 @@ def standardise_modal(
         last_s = (pd.Timestamp.max.tz_localize("UTC") - t0).total_seconds() - layout.block_length_s
         beyond = block * layout.block_step_s > last_s
         if beyond.any():
-            rows = sorted(set(long.loc[beyond, "_row"].tolist()))
-            raise fail(
+            raise fail_at(
                 f"block {int(block[beyond].max())} would start after "
                 f"{pd.Timestamp.max.year} on a grid of a block every "
                 f"{layout.block_step_s / 60:g} min from {t0.isoformat()}: block numbers "
                 "beyond any time",
                 block_column,
-                [f"row {r}" for r in rows[:5]],
-                len(rows),
+                beyond,
             )
         block = block.astype(np.int64)
     block_start = t0 + pd.to_timedelta(block * step_ns, unit="ns")
@@ -513,6 +513,11 @@ def _mode_labels(values: pd.Series, column, fail) -> np.ndarray:
         f"{', '.join(map(repr, values[digits.isna()].unique()[:3]))}",
         str(column),
     )
+
+
+def _file_rows(long: pd.DataFrame, mask: np.ndarray) -> list[int]:
+    """The rows of the file (``_row``: one file row can hold several modes) *mask* marks."""
+    return sorted(set(long.loc[mask, "_row"].tolist()))
 
 
 def _utc(value, name: str) -> pd.Timestamp:
