@@ -53,8 +53,17 @@ def _half(values: np.ndarray, order: np.ndarray, upper: bool) -> float:
     return float(np.median(ranked[ranked.size // 2 :] if upper else ranked[:lower]))
 
 
+def _drift_test(f: np.ndarray, mpc: np.ndarray, order: np.ndarray) -> float:
+    """LSCF's reading (identification_32g.txt): the lower half where the column drifts."""
+    from workbench.sid.selection import _consistent_orders
+
+    rank = np.argsort(np.argsort(order, kind="stable"))
+    return float(np.median(f[_consistent_orders(np.arange(f.size), f, rank)]))
+
+
 RULES = {
     "all orders": lambda f, mpc, order: float(np.median(f)),
+    "drift test": _drift_test,
     "lower half": lambda f, mpc, order: _half(f, order, upper=False),
     "upper half": lambda f, mpc, order: _half(f, order, upper=True),
     "mean": lambda f, mpc, order: float(np.mean(f)),
@@ -114,13 +123,16 @@ def oracle(record, block_rows: int) -> np.ndarray:
     return out
 
 
-def readings(cases, seeds: range) -> pd.DataFrame:
+def readings(cases, seeds: range) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Per selected SSI mode its readings (first table); per case, 60-seed range and rule
+    the benchmark's score of SSI with that rule applied to the modes that have a selected
+    neighbour within 3 % (the pairs' modes; second table)."""
     from threadpoolctl import threadpool_limits
 
     from workbench.identification.options import IdentifyOptions
 
     options = IdentifyOptions()
-    rows = []
+    rows, scores = [], []
     for case in cases:
         for seed in seeds:
             record, interest = close_weak.build(case, seed)
@@ -133,7 +145,12 @@ def readings(cases, seeds: range) -> pd.DataFrame:
                 reference = oracle(record, options.block_rows)
             members = columns(result, options)
             poles = result.poles
-            for frequency in chosen.modes["frequency_hz"].to_numpy():
+            selected = chosen.modes["frequency_hz"].to_numpy()
+            near = np.abs(selected[:, None] / selected[None, :] - 1.0)
+            np.fill_diagonal(near, np.inf)
+            near = near.min(axis=1, initial=np.inf) < 0.03
+            by_rule = {name: selected.copy() for name in RULES}
+            for j, frequency in enumerate(selected):
                 k = int(np.argmin(np.abs(truth / frequency - 1.0)))
                 index = members[frequency]
                 if case["separation"] is not None and k in (2, truth.size - 1):
@@ -157,9 +174,50 @@ def readings(cases, seeds: range) -> pd.DataFrame:
                 mpc = poles["mpc"].to_numpy()[index]
                 order = poles["model_order"].to_numpy()[index]
                 for name, rule in RULES.items():
-                    row[name] = rule(f, mpc, order) / truth[k] - 1.0
+                    value = rule(f, mpc, order)
+                    row[name] = value / truth[k] - 1.0
+                    if near[j]:
+                        by_rule[name][j] = value
                 rows.append(row)
-    return pd.DataFrame(rows)
+            for name, estimate in by_rule.items():
+                found, error, spurious = close_weak.score(truth, estimate)
+                scores.append(
+                    {
+                        "case": case["name"],
+                        "seeds": f"{seed // 60 * 60}-{seed // 60 * 60 + 59}",
+                        "rule": name,
+                        "found": int(found.sum()),
+                        "spurious": spurious,
+                        "errors": error[found].tolist(),
+                    }
+                )
+    return pd.DataFrame(rows), pd.DataFrame(scores)
+
+
+def cells(scores: pd.DataFrame) -> pd.DataFrame:
+    """Per rule, over the case x range cells: the benchmark's found, spurious, median and
+    worst |df|/f of SSI with the rule on the pairs' modes against "all orders"."""
+    grouped = scores.groupby(["rule", "case", "seeds"]).agg(
+        found=("found", "sum"), spurious=("spurious", "sum"), errors=("errors", "sum")
+    )
+    grouped["median"] = grouped["errors"].apply(np.median)
+    grouped["worst"] = grouped["errors"].apply(np.max)
+    base = grouped.loc["all orders"]
+    out = []
+    for name in RULES:
+        rule = grouped.loc[name]
+        out.append(
+            {
+                "rule on the pairs' modes": name,
+                "cells": len(rule),
+                "found lower": int((rule["found"] < base["found"]).sum()),
+                "spurious": int(rule["spurious"].sum()),
+                "median worse": int((rule["median"] > base["median"]).sum()),
+                "median better": int((rule["median"] < base["median"]).sum()),
+                "worst worse": int((rule["worst"] > base["worst"]).sum()),
+            }
+        )
+    return pd.DataFrame(out)
 
 
 def summary(table: pd.DataFrame) -> pd.DataFrame:
@@ -193,7 +251,7 @@ def main(argv=None) -> int:
     if not 1 <= args.seeds <= 300:
         print(f"--seeds {args.seeds} must lie in 1..300", file=sys.stderr)
         return 2
-    table = readings(
+    table, scores = readings(
         close_weak.case_list(args.cases.split(",")),
         range(args.first_seed, args.first_seed + args.seeds),
     )
@@ -221,6 +279,8 @@ def main(argv=None) -> int:
                 ["case", "seed", "mode", "truth", "tolerance", "all orders", "oracle"]
             ].to_string(index=False, float_format=lambda v: f"{v:.5g}")
         )
+        print()
+        print(cells(scores).to_string(index=False))
     return 0
 
 
