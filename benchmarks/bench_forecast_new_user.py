@@ -32,7 +32,10 @@ import pandas as pd
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_forecast_accuracy import score  # noqa: E402
+from child_library import pin_library  # noqa: E402
 from forecast_regimes import UNRECORDED, make_regime  # noqa: E402
+
+pin_library()  # child processes import this library, not the current folder's
 
 #: The issue's table: slow rise, held step, 40-min wander of twice the SSI scatter.
 CASES = ("rise_0.8pct_12h", "step_-0.6pct", "wander_40min_2x")

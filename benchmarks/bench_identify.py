@@ -23,6 +23,11 @@ import tempfile
 import time
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from child_library import pin_library  # noqa: E402
+
+pin_library()  # child processes import this library, not the current folder's
+
 
 def _voyage(root: Path, days: float) -> Path:
     folder = root / f"voyage_{days:g}d"

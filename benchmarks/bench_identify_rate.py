@@ -62,6 +62,11 @@ import tempfile
 import time
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from child_library import pin_library  # noqa: E402
+
+pin_library()  # child processes import this library, not the current folder's
+
 RATE_HZ = 2048.0
 STEP_S = 300.0
 DAY_BLOCKS = 288

@@ -54,6 +54,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from child_library import pin_library  # noqa: E402
+
+pin_library()  # child processes import this library, not the current folder's
+
 FORECAST = ["--train-blocks", "20", "--trust", "0.65"]
 IDENTIFY = ["--band", "2", "12"]
 #: The health chart's operational model on the first 4 h, its reference on the next 3 h:

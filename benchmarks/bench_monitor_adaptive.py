@@ -45,6 +45,9 @@ import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_adaptive_blocks import add_voyage_arguments, voyages  # noqa: E402
+from child_library import pin_library  # noqa: E402
+
+pin_library()  # child processes import this library, not the current folder's
 
 _CODE = "import sys; from workbench.cli import main; sys.exit(main(sys.argv[1:]))"
 

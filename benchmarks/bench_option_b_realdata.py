@@ -36,10 +36,13 @@ import pandas as pd
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_real_data import REALDATA, _write_npz, identify_command, recordings  # noqa: E402
+from child_library import pin_library  # noqa: E402
 
 from workbench.forecasting.measurement import PoleIndex  # noqa: E402
 from workbench.forecasting.memory.poles import option_b_chooser  # noqa: E402
 from workbench.forecasting.options import ForecastOptions  # noqa: E402
+
+pin_library()  # child processes import this library, not the current folder's
 
 #: Relative offsets of the prediction from the reference frequency. [-]
 OFFSETS = (0.0, 0.01, -0.01)

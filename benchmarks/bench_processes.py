@@ -22,6 +22,11 @@ from pathlib import Path
 
 import psutil  # a dependency of dask.distributed
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from child_library import pin_library  # noqa: E402
+
+pin_library()  # child processes import this library, not the current folder's
+
 
 def _monitor(voyage: Path, state: Path) -> subprocess.Popen:
     argv = ["monitor", "--watch", voyage / "accelerations", "--state", state]

@@ -52,6 +52,11 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import linear_sum_assignment
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from child_library import pin_library  # noqa: E402
+
+pin_library()  # child processes import this library, not the current folder's
+
 ROOT = Path(__file__).resolve().parents[1]
 REALDATA = ROOT.parent / "shared" / "realdata"
 START = "2024-01-01T00:00:00Z"
