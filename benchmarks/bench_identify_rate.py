@@ -65,7 +65,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from child_library import pin_library  # noqa: E402
 
-pin_library()  # child processes import this library, not the current folder's
+LIBRARY = pin_library()  # child processes import this library, not the current folder's
 
 RATE_HZ = 2048.0
 STEP_S = 300.0
@@ -122,18 +122,6 @@ def _voyage(root: Path, hours: float) -> Path:
     return folder / "accelerations"
 
 
-def _child_environment() -> dict:
-    """Environment of the measured children: the ``workbench`` this benchmark imports comes
-    first on their path, and they run in a scratch folder, so that ``python -m
-    workbench`` cannot pick up a ``workbench`` package in the working directory (e.g.
-    a checkout other than the tree measured, when comparing before and after)."""
-    import workbench
-
-    tree = str(Path(workbench.__file__).resolve().parent.parent)
-    paths = [tree, *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))]
-    return {**os.environ, "PYTHONPATH": os.pathsep.join(paths)}
-
-
 def _measured(command: list[str]) -> tuple[float, int, int, float]:
     """*command* in a child process under :data:`_WRAPPER`: (seconds, peak RSS MiB, blocks
     it reports processed, CPU seconds of the process tree)."""
@@ -142,7 +130,6 @@ def _measured(command: list[str]) -> tuple[float, int, int, float]:
         [sys.executable, "-c", _WRAPPER, *command],
         capture_output=True,
         text=True,
-        env=_child_environment(),
         cwd=tempfile.gettempdir(),
     )
     seconds = time.perf_counter() - start
@@ -348,7 +335,7 @@ def main(argv=None) -> int:
     voyage = _voyage(root, args.hours)
     print(
         f"machine: {os.cpu_count()} cores, load average {_load()}; voyage {args.hours:g} h "
-        f"at {RATE_HZ:g} Hz, 19 channels; workbench from {_child_environment()['PYTHONPATH']}"
+        f"at {RATE_HZ:g} Hz, 19 channels; workbench from {LIBRARY}"
     )
     if not args.skip_baseline:
         _baseline(args, voyage, work)
