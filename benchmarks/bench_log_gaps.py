@@ -9,7 +9,10 @@ log is cut again, every column empty, for
 * ``short`` — 40 min (03:20-04:00),
 * ``long``  — 2 h (03:00-05:00),
 
-then run through the command line as a user runs it (``workbench forecast --option both``,
+(``--gaps`` places other cuts: in every seed of the simulator the ship stops at 03:20 and
+runs again at about 03:40, so ``short`` always begins with a stop the log does not record;
+``--gaps short=150-190`` cuts 40 min in which the ship holds its speed), then run through
+the command line as a user runs it (``workbench forecast --option both``,
 ``workbench evaluate`` against the simulator's true modal table). Printed per seed, gap and
 option: the Kalman estimate against raw SSI over the whole voyage (``workbench evaluate``'s
 summary), the same over the gap's blocks only, and the share of the gap's blocks whose
@@ -83,14 +86,26 @@ def scores(forecast: pd.DataFrame, truth: pd.DataFrame, blocks: np.ndarray | Non
     return out
 
 
-def run_seed(seed: int, work: Path) -> list[dict]:
+def parse_gaps(text: str) -> dict:
+    """``NAME=START-END,...`` (minutes of the voyage) as a gaps dict, ``none`` first."""
+    gaps: dict = {"none": None}
+    for item in text.split(","):
+        name, _, span = item.partition("=")
+        start, _, end = span.partition("-")
+        if not name or name == "none" or not start or not end or int(start) >= int(end):
+            raise ValueError(f"--gaps item {item!r}: NAME=START-END in minutes, START < END")
+        gaps[name] = (int(start), int(end))
+    return gaps
+
+
+def run_seed(seed: int, work: Path, gaps: dict = GAPS) -> list[dict]:
     folder = work / f"seed{seed}"
     voyage = folder / "voyage"
     if not (voyage / "truth_modal.csv").is_file():
         _workbench("simulate", "--out", str(voyage), "--hours", "8", "--seed", str(seed))
     truth = pd.read_csv(voyage / "truth_modal.csv")
     tables = {}
-    for gap, minutes in GAPS.items():
+    for gap, minutes in gaps.items():
         log = folder / f"dship_{gap}.tsv"
         cut_log(voyage / "dship.tsv", log, minutes)
         out = folder / f"forecast_{gap}.csv"
@@ -100,7 +115,7 @@ def run_seed(seed: int, work: Path) -> list[dict]:
         )  # fmt: skip
         tables[gap] = pd.read_csv(out)
     rows = []
-    for gap, minutes in GAPS.items():
+    for gap, minutes in gaps.items():
         blocks = gap_blocks(tables[gap], minutes)
         whole = scores(tables[gap], truth, None)
         inside = scores(tables[gap], truth, blocks) if blocks.size else {}
@@ -125,10 +140,16 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", default="1,2,3,4", help="comma-separated seeds")
     parser.add_argument("--work", type=Path, default=Path("/tmp/log_gaps"))
+    parser.add_argument(
+        "--gaps",
+        default="short=200-240,long=180-300",
+        help="cut stretches NAME=START-END in minutes of the voyage, comma-separated",
+    )
     args = parser.parse_args()
+    gaps = parse_gaps(args.gaps)
     rows = []
     for seed in (int(s) for s in args.seeds.split(",")):
-        rows += run_seed(seed, args.work)
+        rows += run_seed(seed, args.work, gaps)
     table = pd.DataFrame(rows)
     with pd.option_context("display.width", 200, "display.max_columns", 20):
         print(table.round(3).to_string(index=False))
