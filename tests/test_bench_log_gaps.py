@@ -39,3 +39,12 @@ def test_the_gap_blocks_are_those_more_than_half_inside_the_cut(bench):
     forecast = pd.DataFrame({"block": np.arange(60), "block_start": start.astype(str)})
     assert bench.gap_blocks(forecast, (150, 190)).tolist() == [29, 30, 31, 32, 33, 34, 35]
     assert bench.gap_blocks(forecast, None).size == 0
+
+
+def test_the_edge_blocks_are_those_at_most_half_inside_the_cut(bench):
+    # the blocks starting at minutes 135 and 140 (5 and 10 min inside 150-190) and 180 and
+    # 185 (10 and 5 min): averaged over their logged part only
+    start = pd.Timestamp("2024-03-01T00:00:00Z") + pd.to_timedelta(np.arange(60) * 5, "min")
+    forecast = pd.DataFrame({"block": np.arange(60), "block_start": start.astype(str)})
+    assert bench.edge_blocks(forecast, (150, 190)).tolist() == [27, 28, 36, 37]
+    assert bench.edge_blocks(forecast, None).size == 0
