@@ -107,7 +107,9 @@ def parse_gaps(text: str) -> dict:
     for item in text.split(","):
         name, _, span = item.partition("=")
         start, _, end = span.partition("-")
-        if not name or name == "none" or not start or not end or int(start) >= int(end):
+        if not (name and name != "none" and start.isdigit() and end.isdigit()) or int(start) >= int(
+            end
+        ):
             raise ValueError(f"--gaps item {item!r}: NAME=START-END in minutes, START < END")
         gaps[name] = (int(start), int(end))
     return gaps
@@ -164,7 +166,10 @@ def main() -> None:
         help="cut stretches NAME=START-END in minutes of the voyage, comma-separated",
     )
     args = parser.parse_args()
-    gaps = parse_gaps(args.gaps)
+    try:
+        gaps = parse_gaps(args.gaps)
+    except ValueError as error:
+        parser.error(str(error))  # one line, exit 2
     rows = []
     for seed in (int(s) for s in args.seeds.split(",")):
         rows += run_seed(seed, args.work, gaps)

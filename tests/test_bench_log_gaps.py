@@ -26,10 +26,22 @@ def test_the_default_cuts_are_the_recorded_ones(bench):
     assert bench.parse_gaps("steady=150-190") == {"none": None, "steady": (150, 190)}
 
 
-@pytest.mark.parametrize("text", ["steady=190-150", "none=10-20", "steady", "=1-2"])
+@pytest.mark.parametrize(
+    "text", ["steady=190-150", "none=10-20", "steady", "=1-2", "steady=a-20", "steady=-5-20"]
+)
 def test_a_malformed_cut_is_refused(bench, text):
     with pytest.raises(ValueError, match="--gaps item"):
         bench.parse_gaps(text)
+
+
+def test_a_malformed_cut_on_the_command_line_is_one_line_and_exit_2(bench, monkeypatch, capsys):
+    monkeypatch.setattr("sys.argv", ["bench_log_gaps.py", "--gaps", "steady=a-20"])
+    with pytest.raises(SystemExit) as stop:
+        bench.main()
+    assert stop.value.code == 2
+    error = capsys.readouterr().err.strip().splitlines()
+    assert error[-1].endswith("--gaps item 'steady=a-20': NAME=START-END in minutes, START < END")
+    assert not any("Traceback" in line for line in error)
 
 
 def test_the_gap_blocks_are_those_more_than_half_inside_the_cut(bench):
