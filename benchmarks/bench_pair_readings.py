@@ -139,9 +139,7 @@ def readings(cases, seeds: range) -> tuple[pd.DataFrame, pd.DataFrame]:
         for seed in seeds:
             record, interest = close_weak.build(case, seed)
             truth = record.frequency_hz
-            separation = np.abs(truth[:, None] / truth[None, :] - 1.0)
-            np.fill_diagonal(separation, np.inf)
-            tolerance = np.minimum(0.4 * separation.min(axis=1), 0.02)
+            tolerance = close_weak.tolerance(truth)
             with threadpool_limits(limits=1):
                 result, chosen = close_weak.identify(record, ("cov",))["cov"]
                 reference = oracle(record, options.block_rows)
