@@ -194,6 +194,25 @@ OPTIONAL_PREDICTORS: tuple[Column, ...] = (
 )
 
 
+#: How much of a block the ship log covers. Not a predictor: a quality mark of the
+#: block's predictors, kept beside them and never used as a regression term.
+LOG_COVERAGE = Column(
+    "log_coverage",
+    "float",
+    "Share of the block the ship log covers, the least over the canonical predictors the "
+    "log carries (1: every reading there; below 1 the block's predictors are means of its "
+    "logged part; below the averaging's minimum coverage they are NaN). Not a predictor.",
+    required=False,
+    nullable=True,
+    minimum=0.0,
+    maximum=1.0,
+)
+
+#: Columns of a predictor table that are not predictors: the block keys and the log's
+#: coverage of the block.
+PREDICTOR_KEYS: tuple[str, ...] = ("block", "block_start", "block_end", LOG_COVERAGE.name)
+
+
 def _end_after_start(frame: pd.DataFrame) -> list[Violation]:
     bad = (frame["block_end"] <= frame["block_start"]).to_numpy(dtype=bool, na_value=False)
     if not bad.any():
@@ -350,7 +369,14 @@ PREDICTORS = TableContract(
     name="predictors",
     description="Ship-log predictors averaged over the blocks of the voyage's block grid, "
     "one row per block. NaN where a block had too little valid data.",
-    columns=(_BLOCK, _BLOCK_START, _BLOCK_END, *CANONICAL_PREDICTORS, *OPTIONAL_PREDICTORS),
+    columns=(
+        _BLOCK,
+        _BLOCK_START,
+        _BLOCK_END,
+        LOG_COVERAGE,
+        *CANONICAL_PREDICTORS,
+        *OPTIONAL_PREDICTORS,
+    ),
     unique=("block",),
     checks=(_end_after_start,),
 )
@@ -569,6 +595,18 @@ FORECAST = TableContract(
             "proportion (SSI + weight x (blend, or its prediction of the block, - SSI)). "
             "NaN where the row has no estimate, the modal table has no half-block errors, "
             "or the blocks overlap (the guard's test needs blocks that share no data).",
+            required=False,
+            nullable=True,
+            minimum=0.0,
+            maximum=1.0,
+        ),
+        Column(
+            "log_coverage",
+            "float",
+            "The predictor table's log_coverage of the row's block: the share of the block "
+            "the ship log covers (below 1 the model read means of the logged part, or "
+            "filled predictors where too little of it was logged). NaN where the predictor "
+            "table gives none.",
             required=False,
             nullable=True,
             minimum=0.0,

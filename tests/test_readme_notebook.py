@@ -54,6 +54,7 @@ def test_readme_notebook_demo(tmp_path, monkeypatch):
     assert set(evaluation.table["option"]) == {"A", "B"}
     assert len(evaluation.mapping) >= 6  # tracked modes paired with the true ones
     assert list(ship.columns[3:]) == [
+        "log_coverage",
         "speed_kn", "water_temp_c", "air_temp_c", "wind_speed_ms", "wind_dir_rel_deg"
     ]  # fmt: skip
     assert fit.rsquared.min() > 0.5

@@ -15,6 +15,8 @@ import warnings
 import numpy as np
 import pandas as pd
 
+from data_contracts import PREDICTOR_KEYS
+
 from .errors import WorkbenchError
 
 __all__ = [
@@ -125,8 +127,7 @@ def check_predictors_overlap(modal: pd.DataFrame, predictors: pd.DataFrame, name
     columns = [
         c
         for c in predictors.columns
-        if c not in ("block", "block_start", "block_end")
-        and pd.api.types.is_numeric_dtype(predictors[c])
+        if c not in PREDICTOR_KEYS and pd.api.types.is_numeric_dtype(predictors[c])
     ]
     if not columns or modal.empty:
         return

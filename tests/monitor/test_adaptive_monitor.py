@@ -137,6 +137,7 @@ def _assert_equals_batch(state: Path, batch: dict, *, forecast: bool = True) -> 
     if forecast:
         got = pd.read_parquet(state / "forecast.parquet")
         assert got["kalman_frequency_hz"].notna().sum() >= 10
+        assert got["log_coverage"].between(0, 1).all()  # the ship log's share of each block
         pd.testing.assert_frame_equal(got, batch["forecast"])
 
 

@@ -159,12 +159,36 @@ def test_blocks_follow_a_modal_table_and_block_numbers():
         block_predictors(log, grid=grid, length_s=600)
 
 
+def test_log_coverage_is_the_least_over_the_canonical_columns_the_log_has():
+    """A 15-min hole in the speed only (00:25-00:40): blocks 2-7 (00:10-00:30 to
+    00:35-00:55) lose 5-15 of their 20 minutes; a wind sensor without any reading, and an
+    extra column's hole, mark nothing."""
+    n = 120
+    log = _minute_log()
+    log.loc[25:39, "speed_kn"] = np.nan  # 00:25-00:40
+    log["wind_speed_ms"] = np.nan  # never read: not a hole of this voyage
+    log["latitude"] = np.where((log.index >= 60) & (log.index < 80), np.nan, 78.0)
+    result = block_predictors(log, despike=False).set_index("block")
+    speed = block_coverage(log).set_index("block")["speed_kn"]
+    np.testing.assert_allclose(result["log_coverage"], speed.reindex(result.index))
+    minutes_lost = {1: 0, 2: 5, 3: 10, 4: 15, 5: 15, 6: 10, 7: 5, 8: 0, 12: 0}
+    for block, lost in minutes_lost.items():
+        assert result.loc[block, "log_coverage"] == pytest.approx(1 - lost / 20), block
+    assert len(result) == (n - 20) // 5 + 1
+    only_extras = log[["time", "latitude"]]
+    with pytest.warns(PredictorWarning):
+        extras = block_predictors(only_extras, despike=False).set_index("block")
+    assert extras.loc[12, "log_coverage"] == pytest.approx(0.0)  # 01:00-01:20 all gone
+    assert extras.loc[0, "log_coverage"] == pytest.approx(1.0)
+
+
 def test_extra_columns_and_missing_canonical():
     log = _minute_log().drop(columns=["wind_speed_ms"])
     log["latitude"] = 78.0 + np.arange(len(log)) / 1000
     with pytest.warns(PredictorWarning, match="wind_speed_ms"):
         result = block_predictors(log, despike=False)
     assert list(result.columns[3:]) == [
+        "log_coverage",
         "speed_kn",
         "water_temp_c",
         "air_temp_c",

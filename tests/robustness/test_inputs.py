@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from data_contracts import ContractError, read_accelerations
+from data_contracts import PREDICTOR_KEYS, ContractError, read_accelerations
 from data_contracts.formats import STANDARD_GRAVITY_MS2, acceleration_files
 from workbench.cli import main
 
@@ -393,7 +393,7 @@ def test_api_and_cli_choose_the_same_predictors_and_give_identical_fits(tmp_path
     with pytest.warns(UserWarning, match="taken as the start"):
         modal = read_modal_table(modal_path, time_zone="UTC")
     predictors = wb.load_predictors(dship=dship, onto=modal)
-    names = [c for c in predictors.columns if c not in ("block", "block_start", "block_end")]
+    names = [c for c in predictors.columns if c not in PREDICTOR_KEYS]
     assert names == [
         "speed_kn",
         "water_temp_c",

@@ -196,9 +196,11 @@ def _run_fit(args: argparse.Namespace) -> int:
 
 def _check_upper(upper: str, predictors) -> None:
     """A usage error for an --upper model that names no predictor or is not a model."""
+    from data_contracts import PREDICTOR_KEYS
+
     from ..stats.terms import parse_terms
 
-    names = [c for c in predictors.columns if c not in ("block", "block_start", "block_end")]
+    names = [c for c in predictors.columns if c not in PREDICTOR_KEYS]
     try:
         parse_terms(upper, names, parameter="--upper")
     except (ValueError, TypeError) as error:

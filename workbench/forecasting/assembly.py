@@ -13,11 +13,33 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
-__all__ = ["ASSEMBLED", "assemble_rows", "drop_unusable"]
+__all__ = ["ASSEMBLED", "assemble_rows", "drop_unusable", "log_coverage_of", "with_log_coverage"]
 
 #: The (grid row, mode) arrays :func:`assemble_rows` reads: SSI, model with bounds, Kalman
 #: with its standard deviation, and option B's chosen pole (order, damping ratio, MAC).
 ASSEMBLED = ("ssi", "model", "lower", "upper", "kalman", "std", "order", "damping", "mac")
+
+
+def log_coverage_of(predictors: pd.DataFrame) -> pd.Series | None:
+    """The ship log's coverage of each block (``log_coverage`` of the predictor table,
+    indexed by block; the last row of a repeated block), or None when the table has none."""
+    if "log_coverage" not in predictors.columns:
+        return None
+    rows = predictors.drop_duplicates("block", keep="last")
+    return pd.Series(
+        rows["log_coverage"].to_numpy(dtype=float, na_value=np.nan),
+        index=rows["block"].to_numpy(dtype=np.int64),
+    )
+
+
+def with_log_coverage(table: pd.DataFrame, coverage: pd.Series | None) -> pd.DataFrame:
+    """*table* with each row's ``log_coverage`` (its block's; NaN for a block *coverage*
+    lacks): the forecast table marks the rows whose predictors are means of part of the
+    block, or were filled. Unchanged when *coverage* is None or the table is empty."""
+    if coverage is None or table.empty or "block" not in table.columns:
+        return table
+    values = coverage.reindex(table["block"].to_numpy(dtype=np.int64)).to_numpy(dtype=float)
+    return table.assign(log_coverage=values)
 
 
 def drop_unusable(out_phase, model, kalman, notes) -> None:

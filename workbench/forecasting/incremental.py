@@ -62,6 +62,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import PredictorError
+from .assembly import log_coverage_of, with_log_coverage
 from .excitation import sub_windows_per_block, within_block_profile
 from .innovation_consistency import InnovationConsistency
 from .memory.excitation import ExcitationBias
@@ -144,6 +145,8 @@ class IncrementalMemoryForecast:
         self.changed_from: int | None = None
         #: Rows of the last :meth:`update`'s whole table (also when it returned a tail).
         self.table_rows = 0
+        #: The ship log's coverage of the blocks of the last :meth:`update`'s predictors.
+        self._coverage: pd.Series | None = None
         self.reset()
 
     # ------------------------------------------------------------------ bookkeeping
@@ -236,6 +239,7 @@ class IncrementalMemoryForecast:
             As the batch forecast: too few blocks for the first training window.
         """
         new = self._inputs(modal, predictors, modes)
+        self._coverage = log_coverage_of(predictors)
         final_through = -(10**18) if final_through is None else int(final_through)
         # rows before the oldest committed copy can no longer change (unless started over)
         self.changed_from = self.inputs_from
@@ -569,7 +573,7 @@ class IncrementalMemoryForecast:
         rows = core.model_rows(i0, k_first, f1, core.is_first)
         core.models_out.clear()  # the window models are not part of the monitor's output
         core.kalman_pass(i0, np.arange(k_first, f1), rows)
-        return self._table(core, k_first, f1)
+        return with_log_coverage(self._table(core, k_first, f1), self._coverage)
 
     @staticmethod
     def _table(core: MemoryRun, start: int, stop: int) -> pd.DataFrame:

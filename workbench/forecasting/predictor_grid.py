@@ -8,6 +8,8 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
+from data_contracts import PREDICTOR_KEYS
+
 from ..errors import DataError, PredictorError
 
 __all__ = [
@@ -44,7 +46,7 @@ def predictor_matrix(
         columns = [
             c
             for c in grid.columns
-            if c != "block"
+            if c not in PREDICTOR_KEYS
             and pd.api.types.is_numeric_dtype(grid[c].dtype)
             and not pd.api.types.is_bool_dtype(grid[c].dtype)
         ]

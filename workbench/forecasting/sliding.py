@@ -98,6 +98,7 @@ from dataclasses import replace
 import pandas as pd
 
 from ..errors import PredictorError
+from .assembly import log_coverage_of, with_log_coverage
 from .memory.forecast import memory_forecast
 from .options import ForecastOptions
 from .results import ForecastResult, combined
@@ -192,4 +193,5 @@ def sliding_forecast(
                 cases=cases,
             )
         )
-    return combined(results, options)
+    result = combined(results, options)
+    return replace(result, table=with_log_coverage(result.table, log_coverage_of(predictors)))

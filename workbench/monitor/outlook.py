@@ -237,7 +237,13 @@ def block_predictors_of(
     with *from_block*, only the blocks from it on (each block's values are those of the
     whole table). *first_block*: the whole table's first block, when *tracked* holds only
     its newest rows."""
-    from data_contracts import CANONICAL_PREDICTORS, OPTIONAL_PREDICTORS, recorded_grid, set_grid
+    from data_contracts import (
+        CANONICAL_PREDICTORS,
+        OPTIONAL_PREDICTORS,
+        PREDICTOR_KEYS,
+        recorded_grid,
+        set_grid,
+    )
 
     from ..predictors import block_predictors
 
@@ -268,9 +274,7 @@ def block_predictors_of(
     if settings.all_predictors:
         return table
     columns = [
-        "block",
-        "block_start",
-        "block_end",
+        *PREDICTOR_KEYS,
         *(c.name for c in CANONICAL_PREDICTORS),
         *(c.name for c in OPTIONAL_PREDICTORS),
     ]

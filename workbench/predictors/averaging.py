@@ -17,7 +17,7 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 import pandas as pd
 
-from data_contracts import PREDICTORS
+from data_contracts import LOG_COVERAGE, PREDICTOR_KEYS, PREDICTORS
 
 from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S, BlockGrid
 from ._common import (
@@ -340,7 +340,21 @@ def block_predictors(
         out[name] = means[:, names.index(name)] if name in names else np.nan
     for name in extras:
         out[name] = means[:, names.index(name)]
+    out[LOG_COVERAGE.name] = _log_coverage(coverage, rows, len(canonical))
     return PREDICTORS.validate(out)
+
+
+def _log_coverage(coverage: np.ndarray, rows: np.ndarray, n_canonical: int) -> np.ndarray:
+    """Per block, the least coverage over the canonical predictors the log carries: the
+    canonical columns (every averaged column when there is none) with at least one valid
+    reading, so a sensor the log never had a reading of does not mark every block; NaN
+    when no column has one."""
+    used = np.arange(n_canonical if n_canonical else coverage.shape[1])
+    if rows.size:
+        used = used[np.isfinite(rows[used]).any(axis=1)]
+    if used.size == 0:
+        return np.full(coverage.shape[0], np.nan)
+    return np.clip(coverage[:, used].min(axis=1), 0.0, 1.0)
 
 
 def _warn_faults(flags, dropped_stretches: bool) -> None:
@@ -446,7 +460,7 @@ def excitation_weighted_predictors(
     ends = pd.DatetimeIndex(pd.to_datetime(plain["block_end"], utc=True)).as_unit("ns").asi8
     first = np.searchsorted(part_start, starts, side="left")
     last = np.searchsorted(part_end, ends, side="right")  # intervals [first, last) inside
-    columns = [c for c in plain.columns if c not in BLOCK_COLUMNS and c in parts.columns]
+    columns = [c for c in plain.columns if c not in PREDICTOR_KEYS and c in parts.columns]
     out = plain.copy()
     for column in columns:
         values = parts[column].to_numpy(dtype=float)

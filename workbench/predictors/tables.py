@@ -12,7 +12,14 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
-from data_contracts import CANONICAL_PREDICTORS, PREDICTORS, read_dship, read_table, set_grid
+from data_contracts import (
+    CANONICAL_PREDICTORS,
+    PREDICTOR_KEYS,
+    PREDICTORS,
+    read_dship,
+    read_table,
+    set_grid,
+)
 
 from ..blocks import BlockGrid, block_grid_of
 
@@ -150,11 +157,12 @@ def read_excitation(excitation: str | os.PathLike | pd.DataFrame) -> pd.DataFram
 
 
 def canonical_predictors(predictors: pd.DataFrame) -> pd.DataFrame:
-    """The block columns and the canonical predictors (speed, temperatures, wind) only.
+    """The block columns (with the log's coverage of each block) and the canonical
+    predictors (speed, temperatures, wind) only.
 
     A ship log carries more numeric columns (position, heading, depth...). They are kept in
     the predictor table, but latitude and longitude, for instance, stand in for elapsed time
     in a regression, so models and correlations use the canonical predictors unless asked.
     """
-    columns = ["block", "block_start", "block_end", *(c.name for c in CANONICAL_PREDICTORS)]
+    columns = [*PREDICTOR_KEYS, *(c.name for c in CANONICAL_PREDICTORS)]
     return predictors[[c for c in columns if c in predictors.columns]]

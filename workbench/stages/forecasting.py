@@ -6,6 +6,7 @@ import os
 import warnings
 from dataclasses import replace
 
+import numpy as np
 import pandas as pd
 
 from data_contracts import MODAL, POLES, PREDICTORS, recorded_grid, set_grid
@@ -17,7 +18,7 @@ from ..parallel import process_map
 from ..results import read_any_table
 from ..sid.presence import persistent_modes
 
-__all__ = ["ForecastOptions", "ForecastResult", "forecast", "forecast_modes"]
+__all__ = ["ForecastOptions", "ForecastResult", "forecast", "forecast_modes", "partial_log_lines"]
 
 
 #: Descriptive names of the forecast schemes (the reference work's methods 1 and 2).
@@ -80,6 +81,22 @@ def forecast_modes(
     return replace(
         result, table=result.table.sort_values(keys, kind="stable").reset_index(drop=True)
     )
+
+
+def partial_log_lines(table: pd.DataFrame) -> list[str]:
+    """A run note on the forecast rows whose block the ship log covers only partly
+    (``log_coverage`` below 1; none when the table has no such column or row)."""
+    if "log_coverage" not in table.columns or table.empty:
+        return []
+    rows = table[(table["phase"] == "forecast") & (table["log_coverage"] < 1.0)]
+    if rows.empty:
+        return []
+    blocks = np.unique(rows["block"].to_numpy())
+    return [
+        f"ship log: {blocks.size} forecast block(s) covered only partly (log_coverage below "
+        f"1, the first block {int(blocks[0])}): their predictors are means of the logged "
+        "part, or filled where too little of the block is logged"
+    ]
 
 
 def forecast(
@@ -148,6 +165,7 @@ def forecast(
         parts.append(part)
     table = pd.concat([p.table for p in parts], ignore_index=True)
     set_grid(table, recorded_grid(modal) or recorded_grid(predictors))
+    lines = (*lines, *partial_log_lines(table))
     done = (
         f"forecast of {table['mode'].nunique()} modes over {table['block'].nunique()} blocks, "
         f"option(s) {'/'.join(options.options)}, scheme {SCHEME_NAMES[options.scheme]}, "

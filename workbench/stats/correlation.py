@@ -21,6 +21,8 @@ import numpy as np
 import pandas as pd
 from scipy import special as _special
 
+from data_contracts import PREDICTOR_KEYS
+
 from ..errors import PredictorError
 from .effective_sample import effective_p_value, effective_sample_size, effective_significance
 
@@ -43,7 +45,7 @@ __all__ = [
 TABLE_COLUMNS = ["x", "y", "case", "r", "p_value", "p_adjusted", "n", "significant", "useful"]
 
 #: Key and time columns of a block table that are never predictors.
-_KEY_COLUMNS = ("block", "block_start", "block_end", "mode", "case")
+_KEY_COLUMNS = (*PREDICTOR_KEYS, "mode", "case")
 
 
 # --------------------------------------------------------------------------- tables
