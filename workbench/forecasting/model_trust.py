@@ -84,9 +84,15 @@ from .memory.noise import update_run
 __all__ = ["BlendStep", "ModelTrust"]
 
 #: Probability that the hypothesis changes from one block to the next (one switch in about
-#: 2 days of 5-minute blocks): p follows the accumulated evidence, and stretches in which
-#: both filters predict equally well (the ship holds one speed) leave it where it is. [-]
-SWITCH_PROBABILITY = 0.002
+#: 4 hours of 5-minute blocks): p follows the accumulated evidence, and stretches in which
+#: both filters predict equally well (the ship holds one speed) leave it where it is. It
+#: also bounds how sure either hypothesis gets: from its floor the blend's log-odds must
+#: move ln(0.75 / 0.25) - ln(π / (1 - π)), 5 nats, before its weight starts to fall, at
+#: most :data:`EVIDENCE_CAP` a block - after a long stretch the model explained, the blend
+#: stands aside within about five blocks of a change it does not explain (one switch in 2
+#: days, 0.002, took about eight: benchmarks/results/forecast_trust_switch_27j.txt and
+#: forecast_soft_split_27m.txt). [-]
+SWITCH_PROBABILITY = 0.02
 #: Level random-walk variances of the model-free filters per block, in units of the
 #: identification error's variance σ_e² + σ_v²: a level that moves by about the SSI
 #: scatter every block, so the filter stays close to the raw SSI estimate (a slower
@@ -112,6 +118,12 @@ EVIDENCE_CAP = 1.0
 #: Probability that the blend predicts the measurement lead_blocks ahead better than the
 #: model-free filter, before any such prediction was scored (no evidence either way). [-]
 LEAD_PRIOR = 0.5
+#: Probability that the lead test's hypothesis changes from one block to the next (one
+#: switch in about 2 days): its evidence comes at most EVIDENCE_CAP / L a block (predictions
+#: made at consecutive blocks overlap), so a faster switch (:data:`SWITCH_PROBABILITY`)
+#: would hold p_lead near its prior and the test could not leave a blend whose split
+#: hides the model error (tests/forecast/test_model_trust.py). [-]
+LEAD_SWITCH_PROBABILITY = 0.002
 #: Forgetting of the scale of the lead test's squared errors (time constant 1/LEAD_FORGET
 #: blocks). [-]
 LEAD_FORGET = 1.0 / 96
@@ -291,7 +303,7 @@ class ModelTrust:
             ratio = (e_f[ok] ** 2 - e_b[ok] ** 2) / (2.0 * np.maximum(scale, 1e-300))
             ratio = np.clip(ratio, -EVIDENCE_CAP, EVIDENCE_CAP) / self.lead
             p = self.lead_probability[ok]
-            p = (1 - SWITCH_PROBABILITY) * p + SWITCH_PROBABILITY * (1 - p)
+            p = (1 - LEAD_SWITCH_PROBABILITY) * p + LEAD_SWITCH_PROBABILITY * (1 - p)
             odds = np.log(p) - np.log1p(-p) + ratio
             self.lead_probability[ok] = np.clip(1.0 / (1.0 + np.exp(-odds)), P_MIN, P_MAX)
         # predictions of the measurement lead_blocks ahead, each filter holding its present

@@ -182,7 +182,7 @@ def prior_noise(
 _SUBSETS = tuple(tuple(c for c in range(3) if mask >> c & 1) for mask in range(1, 8))
 
 
-def _grid_nnls(lags: np.ndarray, target: np.ndarray, weight: np.ndarray, segments: int = 0):
+def _grid_fits(lags: np.ndarray, target: np.ndarray, weight: np.ndarray, segments: int = 0):
     """Non-negative least squares of γ(h) on [φ^h, ρ^h, [h=0]] for every (τ_c, ρ) of the grid.
 
     Exact NNLS for three unknowns: the optimum is the least-squares solution on its set of
@@ -190,7 +190,8 @@ def _grid_nnls(lags: np.ndarray, target: np.ndarray, weight: np.ndarray, segment
     subsets that come out non-negative is the NNLS solution (batched over the grid).
     With *segments* L >= 2 the identification error's column is the overlap's
     (L - h) / L (:func:`error_autocorrelation`) instead of a grid of ρ^h.
-    Returns (τ_c, ρ, coefficients) of the smallest misfit.
+    Returns τ_c, ρ, the misfit |A c - b| and the coefficients (σ_c², σ_e², σ_v²) of every
+    grid point.
     """
     phis = np.exp(-1.0 / np.asarray(CORRECTION_TIMES))
     if segments >= 2:
@@ -238,8 +239,46 @@ def _grid_nnls(lags: np.ndarray, target: np.ndarray, weight: np.ndarray, segment
         full = np.zeros((tau_g.size, 3))
         full[:, subset] = coef
         best_coef[better] = full[better]
-    g = int(np.argmin(best_misfit))
-    return float(CORRECTION_TIMES[tau_g[g]]), float(rhos[rho_g[g]]), best_coef[g]
+    return np.asarray(CORRECTION_TIMES, dtype=float)[tau_g], rhos[rho_g], best_misfit, best_coef
+
+
+def _soft_choice(taus, rhos, misfit, coefs, n_pairs: int, segments: int = 0):
+    """(τ_c, ρ, coefficients) averaged over the grid by how well each point fits.
+
+    The measured autocovariances scatter about the true ones, so grid points whose misfits
+    differ by less than that scatter fit the data equally well; on the wander of a few
+    blocks' time constant the smallest misfit alternates between splits as far apart as
+    (τ_c 6, σ_e 0) and (τ_c 12, σ_e ≈ 1.6 σ) from one refit to the next. Each point gets the
+    weight exp(-(misfit² - min misfit²) / 2 s²), with s² = Σ_h γ(h)² / n (h over all
+    integers, γ the best point's model autocovariance, n the residual pairs at lag 0):
+    Bartlett's large-sample variance of a measured autocovariance at a lag beyond the
+    correlation [1]_, one lag's sampling scatter taken as the scale of the whole misfit (a
+    pseudo-likelihood). The variances and φ = exp(-1/τ_c) are averaged with these weights
+    (ρ too for the AR(1) error; the overlap's shape has none), so the split moves smoothly
+    as residuals arrive. ``benchmarks/results/forecast_accuracy_27g.txt`` and
+    ``forecast_soft_split_27m.txt`` measure it against the smallest misfit alone.
+
+    References
+    ----------
+    .. [1] M. S. Bartlett, "On the theoretical specification and sampling properties of
+       autocorrelated time-series", J. R. Stat. Soc. Suppl. 8(1), 27-41, 1946.
+       doi:10.2307/2983611
+    """
+    g = int(np.argmin(misfit))
+    sc, se, sv = coefs[g]
+    h = np.arange(8 * int(max(taus[g], 12.0)))
+    gamma = sc * math.exp(-1.0 / taus[g]) ** h + se * error_autocorrelation(
+        h, rho=float(rhos[g]), segments=segments
+    )
+    gamma[0] += sv
+    s2 = (gamma[0] ** 2 + 2.0 * float(np.sum(gamma[1:] ** 2))) / max(int(n_pairs), 1)
+    if not np.isfinite(s2) or s2 <= 0:
+        return float(taus[g]), float(rhos[g]), coefs[g]
+    w = np.exp(-(misfit**2 - misfit[g] ** 2) / (2.0 * s2))
+    w /= w.sum()
+    tau = -1.0 / math.log(float(w @ np.exp(-1.0 / taus)))
+    rho = float(rhos[g]) if segments >= 2 else float(w @ rhos)
+    return tau, rho, w @ coefs
 
 
 def identification_error_bound(residuals: np.ndarray, correlated_lags: int) -> float | None:
@@ -305,7 +344,7 @@ def estimate_noise(
     target = gamma[use]
     weight = np.sqrt(count[use] / count[0])
     segments = int(error_segments) if error_segments and error_segments >= 2 else 0
-    tau, rho, coef = _grid_nnls(lags, target, weight, segments)
+    tau, rho, coef = _soft_choice(*_grid_fits(lags, target, weight, segments), count[0], segments)
     sc, se, sv = (float(c) for c in coef)
     if rho == 0.0:  # e and v coincide: all white
         sv, se = sv + se, 0.0
