@@ -218,6 +218,12 @@ class MemoryRun:
             X_all = np.column_stack([X_all, hours.astype(float)])
             columns = [*columns, "elapsed_hours"]
         self.grid, self.blocks, self.block_start = grid, blocks, block_start
+        # the share of each block the ship log covers (None: the table does not say)
+        self.log_coverage = (
+            grid["log_coverage"].to_numpy(dtype=float, na_value=np.nan)
+            if "log_coverage" in grid.columns
+            else None
+        )
         self.columns, self.X_all = columns, X_all
         # blocks that share data with a block: its identification error (an ice impact, a
         # badly excited stretch) is in all of them, so a run of large innovations is
@@ -357,7 +363,8 @@ class MemoryRun:
         # predictions from the row before (model switch) to the end of this window
         from_row = max(k_first - 1, first)
         rows = np.arange(from_row, f1)
-        mean, lower, upper, bad, mvar = self.refits.predict(m, rows)
+        edge_variance = self._outage_edge_variance(m, rows)
+        mean, lower, upper, bad, mvar = self.refits.predict(m, rows, edge_variance)
         # what SSI sees (measurement equation); the state is the time average
         seen = self.bias.seen_by_ssi(m, rows, j, mean)
         implausible = np.isfinite(mean) & ~_plausible(mean, self.reference_hz[j])
@@ -381,7 +388,53 @@ class MemoryRun:
         self.out_phase[report, j] = np.where(report < first + self.train, 1, 2)
         for k in report[bad[sl]]:
             self.warn(k, j, "predictor NaN: filled", "blocks with a needed predictor NaN")
+        for k in report[edge_variance[sl] > 0]:
+            self.warn(
+                k,
+                j,
+                f"partly logged ({self.log_coverage[k]:.0%}) at the edge of a log outage: "
+                "model variance raised",
+                "partly logged blocks at the edge of a log outage (model variance raised)",
+            )
         return mean[sl], seen[sl], mvar[sl], float(abs(np.nanmedian(mean)))
+
+    def _outage_edge_variance(self, m: MemoryModel, rows: np.ndarray) -> np.ndarray:
+        """Model variance of *m* on grid rows *rows* from the unlogged share of a block at
+        the edge of an outage of the ship log [Hz²] (0 elsewhere).
+
+        A block the log covers partly has the means of its logged part as its predictors
+        (``log_coverage`` c of the predictor table, at least the averaging's minimum
+        coverage). At the edge of an outage - a block sharing data with (on a grid without
+        overlap: next to) a block where a predictor *m* needs is missing - the unlogged
+        part is the outage's: what the ship did there (a stop, a restart) is as unknown as
+        in the missing block, and the block's mean errs by (1 - c) times the difference
+        between the unlogged part's mean and the logged part's. With the fill's error
+        variance V of the missing predictors there (:meth:`MemoryRefits.fill_variance`,
+        what a filled block gets) the block's model variance grows by (1 - c)² V, so the
+        blend leans on SSI as far as the unlogged share can hide a change
+        (``benchmarks/results/forecast_partial_blocks_27n.txt``). A short hole inside
+        logged data (no block missing a predictor: both sides of it known) adds nothing.
+        """
+        added = np.zeros(len(rows))
+        if self.log_coverage is None or m.kind == "constant":
+            return added
+        columns = np.asarray(m.needed_columns(), dtype=np.int64)
+        reach = max(self.overlap - 1, 1)  # blocks sharing data with a block, at least 1
+        n_blocks = self.blocks.size
+        for r, k in enumerate(rows):
+            coverage = self.log_coverage[k]
+            # fully logged, not known, or filled (a needed predictor missing)
+            if not coverage < 1.0 or not np.isfinite(self.X_all[k, columns]).all():
+                continue
+            near = self.X_all[max(k - reach, 0) : min(k + reach + 1, n_blocks)][:, columns]
+            outage = columns[~np.isfinite(near).all(axis=0)]
+            if outage.size == 0:
+                continue
+            fill = self.refits.fill_variance(m, int(k), outage)
+            if fill is None:  # too little history to measure a fill: the fit's scatter
+                fill = float(m.residual_variance)
+            added[r] = (1.0 - coverage) ** 2 * fill
+        return added
 
     def _mode_noise(self, j: int, i0: int, is_first: bool, level_hz: float) -> NoiseModel:
         """Mode *j*'s noise levels from the out-of-sample residuals before row *i0*."""

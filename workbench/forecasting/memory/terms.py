@@ -231,9 +231,10 @@ class MemoryRefits:
             fitted = constant_model(y, age, memory)
         return fitted
 
-    def predict(self, m: MemoryModel, rows_: np.ndarray):
+    def predict(self, m: MemoryModel, rows_: np.ndarray, added_variance=None):
         """Mean, interval bounds, rows with a needed predictor missing and s_m² of *m* at rows
-        *rows_* (missing predictors filled, :meth:`fill_missing`)."""
+        *rows_* (missing predictors filled, :meth:`fill_missing`); *added_variance* (per
+        row, [Hz²]) is added to s_m² and widens the bounds."""
         X_all, limit, t_cache, model = self.X_all, self.limit, self.t_cache, self.model
         X = X_all[rows_]
         mean, mvar = m.predict(X, limit)
@@ -245,6 +246,8 @@ class MemoryRefits:
                     mean[r], mvar[r] = float(m.coefficients[0]), m.residual_variance
                 else:
                     mean[r], mvar[r] = filled
+        if added_variance is not None:
+            mvar = mvar + added_variance
         dof = max(int(round(m.dof)), 1)
         t = t_cache.get(dof)
         if t is None:
@@ -269,10 +272,29 @@ class MemoryRefits:
         little for a temperature term worth millihertz, much for the speed. None when
         the history has too few rows to measure it.
         """
-        X_all, limit = self.X_all, self.limit
         columns = np.asarray(m.needed_columns(), dtype=np.int64)
-        x = X_all[row]
-        missing = columns[~np.isfinite(x[columns])]
+        missing = columns[~np.isfinite(self.X_all[row, columns])]
+        filled = self._fill(m, row, missing)
+        if filled is None:
+            return None
+        mean, variance, fill_variance = filled
+        return mean, variance + fill_variance
+
+    def fill_variance(self, m: MemoryModel, row: int, columns) -> float | None:
+        """The variance :meth:`fill_missing` would add to *m*'s prediction at grid row *row*
+        were the predictors *columns* (grid column indices) missing there [Hz²]; None when
+        the history has too few rows to measure it (or none of *columns* is one *m* needs)."""
+        needed = np.asarray(m.needed_columns(), dtype=np.int64)
+        missing = needed[np.isin(needed, np.asarray(columns, dtype=np.int64))]
+        filled = self._fill(m, row, missing)
+        return None if filled is None else filled[2]
+
+    def _fill(self, m: MemoryModel, row: int, missing: np.ndarray):
+        """``(mean, variance, fill variance)`` of *m* at grid row *row* with the predictors
+        *missing* filled (:meth:`fill_missing`), or None."""
+        X_all, limit = self.X_all, self.limit
+        x = X_all[row].copy()
+        x[missing] = np.nan
         lo = max(self.first, row - int(self.model.selection_blocks))
         history = X_all[lo:row]
         if missing.size == 0 or history.shape[0] < _MIN_FILL_ROWS:
@@ -306,4 +328,4 @@ class MemoryRefits:
         mean, variance = m.predict(filled_rows[best][None, :], limit)
         if not np.isfinite(mean[0]):
             return None
-        return float(mean[0]), float(variance[0]) + max(errors)
+        return float(mean[0]), float(variance[0]), max(errors)
