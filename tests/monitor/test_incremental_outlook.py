@@ -279,3 +279,43 @@ def test_forecast_equals_batch_when_the_speed_never_changes():
     expected = expected.sort_values(["block", "mode"], kind="stable").reset_index(drop=True)
     assert len(table) == 3 * 120
     pd.testing.assert_frame_equal(table, expected, rtol=1e-9)
+
+
+@pytest.mark.parametrize("step", [1, 5])
+def test_forecast_equals_batch_across_a_log_outage(step):
+    """A 40-min outage of every log column (blocks 99-105 without predictors, 97-98 and
+    106-107 logged by 75 % / 50 %): the partly logged blocks at its edges get a model
+    variance from the blocks that share data with them, the newer ones included, so an
+    update whose new blocks miss a predictor takes the state back to before the partly
+    logged blocks the batch widens: the resumed forecast equals the batch one, with the
+    same edge rows."""
+    from workbench.forecasting.memory.forecast import memory_forecast
+
+    modal, predictors = voyage(170, seed=3)
+    columns = ["speed_kn", "water_temp_c", "air_temp_c", "wind_speed_ms", "wind_dir_rel_deg"]
+    predictors.loc[predictors["block"].between(99, 105), columns] = np.nan
+    coverage = pd.Series(1.0, index=predictors.index)
+    for block, share in ((97, 0.75), (98, 0.5), (106, 0.5), (107, 0.75)):
+        coverage[predictors["block"] == block] = share
+    coverage[predictors["block"].between(99, 105)] = 0.25
+    predictors = PREDICTORS.validate(predictors.assign(log_coverage=coverage))
+    options = ForecastOptions(train_blocks=20)
+    engine = IncrementalMemoryForecast(options)
+    modes = [1, 2, 3]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for last in (*range(30, 170, step), 169):
+            start = engine.inputs_from or 0
+            part = predictors[(predictors["block"] <= last) & (predictors["block"] >= start)]
+            table, _ = engine.update(
+                modal[modal["block"] <= last], part, modes=modes, final_through=last - 1
+            )
+        expected = memory_forecast(
+            modal, predictors, options, poles=None, modes=modes, start_block=None, end_block=None
+        ).table
+    expected = expected.sort_values(["block", "mode"], kind="stable").reset_index(drop=True)
+    edges = expected["warning"].fillna("").str.contains("edge of a log outage")
+    assert set(expected.loc[edges, "block"]) == {97, 98, 106, 107}
+    assert engine.rollbacks >= 1  # the outage's first missing block took the state back
+    # (the resumed table carries the log's coverage, memory_forecast's does not)
+    pd.testing.assert_frame_equal(table.drop(columns="log_coverage"), expected, rtol=1e-9)

@@ -375,8 +375,16 @@ class IncrementalMemoryForecast:
         if core.half_difference is not None:
             differ |= ~_same(core.half_difference[a], new.halves[b]).all(axis=1)
         differ |= core.block_start[a] != new.block_start[b]
+        coverage = _log_coverage(new.grid)
+        if (core.log_coverage is None) != (coverage is None):
+            return lo
+        if coverage is not None:
+            differ |= ~_same(core.log_coverage[a], coverage[b])
         where = np.flatnonzero(differ)
-        return lo + int(where[0]) if where.size else hi + 1
+        first = lo + int(where[0]) if where.size else hi + 1
+        if coverage is not None:
+            first = min(first, _outage_reaches_back(core, new, coverage, hi + 1))
+        return first
 
     def _start(self, modal, predictors, new) -> MemoryRun:
         """The state before the first window: the batch forecast's set-up
@@ -429,6 +437,8 @@ class IncrementalMemoryForecast:
             rows["combined_std"] = new.combined[take]
         if core.half_difference is not None:
             rows["half_difference"] = new.halves[take]
+        if core.log_coverage is not None:
+            rows["log_coverage"] = _log_coverage(new.grid)[take]
         for name, value in rows.items():
             setattr(core, name, np.concatenate([getattr(core, name)[:keep], value]))
         for name in ("meas", "resid", "scatter"):
@@ -535,6 +545,7 @@ class IncrementalMemoryForecast:
             "tracked_damping",
             "combined_std",
             "half_difference",
+            "log_coverage",
             "speed_var",
             "shift_cap",
             "meas",
@@ -661,6 +672,30 @@ def pieces_from(pieces: list[pd.DataFrame], block: int) -> list[pd.DataFrame]:
             piece if blocks[0] >= block else piece.iloc[int(np.searchsorted(blocks, block)) :]
         )
     return kept
+
+
+def _log_coverage(grid: pd.DataFrame) -> np.ndarray | None:
+    """The grid's ``log_coverage`` column as floats, or None when it has none."""
+    if "log_coverage" not in grid.columns:
+        return None
+    return grid["log_coverage"].to_numpy(dtype=float, na_value=np.nan)
+
+
+def _outage_reaches_back(core, new, coverage: np.ndarray, first_new: int) -> int:
+    """The first block of *core* whose outage-edge variance (the batch's
+    ``MemoryRun._outage_edge_variance``) the blocks of *new* from *first_new* on can
+    change: a partly logged block sharing data with a new block that misses a predictor
+    (beyond: none)."""
+    reach = max(core.overlap - 1, 1)
+    new_rows = slice(max(first_new - int(new.blocks[0]), 0), None)
+    missing = ~np.isfinite(new.X[new_rows]).all(axis=1)
+    if not missing.any():
+        return first_new
+    first_missing = first_new + int(np.flatnonzero(missing)[0])
+    lo = max(first_missing - reach, core.base_block)
+    rows = np.arange(lo, first_new) - core.base_block
+    partial = rows[core.log_coverage[rows] < 1.0] if rows.size else rows
+    return int(partial[0]) + core.base_block if partial.size else first_new
 
 
 def _same(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -414,9 +414,14 @@ class MemoryRun:
         blend leans on SSI as far as the unlogged share can hide a change
         (``benchmarks/results/forecast_partial_blocks_27n.txt``). A short hole inside
         logged data (no block missing a predictor: both sides of it known) adds nothing.
+        The blocks after the row count (an outage's first edge is known only from the
+        blocks after it): the monitor's resumed forecast goes back to before such a row when
+        an update brings a block that misses a predictor
+        (:func:`~workbench.forecasting.incremental._outage_reaches_back`).
         """
         added = np.zeros(len(rows))
-        if self.log_coverage is None or m.kind == "constant":
+        # (a resumed monitor state saved before the coverage was kept has none)
+        if getattr(self, "log_coverage", None) is None or m.kind == "constant":
             return added
         columns = np.asarray(m.needed_columns(), dtype=np.int64)
         reach = max(self.overlap - 1, 1)  # blocks sharing data with a block, at least 1
