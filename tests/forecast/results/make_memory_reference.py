@@ -16,7 +16,10 @@ then the innovation-consistency tests with their own clip, 1.5, and the inverted
 kalman_frequency_hz moved by at most 0.019 Hz, and the forecast's cumulative error against the
 case's true frequencies went from +69.9 % to +69.3 % better than SSI; then kalman_std_hz as
 the posterior std of the whole blended estimate, var(δ + c) with the model term's variance,
-issue 27d: only that column moved, new / old median 1.08, 0.92 .. 39).
+issue 27d: only that column moved, new / old median 1.08, 0.92 .. 39; then the noise split
+averaged over the grid points that fit as well as the best and the model switch at 0.02, issue
+27m/27n: kalman_frequency_hz moved by at most 0.032 Hz, and the cumulative error against the
+true frequencies went from +69.3 % to +65.1 % better than SSI).
 """
 
 from __future__ import annotations
