@@ -1,4 +1,5 @@
-"""``workbench health`` on damaged tables: one line naming the file, exit 1, no traceback.
+"""``workbench health`` on damaged tables: one line naming the file, exit 1, no traceback;
+a predictor column without a value in the training window is named, not dropped unsaid.
 
 Before: a forecast, modal or predictor table with a header and no rows, or a table of one
 block without a recorded grid, ended ``health`` with a traceback ("ValueError: cannot
@@ -85,3 +86,43 @@ def test_a_table_of_one_block_without_its_grid_is_named(sim, tmp_path, capsys, g
         "step to turn hours into blocks"
     ]
     assert not (tmp_path / "h").exists()
+
+
+def test_a_dead_predictor_column_is_said_to_leave_its_terms_out(sim, tmp_path, capsys):
+    """Before: a speed column without any value (a log whose speed sensor was dead) was left
+    out of the operational model without a word, and the chart ran on a model without
+    speed (exit 0, nothing said)."""
+    table = pd.read_csv(sim / "truth_predictors.csv")
+    table["speed_kn"] = float("nan")
+    dead = tmp_path / "dead_speed.csv"
+    table.to_csv(dead, index=False)
+    argv = ["health", "--modal", sim / "tracked_modal.csv", "--predictors", dead]
+    argv += ["--train-hours", "2", "--reference-hours", "1", "--out", tmp_path / "h"]
+    assert main([str(a) for a in [*argv, "--quiet"]]) == 0
+    err = capsys.readouterr().err
+    assert err.splitlines() == [
+        "warning: the predictor table holds no value of speed_kn in the training window "
+        "(blocks 0-23): the operational model leaves out speed_kn, speed_kn^2, "
+        "speed_kn*water_temp_c"
+    ]
+
+
+def test_a_column_empty_in_the_training_window_only_is_left_out_with_a_warning(sim):
+    """Before: the speed logged only after the training window kept its terms in the model,
+    whose every training row was then NaN: "no mode has enough training blocks" (every
+    mode "only 0 training blocks"), which blamed the blocks instead of the column."""
+    from data_contracts import MODAL, PREDICTORS, read_table
+    from workbench.shm import fit_operational_model
+
+    modal = read_table(sim / "tracked_modal.csv", MODAL)
+    predictors = read_table(sim / "truth_predictors.csv", PREDICTORS)
+    late = predictors.assign(speed_kn=predictors["speed_kn"].where(predictors["block"] >= 24))
+    with pytest.warns(UserWarning, match=r"no value of speed_kn in the training window") as seen:
+        model = fit_operational_model(modal, late, train_blocks=24)
+    assert model.terms == ("water_temp_c", "air_temp_c")
+    assert all("training blocks for" not in str(w.message) for w in seen)
+    without = fit_operational_model(
+        modal, predictors, train_blocks=24, terms=("water_temp_c", "air_temp_c")
+    )
+    assert model.modes == without.modes
+    assert (model.coefficients == without.coefficients).all()
