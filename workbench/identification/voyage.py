@@ -332,6 +332,32 @@ def _retry_unreadable(
     return notices
 
 
+#: How a block skipped for data missing from the files begins its reason
+#: (:func:`~workbench.signals.block_plan.plan_file_infos`).
+_MISSING_DATA = ("gap of ", "no data (gap ")
+
+
+def _filled_gaps(store: BlockStore, plan) -> list[str]:
+    """Take out of the store the blocks an earlier run skipped for data missing (a gap, no
+    data) that the files given now hold (a file that landed late, or was copied since), so
+    they are identified as a fresh run identifies them; one notice line naming them."""
+    from ..store import BLOCKS_KIND
+
+    table = store.read(BLOCKS_KIND)
+    if table.empty:
+        return []
+    missing = (table["status"] != "ok") & table["reason"].astype(str).str.startswith(_MISSING_DATA)
+    built = {int(b.block) for b in plan.blocks if not b.skipped_reason}
+    again = set(table.loc[missing, "block"].astype(int)) & built
+    if not again:
+        return []
+    store.drop_blocks(again)
+    return [
+        f"block(s) {block_ranges(again)} skipped by an earlier run for data missing: the files "
+        "given now hold it, identified"
+    ]
+
+
 def _damaged_since_read(
     store: BlockStore, plan, fingerprints: list[dict], unreadable: Mapping[str, str], read_options
 ) -> dict[str, dict]:
@@ -650,6 +676,7 @@ def identify_voyage(
         # before the check: a repaired file is not another voyage's data
         notices += _retry_unreadable(store, plan, fingerprints, per_file, unreadable, damaged)
         store.check_inputs(fingerprints)
+        notices += _filled_gaps(store, plan)
         notices += _removed_inputs(
             store,
             fingerprints,
