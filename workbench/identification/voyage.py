@@ -332,9 +332,10 @@ def _retry_unreadable(
     return notices
 
 
-#: How a block skipped for data missing from the files begins its reason
-#: (:func:`~workbench.signals.block_plan.plan_file_infos`).
-_MISSING_DATA = ("gap of ", "no data (gap ")
+#: How a block skipped for data missing from the files begins its reason (that of
+#: :func:`~workbench.signals.block_plan.plan_file_infos`, or - stores of earlier versions -
+#: of the block builder for a block without a file).
+_MISSING_DATA = ("gap of ", "no data (gap ", "no acceleration files")
 
 
 def _filled_gaps(store: BlockStore, plan) -> list[str]:

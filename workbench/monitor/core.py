@@ -732,7 +732,10 @@ class Monitor:
             measures = self._lengths[int(planned.block)]
             grid, options, per_file = voyage.length_run(float(measures["block_length_s"]))
         task = BlockTask(
-            int(planned.block), planned.block_start, tuple(str(f) for f in planned.files)
+            int(planned.block),
+            planned.block_start,
+            tuple(str(f) for f in planned.files),
+            skipped=planned.skipped_reason,
         )
         conditioner = None
         if per_file:
