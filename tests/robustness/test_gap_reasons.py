@@ -12,6 +12,7 @@ The voyages are the small ones of :mod:`tests.robustness.voyage` (60-s files at 
 
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -63,3 +64,23 @@ def test_a_hole_is_named_by_the_files_on_either_side(tmp_path, capsys, missing, 
     capsys.readouterr()
     health = pd.read_parquet(state / "data_health.parquet")
     assert health["reason"].tolist() == reasons
+
+
+def test_a_file_without_samples_is_named_unreadable_not_a_hole(tmp_path, capsys):
+    """Before: a file of 0 samples (a recorder stopped right after writing its header)
+    passed the header read as a file of no length: identify skipped its blocks for "gap of
+    60.0 s between acc_002.npz and the end of the data" without a word on the file, which
+    ``validate`` refuses ("needs at least 2 samples, got 0")."""
+    paths = write_voyage(tmp_path / "voyage", n_files=6)
+    with np.load(paths[2], allow_pickle=False) as archive:
+        record = dict(archive)
+    with open(paths[2], "wb") as handle:
+        np.savez(handle, **{**record, "acceleration": record["acceleration"][:0]})
+    out = tmp_path / "out"
+    assert main(["identify", str(tmp_path / "voyage"), "--out", str(out), *IDENTIFY_ARGS]) == 0
+    why = f"{paths[2]}: unreadable (column 'acceleration': needs at least 2 samples, got 0)"
+    assert capsys.readouterr().err.splitlines() == [
+        f"warning: {why}; left out: block(s) 1-2 not identified"
+    ]
+    blocks = pd.read_csv(out / "blocks.csv", keep_default_na=False)
+    assert blocks["reason"].tolist() == ["", why, why, "", ""]
