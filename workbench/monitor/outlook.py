@@ -99,6 +99,10 @@ class ForecastSettings:
             math.isfinite(self.baseline_hours) and self.baseline_hours > 0
         ):
             raise ValueError(f"baseline_hours={self.baseline_hours!r} must be positive or None")
+        from ..shm import HealthOptions
+
+        # the chart's own checks, now rather than when the chart starts hours later
+        HealthOptions(ewma_lambda=self.ewma_lambda, false_alarms_per_day=self.false_alarms_per_day)
         object.__setattr__(
             self,
             "dship_mapping",
