@@ -20,6 +20,7 @@ from .errors import WorkbenchError
 __all__ = [
     "check_block_grid",
     "check_block_times",
+    "check_poles_cover",
     "check_poles_match",
     "check_predictors_overlap",
 ]
@@ -210,6 +211,27 @@ def check_poles_match(
             "among these poles at their block and model order: poles of another voyage or "
             "shifted blocks"
         )
+
+
+def check_poles_cover(modal: pd.DataFrame, poles: pd.DataFrame, poles_name) -> None:
+    """Warn when blocks of *modal* have no pole in *poles* (a pole table of part of the
+    voyage): option B has no measurement there, naming how many and the first and last."""
+    if modal.empty or poles.empty:
+        return
+    blocks = np.unique(modal["block"].to_numpy())
+    absent = np.setdiff1d(blocks, poles["block"].unique())
+    if not len(absent):
+        return
+    where = ""
+    if "block_start" in modal.columns:
+        starts = modal.drop_duplicates("block").set_index("block")["block_start"]
+        where = f", {_iso(starts[absent[0]])} to {_iso(starts[absent[-1]])}"
+    warnings.warn(
+        f"{poles_name}: no pole in {len(absent)} of {len(blocks)} blocks of the modal table "
+        f"(blocks {int(absent[0])} to {int(absent[-1])}{where}): option B has no "
+        "measurement there",
+        stacklevel=2,
+    )
 
 
 def _cluster_rows(tracked: pd.DataFrame, poles: pd.DataFrame) -> set[int]:
