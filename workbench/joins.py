@@ -87,8 +87,9 @@ def check_block_times(
         return
     first = common[np.flatnonzero(off)[0]]
     shift = float(delta[np.flatnonzero(off)[0]])
+    starts = "is centred at" if centres else "starts"  # blocks of varying length: centres
     raise WorkbenchError(
-        f"{other_name}: block {int(first)} starts {_iso(oth[first])}, but {_iso(ref[first])} "
+        f"{other_name}: block {int(first)} {starts} {_iso(oth[first])}, but {_iso(ref[first])} "
         f"in {reference_name} ({int(off.sum())} of {len(common)} common blocks differ, first "
         f"by {shift:+g} s): block numbers must mean the same times in every input"
     )
@@ -100,7 +101,8 @@ def check_block_grid(table: pd.DataFrame, name) -> None:
     """
     if table.empty or not {"block", "block_start"} <= set(table.columns):
         return
-    starts = _starts(table, _varying(table)).sort_index()
+    centres = _varying(table)
+    starts = _starts(table, centres).sort_index()
     if len(starts) < 2:
         return
     blocks = starts.index.to_numpy(dtype=float)
@@ -111,10 +113,12 @@ def check_block_grid(table: pd.DataFrame, name) -> None:
     if not off.any():
         return
     k = int(np.flatnonzero(off)[0])
+    at = "is centred at" if centres else "starts"  # blocks of varying length: centres
     raise WorkbenchError(
-        f"{name}: block {int(starts.index[k])} starts {_iso(starts.iloc[k])}, off the grid of "
-        f"the other blocks (a block every {step:g} s from block {int(starts.index[0])} at "
-        f"{_iso(starts.iloc[0])}): block numbers and times disagree"
+        f"{name}: block {int(starts.index[k])} {at} {_iso(starts.iloc[k])}, off the grid of "
+        f"the other blocks (a block every {step:g} s from block {int(starts.index[0])} "
+        f"{'centred ' if centres else ''}at {_iso(starts.iloc[0])}): block numbers and times "
+        "disagree"
     )
 
 
