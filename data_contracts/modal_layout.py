@@ -43,6 +43,7 @@ import pandas as pd
 from ._core import ContractError, Violation
 from .csv_layout import read_delimited, split_unit
 from .dship_names import bad_time_values, name_key, parse_times, strptime_format, time_format_hint
+from .formats import describe
 from .grid import GRID_ATTR, attach_grid, read_grid, set_grid
 from .tables import MODAL
 
@@ -218,7 +219,7 @@ def standardise_modal(
         rows = _file_rows(long, mask)
         return fail(reason, column, [f"row {r}" for r in rows[:5]], len(rows))
 
-    found = f"columns in the file: {', '.join(map(str, frame.columns))}"
+    found = describe([str(c) for c in frame.columns], "columns", limit=len(frame.columns))
     keys: dict[str, str] = {}
     units: dict[str, str | None] = {}
     for column in frame.columns:

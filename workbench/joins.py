@@ -22,6 +22,7 @@ from .errors import WorkbenchError
 __all__ = [
     "check_block_grid",
     "check_block_times",
+    "check_poles_cover",
     "check_poles_match",
     "check_predictors_overlap",
 ]
@@ -88,8 +89,9 @@ def check_block_times(
         return
     first = common[np.flatnonzero(off)[0]]
     shift = float(delta[np.flatnonzero(off)[0]])
+    starts = "is centred at" if centres else "starts"  # blocks of varying length: centres
     raise WorkbenchError(
-        f"{other_name}: block {int(first)} starts {_iso(oth[first])}, but {_iso(ref[first])} "
+        f"{other_name}: block {int(first)} {starts} {_iso(oth[first])}, but {_iso(ref[first])} "
         f"in {reference_name} ({int(off.sum())} of {len(common)} common blocks differ, first "
         f"by {shift:+g} s): block numbers must mean the same times in every input"
     )
@@ -101,7 +103,8 @@ def check_block_grid(table: pd.DataFrame, name) -> None:
     """
     if table.empty or not {"block", "block_start"} <= set(table.columns):
         return
-    starts = _starts(table, _varying(table)).sort_index()
+    centres = _varying(table)
+    starts = _starts(table, centres).sort_index()
     if len(starts) < 2:
         return
     blocks = starts.index.to_numpy(dtype=float)
@@ -112,10 +115,12 @@ def check_block_grid(table: pd.DataFrame, name) -> None:
     if not off.any():
         return
     k = int(np.flatnonzero(off)[0])
+    at = "is centred at" if centres else "starts"  # blocks of varying length: centres
     raise WorkbenchError(
-        f"{name}: block {int(starts.index[k])} starts {_iso(starts.iloc[k])}, off the grid of "
-        f"the other blocks (a block every {step:g} s from block {int(starts.index[0])} at "
-        f"{_iso(starts.iloc[0])}): block numbers and times disagree"
+        f"{name}: block {int(starts.index[k])} {at} {_iso(starts.iloc[k])}, off the grid of "
+        f"the other blocks (a block every {step:g} s from block {int(starts.index[0])} "
+        f"{'centred ' if centres else ''}at {_iso(starts.iloc[0])}): block numbers and times "
+        "disagree"
     )
 
 
@@ -211,6 +216,27 @@ def check_poles_match(
             "among these poles at their block and model order: poles of another voyage or "
             "shifted blocks"
         )
+
+
+def check_poles_cover(modal: pd.DataFrame, poles: pd.DataFrame, poles_name) -> None:
+    """Warn when blocks of *modal* have no pole in *poles* (a pole table of part of the
+    voyage): option B has no measurement there, naming how many and the first and last."""
+    if modal.empty or poles.empty:
+        return
+    blocks = np.unique(modal["block"].to_numpy())
+    absent = np.setdiff1d(blocks, poles["block"].unique())
+    if not len(absent):
+        return
+    where = ""
+    if "block_start" in modal.columns:
+        starts = modal.drop_duplicates("block").set_index("block")["block_start"]
+        where = f", {_iso(starts[absent[0]])} to {_iso(starts[absent[-1]])}"
+    warnings.warn(
+        f"{poles_name}: no pole in {len(absent)} of {len(blocks)} blocks of the modal table "
+        f"(blocks {int(absent[0])} to {int(absent[-1])}{where}): option B has no "
+        "measurement there",
+        stacklevel=2,
+    )
 
 
 def _cluster_rows(tracked: pd.DataFrame, poles: pd.DataFrame) -> set[int]:

@@ -345,8 +345,16 @@ def warn_if_gravity_in_g(acceleration: np.ndarray, channels, stated: bool, sourc
         )
 
 
+#: What a text file whose first line is one undelimited field is said to hold: that line
+#: is not quoted (a file given by mistake, a key or a password, is not shown).
+NO_DELIMITED_HEADER = "no delimited column names on its first line"
+
+
 def describe(names: Sequence[str], what: str, limit: int = 30) -> str:
-    """``"variables in the file: a, b, c"`` (at most *limit* names)."""
+    """``"variables in the file: a, b, c"`` (at most *limit* names); for ``"columns"``, a
+    single one is not quoted (:data:`NO_DELIMITED_HEADER`)."""
+    if what == "columns" and len(names) == 1:
+        return NO_DELIMITED_HEADER
     shown = list(names)[:limit]
     more = len(names) - len(shown)
     listed = ", ".join(shown) if shown else "none"

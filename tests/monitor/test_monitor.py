@@ -367,7 +367,7 @@ def test_settings_from_a_ship_configuration(voyage, tmp_path):
     [
         (["monitor", "--state", "s"], "--watch"),
         (["monitor", "--watch", "nowhere", "--state", "s"], "no such folder"),
-        (["monitor", "--watch", ".", "--state", "s", "--poll", "0"], "poll_s"),
+        (["monitor", "--watch", ".", "--state", "s", "--poll", "0"], "--poll 0.0"),
         # --block-minutes auto is monitored (test_adaptive_monitor.py); its bad values not
         (
             ["monitor", "--watch", ".", "--state", "s", "--once", "--block-minutes", "fast"],

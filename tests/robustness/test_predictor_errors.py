@@ -146,3 +146,13 @@ def test_health_train_hours_too_short_for_the_model_is_a_usage_error(sim, tmp_pa
         "model needs at least 12 (1 h)"
     )
     assert not (tmp_path / "health").exists()
+
+
+def test_fit_names_the_predictor_file_when_no_column_is_usable(sim, tmp_path, capsys):
+    """Before: "error: tracked_modal.csv: no usable predictor column (all NaN or constant)"
+    - the modal file blamed for a predictor table of one block (every column constant)."""
+    predictors = _predictors(sim, tmp_path, "one.csv", lambda t: t["block"] == 0)
+    argv = ["fit", "--modal", sim / "tracked_modal.csv", "--predictors", predictors]
+    status, error = _error(capsys, [*argv, "--out", tmp_path / "fit", "--quiet"])
+    assert status == 1
+    assert error == f"error: {predictors}: no usable predictor column (all NaN or constant)"

@@ -146,6 +146,35 @@ def test_voyage_extended_with_new_files_resumes(tmp_path, capsys):
     assert "2 block(s) processed, 0 skipped, 3 already done" in capsys.readouterr().out
 
 
+def test_a_file_landing_late_in_a_hole_is_identified_by_the_rerun(tmp_path, capsys):
+    """Before: the blocks over the missing file were stored as skipped (gap) and the rerun
+    with the file there counted them done ("0 block(s) processed, 0 skipped, 5 already
+    done"): the rerun kept the hole a fresh run does not have. Now they are computed
+    again, named in one line, and the tables equal a fresh run's."""
+    paths = write_voyage(tmp_path / "voyage", n_files=6)
+    late = tmp_path / paths[2].name
+    paths[2].rename(late)
+    assert _identify([tmp_path / "voyage"], tmp_path / "out") == 0
+    blocks = pd.read_csv(tmp_path / "out" / "blocks.csv")
+    assert blocks["status"].tolist() == ["ok", "skipped", "skipped", "ok", "ok"]
+    late.rename(paths[2])
+    capsys.readouterr()
+    assert _identify([tmp_path / "voyage"], tmp_path / "out") == 0
+    out, err = capsys.readouterr()
+    assert "2 block(s) processed, 0 skipped, 3 already done" in out
+    assert err.splitlines() == [
+        "warning: block(s) 1-2 skipped by an earlier run for data missing: the files given "
+        "now hold it, identified"
+    ]
+    assert _identify([tmp_path / "voyage"], tmp_path / "fresh") == 0
+    for name in ("selected.parquet", "poles.parquet"):
+        pd.testing.assert_frame_equal(
+            pd.read_parquet(tmp_path / "out" / name), pd.read_parquet(tmp_path / "fresh" / name)
+        )
+    blocks = pd.read_csv(tmp_path / "out" / "blocks.csv")
+    assert (blocks["status"] == "ok").all()
+
+
 # --------------------------------------------------------------------- HDF5 external data
 def _mat73(path: Path, *, start_time=None) -> None:
     """A MATLAB v7.3-style HDF5 file (column-major matrix, uint16 char arrays)."""

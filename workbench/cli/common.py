@@ -274,7 +274,12 @@ def _option_names(message: str) -> str:
 
 def _check_joins(args, modal, predictors=None, poles=None) -> None:
     """Block numbers must mean the same times in every input (one-line error, exit 1)."""
-    from ..joins import check_block_times, check_poles_match, check_predictors_overlap
+    from ..joins import (
+        check_block_times,
+        check_poles_cover,
+        check_poles_match,
+        check_predictors_overlap,
+    )
 
     if predictors is not None:
         source = _predictor_source(args)
@@ -282,6 +287,7 @@ def _check_joins(args, modal, predictors=None, poles=None) -> None:
         check_predictors_overlap(modal, predictors, source)
     if poles is not None:
         check_poles_match(modal, args.modal, poles, args.poles)
+        check_poles_cover(modal, poles, args.poles)
 
 
 def _read_modal(args: argparse.Namespace, path: Path, contract=None):

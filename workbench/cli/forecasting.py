@@ -381,19 +381,25 @@ def _add_health(commands: argparse._SubParsersAction) -> None:
     parser.set_defaults(run=_run_health)
 
 
-def _block_step_s(table) -> float:
-    """Block step of *table*: its recorded grid, else the median step of its blocks."""
+def _block_step_s(table, path) -> float:
+    """Block step of *table* (read from *path*): its recorded grid, else the median step of
+    its blocks; a table of one block without a recorded grid has none (exit 1)."""
     from data_contracts import recorded_grid
 
     grid = recorded_grid(table)
     if grid is not None:
         return float(grid["step_s"])
     starts = table["block_start"].drop_duplicates().sort_values()
+    if len(starts) < 2:
+        raise WorkbenchError(
+            f"{path}: the table holds one block only and records no block grid: no block "
+            "step to turn hours into blocks"
+        )
     return float(starts.diff().median().total_seconds())
 
 
 def _run_health(args: argparse.Namespace) -> int:
-    from data_contracts import FORECAST, MODAL, PREDICTORS, read_table
+    from data_contracts import FORECAST, MODAL, PREDICTORS
 
     from ..shm import BaselineError, HealthBaseline, HealthOptions, fit_operational_model
     from ..shm.model import MIN_TRAIN_BLOCKS
@@ -410,9 +416,9 @@ def _run_health(args: argparse.Namespace) -> int:
         if args.predictors is None or args.train_hours is None:
             raise UsageError("--modal needs --predictors and --train-hours")
         source = args.modal
-        modal = read_table(args.modal, MODAL)
-        predictors = read_table(args.predictors, PREDICTORS)
-        step_s = _block_step_s(predictors)
+        modal = _read_modal(args, args.modal, MODAL)
+        predictors = _read_modal(args, args.predictors, PREDICTORS)
+        step_s = _block_step_s(predictors, args.predictors)
         train = int(round(args.train_hours * 3600 / step_s))
         if train < MIN_TRAIN_BLOCKS:
             raise UsageError(
@@ -439,8 +445,8 @@ def _run_health(args: argparse.Namespace) -> int:
                 reference_blocks=reference,
             )
     else:
-        forecast = read_table(args.forecast, FORECAST)
-    blocks = int(round(args.reference_hours * 3600 / _block_step_s(forecast)))
+        forecast = _read_modal(args, args.forecast, FORECAST)
+    blocks = int(round(args.reference_hours * 3600 / _block_step_s(forecast, source)))
     try:
         options = HealthOptions(
             reference_blocks=blocks,
@@ -468,7 +474,7 @@ def _run_health(args: argparse.Namespace) -> int:
                 predictors,
                 model,
                 result,
-                step_s=_block_step_s(predictors),
+                step_s=_block_step_s(predictors, args.predictors),
                 length_s=grid.get("length_s"),
                 source={"modal": str(args.modal), "predictors": str(args.predictors)},
             )
@@ -484,7 +490,7 @@ def _run_health(args: argparse.Namespace) -> int:
 def _run_health_baseline(args: argparse.Namespace) -> int:
     """``health --baseline FILE --modal --predictors``: the chart with an earlier voyage's
     model and limits, from the first block."""
-    from data_contracts import MODAL, PREDICTORS, read_table
+    from data_contracts import MODAL, PREDICTORS
 
     from ..shm import BaselineError, HealthBaseline
     from ..stages import health
@@ -503,8 +509,8 @@ def _run_health_baseline(args: argparse.Namespace) -> int:
         baseline = HealthBaseline.load(args.baseline)
     except BaselineError as error:
         raise WorkbenchError(str(error)) from None
-    modal = read_table(args.modal, MODAL)
-    predictors = read_table(args.predictors, PREDICTORS)
+    modal = _read_modal(args, args.modal, MODAL)
+    predictors = _read_modal(args, args.predictors, PREDICTORS)
     try:
         channels = [c[len("shape_re_") :] for c in modal.columns if c.startswith("shape_re_")]
         baseline.check_channels(channels, str(args.modal))

@@ -373,7 +373,30 @@ def _monitor_options(args: argparse.Namespace):
             cases=None if args.cases is None else str(args.cases),
         )
     except (ValueError, argparse.ArgumentTypeError) as error:
-        raise UsageError(str(error)) from None
+        raise UsageError(_as_flag(str(error))) from None
+
+
+#: The options' names in their messages -> the flags that set them.
+_FLAGS = {
+    "poll_s": "--poll",
+    "settle_s": "--settle",
+    "late_s": "--late",
+    "flush_after_s": "--flush-after",
+    "on_alarm_timeout_s": "--on-alarm-timeout",
+    "reference_hours": "--reference-hours",
+    "health_train_hours": "--health-train-hours",
+    "baseline_hours": "--baseline-hours",
+    "ewma_lambda": "--ewma-lambda",
+    "false_alarms_per_day": "--false-alarms-per-day",
+}
+
+
+def _as_flag(message: str) -> str:
+    """``"poll_s=0.0 must be positive"`` -> ``"--poll 0.0 must be positive"``."""
+    name, equals, rest = message.partition("=")
+    if equals and name in _FLAGS:
+        return f"{_FLAGS[name]} {rest}"
+    return message
 
 
 def prepare_monitor(args: argparse.Namespace):

@@ -3,6 +3,7 @@ from files conditioned once), and the rows it adds to the store."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from collections.abc import Mapping, Sequence
@@ -36,6 +37,8 @@ class BlockTask:
     block_start: pd.Timestamp
     files: tuple
     infos: tuple = ()
+    #: Why the voyage's plan skips the block (a gap between two files it names), or "".
+    skipped: str = ""
 
 
 def _block_tasks(plan, planned) -> list[BlockTask]:
@@ -47,6 +50,7 @@ def _block_tasks(plan, planned) -> list[BlockTask]:
             p.block_start,
             tuple(str(f) for f in p.files),
             tuple(header[Path(f)] for f in p.files if Path(f) in header),
+            p.skipped_reason,
         )
         for p in planned
     ]
@@ -83,7 +87,7 @@ def _identify_data(
             channels=channels,
         )
     if data.acceleration is None:
-        return data, None, None
+        return _with_planned_reason(data, getattr(task, "skipped", "")), None, None
     kept = list(data.channels)
     if len(kept) < 2:
         raise ValueError(f"block {task.block}: only {len(kept)} good channel(s) left")
@@ -97,6 +101,31 @@ def _identify_data(
     except (ValueError, np.linalg.LinAlgError):
         checked = None  # the block's own result stands; it just has no cross-check
     return data, result, selection, checked
+
+
+#: How the reason of a block skipped for data missing begins: the block builder, which
+#: sees the block's own files only, names the data's start or end where the voyage's plan
+#: names the files on either side of the gap.
+_MISSING_DATA = (
+    "gap of ",
+    "no data (gap ",
+    "no acceleration files",
+    "outside the span of the acceleration files",
+)
+
+
+def _with_planned_reason(data, planned: str):
+    """*data* (a skipped block) with the reason of the voyage's plan when both say data is
+    missing (the plan knows the files beyond the block, the builder only the block's)."""
+    if not (planned and data.skipped_reason.startswith(_MISSING_DATA)):
+        return data
+    if not planned.startswith(_MISSING_DATA) or planned == data.skipped_reason:
+        return data
+    notes = tuple(
+        f"skipped: {planned}" if note == f"skipped: {data.skipped_reason}" else note
+        for note in data.notes
+    )
+    return dataclasses.replace(data, skipped_reason=planned, notes=notes)
 
 
 def _reference_columns(options: IdentifyOptions, kept: Sequence[str], block: int):

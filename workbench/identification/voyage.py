@@ -332,6 +332,33 @@ def _retry_unreadable(
     return notices
 
 
+#: How a block skipped for data missing from the files begins its reason (that of
+#: :func:`~workbench.signals.block_plan.plan_file_infos`, or - stores of earlier versions -
+#: of the block builder for a block without a file).
+_MISSING_DATA = ("gap of ", "no data (gap ", "no acceleration files")
+
+
+def _filled_gaps(store: BlockStore, plan) -> list[str]:
+    """Take out of the store the blocks an earlier run skipped for data missing (a gap, no
+    data) that the files given now hold (a file that landed late, or was copied since), so
+    they are identified as a fresh run identifies them; one notice line naming them."""
+    from ..store import BLOCKS_KIND
+
+    table = store.read(BLOCKS_KIND)
+    if table.empty:
+        return []
+    missing = (table["status"] != "ok") & table["reason"].astype(str).str.startswith(_MISSING_DATA)
+    built = {int(b.block) for b in plan.blocks if not b.skipped_reason}
+    again = set(table.loc[missing, "block"].astype(int)) & built
+    if not again:
+        return []
+    store.drop_blocks(again)
+    return [
+        f"block(s) {block_ranges(again)} skipped by an earlier run for data missing: the files "
+        "given now hold it, identified"
+    ]
+
+
 def _damaged_since_read(
     store: BlockStore, plan, fingerprints: list[dict], unreadable: Mapping[str, str], read_options
 ) -> dict[str, dict]:
@@ -650,6 +677,7 @@ def identify_voyage(
         # before the check: a repaired file is not another voyage's data
         notices += _retry_unreadable(store, plan, fingerprints, per_file, unreadable, damaged)
         store.check_inputs(fingerprints)
+        notices += _filled_gaps(store, plan)
         notices += _removed_inputs(
             store,
             fingerprints,
@@ -720,6 +748,7 @@ def identify_voyage(
         result = IdentifyResult(summary, n_blocks=n_tasks, warnings=notices)
         result.files = export_store(store, out, channels, grid=grid, harmonics=marker)
         result.notes = marker.lines()
+        result.warnings += marker.unmarked()
     selected = result.files.get("selected")
     if selected is not None:
         result.n_selected = len(pd.read_parquet(selected, columns=["block"]))

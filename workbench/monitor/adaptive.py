@@ -148,7 +148,9 @@ class AdaptiveLengths:
         from ..signals.block_plan import plan_file_infos
 
         infos = [f.info for f in files]
-        plan = plan_file_infos(infos, self.half_grid, max_gap_s=self.options.max_gap_s)
+        plan = plan_file_infos(
+            infos, self.half_grid, max_gap_s=self.options.max_gap_s, channels=self.channels
+        )
         self.n_half = len(plan.blocks)
         starts = np.array([i.start_time.value for i in infos], dtype=np.int64)
         ends = np.array([i.end_time.value for i in infos], dtype=np.int64)

@@ -455,18 +455,27 @@ class Monitor:
 
     def _take(self, item: LandedFile) -> None:
         """Add a complete file to the voyage, or refuse it with a message."""
+        from ..signals.block_plan import reference_channels
+
         self._last_landing = time.monotonic()
         info = item.info
-        reason = ""
+        reason = lacking = extra = ""
         if self.voyage is not None:
             voyage = self.voyage
             half = pd.Timedelta(seconds=0.5 / voyage.rate_hz)
+            try:  # a file lacking a few channels is read with them NaN, as identify does
+                reference_channels([info], voyage.channels)
+            except ValueError as error:
+                channels = str(error).removeprefix(f"{info.path}: ")
+                channels = channels.replace("from those of the other files", "from the voyage's")
+            else:
+                channels = ""
+                lacking = ", ".join(c for c in voyage.channels if c not in info.channels)
+                extra = ", ".join(c for c in info.channels if c not in voyage.channels)
             if info.sampling_rate_hz != voyage.rate_hz:
                 reason = f"sampling rate {info.sampling_rate_hz:g} Hz, not {voyage.rate_hz:g} Hz"
-            elif set(info.channels) != set(voyage.channels) or len(info.channels) != len(
-                voyage.channels
-            ):
-                reason = "other channels than the voyage's"
+            elif channels:
+                reason = channels
             elif info.start_time < voyage.grid.t0 - half:
                 reason = (
                     f"starts before the monitor's first block ({voyage.grid.t0.isoformat()}); "
@@ -490,6 +499,16 @@ class Monitor:
             log.warning("%s: not used: %s", item.path, reason)
             self.watcher.refuse(item.path)
             return
+        if lacking:
+            self.messages.append(
+                f"{item.path.name}: channel(s) {lacking} missing; NaN there, dropped as faulty "
+                "in the blocks holding it"
+            )
+        if extra:
+            self.messages.append(
+                f"{item.path.name}: channel(s) {extra} not among the voyage's (those of its "
+                "first file); left out"
+            )
         self.files.append(item)
         self._last_taken = (item.path.name, pd.Timestamp.now(tz="UTC"))
         self.files.sort(key=lambda f: (f.info.start_time, str(f.path)))
@@ -601,7 +620,10 @@ class Monitor:
         if voyage.lengths is not None:
             return self._ready_adaptive(flush)
         plan = plan_file_infos(
-            [f.info for f in self.files], voyage.grid, max_gap_s=voyage.options.max_gap_s
+            [f.info for f in self.files],
+            voyage.grid,
+            max_gap_s=voyage.options.max_gap_s,
+            channels=voyage.channels,
         )
         starts, ends = self._coverage()
         newest = int(ends.max())
@@ -672,7 +694,9 @@ class Monitor:
             grid, options, per_file = voyage.length_run(length)
             plan = plans.get(length)
             if plan is None:
-                plan = plans[length] = plan_file_infos(infos, grid, max_gap_s=options.max_gap_s)
+                plan = plans[length] = plan_file_infos(
+                    infos, grid, max_gap_s=options.max_gap_s, channels=voyage.channels
+                )
             planned = next((b for b in plan.blocks if b.block == block), None)
             if planned is None:  # cannot happen: the length fits the data
                 continue
@@ -708,7 +732,10 @@ class Monitor:
             measures = self._lengths[int(planned.block)]
             grid, options, per_file = voyage.length_run(float(measures["block_length_s"]))
         task = BlockTask(
-            int(planned.block), planned.block_start, tuple(str(f) for f in planned.files)
+            int(planned.block),
+            planned.block_start,
+            tuple(str(f) for f in planned.files),
+            skipped=planned.skipped_reason,
         )
         conditioner = None
         if per_file:
@@ -1229,7 +1256,10 @@ class Monitor:
 
             grid = self.voyage.grid
             plan = plan_file_infos(
-                [f.info for f in self.files], grid, max_gap_s=self.voyage.options.max_gap_s
+                [f.info for f in self.files],
+                grid,
+                max_gap_s=self.voyage.options.max_gap_s,
+                channels=self.voyage.channels,
             )
             now_built = sorted(
                 b.block for b in plan.blocks if not b.skipped_reason and b.block in missing

@@ -99,6 +99,10 @@ class ForecastSettings:
             math.isfinite(self.baseline_hours) and self.baseline_hours > 0
         ):
             raise ValueError(f"baseline_hours={self.baseline_hours!r} must be positive or None")
+        from ..shm import HealthOptions
+
+        # the chart's own checks, now rather than when the chart starts hours later
+        HealthOptions(ewma_lambda=self.ewma_lambda, false_alarms_per_day=self.false_alarms_per_day)
         object.__setattr__(
             self,
             "dship_mapping",
@@ -344,6 +348,7 @@ def update_outlook(
         tracked = read_table(tracked_path, MODAL)
         report.n_blocks = int(tracked["block"].nunique()) if len(tracked) else 0
         if len(tracked):
+            log_notes: list[str] = []
             try:
                 # the ship log's notes go to the report (and status.json), not to stderr
                 # at every recompute
@@ -352,6 +357,7 @@ def update_outlook(
                     predictors = block_predictors_of(tracked, Path(dship), grid, settings)
                 report.messages += list(dict.fromkeys(str(w.message) for w in caught))
                 log = _ship_log(Path(dship), dict(settings.dship_mapping))
+                log_notes = log_start_notes(log, grid, int(tracked["block"].min()))
                 newest_end = _newest_end(tracked, grid, int(tracked["block"].max()))
                 report.log_complete = bool(len(log) and log["time"].max() >= newest_end)
                 poles = None
@@ -368,6 +374,7 @@ def update_outlook(
             except Exception as error:  # noqa: BLE001 - a contract or data error of the log
                 report.messages.append(f"forecast: {type(error).__name__}: {error}")
                 forecast = empty_table(FORECAST)
+            report.messages += log_notes
     elif dship is None:
         report.messages.append("forecast: no ship log given")
     health, alarms = empty_table(HEALTH), empty_table(ALARMS)
@@ -448,11 +455,13 @@ def _incremental_outlook(
         summary, tracked = None, empty_table(MODAL)
     report.n_blocks = summary["blocks"] if summary is not None else 0
     if len(tracked):
+        log_notes: list[str] = []
         try:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
                 log = _ship_log(dship, dict(settings.dship_mapping))
                 first, newest = summary["first_block"], summary["last_block"]
+                log_notes = log_start_notes(log, grid, first)
                 newest_end = _newest_end(tracked, grid, newest)
                 report.log_complete = bool(len(log) and log["time"].max() >= newest_end)
                 final_through = None
@@ -496,6 +505,7 @@ def _incremental_outlook(
             report.messages.append(f"forecast: {str(error).splitlines()[0]}")
         except Exception as error:  # noqa: BLE001 - a contract or data error of the log
             report.messages.append(f"forecast: {type(error).__name__}: {error}")
+        report.messages += log_notes
     if not _write_outlook(
         report,
         state,
@@ -513,6 +523,26 @@ def _incremental_outlook(
         outlook.save(folder)
     except (OSError, TypeError, ValueError) as error:
         report.messages.append(f"forecast: state not saved ({error}); a restart computes it again")
+
+
+def log_start_notes(log: pd.DataFrame, grid, first: int) -> list[str]:
+    """One note when the ship log starts after the end of block *first* (the first tracked
+    block): a log cut at its start, or replaced by a newer file, leaves the blocks before
+    its start without predictors, and the forecast of every block is computed again
+    without them."""
+    if not len(log):
+        return []
+    start = pd.Timestamp(log["time"].min())
+    if start <= grid.end(first):
+        return []
+    # the last block that ends at or before the log's first time
+    before = (start - grid.t0).total_seconds() - grid.length_s
+    last = max(first, int(np.floor(before / grid.step_s + 1e-9)))
+    return [
+        f"ship log: starts at {start:%Y-%m-%dT%H:%M:%SZ}, after block(s) {first}-{last} "
+        f"(from {grid.start(first):%Y-%m-%dT%H:%M:%SZ}): they have no predictors (a log cut "
+        "at its start, or another file?)"
+    ]
 
 
 def _newest_end(tracked: pd.DataFrame, grid, newest: int) -> pd.Timestamp:

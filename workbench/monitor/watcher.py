@@ -6,8 +6,9 @@ A file is *complete* when
    atomic writers of :mod:`data_contracts` and most recorders write a hidden temporary file
    and rename it when it is whole);
 2. it has not been modified for ``settle_s`` seconds (its modification time is at least
-   that old at a poll), so a file written in place is left alone while the writer appends
-   to it;
+   that old at a poll, or - stamped by a clock ahead of this machine's, e.g. a file
+   server's - the polls have seen its size and modification time unchanged that long),
+   so a file written in place is left alone while the writer appends to it;
 3. its header reads and is consistent (:func:`~workbench.signals.block_plan.read_file_info`:
    for ``.npz`` files the archive's directory, which a writer puts last, and the sample
    array's header against the bytes stored; other formats are read whole).
@@ -16,7 +17,10 @@ Why these rules: (1) costs nothing and makes the common atomic-rename writers ex
 catches writers that write in place without the latency of waiting for two identical polls
 (a file written long ago is taken at the first poll that sees it, e.g. after a restart);
 (3) catches what (2) cannot, a writer pausing longer than ``settle_s`` in the middle of a
-binary file. A file failing (3) is reported once and looked at again when it changes. A
+binary file. A file failing (3) is reported once and looked at again when it changes (an
+empty file too: a recorder that stopped after creating it leaves one, which would
+otherwise keep the monitor waiting for it, and from its first block on if it is the
+oldest). A
 file that changes after it was taken is reported and not taken again: the blocks that used
 it are kept (see :mod:`workbench.monitor`).
 """
@@ -83,6 +87,8 @@ class FolderWatcher:
         self._taken: dict[Path, tuple[int, int]] = {}
         self._refused: dict[Path, tuple[int, int]] = {}
         self._changed: set[Path] = set()
+        #: (size, mtime_ns) of each file not yet taken and when a poll first saw it so.
+        self._seen: dict[Path, tuple[tuple[int, int], float]] = {}
         #: Files seen but not yet complete at the last poll.
         self.pending: set[Path] = set()
         #: Why each refused file was not taken (its reader's first line), by path.
@@ -139,9 +145,13 @@ class FolderWatcher:
                 continue
             if self._refused.get(path) == key or path.resolve() in self.exclude:
                 continue
-            if stat.st_size == 0 or now - stat.st_mtime < self.settle_s:
+            if self._seen.get(path, (None,))[0] != key:
+                self._seen[path] = (key, now)
+            unchanged_s = now - self._seen[path][1]
+            if now - stat.st_mtime < self.settle_s and unchanged_s < self.settle_s:
                 pending.add(path)
                 continue
+            del self._seen[path]
             if path.suffix.lower() in TEXT_SUFFIXES and not looks_like_acceleration_table(path):
                 self._refused[path] = key  # a table or log, not an acceleration record
                 self.refused_reasons[path] = (
@@ -169,5 +179,6 @@ class FolderWatcher:
                 )
             )
         self.pending = pending
+        self._seen = {path: seen for path, seen in self._seen.items() if path in pending}
         landed.sort(key=lambda f: (f.info.start_time, str(f.path)))
         return landed, messages

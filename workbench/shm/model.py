@@ -242,6 +242,29 @@ def _design(
     return np.column_stack(columns)
 
 
+def _default_terms(
+    predictors: pd.DataFrame, train_start_block: int, train_blocks: int
+) -> tuple[str, ...]:
+    """:data:`DEFAULT_TERMS` whose columns *predictors* holds with a value in the training
+    window; warns naming the columns present without one and the terms they leave out."""
+    stop = train_start_block + int(train_blocks) - 1
+    window = predictors[predictors["block"].between(train_start_block, stop)]
+    present = [t for t in DEFAULT_TERMS if all(c in predictors.columns for c in _parse(t))]
+    empty = sorted(
+        {c for t in present for c in _parse(t) if not window[c].notna().any()},
+        key=list(predictors.columns).index,
+    )
+    left_out = [t for t in present if set(_parse(t)) & set(empty)]
+    if empty and len(window):
+        warnings.warn(
+            f"the predictor table holds no value of {', '.join(empty)} in the training "
+            f"window (blocks {train_start_block}-{stop}): the operational model leaves out "
+            f"{', '.join(left_out)}",
+            stacklevel=3,
+        )
+    return tuple(t for t in present if t not in left_out)
+
+
 def _newey_west(x: np.ndarray, residual: np.ndarray, lags: int) -> np.ndarray:
     """HAC covariance (X'X)⁻¹ S (X'X)⁻¹ with Bartlett weights (Newey and West 1987)."""
     bread = np.linalg.pinv(x.T @ x)
@@ -280,7 +303,8 @@ def fit_operational_model(
         but the chart then sees less). [blocks]
     terms : sequence of str, optional
         Model terms; default :data:`DEFAULT_TERMS` restricted to the columns present
-        (and not all NaN).
+        with a value in the training window (a column present without any, e.g. a
+        sensor dead from the start, is left out with a warning naming it).
     outlier_sigma : float
         Estimates further than this many robust standard deviations from the fit (wrong
         poles, swapped labels) are dropped and the fit repeated (three passes). [-]
@@ -314,11 +338,7 @@ def fit_operational_model(
     if "block" not in predictors.columns:
         raise PredictorError("the predictor table has no column 'block'")
     if terms is None:
-        terms = tuple(
-            t
-            for t in DEFAULT_TERMS
-            if all(c in predictors.columns and predictors[c].notna().any() for c in _parse(t))
-        )
+        terms = _default_terms(predictors, train_start_block, train_blocks)
     terms = tuple(terms)
     names = sorted({c for t in terms for c in _parse(t)})
     missing = [c for c in names if c not in predictors.columns]

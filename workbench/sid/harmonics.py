@@ -528,6 +528,23 @@ class HarmonicMarker:
         self.n_poles += int(poles["harmonic"].notna().sum())
         return poles
 
+    def unmarked(self) -> list[str]:
+        """One warning line when the ship log leaves blocks without what the test used (a
+        log ending before the recordings, an outage): their harmonics are not marked."""
+        column = {"shaft speed": "shaft_rpm", "speed": "speed_energy_kn"}.get(self.method)
+        if column is None or self.shaft.empty:
+            return []
+        from ..store import block_ranges
+
+        missing = self.shaft.loc[self.shaft[column].isna(), "block"].astype(int)
+        if missing.empty:
+            return []
+        return [
+            f"ship log: no {self.method} over block(s) {block_ranges(set(missing))} "
+            f"({len(missing)} of {len(self.shaft)} blocks): harmonics there are not marked "
+            "and are tracked as modes"
+        ]
+
     def lines(self) -> list[str]:
         """One line for the engineer: the test used and what it marked."""
         if self.log is None:

@@ -97,6 +97,8 @@ def _npz_info(path: Path) -> FileInfo:
     channels = tuple(str(c) for c in np.asarray(data["channels"]).ravel())
     if len(shape) != 2 or shape[1] != len(channels) or not (math.isfinite(rate) and rate > 0):
         raise ValueError("inconsistent header")
+    if shape[0] < 2:  # no record (a recorder stopped at the start): the reader says so
+        raise ValueError("too few samples")
     return FileInfo(path, utc_timestamp(start), rate, int(shape[0]), channels)
 
 

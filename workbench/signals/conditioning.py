@@ -86,6 +86,32 @@ def nan_runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return starts, ends - starts
 
 
+def constant_runs(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per channel of *x* (n_samples, n_channels), the samples of the run of one repeated
+    value that starts the record, of the one that ends it, and of the longest: a stuck or
+    zero-filled sensor repeats one value, a live one hardly twice (NaN never equals).
+
+    Returns
+    -------
+    leading, trailing, longest : ndarray of int, shape (n_channels,)
+        Each at least 1 (0 without samples).
+    """
+    n, n_channels = x.shape
+    leading = np.full(n_channels, min(n, 1), dtype=np.int64)
+    trailing, longest = leading.copy(), leading.copy()
+    if n < 2:
+        return leading, trailing, longest
+    equal = x[1:] == x[:-1]  # True where a sample repeats the one before it
+    for j in np.flatnonzero(equal.any(axis=0)):
+        starts, lengths = nan_runs(equal[:, j])
+        longest[j] = lengths.max() + 1
+        if starts[0] == 0:
+            leading[j] = lengths[0] + 1
+        if starts[-1] + lengths[-1] == n - 1:
+            trailing[j] = lengths[-1] + 1
+    return leading, trailing, longest
+
+
 def interpolate_nan_runs(
     x: np.ndarray, sampling_rate_hz: float, *, max_run_s: float = MAX_INTERPOLATED_NAN_RUN_S
 ) -> np.ndarray:

@@ -91,7 +91,7 @@ from .filter_cascade import (
     padding_samples,
 )
 from .moments import CoherenceNeeded, channel_verdicts
-from .step_sums import _NS, _block_statistics, _step_sums
+from .step_sums import _NS, _block_flat_runs, _block_statistics, _step_sums
 
 __all__ = [
     "FileConditioner",
@@ -390,6 +390,7 @@ class FileConditioner:
                 variance,
                 kurtosis,
                 options=self.channel_check,
+                longest_flat_s=_block_flat_runs(pieces, self.rate),
             )
         except CoherenceNeeded:
             return None  # a variance outlier's coherence needs the raw block: load_block

@@ -10,7 +10,8 @@ uses it again in the next block if it has recovered. A channel is faulty when
 
 * it has too many NaN samples (``nan fraction 7.5 % > 5 %``),
 * it has a NaN run longer than can be bridged by interpolation (``nan run 60.0 s``),
-* it is flat (``flat (variance 0)``),
+* it is flat (``flat (variance 0)``), or repeats one value for longer than a NaN run may
+  last (``flat run 60.0 s``: a sensor stuck, or a recorder filling a dropout with zeros),
 * its kurtosis is outside the limits (``kurtosis 25.3 > 10``): spikes and bursts give large
   kurtosis, clipping or a pure hum small kurtosis (a sine has 1.5, Gaussian noise 3). A
   *high* kurtosis is a fault only when it is out of line with the other channels (robust
@@ -34,7 +35,14 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from .conditioning import MAX_INTERPOLATED_NAN_RUN_S, _as_2d, _positive, detrend, nan_runs
+from .conditioning import (
+    MAX_INTERPOLATED_NAN_RUN_S,
+    _as_2d,
+    _positive,
+    constant_runs,
+    detrend,
+    nan_runs,
+)
 
 __all__ = [
     "ChannelCheckOptions",
@@ -212,7 +220,8 @@ class ChannelCheckOptions:
     max_nan_fraction : float
         Largest accepted fraction of NaN samples.
     max_nan_run_s : float
-        Longest accepted NaN run; shorter runs are bridged by interpolation. [s]
+        Longest accepted NaN run (shorter runs are bridged by interpolation), and longest
+        accepted run of one repeated value (a stuck or zero-filled sensor). [s]
     kurtosis_limits : (float, float)
         Accepted range of the kurtosis of the linearly detrended channel (Gaussian: 3). A
         kurtosis above the upper limit is a fault only when also out of line with the
@@ -296,6 +305,7 @@ def faulty_channels(
 
     nan_fraction = np.ones(n_channels)
     longest = np.zeros(n_channels)
+    longest_flat = np.zeros(n_channels)
     variance = np.full(n_channels, np.nan)
     kurtosis = np.full(n_channels, np.nan)
     # a few channels at a time: temporaries stay small for long, fast-sampled blocks
@@ -306,6 +316,7 @@ def faulty_channels(
             nan_fraction[group] = missing.mean(axis=0)
         for j in np.flatnonzero(missing.any(axis=0)):
             longest[group.start + j] = nan_runs(missing[:, j])[1].max() / rate
+        longest_flat[group] = constant_runs(part)[2] / rate
         _, _, m2, _, m4 = _central_moments(detrend(part), axis=0)
         variance[group] = m2
         kurtosis[group] = _shape_statistics(m2, np.zeros_like(m2), m4)[1]
@@ -318,6 +329,7 @@ def faulty_channels(
         kurtosis,
         options=options,
         coherence=lambda outliers, healthy: coherent_with_others(array, rate, outliers, healthy),
+        longest_flat_s=longest_flat,
     )
 
 
@@ -335,6 +347,7 @@ def channel_verdicts(
     *,
     options: ChannelCheckOptions | None = None,
     coherence: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+    longest_flat_s: np.ndarray | None = None,
 ) -> pd.DataFrame:
     """The verdicts of :func:`faulty_channels` from the block statistics it computes.
 
@@ -349,6 +362,9 @@ def channel_verdicts(
     coherence : callable, optional
         ``coherence(outliers, healthy)`` -> 1.0 / 0.0 per outlier channel: whether it is
         coherent with any healthy channel (:func:`coherent_with_others` on the block).
+    longest_flat_s : ndarray, shape (n_channels,), optional
+        Longest run of one repeated value (:func:`~workbench.signals.conditioning.
+        constant_runs`) [s]; not checked when not given.
 
     Returns
     -------
@@ -393,6 +409,9 @@ def channel_verdicts(
                 )
             if longest[j] > max_nan_run_s:
                 why.append(f"nan run {longest[j]:.1f} s")
+            flat_run = np.nan if longest_flat_s is None else float(longest_flat_s[j])
+            if flat_run > max_nan_run_s and variance[j] > flat_variance:
+                why.append(f"flat run {flat_run:.1f} s")
             if not variance[j] > flat_variance:
                 shown = 0.0 if variance[j] < 1e-30 else variance[j]  # round-off of a constant
                 why.append(f"flat (variance {shown:.3g})")

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .conditioning import line_from_sums
+from .conditioning import constant_runs, line_from_sums
 
 _NS = 1_000_000_000
 
@@ -36,6 +36,13 @@ class _StepSums:
     leading_nan: np.ndarray
     trailing_nan: np.ndarray
     longest_nan: np.ndarray
+    # runs of one repeated value (:func:`~workbench.signals.conditioning.constant_runs`)
+    # and the values at the piece's ends, which join them to the neighbouring pieces'
+    first_value: np.ndarray
+    last_value: np.ndarray
+    leading_flat: np.ndarray
+    trailing_flat: np.ndarray
+    longest_flat: np.ndarray
 
 
 #: Rows of a file piece summed at a time by :func:`_step_sums` (its five power arrays of
@@ -136,7 +143,27 @@ def _step_sums(x: np.ndarray, first_ns: int, rate: float, chunk: int = _SUM_ROWS
         longest[j] = int((np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)).max())
     half_s = half / rate if half > 0 else 1.0 / rate
     centre_ns = first_ns + int(round(half / rate * _NS))
-    return _StepSums(first_ns, n, centre_ns, half_s, offset, sums, leading, trailing, longest)
+    flat = constant_runs(x)
+    ends = (x[0].copy(), x[-1].copy()) if n else (np.full(n_channels, np.nan),) * 2
+    return _StepSums(
+        first_ns, n, centre_ns, half_s, offset, sums, leading, trailing, longest, *ends, *flat
+    )
+
+
+def _block_flat_runs(pieces: Sequence[_StepSums], rate: float) -> np.ndarray:
+    """Longest run of one repeated value [s] of the block made of *pieces* (contiguous, in
+    time order), as :func:`~workbench.signals.conditioning.constant_runs` finds it on the
+    whole block."""
+    n_channels = pieces[0].offset.size
+    longest = np.zeros(n_channels, dtype=np.int64)
+    run = np.zeros(n_channels, dtype=np.int64)
+    last = np.full(n_channels, np.nan)
+    for p in pieces:
+        joined = np.where(p.first_value == last, run + p.leading_flat, p.leading_flat)
+        longest = np.maximum(longest, np.maximum(joined, p.longest_flat))
+        run = np.where(p.leading_flat >= p.n_samples, joined, p.trailing_flat)
+        last = p.last_value
+    return np.maximum(longest, run) / rate
 
 
 def _block_statistics(pieces: Sequence[_StepSums], n_block: int, rate: float):

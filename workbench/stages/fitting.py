@@ -513,6 +513,10 @@ def fit(
         **options.stepwise_options(),
     )
     by_case = None
+    if isinstance(cases, str | os.PathLike) and not (isinstance(cases, str) and cases == "derive"):
+        from .correlation import _cases
+
+        cases = _cases(cases)  # a file: read and checked as correlate reads it
     if cases is not None:
         by_case = fit_cases(modal, predictors, cases, min_blocks=options.min_case_blocks, **common)
         fits = by_case.fits[STITCHED]

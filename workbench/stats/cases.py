@@ -330,6 +330,10 @@ def fit_cases(
     if not present.any():
         raise ValueError("no predictor block falls in any operating case")
     names = [str(c) for c in pd.unique(labels[present])]
+    if STITCHED in names:  # its models would replace the stitched ones
+        raise ValueError(
+            f"the case name {STITCHED!r} is reserved for the stitched cases; rename that case"
+        )
     fits: dict[str, dict[int, ModeFit]] = {}
     left_out: dict[str, str] = {}
     options.setdefault("errors", "warn")

@@ -19,6 +19,7 @@ from typing import Literal
 import numpy as np
 import pandas as pd
 
+from ..errors import PredictorError
 from .correlation import joined_blocks
 from .diagnostics import ResidualDiagnostics, residual_diagnostics
 from .stepwise import StepwiseFit, stepwise
@@ -85,14 +86,15 @@ def _usable_predictors(
 ) -> list[str]:
     """Predictor columns fit to enter a model.
 
-    An all-NaN, constant or collinear column is a ValueError naming it when the caller
-    chose the predictors (*explicit*), and is left out with a :class:`StatsWarning` when
-    they were taken by default (every numeric column of the table).
+    An all-NaN, constant or collinear column is a :class:`~workbench.errors.
+    PredictorError` (a ValueError) naming it when the caller chose the predictors
+    (*explicit*), and is left out with a :class:`StatsWarning` when they were taken by
+    default (every numeric column of the table); none left is a PredictorError too.
     """
 
     def reject(message: str) -> None:
         if explicit:
-            raise ValueError(message)
+            raise PredictorError(message)
         warnings.warn(f"{message}; left out of the models", StatsWarning, stacklevel=4)
 
     kept: list[str] = []
@@ -106,7 +108,7 @@ def _usable_predictors(
         else:
             kept.append(name)
     if not kept:
-        raise ValueError("no usable predictor column (all NaN or constant)")
+        raise PredictorError("no usable predictor column (all NaN or constant)")
     values = joined[kept].to_numpy(dtype=float)
     complete = np.isfinite(values).all(axis=1)
     if complete.sum() <= len(kept):
