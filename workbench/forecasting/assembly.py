@@ -13,6 +13,8 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
+from .predictor_grid import block_log_coverage
+
 __all__ = ["ASSEMBLED", "assemble_rows", "drop_unusable", "log_coverage_of", "with_log_coverage"]
 
 #: The (grid row, mode) arrays :func:`assemble_rows` reads: SSI, model with bounds, Kalman
@@ -23,13 +25,11 @@ ASSEMBLED = ("ssi", "model", "lower", "upper", "kalman", "std", "order", "dampin
 def log_coverage_of(predictors: pd.DataFrame) -> pd.Series | None:
     """The ship log's coverage of each block (``log_coverage`` of the predictor table,
     indexed by block; the last row of a repeated block), or None when the table has none."""
-    if "log_coverage" not in predictors.columns:
-        return None
     rows = predictors.drop_duplicates("block", keep="last")
-    return pd.Series(
-        rows["log_coverage"].to_numpy(dtype=float, na_value=np.nan),
-        index=rows["block"].to_numpy(dtype=np.int64),
-    )
+    coverage = block_log_coverage(rows)
+    if coverage is None:
+        return None
+    return pd.Series(coverage, index=rows["block"].to_numpy(dtype=np.int64))
 
 
 def with_log_coverage(table: pd.DataFrame, coverage: pd.Series | None) -> pd.DataFrame:

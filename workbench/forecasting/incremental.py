@@ -73,7 +73,13 @@ from .memory.terms import MemoryRefits
 from .model_trust import ModelTrust
 from .noise import NoiseModel
 from .options import ForecastOptions, NoiseOptions
-from .predictor_grid import NS_PER_HOUR, block_centre_ns, mode_matrix, predictor_matrix
+from .predictor_grid import (
+    NS_PER_HOUR,
+    block_centre_ns,
+    block_log_coverage,
+    mode_matrix,
+    predictor_matrix,
+)
 from .ssi_guard import GuardWindow, SSIGuard
 
 __all__ = [
@@ -375,7 +381,7 @@ class IncrementalMemoryForecast:
         if core.half_difference is not None:
             differ |= ~_same(core.half_difference[a], new.halves[b]).all(axis=1)
         differ |= core.block_start[a] != new.block_start[b]
-        coverage = _log_coverage(new.grid)
+        coverage = block_log_coverage(new.grid)
         if (core.log_coverage is None) != (coverage is None):
             return lo
         if coverage is not None:
@@ -438,7 +444,7 @@ class IncrementalMemoryForecast:
         if core.half_difference is not None:
             rows["half_difference"] = new.halves[take]
         if core.log_coverage is not None:
-            rows["log_coverage"] = _log_coverage(new.grid)[take]
+            rows["log_coverage"] = block_log_coverage(new.grid)[take]
         for name, value in rows.items():
             setattr(core, name, np.concatenate([getattr(core, name)[:keep], value]))
         for name in ("meas", "resid", "scatter"):
@@ -672,13 +678,6 @@ def pieces_from(pieces: list[pd.DataFrame], block: int) -> list[pd.DataFrame]:
             piece if blocks[0] >= block else piece.iloc[int(np.searchsorted(blocks, block)) :]
         )
     return kept
-
-
-def _log_coverage(grid: pd.DataFrame) -> np.ndarray | None:
-    """The grid's ``log_coverage`` column as floats, or None when it has none."""
-    if "log_coverage" not in grid.columns:
-        return None
-    return grid["log_coverage"].to_numpy(dtype=float, na_value=np.nan)
 
 
 def _outage_reaches_back(core, new, coverage: np.ndarray, first_new: int) -> int:

@@ -14,6 +14,7 @@ from ..errors import DataError, PredictorError
 
 __all__ = [
     "block_centre_ns",
+    "block_log_coverage",
     "forecast_span",
     "mode_matrix",
     "modes_to_forecast",
@@ -65,6 +66,14 @@ def predictor_matrix(
         else np.empty((len(grid), 0))
     )
     return grid, blocks, block_start, columns, X
+
+
+def block_log_coverage(table: pd.DataFrame) -> np.ndarray | None:
+    """The table's ``log_coverage`` (the ship log's share of each block) as floats, NaN
+    where missing; None when the table has no such column."""
+    if "log_coverage" not in table.columns:
+        return None
+    return table["log_coverage"].to_numpy(dtype=float, na_value=np.nan)
 
 
 def block_centre_ns(grid: pd.DataFrame) -> np.ndarray:

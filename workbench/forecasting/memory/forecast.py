@@ -79,6 +79,7 @@ from ..options import ForecastOptions
 from ..predictor_grid import (
     NS_PER_HOUR,
     block_centre_ns,
+    block_log_coverage,
     forecast_span,
     mode_matrix,
     modes_to_forecast,
@@ -219,11 +220,7 @@ class MemoryRun:
             columns = [*columns, "elapsed_hours"]
         self.grid, self.blocks, self.block_start = grid, blocks, block_start
         # the share of each block the ship log covers (None: the table does not say)
-        self.log_coverage = (
-            grid["log_coverage"].to_numpy(dtype=float, na_value=np.nan)
-            if "log_coverage" in grid.columns
-            else None
-        )
+        self.log_coverage = block_log_coverage(grid)
         self.columns, self.X_all = columns, X_all
         # blocks that share data with a block: its identification error (an ice impact, a
         # badly excited stretch) is in all of them, so a run of large innovations is
