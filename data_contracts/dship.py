@@ -6,7 +6,8 @@ The raw file is delimited text as exported by the ship's data system or by PANGA
 * one header line whose names carry units in brackets (``Speed [kn]``, ``TTT [°C]``),
   or three header rows (name, sensor, unit) as in raw DSHIP extractions,
 * a time column (``Date/Time``; ISO-8601, ``yyyy/mm/dd HH:MM:SS`` or day-first
-  ``dd.mm.yyyy HH:MM:SS``; UTC unless an offset is given),
+  ``dd.mm.yyyy HH:MM:SS``; UTC unless an offset is given; every time carries an offset
+  or none),
 * DSHIP channel names ``DEVICE.SENSOR.PARAMETER`` (``SYS.STR.SOG``), matched through the
   built-in table :data:`~data_contracts.dship_names.DSHIP_NAMES` or the user's mapping,
 * up to three header rows before the data (name, description, unit),
@@ -251,12 +252,16 @@ def read_dship(
         ``time`` (UTC) and the canonical predictor columns in canonical units, then the
         other numeric columns, sorted by time. Canonical columns absent from the file are
         NaN (with a warning), and so are those present with no value in any row (with a
-        warning naming them: a sensor dead for the whole export). Exact duplicate time stamps keep their first row (warning).
+        warning naming them: a sensor dead for the whole export). Exact duplicate time
+        stamps keep their first row (warning). Times with an offset are converted to UTC
+        each with its own; a log mixing offsets says so in a warning.
 
     Raises
     ------
     ContractError
-        Unreadable file, no header or time column, unparseable times or numbers, a unit
+        Unreadable file, no header or time column, unparseable times or numbers, times
+        with a UTC offset mixed with times without one (the first of the other kind is
+        named: they cannot be placed), a unit
         that cannot be converted, or values outside physical bounds. Each message names the
         file, the column and the line numbers.
     """
@@ -412,6 +417,8 @@ def read_dship(
             )
         )
 
+    mixed_offsets = _time_offsets(time_text, times, line_numbers, headers[time_index], problems)
+
     known = (
         [c.name for c in CANONICAL_PREDICTORS]
         + [c.name for c in OPTIONAL_PREDICTORS]
@@ -545,6 +552,12 @@ def read_dship(
             f"{'hold' if len(empty) > 1 else 'holds'} no value in any row; left empty",
             stacklevel=2,
         )
+    if mixed_offsets:
+        warnings.warn(
+            f"{source}: column {headers[time_index]!r} mixes UTC offsets ({mixed_offsets}); "
+            "each time was converted to UTC with its own offset",
+            stacklevel=2,
+        )
     order = np.argsort(out["time"].to_numpy(), kind="stable")
     if (np.diff(order) < 0).any():
         warnings.warn(
@@ -575,6 +588,68 @@ def read_dship(
             for v in error.violations
         ]
         raise fail(relabelled) from None
+
+
+#: A UTC offset ending a time of day (``12:00:00+02:00``, ``12:00Z``, ``12:00:00.5 -0130``).
+_OFFSET = re.compile(r"\d:\d\d(?::\d\d(?:[.,]\d*)?)?\s*(Z|[+-]\d\d(?::?\d\d)?)$", re.IGNORECASE)
+
+
+def _time_offsets(
+    text: pd.Series,
+    times: pd.Series,
+    line_numbers: np.ndarray,
+    column: str,
+    problems: list[Violation],
+) -> str:
+    """Check that the parsed *times* all carry a UTC offset or none.
+
+    A time without an offset among times with one cannot be placed (UTC is a guess, the
+    others' offset another): a violation naming the first row of the other kind is added
+    to *problems*. Returns, when every time carries an offset and they differ, the
+    offsets and the line where the first change happens (``+01:00, +02:00; +02:00 from
+    line 9``), else ``""``.
+    """
+    parsed = times.notna().to_numpy()
+    if not parsed.any():
+        return ""
+    found = text.str.extract(_OFFSET, expand=False).to_numpy()[parsed]
+    lines = line_numbers[parsed]
+    zoned = np.array([isinstance(v, str) for v in found])
+    if zoned.any() and not zoned.all():
+        first = int(np.flatnonzero(zoned != zoned[0])[0])
+        if zoned[0]:
+            reason = (
+                f"line {lines[first]} has no UTC offset while line {lines[0]} before it "
+                f"carries one ({found[0]})"
+            )
+        else:
+            reason = (
+                f"line {lines[first]} carries a UTC offset ({found[first]}) while line "
+                f"{lines[0]} before it has none"
+            )
+        problems.append(
+            Violation(
+                column,
+                f"{reason}: a time without an offset cannot be placed among times with "
+                "one; give every time its offset, or none (then all are UTC)",
+            )
+        )
+        return ""
+    if not zoned.any():
+        return ""
+
+    def normal(offset: str) -> str:
+        if offset.upper() == "Z":
+            return "+00:00"
+        digits = offset[1:].replace(":", "").ljust(4, "0")
+        return f"{offset[0]}{digits[:2]}:{digits[2:]}"
+
+    offsets = np.array([normal(v) for v in found])
+    change = np.flatnonzero(offsets != offsets[0])
+    if not len(change):
+        return ""
+    distinct = ", ".join(pd.unique(offsets))
+    return f"{distinct}; {offsets[change[0]]} from line {lines[change[0]]}"
 
 
 _DECIMAL_COMMA = re.compile(r"^[+-]?\d+,\d+$")
