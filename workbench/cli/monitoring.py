@@ -425,6 +425,10 @@ def prepare_monitor(args: argparse.Namespace):
     return Monitor(args.watch, args.state, dship=args.dship, options=_monitor_options(args))
 
 
+#: How many of its notes the monitor prints when it stops (all are in the notes file).
+_NOTES_SHOWN = 10
+
+
 def _run_monitor(args: argparse.Namespace) -> int:
     """Run ``workbench monitor``; returns the exit status."""
     monitor = prepare_monitor(args)
@@ -457,7 +461,14 @@ def _run_monitor(args: argparse.Namespace) -> int:
         f"{len(monitor.done)} block(s) decided, tracked up to block "
         f"{through if through >= 0 else '-'}; state in {args.state}"
     )
-    for message in monitor.messages[-10:]:
+    shown = monitor.messages[-_NOTES_SHOWN:]
+    total = monitor.messages.total
+    if total > len(shown):  # the others are in the notes file, never lost
+        print(
+            f"note: {total} notes in this run, the last {len(shown)} below; every note is in "
+            f"{monitor.messages.path}"
+        )
+    for message in shown:
         print(f"note: {message}")
     given_up = monitor.given_up_note()
     if given_up:

@@ -60,6 +60,9 @@ the one table its parts make, in block order::
                                   "given_up": [{"first_block": int, "last_block": int,
                                   "start": ISO UTC, "end": ISO UTC, "reason": str}],
                                   "given_up_note": str, "health_note": str}
+    <state>/notes.txt            every note of every run, one line each: the UTC time it
+                                 was made, then the note (the command prints the last 10
+                                 and, when there were more, names this file)
     <state>/heartbeat.json       {"time": ISO UTC, "pid": int, "host": str,
                                   "poll_s": float, "state": "running"|"stopped",
                                   "last_file": str|null, "last_file_taken_at": ISO UTC|null,

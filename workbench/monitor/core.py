@@ -36,6 +36,7 @@ from ..store import BlockStore, StoreLock, block_ranges
 from .adaptive import LEFT_OUT, AdaptiveLengths
 from .conditioning import block_conditioner, forget_conditioned
 from .data_health import DATA_HEALTH_COLUMNS, data_health_frame, data_health_row
+from .notes import NOTES_FILE, NoteList
 from .outlook import (
     ForecastSettings,
     OutlookReport,
@@ -228,7 +229,9 @@ class Monitor:
         #: :meth:`nothing_identified` reads.
         self.identified_here = 0
         self.skipped_here: list[dict] = []
-        self.messages: list[str] = []
+        #: The notes of this run (the recent ones after a long run); every one is also
+        #: appended to ``<state>/notes.txt`` (:mod:`workbench.monitor.notes`).
+        self.messages: NoteList = NoteList(self.state / NOTES_FILE)
         self.conditioned_files = [0]  # files conditioned (per-file path)
         self._shared: dict = {}
         self._health_rows: list[dict] = []
