@@ -75,6 +75,37 @@ def test_a_file_lacking_a_channel_gives_the_blocks_identify_gives(tmp_path, caps
     )
 
 
+def test_a_channel_missing_from_the_first_file_only_is_kept_as_identify_keeps_it(tmp_path, capsys):
+    """The first file lacks acc03, the others carry it: identify takes the channels most
+    files carry (acc01-acc04), the first file's acc03 NaN. Before: the monitor took the
+    first file's (acc01, acc02, acc04) and left acc03 out of every block of the voyage,
+    its tracked table lacking acc03's shape columns."""
+    watch, state = tmp_path / "watch", tmp_path / "state"
+    paths = write_voyage(watch, n_files=6)
+    _keep_channels(paths[0], ["acc01", "acc02", "acc04"])
+    status, out, err = _monitor(capsys, watch, state)
+    assert status == 0, err
+    assert "not among the voyage's" not in out
+    assert "note: acc_000.npz: channel(s) acc03 missing" in out
+    health = pd.read_parquet(state / "data_health.parquet")
+    assert health["n_channels"].tolist() == [3, 4, 4, 4, 4]
+    assert health["dropped_channels"].tolist() == ["acc03", "", "", "", ""]
+    batch = tmp_path / "batch"
+    argv = ["identify", str(watch), "--out", str(batch), *IDENTIFY_ARGS]
+    assert main(argv) == 0
+    assert main(["track", str(batch / "selected.parquet"), "--out", str(batch / "t.parquet")]) == 0
+    capsys.readouterr()
+    monitored = pd.read_parquet(state / "tracked.parquet")
+    tracked = pd.read_parquet(batch / "t.parquet")
+    assert "shape_re_acc03" in monitored.columns
+    assert sorted(monitored.columns) == sorted(tracked.columns)
+    pd.testing.assert_frame_equal(
+        monitored.reset_index(drop=True),
+        tracked[list(monitored.columns)].reset_index(drop=True),
+        check_dtype=False,
+    )
+
+
 def test_a_file_of_other_channels_is_refused_naming_them_or_used_without_the_extra_one(
     tmp_path, capsys
 ):
@@ -90,8 +121,8 @@ def test_a_file_of_other_channels_is_refused_naming_them_or_used_without_the_ext
         "acc03, acc04; extra x1, x2, x3)"
     ) in lines
     assert (
-        "note: acc_004.npz: channel(s) acc05 not among the voyage's (those of its first "
-        "file); left out"
+        "note: acc_004.npz: channel(s) acc05 not among the voyage's (those most files "
+        "carried when the monitor started); left out"
     ) in lines
     health = pd.read_parquet(state / "data_health.parquet")
     assert health["status"].tolist() == ["ok", "skipped", "skipped", "ok", "ok"]

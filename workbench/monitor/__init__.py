@@ -136,7 +136,11 @@ When is a block identified
   no block of the state folder is identified (:meth:`Monitor.nothing_identified`); the
   monitor without ``--once`` goes on.
 * The block grid is anchored at the first file (as in ``workbench identify``) and kept in
-  the store: a file starting before it is refused with a message.
+  the store: a file starting before it is refused with a message. The voyage's channels
+  are, as in ``workbench identify``, those most of the files present when the monitor
+  starts carry (so a first file lacking a channel the others have does not lose it), and
+  are kept in the store too: a file lacking a few of them is read with them NaN, one
+  carrying a channel they lack is used without it (both said in a note).
 
 Blocks of varying length
 ------------------------

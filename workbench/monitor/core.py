@@ -509,8 +509,8 @@ class Monitor:
             )
         if extra:
             self.messages.append(
-                f"{item.path.name}: channel(s) {extra} not among the voyage's (those of its "
-                "first file); left out"
+                f"{item.path.name}: channel(s) {extra} not among the voyage's (those most "
+                "files carried when the monitor started); left out"
             )
         self.files.append(item)
         self._last_taken = (item.path.name, pd.Timestamp.now(tz="UTC"))
@@ -543,21 +543,26 @@ class Monitor:
         """
         if not self.files or (self.watcher.pending and self._saved_grid is None):
             return False
+        from ..signals.block_plan import majority_channels
+
         first = self.files[0].info
+        if self._saved_grid is not None:
+            t0, channels = self._saved_grid
+        else:  # as identify over these files: the set most of them carry
+            t0 = first.start_time
+            channels = majority_channels(
+                [f.info for f in self.files if f.info.sampling_rate_hz == first.sampling_rate_hz]
+            )
         options = self.options.identify
         try:
             options = options.resolved(first.sampling_rate_hz)
             options.check_data(
-                SimpleNamespace(sampling_rate_hz=first.sampling_rate_hz, channels=first.channels)
+                SimpleNamespace(sampling_rate_hz=first.sampling_rate_hz, channels=channels)
             )
         except ValueError as error:
             from ..identification import IdentifyOptionsError
 
             raise IdentifyOptionsError(str(error)) from None
-        if self._saved_grid is not None:
-            t0, channels = self._saved_grid
-        else:
-            t0, channels = first.start_time, tuple(first.channels)
         grid = BlockGrid(t0, options.length_s, options.step_s)
         options, per_file, parameters = resolved_run(
             options, first.sampling_rate_hz, grid, channels

@@ -199,6 +199,18 @@ class BlockPlan:
         return max((len(b.files) for b in self.blocks), default=0)
 
 
+def majority_channels(infos: Sequence[FileInfo]) -> tuple[str, ...]:
+    """The channel set most of *infos* carry (ties: the earliest), in the order of the
+    first file carrying it (:func:`reference_channels` without its checks)."""
+    counts: dict[frozenset, int] = {}
+    order: dict[frozenset, tuple[str, ...]] = {}
+    for info in infos:
+        key = frozenset(info.channels)
+        counts[key] = counts.get(key, 0) + 1
+        order.setdefault(key, tuple(info.channels))
+    return order[max(counts, key=lambda key: counts[key])]  # first maximum: earliest
+
+
 def reference_channels(
     infos: Sequence[FileInfo], channels: Sequence[str] | None = None
 ) -> tuple[str, ...]:
@@ -212,15 +224,7 @@ def reference_channels(
     or lacks more than half of the channels (then it is not the same recorder's file).
     """
     first = infos[0]
-    counts: dict[frozenset, int] = {}
-    order: dict[frozenset, tuple[str, ...]] = {}
-    for info in infos:
-        key = frozenset(info.channels)
-        counts[key] = counts.get(key, 0) + 1
-        order.setdefault(key, tuple(info.channels))
-    if channels is None:
-        channels = order[max(counts, key=lambda key: counts[key])]  # first maximum: earliest
-    channels = tuple(channels)
+    channels = tuple(majority_channels(infos) if channels is None else channels)
     for info in infos:
         if info.sampling_rate_hz != first.sampling_rate_hz:
             raise ValueError(
