@@ -259,7 +259,9 @@ def read_dship(
     Raises
     ------
     ContractError
-        Unreadable file, no header or time column, unparseable times or numbers, times
+        Unreadable file, no readings (an empty file, a header and no data rows, rows
+        holding nothing but a time), no header or time column, unparseable times or
+        numbers, times
         with a UTC offset mixed with times without one (the first of the other kind is
         named: they cannot be placed), a unit
         that cannot be converted, or values outside physical bounds. Each message names the
@@ -296,7 +298,7 @@ def read_dship(
         if line.strip()
     ]
     if not body:
-        raise fail([Violation(None, "no header line and no data")])
+        raise fail([Violation(None, "no readings: the file is empty (no header line, no data)")])
     header_text = body[0][1]
     sep = separator or max(("\t", ";", ","), key=header_text.count)
     if header_text.count(sep) == 0:
@@ -387,6 +389,21 @@ def read_dship(
         ) from None
     if len(table) != len(rows):
         raise fail([Violation(None, "rows could not be split into fields consistently")])
+
+    if not len(table):
+        raise fail([Violation(None, "no readings: the file has a header and no data rows")])
+    others = [j for j in table.columns if j != time_index]
+    if not others or (table[others].apply(lambda c: c.str.strip()) == "").to_numpy().all():
+        first, last = int(line_numbers[0]), int(line_numbers[-1])
+        raise fail(
+            [
+                Violation(
+                    None,
+                    f"no readings: its {len(table)} data row(s) (lines {first}-{last}) hold "
+                    "no value besides the time",
+                )
+            ]
+        )
 
     problems: list[Violation] = []
 

@@ -124,11 +124,15 @@ def check_block_grid(table: pd.DataFrame, name) -> None:
     )
 
 
-def check_predictors_overlap(modal: pd.DataFrame, predictors: pd.DataFrame, name) -> None:
+def check_predictors_overlap(
+    modal: pd.DataFrame, predictors: pd.DataFrame, name, *, table: bool = False
+) -> None:
     """Raise if *predictors* have no value at all on the blocks of *modal* (e.g. a ship log
     of another voyage averaged onto the modal table's blocks); warn when some blocks have
     none (a log that ends early, starts late or stops for a while), naming how many and
-    the first and last of them."""
+    the first and last of them. *table*: *predictors* are a predictor table as read (not
+    a log averaged onto the modal table's blocks), so one with no row, or no value in any
+    row, is named as such rather than as not overlapping the blocks."""
     columns = [
         c
         for c in predictors.columns
@@ -158,6 +162,13 @@ def check_predictors_overlap(modal: pd.DataFrame, predictors: pd.DataFrame, name
                     stacklevel=2,
                 )
         return
+    if table and predictors.empty:
+        raise WorkbenchError(f"{name}: the table has a header but no rows: no predictor value")
+    if table and not predictors[columns].notna().to_numpy().any():
+        raise WorkbenchError(
+            f"{name}: no predictor value in any of its {len(predictors)} rows "
+            f"({', '.join(columns)} empty throughout)"
+        )
     first, last = modal["block_start"].min(), modal["block_start"].max()
     raise WorkbenchError(
         f"{name}: no predictor value on any block of the modal table ({_iso(first)} to "

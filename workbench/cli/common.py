@@ -284,7 +284,8 @@ def _check_joins(args, modal, predictors=None, poles=None) -> None:
     if predictors is not None:
         source = _predictor_source(args)
         check_block_times(modal, args.modal, predictors, source)
-        check_predictors_overlap(modal, predictors, source)
+        table = getattr(args, "predictors", None) is not None
+        check_predictors_overlap(modal, predictors, source, table=table)
     if poles is not None:
         check_poles_match(modal, args.modal, poles, args.poles)
         check_poles_cover(modal, poles, args.poles)

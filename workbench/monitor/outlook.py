@@ -250,8 +250,12 @@ def block_predictors_of(
     )
 
     from ..predictors import block_predictors
+    from ..predictors.tables import ship_log_without_predictors
 
     log = _ship_log(Path(dship), dict(settings.dship_mapping))
+    no_reading = ship_log_without_predictors(log, all_predictors=settings.all_predictors)
+    if no_reading:  # no block can have a predictor value
+        raise ValueError(f"{dship}: {no_reading}")
     first, last = int(tracked["block"].min()), int(tracked["block"].max())
     if first_block is not None:
         first = int(first_block)

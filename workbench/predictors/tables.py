@@ -16,6 +16,8 @@ from data_contracts import (
     CANONICAL_PREDICTORS,
     PREDICTOR_KEYS,
     PREDICTORS,
+    ContractError,
+    Violation,
     read_dship,
     read_table,
     set_grid,
@@ -23,7 +25,32 @@ from data_contracts import (
 
 from ..blocks import BlockGrid, block_grid_of
 
-__all__ = ["canonical_predictors", "load_predictors", "read_excitation"]
+__all__ = [
+    "canonical_predictors",
+    "load_predictors",
+    "read_excitation",
+    "ship_log_without_predictors",
+]
+
+
+def ship_log_without_predictors(log: pd.DataFrame, *, all_predictors: bool = False) -> str:
+    """What is wrong with a canonical ship log (:func:`~data_contracts.read_dship`) whose
+    predictor columns hold no reading in any row (``""`` when one does): no block can have
+    a predictor value, whatever its span. With *all_predictors* every numeric column
+    counts."""
+    columns = [c.name for c in CANONICAL_PREDICTORS if c.name in log.columns]
+    if all_predictors:
+        columns += [
+            c
+            for c in log.columns
+            if c != "time" and c not in columns and pd.api.types.is_numeric_dtype(log[c])
+        ]
+    if not columns or log[columns].notna().to_numpy().any():
+        return ""
+    return (
+        f"no reading of any predictor in its {len(log)} rows ({', '.join(columns)} empty "
+        "throughout)"
+    )
 
 
 def load_predictors(
@@ -87,6 +114,9 @@ def load_predictors(
     from .averaging import block_predictors, excitation_weighted_predictors
 
     log = read_dship(dship, mapping=dship_mapping, time_format=time_format)
+    no_reading = ship_log_without_predictors(log, all_predictors=all_predictors)
+    if no_reading:  # no block can have a predictor value: said before any averaging
+        raise ContractError([Violation(None, no_reading)], source=str(dship), contract="dship")
     t0, length_s, step_s = block_grid_of(onto)
     first, last = int(onto["block"].min()), int(onto["block"].max())
     grid = BlockGrid(t0=t0, length_s=length_s, step_s=step_s)
@@ -121,7 +151,6 @@ def read_excitation(excitation: str | os.PathLike | pd.DataFrame) -> pd.DataFram
         A file that cannot be read, lacks a column, or holds a start or end that is no
         time; the message names the file, the column and the rows.
     """
-    from data_contracts import ContractError, Violation
     from data_contracts.csv_layout import read_delimited
 
     source = "<excitation>" if isinstance(excitation, pd.DataFrame) else str(excitation)
