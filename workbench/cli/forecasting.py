@@ -418,6 +418,7 @@ def _run_health(args: argparse.Namespace) -> int:
         source = args.modal
         modal = _read_modal(args, args.modal, MODAL)
         predictors = _read_modal(args, args.predictors, PREDICTORS)
+        _check_joins(args, modal, predictors)  # the same blocks, as forecast checks
         step_s = _block_step_s(predictors, args.predictors)
         train = int(round(args.train_hours * 3600 / step_s))
         if train < MIN_TRAIN_BLOCKS:
