@@ -51,6 +51,7 @@ __all__ = [
     "read_parts",
     "read_since",
     "summarize",
+    "unreadable_parts",
 ]
 
 #: ``schema`` of ``_parts.json``: the version of the parted-table format.
@@ -232,6 +233,24 @@ def summarize(path: str | os.PathLike) -> dict:
         "blocks": blocks,
         "mode_blocks": dict(sorted(total.items())),
     }
+
+
+def unreadable_parts(path: str | os.PathLike) -> dict[Path, str]:
+    """The part files of the parted table *path* whose Parquet footer cannot be read (a
+    file cut short by a crash or a full disk, or overwritten), each with the reason; ``{}``
+    for a table that is not parted."""
+    import pyarrow.parquet as pq
+
+    path = Path(path)
+    if not path.is_dir():
+        return {}
+    found = {}
+    for file in part_files(path).values():
+        try:
+            pq.read_metadata(file)
+        except Exception as error:  # noqa: BLE001 - pyarrow raises many types for a bad file
+            found[file] = str(error).splitlines()[0] if str(error) else type(error).__name__
+    return found
 
 
 def _names(file: Path) -> set[str]:

@@ -182,7 +182,9 @@ starting it again loses no block and repeats none: the store says which blocks a
 the tracker is replayed from their stored modes (the labels shown before the restart come
 back on the same modes: ``labels.json`` is checked), and the forecast and health chart go on
 from the state saved in ``outlook/`` (computed again from the first block when it is
-missing, unreadable or of other settings).
+missing, unreadable or of other settings). A part of the tracked, data-health, forecast or
+health table that cannot be read (cut short by a power cut or a full disk) is removed with a
+note and the table written again: from the store, or the forecast from the first block.
 """
 
 from .core import DATA_HEALTH_COLUMNS, Monitor, MonitorOptions

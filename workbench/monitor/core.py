@@ -212,6 +212,7 @@ class Monitor:
         if migrated is not None:
             log.warning("%s", migrated)
         forget_writers(self.state)  # parts written by an earlier run are read again
+        repaired = _remove_unreadable_parts(self.state)
         self.watcher = FolderWatcher(
             self.watch,
             settle_s=self.options.settle_s,
@@ -232,6 +233,9 @@ class Monitor:
         #: The notes of this run (the recent ones after a long run); every one is also
         #: appended to ``<state>/notes.txt`` (:mod:`workbench.monitor.notes`).
         self.messages: NoteList = NoteList(self.state / NOTES_FILE)
+        for notice in repaired:
+            log.warning("%s", notice)
+            self.messages.append(notice)
         self.conditioned_files = [0]  # files conditioned (per-file path)
         self._shared: dict = {}
         self._health_rows: list[dict] = []
@@ -1392,6 +1396,41 @@ class Monitor:
         }
         with atomic_path(self.state / "status.json") as tmp:
             tmp.write_text(json.dumps(status, indent=1), encoding="utf-8")
+
+
+#: The state folder's parted tables: those the monitor writes again whole after a
+#: restart (from the store) and those its outlook writes (from the outlook's state).
+_STORE_TABLES = ("tracked.parquet", "data_health.parquet")
+_OUTLOOK_TABLES = ("forecast.parquet", "health.parquet")
+
+
+def _remove_unreadable_parts(state: Path) -> list[str]:
+    """Remove the part files of the state folder's tables that cannot be read (cut short
+    by a crash or a full disk) and say so, one note per table; the monitor writes them
+    again: the tracked and data-health tables whole from the store at the start, the
+    forecast and health tables from the first block (the outlook's saved state, which
+    only adds the newest blocks, is removed too)."""
+    from data_contracts.parts import unreadable_parts
+
+    notes = []
+    for name in (*_STORE_TABLES, *_OUTLOOK_TABLES):
+        damaged = unreadable_parts(state / name)
+        if not damaged:
+            continue
+        for file in damaged:
+            file.unlink(missing_ok=True)
+        first, reason = next(iter(damaged.items()))
+        more = f" (and {len(damaged) - 1} more part(s))" if len(damaged) > 1 else ""
+        if name in _OUTLOOK_TABLES:
+            (state / "outlook" / "outlook.json").unlink(missing_ok=True)
+            again = "computed again from the first block"
+        else:
+            again = "written again from the store"
+        notes.append(
+            f"{name}: {first.name}{more} unreadable ({reason}; cut short by a crash?): "
+            f"removed, the table {again}"
+        )
+    return notes
 
 
 #: The longest one activity of the main loop (reading one file, identifying one block, a
