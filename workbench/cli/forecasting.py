@@ -399,7 +399,7 @@ def _block_step_s(table, path) -> float:
 
 
 def _run_health(args: argparse.Namespace) -> int:
-    from data_contracts import FORECAST, MODAL, PREDICTORS
+    from data_contracts import FORECAST, PREDICTORS
 
     from ..shm import BaselineError, HealthBaseline, HealthOptions, fit_operational_model
     from ..shm.model import MIN_TRAIN_BLOCKS
@@ -416,7 +416,8 @@ def _run_health(args: argparse.Namespace) -> int:
         if args.predictors is None or args.train_hours is None:
             raise UsageError("--modal needs --predictors and --train-hours")
         source = args.modal
-        modal = _read_modal(args, args.modal, MODAL)
+        # as forecast reads it: rows without a frequency (an SSI outage) dropped, warned
+        modal = _read_modal(args, args.modal)
         predictors = _read_modal(args, args.predictors, PREDICTORS)
         _check_joins(args, modal, predictors)  # the same blocks, as forecast checks
         step_s = _block_step_s(predictors, args.predictors)

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 import pandas as pd
 
-from data_contracts import MODAL, PREDICTORS, SENSOR_GEOMETRY, read_table
+from data_contracts import PREDICTORS, SENSOR_GEOMETRY, read_table
 
 from .render import read_csv_times
 from .run import ReportSection, RunFiles
@@ -73,7 +73,10 @@ def load_run(
     )
 
     if modal is None and run.tracked is not None:
-        modal = read_table(run.tracked, MODAL)
+        # as forecast reads it: rows without a frequency (an outage) dropped, with a warning
+        from data_contracts.modal_layout import read_modal_table
+
+        modal = read_modal_table(run.tracked)
     if correlation is None and run.correlation is not None:
         correlation = read_correlation(run.correlation)  # the run's own, not recomputed
     predictors = None
