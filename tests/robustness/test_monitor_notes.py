@@ -27,7 +27,8 @@ MONITOR_ARGS += ["--late", "0", "--settle", "0", "--poll", "0.05", "--foreground
 
 
 def _other_channels(path: Path) -> None:
-    """Rewrite the .npz *path* as a recorder of other channels would have written it."""
+    """Rewrite the .npz *path* as a recorder of other channels would have written it (each
+    file's channels its own, so the voyage's remain those of the untouched files)."""
     with np.load(path, allow_pickle=False) as archive:
         record = dict(archive)
     with open(path, "wb") as handle:
@@ -36,7 +37,7 @@ def _other_channels(path: Path) -> None:
             acceleration=record["acceleration"],
             sampling_rate_hz=record["sampling_rate_hz"],
             start_time=record["start_time"],
-            channels=np.array(["x1", "x2", "x3", "x4"]),
+            channels=np.array([f"x{k}_{path.stem}" for k in range(1, 5)]),
         )
 
 
