@@ -575,10 +575,18 @@ def read_dship(
             "each time was converted to UTC with its own offset",
             stacklevel=2,
         )
-    order = np.argsort(out["time"].to_numpy(), kind="stable")
+    stamps = pd.DatetimeIndex(out["time"]).as_unit("ns")
+    order = np.argsort(stamps.asi8, kind="stable")
     if (np.diff(order) < 0).any():
+        back = np.flatnonzero(np.diff(stamps.asi8) < 0)
+        k = int(back[0]) + 1
+        seconds = (stamps[k - 1] - stamps[k]).total_seconds()
         warnings.warn(
-            f"{source}: time stamps are not sorted; rows were sorted by time", stacklevel=2
+            f"{source}: time goes back {len(back)} time(s), first at line "
+            f"{line_numbers[k]} ({seconds:g} s before line {line_numbers[k - 1]}: "
+            f"{stamps[k - 1]:%Y-%m-%dT%H:%M:%SZ} then {stamps[k]:%Y-%m-%dT%H:%M:%SZ}); "
+            "rows were sorted by time",
+            stacklevel=2,
         )
         out = out.iloc[order].reset_index(drop=True)
         line_numbers = line_numbers[order]

@@ -80,7 +80,8 @@ def test_unsorted_and_duplicate_timestamps_warn_and_are_resolved(tmp_path):
     with pytest.warns(UserWarning) as caught:
         log = read_dship(write(tmp_path, text))
     messages = " ".join(str(w.message) for w in caught)
-    assert "not sorted" in messages and "1 duplicate time stamp" in messages
+    assert "time goes back 1 time(s), first at line 6" in messages
+    assert "1 duplicate time stamp" in messages
     assert log["speed_kn"].tolist() == [5.0, 6.0, 7.0]
 
 
