@@ -347,6 +347,7 @@ def update_outlook(
         return report
     tracked_path = state / "tracked.parquet"
     forecast = empty_table(FORECAST)
+    failed = False  # the update failed: the tables computed before are kept
     tracked, predictors = empty_table(MODAL), None
     if tracked_path.exists() and dship is not None:
         tracked = read_table(tracked_path, MODAL)
@@ -374,10 +375,10 @@ def update_outlook(
                 report.messages += notes
             except (ValueError, ArithmeticError, np.linalg.LinAlgError, OSError) as error:
                 report.messages.append(f"forecast: {str(error).splitlines()[0]}")
-                forecast = empty_table(FORECAST)
+                forecast, failed = empty_table(FORECAST), True
             except Exception as error:  # noqa: BLE001 - a contract or data error of the log
                 report.messages.append(f"forecast: {type(error).__name__}: {error}")
-                forecast = empty_table(FORECAST)
+                forecast, failed = empty_table(FORECAST), True
             report.messages += log_notes
     elif dship is None:
         report.messages.append("forecast: no ship log given")
@@ -408,10 +409,23 @@ def update_outlook(
             health, alarms = chart.table, chart.alarms
         except ValueError as error:
             report.messages.append(f"health: {str(error).splitlines()[0]}")
-    _write_outlook(report, state, forecast, health, alarms, parent_pid, grid.step_s)
+    if not (failed and _kept(state, report)):
+        _write_outlook(report, state, forecast, health, alarms, parent_pid, grid.step_s)
     report.seconds = time.perf_counter() - started
     report.cpu_seconds = time.process_time() - cpu
     return report
+
+
+def _kept(state: Path, report) -> bool:
+    """After an update that failed (the ship log unreadable for a moment, e.g. caught while
+    a line was being written): whether the forecast, health and alarm tables of an
+    earlier update are there, and are kept as they are (``report.written`` False)
+    rather than replaced by empty ones; the next update tries again."""
+    names = ("forecast.parquet", "health.parquet", "alarms.parquet")
+    if not all((state / name).exists() for name in names):
+        return False
+    report.written = False
+    return True
 
 
 #: The monitors' resumed outlooks in this process, by state folder.
@@ -432,6 +446,7 @@ def _incremental_outlook(
 
     forecast, health, alarms = empty_table(FORECAST), empty_table(HEALTH), empty_table(ALARMS)
     forecast_from = health_from = rows = None
+    failed = False  # the update failed: the tables computed before are kept
     tracked_path = state / "tracked.parquet"
     folder = state / "outlook"
     outlook = _OUTLOOKS.get(str(state))
@@ -507,9 +522,13 @@ def _incremental_outlook(
                 rows = (found.forecast_rows, found.health_rows)
         except (ValueError, ArithmeticError, np.linalg.LinAlgError, OSError) as error:
             report.messages.append(f"forecast: {str(error).splitlines()[0]}")
+            failed = True
         except Exception as error:  # noqa: BLE001 - a contract or data error of the log
             report.messages.append(f"forecast: {type(error).__name__}: {error}")
+            failed = True
         report.messages += log_notes
+    if failed and _kept(state, report):
+        return
     if not _write_outlook(
         report,
         state,
