@@ -393,7 +393,8 @@ def read_dship(
     if not len(table):
         raise fail([Violation(None, "no readings: the file has a header and no data rows")])
     others = [j for j in table.columns if j != time_index]
-    if not others or (table[others].apply(lambda c: c.str.strip()) == "").to_numpy().all():
+    blank = table[others].fillna("").apply(lambda c: c.str.strip()) == ""
+    if not others or blank.to_numpy().all():
         first, last = int(line_numbers[0]), int(line_numbers[-1])
         raise fail(
             [
@@ -411,7 +412,7 @@ def read_dship(
         labels = [f"line {n}" for n in line_numbers[mask][:5]]
         return tuple(labels), int(mask.sum())
 
-    time_text = table[time_index].str.strip()
+    time_text = table[time_index].fillna("").str.strip()
     times, used_format = parse_log_times(time_text, time_format)
     bad_time = (times.isna() & (time_text != "")).to_numpy() | (time_text == "").to_numpy()
     if bad_time.all() and len(bad_time) and time_format is None:
@@ -729,8 +730,9 @@ def _derive_relative_wind(out, find, used, convert, headers) -> bool | None:
 
 
 def _numbers(cells: pd.Series, decimal: str = ".") -> tuple[np.ndarray, np.ndarray]:
-    """Float values of text cells; empty cells are NaN; also a mask of unparseable cells."""
-    text = cells.str.strip()
+    """Float values of text cells; empty cells are NaN (so are the cells a row shorter than
+    the header lacks); also a mask of unparseable cells."""
+    text = cells.fillna("").str.strip()
     if decimal != ".":
         text = text.str.replace(decimal, ".", regex=False)
     values = pd.to_numeric(text.where(text != ""), errors="coerce").to_numpy(dtype=float)

@@ -35,3 +35,21 @@ def test_the_first_step_back_is_named_with_its_line(tmp_path: Path):
         f"{path}: time goes back 1 time(s), first at line 22 (570 s before line 21: "
         "2026-03-01T00:19:00Z then 2026-03-01T00:09:30Z); rows were sorted by time"
     ]
+
+
+def test_a_row_shorter_than_the_header_reads_its_missing_cells_as_empty(tmp_path: Path):
+    """Before: the cells a short row lacks (an exporter leaving out trailing empty fields,
+    or the line being written at the end of a live log) were refused as "column 'TTT
+    [°C]', line 3: not a number", a number that was not there at all."""
+    rows = [
+        "2026-03-01T00:00:00\t10\t2\t-1\t7\t90",
+        "2026-03-01T00:00:01\t10.5\t2",
+        "2026-03-01T00:00:02\t11\t2\t-1\t7\t90",
+    ]
+    path = tmp_path / "dship.tsv"
+    path.write_text(HEADER + "\n".join(rows), encoding="utf-8")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        log = read_dship(path)
+    assert log["speed_kn"].tolist() == [10.0, 10.5, 11.0]
+    assert log["air_temp_c"].isna().tolist() == [False, True, False]

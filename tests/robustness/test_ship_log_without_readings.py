@@ -127,3 +127,12 @@ def test_identify_and_monitor_name_the_log_without_readings(tmp_path, capsys):
     assert status == 0, err
     notes = [line for line in out.splitlines() if line.startswith("note: forecast")]
     assert notes == [f"note: forecast: {path}: {reason}"]
+
+
+def test_rows_of_a_time_alone_are_a_log_without_readings(tmp_path):
+    """Rows holding the time and no separator after it (before: each missing cell
+    "not a number")."""
+    path = _log(tmp_path, HEADER + "".join(f"2026-03-01T00:00:{s:02d}\n" for s in range(10)))
+    with pytest.raises(ContractError) as caught:
+        read_dship(path)
+    assert str(caught.value) == f"{path}: {LOGS['blank rows'][1]}"
