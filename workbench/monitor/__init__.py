@@ -136,11 +136,14 @@ When is a block identified
   no block of the state folder is identified (:meth:`Monitor.nothing_identified`); the
   monitor without ``--once`` goes on.
 * The block grid is anchored at the first file (as in ``workbench identify``) and kept in
-  the store: a file starting before it is refused with a message. The voyage's channels
-  are, as in ``workbench identify``, those most of the files present when the monitor
-  starts carry (so a first file lacking a channel the others have does not lose it), and
-  are kept in the store too: a file lacking a few of them is read with them NaN, one
-  carrying a channel they lack is used without it (both said in a note).
+  the store: a file starting before it is refused with a message. On a new state folder
+  the grid is fixed once the data landed reach the end of the first block (or ``late_s``
+  past the earliest file; at once with ``--once`` or a flush), so a first file landing
+  after the second still anchors it. The voyage's channels are, as in ``workbench
+  identify``, those most of the files present then carry (so a first file lacking a
+  channel the others have does not lose it), and are kept in the store too: a file
+  lacking a few of them is read with them NaN, one carrying a channel they lack is used
+  without it (both said in a note).
 
 Blocks of varying length
 ------------------------

@@ -412,7 +412,7 @@ class Monitor:
         for item in landed:
             self._doing(f"reading {item.path.name}")
             self._take(item)
-        if self.voyage is None and not self._anchor():
+        if self.voyage is None and not self._anchor(flush):
             self._write_status("running", "waiting for the first complete files")
             return 0
         decided = 0
@@ -541,15 +541,23 @@ class Monitor:
                 "decided without it (skipped: gap); they are not redone"
             )
 
-    def _anchor(self) -> bool:
+    def _anchor(self, flush: bool = False) -> bool:
         """Fix the grid, channels and options from the files (or the store); open the
-        store. Waits while files are still being written (the first one may be among them).
-        """
+        store. Waits while files are still being written (the first one may be among them)
+        and, on a new state folder, until the data landed reach the end of the first block
+        or ``late_s`` past the earliest file (unless *flush*): a first file landing late
+        (after the second) still anchors the grid as in ``workbench identify``, and the
+        channels are taken from more than one file."""
         if not self.files or (self.watcher.pending and self._saved_grid is None):
             return False
         from ..signals.block_plan import majority_channels
 
         first = self.files[0].info
+        if self._saved_grid is None and not flush:
+            newest = max(f.info.end_time for f in self.files)
+            wait_s = min(self.options.late_s, self.options.identify.length_s)
+            if (newest - first.start_time).total_seconds() < wait_s:
+                return False  # no block could be decided yet: an earlier file may land
         if self._saved_grid is not None:
             t0, channels = self._saved_grid
         else:  # as identify over these files: the set most of them carry
