@@ -217,6 +217,7 @@ def read_dship(
     separator: str | None = None,
     decimal: str | None = None,
     time_format: str | None = None,
+    complete_lines: bool = False,
 ) -> pd.DataFrame:
     """Parse a raw DSHIP / PANGAEA ship log into the canonical log table.
 
@@ -245,6 +246,9 @@ def read_dship(
         or MATLAB ``datestr`` symbols (``dd-mmm-yyyy HH:MM:SS``); default: ISO-8601,
         ``yyyy/mm/dd HH:MM:SS``, day-first ``dd.mm.yyyy HH:MM:SS``, ``dd-mmm-yyyy
         HH:MM:SS`` or slash dates whose days tell day and month apart, whichever fits.
+    complete_lines : bool
+        Leave out a last line without its line end (a live log read while the data system
+        writes its next line, whose cut time could read as another time); default False.
 
     Returns
     -------
@@ -280,7 +284,12 @@ def read_dship(
         raw = path.read_bytes()
     except OSError as error:
         raise fail([Violation(None, f"cannot read file: {error.strerror or error}")]) from None
+    if complete_lines and encoding is None and not raw.endswith((b"\n", b"\r")):
+        # UTF-8 or Latin-1: cut before decoding (a character cut in two is left out too)
+        raw = raw[: max(raw.rfind(b"\n"), raw.rfind(b"\r")) + 1]
     text = decode_text(raw, encoding)
+    if complete_lines and not text.endswith(("\n", "\r")):
+        text = text[: max(text.rfind("\n"), text.rfind("\r")) + 1]
     lines = text.splitlines()
     first_data_line = 0
     stripped = [line.strip() for line in lines]

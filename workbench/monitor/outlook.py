@@ -221,7 +221,8 @@ def _ship_log(path: Path, mapping: Mapping[str, str] | None) -> pd.DataFrame:
     cached = _DSHIP_CACHE.get(str(path))
     if cached is not None and cached[0] == key:
         return cached[1]
-    log = read_dship(path, mapping=dict(mapping) if mapping else None)
+    # a live log: the line the data system is writing is left out until it is whole
+    log = read_dship(path, mapping=dict(mapping) if mapping else None, complete_lines=True)
     _DSHIP_CACHE.clear()
     _DSHIP_CACHE[str(path)] = (key, log)
     return log
