@@ -417,8 +417,7 @@ class MemoryRun:
         (:func:`~workbench.forecasting.incremental._outage_reaches_back`).
         """
         added = np.zeros(len(rows))
-        # (a resumed monitor state saved before the coverage was kept has none)
-        if getattr(self, "log_coverage", None) is None or m.kind == "constant":
+        if self.log_coverage is None or m.kind == "constant":
             return added
         columns = np.asarray(m.needed_columns(), dtype=np.int64)
         reach = max(self.overlap - 1, 1)  # blocks sharing data with a block, at least 1
