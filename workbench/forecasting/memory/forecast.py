@@ -590,6 +590,7 @@ class MemoryRun:
         for j in np.flatnonzero(have):
             choice = self.chooser.choose(k, j, prior_z[j], gate[j], self.damping_ref[j])
             if choice is None:
+                self._tracked_instead(k, j, prior_z[j], z, scale, typical)
                 continue
             cl = choice.cluster
             if self.chooser.shape_mac is None and nearer_to_another_mode(
@@ -621,6 +622,29 @@ class MemoryRun:
                     "option B measurements outside the gate",
                 )
         return z, scale
+
+    def _tracked_instead(self, k, j, prior_hz, z, scale, typical) -> None:
+        """Option B with no column of mode *j* near its prediction: the tracked pole, if
+        the block has one, is the measurement (option A's).
+
+        The chooser searches the gate and the re-acquire band about the prediction; when a
+        model has drifted off the mode (a single window carried past an unrecorded change)
+        neither holds the mode, and a predict-only step would follow the model wherever it
+        drifts. The tracked pole was joined to the mode by the tracking, not by the
+        prediction, so it is as good a measurement as it is for option A; the Kalman
+        update's Huber weight and its run test decide how far the estimate follows it."""
+        tracked = self.tracked[k, j]
+        if not np.isfinite(tracked):
+            return
+        self.warn(
+            k,
+            j,
+            f"option B: no pole column near the prediction {prior_hz:.4f} Hz: "
+            f"tracked pole {tracked:.4f} Hz used",
+            "option B rows without a pole column near the prediction (tracked pole used)",
+        )
+        z[j] = tracked
+        self._scale_by_cluster(k, j, tracked, scale, typical, use=self.noise.pole_scatter)
 
     def _refuse_neighbour(self, k, j, pick_hz, anchors, z, scale, typical) -> None:
         """An option B pick nearer to another mode: the tracked pole instead, if any."""
