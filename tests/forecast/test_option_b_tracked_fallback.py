@@ -1,13 +1,19 @@
-"""Option B when no pole column of a mode lies near its prediction: the block's tracked
-pole is the measurement, as it is for option A, instead of a predict-only step.
+"""Option B when no pole column of a mode lies near its prediction for longer than the
+blocks sharing data, the tracked poles all on one side of it, and the model-trust guard
+saying the model does not explain the mode: the block's tracked pole is the measurement
+(option A's) instead of a predict-only step that follows the model wherever it drifts.
 
-The case: the accuracy suite's unrecorded 160-min wander at twice SSI's scatter
-(``benchmarks/forecast_regimes.py``), seed 3, single-window forecast (method 1). Its
-model, trained on the first 20 blocks and carried 34 blocks on, is five times worse than
-SSI (``model_vs_ssi`` -483 %); mode 2's prediction drifts 0.2-0.4 Hz below the mode, so
-neither the gate nor the re-acquire band holds its column. Before, option B stepped
-predict-only there from block 29 on, and its estimate was 97 % worse than SSI's over the
-forecast blocks, while option A, fed the tracked pole, was 21 % better.
+Two runs of the accuracy suite (``benchmarks/forecast_regimes.py``) where option B was
+far worse than SSI before:
+
+* the 160-min wander at twice SSI's scatter, seed 3, single window (method 1): the model,
+  trained on 20 blocks and carried 34 on, is five times worse than SSI; mode 2's
+  prediction drifts 0.2-0.4 Hz below the mode and option B stepped predict-only from
+  block 29 on: 97 % worse than SSI (option A, fed the tracked pole: 21 % better);
+* the 160-min wander at SSI's scatter, segment errors, seed 4, with shapes, the default
+  rolling forecast (method 2): no cluster of mode 2 passed the gate and the shape check
+  from block 37 on, the refits without measurements swung the model to 5.16 Hz and
+  4.31 Hz (the mode: 4.59-4.63 Hz): 30 % worse than SSI.
 """
 
 from __future__ import annotations
@@ -47,26 +53,45 @@ def _errors(table, data):
     )
 
 
-def test_option_b_measures_the_tracked_pole_when_the_model_drifted_off(regimes):
-    data = regimes.make_regime("wander_160min_2x", 3, n_blocks=432, shapes=False)
+@pytest.mark.parametrize(
+    ("regime", "seed", "kwargs", "scheme", "n_rows"),
+    [
+        ("wander_160min_2x", 3, {"shapes": False}, 1, 16),
+        ("wander_160min_1x", 4, {"shapes": True, "error_model": "segments"}, 2, 4),
+    ],
+)
+def test_option_b_measures_the_tracked_pole_when_the_prediction_left_the_mode(
+    regimes, regime, seed, kwargs, scheme, n_rows
+):
+    data = regimes.make_regime(regime, seed, n_blocks=432, **kwargs)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        result = sliding_forecast(
+        table = sliding_forecast(
             data.tracked,
             data.predictors,
-            ForecastOptions(options=("B",), scheme=1),
+            ForecastOptions(options=("B",), scheme=scheme),
             poles=data.poles,
-        )
-    table = result.table
+        ).table
     kalman, ssi = _errors(table, data)
-    assert kalman < 0.9 * ssi  # before: 1.97 x SSI's error
+    assert kalman < 0.95 * ssi  # before: 1.97 and 1.30 x SSI's error
     used = table["warning"].fillna("").str.contains("no pole column near the prediction")
-    # the rows where the column was out of reach: mostly mode 2's (19 of 21)
-    assert (table.loc[used, "mode"] == 2).sum() >= 15
+    # mode 2's rows, in the forecast phase only
+    assert used.sum() == n_rows
+    assert set(table.loc[used, "mode"]) == {2}
     assert (table.loc[used, "phase"] == "forecast").all()
-    # on those rows the estimate follows the tracked pole, not the drifting model
-    truth = data.truth.set_index(["block", "mode"])["frequency_hz"]
-    rows = table[used]
-    keys = list(zip(rows["block"], rows["mode"], strict=True))
-    err = np.abs(rows["kalman_frequency_hz"].to_numpy() - truth.loc[keys].to_numpy())
-    assert np.median(err) < 0.03  # Hz; the prediction there is 0.2-0.4 Hz off
+
+
+def test_a_short_miss_or_a_model_that_explains_keeps_option_b_predict_only(regimes):
+    """The ice stretch of a voyage trained in open water (the model explains the mode;
+    SSI scatters): a tracked pole is taken on none or few of the blocks without a column
+    near the prediction, and option B stays far better than SSI."""
+    data = regimes.make_regime("open_water_into_ice", 3, n_blocks=432, shapes=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        table = sliding_forecast(
+            data.tracked, data.predictors, ForecastOptions(options=("B",)), poles=data.poles
+        ).table
+    kalman, ssi = _errors(table, data)
+    assert kalman < 0.6 * ssi
+    used = table["warning"].fillna("").str.contains("no pole column near the prediction")
+    assert used.sum() <= 2
