@@ -319,3 +319,44 @@ def test_forecast_equals_batch_across_a_log_outage(step):
     assert engine.rollbacks >= 1  # the outage's first missing block took the state back
     # (the resumed table carries the log's coverage, memory_forecast's does not)
     pd.testing.assert_frame_equal(table.drop(columns="log_coverage"), expected, rtol=1e-9)
+
+
+def test_update_outlook_computes_again_over_a_checkpoint_of_an_older_layout(
+    voyage, batch, tmp_path, monkeypatch
+):
+    """A saved outlook of an older checkpoint layout (/4 kept no ``log_coverage``) is not
+    half-read: the worker says so and computes the forecast again from the first block,
+    equal to the batch forecast."""
+    import json
+
+    from data_contracts import write_table
+    from workbench.blocks import BlockGrid
+    from workbench.forecasting.incremental import CHECKPOINT_SCHEMA
+    from workbench.monitor import outlook as worker
+    from workbench.monitor.outlook import update_outlook
+
+    monkeypatch.setattr(worker, "FINAL_AFTER_S", 0.0)
+    tracked = MODAL.validate(batch["tracked"])
+    first = tracked[tracked["block"] == tracked["block"].min()].iloc[0]
+    length = (first["block_end"] - first["block_start"]).total_seconds()
+    grid = BlockGrid(first["block_start"], length, 300.0)
+    settings = ForecastSettings(forecast=ForecastOptions(train_blocks=6))
+    state = tmp_path / "state"
+    state.mkdir()
+    for last in (12, int(tracked["block"].max())):
+        worker._OUTLOOKS.clear()  # a new worker process
+        worker._WRITERS.clear()
+        saved = state / "outlook" / "outlook.json"
+        if saved.is_file():  # the state as a monitor of the previous layout left it
+            document = json.loads(saved.read_text())
+            assert document["schema"] == CHECKPOINT_SCHEMA
+            document["schema"] = "workbench.forecasting.incremental/4"
+            saved.write_text(json.dumps(document))
+        write_table(tracked[tracked["block"] <= last], state / "tracked.parquet", MODAL)
+        report = update_outlook(state, voyage / "dship.tsv", settings, grid)
+        assert report.written and report.forecast_rows > 0
+    assert any(
+        "incremental/4" in m and "computed again from the first block" in m for m in report.messages
+    ), report.messages
+    forecast = pd.read_parquet(state / "forecast.parquet")
+    pd.testing.assert_frame_equal(forecast, batch["forecast"], rtol=1e-9)

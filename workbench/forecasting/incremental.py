@@ -95,8 +95,9 @@ __all__ = [
 #: microseconds, which put the time trend in thousands of hours), the filter's
 #: identification error as the overlap's segment states, the noise model's
 #: ``error_segments`` and the model-trust lead test (issue 27); /4: the SSI guard's
-#: windows (:mod:`workbench.forecasting.ssi_guard`).
-CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/4"
+#: windows (:mod:`workbench.forecasting.ssi_guard`); /5: the blocks' ``log_coverage``
+#: (the model variance at a log outage's edges).
+CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/5"
 
 #: Rows kept before the newest committed window beyond the refits' history. [blocks]
 _MARGIN_ROWS = 64

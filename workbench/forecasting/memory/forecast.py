@@ -283,6 +283,9 @@ class MemoryRun:
         self.P = np.zeros((n_modes, self.states, self.states))
         self.started = np.zeros(n_modes, dtype=bool)
         self.gap = np.zeros(n_modes, dtype=np.int64)
+        # option B: consecutive blocks with a tracked pole but no column near the
+        # prediction, signed by the side the tracked poles lie on
+        self.column_missed = np.zeros(n_modes, dtype=np.int64)
         self.models_out: list[WindowModel] = []
         self.persist_blocks = max(_PERSIST_BLOCKS, self.overlap + 1)
         # guard: the probability that the model explains each mode, against a model-free
@@ -417,8 +420,7 @@ class MemoryRun:
         (:func:`~workbench.forecasting.incremental._outage_reaches_back`).
         """
         added = np.zeros(len(rows))
-        # (a resumed monitor state saved before the coverage was kept has none)
-        if getattr(self, "log_coverage", None) is None or m.kind == "constant":
+        if self.log_coverage is None or m.kind == "constant":
             return added
         columns = np.asarray(m.needed_columns(), dtype=np.int64)
         reach = max(self.overlap - 1, 1)  # blocks sharing data with a block, at least 1
@@ -591,7 +593,9 @@ class MemoryRun:
         for j in np.flatnonzero(have):
             choice = self.chooser.choose(k, j, prior_z[j], gate[j], self.damping_ref[j])
             if choice is None:
+                self._tracked_instead(k, j, prior_z[j], z, scale, typical)
                 continue
+            self.column_missed[j] = 0
             cl = choice.cluster
             if self.chooser.shape_mac is None and nearer_to_another_mode(
                 cl.frequency_hz, j, anchors
@@ -622,6 +626,53 @@ class MemoryRun:
                     "option B measurements outside the gate",
                 )
         return z, scale
+
+    def _tracked_instead(self, k, j, prior_hz, z, scale, typical) -> None:
+        """Option B with no column of mode *j* near its prediction: when that has lasted
+        beyond the blocks sharing data and the model does not explain the mode, the
+        tracked pole (option A's measurement).
+
+        The chooser searches the gate and the re-acquire band about the prediction. A
+        few blocks where the mode's column is not there but the tracking joined a pole to
+        the mode are most often an identification outlier (an ice impact, a badly excited
+        stretch: the blocks sharing its data all show it), and a predict-only step is
+        option B's strength there. Three things together say instead that the prediction
+        has left the mode (a single window carried past an unrecorded change, a refit on
+        too few measurements), so that predict-only steps would follow the model wherever
+        it drifts:
+
+        * the miss outlasts the blocks sharing data (:attr:`persist_blocks` blocks with a
+          tracked pole in a row, the Kalman update's run test);
+        * the tracked poles of the run all lie on one side of the prediction (a mode that
+          moved, not an outlier's scatter);
+        * the model-trust guard gives the model a probability below 0.5 of explaining
+          the mode.
+
+        The tracked pole was joined to the mode by the tracking, not by the prediction;
+        the Kalman update's Huber weight and run test decide how far the estimate follows
+        it. Blocks without a tracked pole neither count nor end the run; a column found
+        near the prediction ends it."""
+        tracked = self.tracked[k, j]
+        if not np.isfinite(tracked):
+            return
+        side = 1 if tracked > prior_hz else -1
+        if self.column_missed[j] * side < 0:  # the other side: a new run
+            self.column_missed[j] = 0
+        self.column_missed[j] += side
+        n_missed = abs(int(self.column_missed[j]))
+        unexplained = self.trust is not None and self.trust.probability[j] < 0.5
+        if n_missed < self.persist_blocks or not unexplained:
+            return
+        self.warn(
+            k,
+            j,
+            f"option B: no pole column near the prediction {prior_hz:.4f} Hz for "
+            f"{n_missed} blocks: tracked pole {tracked:.4f} Hz used",
+            "option B rows without a pole column near the prediction for longer than the "
+            "blocks sharing data (tracked pole used)",
+        )
+        z[j] = tracked
+        self._scale_by_cluster(k, j, tracked, scale, typical, use=self.noise.pole_scatter)
 
     def _refuse_neighbour(self, k, j, pick_hz, anchors, z, scale, typical) -> None:
         """An option B pick nearer to another mode: the tracked pole instead, if any."""
