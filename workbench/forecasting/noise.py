@@ -45,6 +45,7 @@ __all__ = [
     "MIN_OUT_OF_SAMPLE",
     "MIN_RESIDUALS",
     "NoiseModel",
+    "correction_autocorrelation",
     "error_autocorrelation",
     "estimate_noise",
     "lagged_autocovariance",
@@ -121,6 +122,46 @@ def error_autocorrelation(lags: np.ndarray, *, rho: float = 0.0, segments: int =
     if rho > 0:
         return rho**h
     return (h == 0) * 1.0
+
+
+def correction_autocorrelation(lags: np.ndarray, tau: float, *, segments: int = 0) -> np.ndarray:
+    """Autocorrelation of the model error c at *lags* (>= 0), time constant *tau*. [-]
+
+    Without overlap (``segments`` 0): φ^h, φ = exp(-1/τ_c). Blocks of L = ``segments``
+    steps, a new one every step: a block's true frequency is the time average over its L
+    steps, so what a block sees of a model error that varies continuously in time (an
+    AR(1) of time constant τ_c steps: correlation e^{-|u|/τ_c} at time lag u) is its mean
+    over the block, whose autocovariance is the double integral of that correlation over
+    two blocks h steps apart [1]_,
+
+    .. math::
+
+        γ(h) ∝ ψ(h + L) + ψ(h - L) - 2 ψ(h), \\qquad
+        ψ(u) = τ_c^2 (e^{-|u|/τ_c} + |u|/τ_c - 1)
+
+    (ψ'' = e^{-|u|/τ_c}), here divided by γ(0). Up to lag L it is flatter than φ^h (the
+    blocks share part of the wander as they share data); from lag L on it is φ^h times a
+    constant. The overlap's identification error (:func:`error_autocorrelation`) falls
+    off linearly over the same L lags, so with φ^h the fit gives the block mean's excess
+    correlation at short lags to the identification error.
+
+    References
+    ----------
+    .. [1] A. Papoulis, S. U. Pillai, "Probability, Random Variables and Stochastic
+       Processes", 4th ed., McGraw-Hill, 2002, §9-2 (the mean of a process over an
+       interval and its variance).
+    """
+    h = np.asarray(lags, dtype=float)
+    tau = float(tau)
+    if segments < 2:
+        return np.exp(-h / tau)
+    L = float(segments)
+
+    def psi(u):
+        a = np.abs(u) / tau
+        return np.exp(-a) + a - 1.0
+
+    return (psi(h + L) + psi(h - L) - 2.0 * psi(h)) / (2.0 * psi(L))
 
 
 def lagged_autocovariance(values: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.ndarray]:
@@ -201,6 +242,10 @@ def _grid_fits(lags: np.ndarray, target: np.ndarray, weight: np.ndarray, segment
     tau_g, rho_g = np.meshgrid(np.arange(phis.size), np.arange(rhos.size), indexing="ij")
     tau_g, rho_g = tau_g.ravel(), rho_g.ravel()
     h = lags[None, :].astype(float)
+    # the model error's column: the block mean of an AR(1) for overlapping blocks
+    columns = np.stack(
+        [correction_autocorrelation(lags, t, segments=segments) for t in CORRECTION_TIMES]
+    )
     zero = (lags == 0)[None, :] * 1.0
     if segments >= 2:
         rho_col = np.broadcast_to(
@@ -209,7 +254,7 @@ def _grid_fits(lags: np.ndarray, target: np.ndarray, weight: np.ndarray, segment
     else:
         rho_col = np.where(rhos[rho_g][:, None] > 0, rhos[rho_g][:, None] ** h, zero)
     design = (
-        np.stack([phis[tau_g][:, None] ** h, rho_col, np.broadcast_to(zero, rho_col.shape)], axis=2)
+        np.stack([columns[tau_g], rho_col, np.broadcast_to(zero, rho_col.shape)], axis=2)
         * weight[None, :, None]
     )
     b = target * weight
@@ -267,9 +312,9 @@ def _soft_choice(taus, rhos, misfit, coefs, n_pairs: int, segments: int = 0):
     g = int(np.argmin(misfit))
     sc, se, sv = coefs[g]
     h = np.arange(8 * int(max(taus[g], 12.0)))
-    gamma = sc * math.exp(-1.0 / taus[g]) ** h + se * error_autocorrelation(
-        h, rho=float(rhos[g]), segments=segments
-    )
+    gamma = sc * correction_autocorrelation(
+        h, float(taus[g]), segments=segments
+    ) + se * error_autocorrelation(h, rho=float(rhos[g]), segments=segments)
     gamma[0] += sv
     s2 = (gamma[0] ** 2 + 2.0 * float(np.sum(gamma[1:] ** 2))) / max(int(n_pairs), 1)
     if not np.isfinite(s2) or s2 <= 0:
