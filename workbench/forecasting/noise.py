@@ -159,7 +159,7 @@ def correction_autocorrelation(lags: np.ndarray, tau: float, *, segments: int = 
     h = np.asarray(lags, dtype=float)
     tau = float(tau)
     if segments < 2:
-        return np.exp(-h / tau)
+        return math.exp(-1.0 / tau) ** h
     L = float(segments)
 
     def psi(u):
@@ -248,9 +248,12 @@ def _grid_fits(lags: np.ndarray, target: np.ndarray, weight: np.ndarray, segment
     tau_g, rho_g = tau_g.ravel(), rho_g.ravel()
     h = lags[None, :].astype(float)
     # the model error's column: the block mean of an AR(1) for overlapping blocks
-    columns = np.stack(
-        [correction_autocorrelation(lags, t, segments=segments) for t in CORRECTION_TIMES]
-    )
+    if segments >= 2:
+        columns = np.stack(
+            [correction_autocorrelation(lags, t, segments=segments) for t in CORRECTION_TIMES]
+        )
+    else:
+        columns = phis[:, None] ** h
     zero = (lags == 0)[None, :] * 1.0
     if segments >= 2:
         rho_col = np.broadcast_to(
