@@ -148,7 +148,7 @@ def correction_autocorrelation(lags: np.ndarray, tau: float, *, segments: int = 
     identification error (:func:`error_autocorrelation`) differs from it over the same L
     lags, so fitted with φ^h the block mean's extra correlation there goes to the wrong
     term: on a long record of a 1-hour wander (``tests/forecast/test_overlap_error.py``)
-    φ^h takes a third to a half of σ_e² for model error.
+    φ^h takes a quarter to a half of σ_e² for model error.
 
     References
     ----------
@@ -229,7 +229,8 @@ _SUBSETS = tuple(tuple(c for c in range(3) if mask >> c & 1) for mask in range(1
 
 
 def _grid_fits(lags: np.ndarray, target: np.ndarray, weight: np.ndarray, segments: int = 0):
-    """Non-negative least squares of γ(h) on [φ^h, ρ^h, [h=0]] for every (τ_c, ρ) of the grid.
+    """Non-negative least squares of γ(h) on [φ^h, ρ^h, [h=0]] for every (τ_c, ρ) of the grid
+    (φ^h the block mean's correlation for overlapping blocks, :func:`correction_autocorrelation`).
 
     Exact NNLS for three unknowns: the optimum is the least-squares solution on its set of
     positive coefficients, so the best of the least-squares solutions on the 7 column
