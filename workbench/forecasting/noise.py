@@ -12,7 +12,10 @@ blocks (lag-1 correlation ρ), and v a white part. Their autocovariances add up,
 
 .. math:: γ(h) = σ_c^2 φ^h + σ_e^2 ρ^h + σ_v^2 [h = 0],
 
-so (σ_c², σ_e², σ_v²) follow from the measured γ(0..L) by non-negative least squares for
+(for overlapping blocks, φ^h is the autocorrelation of c's mean over a block instead,
+:func:`correction_autocorrelation`: a block's true frequency is its time average; the
+filter keeps c an AR(1) with the fitted τ_c and the blocks' variance σ_c²), so
+(σ_c², σ_e², σ_v²) follow from the measured γ(0..L) by non-negative least squares for
 each (τ_c, ρ) of a grid, and the pair with the smallest misfit wins (covariance matching,
 [1]_). For blocks that share data with their L - 1 neighbours the identification error is
 the mean of the L independent errors of the segments they share, and ρ^h is replaced by
@@ -45,6 +48,7 @@ __all__ = [
     "MIN_OUT_OF_SAMPLE",
     "MIN_RESIDUALS",
     "NoiseModel",
+    "correction_autocorrelation",
     "error_autocorrelation",
     "estimate_noise",
     "lagged_autocovariance",
@@ -123,6 +127,48 @@ def error_autocorrelation(lags: np.ndarray, *, rho: float = 0.0, segments: int =
     return (h == 0) * 1.0
 
 
+def correction_autocorrelation(lags: np.ndarray, tau: float, *, segments: int = 0) -> np.ndarray:
+    """Autocorrelation of the model error c at *lags* (>= 0), time constant *tau*. [-]
+
+    Without overlap (``segments`` 0): φ^h, φ = exp(-1/τ_c). Blocks of L = ``segments``
+    steps, a new one every step: a block's true frequency is the time average over its L
+    steps, so what a block sees of a model error that varies continuously in time (an
+    AR(1) of time constant τ_c steps: correlation e^{-|u|/τ_c} at time lag u) is its mean
+    over the block, whose autocovariance is the double integral of that correlation over
+    two blocks h steps apart [1]_,
+
+    .. math::
+
+        γ(h) ∝ ψ(h + L) + ψ(h - L) - 2 ψ(h), \\qquad
+        ψ(u) = τ_c^2 (e^{-|u|/τ_c} + |u|/τ_c - 1)
+
+    (ψ'' = e^{-|u|/τ_c}), here divided by γ(0). Below lag L it is flatter than φ^h
+    (blocks that share data share that part of the wander: 0.97 against 0.88 at lag 1
+    for τ_c = 8, L = 4); from lag L on it is φ^h times a constant. The overlap's
+    identification error (:func:`error_autocorrelation`) differs from it over the same L
+    lags, so fitted with φ^h the block mean's extra correlation there goes to the wrong
+    term: on a long record of a 1-hour wander (``tests/forecast/test_overlap_error.py``)
+    φ^h takes a quarter to a half of σ_e² for model error.
+
+    References
+    ----------
+    .. [1] A. Papoulis, S. U. Pillai, "Probability, Random Variables and Stochastic
+       Processes", 4th ed., McGraw-Hill, 2002 (the variance of the time average of a
+       stationary process).
+    """
+    h = np.asarray(lags, dtype=float)
+    tau = float(tau)
+    if segments < 2:
+        return math.exp(-1.0 / tau) ** h
+    L = float(segments)
+
+    def psi(u):
+        a = np.abs(u) / tau
+        return np.exp(-a) + a - 1.0
+
+    return (psi(h + L) + psi(h - L) - 2.0 * psi(h)) / (2.0 * psi(L))
+
+
 def lagged_autocovariance(values: np.ndarray, max_lag: int) -> tuple[np.ndarray, np.ndarray]:
     """Mean products r_k r_{k+h}, h = 0..max_lag, over the pairs with both values finite.
 
@@ -183,7 +229,8 @@ _SUBSETS = tuple(tuple(c for c in range(3) if mask >> c & 1) for mask in range(1
 
 
 def _grid_fits(lags: np.ndarray, target: np.ndarray, weight: np.ndarray, segments: int = 0):
-    """Non-negative least squares of γ(h) on [φ^h, ρ^h, [h=0]] for every (τ_c, ρ) of the grid.
+    """Non-negative least squares of γ(h) on [φ^h, ρ^h, [h=0]] for every (τ_c, ρ) of the grid
+    (φ^h the block mean's correlation for overlapping blocks, :func:`correction_autocorrelation`).
 
     Exact NNLS for three unknowns: the optimum is the least-squares solution on its set of
     positive coefficients, so the best of the least-squares solutions on the 7 column
@@ -201,6 +248,13 @@ def _grid_fits(lags: np.ndarray, target: np.ndarray, weight: np.ndarray, segment
     tau_g, rho_g = np.meshgrid(np.arange(phis.size), np.arange(rhos.size), indexing="ij")
     tau_g, rho_g = tau_g.ravel(), rho_g.ravel()
     h = lags[None, :].astype(float)
+    # the model error's column: the block mean of an AR(1) for overlapping blocks
+    if segments >= 2:
+        columns = np.stack(
+            [correction_autocorrelation(lags, t, segments=segments) for t in CORRECTION_TIMES]
+        )
+    else:
+        columns = phis[:, None] ** h
     zero = (lags == 0)[None, :] * 1.0
     if segments >= 2:
         rho_col = np.broadcast_to(
@@ -209,7 +263,7 @@ def _grid_fits(lags: np.ndarray, target: np.ndarray, weight: np.ndarray, segment
     else:
         rho_col = np.where(rhos[rho_g][:, None] > 0, rhos[rho_g][:, None] ** h, zero)
     design = (
-        np.stack([phis[tau_g][:, None] ** h, rho_col, np.broadcast_to(zero, rho_col.shape)], axis=2)
+        np.stack([columns[tau_g], rho_col, np.broadcast_to(zero, rho_col.shape)], axis=2)
         * weight[None, :, None]
     )
     b = target * weight
@@ -267,9 +321,9 @@ def _soft_choice(taus, rhos, misfit, coefs, n_pairs: int, segments: int = 0):
     g = int(np.argmin(misfit))
     sc, se, sv = coefs[g]
     h = np.arange(8 * int(max(taus[g], 12.0)))
-    gamma = sc * math.exp(-1.0 / taus[g]) ** h + se * error_autocorrelation(
-        h, rho=float(rhos[g]), segments=segments
-    )
+    gamma = sc * correction_autocorrelation(
+        h, float(taus[g]), segments=segments
+    ) + se * error_autocorrelation(h, rho=float(rhos[g]), segments=segments)
     gamma[0] += sv
     s2 = (gamma[0] ** 2 + 2.0 * float(np.sum(gamma[1:] ** 2))) / max(int(n_pairs), 1)
     if not np.isfinite(s2) or s2 <= 0:
