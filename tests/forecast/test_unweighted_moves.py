@@ -6,7 +6,7 @@ full. Once the weight is on it would hold back the right readings that follow, j
 against the state the misreads made; the return test lets them undo the move instead
 (``MemoryRun._return_test``). A real shift of the mode in the same blocks is followed, not
 undone. And the model correction c is kept out of what the filled blocks of a log outage
-teach (``MemoryRun._outside_fill``).
+teach beyond its share against the fill's error (``MemoryRun._outside_fill``).
 """
 
 from __future__ import annotations
@@ -81,29 +81,42 @@ def test_a_real_shift_in_those_blocks_is_followed_not_undone(seed):
     assert error.loc[32:].abs().max() < 25.0
 
 
-def test_the_filled_blocks_of_an_outage_leave_c_where_the_filter_would_have_predicted_it():
-    # two modes, c and three segment terms each; mode 0's model fills a missing predictor
-    # on rows 1-3, mode 1's never does
-    phi, q = 0.9, 4e-6
+def _after_outage(fill_variance: float):
+    """Two modes (c and three segment terms each) through a log outage of three blocks in
+    which mode 0's model fills a missing predictor (model variance *fill_variance* there)
+    and the filled blocks' updates pull its c from 0.02 to 0.08 Hz; mode 1's never fills."""
     F = np.zeros((2, 4, 4))
-    F[:, 0, 0] = phi
+    F[:, 0, 0] = PHI
     q_c = np.zeros((2, 4))
-    q_c[:, 0] = q
+    q_c[:, 0] = Q_C
     state = np.array([[0.02, 0.001, 0.002, 0.003], [0.01, 0.0, 0.0, 0.0]])
     P = np.tile(np.eye(4) * 1e-5 + 1e-6, (2, 1, 1))
     run = SimpleNamespace(n_modes=2, state=state.copy(), P=P.copy())
     have = np.array([True, True])
-    for filled in ([True, False], [True, False], [True, False]):
-        MemoryRun._outside_fill(run, np.array(filled), have, F, q_c)
-        # what the filled rows' updates make of the states (here: c pulled to 0.08)
+    variance = np.array([fill_variance, 1e-6])
+    for _ in range(3):
+        MemoryRun._outside_fill(run, np.array([True, False]), have, F, q_c, variance)
         run.state[0] = [0.08, 0.01, 0.0, 0.0]
         run.P[0] = np.eye(4) * 2e-6
-    MemoryRun._outside_fill(run, np.array([False, False]), have, F, q_c)
-    # c and P_cc: the a-posteriori ones of row 0, predicted over rows 1-3 without an update
-    assert run.state[0, 0] == pytest.approx(phi**3 * 0.02, rel=1e-12)
-    assert run.P[0, 0, 0] == pytest.approx(
-        phi**6 * (1e-5 + 1e-6) + q * (1 + phi**2 + phi**4), rel=1e-12
-    )
+    MemoryRun._outside_fill(run, np.array([False, False]), have, F, q_c, variance)
+    return run, state, P
+
+
+PHI, Q_C = 0.9, 4e-6
+
+
+@pytest.mark.parametrize("fill_variance", [1e-6, 5e-5, 1e-2])
+def test_after_an_outage_c_keeps_of_what_the_filled_blocks_taught_its_share_against_the_fill(
+    fill_variance,
+):
+    run, state, P = _after_outage(fill_variance)
+    # c and P_cc saved before the outage, carried over its three blocks without an update
+    c_s = PHI**3 * 0.02
+    P_s = PHI**6 * (1e-5 + 1e-6) + Q_C * (1 + PHI**2 + PHI**4)
+    # a persistent offset of the filled blocks is c + the fill's error: c's share of it
+    w = P_s / (P_s + fill_variance)
+    assert run.state[0, 0] == pytest.approx(c_s + w * (0.08 - c_s), rel=1e-12)
+    assert run.P[0, 0, 0] == pytest.approx((1 - w) * P_s + w * w * 2e-6, rel=1e-12)
     np.testing.assert_array_equal(run.P[0, 0, 1:], 0.0)
     np.testing.assert_array_equal(run.P[0, 1:, 0], 0.0)
     # the identification error's states keep what the updates made of them
@@ -112,3 +125,10 @@ def test_the_filled_blocks_of_an_outage_leave_c_where_the_filter_would_have_pred
     # a mode whose model fills nothing is left alone
     np.testing.assert_array_equal(run.state[1], state[1])
     np.testing.assert_array_equal(run.P[1], P[1])
+
+
+def test_a_fill_that_errs_little_leaves_c_what_it_learned_one_that_errs_much_takes_it_back():
+    # P_s is 1.6e-5 Hz² here: a fill variance of 1e-6 Hz² keeps 94 % of the move, 1e-2 Hz² 0.16 %
+    kept = [_after_outage(v)[0].state[0, 0] for v in (1e-6, 1e-2)]
+    assert kept[0] == pytest.approx(0.076, abs=1e-3)
+    assert kept[1] == pytest.approx(PHI**3 * 0.02, abs=2e-4)

@@ -317,8 +317,9 @@ class MemoryRun:
         self.run = np.zeros(n_modes, dtype=np.int64)  # signed run of large innovations
         # the model correction c and its variance as they were before a stretch of blocks
         # whose model fills a missing predictor, carried on without the filled blocks'
-        # updates (:meth:`_outside_fill`); NaN: not in such a stretch
-        self.before_fill = np.full((n_modes, 2), np.nan)
+        # updates, and the sum and count of the filled blocks' model variance
+        # (:meth:`_outside_fill`); NaN: not in such a stretch
+        self.before_fill = np.full((n_modes, 4), np.nan)
         # how far the states were moved by updates made without the Huber weight (the
         # prior's noise levels) on innovations the weight would have held back
         # (:meth:`_return_test`) [Hz]
@@ -668,7 +669,7 @@ class MemoryRun:
         # the fill's error more likely than SSI's, so no Huber weight on the measurement
         filled = self._filled(k)
         huber = np.where(filled, np.inf, huber)
-        self._outside_fill(filled, have, F, q_c)
+        self._outside_fill(filled, have, F, q_c, model_variance)
         Q = q_c + q_e * scale[:, None]
         prior_state, prior_P = kalman_predict(self.state, self.P, F, Q)
         moved = self._return_test(F, prior_state, prior_P, residual, r_v * scale, model_variance)
@@ -745,41 +746,52 @@ class MemoryRun:
                 "rows in a long stretch without SSI estimates (predict-only)",
             )
 
-    def _outside_fill(self, filled: np.ndarray, have: np.ndarray, F, q_c) -> None:
-        """Keep the model correction c out of what the filled blocks of a log outage teach.
+    def _outside_fill(self, filled, have, F, q_c, model_variance) -> None:
+        """Keep the model correction c from taking the fill's error of a log outage.
 
         On a block whose model fills a missing predictor the innovation holds the fill's
         error, and that error persists over the outage (one stop or restart the log does
         not record spans several blocks), while the filter's model error δ is white: the
         persistent part of the innovations goes into c. When the log returns the fill's
         error leaves the model's prediction, but c keeps it and carries it past the
-        outage's edge (``benchmarks/results/forecast_outage_edges_27o.txt``). So c and
-        P_cc are saved before the first filled block of a mode and carried on by the
-        filter's own prediction (c = φc, P_cc = φ²P_cc + q_c) while the blocks are
-        filled; on the first block the model no longer fills, they replace what the
-        filled blocks' updates made of them (the cross-covariances with the
-        identification error's states set to 0). Inside the outage the estimate is the
-        filter's as before.
+        outage's edge (``benchmarks/results/forecast_outage_edges_27o.txt``). A persistent
+        offset d of the innovations over the filled blocks is c + f, with c's variance
+        P_s (c and P_cc saved before the first filled block and carried on by the
+        filter's prediction, c = φc, P_cc = φ²P_cc + q_c, no update) and f the fill's
+        error, of the filled blocks' mean model variance V; c's share of it is
+        w = P_s / (P_s + V). So on the first block the model no longer fills, c is
+        c_s + w (ĉ - c_s), with ĉ what the filled blocks' updates made of it, and
+        P_cc = (1 - w) P_s + w² P̂_cc (the cross-covariances with the identification
+        error's states 0): a fill that errs little (the ship held its speed) leaves c
+        what it learned, one that can err much (a stop in the outage) takes it back.
+        Inside the outage the estimate is the filter's as before.
         """
         before = getattr(self, "before_fill", None)
-        if before is None:  # a resumed monitor state saved before this was kept
-            before = self.before_fill = np.full((self.n_modes, 2), np.nan)
+        if before is None or before.shape[1] != 4:  # a state saved before this was kept
+            before = self.before_fill = np.full((self.n_modes, 4), np.nan)
         inside = np.isfinite(before[:, 0])
         back = inside & ~filled & have
         for j in np.flatnonzero(back):
-            self.state[j, 0] = before[j, 0]
+            c_s, P_s = before[j, 0], before[j, 1]
+            V = before[j, 2] / before[j, 3]
+            w = P_s / (P_s + V) if P_s + V > 0 else 0.0
+            c_hat, P_hat = self.state[j, 0], self.P[j, 0, 0]
+            self.state[j, 0] = c_s + w * (c_hat - c_s)
             self.P[j, 0, :] = 0.0
             self.P[j, :, 0] = 0.0
-            self.P[j, 0, 0] = before[j, 1]
+            self.P[j, 0, 0] = (1.0 - w) * P_s + w * w * P_hat
         before[~filled & have] = np.nan
         start = filled & ~inside
         before[start, 0] = self.state[start, 0]
         before[start, 1] = self.P[start, 0, 0]
+        before[start, 2:] = 0.0
         # c = φc ; P_cc = φ²P_cc + q_c (the prediction of the filled block, no update)
         on = filled & np.isfinite(before[:, 0])
         phi = F[on, 0, 0]
         before[on, 0] = phi * before[on, 0]
         before[on, 1] = phi**2 * before[on, 1] + q_c[on, 0]
+        before[on, 2] += model_variance[on]
+        before[on, 3] += 1.0
 
     def _return_test(self, F, prior_state, prior_P, residual, R, model_variance) -> np.ndarray:
         """Per mode: whether this block's measurement undoes a move of the state that was
@@ -818,13 +830,15 @@ class MemoryRun:
         """The unweighted move u (:meth:`_return_test`) after this block: plus the
         update where it was made without the Huber weight on an innovation beyond
         huber_sigma (not on filled blocks, whose moves of c :meth:`_outside_fill`
-        undoes); 0 after a return."""
+        weighs against the fill's error); 0 after a return, and 0 after a measurement within huber_sigma of the
+        moved state (it confirms the move: no longer in doubt)."""
         u = self.unweighted_move
         k_sigma = float(self.noise.huber_sigma)
         with np.errstate(invalid="ignore"):
             unweighted = ~np.isfinite(huber) & ~filled & ~moved & (np.abs(nu) > k_sigma)
+            confirmed = np.abs(nu) <= k_sigma
         u[unweighted] += self.state[unweighted] - prior_state[unweighted]
-        u[moved] = 0.0
+        u[moved | confirmed] = 0.0
 
     def _explained(self, k: int, have: np.ndarray) -> None:
         """Count forecast blocks and note when a mode's model stops explaining it."""
