@@ -318,6 +318,15 @@ class MemoryRun:
         self.explained = np.zeros(n_modes, dtype=bool)
         self.forecast_blocks = np.zeros(n_modes, dtype=np.int64)
         self.run = np.zeros(n_modes, dtype=np.int64)  # signed run of large innovations
+        # the model correction c and its variance as they were before a stretch of blocks
+        # whose model fills a missing predictor, carried on without the filled blocks'
+        # updates, and the sum and count of the filled blocks' model variance
+        # (:meth:`_outside_fill`); NaN: not in such a stretch
+        self.before_fill = np.full((n_modes, 4), np.nan)
+        # how far the states were moved by updates made without the Huber weight (the
+        # prior's noise levels) on innovations the weight would have held back
+        # (:meth:`_return_test`) [Hz]
+        self.unweighted_move = np.zeros((n_modes, self.states))
         # safeguard: model variance added where the filter's innovations are inconsistent
         self.consistency = InnovationConsistency(
             self.blocks.size,
@@ -711,9 +720,17 @@ class MemoryRun:
         # the fill's error more likely than SSI's, so no Huber weight on the measurement
         filled = self._filled(k)
         huber = np.where(filled, np.inf, huber)
+        self._outside_fill(filled, have, F, q_c, model_variance)
         Q = q_c + q_e * scale[:, None]
+        prior_state, prior_P = kalman_predict(self.state, self.P, F, Q)
+        moved = self._return_test(F, prior_state, prior_P, residual, r_v * scale, model_variance)
+        huber = np.where(moved, np.inf, huber)
+        # the move is in doubt: P = P + uu' (the gain along it toward the return about 1)
+        u = self.unweighted_move[moved]
+        prior_P[moved] += u[:, :, None] * u[:, None, :]
         self.state, self.P, delta, nu, innovation_variance, variance = kalman_update(
-            *kalman_predict(self.state, self.P, F, Q),
+            prior_state,
+            prior_P,
             residual,
             r_v * scale,
             huber,
@@ -721,6 +738,7 @@ class MemoryRun:
             previous_run=self.run,
             persist_blocks=self.persist_blocks,
         )
+        self._record_unweighted(prior_state, nu, huber, filled, moved)
         if not in_sample:  # out of sample: the model had not seen block k
             self.consistency.record(k, nu, innovation_variance, residual)
         self.run = update_run(self.run, nu, huber)
@@ -728,6 +746,7 @@ class MemoryRun:
         lost = have & ~_plausible(estimate, self.reference_hz)
         for j in np.flatnonzero(lost):
             self.state[j] = 0.0
+            self.unweighted_move[j] = 0.0
             self.P[j] = stationary_covariance(self.noise_of[j], self.states)
             estimate[j] = m_now[j]
             variance[j] = self.P[j, 0, 0] + model_variance[j]
@@ -777,6 +796,100 @@ class MemoryRun:
                 f"no SSI estimate for {self.gap[j]} blocks: predict-only",
                 "rows in a long stretch without SSI estimates (predict-only)",
             )
+
+    def _outside_fill(self, filled, have, F, q_c, model_variance) -> None:
+        """Keep the model correction c from taking the fill's error of a log outage.
+
+        On a block whose model fills a missing predictor the innovation holds the fill's
+        error, and that error persists over the outage (one stop or restart the log does
+        not record spans several blocks), while the filter's model error δ is white: the
+        persistent part of the innovations goes into c. When the log returns the fill's
+        error leaves the model's prediction, but c keeps it and carries it past the
+        outage's edge (``benchmarks/results/forecast_outage_edges_27o.txt``). A persistent
+        offset d of the innovations over the filled blocks is c + f, with c's variance
+        P_s (c and P_cc saved before the first filled block and carried on by the
+        filter's prediction, c = φc, P_cc = φ²P_cc + q_c, no update) and f the fill's
+        error, of the filled blocks' mean model variance V; c's share of it is
+        w = P_s / (P_s + V). So on the first block the model no longer fills, c is
+        c_s + w (ĉ - c_s), with ĉ what the filled blocks' updates made of it, and
+        P_cc = (1 - w) P_s + w² P̂_cc (the cross-covariances with the identification
+        error's states 0): a fill that errs little (the ship held its speed) leaves c
+        what it learned, one that can err much (a stop in the outage) takes it back.
+        Inside the outage the estimate is the filter's as before.
+        """
+        before = getattr(self, "before_fill", None)
+        if before is None or before.shape[1] != 4:  # a state saved before this was kept
+            before = self.before_fill = np.full((self.n_modes, 4), np.nan)
+        inside = np.isfinite(before[:, 0])
+        back = inside & ~filled & have
+        for j in np.flatnonzero(back):
+            c_s, P_s = before[j, 0], before[j, 1]
+            V = before[j, 2] / before[j, 3]
+            w = P_s / (P_s + V) if P_s + V > 0 else 0.0
+            c_hat, P_hat = self.state[j, 0], self.P[j, 0, 0]
+            self.state[j, 0] = c_s + w * (c_hat - c_s)
+            self.P[j, 0, :] = 0.0
+            self.P[j, :, 0] = 0.0
+            self.P[j, 0, 0] = (1.0 - w) * P_s + w * w * P_hat
+        before[~filled & have] = np.nan
+        start = filled & ~inside
+        before[start, 0] = self.state[start, 0]
+        before[start, 1] = self.P[start, 0, 0]
+        before[start, 2:] = 0.0
+        # c = φc ; P_cc = φ²P_cc + q_c (the prediction of the filled block, no update)
+        on = filled & np.isfinite(before[:, 0])
+        phi = F[on, 0, 0]
+        before[on, 0] = phi * before[on, 0]
+        before[on, 1] = phi**2 * before[on, 1] + q_c[on, 0]
+        before[on, 2] += model_variance[on]
+        before[on, 3] += 1.0
+
+    def _return_test(self, F, prior_state, prior_P, residual, R, model_variance) -> np.ndarray:
+        """Per mode: whether this block's measurement undoes a move of the state that was
+        made without the Huber weight (its update then gets none either).
+
+        While a mode's noise levels are the prior's the filter has no Huber weight
+        (:func:`~.noise.filter_matrices`): those blocks' innovations count in full, those
+        the weight would have held back too, and c can jump on a misread block (SSI's
+        pole of another column). Once the weight is on it holds back the measurement that
+        is right, because it is judged against the state that jump made: the jump needed
+        no test, the return cannot pass one. So the return is tested against the state
+        without the move u (carried on by F as the state is): a measurement the weight
+        would hold back (normalised innovation beyond huber_sigma, not in a run of them)
+        whose innovation about x - u is within huber_sigma is a return. It updates without
+        the weight, as the jump did, and with uu' added to P (the move is in doubt, as the
+        persistence rule raises P_cc for a run), so the filter can take the return as it
+        took the jump.
+        """
+        u = getattr(self, "unweighted_move", None)
+        if u is None:  # a resumed monitor state saved before this was kept
+            u = self.unweighted_move = np.zeros((self.n_modes, self.states))
+        u[:] = np.einsum("nij,nj->ni", F, u)  # u = Fu, as x = Fx
+        k_sigma = float(self.noise.huber_sigma)
+        y = residual - prior_state.sum(axis=1)  # y = z - Hx
+        S = prior_P.sum(axis=(1, 2)) + R + model_variance  # S = HPH' + R + s_m²
+        with np.errstate(invalid="ignore"):
+            bound = k_sigma * np.sqrt(S)
+            held = np.abs(y) > bound
+            # a run of large innovations of one sign is the persistence rule's
+            run = self.run
+            held &= ~((np.abs(run) >= self.persist_blocks - 1) & (np.sign(y) == np.sign(run)))
+            back = np.abs(y + u.sum(axis=1)) <= bound  # y about x - u
+        return held & back & (u != 0.0).any(axis=1) & np.isfinite(y)
+
+    def _record_unweighted(self, prior_state, nu, huber, filled, moved) -> None:
+        """The unweighted move u (:meth:`_return_test`) after this block: plus the
+        update where it was made without the Huber weight on an innovation beyond
+        huber_sigma (not on filled blocks, whose moves of c :meth:`_outside_fill`
+        weighs against the fill's error); 0 after a return, and 0 after a measurement within huber_sigma of the
+        moved state (it confirms the move: no longer in doubt)."""
+        u = self.unweighted_move
+        k_sigma = float(self.noise.huber_sigma)
+        with np.errstate(invalid="ignore"):
+            unweighted = ~np.isfinite(huber) & ~filled & ~moved & (np.abs(nu) > k_sigma)
+            confirmed = np.abs(nu) <= k_sigma
+        u[unweighted] += self.state[unweighted] - prior_state[unweighted]
+        u[moved | confirmed] = 0.0
 
     def _explained(self, k: int, have: np.ndarray) -> None:
         """Count forecast blocks and note when a mode's model stops explaining it."""
