@@ -659,10 +659,12 @@ class MemoryRun:
 
         The tracked pole was joined to the mode by the tracking, not by the prediction;
         the Kalman update's Huber weight and run test decide how far the estimate follows
-        it. Blocks without a tracked pole neither count nor end the run; a column found
-        near the prediction ends it."""
+        it. Blocks without a tracked pole, or without any pole in the pole table (a table
+        of part of the voyage: no evidence either way), neither count nor end the run; a
+        column found near the prediction ends it."""
         tracked = self.tracked[k, j]
-        if not np.isfinite(tracked):
+        part = self.index.block(k)
+        if not np.isfinite(tracked) or part.stop <= part.start:  # nothing to compare
             return
         side = 1 if tracked > prior_hz else -1
         if self.column_missed[j] * side < 0:  # the other side: a new run
