@@ -91,7 +91,9 @@ def _after_outage(fill_variance: float):
     q_c[:, 0] = Q_C
     state = np.array([[0.02, 0.001, 0.002, 0.003], [0.01, 0.0, 0.0, 0.0]])
     P = np.tile(np.eye(4) * 1e-5 + 1e-6, (2, 1, 1))
-    run = SimpleNamespace(n_modes=2, state=state.copy(), P=P.copy())
+    run = SimpleNamespace(
+        n_modes=2, state=state.copy(), P=P.copy(), before_fill=np.full((2, 4), np.nan)
+    )
     have = np.array([True, True])
     variance = np.array([fill_variance, 1e-6])
     for _ in range(3):

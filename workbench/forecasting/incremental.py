@@ -96,7 +96,9 @@ __all__ = [
 #: identification error as the overlap's segment states, the noise model's
 #: ``error_segments`` and the model-trust lead test (issue 27); /4: the SSI guard's
 #: windows (:mod:`workbench.forecasting.ssi_guard`); /5: the blocks' ``log_coverage``
-#: (the model variance at a log outage's edges).
+#: (the model variance at a log outage's edges), the model correction before a log
+#: outage's filled blocks and the state's unweighted move (issue 27), option B's run of
+#: missed columns.
 CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/5"
 
 #: Rows kept before the newest committed window beyond the refits' history. [blocks]

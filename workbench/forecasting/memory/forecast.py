@@ -819,9 +819,7 @@ class MemoryRun:
         what it learned, one that can err much (a stop in the outage) takes it back.
         Inside the outage the estimate is the filter's as before.
         """
-        before = getattr(self, "before_fill", None)
-        if before is None or before.shape[1] != 4:  # a state saved before this was kept
-            before = self.before_fill = np.full((self.n_modes, 4), np.nan)
+        before = self.before_fill
         inside = np.isfinite(before[:, 0])
         back = inside & ~filled & have
         for j in np.flatnonzero(back):
@@ -863,9 +861,7 @@ class MemoryRun:
         persistence rule raises P_cc for a run), so the filter can take the return as it
         took the jump.
         """
-        u = getattr(self, "unweighted_move", None)
-        if u is None:  # a resumed monitor state saved before this was kept
-            u = self.unweighted_move = np.zeros((self.n_modes, self.states))
+        u = self.unweighted_move
         u[:] = np.einsum("nij,nj->ni", F, u)  # u = Fu, as x = Fx
         k_sigma = float(self.noise.huber_sigma)
         y = residual - prior_state.sum(axis=1)  # y = z - Hx
@@ -883,8 +879,8 @@ class MemoryRun:
         """The unweighted move u (:meth:`_return_test`) after this block: plus the
         update where it was made without the Huber weight on an innovation beyond
         huber_sigma (not on filled blocks, whose moves of c :meth:`_outside_fill`
-        weighs against the fill's error); 0 after a return, and 0 after a measurement within huber_sigma of the
-        moved state (it confirms the move: no longer in doubt)."""
+        weighs against the fill's error); 0 after a return, and 0 after a measurement
+        within huber_sigma of the moved state (it confirms the move: no longer in doubt)."""
         u = self.unweighted_move
         k_sigma = float(self.noise.huber_sigma)
         with np.errstate(invalid="ignore"):
