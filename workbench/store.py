@@ -63,7 +63,7 @@ from data_contracts import atomic_path
 
 from .errors import WorkbenchError
 
-__all__ = ["BLOCKS_KIND", "UNREADABLE_COLUMN", "BlockStore", "block_ranges"]
+__all__ = ["BLOCKS_KIND", "UNREADABLE_COLUMN", "BlockStore", "StoreDamaged", "block_ranges"]
 
 #: The kind whose files mark blocks as done.
 BLOCKS_KIND = "blocks"
@@ -97,9 +97,14 @@ def _ns(times) -> np.ndarray:
     )
 
 
-def _corrupt(root: Path, what: str, error: BaseException) -> WorkbenchError:
+class StoreDamaged(WorkbenchError):
+    """A file of the store itself (its configuration, input index or manifest) cannot be
+    read: no block can be added or trusted until the store is repaired or replaced."""
+
+
+def _corrupt(root: Path, what: str, error: BaseException) -> StoreDamaged:
     detail = str(error).splitlines()[0] if str(error) else type(error).__name__
-    return WorkbenchError(
+    return StoreDamaged(
         f"{root}: {what} is unreadable ({detail}); the store is damaged: delete the folder "
         "(or use another --store) and run again"
     )

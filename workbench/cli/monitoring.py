@@ -452,6 +452,8 @@ def _run_monitor(args: argparse.Namespace) -> int:
             more = f" ({len(refused) - 1} more file(s) refused)" if len(refused) > 1 else ""
             raise WorkbenchError(f"{path}: cannot be monitored: {reason}{more}")
         raise WorkbenchError(f"{args.watch}: no complete acceleration file to monitor")
+    if args.once and monitor.store_damaged:  # files left unused: never a silent exit 0
+        raise WorkbenchError(monitor.store_damaged)
     if args.once and not monitor.stop_event.is_set():
         nothing = monitor.nothing_identified()
         if nothing:  # never a silent exit 0 with nothing done (identify says it too)

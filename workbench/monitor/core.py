@@ -32,7 +32,7 @@ from ..identification.engine import BlockTask
 from ..processes import interrupts_deferred, worker_initializer
 from ..sid.harmonics import HarmonicOptions
 from ..sid.tracking import TrackingOptions
-from ..store import BlockStore, StoreLock, block_ranges
+from ..store import BlockStore, StoreDamaged, StoreLock, block_ranges
 from .adaptive import LEFT_OUT, AdaptiveLengths
 from .conditioning import block_conditioner, forget_conditioned
 from .data_health import DATA_HEALTH_COLUMNS, data_health_frame, data_health_row
@@ -200,6 +200,8 @@ class Monitor:
         if self.state.exists() and not self.state.is_dir():
             raise WorkbenchError(f"{self.state}: state folder is a file")
         self.state.mkdir(parents=True, exist_ok=True)
+        #: Why the store refused a file because it is itself unreadable ("" while whole).
+        self.store_damaged = ""
         self.store_path = self.state / "store"
         self.store_path.mkdir(exist_ok=True)
         # one monitor per state folder: the store's lock, held for the monitor's life
@@ -499,6 +501,8 @@ class Monitor:
         if not reason and self.store is not None:
             try:
                 self.store.check_inputs(input_fingerprints([info]))
+            except StoreDamaged as error:  # no file can be used: said by --once, exit 1
+                reason = self.store_damaged = str(error)
             except WorkbenchError as error:
                 reason = str(error)
         if reason:
