@@ -18,27 +18,12 @@ far worse than SSI before:
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from workbench.forecasting import ForecastOptions, sliding_forecast
-
-_PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "forecast_regimes.py"
-
-
-@pytest.fixture(scope="module")
-def regimes():
-    spec = importlib.util.spec_from_file_location("forecast_regimes_fallback", _PATH)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclass looks its module up
-    spec.loader.exec_module(module)
-    yield module
-    sys.modules.pop(spec.name, None)
 
 
 def _errors(table, data):

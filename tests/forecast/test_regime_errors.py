@@ -8,24 +8,8 @@ n = 40 000 values has a standard deviation below sqrt((1 + 2 Σ r_h²) / n) < 0.
 processes (Bartlett's formula), so 0.04 is more than three of them.
 """
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
-
-_PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "forecast_regimes.py"
-
-
-@pytest.fixture(scope="module")
-def regimes():
-    spec = importlib.util.spec_from_file_location("forecast_regimes_under_test", _PATH)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclass looks its module up
-    spec.loader.exec_module(module)
-    yield module
-    sys.modules.pop(spec.name, None)
 
 
 def _autocorrelation(x: np.ndarray, lags: int) -> np.ndarray:

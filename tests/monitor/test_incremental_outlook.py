@@ -178,18 +178,39 @@ def test_settings_carried_or_batch():
         IncrementalOutlook(ForecastSettings(forecast=ForecastOptions(scheme=1)), STEP_S)
 
 
-def test_update_outlook_takes_up_the_saved_state_after_a_restart(
-    voyage, batch, tmp_path, monkeypatch
-):
-    """``update_outlook`` (the monitor's worker) over a state folder, stopped and started
-    again: the second process takes up ``<state>/outlook/`` and the forecast equals the
-    batch ``workbench forecast`` of the whole tracked table."""
+def _worker_restarted(voyage, batch, state, monkeypatch, before_restart=None):
+    """``update_outlook`` (the monitor's worker) over *state* with the tracked table up to
+    block 12, then, as a new worker process (after *before_restart* of *state*, if given),
+    with the whole table; the second update's report."""
     from data_contracts import write_table
     from workbench.blocks import BlockGrid
     from workbench.monitor import outlook as worker
     from workbench.monitor.outlook import update_outlook
 
     monkeypatch.setattr(worker, "FINAL_AFTER_S", 0.0)  # a 1.5-h log: commit what it covers
+    tracked = MODAL.validate(batch["tracked"])
+    first = tracked[tracked["block"] == tracked["block"].min()].iloc[0]
+    length = (first["block_end"] - first["block_start"]).total_seconds()
+    grid = BlockGrid(first["block_start"], length, 300.0)
+    settings = ForecastSettings(forecast=ForecastOptions(train_blocks=6))
+    state.mkdir()
+    for last in (12, int(tracked["block"].max())):  # a restart between the two
+        worker._OUTLOOKS.clear()  # a new worker process
+        worker._WRITERS.clear()
+        if last > 12 and before_restart is not None:
+            before_restart(state)
+        write_table(tracked[tracked["block"] <= last], state / "tracked.parquet", MODAL)
+        report = update_outlook(state, voyage / "dship.tsv", settings, grid)
+        assert report.written and report.forecast_rows > 0
+    return report
+
+
+def test_update_outlook_takes_up_the_saved_state_after_a_restart(
+    voyage, batch, tmp_path, monkeypatch
+):
+    """``update_outlook`` (the monitor's worker) over a state folder, stopped and started
+    again: the second process takes up ``<state>/outlook/`` and the forecast equals the
+    batch ``workbench forecast`` of the whole tracked table."""
     loads = []
     real_load = IncrementalOutlook.load.__func__
 
@@ -199,19 +220,8 @@ def test_update_outlook_takes_up_the_saved_state_after_a_restart(
         return outlook
 
     monkeypatch.setattr(IncrementalOutlook, "load", classmethod(counted))
-    tracked = MODAL.validate(batch["tracked"])
-    first = tracked[tracked["block"] == tracked["block"].min()].iloc[0]
-    length = (first["block_end"] - first["block_start"]).total_seconds()
-    grid = BlockGrid(first["block_start"], length, 300.0)
-    settings = ForecastSettings(forecast=ForecastOptions(train_blocks=6))
     state = tmp_path / "state"
-    state.mkdir()
-    for last in (12, int(tracked["block"].max())):  # a restart between the two
-        worker._OUTLOOKS.clear()  # a new worker process
-        worker._WRITERS.clear()
-        write_table(tracked[tracked["block"] <= last], state / "tracked.parquet", MODAL)
-        report = update_outlook(state, voyage / "dship.tsv", settings, grid)
-        assert report.written and report.forecast_rows > 0
+    _worker_restarted(voyage, batch, state, monkeypatch)
     # the saved state taken up: the forecast resumed from its newest committed window
     assert len(loads) == 1 and loads[0] is not None and loads[0] > 6
     forecast = pd.read_parquet(state / "forecast.parquet")
@@ -329,32 +339,17 @@ def test_update_outlook_computes_again_over_a_checkpoint_of_an_older_layout(
     equal to the batch forecast."""
     import json
 
-    from data_contracts import write_table
-    from workbench.blocks import BlockGrid
     from workbench.forecasting.incremental import CHECKPOINT_SCHEMA
-    from workbench.monitor import outlook as worker
-    from workbench.monitor.outlook import update_outlook
 
-    monkeypatch.setattr(worker, "FINAL_AFTER_S", 0.0)
-    tracked = MODAL.validate(batch["tracked"])
-    first = tracked[tracked["block"] == tracked["block"].min()].iloc[0]
-    length = (first["block_end"] - first["block_start"]).total_seconds()
-    grid = BlockGrid(first["block_start"], length, 300.0)
-    settings = ForecastSettings(forecast=ForecastOptions(train_blocks=6))
-    state = tmp_path / "state"
-    state.mkdir()
-    for last in (12, int(tracked["block"].max())):
-        worker._OUTLOOKS.clear()  # a new worker process
-        worker._WRITERS.clear()
+    def older_layout(state):  # the state as a monitor of the previous layout left it
         saved = state / "outlook" / "outlook.json"
-        if saved.is_file():  # the state as a monitor of the previous layout left it
-            document = json.loads(saved.read_text())
-            assert document["schema"] == CHECKPOINT_SCHEMA
-            document["schema"] = "workbench.forecasting.incremental/4"
-            saved.write_text(json.dumps(document))
-        write_table(tracked[tracked["block"] <= last], state / "tracked.parquet", MODAL)
-        report = update_outlook(state, voyage / "dship.tsv", settings, grid)
-        assert report.written and report.forecast_rows > 0
+        document = json.loads(saved.read_text())
+        assert document["schema"] == CHECKPOINT_SCHEMA
+        document["schema"] = "workbench.forecasting.incremental/4"
+        saved.write_text(json.dumps(document))
+
+    state = tmp_path / "state"
+    report = _worker_restarted(voyage, batch, state, monkeypatch, older_layout)
     assert any(
         "incremental/4" in m and "computed again from the first block" in m for m in report.messages
     ), report.messages
