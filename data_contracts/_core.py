@@ -188,7 +188,12 @@ def _coerce(series: pd.Series, kind: Kind) -> tuple[pd.Series, np.ndarray]:
         elif pd.api.types.is_datetime64_dtype(series.dtype):
             out = series.dt.tz_localize("UTC")
         else:
+            from .dship_names import complete_times
+
             out = pd.to_datetime(series, utc=True, errors="coerce", format="ISO8601")
+            text = series.map(lambda value: isinstance(value, str)).to_numpy(bool)
+            whole = complete_times(series.where(text, "2000-01-01"), "ISO8601")
+            out = out.where(whole)  # T00:1 would read as 00:01
         out = out.astype("datetime64[ns, UTC]")
     elif kind == "str":
         out = series.astype("string")

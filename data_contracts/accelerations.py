@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from ._core import ContractError, Violation, atomic_path
+from .dship_names import cut_iso_time
 from .limits import check_channel_count, check_declared_size
 
 __all__ = [
@@ -217,7 +218,7 @@ def _start_time(value) -> pd.Timestamp | None:
         return None
     if isinstance(value, (str, np.str_, bytes)):
         text = value.decode(errors="replace") if isinstance(value, bytes) else str(value)
-        if not _ISO_DATE.match(text):
+        if not _ISO_DATE.match(text) or cut_iso_time(text):
             return None
         value = text
     try:

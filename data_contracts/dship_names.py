@@ -26,6 +26,8 @@ __all__ = [
     "SHAFT_COLUMNS",
     "TIME_FORMATS",
     "bad_time_values",
+    "complete_times",
+    "cut_iso_time",
     "parse_column_mapping",
     "parse_log_times",
     "parse_times",
@@ -144,6 +146,8 @@ SLASH_FORMATS = tuple(
     (f"%d/%m/%Y{clock}", f"%m/%d/%Y{clock}") for clock in (" %H:%M:%S.%f", " %H:%M:%S", " %H:%M")
 )
 
+_RECOGNISED = frozenset([*TIME_FORMATS, *(f for pair in SLASH_FORMATS for f in pair)])
+
 #: MATLAB ``datestr``/``datetime`` format symbols and their ``strptime`` equivalents,
 #: longest first (``mm`` is the month, ``MM`` the minutes, as in MATLAB).
 _MATLAB_SYMBOLS = (
@@ -160,6 +164,71 @@ _MATLAB_SYMBOLS = (
     ("PM", "%p"),
     ("AM", "%p"),
 )
+
+
+#: A complete ISO-8601 time: a date (``yyyy-mm-dd`` or ``yyyymmdd``) alone or with a time
+#: of at least hours and minutes (``T`` or a space), seconds and their fraction optional,
+#: then ``Z`` or an offset (``+hh``, ``+hhmm``, ``+hh:mm``). Every field has all its
+#: digits: pandas reads ``T00:1`` as 00:01 and ``2026-03`` as the first of March.
+ISO_TIME = re.compile(
+    r"[+-]?\d{4}-\d{2}-\d{2}(?:[T ]\d{2}:\d{2}(?::\d{2}(?:[.,]\d+)?)?"
+    r"(?:\s?(?:Z|[+-]\d{2}(?::?\d{2})?))?)?"
+    r"|[+-]?\d{8}(?:T\d{4}(?:\d{2}(?:[.,]\d+)?)?(?:Z|[+-]\d{2}(?:\d{2})?)?)?"
+)
+
+#: The text each ``strptime`` directive of the recognised formats must match in full
+#: (``strptime`` itself takes ``%M`` from one digit: ``00:5:00`` is read as 00:05).
+_DIRECTIVE_TEXT = {
+    "Y": r"\d{4}",
+    "y": r"\d{2}",
+    "m": r"\d{2}",
+    "d": r"\d{2}",
+    "H": r"\d{2}",
+    "M": r"\d{2}",
+    "S": r"\d{2}",
+    "f": r"\d+",
+    "b": r"[^\W\d_]{3}",
+}
+
+
+def _format_text(fmt: str) -> re.Pattern:
+    """What a whole time text of the ``strptime`` format *fmt* (one of the recognised
+    formats, whose directives are those of :data:`_DIRECTIVE_TEXT`) looks like."""
+    parts = re.split(r"(%.|\s+)", fmt)
+    pattern = "".join(
+        _DIRECTIVE_TEXT[part[1]]
+        if part.startswith("%")
+        else r"\s+"
+        if part.isspace()
+        else re.escape(part)
+        for part in parts
+        if part
+    )
+    return re.compile(pattern)
+
+
+def complete_times(text: pd.Series, fmt: str) -> np.ndarray:
+    """Where *text* (stripped) is a whole time of *fmt*: ``ISO8601`` (:data:`ISO_TIME`)
+    or one of the recognised formats (:data:`TIME_FORMATS`, :data:`SLASH_FORMATS`), each
+    field with all its digits. Other formats (a user's own) are taken as ``strptime``
+    reads them: True everywhere."""
+    if fmt == "ISO8601":
+        pattern = ISO_TIME
+    elif fmt in _RECOGNISED:
+        pattern = _format_text(fmt)
+    else:
+        return np.ones(len(text), dtype=bool)
+    return text.astype(str).str.strip().str.fullmatch(pattern).fillna(False).to_numpy(bool)
+
+
+def cut_iso_time(value) -> bool:
+    """Whether *value* is text that begins as an ISO-8601 date (``yyyy-m``) but is no
+    complete ISO-8601 time (:data:`ISO_TIME`): a start time or grid origin that
+    :class:`pandas.Timestamp` would read as another time (``2026-03-01T00:1`` as 00:01)."""
+    if not isinstance(value, str):
+        return False
+    text = value.strip()
+    return bool(re.match(r"[+-]?\d{4}-\d", text)) and not ISO_TIME.fullmatch(text)
 
 
 def strptime_format(time_format: str) -> str:
@@ -207,12 +276,14 @@ def parse_times(
     :data:`TIME_FORMATS` are tried, then the slash dates of :data:`SLASH_FORMATS` when
     exactly one reading of the pair fits every value; the format that parses most cells
     wins. *utc*: times without an offset are UTC (else they stay naive). Unparseable
-    cells are NaT.
+    cells are NaT, and so are those of ISO-8601 or a recognised format missing a digit of
+    a field (:func:`complete_times`).
     """
     text = text.astype(str).str.strip()
 
     def parse(fmt: str) -> pd.Series:
-        return pd.to_datetime(text, utc=utc, errors="coerce", format=fmt)
+        times = pd.to_datetime(text, utc=utc, errors="coerce", format=fmt)
+        return times.where(complete_times(text, fmt))
 
     if time_format is not None:
         fmt = strptime_format(time_format)

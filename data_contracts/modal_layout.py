@@ -42,7 +42,14 @@ import pandas as pd
 
 from ._core import ContractError, Violation
 from .csv_layout import read_delimited, split_unit
-from .dship_names import bad_time_values, name_key, parse_times, strptime_format, time_format_hint
+from .dship_names import (
+    bad_time_values,
+    cut_iso_time,
+    name_key,
+    parse_times,
+    strptime_format,
+    time_format_hint,
+)
 from .formats import describe
 from .grid import GRID_ATTR, attach_grid, read_grid, set_grid
 from .tables import MODAL
@@ -522,6 +529,8 @@ def _file_rows(long: pd.DataFrame, mask: np.ndarray) -> list[int]:
 
 
 def _utc(value, name: str) -> pd.Timestamp:
+    if cut_iso_time(value):
+        raise ValueError(f"{name}={value!r} is not a complete ISO-8601 time")
     try:
         stamp = pd.Timestamp(value)
     except (TypeError, ValueError):

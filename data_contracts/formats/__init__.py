@@ -234,6 +234,10 @@ class AccelerationLayout:
 
             strptime_format(self.time_format)  # ValueError naming time_format
         if self.start_time is not None and self.start_time != "filename":
+            from ..dship_names import cut_iso_time
+
+            if cut_iso_time(self.start_time):
+                raise ValueError(f"start_time={self.start_time!r} is not a complete ISO-8601 time")
             try:
                 stamp = pd.Timestamp(self.start_time)
                 if pd.isna(stamp):
@@ -258,7 +262,9 @@ class AccelerationLayout:
         object.__setattr__(self, "variables", dict(self.variables))
         starts = {str(k): str(v) for k, v in dict(self.file_starts).items()}
         for name, value in starts.items():
-            if pd.isna(pd.Timestamp(value)):
+            from ..dship_names import cut_iso_time
+
+            if cut_iso_time(value) or pd.isna(pd.Timestamp(value)):
                 raise ValueError(f"file_starts[{name!r}]={value!r} is not a time")
         object.__setattr__(self, "file_starts", starts)
 

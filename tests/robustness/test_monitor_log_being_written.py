@@ -16,8 +16,9 @@ with a 1-s ship log and a training window of 5 blocks, as in
 from __future__ import annotations
 
 import pandas as pd
+import pytest
 
-from data_contracts import read_dship
+from data_contracts import ContractError, read_dship
 from workbench.cli import main
 
 from .test_monitor_damaged_state import MONITOR_ARGS, _log
@@ -61,10 +62,14 @@ def test_the_line_being_written_is_left_out_until_it_is_whole(tmp_path, capsys):
     out = capsys.readouterr().out
     assert not [line for line in out.splitlines() if line.startswith(f"note: forecast: {log}")]
     assert len(pd.read_parquet(tmp_path / "state" / "forecast.parquet")) > 0
-    for cut in ("2026-03-01T01", "2026-03-01T00:13:00\t9.5\t2.0\t-1"):
+    for cut in ("2026-03-01T01", "2026-03-01T00:13", "2026-03-01T00:13:00\t9.5\t2.0\t-1"):
         path = tmp_path / "cut.tsv"
         path.write_text(log.read_text(encoding="utf-8")[: -len("2026-03-01T0")] + cut)
-        whole = read_dship(path)
-        assert whole["time"].max() > pd.Timestamp("2026-03-01T00:12:59Z")
+        if cut == "2026-03-01T01":  # no minutes: refused (test_time_digits)
+            with pytest.raises(ContractError, match="'2026-03-01T01'"):
+                read_dship(path)
+        else:
+            whole = read_dship(path)
+            assert whole["time"].max() > pd.Timestamp("2026-03-01T00:12:59Z")
         kept = read_dship(path, complete_lines=True)
         assert kept["time"].max() == pd.Timestamp("2026-03-01T00:12:59Z")

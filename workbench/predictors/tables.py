@@ -22,6 +22,7 @@ from data_contracts import (
     read_table,
     set_grid,
 )
+from data_contracts.dship_names import complete_times
 
 from ..blocks import BlockGrid, block_grid_of
 
@@ -175,7 +176,7 @@ def read_excitation(excitation: str | os.PathLike | pd.DataFrame) -> pd.DataFram
         raise fail(None, f"excitation table lacks column(s) {', '.join(missing)}")
     for column in ("start", "end"):
         times = pd.to_datetime(table[column], utc=True, errors="coerce", format="ISO8601")
-        bad = times.isna().to_numpy()
+        bad = times.isna().to_numpy() | ~complete_times(table[column], "ISO8601")
         if bad.any():
             values = ", ".join(repr(str(v)) for v in table.loc[bad, column].unique()[:3])
             rows = [f"row {r}" for r in np.flatnonzero(bad)[:5]]
