@@ -63,7 +63,14 @@ from data_contracts import atomic_path
 
 from .errors import WorkbenchError
 
-__all__ = ["BLOCKS_KIND", "UNREADABLE_COLUMN", "BlockStore", "StoreDamaged", "block_ranges"]
+__all__ = [
+    "BLOCKS_KIND",
+    "UNREADABLE_COLUMN",
+    "BlockStore",
+    "StoreDamaged",
+    "block_ranges",
+    "unreadable_store_file",
+]
 
 #: The kind whose files mark blocks as done.
 BLOCKS_KIND = "blocks"
@@ -102,12 +109,32 @@ class StoreDamaged(WorkbenchError):
     read: no block can be added or trusted until the store is repaired or replaced."""
 
 
-def _corrupt(root: Path, what: str, error: BaseException) -> StoreDamaged:
+#: How to go on from an unreadable file of the store, keeping the blocks computed: its
+#: parameters and its input index are recorded anew from the run once moved aside (the
+#: run must be the one that computed the blocks: the store cannot tell any more); a batch
+#: file moved aside is missing, so only its blocks are computed again.
+_RECOVERY = {
+    _CONFIG: "and run again with the options that computed the blocks (the store "
+    "records this run's)",
+    _INPUTS: "and run again on the input files the blocks were computed from (they are "
+    "fingerprinted anew)",
+}
+
+
+def unreadable_store_file(root: Path, what: str, error: BaseException) -> StoreDamaged:
+    """The error of the unreadable store file *what* (relative to *root*), naming the
+    recovery that keeps the computed blocks."""
     detail = str(error).splitlines()[0] if str(error) else type(error).__name__
-    return StoreDamaged(
-        f"{root}: {what} is unreadable ({detail}); the store is damaged: delete the folder "
-        "(or use another --store) and run again"
-    )
+    path = root / what
+    if what == _MANIFEST:  # moved aside, every batch file would be unlisted: removed
+        recovery = "make it readable and run again (the blocks it lists are kept)"
+    else:
+        done = _RECOVERY.get(what, "and run again: only its blocks are computed again")
+        recovery = (
+            f"to keep the computed blocks, move it aside (mv {path} {path}.damaged) {done}; "
+            "else use another --store"
+        )
+    return StoreDamaged(f"{root}: {what} is unreadable ({detail}); {recovery}")
 
 
 def block_ranges(blocks: Iterable[int]) -> str:
@@ -306,13 +333,14 @@ class BlockStore:
     def _open_locked(cls, root: Path, parameters: Mapping[str, object], lock) -> BlockStore:
         config_path = root / _CONFIG
         wanted = json.loads(json.dumps(dict(parameters), sort_keys=True, default=str))
-        if config_path.is_file():
+        had_config = config_path.is_file()
+        if had_config:
             try:
                 found = json.loads(config_path.read_text(encoding="utf-8"))
                 if not isinstance(found, dict):
                     raise ValueError("not a JSON object")
             except (OSError, ValueError) as error:
-                raise _corrupt(root, _CONFIG, error) from None
+                raise unreadable_store_file(root, _CONFIG, error) from None
             if found != wanted:
                 changed = sorted(
                     k for k in set(found) | set(wanted) if found.get(k) != wanted.get(k)
@@ -321,12 +349,50 @@ class BlockStore:
                     f"{root}: store was made with other parameters ({', '.join(changed)}); "
                     "use another --store directory or delete this one"
                 )
-        else:
-            with atomic_path(config_path) as tmp:
-                tmp.write_text(json.dumps(wanted, indent=2, sort_keys=True), encoding="utf-8")
         store = cls(root, lock)
         store._check_files()
+        if store._manifest:
+            store._note_lost_index(had_config, wanted)
+        if not had_config:
+            with atomic_path(config_path) as tmp:
+                tmp.write_text(json.dumps(wanted, indent=2, sort_keys=True), encoding="utf-8")
         return store
+
+    def _note_lost_index(self, had_config: bool, wanted: Mapping[str, object]) -> None:
+        """Say so when blocks are stored but the parameters or the input index that
+        vouched for them are absent (the index: moved aside as :func:`unreadable_store_file`
+        tells; a store used without inputs has none): what the store takes on trust from
+        this run. Blocks off this run's grid are refused."""
+        blocks = self.completed_blocks()
+        if not had_config:
+            stored = self.read(BLOCKS_KIND)
+            if "grid_t0" in wanted and "step_s" in wanted and "adaptive" not in wanted:
+                expected = pd.Timestamp(str(wanted["grid_t0"])) + pd.to_timedelta(
+                    stored["block"].astype(int) * float(wanted["step_s"]), unit="s"
+                )
+                off = stored["block"][
+                    pd.to_datetime(stored["block_start"], utc=True).to_numpy()
+                    != expected.to_numpy()
+                ]
+                if len(off):
+                    raise WorkbenchError(
+                        f"{self.root}: stored block(s) {block_ranges(off)} are not on this "
+                        f"run's grid (t0 {wanted['grid_t0']}, a block every "
+                        f"{float(wanted['step_s']):g} s): they were computed with other "
+                        "options; use another --store"
+                    )
+            self.notices.append(
+                f"{self.root}: {_CONFIG} was absent: the {len(blocks)} stored block(s) "
+                f"{block_ranges(blocks)} are taken as computed with this run's parameters "
+                "(recorded now)"
+            )
+        inputs = self.root / _INPUTS
+        if not inputs.is_file() and inputs.with_name(f"{_INPUTS}.damaged").is_file():
+            self.notices.append(
+                f"{self.root}: {_INPUTS} was absent: the input files of the {len(blocks)} "
+                f"stored block(s) {block_ranges(blocks)} are recorded as they are now, "
+                "unchecked against those the blocks were computed from"
+            )
 
     # ------------------------------------------------------------------ inputs
     def check_inputs(self, fingerprints: Iterable[Mapping[str, object]]) -> None:
@@ -352,7 +418,7 @@ class BlockStore:
                 lows = _ns([r["start"] for r in recorded])
                 highs = _ns([r["end"] for r in recorded])
             except (OSError, ValueError, KeyError, TypeError) as error:
-                raise _corrupt(self.root, _INPUTS, error) from None
+                raise unreadable_store_file(self.root, _INPUTS, error) from None
         else:
             known, lows, highs = set(), np.empty(0, np.int64), np.empty(0, np.int64)
         new = []
@@ -388,7 +454,7 @@ class BlockStore:
             for r in recorded:
                 str(r["sha256"]), str(r["path"]), str(r["start"]), str(r["end"])
         except (OSError, ValueError, KeyError, TypeError) as error:
-            raise _corrupt(self.root, _INPUTS, error) from None
+            raise unreadable_store_file(self.root, _INPUTS, error) from None
         return recorded
 
     def removed_inputs(self, fingerprints: Iterable[Mapping[str, object]]) -> list[dict]:
@@ -436,7 +502,7 @@ class BlockStore:
                 str(p) for p in json.loads(path.read_text(encoding="utf-8")).get("unreadable", [])
             ]
         except (OSError, ValueError, TypeError, AttributeError) as error:
-            raise _corrupt(self.root, _INPUTS, error) from None
+            raise unreadable_store_file(self.root, _INPUTS, error) from None
 
     def set_unreadable_files(self, paths: Iterable[str]) -> None:
         """Record the input files this run leaves out as unreadable (resolved paths), so a
@@ -470,7 +536,7 @@ class BlockStore:
         try:
             text = path.read_bytes().decode("utf-8", errors="replace")
         except OSError as error:
-            raise _corrupt(self.root, _MANIFEST, error) from None
+            raise unreadable_store_file(self.root, _MANIFEST, error) from None
         dirty = bool(text) and not text.endswith("\n")
         for line in text.splitlines():
             try:
@@ -617,7 +683,9 @@ class BlockStore:
         try:
             return pd.read_parquet(path, **kwargs)
         except (OSError, ValueError) as error:
-            raise _corrupt(self.root, str(path.relative_to(self.root)), error) from None
+            raise unreadable_store_file(
+                self.root, str(path.relative_to(self.root)), error
+            ) from None
 
     def _owners(self) -> dict[int, str]:
         """The batch each block's results are read from: the first batch (by name) whose
@@ -688,7 +756,9 @@ class BlockStore:
                     for part in path.stem.split("-")[:2]
                 )
             except ValueError as error:
-                raise _corrupt(self.root, str(path.relative_to(self.root)), error) from None
+                raise unreadable_store_file(
+                    self.root, str(path.relative_to(self.root)), error
+                ) from None
             ranges.append((low, high, path))
         if not ranges:
             return

@@ -199,8 +199,8 @@ CASES = {
         "a_file",
     ),
     "store is a file": ([*IDENT, "--store", "{root}/a_file"], 1, "store is a file"),
-    "store.json corrupt": ([*IDENT, "--store", "{root}/store_corrupt"], 1, "delete the folder"),
-    "store.json empty": ([*IDENT, "--store", "{root}/store_empty"], 1, "delete the folder"),
+    "store.json corrupt": ([*IDENT, "--store", "{root}/store_corrupt"], 1, "move it aside"),
+    "store.json empty": ([*IDENT, "--store", "{root}/store_empty"], 1, "move it aside"),
     "stored batch damaged": (  # found by its checksum, its blocks computed again
         ["identify", "{root}/voyage", "--out", "{root}/damaged", *IDENTIFY_ARGS],
         0,

@@ -32,7 +32,7 @@ from ..identification.engine import BlockTask
 from ..processes import interrupts_deferred, worker_initializer
 from ..sid.harmonics import HarmonicOptions
 from ..sid.tracking import TrackingOptions
-from ..store import BlockStore, StoreDamaged, StoreLock, block_ranges
+from ..store import BlockStore, StoreDamaged, StoreLock, block_ranges, unreadable_store_file
 from .adaptive import LEFT_OUT, AdaptiveLengths
 from .conditioning import block_conditioner, forget_conditioned
 from .data_health import DATA_HEALTH_COLUMNS, data_health_frame, data_health_row
@@ -460,7 +460,8 @@ class Monitor:
             found = json.loads(config.read_text(encoding="utf-8"))
             return pd.Timestamp(found["grid_t0"]), tuple(found["channels"])
         except (OSError, ValueError, KeyError, TypeError) as error:
-            raise WorkbenchError(f"{config}: unreadable ({error}); use another --state") from None
+            damaged = unreadable_store_file(self.store_path, "store.json", error)
+            raise WorkbenchError(_state_folder(str(damaged))) from None
 
     def _take(self, item: LandedFile) -> None:
         """Add a complete file to the voyage, or refuse it with a message."""
@@ -502,7 +503,7 @@ class Monitor:
             try:
                 self.store.check_inputs(input_fingerprints([info]))
             except StoreDamaged as error:  # no file can be used: said by --once, exit 1
-                reason = self.store_damaged = str(error)
+                reason = self.store_damaged = _state_folder(str(error))
             except WorkbenchError as error:
                 reason = str(error)
         if reason:
@@ -611,10 +612,9 @@ class Monitor:
         try:
             self.store = BlockStore.open(self.store_path, parameters)
         except WorkbenchError as error:  # the monitor's store is its state folder's
-            told = "use another --store directory or delete this one"
-            if told not in str(error):
+            message = _state_folder(str(error))
+            if message == str(error):
                 raise
-            message = str(error).replace(told, "use another --state folder (or delete its store)")
             raise WorkbenchError(message) from None
         for notice in self.store.notices:  # damaged store files: their blocks are redone
             self.messages.append(notice)
@@ -1414,6 +1414,13 @@ class Monitor:
 #: restart (from the store) and those its outlook writes (from the outlook's state).
 _STORE_TABLES = ("tracked.parquet", "data_health.parquet")
 _OUTLOOK_TABLES = ("forecast.parquet", "health.parquet")
+
+
+def _state_folder(message: str) -> str:
+    """A store's *message* as the monitor's: its store is its state folder's."""
+    told = "use another --store directory or delete this one"
+    message = message.replace(told, "use another --state folder (or delete its store)")
+    return message.replace("use another --store", "use another --state folder")
 
 
 def _remove_unreadable_parts(state: Path) -> list[str]:
