@@ -49,6 +49,7 @@ import hashlib
 import io
 import json
 import os
+import shlex
 import socket
 import time
 import uuid
@@ -69,6 +70,7 @@ __all__ = [
     "BlockStore",
     "StoreDamaged",
     "block_ranges",
+    "move_aside",
     "unreadable_store_file",
 ]
 
@@ -121,6 +123,11 @@ _RECOVERY = {
 }
 
 
+def move_aside(path: Path) -> str:
+    """The shell command that moves the damaged file *path* aside (to ``.damaged``)."""
+    return f"mv {shlex.quote(str(path))} {shlex.quote(f'{path}.damaged')}"
+
+
 def unreadable_store_file(root: Path, what: str, error: BaseException) -> StoreDamaged:
     """The error of the unreadable store file *what* (relative to *root*), naming the
     recovery that keeps the computed blocks."""
@@ -131,7 +138,7 @@ def unreadable_store_file(root: Path, what: str, error: BaseException) -> StoreD
     else:
         done = _RECOVERY.get(what, "and run again: only its blocks are computed again")
         recovery = (
-            f"to keep the computed blocks, move it aside (mv {path} {path}.damaged) {done}; "
+            f"to keep the computed blocks, move it aside ({move_aside(path)}) {done}; "
             "else use another --store"
         )
     return StoreDamaged(f"{root}: {what} is unreadable ({detail}); {recovery}")
