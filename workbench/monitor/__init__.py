@@ -188,6 +188,9 @@ from the state saved in ``outlook/`` (computed again from the first block when i
 missing, unreadable or of other settings). A part of the tracked, data-health, forecast or
 health table that cannot be read (cut short by a power cut or a full disk) is removed with a
 note and the table written again: from the store, or the forecast from the first block.
+An unreadable ``labels.json`` is written again when the replay gives the modes of the
+tracked table the earlier run wrote (else refused, naming the recovery), an unreadable
+``state_format.json`` when the folder's tables are parted tables of this format.
 """
 
 from .core import DATA_HEALTH_COLUMNS, Monitor, MonitorOptions

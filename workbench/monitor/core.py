@@ -32,7 +32,14 @@ from ..identification.engine import BlockTask
 from ..processes import interrupts_deferred, worker_initializer
 from ..sid.harmonics import HarmonicOptions
 from ..sid.tracking import TrackingOptions
-from ..store import BlockStore, StoreDamaged, StoreLock, block_ranges, unreadable_store_file
+from ..store import (
+    BlockStore,
+    StoreDamaged,
+    StoreLock,
+    block_ranges,
+    move_aside,
+    unreadable_store_file,
+)
 from .adaptive import LEFT_OUT, AdaptiveLengths
 from .conditioning import block_conditioner, forget_conditioned
 from .data_health import DATA_HEALTH_COLUMNS, data_health_frame, data_health_row
@@ -48,7 +55,7 @@ from .outlook import (
 from .readiness import settled
 from .shore import AlarmHook
 from .state_format import check_state_format
-from .tracking import IncrementalTracking
+from .tracking import IncrementalTracking, LabelsUnreadable
 from .watcher import FolderWatcher, LandedFile
 
 log = logging.getLogger("workbench")
@@ -235,6 +242,8 @@ class Monitor:
         #: The notes of this run (the recent ones after a long run); every one is also
         #: appended to ``<state>/notes.txt`` (:mod:`workbench.monitor.notes`).
         self.messages: NoteList = NoteList(self.state / NOTES_FILE)
+        if migrated is not None:
+            self.messages.append(migrated)
         for notice in repaired:
             log.warning("%s", notice)
             self.messages.append(notice)
@@ -289,6 +298,9 @@ class Monitor:
         self._indicators_through = -1  # newest block in the daily key-indicator files
         self._alarms_seen: tuple = (None, None)  # (size, mtime) of alarms.parquet, table
         self._tracked: pd.DataFrame | None = None  # the tracked table last written
+        #: After a restart without readable labels: why, and the tracked table the
+        #: earlier run wrote, which the replay must give again (:meth:`_labels_again`).
+        self._labels_lost: tuple[str, pd.DataFrame | None] | None = None
         # with blocks of varying length: each decided block's length and stationarity
         # (plan row), None for a block no length fits
         self._lengths: dict[int, dict | None] = {}
@@ -951,6 +963,8 @@ class Monitor:
                 return self._marked
 
             tracked = self.tracking.table(marker=marker)
+            if self._labels_lost is not None:  # before the table is written again
+                self._labels_again(tracked)
             if self.voyage is not None and self.voyage.lengths is not None:
                 # blocks of varying length: readers take each block's own span (forecast,
                 # predictors), as they do from track's table of identify --block-minutes auto
@@ -987,10 +1001,59 @@ class Monitor:
                 self.tracking.add(int(block), part)
         self._plan = SimpleNamespace(blocks=())
         # the labels given before the restart must come back with the same modes
-        self.tracking.expect_labels(self.state / "labels.json")
+        labels = self.state / "labels.json"
+        try:
+            self.tracking.expect_labels(labels)
+        except LabelsUnreadable as error:
+            self._labels_lost = (str(error), _written_table(self.state / "tracked.parquet"))
         self._advance_tracking()
         self._write_data_health()
         self._outlook_due = True
+
+    def _labels_again(self, tracked: pd.DataFrame) -> None:
+        """``labels.json`` was unreadable at the restart: its labels are given again by
+        the replay of the stored blocks when that gives the tracked table the earlier run
+        wrote (the same modes at the same blocks and frequencies), with a note; else one
+        line naming the recovery. *tracked*: the replayed table."""
+        why, earlier = self._labels_lost
+        self._labels_lost = None
+        path = self.state / "labels.json"
+        if earlier is None or not len(earlier):
+            raise WorkbenchError(
+                f"{why}, and no tracked table to check the stored blocks' labels against; "
+                "if this run has the first run's tracking options (--mac-min, --gate, "
+                f"--frequency-tol, --baseline), move it aside ({move_aside(path)}) and "
+                "run again: the labels are given again from the stored blocks; else use "
+                "another --state"
+            )
+        keys = ["block", "mode"]
+        last = int(earlier["block"].max())
+        now = tracked.loc[tracked["block"].astype(int) <= last, [*keys, "frequency_hz"]]
+        modes = set(earlier["mode"].astype(int)) & set(now["mode"].astype(int))
+        pairs = [
+            table[table["mode"].astype(int).isin(modes)]
+            .astype({"block": int, "mode": int})
+            .sort_values(keys)
+            .reset_index(drop=True)
+            for table in (earlier[[*keys, "frequency_hz"]], now)
+        ]
+        same = (
+            bool(modes)
+            and pairs[0][keys].equals(pairs[1][keys])
+            and np.allclose(pairs[0]["frequency_hz"], pairs[1]["frequency_hz"], rtol=1e-9)
+        )
+        if not same:
+            raise WorkbenchError(
+                f"{why}, and tracking the stored blocks again gives other modes than "
+                f"{self.state / 'tracked.parquet'} (blocks 0-{last}): the tracking options "
+                "(--mac-min, --gate, --frequency-tol, --baseline) differ from the first run's; "
+                "use them, or another --state"
+            )
+        self.messages.append(
+            f"{why}; written again: tracking the stored blocks again gives the modes of the "
+            f"tracked table the earlier run wrote ({len(earlier)} rows, blocks "
+            f"{int(earlier['block'].min())}-{last})"
+        )
 
     # ------------------------------------------------------------------ outlook
     def _poll_outlook(self) -> None:
@@ -1414,6 +1477,19 @@ class Monitor:
 #: restart (from the store) and those its outlook writes (from the outlook's state).
 _STORE_TABLES = ("tracked.parquet", "data_health.parquet")
 _OUTLOOK_TABLES = ("forecast.parquet", "health.parquet")
+
+
+def _written_table(path: Path) -> pd.DataFrame | None:
+    """``block``, ``mode`` and ``frequency_hz`` of the tracked table at *path* as the
+    earlier run wrote it, or None when there is none to read."""
+    from data_contracts.parts import is_parted, read_parts
+
+    if not is_parted(path):
+        return None
+    try:
+        return read_parts(path, None, columns=["block", "mode", "frequency_hz"])
+    except (OSError, ValueError):  # ContractError is a ValueError
+        return None
 
 
 def _state_folder(message: str) -> str:

@@ -29,7 +29,8 @@ GROWING_TABLES = ("tracked.parquet", "forecast.parquet", "health.parquet", "data
 
 def check_state_format(state: Path) -> str | None:
     """Check (and write) the format of the state folder *state*; migrate a format-1
-    folder. Returns the one-line note of a migration (None otherwise).
+    folder. Returns the one-line note of a migration or of the format file written
+    again (None otherwise).
 
     Format 1 to 2: the tracked and data-health tables are rebuilt from the store at the
     restart (as always); the forecast and health tables and the saved outlook are removed,
@@ -38,8 +39,10 @@ def check_state_format(state: Path) -> str | None:
     Raises
     ------
     WorkbenchError
-        The folder is of another (newer) format, or its format file is unreadable (one
-        line naming the file).
+        The folder is of another (newer) format, or its format file is unreadable and
+        its tables do not show the format (one line naming the file). An unreadable
+        format file of a folder whose tables are of this format is written again (the
+        note says so).
     """
     state = Path(state)
     path = state / FORMAT_FILE
@@ -49,9 +52,7 @@ def check_state_format(state: Path) -> str | None:
             found = json.loads(path.read_text(encoding="utf-8"))
             schema = found.get("schema") if isinstance(found, dict) else None
         except (OSError, ValueError) as error:
-            raise WorkbenchError(
-                f"{path}: unreadable ({str(error).splitlines()[0]}); use another --state"
-            ) from None
+            return _rewrite(state, path, str(error).splitlines()[0])
         if schema == STATE_FORMAT:
             return None
         raise WorkbenchError(
@@ -68,6 +69,44 @@ def check_state_format(state: Path) -> str | None:
             "(tables written a day per part): tracked and data-health tables rebuilt from "
             "the store, forecast and health chart computed again from the first block"
         )
+    _write(path)
+    return note
+
+
+def _write(path: Path) -> None:
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps({"schema": STATE_FORMAT}), encoding="utf-8")
-    return note
+
+
+def _rewrite(state: Path, path: Path, why: str) -> str:
+    """Write the unreadable format file *path* again when the folder's tables show this
+    format: every growing table present is parted with an index of this workbench's
+    parted-table format (a format-1 table is one file; a newer format's could be neither).
+    Returns the note saying so.
+
+    Raises
+    ------
+    WorkbenchError
+        A table shows no such layout: one line naming the file and the table.
+    """
+    from data_contracts.parts import PARTS_SCHEMA, read_index
+
+    for name in GROWING_TABLES:
+        table = state / name
+        if not table.exists():
+            continue
+        try:
+            if not table.is_dir():
+                raise ValueError(f"{table}: one file, not parted")
+            read_index(table)
+        except ValueError as error:
+            raise WorkbenchError(
+                f"{path}: unreadable ({why}), and the folder does not show its format "
+                f"({str(error).splitlines()[0]}); use the workbench that wrote the folder, "
+                "or another --state"
+            ) from None
+    _write(path)
+    return (
+        f"{path}: unreadable ({why}); written again: the folder's tables are of this "
+        f"format ({STATE_FORMAT}, tables parted as {PARTS_SCHEMA})"
+    )

@@ -15,11 +15,15 @@ from ..errors import WorkbenchError
 from ..sid.tracking import ModeTracker, TrackingOptions, tracker_for
 from .outlook import empty_table
 
-__all__ = ["LABELS_SCHEMA", "IncrementalTracking"]
+__all__ = ["LABELS_SCHEMA", "IncrementalTracking", "LabelsUnreadable"]
 
 #: ``schema`` of ``labels.json`` (the labels shown so far; see :meth:`IncrementalTracking.
 #: check_labels`).
 LABELS_SCHEMA = "workbench.monitor.labels/1"
+
+
+class LabelsUnreadable(WorkbenchError):
+    """``labels.json`` cannot be read: the labels an earlier run gave are not known."""
 
 
 class IncrementalTracking:
@@ -222,7 +226,7 @@ class IncrementalTracking:
 
         Raises
         ------
-        WorkbenchError
+        LabelsUnreadable
             *path* is unreadable (one line naming it).
         """
         path = Path(path)
@@ -238,7 +242,7 @@ class IncrementalTracking:
                 for e in found["labels"]
             }
         except (OSError, ValueError, KeyError, TypeError, AttributeError) as error:
-            raise WorkbenchError(f"{path}: unreadable ({error}); use another --state") from None
+            raise LabelsUnreadable(f"{path}: unreadable ({error})") from None
 
     def check_labels(self) -> None:
         """Check the expected labels (:meth:`expect_labels`) of the blocks tracked so far.
