@@ -239,3 +239,35 @@ def test_the_correlation_text_states_the_overlap_of_the_block_grid():
     assert "overlap" not in block_dependence(adjacent)
     off_grid = set_grid(half.copy(), {"t0": start[0], "length_s": 1200.0, "step_s": 300.0})
     assert block_dependence(off_grid) == "Neighbouring blocks are not independent"
+
+
+def test_a_figure_write_cut_short_leaves_the_earlier_figure_whole(short_run, monkeypatch):
+    """A crash while a report writes a figure (here: half the PNG written, then an error)
+    leaves the figure of the earlier report as it was and no partial file: every figure
+    goes through results.save_figure (temporary file, then rename)."""
+    import matplotlib.figure
+
+    from workbench.reporting import report
+
+    run = report.RunFiles(short_run, tracked=short_run / "tracked_modal.csv")
+    out = short_run / "cut" / "page.html"
+    build_report(short_run, out=out, run=run, dpi=40)
+    figures = sorted(p for p in out.parent.rglob("*.png"))
+    assert figures
+    before = {p: p.read_bytes() for p in figures}
+    page = out.read_bytes()
+    real = matplotlib.figure.Figure.savefig
+
+    def cut_short(fig, target, **kwargs):
+        real(fig, target, **kwargs)
+        data = open(target, "rb").read()
+        with open(target, "wb") as handle:
+            handle.write(data[: len(data) // 2])
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", cut_short)
+    with pytest.raises(OSError, match="No space left"):
+        build_report(short_run, out=out, run=run, dpi=40)
+    assert {p: p.read_bytes() for p in sorted(out.parent.rglob("*.png"))} == before
+    assert out.read_bytes() == page
+    assert not [p for p in out.parent.rglob("*") if p.is_file() and p.name.startswith(".")]
