@@ -166,12 +166,13 @@ _MATLAB_SYMBOLS = (
 )
 
 
-#: A complete ISO-8601 time: a date (``yyyy-mm-dd`` or ``yyyymmdd``) alone or with a time
-#: of at least hours and minutes (``T`` or a space), seconds and their fraction optional,
-#: then ``Z`` or an offset (``+hh``, ``+hhmm``, ``+hh:mm``). Every field has all its
-#: digits: pandas reads ``T00:1`` as 00:01 and ``2026-03`` as the first of March.
+#: A complete ISO-8601 time: a date (``yyyy-mm-dd`` or ``yyyymmdd``; ``yyyy/mm/dd`` too,
+#: which pandas' ISO-8601 parser reads) alone or with a time of at least hours and minutes
+#: (``T`` or a space), seconds and their fraction optional, then ``Z`` or an offset
+#: (``+hh``, ``+hhmm``, ``+hh:mm``). Every field has all its digits: pandas reads
+#: ``T00:1`` as 00:01 and ``2026-03`` as the first of March.
 ISO_TIME = re.compile(
-    r"[+-]?\d{4}-\d{2}-\d{2}(?:[T ]\d{2}:\d{2}(?::\d{2}(?:[.,]\d+)?)?"
+    r"[+-]?\d{4}(?:-\d{2}-|/\d{2}/)\d{2}(?:[T ]\d{2}:\d{2}(?::\d{2}(?:[.,]\d+)?)?"
     r"(?:\s?(?:Z|[+-]\d{2}(?::?\d{2})?))?)?"
     r"|[+-]?\d{8}(?:T\d{4}(?:\d{2}(?:[.,]\d+)?)?(?:Z|[+-]\d{2}(?:\d{2})?)?)?"
 )
@@ -213,12 +214,17 @@ def complete_times(text: pd.Series, fmt: str) -> np.ndarray:
     field with all its digits. Other formats (a user's own) are taken as ``strptime``
     reads them: True everywhere."""
     if fmt == "ISO8601":
-        pattern = ISO_TIME
+        pattern = ISO_TIME.pattern
     elif fmt in _RECOGNISED:
-        pattern = _format_text(fmt)
+        pattern = _format_text(fmt).pattern
     else:
         return np.ones(len(text), dtype=bool)
-    return text.astype(str).str.strip().str.fullmatch(pattern).fillna(False).to_numpy(bool)
+    import pyarrow as pa  # Arrow's regex: 5x pandas' .str.fullmatch on a 1-s log
+    import pyarrow.compute as pc
+
+    values = pc.utf8_trim_whitespace(pa.array(text.astype(str)))
+    found = pc.match_substring_regex(values, f"^(?:{pattern})$")
+    return pc.fill_null(found, False).to_numpy(zero_copy_only=False).astype(bool)
 
 
 def cut_iso_time(value) -> bool:
@@ -283,7 +289,15 @@ def parse_times(
 
     def parse(fmt: str) -> pd.Series:
         times = pd.to_datetime(text, utc=utc, errors="coerce", format=fmt)
-        return times.where(complete_times(text, fmt))
+        parsed = times.notna().to_numpy()
+        if not parsed.any():
+            return times
+        whole = complete_times(text if parsed.all() else text[parsed], fmt)
+        if whole.all():
+            return times
+        cut = np.zeros(len(times), dtype=bool)  # T00:1 is not 00:01
+        cut[np.flatnonzero(parsed)[~whole]] = True
+        return times.mask(cut)
 
     if time_format is not None:
         fmt = strptime_format(time_format)
@@ -296,6 +310,8 @@ def parse_times(
         times = parse(fmt)
         if times.notna().sum() > best.notna().sum():
             best, best_format = times, fmt
+            if best.notna().all():  # none can parse more
+                break
     if best.notna().all():
         return best, best_format
     for day_first, month_first in SLASH_FORMATS:
