@@ -370,6 +370,10 @@ class BlockStore:
         vouched for them are absent (the index: moved aside as :func:`unreadable_store_file`
         tells; a store used without inputs has none): what the store takes on trust from
         this run. Blocks off this run's grid are refused."""
+        inputs = self.root / _INPUTS
+        lost_inputs = not inputs.is_file() and inputs.with_name(f"{_INPUTS}.damaged").is_file()
+        if had_config and not lost_inputs:
+            return
         blocks = self.completed_blocks()
         if not had_config:
             stored = self.read(BLOCKS_KIND)
@@ -393,8 +397,7 @@ class BlockStore:
                 f"{block_ranges(blocks)} are taken as computed with this run's parameters "
                 "(recorded now)"
             )
-        inputs = self.root / _INPUTS
-        if not inputs.is_file() and inputs.with_name(f"{_INPUTS}.damaged").is_file():
+        if lost_inputs:
             self.notices.append(
                 f"{self.root}: {_INPUTS} was absent: the input files of the {len(blocks)} "
                 f"stored block(s) {block_ranges(blocks)} are recorded as they are now, "
