@@ -1,9 +1,10 @@
 """Blocks at the edge of an outage of the ship log: the log covers part of them, and their
 predictors are means of that part (``log_coverage`` below 1). Where the outage hides a stop,
-those means are the wrong speed; the memory forecast raises such a block's model variance by
-what its unlogged share can hide, (1 - c)² times the fill's error variance, so the blend leans
-on SSI there - and leaves partly logged blocks alone where no block misses a predictor (a
-short hole inside logged data)."""
+those means are the wrong speed; the memory forecast takes the outage's fill for the unlogged
+share (c times the logged means plus 1 - c times the fill) and raises the block's model
+variance by what that share can hide, (1 - c)² times the fill's error variance, so the blend
+leans on SSI there - and leaves partly logged blocks alone where no block misses a predictor
+(a short hole inside logged data)."""
 
 from __future__ import annotations
 

@@ -427,8 +427,10 @@ class MemoryRun:
         by (1 - c)² V (:meth:`MemoryRefits.partly_logged`), so the blend leans on SSI as
         far as the unlogged share can hide a change
         (``benchmarks/results/forecast_partial_blocks_27n.txt``,
-        ``benchmarks/results/forecast_outage_exit_27q.txt``). Without the history to
-        measure a fill: the logged part's means and the fit's scatter as V. A short hole
+        ``benchmarks/results/forecast_outage_exit_27q.txt``). The coverage is the least
+        over the log's columns: on a row where one of them is missing it is that column's,
+        and the logged means are kept ((1 - c)² V still bounds their error). Without the
+        history to measure a fill: the logged part's means and the fit's scatter as V. A short hole
         inside logged data (no block missing a predictor: both sides of it known) changes
         nothing. The blocks after the row count (an outage's first edge is known only from
         the blocks after it): the monitor's resumed forecast goes back to before such a
@@ -458,8 +460,13 @@ class MemoryRun:
             edge = self.refits.partly_logged(m, int(k), outage, float(coverage), fill_row=fill_row)
             if edge is None:  # too little history to measure a fill: the fit's scatter
                 added[r] = (1.0 - coverage) ** 2 * float(m.residual_variance)
-            else:
-                edge_mean[r], added[r] = edge
+                continue
+            added[r] = edge[1]
+            # the coverage is the least over the log's columns: with one of them missing
+            # here it is that column's, below what the columns the row has needed, whose
+            # own coverage is not known - their logged means kept, the variance the bound
+            if np.isfinite(self.X_all[k]).all():
+                edge_mean[r] = edge[0]
         return added, edge_mean
 
     def _mode_noise(self, j: int, i0: int, is_first: bool, level_hz: float) -> NoiseModel:
