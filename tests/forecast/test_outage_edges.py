@@ -36,8 +36,9 @@ def _voyage(seed: int, hole=OUTAGE, stop=OUTAGE, water_hole=None):
     """A 30-h minute log (20-min blocks every 5 min); the speed wanders between 2 and 14 kn
     and sets the mode, 5 Hz (1 - 0.004 v); the ship makes 1 kn in the minutes *stop*
     (None: no stop), the log is out in *hole*, the water temperature alone in
-    *water_hole* (None: nowhere else). SSI's error AR(1), rho 0.65, 0.004 Hz. Returns the tracked table, the
-    predictor table of the logged minutes and the blocks' true frequencies."""
+    *water_hole* (None: nowhere else). SSI's error AR(1), rho 0.65, 0.004 Hz. Returns the
+    tracked table, the predictor table of the logged minutes and the blocks' true
+    frequencies."""
     rng = np.random.default_rng(seed)
     minute = np.arange(1800)
     slow = np.clip(8 + 5 * _ar1(rng, 361, math.exp(-1 / 24), 1.0), 2, 14)

@@ -422,19 +422,20 @@ class MemoryRun:
         overlap: next to) a block where a predictor *m* needs is missing - the unlogged
         part is the outage's: what the ship did there (a stop, a restart) is as unknown as
         in the missing block. Its estimate is the fill of the missing blocks (after an
-        outage the outage's own fill, from the history before it), of error variance V (:meth:`MemoryRefits.fill_missing`); the block's predictors are c times
-        the logged part's means plus (1 - c) times the fill, and the model variance grows
-        by (1 - c)² V (:meth:`MemoryRefits.partly_logged`), so the blend leans on SSI as
-        far as the unlogged share can hide a change
+        outage the outage's own fill, from the history before it), of error variance V
+        (:meth:`MemoryRefits.fill_missing`); the block's predictors are c times the logged
+        part's means plus (1 - c) times the fill, and the model variance grows by
+        (1 - c)² V (:meth:`MemoryRefits.partly_logged`), so the blend leans on SSI as far
+        as the unlogged share can hide a change
         (``benchmarks/results/forecast_partial_blocks_27n.txt``,
         ``benchmarks/results/forecast_outage_exit_27q.txt``). The coverage is the least
         over the log's columns: on a row where one of them is missing it is that column's,
         and the logged means are kept ((1 - c)² V still bounds their error). Without the
-        history to measure a fill: the logged part's means and the fit's scatter as V. A short hole
-        inside logged data (no block missing a predictor: both sides of it known) changes
-        nothing. The blocks after the row count (an outage's first edge is known only from
-        the blocks after it): the monitor's resumed forecast goes back to before such a
-        row when an update brings a block that misses a predictor
+        history to measure a fill: the logged part's means and the fit's scatter as V. A
+        short hole inside logged data (no block missing a predictor: both sides of it
+        known) changes nothing. The blocks after the row count (an outage's first edge is
+        known only from the blocks after it): the monitor's resumed forecast goes back to
+        before such a row when an update brings a block that misses a predictor
         (:func:`~workbench.forecasting.incremental._outage_reaches_back`).
         """
         added = np.zeros(len(rows))

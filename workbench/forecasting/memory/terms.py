@@ -280,15 +280,6 @@ class MemoryRefits:
         mean, variance, fill_variance, _ = filled
         return mean, variance + fill_variance
 
-    def fill_variance(self, m: MemoryModel, row: int, columns) -> float | None:
-        """The variance :meth:`fill_missing` would add to *m*'s prediction at grid row *row*
-        were the predictors *columns* (grid column indices) missing there [Hz²]; None when
-        the history has too few rows to measure it (or none of *columns* is one *m* needs)."""
-        needed = np.asarray(m.needed_columns(), dtype=np.int64)
-        missing = needed[np.isin(needed, np.asarray(columns, dtype=np.int64))]
-        filled = self._fill(m, row, missing)
-        return None if filled is None else filled[2]
-
     def partly_logged(
         self, m: MemoryModel, row: int, columns, coverage: float, *, fill_row: int
     ) -> tuple[float, float] | None:
@@ -303,11 +294,11 @@ class MemoryRefits:
         outage covers: its estimate is the fill :meth:`fill_missing` would use at grid row
         *fill_row* (*row* before an outage; after one, the row after its last missing
         block: the outage's own fill, not the logged means of an edge block between),
-        x_f, with the fill's error variance V. So the prediction is the model at c x_L + (1 - c) x_f,
-        whose predictors err by (1 - c)(x_U - x_f), and the variance it adds is (1 - c)² V;
-        the means of the logged part alone would err by (1 - c)(x_U - x_L), which V does
-        not describe (a ship that stops just after the log returns: the logged part holds
-        the stop, the unlogged part the run before it).
+        x_f, with the fill's error variance V. So the prediction is the model at
+        c x_L + (1 - c) x_f, whose predictors err by (1 - c)(x_U - x_f), and the variance
+        it adds is (1 - c)² V; the means of the logged part alone would err by
+        (1 - c)(x_U - x_L), which V does not describe (a ship that stops just after the log
+        returns: the logged part holds the stop, the unlogged part the run before it).
         """
         needed = np.asarray(m.needed_columns(), dtype=np.int64)
         missing = needed[np.isin(needed, np.asarray(columns, dtype=np.int64))]
