@@ -685,7 +685,7 @@ def pieces_from(pieces: list[pd.DataFrame], block: int) -> list[pd.DataFrame]:
 
 def _outage_reaches_back(core, new, coverage: np.ndarray, first_new: int) -> int:
     """The first block of *core* whose outage-edge variance (the batch's
-    ``MemoryRun._outage_edge``) the blocks of *new* from *first_new* on can
+    ``MemoryRun._outage_edge_variance``) the blocks of *new* from *first_new* on can
     change: a partly logged block sharing data with a new block that misses a predictor
     (beyond: none)."""
     reach = max(core.overlap - 1, 1)

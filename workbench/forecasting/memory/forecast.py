@@ -372,14 +372,10 @@ class MemoryRun:
         # predictions from the row before (model switch) to the end of this window
         from_row = max(k_first - 1, first)
         rows = np.arange(from_row, f1)
-        edge_variance, edge_mean = self._outage_edge(m, rows)
+        edge_variance = self._outage_edge_variance(m, rows)
         mean, lower, upper, bad, mvar = self.refits.predict(m, rows, edge_variance)
         # what SSI sees (measurement equation); the state is the time average
         seen = self.bias.seen_by_ssi(m, rows, j, mean)
-        # a block at the edge of an outage: its mean predictors with the fill for the
-        # unlogged part (:meth:`_outage_edge`), the measurement's model moved with it
-        shift = np.where(np.isfinite(edge_mean), edge_mean - mean, 0.0)
-        mean, seen, lower, upper = mean + shift, seen + shift, lower + shift, upper + shift
         implausible = np.isfinite(mean) & ~_plausible(mean, self.reference_hz[j])
         implausible |= np.isfinite(seen) & ~_plausible(seen, self.reference_hz[j])
         if implausible.any():
@@ -411,37 +407,30 @@ class MemoryRun:
             )
         return mean[sl], seen[sl], mvar[sl], float(abs(np.nanmedian(mean)))
 
-    def _outage_edge(self, m: MemoryModel, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _outage_edge_variance(self, m: MemoryModel, rows: np.ndarray) -> np.ndarray:
         """Model variance of *m* on grid rows *rows* from the unlogged share of a block at
-        the edge of an outage of the ship log [Hz²] (0 elsewhere), and *m*'s prediction
-        there with the fill for that share [Hz] (NaN elsewhere).
+        the edge of an outage of the ship log [Hz²] (0 elsewhere).
 
         A block the log covers partly has the means of its logged part as its predictors
         (``log_coverage`` c of the predictor table, at least the averaging's minimum
         coverage). At the edge of an outage - a block sharing data with (on a grid without
         overlap: next to) a block where a predictor *m* needs is missing - the unlogged
         part is the outage's: what the ship did there (a stop, a restart) is as unknown as
-        in the missing block. Its estimate is the fill of the missing blocks (after an
-        outage the outage's own fill, from the history before it), of error variance V
-        (:meth:`MemoryRefits.fill_missing`); the block's predictors are c times the logged
-        part's means plus (1 - c) times the fill, and the model variance grows by
-        (1 - c)² V (:meth:`MemoryRefits.partly_logged`), so the blend leans on SSI as far
-        as the unlogged share can hide a change
-        (``benchmarks/results/forecast_partial_blocks_27n.txt``,
-        ``benchmarks/results/forecast_outage_exit_27q.txt``). The coverage is the least
-        over the log's columns: on a row where one of them is missing it is that column's,
-        and the logged means are kept ((1 - c)² V still bounds their error). Without the
-        history to measure a fill: the logged part's means and the fit's scatter as V. A
-        short hole inside logged data (no block missing a predictor: both sides of it
-        known) changes nothing. The blocks after the row count (an outage's first edge is
-        known only from the blocks after it): the monitor's resumed forecast goes back to
-        before such a row when an update brings a block that misses a predictor
+        in the missing block, and the block's mean errs by (1 - c) times the difference
+        between the unlogged part's mean and the logged part's. With the fill's error
+        variance V of the missing predictors there (:meth:`MemoryRefits.fill_variance`,
+        what a filled block gets) the block's model variance grows by (1 - c)² V, so the
+        blend leans on SSI as far as the unlogged share can hide a change
+        (``benchmarks/results/forecast_partial_blocks_27n.txt``). A short hole inside
+        logged data (no block missing a predictor: both sides of it known) adds nothing.
+        The blocks after the row count (an outage's first edge is known only from the
+        blocks after it): the monitor's resumed forecast goes back to before such a row when
+        an update brings a block that misses a predictor
         (:func:`~workbench.forecasting.incremental._outage_reaches_back`).
         """
         added = np.zeros(len(rows))
-        edge_mean = np.full(len(rows), np.nan)
         if self.log_coverage is None or m.kind == "constant":
-            return added, edge_mean
+            return added
         columns = np.asarray(m.needed_columns(), dtype=np.int64)
         reach = max(self.overlap - 1, 1)  # blocks sharing data with a block, at least 1
         n_blocks = self.blocks.size
@@ -450,25 +439,15 @@ class MemoryRun:
             # fully logged, not known, or filled (a needed predictor missing)
             if not coverage < 1.0 or not np.isfinite(self.X_all[k, columns]).all():
                 continue
-            lo = max(k - reach, 0)
-            near = self.X_all[lo : min(k + reach + 1, n_blocks)][:, columns]
+            near = self.X_all[max(k - reach, 0) : min(k + reach + 1, n_blocks)][:, columns]
             outage = columns[~np.isfinite(near).all(axis=0)]
             if outage.size == 0:
                 continue
-            # after an outage, its own fill: from the history up to its last missing block
-            missing_before = np.flatnonzero(~np.isfinite(near[: k - lo]).all(axis=1))
-            fill_row = lo + int(missing_before[-1]) + 1 if missing_before.size else int(k)
-            edge = self.refits.partly_logged(m, int(k), outage, float(coverage), fill_row=fill_row)
-            if edge is None:  # too little history to measure a fill: the fit's scatter
-                added[r] = (1.0 - coverage) ** 2 * float(m.residual_variance)
-                continue
-            added[r] = edge[1]
-            # the coverage is the least over the log's columns: with one of them missing
-            # here it is that column's, below what the columns the row has needed, whose
-            # own coverage is not known - their logged means kept, the variance the bound
-            if np.isfinite(self.X_all[k]).all():
-                edge_mean[r] = edge[0]
-        return added, edge_mean
+            fill = self.refits.fill_variance(m, int(k), outage)
+            if fill is None:  # too little history to measure a fill: the fit's scatter
+                fill = float(m.residual_variance)
+            added[r] = (1.0 - coverage) ** 2 * fill
+        return added
 
     def _mode_noise(self, j: int, i0: int, is_first: bool, level_hz: float) -> NoiseModel:
         """Mode *j*'s noise levels from the out-of-sample residuals before row *i0*."""

@@ -277,44 +277,21 @@ class MemoryRefits:
         filled = self._fill(m, row, missing)
         if filled is None:
             return None
-        mean, variance, fill_variance, _ = filled
+        mean, variance, fill_variance = filled
         return mean, variance + fill_variance
 
-    def partly_logged(
-        self, m: MemoryModel, row: int, columns, coverage: float, *, fill_row: int
-    ) -> tuple[float, float] | None:
-        """Prediction of *m* at grid row *row*, a block whose log covers the share
-        *coverage* of it while the predictors *columns* (grid column indices) are missing
-        in the rest (the edge of a log outage), and the variance the unlogged part adds
-        [Hz], [Hz²]; None when the history has too few rows to measure a fill (or none of
-        *columns* is one *m* needs).
-
-        The row's values are the means of the logged part x_L. The block's mean is
-        c x_L + (1 - c) x_U with x_U the unlogged part's, as unknown as in a block the
-        outage covers: its estimate is the fill :meth:`fill_missing` would use at grid row
-        *fill_row* (*row* before an outage; after one, the row after its last missing
-        block: the outage's own fill, not the logged means of an edge block between),
-        x_f, with the fill's error variance V. So the prediction is the model at
-        c x_L + (1 - c) x_f, whose predictors err by (1 - c)(x_U - x_f), and the variance
-        it adds is (1 - c)² V; the means of the logged part alone would err by
-        (1 - c)(x_U - x_L), which V does not describe (a ship that stops just after the log
-        returns: the logged part holds the stop, the unlogged part the run before it).
-        """
+    def fill_variance(self, m: MemoryModel, row: int, columns) -> float | None:
+        """The variance :meth:`fill_missing` would add to *m*'s prediction at grid row *row*
+        were the predictors *columns* (grid column indices) missing there [Hz²]; None when
+        the history has too few rows to measure it (or none of *columns* is one *m* needs)."""
         needed = np.asarray(m.needed_columns(), dtype=np.int64)
         missing = needed[np.isin(needed, np.asarray(columns, dtype=np.int64))]
-        filled = self._fill(m, fill_row, missing)
-        if filled is None:
-            return None
-        x = self.X_all[row].copy()
-        x[missing] = coverage * x[missing] + (1.0 - coverage) * filled[3][missing]
-        mean = m.predict(x[None, :], self.limit)[0]
-        if not np.isfinite(mean[0]):
-            return None
-        return float(mean[0]), (1.0 - coverage) ** 2 * filled[2]
+        filled = self._fill(m, row, missing)
+        return None if filled is None else filled[2]
 
     def _fill(self, m: MemoryModel, row: int, missing: np.ndarray):
-        """``(mean, variance, fill variance, filled row)`` of *m* at grid row *row* with the
-        predictors *missing* filled (:meth:`fill_missing`), or None."""
+        """``(mean, variance, fill variance)`` of *m* at grid row *row* with the predictors
+        *missing* filled (:meth:`fill_missing`), or None."""
         X_all, limit = self.X_all, self.limit
         x = X_all[row].copy()
         x[missing] = np.nan
@@ -351,4 +328,4 @@ class MemoryRefits:
         mean, variance = m.predict(filled_rows[best][None, :], limit)
         if not np.isfinite(mean[0]):
             return None
-        return float(mean[0]), float(variance[0]), max(errors), filled_rows[best]
+        return float(mean[0]), float(variance[0]), max(errors)
