@@ -8,12 +8,13 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from data_contracts import PREDICTOR_KEYS
+from data_contracts import PREDICTOR_KEYS, column_log_coverage_name
 
 from ..errors import DataError, PredictorError
 
 __all__ = [
     "block_centre_ns",
+    "block_column_coverage",
     "block_log_coverage",
     "forecast_span",
     "mode_matrix",
@@ -74,6 +75,25 @@ def block_log_coverage(table: pd.DataFrame) -> np.ndarray | None:
     if "log_coverage" not in table.columns:
         return None
     return table["log_coverage"].to_numpy(dtype=float, na_value=np.nan)
+
+
+def block_column_coverage(table: pd.DataFrame, columns: Sequence[str]) -> np.ndarray | None:
+    """The ship log's share of each block per predictor *columns*, shape (rows of *table*,
+    len(*columns*)): a column's own ``log_coverage_<column>`` where the table has it and
+    it is not NaN, else the table's ``log_coverage`` (the least over the log's columns:
+    a lower bound on the column's share; a column the log does not carry, such as the
+    time trend, is never missing and never read); None when the table has no
+    ``log_coverage``."""
+    least = block_log_coverage(table)
+    if least is None:
+        return None
+    out = np.repeat(least[:, None], len(columns), axis=1)
+    for j, column in enumerate(columns):
+        name = column_log_coverage_name(column)
+        if name in table.columns:
+            own = table[name].to_numpy(dtype=float, na_value=np.nan)
+            out[:, j] = np.where(np.isfinite(own), own, least)
+    return out
 
 
 def block_centre_ns(grid: pd.DataFrame) -> np.ndarray:
