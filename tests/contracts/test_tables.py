@@ -176,10 +176,10 @@ def test_per_column_log_coverage_is_a_share_and_not_a_predictor(tmp_path):
         "wind_speed_ms",
         "wind_dir_rel_deg",
     ]
-    # each column's own share; the least (log_coverage) where the table has none
+    # each column's own share; NaN where the table has none (not known)
     np.testing.assert_array_equal(
-        block_column_coverage(table, columns[:3]),
-        [[1.0, 1.0, 1.0], [0.75, 0.5, 0.5], [0.25, 0.25, 0.25]],
+        block_column_coverage(table, [*columns[:3], "elapsed_hours"]),
+        [[1.0, 1.0, np.nan, np.nan], [0.75, 0.5, np.nan, np.nan], [0.25, np.nan, np.nan, np.nan]],
     )
     assert block_column_coverage(table.drop(columns="log_coverage"), columns) is None
     path = tmp_path / "predictors.csv"

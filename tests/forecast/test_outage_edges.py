@@ -17,8 +17,6 @@ import pytest
 from scipy.signal import lfilter
 
 from workbench.forecasting import ForecastOptions, ForecastWarning, sliding_forecast
-from workbench.forecasting.memory.model import MemoryModel
-from workbench.forecasting.memory.terms import MemoryRefits
 from workbench.predictors import block_predictors
 
 START = pd.Timestamp("2025-01-01T00:00:00Z")
@@ -156,112 +154,42 @@ def test_a_stop_just_after_the_log_returns_is_not_taken_for_the_whole_edge_block
     assert error("kalman_frequency_hz") < 1.5 * error("ssi_frequency_hz")
 
 
-@pytest.mark.parametrize("seed", [1, 3])
-def test_an_edge_row_missing_another_column_takes_the_speed_by_its_own_share(seed):
-    # the same stop as the log returns, and the water temperature (a column the model does
-    # not use) out as well: in minutes 1030-1060 (rows 206-207 without it) or 1040-1045
-    # (206 without it, 207 with half its minutes). The speed's own share (50 % and 75 %)
-    # sets its mix with the fill: the edge rows' model, bounds and blend equal those of the
-    # voyage with the water temperature logged, and their warnings name the speed's share.
-    # The least share over the columns (log_coverage: 0 and 0, or 0 and 0.5) kept the
-    # logged means on 206-207 (the model 110 and 57 mHz off, seed 3) or mixed 207 half and
-    # half
+def test_an_edge_row_missing_another_column_keeps_its_logged_means():
+    # the same stop as the log returns, and the water temperature out from minute 1030 to
+    # 1060 as well: rows 206-207 have no water temperature, so their log_coverage (the least
+    # over the columns) is that column's, not the speed's - the speed's logged means are
+    # kept, as without the coverage (the model's track equal there); with the water
+    # temperature logged the fill moves the track at 206 by 131 mHz (seed 3)
     exit_edge = [206, 207]
-    columns = ["model_frequency_hz", "model_lower_hz", "model_upper_hz", "kalman_frequency_hz"]
-    tables = {}
-    for water_hole in (None, (1030, 1060), (1040, 1045)):
-        modal, predictors, truth = _voyage(seed, stop=(1040, 1060), water_hole=water_hole)
-        tables[water_hole], _ = _forecasts(modal, predictors)
-        coverage = predictors.set_index("block").loc[exit_edge]
-        np.testing.assert_allclose(coverage["log_coverage_speed_kn"], [0.5, 0.75])
-    assert (tables[(1030, 1060)].loc[exit_edge, "log_coverage"] == 0.0).all()
-    assert tables[(1040, 1045)].loc[207, "log_coverage"] == pytest.approx(0.5)
-    expected = tables[None].loc[exit_edge]
-    for water_hole in ((1030, 1060), (1040, 1045)):
-        rows = tables[water_hole].loc[exit_edge]
-        np.testing.assert_allclose(rows[columns], expected[columns], rtol=1e-9, atol=0)
-        assert rows.loc[206, "warning"].count("partly logged (speed_kn 50%) at the edge") == 1
-        assert rows.loc[207, "warning"].count("partly logged (speed_kn 75%) at the edge") == 1
-    # the mix: the model within 50 mHz summed over the two rows (22.6 + 14.7 seed 1,
-    # 21.4 + 8.3 seed 3)
-    error = np.abs(expected["model_frequency_hz"] - truth.loc[exit_edge]).sum()
-    assert error < 50e-3
+    tracks = {}
+    for water_hole in (None, (1030, 1060)):
+        modal, predictors, _ = _voyage(3, stop=(1040, 1060), water_hole=water_hole)
+        marked, unmarked = _forecasts(modal, predictors)
+        tracks[water_hole] = (marked["model_frequency_hz"], unmarked["model_frequency_hz"])
+    marked, unmarked = tracks[(1030, 1060)]
+    np.testing.assert_allclose(marked.loc[exit_edge], unmarked.loc[exit_edge], rtol=0, atol=1e-12)
+    marked, unmarked = tracks[None]
+    assert abs(marked.loc[206] - unmarked.loc[206]) > 0.1
 
 
-def _refits_of(X: np.ndarray) -> MemoryRefits:
-    """The refits of a one-mode forecast over the predictor rows *X* (speed, water
-    temperature)."""
-    return MemoryRefits(
-        ForecastOptions(), X, ["speed_kn", "water_temp_c"], np.zeros((len(X), 1)), None, 0, 200
-    )
-
-
-def _filled_error(refits, m, row, mixed):
-    """The fill's error measured independently: the largest over the two fills (the last
-    value, one block lagged; the mean of the history) of the mean square of the model's
-    output on the history rows against its output with each column replaced by
-    *mixed*(column, logged, filled) - for a model of main effects, the scaled sum of the
-    terms' errors."""
-    history = refits.X_all[max(0, row - int(refits.model.selection_blocks)) : row]
-    logged = m.predict(history, refits.limit)[0]
-    errors = []
-    for fill in ("last", "mean"):
-        out = history.copy()
-        for c in range(history.shape[1]):
-            if fill == "last":
-                filled = np.r_[np.nan, history[:-1, c]]
-            else:
-                filled = np.full(len(history), history[:, c].mean())
-            out[:, c] = mixed(c, history[:, c], filled)
-        error = logged - m.predict(out, refits.limit)[0]
-        errors.append(np.nanmean(error**2))
-    return max(errors)
-
-
-def test_the_edge_variance_scales_each_terms_fill_error_by_its_columns_unlogged_share():
-    # a model of the speed and the water temperature (main effects, 20 and 5 mHz per
-    # standard deviation) over 120 blocks of wandering predictors; row 100 at an outage's
-    # edge with the speed logged over 50 % of it and the water temperature over 75 %
-    rng = np.random.default_rng(7)
-    X = np.column_stack(
-        [8 + np.cumsum(rng.normal(0, 0.4, 120)), 3 + np.cumsum(rng.normal(0, 0.05, 120))]
-    )
-    m = MemoryModel(
-        "memory",
-        (0, 1),
-        ("speed_kn", "water_temp_c"),
-        ((), (0,), (1,)),
-        X[:100].mean(axis=0),
-        X[:100].std(axis=0),
-        np.array([5.0, -0.020, 0.005]),
-        np.eye(3) / 100,
-        1e-6,
-        90.0,
-        100,
-    )
-    refits = _refits_of(X)
-    row, share = 100, np.array([0.5, 0.75])
-    mean, variance = refits.partly_logged(m, row, [0, 1], share, fill_row=row)
-    # each term's error scaled by its column's unlogged share: the history mixed as the row
-    expected = _filled_error(refits, m, row, lambda c, x, f: share[c] * x + (1 - share[c]) * f)
-    assert variance == pytest.approx(expected, rel=1e-9)
-    # one share for both: (1 - c)² times the whole fill's error, V
-    whole = _filled_error(refits, m, row, lambda c, x, f: f)
-    _, equal = refits.partly_logged(m, row, [0, 1], 0.5, fill_row=row)
-    assert equal == pytest.approx(0.25 * whole, rel=1e-9)
-    # not (1 - c)² V with any one c: 8.5e-5 Hz² against 7.3e-5 with the least share for
-    # both (the terms' errors, opposite in sign here, cancel less when scaled unlike)
-    assert variance == pytest.approx(8.49e-5, rel=1e-3)
-    assert equal == pytest.approx(7.29e-5, rel=1e-3)
-    # a term whose column is fully logged adds nothing: the speed's 50 % alone 1.0e-4, the
-    # water temperature's 25 % alone 1.6e-6 (its 5 mHz per standard deviation)
-    _, speed_only = refits.partly_logged(m, row, [0, 1], [0.5, 1.0], fill_row=row)
-    _, water_only = refits.partly_logged(m, row, [0, 1], [1.0, 0.75], fill_row=row)
-    assert speed_only == pytest.approx(
-        _filled_error(refits, m, row, lambda c, x, f: x if c else 0.5 * x + 0.5 * f), rel=1e-9
-    )
-    assert water_only < 0.02 * speed_only
-    # the row: each column at its share of the logged value and the last one before
-    x = X[row].copy()
-    x[:] = share * x + (1 - share) * X[row - 1]
-    assert mean == pytest.approx(m.predict(x[None, :], refits.limit)[0][0], abs=1e-12)
+@pytest.mark.parametrize("seed", [1, 3])
+def test_an_edge_rows_warning_names_each_partly_logged_column_with_its_own_share(seed):
+    # the stop as the log returns, the water temperature (a column the model does not use)
+    # out in minutes 1030-1060 (206-207 without it) or 1040-1045 (206 with a quarter of its
+    # minutes, too few for a mean; 207 with half): the least share over the log's columns (log_coverage, the c the
+    # edge's mean and variance take) is the water temperature's, the speed's own share is
+    # 50 % and 75 %; the warnings name both
+    exit_edge = [206, 207]
+    expected = {
+        (1030, 1060): ["speed_kn 50%; log_coverage 0%", "speed_kn 75%; log_coverage 0%"],
+        (1040, 1045): ["speed_kn 50%; log_coverage 25%", "speed_kn 75%; log_coverage 50%"],
+        None: ["speed_kn 50%; log_coverage 50%", "speed_kn 75%; log_coverage 75%"],
+    }
+    for water_hole, named in expected.items():
+        modal, predictors, _ = _voyage(seed, stop=(1040, 1060), water_hole=water_hole)
+        shares = predictors.set_index("block").loc[exit_edge]
+        np.testing.assert_allclose(shares["log_coverage_speed_kn"], [0.5, 0.75])
+        marked, _ = _forecasts(modal, predictors)
+        for block, text in zip(exit_edge, named, strict=True):
+            warning = marked.loc[block, "warning"]
+            assert f"partly logged ({text}) at the edge of a log outage" in warning, warning

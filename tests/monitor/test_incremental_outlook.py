@@ -299,7 +299,7 @@ def test_forecast_equals_batch_across_a_log_outage(step):
     the blocks that share data with them, the newer ones included, so an update whose new
     blocks miss a predictor takes the state back to before the partly logged blocks the
     batch widens: the resumed forecast equals the batch one, with the same edge rows and
-    each column's own share (the checkpoint keeps them per column)."""
+    each column's own share in their warnings (the checkpoint keeps them per column)."""
     from workbench.forecasting.memory.forecast import memory_forecast
 
     modal, predictors = voyage(170, seed=3)
@@ -333,16 +333,16 @@ def test_forecast_equals_batch_across_a_log_outage(step):
     expected = expected.sort_values(["block", "mode"], kind="stable").reset_index(drop=True)
     edges = expected["warning"].fillna("").str.contains("edge of a log outage")
     assert set(expected.loc[edges, "block"]) == {97, 98, 106, 107}
-    # each column named with its own share where the model uses it (mode 3: the speed and
-    # the wind direction; 107's wind direction fully logged, not an edge of it)
+    # each partly logged column the model uses named with its own share, and the least
+    # share (mode 3: the speed and the wind direction; 107's wind direction fully logged)
     third = expected[expected["mode"] == 3].set_index("block")["warning"]
     for block, named in (
-        (97, "speed_kn 75%, wind_dir_rel_deg 75%"),
-        (98, "speed_kn 50%, wind_dir_rel_deg 75%"),
-        (106, "speed_kn 50%, wind_dir_rel_deg 75%"),
-        (107, "speed_kn 75%)"),
+        (97, "speed_kn 75%, wind_dir_rel_deg 75%; log_coverage 75%"),
+        (98, "speed_kn 50%, wind_dir_rel_deg 75%; log_coverage 50%"),
+        (106, "speed_kn 50%, wind_dir_rel_deg 75%; log_coverage 50%"),
+        (107, "speed_kn 75%; log_coverage 75%"),
     ):
-        assert f"partly logged ({named}" in third.loc[block], (block, third.loc[block])
+        assert f"partly logged ({named})" in third.loc[block], (block, third.loc[block])
     assert engine.rollbacks >= 1  # the outage's first missing block took the state back
     # (the resumed table carries the log's coverage, memory_forecast's does not)
     pd.testing.assert_frame_equal(table.drop(columns="log_coverage"), expected, rtol=1e-9)

@@ -77,6 +77,7 @@ from .predictor_grid import (
     NS_PER_HOUR,
     block_centre_ns,
     block_column_coverage,
+    block_log_coverage,
     mode_matrix,
     predictor_matrix,
 )
@@ -98,8 +99,8 @@ __all__ = [
 #: windows (:mod:`workbench.forecasting.ssi_guard`); /5: the blocks' ``log_coverage``
 #: (the model variance at a log outage's edges), the model correction before a log
 #: outage's filled blocks and the state's unweighted move (issue 27), option B's run of
-#: missed columns; /6: the log's coverage of the blocks per predictor column
-#: (``column_coverage`` in place of ``log_coverage``).
+#: missed columns; /6: the log's coverage of the blocks per predictor column too
+#: (``column_coverage``: the shares an outage edge's warning names).
 CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/6"
 
 #: Rows kept before the newest committed window beyond the refits' history. [blocks]
@@ -385,11 +386,13 @@ class IncrementalMemoryForecast:
         if core.half_difference is not None:
             differ |= ~_same(core.half_difference[a], new.halves[b]).all(axis=1)
         differ |= core.block_start[a] != new.block_start[b]
-        coverage = block_column_coverage(new.grid, core.columns)
-        if (core.column_coverage is None) != (coverage is None):
+        coverage = block_log_coverage(new.grid)
+        if (core.log_coverage is None) != (coverage is None):
             return lo
         if coverage is not None:
-            differ |= ~_same(core.column_coverage[a], coverage[b]).all(axis=1)
+            differ |= ~_same(core.log_coverage[a], coverage[b])
+            columns = block_column_coverage(new.grid, core.columns)
+            differ |= ~_same(core.column_coverage[a], columns[b]).all(axis=1)
         where = np.flatnonzero(differ)
         first = lo + int(where[0]) if where.size else hi + 1
         if coverage is not None:
@@ -447,7 +450,8 @@ class IncrementalMemoryForecast:
             rows["combined_std"] = new.combined[take]
         if core.half_difference is not None:
             rows["half_difference"] = new.halves[take]
-        if core.column_coverage is not None:
+        if core.log_coverage is not None:
+            rows["log_coverage"] = block_log_coverage(new.grid)[take]
             rows["column_coverage"] = block_column_coverage(new.grid, core.columns)[take]
         for name, value in rows.items():
             setattr(core, name, np.concatenate([getattr(core, name)[:keep], value]))
@@ -555,6 +559,7 @@ class IncrementalMemoryForecast:
             "tracked_damping",
             "combined_std",
             "half_difference",
+            "log_coverage",
             "column_coverage",
             "speed_var",
             "shift_cap",
@@ -697,7 +702,7 @@ def _outage_reaches_back(core, new, coverage: np.ndarray, first_new: int) -> int
     first_missing = first_new + int(np.flatnonzero(missing)[0])
     lo = max(first_missing - reach, core.base_block)
     rows = np.arange(lo, first_new) - core.base_block
-    partial = rows[(core.column_coverage[rows] < 1.0).any(axis=1)] if rows.size else rows
+    partial = rows[core.log_coverage[rows] < 1.0] if rows.size else rows
     return int(partial[0]) + core.base_block if partial.size else first_new
 
 

@@ -79,20 +79,16 @@ def block_log_coverage(table: pd.DataFrame) -> np.ndarray | None:
 
 def block_column_coverage(table: pd.DataFrame, columns: Sequence[str]) -> np.ndarray | None:
     """The ship log's share of each block per predictor *columns*, shape (rows of *table*,
-    len(*columns*)): a column's own ``log_coverage_<column>`` where the table has it and
-    it is not NaN, else the table's ``log_coverage`` (the least over the log's columns:
-    a lower bound on the column's share; a column the log does not carry, such as the
-    time trend, is never missing and never read); None when the table has no
-    ``log_coverage``."""
-    least = block_log_coverage(table)
-    if least is None:
+    len(*columns*)): a column's own ``log_coverage_<column>``, NaN where the table has
+    none (a column the averaging gives no share of, such as the time trend); None when
+    the table has no ``log_coverage`` (it does not say how much of a block is logged)."""
+    if block_log_coverage(table) is None:
         return None
-    out = np.repeat(least[:, None], len(columns), axis=1)
+    out = np.full((len(table), len(columns)), np.nan)
     for j, column in enumerate(columns):
         name = column_log_coverage_name(column)
         if name in table.columns:
-            own = table[name].to_numpy(dtype=float, na_value=np.nan)
-            out[:, j] = np.where(np.isfinite(own), own, least)
+            out[:, j] = table[name].to_numpy(dtype=float, na_value=np.nan)
     return out
 
 

@@ -80,6 +80,7 @@ from ..predictor_grid import (
     NS_PER_HOUR,
     block_centre_ns,
     block_column_coverage,
+    block_log_coverage,
     forecast_span,
     mode_matrix,
     modes_to_forecast,
@@ -219,8 +220,9 @@ class MemoryRun:
             X_all = np.column_stack([X_all, hours.astype(float)])
             columns = [*columns, "elapsed_hours"]
         self.grid, self.blocks, self.block_start = grid, blocks, block_start
-        # the share of each block the ship log covers, per predictor column (None: the
-        # table does not say)
+        # the share of each block the ship log covers, the least over the log's columns
+        # and per predictor column (None: the table does not say)
+        self.log_coverage = block_log_coverage(grid)
         self.column_coverage = block_column_coverage(grid, columns)
         self.columns, self.X_all = columns, X_all
         # blocks that share data with a block: its identification error (an ice impact, a
@@ -373,7 +375,7 @@ class MemoryRun:
         # predictions from the row before (model switch) to the end of this window
         from_row = max(k_first - 1, first)
         rows = np.arange(from_row, f1)
-        edge_variance, edge_mean, edge_columns = self._outage_edge(m, rows)
+        edge_variance, edge_mean = self._outage_edge(m, rows)
         mean, lower, upper, bad, mvar = self.refits.predict(m, rows, edge_variance)
         # what SSI sees (measurement equation); the state is the time average
         seen = self.bias.seen_by_ssi(m, rows, j, mean)
@@ -402,80 +404,93 @@ class MemoryRun:
         self.out_phase[report, j] = np.where(report < first + self.train, 1, 2)
         for k in report[bad[sl]]:
             self.warn(k, j, "predictor NaN: filled", "blocks with a needed predictor NaN")
-        for k, partly in zip(report, edge_columns[sl], strict=True):
-            if partly:
-                self.warn(
-                    k,
-                    j,
-                    f"partly logged ({partly}) at the edge of a log outage: model variance raised",
-                    "partly logged blocks at the edge of a log outage (model variance raised)",
-                )
+        for k in report[edge_variance[sl] > 0]:
+            self.warn(
+                k,
+                j,
+                f"partly logged ({self._partly_logged(m, k)}) at the edge of a log outage: "
+                "model variance raised",
+                "partly logged blocks at the edge of a log outage (model variance raised)",
+            )
         return mean[sl], seen[sl], mvar[sl], float(abs(np.nanmedian(mean)))
 
-    def _outage_edge(
-        self, m: MemoryModel, rows: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    def _partly_logged(self, m: MemoryModel, k: int) -> str:
+        """What an outage edge's warning names of grid row *k*: the predictors *m* needs
+        that the log covers only partly there, each with its own share of the block, and
+        the least share over the log's columns (``log_coverage``), the c of
+        :meth:`_outage_edge` - e.g. ``"speed_kn 50%; log_coverage 0%"`` where the water
+        temperature misses the block."""
+        columns = m.needed_columns()
+        shares = self.column_coverage[k, columns]
+        named = [
+            f"{self.columns[c]} {share:.0%}"
+            for c, share in zip(columns, shares, strict=True)
+            if share < 1.0
+        ]
+        least = f"log_coverage {self.log_coverage[k]:.0%}"
+        return f"{', '.join(named)}; {least}" if named else least
+
+    def _outage_edge(self, m: MemoryModel, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Model variance of *m* on grid rows *rows* from the unlogged share of a block at
-        the edge of an outage of the ship log [Hz²] (0 elsewhere), *m*'s prediction there
-        with the fill for that share [Hz] (NaN elsewhere), and per row the partly logged
-        columns of the outage with their shares (``"speed_kn 50%"``; empty elsewhere).
+        the edge of an outage of the ship log [Hz²] (0 elsewhere), and *m*'s prediction
+        there with the fill for that share [Hz] (NaN elsewhere).
 
         A block the log covers partly has the means of its logged part as its predictors
-        (each column's share c of the block: ``log_coverage_<column>`` of the predictor
-        table, at least the averaging's minimum coverage). At the edge of an outage - a
-        block sharing data with (on a grid without overlap: next to) a block where a
-        predictor *m* needs is missing - the unlogged part of such a column is the
-        outage's: what the ship did there (a stop, a restart) is as unknown as in the
-        missing block. Its estimate is the fill of the missing blocks (after an outage the
-        outage's own fill, from the history before it), of error variance V
-        (:meth:`MemoryRefits.fill_missing`); each column's value is c times its logged
-        part's mean plus (1 - c) times the fill, and the model variance grows by the fill's
-        error with each term's share scaled by 1 - c of the columns it uses
-        (:meth:`MemoryRefits.partly_logged`: (1 - c)² V when one c holds for all), so the
-        blend leans on SSI as far as the unlogged share can hide a change
+        (``log_coverage`` c of the predictor table, at least the averaging's minimum
+        coverage). At the edge of an outage - a block sharing data with (on a grid without
+        overlap: next to) a block where a predictor *m* needs is missing - the unlogged
+        part is the outage's: what the ship did there (a stop, a restart) is as unknown as
+        in the missing block. Its estimate is the fill of the missing blocks (after an
+        outage the outage's own fill, from the history before it), of error variance V
+        (:meth:`MemoryRefits.fill_missing`); the block's predictors are c times the logged
+        part's means plus (1 - c) times the fill, and the model variance grows by
+        (1 - c)² V (:meth:`MemoryRefits.partly_logged`), so the blend leans on SSI as far
+        as the unlogged share can hide a change
         (``benchmarks/results/forecast_partial_blocks_27n.txt``,
-        ``benchmarks/results/forecast_outage_exit_27q.txt``,
-        ``benchmarks/results/forecast_column_coverage_27r.txt``). Another column missing
-        on the row does not matter: each column has its own share. Without the history to
-        measure a fill: the logged part's means and the fit's scatter times (1 - c)² with
-        the least c. A short hole inside logged data (no block missing a predictor: both
-        sides of it known) changes nothing. The blocks after the row count (an outage's
-        first edge is known only from the blocks after it): the monitor's resumed forecast
-        goes back to before such a row when an update brings a block that misses a
-        predictor (:func:`~workbench.forecasting.incremental._outage_reaches_back`).
+        ``benchmarks/results/forecast_outage_exit_27q.txt``). The coverage is the least
+        over the log's columns: on a row where one of them is missing it is that column's,
+        and the logged means are kept ((1 - c)² V still bounds their error). Each column's
+        own share (``log_coverage_<column>``) is named in the row's warning, not used: the
+        mean and variance from it lose at the edge of an outage that hides a stop
+        (``benchmarks/results/forecast_column_coverage_27r.txt``). Without the
+        history to measure a fill: the logged part's means and the fit's scatter as V. A
+        short hole inside logged data (no block missing a predictor: both sides of it
+        known) changes nothing. The blocks after the row count (an outage's first edge is
+        known only from the blocks after it): the monitor's resumed forecast goes back to
+        before such a row when an update brings a block that misses a predictor
+        (:func:`~workbench.forecasting.incremental._outage_reaches_back`).
         """
         added = np.zeros(len(rows))
         edge_mean = np.full(len(rows), np.nan)
-        partly: list[str] = [""] * len(rows)
-        if self.column_coverage is None or m.kind == "constant":
-            return added, edge_mean, partly
+        if self.log_coverage is None or m.kind == "constant":
+            return added, edge_mean
         columns = np.asarray(m.needed_columns(), dtype=np.int64)
         reach = max(self.overlap - 1, 1)  # blocks sharing data with a block, at least 1
         n_blocks = self.blocks.size
         for r, k in enumerate(rows):
-            # a needed predictor missing: filled, not an edge
-            if not np.isfinite(self.X_all[k, columns]).all():
+            coverage = self.log_coverage[k]
+            # fully logged, not known, or filled (a needed predictor missing)
+            if not coverage < 1.0 or not np.isfinite(self.X_all[k, columns]).all():
                 continue
             lo = max(k - reach, 0)
             near = self.X_all[lo : min(k + reach + 1, n_blocks)][:, columns]
             outage = columns[~np.isfinite(near).all(axis=0)]
-            coverage = self.column_coverage[k, outage]
-            # the outage's columns fully logged here (or not known): not an edge
-            outage, coverage = outage[coverage < 1.0], coverage[coverage < 1.0]
             if outage.size == 0:
                 continue
-            partly[r] = ", ".join(
-                f"{self.columns[c]} {share:.0%}" for c, share in zip(outage, coverage, strict=True)
-            )
             # after an outage, its own fill: from the history up to its last missing block
             missing_before = np.flatnonzero(~np.isfinite(near[: k - lo]).all(axis=1))
             fill_row = lo + int(missing_before[-1]) + 1 if missing_before.size else int(k)
-            edge = self.refits.partly_logged(m, int(k), outage, coverage, fill_row=fill_row)
+            edge = self.refits.partly_logged(m, int(k), outage, float(coverage), fill_row=fill_row)
             if edge is None:  # too little history to measure a fill: the fit's scatter
-                added[r] = (1.0 - float(coverage.min())) ** 2 * float(m.residual_variance)
+                added[r] = (1.0 - coverage) ** 2 * float(m.residual_variance)
                 continue
-            edge_mean[r], added[r] = edge
-        return added, edge_mean, partly
+            added[r] = edge[1]
+            # the coverage is the least over the log's columns: with one of them missing
+            # here it is that column's, below what the columns the row has needed, whose
+            # own coverage is not known - their logged means kept, the variance the bound
+            if np.isfinite(self.X_all[k]).all():
+                edge_mean[r] = edge[0]
+        return added, edge_mean
 
     def _mode_noise(self, j: int, i0: int, is_first: bool, level_hz: float) -> NoiseModel:
         """Mode *j*'s noise levels from the out-of-sample residuals before row *i0*."""

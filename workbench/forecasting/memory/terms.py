@@ -277,63 +277,40 @@ class MemoryRefits:
         filled = self._fill(m, row, missing)
         if filled is None:
             return None
-        mean, variance, fill_variance, _, _ = filled
+        mean, variance, fill_variance, _ = filled
         return mean, variance + fill_variance
 
     def partly_logged(
-        self, m: MemoryModel, row: int, columns, coverage, *, fill_row: int
+        self, m: MemoryModel, row: int, columns, coverage: float, *, fill_row: int
     ) -> tuple[float, float] | None:
-        """Prediction of *m* at grid row *row*, a block whose log covers the shares
-        *coverage* of it by the predictors *columns* (grid column indices; one share per
-        column) while these are missing in the rest (the edge of a log outage), and the
-        variance the unlogged part adds [Hz], [Hz²]; None when the history has too few
-        rows to measure a fill (or none of *columns* is one *m* needs).
+        """Prediction of *m* at grid row *row*, a block whose log covers the share
+        *coverage* of it while the predictors *columns* (grid column indices) are missing
+        in the rest (the edge of a log outage), and the variance the unlogged part adds
+        [Hz], [Hz²]; None when the history has too few rows to measure a fill (or none of
+        *columns* is one *m* needs).
 
-        A column's value on the row is the mean of its logged part x_L. The block's mean
-        is c x_L + (1 - c) x_U with c the column's own share and x_U the unlogged part's,
-        as unknown as in a block the outage covers: its estimate is the fill
-        :meth:`fill_missing` would use at grid row *fill_row* (*row* before an outage;
-        after one, the row after its last missing block: the outage's own fill, not the
-        logged means of an edge block between), x_f. So the prediction is the model at
-        c x_L + (1 - c) x_f per column, whose predictors err by (1 - c)(x_U - x_f); the
-        means of the logged part alone would err by (1 - c)(x_U - x_L), which the fill's
-        error does not describe (a ship that stops just after the log returns: the logged
-        part holds the stop, the unlogged part the run before it).
-
-        The variance added is the fill's error on the history (the model's output with the
-        columns filled against it logged, the worse of the two fills, as V of
-        :meth:`fill_missing`) with each term's share of it scaled by 1 - c of the columns
-        it uses: a term's error is its coefficient times the change of its design value,
-        so mean((Σ_t (1 - c_t) e_t)²) over the history, with c_t the least share over the
-        term's filled columns (a product of two of them: the less logged one bounds it).
-        With one share c for every column this is (1 - c)² V; a term whose columns are
-        fully logged adds nothing.
+        The row's values are the means of the logged part x_L. The block's mean is
+        c x_L + (1 - c) x_U with x_U the unlogged part's, as unknown as in a block the
+        outage covers: its estimate is the fill :meth:`fill_missing` would use at grid row
+        *fill_row* (*row* before an outage; after one, the row after its last missing
+        block: the outage's own fill, not the logged means of an edge block between),
+        x_f, with the fill's error variance V. So the prediction is the model at
+        c x_L + (1 - c) x_f, whose predictors err by (1 - c)(x_U - x_f), and the variance
+        it adds is (1 - c)² V; the means of the logged part alone would err by
+        (1 - c)(x_U - x_L), which V does not describe (a ship that stops just after the log
+        returns: the logged part holds the stop, the unlogged part the run before it).
         """
         needed = np.asarray(m.needed_columns(), dtype=np.int64)
-        columns = np.asarray(columns, dtype=np.int64)
-        share = np.broadcast_to(np.asarray(coverage, dtype=float), columns.shape)
-        keep = np.isin(columns, needed)
-        missing, share = columns[keep], share[keep]
+        missing = needed[np.isin(needed, np.asarray(columns, dtype=np.int64))]
         filled = self._fill(m, fill_row, missing)
         if filled is None:
             return None
         x = self.X_all[row].copy()
-        x[missing] = share * x[missing] + (1.0 - share) * filled[3][missing]
+        x[missing] = coverage * x[missing] + (1.0 - coverage) * filled[3][missing]
         mean = m.predict(x[None, :], self.limit)[0]
         if not np.isfinite(mean[0]):
             return None
-        # each term's 1 - c: the least share over the filled columns it uses (0: none)
-        of_column = dict(zip(missing.tolist(), share.tolist(), strict=True))
-        unlogged = np.array(
-            [
-                1.0 - min((of_column.get(m.columns[c], 1.0) for c in term), default=1.0)
-                for term in m.terms
-            ]
-        )
-        variance = max(
-            float(np.mean((change @ (unlogged * m.coefficients)) ** 2)) for change in filled[4]
-        )
-        return float(mean[0]), variance
+        return float(mean[0]), (1.0 - coverage) ** 2 * filled[2]
 
     def _fill(self, m: MemoryModel, row: int, missing: np.ndarray):
         """``(mean, variance, fill variance, filled row)`` of *m* at grid row *row* with the
@@ -346,8 +323,7 @@ class MemoryRefits:
         if missing.size == 0 or history.shape[0] < _MIN_FILL_ROWS:
             return None
         logged = m.predict(history, limit)[0]  # the model's output where nothing is missing
-        design = m.design(history, limit)
-        filled_rows, errors, changes = [], [], []
+        filled_rows, errors = [], []
         for fill in ("last", "mean"):
             filled_row = x.copy()
             filled_history = history.copy()
@@ -366,15 +342,13 @@ class MemoryRefits:
                     filled_row[c] = centre
                     filled_history[:, c] = centre
             error = logged - m.predict(filled_history, limit)[0]
-            finite = np.isfinite(error)
-            if finite.sum() < _MIN_FILL_ROWS:
+            error = error[np.isfinite(error)]
+            if error.size < _MIN_FILL_ROWS:
                 return None
             filled_rows.append(filled_row)
-            errors.append(float(np.mean(error[finite] ** 2)))
-            # the error per term: the change of each term's design value
-            changes.append((design - m.design(filled_history, limit))[finite])
+            errors.append(float(np.mean(error**2)))
         best = int(np.argmin(errors))
         mean, variance = m.predict(filled_rows[best][None, :], limit)
         if not np.isfinite(mean[0]):
             return None
-        return float(mean[0]), float(variance[0]), max(errors), filled_rows[best], changes
+        return float(mean[0]), float(variance[0]), max(errors), filled_rows[best]
