@@ -19,6 +19,7 @@ from .grid import grid_record, recorded_grid, set_grid
 from .health import ALARMS, HEALTH
 from .tables import (
     CANONICAL_PREDICTORS,
+    COLUMN_LOG_COVERAGE,
     CONTRACTS,
     FORECAST,
     LOG_COVERAGE,
@@ -28,6 +29,7 @@ from .tables import (
     PREDICTOR_KEYS,
     PREDICTORS,
     SELECTED,
+    column_log_coverage_name,
     read_table,
     shape_columns,
     shapes_from_frame,
@@ -45,6 +47,7 @@ __all__ = [
     "DSHIP_LOG",
     "FILE_KINDS",
     "FORECAST",
+    "COLUMN_LOG_COVERAGE",
     "LOG_COVERAGE",
     "MODAL",
     "OPTIONAL_PREDICTORS",
@@ -62,6 +65,7 @@ __all__ = [
     "Violation",
     "atomic_path",
     "channel_names",
+    "column_log_coverage_name",
     "geometry_directions",
     "grid_record",
     "read_accelerations",

@@ -208,9 +208,40 @@ LOG_COVERAGE = Column(
     maximum=1.0,
 )
 
+
+def column_log_coverage_name(column: str) -> str:
+    """The predictor table's column holding the log's coverage of each block by *column*
+    (``log_coverage_speed_kn`` for ``speed_kn``)."""
+    return f"{LOG_COVERAGE.name}_{column}"
+
+
+#: How much of a block the ship log covers, per canonical predictor: the share of the block
+#: that column's readings cover. ``log_coverage`` is their least. Not predictors.
+COLUMN_LOG_COVERAGE: tuple[Column, ...] = tuple(
+    Column(
+        column_log_coverage_name(predictor.name),
+        "float",
+        f"Share of the block the ship log's {predictor.name} readings cover (1: every "
+        "reading there; below 1 the block's value of the column is the mean of its logged "
+        "part; below the averaging's minimum coverage it is NaN); NaN when the log has no "
+        f"reading of {predictor.name}. Not a predictor.",
+        required=False,
+        nullable=True,
+        minimum=0.0,
+        maximum=1.0,
+    )
+    for predictor in CANONICAL_PREDICTORS
+)
+
 #: Columns of a predictor table that are not predictors: the block keys and the log's
-#: coverage of the block.
-PREDICTOR_KEYS: tuple[str, ...] = ("block", "block_start", "block_end", LOG_COVERAGE.name)
+#: coverage of the block (the least and per canonical column).
+PREDICTOR_KEYS: tuple[str, ...] = (
+    "block",
+    "block_start",
+    "block_end",
+    LOG_COVERAGE.name,
+    *(c.name for c in COLUMN_LOG_COVERAGE),
+)
 
 
 def _end_after_start(frame: pd.DataFrame) -> list[Violation]:
@@ -374,6 +405,7 @@ PREDICTORS = TableContract(
         _BLOCK_START,
         _BLOCK_END,
         LOG_COVERAGE,
+        *COLUMN_LOG_COVERAGE,
         *CANONICAL_PREDICTORS,
         *OPTIONAL_PREDICTORS,
     ),

@@ -55,6 +55,8 @@ def test_readme_notebook_demo(tmp_path, monkeypatch):
     assert len(evaluation.mapping) >= 6  # tracked modes paired with the true ones
     assert list(ship.columns[3:]) == [
         "log_coverage",
+        "log_coverage_speed_kn", "log_coverage_water_temp_c", "log_coverage_air_temp_c",
+        "log_coverage_wind_speed_ms", "log_coverage_wind_dir_rel_deg",
         "speed_kn", "water_temp_c", "air_temp_c", "wind_speed_ms", "wind_dir_rel_deg"
     ]  # fmt: skip
     assert fit.rsquared.min() > 0.5

@@ -149,6 +149,48 @@ def test_predictor_units_are_checked_with_a_hint():
         PREDICTORS.validate(frame)
 
 
+def test_per_column_log_coverage_is_a_share_and_not_a_predictor(tmp_path):
+    from workbench.forecasting.predictor_grid import block_column_coverage, predictor_matrix
+
+    frame = pd.DataFrame(
+        {
+            "block": [0, 1, 2],
+            "block_start": [T0, T0 + STEP, T0 + 2 * STEP],
+            "block_end": [T0 + LENGTH, T0 + STEP + LENGTH, T0 + 2 * STEP + LENGTH],
+            "log_coverage": [1.0, 0.5, 0.25],
+            "log_coverage_speed_kn": [1.0, 0.75, 0.25],
+            "log_coverage_water_temp_c": [1.0, 0.5, np.nan],
+            "speed_kn": [5.0, 6.0, np.nan],
+            "water_temp_c": [3.0, 3.1, np.nan],
+            "air_temp_c": [1.0, 1.0, 1.0],
+            "wind_speed_ms": [3.0, 4.0, 5.0],
+            "wind_dir_rel_deg": [10.0, 350.0, 20.0],
+        }
+    )
+    table = PREDICTORS.validate(frame)
+    _, _, _, columns, _ = predictor_matrix(table, None)
+    assert columns == [
+        "speed_kn",
+        "water_temp_c",
+        "air_temp_c",
+        "wind_speed_ms",
+        "wind_dir_rel_deg",
+    ]
+    # each column's own share; NaN where the table has none (not known)
+    np.testing.assert_array_equal(
+        block_column_coverage(table, [*columns[:3], "elapsed_hours"]),
+        [[1.0, 1.0, np.nan, np.nan], [0.75, 0.5, np.nan, np.nan], [0.25, np.nan, np.nan, np.nan]],
+    )
+    assert block_column_coverage(table.drop(columns="log_coverage"), columns) is None
+    path = tmp_path / "predictors.csv"
+    write_table(table, path, PREDICTORS)
+    pd.testing.assert_frame_equal(read_table(path, PREDICTORS), table)
+    bad = frame.assign(log_coverage_speed_kn=[1.0, 1.5, 0.25])
+    with pytest.raises(ContractError, match=r"log_coverage_speed_kn.*row 1") as error:
+        PREDICTORS.validate(bad)
+    assert "log_coverage_water_temp_c" not in str(error.value)
+
+
 def test_poles_stable_flag_reads_text_booleans():
     frame = pd.DataFrame(
         {

@@ -31,17 +31,19 @@ def _ar1(rng, n, rho, std):
     return lfilter([1.0], [1.0, -rho], white)
 
 
-def _voyage(seed: int, hole=OUTAGE, stop: bool = True):
+def _voyage(seed: int, hole=OUTAGE, stop=OUTAGE, water_hole=None):
     """A 30-h minute log (20-min blocks every 5 min); the speed wanders between 2 and 14 kn
-    and sets the mode, 5 Hz (1 - 0.004 v); with *stop* the ship makes 1 kn while the log
-    is out (*hole*). SSI's error AR(1), rho 0.65, 0.004 Hz. Returns the tracked table, the
-    predictor table of the logged minutes and the blocks' true frequencies."""
+    and sets the mode, 5 Hz (1 - 0.004 v); the ship makes 1 kn in the minutes *stop*
+    (None: no stop), the log is out in *hole*, the water temperature alone in
+    *water_hole* (None: nowhere else). SSI's error AR(1), rho 0.65, 0.004 Hz. Returns the
+    tracked table, the predictor table of the logged minutes and the blocks' true
+    frequencies."""
     rng = np.random.default_rng(seed)
     minute = np.arange(1800)
     slow = np.clip(8 + 5 * _ar1(rng, 361, math.exp(-1 / 24), 1.0), 2, 14)
     speed = np.interp(minute, np.arange(slow.size) * 5, slow)
-    if stop:
-        speed[hole[0] : hole[1]] = 1.0
+    if stop is not None:
+        speed[stop[0] : stop[1]] = 1.0
     log = pd.DataFrame(
         {
             "time": START + pd.to_timedelta(minute, unit="min"),
@@ -49,6 +51,8 @@ def _voyage(seed: int, hole=OUTAGE, stop: bool = True):
             "water_temp_c": 3.0 + rng.normal(0, 0.1, minute.size),
         }
     )
+    if water_hole is not None:
+        log.loc[(minute >= water_hole[0]) & (minute < water_hole[1]), "water_temp_c"] = np.nan
     logged = log[(minute < hole[0]) | (minute >= hole[1])]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -113,8 +117,31 @@ def test_an_outage_edge_leans_on_ssi_where_its_partial_means_hide_a_stop(seed):
 def test_a_short_hole_inside_logged_data_changes_nothing():
     # an 8-min hole: every block keeps at least 60 % of its log, none misses a predictor;
     # the partial means (both sides of the hole logged) are taken as they are
-    modal, predictors, _ = _voyage(0, hole=(1000, 1008), stop=False)
+    modal, predictors, _ = _voyage(0, hole=(1000, 1008), stop=None)
     assert predictors["log_coverage"].min() == pytest.approx(0.6)
     assert predictors["speed_kn"].notna().all()
     marked, unmarked = _forecasts(modal, predictors)
     pd.testing.assert_frame_equal(marked.drop(columns="log_coverage"), unmarked)
+
+
+@pytest.mark.parametrize("seed", [1, 3])
+def test_an_edge_rows_warning_names_each_partly_logged_column_with_its_own_share(seed):
+    # the stop as the log returns, the water temperature (a column the model does not use)
+    # out in minutes 1030-1060 (206-207 without it) or 1040-1045 (206 with a quarter of its
+    # minutes, too few for a mean; 207 with half): the least share over the log's columns
+    # (log_coverage, the c the edge's variance takes) is the water temperature's, the
+    # speed's own share is 50 % and 75 %; the warnings name both
+    exit_edge = [206, 207]
+    expected = {
+        (1030, 1060): ["speed_kn 50%; log_coverage 0%", "speed_kn 75%; log_coverage 0%"],
+        (1040, 1045): ["speed_kn 50%; log_coverage 25%", "speed_kn 75%; log_coverage 50%"],
+        None: ["speed_kn 50%; log_coverage 50%", "speed_kn 75%; log_coverage 75%"],
+    }
+    for water_hole, named in expected.items():
+        modal, predictors, _ = _voyage(seed, stop=(1040, 1060), water_hole=water_hole)
+        shares = predictors.set_index("block").loc[exit_edge]
+        np.testing.assert_allclose(shares["log_coverage_speed_kn"], [0.5, 0.75])
+        marked, _ = _forecasts(modal, predictors)
+        for block, text in zip(exit_edge, named, strict=True):
+            warning = marked.loc[block, "warning"]
+            assert f"partly logged ({text}) at the edge of a log outage" in warning, warning

@@ -294,11 +294,12 @@ def test_forecast_equals_batch_when_the_speed_never_changes():
 @pytest.mark.parametrize("step", [1, 5])
 def test_forecast_equals_batch_across_a_log_outage(step):
     """A 40-min outage of every log column (blocks 99-105 without predictors, 97-98 and
-    106-107 logged by 75 % / 50 %): the partly logged blocks at its edges get a model
-    variance from the blocks that share data with them, the newer ones included, so an
-    update whose new blocks miss a predictor takes the state back to before the partly
-    logged blocks the batch widens: the resumed forecast equals the batch one, with the
-    same edge rows."""
+    106-107 logged by 75 % / 50 %; the relative wind direction's own shares differ: 98 and
+    106 by 75 %, 107 fully): the partly logged blocks at its edges get a model variance from
+    the blocks that share data with them, the newer ones included, so an update whose new
+    blocks miss a predictor takes the state back to before the partly logged blocks the
+    batch widens: the resumed forecast equals the batch one, with the same edge rows and
+    each column's own share in their warnings (the checkpoint keeps them per column)."""
     from workbench.forecasting.memory.forecast import memory_forecast
 
     modal, predictors = voyage(170, seed=3)
@@ -308,7 +309,13 @@ def test_forecast_equals_batch_across_a_log_outage(step):
     for block, share in ((97, 0.75), (98, 0.5), (106, 0.5), (107, 0.75)):
         coverage[predictors["block"] == block] = share
     coverage[predictors["block"].between(99, 105)] = 0.25
-    predictors = PREDICTORS.validate(predictors.assign(log_coverage=coverage))
+    shares = {f"log_coverage_{c}": coverage for c in columns}
+    wind = coverage.copy()
+    for block, share in ((98, 0.75), (106, 0.75), (107, 1.0)):
+        wind[predictors["block"] == block] = share
+    shares["log_coverage_wind_dir_rel_deg"] = wind
+    least = pd.concat(shares, axis=1).min(axis=1)
+    predictors = PREDICTORS.validate(predictors.assign(log_coverage=least, **shares))
     options = ForecastOptions(train_blocks=20)
     engine = IncrementalMemoryForecast(options)
     modes = [1, 2, 3]
@@ -326,6 +333,16 @@ def test_forecast_equals_batch_across_a_log_outage(step):
     expected = expected.sort_values(["block", "mode"], kind="stable").reset_index(drop=True)
     edges = expected["warning"].fillna("").str.contains("edge of a log outage")
     assert set(expected.loc[edges, "block"]) == {97, 98, 106, 107}
+    # each partly logged column the model uses named with its own share, and the least
+    # share (mode 3: the speed and the wind direction; 107's wind direction fully logged)
+    third = expected[expected["mode"] == 3].set_index("block")["warning"]
+    for block, named in (
+        (97, "speed_kn 75%, wind_dir_rel_deg 75%; log_coverage 75%"),
+        (98, "speed_kn 50%, wind_dir_rel_deg 75%; log_coverage 50%"),
+        (106, "speed_kn 50%, wind_dir_rel_deg 75%; log_coverage 50%"),
+        (107, "speed_kn 75%; log_coverage 75%"),
+    ):
+        assert f"partly logged ({named})" in third.loc[block], (block, third.loc[block])
     assert engine.rollbacks >= 1  # the outage's first missing block took the state back
     # (the resumed table carries the log's coverage, memory_forecast's does not)
     pd.testing.assert_frame_equal(table.drop(columns="log_coverage"), expected, rtol=1e-9)
@@ -334,7 +351,8 @@ def test_forecast_equals_batch_across_a_log_outage(step):
 def test_update_outlook_computes_again_over_a_checkpoint_of_an_older_layout(
     voyage, batch, tmp_path, monkeypatch
 ):
-    """A saved outlook of an older checkpoint layout (/4 kept no ``log_coverage``) is not
+    """A saved outlook of an older checkpoint layout (/5 kept one ``log_coverage`` per
+    block, not one per column) is not
     half-read: the worker says so and computes the forecast again from the first block,
     equal to the batch forecast."""
     import json
@@ -345,13 +363,13 @@ def test_update_outlook_computes_again_over_a_checkpoint_of_an_older_layout(
         saved = state / "outlook" / "outlook.json"
         document = json.loads(saved.read_text())
         assert document["schema"] == CHECKPOINT_SCHEMA
-        document["schema"] = "workbench.forecasting.incremental/4"
+        document["schema"] = "workbench.forecasting.incremental/5"
         saved.write_text(json.dumps(document))
 
     state = tmp_path / "state"
     report = _worker_restarted(voyage, batch, state, monkeypatch, older_layout)
     assert any(
-        "incremental/4" in m and "computed again from the first block" in m for m in report.messages
+        "incremental/5" in m and "computed again from the first block" in m for m in report.messages
     ), report.messages
     forecast = pd.read_parquet(state / "forecast.parquet")
     pd.testing.assert_frame_equal(forecast, batch["forecast"], rtol=1e-9)

@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from data_contracts import PREDICTORS, read_dship, read_table
+from data_contracts import CANONICAL_PREDICTORS, PREDICTOR_KEYS, PREDICTORS, read_dship, read_table
 from workbench.blocks import BlockGrid
 from workbench.predictors import (
     PredictorWarning,
@@ -182,6 +182,33 @@ def test_log_coverage_is_the_least_over_the_canonical_columns_the_log_has():
     assert extras.loc[0, "log_coverage"] == pytest.approx(1.0)
 
 
+def test_each_canonical_column_has_its_own_log_coverage():
+    """The speed out 00:25-00:40 and the water temperature 00:30-00:35: each column's
+    coverage counts its own minutes (block 4, 00:20-00:40, keeps 5 of the speed's 20
+    minutes and 15 of the water temperature's), ``log_coverage`` is their least, and a
+    value is the mean of the column's logged part (block 2's speed: 00:10-00:25); a column
+    without any reading (the wind speed) or not in the log (the air temperature) has NaN."""
+    log = _minute_log(speed_kn=np.arange(120) / 10).drop(columns=["air_temp_c"])
+    log.loc[25:39, "speed_kn"] = np.nan  # 00:25-00:40
+    log.loc[30:34, "water_temp_c"] = np.nan  # 00:30-00:35
+    log["wind_speed_ms"] = np.nan
+    with pytest.warns(PredictorWarning, match="air_temp_c"):
+        result = block_predictors(log, despike=False).set_index("block")
+    speed_lost = {1: 0, 2: 5, 3: 10, 4: 15, 5: 15, 6: 10, 7: 5, 8: 0}
+    water_lost = {1: 0, 2: 0, 3: 5, 4: 5, 5: 5, 6: 5, 7: 0, 8: 0}
+    for block in speed_lost:
+        row = result.loc[block]
+        assert row["log_coverage_speed_kn"] == pytest.approx(1 - speed_lost[block] / 20), block
+        assert row["log_coverage_water_temp_c"] == pytest.approx(1 - water_lost[block] / 20)
+        assert row["log_coverage"] == pytest.approx(1 - speed_lost[block] / 20)
+    assert result.loc[2, "speed_kn"] == pytest.approx(np.arange(10, 25).mean() / 10)
+    assert result["log_coverage_wind_speed_ms"].isna().all()
+    assert result["log_coverage_air_temp_c"].isna().all()
+    assert result["log_coverage_wind_dir_rel_deg"].eq(1.0).all()
+    # not predictors: the block keys of the contract
+    assert {f"log_coverage_{c.name}" for c in CANONICAL_PREDICTORS} <= set(PREDICTOR_KEYS)
+
+
 def test_extra_columns_and_missing_canonical():
     log = _minute_log().drop(columns=["wind_speed_ms"])
     log["latitude"] = 78.0 + np.arange(len(log)) / 1000
@@ -189,6 +216,11 @@ def test_extra_columns_and_missing_canonical():
         result = block_predictors(log, despike=False)
     assert list(result.columns[3:]) == [
         "log_coverage",
+        "log_coverage_speed_kn",
+        "log_coverage_water_temp_c",
+        "log_coverage_air_temp_c",
+        "log_coverage_wind_speed_ms",
+        "log_coverage_wind_dir_rel_deg",
         "speed_kn",
         "water_temp_c",
         "air_temp_c",

@@ -76,6 +76,7 @@ from .options import ForecastOptions, NoiseOptions
 from .predictor_grid import (
     NS_PER_HOUR,
     block_centre_ns,
+    block_column_coverage,
     block_log_coverage,
     mode_matrix,
     predictor_matrix,
@@ -98,8 +99,9 @@ __all__ = [
 #: windows (:mod:`workbench.forecasting.ssi_guard`); /5: the blocks' ``log_coverage``
 #: (the model variance at a log outage's edges), the model correction before a log
 #: outage's filled blocks and the state's unweighted move (issue 27), option B's run of
-#: missed columns.
-CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/5"
+#: missed columns; /6: the log's coverage of the blocks per predictor column too
+#: (``column_coverage``: the shares an outage edge's warning names).
+CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/6"
 
 #: Rows kept before the newest committed window beyond the refits' history. [blocks]
 _MARGIN_ROWS = 64
@@ -389,6 +391,8 @@ class IncrementalMemoryForecast:
             return lo
         if coverage is not None:
             differ |= ~_same(core.log_coverage[a], coverage[b])
+            columns = block_column_coverage(new.grid, core.columns)
+            differ |= ~_same(core.column_coverage[a], columns[b]).all(axis=1)
         where = np.flatnonzero(differ)
         first = lo + int(where[0]) if where.size else hi + 1
         if coverage is not None:
@@ -448,6 +452,7 @@ class IncrementalMemoryForecast:
             rows["half_difference"] = new.halves[take]
         if core.log_coverage is not None:
             rows["log_coverage"] = block_log_coverage(new.grid)[take]
+            rows["column_coverage"] = block_column_coverage(new.grid, core.columns)[take]
         for name, value in rows.items():
             setattr(core, name, np.concatenate([getattr(core, name)[:keep], value]))
         for name in ("meas", "resid", "scatter"):
@@ -555,6 +560,7 @@ class IncrementalMemoryForecast:
             "combined_std",
             "half_difference",
             "log_coverage",
+            "column_coverage",
             "speed_var",
             "shift_cap",
             "meas",

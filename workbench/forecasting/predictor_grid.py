@@ -8,12 +8,13 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from data_contracts import PREDICTOR_KEYS
+from data_contracts import PREDICTOR_KEYS, column_log_coverage_name
 
 from ..errors import DataError, PredictorError
 
 __all__ = [
     "block_centre_ns",
+    "block_column_coverage",
     "block_log_coverage",
     "forecast_span",
     "mode_matrix",
@@ -74,6 +75,21 @@ def block_log_coverage(table: pd.DataFrame) -> np.ndarray | None:
     if "log_coverage" not in table.columns:
         return None
     return table["log_coverage"].to_numpy(dtype=float, na_value=np.nan)
+
+
+def block_column_coverage(table: pd.DataFrame, columns: Sequence[str]) -> np.ndarray | None:
+    """The ship log's share of each block per predictor *columns*, shape (rows of *table*,
+    len(*columns*)): a column's own ``log_coverage_<column>``, NaN where the table has
+    none (a column the averaging gives no share of, such as the time trend); None when
+    the table has no ``log_coverage`` (it does not say how much of a block is logged)."""
+    if block_log_coverage(table) is None:
+        return None
+    out = np.full((len(table), len(columns)), np.nan)
+    for j, column in enumerate(columns):
+        name = column_log_coverage_name(column)
+        if name in table.columns:
+            out[:, j] = table[name].to_numpy(dtype=float, na_value=np.nan)
+    return out
 
 
 def block_centre_ns(grid: pd.DataFrame) -> np.ndarray:

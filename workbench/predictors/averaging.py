@@ -17,7 +17,7 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 import pandas as pd
 
-from data_contracts import LOG_COVERAGE, PREDICTOR_KEYS, PREDICTORS
+from data_contracts import LOG_COVERAGE, PREDICTOR_KEYS, PREDICTORS, column_log_coverage_name
 
 from ..blocks import DEFAULT_BLOCK_LENGTH_S, DEFAULT_BLOCK_STEP_S, BlockGrid
 from ._common import (
@@ -340,21 +340,28 @@ def block_predictors(
         out[name] = means[:, names.index(name)] if name in names else np.nan
     for name in extras:
         out[name] = means[:, names.index(name)]
-    out[LOG_COVERAGE.name] = _log_coverage(coverage, rows, len(canonical))
+    used = _covered_columns(rows, len(canonical), coverage.shape[1])
+    out[LOG_COVERAGE.name] = (
+        np.clip(coverage[:, used].min(axis=1), 0.0, 1.0) if used.size else np.full(len(out), np.nan)
+    )
+    for name in CANONICAL_NAMES:
+        k = names.index(name) if name in canonical else -1
+        out[column_log_coverage_name(name)] = (
+            np.clip(coverage[:, k], 0.0, 1.0) if k in used else np.full(len(out), np.nan)
+        )
     return PREDICTORS.validate(out)
 
 
-def _log_coverage(coverage: np.ndarray, rows: np.ndarray, n_canonical: int) -> np.ndarray:
-    """Per block, the least coverage over the canonical predictors the log carries: the
-    canonical columns (every averaged column when there is none) with at least one valid
-    reading, so a sensor the log never had a reading of does not mark every block; NaN
-    when no column has one."""
-    used = np.arange(n_canonical if n_canonical else coverage.shape[1])
+def _covered_columns(rows: np.ndarray, n_canonical: int, n_columns: int) -> np.ndarray:
+    """Positions of the columns whose coverage marks a block: the canonical columns (every
+    averaged column when there is none) with at least one valid reading, so a sensor the
+    log never had a reading of does not mark every block. ``log_coverage`` is the least
+    coverage over them (NaN when there is none), ``log_coverage_<column>`` each canonical
+    one's own (NaN for a column not among them)."""
+    used = np.arange(n_canonical if n_canonical else n_columns)
     if rows.size:
         used = used[np.isfinite(rows[used]).any(axis=1)]
-    if used.size == 0:
-        return np.full(coverage.shape[0], np.nan)
-    return np.clip(coverage[:, used].min(axis=1), 0.0, 1.0)
+    return used
 
 
 def _warn_faults(flags, dropped_stretches: bool) -> None:

@@ -79,6 +79,7 @@ from ..options import ForecastOptions
 from ..predictor_grid import (
     NS_PER_HOUR,
     block_centre_ns,
+    block_column_coverage,
     block_log_coverage,
     forecast_span,
     mode_matrix,
@@ -219,8 +220,10 @@ class MemoryRun:
             X_all = np.column_stack([X_all, hours.astype(float)])
             columns = [*columns, "elapsed_hours"]
         self.grid, self.blocks, self.block_start = grid, blocks, block_start
-        # the share of each block the ship log covers (None: the table does not say)
+        # the share of each block the ship log covers, the least over the log's columns
+        # and per predictor column (None: the table does not say)
         self.log_coverage = block_log_coverage(grid)
+        self.column_coverage = block_column_coverage(grid, columns)
         self.columns, self.X_all = columns, X_all
         # blocks that share data with a block: its identification error (an ice impact, a
         # badly excited stretch) is in all of them, so a run of large innovations is
@@ -401,11 +404,27 @@ class MemoryRun:
             self.warn(
                 k,
                 j,
-                f"partly logged ({self.log_coverage[k]:.0%}) at the edge of a log outage: "
+                f"partly logged ({self._partly_logged(m, k)}) at the edge of a log outage: "
                 "model variance raised",
                 "partly logged blocks at the edge of a log outage (model variance raised)",
             )
         return mean[sl], seen[sl], mvar[sl], float(abs(np.nanmedian(mean)))
+
+    def _partly_logged(self, m: MemoryModel, k: int) -> str:
+        """What an outage edge's warning names of grid row *k*: the predictors *m* needs
+        that the log covers only partly there, each with its own share of the block, and
+        the least share over the log's columns (``log_coverage``), the c of
+        :meth:`_outage_edge_variance` - e.g. ``"speed_kn 50%; log_coverage 0%"`` where the water
+        temperature misses the block."""
+        columns = m.needed_columns()
+        shares = self.column_coverage[k, columns]
+        named = [
+            f"{self.columns[c]} {share:.0%}"
+            for c, share in zip(columns, shares, strict=True)
+            if share < 1.0
+        ]
+        least = f"log_coverage {self.log_coverage[k]:.0%}"
+        return f"{', '.join(named)}; {least}" if named else least
 
     def _outage_edge_variance(self, m: MemoryModel, rows: np.ndarray) -> np.ndarray:
         """Model variance of *m* on grid rows *rows* from the unlogged share of a block at
@@ -423,6 +442,10 @@ class MemoryRun:
         blend leans on SSI as far as the unlogged share can hide a change
         (``benchmarks/results/forecast_partial_blocks_27n.txt``). A short hole inside
         logged data (no block missing a predictor: both sides of it known) adds nothing.
+        c is the least share over the log's columns; each column's own share
+        (``log_coverage_<column>``) is named in the row's warning, not used: the variance
+        from it loses at the edge of an outage that hides a stop
+        (``benchmarks/results/forecast_column_coverage_27r.txt``).
         The blocks after the row count (an outage's first edge is known only from the
         blocks after it): the monitor's resumed forecast goes back to before such a row when
         an update brings a block that misses a predictor
