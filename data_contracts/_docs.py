@@ -21,9 +21,10 @@ generated from them by `python -m data_contracts._docs`); each validates lazily 
 one `ContractError` listing every violation as `file: column 'x', rows 3, 7: reason`.
 
 Conventions: units are part of column names; times are UTC (tz-aware in pandas, ISO-8601 with
-`Z` in CSV; a time written in a recognised form has every digit of each field it writes:
-`2026-03-01T00:1` is refused, not read as 00:01); damping ratios are fractions (1.2 % is `0.012`); tables are read and written as
-CSV or Parquet (chosen by suffix) with `read_table(path, CONTRACT)` / `write_table(df, path,
+`Z` in CSV; a time written in a recognised form has every digit of its last field, its
+minutes and seconds: `2026-03-01T00:1` is refused, not read as 00:01, while an unpadded day,
+month or hour that another field follows reads, `13/3/2026 0:05`); damping ratios are
+fractions (1.2 % is `0.012`); tables are read and written as CSV or Parquet (chosen by suffix) with `read_table(path, CONTRACT)` / `write_table(df, path,
 CONTRACT)`, which validate, write atomically (temporary file + rename) and round-trip exactly.
 Columns not listed are kept (extra predictors, diagnostics).
 

@@ -170,15 +170,17 @@ _MATLAB_SYMBOLS = (
 #: which pandas' ISO-8601 parser reads) alone or with a time of at least hours and minutes
 #: (``T`` or a space), seconds and their fraction optional, then ``Z`` or an offset
 #: (``+hh``, ``+hhmm``, ``+hh:mm``). Every field has all its digits: pandas reads
-#: ``T00:1`` as 00:01 and ``2026-03`` as the first of March.
+#: ``T00:1`` as 00:01 and ``2026-03`` as the first of March. The hour alone may be
+#: unpadded (``T0:10``): minutes follow it, so it is not a field cut short.
 ISO_TIME = re.compile(
-    r"[+-]?\d{4}(?:-\d{2}-|/\d{2}/)\d{2}(?:[T ]\d{2}:\d{2}(?::\d{2}(?:[.,]\d+)?)?"
+    r"[+-]?\d{4}(?:-\d{2}-|/\d{2}/)\d{2}(?:[T ]\d{1,2}:\d{2}(?::\d{2}(?:[.,]\d+)?)?"
     r"(?:\s?(?:Z|[+-]\d{2}(?::?\d{2})?))?)?"
     r"|[+-]?\d{8}(?:T\d{4}(?:\d{2}(?:[.,]\d+)?)?(?:Z|[+-]\d{2}(?:\d{2})?)?)?"
 )
 
 #: The text each ``strptime`` directive of the recognised formats must match in full
-#: (``strptime`` itself takes ``%M`` from one digit: ``00:5:00`` is read as 00:05).
+#: (``strptime`` itself takes ``%M`` from one digit: ``00:5:00`` is read as 00:05). A
+#: day, month or hour followed by another field may be unpadded (:data:`_UNPADDED`).
 _DIRECTIVE_TEXT = {
     "Y": r"\d{4}",
     "y": r"\d{2}",
@@ -192,20 +194,26 @@ _DIRECTIVE_TEXT = {
 }
 
 
+#: Directives a spreadsheet writes without padding (``1/3/2026 0:05``): one or two digits
+#: where another field follows, so that a line cut short is still told from an unpadded
+#: one (a cut removes the last field's digits: ``1/3/2026 0:0`` is refused).
+_UNPADDED = {"d": r"\d{1,2}", "m": r"\d{1,2}", "H": r"\d{1,2}"}
+
+
 def _format_text(fmt: str) -> re.Pattern:
     """What a whole time text of the ``strptime`` format *fmt* (one of the recognised
     formats, whose directives are those of :data:`_DIRECTIVE_TEXT`) looks like."""
-    parts = re.split(r"(%.|\s+)", fmt)
-    pattern = "".join(
-        _DIRECTIVE_TEXT[part[1]]
-        if part.startswith("%")
-        else r"\s+"
-        if part.isspace()
-        else re.escape(part)
-        for part in parts
-        if part
-    )
-    return re.compile(pattern)
+    parts = [part for part in re.split(r"(%.|\s+)", fmt) if part]
+    last = max(i for i, part in enumerate(parts) if part.startswith("%"))
+
+    def text(i: int, part: str) -> str:
+        if part.startswith("%"):
+            if i < last and part[1] in _UNPADDED:
+                return _UNPADDED[part[1]]
+            return _DIRECTIVE_TEXT[part[1]]
+        return r"\s+" if part.isspace() else re.escape(part)
+
+    return re.compile("".join(text(i, part) for i, part in enumerate(parts)))
 
 
 def complete_times(text: pd.Series, fmt: str) -> np.ndarray:

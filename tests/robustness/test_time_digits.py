@@ -1,5 +1,7 @@
-"""A time that lacks digits (``2026-03-01T00:1``, ``T0:10``, ``00:10:5``) is refused with
-the file, the column and the line, instead of being read as another time.
+"""A time that lacks digits (``2026-03-01T00:1``, ``00:10:5``) is refused with the file,
+the column and the line, instead of being read as another time; an unpadded day, month or
+hour that another field follows (``1/3/2026 0:05``, as spreadsheets write) is no cut and
+reads as before.
 
 Before: pandas' ISO-8601 parser reads a one-digit minute, hour or second as a whole field,
 so the ship-log line ``2026-03-01T00:1`` (a minute cut short: 00:10 to 00:19) was read as
@@ -38,7 +40,6 @@ def _log(path: Path, odd: str, fmt: str = "%Y-%m-%dT%H:%M:%S") -> Path:
     "odd",
     [
         "2026-03-01T00:1",  # a minute cut short: was 00:01
-        "2026-03-01T0:10",  # an hour of one digit
         "2026-03-01T00:05:0",  # a second cut short: was 00:05:00 whatever it was
         "2026-03-01T00",  # the minutes cut off: was 00:00
         "2026-3-01T00:05:00",  # a month of one digit
@@ -69,7 +70,8 @@ def test_validate_says_it_in_one_line_and_exits_1(tmp_path: Path, capsys):
     ("odd", "fmt"),
     [
         ("2026/03/01 00:05:0", "%Y/%m/%d %H:%M:%S"),  # strptime read it as 00:05:00
-        ("01.03.2026 0:05:00", "%d.%m.%Y %H:%M:%S"),
+        ("01.03.2026 00:5:00", "%d.%m.%Y %H:%M:%S"),
+        ("1.3.2026 0:0", "%d.%m.%Y %H:%M"),  # the minutes cut short
         ("01-Mar-2026 00:5:00", "%d-%b-%Y %H:%M:%S"),
     ],
 )
@@ -96,6 +98,12 @@ def test_the_other_recognised_forms_need_their_digits_too(tmp_path: Path, odd: s
         ("01.03.2026 00:05:00.5", "2026-03-01T00:05:00.5Z"),
         ("01-Mar-2026 00:05:00", "2026-03-01T00:05:00Z"),
         ("13/03/2026 00:05:00", "2026-03-13T00:05:00Z"),
+        # unpadded fields that another field follows: no cut
+        ("2026-03-01T0:10", "2026-03-01T00:10:00Z"),
+        ("13/3/2026 0:05", "2026-03-13T00:05:00Z"),
+        ("3/13/2026 9:05:00", "2026-03-13T09:05:00Z"),
+        ("1.3.2026 0:05:00", "2026-03-01T00:05:00Z"),
+        ("1-Mar-2026 0:05:00", "2026-03-01T00:05:00Z"),
     ],
 )
 def test_complete_times_read_as_before(text: str, expected: str):
@@ -128,7 +136,7 @@ def test_a_start_time_missing_digits_is_refused(tmp_path: Path):
     assert [v.column for v in caught.value.violations] == ["start_time"]
     with pytest.raises(ValueError, match="start_time='2026-03-01T00:1' is not a complete"):
         AccelerationLayout(start_time="2026-03-01T00:1")
-    with pytest.raises(ValueError, match="grid_t0='2026-03-01T0:10' is not a complete"):
-        _utc("2026-03-01T0:10", "grid_t0")
+    with pytest.raises(ValueError, match="grid_t0='2026-03-01T00:1' is not a complete"):
+        _utc("2026-03-01T00:1", "grid_t0")
     assert AccelerationLayout(start_time="2026-03-01T00:10").start_time == "2026-03-01T00:10"
     assert _utc("2026-03-01 00:10:00", "grid_t0") == pd.Timestamp("2026-03-01T00:10Z")
