@@ -197,3 +197,51 @@ def test_the_forecast_follows_ssi_where_an_unlogged_change_is_faster_than_a_bloc
     assert np.mean(part["guard_weight"].to_numpy()[changed] < 1) > 0.6
     assert tables["plain"][0]["guard_weight"].isna().all()
     assert any("mode 0: estimate drawn toward SSI" in w for w in result.warnings)
+
+
+def _hull_step(directions, n=16, step_block=10, sigma=1e-3):
+    """Modes at 3, 5, 7 Hz; SSI within σ of the truth (halves saying σ), a blend that
+    stays within σ/2 of SSI; at *step_block* each mode's truth (and SSI) moves by
+    30 σ times its direction while the blend follows only a third of the way."""
+    rng = np.random.default_rng(3)
+    modes = len(directions)
+    truth = np.tile(np.array([3.0, 5.0, 7.0, 9.0][:modes]), (n, 1))
+    truth[step_block:] += 30 * sigma * np.asarray(directions, dtype=float)
+    measured = truth + rng.normal(0, sigma, (n, modes))
+    estimate = measured + rng.uniform(-0.5, 0.5, (n, modes)) * sigma
+    estimate[step_block] = (
+        measured[step_block - 1] + (measured[step_block] - measured[step_block - 1]) / 3
+    )
+    halves = np.full((n, modes), 2 * sigma)
+    return truth, measured, estimate, halves
+
+
+def test_a_change_of_the_whole_hull_is_followed_at_its_first_block():
+    """Every mode down by 30 σ at once (an ice load): a lone distance in each mode, but all
+    on one side of the blend, so not SSI's outliers. The blend, two thirds of the step
+    behind, is drawn to within R̄ / d² of SSI at that very block (the window before it
+    says nothing of the blend after the change): the guarded estimate is within 1.5 σ of
+    the truth in every mode, where the blend is 19-21 σ off. On the old guard every mode's
+    block counted as a lone outlier and the blend stood."""
+    sigma = 1e-3
+    truth, measured, estimate, halves = _hull_step([-1, -1, -1], sigma=sigma)
+    out, _, weight = _run(estimate, np.full(estimate.shape, sigma**2 / 4), measured, halves)
+    k = 10
+    assert np.all(np.abs(estimate[k] - truth[k]) > 18 * sigma)
+    assert np.all(np.abs(out[k] - truth[k]) < 1.5 * sigma), (out[k] - truth[k]) / sigma
+    assert np.all(weight[k] < 0.01)
+    np.testing.assert_array_equal(weight[:k], 1.0)  # before the change the blend stands
+
+
+@pytest.mark.parametrize(
+    "directions",
+    [[-1, 1, 0], [0, -1, 0]],  # two labels swapped; one mode's wrong pole
+)
+def test_one_modes_outlier_or_a_swap_is_still_the_blends_to_weigh(directions):
+    """A lone distance in one mode, or in two modes on opposite sides (a swap of labels),
+    is SSI's outlier: the blend stands at that block (weight 1)."""
+    sigma = 1e-3
+    truth, measured, estimate, halves = _hull_step(directions, sigma=sigma)
+    out, _, weight = _run(estimate, np.full(estimate.shape, sigma**2 / 4), measured, halves)
+    np.testing.assert_array_equal(weight[10], 1.0)
+    np.testing.assert_array_equal(out[10], estimate[10])

@@ -40,6 +40,16 @@ blend's own outlier weighting stands at that block (a single wild pole is not fo
 and the next prediction starts from x̂⁻ there. A fast unlogged change gives many large
 distances, none alone.
 
+*A change of the whole hull.* An unlogged change of mass or stiffness (ice on the hull,
+ballast, cargo) moves every global mode at once, and the same way; another column's pole
+is one mode's event, and a swap of two modes' labels moves them opposite ways. So where two
+or more modes have a lone outlier at the same block, all with SSI on the same side of the
+blend, the distance is the hull's, not SSI's: the modes are not treated as outliers, and the
+window - which holds only blocks from before the change - does not describe the blend's
+error after it. That block's own distance does (one draw of E[d²] = E[a²] + R), so its
+weight is at most R̄ / d²; the blocks after it have the large distance in their window and
+are guarded as usual (``benchmarks/results/ice_voyage_guard_48.txt``).
+
 *Where it runs* (:class:`~workbench.forecasting.memory.forecast.MemoryRun`): on blocks that
 share no data with their neighbours, and on blocks of varying length or an unknown grid.
 Where blocks overlap n-fold (20-minute blocks every 5 minutes), consecutive SSI errors are
@@ -110,6 +120,16 @@ class GuardWindow:
         return np.where(lone, top, -1)
 
 
+def _hull_change(lone: np.ndarray, distance: np.ndarray) -> np.ndarray:
+    """The modes of *lone* (this block's lone outliers) that moved with the whole hull: all
+    of them when there are two or more and *distance* (SSI less the blend) has one sign
+    across them, else none."""
+    signs = np.sign(distance[lone])
+    if signs.size >= 2 and np.all(signs == signs[0]) and signs[0] != 0:
+        return lone
+    return np.zeros_like(lone)
+
+
 class SSIGuard:
     """The running test and estimate of the module docstring, all modes at once.
 
@@ -168,10 +188,11 @@ class SSIGuard:
         # a lone outlier of SSI (another column's pole) is the blend's to weigh: the
         # blend's estimate of its block stands
         lone = self._d2.lone_outlier()
-        outlier = lone == slot
+        have = np.isfinite(measured)
+        hull = _hull_change((lone == slot) & have & np.isfinite(estimate), measured - estimate)
+        outlier = (lone == slot) & ~hull
         d2, pairs = self._d2.mean()
         d2_prior, prior_pairs = self._d2_prior.mean()
-        have = np.isfinite(measured)
         fail = have & ~outlier & (pairs >= MIN_PAIRS) & (d2 > r_mean)
         from_prior = fail & np.isfinite(prior) & (prior_pairs >= MIN_PAIRS) & (d2_prior > r_mean)
         weight = np.ones_like(r_mean)
@@ -186,6 +207,14 @@ class SSIGuard:
         weight[p] = r_mean[p] / d2_prior[p]
         guarded[p] = measured[p] + weight[p] * (prior[p] - measured[p])
         guarded_variance[p] = r_mean[p] * (1 - weight[p])
+        # a change of the whole hull: the block's own distance, not the window's
+        d2_now = np.where(hull, (estimate - measured) ** 2, np.inf)
+        now = hull & (r_mean < weight * d2_now)
+        weight[now] = r_mean[now] / d2_now[now]
+        guarded[now] = measured[now] + weight[now] * (estimate[now] - measured[now])
+        guarded_variance[now] = (1 - weight[now]) ** 2 * r_mean[now] + weight[now] ** 2 * variance[
+            now
+        ]
         self.weight = weight
         # the predictions go on from the guarded estimates; at a lone outlier from the
         # prediction itself (the blend's estimate there is the one the guard could not judge)
