@@ -235,11 +235,14 @@ def test_a_change_of_the_whole_hull_is_followed_at_its_first_block():
 
 @pytest.mark.parametrize(
     "directions",
-    [[-1, 1, 0], [0, -1, 0]],  # two labels swapped; one mode's wrong pole
+    # one mode's wrong pole; two labels swapped; two chance outliers of one sign; three
+    # modes on both sides
+    [[0, -1, 0, 0], [-1, 1, 0, 0], [-1, -1, 0, 0], [-1, -1, 1, 0]],
 )
 def test_one_modes_outlier_or_a_swap_is_still_the_blends_to_weigh(directions):
-    """A lone distance in one mode, or in two modes on opposite sides (a swap of labels),
-    is SSI's outlier: the blend stands at that block (weight 1)."""
+    """A lone distance in one mode, in two (fewer than HULL_MODES), or in modes on both
+    sides of the blend (a swap of labels) is SSI's outlier: the blend stands at that block
+    (weight 1)."""
     sigma = 1e-3
     truth, measured, estimate, halves = _hull_step(directions, sigma=sigma)
     out, _, weight = _run(estimate, np.full(estimate.shape, sigma**2 / 4), measured, halves)

@@ -42,9 +42,9 @@ distances, none alone.
 
 *A change of the whole hull.* An unlogged change of mass or stiffness (ice on the hull,
 ballast, cargo) moves every global mode at once, and the same way; another column's pole
-is one mode's event, and a swap of two modes' labels moves them opposite ways. So where two
-or more modes have a lone outlier at the same block, all with SSI on the same side of the
-blend, the distance is the hull's, not SSI's: the modes are not treated as outliers, and the
+is one mode's event, and a swap of two modes' labels moves them opposite ways. So where
+:data:`HULL_MODES` or more modes have a lone outlier at the same block, all with SSI on the
+same side of the blend, the distance is the hull's, not SSI's: the modes are not treated as outliers, and the
 window - which holds only blocks from before the change - does not describe the blend's
 error after it. That block's own distance does (one draw of E[d²] = E[a²] + R), so its
 weight is at most R̄ / d²; the blocks after it have the large distance in their window and
@@ -74,7 +74,15 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["GUARD_BLOCKS", "MIN_PAIRS", "OUTLIER_SIGMA", "R_BLOCKS", "GuardWindow", "SSIGuard"]
+__all__ = [
+    "GUARD_BLOCKS",
+    "HULL_MODES",
+    "MIN_PAIRS",
+    "OUTLIER_SIGMA",
+    "R_BLOCKS",
+    "GuardWindow",
+    "SSIGuard",
+]
 
 #: Blocks over which the distance from SSI is averaged (40 minutes of 5-minute steps). [-]
 GUARD_BLOCKS = 8
@@ -87,6 +95,10 @@ MIN_PAIRS = 3
 #: others' is an outlier of SSI (a mislabelled pole, 1-3 % off where SSI scatters by
 #: 0.1-0.3 %): it leaves the means, and the blend's estimate of it stands. [-]
 OUTLIER_SIGMA = 5.0
+#: Fewest modes with a lone outlier at one block, all of one sign, that make a change of the
+#: whole hull rather than SSI's outliers (two modes' chance outliers share a sign half the
+#: time, three a quarter; the first forecast block of an ice voyage had two). [-]
+HULL_MODES = 3
 
 
 class GuardWindow:
@@ -122,10 +134,10 @@ class GuardWindow:
 
 def _hull_change(lone: np.ndarray, distance: np.ndarray) -> np.ndarray:
     """The modes of *lone* (this block's lone outliers) that moved with the whole hull: all
-    of them when there are two or more and *distance* (SSI less the blend) has one sign
+    of them when there are at least :data:`HULL_MODES` and *distance* (SSI less the blend) has one sign
     across them, else none."""
     signs = np.sign(distance[lone])
-    if signs.size >= 2 and np.all(signs == signs[0]) and signs[0] != 0:
+    if signs.size >= HULL_MODES and np.all(signs == signs[0]) and signs[0] != 0:
         return lone
     return np.zeros_like(lone)
 
