@@ -44,11 +44,12 @@ distances, none alone.
 ballast, cargo) moves every global mode at once, and the same way; another column's pole
 is one mode's event, and a swap of two modes' labels moves them opposite ways. So where
 :data:`HULL_MODES` or more modes have a lone outlier at the same block, all with SSI on the
-same side of the blend, the distance is the hull's, not SSI's: the modes are not treated as outliers, and the
-window - which holds only blocks from before the change - does not describe the blend's
-error after it. That block's own distance does (one draw of E[d²] = E[a²] + R), so its
-weight is at most R̄ / d²; the blocks after it have the large distance in their window and
-are guarded as usual (``benchmarks/results/ice_voyage_guard_48.txt``).
+same side of the blend, the distance is the hull's, not SSI's: the modes are not treated as
+outliers, and the window - which holds only blocks from before the change - does not
+describe the blend's error after it. That block's own distance does (one draw of
+E[d²] = E[a²] + R), so its weight is at most R̄ / d²; the blocks after it have the large
+distance in their window and are guarded as usual
+(``benchmarks/results/ice_voyage_guard_48.txt``).
 
 *Where it runs* (:class:`~workbench.forecasting.memory.forecast.MemoryRun`): on blocks that
 share no data with their neighbours, and on blocks of varying length or an unknown grid.
@@ -134,8 +135,8 @@ class GuardWindow:
 
 def _hull_change(lone: np.ndarray, distance: np.ndarray) -> np.ndarray:
     """The modes of *lone* (this block's lone outliers) that moved with the whole hull: all
-    of them when there are at least :data:`HULL_MODES` and *distance* (SSI less the blend) has one sign
-    across them, else none."""
+    of them when there are at least :data:`HULL_MODES` and *distance* (SSI less the blend)
+    has one sign across them, else none."""
     signs = np.sign(distance[lone])
     if signs.size >= HULL_MODES and np.all(signs == signs[0]) and signs[0] != 0:
         return lone
