@@ -77,7 +77,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.stats import norm
 
+from .innovation_consistency import ALPHA, TEST_CLIP, clipped_square_moments
 from .memory.kalman import kalman_predict, kalman_update
 from .memory.noise import update_run
 
@@ -129,6 +131,9 @@ LEAD_SWITCH_PROBABILITY = 0.002
 LEAD_FORGET = 1.0 / 96
 #: Smallest and largest model probability (neither hypothesis is ever ruled out). [-]
 P_MIN, P_MAX = 1e-4, 1.0 - 1e-4
+#: Two-sided critical value of the follow test (:meth:`ModelTrust._follow_test`), at the
+#: level of the filter's innovation consistency test. [-]
+_Z_TWO_SIDED = float(norm.isf(ALPHA / 2))
 
 
 @dataclass(frozen=True)
@@ -211,6 +216,13 @@ class ModelTrust:
         self.lead_at = 0
         self.lead_probability = np.full(n_modes, LEAD_PRIOR)
         self.lead_scale = np.full(n_modes, np.nan)
+        # the follow test: each model-free filter's newest persist_blocks normalised
+        # innovations (NaN: not yet measured), whether they put it off to one side of
+        # the measurements, and this block's measurement with its variance
+        self.recent = np.full((n_free, n_modes, self.persist_blocks or 0), np.nan)
+        self.off_side = np.zeros((n_free, n_modes), dtype=bool)
+        self.measurement = np.full(n_modes, np.nan)
+        self.measurement_variance = np.full(n_modes, np.nan)
 
     @property
     def lead_factor(self) -> np.ndarray:
@@ -267,6 +279,8 @@ class ModelTrust:
         blend_normalised, blend_variance = blend.normalised, blend.variance
         blend_state, measurement_model = blend.state, blend.measurement_model
         sigma2 = np.maximum(error_variance + white_variance, 1e-300)
+        self.measurement = np.asarray(z, dtype=float).copy()
+        self.measurement_variance = sigma2.copy()
         log_l = np.full(self.weights.shape, np.nan)
         log_l[0] = self._blend_log_likelihood(blend_normalised, blend_variance)
         # the blend's Huber threshold: the same measurement, judged by the same noise levels
@@ -374,19 +388,54 @@ class ModelTrust:
         )
         have = np.isfinite(nu)
         out[idx[have]] = self._log_likelihood(nu[have], S[have])
+        self._follow_test(h, idx[have], nu[have])
         self.run[h, idx] = update_run(run, nu, huber[idx])
         level[idx], error[idx], P_all[idx] = state[:, 0], state[:, 1:], P
         return out
 
+    def _follow_test(self, h: int, modes: np.ndarray, normalised: np.ndarray) -> None:
+        """The follow test of model-free filter *h* after a block that measured *modes*.
+
+        A level random walk lags a mode that keeps moving (a ramp of s per block: by
+        s (1 - K) / K, K its gain) and its innovations are then of one sign. Over its
+        newest n = persist_blocks innovations (a run as long as that is not one corrupted
+        stretch of data) the sign test of
+        :class:`~workbench.forecasting.innovation_consistency.InnovationConsistency`:
+        mean ψ(ν), ψ clipped at :data:`~workbench.forecasting.innovation_consistency.TEST_CLIP`
+        (one outlier cannot decide it), has standard deviation √(m_k / n) while the filter
+        explains the measurements; beyond z_{1-α/2} of them it does not, and
+        :meth:`combine` takes the block's SSI estimate in its place.
+        """
+        n = self.recent.shape[2]
+        if not n or modes.size == 0:
+            return
+        recent = self.recent[h]
+        recent[modes] = np.roll(recent[modes], -1, axis=1)
+        recent[modes, -1] = normalised
+        psi = np.clip(recent[modes], -TEST_CLIP, TEST_CLIP)
+        mean_k = clipped_square_moments(TEST_CLIP)[0]
+        with np.errstate(invalid="ignore"):
+            statistic = np.abs(psi.mean(axis=1)) * np.sqrt(n / mean_k)
+        self.off_side[h, modes] = np.isfinite(statistic) & (statistic > _Z_TWO_SIDED)
+
     def combine(
         self, blend_estimate: np.ndarray, blend_variance: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Probability-weighted estimate [Hz] and its variance [Hz²] (module docstring)."""
+        """Probability-weighted estimate [Hz] and its variance [Hz²] (module docstring).
+
+        A model-free filter whose newest innovations put it off to one side of the
+        measurements (:meth:`_follow_test`) explains them no better than the model does:
+        its share of the estimate is the block's SSI estimate, with the identification
+        error's variance (``benchmarks/results/forecast_method1_demo_27s.txt``).
+        """
         started = np.isfinite(self.level)
-        xs = np.concatenate([blend_estimate[None], np.where(started, self.level, blend_estimate)])
-        Ps = np.concatenate(
-            [blend_variance[None], np.where(started, self.P[:, :, 0, 0], blend_variance)]
-        )
+        level = np.where(started, self.level, blend_estimate)
+        level_variance = np.where(started, self.P[:, :, 0, 0], blend_variance)
+        follow = self.off_side & np.isfinite(self.measurement)
+        level = np.where(follow, self.measurement, level)
+        level_variance = np.where(follow, self.measurement_variance, level_variance)
+        xs = np.concatenate([blend_estimate[None], level])
+        Ps = np.concatenate([blend_variance[None], level_variance])
         # the blend keeps its whole weight until its probability falls below
         # FULL_WEIGHT_PROBABILITY; below, its weight is p / FULL_WEIGHT_PROBABILITY and the
         # rest goes to the model-free filters in proportion to their probabilities
