@@ -308,7 +308,7 @@ def test_lead_test_falls_back_to_ssi_when_the_split_hides_the_model_error():
     assert np.abs(x_right - truth)[late].mean() < 0.1 * error_ssi
 
 
-def _free_run(measured_hz, *, huber=None, sigma2=1e-4):
+def _free_run(measured_hz, *, sigma2=1e-4):
     """ModelTrust fed one mode with white SSI errors of variance *sigma2* (no
     identification-error state) beside a blend whose model is 3 SSI standard deviations
     off in every block (its probability falls to the floor) and whose estimate is the
@@ -324,35 +324,13 @@ def _free_run(measured_hz, *, huber=None, sigma2=1e-4):
             np.zeros((1, 2)),
             np.array([0.0]),
             np.array([sigma2]),
-            BlendStep(np.array([0.03 / math.sqrt(S)]), np.array([S]), huber=huber),
+            BlendStep(np.array([0.03 / math.sqrt(S)]), np.array([S])),
             np.array([True]),
         )
         estimate, _ = trust.combine(np.array([z]), np.array([sigma2]))
         estimates.append(estimate[0])
         levels.append(trust.level[0, 0])
     return np.array(estimates), np.array(levels)
-
-
-def test_model_free_filter_takes_the_blends_huber_threshold():
-    """While the noise levels are the prior's (method 1's single window: its first window's
-    scatter) the blend has no Huber weight (huber inf) and the model-free filter takes a
-    speed change of ten times the SSI scatter as it comes, as the blend does; with the
-    fitted levels' threshold (2.5) the same jump is held back as an outlier until the
-    persistence rule's run (5 blocks) is complete."""
-    rng = np.random.default_rng(5)
-    truth = np.r_[np.full(40, 5.0), np.full(10, 5.1)]
-    measured = truth + rng.normal(0.0, 0.01, truth.size)
-    _, prior = _free_run(measured, huber=np.array([np.inf]))
-    _, fitted = _free_run(measured, huber=np.array([2.5]))
-    # level random walk with q = sigma^2: steady gain (sqrt(5) - 1) / 2 = 0.62, so the
-    # first block after the jump takes about 0.06 Hz of it without the Huber weight; with
-    # it, at most k sqrt(S) K = 2.5 x 0.0127 Hz x 0.62 = 0.02 Hz
-    assert prior[40] - 5.0 > 0.05
-    assert fitted[40] - 5.0 < 0.025
-    # a block later the prior's filter is within 2 SSI standard deviations of the new
-    # level; the Huber-weighted one still lags by half the jump
-    assert abs(prior[41] - 5.1) < 0.02
-    assert 5.1 - fitted[41] > 0.04
 
 
 def test_estimate_follows_ssi_when_the_model_free_level_lags_a_ramp():

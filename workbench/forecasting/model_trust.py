@@ -34,6 +34,16 @@ shared by the model-free filters in proportion to their probabilities; p₁ f_L,
 probability that the model explains the mode, is the forecast table's
 ``model_probability``.
 
+*The follow test.* A level random walk lags a mode that keeps moving (by s (1 - K) / K
+for a ramp of s per block, K its gain; 0.62 s at q = 1), and where SSI's own error is
+smaller than that lag the fallback is worse than SSI. Such a lag shows in the filter's
+innovations, which are then of one sign: over its newest persist_blocks innovations the
+sign test of the blend's innovation consistency
+(:mod:`workbench.forecasting.innovation_consistency`, ψ clipped at 1.5, level 5 %) says
+whether the model-free filter explains the measurements; where it does not, neither
+hypothesis does, and that filter's share of the estimate is the block's SSI estimate
+(:meth:`ModelTrust.combine`). The probabilities are not changed by the test.
+
 The one-step prediction of a block's measurement is out of sample for every filter, so the
 weights measure which of them predicts the data better as the voyage goes on: a guard that
 measures whether leaning on the model still helps, and falls back to the model-free
@@ -149,18 +159,12 @@ class BlendStep:
     measurement_model : ndarray (n,), optional
         The model's value of this block's measurement (the blend predicts z = this +
         H x). [Hz]
-    huber : ndarray (n,), optional
-        The blend's Huber threshold per mode, which the model-free filters' updates take
-        too: inf while the mode's noise levels are the prior's (nothing to judge an
-        innovation by, :func:`~workbench.forecasting.memory.noise.filter_matrices`).
-        None: :attr:`ModelTrust.huber_sigma` for every mode. [-]
     """
 
     normalised: np.ndarray
     variance: np.ndarray
     state: np.ndarray | None = None
     measurement_model: np.ndarray | None = None
-    huber: np.ndarray | None = None
 
 
 class ModelTrust:
@@ -283,11 +287,9 @@ class ModelTrust:
         self.measurement_variance = sigma2.copy()
         log_l = np.full(self.weights.shape, np.nan)
         log_l[0] = self._blend_log_likelihood(blend_normalised, blend_variance)
-        # the blend's Huber threshold: the same measurement, judged by the same noise levels
-        huber = np.full(z.shape, self.huber_sigma) if blend.huber is None else blend.huber
         for h, step in enumerate(self.steps):
             log_l[h + 1] = self._free_step(
-                h, step, z, transition, error_step_variance, sigma2, white_variance, huber
+                h, step, z, transition, error_step_variance, sigma2, white_variance
             )
         use = learn & np.isfinite(log_l).all(axis=0)
         if use.any():
@@ -342,21 +344,13 @@ class ModelTrust:
         out[ok] = self._log_likelihood(normalised[ok], variance[ok])
         return out
 
-    def _free_step(
-        self, h, step, z, transition, error_step_variance, sigma2, white_variance, huber
-    ):
+    def _free_step(self, h, step, z, transition, error_step_variance, sigma2, white_variance):
         """Predict and update model-free filter *h*; its log-likelihood of z (NaN: none).
 
         States [x, identification error's states]: F = the blend's with 1 for the level,
         Q = the blend's identification part and q (σ_e² + σ_v²) for the level; the step is
         the blend's (:func:`~workbench.forecasting.memory.kalman.kalman_update`: Huber
-        weights at the blend's threshold *huber* per mode, the persistence rule, Joseph
-        form). While a mode's noise levels are the prior's (the first window's scatter of
-        the measurements, method 1's single window throughout) the blend has no Huber
-        weight, and neither has the model-free filter: judged by that scatter, a
-        speed change of a few times it in a block is an outlier, held back until the
-        persistence rule's run is complete, and the estimate that falls back to the
-        filter lags the move (``benchmarks/results/forecast_method1_demo_27s.txt``).
+        weights, the persistence rule, Joseph form).
         """
         out = np.full(z.shape, np.nan)
         level, error, P_all = self.level[h], self.error[h], self.P[h]
@@ -382,14 +376,14 @@ class ModelTrust:
             *kalman_predict(state, P_all[idx], F, Q),
             z[idx],
             white_variance[idx],
-            huber[idx],
+            self.huber_sigma,
             previous_run=run if self.persist_blocks is not None else None,
             persist_blocks=self.persist_blocks or 0,
         )
         have = np.isfinite(nu)
         out[idx[have]] = self._log_likelihood(nu[have], S[have])
         self._follow_test(h, idx[have], nu[have])
-        self.run[h, idx] = update_run(run, nu, huber[idx])
+        self.run[h, idx] = update_run(run, nu, np.full(idx.size, self.huber_sigma))
         level[idx], error[idx], P_all[idx] = state[:, 0], state[:, 1:], P
         return out
 
