@@ -312,7 +312,7 @@ def _free_run(measured_hz, *, sigma2=1e-4):
     """ModelTrust fed one mode with white SSI errors of variance *sigma2* (no
     identification-error state) beside a blend whose model is 3 SSI standard deviations
     off in every block (its probability falls to the floor) and whose estimate is the
-    measurement (a blend with the prior's noise levels leans on SSI); the combined
+    measurement (a blend with the prior's noise levels, no Huber weight, leans on SSI); the combined
     estimate and the model-free level of every block. [Hz]"""
     trust = ModelTrust(1, huber_sigma=2.5, persist_blocks=5)
     estimates, levels = [], []
@@ -324,7 +324,7 @@ def _free_run(measured_hz, *, sigma2=1e-4):
             np.zeros((1, 2)),
             np.array([0.0]),
             np.array([sigma2]),
-            BlendStep(np.array([0.03 / math.sqrt(S)]), np.array([S])),
+            BlendStep(np.array([0.03 / math.sqrt(S)]), np.array([S]), unweighted=np.array([True])),
             np.array([True]),
         )
         estimate, _ = trust.combine(np.array([z]), np.array([sigma2]))

@@ -42,8 +42,10 @@ sign test of the blend's innovation consistency
 (:mod:`workbench.forecasting.innovation_consistency`, ψ clipped at 1.5, level 5 % over
 the persist_blocks tests each innovation takes part in) says
 whether the model-free filter explains the measurements; where it does not, neither
-hypothesis does, and that filter's share of the estimate is the block's SSI estimate
-(:meth:`ModelTrust.combine`). The probabilities are not changed by the test.
+hypothesis does, and where the blend takes every measurement without Huber weight (its
+noise levels the prior's, method 1's single window throughout) that filter's share of the
+estimate is the block's SSI estimate (:meth:`ModelTrust.combine`). The probabilities are
+not changed by the test.
 
 The one-step prediction of a block's measurement is out of sample for every filter, so the
 weights measure which of them predicts the data better as the voyage goes on: a guard that
@@ -157,12 +159,18 @@ class BlendStep:
     measurement_model : ndarray (n,), optional
         The model's value of this block's measurement (the blend predicts z = this +
         H x). [Hz]
+    unweighted : ndarray of bool (n,), optional
+        Modes whose blend takes every measurement without Huber weight (its noise levels
+        are the prior's, :func:`~workbench.forecasting.memory.noise.filter_matrices`):
+        only there may :meth:`ModelTrust.combine` follow SSI in place of a lagging
+        model-free level (None: nowhere).
     """
 
     normalised: np.ndarray
     variance: np.ndarray
     state: np.ndarray | None = None
     measurement_model: np.ndarray | None = None
+    unweighted: np.ndarray | None = None
 
 
 class ModelTrust:
@@ -281,7 +289,11 @@ class ModelTrust:
         blend_normalised, blend_variance = blend.normalised, blend.variance
         blend_state, measurement_model = blend.state, blend.measurement_model
         sigma2 = np.maximum(error_variance + white_variance, 1e-300)
-        self.measurement = np.asarray(z, dtype=float).copy()
+        # SSI's estimate where the blend takes it without Huber weight (NaN elsewhere: the
+        # follow test's substitute; where the blend judges outliers, a run of them as
+        # long as the blocks sharing data is the persistence rule's to accept)
+        unweighted = np.zeros(z.shape, dtype=bool) if blend.unweighted is None else blend.unweighted
+        self.measurement = np.where(unweighted, np.asarray(z, dtype=float), np.nan)
         self.measurement_variance = sigma2.copy()
         log_l = np.full(self.weights.shape, np.nan)
         log_l[0] = self._blend_log_likelihood(blend_normalised, blend_variance)
@@ -423,8 +435,12 @@ class ModelTrust:
 
         A model-free filter whose newest innovations put it off to one side of the
         measurements (:meth:`_follow_test`) explains them no better than the model does:
-        its share of the estimate is the block's SSI estimate, with the identification
-        error's variance (``benchmarks/results/forecast_method1_demo_27s.txt``).
+        where the blend takes every measurement without Huber weight (the prior's noise
+        levels: method 1's single window, the first windows of method 2) its share of the
+        estimate is the block's SSI estimate, with the identification error's variance.
+        Where the blend has a Huber weight, a stretch of outliers as long as the blocks
+        sharing data would set the test off too, and following SSI there would undo the
+        persistence rule (``benchmarks/results/forecast_method1_demo_27s.txt``).
         """
         started = np.isfinite(self.level)
         level = np.where(started, self.level, blend_estimate)
