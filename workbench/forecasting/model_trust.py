@@ -40,12 +40,11 @@ smaller than that lag the fallback is worse than SSI. Such a lag shows in the fi
 innovations, which are then of one sign: over its newest persist_blocks innovations the
 sign test of the blend's innovation consistency
 (:mod:`workbench.forecasting.innovation_consistency`, ψ clipped at 1.5, level 5 % over
-the persist_blocks tests each innovation takes part in) says
-whether the model-free filter explains the measurements; where it does not, neither
-hypothesis does, and where the blend takes every measurement without Huber weight (its
-noise levels the prior's, method 1's single window throughout) that filter's share of the
-estimate is the block's SSI estimate (:meth:`ModelTrust.combine`). The probabilities are
-not changed by the test.
+the persist_blocks tests each innovation takes part in) says whether the model-free
+filter explains the measurements; where it does not, neither hypothesis does, and where
+the blend takes every measurement without Huber weight (its noise levels the prior's,
+method 1's single window throughout) that filter's share of the estimate is the block's
+SSI estimate (:meth:`ModelTrust.combine`). The probabilities are not changed by the test.
 
 The one-step prediction of a block's measurement is out of sample for every filter, so the
 weights measure which of them predicts the data better as the voyage goes on: a guard that
