@@ -306,3 +306,47 @@ def test_lead_test_falls_back_to_ssi_when_the_split_hides_the_model_error():
     assert np.abs(x_wrong - truth)[late].mean() < error_ssi
     # the right blend keeps (nearly) its whole weight
     assert np.abs(x_right - truth)[late].mean() < 0.1 * error_ssi
+
+
+def _free_run(measured_hz, *, sigma2=1e-4):
+    """ModelTrust fed one mode with white SSI errors of variance *sigma2* (no
+    identification-error state) beside a blend whose model is 3 SSI standard deviations
+    off in every block (its probability falls to the floor) and whose estimate is the
+    measurement (a blend with the prior's noise levels, no Huber weight, leans on SSI); the combined
+    estimate and the model-free level of every block. [Hz]"""
+    trust = ModelTrust(1, huber_sigma=2.5, persist_blocks=5)
+    estimates, levels = [], []
+    for z in measured_hz:
+        S = 0.005**2 + sigma2
+        trust.step(
+            np.array([z]),
+            np.zeros((1, 2, 2)),
+            np.zeros((1, 2)),
+            np.array([0.0]),
+            np.array([sigma2]),
+            BlendStep(np.array([0.03 / math.sqrt(S)]), np.array([S]), unweighted=np.array([True])),
+            np.array([True]),
+        )
+        estimate, _ = trust.combine(np.array([z]), np.array([sigma2]))
+        estimates.append(estimate[0])
+        levels.append(trust.level[0, 0])
+    return np.array(estimates), np.array(levels)
+
+
+def test_estimate_follows_ssi_when_the_model_free_level_lags_a_ramp():
+    """A mode that keeps moving, 2 SSI standard deviations a block for 30 blocks, that
+    neither the model (3 standard deviations off) nor the level random walk explains: the
+    level lags a ramp of s a block by s (1 - K) / K = 0.62 s = 1.2 SSI standard
+    deviations, more than the SSI error's mean absolute value (0.8 of it). Its innovations
+    are then of one sign, the follow test fires and the estimate is SSI's: within SSI's
+    own error over the ramp (after the test's 5 blocks), on four voyages."""
+    for seed in range(4):
+        rng = np.random.default_rng(seed)
+        truth = np.r_[np.full(40, 5.0), 5.0 - 0.02 * np.arange(1, 31)]
+        measured = truth + rng.normal(0.0, 0.01, truth.size)
+        estimate, level = _free_run(measured)
+        ramp = slice(46, None)
+        error_ssi = np.abs(measured[ramp] - truth[ramp]).mean()
+        # the level lags by 1.2 standard deviations, ~0.014 Hz of mean absolute error
+        assert np.abs(level[ramp] - truth[ramp]).mean() > error_ssi + 0.003
+        assert np.abs(estimate[ramp] - truth[ramp]).mean() <= error_ssi * (1 + 1e-9)

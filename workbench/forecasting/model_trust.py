@@ -34,6 +34,18 @@ shared by the model-free filters in proportion to their probabilities; p₁ f_L,
 probability that the model explains the mode, is the forecast table's
 ``model_probability``.
 
+*The follow test.* A level random walk lags a mode that keeps moving (by s (1 - K) / K
+for a ramp of s per block, K its gain; 0.62 s at q = 1), and where SSI's own error is
+smaller than that lag the fallback is worse than SSI. Such a lag shows in the filter's
+innovations, which are then of one sign: over its newest persist_blocks innovations the
+sign test of the blend's innovation consistency
+(:mod:`workbench.forecasting.innovation_consistency`, ψ clipped at 1.5, level 5 % over
+the persist_blocks tests each innovation takes part in) says whether the model-free
+filter explains the measurements; where it does not, neither hypothesis does, and where
+the blend takes every measurement without Huber weight (its noise levels the prior's,
+method 1's single window throughout) that filter's share of the estimate is the block's
+SSI estimate (:meth:`ModelTrust.combine`). The probabilities are not changed by the test.
+
 The one-step prediction of a block's measurement is out of sample for every filter, so the
 weights measure which of them predicts the data better as the voyage goes on: a guard that
 measures whether leaning on the model still helps, and falls back to the model-free
@@ -77,7 +89,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.stats import norm
 
+from .innovation_consistency import ALPHA, TEST_CLIP, clipped_square_moments
 from .memory.kalman import kalman_predict, kalman_update
 from .memory.noise import update_run
 
@@ -144,12 +158,18 @@ class BlendStep:
     measurement_model : ndarray (n,), optional
         The model's value of this block's measurement (the blend predicts z = this +
         H x). [Hz]
+    unweighted : ndarray of bool (n,), optional
+        Modes whose blend takes every measurement without Huber weight (its noise levels
+        are the prior's, :func:`~workbench.forecasting.memory.noise.filter_matrices`):
+        only there may :meth:`ModelTrust.combine` follow SSI in place of a lagging
+        model-free level (None: nowhere).
     """
 
     normalised: np.ndarray
     variance: np.ndarray
     state: np.ndarray | None = None
     measurement_model: np.ndarray | None = None
+    unweighted: np.ndarray | None = None
 
 
 class ModelTrust:
@@ -205,6 +225,13 @@ class ModelTrust:
         self.lead_at = 0
         self.lead_probability = np.full(n_modes, LEAD_PRIOR)
         self.lead_scale = np.full(n_modes, np.nan)
+        # the follow test: each model-free filter's newest persist_blocks normalised
+        # innovations (NaN: not yet measured), whether they put it off to one side of
+        # the measurements, and this block's measurement with its variance
+        self.recent = np.full((n_free, n_modes, self.persist_blocks or 0), np.nan)
+        self.off_side = np.zeros((n_free, n_modes), dtype=bool)
+        self.measurement = np.full(n_modes, np.nan)
+        self.measurement_variance = np.full(n_modes, np.nan)
 
     @property
     def lead_factor(self) -> np.ndarray:
@@ -261,6 +288,12 @@ class ModelTrust:
         blend_normalised, blend_variance = blend.normalised, blend.variance
         blend_state, measurement_model = blend.state, blend.measurement_model
         sigma2 = np.maximum(error_variance + white_variance, 1e-300)
+        # SSI's estimate where the blend takes it without Huber weight (NaN elsewhere: the
+        # follow test's substitute; where the blend judges outliers, a run of them as
+        # long as the blocks sharing data is the persistence rule's to accept)
+        unweighted = np.zeros(z.shape, dtype=bool) if blend.unweighted is None else blend.unweighted
+        self.measurement = np.where(unweighted, np.asarray(z, dtype=float), np.nan)
+        self.measurement_variance = sigma2.copy()
         log_l = np.full(self.weights.shape, np.nan)
         log_l[0] = self._blend_log_likelihood(blend_normalised, blend_variance)
         for h, step in enumerate(self.steps):
@@ -358,19 +391,64 @@ class ModelTrust:
         )
         have = np.isfinite(nu)
         out[idx[have]] = self._log_likelihood(nu[have], S[have])
+        self._follow_test(h, idx[have], nu[have])
         self.run[h, idx] = update_run(run, nu, np.full(idx.size, self.huber_sigma))
         level[idx], error[idx], P_all[idx] = state[:, 0], state[:, 1:], P
         return out
 
+    def _follow_test(self, h: int, modes: np.ndarray, normalised: np.ndarray) -> None:
+        """The follow test of model-free filter *h* after a block that measured *modes*.
+
+        A level random walk lags a mode that keeps moving (a ramp of s per block: by
+        s (1 - K) / K, K its gain) and its innovations are then of one sign. Over its
+        newest n = persist_blocks innovations (a run as long as that is not one corrupted
+        stretch of data) the sign test of
+        :class:`~workbench.forecasting.innovation_consistency.InnovationConsistency`:
+        mean ψ(ν), ψ clipped at :data:`~workbench.forecasting.innovation_consistency.TEST_CLIP`
+        (one outlier cannot decide it), has standard deviation √(m_k / n) while the filter
+        explains the measurements; beyond z_{1-α/(2n)} of them it does not, and
+        :meth:`combine` takes the block's SSI estimate in its place. The test runs every
+        block on a window that moves by one, so each innovation takes part in n of them:
+        at α/n a test (Bonferroni), an innovation sets it off by chance with probability at
+        most α, the consistency test's level (at α a test the method-1 rows of the suite
+        lost up to 1.9 of median and 6.8 of worst seed:
+        ``benchmarks/results/forecast_method1_demo_27s.txt``).
+        """
+        n = self.recent.shape[2]
+        if not n or modes.size == 0:
+            return
+        recent = self.recent[h]
+        recent[modes] = np.roll(recent[modes], -1, axis=1)
+        recent[modes, -1] = normalised
+        psi = np.clip(recent[modes], -TEST_CLIP, TEST_CLIP)
+        mean_k = clipped_square_moments(TEST_CLIP)[0]
+        with np.errstate(invalid="ignore"):
+            statistic = np.abs(psi.mean(axis=1)) * np.sqrt(n / mean_k)
+        critical = float(norm.isf(ALPHA / (2 * n)))
+        self.off_side[h, modes] = np.isfinite(statistic) & (statistic > critical)
+
     def combine(
         self, blend_estimate: np.ndarray, blend_variance: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Probability-weighted estimate [Hz] and its variance [Hz²] (module docstring)."""
+        """Probability-weighted estimate [Hz] and its variance [Hz²] (module docstring).
+
+        A model-free filter whose newest innovations put it off to one side of the
+        measurements (:meth:`_follow_test`) explains them no better than the model does:
+        where the blend takes every measurement without Huber weight (the prior's noise
+        levels: method 1's single window, the first windows of method 2) its share of the
+        estimate is the block's SSI estimate, with the identification error's variance.
+        Where the blend has a Huber weight, a stretch of outliers as long as the blocks
+        sharing data would set the test off too, and following SSI there would undo the
+        persistence rule (``benchmarks/results/forecast_method1_demo_27s.txt``).
+        """
         started = np.isfinite(self.level)
-        xs = np.concatenate([blend_estimate[None], np.where(started, self.level, blend_estimate)])
-        Ps = np.concatenate(
-            [blend_variance[None], np.where(started, self.P[:, :, 0, 0], blend_variance)]
-        )
+        level = np.where(started, self.level, blend_estimate)
+        level_variance = np.where(started, self.P[:, :, 0, 0], blend_variance)
+        follow = self.off_side & np.isfinite(self.measurement)
+        level = np.where(follow, self.measurement, level)
+        level_variance = np.where(follow, self.measurement_variance, level_variance)
+        xs = np.concatenate([blend_estimate[None], level])
+        Ps = np.concatenate([blend_variance[None], level_variance])
         # the blend keeps its whole weight until its probability falls below
         # FULL_WEIGHT_PROBABILITY; below, its weight is p / FULL_WEIGHT_PROBABILITY and the
         # rest goes to the model-free filters in proportion to their probabilities

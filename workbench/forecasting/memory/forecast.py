@@ -739,6 +739,7 @@ class MemoryRun:
     def _kalman_step(self, k, have, z, scale, m_now, z_now, filter_step) -> None:
         """Kalman update of row *k* with the measurements *z*; the guard, the outputs."""
         F, q_c, q_e, r_v, huber, model_variance = filter_step
+        noise_huber = huber  # inf: the prior's noise levels (before a fill's or a return's)
         n_modes, in_sample = self.n_modes, k < self.first + self.train
         residual = z - z_now  # innovation about what SSI is expected to see
         # a model that fills a missing predictor (a gap in the log): a large innovation is
@@ -788,7 +789,7 @@ class MemoryRun:
                 q_e * scale[:, None],
                 np.array([nz.error_variance if nz else 0.0 for nz in self.noise_of]) * scale,
                 r_v * scale,
-                BlendStep(nu, innovation_variance, self.state, z_now),
+                BlendStep(nu, innovation_variance, self.state, z_now, ~np.isfinite(noise_huber)),
                 # a block whose model fills a missing predictor says nothing of whether
                 # the model explains the mode: the probabilities wait for the log
                 np.full(n_modes, not in_sample) & ~lost & ~filled,
