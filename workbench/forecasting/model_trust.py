@@ -229,6 +229,9 @@ class ModelTrust:
         # innovations (NaN: not yet measured), whether they put it off to one side of
         # the measurements, and this block's measurement with its variance
         self.recent = np.full((n_free, n_modes, self.persist_blocks or 0), np.nan)
+        n_recent = self.recent.shape[2]
+        self.follow_mean_square = clipped_square_moments(TEST_CLIP)[0]
+        self.follow_critical = float(norm.isf(ALPHA / (2 * n_recent))) if n_recent else np.inf
         self.off_side = np.zeros((n_free, n_modes), dtype=bool)
         self.measurement = np.full(n_modes, np.nan)
         self.measurement_variance = np.full(n_modes, np.nan)
@@ -421,11 +424,9 @@ class ModelTrust:
         recent[modes] = np.roll(recent[modes], -1, axis=1)
         recent[modes, -1] = normalised
         psi = np.clip(recent[modes], -TEST_CLIP, TEST_CLIP)
-        mean_k = clipped_square_moments(TEST_CLIP)[0]
         with np.errstate(invalid="ignore"):
-            statistic = np.abs(psi.mean(axis=1)) * np.sqrt(n / mean_k)
-        critical = float(norm.isf(ALPHA / (2 * n)))
-        self.off_side[h, modes] = np.isfinite(statistic) & (statistic > critical)
+            statistic = np.abs(psi.mean(axis=1)) * np.sqrt(n / self.follow_mean_square)
+        self.off_side[h, modes] = np.isfinite(statistic) & (statistic > self.follow_critical)
 
     def combine(
         self, blend_estimate: np.ndarray, blend_variance: np.ndarray

@@ -212,22 +212,17 @@ class SSIGuard:
         guarded, guarded_variance = estimate.copy(), variance.copy()
         blend = fail & ~from_prior
         weight[blend] = r_mean[blend] / d2[blend]
-        guarded[blend] = measured[blend] + weight[blend] * (estimate[blend] - measured[blend])
-        guarded_variance[blend] = (1 - weight[blend]) ** 2 * r_mean[blend] + weight[
-            blend
-        ] ** 2 * variance[blend]
-        p = from_prior
-        weight[p] = r_mean[p] / d2_prior[p]
-        guarded[p] = measured[p] + weight[p] * (prior[p] - measured[p])
-        guarded_variance[p] = r_mean[p] * (1 - weight[p])
+        weight[from_prior] = r_mean[from_prior] / d2_prior[from_prior]
         # a change of the whole hull: the block's own distance, not the window's
         d2_now = np.where(hull, (estimate - measured) ** 2, np.inf)
         now = hull & (r_mean < weight * d2_now)
         weight[now] = r_mean[now] / d2_now[now]
-        guarded[now] = measured[now] + weight[now] * (estimate[now] - measured[now])
-        guarded_variance[now] = (1 - weight[now]) ** 2 * r_mean[now] + weight[now] ** 2 * variance[
-            now
-        ]
+        b = blend | now  # the blend drawn toward SSI
+        guarded[b] = measured[b] + weight[b] * (estimate[b] - measured[b])
+        guarded_variance[b] = (1 - weight[b]) ** 2 * r_mean[b] + weight[b] ** 2 * variance[b]
+        p = from_prior & ~now  # the prediction drawn toward SSI
+        guarded[p] = measured[p] + weight[p] * (prior[p] - measured[p])
+        guarded_variance[p] = r_mean[p] * (1 - weight[p])
         self.weight = weight
         # the predictions go on from the guarded estimates; at a lone outlier from the
         # prediction itself (the blend's estimate there is the one the guard could not judge)
