@@ -553,6 +553,10 @@ class MemoryRun:
             z[~have] = np.nan
             filter_step = (F, q_c, q_e, r_v, huber, v_rows[r] + added_variance)
             self._kalman_step(k, have, z, scale, m_rows[r], z_rows[r], filter_step)
+            # a mode without a model (too few measured blocks before i0, e.g. a gap in the
+            # first window) keeps training: its tracked pole is the block's measurement,
+            # as in the first window, so a later window fits it
+            self.meas[k, ~have_model] = self.tracked[k, ~have_model]
 
     def _filled(self, k: int) -> np.ndarray:
         """Per mode: whether its current model needs a predictor row *k* lacks."""
