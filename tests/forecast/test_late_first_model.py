@@ -48,9 +48,9 @@ def _voyage(seed: int = 0):
         else:
             keep[:MODE_1_FROM] = False
         rows.append(
-            pd.DataFrame(
-                {"block": block, "block_start": start, "mode": mode, "frequency_hz": z}
-            )[keep]
+            pd.DataFrame({"block": block, "block_start": start, "mode": mode, "frequency_hz": z})[
+                keep
+            ]
         )
     modal = pd.concat(rows).sort_values(["block", "mode"]).reset_index(drop=True)
     temperature = 3 + rng.normal(0, 0.3, N_BLOCKS)
