@@ -63,15 +63,27 @@ def _voyage(seed: int = 0):
 OPTIONS = ForecastOptions(options=("A",), time_trend=False, train_blocks=20, horizon=4)
 
 
-def _batch(modal, predictors):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ForecastWarning)
-        return sliding_forecast(modal, predictors, OPTIONS)
+def _batch(modal, predictors, caught=None):
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always", ForecastWarning)
+        result = sliding_forecast(modal, predictors, OPTIONS)
+    if caught is not None:
+        caught += [str(w.message) for w in record if issubclass(w.category, ForecastWarning)]
+    return result
 
 
 def test_a_mode_short_of_blocks_in_the_first_window_is_forecast_once_it_has_them():
     modal, predictors, truth = _voyage()
-    table = _batch(modal, predictors).table
+    caught: list[str] = []
+    table = _batch(modal, predictors, caught).table
+    # the windows without a model are named, and say the forecast comes once it can
+    waiting = [m for m in caught if "too few measured blocks" in m]
+    assert waiting == [
+        "mode 0: too few measured blocks for a model (fewer than 10), no forecast "
+        "until it has them (x1)",
+        "mode 1: too few measured blocks for a model (fewer than 10), no forecast "
+        "until it has them (x13)",
+    ]
     for mode, first_row in ((0, 24), (1, 72)):
         rows = table[(table["mode"] == mode) & (table["phase"] == "forecast")]
         # windows of 4 blocks from block 20; a model needs min_train = 10 measured blocks

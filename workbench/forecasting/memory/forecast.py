@@ -360,7 +360,10 @@ class MemoryRun:
         for j in range(self.n_modes):
             m = self.current[j]
             if m is None:
-                self.notes[f"mode {self.mode_labels[j]}: too few measured blocks, no forecast"] += 1
+                self.notes[
+                    f"mode {self.mode_labels[j]}: too few measured blocks for a model (fewer "
+                    f"than {self.refits.min_train}), no forecast until it has them"
+                ] += 1
                 continue
             mean, seen, mvar, level_hz = self._mode_predictions(j, m, i0, k_first, f1)
             m_rows[:, j], z_rows[:, j], v_rows[:, j] = mean, seen, mvar
