@@ -98,3 +98,15 @@ def test_flat_runs_from_step_sums_equal_the_whole_block(cuts):
     np.testing.assert_array_equal(constant_runs(x)[2], [400, 700, 300, 1, 39])
     reasons = faulty_channels(x, RATE_HZ)["reason"].tolist()
     assert reasons[:3] == ["flat run 12.5 s", "flat run 21.9 s", ""]
+
+
+def test_the_note_of_a_channel_flat_throughout_closes_its_parenthesis(tmp_path, capsys):
+    """The run summary counts drops by kind, the reason without its numbers: 'flat
+    (variance 0)' is 'flat (variance)', not the 'flat (variance' printed before."""
+    paths = write_voyage(tmp_path / "acc", n_files=4)
+    for path in paths:
+        _fill(path, 1, 0.5)
+    argv = ["identify", str(tmp_path / "acc"), "--out", str(tmp_path / "out"), *IDENTIFY_ARGS]
+    assert main(argv) == 0
+    notes = [line for line in capsys.readouterr().out.splitlines() if "note (" in line]
+    assert notes == ["  note (3): channel acc02 dropped (flat (variance))"]

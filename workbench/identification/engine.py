@@ -606,13 +606,15 @@ def _file_tasks(tasks: Sequence[BlockTask], plan, options: IdentifyOptions) -> l
 
 def _reason_kind(reason: str) -> str:
     """The kind of a fault reason without its numbers (for summary counts), e.g.
-    ``"nan fraction 1.00 > 0.05"`` -> ``"nan fraction"``."""
+    ``"nan fraction 1.00 > 0.05"`` -> ``"nan fraction"``, ``"flat (variance 0)"`` ->
+    ``"flat (variance)"`` (a parenthesis the cut opened is closed)."""
     words = []
     for word in reason.split():
         if any(ch.isdigit() for ch in word) or word in (">", "<", "=", "%"):
             break
         words.append(word)
-    return " ".join(words) or "faulty"
+    kind = " ".join(words)
+    return kind + ")" * (kind.count("(") - kind.count(")")) or "faulty"
 
 
 def _full_channels(frame: pd.DataFrame, kept: Sequence[str], channels: Sequence[str]):

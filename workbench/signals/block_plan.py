@@ -220,16 +220,22 @@ def reference_channels(
 
     A recorder that drops a channel for a while writes files lacking it; those files are
     read with the channel all-NaN (:func:`align_channels`), and the blocks holding them drop
-    it as faulty. Raises ValueError naming the file when a file differs in sampling rate
-    or lacks more than half of the channels (then it is not the same recorder's file).
+    it as faulty. Raises ValueError naming the file when a file differs from the sampling
+    rate most files have (ties: the earliest file's; so the file named is the odd one, also
+    when it is the first) or lacks more than half of the channels (then it is not the same
+    recorder's file).
     """
-    first = infos[0]
+    rates: dict[float, list[FileInfo]] = {}
+    for info in infos:
+        rates.setdefault(info.sampling_rate_hz, []).append(info)
+    usual = max(rates.values(), key=len)  # first maximum: the earliest file's rate
     channels = tuple(majority_channels(infos) if channels is None else channels)
     for info in infos:
-        if info.sampling_rate_hz != first.sampling_rate_hz:
+        if info.sampling_rate_hz != usual[0].sampling_rate_hz:
+            others = usual[0].name if len(usual) == 1 else f"{len(usual)} of the {len(infos)} files"
             raise ValueError(
                 f"{info.path}: sampling rate {info.sampling_rate_hz:g} Hz differs from "
-                f"{first.sampling_rate_hz:g} Hz of {first.name}"
+                f"{usual[0].sampling_rate_hz:g} Hz of {others}"
             )
         if len(set(info.channels)) != len(info.channels):
             raise ValueError(f"{info.path}: a channel name appears twice")

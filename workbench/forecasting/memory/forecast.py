@@ -360,7 +360,10 @@ class MemoryRun:
         for j in range(self.n_modes):
             m = self.current[j]
             if m is None:
-                self.notes[f"mode {self.mode_labels[j]}: too few measured blocks, no forecast"] += 1
+                self.notes[
+                    f"mode {self.mode_labels[j]}: too few measured blocks for a model (fewer "
+                    f"than {self.refits.min_train}), no forecast until it has them"
+                ] += 1
                 continue
             mean, seen, mvar, level_hz = self._mode_predictions(j, m, i0, k_first, f1)
             m_rows[:, j], z_rows[:, j], v_rows[:, j] = mean, seen, mvar
@@ -553,6 +556,10 @@ class MemoryRun:
             z[~have] = np.nan
             filter_step = (F, q_c, q_e, r_v, huber, v_rows[r] + added_variance)
             self._kalman_step(k, have, z, scale, m_rows[r], z_rows[r], filter_step)
+            # a mode without a model (too few measured blocks before i0, e.g. a gap in the
+            # first window) keeps training: its tracked pole is the block's measurement,
+            # as in the first window, so a later window fits it
+            self.meas[k, ~have_model] = self.tracked[k, ~have_model]
 
     def _filled(self, k: int) -> np.ndarray:
         """Per mode: whether its current model needs a predictor row *k* lacks."""
