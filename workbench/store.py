@@ -93,8 +93,12 @@ except ImportError:  # pragma: no cover - Windows: pid-based lock only
 _HELD: dict[str, list] = {}
 
 
-#: Overlap of two files' spans that is only rounding of their end times. [ns]
-_SPAN_TOLERANCE_NS = 100_000
+#: Overlap of two files' spans that is only rounding of their end times or the recorder's
+#: clock jitter: a file is re-timed by up to CLOCK_JITTER_S (50 ms,
+#: :mod:`workbench.signals.block_plan`) to its predecessor's end, and runs over other
+#: neighbours may place two files up to twice that apart. A changed file overlaps its
+#: recorded span by nearly its whole length. [ns]
+_SPAN_TOLERANCE_NS = 100_000_000
 
 
 def _ns(times) -> np.ndarray:
@@ -437,7 +441,7 @@ class BlockStore:
             if item["sha256"] in known:
                 continue
             start, end = (int(v) for v in _ns([item["start"], item["end"]]))
-            # spans sharing more than rounding (0.1 ms, well below a sample) hold other data
+            # spans sharing more than rounding and clock jitter (0.1 s) hold other data
             overlap = np.minimum(highs, end) - np.maximum(lows, start)
             clashing = np.flatnonzero(overlap > _SPAN_TOLERANCE_NS)
             if len(clashing):

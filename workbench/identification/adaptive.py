@@ -495,7 +495,7 @@ def identify_adaptive(
                 f"{name}: unreadable ({unreadable[name]}); left out"
                 + (f": block(s) {block_ranges(blocks)} not identified" if len(blocks) else "")
             )
-    result.notes = [n for p in parts for n in p.notes]
+    result.notes = list(dict.fromkeys(n for p in parts for n in p.notes))
     counts = lengths["block_length_s"].value_counts().sort_index()
     result.notes.insert(
         0,

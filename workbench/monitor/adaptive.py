@@ -137,7 +137,8 @@ class AdaptiveLengths:
         Parameters
         ----------
         files : sequence of LandedFile
-            The files taken, in time order.
+            The files taken, in time order, their headers as placed (re-timed for clock
+            jitter, :func:`~workbench.signals.block_plan.place_files`).
 
         Returns
         -------
@@ -176,8 +177,9 @@ class AdaptiveLengths:
             if planned.skipped_reason:
                 power = math.nan
             else:
+                header = {info.path: info for info in plan.files}
                 block = load_block(
-                    planned.files,
+                    [header[path] for path in planned.files],  # as placed: not read again
                     j,
                     self.half_grid,
                     options=conditioning,

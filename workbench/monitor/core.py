@@ -232,6 +232,8 @@ class Monitor:
         self.voyage: _Voyage | None = None
         self.store: BlockStore | None = None
         self.files: list[LandedFile] = []
+        #: the files' headers as placed (:meth:`_placed`), with the starts they came from
+        self._placed_files: tuple[tuple, list[LandedFile]] = ((), [])
         self.done: set[int] = set()
         #: Of the blocks this process decided (not those a restart found stored): how
         #: many were identified, and each skipped one as ``block``, ``files`` (names),
@@ -503,17 +505,12 @@ class Monitor:
                     f"starts before the monitor's first block ({voyage.grid.t0.isoformat()}); "
                     "blocks are anchored at the first file"
                 )
+        placed = info
         if not reason:
-            for other in self.files:
-                overlap = min(other.info.end_time, info.end_time) - max(
-                    other.info.start_time, info.start_time
-                )
-                if overlap.total_seconds() > 0.5 / info.sampling_rate_hz:
-                    reason = f"overlaps {other.path.name}"
-                    break
+            reason, placed = _placed_among(info, [f.info for f in self._placed()])
         if not reason and self.store is not None:
             try:
-                self.store.check_inputs(input_fingerprints([info]))
+                self.store.check_inputs(input_fingerprints([placed]))
             except StoreDamaged as error:  # no file can be used: said by --once, exit 1
                 reason = self.store_damaged = _state_folder(str(error))
             except WorkbenchError as error:
@@ -533,12 +530,33 @@ class Monitor:
                 f"{item.path.name}: channel(s) {extra} not among the voyage's (those most "
                 "files carried when the monitor started); left out"
             )
+        if placed.clock_shift_s:
+            from ..signals.block_plan import CLOCK_JITTER_S
+
+            self.messages.append(
+                f"{item.path.name}: start re-timed by {placed.clock_shift_s * 1e3:+.1f} ms to the "
+                f"previous file's end (clock jitter up to {CLOCK_JITTER_S * 1e3:g} ms is taken "
+                "as contiguous)"
+            )
         self.files.append(item)
         self._last_taken = (item.path.name, pd.Timestamp.now(tz="UTC"))
         self.files.sort(key=lambda f: (f.info.start_time, str(f.path)))
         self._dirty = True
         if self.voyage is not None:
             self._note_too_late(item)
+
+    def _placed(self) -> list[LandedFile]:
+        """The files taken, each with its header as a plan places it (re-timed for clock
+        jitter, :func:`~workbench.signals.block_plan.place_files`), as identify places the
+        same files: the blocks are cut, conditioned and checked from these times."""
+        from ..signals.block_plan import place_files
+
+        key = tuple((f.path, f.info.start_time) for f in self.files)
+        if self._placed_files[0] != key:
+            placed = place_files([f.info for f in self.files]) if self.files else ()
+            files = [replace(f, info=i) for f, i in zip(self.files, placed, strict=True)]
+            self._placed_files = (key, files)
+        return self._placed_files[1]
 
     def _note_too_late(self, item: LandedFile) -> None:
         """Say so when *item* lands after blocks over its span were decided without it."""
@@ -641,8 +659,9 @@ class Monitor:
 
     # ------------------------------------------------------------------ readiness
     def _coverage(self) -> tuple[np.ndarray, np.ndarray]:
-        starts = np.array([f.info.start_time.value for f in self.files], dtype=np.int64)
-        ends = np.array([f.info.end_time.value for f in self.files], dtype=np.int64)
+        files = self._placed()
+        starts = np.array([f.info.start_time.value for f in files], dtype=np.int64)
+        ends = np.array([f.info.end_time.value for f in files], dtype=np.int64)
         return starts, ends
 
     def _ready_blocks(self, flush: bool):
@@ -656,7 +675,7 @@ class Monitor:
         if voyage.lengths is not None:
             return self._ready_adaptive(flush)
         plan = plan_file_infos(
-            [f.info for f in self.files],
+            [f.info for f in self._placed()],
             voyage.grid,
             max_gap_s=voyage.options.max_gap_s,
             channels=voyage.channels,
@@ -698,7 +717,7 @@ class Monitor:
 
         voyage, lengths = self.voyage, self.voyage.lengths
         self._doing("measuring the excitation")
-        lengths.measure(self.files, flush=flush, late_s=self.options.late_s)
+        lengths.measure(self._placed(), flush=flush, late_s=self.options.late_s)
         starts, ends = self._coverage()
         newest = int(ends.max())
         waiting = [b for b in self._undecided() if b not in self._lengths]
@@ -719,7 +738,7 @@ class Monitor:
         lengths.messages.clear()
         plans: dict[float, object] = {}
         ready = []
-        infos = [f.info for f in self.files]
+        infos = [f.info for f in self._placed()]
         for block in sorted(b for b in self._lengths if b not in self.done):
             row = self._lengths[block]
             if row is None:
@@ -767,16 +786,20 @@ class Monitor:
         if voyage.lengths is not None and planned.skipped_reason != LEFT_OUT:
             measures = self._lengths[int(planned.block)]
             grid, options, per_file = voyage.length_run(float(measures["block_length_s"]))
+        placed = [f.info for f in self._placed()]
+        header = {info.path: info for info in placed}
         task = BlockTask(
             int(planned.block),
             planned.block_start,
             tuple(str(f) for f in planned.files),
+            # the headers as placed: the block is cut at the re-timed starts, as identify's
+            tuple(header[Path(f)] for f in planned.files if Path(f) in header),
             skipped=planned.skipped_reason,
         )
         conditioner = None
         if per_file:
             conditioner = block_conditioner(
-                [f.info for f in self.files],
+                placed,
                 planned,
                 grid,
                 voyage.channels,
@@ -802,7 +825,7 @@ class Monitor:
             outcome = _with_measures(outcome, measures)
         identified_at = pd.Timestamp.now(tz="UTC")
         cpu = time.process_time() - cpu
-        row = data_health_row(planned, outcome, identified_at, self.files)
+        row = data_health_row(planned, outcome, identified_at, self._placed())
         tables = {k: v for k, v in outcome.tables.items() if len(v)}
         tables["monitor"] = pd.DataFrame([row])
         blocks = pd.DataFrame(
@@ -1343,7 +1366,7 @@ class Monitor:
 
             grid = self.voyage.grid
             plan = plan_file_infos(
-                [f.info for f in self.files],
+                [f.info for f in self._placed()],
                 grid,
                 max_gap_s=self.voyage.options.max_gap_s,
                 channels=self.voyage.channels,
@@ -1490,6 +1513,32 @@ def _written_table(path: Path) -> pd.DataFrame | None:
         return read_parts(path, None, columns=["block", "mode", "frequency_hz"])
     except (OSError, ValueError):  # ContractError is a ValueError
         return None
+
+
+def _placed_among(info, placed: list) -> tuple[str, object]:
+    """Why the new file *info* (a FileInfo) cannot join the files taken (*placed*, as
+    :func:`~workbench.signals.block_plan.place_files` places them), or "", and *info* as
+    placed after its predecessor (re-timed for clock jitter as identify re-times it)."""
+    from ..signals.block_plan import CLOCK_JITTER_S
+
+    rate = info.sampling_rate_hz
+    limit_s = max(0.5 / rate, CLOCK_JITTER_S)
+    before = [other for other in placed if other.start_time <= info.start_time]
+    after = [other for other in placed if other.start_time > info.start_time]
+    if before:
+        previous = before[-1]
+        overlap_s = (previous.end_time - info.start_time).total_seconds()
+        if overlap_s > limit_s:
+            return f"overlaps {previous.name}", info
+        if 0.5 / rate < abs(overlap_s) <= CLOCK_JITTER_S:
+            info = replace(
+                info,
+                start_time=previous.end_time,
+                clock_shift_s=info.clock_shift_s + overlap_s,
+            )
+    if after and (info.end_time - after[0].start_time).total_seconds() > limit_s:
+        return f"overlaps {after[0].name}", info
+    return "", info
 
 
 def _state_folder(message: str) -> str:

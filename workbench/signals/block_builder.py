@@ -162,7 +162,8 @@ class ConditioningOptions:
 
 
 def _load(info: FileInfo, channels: tuple[str, ...], read_options: Mapping) -> AccelerationRecord:
-    """The samples of the planned file *info*, channels in *channels* order.
+    """The samples of the planned file *info*, channels in *channels* order, starting at
+    the planned ``info.start_time`` (the file's stamp re-timed for clock jitter, if it was).
 
     Raises
     ------
@@ -177,10 +178,10 @@ def _load(info: FileInfo, channels: tuple[str, ...], read_options: Mapping) -> A
         raise UnreadableInputError.of(info.path, error) from None
     if record.sampling_rate_hz != info.sampling_rate_hz or record.n_samples != info.n_samples:
         raise ValueError(f"{info.path}: file changed since it was planned")
-    if record.channels != channels:
-        values = align_channels(record.acceleration, record.channels, channels)
-        record = AccelerationRecord(values, record.sampling_rate_hz, record.start_time, channels)
-    return record
+    # placed where the plan put it (re-timed for clock jitter: FileInfo.clock_shift_s), as
+    # the file conditioner places it, not at its own stamp
+    values = align_channels(record.acceleration, record.channels, channels)
+    return AccelerationRecord(values, record.sampling_rate_hz, info.start_time, channels)
 
 
 def _assemble(

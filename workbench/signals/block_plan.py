@@ -12,7 +12,14 @@ plans parallel tasks with it; the blocks themselves are built by
 Gaps between files
 ------------------
 Consecutive files normally abut (the next file starts one sample interval after the last
-sample of the previous one; offsets below half a sample are ignored). A block that
+sample of the previous one; offsets below half a sample are ignored). A recorder stamps
+each file from its PC clock (NTP steps, write buffering), so a file's stamp may miss the
+previous file's end by a few milliseconds while the samples run on without a break: a
+mismatch (gap or overlap) of at most :data:`CLOCK_JITTER_S` is taken as such clock jitter
+and the later file is **re-timed** to start at the previous file's end
+(:func:`place_files`; ``FileInfo.clock_shift_s`` keeps the shift, and the plan's files carry
+the re-timed starts, which the block builder and the file conditioner use alike). A
+longer gap is a gap; a longer overlap an error. A block that
 overlaps a gap is **skipped** with the reason (``"gap of 42.0 s between acc_a.npz and
 acc_b.npz"``), unless the gap's part inside the block is at most ``max_gap_s``: then the
 gap is filled with NaN, which the NaN policy bridges by interpolation -- so ``max_gap_s``
@@ -24,6 +31,7 @@ order are reordered to the first file's order.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from collections.abc import Iterable, Mapping, Sequence
@@ -45,9 +53,37 @@ from ..blocks import (
 )
 from ..errors import OptionError
 
-__all__ = ["BlockPlan", "FileInfo", "PlannedBlock", "plan_blocks", "read_file_info"]
+__all__ = [
+    "CLOCK_JITTER_S",
+    "BlockPlan",
+    "FileInfo",
+    "PlannedBlock",
+    "place_files",
+    "plan_blocks",
+    "read_file_info",
+]
 
 _NS = 1_000_000_000
+
+#: Largest mismatch between one file's end and the next file's start (a gap or an overlap)
+#: taken as the recorder's clock jitter: the files are contiguous and the later one is
+#: re-timed to the previous file's end. [s]
+#:
+#: A file's start is stamped from the recorder PC's clock, which NTP steps and slews and
+#: which is read when a write buffer is flushed: consecutive stamps miss each other by
+#: milliseconds to a few tens of milliseconds while the samples run on (half a sample,
+#: the limit before, is 0.24 ms at 2048 Hz). Where the files really do have a gap or
+#: overlap of d <= 50 ms, re-timing splices them with a phase jump 2 pi f d of each mode
+#: (12 Hz, 10 ms: 0.75 rad; 50 ms: 3.8 rad) at one instant of a 20-minute block. SSI sees
+#: that through the output covariances: only products across the splice change, a
+#: fraction (lag / block length) of them, at most 40 lags of a 64-Hz block over 1200 s,
+#: 5e-4, so the modes move far less than their block-to-block scatter; a lightly damped
+#: mode (1 %, 12 Hz: decay time 1.3 s) forgets the jump within seconds, as it forgets any
+#: gust. Bridging a NaN gap of d by interpolation (``--max-gap``) loses the same d of data
+#: and costs the same; skipping the block (the default for gaps) loses 20 minutes. 50 ms
+#: stays well below a recorder's lost write buffer (typically 0.25-1 s) and far below a
+#: duplicate file's overlap (the file's whole length), which stay a gap and an error.
+CLOCK_JITTER_S = 0.05
 
 
 # ----------------------------------------------------------------------------------------
@@ -66,6 +102,10 @@ class FileInfo:
         [Hz]
     n_samples : int
     channels : tuple of str
+    clock_shift_s : float
+        How far *start_time* lies after the file's own start stamp: the file re-timed to
+        its predecessor's end (clock jitter, :func:`place_files`); 0 for a file as
+        stamped. [s]
     """
 
     path: Path
@@ -73,6 +113,7 @@ class FileInfo:
     sampling_rate_hz: float
     n_samples: int
     channels: tuple[str, ...]
+    clock_shift_s: float = 0.0
 
     @property
     def name(self) -> str:
@@ -163,7 +204,8 @@ class BlockPlan:
     ----------
     grid : BlockGrid
     files : tuple of FileInfo
-        The files, sorted by start time.
+        The files, sorted by start time, as placed (:func:`place_files`: re-timed for clock
+        jitter where ``clock_shift_s`` is not 0).
     channels : tuple of str
         Channel names (order of the first file).
     sampling_rate_hz : float
@@ -276,16 +318,63 @@ def align_channels(values: np.ndarray, names: Sequence[str], channels: Sequence[
     return out
 
 
-def _check_no_overlap(infos: Sequence[FileInfo]) -> None:
-    """Files sorted by start time must not overlap."""
+def place_files(
+    infos: Sequence[FileInfo], *, clock_jitter_s: float = CLOCK_JITTER_S
+) -> tuple[FileInfo, ...]:
+    """*infos* (sorted by start time, one sampling rate) placed in time: a file whose start
+    misses its predecessor's end by more than half a sample and at most *clock_jitter_s*
+    (either way) re-timed to start at that end (:data:`CLOCK_JITTER_S` says why).
+
+    The predecessor's end is its placed end, so a run of re-timed files stays one
+    continuous record and no file moves from its own stamp by more than *clock_jitter_s*.
+    Files already placed come back unchanged.
+
+    Raises
+    ------
+    ValueError
+        A file starting more than *clock_jitter_s* before its predecessor's end (overlapping
+        or duplicate files), naming the file.
+    """
+    if not (math.isfinite(float(clock_jitter_s)) and clock_jitter_s >= 0):
+        raise ValueError(
+            f"clock_jitter_s={clock_jitter_s} must be a non-negative number of seconds"
+        )
+    if not infos:
+        return ()
     rate = infos[0].sampling_rate_hz
-    for previous, info in zip(infos[:-1], infos[1:], strict=True):
-        overlap_s = (previous.end_time - info.start_time).total_seconds()
-        if overlap_s > 0.5 / rate:
+    half_s = 0.5 / rate
+    placed = [infos[0]]
+    for info in infos[1:]:
+        previous = placed[-1]
+        mismatch_s = (info.start_time - previous.end_time).total_seconds()
+        if abs(mismatch_s) > half_s and abs(mismatch_s) <= clock_jitter_s:
+            shift = previous.end_time - info.start_time
+            info = dataclasses.replace(
+                info,
+                start_time=previous.end_time,
+                clock_shift_s=info.clock_shift_s + shift.total_seconds(),
+            )
+        elif -mismatch_s > max(half_s, clock_jitter_s):
             raise ValueError(
-                f"{info.path}: starts {overlap_s:g} s before the end of {previous.name} "
+                f"{info.path}: starts {-mismatch_s:g} s before the end of {previous.name} "
                 "(overlapping or duplicate files)"
             )
+        placed.append(info)
+    return tuple(placed)
+
+
+def clock_jitter_note(infos: Sequence[FileInfo]) -> str:
+    """One line on the files of a plan re-timed for clock jitter, or "" when none was:
+    how many file starts, the largest shift and its file."""
+    moved = [i for i in infos if i.clock_shift_s]
+    if not moved:
+        return ""
+    largest = max(moved, key=lambda i: abs(i.clock_shift_s))
+    return (
+        f"clock jitter: {len(moved)} file start(s) re-timed to the previous file's end "
+        f"(largest {largest.clock_shift_s * 1e3:+.1f} ms, {largest.name}; mismatches up to "
+        f"{CLOCK_JITTER_S * 1e3:g} ms are taken as contiguous)"
+    )
 
 
 def _resolve_grid(
@@ -356,13 +445,15 @@ def plan_file_infos(
     step_s: float | None = None,
     max_gap_s: float = 0.0,
     channels: Sequence[str] | None = None,
+    clock_jitter_s: float = CLOCK_JITTER_S,
 ) -> BlockPlan:
     """:func:`plan_blocks` for files whose headers are already read (:class:`FileInfo`).
 
     Callers that keep the headers (the identify planner, the monitor re-planning as files
     arrive) plan from them without reading the files again. *channels*: the voyage's
     channels when these files are a few of its files (:func:`reference_channels`).
-    Parameters and errors as in :func:`plan_blocks`.
+    The plan's files are placed by :func:`place_files` (re-timed for clock jitter up to
+    *clock_jitter_s*). Parameters and errors as in :func:`plan_blocks`.
     """
     if not infos:
         raise ValueError("no acceleration files given")
@@ -370,7 +461,7 @@ def plan_file_infos(
         raise ValueError(f"max_gap_s={max_gap_s} must be a non-negative number of seconds")
     infos = sorted(infos, key=lambda i: (i.start_time, str(i.path)))
     channels = reference_channels(infos, channels)
-    _check_no_overlap(infos)
+    infos = place_files(infos, clock_jitter_s=clock_jitter_s)
     rate = infos[0].sampling_rate_hz
     grid = _resolve_grid(grid, length_s, step_s, infos[0].start_time)
     starts_ns = np.array([_ns(i.start_time) for i in infos], dtype=np.int64)
@@ -404,6 +495,7 @@ def plan_blocks(
     step_s: float | None = None,
     max_gap_s: float = 0.0,
     read_options: Mapping | None = None,
+    clock_jitter_s: float = CLOCK_JITTER_S,
 ) -> BlockPlan:
     """List the blocks a set of acceleration files gives, reading only their headers.
 
@@ -421,6 +513,9 @@ def plan_blocks(
         longer gaps are listed as skipped. [s]
     read_options : mapping, optional
         Keyword arguments for :func:`data_contracts.read_accelerations`.
+    clock_jitter_s : float
+        A file starting at most this far before or after its predecessor's end is re-timed
+        to that end (:func:`place_files`, :data:`CLOCK_JITTER_S`). [s]
 
     Returns
     -------
@@ -431,10 +526,18 @@ def plan_blocks(
     ------
     ValueError
         No files; files differing in sampling rate or lacking more than half of the
-        channels (:func:`reference_channels`); overlapping files. The message names the file.
+        channels (:func:`reference_channels`); files overlapping by more than
+        *clock_jitter_s*. The message names the file.
     """
     infos = [
         f if isinstance(f, FileInfo) else read_file_info(f, read_options=read_options)
         for f in files
     ]
-    return plan_file_infos(infos, grid, length_s=length_s, step_s=step_s, max_gap_s=max_gap_s)
+    return plan_file_infos(
+        infos,
+        grid,
+        length_s=length_s,
+        step_s=step_s,
+        max_gap_s=max_gap_s,
+        clock_jitter_s=clock_jitter_s,
+    )
