@@ -1518,24 +1518,17 @@ def _written_table(path: Path) -> pd.DataFrame | None:
 def _placed_among(info, placed: list) -> tuple[str, object]:
     """Why the new file *info* (a FileInfo) cannot join the files taken (*placed*, as
     :func:`~workbench.signals.block_plan.place_files` places them), or "", and *info* as
-    placed after its predecessor (re-timed for clock jitter as identify re-times it)."""
-    from ..signals.block_plan import CLOCK_JITTER_S
+    placed after its predecessor (re-timed for clock jitter by identify's own rule)."""
+    from ..signals.block_plan import CLOCK_JITTER_S, place_files
 
-    rate = info.sampling_rate_hz
-    limit_s = max(0.5 / rate, CLOCK_JITTER_S)
     before = [other for other in placed if other.start_time <= info.start_time]
     after = [other for other in placed if other.start_time > info.start_time]
     if before:
-        previous = before[-1]
-        overlap_s = (previous.end_time - info.start_time).total_seconds()
-        if overlap_s > limit_s:
-            return f"overlaps {previous.name}", info
-        if 0.5 / rate < abs(overlap_s) <= CLOCK_JITTER_S:
-            info = replace(
-                info,
-                start_time=previous.end_time,
-                clock_shift_s=info.clock_shift_s + overlap_s,
-            )
+        try:
+            info = place_files([before[-1], info])[1]
+        except ValueError:  # starts more than the jitter before its predecessor's end
+            return f"overlaps {before[-1].name}", info
+    limit_s = max(0.5 / info.sampling_rate_hz, CLOCK_JITTER_S)
     if after and (info.end_time - after[0].start_time).total_seconds() > limit_s:
         return f"overlaps {after[0].name}", info
     return "", info
