@@ -44,7 +44,7 @@ MIN_SPREAD = {"speed_kn": 1.0, "shaft_rpm": 10.0}
 #: Share of a block the log must cover for its speed at a shift.
 MIN_COVERAGE = 0.5
 #: Rank correlation of level and speed the best shift must reach.
-MIN_CORRELATION = 0.6
+MIN_CORRELATION = 0.8
 #: How much better than no shift the best shift must correlate (rank correlation).
 MIN_GAIN = 0.3
 
@@ -81,9 +81,8 @@ def block_level(channels: pd.DataFrame) -> pd.DataFrame:
 
 
 def _ranks(values: np.ndarray) -> np.ndarray:
-    from scipy.stats import rankdata
-
-    return rankdata(values)
+    """Ranks of *values*, ties sharing their mean rank."""
+    return pd.Series(values).rank(method="average").to_numpy()
 
 
 def _rank_correlation(x: np.ndarray, y: np.ndarray) -> float:
@@ -175,9 +174,12 @@ def clock_warning(
     else None.
 
     A shift is judged when at least :data:`MIN_BLOCKS` blocks have a speed at it, spread
-    by at least :data:`MIN_SPREAD` (of the speed, else of the shaft rate); the best judged shift must reach a rank correlation
-    of :data:`MIN_CORRELATION` and beat the correlation at no shift by :data:`MIN_GAIN`
-    (0 when the log as read is not judged).
+    by at least :data:`MIN_SPREAD` (of the speed, else of the shaft rate). A log that as
+    read gives that many blocks a speed, all about the same (a ship at rest or holding its
+    speed), says nothing: the level then carries no speed to find elsewhere, and the check
+    is silent. Otherwise the best judged shift must reach a rank correlation of
+    :data:`MIN_CORRELATION` and beat the correlation at no shift by :data:`MIN_GAIN` (taken
+    as 0 when the log as read covers too few blocks: the mark of a shifted clock).
 
     Parameters
     ----------
@@ -193,11 +195,12 @@ def clock_warning(
 
     if scores.empty:
         return None
-    judged = scores[
-        (scores["n_blocks"] >= MIN_BLOCKS)
-        & (scores["speed_spread"] >= MIN_SPREAD[scores.attrs.get("column", "speed_kn")])
-        & np.isfinite(scores["correlation"])
-    ]
+    enough = scores["n_blocks"] >= MIN_BLOCKS
+    spread = scores["speed_spread"] >= MIN_SPREAD[scores.attrs.get("column", "speed_kn")]
+    as_read = scores["shift_h"] == 0
+    if (enough & as_read & ~spread).any():
+        return None  # the log as read covers the blocks at one speed
+    judged = scores[enough & spread & np.isfinite(scores["correlation"])]
     if judged.empty:
         return None
     best = judged.loc[judged["correlation"].idxmax()]
