@@ -48,6 +48,7 @@ from .dship_names import (
     bad_time_values,
     name_key,
     parse_log_times,
+    parse_utc_offset,
     relative_wind,
     resolve_mapping,
     strptime_format,
@@ -218,6 +219,7 @@ def read_dship(
     decimal: str | None = None,
     time_format: str | None = None,
     complete_lines: bool = False,
+    utc_offset: str | pd.Timedelta | None = None,
 ) -> pd.DataFrame:
     """Parse a raw DSHIP / PANGAEA ship log into the canonical log table.
 
@@ -249,6 +251,11 @@ def read_dship(
     complete_lines : bool
         Leave out a last line without its line end (a live log read while the data system
         writes its next line, whose cut time could read as another time); default False.
+    utc_offset : str or Timedelta, optional
+        The offset from UTC of times written without one (``"+02:00"``: a local clock two
+        hours ahead of UTC; :func:`~data_contracts.dship_names.parse_utc_offset`): they are
+        moved back by it. Default: such times are UTC. Times that carry their own offset
+        keep it (the option is then not used).
 
     Returns
     -------
@@ -445,6 +452,10 @@ def read_dship(
         )
 
     mixed_offsets = _time_offsets(time_text, times, line_numbers, headers[time_index], problems)
+    if utc_offset is not None and not _carries_offsets(time_text, times):
+        # a local clock without an offset in the text: UTC = local time - offset
+        shift = utc_offset if isinstance(utc_offset, pd.Timedelta) else parse_utc_offset(utc_offset)
+        times = times - shift
 
     known = (
         [c.name for c in CANONICAL_PREDICTORS]
@@ -685,6 +696,13 @@ def _time_offsets(
         return ""
     distinct = ", ".join(pd.unique(offsets))
     return f"{distinct}; {offsets[change[0]]} from line {lines[change[0]]}"
+
+
+def _carries_offsets(text: pd.Series, times: pd.Series) -> bool:
+    """Whether the first parsed time of *text* carries a UTC offset (all or none do:
+    :func:`_time_offsets`)."""
+    parsed = np.flatnonzero(times.notna().to_numpy())
+    return bool(len(parsed)) and _OFFSET.search(text.iloc[parsed[0]]) is not None
 
 
 _DECIMAL_COMMA = re.compile(r"^[+-]?\d+,\d+$")

@@ -31,6 +31,8 @@ __all__ = [
     "parse_column_mapping",
     "parse_log_times",
     "parse_times",
+    "parse_utc_offset",
+    "format_utc_offset",
     "strptime_format",
     "time_format_hint",
     "relative_wind",
@@ -340,6 +342,51 @@ def parse_log_times(text: pd.Series, time_format: str | None = None) -> tuple[pd
     """UTC times of *text* and the format used (:func:`parse_times`; times without an
     offset are UTC: ship data systems log UTC)."""
     return parse_times(text, time_format, utc=True)
+
+
+#: A UTC offset as the user gives it: ``+02:00``, ``-0530``, ``UTC-05:30``, ``+2``, ``Z``.
+_UTC_OFFSET = re.compile(
+    r"^(?:(?P<zulu>Z|UTC)|(?:UTC)?(?P<sign>[+-])(?P<hours>\d{1,2})(?::?(?P<minutes>\d\d))?)$"
+)
+#: The offsets of the world's clocks (UTC-12:00 to UTC+14:00). [h]
+UTC_OFFSET_RANGE_H = (-12.0, 14.0)
+
+
+def parse_utc_offset(text: str) -> pd.Timedelta:
+    """The UTC offset *text* (``+02:00``, ``-05:30``, ``UTC-05:30``, ``+0200``, ``+2``, ``Z``
+    or ``UTC``)
+    as a signed duration: local time minus UTC.
+
+    Raises
+    ------
+    ValueError
+        Not such an offset, minutes of 60 or more, or beyond UTC-12:00..UTC+14:00.
+    """
+    found = _UTC_OFFSET.match(str(text).strip().upper())
+    if found is None:
+        raise ValueError(
+            f"not a UTC offset: {text!r}; give a sign and hours[:minutes], e.g. +02:00 or -05:30"
+        )
+    if found["zulu"]:
+        return pd.Timedelta(0)
+    hours, minutes = int(found["hours"]), int(found["minutes"] or 0)
+    if minutes >= 60:
+        raise ValueError(f"not a UTC offset: {text!r}; minutes must be below 60")
+    offset = (hours + minutes / 60.0) * (-1.0 if found["sign"] == "-" else 1.0)
+    low, high = UTC_OFFSET_RANGE_H
+    if not low <= offset <= high:
+        raise ValueError(
+            f"UTC offset {text!r} is beyond the world's clocks (UTC{low:+03.0f}:00 to "
+            f"UTC{high:+03.0f}:00)"
+        )
+    return pd.Timedelta(hours=hours, minutes=minutes) * (-1 if found["sign"] == "-" else 1)
+
+
+def format_utc_offset(offset: pd.Timedelta) -> str:
+    """*offset* as ``+02:00`` / ``-05:30``."""
+    minutes = int(round(offset.total_seconds() / 60.0))
+    sign = "-" if minutes < 0 else "+"
+    return f"{sign}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
 
 
 def bad_time_values(text: pd.Series, bad, limit: int = 3) -> str:

@@ -47,6 +47,7 @@ def validate_file(
     layout: Any = None,
     dship_mapping: Mapping[str, str] | None = None,
     time_format: str | None = None,
+    dship_utc_offset: str | None = None,
 ) -> ValidatedFile:
     """Read *path* as a file of contract *kind* and validate it.
 
@@ -64,6 +65,9 @@ def validate_file(
     time_format : str, optional
         Format of a ship log's times (:func:`~data_contracts.read_dship`); acceleration
         files take theirs from *layout*.
+    dship_utc_offset : str, optional
+        UTC offset of a ship log's times written without one (``"+02:00"``; see
+        :func:`~data_contracts.read_dship`).
 
     Raises
     ------
@@ -81,7 +85,9 @@ def validate_file(
         )
         return ValidatedFile(kind, path, record, summary)
     if kind == "dship":
-        table = read_dship(path, mapping=dship_mapping, time_format=time_format)
+        table = read_dship(
+            path, mapping=dship_mapping, time_format=time_format, utc_offset=dship_utc_offset
+        )
         summary = f"{len(table)} records, columns {', '.join(table.columns[1:])}"
         return ValidatedFile(kind, path, table, summary)
     if kind not in CONTRACTS:

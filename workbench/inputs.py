@@ -20,6 +20,7 @@ __all__ = [
     "add_dship_columns",
     "add_modal_layout",
     "dship_mapping",
+    "dship_utc_offset",
     "read_modal",
     "time_format",
 ]
@@ -65,6 +66,26 @@ def add_dship_columns(parser: argparse.ArgumentParser) -> None:
         "wind_speed_true_ms, heading_deg, course_deg, fuel_on_board_t, shaft_rpm, time); "
         "default: the usual DSHIP names",
     )
+    parser.add_argument(
+        "--dship-utc-offset",
+        metavar="+HH:MM",
+        help="UTC offset of the ship log's times written without one (local time), e.g. "
+        "+02:00 or UTC-05:30; default: such times are UTC. Times that carry an offset keep it",
+    )
+
+
+def dship_utc_offset(args: argparse.Namespace) -> str | None:
+    """The ``--dship-utc-offset`` of the command, checked, as ``+HH:MM`` (None when not
+    given)."""
+    from data_contracts.dship_names import format_utc_offset, parse_utc_offset
+
+    value = getattr(args, "dship_utc_offset", None)
+    if value is None:
+        return None
+    try:
+        return format_utc_offset(parse_utc_offset(value))
+    except ValueError as error:
+        raise _usage(f"--dship-utc-offset: {error}") from None
 
 
 def dship_mapping(args: argparse.Namespace) -> dict[str, str] | None:

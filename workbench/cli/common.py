@@ -22,7 +22,14 @@ from ..errors import (
     WorkbenchError,
     printable,
 )
-from ..inputs import add_dship_columns, add_modal_layout, dship_mapping, read_modal, time_format
+from ..inputs import (
+    add_dship_columns,
+    add_modal_layout,
+    dship_mapping,
+    dship_utc_offset,
+    read_modal,
+    time_format,
+)
 
 EXIT_OK, EXIT_DATA, EXIT_USAGE = 0, 1, 2
 
@@ -214,6 +221,7 @@ def _predictors_for(args: argparse.Namespace, modal):
         dship=args.dship,
         onto=modal,
         dship_mapping=dship_mapping(args),
+        dship_utc_offset=dship_utc_offset(args),
         time_format=time_format(args),
         all_predictors=args.all_predictors,
     )

@@ -15,6 +15,7 @@ from ..inputs import (
     add_dship_columns,
     add_modal_layout,
     dship_mapping,
+    dship_utc_offset,
     time_format,
 )
 from .common import EXIT_OK, UsageError, _data_errors
@@ -48,6 +49,7 @@ def _run_validate(args: argparse.Namespace) -> int:
             layout=acceleration_layout(args) if args.kind == "accelerations" else None,
             dship_mapping=dship_mapping(args) if args.kind == "dship" else None,
             time_format=time_format(args) if args.kind == "dship" else None,
+            dship_utc_offset=dship_utc_offset(args) if args.kind == "dship" else None,
         )
     for warning in caught:
         print(f"warning: {printable(warning.message)}", file=sys.stderr)
@@ -140,6 +142,7 @@ def _run_report(args: argparse.Namespace) -> int:
             modal=modal,
             acceleration_layout=layout,
             dship_mapping=mapping,
+            dship_utc_offset=dship_utc_offset(args),
             time_format=time_format(args) if args.time_format not in ("seconds", "unix") else None,
         )
     print(f"report: {path}")

@@ -10,7 +10,13 @@ from pathlib import Path
 
 from .. import defaults as D
 from ..errors import printable
-from ..inputs import acceleration_layout, add_acceleration_layout, add_dship_columns, dship_mapping
+from ..inputs import (
+    acceleration_layout,
+    add_acceleration_layout,
+    add_dship_columns,
+    dship_mapping,
+    dship_utc_offset,
+)
 from .common import EXIT_OK, UsageError, _add_parallel, _check_positive, _option_names
 
 
@@ -449,6 +455,7 @@ def _run_identify(args: argparse.Namespace) -> int:
             keep_removed_inputs=args.keep_removed_inputs,
             dship=args.dship,
             dship_mapping=dship_mapping(args),
+            dship_utc_offset=dship_utc_offset(args),
             harmonics=harmonics,
             adaptive=adaptive,
             cases=args.cases,

@@ -19,7 +19,12 @@ from pathlib import Path
 from .. import defaults as D
 from ..arguments import copy_flags
 from ..errors import WorkbenchError
-from ..inputs import add_acceleration_layout, add_dship_columns, dship_mapping
+from ..inputs import (
+    add_acceleration_layout,
+    add_dship_columns,
+    dship_mapping,
+    dship_utc_offset,
+)
 from .common import EXIT_OK, UsageError
 from .forecasting import check_forecast_flags, forecast_options
 from .identify import adaptive_options, harmonic_options, identify_options
@@ -349,6 +354,7 @@ def _monitor_options(args: argparse.Namespace):
             forecast=forecast_options(args, trust),
             all_predictors=bool(args.all_predictors),
             dship_mapping=tuple((dship_mapping(args) or {}).items()),
+            dship_utc_offset=dship_utc_offset(args),
             reference_hours=args.reference_hours,
             ewma_lambda=args.ewma_lambda,
             false_alarms_per_day=args.false_alarms_per_day,

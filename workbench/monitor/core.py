@@ -339,7 +339,8 @@ class Monitor:
         from .outlook import _ship_log
 
         try:
-            return _ship_log(self.dship, dict(self.options.forecast.dship_mapping))
+            forecast = self.options.forecast
+            return _ship_log(self.dship, dict(forecast.dship_mapping), forecast.dship_utc_offset)
         except (ValueError, OSError):
             return None
 

@@ -53,6 +53,8 @@ class ForecastSettings:
         Use every numeric column of the ship log, not only the canonical predictors.
     dship_mapping : tuple of (str, str)
         Column mapping of the ship log (``speed_kn`` -> source name).
+    dship_utc_offset : str, optional
+        UTC offset of the log's times written without one (``"+02:00"``; default UTC).
     reference_hours : float
         Reference period of the health chart. [h]
     ewma_lambda, false_alarms_per_day : float
@@ -78,6 +80,7 @@ class ForecastSettings:
     forecast: ForecastOptions = field(default_factory=ForecastOptions)
     all_predictors: bool = False
     dship_mapping: tuple[tuple[str, str], ...] = ()
+    dship_utc_offset: str | None = None
     reference_hours: float = 6.0
     ewma_lambda: float = 0.1
     false_alarms_per_day: float = 0.1
@@ -99,6 +102,10 @@ class ForecastSettings:
             math.isfinite(self.baseline_hours) and self.baseline_hours > 0
         ):
             raise ValueError(f"baseline_hours={self.baseline_hours!r} must be positive or None")
+        if self.dship_utc_offset is not None:
+            from data_contracts.dship_names import parse_utc_offset
+
+            parse_utc_offset(self.dship_utc_offset)  # ValueError naming the value
         from ..shm import HealthOptions
 
         # the chart's own checks, now rather than when the chart starts hours later
@@ -212,17 +219,25 @@ def _write_outlook(
 _DSHIP_CACHE: dict[str, tuple[tuple[int, int], pd.DataFrame]] = {}
 
 
-def _ship_log(path: Path, mapping: Mapping[str, str] | None) -> pd.DataFrame:
-    """The ship log, read again only when its size or modification time changed."""
+def _ship_log(
+    path: Path, mapping: Mapping[str, str] | None, utc_offset: str | None = None
+) -> pd.DataFrame:
+    """The ship log (times without an offset at *utc_offset*), read again only when its
+    size or modification time changed."""
     from data_contracts import read_dship
 
     stat = path.stat()
-    key = (stat.st_size, stat.st_mtime_ns)
+    key = (stat.st_size, stat.st_mtime_ns, utc_offset)
     cached = _DSHIP_CACHE.get(str(path))
     if cached is not None and cached[0] == key:
         return cached[1]
     # a live log: the line the data system is writing is left out until it is whole
-    log = read_dship(path, mapping=dict(mapping) if mapping else None, complete_lines=True)
+    log = read_dship(
+        path,
+        mapping=dict(mapping) if mapping else None,
+        complete_lines=True,
+        utc_offset=utc_offset,
+    )
     _DSHIP_CACHE.clear()
     _DSHIP_CACHE[str(path)] = (key, log)
     return log
@@ -253,7 +268,7 @@ def block_predictors_of(
     from ..predictors import block_predictors
     from ..predictors.tables import ship_log_without_predictors
 
-    log = _ship_log(Path(dship), dict(settings.dship_mapping))
+    log = _ship_log(Path(dship), dict(settings.dship_mapping), settings.dship_utc_offset)
     no_reading = ship_log_without_predictors(log, all_predictors=settings.all_predictors)
     if no_reading:  # no block can have a predictor value
         raise ValueError(f"{dship}: {no_reading}")
@@ -362,7 +377,9 @@ def update_outlook(
                     warnings.simplefilter("always")
                     predictors = block_predictors_of(tracked, Path(dship), grid, settings)
                 report.messages += list(dict.fromkeys(str(w.message) for w in caught))
-                log = _ship_log(Path(dship), dict(settings.dship_mapping))
+                log = _ship_log(
+                    Path(dship), dict(settings.dship_mapping), settings.dship_utc_offset
+                )
                 log_notes = log_start_notes(log, grid, int(tracked["block"].min()))
                 newest_end = _newest_end(tracked, grid, int(tracked["block"].max()))
                 report.log_complete = bool(len(log) and log["time"].max() >= newest_end)
@@ -479,7 +496,7 @@ def _incremental_outlook(
         try:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
-                log = _ship_log(dship, dict(settings.dship_mapping))
+                log = _ship_log(dship, dict(settings.dship_mapping), settings.dship_utc_offset)
                 first, newest = summary["first_block"], summary["last_block"]
                 log_notes = log_start_notes(log, grid, first)
                 newest_end = _newest_end(tracked, grid, newest)

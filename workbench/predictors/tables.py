@@ -61,6 +61,7 @@ def load_predictors(
     onto: pd.DataFrame | None = None,
     min_coverage: float = 0.5,
     dship_mapping: Mapping[str, str] | None = None,
+    dship_utc_offset: str | None = None,
     time_format: str | None = None,
     all_predictors: bool = False,
     excitation: str | os.PathLike | pd.DataFrame | None = None,
@@ -86,6 +87,9 @@ def load_predictors(
         :func:`~workbench.predictors.block_predictors`).
     dship_mapping : mapping, optional
         Column mapping for :func:`~data_contracts.read_dship` (``speed_kn`` -> source name).
+    dship_utc_offset : str, optional
+        UTC offset of the log's times written without one (``"+02:00"``; the
+        ``utc_offset`` of :func:`~data_contracts.read_dship`); default: UTC.
     time_format : str, optional
         Format of the log's times (``strptime`` or MATLAB ``datestr`` symbols); default:
         recognised (:func:`data_contracts.dship_names.parse_times`).
@@ -114,7 +118,9 @@ def load_predictors(
 
     from .averaging import block_predictors, excitation_weighted_predictors
 
-    log = read_dship(dship, mapping=dship_mapping, time_format=time_format)
+    log = read_dship(
+        dship, mapping=dship_mapping, time_format=time_format, utc_offset=dship_utc_offset
+    )
     no_reading = ship_log_without_predictors(log, all_predictors=all_predictors)
     if no_reading:  # no block can have a predictor value: said before any averaging
         raise ContractError([Violation(None, no_reading)], source=str(dship), contract="dship")

@@ -37,6 +37,7 @@ def identify(
     keep_removed_inputs: bool = False,
     dship: str | os.PathLike | pd.DataFrame | None = None,
     dship_mapping: dict[str, str] | None = None,
+    dship_utc_offset: str | None = None,
     harmonics: HarmonicOptions | None = None,
     adaptive: AdaptiveBlockOptions | None = None,
     cases: str | os.PathLike | pd.DataFrame | None = None,
@@ -60,6 +61,11 @@ def identify(
     dship, dship_mapping : optional
         The voyage's ship log and its column names: the shaft speed (or the speed) marks
         the shaft and blade-pass harmonics, which tracking keeps out of the modes.
+        When the blocks' vibration level follows the log's speed clearly better with the
+        log shifted by whole or half hours, a warning names the likely UTC offset of its
+        times (:mod:`workbench.predictors.clock`).
+    dship_utc_offset : str, optional
+        UTC offset of the log's times written without one (``"+02:00"``; default UTC).
     harmonics : HarmonicOptions, optional
         Orders and blade count of the harmonic tests (:mod:`workbench.sid.harmonics`).
     adaptive : AdaptiveBlockOptions, optional
@@ -81,6 +87,11 @@ def identify(
     """
     if isinstance(inputs, str | os.PathLike):
         inputs = [inputs]
+    log = dship
+    if dship is not None and not isinstance(dship, pd.DataFrame):
+        from data_contracts import read_dship
+
+        log = read_dship(dship, mapping=dship_mapping, utc_offset=dship_utc_offset)
     run_options = {
         "store_dir": store_dir,
         "scheduler": scheduler,
@@ -88,7 +99,7 @@ def identify(
         "progress": progress,
         "batch_blocks": batch_blocks,
         "keep_removed_inputs": keep_removed_inputs,
-        "dship": dship,
+        "dship": log,
         "dship_mapping": dship_mapping,
         "harmonics": harmonics,
     }
@@ -122,4 +133,13 @@ def identify(
             f"no block identified: all {summary.skipped + summary.already_done} block(s) "
             f"skipped: {why}{more}"
         )
+    if log is not None and "channels" in result.files:
+        from data_contracts.dship_names import parse_utc_offset
+
+        from ..predictors.clock import log_clock_warning
+
+        offset = None if dship_utc_offset is None else parse_utc_offset(dship_utc_offset)
+        source = "the ship log" if isinstance(dship, pd.DataFrame) else str(dship)
+        warning = log_clock_warning(result.files["channels"], log, source, offset)
+        result.warnings += [warning] * bool(warning)
     return result

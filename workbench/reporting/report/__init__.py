@@ -110,6 +110,7 @@ def build_report(
     modal: pd.DataFrame | None = None,
     acceleration_layout=None,
     dship_mapping=None,
+    dship_utc_offset: str | None = None,
     time_format: str | None = None,
     dpi: int = 100,
 ) -> Path:
@@ -146,6 +147,8 @@ def build_report(
     dship_mapping : mapping, optional
         Ship-log column names, when the predictors are read from the DSHIP log (a run
         without a saved correlation or predictor table).
+    dship_utc_offset : str, optional
+        UTC offset of the ship log's times written without one (``"+02:00"``), likewise.
     time_format : str, optional
         Format of the ship log's times, likewise.
     """
@@ -167,6 +170,7 @@ def build_report(
         modal=modal,
         acceleration_layout=acceleration_layout,
         dship_mapping=dship_mapping,
+        dship_utc_offset=dship_utc_offset,
         time_format=time_format,
     )
     overview = overview_section(data, summary_lines)

@@ -52,12 +52,13 @@ def load_run(
     modal: pd.DataFrame | None = None,
     acceleration_layout=None,
     dship_mapping=None,
+    dship_utc_offset: str | None = None,
     time_format: str | None = None,
 ) -> RunData:
     """Read the run's tables once: identification parameters, tracked modes, the
     correlate stage's result (as saved, :func:`~workbench.stages.read_correlation`) and
     its predictors (else a predictor table, else the DSHIP log onto the modal blocks, read
-    with *dship_mapping* and *time_format*), cases, sensor geometry and the pass over the
+    with *dship_mapping*, *dship_utc_offset* and *time_format*), cases, sensor geometry and the pass over the
     acceleration files (read with *acceleration_layout*, else the layout identification
     recorded)."""
     from workbench.predictors import canonical_predictors, load_predictors
@@ -86,7 +87,11 @@ def load_run(
         predictors = canonical_predictors(read_table(run.predictors, PREDICTORS))
     elif run.dship is not None and modal is not None:
         predictors = load_predictors(
-            dship=run.dship, onto=modal, dship_mapping=dship_mapping, time_format=time_format
+            dship=run.dship,
+            onto=modal,
+            dship_mapping=dship_mapping,
+            dship_utc_offset=dship_utc_offset,
+            time_format=time_format,
         )
     cases = read_cases(run.cases) if run.cases is not None else None
     geometry = read_table(run.geometry, SENSOR_GEOMETRY) if run.geometry is not None else None
