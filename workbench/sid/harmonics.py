@@ -79,7 +79,7 @@ POWER_EXPONENT = 4.0
 #: must cover for the block to be tested from them. [-]
 MIN_COVERAGE = 0.5
 #: Shortest run of identical nonzero shaft-speed readings taken as a frozen sensor (in a
-#: log whose readings otherwise change from one to the next). [s]
+#: log whose median run lasts under a tenth of it). [s]
 FROZEN_SECONDS = 300.0
 #: Readings in the running median of a spike test (centred). [-]
 SPIKE_WINDOW = 31
@@ -240,9 +240,10 @@ def usable_shaft_speed(log: pd.DataFrame) -> pd.DataFrame:
       running median of :data:`SPIKE_WINDOW` readings around it: a shaft line cannot
       change its rate by a fifth within seconds.
     * A frozen sensor repeats its last reading: a run of identical nonzero readings lasting
-      :data:`FROZEN_SECONDS` or longer, in a log whose readings change from one to the next
-      in most rows (a noisy sensor; a log that repeats values, such as a coarse or
-      hold-last-value export, is left alone). A stopped shaft (0 rpm) is not frozen.
+      :data:`FROZEN_SECONDS` or longer, in a log whose readings change (its median run of
+      equal readings lasts under a tenth of that: a noisy sensor; a log that repeats
+      values, a coarse or hold-last-value export, is left alone). A stopped shaft (0 rpm)
+      is not frozen.
 
     ``attrs["shaft_rpm_notes"]`` says what was left out (one line each kind).
     """
@@ -268,19 +269,21 @@ def usable_shaft_speed(log: pd.DataFrame) -> pd.DataFrame:
             rpm[finite[spike]] = np.nan
         finite = np.flatnonzero(np.isfinite(rpm))
         values = rpm[finite]
-        if len(values) > 1 and np.mean(values[1:] == values[:-1]) < 0.5:
+        if len(values) > 1:
             step = _log_step_seconds(times[finite])
             starts, stops = _runs(values)
-            for start, stop in zip(starts, stops, strict=True):
-                lasting = (times[finite[stop - 1]] - times[finite[start]]) / np.timedelta64(
-                    1, "s"
-                ) + step
-                if values[start] != 0 and lasting >= FROZEN_SECONDS:
+            lasting = (times[finite[stops - 1]] - times[finite[starts]]) / np.timedelta64(
+                1, "s"
+            ) + step
+        # a sensor whose readings change (most runs of equal readings short) is checked
+        if len(values) > 1 and np.median(lasting) < FROZEN_SECONDS / 10:
+            for start, stop, seconds in zip(starts, stops, lasting, strict=True):
+                if values[start] != 0 and seconds >= FROZEN_SECONDS:
                     rpm[finite[start:stop]] = np.nan
                     notes.append(
                         f"shaft speed frozen at {values[start]:g} rpm from "
                         f"{pd.Timestamp(times[finite[start]]):%Y-%m-%d %H:%M:%S} for "
-                        f"{lasting / 60:.0f} min: readings left out"
+                        f"{seconds / 60:.0f} min: readings left out"
                     )
         log["shaft_rpm"] = rpm
     log.attrs["shaft_rpm_checked"] = True
