@@ -37,8 +37,8 @@ def test_blocks_past_the_end_of_the_log_are_named(tmp_path, capsys):
     # block 2 (120-240 s) has 30 s of the log: under half of it, not tested
     assert warned == [
         "warning: ship log: no usable shaft speed or speed over block(s) 2-4 (3 of 5 blocks): "
-        "harmonics there cannot be told from modes; tracking keeps a line seen there only if "
-        "it is seen as a mode where the log could tell"
+        "harmonics there cannot be told from modes; tracking leaves out a line seen (almost) "
+        "only there"
     ]
     shaft = pd.read_csv(tmp_path / "out" / "shaft.csv")
     assert shaft["shaft_rpm"].isna().tolist() == [False, False, True, True, True]

@@ -641,8 +641,8 @@ class HarmonicMarker:
         Blocks whose shaft speed is not usable (not logged, an outage, the log ending
         early, a frozen sensor) are tested from the shaft speed estimated from the logged
         speed, when the blocks with both show a fixed ratio (:func:`shaft_rate_per_knot`);
-        blocks with neither are not checked (``harmonic_checked`` False): tracking keeps a
-        label seen there only if it is seen as a mode where the log could tell.
+        blocks with neither are not checked (``harmonic_checked`` False): tracking judges a
+        label by its checked rows and leaves out one seen (almost) only where the log fails.
         """
         selected = selected.copy()
         selected["harmonic"] = np.nan
@@ -749,8 +749,7 @@ class HarmonicMarker:
             lines.append(
                 f"ship log: no usable {what} over block(s) {block_ranges(set(missing))} "
                 f"({len(missing)} of {n} blocks): harmonics there cannot be told from modes; "
-                "tracking keeps a line seen there only if it is seen as a mode where the log "
-                "could tell"
+                "tracking leaves out a line seen (almost) only there"
             )
         return lines
 

@@ -91,8 +91,8 @@ class TrackingOptions:
         (``harmonic_frequency_hz``: slope of ln f on it below 0.5): a mode that an order
         sits on for hours. A mode that an order crosses keeps its rows (its own shape
         joined the label). The share is over the rows the ship log could check
-        (``harmonic_checked``); a label with rows it could not check is dropped too unless
-        it is seen unmarked in checked blocks, in 10 of them or a quarter of its blocks. [-]
+        (``harmonic_checked``); a label checked in fewer than 10 blocks and a quarter of
+        its blocks (seen almost only where the log fails) is dropped too. [-]
     """
 
     mac_min: float = 0.9
@@ -578,23 +578,23 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
         # most rows marked: a harmonic, unless the label is also seen away from the orders
         # in at least a quarter of its blocks and does not follow its order (a mode an
         # order sits on for hours)
+        # (seen away: the unmarked rows, unchecked ones included, of all its rows)
+        share_all = marked.groupby(by_label).mean()
         harmonic = [
             label
             for label in share.index[share >= options.harmonic_share]
-            if share[label] > 1.0 - _SEEN_AWAY
+            if share_all[label] > 1.0 - _SEEN_AWAY
             or _follows_its_order(table[(table["mode"] == label) & marked])
         ]
-        # a label with rows the log could not check is a mode only if it is seen as one
-        # (checked, unmarked) in _FOLLOW_ROWS blocks or a quarter of its blocks: a line
-        # seen only where the log fails may be a harmonic
-        seen = (checked & ~marked).groupby(by_label).sum()
+        # a label is judged by the rows the log could check: one checked in fewer than
+        # _FOLLOW_ROWS blocks and a quarter of its blocks is seen (almost) only where the
+        # log fails, and may be a harmonic
         rows = by_label.value_counts().reindex(share.index)
         unverified = [
             label
             for label in share.index
             if label not in harmonic
-            and n_checked[label] < rows[label]
-            and seen[label] < min(_FOLLOW_ROWS, _SEEN_AWAY * rows[label])
+            and n_checked[label] < min(_FOLLOW_ROWS, _SEEN_AWAY * rows[label])
         ]
         for label in [*harmonic, *unverified]:
             part = table[table["mode"] == label]
