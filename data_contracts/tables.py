@@ -553,6 +553,15 @@ SELECTED = TableContract(
             nullable=True,
             minimum=0.0,
         ),
+        Column(
+            "harmonic_checked",
+            "bool",
+            "Whether the ship log let the block's harmonics be marked (a usable shaft speed, "
+            "or the speed); False: an outage, a frozen sensor or a log not covering the "
+            "block. Tracking keeps a label with unchecked rows only if it is seen as a mode "
+            "in checked blocks.",
+            required=False,
+        ),
         *_COMBINED,
         *_HALVES,
         *_ADAPTIVE,

@@ -1,5 +1,5 @@
 """A ship log that ends before the recordings leaves the last blocks' shaft harmonics
-unmarked: identify says which blocks.
+unchecked: identify says which blocks (and tracking keeps a line seen only there out).
 
 Before: ``identify --dship`` marked the harmonics of the blocks the log covers and said
 only "harmonics (orders 1, 2, 3 of the logged shaft speed): 14 of 283 selected modes ...
@@ -34,12 +34,17 @@ def test_blocks_past_the_end_of_the_log_are_named(tmp_path, capsys):
     argv = ["identify", str(tmp_path / "voyage"), "--out", str(tmp_path / "out")]
     assert main([*argv, "--dship", str(tmp_path / "dship.tsv"), *IDENTIFY_ARGS]) == 0
     warned = [line for line in capsys.readouterr().err.splitlines() if "ship log:" in line]
+    # block 2 (120-240 s) has 30 s of the log: under half of it, not tested
     assert warned == [
-        "warning: ship log: no shaft speed over block(s) 3-4 (2 of 5 blocks): harmonics "
-        "there are not marked and are tracked as modes"
+        "warning: ship log: no usable shaft speed or speed over block(s) 2-4 (3 of 5 blocks): "
+        "harmonics there cannot be told from modes; tracking leaves out a line seen (almost) "
+        "only there"
     ]
     shaft = pd.read_csv(tmp_path / "out" / "shaft.csv")
-    assert shaft["shaft_rpm"].isna().tolist() == [False, False, False, True, True]
+    assert shaft["shaft_rpm"].isna().tolist() == [False, False, True, True, True]
+    selected = pd.read_parquet(tmp_path / "out" / "selected.parquet")
+    checked = selected.groupby("block")["harmonic_checked"].first()
+    assert checked.tolist() == [True, True, False, False, False]
     summary = json.loads((tmp_path / "out" / "harmonics.json").read_text(encoding="utf-8"))
     assert summary["method"] == "shaft speed"
 

@@ -14,6 +14,7 @@ import pytest
 
 from data_contracts import SELECTED, read_dship, shape_columns
 from workbench.sid.harmonics import (
+    HarmonicMarker,
     HarmonicOptions,
     block_shaft_table,
     mark_harmonics,
@@ -232,3 +233,82 @@ def test_a_mode_an_order_sits_on_is_kept_because_it_does_not_follow_the_order():
     # marked in every block, the mode is taken for a harmonic: nothing tells them apart
     selected["harmonic"] = 1.0
     assert track_modes(selected, options=TrackingOptions(frequency_tol=0.5)).empty
+
+
+def _noisy_log(seconds: int, rpm: float, speed_kn: float | None, seed: int = 0) -> pd.DataFrame:
+    """A ship log of a steady shaft speed as a sensor logs it: 0.2 rpm of noise, 0.1 rpm
+    resolution (and the speed: 0.1 kn noise and resolution)."""
+    rng = np.random.default_rng(seed)
+    log = _log(lambda t: np.round(rpm + 0.2 * rng.standard_normal(t.shape), 1), seconds)
+    if speed_kn is not None:
+        log["speed_kn"] = np.round(speed_kn + 0.1 * rng.standard_normal(seconds), 1)
+    return log
+
+
+def _mode_and_harmonic(blocks) -> pd.DataFrame:
+    # order 1 of 180 rpm at 3.0 Hz and a mode 5 % below it, in every block
+    return _selected(
+        [(b, f, s) for b in blocks for f, s in ((3.0, SHAPE_FORCED), (2.85, SHAPE_MODE))]
+    )
+
+
+def test_a_frozen_shaft_speed_is_left_out_and_the_speed_stands_in():
+    # 180 rpm at 10 kn (18 rpm/kn); the sensor freezes at 171 rpm from 40 min to 100 min
+    # (blocks 2-4): order 1 of 171 rpm is 2.85 Hz, the mode's frequency. Before, the mode
+    # was marked as order 1 in blocks 2-4 and the harmonic at 3.0 Hz was not.
+    log = _noisy_log(6 * 1200, 180.0, 10.0)
+    log.loc[2399:5999, "shaft_rpm"] = 171.0
+    selected = _mode_and_harmonic(range(6))
+    result = mark_harmonics(selected, selected.iloc[:0], log, HarmonicOptions())
+    marks = result.selected
+    assert marks.loc[marks["frequency_hz"] == 3.0, "harmonic"].eq(1.0).all()
+    assert marks.loc[marks["frequency_hz"] == 2.85, "harmonic"].isna().all()
+    assert marks["harmonic_checked"].all()
+    assert result.shaft["shaft_rpm_from"].tolist() == ["log", "log"] + ["speed"] * 3 + ["log"]
+    # the blocks of the frozen hour at the speed's 10 kn x 18 rpm/kn (0.1 kn noise)
+    assert result.shaft["shaft_rpm"].iloc[2:5].to_numpy() == pytest.approx(180.0, abs=1.0)
+    marker = HarmonicMarker(log)
+    marker.mark_selected(selected)
+    assert marker.rpm_per_kn == pytest.approx(18.0, abs=0.1)
+    assert marker.unmarked()[0] == (
+        "ship log: shaft speed frozen at 171 rpm from 2024-03-01 00:39:59 for 60 min: "
+        "readings left out"
+    )
+    # without the speed, the frozen hour's blocks are not checked (and nothing is marked)
+    marks = mark_harmonics(selected, selected.iloc[:0], log.drop(columns="speed_kn")).selected
+    assert marks.groupby("block")["harmonic_checked"].first().tolist() == [True, True] + [
+        False
+    ] * 3 + [True]
+    assert marks.loc[marks["block"].between(2, 4), "harmonic"].isna().all()
+
+
+def test_a_shaft_speed_spike_does_not_hide_the_harmonic():
+    # one reading of 1800 rpm in block 1 weighs (1800 / 180)⁴ = 10⁴ readings: before, it
+    # held 89 % of the block's order energy, the harmonic at 3.0 Hz had 11 % (under 20 %)
+    # and the block's shaft speed was 1622 rpm
+    log = _noisy_log(3 * 1200, 180.0, None)
+    log.loc[1800, "shaft_rpm"] = 1800.0
+    selected = _mode_and_harmonic(range(3))
+    result = mark_harmonics(selected, selected.iloc[:0], log)
+    assert result.selected.loc[::2, "harmonic"].eq(1.0).all()
+    assert result.shaft["shaft_rpm"].to_numpy() == pytest.approx(180.0, abs=0.1)
+    assert result.shaft["shaft_rpm_from"].eq("log").all()
+
+
+def test_a_line_seen_only_where_the_log_fails_is_not_tracked():
+    # the log (shaft speed only) ends after block 5 of 12; a line at 4.0 Hz with the forced
+    # shape appears in blocks 6-11 (after the log ended: a harmonic or not, the log cannot
+    # tell). Before: tracked as a second mode (6 blocks). The mode at 2.9 Hz, seen unmarked
+    # in the 6 logged blocks, keeps its 12 rows.
+    log = _noisy_log(6 * 1200, 180.0, None)
+    rows = [(b, 2.9, SHAPE_MODE) for b in range(12)] + [
+        (b, 4.0, SHAPE_FORCED) for b in range(6, 12)
+    ]
+    marks = mark_harmonics(_selected(rows), _selected(rows).iloc[:0], log).selected
+    tracked = track_modes(marks, options=TrackingOptions())
+    assert tracked["mode"].nunique() == 1
+    assert tracked["frequency_hz"].eq(2.9).all() and len(tracked) == 12
+    assert marks.groupby("block")["harmonic_checked"].first().tolist() == [True] * 6 + [False] * 6
+    assert "harmonic_checked" not in tracked.columns
+    left_out = tracked.attrs["harmonic_labels"]
+    assert [(h["blocks"], h["frequency_hz"], h["unverified"]) for h in left_out] == [(6, 4.0, True)]

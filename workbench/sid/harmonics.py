@@ -65,6 +65,8 @@ __all__ = [
     "HarmonicOptions",
     "block_shaft_table",
     "mark_harmonics",
+    "shaft_rate_per_knot",
+    "usable_shaft_speed",
     "mark_poles",
     "mark_shaft_orders",
     "mark_speed_following",
@@ -73,6 +75,23 @@ __all__ = [
 
 #: Exponent of the harmonic's power in the shaft rate (force ∝ rate², power ∝ rate⁴). [-]
 POWER_EXPONENT = 4.0
+#: Smallest share of a block's duration that the usable readings (shaft speed, or speed)
+#: must cover for the block to be tested from them. [-]
+MIN_COVERAGE = 0.5
+#: Shortest run of identical nonzero shaft-speed readings taken as a frozen sensor (in a
+#: log whose median run lasts under a tenth of it). [s]
+FROZEN_SECONDS = 300.0
+#: Readings in the running median of a spike test (centred). [-]
+SPIKE_WINDOW = 31
+#: A shaft-speed reading is a spike when it lies further than this share of the running
+#: median, plus :data:`SPIKE_FLOOR_RPM`, from it. [-]
+SPIKE_TOL = 0.2
+#: Absolute part of the spike test's tolerance (a shaft at rest reads a few rpm). [rpm]
+SPIKE_FLOOR_RPM = 5.0
+#: Largest relative scatter (10-90 % range over median) of shaft speed over speed for the
+#: shaft speed to be estimated from the speed where it is not logged (a fixed-pitch
+#: propeller; a controllable-pitch one turns at a set rate whatever the speed). [-]
+PITCH_SCATTER = 0.2
 
 
 @dataclass(frozen=True)
@@ -197,6 +216,88 @@ def _naive(values: pd.Series) -> pd.Series:
     return pd.to_datetime(values, utc=True).dt.tz_convert(None)
 
 
+def _log_step_seconds(times: np.ndarray) -> float:
+    """The log's usual interval between rows [s] (1 s for a single row)."""
+    if len(times) < 2:
+        return 1.0
+    step = np.median(np.diff(times).astype("timedelta64[ns]").astype(float)) / 1e9
+    return float(step) if step > 0 else 1.0
+
+
+def _runs(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start and stop indices of the runs of equal consecutive values."""
+    change = np.flatnonzero(values[1:] != values[:-1]) + 1
+    starts = np.concatenate([[0], change])
+    stops = np.concatenate([change, [len(values)]])
+    return starts, stops
+
+
+def usable_shaft_speed(log: pd.DataFrame) -> pd.DataFrame:
+    """The ship log (sorted by time) with the shaft-speed readings that cannot be trusted
+    set to NaN: spikes and a frozen sensor.
+
+    * A spike is a reading further than ``SPIKE_TOL`` x m + ``SPIKE_FLOOR_RPM`` from m, the
+      running median of :data:`SPIKE_WINDOW` readings around it: a shaft line cannot
+      change its rate by a fifth within seconds.
+    * A frozen sensor repeats its last reading: a run of identical nonzero readings lasting
+      :data:`FROZEN_SECONDS` or longer, in a log whose readings change (its median run of
+      equal readings lasts under a tenth of that: a noisy sensor; a log that repeats
+      values, a coarse or hold-last-value export, is left alone). A stopped shaft (0 rpm)
+      is not frozen.
+
+    ``attrs["shaft_rpm_notes"]`` says what was left out (one line each kind).
+    """
+    if log.attrs.get("shaft_rpm_checked"):
+        return log
+    log = log.sort_values("time", kind="stable").reset_index(drop=True)
+    notes: list[str] = []
+    if "shaft_rpm" in log.columns and log["shaft_rpm"].notna().any():
+        rpm = log["shaft_rpm"].to_numpy(float).copy()
+        finite = np.flatnonzero(np.isfinite(rpm))
+        values = np.abs(rpm[finite])
+        median = (
+            pd.Series(values).rolling(SPIKE_WINDOW, center=True, min_periods=1).median().to_numpy()
+        )
+        spike = np.abs(values - median) > SPIKE_TOL * median + SPIKE_FLOOR_RPM
+        times = _log_times(log)
+        if spike.any():
+            first = pd.Timestamp(times[finite[spike][0]])
+            notes.append(
+                f"{int(spike.sum())} shaft-speed spike(s) left out (first at "
+                f"{first:%Y-%m-%d %H:%M:%S})"
+            )
+            rpm[finite[spike]] = np.nan
+        finite = np.flatnonzero(np.isfinite(rpm))
+        values = rpm[finite]
+        if len(values) > 1:
+            step = _log_step_seconds(times[finite])
+            starts, stops = _runs(values)
+            lasting = (times[finite[stops - 1]] - times[finite[starts]]) / np.timedelta64(
+                1, "s"
+            ) + step
+        # a sensor whose readings change (most runs of equal readings short) is checked
+        if len(values) > 1 and np.median(lasting) < FROZEN_SECONDS / 10:
+            for start, stop, seconds in zip(starts, stops, lasting, strict=True):
+                if values[start] != 0 and seconds >= FROZEN_SECONDS:
+                    rpm[finite[start:stop]] = np.nan
+                    notes.append(
+                        f"shaft speed frozen at {values[start]:g} rpm from "
+                        f"{pd.Timestamp(times[finite[start]]):%Y-%m-%d %H:%M:%S} for "
+                        f"{seconds / 60:.0f} min: readings left out"
+                    )
+        log["shaft_rpm"] = rpm
+    log.attrs["shaft_rpm_checked"] = True
+    log.attrs["shaft_rpm_notes"] = notes
+    return log
+
+
+def _covered(count: int, step: float, block_start, block_end) -> bool:
+    """Whether *count* readings *step* seconds apart cover :data:`MIN_COVERAGE` of the
+    block."""
+    duration = (block_end - block_start) / np.timedelta64(1, "s")
+    return count * step >= MIN_COVERAGE * duration
+
+
 def block_shaft_table(log: pd.DataFrame, blocks: pd.DataFrame) -> pd.DataFrame:
     """Per block: the shaft speed weighted by its fourth power (where the harmonics' energy
     is: on a speed ramp, the harmonic's pole sits near the top speed), the mean speed and the
@@ -217,26 +318,35 @@ def block_shaft_table(log: pd.DataFrame, blocks: pd.DataFrame) -> pd.DataFrame:
         ``speed_energy_kn`` [kn]; NaN where not logged.
     """
     blocks = _blocks_of(blocks)
-    log = log.sort_values("time", kind="stable")
+    log = usable_shaft_speed(log)
     times = _log_times(log)
+    step = _log_step_seconds(times)
     blocks_naive = blocks.assign(
         block_start=_naive(blocks["block_start"]), block_end=_naive(blocks["block_end"])
+    )
+    bounds = dict(
+        zip(
+            blocks_naive["block"].astype(int),
+            zip(blocks_naive["block_start"], blocks_naive["block_end"], strict=True),
+            strict=True,
+        )
     )
     rpm = log["shaft_rpm"].to_numpy(float) if "shaft_rpm" in log else None
     speed = log["speed_kn"].to_numpy(float) if "speed_kn" in log else None
     rows = []
     for block, lo, hi in _block_slices(times, blocks_naive):
         row = {"block": block, "shaft_rpm": np.nan, "speed_kn": np.nan, "speed_energy_kn": np.nan}
+        start, end = (np.datetime64(t, "ns") for t in bounds[int(block)])
         if rpm is not None and hi > lo:
             values = np.abs(rpm[lo:hi])
             values = values[np.isfinite(values)]
             weight = values**POWER_EXPONENT
-            if len(values) and weight.sum() > 0:
+            if _covered(len(values), step, start, end) and weight.sum() > 0:
                 row["shaft_rpm"] = float((weight * values).sum() / weight.sum())
         if speed is not None and hi > lo:
             values = np.abs(speed[lo:hi])
             values = values[np.isfinite(values)]
-            if len(values):
+            if _covered(len(values), step, start, end):
                 row["speed_kn"] = float(values.mean())
                 weight = values**POWER_EXPONENT
                 if weight.sum() > 0:
@@ -266,7 +376,8 @@ def mark_shaft_orders(
     -------
     Series
         Aligned with *selected*: the order (of :func:`order_list`) whose energy in the
-        block lies on the mode, NaN for none (and for blocks without a logged shaft speed).
+        block lies on the mode, NaN for none (and for blocks whose usable shaft-speed
+        readings, :func:`usable_shaft_speed`, cover less than :data:`MIN_COVERAGE` of them).
 
     Notes
     -----
@@ -285,7 +396,9 @@ def mark_shaft_orders(
     if "shaft_rpm" not in log.columns or selected.empty:
         return out
     orders = np.array(order_list(options))
-    log = log[["time", "shaft_rpm"]].dropna().sort_values("time", kind="stable")
+    log = usable_shaft_speed(log)
+    step = _log_step_seconds(_log_times(log))
+    log = log[["time", "shaft_rpm"]].dropna()
     times = _log_times(log)
     rpm = np.abs(log["shaft_rpm"].to_numpy(float))
     blocks = _blocks_of(selected)
@@ -302,8 +415,16 @@ def mark_shaft_orders(
         else np.zeros(len(selected))
     )
     tol = np.fmax(options.frequency_tol, np.nan_to_num(np.abs(damping)))
+    bounds = dict(
+        zip(
+            blocks["block"].astype(int),
+            zip(blocks["block_start"], blocks["block_end"], strict=True),
+            strict=True,
+        )
+    )
     for block, lo, hi in _block_slices(times, blocks):
-        if hi <= lo:
+        start, end = (np.datetime64(t, "ns") for t in bounds[int(block)])
+        if hi <= lo or not _covered(hi - lo, step, start, end):
             continue
         rate_hz = rpm[lo:hi] / 60.0
         weight = rate_hz**POWER_EXPONENT
@@ -454,6 +575,40 @@ def _channels(table: pd.DataFrame) -> list[str]:
     return list(channels)
 
 
+def _running_median(values: pd.Series) -> np.ndarray:
+    """Running median of :data:`SPIKE_WINDOW` readings (the log's noise and spikes out)."""
+    return (
+        values.astype(float)
+        .rolling(SPIKE_WINDOW, center=True, min_periods=1)
+        .median()
+        .abs()
+        .to_numpy()
+    )
+
+
+def shaft_rate_per_knot(log: pd.DataFrame, options: HarmonicOptions | None = None) -> float:
+    """The shaft speed per knot of speed [rpm/kn] from the rows logging both, NaN when
+    they do not show a fixed ratio (a controllable-pitch propeller) or are too few.
+
+    The ratio of each row faster than ``min_speed_kn`` (running medians of both, the
+    log's noise and spikes out); fixed when its 10-90 % range is within
+    :data:`PITCH_SCATTER` of its median, over at least 10 minutes of rows.
+    """
+    options = options or HarmonicOptions()
+    if "shaft_rpm" not in log.columns or "speed_kn" not in log.columns:
+        return np.nan
+    log = usable_shaft_speed(log)
+    rpm = np.abs(log["shaft_rpm"].to_numpy(float))
+    speed = _running_median(log["speed_kn"])
+    both = np.isfinite(rpm) & np.isfinite(speed) & (speed > options.min_speed_kn)
+    step = _log_step_seconds(_log_times(log))
+    if both.sum() * step < 600:
+        return np.nan
+    ratio = rpm[both] / speed[both]
+    low, middle, high = np.percentile(ratio, [10, 50, 90])
+    return float(middle) if (high - low) <= PITCH_SCATTER * middle else np.nan
+
+
 class HarmonicMarker:
     """Marks the harmonics of one voyage: its selected modes first (the whole table, small),
     then its poles chunk by chunk (:func:`mark_poles` against the marked modes).
@@ -475,24 +630,54 @@ class HarmonicMarker:
             columns=["block", "block_start", "shaft_rpm", "speed_kn", "speed_energy_kn"]
         )
         self.marked = pd.DataFrame()
+        self.rpm_per_kn = np.nan
         self.n_selected = 0
         self.n_poles = 0
 
     def mark_selected(self, selected: pd.DataFrame) -> pd.DataFrame:
-        """*selected* with its ``harmonic`` column."""
+        """*selected* with its ``harmonic``, ``harmonic_frequency_hz`` and
+        ``harmonic_checked`` columns.
+
+        Blocks whose shaft speed is not usable (not logged, an outage, the log ending
+        early, a frozen sensor) are tested from the shaft speed estimated from the logged
+        speed, when the blocks with both show a fixed ratio (:func:`shaft_rate_per_knot`);
+        blocks with neither are not checked (``harmonic_checked`` False): tracking judges a
+        label by its checked rows and leaves out one seen (almost) only where the log fails.
+        """
         selected = selected.copy()
         selected["harmonic"] = np.nan
         selected["harmonic_frequency_hz"] = np.nan
         self.n_selected = len(selected)
         if self.log is None or selected.empty:
             return selected
+        self.log = usable_shaft_speed(self.log)
         self.shaft = block_shaft_table(self.log, selected)
+        self.shaft["shaft_rpm_from"] = np.where(self.shaft["shaft_rpm"].notna(), "log", "")
         shaft = self.shaft.set_index("block")
         if self.shaft["shaft_rpm"].notna().any():
-            selected["harmonic"] = mark_shaft_orders(selected, self.log, self.options)
             self.method = "shaft speed"
+            selected["harmonic"] = mark_shaft_orders(selected, self.log, self.options)
+            self.rpm_per_kn = shaft_rate_per_knot(self.log, self.options)
+            missing = self.shaft["shaft_rpm"].isna() & self.shaft["speed_kn"].notna()
+            if np.isfinite(self.rpm_per_kn) and missing.any():
+                # the shaft speed from the speed where it is not logged (fixed pitch)
+                estimated = self.log[["time"]].assign(
+                    shaft_rpm=self.rpm_per_kn * _running_median(self.log["speed_kn"])
+                )
+                estimated.attrs["shaft_rpm_checked"] = True
+                blocks = set(self.shaft.loc[missing, "block"].astype(int))
+                rows = selected["block"].isin(blocks).to_numpy()
+                selected.loc[rows, "harmonic"] = mark_shaft_orders(
+                    selected[rows], estimated, self.options
+                ).to_numpy()
+                from_speed = block_shaft_table(estimated, selected[rows]).set_index("block")
+                fill = self.shaft["block"].map(from_speed["shaft_rpm"])
+                self.shaft.loc[missing, "shaft_rpm"] = fill[missing]
+                self.shaft.loc[missing & fill.notna(), "shaft_rpm_from"] = "speed"
+                shaft = self.shaft.set_index("block")
             rate_hz = selected["block"].map(shaft["shaft_rpm"]).to_numpy(float) / 60.0
             selected["harmonic_frequency_hz"] = selected["harmonic"].to_numpy(float) * rate_hz
+            checked = shaft["shaft_rpm"].notna()
         elif self.shaft["speed_energy_kn"].notna().any():
             marks = mark_speed_following(selected, self.shaft, self.options)
             selected["harmonic"] = marks
@@ -516,6 +701,13 @@ class HarmonicMarker:
                 else np.full(len(selected), np.nan)
             )
             selected["harmonic_frequency_hz"] = np.where(marks.notna(), nearest * rate_hz, np.nan)
+            checked = shaft["speed_energy_kn"].notna()
+        else:
+            checked = None
+        if checked is not None:
+            selected["harmonic_checked"] = (
+                selected["block"].map(checked).fillna(False).to_numpy(bool)
+            )
         self.marked = selected[selected["harmonic"].notna()]
         return selected
 
@@ -529,21 +721,37 @@ class HarmonicMarker:
         return poles
 
     def unmarked(self) -> list[str]:
-        """One warning line when the ship log leaves blocks without what the test used (a
-        log ending before the recordings, an outage): their harmonics are not marked."""
-        column = {"shaft speed": "shaft_rpm", "speed": "speed_energy_kn"}.get(self.method)
-        if column is None or self.shaft.empty:
-            return []
+        """Warning lines when the ship log leaves blocks without a usable shaft speed (a
+        log ending before the recordings, an outage, a frozen sensor): what was left out,
+        the blocks marked from the speed instead, and those not checked at all."""
+        notes = list(self.log.attrs.get("shaft_rpm_notes", [])) if self.log is not None else []
+        lines = [f"ship log: {note}" for note in notes]
+        if self.method == "none" or self.shaft.empty:
+            return lines
         from ..store import block_ranges
 
+        n = len(self.shaft)
+        if self.method == "shaft speed":
+            from_speed = self.shaft.loc[self.shaft["shaft_rpm_from"] == "speed", "block"]
+            if len(from_speed):
+                lines.append(
+                    f"ship log: no usable shaft speed over block(s) "
+                    f"{block_ranges(set(from_speed.astype(int)))} ({len(from_speed)} of {n} "
+                    f"blocks): harmonics there marked from the speed x "
+                    f"{self.rpm_per_kn:.2f} rpm/kn (the logged blocks' ratio)"
+                )
+            column = "shaft_rpm"
+        else:
+            column = "speed_energy_kn"
         missing = self.shaft.loc[self.shaft[column].isna(), "block"].astype(int)
-        if missing.empty:
-            return []
-        return [
-            f"ship log: no {self.method} over block(s) {block_ranges(set(missing))} "
-            f"({len(missing)} of {len(self.shaft)} blocks): harmonics there are not marked "
-            "and are tracked as modes"
-        ]
+        if len(missing):
+            what = "shaft speed or speed" if self.method == "shaft speed" else "speed"
+            lines.append(
+                f"ship log: no usable {what} over block(s) {block_ranges(set(missing))} "
+                f"({len(missing)} of {n} blocks): harmonics there cannot be told from modes; "
+                "tracking leaves out a line seen (almost) only there"
+            )
+        return lines
 
     def lines(self) -> list[str]:
         """One line for the engineer: the test used and what it marked."""

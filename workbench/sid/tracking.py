@@ -90,7 +90,9 @@ class TrackingOptions:
         quarter of its blocks whose marked rows do not follow the order's frequency
         (``harmonic_frequency_hz``: slope of ln f on it below 0.5): a mode that an order
         sits on for hours. A mode that an order crosses keeps its rows (its own shape
-        joined the label). [-]
+        joined the label). The share is over the rows the ship log could check
+        (``harmonic_checked``); a label checked in fewer than 10 blocks and a quarter of
+        its blocks (seen almost only where the log fails) is dropped too. [-]
     """
 
     mac_min: float = 0.9
@@ -552,7 +554,10 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
         empty.insert(3, "mode", pd.Series([], dtype="int64"))
         empty["mac"] = pd.Series([], dtype=float)
         return MODAL.validate(
-            empty.drop(columns=["harmonic", "harmonic_frequency_hz"], errors="ignore")
+            empty.drop(
+                columns=["harmonic", "harmonic_frequency_hz", "harmonic_checked"],
+                errors="ignore",
+            )
         )
     index = np.array([r[0] for r in rows])
     table = frame.loc[index].copy()
@@ -561,29 +566,51 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
     harmonic_labels: list[dict] = []
     if "harmonic" in table.columns:
         marked = table["harmonic"].notna()
-        share = marked.groupby(table["mode"]).mean()
+        # the share among the rows the ship log could check (all, without the column)
+        checked = (
+            table["harmonic_checked"].fillna(True).astype(bool)
+            if "harmonic_checked" in table.columns
+            else pd.Series(True, index=table.index)
+        )
+        by_label = table["mode"]
+        n_checked = checked.groupby(by_label).sum()
+        share = (marked & checked).groupby(by_label).sum() / n_checked.where(n_checked > 0)
         # most rows marked: a harmonic, unless the label is also seen away from the orders
         # in at least a quarter of its blocks and does not follow its order (a mode an
         # order sits on for hours)
+        # (seen away: the unmarked rows, unchecked ones included, of all its rows)
+        share_all = marked.groupby(by_label).mean()
         harmonic = [
             label
             for label in share.index[share >= options.harmonic_share]
-            if share[label] > 1.0 - _SEEN_AWAY
+            if share_all[label] > 1.0 - _SEEN_AWAY
             or _follows_its_order(table[(table["mode"] == label) & marked])
         ]
-        share = share[harmonic]
-        for label in share.index:
+        # a label is judged by the rows the log could check: one checked in fewer than
+        # _FOLLOW_ROWS blocks and a quarter of its blocks is seen (almost) only where the
+        # log fails, and may be a harmonic
+        rows = by_label.value_counts().reindex(share.index)
+        unverified = [
+            label
+            for label in share.index
+            if label not in harmonic
+            and n_checked[label] < min(_FOLLOW_ROWS, _SEEN_AWAY * rows[label])
+        ]
+        for label in [*harmonic, *unverified]:
             part = table[table["mode"] == label]
             harmonic_labels.append(
                 {
                     "label": int(label),
                     "blocks": len(part),
                     "frequency_hz": float(part["frequency_hz"].median()),
-                    "share": float(share[label]),
+                    "share": float(np.nan_to_num(share[label])),
+                    "unverified": label in unverified,
                 }
             )
-        table = table[~table["mode"].isin(share.index)]
-        table = table.drop(columns=["harmonic", "harmonic_frequency_hz"], errors="ignore")
+        table = table[~table["mode"].isin([*harmonic, *unverified])]
+        table = table.drop(
+            columns=["harmonic", "harmonic_frequency_hz", "harmonic_checked"], errors="ignore"
+        )
     front = ["block", "block_start", "block_end", "mode", "frequency_hz", "damping_ratio", "mac"]
     if "model_order" in table.columns:
         front.append("model_order")

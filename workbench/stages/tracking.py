@@ -174,7 +174,15 @@ def track(
             for m, r in result.modes.iterrows()
         )
     )
-    harmonic_labels = tracked.attrs.get("harmonic_labels", [])
+    labels = tracked.attrs.get("harmonic_labels", [])
+    harmonic_labels = [h for h in labels if not h.get("unverified")]
+    unverified = [h for h in labels if h.get("unverified")]
+    if unverified:
+        result.lines.append(
+            f"{len(unverified)} tracked label(s) seen only where the ship log could not tell "
+            "harmonics from modes were left out: "
+            + ", ".join(f"{h['frequency_hz']:.3f} Hz ({h['blocks']} blocks)" for h in unverified)
+        )
     if harmonic_labels:
         result.lines.append(
             f"{len(harmonic_labels)} tracked label(s) were shaft or blade-pass harmonics, not "
