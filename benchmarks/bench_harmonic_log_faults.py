@@ -15,7 +15,8 @@ Faults (hours from the voyage's start; the 6-h profile: at rest 0-1 h, 10 kn 1-2
   every column) for 90 min from 1.25, 3.0 or 4.5 h, and for 30 min from 3.0 h;
 * ``rpm 2nd half``: the shaft-speed cells empty from 3 h on;
 * ``ends early`` / ``starts late``: the log's rows cut 1 h before the accelerations end /
-  until 1 h after they start;
+  until 1 h after they start; ``only the first 30 min`` / ``only the last 45 min``: a log
+  that covers a few blocks of the voyage;
 * ``rpm frozen``: the shaft speed stuck at its reading for 60 min from 1.25, 3.0 or 4.5 h;
 * ``rpm spike``: one shaft-speed reading 10 times its value (at 1.5, 3.2 and 5 h: three
   single rows);
@@ -166,6 +167,8 @@ def _faults() -> list[tuple[str, object]]:
     faults.append(("rpm 2nd half", empty(lambda t: [RPM], HOURS / 2, HOURS)))
     faults.append(("ends early (1 h)", cut(lambda h: h < HOURS - 1.0)))
     faults.append(("starts late (1 h)", cut(lambda h: h >= 1.0)))
+    faults.append(("only the first 30 min", cut(lambda h: h < 0.5)))
+    faults.append(("only the last 45 min", cut(lambda h: h >= HOURS - 0.75)))
     for start in (1.25, 3.0, 4.5):
         faults.append((f"rpm frozen {start:g}-{start + 1:g} h", frozen(start, 1.0)))
     faults.append(("rpm spike x10 (3 rows)", spike))

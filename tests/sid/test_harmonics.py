@@ -312,3 +312,17 @@ def test_a_line_seen_only_where_the_log_fails_is_not_tracked():
     assert "harmonic_checked" not in tracked.columns
     left_out = tracked.attrs["harmonic_labels"]
     assert [(h["blocks"], h["frequency_hz"], h["unverified"]) for h in left_out] == [(6, 4.0, True)]
+
+
+def test_a_mode_seen_throughout_a_voyage_whose_log_covers_two_blocks_is_kept():
+    # the log covers blocks 0-1 of 40; the mode at 2.9 Hz is seen in every block, so it is
+    # checked as often as the voyage is (5 %) and is a mode, not a line seen only where the
+    # log fails. A rule on the label's checked blocks alone (fewer than 10) dropped it: the
+    # tracked table was empty, every mode of such a voyage lost.
+    log = _noisy_log(2 * 1200, 180.0, None)
+    rows = [(b, 2.9, SHAPE_MODE) for b in range(40)]
+    marks = mark_harmonics(_selected(rows), _selected(rows).iloc[:0], log).selected
+    assert int(marks.groupby("block")["harmonic_checked"].first().sum()) == 2
+    tracked = track_modes(marks, options=TrackingOptions())
+    assert len(tracked) == 40 and tracked["frequency_hz"].eq(2.9).all()
+    assert tracked.attrs["harmonic_labels"] == []

@@ -90,9 +90,14 @@ class TrackingOptions:
         quarter of its blocks whose marked rows do not follow the order's frequency
         (``harmonic_frequency_hz``: slope of ln f on it below 0.5): a mode that an order
         sits on for hours. A mode that an order crosses keeps its rows (its own shape
-        joined the label). The share is over the rows the ship log could check
-        (``harmonic_checked``); a label checked in fewer than 10 blocks and a quarter of
-        its blocks (seen almost only where the log fails) is dropped too. [-]
+        joined the label). Where the ship log could not check every row
+        (``harmonic_checked``), the share is the larger of the marked share of all rows
+        and that of the checked rows: taken as it is where the label has at least 10
+        checked rows (or all its rows checked) or is seen mostly where the log fails
+        (checked in under a quarter of the voyage's share of checked blocks), else its 95 %
+        Wilson lower bound (a few checked rows are weak evidence). A label seen mostly where
+        the log fails and checked in fewer than 10 blocks and a quarter of its blocks is
+        dropped too, as unverified. [-]
     """
 
     mac_min: float = 0.9
@@ -524,6 +529,17 @@ _SEEN_AWAY = 0.25
 _FOLLOW_ROWS = 10
 
 
+def _wilson_lower(successes: pd.Series, trials: pd.Series, z: float = 1.96) -> pd.Series:
+    """Wilson score lower bound of the proportion *successes* / *trials* (0 where no
+    trials) at the normal quantile *z* (1.96: 95 %, two-sided)."""
+    n = trials.astype(float)
+    p = successes.astype(float) / n.where(n > 0)
+    z2 = z * z
+    centre = p + z2 / (2 * n)
+    spread = z * np.sqrt(p * (1 - p) / n + z2 / (4 * n * n))
+    return ((centre - spread) / (1 + z2 / n)).fillna(0.0)
+
+
 def _follows_its_order(rows: pd.DataFrame) -> bool:
     """Whether a label's marked rows follow the order's frequency: the slope of ln f on
     ln f_order (``harmonic_frequency_hz``) is at least 0.5 (a harmonic's is 1, a structural
@@ -574,26 +590,39 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
         )
         by_label = table["mode"]
         n_checked = checked.groupby(by_label).sum()
-        share = (marked & checked).groupby(by_label).sum() / n_checked.where(n_checked > 0)
+        rows = by_label.value_counts().reindex(n_checked.index)
+        share_all = marked.groupby(by_label).mean()
+        share_checked = (marked & checked).groupby(by_label).sum() / n_checked.where(n_checked > 0)
+        # a label seen mostly where the log fails: checked in less than a quarter of the
+        # share of the voyage's blocks the log checked (a line that appears in an outage);
+        # a mode seen throughout a voyage is checked as often as the voyage is
+        voyage_checked = float(checked.groupby(table["block"]).any().mean())
+        in_outage = n_checked < _SEEN_AWAY * voyage_checked * rows
+        # the share that judges a label: of all its rows (the unchecked counted unmarked);
+        # of its checked rows where they are enough to judge (_FOLLOW_ROWS, or all its
+        # rows) or where the label is seen mostly in an outage. A few checked rows of a
+        # mode seen throughout a voyage are no evidence: one whose log covers only the
+        # last 45 min, where an order passes near it, is marked in 4 of 8 checked rows.
+        enough = n_checked >= np.minimum(_FOLLOW_ROWS, rows)
+        evidence = _wilson_lower((marked & checked).groupby(by_label).sum(), n_checked)
+        share = np.maximum(share_all, share_checked.where(enough | in_outage).fillna(evidence))
         # most rows marked: a harmonic, unless the label is also seen away from the orders
         # in at least a quarter of its blocks and does not follow its order (a mode an
         # order sits on for hours)
         # (seen away: the unmarked rows, unchecked ones included, of all its rows)
-        share_all = marked.groupby(by_label).mean()
         harmonic = [
             label
             for label in share.index[share >= options.harmonic_share]
             if share_all[label] > 1.0 - _SEEN_AWAY
             or _follows_its_order(table[(table["mode"] == label) & marked])
         ]
-        # a label is judged by the rows the log could check: one checked in fewer than
-        # _FOLLOW_ROWS blocks and a quarter of its blocks is seen (almost) only where the
-        # log fails, and may be a harmonic
-        rows = by_label.value_counts().reindex(share.index)
+        # a label seen mostly in an outage and checked in fewer than _FOLLOW_ROWS blocks
+        # and a quarter of its blocks cannot be told from a harmonic: left out, unverified
         unverified = [
             label
             for label in share.index
             if label not in harmonic
+            and in_outage[label]
             and n_checked[label] < min(_FOLLOW_ROWS, _SEEN_AWAY * rows[label])
         ]
         for label in [*harmonic, *unverified]:
