@@ -27,6 +27,7 @@ from .planning import (
     acceleration_files,
     follow_on_starts,
     input_fingerprints,
+    left_out_notes,
     plan_identification,
     resolved_run,
 )
@@ -54,7 +55,9 @@ class IdentifyResult(StageResult):
         What the run found changed in its store and did about it (damaged store files,
         input files no longer given), one line each.
     notes : list of str
-        The input files re-timed for clock jitter (how many, the largest shift:
+        The input files left out (another sampling rate, a duplicate:
+        :func:`~workbench.identification.planning.left_out_notes`), those re-timed for
+        clock jitter (how many, the largest shift:
         :func:`~workbench.signals.block_plan.clock_jitter_note`), the records whose sample
         clock drifts from their stamps (the rate offset in ppm:
         :func:`~workbench.signals.block_plan.clock_drift_note`) and what the harmonic tests
@@ -71,8 +74,8 @@ class IdentifyResult(StageResult):
 
     @property
     def lines(self) -> list[str]:  # type: ignore[override]
-        """The run summary, the notes (clock jitter and drift, harmonics), the SSI/LSCF
-        agreement and the files."""
+        """The run summary, the notes (files left out, clock jitter and drift, harmonics),
+        the SSI/LSCF agreement and the files."""
         out = [*str(self.run).splitlines(), *self.notes]
         crosscheck = self.files.get("crosscheck")
         if crosscheck is not None:
@@ -753,9 +756,9 @@ def identify_voyage(
             notices += _unreadable_warnings(store, files, unreadable, damaged)
         result = IdentifyResult(summary, n_blocks=n_tasks, warnings=notices)
         result.files = export_store(store, out, channels, grid=grid, harmonics=marker)
-        # files re-timed for clock jitter or drift: said, not silent
+        # files left out, re-timed for clock jitter or drift: said, not silent
         clock = [clock_jitter_note(plan.files), clock_drift_note(plan.files)]
-        result.notes = [n for n in clock if n] + marker.lines()
+        result.notes = left_out_notes(plan) + [n for n in clock if n] + marker.lines()
         result.warnings += marker.unmarked()
     selected = result.files.get("selected")
     if selected is not None:

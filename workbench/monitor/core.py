@@ -600,9 +600,19 @@ class Monitor:
         channels are taken from more than one file."""
         if not self.files or (self.watcher.pending and self._saved_grid is None):
             return False
-        from ..signals.block_plan import majority_channels
+        from ..signals.block_plan import majority_channels, majority_rate, sort_out_files
 
-        first = self.files[0].info
+        infos = [f.info for f in self.files]
+        rate, count = majority_rate(infos)
+        if 2 * count <= len(infos):  # no rate most files share (yet): which is the voyage's?
+            if not flush:
+                return False
+            try:
+                sort_out_files(infos)
+            except ValueError as error:  # as identify says it, exit 1
+                raise WorkbenchError(str(error)) from None
+        # the voyage's: the rate most files have (a file at another rate is not used)
+        first = next(info for info in infos if info.sampling_rate_hz == rate)
         if self._saved_grid is None and not flush:
             newest = max(f.info.end_time for f in self.files)
             wait_s = min(self.options.late_s, self.options.identify.length_s)
@@ -1534,17 +1544,33 @@ def _placed_among(info, taken: list) -> tuple[str, object]:
     """Why the new file *info* (a FileInfo) cannot join the files taken (*taken*, their
     headers as stamped), or "", and *info* as identify places it among them
     (:func:`~workbench.signals.block_plan.place_files`: re-timed for clock jitter or
-    drift)."""
-    from ..signals.block_plan import FileOverlapError, place_files
+    drift). A file with the bytes of the one it overlaps is said to be its duplicate."""
+    from ..signals.block_plan import FileOverlapError, duplicate_reason, place_files
 
     same_rate = [other for other in taken if other.sampling_rate_hz == info.sampling_rate_hz]
     infos = sorted([*same_rate, info], key=lambda i: (i.start_time, str(i.path)))
     try:
         placed = place_files(infos)
     except FileOverlapError as error:  # more than the jitter before a predecessor's end
-        other = error.previous if error.info.path == info.path else error.info
+        new, other = (
+            (error.info, error.previous) if error.info.path == info.path else (info, error.info)
+        )
+        if _same_data(new, other):
+            return duplicate_reason(other), info
         return f"overlaps {other.name}", info
     return "", next(i for i in placed if i.path == info.path)
+
+
+def _same_data(a, b) -> bool:
+    """Whether the files of headers *a* and *b* hold the same bytes."""
+    from ..fingerprints import sha256
+
+    if (a.start_time, a.n_samples, a.channels) != (b.start_time, b.n_samples, b.channels):
+        return False
+    try:
+        return sha256(a.path) == sha256(b.path)
+    except OSError:
+        return False
 
 
 def _state_folder(message: str) -> str:

@@ -29,8 +29,10 @@ acc_b.npz"``), unless the gap's part inside the block is at most ``max_gap_s``: 
 gap is filled with NaN, which the NaN policy bridges by interpolation -- so ``max_gap_s``
 should not exceed the faulty-channel ``max_nan_run_s`` (default 10 s), or every channel of
 the block would be dropped. Files that overlap in time, differ in channel set or in
-sampling rate are errors (:class:`ValueError` naming the file). Channels in a different
-order are reordered to the first file's order.
+sampling rate are errors (:class:`ValueError` naming the file); identify and the monitor
+first leave out a file at another rate than most files have, and an exact duplicate
+(:func:`sort_out_files`). Channels in a different order are reordered to the first file's
+order.
 """
 
 from __future__ import annotations
@@ -56,6 +58,7 @@ from ..blocks import (
     utc_timestamp,
 )
 from ..errors import OptionError
+from ..fingerprints import sha256
 
 __all__ = [
     "CLOCK_JITTER_S",
@@ -66,6 +69,7 @@ __all__ = [
     "PlannedBlock",
     "clock_runs",
     "place_files",
+    "sort_out_files",
     "plan_blocks",
     "read_file_info",
 ]
@@ -233,6 +237,9 @@ class BlockPlan:
         carry a ``skipped_reason``.
     max_gap_s : float
         Gaps up to this length inside a block are NaN-padded. [s]
+    left_out : tuple of (Path, str)
+        Files given that cannot belong to the record, with why (:func:`sort_out_files`):
+        not among *files*, their spans are gaps.
     """
 
     grid: BlockGrid
@@ -241,6 +248,7 @@ class BlockPlan:
     sampling_rate_hz: float
     blocks: tuple[PlannedBlock, ...]
     max_gap_s: float = 0.0
+    left_out: tuple[tuple[Path, str], ...] = ()
 
     def frame(self) -> pd.DataFrame:
         """Table of the plan: block, block_start, block_end, n_files, skipped_reason."""
@@ -269,6 +277,94 @@ def majority_channels(infos: Sequence[FileInfo]) -> tuple[str, ...]:
         counts[key] = counts.get(key, 0) + 1
         order.setdefault(key, tuple(info.channels))
     return order[max(counts, key=lambda key: counts[key])]  # first maximum: earliest
+
+
+def majority_rate(infos: Sequence[FileInfo]) -> tuple[float, int]:
+    """The sampling rate most of *infos* have (ties: the earliest file's) and how many
+    have it."""
+    counts: dict[float, int] = {}
+    for info in infos:
+        counts[info.sampling_rate_hz] = counts.get(info.sampling_rate_hz, 0) + 1
+    rate = max(counts, key=lambda r: counts[r])  # first maximum: the earliest file's
+    return rate, counts[rate]
+
+
+def _names(infos: Sequence[FileInfo]) -> str:
+    """``a.npz``, ``a.npz, b.npz`` or ``5 files (a.npz .. e.npz)``."""
+    if len(infos) <= 2:
+        return ", ".join(i.name for i in infos)
+    return f"{len(infos)} files ({infos[0].name} .. {infos[-1].name})"
+
+
+def sort_out_files(
+    infos: Sequence[FileInfo],
+) -> tuple[list[FileInfo], tuple[tuple[Path, str], ...]]:
+    """The files of *infos* (sorted by start time) that can be one record, and those that
+    cannot with why: a file at another sampling rate than more than half of the files
+    have (a recorder briefly set otherwise), and an exact duplicate of an earlier file
+    (the same bytes, so the same stamp and samples: a file copied twice into the folder;
+    the first by path is kept). Their spans are then gaps.
+
+    Raises
+    ------
+    ValueError
+        No sampling rate is shared by more than half of the files: which is the record's is
+        not clear, naming the files of each rate. (Two different files for the same span
+        are an error of :func:`place_files`.)
+    """
+    infos = sorted(infos, key=lambda i: (i.start_time, str(i.path)))
+    if not infos:
+        return [], ()
+    rate, count = majority_rate(infos)
+    if 2 * count <= len(infos):
+        rates: dict[float, list[FileInfo]] = {}
+        for info in infos:
+            rates.setdefault(info.sampling_rate_hz, []).append(info)
+        listed = "; ".join(f"{r:g} Hz: {_names(group)}" for r, group in rates.items())
+        raise ValueError(
+            f"{infos[0].path}: no sampling rate is shared by more than half of the "
+            f"{len(infos)} files ({listed}); give the files of one recording"
+        )
+    left_out: list[tuple[Path, str]] = []
+    kept = []
+    for info in infos:
+        if info.sampling_rate_hz != rate:
+            left_out.append(
+                (
+                    info.path,
+                    f"sampling rate {info.sampling_rate_hz:g} Hz, not {rate:g} Hz (that of "
+                    f"{count} of the {len(infos)} files); its span is a gap",
+                )
+            )
+        else:
+            kept.append(info)
+    same: dict[tuple, list[FileInfo]] = {}
+    for info in kept:
+        key = (info.start_time, info.n_samples, info.channels)
+        same.setdefault(key, []).append(info)
+    duplicates: set[Path] = set()
+    for group in same.values():
+        if len(group) < 2:
+            continue
+        first: dict[str, FileInfo] = {}
+        for info in sorted(group, key=lambda i: str(i.path)):
+            try:
+                digest = sha256(info.path)
+            except OSError:  # read later, where it is said
+                continue
+            if digest in first:
+                duplicates.add(info.path)
+                left_out.append((info.path, duplicate_reason(first[digest])))
+            else:
+                first[digest] = info
+    kept = [info for info in kept if info.path not in duplicates]
+    left_out.sort(key=lambda item: str(item[0]))
+    return kept, tuple(left_out)
+
+
+def duplicate_reason(original: FileInfo) -> str:
+    """Why a file with the bytes of *original* is not used."""
+    return f"the same data as {original.name} (a duplicate)"
 
 
 def reference_channels(
