@@ -437,16 +437,17 @@ class _ClockRun:
     before each (the sample count), for :func:`place_files`.
 
     Running sums of a least-squares line ``stamp - anchor - x = alpha + beta * x``, x the
-    sample count in nominal seconds (so alpha, beta are small: milliseconds and ppm), and
-    the largest distance of a stamp from the file's placed start.
+    sample count in nominal seconds (so alpha, beta are small: milliseconds and ppm).
     """
 
     def __init__(self, first: FileInfo, rate: float) -> None:
         self.rate = rate
+        # the first stamp, and how far the run's placed times lie after the stamps there
         self.anchor = first.start_time - pd.Timedelta(seconds=first.clock_shift_s)
+        self.anchor_shift_s = first.clock_shift_s
         self.samples = 0
         self.n = 0
-        self.sum_x = self.sum_y = self.sum_xx = self.sum_xy = 0.0
+        self.sum_x = self.sum_y = self.sum_xx = self.sum_xy = self.sum_yy = 0.0
         self.last_n_samples = 0
         self.add(first)
 
@@ -463,39 +464,57 @@ class _ClockRun:
         self.sum_y += y
         self.sum_xx += x * x
         self.sum_xy += x * y
+        self.sum_yy += y * y
         self.samples += info.n_samples
         self.last_n_samples = info.n_samples
+
+    def _moments(self) -> tuple[float, float, float, float, float]:
+        mean_x, mean_y = self.sum_x / self.n, self.sum_y / self.n
+        sxx = self.sum_xx - self.n * mean_x * mean_x
+        sxy = self.sum_xy - self.n * mean_x * mean_y
+        syy = self.sum_yy - self.n * mean_y * mean_y
+        return mean_x, mean_y, sxx, sxy, syy
 
     def line(self) -> tuple[float, float]:
         """alpha [s] and beta (the stamps' seconds per nominal second, less 1) of the line."""
         if self.n < 2:
             return 0.0, 0.0
-        mean_x, mean_y = self.sum_x / self.n, self.sum_y / self.n
-        sxx = self.sum_xx - self.n * mean_x * mean_x
-        beta = (self.sum_xy - self.n * mean_x * mean_y) / sxx if sxx > 0 else 0.0
+        mean_x, mean_y, sxx, sxy, _ = self._moments()
+        beta = sxy / sxx if sxx > 0 else 0.0
         return mean_y - beta * mean_x, beta
 
     def walk_s(self) -> float:
-        """How far the line moves from the sample count over the run's stamps. [s]"""
-        if self.n < 2:
+        """How far the line moves from the sample count over the run's stamps, less twice
+        its standard error (from the stamps' scatter about the line): a drift told apart
+        from jitter. [s]"""
+        if self.n < 3:
             return 0.0
-        return abs(self.line()[1]) * (self.samples - self.last_n_samples) / self.rate
+        _, _, sxx, sxy, syy = self._moments()
+        if sxx <= 0:
+            return 0.0
+        beta = sxy / sxx
+        scatter = math.sqrt(max(syy - beta * sxy, 0.0) / (self.n - 2))
+        last_x = (self.samples - self.last_n_samples) / self.rate
+        return (abs(beta) - 2 * scatter / math.sqrt(sxx)) * last_x
 
     def drifting(self, clock_jitter_s: float) -> bool:
         """Whether the line drifts from the sample count by more than half the jitter over
-        the run's stamps: they are then judged against the line, not the sample count."""
+        the run's stamps: they are then judged against the line alone."""
         return self.walk_s() > 0.5 * clock_jitter_s
 
-    def offset_s(self, info: FileInfo, previous: FileInfo, clock_jitter_s: float) -> float:
-        """How far *info*'s stamp lies after where the run's clock puts its next file: after
-        the previous file's placed end while the sample count explains the stamps, else
-        after the line's time at the run's sample count. [s]"""
+    def offsets_s(self, info: FileInfo, previous: FileInfo, clock_jitter_s: float) -> list[float]:
+        """How far *info*'s stamp lies after where the run's clock puts its next file [s]:
+        after the line's time at the run's sample count, once the run drifts; before, after
+        the previous file's placed end (the sample count), then (two stamps or more) after
+        the line's time, whose drift a short run cannot yet tell from jitter."""
         stamp = info.start_time - pd.Timedelta(seconds=info.clock_shift_s)
-        if not self.drifting(clock_jitter_s):
-            return (stamp - previous.end_time).total_seconds()
+        chain = (stamp - previous.end_time).total_seconds() + self.anchor_shift_s
+        if self.n < 2:
+            return [chain]
         alpha, beta = self.line()
         x = self.samples / self.rate
-        return self._y(info, x) - (alpha + beta * x)
+        line = self._y(info, x) - (alpha + beta * x)
+        return [line] if self.drifting(clock_jitter_s) else [chain, line]
 
 
 class FileOverlapError(ValueError):
@@ -527,12 +546,14 @@ def place_files(
     end (also when its stamp misses that by less than half a sample), so the blocks cut
     from it hold the recorder's consecutive samples, on one sample lattice. The stamps are
     judged against the run's clock: the least-squares line of the run's stamps on its
-    sample count, the jitter being the stamps' distance from that line. While that line
-    stays within half of *clock_jitter_s* of the sample count over the run, the clock is
-    the sample count itself (the previous file's placed end); beyond that - a sample
-    clock some ppm off its nominal rate, whose files last slightly less or more than their
-    sample count says, so that the placed times walk away from the stamps by the same
-    amount per file - the line. A stamp more than *clock_jitter_s* after the
+    sample count, the jitter being the stamps' distance from that line. A sample clock
+    some ppm off its nominal rate makes its files last slightly less or more than their
+    sample count says, so that the sample count (the placed times) walks steadily away
+    from the stamps; once that line drifts from the sample count by more than half of
+    *clock_jitter_s* over the run, beyond twice its standard error (from the stamps'
+    scatter about it), a stamp is judged against the line alone. Before, the run's few
+    stamps cannot yet tell a drift from jitter: a stamp within *clock_jitter_s* of the
+    sample count (the previous file's placed end) or of the line is contiguous. A stamp more than *clock_jitter_s* after the
     clock is a gap: the file starts a new run at its stamp (or, when the run's placed end
     has walked past that stamp, the gap after the placed end); more than *clock_jitter_s*
     before it, an error. Files already placed (their start at the previous placed end)
@@ -561,8 +582,9 @@ def place_files(
             placed.append(info)
             continue
         mismatch_s = (info.start_time - previous.end_time).total_seconds()
-        offset_s = run.offset_s(info, previous, clock_jitter_s)
-        if abs(mismatch_s) <= half_s or abs(offset_s) <= clock_jitter_s:  # contiguous
+        offsets_s = run.offsets_s(info, previous, clock_jitter_s)
+        offset_s = offsets_s[0]
+        if abs(mismatch_s) <= half_s or min(map(abs, offsets_s)) <= clock_jitter_s:
             shift = previous.end_time - info.start_time
             info = dataclasses.replace(
                 info,
@@ -603,8 +625,9 @@ class ClockRun:
         Largest distance of a stamp from that line. [s]
     drifting : bool
         Whether the line drifts from the sample count by more than the clock jitter over
-        the run: a drift told apart from jitter, which the run's notes say. (Beyond half
-        that, :func:`place_files` already judges the stamps against the line.)
+        the run, beyond twice its standard error: a drift told apart from jitter, which
+        the run's notes say. (Beyond half that, :func:`place_files` already judges the
+        stamps against the line alone.)
     """
 
     files: tuple[FileInfo, ...]
