@@ -36,14 +36,15 @@ IDENTIFY_ARGS = [
 ]
 
 
-def response(n_samples: int, seed: int) -> np.ndarray:
-    """Accelerations of two modes (3.1 and 5.7 Hz, 2 % damping) seen by four sensors."""
+def response(n_samples: int, seed: int, rate_hz: float = RATE_HZ) -> np.ndarray:
+    """Accelerations of two modes (3.1 and 5.7 Hz, 2 % damping) seen by four sensors,
+    sampled at *rate_hz*."""
     rng = np.random.default_rng(seed)
     shapes = np.array([[1.0, 0.6, -0.4, -1.0], [0.7, -1.0, 1.0, -0.5]])
     out = np.zeros((n_samples, len(CHANNELS)))
     for f_hz, shape in zip((3.1, 5.7), shapes, strict=True):
         w = 2 * np.pi * f_hz
-        system = signal.cont2discrete(([w**2], [1, 2 * 0.02 * w, w**2]), 1 / RATE_HZ)
+        system = signal.cont2discrete(([w**2], [1, 2 * 0.02 * w, w**2]), 1 / rate_hz)
         b, a = np.squeeze(system[0]), system[1]
         modal = signal.lfilter(b, a, rng.standard_normal(n_samples))
         out += np.outer(modal, shape)

@@ -178,6 +178,11 @@ def plan_identification(
     there (path as given -> why): the plan is that of the other files, as if those were
     not there (:func:`readable_file_infos`). Without it such a file is an error.
 
+    A file at another sampling rate than most files have, and an exact duplicate, are
+    left out too (:func:`~workbench.signals.block_plan.sort_out_files`), named with why in
+    the plan's ``left_out`` (:func:`left_out_notes`); files split between rates with no
+    majority are an error.
+
     Raises
     ------
     WorkbenchError
@@ -199,10 +204,38 @@ def plan_identification(
 
 
 def _plan_identification(files, options, *, grid_t0, unreadable):
-    from ..signals.block_plan import lacking_channels, plan_file_infos
+    from ..signals.block_plan import sort_out_files
 
     try:
         infos = readable_file_infos(files, options.read_options, unreadable)
+        infos, left_out = sort_out_files(infos)
+    except OptionError:
+        raise
+    except ValueError as error:
+        raise WorkbenchError(str(error).splitlines()[0]) from None
+    try:
+        plan, options = _plan_files(infos, options, grid_t0=grid_t0)
+    except WorkbenchError as error:
+        if not left_out:
+            raise
+        # what is left without those files gives no block: name them first
+        path, why = left_out[0]
+        more = f" (and {len(left_out) - 1} more)" if len(left_out) > 1 else ""
+        raise WorkbenchError(f"{path}: not used ({why}){more}; then {error}") from None
+    return dataclasses.replace(plan, left_out=left_out), options
+
+
+def left_out_notes(plan) -> list[str]:
+    """One line per file of *plan* that could not belong to the record (another sampling
+    rate, a duplicate: :func:`~workbench.signals.block_plan.sort_out_files`), as the
+    monitor says it."""
+    return [f"{Path(path).name}: not used: {why}" for path, why in plan.left_out]
+
+
+def _plan_files(infos, options, *, grid_t0):
+    from ..signals.block_plan import lacking_channels, plan_file_infos
+
+    try:
         plan = plan_file_infos(
             infos,
             length_s=options.length_s,

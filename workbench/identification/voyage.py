@@ -27,6 +27,7 @@ from .planning import (
     acceleration_files,
     follow_on_starts,
     input_fingerprints,
+    left_out_notes,
     plan_identification,
     resolved_run,
 )
@@ -54,8 +55,12 @@ class IdentifyResult(StageResult):
         What the run found changed in its store and did about it (damaged store files,
         input files no longer given), one line each.
     notes : list of str
-        The input files re-timed for clock jitter (how many, the largest shift:
-        :func:`~workbench.signals.block_plan.clock_jitter_note`) and what the harmonic tests
+        The input files left out (another sampling rate, a duplicate:
+        :func:`~workbench.identification.planning.left_out_notes`), those re-timed for
+        clock jitter (how many, the largest shift:
+        :func:`~workbench.signals.block_plan.clock_jitter_note`), the records whose sample
+        clock drifts from their stamps (the rate offset in ppm:
+        :func:`~workbench.signals.block_plan.clock_drift_note`) and what the harmonic tests
         marked (:meth:`workbench.sid.harmonics.HarmonicMarker.lines`).
     """
 
@@ -69,8 +74,8 @@ class IdentifyResult(StageResult):
 
     @property
     def lines(self) -> list[str]:  # type: ignore[override]
-        """The run summary, the clock-jitter and harmonic notes, the SSI/LSCF agreement and
-        the files."""
+        """The run summary, the notes (files left out, clock jitter and drift, harmonics),
+        the SSI/LSCF agreement and the files."""
         out = [*str(self.run).splitlines(), *self.notes]
         crosscheck = self.files.get("crosscheck")
         if crosscheck is not None:
@@ -646,7 +651,7 @@ def identify_voyage(
         unreadable ones); inconsistent files; a store made with other options.
     """
     from ..sid.harmonics import HarmonicMarker
-    from ..signals.block_plan import clock_jitter_note
+    from ..signals.block_plan import clock_drift_note, clock_jitter_note
 
     options = options or IdentifyOptions()
     _check_run_options(scheduler, n_workers, batch_blocks)
@@ -751,9 +756,9 @@ def identify_voyage(
             notices += _unreadable_warnings(store, files, unreadable, damaged)
         result = IdentifyResult(summary, n_blocks=n_tasks, warnings=notices)
         result.files = export_store(store, out, channels, grid=grid, harmonics=marker)
-        # files re-timed for clock jitter: said, not silent
-        jitter = clock_jitter_note(plan.files)
-        result.notes = [jitter] * bool(jitter) + marker.lines()
+        # files left out, re-timed for clock jitter or drift: said, not silent
+        clock = [clock_jitter_note(plan.files), clock_drift_note(plan.files)]
+        result.notes = left_out_notes(plan) + [n for n in clock if n] + marker.lines()
         result.warnings += marker.unmarked()
     selected = result.files.get("selected")
     if selected is not None:

@@ -234,6 +234,7 @@ class Monitor:
         self.files: list[LandedFile] = []
         #: the files' headers as placed (:meth:`_placed`), with the starts they came from
         self._placed_files: tuple[tuple, list[LandedFile]] = ((), [])
+        self._drift_noted: set[Path] = set()  # first files of the runs said to drift
         self.done: set[int] = set()
         #: Of the blocks this process decided (not those a restart found stored): how
         #: many were identified, and each skipped one as ``block``, ``files`` (names),
@@ -508,7 +509,7 @@ class Monitor:
                 )
         placed = info
         if not reason:
-            reason, placed = _placed_among(info, [f.info for f in self._placed()])
+            reason, placed = _placed_among(info, [f.info for f in self.files])
         if not reason and self.store is not None:
             try:
                 self.store.check_inputs(input_fingerprints([placed]))
@@ -531,20 +532,34 @@ class Monitor:
                 f"{item.path.name}: channel(s) {extra} not among the voyage's (those most "
                 "files carried when the monitor started); left out"
             )
+        self.files.append(item)
+        self._last_taken = (item.path.name, pd.Timestamp.now(tz="UTC"))
+        self.files.sort(key=lambda f: (f.info.start_time, str(f.path)))
         if placed.clock_shift_s:
-            from ..signals.block_plan import CLOCK_JITTER_S
+            self._note_clock(item, placed)
+        self._dirty = True
+        if self.voyage is not None:
+            self._note_too_late(item)
 
+    def _note_clock(self, item: LandedFile, placed) -> None:
+        """Say how the newly taken *item* was re-timed (*placed*): for clock jitter, or -
+        once per run - that the run's sample clock drifts from its stamps (as identify's
+        summary says them, :func:`~workbench.signals.block_plan.place_files`)."""
+        from ..signals.block_plan import CLOCK_JITTER_S, clock_drift_note, clock_runs
+
+        infos = [f.info for f in self._placed()]
+        run = next(r for r in clock_runs(infos) if any(i.path == item.path for i in r.files))
+        if not run.drifting:
+            if abs(placed.clock_shift_s) <= 0.5 / placed.sampling_rate_hz:
+                return  # less than half a sample: on the previous file's lattice, unsaid
             self.messages.append(
                 f"{item.path.name}: start re-timed by {placed.clock_shift_s * 1e3:+.1f} ms to the "
                 f"previous file's end (clock jitter up to {CLOCK_JITTER_S * 1e3:g} ms is taken "
                 "as contiguous)"
             )
-        self.files.append(item)
-        self._last_taken = (item.path.name, pd.Timestamp.now(tz="UTC"))
-        self.files.sort(key=lambda f: (f.info.start_time, str(f.path)))
-        self._dirty = True
-        if self.voyage is not None:
-            self._note_too_late(item)
+        elif run.files[0].path not in self._drift_noted:
+            self._drift_noted.add(run.files[0].path)
+            self.messages.append(f"{item.path.name}: {clock_drift_note(run.files)}")
 
     def _placed(self) -> list[LandedFile]:
         """The files taken, each with its header as a plan places it (re-timed for clock
@@ -586,9 +601,19 @@ class Monitor:
         channels are taken from more than one file."""
         if not self.files or (self.watcher.pending and self._saved_grid is None):
             return False
-        from ..signals.block_plan import majority_channels
+        from ..signals.block_plan import majority_channels, majority_rate, sort_out_files
 
-        first = self.files[0].info
+        infos = [f.info for f in self.files]
+        rate, count = majority_rate(infos)
+        if 2 * count <= len(infos):  # no rate most files share (yet): which is the voyage's?
+            if not flush:
+                return False
+            try:
+                sort_out_files(infos)
+            except ValueError as error:  # as identify says it, exit 1
+                raise WorkbenchError(str(error)) from None
+        # the voyage's: the rate most files have (a file at another rate is not used)
+        first = next(info for info in infos if info.sampling_rate_hz == rate)
         if self._saved_grid is None and not flush:
             newest = max(f.info.end_time for f in self.files)
             wait_s = min(self.options.late_s, self.options.identify.length_s)
@@ -1516,23 +1541,37 @@ def _written_table(path: Path) -> pd.DataFrame | None:
         return None
 
 
-def _placed_among(info, placed: list) -> tuple[str, object]:
-    """Why the new file *info* (a FileInfo) cannot join the files taken (*placed*, as
-    :func:`~workbench.signals.block_plan.place_files` places them), or "", and *info* as
-    placed after its predecessor (re-timed for clock jitter by identify's own rule)."""
-    from ..signals.block_plan import CLOCK_JITTER_S, place_files
+def _placed_among(info, taken: list) -> tuple[str, object]:
+    """Why the new file *info* (a FileInfo) cannot join the files taken (*taken*, their
+    headers as stamped), or "", and *info* as identify places it among them
+    (:func:`~workbench.signals.block_plan.place_files`: re-timed for clock jitter or
+    drift). A file with the bytes of the one it overlaps is said to be its duplicate."""
+    from ..signals.block_plan import FileOverlapError, duplicate_reason, place_files
 
-    before = [other for other in placed if other.start_time <= info.start_time]
-    after = [other for other in placed if other.start_time > info.start_time]
-    if before:
-        try:
-            info = place_files([before[-1], info])[1]
-        except ValueError:  # starts more than the jitter before its predecessor's end
-            return f"overlaps {before[-1].name}", info
-    limit_s = max(0.5 / info.sampling_rate_hz, CLOCK_JITTER_S)
-    if after and (info.end_time - after[0].start_time).total_seconds() > limit_s:
-        return f"overlaps {after[0].name}", info
-    return "", info
+    same_rate = [other for other in taken if other.sampling_rate_hz == info.sampling_rate_hz]
+    infos = sorted([*same_rate, info], key=lambda i: (i.start_time, str(i.path)))
+    try:
+        placed = place_files(infos)
+    except FileOverlapError as error:  # more than the jitter before a predecessor's end
+        new, other = (
+            (error.info, error.previous) if error.info.path == info.path else (info, error.info)
+        )
+        if _same_data(new, other):
+            return duplicate_reason(other), info
+        return f"overlaps {other.name}", info
+    return "", next(i for i in placed if i.path == info.path)
+
+
+def _same_data(a, b) -> bool:
+    """Whether the files of headers *a* and *b* hold the same bytes."""
+    from ..fingerprints import sha256
+
+    if (a.start_time, a.n_samples, a.channels) != (b.start_time, b.n_samples, b.channels):
+        return False
+    try:
+        return sha256(a.path) == sha256(b.path)
+    except OSError:
+        return False
 
 
 def _state_folder(message: str) -> str:

@@ -12,21 +12,27 @@ plans parallel tasks with it; the blocks themselves are built by
 Gaps between files
 ------------------
 Consecutive files normally abut (the next file starts one sample interval after the last
-sample of the previous one; offsets below half a sample are ignored). A recorder stamps
-each file from its PC clock (NTP steps, write buffering), so a file's stamp may miss the
-previous file's end by a few milliseconds while the samples run on without a break: a
-mismatch (gap or overlap) of at most :data:`CLOCK_JITTER_S` is taken as such clock jitter
-and the later file is **re-timed** to start at the previous file's end
-(:func:`place_files`; ``FileInfo.clock_shift_s`` keeps the shift, and the plan's files carry
-the re-timed starts, which the block builder and the file conditioner use alike). A
-longer gap is a gap; a longer overlap an error. A block that
+sample of the previous one). A recorder stamps each file from its PC clock (NTP steps,
+write buffering), so a file's stamp may miss the previous file's end by a few milliseconds
+while the samples run on without a break: a mismatch (gap or overlap) of at most
+:data:`CLOCK_JITTER_S` is taken as such clock jitter and the later file is **re-timed** to
+start at the previous file's end (:func:`place_files`; ``FileInfo.clock_shift_s`` keeps the
+shift, and the plan's files carry the re-timed starts, which the block builder and the file
+conditioner use alike). The recorder's sample clock may also run some ppm off its nominal
+rate, so that its files last slightly less or more than their sample count says and the
+stamps drift steadily from the sample count: the mismatch is then measured from the
+least-squares line of the run's stamps on its sample count (:func:`place_files`,
+:func:`clock_runs`, :func:`clock_drift_note`). A longer gap is a gap; a longer overlap an
+error. A block that
 overlaps a gap is **skipped** with the reason (``"gap of 42.0 s between acc_a.npz and
 acc_b.npz"``), unless the gap's part inside the block is at most ``max_gap_s``: then the
 gap is filled with NaN, which the NaN policy bridges by interpolation -- so ``max_gap_s``
 should not exceed the faulty-channel ``max_nan_run_s`` (default 10 s), or every channel of
 the block would be dropped. Files that overlap in time, differ in channel set or in
-sampling rate are errors (:class:`ValueError` naming the file). Channels in a different
-order are reordered to the first file's order.
+sampling rate are errors (:class:`ValueError` naming the file); identify and the monitor
+first leave out a file at another rate than most files have, and an exact duplicate
+(:func:`sort_out_files`). Channels in a different order are reordered to the first file's
+order.
 """
 
 from __future__ import annotations
@@ -52,13 +58,18 @@ from ..blocks import (
     utc_timestamp,
 )
 from ..errors import OptionError
+from ..fingerprints import sha256
 
 __all__ = [
     "CLOCK_JITTER_S",
     "BlockPlan",
+    "ClockRun",
+    "FileOverlapError",
     "FileInfo",
     "PlannedBlock",
+    "clock_runs",
     "place_files",
+    "sort_out_files",
     "plan_blocks",
     "read_file_info",
 ]
@@ -83,6 +94,17 @@ _NS = 1_000_000_000
 #: and costs the same; skipping the block (the default for gaps) loses 20 minutes. 50 ms
 #: stays well below a recorder's lost write buffer (typically 0.25-1 s) and far below a
 #: duplicate file's overlap (the file's whole length), which stay a gap and an error.
+#:
+#: A sample clock off its nominal rate by a fraction rho (crystals: 10-100 ppm) makes every
+#: file last rho of its length less (or more) than its samples say, so the stamps drift
+#: from the sample count steadily (20 ppm: 6 ms per 5-min file, 1.7 s a day) and would
+#: pass this limit within the hour. The limit therefore bounds the stamps' distance from
+#: the least-squares line of a run's stamps on its sample count (:func:`place_files`); the
+#: blocks keep the recorder's consecutive samples, timed by the sample count. The modal
+#: frequencies are those of the nominal rate, low by rho of themselves (20 ppm of 3 Hz:
+#: 0.06 mHz; 100 ppm of 12 Hz: 1.2 mHz), far below their block-to-block scatter and the
+#: same through a voyage; a rate fitted over a short run is uncertain by the jitter over
+#: its span (25 ms over 5 min: 80 ppm), so a "correction" would add more than it removes.
 CLOCK_JITTER_S = 0.05
 
 
@@ -215,6 +237,9 @@ class BlockPlan:
         carry a ``skipped_reason``.
     max_gap_s : float
         Gaps up to this length inside a block are NaN-padded. [s]
+    left_out : tuple of (Path, str)
+        Files given that cannot belong to the record, with why (:func:`sort_out_files`):
+        not among *files*, their spans are gaps.
     """
 
     grid: BlockGrid
@@ -223,6 +248,7 @@ class BlockPlan:
     sampling_rate_hz: float
     blocks: tuple[PlannedBlock, ...]
     max_gap_s: float = 0.0
+    left_out: tuple[tuple[Path, str], ...] = ()
 
     def frame(self) -> pd.DataFrame:
         """Table of the plan: block, block_start, block_end, n_files, skipped_reason."""
@@ -251,6 +277,94 @@ def majority_channels(infos: Sequence[FileInfo]) -> tuple[str, ...]:
         counts[key] = counts.get(key, 0) + 1
         order.setdefault(key, tuple(info.channels))
     return order[max(counts, key=lambda key: counts[key])]  # first maximum: earliest
+
+
+def majority_rate(infos: Sequence[FileInfo]) -> tuple[float, int]:
+    """The sampling rate most of *infos* have (ties: the earliest file's) and how many
+    have it."""
+    counts: dict[float, int] = {}
+    for info in infos:
+        counts[info.sampling_rate_hz] = counts.get(info.sampling_rate_hz, 0) + 1
+    rate = max(counts, key=lambda r: counts[r])  # first maximum: the earliest file's
+    return rate, counts[rate]
+
+
+def _names(infos: Sequence[FileInfo]) -> str:
+    """``a.npz``, ``a.npz, b.npz`` or ``5 files (a.npz .. e.npz)``."""
+    if len(infos) <= 2:
+        return ", ".join(i.name for i in infos)
+    return f"{len(infos)} files ({infos[0].name} .. {infos[-1].name})"
+
+
+def sort_out_files(
+    infos: Sequence[FileInfo],
+) -> tuple[list[FileInfo], tuple[tuple[Path, str], ...]]:
+    """The files of *infos* (sorted by start time) that can be one record, and those that
+    cannot with why: a file at another sampling rate than more than half of the files
+    have (a recorder briefly set otherwise), and an exact duplicate of an earlier file
+    (the same bytes, so the same stamp and samples: a file copied twice into the folder;
+    the first by path is kept). Their spans are then gaps.
+
+    Raises
+    ------
+    ValueError
+        No sampling rate is shared by more than half of the files: which is the record's is
+        not clear, naming the files of each rate. (Two different files for the same span
+        are an error of :func:`place_files`.)
+    """
+    infos = sorted(infos, key=lambda i: (i.start_time, str(i.path)))
+    if not infos:
+        return [], ()
+    rate, count = majority_rate(infos)
+    if 2 * count <= len(infos):
+        rates: dict[float, list[FileInfo]] = {}
+        for info in infos:
+            rates.setdefault(info.sampling_rate_hz, []).append(info)
+        listed = "; ".join(f"{r:g} Hz: {_names(group)}" for r, group in rates.items())
+        raise ValueError(
+            f"{infos[0].path}: no sampling rate is shared by more than half of the "
+            f"{len(infos)} files ({listed}); give the files of one recording"
+        )
+    left_out: list[tuple[Path, str]] = []
+    kept = []
+    for info in infos:
+        if info.sampling_rate_hz != rate:
+            left_out.append(
+                (
+                    info.path,
+                    f"sampling rate {info.sampling_rate_hz:g} Hz, not {rate:g} Hz (that of "
+                    f"{count} of the {len(infos)} files); its span is a gap",
+                )
+            )
+        else:
+            kept.append(info)
+    same: dict[tuple, list[FileInfo]] = {}
+    for info in kept:
+        key = (info.start_time, info.n_samples, info.channels)
+        same.setdefault(key, []).append(info)
+    duplicates: set[Path] = set()
+    for group in same.values():
+        if len(group) < 2:
+            continue
+        first: dict[str, FileInfo] = {}
+        for info in sorted(group, key=lambda i: str(i.path)):
+            try:
+                digest = sha256(info.path)
+            except OSError:  # read later, where it is said
+                continue
+            if digest in first:
+                duplicates.add(info.path)
+                left_out.append((info.path, duplicate_reason(first[digest])))
+            else:
+                first[digest] = info
+    kept = [info for info in kept if info.path not in duplicates]
+    left_out.sort(key=lambda item: str(item[0]))
+    return kept, tuple(left_out)
+
+
+def duplicate_reason(original: FileInfo) -> str:
+    """Why a file with the bytes of *original* is not used."""
+    return f"the same data as {original.name} (a duplicate)"
 
 
 def reference_channels(
@@ -318,22 +432,138 @@ def align_channels(values: np.ndarray, names: Sequence[str], channels: Sequence[
     return out
 
 
+class _ClockRun:
+    """The clock of one contiguous run of files: their stamps against the samples recorded
+    before each (the sample count), for :func:`place_files`.
+
+    Running sums of a least-squares line ``stamp - anchor - x = alpha + beta * x``, x the
+    sample count in nominal seconds (so alpha, beta are small: milliseconds and ppm).
+    """
+
+    def __init__(self, first: FileInfo, rate: float) -> None:
+        self.rate = rate
+        # the first stamp, and how far the run's placed times lie after the stamps there
+        self.anchor = first.start_time - pd.Timedelta(seconds=first.clock_shift_s)
+        self.anchor_shift_s = first.clock_shift_s
+        self.samples = 0
+        self.n = 0
+        self.sum_x = self.sum_y = self.sum_xx = self.sum_xy = self.sum_yy = 0.0
+        self.last_n_samples = 0
+        self.add(first)
+
+    def _y(self, info: FileInfo, x: float) -> float:
+        stamp = info.start_time - pd.Timedelta(seconds=info.clock_shift_s)
+        return (stamp - self.anchor).total_seconds() - x
+
+    def add(self, info: FileInfo) -> None:
+        """*info*, placed as the run's next file."""
+        x = self.samples / self.rate
+        y = self._y(info, x)
+        self.n += 1
+        self.sum_x += x
+        self.sum_y += y
+        self.sum_xx += x * x
+        self.sum_xy += x * y
+        self.sum_yy += y * y
+        self.samples += info.n_samples
+        self.last_n_samples = info.n_samples
+
+    def _moments(self) -> tuple[float, float, float, float, float]:
+        mean_x, mean_y = self.sum_x / self.n, self.sum_y / self.n
+        sxx = self.sum_xx - self.n * mean_x * mean_x
+        sxy = self.sum_xy - self.n * mean_x * mean_y
+        syy = self.sum_yy - self.n * mean_y * mean_y
+        return mean_x, mean_y, sxx, sxy, syy
+
+    def line(self) -> tuple[float, float]:
+        """alpha [s] and beta (the stamps' seconds per nominal second, less 1) of the line."""
+        if self.n < 2:
+            return 0.0, 0.0
+        mean_x, mean_y, sxx, sxy, _ = self._moments()
+        beta = sxy / sxx if sxx > 0 else 0.0
+        return mean_y - beta * mean_x, beta
+
+    def walk_s(self) -> float:
+        """How far the line moves from the sample count over the run's stamps, less twice
+        its standard error (from the stamps' scatter about the line): a drift told apart
+        from jitter. [s]"""
+        if self.n < 3:
+            return 0.0
+        _, _, sxx, sxy, syy = self._moments()
+        if sxx <= 0:
+            return 0.0
+        beta = sxy / sxx
+        scatter = math.sqrt(max(syy - beta * sxy, 0.0) / (self.n - 2))
+        last_x = (self.samples - self.last_n_samples) / self.rate
+        return (abs(beta) - 2 * scatter / math.sqrt(sxx)) * last_x
+
+    def drifting(self, clock_jitter_s: float) -> bool:
+        """Whether the line drifts from the sample count by more than half the jitter over
+        the run's stamps: they are then judged against the line alone."""
+        return self.walk_s() > 0.5 * clock_jitter_s
+
+    def offsets_s(self, info: FileInfo, previous: FileInfo, clock_jitter_s: float) -> list[float]:
+        """How far *info*'s stamp lies after where the run's clock puts its next file [s]:
+        after the line's time at the run's sample count, once the run drifts; before, after
+        the previous file's placed end (the sample count), then (two stamps or more) after
+        the line's time, whose drift a short run cannot yet tell from jitter."""
+        stamp = info.start_time - pd.Timedelta(seconds=info.clock_shift_s)
+        chain = (stamp - previous.end_time).total_seconds() + self.anchor_shift_s
+        if self.n < 2:
+            return [chain]
+        alpha, beta = self.line()
+        x = self.samples / self.rate
+        line = self._y(info, x) - (alpha + beta * x)
+        return [line] if self.drifting(clock_jitter_s) else [chain, line]
+
+
+class FileOverlapError(ValueError):
+    """A file starting more than the clock jitter before its predecessor's end.
+
+    Attributes
+    ----------
+    info, previous : FileInfo
+        The file and the one it overlaps.
+    """
+
+    def __init__(self, info: FileInfo, previous: FileInfo, seconds: float) -> None:
+        super().__init__(
+            f"{info.path}: starts {seconds:g} s before the end of {previous.name} "
+            "(overlapping or duplicate files)"
+        )
+        self.info, self.previous = info, previous
+
+
 def place_files(
     infos: Sequence[FileInfo], *, clock_jitter_s: float = CLOCK_JITTER_S
 ) -> tuple[FileInfo, ...]:
-    """*infos* (sorted by start time, one sampling rate) placed in time: a file whose start
-    misses its predecessor's end by more than half a sample and at most *clock_jitter_s*
-    (either way) re-timed to start at that end (:data:`CLOCK_JITTER_S` says why).
+    """*infos* (sorted by start time, one sampling rate) placed in time: runs of contiguous
+    files on the sample count, a file whose stamp misses the run's clock by at most
+    *clock_jitter_s* (either way) re-timed to start at the previous file's end
+    (:data:`CLOCK_JITTER_S` says why).
 
-    The predecessor's end is its placed end, so a run of re-timed files stays one
-    continuous record and no file moves from its own stamp by more than *clock_jitter_s*.
-    Files already placed come back unchanged.
+    Within a run the samples are one record: each file starts at its predecessor's placed
+    end (also when its stamp misses that by less than half a sample), so the blocks cut
+    from it hold the recorder's consecutive samples, on one sample lattice. The stamps are
+    judged against the run's clock: the least-squares line of the run's stamps on its
+    sample count, the jitter being the stamps' distance from that line. A sample clock
+    some ppm off its nominal rate makes its files last slightly less or more than their
+    sample count says, so that the sample count (the placed times) walks steadily away
+    from the stamps; once that line drifts from the sample count by more than half of
+    *clock_jitter_s* over the run, beyond twice its standard error (from the stamps'
+    scatter about it), a stamp is judged against the line alone. Before, the run's few
+    stamps cannot yet tell a drift from jitter: a stamp within *clock_jitter_s* of the
+    sample count (the previous file's placed end) or of the line is contiguous. A stamp more than *clock_jitter_s* after the
+    clock is a gap: the file starts a new run at its stamp (or, when the run's placed end
+    has walked past that stamp, the gap after the placed end); more than *clock_jitter_s*
+    before it, an error. Files already placed (their start at the previous placed end)
+    come back unchanged; a file's stamp is its start less ``clock_shift_s``.
 
     Raises
     ------
-    ValueError
-        A file starting more than *clock_jitter_s* before its predecessor's end (overlapping
-        or duplicate files), naming the file.
+    FileOverlapError
+        A file starting more than *clock_jitter_s* before the end of its predecessor
+        (overlapping or duplicate files), naming the file (a :class:`ValueError`).
     """
     if not (math.isfinite(float(clock_jitter_s)) and clock_jitter_s >= 0):
         raise ValueError(
@@ -344,29 +574,124 @@ def place_files(
     rate = infos[0].sampling_rate_hz
     half_s = 0.5 / rate
     placed = [infos[0]]
+    run = _ClockRun(infos[0], rate)
     for info in infos[1:]:
         previous = placed[-1]
+        if info.start_time == previous.end_time:  # abutting (or placed before): as it is
+            run.add(info)
+            placed.append(info)
+            continue
         mismatch_s = (info.start_time - previous.end_time).total_seconds()
-        if abs(mismatch_s) > half_s and abs(mismatch_s) <= clock_jitter_s:
+        offsets_s = run.offsets_s(info, previous, clock_jitter_s)
+        offset_s = offsets_s[0]
+        if abs(mismatch_s) <= half_s or min(map(abs, offsets_s)) <= clock_jitter_s:
             shift = previous.end_time - info.start_time
             info = dataclasses.replace(
                 info,
                 start_time=previous.end_time,
                 clock_shift_s=info.clock_shift_s + shift.total_seconds(),
             )
-        elif -mismatch_s > max(half_s, clock_jitter_s):
-            raise ValueError(
-                f"{info.path}: starts {-mismatch_s:g} s before the end of {previous.name} "
-                "(overlapping or duplicate files)"
-            )
+            run.add(info)
+        elif offset_s < 0:
+            raise FileOverlapError(info, previous, -offset_s)
+        else:  # a gap: a new run at the file's stamp, unless that is not after the end
+            stamp = info.start_time - pd.Timedelta(seconds=info.clock_shift_s)
+            start = stamp
+            if (stamp - previous.end_time).total_seconds() < max(clock_jitter_s, half_s):
+                # the run's sample count walked past the stamp: the gap after its end
+                start = previous.end_time + pd.Timedelta(seconds=offset_s)
+            if start != info.start_time:
+                info = dataclasses.replace(
+                    info, start_time=start, clock_shift_s=(start - stamp).total_seconds()
+                )
+            run = _ClockRun(info, rate)
         placed.append(info)
     return tuple(placed)
 
 
+@dataclass(frozen=True)
+class ClockRun:
+    """One contiguous run of placed files and its clock (:func:`clock_runs`).
+
+    Parameters
+    ----------
+    files : tuple of FileInfo
+        The run's files, as placed.
+    rate_offset : float
+        How much faster than nominal its sample clock runs, from the least-squares line of
+        the stamps on the sample count (positive: the files last less than their sample
+        count says); 0 for a single file. [-]
+    jitter_s : float
+        Largest distance of a stamp from that line. [s]
+    drifting : bool
+        Whether the line drifts from the sample count by more than the clock jitter over
+        the run, beyond twice its standard error: a drift told apart from jitter, which
+        the run's notes say. (Beyond half that, :func:`place_files` already judges the
+        stamps against the line alone.)
+    """
+
+    files: tuple[FileInfo, ...]
+    rate_offset: float
+    jitter_s: float
+    drifting: bool
+
+    @property
+    def largest_shift(self) -> FileInfo:
+        """The file placed farthest from its stamp."""
+        return max(self.files, key=lambda i: abs(i.clock_shift_s))
+
+
+def clock_runs(
+    infos: Sequence[FileInfo], *, clock_jitter_s: float = CLOCK_JITTER_S
+) -> list[ClockRun]:
+    """The contiguous runs of placed files *infos* (:func:`place_files`), with their clocks."""
+    runs: list[list[FileInfo]] = []
+    for info in infos:
+        if runs:
+            previous = runs[-1][-1]
+            if abs((info.start_time - previous.end_time).total_seconds()) <= 0.5 / (
+                info.sampling_rate_hz
+            ):
+                runs[-1].append(info)
+                continue
+        runs.append([info])
+    out = []
+    for files in runs:
+        clock = _ClockRun(files[0], files[0].sampling_rate_hz)
+        residuals = []
+        for info in files[1:]:
+            clock.add(info)
+        alpha, beta = clock.line()
+        x = 0.0
+        for info in files:
+            residuals.append(abs(clock._y(info, x) - (alpha + beta * x)))
+            x += info.n_samples / info.sampling_rate_hz
+        out.append(
+            ClockRun(
+                tuple(files),
+                -beta / (1 + beta),
+                max(residuals),
+                clock.walk_s() > clock_jitter_s,
+            )
+        )
+    return out
+
+
+def _span(files: Sequence[FileInfo]) -> str:
+    return files[0].name if len(files) == 1 else f"{files[0].name} .. {files[-1].name}"
+
+
 def clock_jitter_note(infos: Sequence[FileInfo]) -> str:
     """One line on the files of a plan re-timed for clock jitter, or "" when none was:
-    how many file starts, the largest shift and its file."""
-    moved = [i for i in infos if i.clock_shift_s]
+    how many file starts, the largest shift and its file (runs placed against their clock
+    drift are said by :func:`clock_drift_note`)."""
+    moved = [
+        i
+        for run in clock_runs(infos)
+        if not run.drifting
+        for i in run.files
+        if abs(i.clock_shift_s) > 0.5 / i.sampling_rate_hz
+    ]
     if not moved:
         return ""
     largest = max(moved, key=lambda i: abs(i.clock_shift_s))
@@ -374,6 +699,32 @@ def clock_jitter_note(infos: Sequence[FileInfo]) -> str:
         f"clock jitter: {len(moved)} file start(s) re-timed to the previous file's end "
         f"(largest {largest.clock_shift_s * 1e3:+.1f} ms, {largest.name}; mismatches up to "
         f"{CLOCK_JITTER_S * 1e3:g} ms are taken as contiguous)"
+    )
+
+
+def clock_drift_note(infos: Sequence[FileInfo]) -> str:
+    """One line on the runs of placed files whose sample clock drifts from their stamps
+    (:func:`place_files`), or "" when none does: the runs, their clock rate offset [ppm],
+    the stamps' jitter about their lines and how far the blocks' times (the sample count)
+    lie from the stamps."""
+    drifting = [run for run in clock_runs(infos) if run.drifting]
+    if not drifting:
+        return ""
+    files = [i for run in drifting for i in run.files]
+    ppm = [run.rate_offset * 1e6 for run in drifting]
+    largest = max((run.largest_shift for run in drifting), key=lambda i: abs(i.clock_shift_s))
+    rate = f"{min(ppm):+.1f} to {max(ppm):+.1f}" if len(drifting) > 1 else f"{ppm[0]:+.1f}"
+    what = (
+        f"{_span(files)} ({len(files)} files in {len(drifting)} records)"
+        if len(drifting) > 1
+        else f"{_span(files)} ({len(files)} files, one record)"
+    )
+    return (
+        f"clock drift: {what}: the sample clock runs {rate} ppm from "
+        f"{files[0].sampling_rate_hz:g} Hz (stamps regressed on the sample count; up to "
+        f"{max(run.jitter_s for run in drifting) * 1e3:.1f} ms about that line); the files "
+        f"follow the sample count, up to {largest.clock_shift_s * 1e3:+.1f} ms from their "
+        f"stamps ({largest.name})"
     )
 
 

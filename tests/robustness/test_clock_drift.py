@@ -1,0 +1,240 @@
+"""A recorder whose sample clock runs some ppm off its rate is still one record.
+
+The recorder writes 5-min files of 38 400 samples at a nominal 128 Hz; its sample clock
+runs 20 ppm (or 100 ppm) fast, so each file really lasts 299.994 s (299.97 s), while its
+start is stamped by the recorder's disciplined system clock: every stamp lies 6 ms (30 ms)
+before the previous file's nominal end. Before, re-timing chained on the placed ends, the
+placed times walked 6 ms per file away from the stamps and, after 45 min (10 min), the next
+stamp lay more than the 50-ms clock jitter before the placed end: identify exited 1 for the
+whole voyage ("acc_009.npz: starts 0.054 s before the end of acc_008.npz (overlapping or
+duplicate files)"; 20 ppm at 128 Hz: 6 ms is 0.77 samples, beyond the half sample ignored).
+Now the stamps are judged against the least-squares line of the run's stamps on its
+sample count, the jitter being the distance from that line: every block is identified from
+the recorder's consecutive samples (the modes of the same samples stamped without drift,
+to the last bit), and the summary says the clock's rate offset. A real gap is still a gap
+and a real overlap an error naming the file.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from data_contracts import AccelerationRecord, write_accelerations
+from workbench.cli import main
+from workbench.store import BlockStore
+
+from .voyage import CHANNELS, T0, response
+
+RATE_HZ = 128.0
+FILE_S = 300.0
+N_FILES = 24  # 2 h
+#: 20-min blocks every 10 min (11 in 2 h), decimated to 16 Hz, small SSI.
+ARGS = [
+    "--block-minutes",
+    "20",
+    "--step-minutes",
+    "10",
+    "--rate",
+    "16",
+    "--band",
+    "1",
+    "6.3",
+    "--block-rows",
+    "10",
+    "--min-order",
+    "4",
+    "--max-order",
+    "16",
+]
+#: The file conditioner (each file once) and the block builder (each block from raw files).
+PATHS = {"per-file": [], "per-block": ["--conditioning", "per-block"]}
+MONITOR_ARGS = [*ARGS, "--late", "0", "--settle", "0", "--poll", "0.05", "--foreground", "--once"]
+
+
+def _write(folder: Path, stamps_s) -> list[Path]:
+    """The 2-h record in 5-min files, file k stamped *stamps_s[k]* seconds after T0."""
+    folder.mkdir(parents=True)
+    n = int(FILE_S * RATE_HZ)
+    data = response(n * N_FILES, 0, RATE_HZ)
+    return [
+        write_accelerations(
+            AccelerationRecord(
+                data[k * n : (k + 1) * n], RATE_HZ, T0 + pd.Timedelta(seconds=stamp), CHANNELS
+            ),
+            folder / f"acc_{k:03d}.npz",
+        )
+        for k, stamp in enumerate(stamps_s)
+    ]
+
+
+def _drifting(ppm: float) -> np.ndarray:
+    """Stamps of files whose sample clock runs *ppm* fast (each lasts 300 s / (1 + ppm))."""
+    return np.arange(N_FILES) * FILE_S / (1 + ppm * 1e-6)
+
+
+#: Clock jitter on top of the drift: up to +-10 ms, the same draw in every run. [s]
+JITTER_S = np.random.default_rng(7).uniform(-0.010, 0.010, N_FILES)
+
+
+@pytest.fixture(scope="module")
+def voyages(tmp_path_factory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("drift")
+    _write(root / "clean", np.arange(N_FILES) * FILE_S)
+    _write(root / "20ppm", _drifting(20))
+    _write(root / "100ppm", _drifting(100))
+    _write(root / "20ppm+jitter", _drifting(20) + JITTER_S)
+    return {name: root / name for name in ("clean", "20ppm", "100ppm", "20ppm+jitter")}
+
+
+def _identify(capsys, folder: Path, out: Path, extra=()) -> tuple[int, str, str]:
+    code = main(["identify", str(folder), "--out", str(out), *ARGS, *extra])
+    captured = capsys.readouterr()
+    assert "Traceback" not in captured.err
+    return code, captured.out, captured.err
+
+
+def _modes(out: Path) -> pd.DataFrame:
+    selected = pd.read_parquet(out / "selected.parquet")
+    return selected[["block", "frequency_hz", "damping_ratio"]].reset_index(drop=True)
+
+
+def _drift_note(out: str) -> str:
+    notes = [line for line in out.splitlines() if line.startswith("clock drift")]
+    assert len(notes) == 1
+    return notes[0]
+
+
+@pytest.fixture(scope="module")
+def clean_modes(voyages, tmp_path_factory) -> dict[str, pd.DataFrame]:
+    modes = {}
+    for path, extra in PATHS.items():
+        out = tmp_path_factory.mktemp("clean")
+        code = main(["identify", str(voyages["clean"]), "--out", str(out), *ARGS, *extra])
+        assert code == 0
+        modes[path] = _modes(out)
+        assert modes[path]["block"].drop_duplicates().tolist() == list(range(11))
+    return modes
+
+
+@pytest.mark.parametrize("path", list(PATHS))
+@pytest.mark.parametrize(("voyage", "ppm"), [("20ppm", 20.0), ("100ppm", 100.0)])
+def test_a_drifting_sample_clock_gives_every_block(
+    voyages, clean_modes, tmp_path, capsys, path, voyage, ppm
+):
+    code, out, err = _identify(capsys, voyages[voyage], tmp_path / "out", PATHS[path])
+    assert code == 0, err  # main: exit 1, acc_009.npz (acc_002.npz) "overlapping or duplicate"
+    blocks = pd.read_csv(tmp_path / "out" / "blocks.csv")
+    assert blocks["block"].tolist() == list(range(11))
+    assert (blocks["status"] == "ok").all()
+    # the blocks hold the recorder's consecutive samples, as in the voyage stamped without
+    # drift: the same numbers (1e-12 Hz: rounding only)
+    modes, clean = _modes(tmp_path / "out"), clean_modes[path]
+    assert modes["block"].tolist() == clean["block"].tolist()
+    np.testing.assert_allclose(modes["frequency_hz"], clean["frequency_hz"], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(modes["damping_ratio"], clean["damping_ratio"], rtol=0, atol=1e-12)
+    # the stamps lie on a line (no jitter): its slope is the clock's rate offset, to
+    # rounding; the last file starts 23 * 300 s * ppm / (1 + ppm) after its stamp
+    walk_ms = 23 * FILE_S * ppm / (1e6 + ppm) * 1e3
+    assert _drift_note(out) == (
+        f"clock drift: acc_000.npz .. acc_023.npz (24 files, one record): the sample clock "
+        f"runs {ppm:+.1f} ppm from 128 Hz (stamps regressed on the sample count; up to 0.0 ms "
+        f"about that line); the files follow the sample count, up to {walk_ms:+.1f} ms from "
+        "their stamps (acc_023.npz)"
+    )
+    assert "clock jitter" not in out
+
+
+def test_drift_and_jitter_give_every_block(voyages, clean_modes, tmp_path, capsys):
+    # the block builder: files whose stamps miss the previous end by less than half a
+    # sample stay at their stamps (as before), off the conditioner's lattice, which then
+    # builds those blocks from the raw files too
+    code, out, err = _identify(
+        capsys, voyages["20ppm+jitter"], tmp_path / "out", PATHS["per-block"]
+    )
+    assert code == 0, err  # main: exit 1, acc_009.npz "overlapping or duplicate files"
+    blocks = pd.read_csv(tmp_path / "out" / "blocks.csv")
+    assert (blocks["status"] == "ok").all() and len(blocks) == 11
+    # the same samples in every block as the voyage stamped without drift or jitter
+    modes, clean = _modes(tmp_path / "out"), clean_modes["per-block"]
+    np.testing.assert_allclose(modes["frequency_hz"], clean["frequency_hz"], rtol=0, atol=1e-12)
+    note = _drift_note(out)
+    # the line of the stamps on the sample count, fitted here independently
+    x = np.arange(N_FILES) * FILE_S  # the sample count in nominal seconds
+    y = _drifting(20) + JITTER_S - x
+    beta, alpha = np.polyfit(x, y, 1)
+    ppm = -beta / (1 + beta) * 1e6
+    about_ms = np.abs(y - (alpha + beta * x)).max() * 1e3
+    walk_ms = -y[-1] * 1e3 + JITTER_S[0] * 1e3  # the last file from its stamp
+    # 24 stamps jittered by up to 10 ms over 2 h give 20 ppm within 1 ppm (its standard
+    # error: 5.8 ms / 2 h * sqrt(12 / 24) = 0.6 ppm)
+    assert abs(ppm - 20.0) < 1.0
+    assert note == (
+        f"clock drift: acc_000.npz .. acc_023.npz (24 files, one record): the sample clock "
+        f"runs {ppm:+.1f} ppm from 128 Hz (stamps regressed on the sample count; up to "
+        f"{about_ms:.1f} ms about that line); the files follow the sample count, up to "
+        f"{walk_ms:+.1f} ms from their stamps (acc_023.npz)"
+    )
+
+
+def test_a_real_gap_in_a_drifting_record_stays_a_gap(tmp_path, capsys):
+    stamps = _drifting(20)
+    stamps[12:] += 2.0  # 2 s of data lost between acc_011 and acc_012
+    _write(tmp_path / "acc", stamps)
+    code, out, err = _identify(capsys, tmp_path / "acc", tmp_path / "out")
+    assert code == 0, err
+    blocks = pd.read_csv(tmp_path / "out" / "blocks.csv")
+    # acc_012 starts a new record at its stamp, 3602 s - 12 * 300 s * 20 ppm = 3601.928 s;
+    # the first record's sample count ends at 3600 s
+    assert blocks["block"].tolist() == list(range(11))
+    skipped = blocks.loc[blocks["status"] == "skipped"]
+    assert skipped["block"].tolist() == [5, 6]  # 3000-4200 s and 3600-4800 s
+    # the gap as placed: the stamps' 2 s less the 72 ms the sample count ran ahead
+    assert skipped["reason"].iloc[0] == "gap of 1.9 s between acc_011.npz and acc_012.npz"
+    assert skipped["reason"].iloc[1].startswith("gap of 1.9 s between ")
+    assert (blocks.loc[~blocks["block"].isin([5, 6]), "status"] == "ok").all()
+    assert _drift_note(out).startswith(
+        "clock drift: acc_000.npz .. acc_023.npz (24 files in 2 records): the sample clock "
+        "runs +20.0 to +20.0 ppm from 128 Hz"
+    )
+
+
+def test_a_real_overlap_in_a_drifting_record_is_still_an_error(tmp_path, capsys):
+    stamps = _drifting(20)
+    stamps[14:] -= 1.0  # acc_014 starts 1 s before acc_013 ends: not the same recorder
+    files = _write(tmp_path / "acc", stamps)
+    code, _, err = _identify(capsys, tmp_path / "acc", tmp_path / "out")
+    assert code == 1
+    assert err.strip().splitlines() == [
+        f"error: {files[14]}: starts 1 s before the end of acc_013.npz "
+        "(overlapping or duplicate files)"
+    ]
+
+
+def test_the_monitor_gives_the_blocks_identify_gives(voyages, tmp_path, capsys):
+    watch, state = tmp_path / "watch", tmp_path / "state"
+    shutil.copytree(voyages["20ppm+jitter"], watch)
+    code = main(["monitor", "--watch", str(watch), "--state", str(state), *MONITOR_ARGS])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert "Traceback" not in captured.err
+    health = pd.read_parquet(state / "data_health.parquet").sort_values("block")
+    assert health["block"].tolist() == list(range(11))  # main: 0-9
+    assert (health["status"] == "ok").all()  # main: block 10 never decided
+    notes = (state / "notes.txt").read_text(encoding="utf-8")
+    drift = [line for line in notes.splitlines() if "clock drift" in line]
+    assert len(drift) == 1  # said once, when the record's drift is told apart from jitter
+    code, out, err = _identify(capsys, voyages["20ppm+jitter"], tmp_path / "batch")
+    assert code == 0, err
+    batch = _modes(tmp_path / "batch")
+    stored = BlockStore(state / "store").read("selected")
+    monitor = stored.sort_values(["block", "frequency_hz"])[
+        ["block", "frequency_hz", "damping_ratio"]
+    ].reset_index(drop=True)
+    assert monitor["block"].tolist() == batch["block"].tolist()
+    np.testing.assert_allclose(monitor["frequency_hz"], batch["frequency_hz"], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(monitor["damping_ratio"], batch["damping_ratio"], rtol=0, atol=1e-12)

@@ -1,0 +1,95 @@
+"""place_files over a day of 5-min files at 2048 Hz (headers only): sample-clock drift and
+stamp jitter together keep one record, a real gap stays a gap.
+
+The stamps are drawn as a recorder writes them: file k starts k * 300 s / (1 + ppm) after
+the first (its sample clock ppm fast) plus a jitter uniform in +-J. Before, any drift
+broke the record within the hour (an "overlap" error: 20 ppm passes 50 ms after 9 files).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from workbench.signals.block_plan import FileInfo, FileOverlapError, clock_runs, place_files
+
+RATE_HZ = 2048.0
+N_SAMPLES = int(300 * RATE_HZ)
+T0 = pd.Timestamp("2026-03-01T00:00:00Z")
+
+
+def _headers(ppm: float, jitter_ms: float, seed: int, n_files: int = 288) -> list[FileInfo]:
+    rng = np.random.default_rng(seed)
+    stamps = np.arange(n_files) * 300.0 / (1 + ppm * 1e-6)
+    stamps += rng.uniform(-jitter_ms, jitter_ms, n_files) / 1e3
+    return [
+        FileInfo(
+            Path(f"acc_{k:03d}.npz"),
+            T0 + pd.Timedelta(seconds=float(s)),
+            RATE_HZ,
+            N_SAMPLES,
+            ("a",),
+        )
+        for k, s in enumerate(stamps)
+    ]
+
+
+def _abut(placed) -> bool:
+    return all(b.start_time == a.end_time for a, b in zip(placed, placed[1:], strict=False))
+
+
+@pytest.mark.parametrize("ppm", [-100.0, -20.0, 20.0, 100.0])
+def test_drift_with_10_ms_jitter_is_one_record_with_its_rate(ppm):
+    for seed in range(10):
+        placed = place_files(_headers(ppm, 10.0, seed))
+        assert _abut(placed)  # one record: every file at its predecessor's end
+        (run,) = clock_runs(placed)
+        # the least-squares rate of 288 stamps over a day, jitter +-10 ms: its standard
+        # error 5.8 ms / 86400 s * sqrt(12 / 288) = 0.014 ppm
+        assert run.rate_offset * 1e6 == pytest.approx(ppm, abs=0.1)
+        assert run.drifting
+        assert 0.009 < run.jitter_s <= 0.012  # the drawn 10 ms, less or more the line's error
+        # the sample count walks from the stamps by ppm of the day: 20 ppm, 1.7 s
+        walk_s = abs(placed[-1].clock_shift_s)
+        assert walk_s == pytest.approx(287 * 300 * abs(ppm) * 1e-6, abs=0.03)
+
+
+def test_jitter_alone_never_breaks_the_record():
+    """Up to +-25 ms (a stamp may miss its predecessor's by 50 ms): as before."""
+    for seed in range(20):
+        placed = place_files(_headers(0.0, 25.0, seed))
+        assert _abut(placed)
+        assert not clock_runs(placed)[0].drifting
+        assert max(abs(i.clock_shift_s) for i in placed) <= 0.05
+
+
+def test_a_gap_shorter_than_the_walk_is_a_gap_and_the_record_goes_on():
+    """20 ppm fast: after 48 files the sample count lies 288 ms past the stamps; 250 ms of
+    data lost there is still a gap, of its own length, and the files after it one record."""
+    infos = _headers(20.0, 0.0, 0, n_files=96)
+    infos[48:] = [
+        FileInfo(i.path, i.start_time + pd.Timedelta(milliseconds=250), RATE_HZ, N_SAMPLES, ("a",))
+        for i in infos[48:]
+    ]
+    placed = place_files(infos)  # main: acc_009.npz "overlapping or duplicate files"
+    gap_s = (placed[48].start_time - placed[47].end_time).total_seconds()
+    assert gap_s == pytest.approx(0.250, abs=1e-6)
+    assert _abut(placed[:48]) and _abut(placed[48:])
+    assert [len(run.files) for run in clock_runs(placed)] == [48, 48]
+
+
+def test_an_overlap_in_a_drifting_record_names_the_file():
+    infos = _headers(20.0, 5.0, 0, n_files=96)
+    infos[60:] = [
+        FileInfo(i.path, i.start_time - pd.Timedelta(milliseconds=200), RATE_HZ, N_SAMPLES, ("a",))
+        for i in infos[60:]
+    ]
+    with pytest.raises(FileOverlapError) as raised:
+        place_files(infos)
+    assert raised.value.info.name == "acc_060.npz"
+    assert raised.value.previous.name == "acc_059.npz"
+    seconds = float(str(raised.value).split("starts ")[1].split(" s before")[0])
+    assert seconds == pytest.approx(0.2, abs=0.012)  # 200 ms, less the jitter (5 + 5 ms)
