@@ -93,3 +93,47 @@ def test_an_overlap_in_a_drifting_record_names_the_file():
     assert raised.value.previous.name == "acc_059.npz"
     seconds = float(str(raised.value).split("starts ")[1].split(" s before")[0])
     assert seconds == pytest.approx(0.2, abs=0.012)  # 200 ms, less the jitter (5 + 5 ms)
+
+
+@pytest.mark.parametrize("ppm, gap_s", [(20.0, 0.0), (-60.0, 2.0), (100.0, -30.0)])
+def test_a_placement_resumed_file_by_file_equals_the_whole_placement(ppm, gap_s):
+    # the monitor places each newly landed file on from the placement of those before it
+    # (FilePlacement) instead of placing every file again: the same headers, the same error
+    from workbench.monitor.core import Monitor
+    from workbench.monitor.watcher import LandedFile
+    from workbench.signals.block_plan import FilePlacement
+
+    infos = _headers(ppm, 8.0, seed=3, n_files=60)
+    infos[30:] = [  # a real gap (or, negative, an overlap) after file 29
+        FileInfo(i.path, i.start_time + pd.Timedelta(seconds=gap_s), RATE_HZ, N_SAMPLES, ("a",))
+        for i in infos[30:]
+    ]
+    try:
+        whole = place_files(infos)
+    except FileOverlapError as error:
+        whole = error
+    placement = FilePlacement()
+    resumed = []
+    try:
+        for info in infos:
+            trial = placement.place(info)  # placing without keeping changes nothing
+            assert len(placement.files) == len(resumed)
+            kept = placement.add(info)
+            assert kept == trial
+            resumed.append(kept)
+    except FileOverlapError as error:
+        assert isinstance(whole, FileOverlapError) and str(error) == str(whole)
+        assert len(placement.files) == 30 and error.info.path == infos[30].path
+        return
+    assert tuple(resumed) == whole
+    # the monitor's placed headers, files taken one at a time, equal the whole placement
+    monitor = Monitor.__new__(Monitor)
+    monitor.files, monitor._placed_files = [], ((), [], None)
+    landed = pd.Timestamp("2026-03-01T06:00:00Z")
+    for info in infos:
+        monitor.files.append(LandedFile(info, landed, 0, 0))
+        monitor._placed()
+    assert tuple(f.info for f in monitor._placed()) == whole
+    runs = clock_runs(whole)
+    assert placement.last_run_drifting == runs[-1].drifting
+    assert placement.files[placement.run_start] == runs[-1].files[0]

@@ -233,7 +233,8 @@ class Monitor:
         self.store: BlockStore | None = None
         self.files: list[LandedFile] = []
         #: the files' headers as placed (:meth:`_placed`), with the starts they came from
-        self._placed_files: tuple[tuple, list[LandedFile]] = ((), [])
+        #: and the placement that placed them (a newly taken file is placed on from it)
+        self._placed_files: tuple[tuple, list[LandedFile], object] = ((), [], None)
         self._drift_noted: set[Path] = set()  # first files of the runs said to drift
         self.done: set[int] = set()
         #: Of the blocks this process decided (not those a restart found stored): how
@@ -509,7 +510,7 @@ class Monitor:
                 )
         placed = info
         if not reason:
-            reason, placed = _placed_among(info, [f.info for f in self.files])
+            reason, placed = self._placed_among(info)
         if not reason and self.store is not None:
             try:
                 self.store.check_inputs(input_fingerprints([placed]))
@@ -547,9 +548,17 @@ class Monitor:
         summary says them, :func:`~workbench.signals.block_plan.place_files`)."""
         from ..signals.block_plan import CLOCK_JITTER_S, clock_drift_note, clock_runs
 
-        infos = [f.info for f in self._placed()]
-        run = next(r for r in clock_runs(infos) if any(i.path == item.path for i in r.files))
-        if not run.drifting:
+        files = self._placed()
+        placement = self._placed_files[2]
+        if files and files[-1].path == item.path:  # the newest file: its run is the last
+            first = placement.files[placement.run_start]
+            drifting = placement.last_run_drifting
+            run_files = None  # the run's files, only when its drift is said
+        else:
+            infos = [f.info for f in files]
+            run = next(r for r in clock_runs(infos) if any(i.path == item.path for i in r.files))
+            first, drifting, run_files = run.files[0], run.drifting, run.files
+        if not drifting:
             if abs(placed.clock_shift_s) <= 0.5 / placed.sampling_rate_hz:
                 return  # less than half a sample: on the previous file's lattice, unsaid
             self.messages.append(
@@ -557,22 +566,53 @@ class Monitor:
                 f"previous file's end (clock jitter up to {CLOCK_JITTER_S * 1e3:g} ms is taken "
                 "as contiguous)"
             )
-        elif run.files[0].path not in self._drift_noted:
-            self._drift_noted.add(run.files[0].path)
-            self.messages.append(f"{item.path.name}: {clock_drift_note(run.files)}")
+        elif first.path not in self._drift_noted:
+            self._drift_noted.add(first.path)
+            if run_files is None:
+                run_files = placement.files[placement.run_start :]
+            self.messages.append(f"{item.path.name}: {clock_drift_note(run_files)}")
 
     def _placed(self) -> list[LandedFile]:
         """The files taken, each with its header as a plan places it (re-timed for clock
         jitter, :func:`~workbench.signals.block_plan.place_files`), as identify places the
         same files: the blocks are cut, conditioned and checked from these times."""
-        from ..signals.block_plan import place_files
+        from ..signals.block_plan import FilePlacement
 
         key = tuple((f.path, f.info.start_time) for f in self.files)
-        if self._placed_files[0] != key:
-            placed = place_files([f.info for f in self.files]) if self.files else ()
-            files = [replace(f, info=i) for f, i in zip(self.files, placed, strict=True)]
-            self._placed_files = (key, files)
+        placed_key, files, placement = self._placed_files
+        if placed_key != key:
+            n = len(placed_key)
+            if placement is not None and 0 < n < len(key) and key[:n] == placed_key:
+                # files taken after those placed (the usual case): placed on from them, at
+                # a cost that does not grow with the voyage (place_files' loop, resumed)
+                placement = placement.copy()
+                files = files + [replace(f, info=placement.add(f.info)) for f in self.files[n:]]
+            else:
+                placement = FilePlacement()
+                files = [replace(f, info=placement.add(f.info)) for f in self.files]
+            self._placed_files = (key, files, placement)
         return self._placed_files[1]
+
+    def _placed_among(self, info) -> tuple[str, object]:
+        """:func:`_placed_among` of *info* among the files taken; a file landing after all
+        of them (the usual case) placed on from their placement (:meth:`_placed`)."""
+        from ..signals.block_plan import FileOverlapError, duplicate_reason
+
+        if self.voyage is not None and self.files:  # the files taken share the voyage's rate
+            self._placed()
+            placement = self._placed_files[2]
+            last = self.files[-1].info
+            if info.sampling_rate_hz == self.voyage.rate_hz and (
+                info.start_time,
+                str(info.path),
+            ) > (last.start_time, str(last.path)):
+                try:
+                    return "", placement.place(info)
+                except FileOverlapError as error:
+                    if _same_data(info, error.previous):
+                        return duplicate_reason(error.previous), info
+                    return f"overlaps {error.previous.name}", info
+        return _placed_among(info, [f.info for f in self.files])
 
     def _note_too_late(self, item: LandedFile) -> None:
         """Say so when *item* lands after blocks over its span were decided without it."""

@@ -37,7 +37,9 @@ order.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
+import functools
 import math
 import os
 from collections.abc import Iterable, Mapping, Sequence
@@ -66,6 +68,7 @@ __all__ = [
     "ClockRun",
     "FileOverlapError",
     "FileInfo",
+    "FilePlacement",
     "PlannedBlock",
     "clock_runs",
     "place_files",
@@ -141,7 +144,7 @@ class FileInfo:
     def name(self) -> str:
         return self.path.name
 
-    @property
+    @functools.cached_property
     def end_time(self) -> pd.Timestamp:
         """Time just after the last sample. [UTC]"""
         return self.start_time + pd.Timedelta(seconds=self.n_samples / self.sampling_rate_hz)
@@ -565,22 +568,86 @@ def place_files(
         A file starting more than *clock_jitter_s* before the end of its predecessor
         (overlapping or duplicate files), naming the file (a :class:`ValueError`).
     """
-    if not (math.isfinite(float(clock_jitter_s)) and clock_jitter_s >= 0):
-        raise ValueError(
-            f"clock_jitter_s={clock_jitter_s} must be a non-negative number of seconds"
-        )
-    if not infos:
-        return ()
-    rate = infos[0].sampling_rate_hz
-    half_s = 0.5 / rate
-    placed = [infos[0]]
-    run = _ClockRun(infos[0], rate)
-    for info in infos[1:]:
-        previous = placed[-1]
+    placement = FilePlacement(clock_jitter_s=clock_jitter_s)
+    for info in infos:
+        placement.add(info)
+    return tuple(placement.files)
+
+
+class FilePlacement:
+    """:func:`place_files` one file at a time: the files placed so far, the start of their
+    last run and its clock. A file placed after them costs the same whatever their number
+    (the monitor places each newly landed file so).
+
+    Parameters
+    ----------
+    clock_jitter_s : float
+        As :func:`place_files`'. [s]
+    """
+
+    def __init__(self, *, clock_jitter_s: float = CLOCK_JITTER_S) -> None:
+        if not (math.isfinite(float(clock_jitter_s)) and clock_jitter_s >= 0):
+            raise ValueError(
+                f"clock_jitter_s={clock_jitter_s} must be a non-negative number of seconds"
+            )
+        self.clock_jitter_s = clock_jitter_s
+        #: The files placed, in order.
+        self.files: list[FileInfo] = []
+        #: Index in :attr:`files` of the first file of the last run.
+        self.run_start = 0
+        self._run: _ClockRun | None = None
+
+    def copy(self) -> FilePlacement:
+        """An independent placement of the same files (the list and the clock copied)."""
+        other = copy.copy(self)
+        other.files = list(self.files)
+        other._run = copy.copy(self._run)
+        return other
+
+    @property
+    def last_run_drifting(self) -> bool:
+        """Whether the last run's clock drifts from its sample count by more than the
+        clock jitter (:attr:`ClockRun.drifting`, as :func:`clock_runs` says it)."""
+        return self._run is not None and self._run.walk_s() > self.clock_jitter_s
+
+    def add(self, info: FileInfo) -> FileInfo:
+        """*info* (starting no earlier than the last file placed, at its sampling rate)
+        placed after the files so far, and kept; the placed header.
+
+        Raises
+        ------
+        FileOverlapError
+            *info* starts more than the clock jitter before the previous file's end; the
+            placement is then unchanged.
+        """
+        placed, run = self._place(info, self._run)
+        if run is not self._run:  # a new run (a gap, or the first file)
+            self._run = run
+            self.run_start = len(self.files)
+        self.files.append(placed)
+        return placed
+
+    def place(self, info: FileInfo) -> FileInfo:
+        """*info* as :meth:`add` would place it, without keeping it.
+
+        Raises
+        ------
+        FileOverlapError
+            As :meth:`add`.
+        """
+        return self._place(info, copy.copy(self._run))[0]
+
+    def _place(self, info: FileInfo, run: _ClockRun | None) -> tuple[FileInfo, _ClockRun]:
+        """*info* placed after the files so far with the last run's clock *run* (updated
+        in place when *info* joins it), and the clock of *info*'s run."""
+        if not self.files:
+            return info, _ClockRun(info, info.sampling_rate_hz)
+        clock_jitter_s = self.clock_jitter_s
+        previous = self.files[-1]
         if info.start_time == previous.end_time:  # abutting (or placed before): as it is
             run.add(info)
-            placed.append(info)
-            continue
+            return info, run
+        half_s = 0.5 / run.rate
         mismatch_s = (info.start_time - previous.end_time).total_seconds()
         offsets_s = run.offsets_s(info, previous, clock_jitter_s)
         offset_s = offsets_s[0]
@@ -592,21 +659,20 @@ def place_files(
                 clock_shift_s=info.clock_shift_s + shift.total_seconds(),
             )
             run.add(info)
-        elif offset_s < 0:
+            return info, run
+        if offset_s < 0:
             raise FileOverlapError(info, previous, -offset_s)
-        else:  # a gap: a new run at the file's stamp, unless that is not after the end
-            stamp = info.start_time - pd.Timedelta(seconds=info.clock_shift_s)
-            start = stamp
-            if (stamp - previous.end_time).total_seconds() < max(clock_jitter_s, half_s):
-                # the run's sample count walked past the stamp: the gap after its end
-                start = previous.end_time + pd.Timedelta(seconds=offset_s)
-            if start != info.start_time:
-                info = dataclasses.replace(
-                    info, start_time=start, clock_shift_s=(start - stamp).total_seconds()
-                )
-            run = _ClockRun(info, rate)
-        placed.append(info)
-    return tuple(placed)
+        # a gap: a new run at the file's stamp, unless that is not after the end
+        stamp = info.start_time - pd.Timedelta(seconds=info.clock_shift_s)
+        start = stamp
+        if (stamp - previous.end_time).total_seconds() < max(clock_jitter_s, half_s):
+            # the run's sample count walked past the stamp: the gap after its end
+            start = previous.end_time + pd.Timedelta(seconds=offset_s)
+        if start != info.start_time:
+            info = dataclasses.replace(
+                info, start_time=start, clock_shift_s=(start - stamp).total_seconds()
+            )
+        return info, _ClockRun(info, run.rate)
 
 
 @dataclass(frozen=True)
