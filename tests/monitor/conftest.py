@@ -33,13 +33,14 @@ def cli(*argv) -> int:
 
 
 def write_voyage(
-    root: Path, *, rate_hz: float = 64.0, seed: int = 11, hours: float = HOURS
+    root: Path, *, rate_hz: float = 64.0, seed: int = 11, hours: float = HOURS, shaft=None
 ) -> Path:
-    """The reduced voyage in *root*/source: accelerations/ and dship.tsv."""
+    """The reduced voyage in *root*/source: accelerations/ and dship.tsv (*shaft*: the
+    simulator's ShaftHarmonics, default its own)."""
     from workbench.simulate import simulate_voyage
 
     full = root / "full"
-    simulate_voyage(full, seed=seed, hours=hours, sampling_rate_hz=rate_hz)
+    simulate_voyage(full, seed=seed, hours=hours, sampling_rate_hz=rate_hz, shaft=shaft)
     source = root / "source"
     (source / "accelerations").mkdir(parents=True)
     for path in sorted((full / "accelerations").glob("*.npz")):

@@ -955,17 +955,22 @@ class Monitor:
         return log if log is not None and "shaft_rpm" in log.columns else None
 
     def _mark_harmonics(self, frame: pd.DataFrame) -> pd.DataFrame:
-        """The selected modes tracked so far with their ``harmonic`` column from the logged
-        shaft speed (:func:`~workbench.sid.harmonics.mark_shaft_orders`). A block's marks
-        are kept once the log covers the block; before that they are recomputed, so the
-        tracked table ends equal to ``identify --dship`` + ``track`` however late the log."""
+        """The selected modes tracked so far with their ``harmonic``,
+        ``harmonic_frequency_hz`` and ``harmonic_checked`` columns from the logged shaft
+        speed, as ``identify --dship`` marks them
+        (:meth:`~workbench.sid.harmonics.HarmonicMarker.mark_selected`: spikes and a frozen
+        sensor left out, a block without a usable shaft speed tested from the speed where
+        the ship's shaft speed per knot is fixed, else unchecked). A block's marks are kept
+        once the log covers the block; before that they are recomputed, so the tracked
+        table ends equal to ``identify --dship`` + ``track`` however late the log."""
         log = self._shaft_log()
         if log is None:
             return frame
-        from ..sid.harmonics import block_shaft_table, mark_shaft_orders
+        from ..sid.harmonics import HarmonicMarker
 
-        # per row: the order (NaN: none) and the order's frequency at the block's shaft speed
-        harmonic = np.full((len(frame), 2), np.nan)
+        # per row: the order (NaN: none), the order's frequency at the block's shaft speed
+        # and whether the block could be checked (1.0) or not (0.0)
+        harmonic = np.full((len(frame), 3), np.nan)
         positions = frame.groupby("block").indices
         pending = []
         for block, rows in positions.items():
@@ -978,16 +983,30 @@ class Monitor:
         if pending:
             rows = np.concatenate(pending)
             part = frame.iloc[rows]
-            order = mark_shaft_orders(part, log, self.options.harmonics).to_numpy()
-            rpm = part["block"].map(block_shaft_table(log, part).set_index("block")["shaft_rpm"])
-            marks = np.column_stack([order, order * rpm.to_numpy(float) / 60.0])
+            marked = HarmonicMarker(log, self.options.harmonics).mark_selected(part)
+            checked = (
+                marked["harmonic_checked"].to_numpy(float)
+                if "harmonic_checked" in marked.columns
+                else np.ones(len(marked))
+            )
+            marks = np.column_stack(
+                [
+                    marked["harmonic"].to_numpy(float),
+                    marked["harmonic_frequency_hz"].to_numpy(float),
+                    checked,
+                ]
+            )
             harmonic[rows] = marks
             covered = pd.to_datetime(log["time"], utc=True).max()
             ends = pd.to_datetime(part["block_end"], utc=True).to_numpy()
             for block, inside in part.reset_index(drop=True).groupby("block").indices.items():
                 if ends[inside].max() <= covered:
                     self._harmonic_marks[int(block)] = marks[inside]
-        return frame.assign(harmonic=harmonic[:, 0], harmonic_frequency_hz=harmonic[:, 1])
+        return frame.assign(
+            harmonic=harmonic[:, 0],
+            harmonic_frequency_hz=harmonic[:, 1],
+            harmonic_checked=harmonic[:, 2] > 0.5,
+        )
 
     def _write_harmonic_lines(self, tracked: pd.DataFrame) -> None:
         """``harmonics.parquet``: each order's frequency at the tracked blocks' mean logged
