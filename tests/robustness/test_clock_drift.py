@@ -26,9 +26,16 @@ import pytest
 
 from data_contracts import AccelerationRecord, write_accelerations
 from workbench.cli import main
-from workbench.store import BlockStore
 
-from .voyage import CHANNELS, T0, response
+from .voyage import (
+    CHANNELS,
+    SMALL_SSI_ARGS,
+    T0,
+    assert_store_equals_identify,
+    identify_run,
+    response,
+    selected_modes,
+)
 
 RATE_HZ = 128.0
 FILE_S = 300.0
@@ -44,12 +51,7 @@ ARGS = [
     "--band",
     "1",
     "6.3",
-    "--block-rows",
-    "10",
-    "--min-order",
-    "4",
-    "--max-order",
-    "16",
+    *SMALL_SSI_ARGS,
 ]
 #: The file conditioner (each file once) and the block builder (each block from raw files).
 PATHS = {"per-file": [], "per-block": ["--conditioning", "per-block"]}
@@ -91,16 +93,11 @@ def voyages(tmp_path_factory) -> dict[str, Path]:
     return {name: root / name for name in ("clean", "20ppm", "100ppm", "20ppm+jitter")}
 
 
-def _identify(capsys, folder: Path, out: Path, extra=()) -> tuple[int, str, str]:
-    code = main(["identify", str(folder), "--out", str(out), *ARGS, *extra])
-    captured = capsys.readouterr()
-    assert "Traceback" not in captured.err
-    return code, captured.out, captured.err
+def _identify(capsys, folder, out, extra=()):
+    return identify_run(capsys, folder, out, [*ARGS, *extra])
 
 
-def _modes(out: Path) -> pd.DataFrame:
-    selected = pd.read_parquet(out / "selected.parquet")
-    return selected[["block", "frequency_hz", "damping_ratio"]].reset_index(drop=True)
+_modes = selected_modes
 
 
 def _drift_note(out: str) -> str:
@@ -230,11 +227,4 @@ def test_the_monitor_gives_the_blocks_identify_gives(voyages, tmp_path, capsys):
     assert len(drift) == 1  # said once, when the record's drift is told apart from jitter
     code, out, err = _identify(capsys, voyages["20ppm+jitter"], tmp_path / "batch")
     assert code == 0, err
-    batch = _modes(tmp_path / "batch")
-    stored = BlockStore(state / "store").read("selected")
-    monitor = stored.sort_values(["block", "frequency_hz"])[
-        ["block", "frequency_hz", "damping_ratio"]
-    ].reset_index(drop=True)
-    assert monitor["block"].tolist() == batch["block"].tolist()
-    np.testing.assert_allclose(monitor["frequency_hz"], batch["frequency_hz"], rtol=0, atol=1e-12)
-    np.testing.assert_allclose(monitor["damping_ratio"], batch["damping_ratio"], rtol=0, atol=1e-12)
+    assert_store_equals_identify(state, tmp_path / "batch")

@@ -22,9 +22,14 @@ import pytest
 
 from data_contracts import AccelerationRecord, read_accelerations, write_accelerations
 from workbench.cli import main
-from workbench.store import BlockStore
 
-from .voyage import IDENTIFY_ARGS, write_voyage
+from .voyage import (
+    IDENTIFY_ARGS,
+    assert_store_equals_identify,
+    identify_run,
+    selected_modes,
+    write_voyage,
+)
 
 EARLY, LATE = 3, 6  # acc_003.npz stamped early, acc_006.npz late
 #: Identify without --quiet (it silences nothing but the progress bar; kept explicit).
@@ -57,16 +62,11 @@ def voyages(tmp_path_factory) -> dict[str, Path]:
     return {"clean": root / "clean", "jitter": root / "jitter"}
 
 
-def _identify(capsys, folder: Path, out: Path, extra=()) -> tuple[int, str, str]:
-    code = main(["identify", str(folder), "--out", str(out), *ARGS, *extra])
-    captured = capsys.readouterr()
-    assert "Traceback" not in captured.err
-    return code, captured.out, captured.err
+def _identify(capsys, folder, out, extra=()):
+    return identify_run(capsys, folder, out, [*ARGS, *extra])
 
 
-def _modes(out: Path) -> pd.DataFrame:
-    selected = pd.read_parquet(out / "selected.parquet")
-    return selected[["block", "frequency_hz", "damping_ratio"]].reset_index(drop=True)
+_modes = selected_modes
 
 
 @pytest.mark.parametrize("path", list(PATHS))
@@ -139,14 +139,7 @@ def test_the_monitor_gives_the_blocks_identify_gives(voyages, tmp_path, capsys):
     assert "acc_003.npz: start re-timed by +25.0 ms to the previous file's end" in notes
     code, _, err = _identify(capsys, voyages["jitter"], tmp_path / "batch")
     assert code == 0, err
-    batch = _modes(tmp_path / "batch")
-    stored = BlockStore(state / "store").read("selected")
-    monitor = stored.sort_values(["block", "frequency_hz"])[
-        ["block", "frequency_hz", "damping_ratio"]
-    ].reset_index(drop=True)
-    assert monitor["block"].tolist() == batch["block"].tolist()
-    np.testing.assert_allclose(monitor["frequency_hz"], batch["frequency_hz"], rtol=0, atol=1e-12)
-    np.testing.assert_allclose(monitor["damping_ratio"], batch["damping_ratio"], rtol=0, atol=1e-12)
+    assert_store_equals_identify(state, tmp_path / "batch")
 
 
 def test_a_late_stamp_within_the_jitter_loses_no_block(voyages, tmp_path, capsys):

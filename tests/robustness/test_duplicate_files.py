@@ -18,7 +18,7 @@ import pandas as pd
 from data_contracts import AccelerationRecord, read_accelerations, write_accelerations
 from workbench.cli import main
 
-from .voyage import IDENTIFY_ARGS, write_voyage
+from .voyage import IDENTIFY_ARGS, identify_run, selected_modes, write_voyage
 
 ARGS = [a for a in IDENTIFY_ARGS if a != "--quiet"]
 MONITOR_ARGS = [a for a in IDENTIFY_ARGS if a not in ("--scheduler", "synchronous")]
@@ -26,16 +26,11 @@ MONITOR_ARGS += ["--late", "0", "--settle", "0", "--poll", "0.05", "--foreground
 NOTE = "acc_002_copy.npz: not used: the same data as acc_002.npz (a duplicate)"
 
 
-def _identify(capsys, folder, out):
-    code = main(["identify", str(folder), "--out", str(out), *ARGS])
-    captured = capsys.readouterr()
-    assert "Traceback" not in captured.err
-    return code, captured.out, captured.err
+def _identify(capsys, folder, out, extra=()):
+    return identify_run(capsys, folder, out, [*ARGS, *extra])
 
 
-def _modes(out) -> pd.DataFrame:
-    selected = pd.read_parquet(out / "selected.parquet")
-    return selected[["block", "frequency_hz", "damping_ratio"]].reset_index(drop=True)
+_modes = selected_modes
 
 
 def test_an_exact_duplicate_is_left_out(tmp_path, capsys):

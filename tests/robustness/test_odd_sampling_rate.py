@@ -21,7 +21,7 @@ from data_contracts import AccelerationRecord, read_accelerations, write_acceler
 from workbench.cli import main
 from workbench.store import BlockStore
 
-from .voyage import IDENTIFY_ARGS, write_voyage
+from .voyage import IDENTIFY_ARGS, identify_run, selected_modes, write_voyage
 
 ARGS = [a for a in IDENTIFY_ARGS if a != "--quiet"]
 MONITOR_ARGS = [a for a in IDENTIFY_ARGS if a not in ("--scheduler", "synchronous")]
@@ -40,16 +40,11 @@ def _at_twice_the_rate(path) -> None:
     write_accelerations(twice, path)
 
 
-def _identify(capsys, folder, out):
-    code = main(["identify", str(folder), "--out", str(out), *ARGS])
-    captured = capsys.readouterr()
-    assert "Traceback" not in captured.err
-    return code, captured.out, captured.err
+def _identify(capsys, folder, out, extra=()):
+    return identify_run(capsys, folder, out, [*ARGS, *extra])
 
 
-def _modes(out) -> pd.DataFrame:
-    selected = pd.read_parquet(out / "selected.parquet")
-    return selected[["block", "frequency_hz", "damping_ratio"]].reset_index(drop=True)
+_modes = selected_modes
 
 
 @pytest.mark.parametrize("odd", [0, 3], ids=["first file", "later file"])

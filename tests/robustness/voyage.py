@@ -18,18 +18,15 @@ RATE_HZ = 32.0
 FILE_S = 60.0
 CHANNELS = ("acc01", "acc02", "acc03", "acc04")
 T0 = pd.Timestamp("2026-03-01T00:00:00Z")
+#: A small SSI (seconds per voyage) for the identify runs of the robustness tests.
+SMALL_SSI_ARGS = ["--block-rows", "10", "--min-order", "4", "--max-order", "16"]
 #: Block settings for the CLI: 2-minute blocks every minute, small SSI.
 IDENTIFY_ARGS = [
     "--block-minutes",
     "2",
     "--step-minutes",
     "1",
-    "--block-rows",
-    "10",
-    "--min-order",
-    "4",
-    "--max-order",
-    "16",
+    *SMALL_SSI_ARGS,
     "--scheduler",
     "synchronous",
     "--quiet",
@@ -72,3 +69,35 @@ def write_voyage(
         )
         paths.append(write_accelerations(record, folder / f"acc_{k:03d}.npz"))
     return paths
+
+
+def identify_run(capsys, folder: Path, out: Path, args) -> tuple[int, str, str]:
+    """``workbench identify FOLDER --out OUT *args``: its exit code, stdout and stderr (a
+    user's error is one line: never a traceback)."""
+    from workbench.cli import main
+
+    code = main(["identify", str(folder), "--out", str(out), *args])
+    captured = capsys.readouterr()
+    assert "Traceback" not in captured.err
+    return code, captured.out, captured.err
+
+
+def selected_modes(out: Path) -> pd.DataFrame:
+    """The selected modes (block, frequency, damping) an identify run wrote into *out*."""
+    selected = pd.read_parquet(out / "selected.parquet")
+    return selected[["block", "frequency_hz", "damping_ratio"]].reset_index(drop=True)
+
+
+def assert_store_equals_identify(state: Path, out: Path) -> None:
+    """The monitor's stored selected modes (state folder *state*) are identify's (*out*)
+    to 1e-12: the same blocks, frequencies and damping ratios."""
+    from workbench.store import BlockStore
+
+    batch = selected_modes(out)
+    stored = BlockStore(state / "store").read("selected")
+    monitor = stored.sort_values(["block", "frequency_hz"])[
+        ["block", "frequency_hz", "damping_ratio"]
+    ].reset_index(drop=True)
+    assert monitor["block"].tolist() == batch["block"].tolist()
+    np.testing.assert_allclose(monitor["frequency_hz"], batch["frequency_hz"], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(monitor["damping_ratio"], batch["damping_ratio"], rtol=0, atol=1e-12)
