@@ -28,6 +28,7 @@ from ._common import time_ns
 __all__ = [
     "CANDIDATE_SHIFTS_H",
     "block_level",
+    "clock_agrees",
     "clock_shift_scores",
     "clock_warning",
     "log_clock_warning",
@@ -220,6 +221,31 @@ def clock_warning(
         f"times taken as UTC{likely} (rank correlation {best['correlation']:.2f}, against "
         f"{baseline:.2f} as read, UTC{format_utc_offset(given)}): if its times are local "
         f"time without an offset, give --dship-utc-offset {likely}"
+    )
+
+
+def clock_agrees(scores: pd.DataFrame) -> bool:
+    """Whether the log as read is judged (:data:`MIN_BLOCKS` blocks with a speed, spread by
+    :data:`MIN_SPREAD`) and follows the level best of all judged shifts, at a rank
+    correlation of :data:`MIN_CORRELATION` or more: the two clocks agree, and more blocks
+    will not say otherwise (the monitor then stops checking).
+
+    Parameters
+    ----------
+    scores : DataFrame
+        :func:`clock_shift_scores`.
+    """
+    if scores.empty:
+        return False
+    spread = scores["speed_spread"] >= MIN_SPREAD[scores.attrs.get("column", "speed_kn")]
+    judged = scores[
+        (scores["n_blocks"] >= MIN_BLOCKS) & spread & np.isfinite(scores["correlation"])
+    ]
+    at_zero = judged.loc[judged["shift_h"] == 0, "correlation"]
+    return (
+        len(at_zero) > 0
+        and float(at_zero.iloc[0]) >= MIN_CORRELATION
+        and float(at_zero.iloc[0]) >= float(judged["correlation"].max())
     )
 
 
