@@ -18,6 +18,7 @@ import logging
 from datetime import datetime, timedelta
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -126,3 +127,29 @@ def test_blocks_of_varying_length_are_checked_on_their_own_spans(long_voyage, tm
     assert [m for m in monitor.messages if "vibration" in m] == [
         f"{tmp_path / 'dship.tsv'}: {WARNING.format(0.98)}"
     ]
+
+
+def test_a_check_reads_the_newest_day_of_blocks_and_runs_every_12_blocks():
+    from workbench.monitor.log_clock import LiveClockCheck
+
+    # 30 h of 20-min blocks every 5 min at rest (one speed: never decided), 3 channels
+    t0 = pd.Timestamp("2024-03-01T00:00:00Z")
+    starts = t0 + pd.Timedelta(minutes=5) * np.arange(360)
+    log = pd.DataFrame(
+        {"time": t0 + pd.Timedelta(seconds=10) * np.arange(31 * 360), "speed_kn": 0.1}
+    )
+    check = LiveClockCheck()
+    rng = np.random.default_rng(1)
+    for block, start in enumerate(starts):
+        rms = rng.uniform(0.5, 2.0, 3)
+        channels = pd.DataFrame(
+            {"block": block, "block_start": start, "channel": ["a", "b", "c"], "rms": rms}
+        )
+        check.add(channels, 1200.0)
+        if check.due():
+            assert check.check(log, "log") is None
+    assert not check.decided
+    # from 24 blocks, then every 12 added: 24, 36, ..., 360
+    assert check.checked_blocks == list(range(24, 361, 12))
+    # the blocks starting in the newest 24 h are kept (360 - 72 + 1 = 289), the older let go
+    assert check.n_blocks == 289 and check.n_added == 360

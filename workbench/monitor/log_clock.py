@@ -8,7 +8,9 @@ them once :data:`~workbench.predictors.clock.MIN_BLOCKS` blocks are identified, 
 :data:`CHECK_EVERY_BLOCKS` blocks until it has decided: it warned (once per run), or the log
 as read follows the hull's vibration level best (:func:`~workbench.predictors.clock.
 clock_agrees`; more blocks will not say otherwise), or the log has neither a speed nor a
-shaft rate to check.
+shaft rate to check. A check reads the blocks of the newest :data:`WINDOW_H` hours only, so
+that its cost stays that of a day of blocks however long the voyage (a ship at rest for
+days never lets it decide).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from ..predictors.clock import (
+    CANDIDATE_SHIFTS_H,
     MIN_BLOCKS,
     block_level,
     clock_agrees,
@@ -24,13 +27,16 @@ from ..predictors.clock import (
     clock_warning,
 )
 
-__all__ = ["CHECK_EVERY_BLOCKS", "LiveClockCheck"]
+__all__ = ["CHECK_EVERY_BLOCKS", "WINDOW_H", "LiveClockCheck"]
 
 #: Blocks identified between two checks while undecided: an hour of the default 5-min
 #: step. A check costs milliseconds against the seconds of identifying a block
 #: (benchmarks/results/dship_clock_50.txt), and a verdict needs hours of blocks, so an hour
 #: more delays a warning little.
 CHECK_EVERY_BLOCKS = 12
+#: Span of the newest blocks a check reads (the oldest are let go). [h] identify's check
+#: is right on whole voyages of up to 24 h (benchmarks/results/dship_clock_50.txt).
+WINDOW_H = 24.0
 
 _COLUMNS = ["block", "block_start", "channel", "rms"]
 
@@ -51,7 +57,8 @@ class LiveClockCheck:
         self.decided = False
         #: The warning said, if any.
         self.warning: str | None = None
-        #: Checks run (this process), and the blocks held at each.
+        #: Blocks added (this process), and the number added at each check run.
+        self.n_added = 0
         self.checked_blocks: list[int] = []
         self._new: list[pd.DataFrame] = []  # the blocks' tables since the last check
         self._length_s: dict[int, float] = {}
@@ -63,6 +70,7 @@ class LiveClockCheck:
         if self.decided or channels is None or channels.empty:
             return
         self._new.append(channels[_COLUMNS])
+        self.n_added += channels["block"].nunique()
         for block in pd.unique(channels["block"]):
             block = int(block)
             own = length_s if np.isscalar(length_s) else length_s.get(block, np.nan)
@@ -70,32 +78,48 @@ class LiveClockCheck:
 
     @property
     def n_blocks(self) -> int:
-        """Identified blocks held."""
+        """Identified blocks held (those of the newest :data:`WINDOW_H` hours after a
+        check)."""
         return len(self._length_s)
 
     def due(self) -> bool:
         """Whether to check now: undecided, with :data:`MIN_BLOCKS` blocks at least and, after
-        a first check, :attr:`every_blocks` more than then."""
-        n = self.n_blocks
-        if self.decided or n < MIN_BLOCKS:
+        a first check, :attr:`every_blocks` added since."""
+        if self.decided or self.n_blocks < MIN_BLOCKS:
             return False
-        return not self.checked_blocks or n - self.checked_blocks[-1] >= self.every_blocks
+        return (
+            not self.checked_blocks or self.n_added - self.checked_blocks[-1] >= self.every_blocks
+        )
 
     def check(
         self, log: pd.DataFrame, source: str, utc_offset: pd.Timedelta | None = None
     ) -> str | None:
         """The check over the blocks held and the ship *log* read from *source* (with
         *utc_offset*): the warning, or None (:attr:`decided` says whether it decided)."""
-        self.checked_blocks.append(self.n_blocks)
+        self.checked_blocks.append(self.n_added)
         if not {"speed_kn", "shaft_rpm"} & set(log.columns):
             self._decide()  # nothing in the log to check the clock with
             return None
-        if len(self._new) > 1:  # gathered into one table at each check
-            self._new = [pd.concat(self._new, ignore_index=True)]
-        level = block_level(self._new[0])
+        table = pd.concat(self._new, ignore_index=True) if len(self._new) > 1 else self._new[0]
+        starts = pd.to_datetime(table["block_start"], utc=True)
+        recent = (starts >= starts.max() - pd.Timedelta(hours=WINDOW_H)).to_numpy()
+        if not recent.all():  # the older blocks let go
+            table = table[recent]
+            kept = set(table["block"].astype(int))
+            self._length_s = {b: n for b, n in self._length_s.items() if b in kept}
+        self._new = [table]
+        level = block_level(table)
         length_s = pd.Series(self._length_s).reindex(level["block"]).to_numpy(float)
         keep = np.isfinite(length_s)
-        scores = clock_shift_scores(level[keep], length_s[keep], log)
+        level, length_s = level[keep], length_s[keep]
+        # the log's rows the shifts can reach (a voyage's log is days longer than a window)
+        starts = pd.DatetimeIndex(pd.to_datetime(level["block_start"], utc=True))
+        low = starts.min() + pd.Timedelta(hours=float(CANDIDATE_SHIFTS_H.min()))
+        high = (starts + pd.to_timedelta(length_s, unit="s")).max()
+        high += pd.Timedelta(hours=float(CANDIDATE_SHIFTS_H.max()))
+        log = log[[c for c in ("time", "speed_kn", "shaft_rpm") if c in log.columns]]
+        log = log[((log["time"] >= low) & (log["time"] <= high)).to_numpy()]
+        scores = clock_shift_scores(level, length_s, log)
         warning = clock_warning(scores, source, utc_offset)
         if warning is not None:
             self.warning = warning

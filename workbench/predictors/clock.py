@@ -12,7 +12,9 @@ the block's log RMS, each channel taken relative to its own median) with the log
 averaged over each block shifted by every candidate offset (whole and half hours,
 :data:`CANDIDATE_SHIFTS_H`); :func:`clock_warning` says when a non-zero shift explains the
 level clearly better than none. The thresholds come from the null distribution measured on
-correct logs (benchmarks/results/dship_clock_50.txt).
+correct logs (benchmarks/results/dship_clock_50.txt). ``identify --dship`` runs the check
+once (:func:`log_clock_warning`), the monitor as its blocks come
+(:mod:`workbench.monitor.log_clock`).
 """
 
 from __future__ import annotations
