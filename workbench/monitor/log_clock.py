@@ -30,9 +30,9 @@ from ..predictors.clock import (
 __all__ = ["CHECK_EVERY_BLOCKS", "WINDOW_H", "LiveClockCheck"]
 
 #: Blocks identified between two checks while undecided: an hour of the default 5-min
-#: step. A check costs milliseconds against the seconds of identifying a block
-#: (benchmarks/results/dship_clock_50.txt), and a verdict needs hours of blocks, so an hour
-#: more delays a warning little.
+#: step. A verdict needs hours of blocks, so an hour more delays a warning little, and a
+#: check's cost shared by 12 blocks is a small fraction of identifying one of them
+#: (benchmarks/results/dship_clock_50.txt, section 3).
 CHECK_EVERY_BLOCKS = 12
 #: Span of the newest blocks a check reads (the oldest are let go). [h] identify's check
 #: is right on whole voyages of up to 24 h (benchmarks/results/dship_clock_50.txt).
