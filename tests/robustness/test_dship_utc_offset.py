@@ -18,6 +18,7 @@ from __future__ import annotations
 from datetime import datetime, timedelta
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -25,6 +26,7 @@ from data_contracts import read_dship
 from data_contracts.modal_layout import read_modal_table
 from workbench.cli import main
 from workbench.predictors import load_predictors
+from workbench.predictors.clock import clock_shift_scores
 from workbench.simulate import simulate_voyage
 
 #: Light identification: the check reads only the blocks' RMS per channel.
@@ -165,3 +167,54 @@ def test_identify_warns_on_the_local_log_and_not_on_the_correct_one(voyage, tmp_
     (line,) = warned["local"]
     assert line.startswith(f"warning: {voyage / 'dship_local.tsv'}: ")
     assert "UTC+02:00" in line and line.endswith("give --dship-utc-offset +02:00")
+
+
+def test_the_clock_check_reads_each_blocks_own_span():
+    # blocks of 5, 15, 25 and 35 min every 5 min, each as loud as the log's mean speed over
+    # its own span; the log (a random walk read every 10 s) ends at 03:00
+    t0 = pd.Timestamp("2024-03-01T00:00:00Z")
+    times = t0 + pd.to_timedelta(np.arange(0, 3 * 3600, 10), unit="s")
+    seconds = (times - t0).total_seconds().to_numpy()
+    speed = 8.0 + np.cumsum(np.random.default_rng(0).normal(0.0, 0.1, len(times)))
+    log = pd.DataFrame({"time": times, "speed_kn": speed})
+    length_s = np.resize([300.0, 900.0, 1500.0, 2100.0], 36)
+    start_s = 300.0 * np.arange(36)
+    spans = zip(start_s, start_s + length_s, strict=True)
+    own = [speed[(seconds >= start) & (seconds < end)].mean() for start, end in spans]
+    level = pd.DataFrame(
+        {
+            "block_start": t0 + pd.to_timedelta(start_s, unit="s"),
+            "level": np.log(np.asarray(own)),
+        }
+    )
+    scores = clock_shift_scores(level, length_s, log, shifts_h=[0.0]).iloc[0]
+    # every block with half its span in the log: all but the 25-min one from 02:50 and the
+    # 35-min one from 02:55, which a span of one step (5 min, as before) took as in it
+    assert (start_s + length_s / 2 <= 3 * 3600).sum() == 34
+    assert scores["n_blocks"] == 34
+    assert scores["correlation"] == pytest.approx(1.0, abs=1e-12)
+    first_steps = clock_shift_scores(level, 300.0, log, shifts_h=[0.0]).iloc[0]
+    assert first_steps["n_blocks"] == 36
+    assert first_steps["correlation"] == pytest.approx(0.9532, abs=1e-4)
+
+
+def test_identify_auto_warns_from_each_blocks_own_span(voyage, tmp_path, capsys):
+    # identify --block-minutes auto (5, 15, 25 and 35 min blocks): the level of each block
+    # against the log's speed over its own span (before: its first 5 min, 0.96 here, and
+    # identify stopped before the check: a length none of whose blocks the log as read
+    # covers had no harmonic_checked column, the merged table NaN there)
+    accelerations = str(voyage / "accelerations")
+    auto = ["--block-minutes", "auto", "--store", str(tmp_path / "store")]
+    warned = {}
+    for name in ("dship_local", "dship"):
+        out = tmp_path / name
+        argv = ["identify", accelerations, "--out", str(out), *auto, *IDENTIFY_ARGS]
+        assert main([*argv, "--dship", str(voyage / f"{name}.tsv")]) == 0
+        warned[name] = _clock_warnings(capsys.readouterr().err)
+    assert warned["dship"] == []
+    (line,) = warned["dship_local"]
+    assert "taken as UTC+02:00 (rank correlation 0.99, against 0.00 as read, UTC+00:00)" in line
+    selected = pd.read_parquet(tmp_path / "dship_local" / "selected.parquet")
+    # the log as read starts at 02:00: the 35-min blocks (00:30-01:45) are not checked
+    longest = selected[selected["block_length_s"] == 2100.0]
+    assert len(longest) == 8 and not longest["harmonic_checked"].any()

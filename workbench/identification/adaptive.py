@@ -612,6 +612,10 @@ def _merge_tables(
             if kind in ("selected", "blocks"):
                 for column in _ADAPTIVE_COLUMNS:
                     frame[column] = measures[column].reindex(frame["block"]).to_numpy()
+        if kind == "selected" and "harmonic_checked" in frame.columns:
+            # a length none of whose blocks the log covers has no marks checked (and no
+            # column): its blocks are not checked
+            frame["harmonic_checked"] = frame["harmonic_checked"].fillna(False).astype(bool)
         if kind in ("selected", "poles"):
             contract = SELECTED if kind == "selected" else POLES
             path = _write_parquet_chunks([frame], out / f"{kind}.parquet", contract, grid=grid)

@@ -170,6 +170,15 @@ half-steps measured are kept in ``<state>/excitation.csv`` (the batch run's
 ``excitation.csv``), read back after a restart. The store records the adaptive options:
 a state folder of fixed blocks is not resumed with ``auto``, nor the reverse.
 
+The ship log's clock
+--------------------
+A log kept in local time without a UTC offset moves every predictor hours off its blocks.
+With ``--dship``, the monitor runs ``identify``'s check of the log's clock
+(:mod:`workbench.predictors.clock`) on the blocks it has identified (each on its own span),
+as the log grows: at 24 blocks, then every 12 blocks until it has decided, on the newest
+24 h of blocks (:mod:`workbench.monitor.log_clock`). Its warning, naming the likely
+``--dship-utc-offset``, is said once per run: in the log and as a note.
+
 Handing on
 ----------
 After each forecast/health update the monitor runs ``--on-alarm COMMAND`` once per new

@@ -43,6 +43,7 @@ from ..store import (
 from .adaptive import LEFT_OUT, AdaptiveLengths
 from .conditioning import block_conditioner, forget_conditioned
 from .data_health import DATA_HEALTH_COLUMNS, data_health_frame, data_health_row
+from .log_clock import LiveClockCheck
 from .notes import NOTES_FILE, NoteList
 from .outlook import (
     ForecastSettings,
@@ -309,6 +310,9 @@ class Monitor:
         # (plan row), None for a block no length fits
         self._lengths: dict[int, dict | None] = {}
         self._length_log_key = None  # the ship log's (size, mtime) when lengths last waited
+        #: identify's check of the ship log's clock, on the blocks identified so far
+        #: (:mod:`workbench.monitor.log_clock`)
+        self.clock_check = LiveClockCheck()
 
     def _load_baseline(self):
         """The health baseline, refused (one line, exit 1) when unreadable or when the ship
@@ -453,6 +457,7 @@ class Monitor:
             decided += 1
         if decided:
             self._outlook_due = True
+            self._check_clock()
         elif (
             self.dship is not None and self.tracking.tracked_through >= 0 and not self._log_complete
         ):
@@ -463,6 +468,23 @@ class Monitor:
         self._write_status("running")
         self._doing("waiting for files")
         return decided
+
+    def _check_clock(self) -> None:
+        """identify's check of the ship log's clock over the blocks identified so far,
+        when due (:mod:`workbench.monitor.log_clock`): its warning said once, as a note."""
+        if self.dship is None or not self.clock_check.due():
+            return
+        ship_log = self._read_log()
+        if ship_log is None:  # not there yet, or unreadable (the outlook says so)
+            return
+        from data_contracts.dship_names import parse_utc_offset
+
+        offset = self.options.forecast.dship_utc_offset
+        offset = None if offset is None else parse_utc_offset(offset)
+        warning = self.clock_check.check(ship_log, str(self.dship), offset)
+        if warning is not None:
+            log.warning("%s", warning)
+            self.messages.append(warning)
 
     def _doing(self, what: str) -> None:
         """Record the main loop's current activity for the heartbeat."""
@@ -921,6 +943,9 @@ class Monitor:
             self.identified_here += 1
         since = self._health_rows_from
         self._health_rows_from = int(row["block"]) if since is None else min(since, row["block"])
+        if self.dship is not None and not outcome.skipped:  # for the ship log's clock check
+            length_s = grid.length_s if measures is None else measures["block_length_s"]
+            self.clock_check.add(outcome.tables.get("channels"), float(length_s))
         selected = outcome.tables.get("selected")
         if not outcome.skipped and selected is not None and len(selected):
             self.tracking.add(int(outcome.block), selected)
@@ -1107,6 +1132,14 @@ class Monitor:
             selected = selected.drop(columns=["day"], errors="ignore")
             for block, part in selected.groupby("block", sort=True):
                 self.tracking.add(int(block), part)
+        if self.dship is not None:  # the stored blocks count for the ship log's clock check
+            channels = self.store.read("channels")
+            length_s = self.voyage.grid.length_s
+            if self.voyage.lengths is not None and len(channels):
+                lengths = self.store.read("lengths")
+                length_s = lengths.set_index("block")["block_length_s"].astype(float)
+            self.clock_check.add(channels, length_s)
+            self._check_clock()  # said again in this run when the stored blocks say it
         self._plan = SimpleNamespace(blocks=())
         # the labels given before the restart must come back with the same modes
         labels = self.state / "labels.json"

@@ -12,7 +12,9 @@ the block's log RMS, each channel taken relative to its own median) with the log
 averaged over each block shifted by every candidate offset (whole and half hours,
 :data:`CANDIDATE_SHIFTS_H`); :func:`clock_warning` says when a non-zero shift explains the
 level clearly better than none. The thresholds come from the null distribution measured on
-correct logs (benchmarks/results/dship_clock_50.txt).
+correct logs (benchmarks/results/dship_clock_50.txt). ``identify --dship`` runs the check
+once (:func:`log_clock_warning`), the monitor as its blocks come
+(:mod:`workbench.monitor.log_clock`).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from ._common import time_ns
 __all__ = [
     "CANDIDATE_SHIFTS_H",
     "block_level",
+    "clock_agrees",
     "clock_shift_scores",
     "clock_warning",
     "log_clock_warning",
@@ -114,8 +117,10 @@ def clock_shift_scores(
     ----------
     level : DataFrame
         ``block_start`` (UTC) and ``level`` (:func:`block_level`).
-    block_length_s : float
-        Length of the blocks. [s]
+    block_length_s : float or array of float
+        Length of the blocks: one for all, or each block's own (one per row of *level*:
+        blocks of varying length, ``--block-minutes auto``). [s] A block's speed at a
+        shift is the log's mean over its own span, shifted.
     log : DataFrame
         Canonical ship log (:func:`data_contracts.read_dship`): ``time`` and ``speed_kn``
         (or, without a speed, ``shaft_rpm``).
@@ -145,7 +150,8 @@ def clock_shift_scores(
     sums = np.concatenate([[0.0], np.cumsum(values)])
     step_ns = np.median(np.diff(times)) if len(times) > 1 else 1e9
     starts = pd.DatetimeIndex(pd.to_datetime(level["block_start"], utc=True)).as_unit("ns").asi8
-    length_ns = int(round(block_length_s * 1e9))
+    length_ns = np.rint(np.broadcast_to(np.asarray(block_length_s, float), len(starts)) * 1e9)
+    length_ns = length_ns.astype(np.int64)
     wanted = level["level"].to_numpy(dtype=float)
     rows = []
     for shift in np.asarray(shifts_h, dtype=float):
@@ -220,23 +226,59 @@ def clock_warning(
     )
 
 
+def clock_agrees(scores: pd.DataFrame) -> bool:
+    """Whether the log as read is judged (:data:`MIN_BLOCKS` blocks with a speed, spread by
+    :data:`MIN_SPREAD`) and follows the level best of all judged shifts, at a rank
+    correlation of :data:`MIN_CORRELATION` or more: the two clocks agree, and more blocks
+    will not say otherwise (the monitor then stops checking).
+
+    Parameters
+    ----------
+    scores : DataFrame
+        :func:`clock_shift_scores`.
+    """
+    if scores.empty:
+        return False
+    spread = scores["speed_spread"] >= MIN_SPREAD[scores.attrs.get("column", "speed_kn")]
+    judged = scores[
+        (scores["n_blocks"] >= MIN_BLOCKS) & spread & np.isfinite(scores["correlation"])
+    ]
+    at_zero = judged.loc[judged["shift_h"] == 0, "correlation"]
+    return (
+        len(at_zero) > 0
+        and float(at_zero.iloc[0]) >= MIN_CORRELATION
+        and float(at_zero.iloc[0]) >= float(judged["correlation"].max())
+    )
+
+
 def log_clock_warning(
     channels: str | os.PathLike,
     log: pd.DataFrame,
     source: str,
     utc_offset: pd.Timedelta | None = None,
+    blocks: str | os.PathLike | None = None,
 ) -> str | None:
     """:func:`clock_warning` of identify's ``channels.csv`` (the blocks' RMS per channel)
-    and the ship log *log* read from *source* (with *utc_offset*)."""
+    and the ship log *log* read from *source* (with *utc_offset*).
+
+    Blocks of varying length (``--block-minutes auto``: ``channels.csv``'s grid has
+    ``varying_length``) take each block's own span: its ``block_start`` and the
+    ``block_length_s`` of identify's ``blocks.csv`` (*blocks*, required then)."""
     from data_contracts.grid import read_grid
 
     path = Path(channels)
     grid = read_grid(path, "csv") or {}
-    # blocks of varying length (--block-minutes auto) are taken one step long: at half-hour
-    # shifts the level's timing hardly depends on it
-    length_s = float(grid.get("step_s" if grid.get("varying_length") else "length_s", 1200.0))
     table = pd.read_csv(path, usecols=["block", "block_start", "channel", "rms"])
     if table.empty:
         return None
-    scores = clock_shift_scores(block_level(table), length_s, log)
+    level = block_level(table)
+    if grid.get("varying_length"):
+        if blocks is None:
+            raise ValueError(f"{path}: blocks of varying length: their blocks.csv is needed")
+        lengths = pd.read_csv(blocks, usecols=["block", "block_length_s"])
+        length_s = lengths.set_index("block")["block_length_s"].reindex(level["block"])
+        level, length_s = level[length_s.notna().to_numpy()], length_s.dropna().to_numpy(float)
+    else:
+        length_s = float(grid.get("length_s", 1200.0))
+    scores = clock_shift_scores(level, length_s, log)
     return clock_warning(scores, source, utc_offset)

@@ -140,6 +140,8 @@ def identify(
 
         offset = None if dship_utc_offset is None else parse_utc_offset(dship_utc_offset)
         source = "the ship log" if isinstance(dship, pd.DataFrame) else str(dship)
-        warning = log_clock_warning(result.files["channels"], log, source, offset)
+        warning = log_clock_warning(
+            result.files["channels"], log, source, offset, result.files.get("blocks")
+        )
         result.warnings += [warning] * bool(warning)
     return result
