@@ -77,3 +77,32 @@ def test_two_different_files_for_one_span_are_an_error_naming_both(tmp_path, cap
         f"error: {tmp_path / 'acc' / 'acc_002_other.npz'}: starts 60 s before the end of "
         "acc_002.npz (overlapping or duplicate files)"
     ]
+
+
+def test_the_monitor_says_the_duplicate_of_a_re_timed_file_as_identify_does(tmp_path, capsys):
+    """Stamps with a recorder's jitter: the original is re-timed onto the record (its
+    placed start is not its stamp), and its copy is still said to be its duplicate."""
+    files = write_voyage(tmp_path / "watch", n_files=5)
+    for path, jitter_ms in zip(files[1:], (12.0, -9.0, 15.0, -7.0), strict=True):
+        record = read_accelerations(path)
+        stamp = record.start_time + pd.Timedelta(milliseconds=jitter_ms)
+        write_accelerations(
+            AccelerationRecord(
+                record.acceleration, record.sampling_rate_hz, stamp, record.channels
+            ),
+            path,
+        )
+    shutil.copy(files[2], tmp_path / "watch" / "acc_002_copy.npz")
+    code, out, err = _identify(capsys, tmp_path / "watch", tmp_path / "out")
+    assert code == 0, err
+    assert NOTE in out.splitlines()
+    state = tmp_path / "state"
+    code = main(
+        ["monitor", "--watch", str(tmp_path / "watch"), "--state", str(state), *MONITOR_ARGS]
+    )
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    health = pd.read_parquet(state / "data_health.parquet")
+    assert health["status"].tolist() == ["ok"] * 4
+    notes = (state / "notes.txt").read_text(encoding="utf-8")
+    assert NOTE in notes  # main: "acc_002_copy.npz: not used: overlaps acc_002.npz"

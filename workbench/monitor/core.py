@@ -1655,10 +1655,14 @@ def _placed_among(info, taken: list) -> tuple[str, object]:
 
 
 def _same_data(a, b) -> bool:
-    """Whether the files of headers *a* and *b* hold the same bytes."""
+    """Whether the files of headers *a* and *b* hold the same bytes (either may be placed:
+    re-timed for clock jitter or drift, so their stamps are compared)."""
     from ..fingerprints import sha256
 
-    if (a.start_time, a.n_samples, a.channels) != (b.start_time, b.n_samples, b.channels):
+    def stamp(info):
+        return info.start_time - pd.Timedelta(seconds=info.clock_shift_s)
+
+    if (stamp(a), a.n_samples, a.channels) != (stamp(b), b.n_samples, b.channels):
         return False
     try:
         return sha256(a.path) == sha256(b.path)
