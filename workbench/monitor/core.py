@@ -1656,13 +1656,16 @@ def _placed_among(info, taken: list) -> tuple[str, object]:
 
 def _same_data(a, b) -> bool:
     """Whether the files of headers *a* and *b* hold the same bytes (either may be placed:
-    re-timed for clock jitter or drift, so their stamps are compared)."""
+    re-timed for clock jitter or drift, so their stamps are compared, to the microsecond:
+    a stamp given back from the placed start and its shift in seconds may be 1 ns off)."""
     from ..fingerprints import sha256
 
     def stamp(info):
         return info.start_time - pd.Timedelta(seconds=info.clock_shift_s)
 
-    if (stamp(a), a.n_samples, a.channels) != (stamp(b), b.n_samples, b.channels):
+    if (a.n_samples, a.channels) != (b.n_samples, b.channels):
+        return False
+    if abs((stamp(a) - stamp(b)).total_seconds()) > 1e-6:
         return False
     try:
         return sha256(a.path) == sha256(b.path)
