@@ -52,6 +52,7 @@ from .dship_names import (
 )
 from .formats import describe
 from .grid import GRID_ATTR, attach_grid, read_grid, set_grid
+from .parts import is_parted, read_parts
 from .tables import MODAL
 
 __all__ = ["ModalLayout", "read_modal_table", "standardise_modal"]
@@ -191,22 +192,28 @@ def read_modal_table(
     """
     layout = layout or ModalLayout(**options)
     path = Path(path)
-    if not path.is_file():
+    parted = is_parted(path)  # a table written a part at a time (the monitor's)
+    if not (parted or path.is_file()):
         raise ContractError([Violation(None, "file not found")], source=path, contract="modal")
     try:
-        if path.suffix.lower() in (".parquet", ".pq"):
+        if parted:
+            frame = read_parts(path, None)  # ContractError naming an unreadable part
+        elif path.suffix.lower() in (".parquet", ".pq"):
             frame = pd.read_parquet(path)
         else:
             frame, _, _ = read_delimited(path)
+    except ContractError:
+        raise
     except Exception as error:  # pandas/pyarrow raise many types for unreadable files
         message = str(error).splitlines()[0] if str(error) else type(error).__name__
         raise ContractError(
             [Violation(None, f"cannot read file: {message}")], source=path, contract="modal"
         ) from None
-    frame.attrs.pop(GRID_ATTR, None)
+    grid = frame.attrs.pop(GRID_ATTR, None)  # a parted table's, from its newest part
     table = standardise_modal(frame, layout, source=str(path))
-    fmt = "parquet" if path.suffix.lower() in (".parquet", ".pq") else "csv"
-    return attach_grid(table, read_grid(path, fmt), path)
+    if not parted:
+        grid = read_grid(path, "parquet" if path.suffix.lower() in (".parquet", ".pq") else "csv")
+    return attach_grid(table, grid, path)
 
 
 def standardise_modal(

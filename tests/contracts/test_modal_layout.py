@@ -260,3 +260,26 @@ def test_correlate_a_frequency_only_wide_table(tmp_path, capsys):
     table = pd.read_csv(tmp_path / "corr" / "correlation.csv")
     assert table["y"].str.endswith("frequency_hz").any()
     assert not table["y"].str.endswith("damping_ratio").any()
+
+
+def test_a_monitors_parted_tracked_table_is_read_as_one_table(tmp_path):
+    """The monitor's STATE/tracked.parquet is a folder of parts (data_contracts.parts);
+    correlate, fit, forecast and evaluate read it as the one table its parts make, with
+    its block grid. Before: "tracked.parquet: file not found" (it is a folder)."""
+    from data_contracts import write_table
+    from data_contracts.grid import GRID_ATTR, set_grid
+    from data_contracts.parts import PartWriter
+    from data_contracts.tables import MODAL
+
+    table = expected()
+    table["damping_ratio"] = [DAMPING_PCT[m][k] / 100 for k in range(3) for m in (1, 2)]
+    grid = {"t0": "2024-03-01T00:00:00+00:00", "length_s": 1200.0, "step_s": 300.0}
+    table = set_grid(MODAL.validate(table), grid)
+    whole = write_table(table, tmp_path / "whole.parquet", MODAL)
+    parted = tmp_path / "state" / "tracked.parquet"
+    PartWriter(parted, MODAL, part_blocks=2).write(table)  # blocks 0-1 and block 2
+    assert len(list(parted.glob("part-*.parquet"))) == 2
+    read = read_modal_table(parted)
+    check(read)
+    pd.testing.assert_frame_equal(read, read_modal_table(whole))
+    assert read.attrs[GRID_ATTR] == read_modal_table(whole).attrs[GRID_ATTR] == grid

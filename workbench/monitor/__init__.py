@@ -18,8 +18,9 @@ half-written file. The tables that grow with the voyage (``tracked``, ``forecast
 that name holding one Parquet file per day of blocks (``part-000000.parquet`` the blocks
 of the first day, ...) and an index (``_parts.json``); an update rewrites only the parts
 whose rows changed (the newest day's, as a rule), so its cost does not grow with the
-voyage. ``data_contracts.read_table`` (and ``pandas.read_parquet``) read such a folder as
-the one table its parts make, in block order::
+voyage. ``data_contracts.read_table`` (and ``pandas.read_parquet``, and the commands
+taking ``--modal``: ``workbench forecast --modal STATE/tracked.parquet``) read such a
+folder as the one table its parts make, in block order::
 
     <state>/state_format.json    {"schema": "workbench.monitor.state/2"}: the folder's
                                  format; a folder without it (format 1, every table one
