@@ -277,4 +277,9 @@ def _cluster_rows(tracked: pd.DataFrame, poles: pd.DataFrame) -> set[int]:
 
 
 def _iso(time) -> str:
-    return pd.Timestamp(time).strftime("%Y-%m-%dT%H:%M:%SZ")
+    """*time* in UTC to the second, or to the millisecond when it falls between seconds
+    (a grid anchored at a recorder's stamp; else two times a few ms apart read alike)."""
+    time = pd.Timestamp(time)
+    if time.microsecond or time.nanosecond:
+        return time.strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z"
+    return time.strftime("%Y-%m-%dT%H:%M:%SZ")
