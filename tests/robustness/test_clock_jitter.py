@@ -137,6 +137,9 @@ def test_the_monitor_gives_the_blocks_identify_gives(voyages, tmp_path, capsys):
     assert (health["gap_seconds"] == 0).all()  # the health row sees the placed files
     notes = (state / "notes.txt").read_text(encoding="utf-8")
     assert "acc_003.npz: start re-timed by +25.0 ms to the previous file's end" in notes
+    # said once (main: twice, the files taken before the grid was fixed taken again)
+    assert notes.count("acc_003.npz: start re-timed") == 1
+    assert notes.count("acc_006.npz: start re-timed") == 1
     code, _, err = _identify(capsys, voyages["jitter"], tmp_path / "batch")
     assert code == 0, err
     assert_store_equals_identify(state, tmp_path / "batch")

@@ -237,6 +237,7 @@ class Monitor:
         #: and the placement that placed them (a newly taken file is placed on from it)
         self._placed_files: tuple[tuple, list[LandedFile], object] = ((), [], None)
         self._drift_noted: set[Path] = set()  # first files of the runs said to drift
+        self._retimed_noted: set[Path] = set()  # files said to be re-timed for jitter
         self.done: set[int] = set()
         #: Of the blocks this process decided (not those a restart found stored): how
         #: many were identified, and each skipped one as ``block``, ``files`` (names),
@@ -583,6 +584,9 @@ class Monitor:
         if not drifting:
             if abs(placed.clock_shift_s) <= 0.5 / placed.sampling_rate_hz:
                 return  # less than half a sample: on the previous file's lattice, unsaid
+            if item.path in self._retimed_noted:  # taken again once the grid was fixed
+                return
+            self._retimed_noted.add(item.path)
             self.messages.append(
                 f"{item.path.name}: start re-timed by {placed.clock_shift_s * 1e3:+.1f} ms to the "
                 f"previous file's end (clock jitter up to {CLOCK_JITTER_S * 1e3:g} ms is taken "
