@@ -87,7 +87,10 @@ def test_jittered_stamps_give_the_modes_of_the_clean_voyage(voyages, tmp_path, c
     notes = [line for line in out.splitlines() if line.startswith("clock jitter")]
     assert len(notes) == 1
     assert notes[0].startswith("clock jitter: 2 file start(s) re-timed to the previous file's")
-    assert notes[0].endswith("; mismatches up to 50 ms are taken as contiguous)")
+    assert notes[0].endswith(
+        "; a stamp within 50 ms of that end or of the line of the run's stamps on its sample "
+        "count is taken as contiguous)"
+    )
     largest_ms = float(notes[0].split("largest ")[1].split(" ms")[0])
     assert abs(largest_ms) == pytest.approx(25.0, abs=0.05)
 

@@ -589,8 +589,8 @@ class Monitor:
             self._retimed_noted.add(item.path)
             self.messages.append(
                 f"{item.path.name}: start re-timed by {placed.clock_shift_s * 1e3:+.1f} ms to the "
-                f"previous file's end (clock jitter up to {CLOCK_JITTER_S * 1e3:g} ms is taken "
-                "as contiguous)"
+                f"previous file's end (a stamp within {CLOCK_JITTER_S * 1e3:g} ms of that end "
+                "or of the line of the run's stamps on its sample count is taken as contiguous)"
             )
         elif first.path not in self._drift_noted:
             self._drift_noted.add(first.path)

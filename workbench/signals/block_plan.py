@@ -763,8 +763,9 @@ def clock_jitter_note(infos: Sequence[FileInfo]) -> str:
     largest = max(moved, key=lambda i: abs(i.clock_shift_s))
     return (
         f"clock jitter: {len(moved)} file start(s) re-timed to the previous file's end "
-        f"(largest {largest.clock_shift_s * 1e3:+.1f} ms, {largest.name}; mismatches up to "
-        f"{CLOCK_JITTER_S * 1e3:g} ms are taken as contiguous)"
+        f"(largest {largest.clock_shift_s * 1e3:+.1f} ms, {largest.name}; a stamp within "
+        f"{CLOCK_JITTER_S * 1e3:g} ms of that end or of the line of the run's stamps on its "
+        "sample count is taken as contiguous)"
     )
 
 
