@@ -88,7 +88,10 @@ def test_the_monitor_takes_the_rate_of_most_files_not_the_first(tmp_path, capsys
     # main: the voyage at 64 Hz, every good file "not used: sampling rate 32 Hz, not 64 Hz"
     assert health["status"].tolist() == ["ok"] * 4
     notes = (state / "notes.txt").read_text(encoding="utf-8")
-    assert "acc_000.npz: not used: sampling rate 64 Hz, not 32 Hz" in notes
+    assert (
+        "acc_000.npz: not used: sampling rate 64 Hz, not 32 Hz (the voyage's: that of most "
+        "files); its span is a gap"
+    ) in notes
     assert "acc_001.npz: not used" not in notes
     code, _, err = _identify(capsys, tmp_path / "watch", tmp_path / "batch")
     assert code == 0, err

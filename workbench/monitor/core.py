@@ -523,7 +523,10 @@ class Monitor:
                 lacking = ", ".join(c for c in voyage.channels if c not in info.channels)
                 extra = ", ".join(c for c in info.channels if c not in voyage.channels)
             if info.sampling_rate_hz != voyage.rate_hz:
-                reason = f"sampling rate {info.sampling_rate_hz:g} Hz, not {voyage.rate_hz:g} Hz"
+                reason = (
+                    f"sampling rate {info.sampling_rate_hz:g} Hz, not {voyage.rate_hz:g} Hz "
+                    "(the voyage's: that of most files); its span is a gap"
+                )
             elif channels:
                 reason = channels
             elif info.start_time < voyage.grid.t0 - half:
