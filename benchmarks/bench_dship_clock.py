@@ -151,14 +151,21 @@ def summary(table: pd.DataFrame) -> list[str]:
     return lines
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def voyages_root(description: str) -> Path:
+    """``--root`` of the command line (*description*: its help), with the voyages made
+    there (kept and reused)."""
+    parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--root", type=Path, required=True)
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     args.root.mkdir(parents=True, exist_ok=True)
     make_voyages(args.root)
-    print("\n".join(summary(check(args.root))))
+    return args.root
+
+
+def main() -> None:
+    root = voyages_root(__doc__.splitlines()[0])
+    print("\n".join(summary(check(root))))
 
 
 if __name__ == "__main__":

@@ -16,15 +16,13 @@ benchmarks/results/dship_clock_50.txt.
 
 from __future__ import annotations
 
-import argparse
 import re
 import time
-import warnings
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from bench_dship_clock import SHIFTS_H, VOYAGES, make_voyages
+from bench_dship_clock import SHIFTS_H, VOYAGES, voyages_root
 
 
 def _named_h(warning: str | None) -> float:
@@ -143,14 +141,9 @@ def summary(table: pd.DataFrame) -> list[str]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--root", type=Path, required=True)
-    args = parser.parse_args()
-    warnings.simplefilter("ignore")
-    args.root.mkdir(parents=True, exist_ok=True)
-    make_voyages(args.root)
-    print("\n".join(summary(replay(args.root))))
-    blocks, whole, recent = ten_days(args.root)
+    root = voyages_root(__doc__.splitlines()[0])
+    print("\n".join(summary(replay(root))))
+    blocks, whole, recent = ten_days(root)
     print(
         f"a check at day 10: {blocks} blocks (the newest 24 h), {whole:.4f} s with the 10-day "
         f"log, {recent:.4f} s with its last 2 days"

@@ -49,9 +49,9 @@ def test_an_exact_duplicate_is_left_out(tmp_path, capsys):
     np.testing.assert_allclose(modes["frequency_hz"], clean["frequency_hz"], rtol=0, atol=1e-12)
 
 
-def test_the_monitor_says_the_duplicate_as_identify_does(tmp_path, capsys):
-    files = write_voyage(tmp_path / "watch", n_files=5)
-    shutil.copy(files[2], tmp_path / "watch" / "acc_002_copy.npz")
+def _monitor_notes(tmp_path, capsys) -> str:
+    """``monitor --once`` over tmp_path/watch (4 blocks, all identified): its notes. On main
+    the duplicate's note was "acc_002_copy.npz: not used: overlaps acc_002.npz"."""
     state = tmp_path / "state"
     code = main(
         ["monitor", "--watch", str(tmp_path / "watch"), "--state", str(state), *MONITOR_ARGS]
@@ -60,8 +60,13 @@ def test_the_monitor_says_the_duplicate_as_identify_does(tmp_path, capsys):
     assert code == 0, captured.err
     health = pd.read_parquet(state / "data_health.parquet")
     assert health["status"].tolist() == ["ok"] * 4
-    notes = (state / "notes.txt").read_text(encoding="utf-8")
-    assert NOTE in notes  # main: "acc_002_copy.npz: not used: overlaps acc_002.npz"
+    return (state / "notes.txt").read_text(encoding="utf-8")
+
+
+def test_the_monitor_says_the_duplicate_as_identify_does(tmp_path, capsys):
+    files = write_voyage(tmp_path / "watch", n_files=5)
+    shutil.copy(files[2], tmp_path / "watch" / "acc_002_copy.npz")
+    assert NOTE in _monitor_notes(tmp_path, capsys)
 
 
 def test_two_different_files_for_one_span_are_an_error_naming_both(tmp_path, capsys):
@@ -97,13 +102,4 @@ def test_the_monitor_says_the_duplicate_of_a_re_timed_file_as_identify_does(tmp_
     code, out, err = _identify(capsys, tmp_path / "watch", tmp_path / "out")
     assert code == 0, err
     assert NOTE in out.splitlines()
-    state = tmp_path / "state"
-    code = main(
-        ["monitor", "--watch", str(tmp_path / "watch"), "--state", str(state), *MONITOR_ARGS]
-    )
-    captured = capsys.readouterr()
-    assert code == 0, captured.err
-    health = pd.read_parquet(state / "data_health.parquet")
-    assert health["status"].tolist() == ["ok"] * 4
-    notes = (state / "notes.txt").read_text(encoding="utf-8")
-    assert NOTE in notes  # main: "acc_002_copy.npz: not used: overlaps acc_002.npz"
+    assert NOTE in _monitor_notes(tmp_path, capsys)
