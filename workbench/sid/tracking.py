@@ -582,7 +582,7 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
     harmonic_labels: list[dict] = []
     if "harmonic" in table.columns:
         marked = table["harmonic"].notna()
-        # the share among the rows the ship log could check (all, without the column)
+        # the rows the ship log could check (all, without the column)
         checked = (
             table["harmonic_checked"].fillna(True).astype(bool)
             if "harmonic_checked" in table.columns
@@ -590,21 +590,22 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
         )
         by_label = table["mode"]
         n_checked = checked.groupby(by_label).sum()
-        rows = by_label.value_counts().reindex(n_checked.index)
+        n_rows = by_label.value_counts().reindex(n_checked.index)
+        n_marked_checked = (marked & checked).groupby(by_label).sum()
         share_all = marked.groupby(by_label).mean()
-        share_checked = (marked & checked).groupby(by_label).sum() / n_checked.where(n_checked > 0)
+        share_checked = n_marked_checked / n_checked.where(n_checked > 0)
         # a label seen mostly where the log fails: checked in less than a quarter of the
         # share of the voyage's blocks the log checked (a line that appears in an outage);
         # a mode seen throughout a voyage is checked as often as the voyage is
         voyage_checked = float(checked.groupby(table["block"]).any().mean())
-        in_outage = n_checked < _SEEN_AWAY * voyage_checked * rows
+        in_outage = n_checked < _SEEN_AWAY * voyage_checked * n_rows
         # the share that judges a label: of all its rows (the unchecked counted unmarked);
         # of its checked rows where they are enough to judge (_FOLLOW_ROWS, or all its
         # rows) or where the label is seen mostly in an outage. A few checked rows of a
         # mode seen throughout a voyage are no evidence: one whose log covers only the
         # last 45 min, where an order passes near it, is marked in 4 of 8 checked rows.
-        enough = n_checked >= np.minimum(_FOLLOW_ROWS, rows)
-        evidence = _wilson_lower((marked & checked).groupby(by_label).sum(), n_checked)
+        enough = n_checked >= np.minimum(_FOLLOW_ROWS, n_rows)
+        evidence = _wilson_lower(n_marked_checked, n_checked)
         share = np.maximum(share_all, share_checked.where(enough | in_outage).fillna(evidence))
         # most rows marked: a harmonic, unless the label is also seen away from the orders
         # in at least a quarter of its blocks and does not follow its order (a mode an
@@ -623,7 +624,7 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
             for label in share.index
             if label not in harmonic
             and in_outage[label]
-            and n_checked[label] < min(_FOLLOW_ROWS, _SEEN_AWAY * rows[label])
+            and n_checked[label] < min(_FOLLOW_ROWS, _SEEN_AWAY * n_rows[label])
         ]
         for label in [*harmonic, *unverified]:
             part = table[table["mode"] == label]
