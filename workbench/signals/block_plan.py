@@ -597,13 +597,6 @@ class FilePlacement:
         self.run_start = 0
         self._run: _ClockRun | None = None
 
-    def copy(self) -> FilePlacement:
-        """An independent placement of the same files (the list and the clock copied)."""
-        other = copy.copy(self)
-        other.files = list(self.files)
-        other._run = copy.copy(self._run)
-        return other
-
     @property
     def last_run_drifting(self) -> bool:
         """Whether the last run's clock drifts from its sample count by more than the
@@ -884,7 +877,21 @@ def plan_file_infos(
     grid = _resolve_grid(grid, length_s, step_s, infos[0].start_time)
     starts_ns = np.array([_ns(i.start_time) for i in infos], dtype=np.int64)
     ends_ns = np.array([_ns(i.end_time) for i in infos], dtype=np.int64)
-    half = pd.Timedelta(seconds=0.5 / rate)
+    numbers = placed_block_numbers(infos, grid)
+    planned = placed_blocks(infos, starts_ns, ends_ns, grid, numbers, max_gap_s=float(max_gap_s))
+    return BlockPlan(grid, tuple(infos), channels, rate, tuple(planned), float(max_gap_s))
+
+
+def placed_block_numbers(infos: Sequence[FileInfo], grid: BlockGrid) -> np.ndarray:
+    """The numbers of the blocks of *grid* lying inside the span of the placed files
+    *infos* (in time order), ascending, as :func:`plan_file_infos` lists them.
+
+    Raises
+    ------
+    OptionError
+        The span holds more than :data:`~workbench.blocks.MAX_BLOCKS` steps of the grid.
+    """
+    half = pd.Timedelta(seconds=0.5 / infos[0].sampling_rate_hz)
     span_s = (infos[-1].end_time - infos[0].start_time).total_seconds()
     if span_s / grid.step_s > MAX_BLOCKS:  # counted before any block is listed
         raise OptionError(
@@ -892,9 +899,38 @@ def plan_file_infos(
             f"files' {span_s / 3600:.3g} h; at most {MAX_BLOCKS} blocks: give a step of at "
             f"least {span_s / MAX_BLOCKS:.3g} s or fewer files"
         )
-    numbers = grid.complete_blocks(infos[0].start_time - half, infos[-1].end_time + half)
+    return grid.complete_blocks(infos[0].start_time - half, infos[-1].end_time + half)
+
+
+def placed_blocks(
+    infos: Sequence[FileInfo],
+    starts_ns: np.ndarray,
+    ends_ns: np.ndarray,
+    grid: BlockGrid,
+    blocks: Iterable[int],
+    *,
+    max_gap_s: float = 0.0,
+) -> list[PlannedBlock]:
+    """The planned blocks *blocks* of *grid* over files already placed and checked, as
+    :func:`plan_file_infos` plans them: each block's files and skip reason depend only on
+    the files, so a caller keeping the placed files (the monitor) plans the few blocks it
+    still has to decide at a cost that does not grow with the files' number.
+
+    Parameters
+    ----------
+    infos : sequence of FileInfo
+        The files as :func:`place_files` places them (in time order, one sampling rate).
+    starts_ns, ends_ns : ndarray of int64
+        Their start and end times. [ns since the epoch]
+    grid : BlockGrid
+    blocks : iterable of int
+        Block numbers among :func:`placed_block_numbers`, ascending.
+    max_gap_s : float
+        As :func:`plan_file_infos`'. [s]
+    """
+    rate = infos[0].sampling_rate_hz
     planned = []
-    for k in numbers:
+    for k in blocks:
         start, end = grid.start(int(k)), grid.end(int(k))
         indices, reason = _block_files_and_gap(
             infos, starts_ns, ends_ns, _ns(start), _ns(end), rate, float(max_gap_s)
@@ -902,7 +938,7 @@ def plan_file_infos(
         planned.append(
             PlannedBlock(int(k), start, end, tuple(infos[i].path for i in indices), reason)
         )
-    return BlockPlan(grid, tuple(infos), channels, rate, tuple(planned), float(max_gap_s))
+    return planned
 
 
 def plan_blocks(
