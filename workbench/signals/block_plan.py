@@ -72,6 +72,8 @@ __all__ = [
     "PlannedBlock",
     "clock_runs",
     "place_files",
+    "placed_block_numbers",
+    "placed_blocks",
     "sort_out_files",
     "plan_blocks",
     "read_file_info",
