@@ -37,6 +37,7 @@ from data_contracts import AccelerationRecord, read_accelerations
 from ..blocks import BlockGrid
 from ..errors import UnreadableInputError
 from .block_plan import (
+    CLOCK_JITTER_S,
     BlockPlan,
     FileInfo,
     PlannedBlock,
@@ -484,6 +485,7 @@ def load_block(
             _ns(end),
             plan.sampling_rate_hz,
             float(options.max_gap_s),
+            CLOCK_JITTER_S,
         )
         single = PlannedBlock(k, start, end, tuple(plan.files[i].path for i in indices), reason)
         plan = dataclasses.replace(plan, blocks=(single,))
