@@ -6,10 +6,13 @@ fast (file k stamped k * 300 s / (1 + ppm) after the first) plus a stamp jitter 
 +-J ms, over ``--seeds`` draws. Printed per jitter and ppm: the draws whose files are not
 one record (an "overlap" error, or a false gap), and, with ``--gap G``, the draws in which
 a real gap (G > 0) or overlap (G < 0) of G ms after the middle file is told (a gap, or the
-error naming that file). Run against two trees with PYTHONPATH to compare them.
+error naming that file); with ``--lost``, the middle file lost, the draws whose plan
+(20-min blocks every 5 min from the first stamp) keeps the last block, which the files'
+samples cover. Run against two trees with PYTHONPATH to compare them.
 
-Run: ``python benchmarks/bench_clock_drift.py --seeds 100`` and
-``python benchmarks/bench_clock_drift.py --seeds 50 --gap 250`` (seconds each).
+Run: ``python benchmarks/bench_clock_drift.py --seeds 100``,
+``python benchmarks/bench_clock_drift.py --seeds 50 --gap 250`` and
+``python benchmarks/bench_clock_drift.py --seeds 30 --lost`` (seconds each).
 """
 
 from __future__ import annotations
@@ -20,7 +23,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from workbench.signals.block_plan import FileInfo, place_files
+from workbench.blocks import BlockGrid
+from workbench.signals.block_plan import FileInfo, place_files, plan_file_infos
 
 RATE_HZ = 2048.0
 T0 = pd.Timestamp("2026-03-01T00:00:00Z")
@@ -49,19 +53,38 @@ def _outcome(infos, gap_ms: float) -> bool:
     return breaks != [] if not gap_ms else breaks == [middle]
 
 
+def _last_block_kept(infos) -> bool:
+    """With the middle file lost: whether the plan keeps the last block (not when the
+    record breaks: an "overlap" error)."""
+    n_files = len(infos)
+    kept = infos[: n_files // 2] + infos[n_files // 2 + 1 :]
+    try:
+        plan = plan_file_infos(kept, BlockGrid(kept[0].start_time, 1200.0, 300.0))
+    except ValueError:
+        return False
+    return plan.blocks[-1].block == n_files - 4
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=100)
     parser.add_argument("--files", type=int, default=96, help="5-min files (96: 8 h)")
     parser.add_argument("--gap", type=float, default=0.0, metavar="MS")
+    parser.add_argument("--lost", action="store_true", help="the middle file lost")
     args = parser.parse_args()
     ppms = (-100, -50, -20, 0, 20, 50, 100)
     what = f"real gap of {args.gap:+g} ms told" if args.gap else "record broken"
+    if args.lost:
+        what = "middle file lost, last block kept"
+
+    def outcome(infos) -> bool:
+        return _last_block_kept(infos) if args.lost else _outcome(infos, args.gap)
+
     print(f"{args.files} 5-min files at 2048 Hz, {args.seeds} draws each: {what}")
     for jitter in (0, 5, 10, 15, 20, 25):
         counts = [
             sum(
-                _outcome(_headers(args.files, ppm, jitter, seed, args.gap), args.gap)
+                outcome(_headers(args.files, ppm, jitter, seed, 0.0 if args.lost else args.gap))
                 for seed in range(args.seeds)
             )
             for ppm in ppms

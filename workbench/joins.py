@@ -18,6 +18,7 @@ import pandas as pd
 from data_contracts import PREDICTOR_KEYS
 
 from .errors import WorkbenchError
+from .signals.block_plan import CLOCK_JITTER_S
 
 __all__ = [
     "check_block_grid",
@@ -29,6 +30,12 @@ __all__ = [
 
 #: Block starts closer than this are the same time (CSV round trips keep microseconds). [s]
 _TIME_TOLERANCE_S = 1e-3
+#: Two tables' starts of a block closer than this are the same block: a grid anchored at a
+#: recorder's first stamp (``identify``'s) lies up to the clock jitter from one anchored at
+#: the true time (a simulator's truth, a table on whole minutes), as the placement takes
+#: stamps that close as contiguous (:data:`~workbench.signals.block_plan.CLOCK_JITTER_S`).
+#: A table of another voyage, day or block lies a step (minutes) or more away. [s]
+_BLOCK_TOLERANCE_S = CLOCK_JITTER_S
 
 
 def _varying(table: pd.DataFrame) -> bool:
@@ -57,8 +64,9 @@ def _starts(table: pd.DataFrame, centres: bool = False) -> pd.Series:
 def check_block_times(
     reference: pd.DataFrame, reference_name, other: pd.DataFrame, other_name
 ) -> None:
-    """Raise if *other* gives any block number another start time than *reference*, or if
-    the two tables have no block in common.
+    """Raise if *other* gives any block number another start time than *reference* (more
+    than the clock jitter apart, :data:`_BLOCK_TOLERANCE_S`), or if the two tables have no
+    block in common.
 
     Tables without a ``block_start`` column cannot be checked this way and pass.
 
@@ -84,7 +92,7 @@ def check_block_times(
             f"{int(ref.index.min())}..{int(ref.index.max())})"
         )
     delta = (oth[common] - ref[common]).dt.total_seconds().to_numpy()
-    off = np.abs(delta) > _TIME_TOLERANCE_S
+    off = np.abs(delta) > _BLOCK_TOLERANCE_S
     if not off.any():
         return
     first = common[np.flatnonzero(off)[0]]
@@ -93,7 +101,8 @@ def check_block_times(
     raise WorkbenchError(
         f"{other_name}: block {int(first)} {starts} {_iso(oth[first])}, but {_iso(ref[first])} "
         f"in {reference_name} ({int(off.sum())} of {len(common)} common blocks differ, first "
-        f"by {shift:+g} s): block numbers must mean the same times in every input"
+        f"by {shift:+g} s; starts within {_BLOCK_TOLERANCE_S:g} s, a recorder's clock "
+        "jitter, are the same): block numbers must mean the same times in every input"
     )
 
 

@@ -185,18 +185,53 @@ def test_a_real_gap_in_a_drifting_record_stays_a_gap(tmp_path, capsys):
     code, out, err = _identify(capsys, tmp_path / "acc", tmp_path / "out")
     assert code == 0, err
     blocks = pd.read_csv(tmp_path / "out" / "blocks.csv")
-    # acc_012 starts a new record at its stamp, 3602 s - 12 * 300 s * 20 ppm = 3601.928 s;
-    # the first record's sample count ends at 3600 s
+    # acc_012's stamp, 3602 s - 12 * 300 s * 20 ppm = 3601.928 s, lies 2 s after where
+    # the first record's clock (its stamps' line) puts the next file; the new record
+    # starts those 2 s of samples after the first record's sample count ends (3600 s), on
+    # the same time (before: at its stamp, the gap 72 ms short, "gap of 1.9 s")
     assert blocks["block"].tolist() == list(range(11))
     skipped = blocks.loc[blocks["status"] == "skipped"]
     assert skipped["block"].tolist() == [5, 6]  # 3000-4200 s and 3600-4800 s
-    # the gap as placed: the stamps' 2 s less the 72 ms the sample count ran ahead
-    assert skipped["reason"].iloc[0] == "gap of 1.9 s between acc_011.npz and acc_012.npz"
-    assert skipped["reason"].iloc[1].startswith("gap of 1.9 s between ")
+    assert skipped["reason"].iloc[0] == "gap of 2.0 s between acc_011.npz and acc_012.npz"
+    assert skipped["reason"].iloc[1].startswith("gap of 2.0 s between ")
     assert (blocks.loc[~blocks["block"].isin([5, 6]), "status"] == "ok").all()
     assert _drift_note(out).startswith(
         "clock drift: acc_000.npz .. acc_023.npz (24 files in 2 records): the sample clock "
         "runs +20.0 to +20.0 ppm from 128 Hz"
+    )
+
+
+@pytest.mark.parametrize("path", list(PATHS))
+def test_a_lost_file_in_a_drifting_record_keeps_the_last_block(clean_modes, tmp_path, capsys, path):
+    """40 ppm fast, acc_012.npz lost. Before, the record after the gap started at its
+    stamp, 13 * 300 s * 40 ppm = 156 ms before the first record's sample count would have
+    put it, so it ended 156 ms before the last block's end (7200 s): block 10 was neither
+    identified nor said (blocks 0-9). The clock line of the record before the gap carries
+    its time over the gap (its stamps lie on it to rounding): the record after the gap
+    follows on the samples the recorder counted, and every block it holds is the voyage's
+    without the drift."""
+    files = _write(tmp_path / "acc", _drifting(40))
+    files[12].unlink()
+    code, out, err = _identify(capsys, tmp_path / "acc", tmp_path / "out", PATHS[path])
+    assert code == 0, err
+    blocks = pd.read_csv(tmp_path / "out" / "blocks.csv")
+    assert blocks["block"].tolist() == list(range(11))  # main: 0-9
+    skipped = blocks.loc[blocks["status"] == "skipped"]
+    assert skipped["block"].tolist() == [5, 6]  # 3000-4200 s and 3600-4800 s
+    # the file's 300 s of samples (main: "gap of 299.8 s", the stamps' time)
+    assert set(skipped["reason"]) == {"gap of 300.0 s between acc_011.npz and acc_013.npz"}
+    modes, clean = _modes(tmp_path / "out"), clean_modes[path]
+    # block 4 ends with acc_011.npz, whose filters the file conditioner pads with the next
+    # file's raw edge: acc_012.npz in the voyage without the loss
+    other = [4, 5, 6] if path == "per-file" else [5, 6]
+    modes = modes[~modes["block"].isin(other)].reset_index(drop=True)
+    clean = clean[~clean["block"].isin(other)].reset_index(drop=True)
+    assert modes["block"].max() == 10
+    assert modes["block"].tolist() == clean["block"].tolist()
+    np.testing.assert_allclose(modes["frequency_hz"], clean["frequency_hz"], rtol=0, atol=1e-12)
+    assert _drift_note(out).startswith(
+        "clock drift: acc_000.npz .. acc_023.npz (23 files in 2 records): the sample clock "
+        "runs +40.0 to +40.0 ppm from 128 Hz"
     )
 
 
@@ -226,5 +261,24 @@ def test_the_monitor_gives_the_blocks_identify_gives(voyages, tmp_path, capsys):
     drift = [line for line in notes.splitlines() if "clock drift" in line]
     assert len(drift) == 1  # said once, when the record's drift is told apart from jitter
     code, out, err = _identify(capsys, voyages["20ppm+jitter"], tmp_path / "batch")
+    assert code == 0, err
+    assert_store_equals_identify(state, tmp_path / "batch")
+
+
+def test_the_monitor_keeps_the_last_block_after_a_lost_file_as_identify(tmp_path, capsys):
+    """The monitor places the files as identify does: block 10 (main: absent, as in
+    identify), the same modes."""
+    files = _write(tmp_path / "watch", _drifting(40))
+    files[12].unlink()
+    state = tmp_path / "state"
+    code = main(
+        ["monitor", "--watch", str(tmp_path / "watch"), "--state", str(state)] + MONITOR_ARGS
+    )
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    health = pd.read_parquet(state / "data_health.parquet").sort_values("block")
+    assert health["block"].tolist() == list(range(11))  # main: 0-9
+    assert health.loc[health["status"] == "skipped", "block"].tolist() == [5, 6]
+    code, out, err = _identify(capsys, tmp_path / "watch", tmp_path / "batch")
     assert code == 0, err
     assert_store_equals_identify(state, tmp_path / "batch")

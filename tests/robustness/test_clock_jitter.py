@@ -126,6 +126,34 @@ def test_a_gap_beyond_the_jitter_is_still_a_gap(tmp_path, capsys):
     assert "clock jitter" not in out
 
 
+@pytest.mark.parametrize("path", list(PATHS))
+def test_a_record_after_a_gap_stamped_early_keeps_its_last_block(tmp_path, capsys, path):
+    """acc_003.npz lost; the files after it stamped 30 ms early (within the clock jitter;
+    one sample at 32 Hz): the record after the gap ends 30 ms before the last block's end
+    (480 s). Before, that block was neither identified nor said (blocks 0-5); the stamps
+    place the record only to the jitter, so the block is the record's, its last 30 ms
+    NaN-padded and bridged."""
+    files = write_voyage(tmp_path / "acc", n_files=8)
+    files[3].unlink()
+    for path_ in files[4:]:
+        _restamp(path_, -30.0)
+    code, out, err = _identify(capsys, tmp_path / "acc", tmp_path / "out", PATHS[path])
+    assert code == 0, err
+    blocks = pd.read_csv(tmp_path / "out" / "blocks.csv", keep_default_na=False)
+    assert blocks["block"].tolist() == list(range(7))  # main: 0-5
+    assert blocks["status"].tolist() == ["ok", "ok", "skipped", "skipped", "ok", "ok", "ok"]
+    assert blocks["reason"][2] == "gap of 60.0 s between acc_002.npz and acc_004.npz"
+    assert blocks["reason"][3] == "gap of 60.0 s between acc_002.npz and acc_004.npz"
+    assert 6 in set(_modes(tmp_path / "out")["block"])
+    state = tmp_path / "state"
+    argv = ["monitor", "--watch", str(tmp_path / "acc"), "--state", str(state)]
+    assert main([*argv, *MONITOR_ARGS, *PATHS[path]]) == 0
+    capsys.readouterr()
+    health = pd.read_parquet(state / "data_health.parquet").sort_values("block")
+    assert health["block"].tolist() == list(range(7))  # main: 0-5
+    assert_store_equals_identify(state, tmp_path / "out")
+
+
 def test_the_monitor_gives_the_blocks_identify_gives(voyages, tmp_path, capsys):
     watch, state = tmp_path / "watch", tmp_path / "state"
     shutil.copytree(voyages["jitter"], watch)

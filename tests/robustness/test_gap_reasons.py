@@ -16,9 +16,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from workbench.blocks import BlockGrid
 from workbench.cli import main
+from workbench.signals import load_block
 
-from .voyage import IDENTIFY_ARGS, write_voyage
+from .voyage import IDENTIFY_ARGS, T0, write_voyage
 
 MONITOR_ARGS = [a for a in IDENTIFY_ARGS if a not in ("--scheduler", "synchronous")]
 MONITOR_ARGS += ["--late", "0", "--settle", "0", "--poll", "0.05", "--foreground", "--once"]
@@ -64,6 +66,37 @@ def test_a_hole_is_named_by_the_files_on_either_side(tmp_path, capsys, missing, 
     capsys.readouterr()
     health = pd.read_parquet(state / "data_health.parquet")
     assert health["reason"].tolist() == reasons
+
+
+@pytest.mark.parametrize(
+    ("missing", "reasons"),
+    [
+        ([2], ["gap of 60.0 s between acc_001.npz and acc_003.npz"] * 2),
+        (
+            [2, 3],
+            [
+                "gap of 60.0 s between acc_001.npz and acc_004.npz",
+                "no data (gap between acc_001.npz and acc_004.npz)",
+                "gap of 60.0 s between acc_001.npz and acc_004.npz",
+            ],
+        ),
+    ],
+    ids=["one file", "two files"],
+)
+def test_load_block_names_the_hole_as_the_plan_does(tmp_path, missing, reasons):
+    """The library's load_block given the voyage's files. Before, it planned only the
+    files touching the block: "gap of 60.0 s between acc_001.npz and the end of the data"
+    (block 1), "... between the start of the data and acc_003.npz" (block 2), and "outside
+    the span of the acceleration files" for block 2 wholly inside a 2-file hole."""
+    paths = write_voyage(tmp_path / "voyage", n_files=6)
+    for k in missing:
+        paths[k].unlink()
+    files = [p for p in paths if p.exists()]
+    grid = BlockGrid.from_first_time(T0, 120.0, 60.0)
+    got = [load_block(files, k, grid).skipped_reason for k in range(1, 2 + len(missing))]
+    assert got == reasons
+    assert load_block(files, 0, grid).skipped_reason == ""  # the blocks beside it are built
+    assert load_block(files, 2 + len(missing), grid).skipped_reason == ""
 
 
 def test_a_file_without_samples_is_named_unreadable_not_a_hole(tmp_path, capsys):

@@ -16,6 +16,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from data_contracts import AccelerationRecord, read_accelerations, write_accelerations
 from workbench.cli import main, parse_arguments
 from workbench.cli.monitoring import prepare_monitor
 from workbench.dashboard.server import make_server
@@ -32,11 +33,20 @@ def _status(state: Path) -> dict:
     return json.loads((state / "status.json").read_text(encoding="utf-8"))
 
 
-@pytest.fixture
-def gave_up(tmp_path):
-    """A monitor that decided blocks 2-3 without acc_003.npz, which landed afterwards."""
+def _give_up(tmp_path: Path, late_start_s: float = 0.0) -> tuple[Path, Path]:
+    """A monitor that decided the blocks over acc_003.npz without it, which landed
+    afterwards; acc_000.npz starts *late_start_s* after the minute (its first samples cut
+    off), so the grid, anchored at it, lies that far from the files after it."""
     source, watch, state = tmp_path / "source", tmp_path / "watch", tmp_path / "state"
     files = write_voyage(source, n_files=8)
+    if late_start_s:
+        record = read_accelerations(files[0])
+        cut = int(round(late_start_s * record.sampling_rate_hz))
+        start = record.start_time + pd.Timedelta(seconds=late_start_s)
+        first = AccelerationRecord(
+            record.acceleration[cut:], record.sampling_rate_hz, start, record.channels
+        )
+        write_accelerations(first, files[0])
     watch.mkdir()
     argv = ["monitor", "--watch", watch, "--state", state, *MONITOR_ARGS]
     monitor = prepare_monitor(parse_arguments([str(a) for a in argv]))
@@ -52,6 +62,12 @@ def gave_up(tmp_path):
     return watch, state
 
 
+@pytest.fixture
+def gave_up(tmp_path):
+    """A monitor that decided blocks 2-3 without acc_003.npz, which landed afterwards."""
+    return _give_up(tmp_path)
+
+
 def test_the_state_names_the_given_up_blocks_with_their_span(gave_up):
     watch, state = gave_up
     status = _status(state)
@@ -65,10 +81,29 @@ def test_the_state_names_the_given_up_blocks_with_their_span(gave_up):
             "reason": status["given_up"][0]["reason"],
         }
     ]
-    assert "gap" in status["given_up"][0]["reason"]
+    assert status["given_up"][0]["reason"] == (
+        "acc_003.npz (2026-03-01T00:03:00Z to 2026-03-01T00:04:00Z, 60.0 s between "
+        "acc_002.npz and acc_004.npz) landed after the late window: blocks 2-3 "
+        "(2026-03-01T00:02:00Z to 2026-03-01T00:05:00Z) were decided without it and given up"
+    )
     note = status["given_up_note"]
     assert note.startswith("2 block(s) given up, their files landed after the late window: 2-3")
     assert f"workbench identify {watch} --out DIR" in note
+
+
+def test_the_reason_names_the_missing_file_not_the_first_blocks_share_of_it(tmp_path):
+    """The grid anchored 0.5 s after the minute (acc_000.npz starts late): the hole of
+    acc_003.npz, 00:03:00 to 00:04:00, reaches 0.5 s into block 1 (00:01:00.5 to
+    00:03:00.5). Before, the reason was block 1's skip reason, "gap of 0.5 s between
+    acc_002.npz and acc_004.npz", for a hole of a whole file under blocks 1-3."""
+    _, state = _give_up(tmp_path, late_start_s=0.5)
+    (span,) = _status(state)["given_up"]
+    assert (span["first_block"], span["last_block"]) == (1, 3)
+    assert span["reason"] == (
+        "acc_003.npz (2026-03-01T00:03:00Z to 2026-03-01T00:04:00Z, 60.0 s between "
+        "acc_002.npz and acc_004.npz) landed after the late window: blocks 1-3 "
+        "(2026-03-01T00:01:00Z to 2026-03-01T00:05:00Z) were decided without it and given up"
+    )
 
 
 def test_the_given_up_blocks_are_exactly_what_batch_adds(gave_up, tmp_path):

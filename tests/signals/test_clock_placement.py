@@ -76,9 +76,40 @@ def test_a_gap_shorter_than_the_walk_is_a_gap_and_the_record_goes_on():
     ]
     placed = place_files(infos)  # main: acc_009.npz "overlapping or duplicate files"
     gap_s = (placed[48].start_time - placed[47].end_time).total_seconds()
-    assert gap_s == pytest.approx(0.250, abs=1e-6)
+    # on the sample count: the samples a clock 20 ppm fast counts in 250 ms
+    assert gap_s == pytest.approx(0.250 * (1 + 20e-6), abs=1e-6)
     assert _abut(placed[:48]) and _abut(placed[48:])
     assert [len(run.files) for run in clock_runs(placed)] == [48, 48]
+
+
+@pytest.mark.parametrize("ppm", [-40.0, 40.0])
+def test_a_lost_file_keeps_the_record_on_its_sample_count(ppm):
+    """File 24 of 48 lost (10 ms jitter): the files after it start where the recorder's
+    sample count puts them, to within their stamps' jitter and the line's error (2 ms
+    here), not at their stamps, 24 * 300 s * 40 ppm = 288 ms away from it (main: 288 ms +-
+    10 ms), and their record ends where the voyage's sample count does."""
+    for seed in range(5):
+        infos = _headers(ppm, 10.0, seed, n_files=48)
+        placed = place_files(infos[:24] + infos[25:])
+        assert [len(run.files) for run in clock_runs(placed)] == [24, 23]
+        counted = placed[0].start_time + pd.Timedelta(seconds=25 * 300.0)
+        assert abs((placed[24].start_time - counted).total_seconds()) < 0.012
+        end = placed[0].start_time + pd.Timedelta(seconds=48 * 300.0)
+        assert abs((placed[-1].end_time - end).total_seconds()) < 0.012
+
+
+def test_after_a_long_gap_a_record_starts_at_its_stamp():
+    """Two days after a 2-h record whose stamps scatter by up to 10 ms about their line:
+    the line's time there is uncertain by about 0.1 s (its rate by 0.6 ppm), more than the
+    jitter, so the record after the gap starts at its stamp, as every record did before."""
+    infos = _headers(40.0, 10.0, 0, n_files=48)
+    late = [
+        FileInfo(i.path, i.start_time + pd.Timedelta(days=2), RATE_HZ, N_SAMPLES, ("a",))
+        for i in infos[24:]
+    ]
+    placed = place_files(infos[:24] + late)
+    assert placed[24].start_time == late[0].start_time
+    assert placed[24].clock_shift_s == 0.0
 
 
 def test_an_overlap_in_a_drifting_record_names_the_file():

@@ -123,7 +123,11 @@ When is a block identified
   (skipped: gap), and a file landing later still is *not* used for them (a stored block is
   never redone) - blocks later in the record that it completes are identified normally.
   The blocks given up so, which ``workbench identify`` over the folder identifies, are
-  listed with their span in ``status.json`` (``given_up``; ``given_up_note`` says what to
+  listed with their span in ``status.json`` (``given_up``, whose ``reason`` names the
+  files that landed late, their span and the files either side, e.g. ``acc_003.npz
+  (2026-03-01T00:03:00Z to 2026-03-01T00:04:00Z, 60.0 s between acc_002.npz and
+  acc_004.npz) landed after the late window: blocks 2-3 (...) were decided without it and
+  given up``; ``given_up_note`` says what to
   run), on the dashboard's status line and in the command's last lines, also after a
   restart (:meth:`Monitor.given_up`). The last blocks of a record (waiting for a next
   file that does not come) are decided after ``flush_after_s`` without new files, or at

@@ -11,9 +11,11 @@ import json
 import logging
 import math
 import os
+import re
 import socket
 import threading
 import time
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from types import SimpleNamespace
@@ -1473,7 +1475,9 @@ class Monitor:
         -------
         list of dict
             ``first_block``, ``last_block``, ``start`` and ``end`` (UTC ISO-8601, the
-            span of the blocks) and ``reason`` (why the first was skipped then).
+            span of the blocks) and ``reason``: the files that filled the hole late (their
+            span, the files either side) and the blocks given up (the first block's skip
+            reason when it does not name the files either side of a hole).
         """
         key = (len(self.files), len(self._health_rows))
         if key == self._given_up[0]:
@@ -1500,6 +1504,7 @@ class Monitor:
                 if spans and spans[-1]["last_block"] == block - 1:
                     spans[-1]["last_block"] = block
                     spans[-1]["end"] = _iso(grid.end(block))
+                    spans[-1]["reasons"].append(missing[block])
                 else:
                     spans.append(
                         {
@@ -1507,9 +1512,12 @@ class Monitor:
                             "last_block": block,
                             "start": _iso(grid.start(block)),
                             "end": _iso(grid.end(block)),
-                            "reason": missing[block],
+                            "reasons": [missing[block]],
                         }
                     )
+            for span in spans:
+                reasons = span.pop("reasons")
+                span["reason"] = _given_up_reason(span, reasons, plan.files) or reasons[0]
         self._given_up = (key, spans)
         return spans
 
@@ -1752,6 +1760,50 @@ def _with_measures(outcome, measures: dict):
         }
     )
     return replaced(outcome, tables=tables)
+
+
+#: The files either side of a hole in a skip reason ("gap of 60.0 s between acc_002.npz
+#: and acc_004.npz", "no data (gap between acc_002.npz and acc_004.npz)").
+_HOLE = re.compile(r"between (?P<before>.+?) and (?P<after>.+?)\)?$")
+
+
+def _given_up_reason(span: dict, reasons: Sequence[str], files: Sequence) -> str:
+    """What a bridge engineer needs of a given-up *span* (``given_up``'s dict): the files
+    that filled its hole(s) late with their span and the files either side, and the
+    blocks given up; '' when the skip *reasons* do not name the files either side of a
+    hole. *files*: the placed headers of every file taken, in time order."""
+    names = [info.name for info in files]
+    sides = [_HOLE.search(reason) for reason in reasons]
+    if not all(sides):
+        return ""
+    holes, n_late = [], 0
+    for before, after in dict.fromkeys((side["before"], side["after"]) for side in sides):
+        first = names.index(before) + 1 if before in names else 0
+        last = names.index(after) if after in names else len(names)
+        inside = list(files[first:last])
+        if not inside:
+            return ""
+        n_late += len(inside)
+        what = (
+            inside[0].name
+            if len(inside) == 1
+            else f"{inside[0].name} .. {inside[-1].name} ({len(inside)} files)"
+        )
+        seconds = (inside[-1].end_time - inside[0].start_time).total_seconds()
+        holes.append(
+            f"{what} ({_iso(inside[0].start_time)} to {_iso(inside[-1].end_time)}, "
+            f"{seconds:.1f} s between {before} and {after})"
+        )
+    blocks = (
+        f"block {span['first_block']} ({span['start']} to {span['end']}) was"
+        if span["last_block"] == span["first_block"]
+        else f"blocks {span['first_block']}-{span['last_block']} ({span['start']} to "
+        f"{span['end']}) were"
+    )
+    return (
+        f"{'; '.join(holes)} landed after the late window: {blocks} decided without "
+        f"{'it' if n_late == 1 else 'them'} and given up"
+    )
 
 
 def _missing_data(reason: str) -> bool:

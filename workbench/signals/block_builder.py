@@ -37,6 +37,7 @@ from data_contracts import AccelerationRecord, read_accelerations
 from ..blocks import BlockGrid
 from ..errors import UnreadableInputError
 from .block_plan import (
+    CLOCK_JITTER_S,
     BlockPlan,
     FileInfo,
     PlannedBlock,
@@ -426,7 +427,8 @@ def load_block(
     ----------
     files : iterable of path-like or FileInfo
         The block's files (``PlannedBlock.files``) or any superset; only files overlapping
-        the block are read.
+        the block are read. With the files beyond it, a block over a hole names the files
+        on either side of the hole, as :func:`iter_blocks` does.
     block : int
         Block number on *grid*.
     grid : BlockGrid
@@ -453,15 +455,23 @@ def load_block(
     start, end = grid.start(k), grid.end(k)
     if not infos:
         return _skipped(PlannedBlock(k, start, end, ()), float("nan"), "no acceleration files")
-    # plan only the files touching the block (consistency checks included)
+    # plan only the files touching the block (consistency checks included), with the
+    # last file before it and the first after it: a gap at the block's edge, or a block
+    # inside a hole, is then named by the files on either side, as the full plan names it
     touching = [i for i in infos if i.start_time < end and i.end_time > start]
-    if not touching:
+    rate = (touching or infos)[0].sampling_rate_hz
+    before = [i for i in infos if i.end_time <= start and i.sampling_rate_hz == rate]
+    after = [i for i in infos if i.start_time >= end and i.sampling_rate_hz == rate]
+    if not touching and not (before and after):
         return _skipped(
-            PlannedBlock(k, start, end, ()),
-            infos[0].sampling_rate_hz,
-            "outside the span of the acceleration files",
+            PlannedBlock(k, start, end, ()), rate, "outside the span of the acceleration files"
         )
-    plan = plan_file_infos(touching, grid, max_gap_s=options.max_gap_s, channels=channels)
+    neighbours = [max(before, key=lambda i: i.end_time)] if before else []
+    neighbours += [min(after, key=lambda i: i.start_time)] if after else []
+    plan = plan_file_infos(
+        touching + neighbours, grid, max_gap_s=options.max_gap_s, channels=channels
+    )
+    plan = dataclasses.replace(plan, blocks=tuple(b for b in plan.blocks if b.block == k))
     if all(b.block != k for b in plan.blocks):
         # The block reaches past the touching files into an allowed gap (the next file
         # starts after the block's end): plan it on its own, as the full plan does.
@@ -475,6 +485,7 @@ def load_block(
             _ns(end),
             plan.sampling_rate_hz,
             float(options.max_gap_s),
+            CLOCK_JITTER_S,
         )
         single = PlannedBlock(k, start, end, tuple(plan.files[i].path for i in indices), reason)
         plan = dataclasses.replace(plan, blocks=(single,))

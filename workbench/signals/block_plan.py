@@ -25,7 +25,8 @@ least-squares line of the run's stamps on its sample count (:func:`place_files`,
 :func:`clock_runs`, :func:`clock_drift_note`). A longer gap is a gap; a longer overlap an
 error. A block that
 overlaps a gap is **skipped** with the reason (``"gap of 42.0 s between acc_a.npz and
-acc_b.npz"``), unless the gap's part inside the block is at most ``max_gap_s``: then the
+acc_b.npz"``), unless the gap's part inside the block is at most ``max_gap_s`` (or, at
+the block's start or end, the clock jitter: a record after a gap is placed only to it): then the
 gap is filled with NaN, which the NaN policy bridges by interpolation -- so ``max_gap_s``
 should not exceed the faulty-channel ``max_nan_run_s`` (default 10 s), or every channel of
 the block would be dropped. Files that overlap in time, differ in channel set or in
@@ -507,6 +508,24 @@ class _ClockRun:
         the run's stamps: they are then judged against the line alone."""
         return self.walk_s() > 0.5 * clock_jitter_s
 
+    def sample_count_gap_s(self, offset_s: float, clock_jitter_s: float) -> float | None:
+        """A gap of *offset_s* after the line's time at the run's end (a stamp that far
+        after where the run's clock puts its next file) in the run's sample count: the
+        samples the recorder would have counted in it, offset_s / (1 + beta) [s]; None
+        when the line cannot carry the record's time over the gap: the run does not
+        drift (its stamps are the time), or the line's time at the stamp is uncertain by
+        more than half the clock jitter (twice its standard error from the stamps'
+        scatter, which grows with the gap)."""
+        if not self.drifting(clock_jitter_s):
+            return None
+        mean_x, _, sxx, sxy, syy = self._moments()
+        beta = sxy / sxx
+        scatter = math.sqrt(max(syy - beta * sxy, 0.0) / (self.n - 2))
+        gap_x = offset_s / (1 + beta)
+        x = self.samples / self.rate + gap_x
+        error_s = scatter * math.sqrt(1 / self.n + (x - mean_x) ** 2 / sxx)
+        return gap_x if 2 * error_s <= 0.5 * clock_jitter_s else None
+
     def offsets_s(self, info: FileInfo, previous: FileInfo, clock_jitter_s: float) -> list[float]:
         """How far *info*'s stamp lies after where the run's clock puts its next file [s]:
         after the line's time at the run's sample count, once the run drifts; before, after
@@ -558,11 +577,16 @@ def place_files(
     *clock_jitter_s* over the run, beyond twice its standard error (from the stamps'
     scatter about it), a stamp is judged against the line alone. Before, the run's few
     stamps cannot yet tell a drift from jitter: a stamp within *clock_jitter_s* of the
-    sample count (the previous file's placed end) or of the line is contiguous. A stamp more than *clock_jitter_s* after the
-    clock is a gap: the file starts a new run at its stamp (or, when the run's placed end
-    has walked past that stamp, the gap after the placed end); more than *clock_jitter_s*
-    before it, an error. Files already placed (their start at the previous placed end)
-    come back unchanged; a file's stamp is its start less ``clock_shift_s``.
+    sample count (the previous file's placed end) or of the line is contiguous.
+
+    A stamp more than *clock_jitter_s* after the clock is a gap: the file starts a new run.
+    After a drifting run, where the run's line puts the stamp on the sample count (the gap
+    in the samples the recorder counted, offset / (1 + beta)), so that the runs share one
+    time, while the line's time there is uncertain by at most half of *clock_jitter_s*;
+    else at its stamp (or, when the run's placed end has walked past that stamp, the gap
+    after the placed end). More than *clock_jitter_s* before the clock is an error. Files
+    already placed (their start at the previous placed end, or a run's first file placed
+    after a gap) come back unchanged; a file's stamp is its start less ``clock_shift_s``.
 
     Raises
     ------
@@ -643,6 +667,11 @@ class FilePlacement:
             run.add(info)
             return info, run
         half_s = 0.5 / run.rate
+        if info.clock_shift_s and (info.start_time - previous.end_time).total_seconds() > half_s:
+            # placed before as a new run after a gap (a plan's header, some of a voyage's
+            # files planned again): where it was placed, which these files' clock alone
+            # may not carry over the gap
+            return info, _ClockRun(info, run.rate)
         mismatch_s = (info.start_time - previous.end_time).total_seconds()
         offsets_s = run.offsets_s(info, previous, clock_jitter_s)
         offset_s = offsets_s[0]
@@ -657,10 +686,16 @@ class FilePlacement:
             return info, run
         if offset_s < 0:
             raise FileOverlapError(info, previous, -offset_s)
-        # a gap: a new run at the file's stamp, unless that is not after the end
+        # a gap: a new run, on the record's sample count where the run's clock carries
+        # it over the gap, else at the file's stamp unless that is not after the end
         stamp = info.start_time - pd.Timedelta(seconds=info.clock_shift_s)
         start = stamp
-        if (stamp - previous.end_time).total_seconds() < max(clock_jitter_s, half_s):
+        gap_s = run.sample_count_gap_s(offset_s, clock_jitter_s)
+        if gap_s is not None:
+            # a drifting clock: the blocks after the gap stay on the time of those before
+            # it (the samples the recorder counted through the gap), not a walk apart
+            start = previous.end_time + pd.Timedelta(seconds=gap_s)
+        elif (stamp - previous.end_time).total_seconds() < max(clock_jitter_s, half_s):
             # the run's sample count walked past the stamp: the gap after its end
             start = previous.end_time + pd.Timedelta(seconds=offset_s)
         if start != info.start_time:
@@ -822,8 +857,13 @@ def _block_files_and_gap(
     end: int,
     rate: float,
     max_gap_s: float,
+    edge_s: float = 0.0,
 ) -> tuple[list[int], str]:
-    """Indices of the files overlapping [start, end) ns, and a skip reason ("" if none)."""
+    """Indices of the files overlapping [start, end) ns, and a skip reason ("" if none).
+
+    A stretch of the block before its first file or after its last of at most *edge_s*
+    (the clock jitter, within which the stamps place a record after a gap) is covered
+    (NaN-padded), as a gap of at most *max_gap_s* anywhere in the block."""
     half = int(0.5 / rate * _NS)
     first = int(np.searchsorted(ends_ns, start + half, side="right"))
     last = int(np.searchsorted(starts_ns, end - half, side="left"))
@@ -838,12 +878,15 @@ def _block_files_and_gap(
     edges = [(start, starts_ns[first_i], first_i - 1, first_i)]
     edges += [(ends_ns[i], starts_ns[i + 1], i, i + 1) for i in indices[:-1]]
     edges += [(ends_ns[last_i], end, last_i, last_i + 1)]
-    for gap_start, gap_end, a, b in edges:
+    for k, (gap_start, gap_end, a, b) in enumerate(edges):
         inside = min(gap_end, end) - max(gap_start, start)
         if inside <= half:
             continue
         inside_s = inside / _NS
-        if inside_s > max_gap_s + 0.5 / rate:
+        allowed_s = max_gap_s + 0.5 / rate
+        if k in (0, len(edges) - 1):  # at the block's start or end
+            allowed_s = max(allowed_s, edge_s)
+        if inside_s > allowed_s:
             left = infos[a].name if a >= 0 else "the start of the data"
             right = infos[b].name if b < len(infos) else "the end of the data"
             return indices, f"gap of {inside_s:.1f} s between {left} and {right}"
@@ -879,14 +922,25 @@ def plan_file_infos(
     grid = _resolve_grid(grid, length_s, step_s, infos[0].start_time)
     starts_ns = np.array([_ns(i.start_time) for i in infos], dtype=np.int64)
     ends_ns = np.array([_ns(i.end_time) for i in infos], dtype=np.int64)
-    numbers = placed_block_numbers(infos, grid)
-    planned = placed_blocks(infos, starts_ns, ends_ns, grid, numbers, max_gap_s=float(max_gap_s))
+    numbers = placed_block_numbers(infos, grid, clock_jitter_s)
+    planned = placed_blocks(
+        infos,
+        starts_ns,
+        ends_ns,
+        grid,
+        numbers,
+        max_gap_s=float(max_gap_s),
+        clock_jitter_s=clock_jitter_s,
+    )
     return BlockPlan(grid, tuple(infos), channels, rate, tuple(planned), float(max_gap_s))
 
 
-def placed_block_numbers(infos: Sequence[FileInfo], grid: BlockGrid) -> np.ndarray:
+def placed_block_numbers(
+    infos: Sequence[FileInfo], grid: BlockGrid, clock_jitter_s: float = CLOCK_JITTER_S
+) -> np.ndarray:
     """The numbers of the blocks of *grid* lying inside the span of the placed files
-    *infos* (in time order), ascending, as :func:`plan_file_infos` lists them.
+    *infos* (in time order), or missing at most *clock_jitter_s* of it at the span's start
+    or end, ascending, as :func:`plan_file_infos` lists them.
 
     Raises
     ------
@@ -901,7 +955,10 @@ def placed_block_numbers(infos: Sequence[FileInfo], grid: BlockGrid) -> np.ndarr
             f"files' {span_s / 3600:.3g} h; at most {MAX_BLOCKS} blocks: give a step of at "
             f"least {span_s / MAX_BLOCKS:.3g} s or fewer files"
         )
-    return grid.complete_blocks(infos[0].start_time - half, infos[-1].end_time + half)
+    # a block the record misses by at most the clock jitter at its start or end is the
+    # record's: its placement after a gap is only known to that (its stamp's jitter)
+    edge = max(half, pd.Timedelta(seconds=clock_jitter_s))
+    return grid.complete_blocks(infos[0].start_time - edge, infos[-1].end_time + edge)
 
 
 def placed_blocks(
@@ -912,6 +969,7 @@ def placed_blocks(
     blocks: Iterable[int],
     *,
     max_gap_s: float = 0.0,
+    clock_jitter_s: float = CLOCK_JITTER_S,
 ) -> list[PlannedBlock]:
     """The planned blocks *blocks* of *grid* over files already placed and checked, as
     :func:`plan_file_infos` plans them: each block's files and skip reason depend only on
@@ -927,7 +985,7 @@ def placed_blocks(
     grid : BlockGrid
     blocks : iterable of int
         Block numbers among :func:`placed_block_numbers`, ascending.
-    max_gap_s : float
+    max_gap_s, clock_jitter_s : float
         As :func:`plan_file_infos`'. [s]
     """
     rate = infos[0].sampling_rate_hz
@@ -935,7 +993,14 @@ def placed_blocks(
     for k in blocks:
         start, end = grid.start(int(k)), grid.end(int(k))
         indices, reason = _block_files_and_gap(
-            infos, starts_ns, ends_ns, _ns(start), _ns(end), rate, float(max_gap_s)
+            infos,
+            starts_ns,
+            ends_ns,
+            _ns(start),
+            _ns(end),
+            rate,
+            float(max_gap_s),
+            float(clock_jitter_s),
         )
         planned.append(
             PlannedBlock(int(k), start, end, tuple(infos[i].path for i in indices), reason)
@@ -976,7 +1041,9 @@ def plan_blocks(
     Returns
     -------
     BlockPlan
-        Every block of the grid lying entirely inside the span of the files.
+        Every block of the grid lying entirely inside the span of the files, or missing
+        at most *clock_jitter_s* of it at the span's start or end (those samples
+        NaN-padded: the stamps place a record only to the jitter).
 
     Raises
     ------
