@@ -56,6 +56,7 @@ import uuid
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from stat import S_ISREG
 
 import numpy as np
 import pandas as pd
@@ -99,6 +100,18 @@ _HELD: dict[str, list] = {}
 #: neighbours may place two files up to twice that apart. A changed file overlaps its
 #: recorded span by nearly its whole length. [ns]
 _SPAN_TOLERANCE_NS = 100_000_000
+
+
+def _file_version(path: Path) -> tuple[int, int, int] | None:
+    """(inode, size, modification time [ns]) of the regular file *path*, None if there is
+    none: a file rewritten (atomically: a new inode) has another version."""
+    try:
+        stat = path.stat()
+    except OSError:
+        return None
+    if not S_ISREG(stat.st_mode):
+        return None
+    return (stat.st_ino, stat.st_size, stat.st_mtime_ns)
 
 
 def _ns(times) -> np.ndarray:
@@ -300,6 +313,11 @@ class BlockStore:
     _owners_cache: dict | None = field(default=None, repr=False, compare=False)
     #: The manifest: batch -> relative path -> ``{"size", "sha256", "blocks"}``.
     _manifest: dict[str, dict[str, dict]] = field(default_factory=dict, repr=False, compare=False)
+    #: inputs.json as :meth:`check_inputs` last read or wrote it: the file's version
+    #: (inode, size, mtime), its content, the recorded contents and their spans [ns]; a
+    #: monitor checks every landed file, and a long voyage's fingerprints are not parsed
+    #: again for each
+    _inputs_cache: tuple | None = field(default=None, repr=False, compare=False)
 
     def close(self) -> None:
         """Release the store's lock (results stay on disk)."""
@@ -424,10 +442,16 @@ class BlockStore:
             Naming the changed file, when the stored results cannot be reused.
         """
         path = self.root / _INPUTS
+        content: dict = {}
         recorded: list[dict] = []
-        if path.is_file():
+        version = _file_version(path)
+        cache = self._inputs_cache
+        if version is not None and cache is not None and cache[0] == version:
+            content, recorded, known, lows, highs = cache[1:]
+        elif version is not None:
             try:
-                recorded = json.loads(path.read_text(encoding="utf-8"))["files"]
+                content = json.loads(path.read_text(encoding="utf-8"))
+                recorded = content["files"]
                 known = {r["sha256"] for r in recorded}
                 lows = _ns([r["start"] for r in recorded])
                 highs = _ns([r["end"] for r in recorded])
@@ -435,10 +459,11 @@ class BlockStore:
                 raise unreadable_store_file(self.root, _INPUTS, error) from None
         else:
             known, lows, highs = set(), np.empty(0, np.int64), np.empty(0, np.int64)
-        new = []
+        new: list[dict] = []
+        added: set[str] = set()
         for item in fingerprints:
             item = dict(item)
-            if item["sha256"] in known:
+            if item["sha256"] in known or item["sha256"] in added:
                 continue
             start, end = (int(v) for v in _ns([item["start"], item["end"]]))
             # spans sharing more than rounding and clock jitter (0.1 s) hold other data
@@ -454,9 +479,19 @@ class BlockStore:
                     "--store or delete this one"
                 )
             new.append(item)
-            known.add(item["sha256"])
-        if new or not path.is_file():
-            self._write_inputs(recorded + new)
+            added.add(item["sha256"])
+        if new or version is None:
+            try:  # the unreadable files kept, as unreadable_files reads them
+                unreadable = [str(p) for p in content.get("unreadable", [])]
+            except (TypeError, AttributeError) as error:
+                raise unreadable_store_file(self.root, _INPUTS, error) from None
+            recorded = recorded + new
+            content = {"files": recorded, "unreadable": unreadable}
+            self._write_inputs(recorded, unreadable)
+            known.update(added)
+            lows = np.append(lows, _ns([r["start"] for r in new]))
+            highs = np.append(highs, _ns([r["end"] for r in new]))
+        self._inputs_cache = (_file_version(path), content, recorded, known, lows, highs)
 
     def recorded_inputs(self) -> list[dict]:
         """The input files the stored results came from (their fingerprints)."""

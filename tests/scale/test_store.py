@@ -185,3 +185,47 @@ def test_read_chunks_streams_block_order_from_unordered_batches(tmp_path):
     streamed = pd.concat(chunks, ignore_index=True)
     pd.testing.assert_frame_equal(streamed, store.read("poles"))
     assert (streamed.groupby("block")["model_order"].apply(list) == [[2, 4]] * 10).all()
+
+
+def _fingerprint(k: int, sha: str | None = None) -> dict:
+    start = pd.Timestamp("2026-03-01T00:00:00Z") + pd.Timedelta(seconds=300 * k)
+    return {
+        "path": f"/watch/acc_{k:03d}.npz",
+        "start": start.isoformat(),
+        "end": (start + pd.Timedelta(seconds=300)).isoformat(),
+        "size": 1000,
+        "mtime_ns": k,
+        "sha256": sha or f"{k:064x}",
+    }
+
+
+def test_inputs_checked_one_file_at_a_time_as_checked_all_at_once(tmp_path):
+    # the monitor checks each landed file: the store keeps inputs.json as it last read or
+    # wrote it instead of parsing every file's fingerprint again; the file written, and a
+    # changed input's refusal, are those of one check of all files
+    one = BlockStore.open(tmp_path / "one", {})
+    for k in range(40):
+        one.check_inputs([_fingerprint(k)])
+        one.check_inputs([_fingerprint(k // 2)])  # a file taken again: nothing written
+    whole = BlockStore.open(tmp_path / "whole", {})
+    whole.check_inputs([_fingerprint(k) for k in range(40)])
+    assert (tmp_path / "one" / "inputs.json").read_bytes() == (
+        tmp_path / "whole" / "inputs.json"
+    ).read_bytes()
+    with pytest.raises(WorkbenchError, match="acc_007.npz: input changed since the store"):
+        one.check_inputs([_fingerprint(7, sha="e" * 64)])
+    assert len(one.recorded_inputs()) == 40
+
+
+def test_inputs_rewritten_since_the_last_check_are_read_again(tmp_path):
+    store = BlockStore.open(tmp_path, {})
+    store.check_inputs([_fingerprint(k) for k in range(5)])
+    changed = _fingerprint(3, sha="e" * 64)
+    store.forget_inputs([_fingerprint(3)])  # another writer of inputs.json: read again
+    store.check_inputs([changed])
+    assert [r["sha256"] for r in store.recorded_inputs()][-1] == "e" * 64
+    store.set_unreadable_files(["/watch/bad.npz"])
+    store.check_inputs([_fingerprint(9)])  # the unreadable files are kept
+    assert store.unreadable_files() == ["/watch/bad.npz"]
+    with pytest.raises(WorkbenchError, match="acc_003.npz: input changed"):
+        store.check_inputs([_fingerprint(3)])

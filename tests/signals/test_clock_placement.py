@@ -131,6 +131,7 @@ def test_a_placement_resumed_file_by_file_equals_the_whole_placement(ppm, gap_s)
     # the monitor places each newly landed file on from the placement of those before it
     # (FilePlacement) instead of placing every file again: the same headers, the same error
     from workbench.monitor.core import Monitor
+    from workbench.monitor.taken import TakenFiles
     from workbench.monitor.watcher import LandedFile
     from workbench.signals.block_plan import FilePlacement
 
@@ -159,10 +160,10 @@ def test_a_placement_resumed_file_by_file_equals_the_whole_placement(ppm, gap_s)
     assert tuple(resumed) == whole
     # the monitor's placed headers, files taken one at a time, equal the whole placement
     monitor = Monitor.__new__(Monitor)
-    monitor.files, monitor._placed_files = [], ((), [], None)
+    monitor.files = TakenFiles()
     landed = pd.Timestamp("2026-03-01T06:00:00Z")
     for info in infos:
-        monitor.files.append(LandedFile(info, landed, 0, 0))
+        monitor.files.add(LandedFile(info, landed, 0, 0))
         monitor._placed()
     assert tuple(f.info for f in monitor._placed()) == whole
     runs = clock_runs(whole)

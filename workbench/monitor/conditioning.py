@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import pandas as pd
@@ -55,7 +55,15 @@ class SharedConditioner(FileConditioner):
 
 
 def block_conditioner(
-    infos: Sequence, planned, grid, channels, options, *, shared: dict, counter: list
+    infos: Sequence,
+    position: Callable[[Path], int | None],
+    planned,
+    grid,
+    channels,
+    options,
+    *,
+    shared: dict,
+    counter: list,
 ) -> SharedConditioner:
     """The conditioner of one planned block: its files and one neighbour on each side
     (whose raw edges pad the conditioning exactly as in a batch run).
@@ -64,6 +72,9 @@ def block_conditioner(
     ----------
     infos : sequence of FileInfo
         Headers of every file taken so far, in time order.
+    position : callable
+        A file's index in *infos* by its path (None for a file not among them); the
+        monitor keeps them (:meth:`~workbench.monitor.taken.TakenFiles.placed_index`).
     planned : PlannedBlock
         The block (its ``files``).
     grid, channels, options
@@ -71,8 +82,7 @@ def block_conditioner(
     shared, counter
         See :class:`SharedConditioner`.
     """
-    position = {info.path: i for i, info in enumerate(infos)}
-    used = [position[Path(p)] for p in planned.files if Path(p) in position]
+    used = [i for i in (position(Path(p)) for p in planned.files) if i is not None]
     if used:
         lo, hi = max(min(used) - 1, 0), min(max(used) + 2, len(infos))
     else:

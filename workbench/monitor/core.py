@@ -58,6 +58,7 @@ from .outlook import (
 from .readiness import settled
 from .shore import AlarmHook
 from .state_format import check_state_format
+from .taken import TakenFiles
 from .tracking import IncrementalTracking, LabelsUnreadable
 from .watcher import FolderWatcher, LandedFile
 
@@ -234,13 +235,13 @@ class Monitor:
         self.stop_event = threading.Event()
         self.voyage: _Voyage | None = None
         self.store: BlockStore | None = None
-        self.files: list[LandedFile] = []
-        #: the files' headers as placed (:meth:`_placed`), with the starts they came from
-        #: and the placement that placed them (a newly taken file is placed on from it)
-        self._placed_files: tuple[tuple, list[LandedFile], object] = ((), [], None)
+        #: the files taken, in time order, and as placed (:meth:`_placed`): a newly taken
+        #: file is placed on from the placement of those before it
+        self.files = TakenFiles()
         self._drift_noted: set[Path] = set()  # first files of the runs said to drift
         self._retimed_noted: set[Path] = set()  # files said to be re-timed for jitter
         self.done: set[int] = set()
+        self._done_below = 0  # every block before it is in done (see _first_undecided)
         #: Of the blocks this process decided (not those a restart found stored): how
         #: many were identified, and each skipped one as ``block``, ``files`` (names),
         #: ``reason`` and ``faults`` (the dropped channels' reasons), what
@@ -561,9 +562,8 @@ class Monitor:
                 f"{item.path.name}: channel(s) {extra} not among the voyage's (those most "
                 "files carried when the monitor started); left out"
             )
-        self.files.append(item)
+        self.files.add(item)
         self._last_taken = (item.path.name, pd.Timestamp.now(tz="UTC"))
-        self.files.sort(key=lambda f: (f.info.start_time, str(f.path)))
         if placed.clock_shift_s:
             self._note_clock(item, placed)
         self._dirty = True
@@ -577,7 +577,7 @@ class Monitor:
         from ..signals.block_plan import CLOCK_JITTER_S, clock_drift_note, clock_runs
 
         files = self._placed()
-        placement = self._placed_files[2]
+        placement = self.files.placement()
         if files and files[-1].path == item.path:  # the newest file: its run is the last
             first = placement.files[placement.run_start]
             drifting = placement.last_run_drifting
@@ -607,22 +607,7 @@ class Monitor:
         """The files taken, each with its header as a plan places it (re-timed for clock
         jitter, :func:`~workbench.signals.block_plan.place_files`), as identify places the
         same files: the blocks are cut, conditioned and checked from these times."""
-        from ..signals.block_plan import FilePlacement
-
-        key = tuple((f.path, f.info.start_time) for f in self.files)
-        placed_key, files, placement = self._placed_files
-        if placed_key != key:
-            n = len(placed_key)
-            if placement is not None and 0 < n < len(key) and key[:n] == placed_key:
-                # files taken after those placed (the usual case): placed on from them, at
-                # a cost that does not grow with the voyage (place_files' loop, resumed)
-                placement = placement.copy()
-                files = files + [replace(f, info=placement.add(f.info)) for f in self.files[n:]]
-            else:
-                placement = FilePlacement()
-                files = [replace(f, info=placement.add(f.info)) for f in self.files]
-            self._placed_files = (key, files, placement)
-        return self._placed_files[1]
+        return self.files.placed()  # placed on from the files placed before (TakenFiles)
 
     def _placed_among(self, info) -> tuple[str, object]:
         """:func:`_placed_among` of *info* among the files taken; a file landing after all
@@ -630,8 +615,7 @@ class Monitor:
         from ..signals.block_plan import FileOverlapError, duplicate_reason
 
         if self.voyage is not None and self.files:  # the files taken share the voyage's rate
-            self._placed()
-            placement = self._placed_files[2]
+            placement = self.files.placement()
             last = self.files[-1].info
             if info.sampling_rate_hz == self.voyage.rate_hz and (
                 info.start_time,
@@ -747,45 +731,54 @@ class Monitor:
             self.messages.append(notice)
             log.warning("%s", notice)
         self.done = self.store.completed_blocks()
+        self._done_below = 0
         # files taken before the voyage was fixed are checked now
-        files, self.files = self.files, []
-        for item in files:
+        for item in self.files.clear():
             self._take(item)
         self._resume()
         return True
 
     # ------------------------------------------------------------------ readiness
     def _coverage(self) -> tuple[np.ndarray, np.ndarray]:
-        files = self._placed()
-        starts = np.array([f.info.start_time.value for f in files], dtype=np.int64)
-        ends = np.array([f.info.end_time.value for f in files], dtype=np.int64)
-        return starts, ends
+        return self.files.coverage()
+
+    def _first_undecided(self) -> int:
+        """The first block not decided (every block before it is)."""
+        while self._done_below in self.done:
+            self._done_below += 1
+        return self._done_below
 
     def _ready_blocks(self, flush: bool):
         """Blocks not yet decided whose data (and, when decimating, whose neighbouring
         files) can no longer change, ascending."""
-        from ..signals.block_plan import plan_file_infos
+        from ..signals.block_plan import placed_block_numbers, placed_blocks
 
         if not self.files:
             return []
         voyage = self.voyage
         if voyage.lengths is not None:
             return self._ready_adaptive(flush)
-        plan = plan_file_infos(
-            [f.info for f in self._placed()],
-            voyage.grid,
-            max_gap_s=voyage.options.max_gap_s,
-            channels=voyage.channels,
-        )
+        # the blocks a plan of the files placed lists, those not decided only: each
+        # block's plan depends on the files alone (the files were checked as taken)
+        infos = self.files.placed_infos()
         starts, ends = self._coverage()
+        numbers = placed_block_numbers(infos, voyage.grid)
+        numbers = numbers[numbers >= self._first_undecided()]
+        plan = placed_blocks(
+            infos,
+            starts,
+            ends,
+            voyage.grid,
+            [k for k in numbers.tolist() if k not in self.done],
+            max_gap_s=voyage.options.max_gap_s,
+        )
         newest = int(ends.max())
         ready = [
             planned
-            for planned in plan.blocks
-            if planned.block not in self.done
-            and (flush or self._settled(planned, voyage.per_file, starts, ends, newest))
+            for planned in plan
+            if flush or self._settled(planned, voyage.per_file, starts, ends, newest)
         ]
-        self._plan = plan
+        self._plan = SimpleNamespace(blocks=plan)
         return ready
 
     def _settled(self, planned, per_file: bool, starts, ends, newest: int) -> bool:
@@ -810,7 +803,7 @@ class Monitor:
         (:class:`~workbench.monitor.adaptive.AdaptiveLengths`), and those of them whose
         data (and, when decimating, whose neighbouring files) can no longer change are
         ready, ascending. A block no length fits is ready as left out."""
-        from ..signals.block_plan import PlannedBlock, plan_file_infos
+        from ..signals.block_plan import PlannedBlock, placed_block_numbers, placed_blocks
 
         voyage, lengths = self.voyage, self.voyage.lengths
         self._doing("measuring the excitation")
@@ -833,9 +826,9 @@ class Monitor:
             if message not in self.messages[-50:]:
                 self.messages.append(message)
         lengths.messages.clear()
-        plans: dict[float, object] = {}
+        numbers: dict[float, np.ndarray] = {}  # the blocks a plan of each length lists
         ready = []
-        infos = [f.info for f in self._placed()]
+        infos = self.files.placed_infos()
         for block in sorted(b for b in self._lengths if b not in self.done):
             row = self._lengths[block]
             if row is None:
@@ -844,14 +837,15 @@ class Monitor:
                 continue
             length = float(row["block_length_s"])
             grid, options, per_file = voyage.length_run(length)
-            plan = plans.get(length)
-            if plan is None:
-                plan = plans[length] = plan_file_infos(
-                    infos, grid, max_gap_s=options.max_gap_s, channels=voyage.channels
-                )
-            planned = next((b for b in plan.blocks if b.block == block), None)
-            if planned is None:  # cannot happen: the length fits the data
+            listed = numbers.get(length)
+            if listed is None:
+                listed = numbers[length] = placed_block_numbers(infos, grid)
+            if not (len(listed) and listed[0] <= block <= listed[-1]):  # cannot happen: the
+                # length fits the data
                 continue
+            (planned,) = placed_blocks(
+                infos, starts, ends, grid, [block], max_gap_s=options.max_gap_s
+            )
             if flush or self._settled(planned, per_file, starts, ends, newest):
                 ready.append(planned)
         self._plan = SimpleNamespace(blocks=[b for b in ready if b.block not in self.done])
@@ -883,20 +877,22 @@ class Monitor:
         if voyage.lengths is not None and planned.skipped_reason != LEFT_OUT:
             measures = self._lengths[int(planned.block)]
             grid, options, per_file = voyage.length_run(float(measures["block_length_s"]))
-        placed = [f.info for f in self._placed()]
-        header = {info.path: info for info in placed}
+        # the block's files, their headers as placed: the block is cut at the re-timed
+        # starts, as identify's
+        used = [self.files.placed_file(Path(f)) for f in planned.files]
+        used = [f for f in used if f is not None]
         task = BlockTask(
             int(planned.block),
             planned.block_start,
             tuple(str(f) for f in planned.files),
-            # the headers as placed: the block is cut at the re-timed starts, as identify's
-            tuple(header[Path(f)] for f in planned.files if Path(f) in header),
+            tuple(f.info for f in used),
             skipped=planned.skipped_reason,
         )
         conditioner = None
         if per_file:
             conditioner = block_conditioner(
-                placed,
+                self.files.placed_infos(),
+                self.files.placed_index,
                 planned,
                 grid,
                 voyage.channels,
@@ -922,7 +918,7 @@ class Monitor:
             outcome = _with_measures(outcome, measures)
         identified_at = pd.Timestamp.now(tz="UTC")
         cpu = time.process_time() - cpu
-        row = data_health_row(planned, outcome, identified_at, self._placed())
+        row = data_health_row(planned, outcome, identified_at, used)
         tables = {k: v for k, v in outcome.tables.items() if len(v)}
         tables["monitor"] = pd.DataFrame([row])
         blocks = pd.DataFrame(
@@ -966,7 +962,9 @@ class Monitor:
             if undecided:
                 span = voyage.lengths.grid(max(voyage.lengths.adaptive.lengths()))
                 waiting.append(span.start(undecided[0]))
-        ends = {f.path: f.info.end_time for f in self.files}
+        caches = [self._shared] if voyage.lengths is None else list(self._shared.values())
+        cached = {key[0] for cache in caches for key in cache}  # the files conditioned
+        ends = {p: f.info.end_time for p in cached if (f := self.files.get(p)) is not None}
         if voyage.lengths is None:
             forget_conditioned(self._shared, waiting, ends)
         else:  # a cache per length's grid
@@ -1491,18 +1489,17 @@ class Monitor:
             if row["status"] == "skipped" and _missing_data(str(row["reason"]))
         }
         if missing and self.files and self.voyage is not None:
-            from ..signals.block_plan import plan_file_infos
+            from ..signals.block_plan import placed_block_numbers, placed_blocks
 
             grid = self.voyage.grid
-            plan = plan_file_infos(
-                [f.info for f in self._placed()],
-                grid,
-                max_gap_s=self.voyage.options.max_gap_s,
-                channels=self.voyage.channels,
+            infos = self.files.placed_infos()
+            starts, ends = self._coverage()
+            listed = placed_block_numbers(infos, grid)  # those a plan of the files lists
+            blocks = [b for b in sorted(missing) if len(listed) and listed[0] <= b <= listed[-1]]
+            plan = placed_blocks(
+                infos, starts, ends, grid, blocks, max_gap_s=self.voyage.options.max_gap_s
             )
-            now_built = sorted(
-                b.block for b in plan.blocks if not b.skipped_reason and b.block in missing
-            )
+            now_built = [b.block for b in plan if not b.skipped_reason]
             for block in now_built:
                 if spans and spans[-1]["last_block"] == block - 1:
                     spans[-1]["last_block"] = block

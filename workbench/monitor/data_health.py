@@ -41,7 +41,7 @@ def data_health_row(planned, outcome, identified_at: pd.Timestamp, files: Sequen
     identified_at : Timestamp
         When identification finished (UTC).
     files : sequence of LandedFile
-        The files taken so far (with their landing times).
+        The block's files as taken (with their landing times; others are ignored).
     """
     by_path = {f.path: f for f in files}
     used = [by_path[Path(p)] for p in planned.files if Path(p) in by_path]

@@ -73,6 +73,8 @@ __all__ = [
     "PlannedBlock",
     "clock_runs",
     "place_files",
+    "placed_block_numbers",
+    "placed_blocks",
     "sort_out_files",
     "plan_blocks",
     "read_file_info",
@@ -621,13 +623,6 @@ class FilePlacement:
         self.run_start = 0
         self._run: _ClockRun | None = None
 
-    def copy(self) -> FilePlacement:
-        """An independent placement of the same files (the list and the clock copied)."""
-        other = copy.copy(self)
-        other.files = list(self.files)
-        other._run = copy.copy(self._run)
-        return other
-
     @property
     def last_run_drifting(self) -> bool:
         """Whether the last run's clock drifts from its sample count by more than the
@@ -927,7 +922,32 @@ def plan_file_infos(
     grid = _resolve_grid(grid, length_s, step_s, infos[0].start_time)
     starts_ns = np.array([_ns(i.start_time) for i in infos], dtype=np.int64)
     ends_ns = np.array([_ns(i.end_time) for i in infos], dtype=np.int64)
-    half = pd.Timedelta(seconds=0.5 / rate)
+    numbers = placed_block_numbers(infos, grid, clock_jitter_s)
+    planned = placed_blocks(
+        infos,
+        starts_ns,
+        ends_ns,
+        grid,
+        numbers,
+        max_gap_s=float(max_gap_s),
+        clock_jitter_s=clock_jitter_s,
+    )
+    return BlockPlan(grid, tuple(infos), channels, rate, tuple(planned), float(max_gap_s))
+
+
+def placed_block_numbers(
+    infos: Sequence[FileInfo], grid: BlockGrid, clock_jitter_s: float = CLOCK_JITTER_S
+) -> np.ndarray:
+    """The numbers of the blocks of *grid* lying inside the span of the placed files
+    *infos* (in time order), or missing at most *clock_jitter_s* of it at the span's start
+    or end, ascending, as :func:`plan_file_infos` lists them.
+
+    Raises
+    ------
+    OptionError
+        The span holds more than :data:`~workbench.blocks.MAX_BLOCKS` steps of the grid.
+    """
+    half = pd.Timedelta(seconds=0.5 / infos[0].sampling_rate_hz)
     span_s = (infos[-1].end_time - infos[0].start_time).total_seconds()
     if span_s / grid.step_s > MAX_BLOCKS:  # counted before any block is listed
         raise OptionError(
@@ -938,9 +958,39 @@ def plan_file_infos(
     # a block the record misses by at most the clock jitter at its start or end is the
     # record's: its placement after a gap is only known to that (its stamp's jitter)
     edge = max(half, pd.Timedelta(seconds=clock_jitter_s))
-    numbers = grid.complete_blocks(infos[0].start_time - edge, infos[-1].end_time + edge)
+    return grid.complete_blocks(infos[0].start_time - edge, infos[-1].end_time + edge)
+
+
+def placed_blocks(
+    infos: Sequence[FileInfo],
+    starts_ns: np.ndarray,
+    ends_ns: np.ndarray,
+    grid: BlockGrid,
+    blocks: Iterable[int],
+    *,
+    max_gap_s: float = 0.0,
+    clock_jitter_s: float = CLOCK_JITTER_S,
+) -> list[PlannedBlock]:
+    """The planned blocks *blocks* of *grid* over files already placed and checked, as
+    :func:`plan_file_infos` plans them: each block's files and skip reason depend only on
+    the files, so a caller keeping the placed files (the monitor) plans the few blocks it
+    still has to decide at a cost that does not grow with the files' number.
+
+    Parameters
+    ----------
+    infos : sequence of FileInfo
+        The files as :func:`place_files` places them (in time order, one sampling rate).
+    starts_ns, ends_ns : ndarray of int64
+        Their start and end times. [ns since the epoch]
+    grid : BlockGrid
+    blocks : iterable of int
+        Block numbers among :func:`placed_block_numbers`, ascending.
+    max_gap_s, clock_jitter_s : float
+        As :func:`plan_file_infos`'. [s]
+    """
+    rate = infos[0].sampling_rate_hz
     planned = []
-    for k in numbers:
+    for k in blocks:
         start, end = grid.start(int(k)), grid.end(int(k))
         indices, reason = _block_files_and_gap(
             infos,
@@ -955,7 +1005,7 @@ def plan_file_infos(
         planned.append(
             PlannedBlock(int(k), start, end, tuple(infos[i].path for i in indices), reason)
         )
-    return BlockPlan(grid, tuple(infos), channels, rate, tuple(planned), float(max_gap_s))
+    return planned
 
 
 def plan_blocks(
