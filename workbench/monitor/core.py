@@ -1517,7 +1517,7 @@ class Monitor:
                     )
             for span in spans:
                 reasons = span.pop("reasons")
-                span["reason"] = _given_up_reason(span, reasons, plan.files) or reasons[0]
+                span["reason"] = _given_up_reason(span, reasons, infos) or reasons[0]
         self._given_up = (key, spans)
         return spans
 
