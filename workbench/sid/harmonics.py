@@ -70,6 +70,7 @@ __all__ = [
     "mark_poles",
     "mark_shaft_orders",
     "mark_speed_following",
+    "SpeedFollowing",
     "order_list",
 ]
 
@@ -454,6 +455,200 @@ def _mac_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.abs(a @ b.conj().T) ** 2
 
 
+#: Rows whose shapes are compared with a window's rows at once by the speed-following
+#: test: a comparison holds this many rows times the window's rows. [-]
+_CHUNK_ROWS = 256
+#: Bins of the log ratio per ``ratio_tol`` by which the speed-following test decides its
+#: rows together (see :class:`SpeedFollowing`). [-]
+_BINS_PER_TOL = 4
+#: Margin of the bins' windows against rounding of the log ratios. [-]
+_RATIO_EPS = 1e-9
+
+
+def _components(shapes: np.ndarray, mac_min: float) -> np.ndarray:
+    """Connected components of the rows of *shapes* (unit norm) linked by MAC >=
+    *mac_min*: a label per row. The shapes are compared :data:`_CHUNK_ROWS` rows at a
+    time against the rows after them, the labels merged after each chunk, so the memory
+    is that chunk times the rows."""
+    n = len(shapes)
+    labels = np.arange(n)
+    for start in range(0, n, _CHUNK_ROWS):
+        stop = min(start + _CHUNK_ROWS, n)
+        linked = _mac_matrix(shapes[start:stop], shapes[start:]) >= mac_min
+        row, column = np.nonzero(linked)
+        a, b = labels[start + row], labels[start + column]
+        keep = a != b
+        if not keep.any():
+            continue
+        pairs = np.unique(np.stack([a[keep], b[keep]]), axis=1)
+        graph = csr_matrix((np.ones(pairs.shape[1], dtype=bool), (pairs[0], pairs[1])), (n, n))
+        _, merged = connected_components(graph, directed=False)
+        labels = merged[labels]
+    return labels
+
+
+class SpeedFollowing:
+    """The speed-following test (:func:`mark_speed_following`) over selected modes given
+    a few at a time (the monitor's blocks) or all at once.
+
+    A mode is *swept* when its group (see :func:`mark_speed_following`) holds at least
+    ``min_rows`` modes whose frequencies spread over more than ``min_sweep``. Modes added
+    later only enlarge the groups of the modes before them (a group is the modes of a
+    ratio window linked by shape), so a swept mode stays swept and only the unswept modes
+    within ``ratio_tol`` of an added mode are tested again: the result is the same
+    whether the modes come in one table or block by block.
+
+    The test of a mode needs the component of its shape graph within its own ratio
+    window. Sorted by the log ratio, the modes are decided a bin of ``ratio_tol`` /
+    :data:`_BINS_PER_TOL` at a time: the window of every mode of a bin contains the
+    bin's inner window (the ratios within ``ratio_tol`` of the whole bin) and lies within
+    its outer window (the ratios within ``ratio_tol`` of any of it). A mode whose group
+    in the inner window is swept is swept; one whose group in the outer window is not, is
+    not; only the few left between are tested on their own window (within their group
+    of the outer window). Memory: the modes and a chunk of :data:`_CHUNK_ROWS` modes
+    compared with a window; time: the windows' modes squared (not all the modes').
+
+    Parameters
+    ----------
+    options : HarmonicOptions, optional
+    """
+
+    def __init__(self, options: HarmonicOptions | None = None):
+        self.options = options or HarmonicOptions()
+        self.log_ratio = np.empty(0)
+        self.frequency = np.empty(0)
+        self.shapes: np.ndarray | None = None
+        self.swept = np.empty(0, dtype=bool)
+        self._order = np.empty(0, dtype=int)  # the modes by log ratio
+        self._sorted = np.empty(0)
+
+    def __len__(self) -> int:
+        return len(self.log_ratio)
+
+    def copy(self) -> SpeedFollowing:
+        """An independent copy (to test modes without keeping them)."""
+        other = SpeedFollowing(self.options)
+        other.log_ratio, other.frequency = self.log_ratio.copy(), self.frequency.copy()
+        other.shapes = None if self.shapes is None else self.shapes.copy()
+        other.swept = self.swept.copy()
+        other._order, other._sorted = self._order.copy(), self._sorted.copy()
+        return other
+
+    def add(self, frequency_hz: np.ndarray, speed_kn: np.ndarray, shapes: np.ndarray) -> None:
+        """Add modes (those of blocks at least ``min_speed_kn`` fast: the caller's choice)
+        and test them and the unswept modes within ``ratio_tol`` of them.
+
+        Parameters
+        ----------
+        frequency_hz : ndarray, shape (n,)
+            [Hz]
+        speed_kn : ndarray, shape (n,)
+            Energy-weighted speed of each mode's block. [kn]
+        shapes : ndarray, shape (n, n_channels)
+            Unit-norm complex mode shapes (:func:`_shapes`).
+        """
+        frequency = np.asarray(frequency_hz, dtype=float)
+        if not len(frequency):
+            return
+        log_ratio = np.log(frequency / np.asarray(speed_kn, dtype=float))
+        tol = self.options.ratio_tol
+        # the unswept modes whose window the new modes enter
+        lo = np.searchsorted(self._sorted, log_ratio - tol - _RATIO_EPS, side="left")
+        hi = np.searchsorted(self._sorted, log_ratio + tol + _RATIO_EPS, side="right")
+        reached = np.zeros(len(self), dtype=bool)
+        for a, b in zip(lo, hi, strict=True):
+            reached[self._order[a:b]] = True
+        n_before = len(self)
+        self.log_ratio = np.concatenate([self.log_ratio, log_ratio])
+        self.frequency = np.concatenate([self.frequency, frequency])
+        self.shapes = shapes if self.shapes is None else np.concatenate([self.shapes, shapes])
+        self.swept = np.concatenate([self.swept, np.zeros(len(frequency), dtype=bool)])
+        self._order = np.argsort(self.log_ratio, kind="stable")
+        self._sorted = self.log_ratio[self._order]
+        candidates = np.concatenate(
+            [np.flatnonzero(reached & ~self.swept[:n_before]), np.arange(n_before, len(self))]
+        )
+        self.swept[candidates] = self._decide(candidates)
+
+    def _window(self, low: float, high: float) -> np.ndarray:
+        """The modes whose log ratio lies in [low, high]."""
+        a = np.searchsorted(self._sorted, low, side="left")
+        b = np.searchsorted(self._sorted, high, side="right")
+        return self._order[a:b]
+
+    def _swept_groups(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The shape groups of the modes *rows* (sorted): each mode's group label, and per
+        label whether the group is swept (at least ``min_rows`` modes, frequencies spread
+        over more than ``min_sweep``)."""
+        options = self.options
+        labels = _components(self.shapes[rows], options.mac_min)
+        frequency = self.frequency[rows]
+        size = np.bincount(labels)
+        low = np.full(len(size), np.inf)
+        high = np.full(len(size), -np.inf)
+        np.minimum.at(low, labels, frequency)
+        np.maximum.at(high, labels, frequency)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            swept = (size >= options.min_rows) & (high / low - 1.0 > options.min_sweep)
+        return labels, swept
+
+    def _decide(self, candidates: np.ndarray) -> np.ndarray:
+        """Whether each candidate mode is swept."""
+        options = self.options
+        tol, step = options.ratio_tol, options.ratio_tol / _BINS_PER_TOL
+        out = np.zeros(len(candidates), dtype=bool)
+        bins = np.floor(self.log_ratio[candidates] / step).astype(np.int64)
+        for k in np.unique(bins):  # one pass per occupied bin
+            at = np.flatnonzero(bins == k)
+            rows = candidates[at]
+            left, right = k * step, (k + 1) * step
+            # every mode of the bin has all of the inner window in its own, and its own
+            # within the outer window
+            inner = np.sort(self._window(right - tol + _RATIO_EPS, left + tol - _RATIO_EPS))
+            outer = np.sort(self._window(left - tol - _RATIO_EPS, right + tol + _RATIO_EPS))
+            if len(outer) < options.min_rows:
+                continue
+            open_ = np.ones(len(rows), dtype=bool)
+            if len(inner) >= options.min_rows:
+                labels, swept = self._swept_groups(inner)
+                where = np.minimum(np.searchsorted(inner, rows), len(inner) - 1)
+                inside = inner[where] == rows
+                hit = inside & swept[labels[where]]
+                out[at[hit]] = True
+                open_ &= ~hit
+            if not open_.any():
+                continue
+            labels, swept = self._swept_groups(outer)
+            where = np.searchsorted(outer, rows)
+            for j in np.flatnonzero(open_ & swept[labels[where]]):
+                # between the two: the mode's own window, within its group of the outer one
+                group = outer[labels == labels[where[j]]]
+                own = group[np.abs(self.log_ratio[group] - self.log_ratio[rows[j]]) <= tol]
+                if len(own) < options.min_rows:
+                    continue
+                own_labels, own_swept = self._swept_groups(own)
+                out[at[j]] = own_swept[own_labels[np.searchsorted(own, rows[j])]]
+        return out
+
+    def marked(self) -> tuple[np.ndarray, float]:
+        """Per mode whether it is marked (swept, or at an order's ratio), and the shaft
+        rate per knot found (NaN when none is swept). [Hz/kn]
+
+        The lowest swept ratio r_1 is taken as the lowest order of ``orders``; every mode
+        within ``ratio_tol`` of k r_1 / min(orders), k an order of :func:`order_list`
+        (the blade pass included), is marked too."""
+        options = self.options
+        marked = self.swept.copy()
+        if not marked.any():
+            return marked, np.nan
+        base = float(np.exp(np.min(self.log_ratio[marked])))
+        lowest = min(options.orders)
+        for order in order_list(options):
+            ratio = np.log(base * order / lowest)
+            marked |= np.abs(self.log_ratio - ratio) <= options.ratio_tol
+        return marked, base / lowest
+
+
 def mark_speed_following(
     selected: pd.DataFrame, shaft: pd.DataFrame, options: HarmonicOptions | None = None
 ) -> pd.Series:
@@ -478,57 +673,35 @@ def mark_speed_following(
     Mode i of a block with energy-weighted speed v_i > ``min_speed_kn`` has the ratio
     r_i = f_i / v_i. Its group is every mode j with |ln r_j - ln r_i| <= ``ratio_tol``
     linked to mode i by a chain of shapes with MAC >= ``mac_min`` (a harmonic's forced
-    shape changes gradually with its frequency); mode i is marked when its group holds at
-    least ``min_rows`` modes whose frequencies spread by more than ``min_sweep``
-    (max / min - 1). A structural mode's frequency does not scale with speed, so its
-    group (same ratio, linked shapes) lies at one speed and one frequency.
+    shape changes gradually with its frequency, near a mode it takes on the mode's
+    shape); mode i is marked when its group holds at least ``min_rows`` modes whose
+    frequencies spread by more than ``min_sweep`` (max / min - 1). A structural mode's
+    frequency does not scale with speed, so its group (same ratio, linked shapes) lies at
+    one speed and one frequency.
 
     The lowest ratio marked this way, r_1, is taken as the lowest order of ``orders``; every
     mode whose ratio lies within ``ratio_tol`` of k r_1 / min(orders) for an order k of
     :func:`order_list` (the blade pass included) is marked too: an order the voyage shows
     at one speed only does not sweep. A structural mode is marked only in the blocks whose
     speed puts an order on it, a minority of its blocks, so tracking keeps it.
+
+    The groups are found by :class:`SpeedFollowing` without comparing every pair of modes:
+    memory grows with the modes, time with the modes times those of a ratio window.
     """
     options = options or HarmonicOptions()
     out = pd.Series(np.nan, index=selected.index, name="harmonic")
     if selected.empty or "speed_energy_kn" not in shaft:
         return out
     speed = selected["block"].map(shaft.set_index("block")["speed_energy_kn"]).to_numpy(float)
-    usable = np.isfinite(speed) & (speed > options.min_speed_kn)
-    if usable.sum() < options.min_rows:
+    rows = np.flatnonzero(np.isfinite(speed) & (speed > options.min_speed_kn))
+    if len(rows) < options.min_rows:
         return out
-    rows = np.flatnonzero(usable)
     part = selected.iloc[rows]
-    frequency = part["frequency_hz"].to_numpy(float)
-    log_ratio = np.log(frequency / speed[rows])
-    shapes = _shapes(part)
-    same_shape = _mac_matrix(shapes, shapes) >= options.mac_min
-    same_ratio = np.abs(log_ratio[:, None] - log_ratio[None, :]) <= options.ratio_tol
-    marked = np.zeros(len(rows), dtype=bool)
-    for i in range(len(rows)):
-        if marked[i]:
-            continue
-        window = np.flatnonzero(same_ratio[i])
-        if len(window) < options.min_rows:
-            continue
-        # the modes of this ratio linked by shape, one step at a time (a forced shape
-        # changes gradually with frequency, near a mode it takes on the mode's shape)
-        _, component = connected_components(
-            csr_matrix(same_shape[np.ix_(window, window)]), directed=False
-        )
-        members = window[component == component[np.searchsorted(window, i)]]
-        spread = frequency[members].max() / frequency[members].min() - 1.0
-        if len(members) >= options.min_rows and spread > options.min_sweep:
-            marked[i] = True
-    if marked.any():
-        # the lowest sweeping harmonic is taken as the shaft rate (order 1): the other
-        # orders (and the blade pass) are at k times its ratio, also where they do not sweep
-        base = float(np.exp(np.min(log_ratio[marked])))
-        lowest = min(options.orders)
-        for order in order_list(options):
-            ratio = np.log(base * order / lowest)
-            marked |= np.abs(log_ratio - ratio) <= options.ratio_tol
-        out.attrs["shaft_hz_per_kn"] = base / lowest
+    test = SpeedFollowing(options)
+    test.add(part["frequency_hz"].to_numpy(float), speed[rows], _shapes(part))
+    marked, per_kn = test.marked()
+    if np.isfinite(per_kn):
+        out.attrs["shaft_hz_per_kn"] = per_kn
     out.iloc[rows[marked]] = 0.0
     return out
 
