@@ -459,17 +459,28 @@ def _mac_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 #: test: a comparison holds this many rows times the window's rows. [-]
 _CHUNK_ROWS = 256
 #: Bins of the log ratio per ``ratio_tol`` by which the speed-following test decides its
-#: rows together (see :class:`SpeedFollowing`). [-]
-_BINS_PER_TOL = 4
+#: rows together (see :class:`SpeedFollowing`): 1, 2 and 4 give the same marks, 1 the
+#: fewest shape comparisons (``benchmarks/results/harmonics_speed_scale_51.txt``). [-]
+_BINS_PER_TOL = 1
 #: Margin of the bins' windows against rounding of the log ratios. [-]
 _RATIO_EPS = 1e-9
 
 
-def _components(shapes: np.ndarray, mac_min: float) -> np.ndarray:
-    """Connected components of the rows of *shapes* (unit norm) linked by MAC >=
-    *mac_min*: a label per row. The shapes are compared :data:`_CHUNK_ROWS` rows at a
-    time against the rows after them, the labels merged after each chunk, so the memory
-    is that chunk times the rows."""
+#: Margin of the distance between shapes (the angle arccos sqrt(MAC)) by which two groups
+#: of shapes are judged apart without comparing their shapes one by one: far above the
+#: rounding of the MAC (1e-16 in the MAC, 1e-8 in the angle near MAC = 1). [rad]
+_ANGLE_EPS = 1e-6
+
+
+def _angle(mac: np.ndarray) -> np.ndarray:
+    """The angle between shapes of MAC *mac*, arccos sqrt(MAC): a distance (it obeys the
+    triangle inequality; the Fubini-Study metric of the shapes' directions). [rad]"""
+    return np.arccos(np.sqrt(np.clip(mac, 0.0, 1.0)))
+
+
+def _pairwise_components(shapes: np.ndarray, mac_min: float) -> np.ndarray:
+    """:func:`_components` by comparing every pair of shapes, :data:`_CHUNK_ROWS` rows at a
+    time against the rows after them, the labels merged after each chunk."""
     n = len(shapes)
     labels = np.arange(n)
     for start in range(0, n, _CHUNK_ROWS):
@@ -485,6 +496,92 @@ def _components(shapes: np.ndarray, mac_min: float) -> np.ndarray:
         _, merged = connected_components(graph, directed=False)
         labels = merged[labels]
     return labels
+
+
+def _balls(shapes: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Shapes gathered around leaders: the first shape not yet gathered leads every other
+    within *radius* of it [rad]. Returns each shape's ball, each ball's leader and its
+    reach (the largest angle of a member from its leader)."""
+    ball = np.full(len(shapes), -1)
+    leaders, reach = [], []
+    free = np.arange(len(shapes))
+    while free.size:  # each pass gathers at least its leader
+        leader = free[0]
+        angle = _angle(_mac_matrix(shapes[free], shapes[leader : leader + 1])[:, 0])
+        inside = angle <= radius
+        inside[0] = True
+        ball[free[inside]] = len(leaders)
+        leaders.append(leader)
+        reach.append(float(angle[inside].max()))
+        free = free[~inside]
+    return ball, np.array(leaders), np.array(reach)
+
+
+def _components(shapes: np.ndarray, mac_min: float) -> np.ndarray:
+    """Connected components of the rows of *shapes* (unit norm) linked by MAC >= *mac_min*:
+    a label per row, the same components as from the MAC of every pair.
+
+    Notes
+    -----
+    With θ = arccos sqrt(*mac_min*) the angle of a link, the shapes are gathered in balls
+    of radius θ / 2 around leaders (:func:`_balls`; each member linked to its leader, so a
+    ball is connected). Two balls A and B, leaders a and b, reaches r_A and r_B, are linked
+    when a and b are; they are not when d(a, b) > θ + r_A + r_B (every pair of members is
+    then further apart than θ, by the triangle inequality); in between, their members are
+    compared (those within θ + r_B of b with those within θ + r_A of a), unless the two
+    balls are joined already. The shapes of a harmonic line or of a mode at one speed
+    gather in a few balls, so a window of thousands of modes costs its modes times its
+    balls, not its modes squared.
+    """
+    n = len(shapes)
+    link = math.acos(math.sqrt(mac_min))
+    if n <= _CHUNK_ROWS or link < 100 * _ANGLE_EPS:
+        return _pairwise_components(shapes, mac_min)
+    ball, leaders, reach = _balls(shapes, link / 2)
+    members = np.split(np.argsort(ball, kind="stable"), np.cumsum(np.bincount(ball))[:-1])
+    n_balls = len(leaders)
+    labels = np.arange(n_balls)
+    for start in range(0, n_balls, _CHUNK_ROWS):
+        stop = min(start + _CHUNK_ROWS, n_balls)
+        mac = _mac_matrix(shapes[leaders[start:stop]], shapes[leaders[start:]])
+        row, column = np.nonzero(mac >= mac_min)
+        a, b = labels[start + row], labels[start + column]
+        keep = a != b
+        if keep.any():
+            pairs = np.unique(np.stack([a[keep], b[keep]]), axis=1)
+            graph = csr_matrix(
+                (np.ones(pairs.shape[1], dtype=bool), (pairs[0], pairs[1])), (n_balls, n_balls)
+            )
+            labels = connected_components(graph, directed=False)[1][labels]
+        angle = _angle(mac)
+        near = angle <= link + reach[start:stop, None] + reach[None, start:] + _ANGLE_EPS
+        row, column = np.nonzero(near & (mac < mac_min))
+        for k in np.argsort(angle[row, column], kind="stable"):  # the nearest first
+            a, b = start + row[k], start + column[k]
+            if labels[a] == labels[b] or not _balls_linked(
+                shapes, members[a], members[b], leaders[a], leaders[b], reach[a], reach[b], link,
+                mac_min,
+            ):  # fmt: skip
+                continue
+            labels[labels == labels[b]] = labels[a]
+    return labels[ball]
+
+
+def _balls_linked(shapes, one, other, leader_one, leader_other, reach_one, reach_other, link,
+                  mac_min) -> bool:  # fmt: skip
+    """Whether a member of ball *one* and one of ball *other* have MAC >= *mac_min*."""
+    one = one[
+        _angle(_mac_matrix(shapes[one], shapes[leader_other : leader_other + 1])[:, 0])
+        <= link + reach_other + _ANGLE_EPS
+    ]
+    other = other[
+        _angle(_mac_matrix(shapes[other], shapes[leader_one : leader_one + 1])[:, 0])
+        <= link + reach_one + _ANGLE_EPS
+    ]
+    for start in range(0, len(one), _CHUNK_ROWS):
+        if (_mac_matrix(shapes[one[start : start + _CHUNK_ROWS]], shapes[other]) >= mac_min).any():
+            return True
+    return False
 
 
 class SpeedFollowing:
@@ -505,8 +602,9 @@ class SpeedFollowing:
     its outer window (the ratios within ``ratio_tol`` of any of it). A mode whose group
     in the inner window is swept is swept; one whose group in the outer window is not, is
     not; only the few left between are tested on their own window (within their group
-    of the outer window). Memory: the modes and a chunk of :data:`_CHUNK_ROWS` modes
-    compared with a window; time: the windows' modes squared (not all the modes').
+    of the outer window). The groups of a window are found from balls of similar shapes
+    (:func:`_components`). Memory: the modes, and a chunk of :data:`_CHUNK_ROWS` modes
+    compared with a window's; time: about the modes times the balls of their windows.
 
     Parameters
     ----------
