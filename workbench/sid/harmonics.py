@@ -70,6 +70,7 @@ __all__ = [
     "mark_poles",
     "mark_shaft_orders",
     "mark_speed_following",
+    "nearest_order_frequency",
     "SpeedFollowing",
     "order_list",
 ]
@@ -487,15 +488,19 @@ def _pairwise_components(shapes: np.ndarray, mac_min: float) -> np.ndarray:
         stop = min(start + _CHUNK_ROWS, n)
         linked = _mac_matrix(shapes[start:stop], shapes[start:]) >= mac_min
         row, column = np.nonzero(linked)
-        a, b = labels[start + row], labels[start + column]
-        keep = a != b
-        if not keep.any():
-            continue
-        pairs = np.unique(np.stack([a[keep], b[keep]]), axis=1)
-        graph = csr_matrix((np.ones(pairs.shape[1], dtype=bool), (pairs[0], pairs[1])), (n, n))
-        _, merged = connected_components(graph, directed=False)
-        labels = merged[labels]
+        labels = _merged(labels, labels[start + row], labels[start + column])
     return labels
+
+
+def _merged(labels: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """*labels* (of 0..n-1) with the labels linked by the pairs (*a*, *b*) merged."""
+    keep = a != b
+    if not keep.any():
+        return labels
+    n = len(labels)
+    pairs = np.unique(a[keep].astype(np.int64) * n + b[keep])
+    graph = csr_matrix((np.ones(len(pairs), dtype=bool), (pairs // n, pairs % n)), (n, n))
+    return connected_components(graph, directed=False)[1][labels]
 
 
 def _balls(shapes: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -545,14 +550,7 @@ def _components(shapes: np.ndarray, mac_min: float) -> np.ndarray:
         stop = min(start + _CHUNK_ROWS, n_balls)
         mac = _mac_matrix(shapes[leaders[start:stop]], shapes[leaders[start:]])
         row, column = np.nonzero(mac >= mac_min)
-        a, b = labels[start + row], labels[start + column]
-        keep = a != b
-        if keep.any():
-            pairs = np.unique(np.stack([a[keep], b[keep]]), axis=1)
-            graph = csr_matrix(
-                (np.ones(pairs.shape[1], dtype=bool), (pairs[0], pairs[1])), (n_balls, n_balls)
-            )
-            labels = connected_components(graph, directed=False)[1][labels]
+        labels = _merged(labels, labels[start + row], labels[start + column])
         angle = _angle(mac)
         near = angle <= link + reach[start:stop, None] + reach[None, start:] + _ANGLE_EPS
         row, column = np.nonzero(near & (mac < mac_min))
@@ -880,6 +878,29 @@ def shaft_rate_per_knot(log: pd.DataFrame, options: HarmonicOptions | None = Non
     return float(middle) if (high - low) <= PITCH_SCATTER * middle else np.nan
 
 
+def nearest_order_frequency(
+    frequency_hz: np.ndarray, shaft_hz: np.ndarray, orders: tuple[float, ...]
+) -> np.ndarray:
+    """Per mode, the frequency of the order (of *orders*) whose line k x *shaft_hz* is
+    nearest the mode's frequency (on a log scale), NaN where the shaft rate is unknown:
+    the order of a mode marked by the speed-following test (its ``harmonic`` is 0). [Hz]
+    """
+    frequency = np.asarray(frequency_hz, dtype=float)
+    rate = np.asarray(shaft_hz, dtype=float)
+    if not np.isfinite(rate).any():
+        return np.full(len(frequency), np.nan)
+    lines = np.asarray(orders, dtype=float)
+    nearest = lines[
+        np.argmin(
+            np.abs(
+                np.log(frequency[:, None]) - np.log(np.fmax(lines[None, :] * rate[:, None], 1e-300))
+            ),
+            axis=1,
+        )
+    ]
+    return nearest * rate
+
+
 class HarmonicMarker:
     """Marks the harmonics of one voyage: its selected modes first (the whole table, small),
     then its poles chunk by chunk (:func:`mark_poles` against the marked modes).
@@ -955,23 +976,13 @@ class HarmonicMarker:
             self.method = "speed"
             per_kn = marks.attrs.get("shaft_hz_per_kn", np.nan)
             speed = selected["block"].map(shaft["speed_energy_kn"]).to_numpy(float)
-            rate_hz = per_kn * speed
-            # the order whose line is nearest the mode (order unknown: 0 in 'harmonic')
-            orders = np.array(self.orders)
-            nearest = (
-                orders[
-                    np.argmin(
-                        np.abs(
-                            np.log(selected["frequency_hz"].to_numpy(float)[:, None])
-                            - np.log(np.fmax(orders[None, :] * rate_hz[:, None], 1e-300))
-                        ),
-                        axis=1,
-                    )
-                ]
-                if np.isfinite(per_kn)
-                else np.full(len(selected), np.nan)
+            selected["harmonic_frequency_hz"] = np.where(
+                marks.notna(),
+                nearest_order_frequency(
+                    selected["frequency_hz"].to_numpy(float), per_kn * speed, self.orders
+                ),
+                np.nan,
             )
-            selected["harmonic_frequency_hz"] = np.where(marks.notna(), nearest * rate_hz, np.nan)
             checked = shaft["speed_energy_kn"].notna()
         else:
             checked = None
