@@ -601,13 +601,19 @@ class SpeedFollowing:
     in the inner window is swept is swept; one whose group in the outer window is not, is
     not; only the few left between are tested on their own window (within their group
     of the outer window). The groups of a window are found from balls of similar shapes
-    (:func:`_components`). Memory: the modes, and a chunk of :data:`_CHUNK_ROWS` modes
-    compared with a window's; time: about the modes times the balls of their windows.
+    (:func:`_components`) and kept: a mode added later joins the groups of the windows it
+    falls in (compared with their modes), so a block costs its modes times the modes of
+    their windows. Memory: the modes, the kept windows' group labels (a few per mode), and
+    a chunk of :data:`_CHUNK_ROWS` modes compared with a window's.
 
     Parameters
     ----------
     options : HarmonicOptions, optional
     """
+
+    #: Added modes falling in a kept window above which its groups are found afresh
+    #: rather than joined one mode at a time. [-]
+    REBUILD_ROWS = 64
 
     def __init__(self, options: HarmonicOptions | None = None):
         self.options = options or HarmonicOptions()
@@ -617,6 +623,8 @@ class SpeedFollowing:
         self.swept = np.empty(0, dtype=bool)
         self._order = np.empty(0, dtype=int)  # the modes by log ratio
         self._sorted = np.empty(0)
+        # (bin, "inner" | "outer") -> [modes of the window (sorted), their group labels]
+        self._windows: dict[tuple[int, str], list[np.ndarray]] = {}
 
     def __len__(self) -> int:
         return len(self.log_ratio)
@@ -628,6 +636,8 @@ class SpeedFollowing:
         other.shapes = None if self.shapes is None else self.shapes.copy()
         other.swept = self.swept.copy()
         other._order, other._sorted = self._order.copy(), self._sorted.copy()
+        other._windows = {key: [rows.copy(), labels.copy()] for key, (rows, labels) in
+                          self._windows.items()}  # fmt: skip
         return other
 
     def add(self, frequency_hz: np.ndarray, speed_kn: np.ndarray, shapes: np.ndarray) -> None:
@@ -661,10 +671,42 @@ class SpeedFollowing:
         self.swept = np.concatenate([self.swept, np.zeros(len(frequency), dtype=bool)])
         self._order = np.argsort(self.log_ratio, kind="stable")
         self._sorted = self.log_ratio[self._order]
+        self._join_windows(np.arange(n_before, len(self)))
         candidates = np.concatenate(
             [np.flatnonzero(reached & ~self.swept[:n_before]), np.arange(n_before, len(self))]
         )
         self.swept[candidates] = self._decide(candidates)
+
+    def _bounds(self, k: int, which: str) -> tuple[float, float]:
+        """The log ratios [low, high] of bin *k*'s inner or outer window."""
+        tol = self.options.ratio_tol
+        step = tol / _BINS_PER_TOL
+        left, right = k * step, (k + 1) * step
+        if which == "inner":  # within every mode's window of the bin
+            return right - tol + _RATIO_EPS, left + tol - _RATIO_EPS
+        return left - tol - _RATIO_EPS, right + tol + _RATIO_EPS  # holds every one
+
+    def _join_windows(self, new: np.ndarray) -> None:
+        """The added modes *new* join the kept windows they fall in (or the window's
+        groups are dropped, found afresh when next needed, when many fall in it)."""
+        options = self.options
+        for key in list(self._windows):
+            low, high = self._bounds(*key)
+            inside = new[(self.log_ratio[new] >= low) & (self.log_ratio[new] <= high)]
+            if not len(inside):
+                continue
+            if len(inside) > self.REBUILD_ROWS:
+                del self._windows[key]
+                continue
+            rows, labels = self._windows[key]
+            for row in inside:  # each joins the groups it links (MAC >= mac_min)
+                linked = _mac_matrix(self.shapes[row : row + 1], self.shapes[rows])[0]
+                joined = np.unique(labels[linked >= options.mac_min])
+                label = int(joined[0]) if len(joined) else int(labels.max(initial=-1)) + 1
+                labels = np.where(np.isin(labels, joined), label, labels)
+                at = int(np.searchsorted(rows, row))
+                rows, labels = np.insert(rows, at, row), np.insert(labels, at, label)
+            self._windows[key] = [rows, labels]
 
     def _window(self, low: float, high: float) -> np.ndarray:
         """The modes whose log ratio lies in [low, high]."""
@@ -672,21 +714,33 @@ class SpeedFollowing:
         b = np.searchsorted(self._sorted, high, side="right")
         return self._order[a:b]
 
-    def _swept_groups(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The shape groups of the modes *rows* (sorted): each mode's group label, and per
-        label whether the group is swept (at least ``min_rows`` modes, frequencies spread
-        over more than ``min_sweep``)."""
+    def _kept(self, k: int, which: str) -> tuple[np.ndarray, np.ndarray]:
+        """The modes (sorted) of bin *k*'s inner or outer window and their group labels."""
+        kept = self._windows.get((k, which))
+        if kept is None:
+            rows = np.sort(self._window(*self._bounds(k, which)))
+            labels = (
+                _components(self.shapes[rows], self.options.mac_min)
+                if len(rows) >= self.options.min_rows
+                else np.arange(len(rows))
+            )
+            kept = self._windows[(k, which)] = [rows, labels]
+        return kept[0], kept[1]
+
+    def _swept_labels(self, rows: np.ndarray, labels: np.ndarray) -> np.ndarray:
+        """Per mode of *rows*, whether its group (same label) is swept: at least
+        ``min_rows`` modes whose frequencies spread over more than ``min_sweep``."""
         options = self.options
-        labels = _components(self.shapes[rows], options.mac_min)
+        groups, inverse = np.unique(labels, return_inverse=True)
         frequency = self.frequency[rows]
-        size = np.bincount(labels)
-        low = np.full(len(size), np.inf)
-        high = np.full(len(size), -np.inf)
-        np.minimum.at(low, labels, frequency)
-        np.maximum.at(high, labels, frequency)
+        size = np.bincount(inverse, minlength=len(groups))
+        low = np.full(len(groups), np.inf)
+        high = np.full(len(groups), -np.inf)
+        np.minimum.at(low, inverse, frequency)
+        np.maximum.at(high, inverse, frequency)
         with np.errstate(invalid="ignore", divide="ignore"):
             swept = (size >= options.min_rows) & (high / low - 1.0 > options.min_sweep)
-        return labels, swept
+        return swept[inverse]
 
     def _decide(self, candidates: np.ndarray) -> np.ndarray:
         """Whether each candidate mode is swept."""
@@ -697,33 +751,30 @@ class SpeedFollowing:
         for k in np.unique(bins):  # one pass per occupied bin
             at = np.flatnonzero(bins == k)
             rows = candidates[at]
-            left, right = k * step, (k + 1) * step
             # every mode of the bin has all of the inner window in its own, and its own
             # within the outer window
-            inner = np.sort(self._window(right - tol + _RATIO_EPS, left + tol - _RATIO_EPS))
-            outer = np.sort(self._window(left - tol - _RATIO_EPS, right + tol + _RATIO_EPS))
-            if len(outer) < options.min_rows:
-                continue
+            inner, labels = self._kept(int(k), "inner")
             open_ = np.ones(len(rows), dtype=bool)
             if len(inner) >= options.min_rows:
-                labels, swept = self._swept_groups(inner)
                 where = np.minimum(np.searchsorted(inner, rows), len(inner) - 1)
-                inside = inner[where] == rows
-                hit = inside & swept[labels[where]]
+                hit = (inner[where] == rows) & self._swept_labels(inner, labels)[where]
                 out[at[hit]] = True
                 open_ &= ~hit
             if not open_.any():
                 continue
-            labels, swept = self._swept_groups(outer)
+            outer, labels = self._kept(int(k), "outer")
+            if len(outer) < options.min_rows:
+                continue
             where = np.searchsorted(outer, rows)
-            for j in np.flatnonzero(open_ & swept[labels[where]]):
+            swept = self._swept_labels(outer, labels)
+            for j in np.flatnonzero(open_ & swept[where]):
                 # between the two: the mode's own window, within its group of the outer one
                 group = outer[labels == labels[where[j]]]
                 own = group[np.abs(self.log_ratio[group] - self.log_ratio[rows[j]]) <= tol]
                 if len(own) < options.min_rows:
                     continue
-                own_labels, own_swept = self._swept_groups(own)
-                out[at[j]] = own_swept[own_labels[np.searchsorted(own, rows[j])]]
+                own_labels = _components(self.shapes[own], options.mac_min)
+                out[at[j]] = self._swept_labels(own, own_labels)[np.searchsorted(own, rows[j])]
         return out
 
     def marked(self) -> tuple[np.ndarray, float]:
