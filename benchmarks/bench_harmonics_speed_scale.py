@@ -42,6 +42,7 @@ sys.path.insert(0, str(ROOT))
 from data_contracts import read_dship  # noqa: E402
 from workbench.demo import DEMO_IDENTIFY_OPTIONS  # noqa: E402
 from workbench.identification import identify_voyage  # noqa: E402
+from workbench.sid import harmonics  # noqa: E402
 from workbench.sid.harmonics import (  # noqa: E402
     HarmonicOptions,
     SpeedFollowing,
@@ -55,6 +56,27 @@ from workbench.simulate import ShaftHarmonics, simulate_voyage  # noqa: E402
 
 SHAFT = ShaftHarmonics(hz_per_kn=0.3, orders=(1, 2), blades=5)
 OPTIONS = HarmonicOptions(blades=SHAFT.blades)
+
+
+class ShapeComparisons:
+    """Counts the MACs the speed-following test computes (a cost that does not depend on
+    the machine's load), while in a ``with`` block."""
+
+    def __init__(self):
+        self.count = 0
+
+    def __enter__(self):
+        def counted(a, b):
+            self.count += len(a) * len(b)
+            return _mac_matrix(a, b)
+
+        self.count = 0
+        harmonics._mac_matrix = counted
+        return self
+
+    def __exit__(self, *exc):
+        harmonics._mac_matrix = _mac_matrix
+        return False
 
 
 def _dense_marks(selected, shaft, options: HarmonicOptions) -> pd.Series:
@@ -139,9 +161,9 @@ def measured(function, *args):
     return result, seconds, peak
 
 
-def per_block_seconds(selected, shaft, blocks: int = 10) -> float:
-    """Mean time of adding one block's modes to the test holding the modes before it (the
-    monitor's cost of a block), over the newest *blocks* blocks."""
+def per_block(selected, shaft, blocks: int = 30) -> tuple[float, float]:
+    """Mean time [s] and MACs of adding one block's modes to the test holding the modes
+    before it (the monitor's cost of a block), over the newest *blocks* blocks."""
     speed = selected["block"].map(shaft.set_index("block")["speed_energy_kn"]).to_numpy(float)
     usable = np.isfinite(speed) & (speed > OPTIONS.min_speed_kn)
     frequency = selected["frequency_hz"].to_numpy(float)
@@ -152,11 +174,12 @@ def per_block_seconds(selected, shaft, blocks: int = 10) -> float:
     first = usable & (block < newest[0])
     test.add(frequency[first], speed[first], shapes[first])
     started = time.perf_counter()
-    for b in newest:
-        rows = usable & (block == b)
-        test.add(frequency[rows], speed[rows], shapes[rows])
-        test.marked()
-    return (time.perf_counter() - started) / len(newest)
+    with ShapeComparisons() as comparisons:
+        for b in newest:
+            rows = usable & (block == b)
+            test.add(frequency[rows], speed[rows], shapes[rows])
+            test.marked()
+    return (time.perf_counter() - started) / len(newest), comparisons.count / len(newest)
 
 
 def main(argv=None) -> int:
@@ -176,12 +199,13 @@ def main(argv=None) -> int:
     )
     print(
         "modes  marked  same as dense  dense: peak MB  s      new: peak MB  s     "
-        "new peak / modes [kB]  per block [s] (share of the test)"
+        "new peak / modes [kB]  MACs / modes²  per block: s, MACs / modes"
     )
-    first = None
     for size in args.sizes:
         big, big_shaft = repeated(selected, shaft, size, args.jitter, args.seed)
         marks, seconds, peak = measured(mark_speed_following, big, big_shaft, OPTIONS)
+        with ShapeComparisons() as comparisons:
+            mark_speed_following(big, big_shaft, OPTIONS)
         dense = "-"
         dense_cells = "      -        -"
         if size <= args.dense_max:
@@ -189,12 +213,11 @@ def main(argv=None) -> int:
             same = reference.equals(marks) and reference.attrs == marks.attrs
             dense = "yes" if same else "NO"
             dense_cells = f"{dense_peak / 1e6:9.0f} {dense_seconds:8.1f}"
-        block_s = per_block_seconds(big, big_shaft)
-        first = first or (size, seconds, peak)
+        block_s, block_macs = per_block(big, big_shaft)
         print(
             f"{size:6d} {int(marks.notna().sum()):6d}  {dense:>13s}  {dense_cells}  "
-            f"{peak / 1e6:9.1f} {seconds:6.2f}  {peak / size / 1e3:10.1f}   "
-            f"{block_s:.3f} ({100 * block_s / seconds:.1f} %)",
+            f"{peak / 1e6:9.1f} {seconds:6.2f}  {peak / size / 1e3:10.1f}  "
+            f"{comparisons.count / size**2:12.4f}   {block_s:.3f}, {block_macs / size:.2f}",
             flush=True,
         )
     return 0

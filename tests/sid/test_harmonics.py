@@ -197,11 +197,15 @@ def _speed_following_by_definition(selected, shaft, options):
     return set(selected.index[rows[marked]]), base / min(options.orders)
 
 
-@pytest.mark.parametrize("chunk_rows", [256, 8])
-def test_speed_following_equals_its_definition_at_once_and_block_by_block(chunk_rows, monkeypatch):
-    # 8: every ratio window's groups from balls of shapes (more than a chunk of modes)
+@pytest.mark.parametrize("balls_from_rows, chunk_rows", [(10**9, 256), (8, 8)])
+def test_speed_following_equals_its_definition_at_once_and_block_by_block(
+    balls_from_rows, chunk_rows, monkeypatch
+):
+    # every pair of a window compared; or its groups from balls of shapes, and two balls'
+    # members from balls within them
     from workbench.sid import harmonics
 
+    monkeypatch.setattr(harmonics, "_BALLS_FROM_ROWS", balls_from_rows)
     monkeypatch.setattr(harmonics, "_CHUNK_ROWS", chunk_rows)
     selected, shaft = _long_voyage(120)
     options = HarmonicOptions()

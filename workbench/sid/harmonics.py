@@ -459,6 +459,12 @@ def _mac_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 #: Rows whose shapes are compared with a window's rows at once by the speed-following
 #: test: a comparison holds this many rows times the window's rows. [-]
 _CHUNK_ROWS = 256
+#: Fewest shapes whose groups are found from balls of shapes (:func:`_components`); fewer
+#: are compared pair by pair. [-]
+_BALLS_FROM_ROWS = 32
+#: Levels of balls within balls by which two balls' members are compared (then member by
+#: member). [-]
+_LINK_DEPTH = 6
 #: Bins of the log ratio per ``ratio_tol`` by which the speed-following test decides its
 #: rows together (see :class:`SpeedFollowing`): 1, 2 and 4 give the same marks, 1 the
 #: fewest shape comparisons (``benchmarks/results/harmonics_speed_scale_51.txt``). [-]
@@ -540,7 +546,7 @@ def _components(shapes: np.ndarray, mac_min: float) -> np.ndarray:
     """
     n = len(shapes)
     link = math.acos(math.sqrt(mac_min))
-    if n <= _CHUNK_ROWS or link < 100 * _ANGLE_EPS:
+    if n <= _BALLS_FROM_ROWS or link < 100 * _ANGLE_EPS:
         return _pairwise_components(shapes, mac_min)
     ball, leaders, reach = _balls(shapes, link / 2)
     members = np.split(np.argsort(ball, kind="stable"), np.cumsum(np.bincount(ball))[:-1])
@@ -566,8 +572,14 @@ def _components(shapes: np.ndarray, mac_min: float) -> np.ndarray:
 
 
 def _balls_linked(shapes, one, other, leader_one, leader_other, reach_one, reach_other, link,
-                  mac_min) -> bool:  # fmt: skip
-    """Whether a member of ball *one* and one of ball *other* have MAC >= *mac_min*."""
+                  mac_min, depth: int = 0) -> bool:  # fmt: skip
+    """Whether a member of ball *one* and one of ball *other* have MAC >= *mac_min*.
+
+    Only the members within θ + r_B of b and θ + r_A of a can link (θ = *link*, a and b
+    the leaders, r the reaches). Many of them are gathered again in balls of half the
+    reach, and those balls' pairs decided as in :func:`_components` (linked leaders: yes;
+    too far apart: no; else their members, one level down); at most
+    :data:`_LINK_DEPTH` levels, then or when few, member by member."""
     one = one[
         _angle(_mac_matrix(shapes[one], shapes[leader_other : leader_other + 1])[:, 0])
         <= link + reach_other + _ANGLE_EPS
@@ -576,6 +588,32 @@ def _balls_linked(shapes, one, other, leader_one, leader_other, reach_one, reach
         _angle(_mac_matrix(shapes[other], shapes[leader_one : leader_one + 1])[:, 0])
         <= link + reach_one + _ANGLE_EPS
     ]
+    if not len(one) or not len(other):
+        return False
+    if len(one) * len(other) > _CHUNK_ROWS**2 and depth < _LINK_DEPTH:
+        sides = []
+        for rows, reach in ((one, reach_one), (other, reach_other)):
+            ball, leaders, reaches = _balls(shapes[rows], reach / 2)
+            members = np.split(
+                rows[np.argsort(ball, kind="stable")], np.cumsum(np.bincount(ball))[:-1]
+            )
+            sides.append((members, rows[leaders], reaches))
+        (members_one, leaders_one, reach_ones), (members_other, leaders_other, reach_others) = sides
+        if len(leaders_one) * len(leaders_other) < len(one) * len(other) // 4:
+            mac = _mac_matrix(shapes[leaders_one], shapes[leaders_other])
+            if (mac >= mac_min).any():
+                return True
+            angle = _angle(mac)
+            near = angle <= link + reach_ones[:, None] + reach_others[None, :] + _ANGLE_EPS
+            row, column = np.nonzero(near)
+            for k in np.argsort(angle[row, column], kind="stable"):  # the nearest first
+                i, j = row[k], column[k]
+                if _balls_linked(
+                    shapes, members_one[i], members_other[j], leaders_one[i], leaders_other[j],
+                    reach_ones[i], reach_others[j], link, mac_min, depth + 1,
+                ):  # fmt: skip
+                    return True
+            return False
     for start in range(0, len(one), _CHUNK_ROWS):
         if (_mac_matrix(shapes[one[start : start + _CHUNK_ROWS]], shapes[other]) >= mac_min).any():
             return True
@@ -767,14 +805,18 @@ class SpeedFollowing:
                 continue
             where = np.searchsorted(outer, rows)
             swept = self._swept_labels(outer, labels)
+            found: dict[bytes, np.ndarray] = {}  # own windows met already: swept per mode
             for j in np.flatnonzero(open_ & swept[where]):
                 # between the two: the mode's own window, within its group of the outer one
                 group = outer[labels == labels[where[j]]]
                 own = group[np.abs(self.log_ratio[group] - self.log_ratio[rows[j]]) <= tol]
                 if len(own) < options.min_rows:
                     continue
-                own_labels = _components(self.shapes[own], options.mac_min)
-                out[at[j]] = self._swept_labels(own, own_labels)[np.searchsorted(own, rows[j])]
+                key = own.tobytes()
+                if key not in found:
+                    own_labels = _components(self.shapes[own], options.mac_min)
+                    found[key] = self._swept_labels(own, own_labels)
+                out[at[j]] = found[key][np.searchsorted(own, rows[j])]
         return out
 
     def marked(self) -> tuple[np.ndarray, float]:
