@@ -41,7 +41,7 @@ def _monitor(log):
     from workbench.sid.harmonics import HarmonicOptions
 
     monitor = Monitor.__new__(Monitor)
-    monitor._harmonic_marks, monitor._marks_pending = {}, False
+    monitor._harmonic_marks, monitor._marks_pending, monitor._shaft_logged = {}, False, False
     monitor._speed_test, monitor._speed_index, monitor._block_speed = None, np.empty(0, int), {}
     monitor.options = SimpleNamespace(harmonics=HarmonicOptions(orders=(1, 2), blades=5))
     monitor._read_log = lambda: log

@@ -280,6 +280,7 @@ class Monitor:
         self._saved_grid = self._stored_grid()
         self._given_up: tuple[tuple[int, int], list[dict]] = ((-1, -1), [])
         self._harmonic_marks: dict[int, np.ndarray] = {}  # block -> marks, once the log covers it
+        self._shaft_logged = False  # a block tracked so far has a usable shaft speed
         self._health_schedule = ""  # from which block the health chart monitors
         self._marks_pending = False
         self._marked: pd.DataFrame | None = None  # selected modes with their marks
@@ -1026,7 +1027,15 @@ class Monitor:
         if pending:
             rows = np.concatenate(pending)
             part = frame.iloc[rows]
-            marked = HarmonicMarker(log, self.options.harmonics).mark_selected(part)
+            marker = HarmonicMarker(log, self.options.harmonics)
+            marked = marker.mark_selected(part, shaft_logged=self._shaft_logged or None)
+            if marker.method == "shaft speed" and not self._shaft_logged:
+                # the voyage's blocks have a shaft speed: those marked before without one
+                # (by the speed-following test over their part) are marked again with it
+                self._shaft_logged = True
+                if self._harmonic_marks:
+                    self._harmonic_marks = {}
+                    return self._mark_harmonics(frame)
             checked = (
                 marked["harmonic_checked"].to_numpy(float)
                 if "harmonic_checked" in marked.columns

@@ -1019,7 +1019,9 @@ class HarmonicMarker:
         self.n_selected = 0
         self.n_poles = 0
 
-    def mark_selected(self, selected: pd.DataFrame) -> pd.DataFrame:
+    def mark_selected(
+        self, selected: pd.DataFrame, *, shaft_logged: bool | None = None
+    ) -> pd.DataFrame:
         """*selected* with its ``harmonic``, ``harmonic_frequency_hz`` and
         ``harmonic_checked`` columns.
 
@@ -1028,6 +1030,11 @@ class HarmonicMarker:
         speed, when the blocks with both show a fixed ratio (:func:`shaft_rate_per_knot`);
         blocks with neither are not checked (``harmonic_checked`` False): tracking judges a
         label by its checked rows and leaves out one seen (almost) only where the log fails.
+
+        *shaft_logged*: whether the voyage's blocks have a usable shaft speed (None: those
+        of *selected*, the voyage). True for a part of the voyage (the monitor's newest
+        blocks) marks it from the shaft speed, estimated from the speed where the part has
+        none, as the whole voyage would be, not by the speed-following test over the part.
         """
         selected = selected.copy()
         selected["harmonic"] = np.nan
@@ -1039,7 +1046,9 @@ class HarmonicMarker:
         self.shaft = block_shaft_table(self.log, selected)
         self.shaft["shaft_rpm_from"] = np.where(self.shaft["shaft_rpm"].notna(), "log", "")
         shaft = self.shaft.set_index("block")
-        if self.shaft["shaft_rpm"].notna().any():
+        if shaft_logged is None:
+            shaft_logged = bool(self.shaft["shaft_rpm"].notna().any())
+        if shaft_logged:
             self.method = "shaft speed"
             selected["harmonic"] = mark_shaft_orders(selected, self.log, self.options)
             self.rpm_per_kn = shaft_rate_per_knot(self.log, self.options)
