@@ -63,7 +63,7 @@ def test_the_monitor_marks_a_shaft_speed_outage_as_identify_does(shaft_voyage, t
     from workbench.sid.harmonics import HarmonicOptions
 
     monitor = Monitor.__new__(Monitor)  # only what the marking uses
-    monitor._harmonic_marks, monitor._marks_pending = {}, False
+    monitor._harmonic_marks, monitor._marks_pending, monitor._shaft_logged = {}, False, False
     monitor.options = SimpleNamespace(harmonics=HarmonicOptions())
     log = read_dship(source / "dship.tsv")
     monitor._read_log = lambda: log
@@ -78,3 +78,30 @@ def test_the_monitor_marks_a_shaft_speed_outage_as_identify_does(shaft_voyage, t
     ) == 0  # fmt: skip
     tracked = pd.read_parquet(state / "tracked.parquet")
     pd.testing.assert_frame_equal(tracked, batch["tracked"])
+
+
+def test_block_by_block_the_outage_is_marked_as_identify_marks_it(shaft_voyage, tmp_path):
+    """The monitor marks the blocks one at a time as they are tracked: a block inside the
+    outage is tested from the speed times the voyage's shaft speed per knot, as identify
+    tests it, not by the speed-following test over that block's modes alone (which never
+    sweeps: 4 harmonic rows of the outage's blocks left unmarked before)."""
+    from types import SimpleNamespace
+
+    from data_contracts import read_dship
+    from workbench.monitor.core import Monitor
+    from workbench.sid.harmonics import HarmonicOptions
+
+    source = _damaged(shaft_voyage, tmp_path / "voyage")
+    batch_run(source, tmp_path / "batch")
+    selected = pd.read_parquet(tmp_path / "batch" / "id" / "selected.parquet")
+    columns = ["harmonic", "harmonic_frequency_hz", "harmonic_checked"]
+    monitor = Monitor.__new__(Monitor)  # only what the marking uses
+    monitor._harmonic_marks, monitor._marks_pending, monitor._speed_test = {}, False, None
+    monitor._shaft_logged = False
+    monitor.options = SimpleNamespace(harmonics=HarmonicOptions())
+    log = read_dship(source / "dship.tsv")
+    monitor._read_log = lambda: log
+    frame = selected.drop(columns=columns)
+    for block in sorted(frame["block"].unique()):
+        marked = monitor._mark_harmonics(frame[frame["block"] <= block])
+    pd.testing.assert_frame_equal(marked[columns], selected[columns])

@@ -147,6 +147,100 @@ def test_speed_following_needs_a_sweep():
     assert mark_speed_following(selected, shaft).isna().all()
 
 
+def _long_voyage(n_blocks: int, seed: int = 0):
+    """Selected modes of *n_blocks* blocks, the speed swinging between 3 and 11 kn: orders 1
+    and 2 at 0.3 Hz/kn (fixed shapes) and modes at 2.9, 4.6 and 7.5 Hz (their own shapes),
+    frequencies and shapes with noise (0.3 %, 0.05); and the blocks' speed table."""
+    rng = np.random.default_rng(seed)
+    blocks = np.arange(n_blocks)
+    speed = 7.0 + 4.0 * np.sin(2 * np.pi * blocks / 40) + 0.1 * rng.standard_normal(n_blocks)
+    lines = [
+        (lambda v: 0.3 * v, SHAPE_FORCED),
+        (lambda v: 0.6 * v, np.array([0.2, 1.0, 0.4, -0.5, 0.3, 0.1])),
+        (lambda v: 2.9, SHAPE_MODE),
+        (lambda v: 4.6, np.array([1.0, -1.0, 0.5, 0.5, -1.0, 1.0])),
+        (lambda v: 7.5, np.array([0.1, 0.3, 1.0, 1.0, 0.3, 0.1])),
+    ]
+    rows = [
+        (b, f(v) * (1 + 0.003 * rng.standard_normal()), shape + 0.05 * rng.standard_normal(6))
+        for b, v in zip(blocks, speed, strict=True)
+        for f, shape in lines
+    ]
+    return _selected(rows), pd.DataFrame({"block": blocks, "speed_energy_kn": speed})
+
+
+def _speed_following_by_definition(selected, shaft, options):
+    """The speed-following test as its docstring defines it, every pair compared: per mode,
+    the component of its shape graph (MAC >= mac_min) within its ratio window."""
+    from scipy.sparse.csgraph import connected_components
+
+    from workbench.sid.harmonics import _shapes, order_list
+
+    speed = selected["block"].map(shaft.set_index("block")["speed_energy_kn"]).to_numpy(float)
+    rows = np.flatnonzero(speed > options.min_speed_kn)
+    frequency = selected["frequency_hz"].to_numpy(float)[rows]
+    ratio = np.log(frequency / speed[rows])
+    shapes = _shapes(selected.iloc[rows])
+    linked = np.abs(shapes @ shapes.conj().T) ** 2 >= options.mac_min
+    swept = np.zeros(len(rows), dtype=bool)
+    for i in range(len(rows)):
+        window = np.flatnonzero(np.abs(ratio - ratio[i]) <= options.ratio_tol)
+        _, component = connected_components(linked[np.ix_(window, window)], directed=False)
+        members = window[component == component[np.searchsorted(window, i)]]
+        swept[i] = len(members) >= options.min_rows and (
+            frequency[members].max() / frequency[members].min() - 1 > options.min_sweep
+        )
+    marked = swept.copy()
+    base = np.exp(ratio[swept].min())
+    for order in order_list(options):
+        marked |= np.abs(ratio - np.log(base * order / min(options.orders))) <= options.ratio_tol
+    return set(selected.index[rows[marked]]), base / min(options.orders)
+
+
+@pytest.mark.parametrize("balls_from_rows, chunk_rows", [(10**9, 256), (8, 8)])
+def test_speed_following_equals_its_definition_at_once_and_block_by_block(
+    balls_from_rows, chunk_rows, monkeypatch
+):
+    # every pair of a window compared; or its groups from balls of shapes, and two balls'
+    # members from balls within them
+    from workbench.sid import harmonics
+
+    monkeypatch.setattr(harmonics, "_BALLS_FROM_ROWS", balls_from_rows)
+    monkeypatch.setattr(harmonics, "_CHUNK_ROWS", chunk_rows)
+    selected, shaft = _long_voyage(120)
+    options = HarmonicOptions()
+    expected, per_kn = _speed_following_by_definition(selected, shaft, options)
+    # not vacuous: both orders (240 rows) and 27 rows of the modes, where an order's ratio
+    # is theirs
+    assert len(expected) == 267
+    marks = mark_speed_following(selected, shaft, options)
+    assert set(marks.index[marks.notna()]) == expected
+    assert marks.attrs["shaft_hz_per_kn"] == pytest.approx(per_kn, rel=1e-12)
+    test = harmonics.SpeedFollowing(options)
+    speed = selected["block"].map(shaft.set_index("block")["speed_energy_kn"]).to_numpy()
+    for _, rows in selected.groupby("block").indices.items():
+        part = selected.iloc[rows]
+        test.add(part["frequency_hz"].to_numpy(), speed[rows], harmonics._shapes(part))
+    marked, by_blocks = test.marked()
+    assert set(selected.index[marked]) == expected and by_blocks == marks.attrs["shaft_hz_per_kn"]
+
+
+def test_speed_following_memory_grows_with_the_modes_not_their_pairs():
+    # 4000 modes (800 blocks): every pair's MAC alone would take 4000² x 16 B = 256 MB
+    import tracemalloc
+
+    selected, shaft = _long_voyage(800, seed=1)
+    tracemalloc.start()
+    marks = mark_speed_following(selected, shaft)
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert peak < 20e6  # 3.2 MB (the modes, their windows' groups, chunks of 256 modes)
+    orders = np.tile(np.arange(5) < 2, 800)  # rows 0 and 1 of each block are the orders
+    assert marks[orders].notna().all()
+    # the modes only where an order's ratio is theirs: 194 of their 2400 rows
+    assert marks[~orders].notna().sum() == 194
+
+
 def test_without_a_log_nothing_is_marked_and_the_columns_exist():
     _, rows = _voyage_rows()
     selected = _selected(rows)

@@ -29,7 +29,7 @@ folder as the one table its parts make, in block order::
                                  (:mod:`workbench.monitor.state_format`)
     <state>/tracked.parquet      MODAL contract: the tracked modal table so far (labels
                                  that are shaft harmonics left out, from the logged shaft
-                                 speed)
+                                 speed, or from the speed without it, as identify --dship)
     <state>/labels.json          {"schema": "workbench.monitor.labels/1", "labels":
                                  [{"mode": int, "labelled_block": int, "frequency_hz":
                                  float}]}: every label given so far (also those of

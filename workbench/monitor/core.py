@@ -80,10 +80,12 @@ class MonitorOptions:
     tracking : TrackingOptions
         As ``workbench track``.
     harmonics : HarmonicOptions
-        Shaft orders and blades: with a ship log that logs the shaft speed, the selected
-        modes are marked (:func:`~workbench.sid.harmonics.mark_shaft_orders`), which keeps
-        the harmonics out of the tracked table; a block's marks are final once the log
-        covers it.
+        Shaft orders and blades: with a ship log, the selected modes are marked as
+        ``identify --dship`` marks them, from the logged shaft speed
+        (:func:`~workbench.sid.harmonics.mark_shaft_orders`; a block's marks are final once
+        the log covers it) or, without it, from the speed
+        (:class:`~workbench.sid.harmonics.SpeedFollowing`), which keeps the harmonics out
+        of the tracked table.
     forecast : ForecastSettings
         As ``workbench forecast`` and ``workbench health``.
     poll_s : float
@@ -281,9 +283,15 @@ class Monitor:
         self._saved_grid = self._stored_grid()
         self._given_up: tuple[tuple[int, int], list[dict]] = ((-1, -1), [])
         self._harmonic_marks: dict[int, np.ndarray] = {}  # block -> marks, once the log covers it
+        self._shaft_logged = False  # a block tracked so far has a usable shaft speed
         self._health_schedule = ""  # from which block the health chart monitors
         self._marks_pending = False
         self._marked: pd.DataFrame | None = None  # selected modes with their marks
+        # the speed-following test of a log without the shaft speed (_mark_from_speed):
+        # the test, each tracked row's index in it, each covered block's speed
+        self._speed_test = None
+        self._speed_index = np.empty(0, dtype=np.int64)
+        self._block_speed: dict[int, float] = {}
         # liveness (heartbeat.json): the last file taken and the background worker's state
         self._last_taken: tuple[str, pd.Timestamp] | None = None
         # what the main loop is doing and since when: a heartbeat from a live thread beside
@@ -988,16 +996,20 @@ class Monitor:
 
     def _mark_harmonics(self, frame: pd.DataFrame) -> pd.DataFrame:
         """The selected modes tracked so far with their ``harmonic``,
-        ``harmonic_frequency_hz`` and ``harmonic_checked`` columns from the logged shaft
-        speed, as ``identify --dship`` marks them
+        ``harmonic_frequency_hz`` and ``harmonic_checked`` columns as ``identify --dship``
+        marks them: from the logged shaft speed
         (:meth:`~workbench.sid.harmonics.HarmonicMarker.mark_selected`: spikes and a frozen
         sensor left out, a block without a usable shaft speed tested from the speed where
-        the ship's shaft speed per knot is fixed, else unchecked). A block's marks are kept
-        once the log covers the block; before that they are recomputed, so the tracked
-        table ends equal to ``identify --dship`` + ``track`` however late the log."""
-        log = self._shaft_log()
+        the ship's shaft speed per knot is fixed, else unchecked), or from the speed when
+        the log has no shaft speed (:meth:`_mark_from_speed`). A block's marks from the
+        shaft speed are kept once the log covers the block; before that they are
+        recomputed, so the tracked table ends equal to ``identify --dship`` + ``track``
+        however late the log."""
+        log = self._read_log()  # an unreadable log: the outlook reports it
         if log is None:
             return frame
+        if "shaft_rpm" not in log.columns or log["shaft_rpm"].isna().all():
+            return self._mark_from_speed(frame, log) if "speed_kn" in log.columns else frame
         from ..sid.harmonics import HarmonicMarker
 
         # per row: the order (NaN: none), the order's frequency at the block's shaft speed
@@ -1015,7 +1027,15 @@ class Monitor:
         if pending:
             rows = np.concatenate(pending)
             part = frame.iloc[rows]
-            marked = HarmonicMarker(log, self.options.harmonics).mark_selected(part)
+            marker = HarmonicMarker(log, self.options.harmonics)
+            marked = marker.mark_selected(part, shaft_logged=self._shaft_logged or None)
+            if marker.method == "shaft speed" and not self._shaft_logged:
+                # the voyage's blocks have a shaft speed: those marked before without one
+                # (by the speed-following test over their part) are marked again with it
+                self._shaft_logged = True
+                if self._harmonic_marks:
+                    self._harmonic_marks = {}
+                    return self._mark_harmonics(frame)
             checked = (
                 marked["harmonic_checked"].to_numpy(float)
                 if "harmonic_checked" in marked.columns
@@ -1038,6 +1058,78 @@ class Monitor:
             harmonic=harmonic[:, 0],
             harmonic_frequency_hz=harmonic[:, 1],
             harmonic_checked=harmonic[:, 2] > 0.5,
+        )
+
+    def _mark_from_speed(self, frame: pd.DataFrame, log: pd.DataFrame) -> pd.DataFrame:
+        """:meth:`_mark_harmonics` from a ship log with the speed but no shaft speed: the
+        speed-following test over every block tracked so far, as ``identify --dship``
+        tests the whole voyage (:class:`~workbench.sid.harmonics.SpeedFollowing`).
+
+        A block's modes join the test once the log covers the block (its speed is then
+        final); a mode added only enlarges the groups of those before it, so the test
+        holding the voyage so far is the voyage's test, at the cost of the new modes'
+        ratio windows (not the voyage's modes). The modes of blocks the log does not cover
+        yet are tested on a copy, with the speed logged so far. Marks of earlier blocks
+        change when a new harmonic lowers the shaft rate per knot found (the other orders'
+        ratios): every row's marks are given again each time."""
+        from ..sid.harmonics import (
+            SpeedFollowing,
+            _shapes,
+            block_shaft_table,
+            nearest_order_frequency,
+            order_list,
+        )
+
+        options = self.options.harmonics
+        n = len(frame)
+        if self._speed_test is None or n < len(self._speed_index):  # a new tracker
+            self._speed_test = SpeedFollowing(options)
+            self._speed_index = np.empty(0, dtype=np.int64)
+            self._block_speed = {}
+        # each block's energy-weighted speed, kept once the log covers the block
+        covered = pd.to_datetime(log["time"], utc=True).max()
+        blocks = frame[["block", "block_start", "block_end"]].drop_duplicates("block")
+        unknown = blocks[~blocks["block"].astype(int).isin(self._block_speed)]
+        pending_speed: dict[int, float] = {}
+        if len(unknown):
+            table = block_shaft_table(log, unknown).set_index("block")["speed_energy_kn"]
+            ends = pd.to_datetime(unknown["block_end"], utc=True)
+            for block, end in zip(unknown["block"].astype(int), ends, strict=True):
+                final = pd.notna(covered) and end <= covered
+                (self._block_speed if final else pending_speed)[block] = float(table[block])
+        block = frame["block"].to_numpy(dtype=np.int64)
+        speed = pd.Series(block).map({**self._block_speed, **pending_speed}).to_numpy(float)
+        final = pd.Series(block).isin(self._block_speed).to_numpy()
+        usable = np.isfinite(speed) & (speed > options.min_speed_kn)
+        # index of each row in the test (-1: not usable; -2: not added yet)
+        index = np.concatenate(
+            [self._speed_index, np.full(n - len(self._speed_index), -2, dtype=np.int64)]
+        )
+        test = self._speed_test
+        join = np.flatnonzero((index == -2) & final)
+        index[join[~usable[join]]] = -1
+        join = join[usable[join]]
+        frequency = frame["frequency_hz"].to_numpy(float)
+        if len(join):
+            index[join] = len(test) + np.arange(len(join))
+            test.add(frequency[join], speed[join], _shapes(frame.iloc[join]))
+        self._speed_index = np.where(final, index, -2)
+        waiting = np.flatnonzero((index == -2) & usable)
+        self._marks_pending = bool((~final).any())
+        if len(waiting):
+            test = test.copy()
+            index[waiting] = len(test) + np.arange(len(waiting))
+            test.add(frequency[waiting], speed[waiting], _shapes(frame.iloc[waiting]))
+        marked_in_test, per_kn = test.marked()
+        marked = np.zeros(n, dtype=bool)
+        tested = index >= 0
+        marked[tested] = marked_in_test[index[tested]]
+        harmonic = np.where(marked, 0.0, np.nan)
+        order_hz = nearest_order_frequency(frequency, per_kn * speed, order_list(options))
+        return frame.assign(
+            harmonic=harmonic,
+            harmonic_frequency_hz=np.where(marked, order_hz, np.nan),
+            harmonic_checked=np.isfinite(speed),
         )
 
     def _write_harmonic_lines(self, tracked: pd.DataFrame) -> None:
@@ -1065,7 +1157,8 @@ class Monitor:
     def _write_harmonic_tracks(self, labels: list[dict]) -> None:
         """``harmonic_tracks.parquet``: the rows of the tracked lines recognised as shaft
         or blade-pass harmonics (left out of ``tracked.parquet``), so that a reader sees
-        them as harmonics, never as modes (nothing without a logged shaft speed)."""
+        them as harmonics, never as modes (``order`` 0: found from the speed, order
+        unknown; nothing without a ship log)."""
         from ..dashboard.state import HARMONIC_TRACKS
 
         path = self.state / "harmonic_tracks.parquet"

@@ -70,6 +70,8 @@ __all__ = [
     "mark_poles",
     "mark_shaft_orders",
     "mark_speed_following",
+    "nearest_order_frequency",
+    "SpeedFollowing",
     "order_list",
 ]
 
@@ -454,6 +456,388 @@ def _mac_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.abs(a @ b.conj().T) ** 2
 
 
+#: Rows whose shapes are compared with a window's rows at once by the speed-following
+#: test: a comparison holds this many rows times the window's rows. [-]
+_CHUNK_ROWS = 256
+#: Fewest shapes whose groups are found from balls of shapes (:func:`_components`); fewer
+#: are compared pair by pair. [-]
+_BALLS_FROM_ROWS = 32
+#: Levels of balls within balls by which two balls' members are compared (then member by
+#: member). [-]
+_LINK_DEPTH = 6
+#: Bins of the log ratio per ``ratio_tol`` by which the speed-following test decides its
+#: rows together (see :class:`SpeedFollowing`): 1, 2 and 4 give the same marks, 1 the
+#: fewest shape comparisons (``benchmarks/results/harmonics_speed_scale_51.txt``). [-]
+_BINS_PER_TOL = 1
+#: Margin of the bins' windows against rounding of the log ratios. [-]
+_RATIO_EPS = 1e-9
+
+
+#: Margin of the distance between shapes (the angle arccos sqrt(MAC)) by which two groups
+#: of shapes are judged apart without comparing their shapes one by one: far above the
+#: rounding of the MAC (1e-16 in the MAC, 1e-8 in the angle near MAC = 1). [rad]
+_ANGLE_EPS = 1e-6
+
+
+def _angle(mac: np.ndarray) -> np.ndarray:
+    """The angle between shapes of MAC *mac*, arccos sqrt(MAC): a distance (it obeys the
+    triangle inequality; the Fubini-Study metric of the shapes' directions). [rad]"""
+    return np.arccos(np.sqrt(np.clip(mac, 0.0, 1.0)))
+
+
+def _pairwise_components(shapes: np.ndarray, mac_min: float) -> np.ndarray:
+    """:func:`_components` by comparing every pair of shapes, :data:`_CHUNK_ROWS` rows at a
+    time against the rows after them, the labels merged after each chunk."""
+    n = len(shapes)
+    labels = np.arange(n)
+    for start in range(0, n, _CHUNK_ROWS):
+        stop = min(start + _CHUNK_ROWS, n)
+        linked = _mac_matrix(shapes[start:stop], shapes[start:]) >= mac_min
+        row, column = np.nonzero(linked)
+        labels = _merged(labels, labels[start + row], labels[start + column])
+    return labels
+
+
+def _merged(labels: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """*labels* (of 0..n-1) with the labels linked by the pairs (*a*, *b*) merged."""
+    keep = a != b
+    if not keep.any():
+        return labels
+    n = len(labels)
+    pairs = np.unique(a[keep].astype(np.int64) * n + b[keep])
+    graph = csr_matrix((np.ones(len(pairs), dtype=bool), (pairs // n, pairs % n)), (n, n))
+    return connected_components(graph, directed=False)[1][labels]
+
+
+def _balls(shapes: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Shapes gathered around leaders: the first shape not yet gathered leads every other
+    within *radius* of it [rad]. Returns each shape's ball, each ball's leader and its
+    reach (the largest angle of a member from its leader)."""
+    ball = np.full(len(shapes), -1)
+    leaders, reach = [], []
+    free = np.arange(len(shapes))
+    while free.size:  # each pass gathers at least its leader
+        leader = free[0]
+        angle = _angle(_mac_matrix(shapes[free], shapes[leader : leader + 1])[:, 0])
+        inside = angle <= radius
+        inside[0] = True
+        ball[free[inside]] = len(leaders)
+        leaders.append(leader)
+        reach.append(float(angle[inside].max()))
+        free = free[~inside]
+    return ball, np.array(leaders), np.array(reach)
+
+
+def _components(shapes: np.ndarray, mac_min: float) -> np.ndarray:
+    """Connected components of the rows of *shapes* (unit norm) linked by MAC >= *mac_min*:
+    a label per row, the same components as from the MAC of every pair.
+
+    Notes
+    -----
+    With θ = arccos sqrt(*mac_min*) the angle of a link, the shapes are gathered in balls
+    of radius θ / 2 around leaders (:func:`_balls`; each member linked to its leader, so a
+    ball is connected). Two balls A and B, leaders a and b, reaches r_A and r_B, are linked
+    when a and b are; they are not when d(a, b) > θ + r_A + r_B (every pair of members is
+    then further apart than θ, by the triangle inequality); in between, their members are
+    compared (those within θ + r_B of b with those within θ + r_A of a), unless the two
+    balls are joined already. The shapes of a harmonic line or of a mode at one speed
+    gather in a few balls, so a window of thousands of modes costs its modes times its
+    balls, not its modes squared.
+    """
+    n = len(shapes)
+    link = math.acos(math.sqrt(mac_min))
+    if n <= _BALLS_FROM_ROWS or link < 100 * _ANGLE_EPS:
+        return _pairwise_components(shapes, mac_min)
+    ball, leaders, reach = _balls(shapes, link / 2)
+    members = np.split(np.argsort(ball, kind="stable"), np.cumsum(np.bincount(ball))[:-1])
+    n_balls = len(leaders)
+    labels = np.arange(n_balls)
+    for start in range(0, n_balls, _CHUNK_ROWS):
+        stop = min(start + _CHUNK_ROWS, n_balls)
+        mac = _mac_matrix(shapes[leaders[start:stop]], shapes[leaders[start:]])
+        row, column = np.nonzero(mac >= mac_min)
+        labels = _merged(labels, labels[start + row], labels[start + column])
+        angle = _angle(mac)
+        near = angle <= link + reach[start:stop, None] + reach[None, start:] + _ANGLE_EPS
+        row, column = np.nonzero(near & (mac < mac_min))
+        for k in np.argsort(angle[row, column], kind="stable"):  # the nearest first
+            a, b = start + row[k], start + column[k]
+            if labels[a] == labels[b] or not _balls_linked(
+                shapes, members[a], members[b], leaders[a], leaders[b], reach[a], reach[b], link,
+                mac_min,
+            ):  # fmt: skip
+                continue
+            labels[labels == labels[b]] = labels[a]
+    return labels[ball]
+
+
+def _balls_linked(shapes, one, other, leader_one, leader_other, reach_one, reach_other, link,
+                  mac_min, depth: int = 0) -> bool:  # fmt: skip
+    """Whether a member of ball *one* and one of ball *other* have MAC >= *mac_min*.
+
+    Only the members within θ + r_B of b and θ + r_A of a can link (θ = *link*, a and b
+    the leaders, r the reaches). Many of them are gathered again in balls of half the
+    reach, and those balls' pairs decided as in :func:`_components` (linked leaders: yes;
+    too far apart: no; else their members, one level down); at most
+    :data:`_LINK_DEPTH` levels, then or when few, member by member."""
+    one = one[
+        _angle(_mac_matrix(shapes[one], shapes[leader_other : leader_other + 1])[:, 0])
+        <= link + reach_other + _ANGLE_EPS
+    ]
+    other = other[
+        _angle(_mac_matrix(shapes[other], shapes[leader_one : leader_one + 1])[:, 0])
+        <= link + reach_one + _ANGLE_EPS
+    ]
+    if not len(one) or not len(other):
+        return False
+    if len(one) * len(other) > _CHUNK_ROWS**2 and depth < _LINK_DEPTH:
+        sides = []
+        for rows, reach in ((one, reach_one), (other, reach_other)):
+            ball, leaders, reaches = _balls(shapes[rows], reach / 2)
+            members = np.split(
+                rows[np.argsort(ball, kind="stable")], np.cumsum(np.bincount(ball))[:-1]
+            )
+            sides.append((members, rows[leaders], reaches))
+        (members_one, leaders_one, reach_ones), (members_other, leaders_other, reach_others) = sides
+        if len(leaders_one) * len(leaders_other) < len(one) * len(other) // 4:
+            mac = _mac_matrix(shapes[leaders_one], shapes[leaders_other])
+            if (mac >= mac_min).any():
+                return True
+            angle = _angle(mac)
+            near = angle <= link + reach_ones[:, None] + reach_others[None, :] + _ANGLE_EPS
+            row, column = np.nonzero(near)
+            for k in np.argsort(angle[row, column], kind="stable"):  # the nearest first
+                i, j = row[k], column[k]
+                if _balls_linked(
+                    shapes, members_one[i], members_other[j], leaders_one[i], leaders_other[j],
+                    reach_ones[i], reach_others[j], link, mac_min, depth + 1,
+                ):  # fmt: skip
+                    return True
+            return False
+    for start in range(0, len(one), _CHUNK_ROWS):
+        if (_mac_matrix(shapes[one[start : start + _CHUNK_ROWS]], shapes[other]) >= mac_min).any():
+            return True
+    return False
+
+
+class SpeedFollowing:
+    """The speed-following test (:func:`mark_speed_following`) over selected modes given
+    a few at a time (the monitor's blocks) or all at once.
+
+    A mode is *swept* when its group (see :func:`mark_speed_following`) holds at least
+    ``min_rows`` modes whose frequencies spread over more than ``min_sweep``. Modes added
+    later only enlarge the groups of the modes before them (a group is the modes of a
+    ratio window linked by shape), so a swept mode stays swept and only the unswept modes
+    within ``ratio_tol`` of an added mode are tested again: the result is the same
+    whether the modes come in one table or block by block.
+
+    The test of a mode needs the component of its shape graph within its own ratio
+    window. Sorted by the log ratio, the modes are decided a bin of ``ratio_tol`` /
+    :data:`_BINS_PER_TOL` at a time: the window of every mode of a bin contains the
+    bin's inner window (the ratios within ``ratio_tol`` of the whole bin) and lies within
+    its outer window (the ratios within ``ratio_tol`` of any of it). A mode whose group
+    in the inner window is swept is swept; one whose group in the outer window is not, is
+    not; only the few left between are tested on their own window (within their group
+    of the outer window). The groups of a window are found from balls of similar shapes
+    (:func:`_components`) and kept: a mode added later joins the groups of the windows it
+    falls in (compared with their modes), so a block costs its modes times the modes of
+    their windows. Memory: the modes, the kept windows' group labels (a few per mode), and
+    a chunk of :data:`_CHUNK_ROWS` modes compared with a window's.
+
+    Parameters
+    ----------
+    options : HarmonicOptions, optional
+    """
+
+    #: Added modes falling in a kept window above which its groups are found afresh
+    #: rather than joined one mode at a time. [-]
+    REBUILD_ROWS = 64
+
+    def __init__(self, options: HarmonicOptions | None = None):
+        self.options = options or HarmonicOptions()
+        self.log_ratio = np.empty(0)
+        self.frequency = np.empty(0)
+        self.shapes: np.ndarray | None = None
+        self.swept = np.empty(0, dtype=bool)
+        self._order = np.empty(0, dtype=int)  # the modes by log ratio
+        self._sorted = np.empty(0)
+        # (bin, "inner" | "outer") -> [modes of the window (sorted), their group labels]
+        self._windows: dict[tuple[int, str], list[np.ndarray]] = {}
+
+    def __len__(self) -> int:
+        return len(self.log_ratio)
+
+    def copy(self) -> SpeedFollowing:
+        """An independent copy (to test modes without keeping them)."""
+        other = SpeedFollowing(self.options)
+        other.log_ratio, other.frequency = self.log_ratio.copy(), self.frequency.copy()
+        other.shapes = None if self.shapes is None else self.shapes.copy()
+        other.swept = self.swept.copy()
+        other._order, other._sorted = self._order.copy(), self._sorted.copy()
+        other._windows = {key: [rows.copy(), labels.copy()] for key, (rows, labels) in
+                          self._windows.items()}  # fmt: skip
+        return other
+
+    def add(self, frequency_hz: np.ndarray, speed_kn: np.ndarray, shapes: np.ndarray) -> None:
+        """Add modes (those of blocks at least ``min_speed_kn`` fast: the caller's choice)
+        and test them and the unswept modes within ``ratio_tol`` of them.
+
+        Parameters
+        ----------
+        frequency_hz : ndarray, shape (n,)
+            [Hz]
+        speed_kn : ndarray, shape (n,)
+            Energy-weighted speed of each mode's block. [kn]
+        shapes : ndarray, shape (n, n_channels)
+            Unit-norm complex mode shapes (:func:`_shapes`).
+        """
+        frequency = np.asarray(frequency_hz, dtype=float)
+        if not len(frequency):
+            return
+        log_ratio = np.log(frequency / np.asarray(speed_kn, dtype=float))
+        tol = self.options.ratio_tol
+        # the unswept modes whose window the new modes enter
+        lo = np.searchsorted(self._sorted, log_ratio - tol - _RATIO_EPS, side="left")
+        hi = np.searchsorted(self._sorted, log_ratio + tol + _RATIO_EPS, side="right")
+        reached = np.zeros(len(self), dtype=bool)
+        for a, b in zip(lo, hi, strict=True):
+            reached[self._order[a:b]] = True
+        n_before = len(self)
+        self.log_ratio = np.concatenate([self.log_ratio, log_ratio])
+        self.frequency = np.concatenate([self.frequency, frequency])
+        self.shapes = shapes if self.shapes is None else np.concatenate([self.shapes, shapes])
+        self.swept = np.concatenate([self.swept, np.zeros(len(frequency), dtype=bool)])
+        self._order = np.argsort(self.log_ratio, kind="stable")
+        self._sorted = self.log_ratio[self._order]
+        self._join_windows(np.arange(n_before, len(self)))
+        candidates = np.concatenate(
+            [np.flatnonzero(reached & ~self.swept[:n_before]), np.arange(n_before, len(self))]
+        )
+        self.swept[candidates] = self._decide(candidates)
+
+    def _bounds(self, k: int, which: str) -> tuple[float, float]:
+        """The log ratios [low, high] of bin *k*'s inner or outer window."""
+        tol = self.options.ratio_tol
+        step = tol / _BINS_PER_TOL
+        left, right = k * step, (k + 1) * step
+        if which == "inner":  # within every mode's window of the bin
+            return right - tol + _RATIO_EPS, left + tol - _RATIO_EPS
+        return left - tol - _RATIO_EPS, right + tol + _RATIO_EPS  # holds every one
+
+    def _join_windows(self, new: np.ndarray) -> None:
+        """The added modes *new* join the kept windows they fall in (or the window's
+        groups are dropped, found afresh when next needed, when many fall in it)."""
+        options = self.options
+        for key in list(self._windows):
+            low, high = self._bounds(*key)
+            inside = new[(self.log_ratio[new] >= low) & (self.log_ratio[new] <= high)]
+            if not len(inside):
+                continue
+            if len(inside) > self.REBUILD_ROWS:
+                del self._windows[key]
+                continue
+            rows, labels = self._windows[key]
+            for row in inside:  # each joins the groups it links (MAC >= mac_min)
+                linked = _mac_matrix(self.shapes[row : row + 1], self.shapes[rows])[0]
+                joined = np.unique(labels[linked >= options.mac_min])
+                label = int(joined[0]) if len(joined) else int(labels.max(initial=-1)) + 1
+                labels = np.where(np.isin(labels, joined), label, labels)
+                at = int(np.searchsorted(rows, row))
+                rows, labels = np.insert(rows, at, row), np.insert(labels, at, label)
+            self._windows[key] = [rows, labels]
+
+    def _window(self, low: float, high: float) -> np.ndarray:
+        """The modes whose log ratio lies in [low, high]."""
+        a = np.searchsorted(self._sorted, low, side="left")
+        b = np.searchsorted(self._sorted, high, side="right")
+        return self._order[a:b]
+
+    def _kept(self, k: int, which: str) -> tuple[np.ndarray, np.ndarray]:
+        """The modes (sorted) of bin *k*'s inner or outer window and their group labels."""
+        kept = self._windows.get((k, which))
+        if kept is None:
+            rows = np.sort(self._window(*self._bounds(k, which)))
+            labels = (
+                _components(self.shapes[rows], self.options.mac_min)
+                if len(rows) >= self.options.min_rows
+                else np.arange(len(rows))
+            )
+            kept = self._windows[(k, which)] = [rows, labels]
+        return kept[0], kept[1]
+
+    def _swept_labels(self, rows: np.ndarray, labels: np.ndarray) -> np.ndarray:
+        """Per mode of *rows*, whether its group (same label) is swept: at least
+        ``min_rows`` modes whose frequencies spread over more than ``min_sweep``."""
+        options = self.options
+        groups, inverse = np.unique(labels, return_inverse=True)
+        frequency = self.frequency[rows]
+        size = np.bincount(inverse, minlength=len(groups))
+        low = np.full(len(groups), np.inf)
+        high = np.full(len(groups), -np.inf)
+        np.minimum.at(low, inverse, frequency)
+        np.maximum.at(high, inverse, frequency)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            swept = (size >= options.min_rows) & (high / low - 1.0 > options.min_sweep)
+        return swept[inverse]
+
+    def _decide(self, candidates: np.ndarray) -> np.ndarray:
+        """Whether each candidate mode is swept."""
+        options = self.options
+        tol, step = options.ratio_tol, options.ratio_tol / _BINS_PER_TOL
+        out = np.zeros(len(candidates), dtype=bool)
+        bins = np.floor(self.log_ratio[candidates] / step).astype(np.int64)
+        for k in np.unique(bins):  # one pass per occupied bin
+            at = np.flatnonzero(bins == k)
+            rows = candidates[at]
+            # every mode of the bin has all of the inner window in its own, and its own
+            # within the outer window
+            inner, labels = self._kept(int(k), "inner")
+            open_ = np.ones(len(rows), dtype=bool)
+            if len(inner) >= options.min_rows:
+                where = np.minimum(np.searchsorted(inner, rows), len(inner) - 1)
+                hit = (inner[where] == rows) & self._swept_labels(inner, labels)[where]
+                out[at[hit]] = True
+                open_ &= ~hit
+            if not open_.any():
+                continue
+            outer, labels = self._kept(int(k), "outer")
+            if len(outer) < options.min_rows:
+                continue
+            where = np.searchsorted(outer, rows)
+            swept = self._swept_labels(outer, labels)
+            found: dict[bytes, np.ndarray] = {}  # own windows met already: swept per mode
+            for j in np.flatnonzero(open_ & swept[where]):
+                # between the two: the mode's own window, within its group of the outer one
+                group = outer[labels == labels[where[j]]]
+                own = group[np.abs(self.log_ratio[group] - self.log_ratio[rows[j]]) <= tol]
+                if len(own) < options.min_rows:
+                    continue
+                key = own.tobytes()
+                if key not in found:
+                    own_labels = _components(self.shapes[own], options.mac_min)
+                    found[key] = self._swept_labels(own, own_labels)
+                out[at[j]] = found[key][np.searchsorted(own, rows[j])]
+        return out
+
+    def marked(self) -> tuple[np.ndarray, float]:
+        """Per mode whether it is marked (swept, or at an order's ratio), and the shaft
+        rate per knot found (NaN when none is swept). [Hz/kn]
+
+        The lowest swept ratio r_1 is taken as the lowest order of ``orders``; every mode
+        within ``ratio_tol`` of k r_1 / min(orders), k an order of :func:`order_list`
+        (the blade pass included), is marked too."""
+        options = self.options
+        marked = self.swept.copy()
+        if not marked.any():
+            return marked, np.nan
+        base = float(np.exp(np.min(self.log_ratio[marked])))
+        lowest = min(options.orders)
+        for order in order_list(options):
+            ratio = np.log(base * order / lowest)
+            marked |= np.abs(self.log_ratio - ratio) <= options.ratio_tol
+        return marked, base / lowest
+
+
 def mark_speed_following(
     selected: pd.DataFrame, shaft: pd.DataFrame, options: HarmonicOptions | None = None
 ) -> pd.Series:
@@ -478,57 +862,35 @@ def mark_speed_following(
     Mode i of a block with energy-weighted speed v_i > ``min_speed_kn`` has the ratio
     r_i = f_i / v_i. Its group is every mode j with |ln r_j - ln r_i| <= ``ratio_tol``
     linked to mode i by a chain of shapes with MAC >= ``mac_min`` (a harmonic's forced
-    shape changes gradually with its frequency); mode i is marked when its group holds at
-    least ``min_rows`` modes whose frequencies spread by more than ``min_sweep``
-    (max / min - 1). A structural mode's frequency does not scale with speed, so its
-    group (same ratio, linked shapes) lies at one speed and one frequency.
+    shape changes gradually with its frequency, near a mode it takes on the mode's
+    shape); mode i is marked when its group holds at least ``min_rows`` modes whose
+    frequencies spread by more than ``min_sweep`` (max / min - 1). A structural mode's
+    frequency does not scale with speed, so its group (same ratio, linked shapes) lies at
+    one speed and one frequency.
 
     The lowest ratio marked this way, r_1, is taken as the lowest order of ``orders``; every
     mode whose ratio lies within ``ratio_tol`` of k r_1 / min(orders) for an order k of
     :func:`order_list` (the blade pass included) is marked too: an order the voyage shows
     at one speed only does not sweep. A structural mode is marked only in the blocks whose
     speed puts an order on it, a minority of its blocks, so tracking keeps it.
+
+    The groups are found by :class:`SpeedFollowing` without comparing every pair of modes:
+    memory grows with the modes, time with the modes times those of a ratio window.
     """
     options = options or HarmonicOptions()
     out = pd.Series(np.nan, index=selected.index, name="harmonic")
     if selected.empty or "speed_energy_kn" not in shaft:
         return out
     speed = selected["block"].map(shaft.set_index("block")["speed_energy_kn"]).to_numpy(float)
-    usable = np.isfinite(speed) & (speed > options.min_speed_kn)
-    if usable.sum() < options.min_rows:
+    rows = np.flatnonzero(np.isfinite(speed) & (speed > options.min_speed_kn))
+    if len(rows) < options.min_rows:
         return out
-    rows = np.flatnonzero(usable)
     part = selected.iloc[rows]
-    frequency = part["frequency_hz"].to_numpy(float)
-    log_ratio = np.log(frequency / speed[rows])
-    shapes = _shapes(part)
-    same_shape = _mac_matrix(shapes, shapes) >= options.mac_min
-    same_ratio = np.abs(log_ratio[:, None] - log_ratio[None, :]) <= options.ratio_tol
-    marked = np.zeros(len(rows), dtype=bool)
-    for i in range(len(rows)):
-        if marked[i]:
-            continue
-        window = np.flatnonzero(same_ratio[i])
-        if len(window) < options.min_rows:
-            continue
-        # the modes of this ratio linked by shape, one step at a time (a forced shape
-        # changes gradually with frequency, near a mode it takes on the mode's shape)
-        _, component = connected_components(
-            csr_matrix(same_shape[np.ix_(window, window)]), directed=False
-        )
-        members = window[component == component[np.searchsorted(window, i)]]
-        spread = frequency[members].max() / frequency[members].min() - 1.0
-        if len(members) >= options.min_rows and spread > options.min_sweep:
-            marked[i] = True
-    if marked.any():
-        # the lowest sweeping harmonic is taken as the shaft rate (order 1): the other
-        # orders (and the blade pass) are at k times its ratio, also where they do not sweep
-        base = float(np.exp(np.min(log_ratio[marked])))
-        lowest = min(options.orders)
-        for order in order_list(options):
-            ratio = np.log(base * order / lowest)
-            marked |= np.abs(log_ratio - ratio) <= options.ratio_tol
-        out.attrs["shaft_hz_per_kn"] = base / lowest
+    test = SpeedFollowing(options)
+    test.add(part["frequency_hz"].to_numpy(float), speed[rows], _shapes(part))
+    marked, per_kn = test.marked()
+    if np.isfinite(per_kn):
+        out.attrs["shaft_hz_per_kn"] = per_kn
     out.iloc[rows[marked]] = 0.0
     return out
 
@@ -609,6 +971,29 @@ def shaft_rate_per_knot(log: pd.DataFrame, options: HarmonicOptions | None = Non
     return float(middle) if (high - low) <= PITCH_SCATTER * middle else np.nan
 
 
+def nearest_order_frequency(
+    frequency_hz: np.ndarray, shaft_hz: np.ndarray, orders: tuple[float, ...]
+) -> np.ndarray:
+    """Per mode, the frequency of the order (of *orders*) whose line k x *shaft_hz* is
+    nearest the mode's frequency (on a log scale), NaN where the shaft rate is unknown:
+    the order of a mode marked by the speed-following test (its ``harmonic`` is 0). [Hz]
+    """
+    frequency = np.asarray(frequency_hz, dtype=float)
+    rate = np.asarray(shaft_hz, dtype=float)
+    if not np.isfinite(rate).any():
+        return np.full(len(frequency), np.nan)
+    lines = np.asarray(orders, dtype=float)
+    nearest = lines[
+        np.argmin(
+            np.abs(
+                np.log(frequency[:, None]) - np.log(np.fmax(lines[None, :] * rate[:, None], 1e-300))
+            ),
+            axis=1,
+        )
+    ]
+    return nearest * rate
+
+
 class HarmonicMarker:
     """Marks the harmonics of one voyage: its selected modes first (the whole table, small),
     then its poles chunk by chunk (:func:`mark_poles` against the marked modes).
@@ -634,7 +1019,9 @@ class HarmonicMarker:
         self.n_selected = 0
         self.n_poles = 0
 
-    def mark_selected(self, selected: pd.DataFrame) -> pd.DataFrame:
+    def mark_selected(
+        self, selected: pd.DataFrame, *, shaft_logged: bool | None = None
+    ) -> pd.DataFrame:
         """*selected* with its ``harmonic``, ``harmonic_frequency_hz`` and
         ``harmonic_checked`` columns.
 
@@ -643,6 +1030,11 @@ class HarmonicMarker:
         speed, when the blocks with both show a fixed ratio (:func:`shaft_rate_per_knot`);
         blocks with neither are not checked (``harmonic_checked`` False): tracking judges a
         label by its checked rows and leaves out one seen (almost) only where the log fails.
+
+        *shaft_logged*: whether the voyage's blocks have a usable shaft speed (None: those
+        of *selected*, the voyage). True for a part of the voyage (the monitor's newest
+        blocks) marks it from the shaft speed, estimated from the speed where the part has
+        none, as the whole voyage would be, not by the speed-following test over the part.
         """
         selected = selected.copy()
         selected["harmonic"] = np.nan
@@ -654,7 +1046,9 @@ class HarmonicMarker:
         self.shaft = block_shaft_table(self.log, selected)
         self.shaft["shaft_rpm_from"] = np.where(self.shaft["shaft_rpm"].notna(), "log", "")
         shaft = self.shaft.set_index("block")
-        if self.shaft["shaft_rpm"].notna().any():
+        if shaft_logged is None:
+            shaft_logged = bool(self.shaft["shaft_rpm"].notna().any())
+        if shaft_logged:
             self.method = "shaft speed"
             selected["harmonic"] = mark_shaft_orders(selected, self.log, self.options)
             self.rpm_per_kn = shaft_rate_per_knot(self.log, self.options)
@@ -684,23 +1078,13 @@ class HarmonicMarker:
             self.method = "speed"
             per_kn = marks.attrs.get("shaft_hz_per_kn", np.nan)
             speed = selected["block"].map(shaft["speed_energy_kn"]).to_numpy(float)
-            rate_hz = per_kn * speed
-            # the order whose line is nearest the mode (order unknown: 0 in 'harmonic')
-            orders = np.array(self.orders)
-            nearest = (
-                orders[
-                    np.argmin(
-                        np.abs(
-                            np.log(selected["frequency_hz"].to_numpy(float)[:, None])
-                            - np.log(np.fmax(orders[None, :] * rate_hz[:, None], 1e-300))
-                        ),
-                        axis=1,
-                    )
-                ]
-                if np.isfinite(per_kn)
-                else np.full(len(selected), np.nan)
+            selected["harmonic_frequency_hz"] = np.where(
+                marks.notna(),
+                nearest_order_frequency(
+                    selected["frequency_hz"].to_numpy(float), per_kn * speed, self.orders
+                ),
+                np.nan,
             )
-            selected["harmonic_frequency_hz"] = np.where(marks.notna(), nearest * rate_hz, np.nan)
             checked = shaft["speed_energy_kn"].notna()
         else:
             checked = None
