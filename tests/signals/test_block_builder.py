@@ -198,6 +198,15 @@ def test_gaps_skip_blocks_with_the_reason(gappy):
     assert blocks[2].acceleration is None and blocks[2].skipped_reason == reasons[2]
 
 
+def test_an_edge_pad_within_the_clock_jitter_is_said_in_milliseconds(tmp_path):
+    # a record 31.25 ms (two samples at 64 Hz) short of its only block's end: the block is
+    # the record's (a record is placed to within the clock jitter), its end NaN-padded
+    path = _write(tmp_path, 0.0, seconds=7678 / 64, rate=64.0)
+    (block,) = iter_blocks([path], grid=BlockGrid(T0, 120, 60))
+    assert not block.skipped
+    assert "gap of 31 ms NaN-padded" in block.notes
+
+
 def test_short_gaps_are_nan_padded_when_allowed(gappy):
     grid = BlockGrid(T0, 120, 60)
     blocks = {

@@ -206,8 +206,15 @@ def _assemble(
             filled[lo - b0 : hi - b0] = True
     notes = []
     if not filled.all():
-        notes.append(f"gap of {np.count_nonzero(~filled) / rate:.1f} s NaN-padded")
+        notes.append(f"gap of {_duration(np.count_nonzero(~filled) / rate)} NaN-padded")
     return out, notes
+
+
+def _duration(seconds: float) -> str:
+    """A padded stretch as a reader wants it: tenths of a second, or milliseconds below
+    0.1 s (a record placed after a gap is known to within the clock jitter, 50 ms: its
+    edge's pad is milliseconds, which tenths would show as 0.0 s)."""
+    return f"{seconds:.1f} s" if seconds >= 0.1 else f"{1e3 * seconds:.0f} ms"
 
 
 def _condition(
