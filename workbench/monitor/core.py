@@ -292,6 +292,10 @@ class Monitor:
         self._speed_test = None
         self._speed_index = np.empty(0, dtype=np.int64)
         self._block_speed: dict[int, float] = {}
+        # the shaft rate per knot it found [Hz/kn] and every tracked block's speed [kn]
+        # (those the log does not cover yet included), for the order lines
+        self._shaft_hz_per_kn = np.nan
+        self._speed_of_block: dict[int, float] = {}
         # liveness (heartbeat.json): the last file taken and the background worker's state
         self._last_taken: tuple[str, pd.Timestamp] | None = None
         # what the main loop is doing and since when: a heartbeat from a live thread beside
@@ -989,11 +993,6 @@ class Monitor:
         )
 
     # ------------------------------------------------------------------ tracking
-    def _shaft_log(self) -> pd.DataFrame | None:
-        """The ship log when it logs the shaft speed, else None."""
-        log = self._read_log()  # an unreadable log: the outlook reports it
-        return log if log is not None and "shaft_rpm" in log.columns else None
-
     def _mark_harmonics(self, frame: pd.DataFrame) -> pd.DataFrame:
         """The selected modes tracked so far with their ``harmonic``,
         ``harmonic_frequency_hz`` and ``harmonic_checked`` columns as ``identify --dship``
@@ -1121,6 +1120,8 @@ class Monitor:
             index[waiting] = len(test) + np.arange(len(waiting))
             test.add(frequency[waiting], speed[waiting], _shapes(frame.iloc[waiting]))
         marked_in_test, per_kn = test.marked()
+        self._shaft_hz_per_kn = float(per_kn)
+        self._speed_of_block = {**self._block_speed, **pending_speed}
         marked = np.zeros(n, dtype=bool)
         tested = index >= 0
         marked[tested] = marked_in_test[index[tested]]
@@ -1133,22 +1134,35 @@ class Monitor:
         )
 
     def _write_harmonic_lines(self, tracked: pd.DataFrame) -> None:
-        """``harmonics.parquet``: each order's frequency at the tracked blocks' mean logged
-        shaft speed (nothing without a logged shaft speed)."""
-        log = self._shaft_log()
+        """``harmonics.parquet``: each order's frequency at the tracked blocks: the order
+        x the block's mean logged shaft speed, or, from a log with the speed but no shaft
+        speed, x the block's speed times the shaft rate per knot the speed-following test
+        found (as ``identify --dship`` gives the harmonics' order frequencies and
+        ``harmonics.json``'s ``shaft_hz_per_kn``); nothing before the test has found
+        one, or without a ship log."""
+        log = self._read_log()
         if log is None or tracked.empty:
             return
         from ..dashboard.state import HARMONIC_LINES
         from ..sid.harmonics import block_shaft_table, order_list
 
-        shaft = block_shaft_table(log, tracked).dropna(subset=["shaft_rpm"])
+        if "shaft_rpm" in log.columns and log["shaft_rpm"].notna().any():
+            shaft = block_shaft_table(log, tracked).dropna(subset=["shaft_rpm"])
+            rate_hz = shaft["shaft_rpm"].to_numpy(float) / 60.0
+        elif "speed_kn" in log.columns and np.isfinite(self._shaft_hz_per_kn):
+            shaft = tracked[["block", "block_start"]].drop_duplicates("block")
+            speed = shaft["block"].astype(int).map(self._speed_of_block).to_numpy(float)
+            known = np.isfinite(speed)
+            shaft, rate_hz = shaft[known], self._shaft_hz_per_kn * speed[known]
+        else:
+            return
         orders = order_list(self.options.harmonics)
         lines = pd.DataFrame(
             {
                 "block": np.repeat(shaft["block"].to_numpy(dtype="int64"), len(orders)),
                 "block_start": np.repeat(shaft["block_start"].to_numpy(), len(orders)),
                 "order": np.tile(np.asarray(orders, dtype=float), len(shaft)),
-                "frequency_hz": np.outer(shaft["shaft_rpm"].to_numpy() / 60.0, orders).ravel(),
+                "frequency_hz": np.outer(rate_hz, orders).ravel(),
             }
         )
         lines["block_start"] = pd.to_datetime(lines["block_start"], utc=True)
