@@ -114,3 +114,35 @@ def test_order_lines_as_identify_gives_the_shaft_rate(monitored):
             part["frequency_hz"], order * rate_hz.loc[part["block"]].to_numpy(), rtol=1e-9
         )
     assert sorted(lines["order"].unique()) == orders
+
+
+def test_the_bridge_dashboard_shows_the_orders_and_the_harmonic_lines(monitored):
+    """The dashboard's shaft panel over the monitor's state: the 4 orders at the newest
+    block's shaft rate and the 5 harmonic lines with their lengths (main: no order with
+    the speed only; lines of 2 blocks for those of 10 and 8)."""
+    import threading
+    import urllib.request
+
+    from workbench.dashboard import make_server
+
+    log, identified, batch, state = monitored
+    server = make_server(state, port=0)
+    thread = threading.Thread(
+        target=server.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True
+    )
+    thread.start()
+    try:
+        with urllib.request.urlopen(server.url + "api/shaft", timeout=10) as response:
+            data = json.loads(response.read())
+    finally:
+        server.shutdown()
+        server.server_close()
+        thread.join(timeout=10)
+    assert data["available"] and data["block"] == 44
+    assert [o["order"] for o in data["orders"]] == [1.0, 2.0, 5.0, 10.0]
+    lines = pd.read_parquet(state / "harmonics.parquet")
+    rate_hz = lines.loc[(lines["block"] == 44) & (lines["order"] == 1.0), "frequency_hz"]
+    assert data["shaft_rpm"] == pytest.approx(60.0 * float(rate_hz.iloc[0]), rel=1e-12)
+    assert [t["blocks"] for t in data["tracks"]] == [5, 15, 10, 26, 8]
+    want = _batch_lines(identified).groupby("track")["frequency_hz"].median()
+    np.testing.assert_allclose([t["median_frequency_hz"] for t in data["tracks"]], want)
