@@ -384,7 +384,8 @@ def test_mode_panels_show_the_change_in_percent_with_the_model_band(
     # without a logged shaft speed the shaft panel says why it is empty
     assert page.evaluate("document.querySelector('#shaft .placeholder').innerText") == (
         "waiting for data: harmonics.parquet not written yet: the shaft orders are known "
-        "only from a ship log with the shaft speed (shaft_rpm)"
+        "only from a ship log with the shaft speed (shaft_rpm), or with the speed once a "
+        "line follows it"
     )
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import shutil
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -64,6 +65,7 @@ def test_the_monitor_marks_a_shaft_speed_outage_as_identify_does(shaft_voyage, t
 
     monitor = Monitor.__new__(Monitor)  # only what the marking uses
     monitor._harmonic_marks, monitor._marks_pending, monitor._shaft_logged = {}, False, False
+    monitor._block_shaft_rpm = {}
     monitor.options = SimpleNamespace(harmonics=HarmonicOptions())
     log = read_dship(source / "dship.tsv")
     monitor._read_log = lambda: log
@@ -78,6 +80,16 @@ def test_the_monitor_marks_a_shaft_speed_outage_as_identify_does(shaft_voyage, t
     ) == 0  # fmt: skip
     tracked = pd.read_parquet(state / "tracked.parquet")
     pd.testing.assert_frame_equal(tracked, batch["tracked"])
+    # the order lines at identify's shaft speed of every tracked block, the outage's from
+    # the speed included (main left those blocks out)
+    lines = pd.read_parquet(state / "harmonics.parquet")
+    assert lines["block"].unique().tolist() == sorted(tracked["block"].unique())
+    assert from_speed <= set(lines["block"])
+    rpm = shaft.set_index("block")["shaft_rpm"]
+    np.testing.assert_allclose(
+        lines["frequency_hz"], lines["order"] * rpm.loc[lines["block"]].to_numpy() / 60.0,
+        rtol=1e-12,
+    )  # fmt: skip
 
 
 def test_block_by_block_the_outage_is_marked_as_identify_marks_it(shaft_voyage, tmp_path):
@@ -97,7 +109,7 @@ def test_block_by_block_the_outage_is_marked_as_identify_marks_it(shaft_voyage, 
     columns = ["harmonic", "harmonic_frequency_hz", "harmonic_checked"]
     monitor = Monitor.__new__(Monitor)  # only what the marking uses
     monitor._harmonic_marks, monitor._marks_pending, monitor._speed_test = {}, False, None
-    monitor._shaft_logged = False
+    monitor._shaft_logged, monitor._block_shaft_rpm = False, {}
     monitor.options = SimpleNamespace(harmonics=HarmonicOptions())
     log = read_dship(source / "dship.tsv")
     monitor._read_log = lambda: log

@@ -42,6 +42,7 @@ def _monitor(log):
 
     monitor = Monitor.__new__(Monitor)
     monitor._harmonic_marks, monitor._marks_pending, monitor._shaft_logged = {}, False, False
+    monitor._block_shaft_rpm = {}
     monitor._speed_test, monitor._speed_index, monitor._block_speed = None, np.empty(0, int), {}
     monitor.options = SimpleNamespace(harmonics=HarmonicOptions(orders=(1, 2), blades=5))
     monitor._read_log = lambda: log

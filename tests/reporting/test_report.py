@@ -130,6 +130,47 @@ def test_campbell_view_draws_orders_and_keeps_modes_and_harmonics_apart():
     plt.close(fig)
 
 
+def test_campbell_view_draws_orders_at_the_rate_per_knot_without_a_shaft_speed():
+    """A log with the speed only (identify's shaft.csv without shaft_rpm, harmonics.json's
+    shaft_hz_per_kn): the abscissa is the speed the speed-following test used and each
+    order is drawn as f = k x 0.3 Hz/kn x speed (main drew none)."""
+    import matplotlib.pyplot as plt
+
+    from workbench.reporting.views import plot_campbell
+
+    shaft = pd.DataFrame(
+        {
+            "block": [0, 1],
+            "shaft_rpm": [np.nan, np.nan],
+            "speed_kn": [6.5, 10.1],
+            "speed_energy_kn": [6.6, 10.0],
+        }
+    )
+    shape = {"shape_re_c0": 1.0, "shape_im_c0": 0.0}
+    selected = pd.DataFrame(
+        [
+            {"block": 0, "frequency_hz": 1.98, "harmonic": 0.0, **shape},  # 0.3 x 6.6
+            {"block": 1, "frequency_hz": 3.0, "harmonic": 0.0, **shape},
+        ]
+    )
+    fig = plot_campbell(selected, shaft, orders=(1.0, 2.0), shaft_hz_per_kn=0.3)
+    ax = fig.axes[0]
+    crosses = {line.get_label(): line for line in ax.get_lines()}[
+        "harmonic (kept out of the modes)"
+    ]
+    np.testing.assert_array_equal(crosses.get_xdata(), [6.6, 10.0])
+    order_lines = [ln for ln in ax.get_lines() if ln.get_linestyle() == "--"]
+    assert len(order_lines) == 2
+    speed, frequency = order_lines[1].get_xdata(), order_lines[1].get_ydata()
+    np.testing.assert_allclose(frequency, 2.0 * 0.3 * speed)
+    assert ax.get_xlabel() == "speed [kn] (no shaft speed logged; shaft rate 0.3000 Hz/kn)"
+    # without the rate: no order drawn
+    fig2 = plot_campbell(selected, shaft, orders=(1.0, 2.0))
+    assert not [ln for ln in fig2.axes[0].get_lines() if ln.get_linestyle() == "--"]
+    plt.close(fig)
+    plt.close(fig2)
+
+
 def test_cli_report_errors_are_one_line(tmp_path, capsys):
     assert main(["report", str(tmp_path / "missing")]) == 2
     (tmp_path / "empty").mkdir()

@@ -212,7 +212,7 @@ def _tracked(state: StateFolder, options: DashboardOptions) -> dict[str, Any]:
         return _unavailable(snap.error)
     if snap.data.empty:
         return _unavailable("no block identified yet")
-    # optional: the shaft orders only with a logged shaft speed; the model's band and the
+    # optional: the shaft orders only with a ship log; the model's band and the
     # health chart's reference period once they exist
     lines, forecast, health = (state.read(n) for n in ("harmonics", "forecast", "health"))
     view = tracked_view(
@@ -229,14 +229,15 @@ def _tracked(state: StateFolder, options: DashboardOptions) -> dict[str, Any]:
 def _shaft(state: StateFolder, options: DashboardOptions) -> dict[str, Any]:
     lines, tracks = state.read("harmonics"), state.read("harmonic_tracks")
     if not (lines.available or tracks.available):
-        # the monitor writes them only when the ship log carries the shaft speed
+        # the monitor writes them from a ship log with the shaft speed, or with the speed
+        # once a line follows it (the shaft rate per knot)
         return _unavailable(
             f"{lines.error}: the shaft orders are known only from a ship log with the "
-            "shaft speed (shaft_rpm)"
+            "shaft speed (shaft_rpm), or with the speed once a line follows it"
         )
     view = shaft_view(lines.data, tracks.data, hours=options.hours)
     if view["block"] is None:
-        return _unavailable("no block with a logged shaft speed yet")
+        return _unavailable("no block with a shaft speed yet")
     return _panel(view, lines.error, tracks.error)
 
 

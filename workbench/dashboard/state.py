@@ -14,7 +14,8 @@ a Parquet part per day of blocks (:mod:`data_contracts.parts`), read as one tabl
 ``alarms.parquet``          ALARMS contract: alarm episodes with their evidence
 ``data_health.parquet``     :data:`DATA_HEALTH`: channels, gaps and latency per block
 ``harmonics.parquet``       :data:`HARMONIC_LINES`: frequency of each shaft order per block
-                            (when the ship log carries the shaft speed)
+                            (from the ship log's shaft speed, or its speed x the shaft
+                            rate per knot the harmonics found follow)
 ``harmonic_tracks.parquet`` :data:`HARMONIC_TRACKS`: the tracked lines recognised as shaft
                             or blade-pass harmonics (kept out of the modes), per block
 ``status.json``             :data:`STATUS_KEYS`: the monitor's progress (per block)
@@ -92,23 +93,32 @@ DATA_HEALTH = TableContract(
     unique=("block",),
 )
 
-#: Shaft orders at the logged shaft speed, one row per block and order (written by the
-#: monitor when the ship log carries the shaft speed).
+#: Shaft orders at the block's shaft speed, one row per block and order (written by the
+#: monitor when the ship log carries the shaft speed, or the speed only once the
+#: speed-following test has found the shaft rate per knot: then the speed x that rate).
 HARMONIC_LINES = TableContract(
     name="harmonic_lines",
     description="Frequency of each shaft order (and the blade pass) at the block's mean "
-    "logged shaft speed: the lines the harmonics follow, drawn beside the tracked modes.",
+    "logged shaft speed (without one: its speed x the shaft rate per knot found): the lines "
+    "the harmonics follow, drawn beside the tracked modes.",
     columns=(
         Column("block", "int", "Block number on the voyage's block grid.", minimum=0),
         Column("block_start", "time", "Start of the block, UTC.", unit="UTC"),
         Column("order", "float", "Shaft order (the blade count for the blade pass).", minimum=0),
-        Column("frequency_hz", "float", "order x mean shaft speed / 60.", unit="Hz", minimum=0),
+        Column(
+            "frequency_hz",
+            "float",
+            "order x mean shaft speed / 60 (order x shaft rate per knot x speed).",
+            unit="Hz",
+            minimum=0,
+        ),
     ),
     unique=("block", "order"),
 )
 
 #: The tracked lines that are shaft or blade-pass harmonics, not modes (written by the
-#: monitor when the ship log carries the shaft speed): one row per block and line.
+#: monitor when the ship log carries the shaft speed or the speed): one row per block and
+#: line.
 HARMONIC_TRACKS = TableContract(
     name="harmonic_tracks",
     description="Lines the tracking followed from block to block and recognised as shaft "

@@ -500,7 +500,7 @@ def shaft_view(
     ----------
     harmonics : DataFrame or None
         :data:`~workbench.dashboard.state.HARMONIC_LINES`: each order's frequency per
-        block at the logged shaft speed.
+        block at the logged shaft speed (or the speed x the shaft rate per knot).
     harmonic_tracks : DataFrame or None
         :data:`~workbench.dashboard.state.HARMONIC_TRACKS`: the identified lines the
         tracking recognised as shaft or blade-pass harmonics and kept out of the modes.

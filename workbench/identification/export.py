@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -64,6 +65,10 @@ def export_store(
         import json
 
         summary = {"method": marker.method, "orders": list(marker.orders), "lines": marker.lines()}
+        if math.isfinite(marker.shaft_hz_per_kn):
+            # the speed-following test's rate: the orders at speed x rate (the monitor's
+            # harmonics.parquet, shaft.csv's speed_energy_kn)
+            summary["shaft_hz_per_kn"] = marker.shaft_hz_per_kn
         with atomic_path(out / "harmonics.json") as tmp:
             tmp.write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
         files["harmonics"] = out / "harmonics.json"

@@ -38,8 +38,9 @@ folder as the one table its parts make, in block order::
                                  never renumbered, and a restart checks that the
                                  replayed tracker gives them again (else it stops with
                                  a message naming the label)
-    <state>/harmonics.parquet    the shaft orders' frequencies per tracked block (with a
-                                 logged shaft speed; workbench.dashboard.state.HARMONIC_LINES)
+    <state>/harmonics.parquet    the shaft orders' frequencies per tracked block (from a
+                                 logged shaft speed, or the speed x the shaft rate per
+                                 knot found; workbench.dashboard.state.HARMONIC_LINES)
     <state>/harmonic_tracks.parquet  the tracked lines left out as shaft harmonics, per
                                  block (workbench.dashboard.state.HARMONIC_TRACKS)
     <state>/forecast.parquet     FORECAST contract: sliding forecast + Kalman, all blocks

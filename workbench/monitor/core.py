@@ -283,6 +283,10 @@ class Monitor:
         self._saved_grid = self._stored_grid()
         self._given_up: tuple[tuple[int, int], list[dict]] = ((-1, -1), [])
         self._harmonic_marks: dict[int, np.ndarray] = {}  # block -> marks, once the log covers it
+        # block -> shaft speed the marks used (identify's shaft.csv: logged, or from the speed
+        # where the log fails), once the log covers it; and with the blocks it does not yet
+        self._block_shaft_rpm: dict[int, float] = {}
+        self._shaft_rpm_of_block: dict[int, float] = {}
         self._shaft_logged = False  # a block tracked so far has a usable shaft speed
         self._health_schedule = ""  # from which block the health chart monitors
         self._marks_pending = False
@@ -292,6 +296,10 @@ class Monitor:
         self._speed_test = None
         self._speed_index = np.empty(0, dtype=np.int64)
         self._block_speed: dict[int, float] = {}
+        # the shaft rate per knot it found [Hz/kn] and every tracked block's speed [kn]
+        # (those the log does not cover yet included), for the order lines
+        self._shaft_hz_per_kn = np.nan
+        self._speed_of_block: dict[int, float] = {}
         # liveness (heartbeat.json): the last file taken and the background worker's state
         self._last_taken: tuple[str, pd.Timestamp] | None = None
         # what the main loop is doing and since when: a heartbeat from a live thread beside
@@ -989,11 +997,6 @@ class Monitor:
         )
 
     # ------------------------------------------------------------------ tracking
-    def _shaft_log(self) -> pd.DataFrame | None:
-        """The ship log when it logs the shaft speed, else None."""
-        log = self._read_log()  # an unreadable log: the outlook reports it
-        return log if log is not None and "shaft_rpm" in log.columns else None
-
     def _mark_harmonics(self, frame: pd.DataFrame) -> pd.DataFrame:
         """The selected modes tracked so far with their ``harmonic``,
         ``harmonic_frequency_hz`` and ``harmonic_checked`` columns as ``identify --dship``
@@ -1024,6 +1027,7 @@ class Monitor:
             else:
                 harmonic[rows] = marks
         self._marks_pending = bool(pending)
+        pending_rpm: dict[int, float] = {}
         if pending:
             rows = np.concatenate(pending)
             part = frame.iloc[rows]
@@ -1034,7 +1038,7 @@ class Monitor:
                 # (by the speed-following test over their part) are marked again with it
                 self._shaft_logged = True
                 if self._harmonic_marks:
-                    self._harmonic_marks = {}
+                    self._harmonic_marks, self._block_shaft_rpm = {}, {}
                     return self._mark_harmonics(frame)
             checked = (
                 marked["harmonic_checked"].to_numpy(float)
@@ -1051,9 +1055,18 @@ class Monitor:
             harmonic[rows] = marks
             covered = pd.to_datetime(log["time"], utc=True).max()
             ends = pd.to_datetime(part["block_end"], utc=True).to_numpy()
+            rpm = (
+                marker.shaft.set_index("block")["shaft_rpm"].astype(float)
+                if marker.method == "shaft speed"
+                else pd.Series(dtype=float)
+            )
             for block, inside in part.reset_index(drop=True).groupby("block").indices.items():
-                if ends[inside].max() <= covered:
+                final = ends[inside].max() <= covered
+                if final:
                     self._harmonic_marks[int(block)] = marks[inside]
+                if block in rpm.index:
+                    (self._block_shaft_rpm if final else pending_rpm)[int(block)] = rpm[block]
+        self._shaft_rpm_of_block = {**self._block_shaft_rpm, **pending_rpm}
         return frame.assign(
             harmonic=harmonic[:, 0],
             harmonic_frequency_hz=harmonic[:, 1],
@@ -1121,6 +1134,8 @@ class Monitor:
             index[waiting] = len(test) + np.arange(len(waiting))
             test.add(frequency[waiting], speed[waiting], _shapes(frame.iloc[waiting]))
         marked_in_test, per_kn = test.marked()
+        self._shaft_hz_per_kn = float(per_kn)
+        self._speed_of_block = {**self._block_speed, **pending_speed}
         marked = np.zeros(n, dtype=bool)
         tested = index >= 0
         marked[tested] = marked_in_test[index[tested]]
@@ -1133,22 +1148,36 @@ class Monitor:
         )
 
     def _write_harmonic_lines(self, tracked: pd.DataFrame) -> None:
-        """``harmonics.parquet``: each order's frequency at the tracked blocks' mean logged
-        shaft speed (nothing without a logged shaft speed)."""
-        log = self._shaft_log()
+        """``harmonics.parquet``: each order's frequency at the tracked blocks, at the
+        shaft speed the marks used, as ``identify --dship`` gives it (``shaft.csv``): the
+        block's mean logged shaft speed (spikes and a frozen sensor left out; where the log
+        fails, the speed x the ship's shaft speed per knot); from a log with the speed but
+        no shaft speed, the block's speed x the shaft rate per knot the speed-following
+        test found (``harmonics.json``'s ``shaft_hz_per_kn``). Nothing before the test
+        has found one, or without a ship log."""
+        log = self._read_log()
         if log is None or tracked.empty:
             return
         from ..dashboard.state import HARMONIC_LINES
-        from ..sid.harmonics import block_shaft_table, order_list
+        from ..sid.harmonics import order_list
 
-        shaft = block_shaft_table(log, tracked).dropna(subset=["shaft_rpm"])
+        shaft = tracked[["block", "block_start"]].drop_duplicates("block")
+        blocks = shaft["block"].astype(int)
+        if "shaft_rpm" in log.columns and log["shaft_rpm"].notna().any():
+            rate_hz = blocks.map(self._shaft_rpm_of_block).to_numpy(float) / 60.0
+        elif "speed_kn" in log.columns and np.isfinite(self._shaft_hz_per_kn):
+            rate_hz = self._shaft_hz_per_kn * blocks.map(self._speed_of_block).to_numpy(float)
+        else:
+            return
+        known = np.isfinite(rate_hz)
+        shaft, rate_hz = shaft[known], rate_hz[known]
         orders = order_list(self.options.harmonics)
         lines = pd.DataFrame(
             {
                 "block": np.repeat(shaft["block"].to_numpy(dtype="int64"), len(orders)),
                 "block_start": np.repeat(shaft["block_start"].to_numpy(), len(orders)),
                 "order": np.tile(np.asarray(orders, dtype=float), len(shaft)),
-                "frequency_hz": np.outer(shaft["shaft_rpm"].to_numpy() / 60.0, orders).ravel(),
+                "frequency_hz": np.outer(rate_hz, orders).ravel(),
             }
         )
         lines["block_start"] = pd.to_datetime(lines["block_start"], utc=True)

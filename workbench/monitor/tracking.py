@@ -139,10 +139,17 @@ class IncrementalTracking:
 
     def rows_of(self, labels) -> dict[int, list[int]]:
         """Rows of the selected modes tracked so far (index of the frame :meth:`table`
-        passes to its *marker*) that carry each tracker label of *labels*."""
+        passes to its *marker*) under each shown label of *labels* (the ``mode`` of the
+        tracked table and of its ``harmonic_labels``), in the order they were tracked.
+
+        The tracker's rows carry its modes' serial numbers (in order of birth), not the
+        labels shown (given once a mode is seen in ``min_blocks`` blocks, in the order
+        modes reach it; a mode never confirmed has none)."""
         wanted = {int(label) for label in labels}
         found: dict[int, list[int]] = {label: [] for label in wanted}
-        for index, label, _ in self._rows:
+        shown = self._tracker.labels() if self._tracker is not None else {}
+        for index, serial, _ in self._rows:
+            label = shown.get(serial)
             if label in wanted:
                 found[label].append(index)
         return found

@@ -247,6 +247,7 @@ def plot_campbell(
     *,
     modal: pd.DataFrame | None = None,
     orders: Sequence[float] = (),
+    shaft_hz_per_kn: float | None = None,
 ):
     """Campbell view: frequency against shaft speed, the orders drawn, the modes marked.
 
@@ -257,14 +258,24 @@ def plot_campbell(
     shaft : DataFrame
         Per block ``block``, ``shaft_rpm`` [rpm] (weighted by rpm⁴, where the harmonics'
         energy is) and ``speed_kn`` [kn] (``shaft.csv`` of identify). Without a logged
-        shaft speed the abscissa is the speed and no order is drawn.
+        shaft speed the abscissa is the speed (``speed_energy_kn`` when given, the speed
+        the speed-following test used).
     modal : DataFrame, optional
         Tracked modal table: its modes drawn in their colours.
     orders : sequence of float
-        Orders drawn as lines f = k x rpm / 60.
+        Orders drawn as lines f = k x rpm / 60, or without a logged shaft speed
+        f = k x *shaft_hz_per_kn* x speed (none without it).
+    shaft_hz_per_kn : float, optional
+        Shaft rate per knot the speed-following test found (``harmonics.json``). [Hz/kn]
     """
     use_rpm = "shaft_rpm" in shaft and shaft["shaft_rpm"].notna().any()
+    # the orders' frequency per unit of the abscissa
+    per_unit = 1.0 / 60.0 if use_rpm else shaft_hz_per_kn
+    if per_unit is None or not np.isfinite(per_unit):
+        orders = ()
     column = "shaft_rpm" if use_rpm else "speed_kn"
+    if not use_rpm and "speed_energy_kn" in shaft and shaft["speed_energy_kn"].notna().any():
+        column = "speed_energy_kn"
     abscissa = shaft.set_index("block")[column]
     fig, ax = plt.subplots(figsize=(FIGURE_WIDTH, 4.8), layout="constrained")
     x = selected["block"].map(abscissa)
@@ -314,21 +325,26 @@ def plot_campbell(
                 zorder=3,
             )
     top = float(selected["frequency_hz"].max()) * 1.05 if len(selected) else 1.0
-    if use_rpm and len(orders):
-        rpm = np.linspace(0.0, float(np.nanmax(abscissa.to_numpy())) * 1.05, 50)
+    if len(orders):
+        x_line = np.linspace(0.0, float(np.nanmax(abscissa.to_numpy())) * 1.05, 50)
         for order in orders:
-            ax.plot(rpm, order * rpm / 60.0, "--", color="k", lw=0.7, alpha=0.6)
-            end = min(rpm[-1], top * 60.0 / order)
+            ax.plot(x_line, order * per_unit * x_line, "--", color="k", lw=0.7, alpha=0.6)
+            end = min(x_line[-1], top / (order * per_unit))
             ax.annotate(
                 f"{order:g}×",
-                (end, min(order * end / 60.0, 0.97 * top)),
+                (end, min(order * per_unit * end, 0.97 * top)),
                 fontsize=7,
                 ha="right",
-                va="top" if order * end / 60.0 >= 0.97 * top else "bottom",
+                va="top" if order * per_unit * end >= 0.97 * top else "bottom",
             )
     ax.set_ylim(0.0, top)
     ax.set_xlim(left=0.0)
-    ax.set_xlabel("shaft speed [rpm]" if use_rpm else "speed [kn] (no shaft speed logged)")
+    if use_rpm:
+        ax.set_xlabel("shaft speed [rpm]")
+    elif len(orders):
+        ax.set_xlabel(f"speed [kn] (no shaft speed logged; shaft rate {per_unit:.4f} Hz/kn)")
+    else:
+        ax.set_xlabel("speed [kn] (no shaft speed logged)")
     ax.set_ylabel("frequency [Hz]")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7, ncols=4, loc="lower left", bbox_to_anchor=(0, 1))

@@ -1016,6 +1016,9 @@ class HarmonicMarker:
         )
         self.marked = pd.DataFrame()
         self.rpm_per_kn = np.nan
+        #: Shaft rate per knot the speed-following test found (a log without the shaft
+        #: speed; NaN otherwise or when it found none). [Hz/kn]
+        self.shaft_hz_per_kn = np.nan
         self.n_selected = 0
         self.n_poles = 0
 
@@ -1077,6 +1080,7 @@ class HarmonicMarker:
             selected["harmonic"] = marks
             self.method = "speed"
             per_kn = marks.attrs.get("shaft_hz_per_kn", np.nan)
+            self.shaft_hz_per_kn = float(per_kn)
             speed = selected["block"].map(shaft["speed_energy_kn"]).to_numpy(float)
             selected["harmonic_frequency_hz"] = np.where(
                 marks.notna(),
@@ -1148,6 +1152,8 @@ class HarmonicMarker:
             "speed": "frequency following the speed with a fixed shape; no shaft speed logged",
             "none": "no shaft speed or speed in the ship log: none marked",
         }[self.method]
+        if self.method == "speed" and np.isfinite(self.shaft_hz_per_kn):
+            what += f"; shaft rate {self.shaft_hz_per_kn:.4f} Hz/kn"
         return [
             f"harmonics ({what}): {len(self.marked)} of {self.n_selected} selected modes and "
             f"{self.n_poles} poles marked, kept out of tracking"

@@ -214,7 +214,8 @@ def harmonics_section(data: RunData) -> ReportSection | None:
     section.paragraphs.append(
         "Every selected mode of every block at the block's shaft speed, weighted by rpm⁴ "
         "where the harmonics' energy is (or at its speed, when the shaft speed is not logged): a structural mode keeps its frequency whatever the "
-        "shaft speed, a shaft order follows its line f = k × rpm / 60 (dashed). Red crosses: "
+        "shaft speed, a shaft order follows its line f = k × rpm / 60 (dashed; without a logged shaft speed "
+        "f = k × the shaft rate per knot found × speed). Red crosses: "
         "harmonics, kept out of the tracked modes, forecasts and health charts; grey: "
         "selected modes tracked as nothing."
     )
@@ -222,7 +223,8 @@ def harmonics_section(data: RunData) -> ReportSection | None:
         selected,
         shaft,
         modal=data.modal,
-        orders=summary.get("orders", ()) if summary.get("method") == "shaft speed" else (),
+        orders=summary.get("orders", ()),  # without a shaft speed: at the rate per knot
+        shaft_hz_per_kn=summary.get("shaft_hz_per_kn"),
     )
     section.figures.append(("Campbell view", data.figures.save(fig, "campbell")))
     return section
