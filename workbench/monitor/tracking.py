@@ -97,7 +97,7 @@ class IncrementalTracking:
         (the blocks from :meth:`_changed_from` on) while the labels left out as
         harmonics stay the same; the labels' verdict is taken over every row each time
         (per-label counts, :func:`~workbench.sid.tracking.harmonic_verdict`)."""
-        from ..sid.tracking import harmonic_verdict, tracked_rows
+        from ..sid.tracking import _empty_tracked, harmonic_verdict, tracked_rows
 
         self.changed_from = None
         if self._frame is None:
@@ -129,7 +129,9 @@ class IncrementalTracking:
         keep = ~np.isin(label, list(left_out)) if left_out else np.ones(len(label), bool)
         if self._built is not None and since is not None and left_out != self._built[3]:
             since = None  # a line became (or stopped being) a harmonic: its rows everywhere
-        if since is not None:
+        if not len(label):  # no labelled mode yet: the selected modes' columns
+            table = _empty_tracked(frame)
+        elif since is not None:
             # the rows of the blocks from `since` on built again, the others kept: the
             # table is sorted by (block, mode), stable in the order of the rows
             head = self._built[0]
