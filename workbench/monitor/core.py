@@ -261,6 +261,8 @@ class Monitor:
         self.conditioned_files = [0]  # files conditioned (per-file path)
         self._shared: dict = {}
         self._health_rows: list[dict] = []
+        # _missing_blocks: (blocks and reasons, the rows list read, rows read)
+        self._missing_scan: tuple[dict[int, str], list | None, int] = ({}, None, 0)
         # data_health.parquet: every part is written next (at the start), else the parts
         # from the oldest block added since the last write
         self._health_rows_all = True
@@ -286,6 +288,8 @@ class Monitor:
         # (the log covers the row's block)
         self._marks = np.empty((0, 3))
         self._marks_kept = np.zeros(0, dtype=bool)
+        # each tracked block's (start, shaft speed [rpm]) once the log covers the block
+        self._block_shaft: dict[int, tuple] = {}
         self._shaft_logged = False  # a block tracked so far has a usable shaft speed
         self._health_schedule = ""  # from which block the health chart monitors
         self._marks_pending = False
@@ -644,19 +648,29 @@ class Monitor:
         """Say so when *item* lands after blocks over its span were decided without it."""
         grid = self.voyage.grid
         start, end = item.info.start_time.value, item.info.end_time.value
-        skipped = sorted(
-            int(row["block"])
-            for row in self._health_rows
-            if row["status"] == "skipped"
-            and ("gap" in row["reason"] or "no data" in row["reason"])
-            and grid.start(int(row["block"])).value < end
-            and grid.end(int(row["block"])).value > start
-        )
-        if skipped:
+        missing = self._missing_blocks()
+        blocks = np.fromiter(missing, dtype=np.int64, count=len(missing))
+        over = (grid.start(blocks).asi8 < end) & (grid.end(blocks).asi8 > start)
+        skipped = np.sort(blocks[over])
+        if len(skipped):
             self.messages.append(
                 f"{item.path.name}: landed after blocks {skipped[0]}-{skipped[-1]} were "
                 "decided without it (skipped: gap); they are not redone"
             )
+
+    def _missing_blocks(self) -> dict[int, str]:
+        """The decided blocks skipped for missing data (:func:`_missing_data`) and their
+        reasons, in the order decided: kept as data-health rows are appended (all rows read
+        again when the rows were replaced, at a restart)."""
+        rows = self._health_rows
+        found, seen, scanned = self._missing_scan
+        if seen is not rows or scanned > len(rows):
+            found, scanned = {}, 0
+        for row in rows[scanned:]:
+            if row["status"] == "skipped" and _missing_data(str(row["reason"])):
+                found[int(row["block"])] = str(row["reason"])
+        self._missing_scan = (found, rows, len(rows))
+        return found
 
     def _anchor(self, flush: bool = False) -> bool:
         """Fix the grid, channels and options from the files (or the store); open the
@@ -1129,21 +1143,45 @@ class Monitor:
 
     def _write_harmonic_lines(self, tracked: pd.DataFrame) -> None:
         """``harmonics.parquet``: each order's frequency at the tracked blocks' mean logged
-        shaft speed (nothing without a logged shaft speed)."""
+        shaft speed (nothing without a logged shaft speed). A block's shaft speed is kept
+        once the log covers the block, as its marks are (:meth:`_mark_harmonics`): only
+        the blocks new to the table or not covered yet are looked up in the log."""
         log = self._shaft_log()
         if log is None or tracked.empty:
             return
         from ..dashboard.state import HARMONIC_LINES
         from ..sid.harmonics import block_shaft_table, order_list
 
-        shaft = block_shaft_table(log, tracked).dropna(subset=["shaft_rpm"])
+        blocks = tracked["block"].to_numpy(dtype="int64")
+        first = np.flatnonzero(np.r_[True, blocks[1:] != blocks[:-1]])  # sorted by block
+        known = self._block_shaft
+        wanted = ~np.isin(blocks[first], np.fromiter(known, dtype="int64", count=len(known)))
+        if wanted.any():
+            rows = first[wanted]
+            found = block_shaft_table(log, tracked.iloc[rows])
+            covered = pd.to_datetime(log["time"], utc=True).max()
+            ends = pd.to_datetime(tracked["block_end"].iloc[rows], utc=True).to_numpy()
+            rpm = found["shaft_rpm"].to_numpy(float)
+            fresh = {}
+            for k, block in enumerate(found["block"].to_numpy(dtype="int64")):
+                row = (found["block_start"].iat[k], rpm[k])
+                if ends[k] <= covered:
+                    known[int(block)] = row
+                else:
+                    fresh[int(block)] = row
+        else:
+            fresh = {}
+        shaft = [known.get(int(b)) or fresh[int(b)] for b in blocks[first]]
+        rpm = np.array([row[1] for row in shaft], dtype=float)
+        logged = np.isfinite(rpm)
         orders = order_list(self.options.harmonics)
+        starts = pd.DatetimeIndex([row[0] for row in shaft])[logged]
         lines = pd.DataFrame(
             {
-                "block": np.repeat(shaft["block"].to_numpy(dtype="int64"), len(orders)),
-                "block_start": np.repeat(shaft["block_start"].to_numpy(), len(orders)),
-                "order": np.tile(np.asarray(orders, dtype=float), len(shaft)),
-                "frequency_hz": np.outer(shaft["shaft_rpm"].to_numpy() / 60.0, orders).ravel(),
+                "block": np.repeat(blocks[first][logged], len(orders)),
+                "block_start": np.repeat(starts.to_numpy(), len(orders)),
+                "order": np.tile(np.asarray(orders, dtype=float), int(logged.sum())),
+                "frequency_hz": np.outer(rpm[logged] / 60.0, orders).ravel(),
             }
         )
         lines["block_start"] = pd.to_datetime(lines["block_start"], utc=True)
@@ -1570,11 +1608,7 @@ class Monitor:
         if key == self._given_up[0]:
             return self._given_up[1]
         spans: list[dict] = []
-        missing = {
-            int(row["block"]): str(row["reason"])
-            for row in self._health_rows
-            if row["status"] == "skipped" and _missing_data(str(row["reason"]))
-        }
+        missing = self._missing_blocks()
         if missing and self.files and self.voyage is not None:
             from ..signals.block_plan import placed_block_numbers, placed_blocks
 
@@ -1691,7 +1725,8 @@ class Monitor:
 
     def _write_status(self, state: str, message: str | None = None) -> None:
         del self.messages[:-200]  # a long run keeps its recent messages only
-        last = max((b for b in self.done if b <= self.tracking.tracked_through), default=None)
+        # every block up to tracked_through is decided (IncrementalTracking.advance)
+        last = self.tracking.tracked_through if self.tracking.tracked_through >= 0 else None
         if message is None:
             message = self.messages[-1] if self.messages else ""
         status = {
