@@ -144,7 +144,8 @@ class IncrementalTracking:
                 table = head.reset_index(drop=True)
         else:
             table = tracked_rows(frame, index[keep], label[keep], score[keep], self._channels)
-        table.attrs["harmonic_labels"] = harmonic
+        if len(label):  # as track's table (an empty one has no attributes)
+            table.attrs["harmonic_labels"] = harmonic
         self.changed_from = since
         self._built = (table, len(self._rows), labels, left_out)
         return table
