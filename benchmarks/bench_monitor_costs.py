@@ -43,6 +43,12 @@ BLOCKS_PER_DAY = 288
 SAMPLE = 15  # blocks timed at each day mark
 T0 = pd.Timestamp("2026-03-01T00:00:00Z")
 GRID = BlockGrid(T0, 1200.0, 300.0)
+UNITS = {
+    "tracking": f"block, median of {SAMPLE}",
+    "store": f"new file, median of {SAMPLE}",
+    "scans": f"block, median of {SAMPLE}",
+    "dship": "read of the whole log, median of 3",
+}
 CHANNELS = ("a", "b", "c", "d")
 MODES_HZ = (0.8, 1.6, 2.9, 4.1)
 
@@ -227,25 +233,65 @@ def bench_scans(days: list[int], folder: Path) -> dict[int, float]:
     return out
 
 
+def bench_dship(days: list[int], folder: Path) -> dict[int, float]:
+    """Reading the ship log again whole when it changed (``outlook._ship_log``, what
+    ``Monitor._read_log`` does as the log grows): a 1-s log with the speed and shaft
+    speed. Not fixed in session 51; measured at the days given (``--dship-days``)."""
+    from workbench.monitor.outlook import _DSHIP_CACHE, _ship_log
+
+    header = (
+        "/* DATA DESCRIPTION:\nParameter(s):\tDATE/TIME * SHORT_NAME: Date/Time\n"
+        "\tSpeed, ship * SHORT_NAME: Speed * UNIT: kn\n"
+        "\tShaft speed * SHORT_NAME: Shaft speed * UNIT: rpm\n*/\n"
+        "Date/Time\tSpeed [kn]\tShaft speed [rpm]\n"
+    )
+    out = {}
+    for d in days:
+        seconds = np.arange(d * 86400)
+        times = (T0.tz_convert(None) + pd.to_timedelta(seconds, unit="s")).strftime(
+            "%Y-%m-%dT%H:%M:%S"
+        )
+        rpm = _shaft_rpm(seconds / 60.0)
+        body = pd.DataFrame({"t": times, "kn": np.round(rpm / 7.5, 1), "rpm": np.round(rpm, 1)})
+        path = folder / f"dship_{d}.tsv"
+        path.write_text(header + body.to_csv(sep="\t", header=False, index=False), "utf-8")
+        taken = []
+        for _ in range(3):
+            _DSHIP_CACHE.clear()
+            t = time.perf_counter()
+            _ship_log(path, None, None)
+            taken.append(time.perf_counter() - t)
+        out[d] = float(np.median(taken))
+        path.unlink()
+    return out
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--days", default="1,10,25,51")
     parser.add_argument("--only", default="tracking,store,scans")
+    parser.add_argument("--dship-days", default="1,5", help="days of 1-s ship log (--only dship)")
     args = parser.parse_args(argv)
     days = [int(d) for d in args.days.split(",")]
     wanted = args.only.split(",")
-    benches = {"tracking": bench_tracking, "store": bench_store, "scans": bench_scans}
+    benches = {
+        "tracking": bench_tracking,
+        "store": bench_store,
+        "scans": bench_scans,
+        "dship": bench_dship,
+    }
     with tempfile.TemporaryDirectory() as tmp:
         for name in wanted:
             folder = Path(tmp) / name
             folder.mkdir()
             started = time.perf_counter()
-            result = benches[name](days, folder)
-            print(f"{name}: s per block (per new file for store), median of {SAMPLE}"
+            marks = [int(d) for d in args.dship_days.split(",")] if name == "dship" else days
+            result = benches[name](marks, folder)
+            print(f"{name}: s per {UNITS[name]}"
                   f" [{time.perf_counter() - started:.0f} s in all]")  # fmt: skip
-            first = result[days[0]]
-            for d in days:
-                print(f"  day {d:3d}   {result[d]:.5f} s   ratio to day {days[0]} "
+            first = result[marks[0]]
+            for d in marks:
+                print(f"  day {d:3d}   {result[d]:.5f} s   ratio to day {marks[0]} "
                       f"{result[d] / first:7.2f}")  # fmt: skip
     return 0
 
