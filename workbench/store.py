@@ -491,15 +491,15 @@ class BlockStore:
             new.append(item)
             added.add(item["sha256"])
         if version is None or cut:  # no index yet, or a line cut short: written whole
-            recorded = recorded + new
+            recorded.extend(new)  # the list read (or cached) here, no caller's
             self._write_inputs(recorded, unreadable)
         elif new:
-            recorded = recorded + new
+            recorded.extend(new)
             if not self._append_inputs(version, new):
                 self._inputs_cache = None  # another writer appended too: read again
                 return
         if new:
-            known = known | added
+            known.update(added)
             lows = np.append(lows, _ns([r["start"] for r in new]))
             highs = np.append(highs, _ns([r["end"] for r in new]))
         self._inputs_cache = (_file_version(path), recorded, unreadable, known, lows, highs, False)
