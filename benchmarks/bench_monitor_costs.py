@@ -11,8 +11,12 @@ the median time of the next ``SAMPLE`` blocks is printed. Also timed, apart: the
 check of one new landed file (``BlockStore.check_inputs``, one new fingerprint among the
 voyage's files so far) and the decided-block scans of a step (``_note_too_late``,
 ``given_up``, ``_write_status``, ``_write_data_health``) with one data-health row per block.
+Left as they were, measured with a 1-s ship log at ``--dship-days``: reading the log again
+whole when it grew (``--only dship``) and the marks of the newest blocks, whose checks of
+the log run over all of it (``--only marking``).
 
-Run: ``python benchmarks/bench_monitor_costs.py [--days 1,10,25,51]``; results in
+Run: ``python benchmarks/bench_monitor_costs.py [--days 1,10,25,51] [--only
+tracking,store,scans,dship,marking] [--dship-days 1,5]``; results in
 ``benchmarks/results/monitor_costs_51.txt``.
 """
 
@@ -48,6 +52,7 @@ UNITS = {
     "store": f"new file, median of {SAMPLE}",
     "scans": f"block, median of {SAMPLE}",
     "dship": "read of the whole log, median of 3",
+    "marking": "block (1-s log), median of 3",
 }
 CHANNELS = ("a", "b", "c", "d")
 MODES_HZ = (0.8, 1.6, 2.9, 4.1)
@@ -266,11 +271,42 @@ def bench_dship(days: list[int], folder: Path) -> dict[int, float]:
     return out
 
 
+def bench_marking(days: list[int], folder: Path) -> dict[int, float]:
+    """The harmonic marks of the 4 newest blocks and their shaft speed from a 1-s ship log
+    (``HarmonicMarker.mark_selected`` and ``block_shaft_table``, what the tracking step
+    does per block): the log's checks (spikes, a frozen sensor, the shaft speed per knot)
+    run over the whole log. Not fixed in session 51; at the days given (``--dship-days``)."""
+    from workbench.sid.harmonics import HarmonicMarker, HarmonicOptions, block_shaft_table
+
+    out = {}
+    for d in days:
+        seconds = np.arange(d * 86400 + 3600)
+        rpm = _shaft_rpm(seconds / 60.0)
+        log = pd.DataFrame(
+            {"time": T0 + pd.to_timedelta(seconds, unit="s"), "shaft_rpm": rpm,
+             "speed_kn": rpm / 7.5}
+        )  # fmt: skip
+        n = d * BLOCKS_PER_DAY
+        rng = np.random.default_rng(1)
+        part = pd.concat([_selected(k, rng) for k in range(n - 4, n)], ignore_index=True)
+        log = log[log["time"] <= GRID.start(n - 1)]
+        taken = []
+        for _ in range(3):
+            t = time.perf_counter()
+            HarmonicMarker(log, HarmonicOptions()).mark_selected(part, shaft_logged=True)
+            block_shaft_table(log, part)
+            taken.append(time.perf_counter() - t)
+        out[d] = float(np.median(taken))
+    return out
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--days", default="1,10,25,51")
     parser.add_argument("--only", default="tracking,store,scans")
-    parser.add_argument("--dship-days", default="1,5", help="days of 1-s ship log (--only dship)")
+    parser.add_argument(
+        "--dship-days", default="1,5", help="days of 1-s ship log (--only dship,marking)"
+    )
     args = parser.parse_args(argv)
     days = [int(d) for d in args.days.split(",")]
     wanted = args.only.split(",")
@@ -279,13 +315,15 @@ def main(argv=None) -> int:
         "store": bench_store,
         "scans": bench_scans,
         "dship": bench_dship,
+        "marking": bench_marking,
     }
     with tempfile.TemporaryDirectory() as tmp:
         for name in wanted:
             folder = Path(tmp) / name
             folder.mkdir()
             started = time.perf_counter()
-            marks = [int(d) for d in args.dship_days.split(",")] if name == "dship" else days
+            log_days = [int(d) for d in args.dship_days.split(",")]
+            marks = log_days if name in ("dship", "marking") else days
             result = benches[name](marks, folder)
             print(f"{name}: s per {UNITS[name]}"
                   f" [{time.perf_counter() - started:.0f} s in all]")  # fmt: skip
