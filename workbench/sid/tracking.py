@@ -642,7 +642,11 @@ def harmonic_verdict(
     modes = np.asarray(modes, dtype="int64")
     marked = np.asarray(marked, dtype=bool)
     checked = np.asarray(checked, dtype=bool)
-    labels, position = np.unique(modes, return_inverse=True)
+    # labels are small whole numbers: counted by bincount, no sort of the rows
+    offset = int(modes.min()) if len(modes) else 0
+    present = np.bincount(modes - offset) > 0
+    labels = np.flatnonzero(present) + offset
+    position = (np.cumsum(present) - 1)[modes - offset]
     count = len(labels)
     n_rows = pd.Series(np.bincount(position, minlength=count), index=labels)
     n_checked = pd.Series(np.bincount(position, weights=checked, minlength=count), index=labels)
@@ -657,9 +661,11 @@ def harmonic_verdict(
     # a label seen mostly where the log fails: checked in less than a quarter of the
     # share of the voyage's blocks the log checked (a line that appears in an outage);
     # a mode seen throughout a voyage is checked as often as the voyage is
-    block_ids, block_position = np.unique(np.asarray(blocks), return_inverse=True)
-    any_checked = np.bincount(block_position, weights=checked, minlength=len(block_ids)) > 0
-    voyage_checked = float(any_checked.sum() / len(block_ids))
+    blocks = np.asarray(blocks, dtype="int64")
+    first_block = int(blocks.min()) if len(blocks) else 0
+    rows_in = np.bincount(blocks - first_block)
+    checked_in = np.bincount(blocks - first_block, weights=checked, minlength=len(rows_in))
+    voyage_checked = float((checked_in > 0).sum() / (rows_in > 0).sum())
     in_outage = n_checked < _SEEN_AWAY * voyage_checked * n_rows
     # the share that judges a label: of all its rows (the unchecked counted unmarked);
     # of its checked rows where they are enough to judge (_FOLLOW_ROWS, or all its
