@@ -3,7 +3,7 @@
 Layout under the store root::
 
     <root>/store.json                      parameters the results were computed with
-    <root>/inputs.json                     fingerprints of the input files (see below)
+    <root>/inputs.jsonl                    fingerprints of the input files (see below)
     <root>/lock                            who is running on the store now (see below)
     <root>/manifest.jsonl                  size and SHA-256 of every batch file (see below)
     <root>/<kind>/day=YYYY-MM-DD/<batch>.parquet
@@ -33,7 +33,12 @@ holder; the lock of a dead process is released by the kernel, so a killed run ne
 blocks the next one.
 
 Inputs are fingerprinted (:meth:`BlockStore.check_inputs`): size, modification time and a
-SHA-256 of the content of every input file, with the time span it covers. A resumed run
+SHA-256 of the content of every input file, with the time span it covers, a line of
+``<root>/inputs.jsonl`` each (appended and flushed to disk as files are taken; a line cut
+short by a killed run is left out and the file written again whole, as are the rare
+changes: inputs forgotten, the unreadable files). A store whose index is the
+``inputs.json`` of earlier versions (one JSON object written whole for each file) has it
+converted when opened. A resumed run
 whose file for a stored time span has other content is refused, so results of one voyage
 are never exported as those of another. Content that cannot be read whole (a file
 damaged on disk after a run read it) is no other voyage's data: the caller records it
@@ -81,7 +86,9 @@ BLOCKS_KIND = "blocks"
 #: skipped block could not read; written only by batches holding such a block.
 UNREADABLE_COLUMN = "unreadable_input"
 _CONFIG = "store.json"
-_INPUTS = "inputs.json"
+_INPUTS = "inputs.jsonl"
+#: The input index of earlier versions (one object, written whole), converted when opened.
+_INPUTS_WHOLE = "inputs.json"
 _LOCK = "lock"
 _MANIFEST = "manifest.jsonl"
 
@@ -136,6 +143,8 @@ _RECOVERY = {
     _CONFIG: "and run again with the options that computed the blocks (the store "
     "records this run's)",
     _INPUTS: "and run again on the input files the blocks were computed from (they are "
+    "fingerprinted anew)",
+    _INPUTS_WHOLE: "and run again on the input files the blocks were computed from (they are "
     "fingerprinted anew)",
 }
 
@@ -313,10 +322,10 @@ class BlockStore:
     _owners_cache: dict | None = field(default=None, repr=False, compare=False)
     #: The manifest: batch -> relative path -> ``{"size", "sha256", "blocks"}``.
     _manifest: dict[str, dict[str, dict]] = field(default_factory=dict, repr=False, compare=False)
-    #: inputs.json as :meth:`check_inputs` last read or wrote it: the file's version
-    #: (inode, size, mtime), its content, the recorded contents and their spans [ns]; a
-    #: monitor checks every landed file, and a long voyage's fingerprints are not parsed
-    #: again for each
+    #: inputs.jsonl as :meth:`check_inputs` last read or wrote it: the file's version
+    #: (inode, size, mtime), the recorded fingerprints, the unreadable files, the recorded
+    #: contents, their spans [ns] and whether a cut line ends the file; a monitor checks
+    #: every landed file, and a long voyage's fingerprints are not parsed again for each
     _inputs_cache: tuple | None = field(default=None, repr=False, compare=False)
 
     def close(self) -> None:
@@ -379,6 +388,7 @@ class BlockStore:
                     "use another --store directory or delete this one"
                 )
         store = cls(root, lock)
+        store._open_inputs()
         store._check_files()
         if store._manifest:
             store._note_lost_index(had_config, wanted)
@@ -393,7 +403,9 @@ class BlockStore:
         tells; a store used without inputs has none): what the store takes on trust from
         this run. Blocks off this run's grid are refused."""
         inputs = self.root / _INPUTS
-        lost_inputs = not inputs.is_file() and inputs.with_name(f"{_INPUTS}.damaged").is_file()
+        lost_inputs = not inputs.is_file() and any(
+            (self.root / f"{name}.damaged").is_file() for name in (_INPUTS, _INPUTS_WHOLE)
+        )
         if had_config and not lost_inputs:
             return
         blocks = self.completed_blocks()
@@ -442,22 +454,20 @@ class BlockStore:
             Naming the changed file, when the stored results cannot be reused.
         """
         path = self.root / _INPUTS
-        content: dict = {}
-        recorded: list[dict] = []
         version = _file_version(path)
         cache = self._inputs_cache
         if version is not None and cache is not None and cache[0] == version:
-            content, recorded, known, lows, highs = cache[1:]
+            recorded, unreadable, known, lows, highs, cut = cache[1:]
         elif version is not None:
+            recorded, unreadable, cut = self._read_inputs()
+            known = {r["sha256"] for r in recorded}
             try:
-                content = json.loads(path.read_text(encoding="utf-8"))
-                recorded = content["files"]
-                known = {r["sha256"] for r in recorded}
                 lows = _ns([r["start"] for r in recorded])
                 highs = _ns([r["end"] for r in recorded])
-            except (OSError, ValueError, KeyError, TypeError) as error:
+            except (ValueError, TypeError) as error:
                 raise unreadable_store_file(self.root, _INPUTS, error) from None
         else:
+            recorded, unreadable, cut = [], [], False
             known, lows, highs = set(), np.empty(0, np.int64), np.empty(0, np.int64)
         new: list[dict] = []
         added: set[str] = set()
@@ -480,31 +490,23 @@ class BlockStore:
                 )
             new.append(item)
             added.add(item["sha256"])
-        if new or version is None:
-            try:  # the unreadable files kept, as unreadable_files reads them
-                unreadable = [str(p) for p in content.get("unreadable", [])]
-            except (TypeError, AttributeError) as error:
-                raise unreadable_store_file(self.root, _INPUTS, error) from None
-            recorded = recorded + new
-            content = {"files": recorded, "unreadable": unreadable}
+        if version is None or cut:  # no index yet, or a line cut short: written whole
+            recorded.extend(new)  # the list read (or cached) here, no caller's
             self._write_inputs(recorded, unreadable)
+        elif new:
+            recorded.extend(new)
+            if not self._append_inputs(version, new):
+                self._inputs_cache = None  # another writer appended too: read again
+                return
+        if new:
             known.update(added)
             lows = np.append(lows, _ns([r["start"] for r in new]))
             highs = np.append(highs, _ns([r["end"] for r in new]))
-        self._inputs_cache = (_file_version(path), content, recorded, known, lows, highs)
+        self._inputs_cache = (_file_version(path), recorded, unreadable, known, lows, highs, False)
 
     def recorded_inputs(self) -> list[dict]:
         """The input files the stored results came from (their fingerprints)."""
-        path = self.root / _INPUTS
-        if not path.is_file():
-            return []
-        try:
-            recorded = json.loads(path.read_text(encoding="utf-8"))["files"]
-            for r in recorded:
-                str(r["sha256"]), str(r["path"]), str(r["start"]), str(r["end"])
-        except (OSError, ValueError, KeyError, TypeError) as error:
-            raise unreadable_store_file(self.root, _INPUTS, error) from None
-        return recorded
+        return list(self._read_inputs()[0])
 
     def removed_inputs(self, fingerprints: Iterable[Mapping[str, object]]) -> list[dict]:
         """Recorded input files whose content is not among *fingerprints* (the files of
@@ -522,7 +524,7 @@ class BlockStore:
         :meth:`check_inputs`, and the next run knows the file is still damaged (the same
         content) or repaired (another).
         """
-        recorded = self.recorded_inputs()
+        recorded, unreadable, _ = self._read_inputs()
         known = {r["sha256"] for r in recorded}
         new = []
         for entry in entries:
@@ -530,45 +532,130 @@ class BlockStore:
                 new.append({**dict(entry), "damaged": True})
                 known.add(entry["sha256"])
         if new:
-            self._write_inputs(recorded + new)
+            self._write_inputs(recorded + new, unreadable)
 
     def forget_inputs(self, entries: Iterable[Mapping[str, object]]) -> None:
         """Remove *entries* (by content) from the recorded inputs."""
         gone = {str(e["sha256"]) for e in entries}
-        recorded = self.recorded_inputs()
+        recorded, unreadable, _ = self._read_inputs()
         kept = [r for r in recorded if r["sha256"] not in gone]
         if len(kept) != len(recorded):
-            self._write_inputs(kept)
+            self._write_inputs(kept, unreadable)
 
     def unreadable_files(self) -> list[str]:
         """The input files the last run left out as unreadable (resolved paths; see
         :meth:`set_unreadable_files`)."""
-        path = self.root / _INPUTS
-        if not path.is_file():
-            return []
-        try:
-            return [
-                str(p) for p in json.loads(path.read_text(encoding="utf-8")).get("unreadable", [])
-            ]
-        except (OSError, ValueError, TypeError, AttributeError) as error:
-            raise unreadable_store_file(self.root, _INPUTS, error) from None
+        return list(self._read_inputs()[1])
 
     def set_unreadable_files(self, paths: Iterable[str]) -> None:
         """Record the input files this run leaves out as unreadable (resolved paths), so a
         later run can tell when one has changed and redo the blocks it left unpadded."""
         paths = sorted({str(p) for p in paths})
-        if paths != self.unreadable_files():
-            self._write_inputs(self.recorded_inputs(), unreadable=paths)
+        recorded, unreadable, _ = self._read_inputs()
+        if paths != unreadable:
+            self._write_inputs(recorded, paths)
 
-    def _write_inputs(self, files: list[dict], unreadable: list[str] | None = None) -> None:
-        """Write ``inputs.json``: the fingerprints *files* and the unreadable files (kept
-        as they are unless given)."""
-        content: dict = {"files": files}
-        unreadable = self.unreadable_files() if unreadable is None else unreadable
+    def _read_inputs(self) -> tuple[list[dict], list[str], bool]:
+        """``inputs.jsonl``: the recorded fingerprints, the unreadable files and whether a
+        line cut short ends the file (an append a killed run left unfinished: left out).
+
+        Raises
+        ------
+        StoreDamaged
+            A whole line is not a fingerprint or the unreadable files (one line naming
+            the file, the line and the recovery).
+        """
+        path = self.root / _INPUTS
+        files: list[dict] = []
+        unreadable: list[str] = []
+        try:
+            text = path.read_bytes().decode("utf-8")
+        except FileNotFoundError:
+            return files, unreadable, False
+        except (OSError, UnicodeDecodeError) as error:
+            raise unreadable_store_file(self.root, _INPUTS, error) from None
+        lines = text.split("\n")
+        cut = lines.pop() != ""  # the text after the last newline: a line cut short
+        for number, line in enumerate(lines, start=1):
+            try:
+                entry = json.loads(line)
+                if "file" in entry:
+                    item = entry["file"]
+                    str(item["sha256"]), str(item["path"]), str(item["start"]), str(item["end"])
+                    files.append(item)
+                elif "unreadable" in entry:
+                    unreadable = [str(p) for p in entry["unreadable"]]
+                else:
+                    raise ValueError("neither 'file' nor 'unreadable'")
+            except (ValueError, KeyError, TypeError, AttributeError) as error:
+                detail = str(error).splitlines()[0] if str(error) else type(error).__name__
+                error = ValueError(f"line {number}: {detail}")
+                raise unreadable_store_file(self.root, _INPUTS, error) from None
+        return files, unreadable, cut
+
+    def _write_inputs(self, files: list[dict], unreadable: list[str]) -> None:
+        """Write ``inputs.jsonl`` whole (atomically): a line per fingerprint of *files*,
+        then the *unreadable* files' line when there are any."""
+        lines = [{"file": item} for item in files]
         if unreadable:
-            content["unreadable"] = unreadable
+            lines.append({"unreadable": list(unreadable)})
         with atomic_path(self.root / _INPUTS) as tmp:
-            tmp.write_text(json.dumps(content, indent=1, sort_keys=True), encoding="utf-8")
+            tmp.write_text("".join(_json_line(line) for line in lines), encoding="utf-8")
+        self._inputs_cache = None
+
+    def _append_inputs(self, version: tuple[int, int, int], files: list[dict]) -> bool:
+        """Append a line per fingerprint of *files* to ``inputs.jsonl`` (whose *version*
+        was read) and flush it to disk; False when the file grew by more than those lines
+        (another writer appended too)."""
+        data = "".join(_json_line({"file": item}) for item in files).encode()
+        size = len(data)
+        fd = os.open(self.root / _INPUTS, os.O_WRONLY | os.O_APPEND)
+        try:
+            while data:
+                data = data[os.write(fd, data) :]
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        now = _file_version(self.root / _INPUTS)
+        return now is not None and now[0] == version[0] and now[1] == version[1] + size
+
+    def _open_inputs(self) -> None:
+        """Convert the ``inputs.json`` of earlier versions (one object: ``files`` and
+        ``unreadable``) to ``inputs.jsonl``, or write ``inputs.jsonl`` again without the
+        line a killed run cut short, each with a notice.
+
+        Raises
+        ------
+        StoreDamaged
+            The index is unreadable (one line naming it and the recovery).
+        """
+        whole = self.root / _INPUTS_WHOLE
+        if (self.root / _INPUTS).exists():
+            files, unreadable, cut = self._read_inputs()
+            if cut:
+                self._write_inputs(files, unreadable)
+                self.notices.append(
+                    f"{self.root}: the last line of {_INPUTS} was cut short (a run killed "
+                    "while recording an input file): left out, the file is fingerprinted "
+                    "again when taken"
+                )
+            return
+        if not whole.is_file():
+            return
+        try:
+            content = json.loads(whole.read_text(encoding="utf-8"))
+            files = list(content["files"])
+            for r in files:
+                str(r["sha256"]), str(r["path"]), str(r["start"]), str(r["end"])
+            unreadable = [str(p) for p in content.get("unreadable", [])]
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as error:
+            raise unreadable_store_file(self.root, _INPUTS_WHOLE, error) from None
+        self._write_inputs(files, unreadable)
+        whole.unlink()
+        self.notices.append(
+            f"{self.root}: {_INPUTS_WHOLE} ({len(files)} input file(s), written whole for "
+            f"each file) converted to {_INPUTS} (a line appended for each file)"
+        )
 
     # ------------------------------------------------------------------ reading
     def _files(self, kind: str) -> list[Path]:
@@ -901,3 +988,8 @@ def batched(items: Iterable, size: int):
             batch = []
     if batch:
         yield batch
+
+
+def _json_line(entry: Mapping[str, object]) -> str:
+    """*entry* as one line of JSON (keys sorted, no spaces), newline included."""
+    return json.dumps(entry, sort_keys=True, separators=(",", ":")) + "\n"

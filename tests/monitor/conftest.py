@@ -160,3 +160,12 @@ def assert_same_tables(state: Path, batch: dict[str, pd.DataFrame], min_rows: in
     assert batch["forecast"]["kalman_frequency_hz"].notna().sum() > min_rows // 2
     pd.testing.assert_frame_equal(tracked, batch["tracked"])
     pd.testing.assert_frame_equal(forecast, batch["forecast"])
+
+
+def marked_frame(monitor, frame: pd.DataFrame) -> pd.DataFrame:
+    """*frame* with the harmonic columns of the monitor's marks (``Monitor._mark_harmonics``:
+    an array, a row per row of *frame*), as ``identify --dship`` writes them."""
+    marks = monitor._mark_harmonics(frame)
+    return frame.assign(
+        harmonic=marks[:, 0], harmonic_frequency_hz=marks[:, 1], harmonic_checked=marks[:, 2] > 0.5
+    )

@@ -14,7 +14,7 @@ import pytest
 
 from workbench.simulate.voyage import ShaftHarmonics
 
-from .conftest import FORECAST, IDENTIFY, MONITOR_FAST, batch_run, cli, write_voyage
+from .conftest import FORECAST, IDENTIFY, MONITOR_FAST, batch_run, cli, marked_frame, write_voyage
 
 #: the outage of the shaft speed, from the voyage's start [min]
 OUTAGE_MIN = (15, 45)
@@ -64,13 +64,18 @@ def test_the_monitor_marks_a_shaft_speed_outage_as_identify_does(shaft_voyage, t
     from workbench.sid.harmonics import HarmonicOptions
 
     monitor = Monitor.__new__(Monitor)  # only what the marking uses
-    monitor._harmonic_marks, monitor._marks_pending, monitor._shaft_logged = {}, False, False
+    monitor._marks_kept, monitor._marks_pending, monitor._shaft_logged = (
+        np.zeros(0, bool),
+        False,
+        False,
+    )
+    monitor._marks = np.empty((0, 3))
     monitor._block_shaft_rpm = {}
     monitor.options = SimpleNamespace(harmonics=HarmonicOptions())
     log = read_dship(source / "dship.tsv")
     monitor._read_log = lambda: log
     columns = ["harmonic", "harmonic_frequency_hz", "harmonic_checked"]
-    marked = monitor._mark_harmonics(selected.drop(columns=columns))
+    marked = marked_frame(monitor, selected.drop(columns=columns))
     pd.testing.assert_frame_equal(marked[columns], selected[columns])
     # and the monitor run over the folder tracks what identify + track do
     state = tmp_path / "state"
@@ -108,12 +113,18 @@ def test_block_by_block_the_outage_is_marked_as_identify_marks_it(shaft_voyage, 
     selected = pd.read_parquet(tmp_path / "batch" / "id" / "selected.parquet")
     columns = ["harmonic", "harmonic_frequency_hz", "harmonic_checked"]
     monitor = Monitor.__new__(Monitor)  # only what the marking uses
-    monitor._harmonic_marks, monitor._marks_pending, monitor._speed_test = {}, False, None
-    monitor._shaft_logged, monitor._block_shaft_rpm = False, {}
+    monitor._marks_kept, monitor._marks_pending, monitor._speed_test = (
+        np.zeros(0, bool),
+        False,
+        None,
+    )
+    monitor._marks = np.empty((0, 3))
+    monitor._shaft_logged = False
+    monitor._block_shaft_rpm = {}
     monitor.options = SimpleNamespace(harmonics=HarmonicOptions())
     log = read_dship(source / "dship.tsv")
     monitor._read_log = lambda: log
     frame = selected.drop(columns=columns)
     for block in sorted(frame["block"].unique()):
-        marked = monitor._mark_harmonics(frame[frame["block"] <= block])
+        marked = marked_frame(monitor, frame[frame["block"] <= block])
     pd.testing.assert_frame_equal(marked[columns], selected[columns])

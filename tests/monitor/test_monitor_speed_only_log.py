@@ -17,7 +17,7 @@ import pytest
 from data_contracts import read_dship
 from workbench.simulate.voyage import ShaftHarmonics
 
-from .conftest import FORECAST, IDENTIFY, MONITOR_FAST, batch_run, cli, write_voyage
+from .conftest import FORECAST, IDENTIFY, MONITOR_FAST, batch_run, cli, marked_frame, write_voyage
 
 HARMONICS = ["--harmonic-orders", "1,2", "--blades", "5"]
 COLUMNS = ["harmonic", "harmonic_frequency_hz", "harmonic_checked"]
@@ -41,7 +41,12 @@ def _monitor(log):
     from workbench.sid.harmonics import HarmonicOptions
 
     monitor = Monitor.__new__(Monitor)
-    monitor._harmonic_marks, monitor._marks_pending, monitor._shaft_logged = {}, False, False
+    monitor._marks_kept, monitor._marks_pending, monitor._shaft_logged = (
+        np.zeros(0, bool),
+        False,
+        False,
+    )
+    monitor._marks = np.empty((0, 3))
     monitor._block_shaft_rpm = {}
     monitor._speed_test, monitor._speed_index, monitor._block_speed = None, np.empty(0, int), {}
     monitor.options = SimpleNamespace(harmonics=HarmonicOptions(orders=(1, 2), blades=5))
@@ -89,11 +94,11 @@ def test_marks_block_by_block_with_the_log_growing_equal_identify(speed_only):
         now = ends[block] - pd.Timedelta(minutes=10)
         grown = log[pd.to_datetime(log["time"], utc=True) < now].reset_index(drop=True)
         monitor._read_log = lambda grown=grown: grown
-        marked = monitor._mark_harmonics(so_far)
+        marked = marked_frame(monitor, so_far)
         pending_seen |= monitor._marks_pending
         afresh = mark_harmonics(so_far, so_far.iloc[:0], grown, options).selected
         pd.testing.assert_frame_equal(marked[COLUMNS], afresh[COLUMNS], check_names=False)
     assert pending_seen
     monitor._read_log = lambda: log
-    marked = monitor._mark_harmonics(frame)
+    marked = marked_frame(monitor, frame)
     pd.testing.assert_frame_equal(marked[COLUMNS], selected[COLUMNS])

@@ -263,11 +263,12 @@ def test_the_monitor_writes_the_tracked_harmonic_lines(tmp_path, monkeypatch):
     options = MonitorOptions(tracking=TrackingOptions(frequency_tol=0.5))
     monitor = Monitor(watch, tmp_path / "state", options=options)
 
-    def marks(frame: pd.DataFrame) -> pd.DataFrame:  # the logged shaft speed's marks
+    def marks(frame: pd.DataFrame) -> np.ndarray:  # the logged shaft speed's marks
         order1 = 0.3 * speeds[frame["block"].to_numpy()]
         on = np.isclose(frame["frequency_hz"].to_numpy(), order1)
-        return frame.assign(
-            harmonic=np.where(on, 1.0, np.nan), harmonic_frequency_hz=np.where(on, order1, np.nan)
+        # per row: the order, its frequency, checked (Monitor._mark_harmonics)
+        return np.column_stack(
+            [np.where(on, 1.0, np.nan), np.where(on, order1, np.nan), np.ones(len(frame))]
         )
 
     monkeypatch.setattr(monitor, "_mark_harmonics", marks)

@@ -28,13 +28,13 @@ def test_once_over_a_damaged_store_is_an_error_and_keeps_the_tables(tmp_path, ca
     tracked = pd.read_parquet(state / "tracked.parquet")
     assert len(tracked)
     capsys.readouterr()
-    (state / "store" / "inputs.json").write_text('{"cut', encoding="utf-8")
+    (state / "store" / "inputs.jsonl").write_text('{"cut\n', encoding="utf-8")
     assert main([*argv, *MONITOR_ARGS]) == 1
     captured = capsys.readouterr()
     assert "Traceback" not in captured.err
     error = [line for line in captured.err.splitlines() if line.startswith("error:")]
     assert len(error) == 1
-    assert "inputs.json is unreadable" in error[0] and str(state / "store") in error[0]
+    assert "inputs.jsonl is unreadable (line 1:" in error[0] and str(state / "store") in error[0]
     assert "block(s) decided" not in captured.out
     pd.testing.assert_frame_equal(pd.read_parquet(state / "tracked.parquet"), tracked)
 
@@ -44,6 +44,12 @@ def _stored(state) -> dict[str, bytes]:
     store = state / "store"
     files = [*store.glob("*/day=*/*.parquet"), store / "manifest.jsonl"]
     return {p.relative_to(store).as_posix(): p.read_bytes() for p in files}
+
+
+def _recorded(index) -> list[dict]:
+    """The fingerprints recorded in the store's inputs.jsonl."""
+    lines = index.read_text(encoding="utf-8").splitlines()
+    return [entry["file"] for entry in map(json.loads, lines) if "file" in entry]
 
 
 def _moved_aside(error: str, path) -> None:
@@ -69,20 +75,20 @@ def test_a_damaged_input_index_moved_aside_keeps_every_computed_block(tmp_path, 
     state, argv = _first_run(tmp_path, capsys)
     tracked = pd.read_parquet(state / "tracked.parquet")
     stored = _stored(state)
-    index = state / "store" / "inputs.json"
-    before = json.loads(index.read_text(encoding="utf-8"))["files"]
-    index.write_text('{"cut', encoding="utf-8")
+    index = state / "store" / "inputs.jsonl"
+    before = _recorded(index)
+    index.write_text('{"cut\n', encoding="utf-8")
     assert main([*argv, *MONITOR_ARGS]) == 1
     error = capsys.readouterr().err.strip().splitlines()
     assert len(error) == 1 and "delete" not in error[0] and "another --state" in error[0]
     _moved_aside(error[0], index)
     assert main([*argv, *MONITOR_ARGS]) == 0
     out = capsys.readouterr().out
-    assert "inputs.json was absent: the input files of the 11 stored block(s) 0-10" in out
+    assert "inputs.jsonl was absent: the input files of the 11 stored block(s) 0-10" in out
     assert "block 0:" not in out  # nothing identified again
     assert _stored(state) == stored
     pd.testing.assert_frame_equal(pd.read_parquet(state / "tracked.parquet"), tracked)
-    after = json.loads(index.read_text(encoding="utf-8"))["files"]
+    after = _recorded(index)
     assert sorted(f["sha256"] for f in after) == sorted(f["sha256"] for f in before)
     assert len(after) == 12
 

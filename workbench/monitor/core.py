@@ -261,6 +261,8 @@ class Monitor:
         self.conditioned_files = [0]  # files conditioned (per-file path)
         self._shared: dict = {}
         self._health_rows: list[dict] = []
+        # _missing_blocks: (blocks and reasons, the rows list read, rows read)
+        self._missing_scan: tuple[dict[int, str], list | None, int] = ({}, None, 0)
         # data_health.parquet: every part is written next (at the start), else the parts
         # from the oldest block added since the last write
         self._health_rows_all = True
@@ -282,7 +284,10 @@ class Monitor:
         self._dirty = True
         self._saved_grid = self._stored_grid()
         self._given_up: tuple[tuple[int, int], list[dict]] = ((-1, -1), [])
-        self._harmonic_marks: dict[int, np.ndarray] = {}  # block -> marks, once the log covers it
+        # each tracked row's harmonic marks (_mark_harmonics) and whether they are kept
+        # (the log covers the row's block)
+        self._marks = np.empty((0, 3))
+        self._marks_kept = np.zeros(0, dtype=bool)
         # block -> shaft speed the marks used (identify's shaft.csv: logged, or from the speed
         # where the log fails), once the log covers it; and with the blocks it does not yet
         self._block_shaft_rpm: dict[int, float] = {}
@@ -290,7 +295,7 @@ class Monitor:
         self._shaft_logged = False  # a block tracked so far has a usable shaft speed
         self._health_schedule = ""  # from which block the health chart monitors
         self._marks_pending = False
-        self._marked: pd.DataFrame | None = None  # selected modes with their marks
+        self._marked: np.ndarray | None = None  # the tracked rows' marks, last given
         # the speed-following test of a log without the shaft speed (_mark_from_speed):
         # the test, each tracked row's index in it, each covered block's speed
         self._speed_test = None
@@ -649,19 +654,29 @@ class Monitor:
         """Say so when *item* lands after blocks over its span were decided without it."""
         grid = self.voyage.grid
         start, end = item.info.start_time.value, item.info.end_time.value
-        skipped = sorted(
-            int(row["block"])
-            for row in self._health_rows
-            if row["status"] == "skipped"
-            and ("gap" in row["reason"] or "no data" in row["reason"])
-            and grid.start(int(row["block"])).value < end
-            and grid.end(int(row["block"])).value > start
-        )
-        if skipped:
+        missing = self._missing_blocks()
+        blocks = np.fromiter(missing, dtype=np.int64, count=len(missing))
+        over = (grid.start(blocks).asi8 < end) & (grid.end(blocks).asi8 > start)
+        skipped = np.sort(blocks[over])
+        if len(skipped):
             self.messages.append(
                 f"{item.path.name}: landed after blocks {skipped[0]}-{skipped[-1]} were "
                 "decided without it (skipped: gap); they are not redone"
             )
+
+    def _missing_blocks(self) -> dict[int, str]:
+        """The decided blocks skipped for missing data (:func:`_missing_data`) and their
+        reasons, in the order decided: kept as data-health rows are appended (all rows read
+        again when the rows were replaced, at a restart)."""
+        rows = self._health_rows
+        found, seen, scanned = self._missing_scan
+        if seen is not rows or scanned > len(rows):
+            found, scanned = {}, 0
+        for row in rows[scanned:]:
+            if row["status"] == "skipped" and _missing_data(str(row["reason"])):
+                found[int(row["block"])] = str(row["reason"])
+        self._missing_scan = (found, rows, len(rows))
+        return found
 
     def _anchor(self, flush: bool = False) -> bool:
         """Fix the grid, channels and options from the files (or the store); open the
@@ -997,62 +1012,60 @@ class Monitor:
         )
 
     # ------------------------------------------------------------------ tracking
-    def _mark_harmonics(self, frame: pd.DataFrame) -> pd.DataFrame:
-        """The selected modes tracked so far with their ``harmonic``,
-        ``harmonic_frequency_hz`` and ``harmonic_checked`` columns as ``identify --dship``
-        marks them: from the logged shaft speed
+    def _mark_harmonics(self, frame: pd.DataFrame) -> np.ndarray | None:
+        """The harmonic marks of the selected modes tracked so far (*frame*), a row each:
+        ``harmonic``, ``harmonic_frequency_hz`` and checked (1.0 or 0.0) as
+        ``identify --dship`` marks them: from the logged shaft speed
         (:meth:`~workbench.sid.harmonics.HarmonicMarker.mark_selected`: spikes and a frozen
         sensor left out, a block without a usable shaft speed tested from the speed where
         the ship's shaft speed per knot is fixed, else unchecked), or from the speed when
-        the log has no shaft speed (:meth:`_mark_from_speed`). A block's marks from the
-        shaft speed are kept once the log covers the block; before that they are
-        recomputed, so the tracked table ends equal to ``identify --dship`` + ``track``
-        however late the log."""
+        the log has no shaft speed (:meth:`_mark_from_speed`); None without a ship log.
+
+        A block's marks from the shaft speed are kept once the log covers the block;
+        before that they are recomputed, so the tracked table ends equal to
+        ``identify --dship`` + ``track`` however late the log. Only the rows not kept are
+        marked (the new block's and those of the blocks the log does not cover yet)."""
         log = self._read_log()  # an unreadable log: the outlook reports it
         if log is None:
-            return frame
+            return None
         if "shaft_rpm" not in log.columns or log["shaft_rpm"].isna().all():
-            return self._mark_from_speed(frame, log) if "speed_kn" in log.columns else frame
+            return self._mark_from_speed(frame, log) if "speed_kn" in log.columns else None
         from ..sid.harmonics import HarmonicMarker
 
-        # per row: the order (NaN: none), the order's frequency at the block's shaft speed
-        # and whether the block could be checked (1.0) or not (0.0)
-        harmonic = np.full((len(frame), 3), np.nan)
-        positions = frame.groupby("block").indices
-        pending = []
-        for block, rows in positions.items():
-            marks = self._harmonic_marks.get(int(block))
-            if marks is None:
-                pending.append(rows)
-            else:
-                harmonic[rows] = marks
-        self._marks_pending = bool(pending)
+        n = len(frame)
+        kept = np.zeros(n, dtype=bool)
+        harmonic = np.full((n, 3), np.nan)
+        if len(self._marks_kept) <= n:  # else a new tracker: every row marked again
+            kept[: len(self._marks_kept)] = self._marks_kept
+            harmonic[: len(self._marks)] = self._marks
+        pending = np.flatnonzero(~kept)
+        self._marks_pending = bool(len(pending))
         pending_rpm: dict[int, float] = {}
-        if pending:
-            rows = np.concatenate(pending)
-            part = frame.iloc[rows]
+        if len(pending):
+            part = frame.iloc[pending]
             marker = HarmonicMarker(log, self.options.harmonics)
             marked = marker.mark_selected(part, shaft_logged=self._shaft_logged or None)
             if marker.method == "shaft speed" and not self._shaft_logged:
                 # the voyage's blocks have a shaft speed: those marked before without one
                 # (by the speed-following test over their part) are marked again with it
                 self._shaft_logged = True
-                if self._harmonic_marks:
-                    self._harmonic_marks, self._block_shaft_rpm = {}, {}
+                if kept.any():
+                    self._marks_kept = np.zeros(0, dtype=bool)
+                    self._block_shaft_rpm = {}
                     return self._mark_harmonics(frame)
             checked = (
                 marked["harmonic_checked"].to_numpy(float)
                 if "harmonic_checked" in marked.columns
                 else np.ones(len(marked))
             )
-            marks = np.column_stack(
+            harmonic[pending] = np.column_stack(
                 [
                     marked["harmonic"].to_numpy(float),
                     marked["harmonic_frequency_hz"].to_numpy(float),
                     checked,
                 ]
             )
-            harmonic[rows] = marks
+            # the marks of the blocks the log covers are kept
             covered = pd.to_datetime(log["time"], utc=True).max()
             ends = pd.to_datetime(part["block_end"], utc=True).to_numpy()
             rpm = (
@@ -1063,17 +1076,14 @@ class Monitor:
             for block, inside in part.reset_index(drop=True).groupby("block").indices.items():
                 final = ends[inside].max() <= covered
                 if final:
-                    self._harmonic_marks[int(block)] = marks[inside]
+                    kept[pending[inside]] = True
                 if block in rpm.index:
                     (self._block_shaft_rpm if final else pending_rpm)[int(block)] = rpm[block]
         self._shaft_rpm_of_block = {**self._block_shaft_rpm, **pending_rpm}
-        return frame.assign(
-            harmonic=harmonic[:, 0],
-            harmonic_frequency_hz=harmonic[:, 1],
-            harmonic_checked=harmonic[:, 2] > 0.5,
-        )
+        self._marks, self._marks_kept = harmonic, kept
+        return harmonic
 
-    def _mark_from_speed(self, frame: pd.DataFrame, log: pd.DataFrame) -> pd.DataFrame:
+    def _mark_from_speed(self, frame: pd.DataFrame, log: pd.DataFrame) -> np.ndarray:
         """:meth:`_mark_harmonics` from a ship log with the speed but no shaft speed: the
         speed-following test over every block tracked so far, as ``identify --dship``
         tests the whole voyage (:class:`~workbench.sid.harmonics.SpeedFollowing`).
@@ -1141,10 +1151,8 @@ class Monitor:
         marked[tested] = marked_in_test[index[tested]]
         harmonic = np.where(marked, 0.0, np.nan)
         order_hz = nearest_order_frequency(frequency, per_kn * speed, order_list(options))
-        return frame.assign(
-            harmonic=harmonic,
-            harmonic_frequency_hz=np.where(marked, order_hz, np.nan),
-            harmonic_checked=np.isfinite(speed),
+        return np.column_stack(
+            [harmonic, np.where(marked, order_hz, np.nan), np.isfinite(speed).astype(float)]
         )
 
     def _write_harmonic_lines(self, tracked: pd.DataFrame) -> None:
@@ -1191,8 +1199,8 @@ class Monitor:
         from ..dashboard.state import HARMONIC_TRACKS
 
         path = self.state / "harmonic_tracks.parquet"
-        frame = self._marked
-        if frame is None or not labels:
+        frame, marks = self.tracking.frame, self._marked
+        if marks is None or not labels:
             if path.exists():  # the lines once recognised are modes after all
                 write_table(empty_table(HARMONIC_TRACKS), path, HARMONIC_TRACKS)
             return
@@ -1201,8 +1209,7 @@ class Monitor:
         parts = []
         for track, found in enumerate(labels, start=1):
             part = frame.loc[rows[found["label"]], ["block", "block_start", "frequency_hz"]]
-            order = frame.loc[rows[found["label"]], "harmonic"]
-            parts.append(part.assign(track=track, order=order.to_numpy(float)))
+            parts.append(part.assign(track=track, order=marks[rows[found["label"]], 0]))
         table = pd.concat(parts, ignore_index=True).drop_duplicates(["block", "track"])
         table["block_start"] = pd.to_datetime(table["block_start"], utc=True)
         table = table.sort_values(["block", "track"], kind="stable").reset_index(drop=True)
@@ -1220,11 +1227,11 @@ class Monitor:
         if grew or self._marks_pending or not (self.state / "tracked.parquet").exists():
             self._marked = None
 
-            def marker(frame: pd.DataFrame) -> pd.DataFrame:
+            def marks(frame: pd.DataFrame) -> np.ndarray | None:
                 self._marked = self._mark_harmonics(frame)  # kept for the harmonic lines
                 return self._marked
 
-            tracked = self.tracking.table(marker=marker)
+            tracked = self.tracking.table(marks=marks)
             if self._labels_lost is not None:  # before the table is written again
                 self._labels_again(tracked)
             if self.voyage is not None and self.voyage.lengths is not None:
@@ -1605,11 +1612,7 @@ class Monitor:
         if key == self._given_up[0]:
             return self._given_up[1]
         spans: list[dict] = []
-        missing = {
-            int(row["block"]): str(row["reason"])
-            for row in self._health_rows
-            if row["status"] == "skipped" and _missing_data(str(row["reason"]))
-        }
+        missing = self._missing_blocks()
         if missing and self.files and self.voyage is not None:
             from ..signals.block_plan import placed_block_numbers, placed_blocks
 
@@ -1726,7 +1729,8 @@ class Monitor:
 
     def _write_status(self, state: str, message: str | None = None) -> None:
         del self.messages[:-200]  # a long run keeps its recent messages only
-        last = max((b for b in self.done if b <= self.tracking.tracked_through), default=None)
+        # every block up to tracked_through is decided (IncrementalTracking.advance)
+        last = self.tracking.tracked_through if self.tracking.tracked_through >= 0 else None
         if message is None:
             message = self.messages[-1] if self.messages else ""
         status = {

@@ -53,14 +53,18 @@ class IncrementalTracking:
         self._parts: dict[int, pd.DataFrame] = {}  # selected modes waiting for their turn
         self._tracker: ModeTracker | None = None
         self._rows: list[tuple[int, int, float]] = []
+        # _rows as arrays (_row_arrays) and each frame row's block
+        self._arrays = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0, float))
+        self._blocks = np.empty(0, np.int64)
         self._frame: pd.DataFrame | None = None
         self._channels: list[str] | None = None
         self._written_labels: list[dict] | None = None
         # labels an earlier run gave, not yet given again by the replay: mode -> (block, Hz)
         self._expected: dict[int, tuple[int, float]] = {}
         self._labels_path: Path | None = None
-        # the table :meth:`table` built last: (table, rows then, labels then, harmonic labels)
-        self._built: tuple[pd.DataFrame, int, dict[int, int], list] | None = None
+        # the table :meth:`table` built last: (table, rows then, labels then, labels left
+        # out as harmonics)
+        self._built: tuple[pd.DataFrame, int, dict[int, int], set[int]] | None = None
         #: The last :meth:`table`'s rows of the blocks before this one are those of the
         #: table before it (None: any row may have changed).
         self.changed_from: int | None = None
@@ -82,41 +86,89 @@ class IncrementalTracking:
             self.tracked_through = block
         return grew
 
-    def table(self, marker=None) -> pd.DataFrame:
-        """The tracked table (MODAL contract) so far. *marker* (called with the selected
-        modes tracked so far) adds their ``harmonic`` column, which decides only which
-        labels are harmonics (never the assignment), so the marks may come late."""
-        from ..sid.tracking import _tracked_table
+    def table(self, marks=None) -> pd.DataFrame:
+        """The tracked table (MODAL contract) so far. *marks* (called with the selected
+        modes tracked so far, :attr:`frame`) gives each row's harmonic marks as an array
+        (rows x 3: ``harmonic``, ``harmonic_frequency_hz``, checked by the ship log 1.0 or
+        0.0; None: not marked), which decide only which labels are harmonics (never the
+        assignment), so the marks may come late.
+
+        Only the rows that may have changed since the table built last are built again
+        (the blocks from :meth:`_changed_from` on) while the labels left out as
+        harmonics stay the same; the labels' verdict is taken over every row each time
+        (per-label counts, :func:`~workbench.sid.tracking.harmonic_verdict`)."""
+        from ..sid.tracking import _empty_tracked, harmonic_verdict, tracked_rows
 
         self.changed_from = None
         if self._frame is None:
             return empty_table(MODAL)
-        frame = self._frame if marker is None else marker(self._frame)
+        frame = self._frame
         labels = self._tracker.labels()
         since = self._changed_from(labels)
-        if since is not None and "harmonic" not in frame.columns:
+        index, serial, score = self._row_arrays()
+        label = np.full(int(serial.max(initial=-1)) + 1, -1, dtype=np.int64)
+        for row_serial, row_label in labels.items():
+            if row_serial < len(label):
+                label[row_serial] = row_label
+        label = label[serial] if len(serial) else serial
+        labelled = label >= 0
+        index, label, score = index[labelled], label[labelled], score[labelled]
+        marked = None if marks is None else marks(frame)
+        harmonic: list[dict] = []
+        if marked is not None and len(label):
+            harmonic = harmonic_verdict(
+                label,
+                self._blocks[index],
+                np.isfinite(marked[index, 0]),
+                marked[index, 2] > 0.5,
+                frame["frequency_hz"].to_numpy(float)[index],
+                marked[index, 1],
+                self.options,
+            )
+        left_out = {h["label"] for h in harmonic}
+        keep = ~np.isin(label, list(left_out)) if left_out else np.ones(len(label), bool)
+        if self._built is not None and since is not None and left_out != self._built[3]:
+            since = None  # a line became (or stopped being) a harmonic: its rows everywhere
+        if not len(label):  # no labelled mode yet: the selected modes' columns
+            table = _empty_tracked(frame)
+        elif since is not None:
             # the rows of the blocks from `since` on built again, the others kept: the
             # table is sorted by (block, mode), stable in the order of the rows
             head = self._built[0]
             head = head.iloc[: int(np.searchsorted(head["block"].to_numpy(), since))]
-            blocks = frame["block"].to_numpy()
-            rows = [r for r in self._rows if blocks[r[0]] >= since]
-            tail = _tracked_table(frame, rows, self._tracker, self._channels, self.options)
+            keep &= self._blocks[index] >= since
+            tail = tracked_rows(frame, index[keep], label[keep], score[keep], self._channels)
             if len(tail):
                 table = pd.concat([head, tail], ignore_index=True)
             else:
                 table = head.reset_index(drop=True)
-            table.attrs["harmonic_labels"] = []
         else:
-            table = _tracked_table(
-                frame, list(self._rows), self._tracker, self._channels, self.options
-            )
-        harmonic = table.attrs.get("harmonic_labels", [])
-        if self._built is not None and since is not None and harmonic != self._built[3]:
-            since = None  # a line became (or stopped being) a harmonic: its rows everywhere
+            table = tracked_rows(frame, index[keep], label[keep], score[keep], self._channels)
+        if len(label):  # as track's table (an empty one has no attributes)
+            table.attrs["harmonic_labels"] = harmonic
         self.changed_from = since
-        self._built = (table, len(self._rows), labels, harmonic)
+        self._built = (table, len(self._rows), labels, left_out)
         return table
+
+    @property
+    def frame(self) -> pd.DataFrame | None:
+        """The selected modes tracked so far, a row per mode (index 0, 1, ...), in the
+        order they were fed."""
+        return self._frame
+
+    def _row_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:attr:`_rows` as arrays (row of the frame, serial, MACXP), extended by the rows
+        tracked since the last call."""
+        arrays = self._arrays
+        done = len(arrays[0])
+        if done < len(self._rows):
+            new = self._rows[done:]
+            arrays = tuple(
+                np.concatenate([old, np.array([r[k] for r in new], dtype=old.dtype)])
+                for k, old in enumerate(arrays)
+            )
+            self._arrays = arrays
+        return arrays
 
     def _changed_from(self, labels: dict[int, int]) -> int | None:
         """First block whose table rows may differ from the table built last (None: any,
@@ -129,7 +181,7 @@ class IncrementalTracking:
             return None  # labels are never renumbered: not expected
         if len(before) > len(labels):
             return None
-        blocks = self._frame["block"].to_numpy()
+        blocks = self._blocks
         new_serials = {serial for serial in labels if serial not in before}
         changed = [int(blocks[r[0]]) for r in self._rows[n_rows:]]
         if new_serials:
@@ -138,9 +190,10 @@ class IncrementalTracking:
         return min([*changed, newest])
 
     def rows_of(self, labels) -> dict[int, list[int]]:
-        """Rows of the selected modes tracked so far (index of the frame :meth:`table`
-        passes to its *marker*) under each shown label of *labels* (the ``mode`` of the
-        tracked table and of its ``harmonic_labels``), in the order they were tracked.
+        """Rows of the selected modes tracked so far (index of :attr:`frame`, the frame
+        :meth:`table` passes to its *marks*) under each shown label of *labels* (the
+        ``mode`` of the tracked table and of its ``harmonic_labels``), in the order they
+        were tracked.
 
         The tracker's rows carry its modes' serial numbers (in order of birth), not the
         labels shown (given once a mode is seen in ``min_blocks`` blocks, in the order
@@ -148,11 +201,11 @@ class IncrementalTracking:
         wanted = {int(label) for label in labels}
         found: dict[int, list[int]] = {label: [] for label in wanted}
         shown = self._tracker.labels() if self._tracker is not None else {}
-        for index, serial, _ in self._rows:
-            label = shown.get(serial)
-            if label in wanted:
-                found[label].append(index)
-        return found
+        index, serial, _ = self._row_arrays()
+        serials = [row_serial for row_serial, label in shown.items() if label in wanted]
+        for row_serial in serials:
+            found[shown[row_serial]].extend(index[serial == row_serial].tolist())
+        return {label: sorted(rows) for label, rows in found.items()}
 
     def _track_block(self, block: int, part: pd.DataFrame) -> None:
         # the order `workbench identify` exports a block's modes in (then `track` reads it)
@@ -172,6 +225,7 @@ class IncrementalTracking:
         part = part.reset_index(drop=True)
         part.index = pd.RangeIndex(offset, offset + len(part))
         self._frame = part if self._frame is None else pd.concat([self._frame, part])
+        self._blocks = np.concatenate([self._blocks, part["block"].to_numpy(np.int64)])
         _, shapes = shapes_from_frame(part)
         updates = self._tracker.update(
             block,

@@ -566,90 +566,153 @@ def _tracked_table(frame, rows, tracker: ModeTracker, channels, options) -> pd.D
     labels = tracker.labels() if tracker is not None else {}
     rows = [(r, labels[serial], score) for r, serial, score in rows if serial in labels]
     if not rows:
-        empty = frame.iloc[:0].copy()
-        empty.insert(3, "mode", pd.Series([], dtype="int64"))
-        empty["mac"] = pd.Series([], dtype=float)
-        return MODAL.validate(
-            empty.drop(
-                columns=["harmonic", "harmonic_frequency_hz", "harmonic_checked"],
-                errors="ignore",
-            )
-        )
+        return _empty_tracked(frame)
     index = np.array([r[0] for r in rows])
-    table = frame.loc[index].copy()
-    table["mode"] = np.array([r[1] for r in rows], dtype="int64")
-    table["mac"] = np.clip([r[2] for r in rows], 0.0, 1.0)
+    modes = np.array([r[1] for r in rows], dtype="int64")
     harmonic_labels: list[dict] = []
-    if "harmonic" in table.columns:
-        marked = table["harmonic"].notna()
+    keep = np.ones(len(rows), dtype=bool)
+    if "harmonic" in frame.columns:
+        marks = frame.loc[index]
         # the rows the ship log could check (all, without the column)
         checked = (
-            table["harmonic_checked"].fillna(True).astype(bool)
-            if "harmonic_checked" in table.columns
-            else pd.Series(True, index=table.index)
+            marks["harmonic_checked"].fillna(True).astype(bool).to_numpy()
+            if "harmonic_checked" in marks.columns
+            else np.ones(len(marks), dtype=bool)
         )
-        by_label = table["mode"]
-        n_checked = checked.groupby(by_label).sum()
-        n_rows = by_label.value_counts().reindex(n_checked.index)
-        n_marked_checked = (marked & checked).groupby(by_label).sum()
-        share_all = marked.groupby(by_label).mean()
-        share_checked = n_marked_checked / n_checked.where(n_checked > 0)
-        # a label seen mostly where the log fails: checked in less than a quarter of the
-        # share of the voyage's blocks the log checked (a line that appears in an outage);
-        # a mode seen throughout a voyage is checked as often as the voyage is
-        voyage_checked = float(checked.groupby(table["block"]).any().mean())
-        in_outage = n_checked < _SEEN_AWAY * voyage_checked * n_rows
-        # the share that judges a label: of all its rows (the unchecked counted unmarked);
-        # of its checked rows where they are enough to judge (_FOLLOW_ROWS, or all its
-        # rows) or where the label is seen mostly in an outage. A few checked rows of a
-        # mode seen throughout a voyage are no evidence: one whose log covers only the
-        # last 45 min, where an order passes near it, is marked in 4 of 8 checked rows.
-        enough = n_checked >= np.minimum(_FOLLOW_ROWS, n_rows)
-        evidence = _wilson_lower(n_marked_checked, n_checked)
-        share = np.maximum(share_all, share_checked.where(enough | in_outage).fillna(evidence))
-        # most rows marked: a harmonic, unless the label is also seen away from the orders
-        # in at least a quarter of its blocks and does not follow its order (a mode an
-        # order sits on for hours)
-        # (seen away: the unmarked rows, unchecked ones included, of all its rows)
-        harmonic = [
-            label
-            for label in share.index[share >= options.harmonic_share]
-            if share_all[label] > 1.0 - _SEEN_AWAY
-            or _follows_its_order(table[(table["mode"] == label) & marked])
-        ]
-        # a label seen mostly in an outage and checked in fewer than _FOLLOW_ROWS blocks
-        # and a quarter of its blocks cannot be told from a harmonic: left out, unverified
-        unverified = [
-            label
-            for label in share.index
-            if label not in harmonic
-            and in_outage[label]
-            and n_checked[label] < min(_FOLLOW_ROWS, _SEEN_AWAY * n_rows[label])
-        ]
-        for label in [*harmonic, *unverified]:
-            part = table[table["mode"] == label]
-            harmonic_labels.append(
-                {
-                    "label": int(label),
-                    "blocks": len(part),
-                    "frequency_hz": float(part["frequency_hz"].median()),
-                    "share": float(np.nan_to_num(share[label])),
-                    "unverified": label in unverified,
-                }
-            )
-        table = table[~table["mode"].isin([*harmonic, *unverified])]
-        table = table.drop(
+        harmonic_labels = harmonic_verdict(
+            modes,
+            marks["block"].to_numpy(),
+            marks["harmonic"].notna().to_numpy(),
+            checked,
+            marks["frequency_hz"].to_numpy(float),
+            (
+                marks["harmonic_frequency_hz"].to_numpy(float)
+                if "harmonic_frequency_hz" in marks.columns
+                else None
+            ),
+            options,
+        )
+        keep = ~np.isin(modes, [h["label"] for h in harmonic_labels])
+    table = tracked_rows(
+        frame, index[keep], modes[keep], np.array([r[2] for r in rows])[keep], channels
+    )
+    table.attrs["harmonic_labels"] = harmonic_labels
+    return table
+
+
+def _empty_tracked(frame: pd.DataFrame) -> pd.DataFrame:
+    empty = frame.iloc[:0].copy()
+    empty.insert(3, "mode", pd.Series([], dtype="int64"))
+    empty["mac"] = pd.Series([], dtype=float)
+    return MODAL.validate(
+        empty.drop(
             columns=["harmonic", "harmonic_frequency_hz", "harmonic_checked"], errors="ignore"
         )
+    )
+
+
+def tracked_rows(frame, index, modes, scores, channels) -> pd.DataFrame:
+    """The tracked table's rows *index* of *frame* (selected modes) under the labels
+    *modes* with their MACXP *scores*, sorted by (block, mode) (stable in the order given),
+    the harmonic marks left out."""
+    table = frame.loc[np.asarray(index, dtype="int64")].copy()
+    table["mode"] = np.asarray(modes, dtype="int64")
+    table["mac"] = np.clip(np.asarray(scores, dtype=float), 0.0, 1.0)
+    table = table.drop(
+        columns=["harmonic", "harmonic_frequency_hz", "harmonic_checked"], errors="ignore"
+    )
     front = ["block", "block_start", "block_end", "mode", "frequency_hz", "damping_ratio", "mac"]
     if "model_order" in table.columns:
         front.append("model_order")
     shape = shape_columns(channels)
     rest = [c for c in table.columns if c not in front and c not in shape]
     table = table[[*front, *rest, *shape]].sort_values(["block", "mode"], kind="stable")
-    table = MODAL.validate(table.reset_index(drop=True))
-    table.attrs["harmonic_labels"] = harmonic_labels
-    return table
+    return MODAL.validate(table.reset_index(drop=True))
+
+
+def harmonic_verdict(
+    modes, blocks, marked, checked, frequency_hz, harmonic_frequency_hz, options
+) -> list[dict]:
+    """The labels tracking leaves out as shaft or blade-pass harmonics (and those seen
+    mostly in a log outage, which cannot be told from one), from the labelled rows: per
+    row its label *modes*, *blocks*, whether it is *marked* (``harmonic`` not NaN) and
+    *checked* by the ship log, its ``frequency_hz`` and ``harmonic_frequency_hz`` (None:
+    not known). Returns ``label``, ``blocks``, ``frequency_hz`` (median), ``share`` and
+    ``unverified`` for each, harmonics first, each group by label."""
+    modes = np.asarray(modes, dtype="int64")
+    marked = np.asarray(marked, dtype=bool)
+    checked = np.asarray(checked, dtype=bool)
+    # labels are small whole numbers: counted by bincount, no sort of the rows
+    offset = int(modes.min()) if len(modes) else 0
+    present = np.bincount(modes - offset) > 0
+    labels = np.flatnonzero(present) + offset
+    position = (np.cumsum(present) - 1)[modes - offset]
+    count = len(labels)
+    n_rows = pd.Series(np.bincount(position, minlength=count), index=labels)
+    n_checked = pd.Series(np.bincount(position, weights=checked, minlength=count), index=labels)
+    n_marked = np.bincount(position, weights=marked, minlength=count)
+    n_marked_checked = pd.Series(
+        np.bincount(position, weights=marked & checked, minlength=count), index=labels
+    )
+    n_checked = n_checked.astype("int64")
+    n_marked_checked = n_marked_checked.astype("int64")
+    share_all = pd.Series(n_marked / n_rows.to_numpy(), index=labels)
+    share_checked = n_marked_checked / n_checked.where(n_checked > 0)
+    # a label seen mostly where the log fails: checked in less than a quarter of the
+    # share of the voyage's blocks the log checked (a line that appears in an outage);
+    # a mode seen throughout a voyage is checked as often as the voyage is
+    blocks = np.asarray(blocks, dtype="int64")
+    first_block = int(blocks.min()) if len(blocks) else 0
+    rows_in = np.bincount(blocks - first_block)
+    checked_in = np.bincount(blocks - first_block, weights=checked, minlength=len(rows_in))
+    voyage_checked = float((checked_in > 0).sum() / (rows_in > 0).sum())
+    in_outage = n_checked < _SEEN_AWAY * voyage_checked * n_rows
+    # the share that judges a label: of all its rows (the unchecked counted unmarked);
+    # of its checked rows where they are enough to judge (_FOLLOW_ROWS, or all its
+    # rows) or where the label is seen mostly in an outage. A few checked rows of a
+    # mode seen throughout a voyage are no evidence: one whose log covers only the
+    # last 45 min, where an order passes near it, is marked in 4 of 8 checked rows.
+    enough = n_checked >= np.minimum(_FOLLOW_ROWS, n_rows)
+    evidence = _wilson_lower(n_marked_checked, n_checked)
+    share = np.maximum(share_all, share_checked.where(enough | in_outage).fillna(evidence))
+
+    def rows_of(label, only_marked=False):
+        inside = modes == label
+        if only_marked:
+            inside &= marked
+        part = pd.DataFrame({"frequency_hz": np.asarray(frequency_hz, float)[inside]})
+        if harmonic_frequency_hz is not None:
+            part["harmonic_frequency_hz"] = np.asarray(harmonic_frequency_hz, float)[inside]
+        return part
+
+    # most rows marked: a harmonic, unless the label is also seen away from the orders
+    # in at least a quarter of its blocks and does not follow its order (a mode an
+    # order sits on for hours)
+    # (seen away: the unmarked rows, unchecked ones included, of all its rows)
+    harmonic = [
+        label
+        for label in share.index[share >= options.harmonic_share]
+        if share_all[label] > 1.0 - _SEEN_AWAY or _follows_its_order(rows_of(label, True))
+    ]
+    # a label seen mostly in an outage and checked in fewer than _FOLLOW_ROWS blocks
+    # and a quarter of its blocks cannot be told from a harmonic: left out, unverified
+    unverified = [
+        label
+        for label in share.index
+        if label not in harmonic
+        and in_outage[label]
+        and n_checked[label] < min(_FOLLOW_ROWS, _SEEN_AWAY * n_rows[label])
+    ]
+    return [
+        {
+            "label": int(label),
+            "blocks": int(n_rows[label]),
+            "frequency_hz": float(rows_of(label)["frequency_hz"].median()),
+            "share": float(np.nan_to_num(share[label])),
+            "unverified": label in unverified,
+        }
+        for label in [*harmonic, *unverified]
+    ]
 
 
 def label_agreement(
