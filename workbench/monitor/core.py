@@ -594,19 +594,31 @@ class Monitor:
             infos = [f.info for f in files]
             run = next(r for r in clock_runs(infos) if any(i.path == item.path for i in r.files))
             first, drifting, run_files = run.files[0], run.drifting, run.files
+        # a run after a gap may start off its stamp (on the record's sample count): its
+        # files are re-timed to the previous file's end by their shift beyond the first's
+        shift_s = placed.clock_shift_s - first.clock_shift_s
         if not drifting:
-            if abs(placed.clock_shift_s) <= 0.5 / placed.sampling_rate_hz:
+            if abs(shift_s) <= 0.5 / placed.sampling_rate_hz:
                 return  # less than half a sample: on the previous file's lattice, unsaid
             if item.path in self._retimed_noted:  # taken again once the grid was fixed
                 return
             self._retimed_noted.add(item.path)
             self.messages.append(
-                f"{item.path.name}: start re-timed by {placed.clock_shift_s * 1e3:+.1f} ms to the "
+                f"{item.path.name}: start re-timed by {shift_s * 1e3:+.1f} ms to the "
                 f"previous file's end (a stamp within {CLOCK_JITTER_S * 1e3:g} ms of that end "
                 "or of the line of the run's stamps on its sample count is taken as contiguous)"
             )
         elif first.path not in self._drift_noted:
             self._drift_noted.add(first.path)
+            if first.path == item.path and placement.run_start:  # a gap carried over
+                before = placement.files[placement.run_start - 1]
+                gap_s = (first.start_time - before.end_time).total_seconds()
+                self.messages.append(
+                    f"{item.path.name}: after a gap of {gap_s:.1f} s from {before.name}, on the "
+                    "record's sample count (the line of its stamps carries the time over the "
+                    f"gap): {first.clock_shift_s * 1e3:+.1f} ms from its stamp"
+                )
+                return
             if run_files is None:
                 run_files = placement.files[placement.run_start :]
             self.messages.append(f"{item.path.name}: {clock_drift_note(run_files)}")
