@@ -576,7 +576,7 @@ class Monitor:
             self._note_clock(item, placed)
         self._dirty = True
         if self.voyage is not None:
-            self._note_too_late(item)
+            self._note_too_late(item, placed)
 
     def _note_clock(self, item: LandedFile, placed) -> None:
         """Say how the newly taken *item* was re-timed (*placed*): for clock jitter, or -
@@ -649,17 +649,23 @@ class Monitor:
                     return f"overlaps {error.previous.name}", info
         return _placed_among(info, [f.info for f in self.files])
 
-    def _note_too_late(self, item: LandedFile) -> None:
-        """Say so when *item* lands after blocks over its span were decided without it."""
+    def _note_too_late(self, item: LandedFile, placed) -> None:
+        """Say so when *item* lands after blocks over its span were decided without it:
+        its span as placed (*placed*: a stamp may lie the clock's walk before it), more
+        than the clock jitter of it (within which a plan takes a block's edge as covered)."""
+        from ..signals.block_plan import CLOCK_JITTER_S
+
         grid = self.voyage.grid
-        start, end = item.info.start_time.value, item.info.end_time.value
+        start, end = placed.start_time.value, placed.end_time.value
+        edge = int(max(CLOCK_JITTER_S, 0.5 / placed.sampling_rate_hz) * 1e9)
         skipped = sorted(
             int(row["block"])
             for row in self._health_rows
             if row["status"] == "skipped"
             and ("gap" in row["reason"] or "no data" in row["reason"])
-            and grid.start(int(row["block"])).value < end
-            and grid.end(int(row["block"])).value > start
+            and min(grid.end(int(row["block"])).value, end)
+            - max(grid.start(int(row["block"])).value, start)
+            > edge
         )
         if skipped:
             self.messages.append(
