@@ -1614,15 +1614,15 @@ class Monitor:
             for block in now_built:
                 if spans and spans[-1]["last_block"] == block - 1:
                     spans[-1]["last_block"] = block
-                    spans[-1]["end"] = _iso(grid.end(block))
+                    spans[-1]["end"] = _iso_data(grid.end(block))
                     spans[-1]["reasons"].append(missing[block])
                 else:
                     spans.append(
                         {
                             "first_block": block,
                             "last_block": block,
-                            "start": _iso(grid.start(block)),
-                            "end": _iso(grid.end(block)),
+                            "start": _iso_data(grid.start(block)),
+                            "end": _iso_data(grid.end(block)),
                             "reasons": [missing[block]],
                         }
                     )
@@ -1902,7 +1902,7 @@ def _given_up_reason(span: dict, reasons: Sequence[str], files: Sequence) -> str
         )
         seconds = (inside[-1].end_time - inside[0].start_time).total_seconds()
         holes.append(
-            f"{what} ({_iso(inside[0].start_time)} to {_iso(inside[-1].end_time)}, "
+            f"{what} ({_iso_data(inside[0].start_time)} to {_iso_data(inside[-1].end_time)}, "
             f"{seconds:.1f} s between {before} and {after})"
         )
     blocks = (
@@ -1930,6 +1930,12 @@ def stall_limit_s(poll_s: float) -> float:
 
 def _iso(time: pd.Timestamp) -> str:
     return pd.Timestamp(time).tz_convert("UTC").strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def _iso_data(time: pd.Timestamp) -> str:
+    """A data time (a block's or file's edge) to the nearest second, UTC: a grid anchored
+    at a stamp a few ms before a second is said at that second, not a second early."""
+    return _iso(pd.Timestamp(time).round("s"))
 
 
 def _file_key(path: Path | None):
