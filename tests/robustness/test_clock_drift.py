@@ -279,6 +279,49 @@ def test_the_monitor_keeps_the_last_block_after_a_lost_file_as_identify(tmp_path
     health = pd.read_parquet(state / "data_health.parquet").sort_values("block")
     assert health["block"].tolist() == list(range(11))  # main: 0-9
     assert health.loc[health["status"] == "skipped", "block"].tolist() == [5, 6]
+    # the record after the gap is said once, as placed: on the sample count, 13 * 300 s *
+    # 40 ppm / (1 + 40 ppm) = 156.0 ms after its stamp (main: "acc_013.npz: start re-timed
+    # by +156.0 ms to the previous file's end", and so on for each file until its run's
+    # own stamps told the drift)
+    notes = (state / "notes.txt").read_text(encoding="utf-8").splitlines()
+    clock = [line.split("Z ", 1)[1] for line in notes if "acc_0" in line]
+    # (the first files re-timed by 12 ms more each until the walk passes the jitter)
+    assert [line.split(":")[0] for line in clock] == [f"acc_00{k}.npz" for k in range(1, 6)] + [
+        "acc_013.npz"
+    ]
+    assert clock[3].startswith("acc_004.npz: start re-timed by +48.0 ms to the previous file's")
+    assert clock[4].startswith("acc_005.npz: clock drift: acc_000.npz .. acc_005.npz")
+    assert clock[5] == (
+        "acc_013.npz: after a gap of 300.0 s from acc_011.npz, on the record's sample count "
+        "(the line of its stamps carries the time over the gap): +156.0 ms from its stamp"
+    )
     code, out, err = _identify(capsys, tmp_path / "watch", tmp_path / "batch")
     assert code == 0, err
     assert_store_equals_identify(state, tmp_path / "batch")
+
+
+def test_a_file_landing_in_order_after_a_carried_gap_is_not_called_late(tmp_path):
+    """40 ppm fast, acc_012.npz lost, the files landing one by one (--late 0): block 5
+    (3000-4200 s) is skipped for the gap when acc_013.npz lands. acc_014.npz, landing
+    next in order, starts where block 5 ends (4200 s on the sample count); only its stamp
+    lies 14 * 300 s * 40 ppm = 168 ms earlier. Before, the monitor judged the file by its
+    stamp and noted "acc_014.npz: landed after blocks 5-5 were decided without it
+    (skipped: gap); they are not redone" for a file neither late nor used by block 5."""
+    from workbench.cli import parse_arguments
+    from workbench.cli.monitoring import prepare_monitor
+
+    files = _write(tmp_path / "source", _drifting(40))
+    watch, state = tmp_path / "watch", tmp_path / "state"
+    watch.mkdir()
+    argv = ["monitor", "--watch", str(watch), "--state", str(state), *MONITOR_ARGS]
+    argv += PATHS["per-block"]  # no neighbouring file waited for: block 5 decided at once
+    monitor = prepare_monitor(parse_arguments([a for a in argv if a != "--once"]))
+    try:
+        for path in files[:12] + files[13:16]:
+            shutil.copy(path, watch / path.name)
+            monitor.step()
+    finally:
+        monitor.close()
+    health = pd.read_parquet(state / "data_health.parquet").set_index("block")
+    assert health.loc[5, "status"] == "skipped"  # decided when acc_013.npz landed
+    assert not [m for m in monitor.messages if "landed after" in m]  # main: acc_014.npz

@@ -106,6 +106,22 @@ def test_the_reason_names_the_missing_file_not_the_first_blocks_share_of_it(tmp_
     )
 
 
+def test_the_given_up_times_are_rounded_to_the_second(tmp_path):
+    """The grid anchored 31/32 s after the minute (as a first stamp jittered a few ms
+    early anchors it just before a second): blocks 1-3 span 00:01:00.969 to 00:05:00.969,
+    said to the nearest second, 00:01:01Z to 00:05:01Z. Before, the seconds were cut off:
+    00:01:00Z to 00:05:00Z, nearly a second early (a block starting 01:49:59.995 was said
+    to start at 01:49:59Z)."""
+    _, state = _give_up(tmp_path, late_start_s=31 / 32)
+    (span,) = _status(state)["given_up"]
+    assert (span["first_block"], span["last_block"]) == (1, 3)
+    assert (span["start"], span["end"]) == ("2026-03-01T00:01:01Z", "2026-03-01T00:05:01Z")
+    assert span["reason"].endswith(
+        "blocks 1-3 (2026-03-01T00:01:01Z to 2026-03-01T00:05:01Z) were decided without it "
+        "and given up"
+    )
+
+
 def test_the_given_up_blocks_are_exactly_what_batch_adds(gave_up, tmp_path):
     watch, state = gave_up
     out = tmp_path / "batch"

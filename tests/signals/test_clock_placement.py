@@ -98,6 +98,27 @@ def test_a_lost_file_keeps_the_record_on_its_sample_count(ppm):
         assert abs((placed[-1].end_time - end).total_seconds()) < 0.012
 
 
+@pytest.mark.parametrize("ppm", [-40.0, 40.0])
+def test_a_second_lost_file_soon_after_the_first_keeps_the_sample_count(ppm):
+    """Files 24 and 27 of 48 lost (10 ms jitter): the two files between the gaps cannot
+    tell a drift from jitter, but the record's clock carries its time over the second gap
+    too, so the files after it start where the sample count puts them (main: at their
+    stamps, 28 * 300 s * 40 ppm = 336 ms away), to within the lines' error there (up to
+    10 ms here; the rule: twice its standard error within half the jitter). File 27
+    landing late (the monitor) then moves them by the two lines' errors only (up to 15 ms
+    here, within the jitter), not by that walk (main: 336 ms, more than the 0.1 s by which
+    the monitor's store tells other data: it refused the late file)."""
+    for seed in range(5):
+        infos = _headers(ppm, 10.0, seed, n_files=48)
+        placed = place_files(infos[:24] + infos[25:27] + infos[28:])
+        assert [len(run.files) for run in clock_runs(placed)] == [24, 2, 20]
+        counted = placed[0].start_time + pd.Timedelta(seconds=28 * 300.0)
+        assert abs((placed[26].start_time - counted).total_seconds()) < 0.025  # main: 0.336
+        filled = place_files(infos[:24] + infos[25:])  # file 27 landed
+        moved_s = (filled[27].start_time - placed[26].start_time).total_seconds()
+        assert abs(moved_s) < 0.050  # main: 0.336
+
+
 def test_after_a_long_gap_a_record_starts_at_its_stamp():
     """Two days after a 2-h record whose stamps scatter by up to 10 ms about their line:
     the line's time there is uncertain by about 0.1 s (its rate by 0.6 ppm), more than the

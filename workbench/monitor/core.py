@@ -589,7 +589,7 @@ class Monitor:
             self._note_clock(item, placed)
         self._dirty = True
         if self.voyage is not None:
-            self._note_too_late(item)
+            self._note_too_late(item, placed)
 
     def _note_clock(self, item: LandedFile, placed) -> None:
         """Say how the newly taken *item* was re-timed (*placed*): for clock jitter, or -
@@ -607,19 +607,31 @@ class Monitor:
             infos = [f.info for f in files]
             run = next(r for r in clock_runs(infos) if any(i.path == item.path for i in r.files))
             first, drifting, run_files = run.files[0], run.drifting, run.files
+        # a run after a gap may start off its stamp (on the record's sample count): its
+        # files are re-timed to the previous file's end by their shift beyond the first's
+        shift_s = placed.clock_shift_s - first.clock_shift_s
         if not drifting:
-            if abs(placed.clock_shift_s) <= 0.5 / placed.sampling_rate_hz:
+            if abs(shift_s) <= 0.5 / placed.sampling_rate_hz:
                 return  # less than half a sample: on the previous file's lattice, unsaid
             if item.path in self._retimed_noted:  # taken again once the grid was fixed
                 return
             self._retimed_noted.add(item.path)
             self.messages.append(
-                f"{item.path.name}: start re-timed by {placed.clock_shift_s * 1e3:+.1f} ms to the "
+                f"{item.path.name}: start re-timed by {shift_s * 1e3:+.1f} ms to the "
                 f"previous file's end (a stamp within {CLOCK_JITTER_S * 1e3:g} ms of that end "
                 "or of the line of the run's stamps on its sample count is taken as contiguous)"
             )
         elif first.path not in self._drift_noted:
             self._drift_noted.add(first.path)
+            if first.path == item.path and placement.run_start:  # a gap carried over
+                before = placement.files[placement.run_start - 1]
+                gap_s = (first.start_time - before.end_time).total_seconds()
+                self.messages.append(
+                    f"{item.path.name}: after a gap of {gap_s:.1f} s from {before.name}, on the "
+                    "record's sample count (the line of its stamps carries the time over the "
+                    f"gap): {first.clock_shift_s * 1e3:+.1f} ms from its stamp"
+                )
+                return
             if run_files is None:
                 run_files = placement.files[placement.run_start :]
             self.messages.append(f"{item.path.name}: {clock_drift_note(run_files)}")
@@ -650,14 +662,19 @@ class Monitor:
                     return f"overlaps {error.previous.name}", info
         return _placed_among(info, [f.info for f in self.files])
 
-    def _note_too_late(self, item: LandedFile) -> None:
-        """Say so when *item* lands after blocks over its span were decided without it."""
+    def _note_too_late(self, item: LandedFile, placed) -> None:
+        """Say so when *item* lands after blocks over its span were decided without it:
+        its span as placed (*placed*: a stamp may lie the clock's walk before it), more
+        than the clock jitter of it (within which a plan takes a block's edge as covered)."""
+        from ..signals.block_plan import CLOCK_JITTER_S
+
         grid = self.voyage.grid
-        start, end = item.info.start_time.value, item.info.end_time.value
+        start, end = placed.start_time.value, placed.end_time.value
+        edge = int(max(CLOCK_JITTER_S, 0.5 / placed.sampling_rate_hz) * 1e9)
         missing = self._missing_blocks()
         blocks = np.fromiter(missing, dtype=np.int64, count=len(missing))
-        over = (grid.start(blocks).asi8 < end) & (grid.end(blocks).asi8 > start)
-        skipped = np.sort(blocks[over])
+        inside = np.minimum(grid.end(blocks).asi8, end) - np.maximum(grid.start(blocks).asi8, start)
+        skipped = np.sort(blocks[inside > edge])
         if len(skipped):
             self.messages.append(
                 f"{item.path.name}: landed after blocks {skipped[0]}-{skipped[-1]} were "
@@ -1628,15 +1645,15 @@ class Monitor:
             for block in now_built:
                 if spans and spans[-1]["last_block"] == block - 1:
                     spans[-1]["last_block"] = block
-                    spans[-1]["end"] = _iso(grid.end(block))
+                    spans[-1]["end"] = _iso_data(grid.end(block))
                     spans[-1]["reasons"].append(missing[block])
                 else:
                     spans.append(
                         {
                             "first_block": block,
                             "last_block": block,
-                            "start": _iso(grid.start(block)),
-                            "end": _iso(grid.end(block)),
+                            "start": _iso_data(grid.start(block)),
+                            "end": _iso_data(grid.end(block)),
                             "reasons": [missing[block]],
                         }
                     )
@@ -1917,7 +1934,7 @@ def _given_up_reason(span: dict, reasons: Sequence[str], files: Sequence) -> str
         )
         seconds = (inside[-1].end_time - inside[0].start_time).total_seconds()
         holes.append(
-            f"{what} ({_iso(inside[0].start_time)} to {_iso(inside[-1].end_time)}, "
+            f"{what} ({_iso_data(inside[0].start_time)} to {_iso_data(inside[-1].end_time)}, "
             f"{seconds:.1f} s between {before} and {after})"
         )
     blocks = (
@@ -1945,6 +1962,12 @@ def stall_limit_s(poll_s: float) -> float:
 
 def _iso(time: pd.Timestamp) -> str:
     return pd.Timestamp(time).tz_convert("UTC").strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def _iso_data(time: pd.Timestamp) -> str:
+    """A data time (a block's or file's edge) to the nearest second, UTC: a grid anchored
+    at a stamp a few ms before a second is said at that second, not a second early."""
+    return _iso(pd.Timestamp(time).round("s"))
 
 
 def _file_key(path: Path | None):
