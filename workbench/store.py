@@ -609,13 +609,7 @@ class BlockStore:
         (another writer appended too)."""
         data = "".join(_json_line({"file": item}) for item in files).encode()
         size = len(data)
-        fd = os.open(self.root / _INPUTS, os.O_WRONLY | os.O_APPEND)
-        try:
-            while data:
-                data = data[os.write(fd, data) :]
-            os.fsync(fd)
-        finally:
-            os.close(fd)
+        _append_synced(self.root / _INPUTS, data, create=False)
         now = _file_version(self.root / _INPUTS)
         return now is not None and now[0] == version[0] and now[1] == version[1] + size
 
@@ -699,13 +693,7 @@ class BlockStore:
         """Commit *batch*: its manifest line, appended and flushed to disk."""
         line = json.dumps({"batch": batch, "files": files}, sort_keys=True, separators=(",", ":"))
         data = f"{line}\n".encode()
-        fd = os.open(self.root / _MANIFEST, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
-        try:
-            while data:
-                data = data[os.write(fd, data) :]
-            os.fsync(fd)
-        finally:
-            os.close(fd)
+        _append_synced(self.root / _MANIFEST, data, create=True)
         self._manifest[batch] = files
 
     def _check_files(self) -> None:
@@ -993,3 +981,16 @@ def batched(items: Iterable, size: int):
 def _json_line(entry: Mapping[str, object]) -> str:
     """*entry* as one line of JSON (keys sorted, no spaces), newline included."""
     return json.dumps(entry, sort_keys=True, separators=(",", ":")) + "\n"
+
+
+def _append_synced(path: Path, data: bytes, *, create: bool) -> None:
+    """Append *data* to *path* (created with *create*) and flush it to disk: a line of an
+    append-only record (the manifest, the input index) is whole once this returns."""
+    flags = os.O_WRONLY | os.O_APPEND | (os.O_CREAT if create else 0)
+    fd = os.open(path, flags, 0o644)
+    try:
+        while data:
+            data = data[os.write(fd, data) :]
+        os.fsync(fd)
+    finally:
+        os.close(fd)

@@ -169,3 +169,23 @@ def marked_frame(monitor, frame: pd.DataFrame) -> pd.DataFrame:
     return frame.assign(
         harmonic=marks[:, 0], harmonic_frequency_hz=marks[:, 1], harmonic_checked=marks[:, 2] > 0.5
     )
+
+
+def marking_monitor(log, harmonics=None):
+    """A :class:`~workbench.monitor.core.Monitor` holding only what its harmonic marking
+    uses (``_mark_harmonics``, ``_mark_from_speed``), reading *log* as its ship log, with
+    *harmonics* (``HarmonicOptions``; default: the defaults)."""
+    from types import SimpleNamespace
+
+    from workbench.monitor.core import Monitor
+    from workbench.sid.harmonics import HarmonicOptions
+
+    monitor = Monitor.__new__(Monitor)
+    monitor._marks, monitor._marks_kept = np.empty((0, 3)), np.zeros(0, bool)
+    monitor._marks_pending, monitor._shaft_logged = False, False
+    monitor._block_shaft_rpm, monitor._shaft_rpm_of_block = {}, {}
+    monitor._speed_test, monitor._speed_index, monitor._block_speed = None, np.empty(0, int), {}
+    monitor._shaft_hz_per_kn, monitor._speed_of_block = np.nan, {}
+    monitor.options = SimpleNamespace(harmonics=harmonics or HarmonicOptions())
+    monitor._read_log = lambda: log
+    return monitor

@@ -14,7 +14,16 @@ import pytest
 
 from workbench.simulate.voyage import ShaftHarmonics
 
-from .conftest import FORECAST, IDENTIFY, MONITOR_FAST, batch_run, cli, marked_frame, write_voyage
+from .conftest import (
+    FORECAST,
+    IDENTIFY,
+    MONITOR_FAST,
+    batch_run,
+    cli,
+    marked_frame,
+    marking_monitor,
+    write_voyage,
+)
 
 #: the outage of the shaft speed, from the voyage's start [min]
 OUTAGE_MIN = (15, 45)
@@ -57,23 +66,10 @@ def test_the_monitor_marks_a_shaft_speed_outage_as_identify_does(shaft_voyage, t
     from_speed = set(shaft.loc[shaft["shaft_rpm_from"] == "speed", "block"])
     assert selected[selected["block"].isin(from_speed)]["harmonic"].notna().sum() >= 4
     # the monitor's marks of the identified modes equal identify's, outage included
-    from types import SimpleNamespace
 
     from data_contracts import read_dship
-    from workbench.monitor.core import Monitor
-    from workbench.sid.harmonics import HarmonicOptions
 
-    monitor = Monitor.__new__(Monitor)  # only what the marking uses
-    monitor._marks_kept, monitor._marks_pending, monitor._shaft_logged = (
-        np.zeros(0, bool),
-        False,
-        False,
-    )
-    monitor._marks = np.empty((0, 3))
-    monitor._block_shaft_rpm = {}
-    monitor.options = SimpleNamespace(harmonics=HarmonicOptions())
-    log = read_dship(source / "dship.tsv")
-    monitor._read_log = lambda: log
+    monitor = marking_monitor(read_dship(source / "dship.tsv"))
     columns = ["harmonic", "harmonic_frequency_hz", "harmonic_checked"]
     marked = marked_frame(monitor, selected.drop(columns=columns))
     pd.testing.assert_frame_equal(marked[columns], selected[columns])
@@ -102,28 +98,14 @@ def test_block_by_block_the_outage_is_marked_as_identify_marks_it(shaft_voyage, 
     outage is tested from the speed times the voyage's shaft speed per knot, as identify
     tests it, not by the speed-following test over that block's modes alone (which never
     sweeps: 4 harmonic rows of the outage's blocks left unmarked before)."""
-    from types import SimpleNamespace
 
     from data_contracts import read_dship
-    from workbench.monitor.core import Monitor
-    from workbench.sid.harmonics import HarmonicOptions
 
     source = _damaged(shaft_voyage, tmp_path / "voyage")
     batch_run(source, tmp_path / "batch")
     selected = pd.read_parquet(tmp_path / "batch" / "id" / "selected.parquet")
     columns = ["harmonic", "harmonic_frequency_hz", "harmonic_checked"]
-    monitor = Monitor.__new__(Monitor)  # only what the marking uses
-    monitor._marks_kept, monitor._marks_pending, monitor._speed_test = (
-        np.zeros(0, bool),
-        False,
-        None,
-    )
-    monitor._marks = np.empty((0, 3))
-    monitor._shaft_logged = False
-    monitor._block_shaft_rpm = {}
-    monitor.options = SimpleNamespace(harmonics=HarmonicOptions())
-    log = read_dship(source / "dship.tsv")
-    monitor._read_log = lambda: log
+    monitor = marking_monitor(read_dship(source / "dship.tsv"))
     frame = selected.drop(columns=columns)
     for block in sorted(frame["block"].unique()):
         marked = marked_frame(monitor, frame[frame["block"] <= block])

@@ -8,8 +8,6 @@ column: on this 3-h voyage (6 channels) it tracked a harmonic line at 5.0 Hz (11
 
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 import numpy as np
 import pandas as pd
 import pytest
@@ -17,7 +15,16 @@ import pytest
 from data_contracts import read_dship
 from workbench.simulate.voyage import ShaftHarmonics
 
-from .conftest import FORECAST, IDENTIFY, MONITOR_FAST, batch_run, cli, marked_frame, write_voyage
+from .conftest import (
+    FORECAST,
+    IDENTIFY,
+    MONITOR_FAST,
+    batch_run,
+    cli,
+    marked_frame,
+    marking_monitor,
+    write_voyage,
+)
 
 HARMONICS = ["--harmonic-orders", "1,2", "--blades", "5"]
 COLUMNS = ["harmonic", "harmonic_frequency_hz", "harmonic_checked"]
@@ -37,21 +44,9 @@ def speed_only(tmp_path_factory):
 
 def _monitor(log):
     """A monitor holding only what the marking uses, reading *log* as its ship log."""
-    from workbench.monitor.core import Monitor
     from workbench.sid.harmonics import HarmonicOptions
 
-    monitor = Monitor.__new__(Monitor)
-    monitor._marks_kept, monitor._marks_pending, monitor._shaft_logged = (
-        np.zeros(0, bool),
-        False,
-        False,
-    )
-    monitor._marks = np.empty((0, 3))
-    monitor._block_shaft_rpm = {}
-    monitor._speed_test, monitor._speed_index, monitor._block_speed = None, np.empty(0, int), {}
-    monitor.options = SimpleNamespace(harmonics=HarmonicOptions(orders=(1, 2), blades=5))
-    monitor._read_log = lambda: log
-    return monitor
+    return marking_monitor(log, HarmonicOptions(orders=(1, 2), blades=5))
 
 
 def test_the_monitor_tracks_no_harmonic_from_a_speed_only_log(speed_only, tmp_path):
