@@ -284,6 +284,8 @@ class Monitor:
         self._dirty = True
         self._saved_grid = self._stored_grid()
         self._given_up: tuple[tuple[int, int], list[dict]] = ((-1, -1), [])
+        # the blocks the last step planned and had not decided (the status's waiting ones)
+        self._planned: Sequence = ()
         # each tracked row's harmonic marks (_mark_harmonics) and whether they are kept
         # (the log covers the row's block)
         self._marks = np.empty((0, 3))
@@ -826,7 +828,7 @@ class Monitor:
             for planned in plan
             if flush or self._settled(planned, voyage.per_file, starts, ends, newest)
         ]
-        self._plan = SimpleNamespace(blocks=plan)
+        self._planned = plan
         return ready
 
     def _settled(self, planned, per_file: bool, starts, ends, newest: int) -> bool:
@@ -896,7 +898,7 @@ class Monitor:
             )
             if flush or self._settled(planned, per_file, starts, ends, newest):
                 ready.append(planned)
-        self._plan = SimpleNamespace(blocks=[b for b in ready if b.block not in self.done])
+        self._planned = [b for b in ready if b.block not in self.done]
         return ready
 
     def _undecided(self) -> list[int]:
@@ -1004,7 +1006,7 @@ class Monitor:
             self.tracking.add(int(outcome.block), selected)
         self._advance_tracking()
         self._write_data_health()
-        waiting = [b.block_start for b in self._plan.blocks if b.block not in self.done]
+        waiting = [b.block_start for b in self._planned if b.block not in self.done]
         if voyage.lengths is not None:  # and the longest span of the next block to decide
             undecided = [b for b in self._undecided() if b not in self._lengths]
             if undecided:
@@ -1274,7 +1276,7 @@ class Monitor:
         """After a restart: replay the stored blocks into the tracker and the data-health
         table (the store is the truth; nothing is identified twice)."""
         if not self.done:
-            self._plan = SimpleNamespace(blocks=())
+            self._planned = ()
             self._advance_tracking()
             return
         health = self.store.read("monitor")
@@ -1293,7 +1295,7 @@ class Monitor:
                 length_s = lengths.set_index("block")["block_length_s"].astype(float)
             self.clock_check.add(channels, length_s)
             self._check_clock()  # said again in this run when the stored blocks say it
-        self._plan = SimpleNamespace(blocks=())
+        self._planned = ()
         # the labels given before the restart must come back with the same modes
         labels = self.state / "labels.json"
         try:
