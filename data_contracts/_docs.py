@@ -114,6 +114,8 @@ rather than guessed). `wind_dir_true_deg`, `wind_speed_true_ms`, `heading_deg` a
 `course_deg` are read only to derive the relative wind; `shaft_rpm` (shaft or propeller
 speed, rpm) is kept in the canonical log but is not a predictor: `workbench identify
 --dship` draws the shaft and blade-pass orders from it and keeps them out of the modes.
+Each column is also found under its canonical name (last, after the names below), so a
+log written with these names needs no mapping.
 
 | canonical column | source names tried |
 |---|---|

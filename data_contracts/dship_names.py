@@ -493,6 +493,10 @@ def resolve_mapping(
 ) -> dict[str, tuple[str, ...]]:
     """The built-in names with the user's entries in place of the defaults.
 
+    A built-in column is also found under its canonical name (``speed_kn``, ``shaft_rpm``):
+    a log written with the project's own names needs no mapping. It is tried last, after
+    the ship's names; a user's entry replaces it too.
+
     Raises
     ------
     ValueError
@@ -505,5 +509,8 @@ def resolve_mapping(
         )
     return {
         k: (v,) if isinstance(v, str) else tuple(v)
-        for k, v in {**DSHIP_NAMES, **(mapping or {})}.items()
+        for k, v in {
+            **{name: (*names, name) for name, names in DSHIP_NAMES.items()},
+            **(mapping or {}),
+        }.items()
     }

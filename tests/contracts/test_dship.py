@@ -105,6 +105,26 @@ def test_custom_mapping(tmp_path):
     assert log.loc[0, ["speed_kn", "water_temp_c"]].tolist() == [4.0, 3.0]
 
 
+def test_canonical_names_need_no_mapping(tmp_path):
+    # a log written with the project's own column names (a CSV exported from a notebook)
+    # was refused: "none of the predictor columns was found ... pass a column mapping"
+    text = (
+        "time,speed_kn,water_temp_c,air_temp_c,wind_speed_ms,wind_dir_rel_deg,shaft_rpm\n"
+        "2026-01-01T00:00:00Z,4.5,1.5,-3,7,120,96\n"
+    )
+    log = read_dship(write(tmp_path, text, "log.csv"))
+    row = log.loc[0, ["speed_kn", "water_temp_c", "air_temp_c", "wind_speed_ms"]]
+    assert row.tolist() == [4.5, 1.5, -3.0, 7.0]
+    assert log.loc[0, "wind_dir_rel_deg"] == 120.0
+    assert log.loc[0, "shaft_rpm"] == 96.0
+    # the ship's own name comes first; a user's entry replaces the canonical name too
+    both = "time,speed_kn,SOG\n2026-01-01T00:00:00Z,1,2\n"
+    with pytest.warns(UserWarning, match="no column for water_temp_c"):
+        assert read_dship(write(tmp_path, both, "both.csv")).loc[0, "speed_kn"] == 2.0
+    with pytest.raises(ContractError, match="none of the predictor columns was found"):
+        read_dship(write(tmp_path, both, "both.csv"), mapping={"speed_kn": "v_ship"})
+
+
 def test_bad_cells_are_reported_by_file_column_and_line(tmp_path):
     text = HEADER + (
         "2026-01-01T00:00\t5\t2\t-1\t7\t10\t1\n"
