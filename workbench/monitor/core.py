@@ -6,6 +6,7 @@ files and resuming.
 
 from __future__ import annotations
 
+import collections
 import functools
 import json
 import logging
@@ -241,6 +242,8 @@ class Monitor:
         #: file is placed on from the placement of those before it
         self.files = TakenFiles()
         self._drift_noted: set[Path] = set()  # first files of the runs said to drift
+        # the files taken before the grid was fixed that are still to be taken again
+        self._retaking: collections.deque[LandedFile] = collections.deque()
         self._retimed_noted: set[Path] = set()  # files said to be re-timed for jitter
         self.done: set[int] = set()
         self._done_below = 0  # every block before it is in done (see _first_undecided)
@@ -561,11 +564,15 @@ class Monitor:
                     "blocks are anchored at the first file"
                 )
         placed = info
+        moved: list[dict] = []
         if not reason:
             reason, placed = self._placed_among(info)
         if not reason and self.store is not None:
             try:
-                self.store.check_inputs(input_fingerprints([placed]))
+                moved = self.store.check_inputs(
+                    input_fingerprints([placed]),
+                    placed_now=functools.partial(self._placed_now, info),
+                )
             except StoreDamaged as error:  # no file can be used: said by --once, exit 1
                 reason = self.store_damaged = _state_folder(str(error))
             except WorkbenchError as error:
@@ -587,6 +594,8 @@ class Monitor:
             )
         self.files.add(item)
         self._last_taken = (item.path.name, pd.Timestamp.now(tz="UTC"))
+        for entry in moved:
+            self._note_moved(item, entry)
         if placed.clock_shift_s:
             self._note_clock(item, placed)
         self._dirty = True
@@ -637,6 +646,65 @@ class Monitor:
             if run_files is None:
                 run_files = placement.files[placement.run_start :]
             self.messages.append(f"{item.path.name}: {clock_drift_note(run_files)}")
+
+    def _placed_now(self, info, recorded: dict) -> dict | None:
+        """The fingerprint of the file the store *recorded* (its ``path``) as the files
+        taken (and those still to take again) place it with the new file *info* among
+        them, or None when that file is not among them: a late file re-places the files
+        from the first (:class:`~workbench.monitor.taken.TakenFiles`), so the span the
+        store recorded for one of them may lie elsewhere now."""
+        from ..signals.block_plan import place_files
+
+        target = str(recorded["path"])
+        infos = [f.info for f in self.files] + [f.info for f in self._retaking]
+        if not any(str(i.path.resolve()) == target for i in infos):
+            return None
+        same_rate = [i for i in infos if i.sampling_rate_hz == info.sampling_rate_hz]
+        try:
+            placed = place_files(
+                sorted([*same_rate, info], key=lambda i: (i.start_time, str(i.path)))
+            )
+        except ValueError:  # overlapping files: the placement cannot be told
+            return None
+        found = next(i for i in placed if str(i.path.resolve()) == target)
+        try:
+            return input_fingerprints([found])[0]
+        except WorkbenchError:  # gone or unreadable now: not the recorded data
+            return None
+
+    def _note_moved(self, item: LandedFile, entry: dict) -> None:
+        """Say which decided blocks used a file the late *item* moved (*entry*, from
+        :meth:`~workbench.store.BlockStore.check_inputs`) where it lay before: they are
+        kept as decided, from the file as placed then."""
+        from ..signals.block_plan import CLOCK_JITTER_S
+
+        old_start, old_end, now_start = (
+            pd.Timestamp(entry[key]) for key in ("start", "end", "now_start")
+        )
+        shift_ms = (now_start - old_start).total_seconds() * 1e3
+        edge = pd.Timedelta(seconds=max(CLOCK_JITTER_S, 0.5 / self.voyage.rate_hz))
+        missing = self._missing_blocks()
+        used = []
+        for block in sorted(self.done):
+            if block in missing:  # decided without data there: "landed after" says so
+                continue
+            start, end = self._decided_span(block)
+            if min(end, old_end) - max(start, old_start) > edge:
+                used.append(block)
+        if used:
+            self.messages.append(
+                f"{Path(entry['path']).name}: placed {shift_ms:+.1f} ms from where block(s) "
+                f"{block_ranges(used)} were decided with it (the late {item.path.name} placed "
+                "the record's files again, as identify places them); they are kept as decided"
+            )
+
+    def _decided_span(self, block: int) -> tuple[pd.Timestamp, pd.Timestamp]:
+        """Start and end of the decided *block* (its own length's with varying lengths)."""
+        grid = self.voyage.grid
+        row = self._lengths.get(block) if self.voyage.lengths is not None else None
+        if row is not None:
+            grid = self.voyage.length_run(float(row["block_length_s"]))[0]
+        return grid.start(block), grid.end(block)
 
     def _placed(self) -> list[LandedFile]:
         """The files taken, each with its header as a plan places it (re-timed for clock
@@ -782,9 +850,11 @@ class Monitor:
             log.warning("%s", notice)
         self.done = self.store.completed_blocks()
         self._done_below = 0
-        # files taken before the voyage was fixed are checked now
-        for item in self.files.clear():
-            self._take(item)
+        # files taken before the voyage was fixed are checked now (those still to take
+        # among them placed with them: _placed_now)
+        self._retaking = collections.deque(self.files.clear())
+        while self._retaking:
+            self._take(self._retaking.popleft())
         self._resume()
         return True
 
