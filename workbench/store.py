@@ -109,6 +109,24 @@ _HELD: dict[str, list] = {}
 _SPAN_TOLERANCE_NS = 100_000_000
 
 
+#: A recorded file placed no further than this from its recorded span is where it was: a
+#: placed start given back from a stamp and a shift in seconds may be 1 ns off. [ns]
+_MOVED_NS = 1_000
+
+
+def _moved(old: Mapping, now: Mapping, by: str) -> dict:
+    """What :meth:`BlockStore.check_inputs` says of a recorded file (*old*) placed elsewhere
+    now (*now*), found through the file at *by*."""
+    return {
+        "path": old["path"],
+        "start": old["start"],
+        "end": old["end"],
+        "now_start": now["start"],
+        "now_end": now["end"],
+        "by": by,
+    }
+
+
 def _file_version(path: Path) -> tuple[int, int, int] | None:
     """(inode, size, modification time [ns]) of the regular file *path*, None if there is
     none: a file rewritten (atomically: a new inode) has another version."""
@@ -444,6 +462,7 @@ class BlockStore:
         fingerprints: Iterable[Mapping[str, object]],
         *,
         placed_now: Callable[[Mapping[str, object]], Mapping[str, object] | None] | None = None,
+        every_span: bool = False,
     ) -> list[dict]:
         """Check the input files against those the stored results came from, then record them.
 
@@ -466,13 +485,17 @@ class BlockStore:
             fingerprint of the file at that path as this run places it now, or None when
             the run has no such file. The run's own *fingerprints* are looked up first (by
             content).
+        every_span : bool
+            Whether every recorded file among *fingerprints* placed elsewhere now is moved
+            (and returned), not only those overlapping a new file (*fingerprints* are then
+            all of a run's files: a rerun redoes the blocks they moved under).
 
         Returns
         -------
         list of dict
             The recorded files moved so: ``path``, ``start`` and ``end`` recorded before,
             ``start`` and ``end`` now (``now_start``, ``now_end``), and ``by`` (the new
-            file whose span they overlapped).
+            file whose span they overlapped, or the file itself with *every_span*).
 
         Raises
         ------
@@ -500,6 +523,19 @@ class BlockStore:
         new: list[dict] = []
         added: set[str] = set()
         moved: list[dict] = []
+        if every_span and recorded:
+            where = {r["sha256"]: k for k, r in enumerate(recorded) if not r.get("damaged")}
+            for item in fingerprints:
+                index = where.get(item["sha256"])
+                if index is None:
+                    continue
+                old = recorded[index]
+                low, high = (int(v) for v in _ns([item["start"], item["end"]]))
+                if abs(low - lows[index]) > _MOVED_NS or abs(high - highs[index]) > _MOVED_NS:
+                    moved.append(_moved(old, item, item["path"]))
+                    recorded[index] = {**old, "start": item["start"], "end": item["end"]}
+                    lows, highs = lows.copy(), highs.copy()  # the cache's: not in place
+                    lows[index], highs[index] = low, high
         for item in fingerprints:
             if item["sha256"] in known or item["sha256"] in added:
                 continue
@@ -515,16 +551,7 @@ class BlockStore:
                     low, high = (int(v) for v in _ns([now["start"], now["end"]]))
                     if min(high, end) - max(low, start) <= _SPAN_TOLERANCE_NS:
                         # the same data, placed elsewhere now: its span moves there
-                        moved.append(
-                            {
-                                "path": old["path"],
-                                "start": old["start"],
-                                "end": old["end"],
-                                "now_start": now["start"],
-                                "now_end": now["end"],
-                                "by": item["path"],
-                            }
-                        )
+                        moved.append(_moved(old, now, item["path"]))
                         recorded[int(index)] = {**old, "start": now["start"], "end": now["end"]}
                         lows, highs = lows.copy(), highs.copy()  # the cache's: not in place
                         lows[index], highs[index] = low, high
