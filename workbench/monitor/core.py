@@ -564,12 +564,11 @@ class Monitor:
                     "blocks are anchored at the first file"
                 )
         placed = info
-        moved: list[dict] = []
         if not reason:
             reason, placed = self._placed_among(info)
         if not reason and self.store is not None:
             try:
-                moved = self.store.check_inputs(
+                self.store.check_inputs(  # a file a late one moves is no changed input
                     input_fingerprints([placed]),
                     placed_now=functools.partial(self._placed_now, info),
                 )
@@ -592,10 +591,15 @@ class Monitor:
                 f"{item.path.name}: channel(s) {extra} not among the voyage's (those most "
                 "files carried when the monitor started); left out"
             )
+        late = bool(self.files) and (info.start_time, str(info.path)) < (
+            self.files[-1].info.start_time,
+            str(self.files[-1].path),
+        )
+        before = list(self.files.placed_infos()) if late and self.voyage is not None else None
         self.files.add(item)
         self._last_taken = (item.path.name, pd.Timestamp.now(tz="UTC"))
-        for entry in moved:
-            self._note_moved(item, entry)
+        if before is not None:
+            self._note_moved(item, before)
         if placed.clock_shift_s:
             self._note_clock(item, placed)
         self._dirty = True
@@ -627,10 +631,17 @@ class Monitor:
             if item.path in self._retimed_noted:  # taken again once the grid was fixed
                 return
             self._retimed_noted.add(item.path)
+            jitter = f"{CLOCK_JITTER_S * 1e3:g} ms"
+            why = (
+                f"a stamp within {jitter} of that end is taken as contiguous"
+                if abs(shift_s) <= CLOCK_JITTER_S
+                else f"its stamp more than {jitter} from that end but within {jitter} of the "
+                "line of the run's stamps on its sample count, a clock drifting from its "
+                "stamps: taken as contiguous"
+            )
             self.messages.append(
                 f"{item.path.name}: start re-timed by {shift_s * 1e3:+.1f} ms to the "
-                f"previous file's end (a stamp within {CLOCK_JITTER_S * 1e3:g} ms of that end "
-                "or of the line of the run's stamps on its sample count is taken as contiguous)"
+                f"previous file's end ({why})"
             )
         elif first.path not in self._drift_noted:
             self._drift_noted.add(first.path)
@@ -672,30 +683,45 @@ class Monitor:
         except WorkbenchError:  # gone or unreadable now: not the recorded data
             return None
 
-    def _note_moved(self, item: LandedFile, entry: dict) -> None:
-        """Say which decided blocks used a file the late *item* moved (*entry*, from
-        :meth:`~workbench.store.BlockStore.check_inputs`) where it lay before: they are
-        kept as decided, from the file as placed then."""
+    def _note_moved(self, item: LandedFile, before: list) -> None:
+        """Say which decided blocks used files that the late *item* moved (the files placed
+        again from the first, as identify places them; *before*: their placed headers
+        before it): they are kept as decided, from the files as placed then."""
         from ..signals.block_plan import CLOCK_JITTER_S
 
-        old_start, old_end, now_start = (
-            pd.Timestamp(entry[key]) for key in ("start", "end", "now_start")
-        )
-        shift_ms = (now_start - old_start).total_seconds() * 1e3
+        half_ns = int(0.5e9 / self.voyage.rate_hz)
+        after = {i.path: i for i in self.files.placed_infos()}
+        moved = []
+        for old in before:
+            now = after.get(old.path)
+            if now is not None and abs(now.start_time.value - old.start_time.value) > half_ns:
+                moved.append((old, (now.start_time - old.start_time).total_seconds() * 1e3))
+        if not moved:
+            return
         edge = pd.Timedelta(seconds=max(CLOCK_JITTER_S, 0.5 / self.voyage.rate_hz))
         missing = self._missing_blocks()
+        low, high = moved[0][0].start_time - edge, moved[-1][0].end_time + edge
         used = []
         for block in sorted(self.done):
             if block in missing:  # decided without data there: "landed after" says so
                 continue
             start, end = self._decided_span(block)
-            if min(end, old_end) - max(start, old_start) > edge:
+            if end <= low or start >= high:
+                continue
+            if any(min(end, o.end_time) - max(start, o.start_time) > edge for o, _ in moved):
                 used.append(block)
         if used:
+            largest = max((shift for _, shift in moved), key=abs)
+            names = (
+                moved[0][0].name
+                if len(moved) == 1
+                else (f"{moved[0][0].name} .. {moved[-1][0].name}")
+            )
             self.messages.append(
-                f"{Path(entry['path']).name}: placed {shift_ms:+.1f} ms from where block(s) "
-                f"{block_ranges(used)} were decided with it (the late {item.path.name} placed "
-                "the record's files again, as identify places them); they are kept as decided"
+                f"{item.path.name}: landed late: the record's files placed again from the "
+                f"first, as identify places them, move {len(moved)} file(s) ({names}) by up to "
+                f"{largest:+.1f} ms; block(s) {block_ranges(used)}, decided from them as placed "
+                "before, are kept as decided"
             )
 
     def _decided_span(self, block: int) -> tuple[pd.Timestamp, pd.Timestamp]:
