@@ -81,7 +81,7 @@ def test_a_late_file_among_a_drifting_records_first_files_is_used(tmp_path, caps
     assert retimed == (
         "acc_002.npz: start re-timed by +70.0 ms to the previous file's end (its stamp more "
         "than 50 ms from that end but within 50 ms of the line of the run's stamps on its "
-        "sample count, a clock drifting from its stamps: taken as contiguous)"
+        "sample count, a sample clock off its rate: taken as contiguous)"
     )
     assert [m for m in messages if m.startswith("acc_001.npz")] == [
         "acc_001.npz: start re-timed by +20.0 ms to the previous file's end (a stamp within "

@@ -636,8 +636,8 @@ class Monitor:
                 f"a stamp within {jitter} of that end is taken as contiguous"
                 if abs(shift_s) <= CLOCK_JITTER_S
                 else f"its stamp more than {jitter} from that end but within {jitter} of the "
-                "line of the run's stamps on its sample count, a clock drifting from its "
-                "stamps: taken as contiguous"
+                "line of the run's stamps on its sample count, a sample clock off its rate: "
+                "taken as contiguous"
             )
             self.messages.append(
                 f"{item.path.name}: start re-timed by {shift_s * 1e3:+.1f} ms to the "
