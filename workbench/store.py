@@ -58,7 +58,7 @@ import shlex
 import socket
 import time
 import uuid
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from stat import S_ISREG
@@ -107,6 +107,24 @@ _HELD: dict[str, list] = {}
 #: neighbours may place two files up to twice that apart. A changed file overlaps its
 #: recorded span by nearly its whole length. [ns]
 _SPAN_TOLERANCE_NS = 100_000_000
+
+
+#: A recorded file placed no further than this from its recorded span is where it was: a
+#: placed start given back from a stamp and a shift in seconds may be 1 ns off. [ns]
+_MOVED_NS = 1_000
+
+
+def _moved(old: Mapping, now: Mapping, by: str) -> dict:
+    """What :meth:`BlockStore.check_inputs` says of a recorded file (*old*) placed elsewhere
+    now (*now*), found through the file at *by*."""
+    return {
+        "path": old["path"],
+        "start": old["start"],
+        "end": old["end"],
+        "now_start": now["start"],
+        "now_end": now["end"],
+        "by": by,
+    }
 
 
 def _file_version(path: Path) -> tuple[int, int, int] | None:
@@ -439,14 +457,45 @@ class BlockStore:
             )
 
     # ------------------------------------------------------------------ inputs
-    def check_inputs(self, fingerprints: Iterable[Mapping[str, object]]) -> None:
+    def check_inputs(
+        self,
+        fingerprints: Iterable[Mapping[str, object]],
+        *,
+        placed_now: Callable[[Mapping[str, object]], Mapping[str, object] | None] | None = None,
+        every_span: bool = False,
+    ) -> list[dict]:
         """Check the input files against those the stored results came from, then record them.
 
         Each fingerprint has ``path``, ``start``, ``end`` (ISO times of the span it covers),
         ``size``, ``mtime_ns`` and ``sha256``. A file whose content is already recorded is
         the same data (wherever it lies now); a file with new content whose span overlaps a
         recorded file's span is a *changed* input: the stored results of that span came
-        from other data.
+        from other data - unless that recorded content is still given, only placed
+        elsewhere now (a late file among a record's files re-places them: a drifting
+        clock's line, or a run joined over a filled gap, moves the files after it by up to
+        the clock's walk, 150 ms after 25 min at 100 ppm), away from the new file: its
+        recorded span is then moved to where it lies now.
+
+        Parameters
+        ----------
+        fingerprints : iterable of mapping
+            This run's files, as placed.
+        placed_now : callable, optional
+            Given a recorded fingerprint (its ``path``) clashing with a new file, the
+            fingerprint of the file at that path as this run places it now, or None when
+            the run has no such file. The run's own *fingerprints* are looked up first (by
+            content).
+        every_span : bool
+            Whether every recorded file among *fingerprints* placed elsewhere now is moved
+            (and returned), not only those overlapping a new file (*fingerprints* are then
+            all of a run's files: a rerun redoes the blocks they moved under).
+
+        Returns
+        -------
+        list of dict
+            The recorded files moved so: ``path``, ``start`` and ``end`` recorded before,
+            ``start`` and ``end`` now (``now_start``, ``now_end``), and ``by`` (the new
+            file whose span they overlapped, or the file itself with *every_span*).
 
         Raises
         ------
@@ -469,18 +518,46 @@ class BlockStore:
         else:
             recorded, unreadable, cut = [], [], False
             known, lows, highs = set(), np.empty(0, np.int64), np.empty(0, np.int64)
+        fingerprints = [dict(item) for item in fingerprints]
+        given = {item["sha256"]: item for item in fingerprints}
         new: list[dict] = []
         added: set[str] = set()
+        moved: list[dict] = []
+        if every_span and recorded:
+            where = {r["sha256"]: k for k, r in enumerate(recorded) if not r.get("damaged")}
+            for item in fingerprints:
+                index = where.get(item["sha256"])
+                if index is None:
+                    continue
+                old = recorded[index]
+                low, high = (int(v) for v in _ns([item["start"], item["end"]]))
+                if abs(low - lows[index]) > _MOVED_NS or abs(high - highs[index]) > _MOVED_NS:
+                    moved.append(_moved(old, item, item["path"]))
+                    recorded[index] = {**old, "start": item["start"], "end": item["end"]}
+                    lows, highs = lows.copy(), highs.copy()  # the cache's: not in place
+                    lows[index], highs[index] = low, high
         for item in fingerprints:
-            item = dict(item)
             if item["sha256"] in known or item["sha256"] in added:
                 continue
             start, end = (int(v) for v in _ns([item["start"], item["end"]]))
             # spans sharing more than rounding and clock jitter (0.1 s) hold other data
             overlap = np.minimum(highs, end) - np.maximum(lows, start)
-            clashing = np.flatnonzero(overlap > _SPAN_TOLERANCE_NS)
-            if len(clashing):
-                old = recorded[int(clashing[0])]
+            for index in np.flatnonzero(overlap > _SPAN_TOLERANCE_NS):
+                old = recorded[int(index)]
+                now = given.get(old["sha256"])
+                if now is None and placed_now is not None:
+                    now = placed_now(old)
+                if now is not None and now["sha256"] == old["sha256"]:
+                    low, high = (int(v) for v in _ns([now["start"], now["end"]]))
+                    if min(high, end) - max(low, start) <= _SPAN_TOLERANCE_NS:
+                        # the same data, placed elsewhere now: its span moves there
+                        moved.append(_moved(old, now, item["path"]))
+                        recorded[int(index)] = {**old, "start": now["start"], "end": now["end"]}
+                        lows, highs = lows.copy(), highs.copy()  # the cache's: not in place
+                        lows[index], highs[index] = low, high
+                        continue
+                if moved:  # the spans moved in the cached index are not written
+                    self._inputs_cache = None
                 what = "size" if old.get("size") != item["size"] else "content"
                 raise WorkbenchError(
                     f"{item['path']}: input changed since the store {self.root} was made "
@@ -490,19 +567,20 @@ class BlockStore:
                 )
             new.append(item)
             added.add(item["sha256"])
-        if version is None or cut:  # no index yet, or a line cut short: written whole
-            recorded.extend(new)  # the list read (or cached) here, no caller's
+        if version is None or cut or moved:  # no index yet, a line cut short or a span
+            recorded.extend(new)  # moved: written whole (the list read or cached here)
             self._write_inputs(recorded, unreadable)
         elif new:
             recorded.extend(new)
             if not self._append_inputs(version, new):
                 self._inputs_cache = None  # another writer appended too: read again
-                return
+                return moved
         if new:
             known.update(added)
             lows = np.append(lows, _ns([r["start"] for r in new]))
             highs = np.append(highs, _ns([r["end"] for r in new]))
         self._inputs_cache = (_file_version(path), recorded, unreadable, known, lows, highs, False)
+        return moved
 
     def recorded_inputs(self) -> list[dict]:
         """The input files the stored results came from (their fingerprints)."""

@@ -217,6 +217,36 @@ def _removed_inputs(
     return notices
 
 
+def _moved_inputs(store: BlockStore, moved: list[dict], grid, *, per_file: bool) -> list[str]:
+    """Drop the stored blocks computed from input files that the files given now place
+    elsewhere (*moved*, from :meth:`~workbench.store.BlockStore.check_inputs`: a file
+    filling a gap in a drifting record places the files after it on the record's sample
+    count, up to the clock's walk from where an earlier run placed them), so they are
+    computed again as a fresh run computes them; one notice for them."""
+    stored = store.completed_blocks()
+    if not moved or not stored:
+        return []
+    blocks: set[int] = set()
+    for entry in moved:
+        low, high = pd.Timestamp(entry["start"]), pd.Timestamp(entry["end"])
+        if per_file:  # a file's filters are padded with its neighbours' raw edges
+            low, high = low - (high - low), high + (high - low)
+        blocks |= {b for b in stored if grid.start(b) < high and grid.end(b) > low}
+    dropped = store.drop_blocks(sorted(blocks))
+    if not dropped:
+        return []
+    shifts = [
+        (pd.Timestamp(e["now_start"]) - pd.Timestamp(e["start"])).total_seconds() * 1e3
+        for e in moved
+    ]
+    largest = max(shifts, key=abs)
+    return [
+        f"{len(moved)} input file(s) placed elsewhere than when the store's blocks were "
+        f"computed (up to {largest:+.1f} ms, the files given now placing the record again): "
+        f"block(s) {block_ranges(dropped)} computed again"
+    ]
+
+
 def unreadable_places(files, plan, unreadable: Mapping[str, str]) -> dict[str, tuple]:
     """Where each file of *unreadable* (path as given -> why) left out of *plan* lies:
     path -> ``(low, high)``, the end of the readable file before it and the start of the
@@ -685,7 +715,8 @@ def identify_voyage(
         store.record_damaged(item["entry"] for item in damaged.values())
         # before the check: a repaired file is not another voyage's data
         notices += _retry_unreadable(store, plan, fingerprints, per_file, unreadable, damaged)
-        store.check_inputs(fingerprints)
+        moved = store.check_inputs(fingerprints, every_span=True)
+        notices += _moved_inputs(store, moved, grid, per_file=per_file)
         notices += _filled_gaps(store, plan)
         notices += _removed_inputs(
             store,

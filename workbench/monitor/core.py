@@ -6,6 +6,7 @@ files and resuming.
 
 from __future__ import annotations
 
+import collections
 import functools
 import json
 import logging
@@ -241,6 +242,8 @@ class Monitor:
         #: file is placed on from the placement of those before it
         self.files = TakenFiles()
         self._drift_noted: set[Path] = set()  # first files of the runs said to drift
+        # the files taken before the grid was fixed that are still to be taken again
+        self._retaking: collections.deque[LandedFile] = collections.deque()
         self._retimed_noted: set[Path] = set()  # files said to be re-timed for jitter
         self.done: set[int] = set()
         self._done_below = 0  # every block before it is in done (see _first_undecided)
@@ -565,7 +568,10 @@ class Monitor:
             reason, placed = self._placed_among(info)
         if not reason and self.store is not None:
             try:
-                self.store.check_inputs(input_fingerprints([placed]))
+                self.store.check_inputs(  # a file a late one moves is no changed input
+                    input_fingerprints([placed]),
+                    placed_now=functools.partial(self._placed_now, info),
+                )
             except StoreDamaged as error:  # no file can be used: said by --once, exit 1
                 reason = self.store_damaged = _state_folder(str(error))
             except WorkbenchError as error:
@@ -585,8 +591,15 @@ class Monitor:
                 f"{item.path.name}: channel(s) {extra} not among the voyage's (those most "
                 "files carried when the monitor started); left out"
             )
+        late = bool(self.files) and (info.start_time, str(info.path)) < (
+            self.files[-1].info.start_time,
+            str(self.files[-1].path),
+        )
+        before = list(self.files.placed_infos()) if late and self.voyage is not None else None
         self.files.add(item)
         self._last_taken = (item.path.name, pd.Timestamp.now(tz="UTC"))
+        if before is not None:
+            self._note_moved(item, before)
         if placed.clock_shift_s:
             self._note_clock(item, placed)
         self._dirty = True
@@ -618,10 +631,17 @@ class Monitor:
             if item.path in self._retimed_noted:  # taken again once the grid was fixed
                 return
             self._retimed_noted.add(item.path)
+            jitter = f"{CLOCK_JITTER_S * 1e3:g} ms"
+            why = (
+                f"a stamp within {jitter} of that end is taken as contiguous"
+                if abs(shift_s) <= CLOCK_JITTER_S
+                else f"its stamp more than {jitter} from that end but within {jitter} of the "
+                "line of the run's stamps on its sample count, a sample clock off its rate: "
+                "taken as contiguous"
+            )
             self.messages.append(
                 f"{item.path.name}: start re-timed by {shift_s * 1e3:+.1f} ms to the "
-                f"previous file's end (a stamp within {CLOCK_JITTER_S * 1e3:g} ms of that end "
-                "or of the line of the run's stamps on its sample count is taken as contiguous)"
+                f"previous file's end ({why})"
             )
         elif first.path not in self._drift_noted:
             self._drift_noted.add(first.path)
@@ -637,6 +657,80 @@ class Monitor:
             if run_files is None:
                 run_files = placement.files[placement.run_start :]
             self.messages.append(f"{item.path.name}: {clock_drift_note(run_files)}")
+
+    def _placed_now(self, info, recorded: dict) -> dict | None:
+        """The fingerprint of the file the store *recorded* (its ``path``) as the files
+        taken (and those still to take again) place it with the new file *info* among
+        them, or None when that file is not among them: a late file re-places the files
+        from the first (:class:`~workbench.monitor.taken.TakenFiles`), so the span the
+        store recorded for one of them may lie elsewhere now."""
+        from ..signals.block_plan import place_files
+
+        target = str(recorded["path"])
+        infos = [f.info for f in self.files] + [f.info for f in self._retaking]
+        if not any(str(i.path.resolve()) == target for i in infos):
+            return None
+        same_rate = [i for i in infos if i.sampling_rate_hz == info.sampling_rate_hz]
+        try:
+            placed = place_files(
+                sorted([*same_rate, info], key=lambda i: (i.start_time, str(i.path)))
+            )
+        except ValueError:  # overlapping files: the placement cannot be told
+            return None
+        found = next(i for i in placed if str(i.path.resolve()) == target)
+        try:
+            return input_fingerprints([found])[0]
+        except WorkbenchError:  # gone or unreadable now: not the recorded data
+            return None
+
+    def _note_moved(self, item: LandedFile, before: list) -> None:
+        """Say which decided blocks used files that the late *item* moved (the files placed
+        again from the first, as identify places them; *before*: their placed headers
+        before it): they are kept as decided, from the files as placed then."""
+        from ..signals.block_plan import CLOCK_JITTER_S
+
+        half_ns = int(0.5e9 / self.voyage.rate_hz)
+        after = {i.path: i for i in self.files.placed_infos()}
+        moved = []
+        for old in before:
+            now = after.get(old.path)
+            if now is not None and abs(now.start_time.value - old.start_time.value) > half_ns:
+                moved.append((old, (now.start_time - old.start_time).total_seconds() * 1e3))
+        if not moved:
+            return
+        edge = pd.Timedelta(seconds=max(CLOCK_JITTER_S, 0.5 / self.voyage.rate_hz))
+        missing = self._missing_blocks()
+        low, high = moved[0][0].start_time - edge, moved[-1][0].end_time + edge
+        used = []
+        for block in sorted(self.done):
+            if block in missing:  # decided without data there: "landed after" says so
+                continue
+            start, end = self._decided_span(block)
+            if end <= low or start >= high:
+                continue
+            if any(min(end, o.end_time) - max(start, o.start_time) > edge for o, _ in moved):
+                used.append(block)
+        if used:
+            largest = max((shift for _, shift in moved), key=abs)
+            names = (
+                moved[0][0].name
+                if len(moved) == 1
+                else (f"{moved[0][0].name} .. {moved[-1][0].name}")
+            )
+            self.messages.append(
+                f"{item.path.name}: landed late: the record's files placed again from the "
+                f"first, as identify places them, move {len(moved)} file(s) ({names}) by up to "
+                f"{largest:+.1f} ms; block(s) {block_ranges(used)}, decided from them as placed "
+                "before, are kept as decided"
+            )
+
+    def _decided_span(self, block: int) -> tuple[pd.Timestamp, pd.Timestamp]:
+        """Start and end of the decided *block* (its own length's with varying lengths)."""
+        grid = self.voyage.grid
+        row = self._lengths.get(block) if self.voyage.lengths is not None else None
+        if row is not None:
+            grid = self.voyage.length_run(float(row["block_length_s"]))[0]
+        return grid.start(block), grid.end(block)
 
     def _placed(self) -> list[LandedFile]:
         """The files taken, each with its header as a plan places it (re-timed for clock
@@ -782,9 +876,11 @@ class Monitor:
             log.warning("%s", notice)
         self.done = self.store.completed_blocks()
         self._done_below = 0
-        # files taken before the voyage was fixed are checked now
-        for item in self.files.clear():
-            self._take(item)
+        # files taken before the voyage was fixed are checked now (those still to take
+        # among them placed with them: _placed_now)
+        self._retaking = collections.deque(self.files.clear())
+        while self._retaking:
+            self._take(self._retaking.popleft())
         self._resume()
         return True
 
