@@ -99,6 +99,7 @@ import pandas as pd
 
 from ..errors import PredictorError
 from .assembly import log_coverage_of, with_log_coverage
+from .measurement import measurable_poles
 from .memory.forecast import memory_forecast
 from .options import ForecastOptions
 from .results import ForecastResult, combined
@@ -136,7 +137,9 @@ def sliding_forecast(
     poles : DataFrame, optional
         Stabilisation diagrams (POLES contract: block, model_order, frequency_hz,
         damping_ratio, stable, and mode shapes ``shape_re_<ch>``/``shape_im_<ch>``);
-        required for option B.
+        required for option B. Poles marked as a shaft or blade-pass harmonic (column
+        ``harmonic``) are not measured, but for those in the column of a tracked pole of
+        *modal* in their block (:func:`~workbench.forecasting.measurement.measurable_poles`).
     modes : sequence of int, optional
         Modes to forecast; default every mode of *modal*.
     start_block : int, optional
@@ -177,6 +180,8 @@ def sliding_forecast(
         raise PredictorError(f"the predictor table has no column {', '.join(map(repr, missing))}")
     if "B" in options.options and poles is None:
         raise ValueError("option='B' needs poles (the stabilisation diagrams)")
+    if poles is not None and "B" in options.options:
+        poles = measurable_poles(poles, modal)
     run = memory_forecast if options.model == "memory" else window_forecast
     results = []
     for option in options.options:  # a loop, not a comprehension: warnings point at the caller

@@ -12,6 +12,7 @@ import pandas as pd
 from data_contracts import MODAL, POLES, PREDICTORS, recorded_grid, set_grid
 
 from ..forecasting import ForecastResult, ForecastWarning, sliding_forecast
+from ..forecasting.measurement import measurable_poles
 from ..forecasting.options import ForecastOptions
 from ..forecasting.results import combined
 from ..parallel import process_map
@@ -118,7 +119,9 @@ def forecast(
         Block predictors (PREDICTORS contract); their blocks are the forecast's grid.
     poles : DataFrame, optional
         Pole table (POLES contract), needed for option B; poles marked as shaft or
-        blade-pass harmonics (``harmonic`` column) are left out.
+        blade-pass harmonics (``harmonic`` column) are left out but for those in the column
+        of a mode's tracked pole of their block
+        (:func:`~workbench.forecasting.measurement.measurable_poles`).
     cases : None, "derive", path or DataFrame
         Each window forecasts with the model of the current operating case.
     options : ForecastOptions, optional
@@ -137,8 +140,10 @@ def forecast(
         if "B" in options.options and poles.empty:
             raise ValueError("option B needs poles: the pole table has no rows")
         if "harmonic" in poles.columns:
-            # option B measures the pole nearest the prediction: never a shaft harmonic's
-            poles = poles[poles["harmonic"].isna()].reset_index(drop=True)
+            # option B measures the pole nearest the prediction: never a shaft harmonic's,
+            # but a mode's own column where an order sits on it (measurable_poles); judged
+            # over every mode here, so the per-mode calls (n_workers) see the same poles
+            poles = measurable_poles(poles, modal).drop(columns="harmonic")
             if "B" in options.options and poles.empty:
                 raise ValueError(
                     "option B needs poles: every pole of the table is marked as a shaft "
