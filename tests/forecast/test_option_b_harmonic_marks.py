@@ -102,10 +102,11 @@ def test_option_b_measures_the_modes_marked_column_and_never_a_harmonics():
     measured = b.loc[sitting, "ssi_frequency_hz"].to_numpy()
     assert np.isfinite(measured).all()
     assert np.max(np.abs(measured - seen[sitting])) < 1e-3
-    # and its blend is no worse than the raw SSI there (nor than A's)
+    # and its blend is no worse than the raw SSI there (0.0095 against 0.0346 Hz summed)
     kalman_b = np.abs(b.loc[sitting, "kalman_frequency_hz"].to_numpy() - truth[sitting]).sum()
     raw = np.abs(seen[sitting] - truth[sitting]).sum()
-    assert kalman_b < raw
-    assert kalman_b <= 1.05 * np.abs(a.loc[sitting, "kalman_frequency_hz"] - truth[sitting]).sum()
+    assert kalman_b < 0.5 * raw
+    # option A measures its tracked pole there too (its scale from the unmarked poles)
+    assert np.allclose(a.loc[sitting, "ssi_frequency_hz"], seen[sitting])
     # a marked column with no tracked pole in its block is the harmonic's: never measured
     assert b.loc[list(HARMONIC_ONLY), "ssi_frequency_hz"].isna().all()

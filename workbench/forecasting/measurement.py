@@ -31,7 +31,8 @@ has a damping ratio unlike the mode's. Hence:
   count of blocks here, tell an outlier stretch from a mode that moved;
 * :func:`measurable_poles` - the poles option B may measure: not those marked as a shaft
   or blade-pass harmonic (``harmonic`` column), except in the column of a mode's tracked
-  pole of their block (an order sitting on the mode: SSI finds one pole for both);
+  pole of their block (an order sitting on the mode: SSI finds one pole for both; option
+  A, which reads the poles only for its scale, leaves every marked pole out);
 * :func:`nearer_to_another_mode` - without shapes, the check of a pick against the other
   modes' tracked poles of the block (a close neighbour's column is not the mode);
 * the per-block measurement scale: the cluster's frequency scatter across model orders,
@@ -160,9 +161,9 @@ def cluster_around(
     return _summary(index.frequency[s], index.damping[s], index.order[s])
 
 
-def measurable_poles(poles: pd.DataFrame, modal: pd.DataFrame) -> pd.DataFrame:
-    """The poles option B may measure: those not marked as a harmonic, and the marked ones
-    within ±:data:`CLUSTER_HALF_WIDTH` of a tracked pole of their block.
+def measurable_poles(poles: pd.DataFrame, modal: pd.DataFrame, option: str = "B") -> pd.DataFrame:
+    """The poles a measurement option reads: those not marked as a harmonic and, for option
+    B, the marked ones within ±:data:`CLUSTER_HALF_WIDTH` of a tracked pole of their block.
 
     Parameters
     ----------
@@ -172,6 +173,11 @@ def measurable_poles(poles: pd.DataFrame, modal: pd.DataFrame) -> pd.DataFrame:
         poles of a shaft or blade-pass harmonic. Without that column every pole is kept.
     modal : DataFrame
         Tracked modal table: block, frequency_hz.
+    option : {"B", "A"}
+        ``"A"`` measures the tracked pole and reads the poles only for each block's
+        measurement scale (:func:`cluster_around`): every marked pole is left out, so a
+        block whose column is marked has no cluster and the larger
+        :data:`NO_CLUSTER_SCALE` (less trust in an SSI estimate an order sits on).
 
     Returns
     -------
@@ -192,8 +198,8 @@ def measurable_poles(poles: pd.DataFrame, modal: pd.DataFrame) -> pd.DataFrame:
     if "harmonic" not in poles.columns:
         return poles
     marked = poles["harmonic"].notna().to_numpy()
-    if not marked.any():
-        return poles.reset_index(drop=True)
+    if not marked.any() or option != "B":
+        return poles.loc[~marked].reset_index(drop=True)
     tracked = modal.loc[np.isfinite(modal["frequency_hz"].to_numpy(dtype=float))]
     tracked = tracked.sort_values(["block", "frequency_hz"], kind="stable")
     tracked_block = tracked["block"].to_numpy(dtype=np.int64)

@@ -138,7 +138,7 @@ def sliding_forecast(
         Stabilisation diagrams (POLES contract: block, model_order, frequency_hz,
         damping_ratio, stable, and mode shapes ``shape_re_<ch>``/``shape_im_<ch>``);
         required for option B. Poles marked as a shaft or blade-pass harmonic (column
-        ``harmonic``) are not measured, but for those in the column of a tracked pole of
+        ``harmonic``) are left out, but for option B's in the column of a tracked pole of
         *modal* in their block (:func:`~workbench.forecasting.measurement.measurable_poles`).
     modes : sequence of int, optional
         Modes to forecast; default every mode of *modal*.
@@ -180,8 +180,6 @@ def sliding_forecast(
         raise PredictorError(f"the predictor table has no column {', '.join(map(repr, missing))}")
     if "B" in options.options and poles is None:
         raise ValueError("option='B' needs poles (the stabilisation diagrams)")
-    if poles is not None and "B" in options.options:
-        poles = measurable_poles(poles, modal)
     run = memory_forecast if options.model == "memory" else window_forecast
     results = []
     for option in options.options:  # a loop, not a comprehension: warnings point at the caller
@@ -191,7 +189,7 @@ def sliding_forecast(
                 modal,
                 predictors,
                 one,
-                poles=poles,
+                poles=None if poles is None else measurable_poles(poles, modal, option),
                 modes=modes,
                 start_block=start_block,
                 end_block=end_block,

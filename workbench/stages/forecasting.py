@@ -119,8 +119,8 @@ def forecast(
         Block predictors (PREDICTORS contract); their blocks are the forecast's grid.
     poles : DataFrame, optional
         Pole table (POLES contract), needed for option B; poles marked as shaft or
-        blade-pass harmonics (``harmonic`` column) are left out but for those in the column
-        of a mode's tracked pole of their block
+        blade-pass harmonics (``harmonic`` column) are left out, but for option B's in the
+        column of a mode's tracked pole of their block
         (:func:`~workbench.forecasting.measurement.measurable_poles`).
     cases : None, "derive", path or DataFrame
         Each window forecasts with the model of the current operating case.
@@ -139,16 +139,6 @@ def forecast(
         poles = read_any_table(poles, POLES, name="poles")
         if "B" in options.options and poles.empty:
             raise ValueError("option B needs poles: the pole table has no rows")
-        if "harmonic" in poles.columns:
-            # option B measures the pole nearest the prediction: never a shaft harmonic's,
-            # but a mode's own column where an order sits on it (measurable_poles); judged
-            # over every mode here, so the per-mode calls (n_workers) see the same poles
-            poles = measurable_poles(poles, modal).drop(columns="harmonic")
-            if "B" in options.options and poles.empty:
-                raise ValueError(
-                    "option B needs poles: every pole of the table is marked as a shaft "
-                    "harmonic (column harmonic)"
-                )
     if "B" in options.options and poles is None:
         raise ValueError("option B needs the pole table (poles=...)")
     kept, lines = persistent_modes(
@@ -157,12 +147,23 @@ def forecast(
     modes = sorted(int(m) for m in kept["mode"].unique())
     parts, messages = [], []
     for option in options.options:
+        read = poles
+        if poles is not None and "harmonic" in poles.columns:
+            # option B measures the pole nearest the prediction: never a shaft harmonic's,
+            # but a mode's own column where an order sits on it (measurable_poles); judged
+            # over every mode here, so the per-mode calls (n_workers) read the same poles
+            read = measurable_poles(poles, modal, option).drop(columns="harmonic")
+            if option == "B" and read.empty:
+                raise ValueError(
+                    "option B needs poles: every pole of the table is marked as a shaft "
+                    "harmonic (column harmonic)"
+                )
         part = forecast_modes(
             modal,
             predictors,
             replace(options, options=(option,)),
             modes=modes,
-            poles=poles,
+            poles=read,
             cases=cases,
             progress=progress,
         )
