@@ -101,7 +101,10 @@ def test_demo_kalman_beats_raw_ssi(demo):
     B measuring the column it finds outside the gate (``forecast_accuracy_11d.txt``) as
     well, it is 0.902 (A) and 0.904 (B) here; with the voyage's shaft speed logged, a blade
     pass added and the harmonics left out of the tracked table (issue 26), 0.933 (A) and
-    0.886 (B). The bound is raw SSI itself: the blend must
+    0.886 (B); with option B measuring a mode's own marked column where an order sits on
+    it (it measured 313 of 343 rows before, the model alone in the other 30), 0.903 (A,
+    unchanged) and 0.894 (B; ``benchmarks/results/harmonics_option_b_52.txt``). The bound
+    is raw SSI itself: the blend must
     not be worse than the better of its two inputs.
     """
     evaluation = pd.read_csv(demo / "evaluation.csv")

@@ -29,6 +29,10 @@ has a damping ratio unlike the mode's. Hence:
   (same tests, damping ratio within x3 of the mode's) is the measurement, flagged
   ``outside_gate``: the Kalman update's Huber weight and its persistence rule, not a
   count of blocks here, tell an outlier stretch from a mode that moved;
+* :func:`measurable_poles` - the poles option B may measure: not those marked as a shaft
+  or blade-pass harmonic (``harmonic`` column), except in the column of a mode's tracked
+  pole of their block (an order sitting on the mode: SSI finds one pole for both; option
+  A, which reads the poles only for its scale, leaves every marked pole out);
 * :func:`nearer_to_another_mode` - without shapes, the check of a pick against the other
   modes' tracked poles of the block (a close neighbour's column is not the mode);
 * the per-block measurement scale: the cluster's frequency scatter across model orders,
@@ -49,6 +53,7 @@ __all__ = [
     "PoleCluster",
     "PoleIndex",
     "cluster_around",
+    "measurable_poles",
     "nearer_to_another_mode",
     "scatter_scale",
 ]
@@ -154,6 +159,63 @@ def cluster_around(
         return None
     s = slice(part.start + a, part.start + b)
     return _summary(index.frequency[s], index.damping[s], index.order[s])
+
+
+def measurable_poles(poles: pd.DataFrame, modal: pd.DataFrame, option: str = "B") -> pd.DataFrame:
+    """The poles a measurement option reads: those not marked as a harmonic and, for option
+    B, the marked ones within ±:data:`CLUSTER_HALF_WIDTH` of a tracked pole of their block.
+
+    Parameters
+    ----------
+    poles : DataFrame
+        Stabilisation diagrams (POLES contract); ``harmonic`` (the order, 0 when found from
+        the data, NaN for a mode: :func:`workbench.sid.harmonics.mark_poles`) marks the
+        poles of a shaft or blade-pass harmonic. Without that column every pole is kept.
+    modal : DataFrame
+        Tracked modal table: block, frequency_hz.
+    option : {"B", "A"}
+        ``"A"`` measures the tracked pole and reads the poles only for each block's
+        measurement scale (:func:`cluster_around`): every marked pole is left out, so a
+        block whose column is marked has no cluster and the larger
+        :data:`NO_CLUSTER_SCALE` (less trust in an SSI estimate an order sits on).
+
+    Returns
+    -------
+    DataFrame
+        The rows of *poles* kept, in their order, with a fresh index.
+
+    Notes
+    -----
+    A pole is marked when it lies within ``frequency_tol`` of a selected mode marked as an
+    order and its shape matches that mode's. Where an order sits on a hull mode, SSI finds
+    one pole for both: the selected mode is marked, tracking keeps it as the mode's row (its
+    shape joins the mode's label) and option A measures it. The marked poles of that column
+    are then the mode's own; leaving them out left option B nothing to measure in those
+    blocks, and its blend ran on the model alone, worse than the raw SSI
+    (``benchmarks/results/harmonics_option_b_52.txt``). A marked pole away from every
+    tracked pole of its block is the harmonic's and is never measured.
+    """
+    if "harmonic" not in poles.columns:
+        return poles
+    marked = poles["harmonic"].notna().to_numpy()
+    if not marked.any() or option != "B":
+        return poles.loc[~marked].reset_index(drop=True)
+    tracked = modal.loc[np.isfinite(modal["frequency_hz"].to_numpy(dtype=float))]
+    tracked = tracked.sort_values(["block", "frequency_hz"], kind="stable")
+    tracked_block = tracked["block"].to_numpy(dtype=np.int64)
+    tracked_hz = tracked["frequency_hz"].to_numpy(dtype=float)
+    block = poles["block"].to_numpy(dtype=np.int64)[marked]
+    frequency = poles["frequency_hz"].to_numpy(dtype=float)[marked]
+    lo = np.searchsorted(tracked_block, block, side="left")
+    hi = np.searchsorted(tracked_block, block, side="right")
+    near = np.zeros(block.size, dtype=bool)
+    for k in range(block.size):  # a block's tracked poles: a handful
+        if hi[k] > lo[k]:
+            f = tracked_hz[lo[k] : hi[k]]
+            near[k] = bool((np.abs(frequency[k] - f) <= CLUSTER_HALF_WIDTH * f).any())
+    keep = ~marked
+    keep[np.flatnonzero(marked)[near]] = True
+    return poles.loc[keep].reset_index(drop=True)
 
 
 def scatter_scale(scatter_hz: float, typical_scatter_hz: float) -> float:

@@ -99,6 +99,7 @@ import pandas as pd
 
 from ..errors import PredictorError
 from .assembly import log_coverage_of, with_log_coverage
+from .measurement import measurable_poles
 from .memory.forecast import memory_forecast
 from .options import ForecastOptions
 from .results import ForecastResult, combined
@@ -136,7 +137,9 @@ def sliding_forecast(
     poles : DataFrame, optional
         Stabilisation diagrams (POLES contract: block, model_order, frequency_hz,
         damping_ratio, stable, and mode shapes ``shape_re_<ch>``/``shape_im_<ch>``);
-        required for option B.
+        required for option B. Poles marked as a shaft or blade-pass harmonic (column
+        ``harmonic``) are left out, but for option B's in the column of a tracked pole of
+        *modal* in their block (:func:`~workbench.forecasting.measurement.measurable_poles`).
     modes : sequence of int, optional
         Modes to forecast; default every mode of *modal*.
     start_block : int, optional
@@ -186,7 +189,7 @@ def sliding_forecast(
                 modal,
                 predictors,
                 one,
-                poles=poles,
+                poles=None if poles is None else measurable_poles(poles, modal, option),
                 modes=modes,
                 start_block=start_block,
                 end_block=end_block,

@@ -12,6 +12,7 @@ import pandas as pd
 from data_contracts import MODAL, POLES, PREDICTORS, recorded_grid, set_grid
 
 from ..forecasting import ForecastResult, ForecastWarning, sliding_forecast
+from ..forecasting.measurement import measurable_poles
 from ..forecasting.options import ForecastOptions
 from ..forecasting.results import combined
 from ..parallel import process_map
@@ -118,7 +119,9 @@ def forecast(
         Block predictors (PREDICTORS contract); their blocks are the forecast's grid.
     poles : DataFrame, optional
         Pole table (POLES contract), needed for option B; poles marked as shaft or
-        blade-pass harmonics (``harmonic`` column) are left out.
+        blade-pass harmonics (``harmonic`` column) are left out, but for option B's in the
+        column of a mode's tracked pole of their block
+        (:func:`~workbench.forecasting.measurement.measurable_poles`).
     cases : None, "derive", path or DataFrame
         Each window forecasts with the model of the current operating case.
     options : ForecastOptions, optional
@@ -136,14 +139,6 @@ def forecast(
         poles = read_any_table(poles, POLES, name="poles")
         if "B" in options.options and poles.empty:
             raise ValueError("option B needs poles: the pole table has no rows")
-        if "harmonic" in poles.columns:
-            # option B measures the pole nearest the prediction: never a shaft harmonic's
-            poles = poles[poles["harmonic"].isna()].reset_index(drop=True)
-            if "B" in options.options and poles.empty:
-                raise ValueError(
-                    "option B needs poles: every pole of the table is marked as a shaft "
-                    "harmonic (column harmonic)"
-                )
     if "B" in options.options and poles is None:
         raise ValueError("option B needs the pole table (poles=...)")
     kept, lines = persistent_modes(
@@ -152,12 +147,23 @@ def forecast(
     modes = sorted(int(m) for m in kept["mode"].unique())
     parts, messages = [], []
     for option in options.options:
+        read = poles
+        if poles is not None and "harmonic" in poles.columns:
+            # option B measures the pole nearest the prediction: never a shaft harmonic's,
+            # but a mode's own column where an order sits on it (measurable_poles); judged
+            # over every mode here, so the per-mode calls (n_workers) read the same poles
+            read = measurable_poles(poles, modal, option).drop(columns="harmonic")
+            if option == "B" and read.empty:
+                raise ValueError(
+                    "option B needs poles: every pole of the table is marked as a shaft "
+                    "harmonic (column harmonic)"
+                )
         part = forecast_modes(
             modal,
             predictors,
             replace(options, options=(option,)),
             modes=modes,
-            poles=poles,
+            poles=read,
             cases=cases,
             progress=progress,
         )
