@@ -126,8 +126,10 @@ def forecast(
     progress : bool
         Progress bar on stderr.
 
-    Modes measured in fewer than ``options.min_presence`` of the blocks (short-lived
-    tracks: a shaft harmonic passing by, spurious poles) are not forecast; a line says which.
+    Modes measured in fewer than ``options.min_presence`` of the blocks with data (the
+    modal table's: a hole in the accelerations takes no mode out; short-lived tracks, a
+    shaft harmonic passing by, spurious poles, are left out) are not forecast; a line says
+    which. The forecast runs over every block of *predictors*, through such a hole too.
     """
     options = options or ForecastOptions()
     modal = read_any_table(modal, MODAL, name="modal")
@@ -146,9 +148,7 @@ def forecast(
                 )
     if "B" in options.options and poles is None:
         raise ValueError("option B needs the pole table (poles=...)")
-    kept, lines = persistent_modes(
-        modal, options.min_presence, n_blocks=predictors["block"].nunique()
-    )
+    kept, lines = persistent_modes(modal, options.min_presence)
     modes = sorted(int(m) for m in kept["mode"].unique())
     parts, messages = [], []
     for option in options.options:
