@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from workbench.forecasting import ForecastOptions
 from workbench.sid.presence import persistent_modes
@@ -79,3 +80,62 @@ def test_a_mode_absent_from_blocks_with_data_is_still_left_out():
     result = forecast(modal, predictors, options=ForecastOptions(options=("A",)))
     assert sorted(result.table["mode"].unique()) == [1]
     assert "modes [2, 3] left out: measured in fewer than 50 % of the blocks" in result.lines
+
+
+def _departure_in_a_hole(seed: int = 0) -> tuple[pd.DataFrame, pd.DataFrame, np.ndarray]:
+    """20-min blocks every 5 min; the ship at rest for blocks 0-39, the recorder off over
+    blocks 40-59 while she gets under way (0 -> 10 kn: every mode -1.5 %), then at sea.
+    The model, fitted at rest, cannot know what the speed does. Returns the tables and
+    the true frequencies (blocks x modes)."""
+    rng = np.random.default_rng(seed)
+    n = 120
+    block = np.arange(n)
+    start = pd.Timestamp("2025-01-01T00:00:00Z") + pd.to_timedelta(block * 300, unit="s")
+    speed = np.where(block < 45, 0.0, np.minimum((block - 44) * 2.0, 10.0))
+    speed = speed + rng.normal(0, 0.05, n)
+    predictors = pd.DataFrame(
+        {
+            "block": block,
+            "block_start": start,
+            "block_end": start + pd.Timedelta(minutes=20),
+            "speed_kn": speed,
+            "water_temp_c": 4 + rng.normal(0, 0.02, n),
+        }
+    )
+    levels = np.array([2.9, 5.1])
+    truth = levels[None, :] * (1 - 0.0015 * np.clip(speed, 0, None))[:, None]
+    rows = []
+    for k in block:
+        if 40 <= k < 60:
+            continue
+        for j, mode in enumerate((1, 2)):
+            rows.append(
+                {
+                    "block": k,
+                    "block_start": start[k],
+                    "block_end": start[k] + pd.Timedelta(minutes=20),
+                    "mode": mode,
+                    "frequency_hz": truth[k, j] + rng.normal(0, 0.002),
+                }
+            )
+    return pd.DataFrame(rows), predictors, truth
+
+
+def test_after_a_hole_the_estimate_takes_the_first_measurements():
+    """After 20 blocks without any SSI estimate the filter's state is as old as the hole:
+    a large first innovation is the state's error, not SSI's outlier, and the estimate
+    goes to SSI at once (main: Huber-weighted as an outlier until a run of 5 large
+    innovations, up to 71 mHz from the truth over the first 5 blocks after the hole)."""
+    modal, predictors, truth = _departure_in_a_hole()
+    result = forecast(modal, predictors, options=ForecastOptions(options=("A",)))
+    table = result.table.set_index(["block", "mode"])
+    after = [(k, m) for k in range(60, 65) for m in (1, 2)]
+    error = np.array(
+        [abs(table.loc[key, "kalman_frequency_hz"] - truth[key[0], key[1] - 1]) for key in after]
+    )
+    ssi = np.array(
+        [abs(table.loc[key, "ssi_frequency_hz"] - truth[key[0], key[1] - 1]) for key in after]
+    )
+    # the move across the hole: -44 mHz (mode 1) and -77 mHz (mode 2)
+    assert truth[60, 1] - truth[39, 1] == pytest.approx(-0.0765, abs=0.001)
+    assert error.max() < 0.008 and error.mean() < 2 * ssi.mean() + 0.001
