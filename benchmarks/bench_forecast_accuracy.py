@@ -204,7 +204,7 @@ def demo_runs(cache: Path, hours_list, methods, options, seeds=(0,), shapes_list
     rows = []
     for hours, seed in ((h, s) for h in hours_list for s in seeds):
         tracked, poles, predictors, truth = _demo_tables(cache, hours, seed)
-        kept, _ = persistent_modes(tracked, 0.5, n_blocks=predictors["block"].nunique())
+        kept, _ = persistent_modes(tracked, 0.5)
         _, mapping = label_agreement(kept, truth)
         kept = kept[kept["mode"].isin(mapping)]
         inverse = {true: label for label, true in mapping.items()}

@@ -122,6 +122,7 @@ class Replay:
                     first_block=0,
                     final_through=last - 1,
                     mode_blocks=summary["mode_blocks"],
+                    tracked_blocks=summary["blocks"],
                     tails=True,
                 )
             except NeedsFullHistory:

@@ -132,3 +132,29 @@ def test_a_log_hole_reaches_the_forecast_rows_of_its_blocks():
     )
     assert np.isnan(table.loc[4, "speed_kn"])  # a quarter logged: below the 0.5 minimum
     assert table.loc[3, "speed_kn"] == pytest.approx(10.0)
+
+
+def test_the_note_names_the_columns_that_make_blocks_partly_logged():
+    """A dead wind-direction sensor (no reading from block 30 on) makes log_coverage, the
+    least over the log's columns, 0 in every later block: the note says that column alone
+    marks most of them and that no model of the run uses it (main: only '30 forecast
+    block(s) covered only partly', as if the predictors forecast from were out)."""
+    modal, predictors = _voyage()
+    shares = {c: np.ones(60) for c in ("speed_kn", "water_temp_c", "wind_dir_rel_deg")}
+    shares["wind_dir_rel_deg"][30:] = 0.0
+    shares["water_temp_c"][[41, 42, 43]] = 0.75
+    for column, share in shares.items():
+        predictors[f"log_coverage_{column}"] = share
+    predictors["log_coverage"] = np.minimum.reduce(list(shares.values()))
+    predictors["wind_dir_rel_deg"] = np.where(np.arange(60) < 30, 90.0, np.nan)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ForecastWarning)
+        result = forecast(modal, predictors, options=ForecastOptions(options=("A",)))
+    terms = {name for m in result.models for t in m.terms for name in t.split(":")}
+    assert terms == {"water_temp_c"}  # the modes follow the water temperature alone
+    notes = [line for line in result.lines if line.startswith("ship log:")]
+    assert notes == [
+        "ship log: 30 forecast block(s) covered only partly (log_coverage below 1, the first "
+        "block 30; wind_dir_rel_deg in 30 (in no model), water_temp_c in 3): their predictors "
+        "are means of the logged part, or filled where too little of the block is logged"
+    ]

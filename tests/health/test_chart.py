@@ -113,6 +113,23 @@ def test_a_mode_missing_from_the_reference_is_left_out():
     assert "contribution_4" not in result.table.columns
 
 
+def test_a_hole_in_the_accelerations_is_no_absence_from_the_reference():
+    """The recorder off over blocks 20-99 (80 of the 144 reference blocks: no mode has an
+    SSI estimate there): each mode's presence is a share of the 64 reference blocks with
+    data (main: every mode in 44 % of the reference, 'no mode has residuals in 50 % of the
+    reference blocks 0-143', no chart); mode 4, missing from 40 of those 64, is left out."""
+    voyage = simulate_health_voyage(24, seed=0)
+    forecast = law_forecast(voyage)
+    forecast.loc[forecast["block"].between(20, 99), "ssi_frequency_hz"] = np.nan
+    forecast.loc[
+        (forecast["mode"] == 4) & forecast["block"].between(100, 139), "ssi_frequency_hz"
+    ] = np.nan
+    result = health_chart(forecast, OPTIONS)
+    assert result.reference.modes == (1, 2, 3, 5, 6, 7)
+    assert result.reference.excluded_modes == (4,)
+    assert result.table["block"].max() == forecast["block"].max()
+
+
 def test_ewma_holds_through_missing_values_and_hotelling_parts_sum():
     x = np.array([[1.0, 2.0], [np.nan, 2.0], [1.0, np.nan]])
     z = ewma_hold(x, 0.5)

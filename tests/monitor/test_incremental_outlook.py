@@ -373,3 +373,26 @@ def test_update_outlook_computes_again_over_a_checkpoint_of_an_older_layout(
     ), report.messages
     forecast = pd.read_parquet(state / "forecast.parquet")
     pd.testing.assert_frame_equal(forecast, batch["forecast"], rtol=1e-9)
+
+
+def test_resumed_outlook_forecasts_across_a_hole_in_the_accelerations():
+    """A recorder off for 7.5 h (blocks 75-164 of 170 without data: no tracked row, after
+    the health chart's reference period) leaves modes 1-3 in about 90 % of the 80 tracked
+    blocks but 42 % of the grid: the forecast counts presence over the tracked blocks, as
+    the batch forecast does (main: no mode measured in 50 % of the blocks, no forecast)."""
+    modal, predictors = voyage()
+    hole = (modal["block"] >= 75) & (modal["block"] < 165)
+    modal = modal[~hole].reset_index(drop=True)
+    assert modal["block"].nunique() == 80
+    assert modal.groupby("mode")["block"].nunique().max() / 170 < 0.5
+    outlook = IncrementalOutlook(SETTINGS, STEP_S)
+    for last in (30, 74, 100, 166):
+        feed(outlook, modal, predictors, last, final_through=last - 2)
+    found = feed(outlook, modal, predictors, 169, final_through=169)
+    assert not [m for m in found.messages if "no mode is measured" in m]
+    assert set(found.forecast["mode"]) == {1, 2, 3}  # mode 4: seen in too few blocks
+    # the hole's blocks are predict-only rows, then the forecast goes on with SSI
+    inside = found.forecast[found.forecast["block"].between(75, 164)]
+    assert len(inside) == 3 * 90 and inside["ssi_frequency_hz"].isna().all()
+    assert found.forecast["block"].max() == 169
+    assert_equal_to_batch(found, modal, predictors)

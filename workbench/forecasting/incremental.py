@@ -101,7 +101,7 @@ __all__ = [
 #: outage's filled blocks and the state's unweighted move (issue 27), option B's run of
 #: missed columns; /6: the log's coverage of the blocks per predictor column too
 #: (``column_coverage``: the shares an outage edge's warning names).
-CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/6"
+CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/7"
 
 #: Rows kept before the newest committed window beyond the refits' history. [blocks]
 _MARGIN_ROWS = 64

@@ -163,6 +163,10 @@ class BlendStep:
         are the prior's, :func:`~workbench.forecasting.memory.noise.filter_matrices`):
         only there may :meth:`ModelTrust.combine` follow SSI in place of a lagging
         model-free level (None: nowhere).
+    after_hole : bool
+        The block ends a hole in the record (no mode measured for at least
+        ``persist_blocks`` blocks): the model-free filters, too, take a large innovation
+        as a move of the level (their state is as old as the hole), not as SSI's outlier.
     """
 
     normalised: np.ndarray
@@ -170,6 +174,7 @@ class BlendStep:
     state: np.ndarray | None = None
     measurement_model: np.ndarray | None = None
     unweighted: np.ndarray | None = None
+    after_hole: bool = False
 
 
 class ModelTrust:
@@ -301,7 +306,14 @@ class ModelTrust:
         log_l[0] = self._blend_log_likelihood(blend_normalised, blend_variance)
         for h, step in enumerate(self.steps):
             log_l[h + 1] = self._free_step(
-                h, step, z, transition, error_step_variance, sigma2, white_variance
+                h,
+                step,
+                z,
+                transition,
+                error_step_variance,
+                sigma2,
+                white_variance,
+                blend.after_hole,
             )
         use = learn & np.isfinite(log_l).all(axis=0)
         if use.any():
@@ -356,7 +368,9 @@ class ModelTrust:
         out[ok] = self._log_likelihood(normalised[ok], variance[ok])
         return out
 
-    def _free_step(self, h, step, z, transition, error_step_variance, sigma2, white_variance):
+    def _free_step(
+        self, h, step, z, transition, error_step_variance, sigma2, white_variance, after_hole
+    ):
         """Predict and update model-free filter *h*; its log-likelihood of z (NaN: none).
 
         States [x, identification error's states]: F = the blend's with 1 for the level,
@@ -384,12 +398,21 @@ class ModelTrust:
         Q[:, 0] = step * sigma2[idx]
         state = np.concatenate([level[idx, None], error[idx]], axis=1)
         run = self.run[h, idx]
+        state, P_prior = kalman_predict(state, P_all[idx], F, Q)
+        judged = run
+        if after_hole and self.persist_blocks is not None:
+            # as the blend after a hole (MemoryRun._run_after_hole): a large innovation
+            # moves the level at once
+            y = z[idx] - state.sum(axis=1)
+            stale = np.isfinite(y) & (y != 0)
+            judged = np.where(stale, np.sign(y).astype(np.int64) * (self.persist_blocks - 1), run)
         state, P, _, nu, S, _ = kalman_update(
-            *kalman_predict(state, P_all[idx], F, Q),
+            state,
+            P_prior,
             z[idx],
             white_variance[idx],
             self.huber_sigma,
-            previous_run=run if self.persist_blocks is not None else None,
+            previous_run=judged if self.persist_blocks is not None else None,
             persist_blocks=self.persist_blocks or 0,
         )
         have = np.isfinite(nu)

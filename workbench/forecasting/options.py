@@ -300,7 +300,9 @@ class ForecastOptions:
         Model ``"memory"``: the noise levels of the Kalman blend.
     min_presence : float
         The forecast stage forecasts only modes measured in at least this share of the
-        predictor blocks. [-]
+        blocks with data (those of the tracked modal table: a block without an
+        acceleration record, given up or skipped as faulty is no block a mode was absent
+        from). [-]
     n_workers : int
         Processes the forecast stage spreads the modes over (the table is the same whatever
         the number).

@@ -149,6 +149,7 @@ class IncrementalOutlook:
         first_block: int,
         final_through: int | None,
         mode_blocks: dict[int, int] | None = None,
+        tracked_blocks: int | None = None,
         tails: bool = False,
     ) -> OutlookTables:
         """Forecast and health chart of the voyage so far.
@@ -169,6 +170,9 @@ class IncrementalOutlook:
         mode_blocks : dict, optional
             Blocks per mode over the whole tracked table (default: counted in *tracked*,
             which must then be whole).
+        tracked_blocks : int, optional
+            Blocks of the whole tracked table, those a mode's presence is a share of
+            (given with *mode_blocks*; default: counted in *tracked*).
         tails : bool
             The tables returned hold only the rows from ``forecast_from`` and
             ``health_from`` on (the whole tables when those are None): what a writer of
@@ -182,18 +186,22 @@ class IncrementalOutlook:
         from ..predictors.tables import canonical_predictors
 
         settings = self.settings
-        last = int(predictors["block"].max())
-        n_blocks = last - int(first_block) + 1
         messages: list[str] = []
         forecast_from = None
         forecast_rows = 0
         health_from = None if self._charted_through is None else self._charted_through + 1
         health_resets = self._health_resets
-        # the forecast stage's modes: measured in at least min_presence of the blocks
+        # the forecast stage's modes: measured in at least min_presence of the tracked
+        # blocks (a block without data - files missing, given up, skipped - is no block
+        # a mode was absent from)
         if mode_blocks is None:
             counts = tracked.groupby("mode")["block"].nunique()
+            n_blocks = tracked["block"].nunique()
         else:
+            if tracked_blocks is None:
+                raise ValueError("mode_blocks needs tracked_blocks (the tracked table's blocks)")
             counts = pd.Series(mode_blocks, dtype=float)
+            n_blocks = int(tracked_blocks)
         presence = counts / max(n_blocks, 1)
         modes = tuple(
             sorted(int(m) for m in presence.index[presence >= settings.forecast.min_presence])

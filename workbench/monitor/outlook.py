@@ -524,6 +524,7 @@ def _incremental_outlook(
                             first_block=first,
                             final_through=final_through,
                             mode_blocks=summary["mode_blocks"],
+                            tracked_blocks=summary["blocks"],
                             tails=True,
                         )
                         break

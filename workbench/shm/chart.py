@@ -288,7 +288,8 @@ def health_chart(
     2. *Reference.* Per mode, over the reference blocks that have it (missing modes per
        block are simply absent), location μ = median and scale σ = 1.4826 MAD, robust to
        wrong poles and mislabelled modes; x = clip((r - μ)/σ, ±c). Modes present in fewer
-       than ``min_valid_fraction`` of the reference blocks are not charted.
+       than ``min_valid_fraction`` of the reference blocks with data (a residual of any
+       mode) are not charted.
     3. *Chart.* MEWMA [1]_: z_k = z_{k-1} + λ (x_k - z_{k-1}) per mode, held where a mode
        has no residual; T²_k = z_kᵀ (Σ_z + D_k)⁻¹ z_k. D_k is diagonal, the squared
        ``model_shift_std`` of the forecast table (when it has that column and
@@ -444,7 +445,11 @@ def learn_reference(
         units (as *residuals*); NaN or None where the forecast has none.
     """
     first_block, last_block = int(blocks[0]), int(blocks[-1])
-    valid_share = np.isfinite(residuals).mean(axis=0)
+    # a mode's share of the reference blocks with data: a block of a hole in the
+    # accelerations (no mode has a residual) is no block a mode was absent from
+    finite = np.isfinite(residuals)
+    with_data = finite.any(axis=1)
+    valid_share = finite[with_data].mean(axis=0) if with_data.any() else np.zeros(len(modes))
     keep = valid_share >= options.min_valid_fraction
     charted = tuple(m for m, k in zip(modes, keep, strict=True) if k)
     excluded = tuple(m for m, k in zip(modes, keep, strict=True) if not k)

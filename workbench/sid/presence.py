@@ -10,12 +10,15 @@ __all__ = ["persistent_modes"]
 
 
 def persistent_modes(
-    modal: pd.DataFrame, min_presence: float = 0.5, *, n_blocks: int | None = None
+    modal: pd.DataFrame, min_presence: float = 0.5
 ) -> tuple[pd.DataFrame, list[str]]:
-    """Rows of the modes measured in at least *min_presence* of the blocks.
+    """Rows of the modes measured in at least *min_presence* of the blocks of *modal*.
 
     Short-lived tracks (a shaft harmonic sweeping past with the speed, spurious poles)
-    would each add a column of mostly missing values to correlations and models.
+    would each add a column of mostly missing values to correlations and models. The share
+    is of the blocks with data, those of the tracked table: a block without an
+    acceleration record (a recorder off for hours), given up or skipped as faulty is no
+    block a mode was absent from.
 
     Parameters
     ----------
@@ -23,8 +26,6 @@ def persistent_modes(
         Tracked modal table (block, mode, ...).
     min_presence : float
         Smallest share of the blocks a kept mode is measured in, in [0, 1].
-    n_blocks : int, optional
-        Number of blocks the share refers to (default: the blocks of *modal*).
 
     Returns
     -------
@@ -40,8 +41,7 @@ def persistent_modes(
     """
     if not 0.0 <= min_presence <= 1.0:
         raise ValueError(f"min_presence={min_presence} must be in [0, 1]")
-    n_blocks = n_blocks or modal["block"].nunique()
-    presence = modal.groupby("mode")["block"].nunique() / max(n_blocks, 1)
+    presence = modal.groupby("mode")["block"].nunique() / max(modal["block"].nunique(), 1)
     keep = presence.index[presence >= min_presence]
     left_out = sorted(int(m) for m in presence.index[presence < min_presence])
     if not len(keep):

@@ -9,7 +9,14 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 
-from data_contracts import MODAL, POLES, PREDICTORS, recorded_grid, set_grid
+from data_contracts import (
+    MODAL,
+    POLES,
+    PREDICTORS,
+    column_log_coverage_name,
+    recorded_grid,
+    set_grid,
+)
 
 from ..forecasting import ForecastResult, ForecastWarning, sliding_forecast
 from ..forecasting.measurement import measurable_poles
@@ -21,6 +28,9 @@ from ..sid.presence import persistent_modes
 
 __all__ = ["ForecastOptions", "ForecastResult", "forecast", "forecast_modes", "partial_log_lines"]
 
+
+#: The predictor table's per-column share of a block: ``log_coverage_<column>``.
+COLUMN_COVERAGE_PREFIX = column_log_coverage_name("")
 
 #: Descriptive names of the forecast schemes (the reference work's methods 1 and 2).
 SCHEME_NAMES = {1: "single-window", 2: "rolling"}
@@ -84,19 +94,42 @@ def forecast_modes(
     )
 
 
-def partial_log_lines(table: pd.DataFrame) -> list[str]:
+def partial_log_lines(
+    table: pd.DataFrame, predictors: pd.DataFrame | None = None, models=()
+) -> list[str]:
     """A run note on the forecast rows whose block the ship log covers only partly
-    (``log_coverage`` below 1; none when the table has no such column or row)."""
+    (``log_coverage`` below 1; none when the table has no such column or row).
+
+    ``log_coverage`` is the least share over the log's columns, so one column out (a dead
+    wind-direction sensor) marks every block: with the predictor table's per-column shares
+    (``log_coverage_<column>``) the note says how many of those blocks each column covers
+    only partly, and which of the columns no model of the run (*models*, their ``terms``)
+    uses, so such a column is not taken for an outage of the predictors forecast from.
+    """
     if "log_coverage" not in table.columns or table.empty:
         return []
     rows = table[(table["phase"] == "forecast") & (table["log_coverage"] < 1.0)]
     if rows.empty:
         return []
     blocks = np.unique(rows["block"].to_numpy())
+    by_column = ""
+    if predictors is not None:
+        shares = predictors.drop_duplicates("block", keep="last").set_index("block")
+        shares = shares.reindex(blocks)
+        used = {name for model in models for term in model.terms for name in term.split(":")}
+        parts = []
+        for name in (c for c in shares.columns if c.startswith(COLUMN_COVERAGE_PREFIX)):
+            column = name[len(COLUMN_COVERAGE_PREFIX) :]
+            n = int((shares[name].to_numpy(dtype=float, na_value=np.nan) < 1.0).sum())
+            if n:
+                unused = " (in no model)" if models and column not in used else ""
+                parts.append((n, f"{column} in {n}{unused}"))
+        if parts:
+            by_column = "; " + ", ".join(text for _, text in sorted(parts, key=lambda p: -p[0]))
     return [
         f"ship log: {blocks.size} forecast block(s) covered only partly (log_coverage below "
-        f"1, the first block {int(blocks[0])}): their predictors are means of the logged "
-        "part, or filled where too little of the block is logged"
+        f"1, the first block {int(blocks[0])}{by_column}): their predictors are means of the "
+        "logged part, or filled where too little of the block is logged"
     ]
 
 
@@ -129,8 +162,10 @@ def forecast(
     progress : bool
         Progress bar on stderr.
 
-    Modes measured in fewer than ``options.min_presence`` of the blocks (short-lived
-    tracks: a shaft harmonic passing by, spurious poles) are not forecast; a line says which.
+    Modes measured in fewer than ``options.min_presence`` of the blocks with data (the
+    modal table's: a hole in the accelerations takes no mode out; short-lived tracks, a
+    shaft harmonic passing by, spurious poles, are left out) are not forecast; a line says
+    which. The forecast runs over every block of *predictors*, through such a hole too.
     """
     options = options or ForecastOptions()
     modal = read_any_table(modal, MODAL, name="modal")
@@ -141,9 +176,7 @@ def forecast(
             raise ValueError("option B needs poles: the pole table has no rows")
     if "B" in options.options and poles is None:
         raise ValueError("option B needs the pole table (poles=...)")
-    kept, lines = persistent_modes(
-        modal, options.min_presence, n_blocks=predictors["block"].nunique()
-    )
+    kept, lines = persistent_modes(modal, options.min_presence)
     modes = sorted(int(m) for m in kept["mode"].unique())
     parts, messages = [], []
     for option in options.options:
@@ -171,7 +204,8 @@ def forecast(
         parts.append(part)
     table = pd.concat([p.table for p in parts], ignore_index=True)
     set_grid(table, recorded_grid(modal) or recorded_grid(predictors))
-    lines = (*lines, *partial_log_lines(table))
+    models = [m for p in parts for m in p.models]
+    lines = (*lines, *partial_log_lines(table, predictors, models))
     done = (
         f"forecast of {table['mode'].nunique()} modes over {table['block'].nunique()} blocks, "
         f"option(s) {'/'.join(options.options)}, scheme {SCHEME_NAMES[options.scheme]}, "

@@ -1,0 +1,141 @@
+"""A long hole in the accelerations (the recorder off for hours: no tracked row in its
+blocks, the ship log goes on): a mode's presence is a share of the blocks that had data,
+so the forecast goes on through the hole from the predictors and after it with SSI."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from workbench.forecasting import ForecastOptions
+from workbench.sid.presence import persistent_modes
+from workbench.stages import forecast
+
+#: Blocks 40-119 of 150 (6 h 40 min of 5-min blocks) without an acceleration record.
+HOLE = (40, 120)
+N_BLOCKS = 150
+
+
+def _voyage(seed: int = 0) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """5-min blocks; two modes following the speed (2.9 and 5.1 Hz, -0.4 % a knot), seen
+    in every block with data, and a third (7.0 Hz) in every other block from block 120;
+    the hole's blocks have no tracked row."""
+    rng = np.random.default_rng(seed)
+    block = np.arange(N_BLOCKS)
+    start = pd.Timestamp("2025-01-01T00:00:00Z") + pd.to_timedelta(block * 300, unit="s")
+    speed = np.clip(9 + np.cumsum(rng.normal(0, 0.3, N_BLOCKS)), 2, 14)
+    predictors = pd.DataFrame(
+        {
+            "block": block,
+            "block_start": start,
+            "speed_kn": speed,
+            "water_temp_c": 4 + rng.normal(0, 0.05, N_BLOCKS),
+        }
+    )
+    rows = []
+    for k in block:
+        if HOLE[0] <= k < HOLE[1]:
+            continue
+        for mode, level in ((1, 2.9), (2, 5.1), (3, 7.0)):
+            if mode == 3 and (k < HOLE[1] or k % 2):
+                continue
+            f = level * (1 - 0.004 * (speed[k] - 9)) + rng.normal(0, 0.002)
+            rows.append({"block": k, "block_start": start[k], "mode": mode, "frequency_hz": f})
+    return pd.DataFrame(rows), predictors
+
+
+def test_presence_is_a_share_of_the_tracked_blocks():
+    modal, _ = _voyage()
+    assert modal["block"].nunique() == 70  # 40 before the hole, 30 after
+    kept, lines = persistent_modes(modal, 0.5)
+    # modes 1 and 2 in 70 of 70 tracked blocks, mode 3 in 15 (21 %)
+    assert sorted(kept["mode"].unique()) == [1, 2]
+    assert lines == ["modes [3] left out: measured in fewer than 50 % of the blocks"]
+
+
+def test_forecast_goes_on_across_a_hole_in_the_accelerations():
+    """Main counted the 80 blocks without data as blocks each mode was absent from (70
+    of 150 = 47 % < 50 %): 'no mode is measured in at least 50 % of the blocks', no
+    forecast at all."""
+    modal, predictors = _voyage()
+    assert modal.groupby("mode")["block"].nunique().max() / N_BLOCKS < 0.5
+    result = forecast(modal, predictors, options=ForecastOptions(options=("A",)))
+    table = result.table
+    assert sorted(table["mode"].unique()) == [1, 2]
+    assert "modes [3] left out: measured in fewer than 50 % of the blocks" in result.lines
+    assert table["block"].min() == 0 and table["block"].max() == N_BLOCKS - 1
+    inside = table[table["block"].between(HOLE[0], HOLE[1] - 1)]
+    assert len(inside) == 2 * (HOLE[1] - HOLE[0]) and inside["ssi_frequency_hz"].isna().all()
+    assert np.isfinite(inside["kalman_frequency_hz"]).all()
+    after = table[table["block"] >= HOLE[1]]
+    assert after["ssi_frequency_hz"].notna().all() and len(after) == 2 * (N_BLOCKS - HOLE[1])
+
+
+def test_a_mode_absent_from_blocks_with_data_is_still_left_out():
+    """Presence over the blocks with data, not over the modes' own blocks: a mode lost in
+    most blocks that had data stays out of the forecast."""
+    modal, predictors = _voyage()
+    modal = modal[(modal["mode"] != 2) | (modal["block"] < 20)]  # mode 2 in 20 of 70
+    result = forecast(modal, predictors, options=ForecastOptions(options=("A",)))
+    assert sorted(result.table["mode"].unique()) == [1]
+    assert "modes [2, 3] left out: measured in fewer than 50 % of the blocks" in result.lines
+
+
+def _departure_in_a_hole(seed: int = 0) -> tuple[pd.DataFrame, pd.DataFrame, np.ndarray]:
+    """20-min blocks every 5 min; the ship at rest for blocks 0-39, the recorder off over
+    blocks 40-59 while she gets under way (0 -> 10 kn: every mode -1.5 %), then at sea.
+    The model, fitted at rest, cannot know what the speed does. Returns the tables and
+    the true frequencies (blocks x modes)."""
+    rng = np.random.default_rng(seed)
+    n = 120
+    block = np.arange(n)
+    start = pd.Timestamp("2025-01-01T00:00:00Z") + pd.to_timedelta(block * 300, unit="s")
+    speed = np.where(block < 45, 0.0, np.minimum((block - 44) * 2.0, 10.0))
+    speed = speed + rng.normal(0, 0.05, n)
+    predictors = pd.DataFrame(
+        {
+            "block": block,
+            "block_start": start,
+            "block_end": start + pd.Timedelta(minutes=20),
+            "speed_kn": speed,
+            "water_temp_c": 4 + rng.normal(0, 0.02, n),
+        }
+    )
+    levels = np.array([2.9, 5.1])
+    truth = levels[None, :] * (1 - 0.0015 * np.clip(speed, 0, None))[:, None]
+    rows = []
+    for k in block:
+        if 40 <= k < 60:
+            continue
+        for j, mode in enumerate((1, 2)):
+            rows.append(
+                {
+                    "block": k,
+                    "block_start": start[k],
+                    "block_end": start[k] + pd.Timedelta(minutes=20),
+                    "mode": mode,
+                    "frequency_hz": truth[k, j] + rng.normal(0, 0.002),
+                }
+            )
+    return pd.DataFrame(rows), predictors, truth
+
+
+def test_after_a_hole_the_estimate_takes_the_first_measurements():
+    """After 20 blocks without any SSI estimate the filter's state is as old as the hole:
+    a large first innovation is the state's error, not SSI's outlier, and the estimate
+    goes to SSI at once (main: Huber-weighted as an outlier until a run of 5 large
+    innovations, up to 71 mHz from the truth over the first 5 blocks after the hole)."""
+    modal, predictors, truth = _departure_in_a_hole()
+    result = forecast(modal, predictors, options=ForecastOptions(options=("A",)))
+    table = result.table.set_index(["block", "mode"])
+    after = [(k, m) for k in range(60, 65) for m in (1, 2)]
+    error = np.array(
+        [abs(table.loc[key, "kalman_frequency_hz"] - truth[key[0], key[1] - 1]) for key in after]
+    )
+    ssi = np.array(
+        [abs(table.loc[key, "ssi_frequency_hz"] - truth[key[0], key[1] - 1]) for key in after]
+    )
+    # the move across the hole: -44 mHz (mode 1) and -77 mHz (mode 2)
+    assert truth[60, 1] - truth[39, 1] == pytest.approx(-0.0765, abs=0.001)
+    assert error.max() < 0.008 and error.mean() < 2 * ssi.mean() + 0.001
