@@ -239,6 +239,17 @@ def _ship_log(
     return live.read()
 
 
+def _ship_log_generation(
+    path: Path | None, mapping: Mapping[str, str] | None, utc_offset: str | None = None
+) -> int | None:
+    """The read generation of the ship log :func:`_ship_log` last gave for these
+    arguments (:attr:`~workbench.monitor.ship_log.LiveShipLog.generation`: the same while
+    it only grew by appended rows), None when it has not read it."""
+    key = (str(path), repr(sorted((mapping or {}).items())), utc_offset)
+    live = _LIVE_LOGS.get(key)
+    return None if live is None else live.generation
+
+
 def block_predictors_of(
     tracked: pd.DataFrame,
     dship: Path,

@@ -23,6 +23,7 @@ A log shorter than the first :data:`PREFIX_ROWS` readings is read whole.
 
 from __future__ import annotations
 
+import itertools
 import os
 import re
 import warnings
@@ -49,6 +50,8 @@ PREFIX_MAX_BYTES = 1 << 20
 _LINE_END = re.compile(rb"\r\n|\r|\n")
 #: Warnings of a parse whose text depends on rows beyond the log's start.
 _ORDER_WARNINGS = ("time goes back", "duplicate time stamp", "mixes UTC offsets")
+#: Read generations: a new one for every read of a whole log, in this process.
+_GENERATIONS = itertools.count(1)
 
 
 def _prefix_length(raw: bytes) -> int | None:
@@ -102,6 +105,10 @@ class LiveShipLog:
     ----------
     whole_reads, appended_reads : int
         Reads of the whole file and reads of its appended lines, so far.
+    generation : int or None
+        A number new at every read of the whole file (unique in the process): two tables
+        read with the same generation are one the other's first rows. None before the
+        first read and after a failed one.
     """
 
     def __init__(
@@ -113,6 +120,7 @@ class LiveShipLog:
         self._last: _Read | None = None
         self.whole_reads = 0
         self.appended_reads = 0
+        self.generation: int | None = None
 
     def _parse(self, raw: bytes, encoding: str | None = None) -> pd.DataFrame:
         return parse_dship(
@@ -138,7 +146,7 @@ class LiveShipLog:
         try:
             stat = os.stat(self.path)
         except OSError:
-            self._last = None
+            self._last, self.generation = None, None
             raise
         last = self._last
         identity, stamp = (stat.st_dev, stat.st_ino), (stat.st_size, stat.st_mtime_ns)
@@ -154,7 +162,7 @@ class LiveShipLog:
         return frame
 
     def _whole(self, identity, stamp) -> pd.DataFrame:
-        self._last = None
+        self._last, self.generation = None, None
         try:
             raw = self.path.read_bytes()
         except OSError as error:
@@ -164,6 +172,7 @@ class LiveShipLog:
             warnings.simplefilter("always")
             frame = self._parse(raw)
         self.whole_reads += 1
+        self.generation = next(_GENERATIONS)
         end = max(raw.rfind(b"\n"), raw.rfind(b"\r")) + 1
         try:
             raw[:end].decode("utf-8-sig")
