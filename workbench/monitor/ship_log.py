@@ -5,14 +5,15 @@ by 86 400 lines a day, and reading it whole each time costs in proportion to the
 (2.6 s at day 5, about 25 s at day 51; ``benchmarks/results/monitor_costs_52.txt``).
 :class:`LiveShipLog` parses only the complete lines appended since its last read and gives
 the table :func:`data_contracts.read_dship` (``complete_lines=True``) gives over the whole
-file, with the same warnings. It reads the file whole again when an append cannot be
-proven to give that table:
+file, with the same warnings. It reads the file whole again when the append may not give
+that table:
 
 * the file was replaced (another inode: rotated, or written anew under the same name) or
   is shorter than the part read (truncated);
 * its first lines (the header and the first :data:`PREFIX_ROWS` readings, which fix the
   columns, units, decimal mark and time format) or the :data:`TAIL_CHECK` bytes before the
-  end of the part read changed (rewritten in place);
+  end of the part read changed (rewritten in place; a change further back is not seen:
+  a data system appends to its log);
 * the new lines go back in time or repeat a time, give a value to a column empty so far,
   mix UTC offsets, make a column of numbers hold text, are not UTF-8 in a UTF-8 log, or
   fail the log's contract (the whole read then says where).
