@@ -69,6 +69,13 @@ __all__ = ["DATA_HEALTH_COLUMNS", "Monitor", "MonitorOptions"]
 _NS = 1_000_000_000
 
 
+def _newest_time(log: pd.DataFrame) -> pd.Timestamp:
+    """The ship log's newest time, UTC (NaT for an empty log): the maximum of its times,
+    not of the whole column converted first."""
+    newest = pd.Timestamp(log["time"].max())
+    return newest.tz_localize("UTC") if newest is not pd.NaT and newest.tzinfo is None else newest
+
+
 @dataclass(frozen=True)
 class MonitorOptions:
     """Settings of :class:`Monitor`.
@@ -1127,7 +1134,7 @@ class Monitor:
                 ]
             )
             # the marks of the blocks the log covers are kept
-            covered = pd.to_datetime(log["time"], utc=True).max()
+            covered = _newest_time(log)
             ends = pd.to_datetime(part["block_end"], utc=True).to_numpy()
             rpm = (
                 marker.shaft.set_index("block")["shaft_rpm"].astype(float)
@@ -1171,7 +1178,7 @@ class Monitor:
             self._speed_index = np.empty(0, dtype=np.int64)
             self._block_speed = {}
         # each block's energy-weighted speed, kept once the log covers the block
-        covered = pd.to_datetime(log["time"], utc=True).max()
+        covered = _newest_time(log)
         blocks = frame[["block", "block_start", "block_end"]].drop_duplicates("block")
         unknown = blocks[~blocks["block"].astype(int).isin(self._block_speed)]
         pending_speed: dict[int, float] = {}
