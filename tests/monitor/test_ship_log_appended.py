@@ -3,8 +3,8 @@ after every append, in pieces that cut lines (and characters) in two, the table 
 warnings equal ``read_dship(path, complete_lines=True)`` over the whole file, while only
 the appended lines are parsed; a log rotated, truncated or rewritten in place is read whole.
 
-Before (main): ``outlook._ship_log`` read the whole file again each time it changed, 2.6 s
-at day 5 of a 1-s log (``benchmarks/results/monitor_costs_51.txt``); the tests of counts
+Before (main): ``outlook._ship_log`` read the whole file again each time it changed
+(``benchmarks/results/monitor_costs_51.txt``, ``monitor_costs_52.txt``); the tests of counts
 (``appended_reads``) fail there, the class being absent.
 """
 

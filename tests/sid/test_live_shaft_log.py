@@ -6,7 +6,7 @@ monitor's marks of its newest blocks from the rows over them equal the marks fro
 whole log (its spikes, a frozen sensor, a stopped shaft, an outage, a coarse log).
 
 Before (main): the monitor marked its newest blocks with the checks run over the whole
-log (2.6 s a block at day 25 of a 1-s log, ``benchmarks/results/monitor_costs_51.txt``);
+log (``benchmarks/results/monitor_costs_51.txt``, ``monitor_costs_52.txt``);
 ``LiveShaftLog`` is absent there, so these tests fail on main.
 """
 

@@ -2,7 +2,7 @@
 
 The monitor reads its ``--dship`` log at every step that finds it changed. A 1-s log grows
 by 86 400 lines a day, and reading it whole each time costs in proportion to the voyage
-(2.6 s at day 5, about 25 s at day 51; ``benchmarks/results/monitor_costs_52.txt``).
+(``benchmarks/results/monitor_costs_52.txt``).
 :class:`LiveShipLog` parses only the complete lines appended since its last read and gives
 the table :func:`data_contracts.read_dship` (``complete_lines=True``) gives over the whole
 file, with the same warnings. It reads the file whole again when the append may not give
