@@ -11,13 +11,13 @@ the median time of the next ``SAMPLE`` blocks is printed. Also timed, apart: the
 check of one new landed file (``BlockStore.check_inputs``, one new fingerprint among the
 voyage's files so far) and the decided-block scans of a step (``_note_too_late``,
 ``given_up``, ``_write_status``, ``_write_data_health``) with one data-health row per block.
-Left as they were, measured with a 1-s ship log at ``--dship-days``: reading the log again
-whole when it grew (``--only dship``) and the marks of the newest blocks, whose checks of
-the log run over all of it (``--only marking``).
+With a 1-s ship log at ``--dship-days``: reading the log after it grew by 5 min (``--only
+dship``; session 51: read again whole) and the marks of a new block (``--only marking``;
+session 51: the log's checks run over all of it).
 
 Run: ``python benchmarks/bench_monitor_costs.py [--days 1,10,25,51] [--only
-tracking,store,scans,dship,marking] [--dship-days 1,5]``; results in
-``benchmarks/results/monitor_costs_51.txt``.
+tracking,store,scans,dship,marking] [--dship-days 1,5]`` (default: ``--days``); results in
+``benchmarks/results/monitor_costs_51.txt``, ``monitor_costs_52.txt`` (dship, marking).
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ import argparse
 import sys
 import tempfile
 import time
+import warnings
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -51,7 +52,7 @@ UNITS = {
     "tracking": f"block, median of {SAMPLE}",
     "store": f"new file, median of {SAMPLE}",
     "scans": f"block, median of {SAMPLE}",
-    "dship": "read of the whole log, median of 3",
+    "dship": "read after 5 min appended, median of 3",
     "marking": "block (1-s log), median of 3",
 }
 CHANNELS = ("a", "b", "c", "d")
@@ -119,6 +120,7 @@ def _tracking_monitor(state: Path, log: pd.DataFrame) -> Monitor:
     monitor._speed_test = None
     monitor._log_now = log
     monitor._read_log = lambda: monitor._log_now
+    monitor._live_shaft, monitor._log_generation = None, lambda: 0  # the log only grows
     return monitor
 
 
@@ -238,11 +240,19 @@ def bench_scans(days: list[int], folder: Path) -> dict[int, float]:
     return out
 
 
+def _dship_text(seconds: np.ndarray) -> str:
+    """Lines of a 1-s ship log with the speed and shaft speed at *seconds*."""
+    times = (T0.tz_convert(None) + pd.to_timedelta(seconds, unit="s")).strftime("%Y-%m-%dT%H:%M:%S")
+    rpm = _shaft_rpm(seconds / 60.0)
+    body = pd.DataFrame({"t": times, "kn": np.round(rpm / 7.5, 1), "rpm": np.round(rpm, 1)})
+    return body.to_csv(sep="\t", header=False, index=False)
+
+
 def bench_dship(days: list[int], folder: Path) -> dict[int, float]:
-    """Reading the ship log again whole when it changed (``outlook._ship_log``, what
-    ``Monitor._read_log`` does as the log grows): a 1-s log with the speed and shaft
-    speed. Not fixed in session 51; measured at the days given (``--dship-days``)."""
-    from workbench.monitor.outlook import _DSHIP_CACHE, _ship_log
+    """Reading the 1-s ship log after it grew by 5 min (``outlook._ship_log``, what
+    ``Monitor._read_log`` does each step while the log is written): the log of *d* days
+    read once, then 3 times 300 lines appended and the log read; the median of the 3."""
+    from workbench.monitor.outlook import _ship_log
 
     header = (
         "/* DATA DESCRIPTION:\nParameter(s):\tDATE/TIME * SHORT_NAME: Date/Time\n"
@@ -252,50 +262,66 @@ def bench_dship(days: list[int], folder: Path) -> dict[int, float]:
     )
     out = {}
     for d in days:
-        seconds = np.arange(d * 86400)
-        times = (T0.tz_convert(None) + pd.to_timedelta(seconds, unit="s")).strftime(
-            "%Y-%m-%dT%H:%M:%S"
-        )
-        rpm = _shaft_rpm(seconds / 60.0)
-        body = pd.DataFrame({"t": times, "kn": np.round(rpm / 7.5, 1), "rpm": np.round(rpm, 1)})
         path = folder / f"dship_{d}.tsv"
-        path.write_text(header + body.to_csv(sep="\t", header=False, index=False), "utf-8")
+        path.write_text(header + _dship_text(np.arange(d * 86400)), "utf-8")
+        _ship_log(path, None, None)  # the monitor's first read: the whole log
         taken = []
-        for _ in range(3):
-            _DSHIP_CACHE.clear()
+        for k in range(3):
+            seconds = d * 86400 + 300 * k + np.arange(300)
+            with open(path, "a", encoding="utf-8") as handle:
+                handle.write(_dship_text(seconds))
             t = time.perf_counter()
-            _ship_log(path, None, None)
+            log = _ship_log(path, None, None)
             taken.append(time.perf_counter() - t)
+            assert len(log) == d * 86400 + 300 * (k + 1)
         out[d] = float(np.median(taken))
         path.unlink()
     return out
 
 
-def bench_marking(days: list[int], folder: Path) -> dict[int, float]:
-    """The harmonic marks of the 4 newest blocks and their shaft speed from a 1-s ship log
-    (``HarmonicMarker.mark_selected`` and ``block_shaft_table``, what the tracking step
-    does per block): the log's checks (spikes, a frozen sensor, the shaft speed per knot)
-    run over the whole log. Not fixed in session 51; at the days given (``--dship-days``)."""
-    from workbench.sid.harmonics import HarmonicMarker, HarmonicOptions, block_shaft_table
+def _marking_monitor() -> Monitor:
+    """A monitor holding only what its harmonic marking uses (tests/monitor/conftest.py's
+    marking_monitor)."""
+    monitor = Monitor.__new__(Monitor)
+    monitor._marks, monitor._marks_kept = np.empty((0, 3)), np.zeros(0, bool)
+    monitor._marks_pending, monitor._shaft_logged = False, False
+    monitor._block_shaft_rpm, monitor._shaft_rpm_of_block = {}, {}
+    monitor._speed_test, monitor._speed_index, monitor._block_speed = None, np.empty(0, int), {}
+    monitor._shaft_hz_per_kn, monitor._speed_of_block = np.nan, {}
+    monitor.options = SimpleNamespace(harmonics=HarmonicOptions())
+    # the log only grows (one read generation): its rows are taken once (session 52)
+    monitor._live_shaft, monitor._log_generation = None, lambda: 0
+    return monitor
 
+
+def bench_marking(days: list[int], folder: Path) -> dict[int, float]:
+    """The harmonic marks of a new block from a 1-s ship log with the shaft speed
+    (``Monitor._mark_harmonics``, the tracking step's marks: the new block's and those of
+    the blocks the log, 5 min behind, does not cover yet): the 8 blocks before day *d*
+    marked once, then 3 blocks each with the log grown by 5 min; the median of the 3."""
     out = {}
     for d in days:
         seconds = np.arange(d * 86400 + 3600)
         rpm = _shaft_rpm(seconds / 60.0)
-        log = pd.DataFrame(
+        full = pd.DataFrame(
             {"time": T0 + pd.to_timedelta(seconds, unit="s"), "shaft_rpm": rpm,
              "speed_kn": rpm / 7.5}
         )  # fmt: skip
+        times = pd.DatetimeIndex(full["time"]).asi8
         n = d * BLOCKS_PER_DAY
         rng = np.random.default_rng(1)
-        part = pd.concat([_selected(k, rng) for k in range(n - 4, n)], ignore_index=True)
-        log = log[log["time"] <= GRID.start(n - 1)]
+        parts = {k: _selected(k, rng) for k in range(n - 8, n + 4)}
+        monitor = _marking_monitor()
         taken = []
-        for _ in range(3):
+        for k, block in enumerate(range(n, n + 4)):
+            end = GRID.start(block).value
+            log = full.iloc[: int(np.searchsorted(times, end, side="right"))]
+            monitor._read_log = lambda log=log: log
+            frame = pd.concat([parts[b] for b in range(n - 8, block + 1)], ignore_index=True)
             t = time.perf_counter()
-            HarmonicMarker(log, HarmonicOptions()).mark_selected(part, shaft_logged=True)
-            block_shaft_table(log, part)
-            taken.append(time.perf_counter() - t)
+            monitor._mark_harmonics(frame)
+            if k:  # the first: every row marked
+                taken.append(time.perf_counter() - t)
         out[d] = float(np.median(taken))
     return out
 
@@ -305,7 +331,9 @@ def main(argv=None) -> int:
     parser.add_argument("--days", default="1,10,25,51")
     parser.add_argument("--only", default="tracking,store,scans")
     parser.add_argument(
-        "--dship-days", default="1,5", help="days of 1-s ship log (--only dship,marking)"
+        "--dship-days",
+        default=None,
+        help="days of 1-s ship log (--only dship,marking; default: --days)",
     )
     args = parser.parse_args(argv)
     days = [int(d) for d in args.days.split(",")]
@@ -317,12 +345,13 @@ def main(argv=None) -> int:
         "dship": bench_dship,
         "marking": bench_marking,
     }
+    warnings.simplefilter("ignore")  # the 1-s log's missing columns, said at each read
     with tempfile.TemporaryDirectory() as tmp:
         for name in wanted:
             folder = Path(tmp) / name
             folder.mkdir()
             started = time.perf_counter()
-            log_days = [int(d) for d in args.dship_days.split(",")]
+            log_days = [int(d) for d in (args.dship_days or args.days).split(",")]
             marks = log_days if name in ("dship", "marking") else days
             result = benches[name](marks, folder)
             print(f"{name}: s per {UNITS[name]}"

@@ -279,7 +279,40 @@ def read_dship(
         file, the column and the line numbers.
     """
     path = Path(path)
-    source = str(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as error:
+        violation = Violation(None, f"cannot read file: {error.strerror or error}")
+        raise ContractError([violation], source=str(path), contract="dship") from None
+    return parse_dship(
+        raw,
+        source=str(path),
+        mapping=mapping,
+        time_column=time_column,
+        encoding=encoding,
+        separator=separator,
+        decimal=decimal,
+        time_format=time_format,
+        complete_lines=complete_lines,
+        utc_offset=utc_offset,
+    )
+
+
+def parse_dship(
+    raw: bytes,
+    *,
+    source: str,
+    mapping: Mapping[str, str | Sequence[str]] | None = None,
+    time_column: str | None = None,
+    encoding: str | None = None,
+    separator: str | None = None,
+    decimal: str | None = None,
+    time_format: str | None = None,
+    complete_lines: bool = False,
+    utc_offset: str | pd.Timedelta | None = None,
+) -> pd.DataFrame:
+    """:func:`read_dship` of the file's bytes *raw* (*source*: the name its messages give;
+    :class:`workbench.monitor.ship_log.LiveShipLog` parses a growing log's new lines so)."""
     mapping = dict(mapping or {})
     if "time" in mapping:
         time_column = str(mapping.pop("time"))
@@ -287,10 +320,6 @@ def read_dship(
     def fail(problems: list[Violation]) -> ContractError:
         return ContractError(problems, source=source, contract="dship")
 
-    try:
-        raw = path.read_bytes()
-    except OSError as error:
-        raise fail([Violation(None, f"cannot read file: {error.strerror or error}")]) from None
     if complete_lines and encoding is None and not raw.endswith((b"\n", b"\r")):
         # UTF-8 or Latin-1: cut before decoding (a character cut in two is left out too)
         raw = raw[: max(raw.rfind(b"\n"), raw.rfind(b"\r")) + 1]
@@ -539,7 +568,7 @@ def read_dship(
         index = find(name)
         if name in SHAFT_COLUMNS and len(problems) > n_problems:
             # two shafts (or engines) logged: not a reason to refuse the log
-            warnings.warn(f"{source}: {problems.pop().reason}; {name} not read", stacklevel=2)
+            warnings.warn(f"{source}: {problems.pop().reason}; {name} not read", stacklevel=3)
             continue
         if index is None:
             continue
@@ -548,7 +577,7 @@ def read_dship(
             warnings.warn(
                 f"{source}: column {headers[index]!r} could be {name} but its unit "
                 f"'{unit}' is not {unit_text}; kept under its own name",
-                stacklevel=2,
+                stacklevel=3,
             )
             continue
         used.add(index)
@@ -583,18 +612,18 @@ def read_dship(
                     )
                 ]
             )
-        warnings.warn(f"{source}: no column for {', '.join(absent)}; filled with NaN", stacklevel=2)
+        warnings.warn(f"{source}: no column for {', '.join(absent)}; filled with NaN", stacklevel=3)
     if empty:
         warnings.warn(
             f"{source}: column{'s' if len(empty) > 1 else ''} {', '.join(empty)} "
             f"{'hold' if len(empty) > 1 else 'holds'} no value in any row; left empty",
-            stacklevel=2,
+            stacklevel=3,
         )
     if mixed_offsets:
         warnings.warn(
             f"{source}: column {headers[time_index]!r} mixes UTC offsets ({mixed_offsets}); "
             "each time was converted to UTC with its own offset",
-            stacklevel=2,
+            stacklevel=3,
         )
     stamps = pd.DatetimeIndex(out["time"]).as_unit("ns")
     order = np.argsort(stamps.asi8, kind="stable")
@@ -607,7 +636,7 @@ def read_dship(
             f"{line_numbers[k]} ({seconds:g} s before line {line_numbers[k - 1]}: "
             f"{stamps[k - 1]:%Y-%m-%dT%H:%M:%SZ} then {stamps[k]:%Y-%m-%dT%H:%M:%SZ}); "
             "rows were sorted by time",
-            stacklevel=2,
+            stacklevel=3,
         )
         out = out.iloc[order].reset_index(drop=True)
         line_numbers = line_numbers[order]
@@ -617,7 +646,7 @@ def read_dship(
         warnings.warn(
             f"{source}: {int(duplicated.sum())} duplicate time stamp(s) (first at line "
             f"{first}); kept the first row of each",
-            stacklevel=2,
+            stacklevel=3,
         )
         out = out.loc[~duplicated].reset_index(drop=True)
     try:
@@ -730,7 +759,7 @@ def _derive_relative_wind(out, find, used, convert, headers) -> bool | None:
         warnings.warn(
             f"true wind ({headers[direction]}) is logged but no relative wind direction; "
             f"deriving it needs {', '.join(missing)} (not found)",
-            stacklevel=3,
+            stacklevel=4,
         )
         return None
     for index in (direction, speed, *needed.values()):

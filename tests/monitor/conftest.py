@@ -188,4 +188,6 @@ def marking_monitor(log, harmonics=None):
     monitor._shaft_hz_per_kn, monitor._speed_of_block = np.nan, {}
     monitor.options = SimpleNamespace(harmonics=harmonics or HarmonicOptions())
     monitor._read_log = lambda: log
+    # the log as given each time (tests of the marks as the log grows give its generation)
+    monitor._live_shaft, monitor._log_generation = None, lambda: None
     return monitor

@@ -176,6 +176,24 @@ half-steps measured are kept in ``<state>/excitation.csv`` (the batch run's
 ``excitation.csv``), read back after a restart. The store records the adaptive options:
 a state folder of fixed blocks is not resumed with ``auto``, nor the reverse.
 
+The ship log as it is written
+-----------------------------
+The ship log (``--dship``) is read again when its size or modification time changed;
+only the complete lines appended since the last read are parsed
+(:class:`~workbench.monitor.ship_log.LiveShipLog`), giving the table ``read_dship`` gives
+over the whole file, with its warnings. A last line without its line end is left out until
+it is whole. The log is read whole again when it was rotated or replaced (another file
+under the name), truncated, rewritten in its first lines or in the 512 bytes before the
+end read (a change further back is not seen: the data system appends), when its new
+lines could change how the whole file reads (a time going back or repeated, text in a
+column of numbers, a value in a column empty so far, mixed UTC offsets, a byte not UTF-8
+in a UTF-8 log), and while it holds fewer than 60 readings. The harmonic marks of the
+newest blocks take the log's rows over them as the whole log's spike and frozen-sensor
+tests leave them (kept as rows are appended: :class:`~workbench.sid.harmonics.
+LiveShaftLog`), the whole log only for a block without a usable shaft speed but with the
+speed (the shaft speed per knot is the whole log's). A restart, or a log read whole
+again, reads and tests it whole once (``benchmarks/results/monitor_costs_52.txt``).
+
 The ship log's clock
 --------------------
 A log kept in local time without a UTC offset moves every predictor hours off its blocks.

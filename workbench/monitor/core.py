@@ -70,6 +70,13 @@ __all__ = ["DATA_HEALTH_COLUMNS", "Monitor", "MonitorOptions"]
 _NS = 1_000_000_000
 
 
+def _newest_time(log: pd.DataFrame) -> pd.Timestamp:
+    """The ship log's newest time, UTC (NaT for an empty log): the maximum of its times,
+    not of the whole column converted first."""
+    newest = pd.Timestamp(log["time"].max())
+    return newest.tz_localize("UTC") if newest is not pd.NaT and newest.tzinfo is None else newest
+
+
 @dataclass(frozen=True)
 class MonitorOptions:
     """Settings of :class:`Monitor`.
@@ -301,6 +308,9 @@ class Monitor:
         self._health_schedule = ""  # from which block the health chart monitors
         self._marks_pending = False
         self._marked: np.ndarray | None = None  # the tracked rows' marks, last given
+        # the ship log's shaft-speed tests kept as it grows (_marking_log): the
+        # LiveShaftLog and the log's read generation it follows
+        self._live_shaft: tuple[int, object] | None = None
         # the speed-following test of a log without the shaft speed (_mark_from_speed):
         # the test, each tracked row's index in it, each covered block's speed
         self._speed_test = None
@@ -379,6 +389,37 @@ class Monitor:
             return _ship_log(self.dship, dict(forecast.dship_mapping), forecast.dship_utc_offset)
         except (ValueError, OSError):
             return None
+
+    def _log_generation(self) -> int | None:
+        """The read generation of the ship log :meth:`_read_log` gives: the same while the
+        log only grew by appended rows (:class:`~workbench.monitor.ship_log.LiveShipLog`),
+        None when not known."""
+        from .outlook import _ship_log_generation
+
+        forecast = self.options.forecast
+        return _ship_log_generation(
+            self.dship, dict(forecast.dship_mapping), forecast.dship_utc_offset
+        )
+
+    def _marking_log(self, log: pd.DataFrame, part: pd.DataFrame) -> pd.DataFrame:
+        """The ship log the marks of *part*'s blocks are computed from: the rows over them
+        as the whole log's spike and frozen-sensor tests leave them, with the whole log's
+        interval (:class:`~workbench.sid.harmonics.LiveShaftLog`, which takes only the rows
+        appended since the last marks), or *log* itself when it was read again whole."""
+        from ..sid.harmonics import LiveShaftLog
+
+        generation = self._log_generation()
+        if generation is None:
+            return log
+        if (
+            self._live_shaft is None
+            or self._live_shaft[0] != generation
+            or self._live_shaft[1].rows > len(log)
+        ):
+            self._live_shaft = (generation, LiveShaftLog())
+        live = self._live_shaft[1]
+        live.update(log)
+        return live.window(log, part["block_start"], part["block_end"])
 
     @property
     def tracked_through(self) -> int:
@@ -1158,8 +1199,16 @@ class Monitor:
         pending_rpm: dict[int, float] = {}
         if len(pending):
             part = frame.iloc[pending]
-            marker = HarmonicMarker(log, self.options.harmonics)
+            window = self._marking_log(log, part)
+            marker = HarmonicMarker(window, self.options.harmonics)
             marked = marker.mark_selected(part, shaft_logged=self._shaft_logged or None)
+            shaft = marker.shaft
+            missing = (shaft["shaft_rpm_from"] != "log") & shaft["speed_kn"].notna()
+            if window is not log and marker.method == "shaft speed" and missing.any():
+                # a block without a usable shaft speed: the shaft speed per knot of speed
+                # is the whole log's
+                marker = HarmonicMarker(log, self.options.harmonics)
+                marked = marker.mark_selected(part, shaft_logged=self._shaft_logged or None)
             if marker.method == "shaft speed" and not self._shaft_logged:
                 # the voyage's blocks have a shaft speed: those marked before without one
                 # (by the speed-following test over their part) are marked again with it
@@ -1181,7 +1230,7 @@ class Monitor:
                 ]
             )
             # the marks of the blocks the log covers are kept
-            covered = pd.to_datetime(log["time"], utc=True).max()
+            covered = _newest_time(log)
             ends = pd.to_datetime(part["block_end"], utc=True).to_numpy()
             rpm = (
                 marker.shaft.set_index("block")["shaft_rpm"].astype(float)
@@ -1225,12 +1274,13 @@ class Monitor:
             self._speed_index = np.empty(0, dtype=np.int64)
             self._block_speed = {}
         # each block's energy-weighted speed, kept once the log covers the block
-        covered = pd.to_datetime(log["time"], utc=True).max()
+        covered = _newest_time(log)
         blocks = frame[["block", "block_start", "block_end"]].drop_duplicates("block")
         unknown = blocks[~blocks["block"].astype(int).isin(self._block_speed)]
         pending_speed: dict[int, float] = {}
         if len(unknown):
-            table = block_shaft_table(log, unknown).set_index("block")["speed_energy_kn"]
+            window = self._marking_log(log, unknown)
+            table = block_shaft_table(window, unknown).set_index("block")["speed_energy_kn"]
             ends = pd.to_datetime(unknown["block_end"], utc=True)
             for block, end in zip(unknown["block"].astype(int), ends, strict=True):
                 final = pd.notna(covered) and end <= covered

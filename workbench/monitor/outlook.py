@@ -216,31 +216,38 @@ def _write_outlook(
     return True
 
 
-_DSHIP_CACHE: dict[str, tuple[tuple[int, int], pd.DataFrame]] = {}
+#: The ship log read as it grows (:class:`~workbench.monitor.ship_log.LiveShipLog`), by
+#: path, mapping and UTC offset: one at a time.
+_LIVE_LOGS: dict[tuple, object] = {}
 
 
 def _ship_log(
     path: Path, mapping: Mapping[str, str] | None, utc_offset: str | None = None
 ) -> pd.DataFrame:
-    """The ship log (times without an offset at *utc_offset*), read again only when its
-    size or modification time changed."""
-    from data_contracts import read_dship
+    """The ship log (times without an offset at *utc_offset*) as read whole, the line the
+    data system is writing left out until it is whole; only the lines appended since the
+    last read are parsed (:class:`~workbench.monitor.ship_log.LiveShipLog`), nothing when
+    the file's size and modification time are unchanged."""
+    from .ship_log import LiveShipLog
 
-    stat = path.stat()
-    key = (stat.st_size, stat.st_mtime_ns, utc_offset)
-    cached = _DSHIP_CACHE.get(str(path))
-    if cached is not None and cached[0] == key:
-        return cached[1]
-    # a live log: the line the data system is writing is left out until it is whole
-    log = read_dship(
-        path,
-        mapping=dict(mapping) if mapping else None,
-        complete_lines=True,
-        utc_offset=utc_offset,
-    )
-    _DSHIP_CACHE.clear()
-    _DSHIP_CACHE[str(path)] = (key, log)
-    return log
+    key = (str(path), repr(sorted((mapping or {}).items())), utc_offset)
+    live = _LIVE_LOGS.get(key)
+    if live is None:
+        live = LiveShipLog(path, mapping, utc_offset)
+        _LIVE_LOGS.clear()
+        _LIVE_LOGS[key] = live
+    return live.read()
+
+
+def _ship_log_generation(
+    path: Path | None, mapping: Mapping[str, str] | None, utc_offset: str | None = None
+) -> int | None:
+    """The read generation of the ship log :func:`_ship_log` last gave for these
+    arguments (:attr:`~workbench.monitor.ship_log.LiveShipLog.generation`: the same while
+    it only grew by appended rows), None when it has not read it."""
+    key = (str(path), repr(sorted((mapping or {}).items())), utc_offset)
+    live = _LIVE_LOGS.get(key)
+    return None if live is None else live.generation
 
 
 def block_predictors_of(

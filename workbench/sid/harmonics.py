@@ -226,6 +226,15 @@ def _log_step_seconds(times: np.ndarray) -> float:
     return float(step) if step > 0 else 1.0
 
 
+def _step_of(log: pd.DataFrame, times: np.ndarray | None = None) -> float:
+    """The log's usual interval between rows [s]: ``attrs["log_step_s"]`` when *log* is a
+    window of a longer log (:meth:`LiveShaftLog.window`), else :func:`_log_step_seconds`."""
+    step = log.attrs.get("log_step_s")
+    if step is not None:
+        return float(step)
+    return _log_step_seconds(_log_times(log) if times is None else times)
+
+
 def _runs(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Start and stop indices of the runs of equal consecutive values."""
     change = np.flatnonzero(values[1:] != values[:-1]) + 1
@@ -322,7 +331,7 @@ def block_shaft_table(log: pd.DataFrame, blocks: pd.DataFrame) -> pd.DataFrame:
     blocks = _blocks_of(blocks)
     log = usable_shaft_speed(log)
     times = _log_times(log)
-    step = _log_step_seconds(times)
+    step = _step_of(log, times)
     blocks_naive = blocks.assign(
         block_start=_naive(blocks["block_start"]), block_end=_naive(blocks["block_end"])
     )
@@ -399,7 +408,7 @@ def mark_shaft_orders(
         return out
     orders = np.array(order_list(options))
     log = usable_shaft_speed(log)
-    step = _log_step_seconds(_log_times(log))
+    step = _step_of(log)
     log = log[["time", "shaft_rpm"]].dropna()
     times = _log_times(log)
     rpm = np.abs(log["shaft_rpm"].to_numpy(float))
@@ -1187,3 +1196,236 @@ def mark_harmonics(
     return HarmonicMarks(
         selected, poles, marker.method, marker.shaft, marker.orders, marker.lines()
     )
+
+
+class _Growing:
+    """A 1-D array appended to in place (its capacity doubled as needed)."""
+
+    def __init__(self, dtype):
+        self._data = np.empty(1024, dtype=dtype)
+        self.size = 0
+
+    def extend(self, values: np.ndarray) -> None:
+        need = self.size + len(values)
+        if need > len(self._data):
+            grown = np.empty(max(need, 2 * len(self._data)), dtype=self._data.dtype)
+            grown[: self.size] = self._data[: self.size]
+            self._data = grown
+        self._data[self.size : need] = values
+        self.size = need
+
+    @property
+    def values(self) -> np.ndarray:
+        return self._data[: self.size]
+
+
+def _add_counts(counts: dict[int, int], values: np.ndarray) -> None:
+    keys, n = np.unique(values, return_counts=True)
+    for key, k in zip(keys.tolist(), n.tolist(), strict=True):
+        counts[key] = counts.get(key, 0) + k
+
+
+def _middle(counts: dict[int, int], extra: np.ndarray) -> np.ndarray:
+    """The middle value (odd count) or two middle values (even) of the multiset *counts*
+    (value -> count) with *extra* added, as ``np.median`` takes them."""
+    merged = dict(counts)
+    _add_counts(merged, extra)
+    keys = np.array(sorted(merged), dtype=np.int64)
+    cumulative = np.cumsum([merged[k] for k in keys.tolist()])
+    total = int(cumulative[-1])
+    ranks = [total // 2] if total % 2 else [total // 2 - 1, total // 2]
+    return keys[np.searchsorted(cumulative, np.array(ranks) + 1, side="left")]
+
+
+def _runs_after(open_run, times: np.ndarray, values: np.ndarray):
+    """The runs of equal *values* (times *times*) continuing *open_run* ((value, first time,
+    last time) or None): the closed runs' first times, last times and values, and the run
+    left open."""
+    if open_run is not None:
+        firsts = np.concatenate([[open_run[1]], times])
+        lasts = np.concatenate([[open_run[2]], times])
+        values = np.concatenate([[open_run[0]], values])
+    else:
+        firsts = lasts = times
+    if not len(values):
+        return (np.empty(0, np.int64),) * 2 + (np.empty(0),), None
+    starts, stops = _runs(values)
+    first, last, value = firsts[starts], lasts[stops - 1], values[starts]
+    return (first[:-1], last[:-1], value[:-1]), (float(value[-1]), int(first[-1]), int(last[-1]))
+
+
+class LiveShaftLog:
+    """:func:`usable_shaft_speed` and the log's interval between rows for a ship log that
+    grows by rows appended at its end (the monitor's, read as it grows), at a cost that
+    does not grow with the log: each :meth:`update` takes the new rows only, and
+    :meth:`window` gives the rows of a few blocks as :func:`usable_shaft_speed` of the
+    whole log gives them, with the whole log's interval (``attrs["log_step_s"]``), for
+    :class:`HarmonicMarker` to mark those blocks.
+
+    Kept: the count of each interval between rows; the finite shaft-speed readings (their
+    spike test is final once :data:`SPIKE_WINDOW` // 2 readings follow: the running
+    median is centred); the intervals between the readings left after the spike test and
+    the runs of equal readings among them (first and last time, value), whose durations'
+    median decides whether the frozen-sensor test applies. The newest readings, whose
+    spike test may still change, are tested again at each update (with the readings the
+    running median needs before them); the rows appended are never changed (a log read
+    again whole is followed by a new instance: :meth:`update` refuses a shorter log).
+    """
+
+    def __init__(self):
+        self.rows = 0
+        self._last_time: int | None = None
+        self._intervals: dict[int, int] = {}  # interval between rows [ns] -> count
+        self._finite_row = _Growing(np.int64)
+        self._finite_time = _Growing(np.int64)
+        self._finite_value = _Growing(float)
+        self._spike = _Growing(bool)  # final spike test of the first readings
+        self._tail_spike = np.zeros(0, dtype=bool)  # the test of the others, for now
+        self._kept_last: int | None = None  # time of the last settled reading kept
+        self._kept_count = 0
+        self._kept_intervals: dict[int, int] = {}
+        self._open_run = None  # (value, first time, last time)
+        self._run_first = _Growing(np.int64)
+        self._run_last = _Growing(np.int64)
+        self._run_value = _Growing(float)
+        self._durations: dict[int, int] = {}  # closed runs' last - first time [ns] -> count
+
+    @staticmethod
+    def _ns(times: pd.Series) -> np.ndarray:
+        return pd.DatetimeIndex(pd.to_datetime(times, utc=True)).as_unit("ns").asi8
+
+    def update(self, log: pd.DataFrame) -> None:
+        """Take the rows of *log* (sorted by time, unique times) after those taken."""
+        n = len(log)
+        if n < self.rows:
+            raise ValueError(f"log of {n} rows is shorter than the {self.rows} rows taken")
+        if n == self.rows:
+            return
+        times = self._ns(log["time"].iloc[self.rows :])
+        before = [] if self._last_time is None else [self._last_time]
+        _add_counts(self._intervals, np.diff(np.concatenate([before, times]).astype(np.int64)))
+        self._last_time = int(times[-1])
+        if "shaft_rpm" in log.columns:
+            rpm = log["shaft_rpm"].iloc[self.rows :].to_numpy(float)
+            finite = np.flatnonzero(np.isfinite(rpm))
+            self._finite_row.extend(finite + self.rows)
+            self._finite_time.extend(times[finite])
+            self._finite_value.extend(rpm[finite])
+        self.rows = n
+        self._settle()
+
+    def _spikes_from(self, first: int) -> np.ndarray:
+        """The spike test of the finite readings from the *first* on, over the readings
+        taken (the running median of each with the readings around it)."""
+        start = max(0, first - SPIKE_WINDOW // 2)
+        values = np.abs(self._finite_value.values[start:])
+        median = (
+            pd.Series(values).rolling(SPIKE_WINDOW, center=True, min_periods=1).median().to_numpy()
+        )
+        spike = np.abs(values - median) > SPIKE_TOL * median + SPIKE_FLOOR_RPM
+        return spike[first - start :]
+
+    def _settle(self) -> None:
+        first = self._spike.size
+        spike = self._spikes_from(first)
+        settled = max(first, self._finite_value.size - SPIKE_WINDOW // 2)
+        final = spike[: settled - first]
+        self._spike.extend(final)
+        self._tail_spike = spike[settled - first :]
+        kept = np.flatnonzero(~final) + first
+        times = self._finite_time.values[kept]
+        before = [] if self._kept_last is None else [self._kept_last]
+        _add_counts(self._kept_intervals, np.diff(np.concatenate([before, times]).astype(np.int64)))
+        if len(times):
+            self._kept_last = int(times[-1])
+            self._kept_count += len(times)
+        closed, self._open_run = _runs_after(self._open_run, times, self._finite_value.values[kept])
+        self._add_runs(closed)
+
+    def _add_runs(self, closed) -> None:
+        first, last, value = closed
+        self._run_first.extend(first)
+        self._run_last.extend(last)
+        self._run_value.extend(value)
+        _add_counts(self._durations, last - first)
+
+    def step_s(self) -> float:
+        """:func:`_log_step_seconds` of the whole log's times. [s]"""
+        if self.rows < 2:
+            return 1.0
+        middle = _middle(self._intervals, np.empty(0, np.int64)).astype(float)
+        step = np.median(middle) / 1e9
+        return float(step) if step > 0 else 1.0
+
+    def _tail(self):
+        """The newest readings kept by the spike test as it stands (indices), the runs
+        among them continuing the settled ones, and the readings' interval and whether the
+        frozen-sensor test applies (:func:`usable_shaft_speed` over the whole log)."""
+        settled = self._spike.size
+        tail = np.flatnonzero(~self._tail_spike) + settled
+        times = self._finite_time.values[tail]
+        closed, open_run = _runs_after(self._open_run, times, self._finite_value.values[tail])
+        count = self._kept_count + len(tail)
+        if count <= 1:
+            return tail, closed, open_run, 1.0, False
+        before = [] if self._kept_last is None else [self._kept_last]
+        gaps = np.diff(np.concatenate([before, times]).astype(np.int64))
+        middle = _middle(self._kept_intervals, gaps).astype(float)
+        step = np.median(middle) / 1e9
+        step = float(step) if step > 0 else 1.0
+        durations = np.concatenate([closed[1] - closed[0], [open_run[2] - open_run[1]]])
+        middle = _middle(self._durations, durations.astype(np.int64))
+        lasting = middle.astype("timedelta64[ns]") / np.timedelta64(1, "s") + step
+        return tail, closed, open_run, step, bool(np.median(lasting) < FROZEN_SECONDS / 10)
+
+    def window(self, log: pd.DataFrame, starts, ends) -> pd.DataFrame:
+        """The rows of *log* (the log taken by :meth:`update`) from the first at or after
+        the earliest of *starts* to the last before the latest of *ends*, as
+        :func:`usable_shaft_speed` of the whole log gives them (``attrs``:
+        ``shaft_rpm_checked``, ``log_step_s`` the whole log's interval)."""
+        if len(log) != self.rows:
+            raise ValueError(f"log of {len(log)} rows, {self.rows} taken")
+        start = pd.to_datetime(pd.Series(starts), utc=True).min()
+        end = pd.to_datetime(pd.Series(ends), utc=True).max()
+        times = log["time"]
+        lo = int(times.searchsorted(start, side="left"))
+        hi = int(times.searchsorted(end, side="left"))
+        part = log.iloc[lo:hi].reset_index(drop=True).copy()
+        if "shaft_rpm" in log.columns and self._finite_value.size:
+            part["shaft_rpm"] = self._cleaned(lo, hi, part["shaft_rpm"].to_numpy(float).copy())
+        part.attrs["shaft_rpm_checked"] = True
+        part.attrs["log_step_s"] = self.step_s()
+        return part
+
+    def _cleaned(self, lo: int, hi: int, rpm: np.ndarray) -> np.ndarray:
+        """*rpm*, the rows *lo* to *hi* of the log, with the spikes and the frozen readings
+        of the whole log's test set to NaN."""
+        rows = self._finite_row.values
+        a, b = (int(k) for k in np.searchsorted(rows, [lo, hi], side="left"))
+        settled = self._spike.size
+        spike = np.concatenate(
+            [self._spike.values[a : min(b, settled)], self._tail_spike[max(a, settled) - settled :
+             max(b, settled) - settled]]
+        )  # fmt: skip
+        rpm[rows[a:b][spike] - lo] = np.nan
+        _, closed, open_run, step, frozen_test = self._tail()
+        if not frozen_test:
+            return rpm
+        kept = np.flatnonzero(~spike) + a
+        times = self._finite_time.values[kept]
+        # the runs: the settled ones closed before the open one, then those from it on
+        tail_first = np.concatenate([closed[0], [open_run[1]]])
+        tail_last = np.concatenate([closed[1], [open_run[2]]])
+        tail_value = np.concatenate([closed[2], [open_run[0]]])
+        late = times >= tail_first[0]
+        first, last, value = (np.empty(len(times), d) for d in (np.int64, np.int64, float))
+        run = np.searchsorted(self._run_first.values, times[~late], side="right") - 1
+        first[~late] = self._run_first.values[run]
+        last[~late] = self._run_last.values[run]
+        value[~late] = self._run_value.values[run]
+        run = np.searchsorted(tail_first, times[late], side="right") - 1
+        first[late], last[late], value[late] = tail_first[run], tail_last[run], tail_value[run]
+        lasting = (last - first).astype("timedelta64[ns]") / np.timedelta64(1, "s") + step
+        frozen = (value != 0) & (lasting >= FROZEN_SECONDS)
+        rpm[rows[kept[frozen]] - lo] = np.nan
+        return rpm
