@@ -227,3 +227,19 @@ def test_identify_names_the_changed_file_not_the_late_one_beside_it(tmp_path, ca
         f"error: {folder / 'acc_005.npz'}: input changed since the store {tmp_path / 'out'}"
     )  # main: f"error: {folder / 'acc_004.npz'}: input changed ..."
     assert f"(other content than {folder / 'acc_005.npz'} for " in lines[0]
+
+
+def test_a_file_landing_after_one_block_was_decided_without_it_says_block_not_blocks(tmp_path):
+    """acc_005.npz lands before acc_004.npz, both after acc_007.npz: acc_005.npz leaves a
+    300-s hole (1200-1500 s) with data 900 s newer (the default --late) landed, so block 1
+    (600-1800 s) is decided without acc_004.npz (skipped: gap) and acc_004.npz, landing
+    next, is not used for it. One block: "block 1 was" (main: "blocks 1-1 were")."""
+    files = _write(tmp_path / "source", _stamps())
+    order = files[:4] + files[6:8] + [files[5], files[4]] + files[8:]
+    state = tmp_path / "state"
+    messages = _replay(order, tmp_path / "watch", state, PATHS["per-block"])
+    health = _health(state)
+    assert health.loc[health["status"] != "ok", "block"].tolist() == [1]
+    assert [m for m in messages if "landed after" in m] == [
+        "acc_004.npz: landed after block 1 was decided without it (skipped: gap); it is not redone"
+    ]
