@@ -420,3 +420,36 @@ def test_a_mode_seen_throughout_a_voyage_whose_log_covers_two_blocks_is_kept():
     tracked = track_modes(marks, options=TrackingOptions())
     assert len(tracked) == 40 and tracked["frequency_hz"].eq(2.9).all()
     assert tracked.attrs["harmonic_labels"] == []
+
+
+def test_a_harmonic_line_through_an_outage_is_not_seen_away_from_its_order():
+    # a line at 6.0 Hz with the forced shape in blocks 0-29: marked as order 2 in the 18
+    # checked blocks (0-8 and 21-29, speed ramps: the order's energy-weighted frequency
+    # 5.75-6.08 Hz does not move with the pole's, slope 0), unchecked in blocks 9-20
+    # (every column of the log empty). Before, its 12 unchecked rows counted as seen away
+    # from the orders (over a quarter of its blocks) and, not following its order, the line
+    # was kept as a mode an order sits on (ramps seed 0, 'all nan 1.25-2.75 h'). The mode
+    # at 2.9 Hz, checked and unmarked, keeps its 30 rows.
+    rng = np.random.default_rng(3)
+    rows = [(b, f, s) for b in range(30) for f, s in ((2.9, SHAPE_MODE), (6.0, SHAPE_FORCED))]
+    selected = _selected(rows)
+    line = selected["frequency_hz"].eq(6.0).to_numpy()
+    checked = ~selected["block"].between(9, 20).to_numpy()
+    selected["harmonic_checked"] = checked
+    selected["harmonic"] = np.where(line & checked, 2.0, np.nan)
+    selected["harmonic_frequency_hz"] = np.where(
+        line & checked, rng.uniform(5.75, 6.08, len(selected)), np.nan
+    )
+    tracked = track_modes(selected, options=TrackingOptions())
+    assert tracked["frequency_hz"].eq(2.9).all() and len(tracked) == 30
+    left_out = tracked.attrs["harmonic_labels"]
+    assert [(h["blocks"], h["frequency_hz"], h["unverified"]) for h in left_out] == [
+        (30, 6.0, False)
+    ]
+    # checked and unmarked in blocks 0-7 (over a quarter of its blocks): seen away from
+    # its order (10 of 18 checked rows marked), and not following it: a mode an order sits
+    # on, kept
+    away = line & selected["block"].between(0, 7).to_numpy()
+    selected.loc[away, ["harmonic", "harmonic_frequency_hz"]] = np.nan
+    tracked = track_modes(selected, options=TrackingOptions())
+    assert len(tracked) == 60 and tracked.attrs["harmonic_labels"] == []

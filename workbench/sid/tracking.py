@@ -687,12 +687,13 @@ def harmonic_verdict(
 
     # most rows marked: a harmonic, unless the label is also seen away from the orders
     # in at least a quarter of its blocks and does not follow its order (a mode an
-    # order sits on for hours)
-    # (seen away: the unmarked rows, unchecked ones included, of all its rows)
+    # order sits on for hours). Seen away: checked and unmarked; an unchecked row shows
+    # nothing (a harmonic line through an outage is unmarked there, not away).
+    seen_away = (n_checked - n_marked_checked) >= _SEEN_AWAY * n_rows
     harmonic = [
         label
         for label in share.index[share >= options.harmonic_share]
-        if share_all[label] > 1.0 - _SEEN_AWAY or _follows_its_order(rows_of(label, True))
+        if not seen_away[label] or _follows_its_order(rows_of(label, True))
     ]
     # a label seen mostly in an outage and checked in fewer than _FOLLOW_ROWS blocks
     # and a quarter of its blocks cannot be told from a harmonic: left out, unverified
