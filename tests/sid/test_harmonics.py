@@ -453,3 +453,26 @@ def test_a_harmonic_line_through_an_outage_is_not_seen_away_from_its_order():
     selected.loc[away, ["harmonic", "harmonic_frequency_hz"]] = np.nan
     tracked = track_modes(selected, options=TrackingOptions())
     assert len(tracked) == 60 and tracked.attrs["harmonic_labels"] == []
+
+
+def test_a_line_seen_in_part_of_the_voyage_is_judged_by_its_few_checked_rows():
+    # the log covers blocks 36-39 of 40 (its last 45 min); a line at 5.6 Hz with the forced
+    # shape in blocks 30-38, marked as order 2 in its 3 checked blocks (36-38), unchecked in
+    # 30-35. Before, 3 checked rows were too few (their 95 % lower bound 0.44, under a half)
+    # and the line was tracked as a mode (sitting seed 0, 'only the last 45 min'). The mode
+    # at 2.9 Hz, seen in all 40 blocks and marked in 3 of its 4 checked ones (an order near
+    # it there), is judged by that lower bound (0.30) and keeps its 40 rows.
+    rows = [(b, 2.9, SHAPE_MODE) for b in range(40)] + [
+        (b, 5.6, SHAPE_FORCED) for b in range(30, 39)
+    ]
+    selected = _selected(rows)
+    line = selected["frequency_hz"].eq(5.6).to_numpy()
+    checked = (selected["block"] >= 36).to_numpy()
+    selected["harmonic_checked"] = checked
+    marked = checked & (line | (selected["block"] < 39).to_numpy())
+    selected["harmonic"] = np.where(marked, np.where(line, 2.0, 1.0), np.nan)
+    selected["harmonic_frequency_hz"] = np.where(marked, selected["frequency_hz"], np.nan)
+    tracked = track_modes(selected, options=TrackingOptions())
+    assert len(tracked) == 40 and tracked["frequency_hz"].eq(2.9).all()
+    left_out = tracked.attrs["harmonic_labels"]
+    assert [(h["blocks"], h["frequency_hz"], h["share"]) for h in left_out] == [(9, 5.6, 1.0)]

@@ -529,6 +529,11 @@ _SEEN_AWAY = 0.25
 _FOLLOW_ROWS = 10
 
 
+#: Share of the voyage's blocks under which a label is a line that comes and goes, judged
+#: by its checked rows however few (a structural mode is seen throughout a voyage).
+_PASSING = 0.5
+
+
 def _wilson_lower(successes: pd.Series, trials: pd.Series, z: float = 1.96) -> pd.Series:
     """Wilson score lower bound of the proportion *successes* / *trials* (0 where no
     trials) at the normal quantile *z* (1.96: 95 %, two-sided)."""
@@ -672,9 +677,15 @@ def harmonic_verdict(
     # rows) or where the label is seen mostly in an outage. A few checked rows of a
     # mode seen throughout a voyage are no evidence: one whose log covers only the
     # last 45 min, where an order passes near it, is marked in 4 of 8 checked rows.
+    # A line seen in under half of the voyage's blocks comes and goes (a harmonic with
+    # the shaft speed; a mode is seen throughout): its checked rows, however few, show
+    # what it is (a line in the last 45 min, marked in its 1-2 checked rows).
     enough = n_checked >= np.minimum(_FOLLOW_ROWS, n_rows)
+    passing = n_rows < _PASSING * (rows_in > 0).sum()
     evidence = _wilson_lower(n_marked_checked, n_checked)
-    share = np.maximum(share_all, share_checked.where(enough | in_outage).fillna(evidence))
+    share = np.maximum(
+        share_all, share_checked.where(enough | in_outage | passing).fillna(evidence)
+    )
 
     def rows_of(label, only_marked=False):
         inside = modes == label
