@@ -461,7 +461,7 @@ def test_a_line_seen_in_part_of_the_voyage_is_judged_by_its_few_checked_rows():
     # 30-35. Before, 3 checked rows were too few (their 95 % lower bound 0.44, under a half)
     # and the line was tracked as a mode (sitting seed 0, 'only the last 45 min'). The mode
     # at 2.9 Hz, seen in all 40 blocks and marked in 3 of its 4 checked ones (an order near
-    # it there), is judged by that lower bound (0.30) and keeps its 40 rows.
+    # it there), is judged by all its rows (3 of 40 marked) and keeps its 40 rows.
     rows = [(b, 2.9, SHAPE_MODE) for b in range(40)] + [
         (b, 5.6, SHAPE_FORCED) for b in range(30, 39)
     ]
@@ -476,3 +476,33 @@ def test_a_line_seen_in_part_of_the_voyage_is_judged_by_its_few_checked_rows():
     assert len(tracked) == 40 and tracked["frequency_hz"].eq(2.9).all()
     left_out = tracked.attrs["harmonic_labels"]
     assert [(h["blocks"], h["frequency_hz"], h["share"]) for h in left_out] == [(9, 5.6, 1.0)]
+
+
+def test_a_mode_seen_throughout_a_voyage_marked_in_every_checked_block_is_kept():
+    # the log covers blocks 32-39 of 40 (its last 45 min), where an order sits on the mode
+    # at 2.9 Hz: its 8 checked rows are all marked, its 32 others unchecked. A harmonic
+    # would need the shaft at one rate through the voyage; 8 of 40 rows shown on the order
+    # make a mode. Before, the 8 checked rows judged it (their 95 % lower bound 0.68) and
+    # the mode was dropped as a harmonic (sitting seed 1, 'only the last 45 min': modes 1
+    # and 7, which orders 1 and 2 sit on at 7 kn).
+    selected = _selected([(b, 2.9, SHAPE_MODE) for b in range(40)])
+    checked = (selected["block"] >= 32).to_numpy()
+    selected["harmonic_checked"] = checked
+    selected["harmonic"] = np.where(checked, 1.0, np.nan)
+    selected["harmonic_frequency_hz"] = np.where(checked, 2.88, np.nan)
+    tracked = track_modes(selected, options=TrackingOptions())
+    assert len(tracked) == 40 and tracked.attrs["harmonic_labels"] == []
+    # seen in under half of the voyage's blocks (23-39 of 40, beside a mode at 5.0 Hz seen
+    # in all), the same line is what its 8 checked rows show: a harmonic
+    rows = [(b, 5.0, SHAPE_FORCED) for b in range(40)] + [
+        (b, 2.9, SHAPE_MODE) for b in range(23, 40)
+    ]
+    selected = _selected(rows)
+    checked = (selected["block"] >= 32).to_numpy()
+    line = selected["frequency_hz"].eq(2.9).to_numpy()
+    selected["harmonic_checked"] = checked
+    selected["harmonic"] = np.where(checked & line, 1.0, np.nan)
+    selected["harmonic_frequency_hz"] = np.where(checked & line, 2.88, np.nan)
+    tracked = track_modes(selected, options=TrackingOptions())
+    assert len(tracked) == 40 and tracked["frequency_hz"].eq(5.0).all()
+    assert [h["blocks"] for h in tracked.attrs["harmonic_labels"]] == [17]

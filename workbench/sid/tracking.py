@@ -86,18 +86,18 @@ class TrackingOptions:
     harmonic_share : float
         Tracked labels with at least this share of rows marked as shaft or blade-pass
         harmonics (the selected table's ``harmonic`` column, :mod:`workbench.sid.harmonics`)
-        are harmonics, not modes, and are dropped, except a label unmarked in at least a
-        quarter of its blocks whose marked rows do not follow the order's frequency
-        (``harmonic_frequency_hz``: slope of ln f on it below 0.5): a mode that an order
-        sits on for hours. A mode that an order crosses keeps its rows (its own shape
+        are harmonics, not modes, and are dropped, except a label checked and unmarked in
+        at least a quarter of its blocks whose marked rows do not follow the order's
+        frequency (``harmonic_frequency_hz``: slope of ln f on it below 0.5): a mode that an
+        order sits on for hours. A mode that an order crosses keeps its rows (its own shape
         joined the label). Where the ship log could not check every row
-        (``harmonic_checked``), the share is the larger of the marked share of all rows
-        and that of the checked rows: taken as it is where the label has at least 10
-        checked rows (or all its rows checked) or is seen mostly where the log fails
-        (checked in under a quarter of the voyage's share of checked blocks), else its 95 %
-        Wilson lower bound (a few checked rows are weak evidence). A label seen mostly where
-        the log fails and checked in fewer than 10 blocks and a quarter of its blocks is
-        dropped too, as unverified. [-]
+        (``harmonic_checked``), the share is the marked share of all rows, or the larger of
+        it and that of the checked rows where the label has at least 10 checked rows (or
+        all its rows checked), is seen mostly where the log fails (checked in under a
+        quarter of the voyage's share of checked blocks) or is seen in under half of the
+        voyage's blocks (a line that comes and goes with the shaft speed; a structural mode
+        is seen throughout). A label seen mostly where the log fails and checked in fewer
+        than 10 blocks and a quarter of its blocks is dropped too, as unverified. [-]
     """
 
     mac_min: float = 0.9
@@ -534,17 +534,6 @@ _FOLLOW_ROWS = 10
 _PASSING = 0.5
 
 
-def _wilson_lower(successes: pd.Series, trials: pd.Series, z: float = 1.96) -> pd.Series:
-    """Wilson score lower bound of the proportion *successes* / *trials* (0 where no
-    trials) at the normal quantile *z* (1.96: 95 %, two-sided)."""
-    n = trials.astype(float)
-    p = successes.astype(float) / n.where(n > 0)
-    z2 = z * z
-    centre = p + z2 / (2 * n)
-    spread = z * np.sqrt(p * (1 - p) / n + z2 / (4 * n * n))
-    return ((centre - spread) / (1 + z2 / n)).fillna(0.0)
-
-
 def _follows_its_order(rows: pd.DataFrame) -> bool:
     """Whether a label's marked rows follow the order's frequency: the slope of ln f on
     ln f_order (``harmonic_frequency_hz``) is at least 0.5 (a harmonic's is 1, a structural
@@ -672,20 +661,19 @@ def harmonic_verdict(
     checked_in = np.bincount(blocks - first_block, weights=checked, minlength=len(rows_in))
     voyage_checked = float((checked_in > 0).sum() / (rows_in > 0).sum())
     in_outage = n_checked < _SEEN_AWAY * voyage_checked * n_rows
-    # the share that judges a label: of all its rows (the unchecked counted unmarked);
-    # of its checked rows where they are enough to judge (_FOLLOW_ROWS, or all its
-    # rows) or where the label is seen mostly in an outage. A few checked rows of a
-    # mode seen throughout a voyage are no evidence: one whose log covers only the
-    # last 45 min, where an order passes near it, is marked in 4 of 8 checked rows.
-    # A line seen in under half of the voyage's blocks comes and goes (a harmonic with
-    # the shaft speed; a mode is seen throughout): its checked rows, however few, show
-    # what it is (a line in the last 45 min, marked in its 1-2 checked rows).
+    # the share that judges a label: of all its rows (the unchecked counted unmarked:
+    # without the shaft speed there, nothing shows the line keeps to its order); of its
+    # checked rows where they are enough to judge (_FOLLOW_ROWS, or all its rows), where
+    # the label is seen mostly in an outage, or where it is seen in under half of the
+    # voyage's blocks: a line that comes and goes (a harmonic with the shaft speed) is
+    # what its checked rows, however few, show (a line in the last 45 min, marked in its
+    # 1-2 checked rows). A label seen throughout a voyage with fewer checked rows is
+    # judged by all its rows: a harmonic would need the shaft at one rate all voyage, a
+    # structural mode is what persists (an order sits on modes 1 and 7 in the last 45
+    # min, the log's 8 blocks: 8 of 69 rows marked, modes).
     enough = n_checked >= np.minimum(_FOLLOW_ROWS, n_rows)
     passing = n_rows < _PASSING * (rows_in > 0).sum()
-    evidence = _wilson_lower(n_marked_checked, n_checked)
-    share = np.maximum(
-        share_all, share_checked.where(enough | in_outage | passing).fillna(evidence)
-    )
+    share = np.maximum(share_all, share_checked.where(enough | in_outage | passing).fillna(0.0))
 
     def rows_of(label, only_marked=False):
         inside = modes == label
