@@ -423,15 +423,16 @@ def test_a_mode_seen_throughout_a_voyage_whose_log_covers_two_blocks_is_kept():
 
 
 def test_a_harmonic_line_through_an_outage_is_not_seen_away_from_its_order():
-    # a line at 6.0 Hz with the forced shape in blocks 0-29: marked as order 2 in the 18
-    # checked blocks (0-8 and 21-29, speed ramps: the order's energy-weighted frequency
-    # 5.75-6.08 Hz does not move with the pole's, slope 0), unchecked in blocks 9-20
-    # (every column of the log empty). Before, its 12 unchecked rows counted as seen away
-    # from the orders (over a quarter of its blocks) and, not following its order, the line
-    # was kept as a mode an order sits on (ramps seed 0, 'all nan 1.25-2.75 h'). The mode
-    # at 2.9 Hz, checked and unmarked, keeps its 30 rows.
+    # a voyage of 64 blocks, a mode at 2.9 Hz in all; a line at 6.0 Hz with the forced
+    # shape in blocks 0-29 (under half of them: a line that comes and goes), marked as
+    # order 2 in its 18 checked blocks (0-8 and 21-29, speed ramps: the order's
+    # energy-weighted frequency 5.75-6.08 Hz does not move with the pole's, slope 0),
+    # unchecked in blocks 9-20 (every column of the log empty). Before, its 12 unchecked
+    # rows counted as seen away from the orders (over a quarter of its blocks) and, not
+    # following its order, the line was kept as a mode an order sits on (ramps seed 0,
+    # 'all nan 1.25-2.75 h'). The mode, checked and unmarked, keeps its 64 rows.
     rng = np.random.default_rng(3)
-    rows = [(b, f, s) for b in range(30) for f, s in ((2.9, SHAPE_MODE), (6.0, SHAPE_FORCED))]
+    rows = [(b, 2.9, SHAPE_MODE) for b in range(64)] + [(b, 6.0, SHAPE_FORCED) for b in range(30)]
     selected = _selected(rows)
     line = selected["frequency_hz"].eq(6.0).to_numpy()
     checked = ~selected["block"].between(9, 20).to_numpy()
@@ -441,18 +442,35 @@ def test_a_harmonic_line_through_an_outage_is_not_seen_away_from_its_order():
         line & checked, rng.uniform(5.75, 6.08, len(selected)), np.nan
     )
     tracked = track_modes(selected, options=TrackingOptions())
-    assert tracked["frequency_hz"].eq(2.9).all() and len(tracked) == 30
+    assert tracked["frequency_hz"].eq(2.9).all() and len(tracked) == 64
     left_out = tracked.attrs["harmonic_labels"]
     assert [(h["blocks"], h["frequency_hz"], h["unverified"]) for h in left_out] == [
         (30, 6.0, False)
     ]
-    # checked and unmarked in blocks 0-7 (over a quarter of its blocks): seen away from
-    # its order (10 of 18 checked rows marked), and not following it: a mode an order sits
-    # on, kept
+    # checked and unmarked in blocks 0-7 (over a quarter of its checked blocks): seen
+    # away from its order (10 of 18 checked rows marked), and not following it: a mode an
+    # order sits on, kept
     away = line & selected["block"].between(0, 7).to_numpy()
     selected.loc[away, ["harmonic", "harmonic_frequency_hz"]] = np.nan
     tracked = track_modes(selected, options=TrackingOptions())
-    assert len(tracked) == 60 and tracked.attrs["harmonic_labels"] == []
+    assert len(tracked) == 94 and tracked.attrs["harmonic_labels"] == []
+
+
+def test_a_mode_seen_throughout_an_order_sits_on_is_kept_through_an_outage():
+    # a mode at 8.2 Hz seen in all 69 blocks, marked as order 2 in 41 of its 52 checked
+    # blocks (order 2 sits on it at two speeds: its marks 8.0-8.4 Hz, slope 0) and
+    # unchecked in 17 (every column of the log empty): unmarked in 28 of its blocks, seen
+    # away from its order, kept (sitting seed 1, 'all nan 3-4.5 h'; a rule counting only
+    # its checked rows as seen away, 11 of 69, dropped it)
+    rng = np.random.default_rng(4)
+    selected = _selected([(b, 8.2, SHAPE_MODE) for b in range(69)])
+    checked = ~selected["block"].between(35, 51).to_numpy()
+    marked = checked & (np.cumsum(checked) <= 41)
+    selected["harmonic_checked"] = checked
+    selected["harmonic"] = np.where(marked, 2.0, np.nan)
+    selected["harmonic_frequency_hz"] = np.where(marked, rng.uniform(8.0, 8.4, 69), np.nan)
+    tracked = track_modes(selected, options=TrackingOptions())
+    assert len(tracked) == 69 and tracked.attrs["harmonic_labels"] == []
 
 
 def test_a_line_seen_in_part_of_the_voyage_is_judged_by_its_few_checked_rows():

@@ -86,10 +86,11 @@ class TrackingOptions:
     harmonic_share : float
         Tracked labels with at least this share of rows marked as shaft or blade-pass
         harmonics (the selected table's ``harmonic`` column, :mod:`workbench.sid.harmonics`)
-        are harmonics, not modes, and are dropped, except a label checked and unmarked in
-        at least a quarter of its blocks whose marked rows do not follow the order's
-        frequency (``harmonic_frequency_hz``: slope of ln f on it below 0.5): a mode that an
-        order sits on for hours. A mode that an order crosses keeps its rows (its own shape
+        are harmonics, not modes, and are dropped, except a label unmarked in at least a
+        quarter of its blocks (of its checked blocks, for a label seen in under half of the
+        voyage's blocks) whose marked rows do not follow the order's frequency
+        (``harmonic_frequency_hz``: slope of ln f on it below 0.5): a mode that an order
+        sits on for hours. A mode that an order crosses keeps its rows (its own shape
         joined the label). Where the ship log could not check every row
         (``harmonic_checked``), the share is the marked share of all rows, or the larger of
         it and that of the checked rows where the label has at least 10 checked rows (or
@@ -686,9 +687,17 @@ def harmonic_verdict(
 
     # most rows marked: a harmonic, unless the label is also seen away from the orders
     # in at least a quarter of its blocks and does not follow its order (a mode an
-    # order sits on for hours). Seen away: checked and unmarked; an unchecked row shows
-    # nothing (a harmonic line through an outage is unmarked there, not away).
-    seen_away = (n_checked - n_marked_checked) >= _SEEN_AWAY * n_rows
+    # order sits on for hours). Seen away: unmarked, as the share counts them; for a
+    # line that comes and goes, its checked rows stand for it (a harmonic line through
+    # an outage of every column is unmarked there, not away from its order).
+    seen_away = pd.Series(
+        np.where(
+            passing,
+            n_checked - n_marked_checked >= _SEEN_AWAY * n_checked,
+            n_rows - n_marked >= _SEEN_AWAY * n_rows,
+        ),
+        index=labels,
+    )
     harmonic = [
         label
         for label in share.index[share >= options.harmonic_share]
