@@ -687,9 +687,11 @@ def harmonic_verdict(
 
     # most rows marked: a harmonic, unless the label is also seen away from the orders
     # in at least a quarter of its blocks and does not follow its order (a mode an
-    # order sits on for hours). Seen away: unmarked, as the share counts them; for a
-    # line that comes and goes, its checked rows stand for it (a harmonic line through
-    # an outage of every column is unmarked there, not away from its order).
+    # order sits on for hours). Seen away: in its unmarked rows, the unchecked included,
+    # for a label seen throughout the voyage (a mode persists where the log fails); in
+    # its checked unmarked rows for a line that comes and goes, whose checked rows stand
+    # for it (a harmonic line through an outage of every column is unmarked there, not
+    # away from its order). With every row checked both are the same.
     seen_away = pd.Series(
         np.where(
             passing,
