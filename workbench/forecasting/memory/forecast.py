@@ -417,19 +417,18 @@ class MemoryRun:
                 "model variance raised",
                 "partly logged blocks at the edge of a log outage (model variance raised)",
             )
-        # beyond the range by one standard deviation or more: the variance at least doubled
-        for r in np.flatnonzero((excess**2).sum(axis=1) >= 1.0):
+        # a predictor a standard deviation or more beyond the range: the variance at least
+        # doubled
+        for r in np.flatnonzero(excess.max(axis=1, initial=0.0) >= 1.0):
             k = int(rows[r])
             if k < k_first:
                 continue
-            named = ", ".join(
-                f"{self.columns[c]} {excess[r, c]:.1f} sd" for c in np.flatnonzero(excess[r] > 0)
-            )
+            named = ", ".join(self.columns[c] for c in np.flatnonzero(excess[r] >= 1.0))
             self.warn(
                 k,
                 j,
-                f"predictors beyond the range the model was fitted on ({named}): "
-                "model variance raised",
+                "beyond the range the model was fitted on by a standard deviation or more: "
+                f"{named}; model variance raised",
                 "blocks whose predictors leave the range the model was fitted on (model "
                 "variance raised)",
             )

@@ -265,7 +265,8 @@ class MemoryRefits:
     def extrapolation_variance(self, j: int, m: MemoryModel, rows_: np.ndarray):
         """Variance added to mode *j*'s model *m* at grid rows *rows_* where the predictors
         leave the range of its newest refit's rows [Hz²], and the excess of each predictor
-        beyond that range in its standard deviations there (rows x predictors, NaN-free).
+        beyond that range in its standard deviations there, at most 1 (rows x predictors,
+        NaN-free).
 
         A model only knows the predictors' range its history covered: a term left out
         because its predictor hardly varied is no evidence that the predictor does not
@@ -273,15 +274,17 @@ class MemoryRefits:
         (the prediction's own variance, s² x(XᵀWX)⁻¹xᵀ, stops growing at the z-score
         clipping). So every candidate predictor (the time trend excepted: it leaves its
         range by design) is watched, those in the terms and those not: its excess e beyond
-        the range in units of its standard deviation σ over the refit's rows, and the
-        model's variance grows by s² Σ e², s² its residual variance - an effect on the mode
-        of one residual scale per σ of the predictor beyond the range, the largest a
-        selection on that range could have missed. The range leaves out the
-        ``selection_stride`` - 1 most extreme values at each end: a value seen only in
-        blocks that share data is one SSI estimate's evidence. The blend then leans on SSI
-        as far as the model extrapolates (``benchmarks/results/forecast_extrapolation_52.txt``:
-        the README's 6-h worked example, whose temperatures leave their range in the last
-        hour).
+        the range in units of its standard deviation σ over the refit's rows, at most 1,
+        and the model's variance grows by s² Σ e², s² its residual variance: a predictor
+        one σ or more outside the range adds as much error again as the model shows where
+        it was fitted. Not more: a predictor that hardly varied (the speed in port) has a
+        σ that makes any move many σ, and a variance growing with e² without bound took
+        the blend from voyages where the model extrapolated well (the 12-h worked example's
+        departure). The range leaves out the ``selection_stride`` - 1 most extreme values
+        at each end: a value seen only in blocks that share data is one SSI estimate's
+        evidence. The blend then leans on SSI as far as the model extrapolates
+        (``benchmarks/results/forecast_extrapolation_52.txt``: the README's 6-h worked
+        example, whose temperatures leave their range in the last hour).
         """
         added = np.zeros(len(rows_))
         fit_range = self.fit_range[j]
@@ -293,7 +296,7 @@ class MemoryRefits:
             varied = self.regional & (spread > 1e-12 * np.maximum(1.0, np.abs(high)))
             # e = (x - high) / σ above the range, (low - x) / σ below it, 0 inside
             excess = np.maximum(np.maximum(X - high, low - X), 0.0) / spread
-        excess = np.where(np.isfinite(excess) & varied, excess, 0.0)
+        excess = np.where(np.isfinite(excess) & varied, np.minimum(excess, 1.0), 0.0)
         added = m.residual_variance * (excess**2).sum(axis=1)  # s² Σ e²
         return added, excess
 
