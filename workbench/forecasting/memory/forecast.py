@@ -91,7 +91,7 @@ from ..ssi_guard import SSIGuard
 from .excitation import excitation_bias
 from .kalman import kalman_predict, kalman_update, n_states, stationary_covariance
 from .model import MemoryModel
-from .noise import filter_matrices, first_window_noise, update_run
+from .noise import filter_matrices, first_window_noise, run_after_hole, update_run
 from .output import OUTPUT_ARRAYS, assemble_table
 from .poles import option_b_chooser
 from .terms import MemoryRefits
@@ -780,9 +780,7 @@ class MemoryRun:
         hole is judged as before."""
         if self.record_gap < self.persist_blocks:
             return self.run
-        y = residual - prior_state.sum(axis=1)
-        stale = np.isfinite(y) & (y != 0)
-        return np.where(stale, np.sign(y).astype(np.int64) * (self.persist_blocks - 1), self.run)
+        return run_after_hole(self.run, residual - prior_state.sum(axis=1), self.persist_blocks)
 
     def _kalman_step(self, k, have, z, scale, m_now, z_now, filter_step) -> None:
         """Kalman update of row *k* with the measurements *z*; the guard, the outputs."""
