@@ -848,7 +848,14 @@ class MemoryRun:
                 np.full(n_modes, not in_sample) & ~lost & ~filled,
             )
             estimate, variance = self.trust.combine(estimate, variance)
-            self.out["probability"][k] = np.where(have, self.trust.probability, np.nan)
+            # how much the estimate leaned on the model: nothing while the hull moves
+            probability = 0.0 if self.trust.change else self.trust.probability
+            self.out["probability"][k] = np.where(have, probability, np.nan)
+            if self.trust.change and have.any():
+                self.notes[
+                    "a change of the whole hull that the model does not explain (the modes' "
+                    "innovations of one sign together): the estimate follows SSI"
+                ] += 1
             if not in_sample:
                 self._explained(k, have)
         if self.ssi_guard is not None:
