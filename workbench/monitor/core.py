@@ -1325,6 +1325,18 @@ class Monitor:
             [harmonic, np.where(marked, order_hz, np.nan), np.isfinite(speed).astype(float)]
         )
 
+    def _harmonic_modes(self) -> pd.DataFrame | None:
+        """The tracked selected modes marked as harmonics (their block, frequency, shape
+        and ``harmonic``), in the order ``identify --dship`` exports them: what its pole
+        table's marks are taken from (:func:`~workbench.sid.harmonics.mark_poles`); None
+        without marks (no ship log)."""
+        frame, marks = self.tracking.frame, self._marked
+        if frame is None or marks is None or len(marks) != len(frame):
+            return None
+        marked = np.isfinite(marks[:, 0])
+        modes = frame[marked].assign(harmonic=marks[marked, 0])
+        return modes.sort_values(["block", "frequency_hz"], kind="stable").reset_index(drop=True)
+
     def _write_harmonic_lines(self, tracked: pd.DataFrame) -> None:
         """``harmonics.parquet``: each order's frequency at the tracked blocks, at the
         shaft speed the marks used, as ``identify --dship`` gives it (``shaft.csv``): the
@@ -1532,6 +1544,9 @@ class Monitor:
         self._dship_key = _file_key(self.dship) if self.dship is not None else None
         arguments = (self.state, self.dship, self.options.forecast, self.voyage.grid)
         keywords = {"store": self.store_path}
+        if "B" in self.options.forecast.forecast.options:  # the poles are read
+            keywords["harmonic_modes"] = self._harmonic_modes()
+            keywords["harmonics"] = self.options.harmonics
         if not background:
             self._doing("updating forecast and health")
             self._collect(update_outlook(*arguments, **keywords))
