@@ -401,25 +401,38 @@ class Monitor:
             self.dship, dict(forecast.dship_mapping), forecast.dship_utc_offset
         )
 
-    def _marking_log(self, log: pd.DataFrame, part: pd.DataFrame) -> pd.DataFrame:
+    def _marking_log(
+        self, log: pd.DataFrame, part: pd.DataFrame
+    ) -> tuple[pd.DataFrame, pd.Timestamp]:
         """The ship log the marks of *part*'s blocks are computed from: the rows over them
         as the whole log's spike and frozen-sensor tests leave them, with the whole log's
         interval (:class:`~workbench.sid.harmonics.LiveShaftLog`, which takes only the rows
-        appended since the last marks), or *log* itself when it was read again whole."""
+        appended since the last marks), or *log* itself when it was read again whole; and
+        the time up to which those tests' verdicts are final, the log's newest time at the
+        latest (:meth:`~workbench.sid.harmonics.LiveShaftLog.settled_until`: a block
+        ending later may still change with the readings to come)."""
         from ..sid.harmonics import LiveShaftLog
 
+        covered = _newest_time(log)
         generation = self._log_generation()
         if generation is None:
-            return log
-        if (
-            self._live_shaft is None
-            or self._live_shaft[0] != generation
-            or self._live_shaft[1].rows > len(log)
-        ):
-            self._live_shaft = (generation, LiveShaftLog())
-        live = self._live_shaft[1]
-        live.update(log)
-        return live.window(log, part["block_start"], part["block_end"])
+            live = LiveShaftLog()
+            live.update(log)
+            window = log
+        else:
+            if (
+                self._live_shaft is None
+                or self._live_shaft[0] != generation
+                or self._live_shaft[1].rows > len(log)
+            ):
+                self._live_shaft = (generation, LiveShaftLog())
+            live = self._live_shaft[1]
+            live.update(log)
+            window = live.window(log, part["block_start"], part["block_end"])
+        settled = live.settled_until()
+        if settled is not None and not pd.isna(covered):
+            covered = min(covered, settled)
+        return window, covered
 
     @property
     def tracked_through(self) -> int:
@@ -1204,7 +1217,7 @@ class Monitor:
         pending_rpm: dict[int, float] = {}
         if len(pending):
             part = frame.iloc[pending]
-            window = self._marking_log(log, part)
+            window, covered = self._marking_log(log, part)
             marker = HarmonicMarker(window, self.options.harmonics)
             marked = marker.mark_selected(part, shaft_logged=self._shaft_logged or None)
             shaft = marker.shaft
@@ -1234,8 +1247,7 @@ class Monitor:
                     checked,
                 ]
             )
-            # the marks of the blocks the log covers are kept
-            covered = _newest_time(log)
+            # the marks of the blocks the log covers, their readings' verdicts final, are kept
             ends = pd.to_datetime(part["block_end"], utc=True).to_numpy()
             rpm = (
                 marker.shaft.set_index("block")["shaft_rpm"].astype(float)
@@ -1284,7 +1296,7 @@ class Monitor:
         unknown = blocks[~blocks["block"].astype(int).isin(self._block_speed)]
         pending_speed: dict[int, float] = {}
         if len(unknown):
-            window = self._marking_log(log, unknown)
+            window, _ = self._marking_log(log, unknown)
             table = block_shaft_table(window, unknown).set_index("block")["speed_energy_kn"]
             ends = pd.to_datetime(unknown["block_end"], utc=True)
             for block, end in zip(unknown["block"].astype(int), ends, strict=True):
