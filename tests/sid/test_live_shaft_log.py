@@ -202,3 +202,19 @@ def test_settled_until_waits_for_the_readings_that_judge_the_last_ones():
     assert 1790 <= seconds[1810] <= 1795
     part = _verdicts(full.iloc[:1810])
     assert part[1800:1805].all() and not _verdicts(full)[1800:1810].any()
+
+
+def test_a_block_is_settled_when_none_of_its_readings_may_change():
+    """The shaft speed logged until 1500 s, then an outage: the last 15 readings before it
+    wait for readings after the outage (the spike test's window runs over the finite
+    readings), so the block holding them is not settled; a block in the outage is."""
+    rng = np.random.default_rng(6)
+    rpm = np.round(80 + rng.normal(0, 0.5, 1700), 1)
+    rpm[1500:] = np.nan
+    log = pd.DataFrame({"time": T0 + pd.to_timedelta(np.arange(1700), unit="s"), "shaft_rpm": rpm})
+    live = LiveShaftLog()
+    live.update(log)
+    assert 1480 <= (live.settled_until() - T0).total_seconds() <= 1485
+    starts = T0 + pd.to_timedelta([0, 300, 1300, 1500], unit="s")
+    ends = starts + pd.Timedelta(seconds=200)
+    assert live.settled(starts, ends).tolist() == [True, True, False, True]

@@ -401,38 +401,29 @@ class Monitor:
             self.dship, dict(forecast.dship_mapping), forecast.dship_utc_offset
         )
 
-    def _marking_log(
-        self, log: pd.DataFrame, part: pd.DataFrame
-    ) -> tuple[pd.DataFrame, pd.Timestamp]:
+    def _marking_log(self, log: pd.DataFrame, part: pd.DataFrame):
         """The ship log the marks of *part*'s blocks are computed from: the rows over them
         as the whole log's spike and frozen-sensor tests leave them, with the whole log's
         interval (:class:`~workbench.sid.harmonics.LiveShaftLog`, which takes only the rows
         appended since the last marks), or *log* itself when it was read again whole; and
-        the time up to which those tests' verdicts are final, the log's newest time at the
-        latest (:meth:`~workbench.sid.harmonics.LiveShaftLog.settled_until`: a block
-        ending later may still change with the readings to come)."""
+        the :class:`~workbench.sid.harmonics.LiveShaftLog` holding the tests (which tells
+        the blocks whose readings' verdicts are final)."""
         from ..sid.harmonics import LiveShaftLog
 
-        covered = _newest_time(log)
         generation = self._log_generation()
-        if generation is None:
+        if generation is None:  # the tests over the log given, for its verdicts
             live = LiveShaftLog()
             live.update(log)
-            window = log
-        else:
-            if (
-                self._live_shaft is None
-                or self._live_shaft[0] != generation
-                or self._live_shaft[1].rows > len(log)
-            ):
-                self._live_shaft = (generation, LiveShaftLog())
-            live = self._live_shaft[1]
-            live.update(log)
-            window = live.window(log, part["block_start"], part["block_end"])
-        settled = live.settled_until()
-        if settled is not None and not pd.isna(covered):
-            covered = min(covered, settled)
-        return window, covered
+            return log, live
+        if (
+            self._live_shaft is None
+            or self._live_shaft[0] != generation
+            or self._live_shaft[1].rows > len(log)
+        ):
+            self._live_shaft = (generation, LiveShaftLog())
+        live = self._live_shaft[1]
+        live.update(log)
+        return live.window(log, part["block_start"], part["block_end"]), live
 
     @property
     def tracked_through(self) -> int:
@@ -1217,7 +1208,7 @@ class Monitor:
         pending_rpm: dict[int, float] = {}
         if len(pending):
             part = frame.iloc[pending]
-            window, covered = self._marking_log(log, part)
+            window, live = self._marking_log(log, part)
             marker = HarmonicMarker(window, self.options.harmonics)
             marked = marker.mark_selected(part, shaft_logged=self._shaft_logged or None)
             shaft = marker.shaft
@@ -1247,15 +1238,21 @@ class Monitor:
                     checked,
                 ]
             )
-            # the marks of the blocks the log covers, their readings' verdicts final, are kept
-            ends = pd.to_datetime(part["block_end"], utc=True).to_numpy()
+            # the marks of the blocks the log covers are kept once the verdicts of their
+            # shaft-speed readings are final (later readings judge the last ones)
+            blocks = part[["block", "block_start", "block_end"]].drop_duplicates("block")
+            ends = pd.to_datetime(blocks["block_end"], utc=True)
+            final_blocks = (ends <= _newest_time(log)).to_numpy() & live.settled(
+                blocks["block_start"], blocks["block_end"]
+            )
+            final_of = dict(zip(blocks["block"].astype(int), final_blocks, strict=True))
             rpm = (
                 marker.shaft.set_index("block")["shaft_rpm"].astype(float)
                 if marker.method == "shaft speed"
                 else pd.Series(dtype=float)
             )
             for block, inside in part.reset_index(drop=True).groupby("block").indices.items():
-                final = ends[inside].max() <= covered
+                final = bool(final_of[int(block)])
                 if final:
                     kept[pending[inside]] = True
                 if block in rpm.index:
@@ -1296,7 +1293,7 @@ class Monitor:
         unknown = blocks[~blocks["block"].astype(int).isin(self._block_speed)]
         pending_speed: dict[int, float] = {}
         if len(unknown):
-            window, _ = self._marking_log(log, unknown)
+            window, _ = self._marking_log(log, unknown)  # the speed: no readings judged
             table = block_shaft_table(window, unknown).set_index("block")["speed_energy_kn"]
             ends = pd.to_datetime(unknown["block_end"], utc=True)
             for block, end in zip(unknown["block"].astype(int), ends, strict=True):

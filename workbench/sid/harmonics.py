@@ -1399,6 +1399,19 @@ class LiveShaftLog:
                 found.append(int(first))
         return pd.Timestamp(min(found), tz="UTC") if found else None
 
+    def settled(self, starts, ends) -> np.ndarray:
+        """Per block (*starts*, *ends*): whether the verdicts of its shaft-speed readings
+        (those in ``[start, end)``) are final (:meth:`settled_until`; a block without a
+        reading after it, such as one in an outage, is)."""
+        start = pd.DatetimeIndex(pd.to_datetime(pd.Series(starts), utc=True)).as_unit("ns").asi8
+        end = pd.DatetimeIndex(pd.to_datetime(pd.Series(ends), utc=True)).as_unit("ns").asi8
+        until = self.settled_until()
+        if until is None:
+            return np.ones(len(start), dtype=bool)
+        times = self._finite_time.values
+        first = np.searchsorted(times, np.maximum(start, until.value), side="left")
+        return np.searchsorted(times, end, side="left") <= first
+
     def window(self, log: pd.DataFrame, starts, ends) -> pd.DataFrame:
         """The rows of *log* (the log taken by :meth:`update`) from the first at or after
         the earliest of *starts* to the last before the latest of *ends*, as
