@@ -107,10 +107,10 @@ _HISTORY_CONSTANTS = 6.0
 #: Rows after a hole in the record (no mode measured for at least ``persist_blocks`` rows)
 #: over which a refit keeps the estimate where it was (:meth:`MemoryRun.model_rows`): the
 #: refits then move the model by what the hole hid, which the correction c has already
-#: taken from the first measurements; 4 h of 5-minute blocks (every row after the hole:
-#: the 12-h voyages' 3-h hole lost 1-2 points more,
-#: ``benchmarks/results/forecast_hole_53.txt``). [blocks]
-_REFIT_CONTINUITY_BLOCKS = 48
+#: taken from the first measurements; 2 h of 5-minute blocks (4 h, or every row after the
+#: hole, left the estimate on the old one's error longer: over the whole 12-h voyages with a
+#: 3-h or 6-h hole 1-2 points less, ``benchmarks/results/forecast_hole_53.txt``). [blocks]
+_REFIT_CONTINUITY_BLOCKS = 24
 
 
 #: What the estimate follows where the model does not explain a mode: the model-free
