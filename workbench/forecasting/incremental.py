@@ -102,8 +102,10 @@ __all__ = [
 #: missed columns; /6: the log's coverage of the blocks per predictor column too
 #: (``column_coverage``: the shares an outage edge's warning names); /7: the rows without
 #: any mode measured (``record_gap``: a hole in the acceleration record); /8: each mode's
-#: predictor range over its newest refit (``fit_range``: the extrapolation variance).
-CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/8"
+#: predictor range over its newest refit (``fit_range``: the extrapolation variance); /9: the
+#: rows measured since a hole in the record ended (``since_hole``: a refit keeps the estimate
+#: then).
+CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/9"
 
 #: Rows kept before the newest committed window beyond the refits' history. [blocks]
 _MARGIN_ROWS = 64

@@ -207,6 +207,7 @@ class ModelTrust:
         lead_blocks: int = 0,
     ):
         self.huber_sigma = float(huber_sigma)
+        self.prior_probability = float(prior_probability)
         self.persist_blocks = None if persist_blocks is None else int(persist_blocks)
         self.steps = np.asarray(level_steps, dtype=float)  # one model-free filter each
         n_free = self.steps.size
@@ -294,6 +295,8 @@ class ModelTrust:
             had not seen the block).
         """
         blend_normalised, blend_variance = blend.normalised, blend.variance
+        if blend.after_hole:
+            self._after_hole(np.isfinite(z))
         blend_state, measurement_model = blend.state, blend.measurement_model
         sigma2 = np.maximum(error_variance + white_variance, 1e-300)
         # SSI's estimate where the blend takes it without Huber weight (NaN elsewhere: the
@@ -333,6 +336,19 @@ class ModelTrust:
             self.weights[:, use] = post / post.sum(axis=0, keepdims=True)
         if self.lead and blend_state is not None:
             self._lead_step(z, blend_state, measurement_model, learn)
+
+    def _after_hole(self, measured: np.ndarray) -> None:
+        """After a hole in the record, the measured modes' probability that the model
+        explains them at most the prior's (:data:`PRIOR_PROBABILITY`), the rest shared by
+        the model-free filters.
+
+        The probabilities are updated only on measured blocks, so across a hole they keep
+        what the blocks before it said, while the model only extrapolated there (the ship
+        may have left port, the model knows it at rest): its trust has to be earned again
+        on the measurements after the hole, as at the start."""
+        w0 = np.minimum(self.weights[0, measured], self.prior_probability)
+        self.weights[0, measured] = w0
+        self.weights[1:, measured] = (1.0 - w0) / self.steps.size
 
     def _lead_step(self, z, blend_state, measurement_model, learn) -> None:
         """The lead test (module docstring): score the predictions made lead_blocks ago,
