@@ -39,6 +39,9 @@ class BlockTask:
     infos: tuple = ()
     #: Why the voyage's plan skips the block (a gap between two files it names), or "".
     skipped: str = ""
+    #: Placed time of the block's first sample (``PlannedBlock.sample_start``: off
+    #: *block_start* where the record's sample clock drifts), None for *block_start*.
+    sample_start: pd.Timestamp | None = None
 
 
 def _block_tasks(plan, planned) -> list[BlockTask]:
@@ -51,6 +54,7 @@ def _block_tasks(plan, planned) -> list[BlockTask]:
             tuple(str(f) for f in p.files),
             tuple(header[Path(f)] for f in p.files if Path(f) in header),
             p.skipped_reason,
+            None if p.sample_start == p.block_start else p.sample_start,
         )
         for p in planned
     ]
@@ -74,7 +78,11 @@ def _identify_data(
 
     if conditioner is not None:
         planned = PlannedBlock(
-            task.block, task.block_start, grid.end(task.block), tuple(map(Path, task.files))
+            task.block,
+            task.block_start,
+            grid.end(task.block),
+            tuple(map(Path, task.files)),
+            sample_start=task.sample_start,
         )
         data = conditioner.block(planned)
     else:
@@ -85,6 +93,7 @@ def _identify_data(
             grid,
             options=conditioning_options(options),
             channels=channels,
+            sample_start=task.sample_start,
         )
     if data.acceleration is None:
         return _with_planned_reason(data, getattr(task, "skipped", "")), None, None
@@ -538,6 +547,8 @@ class _FileTask:
     files: tuple
     window: tuple = ()
     shared_inputs: tuple = ()
+    #: As :attr:`BlockTask.sample_start`.
+    sample_start: pd.Timestamp | None = None
 
 
 def identify_from_files(
@@ -582,7 +593,9 @@ def _file_tasks(tasks: Sequence[BlockTask], plan, options: IdentifyOptions) -> l
     for task in tasks:
         used = sorted(position[Path(f)] for f in task.files)
         if not used:
-            out.append(_FileTask(task.block, task.block_start, task.files))
+            out.append(
+                _FileTask(task.block, task.block_start, task.files, sample_start=task.sample_start)
+            )
             continue
         for i in used:
             if i not in jobs:
@@ -599,6 +612,7 @@ def _file_tasks(tasks: Sequence[BlockTask], plan, options: IdentifyOptions) -> l
                 task.files,
                 tuple(plan.files[lo:hi]),
                 tuple(jobs[i] for i in used),
+                task.sample_start,
             )
         )
     return out

@@ -164,8 +164,8 @@ class AdaptiveLengths:
             if j in self.power:
                 continue
             if not flush and not settled(
-                planned.block_start.value,
-                planned.block_end.value,
+                planned.sample_start.value,
+                planned.sample_end.value,
                 starts,
                 ends,
                 newest=newest,
@@ -184,6 +184,7 @@ class AdaptiveLengths:
                     self.half_grid,
                     options=conditioning,
                     channels=self.channels,
+                    sample_start=planned.sample_start,
                 )
                 power = half_step_power(block)
             self.power[j] = power

@@ -973,9 +973,9 @@ class Monitor:
         their neighbours' edges) can no longer change (:func:`settled`)."""
         voyage = self.voyage
         margin = int(2.0 / voyage.rate_hz * _NS) if per_file else 0
-        return settled(
-            planned.block_start.value - margin,
-            planned.block_end.value + margin,
+        return settled(  # the span of the block's samples (off its label on a drifting clock)
+            planned.sample_start.value - margin,
+            planned.sample_end.value + margin,
             starts,
             ends,
             newest=newest,
@@ -1074,6 +1074,9 @@ class Monitor:
             tuple(str(f) for f in planned.files),
             tuple(f.info for f in used),
             skipped=planned.skipped_reason,
+            sample_start=None
+            if planned.sample_start == planned.block_start
+            else planned.sample_start,
         )
         conditioner = None
         if per_file:

@@ -71,6 +71,7 @@ __all__ = [
     "FileInfo",
     "FilePlacement",
     "PlannedBlock",
+    "RecordClock",
     "clock_runs",
     "place_files",
     "placed_block_numbers",
@@ -78,6 +79,7 @@ __all__ = [
     "sort_out_files",
     "plan_blocks",
     "read_file_info",
+    "record_clocks",
 ]
 
 _NS = 1_000_000_000
@@ -215,6 +217,12 @@ class PlannedBlock:
         Files overlapping the block, in time order (empty for some skipped blocks).
     skipped_reason : str
         Empty when the block can be built; else why not (e.g. a gap between files).
+    sample_start : pandas.Timestamp, optional
+        Placed time of the block's first sample (on the files' sample count, as
+        ``FileInfo.start_time``): *block_start* unless the record's sample clock drifts
+        from its stamps, where it is the sample count at which the record's clock line
+        puts *block_start* (:class:`RecordClock`); the block holds the grid's length of
+        samples from there. Default: *block_start*.
     """
 
     block: int
@@ -222,6 +230,16 @@ class PlannedBlock:
     block_end: pd.Timestamp
     files: tuple[Path, ...]
     skipped_reason: str = ""
+    sample_start: pd.Timestamp | None = None
+
+    def __post_init__(self) -> None:
+        if self.sample_start is None:
+            object.__setattr__(self, "sample_start", self.block_start)
+
+    @property
+    def sample_end(self) -> pd.Timestamp:
+        """Placed time just after the block's last sample. [UTC]"""
+        return self.sample_start + (self.block_end - self.block_start)
 
 
 @dataclass(frozen=True, eq=False)
@@ -783,6 +801,141 @@ def clock_runs(
     return out
 
 
+@dataclass(frozen=True)
+class RecordClock:
+    """The clock line of one record of placed files (:func:`record_clocks`): a run of
+    contiguous files and the runs :func:`place_files` carried over gaps on its sample
+    count.
+
+    The line ``stamp - anchor - x = alpha + beta * x`` of the record's stamps on its
+    sample count x (nominal seconds after its first file's placed start; the stamps are
+    the placed starts less ``clock_shift_s``), as :func:`place_files` fits it. Where it
+    drifts (by more than half the clock jitter over the record, beyond twice its standard
+    error: the test :func:`place_files` judges the stamps by), a UTC *t* lies at sample
+    count ``x = (t - anchor - alpha) / (1 + beta)``; elsewhere the placed times are UTC.
+
+    Parameters
+    ----------
+    first, stop : int
+        The record's files are ``infos[first:stop]``.
+    start_ns : int
+        Placed start of its first file. [ns since the epoch]
+    first_shift_s : float
+        That file's ``clock_shift_s`` (its stamp is ``start - first_shift_s``). [s]
+    alpha_s, beta : float
+        The line's offset [s] and slope (stamp seconds per nominal second, less 1). [-]
+    drifting : bool
+        Whether the blocks are cut at the UTC of their labels on the line.
+    """
+
+    first: int
+    stop: int
+    start_ns: int
+    first_shift_s: float
+    alpha_s: float
+    beta: float
+    drifting: bool
+
+    def placed_ns(self, utc_ns: int) -> float:
+        """Placed time (sample count) at which the line puts the UTC *utc_ns*. [ns]"""
+        if not self.drifting:
+            return float(utc_ns)
+        t_s = (utc_ns - self.start_ns) / _NS + self.first_shift_s - self.alpha_s
+        return self.start_ns + t_s / (1 + self.beta) * _NS
+
+    def utc_ns(self, placed_ns: int) -> float:
+        """UTC the line gives the placed time *placed_ns*. [ns]"""
+        if not self.drifting:
+            return float(placed_ns)
+        x_s = (placed_ns - self.start_ns) / _NS
+        return self.start_ns + (self.alpha_s - self.first_shift_s + (1 + self.beta) * x_s) * _NS
+
+
+def _line(x: np.ndarray, y: np.ndarray, clock_jitter_s: float) -> tuple[float, float, bool]:
+    """alpha, beta and whether the line of *y* on *x* drifts (:meth:`_ClockRun.walk_s`
+    beyond half *clock_jitter_s*, the test of :meth:`_ClockRun.drifting`)."""
+    n = x.size
+    if n < 2:
+        return 0.0, 0.0, False
+    mean_x, mean_y = x.mean(), y.mean()
+    dx, dy = x - mean_x, y - mean_y
+    sxx = float(dx @ dx)
+    if sxx <= 0:
+        return float(mean_y), 0.0, False
+    sxy, syy = float(dx @ dy), float(dy @ dy)
+    beta = sxy / sxx
+    alpha = float(mean_y) - beta * float(mean_x)
+    if n < 3:
+        return alpha, beta, False
+    scatter = math.sqrt(max(syy - beta * sxy, 0.0) / (n - 2))
+    walk_s = (abs(beta) - 2 * scatter / math.sqrt(sxx)) * float(x[-1])
+    return alpha, beta, walk_s > 0.5 * clock_jitter_s
+
+
+def record_clocks(
+    infos: Sequence[FileInfo],
+    starts_ns: np.ndarray | None = None,
+    *,
+    clock_jitter_s: float = CLOCK_JITTER_S,
+) -> list[RecordClock]:
+    """The records of the placed files *infos* (:func:`place_files`, time order) and their
+    clock lines, from the placed headers alone: a record is a run of contiguous files and
+    the runs after gaps that :func:`place_files` carried on its sample count (a run whose
+    first stamp lies on the record's line where it is placed). *starts_ns*: their placed
+    starts [ns], when at hand."""
+    if not infos:
+        return []
+    if starts_ns is None:
+        starts_ns = np.array([_ns(i.start_time) for i in infos], dtype=np.int64)
+    shifts = np.array([i.clock_shift_s for i in infos], dtype=float)
+    rate = infos[0].sampling_rate_hz
+    half_ns = 0.5 / rate * _NS
+    ends_ns = starts_ns + np.array([round(i.n_samples / rate * _NS) for i in infos])
+    gaps = np.flatnonzero(np.abs(starts_ns[1:] - ends_ns[:-1]) > half_ns) + 1
+    bounds = [0]
+    for j in gaps.tolist():
+        r0 = bounds[-1]
+        x = (starts_ns[r0:j] - starts_ns[r0]) / _NS
+        y = shifts[r0] - shifts[r0:j]
+        alpha, beta, drifting = _line(x, y, clock_jitter_s)
+        x_j = (starts_ns[j] - starts_ns[r0]) / _NS
+        carried = drifting and abs(shifts[r0] - shifts[j] - (alpha + beta * x_j)) <= 1e-4
+        if not carried:
+            bounds.append(j)
+    bounds.append(len(infos))
+    out = []
+    for r0, stop in zip(bounds[:-1], bounds[1:], strict=True):
+        x = (starts_ns[r0:stop] - starts_ns[r0]) / _NS
+        alpha, beta, drifting = _line(x, shifts[r0] - shifts[r0:stop], clock_jitter_s)
+        out.append(
+            RecordClock(r0, stop, int(starts_ns[r0]), float(shifts[r0]), alpha, beta, drifting)
+        )
+    return out
+
+
+def _record_of(clocks: Sequence[RecordClock], starts_ns: np.ndarray, utc_ns: int) -> RecordClock:
+    """The record whose line cuts the block labelled *utc_ns*: the last one starting
+    (its first file's placed start) before where its line puts *utc_ns*, else the first."""
+    chosen = clocks[0]
+    for clock in clocks[1:]:
+        if clock.placed_ns(utc_ns) + CLOCK_JITTER_S * _NS >= starts_ns[clock.first]:
+            chosen = clock
+        else:
+            break
+    return chosen
+
+
+def _sample_start_ns(clock: RecordClock, starts_ns: np.ndarray, rate: float, utc_ns: int) -> int:
+    """Placed time of the first sample of a block labelled *utc_ns* on the drifting
+    record *clock*: where its line puts that UTC, rounded to the sample lattice of the
+    file holding it (half a sample at most: 0.24 ms at 2048 Hz). [ns]"""
+    placed = clock.placed_ns(utc_ns)
+    index = int(np.searchsorted(starts_ns[clock.first : clock.stop], placed, side="right"))
+    index = clock.first + max(index - 1, 0)
+    m = round((placed - starts_ns[index]) / _NS * rate)
+    return int(starts_ns[index]) + round(m / rate * _NS)
+
+
 def _span(files: Sequence[FileInfo]) -> str:
     return files[0].name if len(files) == 1 else f"{files[0].name} .. {files[-1].name}"
 
@@ -970,7 +1123,13 @@ def placed_block_numbers(
     # a block the record misses by at most the clock jitter at its start or end is the
     # record's: its placement after a gap is only known to that (its stamp's jitter)
     edge = max(half, pd.Timedelta(seconds=clock_jitter_s))
-    return grid.complete_blocks(infos[0].start_time - edge, infos[-1].end_time + edge)
+    first, last = infos[0].start_time, infos[-1].end_time
+    clocks = record_clocks(infos, clock_jitter_s=clock_jitter_s)
+    if clocks[0].drifting:  # the blocks are cut at the UTC of their labels: its span's
+        first = pd.Timestamp(round(clocks[0].utc_ns(_ns(first))), tz="UTC")
+    if clocks[-1].drifting:
+        last = pd.Timestamp(round(clocks[-1].utc_ns(_ns(last))), tz="UTC")
+    return grid.complete_blocks(first - edge, last + edge)
 
 
 def placed_blocks(
@@ -1001,21 +1160,44 @@ def placed_blocks(
         As :func:`plan_file_infos`'. [s]
     """
     rate = infos[0].sampling_rate_hz
+    clocks = record_clocks(infos, starts_ns, clock_jitter_s=clock_jitter_s)
+    drifting = any(clock.drifting for clock in clocks)
     planned = []
     for k in blocks:
         start, end = grid.start(int(k)), grid.end(int(k))
+        start_ns, end_ns = _ns(start), _ns(end)
+        sample_start = start
+        if drifting:
+            clock = _record_of(clocks, starts_ns, start_ns)
+            if clock.drifting:
+                # the block's samples: the grid's length of them from where the record's
+                # clock line puts the UTC of its label
+                sample_ns = _sample_start_ns(clock, starts_ns, rate, start_ns)
+                # a span the record misses by at most the clock jitter (its line is known
+                # to that) is the record's first or last samples, not NaN-padded
+                first_ns, last_ns = int(starts_ns[clock.first]), int(ends_ns[clock.stop - 1])
+                edge_ns = max(0.5 / rate, clock_jitter_s) * _NS
+                length_ns = end_ns - start_ns
+                if first_ns - edge_ns <= sample_ns < first_ns:
+                    sample_ns = first_ns
+                elif last_ns < sample_ns + length_ns <= last_ns + edge_ns:
+                    sample_ns = last_ns - length_ns
+                start_ns, end_ns = sample_ns, sample_ns + length_ns
+                sample_start = pd.Timestamp(sample_ns, tz="UTC")
         indices, reason = _block_files_and_gap(
             infos,
             starts_ns,
             ends_ns,
-            _ns(start),
-            _ns(end),
+            start_ns,
+            end_ns,
             rate,
             float(max_gap_s),
             float(clock_jitter_s),
         )
         planned.append(
-            PlannedBlock(int(k), start, end, tuple(infos[i].path for i in indices), reason)
+            PlannedBlock(
+                int(k), start, end, tuple(infos[i].path for i in indices), reason, sample_start
+            )
         )
     return planned
 

@@ -336,6 +336,7 @@ class FileConditioner:
                 self.grid,
                 options=self.options,
                 channels=self.channels,
+                sample_start=planned.sample_start,
             )
         return built
 
@@ -348,6 +349,10 @@ class FileConditioner:
         if not needed or not all(self._on_lattice(i) for i in needed):
             return None
         if any(not self._contiguous(a, a + 1) for a in needed[:-1]):
+            return None
+        if planned.sample_start != planned.block_start:
+            # a drifting record's block (cut where its clock line puts the label): its
+            # sample span is off the grid's steps, which the step sums are taken on
             return None
         block_start = (pd.Timestamp(planned.block_start).as_unit("ns").value - self._t0_ns) / _NS
         start_raw = block_start * self.rate

@@ -1,0 +1,90 @@
+"""A drifting record's block k holds the samples recorded in its labelled UTC span.
+
+A 6-h 5-min record of 5-min files at 64 Hz whose sample clock runs 100 ppm fast (file k stamped
+k x 300 s / (1 + 1e-4) after T0); channel "utc" holds the UTC each sample was recorded at
+(hundreds of seconds after T0: an accelerometer's range), the others noise. Main cuts block k on the sample count from the first
+stamp: block 68 (05:40) begins with the sample recorded at 05:39:57.96 (-2.04 s, the clock's
+walk 1e-4 x 20 400 s); now: within half a sample (the stamps lie on the line).
+"""
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from data_contracts import AccelerationRecord, write_accelerations
+from workbench.blocks import BlockGrid
+from workbench.predictors import block_predictors
+from workbench.signals import ConditioningOptions, iter_blocks
+from workbench.signals.moments import ChannelCheckOptions
+
+#: No channel dropped: the time channel, a ramp, is flat once detrended.
+KEEP_ALL = ConditioningOptions(
+    detrend=False,
+    channel_check=ChannelCheckOptions(
+        kurtosis_limits=(0.0, 1e9), flat_variance=-1.0, max_variance_z=1e9, max_kurtosis_z=1e9
+    ),
+)
+
+RATE_HZ = 64.0
+PPM = 100.0
+T0 = pd.Timestamp("2026-03-01T00:00:00Z")
+N_FILES = 73  # 6 h 5 min: block 68 (05:40-06:00 UTC) recorded whole by the fast clock
+
+
+def _write(folder: Path) -> list[Path]:
+    folder.mkdir()
+    n = int(300 * RATE_HZ)
+    rng = np.random.default_rng(0)
+    real_rate = RATE_HZ * (1 + PPM * 1e-6)
+    paths = []
+    for k in range(N_FILES):
+        utc = (k * n + np.arange(n)) / real_rate
+        values = np.column_stack([utc / 100, rng.standard_normal((n, 2))])
+        stamp = T0 + pd.Timedelta(seconds=k * n / real_rate)
+        paths.append(
+            write_accelerations(
+                AccelerationRecord(values, RATE_HZ, stamp, ("utc", "a", "b")),
+                folder / f"acc_{k:03d}.npz",
+            )
+        )
+    return paths
+
+
+def test_a_drifting_records_blocks_hold_the_samples_of_their_utc_span(tmp_path):
+    files = _write(tmp_path / "acc")
+    grid = BlockGrid(T0, 1200.0, 300.0)
+    late = []
+    for block in iter_blocks(files, grid=grid, blocks=[0, 20, 40, 68], options=KEEP_ALL):
+        assert not block.skipped, block.skipped_reason
+        first_utc_s = 100 * block.acceleration[0, block.channels.index("utc")]
+        late.append((block.block_start - T0).total_seconds() - first_utc_s)
+        assert block.acceleration.shape[0] == 1200 * RATE_HZ  # the block's fixed samples
+    # main: [0.0, 0.60, 1.20, 2.04] s late; now the sample nearest the label: within half
+    # a sample (7.8 ms at 64 Hz; the stamps lie on the line exactly, so its error is nil)
+    np.testing.assert_allclose(late, 0.0, atol=0.5 / RATE_HZ + 1e-6)
+    assert np.abs(late).max() > 1e-3  # on the sample lattice, not resampled
+
+
+def test_the_ship_log_is_averaged_over_the_minutes_the_block_was_recorded(tmp_path):
+    """A 1-s speed log stepping 0 -> 10 kn at 05:40:00 UTC: the block labelled 05:40 holds
+    samples recorded from 05:40:00 on, so its labelled span's mean speed (10 kn) is that of
+    its samples (main: the samples begin 2.04 s earlier, at 0 kn for 2 of 1200 s)."""
+    files = _write(tmp_path / "acc")
+    grid = BlockGrid(T0, 1200.0, 300.0)
+    (block,) = iter_blocks(files, grid=grid, blocks=[68], options=KEEP_ALL)
+    utc_s = 100 * block.acceleration[:, block.channels.index("utc")]
+    step_s = (block.block_start - T0).total_seconds()
+    log = pd.DataFrame({"time": T0 + pd.to_timedelta(np.arange(0, 6 * 3600), unit="s")}).assign(
+        speed_kn=lambda d: np.where((d.time - T0).dt.total_seconds() >= step_s, 10.0, 0.0)
+    )
+    labelled = block_predictors(
+        log,
+        blocks=pd.DataFrame(
+            {"block": [68], "block_start": [block.block_start], "block_end": [block.block_end]}
+        ),
+        despike=False,
+    )["speed_kn"].iloc[0]
+    recorded = np.mean(np.where(np.floor(utc_s) >= step_s, 10.0, 0.0))
+    assert labelled == 10.0
+    assert abs(recorded - labelled) < 0.01  # main: 9.983 (2.04 s of 1200 at 0 kn)
