@@ -7,6 +7,7 @@ stamp: block 68 (05:40) begins with the sample recorded at 05:39:57.96 (-2.04 s,
 walk 1e-4 x 20 400 s); now: within half a sample (the stamps lie on the line).
 """
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +16,7 @@ import pandas as pd
 from data_contracts import AccelerationRecord, write_accelerations
 from workbench.blocks import BlockGrid
 from workbench.predictors import block_predictors
-from workbench.signals import ConditioningOptions, iter_blocks
+from workbench.signals import ConditioningOptions, iter_blocks, plan_blocks
 from workbench.signals.moments import ChannelCheckOptions
 
 #: No channel dropped: the time channel, a ramp, is flat once detrended.
@@ -88,3 +89,50 @@ def test_the_ship_log_is_averaged_over_the_minutes_the_block_was_recorded(tmp_pa
     recorded = np.mean(np.where(np.floor(utc_s) >= step_s, 10.0, 0.0))
     assert labelled == 10.0
     assert abs(recorded - labelled) < 0.01  # main: 9.983 (2.04 s of 1200 at 0 kn)
+
+
+def test_the_file_conditioner_and_load_block_cut_a_drifting_block_as_iter_blocks(tmp_path):
+    """The three ways to build a block give the same samples: the plan's cut
+    (``PlannedBlock.sample_start``) goes to load_block (the line of the block's own few
+    files would be the record's only to its stamps' jitter), and the file conditioner builds
+    a drifting record's block with it."""
+    from workbench.signals import load_block
+    from workbench.signals.file_conditioning import FileConditioner
+
+    files = _write(tmp_path / "acc")
+    grid = BlockGrid(T0, 1200.0, 300.0)
+    options = dataclasses.replace(KEEP_ALL, target_rate_hz=16.0)
+    plan = plan_blocks(files, grid)
+    planned = next(b for b in plan.blocks if b.block == 40)
+    # 40 x 300 s x 100 ppm / (1 + 100 ppm) after the label on the sample count, to a sample
+    assert abs((planned.sample_start - planned.block_start).total_seconds() - 1.19988) < 1 / 64
+    (streamed,) = iter_blocks(files, grid=grid, blocks=[40], options=options)
+    loaded = load_block(plan.files, 40, grid, options=options, sample_start=planned.sample_start)
+    conditioner = FileConditioner(plan.files, grid, plan.channels, options=options)
+    conditioned = conditioner.block(planned)
+    np.testing.assert_array_equal(loaded.acceleration, streamed.acceleration)
+    np.testing.assert_array_equal(conditioned.acceleration, streamed.acceleration)
+
+
+def test_a_record_without_drift_is_cut_at_its_labels(tmp_path):
+    """Stamps jittered by up to 10 ms about a clock on its rate: no drift, every block cut
+    at its label, as before."""
+    folder = tmp_path / "acc"
+    folder.mkdir()
+    n = int(300 * RATE_HZ)
+    rng = np.random.default_rng(1)
+    files = [
+        write_accelerations(
+            AccelerationRecord(
+                rng.standard_normal((n, 2)),
+                RATE_HZ,
+                T0 + pd.Timedelta(seconds=300 * k + rng.uniform(-0.01, 0.01)),
+                ("a", "b"),
+            ),
+            folder / f"acc_{k:03d}.npz",
+        )
+        for k in range(24)
+    ]
+    plan = plan_blocks(files, BlockGrid(T0, 1200.0, 300.0))
+    assert len(plan.blocks) == 21
+    assert all(b.sample_start == b.block_start for b in plan.blocks)

@@ -22,8 +22,11 @@ conditioner use alike). The recorder's sample clock may also run some ppm off it
 rate, so that its files last slightly less or more than their sample count says and the
 stamps drift steadily from the sample count: the mismatch is then measured from the
 least-squares line of the run's stamps on its sample count (:func:`place_files`,
-:func:`clock_runs`, :func:`clock_drift_note`). A longer gap is a gap; a longer overlap an
-error. A block that
+:func:`clock_runs`, :func:`clock_drift_note`). The files keep the placed times (the
+sample count); a drifting record's blocks are cut at the UTC of their labels: each takes
+the grid's length of samples from where the record's clock line puts its label's time
+(:func:`record_clocks`, ``PlannedBlock.sample_start``). A longer gap is a gap; a longer
+overlap an error. A block that
 overlaps a gap is **skipped** with the reason (``"gap of 42.0 s between acc_a.npz and
 acc_b.npz"``), unless the gap's part inside the block is at most ``max_gap_s`` (or, at
 the block's start or end, the clock jitter: a record after a gap is placed only to it): then the
@@ -108,7 +111,8 @@ _NS = 1_000_000_000
 #: from the sample count steadily (20 ppm: 6 ms per 5-min file, 1.7 s a day) and would
 #: pass this limit within the hour. The limit therefore bounds the stamps' distance from
 #: the least-squares line of a run's stamps on its sample count (:func:`place_files`); the
-#: blocks keep the recorder's consecutive samples, timed by the sample count. The modal
+#: blocks keep the recorder's consecutive samples, cut where that line puts the UTC of
+#: their labels (:func:`record_clocks`). The modal
 #: frequencies are those of the nominal rate, low by rho of themselves (20 ppm of 3 Hz:
 #: 0.06 mHz; 100 ppm of 12 Hz: 1.2 mHz), far below their block-to-block scatter and the
 #: same through a voyage; a rate fitted over a short run is uncertain by the jitter over
@@ -913,12 +917,15 @@ def record_clocks(
     return out
 
 
-def _record_of(clocks: Sequence[RecordClock], starts_ns: np.ndarray, utc_ns: int) -> RecordClock:
+def _record_of(
+    clocks: Sequence[RecordClock], starts_ns: np.ndarray, utc_ns: int, edge_ns: float
+) -> RecordClock:
     """The record whose line cuts the block labelled *utc_ns*: the last one starting
-    (its first file's placed start) before where its line puts *utc_ns*, else the first."""
+    (its first file's placed start) at most *edge_ns* after where its line puts *utc_ns*,
+    else the first."""
     chosen = clocks[0]
     for clock in clocks[1:]:
-        if clock.placed_ns(utc_ns) + CLOCK_JITTER_S * _NS >= starts_ns[clock.first]:
+        if clock.placed_ns(utc_ns) + edge_ns >= starts_ns[clock.first]:
             chosen = clock
         else:
             break
@@ -1162,13 +1169,14 @@ def placed_blocks(
     rate = infos[0].sampling_rate_hz
     clocks = record_clocks(infos, starts_ns, clock_jitter_s=clock_jitter_s)
     drifting = any(clock.drifting for clock in clocks)
+    edge_ns = max(0.5 / rate, clock_jitter_s) * _NS
     planned = []
     for k in blocks:
         start, end = grid.start(int(k)), grid.end(int(k))
         start_ns, end_ns = _ns(start), _ns(end)
         sample_start = start
         if drifting:
-            clock = _record_of(clocks, starts_ns, start_ns)
+            clock = _record_of(clocks, starts_ns, start_ns, edge_ns)
             if clock.drifting:
                 # the block's samples: the grid's length of them from where the record's
                 # clock line puts the UTC of its label
@@ -1176,7 +1184,6 @@ def placed_blocks(
                 # a span the record misses by at most the clock jitter (its line is known
                 # to that) is the record's first or last samples, not NaN-padded
                 first_ns, last_ns = int(starts_ns[clock.first]), int(ends_ns[clock.stop - 1])
-                edge_ns = max(0.5 / rate, clock_jitter_s) * _NS
                 length_ns = end_ns - start_ns
                 if first_ns - edge_ns <= sample_ns < first_ns:
                     sample_ns = first_ns

@@ -26,7 +26,9 @@ rate (2048 Hz, about 20 channels) that repetition dominates the cost of identifi
 A block is then cut from the conditioned files (a few MB at the analysis rate) and its
 faulty channels dropped. Blocks the conditioned files cannot give exactly as the per-block
 builder would (a NaN-padded gap inside the block, a kept channel whose NaN run could not be
-bridged elsewhere in its file, a block start off the decimated sample lattice) are built by
+bridged elsewhere in its file, a block start off the decimated sample lattice, a drifting
+record's block, cut where the record's clock line puts its label and so off the grid's steps
+the faulty-channel sums are taken on) are built by
 :func:`~workbench.signals.block_builder.load_block` instead, so the result never silently differs.
 
 Equality with the per-block builder
