@@ -138,3 +138,74 @@ def test_a_record_without_drift_is_cut_at_its_labels(tmp_path):
     plan = plan_blocks(files, BlockGrid(T0, 1200.0, 300.0))
     assert len(plan.blocks) == 21
     assert all(b.sample_start == b.block_start for b in plan.blocks)
+
+
+def _write_noise(folder: Path, ppm: float, n_files: int = 25) -> list[Path]:
+    """2 h 5 min of white noise in 3 channels, 5-min files at 64 Hz, the clock *ppm* fast."""
+    folder.mkdir()
+    n = int(300 * RATE_HZ)
+    rng = np.random.default_rng(2)
+    real_rate = RATE_HZ * (1 + ppm * 1e-6)
+    return [
+        write_accelerations(
+            AccelerationRecord(
+                rng.standard_normal((n, 3)),
+                RATE_HZ,
+                T0 + pd.Timedelta(seconds=k * n / real_rate),
+                ("x", "y", "z"),
+            ),
+            folder / f"acc_{k:03d}.npz",
+        )
+        for k in range(n_files)
+    ]
+
+
+def test_the_file_conditioner_builds_a_drifting_records_blocks_from_the_files(tmp_path):
+    """Planned on the 16-Hz analysis lattice (every 4th sample from the grid's origin) and
+    the step sums split at every block's cut and end, the conditioner cuts each block of
+    the fast clock's record from its files conditioned once (before: every block but the
+    first by load_block from the raw files, x5 a block's time at 1024 Hz), as the per-block
+    builder does within the filters' transients, the faulty-channel statistics to rounding
+    (as on a record without drift: tests/signals/test_file_conditioning.py)."""
+    from workbench.signals import load_block
+    from workbench.signals.block_plan import plan_file_infos, read_file_info
+    from workbench.signals.file_conditioning import FileConditioner, block_cuts, padding_samples
+
+    files = _write_noise(tmp_path / "acc", PPM)
+    grid = BlockGrid(T0, 1200.0, 300.0)
+    options = ConditioningOptions(target_rate_hz=16.0, band_hz=(0.5, 6.0))
+    plan = plan_file_infos([read_file_info(f) for f in files], grid, lattice=4)
+    assert all(b.drifting for b in plan.blocks)
+    conditioner = FileConditioner(
+        plan.files, grid, plan.channels, options=options, cuts=block_cuts(plan.blocks)
+    )
+    edge = padding_samples(RATE_HZ, 16.0, options.band_hz) // 4
+    late_s, worst = [], 0.0
+    for planned in plan.blocks:
+        # the cut on the analysis lattice: within half a 16-Hz sample of the label's UTC
+        at = (planned.sample_start - T0).total_seconds() * 16.0
+        assert abs(at - round(at)) < 1e-6
+        late_s.append((planned.sample_start - planned.block_start).total_seconds())
+        fast = conditioner.block(planned)
+        slow = load_block(
+            plan.files, planned.block, grid, options=options, sample_start=planned.sample_start
+        )
+        columns = ["nan_fraction", "longest_nan_run_s", "variance", "kurtosis", "variance_z"]
+        np.testing.assert_allclose(
+            fast.channel_report[columns].to_numpy(float),
+            slow.channel_report[columns].to_numpy(float),
+            rtol=1e-9,
+            atol=1e-12,
+        )
+        assert fast.channels == slow.channels == ("x", "y", "z")
+        assert fast.acceleration.shape == slow.acceleration.shape == (1200 * 16, 3)
+        rms = slow.acceleration.std(axis=0)
+        interior = np.abs(fast.acceleration - slow.acceleration)[edge:-edge] / rms
+        worst = max(worst, interior.max())
+    assert worst < 1e-10
+    assert conditioner.fallbacks == 0  # before: 20 of 21 (all but block 0)
+    # on the sample count the label's UTC lies k x 300 s x 100 ppm after it: 0.03 s a block
+    expected = np.arange(len(late_s)) * 300 * PPM * 1e-6 / (1 + PPM * 1e-6)
+    np.testing.assert_allclose(late_s, expected, atol=0.5 / 16.0 + 1e-6)
+    # blocks 0-20: the last block's UTC span ends after the record's last sample
+    assert len(plan.blocks) == 21 and len(set(late_s)) > 3

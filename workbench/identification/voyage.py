@@ -511,7 +511,9 @@ def _plan_without(plan, paths: set[str]):
     from ..signals.block_plan import plan_file_infos
 
     rest = [info for info in plan.files if str(Path(info.path).resolve()) not in paths]
-    return plan_file_infos(rest, plan.grid, max_gap_s=plan.max_gap_s, channels=plan.channels)
+    return plan_file_infos(
+        rest, plan.grid, max_gap_s=plan.max_gap_s, channels=plan.channels, lattice=plan.lattice
+    )
 
 
 def _detail(entry: dict, name: str) -> str:

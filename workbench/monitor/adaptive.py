@@ -184,7 +184,7 @@ class AdaptiveLengths:
                     self.half_grid,
                     options=conditioning,
                     channels=self.channels,
-                    sample_start=planned.sample_start,
+                    sample_start=planned.sample_start if planned.drifting else None,
                 )
                 power = half_step_power(block)
             self.power[j] = power

@@ -35,6 +35,7 @@ from ..identification.engine import BlockTask
 from ..processes import interrupts_deferred, worker_initializer
 from ..sid.harmonics import HarmonicOptions
 from ..sid.tracking import TrackingOptions
+from ..signals.file_conditioning import block_cuts
 from ..store import (
     BlockStore,
     StoreDamaged,
@@ -958,6 +959,7 @@ class Monitor:
             voyage.grid,
             [k for k in numbers.tolist() if k not in self.done],
             max_gap_s=voyage.options.max_gap_s,
+            lattice=voyage.options.decimation_factor(voyage.rate_hz),
         )
         newest = int(ends.max())
         ready = [
@@ -1031,7 +1033,13 @@ class Monitor:
                 # length fits the data
                 continue
             (planned,) = placed_blocks(
-                infos, starts, ends, grid, [block], max_gap_s=options.max_gap_s
+                infos,
+                starts,
+                ends,
+                grid,
+                [block],
+                max_gap_s=options.max_gap_s,
+                lattice=options.decimation_factor(voyage.rate_hz),
             )
             if flush or self._settled(planned, per_file, starts, ends, newest):
                 ready.append(planned)
@@ -1074,9 +1082,7 @@ class Monitor:
             tuple(str(f) for f in planned.files),
             tuple(f.info for f in used),
             skipped=planned.skipped_reason,
-            sample_start=None
-            if planned.sample_start == planned.block_start
-            else planned.sample_start,
+            sample_start=planned.sample_start if planned.drifting else None,
         )
         conditioner = None
         if per_file:
@@ -1091,6 +1097,9 @@ class Monitor:
                 # the grid's t0): the blocks of one length share it, not those of another
                 shared=self._shared.setdefault(grid.t0, {}) if measures else self._shared,
                 counter=self.conditioned_files,
+                # the edges of the drifting blocks planned (this one's among them): the
+                # step sums are split there
+                cuts=block_cuts([planned, *(self._planned or ())]),
             )
         func = functools.partial(
             identify_block,
@@ -1790,7 +1799,13 @@ class Monitor:
             listed = placed_block_numbers(infos, grid)  # those a plan of the files lists
             blocks = [b for b in sorted(missing) if len(listed) and listed[0] <= b <= listed[-1]]
             plan = placed_blocks(
-                infos, starts, ends, grid, blocks, max_gap_s=self.voyage.options.max_gap_s
+                infos,
+                starts,
+                ends,
+                grid,
+                blocks,
+                max_gap_s=self.voyage.options.max_gap_s,
+                lattice=self.voyage.options.decimation_factor(self.voyage.rate_hz),
             )
             now_built = [b.block for b in plan if not b.skipped_reason]
             for block in now_built:

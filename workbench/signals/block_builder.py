@@ -313,7 +313,7 @@ def _build(
         planned.sample_start,
         plan.grid.length_s,
         plan.sampling_rate_hz,
-        on_lattice=planned.sample_start != planned.block_start,
+        on_lattice=planned.drifting,
     )
     return _condition(raw, plan.sampling_rate_hz, plan.channels, options, planned, notes)
 
@@ -481,7 +481,7 @@ def load_block(
     ]
     k = int(block)
     start, end = grid.start(k), grid.end(k)
-    if sample_start is not None and pd.Timestamp(sample_start) != start:
+    if sample_start is not None:
         return _load_drifting(infos, k, grid, pd.Timestamp(sample_start), options, channels)
     if not infos:
         return _skipped(PlannedBlock(k, start, end, ()), float("nan"), "no acceleration files")
@@ -535,7 +535,7 @@ def _load_drifting(
     not at its label: its files and gaps judged on its sample span."""
     start, end = grid.start(k), grid.end(k)
     sample_end = sample_start + (end - start)
-    planned = PlannedBlock(k, start, end, (), sample_start=sample_start)
+    planned = PlannedBlock(k, start, end, (), sample_start=sample_start, drifting=True)
     if not infos:
         return _skipped(planned, float("nan"), "no acceleration files")
     touching = [i for i in infos if i.start_time < sample_end and i.end_time > sample_start]

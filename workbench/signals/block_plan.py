@@ -227,6 +227,10 @@ class PlannedBlock:
         from its stamps, where it is the sample count at which the record's clock line
         puts *block_start* (:class:`RecordClock`); the block holds the grid's length of
         samples from there. Default: *block_start*.
+    drifting : bool
+        Whether the block is cut on its record's clock line (*sample_start*, which may
+        also equal *block_start* there): a builder then takes *sample_start* as it is,
+        not a placement of the block's own files.
     """
 
     block: int
@@ -235,6 +239,7 @@ class PlannedBlock:
     files: tuple[Path, ...]
     skipped_reason: str = ""
     sample_start: pd.Timestamp | None = None
+    drifting: bool = False
 
     def __post_init__(self) -> None:
         if self.sample_start is None:
@@ -268,6 +273,9 @@ class BlockPlan:
     left_out : tuple of (Path, str)
         Files given that cannot belong to the record, with why (:func:`sort_out_files`):
         not among *files*, their spans are gaps.
+    lattice : int
+        The decimation factor on whose lattice a drifting record's blocks are cut
+        (:func:`placed_blocks`); 1: the raw samples.
     """
 
     grid: BlockGrid
@@ -277,6 +285,7 @@ class BlockPlan:
     blocks: tuple[PlannedBlock, ...]
     max_gap_s: float = 0.0
     left_out: tuple[tuple[Path, str], ...] = ()
+    lattice: int = 1
 
     def frame(self) -> pd.DataFrame:
         """Table of the plan: block, block_start, block_end, n_files, skipped_reason."""
@@ -932,14 +941,28 @@ def _record_of(
     return chosen
 
 
-def _sample_start_ns(clock: RecordClock, starts_ns: np.ndarray, rate: float, utc_ns: int) -> int:
+def _sample_start_ns(
+    clock: RecordClock,
+    starts_ns: np.ndarray,
+    rate: float,
+    utc_ns: int,
+    t0_ns: int,
+    lattice: int = 1,
+) -> int:
     """Placed time of the first sample of a block labelled *utc_ns* on the drifting
     record *clock*: where its line puts that UTC, rounded to the sample lattice of the
-    file holding it (half a sample at most: 0.24 ms at 2048 Hz). [ns]"""
+    file holding it (half a sample at most: 0.24 ms at 2048 Hz); to every *lattice*-th
+    sample from the grid's origin *t0_ns* (the analysis lattice of a decimation by
+    *lattice*: half an analysis sample at most, 31 ms at 16 Hz) where the file lies on
+    the raw lattice from there. [ns]"""
     placed = clock.placed_ns(utc_ns)
     index = int(np.searchsorted(starts_ns[clock.first : clock.stop], placed, side="right"))
     index = clock.first + max(index - 1, 0)
     m = round((placed - starts_ns[index]) / _NS * rate)
+    offset = (int(starts_ns[index]) - t0_ns) / _NS * rate  # the file's first raw sample
+    if lattice > 1 and abs(offset - round(offset)) < 1e-3:
+        m = lattice * round((round(offset) + (placed - starts_ns[index]) / _NS * rate) / lattice)
+        m -= round(offset)
     return int(starts_ns[index]) + round(m / rate * _NS)
 
 
@@ -1074,6 +1097,7 @@ def plan_file_infos(
     max_gap_s: float = 0.0,
     channels: Sequence[str] | None = None,
     clock_jitter_s: float = CLOCK_JITTER_S,
+    lattice: int = 1,
 ) -> BlockPlan:
     """:func:`plan_blocks` for files whose headers are already read (:class:`FileInfo`).
 
@@ -1081,7 +1105,9 @@ def plan_file_infos(
     arrive) plan from them without reading the files again. *channels*: the voyage's
     channels when these files are a few of its files (:func:`reference_channels`).
     The plan's files are placed by :func:`place_files` (re-timed for clock jitter up to
-    *clock_jitter_s*). Parameters and errors as in :func:`plan_blocks`.
+    *clock_jitter_s*). *lattice*: the decimation factor of the analysis, on whose lattice
+    a drifting record's blocks are cut (:func:`placed_blocks`). Parameters and errors as
+    in :func:`plan_blocks`.
     """
     if not infos:
         raise ValueError("no acceleration files given")
@@ -1103,8 +1129,11 @@ def plan_file_infos(
         numbers,
         max_gap_s=float(max_gap_s),
         clock_jitter_s=clock_jitter_s,
+        lattice=lattice,
     )
-    return BlockPlan(grid, tuple(infos), channels, rate, tuple(planned), float(max_gap_s))
+    return BlockPlan(
+        grid, tuple(infos), channels, rate, tuple(planned), float(max_gap_s), lattice=lattice
+    )
 
 
 def placed_block_numbers(
@@ -1148,6 +1177,7 @@ def placed_blocks(
     *,
     max_gap_s: float = 0.0,
     clock_jitter_s: float = CLOCK_JITTER_S,
+    lattice: int = 1,
 ) -> list[PlannedBlock]:
     """The planned blocks *blocks* of *grid* over files already placed and checked, as
     :func:`plan_file_infos` plans them: each block's files and skip reason depend only on
@@ -1165,6 +1195,11 @@ def placed_blocks(
         Block numbers among :func:`placed_block_numbers`, ascending.
     max_gap_s, clock_jitter_s : float
         As :func:`plan_file_infos`'. [s]
+    lattice : int
+        A drifting record's blocks are cut on every *lattice*-th raw sample from the
+        grid's origin: the decimation factor of the analysis (the file conditioner cuts its
+        decimated files there); 1: on the raw samples. Other records' blocks are cut at
+        their labels whatever it is.
     """
     rate = infos[0].sampling_rate_hz
     clocks = record_clocks(infos, starts_ns, clock_jitter_s=clock_jitter_s)
@@ -1175,12 +1210,16 @@ def placed_blocks(
         start, end = grid.start(int(k)), grid.end(int(k))
         start_ns, end_ns = _ns(start), _ns(end)
         sample_start = start
+        on_line = False
         if drifting:
             clock = _record_of(clocks, starts_ns, start_ns, edge_ns)
-            if clock.drifting:
+            on_line = clock.drifting
+            if on_line:
                 # the block's samples: the grid's length of them from where the record's
                 # clock line puts the UTC of its label
-                sample_ns = _sample_start_ns(clock, starts_ns, rate, start_ns)
+                sample_ns = _sample_start_ns(
+                    clock, starts_ns, rate, start_ns, _ns(grid.t0), int(lattice)
+                )
                 # a span the record misses by at most the clock jitter (its line is known
                 # to that) is the record's first or last samples, not NaN-padded
                 first_ns, last_ns = int(starts_ns[clock.first]), int(ends_ns[clock.stop - 1])
@@ -1203,7 +1242,13 @@ def placed_blocks(
         )
         planned.append(
             PlannedBlock(
-                int(k), start, end, tuple(infos[i].path for i in indices), reason, sample_start
+                int(k),
+                start,
+                end,
+                tuple(infos[i].path for i in indices),
+                reason,
+                sample_start,
+                on_line,
             )
         )
     return planned
