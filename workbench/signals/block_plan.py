@@ -1205,32 +1205,10 @@ def placed_blocks(
     clocks = record_clocks(infos, starts_ns, clock_jitter_s=clock_jitter_s)
     drifting = any(clock.drifting for clock in clocks)
     edge_ns = max(0.5 / rate, clock_jitter_s) * _NS
-    planned = []
-    for k in blocks:
-        start, end = grid.start(int(k)), grid.end(int(k))
-        start_ns, end_ns = _ns(start), _ns(end)
-        sample_start = start
-        on_line = False
-        if drifting:
-            clock = _record_of(clocks, starts_ns, start_ns, edge_ns)
-            on_line = clock.drifting
-            if on_line:
-                # the block's samples: the grid's length of them from where the record's
-                # clock line puts the UTC of its label
-                sample_ns = _sample_start_ns(
-                    clock, starts_ns, rate, start_ns, _ns(grid.t0), int(lattice)
-                )
-                # a span the record misses by at most the clock jitter (its line is known
-                # to that) is the record's first or last samples, not NaN-padded
-                first_ns, last_ns = int(starts_ns[clock.first]), int(ends_ns[clock.stop - 1])
-                length_ns = end_ns - start_ns
-                if first_ns - edge_ns <= sample_ns < first_ns:
-                    sample_ns = first_ns
-                elif last_ns < sample_ns + length_ns <= last_ns + edge_ns:
-                    sample_ns = last_ns - length_ns
-                start_ns, end_ns = sample_ns, sample_ns + length_ns
-                sample_start = pd.Timestamp(sample_ns, tz="UTC")
-        indices, reason = _block_files_and_gap(
+    t0_ns = _ns(grid.t0)
+
+    def files_and_gap(start_ns: int, end_ns: int) -> tuple[list[int], str]:
+        return _block_files_and_gap(
             infos,
             starts_ns,
             ends_ns,
@@ -1240,6 +1218,43 @@ def placed_blocks(
             float(max_gap_s),
             float(clock_jitter_s),
         )
+
+    def cut(clock: RecordClock, start_ns: int, length_ns: int, on: int) -> int:
+        """The block's samples: the grid's length of them from where the record's clock
+        line puts the UTC of its label (on every *on*-th sample)."""
+        sample_ns = _sample_start_ns(clock, starts_ns, rate, start_ns, t0_ns, on)
+        # a span the record misses by at most the clock jitter (its line is known to
+        # that) is the record's first or last samples, not NaN-padded
+        first_ns, last_ns = int(starts_ns[clock.first]), int(ends_ns[clock.stop - 1])
+        if first_ns - edge_ns <= sample_ns < first_ns:
+            return first_ns
+        if last_ns < sample_ns + length_ns <= last_ns + edge_ns:
+            return last_ns - length_ns
+        return sample_ns
+
+    planned = []
+    for k in blocks:
+        start, end = grid.start(int(k)), grid.end(int(k))
+        start_ns, end_ns = _ns(start), _ns(end)
+        sample_start = start
+        on_line = False
+        clock = _record_of(clocks, starts_ns, start_ns, edge_ns) if drifting else None
+        if clock is not None and clock.drifting:
+            on_line = True
+            length_ns = end_ns - start_ns
+            sample_ns = cut(clock, start_ns, length_ns, int(lattice))
+            indices, reason = files_and_gap(sample_ns, sample_ns + length_ns)
+            if reason and lattice > 1:
+                # the analysis lattice (half an analysis sample off the line) moved the
+                # span across a record's edge or a gap that the nearest sample keeps
+                # inside (the file conditioner then leaves the block to load_block)
+                raw_ns = cut(clock, start_ns, length_ns, 1)
+                raw = files_and_gap(raw_ns, raw_ns + length_ns)
+                if not raw[1]:
+                    sample_ns, (indices, reason) = raw_ns, raw
+            sample_start = pd.Timestamp(sample_ns, tz="UTC")
+        else:
+            indices, reason = files_and_gap(start_ns, end_ns)
         planned.append(
             PlannedBlock(
                 int(k),
