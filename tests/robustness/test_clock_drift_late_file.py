@@ -68,8 +68,9 @@ def test_a_late_file_among_a_drifting_records_first_files_is_used(tmp_path, caps
     messages = _replay(order, tmp_path / "watch", state, PATHS["per-block"])
     assert not [m for m in messages if "not used" in m]  # main: acc_004.npz refused
     health = _health(state)
-    # block 10's UTC span ends about 720 ms after the record's last sample (100 ppm fast)
-    assert health["block"].tolist() == list(range(10))
+    # block 10's UTC span ends about 720 ms after the record's last sample (100 ppm fast):
+    # cut at that sample (EDGE_SHIFT_S)
+    assert health["block"].tolist() == list(range(11))
     assert (health["status"] == "ok").all()  # main: blocks 1-3 skipped (gap)
     code, _, err = _identify(capsys, tmp_path / "source", tmp_path / "batch", PATHS["per-block"])
     assert code == 0, err
@@ -104,7 +105,7 @@ def test_a_late_file_landing_while_the_monitor_was_down_is_used(tmp_path, capsys
     captured = capsys.readouterr()
     assert "not used" not in captured.err
     health = _health(state)
-    assert health["block"].tolist() == list(range(10))
+    assert health["block"].tolist() == list(range(11))
     assert (health["status"] == "ok").all()
     code, _, err = _identify(capsys, tmp_path / "source", tmp_path / "batch", PATHS["per-block"])
     assert code == 0, err
@@ -192,5 +193,5 @@ def test_identify_over_a_store_with_the_late_file_equals_a_fresh_run(tmp_path, c
         for folder in (tmp_path / "out", tmp_path / "fresh")
     )
     assert again["block"].tolist() == fresh["block"].tolist()
-    assert fresh["block"].unique().tolist() == list(range(10))
+    assert fresh["block"].unique().tolist() == list(range(11))
     np.testing.assert_allclose(again["frequency_hz"], fresh["frequency_hz"], rtol=0, atol=1e-12)

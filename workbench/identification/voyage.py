@@ -683,7 +683,7 @@ def identify_voyage(
         unreadable ones); inconsistent files; a store made with other options.
     """
     from ..sid.harmonics import HarmonicMarker
-    from ..signals.block_plan import clock_drift_note, clock_jitter_note
+    from ..signals.block_plan import clock_drift_note, clock_jitter_note, edge_cut_note
 
     options = options or IdentifyOptions()
     _check_run_options(scheduler, n_workers, batch_blocks)
@@ -790,7 +790,11 @@ def identify_voyage(
         result = IdentifyResult(summary, n_blocks=n_tasks, warnings=notices)
         result.files = export_store(store, out, channels, grid=grid, harmonics=marker)
         # files left out, re-timed for clock jitter or drift: said, not silent
-        clock = [clock_jitter_note(plan.files), clock_drift_note(plan.files)]
+        clock = [
+            clock_jitter_note(plan.files),
+            clock_drift_note(plan.files),
+            edge_cut_note(plan),
+        ]
         result.notes = left_out_notes(plan) + [n for n in clock if n] + marker.lines()
         result.warnings += marker.unmarked()
     selected = result.files.get("selected")

@@ -973,8 +973,14 @@ class Monitor:
     def _settled(self, planned, per_file: bool, starts, ends, newest: int) -> bool:
         """Whether the data of *planned* (and, when files are decimated one by one, of
         their neighbours' edges) can no longer change (:func:`settled`)."""
+        from ..signals.block_plan import EDGE_SHIFT_S
+
         voyage = self.voyage
         margin = int(2.0 / voyage.rate_hz * _NS) if per_file else 0
+        if planned.drifting:
+            # a drifting record's block is cut at the data's last sample when the data
+            # ends within EDGE_SHIFT_S of its span's end: known once data beyond landed
+            margin += int(EDGE_SHIFT_S * _NS)
         return settled(  # the span of the block's samples (off its label on a drifting clock)
             planned.sample_start.value - margin,
             planned.sample_end.value + margin,

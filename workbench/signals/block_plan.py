@@ -68,6 +68,7 @@ from ..fingerprints import sha256
 
 __all__ = [
     "CLOCK_JITTER_S",
+    "EDGE_SHIFT_S",
     "BlockPlan",
     "ClockRun",
     "FileOverlapError",
@@ -76,6 +77,7 @@ __all__ = [
     "PlannedBlock",
     "RecordClock",
     "clock_runs",
+    "edge_cut_note",
     "place_files",
     "placed_block_numbers",
     "placed_blocks",
@@ -118,6 +120,19 @@ _NS = 1_000_000_000
 #: same through a voyage; a rate fitted over a short run is uncertain by the jitter over
 #: its span (25 ms over 5 min: 80 ppm), so a "correction" would add more than it removes.
 CLOCK_JITTER_S = 0.05
+
+#: A drifting record's block whose UTC span (where the record's clock line puts its
+#: label) runs at most this far past the record's first or last sample is cut at that
+#: sample: its samples begin up to this far off its label (said by
+#: :func:`edge_cut_note`) instead of the block being lost. A clock *rho* fast records a
+#: length of sample count T in T / (1 + rho) of UTC, so its last block, on the sample
+#: count a whole block, misses its UTC span by rho x T (100 ppm: 0.36 s after 1 h). Such a
+#: shift of up to 1 s moved the selected modes of 11 blocks of the 3-h demo voyage by at
+#: most 6.2 mHz and 0.04 %-points of damping (median 0.7 mHz; their distance from the
+#: simulation's truth: median 19 mHz), about what NaN-padding those seconds did (4.4 mHz,
+#: 0.11 %-points, and 2 modes of one block changed); a 1-s shift moves a block's 1-s ship
+#: log means by at most 0.009 kn (benchmarks/results/clock_drift_utc_52.txt). [s]
+EDGE_SHIFT_S = 1.0
 
 
 # ----------------------------------------------------------------------------------------
@@ -966,6 +981,61 @@ def _sample_start_ns(
     return int(starts_ns[index]) + round(m / rate * _NS)
 
 
+def _stretches(starts_ns: np.ndarray, ends_ns: np.ndarray, half_ns: float) -> np.ndarray:
+    """Indices of the files starting a stretch of contiguous files (abutting to half a
+    sample), and the number of files last."""
+    gaps = np.flatnonzero(np.abs(starts_ns[1:] - ends_ns[:-1]) > half_ns) + 1
+    return np.concatenate([[0], gaps, [len(starts_ns)]]).astype(np.int64)
+
+
+def _stretch(bounds: np.ndarray, starts_ns: np.ndarray, time_ns: int) -> tuple[int, int]:
+    """The files ``[first, stop)`` of the stretch (:func:`_stretches`' *bounds*) holding
+    *time_ns*, or of the file starting last before it (the first file before all)."""
+    index = max(int(np.searchsorted(starts_ns, time_ns, side="right")) - 1, 0)
+    k = int(np.searchsorted(bounds, index, side="right")) - 1
+    return int(bounds[k]), int(bounds[k + 1])
+
+
+def _inward(time_ns: int, t0_ns: int, rate: float, lattice: int, *, up: bool) -> int:
+    """*time_ns* (a record's sample) moved to the next sample of every *lattice*-th from
+    *t0_ns* later (*up*) or earlier, where it lies on the raw lattice from there. [ns]"""
+    x = (time_ns - t0_ns) / _NS * rate
+    if lattice <= 1 or abs(x - round(x)) >= 1e-3:
+        return time_ns
+    m = round(x)
+    m = -(-m // lattice) * lattice if up else (m // lattice) * lattice
+    return t0_ns + round(m / rate * _NS)
+
+
+def edge_cut_note(plan: BlockPlan) -> str:
+    """One line on the blocks of *plan* cut at the first or last sample of a drifting
+    record or of its data between gaps (:data:`EDGE_SHIFT_S`) and how far their samples lie off the UTC of their labels
+    (negative: they begin before it), or "" when none is."""
+    infos = plan.files
+    clocks = record_clocks(infos)
+    if not any(c.drifting for c in clocks):
+        return ""
+    starts_ns = np.array([_ns(i.start_time) for i in infos], dtype=np.int64)
+    rate = plan.sampling_rate_hz
+    edge_ns = max(0.5 / rate, CLOCK_JITTER_S) * _NS
+    rounding_s = (0.5 * plan.lattice + 0.5) / rate  # the cut's rounding to the lattice
+    said = []
+    for planned in plan.blocks:
+        if not planned.drifting or planned.skipped_reason:
+            continue
+        clock = _record_of(clocks, starts_ns, _ns(planned.block_start), edge_ns)
+        off_s = (_ns(planned.sample_start) - clock.placed_ns(_ns(planned.block_start))) / _NS
+        if abs(off_s) > rounding_s + 1e-6:
+            said.append(f"block {planned.block} {off_s * (1 + clock.beta):+.2f} s")
+    if not said:
+        return ""
+    return (
+        "block(s) cut at the first or last sample of a drifting record (or of its data "
+        f"between gaps), which misses their UTC span by at most {EDGE_SHIFT_S:g} s; their "
+        f"first sample recorded this long after the UTC of their label: {', '.join(said)}"
+    )
+
+
 def _span(files: Sequence[FileInfo]) -> str:
     return files[0].name if len(files) == 1 else f"{files[0].name} .. {files[-1].name}"
 
@@ -1161,11 +1231,17 @@ def placed_block_numbers(
     edge = max(half, pd.Timedelta(seconds=clock_jitter_s))
     first, last = infos[0].start_time, infos[-1].end_time
     clocks = record_clocks(infos, clock_jitter_s=clock_jitter_s)
-    if clocks[0].drifting:  # the blocks are cut at the UTC of their labels: its span's
+    before = after = edge
+    # the blocks are cut at the UTC of their labels: its span's, less EDGE_SHIFT_S at
+    # either end (such a block is cut at the record's first or last sample)
+    shift = max(edge, pd.Timedelta(seconds=EDGE_SHIFT_S))
+    if clocks[0].drifting:
         first = pd.Timestamp(round(clocks[0].utc_ns(_ns(first))), tz="UTC")
+        before = shift
     if clocks[-1].drifting:
         last = pd.Timestamp(round(clocks[-1].utc_ns(_ns(last))), tz="UTC")
-    return grid.complete_blocks(first - edge, last + edge)
+        after = shift
+    return grid.complete_blocks(first - before, last + after)
 
 
 def placed_blocks(
@@ -1205,6 +1281,9 @@ def placed_blocks(
     clocks = record_clocks(infos, starts_ns, clock_jitter_s=clock_jitter_s)
     drifting = any(clock.drifting for clock in clocks)
     edge_ns = max(0.5 / rate, clock_jitter_s) * _NS
+    shift_ns = max(edge_ns, EDGE_SHIFT_S * _NS)
+    bounds = _stretches(starts_ns, ends_ns, 0.5 / rate * _NS)
+    bounds = _stretches(starts_ns, ends_ns, 0.5 / rate * _NS)
     t0_ns = _ns(grid.t0)
 
     def files_and_gap(start_ns: int, end_ns: int) -> tuple[list[int], str]:
@@ -1223,13 +1302,16 @@ def placed_blocks(
         """The block's samples: the grid's length of them from where the record's clock
         line puts the UTC of its label (on every *on*-th sample)."""
         sample_ns = _sample_start_ns(clock, starts_ns, rate, start_ns, t0_ns, on)
-        # a span the record misses by at most the clock jitter (its line is known to
-        # that) is the record's first or last samples, not NaN-padded
-        first_ns, last_ns = int(starts_ns[clock.first]), int(ends_ns[clock.stop - 1])
-        if first_ns - edge_ns <= sample_ns < first_ns:
-            return first_ns
-        if last_ns < sample_ns + length_ns <= last_ns + edge_ns:
-            return last_ns - length_ns
+        # a span the data (the record, or a stretch of it between gaps) misses by at most
+        # EDGE_SHIFT_S is its first or last samples (on the lattice inside), not lost
+        first, stop = _stretch(bounds, starts_ns, sample_ns + length_ns // 2)
+        first_ns, last_ns = int(starts_ns[first]), int(ends_ns[stop - 1])
+        if last_ns - first_ns < length_ns:
+            return sample_ns
+        if first_ns - shift_ns <= sample_ns < first_ns:
+            return _inward(first_ns, t0_ns, rate, on, up=True)
+        if last_ns < sample_ns + length_ns <= last_ns + shift_ns:
+            return _inward(last_ns - length_ns, t0_ns, rate, on, up=False)
         return sample_ns
 
     planned = []
