@@ -18,7 +18,9 @@ rate (2048 Hz, about 20 channels) that repetition dominates the cost of identifi
   (or the end of the data) breaks the chain: there the filters start as
   ``scipy.signal.sosfiltfilt`` starts at the ends of a record;
 * the sums the faulty-channel check needs (NaN count and runs, power sums of the
-  samples against time) are taken per grid step (:mod:`~workbench.signals.step_sums`), so
+  samples against time) are taken per grid step (:mod:`~workbench.signals.step_sums`),
+  split further where a drifting record's blocks start and end (*cuts*: where the
+  record's clock line puts their labels, on the analysis lattice), so
   the check of a block (:func:`~workbench.signals.moments.faulty_channels`: NaN fraction
   and runs, flatness, kurtosis and variance of the linearly detrended block) is assembled
   from them exactly, without the raw samples.
@@ -26,9 +28,8 @@ rate (2048 Hz, about 20 channels) that repetition dominates the cost of identifi
 A block is then cut from the conditioned files (a few MB at the analysis rate) and its
 faulty channels dropped. Blocks the conditioned files cannot give exactly as the per-block
 builder would (a NaN-padded gap inside the block, a kept channel whose NaN run could not be
-bridged elsewhere in its file, a block start off the decimated sample lattice, a drifting
-record's block, cut where the record's clock line puts its label and so off the grid's steps
-the faulty-channel sums are taken on) are built by
+bridged elsewhere in its file, a block start off the decimated sample lattice, a block
+edge among no piece's edges) are built by
 :func:`~workbench.signals.block_builder.load_block` instead, so the result never silently differs.
 
 Equality with the per-block builder
