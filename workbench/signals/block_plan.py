@@ -130,8 +130,8 @@ CLOCK_JITTER_S = 0.05
 #: shift of up to 1 s moved the selected modes of 11 blocks of the 3-h demo voyage by at
 #: most 6.2 mHz and 0.04 %-points of damping (median 0.7 mHz; their distance from the
 #: simulation's truth: median 19 mHz), about what NaN-padding those seconds did (4.4 mHz,
-#: 0.11 %-points, and 2 modes of one block changed); a 1-s shift moves a block's 1-s ship
-#: log means by at most 0.009 kn (benchmarks/results/clock_drift_utc_52.txt). [s]
+#: 0.11 %-points, and 2 modes of one block changed); a 2-s shift moved the 1-s ship-log
+#: means of 20-min blocks by at most 0.017 kn (benchmarks/results/clock_drift_utc_52.txt). [s]
 EDGE_SHIFT_S = 1.0
 
 
