@@ -30,7 +30,7 @@ scoring of ``bench_harmonics.py``) with their blocks, other labels, and the ship
 warnings (:meth:`HarmonicMarker.unmarked`).
 
 Run: ``python benchmarks/bench_harmonic_log_faults.py --work DIR [--seeds 0 1 2]``; the
-output is kept in ``benchmarks/results/harmonics_log_faults_50.txt``.
+output is kept in ``benchmarks/results/harmonics_log_faults_52.txt``.
 """
 
 from __future__ import annotations

@@ -520,7 +520,7 @@ class BlockStore:
             known, lows, highs = set(), np.empty(0, np.int64), np.empty(0, np.int64)
         fingerprints = [dict(item) for item in fingerprints]
         given = {item["sha256"]: item for item in fingerprints}
-        new: list[dict] = []
+        new: list = []
         added: set[str] = set()
         moved: list[dict] = []
         if every_span and recorded:
@@ -536,7 +536,13 @@ class BlockStore:
                     recorded[index] = {**old, "start": item["start"], "end": item["end"]}
                     lows, highs = lows.copy(), highs.copy()  # the cache's: not in place
                     lows[index], highs[index] = low, high
-        for item in fingerprints:
+        # a recorded file given again with other content is checked, and named, before the
+        # files its recorded span overlaps (a late file beside it is not the changed one)
+        names = {Path(str(r["path"])).name for r in recorded}
+        checked = sorted(
+            enumerate(fingerprints), key=lambda pair: Path(str(pair[1]["path"])).name not in names
+        )
+        for position, item in checked:
             if item["sha256"] in known or item["sha256"] in added:
                 continue
             start, end = (int(v) for v in _ns([item["start"], item["end"]]))
@@ -565,8 +571,9 @@ class BlockStore:
                     f"{old['end']}); its results would be of other data: use another "
                     "--store or delete this one"
                 )
-            new.append(item)
+            new.append((position, item))
             added.add(item["sha256"])
+        new = [item for _, item in sorted(new, key=lambda pair: pair[0])]  # as given
         if version is None or cut or moved:  # no index yet, a line cut short or a span
             recorded.extend(new)  # moved: written whole (the list read or cached here)
             self._write_inputs(recorded, unreadable)

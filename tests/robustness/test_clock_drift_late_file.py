@@ -195,3 +195,53 @@ def test_identify_over_a_store_with_the_late_file_equals_a_fresh_run(tmp_path, c
     assert again["block"].tolist() == fresh["block"].tolist()
     assert fresh["block"].unique().tolist() == list(range(11))
     np.testing.assert_allclose(again["frequency_hz"], fresh["frequency_hz"], rtol=0, atol=1e-12)
+
+
+def test_identify_names_the_changed_file_not_the_late_one_beside_it(tmp_path, capsys):
+    """identify over the files without acc_004.npz, then again with acc_004.npz landed and
+    acc_005.npz rewritten with other data: still refused (exit 1, one line), naming
+    acc_005.npz, the changed file. Before, the late acc_004.npz was named (its span
+    overlaps acc_005.npz's recorded span, 140 ms before where the record puts it now),
+    sending the user to a file that had not changed."""
+    from data_contracts import AccelerationRecord, read_accelerations, write_accelerations
+
+    files = _write(tmp_path / "all", _stamps())
+    folder = tmp_path / "folder"
+    folder.mkdir()
+    for path in files[:4] + files[5:]:
+        shutil.copy(path, folder / path.name)
+    code, _, err = _identify(capsys, folder, tmp_path / "out")
+    assert code == 0, err
+    shutil.copy(files[4], folder / files[4].name)
+    record = read_accelerations(files[5])
+    other = AccelerationRecord(
+        record.acceleration[::-1].copy(),
+        record.sampling_rate_hz,
+        record.start_time,
+        record.channels,
+    )
+    write_accelerations(other, folder / files[5].name)
+    code, _, err = _identify(capsys, folder, tmp_path / "out")
+    assert code == 1
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and "Traceback" not in err
+    assert lines[0].startswith(
+        f"error: {folder / 'acc_005.npz'}: input changed since the store {tmp_path / 'out'}"
+    )  # main: f"error: {folder / 'acc_004.npz'}: input changed ..."
+    assert f"(other content than {folder / 'acc_005.npz'} for " in lines[0]
+
+
+def test_a_file_landing_after_one_block_was_decided_without_it_says_block_not_blocks(tmp_path):
+    """acc_005.npz lands before acc_004.npz, both after acc_007.npz: acc_005.npz leaves a
+    300-s hole (1200-1500 s) with data 900 s newer (the default --late) landed, so block 1
+    (600-1800 s) is decided without acc_004.npz (skipped: gap) and acc_004.npz, landing
+    next, is not used for it. One block: "block 1 was" (main: "blocks 1-1 were")."""
+    files = _write(tmp_path / "source", _stamps())
+    order = files[:4] + files[6:8] + [files[5], files[4]] + files[8:]
+    state = tmp_path / "state"
+    messages = _replay(order, tmp_path / "watch", state, PATHS["per-block"])
+    health = _health(state)
+    assert health.loc[health["status"] != "ok", "block"].tolist() == [1]
+    assert [m for m in messages if "landed after" in m] == [
+        "acc_004.npz: landed after block 1 was decided without it (skipped: gap); it is not redone"
+    ]

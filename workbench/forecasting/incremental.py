@@ -100,8 +100,10 @@ __all__ = [
 #: (the model variance at a log outage's edges), the model correction before a log
 #: outage's filled blocks and the state's unweighted move (issue 27), option B's run of
 #: missed columns; /6: the log's coverage of the blocks per predictor column too
-#: (``column_coverage``: the shares an outage edge's warning names).
-CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/7"
+#: (``column_coverage``: the shares an outage edge's warning names); /7: the rows without
+#: any mode measured (``record_gap``: a hole in the acceleration record); /8: each mode's
+#: predictor range over its newest refit (``fit_range``: the extrapolation variance).
+CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/8"
 
 #: Rows kept before the newest committed window beyond the refits' history. [blocks]
 _MARGIN_ROWS = 64

@@ -93,7 +93,7 @@ from scipy.stats import norm
 
 from .innovation_consistency import ALPHA, TEST_CLIP, clipped_square_moments
 from .memory.kalman import kalman_predict, kalman_update
-from .memory.noise import update_run
+from .memory.noise import run_after_hole, update_run
 
 __all__ = ["BlendStep", "ModelTrust"]
 
@@ -403,9 +403,7 @@ class ModelTrust:
         if after_hole and self.persist_blocks is not None:
             # as the blend after a hole (MemoryRun._run_after_hole): a large innovation
             # moves the level at once
-            y = z[idx] - state.sum(axis=1)
-            stale = np.isfinite(y) & (y != 0)
-            judged = np.where(stale, np.sign(y).astype(np.int64) * (self.persist_blocks - 1), run)
+            judged = run_after_hole(run, z[idx] - state.sum(axis=1), self.persist_blocks)
         state, P, _, nu, S, _ = kalman_update(
             state,
             P_prior,

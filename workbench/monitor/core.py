@@ -813,9 +813,14 @@ class Monitor:
         blocks = np.fromiter(missing, dtype=np.int64, count=len(missing))
         inside = np.minimum(grid.end(blocks).asi8, end) - np.maximum(grid.start(blocks).asi8, start)
         skipped = np.sort(blocks[inside > edge])
-        if len(skipped):
+        if len(skipped) == 1:
             self.messages.append(
-                f"{item.path.name}: landed after blocks {skipped[0]}-{skipped[-1]} were "
+                f"{item.path.name}: landed after block {skipped[0]} was decided without it "
+                "(skipped: gap); it is not redone"
+            )
+        elif len(skipped):
+            self.messages.append(
+                f"{item.path.name}: landed after blocks {block_ranges(skipped)} were "
                 "decided without it (skipped: gap); they are not redone"
             )
 

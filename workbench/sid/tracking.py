@@ -87,17 +87,18 @@ class TrackingOptions:
         Tracked labels with at least this share of rows marked as shaft or blade-pass
         harmonics (the selected table's ``harmonic`` column, :mod:`workbench.sid.harmonics`)
         are harmonics, not modes, and are dropped, except a label unmarked in at least a
-        quarter of its blocks whose marked rows do not follow the order's frequency
+        quarter of its blocks (of its checked blocks, for a label seen in under half of the
+        voyage's blocks) whose marked rows do not follow the order's frequency
         (``harmonic_frequency_hz``: slope of ln f on it below 0.5): a mode that an order
         sits on for hours. A mode that an order crosses keeps its rows (its own shape
         joined the label). Where the ship log could not check every row
-        (``harmonic_checked``), the share is the larger of the marked share of all rows
-        and that of the checked rows: taken as it is where the label has at least 10
-        checked rows (or all its rows checked) or is seen mostly where the log fails
-        (checked in under a quarter of the voyage's share of checked blocks), else its 95 %
-        Wilson lower bound (a few checked rows are weak evidence). A label seen mostly where
-        the log fails and checked in fewer than 10 blocks and a quarter of its blocks is
-        dropped too, as unverified. [-]
+        (``harmonic_checked``), the share is the marked share of all rows, or the larger of
+        it and that of the checked rows where the label has at least 10 checked rows (or
+        all its rows checked), is seen mostly where the log fails (checked in under a
+        quarter of the voyage's share of checked blocks) or is seen in under half of the
+        voyage's blocks (a line that comes and goes with the shaft speed; a structural mode
+        is seen throughout). A label seen mostly where the log fails and checked in fewer
+        than 10 blocks and a quarter of its blocks is dropped too, as unverified. [-]
     """
 
     mac_min: float = 0.9
@@ -529,15 +530,9 @@ _SEEN_AWAY = 0.25
 _FOLLOW_ROWS = 10
 
 
-def _wilson_lower(successes: pd.Series, trials: pd.Series, z: float = 1.96) -> pd.Series:
-    """Wilson score lower bound of the proportion *successes* / *trials* (0 where no
-    trials) at the normal quantile *z* (1.96: 95 %, two-sided)."""
-    n = trials.astype(float)
-    p = successes.astype(float) / n.where(n > 0)
-    z2 = z * z
-    centre = p + z2 / (2 * n)
-    spread = z * np.sqrt(p * (1 - p) / n + z2 / (4 * n * n))
-    return ((centre - spread) / (1 + z2 / n)).fillna(0.0)
+#: Share of the voyage's blocks under which a label is a line that comes and goes, judged
+#: by its checked rows however few (a structural mode is seen throughout a voyage).
+_PASSING = 0.5
 
 
 def _follows_its_order(rows: pd.DataFrame) -> bool:
@@ -667,14 +662,19 @@ def harmonic_verdict(
     checked_in = np.bincount(blocks - first_block, weights=checked, minlength=len(rows_in))
     voyage_checked = float((checked_in > 0).sum() / (rows_in > 0).sum())
     in_outage = n_checked < _SEEN_AWAY * voyage_checked * n_rows
-    # the share that judges a label: of all its rows (the unchecked counted unmarked);
-    # of its checked rows where they are enough to judge (_FOLLOW_ROWS, or all its
-    # rows) or where the label is seen mostly in an outage. A few checked rows of a
-    # mode seen throughout a voyage are no evidence: one whose log covers only the
-    # last 45 min, where an order passes near it, is marked in 4 of 8 checked rows.
+    # the share that judges a label: of all its rows (the unchecked counted unmarked:
+    # without the shaft speed there, nothing shows the line keeps to its order); of its
+    # checked rows where they are enough to judge (_FOLLOW_ROWS, or all its rows), where
+    # the label is seen mostly in an outage, or where it is seen in under half of the
+    # voyage's blocks: a line that comes and goes (a harmonic with the shaft speed) is
+    # what its checked rows, however few, show (a line in the last 45 min, marked in its
+    # 1-2 checked rows). A label seen throughout a voyage with fewer checked rows is
+    # judged by all its rows: a harmonic would need the shaft at one rate all voyage, a
+    # structural mode is what persists (an order sits on modes 1 and 7 in the last 45
+    # min, the log's 8 blocks: 8 of 69 rows marked, modes).
     enough = n_checked >= np.minimum(_FOLLOW_ROWS, n_rows)
-    evidence = _wilson_lower(n_marked_checked, n_checked)
-    share = np.maximum(share_all, share_checked.where(enough | in_outage).fillna(evidence))
+    passing = n_rows < _PASSING * (rows_in > 0).sum()
+    share = np.maximum(share_all, share_checked.where(enough | in_outage | passing).fillna(0.0))
 
     def rows_of(label, only_marked=False):
         inside = modes == label
@@ -687,12 +687,23 @@ def harmonic_verdict(
 
     # most rows marked: a harmonic, unless the label is also seen away from the orders
     # in at least a quarter of its blocks and does not follow its order (a mode an
-    # order sits on for hours)
-    # (seen away: the unmarked rows, unchecked ones included, of all its rows)
+    # order sits on for hours). Seen away: in its unmarked rows, the unchecked included,
+    # for a label seen throughout the voyage (a mode persists where the log fails); in
+    # its checked unmarked rows for a line that comes and goes, whose checked rows stand
+    # for it (a harmonic line through an outage of every column is unmarked there, not
+    # away from its order). With every row checked both are the same.
+    seen_away = pd.Series(
+        np.where(
+            passing,
+            n_checked - n_marked_checked >= _SEEN_AWAY * n_checked,
+            n_rows - n_marked >= _SEEN_AWAY * n_rows,
+        ),
+        index=labels,
+    )
     harmonic = [
         label
         for label in share.index[share >= options.harmonic_share]
-        if share_all[label] > 1.0 - _SEEN_AWAY or _follows_its_order(rows_of(label, True))
+        if not seen_away[label] or _follows_its_order(rows_of(label, True))
     ]
     # a label seen mostly in an outage and checked in fewer than _FOLLOW_ROWS blocks
     # and a quarter of its blocks cannot be told from a harmonic: left out, unverified

@@ -91,7 +91,7 @@ from ..ssi_guard import SSIGuard
 from .excitation import excitation_bias
 from .kalman import kalman_predict, kalman_update, n_states, stationary_covariance
 from .model import MemoryModel
-from .noise import filter_matrices, first_window_noise, update_run
+from .noise import filter_matrices, first_window_noise, run_after_hole, update_run
 from .output import OUTPUT_ARRAYS, assemble_table
 from .poles import option_b_chooser
 from .terms import MemoryRefits
@@ -382,7 +382,10 @@ class MemoryRun:
         from_row = max(k_first - 1, first)
         rows = np.arange(from_row, f1)
         edge_variance = self._outage_edge_variance(m, rows)
-        mean, lower, upper, bad, mvar = self.refits.predict(m, rows, edge_variance)
+        beyond_variance, excess = self.refits.extrapolation_variance(j, m, rows)
+        mean, lower, upper, bad, mvar = self.refits.predict(
+            m, rows, edge_variance + beyond_variance
+        )
         # what SSI sees (measurement equation); the state is the time average
         seen = self.bias.seen_by_ssi(m, rows, j, mean)
         implausible = np.isfinite(mean) & ~_plausible(mean, self.reference_hz[j])
@@ -413,6 +416,21 @@ class MemoryRun:
                 f"partly logged ({self._partly_logged(m, k)}) at the edge of a log outage: "
                 "model variance raised",
                 "partly logged blocks at the edge of a log outage (model variance raised)",
+            )
+        # a predictor a standard deviation or more beyond the range: the variance at least
+        # doubled
+        for r in np.flatnonzero(excess.max(axis=1, initial=0.0) >= 1.0):
+            k = int(rows[r])
+            if k < k_first:
+                continue
+            named = ", ".join(self.columns[c] for c in np.flatnonzero(excess[r] >= 1.0))
+            self.warn(
+                k,
+                j,
+                "beyond the range the model was fitted on by a standard deviation or more: "
+                f"{named}; model variance raised",
+                "blocks whose predictors leave the range the model was fitted on (model "
+                "variance raised)",
             )
         return mean[sl], seen[sl], mvar[sl], float(abs(np.nanmedian(mean)))
 
@@ -762,9 +780,7 @@ class MemoryRun:
         hole is judged as before."""
         if self.record_gap < self.persist_blocks:
             return self.run
-        y = residual - prior_state.sum(axis=1)
-        stale = np.isfinite(y) & (y != 0)
-        return np.where(stale, np.sign(y).astype(np.int64) * (self.persist_blocks - 1), self.run)
+        return run_after_hole(self.run, residual - prior_state.sum(axis=1), self.persist_blocks)
 
     def _kalman_step(self, k, have, z, scale, m_now, z_now, filter_step) -> None:
         """Kalman update of row *k* with the measurements *z*; the guard, the outputs."""

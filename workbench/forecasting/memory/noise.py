@@ -17,7 +17,7 @@ import numpy as np
 from ..noise import MIN_CORRECTION_STD, MIN_RESIDUALS, NoiseModel, estimate_noise, prior_noise
 from .kalman import transition_matrices
 
-__all__ = ["filter_matrices", "first_window_noise", "update_run"]
+__all__ = ["filter_matrices", "first_window_noise", "run_after_hole", "update_run"]
 
 
 def first_window_noise(
@@ -77,6 +77,16 @@ def filter_matrices(noise_of: Sequence[NoiseModel | None], huber_sigma: float, s
     # no Huber weights while the noise levels are the prior's (nothing to judge by)
     huber = np.array([huber_sigma if nz and nz.n_residuals else np.inf for nz in noise_of])
     return F, q_c, q_e, r_v, huber
+
+
+def run_after_hole(run: np.ndarray, innovation: np.ndarray, persist_blocks: int) -> np.ndarray:
+    """The runs a filter's update judges *innovation* (measurement less prediction) by after a
+    hole in the record: each measured mode's run as if already ``persist_blocks`` - 1 long in
+    its innovation's sign, so that a large one is taken as the stale state's error, not as an
+    outlier (:meth:`~workbench.forecasting.memory.forecast.MemoryRun._run_after_hole`); *run*
+    where there is no innovation."""
+    stale = np.isfinite(innovation) & (innovation != 0)
+    return np.where(stale, np.sign(innovation).astype(np.int64) * (persist_blocks - 1), run)
 
 
 def update_run(run: np.ndarray, normalised: np.ndarray, huber: np.ndarray) -> np.ndarray:

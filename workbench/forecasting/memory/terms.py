@@ -4,7 +4,9 @@ For each mode and window of :func:`~workbench.forecasting.memory.forecast.memory
 terms (:func:`~workbench.forecasting.memory.select_terms`), reselected on a schedule, on a new
 operating case or when the ship leaves the predictor range the selection saw; the
 exponentially weighted refit of those terms over the history
-(:meth:`~workbench.forecasting.memory.model.MemoryModel.refit`); the prediction with its interval.
+(:meth:`~workbench.forecasting.memory.model.MemoryModel.refit`); the prediction with its interval,
+widened where the ship's predictors leave the range the refit saw
+(:meth:`MemoryRefits.extrapolation_variance`).
 """
 
 from __future__ import annotations
@@ -52,6 +54,7 @@ class MemoryRefits:
     train_y: list = field(init=False)
     selected_at: np.ndarray = field(init=False)
     selection_range: list = field(init=False)
+    fit_range: list = field(init=False)
     regional: np.ndarray = field(init=False)
     t_cache: dict[int, float] = field(init=False)
     min_train: int = field(init=False)
@@ -65,6 +68,9 @@ class MemoryRefits:
         self.train_y = [None] * n_modes  # targets of each mode's last refit (case rows only)
         self.selected_at = np.full(n_modes, -(10**9))
         self.selection_range = [None] * n_modes  # predictor ranges of each term selection
+        # (low, high, spread) of the predictors over the rows of each mode's newest refit
+        # (:meth:`extrapolation_variance`)
+        self.fit_range = [None] * n_modes
         # predictors whose range is not a question of operating region: the time trend
         # always leaves it, by design
         self.regional = np.array([name != "elapsed_hours" for name in self.columns])
@@ -134,6 +140,7 @@ class MemoryRefits:
         if ok.sum() < min_train:
             return None
         rows_ok = np.flatnonzero(ok) + lo
+        self.fit_range[j] = _supported_range(X_all[rows_ok], int(model.selection_stride) - 1)
         newest_outside = left_selection_range(j, i, rows_ok)
         reselect = (
             terms_of[j] is None
@@ -255,6 +262,44 @@ class MemoryRefits:
         half = t * np.sqrt(m.residual_variance + mvar)
         return mean, mean - half, mean + half, bad, mvar
 
+    def extrapolation_variance(self, j: int, m: MemoryModel, rows_: np.ndarray):
+        """Variance added to mode *j*'s model *m* at grid rows *rows_* where the predictors
+        leave the range of its newest refit's rows [Hz²], and the excess of each predictor
+        beyond that range in its standard deviations there, at most 1 (rows x predictors,
+        NaN-free).
+
+        A model only knows the predictors' range its history covered: a term left out
+        because its predictor hardly varied is no evidence that the predictor does not
+        matter, and a term fitted on a narrow range says little of its law far beyond it
+        (the prediction's own variance, s² x(XᵀWX)⁻¹xᵀ, stops growing at the z-score
+        clipping). So every candidate predictor (the time trend excepted: it leaves its
+        range by design) is watched, those in the terms and those not: its excess e beyond
+        the range in units of its standard deviation σ over the refit's rows, at most 1,
+        and the model's variance grows by s² Σ e², s² its residual variance: a predictor
+        one σ or more outside the range adds as much error again as the model shows where
+        it was fitted. Not more: a predictor that hardly varied (the speed in port) has a
+        σ that makes any move many σ, and a variance growing with e² without bound took
+        the blend from voyages where the model extrapolated well (the 12-h worked example's
+        departure). The range leaves out the ``selection_stride`` - 1 most extreme values
+        at each end: a value seen only in blocks that share data is one SSI estimate's
+        evidence. The blend then leans on SSI as far as the model extrapolates
+        (``benchmarks/results/forecast_extrapolation_52.txt``: the README's 6-h worked
+        example, whose temperatures leave their range in the last hour).
+        """
+        added = np.zeros(len(rows_))
+        fit_range = self.fit_range[j]
+        if fit_range is None:
+            return added, np.zeros((len(rows_), self.X_all.shape[1]))
+        low, high, spread = fit_range
+        X = self.X_all[rows_]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            varied = self.regional & (spread > 1e-12 * np.maximum(1.0, np.abs(high)))
+            # e = (x - high) / σ above the range, (low - x) / σ below it, 0 inside
+            excess = np.maximum(np.maximum(X - high, low - X), 0.0) / spread
+        excess = np.where(np.isfinite(excess) & varied, np.minimum(excess, 1.0), 0.0)
+        added = m.residual_variance * (excess**2).sum(axis=1)  # s² Σ e²
+        return added, excess
+
     def fill_missing(self, m: MemoryModel, row: int) -> tuple[float, float] | None:
         """Prediction of *m* at grid row *row*, where a predictor it needs is missing (a gap
         in the ship's log), and its variance [Hz], [Hz²].
@@ -329,3 +374,20 @@ class MemoryRefits:
         if not np.isfinite(mean[0]):
             return None
         return float(mean[0]), float(variance[0]), max(errors)
+
+
+def _supported_range(X: np.ndarray, trim: int):
+    """``(low, high, spread)`` of each column of *X* over its logged rows: the *trim* + 1-th
+    smallest and largest value (NaN with no more than 2 *trim* + 1 values) and the standard
+    deviation (NaN with fewer than two values)."""
+    n = np.isfinite(X).sum(axis=0)
+    ordered = np.sort(X, axis=0)  # NaN last
+    low = np.full(X.shape[1], np.nan)
+    high = np.full(X.shape[1], np.nan)
+    enough = np.flatnonzero(n > 2 * trim + 1)
+    low[enough] = ordered[trim, enough]
+    high[enough] = ordered[n[enough] - 1 - trim, enough]
+    with warnings.catch_warnings():  # a column with fewer than two values: no spread
+        warnings.simplefilter("ignore", RuntimeWarning)
+        spread = np.nanstd(X, axis=0, ddof=1)
+    return low, high, spread
