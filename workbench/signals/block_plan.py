@@ -77,6 +77,9 @@ __all__ = [
     "PlannedBlock",
     "RecordClock",
     "clock_runs",
+    "cut_in_file",
+    "cut_placed_ns",
+    "cut_tolerance_s",
     "edge_cut_note",
     "place_files",
     "placed_block_numbers",
@@ -133,6 +136,20 @@ CLOCK_JITTER_S = 0.05
 #: 0.11 %-points, and 2 modes of one block changed); a 2-s shift moved the 1-s ship-log
 #: means of 20-min blocks by at most 0.017 kn (benchmarks/results/clock_drift_utc_52.txt). [s]
 EDGE_SHIFT_S = 1.0
+
+
+def cut_tolerance_s(sampling_rate_hz: float, lattice: int = 1) -> float:
+    """How far two cuts of one drifting block, each from the clock line of the files at
+    hand then, may lie apart and be the same cut: the clock jitter, or one sample of the
+    analysis lattice (*lattice* raw samples at *sampling_rate_hz*) when that is longer.
+
+    Two lines of one record (the monitor's, of the files landed when it decided a block;
+    identify's, of all of them) put a label a few ms apart; each cut is that point rounded
+    to the nearest lattice sample, so where a rounding midpoint lies between the two
+    points the cuts differ by one whole lattice sample however close the lines are (62.5
+    ms at 16 Hz: -100 ppm, block 1 of the 3-h demo voyage,
+    benchmarks/results/clock_drift_utc_53.txt). [s]"""
+    return max(CLOCK_JITTER_S, lattice / sampling_rate_hz)
 
 
 # ----------------------------------------------------------------------------------------
@@ -879,6 +896,24 @@ class RecordClock:
         return self.start_ns + (self.alpha_s - self.first_shift_s + (1 + self.beta) * x_s) * _NS
 
 
+def cut_in_file(
+    infos: Sequence[FileInfo], starts_ns: np.ndarray, sample_ns: int
+) -> tuple[int, int]:
+    """Where the placed time *sample_ns* (a block's cut) lies among the placed files
+    *infos* (time order; *starts_ns* their placed starts [ns]): the position of the file
+    it is counted from (the last starting at or before it, else the first) and the index
+    of the sample there, from the file's first (beyond its ends in a gap). The samples
+    stay where a later placement of the same files puts them (:func:`cut_placed_ns`)."""
+    position = max(int(np.searchsorted(starts_ns, sample_ns, side="right")) - 1, 0)
+    rate = infos[position].sampling_rate_hz
+    return position, round((sample_ns - int(starts_ns[position])) / _NS * rate)
+
+
+def cut_placed_ns(info: FileInfo, index: int) -> int:
+    """Placed time of sample *index* of the placed file *info* (:func:`cut_in_file`). [ns]"""
+    return _ns(info.start_time) + round(index / info.sampling_rate_hz * _NS)
+
+
 def _line(x: np.ndarray, y: np.ndarray, clock_jitter_s: float) -> tuple[float, float, bool]:
     """alpha, beta and whether the line of *y* on *x* drifts (:meth:`_ClockRun.walk_s`
     beyond half *clock_jitter_s*, the test of :meth:`_ClockRun.drifting`)."""
@@ -1282,7 +1317,6 @@ def placed_blocks(
     drifting = any(clock.drifting for clock in clocks)
     edge_ns = max(0.5 / rate, clock_jitter_s) * _NS
     shift_ns = max(edge_ns, EDGE_SHIFT_S * _NS)
-    bounds = _stretches(starts_ns, ends_ns, 0.5 / rate * _NS)
     bounds = _stretches(starts_ns, ends_ns, 0.5 / rate * _NS)
     t0_ns = _ns(grid.t0)
 
