@@ -88,12 +88,13 @@ BLOCKS_KIND = "blocks"
 UNREADABLE_COLUMN = "unreadable_input"
 #: Columns of the ``blocks`` kind holding where a drifting record's block was cut
 #: (``PlannedBlock.sample_start``, on the record's clock line): the input file its first
-#: sample is counted from (resolved path) and that sample's index in the file (from the
-#: file's first sample; the placed times of a record's files change when a late file
-#: re-places them, its samples do not), so a later run can tell when the line of the files
-#: given then cuts the block elsewhere; written only by batches holding such a block
-#: (empty for the others: cut at their labels).
-CUT_COLUMNS = ("cut_file", "cut_sample")
+#: sample is counted from (by content: its SHA-256, as the input index knows it, wherever
+#: it lies now) and that sample's index in the file (from the file's first sample; the
+#: placed times of a record's files change when a late file re-places them, its samples do
+#: not), so a later run can tell when the line of the files given then cuts the block
+#: elsewhere; written only by batches holding such a block (empty for the others: cut at
+#: their labels).
+CUT_COLUMNS = ("cut_sha256", "cut_sample")
 _CONFIG = "store.json"
 _INPUTS = "inputs.jsonl"
 #: The input index of earlier versions (one object, written whole), converted when opened.
@@ -944,8 +945,8 @@ class BlockStore:
 
     def block_cuts(self) -> dict[int, tuple[str, int]]:
         """Where the stored blocks of a drifting record were cut (:data:`CUT_COLUMNS`):
-        block -> (the input file, resolved path; the index of the block's first sample in
-        it); a block without one was cut at its label."""
+        block -> (the input file's SHA-256; the index of the block's first sample in it); a
+        block without one was cut at its label."""
         table = self.read(BLOCKS_KIND)
         path, sample = CUT_COLUMNS
         if table.empty or path not in table.columns:

@@ -247,9 +247,10 @@ def _moved_inputs(store: BlockStore, moved: list[dict], grid, *, per_file: bool)
     ]
 
 
-def _plan_cuts(plan) -> dict[int, tuple[str, int]]:
+def _plan_cuts(plan, digests: Mapping) -> dict[int, tuple[str, int]]:
     """Where *plan* cuts its drifting blocks, for the store (:func:`~workbench.signals.
-    block_plan.cut_in_file`): block -> (resolved path, sample index)."""
+    block_plan.cut_in_file`): block -> (the file's SHA-256, from *digests* by path; the
+    sample's index)."""
     import numpy as np
 
     from ..signals.block_plan import cut_in_file
@@ -258,28 +259,28 @@ def _plan_cuts(plan) -> dict[int, tuple[str, int]]:
     if not drifting:
         return {}
     starts = np.array([info.start_time.value for info in plan.files], dtype=np.int64)
-    paths = [str(Path(info.path).resolve()) for info in plan.files]
     out = {}
     for planned in drifting:
         position, index = cut_in_file(plan.files, starts, planned.sample_start.value)
-        out[int(planned.block)] = (paths[position], index)
+        out[int(planned.block)] = (digests[plan.files[position].path], index)
     return out
 
 
-def _moved_cuts(store: BlockStore, plan) -> list[str]:
+def _moved_cuts(store: BlockStore, plan, digests: Mapping) -> list[str]:
     """Drop the stored blocks that *plan* cuts elsewhere than where they were computed
     from (:meth:`~workbench.store.BlockStore.block_cuts`; a block without a stored cut
     was cut at its label): a drifting record's blocks are cut where its clock line puts
     their labels, and the line refitted over the files given now (more of them, a gap
     filled) may move a cut by a sample or more, so they are computed again as a fresh run
-    computes them; one notice for them."""
+    computes them; one notice for them. *digests*: the SHA-256 of *plan*'s files, by
+    path."""
     from ..signals.block_plan import cut_placed_ns
 
     stored = store.completed_blocks()
     if not stored:
         return []
     cuts = store.block_cuts()
-    infos = {str(Path(info.path).resolve()): info for info in plan.files} if cuts else {}
+    infos = {digests[info.path]: info for info in plan.files}
     half_ns = 0.5e9 / plan.sampling_rate_hz
     moved = {}
     for planned in plan.blocks:
@@ -288,10 +289,10 @@ def _moved_cuts(store: BlockStore, plan) -> list[str]:
             continue
         was = planned.block_start.value  # cut at its label
         if block in cuts:
-            path, index = cuts[block]
-            if path not in infos:  # the file is no longer given: _removed_inputs
+            digest, index = cuts[block]
+            if digest not in infos:  # the file is no longer given: _removed_inputs
                 continue
-            was = cut_placed_ns(infos[path], index)
+            was = cut_placed_ns(infos[digest], index)
         if abs(planned.sample_start.value - was) > half_ns:
             moved[block] = (planned.sample_start.value - was) / 1e6
     if not moved:
@@ -779,7 +780,10 @@ def identify_voyage(
         notices += _retry_unreadable(store, plan, fingerprints, per_file, unreadable, damaged)
         moved = store.check_inputs(fingerprints, every_span=True)
         notices += _moved_inputs(store, moved, grid, per_file=per_file)
-        notices += _moved_cuts(store, plan)
+        digests = {
+            info.path: str(f["sha256"]) for info, f in zip(plan.files, fingerprints, strict=True)
+        }
+        notices += _moved_cuts(store, plan, digests)
         notices += _filled_gaps(store, plan)
         notices += _removed_inputs(
             store,
@@ -820,7 +824,7 @@ def identify_voyage(
                 batch_blocks=batch_blocks,
                 progress=progress,
                 description="identify",
-                cuts=_plan_cuts(plan_now),
+                cuts=_plan_cuts(plan_now, digests),
             )
             return summary, len(tasks)
 

@@ -256,12 +256,13 @@ class Monitor:
         self._retimed_noted: set[Path] = set()  # files said to be re-timed for jitter
         self.done: set[int] = set()
         #: Where the decided blocks of a drifting record were cut (the store's
-        #: CUT_COLUMNS): block -> (a file taken, resolved path; the index of the block's
+        #: CUT_COLUMNS): block -> (a file taken, by content; the index of the block's
         #: first sample in it); the others were cut at their labels. Those said to lie off
-        #: the line of the files landed since; the files taken by resolved path.
+        #: the line of the files landed since; the files taken by content and back.
         self._cuts: dict[int, tuple[str, int]] = {}
         self._cuts_said: set[int] = set()
         self._taken_paths: dict[str, Path] = {}
+        self._taken_digests: dict[Path, str] = {}
         self._done_below = 0  # every block before it is in done (see _first_undecided)
         #: Of the blocks this process decided (not those a restart found stored): how
         #: many were identified, and each skipped one as ``block``, ``files`` (names),
@@ -614,14 +615,16 @@ class Monitor:
                     "blocks are anchored at the first file"
                 )
         placed = info
+        digest = None
         if not reason:
             reason, placed = self._placed_among(info)
         if not reason and self.store is not None:
             try:
+                fingerprint = input_fingerprints([placed])
                 self.store.check_inputs(  # a file a late one moves is no changed input
-                    input_fingerprints([placed]),
-                    placed_now=functools.partial(self._placed_now, info),
+                    fingerprint, placed_now=functools.partial(self._placed_now, info)
                 )
+                digest = str(fingerprint[0]["sha256"])
             except StoreDamaged as error:  # no file can be used: said by --once, exit 1
                 reason = self.store_damaged = _state_folder(str(error))
             except WorkbenchError as error:
@@ -647,7 +650,8 @@ class Monitor:
         )
         before = list(self.files.placed_infos()) if late and self.voyage is not None else None
         self.files.add(item)
-        self._taken_paths[str(item.path.resolve())] = item.path
+        if digest is not None:
+            self._taken_digests[item.path], self._taken_paths[digest] = digest, item.path
         self._last_taken = (item.path.name, pd.Timestamp.now(tz="UTC"))
         if before is not None:
             self._note_moved(item, before)
@@ -796,8 +800,9 @@ class Monitor:
         return pd.Timestamp(cut, tz="UTC"), pd.Timestamp(cut, tz="UTC") + (end - start)
 
     def _cut_of(self, planned) -> tuple[str, int] | None:
-        """Where the drifting *planned* block is cut among the files taken (resolved path,
-        sample index: :func:`~workbench.signals.block_plan.cut_in_file`), else None."""
+        """Where the drifting *planned* block is cut among the files taken (the file's
+        SHA-256, sample index: :func:`~workbench.signals.block_plan.cut_in_file`), else
+        None."""
         from ..signals.block_plan import cut_in_file
 
         if not planned.drifting:
@@ -805,7 +810,8 @@ class Monitor:
         infos = self.files.placed_infos()
         starts, _ = self._coverage()
         position, index = cut_in_file(infos, starts, planned.sample_start.value)
-        return str(infos[position].path.resolve()), index
+        digest = self._taken_digests.get(infos[position].path)
+        return None if digest is None else (digest, index)
 
     def _cut_ns(self, block: int, placed: dict | None = None) -> int | None:
         """Placed time of the first sample of the decided *block* of a drifting record
