@@ -176,3 +176,20 @@ def test_the_monitor_says_nothing_of_cuts_within_the_tolerance(tmp_path):
     cuts = BlockStore(state / "store").block_cuts()
     # block 0 was decided before the stamps told the drift from jitter: cut at its label
     assert sorted(cuts) == list(range(1, 11))
+
+
+def test_identify_names_a_block_its_drifting_record_misses(tmp_path, capsys):
+    """150 ppm fast: the 2-h record's 921 600 samples last 2 h / (1 + 150 ppm) of UTC,
+    1.08 s short of block 10's UTC span (6000-7200 s), beyond EDGE_SHIFT_S: the block is
+    not identified (blocks 0-9), and the summary says so (before: left out unsaid)."""
+    _write(tmp_path / "voyage", _drifting(150))
+    code, out, err = _identify(capsys, tmp_path / "voyage", tmp_path / "out")
+    assert code == 0, err
+    assert pd.read_csv(tmp_path / "out" / "blocks.csv")["block"].tolist() == list(range(10))
+    missed = 7200 * 150 / (1e6 + 150)
+    assert f"{missed:.2f}" == "1.08"
+    assert [line for line in out.splitlines() if "not identified" in line] == [
+        "block(s) not identified, whose span a drifting record's samples hold on their count "
+        "but whose UTC span runs more than 1 s past the record's first or last sample: "
+        "block 10 by 1.08 s at its end"
+    ]

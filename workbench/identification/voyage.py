@@ -744,7 +744,12 @@ def identify_voyage(
         unreadable ones); inconsistent files; a store made with other options.
     """
     from ..sid.harmonics import HarmonicMarker
-    from ..signals.block_plan import clock_drift_note, clock_jitter_note, edge_cut_note
+    from ..signals.block_plan import (
+        clock_drift_note,
+        clock_jitter_note,
+        edge_cut_note,
+        missed_blocks_note,
+    )
 
     options = options or IdentifyOptions()
     _check_run_options(scheduler, n_workers, batch_blocks)
@@ -860,6 +865,7 @@ def identify_voyage(
             clock_jitter_note(plan.files),
             clock_drift_note(plan.files),
             edge_cut_note(plan),
+            missed_blocks_note(plan),
         ]
         result.notes = left_out_notes(plan) + [n for n in clock if n] + marker.lines()
         result.warnings += marker.unmarked()

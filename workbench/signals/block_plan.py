@@ -81,6 +81,7 @@ __all__ = [
     "cut_placed_ns",
     "cut_tolerance_s",
     "edge_cut_note",
+    "missed_blocks_note",
     "place_files",
     "placed_block_numbers",
     "placed_blocks",
@@ -1068,6 +1069,40 @@ def edge_cut_note(plan: BlockPlan) -> str:
         "block(s) cut at the first or last sample of a drifting record (or of its data "
         f"between gaps), which misses their UTC span by at most {EDGE_SHIFT_S:g} s; their "
         f"first sample recorded this long after the UTC of their label: {', '.join(said)}"
+    )
+
+
+def missed_blocks_note(plan: BlockPlan) -> str:
+    """One line naming the blocks whose span a drifting record's samples hold on their
+    count but not in UTC by more than :data:`EDGE_SHIFT_S` (a fast clock records the
+    nominal length of its samples in less UTC: the last block's UTC span may run past its
+    last sample), and by how much; "" when there is none. Those blocks are not in *plan*
+    (:func:`placed_block_numbers`): without this line they would be missing unsaid."""
+    infos = plan.files
+    if not infos:
+        return ""
+    clocks = record_clocks(infos)
+    if not (clocks[0].drifting or clocks[-1].drifting):
+        return ""
+    edge = max(
+        pd.Timedelta(seconds=0.5 / plan.sampling_rate_hz), pd.Timedelta(seconds=CLOCK_JITTER_S)
+    )
+    held = plan.grid.complete_blocks(infos[0].start_time - edge, infos[-1].end_time + edge)
+    listed = {int(b.block) for b in plan.blocks}
+    first_ns = clocks[0].utc_ns(_ns(infos[0].start_time))
+    last_ns = clocks[-1].utc_ns(_ns(infos[-1].end_time))
+    said = []
+    for block in (int(k) for k in held if int(k) not in listed):
+        before_s = (first_ns - _ns(plan.grid.start(block))) / _NS
+        after_s = (_ns(plan.grid.end(block)) - last_ns) / _NS
+        where = "at its end" if after_s >= before_s else "at its start"
+        said.append(f"block {block} by {max(before_s, after_s):.2f} s {where}")
+    if not said:
+        return ""
+    return (
+        "block(s) not identified, whose span a drifting record's samples hold on their "
+        f"count but whose UTC span runs more than {EDGE_SHIFT_S:g} s past the record's first "
+        f"or last sample: {', '.join(said)}"
     )
 
 
