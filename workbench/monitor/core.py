@@ -1046,17 +1046,41 @@ class Monitor:
         cut_tolerance_s` from where they were cut (the line of the files landed then):
         they are kept as decided. A refit moving an undecided block's cut is how the line
         learns the clock; a decided block's cut within the tolerance is the same cut."""
-        from ..signals.block_plan import cut_tolerance_s, placed_blocks, record_clocks
+        from ..signals.block_plan import (
+            cut_tolerance_s,
+            line_placed_ns,
+            placed_blocks,
+            record_clocks,
+        )
 
-        if any(clock.drifting for clock in record_clocks(infos, starts)):
+        clocks = record_clocks(infos, starts)
+        if any(clock.drifting for clock in clocks):
             # those decided before the record was found to drift were cut at their labels
             blocks = sorted(b for b in self.done if b not in self._cuts_said)
         else:
             blocks = sorted(b for b in self._cuts if b not in self._cuts_said)
         if not blocks:
             return
-        lattice = options.decimation_factor(self.voyage.rate_hz)
-        tolerance_ns = cut_tolerance_s(self.voyage.rate_hz, lattice) * _NS
+        rate = self.voyage.rate_hz
+        lattice = options.decimation_factor(rate)
+        tolerance_ns = cut_tolerance_s(rate, lattice) * _NS
+        # a cut within the tolerance less half a lattice sample of where the line puts
+        # its label now is where the line cuts it (rounded to the lattice) within the
+        # tolerance: only the others are planned again (a long voyage's decided blocks
+        # are many)
+        labels = grid.start(np.asarray(blocks, dtype=np.int64)).asi8
+        cuts = np.array(
+            [
+                c if (c := self._cut_ns(b)) is not None else t
+                for b, t in zip(blocks, labels, strict=True)
+            ],
+            dtype=float,
+        )
+        lines = line_placed_ns(clocks, starts, labels, rate)
+        near_ns = tolerance_ns - 0.5 * lattice / rate * _NS
+        blocks = [b for b, far in zip(blocks, np.abs(lines - cuts) > near_ns, strict=True) if far]
+        if not blocks:
+            return
         now = placed_blocks(
             infos, starts, ends, grid, blocks, max_gap_s=options.max_gap_s, lattice=lattice
         )

@@ -81,6 +81,7 @@ __all__ = [
     "cut_placed_ns",
     "cut_tolerance_s",
     "edge_cut_note",
+    "line_placed_ns",
     "missed_blocks_note",
     "place_files",
     "placed_block_numbers",
@@ -990,6 +991,20 @@ def _record_of(
         else:
             break
     return chosen
+
+
+def line_placed_ns(
+    clocks: Sequence[RecordClock], starts_ns: np.ndarray, labels_ns: np.ndarray, rate: float
+) -> np.ndarray:
+    """Placed time at which the clock line of the record cutting each block puts its label
+    *labels_ns* (before any rounding to a lattice or cut at the data's edge: a block's cut
+    lies within half a lattice sample of it unless cut at the edge; :func:`placed_blocks`)
+    [ns]; *clocks* of the placed files starting at *starts_ns* (:func:`record_clocks`)."""
+    edge_ns = max(0.5 / rate, CLOCK_JITTER_S) * _NS
+    return np.array(
+        [_record_of(clocks, starts_ns, int(t), edge_ns).placed_ns(int(t)) for t in labels_ns],
+        dtype=float,
+    )
 
 
 def _sample_start_ns(
