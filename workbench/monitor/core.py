@@ -411,16 +411,20 @@ class Monitor:
             self.dship, dict(forecast.dship_mapping), forecast.dship_utc_offset
         )
 
-    def _marking_log(self, log: pd.DataFrame, part: pd.DataFrame) -> pd.DataFrame:
+    def _marking_log(self, log: pd.DataFrame, part: pd.DataFrame):
         """The ship log the marks of *part*'s blocks are computed from: the rows over them
         as the whole log's spike and frozen-sensor tests leave them, with the whole log's
         interval (:class:`~workbench.sid.harmonics.LiveShaftLog`, which takes only the rows
-        appended since the last marks), or *log* itself when it was read again whole."""
+        appended since the last marks), or *log* itself when it was read again whole; and
+        the :class:`~workbench.sid.harmonics.LiveShaftLog` holding the tests (which tells
+        the blocks whose readings' verdicts are final)."""
         from ..sid.harmonics import LiveShaftLog
 
         generation = self._log_generation()
-        if generation is None:
-            return log
+        if generation is None:  # the tests over the log given, for its verdicts
+            live = LiveShaftLog()
+            live.update(log)
+            return log, live
         if (
             self._live_shaft is None
             or self._live_shaft[0] != generation
@@ -429,7 +433,7 @@ class Monitor:
             self._live_shaft = (generation, LiveShaftLog())
         live = self._live_shaft[1]
         live.update(log)
-        return live.window(log, part["block_start"], part["block_end"])
+        return live.window(log, part["block_start"], part["block_end"]), live
 
     @property
     def tracked_through(self) -> int:
@@ -1359,7 +1363,7 @@ class Monitor:
         pending_rpm: dict[int, float] = {}
         if len(pending):
             part = frame.iloc[pending]
-            window = self._marking_log(log, part)
+            window, live = self._marking_log(log, part)
             marker = HarmonicMarker(window, self.options.harmonics)
             marked = marker.mark_selected(part, shaft_logged=self._shaft_logged or None)
             shaft = marker.shaft
@@ -1389,16 +1393,21 @@ class Monitor:
                     checked,
                 ]
             )
-            # the marks of the blocks the log covers are kept
-            covered = _newest_time(log)
-            ends = pd.to_datetime(part["block_end"], utc=True).to_numpy()
+            # the marks of the blocks the log covers are kept once the verdicts of their
+            # shaft-speed readings are final (later readings judge the last ones)
+            blocks = part[["block", "block_start", "block_end"]].drop_duplicates("block")
+            ends = pd.to_datetime(blocks["block_end"], utc=True)
+            final_blocks = (ends <= _newest_time(log)).to_numpy() & live.settled(
+                blocks["block_start"], blocks["block_end"]
+            )
+            final_of = dict(zip(blocks["block"].astype(int), final_blocks, strict=True))
             rpm = (
                 marker.shaft.set_index("block")["shaft_rpm"].astype(float)
                 if marker.method == "shaft speed"
                 else pd.Series(dtype=float)
             )
             for block, inside in part.reset_index(drop=True).groupby("block").indices.items():
-                final = ends[inside].max() <= covered
+                final = bool(final_of[int(block)])
                 if final:
                     kept[pending[inside]] = True
                 if block in rpm.index:
@@ -1439,7 +1448,7 @@ class Monitor:
         unknown = blocks[~blocks["block"].astype(int).isin(self._block_speed)]
         pending_speed: dict[int, float] = {}
         if len(unknown):
-            window = self._marking_log(log, unknown)
+            window, _ = self._marking_log(log, unknown)  # the speed: no readings judged
             table = block_shaft_table(window, unknown).set_index("block")["speed_energy_kn"]
             ends = pd.to_datetime(unknown["block_end"], utc=True)
             for block, end in zip(unknown["block"].astype(int), ends, strict=True):
@@ -1479,6 +1488,18 @@ class Monitor:
         return np.column_stack(
             [harmonic, np.where(marked, order_hz, np.nan), np.isfinite(speed).astype(float)]
         )
+
+    def _harmonic_modes(self) -> pd.DataFrame | None:
+        """The tracked selected modes marked as harmonics (their block, frequency, shape
+        and ``harmonic``), in the order ``identify --dship`` exports them: what its pole
+        table's marks are taken from (:func:`~workbench.sid.harmonics.mark_poles`); None
+        without marks (no ship log)."""
+        frame, marks = self.tracking.frame, self._marked
+        if frame is None or marks is None or len(marks) != len(frame):
+            return None
+        marked = np.isfinite(marks[:, 0])
+        modes = frame[marked].assign(harmonic=marks[marked, 0])
+        return modes.sort_values(["block", "frequency_hz"], kind="stable").reset_index(drop=True)
 
     def _write_harmonic_lines(self, tracked: pd.DataFrame) -> None:
         """``harmonics.parquet``: each order's frequency at the tracked blocks, at the
@@ -1687,6 +1708,9 @@ class Monitor:
         self._dship_key = _file_key(self.dship) if self.dship is not None else None
         arguments = (self.state, self.dship, self.options.forecast, self.voyage.grid)
         keywords = {"store": self.store_path}
+        if "B" in self.options.forecast.forecast.options:  # the poles are read
+            keywords["harmonic_modes"] = self._harmonic_modes()
+            keywords["harmonics"] = self.options.harmonics
         if not background:
             self._doing("updating forecast and health")
             self._collect(update_outlook(*arguments, **keywords))
