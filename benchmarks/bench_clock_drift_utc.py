@@ -63,7 +63,9 @@ def block_offsets_s(n_files: int, ppm: float, jitter_ms: float = 0.0, seed: int 
         # where the block's samples begin on the record's sample count (the plan's placed
         # times): its start, or, where a plan cuts blocks elsewhere, that start
         start = getattr(block, "sample_start", block.block_start)
-        sample = int(np.ceil((start - first).total_seconds() * RATE_HZ - 1e-6))
+        count = (start - first).total_seconds() * RATE_HZ
+        # a sample's time (to the ns) is that sample; else the first sample at or after it
+        sample = round(count) if abs(count - round(count)) < 1e-3 else int(np.ceil(count - 1e-6))
         recorded = T0 + pd.Timedelta(seconds=sample / (RATE_HZ * (1 + ppm * 1e-6)))
         out.append((block.block_start - recorded).total_seconds())
     return np.array(out)
@@ -88,8 +90,9 @@ def main() -> None:
             offsets = block_offsets_s(n_files, ppm, args.jitter)
             last[(label, ppm)] = offsets[-1]
             cells.append(
-                f"{ppm:+4d} ppm: first {offsets[0] * 1e3:+6.1f} ms, last {offsets[-1]:+9.3f} s, "
-                f"largest {np.abs(offsets).max():8.3f} s"
+                f"{ppm:+4d} ppm: {offsets.size} blocks, first {offsets[0] * 1e3:+6.1f} ms, "
+                f"last {offsets[-1]:+10.4f} s, largest but the last "
+                f"{np.abs(offsets[:-1]).max():9.4f} s"
             )
         print(f"  {label:>8s} ({n_files:5d} files): " + "; ".join(cells))
 
@@ -126,7 +129,7 @@ def main() -> None:
                 cells.append(
                     f"{column} largest {difference.max():.3f}, median {difference.median():.3f}"
                 )
-            print(f"  {label:>8s} {ppm:+4d} ppm ({offset:+8.3f} s): " + "; ".join(cells))
+            print(f"  {label:>8s} {ppm:+4d} ppm ({offset:+9.4f} s): " + "; ".join(cells))
 
 
 if __name__ == "__main__":

@@ -33,7 +33,7 @@ import pandas as pd
 from .errors import UnreadableInputError, WorkbenchError
 from .local_workers import fork_available, run_forked
 from .processes import interrupts_deferred, worker_initializer
-from .store import UNREADABLE_COLUMN, BlockStore
+from .store import CUT_COLUMNS, UNREADABLE_COLUMN, BlockStore
 
 __all__ = [
     "BlockOutcome",
@@ -242,6 +242,7 @@ def run_blocks(
     total: int | None = None,
     progress: bool = False,
     description: str = "blocks",
+    cuts: Mapping[int, tuple[str, int]] | None = None,
 ) -> RunSummary:
     """Apply *func* to every task not yet in *store*, in parallel, and store the results.
 
@@ -280,6 +281,10 @@ def run_blocks(
         Number of tasks, for the progress bar.
     progress : bool
         Show a progress bar (blocks done, rate, ETA) on stderr.
+    cuts : mapping of int -> (str, int), optional
+        Where a drifting record's blocks are cut (``PlannedBlock.sample_start`` of those
+        ``drifting``, as :func:`~workbench.signals.block_plan.cut_in_file` gives it),
+        kept with them in the store's ``blocks`` (:data:`~workbench.store.CUT_COLUMNS`).
 
     Returns
     -------
@@ -309,6 +314,10 @@ def run_blocks(
         )
         if any(o.unreadable for o in pending):  # the files, for the next run to look at
             blocks[UNREADABLE_COLUMN] = ["\n".join(o.unreadable) for o in pending]
+        cut = [cuts.get(int(o.block), ("", -1)) for o in pending] if cuts else []
+        if any(path for path, _ in cut):  # where the clock line cut them, for the next run
+            blocks[CUT_COLUMNS[0]] = [path for path, _ in cut]
+            blocks[CUT_COLUMNS[1]] = np.array([index for _, index in cut], dtype=np.int64)
         kinds = sorted({k for o in pending for k in o.tables})
         results = {}
         for kind in kinds:

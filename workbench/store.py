@@ -72,6 +72,7 @@ from .errors import WorkbenchError
 
 __all__ = [
     "BLOCKS_KIND",
+    "CUT_COLUMNS",
     "UNREADABLE_COLUMN",
     "BlockStore",
     "StoreDamaged",
@@ -85,6 +86,15 @@ BLOCKS_KIND = "blocks"
 #: Column of the ``blocks`` kind naming the input files (resolved paths, one a line) a
 #: skipped block could not read; written only by batches holding such a block.
 UNREADABLE_COLUMN = "unreadable_input"
+#: Columns of the ``blocks`` kind holding where a drifting record's block was cut
+#: (``PlannedBlock.sample_start``, on the record's clock line): the input file its first
+#: sample is counted from (by content: its SHA-256, as the input index knows it, wherever
+#: it lies now) and that sample's index in the file (from the file's first sample; the
+#: placed times of a record's files change when a late file re-places them, its samples do
+#: not), so a later run can tell when the line of the files given then cuts the block
+#: elsewhere; written only by batches holding such a block (empty for the others: cut at
+#: their labels).
+CUT_COLUMNS = ("cut_sha256", "cut_sample")
 _CONFIG = "store.json"
 _INPUTS = "inputs.jsonl"
 #: The input index of earlier versions (one object, written whole), converted when opened.
@@ -933,6 +943,25 @@ class BlockStore:
                 entry["blocks"].add(int(block))
         return found
 
+    def block_cuts(self) -> dict[int, tuple[str, int]]:
+        """Where the stored blocks of a drifting record were cut (:data:`CUT_COLUMNS`):
+        block -> (the input file's SHA-256; the index of the block's first sample in it); a
+        block without one was cut at its label."""
+        table = self.read(BLOCKS_KIND)
+        path, sample = CUT_COLUMNS
+        if table.empty or path not in table.columns:
+            return {}
+        known = table[path].notna() & (table[path].astype(str) != "")
+        return {
+            int(block): (str(file), int(index))
+            for block, file, index in zip(
+                table.loc[known, "block"],
+                table.loc[known, path],
+                table.loc[known, sample],
+                strict=True,
+            )
+        }
+
     def completed_blocks(self) -> set[int]:
         """Blocks already processed (successfully or skipped with a recorded reason)."""
         table = self.read(BLOCKS_KIND)
@@ -1001,7 +1030,8 @@ class BlockStore:
         blocks : DataFrame
             One row per block of the batch: ``block``, ``block_start``, ``status``
             (``ok``/``skipped``), ``reason`` (and :data:`UNREADABLE_COLUMN` where a block was
-            skipped for an input file that cannot be read).
+            skipped for an input file that cannot be read, :data:`CUT_COLUMNS` where a
+            drifting record's block was cut off its label).
         results : mapping of kind -> DataFrame
             Result rows; each must have ``block`` and ``block_start`` columns.
 

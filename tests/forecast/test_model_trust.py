@@ -405,3 +405,25 @@ def test_hull_wide_change_follows_ssi_and_moves_that_cancel_do_not_set_it_off():
         np.testing.assert_array_equal(estimates[after], measured[after])
         assert not _hull_run([-1, 1, -1, 1, -1, 1, 0], seed=seed)[3].any()
         assert not _hull_run([0] * 7, seed=seed, n=2000)[3].any()
+
+
+def test_after_a_hole_the_model_earns_its_trust_again():
+    """Across a hole in the record the probabilities are not updated (no measurement); at
+    the first measured block after it the model's probability is at most the prior's (main:
+    0.9 kept from before the hole), the rest the model-free filter's; a mode without a
+    measurement keeps its own."""
+    trust = ModelTrust(3, 3.0, persist_blocks=5)
+    trust.weights[0] = [0.9, 0.1, 0.9]
+    trust.weights[1] = [0.1, 0.9, 0.1]
+    n = 3
+    trust.step(
+        np.array([5.0, 6.0, np.nan]),
+        np.tile(np.diag([1.0, 0.5]), (n, 1, 1)),
+        np.full((n, 2), 1e-6),
+        np.full(n, 1e-6),
+        np.full(n, 1e-6),
+        BlendStep(np.zeros(n), np.full(n, 2e-6), after_hole=True),
+        np.zeros(n, dtype=bool),  # in sample: no evidence either way
+    )
+    assert trust.weights[0] == pytest.approx([0.2, 0.1, 0.9])
+    assert trust.weights[1] == pytest.approx([0.8, 0.9, 0.1])

@@ -204,3 +204,38 @@ def test_a_short_log_is_read_whole_and_an_unchanged_one_not_again(tmp_path):
     path.unlink()
     with pytest.raises(FileNotFoundError):
         live.read()
+
+
+def test_appended_rows_fill_buffers_that_grow_and_earlier_tables_stay(tmp_path, monkeypatch):
+    """The appended rows are written into column buffers with room to grow (here 8 rows or
+    a quarter more than needed, so they grow again and again), not copied with the whole
+    table at each read (``pd.concat`` on main: ``benchmarks/results/monitor_parity_53.txt``):
+    every read equals the whole read, a table handed out earlier keeps its rows as
+    later ones are appended, and a reader writing to it changes neither the log's next
+    tables nor the other tables handed out (pandas copies the column it writes to)."""
+    from workbench.monitor import ship_log
+
+    monkeypatch.setattr(ship_log, "GROWTH_MIN_ROWS", 8)
+    path = tmp_path / "dship.tsv"
+    path.write_text(HEADER + "".join(_lines(100)), encoding="utf-8")
+    live = LiveShipLog(path)
+    _same(live, path)
+    given = [live.read()]
+    kept = [given[0].copy()]
+    given[0].loc[0, "speed_kn"] = -1.0  # a reader writing to its table
+    capacities = set()
+    for k in range(30):
+        with open(path, "a", encoding="utf-8") as handle:
+            handle.write("".join(_lines(50, 100 + 50 * k)))
+        _same(live, path)
+        frame = live.read()
+        given.append(frame)
+        kept.append(frame.copy())
+        capacities.add(len(live._last.table._whole))
+        assert frame["speed_kn"].iloc[0] == kept[1]["speed_kn"].iloc[0] != -1.0
+    assert (live.whole_reads, live.appended_reads) == (1, 30)
+    assert len(capacities) >= 5  # the buffers grew, the tables stayed
+    for frame, copy in zip(given[1:], kept[1:], strict=True):
+        pd.testing.assert_frame_equal(frame, copy, check_exact=True)
+    assert given[0]["speed_kn"].iloc[0] == -1.0
+    pd.testing.assert_frame_equal(given[0].iloc[1:], kept[0].iloc[1:], check_exact=True)

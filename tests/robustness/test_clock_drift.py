@@ -10,9 +10,12 @@ whole voyage ("acc_009.npz: starts 0.054 s before the end of acc_008.npz (overla
 duplicate files)"; 20 ppm at 128 Hz: 6 ms is 0.77 samples, beyond the half sample ignored).
 Now the stamps are judged against the least-squares line of the run's stamps on its
 sample count, the jitter being the distance from that line: every block is identified from
-the recorder's consecutive samples (the modes of the same samples stamped without drift,
-to the last bit), and the summary says the clock's rate offset. A real gap is still a gap
-and a real overlap an error naming the file.
+the recorder's consecutive samples, cut where that line puts the UTC of the block's label
+(``tests/robustness/test_clock_drift_utc.py``), and the summary says the clock's rate
+offset. A fast clock records the 2 h in 2 h less its walk (144 ms at 20 ppm), so the last
+block's span (1:40-2:00 UTC) is not recorded whole: it is cut at the record's last sample
+(``EDGE_SHIFT_S``), its first sample 0.12 s before its label's UTC, and the summary says
+so. A real gap is still a gap and a real overlap an error naming the file.
 """
 
 from __future__ import annotations
@@ -100,6 +103,17 @@ def _identify(capsys, folder, out, extra=()):
 _modes = selected_modes
 
 
+def _edge_note(out: str) -> str:
+    """The blocks the summary says were cut at the edge of a drifting record's data."""
+    (line,) = [line for line in out.splitlines() if line.startswith("block(s) cut at")]
+    assert line.startswith(
+        "block(s) cut at the first or last sample of a drifting record (or of its data "
+        "between gaps), which misses their UTC span by at most 1 s; their first sample "
+        "recorded this long after the UTC of their label: "
+    )
+    return line.split("label: ")[1]
+
+
 def _drift_note(out: str) -> str:
     notes = [line for line in out.splitlines() if line.startswith("clock drift")]
     assert len(notes) == 1
@@ -126,14 +140,21 @@ def test_a_drifting_sample_clock_gives_every_block(
     code, out, err = _identify(capsys, voyages[voyage], tmp_path / "out", PATHS[path])
     assert code == 0, err  # main: exit 1, acc_009.npz (acc_002.npz) "overlapping or duplicate"
     blocks = pd.read_csv(tmp_path / "out" / "blocks.csv")
+    # block 10 (1:40-2:00 UTC) ends 144 ms (720 ms) after the record's last sample: cut at
+    # it (h54's branch: blocks 0-9)
     assert blocks["block"].tolist() == list(range(11))
     assert (blocks["status"] == "ok").all()
-    # the blocks hold the recorder's consecutive samples, as in the voyage stamped without
-    # drift: the same numbers (1e-12 Hz: rounding only)
+    # block 0 starts at the first sample (the line's time there, to rounding) and block 10
+    # ends at the last: the numbers of the voyage stamped without drift
     modes, clean = _modes(tmp_path / "out"), clean_modes[path]
-    assert modes["block"].tolist() == clean["block"].tolist()
-    np.testing.assert_allclose(modes["frequency_hz"], clean["frequency_hz"], rtol=0, atol=1e-12)
-    np.testing.assert_allclose(modes["damping_ratio"], clean["damping_ratio"], rtol=0, atol=1e-12)
+    for block in (0, 10):
+        ends, clean_ends = modes[modes["block"] == block], clean[clean["block"] == block]
+        assert len(ends) == len(clean_ends) > 0
+        for column in ("frequency_hz", "damping_ratio"):
+            np.testing.assert_allclose(ends[column], clean_ends[column], rtol=0, atol=1e-12)
+    # the later blocks hold other samples: those recorded in their UTC spans
+    later = modes[modes["block"] == 9]["frequency_hz"].to_numpy()
+    assert np.abs(later - clean[clean["block"] == 9]["frequency_hz"].to_numpy()).max() > 1e-6
     # the stamps lie on a line (no jitter): its slope is the clock's rate offset, to
     # rounding; the last file starts 23 * 300 s * ppm / (1 + ppm) after its stamp
     walk_ms = 23 * FILE_S * ppm / (1e6 + ppm) * 1e3
@@ -144,6 +165,8 @@ def test_a_drifting_sample_clock_gives_every_block(
         "their stamps (acc_023.npz)"
     )
     assert "clock jitter" not in out
+    # block 10's first sample: where the line puts 6000 s UTC less 6000 s x ppm / (1 + ppm)
+    assert _edge_note(out) == f"block 10 {-6000 * ppm / (1e6 + ppm):+.2f} s"
 
 
 def test_drift_and_jitter_give_every_block(voyages, clean_modes, tmp_path, capsys):
@@ -155,10 +178,7 @@ def test_drift_and_jitter_give_every_block(voyages, clean_modes, tmp_path, capsy
     )
     assert code == 0, err  # main: exit 1, acc_009.npz "overlapping or duplicate files"
     blocks = pd.read_csv(tmp_path / "out" / "blocks.csv")
-    assert (blocks["status"] == "ok").all() and len(blocks) == 11
-    # the same samples in every block as the voyage stamped without drift or jitter
-    modes, clean = _modes(tmp_path / "out"), clean_modes["per-block"]
-    np.testing.assert_allclose(modes["frequency_hz"], clean["frequency_hz"], rtol=0, atol=1e-12)
+    assert (blocks["status"] == "ok").all() and len(blocks) == 11  # as without jitter
     note = _drift_note(out)
     # the line of the stamps on the sample count, fitted here independently
     x = np.arange(N_FILES) * FILE_S  # the sample count in nominal seconds
@@ -193,7 +213,9 @@ def test_a_real_gap_in_a_drifting_record_stays_a_gap(tmp_path, capsys):
     skipped = blocks.loc[blocks["status"] == "skipped"]
     assert skipped["block"].tolist() == [5, 6]  # 3000-4200 s and 3600-4800 s
     assert skipped["reason"].iloc[0] == "gap of 2.0 s between acc_011.npz and acc_012.npz"
-    assert skipped["reason"].iloc[1].startswith("gap of 2.0 s between ")
+    # block 6's UTC span (from 3600 s) begins 72 ms after the first record's last sample
+    # (3600 s / (1 + 20 ppm)): 1.93 s of the gap lie in it
+    assert skipped["reason"].iloc[1] == "gap of 1.9 s between acc_011.npz and acc_012.npz"
     assert (blocks.loc[~blocks["block"].isin([5, 6]), "status"] == "ok").all()
     assert _drift_note(out).startswith(
         "clock drift: acc_000.npz .. acc_023.npz (24 files in 2 records): the sample clock "
@@ -208,27 +230,33 @@ def test_a_lost_file_in_a_drifting_record_keeps_the_last_block(clean_modes, tmp_
     put it, so it ended 156 ms before the last block's end (7200 s): block 10 was neither
     identified nor said (blocks 0-9). The clock line of the record before the gap carries
     its time over the gap (its stamps lie on it to rounding): the record after the gap
-    follows on the samples the recorder counted, and every block it holds is the voyage's
-    without the drift."""
+    follows on the samples the recorder counted. Block 4 (2400-3600 s UTC) ends 144 ms
+    after the first record's last sample (3600 s / (1 + 40 ppm)), in the lost file, and
+    block 10 288 ms after the last sample: each is cut at that sample, 96 ms (240 ms)
+    before its label's UTC, and said (h54's branch: block 4 skipped, "gap of 0.1 s", and
+    block 10 not listed)."""
     files = _write(tmp_path / "acc", _drifting(40))
     files[12].unlink()
     code, out, err = _identify(capsys, tmp_path / "acc", tmp_path / "out", PATHS[path])
     assert code == 0, err
     blocks = pd.read_csv(tmp_path / "out" / "blocks.csv")
-    assert blocks["block"].tolist() == list(range(11))  # main: 0-9
+    assert blocks["block"].tolist() == list(range(11))
     skipped = blocks.loc[blocks["status"] == "skipped"]
-    assert skipped["block"].tolist() == [5, 6]  # 3000-4200 s and 3600-4800 s
+    assert skipped["block"].tolist() == [5, 6]  # 3000-4200 and 3600-4800 s
     # the file's 300 s of samples (main: "gap of 299.8 s", the stamps' time)
-    assert set(skipped["reason"]) == {"gap of 300.0 s between acc_011.npz and acc_013.npz"}
+    # (block 6's UTC span begins 144 ms after the gap does)
+    assert skipped["reason"].tolist() == [
+        f"gap of {gap} s between acc_011.npz and acc_013.npz" for gap in ("300.0", "299.9")
+    ]
+    assert _edge_note(out) == "block 4 -0.10 s, block 10 -0.24 s"
+    # block 0, cut at the first sample, and block 10 (and, from the raw files, block 4),
+    # cut at the last ones, are the voyage's without the loss and the drift (the file
+    # conditioner pads block 4's filters with the lost file's raw edge there)
     modes, clean = _modes(tmp_path / "out"), clean_modes[path]
-    # block 4 ends with acc_011.npz, whose filters the file conditioner pads with the next
-    # file's raw edge: acc_012.npz in the voyage without the loss
-    other = [4, 5, 6] if path == "per-file" else [5, 6]
-    modes = modes[~modes["block"].isin(other)].reset_index(drop=True)
-    clean = clean[~clean["block"].isin(other)].reset_index(drop=True)
-    assert modes["block"].max() == 10
-    assert modes["block"].tolist() == clean["block"].tolist()
-    np.testing.assert_allclose(modes["frequency_hz"], clean["frequency_hz"], rtol=0, atol=1e-12)
+    for block in [0, 10] if path == "per-file" else [0, 4, 10]:
+        ends, clean_ends = modes[modes["block"] == block], clean[clean["block"] == block]
+        assert len(ends) == len(clean_ends) > 0
+        np.testing.assert_allclose(ends["frequency_hz"], clean_ends["frequency_hz"], atol=1e-12)
     assert _drift_note(out).startswith(
         "clock drift: acc_000.npz .. acc_023.npz (23 files in 2 records): the sample clock "
         "runs +40.0 to +40.0 ppm from 128 Hz"
@@ -255,8 +283,10 @@ def test_the_monitor_gives_the_blocks_identify_gives(voyages, tmp_path, capsys):
     assert code == 0, captured.err
     assert "Traceback" not in captured.err
     health = pd.read_parquet(state / "data_health.parquet").sort_values("block")
-    assert health["block"].tolist() == list(range(11))  # main: 0-9
-    assert (health["status"] == "ok").all()  # main: block 10 never decided
+    # as identify: block 10's UTC span ends 144 ms after the last sample, so it is cut at
+    # it (main: 0-9, block 10 listed on the sample count but never decided)
+    assert health["block"].tolist() == list(range(11))
+    assert (health["status"] == "ok").all()
     notes = (state / "notes.txt").read_text(encoding="utf-8")
     drift = [line for line in notes.splitlines() if "clock drift" in line]
     assert len(drift) == 1  # said once, when the record's drift is told apart from jitter
@@ -266,8 +296,7 @@ def test_the_monitor_gives_the_blocks_identify_gives(voyages, tmp_path, capsys):
 
 
 def test_the_monitor_keeps_the_last_block_after_a_lost_file_as_identify(tmp_path, capsys):
-    """The monitor places the files as identify does: block 10 (main: absent, as in
-    identify), the same modes."""
+    """The monitor places the files as identify does: the same blocks, the same modes."""
     files = _write(tmp_path / "watch", _drifting(40))
     files[12].unlink()
     state = tmp_path / "state"
@@ -277,7 +306,7 @@ def test_the_monitor_keeps_the_last_block_after_a_lost_file_as_identify(tmp_path
     captured = capsys.readouterr()
     assert code == 0, captured.err
     health = pd.read_parquet(state / "data_health.parquet").sort_values("block")
-    assert health["block"].tolist() == list(range(11))  # main: 0-9
+    assert health["block"].tolist() == list(range(11))  # as identify (its docstring)
     assert health.loc[health["status"] == "skipped", "block"].tolist() == [5, 6]
     # the record after the gap is said once, as placed: on the sample count, 13 * 300 s *
     # 40 ppm / (1 + 40 ppm) = 156.0 ms after its stamp (main: "acc_013.npz: start re-timed

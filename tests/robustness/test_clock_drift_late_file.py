@@ -68,6 +68,8 @@ def test_a_late_file_among_a_drifting_records_first_files_is_used(tmp_path, caps
     messages = _replay(order, tmp_path / "watch", state, PATHS["per-block"])
     assert not [m for m in messages if "not used" in m]  # main: acc_004.npz refused
     health = _health(state)
+    # block 10's UTC span ends about 720 ms after the record's last sample (100 ppm fast):
+    # cut at that sample (EDGE_SHIFT_S)
     assert health["block"].tolist() == list(range(11))
     assert (health["status"] == "ok").all()  # main: blocks 1-3 skipped (gap)
     code, _, err = _identify(capsys, tmp_path / "source", tmp_path / "batch", PATHS["per-block"])

@@ -138,3 +138,83 @@ def test_marks_of_the_newest_blocks_from_the_window_equal_the_whole_logs():
         pd.testing.assert_frame_equal(window.shaft, whole.shaft, check_exact=True)
         compared += 1
     assert compared >= 15
+
+
+def _verdicts(log: pd.DataFrame) -> np.ndarray:
+    """Each row's reading left out (True) by the whole log's tests, NaN rows False."""
+    rpm = log["shaft_rpm"].to_numpy(float)
+    return np.isfinite(rpm) & np.isnan(usable_shaft_speed(log)["shaft_rpm"].to_numpy(float))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    n=st.integers(40, 5000),
+    cuts=st.lists(st.floats(0.0, 1.0), min_size=1, max_size=6),
+)
+def test_readings_before_settled_until_keep_their_verdict(seed, n, cuts):
+    """What :meth:`LiveShaftLog.settled_until` says is final stays so however the log
+    grows: each reading before it is left out or kept as the whole voyage's log decides
+    (the monitor keeps a block's shaft speed from then on). The frozen-sensor test's
+    applying at all is the whole log's (a log turning coarse): cases where the cut and
+    the whole log differ on it are not this test's."""
+    full = _log(seed, n)
+    final = _verdicts(full)
+    live = LiveShaftLog()
+    for cut in sorted({max(1, int(c * n)) for c in cuts}):
+        log = full.iloc[:cut]
+        live.update(log)
+        settled = live.settled_until()
+        before = np.ones(cut, bool)
+        if settled is not None:
+            before = (log["time"] < settled).to_numpy()
+        tail = live._tail()
+        frozen_test = tail[-1] if live._finite_value.size > 1 else None
+        if frozen_test is not None and frozen_test != _frozen_test_applies(full):
+            continue
+        np.testing.assert_array_equal(_verdicts(log)[before], final[:cut][before])
+
+
+def _frozen_test_applies(log: pd.DataFrame) -> bool:
+    live = LiveShaftLog()
+    live.update(log)
+    return bool(live._tail()[-1])
+
+
+def test_settled_until_waits_for_the_readings_that_judge_the_last_ones():
+    """A 1-s log: the spike test of the last 15 readings waits for the readings after
+    them; a run of equal readings open for under 5 min may still become a frozen sensor."""
+    rng = np.random.default_rng(5)
+    rpm = np.round(80 + rng.normal(0, 0.5, 2000), 1)
+    rpm[1000:1400] = rpm[1000]  # frozen for 400 s
+    rpm[1800:1900] *= 1.3  # the shaft 30 % faster
+    full = pd.DataFrame({"time": T0 + pd.to_timedelta(np.arange(2000), unit="s"), "shaft_rpm": rpm})
+    seconds = {}
+    for cut in (900, 1100, 1400, 1810):
+        live = LiveShaftLog()
+        live.update(full.iloc[:cut])
+        seconds[cut] = (live.settled_until() - T0).total_seconds()
+    # the 15th newest reading (or the start of a run of two equal ones just before it);
+    # the frozen run's start while it lasts under 300 s, not once it lasts 300 s
+    assert 880 <= seconds[900] <= 885 and seconds[1100] == 1000 and seconds[1400] == 1385
+    # the faster readings (from 1800 s) are spikes against the 15 readings before them
+    # until more of them arrive
+    assert 1790 <= seconds[1810] <= 1795
+    part = _verdicts(full.iloc[:1810])
+    assert part[1800:1805].all() and not _verdicts(full)[1800:1810].any()
+
+
+def test_a_block_is_settled_when_none_of_its_readings_may_change():
+    """The shaft speed logged until 1500 s, then an outage: the last 15 readings before it
+    wait for readings after the outage (the spike test's window runs over the finite
+    readings), so the block holding them is not settled; a block in the outage is."""
+    rng = np.random.default_rng(6)
+    rpm = np.round(80 + rng.normal(0, 0.5, 1700), 1)
+    rpm[1500:] = np.nan
+    log = pd.DataFrame({"time": T0 + pd.to_timedelta(np.arange(1700), unit="s"), "shaft_rpm": rpm})
+    live = LiveShaftLog()
+    live.update(log)
+    assert 1480 <= (live.settled_until() - T0).total_seconds() <= 1485
+    starts = T0 + pd.to_timedelta([0, 300, 1300, 1500], unit="s")
+    ends = starts + pd.Timedelta(seconds=200)
+    assert live.settled(starts, ends).tolist() == [True, True, False, True]

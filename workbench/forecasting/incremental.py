@@ -102,10 +102,11 @@ __all__ = [
 #: missed columns; /6: the log's coverage of the blocks per predictor column too
 #: (``column_coverage``: the shares an outage edge's warning names); /7: the rows without
 #: any mode measured (``record_gap``: a hole in the acceleration record); /8: each mode's
-#: predictor range over its newest refit (``fit_range``: the extrapolation variance); /9:
-#: the model-trust hull-wide change test's CUSUM sums, its flag and the block's
+#: predictor range over its newest refit (``fit_range``: the extrapolation variance); /9: the
+#: rows measured since a hole in the record ended (``since_hole``: a refit keeps the estimate
+#: then); /10: the model-trust hull-wide change test's CUSUM sums, its flag and the block's
 #: measurement (``change_sums``, ``change``, ``measured``).
-CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/9"
+CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/10"
 
 #: Rows kept before the newest committed window beyond the refits' history. [blocks]
 _MARGIN_ROWS = 64

@@ -189,6 +189,10 @@ class BlendStep:
         The block ends a hole in the record (no mode measured for at least
         ``persist_blocks`` blocks): the model-free filters, too, take a large innovation
         as a move of the level (their state is as old as the hole), not as SSI's outlier.
+    settling : bool
+        The block is among the first after a hole, while the refits hand the model's
+        error over from c (:mod:`~workbench.forecasting.memory.forecast`'s refit
+        continuity): the hull-wide change test starts again after them.
     """
 
     normalised: np.ndarray
@@ -197,6 +201,7 @@ class BlendStep:
     measurement_model: np.ndarray | None = None
     unweighted: np.ndarray | None = None
     after_hole: bool = False
+    settling: bool = False
 
 
 class ModelTrust:
@@ -229,6 +234,7 @@ class ModelTrust:
         lead_blocks: int = 0,
     ):
         self.huber_sigma = float(huber_sigma)
+        self.prior_probability = float(prior_probability)
         self.persist_blocks = None if persist_blocks is None else int(persist_blocks)
         self.steps = np.asarray(level_steps, dtype=float)  # one model-free filter each
         n_free = self.steps.size
@@ -321,6 +327,8 @@ class ModelTrust:
             had not seen the block).
         """
         blend_normalised, blend_variance = blend.normalised, blend.variance
+        if blend.after_hole:
+            self._after_hole(np.isfinite(z))
         blend_state, measurement_model = blend.state, blend.measurement_model
         sigma2 = np.maximum(error_variance + white_variance, 1e-300)
         # SSI's estimate where the blend takes it without Huber weight (NaN elsewhere: the
@@ -331,7 +339,13 @@ class ModelTrust:
         self.measurement_variance = sigma2.copy()
         log_l = np.full(self.weights.shape, np.nan)
         log_l[0] = self._blend_log_likelihood(blend_normalised, blend_variance)
-        self._change_step(blend_normalised, learn)
+        if blend.after_hole or blend.settling:
+            # the first innovations after a hole are the filter's stale state and the
+            # refits' handover, not a move of the hull: the test starts again after them
+            self.change_sums[:] = 0.0
+            self.change = False
+        else:
+            self._change_step(blend_normalised, learn)
         self.measured = np.asarray(z, dtype=float).copy()
         for h, step in enumerate(self.steps):
             log_l[h + 1] = self._free_step(
@@ -382,6 +396,19 @@ class ModelTrust:
         down = max(0.0, down - t - CHANGE_DRIFT)
         self.change_sums[:] = up, down
         self.change = bool(max(up, down) > CHANGE_THRESHOLD)
+
+    def _after_hole(self, measured: np.ndarray) -> None:
+        """After a hole in the record, the measured modes' probability that the model
+        explains them at most the prior's (:data:`PRIOR_PROBABILITY`), the rest shared by
+        the model-free filters.
+
+        The probabilities are updated only on measured blocks, so across a hole they keep
+        what the blocks before it said, while the model only extrapolated there (the ship
+        may have left port, the model knows it at rest): its trust has to be earned again
+        on the measurements after the hole, as at the start."""
+        w0 = np.minimum(self.weights[0, measured], self.prior_probability)
+        self.weights[0, measured] = w0
+        self.weights[1:, measured] = (1.0 - w0) / self.steps.size
 
     def _lead_step(self, z, blend_state, measurement_model, learn) -> None:
         """The lead test (module docstring): score the predictions made lead_blocks ago,

@@ -39,6 +39,9 @@ class BlockTask:
     infos: tuple = ()
     #: Why the voyage's plan skips the block (a gap between two files it names), or "".
     skipped: str = ""
+    #: Placed time of the block's first sample where it is cut on a drifting record's
+    #: clock line (``PlannedBlock.sample_start``, ``drifting``), else None.
+    sample_start: pd.Timestamp | None = None
 
 
 def _block_tasks(plan, planned) -> list[BlockTask]:
@@ -51,6 +54,7 @@ def _block_tasks(plan, planned) -> list[BlockTask]:
             tuple(str(f) for f in p.files),
             tuple(header[Path(f)] for f in p.files if Path(f) in header),
             p.skipped_reason,
+            p.sample_start if p.drifting else None,
         )
         for p in planned
     ]
@@ -74,7 +78,12 @@ def _identify_data(
 
     if conditioner is not None:
         planned = PlannedBlock(
-            task.block, task.block_start, grid.end(task.block), tuple(map(Path, task.files))
+            task.block,
+            task.block_start,
+            grid.end(task.block),
+            tuple(map(Path, task.files)),
+            sample_start=task.sample_start,
+            drifting=task.sample_start is not None,
         )
         data = conditioner.block(planned)
     else:
@@ -85,6 +94,7 @@ def _identify_data(
             grid,
             options=conditioning_options(options),
             channels=channels,
+            sample_start=task.sample_start,
         )
     if data.acceleration is None:
         return _with_planned_reason(data, getattr(task, "skipped", "")), None, None
@@ -538,6 +548,10 @@ class _FileTask:
     files: tuple
     window: tuple = ()
     shared_inputs: tuple = ()
+    #: As :attr:`BlockTask.sample_start`.
+    sample_start: pd.Timestamp | None = None
+    #: Cuts of drifting blocks inside ``window`` (``FileConditioner``'s *cuts*). [ns]
+    cuts: tuple = ()
 
 
 def identify_from_files(
@@ -560,7 +574,7 @@ def identify_from_files(
     if not task.window:  # a planned block without files: the per-block path says why
         return identify_block(task, grid=grid, channels=channels, options=options)
     conditioner = FileConditioner(
-        task.window, grid, channels, options=conditioning_options(options)
+        task.window, grid, channels, options=conditioning_options(options), cuts=task.cuts
     )
     conditioner.reuse(conditioned or {})
     return identify_block(
@@ -572,9 +586,17 @@ def _file_tasks(tasks: Sequence[BlockTask], plan, options: IdentifyOptions) -> l
     """*tasks* as blocks cut from files conditioned once, each file's conditioning shared
     by the blocks holding it."""
     from ..parallel import SharedInput
-    from ..signals.file_conditioning import FileConditioning, condition_file
+    from ..signals.file_conditioning import (
+        FileConditioning,
+        block_cuts,
+        condition_file,
+        cuts_within,
+    )
 
     position = {info.path: i for i, info in enumerate(plan.files)}
+    # a drifting record's blocks start and end off the grid's steps: the files' step
+    # sums are split there too (the same cuts for a file wherever it is conditioned)
+    cuts = block_cuts(plan.blocks)
     conditioning = conditioning_options(options)
     channels = tuple(plan.channels)
     jobs: dict[int, SharedInput] = {}
@@ -582,13 +604,20 @@ def _file_tasks(tasks: Sequence[BlockTask], plan, options: IdentifyOptions) -> l
     for task in tasks:
         used = sorted(position[Path(f)] for f in task.files)
         if not used:
-            out.append(_FileTask(task.block, task.block_start, task.files))
+            out.append(
+                _FileTask(task.block, task.block_start, task.files, sample_start=task.sample_start)
+            )
             continue
         for i in used:
             if i not in jobs:
                 lo = max(i - 1, 0)
                 job = FileConditioning(
-                    tuple(plan.files[lo : i + 2]), i - lo, plan.grid, channels, conditioning
+                    tuple(plan.files[lo : i + 2]),
+                    i - lo,
+                    plan.grid,
+                    channels,
+                    conditioning,
+                    cuts_within(cuts, plan.files[i : i + 1]),
                 )
                 jobs[i] = SharedInput(str(plan.files[i].path), condition_file, job)
         lo, hi = max(used[0] - 1, 0), min(used[-1] + 2, len(plan.files))
@@ -599,6 +628,8 @@ def _file_tasks(tasks: Sequence[BlockTask], plan, options: IdentifyOptions) -> l
                 task.files,
                 tuple(plan.files[lo:hi]),
                 tuple(jobs[i] for i in used),
+                task.sample_start,
+                cuts_within(cuts, plan.files[lo:hi]),
             )
         )
     return out

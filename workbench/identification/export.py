@@ -13,7 +13,7 @@ from data_contracts import POLES, SELECTED, atomic_path
 from data_contracts.tables import metadata_with_grid, write_grid_sidecar
 
 from ..blocks import BlockGrid
-from ..store import UNREADABLE_COLUMN, BlockStore
+from ..store import CUT_COLUMNS, UNREADABLE_COLUMN, BlockStore
 
 
 def export_store(
@@ -75,9 +75,10 @@ def export_store(
     for kind in ("faults", "channels", "crosscheck", "blocks"):
         table = store.read(kind)
         if kind == "blocks" and not table.empty:
-            # the files behind an unreadable-input skip are the store's own bookkeeping;
-            # the reason names them
-            table = table.drop(columns=[UNREADABLE_COLUMN], errors="ignore")
+            # the files behind an unreadable-input skip and a drifting block's cut are the
+            # store's own bookkeeping (the reason names the files; the summary the cuts
+            # off their labels by more than a sample)
+            table = table.drop(columns=[UNREADABLE_COLUMN, *CUT_COLUMNS], errors="ignore")
             table = table.sort_values("block", kind="stable")
         if not table.empty or kind == "blocks":
             files[kind] = _write_csv(table.reset_index(drop=True), out / f"{kind}.csv")

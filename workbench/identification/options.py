@@ -317,6 +317,13 @@ class IdentifyOptions:
         """Keyword arguments of :func:`data_contracts.read_accelerations`."""
         return {"layout": dict(self.acceleration_layout)} if self.acceleration_layout else {}
 
+    def decimation_factor(self, sampling_rate_hz: float) -> int:
+        """Raw samples per analysis sample of resolved options at *sampling_rate_hz*
+        (1 without decimation): the lattice a drifting record's blocks are cut on."""
+        if self.target_rate_hz in (None, "auto"):
+            return 1
+        return max(1, round(float(sampling_rate_hz) / float(self.target_rate_hz)))
+
     def resolved(self, sampling_rate_hz: float) -> IdentifyOptions:
         """These options for files at *sampling_rate_hz*: the analysis rate (``"auto"``:
         :func:`analysis_rate`) and the band made concrete, the band checked against the

@@ -251,6 +251,11 @@ def _plan_files(infos, options, *, grid_t0):
     except ValueError as error:
         raise WorkbenchError(str(error).splitlines()[0]) from None
     options = options.resolved(plan.sampling_rate_hz)
+    lattice = options.decimation_factor(plan.sampling_rate_hz)
+    if lattice > 1 and any(b.drifting for b in plan.blocks):
+        # a drifting record's blocks cut on the analysis lattice (the file conditioner
+        # cuts its decimated files there)
+        plan = plan_file_infos(plan.files, plan.grid, max_gap_s=options.max_gap_s, lattice=lattice)
     for missing, names in lacking_channels(plan.files, plan.channels).items():
         what = names[0] if len(names) == 1 else f"{len(names)} files ({names[0]} .. {names[-1]})"
         log.warning(

@@ -247,6 +247,67 @@ def _moved_inputs(store: BlockStore, moved: list[dict], grid, *, per_file: bool)
     ]
 
 
+def _plan_cuts(plan, digests: Mapping) -> dict[int, tuple[str, int]]:
+    """Where *plan* cuts its drifting blocks, for the store (:func:`~workbench.signals.
+    block_plan.cut_in_file`): block -> (the file's SHA-256, from *digests* by path; the
+    sample's index)."""
+    import numpy as np
+
+    from ..signals.block_plan import cut_in_file
+
+    drifting = [p for p in plan.blocks if p.drifting]
+    if not drifting:
+        return {}
+    starts = np.array([info.start_time.value for info in plan.files], dtype=np.int64)
+    out = {}
+    for planned in drifting:
+        position, index = cut_in_file(plan.files, starts, planned.sample_start.value)
+        out[int(planned.block)] = (digests[plan.files[position].path], index)
+    return out
+
+
+def _moved_cuts(store: BlockStore, plan, digests: Mapping) -> list[str]:
+    """Drop the stored blocks that *plan* cuts elsewhere than where they were computed
+    from (:meth:`~workbench.store.BlockStore.block_cuts`; a block without a stored cut
+    was cut at its label): a drifting record's blocks are cut where its clock line puts
+    their labels, and the line refitted over the files given now (more of them, a gap
+    filled) may move a cut by a sample or more, so they are computed again as a fresh run
+    computes them; one notice for them. *digests*: the SHA-256 of *plan*'s files, by
+    path."""
+    from ..signals.block_plan import cut_placed_ns
+
+    stored = store.completed_blocks()
+    if not stored:
+        return []
+    cuts = store.block_cuts()
+    infos = {digests[info.path]: info for info in plan.files}
+    half_ns = 0.5e9 / plan.sampling_rate_hz
+    moved = {}
+    for planned in plan.blocks:
+        block = int(planned.block)
+        if block not in stored:
+            continue
+        was = planned.block_start.value  # cut at its label
+        if block in cuts:
+            digest, index = cuts[block]
+            if digest not in infos:  # the file is no longer given: _removed_inputs
+                continue
+            was = cut_placed_ns(infos[digest], index)
+        if abs(planned.sample_start.value - was) > half_ns:
+            moved[block] = (planned.sample_start.value - was) / 1e6
+    if not moved:
+        return []
+    dropped = store.drop_blocks(sorted(moved))
+    if not dropped:
+        return []
+    largest = max(moved.values(), key=abs)
+    return [
+        f"block(s) {block_ranges(dropped)} cut elsewhere than when stored (by up to "
+        f"{largest:+.1f} ms: the clock line of the drifting record, refitted over the files "
+        "given now, puts their labels elsewhere on its samples): computed again"
+    ]
+
+
 def unreadable_places(files, plan, unreadable: Mapping[str, str]) -> dict[str, tuple]:
     """Where each file of *unreadable* (path as given -> why) left out of *plan* lies:
     path -> ``(low, high)``, the end of the readable file before it and the start of the
@@ -511,7 +572,9 @@ def _plan_without(plan, paths: set[str]):
     from ..signals.block_plan import plan_file_infos
 
     rest = [info for info in plan.files if str(Path(info.path).resolve()) not in paths]
-    return plan_file_infos(rest, plan.grid, max_gap_s=plan.max_gap_s, channels=plan.channels)
+    return plan_file_infos(
+        rest, plan.grid, max_gap_s=plan.max_gap_s, channels=plan.channels, lattice=plan.lattice
+    )
 
 
 def _detail(entry: dict, name: str) -> str:
@@ -681,7 +744,12 @@ def identify_voyage(
         unreadable ones); inconsistent files; a store made with other options.
     """
     from ..sid.harmonics import HarmonicMarker
-    from ..signals.block_plan import clock_drift_note, clock_jitter_note
+    from ..signals.block_plan import (
+        clock_drift_note,
+        clock_jitter_note,
+        edge_cut_note,
+        missed_blocks_note,
+    )
 
     options = options or IdentifyOptions()
     _check_run_options(scheduler, n_workers, batch_blocks)
@@ -717,6 +785,10 @@ def identify_voyage(
         notices += _retry_unreadable(store, plan, fingerprints, per_file, unreadable, damaged)
         moved = store.check_inputs(fingerprints, every_span=True)
         notices += _moved_inputs(store, moved, grid, per_file=per_file)
+        digests = {
+            info.path: str(f["sha256"]) for info, f in zip(plan.files, fingerprints, strict=True)
+        }
+        notices += _moved_cuts(store, plan, digests)
         notices += _filled_gaps(store, plan)
         notices += _removed_inputs(
             store,
@@ -757,6 +829,7 @@ def identify_voyage(
                 batch_blocks=batch_blocks,
                 progress=progress,
                 description="identify",
+                cuts=_plan_cuts(plan_now, digests),
             )
             return summary, len(tasks)
 
@@ -788,7 +861,12 @@ def identify_voyage(
         result = IdentifyResult(summary, n_blocks=n_tasks, warnings=notices)
         result.files = export_store(store, out, channels, grid=grid, harmonics=marker)
         # files left out, re-timed for clock jitter or drift: said, not silent
-        clock = [clock_jitter_note(plan.files), clock_drift_note(plan.files)]
+        clock = [
+            clock_jitter_note(plan.files),
+            clock_drift_note(plan.files),
+            edge_cut_note(plan),
+            missed_blocks_note(plan),
+        ]
         result.notes = left_out_notes(plan) + [n for n in clock if n] + marker.lines()
         result.warnings += marker.unmarked()
     selected = result.files.get("selected")

@@ -187,12 +187,23 @@ under the name), truncated, rewritten in its first lines or in the 512 bytes bef
 end read (a change further back is not seen: the data system appends), when its new
 lines could change how the whole file reads (a time going back or repeated, text in a
 column of numbers, a value in a column empty so far, mixed UTC offsets, a byte not UTF-8
-in a UTF-8 log), and while it holds fewer than 60 readings. The harmonic marks of the
-newest blocks take the log's rows over them as the whole log's spike and frozen-sensor
-tests leave them (kept as rows are appended: :class:`~workbench.sid.harmonics.
+in a UTF-8 log), and while it holds fewer than 60 readings. The appended rows are
+written into column buffers with room to grow, so a read costs what the new lines cost,
+not a copy of the table (``benchmarks/results/monitor_parity_53.txt``). The harmonic
+marks of the newest blocks take the log's rows over them as the whole log's spike and
+frozen-sensor tests leave them (kept as rows are appended: :class:`~workbench.sid.harmonics.
 LiveShaftLog`), the whole log only for a block without a usable shaft speed but with the
-speed (the shaft speed per knot is the whole log's). A restart, or a log read whole
-again, reads and tests it whole once (``benchmarks/results/monitor_costs_52.txt``).
+speed (the shaft speed per knot is the whole log's). A block's marks and shaft speed
+(``harmonics.parquet``) are kept once the log's verdicts on its readings are final
+(:meth:`~workbench.sid.harmonics.LiveShaftLog.settled_until`): the spike test of its last
+readings waits for the 15 readings after them (15 s of a 1-s log), and a run of equal
+readings still open, under 5 min, may yet be a frozen sensor; before, they are marked
+again with each block, so they equal ``identify --dship``'s over the whole log, restart
+or not (but for a block marked from the speed: its shaft speed per knot is the log's
+so far). A restart, or a log read whole again, reads and tests it whole once
+(``benchmarks/results/monitor_costs_52.txt``). The forecast of option B (and A with it)
+reads the store's stabilisation diagrams with the harmonic marks ``identify --dship``
+gives its poles, from the tracked modes the monitor marked.
 
 The ship log's clock
 --------------------

@@ -146,7 +146,7 @@ class AdaptiveLengths:
             Half-steps measured now.
         """
         from ..signals.block_builder import load_block
-        from ..signals.block_plan import plan_file_infos
+        from ..signals.block_plan import EDGE_SHIFT_S, plan_file_infos
 
         infos = [f.info for f in files]
         plan = plan_file_infos(
@@ -163,9 +163,12 @@ class AdaptiveLengths:
             j = int(planned.block)
             if j in self.power:
                 continue
+            # a drifting record's block is cut at the data's edge within EDGE_SHIFT_S of
+            # its span: known once data beyond landed
+            margin = int(EDGE_SHIFT_S * 1e9) if planned.drifting else 0
             if not flush and not settled(
-                planned.block_start.value,
-                planned.block_end.value,
+                planned.sample_start.value - margin,
+                planned.sample_end.value + margin,
                 starts,
                 ends,
                 newest=newest,
@@ -184,6 +187,7 @@ class AdaptiveLengths:
                     self.half_grid,
                     options=conditioning,
                     channels=self.channels,
+                    sample_start=planned.sample_start if planned.drifting else None,
                 )
                 power = half_step_power(block)
             self.power[j] = power

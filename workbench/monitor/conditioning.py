@@ -40,7 +40,13 @@ class SharedConditioner(FileConditioner):
     def _key(self, index: int):
         before = self.files[index - 1].path if self._contiguous(index - 1, index) else None
         after = self.files[index + 1].path if self._contiguous(index, index + 1) else None
-        return (self.files[index].path, before, after)
+        # and the cuts its step sums are split at (a drifting record's blocks' edges,
+        # which move as the record's clock line is refitted from the files landed)
+        first = int(round(self._offset(index)))
+        inside = self._cuts[
+            (self._cuts > first) & (self._cuts < first + self.files[index].n_samples)
+        ]
+        return (self.files[index].path, before, after, tuple(inside.tolist()))
 
     def _conditioned(self, index: int):
         key = self._key(index)
@@ -64,6 +70,7 @@ def block_conditioner(
     *,
     shared: dict,
     counter: list,
+    cuts: Sequence[int] = (),
 ) -> SharedConditioner:
     """The conditioner of one planned block: its files and one neighbour on each side
     (whose raw edges pad the conditioning exactly as in a batch run).
@@ -81,6 +88,8 @@ def block_conditioner(
         The voyage's block grid, channels and resolved :class:`IdentifyOptions`.
     shared, counter
         See :class:`SharedConditioner`.
+    cuts : sequence of int
+        As :class:`~workbench.signals.file_conditioning.FileConditioner`'s.
     """
     used = [i for i in (position(Path(p)) for p in planned.files) if i is not None]
     if used:
@@ -94,6 +103,7 @@ def block_conditioner(
         options=conditioning_options(options),
         shared=shared,
         counter=counter,
+        cuts=cuts,
     )
 
 

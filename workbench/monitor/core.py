@@ -35,7 +35,9 @@ from ..identification.engine import BlockTask
 from ..processes import interrupts_deferred, worker_initializer
 from ..sid.harmonics import HarmonicOptions
 from ..sid.tracking import TrackingOptions
+from ..signals.file_conditioning import block_cuts
 from ..store import (
+    CUT_COLUMNS,
     BlockStore,
     StoreDamaged,
     StoreLock,
@@ -253,6 +255,14 @@ class Monitor:
         self._retaking: collections.deque[LandedFile] = collections.deque()
         self._retimed_noted: set[Path] = set()  # files said to be re-timed for jitter
         self.done: set[int] = set()
+        #: Where the decided blocks of a drifting record were cut (the store's
+        #: CUT_COLUMNS): block -> (a file taken, by content; the index of the block's
+        #: first sample in it); the others were cut at their labels. Those said to lie off
+        #: the line of the files landed since; the files taken by content and back.
+        self._cuts: dict[int, tuple[str, int]] = {}
+        self._cuts_said: set[int] = set()
+        self._taken_paths: dict[str, Path] = {}
+        self._taken_digests: dict[Path, str] = {}
         self._done_below = 0  # every block before it is in done (see _first_undecided)
         #: Of the blocks this process decided (not those a restart found stored): how
         #: many were identified, and each skipped one as ``block``, ``files`` (names),
@@ -401,16 +411,20 @@ class Monitor:
             self.dship, dict(forecast.dship_mapping), forecast.dship_utc_offset
         )
 
-    def _marking_log(self, log: pd.DataFrame, part: pd.DataFrame) -> pd.DataFrame:
+    def _marking_log(self, log: pd.DataFrame, part: pd.DataFrame):
         """The ship log the marks of *part*'s blocks are computed from: the rows over them
         as the whole log's spike and frozen-sensor tests leave them, with the whole log's
         interval (:class:`~workbench.sid.harmonics.LiveShaftLog`, which takes only the rows
-        appended since the last marks), or *log* itself when it was read again whole."""
+        appended since the last marks), or *log* itself when it was read again whole; and
+        the :class:`~workbench.sid.harmonics.LiveShaftLog` holding the tests (which tells
+        the blocks whose readings' verdicts are final)."""
         from ..sid.harmonics import LiveShaftLog
 
         generation = self._log_generation()
-        if generation is None:
-            return log
+        if generation is None:  # the tests over the log given, for its verdicts
+            live = LiveShaftLog()
+            live.update(log)
+            return log, live
         if (
             self._live_shaft is None
             or self._live_shaft[0] != generation
@@ -419,7 +433,7 @@ class Monitor:
             self._live_shaft = (generation, LiveShaftLog())
         live = self._live_shaft[1]
         live.update(log)
-        return live.window(log, part["block_start"], part["block_end"])
+        return live.window(log, part["block_start"], part["block_end"]), live
 
     @property
     def tracked_through(self) -> int:
@@ -605,14 +619,16 @@ class Monitor:
                     "blocks are anchored at the first file"
                 )
         placed = info
+        digest = None
         if not reason:
             reason, placed = self._placed_among(info)
         if not reason and self.store is not None:
             try:
+                fingerprint = input_fingerprints([placed])
                 self.store.check_inputs(  # a file a late one moves is no changed input
-                    input_fingerprints([placed]),
-                    placed_now=functools.partial(self._placed_now, info),
+                    fingerprint, placed_now=functools.partial(self._placed_now, info)
                 )
+                digest = str(fingerprint[0]["sha256"])
             except StoreDamaged as error:  # no file can be used: said by --once, exit 1
                 reason = self.store_damaged = _state_folder(str(error))
             except WorkbenchError as error:
@@ -638,6 +654,8 @@ class Monitor:
         )
         before = list(self.files.placed_infos()) if late and self.voyage is not None else None
         self.files.add(item)
+        if digest is not None:
+            self._taken_digests[item.path], self._taken_paths[digest] = digest, item.path
         self._last_taken = (item.path.name, pd.Timestamp.now(tz="UTC"))
         if before is not None:
             self._note_moved(item, before)
@@ -732,6 +750,7 @@ class Monitor:
 
         half_ns = int(0.5e9 / self.voyage.rate_hz)
         after = {i.path: i for i in self.files.placed_infos()}
+        placed_before = {i.path: i for i in before}
         moved = []
         for old in before:
             now = after.get(old.path)
@@ -746,7 +765,7 @@ class Monitor:
         for block in sorted(self.done):
             if block in missing:  # decided without data there: "landed after" says so
                 continue
-            start, end = self._decided_span(block)
+            start, end = self._decided_span(block, placed_before)
             if end <= low or start >= high:
                 continue
             if any(min(end, o.end_time) - max(start, o.start_time) > edge for o, _ in moved):
@@ -765,13 +784,56 @@ class Monitor:
                 "before, are kept as decided"
             )
 
-    def _decided_span(self, block: int) -> tuple[pd.Timestamp, pd.Timestamp]:
-        """Start and end of the decided *block* (its own length's with varying lengths)."""
+    def _decided_span(
+        self, block: int, placed: dict | None = None
+    ) -> tuple[pd.Timestamp, pd.Timestamp]:
+        """Placed start and end of the samples the decided *block* was cut from (its own
+        length's with varying lengths), as the files are placed now (or as *placed*,
+        path -> placed header, places them): its label's span, or on a drifting record
+        the span from where the clock line of the files landed then put its label
+        (stored: :data:`~workbench.store.CUT_COLUMNS`), not where the line of the files
+        landed since puts it."""
         grid = self.voyage.grid
         row = self._lengths.get(block) if self.voyage.lengths is not None else None
         if row is not None:
             grid = self.voyage.length_run(float(row["block_length_s"]))[0]
-        return grid.start(block), grid.end(block)
+        start, end = grid.start(block), grid.end(block)
+        cut = self._cut_ns(block, placed)
+        if cut is None:
+            return start, end
+        return pd.Timestamp(cut, tz="UTC"), pd.Timestamp(cut, tz="UTC") + (end - start)
+
+    def _cut_of(self, planned) -> tuple[str, int] | None:
+        """Where the drifting *planned* block is cut among the files taken (the file's
+        SHA-256, sample index: :func:`~workbench.signals.block_plan.cut_in_file`), else
+        None."""
+        from ..signals.block_plan import cut_in_file
+
+        if not planned.drifting:
+            return None
+        infos = self.files.placed_infos()
+        starts, _ = self._coverage()
+        position, index = cut_in_file(infos, starts, planned.sample_start.value)
+        digest = self._taken_digests.get(infos[position].path)
+        return None if digest is None else (digest, index)
+
+    def _cut_ns(self, block: int, placed: dict | None = None) -> int | None:
+        """Placed time of the first sample of the decided *block* of a drifting record
+        (its stored cut) as the files are placed now, or as *placed* (path -> placed
+        header) places them; None when it was cut at its label (or its file is not
+        taken). [ns]"""
+        from ..signals.block_plan import cut_placed_ns
+
+        cut = self._cuts.get(block)
+        path = None if cut is None else self._taken_paths.get(cut[0])
+        if path is None:
+            return None
+        if placed is not None:
+            info = placed.get(path)
+        else:
+            taken = self.files.placed_file(path)
+            info = None if taken is None else taken.info
+        return None if info is None else cut_placed_ns(info, cut[1])
 
     def _placed(self) -> list[LandedFile]:
         """The files taken, each with its header as a plan places it (re-timed for clock
@@ -810,7 +872,13 @@ class Monitor:
         edge = int(max(CLOCK_JITTER_S, 0.5 / placed.sampling_rate_hz) * 1e9)
         missing = self._missing_blocks()
         blocks = np.fromiter(missing, dtype=np.int64, count=len(missing))
-        inside = np.minimum(grid.end(blocks).asi8, end) - np.maximum(grid.start(blocks).asi8, start)
+        # the spans they were cut from (a drifting record's: off their labels)
+        low, high = grid.start(blocks).asi8.copy(), grid.end(blocks).asi8.copy()
+        for k, block in enumerate(blocks.tolist()):
+            cut = self._cut_ns(block)
+            if cut is not None:
+                low[k], high[k] = cut, cut + (high[k] - low[k])
+        inside = np.minimum(high, end) - np.maximum(low, start)
         skipped = np.sort(blocks[inside > edge])
         if len(skipped) == 1:
             self.messages.append(
@@ -921,6 +989,7 @@ class Monitor:
             self.messages.append(notice)
             log.warning("%s", notice)
         self.done = self.store.completed_blocks()
+        self._cuts = self.store.block_cuts()  # the spans the stored blocks were cut from
         self._done_below = 0
         # files taken before the voyage was fixed are checked now (those still to take
         # among them placed with them: _placed_now)
@@ -963,6 +1032,7 @@ class Monitor:
             voyage.grid,
             [k for k in numbers.tolist() if k not in self.done],
             max_gap_s=voyage.options.max_gap_s,
+            lattice=voyage.options.decimation_factor(voyage.rate_hz),
         )
         newest = int(ends.max())
         ready = [
@@ -971,16 +1041,90 @@ class Monitor:
             if flush or self._settled(planned, voyage.per_file, starts, ends, newest)
         ]
         self._planned = plan
+        self._note_moved_cuts(infos, starts, ends, voyage.grid, voyage.options)
         return ready
+
+    def _note_moved_cuts(self, infos, starts, ends, grid, options) -> None:
+        """Say once which decided blocks of a drifting record the clock line of the files
+        landed now (*infos*, placed) cuts more than :func:`~workbench.signals.block_plan.
+        cut_tolerance_s` from where they were cut (the line of the files landed then):
+        they are kept as decided. A refit moving an undecided block's cut is how the line
+        learns the clock; a decided block's cut within the tolerance is the same cut."""
+        from ..signals.block_plan import (
+            cut_tolerance_s,
+            line_placed_ns,
+            placed_blocks,
+            record_clocks,
+        )
+
+        clocks = record_clocks(infos, starts)
+        if any(clock.drifting for clock in clocks):
+            # those decided before the record was found to drift were cut at their labels
+            blocks = sorted(b for b in self.done if b not in self._cuts_said)
+        else:
+            blocks = sorted(b for b in self._cuts if b not in self._cuts_said)
+        if not blocks:
+            return
+        rate = self.voyage.rate_hz
+        lattice = options.decimation_factor(rate)
+        tolerance_ns = cut_tolerance_s(rate, lattice) * _NS
+        # a cut within the tolerance less half a lattice sample of where the line puts
+        # its label now is where the line cuts it (rounded to the lattice) within the
+        # tolerance: only the others are planned again (a long voyage's decided blocks
+        # are many)
+        labels = grid.start(np.asarray(blocks, dtype=np.int64)).asi8
+        cuts = np.array(
+            [
+                c if (c := self._cut_ns(b)) is not None else t
+                for b, t in zip(blocks, labels, strict=True)
+            ],
+            dtype=float,
+        )
+        lines = line_placed_ns(clocks, starts, labels, rate)
+        near_ns = tolerance_ns - 0.5 * lattice / rate * _NS
+        blocks = [b for b, far in zip(blocks, np.abs(lines - cuts) > near_ns, strict=True) if far]
+        if not blocks:
+            return
+        now = placed_blocks(
+            infos, starts, ends, grid, blocks, max_gap_s=options.max_gap_s, lattice=lattice
+        )
+        moved = {}
+        for planned in now:
+            block = int(planned.block)
+            cut = self._cut_ns(block)
+            if cut is None and block in self._cuts:  # its file is not taken (now)
+                continue
+            off_ns = planned.sample_start.value - (
+                planned.block_start.value if cut is None else cut
+            )
+            if abs(off_ns) > tolerance_ns + 1e3:  # 1 us: the placed times' rounding
+                moved[block] = off_ns / 1e6
+        if not moved:
+            return
+        self._cuts_said.update(moved)
+        largest = max(moved.values(), key=abs)
+        self.messages.append(
+            f"block(s) {block_ranges(sorted(moved))} of a drifting record, decided from the "
+            "clock line of the files landed then, are cut up to "
+            f"{largest:+.1f} ms elsewhere by the line of the files landed now (beyond "
+            f"{tolerance_ns / 1e6:g} ms: the clock jitter, or one analysis sample); they are "
+            "kept as decided"
+        )
 
     def _settled(self, planned, per_file: bool, starts, ends, newest: int) -> bool:
         """Whether the data of *planned* (and, when files are decimated one by one, of
         their neighbours' edges) can no longer change (:func:`settled`)."""
+        from ..signals.block_plan import EDGE_SHIFT_S
+
         voyage = self.voyage
         margin = int(2.0 / voyage.rate_hz * _NS) if per_file else 0
-        return settled(
-            planned.block_start.value - margin,
-            planned.block_end.value + margin,
+        if planned.drifting:
+            # a drifting record's block is cut at the data's last sample when the data
+            # ends within EDGE_SHIFT_S of its span's end: known once data beyond landed
+            margin += int(EDGE_SHIFT_S * _NS)
+        return settled(  # the span of the block's samples (off its label on a drifting clock)
+            planned.sample_start.value - margin,
+            planned.sample_end.value + margin,
             starts,
             ends,
             newest=newest,
@@ -1036,7 +1180,13 @@ class Monitor:
                 # length fits the data
                 continue
             (planned,) = placed_blocks(
-                infos, starts, ends, grid, [block], max_gap_s=options.max_gap_s
+                infos,
+                starts,
+                ends,
+                grid,
+                [block],
+                max_gap_s=options.max_gap_s,
+                lattice=options.decimation_factor(voyage.rate_hz),
             )
             if flush or self._settled(planned, per_file, starts, ends, newest):
                 ready.append(planned)
@@ -1079,6 +1229,7 @@ class Monitor:
             tuple(str(f) for f in planned.files),
             tuple(f.info for f in used),
             skipped=planned.skipped_reason,
+            sample_start=planned.sample_start if planned.drifting else None,
         )
         conditioner = None
         if per_file:
@@ -1093,6 +1244,9 @@ class Monitor:
                 # the grid's t0): the blocks of one length share it, not those of another
                 shared=self._shared.setdefault(grid.t0, {}) if measures else self._shared,
                 counter=self.conditioned_files,
+                # the edges of the drifting blocks planned (this one's among them): the
+                # step sums are split there
+                cuts=block_cuts([planned, *(self._planned or ())]),
             )
         func = functools.partial(
             identify_block,
@@ -1121,8 +1275,13 @@ class Monitor:
                 "reason": [outcome.skipped],
             }
         )
+        cut = self._cut_of(planned)
+        if cut is not None:  # where the clock line cut it: kept with it (_decided_span)
+            blocks[CUT_COLUMNS[0]], blocks[CUT_COLUMNS[1]] = [cut[0]], np.int64(cut[1])
         self.store.write_batch(blocks, tables)  # the block is done once this returns
         self.done.add(int(outcome.block))
+        if cut is not None:
+            self._cuts[int(outcome.block)] = cut
         self._health_rows.append(row)
         if outcome.skipped:
             faults = outcome.tables.get("faults")
@@ -1204,7 +1363,7 @@ class Monitor:
         pending_rpm: dict[int, float] = {}
         if len(pending):
             part = frame.iloc[pending]
-            window = self._marking_log(log, part)
+            window, live = self._marking_log(log, part)
             marker = HarmonicMarker(window, self.options.harmonics)
             marked = marker.mark_selected(part, shaft_logged=self._shaft_logged or None)
             shaft = marker.shaft
@@ -1234,16 +1393,21 @@ class Monitor:
                     checked,
                 ]
             )
-            # the marks of the blocks the log covers are kept
-            covered = _newest_time(log)
-            ends = pd.to_datetime(part["block_end"], utc=True).to_numpy()
+            # the marks of the blocks the log covers are kept once the verdicts of their
+            # shaft-speed readings are final (later readings judge the last ones)
+            blocks = part[["block", "block_start", "block_end"]].drop_duplicates("block")
+            ends = pd.to_datetime(blocks["block_end"], utc=True)
+            final_blocks = (ends <= _newest_time(log)).to_numpy() & live.settled(
+                blocks["block_start"], blocks["block_end"]
+            )
+            final_of = dict(zip(blocks["block"].astype(int), final_blocks, strict=True))
             rpm = (
                 marker.shaft.set_index("block")["shaft_rpm"].astype(float)
                 if marker.method == "shaft speed"
                 else pd.Series(dtype=float)
             )
             for block, inside in part.reset_index(drop=True).groupby("block").indices.items():
-                final = ends[inside].max() <= covered
+                final = bool(final_of[int(block)])
                 if final:
                     kept[pending[inside]] = True
                 if block in rpm.index:
@@ -1284,7 +1448,7 @@ class Monitor:
         unknown = blocks[~blocks["block"].astype(int).isin(self._block_speed)]
         pending_speed: dict[int, float] = {}
         if len(unknown):
-            window = self._marking_log(log, unknown)
+            window, _ = self._marking_log(log, unknown)  # the speed: no readings judged
             table = block_shaft_table(window, unknown).set_index("block")["speed_energy_kn"]
             ends = pd.to_datetime(unknown["block_end"], utc=True)
             for block, end in zip(unknown["block"].astype(int), ends, strict=True):
@@ -1324,6 +1488,18 @@ class Monitor:
         return np.column_stack(
             [harmonic, np.where(marked, order_hz, np.nan), np.isfinite(speed).astype(float)]
         )
+
+    def _harmonic_modes(self) -> pd.DataFrame | None:
+        """The tracked selected modes marked as harmonics (their block, frequency, shape
+        and ``harmonic``), in the order ``identify --dship`` exports them: what its pole
+        table's marks are taken from (:func:`~workbench.sid.harmonics.mark_poles`); None
+        without marks (no ship log)."""
+        frame, marks = self.tracking.frame, self._marked
+        if frame is None or marks is None or len(marks) != len(frame):
+            return None
+        marked = np.isfinite(marks[:, 0])
+        modes = frame[marked].assign(harmonic=marks[marked, 0])
+        return modes.sort_values(["block", "frequency_hz"], kind="stable").reset_index(drop=True)
 
     def _write_harmonic_lines(self, tracked: pd.DataFrame) -> None:
         """``harmonics.parquet``: each order's frequency at the tracked blocks, at the
@@ -1532,6 +1708,9 @@ class Monitor:
         self._dship_key = _file_key(self.dship) if self.dship is not None else None
         arguments = (self.state, self.dship, self.options.forecast, self.voyage.grid)
         keywords = {"store": self.store_path}
+        if "B" in self.options.forecast.forecast.options:  # the poles are read
+            keywords["harmonic_modes"] = self._harmonic_modes()
+            keywords["harmonics"] = self.options.harmonics
         if not background:
             self._doing("updating forecast and health")
             self._collect(update_outlook(*arguments, **keywords))
@@ -1792,7 +1971,13 @@ class Monitor:
             listed = placed_block_numbers(infos, grid)  # those a plan of the files lists
             blocks = [b for b in sorted(missing) if len(listed) and listed[0] <= b <= listed[-1]]
             plan = placed_blocks(
-                infos, starts, ends, grid, blocks, max_gap_s=self.voyage.options.max_gap_s
+                infos,
+                starts,
+                ends,
+                grid,
+                blocks,
+                max_gap_s=self.voyage.options.max_gap_s,
+                lattice=self.voyage.options.decimation_factor(self.voyage.rate_hz),
             )
             now_built = [b.block for b in plan if not b.skipped_reason]
             for block in now_built:

@@ -345,6 +345,8 @@ def update_outlook(
     grid,
     *,
     store: str | os.PathLike | None = None,
+    harmonic_modes: pd.DataFrame | None = None,
+    harmonics=None,
     parent_pid: int | None = None,
 ) -> OutlookReport:
     """Recompute ``forecast``, ``health`` and ``alarms`` of the state folder from its
@@ -352,7 +354,11 @@ def update_outlook(
 
     Tables that cannot be computed yet (too few blocks, no reference period) are written
     empty, with the reason in the report's messages. *store* (the monitor's block store)
-    is read for the stabilisation diagrams when option B is asked for.
+    is read for the stabilisation diagrams when option B is asked for; their poles are
+    marked as harmonics from *harmonic_modes* (the tracked selected modes the monitor
+    marked, with their shapes and ``harmonic``) with the *harmonics* options
+    (:class:`~workbench.sid.harmonics.HarmonicOptions`), as ``identify --dship`` marks
+    its pole table.
     """
     from ..predictors.tables import canonical_predictors
     from ..shm import HealthOptions, health_chart
@@ -392,7 +398,7 @@ def update_outlook(
                 report.log_complete = bool(len(log) and log["time"].max() >= newest_end)
                 poles = None
                 if "B" in settings.forecast.options and store is not None:
-                    poles = _store_poles(Path(store), tracked)
+                    poles = _store_poles(Path(store), tracked, harmonic_modes, harmonics)
                 shown = predictors if settings.all_predictors else canonical_predictors(predictors)
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")  # other than the forecast's own notes
@@ -679,9 +685,13 @@ def _read_or_empty(path: Path, contract) -> pd.DataFrame:
     return read_table(path, contract) if path.exists() else empty_table(contract)
 
 
-def _store_poles(store: Path, tracked: pd.DataFrame) -> pd.DataFrame | None:
+def _store_poles(
+    store: Path, tracked: pd.DataFrame, harmonic_modes: pd.DataFrame | None = None, harmonics=None
+) -> pd.DataFrame | None:
     """The pole table of the tracked blocks from the store's committed batches, in the
-    order ``poles.parquet`` of ``workbench identify`` has them."""
+    order ``poles.parquet`` of ``workbench identify`` has them, with its ``harmonic``
+    column as ``identify --dship`` gives it (:func:`~workbench.sid.harmonics.mark_poles`
+    against the marked modes of *harmonic_modes*; without them, none: no ship log)."""
     committed = {p.stem for p in (store / "blocks").glob("day=*/*.parquet")}
     files = [p for p in sorted((store / "poles").glob("day=*/*.parquet")) if p.stem in committed]
     if not files:
@@ -689,4 +699,9 @@ def _store_poles(store: Path, tracked: pd.DataFrame) -> pd.DataFrame | None:
     poles = pd.concat([pd.read_parquet(p) for p in files], ignore_index=True)
     poles = poles.sort_values(["block", "model_order"], kind="stable")
     poles = poles.sort_values(["block", "model_order", "frequency_hz"], kind="stable")
-    return POLES.validate(poles.reset_index(drop=True))
+    poles = poles.reset_index(drop=True)
+    if harmonic_modes is not None:
+        from ..sid.harmonics import mark_poles
+
+        poles["harmonic"] = mark_poles(poles, harmonic_modes, harmonics)
+    return POLES.validate(poles)

@@ -20,6 +20,11 @@ that table:
 
 A last line without its line end (the data system writing it) is left for the next read.
 A log shorter than the first :data:`PREFIX_ROWS` readings is read whole.
+
+The rows appended are written into column buffers with room to grow (:class:`_GrowingTable`),
+so a read costs what the new lines cost, not a copy of the whole table; each read hands
+out a view of the rows so far, which later appends never change (pandas' copy-on-write
+copies a column a reader writes to, never the buffers).
 """
 
 from __future__ import annotations
@@ -32,6 +37,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from data_contracts import ContractError, Violation
@@ -81,6 +87,78 @@ def _prefix_length(raw: bytes) -> int | None:
     return None
 
 
+#: Room a column buffer grows by when full: this fraction of the rows needed, at least
+#: :data:`GROWTH_MIN_ROWS` (the copies of the table stay a fixed share of the rows appended).
+GROWTH = 0.25
+GROWTH_MIN_ROWS = 4096
+
+
+class _GrowingTable:
+    """A table grown by rows appended at its end, kept in column buffers with room to grow
+    (each :attr:`GROWTH` of the rows needed when full): :meth:`append` writes the new rows
+    in place, :attr:`frame` is a view of the rows so far (``iloc`` of a frame over the
+    whole buffers, so pandas' copy-on-write protects the buffers from a reader writing to
+    it; :meth:`view` gives each reader its own). For tables of NumPy and tz-aware datetime
+    columns (:meth:`supports`)."""
+
+    def __init__(self, frame: pd.DataFrame):
+        self._attrs = dict(frame.attrs)
+        self._columns = list(frame.columns)
+        self.n = 0
+        self._buffers: dict[str, object] = {}
+        self._grow(frame, len(frame))
+        self.frame = self.view()
+
+    @staticmethod
+    def supports(frame: pd.DataFrame) -> bool:
+        return frame.columns.is_unique and all(
+            isinstance(d, (np.dtype, pd.DatetimeTZDtype)) for d in frame.dtypes
+        )
+
+    def _grow(self, rows: pd.DataFrame, need: int) -> None:
+        """New buffers for *need* rows and room to grow: the rows so far, then *rows*."""
+        capacity = need + max(GROWTH_MIN_ROWS, int(GROWTH * need))
+        buffers = {}
+        for name in self._columns:
+            dtype = rows[name].dtype
+            if isinstance(dtype, pd.DatetimeTZDtype):  # NaT in the column's unit and zone
+                buffer = pd.array(np.full(capacity, np.datetime64("NaT", dtype.unit)), dtype=dtype)
+            else:
+                buffer = np.empty(capacity, dtype=dtype)
+            if self.n:
+                buffer[: self.n] = self._buffers[name][: self.n]
+            buffer[self.n : need] = _values(rows[name])
+            buffers[name] = buffer
+        self._buffers = buffers
+        self._whole = pd.DataFrame(buffers, columns=self._columns, copy=False)
+        self.n = need
+
+    def view(self) -> pd.DataFrame:
+        """A view of the rows so far, a new frame each call."""
+        frame = self._whole.iloc[: self.n]
+        frame.attrs = dict(self._attrs)
+        return frame
+
+    def append(self, rows: pd.DataFrame) -> pd.DataFrame:
+        """The table with *rows* (the same columns and dtypes) added: :attr:`frame`."""
+        need = self.n + len(rows)
+        if need > len(self._whole):
+            self._grow(rows, need)
+        else:
+            for name in self._columns:
+                self._buffers[name][self.n : need] = _values(rows[name])
+            self.n = need
+        if rows.attrs != self._attrs:  # as pd.concat: the attributes all the parts share
+            self._attrs = {}
+        self.frame = self.view()
+        return self.frame
+
+
+def _values(column: pd.Series):
+    """A column's values as its buffer takes them."""
+    return column.array if isinstance(column.dtype, pd.DatetimeTZDtype) else column.to_numpy()
+
+
 @dataclass
 class _Read:
     """What the last read of the log found and needs for the next."""
@@ -95,6 +173,7 @@ class _Read:
     frame: pd.DataFrame
     caught: list  # the warnings the whole file's read gives, in order
     empty: list[str]  # the columns without a value so far
+    table: _GrowingTable | None = None  # the frame's buffers (None: grown by pd.concat)
 
 
 class LiveShipLog:
@@ -152,7 +231,7 @@ class LiveShipLog:
         last = self._last
         identity, stamp = (stat.st_dev, stat.st_ino), (stat.st_size, stat.st_mtime_ns)
         if last is not None and last.identity == identity and last.stamp == stamp:
-            return last.frame
+            return last.frame if last.table is None else last.table.view()
         frame = None
         if last is not None and last.identity == identity and last.prefix is not None:
             frame = self._appended(last, stamp)
@@ -160,7 +239,8 @@ class LiveShipLog:
             frame = self._whole(identity, stamp)
         for caught in self._last.caught:
             warnings.warn(caught.message, stacklevel=2)
-        return frame
+        # a view of its own for each reader: one writing to it changes no other's table
+        return frame if self._last.table is None else self._last.table.view()
 
     def _whole(self, identity, stamp) -> pd.DataFrame:
         self._last, self.generation = None, None
@@ -190,6 +270,10 @@ class LiveShipLog:
                 prefix = raw[:prefix_end]
             except ContractError:
                 prefix = None
+        table = None
+        if prefix is not None and _GrowingTable.supports(frame):  # appended to from now on
+            table = _GrowingTable(frame)
+            frame = table.frame
         self._last = _Read(
             identity=identity,
             stamp=stamp,
@@ -201,6 +285,7 @@ class LiveShipLog:
             frame=frame,
             caught=list(caught),
             empty=list(frame.columns[frame.isna().all().to_numpy()]) if len(frame) else [],
+            table=table,
         )
         return frame
 
@@ -240,6 +325,7 @@ class LiveShipLog:
             frame=frame,
             caught=last.caught,
             empty=last.empty,
+            table=last.table,
         )
         return frame
 
@@ -271,4 +357,6 @@ class LiveShipLog:
             return None
         if last.empty and rows[last.empty].notna().any().any():
             return None  # a column empty so far gets a value: the warnings change
+        if last.table is not None:
+            return last.table.append(rows)
         return pd.concat([before, rows], ignore_index=True)

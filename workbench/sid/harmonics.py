@@ -1378,6 +1378,40 @@ class LiveShaftLog:
         lasting = middle.astype("timedelta64[ns]") / np.timedelta64(1, "s") + step
         return tail, closed, open_run, step, bool(np.median(lasting) < FROZEN_SECONDS / 10)
 
+    def settled_until(self) -> pd.Timestamp | None:
+        """The time before which the verdict of every shaft-speed reading taken (spike,
+        frozen sensor) is final, as :func:`usable_shaft_speed` of the log however long it
+        grows gives it (UTC; None: every reading's).
+
+        A reading's spike test waits for the :data:`SPIKE_WINDOW` // 2 finite readings
+        after it (the running median is centred: 15 s of a 1-s log, longer where the shaft
+        speed is not logged); a run of equal readings still open, shorter than
+        :data:`FROZEN_SECONDS` and not at 0 rpm, may still grow into a frozen one (when the
+        frozen-sensor test applies: a property of the whole log, taken as it stands)."""
+        found = []
+        settled = self._spike.size
+        if settled < self._finite_value.size:
+            found.append(int(self._finite_time.values[settled]))
+        if self._open_run is not None and self._open_run[0] != 0:
+            *_, step, frozen_test = self._tail()
+            value, first, last = self._open_run
+            if frozen_test and (last - first) / 1e9 + step < FROZEN_SECONDS:
+                found.append(int(first))
+        return pd.Timestamp(min(found), tz="UTC") if found else None
+
+    def settled(self, starts, ends) -> np.ndarray:
+        """Per block (*starts*, *ends*): whether the verdicts of its shaft-speed readings
+        (those in ``[start, end)``) are final (:meth:`settled_until`; a block without a
+        reading after it, such as one in an outage, is)."""
+        start = pd.DatetimeIndex(pd.to_datetime(pd.Series(starts), utc=True)).as_unit("ns").asi8
+        end = pd.DatetimeIndex(pd.to_datetime(pd.Series(ends), utc=True)).as_unit("ns").asi8
+        until = self.settled_until()
+        if until is None:
+            return np.ones(len(start), dtype=bool)
+        times = self._finite_time.values
+        first = np.searchsorted(times, np.maximum(start, until.value), side="left")
+        return np.searchsorted(times, end, side="left") <= first
+
     def window(self, log: pd.DataFrame, starts, ends) -> pd.DataFrame:
         """The rows of *log* (the log taken by :meth:`update`) from the first at or after
         the earliest of *starts* to the last before the latest of *ends*, as

@@ -186,16 +186,25 @@ def _load(info: FileInfo, channels: tuple[str, ...], read_options: Mapping) -> A
 
 
 def _assemble(
-    records: Sequence[AccelerationRecord], start: pd.Timestamp, length_s: float, rate: float
+    records: Sequence[AccelerationRecord],
+    start: pd.Timestamp,
+    length_s: float,
+    rate: float,
+    *,
+    on_lattice: bool = False,
 ) -> tuple[np.ndarray, list[str]]:
     """Samples of [start, start + length) from *records* on the first record's sample lattice;
-    uncovered samples are NaN (gaps allowed by the plan). Returns the array and notes."""
+    uncovered samples are NaN (gaps allowed by the plan). Returns the array and notes.
+    *on_lattice*: *start* is a sample's time (a drifting record's block, to the ns), taken
+    as the nearest lattice sample."""
     n_block = int(round(length_s * rate))
     n_channels = records[0].acceleration.shape[1]
     out = np.full((n_block, n_channels), np.nan)
     reference = records[0].start_time
     # first lattice sample at or after the block start
     b0 = math.ceil((start - reference).total_seconds() * rate - 1e-6)
+    if on_lattice:
+        b0 = round((start - reference).total_seconds() * rate)
     filled = np.zeros(n_block, dtype=bool)
     for record in records:
         offset = int(round((record.start_time - reference).total_seconds() * rate))
@@ -299,7 +308,13 @@ def _build(
     records: Sequence[AccelerationRecord],
     options: ConditioningOptions,
 ) -> AccelerationBlock:
-    raw, notes = _assemble(records, planned.block_start, plan.grid.length_s, plan.sampling_rate_hz)
+    raw, notes = _assemble(
+        records,
+        planned.sample_start,
+        plan.grid.length_s,
+        plan.sampling_rate_hz,
+        on_lattice=planned.drifting,
+    )
     return _condition(raw, plan.sampling_rate_hz, plan.channels, options, planned, notes)
 
 
@@ -427,6 +442,7 @@ def load_block(
     *,
     options: ConditioningOptions | None = None,
     channels: Sequence[str] | None = None,
+    sample_start: pd.Timestamp | None = None,
 ) -> AccelerationBlock:
     """Build one block from its files, e.g. in a parallel worker.
 
@@ -446,6 +462,11 @@ def load_block(
         The voyage's channels (``BlockPlan.channels``); default: those of the block's files
         (:func:`~workbench.signals.block_plan.reference_channels`). A channel a file lacks
         is NaN in it, and dropped as faulty.
+    sample_start : pandas.Timestamp, optional
+        Placed time of the block's first sample, as the voyage's plan has it
+        (``PlannedBlock.sample_start``: a drifting record's block is cut where the record's
+        clock line puts its label, which the block's own files cannot fit); default: the
+        block's start.
 
     Returns
     -------
@@ -460,6 +481,8 @@ def load_block(
     ]
     k = int(block)
     start, end = grid.start(k), grid.end(k)
+    if sample_start is not None:
+        return _load_drifting(infos, k, grid, pd.Timestamp(sample_start), options, channels)
     if not infos:
         return _skipped(PlannedBlock(k, start, end, ()), float("nan"), "no acceleration files")
     # plan only the files touching the block (consistency checks included), with the
@@ -496,5 +519,51 @@ def load_block(
         )
         single = PlannedBlock(k, start, end, tuple(plan.files[i].path for i in indices), reason)
         plan = dataclasses.replace(plan, blocks=(single,))
+    options.check_rate(plan.sampling_rate_hz)
+    return next(_stream(plan, options, [k]))
+
+
+def _load_drifting(
+    infos: Sequence[FileInfo],
+    k: int,
+    grid: BlockGrid,
+    sample_start: pd.Timestamp,
+    options: ConditioningOptions,
+    channels: Sequence[str] | None,
+) -> AccelerationBlock:
+    """:func:`load_block` of a block whose samples start at *sample_start* (placed time),
+    not at its label: its files and gaps judged on its sample span."""
+    start, end = grid.start(k), grid.end(k)
+    sample_end = sample_start + (end - start)
+    planned = PlannedBlock(k, start, end, (), sample_start=sample_start, drifting=True)
+    if not infos:
+        return _skipped(planned, float("nan"), "no acceleration files")
+    touching = [i for i in infos if i.start_time < sample_end and i.end_time > sample_start]
+    rate = (touching or infos)[0].sampling_rate_hz
+    before = [i for i in infos if i.end_time <= sample_start and i.sampling_rate_hz == rate]
+    after = [i for i in infos if i.start_time >= sample_end and i.sampling_rate_hz == rate]
+    if not touching and not (before and after):
+        return _skipped(planned, rate, "outside the span of the acceleration files")
+    neighbours = [max(before, key=lambda i: i.end_time)] if before else []
+    neighbours += [min(after, key=lambda i: i.start_time)] if after else []
+    plan = plan_file_infos(
+        touching + neighbours, grid, max_gap_s=options.max_gap_s, channels=channels
+    )
+    starts_ns = np.array([_ns(i.start_time) for i in plan.files], dtype=np.int64)
+    ends_ns = np.array([_ns(i.end_time) for i in plan.files], dtype=np.int64)
+    indices, reason = _block_files_and_gap(
+        plan.files,
+        starts_ns,
+        ends_ns,
+        _ns(sample_start),
+        _ns(sample_end),
+        plan.sampling_rate_hz,
+        float(options.max_gap_s),
+        CLOCK_JITTER_S,
+    )
+    single = dataclasses.replace(
+        planned, files=tuple(plan.files[i].path for i in indices), skipped_reason=reason
+    )
+    plan = dataclasses.replace(plan, blocks=(single,))
     options.check_rate(plan.sampling_rate_hz)
     return next(_stream(plan, options, [k]))

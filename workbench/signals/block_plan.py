@@ -22,8 +22,11 @@ conditioner use alike). The recorder's sample clock may also run some ppm off it
 rate, so that its files last slightly less or more than their sample count says and the
 stamps drift steadily from the sample count: the mismatch is then measured from the
 least-squares line of the run's stamps on its sample count (:func:`place_files`,
-:func:`clock_runs`, :func:`clock_drift_note`). A longer gap is a gap; a longer overlap an
-error. A block that
+:func:`clock_runs`, :func:`clock_drift_note`). The files keep the placed times (the
+sample count); a drifting record's blocks are cut at the UTC of their labels: each takes
+the grid's length of samples from where the record's clock line puts its label's time
+(:func:`record_clocks`, ``PlannedBlock.sample_start``). A longer gap is a gap; a longer
+overlap an error. A block that
 overlaps a gap is **skipped** with the reason (``"gap of 42.0 s between acc_a.npz and
 acc_b.npz"``), unless the gap's part inside the block is at most ``max_gap_s`` (or, at
 the block's start or end, the clock jitter: a record after a gap is placed only to it): then the
@@ -65,19 +68,28 @@ from ..fingerprints import sha256
 
 __all__ = [
     "CLOCK_JITTER_S",
+    "EDGE_SHIFT_S",
     "BlockPlan",
     "ClockRun",
     "FileOverlapError",
     "FileInfo",
     "FilePlacement",
     "PlannedBlock",
+    "RecordClock",
     "clock_runs",
+    "cut_in_file",
+    "cut_placed_ns",
+    "cut_tolerance_s",
+    "edge_cut_note",
+    "line_placed_ns",
+    "missed_blocks_note",
     "place_files",
     "placed_block_numbers",
     "placed_blocks",
     "sort_out_files",
     "plan_blocks",
     "read_file_info",
+    "record_clocks",
 ]
 
 _NS = 1_000_000_000
@@ -106,12 +118,40 @@ _NS = 1_000_000_000
 #: from the sample count steadily (20 ppm: 6 ms per 5-min file, 1.7 s a day) and would
 #: pass this limit within the hour. The limit therefore bounds the stamps' distance from
 #: the least-squares line of a run's stamps on its sample count (:func:`place_files`); the
-#: blocks keep the recorder's consecutive samples, timed by the sample count. The modal
+#: blocks keep the recorder's consecutive samples, cut where that line puts the UTC of
+#: their labels (:func:`record_clocks`). The modal
 #: frequencies are those of the nominal rate, low by rho of themselves (20 ppm of 3 Hz:
 #: 0.06 mHz; 100 ppm of 12 Hz: 1.2 mHz), far below their block-to-block scatter and the
 #: same through a voyage; a rate fitted over a short run is uncertain by the jitter over
 #: its span (25 ms over 5 min: 80 ppm), so a "correction" would add more than it removes.
 CLOCK_JITTER_S = 0.05
+
+#: A drifting record's block whose UTC span (where the record's clock line puts its
+#: label) runs at most this far past the record's first or last sample is cut at that
+#: sample: its samples begin up to this far off its label (said by
+#: :func:`edge_cut_note`) instead of the block being lost. A clock *rho* fast records a
+#: length of sample count T in T / (1 + rho) of UTC, so its last block, on the sample
+#: count a whole block, misses its UTC span by rho x T (100 ppm: 0.36 s after 1 h). Such a
+#: shift of up to 1 s moved the selected modes of 11 blocks of the 3-h demo voyage by at
+#: most 6.2 mHz and 0.04 %-points of damping (median 0.7 mHz; their distance from the
+#: simulation's truth: median 19 mHz), about what NaN-padding those seconds did (4.4 mHz,
+#: 0.11 %-points, and 2 modes of one block changed); a 2-s shift moved the 1-s ship-log
+#: means of 20-min blocks by at most 0.017 kn (benchmarks/results/clock_drift_utc_52.txt). [s]
+EDGE_SHIFT_S = 1.0
+
+
+def cut_tolerance_s(sampling_rate_hz: float, lattice: int = 1) -> float:
+    """How far two cuts of one drifting block, each from the clock line of the files at
+    hand then, may lie apart and be the same cut: the clock jitter, or one sample of the
+    analysis lattice (*lattice* raw samples at *sampling_rate_hz*) when that is longer.
+
+    Two lines of one record (the monitor's, of the files landed when it decided a block;
+    identify's, of all of them) put a label a few ms apart; each cut is that point rounded
+    to the nearest lattice sample, so where a rounding midpoint lies between the two
+    points the cuts differ by one whole lattice sample however close the lines are (62.5
+    ms at 16 Hz: -100 ppm, block 1 of the 3-h demo voyage,
+    benchmarks/results/clock_drift_utc_53.txt). [s]"""
+    return max(CLOCK_JITTER_S, lattice / sampling_rate_hz)
 
 
 # ----------------------------------------------------------------------------------------
@@ -215,6 +255,16 @@ class PlannedBlock:
         Files overlapping the block, in time order (empty for some skipped blocks).
     skipped_reason : str
         Empty when the block can be built; else why not (e.g. a gap between files).
+    sample_start : pandas.Timestamp, optional
+        Placed time of the block's first sample (on the files' sample count, as
+        ``FileInfo.start_time``): *block_start* unless the record's sample clock drifts
+        from its stamps, where it is the sample count at which the record's clock line
+        puts *block_start* (:class:`RecordClock`); the block holds the grid's length of
+        samples from there. Default: *block_start*.
+    drifting : bool
+        Whether the block is cut on its record's clock line (*sample_start*, which may
+        also equal *block_start* there): a builder then takes *sample_start* as it is,
+        not a placement of the block's own files.
     """
 
     block: int
@@ -222,6 +272,17 @@ class PlannedBlock:
     block_end: pd.Timestamp
     files: tuple[Path, ...]
     skipped_reason: str = ""
+    sample_start: pd.Timestamp | None = None
+    drifting: bool = False
+
+    def __post_init__(self) -> None:
+        if self.sample_start is None:
+            object.__setattr__(self, "sample_start", self.block_start)
+
+    @property
+    def sample_end(self) -> pd.Timestamp:
+        """Placed time just after the block's last sample. [UTC]"""
+        return self.sample_start + (self.block_end - self.block_start)
 
 
 @dataclass(frozen=True, eq=False)
@@ -246,6 +307,9 @@ class BlockPlan:
     left_out : tuple of (Path, str)
         Files given that cannot belong to the record, with why (:func:`sort_out_files`):
         not among *files*, their spans are gaps.
+    lattice : int
+        The decimation factor on whose lattice a drifting record's blocks are cut
+        (:func:`placed_blocks`); 1: the raw samples.
     """
 
     grid: BlockGrid
@@ -255,6 +319,7 @@ class BlockPlan:
     blocks: tuple[PlannedBlock, ...]
     max_gap_s: float = 0.0
     left_out: tuple[tuple[Path, str], ...] = ()
+    lattice: int = 1
 
     def frame(self) -> pd.DataFrame:
         """Table of the plan: block, block_start, block_end, n_files, skipped_reason."""
@@ -783,6 +848,279 @@ def clock_runs(
     return out
 
 
+@dataclass(frozen=True)
+class RecordClock:
+    """The clock line of one record of placed files (:func:`record_clocks`): a run of
+    contiguous files and the runs :func:`place_files` carried over gaps on its sample
+    count.
+
+    The line ``stamp - anchor - x = alpha + beta * x`` of the record's stamps on its
+    sample count x (nominal seconds after its first file's placed start; the stamps are
+    the placed starts less ``clock_shift_s``), as :func:`place_files` fits it. Where it
+    drifts (by more than half the clock jitter over the record, beyond twice its standard
+    error: the test :func:`place_files` judges the stamps by), a UTC *t* lies at sample
+    count ``x = (t - anchor - alpha) / (1 + beta)``; elsewhere the placed times are UTC.
+
+    Parameters
+    ----------
+    first, stop : int
+        The record's files are ``infos[first:stop]``.
+    start_ns : int
+        Placed start of its first file. [ns since the epoch]
+    first_shift_s : float
+        That file's ``clock_shift_s`` (its stamp is ``start - first_shift_s``). [s]
+    alpha_s, beta : float
+        The line's offset [s] and slope (stamp seconds per nominal second, less 1). [-]
+    drifting : bool
+        Whether the blocks are cut at the UTC of their labels on the line.
+    """
+
+    first: int
+    stop: int
+    start_ns: int
+    first_shift_s: float
+    alpha_s: float
+    beta: float
+    drifting: bool
+
+    def placed_ns(self, utc_ns: int) -> float:
+        """Placed time (sample count) at which the line puts the UTC *utc_ns*. [ns]"""
+        if not self.drifting:
+            return float(utc_ns)
+        t_s = (utc_ns - self.start_ns) / _NS + self.first_shift_s - self.alpha_s
+        return self.start_ns + t_s / (1 + self.beta) * _NS
+
+    def utc_ns(self, placed_ns: int) -> float:
+        """UTC the line gives the placed time *placed_ns*. [ns]"""
+        if not self.drifting:
+            return float(placed_ns)
+        x_s = (placed_ns - self.start_ns) / _NS
+        return self.start_ns + (self.alpha_s - self.first_shift_s + (1 + self.beta) * x_s) * _NS
+
+
+def cut_in_file(
+    infos: Sequence[FileInfo], starts_ns: np.ndarray, sample_ns: int
+) -> tuple[int, int]:
+    """Where the placed time *sample_ns* (a block's cut) lies among the placed files
+    *infos* (time order; *starts_ns* their placed starts [ns]): the position of the file
+    it is counted from (the last starting at or before it, else the first) and the index
+    of the sample there, from the file's first (beyond its ends in a gap). The samples
+    stay where a later placement of the same files puts them (:func:`cut_placed_ns`)."""
+    position = max(int(np.searchsorted(starts_ns, sample_ns, side="right")) - 1, 0)
+    rate = infos[position].sampling_rate_hz
+    return position, round((sample_ns - int(starts_ns[position])) / _NS * rate)
+
+
+def cut_placed_ns(info: FileInfo, index: int) -> int:
+    """Placed time of sample *index* of the placed file *info* (:func:`cut_in_file`). [ns]"""
+    return _ns(info.start_time) + round(index / info.sampling_rate_hz * _NS)
+
+
+def _line(x: np.ndarray, y: np.ndarray, clock_jitter_s: float) -> tuple[float, float, bool]:
+    """alpha, beta and whether the line of *y* on *x* drifts (:meth:`_ClockRun.walk_s`
+    beyond half *clock_jitter_s*, the test of :meth:`_ClockRun.drifting`)."""
+    n = x.size
+    if n < 2:
+        return 0.0, 0.0, False
+    mean_x, mean_y = x.mean(), y.mean()
+    dx, dy = x - mean_x, y - mean_y
+    sxx = float(dx @ dx)
+    if sxx <= 0:
+        return float(mean_y), 0.0, False
+    sxy, syy = float(dx @ dy), float(dy @ dy)
+    beta = sxy / sxx
+    alpha = float(mean_y) - beta * float(mean_x)
+    if n < 3:
+        return alpha, beta, False
+    scatter = math.sqrt(max(syy - beta * sxy, 0.0) / (n - 2))
+    walk_s = (abs(beta) - 2 * scatter / math.sqrt(sxx)) * float(x[-1])
+    return alpha, beta, walk_s > 0.5 * clock_jitter_s
+
+
+def record_clocks(
+    infos: Sequence[FileInfo],
+    starts_ns: np.ndarray | None = None,
+    *,
+    clock_jitter_s: float = CLOCK_JITTER_S,
+) -> list[RecordClock]:
+    """The records of the placed files *infos* (:func:`place_files`, time order) and their
+    clock lines, from the placed headers alone: a record is a run of contiguous files and
+    the runs after gaps that :func:`place_files` carried on its sample count (a run whose
+    first stamp lies on the record's line where it is placed). *starts_ns*: their placed
+    starts [ns], when at hand."""
+    if not infos:
+        return []
+    if starts_ns is None:
+        starts_ns = np.array([_ns(i.start_time) for i in infos], dtype=np.int64)
+    shifts = np.array([i.clock_shift_s for i in infos], dtype=float)
+    rate = infos[0].sampling_rate_hz
+    half_ns = 0.5 / rate * _NS
+    ends_ns = starts_ns + np.array([round(i.n_samples / rate * _NS) for i in infos])
+    gaps = np.flatnonzero(np.abs(starts_ns[1:] - ends_ns[:-1]) > half_ns) + 1
+    bounds = [0]
+    for j in gaps.tolist():
+        r0 = bounds[-1]
+        x = (starts_ns[r0:j] - starts_ns[r0]) / _NS
+        y = shifts[r0] - shifts[r0:j]
+        alpha, beta, drifting = _line(x, y, clock_jitter_s)
+        x_j = (starts_ns[j] - starts_ns[r0]) / _NS
+        carried = drifting and abs(shifts[r0] - shifts[j] - (alpha + beta * x_j)) <= 1e-4
+        if not carried:
+            bounds.append(j)
+    bounds.append(len(infos))
+    out = []
+    for r0, stop in zip(bounds[:-1], bounds[1:], strict=True):
+        x = (starts_ns[r0:stop] - starts_ns[r0]) / _NS
+        alpha, beta, drifting = _line(x, shifts[r0] - shifts[r0:stop], clock_jitter_s)
+        out.append(
+            RecordClock(r0, stop, int(starts_ns[r0]), float(shifts[r0]), alpha, beta, drifting)
+        )
+    return out
+
+
+def _record_of(
+    clocks: Sequence[RecordClock], starts_ns: np.ndarray, utc_ns: int, edge_ns: float
+) -> RecordClock:
+    """The record whose line cuts the block labelled *utc_ns*: the last one starting
+    (its first file's placed start) at most *edge_ns* after where its line puts *utc_ns*,
+    else the first."""
+    chosen = clocks[0]
+    for clock in clocks[1:]:
+        if clock.placed_ns(utc_ns) + edge_ns >= starts_ns[clock.first]:
+            chosen = clock
+        else:
+            break
+    return chosen
+
+
+def line_placed_ns(
+    clocks: Sequence[RecordClock], starts_ns: np.ndarray, labels_ns: np.ndarray, rate: float
+) -> np.ndarray:
+    """Placed time at which the clock line of the record cutting each block puts its label
+    *labels_ns* (before any rounding to a lattice or cut at the data's edge: a block's cut
+    lies within half a lattice sample of it unless cut at the edge; :func:`placed_blocks`)
+    [ns]; *clocks* of the placed files starting at *starts_ns* (:func:`record_clocks`)."""
+    edge_ns = max(0.5 / rate, CLOCK_JITTER_S) * _NS
+    return np.array(
+        [_record_of(clocks, starts_ns, int(t), edge_ns).placed_ns(int(t)) for t in labels_ns],
+        dtype=float,
+    )
+
+
+def _sample_start_ns(
+    clock: RecordClock,
+    starts_ns: np.ndarray,
+    rate: float,
+    utc_ns: int,
+    t0_ns: int,
+    lattice: int = 1,
+) -> int:
+    """Placed time of the first sample of a block labelled *utc_ns* on the drifting
+    record *clock*: where its line puts that UTC, rounded to the sample lattice of the
+    file holding it (half a sample at most: 0.24 ms at 2048 Hz); to every *lattice*-th
+    sample from the grid's origin *t0_ns* (the analysis lattice of a decimation by
+    *lattice*: half an analysis sample at most, 31 ms at 16 Hz) where the file lies on
+    the raw lattice from there. [ns]"""
+    placed = clock.placed_ns(utc_ns)
+    index = int(np.searchsorted(starts_ns[clock.first : clock.stop], placed, side="right"))
+    index = clock.first + max(index - 1, 0)
+    m = round((placed - starts_ns[index]) / _NS * rate)
+    offset = (int(starts_ns[index]) - t0_ns) / _NS * rate  # the file's first raw sample
+    if lattice > 1 and abs(offset - round(offset)) < 1e-3:
+        m = lattice * round((round(offset) + (placed - starts_ns[index]) / _NS * rate) / lattice)
+        m -= round(offset)
+    return int(starts_ns[index]) + round(m / rate * _NS)
+
+
+def _stretches(starts_ns: np.ndarray, ends_ns: np.ndarray, half_ns: float) -> np.ndarray:
+    """Indices of the files starting a stretch of contiguous files (abutting to half a
+    sample), and the number of files last."""
+    gaps = np.flatnonzero(np.abs(starts_ns[1:] - ends_ns[:-1]) > half_ns) + 1
+    return np.concatenate([[0], gaps, [len(starts_ns)]]).astype(np.int64)
+
+
+def _stretch(bounds: np.ndarray, starts_ns: np.ndarray, time_ns: int) -> tuple[int, int]:
+    """The files ``[first, stop)`` of the stretch (:func:`_stretches`' *bounds*) holding
+    *time_ns*, or of the file starting last before it (the first file before all)."""
+    index = max(int(np.searchsorted(starts_ns, time_ns, side="right")) - 1, 0)
+    k = int(np.searchsorted(bounds, index, side="right")) - 1
+    return int(bounds[k]), int(bounds[k + 1])
+
+
+def _inward(time_ns: int, t0_ns: int, rate: float, lattice: int, *, up: bool) -> int:
+    """*time_ns* (a record's sample) moved to the next sample of every *lattice*-th from
+    *t0_ns* later (*up*) or earlier, where it lies on the raw lattice from there. [ns]"""
+    x = (time_ns - t0_ns) / _NS * rate
+    if lattice <= 1 or abs(x - round(x)) >= 1e-3:
+        return time_ns
+    m = round(x)
+    m = -(-m // lattice) * lattice if up else (m // lattice) * lattice
+    return t0_ns + round(m / rate * _NS)
+
+
+def edge_cut_note(plan: BlockPlan) -> str:
+    """One line on the blocks of *plan* cut at the first or last sample of a drifting
+    record or of its data between gaps (:data:`EDGE_SHIFT_S`) and how far their samples lie off the UTC of their labels
+    (negative: they begin before it), or "" when none is."""
+    infos = plan.files
+    clocks = record_clocks(infos)
+    if not any(c.drifting for c in clocks):
+        return ""
+    starts_ns = np.array([_ns(i.start_time) for i in infos], dtype=np.int64)
+    rate = plan.sampling_rate_hz
+    edge_ns = max(0.5 / rate, CLOCK_JITTER_S) * _NS
+    rounding_s = (0.5 * plan.lattice + 0.5) / rate  # the cut's rounding to the lattice
+    said = []
+    for planned in plan.blocks:
+        if not planned.drifting or planned.skipped_reason:
+            continue
+        clock = _record_of(clocks, starts_ns, _ns(planned.block_start), edge_ns)
+        off_s = (_ns(planned.sample_start) - clock.placed_ns(_ns(planned.block_start))) / _NS
+        if abs(off_s) > rounding_s + 1e-6:
+            said.append(f"block {planned.block} {off_s * (1 + clock.beta):+.2f} s")
+    if not said:
+        return ""
+    return (
+        "block(s) cut at the first or last sample of a drifting record (or of its data "
+        f"between gaps), which misses their UTC span by at most {EDGE_SHIFT_S:g} s; their "
+        f"first sample recorded this long after the UTC of their label: {', '.join(said)}"
+    )
+
+
+def missed_blocks_note(plan: BlockPlan) -> str:
+    """One line naming the blocks whose span a drifting record's samples hold on their
+    count but not in UTC by more than :data:`EDGE_SHIFT_S` (a fast clock records the
+    nominal length of its samples in less UTC: the last block's UTC span may run past its
+    last sample), and by how much; "" when there is none. Those blocks are not in *plan*
+    (:func:`placed_block_numbers`): without this line they would be missing unsaid."""
+    infos = plan.files
+    if not infos:
+        return ""
+    clocks = record_clocks(infos)
+    if not (clocks[0].drifting or clocks[-1].drifting):
+        return ""
+    edge = max(
+        pd.Timedelta(seconds=0.5 / plan.sampling_rate_hz), pd.Timedelta(seconds=CLOCK_JITTER_S)
+    )
+    held = plan.grid.complete_blocks(infos[0].start_time - edge, infos[-1].end_time + edge)
+    listed = {int(b.block) for b in plan.blocks}
+    first_ns = clocks[0].utc_ns(_ns(infos[0].start_time))
+    last_ns = clocks[-1].utc_ns(_ns(infos[-1].end_time))
+    said = []
+    for block in (int(k) for k in held if int(k) not in listed):
+        before_s = (first_ns - _ns(plan.grid.start(block))) / _NS
+        after_s = (_ns(plan.grid.end(block)) - last_ns) / _NS
+        where = "at its end" if after_s >= before_s else "at its start"
+        said.append(f"block {block} by {max(before_s, after_s):.2f} s {where}")
+    if not said:
+        return ""
+    return (
+        "block(s) not identified, whose span a drifting record's samples hold on their "
+        f"count but whose UTC span runs more than {EDGE_SHIFT_S:g} s past the record's first "
+        f"or last sample: {', '.join(said)}"
+    )
+
+
 def _span(files: Sequence[FileInfo]) -> str:
     return files[0].name if len(files) == 1 else f"{files[0].name} .. {files[-1].name}"
 
@@ -914,6 +1252,7 @@ def plan_file_infos(
     max_gap_s: float = 0.0,
     channels: Sequence[str] | None = None,
     clock_jitter_s: float = CLOCK_JITTER_S,
+    lattice: int = 1,
 ) -> BlockPlan:
     """:func:`plan_blocks` for files whose headers are already read (:class:`FileInfo`).
 
@@ -921,7 +1260,9 @@ def plan_file_infos(
     arrive) plan from them without reading the files again. *channels*: the voyage's
     channels when these files are a few of its files (:func:`reference_channels`).
     The plan's files are placed by :func:`place_files` (re-timed for clock jitter up to
-    *clock_jitter_s*). Parameters and errors as in :func:`plan_blocks`.
+    *clock_jitter_s*). *lattice*: the decimation factor of the analysis, on whose lattice
+    a drifting record's blocks are cut (:func:`placed_blocks`). Parameters and errors as
+    in :func:`plan_blocks`.
     """
     if not infos:
         raise ValueError("no acceleration files given")
@@ -943,8 +1284,11 @@ def plan_file_infos(
         numbers,
         max_gap_s=float(max_gap_s),
         clock_jitter_s=clock_jitter_s,
+        lattice=lattice,
     )
-    return BlockPlan(grid, tuple(infos), channels, rate, tuple(planned), float(max_gap_s))
+    return BlockPlan(
+        grid, tuple(infos), channels, rate, tuple(planned), float(max_gap_s), lattice=lattice
+    )
 
 
 def placed_block_numbers(
@@ -970,7 +1314,19 @@ def placed_block_numbers(
     # a block the record misses by at most the clock jitter at its start or end is the
     # record's: its placement after a gap is only known to that (its stamp's jitter)
     edge = max(half, pd.Timedelta(seconds=clock_jitter_s))
-    return grid.complete_blocks(infos[0].start_time - edge, infos[-1].end_time + edge)
+    first, last = infos[0].start_time, infos[-1].end_time
+    clocks = record_clocks(infos, clock_jitter_s=clock_jitter_s)
+    before = after = edge
+    # the blocks are cut at the UTC of their labels: its span's, less EDGE_SHIFT_S at
+    # either end (such a block is cut at the record's first or last sample)
+    shift = max(edge, pd.Timedelta(seconds=EDGE_SHIFT_S))
+    if clocks[0].drifting:
+        first = pd.Timestamp(round(clocks[0].utc_ns(_ns(first))), tz="UTC")
+        before = shift
+    if clocks[-1].drifting:
+        last = pd.Timestamp(round(clocks[-1].utc_ns(_ns(last))), tz="UTC")
+        after = shift
+    return grid.complete_blocks(first - before, last + after)
 
 
 def placed_blocks(
@@ -982,6 +1338,7 @@ def placed_blocks(
     *,
     max_gap_s: float = 0.0,
     clock_jitter_s: float = CLOCK_JITTER_S,
+    lattice: int = 1,
 ) -> list[PlannedBlock]:
     """The planned blocks *blocks* of *grid* over files already placed and checked, as
     :func:`plan_file_infos` plans them: each block's files and skip reason depend only on
@@ -999,23 +1356,81 @@ def placed_blocks(
         Block numbers among :func:`placed_block_numbers`, ascending.
     max_gap_s, clock_jitter_s : float
         As :func:`plan_file_infos`'. [s]
+    lattice : int
+        A drifting record's blocks are cut on every *lattice*-th raw sample from the
+        grid's origin: the decimation factor of the analysis (the file conditioner cuts its
+        decimated files there); 1: on the raw samples. Other records' blocks are cut at
+        their labels whatever it is.
     """
     rate = infos[0].sampling_rate_hz
-    planned = []
-    for k in blocks:
-        start, end = grid.start(int(k)), grid.end(int(k))
-        indices, reason = _block_files_and_gap(
+    clocks = record_clocks(infos, starts_ns, clock_jitter_s=clock_jitter_s)
+    drifting = any(clock.drifting for clock in clocks)
+    edge_ns = max(0.5 / rate, clock_jitter_s) * _NS
+    shift_ns = max(edge_ns, EDGE_SHIFT_S * _NS)
+    bounds = _stretches(starts_ns, ends_ns, 0.5 / rate * _NS)
+    t0_ns = _ns(grid.t0)
+
+    def files_and_gap(start_ns: int, end_ns: int) -> tuple[list[int], str]:
+        return _block_files_and_gap(
             infos,
             starts_ns,
             ends_ns,
-            _ns(start),
-            _ns(end),
+            start_ns,
+            end_ns,
             rate,
             float(max_gap_s),
             float(clock_jitter_s),
         )
+
+    def cut(clock: RecordClock, start_ns: int, length_ns: int, on: int) -> int:
+        """The block's samples: the grid's length of them from where the record's clock
+        line puts the UTC of its label (on every *on*-th sample)."""
+        sample_ns = _sample_start_ns(clock, starts_ns, rate, start_ns, t0_ns, on)
+        # a span the data (the record, or a stretch of it between gaps) misses by at most
+        # EDGE_SHIFT_S is its first or last samples (on the lattice inside), not lost
+        first, stop = _stretch(bounds, starts_ns, sample_ns + length_ns // 2)
+        first_ns, last_ns = int(starts_ns[first]), int(ends_ns[stop - 1])
+        if last_ns - first_ns < length_ns:
+            return sample_ns
+        if first_ns - shift_ns <= sample_ns < first_ns:
+            return _inward(first_ns, t0_ns, rate, on, up=True)
+        if last_ns < sample_ns + length_ns <= last_ns + shift_ns:
+            return _inward(last_ns - length_ns, t0_ns, rate, on, up=False)
+        return sample_ns
+
+    planned = []
+    for k in blocks:
+        start, end = grid.start(int(k)), grid.end(int(k))
+        start_ns, end_ns = _ns(start), _ns(end)
+        sample_start = start
+        on_line = False
+        clock = _record_of(clocks, starts_ns, start_ns, edge_ns) if drifting else None
+        if clock is not None and clock.drifting:
+            on_line = True
+            length_ns = end_ns - start_ns
+            sample_ns = cut(clock, start_ns, length_ns, int(lattice))
+            indices, reason = files_and_gap(sample_ns, sample_ns + length_ns)
+            if reason and lattice > 1:
+                # the analysis lattice (half an analysis sample off the line) moved the
+                # span across a record's edge or a gap that the nearest sample keeps
+                # inside (the file conditioner then leaves the block to load_block)
+                raw_ns = cut(clock, start_ns, length_ns, 1)
+                raw = files_and_gap(raw_ns, raw_ns + length_ns)
+                if not raw[1]:
+                    sample_ns, (indices, reason) = raw_ns, raw
+            sample_start = pd.Timestamp(sample_ns, tz="UTC")
+        else:
+            indices, reason = files_and_gap(start_ns, end_ns)
         planned.append(
-            PlannedBlock(int(k), start, end, tuple(infos[i].path for i in indices), reason)
+            PlannedBlock(
+                int(k),
+                start,
+                end,
+                tuple(infos[i].path for i in indices),
+                reason,
+                sample_start,
+                on_line,
+            )
         )
     return planned
 

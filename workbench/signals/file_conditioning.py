@@ -18,7 +18,9 @@ rate (2048 Hz, about 20 channels) that repetition dominates the cost of identifi
   (or the end of the data) breaks the chain: there the filters start as
   ``scipy.signal.sosfiltfilt`` starts at the ends of a record;
 * the sums the faulty-channel check needs (NaN count and runs, power sums of the
-  samples against time) are taken per grid step (:mod:`~workbench.signals.step_sums`), so
+  samples against time) are taken per grid step (:mod:`~workbench.signals.step_sums`),
+  split further where a drifting record's blocks start and end (*cuts*: where the
+  record's clock line puts their labels, on the analysis lattice), so
   the check of a block (:func:`~workbench.signals.moments.faulty_channels`: NaN fraction
   and runs, flatness, kurtosis and variance of the linearly detrended block) is assembled
   from them exactly, without the raw samples.
@@ -26,7 +28,8 @@ rate (2048 Hz, about 20 channels) that repetition dominates the cost of identifi
 A block is then cut from the conditioned files (a few MB at the analysis rate) and its
 faulty channels dropped. Blocks the conditioned files cannot give exactly as the per-block
 builder would (a NaN-padded gap inside the block, a kept channel whose NaN run could not be
-bridged elsewhere in its file, a block start off the decimated sample lattice) are built by
+bridged elsewhere in its file, a block start off the decimated sample lattice, a block
+edge among no piece's edges) are built by
 :func:`~workbench.signals.block_builder.load_block` instead, so the result never silently differs.
 
 Equality with the per-block builder
@@ -96,7 +99,9 @@ from .step_sums import _NS, _block_flat_runs, _block_statistics, _step_sums
 __all__ = [
     "FileConditioner",
     "FileConditioning",
+    "block_cuts",
     "condition_file",
+    "cuts_within",
     "padding_samples",
 ]
 
@@ -134,6 +139,13 @@ class FileConditioner:
         band-pass, detrend (without a lower band edge: with one, the band-pass has already
         removed the line), channel check, gaps (blocks with a NaN-padded gap are built by
         :func:`~workbench.signals.block_builder.load_block`) and file layout.
+    cuts : sequence of int
+        Placed times [ns since the epoch] at which blocks start or end off the grid's
+        steps: a drifting record's blocks (``PlannedBlock.sample_start`` and
+        ``sample_end``), cut where the record's clock line puts their labels. The
+        faulty-channel sums are split there too, so that such a block is assembled from
+        them; a block whose edges are not among the pieces' is built by
+        :func:`~workbench.signals.block_builder.load_block`.
     """
 
     def __init__(
@@ -143,6 +155,7 @@ class FileConditioner:
         channels: Sequence[str],
         *,
         options: ConditioningOptions,
+        cuts: Sequence[int] = (),
     ) -> None:
         self.files = tuple(sorted(files, key=lambda i: i.start_time))
         self.grid = grid
@@ -167,6 +180,10 @@ class FileConditioner:
         self._decimator = _RowDecimator(self.factor, rows=_GATHER_CHANNELS)
         self._t0_ns = pd.Timestamp(grid.t0).as_unit("ns").value
         self._starts_ns = np.array([_start_ns(i) for i in self.files], dtype=np.int64)
+        # the cuts as raw lattice indices from the grid origin
+        self._cuts = np.unique(
+            np.round((np.asarray(cuts, dtype=np.int64) - self._t0_ns) / _NS * self.rate)
+        ).astype(np.int64)
         self._cache: dict[int, _ConditionedFile] = {}
         self.fallbacks = 0  # blocks built by load_block
 
@@ -305,19 +322,48 @@ class FileConditioner:
         return out.T, bad
 
     def _step_sums(self, index: int, raw: np.ndarray, start: int) -> dict:
-        """Faulty-channel sums of the file's pieces, one per grid step it touches."""
+        """Faulty-channel sums of the file's pieces, one per grid step it touches, split
+        further at the cuts inside it (:class:`FileConditioner`)."""
         step_samples = self.grid.step_s * self.rate
         n = raw.shape[0]
+        inside = self._cuts[(self._cuts > start) & (self._cuts < start + n)] - start
         steps: dict[int, list] = {}
         position = 0
         while position < n:
             number = math.floor((start + position) / step_samples + 1e-9)
             end = min(n, math.ceil((number + 1) * step_samples - 1e-9) - start)
             end = max(end, position + 1)
+            cut = int(np.searchsorted(inside, position, side="right"))
+            if cut < inside.size and inside[cut] < end:
+                end = int(inside[cut])
             first_ns = self._t0_ns + int(round((start + position) / self.rate * _NS))
             steps.setdefault(number, []).append(_step_sums(raw[position:end], first_ns, self.rate))
             position = end
         return steps
+
+    def _pieces(self, files: Sequence[_ConditionedFile], first: int, stop: int) -> list | None:
+        """The step sums of *files* that tile the raw samples [first, stop) (lattice
+        indices from the grid origin) in time order, or None where their edges are not
+        among the pieces' (a cut the files were not split at)."""
+        pieces = []
+        for f in files:
+            for step in f.steps.values():
+                for piece in step:
+                    at = self._raw_index(piece.first_ns)
+                    if first <= at < stop:
+                        pieces.append((at, piece))
+        pieces.sort(key=lambda item: item[0])
+        position = first
+        for at, piece in pieces:
+            if at != position:
+                return None
+            position += piece.n_samples
+        if position != stop:
+            return None
+        return [piece for _, piece in pieces]
+
+    def _raw_index(self, time_ns: int) -> int:
+        return round((time_ns - self._t0_ns) / _NS * self.rate)
 
     def release_before(self, index: int) -> None:
         """Forget conditioned files before file *index* (blocks are taken in time order)."""
@@ -336,6 +382,7 @@ class FileConditioner:
                 self.grid,
                 options=self.options,
                 channels=self.channels,
+                sample_start=planned.sample_start if planned.drifting else None,
             )
         return built
 
@@ -349,7 +396,8 @@ class FileConditioner:
             return None
         if any(not self._contiguous(a, a + 1) for a in needed[:-1]):
             return None
-        block_start = (pd.Timestamp(planned.block_start).as_unit("ns").value - self._t0_ns) / _NS
+        # its samples' start: the label, or a drifting record's cut (PlannedBlock.sample_start)
+        block_start = (pd.Timestamp(planned.sample_start).as_unit("ns").value - self._t0_ns) / _NS
         start_raw = block_start * self.rate
         n_raw = int(round(self.grid.length_s * self.rate))
         if abs(start_raw - round(start_raw)) > 1e-3 or round(start_raw) % self.factor:
@@ -364,22 +412,9 @@ class FileConditioner:
             return None
         self.release_before(first_index)
         files = [self._conditioned(i) for i in needed]
-        # faulty-channel check from the step sums
-        step_samples = self.grid.step_s * self.rate
-        if (
-            abs(start_raw / step_samples - round(start_raw / step_samples)) > 1e-9
-            or abs(n_raw / step_samples - round(n_raw / step_samples)) > 1e-9
-        ):
-            return None
-        first_step = int(round(start_raw / step_samples))
-        n_steps = int(round(n_raw / step_samples))
-        pieces = []
-        for number in range(first_step, first_step + n_steps):
-            found = [p for f in files for p in f.steps.get(number, [])]
-            if not found:
-                return None
-            pieces += sorted(found, key=lambda p: p.first_ns)
-        if sum(p.n_samples for p in pieces) != n_raw:
+        # faulty-channel check from the step sums: the pieces that tile the block
+        pieces = self._pieces(files, start_raw, start_raw + n_raw)
+        if pieces is None:
             return None
         nan_fraction, longest, variance, kurtosis = _block_statistics(pieces, n_raw, self.rate)
         try:
@@ -437,7 +472,8 @@ class FileConditioning:
     grid : BlockGrid
     channels : tuple of str
     options : ConditioningOptions
-        As for :class:`FileConditioner`.
+    cuts : tuple of int
+        As for :class:`FileConditioner` (those inside the file at least).
     """
 
     files: tuple
@@ -445,14 +481,39 @@ class FileConditioning:
     grid: BlockGrid
     channels: tuple
     options: ConditioningOptions
+    cuts: tuple = ()
 
 
 def condition_file(job: FileConditioning) -> _ConditionedFile:
     """One file conditioned once, for every block holding it: the value a
     :class:`FileConditioner` of those blocks takes with :meth:`FileConditioner.reuse`."""
-    conditioner = FileConditioner(job.files, job.grid, job.channels, options=job.options)
+    conditioner = FileConditioner(
+        job.files, job.grid, job.channels, options=job.options, cuts=job.cuts
+    )
     return conditioner.conditioned_file(conditioner.files.index(job.files[job.index]))
 
 
 def _start_ns(info: FileInfo) -> int:
     return pd.Timestamp(info.start_time).as_unit("ns").value
+
+
+def block_cuts(blocks: Sequence[PlannedBlock]) -> tuple[int, ...]:
+    """The cuts [ns since the epoch] of the blocks cut on a drifting record's clock line
+    (``sample_start`` and ``sample_end``), ascending: :class:`FileConditioner`'s
+    *cuts*."""
+    cuts = set()
+    for planned in blocks:
+        if planned.drifting:
+            cuts.add(pd.Timestamp(planned.sample_start).as_unit("ns").value)
+            cuts.add(pd.Timestamp(planned.sample_end).as_unit("ns").value)
+    return tuple(sorted(cuts))
+
+
+def cuts_within(cuts: Sequence[int], files: Sequence[FileInfo]) -> tuple[int, ...]:
+    """The *cuts* (ascending) inside the span of *files* (time order)."""
+    if not cuts or not files:
+        return ()
+    lo, hi = _start_ns(files[0]), pd.Timestamp(files[-1].end_time).as_unit("ns").value
+    a = int(np.searchsorted(cuts, lo, side="left"))
+    b = int(np.searchsorted(cuts, hi, side="right"))
+    return tuple(int(c) for c in cuts[a:b])
