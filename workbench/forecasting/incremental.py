@@ -104,8 +104,9 @@ __all__ = [
 #: any mode measured (``record_gap``: a hole in the acceleration record); /8: each mode's
 #: predictor range over its newest refit (``fit_range``: the extrapolation variance); /9: the
 #: rows measured since a hole in the record ended (``since_hole``: a refit keeps the estimate
-#: then).
-CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/9"
+#: then); /10: the model-trust hull-wide change test's CUSUM sums, its flag and the block's
+#: measurement (``change_sums``, ``change``, ``measured``).
+CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/10"
 
 #: Rows kept before the newest committed window beyond the refits' history. [blocks]
 _MARGIN_ROWS = 64

@@ -77,6 +77,21 @@ f_L = min(1, p_L / :data:`LEAD_PRIOR`): the blend keeps its whole weight until t
 measured evidence is against it. The test is weak where the unexplained change has a time
 constant of about L blocks (both predictions then nearly as poor as the mean).
 
+*The hull-wide change test.* An ice load (added mass and stiffness) moves every mode of
+the hull at once, and the model explains none of the moves; each mode's evidence alone
+needs several blocks to move its probability, while the modes together say it in a few.
+Each block's normalised innovations of the blend, ψ-clipped as in the follow test, are
+pooled over the n modes measured out of sample, T = Σ ψ(ν_j) / sqrt(n m_ψ) (N(0, 1)
+while the model explains the modes and their SSI errors are independent), and a
+two-sided CUSUM (drift :data:`CHANGE_DRIFT`, threshold :data:`CHANGE_THRESHOLD`) marks a
+change of one sign that lasts; while it is on, the blend stands aside (weight 0) and the
+model-free share of the estimate is the block's SSI estimate (a level random walk lags
+such a move, and SSI errs less than the lag). Moves of single modes, or of modes in
+opposite directions, cancel in T and leave it to each mode's probability. The CUSUM
+forgets by the drift each block, so the blend comes back when its innovations have been
+balanced for a while (the 20-minute ice voyages and the worked example, measured with
+and without it: ``benchmarks/results/forecast_level_slope_53.txt``).
+
 References
 ----------
 .. [1] Y. Bar-Shalom, X. R. Li, T. Kirubarajan, "Estimation with Applications to Tracking
@@ -113,6 +128,13 @@ SWITCH_PROBABILITY = 0.02
 #: filter, 0.1, measured better on slow unrecorded wander but lagged real moves and
 #: cost the 12-h demo 2-4 points; benchmarks/results/forecast_accuracy_27.txt). [-]
 LEVEL_STEP_VARIANCES = (1.0,)
+#: The hull-wide change test's drift and threshold (a two-sided CUSUM on the blend's
+#: normalised innovations pooled over the measured modes, module docstring), in standard
+#: deviations of the pooled statistic: a lower threshold set it off in the open water of
+#: the 20-min ice voyages, a higher one later in the ice
+#: (``benchmarks/results/forecast_level_slope_53.txt``); None switches the test off. [-]
+CHANGE_DRIFT = 0.5
+CHANGE_THRESHOLD: float | None = 8.0
 #: Probability that the model explains a mode before its first out-of-sample block: the
 #: model-free hypothesis is favoured (4 : 1) until the model has predicted blocks it had not
 #: seen (the start-up blocks, and method 1's single window, whose model is fitted once on the
@@ -167,6 +189,10 @@ class BlendStep:
         The block ends a hole in the record (no mode measured for at least
         ``persist_blocks`` blocks): the model-free filters, too, take a large innovation
         as a move of the level (their state is as old as the hole), not as SSI's outlier.
+    settling : bool
+        The block is among the first after a hole, while the refits hand the model's
+        error over from c (:mod:`~workbench.forecasting.memory.forecast`'s refit
+        continuity): the hull-wide change test starts again after them.
     """
 
     normalised: np.ndarray
@@ -175,6 +201,7 @@ class BlendStep:
     measurement_model: np.ndarray | None = None
     unweighted: np.ndarray | None = None
     after_hole: bool = False
+    settling: bool = False
 
 
 class ModelTrust:
@@ -241,6 +268,11 @@ class ModelTrust:
         self.off_side = np.zeros((n_free, n_modes), dtype=bool)
         self.measurement = np.full(n_modes, np.nan)
         self.measurement_variance = np.full(n_modes, np.nan)
+        # the hull-wide change test: the CUSUM's two sums (up, down), whether it is on,
+        # and this block's measurement [Hz]
+        self.change_sums = np.zeros(2)
+        self.change = False
+        self.measured = np.full(n_modes, np.nan)
 
     @property
     def lead_factor(self) -> np.ndarray:
@@ -307,6 +339,14 @@ class ModelTrust:
         self.measurement_variance = sigma2.copy()
         log_l = np.full(self.weights.shape, np.nan)
         log_l[0] = self._blend_log_likelihood(blend_normalised, blend_variance)
+        if blend.after_hole or blend.settling:
+            # the first innovations after a hole are the filter's stale state and the
+            # refits' handover, not a move of the hull: the test starts again after them
+            self.change_sums[:] = 0.0
+            self.change = False
+        else:
+            self._change_step(blend_normalised, learn)
+        self.measured = np.asarray(z, dtype=float).copy()
         for h, step in enumerate(self.steps):
             log_l[h + 1] = self._free_step(
                 h,
@@ -336,6 +376,26 @@ class ModelTrust:
             self.weights[:, use] = post / post.sum(axis=0, keepdims=True)
         if self.lead and blend_state is not None:
             self._lead_step(z, blend_state, measurement_model, learn)
+
+    def _change_step(self, normalised: np.ndarray, learn: np.ndarray) -> None:
+        """The hull-wide change test (module docstring) after the blend's innovations of
+        one block: T = Σ ψ(ν_j) / sqrt(n m_ψ) over the n modes measured out of sample,
+        ψ clipped at :data:`~workbench.forecasting.innovation_consistency.TEST_CLIP` and
+        m_ψ its mean square (T ~ N(0, 1) while the model explains the modes and their
+        errors are independent); the CUSUM sums g⁺ = max(0, g⁺ + T - d),
+        g⁻ = max(0, g⁻ - T - d) and the change is on while either exceeds the threshold."""
+        if CHANGE_THRESHOLD is None:
+            return
+        ok = learn & np.isfinite(normalised)
+        if not ok.any():
+            return
+        psi = np.clip(normalised[ok], -TEST_CLIP, TEST_CLIP)
+        t = psi.sum() / np.sqrt(ok.sum() * self.follow_mean_square)
+        up, down = self.change_sums
+        up = max(0.0, up + t - CHANGE_DRIFT)
+        down = max(0.0, down - t - CHANGE_DRIFT)
+        self.change_sums[:] = up, down
+        self.change = bool(max(up, down) > CHANGE_THRESHOLD)
 
     def _after_hole(self, measured: np.ndarray) -> None:
         """After a hole in the record, the measured modes' probability that the model
@@ -478,6 +538,8 @@ class ModelTrust:
         Where the blend has a Huber weight, a stretch of outliers as long as the blocks
         sharing data would set the test off too, and following SSI there would undo the
         persistence rule (``benchmarks/results/forecast_method1_demo_27s.txt``).
+        While the hull-wide change test is on (:meth:`_change_step`) the blend's weight is
+        0 and every model-free filter's share is the block's SSI estimate.
         """
         started = np.isfinite(self.level)
         level = np.where(started, self.level, blend_estimate)
@@ -485,6 +547,10 @@ class ModelTrust:
         follow = self.off_side & np.isfinite(self.measurement)
         level = np.where(follow, self.measurement, level)
         level_variance = np.where(follow, self.measurement_variance, level_variance)
+        if self.change:  # the hull moves: the model-free share is the block's SSI
+            have = np.isfinite(self.measured)
+            level = np.where(have, self.measured, level)
+            level_variance = np.where(have, self.measurement_variance, level_variance)
         xs = np.concatenate([blend_estimate[None], level])
         Ps = np.concatenate([blend_variance[None], level_variance])
         # the blend keeps its whole weight until its probability falls below
@@ -493,6 +559,8 @@ class ModelTrust:
         w = self.weights.copy()
         w[0] = np.clip(self.weights[0] / FULL_WEIGHT_PROBABILITY, 0.0, 1.0)
         w[0] *= self.lead_factor
+        if self.change:  # ... and the blend stands aside
+            w[0] = 0.0
         rest = self.weights[1:].sum(axis=0)
         w[1:] = self.weights[1:] / np.where(rest > 0, rest, 1.0) * (1.0 - w[0])
         x = (w * xs).sum(axis=0)

@@ -880,13 +880,23 @@ class MemoryRun:
                     z_now,
                     ~np.isfinite(noise_huber),
                     after_hole=self.record_gap >= self.persist_blocks,
+                    # the refits after a hole move the model by the error c took at once
+                    # (_keep_estimate_after_hole): no test of the hull's moves meanwhile
+                    settling=self.since_hole < _REFIT_CONTINUITY_BLOCKS,
                 ),
                 # a block whose model fills a missing predictor says nothing of whether
                 # the model explains the mode: the probabilities wait for the log
                 np.full(n_modes, not in_sample) & ~lost & ~filled,
             )
             estimate, variance = self.trust.combine(estimate, variance)
-            self.out["probability"][k] = np.where(have, self.trust.probability, np.nan)
+            # how much the estimate leaned on the model: nothing while the hull moves
+            probability = 0.0 if self.trust.change else self.trust.probability
+            self.out["probability"][k] = np.where(have, probability, np.nan)
+            if self.trust.change and have.any():
+                self.notes[
+                    "a change of the whole hull that the model does not explain (the modes' "
+                    "innovations of one sign together): the estimate follows SSI"
+                ] += 1
             if not in_sample:
                 self._explained(k, have)
         if self.ssi_guard is not None:
