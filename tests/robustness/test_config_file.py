@@ -123,6 +123,18 @@ def test_each_bad_key_is_one_line_naming_it(tmp_path, capsys, extra, expected):
     assert expected in lines[0], lines[0]
 
 
+def test_a_file_named_like_a_parameter_is_named_as_it_is(tmp_path, capsys, monkeypatch):
+    """A usage error's message starting with a file's name is not rewritten as a flag
+    (main: ``orders_2024.toml`` was shown as ``--min-order/--max-order_2024.toml``)."""
+    monkeypatch.chdir(tmp_path)
+    Path("orders_2024.toml").write_text(_with("[forecast]\noptoin = 'A'\n"), encoding="utf-8")
+    capsys.readouterr()
+    assert main(["run", "orders_2024.toml"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("workbench: error: orders_2024.toml: [forecast] unknown key"), err
+    assert "--min-order" not in err
+
+
 def test_every_problem_at_once(tmp_path, capsys):
     lines = _refused(
         tmp_path,
