@@ -211,6 +211,40 @@ def _band(value) -> str | None:
     return None
 
 
+def _orders(value) -> str | None:
+    numbers = [v for v in value if isinstance(v, int | float) and not isinstance(v, bool)]
+    if (
+        not value
+        or len(numbers) != len(value)
+        or not all(math.isfinite(v) and v > 0 for v in numbers)
+    ):
+        return "must be a non-empty list of positive shaft orders, e.g. [1, 2, 3]"
+    return None
+
+
+def _log_columns(value) -> str | None:
+    """A ``[dship] columns`` table: names (text) of the log's canonical columns."""
+    from data_contracts.dship_names import AUXILIARY_COLUMNS, SHAFT_COLUMNS
+    from data_contracts.tables import CANONICAL_PREDICTORS, OPTIONAL_PREDICTORS
+
+    wrong = _text_map(value)
+    if wrong:
+        return wrong
+    known = sorted(
+        {c.name for c in CANONICAL_PREDICTORS}
+        | {c.name for c in OPTIONAL_PREDICTORS}
+        | set(AUXILIARY_COLUMNS)
+        | set(SHAFT_COLUMNS)
+        | {"time"}
+    )
+    unknown = [k for k in value if k not in known]
+    if unknown:
+        near = difflib.get_close_matches(unknown[0], known, n=1)
+        hint = f" (did you mean {near[0]!r}?)" if near else ""
+        return f"has unknown column(s) {', '.join(unknown)}{hint}; known: {', '.join(known)}"
+    return None
+
+
 def _rate(value) -> str | None:
     if isinstance(value, str):
         return _one_of("auto", "native")(value)
@@ -245,7 +279,7 @@ CHECKS: dict[str, dict[str, Any]] = {
         "channels": _texts,
         "variables": _text_map,
     },
-    "dship": {"columns": _text_map},
+    "dship": {"columns": _log_columns},
     "modal": {
         "damping_unit": _one_of("percent", "fraction"),
         "time_reference": _one_of("start", "centre", "end"),
@@ -270,6 +304,8 @@ CHECKS: dict[str, dict[str, Any]] = {
         "reference_channels": _texts,
         "rate": _rate,
         "band": _band,
+        "harmonic_orders": _orders,
+        "blades": _number(0, whole=True),
     },
     "track": {
         "mac_min": _SHARE,

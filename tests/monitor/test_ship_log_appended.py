@@ -239,3 +239,38 @@ def test_appended_rows_fill_buffers_that_grow_and_earlier_tables_stay(tmp_path, 
         pd.testing.assert_frame_equal(frame, copy, check_exact=True)
     assert given[0]["speed_kn"].iloc[0] == -1.0
     pd.testing.assert_frame_equal(given[0].iloc[1:], kept[0].iloc[1:], check_exact=True)
+
+
+def test_the_monitor_says_a_log_warning_once_as_the_log_grows(tmp_path):
+    """A backward time in the growing log is said once by the monitor, not again with
+    every read after lines were appended (main: the same 3 warning lines at each of the 4
+    reads; a live log is read at every step for weeks)."""
+    from types import SimpleNamespace
+
+    from workbench.monitor.core import Monitor
+
+    path = tmp_path / "dship.tsv"
+    lines = _lines(200)
+    path.write_text(HEADER + "".join(lines[:150] + [lines[100]] + [lines[120]]), encoding="utf-8")
+    monitor = Monitor.__new__(Monitor)
+    monitor.dship = path
+    monitor.options = SimpleNamespace(
+        forecast=SimpleNamespace(dship_mapping={}, dship_utc_offset=None)
+    )
+    monitor._log_warnings_said = set()
+    said, rows = [], []
+    for k in range(4):
+        if k:
+            with open(path, "a", encoding="utf-8") as file:
+                file.write(
+                    _lines(10, 200 + 10 * k)[0] if k == 1 else "".join(_lines(10, 200 + 10 * k))
+                )
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            log = monitor._read_log()
+        said += [str(w.message) for w in caught]
+        rows.append(len(log))
+    assert rows == [150, 151, 161, 171]  # the duplicate kept once, every appended line read
+    # no column for water_temp_c ..., time goes back, 2 duplicate time stamps: once each
+    assert len(said) == len(set(said)) == 3, said
+    assert sum("time goes back" in s or "duplicate time stamp" in s for s in said) == 2

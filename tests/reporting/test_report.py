@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import shutil
 
 import matplotlib.pyplot as plt
@@ -312,3 +313,30 @@ def test_a_figure_write_cut_short_leaves_the_earlier_figure_whole(short_run, mon
     assert {p: p.read_bytes() for p in sorted(out.parent.rglob("*.png"))} == before
     assert out.read_bytes() == page
     assert not [p for p in out.parent.rglob("*") if p.is_file() and p.name.startswith(".")]
+
+
+def test_a_tracked_table_of_another_run_is_named_in_the_overview(short_run, tmp_path):
+    """The tracked modes and the identification shown beside them must be of one run: a
+    tracked table left in the folder from an earlier identification (its poles 1 % off
+    those of the identification now there) is named in the overview's warnings, as
+    ``forecast --poles`` refuses it (main: the report showed both without a word)."""
+    from workbench.reporting import report
+
+    tracked = pd.read_csv(short_run / "tracked_modal.csv")
+    run = report.RunFiles(
+        short_run, identify=short_run / "identify", tracked=short_run / "tracked_modal.csv"
+    )
+    page = build_report(short_run, out=tmp_path / "same" / "page.html", run=run, dpi=40)
+    assert "not of one run" not in page.read_text(encoding="utf-8")
+
+    earlier = tracked.assign(frequency_hz=tracked["frequency_hz"] * 1.01)
+    earlier.to_csv(tmp_path / "tracked_modal.csv", index=False)
+    run = report.RunFiles(
+        short_run, identify=short_run / "identify", tracked=tmp_path / "tracked_modal.csv"
+    )
+    page = build_report(short_run, out=tmp_path / "other" / "page.html", run=run, dpi=40)
+    text = page.read_text(encoding="utf-8")
+    n_rows = int(tracked["model_order"].notna().sum())
+    assert "not of one run" in text
+    assert re.search(r"only 0 of (\d+) tracked poles of tracked_modal\.csv", text)
+    assert int(re.search(r"only 0 of (\d+) tracked poles", text)[1]) <= n_rows

@@ -101,12 +101,38 @@ def test_a_file_that_is_not_utf8_toml_is_one_line(tmp_path, capsys, content, fra
         ("[dship]\ncolumns = { speed_kn = { a = { b = 1 } } }\n", "[dship] columns = "),
         ("[forecast]\ntrust = 0.65\n", '[forecast] trust = 0.65 applies to model = "window"'),
         ("[fit]\np_enter = 0.2\np_remove = 0.1\n", "[fit] p_enter = 0.2 must be below p_remove"),
+        # checked with the file, not by identify after the chain started (main: a Python
+        # message, "could not convert string to float: 'one'", naming flags, not the key)
+        (
+            "[identify]\nharmonic_orders = ['one', 2]\n",
+            "[identify] harmonic_orders = ['one', 2] must be a non-empty list of positive",
+        ),
+        ("[identify]\nharmonic_orders = [-1, 0]\n", "[identify] harmonic_orders = [-1, 0] must"),
+        ("[identify]\nharmonic_orders = []\n", "[identify] harmonic_orders = [] must"),
+        ("[identify]\nblades = -2\n", "[identify] blades = -2 must be at least 0"),
+        (
+            '[dship]\nfile = "log.tsv"\ncolumns = { sped_kn = "Speed" }\n',
+            "[dship] columns = {'sped_kn': 'Speed'} has unknown column(s) sped_kn (did you mean "
+            "'speed_kn'?)",
+        ),
     ],
 )
 def test_each_bad_key_is_one_line_naming_it(tmp_path, capsys, extra, expected):
     lines = _refused(tmp_path, capsys, _with(extra))
     assert len(lines) == 1, lines
     assert expected in lines[0], lines[0]
+
+
+def test_a_file_named_like_a_parameter_is_named_as_it_is(tmp_path, capsys, monkeypatch):
+    """A usage error's message starting with a file's name is not rewritten as a flag
+    (main: ``orders_2024.toml`` was shown as ``--min-order/--max-order_2024.toml``)."""
+    monkeypatch.chdir(tmp_path)
+    Path("orders_2024.toml").write_text(_with("[forecast]\noptoin = 'A'\n"), encoding="utf-8")
+    capsys.readouterr()
+    assert main(["run", "orders_2024.toml"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("workbench: error: orders_2024.toml: [forecast] unknown key"), err
+    assert "--min-order" not in err
 
 
 def test_every_problem_at_once(tmp_path, capsys):

@@ -68,6 +68,33 @@ def test_an_empty_file_is_reported_once_and_taken_when_written(tmp_path):
     assert [f.path for f in landed] == [empty] and messages == []
 
 
+def test_a_named_pipe_under_a_data_files_name_is_left_out_not_waited_on(tmp_path):
+    """A named pipe (or socket, device) named like an acceleration file is left out with one
+    message; the good files beside it are taken (main: opening it to read its header waited
+    for a writer, the monitor stuck in "looking for new files" for good, deaf to SIGTERM)."""
+    import threading
+
+    good = write_voyage(tmp_path / "watch", n_files=2)
+    pipe = tmp_path / "watch" / "acc_002.npz"
+    os.mkfifo(pipe)
+    old = time.time() - 5
+    for path in [*good, pipe]:
+        os.utime(path, (old, old))
+    watcher = FolderWatcher(tmp_path / "watch", settle_s=0.5)
+    found = []
+    polling = threading.Thread(target=lambda: found.append(watcher.poll()), daemon=True)
+    polling.start()
+    polling.join(timeout=20)
+    if polling.is_alive():  # main: waiting in open(); a writer's open and close ends it
+        os.close(os.open(pipe, os.O_WRONLY | os.O_NONBLOCK))
+        polling.join(timeout=20)
+    assert found, "the poll did not return"
+    ((landed, messages),) = found
+    assert [f.path for f in landed] == good
+    assert messages == ["acc_002.npz: not a regular file (a pipe, socket or device); left out"]
+    assert watcher.poll() == ([], [])  # said once
+
+
 def test_a_file_stamped_in_the_future_is_taken_once_unchanged_for_settle_s(tmp_path):
     path = write_voyage(tmp_path, n_files=1)[0]
     ahead = time.time() + 2 * 3600  # a file server's clock two hours ahead

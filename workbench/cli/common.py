@@ -273,9 +273,11 @@ _OPTION_NAMES = {
 
 
 def _option_names(message: str) -> str:
-    """*message* with a library parameter name at its start shown as the CLI option."""
+    """*message* with a library parameter name at its start shown as the CLI option (the
+    name followed by ``=``, ``:`` or a space: a message starting with a file's name, such
+    as ``orders_2024.toml: ...``, is left as it is)."""
     for name, option in _OPTION_NAMES.items():
-        if message.startswith(name):
+        if message.startswith(name) and message[len(name) : len(name) + 1] in ("=", " ", ":"):
             return option + message[len(name) :]
     return message
 

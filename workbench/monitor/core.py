@@ -16,6 +16,7 @@ import re
 import socket
 import threading
 import time
+import warnings
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -254,6 +255,7 @@ class Monitor:
         # the files taken before the grid was fixed that are still to be taken again
         self._retaking: collections.deque[LandedFile] = collections.deque()
         self._retimed_noted: set[Path] = set()  # files said to be re-timed for jitter
+        self._log_warnings_said: set[str] = set()  # the ship log's warnings said so far
         self.done: set[int] = set()
         #: Where the decided blocks of a drifting record were cut (the store's
         #: CUT_COLUMNS): block -> (a file taken, by content; the index of the block's
@@ -394,11 +396,20 @@ class Monitor:
             return None
         from .outlook import _ship_log
 
-        try:
-            forecast = self.options.forecast
-            return _ship_log(self.dship, dict(forecast.dship_mapping), forecast.dship_utc_offset)
-        except (ValueError, OSError):
-            return None
+        forecast = self.options.forecast
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                log = _ship_log(self.dship, dict(forecast.dship_mapping), forecast.dship_utc_offset)
+            except (ValueError, OSError):
+                log = None
+        # each of the log's warnings said once a run, not again at every read of the growing
+        # log (a duplicate or backward time is said with each line appended after it)
+        for warning in caught:
+            if str(warning.message) not in self._log_warnings_said:
+                self._log_warnings_said.add(str(warning.message))
+                warnings.warn(warning.message, stacklevel=2)
+        return log
 
     def _log_generation(self) -> int | None:
         """The read generation of the ship log :meth:`_read_log` gives: the same while the

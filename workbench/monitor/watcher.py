@@ -1,6 +1,7 @@
 """Follow a folder where acquisition files arrive; report each file once it is complete.
 
-A file is *complete* when
+A file is *complete* when it is a regular file (a named pipe, socket or device under a
+data file's name is left out with one message: opening it would wait for a writer) and
 
 1. its name is not hidden (``.name.tmp`` files of a write-then-rename are not data: the
    atomic writers of :mod:`data_contracts` and most recorders write a hidden temporary file
@@ -28,6 +29,7 @@ it are kept (see :mod:`workbench.monitor`).
 from __future__ import annotations
 
 import os
+import stat as stat_kinds
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -134,6 +136,16 @@ class FolderWatcher:
             except OSError:  # renamed or removed meanwhile
                 continue
             key = (stat.st_size, stat.st_mtime_ns)
+            if not stat_kinds.S_ISREG(stat.st_mode):
+                # a named pipe, socket or device under a data file's name: opening it to
+                # read its header would wait for a writer, the monitor hung for good
+                if path not in self.refused_reasons:
+                    self._refused[path] = key
+                    self.refused_reasons[path] = "not a regular file (a pipe, socket or device)"
+                    messages.append(
+                        f"{path.name}: not a regular file (a pipe, socket or device); left out"
+                    )
+                continue
             taken = self._taken.get(path)
             if taken is not None:
                 if taken != key and path not in self._changed:

@@ -111,6 +111,10 @@ def load_run(
         else None
     )
     notices = []
+    if run.tracked is not None and run.identify is not None and modal is not None:
+        mismatch = _tracked_against_poles(run, modal)
+        if mismatch:
+            notices.append(mismatch)
     if skipped:  # said in the report, not only in a log
         notices.append(
             f"{len(skipped)} of {len(run.accelerations)} acceleration file(s) could not be "
@@ -130,6 +134,45 @@ def load_run(
         correlation=correlation,
         notices=notices,
     )
+
+
+#: Tracked blocks, spread over the run, whose poles are looked up in ``poles.parquet``. [-]
+MATCH_BLOCKS = 20
+
+
+def _tracked_against_poles(run: RunFiles, modal: pd.DataFrame) -> str | None:
+    """A notice when the tracked table's poles are not those of the identification shown
+    beside it (tables of two runs in one folder: an identification run again over other
+    data or settings, the tracked table left from before), as ``forecast --poles`` checks
+    them (:func:`~workbench.joins.check_poles_match`); None when they match. Only the
+    poles of :data:`MATCH_BLOCKS` tracked blocks are read."""
+    import numpy as np
+    import pyarrow.parquet as pq
+
+    from workbench.errors import WorkbenchError
+    from workbench.joins import check_poles_match
+
+    poles_path = run.identify / "poles.parquet"
+    if not poles_path.exists() or modal.empty or "model_order" not in modal.columns:
+        return None
+    blocks = np.unique(modal["block"].to_numpy())
+    picks = np.unique(np.linspace(0, len(blocks) - 1, min(MATCH_BLOCKS, len(blocks))).round())
+    sample = [int(b) for b in blocks[picks.astype(int)]]
+    try:
+        poles = pq.read_table(
+            poles_path,
+            columns=["block", "model_order", "frequency_hz"],
+            filters=[("block", "in", sample)],
+        ).to_pandas()
+        check_poles_match(modal[modal["block"].isin(sample)], run.tracked.name, poles, poles_path)
+    except WorkbenchError as error:
+        return (
+            f"{error}: the tracked modes ({run.tracked}) and the identification shown "
+            f"({run.identify}) are not of one run"
+        )
+    except (OSError, ValueError, KeyError):
+        return None  # an unreadable pole table: the identification section says so
+    return None
 
 
 def _reading_layout(given, recorded, files) -> dict | None:
