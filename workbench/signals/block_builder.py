@@ -191,8 +191,13 @@ def blanked_notes(path, blanked: Sequence[tuple[str, str]]) -> tuple[str, ...]:
     """The notes of a block holding the file *path* whose reader set the channels of
     *blanked* (``AccelerationRecord.blanked``) to NaN."""
     return tuple(
-        f"{Path(path).name}: channel {channel} blanked ({why})" for channel, why in blanked
+        f"{Path(path).name}: channel {channel} blanked ({why}){BLANKED_NOTE_END}"
+        for channel, why in blanked
     )
+
+
+#: How a note of :func:`blanked_notes` ends (the run's summary picks them out by it).
+BLANKED_NOTE_END = ", dropped for the file"
 
 
 def _assemble(
