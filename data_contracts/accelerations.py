@@ -48,12 +48,17 @@ class AccelerationRecord:
         Time of the first sample. [UTC]
     channels : tuple of str
         Channel names, one per column of *acceleration*.
+    blanked : tuple of (str, str)
+        Channels the reader set to NaN for the whole file and why, e.g.
+        ``("acc03", "infinite values")`` (``glitches="blank"`` of
+        :func:`validate_accelerations`); empty otherwise.
     """
 
     acceleration: np.ndarray
     sampling_rate_hz: float
     start_time: pd.Timestamp
     channels: tuple[str, ...]
+    blanked: tuple[tuple[str, str], ...] = ()
 
     @property
     def n_samples(self) -> int:
@@ -71,16 +76,35 @@ class AccelerationRecord:
 
 
 def validate_accelerations(
-    record: AccelerationRecord, *, source: str | os.PathLike | None = None
+    record: AccelerationRecord,
+    *,
+    source: str | os.PathLike | None = None,
+    glitches: str = "refuse",
 ) -> AccelerationRecord:
     """Check a record and return it with canonical types (float64 array, UTC timestamp).
+
+    Parameters
+    ----------
+    record : AccelerationRecord
+    source : path-like, optional
+        The file, named in the errors.
+    glitches : {"refuse", "blank"}
+        What infinite values or values above :data:`MAX_PLAUSIBLE_ACCELERATION_MS2` in
+        some of the channels are: ``"refuse"`` (a check, ``workbench validate``) lists
+        them as violations; ``"blank"`` (the analyses) takes them as faults of those
+        channels (an ADC overflow, a loose connector), sets those channels to NaN for the
+        whole record and names them in ``blanked``. A record in which every channel with
+        a finite sample holds such values (wrong units) is refused either way.
 
     Raises
     ------
     ContractError
         Listing every problem (array shape, sampling rate, channel names, time, units).
     """
+    if glitches not in ("refuse", "blank"):
+        raise ValueError(f"glitches={glitches!r} must be 'refuse' or 'blank'")
     problems: list[Violation] = []
+    blanked: tuple[tuple[str, str], ...] = ()
     if np.iscomplexobj(record.acceleration):
         acceleration = None
         problems.append(
@@ -122,6 +146,8 @@ def validate_accelerations(
                 Violation("acceleration", f"needs at least 2 samples, got {acceleration.shape[0]}")
             )
         peak = _column_peaks(acceleration)  # one pass: infinite and implausible values
+        if glitches == "blank" and acceleration.shape[1] == len(channels):
+            acceleration, peak, blanked = _blank_glitches(acceleration, peak, channels)
         if np.isinf(peak).any():
             cols = sorted(
                 {
@@ -159,7 +185,36 @@ def validate_accelerations(
         problems.append(Violation("start_time", _not_a_time(record.start_time)))
     if problems:
         raise ContractError(problems, source=source, contract="accelerations")
-    return AccelerationRecord(acceleration, rate, start, channels)
+    return AccelerationRecord(acceleration, rate, start, channels, blanked)
+
+
+def _blank_glitches(
+    acceleration: np.ndarray, peak: np.ndarray, channels: tuple[str, ...]
+) -> tuple[np.ndarray, np.ndarray, tuple[tuple[str, str], ...]]:
+    """*acceleration* with the channels holding infinite or implausible values set to NaN,
+    their peaks set to 0, and those channels with why; unchanged when no channel holds
+    such values or when every channel with a finite sample does (wrong units: refused)."""
+    infinite = np.isinf(peak)
+    bad = infinite | (peak > MAX_PLAUSIBLE_ACCELERATION_MS2)
+    sound = ~bad & (peak > 0)  # a dead (all-NaN) or flat channel says nothing of the units
+    if not bad.any() or not sound.any():
+        return acceleration, peak, ()
+    acceleration = acceleration.copy()
+    acceleration[:, bad] = np.nan
+    peak = np.where(bad, 0.0, peak)
+    return (
+        acceleration,
+        peak,
+        tuple(
+            (
+                channels[j],
+                "infinite values"
+                if infinite[j]
+                else f"|a| above {MAX_PLAUSIBLE_ACCELERATION_MS2:g} m/s²",
+            )
+            for j in np.flatnonzero(bad)
+        ),
+    )
 
 
 #: Values per chunk of :func:`_column_peaks` (256 KB of float64: stays in the CPU cache).
@@ -428,6 +483,7 @@ def read_accelerations(
     csv_time_column: str | None = None,
     csv_sampling_rate_hz: float | None = None,
     layout=None,
+    glitches: str = "refuse",
 ) -> AccelerationRecord:
     """Read an acceleration file: canonical ``.npz``, MATLAB ``.mat``, CSV/TSV, HDF5 or UFF.
 
@@ -450,6 +506,9 @@ def read_accelerations(
         mark, relative time and start, units, channels, HDF5 names); see
         :class:`data_contracts.formats.AccelerationLayout`. The keyword arguments above
         take precedence over its fields.
+    glitches : {"refuse", "blank"}
+        Infinite or implausible values in some channels: violations, or those channels
+        set to NaN and named in ``blanked`` (see :func:`validate_accelerations`).
 
     Raises
     ------
@@ -509,7 +568,7 @@ def read_accelerations(
         raise ContractError(
             [Violation(None, f"cannot read file: {message}")], source=path, contract="accelerations"
         ) from None
-    return validate_accelerations(record, source=path)
+    return validate_accelerations(record, source=path, glitches=glitches)
 
 
 def channel_names(n_channels: int, prefix: str = "acc") -> tuple[str, ...]:

@@ -18,7 +18,7 @@ from data_contracts import shape_columns
 
 from ..blocks import BlockGrid
 from ..parallel import BlockOutcome
-from ..signals.block_builder import ConditioningOptions
+from ..signals.block_builder import BLANKED_NOTE_END, ConditioningOptions
 from ..signals.moments import ChannelCheckOptions
 from .options import IdentifyOptions
 
@@ -445,7 +445,10 @@ def identify_block(
             "reason": [r for _, r in data.dropped],
         }
     )
-    notes = tuple(f"channel {c} dropped ({_reason_kind(r)})" for c, r in data.dropped)
+    # a file's channels its reader set to NaN (infinite or implausible values), said once
+    # a run with the file and why, then the channels' drops
+    notes = tuple(n for n in data.notes if n.endswith(BLANKED_NOTE_END))
+    notes += tuple(f"channel {c} dropped ({_reason_kind(r)})" for c, r in data.dropped)
     if result is None:
         return BlockOutcome(
             task.block, start, {"faults": faults}, skipped=data.skipped_reason, notes=notes

@@ -314,8 +314,11 @@ class IdentifyOptions:
 
     @property
     def read_options(self) -> dict:
-        """Keyword arguments of :func:`data_contracts.read_accelerations`."""
-        return {"layout": dict(self.acceleration_layout)} if self.acceleration_layout else {}
+        """Keyword arguments of :func:`data_contracts.read_accelerations`: the layout, and
+        infinite or implausible values in some channels taken as those channels' faults
+        in the file (set to NaN: dropped from the blocks holding it, said in their notes)."""
+        layout = {"layout": dict(self.acceleration_layout)} if self.acceleration_layout else {}
+        return {**layout, "glitches": "blank"}
 
     def decimation_factor(self, sampling_rate_hz: float) -> int:
         """Raw samples per analysis sample of resolved options at *sampling_rate_hz*

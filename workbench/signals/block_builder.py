@@ -182,7 +182,22 @@ def _load(info: FileInfo, channels: tuple[str, ...], read_options: Mapping) -> A
     # placed where the plan put it (re-timed for clock jitter: FileInfo.clock_shift_s), as
     # the file conditioner places it, not at its own stamp
     values = align_channels(record.acceleration, record.channels, channels)
-    return AccelerationRecord(values, record.sampling_rate_hz, info.start_time, channels)
+    return AccelerationRecord(
+        values, record.sampling_rate_hz, info.start_time, channels, record.blanked
+    )
+
+
+def blanked_notes(path, blanked: Sequence[tuple[str, str]]) -> tuple[str, ...]:
+    """The notes of a block holding the file *path* whose reader set the channels of
+    *blanked* (``AccelerationRecord.blanked``) to NaN."""
+    return tuple(
+        f"{Path(path).name}: channel {channel} blanked ({why}){BLANKED_NOTE_END}"
+        for channel, why in blanked
+    )
+
+
+#: How a note of :func:`blanked_notes` ends (the run's summary picks them out by it).
+BLANKED_NOTE_END = ", dropped for the file"
 
 
 def _assemble(
@@ -307,7 +322,10 @@ def _build(
     planned: PlannedBlock,
     records: Sequence[AccelerationRecord],
     options: ConditioningOptions,
+    blanked: Sequence[str] = (),
 ) -> AccelerationBlock:
+    """Block *planned* from its files' *records*; *blanked*: notes of the channels their
+    reader set to NaN (:func:`blanked_notes`)."""
     raw, notes = _assemble(
         records,
         planned.sample_start,
@@ -315,6 +333,7 @@ def _build(
         plan.sampling_rate_hz,
         on_lattice=planned.drifting,
     )
+    notes = [*blanked, *notes]
     return _condition(raw, plan.sampling_rate_hz, plan.channels, options, planned, notes)
 
 
@@ -431,7 +450,13 @@ def _stream(
             yield _skipped(planned, rate, str(failed))
             continue
         records = [r for i, r in cache if needed[0] <= i <= needed[-1]]
-        yield _build(plan, planned, records, options)
+        blanked = [
+            note
+            for i, r in cache
+            if needed[0] <= i <= needed[-1]
+            for note in blanked_notes(plan.files[i].path, r.blanked)
+        ]
+        yield _build(plan, planned, records, options, blanked)
         del records
 
 

@@ -80,6 +80,7 @@ from .block_builder import (
     ConditioningOptions,
     _finished,
     _verdicts,
+    blanked_notes,
     load_block,
 )
 from .block_plan import FileInfo, PlannedBlock, align_channels
@@ -121,6 +122,8 @@ class _ConditionedFile:
     first_out: int  # index of the first output sample on the analysis lattice
     samples: np.ndarray  # (n_out, n_channels), NaN columns where not bridgeable
     steps: dict  # grid step number -> list of _StepSums
+    #: notes of the channels the reader set to NaN (block_builder.blanked_notes)
+    blanked: tuple[str, ...] = ()
 
 
 class FileConditioner:
@@ -218,7 +221,9 @@ class FileConditioner:
         return abs(offset - round(offset)) < 1e-3
 
     # -- conditioning of one file -----------------------------------------------------------
-    def _raw_file(self, index: int) -> np.ndarray:
+    def _raw_file(self, index: int) -> tuple[np.ndarray, tuple[str, ...]]:
+        """File *index*'s samples in the blocks' channel order, and the notes of the
+        channels its reader set to NaN."""
         info = self.files[index]
         try:
             if info.path.suffix.lower() == ".npz":
@@ -229,14 +234,15 @@ class FileConditioner:
             raise UnreadableInputError.of(info.path, error) from None
         if record.sampling_rate_hz != info.sampling_rate_hz or record.n_samples != info.n_samples:
             raise ValueError(f"{info.path}: file changed since it was planned")
-        return align_channels(record.acceleration, record.channels, self.channels)
+        values = align_channels(record.acceleration, record.channels, self.channels)
+        return values, blanked_notes(info.path, record.blanked)
 
     def _conditioned(self, index: int) -> _ConditionedFile:
         cached = self._cache.get(index)
         if cached is not None:
             return cached
         info = self.files[index]
-        raw = self._raw_file(index)
+        raw, blanked = self._raw_file(index)
         n = info.n_samples
         start = int(round(self._offset(index)))  # raw lattice index of the first sample
         f = self.factor
@@ -271,7 +277,7 @@ class FileConditioner:
         n_out = -(-(start + n) // f) - first_out
         samples = np.ascontiguousarray(y[skip : skip + n_out])
         samples[:, bad] = np.nan
-        conditioned = _ConditionedFile(first_out, samples, steps)
+        conditioned = _ConditionedFile(first_out, samples, steps, blanked)
         self._cache[index] = conditioned
         return conditioned
 
@@ -430,7 +436,8 @@ class FileConditioner:
         except CoherenceNeeded:
             return None  # a variance outlier's coherence needs the raw block: load_block
 
-        faulty, dropped, names, notes = _verdicts(report, self.channels)
+        blanked = [note for f in files for note in f.blanked]
+        faulty, dropped, names, notes = _verdicts(report, self.channels, blanked)
         if not names:
             return _finished(
                 planned, None, self.rate, (), dropped, notes, report, "all channels faulty"
