@@ -23,6 +23,12 @@ Two tests, by what the ship log offers:
   frequencies spread over more than ``min_sweep``: a structural mode's frequency moves by a
   few per cent with speed, temperature and loading, never in proportion to the speed.
 
+A logged shaft speed that stays put while the speed changes by a knot or more is either a
+controllable-pitch propeller (the orders stay at the logged rate's orders) or a frozen log
+(the harmonics follow the speed): :func:`shaft_log_against_speed` compares the two on the
+selected modes and, where the lines following the speed win, the voyage is marked as
+without a shaft speed (one warning naming the column).
+
 Neither test touches a recording without a ship log (laboratory data): nothing is marked.
 
 The marks are the ``harmonic`` column of the pole and selected tables: the order (1, 2,
