@@ -524,3 +524,105 @@ def test_a_mode_seen_throughout_a_voyage_marked_in_every_checked_block_is_kept()
     tracked = track_modes(selected, options=TrackingOptions())
     assert len(tracked) == 40 and tracked["frequency_hz"].eq(5.0).all()
     assert [h["blocks"] for h in tracked.attrs["harmonic_labels"]] == [17]
+
+
+def _steady_log_voyage(line_hz_of_speed):
+    """12 blocks at 5..10 kn, the shaft speed logged steady at 100 rpm (0.2 rpm noise, 0.1
+    rpm resolution), the speed logged as it is; a mode at 8.21 Hz (within 2 % of the blade
+    pass of 5 blades at 100 rpm, 8.33 Hz) and the lines *line_hz_of_speed* (frequency of
+    the block's speed [Hz], shape) in every block."""
+    speeds = np.linspace(5.0, 10.0, 12)
+    rows = []
+    for k, v in enumerate(speeds):
+        rows.append((k, 8.21, SHAPE_MODE))
+        rows += [(k, line(v), shape) for line, shape in line_hz_of_speed]
+    rng = np.random.default_rng(0)
+    log = _log(
+        lambda t: np.round(100.0 + 0.2 * rng.standard_normal(t.shape), 1),
+        12 * 1200,
+        lambda t: np.repeat(speeds, 1200)[t],
+    )
+    return _selected(rows), log
+
+
+def test_a_frozen_shaft_log_is_not_used_when_the_lines_follow_the_speed():
+    # the shaft turns at 0.3 Hz/kn x speed (orders 1 and 2 sweep 1.5-3 and 3-6 Hz), the
+    # log repeats 100 rpm. Before: the mode at 8.21 Hz was marked as the blade pass in
+    # all 12 blocks (tracking dropped it) and the two swept lines were kept as modes.
+    forced2 = np.array([0.2, 1.0, 0.4, -0.5, 0.3, 0.1])
+    selected, log = _steady_log_voyage(
+        [(lambda v: 0.3 * v, SHAPE_FORCED), (lambda v: 0.6 * v, forced2)]
+    )
+    marker = HarmonicMarker(log, HarmonicOptions(blades=5))
+    marks = marker.mark_selected(selected)
+    assert marker.method == "speed"
+    mode = marks["frequency_hz"] == 8.21
+    assert marks.loc[~mode, "harmonic"].eq(0.0).all()  # the 24 rows of the swept lines
+    # the mode is marked only where an order's ratio (k x 0.3 Hz/kn, k = 1, 2, 3, 5, 10)
+    # puts it on the mode: 8.21 Hz / v within 3 % of 1.5 (5.45 kn) or 0.9 Hz/kn (9.09 kn)
+    speeds = np.linspace(5.0, 10.0, 12)
+    ratio = 8.21 / speeds / 0.3
+    crossed = (np.abs(np.log(ratio[:, None] / np.array([1, 2, 3, 5, 10]))) <= 0.03).any(axis=1)
+    assert np.flatnonzero(crossed).tolist() == [1, 9]
+    np.testing.assert_array_equal(marks.loc[mode, "harmonic"].notna().to_numpy(), crossed)
+    assert marker.shaft["shaft_rpm"].isna().all()
+    # of the 24 swept rows, 21 at no order of 100 rpm (1.667, 3.333, 5 Hz, within 2 %:
+    # order 1 at 5.45 kn, order 2 at 5.45 and 8.18 kn are); the mode at the blade pass in
+    # the 10 blocks where it does not follow the speed
+    assert marker.unmarked() == [
+        "ship log: shaft_rpm: the logged shaft speed stays at 100 rpm while the speed spans "
+        "5.5-9.5 kn, and 21 selected modes follow the speed at none of its orders (10 sit at "
+        "its orders only): the column is not used, harmonics marked from the speed"
+    ]
+    tracked = track_modes(marks, options=TrackingOptions())
+    assert tracked.groupby("mode")["frequency_hz"].mean().round(2).tolist() == [8.21]
+    assert len(tracked) == 12
+
+
+def test_a_steady_shaft_of_a_controllable_pitch_propeller_is_still_used():
+    # the same voyage with the shaft truly at 100 rpm (a controllable-pitch propeller: the
+    # speed 5-10 kn set by the pitch): order 1 stays at 1.667 Hz and order 2 at 3.333 Hz
+    # in every block. No line follows the speed, so the logged shaft speed marks them
+    # (and, as nothing tells them apart, the mode on the blade pass).
+    selected, log = _steady_log_voyage(
+        [(lambda v: 100 / 60, SHAPE_FORCED), (lambda v: 200 / 60, SHAPE_FORCED)]
+    )
+    marker = HarmonicMarker(log, HarmonicOptions(blades=5))
+    marks = marker.mark_selected(selected)
+    assert marker.method == "shaft speed" and marker.shaft_log_note is None
+    assert marks["harmonic"].tolist() == [5.0, 1.0, 2.0] * 12
+    assert marker.shaft["shaft_rpm"].to_numpy() == pytest.approx(100.0, abs=0.1)
+    assert marker.unmarked() == []
+
+
+def test_cli_a_frozen_shaft_log_keeps_the_mode_on_its_blade_pass(tmp_path, capsys):
+    # the demo voyage (seed 0, 3 h) with its shaft-speed column set to 100.0 rpm in every
+    # row. Before: the mode at 8.21 Hz was marked as the blade pass (8.33 Hz) and left
+    # out, and the harmonics at 3.03, 2.13 and 10.42 Hz were tracked as modes.
+    from workbench.cli import main
+
+    voyage = tmp_path / "voyage"
+    assert main(["simulate", "--out", str(voyage), "--hours", "3", "--quiet"]) == 0
+    path = voyage / "dship.tsv"
+    lines = path.read_text(encoding="utf-8").split("\n")
+    header = next(k for k, line in enumerate(lines) if line.startswith("Date/Time"))
+    assert lines[header].split("\t")[8] == "Shaft speed [rpm]"
+    for k in range(header + 1, len(lines)):
+        if lines[k]:
+            fields = lines[k].split("\t")
+            lines[k] = "\t".join([*fields[:8], "100.0"])
+    path.write_text("\n".join(lines), encoding="utf-8")
+    out = tmp_path / "identify"
+    argv = ["identify", str(voyage / "accelerations"), "--out", str(out), "--band", "2", "12"]
+    argv += ["--dship", str(path), "--blades", "5", "--scheduler", "synchronous", "--quiet"]
+    assert main(argv) == 0
+    captured = capsys.readouterr()
+    said = [line for line in captured.err.splitlines() if "shaft_rpm" in line]
+    assert len(said) == 1 and "the column is not used" in said[0]
+    tracked_csv = tmp_path / "tracked.csv"
+    assert main(["track", str(out / "selected.parquet"), "--out", str(tracked_csv)]) == 0
+    medians = pd.read_csv(tracked_csv).groupby("mode")["frequency_hz"].median()
+    assert len(medians) == 7  # the voyage's 7 modes
+    assert ((medians - 8.21).abs() < 0.02).sum() == 1
+    for harmonic_hz in (3.03, 2.13, 10.42):
+        assert not ((medians - harmonic_hz).abs() < 0.02).any()

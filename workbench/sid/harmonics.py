@@ -23,6 +23,12 @@ Two tests, by what the ship log offers:
   frequencies spread over more than ``min_sweep``: a structural mode's frequency moves by a
   few per cent with speed, temperature and loading, never in proportion to the speed.
 
+A logged shaft speed that stays put while the speed changes by a knot or more is either a
+controllable-pitch propeller (the orders stay at the logged rate's orders) or a frozen log
+(the harmonics follow the speed): :func:`shaft_log_against_speed` compares the two on the
+selected modes and, where the lines following the speed win, the voyage is marked as
+without a shaft speed (one warning naming the column).
+
 Neither test touches a recording without a ship log (laboratory data): nothing is marked.
 
 The marks are the ``harmonic`` column of the pole and selected tables: the order (1, 2,
@@ -66,6 +72,7 @@ __all__ = [
     "block_shaft_table",
     "mark_harmonics",
     "shaft_rate_per_knot",
+    "shaft_log_against_speed",
     "usable_shaft_speed",
     "mark_poles",
     "mark_shaft_orders",
@@ -94,6 +101,12 @@ SPIKE_FLOOR_RPM = 5.0
 #: shaft speed to be estimated from the speed where it is not logged (a fixed-pitch
 #: propeller; a controllable-pitch one turns at a set rate whatever the speed). [-]
 PITCH_SCATTER = 0.2
+#: Largest relative scatter (10-90 % range over median) of the blocks' logged shaft speed
+#: taken as a shaft speed that does not change (:func:`shaft_log_against_speed`). [-]
+STEADY_SHAFT_SCATTER = 0.02
+#: Smallest 10-90 % range of the blocks' mean speed over which a steady logged shaft
+#: speed is checked against the speed-following test. [kn]
+SPEED_RANGE_KN = 1.0
 
 
 @dataclass(frozen=True)
@@ -904,6 +917,58 @@ def mark_speed_following(
     return out
 
 
+def shaft_log_against_speed(
+    selected: pd.DataFrame,
+    log: pd.DataFrame,
+    shaft: pd.DataFrame,
+    options: HarmonicOptions | None = None,
+) -> str | None:
+    """Whether a steady logged shaft speed is contradicted by the voyage's selected modes:
+    a line naming the column when it is (the log is then unusable), else None.
+
+    A controllable-pitch propeller turns at a set rate while the speed changes, so a
+    steady shaft speed alone is no fault; a sensor (or an export) repeating one value
+    while the shaft follows the speed is. They differ in the modes: with the shaft truly
+    steady the orders stay at the logged rate's orders and no line follows the speed;
+    with a frozen log the harmonics follow the speed (:func:`mark_speed_following`) and
+    the logged orders hold only what happens to sit there.
+
+    Checked when the blocks' logged shaft speed (*shaft*, :func:`block_shaft_table`)
+    scatters by at most :data:`STEADY_SHAFT_SCATTER` (10-90 % range over median) while
+    their mean speed spans :data:`SPEED_RANGE_KN` or more (10-90 % range). The two
+    explanations are compared on the modes each marks and the other does not: n_log
+    (at an order of the logged shaft speed, :func:`mark_shaft_orders`, not following the
+    speed) and n_speed (following the speed, at no logged order). A line whose
+    frequency sweeps with the speed by more than ``min_sweep`` cannot be an order of a
+    shaft whose rate scatters by 2 %; the speed-following lines win, and the log is
+    judged unusable, when n_speed >= ``min_rows`` and n_speed >= n_log.
+    """
+    options = options or HarmonicOptions()
+    rpm = shaft["shaft_rpm"].to_numpy(float)
+    speed = shaft["speed_kn"].to_numpy(float)
+    rpm, speed = rpm[np.isfinite(rpm)], speed[np.isfinite(speed)]
+    if len(rpm) < 2 or len(speed) < 2:
+        return None
+    low, middle, high = np.percentile(rpm, [10, 50, 90])
+    speed_low, speed_high = np.percentile(speed, [10, 90])
+    if not (middle > 0 and high - low <= STEADY_SHAFT_SCATTER * middle):
+        return None
+    if speed_high - speed_low < SPEED_RANGE_KN:
+        return None
+    at_orders = mark_shaft_orders(selected, log, options).notna().to_numpy()
+    following = mark_speed_following(selected, shaft, options).notna().to_numpy()
+    n_log = int((at_orders & ~following).sum())
+    n_speed = int((following & ~at_orders).sum())
+    if n_speed < options.min_rows or n_speed < n_log:
+        return None
+    return (
+        f"shaft_rpm: the logged shaft speed stays at {middle:.4g} rpm while the speed "
+        f"spans {speed_low:.1f}-{speed_high:.1f} kn, and {n_speed} selected modes follow "
+        f"the speed at none of its orders ({n_log} sit at its orders only): the column is "
+        "not used, harmonics marked from the speed"
+    )
+
+
 def mark_poles(
     poles: pd.DataFrame, selected: pd.DataFrame, options: HarmonicOptions | None = None
 ) -> pd.Series:
@@ -1030,6 +1095,9 @@ class HarmonicMarker:
         self.shaft_hz_per_kn = np.nan
         self.n_selected = 0
         self.n_poles = 0
+        #: Why the logged shaft speed was not used (:func:`shaft_log_against_speed`), or
+        #: None.
+        self.shaft_log_note: str | None = None
 
     def mark_selected(
         self, selected: pd.DataFrame, *, shaft_logged: bool | None = None
@@ -1060,6 +1128,20 @@ class HarmonicMarker:
         shaft = self.shaft.set_index("block")
         if shaft_logged is None:
             shaft_logged = bool(self.shaft["shaft_rpm"].notna().any())
+            self.shaft_log_note = (
+                shaft_log_against_speed(selected, self.log, self.shaft, self.options)
+                if shaft_logged
+                else None
+            )
+            if self.shaft_log_note:
+                # a frozen log: the voyage is marked as without a shaft speed
+                attrs = dict(self.log.attrs)
+                self.log = self.log.assign(shaft_rpm=np.nan)
+                self.log.attrs.update(attrs)
+                self.shaft["shaft_rpm"] = np.nan
+                self.shaft["shaft_rpm_from"] = ""
+                shaft = self.shaft.set_index("block")
+                shaft_logged = False
         if shaft_logged:
             self.method = "shaft speed"
             selected["harmonic"] = mark_shaft_orders(selected, self.log, self.options)
@@ -1123,6 +1205,8 @@ class HarmonicMarker:
         the blocks marked from the speed instead, and those not checked at all."""
         notes = list(self.log.attrs.get("shaft_rpm_notes", [])) if self.log is not None else []
         lines = [f"ship log: {note}" for note in notes]
+        if self.shaft_log_note:
+            lines.append(f"ship log: {self.shaft_log_note}")
         if self.method == "none" or self.shaft.empty:
             return lines
         from ..store import block_ranges
@@ -1158,7 +1242,8 @@ class HarmonicMarker:
             "shaft speed": "orders "
             + ", ".join(f"{k:g}" for k in self.orders)
             + " of the logged shaft speed",
-            "speed": "frequency following the speed with a fixed shape; no shaft speed logged",
+            "speed": "frequency following the speed with a fixed shape; "
+            + ("logged shaft speed not used" if self.shaft_log_note else "no shaft speed logged"),
             "none": "no shaft speed or speed in the ship log: none marked",
         }[self.method]
         if self.method == "speed" and np.isfinite(self.shaft_hz_per_kn):
