@@ -74,10 +74,11 @@ def test_a_harmonic_in_the_gate_is_not_the_mode_when_the_modes_column_is_outside
     # wander_40min_2x hold-out seed 8, option B without shapes, block 44: a refit moved
     # the prediction to 4.47 Hz, so the gate (±0.09 Hz) held the blade-rate harmonic
     # sweeping down through 4.52 Hz (21 orders, damping 0.2 %) and not the mode's own
-    # column at 4.59 Hz (damping 0.8 %). Taking the harmonic (as the chooser did before
-    # its damping test applied inside the gate) pulled the filter 0.9 Hz below the mode
-    # over 30 blocks; the mode's column, 0.12 Hz off the prediction (within the ±5 %
-    # band), is the measurement, flagged outside the gate.
+    # column near 4.59 Hz (damping 0.8 %; here as it was at block 43, 22 orders). Taking
+    # the harmonic (as the chooser did before its damping test applied inside the gate)
+    # pulled the filter 0.9 Hz below the mode over 30 blocks; the mode's column, 0.12 Hz
+    # off the prediction (within the ±5 % band), is the measurement, flagged outside the
+    # gate (benchmarks/results/forecast_holdout_53.txt).
     rng = np.random.default_rng(1)
     rows = [(0, n, 4.5162 + 2e-4 * rng.standard_normal(), 0.002) for n in ORDERS]
     rows += [(0, n, 4.5885 + 5e-4 * rng.standard_normal(), 0.008) for n in ORDERS]
