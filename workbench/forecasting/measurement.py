@@ -20,13 +20,17 @@ has a damping ratio unlike the mode's. Hence:
   ratio so far, g the gate), with at least :data:`MIN_ORDERS` orders and, once the mode
   has been chosen in 5 blocks, at least half the median orders of its last 36 clusters
   (a mode's column keeps its length; a short consistent column is a transient such as an
-  ice impact, usually in a block where the mode is not excited); with mode shapes,
+  ice impact, usually in a block where the mode is not excited) and a damping ratio within
+  x3 of ζ_ref (a prediction that the model moved can put the gate on a propeller harmonic
+  sweeping past, with ζ a fifth of the mode's, and the mode's own column outside it; the
+  harmonic taken there pulled ζ_ref and the filter with it for 30 blocks:
+  ``benchmarks/results/forecast_holdout_53.txt``); with mode shapes,
   only poles whose MAC with the mode's reference shape (the consensus of its recent
   tracked shapes, :mod:`workbench.forecasting.shape_reference`) is at least
   ``shape_mac_min`` count. The chosen cluster is grown to its whole column
   (:meth:`ClusterChooser._column`) and the measurement is the column's median frequency.
   When the gate holds no such cluster, the best one outside it within ``reacquire_band``
-  (same tests, damping ratio within x3 of the mode's) is the measurement, flagged
+  (same tests) is the measurement, flagged
   ``outside_gate``: the Kalman update's Huber weight and its persistence rule, not a
   count of blocks here, tell an outlier stretch from a mode that moved;
 * :func:`measurable_poles` - the poles option B may measure: not those marked as a shaft
@@ -373,7 +377,7 @@ class ClusterChooser:
             for c in outside
             if abs(c[0].frequency_hz - prior_hz) > gate_hz and c[0].n_orders >= shortest
         ]
-        best = self._best(outside, prior_hz, band, damping_ref, strict=True)
+        best = self._best(outside, prior_hz, band, damping_ref)
         if best is None:  # the mode is not seen in this block: no evidence either way
             return None
         self.misses[j] = self.misses.get(j, 0) + 1
@@ -424,7 +428,9 @@ class ClusterChooser:
         return cluster, mac
 
     @staticmethod
-    def _best(candidates, prior_hz, gate_hz, damping_ref, strict=False):
+    def _best(candidates, prior_hz, gate_hz, damping_ref):
+        """The candidate with the best score (module docstring) among those with at least
+        MIN_ORDERS orders and a damping ratio within x3 of *damping_ref*; None if none."""
         good = [c for c in candidates if c[0].n_orders >= MIN_ORDERS]
         if not good:
             return None
@@ -434,7 +440,7 @@ class ClusterChooser:
             damping_term = 0.0
             if np.isfinite(damping_ref) and damping_ref > 0 and cluster.damping_ratio > 0:
                 damping_term = abs(math.log(cluster.damping_ratio / damping_ref)) / math.log(3.0)
-                if strict and damping_term > 1.0:  # outside the gate: damping within x3
+                if damping_term > 1.0:  # not the mode's damping: a harmonic, a transient
                     continue
             score = (
                 cluster.n_orders / n_max
