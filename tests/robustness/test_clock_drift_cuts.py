@@ -45,6 +45,15 @@ def _modes(out) -> pd.DataFrame:
     return selected_modes(out).sort_values(["block", "frequency_hz"]).reset_index(drop=True)
 
 
+#: What the monitor says of block 4 of the 100-ppm record when the other files land.
+BLOCK_4_MOVED = (
+    "block(s) 4 of a drifting record, decided from the clock line of the files landed "
+    "then, are cut up to +250.0 ms elsewhere by the line of the files landed now "
+    "(beyond 62.5 ms: the clock jitter, or one analysis sample); they are kept as "
+    "decided"
+)
+
+
 def test_identify_resumed_with_more_files_computes_a_moved_cut_again(tmp_path, capsys):
     """20 ppm fast, stamps jittered by up to 10 ms: the first 10 files (50 min) miss block
     3's UTC span (1800-3000 s) by 60 ms, so it is cut at their last sample; all 24 files
@@ -117,12 +126,7 @@ def test_the_monitor_says_a_decided_blocks_cut_moved_by_later_files(tmp_path):
     finally:
         monitor.close()
     said = [m for m in monitor.messages if "cut up to" in m]
-    assert said == [
-        "block(s) 4 of a drifting record, decided from the clock line of the files landed "
-        "then, are cut up to +250.0 ms elsewhere by the line of the files landed now "
-        "(beyond 62.5 ms: the clock jitter, or one analysis sample); they are kept as "
-        "decided"
-    ]
+    assert said == [BLOCK_4_MOVED]
     blocks = BlockStore(state / "store").read("blocks").set_index("block")
     # block 4 cut 1200 s before the first 12 files' end (3600 s on the sample count): the
     # first sample of acc_008.npz; the line puts its label 2400 s UTC at 2400 s x (1 + 100
@@ -151,12 +155,7 @@ def test_a_restarted_monitor_judges_the_cut_it_stored(tmp_path):
     finally:
         monitor.close()
     said = [m for m in monitor.messages if "cut up to" in m]
-    assert said == [
-        "block(s) 4 of a drifting record, decided from the clock line of the files landed "
-        "then, are cut up to +250.0 ms elsewhere by the line of the files landed now "
-        "(beyond 62.5 ms: the clock jitter, or one analysis sample); they are kept as "
-        "decided"
-    ]
+    assert said == [BLOCK_4_MOVED]
 
 
 def test_the_monitor_says_nothing_of_cuts_within_the_tolerance(tmp_path):

@@ -511,41 +511,60 @@ def load_block(
     if not infos:
         return _skipped(PlannedBlock(k, start, end, ()), float("nan"), "no acceleration files")
     # plan only the files touching the block (consistency checks included), with the
-    # last file before it and the first after it: a gap at the block's edge, or a block
-    # inside a hole, is then named by the files on either side, as the full plan names it
+    # last file before it and the first after it (_span_infos)
+    selected, rate = _span_infos(infos, start, end)
+    if selected is None:
+        return _skipped(
+            PlannedBlock(k, start, end, ()), rate, "outside the span of the acceleration files"
+        )
+    plan = plan_file_infos(selected, grid, max_gap_s=options.max_gap_s, channels=channels)
+    plan = dataclasses.replace(plan, blocks=tuple(b for b in plan.blocks if b.block == k))
+    if all(b.block != k for b in plan.blocks):
+        # The block reaches past the touching files into an allowed gap (the next file
+        # starts after the block's end): plan it on its own, as the full plan does.
+        paths, reason = _span_files(plan, start, end, options)
+        single = PlannedBlock(k, start, end, paths, reason)
+        plan = dataclasses.replace(plan, blocks=(single,))
+    options.check_rate(plan.sampling_rate_hz)
+    return next(_stream(plan, options, [k]))
+
+
+def _span_infos(
+    infos: Sequence[FileInfo], start: pd.Timestamp, end: pd.Timestamp
+) -> tuple[list[FileInfo] | None, float]:
+    """The files touching [*start*, *end*), with the last file before it and the first
+    after it of the same rate (a gap at the span's edge, or a span inside a hole, is then
+    named by the files on either side, as the full plan names it), and that rate; None
+    for the files when the span lies outside them."""
     touching = [i for i in infos if i.start_time < end and i.end_time > start]
     rate = (touching or infos)[0].sampling_rate_hz
     before = [i for i in infos if i.end_time <= start and i.sampling_rate_hz == rate]
     after = [i for i in infos if i.start_time >= end and i.sampling_rate_hz == rate]
     if not touching and not (before and after):
-        return _skipped(
-            PlannedBlock(k, start, end, ()), rate, "outside the span of the acceleration files"
-        )
+        return None, rate
     neighbours = [max(before, key=lambda i: i.end_time)] if before else []
     neighbours += [min(after, key=lambda i: i.start_time)] if after else []
-    plan = plan_file_infos(
-        touching + neighbours, grid, max_gap_s=options.max_gap_s, channels=channels
+    return touching + neighbours, rate
+
+
+def _span_files(
+    plan: BlockPlan, start: pd.Timestamp, end: pd.Timestamp, options: ConditioningOptions
+) -> tuple[tuple, str | None]:
+    """The paths of *plan*'s files a block spanning [*start*, *end*) reads, and why it is
+    skipped (None: it is not), judged as the full plan judges a block."""
+    starts_ns = np.array([_ns(i.start_time) for i in plan.files], dtype=np.int64)
+    ends_ns = np.array([_ns(i.end_time) for i in plan.files], dtype=np.int64)
+    indices, reason = _block_files_and_gap(
+        plan.files,
+        starts_ns,
+        ends_ns,
+        _ns(start),
+        _ns(end),
+        plan.sampling_rate_hz,
+        float(options.max_gap_s),
+        CLOCK_JITTER_S,
     )
-    plan = dataclasses.replace(plan, blocks=tuple(b for b in plan.blocks if b.block == k))
-    if all(b.block != k for b in plan.blocks):
-        # The block reaches past the touching files into an allowed gap (the next file
-        # starts after the block's end): plan it on its own, as the full plan does.
-        starts_ns = np.array([_ns(i.start_time) for i in plan.files], dtype=np.int64)
-        ends_ns = np.array([_ns(i.end_time) for i in plan.files], dtype=np.int64)
-        indices, reason = _block_files_and_gap(
-            plan.files,
-            starts_ns,
-            ends_ns,
-            _ns(start),
-            _ns(end),
-            plan.sampling_rate_hz,
-            float(options.max_gap_s),
-            CLOCK_JITTER_S,
-        )
-        single = PlannedBlock(k, start, end, tuple(plan.files[i].path for i in indices), reason)
-        plan = dataclasses.replace(plan, blocks=(single,))
-    options.check_rate(plan.sampling_rate_hz)
-    return next(_stream(plan, options, [k]))
+    return tuple(plan.files[i].path for i in indices), reason
 
 
 def _load_drifting(
@@ -563,32 +582,12 @@ def _load_drifting(
     planned = PlannedBlock(k, start, end, (), sample_start=sample_start, drifting=True)
     if not infos:
         return _skipped(planned, float("nan"), "no acceleration files")
-    touching = [i for i in infos if i.start_time < sample_end and i.end_time > sample_start]
-    rate = (touching or infos)[0].sampling_rate_hz
-    before = [i for i in infos if i.end_time <= sample_start and i.sampling_rate_hz == rate]
-    after = [i for i in infos if i.start_time >= sample_end and i.sampling_rate_hz == rate]
-    if not touching and not (before and after):
+    selected, rate = _span_infos(infos, sample_start, sample_end)
+    if selected is None:
         return _skipped(planned, rate, "outside the span of the acceleration files")
-    neighbours = [max(before, key=lambda i: i.end_time)] if before else []
-    neighbours += [min(after, key=lambda i: i.start_time)] if after else []
-    plan = plan_file_infos(
-        touching + neighbours, grid, max_gap_s=options.max_gap_s, channels=channels
-    )
-    starts_ns = np.array([_ns(i.start_time) for i in plan.files], dtype=np.int64)
-    ends_ns = np.array([_ns(i.end_time) for i in plan.files], dtype=np.int64)
-    indices, reason = _block_files_and_gap(
-        plan.files,
-        starts_ns,
-        ends_ns,
-        _ns(sample_start),
-        _ns(sample_end),
-        plan.sampling_rate_hz,
-        float(options.max_gap_s),
-        CLOCK_JITTER_S,
-    )
-    single = dataclasses.replace(
-        planned, files=tuple(plan.files[i].path for i in indices), skipped_reason=reason
-    )
+    plan = plan_file_infos(selected, grid, max_gap_s=options.max_gap_s, channels=channels)
+    paths, reason = _span_files(plan, sample_start, sample_end, options)
+    single = dataclasses.replace(planned, files=paths, skipped_reason=reason)
     plan = dataclasses.replace(plan, blocks=(single,))
     options.check_rate(plan.sampling_rate_hz)
     return next(_stream(plan, options, [k]))
