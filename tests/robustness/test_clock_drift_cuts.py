@@ -35,8 +35,8 @@ from workbench.cli.monitoring import prepare_monitor
 from workbench.fingerprints import sha256
 from workbench.store import BlockStore
 
-from .test_clock_drift import FILE_S, JITTER_S, MONITOR_ARGS, _drifting, _identify, _write
-from .voyage import selected_modes
+from .test_clock_drift import ARGS, FILE_S, JITTER_S, MONITOR_ARGS, _drifting, _identify, _write
+from .voyage import identify_run, selected_modes
 
 LIVE_ARGS = [a for a in MONITOR_ARGS if a != "--once"]
 
@@ -269,3 +269,24 @@ def test_the_monitor_names_a_block_its_drifting_record_misses(tmp_path):
         "fixed": [f"{line}block 10 by 1.08 s at its end"],
         "auto": [f"{line}block 23 by 1.08 s at its end"],
     }
+
+
+def test_identify_with_varying_lengths_names_only_the_block_it_misses(tmp_path, capsys):
+    """The same 150-ppm record, ``identify --block-minutes auto``: blocks 0-22 identified
+    (20-22 shortened to 25, 15 and 5 min at the data's end), block 23's shortest span
+    (5 min) runs 1.08 s past the last sample. One line names block 23 (before: one line
+    per length, naming blocks 20, 21 and 22 too, which their own length identified)."""
+    _write(tmp_path / "voyage", _drifting(150))
+    auto = ARGS[ARGS.index("--step-minutes") + 2 :]
+    code, out, err = identify_run(
+        capsys, tmp_path / "voyage", tmp_path / "out", ["--block-minutes", "auto", *auto]
+    )
+    assert code == 0, err
+    blocks = pd.read_csv(tmp_path / "out" / "blocks.csv")
+    assert blocks["block"].tolist() == list(range(23))
+    assert blocks["block_length_s"].tolist()[-3:] == [1500.0, 900.0, 300.0]
+    assert [line for line in out.splitlines() if "not identified" in line] == [
+        "block(s) not identified, whose span a drifting record's samples hold on their count "
+        "but whose UTC span runs more than 1 s past the record's first or last sample: "
+        "block 23 by 1.08 s at its end"
+    ]
