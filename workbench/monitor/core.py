@@ -1007,17 +1007,10 @@ class Monitor:
         self._cuts = self.store.block_cuts()  # the spans the stored blocks were cut from
         if adaptive is not None:  # the stored blocks' lengths: the grids they were cut on
             stored = self.store.read("lengths")
-            self._stored_lengths = (
-                dict(
-                    zip(
-                        stored["block"].astype(int).tolist(),
-                        stored["block_length_s"].astype(float).tolist(),
-                        strict=True,
-                    )
-                )
-                if len(stored)
-                else {}
-            )
+            if len(stored):
+                blocks = stored["block"].astype(int).tolist()
+                lengths_s = stored["block_length_s"].astype(float).tolist()
+                self._stored_lengths = dict(zip(blocks, lengths_s, strict=True))
         self._done_below = 0
         # files taken before the voyage was fixed are checked now (those still to take
         # among them placed with them: _placed_now)
