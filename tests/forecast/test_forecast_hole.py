@@ -211,3 +211,25 @@ def test_extrapolation_prior_grows_with_the_excursion_beyond_a_narrow_range():
     assert ForecastOptions().sensitivities()["speed_kn"] == 0.002
     with pytest.raises(ValueError, match="extrapolation_sensitivity\\['speed_kn'\\]"):
         ForecastOptions(extrapolation_sensitivity={"speed_kn": -1.0})
+
+
+def test_the_prior_is_a_setting_of_forecast_and_monitor():
+    from workbench.cli import parse_arguments
+    from workbench.cli.forecasting import forecast_options
+    from workbench.errors import UsageError
+
+    batch = ["forecast", "--modal", "m", "--dship", "d", "--out", "f.csv"]
+    monitor = ["monitor", "--watch", "w", "--state", "s"]
+    for argv in (batch, monitor):
+        assert forecast_options(parse_arguments(argv), "auto").sensitivities() == {
+            "speed_kn": 0.002,
+            "water_temp_c": 0.001,
+            "air_temp_c": 0.001,
+        }
+        given = parse_arguments([*argv, "--extrapolation-sensitivity", "speed_kn=0.003"])
+        assert forecast_options(given, "auto").sensitivities() == {"speed_kn": 0.003}
+        off = parse_arguments([*argv, "--extrapolation-sensitivity", "none"])
+        assert forecast_options(off, "auto").sensitivities() == {}
+        bad = parse_arguments([*argv, "--extrapolation-sensitivity", "speed_kn=-1"])
+        with pytest.raises(UsageError, match="COLUMN=RHO pairs, RHO >= 0 .* got 'speed_kn=-1'"):
+            forecast_options(bad, "auto")
