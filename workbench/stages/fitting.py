@@ -532,7 +532,7 @@ def fit(
         fits = fit_modes(modal, predictors, **common)
     if not fits:
         raise ValueError(f"no mode could be fitted ({options.quantity}); see the warnings")
-    exog = predictors.set_index("block")
+    exog = _model_inputs(predictors).set_index("block")  # the inputs as the fits saw them
     models = {int(m): ModeResults(int(m), item.fit, item, exog) for m, item in fits.items()}
     result = FitResult(models=models, options=options, by_case=by_case, lines=list(lines))
     names = ", ".join(next(iter(fits.values())).fit.predictor_names)
