@@ -2,10 +2,10 @@
 
 A ship steaming into the wind has its relative wind direction swinging across 0°; the same
 voyage with the wind from astern (every direction turned by 180°) swings across 180° and
-never wraps. Models in the direction's cosine and sine see the second voyage as the first
-with both columns' signs flipped, so their forecasts, fits and |r| are the same; taken as a
-number in degrees (main before the change) the head-wind voyage's direction jumped between
-about 0 and 360 from block to block and the two voyages gave other models.
+never wraps. Models in the direction's cosine see the second voyage as the first with the
+column's sign flipped, so their forecasts, fits and |r| are the same; taken as a number in
+degrees (main before the change) the head-wind voyage's direction jumped between about 0
+and 360 from block to block and the two voyages gave other models.
 """
 
 from __future__ import annotations
@@ -98,7 +98,7 @@ def test_the_forecast_does_not_depend_on_where_the_circle_is_cut():
 def test_a_mirrored_wind_and_a_full_turn_leave_the_forecast_as_it_is():
     """Wind from port in place of starboard (θ -> 360 - θ: 350° <-> 10°) and every direction
     written one turn on (θ + 360, outside the table's 0-360, so straight to the forecast's
-    matrix): the same model inputs up to the sine's sign."""
+    matrix): the same model inputs."""
     _, predictors = _voyage(0.0)
     mirrored = predictors.assign(
         wind_dir_rel_deg=np.mod(360.0 - predictors["wind_dir_rel_deg"], 360)
@@ -107,16 +107,14 @@ def test_a_mirrored_wind_and_a_full_turn_leave_the_forecast_as_it_is():
     _, _, _, columns, X = predictor_matrix(predictors, None)
     _, _, _, _, X_mirrored = predictor_matrix(mirrored, None)
     _, _, _, _, X_turned = predictor_matrix(turned, None)
-    cos, sin = columns.index("wind_dir_rel_cos"), columns.index("wind_dir_rel_sin")
+    assert "wind_dir_rel_cos" in columns and "wind_dir_rel_deg" not in columns
     np.testing.assert_allclose(X_turned, X, atol=1e-12)
-    np.testing.assert_allclose(X_mirrored[:, cos], X[:, cos], atol=1e-12)
-    np.testing.assert_allclose(X_mirrored[:, sin], -X[:, sin], atol=1e-12)
-    assert "wind_dir_rel_deg" not in columns
+    np.testing.assert_allclose(X_mirrored, X, atol=1e-12)
 
 
 def test_the_stepwise_fits_and_correlations_do_not_depend_on_the_cut():
     """fit_modes (stepwise, MATLAB's defaults) and the correlation table: the same terms
-    (a direction's coefficients with the opposite sign), the same fitted values and |r|
+    (a direction's coefficient with the opposite sign), the same fitted values and |r|
     (main: the direction's |r| with the modes differ, the wrapped column's against the
     unwrapped one's)."""
     (modal_h, pred_h), (modal_f, pred_f) = _voyage(0.0), _voyage(180.0)
@@ -133,13 +131,12 @@ def test_the_stepwise_fits_and_correlations_do_not_depend_on_the_cut():
 
 
 def test_components_and_names():
-    """cos and sin where the direction stood; the log's coverage of the direction for both;
-    a missing direction NaN in both."""
-    assert component_columns("wind_dir_rel_deg") == ("wind_dir_rel_cos", "wind_dir_rel_sin")
+    """The cosine where the direction stood, with the log's coverage of the direction; a
+    missing direction NaN."""
+    assert component_columns("wind_dir_rel_deg") == ("wind_dir_rel_cos",)
     assert model_columns(["speed_kn", "wind_dir_rel_deg", "wind_speed_ms"]) == [
         "speed_kn",
         "wind_dir_rel_cos",
-        "wind_dir_rel_sin",
         "wind_speed_ms",
     ]
     frame = pd.DataFrame(
@@ -154,19 +151,17 @@ def test_components_and_names():
     assert list(out.columns) == [
         "block",
         "wind_dir_rel_cos",
-        "wind_dir_rel_sin",
         "log_coverage",
         "log_coverage_wind_dir_rel_deg",
     ]
     np.testing.assert_allclose(out["wind_dir_rel_cos"], [1.0, 0.0, np.nan], atol=1e-15)
-    np.testing.assert_allclose(out["wind_dir_rel_sin"], [0.0, 1.0, np.nan], atol=1e-15)
-    coverage = block_column_coverage(frame, ["wind_dir_rel_cos", "wind_dir_rel_sin"])
-    np.testing.assert_allclose(coverage, [[1.0, 1.0], [0.5, 0.5], [0.0, 0.0]])
+    coverage = block_column_coverage(frame, ["wind_dir_rel_cos"])
+    np.testing.assert_allclose(coverage, [[1.0], [0.5], [0.0]])
 
 
-@pytest.mark.parametrize("given", [["wind_dir_rel_deg"], ["wind_dir_rel_sin"]])
+@pytest.mark.parametrize("given", [["wind_dir_rel_deg"], ["wind_dir_rel_cos"]])
 def test_named_predictor_columns(given):
-    """A forecast told to use the direction (in degrees or one component) gets components."""
+    """A forecast told to use the direction (in degrees or as its cosine) gets the cosine."""
     _, predictors = _voyage(0.0)
     _, _, _, columns, X = predictor_matrix(predictors, given)
     assert columns == model_columns(given)

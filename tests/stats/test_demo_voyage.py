@@ -3,7 +3,7 @@
 The simulator (:mod:`workbench.simulate.hull`) lowers every frequency with speed except
 mode 4 (T1, speed_mass 0.002: 0.1 % at 10 kn, below the identification scatter), leaves
 mode 3 (VB2) insensitive to air temperature, and gives wind no effect at all (a term in the
-wind direction's cosine or sine may enter the stepwise models, with an effect under the
+wind direction's cosine may enter the stepwise models, with an effect under the
 identification scatter).
 """
 
@@ -15,8 +15,6 @@ import pytest
 from data_contracts import MODAL, PREDICTORS, read_table
 from workbench.simulate import simulate_voyage
 from workbench.stats import correlation_table, fit_modes
-
-DIRECTION = ("wind_dir_rel_cos", "wind_dir_rel_sin")
 
 
 @pytest.fixture(scope="module")
@@ -36,15 +34,14 @@ def test_stepwise_models_recover_the_speed_law(voyage):
         terms = item.fit.terms
         assert ("speed_kn" in terms) == (mode != 4), (mode, terms)
         assert not any("wind_speed" in term for term in terms), (mode, terms)
-        # the direction enters as its cosine and sine, smooth like the slow part of the
-        # blocks' (autocorrelated) identification error: the F-test lets a term in at
-        # p 0.02-0.03 (modes 1 and 7 here), of 0.07 % and 0.11 % of the frequency, under
-        # 0.4 of the residual scatter (main's column in degrees, jumping 360 at each of
-        # the voyage's 3 crossings of the bow, let none in on this seed, 2 on seed 2)
-        direction = [t for t in terms if "wind_dir" in t]
-        assert all(":" not in t for t in direction), (mode, terms)
-        amplitude = np.hypot(*(item.fit.coefficients["estimate"].get(t, 0.0) for t in DIRECTION))
-        assert amplitude < 0.5 * np.std(item.residuals), (mode, terms, amplitude)
+        # the direction enters as its cosine, smooth like the slow part of the blocks'
+        # (autocorrelated) identification error: the F-test lets it in by chance for mode 7
+        # here (p 0.017, -0.105 % of the frequency, 0.37 of the residual scatter; main's column in
+        # degrees, jumping 360 at each of the voyage's 3 crossings of the bow, let none in
+        # on this seed, 2 on seed 2): a small effect, under half the scatter, no product
+        assert not any("wind_dir" in t and t != "wind_dir_rel_cos" for t in terms), terms
+        direction = item.fit.coefficients["estimate"].get("wind_dir_rel_cos", 0.0)
+        assert abs(direction) < 0.5 * np.std(item.residuals), (mode, terms, direction)
         if "speed_kn" in terms:  # frequencies fall with speed (added water mass)
             assert item.fit.coefficients.loc["speed_kn", "estimate"] < 0
     assert "air_temp_c" not in fits[3].fit.terms

@@ -201,7 +201,7 @@ def _check_upper(upper: str, predictors) -> None:
     from ..predictors.directions import model_columns
     from ..stats.terms import parse_terms
 
-    # a direction enters the models as its cosine and sine (wind_dir_rel_cos, _sin)
+    # a direction enters the models as its cosine (wind_dir_rel_cos)
     names = model_columns([c for c in predictors.columns if c not in PREDICTOR_KEYS])
     try:
         parse_terms(upper, names, parameter="--upper")

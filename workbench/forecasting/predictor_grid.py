@@ -35,8 +35,8 @@ def predictor_matrix(
     *grid* is the predictor table sorted by block (the last row of a repeated block kept);
     consecutive rows are consecutive Kalman steps. *columns* are *predictor_columns*, or
     every numeric, non-boolean column but the keys when None, with a direction column
-    (``wind_dir_rel_deg``) as its cosine and sine (``wind_dir_rel_cos``,
-    ``wind_dir_rel_sin``: :mod:`workbench.predictors.directions`); *X* holds their values
+    (``wind_dir_rel_deg``) as its cosine (``wind_dir_rel_cos``:
+    :mod:`workbench.predictors.directions`); *X* holds their values
     (NaN where missing). *grid* keeps the direction in degrees.
 
     Raises
@@ -84,8 +84,8 @@ def block_log_coverage(table: pd.DataFrame) -> np.ndarray | None:
 
 def block_column_coverage(table: pd.DataFrame, columns: Sequence[str]) -> np.ndarray | None:
     """The ship log's share of each block per predictor *columns*, shape (rows of *table*,
-    len(*columns*)): a column's own ``log_coverage_<column>`` (a direction's cosine and
-    sine: the direction's), NaN where the table has none (a column the averaging gives
+    len(*columns*)): a column's own ``log_coverage_<column>`` (a direction's cosine:
+    the direction's), NaN where the table has none (a column the averaging gives
     no share of, such as the time trend); None when the table has no ``log_coverage``
     (it does not say how much of a block is logged)."""
     if block_log_coverage(table) is None:

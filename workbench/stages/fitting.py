@@ -98,7 +98,7 @@ class FitOptions:
 
 
 def _model_inputs(exog):
-    """*exog* with a direction column as its cosine and sine (a DataFrame), else as given."""
+    """*exog* with a direction column as its cosine (a DataFrame), else as given."""
     return with_direction_components(exog) if isinstance(exog, pd.DataFrame) else exog
 
 
@@ -269,7 +269,7 @@ class ModeResults:
     # prediction ---------------------------------------------------------------------
     def predict(self, exog: pd.DataFrame) -> pd.Series | np.ndarray:
         """Predicted means for new predictor values (columns named as in the fit; a
-        direction in degrees, ``wind_dir_rel_deg``, is taken as the cosine and sine the
+        direction in degrees, ``wind_dir_rel_deg``, is taken as the cosine the
         fit uses): a Series on *exog*'s index when *exog* is a DataFrame, else an array."""
         exog = _model_inputs(exog)
         return _as_given(self.model.predict(exog), exog, self.model.response_name)

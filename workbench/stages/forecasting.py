@@ -117,7 +117,7 @@ def partial_log_lines(
     if predictors is not None:
         shares = predictors.drop_duplicates("block", keep="last").set_index("block")
         shares = shares.reindex(blocks)
-        # a direction's cosine and sine are the direction's column (its coverage)
+        # a direction's cosine is the direction's column (its coverage)
         used = {
             direction_source(name)
             for model in models

@@ -281,7 +281,7 @@ def _case_predictors(
     (speed is constant at rest) with a note."""
     if names is None:
         return None, []
-    inputs = with_direction_components(predictors)  # a direction as its cosine and sine
+    inputs = with_direction_components(predictors)  # a direction as its cosine
     kept, dropped = [], []
     for name in model_columns(names):
         if name not in inputs.columns:  # named in the error of the fit

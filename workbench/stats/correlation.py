@@ -112,8 +112,8 @@ def joined_blocks(
 
     Returns the joined frame (index ``block``; ``block_start``/``block_end`` kept when
     present), the mode-quantity column names and the predictor column names. A direction
-    column (``wind_dir_rel_deg``) enters as its cosine and sine (``wind_dir_rel_cos``,
-    ``wind_dir_rel_sin``: :mod:`workbench.predictors.directions`), in *predictors_used*
+    column (``wind_dir_rel_deg``) enters as its cosine (``wind_dir_rel_cos``:
+    :mod:`workbench.predictors.directions`), in *predictors_used*
     too.
     """
     if "block" not in predictors.columns:
