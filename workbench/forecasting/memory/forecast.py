@@ -942,7 +942,9 @@ class MemoryRun:
     def _level_step_variance(self, k: int, m_now: np.ndarray) -> np.ndarray | None:
         """What the model-free filters' level may step at row *k* beside its random walk,
         in the first rows after a hole in the record [Hz²] (None: nothing, elsewhere):
-        f² Σ (ρ Δx)², Δx each predictor's change since the row before, ρ its
+        f² Σ (ρ Δx)² (:meth:`~workbench.forecasting.memory.terms.MemoryRefits.prior_variance`), Δx
+        each predictor's change a block, averaged over the blocks sharing data with this
+        one (``overlap``: a single block's move is the log's jitter), ρ its
         ``extrapolation_sensitivity``, f the model's frequency.
 
         After a hole the blend's estimate is the model-free level's (the model's
@@ -958,7 +960,7 @@ class MemoryRun:
         X = self.refits.X_all
         span = min(self.overlap, k - self.first)
         move = (X[k] - X[k - span]) / span
-        relative = np.nansum((self.refits.sensitivity * move) ** 2)
+        relative = self.refits.prior_variance(move)
         return relative * np.where(np.isfinite(m_now), m_now, 0.0) ** 2
 
     def _outside_fill(self, filled, have, F, q_c, model_variance) -> None:
