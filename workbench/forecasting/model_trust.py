@@ -92,6 +92,14 @@ forgets by the drift each block, so the blend comes back when its innovations ha
 balanced for a while (the 20-minute ice voyages and the worked example, measured with
 and without it: ``benchmarks/results/forecast_level_slope_53.txt``).
 
+*After a hole.* After a hole in the record the model's probability is at most the
+prior's again (:meth:`ModelTrust._after_hole`), so the estimate is mostly the model-free
+level's, and a ship that changes speed right after the hole moves the modes
+faster than the level's random walk follows. In the first blocks after it, while the
+refits settle, the level may step by the structural prior on the predictors' move
+(:attr:`BlendStep.level_step_variance`, the prior of the band inside the hole:
+``benchmarks/results/forecast_after_hole_step_54.txt``).
+
 References
 ----------
 .. [1] Y. Bar-Shalom, X. R. Li, T. Kirubarajan, "Estimation with Applications to Tracking

@@ -950,11 +950,10 @@ class MemoryRun:
         After a hole the blend's estimate is the model-free level's (the model's
         probability is the prior's again, :mod:`~workbench.forecasting.model_trust`), and a
         ship that changes speed right after it moves the modes faster than the level's
-        random walk follows: it lagged the ramp by 0.1-0.2 Hz summed over the modes (the
-        12-h voyage with a 6-h hole, seed 1: Kalman against SSI -6.8 % over the 2 h after
-        it). The prior that widens the band inside the hole says how far the modes may step
-        with the predictors; the level takes it as process noise while the refits settle
-        (``benchmarks/results/forecast_hole_band_54.txt``)."""
+        random walk follows. The prior that widens the band inside the hole says how far
+        the modes may step with the predictors; the level takes it as process noise while
+        the refits settle (``since_hole`` below :data:`_REFIT_CONTINUITY_BLOCKS`; measured in
+        ``benchmarks/results/forecast_after_hole_step_54.txt``)."""
         if self.since_hole >= _REFIT_CONTINUITY_BLOCKS or k <= self.first:
             return None
         X = self.refits.X_all
