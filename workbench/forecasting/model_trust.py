@@ -89,8 +89,8 @@ shows in all of them), updates p_S, the probability that the blend (with its mod
 share) errs less than SSI (prior 1/2, switching :data:`SSI_SWITCH_PROBABILITY`: the
 evidence is L blocks old, so the probability has to leave and come back within hours),
 and the estimate is f_S x̂ + (1 - f_S) z_k with f_S = min(1, p_S /
-:data:`SSI_FULL_WEIGHT_PROBABILITY`) (the 6-h worked example's last hour, seed 2: -6.0 ->
--3.0 % against SSI; ``benchmarks/results/forecast_worst_seeds_54.txt``).
+:data:`SSI_FULL_WEIGHT_PROBABILITY`) (the worked example's last hour, measured in
+``benchmarks/results/forecast_worst_seeds_54.txt``).
 
 *The hull-wide change test.* An ice load (added mass and stiffness) moves every mode of
 the hull at once, and the model explains none of the moves; each mode's evidence alone
@@ -161,9 +161,8 @@ CHANGE_THRESHOLD: float | None = 8.0
 #: Probability that the lead test against SSI's hypothesis ("the blend errs less than SSI")
 #: changes from one block to the next, and the probability below which the estimate moves
 #: to the block's SSI (module docstring): pulled from p_S = 0.5 on (switch 0.05) the
-#: estimate left the blend where it gained (6-h demo Kalman/SSI 0.826 -> 0.849), from 0.1
-#: on it left the worked example's seed 2 where it was
-#: (``benchmarks/results/forecast_worst_seeds_54.txt``). [-]
+#: estimate left the blend where it gained (the 6-h demo), from 0.1 on it left the worked
+#: example's seed 2 where it was (``benchmarks/results/forecast_worst_seeds_54.txt``). [-]
 SSI_SWITCH_PROBABILITY = 0.1
 SSI_FULL_WEIGHT_PROBABILITY = 0.25
 #: Probability that the model explains a mode before its first out-of-sample block: the
