@@ -152,6 +152,10 @@ def test_the_record_follows_the_log_and_takes_it_moved(tmp_path):
         f"ship log now {moved}: its first 13 bytes are those of {log} that the state "
         "folder's results came from"
     ]
+    # the UTC offset compared as the reader takes it: +00:00 is UTC, as none given
+    assert _record(tmp_path, log, offset="UTC+00:00").check(has_results=True) == []
+    with pytest.raises(OptionError, match=r"^--dship-utc-offset \+02:00: the state folder"):
+        _record(tmp_path, log, offset="+02:00").check(has_results=True)
     # a row beyond those read rewritten: not what the results came from, taken
     log.write_bytes(b"header\nrow 1\nrow X\n")
     assert _record(tmp_path, log).check(has_results=True) == []

@@ -57,6 +57,16 @@ def _columns_text(columns: Mapping[str, str]) -> str:
     return ",".join(f"{k}={v}" for k, v in sorted(columns.items())) or "(not given)"
 
 
+def _offset(text: str | None):
+    """A UTC offset as the log's reader takes it (None: UTC), to compare two spellings."""
+    from data_contracts.dship_names import parse_utc_offset
+
+    try:
+        return parse_utc_offset(text) if text is not None else parse_utc_offset("+00:00")
+    except ValueError:  # a record's value the reader would not take: compared as text
+        return text
+
+
 def _prefix_digest(path: Path, size: int) -> tuple[str | None, int | None]:
     """SHA-256 (hex) of the first *size* bytes of *path* and the file's size now; (None,
     None) when it is not there, (None, its size) when it is shorter."""
@@ -165,7 +175,7 @@ class ShipLogRecord:
                 f"--dship-columns {_columns_text(self.columns)}: the state folder {state} "
                 f"was made with --dship-columns {_columns_text(columns)}; give the same {keep}"
             )
-        if offset != self.utc_offset:
+        if _offset(offset) != _offset(self.utc_offset):
             raise OptionError(
                 f"--dship-utc-offset {self.utc_offset or '(not given)'}: the state folder "
                 f"{state} was made with --dship-utc-offset {offset or '(not given)'}; "
