@@ -322,6 +322,9 @@ class Monitor:
         # logged shaft speed and speed, once the log's verdicts on its readings are final
         self._shaft_log_note: str | None = None
         self._shaft_rows: dict[int, tuple[float, float, float]] = {}
+        # each tracked row's mark at the logged shaft speed's orders, and whether kept
+        self._orders_at = np.zeros(0, dtype=bool)
+        self._orders_kept = np.zeros(0, dtype=bool)
         self._health_schedule = ""  # from which block the health chart monitors
         self._marks_pending = False
         self._marked: np.ndarray | None = None  # the tracked rows' marks, last given
@@ -1450,12 +1453,17 @@ class Monitor:
         (the log steady, the speed not yet spanning a knot, the modes not yet counted).
         When it changes, every tracked row is marked again (:meth:`_mark_harmonics` keeps
         no mark of the other verdict) and a note says so, naming the blocks marked before.
+
         Each block's logged shaft speed and speed (:func:`~workbench.sid.harmonics.
         block_shaft_table`) are kept once the log's verdicts on its readings are final; the
         modes are compared only while those stay steady over a knot of speed
         (:func:`~workbench.sid.harmonics.steady_shaft_log`), which a log following the
-        shaft fails at the cost of a percentile over the blocks."""
-        from ..sid.harmonics import block_shaft_table, shaft_log_against_speed, steady_shaft_log
+        shaft fails at the cost of a percentile over the blocks. The comparison takes each
+        row's order mark once its block is final (:meth:`_at_orders`) and the modes
+        following the speed from the speed-following test kept as blocks come
+        (:meth:`_mark_from_speed`), so a steady shaft (a controllable-pitch propeller) costs
+        the new blocks' rows, not the voyage's, at each call."""
+        from ..sid.harmonics import block_shaft_table, frozen_shaft_log, steady_shaft_log
 
         blocks = frame[["block", "block_start", "block_end"]].drop_duplicates("block")
         numbers = blocks["block"].astype(int).to_numpy()
@@ -1473,18 +1481,46 @@ class Monitor:
                 (self._shaft_rows if kept else pending)[int(block)] = tuple(row)
         rows = {**self._shaft_rows, **pending}
         shaft = pd.DataFrame(
-            [rows[int(b)] for b in numbers], columns=["shaft_rpm", "speed_kn", "speed_energy_kn"]
+            np.array([rows[int(b)] for b in numbers], dtype=float).reshape(-1, 3),
+            columns=["shaft_rpm", "speed_kn", "speed_energy_kn"],
         )
-        shaft.insert(0, "block", numbers)
-        shaft.insert(1, "block_start", pd.to_datetime(blocks["block_start"], utc=True).to_numpy())
+        steady = steady_shaft_log(shaft)
         note = None
-        if steady_shaft_log(shaft) is not None:
-            window, _ = self._marking_log(log, blocks)  # the rows over the blocks so far
-            note = shaft_log_against_speed(frame, window, shaft, self.options.harmonics)
+        if steady is not None:
+            following = np.isfinite(self._mark_from_speed(frame, log)[:, 0])
+            at_orders = self._at_orders(frame, log)
+            note = frozen_shaft_log(steady, at_orders, following, self.options.harmonics)
         if (note is None) != (self._shaft_log_note is None):
             self._said_shaft_log(note, numbers)
         self._shaft_log_note = note  # the newest counts, for the status
         return note
+
+    def _at_orders(self, frame: pd.DataFrame, log: pd.DataFrame) -> np.ndarray:
+        """Per row of *frame* (the tracked selected modes): whether it sits at an order of
+        the logged shaft speed (:func:`~workbench.sid.harmonics.mark_shaft_orders`), a
+        block's rows kept once the log's verdicts on its readings are final."""
+        from ..sid.harmonics import mark_shaft_orders
+
+        n = len(frame)
+        at = np.zeros(n, dtype=bool)
+        kept = np.zeros(n, dtype=bool)
+        if len(self._orders_kept) <= n:  # else a new tracker: every row again
+            at[: len(self._orders_at)] = self._orders_at
+            kept[: len(self._orders_kept)] = self._orders_kept
+        pending = np.flatnonzero(~kept)
+        if len(pending):
+            part = frame.iloc[pending]
+            window, live = self._marking_log(log, part)
+            marks = mark_shaft_orders(part, window, self.options.harmonics)
+            at[pending] = marks.notna().to_numpy()
+            blocks = part[["block", "block_start", "block_end"]].drop_duplicates("block")
+            ends = pd.to_datetime(blocks["block_end"], utc=True)
+            final = (ends <= _newest_time(log)).to_numpy() & live.settled(
+                blocks["block_start"], blocks["block_end"]
+            )
+            kept[pending] = np.isin(part["block"].to_numpy(), blocks["block"].to_numpy()[final])
+        self._orders_at, self._orders_kept = at, kept
+        return at
 
     def _said_shaft_log(self, note: str | None, blocks: np.ndarray) -> None:
         """The verdict on the logged shaft speed changed to *note* (None: used): a note
@@ -1495,7 +1531,6 @@ class Monitor:
         self._marks, self._marks_kept = np.empty((0, 3)), np.zeros(0, dtype=bool)
         self._block_shaft_rpm, self._shaft_rpm_of_block = {}, {}
         self._shaft_logged = False
-        self._speed_test, self._speed_index, self._block_speed = None, np.empty(0, np.int64), {}
         if note is None and not earlier:
             return
         span = f"blocks {int(blocks.min())}-{int(blocks.max())}"

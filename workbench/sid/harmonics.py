@@ -74,6 +74,7 @@ __all__ = [
     "shaft_rate_per_knot",
     "shaft_log_against_speed",
     "steady_shaft_log",
+    "frozen_shaft_log",
     "usable_shaft_speed",
     "mark_poles",
     "mark_shaft_orders",
@@ -969,9 +970,24 @@ def shaft_log_against_speed(
     steady = steady_shaft_log(shaft)
     if steady is None:
         return None
-    middle, speed_low, speed_high = steady
     at_orders = mark_shaft_orders(selected, log, options).notna().to_numpy()
     following = mark_speed_following(selected, shaft, options).notna().to_numpy()
+    return frozen_shaft_log(steady, at_orders, following, options)
+
+
+def frozen_shaft_log(
+    steady: tuple[float, float, float],
+    at_orders: np.ndarray,
+    following: np.ndarray,
+    options: HarmonicOptions | None = None,
+) -> str | None:
+    """The verdict of :func:`shaft_log_against_speed` from its parts: *steady*
+    (:func:`steady_shaft_log`), and per selected mode whether it sits at an order of the
+    logged shaft speed (*at_orders*, :func:`mark_shaft_orders`) and whether it follows the
+    speed (*following*, :func:`mark_speed_following`)."""
+    options = options or HarmonicOptions()
+    middle, speed_low, speed_high = steady
+    at_orders, following = np.asarray(at_orders, bool), np.asarray(following, bool)
     n_log = int((at_orders & ~following).sum())
     n_speed = int((following & ~at_orders).sum())
     if n_speed < options.min_rows or n_speed < n_log:
