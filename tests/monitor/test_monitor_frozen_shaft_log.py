@@ -151,3 +151,30 @@ def test_the_verdict_on_the_whole_voyage_at_once_is_identify_s(blocks):
     pd.testing.assert_frame_equal(marked[COLUMNS], expected[COLUMNS], check_names=False)
     assert len(monitor.messages) == 1 and "the column is not used" in monitor.messages[0]
     assert "marked again" not in monitor.messages[0]  # nothing was marked before
+
+
+def test_a_verdict_that_turns_back_marks_every_block_again_from_the_log_and_says_so():
+    # the lines follow the speed in blocks 0-5 (the log judged frozen at block 4); from
+    # block 6 on the shaft turns at the logged 100 rpm (orders 1, 2 and 3 at 1.667, 3.333
+    # and 5 Hz): by block 7 more modes sit at its orders than follow the speed, and the
+    # log is used again for every block, as identify uses it on blocks 0-7
+    selected, log = _voyage(
+        [(lambda v: 0.3 * v, SHAPE_FORCED), (lambda v: 0.6 * v, SHAPE_FORCED_2)]
+    )
+    late = (selected["block"] >= 6) & (selected["frequency_hz"] != 8.21)
+    selected.loc[late, "frequency_hz"] = np.tile([100 / 60, 200 / 60], 6)
+    third = selected[late].assign(frequency_hz=300 / 60)
+    selected = pd.concat([selected, third]).sort_values(["block", "frequency_hz"], kind="stable")
+    monitor, marked, said_at = _block_by_block(selected.reset_index(drop=True), log)
+    assert said_at == 4 and len(monitor.messages) == 2
+    assert monitor.messages[1] == (
+        "ship log: shaft_rpm: the logged shaft speed is used again (with the blocks tracked "
+        "so far it is no longer contradicted by the speed); the harmonics of blocks 0-7 are "
+        "marked again from it"
+    )
+    assert monitor._shaft_log_note is None
+    expected = HarmonicMarker(log, OPTIONS).mark_selected(selected.reset_index(drop=True))
+    pd.testing.assert_frame_equal(marked[COLUMNS], expected[COLUMNS], check_names=False)
+    # blocks 6-11: orders 1, 2, 3 (twice) and the mode on the blade pass of 100 rpm
+    late = marked[marked["block"] >= 6]
+    assert late["harmonic"].tolist() == [1.0, 2.0, 3.0, 3.0, 5.0] * 6
