@@ -325,6 +325,7 @@ class Monitor:
         # each tracked row's mark at the logged shaft speed's orders, and whether kept
         self._orders_at = np.zeros(0, dtype=bool)
         self._orders_kept = np.zeros(0, dtype=bool)
+        self._judge_pending = False  # a block's shaft speed above is not final yet
         self._health_schedule = ""  # from which block the health chart monitors
         self._marks_pending = False
         self._marked: np.ndarray | None = None  # the tracked rows' marks, last given
@@ -1370,7 +1371,10 @@ class Monitor:
         if "shaft_rpm" not in log.columns or log["shaft_rpm"].isna().all():
             return self._mark_from_speed(frame, log) if "speed_kn" in log.columns else None
         if self._judge_shaft_log(frame, log):  # a frozen log: as one without a shaft speed
-            return self._mark_from_speed(frame, log) if "speed_kn" in log.columns else None
+            marks = self._mark_from_speed(frame, log)
+            # marked again while a block's shaft speed may still change the verdict
+            self._marks_pending = self._marks_pending or self._judge_pending
+            return marks
         from ..sid.harmonics import HarmonicMarker
 
         n = len(frame)
@@ -1479,6 +1483,7 @@ class Monitor:
             values = table[["shaft_rpm", "speed_kn", "speed_energy_kn"]].to_numpy(float)
             for block, row, kept in zip(table["block"].astype(int), values, final, strict=True):
                 (self._shaft_rows if kept else pending)[int(block)] = tuple(row)
+        self._judge_pending = bool(pending)
         rows = {**self._shaft_rows, **pending}
         shaft = pd.DataFrame(
             np.array([rows[int(b)] for b in numbers], dtype=float).reshape(-1, 3),
