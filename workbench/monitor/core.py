@@ -1497,7 +1497,7 @@ class Monitor:
             note = frozen_shaft_log(steady, at_orders, following, self.options.harmonics)
         if (note is None) != (self._shaft_log_note is None):
             self._said_shaft_log(note, numbers)
-        self._shaft_log_note = note  # the newest counts, for the status
+        self._shaft_log_note = note  # with the newest counts
         return note
 
     def _at_orders(self, frame: pd.DataFrame, log: pd.DataFrame) -> np.ndarray:
