@@ -113,6 +113,8 @@ FORECAST_MODEL = _FORECAST.model
 #: Steady-state weight on the SSI estimate of ``--model window``. [-]
 FORECAST_TRUST = DEFAULT_TRUST
 FORECAST_MAC_MIN = _FORECAST.mac_min
+#: Prior relative frequency change per unit of a predictor beyond the model's range. [1/unit]
+FORECAST_EXTRAPOLATION_SENSITIVITY = _FORECAST.sensitivities()
 FORECAST_REACQUIRE_BLOCKS = {
     "memory": _FORECAST.reacquire_blocks,
     "window": _FORECAST.reacquire_blocks,

@@ -98,3 +98,46 @@ def test_every_channel_implausible_is_still_refused(tmp_path, capsys):
     assert status == 0, err
     assert f"{paths[GLITCHED]}: unreadable (" in err
     assert "5 block(s) processed, 2 skipped" in out
+
+
+def _inf_at_end(a):
+    a[-40, 2] = np.inf  # 1.25 s before the file's end: inside the next file's filter padding
+
+
+def _huge_at_end(a):
+    a[-50:-40, 2] = 1e6
+
+
+@pytest.mark.parametrize(
+    ("glitch", "why"), [(_inf_at_end, "infinite values"), (_huge_at_end, "|a| above 500 m/s²")]
+)
+def test_a_glitch_in_a_neighbours_padding_is_blanked_there(tmp_path, capsys, glitch, why):
+    """File 4 is filtered padded with file 3's last seconds (per file: 16 Hz from 32 Hz).
+    Those rows obey the rule of file 3 itself: the channel is NaN in them, as in the run with
+    the channel NaN throughout file 3 (there and here the padded channel cannot be bridged:
+    block 4, files 4 and 5, is built on its own from its raw files).
+
+    Main read the padding raw: the 1e6 spike rang into file 4's channel (block 4's modes
+    differed from the run with the channel NaN, 3.0992 -> 3.1015 Hz); an infinite value made
+    file 4's filtered channel NaN, which gave the same blocks by another way (kept here as
+    the case the rule covers too)."""
+    paths = write_voyage(tmp_path / "voyage", n_files=8)
+    shutil.copytree(tmp_path / "voyage", tmp_path / "nan")
+    _edit(paths[GLITCHED], glitch)
+    _edit(
+        tmp_path / "nan" / paths[GLITCHED].name, lambda a: a.__setitem__((slice(None), 2), np.nan)
+    )
+    status, out, err = _identify(capsys, tmp_path / "voyage", tmp_path / "out", "16")
+    assert status == 0, err
+    assert f"{paths[GLITCHED].name}: channel acc03 blanked ({why})" in out
+    assert _identify(capsys, tmp_path / "nan", tmp_path / "reference", "16")[0] == 0
+    # blocks 2 and 3 hold file 3; block 4 holds file 4, padded with file 3's last seconds;
+    # block 1's file 2 is padded with file 3's first seconds (real samples here, NaN there)
+    later = {2, 3, 4, 5, 6}
+    for kind in ("selected", "poles"):
+        ours = pd.read_parquet(tmp_path / "out" / f"{kind}.parquet")
+        theirs = pd.read_parquet(tmp_path / "reference" / f"{kind}.parquet")
+        ours = ours[ours["block"].isin(later)].reset_index(drop=True)
+        theirs = theirs[theirs["block"].isin(later)].reset_index(drop=True)
+        assert set(ours["block"]) >= {4}, kind
+        pd.testing.assert_frame_equal(ours, theirs, check_exact=True)

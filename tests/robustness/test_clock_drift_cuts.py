@@ -35,8 +35,8 @@ from workbench.cli.monitoring import prepare_monitor
 from workbench.fingerprints import sha256
 from workbench.store import BlockStore
 
-from .test_clock_drift import FILE_S, JITTER_S, MONITOR_ARGS, _drifting, _identify, _write
-from .voyage import selected_modes
+from .test_clock_drift import ARGS, FILE_S, JITTER_S, MONITOR_ARGS, _drifting, _identify, _write
+from .voyage import identify_run, selected_modes
 
 LIVE_ARGS = [a for a in MONITOR_ARGS if a != "--once"]
 
@@ -191,4 +191,102 @@ def test_identify_names_a_block_its_drifting_record_misses(tmp_path, capsys):
         "block(s) not identified, whose span a drifting record's samples hold on their count "
         "but whose UTC span runs more than 1 s past the record's first or last sample: "
         "block 10 by 1.08 s at its end"
+    ]
+
+
+#: The live monitor's arguments with blocks of varying length (``--block-minutes auto``:
+#: 5 to 35 min centred on 5-min steps; without a ship log, by the excitation alone).
+AUTO_ARGS = [
+    *LIVE_ARGS[: LIVE_ARGS.index("--block-minutes")],
+    "--block-minutes",
+    "auto",
+    *LIVE_ARGS[LIVE_ARGS.index("--step-minutes") + 2 :],
+]
+
+
+def _auto_monitor(watch, state):
+    return prepare_monitor(
+        parse_arguments(["monitor", "--watch", str(watch), "--state", str(state), *AUTO_ARGS])
+    )
+
+
+def test_the_adaptive_monitor_judges_the_cuts_it_stored(tmp_path):
+    """As the fixed-block monitor, with blocks of varying length, stopped after the first
+    flush and started again: after the first 12 files (1 h, 100 ppm fast: 0.36 s short of
+    its UTC hour) blocks 8-11, whose spans (35, 25, 15 and 5 min) end at 1 h, are cut at
+    the data's last sample; the line of all 24 files cuts them at their labels' UTC, up to
+    312.5 ms (5 analysis samples) later. Said once, from the cuts and lengths in the store
+    (before: nothing said, the fixed-block check not run with varying lengths)."""
+    files = _write(tmp_path / "source", _drifting(100))
+    watch, state = tmp_path / "watch", tmp_path / "state"
+    watch.mkdir()
+    monitor = _auto_monitor(watch, state)
+    try:
+        _land(monitor, files[:12], watch, flush=True)
+        assert sorted(monitor.done) == list(range(12))
+        assert not [m for m in monitor.messages if "cut up to" in m]
+    finally:
+        monitor.close()
+    lengths = BlockStore(state / "store").read("lengths").set_index("block")["block_length_s"]
+    assert lengths.loc[8:11].tolist() == [2100.0, 1500.0, 900.0, 300.0]
+    monitor = _auto_monitor(watch, state)
+    try:
+        _land(monitor, files[12:], watch, flush=True)
+        monitor.step(flush=True)
+    finally:
+        monitor.close()
+    assert sorted(monitor.done) == list(range(24))
+    said = [m for m in monitor.messages if "cut up to" in m]
+    assert said == [BLOCK_4_MOVED.replace("block(s) 4", "block(s) 8-11").replace("250.0", "312.5")]
+    # block 11 (3300-3600 s UTC): 3300 s x (1 + 100 ppm) = 3300.33 s on the sample count,
+    # 42.24 samples of 128 Hz, on the lattice of 8 samples 40 (312.5 ms) from its cut
+    assert round(3300 * 100e-6 * 128 / 8) * 8 == 40
+
+
+def test_the_monitor_names_a_block_its_drifting_record_misses(tmp_path):
+    """150 ppm fast, all files landed and flushed (twice): the record's last sample lies
+    1.08 s before the end of block 10's UTC span (with varying lengths: of block 23's,
+    the shortest span), beyond EDGE_SHIFT_S: not identified, and one note says so, as
+    identify's summary does (before: nothing said)."""
+    files = _write(tmp_path / "source", _drifting(150))
+    said = {}
+    for name, make, expected in (("fixed", _monitor, 10), ("auto", _auto_monitor, 23)):
+        watch, state = tmp_path / name / "watch", tmp_path / name / "state"
+        watch.mkdir(parents=True)
+        monitor = make(watch, state)
+        try:
+            _land(monitor, files, watch, flush=True)
+            monitor.step(flush=True)
+        finally:
+            monitor.close()
+        assert sorted(monitor.done) == list(range(expected))
+        said[name] = [m for m in monitor.messages if "not identified" in m]
+    line = (
+        "block(s) not identified, whose span a drifting record's samples hold on their count "
+        "but whose UTC span runs more than 1 s past the record's first or last sample: "
+    )
+    assert said == {
+        "fixed": [f"{line}block 10 by 1.08 s at its end"],
+        "auto": [f"{line}block 23 by 1.08 s at its end"],
+    }
+
+
+def test_identify_with_varying_lengths_names_only_the_block_it_misses(tmp_path, capsys):
+    """The same 150-ppm record, ``identify --block-minutes auto``: blocks 0-22 identified
+    (20-22 shortened to 25, 15 and 5 min at the data's end), block 23's shortest span
+    (5 min) runs 1.08 s past the last sample. One line names block 23 (before: one line
+    per length, naming blocks 20, 21 and 22 too, which their own length identified)."""
+    _write(tmp_path / "voyage", _drifting(150))
+    auto = ARGS[ARGS.index("--step-minutes") + 2 :]
+    code, out, err = identify_run(
+        capsys, tmp_path / "voyage", tmp_path / "out", ["--block-minutes", "auto", *auto]
+    )
+    assert code == 0, err
+    blocks = pd.read_csv(tmp_path / "out" / "blocks.csv")
+    assert blocks["block"].tolist() == list(range(23))
+    assert blocks["block_length_s"].tolist()[-3:] == [1500.0, 900.0, 300.0]
+    assert [line for line in out.splitlines() if "not identified" in line] == [
+        "block(s) not identified, whose span a drifting record's samples hold on their count "
+        "but whose UTC span runs more than 1 s past the record's first or last sample: "
+        "block 23 by 1.08 s at its end"
     ]

@@ -24,8 +24,9 @@ import pytest
 
 from data_contracts import AccelerationRecord, read_accelerations, write_accelerations
 from workbench.signals import ConditioningOptions, bandpass, decimate, load_block, plan_blocks
+from workbench.signals.block_plan import read_file_info
 from workbench.signals.file_conditioning import FileConditioner
-from workbench.signals.file_reads import _read_rows
+from workbench.signals.file_reads import _edge_rows, _read_rows
 from workbench.signals.filter_cascade import (
     _decimate_channels_last,
     default_decimation_rate,
@@ -100,6 +101,29 @@ def test_partial_read_equals_the_rows_of_the_whole_file(voyage):
     np.testing.assert_array_equal(rows, whole[100:900])
     reordered = _read_rows(info, CHANNELS[::-1], 0, 10)
     np.testing.assert_array_equal(reordered, whole[:10, ::-1])
+
+
+def test_a_neighbours_edge_obeys_the_readers_glitch_rule(tmp_path):
+    """The rows a file lends its neighbour's filters are read in place, yet obey the rule
+    the reader applies to the whole file: with ``glitches="blank"`` a channel holding an
+    infinite value (or |a| > 500 m/s²) there is NaN in them, the other channels untouched;
+    rows where every channel does (wrong units: the file is refused) are not lent at all.
+    Main returned them raw (inf, and 2e5 m/s² samples)."""
+    n = int(FILE_S * RATE)
+    x = _record(np.random.default_rng(3), n)
+    path = write_accelerations(AccelerationRecord(x, RATE, T0, CHANNELS), tmp_path / "a.npz")
+    x[-10, 2] = np.inf
+    np.savez(path, **{**dict(np.load(path)), "acceleration": x})  # the writer refuses inf
+    info = read_file_info(path)
+    blank = {"glitches": "blank"}
+    rows = _edge_rows(info, CHANNELS, n - 100, None, blank)
+    assert np.isnan(rows[:, 2]).all()
+    np.testing.assert_array_equal(rows[:, [0, 1, 3, 4]], x[n - 100 :, [0, 1, 3, 4]])
+    # rows without the glitch as they are
+    np.testing.assert_array_equal(_edge_rows(info, CHANNELS, 0, 100, blank), x[:100])
+    x[-10, 2] = 1.0
+    np.savez(path, **{**dict(np.load(path)), "acceleration": x * 2e4})  # mm/s²-like
+    assert _edge_rows(info, CHANNELS, n - 100, None, blank) is None
 
 
 def test_blocks_equal_the_per_block_builder_within_the_filter_transients(voyage):

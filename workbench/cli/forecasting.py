@@ -4,6 +4,7 @@ SSI, its errors against a truth, and the structural-health chart of its residual
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from .. import defaults as D
@@ -154,7 +155,39 @@ def _add_forecast(commands: argparse._SubParsersAction) -> None:
         + ", ".join(f"{k} for --model {m}" for m, k in D.FORECAST_REACQUIRE_BLOCKS.items())
         + ")",
     )
+    parser.add_argument(
+        "--extrapolation-sensitivity",
+        default=None,
+        metavar="COLUMN=RHO,...",
+        help="--model memory: prior relative frequency change of a mode per unit of a "
+        "predictor beyond the range the model was fitted on; widens the band where a mode "
+        "is not measured (a hole in the record), the estimate unchanged (default: "
+        + ",".join(f"{k}={v:g}" for k, v in D.FORECAST_EXTRAPOLATION_SENSITIVITY.items())
+        + "; 'none': no prior)",
+    )
     parser.set_defaults(run=_run_forecast)
+
+
+def _parse_sensitivity(text: str | None) -> dict[str, float] | None:
+    """``--extrapolation-sensitivity``: None (the default), {} for 'none', else the pairs."""
+    if text is None:
+        return None
+    if text.strip().lower() == "none":
+        return {}
+    pairs = {}
+    for item in text.split(","):
+        name, sep, value = item.partition("=")
+        try:
+            rho = float(value)
+        except ValueError:
+            rho = math.nan
+        if not sep or not name.strip() or not (math.isfinite(rho) and rho >= 0.0):
+            raise UsageError(
+                f"--extrapolation-sensitivity takes COLUMN=RHO pairs, RHO >= 0 (or 'none'), "
+                f"got {item!r}"
+            )
+        pairs[name.strip()] = rho
+    return pairs
 
 
 def _parse_trust(text: str) -> float | None:
@@ -193,6 +226,7 @@ def check_forecast_flags(args: argparse.Namespace) -> float | None | str:
     _check_positive(horizon=args.horizon, reacquire_blocks=args.reacquire_blocks)
     _check_share("min-presence", args.min_presence)
     _check_share("mac-min", args.mac_min)
+    _parse_sensitivity(getattr(args, "extrapolation_sensitivity", None))
     return "auto" if args.trust is None else _parse_trust(str(args.trust))
 
 
@@ -213,6 +247,9 @@ def forecast_options(args: argparse.Namespace, trust, **more):
         min_presence=args.min_presence,
         mac_min=args.mac_min,
         **({} if args.reacquire_blocks is None else {"reacquire_blocks": args.reacquire_blocks}),
+        extrapolation_sensitivity=_parse_sensitivity(
+            getattr(args, "extrapolation_sensitivity", None)
+        ),
         **more,
     )
 

@@ -183,6 +183,7 @@ MONITOR_FORECAST_FLAGS = (
     "min_presence",
     "reacquire_blocks",
     "all_predictors",
+    "extrapolation_sensitivity",
 )
 MONITOR_HEALTH_FLAGS = ("reference_hours", "ewma_lambda", "false_alarms_per_day")
 

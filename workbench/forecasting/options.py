@@ -15,6 +15,7 @@ name                   alias        meaning
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -63,6 +64,18 @@ def check_trust(trust, model: str) -> None:
             f"model={model!r} estimates its noise levels from the data"
         )
 
+
+#: Prior standard deviation of a mode's relative frequency change per unit of a predictor's
+#: move beyond the range the model saw (``extrapolation_sensitivity``) [1/unit]: the speed
+#: 0.2 % a knot (water's added mass and hydrodynamic stiffness: global hull modes lower by
+#: 1-3 % at service speed), a temperature 0.1 % a degree (steel's modulus, the water's and
+#: ice's added stiffness). A prior, not a measurement: what a mode may do where nothing
+#: the forecast has seen says.
+EXTRAPOLATION_SENSITIVITY: dict[str, float] = {
+    "speed_kn": 0.002,
+    "water_temp_c": 0.001,
+    "air_temp_c": 0.001,
+}
 
 #: The fewest training blocks a model is fitted on unless ``min_train_blocks`` is given:
 #: ``max(5, train_blocks // 2)``. [blocks]
@@ -267,6 +280,15 @@ class ForecastOptions:
         Normalised predictors are clipped to ±this many window standard deviations before
         prediction, so a long forecast cannot extrapolate a 20-block fit without bound
         (e.g. a time trend); clipped blocks carry a warning.
+    extrapolation_sensitivity : mapping of str to float, optional
+        Model ``"memory"``: per predictor column, the prior standard deviation of a mode's
+        relative frequency change per unit of the predictor beyond the range the model was
+        fitted on [1/unit]. In a row where the mode is not measured (a hole in the record)
+        and a predictor lies a distance d beyond that range, of width w, the estimate's
+        variance grows by (ρ f d)² d / (d + w), f the model's frequency: a predictor the model
+        saw constant (the speed in port) widens the band by its whole excursion, one it saw
+        over a range wider than the step hardly at all. The estimate is unchanged. Default
+        :data:`EXTRAPOLATION_SENSITIVITY`; ``{}``: none.
     memory_blocks : float
         Model ``"memory"``: forgetting time constant, λ = exp(-1/memory_blocks). Default
         576 blocks (2 days of 5-minute blocks). [blocks]
@@ -326,6 +348,7 @@ class ForecastOptions:
     gap_warning_blocks: int = 12
     alpha: float = 0.05
     extrapolation_limit: float = 4.0
+    extrapolation_sensitivity: Mapping[str, float] | None = None
     memory_blocks: float = 576.0
     selection_blocks: int = 288
     reselect_blocks: int = 36
@@ -354,6 +377,13 @@ class ForecastOptions:
         check_trust(self.trust, self.model)
         self._check_numbers()
 
+    def sensitivities(self) -> dict[str, float]:
+        """``extrapolation_sensitivity`` with its default: column -> ρ [1/unit]."""
+        given = self.extrapolation_sensitivity
+        return {
+            k: float(v) for k, v in (EXTRAPOLATION_SENSITIVITY if given is None else given).items()
+        }
+
     def _check_numbers(self) -> None:
         """ValueError naming the first setting out of its range."""
         check_train_blocks(self.train_blocks, self.min_train_blocks)
@@ -366,6 +396,9 @@ class ForecastOptions:
         for name in ("gate_sigma", "reacquire_band", "max_gate", "extrapolation_limit"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name}={getattr(self, name)!r} must be > 0")
+        for name, value in dict(self.extrapolation_sensitivity or {}).items():
+            if not (math.isfinite(float(value)) and float(value) >= 0.0):
+                raise ValueError(f"extrapolation_sensitivity[{name!r}]={value!r} must be >= 0")
         if not 0.0 <= self.mac_min < 1.0:
             raise ValueError(f"mac_min={self.mac_min!r} must be in [0, 1)")
         if int(self.reacquire_blocks) != self.reacquire_blocks or self.reacquire_blocks < 1:

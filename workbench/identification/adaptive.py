@@ -384,6 +384,18 @@ def _read_cases(cases) -> pd.DataFrame | None:
     return table
 
 
+def _missed_line(plan, first: pd.Timestamp, adaptive: AdaptiveBlockOptions) -> str:
+    """The line naming the blocks whose span a drifting record's samples hold on their
+    count but whose shortest span runs past its first or last sample in UTC (no length
+    of theirs is planned: :func:`~workbench.signals.block_plan.missed_blocks`); ""
+    when none. Each length's run names only its own blocks, which it identifies."""
+    from ..signals.block_plan import missed_blocks, missed_blocks_line, placed_block_numbers
+
+    grid = length_grid(first, adaptive.lengths()[-1], adaptive.step_s)
+    listed = placed_block_numbers(plan.files, grid).tolist()
+    return missed_blocks_line(missed_blocks(plan.files, grid, plan.sampling_rate_hz, listed))
+
+
 def identify_adaptive(
     inputs: Iterable[str | os.PathLike],
     out_dir: str | os.PathLike,
@@ -496,6 +508,9 @@ def identify_adaptive(
                 + (f": block(s) {block_ranges(blocks)} not identified" if len(blocks) else "")
             )
     result.notes = list(dict.fromkeys(n for p in parts for n in p.notes))
+    missed = _missed_line(plan, first, adaptive)
+    if missed:
+        result.notes.append(missed)
     counts = lengths["block_length_s"].value_counts().sort_index()
     result.notes.insert(
         0,

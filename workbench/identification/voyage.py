@@ -665,6 +665,19 @@ def _ship_log(dship, mapping) -> pd.DataFrame | None:
     return read_dship(dship, mapping=mapping)
 
 
+def _missed_line(plan, blocks: Sequence[int] | None) -> str:
+    """:func:`~workbench.signals.block_plan.missed_blocks_note` of *plan*, of the blocks
+    asked for (*blocks*; all when None) only."""
+    from ..signals.block_plan import missed_blocks, missed_blocks_line
+
+    listed = {int(b.block) for b in plan.blocks}
+    missed = missed_blocks(plan.files, plan.grid, plan.sampling_rate_hz, listed)
+    if blocks is not None:
+        wanted = {int(b) for b in blocks}
+        missed = {b: how for b, how in missed.items() if b in wanted}
+    return missed_blocks_line(missed)
+
+
 def identify_voyage(
     inputs: Iterable[str | os.PathLike],
     out_dir: str | os.PathLike,
@@ -748,7 +761,6 @@ def identify_voyage(
         clock_drift_note,
         clock_jitter_note,
         edge_cut_note,
-        missed_blocks_note,
     )
 
     options = options or IdentifyOptions()
@@ -865,7 +877,7 @@ def identify_voyage(
             clock_jitter_note(plan.files),
             clock_drift_note(plan.files),
             edge_cut_note(plan),
-            missed_blocks_note(plan),
+            _missed_line(plan, blocks),
         ]
         result.notes = left_out_notes(plan) + [n for n in clock if n] + marker.lines()
         result.warnings += marker.unmarked()

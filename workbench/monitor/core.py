@@ -263,6 +263,10 @@ class Monitor:
         #: the line of the files landed since; the files taken by content and back.
         self._cuts: dict[int, tuple[str, int]] = {}
         self._cuts_said: set[int] = set()
+        #: With varying lengths: the stored blocks' lengths (the store's ``lengths``). [s]
+        self._stored_lengths: dict[int, float] = {}
+        #: Blocks said to be missed by a drifting record's samples (:meth:`_note_missed_blocks`).
+        self._missed_said: set[int] = set()
         self._taken_paths: dict[str, Path] = {}
         self._taken_digests: dict[Path, str] = {}
         self._done_below = 0  # every block before it is in done (see _first_undecided)
@@ -814,9 +818,9 @@ class Monitor:
         (stored: :data:`~workbench.store.CUT_COLUMNS`), not where the line of the files
         landed since puts it."""
         grid = self.voyage.grid
-        row = self._lengths.get(block) if self.voyage.lengths is not None else None
-        if row is not None:
-            grid = self.voyage.length_run(float(row["block_length_s"]))[0]
+        length = self._decided_length(block) if self.voyage.lengths is not None else None
+        if length is not None:
+            grid = self.voyage.length_run(length)[0]
         start, end = grid.start(block), grid.end(block)
         cut = self._cut_ns(block, placed)
         if cut is None:
@@ -1010,6 +1014,12 @@ class Monitor:
             log.warning("%s", notice)
         self.done = self.store.completed_blocks()
         self._cuts = self.store.block_cuts()  # the spans the stored blocks were cut from
+        if adaptive is not None:  # the stored blocks' lengths: the grids they were cut on
+            stored = self.store.read("lengths")
+            if len(stored):
+                blocks = stored["block"].astype(int).tolist()
+                lengths_s = stored["block_length_s"].astype(float).tolist()
+                self._stored_lengths = dict(zip(blocks, lengths_s, strict=True))
         self._done_below = 0
         # files taken before the voyage was fixed are checked now (those still to take
         # among them placed with them: _placed_now)
@@ -1061,21 +1071,19 @@ class Monitor:
             if flush or self._settled(planned, voyage.per_file, starts, ends, newest)
         ]
         self._planned = plan
-        self._note_moved_cuts(infos, starts, ends, voyage.grid, voyage.options)
+        self._note_moved_cuts(infos, starts, ends)
+        if flush:
+            self._note_missed_blocks(infos, starts)
         return ready
 
-    def _note_moved_cuts(self, infos, starts, ends, grid, options) -> None:
+    def _note_moved_cuts(self, infos, starts, ends) -> None:
         """Say once which decided blocks of a drifting record the clock line of the files
         landed now (*infos*, placed) cuts more than :func:`~workbench.signals.block_plan.
         cut_tolerance_s` from where they were cut (the line of the files landed then):
         they are kept as decided. A refit moving an undecided block's cut is how the line
-        learns the clock; a decided block's cut within the tolerance is the same cut."""
-        from ..signals.block_plan import (
-            cut_tolerance_s,
-            line_placed_ns,
-            placed_blocks,
-            record_clocks,
-        )
+        learns the clock; a decided block's cut within the tolerance is the same cut. With
+        blocks of varying length each is judged on its own length's grid."""
+        from ..signals.block_plan import record_clocks
 
         clocks = record_clocks(infos, starts)
         if any(clock.drifting for clock in clocks):
@@ -1085,6 +1093,79 @@ class Monitor:
             blocks = sorted(b for b in self._cuts if b not in self._cuts_said)
         if not blocks:
             return
+        moved: dict[float, dict[int, float]] = {}  # tolerance [ns] -> block -> off [ms]
+        for grid, options, group in self._decided_runs(blocks):
+            tolerance_ns, found = self._moved_cuts(
+                clocks, infos, starts, ends, grid, options, group
+            )
+            if found:
+                moved.setdefault(tolerance_ns, {}).update(found)
+        for tolerance_ns, found in sorted(moved.items()):
+            self._cuts_said.update(found)
+            largest = max(found.values(), key=abs)
+            self.messages.append(
+                f"block(s) {block_ranges(sorted(found))} of a drifting record, decided from "
+                "the clock line of the files landed then, are cut up to "
+                f"{largest:+.1f} ms elsewhere by the line of the files landed now (beyond "
+                f"{tolerance_ns / 1e6:g} ms: the clock jitter, or one analysis sample); they "
+                "are kept as decided"
+            )
+
+    def _note_missed_blocks(self, infos, starts) -> None:
+        """At a flush (the data present taken as all there is for now): say once the
+        blocks whose span a drifting record's samples hold on their count but whose UTC
+        span runs past its first or last sample (:func:`~workbench.signals.block_plan.
+        missed_blocks`), as identify's summary says them; with varying lengths, those
+        whose shortest span does (no length of theirs is planned)."""
+        from ..signals.block_plan import missed_blocks, missed_blocks_line, placed_block_numbers
+
+        voyage = self.voyage
+        grid = voyage.grid
+        if voyage.lengths is not None:
+            grid = voyage.length_run(voyage.lengths.adaptive.lengths()[-1])[0]
+        listed = placed_block_numbers(infos, grid).tolist()
+        missed = missed_blocks(infos, grid, voyage.rate_hz, listed, starts)
+        missed = {b: how for b, how in missed.items() if b not in self._missed_said}
+        if not missed:
+            return
+        self._missed_said.update(missed)
+        line = missed_blocks_line(missed)
+        log.info("%s", line)
+        self.messages.append(line)
+
+    def _decided_runs(self, blocks: Sequence[int]):
+        """(grid, options, blocks) of the decided *blocks* by the grid they were cut on:
+        the voyage's, or with varying lengths each length's (a block left out, or whose
+        length is unknown, is not among them)."""
+        voyage = self.voyage
+        if voyage.lengths is None:
+            yield voyage.grid, voyage.options, list(blocks)
+            return
+        by_length: dict[float, list[int]] = {}
+        for block in blocks:
+            length = self._decided_length(block)
+            if length is not None:
+                by_length.setdefault(length, []).append(block)
+        for length, group in sorted(by_length.items()):
+            grid, options, _ = voyage.length_run(length)
+            yield grid, options, group
+
+    def _decided_length(self, block: int) -> float | None:
+        """The length of the decided (or length-decided) *block* with varying lengths,
+        from this run's decisions or the store's ``lengths`` table; None for a block no
+        length fits or of unknown length. [s]"""
+        row = self._lengths.get(block)
+        if row is not None:
+            return float(row["block_length_s"])
+        return self._stored_lengths.get(block)
+
+    def _moved_cuts(
+        self, clocks, infos, starts, ends, grid, options, blocks
+    ) -> tuple[float, dict[int, float]]:
+        """The tolerance [ns] and the decided *blocks* (of *grid*) the clock line of the
+        files landed now cuts beyond it from where they were cut: block -> off [ms]."""
+        from ..signals.block_plan import cut_tolerance_s, line_placed_ns, placed_blocks
+
         rate = self.voyage.rate_hz
         lattice = options.decimation_factor(rate)
         tolerance_ns = cut_tolerance_s(rate, lattice) * _NS
@@ -1104,7 +1185,7 @@ class Monitor:
         near_ns = tolerance_ns - 0.5 * lattice / rate * _NS
         blocks = [b for b, far in zip(blocks, np.abs(lines - cuts) > near_ns, strict=True) if far]
         if not blocks:
-            return
+            return tolerance_ns, {}
         now = placed_blocks(
             infos, starts, ends, grid, blocks, max_gap_s=options.max_gap_s, lattice=lattice
         )
@@ -1119,17 +1200,7 @@ class Monitor:
             )
             if abs(off_ns) > tolerance_ns + 1e3:  # 1 us: the placed times' rounding
                 moved[block] = off_ns / 1e6
-        if not moved:
-            return
-        self._cuts_said.update(moved)
-        largest = max(moved.values(), key=abs)
-        self.messages.append(
-            f"block(s) {block_ranges(sorted(moved))} of a drifting record, decided from the "
-            "clock line of the files landed then, are cut up to "
-            f"{largest:+.1f} ms elsewhere by the line of the files landed now (beyond "
-            f"{tolerance_ns / 1e6:g} ms: the clock jitter, or one analysis sample); they are "
-            "kept as decided"
-        )
+        return tolerance_ns, moved
 
     def _settled(self, planned, per_file: bool, starts, ends, newest: int) -> bool:
         """Whether the data of *planned* (and, when files are decimated one by one, of
@@ -1211,6 +1282,9 @@ class Monitor:
             if flush or self._settled(planned, per_file, starts, ends, newest):
                 ready.append(planned)
         self._planned = [b for b in ready if b.block not in self.done]
+        self._note_moved_cuts(infos, starts, ends)
+        if flush:
+            self._note_missed_blocks(infos, starts)
         return ready
 
     def _undecided(self) -> list[int]:

@@ -82,6 +82,8 @@ __all__ = [
     "cut_tolerance_s",
     "edge_cut_note",
     "line_placed_ns",
+    "missed_blocks",
+    "missed_blocks_line",
     "missed_blocks_note",
     "place_files",
     "placed_block_numbers",
@@ -1093,31 +1095,53 @@ def missed_blocks_note(plan: BlockPlan) -> str:
     nominal length of its samples in less UTC: the last block's UTC span may run past its
     last sample), and by how much; "" when there is none. Those blocks are not in *plan*
     (:func:`placed_block_numbers`): without this line they would be missing unsaid."""
-    infos = plan.files
-    if not infos:
-        return ""
-    clocks = record_clocks(infos)
-    if not (clocks[0].drifting or clocks[-1].drifting):
-        return ""
-    edge = max(
-        pd.Timedelta(seconds=0.5 / plan.sampling_rate_hz), pd.Timedelta(seconds=CLOCK_JITTER_S)
+    missed = missed_blocks(
+        plan.files, plan.grid, plan.sampling_rate_hz, {int(b.block) for b in plan.blocks}
     )
-    held = plan.grid.complete_blocks(infos[0].start_time - edge, infos[-1].end_time + edge)
-    listed = {int(b.block) for b in plan.blocks}
+    return missed_blocks_line(missed)
+
+
+def missed_blocks(
+    infos: Sequence[FileInfo],
+    grid: BlockGrid,
+    sampling_rate_hz: float,
+    listed,
+    starts_ns: np.ndarray | None = None,
+) -> dict[int, str]:
+    """The blocks of *grid* whose span the placed files *infos* (time order) hold on
+    their samples' count but which a plan of them does not list (*listed*: the blocks it
+    lists, :func:`placed_block_numbers`) because a drifting record's first or last sample
+    falls inside their UTC span (:func:`missed_blocks_note`): block -> "by 1.08 s at its
+    end". *starts_ns*: the files' placed starts [ns], when at hand."""
+    if not infos:
+        return {}
+    clocks = record_clocks(infos, starts_ns)
+    if not (clocks[0].drifting or clocks[-1].drifting):
+        return {}
+    edge = max(pd.Timedelta(seconds=0.5 / sampling_rate_hz), pd.Timedelta(seconds=CLOCK_JITTER_S))
+    held = grid.complete_blocks(infos[0].start_time - edge, infos[-1].end_time + edge)
+    listed = {int(k) for k in listed}
     first_ns = clocks[0].utc_ns(_ns(infos[0].start_time))
     last_ns = clocks[-1].utc_ns(_ns(infos[-1].end_time))
-    said = []
+    missed = {}
     for block in (int(k) for k in held if int(k) not in listed):
-        before_s = (first_ns - _ns(plan.grid.start(block))) / _NS
-        after_s = (_ns(plan.grid.end(block)) - last_ns) / _NS
+        before_s = (first_ns - _ns(grid.start(block))) / _NS
+        after_s = (_ns(grid.end(block)) - last_ns) / _NS
         where = "at its end" if after_s >= before_s else "at its start"
-        said.append(f"block {block} by {max(before_s, after_s):.2f} s {where}")
-    if not said:
+        missed[block] = f"by {max(before_s, after_s):.2f} s {where}"
+    return missed
+
+
+def missed_blocks_line(missed: Mapping[int, str]) -> str:
+    """The line of :func:`missed_blocks_note` naming *missed* (:func:`missed_blocks`), ""
+    when empty."""
+    if not missed:
         return ""
+    said = ", ".join(f"block {block} {how}" for block, how in sorted(missed.items()))
     return (
         "block(s) not identified, whose span a drifting record's samples hold on their "
         f"count but whose UTC span runs more than {EDGE_SHIFT_S:g} s past the record's first "
-        f"or last sample: {', '.join(said)}"
+        f"or last sample: {said}"
     )
 
 

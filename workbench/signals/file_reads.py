@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from data_contracts import read_accelerations
+from data_contracts import AccelerationRecord, read_accelerations, validate_accelerations
 from data_contracts.npz import read_sample_rows
 
 from .block_plan import FileInfo, align_channels
@@ -48,7 +48,15 @@ def _read_rows(
     """Rows [first, stop) of a file's samples, channels in *channels* order.
 
     Uncompressed ``.npz`` files are read in place (only the wanted rows); other files are
-    read whole (kept for the next few reads, :data:`WHOLE_READS_KEPT`).
+    read whole (kept for the next few reads, :data:`WHOLE_READS_KEPT`). Either way the rows
+    obey the reader's rule for infinite or implausible values (*read_options*'
+    ``glitches``): read in place, the rule is applied to the rows read (a channel holding
+    such a value there is NaN in them; rows where every channel does are refused).
+
+    Raises
+    ------
+    ContractError
+        The rows (or the file read whole) are refused under that rule.
     """
     first, stop = max(0, int(first)), min(info.n_samples, int(stop))
     if stop <= first:
@@ -56,6 +64,12 @@ def _read_rows(
     rows = None
     if info.path.suffix.lower() == ".npz":
         rows = read_sample_rows(info.path, first, stop)
+    if rows is not None and stop - first >= 2:
+        # the rule the reader applies to the whole file, applied to these rows: a glitch
+        # in a neighbour's edge must not reach the filters of the file it pads
+        part = AccelerationRecord(rows, info.sampling_rate_hz, info.start_time, info.channels)
+        glitches = (read_options or {}).get("glitches", "refuse")
+        rows = validate_accelerations(part, source=info.path, glitches=glitches).acceleration
     if rows is None:
         record = _read_whole(info.path, read_options)
         rows, names = record.acceleration[first:stop], record.channels
@@ -65,8 +79,9 @@ def _read_rows(
 
 
 def _edge_rows(info: FileInfo, channels, first: int, stop: int | None = None, read_options=None):
-    """Rows of a neighbouring file for padding, or None when it cannot be read (then the
-    chain of contiguous files breaks there; the blocks holding that file report it)."""
+    """Rows of a neighbouring file for padding, or None when they cannot be read or are
+    refused (then the chain of contiguous files breaks there; the blocks holding that file
+    report it)."""
     try:
         return _read_rows(
             info, channels, first, info.n_samples if stop is None else stop, read_options

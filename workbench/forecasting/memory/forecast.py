@@ -365,6 +365,7 @@ class MemoryRun:
         m_rows = np.full((n_rows, self.n_modes), np.nan)  # model of the state
         z_rows = np.full((n_rows, self.n_modes), np.nan)  # model of the measurement
         v_rows = np.zeros((n_rows, self.n_modes))
+        p_rows = np.zeros((n_rows, self.n_modes))  # the prior where the mode is not measured
         if is_first or self.options.scheme == 2:
             fits = [self.refits.refit(j, i0) for j in range(self.n_modes)]
             self.bias.refit(fits, i0, self.refits.train_y)
@@ -380,12 +381,12 @@ class MemoryRun:
                 ] += 1
                 continue
             before = self.out["model"][k_first - 1, j] if k_first > self.first else math.nan
-            mean, seen, mvar, level_hz = self._mode_predictions(j, m, i0, k_first, f1)
+            mean, seen, mvar, level_hz, prior = self._mode_predictions(j, m, i0, k_first, f1)
             self._keep_estimate_after_hole(j, before)
-            m_rows[:, j], z_rows[:, j], v_rows[:, j] = mean, seen, mvar
+            m_rows[:, j], z_rows[:, j], v_rows[:, j], p_rows[:, j] = mean, seen, mvar, prior
             nz = self._mode_noise(j, i0, is_first, level_hz)
             self.models_out.append(self._window_model(j, m, nz, i0))
-        return m_rows, z_rows, v_rows
+        return m_rows, z_rows, v_rows, p_rows
 
     def _keep_estimate_after_hole(self, j: int, before: float) -> None:
         """After a hole in the record, keep mode *j*'s estimate m + c where it was when a
@@ -412,7 +413,10 @@ class MemoryRun:
 
     def _mode_predictions(self, j: int, m: MemoryModel, i0: int, k_first: int, f1: int):
         """Mode *j*'s model of the state and of the measurement, and its variance, on rows
-        *k_first*..*f1* - 1, and its level [Hz]; the reported model track and bounds written."""
+        *k_first*..*f1* - 1, its level [Hz] and the variance a row where the mode is not
+        measured adds for the predictors beyond the model's range
+        (:meth:`~workbench.forecasting.memory.terms.MemoryRefits.extrapolation_prior`) [Hz²];
+        the reported model track and bounds written."""
         first, out = self.first, self.out
         # predictions from the row before (model switch) to the end of this window
         from_row = max(k_first - 1, first)
@@ -470,7 +474,10 @@ class MemoryRun:
                 "blocks whose predictors leave the range the model was fitted on (model "
                 "variance raised)",
             )
-        return mean[sl], seen[sl], mvar[sl], float(abs(np.nanmedian(mean)))
+        prior = (
+            self.refits.extrapolation_prior(j, rows) * np.where(np.isfinite(mean), mean, 0.0) ** 2
+        )
+        return mean[sl], seen[sl], mvar[sl], float(abs(np.nanmedian(mean))), prior[sl]
 
     def _partly_logged(self, m: MemoryModel, k: int) -> str:
         """What an outage edge's warning names of grid row *k*: the predictors *m* needs
@@ -594,7 +601,7 @@ class MemoryRun:
     def kalman_pass(self, i0: int, report: np.ndarray, rows) -> None:
         """Measurement and Kalman step of every row in *report* (the rows of the window
         whose models start at row *i0*)."""
-        m_rows, z_rows, v_rows = rows
+        m_rows, z_rows, v_rows, p_rows = rows
         noise = self.noise
         typical = self._typical_scatter(i0)
         F, q_c, q_e, r_v, huber = filter_matrices(self.noise_of, noise.huber_sigma, self.states)
@@ -614,7 +621,7 @@ class MemoryRun:
                 )
             z[~have] = np.nan
             filter_step = (F, q_c, q_e, r_v, huber, v_rows[r] + added_variance)
-            self._kalman_step(k, have, z, scale, m_rows[r], z_rows[r], filter_step)
+            self._kalman_step(k, have, z, scale, m_rows[r], z_rows[r], filter_step, p_rows[r])
             # a mode without a model (too few measured blocks before i0, e.g. a gap in the
             # first window) keeps training: its tracked pole is the block's measurement,
             # as in the first window, so a later window fits it
@@ -820,8 +827,11 @@ class MemoryRun:
             return self.run
         return run_after_hole(self.run, residual - prior_state.sum(axis=1), self.persist_blocks)
 
-    def _kalman_step(self, k, have, z, scale, m_now, z_now, filter_step) -> None:
-        """Kalman update of row *k* with the measurements *z*; the guard, the outputs."""
+    def _kalman_step(self, k, have, z, scale, m_now, z_now, filter_step, prior) -> None:
+        """Kalman update of row *k* with the measurements *z*; the guard, the outputs. Where a
+        mode is not measured its variance grows by *prior* (the predictors beyond the
+        model's range, :meth:`_mode_predictions`): neither the model nor the last
+        measurement says how far the mode moved with them; the estimate is unchanged."""
         F, q_c, q_e, r_v, huber, model_variance = filter_step
         noise_huber = huber  # inf: the prior's noise levels (before a fill's or a return's)
         n_modes, in_sample = self.n_modes, k < self.first + self.train
@@ -909,6 +919,7 @@ class MemoryRun:
                     f"mode {self.mode_labels[j]}: estimate drawn toward SSI (its distance "
                     "from SSI beyond SSI's own error, measured on the blocks' halves)"
                 ] += 1
+        variance = variance + np.where(np.isfinite(z), 0.0, prior)
         if not in_sample:
             self.meas[k] = z
         self.resid[k] = residual

@@ -56,6 +56,7 @@ class MemoryRefits:
     selection_range: list = field(init=False)
     fit_range: list = field(init=False)
     regional: np.ndarray = field(init=False)
+    sensitivity: np.ndarray = field(init=False)
     t_cache: dict[int, float] = field(init=False)
     min_train: int = field(init=False)
     memory: float = field(init=False)
@@ -74,6 +75,11 @@ class MemoryRefits:
         # predictors whose range is not a question of operating region: the time trend
         # always leaves it, by design
         self.regional = np.array([name != "elapsed_hours" for name in self.columns])
+        # prior relative frequency change per unit of each predictor beyond the refit's
+        # range (:meth:`extrapolation_prior`) [1/unit]
+        sensitivity = self.model.sensitivities()
+        self.sensitivity = np.array([sensitivity.get(name, 0.0) for name in self.columns])
+        self.sensitivity[~self.regional] = 0.0
         self.t_cache = {}
         self.min_train = self.model.min_train  # fewest targets of a fit [blocks]
         self.memory = float(self.model.memory_blocks)  # forgetting time constant [blocks]
@@ -299,6 +305,32 @@ class MemoryRefits:
         excess = np.where(np.isfinite(excess) & varied, np.minimum(excess, 1.0), 0.0)
         added = m.residual_variance * (excess**2).sum(axis=1)  # s² Σ e²
         return added, excess
+
+    def extrapolation_prior(self, j: int, rows_: np.ndarray) -> np.ndarray:
+        """Prior variance of mode *j*'s relative frequency change at grid rows *rows_* from
+        the predictors beyond the range of its newest refit's rows [-]: Σ (ρ d)² d / (d + w),
+        d a predictor's distance beyond the range, w the range's width, ρ its
+        ``extrapolation_sensitivity`` (NaN-free; 0 inside the range).
+
+        Where the forecast measures nothing (a hole in the record) nothing it has seen says
+        how far a mode moves with a predictor the model saw constant: the ship leaving port
+        inside the hole while the model knows her at rest moves the modes by 1-3 % that
+        :meth:`extrapolation_variance` (at most the model's residual variance) does not
+        cover. A structural prior does: a relative sensitivity per unit of the predictor
+        (the speed's added mass, the temperatures' stiffness), on the whole excursion where
+        the model saw the predictor constant, on a share d / (d + w) of it where the model
+        saw a range w: a law seen over a range wider than the step says most of the step
+        (``benchmarks/results/forecast_hole_band_54.txt``)."""
+        fit_range = self.fit_range[j]
+        if fit_range is None or not self.sensitivity.any():
+            return np.zeros(len(rows_))
+        low, high, _ = fit_range
+        X = self.X_all[rows_]
+        with np.errstate(invalid="ignore"):
+            d = np.maximum(np.maximum(X - high, low - X), 0.0)
+            share = d / (d + (high - low))
+        relative = (self.sensitivity * d) ** 2 * share
+        return np.where(np.isfinite(relative), relative, 0.0).sum(axis=1)
 
     def fill_missing(self, m: MemoryModel, row: int) -> tuple[float, float] | None:
         """Prediction of *m* at grid row *row*, where a predictor it needs is missing (a gap
