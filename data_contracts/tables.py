@@ -175,6 +175,12 @@ CANONICAL_PREDICTORS: tuple[Column, ...] = (
     ),
 )
 
+#: Canonical predictors that are angles on a circle (0 and 360 the same direction): a
+#: block's value is the circular mean of the log's readings, and models, correlations and
+#: range checks take the angle's cosine (:mod:`workbench.predictors.directions`),
+#: never the angle as a number (359° and 1° are 2° apart, not 358°).
+DIRECTION_PREDICTORS: tuple[str, ...] = ("wind_dir_rel_deg",)
+
 #: Optional predictor columns: read from the ship log when it carries them, never filled
 #: with NaN when it does not, and not among the canonical predictors the forecast and
 #: correlation stages use by default (the structural-health model uses them).

@@ -108,7 +108,9 @@ def test_demo_kalman_beats_raw_ssi(demo):
     and 0.785 (B; ``benchmarks/results/forecast_extrapolation_52.txt``); with the
     hull-wide change test of the model-free filters (the blend aside and SSI followed in
     399 of 966 rows), 0.826 (A) and 0.828 (B;
-    ``benchmarks/results/forecast_level_slope_53.txt``). The bound
+    ``benchmarks/results/forecast_level_slope_53.txt``); with the relative wind direction
+    entering the models as its cosine, not in degrees, 0.811 (A) and 0.810 (B;
+    ``benchmarks/results/wind_direction_54.txt``). The bound
     is raw SSI itself: the blend must
     not be worse than the better of its two inputs.
     """

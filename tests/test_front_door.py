@@ -17,6 +17,7 @@ import pytest
 
 import workbench as wb
 from data_contracts import FORECAST, MODAL, PREDICTORS, read_table
+from workbench.predictors.directions import with_direction_components
 
 START = pd.Timestamp("2024-03-01T00:00:00Z")
 
@@ -189,8 +190,10 @@ def test_fit_saved_as_json_predicts_the_same(tables, tmp_path):
     predicted = back[2].predict(new)
     assert isinstance(predicted, pd.Series) and predicted.index.equals(new.index)
     np.testing.assert_allclose(predicted, result[2].predict(new), rtol=1e-13)
+    # an array holds the model's own columns: the wind direction as its cosine
+    inputs = with_direction_components(new)
     assert isinstance(
-        back[2].predict(new[list(back[2].model.predictor_names)].to_numpy()), np.ndarray
+        back[2].predict(inputs[list(back[2].model.predictor_names)].to_numpy()), np.ndarray
     )
     from workbench.stages import FitDataMissing
 

@@ -62,7 +62,7 @@ def test_coverage_is_no_predictor_of_the_forecast_or_the_correlation():
     modal, predictors = _voyage()
     canonical = ["speed_kn", "water_temp_c", "air_temp_c", "wind_speed_ms", "wind_dir_rel_deg"]
     _, _, _, columns, X = predictor_matrix(predictors, None)
-    assert columns == canonical
+    assert columns == [*canonical[:4], "wind_dir_rel_cos"]  # the direction's cosine
     assert X.shape == (60, 5)
     assert predictor_columns(predictors) == canonical
     _, _, names = joined_blocks(modal, predictors)

@@ -13,7 +13,10 @@ far worse than SSI before:
 * the 160-min wander at SSI's scatter, segment errors, seed 4, with shapes, the default
   rolling forecast (method 2): no cluster of mode 2 passed the gate and the shape check
   from block 37 on, the refits without measurements swung the model to 5.16 Hz and
-  4.31 Hz (the mode: 4.59-4.63 Hz): 30 % worse than SSI.
+  4.31 Hz (the mode: 4.59-4.63 Hz): 30 % worse than SSI. With the relative wind direction
+  as its cosine (``benchmarks/results/wind_direction_54.txt``) the refits no longer swing
+  there (the regime's wind swings across the bow: in degrees the direction jumped
+  by about 360 between blocks): option B needs no tracked pole on that run.
 """
 
 from __future__ import annotations
@@ -42,7 +45,6 @@ def _errors(table, data):
     ("regime", "seed", "kwargs", "scheme", "n_rows"),
     [
         ("wander_160min_2x", 3, {"shapes": False}, 1, 16),
-        ("wander_160min_1x", 4, {"shapes": True, "error_model": "segments"}, 2, 4),
     ],
 )
 def test_option_b_measures_the_tracked_pole_when_the_prediction_left_the_mode(
@@ -58,12 +60,34 @@ def test_option_b_measures_the_tracked_pole_when_the_prediction_left_the_mode(
             poles=data.poles,
         ).table
     kalman, ssi = _errors(table, data)
-    assert kalman < 0.95 * ssi  # before: 1.97 and 1.30 x SSI's error
+    assert kalman < 0.95 * ssi  # before: 1.97 x SSI's error
     used = table["warning"].fillna("").str.contains("no pole column near the prediction")
     # mode 2's rows, in the forecast phase only
     assert used.sum() == n_rows
     assert set(table.loc[used, "mode"]) == {2}
     assert (table.loc[used, "phase"] == "forecast").all()
+
+
+def test_the_rolling_run_whose_model_swung_with_the_wind_direction(regimes):
+    """The 160-min wander at SSI's scatter, seed 4 (module docstring): with the direction as
+    its cosine mode 2's model stays within 4.54-4.73 Hz through the forecast (the mode:
+    4.58-4.73 Hz; main, the direction in degrees: up to 5.16 Hz, then 4 rows on the
+    tracked pole), no row needs the tracked pole, and option B's error is 0.594 of SSI's
+    (main 0.641)."""
+    data = regimes.make_regime(
+        "wander_160min_1x", 4, n_blocks=432, shapes=True, error_model="segments"
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        table = sliding_forecast(
+            data.tracked, data.predictors, ForecastOptions(options=("B",)), poles=data.poles
+        ).table
+    kalman, ssi = _errors(table, data)
+    assert kalman < 0.62 * ssi
+    mode2 = table[(table["mode"] == 2) & (table["phase"] == "forecast")]
+    assert mode2["model_frequency_hz"].between(4.50, 4.78).all()
+    used = table["warning"].fillna("").str.contains("no pole column near the prediction")
+    assert not used.any()
 
 
 def test_a_short_miss_or_a_model_that_explains_keeps_option_b_predict_only(regimes):

@@ -294,8 +294,8 @@ def test_forecast_equals_batch_when_the_speed_never_changes():
 @pytest.mark.parametrize("step", [1, 5])
 def test_forecast_equals_batch_across_a_log_outage(step):
     """A 40-min outage of every log column (blocks 99-105 without predictors, 97-98 and
-    106-107 logged by 75 % / 50 %; the relative wind direction's own shares differ: 98 and
-    106 by 75 %, 107 fully): the partly logged blocks at its edges get a model variance from
+    106-107 logged by 75 % / 50 %; the wind speed's own shares differ: 98 and 106 by
+    75 %, 107 fully): the partly logged blocks at its edges get a model variance from
     the blocks that share data with them, the newer ones included, so an update whose new
     blocks miss a predictor takes the state back to before the partly logged blocks the
     batch widens: the resumed forecast equals the batch one, with the same edge rows and
@@ -313,7 +313,7 @@ def test_forecast_equals_batch_across_a_log_outage(step):
     wind = coverage.copy()
     for block, share in ((98, 0.75), (106, 0.75), (107, 1.0)):
         wind[predictors["block"] == block] = share
-    shares["log_coverage_wind_dir_rel_deg"] = wind
+    shares["log_coverage_wind_speed_ms"] = wind
     least = pd.concat(shares, axis=1).min(axis=1)
     predictors = PREDICTORS.validate(predictors.assign(log_coverage=least, **shares))
     options = ForecastOptions(train_blocks=20)
@@ -334,12 +334,13 @@ def test_forecast_equals_batch_across_a_log_outage(step):
     edges = expected["warning"].fillna("").str.contains("edge of a log outage")
     assert set(expected.loc[edges, "block"]) == {97, 98, 106, 107}
     # each partly logged column the model uses named with its own share, and the least
-    # share (mode 3: the speed and the wind direction; 107's wind direction fully logged)
+    # share (mode 3: the speed and, by chance, the wind speed - the wind direction before it
+    # entered as its cosine; 107's wind speed fully logged)
     third = expected[expected["mode"] == 3].set_index("block")["warning"]
     for block, named in (
-        (97, "speed_kn 75%, wind_dir_rel_deg 75%; log_coverage 75%"),
-        (98, "speed_kn 50%, wind_dir_rel_deg 75%; log_coverage 50%"),
-        (106, "speed_kn 50%, wind_dir_rel_deg 75%; log_coverage 50%"),
+        (97, "speed_kn 75%, wind_speed_ms 75%; log_coverage 75%"),
+        (98, "speed_kn 50%, wind_speed_ms 75%; log_coverage 50%"),
+        (106, "speed_kn 50%, wind_speed_ms 75%; log_coverage 50%"),
         (107, "speed_kn 75%; log_coverage 75%"),
     ):
         assert f"partly logged ({named})" in third.loc[block], (block, third.loc[block])

@@ -198,9 +198,11 @@ def _check_upper(upper: str, predictors) -> None:
     """A usage error for an --upper model that names no predictor or is not a model."""
     from data_contracts import PREDICTOR_KEYS
 
+    from ..predictors.directions import model_columns
     from ..stats.terms import parse_terms
 
-    names = [c for c in predictors.columns if c not in PREDICTOR_KEYS]
+    # a direction enters the models as its cosine (wind_dir_rel_cos)
+    names = model_columns([c for c in predictors.columns if c not in PREDICTOR_KEYS])
     try:
         parse_terms(upper, names, parameter="--upper")
     except (ValueError, TypeError) as error:

@@ -92,6 +92,14 @@ forgets by the drift each block, so the blend comes back when its innovations ha
 balanced for a while (the 20-minute ice voyages and the worked example, measured with
 and without it: ``benchmarks/results/forecast_level_slope_53.txt``).
 
+*After a hole.* After a hole in the record the model's probability is at most the
+prior's again (:meth:`ModelTrust._after_hole`), so the estimate is mostly the model-free
+level's, and a ship that changes speed right after the hole moves the modes
+faster than the level's random walk follows. In the first blocks after it, while the
+refits settle, the level may step by the structural prior on the predictors' move
+(:attr:`BlendStep.level_step_variance`, the prior of the band inside the hole:
+``benchmarks/results/forecast_after_hole_step_54.txt``).
+
 References
 ----------
 .. [1] Y. Bar-Shalom, X. R. Li, T. Kirubarajan, "Estimation with Applications to Tracking
@@ -193,6 +201,11 @@ class BlendStep:
         The block is among the first after a hole, while the refits hand the model's
         error over from c (:mod:`~workbench.forecasting.memory.forecast`'s refit
         continuity): the hull-wide change test starts again after them.
+    level_step_variance : ndarray (n,), optional
+        Variance the model-free filters' level may step in this block beside its random
+        walk (the predictors' move in the first blocks after a hole,
+        :meth:`~workbench.forecasting.memory.forecast.MemoryRun._level_step_variance`;
+        None: none). [Hz²]
     """
 
     normalised: np.ndarray
@@ -202,6 +215,7 @@ class BlendStep:
     unweighted: np.ndarray | None = None
     after_hole: bool = False
     settling: bool = False
+    level_step_variance: np.ndarray | None = None
 
 
 class ModelTrust:
@@ -357,6 +371,7 @@ class ModelTrust:
                 sigma2,
                 white_variance,
                 blend.after_hole,
+                blend.level_step_variance,
             )
         use = learn & np.isfinite(log_l).all(axis=0)
         if use.any():
@@ -445,12 +460,22 @@ class ModelTrust:
         return out
 
     def _free_step(
-        self, h, step, z, transition, error_step_variance, sigma2, white_variance, after_hole
+        self,
+        h,
+        step,
+        z,
+        transition,
+        error_step_variance,
+        sigma2,
+        white_variance,
+        after_hole,
+        level_step_variance=None,
     ):
         """Predict and update model-free filter *h*; its log-likelihood of z (NaN: none).
 
         States [x, identification error's states]: F = the blend's with 1 for the level,
-        Q = the blend's identification part and q (σ_e² + σ_v²) for the level; the step is
+        Q = the blend's identification part and q (σ_e² + σ_v²) for the level, plus
+        *level_step_variance* (:class:`BlendStep`) where given; the step is
         the blend's (:func:`~workbench.forecasting.memory.kalman.kalman_update`: Huber
         weights, the persistence rule, Joseph form).
         """
@@ -472,6 +497,8 @@ class ModelTrust:
         F[:, 0, 0] = 1.0
         Q = error_step_variance[idx].copy()
         Q[:, 0] = step * sigma2[idx]
+        if level_step_variance is not None:
+            Q[:, 0] += level_step_variance[idx]
         state = np.concatenate([level[idx, None], error[idx]], axis=1)
         run = self.run[h, idx]
         state, P_prior = kalman_predict(state, P_all[idx], F, Q)

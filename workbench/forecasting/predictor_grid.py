@@ -11,6 +11,7 @@ import pandas as pd
 from data_contracts import PREDICTOR_KEYS, column_log_coverage_name
 
 from ..errors import DataError, PredictorError
+from ..predictors.directions import direction_source, model_columns, with_direction_components
 
 __all__ = [
     "block_centre_ns",
@@ -33,8 +34,10 @@ def predictor_matrix(
 
     *grid* is the predictor table sorted by block (the last row of a repeated block kept);
     consecutive rows are consecutive Kalman steps. *columns* are *predictor_columns*, or
-    every numeric, non-boolean column but ``block`` when None; *X* holds their values
-    (NaN where missing).
+    every numeric, non-boolean column but the keys when None, with a direction column
+    (``wind_dir_rel_deg``) as its cosine (``wind_dir_rel_cos``:
+    :mod:`workbench.predictors.directions`); *X* holds their values
+    (NaN where missing). *grid* keeps the direction in degrees.
 
     Raises
     ------
@@ -44,25 +47,27 @@ def predictor_matrix(
     grid = predictors.sort_values("block").drop_duplicates("block", keep="last")
     blocks = grid["block"].to_numpy(dtype=np.int64)
     block_start = pd.to_datetime(grid["block_start"], utc=True).to_numpy()
+    inputs = with_direction_components(grid)
     if predictor_columns is None:
         columns = [
             c
-            for c in grid.columns
+            for c in inputs.columns
             if c not in PREDICTOR_KEYS
-            and pd.api.types.is_numeric_dtype(grid[c].dtype)
-            and not pd.api.types.is_bool_dtype(grid[c].dtype)
+            and pd.api.types.is_numeric_dtype(inputs[c].dtype)
+            and not pd.api.types.is_bool_dtype(inputs[c].dtype)
         ]
     else:
-        columns = list(predictor_columns)
-        missing = [c for c in columns if c not in grid.columns]
+        named = list(predictor_columns)
+        missing = [c for c in named if c not in grid.columns and c not in inputs.columns]
         if missing:
             raise PredictorError(
                 f"the predictor table has no column {', '.join(map(repr, missing))}",
                 parameter="predictor_columns",
-                value=columns,
+                value=named,
             )
+        columns = model_columns(named)
     X = (
-        grid[columns].to_numpy(dtype=float, na_value=np.nan)
+        inputs[columns].to_numpy(dtype=float, na_value=np.nan)
         if columns
         else np.empty((len(grid), 0))
     )
@@ -79,14 +84,15 @@ def block_log_coverage(table: pd.DataFrame) -> np.ndarray | None:
 
 def block_column_coverage(table: pd.DataFrame, columns: Sequence[str]) -> np.ndarray | None:
     """The ship log's share of each block per predictor *columns*, shape (rows of *table*,
-    len(*columns*)): a column's own ``log_coverage_<column>``, NaN where the table has
-    none (a column the averaging gives no share of, such as the time trend); None when
-    the table has no ``log_coverage`` (it does not say how much of a block is logged)."""
+    len(*columns*)): a column's own ``log_coverage_<column>`` (a direction's cosine:
+    the direction's), NaN where the table has none (a column the averaging gives
+    no share of, such as the time trend); None when the table has no ``log_coverage``
+    (it does not say how much of a block is logged)."""
     if block_log_coverage(table) is None:
         return None
     out = np.full((len(table), len(columns)), np.nan)
     for j, column in enumerate(columns):
-        name = column_log_coverage_name(column)
+        name = column_log_coverage_name(direction_source(column))
         if name in table.columns:
             out[:, j] = table[name].to_numpy(dtype=float, na_value=np.nan)
     return out

@@ -23,6 +23,7 @@ from scipy import stats as _scipy_stats
 
 from data_contracts import MODAL, PREDICTORS
 
+from ..predictors.directions import with_direction_components
 from ..results import StageResult, Summary, read_any_table, shown_once
 from ..sid.presence import persistent_modes
 from ..stats.cases import STITCHED, CaseFits, fit_cases
@@ -94,6 +95,11 @@ class FitOptions:
         if self.criterion != "sse":
             options["criterion"] = self.criterion
         return options
+
+
+def _model_inputs(exog):
+    """*exog* with a direction column as its cosine (a DataFrame), else as given."""
+    return with_direction_components(exog) if isinstance(exog, pd.DataFrame) else exog
 
 
 class PredictionResults:
@@ -262,13 +268,15 @@ class ModeResults:
 
     # prediction ---------------------------------------------------------------------
     def predict(self, exog: pd.DataFrame) -> pd.Series | np.ndarray:
-        """Predicted means for new predictor values (columns named as in the fit): a
-        Series on *exog*'s index when *exog* is a DataFrame, else an array."""
+        """Predicted means for new predictor values (columns named as in the fit; a
+        direction in degrees, ``wind_dir_rel_deg``, is taken as the cosine the
+        fit uses): a Series on *exog*'s index when *exog* is a DataFrame, else an array."""
+        exog = _model_inputs(exog)
         return _as_given(self.model.predict(exog), exog, self.model.response_name)
 
     def get_prediction(self, exog: pd.DataFrame) -> PredictionResults:
         """Predictions with standard errors and intervals (``.summary_frame(alpha)``)."""
-        return PredictionResults(self.model, exog)
+        return PredictionResults(self.model, _model_inputs(exog))
 
     def get_influence(self):
         """Influence measures of the fitted blocks: statsmodels ``OLSInfluence`` of the
@@ -524,7 +532,7 @@ def fit(
         fits = fit_modes(modal, predictors, **common)
     if not fits:
         raise ValueError(f"no mode could be fitted ({options.quantity}); see the warnings")
-    exog = predictors.set_index("block")
+    exog = _model_inputs(predictors).set_index("block")  # the inputs as the fits saw them
     models = {int(m): ModeResults(int(m), item.fit, item, exog) for m, item in fits.items()}
     result = FitResult(models=models, options=options, by_case=by_case, lines=list(lines))
     names = ", ".join(next(iter(fits.values())).fit.predictor_names)

@@ -23,6 +23,7 @@ from ..forecasting.measurement import measurable_poles
 from ..forecasting.options import ForecastOptions
 from ..forecasting.results import combined
 from ..parallel import process_map
+from ..predictors.directions import direction_source
 from ..results import read_any_table
 from ..sid.presence import persistent_modes
 
@@ -116,7 +117,13 @@ def partial_log_lines(
     if predictors is not None:
         shares = predictors.drop_duplicates("block", keep="last").set_index("block")
         shares = shares.reindex(blocks)
-        used = {name for model in models for term in model.terms for name in term.split(":")}
+        # a direction's cosine is the direction's column (its coverage)
+        used = {
+            direction_source(name)
+            for model in models
+            for term in model.terms
+            for name in term.split(":")
+        }
         parts = []
         for name in (c for c in shares.columns if c.startswith(COLUMN_COVERAGE_PREFIX)):
             column = name[len(COLUMN_COVERAGE_PREFIX) :]

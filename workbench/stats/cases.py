@@ -27,6 +27,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import PredictorError
+from ..predictors.directions import model_columns, with_direction_components
 from .correlation import case_masks
 from .mode_fits import ModeFit, StatsWarning, coefficient_table, fit_modes
 
@@ -280,9 +281,13 @@ def _case_predictors(
     (speed is constant at rest) with a note."""
     if names is None:
         return None, []
+    inputs = with_direction_components(predictors)  # a direction as its cosine
     kept, dropped = [], []
-    for name in names:
-        values = pd.to_numeric(predictors[name], errors="coerce").to_numpy(dtype=float)
+    for name in model_columns(names):
+        if name not in inputs.columns:  # named in the error of the fit
+            kept.append(name)
+            continue
+        values = pd.to_numeric(inputs[name], errors="coerce").to_numpy(dtype=float)
         values = values[np.isfinite(values)]
         if values.size == 0 or np.ptp(values) <= 1e-12 * max(1.0, float(np.abs(values).max())):
             dropped.append(name)

@@ -24,6 +24,7 @@ from scipy import special as _special
 from data_contracts import PREDICTOR_KEYS
 
 from ..errors import PredictorError
+from ..predictors.directions import model_columns, with_direction_components
 from .effective_sample import effective_p_value, effective_sample_size, effective_significance
 
 __all__ = [
@@ -110,21 +111,29 @@ def joined_blocks(
     """Mode quantities and predictors side by side, one row per block of *predictors*.
 
     Returns the joined frame (index ``block``; ``block_start``/``block_end`` kept when
-    present), the mode-quantity column names and the predictor column names.
+    present), the mode-quantity column names and the predictor column names. A direction
+    column (``wind_dir_rel_deg``) enters as its cosine (``wind_dir_rel_cos``:
+    :mod:`workbench.predictors.directions`), in *predictors_used*
+    too.
     """
     if "block" not in predictors.columns:
         raise PredictorError("predictor table has no column 'block'")
     if predictors["block"].duplicated().any():
         block = int(predictors.loc[predictors["block"].duplicated(), "block"].iloc[0])
         raise PredictorError(f"predictor table has more than one row for block {block}")
-    names = list(predictors_used) if predictors_used is not None else predictor_columns(predictors)
-    missing = [c for c in names if c not in predictors.columns]
-    if missing:
-        raise PredictorError(f"predictor table has no column {missing[0]!r}")
+    inputs = with_direction_components(predictors)
+    if predictors_used is not None:
+        given = list(predictors_used)
+        missing = [c for c in given if c not in predictors.columns and c not in inputs.columns]
+        if missing:
+            raise PredictorError(f"predictor table has no column {missing[0]!r}")
+        names = model_columns(given)
+    else:
+        names = predictor_columns(inputs)
     if not names:
         raise PredictorError("predictor table has no numeric predictor columns")
     wide = modal_wide(modal, quantities)
-    frame = predictors.set_index("block")
+    frame = inputs.set_index("block")
     frame.index = frame.index.astype("int64")
     keep = [c for c in ("block_start", "block_end", "case") if c in frame.columns]
     joined = frame[keep + names].join(wide, how="left")

@@ -893,6 +893,7 @@ class MemoryRun:
                     # the refits after a hole move the model by the error c took at once
                     # (_keep_estimate_after_hole): no test of the hull's moves meanwhile
                     settling=self.since_hole < _REFIT_CONTINUITY_BLOCKS,
+                    level_step_variance=self._level_step_variance(k, m_now),
                 ),
                 # a block whose model fills a missing predictor says nothing of whether
                 # the model explains the mode: the probabilities wait for the log
@@ -937,6 +938,29 @@ class MemoryRun:
                 f"no SSI estimate for {self.gap[j]} blocks: predict-only",
                 "rows in a long stretch without SSI estimates (predict-only)",
             )
+
+    def _level_step_variance(self, k: int, m_now: np.ndarray) -> np.ndarray | None:
+        """What the model-free filters' level may step at row *k* beside its random walk,
+        in the first rows after a hole in the record [Hz²] (None: nothing, elsewhere):
+        f² Σ (ρ Δx)² (:meth:`~workbench.forecasting.memory.terms.MemoryRefits.prior_variance`), Δx
+        each predictor's change a block, averaged over the blocks sharing data with this
+        one (``overlap``: a single block's move is the log's jitter), ρ its
+        ``extrapolation_sensitivity``, f the model's frequency.
+
+        After a hole the blend's estimate is the model-free level's (the model's
+        probability is the prior's again, :mod:`~workbench.forecasting.model_trust`), and a
+        ship that changes speed right after it moves the modes faster than the level's
+        random walk follows. The prior that widens the band inside the hole says how far
+        the modes may step with the predictors; the level takes it as process noise while
+        the refits settle (``since_hole`` below :data:`_REFIT_CONTINUITY_BLOCKS`; measured in
+        ``benchmarks/results/forecast_after_hole_step_54.txt``)."""
+        if self.since_hole >= _REFIT_CONTINUITY_BLOCKS or k <= self.first:
+            return None
+        X = self.refits.X_all
+        span = min(self.overlap, k - self.first)
+        move = (X[k] - X[k - span]) / span
+        relative = self.refits.prior_variance(move)
+        return relative * np.where(np.isfinite(m_now), m_now, 0.0) ** 2
 
     def _outside_fill(self, filled, have, F, q_c, model_variance) -> None:
         """Keep the model correction c from taking the fill's error of a log outage.

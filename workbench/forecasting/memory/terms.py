@@ -329,8 +329,16 @@ class MemoryRefits:
         with np.errstate(invalid="ignore"):
             d = np.maximum(np.maximum(X - high, low - X), 0.0)
             share = d / (d + (high - low))
-        relative = (self.sensitivity * d) ** 2 * share
-        return np.where(np.isfinite(relative), relative, 0.0).sum(axis=1)
+        return self.prior_variance(d, share)
+
+    def prior_variance(self, move: np.ndarray, share: np.ndarray | float = 1.0) -> np.ndarray:
+        """The structural prior's variance of a relative frequency change [-]: Σ (ρ Δx)² s
+        over the predictors (the last axis of *move*), Δx a predictor's move, ρ its
+        ``extrapolation_sensitivity``, s the *share* of the move the prior speaks for (NaN
+        terms 0): :meth:`extrapolation_prior` inside a hole, the model-free level's step in
+        the rows after one (:meth:`~workbench.forecasting.memory.forecast.MemoryRun._level_step_variance`)."""
+        relative = (self.sensitivity * move) ** 2 * share
+        return np.where(np.isfinite(relative), relative, 0.0).sum(axis=-1)
 
     def fill_missing(self, m: MemoryModel, row: int) -> tuple[float, float] | None:
         """Prediction of *m* at grid row *row*, where a predictor it needs is missing (a gap
