@@ -13,7 +13,7 @@ from .accelerations import (
     validate_accelerations,
     write_accelerations,
 )
-from .dship import DEFAULT_DSHIP_MAPPING, DSHIP_LOG, read_dship
+from .dship import DEFAULT_DSHIP_MAPPING, DSHIP_LOG, ColumnMappingError, read_dship
 from .geometry import SENSOR_GEOMETRY, geometry_directions
 from .grid import grid_record, recorded_grid, set_grid
 from .health import ALARMS, HEALTH
@@ -61,6 +61,7 @@ __all__ = [
     "AccelerationRecord",
     "Column",
     "ColumnPattern",
+    "ColumnMappingError",
     "ContractError",
     "TableContract",
     "ValidatedFile",

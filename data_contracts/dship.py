@@ -56,7 +56,13 @@ from .dship_names import (
 )
 from .tables import CANONICAL_PREDICTORS, OPTIONAL_PREDICTORS
 
-__all__ = ["DEFAULT_DSHIP_MAPPING", "DSHIP_LOG", "read_dship"]
+__all__ = ["DEFAULT_DSHIP_MAPPING", "DSHIP_LOG", "ColumnMappingError", "read_dship"]
+
+
+class ColumnMappingError(ContractError):
+    """A column the column mapping names (``speed_kn=SOG``) is not in the log: the user
+    asked for it, so the log is refused rather than read without the quantity."""
+
 
 #: Source names (case-insensitive, without the bracketed unit) tried for each canonical
 #: column, in order. Pass your own mapping to :func:`read_dship` for other ships.
@@ -182,6 +188,15 @@ def _fields(line: str, sep: str) -> list[str]:
         return line.split(sep)
 
 
+def _has_column(headers: Sequence[str], names: Sequence[str], wanted: str) -> bool:
+    """Whether the log has a column *wanted* names, as :func:`parse_dship` looks it up: its
+    name or whole header, or the last part of a dotted name (``SOG`` for ``SYS.STR.SOG``)."""
+    key = name_key(wanted)
+    return any(key in (name_key(h), name_key(n)) for h, n in zip(headers, names, strict=True)) or (
+        any("." in n and name_key(n.rsplit(".", 1)[1]) == key for n in names)
+    )
+
+
 def _looks_like_time(text: str, time_format: str | None) -> bool:
     slash = [f for pair in SLASH_FORMATS for f in pair]
     formats = (strptime_format(time_format),) if time_format else ("ISO8601", *TIME_FORMATS, *slash)
@@ -233,7 +248,8 @@ def read_dship(
         Entries replace those of :data:`~data_contracts.dship_names.DSHIP_NAMES`; besides
         the predictors, ``wind_dir_true_deg``, ``wind_speed_true_ms``, ``heading_deg`` and
         ``course_deg`` may be mapped (used to derive the relative wind), and ``time``
-        names the time column.
+        names the time column. A column an entry names must be in the file (a log
+        without it is refused; a quantity left to the built-in names may be absent).
     time_column : str, optional
         Name of the time column; default: the first of :data:`TIME_COLUMN_NAMES` present.
     encoding : str, optional
@@ -271,7 +287,8 @@ def read_dship(
     ------
     ContractError
         Unreadable file, no readings (an empty file, a header and no data rows, rows
-        holding nothing but a time), no header or time column, unparseable times or
+        holding nothing but a time), no header or time column, no column that a *mapping*
+        entry names, unparseable times or
         numbers, times
         with a UTC offset mixed with times without one (the first of the other kind is
         named: they cannot be placed), a unit
@@ -493,6 +510,22 @@ def parse_dship(
         + list(SHAFT_COLUMNS)
     )
     candidates = resolve_mapping(mapping, known)
+    # a column the user's mapping names is asked for: a log without it is refused, not
+    # read without the quantity (the default names may be absent: the quantity is then)
+    for name, wanted in mapping.items():
+        given = (wanted,) if isinstance(wanted, str) else tuple(wanted)
+        if not any(_has_column(headers, names, w) for w in given):
+            raise ColumnMappingError(
+                [
+                    Violation(
+                        " or ".join(map(str, given)),
+                        f"not in the file, named by the column mapping "
+                        f"{name}={'|'.join(map(str, given))} ({found})",
+                    )
+                ],
+                source=source,
+                contract="dship",
+            )
     if decimal is None:
         decimal = "," if sep != "," and _has_decimal_commas(table, time_index) else "."
     out = pd.DataFrame({"time": times})

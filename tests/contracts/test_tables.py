@@ -174,7 +174,7 @@ def test_per_column_log_coverage_is_a_share_and_not_a_predictor(tmp_path):
         "water_temp_c",
         "air_temp_c",
         "wind_speed_ms",
-        "wind_dir_rel_deg",
+        "wind_dir_rel_cos",  # the direction enters models as its cosine
     ]
     # each column's own share; NaN where the table has none (not known)
     np.testing.assert_array_equal(

@@ -277,10 +277,12 @@ def test_restart_after_kill_loses_and_repeats_nothing(voyage, batch_auto, tmp_pa
     kept = health.set_index("block").loc[before["block"], "identified_at"]
     assert (kept.to_numpy() == before["identified_at"].to_numpy()).all()
     assert _store(state, "lengths")["block"].is_unique
-    # the store remembers the adaptive rule: fixed blocks are not resumed from it
+    # the store remembers the adaptive rule: fixed blocks are not resumed from it (with
+    # the state folder's ship log: without it the restart is refused before, exit 2)
     capsys.readouterr()
     assert cli(
-        "monitor", "--watch", watch, "--state", state, *IDENTIFY, *MONITOR_FAST, "--once",
+        "monitor", "--watch", watch, "--state", state, "--dship", voyage / "dship.tsv",
+        *IDENTIFY, *MONITOR_FAST, "--once",
     ) == 1  # fmt: skip
     err = capsys.readouterr().err
     assert "store was made with other parameters (adaptive, length_s)" in err

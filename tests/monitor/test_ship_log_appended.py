@@ -248,6 +248,7 @@ def test_the_monitor_says_a_log_warning_once_as_the_log_grows(tmp_path):
     from types import SimpleNamespace
 
     from workbench.monitor.core import Monitor
+    from workbench.monitor.log_record import ShipLogRecord
 
     path = tmp_path / "dship.tsv"
     lines = _lines(200)
@@ -258,6 +259,7 @@ def test_the_monitor_says_a_log_warning_once_as_the_log_grows(tmp_path):
         forecast=SimpleNamespace(dship_mapping={}, dship_utc_offset=None)
     )
     monitor._log_warnings_said = set()
+    monitor.log_record = ShipLogRecord(tmp_path, path, {}, None)
     said, rows = [], []
     for k in range(4):
         if k:

@@ -79,6 +79,10 @@ folder as the one table its parts make, in block order::
                                  committed blocks (outlook.json and its .npz arrays, no
                                  pickle; :class:`~workbench.monitor.incremental.
                                  IncrementalOutlook`): each update runs only the new blocks
+    <state>/ship_log.json        the ship log the folder's results came from: its path,
+                                 --dship-columns, --dship-utc-offset and the part read so
+                                 far (bytes and SHA-256), checked at a restart
+                                 (:mod:`workbench.monitor.log_record`)
     <state>/store/               the per-block store (:class:`~workbench.store.BlockStore`,
                                  the same layout and parameters as ``workbench identify``'s)
 
@@ -236,7 +240,12 @@ starting it again loses no block and repeats none: the store says which blocks a
 the tracker is replayed from their stored modes (the labels shown before the restart come
 back on the same modes: ``labels.json`` is checked), and the forecast and health chart go on
 from the state saved in ``outlook/`` (computed again from the first block when it is
-missing, unreadable or of other settings). A part of the tracked, data-health, forecast or
+missing, unreadable or of other settings). A restart with another ship log is refused
+before anything in the state folder is touched (:mod:`workbench.monitor.log_record`):
+``--dship`` left out or naming another file, other ``--dship-columns`` or
+``--dship-utc-offset`` (exit 2, naming the option and the folder), or the log itself
+cut short or rewritten in what was read (exit 1); a log grown by appended lines, or the
+same bytes under another name, is taken up. A part of the tracked, data-health, forecast or
 health table that cannot be read (cut short by a power cut or a full disk) is removed with a
 note and the table written again: from the store, or the forecast from the first block.
 An unreadable ``labels.json`` is written again when the replay gives the modes of the

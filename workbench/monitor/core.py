@@ -25,11 +25,11 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 
-from data_contracts import MODAL, atomic_path, set_grid, write_table
+from data_contracts import MODAL, ContractError, atomic_path, set_grid, write_table
 from data_contracts.parts import read_since
 
 from ..blocks import BlockGrid
-from ..errors import WorkbenchError
+from ..errors import OptionError, WorkbenchError
 from ..identification import IdentifyOptions, identify_block, input_fingerprints, resolved_run
 from ..identification.adaptive import AdaptiveBlockOptions
 from ..identification.engine import BlockTask
@@ -50,6 +50,7 @@ from .adaptive import LEFT_OUT, AdaptiveLengths
 from .conditioning import block_conditioner, forget_conditioned
 from .data_health import DATA_HEALTH_COLUMNS, data_health_frame, data_health_row
 from .log_clock import LiveClockCheck
+from .log_record import ShipLogRecord
 from .notes import NOTES_FILE, NoteList
 from .outlook import (
     ForecastSettings,
@@ -230,11 +231,28 @@ class Monitor:
         self.store_path.mkdir(exist_ok=True)
         # one monitor per state folder: the store's lock, held for the monitor's life
         self._lock = StoreLock(self.store_path).acquire()
-        try:  # an older folder is migrated, a newer one refused
+        self._log_warnings_said: set[str] = set()  # the ship log's warnings said so far
+        forecast = self.options.forecast
+        # the ship log the state folder's results came from: another one refused, before
+        # anything in the folder is touched; and a column the mapping names that the log
+        # lacks (read now when it is there; later, the outlook says so)
+        self.log_record = ShipLogRecord(
+            self.state, self.dship, dict(forecast.dship_mapping), forecast.dship_utc_offset
+        )
+        content = None  # the part of the log read now
+        try:
+            log_notes = self.log_record.check(
+                has_results=(self.store_path / "store.json").is_file()
+            )
+            if self.dship is not None and self.dship.is_file():
+                self._read_log(refuse_mapping=True)
+                content = self._log_content()
+            # an older folder is migrated, a newer one refused
             migrated = check_state_format(self.state)
-        except WorkbenchError:
+        except (WorkbenchError, OptionError, ContractError):
             self._lock.release()
             raise
+        self.log_record.update(content)
         if migrated is not None:
             log.warning("%s", migrated)
         forget_writers(self.state)  # parts written by an earlier run are read again
@@ -255,7 +273,6 @@ class Monitor:
         # the files taken before the grid was fixed that are still to be taken again
         self._retaking: collections.deque[LandedFile] = collections.deque()
         self._retimed_noted: set[Path] = set()  # files said to be re-timed for jitter
-        self._log_warnings_said: set[str] = set()  # the ship log's warnings said so far
         self.done: set[int] = set()
         #: Where the decided blocks of a drifting record were cut (the store's
         #: CUT_COLUMNS): block -> (a file taken, by content; the index of the block's
@@ -281,6 +298,9 @@ class Monitor:
         self.messages: NoteList = NoteList(self.state / NOTES_FILE)
         if migrated is not None:
             self.messages.append(migrated)
+        for note in log_notes:
+            log.warning("%s", note)
+            self.messages.append(note)
         for notice in repaired:
             log.warning("%s", notice)
             self.messages.append(notice)
@@ -403,19 +423,31 @@ class Monitor:
                 raise WorkbenchError(str(error)) from None
         return baseline
 
-    def _read_log(self) -> pd.DataFrame | None:
-        """The ship log as read now (None when absent or unreadable: the outlook says so)."""
+    def _read_log(self, *, refuse_mapping: bool = False) -> pd.DataFrame | None:
+        """The ship log as read now (None when absent or unreadable: the outlook says so),
+        recorded as read (:mod:`workbench.monitor.log_record`). *refuse_mapping* (the
+        start's read, before the state folder is checked: nothing recorded): a column the
+        mapping names that the log lacks raises its ``ContractError``."""
         if self.dship is None or not self.dship.is_file():
             return None
-        from .outlook import _ship_log
+        from data_contracts import ColumnMappingError
+
+        from .outlook import _ship_log, _ship_log_content
 
         forecast = self.options.forecast
+        read = (self.dship, dict(forecast.dship_mapping), forecast.dship_utc_offset)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
-                log = _ship_log(self.dship, dict(forecast.dship_mapping), forecast.dship_utc_offset)
+                log = _ship_log(*read)
+            except ColumnMappingError:
+                if refuse_mapping:
+                    raise
+                log = None
             except (ValueError, OSError):
                 log = None
+        if log is not None and not refuse_mapping:
+            self.log_record.update(_ship_log_content(*read))
         # each of the log's warnings said once a run, not again at every read of the growing
         # log (a duplicate or backward time is said with each line appended after it)
         for warning in caught:
@@ -423,6 +455,15 @@ class Monitor:
                 self._log_warnings_said.add(str(warning.message))
                 warnings.warn(warning.message, stacklevel=2)
         return log
+
+    def _log_content(self) -> tuple[int, str] | None:
+        """The bytes of the ship log :meth:`_read_log` last read and their SHA-256."""
+        from .outlook import _ship_log_content
+
+        forecast = self.options.forecast
+        return _ship_log_content(
+            self.dship, dict(forecast.dship_mapping), forecast.dship_utc_offset
+        )
 
     def _log_generation(self) -> int | None:
         """The read generation of the ship log :meth:`_read_log` gives: the same while the
@@ -1922,6 +1963,7 @@ class Monitor:
             self._outlook_future = None
         self._outlook_due = False
         self._dship_key = _file_key(self.dship) if self.dship is not None else None
+        self._read_log()  # recorded as the outlook reads it (log_record)
         arguments = (self.state, self.dship, self.options.forecast, self.voyage.grid)
         keywords = {"store": self.store_path}
         if "B" in self.options.forecast.forecast.options:  # the poles are read

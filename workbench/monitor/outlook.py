@@ -250,6 +250,17 @@ def _ship_log_generation(
     return None if live is None else live.generation
 
 
+def _ship_log_content(
+    path: Path | None, mapping: Mapping[str, str] | None, utc_offset: str | None = None
+) -> tuple[int, str] | None:
+    """The bytes of the ship log :func:`_ship_log` last parsed for these arguments and
+    their SHA-256 (:attr:`~workbench.monitor.ship_log.LiveShipLog.content`), None when it
+    has not read it."""
+    key = (str(path), repr(sorted((mapping or {}).items())), utc_offset)
+    live = _LIVE_LOGS.get(key)
+    return None if live is None else live.content
+
+
 def block_predictors_of(
     tracked: pd.DataFrame,
     dship: Path,

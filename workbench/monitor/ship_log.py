@@ -29,6 +29,7 @@ copies a column a reader writes to, never the buffers).
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 import os
 import re
@@ -174,6 +175,7 @@ class _Read:
     caught: list  # the warnings the whole file's read gives, in order
     empty: list[str]  # the columns without a value so far
     table: _GrowingTable | None = None  # the frame's buffers (None: grown by pd.concat)
+    digest: object = None  # hashlib SHA-256 of the end bytes parsed
 
 
 class LiveShipLog:
@@ -201,6 +203,16 @@ class LiveShipLog:
         self.whole_reads = 0
         self.appended_reads = 0
         self.generation: int | None = None
+
+    @property
+    def content(self) -> tuple[int, str] | None:
+        """What the last read parsed: the bytes through its last line end and their SHA-256
+        (hex); None before the first read and after a failed one. A log that only grew by
+        appended lines starts with those bytes still (what
+        :mod:`workbench.monitor.log_record` checks at a restart)."""
+        if self._last is None:
+            return None
+        return self._last.end, self._last.digest.hexdigest()
 
     def _parse(self, raw: bytes, encoding: str | None = None) -> pd.DataFrame:
         return parse_dship(
@@ -286,6 +298,7 @@ class LiveShipLog:
             caught=list(caught),
             empty=list(frame.columns[frame.isna().all().to_numpy()]) if len(frame) else [],
             table=table,
+            digest=hashlib.sha256(raw[:end]),
         )
         return frame
 
@@ -314,6 +327,8 @@ class LiveShipLog:
         self.appended_reads += 1
         end = last.end + cut
         tail = (last.tail + complete)[-TAIL_CHECK:]
+        digest = last.digest.copy()
+        digest.update(complete)
         self._last = _Read(
             identity=last.identity,
             stamp=stamp,
@@ -326,6 +341,7 @@ class LiveShipLog:
             caught=last.caught,
             empty=last.empty,
             table=last.table,
+            digest=digest,
         )
         return frame
 
