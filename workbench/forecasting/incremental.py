@@ -106,8 +106,9 @@ __all__ = [
 #: rows measured since a hole in the record ended (``since_hole``: a refit keeps the estimate
 #: then); /10: the model-trust hull-wide change test's CUSUM sums, its flag and the block's
 #: measurement (``change_sums``, ``change``, ``measured``); /11: the predictor columns and
-#: matrix hold a direction as its cosine (``wind_dir_rel_cos``), not in degrees.
-CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/11"
+#: matrix hold a direction as its cosine (``wind_dir_rel_cos``), not in degrees; /12: the
+#: model-trust lead test against SSI (``lead_ssi``, ``ssi_scale``, ``ssi_probability``).
+CHECKPOINT_SCHEMA = "workbench.forecasting.incremental/12"
 
 #: Rows kept before the newest committed window beyond the refits' history. [blocks]
 _MARGIN_ROWS = 64
