@@ -288,6 +288,9 @@ def _marking_monitor() -> Monitor:
     monitor._block_shaft_rpm, monitor._shaft_rpm_of_block = {}, {}
     monitor._speed_test, monitor._speed_index, monitor._block_speed = None, np.empty(0, int), {}
     monitor._shaft_hz_per_kn, monitor._speed_of_block = np.nan, {}
+    monitor._shaft_log_note, monitor._shaft_rows, monitor.messages = None, {}, []
+    monitor._orders_at, monitor._orders_kept = np.zeros(0, bool), np.zeros(0, bool)
+    monitor._judge_pending = False
     monitor.options = SimpleNamespace(harmonics=HarmonicOptions())
     # the log only grows (one read generation): its rows are taken once (session 52)
     monitor._live_shaft, monitor._log_generation = None, lambda: 0

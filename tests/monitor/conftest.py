@@ -186,6 +186,9 @@ def marking_monitor(log, harmonics=None):
     monitor._block_shaft_rpm, monitor._shaft_rpm_of_block = {}, {}
     monitor._speed_test, monitor._speed_index, monitor._block_speed = None, np.empty(0, int), {}
     monitor._shaft_hz_per_kn, monitor._speed_of_block = np.nan, {}
+    monitor._shaft_log_note, monitor._shaft_rows, monitor.messages = None, {}, []
+    monitor._orders_at, monitor._orders_kept = np.zeros(0, bool), np.zeros(0, bool)
+    monitor._judge_pending = False
     monitor.options = SimpleNamespace(harmonics=harmonics or HarmonicOptions())
     monitor._read_log = lambda: log
     # the log as given each time (tests of the marks as the log grows give its generation)

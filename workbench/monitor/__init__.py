@@ -205,7 +205,14 @@ readings still open, under 5 min, may yet be a frozen sensor; before, they are m
 again with each block, so they equal ``identify --dship``'s over the whole log, restart
 or not (but for a block marked from the speed: its shaft speed per knot is the log's
 so far). A restart, or a log read whole again, reads and tests it whole once
-(``benchmarks/results/monitor_costs_52.txt``). The forecast of option B (and A with it)
+(``benchmarks/results/monitor_costs_52.txt``). A shaft speed that stays at one value
+while the speed spans a knot is judged against the lines following the speed
+(:func:`~workbench.sid.harmonics.shaft_log_against_speed`) over every block tracked so far
+and the log read so far, again at each block, as ``identify --dship`` judges the voyage
+(the newest blocks alone rarely span a knot); while the log is judged frozen the blocks
+are marked from the speed, and when the verdict turns every tracked block is marked again,
+with a note naming them (``benchmarks/results/frozen_shaft_log_54.txt``). The forecast
+of option B (and A with it)
 reads the store's stabilisation diagrams with the harmonic marks ``identify --dship``
 gives its poles, from the tracked modes the monitor marked.
 

@@ -341,6 +341,15 @@ class Monitor:
         self._block_shaft_rpm: dict[int, float] = {}
         self._shaft_rpm_of_block: dict[int, float] = {}
         self._shaft_logged = False  # a block tracked so far has a usable shaft speed
+        # the logged shaft speed judged against the speed over the blocks tracked so far
+        # (_judge_shaft_log): why it is not used (a frozen log), or None; and each block's
+        # logged shaft speed and speed, once the log's verdicts on its readings are final
+        self._shaft_log_note: str | None = None
+        self._shaft_rows: dict[int, tuple[float, float, float]] = {}
+        # each tracked row's mark at the logged shaft speed's orders, and whether kept
+        self._orders_at = np.zeros(0, dtype=bool)
+        self._orders_kept = np.zeros(0, dtype=bool)
+        self._judge_pending = False  # a block's shaft speed above is not final yet
         self._health_schedule = ""  # from which block the health chart monitors
         self._marks_pending = False
         self._marked: np.ndarray | None = None  # the tracked rows' marks, last given
@@ -1476,6 +1485,11 @@ class Monitor:
             return None
         if "shaft_rpm" not in log.columns or log["shaft_rpm"].isna().all():
             return self._mark_from_speed(frame, log) if "speed_kn" in log.columns else None
+        if self._judge_shaft_log(frame, log):  # a frozen log: as one without a shaft speed
+            marks = self._mark_from_speed(frame, log)
+            # marked again while a block's shaft speed may still change the verdict
+            self._marks_pending = self._marks_pending or self._judge_pending
+            return marks
         from ..sid.harmonics import HarmonicMarker
 
         n = len(frame)
@@ -1491,14 +1505,18 @@ class Monitor:
             part = frame.iloc[pending]
             window, live = self._marking_log(log, part)
             marker = HarmonicMarker(window, self.options.harmonics)
-            marked = marker.mark_selected(part, shaft_logged=self._shaft_logged or None)
+            marked = marker.mark_selected(
+                part, shaft_logged=self._shaft_logged or None, judge_log=False
+            )
             shaft = marker.shaft
             missing = (shaft["shaft_rpm_from"] != "log") & shaft["speed_kn"].notna()
             if window is not log and marker.method == "shaft speed" and missing.any():
                 # a block without a usable shaft speed: the shaft speed per knot of speed
                 # is the whole log's
                 marker = HarmonicMarker(log, self.options.harmonics)
-                marked = marker.mark_selected(part, shaft_logged=self._shaft_logged or None)
+                marked = marker.mark_selected(
+                    part, shaft_logged=self._shaft_logged or None, judge_log=False
+                )
             if marker.method == "shaft speed" and not self._shaft_logged:
                 # the voyage's blocks have a shaft speed: those marked before without one
                 # (by the speed-following test over their part) are marked again with it
@@ -1541,6 +1559,115 @@ class Monitor:
         self._shaft_rpm_of_block = {**self._block_shaft_rpm, **pending_rpm}
         self._marks, self._marks_kept = harmonic, kept
         return harmonic
+
+    def _judge_shaft_log(self, frame: pd.DataFrame, log: pd.DataFrame) -> str | None:
+        """Whether the logged shaft speed is not used (a frozen log): a line naming the
+        column (:func:`~workbench.sid.harmonics.shaft_log_against_speed`), else None, judged
+        as ``identify --dship`` judges the voyage: over every block tracked so far
+        (*frame*, the selected modes) and the log read so far, not over the newest blocks
+        (whose speed rarely spans the knot the test asks for).
+
+        Judged again at every call, so the verdict at the end is the batch run's on the
+        same files: a verdict taken once, early, would hold one drawn from fewer blocks
+        (the log steady, the speed not yet spanning a knot, the modes not yet counted).
+        When it changes, every tracked row is marked again (:meth:`_mark_harmonics` keeps
+        no mark of the other verdict) and a note says so, naming the blocks marked before.
+
+        Each block's logged shaft speed and speed (:func:`~workbench.sid.harmonics.
+        block_shaft_table`) are kept once the log's verdicts on its readings are final; the
+        modes are compared only while those stay steady over a knot of speed
+        (:func:`~workbench.sid.harmonics.steady_shaft_log`), which a log following the
+        shaft fails at the cost of a percentile over the blocks. The comparison takes each
+        row's order mark once its block is final (:meth:`_at_orders`) and the modes
+        following the speed from the speed-following test kept as blocks come
+        (:meth:`_mark_from_speed`), so a steady shaft (a controllable-pitch propeller) costs
+        the new blocks' rows, not the voyage's, at each call."""
+        from ..sid.harmonics import block_shaft_table, frozen_shaft_log, steady_shaft_log
+
+        blocks = frame[["block", "block_start", "block_end"]].drop_duplicates("block")
+        numbers = blocks["block"].astype(int).to_numpy()
+        unknown = blocks[~np.isin(numbers, list(self._shaft_rows))]
+        pending: dict[int, tuple[float, float, float]] = {}
+        if len(unknown):
+            window, live = self._marking_log(log, unknown)
+            table = block_shaft_table(window, unknown)
+            ends = pd.to_datetime(unknown["block_end"], utc=True)
+            final = (ends <= _newest_time(log)).to_numpy() & live.settled(
+                unknown["block_start"], unknown["block_end"]
+            )
+            values = table[["shaft_rpm", "speed_kn", "speed_energy_kn"]].to_numpy(float)
+            for block, row, kept in zip(table["block"].astype(int), values, final, strict=True):
+                (self._shaft_rows if kept else pending)[int(block)] = tuple(row)
+        self._judge_pending = bool(pending)
+        rows = {**self._shaft_rows, **pending}
+        shaft = pd.DataFrame(
+            np.array([rows[int(b)] for b in numbers], dtype=float).reshape(-1, 3),
+            columns=["shaft_rpm", "speed_kn", "speed_energy_kn"],
+        )
+        steady = steady_shaft_log(shaft)
+        note = None
+        if steady is not None:
+            following = np.isfinite(self._mark_from_speed(frame, log)[:, 0])
+            at_orders = self._at_orders(frame, log)
+            note = frozen_shaft_log(steady, at_orders, following, self.options.harmonics)
+        if (note is None) != (self._shaft_log_note is None):
+            self._said_shaft_log(note, numbers)
+        self._shaft_log_note = note  # with the newest counts
+        return note
+
+    def _at_orders(self, frame: pd.DataFrame, log: pd.DataFrame) -> np.ndarray:
+        """Per row of *frame* (the tracked selected modes): whether it sits at an order of
+        the logged shaft speed (:func:`~workbench.sid.harmonics.mark_shaft_orders`), a
+        block's rows kept once the log's verdicts on its readings are final."""
+        from ..sid.harmonics import mark_shaft_orders
+
+        n = len(frame)
+        at = np.zeros(n, dtype=bool)
+        kept = np.zeros(n, dtype=bool)
+        if len(self._orders_kept) <= n:  # else a new tracker: every row again
+            at[: len(self._orders_at)] = self._orders_at
+            kept[: len(self._orders_kept)] = self._orders_kept
+        pending = np.flatnonzero(~kept)
+        if len(pending):
+            part = frame.iloc[pending]
+            window, live = self._marking_log(log, part)
+            marks = mark_shaft_orders(part, window, self.options.harmonics)
+            at[pending] = marks.notna().to_numpy()
+            blocks = part[["block", "block_start", "block_end"]].drop_duplicates("block")
+            ends = pd.to_datetime(blocks["block_end"], utc=True)
+            final = (ends <= _newest_time(log)).to_numpy() & live.settled(
+                blocks["block_start"], blocks["block_end"]
+            )
+            kept[pending] = np.isin(part["block"].to_numpy(), blocks["block"].to_numpy()[final])
+        self._orders_at, self._orders_kept = at, kept
+        return at
+
+    def _said_shaft_log(self, note: str | None, blocks: np.ndarray) -> None:
+        """The verdict on the logged shaft speed changed to *note* (None: used): a note
+        saying so, naming the tracked *blocks* whose marks are given again; the marks and
+        the state of the other verdict are dropped, so every row is marked again."""
+        earlier = self._shaft_log_note is not None or len(self._marks_kept) > 0
+        self._shaft_log_note = note
+        self._marks, self._marks_kept = np.empty((0, 3)), np.zeros(0, dtype=bool)
+        self._block_shaft_rpm, self._shaft_rpm_of_block = {}, {}
+        self._shaft_logged = False
+        if note is None and not earlier:
+            return
+        span = f"blocks {int(blocks.min())}-{int(blocks.max())}"
+        if note is None:
+            message = (
+                "ship log: shaft_rpm: the logged shaft speed is used again (with the blocks "
+                f"tracked so far it is no longer contradicted by the speed); the harmonics of "
+                f"{span} are marked again from it"
+            )
+        else:
+            message = f"ship log: {note}"
+            if earlier:
+                message += (
+                    f"; the harmonics of {span}, marked from the logged shaft speed before, "
+                    "are marked again from the speed"
+                )
+        self._report(message)
 
     def _mark_from_speed(self, frame: pd.DataFrame, log: pd.DataFrame) -> np.ndarray:
         """:meth:`_mark_harmonics` from a ship log with the speed but no shaft speed: the
@@ -1643,7 +1770,11 @@ class Monitor:
 
         shaft = tracked[["block", "block_start"]].drop_duplicates("block")
         blocks = shaft["block"].astype(int)
-        if "shaft_rpm" in log.columns and log["shaft_rpm"].notna().any():
+        if (
+            "shaft_rpm" in log.columns
+            and log["shaft_rpm"].notna().any()
+            and self._shaft_log_note is None
+        ):
             rate_hz = blocks.map(self._shaft_rpm_of_block).to_numpy(float) / 60.0
         elif "speed_kn" in log.columns and np.isfinite(self._shaft_hz_per_kn):
             rate_hz = self._shaft_hz_per_kn * blocks.map(self._speed_of_block).to_numpy(float)

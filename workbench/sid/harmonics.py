@@ -73,6 +73,8 @@ __all__ = [
     "mark_harmonics",
     "shaft_rate_per_knot",
     "shaft_log_against_speed",
+    "steady_shaft_log",
+    "frozen_shaft_log",
     "usable_shaft_speed",
     "mark_poles",
     "mark_shaft_orders",
@@ -917,6 +919,26 @@ def mark_speed_following(
     return out
 
 
+def steady_shaft_log(shaft: pd.DataFrame) -> tuple[float, float, float] | None:
+    """Whether the blocks' logged shaft speed (*shaft*, :func:`block_shaft_table`) stays
+    within :data:`STEADY_SHAFT_SCATTER` (10-90 % range over median) while their mean speed
+    spans :data:`SPEED_RANGE_KN` or more (10-90 % range): the median shaft speed [rpm] and
+    the 10 and 90 % speeds [kn] when it does (the log is then checked against the speed,
+    :func:`shaft_log_against_speed`), else None."""
+    rpm = shaft["shaft_rpm"].to_numpy(float)
+    speed = shaft["speed_kn"].to_numpy(float)
+    rpm, speed = rpm[np.isfinite(rpm)], speed[np.isfinite(speed)]
+    if len(rpm) < 2 or len(speed) < 2:
+        return None
+    low, middle, high = np.percentile(rpm, [10, 50, 90])
+    speed_low, speed_high = np.percentile(speed, [10, 90])
+    if not (middle > 0 and high - low <= STEADY_SHAFT_SCATTER * middle):
+        return None
+    if speed_high - speed_low < SPEED_RANGE_KN:
+        return None
+    return float(middle), float(speed_low), float(speed_high)
+
+
 def shaft_log_against_speed(
     selected: pd.DataFrame,
     log: pd.DataFrame,
@@ -935,7 +957,8 @@ def shaft_log_against_speed(
 
     Checked when the blocks' logged shaft speed (*shaft*, :func:`block_shaft_table`)
     scatters by at most :data:`STEADY_SHAFT_SCATTER` (10-90 % range over median) while
-    their mean speed spans :data:`SPEED_RANGE_KN` or more (10-90 % range). The two
+    their mean speed spans :data:`SPEED_RANGE_KN` or more (10-90 % range,
+    :func:`steady_shaft_log`). The two
     explanations are compared on the modes each marks and the other does not: n_log
     (at an order of the logged shaft speed, :func:`mark_shaft_orders`, not following the
     speed) and n_speed (following the speed, at no logged order). A line whose
@@ -944,19 +967,27 @@ def shaft_log_against_speed(
     judged unusable, when n_speed >= ``min_rows`` and n_speed >= n_log.
     """
     options = options or HarmonicOptions()
-    rpm = shaft["shaft_rpm"].to_numpy(float)
-    speed = shaft["speed_kn"].to_numpy(float)
-    rpm, speed = rpm[np.isfinite(rpm)], speed[np.isfinite(speed)]
-    if len(rpm) < 2 or len(speed) < 2:
-        return None
-    low, middle, high = np.percentile(rpm, [10, 50, 90])
-    speed_low, speed_high = np.percentile(speed, [10, 90])
-    if not (middle > 0 and high - low <= STEADY_SHAFT_SCATTER * middle):
-        return None
-    if speed_high - speed_low < SPEED_RANGE_KN:
+    steady = steady_shaft_log(shaft)
+    if steady is None:
         return None
     at_orders = mark_shaft_orders(selected, log, options).notna().to_numpy()
     following = mark_speed_following(selected, shaft, options).notna().to_numpy()
+    return frozen_shaft_log(steady, at_orders, following, options)
+
+
+def frozen_shaft_log(
+    steady: tuple[float, float, float],
+    at_orders: np.ndarray,
+    following: np.ndarray,
+    options: HarmonicOptions | None = None,
+) -> str | None:
+    """The verdict of :func:`shaft_log_against_speed` from its parts: *steady*
+    (:func:`steady_shaft_log`), and per selected mode whether it sits at an order of the
+    logged shaft speed (*at_orders*, :func:`mark_shaft_orders`) and whether it follows the
+    speed (*following*, :func:`mark_speed_following`)."""
+    options = options or HarmonicOptions()
+    middle, speed_low, speed_high = steady
+    at_orders, following = np.asarray(at_orders, bool), np.asarray(following, bool)
     n_log = int((at_orders & ~following).sum())
     n_speed = int((following & ~at_orders).sum())
     if n_speed < options.min_rows or n_speed < n_log:
@@ -1100,7 +1131,7 @@ class HarmonicMarker:
         self.shaft_log_note: str | None = None
 
     def mark_selected(
-        self, selected: pd.DataFrame, *, shaft_logged: bool | None = None
+        self, selected: pd.DataFrame, *, shaft_logged: bool | None = None, judge_log: bool = True
     ) -> pd.DataFrame:
         """*selected* with its ``harmonic``, ``harmonic_frequency_hz`` and
         ``harmonic_checked`` columns.
@@ -1115,6 +1146,11 @@ class HarmonicMarker:
         of *selected*, the voyage). True for a part of the voyage (the monitor's newest
         blocks) marks it from the shaft speed, estimated from the speed where the part has
         none, as the whole voyage would be, not by the speed-following test over the part.
+
+        *judge_log*: whether a steady logged shaft speed is checked against the speed
+        (:func:`shaft_log_against_speed`, with *shaft_logged* None). False where the caller
+        judged the log over the voyage (the monitor, whose *selected* is its newest blocks:
+        their speed rarely spans a knot).
         """
         selected = selected.copy()
         selected["harmonic"] = np.nan
@@ -1130,7 +1166,7 @@ class HarmonicMarker:
             shaft_logged = bool(self.shaft["shaft_rpm"].notna().any())
             self.shaft_log_note = (
                 shaft_log_against_speed(selected, self.log, self.shaft, self.options)
-                if shaft_logged
+                if shaft_logged and judge_log
                 else None
             )
             if self.shaft_log_note:
