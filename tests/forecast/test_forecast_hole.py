@@ -82,6 +82,16 @@ def test_a_mode_absent_from_blocks_with_data_is_still_left_out():
     assert "modes [2, 3] left out: measured in fewer than 50 % of the blocks" in result.lines
 
 
+def _gain_after_hole(table: pd.DataFrame, truth: np.ndarray) -> float:
+    """Kalman against SSI over the 2 h after the hole of :func:`_departure_in_a_hole`
+    (blocks 60-83), 100 (1 - sum|K - f| / sum|SSI - f|) [%]."""
+    rows = table[table["block"].between(60, 83)]
+    true = truth[rows["block"].to_numpy(), rows["mode"].to_numpy() - 1]
+    kalman = np.abs(rows["kalman_frequency_hz"].to_numpy() - true).sum()
+    ssi = np.abs(rows["ssi_frequency_hz"].to_numpy() - true).sum()
+    return 100.0 * (1.0 - kalman / ssi)
+
+
 def _departure_in_a_hole(
     seed: int = 0, slows: bool = False
 ) -> tuple[pd.DataFrame, pd.DataFrame, np.ndarray]:
@@ -157,11 +167,7 @@ def test_after_a_hole_the_blend_is_no_worse_than_ssi():
     for seed in range(4):
         modal, predictors, truth = _departure_in_a_hole(seed)
         table = forecast(modal, predictors, options=ForecastOptions(options=("A",))).table
-        rows = table[table["block"].between(60, 83)]
-        true = truth[rows["block"].to_numpy(), rows["mode"].to_numpy() - 1]
-        kalman = np.abs(rows["kalman_frequency_hz"].to_numpy() - true).sum()
-        ssi = np.abs(rows["ssi_frequency_hz"].to_numpy() - true).sum()
-        gains.append(100.0 * (1.0 - kalman / ssi))
+        gains.append(_gain_after_hole(table, truth))
         assert (table.loc[table["block"] == 60, "model_probability"] <= 0.2).all()
     assert min(gains) > 15.0 and np.median(gains) > 20.0
 
@@ -255,9 +261,5 @@ def test_after_a_hole_the_estimate_follows_a_ship_that_slows_at_once():
     for seed in range(6):
         modal, predictors, truth = _departure_in_a_hole(seed, slows=True)
         table = forecast(modal, predictors, options=ForecastOptions(options=("A",))).table
-        rows = table[table["block"].between(60, 83)]
-        true = truth[rows["block"].to_numpy(), rows["mode"].to_numpy() - 1]
-        kalman = np.abs(rows["kalman_frequency_hz"].to_numpy() - true).sum()
-        ssi = np.abs(rows["ssi_frequency_hz"].to_numpy() - true).sum()
-        gains.append(100.0 * (1.0 - kalman / ssi))
+        gains.append(_gain_after_hole(table, truth))
     assert min(gains) > -10.0 and np.median(gains) > 5.0

@@ -100,6 +100,15 @@ def _monitor(watch, state):
     )
 
 
+def _watched(tmp_path, stamps):
+    """The voyage's files written with *stamps* into a source folder; an empty watch folder
+    and a state folder beside it: (files, watch, state)."""
+    files = _write(tmp_path / "source", stamps)
+    watch, state = tmp_path / "watch", tmp_path / "state"
+    watch.mkdir()
+    return files, watch, state
+
+
 def _land(monitor, files, watch, *, flush: bool) -> None:
     for path in files:
         shutil.copy(path, watch / path.name)
@@ -114,9 +123,7 @@ def test_the_monitor_says_a_decided_blocks_cut_moved_by_later_files(tmp_path):
     last sample. The other 12 files land: the line of all the files cuts block 4 at its
     label's UTC, 250 ms (4 samples of the 62.5-ms analysis lattice) later. The block is
     kept as decided and that is said once; the cut it was decided from is in the store."""
-    files = _write(tmp_path / "source", _drifting(100))
-    watch, state = tmp_path / "watch", tmp_path / "state"
-    watch.mkdir()
+    files, watch, state = _watched(tmp_path, _drifting(100))
     monitor = _monitor(watch, state)
     try:
         _land(monitor, files[:12], watch, flush=True)
@@ -141,9 +148,7 @@ def test_the_monitor_says_a_decided_blocks_cut_moved_by_later_files(tmp_path):
 def test_a_restarted_monitor_judges_the_cut_it_stored(tmp_path):
     """As above, the monitor stopped after the first flush and started again before the
     other files land: the cut is read from the store, and the moved cut said."""
-    files = _write(tmp_path / "source", _drifting(100))
-    watch, state = tmp_path / "watch", tmp_path / "state"
-    watch.mkdir()
+    files, watch, state = _watched(tmp_path, _drifting(100))
     monitor = _monitor(watch, state)
     try:
         _land(monitor, files[:12], watch, flush=True)
@@ -162,9 +167,7 @@ def test_the_monitor_says_nothing_of_cuts_within_the_tolerance(tmp_path):
     """20 ppm fast with jitter, the files landing one by one: the line refits as they
     land, moving the cuts of blocks not decided yet (normal) and of decided ones by at
     most a sample: nothing is said."""
-    files = _write(tmp_path / "source", _drifting(20) + JITTER_S)
-    watch, state = tmp_path / "watch", tmp_path / "state"
-    watch.mkdir()
+    files, watch, state = _watched(tmp_path, _drifting(20) + JITTER_S)
     monitor = _monitor(watch, state)
     try:
         _land(monitor, files, watch, flush=True)
@@ -217,9 +220,7 @@ def test_the_adaptive_monitor_judges_the_cuts_it_stored(tmp_path):
     the data's last sample; the line of all 24 files cuts them at their labels' UTC, up to
     312.5 ms (5 analysis samples) later. Said once, from the cuts and lengths in the store
     (before: nothing said, the fixed-block check not run with varying lengths)."""
-    files = _write(tmp_path / "source", _drifting(100))
-    watch, state = tmp_path / "watch", tmp_path / "state"
-    watch.mkdir()
+    files, watch, state = _watched(tmp_path, _drifting(100))
     monitor = _auto_monitor(watch, state)
     try:
         _land(monitor, files[:12], watch, flush=True)
